@@ -1,0 +1,194 @@
+"""The drum kit: one description read by physics, interaction, sound and graphics.
+
+Frame: metres, z up, the drummer sits at the origin facing +y, +x is the
+drummer's right. Each kit object has a centre and a rotation (degrees, roll
+pitch yaw, extrinsic x-y-z) that turns the object's local frame, whose +z is
+the playing surface's outward normal, into the world frame.
+
+Drum event types (Kragtwijk et al. 2001) map to an object, a hit point on it
+(r/a, theta), a preferred limb, a minimum time gap and an elasticity.
+"""
+
+from __future__ import annotations
+
+import enum
+import json
+import math
+from pathlib import Path
+from typing import Annotated, Literal
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+KITS_DIR = Path(__file__).parent / "kits"
+
+
+class EventType(enum.StrEnum):
+    """The 15 drum event types of Kragtwijk, Nijholt and Zwiers (2001)."""
+
+    BASS = "BASS"
+    SNARE = "SNARE"
+    RIM = "RIM"
+    HIGHTOM = "HIGHTOM"
+    MIDTOM = "MIDTOM"
+    FLOORTOM = "FLOORTOM"
+    CRASH = "CRASH"
+    RIDE = "RIDE"
+    RIDEBELL = "RIDEBELL"
+    SPLASH = "SPLASH"
+    CHINA = "CHINA"
+    HIHATOPEN = "HIHATOPEN"
+    HIHATCLOSED = "HIHATCLOSED"
+    HIHATPEDAL = "HIHATPEDAL"
+    COWBELL = "COWBELL"
+
+
+class Limb(enum.StrEnum):
+    LEFT_HAND = "left_hand"
+    RIGHT_HAND = "right_hand"
+    LEFT_FOOT = "left_foot"
+    RIGHT_FOOT = "right_foot"
+
+
+ObjectKind = Literal["membrane", "cymbal", "hihat", "bell", "pedal", "throne", "stand"]
+Vec3 = tuple[float, float, float]
+Unit = Annotated[float, Field(ge=0.0, le=1.0)]
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class KitObject(_Strict):
+    """A physical object of the kit."""
+
+    id: str = Field(pattern=r"^[a-z][a-z0-9_]*$", description="unique id, used in OSC messages")
+    kind: ObjectKind
+    position: Vec3 = Field(description="centre of the playing surface, metres (world)")
+    rotation_deg: Vec3 = Field(default=(0.0, 0.0, 0.0), description="roll, pitch, yaw, degrees")
+    radius: float = Field(gt=0, le=1.0, description="radius of the head or cymbal, metres")
+    depth: float = Field(default=0.0, ge=0, le=1.0, description="shell depth or bell height, metres")
+    thickness: float = Field(default=0.002, gt=0, le=0.1, description="cymbal or head thickness, metres")
+    elasticity: Unit = Field(default=0.6, description="restitution of a stick strike, 0..1")
+    bell_radius: float = Field(default=0.0, ge=0, description="cymbal bell radius, metres (0: none)")
+    opening: Unit = Field(default=0.3, description="hi-hat opening at rest, 0 closed ... 1 open")
+
+    def normal(self) -> Vec3:
+        """World direction of the local +z axis (the playing surface's normal)."""
+        r, p, y = (math.radians(a) for a in self.rotation_deg)
+        # R = Rz(yaw) Ry(pitch) Rx(roll); third column
+        nx = math.cos(y) * math.sin(p) * math.cos(r) + math.sin(y) * math.sin(r)
+        ny = math.sin(y) * math.sin(p) * math.cos(r) - math.cos(y) * math.sin(r)
+        nz = math.cos(p) * math.cos(r)
+        return (nx, ny, nz)
+
+
+class EventSpec(_Strict):
+    """How one drum event type is played on this kit."""
+
+    object: str = Field(description="id of the kit object struck")
+    r: Annotated[float, Field(ge=0, le=1.2)] = Field(description="hit point radius, r/a")
+    theta: float = Field(default=0.0, description="hit point angle in the object frame, radians")
+    zone: str = Field(default="centre", description="zone name: centre, edge, rim, bell, bow, ...")
+    preferred: Limb = Field(description="limb that plays it by default")
+    min_time_gap: float = Field(gt=0, le=2, description="shortest interval one limb can repeat it, seconds")
+
+
+class Kit(_Strict):
+    """A whole kit: objects, how each event type is played, pair-wise hand preferences."""
+
+    name: str
+    handedness: Literal["right", "left"] = "right"
+    objects: list[KitObject]
+    events: dict[EventType, EventSpec]
+    pair_preference: dict[str, Annotated[float, Field(ge=-1, le=1)]] = Field(
+        default_factory=dict,
+        description="'A,B' -> pair(A, B) in [-1, 1]: -1 A left / B right, +1 A right / B left",
+    )
+    double_pedal: bool = False
+
+    @model_validator(mode="after")
+    def _check_refs(self) -> Kit:
+        ids = [o.id for o in self.objects]
+        if len(ids) != len(set(ids)):
+            raise ValueError("kit object ids must be unique")
+        for event, spec in self.events.items():
+            if spec.object not in ids:
+                raise ValueError(f"event {event.value} refers to unknown object {spec.object!r}")
+        for key in self.pair_preference:
+            parts = key.split(",")
+            if len(parts) != 2 or any(p not in EventType.__members__ for p in parts):
+                raise ValueError(f"pair_preference key {key!r} must be 'EVENT,EVENT'")
+        return self
+
+    def object(self, object_id: str) -> KitObject:
+        for o in self.objects:
+            if o.id == object_id:
+                return o
+        raise KeyError(f"kit {self.name!r} has no object {object_id!r}")
+
+    def pair(self, a: EventType, b: EventType) -> float:
+        """pair(a, b) in [-1, 1]; antisymmetric, 0 when unspecified."""
+        if f"{a.value},{b.value}" in self.pair_preference:
+            return self.pair_preference[f"{a.value},{b.value}"]
+        if f"{b.value},{a.value}" in self.pair_preference:
+            return -self.pair_preference[f"{b.value},{a.value}"]
+        return 0.0
+
+    def mirrored(self) -> Kit:
+        """The left-handed setup: x mirrored, hands and feet swapped."""
+        swap = {
+            Limb.LEFT_HAND: Limb.RIGHT_HAND,
+            Limb.RIGHT_HAND: Limb.LEFT_HAND,
+            Limb.LEFT_FOOT: Limb.RIGHT_FOOT,
+            Limb.RIGHT_FOOT: Limb.LEFT_FOOT,
+        }
+        objects = [
+            o.model_copy(
+                update={
+                    "position": (-o.position[0], o.position[1], o.position[2]),
+                    "rotation_deg": (o.rotation_deg[0], -o.rotation_deg[1], -o.rotation_deg[2]),
+                }
+            )
+            for o in self.objects
+        ]
+        events = {
+            e: s.model_copy(update={"preferred": swap[s.preferred], "theta": math.pi - s.theta})
+            for e, s in self.events.items()
+        }
+        pairs = {k: -v for k, v in self.pair_preference.items()}
+        return Kit(
+            name=f"{self.name}-mirrored",
+            handedness="left" if self.handedness == "right" else "right",
+            objects=objects,
+            events=events,
+            pair_preference=pairs,
+            double_pedal=self.double_pedal,
+        )
+
+
+def load_kit(source: str | Path = "default") -> Kit:
+    """Load a kit by shipped name (``default``) or from a YAML/JSON file path.
+
+    Raises ``FileNotFoundError`` for an unknown name or path and
+    ``ValueError`` with pydantic's explanation for an invalid file.
+    """
+    path = Path(source)
+    if not path.suffix:
+        path = KITS_DIR / f"{source}.yaml"
+    if not path.is_file():
+        shipped = sorted(p.stem for p in KITS_DIR.glob("*.yaml"))
+        raise FileNotFoundError(f"no kit file {str(source)!r} (shipped kits: {', '.join(shipped)})")
+    text = path.read_text(encoding="utf-8")
+    data = json.loads(text) if path.suffix == ".json" else yaml.safe_load(text)
+    kit = Kit.model_validate(data)
+    return kit
+
+
+def save_kit(kit: Kit, path: Path) -> None:
+    """Write a kit as YAML (or JSON when the path ends in .json)."""
+    data = kit.model_dump(mode="json")
+    if path.suffix == ".json":
+        path.write_text(json.dumps(data, indent=2), encoding="utf-8")
+    else:
+        path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")

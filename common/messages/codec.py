@@ -1,0 +1,125 @@
+"""Encode typed messages to OSC packets and decode packets back, with python-osc.
+
+python-osc builds and parses the bytes; this module adds the registry lookup,
+validation and one :class:`~common.messages.base.DropReason` per failure.
+Bundles are accepted (nested too); their timetags are ignored, because timed
+messages carry their time as an explicit argument (ARCHITECTURE.md, Messages).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+
+from pythonosc.osc_bundle_builder import IMMEDIATELY, OscBundleBuilder
+from pythonosc.osc_message import OscMessage as PyOscMessage
+from pythonosc.osc_message_builder import OscMessageBuilder
+from pythonosc.osc_packet import OscPacket, ParseError
+
+from common.messages.base import Arg, DropReason, MessageError, OscMessage
+from common.messages.registry import REGISTRY, MessageRegistry
+
+
+def _build(address: str, args: Sequence[Arg]) -> PyOscMessage:
+    builder = OscMessageBuilder(address=address)
+    for arg in args:
+        if isinstance(arg, bool):
+            builder.add_arg(int(arg), OscMessageBuilder.ARG_TYPE_INT)
+        elif isinstance(arg, int):
+            builder.add_arg(arg, OscMessageBuilder.ARG_TYPE_INT)
+        elif isinstance(arg, float):
+            builder.add_arg(arg, OscMessageBuilder.ARG_TYPE_FLOAT)
+        elif isinstance(arg, str):
+            builder.add_arg(arg, OscMessageBuilder.ARG_TYPE_STRING)
+        else:
+            raise TypeError(f"{address}: argument {arg!r} is not int, float or str")
+    return builder.build()
+
+
+def encode_raw(address: str, args: Sequence[Arg]) -> bytes:
+    """One OSC message from an address and plain arguments (ints as i, floats as f)."""
+    return bytes(_build(address, args).dgram)
+
+
+def encode(message: OscMessage) -> bytes:
+    """The OSC packet for one typed message."""
+    return encode_raw(message.ADDRESS, message.to_args())
+
+
+def encode_bundle(messages: Iterable[OscMessage], timetag: float | None = None) -> bytes:
+    """Several messages in one OSC bundle (timetag: Unix time in seconds, or immediately)."""
+    builder = OscBundleBuilder(IMMEDIATELY if timetag is None else timetag)  # type: ignore[arg-type]
+    for message in messages:
+        builder.add_content(_build(message.ADDRESS, message.to_args()))  # type: ignore[arg-type]
+    return bytes(builder.build().dgram)
+
+
+@dataclass
+class RawMessage:
+    """A parsed OSC message before it is matched to a model."""
+
+    address: str
+    args: list[Arg]
+
+
+@dataclass
+class Decoded:
+    """What one datagram held: valid typed messages and the errors of the rest."""
+
+    messages: list[OscMessage] = field(default_factory=list)
+    errors: list[MessageError] = field(default_factory=list)
+
+
+def parse_packet(data: bytes) -> list[RawMessage]:
+    """Parse an OSC packet (message or bundle) into raw messages; raise MessageError if malformed."""
+    try:
+        packet = OscPacket(data)
+    except ParseError as exc:
+        raise MessageError(DropReason.MALFORMED, str(exc) or "unparseable OSC packet") from None
+    except Exception as exc:  # python-osc raises assorted errors on truncated data
+        raise MessageError(DropReason.MALFORMED, f"{type(exc).__name__}: {exc}") from None
+    out: list[RawMessage] = []
+    for timed in packet.messages:
+        msg = timed.message
+        args: list[Arg] = []
+        for p in msg.params:
+            if isinstance(p, (bool, int, float, str)):
+                args.append(int(p) if isinstance(p, bool) else p)
+            else:  # blobs, MIDI, nil...: the model check reports a wrong type
+                args.append(_Unsupported(p))  # type: ignore[arg-type]
+        out.append(RawMessage(address=msg.address, args=args))
+    return out
+
+
+class _Unsupported:
+    """An OSC argument of a type Batteur never uses (blob, MIDI, nil, ...)."""
+
+    def __init__(self, value: object) -> None:
+        self.value = value
+
+    def __repr__(self) -> str:
+        return f"<unsupported OSC argument {self.value!r}>"
+
+
+def to_model(raw: RawMessage, registry: MessageRegistry = REGISTRY) -> OscMessage:
+    """Validate a raw message against the model registered at its address."""
+    model = registry.get(raw.address)
+    if model is None:
+        raise MessageError(DropReason.UNKNOWN_ADDRESS, "no message is registered here", raw.address)
+    return model.from_args(raw.args)
+
+
+def decode(data: bytes, registry: MessageRegistry = REGISTRY) -> Decoded:
+    """Decode one datagram. Never raises: failures are returned per message."""
+    result = Decoded()
+    try:
+        raws = parse_packet(data)
+    except MessageError as exc:
+        result.errors.append(exc)
+        return result
+    for raw in raws:
+        try:
+            result.messages.append(to_model(raw, registry))
+        except MessageError as exc:
+            result.errors.append(exc)
+    return result

@@ -1,0 +1,64 @@
+"""Contacts (physics -> interaction) and impacts (interaction -> sound, graphics)."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from pydantic import Field
+
+from common.messages.base import Family, OscMessage, RigTime
+from common.messages.registry import register
+
+Name = Annotated[str, Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_.-]+$")]
+
+
+@register
+class Contact(OscMessage):
+    """One physics step of contact between a striker part and an instrument.
+
+    Sent every step while in contact. Positions in metres, normal a unit vector
+    pointing from the instrument towards the striker.
+    """
+
+    ADDRESS = "/batteur/contact"
+    FAMILY = Family.CONTACTS
+
+    time: RigTime = Field(description="rig time of the physics step, seconds")
+    step: int = Field(ge=0, description="physics step index")
+    instrument: Name = Field(description="kit object id (e.g. snare, ride)")
+    part: Name = Field(description="striker part (e.g. right_stick_tip, kick_beater)")
+    x: float = Field(description="world position x, metres")
+    y: float = Field(description="world position y, metres")
+    z: float = Field(description="world position z, metres")
+    local_x: float = Field(description="position in the instrument frame x, metres")
+    local_y: float = Field(description="position in the instrument frame y, metres")
+    local_z: float = Field(description="position in the instrument frame z, metres")
+    normal_x: float = Field(ge=-1.0001, le=1.0001, description="contact normal x")
+    normal_y: float = Field(ge=-1.0001, le=1.0001, description="contact normal y")
+    normal_z: float = Field(ge=-1.0001, le=1.0001, description="contact normal z")
+    normal_velocity: float = Field(description="relative normal approach velocity, m/s (positive: closing)")
+    impulse: float = Field(ge=0, description="normal impulse during this step, newton-seconds")
+    normal_force: float = Field(ge=0, description="normal force during this step, newtons")
+
+
+@register
+class Impact(OscMessage):
+    """One strike on an instrument, segmented from the contact stream.
+
+    Sent redundantly with the same ``seq``; receivers de-duplicate on it.
+    """
+
+    ADDRESS = "/batteur/impact"
+    FAMILY = Family.IMPACTS
+
+    seq: int = Field(ge=0, description="impact sequence number (per interaction node)")
+    time: RigTime = Field(description="rig time of first contact, seconds")
+    instrument: Name = Field(description="kit object id")
+    zone: Name = Field(description="zone struck: centre, edge, rim, bell, bow, ...")
+    r: float = Field(ge=0, le=2, description="radial strike position r/a (0 centre, 1 edge)")
+    theta: float = Field(ge=-7, le=7, description="strike angle in the instrument frame, radians")
+    velocity: float = Field(ge=0, le=100, description="normal velocity before contact, m/s")
+    impulse: float = Field(ge=0, description="total normal impulse, newton-seconds")
+    peak_force: float = Field(ge=0, description="peak normal force, newtons")
+    duration: float = Field(ge=0, le=1, description="contact duration, seconds")
+    part: Name = Field(description="striker part (e.g. right_stick_tip)")

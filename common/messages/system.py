@@ -1,0 +1,82 @@
+"""Messages every node speaks: hello, health and the clock exchange."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from pydantic import Field
+
+from common.messages.base import Family, OscMessage, RigTime
+from common.messages.registry import register
+
+PROTOCOL_VERSION = 1
+"""Batteur OSC protocol version. Bump when a message's arguments change meaning."""
+
+NodeId = Annotated[str, Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_.:-]+$")]
+Role = Annotated[str, Field(min_length=1, max_length=32, pattern=r"^[a-z][a-z0-9_-]*$")]
+Count = Annotated[int, Field(ge=0)]
+
+
+@register
+class Hello(OscMessage):
+    """A node announces itself (sent at start and to newly found peers)."""
+
+    ADDRESS = "/batteur/hello"
+    FAMILY = Family.HEALTH
+
+    role: Role = Field(description="service role: physics, interaction, sound, graphics, ...")
+    node_id: NodeId = Field(description="unique id of the node process")
+    protocol: int = Field(ge=0, description="Batteur OSC protocol version")
+    osc_port: int = Field(ge=0, le=65535, description="UDP port the node receives OSC on")
+
+
+@register
+class Health(OscMessage):
+    """Health of one node, published at 1 Hz."""
+
+    ADDRESS = "/batteur/health"
+    FAMILY = Family.HEALTH
+
+    node_id: NodeId = Field(description="unique id of the node process")
+    role: Role = Field(description="service role")
+    protocol: int = Field(ge=0, description="Batteur OSC protocol version")
+    time: RigTime = Field(description="rig time of this report, seconds")
+    rate_hz: float = Field(ge=0, description="loop rate achieved over the last interval, Hz")
+    target_rate_hz: float = Field(ge=0, description="configured loop rate, Hz (0: event-driven)")
+    overruns: Count = Field(description="loop iterations that overran their period, total")
+    messages_in: Count = Field(description="valid messages received, total")
+    messages_out: Count = Field(description="messages sent, total")
+    dropped: Count = Field(description="messages dropped for any reason, total")
+    dropped_malformed: Count = Field(description="dropped: unparseable packets")
+    dropped_unknown: Count = Field(description="dropped: unknown address")
+    dropped_type: Count = Field(description="dropped: wrong argument count or type")
+    dropped_range: Count = Field(description="dropped: value out of range")
+    dropped_other: Count = Field(description="dropped: oversize, not allowed, rate limited, handler error")
+    late: Count = Field(description="service-specific late events (e.g. late strikes), total")
+    peers: Count = Field(description="peers currently known")
+
+
+@register
+class ClockPing(OscMessage):
+    """Asks the rig clock master for the rig time (NTP-like exchange)."""
+
+    ADDRESS = "/batteur/clock/ping"
+    FAMILY = Family.CLOCK
+
+    node_id: NodeId = Field(description="id of the asking node (the pong goes back to the sender)")
+    seq: int = Field(ge=0, description="sequence number, echoed in the pong")
+    t_send: RigTime = Field(description="asker's local clock at send, seconds")
+
+
+@register
+class ClockPong(OscMessage):
+    """Answer to a ping: the rig time when the ping arrived and when the pong left."""
+
+    ADDRESS = "/batteur/clock/pong"
+    FAMILY = Family.CLOCK
+
+    node_id: NodeId = Field(description="id of the node that asked")
+    seq: int = Field(ge=0, description="sequence number of the ping")
+    t_send: RigTime = Field(description="asker's local clock at ping send (echoed), seconds")
+    t_receive: RigTime = Field(description="rig time when the ping was received, seconds")
+    t_reply: RigTime = Field(description="rig time when this pong was sent, seconds")

@@ -1,0 +1,50 @@
+"""Traffic counters shared by the UDP transport and the in-memory bus.
+
+Drops are counted per :class:`~common.messages.DropReason` and logged at most
+once per reason per interval, so a flood of bad packets cannot flood the log.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections import Counter
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+from common.messages import DropReason
+
+log = logging.getLogger("batteur.traffic")
+
+
+@dataclass
+class TrafficStats:
+    """Messages in and out, and drops by reason, since start."""
+
+    log_interval_s: float = 5.0
+    clock: Callable[[], float] = time.monotonic
+    messages_in: int = 0
+    messages_out: int = 0
+    dropped: Counter[DropReason] = field(default_factory=Counter)
+    _last_logged: dict[DropReason, float] = field(default_factory=dict)
+    _suppressed: Counter[DropReason] = field(default_factory=Counter)
+
+    def record_drop(self, reason: DropReason, detail: str, source: str = "") -> None:
+        """Count one dropped message and log it unless this reason was logged recently."""
+        self.dropped[reason] += 1
+        now = self.clock()
+        last = self._last_logged.get(reason)
+        if last is None or now - last >= self.log_interval_s:
+            extra = f" (+{self._suppressed[reason]} more since last report)" if self._suppressed[reason] else ""
+            log.warning("dropped %s from %s: %s%s", reason.value, source or "?", detail, extra)
+            self._last_logged[reason] = now
+            self._suppressed[reason] = 0
+        else:
+            self._suppressed[reason] += 1
+
+    @property
+    def dropped_total(self) -> int:
+        return sum(self.dropped.values())
+
+    def drops_by_reason(self) -> dict[str, int]:
+        return {reason.value: self.dropped[reason] for reason in DropReason}
