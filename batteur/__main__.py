@@ -1,0 +1,3 @@
+from batteur.cli import main
+
+raise SystemExit(main())

@@ -1,0 +1,64 @@
+"""The ``batteur`` command: one entry point, a subcommand per job.
+
+Service subcommands (``batteur sound ...``) hand their arguments to the
+service's own ``main`` so each service keeps its own ``--help``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from collections.abc import Callable, Sequence
+
+# subcommand -> (module with main(argv) -> int, one-line help)
+COMMANDS: dict[str, tuple[str, str]] = {
+    "demo": ("batteur.demo", "render the shipped demo groove and print where the WAV and report are"),
+    "rig": ("batteur.rig", "start all services as local processes; Ctrl-C stops them together"),
+    "render": ("batteur.render", "render a score offline through the same cores as the rig"),
+    "physics": ("services.physics.node", "run the physics service alone"),
+    "interaction": ("services.interaction.node", "run the interaction service alone"),
+    "sound": ("services.sound.node", "run the sound service alone (e.g. on a second machine)"),
+    "graphics": ("services.graphics.node", "run the graphics service alone"),
+    "ls": ("batteur.tools.ls", "list nodes discovered on the network (role, address, health)"),
+    "echo": ("batteur.tools.echo", "print OSC messages whose address matches a pattern"),
+    "send": ("batteur.tools.send", "send one OSC message"),
+    "docs": ("batteur.tools.docs", "regenerate docs/osc.md from the message models"),
+}
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="batteur",
+        description=(
+            "Batteur, a virtual percussionist: a simulated drummer plays a score on a simulated kit, "
+            "every contact drives modal sound synthesis. Run `batteur COMMAND --help` for a command's options."
+        ),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="commands:\n" + "\n".join(f"  {name:<12} {text}" for name, (_, text) in COMMANDS.items()),
+    )
+    parser.add_argument("command", choices=sorted(COMMANDS), metavar="COMMAND", help="what to run (see below)")
+    parser.add_argument("args", nargs=argparse.REMAINDER, help="the command's own arguments")
+    return parser
+
+
+def load_command(name: str) -> Callable[[Sequence[str] | None], int]:
+    """The ``main`` function of a subcommand's module."""
+    module_name, _ = COMMANDS[name]
+    module = importlib.import_module(module_name)
+    main: Callable[[Sequence[str] | None], int] = module.main
+    return main
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    try:
+        command = load_command(args.command)
+    except ModuleNotFoundError as exc:
+        print(f"batteur {args.command}: not available in this installation ({exc})", file=sys.stderr)
+        return 2
+    return int(command(args.args) or 0)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
