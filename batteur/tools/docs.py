@@ -1,0 +1,18 @@
+"""``batteur docs``: regenerate docs/osc.md from the message models."""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Sequence
+from pathlib import Path
+
+from common.messages.docs import render_markdown
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="batteur docs", description="Write the OSC reference (Markdown).")
+    parser.add_argument("-o", "--output", type=Path, default=Path("docs/osc.md"), help="default: docs/osc.md")
+    opts = parser.parse_args(argv)
+    opts.output.write_text(render_markdown(), encoding="utf-8")
+    print(f"wrote {opts.output}")
+    return 0

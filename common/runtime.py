@@ -1,0 +1,693 @@
+"""The service runtime: a :class:`Node` runs one core live over UDP.
+
+A node opens a :class:`~common.transport.UdpEndpoint`, fills its
+:class:`~common.peers.PeerTable` from static peers and zeroconf discovery,
+steps its core at the core's rate on a fixed-rate loop (absolute deadlines, so
+it does not drift; overruns are counted, never hidden), hands every received
+message to ``core.handle`` and routes what the core returns. It also keeps the
+rig clock (answering pings; estimating its offset to the clock master when the
+master is another node), greets newly found peers with a Hello, answers a Hello
+with its Health, publishes Health to every peer at 1 Hz, and stops cleanly on
+SIGINT/SIGTERM.
+
+A service's ``node.py`` is a few lines (see docs/runtime.md)::
+
+    from common.runtime import run_node
+    from services.sound.core import SoundCore
+
+    def main(argv=None) -> int:
+        return run_node("sound", lambda settings, args: SoundCore(latency_s=settings.latency_s), argv)
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import concurrent.futures
+import contextlib
+import gc
+import inspect
+import json
+import logging
+import signal
+import sys
+import threading
+import time
+from collections.abc import Awaitable, Callable, Coroutine, Sequence
+from typing import Any, Protocol, cast
+
+from common.clock import OffsetEstimator, RigClock, answer_ping
+from common.config import ENV_PREFIX, NodeSettings, SettingsError, flag_name, load_settings
+from common.core import Core, Outgoing
+from common.messages import PROTOCOL_VERSION, ClockPing, ClockPong, DropReason, Health, Hello, OscMessage
+from common.peers import Peer, PeerTable
+from common.transport import UdpEndpoint
+
+log = logging.getLogger("batteur.runtime")
+
+DEFAULT_BROWSE_ROLES = ("physics", "interaction", "sound", "graphics")
+"""Roles a node looks for by default (it publishes Health to all of them)."""
+
+
+# --------------------------------------------------------------------------- fixed-rate loop
+
+
+class _Sleeper:
+    """Sleeps until a monotonic deadline with sub-millisecond precision without blocking the loop.
+
+    asyncio's own timers wake up to 1 ms late (epoll's resolution), a whole
+    period at 1 kHz; the last stretch is slept in a helper thread instead.
+    """
+
+    def __init__(self) -> None:
+        self._pool: concurrent.futures.ThreadPoolExecutor | None = None
+
+    async def __call__(self, deadline: float) -> None:
+        remaining = deadline - time.monotonic()
+        if remaining > 0.002:
+            await asyncio.sleep(remaining - 0.0015)
+            remaining = deadline - time.monotonic()
+        if remaining > 0:
+            if self._pool is None:
+                self._pool = concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="batteur-sleep")
+            await asyncio.get_running_loop().run_in_executor(self._pool, time.sleep, remaining)
+        else:
+            await asyncio.sleep(0)  # let the loop handle I/O between back-to-back ticks
+
+    def close(self) -> None:
+        if self._pool is not None:
+            self._pool.shutdown(wait=False)
+            self._pool = None
+
+
+class RateLoop:
+    """Calls ``tick()`` at ``rate_hz`` on absolute deadlines ``start + n / rate_hz``.
+
+    Deadlines never drift with tick duration or wake-up lateness. A tick that
+    ends after the next deadline counts as an overrun, and the loop runs the
+    next tick at once. When it is more than ``max_catch_up`` whole periods
+    behind, the deadlines beyond that are skipped (and counted in ``skipped``):
+    a short stall is caught up with back-to-back ticks, a long one or an
+    overloaded core gets fewer ticks, never a silently lower rate.
+
+    Parameters
+    ----------
+    rate_hz : float
+        Ticks per second, Hz.
+    tick : callable
+        Called once per period.
+    clock : callable -> float
+        Monotonic seconds. Injectable for tests.
+    sleep_until : async callable(deadline)
+        Waits until ``clock() >= deadline``. Injectable for tests.
+    max_catch_up : int
+        Missed periods caught up with back-to-back ticks before the rest are skipped.
+    """
+
+    def __init__(
+        self,
+        rate_hz: float,
+        tick: Callable[[], None],
+        *,
+        clock: Callable[[], float] = time.monotonic,
+        sleep_until: Callable[[float], Awaitable[None]] | None = None,
+        max_catch_up: int = 0,
+    ) -> None:
+        if rate_hz <= 0:
+            raise ValueError("rate_hz must be positive")
+        self.max_catch_up = max(0, max_catch_up)
+        self.rate_hz = rate_hz
+        self.period = 1.0 / rate_hz
+        self.tick = tick
+        self.clock = clock
+        self._sleeper = _Sleeper() if sleep_until is None else None
+        self.sleep_until: Callable[[float], Awaitable[None]] = sleep_until or cast(_Sleeper, self._sleeper)
+        self.ticks = 0
+        """ticks run"""
+        self.overruns = 0
+        """ticks that ended after the next deadline"""
+        self.skipped = 0
+        """deadlines skipped because the loop was a whole period or more behind"""
+        self._mark = (0.0, 0)
+
+    async def run(self, max_ticks: int | None = None) -> None:
+        """Tick until cancelled (or ``max_ticks`` ticks)."""
+        start = self.clock()
+        self._mark = (start, 0)
+        n = 0
+        try:
+            while max_ticks is None or self.ticks < max_ticks:
+                await self.sleep_until(start + n * self.period)
+                self.tick()
+                self.ticks += 1
+                n += 1
+                end = self.clock()
+                next_deadline = start + n * self.period
+                if end > next_deadline:
+                    self.overruns += 1
+                    skip = int((end - next_deadline) / self.period) - self.max_catch_up
+                    if skip > 0:
+                        n += skip
+                        self.skipped += skip
+        finally:
+            if self._sleeper is not None:
+                self._sleeper.close()
+
+    def achieved_rate(self) -> float:
+        """Ticks per second since the previous call (or the start), Hz."""
+        now = self.clock()
+        since, ticks = self._mark
+        self._mark = (now, self.ticks)
+        return (self.ticks - ticks) / (now - since) if now > since else 0.0
+
+
+# --------------------------------------------------------------------------- discovery
+
+
+class DiscoveryService(Protocol):
+    """What the node needs from discovery (``common.discovery.Discovery``)."""
+
+    async def start(self) -> None: ...
+
+    async def stop(self) -> None: ...
+
+
+DiscoveryFactory = Callable[..., DiscoveryService]
+"""Called with keywords role, node_id, port, interfaces, peers, browse_roles, protocol."""
+
+
+def default_discovery_factory(**kwargs: Any) -> DiscoveryService | None:
+    """``common.discovery.Discovery(**kwargs)``, or None (with a warning) if it is not available."""
+    try:
+        from common.discovery import Discovery
+    except ImportError as exc:
+        log.warning("discovery is not available (%s); using static peers only", exc)
+        return None
+    return cast(DiscoveryService, Discovery(**kwargs))
+
+
+def check_interfaces(interfaces: Sequence[str]) -> str:
+    """Why discovery cannot use these interfaces ("" if it can, or if discovery is not installed)."""
+    try:
+        from common.discovery import resolve_interfaces
+    except ImportError:
+        return ""
+    try:
+        resolve_interfaces(list(interfaces))
+    except Exception as exc:
+        return str(exc)
+    return ""
+
+
+# --------------------------------------------------------------------------- node
+
+Setup = Callable[["Node"], Awaitable[None] | None]
+"""Called with the node once it listens (may be async)."""
+
+
+class Node:
+    """Runs one core live: transport, peers, discovery, fixed-rate stepping, clock, health.
+
+    Parameters
+    ----------
+    core : Core
+        The service core to run.
+    settings : NodeSettings
+        Where to listen, peers, discovery, rate, clock master...
+    discovery_factory : callable or None
+        Builds the discovery service (keywords: role, node_id, port, interfaces,
+        peers, browse_roles, protocol). Default: ``common.discovery.Discovery``.
+        Ignored when ``settings.discovery`` is off.
+    browse_roles : sequence of str
+        Roles to look for with discovery.
+    health_interval_s, ping_interval_s : float
+        Health publication period and clock ping period (once synced), seconds.
+    max_catch_up_s : float
+        After a stall, up to this much of missed steps is caught up back to back
+        (10 ticks at 1 kHz, none at 60 Hz); the rest is skipped. Seconds.
+    """
+
+    def __init__(
+        self,
+        core: Core,
+        settings: NodeSettings,
+        *,
+        discovery_factory: DiscoveryFactory | None = None,
+        browse_roles: Sequence[str] = DEFAULT_BROWSE_ROLES,
+        clock: RigClock | None = None,
+        health_interval_s: float = 1.0,
+        ping_interval_s: float = 1.0,
+        max_catch_up_s: float = 0.01,
+    ) -> None:
+        self.core = core
+        self.settings = settings
+        self.role = settings.role
+        self.node_id = settings.node_id
+        self.rate_hz = settings.rate_hz if settings.rate_hz is not None else float(core.rate_hz)
+        if settings.rate_hz is not None:
+            try:
+                core.rate_hz = settings.rate_hz
+            except AttributeError:
+                pass
+        self.clock = clock or RigClock(settings.epoch)
+        self.peers = PeerTable()
+        self.discovery_factory = discovery_factory
+        self.browse_roles = list(dict.fromkeys([*browse_roles, *self._master_roles()]))
+        self.health_interval_s = health_interval_s
+        self.ping_interval_s = ping_interval_s
+        self.max_catch_up_s = max_catch_up_s
+        self._achieved_rate = 0.0
+        self._master_id = ""
+        self.estimator = OffsetEstimator(self.node_id)
+        self.endpoint: UdpEndpoint | None = None
+        self.loop: RateLoop | None = None
+        self.discovery: DiscoveryService | None = None
+        self.peer_health: dict[str, tuple[Health, str, float]] = {}
+        """Last Health heard from each node id: (message, source, local monotonic time)."""
+        self.step_errors = 0
+        self.failed = False
+        """True if one of the node's tasks failed (the node then stops)."""
+        self.stopped = asyncio.Event()
+        self._stop_requested: asyncio.Event | None = None
+        self._tasks: list[asyncio.Task[Any]] = []
+        self._aio_loop: asyncio.AbstractEventLoop | None = None
+        self._loop_thread = 0
+        self._last_error_log = 0.0
+        if self.is_clock_master:
+            self.clock.synced = True
+
+    def _master_roles(self) -> list[str]:
+        return [] if self.is_clock_master else [self.settings.clock_master]
+
+    @property
+    def is_clock_master(self) -> bool:
+        """True when this node's clock is the rig clock."""
+        return self.settings.clock_master in ("self", self.role)
+
+    # ------------------------------------------------------------ lifecycle
+
+    async def start(self) -> None:
+        """Open the endpoint, add static peers, start discovery and the node's tasks."""
+        self._bind_loop()
+        s = self.settings
+        self.endpoint = await UdpEndpoint.open(
+            s.host,
+            s.port,
+            self.peers,
+            max_datagram=s.max_datagram,
+            allow=s.allow_networks,
+            max_rate=s.max_rate,
+        )
+        self.endpoint.set_handler(self._on_message)
+        self.peers.listeners.append(self._on_peer_change)
+        for peer in s.static_peers:
+            self.peers.add(peer)
+        if self.rate_hz > 0:
+            self.loop = RateLoop(self.rate_hz, self._step, max_catch_up=int(self.rate_hz * self.max_catch_up_s))
+            self.spawn(self.loop.run(), "rate loop")
+        self.spawn(self._health_task(), "health")
+        if not self.is_clock_master:
+            self.spawn(self._clock_task(), "clock")
+        if s.discovery:  # registration probes for about a second; the node already runs meanwhile
+            factory = self.discovery_factory or default_discovery_factory
+            self.discovery = factory(
+                role=self.role,
+                node_id=self.node_id,
+                port=self.endpoint.port,
+                interfaces=list(s.interfaces),
+                peers=self.peers,
+                browse_roles=list(self.browse_roles),
+                protocol=PROTOCOL_VERSION,
+            )
+            if self.discovery is not None:
+                try:
+                    await self.discovery.start()
+                except Exception as exc:  # the node still works with static peers
+                    log.error("discovery failed to start (%s); using static peers only", exc)
+                    with contextlib.suppress(Exception):
+                        await asyncio.wait_for(self.discovery.stop(), timeout=2.0)
+                    self.discovery = None
+        log.info(
+            "%s node %s listening on %s (rate %g Hz, clock %s, discovery %s)",
+            self.role,
+            self.node_id,
+            self.endpoint.local_address,
+            self.rate_hz,
+            "master" if self.is_clock_master else f"from {self.settings.clock_master}",
+            "on" if self.discovery is not None else "off",
+        )
+
+    def _bind_loop(self) -> None:
+        if self._stop_requested is None:
+            self._aio_loop = asyncio.get_running_loop()
+            self._loop_thread = threading.get_ident()
+            self._stop_requested = asyncio.Event()
+
+    def spawn(self, coro: Coroutine[Any, Any, Any], name: str = "task") -> asyncio.Task[Any]:
+        """Run ``coro`` alongside the node; it is cancelled at shutdown, and its failure stops the node."""
+        task = asyncio.get_running_loop().create_task(coro, name=name)
+        task.add_done_callback(self._task_done)
+        self._tasks.append(task)
+        return task
+
+    def _task_done(self, task: asyncio.Task[Any]) -> None:
+        if task.cancelled():
+            return
+        exc = task.exception()
+        if exc is not None:
+            log.error("%s failed: %s: %s", task.get_name(), type(exc).__name__, exc, exc_info=exc)
+            self.failed = True
+            self.request_stop()
+
+    def request_stop(self) -> None:
+        """Ask :meth:`run` to shut down (safe from signal handlers and other threads)."""
+        if self._stop_requested is None or self._aio_loop is None:
+            return
+        if threading.get_ident() == self._loop_thread:
+            self._stop_requested.set()
+        else:
+            self._aio_loop.call_soon_threadsafe(self._stop_requested.set)
+
+    async def wait_stop_requested(self) -> None:
+        assert self._stop_requested is not None
+        await self._stop_requested.wait()
+
+    async def stop(self) -> None:
+        """Cancel the tasks, stop discovery, close the endpoint and the core (idempotent)."""
+        if self.stopped.is_set():
+            return
+        for task in self._tasks:
+            task.cancel()
+        await asyncio.gather(*self._tasks, return_exceptions=True)
+        self._tasks.clear()
+        if self.discovery is not None:
+            try:
+                await asyncio.wait_for(self.discovery.stop(), timeout=2.0)
+            except Exception as exc:
+                log.warning("discovery did not stop cleanly: %s", exc)
+            self.discovery = None
+        if self.endpoint is not None:
+            self.endpoint.close()
+        close = getattr(self.core, "close", None)
+        if callable(close):
+            try:
+                close()
+            except Exception as exc:
+                log.warning("core close failed: %s", exc)
+        self.stopped.set()
+        log.info("%s node %s stopped", self.role, self.node_id)
+
+    async def run(self, install_signal_handlers: bool = False, setup: Setup | None = None,
+                  freeze_gc: bool = False) -> None:
+        """Start, run until :meth:`request_stop` (or SIGINT/SIGTERM if installed), then stop.
+
+        ``setup(node)`` (optionally async) is called once the node is listening. ``freeze_gc``:
+        once started, move every object alive to the garbage collector's permanent generation,
+        so full collections stop walking the (large) heap of imports and setup, a pause of
+        tens of milliseconds otherwise.
+        """
+        self._bind_loop()
+        loop = asyncio.get_running_loop()
+        installed: list[signal.Signals] = []
+        if install_signal_handlers:  # before start, so a signal right after "listening on" is handled
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                try:
+                    loop.add_signal_handler(sig, self.request_stop)
+                    installed.append(sig)
+                except (NotImplementedError, RuntimeError, ValueError):
+                    pass
+        try:
+            await self.start()
+            if setup is not None:
+                result = setup(self)
+                if inspect.isawaitable(result):
+                    await result
+            if freeze_gc:
+                gc.collect()
+                gc.freeze()
+            await self.wait_stop_requested()
+            log.info("%s node %s stopping", self.role, self.node_id)
+        finally:
+            for sig in installed:
+                loop.remove_signal_handler(sig)
+            await self.stop()
+
+    # ------------------------------------------------------------ stepping and routing
+
+    def _step(self) -> None:
+        try:
+            outgoing = self.core.step(self.clock.now())
+        except Exception as exc:
+            self.step_errors += 1
+            self._log_error("core step failed: %s: %s", type(exc).__name__, exc)
+            return
+        self.route(outgoing)
+
+    def route(self, outgoing: Sequence[Outgoing], reply_to: str = "") -> None:
+        """Send a core's messages: to a role, ``host:port``, or ``"reply"`` (``reply_to``)."""
+        assert self.endpoint is not None
+        for out in outgoing:
+            to = reply_to if out.to == "reply" else out.to
+            if not to:
+                self.endpoint.unroutable += 1
+                continue
+            self.endpoint.send(out.message, to)
+
+    def _on_message(self, message: OscMessage, source: str) -> None:
+        endpoint = self.endpoint
+        assert endpoint is not None
+        if isinstance(message, ClockPing):
+            t = self.clock.now()
+            endpoint.send(answer_ping(message, t, self.clock.now()), source)
+            return
+        if isinstance(message, ClockPong):
+            self._on_pong(message)
+            return
+        if isinstance(message, Hello):
+            endpoint.send(self.health(), source)
+        elif isinstance(message, Health):
+            self.peer_health[message.node_id] = (message, source, time.monotonic())
+        # an exception here is counted by the endpoint as a handler error
+        self.route(self.core.handle(message, self.clock.now(), source), reply_to=source)
+
+    def _on_pong(self, pong: ClockPong) -> None:
+        sample = self.estimator.add_pong(pong, self.clock.local_now())
+        if sample is not None:
+            first = not self.clock.synced
+            self.clock.offset = self.estimator.offset
+            self.clock.synced = True
+            if first:
+                log.info(
+                    "rig clock synced to %s: offset %+.6f s (+/- %.6f s)",
+                    self.settings.clock_master,
+                    self.clock.offset,
+                    self.estimator.uncertainty,
+                )
+
+    def _on_peer_change(self, event: str, peer: Peer) -> None:
+        if event == "removed" or peer.node_id == self.node_id:
+            return
+        if threading.get_ident() != self._loop_thread and self._aio_loop is not None:
+            self._aio_loop.call_soon_threadsafe(self._greet, peer)
+        else:
+            self._greet(peer)
+
+    def _greet(self, peer: Peer) -> None:
+        if self.endpoint is None or self.endpoint.closed:
+            return
+        log.info("peer %s %s at %s", peer.role, peer.node_id, peer.host)
+        self.endpoint.send(self.hello(), peer.address)
+
+    # ------------------------------------------------------------ health and clock
+
+    def hello(self) -> Hello:
+        assert self.endpoint is not None
+        return Hello(role=self.role, node_id=self.node_id, protocol=PROTOCOL_VERSION, osc_port=self.endpoint.port)
+
+    def health(self) -> Health:
+        """This node's Health now (rate achieved over the last health interval)."""
+        assert self.endpoint is not None
+        stats = self.endpoint.stats
+        d = stats.dropped
+        other = sum(
+            d[r]
+            for r in (DropReason.OVERSIZE, DropReason.NOT_ALLOWED, DropReason.RATE_LIMITED, DropReason.HANDLER_ERROR)
+        )
+        return Health(
+            node_id=self.node_id,
+            role=self.role,
+            protocol=PROTOCOL_VERSION,
+            time=self.clock.now(),
+            rate_hz=max(0.0, self._achieved_rate),
+            target_rate_hz=self.rate_hz,
+            overruns=self.loop.overruns if self.loop is not None else 0,
+            messages_in=stats.messages_in,
+            messages_out=stats.messages_out,
+            dropped=stats.dropped_total,
+            dropped_malformed=d[DropReason.MALFORMED],
+            dropped_unknown=d[DropReason.UNKNOWN_ADDRESS],
+            dropped_type=d[DropReason.WRONG_ARITY] + d[DropReason.WRONG_TYPE],
+            dropped_range=d[DropReason.OUT_OF_RANGE],
+            dropped_other=other,
+            late=max(0, int(getattr(self.core, "late", 0) or 0)),
+            peers=len(self.peers),
+        )
+
+    async def _health_task(self) -> None:
+        while True:
+            await asyncio.sleep(self.health_interval_s)
+            assert self.endpoint is not None
+            self._achieved_rate = self.loop.achieved_rate() if self.loop is not None else 0.0
+            health = self.health()
+            sent: set[tuple[str, int]] = set()
+            for peer in self.peers.all():
+                if peer.node_id != self.node_id and peer.address not in sent:
+                    sent.add(peer.address)
+                    self.endpoint.send(health, peer.address)
+
+    async def _clock_task(self) -> None:
+        """Ping the clock master: quickly until a few samples are in, then every ``ping_interval_s``."""
+        while True:
+            assert self.endpoint is not None
+            masters = self.peers.for_role(self.settings.clock_master)
+            if masters:
+                if masters[0].node_id != self._master_id:  # a new (or restarted) master: start over
+                    self._master_id = masters[0].node_id
+                    self.estimator.samples.clear()
+                ping = self.estimator.make_ping(self.clock.local_now())
+                self.endpoint.send(ping, masters[0].address)
+            fast = len(self.estimator.samples) < 8
+            await asyncio.sleep(min(0.1, self.ping_interval_s) if fast else self.ping_interval_s)
+
+    def _log_error(self, text: str, *args: object) -> None:
+        now = time.monotonic()
+        if now - self._last_error_log >= 5.0:
+            self._last_error_log = now
+            log.error(text, *args)
+
+
+# --------------------------------------------------------------------------- command line
+
+MakeCore = Callable[[NodeSettings, argparse.Namespace], Core]
+AddArguments = Callable[[argparse.ArgumentParser], object]
+_METAVARS = {"peers": "ROLE=HOST:PORT", "interfaces": "ADDRESS", "allow": "NETWORK"}
+
+
+def build_parser(
+    role: str,
+    description: str = "",
+    add_arguments: AddArguments | None = None,
+    settings_cls: type[NodeSettings] = NodeSettings,
+) -> argparse.ArgumentParser:
+    """An argparse parser with a flag for every setting (plus ``--config``) and the service's own."""
+    parser = argparse.ArgumentParser(
+        prog=f"batteur {role}",
+        description=description or f"Run the {role} service node.",
+        epilog=(
+            "Every setting can also come from the environment (BATTEUR_<NAME>, e.g. BATTEUR_PORT=9000, "
+            "BATTEUR_PEERS=sound=10.0.0.5:9000,graphics=10.0.0.6:9100) or a YAML/TOML file (--config, "
+            "or BATTEUR_CONFIG). Precedence: flags > environment > file > defaults. See docs/runtime.md."
+        ),
+    )
+    group = parser.add_argument_group("node settings")
+    group.add_argument("--config", metavar="FILE", default=argparse.SUPPRESS,
+                       help="YAML or TOML file of settings (keys: the setting names below, with underscores)")
+    for name, field in settings_cls.model_fields.items():
+        flag = flag_name(name)
+        env = f"{ENV_PREFIX}{name.upper()}"
+        text = (field.description or name).replace("%", "%%")
+        annotation = field.annotation
+        if annotation is bool:
+            default = "on" if field.default else "off"
+            group.add_argument(flag, dest=name, action=argparse.BooleanOptionalAction, default=argparse.SUPPRESS,
+                               help=f"{text} (default {default}; env {env})")
+        elif getattr(annotation, "__origin__", None) is list:
+            group.add_argument(flag, dest=name, action="append", metavar=_METAVARS.get(name, name.upper()),
+                               default=argparse.SUPPRESS, help=f"{text}; repeatable (env {env}, comma-separated)")
+        else:
+            has_default = field.default_factory is None and field.default not in (None, "")
+            shown = f"default {field.default}; " if has_default else ""
+            if name == "role":
+                shown = f"default {role}; "
+            group.add_argument(flag, dest=name, metavar=name.upper(), default=argparse.SUPPRESS,
+                               help=f"{text} ({shown}env {env})")
+    group.add_argument("--show-settings", action="store_true",
+                       help="print the settings in effect as JSON and exit")
+    if add_arguments is not None:
+        add_arguments(parser)
+    return parser
+
+
+def run_node(
+    role: str,
+    make_core: MakeCore,
+    argv: Sequence[str] | None = None,
+    add_arguments: AddArguments | None = None,
+    description: str = "",
+    *,
+    settings_cls: type[NodeSettings] = NodeSettings,
+    setup: Setup | None = None,
+    discovery_factory: DiscoveryFactory | None = None,
+) -> int:
+    """Parse the command line, load the settings, build the core and run it as a node until SIGINT/SIGTERM.
+
+    Parameters
+    ----------
+    role : str
+        The service's role (the default of ``--role``).
+    make_core : callable(settings, args) -> Core
+        Builds the core. ``args`` holds the options added by ``add_arguments``.
+        Raise ValueError (or SettingsError) for a bad option: it is printed, exit code 2.
+    argv : sequence of str
+        Command-line arguments (default ``sys.argv[1:]``).
+    add_arguments : callable(parser)
+        Adds the service's own options to the argparse parser (their values reach ``make_core``).
+    description : str
+        The ``--help`` text.
+    settings_cls : type
+        A subclass of NodeSettings with the service's own settings (each gets a flag and an env var).
+    setup : callable(node), optionally async
+        Called once the node is listening, e.g. to ``node.spawn()`` a web server.
+
+    Returns
+    -------
+    int
+        0 after a clean stop, 1 if the node failed, 2 for bad settings.
+    """
+    parser = build_parser(role, description, add_arguments, settings_cls)
+    args = parser.parse_args(argv)
+    fields = set(settings_cls.model_fields)
+    given = {k: v for k, v in vars(args).items() if k in fields}
+    extra = argparse.Namespace(**{k: v for k, v in vars(args).items() if k not in fields and k != "config"})
+    try:
+        settings = load_settings(given, getattr(args, "config", None), {"role": role}, settings_cls)
+    except SettingsError as exc:
+        print(f"batteur {role}: {exc}", file=sys.stderr)
+        return 2
+    if settings.discovery:
+        problem = check_interfaces(settings.interfaces)
+        if problem:
+            print(f"batteur {role}: invalid setting interfaces: {problem} [--interface / BATTEUR_INTERFACES]",
+                  file=sys.stderr)
+            return 2
+    if args.show_settings:
+        print(json.dumps(settings.model_dump(mode="json"), indent=2))
+        return 0
+    logging.basicConfig(
+        level=settings.log_level, format="%(asctime)s %(levelname)s %(name)s: %(message)s", stream=sys.stderr
+    )
+    try:
+        core = make_core(settings, extra)
+    except (ValueError, SettingsError) as exc:
+        print(f"batteur {role}: {exc}", file=sys.stderr)
+        return 2
+    node = Node(core, settings, discovery_factory=discovery_factory)
+    try:
+        asyncio.run(node.run(install_signal_handlers=True, setup=setup, freeze_gc=True))
+    except OSError as exc:
+        where = f"{settings.host}:{settings.port}" if settings.port else settings.host
+        print(f"batteur {role}: cannot run the node on {where}: {exc.strerror or exc}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        return 0
+    return 1 if node.failed else 0

@@ -1,0 +1,463 @@
+"""UDP transport for typed OSC messages, with its own asyncio receive loop.
+
+:class:`UdpEndpoint` has the interface of :class:`common.bus.MemoryEndpoint`
+(``send(message, to)``, ``set_handler(fn(message, source))``, ``.stats``), so a
+node can run on either. python-osc only builds and parses packets (through
+:mod:`common.messages.codec`); the socket and the receive loop are ours, because
+python-osc's own servers block on bundles timetagged in the future and drop
+datagrams over 8 KiB. Bundle timetags are ignored (timed messages carry their
+rig time as an argument).
+
+Every received datagram goes through, in order: the allow-list (source
+networks), the size limit, the per-source rate limit, parsing, the message
+model, the handler. A failure at any stage drops what failed (one datagram,
+or one message of a bundle), counts it in ``stats`` under its
+:class:`~common.messages.DropReason` and logs it at most once per reason per
+interval; the loop carries on.
+
+Addresses: a destination ``to`` is a role (every peer of that role in the
+:class:`~common.peers.PeerTable`), ``"host:port"`` (IPv6 as ``"[::1]:9000"``)
+or a ``(host, port)`` tuple. Sources are reported as ``"host:port"`` in the
+same form.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import ipaddress
+import logging
+import socket
+import sys
+import time
+from collections import OrderedDict
+from collections.abc import Callable, Iterable, Sequence
+from typing import Any
+
+from common.messages import REGISTRY, Arg, DropReason, MessageError, MessageRegistry, OscMessage
+from common.messages.codec import RawMessage, encode, encode_bundle, encode_raw, parse_packet, to_model
+from common.peers import PeerTable
+from common.stats import TrafficStats
+
+log = logging.getLogger("batteur.transport")
+
+Handler = Callable[[OscMessage, str], None]
+"""Receives (message, source) with source ``"host:port"``."""
+RawHandler = Callable[[RawMessage, str], None]
+"""Receives (raw message, source) for addresses that have no model but a raw route."""
+Target = str | tuple[str, int]
+IpNetwork = ipaddress.IPv4Network | ipaddress.IPv6Network
+IpAddress = ipaddress.IPv4Address | ipaddress.IPv6Address
+
+MAX_UDP_PAYLOAD = 65507
+"""Largest UDP payload over IPv4, bytes."""
+DEFAULT_RCVBUF = 16 * 1024 * 1024
+"""Receive buffer requested by default, bytes (a 10,000-message burst on loopback fits)."""
+
+
+def format_address(host: str, port: int) -> str:
+    """``host:port``, with IPv6 hosts in brackets (``[::1]:9000``)."""
+    return f"[{host}]:{port}" if ":" in host else f"{host}:{port}"
+
+
+def parse_address(text: str) -> tuple[str, int]:
+    """Split ``host:port`` or ``[v6host]:port``; raise ValueError if it is not one."""
+    if text.startswith("["):
+        host, sep, port_text = text[1:].partition("]:")
+    else:
+        host, sep, port_text = text.rpartition(":")
+        if ":" in host:
+            raise ValueError(f"{text!r}: put IPv6 hosts in brackets, e.g. [::1]:9000")
+    if not sep or not host or not port_text.isdigit():
+        raise ValueError(f"{text!r} is not HOST:PORT")
+    port = int(port_text)
+    if not 0 < port < 65536:
+        raise ValueError(f"{text!r}: port out of range 1-65535")
+    return host, port
+
+
+def _unmap(ip: IpAddress) -> IpAddress:
+    if isinstance(ip, ipaddress.IPv6Address) and ip.ipv4_mapped is not None:
+        return ip.ipv4_mapped
+    return ip
+
+
+class _Bucket:
+    """Token bucket: ``rate`` datagrams per second, up to ``burst`` at once."""
+
+    __slots__ = ("tokens", "stamp")
+
+    def __init__(self, burst: float, now: float) -> None:
+        self.tokens = burst
+        self.stamp = now
+
+
+class _Protocol(asyncio.DatagramProtocol):
+    def __init__(self, endpoint: UdpEndpoint) -> None:
+        self.endpoint = endpoint
+
+    def datagram_received(self, data: bytes, addr: tuple[str | Any, int]) -> None:
+        self.endpoint._receive(data, addr)
+
+    def error_received(self, exc: Exception) -> None:
+        self.endpoint.send_errors += 1
+        self.endpoint._log_limited("socket", logging.WARNING, "socket error: %s", exc)
+
+
+class UdpEndpoint:
+    """An asyncio UDP endpoint sending and receiving typed OSC messages.
+
+    Create with :meth:`open`. Not thread-safe: use it from its event loop.
+
+    Attributes
+    ----------
+    stats : TrafficStats
+        Valid messages in, messages out (one per message per destination
+        datagram), drops per reason.
+    unroutable : int
+        Sends to a role with no known peer, or to an address that cannot be
+        resolved or reached from this socket's address family.
+    send_errors : int
+        Socket errors while sending, and messages too large to send.
+    rcvbuf_bytes : int
+        Receive buffer size the kernel granted, bytes.
+    """
+
+    def __init__(
+        self,
+        sock: socket.socket,
+        peers: PeerTable,
+        registry: MessageRegistry,
+        max_datagram: int,
+        allow: Sequence[IpNetwork] | None,
+        max_rate: float | None,
+        max_burst: float | None,
+        stats: TrafficStats,
+        clock: Callable[[], float],
+    ) -> None:
+        self._sock = sock
+        self.peers = peers
+        self.registry = registry
+        self.max_datagram = max_datagram
+        self.allow = list(allow) if allow is not None else None
+        self.max_rate = max_rate
+        self.max_burst = max_burst if max_burst is not None else (max_rate or 0.0)
+        self.stats = stats
+        self.unroutable = 0
+        self.send_errors = 0
+        self.rcvbuf_bytes = sock.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF)
+        self._clock = clock
+        self._family = sock.family
+        self._handler: Handler | None = None
+        self._raw_routes: list[tuple[str, RawHandler]] = []
+        self._transport: asyncio.DatagramTransport | None = None
+        self._buckets: OrderedDict[str, _Bucket] = OrderedDict()
+        self._resolved: dict[str, tuple[str, float]] = {}
+        self._allowed_cache: dict[str, bool] = {}
+        self._last_log: dict[str, float] = {}
+        host, port = sock.getsockname()[:2]
+        self.local_address = format_address(host, port)
+        """This endpoint's ``host:port``."""
+        self.port: int = port
+
+    # ------------------------------------------------------------------ setup
+
+    @classmethod
+    async def open(
+        cls,
+        host: str = "127.0.0.1",
+        port: int = 0,
+        peers: PeerTable | None = None,
+        registry: MessageRegistry = REGISTRY,
+        max_datagram: int = MAX_UDP_PAYLOAD,
+        allow: Iterable[IpNetwork | str] | None = None,
+        max_rate: float | None = None,
+        max_burst: float | None = None,
+        rcvbuf_bytes: int = DEFAULT_RCVBUF,
+        stats: TrafficStats | None = None,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> UdpEndpoint:
+        """Bind a UDP socket and start receiving.
+
+        Parameters
+        ----------
+        host, port : str, int
+            Where to listen. Port 0 picks a free port. ``"::"`` listens on IPv6 and IPv4.
+        peers : PeerTable
+            Where roles are looked up when sending to a role.
+        registry : MessageRegistry
+            Models for decoding.
+        max_datagram : int
+            Larger datagrams are dropped (``oversize``) and not sent, bytes.
+        allow : list of ip networks or None
+            Only these source networks are accepted (``not_allowed``); None: any source.
+        max_rate : float or None
+            Datagrams per second accepted from one source IP (``rate_limited``); None: no limit.
+        max_burst : float or None
+            Datagrams a source may send at once before the rate applies (default: ``max_rate``).
+        rcvbuf_bytes : int
+            Receive buffer to ask the kernel for, bytes (root may exceed ``net.core.rmem_max``).
+        clock : callable -> float
+            Monotonic seconds, for the rate limit.
+        """
+        sock = _bind(host, port, rcvbuf_bytes)
+        networks = None if allow is None else [ipaddress.ip_network(n, strict=False) for n in allow]
+        endpoint = cls(
+            sock,
+            peers if peers is not None else PeerTable(),
+            registry,
+            max_datagram,
+            networks,
+            max_rate,
+            max_burst,
+            stats if stats is not None else TrafficStats(),
+            clock,
+        )
+        loop = asyncio.get_running_loop()
+        transport, _ = await loop.create_datagram_endpoint(lambda: _Protocol(endpoint), sock=sock)
+        endpoint._transport = transport
+        log.info("listening on %s (receive buffer %d bytes)", endpoint.local_address, endpoint.rcvbuf_bytes)
+        return endpoint
+
+    def set_handler(self, handler: Handler) -> None:
+        """Call ``handler(message, source)`` for every valid message received."""
+        self._handler = handler
+
+    def add_raw_route(self, prefix: str, handler: RawHandler) -> None:
+        """Deliver messages whose address starts with ``prefix`` and has no model to ``handler``.
+
+        For messages registered at run time (e.g. instrument parameters); their
+        arguments are not validated here.
+        """
+        self._raw_routes.append((prefix, handler))
+
+    def close(self) -> None:
+        """Stop receiving and close the socket."""
+        if self._transport is not None:
+            self._transport.close()
+            self._transport = None
+        else:
+            self._sock.close()
+
+    @property
+    def closed(self) -> bool:
+        return self._transport is None
+
+    # ---------------------------------------------------------------- sending
+
+    def send(self, message: OscMessage, to: Target) -> None:
+        """Send one typed message to a role, ``"host:port"`` or ``(host, port)``."""
+        self._send_packet(encode(message), to, 1)
+
+    def send_raw(self, address: str, args: Sequence[Arg], to: Target) -> None:
+        """Send one message that has no model (ints as ``i``, floats as ``f``, strings as ``s``)."""
+        self._send_packet(encode_raw(address, args), to, 1)
+
+    def send_bundle(self, messages: Sequence[OscMessage], to: Target, timetag: float | None = None) -> None:
+        """Send several messages in one bundle (``timetag``: Unix seconds; receivers ignore it)."""
+        if messages:
+            self._send_packet(encode_bundle(messages, timetag), to, len(messages))
+
+    def destinations(self, to: Target) -> list[tuple[str, int]]:
+        """The socket addresses ``to`` means now (empty if none is known or reachable)."""
+        if isinstance(to, tuple):
+            targets = [to]
+        elif ":" in to or to.startswith("["):
+            targets = [parse_address(to)]
+        else:
+            targets = [p.address for p in self.peers.for_role(to)]
+        out: list[tuple[str, int]] = []
+        for host, port in targets:
+            ip = self._resolve(host)
+            if ip is not None:
+                out.append((ip, port))
+        return out
+
+    def _send_packet(self, data: bytes, to: Target, count: int) -> None:
+        if self._transport is None:
+            raise RuntimeError("endpoint is closed")
+        if len(data) > self.max_datagram:
+            self.send_errors += count
+            self._log_limited("send-oversize", logging.WARNING, "not sent: %d bytes > max_datagram %d to %s",
+                              len(data), self.max_datagram, to)
+            return
+        try:
+            targets = self.destinations(to)
+        except ValueError as exc:
+            self.unroutable += count
+            self._log_limited("bad-target", logging.WARNING, "not sent: %s", exc)
+            return
+        if not targets:
+            self.unroutable += count
+            self._log_limited(f"unroutable:{to}", logging.DEBUG, "not sent: no peer for %s", to)
+            return
+        for addr in targets:
+            self._transport.sendto(data, addr)
+            self.stats.messages_out += count
+
+    def _resolve(self, host: str) -> str | None:
+        """Numeric address for the socket's family, or None (cached 30 s for names)."""
+        cached = self._resolved.get(host)
+        now = self._clock()
+        if cached is not None and now - cached[1] < 30.0:
+            return cached[0] or None
+        try:
+            ip: IpAddress = ipaddress.ip_address(host)
+        except ValueError:
+            try:
+                family = socket.AF_INET if self._family == socket.AF_INET else socket.AF_UNSPEC
+                infos = socket.getaddrinfo(host, None, family, socket.SOCK_DGRAM)
+                ip = ipaddress.ip_address(str(infos[0][4][0]).split("%")[0])
+            except (OSError, IndexError, ValueError) as exc:
+                self._log_limited(f"resolve:{host}", logging.WARNING, "cannot resolve %s: %s", host, exc)
+                self._resolved[host] = ("", now)
+                return None
+        result: str | None
+        if self._family == socket.AF_INET6 and isinstance(ip, ipaddress.IPv4Address):
+            result = f"::ffff:{ip}"
+        elif self._family == socket.AF_INET and isinstance(ip, ipaddress.IPv6Address):
+            mapped = ip.ipv4_mapped
+            result = str(mapped) if mapped is not None else None
+            if result is None:
+                self._log_limited("family", logging.WARNING, "cannot reach IPv6 %s from an IPv4 socket", host)
+        else:
+            result = str(ip)
+        self._resolved[host] = (result or "", now)
+        return result
+
+    # -------------------------------------------------------------- receiving
+
+    def _receive(self, data: bytes, addr: tuple[Any, ...]) -> None:
+        host = str(addr[0])
+        if self._family == socket.AF_INET6 and host.startswith("::ffff:") and "." in host:
+            host = host[7:]
+        source = format_address(host, int(addr[1]))
+        stats = self.stats
+        if self.allow is not None and not self._allowed(host):
+            stats.record_drop(DropReason.NOT_ALLOWED, "source not in the allow-list", source)
+            return
+        if len(data) > self.max_datagram:
+            stats.record_drop(DropReason.OVERSIZE, f"{len(data)} bytes > {self.max_datagram}", source)
+            return
+        if self.max_rate is not None and not self._take_token(host):
+            stats.record_drop(DropReason.RATE_LIMITED, f"over {self.max_rate:g} datagrams/s", source)
+            return
+        try:
+            raws = parse_packet(data)
+        except MessageError as exc:
+            stats.record_drop(exc.reason, str(exc), source)
+            return
+        for raw in raws:
+            try:
+                message = to_model(raw, self.registry)
+            except MessageError as exc:
+                if exc.reason is DropReason.UNKNOWN_ADDRESS and self._route_raw(raw, source):
+                    continue
+                stats.record_drop(exc.reason, str(exc), source)
+                continue
+            stats.messages_in += 1
+            if self._handler is not None:
+                try:
+                    self._handler(message, source)
+                except Exception as exc:  # a handler bug must not stop the endpoint
+                    stats.record_drop(DropReason.HANDLER_ERROR, f"{raw.address}: {type(exc).__name__}: {exc}", source)
+                    log.debug("handler error on %s", raw.address, exc_info=True)
+
+    def _route_raw(self, raw: RawMessage, source: str) -> bool:
+        for prefix, handler in self._raw_routes:
+            if raw.address.startswith(prefix):
+                self.stats.messages_in += 1
+                try:
+                    handler(raw, source)
+                except Exception as exc:
+                    self.stats.record_drop(
+                        DropReason.HANDLER_ERROR, f"{raw.address}: {type(exc).__name__}: {exc}", source
+                    )
+                return True
+        return False
+
+    def _allowed(self, host: str) -> bool:
+        known = self._allowed_cache.get(host)
+        if known is None:
+            try:
+                ip = _unmap(ipaddress.ip_address(host.split("%")[0]))
+                known = any(ip in net for net in self.allow or ())
+            except ValueError:
+                known = False
+            if len(self._allowed_cache) > 4096:
+                self._allowed_cache.clear()
+            self._allowed_cache[host] = known
+        return known
+
+    def _take_token(self, host: str) -> bool:
+        assert self.max_rate is not None
+        now = self._clock()
+        bucket = self._buckets.get(host)
+        burst = max(self.max_burst, 1.0)
+        if bucket is None:
+            bucket = _Bucket(burst, now)
+            self._buckets[host] = bucket
+            if len(self._buckets) > 1024:
+                self._buckets.popitem(last=False)
+        else:
+            self._buckets.move_to_end(host)
+            bucket.tokens = min(burst, bucket.tokens + (now - bucket.stamp) * self.max_rate)
+            bucket.stamp = now
+        if bucket.tokens >= 1.0:
+            bucket.tokens -= 1.0
+            return True
+        return False
+
+    def _log_limited(self, key: str, level: int, text: str, *args: object) -> None:
+        now = self._clock()
+        last = self._last_log.get(key)
+        if last is None or now - last >= 5.0:
+            self._last_log[key] = now
+            log.log(level, text, *args)
+
+
+def _bind(host: str, port: int, rcvbuf_bytes: int) -> socket.socket:
+    """A non-blocking UDP socket bound to ``host:port`` with a receive buffer of about ``rcvbuf_bytes``."""
+    infos = socket.getaddrinfo(host, port, socket.AF_UNSPEC, socket.SOCK_DGRAM, 0, socket.AI_PASSIVE)
+    if not infos:
+        raise OSError(f"cannot resolve {host!r}")
+    family, _, _, _, sockaddr = infos[0]
+    sock = socket.socket(family, socket.SOCK_DGRAM)
+    try:
+        if family == socket.AF_INET6:
+            # "::" listens on IPv4 too (as mapped addresses)
+            sock.setsockopt(socket.IPPROTO_IPV6, socket.IPV6_V6ONLY, 0)
+        set_receive_buffer(sock, rcvbuf_bytes)
+        sock.bind(sockaddr)
+        sock.setblocking(False)
+    except BaseException:
+        sock.close()
+        raise
+    return sock
+
+
+def set_receive_buffer(sock: socket.socket, size: int) -> int:
+    """Ask for a receive buffer of ``size`` bytes: SO_RCVBUFFORCE (root) first, else SO_RCVBUF.
+
+    Returns the size the kernel granted (Linux reports twice the request, for
+    its bookkeeping). Logs a warning if it is smaller than asked.
+    """
+    force: int | None = getattr(socket, "SO_RCVBUFFORCE", 33 if sys.platform.startswith("linux") else None)
+    if force is not None:
+        try:
+            sock.setsockopt(socket.SOL_SOCKET, force, size)
+        except OSError:
+            force = None
+    if force is None:
+        try:
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, size)
+        except OSError as exc:
+            log.warning("cannot set the receive buffer: %s", exc)
+    granted = sock.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF)
+    if granted < size:
+        log.warning(
+            "receive buffer is %d bytes, asked for %d (raise net.core.rmem_max or run as root); "
+            "bursts may lose messages",
+            granted,
+            size,
+        )
+    return granted
