@@ -80,3 +80,19 @@ class ClockPong(OscMessage):
     t_send: RigTime = Field(description="asker's local clock at ping send (echoed), seconds")
     t_receive: RigTime = Field(description="rig time when the ping was received, seconds")
     t_reply: RigTime = Field(description="rig time when this pong was sent, seconds")
+
+
+@register
+class Subscribe(OscMessage):
+    """Ask a node to copy matching messages to the sender (``batteur echo``).
+
+    The node forwards every message it sends or receives whose address matches
+    ``pattern`` (OSC address pattern: ``*``, ``?``, ``[...]``, ``{a,b}``) to the
+    subscriber's address until ``duration_s`` has passed; renew to keep it.
+    """
+
+    ADDRESS = "/batteur/subscribe"
+    FAMILY = Family.HEALTH
+
+    pattern: str = Field(min_length=1, max_length=256, pattern=r"^/", description="OSC address pattern")
+    duration_s: float = Field(gt=0, le=3600, description="how long to forward, seconds")
