@@ -82,6 +82,22 @@ class KitObject(_Strict):
         nz = math.cos(p) * math.cos(r)
         return (nx, ny, nz)
 
+    def rotation_matrix(self) -> tuple[Vec3, Vec3, Vec3]:
+        """Rows of R = Rz(yaw) Ry(pitch) Rx(roll) (local -> world)."""
+        r, p, y = (math.radians(a) for a in self.rotation_deg)
+        cr, sr, cp, sp, cy, sy = math.cos(r), math.sin(r), math.cos(p), math.sin(p), math.cos(y), math.sin(y)
+        return (
+            (cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr),
+            (sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr),
+            (-sp, cp * sr, cp * cr),
+        )
+
+    def to_world(self, local: Vec3) -> Vec3:
+        """A point in the object's local frame (metres) in world metres."""
+        rows = self.rotation_matrix()
+        x, y, z = (sum(row[k] * local[k] for k in range(3)) for row in rows)
+        return (self.position[0] + x, self.position[1] + y, self.position[2] + z)
+
 
 class EventSpec(_Strict):
     """How one drum event type is played on this kit."""
@@ -92,6 +108,10 @@ class EventSpec(_Strict):
     zone: str = Field(default="centre", description="zone name: centre, edge, rim, bell, bow, ...")
     preferred: Limb = Field(description="limb that plays it by default")
     min_time_gap: float = Field(gt=0, le=2, description="shortest interval one limb can repeat it, seconds")
+    pedal: str | None = Field(
+        default=None,
+        description="foot events: id of the pedal (footboard) object the foot presses; None for stick events",
+    )
 
 
 class Kit(_Strict):
@@ -106,6 +126,14 @@ class Kit(_Strict):
         description="'A,B' -> pair(A, B) in [-1, 1]: -1 A left / B right, +1 A right / B left",
     )
     double_pedal: bool = False
+    left_bass_pedal: str | None = Field(
+        default=None,
+        description="double pedal: id of the left footboard that drives the kick (BASS by the left foot)",
+    )
+    note_objects: dict[int, str] = Field(
+        default_factory=dict,
+        description="MIDI pitch -> kit object id overriding the event's object (second ride, more toms)",
+    )
 
     @model_validator(mode="after")
     def _check_refs(self) -> Kit:
@@ -115,6 +143,17 @@ class Kit(_Strict):
         for event, spec in self.events.items():
             if spec.object not in ids:
                 raise ValueError(f"event {event.value} refers to unknown object {spec.object!r}")
+            if spec.pedal is not None and spec.pedal not in ids:
+                raise ValueError(f"event {event.value} refers to unknown pedal {spec.pedal!r}")
+        for pitch, obj in self.note_objects.items():
+            if obj not in ids:
+                raise ValueError(f"note_objects[{pitch}] refers to unknown object {obj!r}")
+            if not 0 <= pitch <= 127:
+                raise ValueError(f"note_objects key {pitch} is not a MIDI pitch (0..127)")
+        if self.left_bass_pedal is not None and self.left_bass_pedal not in ids:
+            raise ValueError(f"left_bass_pedal refers to unknown object {self.left_bass_pedal!r}")
+        if self.double_pedal and self.left_bass_pedal is None:
+            raise ValueError("double_pedal needs left_bass_pedal (the left footboard object id)")
         for key in self.pair_preference:
             parts = key.split(",")
             if len(parts) != 2 or any(p not in EventType.__members__ for p in parts):
@@ -126,6 +165,44 @@ class Kit(_Strict):
             if o.id == object_id:
                 return o
         raise KeyError(f"kit {self.name!r} has no object {object_id!r}")
+
+    def spec(self, event: EventType) -> EventSpec:
+        """How ``event`` is played; ``KeyError`` naming the kit when it has no such event."""
+        try:
+            return self.events[event]
+        except KeyError:
+            raise KeyError(f"kit {self.name!r} does not play {event.value}") from None
+
+    def object_for(self, event: EventType, pitch: int | None = None) -> KitObject:
+        """The object struck for ``event`` (a pitch in ``note_objects`` overrides it)."""
+        if pitch is not None and pitch in self.note_objects:
+            return self.object(self.note_objects[pitch])
+        return self.object(self.spec(event).object)
+
+    def hit_point(self, event: EventType, pitch: int | None = None) -> tuple[Vec3, Vec3]:
+        """World hit point (metres) and outward surface normal (unit) of ``event``.
+
+        The hit point is ``(r * radius * cos theta, r * radius * sin theta, 0)`` in
+        the object's local frame, rotated and translated into the world.
+        """
+        spec = self.spec(event)
+        obj = self.object_for(event, pitch)
+        local = (spec.r * obj.radius * math.cos(spec.theta), spec.r * obj.radius * math.sin(spec.theta), 0.0)
+        return obj.to_world(local), obj.normal()
+
+    def effector_target(self, event: EventType, limb: Limb, pitch: int | None = None) -> tuple[Vec3, Vec3]:
+        """Where the limb's tracked point is at contact (metres) and the approach normal.
+
+        Stick events: the hit point. Foot events: the footboard (pedal object
+        centre; the left bass pedal when the left foot plays BASS), normal +z.
+        """
+        spec = self.spec(event)
+        if spec.pedal is None:
+            return self.hit_point(event, pitch)
+        pedal = spec.pedal
+        if event == EventType.BASS and self.left_bass_pedal is not None and limb != spec.preferred:
+            pedal = self.left_bass_pedal
+        return self.object(pedal).position, (0.0, 0.0, 1.0)
 
     def pair(self, a: EventType, b: EventType) -> float:
         """pair(a, b) in [-1, 1]; antisymmetric, 0 when unspecified."""
@@ -164,6 +241,8 @@ class Kit(_Strict):
             events=events,
             pair_preference=pairs,
             double_pedal=self.double_pedal,
+            left_bass_pedal=self.left_bass_pedal,
+            note_objects=dict(self.note_objects),
         )
 
 

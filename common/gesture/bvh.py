@@ -1,0 +1,197 @@
+"""Minimal BVH (Biovision Hierarchy) reading, writing and forward kinematics.
+
+Reads any BVH with ``ROOT``/``JOINT``/``End Site`` blocks, 3 or 6 channels per
+joint, rotations in any Euler order (degrees, intrinsic, as the channel list
+says). :func:`forward_kinematics` gives world positions of every joint and end
+site per frame, in the file's units and axes (BVH is usually y-up).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+
+class BvhError(ValueError):
+    """A BVH file that cannot be read; the message names the problem."""
+
+
+@dataclass
+class BvhJoint:
+    name: str
+    offset: np.ndarray
+    channels: list[str]
+    parent: int  # -1 for the root
+    end_site: np.ndarray | None = None  # offset of the end site, if any
+    children: list[int] = field(default_factory=list)
+
+
+@dataclass
+class Bvh:
+    """A parsed BVH: joints (root first), frame time (s) and motion (F, total channels)."""
+
+    joints: list[BvhJoint]
+    frame_time: float
+    motion: np.ndarray
+
+    @property
+    def rate_hz(self) -> float:
+        return 1.0 / self.frame_time
+
+    def joint_index(self, name: str) -> int:
+        for i, j in enumerate(self.joints):
+            if j.name == name:
+                return i
+        raise KeyError(f"BVH has no joint {name!r} (joints: {', '.join(j.name for j in self.joints)})")
+
+
+def parse_bvh(text: str, name: str = "<bvh>") -> Bvh:
+    """Parse BVH text. Raises :class:`BvhError` naming the problem."""
+    tokens = text.split()
+    pos = 0
+
+    def take() -> str:
+        nonlocal pos
+        if pos >= len(tokens):
+            raise BvhError(f"{name}: file ended early (truncated hierarchy or motion)")
+        pos += 1
+        return tokens[pos - 1]
+
+    def expect(word: str) -> None:
+        got = take()
+        if got.upper() != word.upper():
+            raise BvhError(f"{name}: expected {word!r}, found {got!r}")
+
+    joints: list[BvhJoint] = []
+    try:
+        expect("HIERARCHY")
+        stack: list[int] = []
+        word = take()
+        if word.upper() != "ROOT":
+            raise BvhError(f"{name}: expected ROOT, found {word!r}")
+        while True:
+            if word.upper() in ("ROOT", "JOINT"):
+                jname = take()
+                expect("{")
+                expect("OFFSET")
+                offset = np.array([float(take()) for _ in range(3)])
+                expect("CHANNELS")
+                n = int(take())
+                channels = [take() for _ in range(n)]
+                parent = stack[-1] if stack else -1
+                joints.append(BvhJoint(jname, offset, channels, parent))
+                if parent >= 0:
+                    joints[parent].children.append(len(joints) - 1)
+                stack.append(len(joints) - 1)
+            elif word.upper() == "END":
+                expect("Site")
+                expect("{")
+                expect("OFFSET")
+                joints[stack[-1]].end_site = np.array([float(take()) for _ in range(3)])
+                expect("}")
+            elif word == "}":
+                stack.pop()
+                if not stack:
+                    break
+            else:
+                raise BvhError(f"{name}: unexpected {word!r} in hierarchy")
+            word = take()
+        expect("MOTION")
+        expect("Frames:")
+        frames = int(take())
+        expect("Frame")
+        expect("Time:")
+        frame_time = float(take())
+        width = sum(len(j.channels) for j in joints)
+        values = tokens[pos:]
+        if len(values) < frames * width:
+            raise BvhError(
+                f"{name}: truncated motion: {frames} frames x {width} channels announced, {len(values)} values found"
+            )
+        motion = np.array(values[: frames * width], dtype=float).reshape(frames, width)
+    except (ValueError, IndexError) as exc:
+        if isinstance(exc, BvhError):
+            raise
+        raise BvhError(f"{name}: malformed BVH ({exc})") from exc
+    if frame_time <= 0:
+        raise BvhError(f"{name}: frame time must be positive")
+    return Bvh(joints, frame_time, motion)
+
+
+def read_bvh(path: str | Path) -> Bvh:
+    p = Path(path)
+    if not p.is_file():
+        raise BvhError(f"{p}: no such file")
+    return parse_bvh(p.read_text(encoding="utf-8"), str(p))
+
+
+def _num(v: float) -> str:
+    text = f"{v:.3f}".rstrip("0").rstrip(".")
+    return "0" if text in ("", "-0") else text
+
+
+def write_bvh(bvh: Bvh) -> str:
+    """BVH text of ``bvh`` (motion values with 3 decimals, trailing zeros trimmed)."""
+    lines = ["HIERARCHY"]
+
+    def emit(i: int, depth: int) -> None:
+        j = bvh.joints[i]
+        pad = "  " * depth
+        lines.append(f"{pad}{'ROOT' if j.parent < 0 else 'JOINT'} {j.name}")
+        lines.append(f"{pad}{{")
+        lines.append(f"{pad}  OFFSET {' '.join(f'{v:.5f}' for v in j.offset)}")
+        lines.append(f"{pad}  CHANNELS {len(j.channels)} {' '.join(j.channels)}")
+        for c in j.children:
+            emit(c, depth + 1)
+        if j.end_site is not None:
+            lines.append(f"{pad}  End Site")
+            lines.append(f"{pad}  {{")
+            lines.append(f"{pad}    OFFSET {' '.join(f'{v:.5f}' for v in j.end_site)}")
+            lines.append(f"{pad}  }}")
+        lines.append(f"{pad}}}")
+
+    emit(0, 0)
+    lines.append("MOTION")
+    lines.append(f"Frames: {len(bvh.motion)}")
+    lines.append(f"Frame Time: {bvh.frame_time:.6f}")
+    lines.extend(" ".join(_num(v) for v in row) for row in bvh.motion)
+    return "\n".join(lines) + "\n"
+
+
+def forward_kinematics(bvh: Bvh) -> dict[str, np.ndarray]:
+    """World positions (F, 3) of every joint and of each end site (named ``<joint>_end``)."""
+    frames = len(bvh.motion)
+    out: dict[str, np.ndarray] = {}
+    rots: list[Rotation] = []
+    pos: list[np.ndarray] = []
+    col = 0
+    for j in bvh.joints:
+        block = bvh.motion[:, col : col + len(j.channels)]
+        col += len(j.channels)
+        translation = np.zeros((frames, 3))
+        axes = ""
+        angles = []
+        for k, ch in enumerate(j.channels):
+            c = ch.lower()
+            if c.endswith("position"):
+                translation[:, "xyz".index(c[0])] = block[:, k]
+            elif c.endswith("rotation"):
+                axes += c[0].upper()
+                angles.append(block[:, k])
+        local = Rotation.from_euler(axes, np.stack(angles, axis=1), degrees=True) if axes else Rotation.identity(frames)
+        if j.parent < 0:
+            p = j.offset + translation
+            r = local
+        else:
+            pr, pp = rots[j.parent], pos[j.parent]
+            p = pp + pr.apply(np.tile(j.offset, (frames, 1)) + translation)
+            r = pr * local
+        rots.append(r)
+        pos.append(p)
+        out[j.name] = p
+        if j.end_site is not None:
+            out[f"{j.name}_end"] = p + r.apply(np.tile(j.end_site, (frames, 1)))
+    return out

@@ -1,0 +1,431 @@
+"""The gesture planner: limb assignments -> co-articulated Cartesian trajectories.
+
+For each limb, each stroke is prepared by a gesture unit chosen by grip,
+nuance (per note or global) and the local inter-onset interval (IOI). The
+unit's normalised stick-tip height profile is time-warped to the IOI (slow
+notes hover at the unit's apex instead of stretching it), scaled by the
+stroke's preparatory height (from velocity, capped by the IOI) and laid along
+the surface normal over a minimum-jerk path between successive targets. A
+cubic Hermite correction then makes each segment start exactly at the previous
+contact's rebound state (elasticity x strike speed, along the normal) and end
+exactly at the next contact's strike state, so trajectories are continuous in
+position and velocity. Around each contact the velocity reverses over the
+unit's contact time (3-6 ms).
+
+The head looks at a smoothed mean of the hands' next hit points and nods on
+the beats.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from common.gesture.database import GestureDatabase, GestureUnit, default_database
+from common.gesture.heights import foot_height, foot_speed, stick_height, stick_speed, tempo_cap
+from common.gesture.plan import (
+    GesturePlan,
+    Grip,
+    HeadTrajectory,
+    LimbTrajectory,
+    Nuance,
+    PlannedStroke,
+    hermite,
+)
+from common.kit import EventType, Kit, KitObject, Limb
+from common.score.events import Score
+from common.score.hands import HandAlgorithm, Sticking
+from common.score.limbs import HANDS, Assignment, Note, distribute
+
+VERTICAL_SHARE = 0.6
+"""Share of a segment over which a height change between targets is made (early when rising, late when falling)."""
+CORRECTION_WINDOW = 0.06
+"""Seconds at each end of a segment over which the boundary velocities are matched."""
+
+
+@dataclass(frozen=True)
+class PlannerConfig:
+    """Planner settings (seconds, metres)."""
+
+    grip: Grip = Grip.GERMAN
+    nuance: Nuance = Nuance.TENUTO
+    lead_in: float = 1.0  # rest before the first note, seconds
+    tail: float = 1.0  # after the last note, seconds
+    rest_height: float = 0.10  # hands hover this far above their first/last target, metres
+    foot_rest_height: float = 0.01
+    foot_contact: float = 0.010  # footboard bottom-out time, seconds
+    foot_cycle: float = (
+        0.30  # a pedal stroke's lift and fall take at most this long; the foot rests on the pedal between
+    )
+    hihat_open_lift: float = 0.03  # the hi-hat foot lifts the pedal this much (metres) around open hi-hat notes
+    knots_per_second: float = 120.0
+    nod_amplitude: float = 0.08  # radians
+    nod_width: float = 0.06  # seconds
+    head_rate: float = 50.0  # Hz
+
+
+@dataclass
+class _Stroke:
+    time: float
+    target: np.ndarray
+    normal: np.ndarray
+    speed: float
+    rebound: float
+    lift: float
+    contact: float
+    nuance: Nuance
+
+
+def _min_jerk(s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    return s**3 * (10 - 15 * s + 6 * s**2), 30 * s**2 * (1 - s) ** 2
+
+
+def _segment(
+    t0: float,
+    p0: np.ndarray,
+    v0: np.ndarray,
+    n0: np.ndarray,
+    t1: float,
+    p1: np.ndarray,
+    v1: np.ndarray,
+    n1: np.ndarray,
+    lift: float,
+    unit: GestureUnit | None,
+    knots_per_second: float,
+    cycle: float | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Knots (times (K,), positions (K, 3), velocities (K, 3)) from t0 to t1 inclusive.
+
+    ``cycle`` (feet): the unit's profile plays over the last ``cycle`` seconds only and
+    the effector rests on the target line before (the foot stays on the pedal).
+    """
+    d = t1 - t0
+    k = int(np.clip(d * knots_per_second, 4, 80))
+    w = min(0.4 * d, CORRECTION_WINDOW)
+    tau = np.unique(np.concatenate([np.linspace(0.0, d, k + 1), np.linspace(0.0, w, 7), np.linspace(d - w, d, 7)]))
+    tau = tau[np.concatenate([[True], np.diff(tau) > 1e-6])]
+    tau[-1] = d
+    s = tau / d
+    m, dm = _min_jerk(s)
+    # over the top: rise early when the next target is higher, descend late when it is lower
+    delta = p1 - p0
+    horizontal = np.array([delta[0], delta[1], 0.0])
+    vertical = np.array([0.0, 0.0, delta[2]])
+    if delta[2] > 0:
+        mz, dmz = _min_jerk(np.clip(s / VERTICAL_SHARE, 0.0, 1.0))
+        dmz = np.where(s < VERTICAL_SHARE, dmz / VERTICAL_SHARE, 0.0)
+    else:
+        mz, dmz = _min_jerk(np.clip((s - (1 - VERTICAL_SHARE)) / VERTICAL_SHARE, 0.0, 1.0))
+        dmz = np.where(s > 1 - VERTICAL_SHARE, dmz / VERTICAL_SHARE, 0.0)
+    base = p0 + np.outer(m, horizontal) + np.outer(mz, vertical)
+    dbase = np.outer(dm / d, horizontal) + np.outer(dmz / d, vertical)
+    if unit is not None and lift > 0:
+        period = unit.period
+        apex = unit.apex_phase
+        if cycle is not None:
+            c = min(cycle, d)
+            phi = np.clip((tau - (d - c)) / c, 0.0, 1.0)
+            dphi = np.where(tau > d - c, 1.0 / c, 0.0)
+        elif d > period:
+            rise, fall = period * apex, period * (1 - apex)
+            phi = np.where(tau < rise, tau / period, np.where(tau > d - fall, apex + (tau - (d - fall)) / period, apex))
+            dphi = np.where((tau < rise) | (tau > d - fall), 1.0 / period, 0.0)
+        else:
+            phi, dphi = s, np.full_like(s, 1.0 / d)
+        h = unit.profile(phi)
+        dh = unit.profile(phi, 1) * dphi
+        normal = np.outer(1 - m, n0) + np.outer(m, n1)
+        normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+        base = base + normal * (lift * h)[:, None]
+        dbase = dbase + normal * (lift * dh)[:, None]
+    # Hermite corrections within ``w`` of each end: exact boundary velocities, local effect
+    e0 = v0 - dbase[0]
+    e1 = v1 - dbase[-1]
+    a = np.clip(tau / w, 0.0, 1.0)
+    b = np.clip((tau - (d - w)) / w, 0.0, 1.0)
+    h10 = a**3 - 2 * a**2 + a
+    h11 = b**3 - b**2
+    dh10 = 3 * a**2 - 4 * a + 1
+    dh11 = 3 * b**2 - 2 * b
+    dh10[tau > w] = 0.0
+    dh11[tau < d - w] = 0.0
+    pos = base + np.outer(h10 * w, e0) + np.outer(h11 * w, e1)
+    vel = dbase + np.outer(dh10, e0) + np.outer(dh11, e1)
+    pos[0], pos[-1], vel[0], vel[-1] = p0, p1, v0, v1
+    return t0 + tau, pos, vel
+
+
+def _limb_knots(
+    strokes: list[_Stroke],
+    rest0: tuple[np.ndarray, np.ndarray],
+    rest1_height: float,
+    start: float,
+    end: float,
+    units: list[GestureUnit | None],
+    cfg: PlannerConfig,
+    cycle: float | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    times: list[np.ndarray] = []
+    pos: list[np.ndarray] = []
+    vel: list[np.ndarray] = []
+    zero = np.zeros(3)
+    p, v, n, t = rest0[0], zero, rest0[1], start
+    for st, unit in zip(strokes, units, strict=True):
+        strike_v = -st.speed * st.normal
+        lift = st.lift
+        # rebound not yet finished: the lift also has to account for where we start
+        tt, pp, vv = _segment(
+            t, p, v, n, st.time, st.target, strike_v, st.normal, lift, unit, cfg.knots_per_second, cycle
+        )
+        times.append(tt[:-1])
+        pos.append(pp[:-1])
+        vel.append(vv[:-1])
+        c = st.contact
+        depth = st.speed * c / 4
+        times.append(np.array([st.time, st.time + c / 2]))
+        pos.append(np.array([st.target, st.target - depth * st.normal]))
+        vel.append(np.array([strike_v, zero]))
+        t = st.time + c
+        p = st.target - (st.speed - st.rebound) * c / 4 * st.normal
+        v = st.rebound * st.normal
+        n = st.normal
+    if strokes:
+        last = strokes[-1]
+        goal = last.target + rest1_height * last.normal
+        tt, pp, vv = _segment(t, p, v, n, max(end, t + 0.2), goal, zero, n, 0.0, None, cfg.knots_per_second)
+        times.append(tt)
+        pos.append(pp)
+        vel.append(vv)
+    else:
+        times.append(np.array([start, end]))
+        pos.append(np.array([p, p]))
+        vel.append(np.array([zero, zero]))
+    return np.concatenate(times), np.concatenate(pos), np.concatenate(vel)
+
+
+def _open_hihat(
+    times: np.ndarray,
+    pos: np.ndarray,
+    vel: np.ndarray,
+    opens: list[float],
+    foot_strokes: list[float],
+    cfg: PlannerConfig,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Lift the hi-hat foot (pedal up, hi-hat open) around open hi-hat notes when the foot is resting.
+
+    Windows [t - 80 ms, t + 120 ms] of open notes are merged; a window is used only
+    when the foot plays no pedal stroke within ``foot_cycle`` of it (its lift would start inside).
+    """
+    windows: list[list[float]] = []
+    for t in sorted(opens):
+        if windows and t - 0.08 <= windows[-1][1]:
+            windows[-1][1] = t + 0.12
+        else:
+            windows.append([t - 0.08, t + 0.12])
+    strokes = np.array(foot_strokes)
+    for w0, w1 in windows:
+        a, b = w0 - 0.1, w1 + 0.1
+        if strokes.size and np.any((strokes > a - cfg.foot_cycle) & (strokes < b + cfg.foot_cycle + 0.01)):
+            continue
+        if a <= times[0] or b >= times[-1]:
+            continue
+        ends, _ = hermite(times, pos, vel, np.array([a, b]))
+        rest_a, rest_b = ends[0], ends[1]
+        up = np.array([0.0, 0.0, cfg.hihat_open_lift])
+        keep = (times < a) | (times > b)
+        new_t = np.array([a, w0, w1, b])
+        new_p = np.array([rest_a, rest_a + up, rest_b + up, rest_b])
+        times = np.concatenate([times[keep], new_t])
+        pos = np.concatenate([pos[keep], new_p])
+        vel = np.concatenate([vel[keep], np.zeros((4, 3))])
+        order = np.argsort(times, kind="stable")
+        times, pos, vel = times[order], pos[order], vel[order]
+    return times, pos, vel
+
+
+def _rest_event(kit: Kit, limb: Limb) -> EventType | None:
+    swap = {
+        Limb.LEFT_HAND: Limb.RIGHT_HAND,
+        Limb.RIGHT_HAND: Limb.LEFT_HAND,
+        Limb.LEFT_FOOT: Limb.RIGHT_FOOT,
+        Limb.RIGHT_FOOT: Limb.LEFT_FOOT,
+    }
+    order = _rest_event_order(swap[limb] if kit.handedness == "left" else limb)
+    for ev in order:
+        if ev in kit.events:
+            return ev
+    for ev, spec in kit.events.items():
+        if spec.preferred == limb:
+            return ev
+    return next(iter(kit.events), None)
+
+
+def _rest_event_order(limb: Limb) -> list[EventType]:
+    return {
+        Limb.LEFT_HAND: [EventType.SNARE],
+        Limb.RIGHT_HAND: [EventType.HIHATCLOSED, EventType.RIDE],
+        Limb.LEFT_FOOT: [EventType.HIHATPEDAL],
+        Limb.RIGHT_FOOT: [EventType.BASS],
+    }[limb]
+
+
+def plan_gestures(
+    assignment: Assignment,
+    kit: Kit,
+    score: Score | None = None,
+    config: PlannerConfig | None = None,
+    database: GestureDatabase | None = None,
+) -> GesturePlan:
+    """Plan Cartesian effector trajectories for an assignment.
+
+    Parameters
+    ----------
+    assignment : Assignment
+        Notes with limbs (from :func:`common.score.limbs.distribute`).
+    kit : Kit
+        Hit points, normals, elasticities.
+    score : Score | None
+        For the beats (head nod).
+    config : PlannerConfig | None
+        Grip, global nuance, timing.
+    database : GestureDatabase | None
+        Gesture units (default: the shipped database).
+
+    Returns
+    -------
+    GesturePlan
+        One trajectory per limb, every note's planned stroke, the assignment's issues.
+    """
+    cfg = config or PlannerConfig()
+    db = database or default_database()
+    notes = assignment.notes
+    first = notes[0].time if notes else 0.0
+    last = notes[-1].time if notes else 0.0
+    start, end = first - cfg.lead_in, last + cfg.tail
+    trajectories: dict[Limb, LimbTrajectory] = {}
+    planned: list[PlannedStroke] = []
+    geometry: dict[tuple[EventType, int | None, Limb], tuple[np.ndarray, np.ndarray, np.ndarray, KitObject]] = {}
+    for limb in Limb:
+        mine = [n for n in notes if n.limb == limb]
+        hand = limb in HANDS
+        strokes: list[_Stroke] = []
+        units: list[GestureUnit | None] = []
+        prev_time = start
+        for n in mine:
+            nuance = n.nuance or cfg.nuance
+            key = (n.event, n.pitch, limb)
+            if key not in geometry:
+                tgt, nrm = kit.effector_target(n.event, limb, n.pitch)
+                geometry[key] = (
+                    np.array(tgt),
+                    np.array(nrm),
+                    np.array(kit.hit_point(n.event, n.pitch)[0]),
+                    kit.object_for(n.event, n.pitch),
+                )
+            target, normal, hit, obj = geometry[key]
+            interval = n.time - prev_time
+            if hand:
+                unit = db.select(cfg.grip, nuance, interval)
+                lift = tempo_cap(stick_height(n.velocity, nuance), interval)
+                speed = stick_speed(n.velocity, nuance)
+                contact = unit.contact_duration
+                rebound = obj.elasticity * speed
+            else:
+                unit = db.select(cfg.grip, Nuance.LEGATO, interval)
+                lift = tempo_cap(foot_height(n.velocity), interval)
+                speed = foot_speed(n.velocity)
+                contact = cfg.foot_contact
+                rebound = 0.5 * obj.elasticity * speed
+            strokes.append(_Stroke(n.time, target, normal, speed, rebound, lift, contact, nuance))
+            units.append(unit)
+            planned.append(
+                PlannedStroke(
+                    time=n.time,
+                    limb=limb,
+                    event=n.event,
+                    object_id=obj.id,
+                    hit_point=hit,
+                    target=target,
+                    normal=normal,
+                    velocity=speed,
+                    note_velocity=n.velocity,
+                    note_index=n.index,
+                    zone=kit.spec(n.event).zone,
+                    r=kit.spec(n.event).r,
+                    theta=kit.spec(n.event).theta,
+                    lift=lift,
+                    rebound_velocity=rebound,
+                    contact_duration=contact,
+                    grip=cfg.grip,
+                    nuance=nuance,
+                )
+            )
+            prev_time = n.time
+        rest_h = cfg.rest_height if hand else cfg.foot_rest_height
+        if strokes:
+            rest0 = (strokes[0].target + rest_h * strokes[0].normal, strokes[0].normal)
+        else:
+            ev = _rest_event(kit, limb)
+            if ev is None:
+                continue
+            rest_target, rest_normal = (np.array(v) for v in kit.effector_target(ev, limb))
+            rest0 = (rest_target + rest_h * rest_normal, rest_normal)
+        times, pos, vel = _limb_knots(strokes, rest0, rest_h, start, end, units, cfg, None if hand else cfg.foot_cycle)
+        if EventType.HIHATPEDAL in kit.events and limb == kit.spec(EventType.HIHATPEDAL).preferred:
+            opens = [n.time for n in notes if n.event == EventType.HIHATOPEN]
+            times, pos, vel = _open_hihat(times, pos, vel, opens, [s.time for s in strokes], cfg)
+        trajectories[limb] = LimbTrajectory(limb, times, pos, vel)
+    planned.sort(key=lambda s: (s.time, s.limb.value))
+    plan_end = max((tr.end_time for tr in trajectories.values()), default=end)
+    head = _head(planned, score, start, plan_end, cfg)
+    return GesturePlan(
+        trajectories=trajectories,
+        strokes=planned,
+        issues=list(assignment.issues),
+        head=head,
+        start_time=start,
+        end_time=plan_end,
+        kit_name=kit.name,
+        mode="gesture",
+    )
+
+
+def _head(
+    strokes: list[PlannedStroke], score: Score | None, start: float, end: float, cfg: PlannerConfig
+) -> HeadTrajectory:
+    """Look-at point: the hands' hit points, smoothed over 0.25 s; nod: a bump on every beat."""
+    t = np.arange(start, end + 1.0 / cfg.head_rate, 1.0 / cfg.head_rate)
+    hand = [s for s in strokes if s.limb in HANDS]
+    if hand:
+        st = np.array([s.time for s in hand])
+        pts = np.array([s.hit_point for s in hand])
+        targets = np.stack([np.interp(t, st, pts[:, k]) for k in range(3)], axis=1)
+        width = max(1, int(0.25 * cfg.head_rate))
+        kernel = np.ones(width) / width
+        padded = np.pad(targets, ((width, width), (0, 0)), mode="edge")
+        targets = np.stack([np.convolve(padded[:, k], kernel, mode="same")[width:-width] for k in range(3)], axis=1)
+    else:
+        targets = np.tile([0.0, 0.5, 0.7], (len(t), 1))
+    nod = np.zeros_like(t)
+    beats = score.beats if score is not None and len(score.beats) else np.zeros(0)
+    for b in beats:
+        if start - 1 <= b <= end + 1:
+            nod += cfg.nod_amplitude * np.exp(-(((t - b) / cfg.nod_width) ** 2))
+    return HeadTrajectory(t, targets, nod)
+
+
+def plan_score(
+    score: Score,
+    kit: Kit,
+    algorithm: HandAlgorithm | str = HandAlgorithm.VITERBI,
+    sticking: Sticking | str = Sticking.NONE,
+    config: PlannerConfig | None = None,
+    database: GestureDatabase | None = None,
+) -> GesturePlan:
+    """Score -> limbs -> gesture plan, in one call."""
+    assignment = distribute(score, kit, algorithm, sticking)
+    return plan_gestures(assignment, kit, score, config, database)
+
+
+__all__ = ["Note", "PlannerConfig", "plan_gestures", "plan_score"]

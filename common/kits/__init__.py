@@ -1,0 +1,1 @@
+"""Shipped kit descriptions (YAML); a package so the files install with it."""

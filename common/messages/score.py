@@ -1,0 +1,86 @@
+"""Score control: live notes and the controls of the score -> gesture pipeline."""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal
+
+from pydantic import Field
+
+from common.messages.base import Family, OscMessage, RigTime
+from common.messages.registry import register
+
+Text = Annotated[str, Field(min_length=1, max_length=512)]
+
+
+@register
+class LiveNote(OscMessage):
+    """A drum note played live (e.g. from a MIDI controller bridged to OSC).
+
+    The pitch maps to a drum event type with the General MIDI drum map (plus the
+    Roland TD-11's 22 and 26); unknown pitches are counted and reported.
+    """
+
+    ADDRESS = "/batteur/score/note"
+    FAMILY = Family.CONTROL
+
+    time: RigTime = Field(description="rig time the note should sound, seconds")
+    pitch: int = Field(ge=0, le=127, description="MIDI note number (GM drum map)")
+    velocity: int = Field(ge=0, le=127, description="MIDI velocity (0..127; mapped to 0..1)")
+    channel: int = Field(ge=1, le=16, description="MIDI channel, 1-based (10 for GM drums)")
+
+
+@register
+class ScoreLoad(OscMessage):
+    """Load a score file (Standard MIDI File or Batteur text score) on the receiving node."""
+
+    ADDRESS = "/batteur/score/load"
+    FAMILY = Family.CONTROL
+
+    path: Text = Field(description="score file path on the receiving machine (.mid or text)")
+
+
+@register
+class ScoreTransport(OscMessage):
+    """Start, stop or pause the loaded score."""
+
+    ADDRESS = "/batteur/score/transport"
+    FAMILY = Family.CONTROL
+
+    action: Literal["play", "stop", "pause"] = Field(description="transport action")
+    time: RigTime = Field(description="rig time at which the action takes effect, seconds")
+    position: float = Field(ge=0, description="score position to play from, seconds")
+
+
+@register
+class GestureStyle(OscMessage):
+    """Global grip, nuance, hand-assignment algorithm and sticking of the gesture planner."""
+
+    ADDRESS = "/batteur/score/style"
+    FAMILY = Family.CONTROL
+
+    grip: Literal["french", "german"] = Field(description="stick grip")
+    nuance: Literal["legato", "tenuto", "accent", "vertical_accent", "staccato"] = Field(
+        description="global playing nuance (per-note nuances in the score win)"
+    )
+    algorithm: Literal["simple", "pairwise", "viterbi"] = Field(description="hand-assignment algorithm")
+    sticking: Literal["none", "single", "double", "paradiddle"] = Field(description="sticking for rolls")
+
+
+@register
+class TempoScale(OscMessage):
+    """Scale the score's tempo (1 = as written)."""
+
+    ADDRESS = "/batteur/score/tempo"
+    FAMILY = Family.CONTROL
+
+    factor: float = Field(ge=0.25, le=4.0, description="tempo factor, 0.25..4 (2 = twice as fast)")
+
+
+@register
+class KitSelect(OscMessage):
+    """Select the kit by shipped name or file path."""
+
+    ADDRESS = "/batteur/score/kit"
+    FAMILY = Family.CONTROL
+
+    kit: Text = Field(description="shipped kit name (default, double_pedal, left_handed) or YAML/JSON path")

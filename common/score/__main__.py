@@ -1,0 +1,67 @@
+"""Inspect a score: ``python -m common.score FILE [--kit NAME] [--algorithm viterbi] [--sticking none] [--plan]``.
+
+Prints the events per type, unknown notes, removed doubles, the limb
+assignment and every feasibility issue (and, with ``--plan``, the gesture plan's
+size and planning time).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from collections import Counter
+
+from common.kit import load_kit
+from common.score.events import ScoreError
+from common.score.hands import HandAlgorithm, Sticking
+from common.score.limbs import distribute
+from common.score.text import read_score
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m common.score", description=__doc__)
+    parser.add_argument("score", help="a .mid file or a Batteur text score")
+    parser.add_argument("--kit", default="default", help="kit name or YAML/JSON path")
+    parser.add_argument("--algorithm", default="viterbi", choices=[a.value for a in HandAlgorithm])
+    parser.add_argument("--sticking", default="none", choices=[s.value for s in Sticking])
+    parser.add_argument("--plan", action="store_true", help="also plan the gestures")
+    args = parser.parse_args(argv)
+    try:
+        score = read_score(args.score)
+        kit = load_kit(args.kit)
+    except (ScoreError, FileNotFoundError, ValueError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    print(f"{score.source}: {len(score.events)} events over {score.duration:.2f} s, {len(score.beats)} beats")
+    for event, count in sorted(Counter(e.event.value for e in score.events).items()):
+        print(f"  {event:<12} {count}")
+    for warning in score.warnings:
+        print(f"warning: {warning}")
+    if score.duplicates:
+        print(f"double events removed: {len(score.duplicates)}")
+    assignment = distribute(score, kit, args.algorithm, args.sticking)
+    limbs = Counter(n.limb.value for n in assignment.notes)
+    print("limbs: " + ", ".join(f"{k} {v}" for k, v in sorted(limbs.items())))
+    for issue in assignment.issues:
+        event = issue.event.value if issue.event else "-"
+        print(
+            f"  note {issue.note_index} at {issue.time:.3f} s {event}: {issue.reason.value} -> {issue.action.value}"
+            f" ({issue.detail})"
+        )
+    if args.plan:
+        from common.gesture.planner import plan_gestures
+
+        t0 = time.perf_counter()
+        plan = plan_gestures(assignment, kit, score)
+        elapsed = time.perf_counter() - t0
+        knots = sum(len(t.times) for t in plan.trajectories.values())
+        print(
+            f"plan: {len(plan.strokes)} strokes, {knots} knots, {plan.start_time:.2f}..{plan.end_time:.2f} s, "
+            f"planned in {elapsed:.3f} s"
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

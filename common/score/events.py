@@ -1,0 +1,181 @@
+"""Drum events: what a score becomes before limbs are chosen.
+
+A :class:`Score` is a time-sorted list of :class:`DrumEvent` (seconds, drum
+event type, velocity in [0, 1]) plus what was not kept: notes with no drum
+event (``unknown``) and double events (``duplicates``), so nothing is dropped
+silently. Scores come from Standard MIDI Files (:mod:`common.score.midi`), the
+plain-text format (:mod:`common.score.text`) or live OSC notes
+(:mod:`common.score.live`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from common.gesture.plan import Nuance
+from common.kit import EventType, Limb
+from common.score.gm import DRUM_MAP, note_name
+
+DUPLICATE_WINDOW = 0.010
+"""Two events of the same type closer than this (seconds) are one double event."""
+
+
+class ScoreError(ValueError):
+    """A score that cannot be read; the message names the file and the problem."""
+
+
+@dataclass(frozen=True)
+class DrumNote:
+    """A raw note from a score source: time (s), MIDI pitch, velocity in [0, 1], MIDI channel (1-16)."""
+
+    time: float
+    pitch: int
+    velocity: float
+    channel: int = 10
+
+
+@dataclass(frozen=True)
+class DrumEvent:
+    """One drum event.
+
+    Parameters
+    ----------
+    time : float
+        Onset, seconds from the score start.
+    event : EventType
+        Drum event type.
+    velocity : float
+        Loudness in [0, 1] (MIDI velocity / 127).
+    pitch : int | None
+        Source MIDI pitch (selects second objects through ``Kit.note_objects``).
+    limb : Limb | None
+        Forced limb (sticking written in the score), or None to let the planner choose.
+    nuance : Nuance | None
+        Per-note nuance, or None for the global one.
+    """
+
+    time: float
+    event: EventType
+    velocity: float
+    pitch: int | None = None
+    limb: Limb | None = None
+    nuance: Nuance | None = None
+
+
+@dataclass(frozen=True)
+class UnknownNote:
+    """A note with no drum event type: reported, not played."""
+
+    time: float
+    pitch: int
+    velocity: float
+    channel: int
+
+    def describe(self) -> str:
+        return f"{note_name(self.pitch)} (pitch {self.pitch}, channel {self.channel}) at {self.time:.3f} s"
+
+
+@dataclass
+class Score:
+    """A drum score ready for limb distribution.
+
+    Parameters
+    ----------
+    events : list[DrumEvent]
+        Sorted by time.
+    beats : np.ndarray, shape (B,)
+        Beat times, seconds (for the head nod and tempo-aware gesture choice).
+    unknown : list[UnknownNote]
+        Notes with no drum event type.
+    duplicates : list[DrumEvent]
+        Double events removed (same type within ``DUPLICATE_WINDOW``).
+    warnings : list[str]
+        Other things the reader wants the user to know.
+    source : str
+        File name or "live"/"text".
+    """
+
+    events: list[DrumEvent]
+    beats: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    unknown: list[UnknownNote] = field(default_factory=list)
+    duplicates: list[DrumEvent] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    source: str = ""
+
+    @property
+    def duration(self) -> float:
+        """Seconds from 0 to the last event (0 when empty)."""
+        return self.events[-1].time if self.events else 0.0
+
+    def unknown_summary(self) -> dict[int, int]:
+        """Count of unknown notes per MIDI pitch."""
+        counts: dict[int, int] = {}
+        for n in self.unknown:
+            counts[n.pitch] = counts.get(n.pitch, 0) + 1
+        return counts
+
+
+def remove_duplicates(
+    events: Iterable[DrumEvent], window: float = DUPLICATE_WINDOW
+) -> tuple[list[DrumEvent], list[DrumEvent]]:
+    """Merge double events: same event type within ``window`` seconds keeps the loudest.
+
+    Returns (kept, removed), both sorted by time.
+    """
+    ordered = sorted(events, key=lambda e: (e.time, e.event.value))
+    kept: list[DrumEvent] = []
+    removed: list[DrumEvent] = []
+    last: dict[EventType, int] = {}
+    for ev in ordered:
+        i = last.get(ev.event)
+        if i is not None and ev.time - kept[i].time < window:
+            prev = kept[i]
+            if ev.velocity > prev.velocity:
+                kept[i] = replace(prev, velocity=ev.velocity)
+            removed.append(ev)
+            continue
+        last[ev.event] = len(kept)
+        kept.append(ev)
+    return kept, removed
+
+
+def score_from_notes(
+    notes: Iterable[DrumNote],
+    drum_map: Mapping[int, EventType] = DRUM_MAP,
+    beats: np.ndarray | None = None,
+    source: str = "",
+    duplicate_window: float = DUPLICATE_WINDOW,
+) -> Score:
+    """Turn raw notes into a :class:`Score`: map pitches, clamp velocities to [0, 1], remove doubles."""
+    events: list[DrumEvent] = []
+    unknown: list[UnknownNote] = []
+    for n in notes:
+        vel = float(min(max(n.velocity, 0.0), 1.0))
+        ev = drum_map.get(n.pitch)
+        if ev is None:
+            unknown.append(UnknownNote(n.time, n.pitch, vel, n.channel))
+        else:
+            events.append(DrumEvent(time=n.time, event=ev, velocity=vel, pitch=n.pitch))
+    kept, removed = remove_duplicates(events, duplicate_window)
+    warnings = []
+    if unknown:
+        pitches = ", ".join(f"{note_name(p)} x{c}" for p, c in sorted(_count(unknown).items()))
+        warnings.append(f"{len(unknown)} notes have no drum event type and are not played: {pitches}")
+    return Score(
+        events=kept,
+        beats=np.zeros(0) if beats is None else beats,
+        unknown=unknown,
+        duplicates=removed,
+        warnings=warnings,
+        source=source,
+    )
+
+
+def _count(unknown: list[UnknownNote]) -> dict[int, int]:
+    counts: dict[int, int] = {}
+    for n in unknown:
+        counts[n.pitch] = counts.get(n.pitch, 0) + 1
+    return counts

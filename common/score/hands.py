@@ -1,0 +1,354 @@
+"""Hand assignment: which hand plays each stick event.
+
+Three algorithms (Kragtwijk, Nijholt and Zwiers 2001, section on limb
+assignment; the third one proposed there and built here):
+
+* ``simple``: the event type's preferred hand; when that hand played less than
+  the event's minTimeGap ago, the other hand (alternation).
+* ``pairwise``: a vote of the preferred hand against the pair-wise hand
+  preferences with the neighbouring events, each weighted ``rho ** dt``
+  (dt in seconds), then the minTimeGap alternation.
+* ``viterbi``: a shortest-path search over the whole piece. The state is the
+  last event of each hand; the cost of playing an event with a hand adds
+  exceeding the hand's speed (an interval below minTimeGap), crossing the arms
+  (pair preference violated, or the left stick right of the right stick when the
+  kit says nothing), travel speed between hit points, and leaving the preferred
+  hand. A beam keeps the best states at each step.
+
+Groups of two simultaneous stick events always use both hands; which one goes
+where follows the pair preference (or the geometry).
+
+Sticking patterns (``single`` RLRL, ``double`` RRLL, ``paradiddle`` RLRR LRLL)
+apply to rolls: runs of four or more single stick events on one object faster
+than twice its minTimeGap. The lead hand is the event's preferred hand.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from common.kit import EventType, Kit, Limb
+
+L, R = Limb.LEFT_HAND, Limb.RIGHT_HAND
+HANDS = (L, R)
+
+
+class HandAlgorithm(enum.StrEnum):
+    SIMPLE = "simple"
+    PAIRWISE = "pairwise"
+    VITERBI = "viterbi"
+
+
+class Sticking(enum.StrEnum):
+    NONE = "none"
+    SINGLE = "single"
+    DOUBLE = "double"
+    PARADIDDLE = "paradiddle"
+
+
+PATTERNS: dict[Sticking, str] = {Sticking.SINGLE: "RL", Sticking.DOUBLE: "RRLL", Sticking.PARADIDDLE: "RLRRLRLL"}
+"""Sticking patterns, R = lead hand."""
+
+
+@dataclass(frozen=True)
+class HandNote:
+    """A stick event to assign: score index, time (s), type, pitch, forced hand (or None)."""
+
+    index: int
+    time: float
+    event: EventType
+    pitch: int | None = None
+    forced: Limb | None = None
+
+
+@dataclass(frozen=True)
+class Costs:
+    """Weights of the shortest-path search (dimensionless cost units)."""
+
+    too_fast: float = 60.0  # per interval below minTimeGap, plus as much again scaled by the shortfall
+    fast: float = 0.3  # soft: (minTimeGap / interval)^2
+    crossing: float = 4.0  # per crossing, times |pair| (>= 0.5), decaying with the other hand's idle time
+    crossing_decay: float = 0.4  # seconds
+    travel: float = 0.12  # per m/s of hit-point travel speed
+    not_preferred: float = 1.0
+    beam: int = 16
+
+
+@dataclass
+class _Table:
+    """Per-note arrays used by the algorithms."""
+
+    time: np.ndarray
+    x: np.ndarray
+    pos: np.ndarray
+    gap: np.ndarray
+    preferred: list[Limb]
+    events: list[EventType]
+
+
+def _table(notes: list[HandNote], kit: Kit) -> _Table:
+    cache: dict[tuple[EventType, int | None], tuple[float, float, float]] = {}
+    for n in notes:
+        if (n.event, n.pitch) not in cache:
+            cache[(n.event, n.pitch)] = kit.hit_point(n.event, n.pitch)[0]
+    pos = np.array([cache[(n.event, n.pitch)] for n in notes]).reshape(-1, 3)
+    return _Table(
+        time=np.array([n.time for n in notes]),
+        x=pos[:, 0] if len(notes) else np.zeros(0),
+        pos=pos,
+        gap=np.array([kit.events[n.event].min_time_gap for n in notes]),
+        preferred=[_hand(kit.spec(n.event).preferred, kit) for n in notes],
+        events=[n.event for n in notes],
+    )
+
+
+def _hand(limb: Limb, kit: Kit) -> Limb:
+    """A preferred limb as a hand (a foot-preferred event played by hand goes to the dominant hand)."""
+    if limb in HANDS:
+        return limb
+    return R if kit.handedness == "right" else L
+
+
+def _other(h: Limb) -> Limb:
+    return L if h == R else R
+
+
+def crossed(kit: Kit, left: EventType, right: EventType, x_left: float, x_right: float) -> bool:
+    """True when the left stick on ``left`` and the right stick on ``right`` cross the arms.
+
+    Uses the kit's pair preference pair(left, right) > 0 (``left`` wants the right
+    hand); without one, the geometry: the left hit point more than 10 cm right of
+    the right hit point on another object.
+    """
+    p = kit.pair(left, right)
+    if p != 0.0:
+        return p > 0
+    if kit.events[left].object == kit.events[right].object:
+        return False
+    return x_left - x_right > 0.10
+
+
+def _pair_split(a: int, b: int, t: _Table, kit: Kit, notes: list[HandNote]) -> tuple[Limb, Limb]:
+    """Hands for two simultaneous notes a, b (forced hands first, then pair preference, then geometry)."""
+    fa, fb = notes[a].forced, notes[b].forced
+    if fa is not None and fb != fa:
+        return fa, _other(fa)
+    if fb is not None and fa is None:
+        return _other(fb), fb
+    p = kit.pair(t.events[a], t.events[b])
+    if p > 0:
+        return R, L
+    if p < 0:
+        return L, R
+    if t.preferred[a] != t.preferred[b]:
+        return t.preferred[a], t.preferred[b]
+    return (R, L) if t.x[a] >= t.x[b] else (L, R)
+
+
+def _groups(notes: list[HandNote], window: float) -> list[list[int]]:
+    groups: list[list[int]] = []
+    for i, n in enumerate(notes):
+        if groups and n.time - notes[groups[-1][0]].time <= window and len(groups[-1]) < 2:
+            groups[-1].append(i)
+        else:
+            groups.append([i])
+    return groups
+
+
+def apply_sticking(notes: list[HandNote], kit: Kit, sticking: Sticking, window: float = 0.015) -> list[HandNote]:
+    """Force hands on rolls (runs of >= 4 single notes on one object faster than 2 x minTimeGap)."""
+    if sticking == Sticking.NONE or not notes:
+        return notes
+    pattern = PATTERNS[sticking]
+    groups = _groups(notes, window)
+    out = list(notes)
+    run: list[int] = []
+
+    def close_run() -> None:
+        if len(run) >= 4:
+            lead = _hand(kit.spec(notes[run[0]].event).preferred, kit)
+            for k, i in enumerate(run):
+                if out[i].forced is None:
+                    hand = lead if pattern[k % len(pattern)] == "R" else _other(lead)
+                    out[i] = HandNote(notes[i].index, notes[i].time, notes[i].event, notes[i].pitch, hand)
+        run.clear()
+
+    for g in groups:
+        if len(g) != 1:
+            close_run()
+            continue
+        i = g[0]
+        n = notes[i]
+        if run:
+            prev = notes[run[-1]]
+            same = kit.object_for(prev.event, prev.pitch).id == kit.object_for(n.event, n.pitch).id
+            if not (same and n.time - prev.time < 2 * kit.spec(n.event).min_time_gap):
+                close_run()
+        run.append(i)
+    close_run()
+    return out
+
+
+def assign_hands(
+    notes: list[HandNote],
+    kit: Kit,
+    algorithm: HandAlgorithm | str = HandAlgorithm.VITERBI,
+    sticking: Sticking | str = Sticking.NONE,
+    window: float = 0.015,
+    rho: float = 0.02,
+    default_weight: float = 0.5,
+    costs: Costs | None = None,
+) -> list[Limb]:
+    """Assign a hand to each stick note (sorted by time; at most two within ``window`` seconds).
+
+    Parameters
+    ----------
+    notes : list[HandNote]
+        Stick events sorted by time.
+    kit : Kit
+        Hit points, preferred hands, minTimeGaps, pair preferences.
+    algorithm : HandAlgorithm
+        ``simple``, ``pairwise`` or ``viterbi``.
+    sticking : Sticking
+        Pattern forced on rolls.
+    window : float
+        Seconds within which notes are simultaneous.
+    rho : float
+        Pair-wise algorithm: weight of a neighbour ``dt`` seconds away is ``rho ** dt``.
+    default_weight : float
+        Pair-wise algorithm: weight of the preferred hand's vote.
+    costs : Costs | None
+        Shortest-path weights.
+
+    Returns
+    -------
+    list[Limb]
+        ``left_hand`` or ``right_hand`` per note.
+    """
+    algorithm = HandAlgorithm(algorithm)
+    notes = apply_sticking(notes, kit, Sticking(sticking), window)
+    if not notes:
+        return []
+    t = _table(notes, kit)
+    groups = _groups(notes, window)
+    if algorithm == HandAlgorithm.VITERBI:
+        return _viterbi(notes, groups, t, kit, costs or Costs())
+    hands: list[Limb | None] = [None] * len(notes)
+    last: dict[Limb, float] = {L: -math.inf, R: -math.inf}
+    for gi, g in enumerate(groups):
+        if len(g) == 2:
+            ha, hb = _pair_split(g[0], g[1], t, kit, notes)
+            hands[g[0]], hands[g[1]] = ha, hb
+            last[L] = last[R] = t.time[g[0]]
+            continue
+        i = g[0]
+        if notes[i].forced is not None:
+            h = notes[i].forced
+        else:
+            h = t.preferred[i]
+            if algorithm == HandAlgorithm.PAIRWISE:
+                score = default_weight * (1.0 if h == R else -1.0)
+                for gj in range(max(0, gi - 4), min(len(groups), gi + 5)):
+                    if gj == gi:
+                        continue
+                    for j in groups[gj]:
+                        dt = abs(t.time[j] - t.time[i])
+                        if dt <= 1.0:
+                            score += rho**dt * kit.pair(t.events[i], t.events[j])
+                h = R if score > 0 else L if score < 0 else h
+            if t.time[i] - last[h] < t.gap[i] and t.time[i] - last[_other(h)] >= t.gap[i]:
+                h = _other(h)
+        assert h is not None
+        hands[i] = h
+        last[h] = t.time[i]
+    return [h if h is not None else R for h in hands]
+
+
+def _viterbi(notes: list[HandNote], groups: list[list[int]], t: _Table, kit: Kit, c: Costs) -> list[Limb]:
+    """Beam-pruned Viterbi over states (last note of the left hand, last note of the right hand)."""
+    Key = tuple[int, int]
+    beam: dict[Key, float] = {(-1, -1): 0.0}
+    history: list[dict[Key, tuple[Key, tuple[tuple[int, Limb], ...]]]] = []
+
+    pair_cache: dict[tuple[EventType, EventType], float] = {}
+
+    def pair(a: EventType, b: EventType) -> float:
+        value = pair_cache.get((a, b))
+        if value is None:
+            value = pair_cache[(a, b)] = kit.pair(a, b)
+        return value
+
+    xs = t.x.tolist()
+    objects = [kit.events[e].object for e in t.events]
+    times = t.time.tolist()
+    gaps = t.gap.tolist()
+    pos = t.pos.tolist()
+
+    def place(i: int, h: Limb, state: Key) -> float:
+        prev = state[0] if h == L else state[1]
+        other = state[1] if h == L else state[0]
+        cost = c.not_preferred if h != t.preferred[i] else 0.0
+        if prev >= 0:
+            dt = times[i] - times[prev]
+            gap = gaps[i]
+            if dt < gap:
+                cost += c.too_fast * (1.0 + (gap - dt) / gap)
+            else:
+                cost += c.fast * (gap / dt) ** 2
+            a, b = pos[i], pos[prev]
+            dist = math.sqrt((a[0] - b[0]) ** 2 + (a[1] - b[1]) ** 2 + (a[2] - b[2]) ** 2)
+            cost += c.travel * dist / max(dt, 0.02)
+        if other >= 0:
+            idle = times[i] - times[other]
+            if idle < 5 * c.crossing_decay:
+                left, right = (i, other) if h == L else (other, i)
+                p = pair(t.events[left], t.events[right])
+                if p != 0.0:
+                    crossing = p > 0
+                else:
+                    crossing = objects[left] != objects[right] and xs[left] - xs[right] > 0.10
+                if crossing:
+                    cost += c.crossing * max(abs(p), 0.5) * math.exp(-idle / c.crossing_decay)
+        return cost
+
+    for g in groups:
+        options: list[tuple[tuple[int, Limb], ...]]
+        if len(g) == 1:
+            i = g[0]
+            f = notes[i].forced
+            options = [((i, h),) for h in HANDS if f is None or f == h]
+        else:
+            a, b = g
+            options = []
+            for ha in HANDS:
+                hb = _other(ha)
+                fa, fb = notes[a].forced, notes[b].forced
+                if (fa is None or fa == ha) and (fb is None or fb == hb):
+                    options.append(((a, ha), (b, hb)))
+            if not options:  # contradictory forced hands: both forced to one hand
+                options = [((a, L), (b, R))]
+        new: dict[Key, tuple[float, Key, tuple[tuple[int, Limb], ...]]] = {}
+        for state, base in beam.items():
+            for opt in options:
+                cost = base
+                s = state
+                for i, h in opt:
+                    cost += place(i, h, s)
+                    s = (i, s[1]) if h == L else (s[0], i)
+                if s not in new or cost < new[s][0]:
+                    new[s] = (cost, state, opt)
+        best = sorted(new.items(), key=lambda kv: kv[1][0])[: c.beam]
+        beam = {k: v[0] for k, v in best}
+        history.append({k: (v[1], v[2]) for k, v in best})
+    hands: list[Limb] = [R] * len(notes)
+    key = min(beam, key=lambda k: beam[k])
+    for step in reversed(history):
+        parent, opt = step[key]
+        for i, h in opt:
+            hands[i] = h
+        key = parent
+    return hands

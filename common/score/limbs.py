@@ -1,0 +1,294 @@
+"""Limb distribution: drum events -> hands, left foot, right foot.
+
+Rules (Kragtwijk, Nijholt and Zwiers 2001):
+
+* at most one hi-hat event (HIHATOPEN, HIHATCLOSED, HIHATPEDAL) at a time: a
+  stick hi-hat wins over the pedal, then the louder one;
+* when three or more non-bass events coincide, the hi-hat pedal substitutes
+  for a stick hi-hat (the left foot closes the hi-hat instead of a hand);
+* at most two stick events at once (the quietest extra ones are dropped);
+* BASS goes to the kit's bass foot; with a double pedal, a bass note too soon
+  after the previous one goes to the other foot when it is free;
+* stick events go to the hands by one of the algorithms of
+  :mod:`common.score.hands`.
+
+Every note that cannot be played as written gets a :class:`FeasibilityIssue`
+(reason and what was done); see :func:`check_feasibility`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from common.gesture.plan import FeasibilityIssue, IssueAction, IssueReason, Nuance
+from common.kit import EventType, Kit, Limb
+from common.score.events import Score
+from common.score.hands import HandAlgorithm, HandNote, Sticking, assign_hands, crossed
+
+HIHAT = {EventType.HIHATOPEN, EventType.HIHATCLOSED, EventType.HIHATPEDAL}
+STICK_HIHAT = {EventType.HIHATOPEN, EventType.HIHATCLOSED}
+FEET = {Limb.LEFT_FOOT, Limb.RIGHT_FOOT}
+HANDS = {Limb.LEFT_HAND, Limb.RIGHT_HAND}
+SIMULTANEITY = 0.015
+"""Events closer than this (seconds) are played at the same time."""
+HARD_MIN_INTERVAL = 0.03
+"""A limb cannot repeat a stroke faster than this (seconds): such notes are dropped."""
+SHOULDERS = {Limb.LEFT_HAND: (-0.19, 0.05, 1.30), Limb.RIGHT_HAND: (0.19, 0.05, 1.30)}
+REACH = 1.15
+"""Shoulder-to-stick-tip reach (metres): arm, stick and some lean of the trunk."""
+
+
+@dataclass(frozen=True)
+class Note:
+    """A drum event with its limb.
+
+    ``index`` is the event's index in ``Score.events``; ``event`` may differ from
+    the score's when the hi-hat pedal substituted for a stick hi-hat.
+    """
+
+    index: int
+    time: float
+    event: EventType
+    velocity: float
+    limb: Limb
+    pitch: int | None = None
+    nuance: Nuance | None = None
+
+
+@dataclass
+class Assignment:
+    """Notes with limbs, sorted by time, and the issues found."""
+
+    notes: list[Note]
+    issues: list[FeasibilityIssue] = field(default_factory=list)
+    algorithm: HandAlgorithm = HandAlgorithm.VITERBI
+    kit_name: str = ""
+
+    def of(self, limb: Limb) -> list[Note]:
+        return [n for n in self.notes if n.limb == limb]
+
+
+def _groups(times: list[float], window: float) -> list[list[int]]:
+    groups: list[list[int]] = []
+    for i, t in enumerate(times):
+        if groups and t - times[groups[-1][0]] <= window:
+            groups[-1].append(i)
+        else:
+            groups.append([i])
+    return groups
+
+
+def distribute(
+    score: Score,
+    kit: Kit,
+    algorithm: HandAlgorithm | str = HandAlgorithm.VITERBI,
+    sticking: Sticking | str = Sticking.NONE,
+    window: float = SIMULTANEITY,
+) -> Assignment:
+    """Distribute a score's events over the limbs and check feasibility.
+
+    Parameters
+    ----------
+    score : Score
+        Events sorted by time.
+    kit : Kit
+        The kit played (preferred limbs, minTimeGaps, pair preferences, double pedal).
+    algorithm : HandAlgorithm
+        Hand-assignment algorithm.
+    sticking : Sticking
+        Sticking pattern forced on rolls.
+    window : float
+        Simultaneity window, seconds.
+    """
+    algorithm = HandAlgorithm(algorithm)
+    events = [e for e in score.events if e.event in kit.events]
+    index_of = {id(e): i for i, e in enumerate(score.events)}
+    issues: list[FeasibilityIssue] = []
+    for e in score.events:
+        if e.event not in kit.events:
+            issues.append(
+                FeasibilityIssue(
+                    index_of[id(e)],
+                    e.time,
+                    e.event,
+                    IssueReason.UNKNOWN_NOTE,
+                    IssueAction.DROPPED,
+                    f"kit {kit.name!r} has no {e.event.value}",
+                )
+            )
+    foot_of = {
+        EventType.BASS: kit.spec(EventType.BASS).preferred if EventType.BASS in kit.events else Limb.RIGHT_FOOT,
+        EventType.HIHATPEDAL: kit.spec(EventType.HIHATPEDAL).preferred
+        if EventType.HIHATPEDAL in kit.events
+        else Limb.LEFT_FOOT,
+    }
+    hihat_foot = foot_of[EventType.HIHATPEDAL]
+    bass_foot = foot_of[EventType.BASS]
+    other_foot = Limb.LEFT_FOOT if bass_foot == Limb.RIGHT_FOOT else Limb.RIGHT_FOOT
+    feet: list[Note] = []
+    hand_notes: list[HandNote] = []
+    hand_meta: list[tuple[int, float, int | None, Nuance | None, EventType]] = []
+    last_foot: dict[Limb, float] = {Limb.LEFT_FOOT: -math.inf, Limb.RIGHT_FOOT: -math.inf}
+
+    def issue(idx: int, reason: IssueReason, action: IssueAction, detail: str) -> None:
+        e = score.events[idx]
+        issues.append(FeasibilityIssue(idx, e.time, e.event, reason, action, detail))
+
+    for g in _groups([e.time for e in events], window):
+        group = [(index_of[id(events[i])], events[i]) for i in g]
+        # one hi-hat event at a time
+        hats = [(i, e) for i, e in group if e.event in HIHAT]
+        if len(hats) > 1:
+            keep = max(hats, key=lambda ie: (ie[1].event in STICK_HIHAT, ie[1].velocity, ie[1].event.value))
+            for i, e in hats:
+                if i != keep[0]:
+                    issue(
+                        i,
+                        IssueReason.HIHAT_CONFLICT,
+                        IssueAction.DROPPED,
+                        f"{e.event.value} with {keep[1].event.value} at the same time",
+                    )
+            group = [(i, e) for i, e in group if e.event not in HIHAT or i == keep[0]]
+        # pedal substitution when three or more non-bass events coincide
+        non_bass = [(i, e) for i, e in group if e.event != EventType.BASS]
+        stick = [(i, e) for i, e in group if e.event not in (EventType.BASS, EventType.HIHATPEDAL)]
+        pedal_ok = EventType.HIHATPEDAL in kit.events and not any(e.event == EventType.HIHATPEDAL for _, e in group)
+        if len(non_bass) >= 3 and pedal_ok:
+            for i, e in stick:
+                if e.event in STICK_HIHAT and e.limb not in HANDS:
+                    issue(
+                        i,
+                        IssueReason.TOO_MANY_HANDS,
+                        IssueAction.SUBSTITUTED_PEDAL,
+                        f"{len(non_bass)} non-bass events at once: hi-hat pedal instead of a stick",
+                    )
+                    group = [(j, replace(f, event=EventType.HIHATPEDAL) if j == i else f) for j, f in group]
+                    break
+        stick = [(i, e) for i, e in group if e.event not in (EventType.BASS, EventType.HIHATPEDAL)]
+        if len(stick) > 2:
+            ranked = sorted(stick, key=lambda ie: (ie[1].limb is not None, ie[1].velocity), reverse=True)
+            for i, _e in ranked[2:]:
+                issue(
+                    i, IssueReason.TOO_MANY_HANDS, IssueAction.DROPPED, f"{len(stick)} stick events at once, two hands"
+                )
+            dropped = {i for i, _ in ranked[2:]}
+            group = [(i, e) for i, e in group if i not in dropped]
+        for i, e in group:
+            if e.event == EventType.BASS:
+                foot = bass_foot
+                gap = kit.spec(EventType.BASS).min_time_gap
+                busy_other = any(f.event == EventType.HIHATPEDAL for _, f in group)
+                if (
+                    kit.double_pedal
+                    and e.time - last_foot[foot] < gap
+                    and not busy_other
+                    and e.time - last_foot[other_foot] >= gap
+                ):
+                    foot = other_foot
+                feet.append(Note(i, e.time, e.event, e.velocity, foot, e.pitch, e.nuance))
+                last_foot[foot] = e.time
+            elif e.event == EventType.HIHATPEDAL:
+                if (
+                    any(f.event == EventType.BASS for _, f in group)
+                    and hihat_foot == other_foot
+                    and any(n.limb == hihat_foot and abs(n.time - e.time) <= window for n in feet)
+                ):
+                    issue(i, IssueReason.LIMB_BUSY, IssueAction.DROPPED, "hi-hat foot is playing the bass drum")
+                    continue
+                feet.append(Note(i, e.time, e.event, e.velocity, hihat_foot, e.pitch, e.nuance))
+                last_foot[hihat_foot] = e.time
+            else:
+                forced = e.limb if e.limb in HANDS else None
+                hand_notes.append(HandNote(len(hand_notes), e.time, e.event, e.pitch, forced))
+                hand_meta.append((i, e.velocity, e.pitch, e.nuance, e.event))
+    hands = assign_hands(hand_notes, kit, algorithm, sticking, window)
+    notes = list(feet)
+    for hn, h, (i, vel, pitch, nuance, ev) in zip(hand_notes, hands, hand_meta, strict=True):
+        notes.append(Note(i, hn.time, ev, vel, h, pitch, nuance))
+    notes.sort(key=lambda n: (n.time, n.limb.value))
+    assignment = Assignment(notes=notes, issues=issues, algorithm=algorithm, kit_name=kit.name)
+    check_feasibility(assignment, kit, window)
+    return assignment
+
+
+def check_feasibility(assignment: Assignment, kit: Kit, window: float = SIMULTANEITY) -> None:
+    """Flag notes beyond human limits; drop strokes a limb cannot repeat at all.
+
+    Adds to ``assignment.issues``: ``too_fast`` (same limb closer than the
+    event's minTimeGap: played anyway, or dropped below ``HARD_MIN_INTERVAL``),
+    ``crossing`` (arms crossed for simultaneous stick events) and ``unreachable``
+    (hit point beyond the arm's reach).
+    """
+    kept: list[Note] = []
+    last: dict[Limb, Note] = {}
+    points: dict[tuple[EventType, int | None], tuple[float, float, float]] = {}
+
+    def point(event: EventType, pitch: int | None) -> tuple[float, float, float]:
+        if (event, pitch) not in points:
+            points[(event, pitch)] = kit.hit_point(event, pitch)[0]
+        return points[(event, pitch)]
+
+    for n in assignment.notes:
+        prev = last.get(n.limb)
+        if prev is not None:
+            dt = n.time - prev.time
+            gap = kit.spec(n.event).min_time_gap
+            if dt < HARD_MIN_INTERVAL:
+                assignment.issues.append(
+                    FeasibilityIssue(
+                        n.index,
+                        n.time,
+                        n.event,
+                        IssueReason.TOO_FAST,
+                        IssueAction.DROPPED,
+                        f"{n.limb.value} {dt * 1000:.0f} ms after its last stroke",
+                    )
+                )
+                continue
+            if dt < gap:
+                assignment.issues.append(
+                    FeasibilityIssue(
+                        n.index,
+                        n.time,
+                        n.event,
+                        IssueReason.TOO_FAST,
+                        IssueAction.PLAYED_ANYWAY,
+                        f"{n.limb.value} {dt * 1000:.0f} ms after its last stroke (minTimeGap {gap * 1000:.0f} ms)",
+                    )
+                )
+        if n.limb in HANDS:
+            dist = float(np.linalg.norm(np.array(point(n.event, n.pitch)) - np.array(SHOULDERS[n.limb])))
+            if dist > REACH:
+                assignment.issues.append(
+                    FeasibilityIssue(
+                        n.index,
+                        n.time,
+                        n.event,
+                        IssueReason.UNREACHABLE,
+                        IssueAction.PLAYED_ANYWAY,
+                        f"{dist:.2f} m from the shoulder",
+                    )
+                )
+            other = last.get(Limb.LEFT_HAND if n.limb == Limb.RIGHT_HAND else Limb.RIGHT_HAND)
+            if other is not None and n.time - other.time <= window:
+                left, right = (n, other) if n.limb == Limb.LEFT_HAND else (other, n)
+                xl = point(left.event, left.pitch)[0]
+                xr = point(right.event, right.pitch)[0]
+                if crossed(kit, left.event, right.event, xl, xr):
+                    assignment.issues.append(
+                        FeasibilityIssue(
+                            n.index,
+                            n.time,
+                            n.event,
+                            IssueReason.CROSSING,
+                            IssueAction.PLAYED_ANYWAY,
+                            f"left hand on {left.event.value}, right hand on {right.event.value} at once",
+                        )
+                    )
+        last[n.limb] = n
+        kept.append(n)
+    assignment.notes = kept
+    assignment.issues.sort(key=lambda i: (i.time, i.note_index))

@@ -1,0 +1,223 @@
+"""Gesture database, planner and keyframe mode: continuity and contacts at every note."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from common.gesture.bvh import BvhError, parse_bvh, read_bvh, write_bvh
+from common.gesture.database import GestureDatabase, default_database, load_unit
+from common.gesture.heights import stick_height, stick_speed
+from common.gesture.keyframe import plan_keyframes
+from common.gesture.plan import GesturePlan, Grip, LimbTrajectory, Nuance
+from common.gesture.planner import PlannerConfig, plan_gestures
+from common.gesture.synth import UNITS_DIR, make_unit
+from common.kit import EventType as E
+from common.kit import Limb, load_kit
+from common.score.events import DrumEvent, Score
+from common.score.limbs import distribute
+from common.score.midi import read_midi
+
+DATA = Path(__file__).parent.parent / "data"
+KIT = load_kit()
+
+
+def _continuity(plan: GesturePlan, eps: float = 1e-9) -> tuple[float, float]:
+    """Largest jump (m, m/s) in position and velocity across every knot of every limb (left vs right limit)."""
+    worst_p = worst_v = 0.0
+    for traj in plan.trajectories.values():
+        inner = traj.times[1:-1]
+        p0, v0 = traj.sample_many(inner - eps)
+        p1, v1 = traj.sample_many(inner + eps)
+        worst_p = max(worst_p, float(np.abs(p1 - p0).max(initial=0.0)))
+        worst_v = max(worst_v, float(np.abs(v1 - v0).max(initial=0.0)))
+    return worst_p, worst_v
+
+
+def _max_speed(plan: GesturePlan) -> float:
+    speeds = [
+        np.linalg.norm(tr.sample_many(np.arange(tr.start_time, tr.end_time, 5e-4))[1], axis=1).max()
+        for tr in plan.trajectories.values()
+    ]
+    return float(max(speeds))
+
+
+def _check_contacts(plan: GesturePlan, assignment_times: list[float], moving_in: bool = True) -> None:
+    assert sorted(s.time for s in plan.strokes) == pytest.approx(sorted(assignment_times))
+    for s in plan.strokes:
+        sample = plan.trajectories[s.limb].sample(s.time)
+        np.testing.assert_allclose(sample.position, s.target, atol=1e-9)
+        if moving_in:  # moving into the surface at contact
+            assert float(np.dot(sample.velocity, s.normal)) < 0, s
+
+
+def test_trajectory_sample_is_hermite_and_validates() -> None:
+    traj = LimbTrajectory(Limb.RIGHT_HAND, np.array([0.0, 1.0]), np.zeros((2, 3)), np.array([[1.0, 0, 0], [1.0, 0, 0]]))
+    s = traj.sample(0.5)
+    assert s.position[0] == pytest.approx(0.0) and s.velocity[0] == pytest.approx(-0.5)
+    assert traj.sample(2.0).velocity.tolist() == [0, 0, 0]
+    with pytest.raises(ValueError):
+        LimbTrajectory(Limb.RIGHT_HAND, np.array([0.0, 0.0]), np.zeros((2, 3)), np.zeros((2, 3)))
+
+
+@pytest.fixture(scope="module")
+def groove() -> Score:
+    return read_midi(DATA / "groove_drummer6_s3_1_rock_90_beat_4-4.mid")
+
+
+@pytest.mark.parametrize("algorithm", ["simple", "pairwise", "viterbi"])
+def test_plan_continuous_with_contact_at_every_note(groove: Score, algorithm: str) -> None:
+    assignment = distribute(groove, KIT, algorithm)
+    plan = plan_gestures(assignment, KIT, groove)
+    _check_contacts(plan, [n.time for n in assignment.notes])
+    jump_p, jump_v = _continuity(plan)
+    # across a knot, +-1 ns: a stroke of 6 m/s reversing in 4 ms accelerates at 3,000 m/s^2 (6e-6 m/s per 2 ns)
+    assert jump_p < 1e-7
+    assert jump_v < 1e-4
+    assert _max_speed(plan) < 30.0  # a stick tip, not a bullet
+    assert set(plan.trajectories) == set(Limb)
+    assert plan.head is not None and plan.head.nod.max() > 0
+
+
+def test_keyframe_mode_contacts_and_swing(groove: Score) -> None:
+    assignment = distribute(groove, KIT)
+    plan = plan_keyframes(assignment, KIT, groove)
+    assert plan.mode == "keyframe"
+    _check_contacts(plan, [n.time for n in assignment.notes], moving_in=False)
+    jump_p, jump_v = _continuity(plan)
+    assert jump_p < 1e-7 and jump_v < 1e-4
+    # overlap rule: fast notes get one mid frame, so no frame order problems and all within range
+    cym = [s for s in plan.cymbal_swings]
+    assert cym, "the groove has cymbal strokes"
+    sw = cym[0]
+    t = sw.time + np.linspace(0, 2, 400)
+    angle = sw.angle(t)
+    assert abs(angle).max() <= sw.alpha_max + 1e-12
+    assert abs(angle[t > sw.time + 1.5]).max() < 0.1 * sw.alpha_max + 1e-12
+    assert sw.angle(sw.time - 0.1) == 0
+
+
+def test_keyframe_overlap_rule() -> None:
+    score = Score([DrumEvent(0.0, E.SNARE, 0.8), DrumEvent(0.12, E.SNARE, 0.8), DrumEvent(1.0, E.SNARE, 0.8)])
+    a = distribute(score, KIT, "simple")
+    plan = plan_keyframes(a, KIT)
+    traj = plan.trajectories[Limb.LEFT_HAND]
+    # interval 0.12 < 2 * delta: one mid frame at 0.06 instead of after(0.1)/before(0.02)
+    assert np.any(np.isclose(traj.times, 0.06)) and not np.any(np.isclose(traj.times, 0.02))
+    assert np.any(np.isclose(traj.times, 0.9))  # the slow stroke keeps its before frame
+
+
+def test_height_and_rebound_follow_velocity_and_elasticity() -> None:
+    assert stick_height(49 / 127) == pytest.approx(0.076, abs=0.002)  # p
+    assert stick_height(112 / 127) == pytest.approx(0.30, abs=0.005)  # ff
+    assert stick_height(1.0, Nuance.VERTICAL_ACCENT) == pytest.approx(0.40)  # fff, vertical
+    assert stick_speed(0.9) > stick_speed(0.3)
+    score = Score([DrumEvent(0.0, E.SNARE, 0.3), DrumEvent(1.0, E.SNARE, 0.95), DrumEvent(2.0, E.RIDE, 0.95)])
+    plan = plan_gestures(distribute(score, KIT), KIT, score)
+    soft, loud, ride = plan.strokes
+    assert loud.lift > 2 * soft.lift and loud.velocity > soft.velocity
+    # peak height before the loud stroke is its lift (above the target, along the normal)
+    traj = plan.trajectories[Limb.LEFT_HAND]
+    t = np.linspace(0.05, 0.95, 500)
+    height = (traj.sample_many(t)[0] - loud.target) @ loud.normal
+    assert height.max() == pytest.approx(loud.lift, rel=0.25)
+    assert ride.rebound_velocity / ride.velocity == pytest.approx(KIT.object("ride").elasticity)
+    assert loud.rebound_velocity / loud.velocity == pytest.approx(KIT.object("snare").elasticity)
+
+
+@pytest.mark.parametrize("grip", list(Grip))
+def test_config_grip_and_nuance(grip: Grip) -> None:
+    score = Score([DrumEvent(0.5 * k, E.SNARE, 0.7) for k in range(4)])
+    for nuance in Nuance:
+        plan = plan_gestures(distribute(score, KIT), KIT, score, PlannerConfig(grip=grip, nuance=nuance))
+        assert {s.nuance for s in plan.strokes} == {nuance}
+        assert _continuity(plan)[1] < 1e-4
+
+
+def test_database_covers_grips_nuances_tempi() -> None:
+    db = default_database()
+    keys = {(u.grip, u.nuance) for u in db.units}
+    assert keys == {(g, n) for g in Grip for n in Nuance}
+    assert all(u.rate_hz == 250 for u in db.units)
+    assert all(0.003 <= u.contact_duration <= 0.006 for u in db.units)
+    assert db.select(Grip.FRENCH, Nuance.STACCATO, 0.26).tempo_bpm == 240
+    assert db.select(Grip.FRENCH, Nuance.STACCATO, 0.9).tempo_bpm == 60
+    # whiplash: the hand (wrist joint) rises before the stick tip
+    unit = load_unit(UNITS_DIR / "german_legato_60.bvh")
+    assert unit.profile(0.0) == pytest.approx(0.0) and unit.profile(1.0) == pytest.approx(0.0, abs=1e-9)
+    # louder nuance, higher unit
+    acc = load_unit(UNITS_DIR / "german_vertical_accent_60.bvh")
+    assert acc.tip_height.max() > unit.tip_height.max()
+
+
+def test_whiplash_hand_leads_stick() -> None:
+    bvh, meta = make_unit(Grip.GERMAN, Nuance.LEGATO, 60)
+    wrist = -bvh.motion[:, 7]
+    stick = -bvh.motion[:, 10]
+    assert int(np.argmax(wrist[:250])) < int(np.argmax(stick[:250]))
+    assert meta["contact_frames"] == [0, 250, 500]
+
+
+def test_user_bvh_roundtrip_and_contact_detection(tmp_path: Path) -> None:
+    bvh, _ = make_unit(Grip.FRENCH, Nuance.TENUTO, 100, cycles=3)
+    path = tmp_path / "capture.bvh"
+    path.write_text(write_bvh(bvh), encoding="utf-8")
+    unit = load_unit(path, grip="french", nuance="tenuto")  # no metadata: contacts found as height minima
+    assert len(unit.contact_frames) >= 2
+    assert unit.period == pytest.approx(0.6, abs=0.02)
+    db = GestureDatabase.load(tmp_path)
+    assert len(db.units) == len(default_database().units) + 1
+    text = path.read_text(encoding="utf-8")
+    with pytest.raises(BvhError, match="truncated"):
+        parse_bvh(text[: len(text) // 2])
+    with pytest.raises(BvhError, match="expected"):
+        parse_bvh("HIERARCHY\nJOINT x")
+    with pytest.raises(BvhError, match="no such file"):
+        read_bvh(tmp_path / "nope.bvh")
+
+
+def test_text_score_sticking_and_nuance_reach_the_plan() -> None:
+    from common.score.text import parse_text
+
+    score = parse_text("tempo 100\nSN |xxxx|\nST |LLRR|\nNU |svat|\nBD |x...|\n")
+    plan = plan_gestures(distribute(score, KIT), KIT, score)
+    snare = [s for s in plan.strokes if s.event == E.SNARE]
+    assert [s.limb for s in snare] == [Limb.LEFT_HAND, Limb.LEFT_HAND, Limb.RIGHT_HAND, Limb.RIGHT_HAND]
+    assert [s.nuance for s in snare] == [Nuance.STACCATO, Nuance.VERTICAL_ACCENT, Nuance.ACCENT, Nuance.TENUTO]
+    kick = [s for s in plan.strokes if s.event == E.BASS]
+    assert kick[0].limb == Limb.RIGHT_FOOT
+    np.testing.assert_allclose(kick[0].target, KIT.object("kick_pedal").position)
+
+
+def test_feet_rest_on_pedals_and_hihat_foot_opens_for_open_notes() -> None:
+    score = Score(
+        [DrumEvent(0.0, E.BASS, 0.8), DrumEvent(2.0, E.BASS, 0.8), DrumEvent(1.0, E.HIHATOPEN, 0.8),
+         DrumEvent(3.0, E.HIHATPEDAL, 0.6)]
+    )  # fmt: skip
+    plan = plan_gestures(distribute(score, KIT), KIT, score)
+    kick = plan.trajectories[Limb.RIGHT_FOOT]
+    pedal = np.array(KIT.object("kick_pedal").position)
+    # between two kicks 2 s apart the foot rests on the pedal, lifting only in the last 0.3 s
+    np.testing.assert_allclose(kick.sample(1.0).position, pedal, atol=2e-3)
+    assert kick.sample(1.85).position[2] > pedal[2] + 0.01
+    hat = plan.trajectories[Limb.LEFT_FOOT]
+    hat_pedal = np.array(KIT.object("hihat_pedal").position)
+    resting = hat.sample(0.5).position[2]
+    assert resting < hat_pedal[2] + 0.012  # resting on the pedal: closed
+    assert hat.sample(1.0).position[2] == pytest.approx(resting + 0.03, abs=1e-3)  # pedal up: open
+    jump_p, jump_v = _continuity(plan)
+    assert jump_p < 1e-7 and jump_v < 1e-4
+
+
+def test_scalar_sample_matches_vectorised(groove: Score) -> None:
+    plan = plan_gestures(distribute(groove, KIT), KIT, groove)
+    rng = np.random.default_rng(1)
+    for traj in plan.trajectories.values():
+        ts = np.concatenate([rng.uniform(traj.start_time - 0.5, traj.end_time + 0.5, 200), traj.times[:3]])
+        pos, vel = traj.sample_many(ts)
+        for k, t in enumerate(ts):
+            s = traj.sample(float(t))
+            np.testing.assert_allclose(s.position, pos[k], atol=1e-12)
+            np.testing.assert_allclose(s.velocity, vel[k], atol=1e-9)

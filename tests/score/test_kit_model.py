@@ -1,0 +1,86 @@
+"""The kit model: shipped kits, hit points, pedals, second objects, mirroring, validation."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from pydantic import ValidationError
+
+from common.kit import KITS_DIR, EventType, Kit, Limb, load_kit, save_kit
+
+
+@pytest.mark.parametrize("name", sorted(p.stem for p in KITS_DIR.glob("*.yaml")))
+def test_shipped_kits_load_and_play_all_15_events(name: str) -> None:
+    kit = load_kit(name)
+    assert set(kit.events) == set(EventType)
+    for event in EventType:
+        point, normal = kit.hit_point(event)
+        assert np.isclose(np.linalg.norm(normal), 1.0)
+        assert 0.0 <= point[2] < 1.6
+    assert set(p.stem for p in KITS_DIR.glob("*.yaml")) >= {"default", "double_pedal", "left_handed"}
+
+
+def test_hit_point_on_surface_and_ride_bell_on_same_cymbal() -> None:
+    kit = load_kit()
+    ride, bell = kit.hit_point(EventType.RIDE)[0], kit.hit_point(EventType.RIDEBELL)[0]
+    obj = kit.object("ride")
+    assert kit.spec(EventType.RIDE).object == kit.spec(EventType.RIDEBELL).object == "ride"
+    # both on the cymbal's plane, at r * radius from its centre
+    n = np.array(obj.normal())
+    for point, spec in ((ride, kit.spec(EventType.RIDE)), (bell, kit.spec(EventType.RIDEBELL))):
+        offset = np.array(point) - np.array(obj.position)
+        assert abs(offset @ n) < 1e-9
+        assert np.linalg.norm(offset) == pytest.approx(spec.r * obj.radius)
+    # drums tilt toward the drummer (normal has a -y component)
+    assert kit.object("snare").normal()[1] < 0 and kit.object("hightom").normal()[1] < 0
+
+
+def test_foot_targets_are_pedals() -> None:
+    kit = load_kit("double_pedal")
+    assert kit.effector_target(EventType.BASS, Limb.RIGHT_FOOT)[0] == kit.object("kick_pedal").position
+    assert kit.effector_target(EventType.BASS, Limb.LEFT_FOOT)[0] == kit.object("kick_pedal_left").position
+    assert kit.effector_target(EventType.HIHATPEDAL, Limb.LEFT_FOOT)[0] == kit.object("hihat_pedal").position
+    assert kit.effector_target(EventType.SNARE, Limb.LEFT_HAND) == kit.hit_point(EventType.SNARE)
+
+
+def test_second_ride_and_more_toms_by_pitch() -> None:
+    kit = load_kit("double_pedal")
+    assert kit.object_for(EventType.RIDE, 51).id == "ride"
+    assert kit.object_for(EventType.RIDE, 59).id == "ride2"
+    assert kit.object_for(EventType.FLOORTOM, 41).id == "floortom2"
+    assert kit.hit_point(EventType.RIDE, 59)[0][0] < 0  # on the left
+
+
+def test_mirrored_kit_swaps_sides_and_limbs() -> None:
+    kit = load_kit()
+    left = load_kit("left_handed")
+    assert left.handedness == "left"
+    for event in EventType:
+        a, b = np.array(kit.hit_point(event)[0]), np.array(left.hit_point(event)[0])
+        np.testing.assert_allclose(b, a * [-1, 1, 1], atol=1e-4)
+    assert left.spec(EventType.BASS).preferred == Limb.LEFT_FOOT
+    assert left.spec(EventType.SNARE).preferred == Limb.RIGHT_HAND
+    assert left.pair(EventType.HIHATCLOSED, EventType.SNARE) == -kit.pair(EventType.HIHATCLOSED, EventType.SNARE)
+
+
+def test_pair_is_antisymmetric() -> None:
+    kit = load_kit()
+    assert kit.pair(EventType.SNARE, EventType.HIHATCLOSED) == -1.0
+    assert kit.pair(EventType.BASS, EventType.COWBELL) == 0.0
+
+
+def test_invalid_kits_are_refused(tmp_path: Path) -> None:
+    data = load_kit().model_dump(mode="json")
+    bad = dict(data, double_pedal=True)
+    with pytest.raises(ValidationError, match="left_bass_pedal"):
+        Kit.model_validate(bad)
+    bad = dict(data, note_objects={59: "nope"})
+    with pytest.raises(ValidationError, match="unknown object"):
+        Kit.model_validate(bad)
+    with pytest.raises(FileNotFoundError, match="shipped kits"):
+        load_kit("no_such_kit")
+    path = tmp_path / "k.json"
+    save_kit(load_kit("double_pedal"), path)
+    assert load_kit(path) == load_kit("double_pedal")

@@ -1,0 +1,123 @@
+"""Limb rules (hi-hat, pedal substitution, two hands) and the three hand-assignment algorithms."""
+
+from __future__ import annotations
+
+import pytest
+
+from common.gesture.plan import IssueAction, IssueReason
+from common.kit import EventType as E
+from common.kit import Limb, load_kit
+from common.score.events import DrumEvent, Score
+from common.score.hands import HandNote, Sticking, assign_hands
+from common.score.limbs import distribute
+
+KIT = load_kit()
+LH, RH, LF, RF = Limb.LEFT_HAND, Limb.RIGHT_HAND, Limb.LEFT_FOOT, Limb.RIGHT_FOOT
+
+
+def _score(*events: tuple[float, E] | tuple[float, E, float]) -> Score:
+    return Score([DrumEvent(e[0], e[1], e[2] if len(e) > 2 else 0.7) for e in events])  # type: ignore[misc]
+
+
+def _limbs(score: Score, algorithm: str = "viterbi") -> list[tuple[str, Limb]]:
+    return [(n.event.value, n.limb) for n in distribute(score, KIT, algorithm).notes]
+
+
+def test_one_hihat_event_at_a_time() -> None:
+    a = distribute(_score((0.0, E.HIHATOPEN, 0.5), (0.0, E.HIHATCLOSED, 0.9), (0.0, E.HIHATPEDAL)), KIT)
+    kept = [n.event for n in a.notes]
+    assert kept == [E.HIHATCLOSED]  # stick hi-hat wins over the pedal, then the louder
+    assert sorted(i.reason for i in a.issues) == [IssueReason.HIHAT_CONFLICT] * 2
+    assert all(i.action == IssueAction.DROPPED for i in a.issues)
+
+
+def test_pedal_substitutes_when_three_non_bass_events_coincide() -> None:
+    a = distribute(_score((0.0, E.HIHATCLOSED), (0.0, E.SNARE), (0.0, E.CRASH), (0.0, E.BASS)), KIT)
+    by_event = {n.event: n.limb for n in a.notes}
+    assert by_event[E.HIHATPEDAL] == LF
+    assert E.HIHATCLOSED not in by_event
+    assert {by_event[E.SNARE], by_event[E.CRASH]} == {LH, RH}
+    assert by_event[E.BASS] == RF
+    assert [i.action for i in a.issues] == [IssueAction.SUBSTITUTED_PEDAL]
+    # two non-bass events: no substitution
+    b = distribute(_score((0.0, E.HIHATCLOSED), (0.0, E.SNARE), (0.0, E.BASS)), KIT)
+    assert {n.event for n in b.notes} == {E.HIHATCLOSED, E.SNARE, E.BASS} and not b.issues
+
+
+def test_at_most_two_hand_events() -> None:
+    a = distribute(_score((0.0, E.SNARE, 0.9), (0.0, E.CRASH, 0.8), (0.0, E.FLOORTOM, 0.3), (0.0, E.HIGHTOM, 0.2)), KIT)
+    hands = [n for n in a.notes if n.limb in (LH, RH)]
+    assert len(hands) == 2 and {n.event for n in hands} == {E.SNARE, E.CRASH}
+    dropped = [i for i in a.issues if i.reason == IssueReason.TOO_MANY_HANDS]
+    assert {i.event for i in dropped} == {E.FLOORTOM, E.HIGHTOM}
+
+
+def test_double_pedal_takes_fast_bass_notes() -> None:
+    notes = [(0.04 * k, E.BASS) for k in range(6)]  # faster than one foot (minTimeGap 50 ms)
+    single = distribute(_score(*notes), KIT)
+    assert {n.limb for n in single.notes} == {RF}
+    assert any(i.reason == IssueReason.TOO_FAST for i in single.issues)
+    double = distribute(_score(*notes), load_kit("double_pedal"))
+    assert [n.limb for n in double.notes] == [RF, LF] * 3
+    assert not double.issues
+
+
+@pytest.mark.parametrize("ioi", [0.06, 0.075])
+def test_hihatopen_ride_hihatopen_without_crossing(ioi: float) -> None:
+    """The paper's case: the simple algorithm alternates into a crossing; the better ones do not."""
+    score = _score((0.0, E.HIHATOPEN), (ioi, E.RIDE), (2 * ioi, E.HIHATOPEN))
+    simple = _limbs(score, "simple")
+    assert simple == [("HIHATOPEN", RH), ("RIDE", LH), ("HIHATOPEN", RH)]  # left hand on the ride: crossed
+    for algorithm in ("pairwise", "viterbi"):
+        assert _limbs(score, algorithm) == [("HIHATOPEN", LH), ("RIDE", RH), ("HIHATOPEN", LH)], algorithm
+
+
+def test_default_hands_and_alternation() -> None:
+    # slow single strokes stay on the preferred hand
+    slow = _score(*[(0.5 * k, E.SNARE) for k in range(4)])
+    for algorithm in ("simple", "pairwise", "viterbi"):
+        assert {limb for _, limb in _limbs(slow, algorithm)} == {LH}
+    # a fast single-stroke run alternates under every algorithm
+    fast = _score(*[(0.05 * k, E.SNARE) for k in range(8)])
+    for algorithm in ("simple", "pairwise", "viterbi"):
+        limbs = [limb for _, limb in _limbs(fast, algorithm)]
+        assert all(a != b for a, b in zip(limbs, limbs[1:], strict=False)), algorithm
+
+
+def test_hihat_and_snare_together_follow_pair_preference() -> None:
+    score = _score((0.0, E.HIHATCLOSED), (0.0, E.SNARE))
+    for algorithm in ("simple", "pairwise", "viterbi"):
+        assert dict(_limbs(score, algorithm)) == {"HIHATCLOSED": RH, "SNARE": LH}
+
+
+def test_viterbi_avoids_intervals_below_min_gap() -> None:
+    # 16ths every 0.06 s on hi-hat and snare: one hand cannot (minTimeGap 0.07 s), two can
+    events: list[tuple[float, E]] = [(0.06 * k, E.SNARE if k % 4 == 2 else E.HIHATCLOSED) for k in range(32)]
+    a = distribute(_score(*events), KIT, "viterbi")
+    assert not [i for i in a.issues if i.reason == IssueReason.TOO_FAST]
+
+
+def test_sticking_patterns_on_rolls() -> None:
+    notes = [HandNote(k, 0.1 * k, E.SNARE) for k in range(8)]
+    lead = LH  # the snare's preferred hand leads
+    other = RH
+    expect = {
+        Sticking.SINGLE: [lead, other] * 4,
+        Sticking.DOUBLE: [lead, lead, other, other] * 2,
+        Sticking.PARADIDDLE: [lead, other, lead, lead, other, lead, other, other],
+    }
+    for sticking, hands in expect.items():
+        for algorithm in ("simple", "pairwise", "viterbi"):
+            assert assign_hands(notes, KIT, algorithm, sticking) == hands, (sticking, algorithm)
+
+
+def test_forced_hands_are_respected() -> None:
+    notes = [HandNote(0, 0.0, E.RIDE, forced=LH), HandNote(1, 0.5, E.SNARE, forced=RH)]
+    for algorithm in ("simple", "pairwise", "viterbi"):
+        assert assign_hands(notes, KIT, algorithm) == [LH, RH]
+
+
+def test_left_handed_kit_mirrors_assignment() -> None:
+    score = _score((0.0, E.HIHATCLOSED), (0.0, E.SNARE), (0.0, E.BASS))
+    a = distribute(score, load_kit("left_handed"))
+    assert {n.event: n.limb for n in a.notes} == {E.HIHATCLOSED: LH, E.SNARE: RH, E.BASS: LF}
