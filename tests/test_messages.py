@@ -30,7 +30,8 @@ def example_args(model: type[OscMessage]) -> dict[str, Any]:
             if f.kind is WireKind.INT:
                 value = int(value)
         elif f.kind is WireKind.STR:
-            value = "a_name"
+            patterns = [getattr(m, "pattern", None) for m in model.model_fields[f.name].metadata]
+            value = "/a/name" if any(p and p.startswith("^/") for p in patterns) else "a_name"
         elif f.kind is WireKind.TIME:
             value = 1234.5
         elif f.kind is WireKind.INT:

@@ -1,0 +1,78 @@
+"""Pose stream bandwidth: OSC /batteur/pose into the graphics node, JSON frames out to each page.
+
+Measures the bytes of real messages (encoded OSC datagrams; WebSocket text
+frames received by a client of a live :class:`ViewServer` over loopback) for
+the synthetic drummer (23 links) and a 57-DOF-sized body (60 links). Prints
+figures; asserts nothing.
+
+    python bench/graphics_stream.py [--seconds S] [--rate HZ]
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import time
+
+import numpy as np
+from websockets.asyncio.client import connect
+
+from common.messages import Pose, Skeleton, encode
+from services.graphics.core import GraphicsCore, GraphicsSettings
+from services.graphics.figure import synthetic_performance
+from services.graphics.server import ViewServer
+
+
+async def measure(names: list[str], values: np.ndarray, seconds: float, rate: float) -> tuple[float, float, int]:
+    """(websocket bytes/s per page, frames/s received, OSC pose bytes per datagram)."""
+    core = GraphicsCore(GraphicsSettings(latency=0.0, clock="rig", rate_hz=rate))
+    server = ViewServer(core)
+    port = await server.start("127.0.0.1", 0)
+    core.handle(Skeleton(layout=1, names=tuple(names)), 0.0, "bench")
+    received = [0, 0]
+
+    async def client() -> None:
+        async with connect(f"ws://127.0.0.1:{port}/ws", max_size=None) as ws:
+            async for message in ws:
+                if '"type":"frame"' in str(message)[:20]:
+                    received[0] += len(message)
+                    received[1] += 1
+
+    task = asyncio.create_task(client())
+    await asyncio.sleep(0.3)
+    start = time.monotonic()
+    k = 0
+    osc_bytes = 0
+    while (now := time.monotonic() - start) < seconds:
+        frame = values[k % len(values)]
+        pose = Pose(time=now, layout=1, values=tuple(float(v) for v in frame.ravel()))
+        osc_bytes = len(encode(pose))
+        core.handle(pose, now, "bench")
+        core.step(now)
+        k += 1
+        await asyncio.sleep(max(0.0, (k / rate) - (time.monotonic() - start)))
+    await asyncio.sleep(0.2)
+    task.cancel()
+    await server.close()
+    return received[0] / seconds, received[1] / seconds, osc_bytes
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--seconds", type=float, default=3.0)
+    parser.add_argument("--rate", type=float, default=60.0, help="pose and view rate, Hz")
+    args = parser.parse_args()
+    sequence, _ = synthetic_performance(duration=2.0, rate_hz=60.0)
+    big_names = [f"link{i}" for i in range(60)]
+    big = np.tile(sequence.values, (1, 3, 1))[:, :60]
+    for label, names, values in (("synthetic drummer, 23 links", sequence.names, sequence.values),
+                                 ("57-DOF body, 60 links", big_names, big)):
+        ws_rate, fps, osc = asyncio.run(measure(list(names), values, args.seconds, args.rate))
+        print(f"{label}:")
+        print(f"  OSC in:  {osc} B/datagram x {args.rate:g} Hz = {osc * args.rate / 1024:6.1f} KiB/s")
+        print(f"  WebSocket out per page: {ws_rate / 1024:6.1f} KiB/s ({fps:.1f} frames/s, "
+              f"{ws_rate / max(fps, 1e-9):.0f} B/frame, JSON)")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,104 @@
+"""Graphics controls: the visual feedback parameters of the 3D view (2009 paper's middle panel).
+
+Sent to the graphics node by the Pure Data panel, ``batteur send`` or any OSC
+tool; the node applies them to every connected page. Plus the score position
+shown in the view's status panel.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import Field
+
+from common.messages.base import Family, OscMessage, RigTime
+from common.messages.registry import register
+
+CameraPreset = Literal["free", "front", "side", "top", "drummer", "orbit"]
+Layer = Literal["body", "sticks", "kit", "contacts", "trails", "plot", "status", "floor"]
+
+
+@register
+class GraphicsCamera(OscMessage):
+    """Place the camera: a preset, or ``free`` with the orbit angles, distance and target given.
+
+    Angles in degrees: azimuth 0 looks from the front of the kit (+y) towards
+    the drummer, 90 from the drummer's right (+x); elevation above the horizon.
+    """
+
+    ADDRESS = "/batteur/graphics/camera"
+    FAMILY = Family.CONTROL
+
+    preset: CameraPreset = Field(description="front, side, top, drummer (over the shoulder), orbit (turning), free")
+    azimuth_deg: float = Field(ge=-360, le=360, description="orbit azimuth (free), degrees")
+    elevation_deg: float = Field(ge=-89, le=89, description="orbit elevation (free), degrees")
+    distance: float = Field(ge=0.3, le=20, description="camera distance from the target (free), metres")
+    target_x: float = Field(ge=-10, le=10, description="look-at point x (free), metres")
+    target_y: float = Field(ge=-10, le=10, description="look-at point y (free), metres")
+    target_z: float = Field(ge=-10, le=10, description="look-at point z (free), metres")
+
+
+@register
+class GraphicsShow(OscMessage):
+    """Show or hide one layer of the view."""
+
+    ADDRESS = "/batteur/graphics/show"
+    FAMILY = Family.CONTROL
+
+    layer: Layer = Field(description="body, sticks, kit, contacts (impact markers), trails, plot, status, floor")
+    visible: int = Field(ge=0, le=1, description="1 show, 0 hide")
+
+
+@register
+class GraphicsTrails(OscMessage):
+    """Trails of the stick tips (and feet): how many seconds of path to draw (0: off)."""
+
+    ADDRESS = "/batteur/graphics/trails"
+    FAMILY = Family.CONTROL
+
+    seconds: float = Field(ge=0, le=10, description="trail length, seconds (0 hides the trails)")
+
+
+@register
+class GraphicsPlot(OscMessage):
+    """The live plot of stick-tip heights over time (2009 paper, Figure 5)."""
+
+    ADDRESS = "/batteur/graphics/plot"
+    FAMILY = Family.CONTROL
+
+    window: float = Field(ge=0.5, le=30, description="time span shown, seconds")
+    z_min: float = Field(ge=-1, le=3, description="lowest height shown, metres")
+    z_max: float = Field(ge=-1, le=3, description="highest height shown, metres (above z_min)")
+
+
+@register
+class GraphicsLatency(OscMessage):
+    """The latency window the picture is delayed by (the same as the sound's), seconds."""
+
+    ADDRESS = "/batteur/graphics/latency"
+    FAMILY = Family.CONTROL
+
+    seconds: float = Field(ge=0, le=2, description="display delay, seconds")
+
+
+@register
+class GraphicsMode(OscMessage):
+    """What the view shows: the live pose stream, or the loaded kinematic preview (keyframes, no physics)."""
+
+    ADDRESS = "/batteur/graphics/mode"
+    FAMILY = Family.CONTROL
+
+    mode: Literal["live", "preview"] = Field(description="live: poses from physics; preview: loaded pose sequence")
+
+
+@register
+class ScorePosition(OscMessage):
+    """Where the score being played is, for the view's status panel (sent by whoever plays the score)."""
+
+    ADDRESS = "/batteur/graphics/score_position"
+    FAMILY = Family.STATE
+
+    time: RigTime = Field(description="rig time this position refers to, seconds")
+    bar: int = Field(ge=0, description="bar number, from 0")
+    beat: float = Field(ge=0, le=64, description="beat within the bar, from 0")
+    tempo_bpm: float = Field(ge=0, le=1000, description="tempo, beats per minute")

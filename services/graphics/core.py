@@ -1,0 +1,408 @@
+"""Graphics core: poses and impacts in, view frames for the page out. Deterministic, no I/O.
+
+The core buffers ``/batteur/pose`` by rig time and, at every step, produces a
+:class:`ViewFrame` for display time ``now - latency`` (the same latency window
+the sound service schedules strikes with, so picture and sound coincide),
+interpolating between the two poses around it. Impacts (de-duplicated on
+``seq`` per sender) animate the kit (:mod:`services.graphics.scene`). Health
+and hello messages fill the status panel's node table. Graphics control
+messages (:mod:`common.messages.graphics`) change the view settings sent to
+every page.
+
+Everything for the page leaves through :meth:`GraphicsCore.take_page_messages`
+as plain JSON-able dicts; the node sends them over the WebSocket.
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any, ClassVar, Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+
+from common.core import Outgoing
+from common.kit import Kit, load_kit
+from common.messages import Health, Hello, Impact, OscMessage, Pose, Skeleton
+from common.messages.graphics import (
+    GraphicsCamera,
+    GraphicsLatency,
+    GraphicsMode,
+    GraphicsPlot,
+    GraphicsShow,
+    GraphicsTrails,
+    ScorePosition,
+)
+from services.graphics.scene import HISTORY, KitAnimator, kit_json
+from services.graphics.sequence import FLOATS_PER_LINK, PoseSequence, interpolate_pose
+from services.graphics.skeleton import guess_parents
+
+CLOCK_JUMP = 0.5  # seconds: a pose clock this much behind the current offset has been restarted
+
+
+class GraphicsSettings(BaseModel):
+    """Settings of the graphics core (command line or configuration file)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    rate_hz: float = Field(default=60.0, ge=1, le=240, description="view frames per second, Hz")
+    latency: float = Field(default=0.1, ge=0, le=5, description="display delay = the sound's latency window, s")
+    buffer_seconds: float = Field(default=5.0, ge=0.5, le=60, description="pose history kept, seconds")
+    kit: str = Field(default="default", description="kit name or file path")
+    clock: Literal["auto", "rig"] = Field(
+        default="auto", description="rig: trust the local rig time; auto: follow the clock of the poses"
+    )
+    status_period: float = Field(default=0.5, gt=0, le=10, description="status panel update period, seconds")
+    decimals: int = Field(default=4, ge=2, le=7, description="decimals of positions/quaternions sent to the page")
+
+
+class ViewSettings(BaseModel):
+    """What the page shows and from where (changed over OSC or from the page)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    camera: dict[str, Any] = Field(
+        default_factory=lambda: {"preset": "front", "azimuth_deg": 20.0, "elevation_deg": 20.0,
+                                 "distance": 3.2, "target": [0.0, 0.35, 0.75]}
+    )
+    layers: dict[str, bool] = Field(
+        default_factory=lambda: {"body": True, "sticks": True, "kit": True, "contacts": True, "trails": True,
+                                 "plot": True, "status": True, "floor": True}
+    )
+    trails: float = 1.0
+    plot: dict[str, float] = Field(default_factory=lambda: {"window": 4.0, "z_min": 0.5, "z_max": 1.6})
+
+
+@dataclass
+class NodeSeen:
+    """One node in the status table."""
+
+    role: str
+    node_id: str
+    last_seen: float
+    rate_hz: float = 0.0
+    target_rate_hz: float = 0.0
+    late: int = 0
+    dropped: int = 0
+
+
+@dataclass
+class ViewFrame:
+    """What the page draws at one display time.
+
+    Attributes
+    ----------
+    time : float
+        Display time on the rig clock, seconds (the pose time shown).
+    pose : np.ndarray, shape (L, 7)
+        Link poses, metres and quaternions (x y z w).
+    kit : np.ndarray, shape (K, 4)
+        Kit state per object (flash, swing_x, swing_y, extra), see ``scene``.
+    hits : list
+        Recent strikes (x, y, z, age seconds, instrument).
+    """
+
+    time: float
+    pose: np.ndarray
+    kit: np.ndarray
+    hits: list[tuple[float, float, float, float, str]] = field(default_factory=list)
+
+    def to_json(self, decimals: int = 4) -> dict[str, Any]:
+        return {
+            "type": "frame",
+            "t": round(self.time, 4),
+            "p": np.round(self.pose.ravel(), decimals).tolist(),
+            "k": np.round(self.kit.ravel(), 4).tolist(),
+            "h": [[round(x, 3), round(y, 3), round(z, 3), round(a, 3), name] for x, y, z, a, name in self.hits],
+        }
+
+
+class GraphicsCore:
+    """The graphics service's core (see module docstring)."""
+
+    ROLE: ClassVar[str] = "graphics"
+
+    def __init__(self, settings: GraphicsSettings | None = None, kit: Kit | None = None) -> None:
+        self.settings = settings or GraphicsSettings()
+        self.rate_hz = self.settings.rate_hz
+        self.latency = self.settings.latency
+        self.kit = kit or load_kit(self.settings.kit)
+        self.view = ViewSettings()
+        self.animator = KitAnimator(self.kit)
+        self.names: list[str] = []
+        self.parents: list[int] = []
+        self.layout = -1
+        self._times: deque[float] = deque()
+        self._poses: deque[np.ndarray] = deque()
+        self._seen_impacts: dict[str, set[int]] = {}
+        self.nodes: dict[str, NodeSeen] = {}
+        self.score: ScorePosition | None = None
+        self.mode: Literal["live", "preview"] = "live"
+        self.preview: PoseSequence | None = None
+        self.preview_impacts: list[Impact] = []
+        self._preview_start = 0.0
+        self._preview_animator = KitAnimator(self.kit)
+        self.clock_offset = 0.0
+        self._lags: deque[tuple[float, float]] = deque()
+        self.counters: dict[str, int] = {
+            "poses": 0, "impacts": 0, "frames": 0, "bad_layout": 0, "no_skeleton": 0, "duplicate_impacts": 0,
+            "starved": 0, "clock_jumps": 0,
+        }
+        self._outbox: list[dict[str, Any]] = []
+        self._last_status = -math.inf
+        self.last_frame: ViewFrame | None = None
+        self._edit: np.ndarray | None = None
+        self._live_skeleton: tuple[list[str], int] | None = None
+        self.page_sink: Callable[[list[dict[str, Any]]], None] | None = None
+        """If set, called with the page messages at the end of every step (the node's WebSocket broadcast)."""
+
+    # --- the Core protocol --------------------------------------------------------------------
+    def handle(self, message: OscMessage, now: float, source: str) -> list[Outgoing]:
+        if isinstance(message, Pose):
+            self._on_pose(message, now)
+        elif isinstance(message, Skeleton):
+            self._on_skeleton(message)
+        elif isinstance(message, Impact):
+            self._on_impact(message, source)
+        elif isinstance(message, Health):
+            node = self.nodes.setdefault(message.node_id, NodeSeen(message.role, message.node_id, now))
+            node.role, node.last_seen = message.role, now
+            node.rate_hz, node.target_rate_hz = message.rate_hz, message.target_rate_hz
+            node.late, node.dropped = message.late, message.dropped
+        elif isinstance(message, Hello):
+            node = self.nodes.setdefault(message.node_id, NodeSeen(message.role, message.node_id, now))
+            node.last_seen = now
+        elif isinstance(message, ScorePosition):
+            self.score = message
+        else:
+            self.apply_control(message)
+        return []
+
+    def step(self, now: float) -> list[Outgoing]:
+        frame = self.frame_at(now)
+        if frame is not None:
+            self.last_frame = frame
+            self.counters["frames"] += 1
+            self._outbox.append(frame.to_json(self.settings.decimals))
+        if now - self._last_status >= self.settings.status_period:
+            self._last_status = now
+            self._outbox.append(self.status(now))
+        if self.page_sink is not None:
+            self.page_sink(self.take_page_messages())
+        return []
+
+    # --- inputs -------------------------------------------------------------------------------
+    def _on_skeleton(self, message: Skeleton) -> None:
+        names = list(message.names)
+        if message.layout == self.layout and names == self.names:
+            return
+        self.set_skeleton(names, message.layout)
+
+    def set_skeleton(self, names: list[str], layout: int = 0) -> None:
+        """Adopt a new link layout; forgets buffered poses of the old one."""
+        self.names = names
+        self.parents = guess_parents(names)
+        self.layout = layout
+        self._times.clear()
+        self._poses.clear()
+        self.animator.bind(names)
+        self._outbox.append(self.skeleton_json())
+
+    def _on_pose(self, message: Pose, now: float) -> None:
+        if self.layout < 0:
+            self.counters["no_skeleton"] += 1
+            return
+        if message.layout != self.layout or len(message.values) != FLOATS_PER_LINK * len(self.names):
+            self.counters["bad_layout"] += 1
+            return
+        if self.settings.clock == "auto":
+            self._follow_clock(message.time - now, now)
+        values = np.asarray(message.values, dtype=float).reshape(len(self.names), FLOATS_PER_LINK)
+        if self._times and message.time <= self._times[-1]:
+            if message.time == self._times[-1]:
+                return
+            i = bisect.bisect_left(list(self._times), message.time)
+            self._times.insert(i, message.time)
+            self._poses.insert(i, values)
+        else:
+            self._times.append(message.time)
+            self._poses.append(values)
+        self.counters["poses"] += 1
+        horizon = self._times[-1] - self.settings.buffer_seconds
+        while self._times and self._times[0] < horizon:
+            self._times.popleft()
+            self._poses.popleft()
+
+    def _follow_clock(self, lag: float, now: float) -> None:
+        """Auto clock: offset = the largest ``pose time - local time`` seen over the last 2 s.
+
+        Transport delays only make the lag smaller, so the largest recent lag is
+        the pose clock's offset plus the smallest delay. A jump back (a restarted
+        physics clock) resets the window.
+        """
+        lags = self._lags
+        if lags and lag < self.clock_offset - CLOCK_JUMP:
+            lags.clear()
+            self.counters["clock_jumps"] += 1
+        lags.append((now, lag))
+        while lags and lags[0][0] < now - 2.0:
+            lags.popleft()
+        self.clock_offset = max(value for _, value in lags)
+
+    def _on_impact(self, message: Impact, source: str) -> None:
+        seen = self._seen_impacts.setdefault(source, set())
+        if message.seq in seen:
+            self.counters["duplicate_impacts"] += 1
+            return
+        seen.add(message.seq)
+        if len(seen) > 4096:
+            for old in sorted(seen)[:2048]:
+                seen.discard(old)
+        self.counters["impacts"] += 1
+        self.animator.add(message)
+
+    def apply_control(self, message: OscMessage) -> bool:
+        """Apply one graphics control message; True when it was one."""
+        if isinstance(message, GraphicsCamera):
+            self.view.camera = {
+                "preset": message.preset, "azimuth_deg": message.azimuth_deg,
+                "elevation_deg": message.elevation_deg, "distance": message.distance,
+                "target": [message.target_x, message.target_y, message.target_z],
+            }
+        elif isinstance(message, GraphicsShow):
+            self.view.layers[message.layer] = bool(message.visible)
+        elif isinstance(message, GraphicsTrails):
+            self.view.trails = message.seconds
+        elif isinstance(message, GraphicsPlot):
+            z_max = max(message.z_max, message.z_min + 0.05)
+            self.view.plot = {"window": message.window, "z_min": message.z_min, "z_max": z_max}
+        elif isinstance(message, GraphicsLatency):
+            self.latency = message.seconds
+        elif isinstance(message, GraphicsMode):
+            self.mode = message.mode if (message.mode == "live" or self.preview is not None) else "live"
+        else:
+            return False
+        self._outbox.append(self.view_json())
+        return True
+
+    # --- preview (kinematic keyframe animation, no physics) ----------------------------------
+    def load_preview(self, sequence: PoseSequence, impacts: list[Impact] | None = None, now: float = 0.0) -> None:
+        """Show ``sequence`` (e.g. the keyframe animation of a score) instead of the live stream.
+
+        It plays from its first pose at rig time ``now`` and loops. ``impacts``
+        (times on the sequence's clock) flash and swing the kit as live ones do.
+        """
+        self.preview = sequence
+        self.preview_impacts = sorted(impacts or [], key=lambda i: i.time)
+        self._preview_start = now
+        self._preview_animator = KitAnimator(self.kit)
+        self._preview_animator.bind(sequence.names)
+        self.mode = "preview"
+        self.set_skeleton(list(sequence.names), layout=max(self.layout, 0))
+        self._outbox.append(self.view_json())
+
+    def show_pose(self, names: list[str] | None, pose: np.ndarray | None) -> None:
+        """Show one still pose (L, 7) of links ``names`` (the pose editor); ``None`` goes back to the stream."""
+        if names is None or pose is None:
+            if self._edit is not None and self._live_skeleton is not None:
+                live_names, live_layout = self._live_skeleton
+                if live_names != self.names:
+                    self.set_skeleton(live_names, live_layout)
+            self._edit = None
+            self._live_skeleton = None
+            return
+        if self._edit is None:
+            self._live_skeleton = (list(self.names), self.layout)
+        if list(names) != self.names:
+            self.set_skeleton(list(names), max(self.layout, 0))
+        self._edit = np.asarray(pose, dtype=float)
+
+    def _preview_frame(self, now: float) -> ViewFrame | None:
+        seq = self.preview
+        if seq is None:
+            return None
+        span = max(seq.duration, 1e-6)
+        local = seq.times[0] + ((now - self._preview_start) % (span + 0.5))
+        animator = self._preview_animator
+        animator.impacts = [i for i in self.preview_impacts if local - HISTORY <= i.time <= local]
+        pose = seq.sample(float(local))
+        return ViewFrame(float(local), pose, animator.state(float(local), pose), animator.hits(float(local)))
+
+    # --- outputs ------------------------------------------------------------------------------
+    def display_time(self, now: float) -> float:
+        """Rig time of the pose shown at local time ``now``: ``now + clock offset - latency``."""
+        return now + self.clock_offset - self.latency
+
+    def frame_at(self, now: float) -> ViewFrame | None:
+        """The frame to show at rig time ``now`` (None before any pose)."""
+        if self._edit is not None:
+            shown = self.display_time(now)
+            return ViewFrame(shown, self._edit.copy(), self.animator.state(shown, None), [])
+        if self.mode == "preview" and self.preview is not None:
+            return self._preview_frame(now)
+        if not self._times:
+            return None
+        t = self.display_time(now)
+        times = self._times
+        if t >= times[-1]:  # starved: hold the newest pose, the kit keeps moving
+            if t > times[-1] + 2.0 / self.rate_hz:
+                self.counters["starved"] += 1
+            pose = self._poses[-1].copy()
+        elif t <= times[0]:
+            pose = self._poses[0].copy()
+        else:
+            i = bisect.bisect_right(times, t) - 1
+            u = (t - times[i]) / (times[i + 1] - times[i])
+            pose = interpolate_pose(self._poses[i], self._poses[i + 1], u)
+        shown = t
+        return ViewFrame(shown, pose, self.animator.state(shown, pose), self.animator.hits(shown))
+
+    def take_page_messages(self) -> list[dict[str, Any]]:
+        """Messages for every connected page since the last call (frames, status, settings)."""
+        out, self._outbox = self._outbox, []
+        return out
+
+    def skeleton_json(self) -> dict[str, Any]:
+        return {"type": "skeleton", "layout": self.layout, "names": self.names, "parents": self.parents}
+
+    def kit_message(self) -> dict[str, Any]:
+        return {"type": "kit", "kit": kit_json(self.kit)}
+
+    def view_json(self) -> dict[str, Any]:
+        return {"type": "view", "mode": self.mode, "latency": self.latency, **self.view.model_dump()}
+
+    def set_kit(self, kit: Kit) -> None:
+        """Adopt an edited kit (already validated) and tell every page."""
+        self.kit = kit
+        self.animator.set_kit(kit)
+        self._preview_animator.set_kit(kit)
+        self._outbox.append(self.kit_message())
+
+    def welcome(self) -> list[dict[str, Any]]:
+        """Everything a newly connected page needs before frames: kit, skeleton, view."""
+        out = [self.kit_message(), self.view_json()]
+        if self.names:
+            out.insert(1, self.skeleton_json())
+        return out
+
+    def status(self, now: float) -> dict[str, Any]:
+        nodes: list[dict[str, Any]] = [
+            {"role": n.role, "id": n.node_id, "rate_hz": round(n.rate_hz, 1), "target_hz": n.target_rate_hz,
+             "age": round(now - n.last_seen, 1), "late": n.late, "dropped": n.dropped}
+            for n in sorted(self.nodes.values(), key=lambda n: (n.role, n.node_id))
+            if now - n.last_seen < 10.0
+        ]
+        late = sum(int(n["late"]) for n in nodes if n["role"] == "sound")
+        score = None
+        if self.score is not None:
+            score = {"bar": self.score.bar, "beat": round(self.score.beat, 2), "tempo_bpm": self.score.tempo_bpm}
+        newest = self._times[-1] if self._times else None
+        return {
+            "type": "status", "time": round(now, 3), "mode": self.mode, "latency": self.latency,
+            "nodes": nodes, "late": late, "score": score, "counters": dict(self.counters),
+            "pose_lag": None if newest is None else round(now + self.clock_offset - newest, 3),
+        }

@@ -1,0 +1,193 @@
+"""glTF 2.0 export (binary .glb or .gltf with embedded data) with ``pygltflib``.
+
+One node per link, each with a small box mesh, animated by translation and
+rotation channels (linear interpolation, one key per pose), under a root node
+that turns the Batteur frame (z up) into glTF's (y up). The kit is added as
+static meshes (cylinders for drums, thin discs for cymbals, boxes for the
+rest) so the file shows the whole scene in Blender, three.js or any viewer.
+Units: metres.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pygltflib
+from scipy.spatial.transform import Rotation
+
+from common.kit import Kit, KitObject
+from services.graphics.sequence import PoseSequence, normalize_quats
+
+FLOAT, USHORT = pygltflib.FLOAT, pygltflib.UNSIGNED_SHORT
+ROOT_ROTATION = [-math.sqrt(0.5), 0.0, 0.0, math.sqrt(0.5)]  # -90 degrees about x: z up -> y up
+
+COLOURS = {
+    "body": [0.31, 0.53, 0.78, 1.0], "stick": [0.85, 0.7, 0.48, 1.0], "membrane": [0.55, 0.11, 0.14, 1.0],
+    "cymbal": [0.79, 0.64, 0.23, 1.0], "other": [0.6, 0.6, 0.63, 1.0],
+}
+
+
+@dataclass(frozen=True)
+class GltfInfo:
+    """What :func:`write_gltf` wrote: animated link nodes, kit nodes, keyframes, duration (seconds)."""
+
+    links: int
+    kit_objects: int
+    keyframes: int
+    duration: float
+
+
+def _box() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Unit cube (edge 1) centred on the origin: positions (24, 3), normals (24, 3), indices (36,)."""
+    pos: list[np.ndarray] = []
+    nor: list[np.ndarray] = []
+    idx: list[int] = []
+    for axis in range(3):
+        for sign in (-1.0, 1.0):
+            n = np.zeros(3)
+            n[axis] = sign
+            u, v = np.roll(np.eye(3), axis + 1, axis=0)[:2] if sign > 0 else np.roll(np.eye(3), axis + 1, axis=0)[1::-1]
+            base = len(pos)
+            for a, b in ((-1, -1), (1, -1), (1, 1), (-1, 1)):
+                pos.append(0.5 * n + 0.5 * a * u + 0.5 * b * v)
+                nor.append(n)
+            idx += [base, base + 1, base + 2, base, base + 2, base + 3]
+    return np.array(pos, np.float32), np.array(nor, np.float32), np.array(idx, np.uint16)
+
+
+def _cylinder(segments: int = 32) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Cylinder of radius 1 along z from -1 to 0 (top face at z=0): positions, normals, indices."""
+    pos, nor, idx = [], [], []
+    angles = np.linspace(0, 2 * np.pi, segments, endpoint=False)
+    for k, a in enumerate(angles):  # side
+        c, s = math.cos(a), math.sin(a)
+        pos += [[c, s, -1.0], [c, s, 0.0]]
+        nor += [[c, s, 0.0], [c, s, 0.0]]
+        k2 = (k + 1) % segments
+        idx += [2 * k, 2 * k2, 2 * k2 + 1, 2 * k, 2 * k2 + 1, 2 * k + 1]
+    for z, nz in ((0.0, 1.0), (-1.0, -1.0)):  # caps
+        centre = len(pos)
+        pos.append([0.0, 0.0, z])
+        nor.append([0.0, 0.0, nz])
+        for a in angles:
+            pos.append([math.cos(a), math.sin(a), z])
+            nor.append([0.0, 0.0, nz])
+        for k in range(segments):
+            a, b = centre + 1 + k, centre + 1 + (k + 1) % segments
+            idx += [centre, a, b] if nz > 0 else [centre, b, a]
+    return np.array(pos, np.float32), np.array(nor, np.float32), np.array(idx, np.uint16)
+
+
+class _Builder:
+    def __init__(self) -> None:
+        self.gltf = pygltflib.GLTF2(asset=pygltflib.Asset(generator="batteur", version="2.0"))
+        self.blob = bytearray()
+
+    def view(self, data: bytes, target: int | None = None) -> int:
+        while len(self.blob) % 4:
+            self.blob.append(0)
+        self.gltf.bufferViews.append(
+            pygltflib.BufferView(buffer=0, byteOffset=len(self.blob), byteLength=len(data), target=target))
+        self.blob += data
+        return len(self.gltf.bufferViews) - 1
+
+    def accessor(self, array: np.ndarray, kind: str, target: int | None = None, bounds: bool = False) -> int:
+        component = USHORT if array.dtype == np.uint16 else FLOAT
+        array = np.ascontiguousarray(array, dtype=np.uint16 if component == USHORT else np.float32)
+        view = self.view(array.tobytes(), target)
+        flat = array.reshape(len(array), -1)
+        acc = pygltflib.Accessor(bufferView=view, componentType=component, count=len(array), type=kind)
+        if bounds:
+            acc.min = [float(v) for v in flat.min(axis=0)]
+            acc.max = [float(v) for v in flat.max(axis=0)]
+        self.gltf.accessors.append(acc)
+        return len(self.gltf.accessors) - 1
+
+    def material(self, rgba: list[float], metallic: float = 0.0) -> int:
+        self.gltf.materials.append(pygltflib.Material(
+            pbrMetallicRoughness=pygltflib.PbrMetallicRoughness(baseColorFactor=rgba, metallicFactor=metallic,
+                                                                roughnessFactor=0.6)))
+        return len(self.gltf.materials) - 1
+
+    def mesh(self, shape: tuple[np.ndarray, np.ndarray, np.ndarray], material: int) -> int:
+        pos, nor, idx = shape
+        p = self.accessor(pos, pygltflib.VEC3, pygltflib.ARRAY_BUFFER, bounds=True)
+        n = self.accessor(nor, pygltflib.VEC3, pygltflib.ARRAY_BUFFER)
+        i = self.accessor(idx, pygltflib.SCALAR, pygltflib.ELEMENT_ARRAY_BUFFER)
+        prim = pygltflib.Primitive(attributes=pygltflib.Attributes(POSITION=p, NORMAL=n), indices=i,
+                                   material=material)
+        self.gltf.meshes.append(pygltflib.Mesh(primitives=[prim]))
+        return len(self.gltf.meshes) - 1
+
+    def node(self, **kwargs: object) -> int:
+        self.gltf.nodes.append(pygltflib.Node(**kwargs))  # type: ignore[arg-type]
+        return len(self.gltf.nodes) - 1
+
+
+def _kit_node(b: _Builder, obj: KitObject, meshes: dict[str, int]) -> int:
+    rot = Rotation.from_euler("xyz", obj.rotation_deg, degrees=True).as_quat()
+    if obj.kind in ("membrane", "throne"):
+        mesh, scale = meshes["membrane"], [obj.radius, obj.radius, max(obj.depth, 0.04)]
+    elif obj.kind in ("cymbal", "hihat"):
+        mesh, scale = meshes["cymbal"], [obj.radius, obj.radius, 0.01]
+    else:
+        mesh, scale = meshes["other"], [obj.radius * 2, obj.radius * 2, max(obj.depth, 0.02)]
+    return b.node(name=f"kit_{obj.id}", mesh=mesh, translation=[float(v) for v in obj.position],
+                  rotation=[float(v) for v in rot], scale=[float(v) for v in scale])
+
+
+def write_gltf(sequence: PoseSequence, path: Path, kit: Kit | None = None, link_size: float = 0.05) -> GltfInfo:
+    """Write ``sequence`` (and ``kit``, static) as glTF 2.0: ``.glb`` binary, or ``.gltf`` with embedded data."""
+    b = _Builder()
+    box = _box()
+    body_mat = b.material(COLOURS["body"])
+    stick_mat = b.material(COLOURS["stick"])
+    body_mesh = b.mesh(box, body_mat)
+    stick_mesh = b.mesh(box, stick_mat)
+    link_nodes = []
+    first = sequence.values[0]
+    for i, name in enumerate(sequence.names):
+        is_stick = "stick" in name
+        size = link_size * (0.5 if is_stick else (2.5 if name.endswith("head") else 1.0))
+        mesh_node = b.node(name=f"{name}_mesh", mesh=stick_mesh if is_stick else body_mesh, scale=[size] * 3)
+        link_nodes.append(b.node(name=name, children=[mesh_node], translation=[float(v) for v in first[i, :3]],
+                                 rotation=[float(v) for v in normalize_quats(first[i, 3:])]))
+    kit_nodes = []
+    if kit is not None:
+        meshes = {
+            "membrane": b.mesh(_cylinder(), b.material(COLOURS["membrane"])),
+            "cymbal": b.mesh(_cylinder(), b.material(COLOURS["cymbal"], metallic=0.8)),
+            "other": b.mesh(box, b.material(COLOURS["other"], metallic=0.5)),
+        }
+        kit_nodes = [_kit_node(b, obj, meshes) for obj in kit.objects]
+    root = b.node(name="batteur", rotation=ROOT_ROTATION, children=link_nodes + kit_nodes)
+    b.gltf.scenes.append(pygltflib.Scene(name="performance", nodes=[root]))
+    b.gltf.scene = 0
+
+    times = (sequence.times - sequence.times[0]).astype(np.float32)
+    t_acc = b.accessor(times, pygltflib.SCALAR, bounds=True)
+    samplers, channels = [], []
+    for i, node in enumerate(link_nodes):
+        translation = sequence.values[:, i, :3]
+        quats = normalize_quats(sequence.values[:, i, 3:])
+        quats = quats * np.where(np.cumprod(np.sign(np.r_[1.0, np.sum(quats[1:] * quats[:-1], axis=1)]))[:, None]
+                                 < 0, -1.0, 1.0)  # consistent hemisphere: no long-way slerps
+        for values, target, kind in ((translation, "translation", pygltflib.VEC3),
+                                     (quats, "rotation", pygltflib.VEC4)):
+            samplers.append(pygltflib.AnimationSampler(input=t_acc, output=b.accessor(values, kind),
+                                                       interpolation="LINEAR"))
+            channels.append(pygltflib.AnimationChannel(sampler=len(samplers) - 1,
+                                                       target=pygltflib.AnimationChannelTarget(node=node,
+                                                                                               path=target)))
+    b.gltf.animations.append(pygltflib.Animation(name="performance", samplers=samplers, channels=channels))
+    b.gltf.buffers.append(pygltflib.Buffer(byteLength=len(b.blob)))
+    b.gltf.set_binary_blob(bytes(b.blob))
+    if path.suffix.lower() == ".glb":
+        b.gltf.save_binary(str(path))
+    else:
+        b.gltf.convert_buffers(pygltflib.BufferFormat.DATAURI)
+        b.gltf.save_json(str(path))
+    return GltfInfo(len(link_nodes), len(kit_nodes), len(times), float(times[-1]))

@@ -1,0 +1,231 @@
+"""The view server: the page over HTTP and the frame stream over a WebSocket, on one port.
+
+Built on the ``websockets`` library: ``process_request`` answers plain HTTP
+requests (the page, its script, ``/api/*``) and lets ``/ws`` upgrade to a
+WebSocket. Every page gets a welcome (kit, skeleton, view settings) and then
+whatever the core produces (frames, status, settings). Slow pages skip frames
+(``websockets.broadcast`` drops a message for a client whose buffer is full)
+instead of slowing the node.
+
+Only same-origin pages (or clients that send no ``Origin``) may open the
+WebSocket, so a page from another site cannot drive the editor.
+
+Page -> node messages (JSON): ``save_kit`` (validated with ``common.kit``,
+written only into the configured kit directory), ``poser_on``/``poser``/
+``poser_off`` (the pose editor), ``save_pose``. Bad messages get an error
+reply and are counted; they never stop the server.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import mimetypes
+import re
+from collections.abc import Callable
+from http import HTTPStatus
+from pathlib import Path
+from typing import Any
+from urllib.parse import urlparse
+
+from pydantic import ValidationError
+from websockets.asyncio.server import Server, ServerConnection, broadcast, serve
+from websockets.datastructures import Headers
+from websockets.exceptions import ConnectionClosed
+from websockets.http11 import Request, Response
+
+from common.kit import Kit, save_kit
+from services.graphics.core import GraphicsCore
+from services.graphics.poser import PoseLibrary, Poser
+
+log = logging.getLogger("batteur.graphics")
+
+STATIC_DIR = Path(__file__).parent / "static"
+FILE_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,80}\.(yaml|yml|json)$")
+MAX_PAGE_MESSAGE = 256 * 1024  # bytes
+
+
+def assets_missing(static_dir: Path = STATIC_DIR) -> list[str]:
+    """Built files the page needs that are not there (run ``batteur graphics build``)."""
+    return [name for name in ("index.html", "app.js", "style.css") if not (static_dir / name).is_file()]
+
+
+class ViewServer:
+    """Serves the page and streams the core's page messages to every connected page."""
+
+    def __init__(self, core: GraphicsCore, static_dir: Path = STATIC_DIR, kit_dir: Path | None = None,
+                 clock: Callable[[], float] | None = None) -> None:
+        self.core = core
+        self.static_dir = static_dir
+        self.kit_dir = kit_dir.resolve() if kit_dir is not None else None
+        self.clock = clock or (lambda: 0.0)
+        self.clients: set[ServerConnection] = set()
+        self.server: Server | None = None
+        self.port = 0
+        self.poser: Poser | None = None
+        self.counters = {"http": 0, "not_found": 0, "ws_connects": 0, "page_errors": 0, "sent": 0, "foreign_origin": 0}
+        core.page_sink = self.broadcast
+
+    # --- lifecycle ----------------------------------------------------------------------------
+    async def start(self, host: str, port: int) -> int:
+        """Listen on ``host:port`` (0: any free port); returns the port."""
+        logging.getLogger("websockets.server").setLevel(logging.WARNING)
+        self.server = await serve(self._ws_handler, host, port, process_request=self._http,
+                                  max_size=MAX_PAGE_MESSAGE, compression=None, ping_interval=5, ping_timeout=10)
+        sock = next(iter(self.server.sockets))
+        self.port = int(sock.getsockname()[1])
+        missing = assets_missing(self.static_dir)
+        if missing:
+            log.error("the page is not built (%s missing): run `batteur graphics build`", ", ".join(missing))
+        log.info("graphics view on http://%s:%d/", host if ":" not in host else f"[{host}]", self.port)
+        return self.port
+
+    async def serve_forever(self) -> None:
+        if self.server is None:
+            raise RuntimeError("start() first")
+        try:
+            await self.server.serve_forever()
+        finally:
+            await self.close()
+
+    async def close(self) -> None:
+        if self.server is not None:
+            self.server.close()
+            await self.server.wait_closed()
+            self.server = None
+
+    # --- HTTP ---------------------------------------------------------------------------------
+    def _http(self, connection: ServerConnection, request: Request) -> Response | None:
+        path = request.path.split("?", 1)[0]
+        if path == "/ws":
+            origin = request.headers.get("Origin")
+            if origin is not None and urlparse(origin).netloc != request.headers.get("Host"):
+                # a page from another site must not drive this node (the editor writes files)
+                self.counters["foreign_origin"] += 1
+                return _response(HTTPStatus.FORBIDDEN, b"cross-origin WebSocket refused\n", "text/plain")
+            return None
+        self.counters["http"] += 1
+        if path == "/api/status":
+            return _json_response(self.core.status(self.clock()))
+        if path == "/api/kit":
+            return _json_response(self.core.kit.model_dump(mode="json"))
+        if path == "/healthz":
+            return _response(HTTPStatus.OK, b"ok\n", "text/plain")
+        name = "index.html" if path in ("/", "/index.html") else path.lstrip("/")
+        if "/" in name or name.startswith(".") or not (self.static_dir / name).is_file():
+            self.counters["not_found"] += 1
+            if name == "index.html":
+                return _response(HTTPStatus.SERVICE_UNAVAILABLE,
+                                 b"the page is not built: run `batteur graphics build`\n", "text/plain")
+            return _response(HTTPStatus.NOT_FOUND, b"not found\n", "text/plain")
+        body = (self.static_dir / name).read_bytes()
+        ctype = mimetypes.guess_type(name)[0] or "application/octet-stream"
+        if ctype.startswith("text/") or ctype.endswith("javascript"):
+            ctype += "; charset=utf-8"
+        return _response(HTTPStatus.OK, body, ctype)
+
+    # --- WebSocket ----------------------------------------------------------------------------
+    async def _ws_handler(self, connection: ServerConnection) -> None:
+        self.counters["ws_connects"] += 1
+        self.clients.add(connection)
+        try:
+            for message in self.core.welcome():
+                await connection.send(json.dumps(message))
+            async for raw in connection:
+                reply = self.handle_page_message(raw)
+                if reply is not None:
+                    await connection.send(json.dumps(reply))
+        except ConnectionClosed:
+            pass
+        finally:
+            self.clients.discard(connection)
+            if not self.clients and self.poser is not None:
+                self._poser_off()
+
+    def broadcast(self, messages: list[dict[str, Any]]) -> None:
+        """Send ``messages`` to every page (called from the core's step, on the event loop)."""
+        if not self.clients:
+            return
+        for message in messages:
+            broadcast(self.clients, json.dumps(message, separators=(",", ":")))
+            self.counters["sent"] += 1
+
+    def handle_page_message(self, raw: str | bytes) -> dict[str, Any] | None:
+        """One message from a page; returns the reply (or None). Never raises."""
+        try:
+            msg = json.loads(raw)
+            if not isinstance(msg, dict) or not isinstance(msg.get("type"), str):
+                raise ValueError("a message is a JSON object with a 'type'")
+            kind = msg["type"]
+            if kind == "save_kit":
+                return self._save_kit(msg)
+            if kind == "poser_on":
+                self.poser = self.poser or Poser()
+                self.core.show_pose(self.poser.names, self.poser.pose())
+                return {"type": "poser", "joints": self.poser.joints, "angles": {}}
+            if kind == "poser":
+                self.poser = self.poser or Poser()
+                self.core.show_pose(self.poser.names, self.poser.pose(Poser.clean(msg.get("angles", {}))))
+                return None
+            if kind == "poser_off":
+                self._poser_off()
+                return None
+            if kind == "save_pose":
+                return self._save_pose(msg)
+            raise ValueError(f"unknown message type {kind!r}")
+        except (ValueError, TypeError, ValidationError) as exc:
+            self.counters["page_errors"] += 1
+            log.warning("bad page message: %s", exc)
+            return {"type": "saved", "ok": False, "error": str(exc)[:500]}
+
+    def _poser_off(self) -> None:
+        self.core.show_pose(None, None)
+
+    def _target(self, file: object) -> Path:
+        if self.kit_dir is None:
+            raise ValueError("saving is disabled: start the graphics node with --kit-dir DIR")
+        if not isinstance(file, str) or not FILE_NAME.match(file):
+            raise ValueError("file name: letters, digits, '_', '-', '.', ending in .yaml, .yml or .json")
+        path = (self.kit_dir / file).resolve()
+        if path.parent != self.kit_dir:
+            raise ValueError("file must be inside the kit directory")
+        return path
+
+    def _save_kit(self, msg: dict[str, Any]) -> dict[str, Any]:
+        path = self._target(msg.get("file"))
+        try:
+            kit = Kit.model_validate(msg.get("kit"))
+        except ValidationError as exc:
+            raise ValueError(f"invalid kit: {exc.errors()[0].get('msg')} at "
+                             f"{'.'.join(str(p) for p in exc.errors()[0].get('loc', ()))}") from None
+        self.kit_dir.mkdir(parents=True, exist_ok=True)  # type: ignore[union-attr]
+        save_kit(kit, path)
+        self.core.set_kit(kit)
+        self.broadcast(self.core.take_page_messages())  # every page redraws the kit now
+        log.info("kit saved to %s", path)
+        return {"type": "saved", "ok": True, "path": str(path)}
+
+    def _save_pose(self, msg: dict[str, Any]) -> dict[str, Any]:
+        path = self._target(msg.get("file", "poses.yaml"))
+        name = msg.get("name")
+        angles = Poser.clean(msg.get("angles", {}))
+        library = PoseLibrary.load(path)
+        library = PoseLibrary.model_validate({"poses": {**library.poses, str(name): angles}})
+        library.save(path)
+        return {"type": "saved", "ok": True, "path": str(path)}
+
+
+def _response(status: HTTPStatus, body: bytes, content_type: str) -> Response:
+    headers = Headers([("Content-Type", content_type), ("Content-Length", str(len(body))),
+                       ("Cache-Control", "no-cache"), ("Connection", "close")])
+    return Response(status.value, status.phrase, headers, body)
+
+
+def _json_response(data: Any) -> Response:
+    return _response(HTTPStatus.OK, json.dumps(data).encode(), "application/json")
+
+
+async def run_forever(server: ViewServer, host: str, port: int) -> None:
+    await server.start(host, port)
+    await server.serve_forever()
+

@@ -1,0 +1,521 @@
+// Batteur live view: draws the drummer and the kit from the graphics node's WebSocket stream.
+// Frame: metres, z up, the drummer at the origin facing +y, +x to the drummer's right.
+// Messages from the node (JSON): kit, skeleton, view, frame, status, poser, saved.
+import * as THREE from "three";
+import { OrbitControls } from "three/examples/jsm/controls/OrbitControls.js";
+
+const state = {
+  kit: null, names: [], parents: [], view: null, status: null, frames: 0, fps: 0, lastFpsT: performance.now(),
+  connected: false, ws: null, retry: 0, lastFrame: null, trails: new Map(), plot: [], hits: [],
+  poser: null, editing: false,
+};
+window.batteur = state; // for tests and the console
+
+// ---------------------------------------------------------------- scene
+const canvas = document.getElementById("view");
+const renderer = new THREE.WebGLRenderer({ canvas, antialias: true, preserveDrawingBuffer: true });
+renderer.setPixelRatio(1);
+const scene = new THREE.Scene();
+scene.background = new THREE.Color(0x1b1d22);
+const camera = new THREE.PerspectiveCamera(45, 1, 0.05, 100);
+camera.up.set(0, 0, 1);
+const controls = new OrbitControls(camera, canvas);
+controls.target.set(0, 0.35, 0.75);
+controls.addEventListener("start", () => { if (state.view) state.view.camera.preset = "free"; syncPresetSelect(); });
+scene.add(new THREE.HemisphereLight(0xffffff, 0x303040, 1.6));
+const sun = new THREE.DirectionalLight(0xffffff, 1.8);
+sun.position.set(1.5, 2.5, 4);
+scene.add(sun);
+
+const layers = {
+  body: new THREE.Group(), sticks: new THREE.Group(), kit: new THREE.Group(), contacts: new THREE.Group(),
+  trails: new THREE.Group(), floor: new THREE.Group(),
+};
+for (const g of Object.values(layers)) scene.add(g);
+const grid = new THREE.GridHelper(4, 16, 0x555a66, 0x33363d);
+grid.rotation.x = Math.PI / 2;
+layers.floor.add(grid);
+
+function resize() {
+  const w = window.innerWidth, h = window.innerHeight;
+  renderer.setSize(w, h, false);
+  camera.aspect = w / h;
+  camera.updateProjectionMatrix();
+}
+window.addEventListener("resize", resize);
+resize();
+
+// ---------------------------------------------------------------- kit
+const MAT = {
+  shell: (c) => new THREE.MeshStandardMaterial({ color: c, roughness: 0.6 }),
+  head: () => new THREE.MeshStandardMaterial({ color: 0xe8e4d8, roughness: 0.8, emissive: 0xffcc55,
+    emissiveIntensity: 0 }),
+  cymbal: () => new THREE.MeshStandardMaterial({ color: 0xc9a23a, metalness: 0.6, roughness: 0.35,
+    emissive: 0xffdd66, emissiveIntensity: 0, side: THREE.DoubleSide }),
+  metal: new THREE.MeshStandardMaterial({ color: 0x999ba0, metalness: 0.7, roughness: 0.4 }),
+  dark: new THREE.MeshStandardMaterial({ color: 0x2a2a30, roughness: 0.9 }),
+};
+const SHELL_COLOURS = { kick: 0x8c1c24, snare: 0x9aa0aa, hightom: 0x8c1c24, midtom: 0x8c1c24, floortom: 0x8c1c24 };
+let kitParts = []; // per kit object: {obj, group, swing, flashMats, extra}
+
+function eulerOf(deg) { // kit rotation: roll pitch yaw, extrinsic x-y-z == intrinsic Z-Y-X
+  const r = deg.map((d) => (d * Math.PI) / 180);
+  return new THREE.Euler(r[0], r[1], r[2], "ZYX");
+}
+function cylinderZ(radiusTop, radiusBottom, height, mat, segments = 40) {
+  const g = new THREE.CylinderGeometry(radiusTop, radiusBottom, height, segments, 1, false);
+  g.rotateX(Math.PI / 2); // three's cylinders run along y; ours along local z
+  return new THREE.Mesh(g, mat);
+}
+
+function buildKit(kit) {
+  layers.kit.clear();
+  kitParts = [];
+  for (const obj of kit.objects) {
+    const group = new THREE.Group();
+    group.position.set(...obj.position);
+    group.rotation.copy(eulerOf(obj.rotation_deg));
+    const swing = new THREE.Group(); // cymbal swing / pedal tilt happens here
+    group.add(swing);
+    const part = { obj, group, swing, flashMats: [], extra: null };
+    const r = obj.radius;
+    if (obj.kind === "membrane") {
+      const depth = Math.max(obj.depth, 0.05);
+      const shell = cylinderZ(r, r, depth, MAT.shell(SHELL_COLOURS[obj.id] ?? 0x7a1f2b));
+      shell.position.z = -depth / 2 - 0.002;
+      const headMat = MAT.head();
+      const head = cylinderZ(r * 0.995, r * 0.995, 0.004, headMat);
+      swing.add(shell, head);
+      part.flashMats.push(headMat);
+    } else if (obj.kind === "cymbal" || obj.kind === "hihat") {
+      const mat = MAT.cymbal();
+      const disc = cylinderZ(Math.max(obj.bell_radius, 0.02), r, 0.012, mat);
+      swing.add(disc);
+      part.flashMats.push(mat);
+      if (obj.kind === "hihat") {
+        const bottom = cylinderZ(r, Math.max(obj.bell_radius, 0.02), 0.012, mat);
+        bottom.position.z = -0.012;
+        group.add(bottom);
+        part.extra = (gap) => { swing.position.z = gap; };
+      }
+    } else if (obj.kind === "bell") {
+      const mat = MAT.cymbal();
+      const box = new THREE.Mesh(new THREE.BoxGeometry(r * 2, r * 1.4, Math.max(obj.depth, 0.08)), mat);
+      swing.add(box);
+      part.flashMats.push(mat);
+    } else if (obj.kind === "pedal") {
+      const board = new THREE.Mesh(new THREE.BoxGeometry(0.09, 0.28, 0.015), MAT.metal);
+      board.position.set(0, 0.12, 0.0);
+      swing.add(board);
+      swing.position.y = -0.02;
+      part.extra = (press) => { swing.rotation.x = ((18 - 16 * press) * Math.PI) / 180; };
+      if (obj.id.includes("kick")) {
+        const beater = new THREE.Group();
+        const rod = cylinderZ(0.005, 0.005, 0.3, MAT.metal, 8);
+        rod.position.z = 0.15;
+        const ball = new THREE.Mesh(new THREE.SphereGeometry(0.025, 12, 8), MAT.dark);
+        ball.position.z = 0.3;
+        beater.add(rod, ball);
+        beater.position.set(0, 0.26, 0.0);
+        group.add(beater);
+        const pressExtra = part.extra;
+        part.extra = (press) => { pressExtra(press); beater.rotation.x = (-(10 + 45 * press) * Math.PI) / 180; };
+      }
+    } else if (obj.kind === "throne") {
+      const seat = cylinderZ(r, r, 0.08, MAT.dark);
+      seat.position.z = -0.04;
+      swing.add(seat);
+    }
+    if (obj.kind !== "pedal" && obj.kind !== "membrane" && obj.position[2] > 0.1) {
+      // a stand from the floor to just under the object (world vertical)
+      const h = obj.position[2] - 0.02;
+      const pole = cylinderZ(0.008, 0.008, h, MAT.metal, 8);
+      pole.position.set(obj.position[0], obj.position[1], h / 2);
+      layers.kit.add(pole);
+    }
+    layers.kit.add(group);
+    kitParts.push(part);
+  }
+  buildEditorKit();
+}
+
+function applyKitState(k) {
+  for (let i = 0; i < kitParts.length; i++) {
+    const p = kitParts[i];
+    const flash = k[i * 4], sx = k[i * 4 + 1], sy = k[i * 4 + 2], extra = k[i * 4 + 3];
+    for (const m of p.flashMats) m.emissiveIntensity = 1.2 * flash;
+    if (p.obj.kind !== "pedal") {
+      const angle = Math.hypot(sx, sy);
+      if (angle > 1e-6) p.swing.quaternion.setFromAxisAngle(new THREE.Vector3(sx / angle, sy / angle, 0), angle);
+      else p.swing.quaternion.identity();
+    }
+    if (p.extra) p.extra(extra);
+  }
+}
+
+// ---------------------------------------------------------------- body
+let links = []; // per link: {name, sphere, bone, kind}
+const BODY = new THREE.MeshStandardMaterial({ color: 0x4f86c6, roughness: 0.7 });
+const JOINT = new THREE.MeshStandardMaterial({ color: 0xd9d9e0, roughness: 0.6 });
+const STICK = new THREE.MeshStandardMaterial({ color: 0xd8b27a, roughness: 0.6 });
+const TIP = new THREE.MeshStandardMaterial({ color: 0xfff2c0, roughness: 0.5 });
+const OTHER = new THREE.MeshStandardMaterial({ color: 0x888888 });
+const unitBone = new THREE.CylinderGeometry(1, 1, 1, 10);
+unitBone.translate(0, 0.5, 0); // base at the origin, along +y
+
+function linkKind(name) {
+  const n = name.toLowerCase();
+  if (n.includes("stick")) return n.includes("tip") ? "tip" : "stick";
+  if (n.includes("head") || n.includes("skull")) return "head";
+  return "body";
+}
+
+const STICK_GRIP = 0.13, STICK_TIP = 0.2695; // physics' 5A stick: butt and tip bead along the stick link's +y
+function buildSkeleton(names, parents) {
+  layers.body.clear();
+  layers.sticks.clear();
+  layers.trails.clear();
+  state.trails.clear();
+  links = names.map((name, i) => {
+    const kind = name.startsWith("kit.") ? "kit" : (parents[i] < 0 && !isBodyName(name) ? "other" : linkKind(name));
+    const link = { name, kind, sphere: null, bone: null, stick: null, parent: parents[i] };
+    if (kind === "kit") return link; // kit links animate the kit (the node's kit state), nothing to draw here
+    const group = kind === "stick" || kind === "tip" ? layers.sticks : layers.body;
+    const radius = kind === "head" ? 0.1 : kind === "tip" ? 0.012 : kind === "stick" ? 0.008 : 0.028;
+    link.sphere = new THREE.Mesh(new THREE.SphereGeometry(radius, 14, 10),
+      kind === "head" ? BODY : kind === "tip" ? TIP : kind === "other" ? OTHER : JOINT);
+    group.add(link.sphere);
+    if (parents[i] >= 0) {
+      const thick = kind === "tip" ? 0.007 : kind === "stick" ? 0.009 : 0.03;
+      link.bone = new THREE.Mesh(unitBone, kind === "tip" || kind === "stick" ? STICK : BODY);
+      link.bone.userData.thick = thick;
+      group.add(link.bone);
+    }
+    const hasTip = names.some((n, j) => parents[j] === i && linkKind(n) === "tip");
+    if (kind === "stick" && !hasTip) { // no tip link published: draw the stick along the link's +y
+      const geom = new THREE.CylinderGeometry(0.007, 0.007, STICK_GRIP + STICK_TIP, 10);
+      geom.translate(0, (STICK_TIP - STICK_GRIP) / 2, 0);
+      link.stick = new THREE.Mesh(geom, STICK);
+      const bead = new THREE.Mesh(new THREE.SphereGeometry(0.012, 12, 8), TIP);
+      bead.position.y = STICK_TIP;
+      link.stick.add(bead);
+      layers.sticks.add(link.stick);
+    }
+    if (kind === "tip" || (kind === "stick" && !hasTip) || /(toe|foot)$/.test(name)) {
+      const geom = new THREE.BufferGeometry();
+      geom.setAttribute("position", new THREE.BufferAttribute(new Float32Array(3 * 600), 3));
+      const line = new THREE.Line(geom, new THREE.LineBasicMaterial({ color: /(toe|foot)$/.test(name) ? 0x70c0ff : 0xffd070 }));
+      line.frustumCulled = false;
+      layers.trails.add(line);
+      state.trails.set(i, { line, points: [], tipOffset: kind === "stick" ? STICK_TIP : 0 });
+    }
+    return link;
+  });
+  state.plot = [];
+}
+function isBodyName(name) {
+  return /(pelvis|root|hips|abdomen|spine|torso|chest|neck|head|arm|hand|wrist|elbow|shoulder|stick|thigh|hip|shin|knee|leg|foot|ankle|toe)/i
+    .test(name);
+}
+
+const tmpA = new THREE.Vector3(), tmpB = new THREE.Vector3(), tmpD = new THREE.Vector3();
+const tmpQ = new THREE.Quaternion();
+const Y = new THREE.Vector3(0, 1, 0);
+function applyPose(p, t) {
+  for (let i = 0; i < links.length; i++) {
+    const L = links[i];
+    const o = i * 7;
+    if (L.kind === "kit") continue;
+    if (L.sphere) {
+      L.sphere.position.set(p[o], p[o + 1], p[o + 2]);
+      if (L.kind === "head") L.sphere.position.z += 0.09;
+    }
+    if (L.stick) {
+      L.stick.position.set(p[o], p[o + 1], p[o + 2]);
+      L.stick.quaternion.set(p[o + 3], p[o + 4], p[o + 5], p[o + 6]);
+    }
+    if (L.bone) {
+      const q = L.parent * 7;
+      tmpA.set(p[q], p[q + 1], p[q + 2]);
+      tmpB.set(p[o], p[o + 1], p[o + 2]);
+      tmpD.subVectors(tmpB, tmpA);
+      const len = tmpD.length();
+      L.bone.visible = len > 1e-4;
+      if (len > 1e-4) {
+        L.bone.position.copy(tmpA);
+        L.bone.quaternion.setFromUnitVectors(Y, tmpD.divideScalar(len));
+        const th = L.bone.userData.thick;
+        L.bone.scale.set(th, len, th);
+      }
+    }
+  }
+  // trails and the tip-height plot
+  const seconds = state.view?.trails ?? 1.0;
+  for (const [i, tr] of state.trails) {
+    const o = i * 7;
+    tmpA.set(0, tr.tipOffset, 0).applyQuaternion(tmpQ.set(p[o + 3], p[o + 4], p[o + 5], p[o + 6]));
+    tr.points.push([t, p[o] + tmpA.x, p[o + 1] + tmpA.y, p[o + 2] + tmpA.z]);
+    while (tr.points.length && (tr.points[0][0] < t - seconds || tr.points.length > 600)) tr.points.shift();
+    if (tr.points.length && tr.points[tr.points.length - 1][0] < tr.points[0][0]) tr.points = [];
+    const arr = tr.line.geometry.attributes.position.array;
+    tr.points.forEach((pt, j) => { arr[j * 3] = pt[1]; arr[j * 3 + 1] = pt[2]; arr[j * 3 + 2] = pt[3]; });
+    tr.line.geometry.setDrawRange(0, tr.points.length);
+    tr.line.geometry.attributes.position.needsUpdate = true;
+  }
+  const tips = [...state.trails.entries()].filter(([i]) => links[i].kind !== "body");
+  const last = state.plot.length ? state.plot[state.plot.length - 1][0] : -Infinity;
+  if (t < last) state.plot = [];
+  state.plot.push([t, tips.map(([, tr]) => tr.points[tr.points.length - 1][3]), tips.map(([i]) => links[i].name)]);
+  const window_ = state.view?.plot?.window ?? 4;
+  while (state.plot.length && state.plot[0][0] < t - window_) state.plot.shift();
+}
+
+// ---------------------------------------------------------------- contacts
+const hitGeom = new THREE.SphereGeometry(1, 12, 8);
+function applyHits(hits) {
+  layers.contacts.clear();
+  for (const [x, y, z, age] of hits) {
+    const s = 0.02 + 0.06 * age;
+    const m = new THREE.Mesh(hitGeom, new THREE.MeshBasicMaterial({ color: 0xff5533, transparent: true,
+      opacity: Math.max(0, 1 - age / 0.5) }));
+    m.position.set(x, y, z);
+    m.scale.setScalar(s);
+    layers.contacts.add(m);
+  }
+  state.hits = hits;
+}
+
+// ---------------------------------------------------------------- plot (tip heights, 2009 paper fig. 5)
+const plotCanvas = document.getElementById("plot");
+const pctx = plotCanvas.getContext("2d");
+const PLOT_COLOURS = ["#ffb347", "#7ec8ff", "#b0ff8a", "#ff7eb6"];
+function drawPlot() {
+  const w = plotCanvas.width, h = plotCanvas.height;
+  pctx.clearRect(0, 0, w, h);
+  pctx.fillStyle = "rgba(20,22,28,0.85)";
+  pctx.fillRect(0, 0, w, h);
+  const pl = state.view?.plot ?? { window: 4, z_min: 0.5, z_max: 1.6 };
+  if (!state.plot.length) return;
+  const tEnd = state.plot[state.plot.length - 1][0];
+  const x = (t) => ((t - (tEnd - pl.window)) / pl.window) * (w - 30) + 26;
+  const y = (z) => h - 14 - ((z - pl.z_min) / (pl.z_max - pl.z_min)) * (h - 24);
+  pctx.strokeStyle = "#444"; pctx.fillStyle = "#999"; pctx.font = "10px sans-serif";
+  for (let z = Math.ceil(pl.z_min * 5) / 5; z <= pl.z_max; z += 0.2) {
+    pctx.beginPath(); pctx.moveTo(26, y(z)); pctx.lineTo(w, y(z)); pctx.stroke();
+    pctx.fillText(z.toFixed(1), 2, y(z) + 3);
+  }
+  pctx.fillText("stick tip height (m) over the last " + pl.window + " s", 30, 10);
+  const nTips = state.plot[0][1].length;
+  for (let k = 0; k < nTips; k++) {
+    pctx.strokeStyle = PLOT_COLOURS[k % PLOT_COLOURS.length];
+    pctx.beginPath();
+    state.plot.forEach(([t, zs], j) => { if (j) pctx.lineTo(x(t), y(zs[k])); else pctx.moveTo(x(t), y(zs[k])); });
+    pctx.stroke();
+    pctx.fillStyle = pctx.strokeStyle;
+    pctx.fillText(state.plot[0][2][k], w - 90, 22 + 11 * k);
+  }
+}
+
+// ---------------------------------------------------------------- camera
+const PRESETS = {
+  front: { az: 0, el: 18, dist: 3.0 }, side: { az: 90, el: 12, dist: 3.0 }, top: { az: 0, el: 85, dist: 3.2 },
+};
+function placeCamera(cam, now) {
+  let target = new THREE.Vector3(...(cam.target ?? [0, 0.35, 0.75]));
+  let az = cam.azimuth_deg, el = cam.elevation_deg, dist = cam.distance;
+  if (cam.preset === "drummer") {
+    camera.position.set(0.05, -0.55, 1.75);
+    controls.target.set(0, 0.55, 0.8);
+    controls.update();
+    return;
+  }
+  if (PRESETS[cam.preset]) ({ az, el, dist } = PRESETS[cam.preset]);
+  if (cam.preset === "orbit") { az = (now / 1000) * 12; el = 20; dist = 3.2; }
+  if (cam.preset !== "free") target = new THREE.Vector3(0, 0.35, 0.75);
+  const a = (az * Math.PI) / 180, e = (el * Math.PI) / 180;
+  camera.position.set(target.x + dist * Math.sin(a) * Math.cos(e), target.y + dist * Math.cos(a) * Math.cos(e),
+    target.z + dist * Math.sin(e));
+  controls.target.copy(target);
+  controls.update();
+}
+const presetSelect = document.getElementById("camera-preset");
+function syncPresetSelect() { if (state.view) presetSelect.value = state.view.camera.preset; }
+presetSelect.addEventListener("change", () => {
+  if (!state.view) return;
+  state.view.camera.preset = presetSelect.value;
+  placeCamera(state.view.camera, performance.now());
+});
+
+function applyView(view) {
+  const fresh = !state.view || JSON.stringify(state.view.camera) !== JSON.stringify(view.camera);
+  state.view = view;
+  for (const [name, group] of Object.entries(layers)) group.visible = view.layers[name] !== false;
+  plotCanvas.classList.toggle("hidden", view.layers.plot === false);
+  document.getElementById("status").classList.toggle("hidden", view.layers.status === false);
+  if (fresh) placeCamera(view.camera, performance.now());
+  syncPresetSelect();
+  const box = document.getElementById("layers");
+  box.innerHTML = "";
+  for (const name of Object.keys(view.layers)) {
+    const label = document.createElement("label");
+    const cb = document.createElement("input");
+    cb.type = "checkbox";
+    cb.checked = view.layers[name];
+    cb.addEventListener("change", () => { state.view.layers[name] = cb.checked; applyView(state.view); });
+    label.append(cb, name);
+    box.append(label);
+  }
+}
+
+// ---------------------------------------------------------------- status panel
+function renderStatus() {
+  const s = state.status;
+  const conn = document.getElementById("conn");
+  conn.textContent = state.connected ? "connected" : `reconnecting (try ${state.retry})`;
+  conn.className = state.connected ? "ok" : "bad";
+  const body = document.getElementById("status-body");
+  if (!s) { body.textContent = ""; return; }
+  const rows = s.nodes.map((n) => `<tr><td>${n.role}</td><td>${n.rate_hz}/${n.target_hz} Hz</td>` +
+    `<td>late ${n.late}</td><td>${n.age}s</td></tr>`).join("");
+  const score = s.score ? `bar ${s.score.bar + 1} beat ${(s.score.beat + 1).toFixed(2)} @ ${s.score.tempo_bpm} bpm`
+    : "–";
+  body.innerHTML = `mode ${s.mode} · delay ${(s.latency * 1000).toFixed(0)} ms · view ${state.fps.toFixed(0)} fps<br>` +
+    `rig time ${s.time.toFixed(2)} s · score ${score}<br>` +
+    `late strikes ${s.late} · poses ${s.counters.poses} · impacts ${s.counters.impacts}` +
+    (s.pose_lag === null ? "" : ` · pose age ${(s.pose_lag * 1000).toFixed(0)} ms`) +
+    `<table>${rows || "<tr><td>no other nodes seen</td></tr>"}</table>`;
+}
+
+// ---------------------------------------------------------------- WebSocket with auto-reconnect
+function connect() {
+  const proto = location.protocol === "https:" ? "wss" : "ws";
+  const ws = new WebSocket(`${proto}://${location.host}/ws`);
+  state.ws = ws;
+  ws.onopen = () => { state.connected = true; state.retry = 0; state.connects = (state.connects ?? 0) + 1;
+    renderStatus(); };
+  ws.onmessage = (ev) => { try { onMessage(JSON.parse(ev.data)); } catch (e) { console.error(e); } };
+  ws.onclose = () => {
+    state.connected = false;
+    state.retry += 1;
+    renderStatus();
+    setTimeout(connect, Math.min(3000, 250 * 2 ** Math.min(state.retry, 4)));
+  };
+  ws.onerror = () => ws.close();
+}
+function send(msg) { if (state.ws && state.connected) state.ws.send(JSON.stringify(msg)); }
+
+function onMessage(m) {
+  switch (m.type) {
+    case "kit": state.kit = m.kit; buildKit(m.kit); if (state.names.length) buildSkeleton(state.names, state.parents);
+      break;
+    case "skeleton": state.names = m.names; state.parents = m.parents; buildSkeleton(m.names, m.parents); break;
+    case "view": applyView(m); break;
+    case "frame":
+      if (m.p.length !== links.length * 7) break;
+      state.lastFrame = m; state.frames += 1;
+      state.peakFlash = Math.max(state.peakFlash ?? 0, ...m.k.filter((_, i) => i % 4 === 0));
+      applyPose(m.p, m.t); applyKitState(m.k); applyHits(m.h);
+      break;
+    case "status": state.status = m; renderStatus(); break;
+    case "poser": state.poser = m; buildEditorPose(); break;
+    case "saved": editorMsg(m.ok ? `saved ${m.path}` : `not saved: ${m.error}`, m.ok); break;
+    default: break;
+  }
+}
+
+// ---------------------------------------------------------------- editor (2001 paper's poser GUI)
+const editor = document.getElementById("editor");
+document.getElementById("edit-toggle").addEventListener("click", () => {
+  state.editing = !state.editing;
+  editor.classList.toggle("hidden", !state.editing);
+  send({ type: state.editing ? "poser_on" : "poser_off" });
+});
+function editorMsg(text, ok) {
+  const el = document.getElementById("editor-msg");
+  el.textContent = text;
+  el.className = ok ? "ok" : "bad";
+}
+function slider(parent, label, value, min, max, step, onInput) {
+  const row = document.createElement("div");
+  row.className = "slider";
+  const input = document.createElement("input");
+  Object.assign(input, { type: "range", min, max, step, value });
+  const out = document.createElement("span");
+  out.textContent = Number(value).toFixed(3);
+  input.addEventListener("input", () => { out.textContent = Number(input.value).toFixed(3); onInput(Number(input.value)); });
+  row.append(label, input, out);
+  parent.append(row);
+}
+const kitSelect = document.getElementById("kit-object");
+function buildEditorKit() {
+  if (!state.kit) return;
+  const chosen = kitSelect.value;
+  kitSelect.innerHTML = state.kit.objects.map((o) => `<option>${o.id}</option>`).join("");
+  if (chosen) kitSelect.value = chosen;
+  buildKitSliders();
+}
+function buildKitSliders() {
+  const box = document.getElementById("kit-sliders");
+  box.innerHTML = "";
+  const obj = state.kit?.objects.find((o) => o.id === kitSelect.value);
+  if (!obj) return;
+  const rebuild = () => { const keep = kitSelect.value; buildKit(state.kit); kitSelect.value = keep;
+    if (state.names.length) buildSkeleton(state.names, state.parents); };
+  ["x", "y", "z"].forEach((axis, i) => slider(box, `pos ${axis}`, obj.position[i], i === 2 ? 0 : -1.5, 1.5, 0.005,
+    (v) => { obj.position[i] = v; rebuild(); }));
+  ["roll", "pitch", "yaw"].forEach((axis, i) => slider(box, axis, obj.rotation_deg[i], -180, 180, 1,
+    (v) => { obj.rotation_deg[i] = v; rebuild(); }));
+  slider(box, "radius", obj.radius, 0.02, 0.5, 0.001, (v) => { obj.radius = v; rebuild(); });
+}
+kitSelect.addEventListener("change", buildKitSliders);
+document.getElementById("kit-save").addEventListener("click", () => {
+  send({ type: "save_kit", file: document.getElementById("kit-file").value, kit: state.kit });
+});
+const jointSelect = document.getElementById("pose-joint");
+function buildEditorPose() {
+  const p = state.poser;
+  if (!p) return;
+  const chosen = jointSelect.value;
+  jointSelect.innerHTML = p.joints.map((j) => `<option>${j}</option>`).join("");
+  if (chosen) jointSelect.value = chosen;
+  buildPoseSliders();
+}
+function buildPoseSliders() {
+  const box = document.getElementById("pose-sliders");
+  box.innerHTML = "";
+  const p = state.poser;
+  const joint = jointSelect.value;
+  if (!p || !joint) return;
+  const angles = p.angles[joint] ?? [0, 0, 0];
+  ["rx", "ry", "rz"].forEach((axis, i) => slider(box, `${axis} (deg)`, angles[i], -150, 150, 1, (v) => {
+    p.angles[joint] = p.angles[joint] ?? [0, 0, 0];
+    p.angles[joint][i] = v;
+    send({ type: "poser", angles: p.angles });
+  }));
+}
+jointSelect.addEventListener("change", buildPoseSliders);
+document.getElementById("pose-save").addEventListener("click", () => {
+  if (state.poser) send({ type: "save_pose", name: document.getElementById("pose-name").value, angles: state.poser.angles });
+});
+document.getElementById("pose-reset").addEventListener("click", () => {
+  if (!state.poser) return;
+  state.poser.angles = {};
+  buildPoseSliders();
+  send({ type: "poser", angles: {} });
+});
+
+// ---------------------------------------------------------------- render loop
+function animate(now) {
+  if (state.view?.camera?.preset === "orbit") placeCamera(state.view.camera, now);
+  controls.update();
+  if (state.view?.layers?.plot !== false) drawPlot();
+  renderer.render(scene, camera);
+  state.rendered = (state.rendered ?? 0) + 1;
+  if (now - state.lastFpsT > 1000) {
+    state.fps = (state.frames - (state.framesAtFps ?? 0)) * 1000 / (now - state.lastFpsT);
+    state.framesAtFps = state.frames; state.lastFpsT = now;
+  }
+  requestAnimationFrame(animate);
+}
+connect();
+requestAnimationFrame(animate);

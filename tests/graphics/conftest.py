@@ -1,0 +1,125 @@
+"""Shared helpers for the graphics tests: a graphics node in a subprocess, a headless chromium."""
+
+from __future__ import annotations
+
+import math
+import os
+import shutil
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from common.messages import OscMessage, encode
+
+ROOT = Path(__file__).resolve().parents[2]
+CHROMIUM = "/usr/bin/chromium"
+CHROMIUM_FLAGS = [
+    "--no-sandbox",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+    "--disable-gpu-sandbox",
+    "--enable-unsafe-swiftshader",
+]
+
+
+def free_port(kind: int = socket.SOCK_STREAM) -> int:
+    with socket.socket(socket.AF_INET, kind) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+class GraphicsNodeProcess:
+    """``python -m services.graphics.node`` on loopback, discovery off, fixed ports (restartable)."""
+
+    def __init__(self, tmp: Path, latency: float = 0.05) -> None:
+        self.http_port = free_port()
+        self.osc_port = free_port(socket.SOCK_DGRAM)
+        self.tmp = tmp
+        self.latency = latency
+        self.proc: subprocess.Popen[bytes] | None = None
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+
+    @property
+    def url(self) -> str:
+        return f"http://127.0.0.1:{self.http_port}/"
+
+    def start(self) -> None:
+        log = open(self.tmp / "graphics-node.log", "ab")  # noqa: SIM115 - closed with the process
+        self.proc = subprocess.Popen(
+            [sys.executable, "-m", "services.graphics.node", "--no-discovery", "--host", "127.0.0.1",
+             "--port", str(self.osc_port), "--http-port", str(self.http_port), "--latency-s", str(self.latency),
+             "--kit-dir", str(self.tmp / "kits")],
+            cwd=ROOT, stdout=log, stderr=subprocess.STDOUT, env={**os.environ, "PYTHONUNBUFFERED": "1"},
+        )
+        deadline = time.monotonic() + 20
+        while time.monotonic() < deadline:
+            if self.proc.poll() is not None:
+                raise RuntimeError((self.tmp / "graphics-node.log").read_text())
+            try:
+                with socket.create_connection(("127.0.0.1", self.http_port), timeout=0.2):
+                    return
+            except OSError:
+                time.sleep(0.1)
+        raise RuntimeError("graphics node did not start listening")
+
+    def stop(self) -> None:
+        if self.proc is not None and self.proc.poll() is None:
+            self.proc.terminate()
+            try:
+                self.proc.wait(10)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait(5)
+        self.proc = None
+
+    def send(self, message: OscMessage) -> None:
+        self.sock.sendto(encode(message), ("127.0.0.1", self.osc_port))
+
+    def close(self) -> None:
+        self.stop()
+        self.sock.close()
+
+
+@pytest.fixture
+def graphics_node(tmp_path: Path) -> Iterator[GraphicsNodeProcess]:
+    node = GraphicsNodeProcess(tmp_path)
+    node.start()
+    try:
+        yield node
+    finally:
+        node.close()
+
+
+def browser_available() -> bool:
+    try:
+        import playwright  # noqa: F401
+    except ImportError:
+        return False
+    return os.path.exists(CHROMIUM)
+
+
+needs_browser = pytest.mark.skipif(not browser_available(), reason="needs playwright (PyPI) and /usr/bin/chromium")
+needs_ffmpeg = pytest.mark.skipif(shutil.which("ffmpeg") is None, reason="needs ffmpeg (apt-get install ffmpeg)")
+
+
+def project(point: np.ndarray, eye: np.ndarray, target: np.ndarray, fov_deg: float, width: int,
+            height: int) -> tuple[float, float]:
+    """Pixel (x, y) of world ``point`` seen by a z-up perspective camera at ``eye`` looking at ``target``."""
+    forward = (target - eye) / np.linalg.norm(target - eye)
+    right = np.cross(forward, [0.0, 0.0, 1.0])
+    right /= np.linalg.norm(right)
+    up = np.cross(right, forward)
+    rel = point - eye
+    x, y, z = rel @ right, rel @ up, rel @ forward
+    f = 1.0 / math.tan(math.radians(fov_deg) / 2)
+    ndc_x = f * x / z / (width / height)
+    ndc_y = f * y / z
+    return (ndc_x + 1) / 2 * width, (1 - ndc_y) / 2 * height

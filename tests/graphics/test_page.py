@@ -1,0 +1,142 @@
+"""The live view in a real browser (Debian's chromium, headless, driven by Playwright).
+
+One browser session: the page loads from the graphics node, receives poses
+sent over OSC, draws the drummer and the kit where the camera must see them
+(pixels checked against a projection computed here), follows a moved pose,
+and reconnects by itself after the node restarts.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+
+import numpy as np
+
+from common.messages import Impact, Pose, Skeleton
+from services.graphics.figure import LINK_NAMES, SyntheticDrummer
+
+from .conftest import CHROMIUM, CHROMIUM_FLAGS, GraphicsNodeProcess, needs_browser, project
+
+WIDTH, HEIGHT = 800, 450
+# the page's "front" preset: azimuth 0, elevation 18 degrees, 3 m from (0, 0.35, 0.75), 45 degree fov
+TARGET = np.array([0.0, 0.35, 0.75])
+EYE = TARGET + 3.0 * np.array([0.0, math.cos(math.radians(18)), math.sin(math.radians(18))])
+BACKGROUND = np.array([0x1B, 0x1D, 0x22])
+
+
+class PoseSender:
+    """Sends the skeleton once a second and a still pose at 30 Hz (shifted by ``dx`` metres) until stopped."""
+
+    def __init__(self, node: GraphicsNodeProcess, pose: np.ndarray) -> None:
+        self.node, self.pose, self.dx = node, pose, 0.0
+        self.t0 = time.monotonic()
+        self._stop = threading.Event()
+        self.thread = threading.Thread(target=self._run, daemon=True)
+        self.thread.start()
+
+    def _run(self) -> None:
+        n = 0
+        while not self._stop.is_set():
+            if n % 30 == 0:
+                self.node.send(Skeleton(layout=3, names=tuple(LINK_NAMES)))
+            values = self.pose.copy()
+            values[:, 0] += self.dx
+            try:
+                self.node.send(Pose(time=time.monotonic() - self.t0, layout=3, values=tuple(values.ravel())))
+            except OSError:
+                pass
+            n += 1
+            time.sleep(1 / 30)
+
+    def stop(self) -> None:
+        self._stop.set()
+        self.thread.join(2)
+
+
+READ_PATCHES = """(spots) => {
+  const src = document.getElementById('view');
+  const c = document.createElement('canvas');
+  c.width = src.width; c.height = src.height;
+  const ctx = c.getContext('2d');
+  ctx.drawImage(src, 0, 0);
+  return spots.map(([x, y, h]) => Array.from(ctx.getImageData(x - h, y - h, 2 * h + 1, 2 * h + 1).data));
+}"""
+
+
+def _patches(page: object, spots: list[tuple[float, float]], half: int = 3) -> list[np.ndarray]:
+    """RGB pixels (n, 3) around each spot of the rendered 3D canvas (the WebGL buffer, not the HTML panels)."""
+    spots_int = [[int(round(x)), int(round(y)), half] for x, y in spots]
+    data = page.evaluate(READ_PATCHES, spots_int)  # type: ignore[attr-defined]
+    return [np.asarray(d, dtype=float).reshape(-1, 4)[:, :3] for d in data]
+
+
+def _wait_for(page: object, spots: list[tuple[float, float]], check: object, timeout: float = 8.0) -> list[np.ndarray]:
+    """Read the patches until ``check(patches)`` holds (the machine may be busy); the last patches either way."""
+    deadline = time.monotonic() + timeout
+    while True:
+        patches = _patches(page, spots)
+        if check(patches) or time.monotonic() > deadline:  # type: ignore[operator]
+            return patches
+        time.sleep(0.1)
+
+
+def _is_body_blue(patch: np.ndarray) -> bool:
+    """The body material is blue (0x4f86c6, lit): blue clearly above red in most pixels."""
+    return float(np.mean(patch[:, 2] - patch[:, 0] > 40)) > 0.6
+
+
+@needs_browser
+def test_page_draws_drummer_and_reconnects(graphics_node: GraphicsNodeProcess) -> None:
+    from playwright.sync_api import sync_playwright
+
+    drummer = SyntheticDrummer(strokes={}, duration=0.0)
+    rest = drummer.pose(0.0)
+    head = rest[LINK_NAMES.index("head"), :3] + np.array([0.0, 0.0, 0.09])  # the page draws the head there
+    kick = np.asarray(drummer.kit.object("kick").position)
+    sender = PoseSender(graphics_node, rest)
+    try:
+        with sync_playwright() as p:
+            browser = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_FLAGS)
+            page = browser.new_page(viewport={"width": WIDTH, "height": HEIGHT})
+            errors: list[str] = []
+            page.on("pageerror", lambda e: errors.append(str(e)))
+            page.goto(graphics_node.url)
+            page.wait_for_function("window.batteur && window.batteur.frames > 20", timeout=20000)
+            head_px = project(head, EYE, TARGET, 45, WIDTH, HEIGHT)
+            kick_px = project(kick, EYE, TARGET, 45, WIDTH, HEIGHT)
+            head_patch, kick_patch, sky = _wait_for(page, [head_px, kick_px, (WIDTH * 0.5, 12)],
+                                                    lambda p: _is_body_blue(p[0]))
+            page.screenshot(path=str(graphics_node.tmp / "page.png"))  # kept for a person to look at
+            assert _is_body_blue(head_patch), f"no body at the head's pixel {head_px}"
+            assert np.mean(kick_patch[:, 0] - kick_patch[:, 2] > 40) > 0.6, f"no red kick drum at {kick_px}"
+            assert np.abs(sky - BACKGROUND).max() < 12, "the sky above the drummer should be background"
+
+            # move the drummer 0.6 m to its right: the head must follow, the old place must be empty
+            sender.dx = 0.6
+            new_px = project(head + np.array([0.6, 0.0, 0.0]), EYE, TARGET, 45, WIDTH, HEIGHT)
+            moved, old = _wait_for(page, [new_px, head_px], lambda p: _is_body_blue(p[0]) and not _is_body_blue(p[1]))
+            assert _is_body_blue(moved), f"no body at the moved head's pixel {new_px}"
+            assert not _is_body_blue(old), "the head is still drawn where it was"
+            sender.dx = 0.0
+
+            # impacts sent over OSC reach the page: the struck snare's flash value rises
+            assert page.evaluate("window.batteur.peakFlash") == 0
+            graphics_node.send(Impact(seq=1, time=time.monotonic() - sender.t0, instrument="snare", zone="centre",
+                                      r=0.3, theta=0.0, velocity=4.0, impulse=0.05, peak_force=400.0,
+                                      duration=0.004, part="left_stick_tip"))
+            page.wait_for_function("window.batteur.peakFlash > 0.5", timeout=10000)
+            assert errors == []
+
+            # restart the node: the page must reconnect by itself and show frames again
+            graphics_node.stop()
+            page.wait_for_function("window.batteur.connected === false", timeout=10000)
+            graphics_node.start()
+            page.wait_for_function("window.batteur.connects >= 2 && window.batteur.connected", timeout=15000)
+            frames = page.evaluate("window.batteur.frames")
+            page.wait_for_function(f"window.batteur.frames > {frames + 10}", timeout=10000)
+            assert errors == []
+            browser.close()
+    finally:
+        sender.stop()
