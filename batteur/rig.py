@@ -3,8 +3,9 @@
 Each service runs as ``python -m batteur ROLE`` with its own UDP port (base
 port + 0 physics, + 1 interaction, + 2 sound, + 3 graphics), the same rig
 epoch (so all local nodes share one rig clock), static peers for the others
-(so the rig works where loopback has no multicast) and, unless
-``--no-discovery``, zeroconf discovery on the given interfaces as well.
+(so the rig works where loopback has no multicast; ``--no-static-peers``
+leaves finding each other to zeroconf alone) and, unless ``--no-discovery``,
+zeroconf discovery on the given interfaces.
 Output lines are prefixed with the role. Ctrl-C (SIGINT) or SIGTERM stops
 every child with SIGINT, waits up to ``--stop-timeout`` seconds, then kills
 what is left. If one service exits, the others are stopped too.
@@ -48,9 +49,10 @@ def plan_rig(opts: argparse.Namespace, epoch: float) -> list[ServicePlan]:
     plans: list[ServicePlan] = []
     for role in roles:
         args = ["--host", opts.host, "--epoch", repr(epoch), "--node-id", f"{role}-rig{opts.base_port}"]
-        for other in roles:
-            if other != role:
-                args += ["--peer", f"{other}={opts.host}:{ports[other]}"]
+        if not opts.no_static_peers:
+            for other in roles:
+                if other != role:
+                    args += ["--peer", f"{other}={opts.host}:{ports[other]}"]
         if opts.no_discovery:
             args += ["--no-discovery"]
         else:
@@ -67,8 +69,9 @@ def role_args(role: str, opts: argparse.Namespace) -> list[str]:
     """Arguments specific to one role: what to play, where to record, plus pass-through."""
     args: list[str] = []
     if role == "physics":
-        if opts.strikes:
-            args += ["--scene", "strike", "--strikes", opts.strikes]
+        if opts.strike_period:
+            args += ["--scene", "strike", "--strike-period", repr(opts.strike_period),
+                     "--strike-velocity", repr(opts.strike_velocity)]
         elif opts.score:
             args += ["--score", str(opts.score)]
     if role == "sound" and opts.record:
@@ -157,6 +160,8 @@ def build_parser() -> argparse.ArgumentParser:
                         help="UDP port of physics; interaction, sound, graphics take the next ones (default 9101)")
     parser.add_argument("--host", default="127.0.0.1", help="address the services listen on (default 127.0.0.1)")
     parser.add_argument("--no-discovery", action="store_true", help="static peers only, no zeroconf")
+    parser.add_argument("--no-static-peers", action="store_true",
+                        help="find each other by zeroconf only (needs multicast on the interfaces)")
     parser.add_argument("--interfaces", default="", help="comma-separated interfaces for zeroconf (default: loopback)")
     parser.add_argument("--start-delay", type=float, default=3.0,
                         help="seconds between launch and rig time 0, so every service is up (default 3)")
@@ -166,7 +171,9 @@ def build_parser() -> argparse.ArgumentParser:
                         help="seconds to wait for services to stop before killing them (default 4)")
     parser.add_argument("--record", type=Path, default=None, help="directory for performance.wav (sound output)")
     parser.add_argument("--score", type=Path, default=None, help="score for physics to play (MIDI or text)")
-    parser.add_argument("--strikes", default="", help="strike scene instead of a score: TIME:SPEED,... (s:m/s)")
+    parser.add_argument("--strike-period", type=float, default=0.0,
+                        help="strike scene instead of a score: a strike every this many seconds of rig time")
+    parser.add_argument("--strike-velocity", type=float, default=3.0, help="strike scene: tip speed, m/s (default 3)")
     parser.add_argument("--log-level", default="", help="log level for every service (default: theirs)")
     for role in ROLES:
         parser.add_argument(f"--{role}-arg", action="append", metavar="ARGS",
