@@ -45,7 +45,11 @@ class Contact(OscMessage):
 class Impact(OscMessage):
     """One strike on an instrument, segmented from the contact stream.
 
-    Sent redundantly with the same ``seq``; receivers de-duplicate on it.
+    Sent at the first contact step, so ``impulse``, ``peak_force`` and
+    ``duration`` are 0 ("not known yet"); the final figures follow in
+    ``/batteur/impact/end`` with the same ``seq`` (interaction can be set to
+    send the impact only at the contact's end instead). Sent redundantly with
+    the same ``seq``; receivers de-duplicate on (sender, seq).
     """
 
     ADDRESS = "/batteur/impact"
@@ -58,7 +62,7 @@ class Impact(OscMessage):
     r: float = Field(ge=0, le=2, description="radial strike position r/a (0 centre, 1 edge)")
     theta: float = Field(ge=-7, le=7, description="strike angle in the instrument frame, radians")
     velocity: float = Field(ge=0, le=100, description="normal velocity before contact, m/s")
-    impulse: float = Field(ge=0, description="total normal impulse, newton-seconds")
-    peak_force: float = Field(ge=0, description="peak normal force, newtons")
-    duration: float = Field(ge=0, le=1, description="contact duration, seconds")
+    impulse: float = Field(ge=0, description="total normal impulse, newton-seconds (0: not known yet)")
+    peak_force: float = Field(ge=0, description="peak normal force, newtons (0: not known yet)")
+    duration: float = Field(ge=0, le=1, description="contact duration, seconds (0: not known yet)")
     part: Name = Field(description="striker part (e.g. right_stick_tip)")

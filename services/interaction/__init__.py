@@ -1,0 +1,1 @@
+"""Interaction service: contacts -> impacts -> mapping -> sound, graphics, registered messages."""

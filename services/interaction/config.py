@@ -1,0 +1,118 @@
+"""Interaction's configuration: detection thresholds, redundancy, routes and registered messages.
+
+One pydantic model, stored as YAML (or JSON when the path ends in .json). The
+node writes it back whenever a client changes the mapping or the registered
+messages over OSC, so the registered set survives a restart.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from pathlib import Path
+from typing import Literal
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+
+from services.interaction.detect import DetectionConfig
+from services.interaction.mapping import RegisteredMessage, Route, default_routes
+
+
+class RedundancyConfig(BaseModel):
+    """Each impact, impact end and damping message is sent ``copies`` times, ``spacing`` seconds apart."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    copies: int = Field(default=5, ge=1, le=16, description="copies of each message")
+    spacing: float = Field(default=0.004, ge=0, le=0.1, description="time between copies, seconds")
+
+
+class InteractionConfig(BaseModel):
+    """Everything interaction can be told, in one file."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    impact_at: Literal["onset", "end"] = Field(
+        default="onset",
+        description="send /batteur/impact at the first contact step (impulse, peak force, duration 0: unknown) "
+        "or when the contact is over (every figure final, later by the contact's duration + retrigger_gap)",
+    )
+    detection: DetectionConfig = Field(default_factory=DetectionConfig)
+    redundancy: RedundancyConfig = Field(default_factory=RedundancyConfig)
+    routes: list[Route] = Field(default_factory=default_routes)
+    messages: list[RegisteredMessage] = Field(default_factory=list)
+
+    @field_validator("routes")
+    @classmethod
+    def _unique_routes(cls, value: list[Route]) -> list[Route]:
+        targets = [r.to for r in value]
+        if len(targets) != len(set(targets)):
+            raise ValueError("two routes go to the same target; merge them")
+        return value
+
+    @field_validator("messages")
+    @classmethod
+    def _unique_names(cls, value: list[RegisteredMessage]) -> list[RegisteredMessage]:
+        names = [m.name for m in value]
+        if len(names) != len(set(names)):
+            raise ValueError("registered message names must be unique")
+        return value
+
+
+def load_config(path: str | Path) -> InteractionConfig:
+    """Read a configuration file (YAML, or JSON by extension).
+
+    Raises ``FileNotFoundError`` when it does not exist and ``ValueError``
+    with the reason when it is not a valid configuration.
+    """
+    path = Path(path)
+    text = path.read_text(encoding="utf-8")
+    try:
+        data = json.loads(text) if path.suffix == ".json" else yaml.safe_load(text)
+    except (json.JSONDecodeError, yaml.YAMLError) as exc:
+        raise ValueError(f"{path}: not valid {'JSON' if path.suffix == '.json' else 'YAML'}: {exc}") from None
+    try:
+        return InteractionConfig.model_validate(data or {})
+    except ValidationError as exc:
+        raise ValueError(f"{path}: {exc}") from None
+
+
+def save_config(config: InteractionConfig, path: str | Path) -> None:
+    """Write ``config`` atomically (a temporary file renamed over the old one)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    data = config.model_dump(mode="json", exclude_none=True)
+    text = json.dumps(data, indent=2) if path.suffix == ".json" else yaml.safe_dump(data, sort_keys=False)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as handle:
+            handle.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+class FileConfigStore:
+    """Interaction's configuration file: loaded at start, written back on every change.
+
+    Parameters
+    ----------
+    path : the configuration file (YAML, or JSON by extension)
+    """
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+
+    def load(self, path: str = "") -> InteractionConfig:
+        """Read ``path`` (another file), or this store's file when ``path`` is ''."""
+        return load_config(Path(path) if path else self.path)
+
+    def save(self, config: InteractionConfig) -> None:
+        save_config(config, self.path)
+
+    def load_or_default(self) -> InteractionConfig:
+        """This store's file if it exists, else the default configuration."""
+        return load_config(self.path) if self.path.is_file() else InteractionConfig()

@@ -1,0 +1,431 @@
+"""Impact detection: segment each (instrument, striker part) contact stream into impacts and presses.
+
+Physics sends one ``/batteur/contact`` per step while a striker touches an
+instrument. Per (instrument, striker) track (a striker's parts, e.g. a stick's
+tip and shaft, share one track: :meth:`Segmenter.striker_of`):
+
+* A contact after a silence whose approach velocity is at least
+  ``strike_velocity_min`` is an **impact**, emitted at once (:class:`ImpactOnset`)
+  with what the first step tells: time, position, zone, approach velocity
+  (impulse, peak force and duration 0: not known yet).
+* Re-contacts less than ``retrigger_gap`` after the previous contact step are
+  **chatter** of the same contact: they never retrigger; their impulse and
+  force add to the impact being measured.
+* When the contact is over (no step for ``retrigger_gap``), the impact is
+  final (:class:`ImpactFinal`): total impulse, peak force, duration.
+* A new impact within ``bounce_window`` of the previous contact's end, slower
+  than ``bounce_ratio`` times the previous impact, is a **bounce** (the first)
+  or **buzz** (the following ones) of the same stroke; otherwise a **strike**.
+  Bounces and buzz are real strikes and sound; their kind is reported.
+* A contact slower than ``strike_velocity_min`` is a **touch**: no impact.
+* A contact (touch or strike) lasting ``press_after`` or longer is a **press**:
+  :class:`DampingChange` on, and off when it ends. A strike that turns into a
+  press is a **dead** stroke: its figures are final when the press begins.
+
+Deterministic; no clock but the times given.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from dataclasses import dataclass, field, replace
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from common.kit import Kit, KitObject
+from common.messages import Contact
+from services.interaction.features import PLAYABLE_KINDS, ZoneConfig, polar, zone
+
+SEQ_LIMIT = 2**31
+"""Sequence numbers wrap here (they travel as OSC int32)."""
+
+ImpactKind = Literal["strike", "bounce", "buzz", "dead"]
+
+
+class DetectionConfig(BaseModel):
+    """Thresholds of the contact segmentation (module docstring). Seconds, metres per second."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    strike_velocity_min: float = Field(default=0.05, ge=0, le=10, description="slowest strike, m/s")
+    retrigger_gap: float = Field(default=0.004, gt=0, le=0.1, description="re-contact sooner is chatter, s")
+    bounce_window: float = Field(default=0.06, ge=0, le=1, description="a faster re-strike is a bounce, s")
+    bounce_ratio: float = Field(default=0.85, ge=0, le=1, description="a bounce is slower than this x previous")
+    press_after: float = Field(default=0.025, gt=0, le=2, description="contact this long is a press, s")
+    default_step: float = Field(default=0.001, gt=0, le=0.1, description="physics step until measured, s")
+    part_suffixes: tuple[str, ...] = Field(
+        default=("_tip", "_shaft", "_shoulder", "_butt"),
+        description="parts of one striker: contacts of left_stick_tip and left_stick_shaft are one track",
+    )
+    zones: ZoneConfig = Field(default_factory=ZoneConfig)
+
+
+@dataclass
+class ImpactFeatures:
+    """Everything known about one impact. Seconds, metres, m/s, newton-seconds, newtons."""
+
+    seq: int
+    time: float
+    instrument: str
+    part: str
+    zone: str
+    kind: ImpactKind
+    r: float
+    theta: float
+    x: float
+    y: float
+    z: float
+    local_x: float
+    local_y: float
+    local_z: float
+    velocity: float
+    impulse: float
+    peak_force: float
+    duration: float
+    final: bool = False
+
+    def feature(self, name: str) -> float | str:
+        """One feature by name (``FEATURES``); raises KeyError for an unknown name."""
+        if name not in FEATURES:
+            raise KeyError(f"unknown impact feature {name!r} (known: {', '.join(sorted(FEATURES))})")
+        value: float | str = getattr(self, name)
+        return value
+
+
+FEATURES: frozenset[str] = frozenset(
+    {
+        "seq",
+        "time",
+        "instrument",
+        "part",
+        "zone",
+        "kind",
+        "r",
+        "theta",
+        "x",
+        "y",
+        "z",
+        "local_x",
+        "local_y",
+        "local_z",
+        "velocity",
+        "impulse",
+        "peak_force",
+        "duration",
+    }
+)
+"""Impact features a mapping or a registered message can use."""
+
+STRING_FEATURES: frozenset[str] = frozenset({"instrument", "part", "zone", "kind"})
+
+
+@dataclass
+class ImpactOnset:
+    """An impact at its first contact step: impulse, peak force and duration are 0 (not known yet)."""
+
+    impact: ImpactFeatures
+    contact_time: float
+
+
+@dataclass
+class ImpactFinal:
+    """An impact whose contact is over (or became a press): final impulse, peak force, duration."""
+
+    impact: ImpactFeatures
+
+
+@dataclass
+class DampingChange:
+    """A press began (state 1) or ended (state 0)."""
+
+    seq: int
+    time: float
+    instrument: str
+    part: str
+    state: int
+    zone: str
+    r: float
+    theta: float
+    force: float
+
+
+SegmentEvent = ImpactOnset | ImpactFinal | DampingChange
+
+
+@dataclass
+class DetectionStats:
+    """Counters of the segmentation since start."""
+
+    contacts: int = 0
+    chatter: int = 0
+    touches: int = 0
+    ignored: int = 0
+    unknown_instrument: int = 0
+    out_of_order: int = 0
+    impacts: Counter[str] = field(default_factory=Counter)  # by kind
+    by_instrument: dict[str, Counter[str]] = field(default_factory=dict)  # instrument -> kind -> count
+    dampings: int = 0
+
+    def count(self, instrument: str, kind: str) -> None:
+        self.by_instrument.setdefault(instrument, Counter())[kind] += 1
+
+
+@dataclass
+class _Track:
+    instrument: str
+    part: str
+    obj: KitObject
+    active: bool = False
+    start: float = 0.0
+    last: float = 0.0
+    last_step: int = -1
+    open: ImpactFeatures | None = None
+    pressing: bool = False
+    press_force: float = 0.0
+    press_steps: int = 0
+    first_contact: Contact | None = None
+    prev_velocity: float = 0.0
+    prev_end: float | None = None
+    chain: int = 0
+
+
+class Segmenter:
+    """Turns contacts into impact onsets, finals and damping changes (module docstring).
+
+    Parameters
+    ----------
+    kit : the kit model (object kinds and radii for r/a and zones)
+    config : thresholds
+    seq_start : first impact sequence number (a node starts from a fresh value
+        so receivers notice a restart)
+    """
+
+    def __init__(self, kit: Kit, config: DetectionConfig | None = None, seq_start: int = 0) -> None:
+        self.kit = kit
+        self.config = config or DetectionConfig()
+        self.stats = DetectionStats()
+        self.step_dt = self.config.default_step
+        self._objects = {o.id: o for o in kit.objects}
+        self._tracks: dict[tuple[str, str], _Track] = {}
+        self._next_seq = seq_start % SEQ_LIMIT
+        self._next_damping_seq = seq_start % SEQ_LIMIT
+        self._physics_time = -math.inf
+        self._offset_min = (math.inf, math.inf)  # (current, previous) window minimum of now - contact time
+        self._offset_window_start = -math.inf
+
+    # ------------------------------------------------------------------ input
+
+    def contact(self, c: Contact, now: float) -> list[SegmentEvent]:
+        """Handle one contact step received at rig time ``now`` (seconds)."""
+        self.stats.contacts += 1
+        self._note_offset(now - c.time, now)
+        events: list[SegmentEvent] = []
+        self._physics_time = max(self._physics_time, c.time)
+        self._end_stale(self._physics_time, events, skip=(c.instrument, self.striker_of(c.part)))
+        obj = self._objects.get(c.instrument)
+        if obj is None:
+            self.stats.unknown_instrument += 1
+            return events
+        if obj.kind not in PLAYABLE_KINDS:
+            self.stats.ignored += 1
+            return events
+        key = (c.instrument, self.striker_of(c.part))
+        track = self._tracks.get(key)
+        if track is None:
+            track = _Track(instrument=c.instrument, part=c.part, obj=obj)
+            self._tracks[key] = track
+        if track.active and c.time - track.last > self.config.retrigger_gap:
+            self._end(track, events)
+        if track.active:
+            self._continue(track, c, events)
+        else:
+            self._begin(track, c, events)
+        return events
+
+    def advance(self, now: float) -> list[SegmentEvent]:
+        """End the contacts that have been silent for ``retrigger_gap`` by rig time ``now``."""
+        events: list[SegmentEvent] = []
+        self._end_stale(max(self._physics_time, now - self.clock_offset), events)
+        return events
+
+    def striker_of(self, part: str) -> str:
+        """The striker a part belongs to (``left_stick_shaft`` -> ``left_stick``): one track per striker,
+        so a stick whose contact slides from the bead to the shoulder stays one impact."""
+        for suffix in self.config.part_suffixes:
+            if part.endswith(suffix) and len(part) > len(suffix):
+                return part[: -len(suffix)]
+        return part
+
+    @property
+    def clock_offset(self) -> float:
+        """Smallest recent (receive time - contact time): transit plus clock offset, seconds (0 before any)."""
+        best = min(self._offset_min)
+        return 0.0 if math.isinf(best) else best
+
+    @property
+    def active_tracks(self) -> int:
+        return sum(1 for t in self._tracks.values() if t.active)
+
+    # ------------------------------------------------------------------ internals
+
+    def _note_offset(self, offset: float, now: float) -> None:
+        current, previous = self._offset_min
+        if now - self._offset_window_start >= 1.0:  # two one-second windows: follows clock corrections
+            previous, current = current, math.inf
+            self._offset_window_start = now
+        self._offset_min = (min(current, offset), previous)
+
+    def _end_stale(self, physics_now: float, events: list[SegmentEvent], skip: tuple[str, str] | None = None) -> None:
+        gap = self.config.retrigger_gap
+        for key, track in self._tracks.items():
+            if track.active and key != skip and physics_now - track.last > gap:
+                self._end(track, events)
+
+    def _classify(self, track: _Track, time: float, velocity: float) -> ImpactKind:
+        cfg = self.config
+        if (
+            track.prev_end is not None
+            and time - track.prev_end <= cfg.bounce_window
+            and track.prev_velocity > 0
+            and velocity < cfg.bounce_ratio * track.prev_velocity
+        ):
+            track.chain += 1
+            return "bounce" if track.chain == 1 else "buzz"
+        track.chain = 0
+        return "strike"
+
+    def _begin(self, track: _Track, c: Contact, events: list[SegmentEvent]) -> None:
+        track.active = True
+        track.part = c.part
+        track.start = track.last = c.time
+        track.last_step = c.step
+        track.pressing = False
+        track.press_force = 0.0
+        track.press_steps = 0
+        track.first_contact = c
+        track.open = None
+        velocity = min(max(c.normal_velocity, 0.0), 100.0)
+        if velocity < self.config.strike_velocity_min:
+            self.stats.touches += 1
+            return
+        kind = self._classify(track, c.time, velocity)
+        track.prev_velocity = velocity
+        r, theta = polar(track.obj, c.local_x, c.local_y)
+        impact = ImpactFeatures(
+            seq=self._take_seq(),
+            time=c.time,
+            instrument=c.instrument,
+            part=c.part,
+            zone=zone(track.obj, r, self.config.zones),
+            kind=kind,
+            r=r,
+            theta=theta,
+            x=c.x,
+            y=c.y,
+            z=c.z,
+            local_x=c.local_x,
+            local_y=c.local_y,
+            local_z=c.local_z,
+            velocity=velocity,
+            impulse=c.impulse,
+            peak_force=c.normal_force,
+            duration=0.0,
+        )
+        track.open = impact
+        # at onset the contact's totals are unknown: 0, as the Impact message documents
+        events.append(ImpactOnset(impact=replace(impact, impulse=0.0, peak_force=0.0), contact_time=c.time))
+
+    def _continue(self, track: _Track, c: Contact, events: list[SegmentEvent]) -> None:
+        if c.step > track.last_step:
+            if c.step > track.last_step + 1:
+                self.stats.chatter += 1  # a gap shorter than retrigger_gap: same contact
+            elif c.time > track.last:
+                dt = c.time - track.last
+                if 1e-5 <= dt <= 0.1:
+                    self.step_dt = dt
+            track.last = max(track.last, c.time)
+            track.last_step = c.step
+        elif c.step < track.last_step:
+            self.stats.out_of_order += 1
+        # the same step again: another contact point of the same pair; its impulse adds up
+        if track.open is not None:
+            track.open.impulse += c.impulse
+            track.open.peak_force = max(track.open.peak_force, c.normal_force)
+        if track.pressing:
+            track.press_force += c.normal_force
+            track.press_steps += 1
+        elif c.time - track.start + self.step_dt >= self.config.press_after:
+            self._press(track, c, events)
+
+    def _press(self, track: _Track, c: Contact, events: list[SegmentEvent]) -> None:
+        track.pressing = True
+        track.press_force = c.normal_force
+        track.press_steps = 1
+        if track.open is not None:  # a dead stroke: the strike is over, the press goes on
+            impact = track.open
+            impact.kind = "dead"
+            impact.duration = min(c.time - impact.time + self.step_dt, 1.0)
+            impact.final = True
+            self.stats.impacts["dead"] += 1
+            self.stats.count(track.instrument, "dead")
+            events.append(ImpactFinal(impact=replace(impact)))
+            track.open = None
+        first = track.first_contact or c
+        r, theta = polar(track.obj, first.local_x, first.local_y)
+        self.stats.dampings += 1
+        self.stats.count(track.instrument, "damping")
+        events.append(
+            DampingChange(
+                seq=self._take_damping_seq(),
+                time=c.time,
+                instrument=track.instrument,
+                part=track.part,
+                state=1,
+                zone=zone(track.obj, r, self.config.zones),
+                r=r,
+                theta=theta,
+                force=c.normal_force,
+            )
+        )
+
+    def _end(self, track: _Track, events: list[SegmentEvent]) -> None:
+        if track.open is not None:
+            impact = track.open
+            impact.duration = min(track.last - impact.time + self.step_dt, 1.0)
+            impact.final = True
+            self.stats.impacts[impact.kind] += 1
+            self.stats.count(track.instrument, impact.kind)
+            events.append(ImpactFinal(impact=replace(impact)))
+            track.open = None
+        if track.pressing:
+            first = track.first_contact
+            r, theta = polar(track.obj, first.local_x, first.local_y) if first else (0.0, 0.0)
+            events.append(
+                DampingChange(
+                    seq=self._take_damping_seq(),
+                    time=track.last + self.step_dt,
+                    instrument=track.instrument,
+                    part=track.part,
+                    state=0,
+                    zone=zone(track.obj, r, self.config.zones),
+                    r=r,
+                    theta=theta,
+                    force=0.0,
+                )
+            )
+            track.pressing = False
+        track.active = False
+        track.prev_end = track.last
+        track.first_contact = None
+
+    def _take_seq(self) -> int:
+        seq = self._next_seq
+        self._next_seq = (seq + 1) % SEQ_LIMIT
+        return seq
+
+    def _take_damping_seq(self) -> int:
+        seq = self._next_damping_seq
+        self._next_damping_seq = (seq + 1) % SEQ_LIMIT
+        return seq

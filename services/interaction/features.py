@@ -1,0 +1,74 @@
+"""Where on an instrument a contact is: r/a, theta and the zone, from the kit model.
+
+Positions come in the instrument's own frame (metres, +z the playing surface
+normal, common/kit.py). Zones by object kind:
+
+========  ===========================================================
+membrane  ``rim`` within ``rim_margin`` of the edge or beyond it,
+          ``edge`` from ``membrane_edge_r``, else ``centre``
+cymbal    ``bell`` inside the bell radius, ``edge`` from
+hihat     ``cymbal_edge_r``, else ``bow``
+bell      ``edge`` (the mouth) from ``bell_edge_r``, else ``centre``
+pedal     ``centre``
+========  ===========================================================
+"""
+
+from __future__ import annotations
+
+import math
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from common.kit import KitObject
+
+R_MAX = 2.0
+"""Largest r/a an impact carries (the Impact message's range)."""
+
+
+class ZoneConfig(BaseModel):
+    """Zone boundaries. Radii as r/a (0 centre, 1 edge) unless in metres."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    membrane_edge_r: float = Field(default=0.75, ge=0, le=1, description="membrane edge zone starts here, r/a")
+    rim_margin: float = Field(default=0.006, ge=0, le=0.05, description="rim: this close to the edge, metres")
+    cymbal_edge_r: float = Field(default=0.85, ge=0, le=1, description="cymbal edge zone starts here, r/a")
+    bell_edge_r: float = Field(default=0.85, ge=0, le=1, description="cowbell mouth zone starts here, r/a")
+
+
+def polar(obj: KitObject, local_x: float, local_y: float) -> tuple[float, float]:
+    """Strike position as (r/a, theta).
+
+    Parameters
+    ----------
+    obj : the kit object struck (its ``radius`` a, metres)
+    local_x, local_y : position in the object's frame, metres
+
+    Returns
+    -------
+    r : float in [0, 2], distance from the centre over the radius (clipped at 2)
+    theta : float in [-pi, pi], radians, from the object's local +x towards +y
+    """
+    distance = math.hypot(local_x, local_y)
+    r = min(distance / obj.radius, R_MAX)
+    theta = math.atan2(local_y, local_x) if distance > 0 else 0.0
+    return r, theta
+
+
+def zone(obj: KitObject, r: float, zones: ZoneConfig) -> str:
+    """The zone name of a strike at r/a ``r`` on ``obj`` (module docstring)."""
+    if obj.kind == "membrane":
+        if r * obj.radius >= obj.radius - zones.rim_margin:
+            return "rim"
+        return "edge" if r >= zones.membrane_edge_r else "centre"
+    if obj.kind in ("cymbal", "hihat"):
+        if obj.bell_radius > 0 and r * obj.radius <= obj.bell_radius:
+            return "bell"
+        return "edge" if r >= zones.cymbal_edge_r else "bow"
+    if obj.kind == "bell":
+        return "edge" if r >= zones.bell_edge_r else "centre"
+    return "centre"
+
+
+PLAYABLE_KINDS = frozenset({"membrane", "cymbal", "hihat", "bell", "pedal"})
+"""Object kinds whose contacts can be impacts (the throne and stands are not instruments)."""

@@ -1,0 +1,246 @@
+"""Impact detection on synthetic contact streams: exactly the expected impacts, features to 1 mm and 1 %."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from common.core import Outgoing
+from common.kit import Kit, load_kit
+from common.messages import Contact, Impact
+from common.messages.interaction import Damping, ImpactEnd
+from services.interaction.config import InteractionConfig, RedundancyConfig
+from services.interaction.core import InteractionCore
+from services.interaction.detect import DetectionConfig, Segmenter
+from services.interaction.features import ZoneConfig, polar, zone
+from services.interaction.synthetic import (
+    StreamBuilder,
+    buzz,
+    chatter,
+    dead_stroke,
+    double_stroke,
+    drive,
+    merged,
+    rest,
+    strike,
+)
+
+KIT = load_kit("default")
+
+
+def single_copy_core(kit: Kit = KIT) -> InteractionCore:
+    """A core sending one copy of each message, to sound only (easier to count)."""
+    config = InteractionConfig(redundancy=RedundancyConfig(copies=1), routes=[{"to": "sound"}])  # type: ignore[list-item]
+    return InteractionCore(kit=kit, config=config)
+
+
+def run(contacts: list[Contact]) -> tuple[list[Impact], list[ImpactEnd], list[Damping]]:
+    out = [o for _, o in drive(single_copy_core(), contacts)]
+    return (
+        [o.message for o in out if isinstance(o.message, Impact)],
+        [o.message for o in out if isinstance(o.message, ImpactEnd)],
+        [o.message for o in out if isinstance(o.message, Damping)],
+    )
+
+
+def test_single_strike_gives_one_impact_with_its_features() -> None:
+    b = strike(StreamBuilder(KIT, "snare"), t=1.0, velocity=3.2, at=(0.05, -0.04), steps=5)
+    impacts, ends, dampings = run(b.contacts)
+    assert len(impacts) == 1 and len(ends) == 1 and dampings == []
+    truth = b.truths[0]
+    impact, end = impacts[0], ends[0]
+    assert impact.time == pytest.approx(1.0, abs=1e-9)
+    assert impact.instrument == "snare" and impact.part == "right_stick_tip"
+    radius = KIT.object("snare").radius
+    # position to 1 mm: r/a and theta back to the local point
+    x, y = impact.r * radius * math.cos(impact.theta), impact.r * radius * math.sin(impact.theta)
+    assert math.hypot(x - truth.local_x, y - truth.local_y) < 1e-3
+    assert impact.velocity == pytest.approx(truth.velocity, rel=0.01)
+    assert impact.duration == impact.impulse == impact.peak_force == 0.0  # unknown at onset
+    assert end.seq == impact.seq and end.kind == "strike"
+    assert end.impulse == pytest.approx(truth.impulse, rel=0.01)
+    assert end.peak_force == pytest.approx(truth.peak_force, rel=0.01)
+    assert end.duration == pytest.approx(truth.duration, rel=0.01)
+    assert impact.zone == "centre"
+
+
+def test_impact_at_end_carries_every_final_figure() -> None:
+    b = strike(StreamBuilder(KIT, "ride"), t=1.0, velocity=2.0, at=(0.1, 0.05), steps=5)
+    config = InteractionConfig(impact_at="end", redundancy=RedundancyConfig(copies=1), routes=[{"to": "sound"}])  # type: ignore[list-item]
+    out = drive(InteractionCore(kit=KIT, config=config), b.contacts)
+    sent = [(t, o.message) for t, o in out if isinstance(o.message, Impact)]
+    assert len(sent) == 1
+    t, impact = sent[0]
+    truth = b.truths[0]
+    assert t > 1.0 + truth.duration  # sent once the contact is over...
+    assert impact.time == pytest.approx(1.0, abs=1e-9)  # ... stamped with its first contact
+    assert impact.velocity == pytest.approx(truth.velocity, rel=0.01)
+    assert impact.impulse == pytest.approx(truth.impulse, rel=0.01)
+    assert impact.peak_force == pytest.approx(truth.peak_force, rel=0.01)
+    assert impact.duration == pytest.approx(truth.duration, rel=0.01)
+    assert impact.zone == "bow"
+
+
+def test_chattering_contact_does_not_retrigger() -> None:
+    b = chatter(StreamBuilder(KIT, "snare"), t=0.5, velocity=2.0)
+    core = single_copy_core()
+    out = [o.message for _, o in drive(core, b.contacts)]
+    impacts = [m for m in out if isinstance(m, Impact)]
+    ends = [m for m in out if isinstance(m, ImpactEnd)]
+    assert len(impacts) == 1 and len(ends) == 1
+    assert core.segmenter.stats.chatter == 2
+    truth = b.truths[0]
+    assert ends[0].impulse == pytest.approx(truth.impulse, rel=0.01)  # chatter steps add to the same impact
+    assert ends[0].duration == pytest.approx(0.006, rel=0.01)
+
+
+def test_fast_rebound_after_a_one_step_gap_is_still_chatter() -> None:
+    """Even a fast re-contact within the retrigger gap belongs to the same strike."""
+    b = StreamBuilder(KIT, "floortom")
+    b.pulse(1.0, 3.0, steps=3)
+    b.pulse(1.004, 2.9, steps=2, truth=False)  # one missing step (t = 1.003), back at 1.004
+    impacts, ends, _ = run(b.contacts)
+    assert len(impacts) == 1 and len(ends) == 1
+
+
+def test_contact_sliding_from_tip_to_shaft_stays_one_impact() -> None:
+    """Physics names the part from where the stick touches; a rimshot's contact can move along the stick."""
+    tip = StreamBuilder(KIT, "snare", "left_stick_tip")
+    tip.pulse(1.0, 3.0, steps=2)
+    shaft = StreamBuilder(KIT, "snare", "left_stick_shaft")
+    shaft.pulse(1.002, 3.0, steps=3, truth=False)  # physics repeats the episode's approach speed
+    other = strike(StreamBuilder(KIT, "snare", "right_stick_shaft"), t=1.003, velocity=1.0)
+    impacts, ends, _ = run(merged(tip, shaft, other))
+    assert [(i.part, round(i.velocity, 3)) for i in impacts] == [("left_stick_tip", 3.0), ("right_stick_shaft", 1.0)]
+    assert ends[0].duration == pytest.approx(0.005, rel=0.01)
+
+
+def test_double_stroke_20_ms_apart_gives_two_strikes() -> None:
+    b = double_stroke(StreamBuilder(KIT, "snare", "left_stick_tip"), t=2.0, velocity=3.0, gap=0.020)
+    impacts, ends, _ = run(b.contacts)
+    assert [round(i.time, 6) for i in impacts] == [2.0, 2.02]
+    assert [e.kind for e in ends] == ["strike", "strike"]
+    assert [i.velocity for i in impacts] == pytest.approx([3.0, 2.85], rel=0.01)
+    assert len({i.seq for i in impacts}) == 2
+
+
+def test_buzz_roll_gives_one_impact_per_rebound_then_damping() -> None:
+    left = StreamBuilder(KIT, "snare", "left_stick_tip")
+    right = StreamBuilder(KIT, "snare", "right_stick_tip")
+    expected = 0
+    for n in range(4):  # four buzz strokes, alternating hands, 150 ms apart
+        expected += buzz(left if n % 2 == 0 else right, t=1.0 + 0.15 * n, velocity=2.0, interval=0.008)
+    impacts, ends, dampings = run(merged(left, right))
+    assert expected == 4 * 8
+    assert len(impacts) == expected
+    kinds = [e.kind for e in sorted(ends, key=lambda e: e.time)]
+    assert kinds[:8] == ["strike", "bounce"] + ["buzz"] * 6
+    assert kinds.count("strike") == 4
+    # each buzz stroke ends with the stick resting: damping on then off, per stroke
+    assert [d.state for d in dampings] == [1, 0] * 4
+    assert all(i.velocity >= 0.05 for i in impacts)
+
+
+def test_dead_stroke_is_one_impact_then_damping_not_more_strikes() -> None:
+    b = dead_stroke(StreamBuilder(KIT, "hightom"), t=0.3, velocity=2.5, hold=0.2)
+    impacts, ends, dampings = run(b.contacts)
+    assert len(impacts) == 1
+    assert [e.kind for e in ends] == ["dead"]
+    assert [d.state for d in dampings] == [1, 0]
+    on, off = dampings
+    assert on.time == pytest.approx(0.3 + 0.025, abs=0.0015)  # recognised after press_after
+    assert off.time == pytest.approx(0.3 + 0.004 + 0.2, abs=0.0015)
+    assert on.force > 0 and off.force == 0
+    assert ends[0].duration < 0.03
+
+
+def test_resting_stick_is_damping_only() -> None:
+    b = rest(StreamBuilder(KIT, "snare"), t=0.1, duration=0.3)
+    impacts, ends, dampings = run(b.contacts)
+    assert impacts == [] and ends == []
+    assert [d.state for d in dampings] == [1, 0]
+
+
+def test_slow_touch_is_not_a_strike() -> None:
+    b = StreamBuilder(KIT, "snare")
+    b.pulse(0.2, 0.02, steps=3)  # under strike_velocity_min
+    impacts, _, dampings = run(b.contacts)
+    assert impacts == [] and dampings == []
+
+
+def test_two_sticks_at_once_are_two_impacts_and_tracks_do_not_interfere() -> None:
+    left = strike(StreamBuilder(KIT, "snare", "left_stick_tip"), t=1.0, velocity=2.0)
+    right = strike(StreamBuilder(KIT, "snare", "right_stick_tip"), t=1.001, velocity=2.5, at=(-0.05, 0.0))
+    kick = strike(StreamBuilder(KIT, "kick", "kick_beater"), t=1.0, velocity=1.5)
+    impacts, ends, _ = run(merged(left, right, kick))
+    assert sorted((i.instrument, i.part) for i in impacts) == [
+        ("kick", "kick_beater"),
+        ("snare", "left_stick_tip"),
+        ("snare", "right_stick_tip"),
+    ]
+    assert len(ends) == 3
+
+
+def test_unknown_instrument_and_throne_are_counted_not_impacts() -> None:
+    segmenter = Segmenter(KIT)
+    base = strike(StreamBuilder(KIT, "snare"), t=0.0).contacts[0]
+    assert segmenter.contact(base.model_copy(update={"instrument": "gong"}), 0.0) == []
+    assert segmenter.contact(base.model_copy(update={"instrument": "throne"}), 0.0) == []
+    assert segmenter.stats.unknown_instrument == 1 and segmenter.stats.ignored == 1
+
+
+def test_contact_end_uses_the_physics_clock_not_a_late_receiver_clock() -> None:
+    """A receiver whose clock runs 20 ms ahead of physics must not cut contacts into pieces."""
+    b = StreamBuilder(KIT, "snare")
+    b.pulse(1.0, 3.0, steps=6)
+    core = single_copy_core()
+    out: list[Outgoing] = []
+    for c in b.contacts:
+        now = c.time + 0.020
+        out += core.handle(c, now, "physics")
+        out += core.step(now)
+    for k in range(30):
+        out += core.step(1.03 + k * 0.001)
+    assert sum(isinstance(o.message, Impact) for o in out) == 1
+    ends = [o.message for o in out if isinstance(o.message, ImpactEnd)]
+    assert len(ends) == 1 and ends[0].duration == pytest.approx(0.006, rel=0.01)
+
+
+@pytest.mark.parametrize(
+    ("instrument", "r", "expected"),
+    [
+        ("snare", 0.2, "centre"),
+        ("snare", 0.8, "edge"),
+        ("snare", 0.99, "rim"),
+        ("snare", 1.05, "rim"),
+        ("ride", 0.1, "bell"),
+        ("ride", 0.5, "bow"),
+        ("ride", 0.9, "edge"),
+        ("hihat", 0.6, "bow"),
+        ("cowbell", 0.9, "edge"),
+        ("kick_pedal", 0.3, "centre"),
+    ],
+)
+def test_zones_from_the_kit(instrument: str, r: float, expected: str) -> None:
+    assert zone(KIT.object(instrument), r, ZoneConfig()) == expected
+
+
+def test_polar_position_in_the_instrument_frame() -> None:
+    snare = KIT.object("snare")
+    r, theta = polar(snare, 0.0, snare.radius / 2)
+    assert r == pytest.approx(0.5) and theta == pytest.approx(math.pi / 2)
+    assert polar(snare, 0.0, 0.0) == (0.0, 0.0)
+    assert polar(snare, 5.0, 0.0)[0] == 2.0  # clipped to the Impact's range
+
+
+def test_thresholds_are_configuration() -> None:
+    """A larger retrigger gap turns the 20 ms double stroke into one impact."""
+    b = double_stroke(StreamBuilder(KIT, "snare"), t=0.0, gap=0.020)
+    config = InteractionConfig(
+        detection=DetectionConfig(retrigger_gap=0.05, press_after=1.0),
+        redundancy=RedundancyConfig(copies=1),
+        routes=[{"to": "sound"}],  # type: ignore[list-item]
+    )
+    out = drive(InteractionCore(kit=KIT, config=config), b.contacts, tail=0.1)
+    assert sum(isinstance(o.message, Impact) for _, o in out) == 1
