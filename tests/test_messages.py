@@ -7,11 +7,13 @@ import time
 from typing import Any
 
 import pytest
+from pydantic import Field
 
 from common.messages import (
     REGISTRY,
     DropReason,
     Impact,
+    MessageRegistry,
     OscMessage,
     WireKind,
     decode,
@@ -116,3 +118,17 @@ def test_one_bad_message_in_a_bundle_does_not_lose_the_others() -> None:
     decoded = decode(encode_bundle([good, bad, good]))
     assert decoded.messages == [good, good]
     assert [e.reason for e in decoded.errors] == [DropReason.OUT_OF_RANGE]
+
+
+def test_a_value_sent_exactly_at_a_range_bound_survives_float32() -> None:
+    class Gain(OscMessage):
+        ADDRESS = "/test/gain"
+        level: float = Field(ge=0.01, le=0.3)
+
+    registry = MessageRegistry()
+    registry.add(Gain)
+    for value in (0.01, 0.3):
+        decoded = decode(encode_raw(Gain.ADDRESS, [value]), registry)  # float32: 0.0099999998, 0.30000001
+        assert decoded.errors == [] and decoded.messages[0] == Gain(level=value)
+    # beyond float32 rounding it is still out of range
+    assert [e.reason for e in decode(encode_raw(Gain.ADDRESS, [0.0099]), registry).errors] == [DropReason.OUT_OF_RANGE]

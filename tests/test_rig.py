@@ -7,18 +7,24 @@ records the impacts interaction sends; the sound node records a WAV.
 
 from __future__ import annotations
 
+import json
 import signal
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
+import soundfile as sf
 
 from batteur.strike import run_strikes
 from tests.netns import NetnsLab, require_netns
+from tests.test_first_strike import onset_times
 
 PERIOD_S = 0.5
 SPEED = 3.0
 N_STRIKES = 4
+LATENCY_S = 0.05  # the nodes' default latency window
+BLOCK = 256
 
 
 @pytest.mark.netns
@@ -31,7 +37,7 @@ def test_rig_plays_the_same_impacts_as_offline_and_stops_within_5_s(tmp_path: Pa
         listener.expect(lambda e: e["event"] == "ready", timeout=20)
         rig = ns.python(
             "-m", "batteur", "rig", "--services", "physics,interaction,sound", "--no-static-peers",
-            "--interfaces", "127.0.0.1", "--base-port", "9401", "--start-delay", "4",
+            "--interfaces", "127.0.0.1", "--base-port", "9401", "--start-delay", "8",
             "--strike-period", str(PERIOD_S), "--strike-velocity", str(SPEED), "--record", str(tmp_path),
             "--interaction-arg", "--peer graphics=127.0.0.1:9450",
         )
@@ -42,6 +48,7 @@ def test_rig_plays_the_same_impacts_as_offline_and_stops_within_5_s(tmp_path: Pa
         except AssertionError as exc:
             rig.stop()
             raise AssertionError(f"{exc}\nrig output:\n" + "\n".join(rig.lines[-60:])) from None
+        time.sleep(0.5)  # let sound render the last strike (latency window + a few blocks)
         started = time.monotonic()
         rig.signal(signal.SIGINT)
         code = rig.wait(timeout=10)
@@ -56,4 +63,12 @@ def test_rig_plays_the_same_impacts_as_offline_and_stops_within_5_s(tmp_path: Pa
         assert live["time"] == pytest.approx(off.time, abs=1e-4)
         assert live["velocity"] == pytest.approx(off.velocity, rel=1e-3)
         assert live["r"] == pytest.approx(off.r, abs=1e-4)
-    assert (tmp_path / "performance.wav").stat().st_size > 0
+
+    # the strikes are heard: one onset per impact at its time + latency, within one audio block
+    audio, sample_rate = sf.read(tmp_path / "performance.wav")
+    origin = json.loads((tmp_path / "performance.wav.json").read_text())["origin_rig_time_s"]
+    mono = np.mean(audio, axis=1) if audio.ndim > 1 else audio
+    heard = [origin + t for t in onset_times(mono, sample_rate)]
+    assert len(heard) >= N_STRIKES
+    for onset, impact in zip(heard, impacts, strict=False):
+        assert abs(onset - (impact["time"] + LATENCY_S)) <= BLOCK / sample_rate

@@ -257,12 +257,30 @@ class OscMessage(BaseModel):
         if has_tail:
             tail = fields[-1]
             values[tail.name] = tuple(_coerce(a, tail.kind, tail.name, cls.ADDRESS) for a in args[pos:])
+        for f in fixed:
+            if f.kind is WireKind.FLOAT:
+                values[f.name] = _snap_to_bounds(values[f.name], f)
         try:
             return cls.model_validate(values)
         except ValidationError as exc:
             first = exc.errors()[0]
             where = ".".join(str(p) for p in first.get("loc", ()))
             raise MessageError(DropReason.OUT_OF_RANGE, f"{where}: {first.get('msg')}", cls.ADDRESS) from None
+
+
+FLOAT32_EPS = 2.0**-23
+
+
+def _snap_to_bounds(value: float, f: WireField) -> float:
+    """Undo float32 rounding at a range bound: 0.01 sent as float32 arrives as 0.0099999998.
+
+    Only values within float32 rounding of a bound are moved onto it; anything
+    further out stays out of range and is rejected.
+    """
+    for bound in (f.minimum, f.maximum):
+        if bound is not None and value != bound and abs(value - bound) <= FLOAT32_EPS * max(abs(bound), 1e-30):
+            return bound
+    return value
 
 
 def _plain(value: Any) -> Arg:

@@ -1,0 +1,429 @@
+"""The sound service core: impacts and controls in, audio blocks out (deterministic, no I/O).
+
+``SoundCore`` follows :class:`common.core.Core`. It renders audio in blocks
+on a sample clock locked to rig time (output sample n is rig time
+``origin + n / sample_rate``): :meth:`SoundCore.step` renders every block that
+ends by ``now``, :meth:`SoundCore.render` renders up to a rig time and returns
+the new samples. The node hands the blocks to the sound card (when there is
+one) and/or a WAV file; offline, the recording is kept in memory
+(:meth:`SoundCore.recording`, :meth:`SoundCore.write_wav`).
+"""
+
+from __future__ import annotations
+
+import collections
+import math
+from collections import Counter
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import ClassVar, Literal, Protocol
+
+import numpy as np
+import numpy.typing as npt
+import soundfile as sf
+from pydantic import BaseModel, ConfigDict, Field
+
+from common.core import Outgoing
+from common.kit import EventType, Kit, load_kit
+from common.messages import Impact, OscMessage
+from common.messages.sound import (
+    SoundAirLoading,
+    SoundDamping,
+    SoundDensity,
+    SoundLatency,
+    SoundLevel,
+    SoundMaster,
+    SoundModel,
+    SoundModes,
+    SoundOpenness,
+    SoundPosition,
+    SoundRadius,
+    SoundRejected,
+    SoundResonances,
+    SoundSecondHead,
+    SoundSnares,
+    SoundStick,
+    SoundTension,
+    SoundThickness,
+)
+from services.sound.instruments import (
+    INSTRUMENT_CLASSES,
+    Instrument,
+    InstrumentSet,
+    ParamError,
+    Strike,
+    default_params,
+)
+from services.sound.pyo_stage import PyoStage
+from services.sound.samples import SampleBank
+from services.sound.scheduler import Scheduler
+from services.sound.voices import VoicePool
+
+F32 = npt.NDArray[np.float32]
+
+# control message -> (parameter name, fields passed to Instrument.set_param)
+PARAM_MESSAGES: dict[type[OscMessage], tuple[str, tuple[str, ...]]] = {
+    SoundModel: ("model", ("model",)),
+    SoundLevel: ("level", ("gain_db",)),
+    SoundRadius: ("radius", ("value",)),
+    SoundTension: ("tension", ("value",)),
+    SoundDensity: ("density", ("value",)),
+    SoundThickness: ("thickness", ("value",)),
+    SoundDamping: ("damping", ("sigma0", "sigma1")),
+    SoundModes: ("n_modes", ("value",)),
+    SoundPosition: ("position", ("value",)),
+    SoundStick: ("stick", ("mass", "stiffness", "exponent")),
+    SoundSnares: ("snares", ("value",)),
+    SoundOpenness: ("openness", ("value",)),
+    SoundResonances: ("resonances", ("gains",)),
+    SoundAirLoading: ("air_loading", ("value",)),
+    SoundSecondHead: ("second_head", ("gain", "ratio")),
+}
+
+
+KNEE = 0.7
+"""Master soft limiter: linear below this level, a tanh knee above, never beyond 1."""
+
+
+def soft_limit(x: F32) -> None:
+    """In place: samples above KNEE in magnitude bend smoothly towards 1 (no delay, no hard clip)."""
+    over = np.abs(x) > KNEE
+    if np.any(over):
+        v = x[over]
+        x[over] = np.sign(v) * (KNEE + (1.0 - KNEE) * np.tanh((np.abs(v) - KNEE) / (1.0 - KNEE)))
+
+
+class Sink(Protocol):
+    """An output of rendered blocks (float32, (n,) or (n, 2))."""
+
+    def __call__(self, block: F32) -> None: ...
+
+    def close(self) -> None: ...
+
+
+class SoundSettings(BaseModel):
+    """Configuration of a sound core."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    sample_rate: Literal[44100, 48000, 96000] = Field(48000, description="output rate, Hz")
+    block_size: Literal[64, 128, 256, 512] = Field(256, description="samples per block")
+    latency: float = Field(0.05, ge=0.0, le=2.0, description="scheduling window added to impact times, seconds")
+    origin: float | None = Field(0.0, description="rig time of the first output sample, seconds "
+                                 "(None: the rig time of the first step or message, for live nodes)")
+    render_ahead: float = Field(0.0, ge=0.0, le=1.0, description="live: step(now) renders up to now + this, "
+                                "seconds, so each block is ready before its output time (offline: 0)")
+    channels: Literal[1, 2] = Field(1, description="1: mono; 2: stereo panned from the kit layout")
+    max_voices: int = Field(64, ge=1, le=1024, description="sample/synthesis/noise voices at once")
+    use_pyo: bool = Field(True, description="run the master section through pyo's graph")
+    reverb: float = Field(0.0, ge=0.0, le=1.0, description="room reverb wet/dry, 0..1")
+    master_db: float = Field(0.0, ge=-80.0, le=12.0, description="master gain, dB")
+    record: bool = Field(True, description="keep every rendered block in memory (offline renders)")
+    model: Literal["modal", "sample", "synth"] = Field("modal", description="initial model of every instrument")
+    pedal_impacts: bool = Field(False, description="sound impacts on pedal objects (footboards) on the instrument "
+                                "they drive; off by default because the physics reports the beater on the kick "
+                                "and the hi-hat's top plate closing (part hihat_top) as impacts of their own")
+
+
+@dataclass
+class SoundStats:
+    """Counters of a sound core since start."""
+
+    strikes: int = 0
+    late: int = 0
+    duplicates: int = 0
+    unknown_instrument: int = 0
+    pedal_impacts: int = 0  # impacts on footboards, not sounded (unless settings.pedal_impacts)
+    rejected: Counter[str] = field(default_factory=Counter)  # by control address
+    blocks: int = 0
+
+    @property
+    def rejected_total(self) -> int:
+        return sum(self.rejected.values())
+
+
+class SoundCore:
+    """Turns impacts into audio. See the module docstring.
+
+    Parameters
+    ----------
+    settings : SoundSettings, optional
+        Rates, latency, output options.
+    kit : Kit, optional
+        The kit whose objects become instruments (default: the shipped kit).
+    """
+
+    ROLE: ClassVar[str] = "sound"
+
+    def __init__(self, settings: SoundSettings | None = None, kit: Kit | None = None) -> None:
+        self.settings = settings or SoundSettings()
+        s = self.settings
+        self.kit = kit or load_kit("default")
+        self.sample_rate = int(s.sample_rate)
+        self.block = int(s.block_size)
+        self.rate_hz = self.sample_rate / self.block
+        self.channels = int(s.channels)
+        self.scheduler: Scheduler[tuple[str, Impact]] = Scheduler(
+            float(self.sample_rate), s.latency, s.origin if s.origin is not None else 0.0)
+        self.pool = VoicePool(s.max_voices, float(self.sample_rate))
+        self.samples = SampleBank(self.sample_rate)
+        self.instruments = self._build_instruments(self.kit)
+        self.stats = SoundStats()
+        self.next_sample = 0  # first output sample not rendered yet
+        self.master_db = s.master_db
+        self.reverb = s.reverb
+        self._stage: PyoStage | None = None
+        if s.use_pyo:
+            self._stage = PyoStage(self.sample_rate, self.block, self.channels, s.reverb, s.master_db)
+        self._record: list[F32] = []
+        self.on_block: Callable[[F32], None] | None = None
+        """Called with every rendered block."""
+        self.sinks: list[Sink] = []
+        """Outputs fed every rendered block (the node's WAV file, sound card); closed by :meth:`close`."""
+        self._origin_set = s.origin is not None
+        self.strike_latencies: collections.deque[float] = collections.deque(maxlen=10000)
+        """Output time of each strike's first sample minus its impact time, seconds (most recent last)."""
+        self._bus: dict[str, F32] = {}
+        self._pedal_ids = {o.id for o in self.kit.objects if o.kind == "pedal"}
+        self._pans = {i.id: self._pan(i.obj.position[0]) for i in self.instruments.instruments.values()}
+
+    # ------------------------------------------------------------- building
+    def _build_instruments(self, kit: Kit) -> InstrumentSet:
+        out = InstrumentSet()
+        for obj in kit.objects:
+            cls = INSTRUMENT_CLASSES.get(obj.kind)
+            if cls is None:
+                continue
+            inst: Instrument = cls(obj, default_params(obj), self.sample_rate, self.block, self.samples)
+            inst.model = self.settings.model
+            out.instruments[obj.id] = inst
+        hihats = [i.id for i in out.instruments.values() if i.KIND == "hihat"]
+        kicks = [i.id for i in out.instruments.values() if i.KIND == "membrane" and ("kick" in i.id or "bass" in i.id)]
+        for obj in kit.objects:
+            if obj.kind != "pedal" or not self.settings.pedal_impacts:
+                continue
+            if "hihat" in obj.id and hihats:
+                out.aliases[obj.id] = (hihats[0], "pedal", 0.9)
+            elif kicks:
+                bass = kit.events.get(EventType.BASS)
+                out.aliases[obj.id] = (kicks[0], "centre", bass.r if bass is not None else 0.2)
+        return out
+
+    def _pan(self, x: float) -> tuple[float, float]:
+        """Equal-power (left, right) gains from the object's x, metres (as the drummer hears the kit)."""
+        pos = float(np.clip(x / 0.8, -1.0, 1.0))
+        angle = (pos + 1.0) * math.pi / 4.0
+        return math.cos(angle), math.sin(angle)
+
+    # ----------------------------------------------------------- core API
+    def handle(self, message: OscMessage, now: float, source: str) -> list[Outgoing]:
+        """Schedule an impact or apply a control message. ``now``: rig time, seconds."""
+        self._set_origin(now)
+        if isinstance(message, Impact):
+            self._schedule(message, source)
+            return []
+        if isinstance(message, SoundLatency):
+            self.scheduler.latency = float(message.value)
+            return []
+        if isinstance(message, SoundMaster):
+            self.master_db, self.reverb = float(message.gain_db), float(message.reverb)
+            if self._stage is not None:
+                self._stage.set_master(self.master_db, self.reverb)
+            return []
+        spec = PARAM_MESSAGES.get(type(message))
+        if spec is None:
+            return []
+        name, fields = spec
+        instrument_id = str(message.model_dump().get("instrument", ""))
+        inst = self.instruments.instruments.get(instrument_id)
+        if inst is None:
+            return self._reject(message, instrument_id, f"no instrument {instrument_id!r} "
+                                f"(known: {', '.join(sorted(self.instruments.instruments))})")
+        try:
+            inst.set_param(name, **{f: getattr(message, f) for f in fields})
+        except ParamError as exc:
+            return self._reject(message, instrument_id, str(exc))
+        return []
+
+    def _reject(self, message: OscMessage, instrument: str, reason: str) -> list[Outgoing]:
+        self.stats.rejected[message.ADDRESS] += 1
+        return [Outgoing(SoundRejected(address=message.ADDRESS, instrument=instrument, reason=reason[:512]), "reply")]
+
+    def _schedule(self, impact: Impact, source: str) -> None:
+        if self.scheduler.is_duplicate(source, impact.seq):
+            self.stats.duplicates += 1
+            return
+        if self.instruments.resolve(impact.instrument, impact.zone) is None:
+            if impact.instrument in self._pedal_ids:
+                self.stats.pedal_impacts += 1  # a foot on a footboard: the beater / top plate sound instead
+            else:
+                self.stats.unknown_instrument += 1
+            return
+        payload = (impact.instrument, impact)
+        self.scheduler.push(impact.time, payload, self.next_sample)
+        self.stats.late = self.scheduler.late
+
+    def step(self, now: float) -> list[Outgoing]:
+        """Render every block that ends at or before rig time ``now`` (plus ``render_ahead``)."""
+        self._set_origin(now)
+        self.render(now + self.settings.render_ahead)
+        return []
+
+    def _set_origin(self, now: float) -> None:
+        if not self._origin_set:
+            self.scheduler.origin = float(now)
+            self._origin_set = True
+
+    # ------------------------------------------------------------- render
+    def samples_until(self, rig_time: float) -> int:
+        """Output sample index of rig time ``rig_time`` (seconds)."""
+        return int(math.floor((rig_time - self.scheduler.origin) * self.sample_rate + 1e-6))
+
+    def render(self, until: float) -> F32:
+        """Render whole blocks up to rig time ``until`` (seconds); returns them.
+
+        Returns
+        -------
+        np.ndarray
+            float32, shape (n,) for mono or (n, 2) for stereo; n is a multiple of the block size.
+        """
+        end = self.samples_until(until)
+        blocks: list[F32] = []
+        while self.next_sample + self.block <= end:
+            blocks.append(self.render_block())
+        if not blocks:
+            shape = (0,) if self.channels == 1 else (0, 2)
+            return np.zeros(shape, dtype=np.float32)
+        return np.concatenate(blocks, axis=0)
+
+    def _bus_for(self, instrument: str) -> F32:
+        buf = self._bus.get(instrument)
+        if buf is None:
+            buf = np.zeros(self.block, dtype=np.float32)
+            self._bus[instrument] = buf
+        return buf
+
+    def render_block(self) -> F32:
+        """Render the next block; returns float32 (block,) or (block, 2)."""
+        n = self.block
+        start = self.next_sample
+        for sample, payload in self.scheduler.pop_until(start + n):
+            self._strike(sample - start, payload)
+        for buf in self._bus.values():
+            buf[:] = 0.0
+        for inst in self.instruments.instruments.values():
+            if inst.sounding:
+                buf = self._bus_for(inst.id)
+                inst.process(buf)
+        self.pool.render(self._bus_for)
+        mix = np.zeros((n, self.channels), dtype=np.float32)
+        for inst_id, buf in self._bus.items():
+            inst = self.instruments.instruments[inst_id]
+            g = inst.gain
+            if self.channels == 1:
+                mix[:, 0] += g * buf
+            else:
+                left, right = self._pans[inst_id]
+                mix[:, 0] += g * left * buf
+                mix[:, 1] += g * right * buf
+        soft_limit(mix)
+        if self._stage is not None:
+            mix = self._stage.process(mix)
+        else:
+            mix *= 10.0 ** (self.master_db / 20.0)
+            np.clip(mix, -1.0, 1.0, out=mix)
+        self.next_sample += n
+        self.stats.blocks += 1
+        out = mix[:, 0].copy() if self.channels == 1 else mix
+        if self.settings.record:
+            self._record.append(out)
+        if self.on_block is not None:
+            self.on_block(out)
+        for sink in self.sinks:
+            sink(out)
+        return out
+
+    def _strike(self, offset: int, payload: tuple[str, Impact]) -> None:
+        name, impact = payload
+        resolved = self.instruments.resolve(name, impact.zone, impact.r)
+        if resolved is None:
+            return
+        inst, zone, r = resolved
+        if impact.part == "hihat_top":
+            zone = "pedal"  # the top plate closing on the bottom one: the foot chick
+        strike = Strike(offset, float(impact.velocity), float(impact.impulse), float(r), float(impact.theta),
+                        zone, int(impact.seq))
+        inst.strike(strike, self.pool)
+        self.stats.strikes += 1
+        played = self.scheduler.origin + (self.next_sample + offset) / self.sample_rate
+        self.strike_latencies.append(played - float(impact.time))
+
+    # ------------------------------------------------------------- output
+    def recording(self) -> F32:
+        """Everything rendered so far (when ``record`` is on)."""
+        if not self._record:
+            shape = (0,) if self.channels == 1 else (0, 2)
+            return np.zeros(shape, dtype=np.float32)
+        return np.concatenate(self._record, axis=0)
+
+    def write_wav(self, path: str | Path) -> Path:
+        """Write the recording as a 24-bit WAV file; returns the path."""
+        p = Path(path)
+        p.parent.mkdir(parents=True, exist_ok=True)
+        sf.write(p, self.recording(), self.sample_rate, subtype="PCM_24")
+        return p
+
+    @property
+    def now(self) -> float:
+        """Rig time of the next sample to render, seconds."""
+        return self.scheduler.origin + self.next_sample / self.sample_rate
+
+    @property
+    def late(self) -> int:
+        """Strikes that arrived too late and played at once."""
+        return self.scheduler.late
+
+    def sounding_modes(self) -> int:
+        """Modes of instruments currently ringing."""
+        return sum(i.bank.size for i in self.instruments.instruments.values() if i.sounding)
+
+    def close(self) -> None:
+        """Close the sinks and free the pyo server (idempotent)."""
+        sinks, self.sinks = self.sinks, []
+        for sink in sinks:
+            sink.close()
+        if self._stage is not None:
+            self._stage.close()
+            self._stage = None
+
+    def __del__(self) -> None:
+        try:
+            self.close()
+        except Exception:  # noqa: BLE001 - interpreter shutdown
+            pass
+
+
+def render_offline(
+    impacts: list[Impact],
+    duration: float,
+    kit: Kit | None = None,
+    settings: SoundSettings | None = None,
+    wav: str | Path | None = None,
+) -> F32:
+    """Render impacts (rig times in seconds) for ``duration`` seconds in one call.
+
+    The impacts are handed to a fresh core all at once (as if they had
+    arrived early enough), so none is late. Returns float32 audio, shape (n,)
+    or (n, 2); also writes ``wav`` when given.
+    """
+    core = SoundCore(settings, kit)
+    try:
+        for impact in sorted(impacts, key=lambda i: i.time):
+            core.handle(impact, core.now, "offline")
+        core.render(duration + core.scheduler.origin + core.scheduler.latency)
+        if wav is not None:
+            core.write_wav(wav)
+        return core.recording()
+    finally:
+        core.close()

@@ -1,0 +1,611 @@
+"""The instruments of a kit: modal models, with sample playback and signal synthesis as live alternatives.
+
+Every instrument owns one :class:`~services.sound.modal_bank.ModeSet` holding
+all its modes (head, hoop, bell, ...), a parameter set that can change live,
+and a choice of model (``modal``, ``sample``, ``synth``). Switching the model
+only changes how *new* strikes sound: what is ringing keeps ringing, so a
+switch never cuts or clicks.
+
+Amplitudes: a strike gives each mode the complex amplitude
+``gain_k * phi_k(r, theta) / M_k * F(s_k)`` where ``phi_k`` is the mode shape at
+the strike point, ``M_k`` the modal mass and ``F(s_k)`` the Laplace transform of
+the contact force at the mode's pole (see :mod:`services.sound.excitation`):
+the output is proportional to the modal velocities. One calibration factor per
+instrument, computed once from its initial parameters, brings a medium strike
+to a sensible level; later parameter changes are heard physically (a heavier
+head is quieter, a tighter one higher).
+"""
+
+from __future__ import annotations
+
+import zlib
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from typing import Literal
+
+import numpy as np
+import numpy.typing as npt
+from scipy.special import jv
+
+from common.kit import KitObject
+from services.sound.excitation import ContactPulse, Striker, hunt_crossley, mode_response, mode_response_chunks
+from services.sound.membrane import membrane_modes
+from services.sound.modal_bank import ModeSet
+from services.sound.plates import BELL_GAINS, BELL_RATIOS, COWBELL_GAINS, COWBELL_RATIOS, plate_modes, ring_modes
+from services.sound.samples import SampleBank
+from services.sound.synth import SynthVoice, recipe_for
+from services.sound.voices import NoiseVoice, SampleVoice, VoicePool
+
+Model = Literal["modal", "sample", "synth"]
+MODELS: tuple[Model, ...] = ("modal", "sample", "synth")
+F64 = npt.NDArray[np.float64]
+
+REFERENCE_VELOCITY = 3.0
+"""Velocity of the calibration strike, m/s (a medium stroke)."""
+REFERENCE_PEAK = 0.2
+"""Output peak the calibration strike aims at (full scale 1), before the per-instrument mix level."""
+
+
+def mix_level(instrument_id: str, kind: str) -> float:
+    """Relative peak level of a medium strike in the default mix (a mixing choice, not physics)."""
+    for key, level in (("kick", 0.9), ("bass", 0.9), ("snare", 1.2), ("crash", 1.0), ("china", 0.9),
+                       ("splash", 0.8), ("ride", 0.6)):
+        if key in instrument_id:
+            return level
+    return {"membrane": 1.0, "hihat": 0.6, "bell": 0.7, "cymbal": 0.9}.get(kind, 1.0)
+
+
+class ParamError(ValueError):
+    """A parameter change this instrument cannot take (the message says why)."""
+
+
+@dataclass(frozen=True)
+class Strike:
+    """One scheduled strike, as the instruments see it.
+
+    Attributes
+    ----------
+    offset : int
+        Onset inside the current block, samples.
+    velocity : float
+        Normal velocity, m/s.
+    impulse : float
+        Normal impulse, newton-seconds (0: unknown).
+    r, theta : float
+        Strike point, r / a and radians.
+    zone : str
+        Zone name from the impact.
+    seq : int
+        Impact sequence number (seeds noise, so renders repeat exactly).
+    """
+
+    offset: int
+    velocity: float
+    impulse: float
+    r: float
+    theta: float
+    zone: str
+    seq: int
+
+
+@dataclass
+class Params:
+    """Live parameters of one instrument (not all kinds use all of them)."""
+
+    radius: float
+    tension: float = 0.0
+    density: float = 0.0
+    thickness: float = 0.0
+    damping0: float = 5.0  # decay rate at 0 Hz, 1/s
+    damping1: float = 1e-5  # decay rate growth, s (sigma = damping0 + damping1 f^2)
+    n_modes: int = 80
+    air_loading: float = 1.0
+    splitting: float = 0.002
+    position: float = 1.0  # strike-position sensitivity
+    resonances: tuple[float, ...] = ()
+    stick_mass: float = 0.03
+    stick_stiffness: float = 6.5e5
+    stick_exponent: float = 1.5
+    restitution: float = 0.6
+    level_db: float = 0.0
+    snares: float = 0.0
+    openness: float = 0.3
+    curvature_hz: float = 150.0
+    irregularity: float = 0.03
+    shimmer: float = 0.0
+    bell_hz: float = 0.0
+    second_head: float = 0.0  # coupling of the resonant head
+    reso_ratio: float = 1.1  # its frequency ratio to the batter head
+
+
+COMMON_PARAMS = frozenset({"damping", "n_modes", "position", "resonances", "stick", "level", "model"})
+KIND_PARAMS: dict[str, frozenset[str]] = {
+    "membrane": COMMON_PARAMS | {"radius", "tension", "density", "snares", "air_loading", "second_head"},
+    "cymbal": COMMON_PARAMS | {"radius", "thickness"},
+    "hihat": COMMON_PARAMS | {"radius", "thickness", "openness"},
+    "bell": COMMON_PARAMS | {"radius"},
+}
+
+
+def _seed(name: str) -> int:
+    return zlib.crc32(name.encode())
+
+
+class Instrument:
+    """Base class. Subclasses build the mode set and turn strikes into mode amplitudes.
+
+    Parameters
+    ----------
+    obj : KitObject
+        The kit object (geometry) this instrument sounds.
+    params : Params
+        Initial parameters.
+    sample_rate : float
+        Hz.
+    block : int
+        Block length, samples.
+    samples : SampleBank
+        Recorded samples for the ``sample`` model.
+    """
+
+    KIND = "membrane"
+
+    def __init__(self, obj: KitObject, params: Params, sample_rate: float, block: int, samples: SampleBank) -> None:
+        self.id = obj.id
+        self.obj = obj
+        self.p = params
+        self.sr = float(sample_rate)
+        self.block = int(block)
+        self.samples = samples
+        self.model: Model = "modal"
+        self.bank = ModeSet(sample_rate, block)
+        self.gains: F64 = np.zeros(0)  # radiation gain per mode
+        self.calibration = 1.0
+        self._delayed: list[tuple[int, npt.NDArray[np.complex128]]] = []  # (samples from block start, amplitudes)
+        self.rebuild()
+        self.calibration = self._calibrate()
+
+    # ---------------------------------------------------------------- params
+    @property
+    def accepted(self) -> frozenset[str]:
+        return KIND_PARAMS[self.KIND]
+
+    @property
+    def gain(self) -> float:
+        """Output gain from the level, linear."""
+        return float(10.0 ** (self.p.level_db / 20.0))
+
+    def set_param(self, name: str, **values: float | tuple[float, ...] | str) -> None:
+        """Change one parameter group; raises :class:`ParamError` if it does not apply or makes no sense.
+
+        ``name`` is the message's parameter (radius, tension, ...); ``values`` its fields.
+        """
+        if name not in self.accepted:
+            raise ParamError(f"{self.KIND} instrument {self.id!r} has no parameter {name!r} "
+                             f"(it takes: {', '.join(sorted(self.accepted))})")
+        if name == "model":
+            self.model = values["model"]  # type: ignore[assignment]
+            return
+        old = self.p
+        if name == "level":
+            self.p = replace(self.p, level_db=float(values["gain_db"]))  # type: ignore[arg-type]
+            return
+        if name == "damping":
+            new = replace(old, damping0=float(values["sigma0"]), damping1=float(values["sigma1"]))  # type: ignore[arg-type]
+        elif name == "stick":
+            new = replace(old, stick_mass=float(values["mass"]), stick_stiffness=float(values["stiffness"]),  # type: ignore[arg-type]
+                          stick_exponent=float(values["exponent"]))  # type: ignore[arg-type]
+        elif name == "second_head":
+            new = replace(old, second_head=float(values["gain"]), reso_ratio=float(values["ratio"]))  # type: ignore[arg-type]
+        elif name == "resonances":
+            new = replace(old, resonances=tuple(float(g) for g in values["gains"]))  # type: ignore[union-attr]
+        else:
+            field_name = {"n_modes": "n_modes", "position": "position", "radius": "radius", "tension": "tension",
+                          "density": "density", "thickness": "thickness", "snares": "snares",
+                          "openness": "openness", "air_loading": "air_loading"}[name]
+            value = values["value"]
+            new = replace(old, **{field_name: int(value) if field_name == "n_modes" else float(value)})  # type: ignore[arg-type]
+        self.p = new
+        try:
+            self.rebuild()
+        except ValueError as exc:
+            self.p = old
+            self.rebuild()
+            raise ParamError(f"{self.id}: {exc}") from None
+        if self.bank.size and not np.any(self.bank.freq < 0.48 * self.sr):
+            self.p = old
+            self.rebuild()
+            raise ParamError(f"{self.id}: every mode would be above the Nyquist frequency")
+
+    def damping_law(self, freq: F64) -> F64:
+        """Decay rate per mode, 1/s: sigma0 + sigma1 f^2."""
+        return np.asarray(self.p.damping0 + self.p.damping1 * freq**2)
+
+    def _apply_resonances(self, gains: F64) -> F64:
+        res = np.asarray(self.p.resonances, dtype=np.float64)
+        if res.size:
+            n = min(res.size, gains.size)
+            gains = gains.copy()
+            gains[:n] *= res[:n]
+        return gains
+
+    # -------------------------------------------------------------- physics
+    def rebuild(self) -> None:
+        """Recompute modes (frequencies, decays, gains) from the parameters; ringing modes keep their state."""
+        raise NotImplementedError
+
+    def striker(self) -> Striker:
+        return Striker(self.p.stick_mass, self.p.stick_stiffness, self.p.stick_exponent)
+
+    def pulse(self, strike: Strike, striker: Striker | None = None) -> ContactPulse:
+        st = striker or self.striker()
+        if strike.impulse > 0 and strike.velocity > 0:
+            # the impulse tells the effective striker mass: J = m v (1 + e)
+            m_eff = strike.impulse / (strike.velocity * (1.0 + self.p.restitution))
+            st = replace(st, mass=float(np.clip(m_eff, 0.25 * st.mass, 4.0 * st.mass)))
+        return hunt_crossley(strike.velocity, st, self.p.restitution, self.sr, oversample=8)
+
+    def weights(self, strike: Strike) -> F64:
+        """Real weight of every mode for a unit impulse at the strike point: gain * shape / modal mass."""
+        raise NotImplementedError
+
+    def amplitudes(self, strike: Strike, pulse: ContactPulse) -> npt.NDArray[np.complex128]:
+        """Complex amplitude of every mode after the whole contact (before calibration)."""
+        return np.asarray(self.weights(strike) * mode_response(pulse, self.bank.poles_log))
+
+    def _calibrate(self) -> float:
+        """Gain that makes a medium strike (3 m/s) peak at REFERENCE_PEAK x the mix level, from its first 60 ms."""
+        ref = Strike(0, REFERENCE_VELOCITY, 0.0, 0.35, 0.3, "centre", 0)
+        amp = self.amplitudes(ref, self.pulse(ref))
+        # render it with the (still silent) bank itself, then silence the bank again
+        self.bank.strike(amp, 0)
+        out = np.zeros(self.block, dtype=np.float32)
+        peak = 0.0
+        for _ in range(int(np.ceil(0.06 * self.sr / self.block))):
+            out[:] = 0.0
+            self.bank.process(out)
+            peak = max(peak, float(np.max(np.abs(out))))
+        self.bank.clear()
+        target = REFERENCE_PEAK * mix_level(self.id, self.KIND)
+        return target / peak if peak > 0 else 1.0
+
+    # -------------------------------------------------------------- strikes
+    def strike(self, strike: Strike, pool: VoicePool) -> None:
+        """Play one strike with the current model."""
+        if self.model == "modal":
+            self.strike_modal(strike, pool)
+        elif self.model == "sample":
+            self.strike_sample(strike, pool)
+        else:
+            self.strike_synth(strike, pool)
+
+    def strike_modal(self, strike: Strike, pool: VoicePool, gain: float = 1.0) -> None:
+        pulse = self.pulse(strike)
+        w = self.weights(strike) * (self.calibration * gain)
+        for start, resp in mode_response_chunks(pulse, self.bank.poles_log):
+            self.inject(strike.offset + start, w * resp)
+        self.extras(strike, pulse, pool)
+
+    def inject(self, delay: int, amplitudes: npt.NDArray[np.complex128]) -> None:
+        """Add ``amplitudes`` to the modes ``delay`` samples after the current block's start."""
+        if delay < self.block:
+            self.bank.strike(amplitudes, delay)
+        else:
+            self.add_delayed(delay, amplitudes)
+
+    def extras(self, strike: Strike, pulse: ContactPulse, pool: VoicePool) -> None:
+        """Non-modal components of a modal strike (snare wires, ...)."""
+
+    def sample_name(self, strike: Strike) -> tuple[str, float]:
+        """(sample name, playback rate) for a strike."""
+        return self.id, 1.0
+
+    def strike_sample(self, strike: Strike, pool: VoicePool) -> None:
+        name, rate = self.sample_name(strike)
+        data = self.samples.get(name)
+        if data is None:
+            self.strike_synth(strike, pool)
+            return
+        v = strike.velocity / REFERENCE_VELOCITY
+        gain = 0.5 * REFERENCE_PEAK / 0.25 * min(v, 4.0) ** 1.1
+        cutoff = 1500.0 + 5000.0 * v**1.5
+        pool.add(SampleVoice(self.id, data, gain, rate, cutoff, self.sr, strike.offset))
+
+    def strike_synth(self, strike: Strike, pool: VoicePool) -> None:
+        recipe = recipe_for(self.KIND, self.id, strike.zone, self.p.radius, self.p.openness)
+        v = strike.velocity / REFERENCE_VELOCITY
+        gain = 0.22 * mix_level(self.id, self.KIND) * min(v, 4.0) ** 1.1
+        pool.add(SynthVoice(self.id, recipe, gain, min(v, 2.0) / 2.0, strike.seq, self.sr, strike.offset))
+
+    # --------------------------------------------------------------- render
+    def add_delayed(self, delay: int, amplitudes: npt.NDArray[np.complex128]) -> None:
+        """Inject ``amplitudes`` ``delay`` samples after the current block's start."""
+        self._delayed.append((delay, amplitudes))
+
+    def process(self, out: npt.NDArray[np.float32]) -> None:
+        """Add the modal output of the next block into ``out`` (gain applied by the caller)."""
+        keep = []
+        for delay, amp in self._delayed:
+            if delay < self.block:
+                if amp.shape[0] == self.bank.size:
+                    self.bank.strike(amp, delay)
+            else:
+                keep.append((delay - self.block, amp))
+        self._delayed = keep
+        self.bank.process(out)
+
+    @property
+    def sounding(self) -> bool:
+        return self.bank.active or bool(self._delayed)
+
+
+class Membrane(Instrument):
+    """A drum: a circular head (Bessel modes) plus its metal hoop; snare wires as a noise component.
+
+    Zones: anything but ``rim``/``rimshot`` strikes the head at (r, theta);
+    ``rim`` is a cross-stick/rim click (hoop rings, head barely); ``rimshot``
+    hits head and hoop together.
+    """
+
+    KIND = "membrane"
+
+    def rebuild(self) -> None:
+        p = self.p
+        self.modes = membrane_modes(p.radius, p.tension, p.density, p.n_modes, p.air_loading, p.splitting)
+        head_f = self.modes.freq
+        self.n_head = head_f.shape[0]
+        # the resonant head: the same membrane tuned by reso_ratio (its lowest 24 mode orientations)
+        n_reso = min(24, p.n_modes) if p.second_head > 0 else 0
+        self.reso = membrane_modes(p.radius, p.tension * p.reso_ratio**2, p.density, max(n_reso, 1),
+                                   p.air_loading, p.splitting)
+        reso_f = self.reso.freq[:n_reso]
+        self.n_reso = n_reso
+        self.ring_f = ring_modes(900.0 * (0.178 / p.radius) ** 2, 12)
+        freq = np.concatenate([head_f, reso_f, self.ring_f])
+        decay = np.concatenate([self.damping_law(head_f), self.damping_law(reso_f), 60.0 + 2e-6 * self.ring_f**2])
+        # far-field radiation: monopoles (m = 0) radiate best, higher m less
+        rad = np.concatenate([1.0 / (1.0 + 0.6 * self.modes.m), 1.0 / (1.0 + 0.6 * self.reso.m[:n_reso]),
+                              np.full(self.ring_f.shape[0], 1.0)])
+        self.gains = self._apply_resonances(rad)
+        self.bank.set_modes(freq, decay)
+
+    def weights(self, strike: Strike) -> F64:
+        p = self.p
+        zone = strike.zone
+        head_r = strike.r
+        head_w, ring_w = 1.0, 0.0
+        if zone == "rim":
+            head_r, head_w, ring_w = 0.97, 0.25, 1.0
+        elif zone == "rimshot":
+            head_r, head_w, ring_w = min(max(strike.r, 0.85), 0.95), 1.0, 0.8
+        shape = self.modes.shape_at(head_r, strike.theta)
+        if p.position < 1.0:
+            shape = p.position * shape + (1.0 - p.position) * self.modes.shape_at(0.35, strike.theta)
+        head = head_w * shape / self.modes.mass
+        # the second head is pushed by the air the batter head moves: its axisymmetric modes get the
+        # batter's volume displacement (the (0,1) shape at the strike), the others a little shell coupling
+        n = self.n_reso
+        reso_m, reso_n = self.reso.m[:n], self.reso.n[:n]
+        drive = head_w * float(jv(0, 2.405 * min(max(head_r, 0.0), 1.0)))
+        reso_shape = self.reso.shape_at(head_r, strike.theta)[:n]
+        coupling = np.where(reso_m == 0, drive / reso_n, 0.15 * head_w * reso_shape)
+        reso = p.second_head * coupling / self.reso.mass[:n]
+        # the hoop is much stiffer and lighter in play: a short metallic click
+        ring_mass = 0.04
+        ring = ring_w * np.ones(self.ring_f.shape[0]) / ring_mass
+        return np.asarray(self.gains * np.concatenate([head, reso, ring]))
+
+    def pulse(self, strike: Strike, striker: Striker | None = None) -> ContactPulse:
+        if strike.zone in ("rim", "rimshot"):
+            # the stick meets the metal hoop: a much stiffer, shorter contact
+            striker = replace(self.striker(), stiffness=max(self.p.stick_stiffness, 3e8))
+        return super().pulse(strike, striker)
+
+    def extras(self, strike: Strike, pulse: ContactPulse, pool: VoicePool) -> None:
+        v = strike.velocity / REFERENCE_VELOCITY
+        kick = "kick" in self.id or "bass" in self.id
+        # the striker's own click (beater felt on the head, stick tip): a very short high burst
+        band, decay, level = ((1200.0, 6000.0), 0.004, 0.05) if kick else ((2500.0, 12000.0), 0.0015, 0.03)
+        pool.add(NoiseVoice(self.id, band, level * min(v, 4.0) ** 1.5, 0.0003, decay, strike.seq * 7907 + 11,
+                            self.sr, strike.offset))
+        if self.p.snares <= 0 or strike.zone == "rim":
+            return
+        # snare wires buzz with the bottom head: noise whose level follows the drive
+        amp = 0.06 * self.p.snares * min(v, 4.0) ** 1.2
+        pool.add(NoiseVoice(self.id, (1800.0, 9000.0 * min(0.6 + 0.2 * v, 1.0)), amp, 0.002, 0.09,
+                            strike.seq * 7919 + 1, self.sr, strike.offset))
+
+    def sample_name(self, strike: Strike) -> tuple[str, float]:
+        if strike.zone in ("rim", "rimshot") and "snare" in self.id:
+            return "rim", 1.0
+        for name in ("kick", "snare", "hightom", "midtom", "floortom"):
+            if name in self.id:
+                return name, 1.0
+        return "midtom", float(np.clip(0.152 / self.p.radius, 0.5, 2.0))
+
+
+class Cymbal(Instrument):
+    """A cymbal: a dense inharmonic plate, plus bell partials excited from the bell zone.
+
+    Crash, splash and china get a shimmer: part of the strike's energy reaches
+    the high modes a few tens of milliseconds late, standing in for the
+    nonlinear energy cascade of a real cymbal.
+    """
+
+    KIND = "cymbal"
+
+    def rebuild(self) -> None:
+        p = self.p
+        self.modes = plate_modes(p.radius, p.thickness, p.n_modes, p.curvature_hz, p.irregularity, _seed(self.id))
+        plate_f = self.modes.freq
+        self.n_plate = plate_f.shape[0]
+        bell_f = p.bell_hz * BELL_RATIOS if p.bell_hz > 0 else np.zeros(0)
+        bell_f = np.repeat(bell_f, 2) * np.tile([1.0, 1.003], bell_f.shape[0])
+        self.bell_gains = np.repeat(BELL_GAINS[: bell_f.shape[0] // 2], 2) if bell_f.size else np.zeros(0)
+        freq = np.concatenate([plate_f, bell_f])
+        decay = np.concatenate([self.damping_law(plate_f), 0.5 * self.damping_law(bell_f) + 0.3])
+        # below the coincidence frequency a plate mode radiates more the higher it is (efficiency ~ f / f_c):
+        # amplitude ~ sqrt(f), which is what makes a cymbal bright rather than gong-like
+        tilt = np.concatenate([np.minimum(np.sqrt(plate_f / 3000.0), 2.5), np.ones(bell_f.shape[0])])
+        self.gains = self._apply_resonances(tilt)
+        self.bank.set_modes(freq, decay)
+
+    def weights(self, strike: Strike) -> F64:
+        p = self.p
+        bell_r = self.obj.bell_radius / self.obj.radius if self.obj.radius > 0 else 0.0
+        on_bell = strike.zone == "bell" or strike.r < bell_r
+        shape = self.modes.shape_at(strike.r, strike.theta)
+        if p.position < 1.0:
+            shape = p.position * shape + (1.0 - p.position) * self.modes.shape_at(0.6, strike.theta)
+        plate = shape / self.modes.mass * (0.3 if on_bell else 1.0)
+        bell_w = 1.0 if on_bell else 0.08
+        bell = bell_w * self.bell_gains / (self.modes.mass[0] if self.n_plate else 1.0)
+        return np.asarray(self.gains * np.concatenate([plate, bell]))
+
+    def extras(self, strike: Strike, pulse: ContactPulse, pool: VoicePool) -> None:
+        if self.p.shimmer <= 0 or self.n_plate == 0:
+            return
+        rng = np.random.default_rng(strike.seq * 104729 + _seed(self.id))
+        f = self.bank.freq
+        base = np.sum(np.abs(self.amplitudes(strike, pulse))) * self.calibration / max(self.bank.size, 1)
+        for delay_s, share in ((0.012, 0.6), (0.035, 0.4)):
+            phase = np.exp(2j * np.pi * rng.random(self.bank.size))
+            tilt = np.clip(f / 6000.0, 0.0, 1.5)
+            tilt[self.n_plate:] = 0.0
+            amp = self.p.shimmer * share * base * tilt * phase * min(strike.velocity / REFERENCE_VELOCITY, 3.0)
+            self.inject(strike.offset + int(delay_s * self.sr), amp)
+
+    def sample_name(self, strike: Strike) -> tuple[str, float]:
+        bell_r = self.obj.bell_radius / self.obj.radius if self.obj.radius > 0 else 0.0
+        if "ride" in self.id:
+            return ("ridebell" if strike.zone == "bell" or strike.r < bell_r else "ride"), 1.0
+        if "china" in self.id:
+            return "china", 1.0
+        if "splash" in self.id:
+            return "crash", 1.4
+        return "crash", float(np.clip(0.203 / self.p.radius, 0.6, 1.6))
+
+
+class HiHat(Cymbal):
+    """Two plates whose contact damps them: the openness (0 closed, 1 open) sets the damping live.
+
+    Zones ``open``, ``half``, ``closed`` set the openness for that strike;
+    ``pedal`` (or the instrument ``hihat_pedal``) is the foot chick, which also
+    closes the hat and so chokes it.
+    """
+
+    KIND = "hihat"
+
+    def damping_law(self, freq: F64) -> F64:
+        closed = 1.0 - self.p.openness
+        return np.asarray(self.p.damping0 + self.p.damping1 * freq**2 + 90.0 * closed**2 + 6e-7 * closed * freq**2)
+
+    def strike(self, strike: Strike, pool: VoicePool) -> None:
+        openness = {"open": 1.0, "half": 0.5, "closed": 0.0, "pedal": 0.0}.get(strike.zone)
+        if openness is not None and openness != self.p.openness:
+            self.p = replace(self.p, openness=openness)
+            self.rebuild()
+        if strike.zone == "pedal" and self.model == "modal":
+            # the plates clash: a softer, shorter excitation plus a noise chick
+            self.strike_modal(replace(strike, velocity=strike.velocity * 0.5, r=0.9), pool, gain=0.4)
+            pool.add(NoiseVoice(self.id, (2500.0, 12000.0), 0.08 * min(strike.velocity / 2.0, 2.0), 0.001, 0.012,
+                                strike.seq * 31 + 5, self.sr, strike.offset))
+            return
+        super().strike(strike, pool)
+
+    def extras(self, strike: Strike, pulse: ContactPulse, pool: VoicePool) -> None:
+        if self.p.openness < 0.3:
+            # stick tick on a closed hat
+            amp = 0.05 * min(strike.velocity / REFERENCE_VELOCITY, 3.0)
+            pool.add(NoiseVoice(self.id, (4000.0, 15000.0), amp, 0.0005, 0.008, strike.seq * 13 + 3, self.sr,
+                                strike.offset))
+
+    def sample_name(self, strike: Strike) -> tuple[str, float]:
+        if strike.zone == "pedal":
+            return "hihat_pedal", 1.0
+        return ("hihat_open" if self.p.openness >= 0.5 else "hihat_closed"), 1.0
+
+
+class Bell(Instrument):
+    """A cowbell: a few strong inharmonic partials (two orientations each), fairly short."""
+
+    KIND = "bell"
+
+    def rebuild(self) -> None:
+        p = self.p
+        n = max(1, min(p.n_modes // 2, COWBELL_RATIOS.shape[0]))
+        f0 = 84.0 / max(self.obj.depth, 0.05) * (0.04 / p.radius)
+        base = f0 * COWBELL_RATIOS[:n]
+        freq = np.repeat(base, 2) * np.tile([1.0, 1.004], n)
+        self.base_gains = np.repeat(COWBELL_GAINS[:n], 2)
+        self.gains = self._apply_resonances(self.base_gains)
+        self.bank.set_modes(freq, self.damping_law(freq))
+
+    def weights(self, strike: Strike) -> F64:
+        pos = 1.0 + 0.5 * (strike.r - 0.5) * np.linspace(-1, 1, self.bank.size) * self.p.position
+        return np.asarray(self.gains * pos / 0.2)
+
+    def sample_name(self, strike: Strike) -> tuple[str, float]:
+        return "cowbell", 1.0
+
+
+def default_params(obj: KitObject) -> Params:
+    """Physical defaults for a kit object, from its id, kind and geometry."""
+    a = obj.radius
+    if obj.kind == "membrane":
+        density = 0.35
+        if "kick" in obj.id or "bass" in obj.id:
+            f01, d0, d1, mass, stiff, snares, second, ratio = 55.0, 22.0, 4e-5, 0.1, 2e5, 0.0, 0.5, 1.12
+        elif "snare" in obj.id:
+            f01, d0, d1, mass, stiff, snares, second, ratio = 220.0, 14.0, 1.2e-5, 0.03, 6e6, 1.0, 0.3, 1.45
+        else:
+            f01 = 2.405 / (2 * np.pi * a) * 60.0  # toms: wave speed about 60 m/s
+            d0, d1, mass, stiff, snares, second, ratio = 4.5, 8e-6, 0.03, 5e6, 0.0, 0.5, 1.07
+        tension = (2 * np.pi * a * f01 / 2.405) ** 2 * density
+        return Params(radius=a, tension=float(tension), density=density, damping0=d0, damping1=d1, n_modes=160,
+                      stick_mass=mass, stick_stiffness=stiff, restitution=obj.elasticity, snares=snares,
+                      second_head=second, reso_ratio=ratio)
+    if obj.kind in ("cymbal", "hihat"):
+        thickness = obj.thickness
+        shimmer = 0.0 if "ride" in obj.id else 0.5
+        irregularity, curvature = (0.08, 110.0) if "china" in obj.id else (0.03, 150.0)
+        d0 = 0.35 if "ride" in obj.id else (1.2 if "splash" in obj.id else 0.6)
+        if "china" in obj.id:
+            d0 = 1.0
+        bell_hz = 0.0
+        if obj.bell_radius > 0 and "ride" in obj.id:
+            bell_hz = 42.0 / obj.bell_radius  # about 600 Hz for a 7 cm bell
+        return Params(radius=a, thickness=thickness, damping0=d0, damping1=4e-8, n_modes=1500, stick_mass=0.03,
+                      stick_stiffness=1e9, restitution=obj.elasticity, openness=obj.opening, splitting=0.0,
+                      curvature_hz=curvature, irregularity=irregularity,
+                      shimmer=shimmer if obj.kind == "cymbal" else 0.0, bell_hz=bell_hz)
+    return Params(radius=a, damping0=9.0, damping1=2e-6, n_modes=16, stick_mass=0.03, stick_stiffness=5e8,
+                  restitution=obj.elasticity)
+
+
+INSTRUMENT_CLASSES: dict[str, Callable[..., Instrument]] = {
+    "membrane": Membrane,
+    "cymbal": Cymbal,
+    "hihat": HiHat,
+    "bell": Bell,
+}
+
+
+@dataclass
+class InstrumentSet:
+    """Every sounding instrument of a kit, by id, with pedal aliases."""
+
+    instruments: dict[str, Instrument] = field(default_factory=dict)
+    aliases: dict[str, tuple[str, str, float]] = field(default_factory=dict)
+    """Pedal id -> (instrument it sounds, forced zone or '', forced r/a or -1)."""
+
+    def resolve(self, instrument: str, zone: str, r: float = 0.0) -> tuple[Instrument, str, float] | None:
+        """The instrument an impact on ``instrument`` sounds, with the zone and r/a to use, or None."""
+        if instrument in self.instruments:
+            return self.instruments[instrument], zone, r
+        alias = self.aliases.get(instrument)
+        if alias is not None:
+            target, forced_zone, forced_r = alias
+            if target in self.instruments:
+                return self.instruments[target], forced_zone or zone, forced_r if forced_r >= 0 else r
+        return None

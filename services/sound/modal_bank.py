@@ -1,0 +1,220 @@
+"""A block-wise vectorised bank of damped modal resonators.
+
+Each mode k is a complex one-pole resonator with pole
+``p_k = exp((-sigma_k + 2j pi f_k) / sr)``; its output is the imaginary part of
+its complex state, so a struck mode sounds ``a_k exp(-sigma_k t) sin(2 pi f_k t + phi_k)``.
+
+Instead of a recursion per sample (one pyo object per mode), the bank computes a
+whole block at once. Writing the sample index in the block as ``n = Bn a + b``
+(``a < A``, ``b < Bn``, ``A Bn = block``, 16 x 16 for 256) gives
+
+``y[Bn a + b] = Im(sum_k z_k p_k^(Bn a) p_k^b)``
+
+which is a real matrix product ``(A x 2K) @ (2K x Bn)`` of the state scaled by
+``p^(Bn a)`` (A cheap vector products, row after row while it is in cache)
+with a table of ``p^b`` computed when the modes change: BLAS does the work,
+about one multiply-add pair per mode-sample, and the only large array read
+per block is the table (2K x Bn float32).
+Strikes are injected sample-accurately inside a block. A bank whose energy has
+decayed below a floor is zeroed and skipped, so decayed modes cost nothing and
+never reach denormal floats.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+FloatArray = npt.NDArray[np.float64]
+ComplexArray = npt.NDArray[np.complex128]
+
+
+def _split(block: int) -> tuple[int, int]:
+    """Factor a block length into (A, Bn), A as large as 16 with Bn >= 8 (256 -> 16 x 16)."""
+    for a in (16, 8, 4, 2):
+        if block % a == 0 and block // a >= 8:
+            return a, block // a
+    return 1, block
+
+
+def _fit(values: ComplexArray, k: int) -> ComplexArray:
+    """Truncate or zero-pad to length k."""
+    if values.shape[0] >= k:
+        return values[:k]
+    return np.pad(values, (0, k - values.shape[0]))
+
+
+class ModeSet:
+    """A set of K modes rendered block by block.
+
+    Parameters
+    ----------
+    sample_rate : float
+        Sample rate, Hz.
+    block : int
+        Block length, samples.
+    floor : float
+        Amplitude below which a silent bank is zeroed and skipped (output units).
+    """
+
+    def __init__(self, sample_rate: float, block: int, floor: float = 1e-7) -> None:
+        self.sr = float(sample_rate)
+        self.block = int(block)
+        self.floor = float(floor)
+        self.A, self.Bn = _split(self.block)
+        self.freq: FloatArray = np.zeros(0)
+        self.decay: FloatArray = np.zeros(0)
+        self.z: ComplexArray = np.zeros(0, dtype=np.complex128)
+        self._pending: list[tuple[int, ComplexArray]] = []
+        self._blocks = 0
+        self._set_tables()
+
+    # ------------------------------------------------------------------ modes
+    @property
+    def size(self) -> int:
+        """Number of modes K."""
+        return int(self.freq.shape[0])
+
+    @property
+    def active(self) -> bool:
+        """True while the bank holds energy or a pending strike."""
+        return bool(self._pending) or self._live
+
+    def set_modes(self, freq_hz: npt.ArrayLike, decay_per_s: npt.ArrayLike) -> None:
+        """Set mode frequencies (Hz, shape (K,)) and decay rates (1/s, shape (K,)).
+
+        Modes above 0.48 sr get zero output (they would alias). The state of
+        modes that keep their index is kept, so a live change bends the pitch
+        of a ringing drum instead of cutting it; new modes start silent.
+        """
+        f = np.asarray(freq_hz, dtype=np.float64).reshape(-1)
+        d = np.asarray(decay_per_s, dtype=np.float64).reshape(-1)
+        if f.shape != d.shape:
+            raise ValueError(f"freq and decay shapes differ: {f.shape} vs {d.shape}")
+        if np.any(~np.isfinite(f)) or np.any(~np.isfinite(d)) or np.any(f < 0) or np.any(d < 0):
+            raise ValueError("mode frequencies and decay rates must be finite and >= 0")
+        old = self.z
+        self.freq = f
+        self.decay = d
+        z = np.zeros(f.shape[0], dtype=np.complex128)
+        n = min(old.shape[0], z.shape[0])
+        z[:n] = old[:n]
+        self.z = z
+        self._pending = [(off, _fit(amp, f.shape[0])) for off, amp in self._pending]
+        self._set_tables()
+
+    def _set_tables(self) -> None:
+        k = self.freq.shape[0]
+        s = (-self.decay + 2j * np.pi * self.freq) / self.sr
+        audible = (self.freq < 0.48 * self.sr).astype(np.float64)
+        self.poles_log: ComplexArray = np.asarray(s, dtype=np.complex128)
+        b = np.exp(np.outer(s, np.arange(self.Bn)))  # (K, Bn): p^b
+        # Im(x y) = Re(x) Im(y) + Im(x) Re(y). Rows interleaved per mode (2k: Im p^b, 2k+1: Re p^b) to match
+        # a complex64 array viewed as float32 pairs (Re, Im): no copy, and the first n modes are a prefix.
+        table = np.empty((k, 2, self.Bn))
+        table[:, 0, :] = b.imag * audible[:, None]
+        table[:, 1, :] = b.real * audible[:, None]
+        self._table = np.ascontiguousarray(table.reshape(2 * k, self.Bn), dtype=np.float32)  # (2K, Bn)
+        self._p_bn = np.exp(s * self.Bn).astype(np.complex64)  # (K,): p^Bn
+        # for strikes inside a block: p^q = p^(Bn a) p^b, rows contiguous
+        self._p_b_rows = np.ascontiguousarray(b.T)  # (Bn, K) complex128: p^b
+        self._p_a_rows = np.exp(np.outer(np.arange(self.A) * self.Bn, s))  # (A, K) complex128: p^(Bn a)
+        self._scaled = np.empty((self.A, k), dtype=np.complex64)  # z p^(Bn a), built by repeated products
+        self._p_block = np.exp(s * self.block)  # (K,)
+        self._live = bool(np.any(self.z != 0))
+        self.n_live = k if self._live else 0
+
+    def powers(self, n: int) -> ComplexArray:
+        """p_k^n for every mode, shape (K,)."""
+        return np.asarray(np.exp(self.poles_log * n))
+
+    def _advance(self, q: int) -> ComplexArray:
+        """p_k^q for 0 <= q <= block from the tables (no exp): (p^Bn)^a p^b with q = Bn a + b."""
+        if q == self.block:
+            return self._p_block
+        a, b = divmod(q, self.Bn)
+        return np.asarray(self._p_a_rows[a] * self._p_b_rows[b])
+
+    # ---------------------------------------------------------------- strikes
+    def strike(self, amplitude: npt.ArrayLike, offset: int = 0) -> None:
+        """Start every mode with complex amplitude ``amplitude[k]`` at sample ``offset`` of the next block.
+
+        The mode then sounds ``Im(amplitude[k] p_k^(n - offset))`` for
+        ``n >= offset``; strikes add (the bank is linear), so rolls and flams sum.
+        """
+        amp = np.asarray(amplitude, dtype=np.complex128).reshape(-1)
+        if amp.shape[0] != self.size:
+            raise ValueError(f"amplitude has {amp.shape[0]} modes, bank has {self.size}")
+        if not 0 <= offset < self.block:
+            raise ValueError(f"offset {offset} outside the block [0, {self.block})")
+        self._pending.append((int(offset), amp))
+
+    def scale(self, factor: float) -> None:
+        """Multiply the ringing state (e.g. a level change)."""
+        self.z *= factor
+
+    def clear(self) -> None:
+        """Silence every mode at once."""
+        self.z[:] = 0
+        self._pending.clear()
+        self._live = False
+        self.n_live = 0
+
+    # ---------------------------------------------------------------- render
+    def _block_of(self, z: ComplexArray, n: int | None = None, rows: int | None = None) -> npt.NDArray[np.float32]:
+        """Im(sum_k z_k p_k^i) for i in [0, rows * Bn) (default: the block) over the first ``n`` modes, float32."""
+        n = self.size if n is None else n
+        rows = self.A if rows is None else rows
+        if n == 0:
+            return np.zeros(rows * self.Bn, dtype=np.float32)
+        scaled = self._scaled[:rows, :n]  # (rows, n) complex64: z p^(Bn a), each row from the previous one
+        scaled[0] = z[:n]
+        p_bn = self._p_bn[:n]
+        for a in range(1, rows):
+            np.multiply(scaled[a - 1], p_bn, out=scaled[a])
+        return (scaled.view(np.float32) @ self._table[: 2 * n]).reshape(-1)
+
+    def process(self, out: npt.NDArray[np.float32]) -> None:
+        """Add the next block of the bank's output into ``out`` (shape (block,)).
+
+        Skips all work when the bank is silent.
+        """
+        if self.size == 0:
+            self._pending.clear()
+            return
+        if self._pending:
+            # a strike at sample `offset` is the same as amplitude amp p^-offset at the block start,
+            # minus what that would have sounded before `offset` (a partial product, offset / block of a block)
+            for offset, amp in self._pending:
+                if offset == 0:
+                    self.z += amp
+                    continue
+                shifted = amp / self._advance(offset)
+                self.z += shifted
+                rows = -(-offset // self.Bn)
+                out[:offset] -= self._block_of(shifted, self.size, rows)[:offset]
+            self._pending.clear()
+            self._live = True
+            self.n_live = self.size
+        if self._live:
+            n = self.n_live
+            out += self._block_of(self.z, n)
+            self.z[:n] *= self._p_block[:n]
+        self._blocks += 1
+        if self._live and self._blocks % 8 == 0:
+            # modes are sorted by frequency and high modes decay first: keep rendering only the
+            # prefix that still holds energy, zero the rest (so nothing ever reaches denormal floats)
+            live = self.z[: self.n_live]
+            mag = np.abs(live)
+            live[mag < self.floor] = 0
+            above = np.nonzero(mag >= self.floor)[0]
+            n_live = int(above[-1]) + 1 if above.size else 0
+            if n_live < self.n_live:
+                self.z[n_live: self.n_live] = 0
+                self.n_live = n_live
+            if n_live == 0:
+                self._live = False
+
+    def energy(self) -> float:
+        """Sum of squared mode amplitudes (output units squared)."""
+        return float(np.sum(np.abs(self.z) ** 2))
