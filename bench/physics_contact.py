@@ -1,0 +1,55 @@
+"""Stick-head contacts in the strike scene: duration, rebound and impulse per instrument and speed.
+
+    python bench/physics_contact.py          # a few seconds
+
+For each instrument (its kit elasticity) and tip speed, a stick on a fulcrum
+is thrown onto the event's hit point (services/physics/strike_scene.py) and
+the contact is measured: steps in contact (1 ms each), the approach velocity
+reported in the Contact messages, the rebound ratio (tip speed away from the
+head right after the contact / speed into it) and the total impulse.
+"""
+
+from __future__ import annotations
+
+from common.kit import EventType
+from common.messages import Contact
+from services.physics.core import PhysicsCore
+from services.physics.strike_scene import StrikeScene
+
+EVENTS = (EventType.SNARE, EventType.FLOORTOM, EventType.HIGHTOM, EventType.RIDE, EventType.CRASH,
+          EventType.HIHATCLOSED, EventType.COWBELL)
+SPEEDS = (1.0, 3.0, 6.0)
+
+
+def measure(event: EventType, speed: float) -> tuple[int, float, float, float, float]:
+    core = PhysicsCore(scene="strike", strike_event=event, strikes=[(0.05, speed)], pose_rate_hz=0.0)
+    scene = core.scene
+    assert isinstance(scene, StrikeScene)
+    contacts: list[Contact] = []
+    omega: dict[int, float] = {}
+    for k in range(1, 121):
+        contacts += [o.message for o in core.step(k / 1000) if isinstance(o.message, Contact)]
+        omega[k] = core.world.client.getJointState(scene.body, 0)[1]
+    core.close()
+    if not contacts:
+        return 0, 0.0, 0.0, 0.0, 0.0
+    first, last = contacts[0].step, contacts[0].step
+    for c in contacts[1:]:
+        if c.step == last + 1:
+            last = c.step
+    episode = [c for c in contacts if first <= c.step <= last]
+    rebound = omega[last + 1] / max(-omega[first - 1], 1e-9)
+    elasticity = core.kit.object(core.kit.events[event].object).elasticity
+    return len(episode), episode[0].normal_velocity, rebound, sum(c.impulse for c in episode), elasticity
+
+
+def main() -> None:
+    print(f"{'event':<13}{'elast.':>7}{'speed m/s':>10}{'steps':>7}{'v_in m/s':>10}{'rebound':>9}{'impulse Ns':>12}")
+    for event in EVENTS:
+        for speed in SPEEDS:
+            steps, v_in, rebound, impulse, e = measure(event, speed)
+            print(f"{event.value:<13}{e:7.2f}{speed:10.1f}{steps:7d}{v_in:10.2f}{rebound:9.2f}{impulse:12.4f}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,111 @@
+"""Real-time factor of the physics core at a 1 kHz step (goal: >= 5x real time on one core).
+
+    python bench/physics_rtf.py            # about 15 s
+    python bench/physics_rtf.py --seconds 3
+
+Measures simulated seconds per wall-clock second for the strike scene and for
+the full 57-DOF drummer with the whole kit, idle (holding the rest posture)
+and playing strokes (left hand on the snare, right hand on the hi-hat, kick),
+in each control mode, with a breakdown of where a drummer step's time goes.
+Timing on a shared machine is noisy: compare ratios from one run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import cProfile
+import math
+import pstats
+import time
+
+import numpy as np
+
+from common.kit import EventType, Kit
+from services.physics.core import PhysicsCore
+from services.physics.drummer import DrummerScene
+from services.physics.strokes import strokes_knots
+
+
+def hit_point(kit: Kit, event: EventType) -> tuple[np.ndarray, np.ndarray]:
+    spec = kit.events[event]
+    obj = kit.object(spec.object)
+    r = spec.r * obj.radius
+    return np.array(obj.to_world((r * math.cos(spec.theta), r * math.sin(spec.theta), 0.0))), np.array(obj.normal())
+
+
+def add_groove(core: PhysicsCore, seconds: float) -> None:
+    """Eighth notes on the hi-hat, snare on 2 and 4, kick on 1 and 3, at 100 bpm."""
+    scene = core.scene
+    assert isinstance(scene, DrummerScene)
+    beat = 0.6
+    for limb, event, times in (
+        ("right_hand", EventType.HIHATCLOSED, np.arange(0.3, seconds - 0.2, beat / 2)),
+        ("left_hand", EventType.SNARE, np.arange(0.3 + beat, seconds - 0.2, 2 * beat)),
+    ):
+        hit, normal = hit_point(core.kit, event)
+        ts, ps, vs = strokes_knots(scene.rest_targets[limb], hit, normal, list(times), [2.0] * len(times),
+                                   lift_s=0.1, return_s=0.12)
+        for k in range(len(ts)):
+            scene.add_cartesian(limb, float(ts[k]), ps[k], vs[k], 0.0)
+    rest = scene.rest_targets["right_foot"]
+    down = rest - np.array([0.0, 0.0, 0.05])
+    for t in np.arange(0.3, seconds - 0.2, 2 * beat):
+        for dt, pos in ((-0.1, rest), (0.0, down), (0.12, rest)):
+            scene.add_cartesian("right_foot", float(t + dt), pos, np.zeros(3), 0.0)
+
+
+def run(core: PhysicsCore, seconds: float) -> tuple[float, int]:
+    steps = round(seconds * core.rate_hz)
+    start = time.perf_counter()
+    contacts = 0
+    for k in range(1, steps + 1):
+        for out in core.step(k / core.rate_hz):
+            contacts += out.to == "interaction"
+    return seconds / (time.perf_counter() - start), contacts
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seconds", type=float, default=2.0, help="simulated seconds per case")
+    parser.add_argument("--profile", action="store_true", help="print the top functions of a drummer run")
+    args = parser.parse_args()
+
+    print(f"physics real-time factor at 1 kHz, {args.seconds:.1f} simulated s per case (goal >= 5x)")
+    t0 = time.perf_counter()
+    strike = PhysicsCore(scene="strike", strikes=[(0.1 + 0.25 * k, 3.0) for k in range(int(args.seconds * 4))])
+    rtf, contacts = run(strike, args.seconds)
+    print(f"  strike scene (stick + snare)            {rtf:7.2f}x   contacts {contacts}")
+    build = time.perf_counter()
+    core = PhysicsCore(scene="drummer")
+    print(f"  drummer + kit build: {time.perf_counter() - build:.2f} s (limits, rest posture IK, gains)")
+    rtf, contacts = run(core, args.seconds)
+    print(f"  drummer idle, cartesian                 {rtf:7.2f}x   contacts {contacts}")
+    for mode in ("cartesian", "joint_pd"):
+        core = PhysicsCore(scene="drummer", control=mode)
+        add_groove(core, args.seconds)
+        rtf, contacts = run(core, args.seconds)
+        print(f"  drummer groove, {mode:<10}              {rtf:7.2f}x   contacts {contacts}")
+    core = PhysicsCore(scene="drummer", control="cartesian")
+    core.world.client.stepSimulation()  # warm up
+    scene = core.scene
+    assert isinstance(scene, DrummerScene)
+    n = 500
+    start = time.perf_counter()
+    for _ in range(n):
+        core.world.client.stepSimulation()
+    step_only = (time.perf_counter() - start) / n
+    print(f"  PyBullet stepSimulation alone (drummer + kit): {1000 * step_only:.3f} ms/step "
+          f"= {0.001 / step_only:.2f}x at 1 kHz")
+    if args.profile:
+        core = PhysicsCore(scene="drummer")
+        add_groove(core, 1.0)
+        prof = cProfile.Profile()
+        prof.enable()
+        run(core, 1.0)
+        prof.disable()
+        pstats.Stats(prof).sort_stats("tottime").print_stats(12)
+    print(f"total bench time {time.perf_counter() - t0:.1f} s")
+
+
+if __name__ == "__main__":
+    main()

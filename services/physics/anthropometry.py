@@ -1,0 +1,206 @@
+"""Segment lengths, masses, centres of mass and radii of gyration (de Leva 1996).
+
+de Leva, P. (1996). Adjustments to Zatsiorsky-Seluyanov's segment inertia
+parameters. J. Biomechanics 29(9), 1223-1230, Tables 4 (male) and 4 (female):
+segment length (mm, for the reference subject), mass (% of body mass), centre
+of mass (% of the segment length from the proximal end point), radii of
+gyration (% of the segment length) about the sagittal, transverse and
+longitudinal axes. The trunk uses the three-part subdivision (upper, middle,
+lower trunk). Lengths are scaled by height / reference height, masses by body
+mass; radii stay proportional to the scaled lengths.
+
+Axes convention here: the "sagittal" radius is about the antero-posterior
+axis (y in the body frame), the "transverse" radius about the medio-lateral
+axis (x), the "longitudinal" radius about the segment's long axis (z).
+
+Segments de Leva does not tabulate (clavicle-scapula unit, neck) are carved
+out of their neighbours so the total mass stays the body mass: each shoulder
+girdle takes 0.7 % of body mass from the upper trunk; the neck takes a quarter
+of de Leva's head (which includes the neck), keeping the head-neck centre of
+mass where de Leva puts it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+Sex = Literal["male", "female"]
+
+
+@dataclass(frozen=True)
+class SegmentRow:
+    """One row of de Leva's table (reference subject)."""
+
+    length_mm: float
+    mass_pct: float
+    com_pct: float
+    r_sag_pct: float
+    r_trans_pct: float
+    r_long_pct: float
+
+
+REFERENCE = {"male": (1741.0, 73.0), "female": (1735.0, 61.9)}
+"""Reference stature (mm) and mass (kg) of de Leva's subjects."""
+
+# Head: VERT-CERV; trunk parts: CERV-XYPH, XYPH-OMPH, OMPH-MIDH; upper arm SJC-EJC;
+# forearm EJC-WJC; hand WJC-MET3; thigh HJC-KJC; shank KJC-LMAL; foot HEEL-TTIP.
+DE_LEVA: dict[Sex, dict[str, SegmentRow]] = {
+    "male": {
+        "head": SegmentRow(242.9, 6.94, 59.76, 36.2, 37.6, 31.2),
+        "upper_trunk": SegmentRow(242.1, 15.96, 29.99, 71.6, 45.4, 65.9),
+        "middle_trunk": SegmentRow(215.5, 16.33, 45.02, 48.2, 38.3, 46.8),
+        "lower_trunk": SegmentRow(145.7, 11.17, 61.15, 61.5, 55.1, 58.7),
+        "upper_arm": SegmentRow(281.7, 2.71, 57.72, 28.5, 26.9, 15.8),
+        "forearm": SegmentRow(268.9, 1.62, 45.74, 27.6, 26.5, 12.1),
+        "hand": SegmentRow(86.2, 0.61, 79.00, 62.8, 51.3, 40.1),
+        "thigh": SegmentRow(422.2, 14.16, 40.95, 32.9, 32.9, 14.9),
+        "shank": SegmentRow(434.0, 4.33, 44.59, 25.5, 24.9, 10.3),
+        "foot": SegmentRow(258.1, 1.37, 44.15, 25.7, 24.5, 12.4),
+    },
+    "female": {
+        "head": SegmentRow(243.7, 6.68, 58.94, 33.0, 35.9, 31.8),
+        "upper_trunk": SegmentRow(228.0, 15.45, 20.77, 74.6, 50.2, 71.8),
+        "middle_trunk": SegmentRow(205.3, 14.65, 45.12, 43.3, 35.4, 41.5),
+        "lower_trunk": SegmentRow(181.5, 12.47, 49.20, 43.3, 40.2, 44.4),
+        "upper_arm": SegmentRow(275.1, 2.55, 57.54, 27.8, 26.0, 14.8),
+        "forearm": SegmentRow(264.3, 1.38, 45.59, 26.1, 25.7, 9.4),
+        "hand": SegmentRow(78.0, 0.56, 74.74, 53.1, 45.4, 33.5),
+        "thigh": SegmentRow(368.5, 14.78, 36.12, 36.9, 36.4, 16.2),
+        "shank": SegmentRow(432.3, 4.81, 44.16, 27.1, 26.7, 9.3),
+        "foot": SegmentRow(228.3, 1.29, 40.14, 29.9, 27.9, 13.9),
+    },
+}
+
+SHOULDER_GIRDLE_MASS_PCT = 0.7
+NECK_SHARE_OF_HEAD = 0.25
+NECK_LENGTH_SHARE = 0.35
+"""The neck link spans this share of de Leva's VERT-CERV length, from CERV up."""
+
+SHOULDER_WIDTH_RATIO = 0.20
+"""Distance between the shoulder joint centres / stature."""
+HIP_WIDTH_RATIO = 0.105
+"""Distance between the hip joint centres / stature."""
+
+
+@dataclass(frozen=True)
+class Segment:
+    """A body segment scaled to a performer.
+
+    ``length_m``: end point to end point; ``mass_kg``; ``com_from_proximal_m``
+    along the segment from its proximal joint; ``radii_m``: radii of gyration
+    (about x: medio-lateral, y: antero-posterior, z: long axis).
+    """
+
+    name: str
+    length_m: float
+    mass_kg: float
+    com_from_proximal_m: float
+    radii_m: tuple[float, float, float]
+
+    def inertia(self) -> tuple[float, float, float]:
+        """Principal moments (ixx, iyy, izz) about the centre of mass, kg m^2."""
+        rx, ry, rz = self.radii_m
+        return (self.mass_kg * rx * rx, self.mass_kg * ry * ry, self.mass_kg * rz * rz)
+
+
+@dataclass(frozen=True)
+class Anthropometry:
+    """Segments of one performer (height m, mass kg) from de Leva's table."""
+
+    height_m: float
+    mass_kg: float
+    sex: Sex
+    segments: dict[str, Segment]
+
+    @property
+    def scale(self) -> float:
+        return self.height_m * 1000.0 / REFERENCE[self.sex][0]
+
+    @property
+    def shoulder_width_m(self) -> float:
+        return SHOULDER_WIDTH_RATIO * self.height_m
+
+    @property
+    def hip_width_m(self) -> float:
+        return HIP_WIDTH_RATIO * self.height_m
+
+
+def _segment(name: str, row: SegmentRow, scale: float, mass_kg: float, com_from_distal: bool = False) -> Segment:
+    length = row.length_mm / 1000.0 * scale
+    mass = row.mass_pct / 100.0 * mass_kg
+    com = row.com_pct / 100.0 * length
+    if com_from_distal:
+        com = length - com
+    return Segment(name, length, mass, com,
+                   (row.r_trans_pct / 100 * length, row.r_sag_pct / 100 * length, row.r_long_pct / 100 * length))
+
+
+def anthropometry(height_m: float = 1.75, mass_kg: float = 73.0, sex: Sex = "male",
+                  lengths_m: dict[str, float] | None = None) -> Anthropometry:
+    """Scale de Leva's table to a performer.
+
+    Parameters
+    ----------
+    height_m : float
+        Stature, metres (1.2 ... 2.2).
+    mass_kg : float
+        Body mass, kilograms (35 ... 150).
+    sex : {"male", "female"}
+        Which table.
+    lengths_m : dict, optional
+        Segment lengths (metres) overriding the scaled table, e.g. measured
+        from a BVH skeleton (:func:`services.physics.mocap.bvh_segment_lengths`);
+        masses stay from the table, centres of mass and radii follow the lengths.
+
+    Returns
+    -------
+    Anthropometry
+        Segments: pelvis, abdomen, thorax, neck, head, clavicle, upper_arm,
+        forearm, hand, thigh, shank, foot (one of each side-independent kind).
+    """
+    if not 1.2 <= height_m <= 2.2:
+        raise ValueError(f"height must be 1.2 ... 2.2 m, got {height_m}")
+    if not 35.0 <= mass_kg <= 150.0:
+        raise ValueError(f"mass must be 35 ... 150 kg, got {mass_kg}")
+    table = DE_LEVA[sex]
+    scale = height_m * 1000.0 / REFERENCE[sex][0]
+    seg: dict[str, Segment] = {}
+    # trunk: de Leva's proximal end is the upper point (CERV, XYPH, OMPH); our chain runs pelvis -> up,
+    # so centres of mass are measured from the lower (distal) end
+    seg["pelvis"] = _segment("pelvis", table["lower_trunk"], scale, mass_kg, com_from_distal=True)
+    seg["abdomen"] = _segment("abdomen", table["middle_trunk"], scale, mass_kg, com_from_distal=True)
+    thorax = _segment("thorax", table["upper_trunk"], scale, mass_kg, com_from_distal=True)
+    girdle_mass = SHOULDER_GIRDLE_MASS_PCT / 100.0 * mass_kg
+    seg["thorax"] = Segment("thorax", thorax.length_m, thorax.mass_kg - 2 * girdle_mass, thorax.com_from_proximal_m,
+                            thorax.radii_m)
+    head = _segment("head", table["head"], scale, mass_kg, com_from_distal=True)  # COM measured from CERV up
+    neck_len = NECK_LENGTH_SHARE * head.length_m
+    neck_mass = NECK_SHARE_OF_HEAD * head.mass_kg
+    head_mass = head.mass_kg - neck_mass
+    head_com_above_cerv = (head.mass_kg * head.com_from_proximal_m - neck_mass * neck_len / 2) / head_mass
+    seg["neck"] = Segment("neck", neck_len, neck_mass, neck_len / 2, (0.3 * neck_len, 0.3 * neck_len, 0.25 * neck_len))
+    seg["head"] = Segment("head", head.length_m - neck_len, head_mass, head_com_above_cerv - neck_len, head.radii_m)
+    clav_len = SHOULDER_WIDTH_RATIO * height_m / 2 - 0.015 * scale
+    seg["clavicle"] = Segment("clavicle", clav_len, girdle_mass, clav_len / 2,
+                              (0.2 * clav_len, 0.3 * clav_len, 0.3 * clav_len))
+    for name, key in (("upper_arm", "upper_arm"), ("forearm", "forearm"), ("hand", "hand"), ("thigh", "thigh"),
+                      ("shank", "shank"), ("foot", "foot")):
+        seg[name] = _segment(name, table[key], scale, mass_kg)
+    if lengths_m:
+        for name, length in lengths_m.items():
+            if name not in seg:
+                raise ValueError(f"unknown segment {name!r} (known: {', '.join(sorted(seg))})")
+            if not 0.01 <= length <= 1.5:
+                raise ValueError(f"segment {name} length {length} m is implausible")
+            old = seg[name]
+            k = length / old.length_m
+            seg[name] = Segment(name, length, old.mass_kg, old.com_from_proximal_m * k,
+                                (old.radii_m[0] * k, old.radii_m[1] * k, old.radii_m[2] * k))
+    return Anthropometry(height_m, mass_kg, sex, seg)
+
+
+def body_mass_of(a: Anthropometry) -> float:
+    """Mass of the whole body (both sides), kg."""
+    paired = ("clavicle", "upper_arm", "forearm", "hand", "thigh", "shank", "foot")
+    return sum(s.mass_kg * (2 if s.name in paired else 1) for s in a.segments.values())

@@ -1,0 +1,261 @@
+"""PhysicsCore: the physics service's deterministic core (ROLE "physics").
+
+It owns one PyBullet world and a scene:
+
+* ``scene="strike"``: a stick on a fulcrum over one instrument of the kit,
+  thrown onto it at scheduled (time, velocity) strikes (integration and tests);
+* ``scene="drummer"``: the 57-DOF percussionist on the throne at the whole kit,
+  tracking joint or Cartesian targets (see :mod:`services.physics.drummer`).
+
+Every step (default 1 kHz) it advances the world by one fixed step and sends a
+:class:`~common.messages.Contact` to ``interaction`` for each striker-instrument
+pair in contact; at the pose rate (default 60 Hz) it sends a
+:class:`~common.messages.Pose` to ``graphics``, preceded at start, every 5 s
+and on every Hello by the :class:`~common.messages.Skeleton` layout.
+
+Time: ``step(now)`` advances the simulation to rig time ``now`` (seconds). In
+``offline`` mode every step is simulated (as fast as the caller steps; the same
+inputs give bit-identical contacts). In ``live`` mode a call that finds the
+simulation more than ``max_catchup_steps`` behind simulates that many and skips
+the rest of the gap, counting ``overruns`` and ``skipped_steps``: the
+simulation is never silently slowed.
+
+Example (offline, one process)::
+
+    core = PhysicsCore(scene="strike", strikes=[(0.1, 3.0), (0.3, 1.5)])
+    for k in range(1, 400):
+        out = core.step(k / 1000)
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import zlib
+from collections import Counter
+from collections.abc import Iterable, Sequence
+from typing import TYPE_CHECKING, ClassVar, Literal, Protocol
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from common.core import Outgoing
+from common.kit import EventType, Kit, load_kit
+from common.messages import Contact, Hello, OscMessage, Pose, Skeleton
+from common.messages.physics import ControlModeName, PhysicsControlMode, PhysicsReset, PhysicsStrike
+from services.physics.contacts import ContactTracker
+from services.physics.strike_scene import Strike, StrikeScene
+from services.physics.targets import TargetError
+from services.physics.world import World, WorldSettings
+
+if TYPE_CHECKING:
+    from common.gesture.plan import GesturePlan
+
+log = logging.getLogger("batteur.physics")
+
+
+class PhysicsSettings(BaseModel):
+    """Settings of the physics core (the node fills them from flags and environment)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    scene: Literal["strike", "drummer"] = Field(default="drummer", description="what to simulate")
+    mode: Literal["offline", "live"] = Field(default="offline", description="time handling, see PhysicsCore")
+    rate_hz: float = Field(default=1000.0, ge=100, le=10000, description="physics step rate, Hz")
+    pose_rate_hz: float = Field(default=60.0, ge=0, le=240, description="pose publishing rate, Hz (0: off)")
+    kit: str = Field(default="default", description="kit name or YAML/JSON path (common/kits)")
+    left_handed: bool = Field(default=False, description="mirror the kit for a left-handed drummer")
+    strike_event: EventType = Field(default=EventType.SNARE, description="strike scene: which event's hit point")
+    strike_period_s: float = Field(default=0.0, ge=0, le=60,
+                                   description="strike scene: strike every this many seconds (0: on request)")
+    strike_velocity: float = Field(default=3.0, gt=0, le=30, description="strike scene: periodic tip speed, m/s")
+    solver_iterations: int = Field(default=50, ge=1, le=500, description="constraint solver iterations per step")
+    substeps: int = Field(default=1, ge=1, le=16, description="internal substeps per physics step")
+    max_catchup_steps: int = Field(default=50, ge=1, description="live mode: most steps simulated per call")
+    skeleton_period_s: float = Field(default=5.0, gt=0, description="how often the Skeleton layout is repeated, s")
+    height_m: float = Field(default=1.75, ge=1.2, le=2.2, description="drummer's height, metres")
+    mass_kg: float = Field(default=73.0, ge=35, le=150, description="drummer's mass, kilograms")
+    control: ControlModeName = Field(default="cartesian", description="controller")
+    grip: Literal["french", "german", "american", "traditional"] = Field(default="american", description="grip")
+
+
+class Scene(Protocol):
+    """What the core needs from a scene."""
+
+    tracker: ContactTracker
+    pose_links: list[tuple[str, int, int]]
+
+    def pre_step(self, t_next: float) -> None: ...
+
+    def reset(self) -> None: ...
+
+
+class PhysicsCore:
+    """The physics service core (see the module docstring)."""
+
+    ROLE: ClassVar[str] = "physics"
+
+    def __init__(
+        self,
+        settings: PhysicsSettings | None = None,
+        *,
+        strikes: Iterable[tuple[float, float]] = (),
+        kit: Kit | str | None = None,
+        **overrides: object,
+    ) -> None:
+        if isinstance(kit, str):  # a kit name or file: the settings' field
+            overrides["kit"] = kit
+            kit = None
+        base = settings if settings is not None else PhysicsSettings()
+        self.settings = PhysicsSettings.model_validate({**base.model_dump(), **overrides})
+        s = self.settings
+        self.rate_hz = s.rate_hz
+        self.world = World(WorldSettings(timestep_s=1.0 / s.rate_hz, solver_iterations=s.solver_iterations,
+                                         substeps=s.substeps))
+        kit_model = kit if kit is not None else load_kit(s.kit)
+        if s.left_handed and kit_model.handedness == "right":
+            kit_model = kit_model.mirrored()
+        self.kit = kit_model
+        self.scene: Scene
+        if s.scene == "strike":
+            strike_scene = StrikeScene(self.world, kit_model, event=s.strike_event, period_s=s.strike_period_s,
+                                       period_velocity=s.strike_velocity)
+            strike_scene.schedule([Strike(float(t), float(v)) for t, v in strikes])
+            self.scene = strike_scene
+        else:
+            from services.physics.drummer import DrummerScene
+
+            if tuple(strikes):
+                raise ValueError("strikes are for scene='strike'; the drummer plays targets")
+            self.scene = DrummerScene(self.world, kit_model, s)
+        self.names = [name for name, _, _ in self.scene.pose_links]
+        self.layout = zlib.crc32(",".join(self.names).encode()) & 0x7FFFFFFF
+        self.time_offset = 0.0
+        """rig time = simulation time + time_offset (live mode moves it forward when steps are skipped)."""
+        self.overruns = 0
+        self.skipped_steps = 0
+        self.rejected: Counter[str] = Counter()
+        self.contacts_sent = 0
+        self._last_skeleton = -math.inf
+        self._last_skip_warning = -math.inf
+        self._poses_sent = 0
+
+    # ---------------------------------------------------------------- Core protocol
+
+    def step(self, now: float) -> list[Outgoing]:
+        """Advance the simulation to rig time ``now`` seconds; return contacts, poses and layout messages."""
+        out: list[Outgoing] = []
+        if now - self._last_skeleton >= self.settings.skeleton_period_s:
+            out.append(Outgoing(self.skeleton(), "graphics"))
+            self._last_skeleton = now
+        dt = self.world.dt
+        target = math.floor((now - self.time_offset) / dt + 1e-6)
+        behind = target - self.world.steps
+        if behind <= 0:
+            return out
+        if self.settings.mode == "live":
+            if behind > 1:
+                self.overruns += 1
+            if behind > self.settings.max_catchup_steps:
+                skip = behind - self.settings.max_catchup_steps
+                self.skipped_steps += skip
+                self.time_offset += skip * dt
+                behind = self.settings.max_catchup_steps
+                if now - self._last_skip_warning >= 5.0:  # at most one warning per 5 s of rig time
+                    log.warning("physics %d steps behind the rig clock: skipped %d (%d skipped in all)",
+                                behind + skip, skip, self.skipped_steps)
+                    self._last_skip_warning = now
+        for _ in range(behind):
+            out.extend(self._one_step())
+        return out
+
+    def handle(self, message: OscMessage, now: float, source: str) -> list[Outgoing]:
+        """React to Hello (answer the layout) and to physics control messages."""
+        try:
+            return self._handle(message, now)
+        except (TargetError, ValueError) as exc:
+            kind = type(message).__name__
+            self.rejected[kind] += 1
+            log.warning("physics rejected %s from %s: %s", kind, source, exc)
+            return []
+
+    def _handle(self, message: OscMessage, now: float) -> list[Outgoing]:
+        if isinstance(message, Hello):
+            return [Outgoing(self.skeleton(), "reply")]
+        if isinstance(message, PhysicsReset):
+            self.scene.reset()
+            return []
+        if isinstance(message, PhysicsControlMode):
+            self.settings = self.settings.model_copy(update={"control": message.mode})
+        if isinstance(message, PhysicsStrike):
+            if not isinstance(self.scene, StrikeScene):
+                raise TargetError("/batteur/physics/strike needs the strike scene")
+            if message.time < self.time + self.world.dt:
+                raise TargetError(f"strike at {message.time:.4f} s is in the past (now {self.time:.4f} s)")
+            self.scene.schedule([Strike(message.time, message.velocity)])
+            return []
+        handler = getattr(self.scene, "handle", None)
+        if handler is not None:
+            handler(message, self.time)
+        return []
+
+    # ---------------------------------------------------------------- helpers
+
+    @property
+    def late(self) -> int:
+        """Steps skipped in live mode because the simulation fell behind the rig clock (Health.late)."""
+        return self.skipped_steps
+
+    @property
+    def time(self) -> float:
+        """Rig time of the current simulation state, seconds."""
+        return self.world.time + self.time_offset
+
+    def skeleton(self) -> Skeleton:
+        return Skeleton(layout=self.layout, names=tuple(self.names))
+
+    def schedule_strikes(self, strikes: Sequence[tuple[float, float]]) -> None:
+        """Strike scene: add (time s, velocity m/s) strikes."""
+        if not isinstance(self.scene, StrikeScene):
+            raise TargetError("strikes need the strike scene")
+        self.scene.schedule([Strike(float(t), float(v)) for t, v in strikes])
+
+    def load_plan(self, plan: GesturePlan, start_at: float | None = None) -> None:
+        """Drummer scene: track a gesture plan; its ``start_time`` maps to rig time ``start_at`` (default: now).
+
+        Raises :class:`TargetError` for a plan the drummer cannot follow (unknown limb, unreachable knot).
+        """
+        from services.physics.drummer import DrummerScene
+
+        if not isinstance(self.scene, DrummerScene):
+            raise TargetError("gesture plans need the drummer scene")
+        self.scene.load_plan(plan, self.time if start_at is None else start_at, now=self.time)
+
+    def pose(self) -> Pose:
+        values: list[float] = []
+        for _, body, link in self.scene.pose_links:
+            pos, quat = self.world.link_frame(body, link)
+            values.extend(float(v) for v in pos)
+            values.extend(float(v) for v in quat)
+        return Pose(time=self.time, layout=self.layout, values=tuple(values))
+
+    def _one_step(self) -> list[Outgoing]:
+        world = self.world
+        t_next = world.time + world.dt
+        self.scene.pre_step(t_next + self.time_offset)
+        self.scene.tracker.before_step()
+        world.step()
+        contacts: list[Contact] = self.scene.tracker.after_step(self.time, world.steps)
+        self.contacts_sent += len(contacts)
+        out = [Outgoing(c, "interaction") for c in contacts]
+        rate = self.settings.pose_rate_hz
+        if rate > 0 and math.floor(world.steps * world.dt * rate + 1e-9) >= self._poses_sent:
+            self._poses_sent += 1
+            out.append(Outgoing(self.pose(), "graphics"))
+        return out
+
+    def close(self) -> None:
+        """Disconnect the PyBullet clients (the world and the scene's helpers)."""
+        close = getattr(self.scene, "close", None)
+        if close is not None:
+            close()
+        self.world.close()

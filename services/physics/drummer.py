@@ -1,0 +1,522 @@
+"""The drummer scene: the 57-DOF percussionist on the throne at the whole kit.
+
+Build order: kit bodies (common/kit.py), joint limits (DeepMimic clips, see
+limits.py), the generated body pinned to the throne, the rest posture (solved
+by IK: right stick over the hi-hat, left over the snare, feet on their pedals
+for a right-handed kit; mirrored for a left-handed one), the controller.
+
+Inputs, all timed in rig seconds and streamed ahead of time:
+
+* Cartesian targets per limb (stick tips and balls of the feet) from
+  :class:`~common.messages.physics.CartesianTarget` or a whole
+  :class:`~common.gesture.plan.GesturePlan` (:meth:`DrummerScene.load_plan`);
+* joint targets (57 angles and velocities) from
+  :class:`~common.messages.physics.JointTarget`.
+
+Modes: ``cartesian`` / ``cartesian_pd`` (DLS IK on the actual state every
+step, feeding the computed-torque or the explicit PD); ``joint_pd`` /
+``joint_spd`` / ``joint_ct`` (PD tracking joint targets; Cartesian targets are
+first turned into joint targets by the same IK on a kinematic copy of the body,
+open loop, as the paper's joint-space tracking of captured gestures). See
+docs/physics.md.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from common.kit import EventType, Kit
+from common.messages import OscMessage
+from common.messages.physics import (
+    CartesianTarget,
+    JointTarget,
+    PhysicsControlMode,
+    PhysicsGains,
+    PhysicsGrip,
+    PhysicsIk,
+)
+from services.physics.anthropometry import anthropometry
+from services.physics.body import LIMBS, Body
+from services.physics.character import DOF_NAMES, JOINTS, CharacterSpec, build_character
+from services.physics.contacts import ContactTracker, Striker
+from services.physics.control import Controller
+from services.physics.kitbodies import FOOTBOARD_LENGTH_M, PEDAL_REST_ANGLE, build_kit
+from services.physics.limits import JointLimits, default_limits
+from services.physics.targets import TargetError, Track
+from services.physics.urdf import Inertial, Link, Robot, Shape, load_robot
+from services.physics.world import World, WorldSettings
+
+if TYPE_CHECKING:
+    from common.gesture.plan import GesturePlan
+    from services.physics.core import PhysicsSettings
+
+log = logging.getLogger("batteur.physics")
+
+N_DOF = len(DOF_NAMES)
+STICK_DESCENT_DEG = 12.0
+"""At rest a stick descends this much from the hand to the tip, degrees."""
+FOOT_HOVER_M = 0.04
+"""At rest the ball of each foot hovers this far above its footboard, metres (no weight on the pedal)."""
+
+
+@dataclass(frozen=True)
+class GripSpec:
+    """Forearm pronation (elbow z, radians; right side, left mirrored) and fulcrum spring stiffness (N m/rad)."""
+
+    pronation: float
+    k_pitch: float
+    k_yaw: float
+
+
+GRIPS: dict[str, GripSpec] = {
+    "french": GripSpec(0.0, 15.0, 60.0),  # palms facing, thumbs up: the stick pivots about the hand's x
+    "german": GripSpec(math.radians(80.0), 60.0, 15.0),  # palms down: it pivots about the stick frame's z
+    "american": GripSpec(math.radians(45.0), 20.0, 20.0),  # matched, in between
+    "traditional": GripSpec(math.radians(45.0), 20.0, 20.0),  # right hand as american; the left is underhand
+}
+"""Soft fingers in the stroke direction (15-20 N m/rad): the stick rebounds in the hand while the hand follows
+through (stiffer fingers press the stick into the head for 20-30 ms at 3 m/s)."""
+TRADITIONAL_LEFT = GripSpec(math.radians(-60.0), 15.0, 60.0)
+
+_LIMIT_CACHE: dict[str, JointLimits] = {}
+
+
+def cached_default_limits() -> JointLimits:
+    """DeepMimic limits are the same for every drummer; compute them once per process."""
+    if "default" not in _LIMIT_CACHE:
+        _LIMIT_CACHE["default"] = default_limits()
+    return _LIMIT_CACHE["default"]
+
+
+def initial_guess(grip: str) -> np.ndarray:
+    """A seated playing posture to start the rest-posture IK from (57,) radians."""
+    q = np.zeros(N_DOF)
+
+    def put(joint: str, x: float = 0.0, y: float = 0.0, z: float = 0.0) -> None:
+        i = JOINTS.index(joint) * 3
+        q[i:i + 3] = (x, y, z)
+
+    put("lumbar", -0.08)
+    put("thoracic", -0.05)
+    for side, sx in (("left", -1.0), ("right", 1.0)):
+        g = grip_for(grip, side)
+        put(f"{side}_shoulder", 0.45, -sx * 0.3, 0.0)
+        put(f"{side}_elbow", 1.2, 0.0, sx * g.pronation)
+        put(f"{side}_wrist", -0.2, 0.0, 0.0)
+        put(f"{side}_hip", 1.35, -sx * 0.15, 0.0)
+        put(f"{side}_knee", -1.5, 0.0, 0.0)
+        put(f"{side}_ankle", 0.1, 0.0, 0.0)
+    return q
+
+
+def grip_for(grip: str, side: str) -> GripSpec:
+    if grip not in GRIPS:
+        raise TargetError(f"unknown grip {grip!r} (known: {', '.join(GRIPS)})")
+    if grip == "traditional" and side == "left":
+        return TRADITIONAL_LEFT
+    return GRIPS[grip]
+
+
+def footboard_point(position: tuple[float, float, float], along: float = 0.65) -> np.ndarray:
+    """A point on a pedal's footboard top surface at rest, ``along`` its length from the heel (metres)."""
+    heel = np.array(position) + np.array([0.0, -FOOTBOARD_LENGTH_M / 2, 0.0])
+    d = along * FOOTBOARD_LENGTH_M
+    return heel + np.array([0.0, d * math.cos(PEDAL_REST_ANGLE), d * math.sin(PEDAL_REST_ANGLE) + 0.012])
+
+
+def solve_posture(body: Body, targets: dict[str, np.ndarray], q0: np.ndarray, clamp: Any,
+                  iterations: int = 60, damping: float = 0.05, frozen: np.ndarray | None = None,
+                  rest: np.ndarray | None = None, posture_gain: float = 0.0,
+                  extra: dict[int, np.ndarray] | None = None) -> tuple[np.ndarray, float]:
+    """Kinematic DLS IK (teleports the body): joint angles (57,) reaching ``targets`` {limb: (3,)}; max error m.
+
+    ``extra``: more point targets {link index: (3,)} (e.g. where the hands hold the sticks, which sets the
+    sticks' direction); ``frozen``: DOF that keep ``q0``.
+    """
+    q = q0.copy()
+    rows = [LIMBS.index(limb) for limb in LIMBS if limb in targets]
+    links = [body.effector_links[LIMBS[r]] for r in rows] + list((extra or {}).keys())
+    goals = [targets[LIMBS[r]] for r in rows] + list((extra or {}).values())
+    free = np.ones(N_DOF, dtype=bool) if frozen is None else ~frozen
+    err_max = math.inf
+    for _ in range(iterations):
+        body.set_state(q)
+        eff, jac, _ = body.kinematics(links)
+        err = np.concatenate([g - e for g, e in zip(goals, eff, strict=True)])
+        err_max = float(np.max(np.abs(err)))
+        if err_max < 2e-4:
+            break
+        j = jac.reshape(3 * len(links), -1) * free[None, :]
+        inv = np.linalg.inv(j @ j.T + damping**2 * np.eye(j.shape[0]))
+        dq = j.T @ (inv @ err)
+        if rest is not None and posture_gain > 0:
+            post = posture_gain * (rest - q) * free
+            dq += post - j.T @ (inv @ (j @ post))
+        q = clamp(q + dq)
+    return q, err_max
+
+
+class DrummerScene:
+    """The percussionist at the kit (see the module docstring)."""
+
+    def __init__(self, world: World, kit: Kit, settings: PhysicsSettings, limits: JointLimits | None = None) -> None:
+        self.world = world
+        self.kit = kit
+        self.settings = settings
+        self.limits = limits if limits is not None else cached_default_limits()
+        self.kit_bodies = build_kit(world, kit)
+        throne = next((o for o in kit.objects if o.kind == "throne"), None)
+        self.seat_position = (0.0, 0.0, 0.52) if throne is None else tuple(throne.position)
+        self._floor(world)
+        self.anthro = anthropometry(settings.height_m, settings.mass_kg)
+        self.spec = CharacterSpec(self.anthro, limits=self.limits.dof_limits())
+        self.model = build_character(self.spec)
+        self.body = Body(world, self.model, self.seat_position)  # type: ignore[arg-type]
+        self.grip: dict[str, str] = {"left": settings.grip, "right": settings.grip}
+        # rest posture by IK, then the controller
+        self.rest_targets = self._rest_targets()
+        guess = initial_guess(settings.grip)
+        frozen = np.zeros(N_DOF, dtype=bool)
+        for side in ("left", "right"):
+            frozen[JOINTS.index(f"{side}_elbow") * 3 + 2] = True
+        frozen[0:3] = True  # the seat joint stays upright at rest
+        clamp = _box_clamp(self.body)
+        self.body.set_state(guess)
+        extra = self._stick_holds()
+        self.rest, self.rest_error = solve_posture(self.body, self.rest_targets, guess, clamp, iterations=300,
+                                                   frozen=frozen, rest=guess, posture_gain=0.05, extra=extra)
+        self.controller = Controller(world, self.body, self.limits, self.rest)
+        self.rest = self.controller.clamp_targets(self.rest)
+        self.controller.rest = self.rest.copy()
+        self.controller.mode = settings.control
+        self.body.set_state(self.rest)
+        self._kin: tuple[World, Body] | None = None
+        self._kin_q = self.rest.copy()
+        self.limb_tracks: dict[str, Track] = {limb: Track(3) for limb in LIMBS}
+        self.joint_track = Track(N_DOF)
+        self.tracker = ContactTracker(world, self.kit_bodies)
+        for side in ("left", "right"):
+            self.tracker.add_striker(Striker(self.body.id, self.body.link_index[f"{side}_stick"], f"{side}_stick",
+                                             stick=self.spec.stick, side=side))
+        self.pose_links: list[tuple[str, int, int]] = [
+            (name, self.body.id, self.body.link_index[name]) for name in self.model.segments
+        ] + self.kit_bodies.pose_links
+        self.reach = self._reach()
+        bead = np.array([0.0, 0.0, self.spec.stick.tip_radius_m])
+        self.target_offset = {limb: bead if limb.endswith("hand") else np.zeros(3) for limb in LIMBS}
+        self.last_targets: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        self.head: tuple[Any, float] | None = None
+        """The plan's head trajectory (look-at point, nod) and its time offset, if any."""
+        self.last_joint_target: tuple[np.ndarray, np.ndarray] = (self.rest.copy(), np.zeros(N_DOF))
+
+    # ------------------------------------------------------------------ construction helpers
+
+    def _floor(self, world: World) -> None:
+        robot = Robot("floor")
+        robot.add_link(Link("floor", Inertial(0.0), (Shape("box", (4.0, 4.0, 0.1), xyz=(0, 0, -0.05),
+                                                             rgba=(0.3, 0.3, 0.3, 1.0)),)))
+        self.floor = load_robot(world.client, robot, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0), fixed_base=True)
+
+    def _rest_targets(self) -> dict[str, np.ndarray]:
+        kit = self.kit
+        left_is_lead = kit.handedness == "right"
+        out: dict[str, np.ndarray] = {}
+
+        def above(event: EventType, height: float) -> np.ndarray | None:
+            if event not in kit.events:
+                return None
+            spec = kit.events[event]
+            obj = kit.object(spec.object)
+            r = spec.r * obj.radius
+            local = (r * math.cos(spec.theta), r * math.sin(spec.theta), 0.0)
+            world = np.asarray(obj.to_world(local)) if hasattr(obj, "to_world") else np.asarray(obj.position)
+            return world + np.asarray(obj.normal()) * height
+
+        snare = above(EventType.SNARE, 0.08)
+        hihat = above(EventType.HIHATCLOSED, 0.10)
+        lead_hand, other_hand = ("right_hand", "left_hand") if left_is_lead else ("left_hand", "right_hand")
+        if hihat is not None:
+            out[lead_hand] = hihat
+        if snare is not None:
+            out[other_hand] = snare
+        for limb, pedal_id in (("right_foot", "kick_pedal"), ("left_foot", "hihat_pedal")):
+            if kit.handedness == "left":
+                limb = "left_foot" if limb == "right_foot" else "right_foot"
+            try:
+                pedal = kit.object(pedal_id)
+            except KeyError:
+                continue
+            out[limb] = footboard_point(pedal.position) + np.array([0.0, 0.0, FOOT_HOVER_M])
+        return out
+
+    def _stick_holds(self) -> dict[int, np.ndarray]:
+        """Where each hand holds its stick at rest: behind and above the tip, toward the shoulder, so the stick
+        points at its instrument descending ``STICK_DESCENT_DEG`` (link index of the fulcrum -> (3,) metres)."""
+        out: dict[int, np.ndarray] = {}
+        for limb in ("left_hand", "right_hand"):
+            if limb not in self.rest_targets:
+                continue
+            side = limb.split("_")[0]
+            tip = self.rest_targets[limb]
+            shoulder, _ = self.body.link_pose(self.body.joint_index[f"{side}_shoulder_x"])
+            back = shoulder - tip
+            back[2] = 0.0
+            back /= max(float(np.linalg.norm(back)), 1e-9)
+            a = math.radians(STICK_DESCENT_DEG)
+            reach = self.spec.stick.tip_offset
+            hold = tip + reach * (math.cos(a) * back + np.array([0.0, 0.0, math.sin(a)]))
+            out[self.body.link_index[f"{side}_fulcrum"]] = hold
+        return out
+
+    def _reach(self) -> dict[str, tuple[np.ndarray, float]]:
+        """Per limb: the root joint's rest position and the maximum reach (metres), for validating targets."""
+        seg = self.anthro.segments
+        arm = seg["clavicle"].length_m + seg["upper_arm"].length_m + seg["forearm"].length_m + \
+            seg["hand"].length_m + self.spec.stick.tip_offset + 0.35  # + the trunk leaning
+        leg = seg["thigh"].length_m + seg["shank"].length_m + seg["foot"].length_m
+        out: dict[str, tuple[np.ndarray, float]] = {}
+        for limb, joint, reach in (("left_hand", "left_clavicle_x", arm), ("right_hand", "right_clavicle_x", arm),
+                                   ("left_foot", "left_hip_x", leg), ("right_foot", "right_hip_x", leg)):
+            pos, _ = self.body.link_pose(self.body.joint_index[joint])
+            out[limb] = (pos, reach)
+        return out
+
+    # ------------------------------------------------------------------ inputs
+
+    def check_cartesian(self, limb: str, position: np.ndarray) -> None:
+        if limb not in self.limb_tracks:
+            raise TargetError(f"unknown limb {limb!r} (known: {', '.join(LIMBS)})")
+        if not np.all(np.isfinite(position)):
+            raise TargetError(f"{limb} target {position.tolist()} is not finite")
+        root, reach = self.reach[limb]
+        dist = float(np.linalg.norm(position - root))
+        if dist > reach:
+            raise TargetError(f"{limb} target {np.round(position, 3).tolist()} is unreachable: "
+                              f"{dist:.2f} m from the limb's root, reach {reach:.2f} m")
+
+    def add_cartesian(self, limb: str, time: float, position: np.ndarray, velocity: np.ndarray, now: float) -> None:
+        """Queue one Cartesian waypoint (rig time s, metres, m/s); raises :class:`TargetError`."""
+        position = np.asarray(position, dtype=float)
+        velocity = np.asarray(velocity, dtype=float)
+        if position.shape != (3,) or velocity.shape != (3,):
+            raise TargetError(f"a Cartesian target needs 3 coordinates and 3 velocities, "
+                              f"got {position.size} and {velocity.size}")
+        if not math.isfinite(time):
+            raise TargetError("target time is not finite")
+        if time < now - 1e-9:
+            raise TargetError(f"{limb} target at {time:.4f} s is in the past (now {now:.4f} s)")
+        self.check_cartesian(limb, position)
+        if not np.all(np.isfinite(velocity)):
+            raise TargetError(f"{limb} target velocity {velocity.tolist()} is not finite")
+        self.limb_tracks[limb].add(time, position, velocity)
+
+    def add_joints(self, time: float, values: np.ndarray | tuple[float, ...], now: float) -> None:
+        """Queue one joint waypoint: 57 angles (rad) then 57 velocities (rad/s); raises :class:`TargetError`."""
+        v = np.asarray(values, dtype=float).reshape(-1)
+        if v.size != 2 * N_DOF:
+            raise TargetError(f"joint target needs {2 * N_DOF} values ({N_DOF} angles then {N_DOF} velocities), "
+                              f"got {v.size}")
+        if not np.all(np.isfinite(v)) or not math.isfinite(time):
+            bad = [DOF_NAMES[i % N_DOF] for i in np.flatnonzero(~np.isfinite(v))[:3]]
+            raise TargetError(f"joint target has non-finite values (first: {', '.join(bad) or 'time'})")
+        if time < now - 1e-9:
+            raise TargetError(f"joint target at {time:.4f} s is in the past (now {now:.4f} s)")
+        q = v[:N_DOF]
+        tol = 1e-3
+        out = np.flatnonzero((q < self.body.lower - tol) | (q > self.body.upper + tol))
+        if out.size:
+            i = int(out[0])
+            raise TargetError(f"joint target {DOF_NAMES[i]} = {math.degrees(q[i]):.1f} deg is outside its limits "
+                              f"[{math.degrees(self.body.lower[i]):.1f}, {math.degrees(self.body.upper[i]):.1f}] deg"
+                              f"{f' (and {out.size - 1} more)' if out.size > 1 else ''}")
+        self.joint_track.add(time, q, v[N_DOF:])
+
+    def load_plan(self, plan: GesturePlan, start_at: float, now: float | None = None) -> None:
+        """Track a whole gesture plan: its time ``plan.start_time`` maps to rig time ``start_at`` (seconds).
+
+        Every knot is checked first (nothing is queued if one is unreachable). When the plan starts later
+        than ``now``, each limb first moves smoothly from where it is to the plan's first knot.
+        """
+        offset = start_at - plan.start_time
+        for limb, traj in plan.trajectories.items():
+            name = str(limb.value if hasattr(limb, "value") else limb)
+            if name not in self.limb_tracks:
+                raise TargetError(f"plan has unknown limb {name!r}")
+            for k in range(len(traj.times)):
+                self.check_cartesian(name, traj.positions[k])
+        here = self.current_targets()
+        self.head = (plan.head, offset) if plan.head is not None else None
+        for limb, traj in plan.trajectories.items():
+            name = str(limb.value if hasattr(limb, "value") else limb)
+            track = self.limb_tracks[name]
+            track.clear()
+            if now is not None and traj.times[0] + offset > now + 1e-3:
+                track.add(now, here[name], np.zeros(3))
+            track.extend(traj.times + offset, traj.positions, traj.velocities)
+
+    def current_targets(self) -> dict[str, np.ndarray]:
+        """Where each limb's target point is now (the inverse of the hands' bead offset), metres."""
+        self.body.update()
+        eff, _, _ = self.body.kinematics()
+        return {limb: eff[i] - self.target_offset[limb] for i, limb in enumerate(LIMBS)}
+
+    def handle(self, message: OscMessage, now: float) -> None:
+        if isinstance(message, CartesianTarget):
+            self.add_cartesian(message.limb, message.time, np.array([message.x, message.y, message.z]),
+                               np.array([message.vx, message.vy, message.vz]), now)
+        elif isinstance(message, JointTarget):
+            self.add_joints(message.time, message.values, now)
+        elif isinstance(message, PhysicsControlMode):
+            self.controller.mode = message.mode
+            self.controller.reset_reference()
+        elif isinstance(message, PhysicsGains):
+            self.controller.set_gains(message.group, message.ks_scale, message.kd_scale)
+        elif isinstance(message, PhysicsIk):
+            self.controller.set_params(dataclasses.replace(self.controller.params, ik_damping=message.damping,
+                                                           posture_gain=message.posture_gain))
+        elif isinstance(message, PhysicsGrip):
+            self.set_grip(message.hand, message.grip)
+
+    def set_grip(self, hand: str, grip: str) -> None:
+        """Change the grip live: the forearm pronation of the rest posture and the fulcrum springs."""
+        sides = ("left", "right") if hand == "both" else (hand,)
+        for side in sides:
+            if side not in self.grip:
+                raise TargetError(f"unknown hand {side!r}")
+            spec = grip_for(grip, side)
+            self.grip[side] = grip
+            sx = 1.0 if side == "right" else -1.0
+            self.rest[JOINTS.index(f"{side}_elbow") * 3 + 2] = sx * spec.pronation
+        self.controller.rest = self.rest.copy()
+
+    def reset(self) -> None:
+        for track in self.limb_tracks.values():
+            track.clear()
+        self.joint_track.clear()
+        self.body.set_state(self.rest)
+        self._kin_q = self.rest.copy()
+        self.controller.rest = self.rest.copy()
+        self.head = None
+        self.controller.reset_reference()
+
+    # ------------------------------------------------------------------ stepping
+
+    def close(self) -> None:
+        """Disconnect the helper clients (kinematic copy, inverse dynamics copy)."""
+        if self._kin is not None:
+            self._kin[0].close()
+            self._kin = None
+        self.controller.close()
+
+    def _kinematic(self) -> Body:
+        """A kinematic copy of the body in its own world (for open-loop IK in joint modes)."""
+        if self._kin is None:
+            kin_world = World(WorldSettings(timestep_s=self.world.dt))
+            self._kin = (kin_world, Body(kin_world, self.model, self.seat_position))  # type: ignore[arg-type]
+        return self._kin[1]
+
+    def cartesian_targets(self, t: float) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """Effector targets at rig time ``t``: {limb: (aim point (3,) m, velocity (3,) m/s)}.
+
+        A hand's target is where its bead touches (the stick's lowest point, as the gesture planner
+        gives hit points on the surface); the controlled aim point is the bead centre, one bead radius up.
+        """
+        out: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        for limb, track in self.limb_tracks.items():
+            if len(track):
+                track.prune(t - 1.0)
+                pos, vel = track.sample(t)
+                out[limb] = (pos + self.target_offset[limb], vel)
+        return out
+
+    def joint_reference(self, t: float, targets: dict[str, tuple[np.ndarray, np.ndarray]]
+                        ) -> tuple[np.ndarray, np.ndarray]:
+        """Joint targets for joint-space modes: the joint track, else open-loop IK of the Cartesian targets."""
+        if len(self.joint_track):
+            self.joint_track.prune(t - 1.0)
+            return self.joint_track.sample(t)
+        if not targets:
+            return self.controller.rest.copy(), np.zeros(N_DOF)
+        kin = self._kinematic()
+        rows = [LIMBS.index(limb) for limb in LIMBS if limb in targets]
+        # one damped least-squares iteration per step from the previous solution (targets move little in 1 ms)
+        q = self._kin_q
+        kin.set_state(q)
+        eff, jac, _ = kin.kinematics()
+        j = jac[rows].reshape(3 * len(rows), -1)
+        err = np.concatenate([targets[LIMBS[r]][0] - eff[r] for r in rows])
+        vel = np.concatenate([targets[LIMBS[r]][1] for r in rows])
+        inv = np.linalg.inv(j @ j.T + 0.02**2 * np.eye(j.shape[0]))
+        post = 0.02 * (self.rest - q)
+        dq = j.T @ (inv @ err) + post - j.T @ (inv @ (j @ post))
+        qd = j.T @ (inv @ vel)
+        active = np.any(self.body.chain_mask[rows], axis=0)
+        q = np.where(active, np.clip(q + dq, self.body.lower, self.body.upper), self.controller.rest)
+        qd = np.where(active, qd, 0.0)
+        self._kin_q = q
+        return q, qd
+
+    def _head_posture(self, t: float) -> None:
+        """Turn the head toward the plan's look-at point and nod (neck and head joints share the motion)."""
+        if self.head is None:
+            return
+        head, offset = self.head
+        target, nod = head.sample(t - offset)
+        neck = self.body.link_pose(self.body.link_index["head"])[0]
+        d = np.asarray(target) - neck
+        yaw = math.atan2(-d[0], d[1])  # +z turns the face (+y) toward -x
+        pitch = math.atan2(d[2], math.hypot(d[0], d[1]))  # looking down: negative
+        base = self.controller.rest
+        i_neck, i_head = JOINTS.index("neck") * 3, JOINTS.index("head") * 3
+        # +x tilts an upright segment backward: looking down and nodding are -x
+        base[i_neck + 2] = base[i_head + 2] = float(np.clip(yaw / 2, -0.6, 0.6))
+        base[i_neck] = float(np.clip(pitch / 2, -0.5, 0.3))
+        base[i_head] = float(np.clip(pitch / 2 - nod, -0.5, 0.3))
+
+    def passive_torques(self) -> np.ndarray:
+        """Fulcrum spring-damper torques (fingers), N m, for [left x, left z, right x, right z]."""
+        q, qd = self.body.passive_state()
+        k = []
+        for side in ("left", "right"):
+            g = grip_for(self.grip[side], side)
+            k += [g.k_pitch, g.k_yaw]
+        ks = np.array(k)
+        inertia = 1.2e-3
+        kd = 2 * 0.3 * np.sqrt(ks * inertia)
+        return -ks * q - kd * qd
+
+    def pre_step(self, t_next: float) -> None:
+        """Compute and apply this step's torques for the state at the start of the step ending at ``t_next``."""
+        self.body.update()
+        theta, theta_dot = self.body.state()
+        touching = {f"{side}_hand" for side in ("left", "right") if f"{side}_stick" in self.tracker.touching}
+        c = self.world.client
+        for side in ("left", "right"):  # a foot on a footboard: no wind-up either
+            foot = self.body.link_index[f"{side}_foot"]
+            if any(c.getContactPoints(bodyA=self.body.id, bodyB=pedal.body, linkIndexA=foot)
+                   for pedal in self.kit_bodies.pedals.values()):
+                touching.add(f"{side}_foot")
+        self.controller.touching = touching
+        targets = self.cartesian_targets(t_next)
+        self.last_targets = targets
+        self._head_posture(t_next)
+        if self.controller.mode.startswith("cartesian") and not len(self.joint_track):
+            theta_t, theta_dot_t = self.controller.ik_targets(theta, targets, touching)
+        else:
+            theta_t, theta_dot_t = self.joint_reference(t_next, targets)
+        self.last_joint_target = (theta_t, theta_dot_t)
+        self.controller.apply(theta, theta_dot, theta_t, theta_dot_t, self.passive_torques())
+        self.kit_bodies.pre_step(self.world)
+
+
+def _box_clamp(body: Body) -> Any:
+    def clamp(q: np.ndarray) -> np.ndarray:
+        return np.clip(q, body.lower, body.upper)
+
+    return clamp

@@ -1,0 +1,401 @@
+"""The drum kit as PyBullet bodies, built from the shared kit description (common/kit.py).
+
+* membranes (snare, toms, kick) and the cowbell: static bodies whose frame is
+  the kit object's frame (local +z = playing surface normal, origin = centre of
+  the head); the shell is a cylinder behind the head.
+* cymbals: a fixed mount and the cymbal on a two-axis spring hinge (two
+  revolute joints, explicit spring-damper torques), so a struck cymbal swings
+  and settles (Kragtwijk's eta^t alpha sin(beta t)).
+* hi-hat: the bottom cymbal is static; the top cymbal rides a prismatic rod
+  whose opening follows the hi-hat pedal's footboard angle. The top closing on
+  the bottom is a contact (part ``hihat_top``, instrument ``hihat``).
+* pedals: a footboard on a heel hinge with a return spring; the kick pedal's
+  beater is geared to its footboard (a gear constraint), so pressing the
+  footboard swings the beater into the kick head. A double pedal adds a second
+  footboard and beater for the other foot.
+* throne and stands: static; stands are visual only (no collision).
+
+Contact compliance (stiffness, damping) is set per instrument from its kind
+and elasticity (see :func:`contact_parameters`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import pybullet as p
+
+from common.kit import Kit, KitObject
+from services.physics.urdf import Inertial, Joint, Link, Robot, Shape, cylinder_inertia, load_robot
+from services.physics.world import World, quat_from_rpy_deg, rotation_matrix
+
+CYMBAL_DENSITY = 8600.0 * 0.6
+"""Effective cymbal density, kg/m^3: B20 bronze (8600) times 0.6 for the taper of a real cymbal."""
+
+HIHAT_MAX_GAP_M = 0.025
+"""Gap between the hi-hat cymbals at opening 1, metres."""
+
+PEDAL_REST_ANGLE = math.radians(22.0)
+"""Footboard angle at rest above the floor plate, radians (0: pressed flat)."""
+
+FOOTBOARD_LENGTH_M = 0.26
+PEDAL_SPRING_NM_PER_RAD = 40.0
+"""Return spring of a footboard, N m/rad."""
+
+_SILVER = (0.75, 0.75, 0.78, 1.0)
+_BRASS = (0.85, 0.68, 0.25, 1.0)
+_HEAD = (0.95, 0.94, 0.9, 1.0)
+_DARK = (0.15, 0.15, 0.17, 1.0)
+
+
+@dataclass(frozen=True)
+class ContactParameters:
+    """Compliant contact: stiffness N/m, damping N s/m, friction coefficient."""
+
+    stiffness: float
+    damping: float
+    friction: float = 0.5
+
+
+def contact_parameters(obj: KitObject) -> ContactParameters:
+    """Per-instrument compliant contact parameters from the object's kind and elasticity.
+
+    Membranes are soft (a head deflects a few millimetres under a stick), metal
+    is stiffer. Elasticity (0..1) lowers the damping: 1 gives an undamped
+    spring, 0 a heavily damped one. PyBullet's implicit contact spring also
+    loses energy at a 1 ms step, so the measured restitution is below the
+    nominal elasticity (bench/physics_contact.py prints both).
+    """
+    e = obj.elasticity
+    if obj.kind == "membrane":
+        return ContactParameters(stiffness=6000.0, damping=6.0 * (1.0 - e))
+    if obj.kind in ("cymbal", "hihat", "bell"):
+        return ContactParameters(stiffness=15000.0, damping=6.0 * (1.0 - e))
+    return ContactParameters(stiffness=30000.0, damping=60.0 * (1.0 - e) + 5.0, friction=0.9)
+
+
+@dataclass
+class Spring:
+    """An explicit spring-damper on one joint: tau = -k (q - rest) - c q_dot (N m/rad, N m s/rad)."""
+
+    body: int
+    joint: int
+    stiffness: float
+    damping: float
+    rest: float = 0.0
+
+
+@dataclass
+class Pedal:
+    """A footboard (and optionally beaters geared to it)."""
+
+    object_id: str
+    body: int
+    footboard_joint: int
+    footboard_link: int
+    beater_links: list[int] = field(default_factory=list)
+    beater_parts: list[str] = field(default_factory=list)
+
+    def press(self, world: World) -> float:
+        """How far the footboard is pressed, 0 (rest) ... 1 (flat)."""
+        q = world.client.getJointState(self.body, self.footboard_joint)[0]
+        return float(np.clip((PEDAL_REST_ANGLE - q) / PEDAL_REST_ANGLE, 0.0, 1.0))
+
+
+@dataclass
+class HiHat:
+    bottom_body: int
+    top_body: int
+    rod_joint: int
+    rest_opening: float
+    pedal: Pedal | None = None
+
+
+@dataclass
+class KitBodies:
+    """Bodies of a kit in one world, and what contact extraction needs to know about them."""
+
+    kit: Kit
+    instrument_of: dict[tuple[int, int], str] = field(default_factory=dict)
+    """(body, link) -> kit object id, for every collidable instrument link."""
+    frame_of: dict[str, tuple[int, int]] = field(default_factory=dict)
+    """kit object id -> (body, link) whose frame is the instrument frame."""
+    strikers: dict[tuple[int, int], str] = field(default_factory=dict)
+    """(body, link) -> striker part name for kit parts that strike (beaters, hi-hat top)."""
+    springs: list[Spring] = field(default_factory=list)
+    pedals: dict[str, Pedal] = field(default_factory=dict)
+    hihat: HiHat | None = None
+    pose_links: list[tuple[str, int, int]] = field(default_factory=list)
+    """(name, body, link) of every kit link the graphics rate publishes."""
+    _spring_groups: list[tuple[int, list[int], np.ndarray, np.ndarray, np.ndarray]] | None = None
+
+    def pre_step(self, world: World) -> None:
+        """Apply the spring torques and the hi-hat rod coupling for the next step."""
+        c = world.client
+        if self._spring_groups is None:
+            groups: dict[int, list[Spring]] = {}
+            for s in self.springs:
+                groups.setdefault(s.body, []).append(s)
+            self._spring_groups = [
+                (body, [s.joint for s in group], np.array([s.stiffness for s in group]),
+                 np.array([s.damping for s in group]), np.array([s.rest for s in group]))
+                for body, group in groups.items()
+            ]
+        for body, joints, k, d, rest in self._spring_groups:
+            states = c.getJointStates(body, joints)
+            q = np.array([s[0] for s in states])
+            qd = np.array([s[1] for s in states])
+            c.setJointMotorControlArray(body, joints, p.TORQUE_CONTROL, forces=(-k * (q - rest) - d * qd).tolist())
+        hh = self.hihat
+        if hh is not None:
+            press = hh.pedal.press(world) if hh.pedal is not None else 0.0
+            gap = HIHAT_MAX_GAP_M * hh.rest_opening * (1.0 - press)
+            c.setJointMotorControl2(
+                hh.top_body, hh.rod_joint, p.POSITION_CONTROL, targetPosition=gap, force=400.0, positionGain=1.0
+            )
+
+    def hihat_opening(self, world: World) -> float:
+        """Current hi-hat gap as a fraction of the maximum (0 closed ... 1 fully open)."""
+        if self.hihat is None:
+            return 0.0
+        q = world.client.getJointState(self.hihat.top_body, self.hihat.rod_joint)[0]
+        return float(np.clip(q / HIHAT_MAX_GAP_M, 0.0, 1.0))
+
+
+def _set_contact(world: World, body: int, link: int, obj: KitObject) -> None:
+    cp = contact_parameters(obj)
+    world.client.changeDynamics(
+        body, link, contactStiffness=cp.stiffness, contactDamping=cp.damping, lateralFriction=cp.friction,
+        restitution=0.0,
+    )
+
+
+def _free_joints(world: World, body: int) -> None:
+    """Switch off PyBullet's default velocity motors so joints move freely (springs are explicit)."""
+    for j in range(world.client.getNumJoints(body)):
+        world.client.setJointMotorControl2(body, j, p.VELOCITY_CONTROL, force=0.0)
+
+
+def _membrane(world: World, kb: KitBodies, obj: KitObject) -> None:
+    depth = max(obj.depth, 0.02)
+    rgba = _DARK if obj.kind == "bell" else _HEAD
+    robot = Robot(obj.id)
+    robot.add_link(Link(obj.id, Inertial(0.0), (Shape("cylinder", (obj.radius, depth, 0.0), xyz=(0, 0, -depth / 2),
+                                                      rgba=rgba),)))
+    body = load_robot(world.client, robot, obj.position, quat_from_rpy_deg(obj.rotation_deg), fixed_base=True)
+    _set_contact(world, body, -1, obj)
+    kb.instrument_of[(body, -1)] = obj.id
+    kb.frame_of[obj.id] = (body, -1)
+    kb.pose_links.append((f"kit.{obj.id}", body, -1))
+
+
+def _cymbal(world: World, kb: KitBodies, obj: KitObject) -> None:
+    mass = math.pi * obj.radius**2 * obj.thickness * CYMBAL_DENSITY
+    inertia = cylinder_inertia(mass, obj.radius, obj.thickness)
+    shapes = [Shape("cylinder", (obj.radius, obj.thickness, 0.0), xyz=(0, 0, -obj.thickness / 2), rgba=_BRASS)]
+    if obj.bell_radius > 0:
+        bell_h = max(obj.depth, 0.4 * obj.bell_radius)
+        shapes.append(Shape("cylinder", (obj.bell_radius, bell_h, 0.0), xyz=(0, 0, bell_h / 2 - obj.thickness),
+                            rgba=_BRASS))
+    robot = Robot(obj.id)
+    robot.add_link(Link("mount", Inertial(0.0)))
+    robot.add_link(Link("hinge_x", Inertial(1e-3, inertia=(1e-7, 1e-7, 1e-7, 0, 0, 0))))
+    robot.add_link(Link(obj.id, Inertial(mass, inertia=inertia), tuple(shapes)))
+    swing = 0.6
+    robot.add_joint(Joint("swing_x", "revolute", "mount", "hinge_x", axis=(1, 0, 0), lower=-swing, upper=swing,
+                          effort=100, velocity=50))
+    robot.add_joint(Joint("swing_y", "revolute", "hinge_x", obj.id, axis=(0, 1, 0), lower=-swing, upper=swing,
+                          effort=100, velocity=50))
+    body = load_robot(world.client, robot, obj.position, quat_from_rpy_deg(obj.rotation_deg), fixed_base=True,
+                      flags=p.URDF_USE_INERTIA_FROM_FILE)
+    _free_joints(world, body)
+    # swing at about 1.2 Hz, amplitude decaying with a 1.5 s time constant
+    i_diam = inertia[0]
+    k = i_diam * (2 * math.pi * 1.2) ** 2
+    c = 2 * i_diam / 1.5
+    kb.springs += [Spring(body, 0, k, c), Spring(body, 1, k, c)]
+    _set_contact(world, body, 1, obj)
+    for link in (-1, 0):
+        world.client.setCollisionFilterGroupMask(body, link, 0, 0)
+    kb.instrument_of[(body, 1)] = obj.id
+    kb.frame_of[obj.id] = (body, 1)
+    kb.pose_links.append((f"kit.{obj.id}", body, 1))
+
+
+def _footboard_robot(robot: Robot, prefix: str, parent: str, xyz: tuple[float, float, float]) -> str:
+    """Add a footboard hinged at its heel (at ``xyz`` in ``parent``) rising along +y; returns its link name."""
+    name = f"{prefix}footboard"
+    m = 0.4
+    robot.add_link(Link(name, Inertial(m, com=(0, FOOTBOARD_LENGTH_M / 2, 0.008),
+                                       inertia=(m * FOOTBOARD_LENGTH_M**2 / 12, 1e-4, m * FOOTBOARD_LENGTH_M**2 / 12,
+                                                0, 0, 0)),
+                        (Shape("box", (0.09, FOOTBOARD_LENGTH_M, 0.012), xyz=(0, FOOTBOARD_LENGTH_M / 2, 0.006),
+                               rgba=_SILVER),)))
+    robot.add_joint(Joint(f"{prefix}heel", "revolute", parent, name, xyz=xyz, axis=(1, 0, 0), lower=0.0,
+                          upper=PEDAL_REST_ANGLE + 0.05, effort=200, velocity=50))
+    return name
+
+
+def _pedal_robot(obj: KitObject, kick: KitObject | None, beater_dx: float) -> Robot:
+    """A pedal body: base plate, footboard and, for a bass-drum pedal, a beater geared to it.
+
+    ``beater_dx``: x offset of the beater from the plate (a double pedal's
+    second beater sits beside the main one, driven through a cardan shaft).
+    """
+    robot = Robot(obj.id)
+    robot.add_link(Link("plate", Inertial(0.0), (Shape("box", (0.10, 0.32, 0.01), xyz=(0, 0, -0.015),
+                                                       rgba=_DARK),)))
+    _footboard_robot(robot, "", "plate", (0.0, -FOOTBOARD_LENGTH_M / 2, 0.0))
+    if kick is not None:
+        # beater axle in front of the footboard; its head reaches the kick head 0.2 radius above centre
+        axle_y = kick.position[1] - obj.position[1] - 0.12
+        axle_z = 0.10
+        hit_z = kick.position[2] - obj.position[2] + 0.2 * kick.radius
+        rod = math.hypot(0.12 - 0.03, hit_z - axle_z)
+        m_head, m_rod = 0.05, 0.03
+        inertial = Inertial(m_head + m_rod, com=(0, 0, rod * 0.8), inertia=(2e-4, 2e-4, 1e-5, 0, 0, 0))
+        robot.add_link(Link("beater", inertial,
+                            (Shape("cylinder", (0.004, rod, 0.0), xyz=(0, 0, rod / 2), rgba=_SILVER, collision=False),
+                             Shape("sphere", (0.03, 0, 0), xyz=(0, 0, rod), rgba=_HEAD))))
+        # q = 0: the rod points from the axle to the hit point; positive q tilts it back toward the drummer
+        lean = math.atan2(0.12 - 0.03, hit_z - axle_z)
+        robot.add_joint(Joint("beater_axle", "revolute", "plate", "beater", xyz=(beater_dx, axle_y, axle_z),
+                              rpy=(-lean, 0, 0), axis=(1, 0, 0), lower=-0.02, upper=1.6, effort=200, velocity=80))
+    return robot
+
+
+def _pedal(world: World, kb: KitBodies, obj: KitObject) -> None:
+    kit = kb.kit
+    kick = None
+    part = ""
+    beater_dx = 0.0
+    if obj.id == "kick_pedal" or (kit.double_pedal and obj.id == kit.left_bass_pedal):
+        try:
+            kick = kit.object("kick")
+        except KeyError:
+            kick = None
+        part = "kick_beater" if obj.id == "kick_pedal" else "kick_beater_left"
+        if obj.id != "kick_pedal":
+            try:
+                main_x = kit.object("kick_pedal").position[0]
+            except KeyError:
+                main_x = obj.position[0]
+            side = 1.0 if obj.position[0] < main_x else -1.0
+            beater_dx = (main_x - side * 0.07) - obj.position[0]
+    robot = _pedal_robot(obj, kick, beater_dx)
+    body = load_robot(world.client, robot, obj.position, (0.0, 0.0, 0.0, 1.0), fixed_base=True,
+                      flags=p.URDF_USE_INERTIA_FROM_FILE)
+    _free_joints(world, body)
+    names = {world.client.getJointInfo(body, j)[12].decode(): j for j in range(world.client.getNumJoints(body))}
+    foot = names["footboard"]
+    world.client.resetJointState(body, foot, PEDAL_REST_ANGLE)
+    pedal = Pedal(obj.id, body, foot, foot)
+    kb.springs.append(Spring(body, foot, stiffness=PEDAL_SPRING_NM_PER_RAD, damping=0.3, rest=PEDAL_REST_ANGLE))
+    _set_contact(world, body, foot, obj)
+    kb.pose_links.append((f"kit.{obj.id}.footboard", body, foot))
+    if "beater" in names:
+        # gear: pressing the footboard (angle down) swings the beater forward (angle down) ratio times as far
+        link = names["beater"]
+        beater_rest = 0.9
+        world.client.resetJointState(body, link, beater_rest)
+        cid = world.client.createConstraint(body, foot, body, link, p.JOINT_GEAR, [1, 0, 0], [0, 0, 0], [0, 0, 0])
+        world.client.changeConstraint(cid, gearRatio=-PEDAL_REST_ANGLE / beater_rest, maxForce=500.0, erp=0.2)
+        pedal.beater_links.append(link)
+        pedal.beater_parts.append(part)
+        kb.strikers[(body, link)] = part
+        kb.pose_links.append((f"kit.{obj.id}.beater", body, link))
+    kb.pedals[obj.id] = pedal
+
+
+def _hihat(world: World, kb: KitBodies, obj: KitObject) -> None:
+    quat = quat_from_rpy_deg(obj.rotation_deg)
+    mass = math.pi * obj.radius**2 * obj.thickness * CYMBAL_DENSITY
+    plate = Shape("cylinder", (obj.radius, obj.thickness, 0.0), xyz=(0, 0, -obj.thickness / 2), rgba=_BRASS)
+    bottom = Robot(f"{obj.id}_bottom")
+    bottom.add_link(Link(obj.id, Inertial(0.0), (plate,)))
+    b_body = load_robot(world.client, bottom, obj.position, quat, fixed_base=True)
+    _set_contact(world, b_body, -1, obj)
+    top = Robot(f"{obj.id}_top")
+    top.add_link(Link("rod", Inertial(0.0), (Shape("cylinder", (0.004, 0.6, 0.0), xyz=(0, 0, -0.3), rgba=_SILVER,
+                                                   collision=False),)))
+    top_shape = Shape("cylinder", (obj.radius, obj.thickness, 0.0), xyz=(0, 0, obj.thickness / 2), rgba=_BRASS)
+    top.add_link(Link("top", Inertial(mass, inertia=cylinder_inertia(mass, obj.radius, obj.thickness)), (top_shape,)))
+    top.add_joint(Joint("clutch", "prismatic", "rod", "top", axis=(0, 0, 1), lower=0.0, upper=HIHAT_MAX_GAP_M,
+                        effort=400, velocity=5))
+    t_body = load_robot(world.client, top, obj.position, quat, fixed_base=True, flags=p.URDF_USE_INERTIA_FROM_FILE)
+    world.client.resetJointState(t_body, 0, HIHAT_MAX_GAP_M * obj.opening)
+    _set_contact(world, t_body, 0, obj)
+    kb.instrument_of[(b_body, -1)] = obj.id
+    kb.instrument_of[(t_body, 0)] = obj.id
+    kb.strikers[(t_body, 0)] = "hihat_top"
+    kb.frame_of[obj.id] = (b_body, -1)
+    kb.hihat = HiHat(b_body, t_body, 0, obj.opening)
+    kb.pose_links.append((f"kit.{obj.id}.bottom", b_body, -1))
+    kb.pose_links.append((f"kit.{obj.id}.top", t_body, 0))
+
+
+def _throne(world: World, kb: KitBodies, obj: KitObject) -> None:
+    robot = Robot(obj.id)
+    seat_h = 0.09
+    robot.add_link(Link(obj.id, Inertial(0.0), (
+        Shape("cylinder", (obj.radius, seat_h, 0.0), xyz=(0, 0, -seat_h / 2), rgba=_DARK),
+        Shape("cylinder", (0.02, obj.position[2] - seat_h, 0.0), xyz=(0, 0, -(obj.position[2] + seat_h) / 2),
+              rgba=_SILVER, collision=False),
+    )))
+    body = load_robot(world.client, robot, obj.position, (0.0, 0.0, 0.0, 1.0), fixed_base=True)
+    _set_contact(world, body, -1, obj)
+    kb.frame_of[obj.id] = (body, -1)
+    kb.pose_links.append((f"kit.{obj.id}", body, -1))
+
+
+def _stands(world: World, kb: KitBodies, objects: list[KitObject]) -> None:
+    """One static, visual-only body holding a rod under every mounted drum and cymbal."""
+    shapes: list[Shape] = []
+    for obj in objects:
+        if obj.kind in ("pedal", "throne") or obj.id == "kick":
+            continue
+        n = np.asarray(obj.normal())
+        # the stand reaches the underside of the object's centre
+        top = np.asarray(obj.position) - n * (max(obj.depth, 0.01) if obj.kind == "membrane" else 0.02)
+        height = float(top[2])
+        if height <= 0.05:
+            continue
+        shapes.append(Shape("cylinder", (0.012, height, 0.0), xyz=(float(top[0]), float(top[1]), height / 2),
+                            rgba=_SILVER, collision=False))
+    if not shapes:
+        return
+    robot = Robot("stands")
+    robot.add_link(Link("stands", Inertial(0.0), tuple(shapes)))
+    body = load_robot(world.client, robot, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0), fixed_base=True)
+    kb.pose_links.append(("kit.stands", body, -1))
+
+
+def build_kit(world: World, kit: Kit, only: set[str] | None = None) -> KitBodies:
+    """Create the bodies of ``kit`` in ``world``; ``only``: restrict to these object ids."""
+    kb = KitBodies(kit=kit)
+    objects = [o for o in kit.objects if only is None or o.id in only]
+    for obj in objects:
+        if obj.kind in ("membrane", "bell"):
+            _membrane(world, kb, obj)
+        elif obj.kind == "cymbal":
+            _cymbal(world, kb, obj)
+        elif obj.kind == "hihat":
+            _hihat(world, kb, obj)
+        elif obj.kind == "pedal":
+            _pedal(world, kb, obj)
+        elif obj.kind == "throne":
+            _throne(world, kb, obj)
+    if kb.hihat is not None and "hihat_pedal" in kb.pedals:
+        kb.hihat.pedal = kb.pedals["hihat_pedal"]
+    if only is None:
+        _stands(world, kb, objects)
+    return kb
+
+
+def instrument_frame(world: World, kb: KitBodies, object_id: str) -> tuple[np.ndarray, np.ndarray]:
+    """World position (3,) and rotation matrix (3, 3) of an instrument's frame now."""
+    body, link = kb.frame_of[object_id]
+    pos, quat = world.link_frame(body, link)
+    return pos, rotation_matrix(quat)

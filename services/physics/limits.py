@@ -1,0 +1,233 @@
+"""Joint limits from motion capture, in both formulations of Bouënard et al. (2009).
+
+* Euler statistics: per DOF (our intrinsic x-y-z angles) the mean, standard
+  deviation and the range seen in the data, widened by a margin. Enforced by
+  PyBullet as the revolute joints' limits.
+* Quaternion formulation (the paper's Algorithm 1): the mean orientation
+  ``q_mean`` of the samples (Markley's eigenvector method), the log map of
+  each sample into the tangent space at the mean, ``v_k = log(q_mean^-1 q_k)``
+  (rotation vectors, radians), the SVD of the stacked ``v_k`` giving the
+  principal axes and the spread along them; the limit is the ellipsoid
+  ``sum_i (v . a_i / e_i)^2 <= 1`` whose extents ``e_i`` contain a chosen
+  share of the samples. Enforced in simulation by projecting targets onto it
+  and by a restoring torque when the joint leaves it
+  (:meth:`QuaternionLimit.project`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from services.physics.character import JOINTS, joint_kind
+from services.physics.mocap import MotionClip, deepmimic_clip_names, load_deepmimic
+
+ANATOMICAL_DEG: dict[str, tuple[float, float, float, float, float, float]] = {
+    "seat": (-30, 30, -15, 15, -30, 30),
+    "lumbar": (-45, 20, -20, 20, -25, 25),
+    "thoracic": (-35, 20, -20, 20, -30, 30),
+    "neck": (-45, 40, -30, 30, -55, 55),
+    "head": (-35, 30, -20, 20, -45, 45),
+    "clavicle": (-20, 20, -20, 20, -15, 15),
+    "shoulder": (-60, 180, -180, 40, -90, 90),
+    "elbow": (0, 150, -10, 10, -100, 100),
+    "wrist": (-75, 80, -35, 35, -25, 25),
+    "hip": (-20, 130, -45, 20, -45, 45),
+    "knee": (-150, 0, -8, 8, -25, 25),
+    "ankle": (-50, 30, -25, 25, -30, 30),
+}
+"""Anatomical ranges, degrees: (x lo, x hi, y lo, y hi, z lo, z hi), right side.
+
+Signs (see services/physics/character.py): +x flexes a limb forward (hip,
+shoulder, elbow) and extends the spine backward; knee flexion is -x; +y swings
+a hanging segment toward -x (so right abduction is -y); z is the long-axis
+rotation. Left-side y and z ranges are mirrored.
+"""
+
+
+@dataclass(frozen=True)
+class EulerLimit:
+    """Per-DOF statistics of a joint's intrinsic x-y-z Euler angles, radians (each (3,))."""
+
+    lower: np.ndarray
+    upper: np.ndarray
+    mean: np.ndarray
+    std: np.ndarray
+
+    def contains(self, euler: np.ndarray) -> np.ndarray:
+        """(N,) bool: samples (N, 3) inside the box."""
+        e = np.atleast_2d(euler)
+        return np.all((e >= self.lower - 1e-12) & (e <= self.upper + 1e-12), axis=1)
+
+    def union(self, other: EulerLimit) -> EulerLimit:
+        return EulerLimit(np.minimum(self.lower, other.lower), np.maximum(self.upper, other.upper),
+                          (self.mean + other.mean) / 2, np.maximum(self.std, other.std))
+
+
+def euler_limits(euler: np.ndarray, margin_rad: float = 0.0) -> EulerLimit:
+    """Euler statistics of samples (N, 3) radians: the range seen, widened by ``margin_rad``."""
+    e = np.asarray(euler, dtype=float)
+    if e.ndim != 2 or e.shape[1] != 3 or len(e) == 0 or not np.all(np.isfinite(e)):
+        raise ValueError(f"euler samples must be a finite (N, 3) array, got shape {e.shape}")
+    return EulerLimit(e.min(axis=0) - margin_rad, e.max(axis=0) + margin_rad, e.mean(axis=0), e.std(axis=0))
+
+
+def mean_quaternion(quats: np.ndarray) -> np.ndarray:
+    """Average orientation of unit quaternions (N, 4) x y z w (Markley et al. 2007): (4,)."""
+    q = np.asarray(quats, dtype=float)
+    m = q.T @ q / len(q)
+    w, v = np.linalg.eigh(m)
+    mean = v[:, int(np.argmax(w))]
+    return mean if mean[3] >= 0 else -mean
+
+
+@dataclass(frozen=True)
+class QuaternionLimit:
+    """Algorithm 1's limit: mean (4,) x y z w, principal axes (3, 3) as columns, extents (3,) radians."""
+
+    mean: np.ndarray
+    axes: np.ndarray
+    extents: np.ndarray
+
+    def tangent(self, quats: np.ndarray) -> np.ndarray:
+        """Log map at the mean: rotation vectors (N, 3) of ``mean^-1 q``, radians."""
+        rel = Rotation.from_quat(self.mean).inv() * Rotation.from_quat(np.atleast_2d(quats))
+        return np.asarray(rel.as_rotvec())
+
+    def radius(self, quats: np.ndarray) -> np.ndarray:
+        """(N,) normalised ellipsoid radius: <= 1 inside the limit."""
+        coords = self.tangent(quats) @ self.axes
+        return np.sqrt(np.sum((coords / self.extents) ** 2, axis=1))
+
+    def contains(self, quats: np.ndarray) -> np.ndarray:
+        return self.radius(quats) <= 1.0 + 1e-9
+
+    def project(self, quats: np.ndarray) -> np.ndarray:
+        """The nearest-along-the-ray orientation inside the limit (unchanged when inside): (N, 4)."""
+        v = self.tangent(quats)
+        r = np.sqrt(np.sum(((v @ self.axes) / self.extents) ** 2, axis=1))
+        scale = np.where(r > 1.0, 1.0 / np.maximum(r, 1e-12), 1.0)
+        inside = Rotation.from_quat(self.mean) * Rotation.from_rotvec(v * scale[:, None])
+        return np.asarray(inside.as_quat())
+
+
+def quaternion_limits(quats: np.ndarray, coverage: float = 0.999, min_extent_rad: float = math.radians(4.0),
+                      margin: float = 1.05) -> QuaternionLimit:
+    """Algorithm 1: mean quaternion, log map, SVD -> principal axes and extents.
+
+    Parameters
+    ----------
+    quats : np.ndarray, shape (N, 4)
+        Unit quaternions x y z w of one joint over a clip.
+    coverage : float
+        Share of the samples the ellipsoid must contain (before ``margin``).
+    min_extent_rad : float
+        Smallest extent along an axis, radians (a joint the clip barely moves
+        about an axis still gets a little play).
+    margin : float
+        Multiplier on the extents.
+    """
+    q = np.asarray(quats, dtype=float)
+    if q.ndim != 2 or q.shape[1] != 4 or len(q) < 3 or not np.all(np.isfinite(q)):
+        raise ValueError(f"quaternions must be a finite (N >= 3, 4) array, got shape {q.shape}")
+    if not 0.5 <= coverage <= 1.0:
+        raise ValueError(f"coverage must be in [0.5, 1], got {coverage}")
+    mean = mean_quaternion(q)
+    v = np.asarray((Rotation.from_quat(mean).inv() * Rotation.from_quat(q)).as_rotvec())
+    centred = v - v.mean(axis=0)
+    _, sing, vt = np.linalg.svd(centred, full_matrices=False)
+    axes = vt.T
+    sigma = np.maximum(sing / math.sqrt(len(v)), 1e-6)
+    coords = v @ axes
+    # scale the sigma-shaped ellipsoid so that `coverage` of the samples are inside it
+    radius = np.sqrt(np.sum((coords / sigma) ** 2, axis=1))
+    k = float(np.quantile(radius, coverage))
+    extents = np.maximum(k * sigma * margin, min_extent_rad)
+    return QuaternionLimit(mean, axes, extents)
+
+
+@dataclass(frozen=True)
+class JointLimits:
+    """Limits of every joint: the Euler box (enforced as revolute limits) and, where mocap had the joint,
+    the quaternion ellipsoid (enforced by the controller)."""
+
+    euler: dict[str, EulerLimit]
+    quaternion: dict[str, QuaternionLimit]
+    sources: dict[str, str]
+
+    def dof_limits(self) -> dict[str, tuple[float, float]]:
+        """DOF name -> (lower, upper) radians, for the URDF."""
+        out: dict[str, tuple[float, float]] = {}
+        for joint, lim in self.euler.items():
+            for i, axis in enumerate("xyz"):
+                out[f"{joint}_{axis}"] = (float(lim.lower[i]), float(lim.upper[i]))
+        return out
+
+
+def anatomical_limit(joint: str) -> EulerLimit:
+    lo_x, hi_x, lo_y, hi_y, lo_z, hi_z = ANATOMICAL_DEG[joint_kind(joint)]
+    if joint.startswith("left_"):
+        lo_y, hi_y = -hi_y, -lo_y
+        lo_z, hi_z = -hi_z, -lo_z
+    lower = np.radians([lo_x, lo_y, lo_z])
+    upper = np.radians([hi_x, hi_y, hi_z])
+    return EulerLimit(lower, upper, (lower + upper) / 2, (upper - lower) / 4)
+
+
+def limits_from_clips(clips: Iterable[MotionClip], margin_rad: float = math.radians(5.0),
+                      coverage: float = 0.999, must_contain: dict[str, np.ndarray] | None = None) -> JointLimits:
+    """Joint limits of the 19 joints from motion clips, anatomical ranges where the clips have no data.
+
+    For a joint the clips drive, the Euler box is the range seen (plus
+    ``margin_rad``) and the quaternion ellipsoid comes from Algorithm 1 on all
+    the clips' samples; a DOF the clips hardly move (range under 10 degrees,
+    like a DeepMimic knee's y and z) keeps its anatomical range.
+    ``must_contain``: joint -> Euler angles (3,) that must lie inside (the
+    playing posture); the box grows to include them (recorded in ``sources``).
+    """
+    samples_e: dict[str, list[np.ndarray]] = {}
+    samples_q: dict[str, list[np.ndarray]] = {}
+    for clip in clips:
+        for joint in clip.rotations:
+            samples_e.setdefault(joint, []).append(clip.euler(joint))
+            samples_q.setdefault(joint, []).append(clip.quaternions(joint))
+    euler: dict[str, EulerLimit] = {}
+    quaternion: dict[str, QuaternionLimit] = {}
+    sources: dict[str, str] = {}
+    for joint in JOINTS:
+        anat = anatomical_limit(joint)
+        if joint in samples_e:
+            mocap = euler_limits(np.concatenate(samples_e[joint]), margin_rad)
+            span = mocap.upper - mocap.lower
+            # a DOF the clips hardly move keeps its anatomical range; so does one whose Euler angle wraps
+            # around (arms over the head in a cartwheel): an Euler box cannot express it, the quaternion limit can
+            tiny = span < math.radians(10.0) + 2 * margin_rad
+            wraps = span > math.radians(300.0)
+            lower = np.where(tiny | wraps, anat.lower, mocap.lower)
+            upper = np.where(tiny | wraps, anat.upper, mocap.upper)
+            euler[joint] = EulerLimit(lower, upper, mocap.mean, mocap.std)
+            if not np.any(tiny):
+                quaternion[joint] = quaternion_limits(np.concatenate(samples_q[joint]), coverage)
+            sources[joint] = "mocap" if not np.any(tiny | wraps) else "mocap+anatomical"
+        else:
+            euler[joint] = anat
+            sources[joint] = "anatomical"
+        if must_contain and joint in must_contain:
+            need = np.asarray(must_contain[joint], dtype=float)
+            lim = euler[joint]
+            if not bool(lim.contains(need)[0]):
+                euler[joint] = EulerLimit(np.minimum(lim.lower, need - margin_rad),
+                                          np.maximum(lim.upper, need + margin_rad), lim.mean, lim.std)
+                sources[joint] += "+posture"
+                quaternion.pop(joint, None)
+    return JointLimits(euler, quaternion, sources)
+
+
+def default_limits(clips: Iterable[str] | None = None) -> JointLimits:
+    """Limits from pybullet's DeepMimic clips (all humanoid clips by default)."""
+    names = list(clips) if clips is not None else deepmimic_clip_names()
+    return limits_from_clips([load_deepmimic(n) for n in names])

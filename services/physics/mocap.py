@@ -1,0 +1,144 @@
+"""Motion capture input: DeepMimic clips (real human motion shipped with pybullet_data) and BVH skeletons.
+
+DeepMimic's humanoid is y-up, facing +x, with +z to its right; a frame is
+``[duration, root position (3), root rotation (4, w x y z), chest (4), neck
+(4), right hip (4), right knee (1), right ankle (4), right shoulder (4), right
+elbow (1), left hip (4), left knee (1), left ankle (4), left shoulder (4), left
+elbow (1)]``, joint rotations local to the parent, knees and elbows one angle
+about z. Its zero pose (standing, arms hanging) is ours, so a local rotation
+maps to our body frame (x right, y forward, z up) by the fixed change of axes
+``C``: ``R_ours = C R_dm C^T``. The chest rotation is shared equally by our
+lumbar and thoracic joints, the neck's by our neck and head joints; DeepMimic
+has no clavicles or wrists.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pybullet_data
+from scipy.spatial.transform import Rotation
+
+MOTIONS_DIR = Path(pybullet_data.getDataPath()) / "data" / "motions"
+
+C_DM_TO_OURS = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+"""Columns: DeepMimic's x (forward), y (up), z (right) expressed in our axes."""
+
+_LAYOUT: list[tuple[str, int]] = [
+    ("chest", 4), ("neck", 4), ("right_hip", 4), ("right_knee", 1), ("right_ankle", 4), ("right_shoulder", 4),
+    ("right_elbow", 1), ("left_hip", 4), ("left_knee", 1), ("left_ankle", 4), ("left_shoulder", 4), ("left_elbow", 1),
+]
+FRAME_LENGTH = 1 + 3 + 4 + sum(n for _, n in _LAYOUT)
+
+UPPER_BODY = ("lumbar", "thoracic", "neck", "head", "left_shoulder", "left_elbow", "right_shoulder", "right_elbow")
+"""Our joints driven by a DeepMimic clip's upper body."""
+
+
+@dataclass(frozen=True)
+class MotionClip:
+    """Joint rotations over time in our body convention.
+
+    ``times``: (F,) seconds; ``rotations``: joint name -> :class:`scipy.spatial.transform.Rotation`
+    of length F (the child's frame relative to the parent's, our axes).
+    """
+
+    name: str
+    times: np.ndarray
+    rotations: dict[str, Rotation]
+
+    @property
+    def rate_hz(self) -> float:
+        return float(1.0 / np.median(np.diff(self.times))) if len(self.times) > 1 else 0.0
+
+    def euler(self, joint: str) -> np.ndarray:
+        """(F, 3) intrinsic x-y-z Euler angles (radians) of a joint, as our three revolute DOF see them."""
+        return np.asarray(self.rotations[joint].as_euler("XYZ"))
+
+    def quaternions(self, joint: str) -> np.ndarray:
+        """(F, 4) unit quaternions (x, y, z, w) of a joint."""
+        return np.asarray(self.rotations[joint].as_quat())
+
+
+def _to_ours(rot: Rotation) -> Rotation:
+    c = Rotation.from_matrix(C_DM_TO_OURS)
+    return c * rot * c.inv()
+
+
+def _half(rot: Rotation) -> Rotation:
+    return Rotation.from_rotvec(rot.as_rotvec() / 2.0)
+
+
+def deepmimic_clip_names() -> list[str]:
+    """Names of the humanoid clips shipped with pybullet_data (e.g. 'punch', 'dance_a')."""
+    return sorted(p.stem.removeprefix("humanoid3d_") for p in MOTIONS_DIR.glob("humanoid3d_*.txt"))
+
+
+def load_deepmimic(name_or_path: str | Path) -> MotionClip:
+    """Read a DeepMimic humanoid clip (a shipped name such as ``"punch"`` or a path).
+
+    Raises ``FileNotFoundError`` naming the shipped clips, ``ValueError`` for a malformed file.
+    """
+    path = Path(name_or_path)
+    if not path.suffix:
+        path = MOTIONS_DIR / f"humanoid3d_{name_or_path}.txt"
+    if not path.is_file():
+        raise FileNotFoundError(f"no clip {str(name_or_path)!r} (shipped: {', '.join(deepmimic_clip_names())})")
+    data = json.loads(path.read_text(encoding="utf-8"))
+    frames = np.asarray(data.get("Frames", []), dtype=float)
+    if frames.ndim != 2 or frames.shape[1] != FRAME_LENGTH or len(frames) < 2:
+        raise ValueError(f"{path.name}: expected frames of {FRAME_LENGTH} values, got shape {frames.shape}")
+    if not np.all(np.isfinite(frames)):
+        raise ValueError(f"{path.name}: non-finite values")
+    times = np.concatenate([[0.0], np.cumsum(frames[:-1, 0])])
+    col = 8
+    rotations: dict[str, Rotation] = {}
+    for joint, n in _LAYOUT:
+        block = frames[:, col:col + n]
+        col += n
+        if n == 4:
+            rot = Rotation.from_quat(block[:, [1, 2, 3, 0]])  # w x y z -> x y z w
+        else:
+            rot = Rotation.from_rotvec(np.column_stack([np.zeros(len(block)), np.zeros(len(block)), block[:, 0]]))
+        rot = _to_ours(rot)
+        if joint == "chest":
+            rotations["lumbar"] = rotations["thoracic"] = _half(rot)
+        elif joint == "neck":
+            rotations["neck"] = rotations["head"] = _half(rot)
+        else:
+            rotations[joint] = rot
+    return MotionClip(path.stem.removeprefix("humanoid3d_"), times, rotations)
+
+
+BVH_NAMES: dict[str, tuple[str, ...]] = {
+    "upper_arm": ("RightForeArm", "RightElbow", "rForeArm", "LeftForeArm"),
+    "forearm": ("RightHand", "RightWrist", "rHand", "LeftHand", "Hand"),
+    "hand": ("Stick", "RightHandEnd", "RightFingerBase"),
+    "thigh": ("RightLeg", "RightKnee", "rShin", "LeftLeg"),
+    "shank": ("RightFoot", "RightAnkle", "rFoot", "LeftFoot"),
+}
+"""Our segment -> BVH joints whose OFFSET is that segment's length (first found wins)."""
+
+
+def bvh_segment_lengths(path: str | Path, units_to_m: float | None = None) -> dict[str, float]:
+    """Segment lengths (metres) from a BVH skeleton's offsets, for :func:`anthropometry`'s ``lengths_m``.
+
+    ``units_to_m``: factor from the file's units to metres; by default guessed
+    (a skeleton whose longest offset exceeds 3 is taken to be in centimetres).
+    Only the segments found in the file are returned.
+    """
+    from common.gesture.bvh import read_bvh
+
+    bvh = read_bvh(path)
+    offsets = {j.name: float(np.linalg.norm(j.offset)) for j in bvh.joints}
+    if units_to_m is None:
+        units_to_m = 0.01 if max(offsets.values(), default=0.0) > 3.0 else 1.0
+    lengths: dict[str, float] = {}
+    for segment, names in BVH_NAMES.items():
+        for name in names:
+            if name in offsets and offsets[name] > 0:
+                lengths[segment] = offsets[name] * units_to_m
+                break
+    return lengths

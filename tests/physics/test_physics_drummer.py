@@ -1,0 +1,255 @@
+"""The drummer scene: strokes give contacts, limits hold, bad targets are refused, runs are reproducible."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pybullet as p
+import pytest
+
+from common.gesture.plan import GesturePlan, HeadTrajectory, LimbTrajectory
+from common.kit import EventType, Limb, load_kit
+from common.messages import Contact, Pose, Skeleton
+from common.messages.physics import (
+    CartesianTarget,
+    JointTarget,
+    PhysicsControlMode,
+    PhysicsGains,
+    PhysicsGrip,
+    PhysicsIk,
+    PhysicsReset,
+)
+from services.physics.body import LIMBS
+from services.physics.character import DOF_NAMES, JOINTS
+from services.physics.control import quat_from_euler_xyz
+from services.physics.core import PhysicsCore
+from services.physics.drummer import DrummerScene
+from services.physics.strokes import strokes_knots
+from services.physics.targets import TargetError
+
+
+def _snare(core: PhysicsCore) -> tuple[np.ndarray, np.ndarray]:
+    kit = core.kit
+    spec = kit.events[EventType.SNARE]
+    obj = kit.object(spec.object)
+    r = spec.r * obj.radius
+    hit = np.array(obj.to_world((r * math.cos(spec.theta), r * math.sin(spec.theta), 0.0)))
+    return hit, np.array(obj.normal())
+
+
+def _scene(core: PhysicsCore) -> DrummerScene:
+    assert isinstance(core.scene, DrummerScene)
+    return core.scene
+
+
+def _run(core: PhysicsCore, t0: float, t1: float) -> list[Contact]:
+    out: list[Contact] = []
+    for k in range(round(t0 * 1000) + 1, round(t1 * 1000) + 1):
+        out += [o.message for o in core.step(k / 1000) if isinstance(o.message, Contact)]
+    return out
+
+
+def _stroke_contacts(control: str, times: list[float], speeds: list[float], until: float) -> list[Contact]:
+    core = PhysicsCore(scene="drummer", control=control)
+    scene = _scene(core)
+    hit, normal = _snare(core)
+    ts, ps, vs = strokes_knots(scene.rest_targets["left_hand"], hit, normal, times, speeds)
+    for k in range(len(ts)):
+        scene.add_cartesian("left_hand", float(ts[k]), ps[k], vs[k], 0.0)
+    contacts = _run(core, 0.0, until)
+    core.close()
+    return [c for c in contacts if c.instrument == "snare" and c.part.startswith("left_stick")]
+
+
+def test_a_stroke_onto_the_snare_gives_one_short_contact_with_rebound() -> None:
+    core = PhysicsCore(scene="drummer", control="cartesian")
+    scene = _scene(core)
+    hit, normal = _snare(core)
+    ts, ps, vs = strokes_knots(scene.rest_targets["left_hand"], hit, normal, [0.3], [1.5])
+    for k in range(len(ts)):
+        scene.add_cartesian("left_hand", float(ts[k]), ps[k], vs[k], 0.0)
+    contacts: list[Contact] = []
+    tip_normal_speed: dict[int, float] = {}
+    for k in range(1, 501):
+        contacts += [o.message for o in core.step(k / 1000)
+                     if isinstance(o.message, Contact) and o.message.instrument == "snare"]
+        tip_normal_speed[k] = float(scene.body.link_vel[scene.body.tip_links["left_hand"]] @ normal)
+    steps = [c.step for c in contacts]
+    assert contacts, "the stick never reached the snare"
+    assert steps == list(range(steps[0], steps[0] + len(steps))), f"more than one contact: {steps}"
+    assert 1 <= len(steps) <= 10  # 1-10 ms at 1 kHz
+    first = contacts[0]
+    assert abs(first.time - 0.3) < 0.01
+    assert first.part == "left_stick_tip" and first.normal_velocity > 0.5
+    assert tip_normal_speed[steps[0] - 1] < -0.5  # coming down ...
+    assert tip_normal_speed[steps[-1] + 1] > 0.2  # ... and bouncing back up right after the contact
+    core.close()
+
+
+def test_same_inputs_same_contacts_bit_for_bit() -> None:
+    a = _stroke_contacts("cartesian", [0.25], [3.0], 0.35)
+    b = _stroke_contacts("cartesian", [0.25], [3.0], 0.35)
+    assert a and [c.model_dump() for c in a] == [c.model_dump() for c in b]
+
+
+def _tip_rms_mm(control: str) -> float:
+    core = PhysicsCore(scene="drummer", control=control)
+    scene = _scene(core)
+    hit, normal = _snare(core)
+    rest = scene.rest_targets["left_hand"]
+    # a stroke in the air, turning round smoothly (no head to bounce off)
+    ts, ps, vs = strokes_knots(rest, hit + normal * 0.03, normal, [0.45], [1.0], rebound=0.0, contact_s=0.05)
+    scene.add_cartesian("left_hand", 0.0, rest, np.zeros(3), 0.0)
+    for k in range(len(ts)):
+        scene.add_cartesian("left_hand", float(ts[k]), ps[k], vs[k], 0.0)
+    errors = []
+    i = LIMBS.index("left_hand")
+    for k in range(1, 601):
+        core.step(k / 1000)
+        target = scene.cartesian_targets(k / 1000)["left_hand"][0]
+        if k > 300:  # after settling on the rest target
+            errors.append(float(np.linalg.norm(scene.body.effector_positions()[i] - target)))
+    core.close()
+    return 1000 * float(np.sqrt(np.mean(np.square(errors))))
+
+
+def test_cartesian_tracking_beats_joint_space_tracking_on_a_stroke() -> None:
+    cartesian, joint = _tip_rms_mm("cartesian"), _tip_rms_mm("joint_pd")
+    assert cartesian < joint
+    assert cartesian < 10.0
+
+
+def test_bad_targets_are_rejected_with_a_clear_error_and_counted() -> None:
+    core = PhysicsCore(scene="drummer")
+    scene = _scene(core)
+    with pytest.raises(TargetError, match="not finite"):
+        scene.add_cartesian("right_hand", 0.5, np.array([0.1, np.nan, 1.0]), np.zeros(3), 0.0)
+    with pytest.raises(TargetError, match="unreachable"):
+        scene.add_cartesian("right_hand", 0.5, np.array([0.0, 3.0, 1.0]), np.zeros(3), 0.0)
+    with pytest.raises(TargetError, match="in the past"):
+        scene.add_cartesian("right_hand", -1.0, np.array([0.0, 0.4, 1.0]), np.zeros(3), 0.0)
+    with pytest.raises(TargetError, match="114 values"):
+        scene.add_joints(0.5, np.zeros(57), 0.0)
+    with pytest.raises(TargetError, match="non-finite"):
+        scene.add_joints(0.5, np.full(114, np.nan), 0.0)
+    bad = scene.rest.copy()
+    bad[DOF_NAMES.index("right_elbow_x")] = math.radians(-90)
+    with pytest.raises(TargetError, match="right_elbow_x"):
+        scene.add_joints(0.5, np.concatenate([bad, np.zeros(57)]), 0.0)
+    # over the wire: refused, counted, nothing queued, no crash
+    assert core.handle(CartesianTarget(limb="left_hand", time=0.5, x=0.0, y=4.0, z=1.0, vx=0, vy=0, vz=0), 0.0,
+                       "test") == []
+    assert core.handle(JointTarget(time=0.5, values=(0.0,) * 10), 0.0, "test") == []
+    assert core.rejected == {"CartesianTarget": 1, "JointTarget": 1}
+    assert len(scene.limb_tracks["left_hand"]) == 0 and len(scene.joint_track) == 0
+    _run(core, 0.0, 0.05)
+    core.close()
+
+
+def test_euler_and_quaternion_limits_are_enforced_in_simulation() -> None:
+    core = PhysicsCore(scene="drummer", control="joint_pd")
+    scene = _scene(core)
+    ctl = scene.controller
+    body = scene.body
+    # a shoulder pose inside the Euler box but outside the quaternion ellipsoid (Algorithm 1)
+    shoulder = JOINTS.index("right_shoulder") * 3
+    limit = scene.limits.quaternion["right_shoulder"]
+    target = scene.rest.copy()
+    best = None
+    for x in np.linspace(body.lower[shoulder], body.upper[shoulder], 9):
+        for y in np.linspace(body.lower[shoulder + 1], body.upper[shoulder + 1], 9):
+            e = np.array([x, y, scene.rest[shoulder + 2]])
+            r = float(limit.radius(quat_from_euler_xyz(e[None, :]))[0])
+            if best is None or r > best[0]:
+                best = (r, e)
+    assert best is not None and best[0] > 1.3
+    target[shoulder:shoulder + 3] = best[1]
+    assert ctl.clamp_targets(target)[shoulder:shoulder + 3] != pytest.approx(best[1])  # projected inside
+    body.set_state(target)  # start outside: the restoring torque must bring it back
+    scene.add_joints(0.001, np.concatenate([target, np.zeros(57)]), 0.0)
+    _run(core, 0.0, 0.4)
+    theta, _ = body.state()
+    radius = float(limit.radius(quat_from_euler_xyz(theta[None, shoulder:shoulder + 3]))[0])
+    assert radius < 1.1
+    assert np.all(theta >= body.lower - 0.03) and np.all(theta <= body.upper + 0.03)  # Euler boxes hold
+    core.close()
+
+
+def test_a_gesture_plan_is_tracked() -> None:
+    core = PhysicsCore(scene="drummer")
+    scene = _scene(core)
+    hit, normal = _snare(core)
+    ts, ps, vs = strokes_knots(scene.rest_targets["left_hand"], hit, normal, [0.3], [2.0])
+    look_right = HeadTrajectory(np.array([0.0, 1.0]), np.array([[0.6, 0.6, 0.9], [0.6, 0.6, 0.9]]), np.zeros(2))
+    plan = GesturePlan(trajectories={Limb.LEFT_HAND: LimbTrajectory(Limb.LEFT_HAND, ts, ps, vs)}, strokes=[],
+                       head=look_right, start_time=float(ts[0]), end_time=float(ts[-1]))
+    core.load_plan(plan, start_at=float(ts[0]))
+    contacts = [c for c in _run(core, 0.0, 0.45) if c.instrument == "snare"]
+    assert contacts and abs(contacts[0].time - 0.3) < 0.01
+    theta, _ = scene.body.state()
+    assert theta[DOF_NAMES.index("neck_z")] < -0.1 and theta[DOF_NAMES.index("head_z")] < -0.1  # turned right
+    far = LimbTrajectory(Limb.RIGHT_HAND, np.array([0.0, 1.0]), np.array([[0, 5.0, 1], [0, 5.0, 1]]), np.zeros((2, 3)))
+    with pytest.raises(TargetError, match="unreachable"):
+        core.load_plan(GesturePlan(trajectories={Limb.RIGHT_HAND: far}, strokes=[]))
+    core.close()
+
+
+def test_live_switching_grip_mode_and_reset_keeps_the_drummer_stable() -> None:
+    core = PhysicsCore(scene="drummer", control="cartesian")
+    scene = _scene(core)
+    ks = scene.controller.ks.copy()
+    core.handle(PhysicsGains(group="arms", ks_scale=2.0, kd_scale=1.0), 0.0, "test")
+    arm = DOF_NAMES.index("right_elbow_x")
+    assert scene.controller.ks[arm] == pytest.approx(2 * ks[arm])
+    assert scene.controller.ks[DOF_NAMES.index("lumbar_x")] == pytest.approx(ks[DOF_NAMES.index("lumbar_x")])
+    core.handle(PhysicsIk(damping=0.05, posture_gain=1.0), 0.0, "test")
+    assert scene.controller.params.ik_damping == 0.05 and scene.controller.params.posture_gain == 1.0
+    core.handle(PhysicsGrip(hand="both", grip="german"), 0.0, "test")
+    assert scene.grip == {"left": "german", "right": "german"}
+    elbow_z = DOF_NAMES.index("right_elbow_z")
+    assert scene.rest[elbow_z] == pytest.approx(math.radians(80))
+    _run(core, 0.0, 0.1)
+    core.handle(PhysicsControlMode(mode="joint_pd"), 0.1, "test")
+    _run(core, 0.1, 0.2)
+    core.handle(PhysicsControlMode(mode="joint_spd"), 0.2, "test")
+    _run(core, 0.2, 0.22)
+    core.handle(PhysicsReset(time=0.22), 0.22, "test")
+    core.handle(PhysicsControlMode(mode="cartesian"), 0.22, "test")
+    _run(core, 0.22, 0.3)
+    theta, theta_dot = scene.body.state()
+    assert np.all(np.isfinite(theta)) and np.all(np.isfinite(theta_dot))
+    core.close()
+
+
+def test_poses_skeleton_and_a_left_handed_kit() -> None:
+    core = PhysicsCore(scene="drummer", left_handed=True, pose_rate_hz=60.0)
+    scene = _scene(core)
+    assert core.kit.handedness == "left"
+    assert "right_hand" in scene.rest_targets and scene.rest_targets["right_hand"][0] > 0  # snare on the right
+    out = core.step(0.0) + core.step(0.001)
+    skeleton = next(o.message for o in out if isinstance(o.message, Skeleton))
+    pose = next(o.message for o in out if isinstance(o.message, Pose))
+    assert {"pelvis", "head", "left_stick", "right_foot", "kit.snare"} <= set(skeleton.names)
+    assert len(pose.values) == 7 * len(skeleton.names) and pose.layout == skeleton.layout
+    core.close()
+    default = load_kit("default")
+    assert default.handedness == "right"
+
+
+def test_double_pedal_left_footboard_drives_its_own_beater_into_the_kick() -> None:
+    core = PhysicsCore(scene="drummer", kit="double_pedal")
+    scene = _scene(core)
+    kb = scene.kit_bodies
+    assert "kick_beater_left" in kb.strikers.values()
+    pedal = kb.pedals[core.kit.left_bass_pedal or ""]
+    c = core.world.client
+    parts = set()
+    for k in range(1, 201):
+        toe, _ = core.world.link_frame(pedal.body, pedal.footboard_link)
+        c.applyExternalForce(pedal.body, pedal.footboard_link, [0.0, 0.0, -300.0],
+                             (toe + np.array([0.0, 0.2, 0.0])).tolist(), p.WORLD_FRAME)
+        parts |= {o.message.part for o in core.step(k / 1000)
+                  if isinstance(o.message, Contact) and o.message.instrument == "kick"}
+    assert "kick_beater_left" in parts
+    core.close()

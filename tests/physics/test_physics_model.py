@@ -1,0 +1,118 @@
+"""The generated body: 57 actuated DOF, masses and proportions from de Leva's table, BVH lengths."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pybullet as p
+import pytest
+
+from services.physics.anthropometry import DE_LEVA, REFERENCE, anthropometry, body_mass_of
+from services.physics.character import (
+    DOF_NAMES,
+    DUMMY_MASS_KG,
+    JOINTS,
+    SEAT_MASS_KG,
+    CharacterSpec,
+    build_character,
+)
+from services.physics.mocap import bvh_segment_lengths
+from services.physics.urdf import load_robot
+from services.physics.world import World
+
+
+def _load(height: float = 1.75, mass: float = 73.0) -> tuple[World, int, object]:
+    model = build_character(CharacterSpec(anthropometry(height, mass)))
+    world = World()
+    body = load_robot(world.client, model.robot, (0.0, 0.0, 1.2), (0.0, 0.0, 0.0, 1.0), fixed_base=False,
+                      flags=p.URDF_USE_INERTIA_FROM_FILE)
+    return world, body, model
+
+
+def test_the_body_has_19_joints_of_3_revolute_dof_57_actuated() -> None:
+    world, body, model = _load()
+    c = world.client
+    assert len(JOINTS) == 19 and len(DOF_NAMES) == 57
+    revolute = {c.getJointInfo(body, j)[1].decode() for j in range(c.getNumJoints(body))
+                if c.getJointInfo(body, j)[2] == p.JOINT_REVOLUTE}
+    passive = set(model.passive)  # type: ignore[attr-defined]
+    assert passive == {"left_fulcrum_x", "left_fulcrum_z", "right_fulcrum_x", "right_fulcrum_z"}
+    assert revolute - passive == set(DOF_NAMES)
+    assert not any(c.getJointInfo(body, j)[2] == p.JOINT_SPHERICAL for j in range(c.getNumJoints(body)))
+    # each joint's three DOF are about x, y, z in turn
+    for name in DOF_NAMES:
+        j = next(k for k in range(c.getNumJoints(body)) if c.getJointInfo(body, k)[1].decode() == name)
+        axis = c.getJointInfo(body, j)[13]
+        assert axis == tuple(1.0 if a == name[-1] else 0.0 for a in "xyz")
+    world.close()
+
+
+@pytest.mark.parametrize(("height", "mass"), [(1.75, 73.0), (1.60, 55.0), (1.92, 95.0)])
+def test_total_mass_matches_the_body_mass(height: float, mass: float) -> None:
+    a = anthropometry(height, mass)
+    assert body_mass_of(a) == pytest.approx(mass, rel=1e-3)
+    world, body, model = _load(height, mass)
+    c = world.client
+    total = sum(c.getDynamicsInfo(body, j)[0] for j in range(-1, c.getNumJoints(body)))
+    stick = 2 * (model.spec.stick.mass_kg + 1e-4)  # type: ignore[attr-defined]
+    markers = 4 * 1e-4 + 2 * 1e-4  # tips, aims, balls of the feet
+    dummies = 2 * 19 * DUMMY_MASS_KG + 2 * DUMMY_MASS_KG  # two per joint, one per fulcrum
+    assert total - SEAT_MASS_KG - stick - markers - dummies == pytest.approx(mass, rel=1e-3)
+    world.close()
+
+
+def test_segment_lengths_and_masses_follow_de_leva_scaled_by_height_and_mass() -> None:
+    height, mass = 1.90, 88.0
+    a = anthropometry(height, mass)
+    ref_h, _ = REFERENCE["male"]
+    scale = height * 1000 / ref_h
+    table = DE_LEVA["male"]
+    for ours, theirs in (("upper_arm", "upper_arm"), ("forearm", "forearm"), ("thigh", "thigh"),
+                         ("shank", "shank"), ("foot", "foot"), ("hand", "hand")):
+        seg = a.segments[ours]
+        assert seg.length_m == pytest.approx(table[theirs].length_mm / 1000 * scale, rel=1e-9)
+        assert seg.mass_kg == pytest.approx(table[theirs].mass_pct / 100 * mass, rel=1e-9)
+        assert seg.com_from_proximal_m == pytest.approx(table[theirs].com_pct / 100 * seg.length_m)
+    # proportions in the generated body: joint centres are as far apart as the table says
+    world, body, model = _load(height, mass)
+    c = world.client
+    index = {c.getJointInfo(body, j)[1].decode(): j for j in range(c.getNumJoints(body))}
+
+    def pos(name: str) -> np.ndarray:
+        return np.asarray(c.getLinkState(body, index[name], computeForwardKinematics=1)[4])
+
+    for upper, lower, name in (("right_shoulder_x", "right_elbow_x", "upper_arm"),
+                              ("right_elbow_x", "right_wrist_x", "forearm"),
+                              ("left_hip_x", "left_knee_x", "thigh"), ("left_knee_x", "left_ankle_x", "shank")):
+        assert float(np.linalg.norm(pos(upper) - pos(lower))) == pytest.approx(a.segments[name].length_m, rel=1e-6)
+    # standing zero pose: stature within a few percent of the height (feet on the ground, head on top)
+    world.close()
+
+
+def test_bad_anthropometry_is_rejected() -> None:
+    with pytest.raises(ValueError, match="height"):
+        anthropometry(3.0, 70.0)
+    with pytest.raises(ValueError, match="mass"):
+        anthropometry(1.7, 10.0)
+    with pytest.raises(ValueError, match="unknown segment"):
+        anthropometry(1.7, 70.0, lengths_m={"tail": 0.3})
+
+
+def test_segment_lengths_from_a_bvh_skeleton(tmp_path: Path) -> None:
+    bvh = tmp_path / "arm.bvh"
+    bvh.write_text(
+        "HIERARCHY\nROOT Hips\n{\n OFFSET 0 0 0\n CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation "
+        "Yrotation\n JOINT RightUpLeg\n {\n  OFFSET -9 0 0\n  CHANNELS 3 Zrotation Xrotation Yrotation\n"
+        "  JOINT RightLeg\n  {\n   OFFSET 0 -44 0\n   CHANNELS 3 Zrotation Xrotation Yrotation\n"
+        "   JOINT RightFoot\n   {\n    OFFSET 0 -42 0\n    CHANNELS 3 Zrotation Xrotation Yrotation\n"
+        "    End Site\n    {\n     OFFSET 0 -5 10\n    }\n   }\n  }\n }\n}\nMOTION\nFrames: 1\nFrame Time: 0.01\n"
+        + " ".join(["0"] * 15) + "\n",
+        encoding="utf-8",
+    )
+    lengths = bvh_segment_lengths(bvh)
+    assert lengths == pytest.approx({"thigh": 0.44, "shank": 0.42})
+    a = anthropometry(1.75, 73.0, lengths_m=lengths)
+    assert a.segments["thigh"].length_m == pytest.approx(0.44)
+    assert math.isclose(a.segments["thigh"].mass_kg, anthropometry(1.75, 73.0).segments["thigh"].mass_kg)

@@ -1,0 +1,30 @@
+"""The physics node builds a live core from its settings and refuses bad ones."""
+
+from __future__ import annotations
+
+import argparse
+
+import pytest
+
+from services.physics.node import PhysicsNodeSettings, main, make_core
+
+
+def test_make_core_builds_a_live_strike_core_that_skips_when_behind() -> None:
+    settings = PhysicsNodeSettings(scene="strike", discovery=False, strike_period=0.5, strike_velocity=2.0)
+    core = make_core(settings, argparse.Namespace())
+    assert core.ROLE == "physics" and core.settings.mode == "live" and core.rate_hz == 1000.0
+    core.step(0.0)
+    core.step(10.0)  # 10 s behind: simulates at most max_catchup_steps, skips the rest, counts it
+    assert core.skipped_steps == 10_000 - core.settings.max_catchup_steps
+    assert core.late == core.skipped_steps and core.overruns == 1
+    core.close()
+
+
+def test_bad_kit_is_a_clear_error() -> None:
+    with pytest.raises(ValueError, match="no kit file"):
+        make_core(PhysicsNodeSettings(scene="strike", kit="no-such-kit", discovery=False), argparse.Namespace())
+
+
+def test_show_settings(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["--show-settings", "--scene", "strike", "--no-discovery"]) == 0
+    assert '"scene": "strike"' in capsys.readouterr().out
