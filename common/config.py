@@ -113,6 +113,10 @@ class NodeSettings(BaseSettings):
     max_rate: float | None = Field(default=None, gt=0,
                                    description="datagrams per second accepted from one source (default: no limit)")
     log_level: Literal["DEBUG", "INFO", "WARNING", "ERROR"] = Field(default="INFO", description="logging level")
+    oscquery: bool = Field(default=True, description="serve the OSC namespace over OSCQuery (HTTP + WebSocket) "
+                           "and advertise it as _oscjson._tcp")
+    oscquery_port: int = Field(default=0, ge=0, le=65535,
+                               description="TCP port of the OSCQuery server (0: any free port)")
     max_datagram: int = Field(default=MAX_UDP_PAYLOAD, ge=512, le=MAX_UDP_PAYLOAD,
                               description="largest datagram sent or accepted, bytes")
 

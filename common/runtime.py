@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import collections
 import concurrent.futures
 import contextlib
 import gc
@@ -39,9 +40,10 @@ from typing import Any, Protocol, cast
 from common.clock import OffsetEstimator, RigClock, answer_ping
 from common.config import ENV_PREFIX, NodeSettings, SettingsError, flag_name, load_settings
 from common.core import Core, Outgoing
-from common.messages import PROTOCOL_VERSION, ClockPing, ClockPong, DropReason, Health, Hello, OscMessage
+from common.messages import PROTOCOL_VERSION, ClockPing, ClockPong, DropReason, Health, Hello, OscMessage, Subscribe
 from common.peers import Peer, PeerTable
-from common.transport import UdpEndpoint
+from common.subscribe import Subscriptions
+from common.transport import UdpEndpoint, parse_address
 
 log = logging.getLogger("batteur.runtime")
 
@@ -225,6 +227,10 @@ class Node:
     max_catch_up_s : float
         After a stall, up to this much of missed steps is caught up back to back
         (10 ticks at 1 kHz, none at 60 Hz); the rest is skipped. Seconds.
+    clock_wait_s : float
+        A node whose clock master is another node holds its core (no steps; messages for the
+        core queued, up to 1024) until its clock offset is estimated, so the core never sees rig
+        time jump by the offset; after this long without a master it starts anyway. Seconds.
     """
 
     def __init__(
@@ -238,6 +244,7 @@ class Node:
         health_interval_s: float = 1.0,
         ping_interval_s: float = 1.0,
         max_catch_up_s: float = 0.01,
+        clock_wait_s: float = 3.0,
     ) -> None:
         self.core = core
         self.settings = settings
@@ -273,6 +280,15 @@ class Node:
         self._aio_loop: asyncio.AbstractEventLoop | None = None
         self._loop_thread = 0
         self._last_error_log = 0.0
+        self.clock_wait_s = clock_wait_s
+        self.core_started = self.is_clock_master
+        """False while a non-master node waits for its clock offset (see ``clock_wait_s``)."""
+        self._held: collections.deque[tuple[OscMessage, str]] = collections.deque(maxlen=1024)
+        self._started_at = time.monotonic()
+        self.subscriptions = Subscriptions(self._send_copy, time.monotonic)
+        """Who asked for copies of which messages (:class:`~common.messages.Subscribe`)."""
+        self.oscquery: Any = None
+        """The OSCQuery server (``common.oscquery.OscQueryServer``) once started, or None."""
         if self.is_clock_master:
             self.clock.synced = True
 
@@ -299,6 +315,9 @@ class Node:
             max_rate=s.max_rate,
         )
         self.endpoint.set_handler(self._on_message)
+        self.endpoint.tap = self._tap
+        if s.oscquery:
+            await self._start_oscquery()
         self.peers.listeners.append(self._on_peer_change)
         for peer in s.static_peers:
             self.peers.add(peer)
@@ -308,6 +327,7 @@ class Node:
         self.spawn(self._health_task(), "health")
         if not self.is_clock_master:
             self.spawn(self._clock_task(), "clock")
+            self.spawn(self._core_start_timer(), "core start")
         if s.discovery:  # registration probes for about a second; the node already runs meanwhile
             factory = self.discovery_factory or default_discovery_factory
             self.discovery = factory(
@@ -320,6 +340,11 @@ class Node:
                 protocol=PROTOCOL_VERSION,
             )
             if self.discovery is not None:
+                register_extra = getattr(self.discovery, "register_extra", None)
+                if self.oscquery is not None and callable(register_extra):
+                    from common.oscquery import SERVICE_TYPE as OSCJSON
+
+                    await register_extra(OSCJSON, self.oscquery.port, self.oscquery.txt())
                 try:
                     await self.discovery.start()
                 except Exception as exc:  # the node still works with static peers
@@ -336,6 +361,22 @@ class Node:
             "master" if self.is_clock_master else f"from {self.settings.clock_master}",
             "on" if self.discovery is not None else "off",
         )
+
+    async def _start_oscquery(self) -> None:
+        """Serve the namespace over OSCQuery on the node's host (a failure leaves the node running without it)."""
+        from common.oscquery import OscQueryServer
+
+        assert self.endpoint is not None
+        endpoint = self.endpoint
+        server = OscQueryServer(self.node_id, self.role, self.settings.host, endpoint.port,
+                                receive=endpoint.receive_datagram, allow=self.settings.allow_networks)
+        try:
+            await server.start(self.settings.host, self.settings.oscquery_port)
+        except OSError as exc:
+            log.error("OSCQuery server cannot listen on %s:%d (%s); running without it",
+                      self.settings.host, self.settings.oscquery_port, exc.strerror or exc)
+            return
+        self.oscquery = server
 
     def _bind_loop(self) -> None:
         if self._stop_requested is None:
@@ -386,6 +427,12 @@ class Node:
             except Exception as exc:
                 log.warning("discovery did not stop cleanly: %s", exc)
             self.discovery = None
+        if self.oscquery is not None:
+            try:
+                await asyncio.wait_for(self.oscquery.stop(), timeout=2.0)
+            except Exception as exc:
+                log.warning("OSCQuery server did not stop cleanly: %s", exc)
+            self.oscquery = None
         if self.endpoint is not None:
             self.endpoint.close()
         close = getattr(self.core, "close", None)
@@ -434,7 +481,31 @@ class Node:
 
     # ------------------------------------------------------------ stepping and routing
 
+    def start_core(self, reason: str = "") -> None:
+        """Let the core run: hand it the messages held while waiting for the clock."""
+        if self.core_started:
+            return
+        self.core_started = True
+        if reason:
+            log.info("%s core starts (%s); %d messages were held", self.role, reason, len(self._held))
+        while self._held:
+            message, source = self._held.popleft()
+            try:
+                self.route(self.core.handle(message, self.clock.now(), source), reply_to=source)
+            except Exception as exc:
+                assert self.endpoint is not None
+                self.endpoint.stats.record_drop(DropReason.HANDLER_ERROR, f"{type(exc).__name__}: {exc}", source)
+
+    async def _core_start_timer(self) -> None:
+        await asyncio.sleep(self.clock_wait_s)
+        if not self.core_started:
+            log.warning("no clock master (%s) within %g s: starting on this node's own clock; rig time will "
+                        "jump when the master appears", self.settings.clock_master, self.clock_wait_s)
+            self.start_core("clock master not found")
+
     def _step(self) -> None:
+        if not self.core_started:
+            return
         try:
             outgoing = self.core.step(self.clock.now())
         except Exception as exc:
@@ -463,12 +534,40 @@ class Node:
         if isinstance(message, ClockPong):
             self._on_pong(message)
             return
+        if isinstance(message, Subscribe):
+            self._on_subscribe(message, source)
+            return
         if isinstance(message, Hello):
             endpoint.send(self.health(), source)
         elif isinstance(message, Health):
             self.peer_health[message.node_id] = (message, source, time.monotonic())
+        if not self.core_started:
+            self._held.append((message, source))
+            return
         # an exception here is counted by the endpoint as a handler error
         self.route(self.core.handle(message, self.clock.now(), source), reply_to=source)
+
+    def _send_copy(self, data: bytes, to: tuple[str, int]) -> None:
+        if self.endpoint is not None and not self.endpoint.closed:
+            self.endpoint.send_copy(data, to)
+
+    def _tap(self, address: str, packet: Callable[[], bytes], direction: str) -> None:
+        """Every message sent or received: copies to subscribers, values and listeners of OSCQuery."""
+        if self.subscriptions.active:
+            self.subscriptions.offer(address, packet)
+        if self.oscquery is not None:
+            self.oscquery.observe(address, packet)
+
+    def _on_subscribe(self, message: Subscribe, source: str) -> None:
+        try:
+            to = parse_address(source)
+        except ValueError:
+            return
+        if self.subscriptions.subscribe(to, message.pattern, message.duration_s):
+            log.info("forwarding %s to %s for %g s", message.pattern, source, message.duration_s)
+        else:
+            self._log_error("subscription of %s to %s refused (%d active, pattern checked)", source,
+                            message.pattern, len(self.subscriptions.active))
 
     def _on_pong(self, pong: ClockPong) -> None:
         sample = self.estimator.add_pong(pong, self.clock.local_now())
@@ -483,6 +582,7 @@ class Node:
                     self.clock.offset,
                     self.estimator.uncertainty,
                 )
+                self.start_core()
 
     def _on_peer_change(self, event: str, peer: Peer) -> None:
         if event == "removed" or peer.node_id == self.node_id:

@@ -44,6 +44,8 @@ Handler = Callable[[OscMessage, str], None]
 """Receives (message, source) with source ``"host:port"``."""
 RawHandler = Callable[[RawMessage, str], None]
 """Receives (raw message, source) for addresses that have no model but a raw route."""
+Tap = Callable[[str, Callable[[], bytes], str], None]
+"""Sees every message sent or received: (address, packet of that one message (lazy), "in" | "out")."""
 Target = str | tuple[str, int]
 IpNetwork = ipaddress.IPv4Network | ipaddress.IPv6Network
 IpAddress = ipaddress.IPv4Address | ipaddress.IPv6Address
@@ -148,6 +150,8 @@ class UdpEndpoint:
         self._clock = clock
         self._family = sock.family
         self._handler: Handler | None = None
+        self.tap: Tap | None = None
+        """Called for every valid message received and every message sent (``batteur echo``, OSCQuery)."""
         self._raw_routes: list[tuple[str, RawHandler]] = []
         self._transport: asyncio.DatagramTransport | None = None
         self._buckets: OrderedDict[str, _Bucket] = OrderedDict()
@@ -246,16 +250,44 @@ class UdpEndpoint:
 
     def send(self, message: OscMessage, to: Target) -> None:
         """Send one typed message to a role, ``"host:port"`` or ``(host, port)``."""
-        self._send_packet(encode(message), to, 1)
+        data = encode(message)
+        self._send_packet(data, to, 1)
+        if self.tap is not None:
+            self._tap_out(message.ADDRESS, data)
 
     def send_raw(self, address: str, args: Sequence[Arg], to: Target) -> None:
         """Send one message that has no model (ints as ``i``, floats as ``f``, strings as ``s``)."""
-        self._send_packet(encode_raw(address, args), to, 1)
+        data = encode_raw(address, args)
+        self._send_packet(data, to, 1)
+        if self.tap is not None:
+            self._tap_out(address, data)
 
     def send_bundle(self, messages: Sequence[OscMessage], to: Target, timetag: float | None = None) -> None:
         """Send several messages in one bundle (``timetag``: Unix seconds; receivers ignore it)."""
         if messages:
             self._send_packet(encode_bundle(messages, timetag), to, len(messages))
+            if self.tap is not None:
+                for message in messages:
+                    self._tap_out(message.ADDRESS, encode(message))
+
+    def send_copy(self, data: bytes, to: tuple[str, int]) -> None:
+        """Send an already encoded packet to one socket address, outside the message counters (copies)."""
+        if self._transport is not None and len(data) <= self.max_datagram:
+            ip = self._resolve(to[0])
+            if ip is not None:
+                self._transport.sendto(data, (ip, to[1]))
+
+    def receive_datagram(self, data: bytes, host: str, port: int) -> None:
+        """Handle a datagram that arrived another way (e.g. OSC over OSCQuery's WebSocket), with every check."""
+        self._receive(data, (host, port))
+
+    def _tap_out(self, address: str, data: bytes) -> None:
+        tap = self.tap
+        if tap is not None:
+            try:
+                tap(address, lambda: data, "out")
+            except Exception as exc:  # a tap must never break sending
+                self._log_limited("tap", logging.WARNING, "tap failed: %s: %s", type(exc).__name__, exc)
 
     def destinations(self, to: Target) -> list[tuple[str, int]]:
         """The socket addresses ``to`` means now (empty if none is known or reachable)."""
@@ -355,6 +387,8 @@ class UdpEndpoint:
                 stats.record_drop(exc.reason, str(exc), source)
                 continue
             stats.messages_in += 1
+            if self.tap is not None:
+                self._tap_in(message)
             if self._handler is not None:
                 try:
                     self._handler(message, source)
@@ -362,10 +396,23 @@ class UdpEndpoint:
                     stats.record_drop(DropReason.HANDLER_ERROR, f"{raw.address}: {type(exc).__name__}: {exc}", source)
                     log.debug("handler error on %s", raw.address, exc_info=True)
 
+    def _tap_in(self, message: OscMessage) -> None:
+        tap = self.tap
+        if tap is not None:
+            try:
+                tap(message.ADDRESS, lambda: encode(message), "in")
+            except Exception as exc:
+                self._log_limited("tap", logging.WARNING, "tap failed: %s: %s", type(exc).__name__, exc)
+
     def _route_raw(self, raw: RawMessage, source: str) -> bool:
         for prefix, handler in self._raw_routes:
             if raw.address.startswith(prefix):
                 self.stats.messages_in += 1
+                if self.tap is not None:
+                    try:
+                        self.tap(raw.address, lambda: encode_raw(raw.address, raw.args), "in")
+                    except Exception as exc:
+                        self._log_limited("tap", logging.WARNING, "tap failed: %s: %s", type(exc).__name__, exc)
                 try:
                     handler(raw, source)
                 except Exception as exc:

@@ -1,0 +1,304 @@
+"""Write pd/control.pd, Batteur's control panel for Pure Data vanilla (0.51+).
+
+The panel is generated so its wiring stays consistent with the message models
+(common/messages): every control below names the model it sends, and the
+generator checks each one's OSC address and argument count against the model.
+Run ``python pd/make_control.py`` after changing it; tests/deploy/test_pd.py
+checks that the file on disk is what this script writes.
+"""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+from common.messages import REGISTRY, OscMessage, WireKind  # noqa: E402
+from common.messages.physics import PhysicsControlMode, PhysicsGrip, PhysicsReset  # noqa: E402
+from common.messages.score import GestureStyle, ScoreLoad, ScoreTransport, TempoScale  # noqa: E402
+from common.messages.sound import (  # noqa: E402
+    SoundDamping,
+    SoundDensity,
+    SoundLatency,
+    SoundLevel,
+    SoundMaster,
+    SoundModel,
+    SoundModes,
+    SoundRadius,
+    SoundTension,
+)
+
+OUT = Path(__file__).with_name("control.pd")
+PORTS = {"physics": 9101, "interaction": 9102, "sound": 9103, "graphics": 9104, "score": 9101}
+"""Default UDP port of each destination (compose.yaml's ports); score messages go to physics by default."""
+INSTRUMENTS = ("kick", "snare", "hightom", "midtom", "floortom", "hihat", "crash", "ride", "splash", "china",
+               "cowbell")
+COLORS = "-262144 -1 -1"
+
+
+def esc(text: str) -> str:
+    """Escape a Pd atom text: dollars, commas and semicolons."""
+    return text.replace("$", "\\$").replace(",", " \\,").replace(";", " \\;")
+
+
+@dataclass
+class Patch:
+    lines: list[str] = field(default_factory=list)
+    count: int = 0
+    connects: list[str] = field(default_factory=list)
+
+    def _add(self, line: str) -> int:
+        self.lines.append(line)
+        self.count += 1
+        return self.count - 1
+
+    def obj(self, x: int, y: int, text: str) -> int:
+        return self._add(f"#X obj {x} {y} {esc(text)};")
+
+    def msg(self, x: int, y: int, text: str) -> int:
+        return self._add(f"#X msg {x} {y} {esc(text)};")
+
+    def text(self, x: int, y: int, text: str, width: int = 0) -> int:
+        """A comment; ``width`` in characters (0: Pd's default, 60)."""
+        suffix = f", f {width}" if width else ""
+        return self._add(f"#X text {x} {y} {esc(text)}{suffix};")
+
+    def hsl(self, x: int, y: int, lo: float, hi: float, log: bool, receive: str, width: int = 160) -> int:
+        return self._add(f"#X obj {x} {y} hsl {width} 15 {lo:g} {hi:g} {int(log)} 0 empty {receive} empty "
+                         f"-2 -8 0 10 {COLORS} 0 1;")
+
+    def nbx(self, x: int, y: int, lo: float, hi: float, width: int = 8, receive: str = "empty") -> int:
+        return self._add(f"#X obj {x} {y} nbx {width} 14 {lo:g} {hi:g} 0 0 empty {receive} empty 0 -8 0 10 "
+                         f"{COLORS} 0 256;")
+
+    def bng(self, x: int, y: int, receive: str = "empty") -> int:
+        return self._add(f"#X obj {x} {y} bng 17 250 50 0 empty {receive} empty 17 7 0 10 {COLORS};")
+
+    def symbolatom(self, x: int, y: int, width: int, receive: str = "-", send: str = "-") -> int:
+        return self._add(f"#X symbolatom {x} {y} {width} 0 0 0 - {receive} {send};")
+
+    def connect(self, a: int, outlet: int, b: int, inlet: int) -> None:
+        self.connects.append(f"#X connect {a} {outlet} {b} {inlet};")
+
+    def render(self) -> str:
+        head = "#N canvas 20 20 1900 1000 12;"
+        return "\n".join([head, *self.lines, *self.connects]) + "\n"
+
+
+def wire_count(model: type[OscMessage]) -> int:
+    return sum(2 if f.kind is WireKind.TIME else 1 for f in model.wire_fields())
+
+
+def sender(p: Patch, x: int, y: int, model: type[OscMessage], role: str, n_args: int) -> int:
+    """[oscformat ADDRESS] -> [s bp-out-ROLE]; returns the oscformat's index (its inlet takes the argument list)."""
+    assert REGISTRY.get(model.ADDRESS) is model
+    if n_args != wire_count(model):
+        raise SystemExit(f"{model.__name__}: the panel sends {n_args} arguments, the model takes {wire_count(model)}")
+    fmt = p.obj(x, y, "oscformat " + " ".join(model.ADDRESS.strip("/").split("/")))
+    out = p.obj(x, y + 25, f"s bp-out-{role}")
+    p.connect(fmt, 0, out, 0)
+    return fmt
+
+
+def choices(p: Patch, x: int, y: int, label: str, values: tuple[str, ...], receive: str) -> int:
+    """Clickable [symbol VALUE( boxes and [r RECEIVE]; returns a [symbol] that outputs the choice."""
+    p.text(x, y, label)
+    store = p.obj(x, y + 60, "symbol")
+    r = p.obj(x + 80, y + 60, f"r {receive}")
+    p.connect(r, 0, store, 0)
+    cx = x
+    for value in values:
+        m = p.msg(cx, y + 25, f"symbol {value}")
+        p.connect(m, 0, store, 0)
+        cx += 12 + 9 * len(f"symbol {value}") // 2 + 40
+    return store
+
+
+def slider(p: Patch, x: int, y: int, label: str, lo: float, hi: float, log: bool, receive: str,
+           integer: bool = False) -> int:
+    """A slider and a number box; returns the object whose outlet gives the value."""
+    p.text(x, y, label)
+    s = p.hsl(x, y + 22, lo, hi, log, receive)
+    n = p.nbx(x + 175, y + 22, lo, hi)
+    p.connect(s, 0, n, 0)
+    if integer:
+        i = p.obj(x + 270, y + 22, "i")
+        p.connect(n, 0, i, 0)
+        return i
+    return n
+
+
+def build() -> Patch:
+    p = Patch()
+    p.text(20, 10, "Batteur control panel (Pure Data vanilla 0.51+). Sends the rig's OSC over UDP to each service: "
+                   "set the host and ports below (defaults: this machine and the ports of compose.yaml). Every "
+                   "control also has a receive name (bp-...) so other patches can drive it. See docs/pd.md.", 150)
+    # ------------------------------------------------------------ destinations
+    p.text(20, 70, "destinations: host")
+    p.symbolatom(160, 70, 14, "-", "bp-host")  # type a host, press Enter
+    load = p.obj(760, 70, "loadbang")
+    again = p.bng(460, 70, "bp-connect")
+    p.text(485, 70, "(re)connect")
+    x = 20
+    for role, port in PORTS.items():
+        p.text(x, 100, role)
+        nb = p.nbx(x, 122, 1, 65535, 6, f"bp-port-{role}")
+        tb = p.obj(x, 150, "t b f")
+        p.connect(nb, 0, tb, 0)
+        host = p.obj(x + 60, 180, "symbol 127.0.0.1")
+        rh = p.obj(x + 60, 150, "r bp-host")
+        p.connect(rh, 0, host, 0)
+        pk = p.obj(x, 210, f"pack s {port}")
+        p.connect(tb, 1, pk, 1)
+        p.connect(tb, 0, host, 0)
+        p.connect(host, 0, pk, 0)
+        p.connect(load, 0, host, 0)
+        p.connect(again, 0, host, 0)
+        con = p.msg(x, 235, "disconnect, connect $1 $2")
+        p.connect(pk, 0, con, 0)
+        r = p.obj(x + 110, 265, f"r bp-out-{role}")
+        pre = p.obj(x + 110, 290, "list prepend send")
+        trim = p.obj(x + 110, 315, "list trim")
+        net = p.obj(x, 345, "netsend -u -b")
+        p.connect(r, 0, pre, 0)
+        p.connect(pre, 0, trim, 0)
+        p.connect(trim, 0, net, 0)
+        p.connect(con, 0, net, 0)
+        x += 230
+    # ------------------------------------------------------------ gesture: grip, nuance, style, mode
+    y = 390
+    p.text(20, y, "GESTURE (score and physics)")
+    grip = choices(p, 20, y + 25, "grip", ("french", "german"), "bp-grip")
+    nuance = choices(p, 20, y + 115, "nuance", ("legato", "tenuto", "accent", "vertical_accent", "staccato"),
+                     "bp-nuance")
+    algo = choices(p, 20, y + 205, "hand assignment", ("simple", "pairwise", "viterbi"), "bp-algorithm")
+    stick = choices(p, 20, y + 295, "sticking", ("none", "single", "double", "paradiddle"), "bp-sticking")
+    # the style message takes all four: keep them in [symbol]s, send all on any change
+    stores = []
+    fire = p.obj(420, y + 360, "t b b b b")
+    for k, (src, default) in enumerate(((grip, "french"), (nuance, "legato"), (algo, "simple"), (stick, "none"))):
+        keep = p.obj(420 + 70 * k, y + 390, f"symbol {default}")
+        order = p.obj(300, y + 85 + 90 * k, "t b s")  # store first, then send all four
+        p.connect(src, 0, order, 0)
+        p.connect(order, 1, keep, 1)
+        p.connect(order, 0, fire, 0)
+        stores.append(keep)
+    pack = p.obj(420, y + 420, "pack s s s s")
+    for k, keep in enumerate(stores):
+        p.connect(fire, k, keep, 0)  # right to left: the hot inlet (grip) last
+        p.connect(keep, 0, pack, k)
+    p.connect(pack, 0, sender(p, 420, y + 450, GestureStyle, "score", 4), 0)
+    # the grip also goes to physics (both hands)
+    both = p.obj(620, y + 85, "list prepend both")
+    p.connect(grip, 0, both, 0)
+    p.connect(both, 0, sender(p, 620, y + 110, PhysicsGrip, "physics", 2), 0)
+    mode = choices(p, 620, y + 180, "control mode", ("joint_pd", "joint_spd", "cartesian"), "bp-mode")
+    p.connect(mode, 0, sender(p, 620, y + 270, PhysicsControlMode, "physics", 1), 0)
+    reset = p.msg(900, y + 25, "0 0")
+    p.text(900, y, "reset drummer")
+    rr = p.obj(960, y + 25, "r bp-reset")
+    p.connect(rr, 0, reset, 0)
+    p.connect(reset, 0, sender(p, 900, y + 50, PhysicsReset, "physics", 2), 0)
+    # ------------------------------------------------------------ score: tempo, load, transport
+    y2 = y + 500
+    p.text(20, y2, "SCORE")
+    tempo = slider(p, 20, y2 + 25, "tempo factor (0.25..4)", 0.25, 4.0, True, "bp-tempo")
+    p.connect(tempo, 0, sender(p, 20, y2 + 70, TempoScale, "score", 1), 0)
+    p.text(330, y2 + 25, "score file (name in the score library \\, or path) - type and press Enter")
+    path = p.symbolatom(330, y2 + 47, 30, "bp-score", "-")
+    p.connect(path, 0, sender(p, 330, y2 + 75, ScoreLoad, "score", 1), 0)
+    p.text(700, y2 + 25, "position s")
+    pos = p.nbx(700, y2 + 47, 0, 100000, 6, "bp-position")
+    play = p.msg(790, y2 + 47, "play")
+    stop = p.msg(840, y2 + 47, "stop")
+    pause = p.msg(890, y2 + 47, "pause")
+    rt = p.obj(950, y2 + 47, "r bp-transport")
+    act = p.obj(790, y2 + 75, "symbol")
+    for m in (play, stop, pause, rt):
+        p.connect(m, 0, act, 0)
+    # action, time 0 0 (rig time 0: at once), position
+    tp = p.obj(790, y2 + 100, "pack s 0 0 0")
+    p.connect(act, 0, tp, 0)
+    p.connect(pos, 0, tp, 3)
+    p.connect(tp, 0, sender(p, 790, y2 + 125, ScoreTransport, "score", 4), 0)
+    # ------------------------------------------------------------ sound: per instrument
+    x3 = 1200
+    p.text(x3, 10, "SOUND - instrument:")
+    p.symbolatom(x3 + 160, 10, 10, "bp-instrument", "-")  # shows the instrument the controls below act on
+    sink = p.obj(x3 + 300, 10, "s bp-instrument")
+    for k, name in enumerate(INSTRUMENTS):
+        m = p.msg(x3 + 100 * (k % 6), 40 + 25 * (k // 6), f"symbol {name}")
+        p.connect(m, 0, sink, 0)
+    init_inst = p.msg(x3 + 400, 10, "symbol snare")
+    p.connect(load, 0, init_inst, 0)
+    p.connect(init_inst, 0, sink, 0)
+
+    def per_instrument(y: int, model: type[OscMessage], source: int, n_values: int) -> None:
+        pre = p.obj(x3 + 380, y, "list prepend")
+        r = p.obj(x3 + 480, y - 25, "r bp-instrument")
+        p.connect(r, 0, pre, 1)
+        p.connect(source, 0, pre, 0)
+        p.connect(pre, 0, sender(p, x3 + 380, y + 25, model, "sound", 1 + n_values), 0)
+
+    model = choices(p, x3, 100, "synthesis model", ("modal", "sample", "synth"), "bp-model")
+    per_instrument(185, SoundModel, model, 1)
+    rows: list[tuple[str, type[OscMessage], float, float, bool, str, bool]] = [
+        ("level dB (-80..12)", SoundLevel, -80, 12, False, "bp-level", False),
+        ("radius m (0.02..0.6)", SoundRadius, 0.02, 0.6, False, "bp-radius", False),
+        ("tension N/m (10..100000)", SoundTension, 10, 100000, True, "bp-tension", False),
+        ("density kg/m2 (0.01..20)", SoundDensity, 0.01, 20, True, "bp-density", False),
+        ("modes (1..20000)", SoundModes, 1, 20000, True, "bp-modes", True),
+    ]
+    yy = 250
+    for label, m_, lo, hi, log, receive, integer in rows:
+        src = slider(p, x3, yy, label, lo, hi, log, receive, integer)
+        per_instrument(yy + 22, m_, src, 1)
+        yy += 80
+    # damping: two values in one message
+    p.text(x3, yy, "damping sigma0 1/s (0..500) and sigma1 s (0..0.001)")
+    s0 = p.hsl(x3, yy + 22, 0, 500, False, "bp-sigma0")
+    n0 = p.nbx(x3 + 175, yy + 22, 0, 500)
+    s1 = p.hsl(x3, yy + 47, 0, 0.001, False, "bp-sigma1")
+    n1 = p.nbx(x3 + 175, yy + 47, 0, 0.001)
+    p.connect(s0, 0, n0, 0)
+    p.connect(s1, 0, n1, 0)
+    dp = p.obj(x3 + 280, yy + 75, "pack f f")
+    t1 = p.obj(x3 + 280, yy + 47, "t b f")
+    p.connect(n0, 0, dp, 0)
+    p.connect(n1, 0, t1, 0)
+    p.connect(t1, 1, dp, 1)
+    p.connect(t1, 0, dp, 0)
+    per_instrument(yy + 100, SoundDamping, dp, 2)
+    yy += 160
+    p.text(x3, yy, "SOUND - whole rig")
+    lat = slider(p, x3, yy + 25, "latency window s (0..0.5)", 0, 0.5, False, "bp-latency")
+    p.connect(lat, 0, sender(p, x3 + 300, yy + 47, SoundLatency, "sound", 1), 0)
+    p.text(x3, yy + 100, "master gain dB (-80..12) and reverb (0..1)")
+    g = p.hsl(x3, yy + 122, -80, 12, False, "bp-master")
+    gn = p.nbx(x3 + 175, yy + 122, -80, 12)
+    rv = p.hsl(x3, yy + 147, 0, 1, False, "bp-reverb")
+    rn = p.nbx(x3 + 175, yy + 147, 0, 1)
+    p.connect(g, 0, gn, 0)
+    p.connect(rv, 0, rn, 0)
+    mp = p.obj(x3 + 280, yy + 175, "pack f f")
+    t2 = p.obj(x3 + 280, yy + 147, "t b f")
+    p.connect(gn, 0, mp, 0)
+    p.connect(rn, 0, t2, 0)
+    p.connect(t2, 1, mp, 1)
+    p.connect(t2, 0, mp, 0)
+    p.connect(mp, 0, sender(p, x3 + 280, yy + 200, SoundMaster, "sound", 2), 0)
+    return p
+
+
+def main() -> int:
+    OUT.write_text(build().render(), encoding="utf-8")
+    print(f"wrote {OUT}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,98 @@
+"""Run Pure Data headless (``pd -nogui -nosound``) for tests and read what its [print] objects say."""
+
+from __future__ import annotations
+
+import queue
+import shutil
+import subprocess
+import threading
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import pytest
+
+PD_DIR = Path(__file__).resolve().parents[2] / "pd"
+
+
+def pd_binary() -> str | None:
+    return shutil.which("pd") or shutil.which("puredata")
+
+
+def require_pd() -> str:
+    binary = pd_binary()
+    if binary is None:
+        pytest.skip("Pure Data is not installed (Debian: apt-get install puredata-core)")
+    return binary
+
+
+class PdProcess:
+    """``pd -nogui -nosound -stderr PATCH`` with ``-send`` messages; stderr lines collected."""
+
+    def __init__(self, patch: Path, sends: Sequence[str] = (), extra: Sequence[str] = (),
+                 prefix: Sequence[str] = ()) -> None:
+        binary = require_pd()
+        args = [*prefix, binary, "-nogui", "-nosound", "-stderr", "-noprefs", *extra]
+        for message in sends:
+            args += ["-send", message]
+        args.append(str(patch))
+        self.popen = subprocess.Popen(args, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                                      stderr=subprocess.STDOUT, text=True, cwd=str(patch.parent),
+                                      start_new_session=True)
+        self.lines: list[str] = []
+        self._queue: queue.Queue[str | None] = queue.Queue()
+        self._reader = threading.Thread(target=self._pump, daemon=True)
+        self._reader.start()
+
+    def _pump(self) -> None:
+        assert self.popen.stdout is not None
+        for line in self.popen.stdout:
+            self._queue.put(line.rstrip("\n"))
+        self._queue.put(None)
+
+    def _drain(self, timeout: float) -> None:
+        try:
+            line = self._queue.get(timeout=timeout)
+        except queue.Empty:
+            return
+        if line is not None:
+            self.lines.append(line)
+
+    def wait_for(self, predicate: Callable[[list[str]], bool], timeout: float = 10.0) -> list[str]:
+        deadline = time.monotonic() + timeout
+        while not predicate(self.lines):
+            if time.monotonic() > deadline:
+                raise AssertionError(f"Pd did not print what was expected within {timeout} s:\n" +
+                                     "\n".join(self.lines[-50:]))
+            if self.popen.poll() is not None and self._queue.empty():
+                raise AssertionError("Pd exited:\n" + "\n".join(self.lines[-50:]))
+            self._drain(0.05)
+        return self.lines
+
+    def printed(self, name: str) -> list[list[str]]:
+        """The atoms printed by ``[print NAME]`` so far (Pd writes ``NAME: atoms``)."""
+        while not self._queue.empty():
+            self._drain(0)
+        out = []
+        for line in self.lines:
+            if line.startswith(name + ":"):
+                atoms = line[len(name) + 1:].split()
+                if atoms and atoms[0] in ("list", "symbol"):
+                    atoms = atoms[1:]
+                out.append(atoms)
+        return out
+
+    def errors(self) -> list[str]:
+        """Lines that look like Pd errors (object creation failures, bad messages)."""
+        bad = ("couldn't create", "error", "no method", "bad arguments", "stack overflow")
+        return [line for line in self.lines if any(b in line for b in bad)]
+
+    def stop(self) -> None:
+        if self.popen.poll() is None:
+            self.popen.terminate()
+            try:
+                self.popen.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                self.popen.kill()
+                self.popen.wait(timeout=5)
+        self._reader.join(timeout=2)

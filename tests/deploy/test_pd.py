@@ -1,0 +1,257 @@
+"""Pure Data, headless: the control panel drives the rig's cores; the Pd sound client plays a rig's impacts."""
+
+from __future__ import annotations
+
+import asyncio
+import socket
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, ClassVar
+
+import numpy as np
+import pytest
+import soundfile as sf
+
+from common.config import load_settings
+from common.core import Core, Outgoing
+from common.messages import Impact, OscMessage, encode, encode_raw
+from common.messages.physics import PhysicsControlMode, PhysicsGrip
+from common.messages.score import GestureStyle, ScoreLoad, ScoreTransport, TempoScale
+from common.messages.sound import SoundDamping, SoundLatency, SoundLevel, SoundModel, SoundModes, SoundTension
+from common.runtime import Node
+from tests.deploy.pdrun import PD_DIR, PdProcess, require_pd
+
+pytestmark = pytest.mark.timeout(120)
+ROOT = Path(__file__).resolve().parents[2]
+
+
+class Recorder:
+    """Wraps a real core: records what it handled, handles it, never steps (rate 0 keeps the test light)."""
+
+    ROLE: ClassVar[str] = "wrapped"
+
+    def __init__(self, core: Any) -> None:
+        self.core = core
+        self.rate_hz = 0.0
+        self.handled: list[OscMessage] = []
+
+    def handle(self, message: OscMessage, now: float, source: str) -> list[Outgoing]:
+        self.handled.append(message)
+        out: list[Outgoing] = self.core.handle(message, now, source)
+        return out
+
+    def step(self, now: float) -> list[Outgoing]:
+        return []
+
+    def of(self, kind: type[OscMessage]) -> list[Any]:
+        return [m for m in self.handled if isinstance(m, kind)]
+
+
+async def wait_for(condition: Callable[[], bool], timeout: float = 15.0) -> None:
+    deadline = time.monotonic() + timeout
+    while not condition():
+        if time.monotonic() > deadline:
+            raise AssertionError("timed out waiting")
+        await asyncio.sleep(0.02)
+
+
+def test_control_panel_file_is_the_generated_one() -> None:
+    sys.path.insert(0, str(PD_DIR))
+    try:
+        import make_control  # type: ignore[import-not-found]
+    finally:
+        sys.path.remove(str(PD_DIR))
+    assert (PD_DIR / "control.pd").read_text(encoding="utf-8") == make_control.build().render(), (
+        "pd/control.pd is stale: run python pd/make_control.py")
+
+
+@pytest.mark.parametrize("patch", ["control.pd", "sound-client.pd"])
+def test_patches_load_without_errors(patch: str) -> None:
+    pd = PdProcess(PD_DIR / patch, extra=["-send", "pd quit"])
+    try:
+        pd.popen.wait(timeout=20)
+        pd.wait_for(lambda lines: True, timeout=1)
+    finally:
+        pd.stop()
+    assert pd.errors() == [], "\n".join(pd.lines)
+
+
+def test_control_panel_drives_physics_and_sound_cores() -> None:
+    require_pd()
+    from services.physics.core import PhysicsCore
+    from services.sound.core import SoundCore, SoundSettings
+
+    async def main() -> None:
+        physics = Recorder(PhysicsCore())
+        sound = Recorder(SoundCore(SoundSettings(use_pyo=False)))
+        nodes = []
+        for role, core in (("physics", physics), ("sound", sound)):
+            node = Node(core, load_settings({"role": role, "discovery": False, "clock_master": "self",  # type: ignore[arg-type]
+                                             "oscquery": False}))
+            nodes.append(node)
+            await node.start()
+        pport, sport = (n.endpoint.port for n in nodes if n.endpoint is not None)
+        sends = [
+            f"bp-port-physics {pport}", f"bp-port-score {pport}", f"bp-port-sound {sport}",
+            "bp-grip symbol german", "bp-nuance symbol staccato", "bp-algorithm symbol viterbi",
+            "bp-mode symbol joint_spd", "bp-tempo 1.5", "bp-score symbol groove-1",
+            "bp-position 2", "bp-transport symbol play",
+            "bp-instrument symbol kick", "bp-model symbol synth", "bp-model symbol modal", "bp-tension 800",
+            "bp-level -6", "bp-modes 120", "bp-sigma1 0.0001", "bp-sigma0 20", "bp-latency 0.08",
+        ]
+        pd = PdProcess(PD_DIR / "control.pd", sends=sends)
+        try:
+            await wait_for(lambda: len(sound.of(SoundLatency)) >= 1 and len(physics.of(ScoreTransport)) >= 1)
+        finally:
+            pd.stop()
+            for node in nodes:
+                await node.stop()
+        assert pd.errors() == [], "\n".join(pd.lines)
+        # physics acted on grip and control mode
+        assert physics.of(PhysicsGrip)[-1] == PhysicsGrip(hand="both", grip="german")
+        scene = physics.core.scene
+        assert scene.grip == {"left": "german", "right": "german"}
+        assert physics.of(PhysicsControlMode)[-1].mode == "joint_spd" and scene.controller.mode == "joint_spd"
+        # score messages arrive whole and typed (the score's player acts on them)
+        assert physics.of(GestureStyle)[-1] == GestureStyle(grip="german", nuance="staccato", algorithm="viterbi",
+                                                            sticking="none")
+        assert physics.of(TempoScale)[-1].factor == pytest.approx(1.5)
+        assert physics.of(ScoreLoad)[-1].path == "groove-1"
+        transport = physics.of(ScoreTransport)[-1]
+        assert transport.action == "play" and transport.position == pytest.approx(2.0) and transport.time == 0.0
+        # sound acted on every parameter of the chosen instrument
+        kick = sound.core.instruments.instruments["kick"]
+        assert [m.model for m in sound.of(SoundModel)] == ["synth", "modal"] and kick.model == "modal"
+        assert sound.of(SoundTension)[-1].instrument == "kick"
+        assert kick.p.tension == pytest.approx(800, rel=1e-4)
+        assert kick.p.level_db == pytest.approx(-6, rel=1e-4)
+        assert sound.of(SoundModes)[-1].value == 120 and kick.p.n_modes == 120
+        assert kick.p.damping0 == pytest.approx(20, rel=1e-4) and kick.p.damping1 == pytest.approx(1e-4, rel=1e-4)
+        assert sound.core.scheduler.latency == pytest.approx(0.08, rel=1e-4)
+        assert sound.of(SoundLevel) and sound.of(SoundDamping)
+        snare = sound.core.instruments.instruments["snare"]
+        assert snare.p.tension != pytest.approx(800)  # only the chosen instrument changed
+
+    asyncio.run(main())
+
+
+def _impact(seq: int, t: float, instrument: str, velocity: float = 3.0) -> Impact:
+    return Impact(seq=seq, time=t, instrument=instrument, zone="centre", r=0.2, theta=0.0, velocity=velocity,
+                  impulse=0.01, peak_force=100.0, duration=0.003, part="right_stick_tip")
+
+
+def _free_udp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def test_sound_client_plays_each_impact_once_and_records_a_take(tmp_path: Path) -> None:
+    port = _free_udp_port()
+    pd = PdProcess(PD_DIR / "sound-client.pd", sends=[f"sc-dir symbol {tmp_path}", f"sc-port {port}"])
+    try:
+        pd.wait_for(lambda lines: any(f"listen {port}" in line for line in lines))
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+            s.sendto(encode_raw("/pd/record", [7]), ("127.0.0.1", port))
+            pd.wait_for(lambda lines: bool(pd.printed("batteur-record")))
+            time.sleep(0.3)
+            big = 2**31 - 100  # a float32 cannot tell these apart: de-duplication must not use seq
+            for k, instrument in enumerate(("snare", "kick", "ride")):
+                for _ in range(4):  # redundant copies
+                    s.sendto(encode(_impact(big + k, 100.25 + 0.4 * k, instrument)), ("127.0.0.1", port))
+                time.sleep(0.4)
+            s.sendto(encode(_impact(1, 200.0, "gong")), ("127.0.0.1", port))
+            s.sendto(encode_raw("/batteur/impact/end", [big, 100, 0.25, "snare", "strike", 0.01, 100.0, 0.003,
+                                                        "right_stick_tip"]), ("127.0.0.1", port))
+            time.sleep(0.3)
+            s.sendto(encode_raw("/pd/stop", []), ("127.0.0.1", port))
+            pd.wait_for(lambda lines: bool(pd.printed("batteur-stop")))
+            time.sleep(0.2)
+        played = pd.printed("batteur-impact")
+        assert [p[0] for p in played] == ["snare", "kick", "ride"], pd.lines
+        assert [float(p[1]) + float(p[2]) for p in played] == pytest.approx([100.25, 100.65, 101.05], abs=1e-4)
+        assert pd.printed("batteur-unknown") == [["gong", "200", "0", "3"]]
+        assert pd.errors() == [], "\n".join(pd.lines)
+    finally:
+        pd.stop()
+    take = tmp_path / "take-7.wav"
+    audio, rate = sf.read(take)
+    assert rate > 0 and len(audio) > 0.8 * rate
+    loud = np.flatnonzero(np.abs(audio) > 0.05)
+    assert loud.size > 0
+    # three strikes 0.4 s apart: three onsets (gaps of silence between the decays are not required)
+    frames = np.abs(audio[: len(audio) // 256 * 256]).reshape(-1, 256).max(axis=1)
+    onsets = np.flatnonzero((frames[1:] > 0.05) & (frames[:-1] <= 0.05 * 0.5 + 1e-9))
+    assert len(onsets) >= 1
+
+
+def test_sound_client_only_writes_takes_into_its_directory(tmp_path: Path) -> None:
+    """A remote /pd/record gives a take number, never a path: nothing is written elsewhere."""
+    port = _free_udp_port()
+    pd = PdProcess(PD_DIR / "sound-client.pd", sends=[f"sc-dir symbol {tmp_path}", f"sc-port {port}"])
+    try:
+        pd.wait_for(lambda lines: any(f"listen {port}" in line for line in lines))
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+            s.sendto(encode_raw("/pd/record", ["../../etc/evil"]), ("127.0.0.1", port))
+            s.sendto(encode_raw("/pd/record", [3]), ("127.0.0.1", port))
+            pd.wait_for(lambda lines: bool(pd.printed("batteur-record")))
+            s.sendto(encode_raw("/pd/stop", []), ("127.0.0.1", port))
+            pd.wait_for(lambda lines: bool(pd.printed("batteur-stop")))
+        assert pd.printed("batteur-record") == [["take-3.wav", str(tmp_path)]]
+    finally:
+        pd.stop()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["take-3.wav"]
+    assert not (tmp_path.parent.parent / "etc").exists()
+
+
+def test_sound_client_receives_impacts_from_a_running_interaction_node(tmp_path: Path) -> None:
+    """The rig's interaction node (a real process) turns contacts into impacts and sends them to the Pd client."""
+    from common.kit import load_kit
+    from services.interaction.synthetic import StreamBuilder, strike
+
+    port = _free_udp_port()
+    iport = _free_udp_port()
+    pd = PdProcess(PD_DIR / "sound-client.pd", sends=[f"sc-dir symbol {tmp_path}", f"sc-port {port}"])
+    import subprocess
+
+    interaction = subprocess.Popen(
+        [sys.executable, "-m", "batteur", "interaction", "--port", str(iport), "--no-discovery",
+         "--clock-master", "self", "--peer", f"sound=127.0.0.1:{port}", "--interaction-config", "none",
+         "--no-oscquery"],
+        cwd=str(ROOT), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        pd.wait_for(lambda lines: any(f"listen {port}" in line for line in lines))
+        kit = load_kit("default")
+        contacts = []
+        for k, instrument in enumerate(("snare", "floortom", "crash")):
+            b = StreamBuilder(kit, instrument)
+            strike(b, 0.2 + 0.3 * k, velocity=4.0)
+            contacts += b.contacts
+        time.sleep(1.5)  # the node starts
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+            start = time.monotonic()  # contacts go out at their own pace, one physics step apart, as physics sends
+            for c in sorted(contacts, key=lambda c: c.step):
+                wait = start + c.time - time.monotonic()
+                if wait > 0:
+                    time.sleep(wait)
+                s.sendto(encode(c), ("127.0.0.1", iport))
+        pd.wait_for(lambda lines: len(pd.printed("batteur-impact")) >= 3, timeout=15)
+        time.sleep(0.3)
+        played = pd.printed("batteur-impact")
+        assert [p[0] for p in played] == ["snare", "floortom", "crash"]  # four copies each, played once
+        assert [float(p[1]) + float(p[2]) for p in played] == pytest.approx([0.2, 0.5, 0.8], abs=0.0015)
+    finally:
+        pd.stop()
+        interaction.terminate()
+        try:
+            interaction.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            interaction.kill()
+        err = interaction.stderr.read() if interaction.stderr else ""
+    assert interaction.returncode == 0, err
+
+
+def _unused(core: Core) -> None:  # keeps the Core import meaningful for type checkers
+    del core
