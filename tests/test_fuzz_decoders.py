@@ -199,12 +199,12 @@ def test_hypothesis_random_bytes(data: bytes) -> None:
     check_decoded(data)
 
 
-@pytest.mark.xfail(strict=True, reason="codec: a rig time's fraction is not range-checked, so a decoded time can "
-                   "exceed int32 seconds and cannot be sent again (common/messages/base.py, reported)")
-def test_decoded_rig_times_can_be_sent_again() -> None:
-    from common.messages import encode_raw
+def test_rig_times_that_could_not_be_sent_again_are_rejected() -> None:
+    from common.messages import DropReason, encode_raw
 
-    data = encode_raw("/batteur/clock/ping", ["n", 1, 2**31 - 1, 5.0])  # whole seconds + a fraction of 5 s
-    result = decode(data)
-    assert result.messages, result.errors  # accepted today
-    encode(result.messages[0])  # raises: floor(2**31 - 1 + 5) does not fit int32
+    for whole, frac in ((2**31 - 1, 5.0), (3, -0.5), (3, 1.5)):
+        result = decode(encode_raw("/batteur/clock/ping", ["n", 1, whole, frac]))
+        assert [e.reason for e in result.errors] == [DropReason.OUT_OF_RANGE]
+    ok = decode(encode_raw("/batteur/clock/ping", ["n", 1, 2**31 - 2, 0.5]))
+    assert ok.errors == []
+    encode(ok.messages[0])  # a decoded time can always be sent again

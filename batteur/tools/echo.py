@@ -15,7 +15,8 @@ import signal
 import sys
 from collections.abc import Sequence
 
-from batteur.tools.nodes import find_targets
+from batteur.tools.nodes import bind_address, find_targets
+from batteur.tools.nodes import target_networks as _networks
 from common.messages import OscMessage, Subscribe
 from common.transport import UdpEndpoint
 
@@ -34,7 +35,7 @@ async def _run(opts: argparse.Namespace) -> int:
     if not targets:
         print("batteur echo: no nodes found", file=sys.stderr)
         return 1
-    endpoint = await UdpEndpoint.open("::" if any(":" in t.host for t in targets) else "127.0.0.1")
+    endpoint = await UdpEndpoint.open(bind_address(targets), allow=_networks(targets) or None)
     stop = asyncio.Event()
     printed = 0
 

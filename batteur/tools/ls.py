@@ -14,7 +14,8 @@ import json
 import sys
 from collections.abc import Sequence
 
-from batteur.tools.nodes import Target, find_targets
+from batteur.tools.nodes import Target, bind_address, find_targets
+from batteur.tools.nodes import target_networks as _networks
 from common.messages import PROTOCOL_VERSION, Health, Hello, OscMessage
 from common.transport import UdpEndpoint
 
@@ -22,7 +23,7 @@ from common.transport import UdpEndpoint
 async def query_health(targets: Sequence[Target], timeout_s: float) -> dict[str, Health]:
     """Send a Hello to each target; collect the Health answers by source address within ``timeout_s``."""
     answers: dict[str, Health] = {}
-    endpoint = await UdpEndpoint.open("::" if any(":" in t.host for t in targets) else "127.0.0.1")
+    endpoint = await UdpEndpoint.open(bind_address(targets), allow=_networks(targets) or None)
     done = asyncio.Event()
 
     def on_message(message: OscMessage, source: str) -> None:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import ipaddress
+import socket
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -20,6 +22,36 @@ class Target:
     @property
     def address(self) -> str:
         return f"[{self.host}]:{self.port}" if ":" in self.host else f"{self.host}:{self.port}"
+
+
+def bind_address(targets: Sequence[Target]) -> str:
+    """Where a tool should listen to hear answers from ``targets``: loopback unless one is elsewhere."""
+    remote = [t for t in targets if not ipaddress_is_loopback(t.host)]
+    if not remote:
+        return "127.0.0.1"
+    return "::" if any(":" in t.host for t in remote) else "0.0.0.0"
+
+
+def target_networks(targets: Sequence[Target]) -> list[str]:
+    """Allow-list for a tool listening off loopback: only the targets themselves may answer."""
+    networks: list[str] = []
+    for target in targets:
+        if ipaddress_is_loopback(target.host):
+            continue
+        try:
+            addresses = [ipaddress.ip_address(target.host)]
+        except ValueError:  # a host name: every address it resolves to
+            infos = socket.getaddrinfo(target.host, target.port, type=socket.SOCK_DGRAM)
+            addresses = [ipaddress.ip_address(info[4][0]) for info in infos]
+        networks += [f"{a}/{a.max_prefixlen}" for a in addresses]
+    return networks
+
+
+def ipaddress_is_loopback(host: str) -> bool:
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return host == "localhost"
 
 
 def parse_node(spec: str) -> Target:

@@ -249,6 +249,11 @@ class OscMessage(BaseModel):
             if f.kind is WireKind.TIME:
                 whole = _coerce(args[pos], WireKind.INT, f.name, cls.ADDRESS)
                 frac = _coerce(args[pos + 1], WireKind.FLOAT, f.name, cls.ADDRESS)
+                if not 0.0 <= float(frac) <= 1.0:  # 1.0: float32 rounding of 0.99999999
+                    raise MessageError(DropReason.OUT_OF_RANGE, f"{f.name}: fraction {frac} is not in [0, 1)",
+                                       cls.ADDRESS)
+                if float(whole) + float(frac) >= INT32_MAX:
+                    raise MessageError(DropReason.OUT_OF_RANGE, f"{f.name}: {whole} s does not fit", cls.ADDRESS)
                 values[f.name] = float(whole) + float(frac)
                 pos += 2
             else:

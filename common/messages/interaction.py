@@ -252,12 +252,15 @@ class ImpactTiming(OscMessage):
 
 @register
 class ConfigLoad(OscMessage):
-    """Replace interaction's configuration by a YAML or JSON file on the interaction host ('' reloads)."""
+    """Replace interaction's configuration by a YAML or JSON file from its configuration directory ('' reloads).
+
+    Only a plain file name is accepted: a path is refused with an error reply.
+    """
 
     ADDRESS = "/batteur/interaction/config/load"
     FAMILY = Family.CONTROL
 
-    path: Text = Field(description="file path on the interaction host, or '' for its own configuration file")
+    path: Text = Field(description="file name in interaction's configuration directory, or '' for its own file")
 
 
 @register

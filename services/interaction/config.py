@@ -106,9 +106,18 @@ class FileConfigStore:
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
 
-    def load(self, path: str = "") -> InteractionConfig:
-        """Read ``path`` (another file), or this store's file when ``path`` is ''."""
-        return load_config(Path(path) if path else self.path)
+    def load(self, name: str = "") -> InteractionConfig:
+        """Read the file ``name`` from this store's directory, or this store's own file when ``name`` is ''.
+
+        Only a plain file name ending in .yaml, .yml or .json is accepted, so a
+        message can never make interaction read outside its configuration
+        directory; anything else raises ``ValueError``.
+        """
+        if not name:
+            return load_config(self.path)
+        if Path(name).name != name or name in (".", "..") or Path(name).suffix not in (".yaml", ".yml", ".json"):
+            raise ValueError(f"{name!r}: give a file name (.yaml, .yml or .json) in {self.path.parent}, not a path")
+        return load_config(self.path.parent / name)
 
     def save(self, config: InteractionConfig) -> None:
         save_config(config, self.path)

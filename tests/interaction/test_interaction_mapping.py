@@ -293,6 +293,17 @@ def test_live_edits_are_persisted_and_reloaded(tmp_path: Path) -> None:
     assert again.config == core.config
     other = tmp_path / "other.yaml"
     save_config(InteractionConfig(routes=[{"to": "graphics"}]), other)  # type: ignore[list-item]
-    assert core.handle(ConfigLoad(path=str(other)), 1.0, "pd") == []
+    assert core.handle(ConfigLoad(path="other.yaml"), 1.0, "pd") == []  # a name in the store's directory
     assert [r.to for r in core.config.routes] == ["graphics"]
     assert [r.to for r in store.load().routes] == ["graphics"]  # loading another file persists it as ours
+
+
+def test_config_load_refuses_paths_outside_its_directory(tmp_path: Path) -> None:
+    store = FileConfigStore(tmp_path / "conf" / "interaction.yaml")
+    core = InteractionCore(kit=KIT, store=store)
+    before = core.config
+    for path in (str(tmp_path / "elsewhere.yaml"), "../interaction.yaml", "/etc/passwd", "sub/x.yaml", "notes.txt"):
+        out = core.handle(ConfigLoad(path=path), 1.0, "pd")
+        assert len(out) == 1 and isinstance(out[0].message, InteractionError), path
+        assert "not a path" in out[0].message.detail
+    assert core.config == before
