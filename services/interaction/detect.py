@@ -164,6 +164,7 @@ class DetectionStats:
     ignored: int = 0
     unknown_instrument: int = 0
     out_of_order: int = 0
+    reopened: int = 0  # contacts the receiver's clock ended too early, continued by later steps
     impacts: Counter[str] = field(default_factory=Counter)  # by kind
     by_instrument: dict[str, Counter[str]] = field(default_factory=dict)  # instrument -> kind -> count
     dampings: int = 0
@@ -189,6 +190,7 @@ class _Track:
     prev_velocity: float = 0.0
     prev_end: float | None = None
     chain: int = 0
+    ended_by_clock: bool = False
 
 
 class Segmenter:
@@ -238,6 +240,12 @@ class Segmenter:
             self._tracks[key] = track
         if track.active and c.time - track.last > self.config.retrigger_gap:
             self._end(track, events)
+        if (not track.active and track.ended_by_clock and track.prev_end is not None
+                and c.time - track.prev_end <= self.config.retrigger_gap):
+            # the receiver's clock ended this contact early (a live physics node catching up delivers its
+            # steps late); by physics time it never stopped: the same strike goes on, with no new onset
+            track.active = True
+            self.stats.reopened += 1
         if track.active:
             self._continue(track, c, events)
         else:
@@ -247,7 +255,8 @@ class Segmenter:
     def advance(self, now: float) -> list[SegmentEvent]:
         """End the contacts that have been silent for ``retrigger_gap`` by rig time ``now``."""
         events: list[SegmentEvent] = []
-        self._end_stale(max(self._physics_time, now - self.clock_offset), events)
+        estimate = now - self.clock_offset
+        self._end_stale(max(self._physics_time, estimate), events, by_clock=estimate > self._physics_time)
         return events
 
     def striker_of(self, part: str) -> str:
@@ -277,11 +286,12 @@ class Segmenter:
             self._offset_window_start = now
         self._offset_min = (min(current, offset), previous)
 
-    def _end_stale(self, physics_now: float, events: list[SegmentEvent], skip: tuple[str, str] | None = None) -> None:
+    def _end_stale(self, physics_now: float, events: list[SegmentEvent], skip: tuple[str, str] | None = None,
+                   by_clock: bool = False) -> None:
         gap = self.config.retrigger_gap
         for key, track in self._tracks.items():
             if track.active and key != skip and physics_now - track.last > gap:
-                self._end(track, events)
+                self._end(track, events, by_clock)
 
     def _classify(self, track: _Track, time: float, velocity: float) -> ImpactKind:
         cfg = self.config
@@ -390,7 +400,7 @@ class Segmenter:
             )
         )
 
-    def _end(self, track: _Track, events: list[SegmentEvent]) -> None:
+    def _end(self, track: _Track, events: list[SegmentEvent], by_clock: bool = False) -> None:
         if track.open is not None:
             impact = track.open
             impact.duration = min(track.last - impact.time + self.step_dt, 1.0)
@@ -417,6 +427,7 @@ class Segmenter:
             )
             track.pressing = False
         track.active = False
+        track.ended_by_clock = by_clock
         track.prev_end = track.last
         track.first_contact = None
 

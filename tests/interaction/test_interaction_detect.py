@@ -207,6 +207,25 @@ def test_contact_end_uses_the_physics_clock_not_a_late_receiver_clock() -> None:
     assert len(ends) == 1 and ends[0].duration == pytest.approx(0.006, rel=0.01)
 
 
+def test_a_physics_node_that_falls_behind_mid_contact_does_not_split_the_strike() -> None:
+    """Live physics catching up delivers the rest of a contact late: still one impact, not a strike + bounce."""
+    b = StreamBuilder(KIT, "snare")
+    b.pulse(1.0, 3.0, steps=6)
+    core = single_copy_core()
+    out: list[Outgoing] = []
+    first, rest = b.contacts[:2], b.contacts[2:]
+    for c in first:  # on time
+        out += core.handle(c, c.time + 0.0005, "physics")
+        out += core.step(c.time + 0.0005)
+    for k in range(30):  # physics stalls for 30 ms; the receiver's clock ends the contact meanwhile
+        out += core.step(first[-1].time + 0.001 * (k + 1))
+    for c in rest:  # then the stalled steps arrive in a burst
+        out += core.handle(c, 1.04, "physics")
+    out += core.step(1.1)
+    assert sum(isinstance(o.message, Impact) for o in out) == 1
+    assert core.segmenter.stats.reopened == 1
+
+
 @pytest.mark.parametrize(
     ("instrument", "r", "expected"),
     [
