@@ -1,0 +1,156 @@
+"""Benchmark the percussion recogniser on Groove validation performances rendered with an unseen kit.
+
+Prints per-class F-measure (precision, recall) at 50 ms and 30 ms tolerance
+(mir_eval's onset matching, pooled over all files), the class-agnostic onset
+F-measure, and the transcription speed as a multiple of real time.
+
+Goals (issue 10): onsets F >= 0.93; kick, snare, hi-hat each F >= 0.85; speed >= 50x.
+The hi-hat row pools closed and open hi-hat (the open/closed split is shown too).
+
+Needs Debian's hydrogen-drumkits (the kit) and mir_eval. Usage::
+
+    python bench/recogniser_bench.py [--files 30] [--seconds 60] [--augment] [--live]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import mir_eval  # noqa: E402
+
+from common.messages.recogniser import DrumHit  # noqa: E402
+from services.recogniser.audio import SAMPLE_RATE  # noqa: E402
+from services.recogniser.classes import CLASS_NAMES, class_of_note  # noqa: E402
+from services.recogniser.core import LiveRecogniser  # noqa: E402
+from services.recogniser.model import MODEL_PATH, load_model  # noqa: E402
+from services.recogniser.training.dataset import groove_files  # noqa: E402
+from services.recogniser.training.kits import TEST_KITS, TRAIN_KITS, load_kit  # noqa: E402
+from services.recogniser.training.render import Hit, Note, augment, normalise, read_notes, render  # noqa: E402
+from services.recogniser.transcribe import PEAK, transcribe  # noqa: E402
+
+GROUPS: dict[str, tuple[int, ...]] = {name: (i,) for i, name in enumerate(CLASS_NAMES)}
+GROUPS["hihat (open+closed)"] = (2, 3)
+GROUPS["toms (all)"] = (4, 5, 6)
+MERGE_S = 0.02
+"""Reference onsets closer than this are one onset for the class-agnostic score, seconds."""
+
+
+def merge(times: np.ndarray, gap: float = MERGE_S) -> np.ndarray:
+    out: list[float] = []
+    for t in np.sort(times):
+        if not out or t - out[-1] > gap:
+            out.append(float(t))
+    return np.asarray(out)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--files", type=int, default=30, help="validation performances (default 30)")
+    ap.add_argument("--seconds", type=float, default=60.0, help="at most this much of each, seconds")
+    ap.add_argument("--kit", default=TEST_KITS[0], help="hydrogen kit to render with (default: the held-out one)")
+    ap.add_argument("--augment", action="store_true", help="add room, EQ and noise as in training")
+    ap.add_argument("--model", type=Path, default=MODEL_PATH)
+    ap.add_argument("--seed", type=int, default=7)
+    ap.add_argument("--live", action="store_true", help="also score the live core (fed 128-sample blocks)")
+    args = ap.parse_args(argv)
+    if args.kit in TRAIN_KITS:
+        print(f"warning: {args.kit} was used for training", file=sys.stderr)
+
+    model = load_model(args.model)
+    kit = load_kit(args.kit)
+    rng = np.random.default_rng(args.seed)
+    files = groove_files("validation")
+    picks = rng.choice(len(files), size=min(args.files, len(files)), replace=False)
+    runs: dict[str, list[tuple[list[Hit], list[tuple[float, int]]]]] = {"offline": [], "live": []}
+    latencies: list[float] = []
+    audio_s = 0.0
+    compute_s = 0.0
+    for k in picks:
+        path, _ = files[int(k)]
+        notes = [Note(n.time + 0.1, n.pitch, n.velocity) for n in read_notes(path) if n.time < args.seconds]
+        if not notes:
+            continue
+        audio, hits = render(notes, kit, rng, duration=min(args.seconds, notes[-1].time + 1.5))
+        audio = augment(audio, rng) if args.augment else normalise(audio)
+        t0 = time.perf_counter()
+        events = transcribe(audio, model)
+        compute_s += time.perf_counter() - t0
+        audio_s += len(audio) / SAMPLE_RATE
+        runs["offline"].append((hits, [(e.time, e.cls) for e in events]))
+        if args.live:
+            core = LiveRecogniser(model, gain=PEAK / float(np.max(np.abs(audio))))
+            found: list[tuple[float, int]] = []
+            fed = 0
+            for start in range(0, len(audio) + 128, 128):
+                block = audio[start : start + 128]
+                fed += len(block)
+                for o in core.feed(block) if len(block) else core.flush():
+                    hit = o.message
+                    assert isinstance(hit, DrumHit)
+                    c = class_of_note(hit.note)
+                    if c is not None:
+                        found.append((hit.time, c))
+                    if len(block):
+                        latencies.append(fed / SAMPLE_RATE - hit.time)
+            runs["live"].append((hits, found))
+
+    print(f"kit: {args.kit} (never seen in training); {len(picks)} Groove validation files, "
+          f"{audio_s:.0f} s of audio; {'augmented' if args.augment else 'dry'} render")
+    for name, files_run in runs.items():
+        if files_run:
+            print(f"\n{name} ({'model.live, short context' if name == 'live' else 'model.offline'}):")
+            table(files_run)
+    print(f"\nspeed (offline): {audio_s / max(compute_s, 1e-9):.0f}x real time "
+          f"({compute_s:.2f} s for {audio_s:.0f} s of audio)")
+    if latencies:
+        lat = np.asarray(latencies) * 1000
+        print(f"live: audio needed after an onset before its hit is out (128-sample blocks): median "
+              f"{np.median(lat):.1f} ms, 95th percentile {np.percentile(lat, 95):.1f} ms, max {lat.max():.1f} ms")
+    return 0
+
+
+def table(files_run: list[tuple[list[Hit], list[tuple[float, int]]]]) -> None:
+    """Print F, precision and recall per class group at 50 and 30 ms, pooled over files."""
+    windows = (0.05, 0.03)
+    counts = {w: {g: [0, 0, 0] for g in [*GROUPS, "onsets"]} for w in windows}  # matched, n_ref, n_est
+    for hits, found in files_run:
+        ref_t = np.array([h.time for h in hits])
+        ref_c = np.array([h.cls for h in hits])
+        est_t = np.array([t for t, _ in found])
+        est_c = np.array([c for _, c in found])
+        for w in windows:
+            for g, cls in GROUPS.items():
+                r = merge(ref_t[np.isin(ref_c, cls)], 1e-4) if len(ref_t) else np.zeros(0)
+                e = merge(est_t[np.isin(est_c, cls)], 1e-4) if len(est_t) else np.zeros(0)
+                m = len(mir_eval.util.match_events(r, e, w)) if len(r) and len(e) else 0
+                c = counts[w][g]
+                c[0] += m
+                c[1] += len(r)
+                c[2] += len(e)
+            ro, eo = merge(ref_t), merge(est_t, 1e-4)
+            m = len(mir_eval.util.match_events(ro, eo, w)) if len(ro) and len(eo) else 0
+            c = counts[w]["onsets"]
+            c[0] += m
+            c[1] += len(ro)
+            c[2] += len(eo)
+    print(f"{'class':22s} {'n_ref':>6s} | {'F@50ms':>7s} {'P':>6s} {'R':>6s} | {'F@30ms':>7s} {'P':>6s} {'R':>6s}")
+    for g in ["onsets", *GROUPS]:
+        row = f"{g:22s} {counts[0.05][g][1]:6d} |"
+        for w in windows:
+            m, nr, ne = counts[w][g]
+            prec = m / ne if ne else 0.0
+            rec = m / nr if nr else 0.0
+            f = 2 * prec * rec / (prec + rec) if prec + rec else 0.0
+            row += f" {f:7.3f} {prec:6.3f} {rec:6.3f} |"
+        print(row)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,157 @@
+"""``batteur transcribe``: audio file -> Standard MIDI File of drum notes (and live OSC hits)."""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import collections
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from services.recogniser.audio import MAX_DURATION_S
+from services.recogniser.classes import CLASSES
+from services.recogniser.errors import RecogniserError
+from services.recogniser.model import MODEL_PATH, load_model
+from services.recogniser.transcribe import DrumEvent, transcribe_file
+
+DESCRIPTION = """\
+Transcribe a drum recording into a General MIDI drum file (channel 10).
+
+Reads WAV, FLAC, OGG (any sample rate, mono or stereo), finds the onsets
+(multi-band SuperFlux), classifies each one as kick, snare, closed or open
+hi-hat, high/mid/floor tom, crash or ride with a velocity, and writes a
+Standard MIDI File that `batteur render` can play.
+
+With --live the file is played in real time through the live recogniser and
+each hit is sent as OSC /batteur/recogniser/hit to --to HOST:PORT (about 35 ms
+after its onset); --device listens to an audio input instead of a file.
+"""
+
+EPILOG = """\
+notes written: kick 36, snare 38, closed hi-hat 42, open hi-hat 46, high tom 48,
+mid tom 45, floor tom 43, crash 49, ride 51.
+
+examples:
+  batteur transcribe groove.wav -o groove.mid
+  batteur transcribe take.flac -o take.mid --tempo 96
+  batteur transcribe groove.wav --live --to 127.0.0.1:9900 -o heard.mid
+"""
+
+LONG_FILE_S = 60.0
+"""Files longer than this show a progress line, seconds."""
+
+
+def build_parser(prog: str = "batteur transcribe") -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog=prog, description=DESCRIPTION, epilog=EPILOG,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("audio", nargs="?", help="audio file to transcribe (WAV, FLAC, OGG, ...)")
+    p.add_argument("-o", "--output", type=Path, help="Standard MIDI File to write (required unless --live)")
+    p.add_argument("--tempo", type=float, default=120.0, help="tempo written to the MIDI file, BPM (default 120; "
+                   "note times are exact whatever the tempo)")
+    p.add_argument("--max-duration", type=float, default=MAX_DURATION_S,
+                   help=f"refuse longer files, seconds (default {MAX_DURATION_S:.0f})")
+    p.add_argument("--model", type=Path, default=MODEL_PATH, help="model file (default: the shipped one)")
+    p.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
+    live = p.add_argument_group("live mode")
+    live.add_argument("--live", action="store_true", help="play the file in real time and send hits over OSC")
+    live.add_argument("--device", nargs="?", const="", default=None, metavar="NAME",
+                      help="with --live: listen to an audio input device instead of a file (needs sounddevice)")
+    live.add_argument("--seconds", type=float, default=None, help="with --device: stop after this long, seconds")
+    live.add_argument("--to", action="append", default=[], metavar="HOST:PORT",
+                      help="send /batteur/recogniser/hit here (repeatable; default 127.0.0.1:9900)")
+    live.add_argument("--speed", type=float, default=1.0, help="with --live and a file: play this much faster")
+    return p
+
+
+def _summary(events: Sequence[DrumEvent]) -> str:
+    counts = collections.Counter(e.cls for e in events)
+    return ", ".join(f"{CLASSES[c].name} {counts[c]}" for c in range(len(CLASSES)) if counts[c]) or "none"
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run ``transcribe``; returns the exit status (0 ok, 1 error, 2 usage)."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    say = (lambda *a: None) if args.quiet else (lambda *a: print(*a, file=sys.stderr))
+    if args.device is None and not args.audio:
+        parser.error("give an AUDIO file (or --live --device)")
+    if not args.live and args.output is None:
+        parser.error("-o/--output SCORE.mid is required (unless --live)")
+    if args.device is not None and not args.live:
+        parser.error("--device needs --live")
+    if args.speed <= 0 or args.tempo <= 0 or args.max_duration <= 0:
+        parser.error("--speed, --tempo and --max-duration must be positive")
+    try:
+        from services.recogniser.midi import write_midi
+
+        if args.output is not None and args.output.parent and not args.output.parent.exists():
+            raise RecogniserError(f"{args.output}: folder {args.output.parent} does not exist")
+        model = load_model(args.model)
+        if args.live:
+            return _live(args, model, say)
+        shown = [-1]
+
+        def progress(fraction: float) -> None:
+            pct = int(fraction * 100)
+            if pct // 5 != shown[0] // 5:
+                shown[0] = pct
+                print(f"\rtranscribing {args.audio}: {pct:3d}%", end="", file=sys.stderr, flush=True)
+
+        import soundfile as sf
+
+        try:
+            long = sf.info(args.audio).duration > LONG_FILE_S and not args.quiet
+        except Exception:
+            long = False  # load_audio reports the problem
+        t0 = time.perf_counter()
+        events, duration = transcribe_file(args.audio, model, progress if long else None, args.max_duration)
+        elapsed = time.perf_counter() - t0
+        if long:
+            print(file=sys.stderr)
+        write_midi(events, args.output, tempo_bpm=args.tempo)
+        say(f"{len(events)} notes ({_summary(events)}) from {duration:.1f} s of audio "
+            f"in {elapsed:.2f} s ({duration / max(elapsed, 1e-9):.0f}x real time) -> {args.output}")
+        if not events:
+            say("warning: no drum strike recognised; the MIDI file is empty")
+        return 0
+    except RecogniserError as exc:
+        print(f"batteur transcribe: error: {exc}", file=sys.stderr)
+        return 1
+    except OSError as exc:
+        print(f"batteur transcribe: error: {exc}", file=sys.stderr)
+        return 1
+
+
+def _live(args: argparse.Namespace, model: object, say: object) -> int:
+    from services.recogniser.midi import write_midi
+    from services.recogniser.node import listen_device, play_file
+
+    targets = args.to or ["127.0.0.1:9900"]
+
+    def on_hit(hit: object, latency: float) -> None:
+        if not args.quiet:
+            print(f"{hit.time:9.3f} s  {hit.event_type.value:12s} vel {hit.velocity:3d}  "  # type: ignore[attr-defined]
+                  f"latency {latency * 1000:5.1f} ms", file=sys.stderr)
+
+    if args.device is not None:
+        report = asyncio.run(listen_device(targets, model, args.device or None, args.seconds,  # type: ignore[arg-type]
+                                           on_hit=on_hit))
+    else:
+        report = asyncio.run(play_file(args.audio, targets, model, speed=args.speed,  # type: ignore[arg-type]
+                                       max_duration_s=args.max_duration, on_hit=on_hit))
+    lat = np.asarray(report.latencies_s) * 1000
+    if not args.quiet:
+        stats = (f"latency median {np.median(lat):.1f} ms, 95th percentile {np.percentile(lat, 95):.1f} ms, "
+                 f"max {lat.max():.1f} ms") if lat.size else "no hits"
+        print(f"{len(report.hits)} hits sent to {', '.join(targets)}; {stats}", file=sys.stderr)
+    if args.output is not None:
+        write_midi(report.events(), args.output, tempo_bpm=args.tempo)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,236 @@
+"""Spectral features: log-frequency spectrogram, SuperFlux onset function, peak picking, onset context.
+
+All at :data:`~services.recogniser.audio.SAMPLE_RATE` (22,050 Hz). Frame ``t`` is
+a Hann window of :data:`N_FFT` samples centred on sample ``t * HOP``, so frame
+times are ``t * HOP / SAMPLE_RATE`` seconds (about 100 frames per second).
+
+The onset detection function is SuperFlux (Böck and Widmer, DAFx 2013): the
+positive difference between a log-magnitude band spectrum and a frequency-wise
+maximum-filtered copy of the spectrum ``LAG`` frames earlier, summed over bands.
+It is computed separately in three band groups (kick, snare/tom, cymbal
+ranges) so that a soft note under a ringing drum of another range still makes a
+peak; the candidates are the union of the groups' peaks, kept permissive: the
+classifier rejects false ones. Peak picking looks one frame ahead only, so the
+offline and live paths find the same onsets.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import numpy as np
+from scipy.ndimage import maximum_filter1d
+
+from services.recogniser.audio import SAMPLE_RATE
+
+N_FFT = 1024
+"""Analysis window, samples (46 ms)."""
+HOP = 220
+"""Hop between frames, samples (about 10 ms)."""
+FPS = SAMPLE_RATE / HOP
+"""Frames per second."""
+N_BANDS = 48
+"""Log-spaced triangular bands, 40 Hz to 10.5 kHz."""
+LAG = 1
+"""SuperFlux lag, frames."""
+GROUPS = ((0, 12), (12, 28), (28, 48))
+"""Band groups with their own detection function: about 40-150 Hz, 150-960 Hz, 960 Hz-10.5 kHz."""
+MAX_SIZE = 3
+"""SuperFlux maximum filter width across bands."""
+PRE_MAX = 1
+"""Peak picking: the onset must be the maximum of this many frames before it ..."""
+POST_MAX = 1
+"""... and of this many frames after it (the look-ahead, frames)."""
+PRE_AVG = 10
+"""Peak picking: moving-average window before the onset, frames."""
+COMBINE = 2
+"""Minimum distance between two onsets, frames."""
+LOG_MUL = 1000.0
+"""Log compression: log10(1 + LOG_MUL * magnitude)."""
+
+
+def _band_matrix() -> np.ndarray:
+    """Triangular log-frequency filterbank, shape (N_FFT // 2 + 1, N_BANDS)."""
+    n_bins = N_FFT // 2 + 1
+    freqs = np.linspace(0, SAMPLE_RATE / 2, n_bins)
+    edges = np.geomspace(40.0, 10500.0, N_BANDS + 2)
+    bins = np.searchsorted(freqs, edges)
+    fb = np.zeros((n_bins, N_BANDS), dtype=np.float32)
+    for b in range(N_BANDS):
+        lo, mid, hi = bins[b], bins[b + 1], bins[b + 2]
+        mid = max(mid, lo + 1)
+        hi = max(hi, mid + 1)
+        fb[lo:mid, b] = np.linspace(0.0, 1.0, mid - lo, endpoint=False)
+        fb[mid:hi, b] = np.linspace(1.0, 0.0, hi - mid, endpoint=False)
+        fb[:, b] /= max(float(fb[:, b].sum()), 1e-9)
+    return fb
+
+
+BANDS = _band_matrix()
+WINDOW = np.hanning(N_FFT).astype(np.float32)
+
+
+def n_frames(n_samples: int) -> int:
+    """Number of frames for a signal of ``n_samples`` samples."""
+    return n_samples // HOP + 1
+
+
+def frame_times(n: int) -> np.ndarray:
+    """Centre times of frames 0..n-1, seconds."""
+    return np.arange(n) * (HOP / SAMPLE_RATE)
+
+
+def band_spectrogram(
+    signal: np.ndarray, progress: Callable[[float], None] | None = None, chunk_frames: int = 4096
+) -> np.ndarray:
+    """Log-magnitude band spectrogram.
+
+    Parameters
+    ----------
+    signal : np.ndarray [shape=(n,)], mono at SAMPLE_RATE
+    progress : called with the fraction done (0..1) after each chunk
+    chunk_frames : frames computed per chunk (bounds memory)
+
+    Returns
+    -------
+    np.ndarray [shape=(n_frames(n), N_BANDS), dtype=float32]
+    """
+    x = np.asarray(signal, dtype=np.float32)
+    pad = N_FFT // 2
+    x = np.concatenate([np.zeros(pad, np.float32), x, np.zeros(pad + HOP, np.float32)])
+    total = n_frames(len(signal))
+    out = np.empty((total, N_BANDS), dtype=np.float32)
+    frames = np.lib.stride_tricks.sliding_window_view(x, N_FFT)[::HOP]
+    for start in range(0, total, chunk_frames):
+        stop = min(total, start + chunk_frames)
+        mag = np.abs(np.fft.rfft(frames[start:stop] * WINDOW, axis=1)).astype(np.float32)
+        out[start:stop] = np.log10(1.0 + LOG_MUL * (mag @ BANDS))
+        if progress is not None:
+            progress(stop / total)
+    return out
+
+
+def band_frame(frame: np.ndarray) -> np.ndarray:
+    """Log band spectrum of one frame of N_FFT samples, shape (N_BANDS,)."""
+    mag = np.abs(np.fft.rfft(np.asarray(frame, np.float32) * WINDOW)).astype(np.float32)
+    return np.log10(1.0 + LOG_MUL * (mag @ BANDS)).astype(np.float32)
+
+
+def superflux(spec: np.ndarray) -> np.ndarray:
+    """SuperFlux onset detection functions, one per band group (:data:`GROUPS`).
+
+    Parameters
+    ----------
+    spec : np.ndarray [shape=(t, N_BANDS)], from :func:`band_spectrogram`
+
+    Returns
+    -------
+    np.ndarray [shape=(t, len(GROUPS))], non-negative
+    """
+    ref = maximum_filter1d(spec, size=MAX_SIZE, axis=1)
+    diff = np.zeros_like(spec)
+    diff[LAG:] = np.maximum(spec[LAG:] - ref[:-LAG], 0.0)
+    return np.stack([diff[:, a:b].sum(axis=1) for a, b in GROUPS], axis=1).astype(np.float32)
+
+
+def superflux_frame(current: np.ndarray, lagged: np.ndarray) -> np.ndarray:
+    """SuperFlux values (one per band group) of one frame given the band spectrum ``LAG`` frames earlier."""
+    d = np.maximum(current - maximum_filter1d(lagged, size=MAX_SIZE), 0.0)
+    return np.array([d[a:b].sum() for a, b in GROUPS], dtype=np.float32)
+
+
+def peak_mask(odf: np.ndarray, delta: float) -> np.ndarray:
+    """Candidate peaks of one detection function (shape (t,)): boolean mask, shape (t,).
+
+    A frame is a candidate when it is the maximum of frames ``t - PRE_MAX .. t + POST_MAX``
+    and exceeds the mean of frames ``t - PRE_AVG .. t`` by ``delta``.
+    """
+    n = len(odf)
+    padded = np.concatenate([np.full(PRE_MAX, -np.inf), odf, np.full(POST_MAX, -np.inf)])
+    win = np.lib.stride_tricks.sliding_window_view(padded, PRE_MAX + POST_MAX + 1)
+    is_max = odf >= win.max(axis=1)
+    csum = np.concatenate([[0.0], np.cumsum(odf, dtype=np.float64)])
+    idx = np.arange(n)
+    lo = np.maximum(0, idx - PRE_AVG)
+    mean = (csum[idx + 1] - csum[lo]) / (idx + 1 - lo)
+    return is_max & (odf > 0) & (odf >= mean + delta)
+
+
+def is_peak(odf: np.ndarray, t: int, delta: float) -> bool:
+    """Streaming form of :func:`peak_mask` for frame ``t`` of ``odf`` (shape (t, groups)); needs ``t + POST_MAX``."""
+    window = odf[max(0, t - PRE_MAX) : t + POST_MAX + 1]
+    v = odf[t]
+    mean = odf[max(0, t - PRE_AVG) : t + 1].mean(axis=0)
+    return bool(np.any((v >= window.max(axis=0)) & (v > 0) & (v >= mean + delta)))
+
+
+def pick_onsets(odf: np.ndarray, delta: float) -> np.ndarray:
+    """Onset frames: the union of the peaks of every band group's function, at least ``COMBINE`` frames apart.
+
+    Parameters
+    ----------
+    odf : np.ndarray [shape=(t, len(GROUPS))], from :func:`superflux`
+    delta : threshold above the local mean
+
+    Returns
+    -------
+    np.ndarray [shape=(k,), dtype=int], increasing frame indices
+    """
+    if odf.shape[0] == 0:
+        return np.zeros(0, dtype=int)
+    mask = np.zeros(odf.shape[0], dtype=bool)
+    for g in range(odf.shape[1]):
+        mask |= peak_mask(odf[:, g], delta)
+    return combine(np.flatnonzero(mask))
+
+
+def combine(candidates: np.ndarray) -> np.ndarray:
+    """Keep candidates at least ``COMBINE`` frames after the previous kept one."""
+    onsets: list[int] = []
+    last = -(10**9)
+    for t in candidates:
+        if t - last >= COMBINE:
+            onsets.append(int(t))
+            last = int(t)
+    return np.asarray(onsets, dtype=int)
+
+
+def context(spec: np.ndarray, frames: np.ndarray, offsets: Sequence[int]) -> np.ndarray:
+    """Stack the rows of ``spec`` (shape (t, d)) at ``frames + offset`` for each offset (zeros outside).
+
+    Returns
+    -------
+    np.ndarray [shape=(len(frames), len(offsets) * d), dtype=float32]
+    """
+    d = spec.shape[1]
+    if spec.shape[0] == 0 or len(frames) == 0:
+        return np.zeros((len(frames), len(offsets) * d), np.float32)
+    lo, hi = min(offsets), max(offsets)
+    padded = np.concatenate([np.zeros((max(0, -lo), d), np.float32), spec, np.zeros((max(0, hi), d), np.float32)])
+    shift = max(0, -lo)
+    rows = [padded[np.asarray(frames, dtype=int) + o + shift] for o in offsets]
+    return np.concatenate(rows, axis=1).astype(np.float32)
+
+
+ODF_OFFSETS = (-1, 0, 1)
+"""Detection-function frames added to the features around each onset."""
+FLUX_OFFSETS = (0, 1)
+"""Frames whose per-band positive spectral difference is added to the features (what just started)."""
+
+
+def onset_features(spec: np.ndarray, odf: np.ndarray, frames: np.ndarray, offsets: Sequence[int]) -> np.ndarray:
+    """Classifier input for onsets at ``frames``: band spectra at ``offsets``, the per-band positive
+    difference to the previous frame at :data:`FLUX_OFFSETS` and the detection functions at :data:`ODF_OFFSETS`.
+
+    Returns
+    -------
+    np.ndarray [shape=(len(frames), n_features(offsets))]
+    """
+    flux = np.maximum(np.diff(spec, axis=0, prepend=spec[:1]), 0.0)
+    parts = [context(spec, frames, offsets), context(flux, frames, FLUX_OFFSETS), context(odf, frames, ODF_OFFSETS)]
+    return np.concatenate(parts, axis=1)
+
+
+def n_features(offsets: Sequence[int]) -> int:
+    """Length of :func:`onset_features` rows for these spectrum offsets."""
+    return (len(offsets) + len(FLUX_OFFSETS)) * N_BANDS + len(ODF_OFFSETS) * len(GROUPS)

@@ -1,0 +1,148 @@
+"""The shipped classifier: a small multi-label MLP stored as plain arrays (.npz), run with NumPy.
+
+The file holds, for each variant (``offline``: long context, ``live``: short
+context for <= 50 ms latency), the input standardisation, the layer weights,
+per-class decision thresholds and a linear velocity regressor per class, plus
+JSON metadata (class names, context offsets, onset threshold, timing offset).
+It is loaded with ``allow_pickle=False``: no code is ever unpickled.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from services.recogniser.classes import CLASS_NAMES, N_CLASSES
+from services.recogniser.errors import ModelError
+from services.recogniser.features import n_features
+
+MODEL_PATH = Path(__file__).parent / "models" / "recogniser.npz"
+"""The model shipped with Batteur."""
+
+FORMAT = "batteur-recogniser/1"
+
+
+@dataclass
+class Classifier:
+    """One MLP variant.
+
+    ``offsets``: context frames relative to the onset frame; ``delta``: onset
+    peak-picking threshold; ``time_offset_s``: added to onset frame times.
+    ``weights[i]`` has shape (n_in, n_out) for layer i (ReLU between, sigmoid out).
+    ``vel_w`` (n_features + 1, N_CLASSES): velocity / 127 from standardised features.
+    """
+
+    offsets: tuple[int, ...]
+    delta: float
+    time_offset_s: float
+    mean: np.ndarray
+    scale: np.ndarray
+    weights: list[np.ndarray]
+    biases: list[np.ndarray]
+    thresholds: np.ndarray
+    vel_w: np.ndarray
+
+    @property
+    def n_features(self) -> int:
+        return int(self.mean.shape[0])
+
+    def standardise(self, features: np.ndarray) -> np.ndarray:
+        return ((features - self.mean) / self.scale).astype(np.float32)
+
+    def probabilities(self, features: np.ndarray) -> np.ndarray:
+        """Class probabilities, shape (n, N_CLASSES), for raw features of shape (n, n_features)."""
+        h = self.standardise(features)
+        for i, (w, b) in enumerate(zip(self.weights, self.biases, strict=True)):
+            h = h @ w + b
+            if i < len(self.weights) - 1:
+                h = np.maximum(h, 0.0)
+        return (1.0 / (1.0 + np.exp(-np.clip(h, -60, 60)))).astype(np.float32)
+
+    def velocities(self, features: np.ndarray) -> np.ndarray:
+        """MIDI velocities (1..127) per class, shape (n, N_CLASSES)."""
+        z = self.standardise(features)
+        v = z @ self.vel_w[:-1] + self.vel_w[-1]
+        return np.clip(np.rint(v * 127.0), 1, 127).astype(int)
+
+
+@dataclass
+class Model:
+    """Both classifier variants and the metadata."""
+
+    offline: Classifier
+    live: Classifier
+    meta: dict
+
+    def save(self, path: str | Path) -> None:
+        arrays: dict[str, np.ndarray] = {}
+        for name, c in (("offline", self.offline), ("live", self.live)):
+            arrays[f"{name}.mean"] = c.mean
+            arrays[f"{name}.scale"] = c.scale
+            arrays[f"{name}.thresholds"] = c.thresholds
+            arrays[f"{name}.vel_w"] = c.vel_w
+            for i, (w, b) in enumerate(zip(c.weights, c.biases, strict=True)):
+                arrays[f"{name}.w{i}"] = w.astype(np.float32)
+                arrays[f"{name}.b{i}"] = b.astype(np.float32)
+        meta = dict(self.meta)
+        meta.update(
+            format=FORMAT,
+            classes=list(CLASS_NAMES),
+            offline={"offsets": list(self.offline.offsets), "delta": self.offline.delta,
+                     "time_offset_s": self.offline.time_offset_s, "layers": len(self.offline.weights)},
+            live={"offsets": list(self.live.offsets), "delta": self.live.delta,
+                  "time_offset_s": self.live.time_offset_s, "layers": len(self.live.weights)},
+        )
+        arrays["meta"] = np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8)
+        np.savez_compressed(path, **arrays)  # type: ignore[arg-type]
+
+
+def load_model(path: str | Path = MODEL_PATH) -> Model:
+    """Read a model file written by :meth:`Model.save`.
+
+    Raises
+    ------
+    ModelError
+        missing file, wrong format, or classes that differ from :data:`CLASS_NAMES`.
+    """
+    p = Path(path)
+    if not p.exists():
+        raise ModelError(f"{p}: model file not found (train one with services/recogniser/training/train.py)")
+    try:
+        with np.load(p, allow_pickle=False) as z:
+            data = {k: z[k] for k in z.files}
+        meta = json.loads(bytes(data["meta"]).decode())
+    except Exception as exc:
+        raise ModelError(f"{p}: not a Batteur recogniser model: {exc}") from exc
+    if meta.get("format") != FORMAT:
+        raise ModelError(f"{p}: unknown model format {meta.get('format')!r}, expected {FORMAT!r}")
+    if tuple(meta.get("classes", ())) != CLASS_NAMES:
+        raise ModelError(f"{p}: model classes {meta.get('classes')} differ from {list(CLASS_NAMES)}")
+
+    def variant(name: str) -> Classifier:
+        m = meta[name]
+        n_layers = int(m["layers"])
+        c = Classifier(
+            offsets=tuple(int(o) for o in m["offsets"]),
+            delta=float(m["delta"]),
+            time_offset_s=float(m["time_offset_s"]),
+            mean=data[f"{name}.mean"].astype(np.float32),
+            scale=data[f"{name}.scale"].astype(np.float32),
+            weights=[data[f"{name}.w{i}"].astype(np.float32) for i in range(n_layers)],
+            biases=[data[f"{name}.b{i}"].astype(np.float32) for i in range(n_layers)],
+            thresholds=data[f"{name}.thresholds"].astype(np.float32),
+            vel_w=data[f"{name}.vel_w"].astype(np.float32),
+        )
+        if c.weights[-1].shape[1] != N_CLASSES or c.weights[0].shape[0] != c.n_features:
+            raise ModelError(f"{p}: {name} layer shapes do not match")
+        if c.n_features != n_features(c.offsets):
+            raise ModelError(f"{p}: {name} expects {c.n_features} features, this version computes "
+                             f"{n_features(c.offsets)} (retrain the model)")
+        return c
+
+    try:
+        return Model(offline=variant("offline"), live=variant("live"), meta=meta)
+    except KeyError as exc:
+        raise ModelError(f"{p}: missing array {exc}") from exc

@@ -1,0 +1,167 @@
+"""Live recogniser node: plays an audio file (or reads an input device) in real time through
+:class:`~services.recogniser.core.LiveRecogniser` and sends each recognised hit as an OSC
+:class:`~common.messages.recogniser.DrumHit` over UDP (:class:`common.transport.UdpEndpoint`).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import importlib.util
+import logging
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from common.messages.recogniser import DrumHit
+from common.transport import UdpEndpoint, parse_address
+from services.recogniser.audio import MAX_DURATION_S, SAMPLE_RATE, load_audio
+from services.recogniser.core import LiveRecogniser
+from services.recogniser.errors import RecogniserError
+from services.recogniser.model import Model, load_model
+from services.recogniser.transcribe import PEAK, DrumEvent
+
+log = logging.getLogger("batteur.recogniser")
+
+BLOCK = 128
+"""Samples per block fed to the core (5.8 ms at 22,050 Hz)."""
+
+
+@dataclass
+class LiveReport:
+    """What a live run did. Latencies: wall time of sending minus wall time the onset was played, seconds."""
+
+    hits: list[DrumHit] = field(default_factory=list)
+    latencies_s: list[float] = field(default_factory=list)
+    sent: int = 0
+    duration_s: float = 0.0
+
+    def events(self) -> list[DrumEvent]:
+        """The hits as offline events (times from the start of the audio)."""
+        from services.recogniser.classes import class_of_note
+
+        out = []
+        for h in self.hits:
+            c = class_of_note(h.note)
+            if c is not None:
+                out.append(DrumEvent(h.time, c, h.velocity, h.confidence))
+        return out
+
+
+def check_targets(targets: Sequence[str]) -> list[tuple[str, int]]:
+    """Parse ``host:port`` destinations; raise RecogniserError on a bad one."""
+    out = []
+    for t in targets:
+        try:
+            out.append(parse_address(t))
+        except ValueError as exc:
+            raise RecogniserError(f"--to {t}: {exc}") from exc
+    return out
+
+
+async def play_file(
+    path: str | Path,
+    targets: Sequence[str],
+    model: Model | None = None,
+    speed: float = 1.0,
+    block: int = BLOCK,
+    max_duration_s: float = MAX_DURATION_S,
+    bind: str = "127.0.0.1",
+    on_hit: Callable[[DrumHit, float], None] | None = None,
+) -> LiveReport:
+    """Play an audio file in real time (``speed`` times faster) through the live recogniser.
+
+    Each block is fed when its last sample would have been played; each hit is
+    sent at once to every target (``host:port``). The input gain is fixed from
+    the file's peak, as a level meter set before a take would be.
+    """
+    dests = check_targets(targets)
+    audio = load_audio(path, max_duration_s=max_duration_s)
+    peak = float(np.max(np.abs(audio)))
+    core = LiveRecogniser(model or load_model(), gain=PEAK / peak, start_time=0.0)
+    endpoint = await UdpEndpoint.open(host=bind, port=0)
+    report = LiveReport(duration_s=len(audio) / SAMPLE_RATE)
+    t0 = time.perf_counter()
+    try:
+        for start in range(0, len(audio) + block, block):
+            chunk = audio[start : start + block]
+            end_s = min(len(audio), start + block) / SAMPLE_RATE
+            wait = t0 + end_s / speed - time.perf_counter()
+            if wait > 0:
+                await asyncio.sleep(wait)
+            out = core.feed(chunk) if len(chunk) else core.flush()
+            now = time.perf_counter()
+            for o in out:
+                assert isinstance(o.message, DrumHit)
+                for d in dests:
+                    endpoint.send(o.message, d)
+                    report.sent += 1
+                latency = now - (t0 + o.message.time / speed)
+                report.hits.append(o.message)
+                report.latencies_s.append(latency)
+                if on_hit:
+                    on_hit(o.message, latency)
+            if not len(chunk):
+                break
+    finally:
+        endpoint.close()
+    return report
+
+
+def input_device_available() -> str | None:
+    """Why live input from a device cannot run here, or None if it can."""
+    if importlib.util.find_spec("sounddevice") is None:
+        return "reading an input device needs the 'sounddevice' package (pip install sounddevice)"
+    import sounddevice  # type: ignore[import-not-found]
+
+    try:
+        devices = sounddevice.query_devices()
+    except Exception as exc:  # PortAudio errors
+        return f"no audio input device: {exc}"
+    if not any(d.get("max_input_channels", 0) > 0 for d in devices):
+        return "no audio input device found on this machine"
+    return None
+
+
+async def listen_device(
+    targets: Sequence[str], model: Model | None = None, device: str | None = None, seconds: float | None = None,
+    bind: str = "127.0.0.1", on_hit: Callable[[DrumHit, float], None] | None = None,
+) -> LiveReport:
+    """Listen to an input device (mono mix, resampled by PortAudio to 22,050 Hz) and send hits."""
+    problem = input_device_available()
+    if problem:
+        raise RecogniserError(problem)
+    import sounddevice
+
+    dests = check_targets(targets)
+    core = LiveRecogniser(model or load_model(), gain=None)
+    loop = asyncio.get_running_loop()
+    queue: asyncio.Queue[np.ndarray] = asyncio.Queue()
+
+    def callback(indata: np.ndarray, frames: int, time_info: object, status: object) -> None:
+        loop.call_soon_threadsafe(queue.put_nowait, indata.mean(axis=1).copy())
+
+    endpoint = await UdpEndpoint.open(host=bind, port=0)
+    report = LiveReport()
+    t0 = time.perf_counter()
+    try:
+        with sounddevice.InputStream(samplerate=SAMPLE_RATE, blocksize=BLOCK, device=device, channels=1,
+                                     dtype="float32", callback=callback):
+            while seconds is None or time.perf_counter() - t0 < seconds:
+                out = core.feed(await queue.get())
+                now = time.perf_counter()
+                for o in out:
+                    assert isinstance(o.message, DrumHit)
+                    for d in dests:
+                        endpoint.send(o.message, d)
+                        report.sent += 1
+                    report.hits.append(o.message)
+                    report.latencies_s.append(now - (t0 + o.message.time))
+                    if on_hit:
+                        on_hit(o.message, report.latencies_s[-1])
+    finally:
+        endpoint.close()
+    report.duration_s = time.perf_counter() - t0
+    return report

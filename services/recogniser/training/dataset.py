@@ -1,0 +1,86 @@
+"""Turn rendered audio into training examples: candidate onsets, their context features and labels."""
+
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from services.recogniser import features as F
+from services.recogniser.classes import N_CLASSES
+from services.recogniser.training.render import Hit
+
+GROOVE_DIR = Path("/work/shared/data/groove")
+OFFLINE_OFFSETS = tuple(range(-2, 10))
+"""Context frames for offline transcription (-20 ms .. +90 ms)."""
+LIVE_OFFSETS = (-2, -1, 0, 1)
+"""Context frames for live mode (needs audio up to about 33 ms after the onset)."""
+CANDIDATE_DELTA = 0.06
+"""Low onset threshold: the classifier rejects the false candidates."""
+MATCH_S = 0.04
+"""A true hit labels the nearest candidate onset within this distance, seconds ..."""
+WIDEN_S = 0.021
+"""... and every other candidate this close (one candidate spacing), seconds."""
+
+
+def groove_files(split: str) -> list[tuple[Path, float]]:
+    """(MIDI path, duration s) of the Groove files of a split ('train' or 'validation')."""
+    out = []
+    with open(GROOVE_DIR / "info.csv") as f:
+        for row in csv.DictReader(f):
+            if row["split"] == split:
+                out.append((GROOVE_DIR / row["midi_filename"], float(row["duration"])))
+    return out
+
+
+@dataclass
+class Examples:
+    """Candidate onsets of one or more excerpts."""
+
+    x_offline: np.ndarray  # (n, len(OFFLINE_OFFSETS) * N_BANDS)
+    x_live: np.ndarray  # (n, len(LIVE_OFFSETS) * N_BANDS)
+    y: np.ndarray  # (n, N_CLASSES) 0/1
+    velocity: np.ndarray  # (n, N_CLASSES) 0..127 (0: class absent)
+    dt: np.ndarray  # (n,) true time - frame time of the earliest matched hit, s (nan: none)
+    missed: int  # true hits that no candidate matched
+
+
+def label(audio: np.ndarray, hits: list[Hit], delta: float = CANDIDATE_DELTA) -> Examples:
+    """Detect candidate onsets in ``audio`` and label them with ``hits``."""
+    spec = F.band_spectrogram(audio)
+    odf = F.superflux(spec)
+    frames = F.pick_onsets(odf, delta)
+    times = F.frame_times(len(odf))[frames]
+    y = np.zeros((len(frames), N_CLASSES), np.float32)
+    vel = np.zeros((len(frames), N_CLASSES), np.float32)
+    dt = np.full(len(frames), np.nan)
+    missed = 0
+    for h in hits:
+        if len(times) == 0:
+            missed += 1
+            continue
+        dist = np.abs(times - h.time)
+        i = int(np.argmin(dist))
+        if dist[i] > MATCH_S:
+            missed += 1
+            continue
+        # the nearest candidate and any other within WIDEN_S are positive (inference keeps the most probable)
+        for j in {i, *np.flatnonzero(dist <= WIDEN_S).tolist()}:
+            y[j, h.cls] = 1
+            vel[j, h.cls] = max(vel[j, h.cls], h.velocity)
+        d = h.time - times[i]
+        if np.isnan(dt[i]) or abs(d) < abs(dt[i]):
+            dt[i] = d
+    x_offline = F.onset_features(spec, odf, frames, OFFLINE_OFFSETS)
+    x_live = F.onset_features(spec, odf, frames, LIVE_OFFSETS)
+    return Examples(x_offline, x_live, y, vel, dt, missed)
+
+
+def concat(parts: list[Examples]) -> Examples:
+    return Examples(
+        np.concatenate([p.x_offline for p in parts]), np.concatenate([p.x_live for p in parts]),
+        np.concatenate([p.y for p in parts]), np.concatenate([p.velocity for p in parts]),
+        np.concatenate([p.dt for p in parts]), sum(p.missed for p in parts),
+    )

@@ -1,0 +1,24 @@
+"""Fixtures for the recogniser tests: a drum pattern rendered with a held-out kit's samples."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import soundfile as sf
+
+from services.recogniser.audio import SAMPLE_RATE
+
+from .pattern import Pattern, render_pattern
+
+
+@pytest.fixture(scope="session")
+def pattern() -> Pattern:
+    return render_pattern()
+
+
+@pytest.fixture(scope="session")
+def pattern_wav(tmp_path_factory: pytest.TempPathFactory, pattern: Pattern) -> Path:
+    path = tmp_path_factory.mktemp("rec") / "pattern.wav"
+    sf.write(path, pattern.audio, SAMPLE_RATE, subtype="PCM_16")
+    return path

@@ -1,0 +1,75 @@
+"""Offline transcription: a rendered pattern gives the right notes; files in other formats agree."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import mir_eval
+import numpy as np
+import soundfile as sf
+from scipy.signal import resample_poly
+
+from services.recogniser.audio import SAMPLE_RATE, load_audio
+from services.recogniser.transcribe import transcribe, transcribe_file
+
+from .pattern import Pattern, load_sample
+
+
+def _times(events, *names: str) -> np.ndarray:
+    return np.array(sorted(e.time for e in events if e.name in names))
+
+
+def _f(ref: np.ndarray, est: np.ndarray, window: float = 0.05) -> float:
+    return float(mir_eval.onset.f_measure(ref, est, window=window)[0]) if len(ref) and len(est) else 0.0
+
+
+def test_pattern_transcribes_to_the_right_notes(pattern: Pattern) -> None:
+    events = transcribe(pattern.audio)
+    # the kit is one the model never saw; the shipped model gets 0.96 / 0.84 / 0.86 here
+    for name in ("kick", "snare", "hihat_closed"):
+        f = _f(pattern.times(name), _times(events, name))
+        assert f >= 0.8, f"{name}: F = {f:.2f}"
+    # the tom fill: its four strikes found on toms; the open hi-hat found as open
+    toms = np.concatenate([pattern.times("tom_high"), pattern.times("tom_floor")])
+    assert _f(np.sort(toms), _times(events, "tom_high", "tom_mid", "tom_floor")) == 1.0
+    assert _f(pattern.times("hihat_open"), _times(events, "hihat_open")) == 1.0
+    # almost nothing is invented: every recognised time but one (the shipped model hears a ride in the
+    # first crash's tail) is near a played note
+    played = np.array([t for t, _, _ in pattern.notes])
+    assert sum(np.min(np.abs(played - e.time)) >= 0.05 for e in events) <= 1
+
+
+def test_onset_times_are_accurate(pattern: Pattern) -> None:
+    events = transcribe(pattern.audio)
+    for name in ("kick", "snare"):
+        ref = pattern.times(name)
+        est = _times(events, name)
+        assert len(mir_eval.util.match_events(ref, est, 0.02)) == len(ref), f"{name} not within 20 ms"
+
+
+def test_velocity_follows_loudness() -> None:
+    kick = load_sample("kick")
+    audio = np.zeros(int(6 * SAMPLE_RATE), np.float32)
+    velocities = [120, 40, 120, 40, 120, 40, 120, 40]
+    for i, v in enumerate(velocities):
+        start = int((0.2 + 0.6 * i) * SAMPLE_RATE)
+        audio[start : start + len(kick)] += kick * (v / 127) ** 1.6
+    events = [e for e in transcribe(audio * 0.9 / np.max(np.abs(audio))) if e.name == "kick"]
+    assert len(events) == 8
+    loud = [e.velocity for e in events[0::2]]
+    soft = [e.velocity for e in events[1::2]]
+    assert min(loud) > max(soft)
+
+
+def test_other_rates_and_stereo_give_the_same_notes(tmp_path: Path, pattern: Pattern) -> None:
+    mono = tmp_path / "mono.wav"
+    sf.write(mono, pattern.audio, SAMPLE_RATE)
+    stereo48 = tmp_path / "stereo48.flac"
+    up = resample_poly(pattern.audio, 320, 147).astype(np.float32)  # 22,050 -> 48,000 Hz
+    sf.write(stereo48, np.stack([up, up * 0.8], axis=1), 48000)
+    a, dur_a = transcribe_file(mono)
+    b, dur_b = transcribe_file(stereo48)
+    assert abs(dur_a - dur_b) < 0.01
+    assert abs(len(load_audio(stereo48)) - len(load_audio(mono))) <= 1
+    ref = _times(a, "kick", "snare")
+    assert _f(ref, _times(b, "kick", "snare"), window=0.02) >= 0.95
