@@ -4,7 +4,17 @@ Importing this package registers every message. A module that defines
 messages registers them with :func:`register` and is imported here.
 """
 
-from common.messages import events, state, system  # noqa: F401  (register the messages)
+from common.messages import (  # noqa: F401  (importing a module registers its messages)
+    events,
+    graphics,
+    interaction,
+    physics,
+    recogniser,
+    score,
+    sound,
+    state,
+    system,
+)
 from common.messages.base import (
     Arg,
     DropReason,
@@ -19,7 +29,7 @@ from common.messages.codec import Decoded, RawMessage, decode, encode, encode_bu
 from common.messages.events import Contact, Impact
 from common.messages.registry import REGISTRY, MessageRegistry, register
 from common.messages.state import Pose, Skeleton
-from common.messages.system import PROTOCOL_VERSION, ClockPing, ClockPong, Health, Hello
+from common.messages.system import PROTOCOL_VERSION, ClockPing, ClockPong, Health, Hello, Subscribe
 
 __all__ = [
     "Arg",
@@ -38,6 +48,7 @@ __all__ = [
     "PROTOCOL_VERSION",
     "Pose",
     "Skeleton",
+    "Subscribe",
     "REGISTRY",
     "RawMessage",
     "RigTime",
