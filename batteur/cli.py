@@ -16,6 +16,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "demo": ("batteur.demo", "render the shipped demo groove and print where the WAV and report are"),
     "rig": ("batteur.rig", "start all services as local processes; Ctrl-C stops them together"),
     "render": ("batteur.render", "render a score offline through the same cores as the rig"),
+    "evaluate": ("batteur.evaluate", "render scores (or read renders) and measure them against the score"),
     "physics": ("services.physics.node", "run the physics service alone"),
     "interaction": ("services.interaction.node", "run the interaction service alone"),
     "sound": ("services.sound.node", "run the sound service alone (e.g. on a second machine)"),

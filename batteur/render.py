@@ -1,48 +1,388 @@
 """``batteur render``: run the services' cores together offline and write the results.
 
-Today it renders the strike scene (the first end-to-end strike: a stick thrown
-onto a kit instrument on a schedule); scores come with the full drummer.
-Outputs in DIR: performance.wav, impacts.csv (one row per impact) and
-report.json. Nothing is written unless the run succeeds.
+Two scenes:
+
+* a score (``batteur render SCORE -o DIR``, MIDI or the text format): the score
+  reader and limb distribution (common/score), the gesture planner
+  (common/gesture), then the full-dynamics drummer (PhysicsCore scene
+  ``drummer``, offline) -> InteractionCore -> SoundCore, wired through
+  :class:`common.bus.OfflineRunner` exactly as the rig's nodes are;
+* the strike scene (``batteur render --strikes 0.25:3,0.75:1.5 -o DIR``): a
+  stick thrown onto one instrument on a schedule (integration smoke test).
+
+Outputs in DIR: ``performance.wav`` (sample 0 = rig time 0), ``impacts.csv``
+(one row per impact, every feature of ``/batteur/impact``, rig times),
+``performance.bvh`` (the simulated motion, score mode), ``report.json`` (what
+was rendered, the time offset between score and rig clocks, the planner's
+feasibility issues, real-time factor). Everything is staged in a temporary
+directory and moved in only when the whole run succeeded: a corrupted score
+or a failing run leaves nothing partial.
+
+Clocks: rig time = score time + ``score_offset_s`` (report.json); sound adds
+``latency_s`` (each impact is heard at its rig time plus the latency).
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
+import shutil
 import sys
 import tempfile
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING, Any, ClassVar, get_args
 
+import numpy as np
 import soundfile as sf
 
-from batteur.impact_log import write_impacts_csv
+from batteur.impact_log import ImpactLog, write_impacts_csv
 from batteur.progress import Progress
 from batteur.strike import DEFAULT_STRIKES, parse_strikes, run_strikes
-from common.kit import EventType, load_kit
+from common.core import Outgoing
+from common.gesture.plan import GesturePlan, Grip, Nuance
+from common.kit import EventType, Kit, load_kit
+from common.messages import OscMessage
+from common.messages.physics import ControlModeName
+from common.score.events import Score, ScoreError
+from common.score.hands import HandAlgorithm
+from common.score.limbs import Assignment
+
+if TYPE_CHECKING:
+    from batteur.calibration import Calibration
+
+CONTROL_MODES: dict[str, str] = {
+    "cartesian": "cartesian",  # DLS IK on the stick tips feeding the PD (the paper's Cartesian tracking)
+    "joint": "joint_pd",  # the paper's joint-space PD on open-loop IK of the plan
+    **{name: name for name in get_args(ControlModeName)},  # every controller physics offers, by its own name
+}
+"""``--control`` choice -> PhysicsSettings.control."""
+
+GRIPS = ("german", "french", "american", "traditional")
+"""Physics grips; the planner's gesture database has french and german (others plan as german)."""
+
+
+class RenderError(RuntimeError):
+    """A render that could not be completed (the message says why); nothing is written."""
+
+
+@dataclass(frozen=True)
+class RenderOptions:
+    """How to render a score (seconds, m/s)."""
+
+    kit: str = "default"
+    grip: str = "german"
+    nuance: Nuance = Nuance.TENUTO
+    tempo_scale: float = 1.0
+    """> 1 plays faster: every score time is divided by it."""
+    control: str = "cartesian"
+    algorithm: HandAlgorithm = HandAlgorithm.VITERBI
+    latency_s: float = 0.05
+    settle_s: float = 0.5
+    """Rig time at which the plan starts (the body settles at rest before), seconds."""
+    tail_s: float = 1.0
+    rate_hz: float = 1000.0
+    pose_rate_hz: float = 60.0
+    calibration: Path | None = None
+
+
+@dataclass
+class ScoreRender:
+    """What a score render produced (times: rig seconds unless named otherwise)."""
+
+    score: Score
+    assignment: Assignment
+    plan: GesturePlan
+    impacts: list[Any]
+    contacts: int
+    audio: np.ndarray
+    sample_rate: int
+    duration_s: float
+    score_offset_s: float
+    wall_time_s: float
+    poses: Any = None
+    physics: dict[str, Any] = field(default_factory=dict)
+
+
+def scale_tempo(score: Score, scale: float) -> Score:
+    """The score played ``scale`` times faster (every time divided by ``scale``)."""
+    if not scale > 0:
+        raise ValueError(f"tempo scale must be > 0, got {scale}")
+    if scale == 1.0:
+        return score
+    return dataclasses.replace(
+        score,
+        events=[dataclasses.replace(e, time=e.time / scale) for e in score.events],
+        beats=np.asarray(score.beats, dtype=float) / scale,
+        unknown=[dataclasses.replace(u, time=u.time / scale) for u in score.unknown],
+        duplicates=[dataclasses.replace(d, time=d.time / scale) for d in score.duplicates],
+    )
+
+
+def prepare(path: Path | str, kit: Kit, opts: RenderOptions,
+            calibration: Calibration | None = None) -> tuple[Score, Assignment, GesturePlan]:
+    """Read, distribute and plan a score; raises :class:`ScoreError` for a bad score.
+
+    With a ``calibration`` the notes are shifted (lag anticipation) and their
+    velocities remapped before planning; the returned ``score`` keeps the
+    written times (what the performance is judged against).
+    """
+    from common.gesture.planner import PlannerConfig, plan_gestures
+    from common.score.limbs import distribute
+    from common.score.text import read_score
+
+    score = scale_tempo(read_score(path), opts.tempo_scale)
+    if not score.events:
+        raise ScoreError(f"{path}: no drum events to play")
+    assignment = distribute(score, kit, opts.algorithm)
+    planned = assignment if calibration is None else calibration.apply(assignment, kit)
+    grip = Grip(opts.grip) if opts.grip in (g.value for g in Grip) else Grip.GERMAN
+    plan = plan_gestures(planned, kit, score, PlannerConfig(grip=grip, nuance=opts.nuance))
+    return score, assignment, plan
+
+
+def run_score(score: Score, assignment: Assignment, plan: GesturePlan, kit: Kit, opts: RenderOptions,
+              on_progress: Callable[[float, float], None] | None = None) -> ScoreRender:
+    """Play a gesture plan with the full-dynamics drummer and render its sound (see the module docstring).
+
+    Raises :class:`RenderError` when physics refuses the plan.
+    """
+    from common.bus import OfflineRunner
+    from services.interaction.core import InteractionCore
+    from services.physics.core import PhysicsCore
+    from services.physics.targets import TargetError
+    from services.sound.core import SoundCore, SoundSettings
+
+    started = time.perf_counter()
+    cpu_started = time.process_time()
+    physics = PhysicsCore(scene="drummer", kit=kit, control=CONTROL_MODES[opts.control], grip=opts.grip,
+                          rate_hz=opts.rate_hz, pose_rate_hz=opts.pose_rate_hz)
+    offset = opts.settle_s - plan.start_time
+    try:
+        physics.load_plan(plan, opts.settle_s)
+    except TargetError as exc:
+        physics.close()
+        raise RenderError(f"physics refused the gesture plan: {exc}") from exc
+    interaction = InteractionCore(kit=kit)
+    sound = SoundCore(SoundSettings(latency=opts.latency_s, origin=0.0), kit=kit)
+    recorder = RecorderCore()
+    runner = OfflineRunner([physics, interaction, sound, recorder])
+    duration = plan.end_time + offset + opts.latency_s + opts.tail_s
+    try:
+        runner.run_until(duration, None if on_progress is None else (lambda t: on_progress(t, duration)))
+        audio = sound.recording()
+    finally:
+        sound.close()
+        physics.close()
+    try:
+        poses = recorder.poses.sequence()
+    except ValueError:
+        poses = None
+    stats = {"contacts_sent": physics.contacts_sent, "rejected": dict(physics.rejected),
+             "control": physics.settings.control, "grip": physics.settings.grip, "rate_hz": physics.rate_hz,
+             "cpu_time_s": round(time.process_time() - cpu_started, 3)}
+    return ScoreRender(score, assignment, plan, recorder.impacts.sorted(), physics.contacts_sent, audio,
+                       sound.sample_rate, duration, offset, time.perf_counter() - started, poses, stats)
+
+
+class RecorderCore:
+    """Stands in for graphics in an offline render: records the poses and impacts sent to ``graphics``.
+
+    A core rather than a bus tap, so each message is decoded once (a tap decodes all traffic again).
+    """
+
+    ROLE: ClassVar[str] = "graphics"
+    rate_hz = 0.0
+
+    def __init__(self) -> None:
+        from services.graphics.recorder import PerformanceRecorder
+
+        self.poses = PerformanceRecorder()
+        self.impacts = ImpactLog()
+
+    def handle(self, message: OscMessage, now: float, source: str) -> list[Outgoing]:
+        if not self.impacts.add(message, source):
+            self.poses.record(message, source)
+        return []
+
+    def step(self, now: float) -> list[Outgoing]:
+        return []
+
+
+# ---------------------------------------------------------------------- reports and output
+
+
+def issues_json(plan: GesturePlan, score: Score) -> list[dict[str, Any]]:
+    """The planner's feasibility issues, plus notes the score reader did not keep (unknown pitches, doubles)."""
+    out: list[dict[str, Any]] = [
+        {"note_index": i.note_index, "time_s": round(i.time, 6), "event": i.event.value if i.event else None,
+         "reason": i.reason.value, "action": i.action.value, "detail": i.detail}
+        for i in plan.issues
+    ]
+    out += [{"note_index": None, "time_s": round(u.time, 6), "event": None, "reason": "unknown_note",
+             "action": "dropped", "detail": u.describe()} for u in score.unknown]
+    out += [{"note_index": None, "time_s": round(d.time, 6), "event": d.event.value, "reason": "duplicate",
+             "action": "merged", "detail": "double event of the same type within 10 ms"} for d in score.duplicates]
+    return out
+
+
+def score_report(result: ScoreRender, source: str, opts: RenderOptions) -> dict[str, Any]:
+    wall = result.wall_time_s
+    cpu = result.physics.get("cpu_time_s")
+    music = result.plan.end_time - result.plan.start_time
+    return {
+        "scene": "drummer",
+        "score": source,
+        "kit": opts.kit,
+        "grip": opts.grip,
+        "nuance": opts.nuance.value,
+        "tempo_scale": opts.tempo_scale,
+        "control": opts.control,
+        "physics": result.physics,
+        "calibration": str(opts.calibration) if opts.calibration else None,
+        "notes": len(result.score.events),
+        "planned_strokes": len(result.plan.strokes),
+        "issues": issues_json(result.plan, result.score),
+        "impacts": len(result.impacts),
+        "contacts": result.contacts,
+        "score_offset_s": result.score_offset_s,
+        "latency_s": opts.latency_s,
+        "duration_s": result.duration_s,
+        "music_duration_s": music,
+        "sample_rate_hz": result.sample_rate,
+        "wall_time_s": round(wall, 3),
+        "real_time_factor": round(result.duration_s / wall, 3) if wall > 0 else None,
+        "cpu_time_s": result.physics.get("cpu_time_s"),
+        "real_time_factor_cpu": round(result.duration_s / cpu, 3) if cpu else None,
+    }
+
+
+def write_outputs(output: Path, audio: np.ndarray, sample_rate: int, impacts: list[Any], report: dict[str, Any],
+                  poses: Any = None, score: Path | None = None) -> list[Path]:
+    """Write every output into a staging directory, then move them into ``output`` (nothing partial).
+
+    ``score``: copied in as ``score<suffix>`` so the directory can be evaluated on its own.
+    """
+    created = not output.exists()
+    output.mkdir(parents=True, exist_ok=True)
+    names: list[str] = []
+    try:
+        with tempfile.TemporaryDirectory(dir=output, prefix=".render-") as tmp:
+            staging = Path(tmp)
+            sf.write(staging / "performance.wav", audio, sample_rate, subtype="PCM_24")
+            write_impacts_csv(impacts, staging / "impacts.csv")
+            if poses is not None:
+                from services.graphics.export.bvh import write_bvh
+
+                write_bvh(poses, staging / "performance.bvh")
+            if score is not None:
+                shutil.copyfile(score, staging / f"score{score.suffix}")
+            (staging / "report.json").write_text(json.dumps(report, indent=2), encoding="utf-8")
+            names = sorted(p.name for p in staging.iterdir())
+            for name in names:
+                (staging / name).replace(output / name)
+    except BaseException:
+        if created:
+            for name in names:
+                (output / name).unlink(missing_ok=True)
+            try:
+                output.rmdir()
+            except OSError:
+                pass
+        raise
+    return [output / n for n in names]
+
+
+def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: bool = False) -> dict[str, Any]:
+    """Render a score into ``output`` (see the module docstring); returns the report.
+
+    Raises :class:`ScoreError` (bad score), :class:`RenderError` (physics refused) or ``ValueError``.
+    """
+    from batteur.calibration import Calibration
+
+    kit = load_kit(opts.kit)
+    calibration = Calibration.load(opts.calibration) if opts.calibration else None
+    score, assignment, plan = prepare(path, kit, opts, calibration)
+    progress = Progress(f"rendering {Path(path).name}", plan.end_time - plan.start_time + opts.settle_s,
+                        enabled=False if quiet else None)
+    try:
+        result = run_score(score, assignment, plan, kit, opts, on_progress=lambda t, total: progress.update(t))
+    finally:
+        progress.close()
+    report = score_report(result, str(path), opts)
+    write_outputs(output, result.audio, result.sample_rate, result.impacts, report, result.poses, Path(path))
+    return report
+
+
+# ---------------------------------------------------------------------- command line
 
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="batteur render",
-        description="Render offline through the same cores as the rig (physics -> interaction -> sound). "
-        "Writes DIR/performance.wav, DIR/impacts.csv and DIR/report.json.",
+        description="Render a score offline through the same cores as the rig (planner -> physics drummer -> "
+        "interaction -> sound). Writes DIR/performance.wav, DIR/impacts.csv, DIR/performance.bvh and "
+        "DIR/report.json; nothing is written if the run fails. Without SCORE, --strikes renders the strike scene.",
     )
+    parser.add_argument("score", nargs="?", type=Path, help="a .mid file or a Batteur text score")
     parser.add_argument("-o", "--output", type=Path, required=True, help="output directory (created if missing)")
-    parser.add_argument("--strikes", default=",".join(f"{t:g}:{v:g}" for t, v in DEFAULT_STRIKES),
-                        help="strike scene schedule TIME:SPEED,... in seconds:m/s (default: %(default)s)")
-    parser.add_argument("--event", default="SNARE", choices=[e.value for e in EventType if e != EventType.HIHATPEDAL],
-                        help="which kit event the stick strikes (default SNARE)")
     parser.add_argument("--kit", default="default", help="kit name or YAML/JSON file (default: default)")
+    parser.add_argument("--grip", default="german", choices=GRIPS, help="stick grip (default: german)")
+    parser.add_argument("--nuance", default=Nuance.TENUTO.value, choices=[n.value for n in Nuance],
+                        help="global playing nuance (default: tenuto)")
+    parser.add_argument("--tempo-scale", type=float, default=1.0,
+                        help="play this many times faster (0.5: half tempo; default 1)")
+    parser.add_argument("--control", default="cartesian", choices=list(CONTROL_MODES),
+                        help="tracking: cartesian (DLS IK on the stick tips) or joint (PD on joint targets)")
+    parser.add_argument("--algorithm", default=HandAlgorithm.VITERBI.value, choices=[a.value for a in HandAlgorithm],
+                        help="hand assignment algorithm (default: viterbi)")
+    parser.add_argument("--calibration", type=Path, default=None,
+                        help="calibration JSON (from `batteur evaluate --fit-calibration`): lag anticipation and "
+                        "velocity map applied to the plan")
+    parser.add_argument("--strikes", default=None,
+                        help="strike scene instead of a score: TIME:SPEED,... in seconds:m/s "
+                        f"(e.g. {','.join(f'{t:g}:{v:g}' for t, v in DEFAULT_STRIKES)})")
+    parser.add_argument("--event", default="SNARE", choices=[e.value for e in EventType if e != EventType.HIHATPEDAL],
+                        help="strike scene: which kit event the stick strikes (default SNARE)")
     parser.add_argument("--latency", type=float, default=0.05, help="sound latency window, seconds (default 0.05)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     return parser
 
 
+def options_from(args: argparse.Namespace) -> RenderOptions:
+    return RenderOptions(kit=args.kit, grip=args.grip, nuance=Nuance(args.nuance), tempo_scale=args.tempo_scale,
+                         control=args.control, algorithm=HandAlgorithm(args.algorithm), latency_s=args.latency,
+                         calibration=args.calibration)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    opts = build_parser().parse_args(argv)
+    parser = build_parser()
+    opts = parser.parse_args(argv)
+    if opts.score is None and opts.strikes is None:
+        parser.error("give a SCORE, or --strikes for the strike scene")
+    if opts.score is not None and opts.strikes is not None:
+        parser.error("give either a SCORE or --strikes, not both")
+    if opts.strikes is not None:
+        return _main_strikes(opts)
+    try:
+        report = render_score(opts.score, opts.output, options_from(opts), quiet=opts.quiet)
+    except (ScoreError, RenderError, ValueError, FileNotFoundError) as exc:
+        print(f"batteur render: {exc}", file=sys.stderr)
+        return 2
+    out = opts.output
+    print(f"wrote {out / 'performance.wav'} ({report['duration_s']:.1f} s)")
+    print(f"wrote {out / 'impacts.csv'} ({report['impacts']} impacts for {report['notes']} notes, "
+          f"{len(report['issues'])} flagged by the planner)")
+    if (out / "performance.bvh").exists():
+        print(f"wrote {out / 'performance.bvh'}")
+    print(f"wrote {out / 'report.json'} (real-time factor {report['real_time_factor']})")
+    return 0
+
+
+def _main_strikes(opts: argparse.Namespace) -> int:
     try:
         strikes = parse_strikes(opts.strikes)
         kit = load_kit(opts.kit)
@@ -73,15 +413,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "wall_time_s": round(elapsed, 3),
         "real_time_factor": round(result.duration_s / elapsed, 2) if elapsed > 0 else None,
     }
-    # write into a temporary directory first so a failure leaves nothing partial
-    opts.output.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(dir=opts.output) as tmp:
-        staging = Path(tmp)
-        sf.write(staging / "performance.wav", result.audio, result.sample_rate, subtype="PCM_24")
-        write_impacts_csv(result.impacts, staging / "impacts.csv")
-        (staging / "report.json").write_text(json.dumps(report, indent=2), encoding="utf-8")
-        for item in staging.iterdir():
-            item.replace(opts.output / item.name)
+    write_outputs(opts.output, result.audio, result.sample_rate, result.impacts, report)
     print(f"wrote {opts.output / 'performance.wav'}")
     print(f"wrote {opts.output / 'impacts.csv'} ({len(result.impacts)} impacts)")
     print(f"wrote {opts.output / 'report.json'}")

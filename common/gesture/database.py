@@ -74,13 +74,23 @@ class GestureUnit:
         return (self.contact_frames[1] - self.contact_frames[0]) / self.rate_hz
 
 
+PROFILE_FLOOR = 0.01
+"""Profile values at or below this (fraction of the peak) count as the tip resting at the contact height."""
+
+
 def _profile(height: np.ndarray, c0: int, c1: int) -> tuple[CubicSpline, float]:
     cycle = np.maximum(height[c0 : c1 + 1] - height[c0], 0.0)
     peak = float(cycle.max())
     if peak <= 1e-6:
         raise BvhError("the tip does not rise between the first two contacts")
-    phase = np.linspace(0.0, 1.0, len(cycle))
     values = cycle / peak
+    # The tip may rest on (or, clamped, dip to) the contact height for a while after one contact and before the
+    # next (the proximal joints lead the stick). Played as is, the planned tip would touch the surface early and
+    # linger after the stroke (extra contacts). Keep the part of the cycle where the tip is up, stretched over
+    # the whole cycle, so the profile is positive strictly between its two contacts.
+    up = np.flatnonzero(values > PROFILE_FLOOR)
+    values = values[max(int(up[0]) - 1, 0): min(int(up[-1]) + 1, len(values) - 1) + 1]
+    phase = np.linspace(0.0, 1.0, len(values))
     values[0] = values[-1] = 0.0
     spline = CubicSpline(phase, values)
     return spline, float(phase[int(np.argmax(values))])

@@ -1,0 +1,553 @@
+"""``batteur evaluate``: how accurately the simulated drummer played a score.
+
+Every score note is matched to at most one impact and every impact to at
+most one note (optimal one-to-one matching, :func:`match`): a pair counts when
+the impact is on the note's kit object (its drum event's object; pedal events
+sound on the instrument the pedal drives) and within the tolerance window.
+Reported per file and in aggregate (micro-averaged over all notes):
+
+* precision, recall and F-measure at 10 ms and 25 ms;
+* timing error (impact time - note time, ms) of the pairs matched at 25 ms:
+  median and 95th percentile of the absolute error, and the median signed
+  error (the systematic lag); the same over a loose 100 ms matching, so a
+  systematic lag beyond the windows still shows;
+* Spearman rank correlation between score velocity and impact velocity
+  (normal approach speed, m/s) over the 25 ms pairs, pooled and per instrument;
+* spurious impacts (not matched at 25 ms);
+* every missed note with a reason: the planner's feasibility issue (dropped,
+  too fast, ...), or what the performance did instead (``timing``: an impact
+  on the right object outside 25 ms, ``wrong_instrument``, ``no_contact``):
+  no note is silently lost;
+* real-time factor of the render.
+
+Renders with :mod:`batteur.render` unless given an existing render directory.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import tempfile
+import time
+from collections import Counter, defaultdict
+from collections.abc import Iterable, Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+from scipy.stats import spearmanr
+
+from common.kit import EventType, Kit, load_kit
+from common.score.events import Score
+
+WINDOWS_S: tuple[float, float] = (0.010, 0.025)
+"""Tolerance windows, seconds."""
+LOOSE_WINDOW_S = 0.100
+"""Window of the loose matching (systematic lag, missed-note reasons), seconds."""
+
+
+@dataclass(frozen=True)
+class NoteRef:
+    """A score note to be played: index in ``Score.events``, time (s), expected kit object, velocity [0, 1]."""
+
+    index: int
+    time: float
+    instrument: str
+    velocity: float
+    event: str = ""
+
+
+@dataclass(frozen=True)
+class Hit:
+    """An impact: time (s, score clock), kit object, normal velocity (m/s), striker part."""
+
+    time: float
+    instrument: str
+    velocity: float
+    part: str = ""
+
+
+@dataclass(frozen=True)
+class Flag:
+    """Why a note was not played (``source``: ``planner`` or ``performance``)."""
+
+    index: int
+    time: float
+    event: str
+    reason: str
+    source: str
+    detail: str = ""
+
+
+@dataclass
+class FileResult:
+    """Evaluation of one performance (times in ms where named so)."""
+
+    name: str
+    notes: int
+    impacts: int
+    matched: dict[str, int]
+    precision: dict[str, float]
+    recall: dict[str, float]
+    f_measure: dict[str, float]
+    timing_ms: dict[str, float | None]
+    timing_loose_ms: dict[str, float | None]
+    spearman: float | None
+    spearman_by_instrument: dict[str, float | None]
+    spurious: int
+    missed: list[Flag]
+    missed_by_reason: dict[str, int]
+    planner_flags: int
+    real_time_factor: float | None = None
+    music_duration_s: float = 0.0
+    wall_time_s: float = 0.0
+    cpu_time_s: float = 0.0
+    # raw material for aggregation and plots (not in the JSON summary)
+    errors_s: list[float] = field(default_factory=list, repr=False)
+    velocity_pairs: list[tuple[float, float, str]] = field(default_factory=list, repr=False)
+    note_refs: list[NoteRef] = field(default_factory=list, repr=False)
+    hits: list[Hit] = field(default_factory=list, repr=False)
+    pairs_25: list[tuple[int, int]] = field(default_factory=list, repr=False)
+    pairs_loose: list[tuple[int, int]] = field(default_factory=list, repr=False)
+
+    def summary(self) -> dict[str, Any]:
+        out = {k: v for k, v in asdict(self).items()
+               if k not in ("errors_s", "velocity_pairs", "note_refs", "hits", "pairs_25", "pairs_loose",
+                          "missed")}
+        out["missed"] = [asdict(f) for f in self.missed]
+        return out
+
+
+# ---------------------------------------------------------------------- matching
+
+
+def _match_times(a: np.ndarray, b: np.ndarray, window: float) -> list[tuple[int, int]]:
+    """Optimal one-to-one pairs (i, j) with ``|a[i] - b[j]| <= window``: the most pairs, then least total error.
+
+    ``a`` and ``b`` sorted (seconds). Solved per cluster of mutually reachable
+    times with :func:`scipy.optimize.linear_sum_assignment`.
+    """
+    if len(a) == 0 or len(b) == 0:
+        return []
+    # clusters: break where no a and b can be within the window across the gap
+    events = sorted([(t, 0, i) for i, t in enumerate(a)] + [(t, 1, j) for j, t in enumerate(b)])
+    clusters: list[tuple[list[int], list[int]]] = []
+    last = -math.inf
+    for t, side, k in events:
+        if t - last > window or not clusters:
+            clusters.append(([], []))
+        clusters[-1][side].append(k)
+        last = t
+    pairs: list[tuple[int, int]] = []
+    for ia, jb in clusters:
+        if not ia or not jb:
+            continue
+        d = np.abs(a[ia][:, None] - b[jb][None, :])
+        ok = d <= window + 1e-12
+        if not ok.any():
+            continue
+        # a valid pair is worth far more than any sum of errors: maximum cardinality, then minimum error
+        big = 1.0 + window * (len(ia) + len(jb))
+        cost = np.where(ok, d - big, 0.0)
+        rows, cols = linear_sum_assignment(cost)
+        pairs += [(ia[r], jb[c]) for r, c in zip(rows, cols, strict=True) if ok[r, c]]
+    return sorted(pairs)
+
+
+def match(notes: Sequence[NoteRef], hits: Sequence[Hit], window: float) -> list[tuple[int, int]]:
+    """One-to-one pairs (note position, hit position) on the same instrument within ``window`` seconds."""
+    by_inst_n: dict[str, list[int]] = defaultdict(list)
+    by_inst_h: dict[str, list[int]] = defaultdict(list)
+    for i, n in enumerate(notes):
+        by_inst_n[n.instrument].append(i)
+    for j, h in enumerate(hits):
+        by_inst_h[h.instrument].append(j)
+    pairs: list[tuple[int, int]] = []
+    for inst, ni in by_inst_n.items():
+        hj = by_inst_h.get(inst, [])
+        ni_sorted = sorted(ni, key=lambda i: notes[i].time)
+        hj_sorted = sorted(hj, key=lambda j: hits[j].time)
+        a = np.array([notes[i].time for i in ni_sorted])
+        b = np.array([hits[j].time for j in hj_sorted])
+        pairs += [(ni_sorted[x], hj_sorted[y]) for x, y in _match_times(a, b, window)]
+    return sorted(pairs)
+
+
+def _prf(tp: int, notes: int, hits: int) -> tuple[float, float, float]:
+    p = tp / hits if hits else (1.0 if notes == 0 else 0.0)
+    r = tp / notes if notes else 1.0
+    f = 2 * p * r / (p + r) if p + r > 0 else 0.0
+    return p, r, f
+
+
+def timing_stats(errors_s: Iterable[float]) -> dict[str, float | None]:
+    """Median and 95th percentile of |error|, median signed error, in ms (None without pairs)."""
+    e = np.asarray(list(errors_s), dtype=float) * 1000.0
+    if e.size == 0:
+        return {"median_abs": None, "p95_abs": None, "median_signed": None, "n": 0}
+    return {"median_abs": round(float(np.median(np.abs(e))), 3),
+            "p95_abs": round(float(np.percentile(np.abs(e), 95)), 3),
+            "median_signed": round(float(np.median(e)), 3), "n": int(e.size)}
+
+
+def spearman(pairs: Sequence[tuple[float, float, str]]) -> float | None:
+    """Spearman correlation of (score velocity, impact velocity); None when undefined (< 3 pairs or constant)."""
+    if len(pairs) < 3:
+        return None
+    x = np.array([p[0] for p in pairs])
+    y = np.array([p[1] for p in pairs])
+    if np.all(x == x[0]) or np.all(y == y[0]):
+        return None
+    rho = spearmanr(x, y).statistic
+    return None if not np.isfinite(rho) else round(float(rho), 4)
+
+
+def evaluate_performance(name: str, notes: Sequence[NoteRef], hits: Sequence[Hit],
+                         planner_flags: Sequence[Flag] = (), windows: Sequence[float] = WINDOWS_S) -> FileResult:
+    """Score one performance (see the module docstring). ``planner_flags``: notes the planner flagged."""
+    matched: dict[str, int] = {}
+    precision: dict[str, float] = {}
+    recall: dict[str, float] = {}
+    fmeas: dict[str, float] = {}
+    pairs_by: dict[float, list[tuple[int, int]]] = {}
+    for w in windows:
+        pairs = match(notes, hits, w)
+        pairs_by[w] = pairs
+        key = f"{round(w * 1000):d}ms"
+        p, r, f = _prf(len(pairs), len(notes), len(hits))
+        matched[key], precision[key], recall[key], fmeas[key] = len(pairs), round(p, 4), round(r, 4), round(f, 4)
+    widest = max(windows)
+    pairs = pairs_by[widest]
+    errors = [hits[j].time - notes[i].time for i, j in pairs]
+    loose = match(notes, hits, max(LOOSE_WINDOW_S, widest))
+    vel_pairs = [(notes[i].velocity, hits[j].velocity, notes[i].instrument) for i, j in pairs]
+    by_inst: dict[str, list[tuple[float, float, str]]] = defaultdict(list)
+    for vp in vel_pairs:
+        by_inst[vp[2]].append(vp)
+    # missed notes and their reasons
+    matched_notes = {i for i, _ in pairs}
+    matched_hits = {j for _, j in pairs}
+    loose_of = dict(loose)
+    flagged = {f.index: f for f in planner_flags}
+    missed: list[Flag] = []
+    spare = [j for j in range(len(hits)) if j not in matched_hits]
+    for i, n in enumerate(notes):
+        if i in matched_notes:
+            continue
+        if n.index in flagged:
+            missed.append(flagged[n.index])
+            continue
+        j = loose_of.get(i)
+        if j is not None:
+            dt = (hits[j].time - n.time) * 1000
+            missed.append(Flag(n.index, n.time, n.event, "timing", "performance",
+                               f"impact on {n.instrument} {dt:+.1f} ms from the note"))
+            continue
+        near = [j for j in spare if abs(hits[j].time - n.time) <= widest]
+        if near:
+            j = min(near, key=lambda j: abs(hits[j].time - n.time))
+            missed.append(Flag(n.index, n.time, n.event, "wrong_instrument", "performance",
+                               f"{hits[j].instrument} struck by {hits[j].part} instead of {n.instrument}"))
+            continue
+        missed.append(Flag(n.index, n.time, n.event, "no_contact", "performance",
+                           f"no impact on {n.instrument} within {LOOSE_WINDOW_S * 1000:.0f} ms"))
+    return FileResult(
+        name=name, notes=len(notes), impacts=len(hits), matched=matched, precision=precision, recall=recall,
+        f_measure=fmeas, timing_ms=timing_stats(errors),
+        timing_loose_ms=timing_stats(hits[j].time - notes[i].time for i, j in loose),
+        spearman=spearman(vel_pairs),
+        spearman_by_instrument={k: spearman(v) for k, v in sorted(by_inst.items())},
+        spurious=len(hits) - len(pairs), missed=missed,
+        missed_by_reason=dict(sorted(Counter(f.reason for f in missed).items())),
+        planner_flags=len(planner_flags), errors_s=errors, velocity_pairs=vel_pairs,
+        note_refs=list(notes), hits=list(hits), pairs_25=pairs, pairs_loose=loose,
+    )
+
+
+def aggregate(results: Sequence[FileResult], windows: Sequence[float] = WINDOWS_S) -> dict[str, Any]:
+    """Micro-averaged figures over files (every note and impact counts once)."""
+    notes = sum(r.notes for r in results)
+    hits = sum(r.impacts for r in results)
+    out: dict[str, Any] = {"files": len(results), "notes": notes, "impacts": hits}
+    for key in ("precision", "recall", "f_measure", "matched"):
+        out[key] = {}
+    for w in windows:
+        key = f"{round(w * 1000):d}ms"
+        tp = sum(r.matched[key] for r in results)
+        p, r_, f = _prf(tp, notes, hits)
+        out["matched"][key], out["precision"][key], out["recall"][key], out["f_measure"][key] = (
+            tp, round(p, 4), round(r_, 4), round(f, 4))
+    out["timing_ms"] = timing_stats(e for r in results for e in r.errors_s)
+    out["spearman"] = spearman([vp for r in results for vp in r.velocity_pairs])
+    by_inst: dict[str, list[tuple[float, float, str]]] = defaultdict(list)
+    for r in results:
+        for vp in r.velocity_pairs:
+            by_inst[vp[2]].append(vp)
+    out["spearman_by_instrument"] = {k: spearman(v) for k, v in sorted(by_inst.items())}
+    out["spurious"] = sum(r.spurious for r in results)
+    out["missed"] = sum(len(r.missed) for r in results)
+    reasons: Counter[str] = Counter()
+    for r in results:
+        reasons.update(r.missed_by_reason)
+    out["missed_by_reason"] = dict(sorted(reasons.items()))
+    out["planner_flags"] = sum(r.planner_flags for r in results)
+    music = sum(r.music_duration_s for r in results)
+    wall = sum(r.wall_time_s for r in results)
+    out["music_duration_s"] = round(music, 3)
+    out["wall_time_s"] = round(wall, 3)
+    out["real_time_factor"] = round(music / wall, 3) if wall > 0 else None
+    cpu = sum(r.cpu_time_s for r in results)
+    out["cpu_time_s"] = round(cpu, 3)
+    out["real_time_factor_cpu"] = round(music / cpu, 3) if cpu > 0 else None
+    return out
+
+
+# ---------------------------------------------------------------------- from a score and a render
+
+
+def expected_instrument(kit: Kit, event: EventType, pitch: int | None = None) -> str:
+    """The kit object a note of ``event`` must sound on (pedal events: the instrument the pedal drives)."""
+    obj = kit.object_for(event, pitch)
+    if obj.kind == "pedal":
+        if event == EventType.HIHATPEDAL and EventType.HIHATCLOSED in kit.events:
+            return kit.object_for(EventType.HIHATCLOSED).id
+        if event == EventType.BASS:
+            return "kick"
+    return obj.id
+
+
+def note_refs(score: Score, kit: Kit) -> list[NoteRef]:
+    """The score's notes the kit can play, with the object each must sound on."""
+    out: list[NoteRef] = []
+    for i, e in enumerate(score.events):
+        if e.event not in kit.events:
+            continue
+        out.append(NoteRef(i, e.time, expected_instrument(kit, e.event, e.pitch), e.velocity, e.event.value))
+    return out
+
+
+def unplayable_flags(score: Score, kit: Kit) -> list[Flag]:
+    """Score events the kit has no object for (flagged, never silently lost)."""
+    return [Flag(i, e.time, e.event.value, "not_in_kit", "planner", f"kit {kit.name!r} does not play it")
+            for i, e in enumerate(score.events) if e.event not in kit.events]
+
+
+def planner_flags(issues: Iterable[dict[str, Any]]) -> list[Flag]:
+    """Flags from report.json's issues: notes the planner found beyond limits (dropped, merged, moved...)."""
+    out = []
+    for issue in issues:
+        if issue.get("note_index") is None:
+            continue
+        out.append(Flag(int(issue["note_index"]), float(issue["time_s"]), issue.get("event") or "",
+                        str(issue["reason"]), "planner", f"{issue['action']}: {issue.get('detail', '')}"))
+    return out
+
+
+def render_dir_score(render_dir: Path) -> Path:
+    """The score of a render directory: its copy ``score.*``, else the path in report.json."""
+    copies = sorted(render_dir.glob("score.*"))
+    if copies:
+        return copies[0]
+    report = json.loads((render_dir / "report.json").read_text(encoding="utf-8"))
+    return Path(report["score"])
+
+
+def evaluate_render_dir(score_path: Path, render_dir: Path, kit: Kit | None = None) -> FileResult:
+    """Evaluate an existing render directory (impacts.csv + report.json) against its score."""
+    from batteur.impact_log import read_impacts_csv
+    from batteur.render import scale_tempo
+    from common.score.text import read_score
+
+    report = json.loads((render_dir / "report.json").read_text(encoding="utf-8"))
+    if report.get("scene") != "drummer":
+        raise ValueError(f"{render_dir}: not a score render (scene {report.get('scene')!r})")
+    kit = kit if kit is not None else load_kit(report.get("kit", "default"))
+    score = scale_tempo(read_score(score_path), float(report.get("tempo_scale", 1.0)))
+    offset = float(report["score_offset_s"])
+    impacts = read_impacts_csv(render_dir / "impacts.csv")
+    hits = [Hit(i.time - offset, i.instrument, i.velocity, i.part) for i in impacts]
+    result = evaluate_performance(Path(str(report.get("score", score_path))).name, note_refs(score, kit), hits,
+                                  planner_flags(report.get("issues", [])))
+    result.missed += unplayable_flags(score, kit)
+    result.missed_by_reason = dict(sorted(Counter(f.reason for f in result.missed).items()))
+    result.real_time_factor = report.get("real_time_factor")
+    result.music_duration_s = float(report.get("duration_s", 0.0))
+    result.wall_time_s = float(report.get("wall_time_s", 0.0))
+    result.cpu_time_s = float(report.get("cpu_time_s") or 0.0)
+    return result
+
+
+# ---------------------------------------------------------------------- plots
+
+
+def plot_result(result: FileResult, directory: Path) -> list[Path]:
+    """Piano roll (score vs impacts) and timing-error histogram as PNG files in ``directory``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    directory.mkdir(parents=True, exist_ok=True)
+    stem = Path(result.name).stem
+    instruments = sorted({n.instrument for n in result.note_refs} | {h.instrument for h in result.hits})
+    row = {name: k for k, name in enumerate(instruments)}
+    matched_n = {i for i, _ in result.pairs_25}
+    matched_h = {j for _, j in result.pairs_25}
+    fig, ax = plt.subplots(figsize=(14, 1.0 + 0.5 * len(instruments)))
+    for ok, colour, label in ((True, "tab:green", "note played"), (False, "tab:red", "note missed")):
+        xs = [n.time for i, n in enumerate(result.note_refs) if (i in matched_n) == ok]
+        ys = [float(row[n.instrument]) for i, n in enumerate(result.note_refs) if (i in matched_n) == ok]
+        if xs:
+            ax.scatter(xs, ys, s=60, facecolors="none", edgecolors=colour, label=label)
+    for ok, colour, label in ((True, "tab:blue", "impact (matched)"), (False, "tab:orange", "impact (spurious)")):
+        xs = [h.time for j, h in enumerate(result.hits) if (j in matched_h) == ok]
+        ys = [row[h.instrument] + 0.15 for j, h in enumerate(result.hits) if (j in matched_h) == ok]
+        if xs:
+            ax.scatter(xs, ys, s=12, c=colour, marker="x", label=label)
+    ax.set_yticks(range(len(instruments)), instruments)
+    ax.set_xlabel("score time (s)")
+    ax.set_title(f"{result.name}: score vs impacts (25 ms matching)")
+    ax.legend(loc="upper right", fontsize=8)
+    fig.tight_layout()
+    roll = directory / f"{stem}_pianoroll.png"
+    fig.savefig(roll, dpi=100)
+    plt.close(fig)
+    fig, ax = plt.subplots(figsize=(6, 4))
+    errors = np.asarray(result.errors_s) * 1000
+    ax.hist(errors, bins=[float(b) for b in range(-25, 26)], color="tab:blue")
+    ax.set_xlabel("impact time - note time (ms)")
+    ax.set_ylabel("notes")
+    ax.set_title(f"{result.name}: timing error (n={len(errors)})")
+    fig.tight_layout()
+    hist = directory / f"{stem}_timing.png"
+    fig.savefig(hist, dpi=100)
+    plt.close(fig)
+    return [roll, hist]
+
+
+# ---------------------------------------------------------------------- command line
+
+
+def format_table(rows: Sequence[tuple[str, dict[str, Any]]]) -> str:
+    """A plain-text table of aggregate (or per-file) figures, one row per label."""
+    head = (f"{'':<28} {'notes':>6} {'F@10':>6} {'F@25':>6} {'P@25':>6} {'R@25':>6} {'med|e|':>7} {'p95|e|':>7} "
+            f"{'bias':>7} {'rho':>6} {'spur':>5} {'miss':>5} {'flag':>5} {'RTF':>5}")
+    lines = [head]
+    for label, a in rows:
+        t = a["timing_ms"]
+        missed = len(a["missed"]) if isinstance(a["missed"], list) else a["missed"]
+
+        def num(v: Any, fmt: str) -> str:
+            return "-" if v is None else format(v, fmt)
+
+        lines.append(
+            f"{label[:28]:<28} {a['notes']:>6} {a['f_measure']['10ms']:>6.3f} {a['f_measure']['25ms']:>6.3f} "
+            f"{a['precision']['25ms']:>6.3f} {a['recall']['25ms']:>6.3f} {num(t['median_abs'], '7.2f')} "
+            f"{num(t['p95_abs'], '7.2f')} {num(t['median_signed'], '+7.2f')} {num(a['spearman'], '6.3f')} "
+            f"{a['spurious']:>5} {missed:>5} {a['planner_flags']:>5} {num(a['real_time_factor'], '5.2f')}")
+    return "\n".join(lines)
+
+
+def evaluate_scores(paths: Sequence[Path], opts: Any, renders: Path | None, quiet: bool = True,
+                    reuse: bool = False) -> list[FileResult]:
+    """Render (or reuse) each score and evaluate it. ``opts``: :class:`batteur.render.RenderOptions`."""
+    from batteur.render import render_score
+
+    results = []
+    with tempfile.TemporaryDirectory(prefix="batteur-evaluate-") as tmp:
+        base = renders if renders is not None else Path(tmp)
+        for path in paths:
+            if path.is_dir():
+                results.append(evaluate_render_dir(render_dir_score(path), path))
+                continue
+            out = base / path.stem
+            if not (reuse and (out / "report.json").exists()):
+                render_score(path, out, opts, quiet=quiet)
+            results.append(evaluate_render_dir(path, out))
+    return results
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from batteur.render import CONTROL_MODES, GRIPS
+
+    parser = argparse.ArgumentParser(
+        prog="batteur evaluate",
+        description="Render scores (or read render directories) and measure the performance against the score: "
+        "precision/recall/F at 10 and 25 ms, timing error, velocity Spearman, spurious and missed notes.")
+    parser.add_argument("scores", nargs="+", type=Path, help="scores (.mid or text), or render directories")
+    parser.add_argument("--json", action="store_true", help="print the figures as JSON")
+    parser.add_argument("--plots", type=Path, default=None, help="write piano roll and timing histogram PNGs here")
+    parser.add_argument("--renders", type=Path, default=None, help="keep the renders in DIR/<score stem>")
+    parser.add_argument("--reuse", action="store_true", help="with --renders: reuse renders already there")
+    parser.add_argument("--kit", default="default")
+    parser.add_argument("--grip", default="german", choices=GRIPS)
+    parser.add_argument("--nuance", default="tenuto")
+    parser.add_argument("--tempo-scale", type=float, default=1.0)
+    parser.add_argument("--control", default="cartesian", choices=list(CONTROL_MODES))
+    parser.add_argument("--calibration", type=Path, default=None, help="calibration JSON applied to the plans")
+    parser.add_argument("--fit-calibration", type=Path, default=None,
+                        help="fit a calibration (timing offsets, velocity map) from these performances; write JSON")
+    parser.add_argument("--list", action="store_true",
+                        help="list every impact: matched or spurious, striker part, velocity, nearest note")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    return parser
+
+
+def impact_listing(result: FileResult) -> list[str]:
+    """One line per impact: M(atched)/S(purious), score time, object, striker, velocity, nearest note and offset."""
+    matched = {j for _, j in result.pairs_25}
+    lines = []
+    for j, h in enumerate(result.hits):
+        same = [n for n in result.note_refs if n.instrument == h.instrument] or result.note_refs
+        near = min(same, key=lambda n: abs(n.time - h.time), default=None)
+        where = "" if near is None else (f"nearest {near.event} on {near.instrument} at {near.time:.3f} s "
+                                         f"({(h.time - near.time) * 1000:+.1f} ms)")
+        lines.append(f"  {'M' if j in matched else 'S'} {h.time:+9.3f} s {h.instrument:<10} {h.part:<18} "
+                     f"{h.velocity:6.2f} m/s  {where}")
+    return lines
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    from batteur.render import RenderError, RenderOptions
+    from common.gesture.plan import Nuance
+    from common.score.events import ScoreError
+
+    args = build_parser().parse_args(argv)
+    opts = RenderOptions(kit=args.kit, grip=args.grip, nuance=Nuance(args.nuance), tempo_scale=args.tempo_scale,
+                         control=args.control, calibration=args.calibration)
+    started = time.perf_counter()
+    try:
+        results = evaluate_scores(args.scores, opts, args.renders, quiet=args.quiet, reuse=args.reuse)
+    except (ScoreError, RenderError, ValueError, FileNotFoundError, KeyError) as exc:
+        print(f"batteur evaluate: {exc}", file=sys.stderr)
+        return 2
+    agg = aggregate(results)
+    if args.plots is not None:
+        for r in results:
+            for p in plot_result(r, args.plots):
+                print(f"wrote {p}", file=sys.stderr)
+    if args.fit_calibration is not None:
+        from batteur.calibration import fit_calibration
+
+        cal = fit_calibration(results, load_kit(args.kit), base=args.calibration)
+        cal.save(args.fit_calibration)
+        print(f"wrote {args.fit_calibration} ({len(cal.timing)} timing offsets)", file=sys.stderr)
+    if args.json:
+        print(json.dumps({"files": [r.summary() for r in results], "aggregate": agg,
+                          "elapsed_s": round(time.perf_counter() - started, 3)}, indent=2))
+    else:
+        rows = [(r.name, r.summary()) for r in results] + ([("ALL", agg)] if len(results) > 1 else [])
+        print(format_table(rows))
+        for r in results:
+            for f in r.missed[:20]:
+                print(f"  {r.name}: note {f.index} {f.event} at {f.time:.3f} s missed: {f.reason} ({f.detail})")
+            if len(r.missed) > 20:
+                print(f"  {r.name}: ... {len(r.missed) - 20} more missed notes (see --json)")
+            if args.list:
+                print(f"{r.name}: impacts")
+                print("\n".join(impact_listing(r)))
+    return 0

@@ -1,0 +1,100 @@
+"""Evaluate the simulated drummer on the Groove MIDI Dataset's validation split; print the aggregate table.
+
+    python bench/evaluate_groove.py                    # a short default subset, cartesian and joint control
+    python bench/evaluate_groove.py --all              # the whole validation split (124 files, ~82 min of music)
+    python bench/evaluate_groove.py --limit 10 --controls cartesian --renders /tmp/groove-renders
+
+Files: the rows of /work/shared/data/groove/info.csv whose ``split`` is
+``validation`` (Gillick et al. 2019, CC BY 4.0), sorted by file name; the
+default subset takes ``--limit`` of them (half beats, half fills), evenly
+spread over that list among those no longer than ``--max-duration`` seconds
+(so the default run stays short). Each file is rendered with every control
+mode (``batteur render``'s cores) and evaluated (``batteur evaluate``'s matching and metrics). The goals
+of issue 7 are printed under the table; nothing is asserted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import sys
+import time
+from pathlib import Path
+
+from batteur.evaluate import aggregate, evaluate_scores, format_table
+from batteur.render import RenderOptions
+
+GROOVE = Path("/work/shared/data/groove")
+GOALS = "goals (cartesian): F@25 >= 0.99, median |e| <= 3 ms, p95 |e| <= 10 ms, Spearman >= 0.9, RTF >= 2"
+
+
+def validation_files(root: Path, limit: int | None, max_duration: float | None) -> list[tuple[Path, float]]:
+    """(path, duration s) of the validation split; with ``limit``, a subset of beats and fills.
+
+    The subset takes half beats, half fills (each evenly spread over the
+    file-name order) among the files no longer than ``max_duration`` seconds.
+    """
+    with (root / "info.csv").open(newline="", encoding="utf-8") as handle:
+        rows = [r for r in csv.DictReader(handle) if r["split"] == "validation"]
+    rows.sort(key=lambda r: r["midi_filename"])
+    if max_duration is not None:
+        rows = [r for r in rows if float(r["duration"]) <= max_duration]
+    if limit is not None and limit < len(rows):
+        picked = []
+        for kind, count in (("beat", limit // 2), ("fill", limit - limit // 2)):
+            mine = [r for r in rows if r["beat_type"] == kind]
+            step = len(mine) / max(count, 1)
+            picked += [mine[int(k * step)] for k in range(min(count, len(mine)))]
+        rows = sorted(picked, key=lambda r: r["midi_filename"])
+    return [(root / r["midi_filename"], float(r["duration"])) for r in rows]
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--root", type=Path, default=GROOVE, help="Groove MIDI Dataset directory")
+    parser.add_argument("--all", action="store_true", help="every validation file (long: hours at today's speed)")
+    parser.add_argument("--limit", type=int, default=4, help="files in the default subset (default 4)")
+    parser.add_argument("--max-duration", type=float, default=12.0,
+                        help="default subset: only files up to this long, seconds (default 12)")
+    parser.add_argument("--controls", default="cartesian,joint", help="control modes, comma-separated")
+    parser.add_argument("--renders", type=Path, default=None, help="keep renders in DIR/<control>/<stem>")
+    parser.add_argument("--reuse", action="store_true", help="reuse renders already in --renders")
+    parser.add_argument("--calibration", type=Path, default=None, help="calibration JSON applied to the plans")
+    parser.add_argument("--json", type=Path, default=None, help="also write every figure to this JSON file")
+    args = parser.parse_args(argv)
+    files = validation_files(args.root, None if args.all else args.limit, None if args.all else args.max_duration)
+    if not files:
+        print("no validation files found", file=sys.stderr)
+        return 2
+    music = sum(d for _, d in files)
+    print(f"Groove MIDI Dataset validation split: {len(files)} files, {music:.1f} s of music"
+          f"{' (all)' if args.all else f' (subset: --limit {args.limit}, --max-duration {args.max_duration:g})'}")
+    rows = []
+    dump: dict[str, object] = {"files": [str(p) for p, _ in files]}
+    for control in [c.strip() for c in args.controls.split(",") if c.strip()]:
+        started = time.perf_counter()
+        opts = RenderOptions(control=control, calibration=args.calibration)
+        renders = args.renders / control if args.renders is not None else None
+        results = evaluate_scores([p for p, _ in files], opts, renders, quiet=True, reuse=args.reuse)
+        agg = aggregate(results)
+        rows.append((control, agg))
+        dump[control] = {"aggregate": agg, "files": [r.summary() for r in results]}
+        print(f"  {control}: {time.perf_counter() - started:.0f} s", file=sys.stderr)
+    print(format_table(rows))
+    for label, agg in rows:
+        t = agg["timing_ms"]
+        print(f"{label}: F@10 {agg['f_measure']['10ms']:.3f}, F@25 {agg['f_measure']['25ms']:.3f}, "
+              f"median |e| {t['median_abs']} ms, p95 |e| {t['p95_abs']} ms, bias {t['median_signed']} ms, "
+              f"Spearman {agg['spearman']}, spurious {agg['spurious']}, missed {agg['missed']} "
+              f"{agg['missed_by_reason']}, RTF wall {agg['real_time_factor']} / cpu {agg['real_time_factor_cpu']}")
+        print(f"  Spearman per instrument: {agg['spearman_by_instrument']}")
+    print(GOALS)
+    if args.json is not None:
+        args.json.write_text(json.dumps(dump, indent=2), encoding="utf-8")
+        print(f"wrote {args.json}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

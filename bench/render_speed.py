@@ -1,0 +1,127 @@
+"""Real-time factor of ``batteur render`` (rendered seconds per wall-clock second; goal >= 2).
+
+    python bench/render_speed.py                 # 20 s of a rock groove (short default)
+    python bench/render_speed.py --seconds 180   # the 3-minute piece of issue 7
+    python bench/render_speed.py --control joint
+
+The piece is a text score (hi-hat eighths, snare backbeat, kick, a tom fill
+every fourth bar, crash on the downbeat after it) at 100 bpm, repeated to the
+requested length. Prints the wall-clock and CPU real-time factors and where
+the time goes (each core's step/handle, the bus's encode/decode and the rest),
+so the physics can be told what to speed up. Timing figures on a shared
+machine are noisy: compare ratios measured in one run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import tempfile
+import time
+from collections import defaultdict
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from batteur.render import RenderOptions, render_score
+
+BARS = """HH |x.x.x.x.x.x.x.x.|
+SN |....X.......X...|
+BD |x.......x.x.....|
+"""
+FILL = """HH |x.x.x.x.........|
+SN |....X...xxxx....|
+HT |............xx..|
+FT |..............xx|
+BD |x.......x.......|
+"""
+CRASH = """CR |X...............|
+SN |....X.......X...|
+BD |x.......x.x.....|
+"""
+
+
+def piece(seconds: float, bpm: float = 100.0) -> str:
+    """A text score about ``seconds`` long (whole bars of 4/4 at ``bpm``)."""
+    bars = max(1, math.ceil(seconds / (4 * 60.0 / bpm)))
+    blocks = []
+    for k in range(bars):
+        blocks.append(FILL if k % 4 == 3 else CRASH if k % 4 == 0 and k > 0 else BARS)
+    return f"tempo {bpm:g}\nmeter 4/4\n" + "\n".join(blocks)
+
+
+def instrument(timings: dict[str, float]) -> Callable[[], None]:
+    """Wrap the cores' step/handle and the codec to accumulate seconds per part; returns an undo function."""
+    from common import bus
+    from common.messages import codec
+    from services.interaction.core import InteractionCore
+    from services.physics.core import PhysicsCore
+    from services.sound.core import SoundCore
+
+    undo: list[tuple[Any, str, Any]] = []
+
+    def wrap(owner: Any, name: str, label: str) -> None:
+        original = getattr(owner, name)
+
+        def timed(*args: Any, **kwargs: Any) -> Any:
+            t0 = time.perf_counter()
+            try:
+                return original(*args, **kwargs)
+            finally:
+                timings[label] += time.perf_counter() - t0
+
+        undo.append((owner, name, original))
+        setattr(owner, name, timed)
+
+    wrap(PhysicsCore, "step", "physics")
+    wrap(InteractionCore, "handle", "interaction")
+    wrap(InteractionCore, "step", "interaction")
+    wrap(SoundCore, "handle", "sound")
+    wrap(SoundCore, "step", "sound")
+    wrap(bus, "encode", "bus encode")
+    wrap(bus, "decode", "bus decode")
+    del codec
+
+    def restore() -> None:
+        for owner, name, original in reversed(undo):
+            setattr(owner, name, original)
+
+    return restore
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--seconds", type=float, default=20.0, help="length of the piece (default 20; issue: 180)")
+    parser.add_argument("--control", default="cartesian", help="control mode (cartesian, joint, joint_spd)")
+    parser.add_argument("--no-breakdown", action="store_true", help="do not time the parts (no wrapper overhead)")
+    args = parser.parse_args(argv)
+    timings: dict[str, float] = defaultdict(float)
+    restore = (lambda: None) if args.no_breakdown else instrument(timings)
+    with tempfile.TemporaryDirectory(prefix="render-speed-") as tmp:
+        score = Path(tmp) / "piece.txt"
+        score.write_text(piece(args.seconds), encoding="utf-8")
+        t0, c0 = time.perf_counter(), time.process_time()
+        try:
+            report = render_score(score, Path(tmp) / "out", RenderOptions(control=args.control), quiet=True)
+        finally:
+            restore()
+        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    rendered = report["duration_s"]
+    print(f"piece: {report['notes']} notes, {report['music_duration_s']:.1f} s planned, {rendered:.1f} s rendered "
+          f"({args.control} control, {report['physics']['rate_hz']:g} Hz physics)")
+    print(f"whole command: wall {wall:.1f} s, cpu {cpu:.1f} s -> real-time factor {rendered / wall:.2f}x wall, "
+          f"{rendered / cpu:.2f}x cpu (goal >= 2x)")
+    print(f"render loop only (report.json): {report['real_time_factor']}x wall, {report['real_time_factor_cpu']}x cpu")
+    if timings:
+        total = report["wall_time_s"]
+        print("where the render loop's wall time goes:")
+        parts = dict(timings)
+        parts["rest (setup, runner, recorder)"] = max(0.0, total - sum(timings.values()))
+        for label, seconds in sorted(parts.items(), key=lambda kv: -kv[1]):
+            print(f"  {label:<32} {seconds:7.2f} s  {100 * seconds / total:5.1f} %  "
+                  f"({seconds / rendered * 1000:.2f} ms per rendered second)")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

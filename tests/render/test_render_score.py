@@ -1,0 +1,111 @@
+"""``batteur render SCORE`` end to end (planner -> physics drummer -> interaction -> sound) and its evaluation.
+
+The score is two bars of a rock beat (hi-hat, snare, kick: both hands and the
+kick foot), so CI stays short. Thresholds: see docs/evaluation.md ("test
+thresholds"): they check that the pipeline delivers a performance that is
+measurably the score's (most notes on the right object near their time,
+every other note accounted for), not the issue's accuracy goals, which the
+physics does not reach yet and which bench/evaluate_groove.py reports.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import soundfile as sf
+
+from batteur import evaluate, render
+
+HERE = Path(__file__).parent
+SCORE = HERE / "short_groove.txt"
+MIDI = HERE.parent / "data" / "groove_drummer6_s3_1_rock_90_beat_4-4.mid"
+
+
+@pytest.fixture(scope="module")
+def rendered(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("render") / "out"
+    assert render.main([str(SCORE), "-o", str(out), "--quiet"]) == 0
+    return out
+
+
+def test_render_writes_wav_impacts_bvh_and_report(rendered: Path) -> None:
+    report = json.loads((rendered / "report.json").read_text())
+    assert report["scene"] == "drummer" and report["control"] == "cartesian"
+    assert report["notes"] == 13 and report["planned_strokes"] == 13
+    audio, sr = sf.read(rendered / "performance.wav")
+    assert sr == report["sample_rate_hz"] == 48000
+    assert abs(len(audio) / sr - report["duration_s"]) < 0.02
+    assert np.abs(audio).max() > 0.01  # the contacts were heard
+    with (rendered / "impacts.csv").open() as handle:
+        rows = list(csv.DictReader(handle))
+    assert len(rows) == report["impacts"] > 0
+    assert {r["instrument"] for r in rows} >= {"snare", "hihat"}
+    times = [float(r["time"]) for r in rows]
+    assert times == sorted(times)
+    bvh = (rendered / "performance.bvh").read_text()
+    assert bvh.startswith("HIERARCHY") and "MOTION" in bvh
+    frames = int(bvh.split("Frames:")[1].split()[0])
+    assert abs(frames / 60.0 - report["duration_s"]) < 0.2  # poses at 60 Hz over the whole render
+    assert (rendered / "score.txt").read_text() == SCORE.read_text()  # the directory evaluates on its own
+    assert not [p for p in rendered.iterdir() if p.name.startswith(".render-")]  # no staging left
+
+
+def test_evaluation_of_the_render(rendered: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert evaluate.main([str(rendered), "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    result = data["files"][0]
+    assert result["notes"] == 13
+    # no note silently lost: every note is matched or missed with a reason
+    assert result["matched"]["25ms"] + len(result["missed"]) == result["notes"]
+    assert all(m["reason"] and m["detail"] for m in result["missed"])
+    # the performance is recognisably the score: most notes on the right object within 25 ms
+    assert result["recall"]["25ms"] >= 0.5
+    assert result["timing_ms"]["median_abs"] is not None and result["timing_ms"]["median_abs"] <= 10.0
+    assert data["aggregate"]["real_time_factor"] > 0
+
+
+def test_corrupted_midi_fails_clearly_and_writes_nothing(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    bad = tmp_path / "broken.mid"
+    bad.write_bytes(MIDI.read_bytes()[:200])
+    out = tmp_path / "out"
+    assert render.main([str(bad), "-o", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "broken.mid" in err and "truncated" in err.lower()
+    assert not out.exists()
+
+
+def test_bad_text_score_names_the_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    bad = tmp_path / "bad.txt"
+    bad.write_text("tempo 100\nZZ |x...|\n")
+    out = tmp_path / "out"
+    assert render.main([str(bad), "-o", str(out), "--quiet"]) == 2
+    assert "line 2" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_failed_write_leaves_nothing_partial(tmp_path: Path) -> None:
+    out = tmp_path / "new"
+    with pytest.raises(Exception):  # noqa: B017 - soundfile's own error type
+        render.write_outputs(out, np.zeros((4, 4, 4)), 48000, [], {"scene": "drummer"})
+    assert not out.exists()
+    kept = tmp_path / "kept"
+    kept.mkdir()
+    (kept / "report.json").write_text("old")
+    with pytest.raises(Exception):  # noqa: B017
+        render.write_outputs(kept, np.zeros((4, 4, 4)), 48000, [], {"scene": "drummer"})
+    assert [p.name for p in kept.iterdir()] == ["report.json"]
+    assert (kept / "report.json").read_text() == "old"
+
+
+def test_tempo_scale_divides_every_time() -> None:
+    from common.score.text import read_score
+
+    score = read_score(SCORE)
+    fast = render.scale_tempo(score, 2.0)
+    assert [e.time for e in fast.events] == pytest.approx([e.time / 2 for e in score.events])
+    with pytest.raises(ValueError):
+        render.scale_tempo(score, 0.0)
