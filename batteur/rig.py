@@ -72,8 +72,6 @@ def role_args(role: str, opts: argparse.Namespace) -> list[str]:
         if opts.strike_period:
             args += ["--scene", "strike", "--strike-period", repr(opts.strike_period),
                      "--strike-velocity", repr(opts.strike_velocity)]
-        elif opts.score:
-            args += ["--score", str(opts.score)]
     if role == "sound" and opts.record:
         args += ["--wav", str(Path(opts.record) / "performance.wav")]
     for item in getattr(opts, f"{role}_arg") or []:
@@ -170,7 +168,6 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--stop-timeout", type=float, default=4.0,
                         help="seconds to wait for services to stop before killing them (default 4)")
     parser.add_argument("--record", type=Path, default=None, help="directory for performance.wav (sound output)")
-    parser.add_argument("--score", type=Path, default=None, help="score for physics to play (MIDI or text)")
     parser.add_argument("--strike-period", type=float, default=0.0,
                         help="strike scene instead of a score: a strike every this many seconds of rig time")
     parser.add_argument("--strike-velocity", type=float, default=3.0, help="strike scene: tip speed, m/s (default 3)")
