@@ -42,6 +42,20 @@ VERTICAL_SHARE = 0.6
 """Share of a segment over which a height change between targets is made (early when rising, late when falling)."""
 CORRECTION_WINDOW = 0.06
 """Seconds at each end of a segment over which the boundary velocities are matched."""
+REBOUND_BLEND = 0.25
+"""Seconds over which the displacement of a segment's initial velocity (a rebound) is blended out."""
+CLEARANCE = 0.02
+"""Least lift of a stick between two strokes, metres."""
+REBOUND_CLEARANCE = 0.01
+"""Extra lift per m/s of the previous stroke's rebound, metres (the rebound carries the stick up)."""
+MOVE_CLEARANCE = 0.3
+"""Extra lift per metre of horizontal move to the next target, metres."""
+HOLD_RISE = 0.08
+"""Seconds in which a bass-drum foot lets its footboard back up after a stroke."""
+HOLD_FALL = 0.12
+"""Seconds before a stroke over which the foot's rest height blends into the stroke."""
+TAIL_RISE = 0.25
+"""Seconds in which a limb rises to its rest height after its last stroke (then it holds there)."""
 
 
 @dataclass(frozen=True)
@@ -53,7 +67,8 @@ class PlannerConfig:
     lead_in: float = 1.0  # rest before the first note, seconds
     tail: float = 1.0  # after the last note, seconds
     rest_height: float = 0.10  # hands hover this far above their first/last target, metres
-    foot_rest_height: float = 0.01
+    foot_rest_height: float = 0.01  # the hi-hat foot rests here (pedal held down: hi-hat closed), metres
+    kick_rest_height: float = 0.055  # a bass-drum foot rests on the raised footboard (beater off the head), metres
     foot_contact: float = 0.010  # footboard bottom-out time, seconds
     foot_cycle: float = (
         0.30  # a pedal stroke's lift and fall take at most this long; the foot rests on the pedal between
@@ -94,11 +109,13 @@ def _segment(
     unit: GestureUnit | None,
     knots_per_second: float,
     cycle: float | None = None,
+    hold: float = 0.0,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Knots (times (K,), positions (K, 3), velocities (K, 3)) from t0 to t1 inclusive.
 
     ``cycle`` (feet): the unit's profile plays over the last ``cycle`` seconds only and
-    the effector rests on the target line before (the foot stays on the pedal).
+    the effector rests on the target line before (the foot stays on the pedal), raised by
+    ``hold`` metres along the normal (a bass-drum foot lets the footboard up between strokes).
     """
     d = t1 - t0
     k = int(np.clip(d * knots_per_second, 4, 80))
@@ -139,19 +156,35 @@ def _segment(
         normal /= np.linalg.norm(normal, axis=1, keepdims=True)
         base = base + normal * (lift * h)[:, None]
         dbase = dbase + normal * (lift * dh)[:, None]
+    if hold > 0:
+        rise, fall = min(HOLD_RISE, d / 3), min(HOLD_FALL, d / 3)
+        up, dup = _min_jerk(np.clip(tau / rise, 0.0, 1.0))
+        down, ddown = _min_jerk(np.clip((d - tau) / fall, 0.0, 1.0))
+        r = up * down
+        dr = np.where(tau < rise, dup / rise, 0.0) * down - np.where(tau > d - fall, ddown / fall, 0.0) * up
+        nrm = np.outer(1 - m, n0) + np.outer(m, n1)
+        nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+        base = base + nrm * (hold * r)[:, None]
+        dbase = dbase + nrm * (hold * dr)[:, None]
     # Hermite corrections within ``w`` of each end: exact boundary velocities, local effect
     e0 = v0 - dbase[0]
     e1 = v1 - dbase[-1]
     a = np.clip(tau / w, 0.0, 1.0)
     b = np.clip((tau - (d - w)) / w, 0.0, 1.0)
-    h10 = a**3 - 2 * a**2 + a
+    # start: the velocity error fades over ``w`` (a rebound carries on, it does not come back: a curve that
+    # returned to the base would bring a rebounding stick back onto the head), and the displacement it made
+    # is blended out over ``REBOUND_BLEND`` seconds
+    g0 = (a - a**3 + a**4 / 2) * w
+    dg0 = 1 - 3 * a**2 + 2 * a**3
+    dg0[tau > w] = 0.0
     h11 = b**3 - b**2
-    dh10 = 3 * a**2 - 4 * a + 1
     dh11 = 3 * b**2 - 2 * b
-    dh10[tau > w] = 0.0
     dh11[tau < d - w] = 0.0
-    pos = base + np.outer(h10 * w, e0) + np.outer(h11 * w, e1)
-    vel = dbase + np.outer(dh10, e0) + np.outer(dh11, e1)
+    span = min(d, REBOUND_BLEND)
+    mb, dmb = _min_jerk(np.clip(tau / span, 0.0, 1.0))
+    dmb = np.where(tau < span, dmb / span, 0.0)
+    pos = base + np.outer(g0 * (1 - mb), e0) + np.outer(h11 * w, e1)
+    vel = dbase + np.outer(dg0 * (1 - mb) - g0 * dmb, e0) + np.outer(dh11, e1)
     pos[0], pos[-1], vel[0], vel[-1] = p0, p1, v0, v1
     return t0 + tau, pos, vel
 
@@ -165,18 +198,26 @@ def _limb_knots(
     units: list[GestureUnit | None],
     cfg: PlannerConfig,
     cycle: float | None = None,
+    hold: float = 0.0,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     times: list[np.ndarray] = []
     pos: list[np.ndarray] = []
     vel: list[np.ndarray] = []
     zero = np.zeros(3)
     p, v, n, t = rest0[0], zero, rest0[1], start
-    for st, unit in zip(strokes, units, strict=True):
+    for i, (st, unit) in enumerate(zip(strokes, units, strict=True)):
         strike_v = -st.speed * st.normal
         lift = st.lift
+        if cycle is None and i > 0:
+            # clear the surface after a contact: the rebound carries the stick up and a move to another
+            # target must not drag it over the head (a soft stroke after a loud one has a tiny lift)
+            away = np.linalg.norm((st.target - p)[:2])
+            need = CLEARANCE + REBOUND_CLEARANCE * float(np.linalg.norm(v)) + MOVE_CLEARANCE * float(away)
+            lift = max(lift, min(need, 0.9 * (st.time - t)))
         # rebound not yet finished: the lift also has to account for where we start
         tt, pp, vv = _segment(
-            t, p, v, n, st.time, st.target, strike_v, st.normal, lift, unit, cfg.knots_per_second, cycle
+            t, p, v, n, st.time, st.target, strike_v, st.normal, lift, unit, cfg.knots_per_second, cycle,
+            hold if i > 0 else 0.0,
         )
         times.append(tt[:-1])
         pos.append(pp[:-1])
@@ -193,10 +234,17 @@ def _limb_knots(
     if strokes:
         last = strokes[-1]
         goal = last.target + rest1_height * last.normal
-        tt, pp, vv = _segment(t, p, v, n, max(end, t + 0.2), goal, zero, n, 0.0, None, cfg.knots_per_second)
+        # leave the surface at once after the last stroke (a slow rise lets the rebounding stick or beater
+        # fall back onto the head), then hold at the rest height
+        t_up = t + min(max(end - t, 0.2), TAIL_RISE)
+        tt, pp, vv = _segment(t, p, v, n, t_up, goal, zero, n, 0.0, None, cfg.knots_per_second)
         times.append(tt)
         pos.append(pp)
         vel.append(vv)
+        if end > t_up + 1e-3:
+            times.append(np.array([end]))
+            pos.append(goal[None, :])
+            vel.append(zero[None, :])
     else:
         times.append(np.array([start, end]))
         pos.append(np.array([p, p]))
@@ -362,7 +410,10 @@ def plan_gestures(
                 )
             )
             prev_time = n.time
-        rest_h = cfg.rest_height if hand else cfg.foot_rest_height
+        kick_foot = not hand and (
+            any(n.event == EventType.BASS for n in mine) or (not mine and _rest_event(kit, limb) == EventType.BASS)
+        )
+        rest_h = cfg.rest_height if hand else (cfg.kick_rest_height if kick_foot else cfg.foot_rest_height)
         if strokes:
             rest0 = (strokes[0].target + rest_h * strokes[0].normal, strokes[0].normal)
         else:
@@ -371,7 +422,8 @@ def plan_gestures(
                 continue
             rest_target, rest_normal = (np.array(v) for v in kit.effector_target(ev, limb))
             rest0 = (rest_target + rest_h * rest_normal, rest_normal)
-        times, pos, vel = _limb_knots(strokes, rest0, rest_h, start, end, units, cfg, None if hand else cfg.foot_cycle)
+        times, pos, vel = _limb_knots(strokes, rest0, rest_h, start, end, units, cfg, None if hand else cfg.foot_cycle,
+                                      rest_h if kick_foot else 0.0)
         if EventType.HIHATPEDAL in kit.events and limb == kit.spec(EventType.HIHATPEDAL).preferred:
             opens = [n.time for n in notes if n.event == EventType.HIHATOPEN]
             times, pos, vel = _open_hihat(times, pos, vel, opens, [s.time for s in strokes], cfg)

@@ -118,6 +118,9 @@ COMPUTED_TORQUE_MODES = ("joint_ct", "cartesian")
 """Modes whose PD goes through inverse dynamics; joint_pd and cartesian_pd use the explicit diagonal PD."""
 """Explicit damping stays below KD_CAP * I_free / dt (measured: 1.5 slowly destabilises the arms at 1 ms)."""
 
+TRUNK_IK_WEIGHT = 0.3
+"""Inverse DLS weight of the lumbar and thoracic DOF (0: they keep the posture; 1: as free as the arms)."""
+
 
 @dataclass
 class ControlParams:
@@ -127,7 +130,8 @@ class ControlParams:
     ``ik_damping``: DLS lambda (metres); ``posture_gain``: null-space pull
     toward the rest posture (1/s); ``task_gain`` / ``task_gain_pd``: Cartesian
     error feedback (1/s) with the computed-torque / the explicit PD;
-    ``gravity_compensation``: add tau_g.
+    ``gravity_compensation``: add tau_g; ``max_joint_speed``: the IK's joint velocity reference is scaled
+    down to at most this (rad/s), a guard near singular (stretched) arm configurations.
     """
 
     frequency_hz: float = 25.0
@@ -143,6 +147,7 @@ class ControlParams:
     contact_lead_rad: float = 0.005
     contact_softening: float = 1.0
     max_ff_accel: float = 300.0
+    max_joint_speed: float = 20.0
 
 
 class Controller:
@@ -174,10 +179,13 @@ class Controller:
         self.inertia_locked = np.array([mass[col[j], col[j]] for j in body.dof_list])
         self.inertia = np.array([max(1.0 / inv[col[j], col[j]], 1e-4) for j in body.dof_list])
         names = body.model.dof_names
-        self.ik_weight_inv = np.array([0.0 if n_.split("_")[0] in ("seat", "lumbar", "thoracic")
-                                       or "clavicle" in n_ else 1.0 for n_ in names])
+        self.ik_weight_inv = np.array([0.0 if n_.split("_")[0] == "seat" or "clavicle" in n_
+                                       else TRUNK_IK_WEIGHT if n_.split("_")[0] in ("lumbar", "thoracic")
+                                       else 1.0 for n_ in names])
         """Per-DOF inverse weights of the DLS (1: plain DLS as Algorithm 2; 0: the DOF keeps its posture).
-        The trunk and shoulder girdles hold the posture; the limbs reach."""
+        The seat and shoulder girdles hold the posture; the trunk helps a little (``TRUNK_IK_WEIGHT``) so an arm
+        reaching a far drum is not stretched into its elbow limit (a singular, unstable configuration); the limbs
+        reach."""
         self.scale_ks = np.ones(n)
         self.scale_kd = np.ones(n)
         self.group_of = np.array([JOINT_GROUP[joint_kind(name.rsplit("_", 1)[0])] for name in body.model.dof_names])
@@ -346,6 +354,9 @@ class Controller:
         posture = np.where(active, self.params.posture_gain * (self.rest - ref), 0.0)
         null_term = posture - jpinv @ (j @ posture)
         qdot = jpinv @ xdot + null_term
+        fastest = float(np.max(np.abs(qdot)))
+        if fastest > self.params.max_joint_speed:  # near a singularity (arm stretched): slow down, do not whip
+            qdot *= self.params.max_joint_speed / fastest
         dt = self.world.dt
         new_ref = np.where(active, ref + qdot * dt, self.rest)
         # keep the reference within reach of the state (no wind-up) and inside the Euler boxes (apply()

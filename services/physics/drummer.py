@@ -63,6 +63,11 @@ STICK_DESCENT_DEG = 12.0
 """At rest a stick descends this much from the hand to the tip, degrees."""
 FOOT_HOVER_M = 0.04
 """At rest the ball of each foot hovers this far above its footboard, metres (no weight on the pedal)."""
+FOOT_STROKE_SPEED = 0.3
+"""A foot whose target moves down faster than this (m/s) plays a pedal stroke: it presses the footboard."""
+FOOT_TARGET_OFFSET_M = 0.035
+"""A foot target is on the pedal's plate (the kit's pedal position: the footboard pressed flat); the ball of the
+foot is then this far above it, metres (board thickness and the shoe's tilt; measured)."""
 
 
 @dataclass(frozen=True)
@@ -209,7 +214,8 @@ class DrummerScene:
         ] + self.kit_bodies.pose_links
         self.reach = self._reach()
         bead = np.array([0.0, 0.0, self.spec.stick.tip_radius_m])
-        self.target_offset = {limb: bead if limb.endswith("hand") else np.zeros(3) for limb in LIMBS}
+        sole = np.array([0.0, 0.0, FOOT_TARGET_OFFSET_M])
+        self.target_offset = {limb: bead if limb.endswith("hand") else sole for limb in LIMBS}
         self.last_targets: dict[str, tuple[np.ndarray, np.ndarray]] = {}
         self.head: tuple[Any, float] | None = None
         """The plan's head trajectory (look-at point, nod) and its time offset, if any."""
@@ -496,14 +502,17 @@ class DrummerScene:
         self.body.update()
         theta, theta_dot = self.body.state()
         touching = {f"{side}_hand" for side in ("left", "right") if f"{side}_stick" in self.tracker.touching}
+        targets = self.cartesian_targets(t_next)
         c = self.world.client
-        for side in ("left", "right"):  # a foot on a footboard: no wind-up either
-            foot = self.body.link_index[f"{side}_foot"]
+        for side in ("left", "right"):  # a foot resting on a footboard: no wind-up either
+            limb = f"{side}_foot"
+            if limb in targets and targets[limb][1][2] < -FOOT_STROKE_SPEED:
+                continue  # a pedal stroke: the foot drives the footboard down (its end stop and the beater stop it)
+            foot = self.body.link_index[limb]
             if any(c.getContactPoints(bodyA=self.body.id, bodyB=pedal.body, linkIndexA=foot)
                    for pedal in self.kit_bodies.pedals.values()):
-                touching.add(f"{side}_foot")
+                touching.add(limb)
         self.controller.touching = touching
-        targets = self.cartesian_targets(t_next)
         self.last_targets = targets
         self._head_posture(t_next)
         if self.controller.mode.startswith("cartesian") and not len(self.joint_track):
