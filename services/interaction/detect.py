@@ -241,7 +241,7 @@ class Segmenter:
         if track.active and c.time - track.last > self.config.retrigger_gap:
             self._end(track, events)
         if (not track.active and track.ended_by_clock and track.prev_end is not None
-                and c.time - track.prev_end <= self.config.retrigger_gap):
+                and 0.0 <= c.time - track.prev_end <= self.config.retrigger_gap):
             # the receiver's clock ended this contact early (a live physics node catching up delivers its
             # steps late); by physics time it never stopped: the same strike goes on, with no new onset
             track.active = True

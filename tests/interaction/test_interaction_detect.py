@@ -226,6 +226,25 @@ def test_a_physics_node_that_falls_behind_mid_contact_does_not_split_the_strike(
     assert core.segmenter.stats.reopened == 1
 
 
+def test_a_contact_earlier_than_the_last_one_is_a_new_strike_not_a_continuation() -> None:
+    """After a physics reset time starts again: its first contact is a new impact, not the old one going on."""
+    core = single_copy_core()
+    out: list[Outgoing] = []
+    first = StreamBuilder(KIT, "snare")
+    first.pulse(100.0, 3.0, steps=3)
+    for c in first.contacts:
+        out += core.handle(c, c.time, "physics")
+        out += core.step(c.time)
+    for k in range(40):  # the receiver's clock ends it
+        out += core.step(100.01 + k * 0.001)
+    again = StreamBuilder(KIT, "snare")
+    again.pulse(1.0, 3.0, steps=3)
+    for c in again.contacts:
+        out += core.handle(c, 100.1, "physics")
+    assert sum(isinstance(o.message, Impact) for o in out) == 2
+    assert core.segmenter.stats.reopened == 0
+
+
 @pytest.mark.parametrize(
     ("instrument", "r", "expected"),
     [
