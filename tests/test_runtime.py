@@ -11,7 +11,6 @@ import subprocess
 import sys
 import textwrap
 import time
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -23,6 +22,7 @@ from common.messages import ClockPing, ClockPong, DropReason, Health, Hello, Imp
 from common.peers import Peer, PeerTable
 from common.runtime import Node, RateLoop, build_parser, run_node
 from common.transport import UdpEndpoint
+from tests.waiting import wait_for
 
 pytestmark = pytest.mark.timeout(60)
 ROOT = Path(__file__).resolve().parents[1]
@@ -171,12 +171,6 @@ def impact(seq: int) -> Impact:
                   impulse=0.0625, peak_force=10.0, duration=0.00390625, part="stick")
 
 
-async def wait_for(condition: Callable[[], bool], timeout: float = 5.0) -> None:
-    deadline = time.monotonic() + timeout
-    while not condition():
-        if time.monotonic() > deadline:
-            raise AssertionError("timed out waiting")
-        await asyncio.sleep(0.005)
 
 
 class FakeDiscovery:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import asyncio
 import socket
 import time
-from collections.abc import Awaitable, Callable, Coroutine
+from collections.abc import Awaitable, Coroutine
 from typing import Any
 
 import pytest
@@ -14,6 +14,7 @@ from common.messages import DropReason, Hello, Impact, OscMessage, Pose, encode,
 from common.messages.codec import RawMessage
 from common.peers import Peer, PeerTable
 from common.transport import UdpEndpoint, format_address, parse_address
+from tests.waiting import wait_for
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -22,12 +23,6 @@ def run(coro: Coroutine[Any, Any, Any]) -> Any:
     return asyncio.run(coro)
 
 
-async def wait_for(condition: Callable[[], bool], timeout: float = 5.0) -> None:
-    deadline = time.monotonic() + timeout
-    while not condition():
-        if time.monotonic() > deadline:
-            raise AssertionError("timed out waiting")
-        await asyncio.sleep(0.005)
 
 
 def hello(i: int = 0, node_id: str = "n") -> Hello:

@@ -5,10 +5,8 @@ from __future__ import annotations
 import asyncio
 import ipaddress
 import json
-import time
 import urllib.error
 import urllib.request
-from collections.abc import Callable
 from typing import Any, ClassVar
 
 import pytest
@@ -21,6 +19,7 @@ from common.messages.sound import SoundLevel, SoundResonances
 from common.oscquery import ACCESS_READ, ACCESS_READ_WRITE, OscQueryServer, build_tree, find, namespace_models
 from common.runtime import Node
 from common.transport import UdpEndpoint
+from tests.waiting import wait_for
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -40,12 +39,6 @@ class RecordingCore:
         return []
 
 
-async def wait_for(condition: Callable[[], bool], timeout: float = 5.0) -> None:
-    deadline = time.monotonic() + timeout
-    while not condition():
-        if time.monotonic() > deadline:
-            raise AssertionError("timed out waiting")
-        await asyncio.sleep(0.005)
 
 
 def http_get(url: str) -> tuple[int, Any]:

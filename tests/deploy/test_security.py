@@ -10,7 +10,6 @@ import asyncio
 import json
 import socket
 import time
-from collections.abc import Callable
 from typing import ClassVar
 
 import pytest
@@ -22,6 +21,7 @@ from common.runtime import Node
 from common.transport import UdpEndpoint
 from tests.deploy.twohosts import wait_line
 from tests.netns import NetnsLab, netns_lab  # noqa: F401  (fixture)
+from tests.waiting import wait_for
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -37,12 +37,6 @@ class NullCore:
         return []
 
 
-async def wait_for(condition: Callable[[], bool], timeout: float = 5.0) -> None:
-    deadline = time.monotonic() + timeout
-    while not condition():
-        if time.monotonic() > deadline:
-            raise AssertionError("timed out waiting")
-        await asyncio.sleep(0.01)
 
 
 def test_defaults_keep_a_node_on_loopback() -> None:

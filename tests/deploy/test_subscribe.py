@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import asyncio
-import time
-from collections.abc import Callable
 from typing import ClassVar
 
 import pytest
@@ -15,6 +13,7 @@ from common.messages import Health, Hello, Impact, OscMessage, Subscribe
 from common.runtime import Node
 from common.subscribe import PatternError, Subscriptions, matches, pattern_regex
 from common.transport import UdpEndpoint
+from tests.waiting import wait_for
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -97,12 +96,6 @@ def impact(seq: int) -> Impact:
                   impulse=0.0625, peak_force=10.0, duration=0.00390625, part="stick")
 
 
-async def wait_for(condition: Callable[[], bool], timeout: float = 5.0) -> None:
-    deadline = time.monotonic() + timeout
-    while not condition():
-        if time.monotonic() > deadline:
-            raise AssertionError("timed out waiting")
-        await asyncio.sleep(0.005)
 
 
 def test_node_forwards_matching_messages_sent_and_received_until_expiry() -> None:
