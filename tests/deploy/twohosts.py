@@ -215,16 +215,22 @@ class Matching:
 
 def match_onsets(onset_samples: Sequence[int], rate: int, impacts: Sequence[dict[str, Any]], latency_s: float,
                  duration_s: float, near_origin: float, tolerance_s: float = 0.008,
-                 origin_window_s: float = 0.1, sent_after: float = -math.inf) -> Matching:
+                 origin_window_s: float = 0.1, sent_after: float = -math.inf,
+                 refractory_s: float = 0.08) -> Matching:
     """Find the origin that lines up most onsets with impact time + latency; count matches and misses.
 
     ``near_origin`` is the rig time the recording is known to start at, give or take
     ``origin_window_s`` (periodic strikes would otherwise line up at several origins).
     An impact is missed when no onset lies within ``tolerance_s`` of where it should sound although
     that place is inside the recording (away from its ends by 0.1 s) and the impact was sent to
-    this sound node (its time is after ``sent_after``, e.g. when interaction found the node).
+    this sound node (its time is after ``sent_after``, e.g. when interaction found the node), and it
+    does not follow another impact closer than ``refractory_s`` (the onset detector's, :func:`onsets`).
     """
     times = np.array([float(i["time"]) for i in impacts])
+    # an impact within the onset detector's refractory time after another one (a stick's bounce) sounds
+    # inside the earlier onset: it cannot be told apart in the WAV, so it is not counted as missed
+    ordered = np.sort(times)
+    shadowed = [bool(np.any((t - ordered > 0) & (t - ordered < refractory_s))) for t in times]
     best: Matching | None = None
     for n0 in onset_samples[:3]:
         for t in times:
@@ -238,8 +244,8 @@ def match_onsets(onset_samples: Sequence[int], rate: int, impacts: Sequence[dict
                 if d.size and d.min() <= tolerance_s:
                     errors.append(float((n / rate) - expected[int(d.argmin())]))
             if best is None or len(errors) > best.matched:
-                inside = [float(t2) for t2, e in zip(times, expected, strict=True)
-                          if 0.1 < e < duration_s - 0.1 and t2 > sent_after]
+                inside = [float(t2) for t2, e, hidden in zip(times, expected, shadowed, strict=True)
+                          if 0.1 < e < duration_s - 0.1 and t2 > sent_after and not hidden]
                 missed = [t2 for t2 in inside
                           if not any(abs(n / rate - (t2 + latency_s - origin)) <= tolerance_s for n in onset_samples)]
                 best = Matching(origin, len(errors), len(onset_samples), missed, errors)
