@@ -64,9 +64,23 @@ class MembraneModes:
 
     def shape_at(self, r: float, theta: float) -> npt.NDArray[np.float64]:
         """Mode shapes at the point (r / a, theta radians), shape (K,)."""
-        radial = jv(self.m, self.zeros * min(max(r, 0.0), 1.0))
-        angular = np.where(self.orientation == 0, np.cos(self.m * theta), np.sin(self.m * theta))
-        return np.asarray(radial * angular)
+        return circular_mode_shapes(self.m, self.orientation, self.zeros, r, theta)
+
+
+def circular_mode_shapes(
+    m: npt.NDArray[np.int64],
+    orientation: npt.NDArray[np.int64],
+    k_a: npt.NDArray[np.float64],
+    r: float,
+    theta: float,
+) -> npt.NDArray[np.float64]:
+    """J_m(k_a r/a) times cos(m theta) (orientation 0) or sin(m theta) (orientation 1), shape (K,).
+
+    The mode shapes of a circular membrane or plate at (r / a clipped to [0, 1], theta radians).
+    """
+    radial = jv(m, k_a * min(max(r, 0.0), 1.0))
+    angular = np.where(orientation == 0, np.cos(m * theta), np.sin(m * theta))
+    return np.asarray(radial * angular)
 
 
 def membrane_modes(

@@ -19,7 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
-from scipy.special import jv
+
+from services.sound.membrane import circular_mode_shapes
 
 BRONZE_E = 1.1e11
 """Young's modulus of B20 bronze, Pa."""
@@ -57,9 +58,7 @@ class PlateModes:
 
     def shape_at(self, r: float, theta: float) -> npt.NDArray[np.float64]:
         """Approximate mode shapes at (r / a, theta radians), shape (K,), |value| <= 1."""
-        radial = jv(self.m, self.k_a * min(max(r, 0.0), 1.0))
-        angular = np.where(self.orientation == 0, np.cos(self.m * theta), np.sin(self.m * theta))
-        return np.asarray(radial * angular)
+        return circular_mode_shapes(self.m, self.orientation, self.k_a, r, theta)
 
 
 def plate_modes(
