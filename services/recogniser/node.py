@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from common.core import Outgoing
 from common.messages.recogniser import DrumHit
 from common.transport import UdpEndpoint, parse_address
 from services.recogniser.audio import MAX_DURATION_S, SAMPLE_RATE, load_audio
@@ -92,22 +93,31 @@ async def play_file(
             if wait > 0:
                 await asyncio.sleep(wait)
             out = core.feed(chunk) if len(chunk) else core.flush()
-            now = time.perf_counter()
-            for o in out:
-                assert isinstance(o.message, DrumHit)
-                for d in dests:
-                    endpoint.send(o.message, d)
-                    report.sent += 1
-                latency = now - (t0 + o.message.time / speed)
-                report.hits.append(o.message)
-                report.latencies_s.append(latency)
-                if on_hit:
-                    on_hit(o.message, latency)
+            send_hits(out, endpoint, dests, report, t0, speed, on_hit)
             if not len(chunk):
                 break
     finally:
         endpoint.close()
     return report
+
+
+def send_hits(
+    out: Sequence[Outgoing], endpoint: UdpEndpoint, dests: Sequence[tuple[str, int]], report: LiveReport, t0: float,
+    speed: float, on_hit: Callable[[DrumHit, float], None] | None,
+) -> None:
+    """Send each detected hit to every target and record it with its latency (seconds since its onset
+    was played: ``t0`` is the perf_counter time of audio time 0, ``speed`` the playback speed)."""
+    now = time.perf_counter()
+    for o in out:
+        assert isinstance(o.message, DrumHit)
+        for d in dests:
+            endpoint.send(o.message, d)
+            report.sent += 1
+        latency = now - (t0 + o.message.time / speed)
+        report.hits.append(o.message)
+        report.latencies_s.append(latency)
+        if on_hit:
+            on_hit(o.message, latency)
 
 
 def input_device_available() -> str | None:
@@ -150,17 +160,7 @@ async def listen_device(
         with sounddevice.InputStream(samplerate=SAMPLE_RATE, blocksize=BLOCK, device=device, channels=1,
                                      dtype="float32", callback=callback):
             while seconds is None or time.perf_counter() - t0 < seconds:
-                out = core.feed(await queue.get())
-                now = time.perf_counter()
-                for o in out:
-                    assert isinstance(o.message, DrumHit)
-                    for d in dests:
-                        endpoint.send(o.message, d)
-                        report.sent += 1
-                    report.hits.append(o.message)
-                    report.latencies_s.append(now - (t0 + o.message.time))
-                    if on_hit:
-                        on_hit(o.message, report.latencies_s[-1])
+                send_hits(core.feed(await queue.get()), endpoint, dests, report, t0, 1.0, on_hit)
     finally:
         endpoint.close()
     report.duration_s = time.perf_counter() - t0
