@@ -112,6 +112,13 @@ class EventSpec(_Strict):
         default=None,
         description="foot events: id of the pedal (footboard) object the foot presses; None for stick events",
     )
+    rebound_min_time_gap: float | None = Field(
+        default=None,
+        gt=0,
+        le=2,
+        description="stick events: shortest interval of a rebound double (the second note a bounce played with the "
+        "fingers), seconds; None: the kit's rebound_min_time_gap",
+    )
 
 
 class Kit(_Strict):
@@ -133,6 +140,19 @@ class Kit(_Strict):
     note_objects: dict[int, str] = Field(
         default_factory=dict,
         description="MIDI pitch -> kit object id overriding the event's object (second ride, more toms)",
+    )
+    rebound_min_time_gap: float = Field(
+        default=0.03,
+        gt=0,
+        le=2,
+        description="shortest interval of a rebound double on one hand (a wrist stroke and its bounce on the same "
+        "spot, the bounce played with the fingers) at soft to medium dynamics, seconds; see docs/gestures.md",
+    )
+    rebound_velocity_margin: float = Field(
+        default=0.1,
+        ge=0,
+        le=1,
+        description="a rebound double's second note may be at most this much louder than the first (velocity, 0..1)",
     )
 
     @model_validator(mode="after")
@@ -243,6 +263,8 @@ class Kit(_Strict):
             double_pedal=self.double_pedal,
             left_bass_pedal=self.left_bass_pedal,
             note_objects=dict(self.note_objects),
+            rebound_min_time_gap=self.rebound_min_time_gap,
+            rebound_velocity_margin=self.rebound_velocity_margin,
         )
 
 

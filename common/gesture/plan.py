@@ -239,6 +239,10 @@ class PlannedStroke:
         Planned contact time, seconds (3-6 ms for sticks).
     grip, nuance : Grip, Nuance
         Gesture unit family used.
+    rebound_double : bool
+        True when this stroke is the bounce of a rebound double: the second note
+        of one hand's wrist stroke, played on the rebound with the fingers sooner
+        than the event's minTimeGap, from a low ``lift`` (docs/gestures.md).
     """
 
     time: float
@@ -259,12 +263,13 @@ class PlannedStroke:
     contact_duration: float = 0.004
     grip: Grip = Grip.GERMAN
     nuance: Nuance = Nuance.TENUTO
+    rebound_double: bool = False
 
 
 class IssueReason(enum.StrEnum):
     """Why a note could not be played as written."""
 
-    TOO_FAST = "too_fast"  # same limb faster than the kit's minTimeGap
+    TOO_FAST = "too_fast"  # same limb faster than the kit's minTimeGap (and not a rebound double)
     TOO_MANY_HANDS = "too_many_hands"  # more than two hand events at once
     HIHAT_CONFLICT = "hihat_conflict"  # two hi-hat events at the same time
     LIMB_BUSY = "limb_busy"  # a foot event while that foot is already playing

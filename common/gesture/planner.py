@@ -56,6 +56,21 @@ HOLD_FALL = 0.12
 """Seconds before a stroke over which the foot's rest height blends into the stroke."""
 TAIL_RISE = 0.25
 """Seconds in which a limb rises to its rest height after its last stroke (then it holds there)."""
+BOUNCE_MIN_LIFT = 0.004
+"""Least height of the bounce of a rebound double between its two contacts, metres."""
+
+
+def bounce_height(rebound: float, speed: float, flight: float, cap: float) -> float:
+    """Apex (metres) of the bounce between the two notes of a rebound double.
+
+    The tip leaves the first contact at ``rebound`` m/s and meets the head again
+    ``flight`` seconds later at ``speed`` m/s; the fingers steer the stick on the
+    smooth (cubic) path between, whose apex is about a quarter of the mean speed
+    times the flight time. Between ``BOUNCE_MIN_LIFT`` and ``cap`` (the note's own
+    preparatory height within the tempo cap).
+    """
+    natural = 0.25 * 0.5 * (rebound + speed) * max(flight, 0.0)
+    return float(min(max(natural, BOUNCE_MIN_LIFT), max(cap, BOUNCE_MIN_LIFT)))
 
 
 @dataclass(frozen=True)
@@ -90,6 +105,7 @@ class _Stroke:
     lift: float
     contact: float
     nuance: Nuance
+    bounce: bool = False  # the second note of a rebound double
 
 
 def _min_jerk(s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -208,7 +224,7 @@ def _limb_knots(
     for i, (st, unit) in enumerate(zip(strokes, units, strict=True)):
         strike_v = -st.speed * st.normal
         lift = st.lift
-        if cycle is None and i > 0:
+        if cycle is None and i > 0 and not st.bounce:
             # clear the surface after a contact: the rebound carries the stick up and a move to another
             # target must not drag it over the head (a soft stroke after a loud one has a tiny lift)
             away = np.linalg.norm((st.target - p)[:2])
@@ -379,13 +395,16 @@ def plan_gestures(
                 speed = stick_speed(n.velocity, nuance)
                 contact = unit.contact_duration
                 rebound = obj.elasticity * speed
+                if n.rebound and strokes:
+                    lift = bounce_height(strokes[-1].rebound, speed, interval - strokes[-1].contact, lift)
             else:
                 unit = db.select(cfg.grip, Nuance.LEGATO, interval)
                 lift = tempo_cap(foot_height(n.velocity), interval)
                 speed = foot_speed(n.velocity)
                 contact = cfg.foot_contact
                 rebound = 0.5 * obj.elasticity * speed
-            strokes.append(_Stroke(n.time, target, normal, speed, rebound, lift, contact, nuance))
+            bounce = hand and n.rebound and bool(strokes)
+            strokes.append(_Stroke(n.time, target, normal, speed, rebound, lift, contact, nuance, bounce))
             units.append(unit)
             planned.append(
                 PlannedStroke(
@@ -407,6 +426,7 @@ def plan_gestures(
                     contact_duration=contact,
                     grip=cfg.grip,
                     nuance=nuance,
+                    rebound_double=bounce,
                 )
             )
             prev_time = n.time

@@ -43,6 +43,9 @@ def main(argv: list[str] | None = None) -> int:
     assignment = distribute(score, kit, args.algorithm, args.sticking)
     limbs = Counter(n.limb.value for n in assignment.notes)
     print("limbs: " + ", ".join(f"{k} {v}" for k, v in sorted(limbs.items())))
+    bounces = sum(n.rebound for n in assignment.notes)
+    if bounces:
+        print(f"rebound doubles (second note a bounce, below minTimeGap): {bounces}")
     for issue in assignment.issues:
         event = issue.event.value if issue.event else "-"
         print(

@@ -9,11 +9,15 @@ assignment; the third one proposed there and built here):
   preferences with the neighbouring events, each weighted ``rho ** dt``
   (dt in seconds), then the minTimeGap alternation.
 * ``viterbi``: a shortest-path search over the whole piece. The state is the
-  last event of each hand; the cost of playing an event with a hand adds
-  exceeding the hand's speed (an interval below minTimeGap), crossing the arms
-  (pair preference violated, or the left stick right of the right stick when the
-  kit says nothing), travel speed between hit points, and leaving the preferred
-  hand. A beam keeps the best states at each step.
+  last event of each hand (and whether it was the bounce of a rebound double);
+  a hand never plays an interval below the event's minTimeGap unless it is a
+  rebound double (:mod:`common.score.rebound`): that is a hard constraint, and a
+  note no hand can play is left out (``None``) at a high cost, so as few notes
+  as possible. The cost of playing an event with a hand adds a rebound double,
+  the speed of full strokes, crossing the arms (pair preference violated, or the
+  left stick right of the right stick when the kit says nothing), travel speed
+  between hit points, and leaving the preferred hand. A beam keeps the best
+  states at each step.
 
 Groups of two simultaneous stick events always use both hands; which one goes
 where follows the pair preference (or the geometry).
@@ -27,11 +31,12 @@ from __future__ import annotations
 
 import enum
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from common.kit import EventType, Kit, Limb
+from common.score.rebound import Interval, Stroke, classify
 
 L, R = Limb.LEFT_HAND, Limb.RIGHT_HAND
 HANDS = (L, R)
@@ -56,21 +61,24 @@ PATTERNS: dict[Sticking, str] = {Sticking.SINGLE: "RL", Sticking.DOUBLE: "RRLL",
 
 @dataclass(frozen=True)
 class HandNote:
-    """A stick event to assign: score index, time (s), type, pitch, forced hand (or None)."""
+    """A stick event to assign: score index, time (s), type, pitch, forced hand (or None), velocity in [0, 1]."""
 
     index: int
     time: float
     event: EventType
     pitch: int | None = None
     forced: Limb | None = None
+    velocity: float = 0.7
 
 
 @dataclass(frozen=True)
 class Costs:
     """Weights of the shortest-path search (dimensionless cost units)."""
 
-    too_fast: float = 60.0  # per interval below minTimeGap, plus as much again scaled by the shortfall
-    fast: float = 0.3  # soft: (minTimeGap / interval)^2
+    drop: float = 1000.0  # per note left out (times 1 + drop_velocity x velocity): only when no hand can play it
+    drop_velocity: float = 1.0  # louder notes cost more to leave out
+    rebound: float = 2.0  # per rebound double (a second note bounced below minTimeGap)
+    fast: float = 0.3  # soft, full strokes: (minTimeGap / interval)^2
     crossing: float = 4.0  # per crossing, times |pair| (>= 0.5), decaying with the other hand's idle time
     crossing_decay: float = 0.4  # seconds
     travel: float = 0.12  # per m/s of hit-point travel speed
@@ -174,7 +182,7 @@ def apply_sticking(notes: list[HandNote], kit: Kit, sticking: Sticking, window: 
             for k, i in enumerate(run):
                 if out[i].forced is None:
                     hand = lead if pattern[k % len(pattern)] == "R" else _other(lead)
-                    out[i] = HandNote(notes[i].index, notes[i].time, notes[i].event, notes[i].pitch, hand)
+                    out[i] = replace(notes[i], forced=hand)
         run.clear()
 
     for g in groups:
@@ -202,7 +210,7 @@ def assign_hands(
     rho: float = 0.02,
     default_weight: float = 0.5,
     costs: Costs | None = None,
-) -> list[Limb]:
+) -> list[Limb | None]:
     """Assign a hand to each stick note (sorted by time; at most two within ``window`` seconds).
 
     Parameters
@@ -226,8 +234,10 @@ def assign_hands(
 
     Returns
     -------
-    list[Limb]
-        ``left_hand`` or ``right_hand`` per note.
+    list[Limb | None]
+        ``left_hand`` or ``right_hand`` per note; ``None``: the shortest-path search left the
+        note out (no hand can play it within the minimum intervals). ``simple`` and ``pairwise``
+        give every note a hand (too fast ones are flagged by :func:`common.score.limbs.check_feasibility`).
     """
     algorithm = HandAlgorithm(algorithm)
     notes = apply_sticking(notes, kit, Sticking(sticking), window)
@@ -268,11 +278,17 @@ def assign_hands(
     return [h if h is not None else R for h in hands]
 
 
-def _viterbi(notes: list[HandNote], groups: list[list[int]], t: _Table, kit: Kit, c: Costs) -> list[Limb]:
-    """Beam-pruned Viterbi over states (last note of the left hand, last note of the right hand)."""
-    Key = tuple[int, int]
-    beam: dict[Key, float] = {(-1, -1): 0.0}
-    history: list[dict[Key, tuple[Key, tuple[tuple[int, Limb], ...]]]] = []
+def _viterbi(notes: list[HandNote], groups: list[list[int]], t: _Table, kit: Kit, c: Costs) -> list[Limb | None]:
+    """Beam-pruned Viterbi over states (last note of each hand, whether it was a rebound bounce).
+
+    A hand never plays an interval that :func:`common.score.rebound.classify` calls too fast: such
+    placements are not allowed; dropping a note (cost ``c.drop`` x (1 + ``c.drop_velocity`` x velocity))
+    always is, so the search always finds a path. Dropped notes get ``None``.
+    """
+    Key = tuple[int, int, bool, bool]
+    Option = tuple[tuple[int, Limb | None], ...]
+    beam: dict[Key, float] = {(-1, -1, False, False): 0.0}
+    history: list[dict[Key, tuple[Key, Option]]] = []
 
     pair_cache: dict[tuple[EventType, EventType], float] = {}
 
@@ -287,16 +303,31 @@ def _viterbi(notes: list[HandNote], groups: list[list[int]], t: _Table, kit: Kit
     times = t.time.tolist()
     gaps = t.gap.tolist()
     pos = t.pos.tolist()
+    strokes = [Stroke(n.time, n.event, n.pitch, n.velocity) for n in notes]
+    interval_cache: dict[tuple[int, bool, int], Interval] = {}
 
-    def place(i: int, h: Limb, state: Key) -> float:
-        prev = state[0] if h == L else state[1]
-        other = state[1] if h == L else state[0]
+    def interval(prev: int, prev_rebound: bool, i: int) -> Interval:
+        key = (prev, prev_rebound, i)
+        kind = interval_cache.get(key)
+        if kind is None:
+            kind = interval_cache[key] = classify(kit, strokes[prev], prev_rebound, strokes[i])
+        return kind
+
+    def place(i: int, h: Limb, state: Key) -> tuple[float, bool]:
+        """Cost of playing note i with hand h from ``state`` (inf: not allowed) and whether it is a bounce."""
+        prev, other = (state[0], state[1]) if h == L else (state[1], state[0])
+        prev_rebound = state[2] if h == L else state[3]
         cost = c.not_preferred if h != t.preferred[i] else 0.0
+        bounce = False
         if prev >= 0:
             dt = times[i] - times[prev]
             gap = gaps[i]
-            if dt < gap:
-                cost += c.too_fast * (1.0 + (gap - dt) / gap)
+            if dt < gap - 1e-9:
+                kind = interval(prev, prev_rebound, i)
+                if kind != Interval.REBOUND:
+                    return math.inf, False
+                bounce = True
+                cost += c.rebound
             else:
                 cost += c.fast * (gap / dt) ** 2
             a, b = pos[i], pos[prev]
@@ -313,38 +344,53 @@ def _viterbi(notes: list[HandNote], groups: list[list[int]], t: _Table, kit: Kit
                     crossing = objects[left] != objects[right] and xs[left] - xs[right] > 0.10
                 if crossing:
                     cost += c.crossing * max(abs(p), 0.5) * math.exp(-idle / c.crossing_decay)
-        return cost
+        return cost, bounce
+
+    def allowed(i: int, h: Limb) -> bool:
+        f = notes[i].forced
+        return f is None or f == h
 
     for g in groups:
-        options: list[tuple[tuple[int, Limb], ...]]
+        options: list[Option]
         if len(g) == 1:
             i = g[0]
-            f = notes[i].forced
-            options = [((i, h),) for h in HANDS if f is None or f == h]
+            options = [((i, h),) for h in HANDS if allowed(i, h)]
+            options.append(((i, None),))
         else:
             a, b = g
             options = []
             for ha in HANDS:
                 hb = _other(ha)
-                fa, fb = notes[a].forced, notes[b].forced
-                if (fa is None or fa == ha) and (fb is None or fb == hb):
+                if allowed(a, ha) and allowed(b, hb):
                     options.append(((a, ha), (b, hb)))
             if not options:  # contradictory forced hands: both forced to one hand
                 options = [((a, L), (b, R))]
-        new: dict[Key, tuple[float, Key, tuple[tuple[int, Limb], ...]]] = {}
+            # dropping one of the two (the other on either hand) or both
+            options += [((a, None), (b, h)) for h in HANDS if allowed(b, h)]
+            options += [((a, h), (b, None)) for h in HANDS if allowed(a, h)]
+            options.append(((a, None), (b, None)))
+        new: dict[Key, tuple[float, Key, Option]] = {}
         for state, base in beam.items():
             for opt in options:
                 cost = base
                 s = state
                 for i, h in opt:
-                    cost += place(i, h, s)
-                    s = (i, s[1]) if h == L else (s[0], i)
+                    if h is None:
+                        cost += c.drop * (1.0 + c.drop_velocity * notes[i].velocity)
+                        continue
+                    added, bounce = place(i, h, s)
+                    cost += added
+                    if cost == math.inf:
+                        break
+                    s = (i, s[1], bounce, s[3]) if h == L else (s[0], i, s[2], bounce)
+                if cost == math.inf:
+                    continue
                 if s not in new or cost < new[s][0]:
                     new[s] = (cost, state, opt)
         best = sorted(new.items(), key=lambda kv: kv[1][0])[: c.beam]
         beam = {k: v[0] for k, v in best}
         history.append({k: (v[1], v[2]) for k, v in best})
-    hands: list[Limb] = [R] * len(notes)
+    hands: list[Limb | None] = [None] * len(notes)
     key = min(beam, key=lambda k: beam[k])
     for step in reversed(history):
         parent, opt = step[key]

@@ -10,7 +10,9 @@ Rules (Kragtwijk, Nijholt and Zwiers 2001):
 * BASS goes to the kit's bass foot; with a double pedal, a bass note too soon
   after the previous one goes to the other foot when it is free;
 * stick events go to the hands by one of the algorithms of
-  :mod:`common.score.hands`.
+  :mod:`common.score.hands`; notes the shortest-path search leaves out (no
+  hand can play them, even as a rebound double) are merged into a stroke on the
+  same object nearby or dropped, and reported.
 
 Every note that cannot be played as written gets a :class:`FeasibilityIssue`
 (reason and what was done); see :func:`check_feasibility`.
@@ -18,6 +20,7 @@ Every note that cannot be played as written gets a :class:`FeasibilityIssue`
 
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass, field, replace
 
@@ -27,6 +30,7 @@ from common.gesture.plan import FeasibilityIssue, IssueAction, IssueReason, Nuan
 from common.kit import EventType, Kit, Limb
 from common.score.events import Score
 from common.score.hands import HandAlgorithm, HandNote, Sticking, assign_hands, crossed
+from common.score.rebound import Interval, Stroke, classify, rebound_gap, why_too_fast
 
 HIHAT = {EventType.HIHATOPEN, EventType.HIHATCLOSED, EventType.HIHATPEDAL}
 STICK_HIHAT = {EventType.HIHATOPEN, EventType.HIHATCLOSED}
@@ -56,6 +60,9 @@ class Note:
     limb: Limb
     pitch: int | None = None
     nuance: Nuance | None = None
+    rebound: bool = False
+    """True for the second note of a rebound double (a bounce after the hand's previous stroke, played with the
+    fingers below the event's minTimeGap; :mod:`common.score.rebound`); set by :func:`check_feasibility`."""
 
 
 @dataclass
@@ -202,25 +209,72 @@ def distribute(
                 last_foot[hihat_foot] = e.time
             else:
                 forced = e.limb if e.limb in HANDS else None
-                hand_notes.append(HandNote(len(hand_notes), e.time, e.event, e.pitch, forced))
+                hand_notes.append(HandNote(len(hand_notes), e.time, e.event, e.pitch, forced, e.velocity))
                 hand_meta.append((i, e.velocity, e.pitch, e.nuance, e.event))
     hands = assign_hands(hand_notes, kit, algorithm, sticking, window)
     notes = list(feet)
+    left_out: list[Note] = []
     for hn, h, (i, vel, pitch, nuance, ev) in zip(hand_notes, hands, hand_meta, strict=True):
-        notes.append(Note(i, hn.time, ev, vel, h, pitch, nuance))
+        if h is None:
+            left_out.append(Note(i, hn.time, ev, vel, Limb.RIGHT_HAND, pitch, nuance))
+        else:
+            notes.append(Note(i, hn.time, ev, vel, h, pitch, nuance))
+    notes = _merge_or_drop(left_out, notes, kit, issues)
     notes.sort(key=lambda n: (n.time, n.limb.value))
     assignment = Assignment(notes=notes, issues=issues, algorithm=algorithm, kit_name=kit.name)
     check_feasibility(assignment, kit, window)
     return assignment
 
 
+def _merge_or_drop(left_out: list[Note], notes: list[Note], kit: Kit, issues: list[FeasibilityIssue]) -> list[Note]:
+    """Report the stick notes the hand assignment left out (no hand can play them in time).
+
+    A left-out note with a kept stick note on the same object less than its
+    minTimeGap away is *merged* into that note (the two sound as one stroke;
+    its velocity is kept, so the hand assignment's intervals stay valid);
+    otherwise it is *dropped*. The detail gives each hand's intervals.
+    """
+    if not left_out:
+        return notes
+    out = list(notes)
+    hands_sorted = sorted((n for n in out if n.limb in HANDS), key=lambda n: n.time)
+    times = [n.time for n in hands_sorted]
+    for d in left_out:
+        gap = kit.spec(d.event).min_time_gap
+        obj = kit.object_for(d.event, d.pitch).id
+        k = bisect.bisect_left(times, d.time)
+        near = [n for n in hands_sorted[max(0, k - 4) : k + 4] if abs(n.time - d.time) < gap]
+        around = hands_sorted[max(0, k - 8) : k + 8]
+        parts = []
+        for h in (Limb.LEFT_HAND, Limb.RIGHT_HAND):
+            before = max((n.time for n in around if n.limb == h and n.time <= d.time), default=None)
+            after = min((n.time for n in around if n.limb == h and n.time > d.time), default=None)
+            said = [f"{1000 * (d.time - before):.0f} ms after" if before is not None else "",
+                    f"{1000 * (after - d.time):.0f} ms before" if after is not None else ""]
+            if any(said):
+                parts.append(f"{h.value} {' and '.join(x for x in said if x)} its strokes")
+        why = (f"no hand can play it ({'; '.join(parts) or 'both hands busy'}; minTimeGap {gap * 1000:.0f} ms, "
+               f"rebound minimum {rebound_gap(kit, d.event, d.velocity) * 1000:.0f} ms)")
+        same = [n for n in near if kit.object_for(n.event, n.pitch).id == obj]
+        if same:
+            into = min(same, key=lambda n: abs(n.time - d.time))
+            issues.append(FeasibilityIssue(d.index, d.time, d.event, IssueReason.TOO_FAST, IssueAction.MERGED,
+                                           f"{why}: merged into the {into.event.value} at {into.time:.3f} s "
+                                           f"({into.limb.value})"))
+        else:
+            issues.append(FeasibilityIssue(d.index, d.time, d.event, IssueReason.TOO_FAST, IssueAction.DROPPED, why))
+    return out
+
+
 def check_feasibility(assignment: Assignment, kit: Kit, window: float = SIMULTANEITY) -> None:
-    """Flag notes beyond human limits; drop strokes a limb cannot repeat at all.
+    """Flag notes beyond human limits; drop strokes a limb cannot repeat at all; mark rebound doubles.
 
     Adds to ``assignment.issues``: ``too_fast`` (same limb closer than the
-    event's minTimeGap: played anyway, or dropped below ``HARD_MIN_INTERVAL``),
-    ``crossing`` (arms crossed for simultaneous stick events) and ``unreachable``
-    (hit point beyond the arm's reach).
+    event's minTimeGap and not a rebound double (:mod:`common.score.rebound`):
+    played anyway, or dropped below ``HARD_MIN_INTERVAL``), ``crossing`` (arms
+    crossed for simultaneous stick events) and ``unreachable`` (hit point beyond
+    the arm's reach). A hand's note that is the bounce of a rebound double gets
+    ``Note.rebound = True`` and no issue.
     """
     kept: list[Note] = []
     last: dict[Limb, Note] = {}
@@ -233,7 +287,22 @@ def check_feasibility(assignment: Assignment, kit: Kit, window: float = SIMULTAN
 
     for n in assignment.notes:
         prev = last.get(n.limb)
-        if prev is not None:
+        if n.limb in HANDS:
+            kind = Interval.FIRST
+            if prev is not None:
+                kind = classify(kit, _stroke(prev), prev.rebound, _stroke(n))
+            if n.rebound != (kind == Interval.REBOUND):
+                n = replace(n, rebound=kind == Interval.REBOUND)
+            if kind == Interval.TOO_FAST:
+                assert prev is not None
+                detail = f"{n.limb.value} " + why_too_fast(kit, _stroke(prev), prev.rebound, _stroke(n))
+                dt = n.time - prev.time
+                action = IssueAction.DROPPED if dt < HARD_MIN_INTERVAL else IssueAction.PLAYED_ANYWAY
+                assignment.issues.append(FeasibilityIssue(n.index, n.time, n.event, IssueReason.TOO_FAST, action,
+                                                          detail))
+                if action == IssueAction.DROPPED:
+                    continue
+        elif prev is not None:
             dt = n.time - prev.time
             gap = kit.spec(n.event).min_time_gap
             if dt < HARD_MIN_INTERVAL:
@@ -292,3 +361,7 @@ def check_feasibility(assignment: Assignment, kit: Kit, window: float = SIMULTAN
         kept.append(n)
     assignment.notes = kept
     assignment.issues.sort(key=lambda i: (i.time, i.note_index))
+
+
+def _stroke(n: Note) -> Stroke:
+    return Stroke(n.time, n.event, n.pitch, n.velocity)

@@ -121,3 +121,16 @@ def test_left_handed_kit_mirrors_assignment() -> None:
     score = _score((0.0, E.HIHATCLOSED), (0.0, E.SNARE), (0.0, E.BASS))
     a = distribute(score, load_kit("left_handed"))
     assert {n.event: n.limb for n in a.notes} == {E.HIHATCLOSED: LH, E.SNARE: RH, E.BASS: LF}
+
+
+def test_pair_table_from_geometry_changes_pairwise() -> None:
+    """The kit's pair table covers every stick pair (conventions + geometry): pair-wise sends the hi-hat to the left
+    hand when the floor tom follows 0.1 s later; simple keeps both on the right hand (a 0.9 m move in 0.1 s)."""
+    assert KIT.pair(E.FLOORTOM, E.HIHATCLOSED) == 1.0  # floor tom right of the hi-hat
+    assert KIT.pair(E.HIHATCLOSED, E.SNARE) == 1.0  # the crossed hi-hat convention is kept
+    assert KIT.pair(E.SNARE, E.RIM) == 0.0  # same object: no preference
+    score = _score((0.0, E.HIHATCLOSED), (0.1, E.FLOORTOM))
+    assert _limbs(score, "simple") == [("HIHATCLOSED", RH), ("FLOORTOM", RH)]
+    assert _limbs(score, "pairwise") == [("HIHATCLOSED", LH), ("FLOORTOM", RH)]
+    left = load_kit("left_handed")
+    assert left.pair_preference == KIT.mirrored().pair_preference
