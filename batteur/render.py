@@ -12,7 +12,9 @@ Two scenes:
 
 Outputs in DIR: ``performance.wav`` (sample 0 = rig time 0), ``impacts.csv``
 (one row per impact, every feature of ``/batteur/impact``, rig times),
-``performance.bvh`` (the simulated motion, score mode), ``report.json`` (what
+``performance.bvh`` (the simulated motion, score mode), with ``--video``
+``performance.mp4`` (the motion rendered headless, the WAV muxed in sync;
+score mode, needs ffmpeg), ``report.json`` (what
 was rendered, the time offset between score and rig clocks, the planner's
 feasibility issues, real-time factor). Everything is staged in a temporary
 directory and moved in only when the whole run succeeded: a corrupted score
@@ -87,6 +89,11 @@ class RenderOptions:
     rate_hz: float = 1000.0
     pose_rate_hz: float = 60.0
     calibration: Path | None = None
+    video: bool = False
+    """Also write performance.mp4 (services.graphics.video.render_video); needs ffmpeg."""
+    video_fps: float = 30.0
+    video_size: tuple[int, int] = (640, 360)
+    """Video frame width and height, pixels (even)."""
 
 
 @dataclass
@@ -261,10 +268,13 @@ def score_report(result: ScoreRender, source: str, opts: RenderOptions) -> dict[
 
 
 def write_outputs(output: Path, audio: np.ndarray, sample_rate: int, impacts: list[Any], report: dict[str, Any],
-                  poses: Any = None, score: Path | None = None) -> list[Path]:
+                  poses: Any = None, score: Path | None = None,
+                  video: Callable[[Path], dict[str, Any]] | None = None) -> list[Path]:
     """Write every output into a staging directory, then move them into ``output`` (nothing partial).
 
     ``score``: copied in as ``score<suffix>`` so the directory can be evaluated on its own.
+    ``video``: called with the staging directory once the WAV is there; writes the video into it and returns
+    what ``report["video"]`` lists.
     """
     created = not output.exists()
     output.mkdir(parents=True, exist_ok=True)
@@ -278,6 +288,8 @@ def write_outputs(output: Path, audio: np.ndarray, sample_rate: int, impacts: li
                 from services.graphics.export.bvh import write_bvh
 
                 write_bvh(poses, staging / "performance.bvh")
+            if video is not None:
+                report["video"] = video(staging)
             if score is not None:
                 shutil.copyfile(score, staging / f"score{score.suffix}")
             (staging / "report.json").write_text(json.dumps(report, indent=2), encoding="utf-8")
@@ -303,6 +315,8 @@ def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: boo
     """
     from batteur.calibration import Calibration
 
+    if opts.video:
+        check_video(opts)  # before the long part: no ffmpeg, no render
     kit = load_kit(opts.kit)
     calibration = Calibration.load(opts.calibration) if opts.calibration else None
     score, assignment, plan = prepare(path, kit, opts, calibration)
@@ -313,8 +327,53 @@ def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: boo
     finally:
         progress.close()
     report = score_report(result, str(path), opts)
-    write_outputs(output, result.audio, result.sample_rate, result.impacts, report, result.poses, Path(path))
+    video = None
+    if opts.video:
+        if result.poses is None:
+            raise RenderError("--video: physics sent no poses to draw")
+        video = video_writer(result, kit, opts, quiet)
+    write_outputs(output, result.audio, result.sample_rate, result.impacts, report, result.poses, Path(path), video)
     return report
+
+
+def check_video(opts: RenderOptions) -> None:
+    """Raise ``FileNotFoundError`` (no ffmpeg) or ``ValueError`` (frame size, rate) before rendering."""
+    from services.graphics import video
+
+    width, height = opts.video_size
+    if width % 2 or height % 2 or not (16 <= width <= 7680 and 16 <= height <= 4320):
+        raise ValueError(f"--video-size {width}x{height}: even numbers, 16x16 to 7680x4320")
+    if not 1 <= opts.video_fps <= 240:
+        raise ValueError(f"--video-fps {opts.video_fps:g}: 1 to 240 frames per second")
+    video.find_ffmpeg()
+
+
+def video_writer(result: ScoreRender, kit: Kit, opts: RenderOptions, quiet: bool) -> Callable[[Path], dict[str, Any]]:
+    """What writes DIR/performance.mp4 in the staging directory (the WAV already there), with a progress bar."""
+    from services.graphics import video
+
+    def write(staging: Path) -> dict[str, Any]:
+        started = time.perf_counter()
+        width, height = opts.video_size
+        progress = Progress("video", 1.0, unit="frames", enabled=False if quiet else None)
+
+        def on_progress(done: int, total: int) -> None:
+            progress.total = total
+            progress.update(done)
+
+        try:
+            info = video.render_video(result.poses, result.impacts, staging / "performance.wav", staging, kit=kit,
+                                      fps=opts.video_fps, width=width, height=height, audio_start=0.0,
+                                      latency=opts.latency_s, on_progress=on_progress)
+        except (RuntimeError, OSError) as exc:  # ffmpeg failed or died: nothing is written (staging)
+            raise RenderError(f"--video: {exc}") from exc
+        finally:
+            progress.close()
+        return {"file": info.path.name, "frames": info.frames, "fps": info.fps, "duration_s": info.duration,
+                "width": info.width, "height": info.height, "audio": "performance.wav (AAC)",
+                "wall_time_s": round(time.perf_counter() - started, 3)}
+
+    return write
 
 
 # ---------------------------------------------------------------------- command line
@@ -348,14 +407,28 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--event", default="SNARE", choices=[e.value for e in EventType if e != EventType.HIHATPEDAL],
                         help="strike scene: which kit event the stick strikes (default SNARE)")
     parser.add_argument("--latency", type=float, default=0.05, help="sound latency window, seconds (default 0.05)")
+    parser.add_argument("--video", action="store_true",
+                        help="also write DIR/performance.mp4: the motion rendered headless (PyBullet TinyRenderer) "
+                        "with the WAV muxed in sync (needs ffmpeg; score mode)")
+    parser.add_argument("--video-size", default="640x360", type=_size, help="video WIDTHxHEIGHT (default 640x360)")
+    parser.add_argument("--video-fps", type=float, default=30.0, help="video frame rate, Hz (default 30)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     return parser
+
+
+def _size(text: str) -> tuple[int, int]:
+    try:
+        width, height = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected WIDTHxHEIGHT, e.g. 640x360") from None
+    return width, height
 
 
 def options_from(args: argparse.Namespace) -> RenderOptions:
     return RenderOptions(kit=args.kit, grip=args.grip, nuance=Nuance(args.nuance), tempo_scale=args.tempo_scale,
                          control=args.control, algorithm=HandAlgorithm(args.algorithm), latency_s=args.latency,
-                         calibration=args.calibration)
+                         calibration=args.calibration, video=args.video, video_fps=args.video_fps,
+                         video_size=args.video_size)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -365,6 +438,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error("give a SCORE, or --strikes for the strike scene")
     if opts.score is not None and opts.strikes is not None:
         parser.error("give either a SCORE or --strikes, not both")
+    if opts.strikes is not None and opts.video:
+        parser.error("--video renders a SCORE (the strike scene has no body to draw)")
     if opts.strikes is not None:
         return _main_strikes(opts)
     try:
@@ -378,6 +453,9 @@ def main(argv: Sequence[str] | None = None) -> int:
           f"{len(report['issues'])} flagged by the planner)")
     if (out / "performance.bvh").exists():
         print(f"wrote {out / 'performance.bvh'}")
+    if "video" in report:
+        v = report["video"]
+        print(f"wrote {out / v['file']} ({v['frames']} frames at {v['fps']:g} fps, {v['width']}x{v['height']})")
     print(f"wrote {out / 'report.json'} (real-time factor {report['real_time_factor']})")
     return 0
 

@@ -2,8 +2,9 @@
 
 Measures the bytes of real messages (encoded OSC datagrams; WebSocket text
 frames received by a client of a live :class:`ViewServer` over loopback) for
-the synthetic drummer (23 links) and a 57-DOF-sized body (60 links). Prints
-figures; asserts nothing.
+the synthetic drummer (23 links), physics' 57-DOF drummer as it publishes
+itself (21 body links + 17 kit links, moving through random postures by the
+editor's forward kinematics) and a 60-link body. Prints figures; asserts nothing.
 
     python bench/graphics_stream.py [--seconds S] [--rate HZ]
 """
@@ -20,6 +21,7 @@ from websockets.asyncio.client import connect
 from common.messages import Pose, Skeleton, encode
 from services.graphics.core import GraphicsCore, GraphicsSettings
 from services.graphics.figure import synthetic_performance
+from services.graphics.poser import rest_poser
 from services.graphics.server import ViewServer
 
 
@@ -65,8 +67,15 @@ def main() -> None:
     sequence, _ = synthetic_performance(duration=2.0, rate_hz=60.0)
     big_names = [f"link{i}" for i in range(60)]
     big = np.tile(sequence.values, (1, 3, 1))[:, :60]
+    poser = rest_poser()  # physics' drummer: its 21 body links, plus 17 kit links as physics publishes them
+    rng = np.random.default_rng(0)
+    kit = np.tile([0.3, 0.5, 0.8, 0.0, 0.0, 0.0, 1.0], (17, 1))
+    drummer = np.array([np.vstack([poser.pose(poser.angles + 0.05 * np.sin(k / 10 + rng.uniform(0, 6, 57))), kit])
+                        for k in range(120)])
+    drummer_names = poser.names + [f"kit.part{i}" for i in range(17)]
     for label, names, values in (("synthetic drummer, 23 links", sequence.names, sequence.values),
-                                 ("57-DOF body, 60 links", big_names, big)):
+                                 ("physics' 57-DOF drummer, 21 body + 17 kit links", drummer_names, drummer),
+                                 ("a 60-link body", big_names, big)):
         ws_rate, fps, osc = asyncio.run(measure(list(names), values, args.seconds, args.rate))
         print(f"{label}:")
         print(f"  OSC in:  {osc} B/datagram x {args.rate:g} Hz = {osc * args.rate / 1024:6.1f} KiB/s")

@@ -1,13 +1,16 @@
 """Offline video speed: frames rendered per second at 640x360 (TinyRenderer, CPU), with and without encoding.
 
-Prints figures; asserts nothing. Short by default (``--seconds 2``).
+Prints figures; asserts nothing. Short by default (``--seconds 2``). With
+``--score FILE`` it also times ``batteur render FILE --video`` (physics' 57-DOF
+drummer and the kit; the video part only, from report.json).
 
-    python bench/graphics_video.py [--seconds S] [--width W --height H] [--fps F]
+    python bench/graphics_video.py [--seconds S] [--width W --height H] [--fps F] [--score FILE]
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import tempfile
 import time
 from pathlib import Path
@@ -25,6 +28,7 @@ def main() -> None:
     parser.add_argument("--width", type=int, default=640)
     parser.add_argument("--height", type=int, default=360)
     parser.add_argument("--fps", type=float, default=30.0)
+    parser.add_argument("--score", type=Path, default=None, help="also time `batteur render SCORE --video`")
     args = parser.parse_args()
     sequence, impacts = synthetic_performance(duration=args.seconds, rate_hz=60.0)
     times = np.arange(int(args.seconds * args.fps)) / args.fps
@@ -42,6 +46,18 @@ def main() -> None:
     print(f"  render only (TinyRenderer):  {count / render_s:7.1f} frames/s  ({1000 * render_s / count:.1f} ms/frame)")
     print(f"  render + H.264/AAC encode:   {info.frames / video_s:7.1f} frames/s  "
           f"({video_s / args.seconds:.2f} x real time, {size / 1024:.0f} KiB)")
+    if args.score is not None:
+        from batteur import render
+
+        with tempfile.TemporaryDirectory() as tmp:
+            code = render.main([str(args.score), "-o", tmp, "--quiet", "--video", "--video-size",
+                                f"{args.width}x{args.height}", "--video-fps", f"{args.fps:g}"])
+            if code != 0:
+                raise SystemExit(code)
+            video = json.loads((Path(tmp) / "report.json").read_text())["video"]
+        print(f"batteur render {args.score.name} --video (physics' drummer): {video['frames']} frames in "
+              f"{video['wall_time_s']:.2f} s = {video['frames'] / video['wall_time_s']:.1f} frames/s "
+              f"(render + encode, {video['wall_time_s'] / video['duration_s']:.2f} x real time)")
 
 
 if __name__ == "__main__":

@@ -12,12 +12,22 @@ from __future__ import annotations
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import get_args
 
 ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 from common.messages import REGISTRY, OscMessage, WireKind  # noqa: E402
+from common.messages.graphics import (  # noqa: E402
+    GraphicsCamera,
+    GraphicsLatency,
+    GraphicsMode,
+    GraphicsPlot,
+    GraphicsShow,
+    GraphicsTrails,
+    Layer,
+)
 from common.messages.physics import PhysicsControlMode, PhysicsGrip, PhysicsReset  # noqa: E402
 from common.messages.score import GestureStyle, ScoreLoad, ScoreTransport, TempoScale  # noqa: E402
 from common.messages.sound import (  # noqa: E402
@@ -74,6 +84,9 @@ class Patch:
     def nbx(self, x: int, y: int, lo: float, hi: float, width: int = 8, receive: str = "empty") -> int:
         return self._add(f"#X obj {x} {y} nbx {width} 14 {lo:g} {hi:g} 0 0 empty {receive} empty 0 -8 0 10 "
                          f"{COLORS} 0 256;")
+
+    def tgl(self, x: int, y: int, receive: str = "empty") -> int:
+        return self._add(f"#X obj {x} {y} tgl 17 0 empty {receive} empty 17 7 0 10 {COLORS} 0 1;")
 
     def bng(self, x: int, y: int, receive: str = "empty") -> int:
         return self._add(f"#X obj {x} {y} bng 17 250 50 0 empty {receive} empty 17 7 0 10 {COLORS};")
@@ -291,7 +304,67 @@ def build() -> Patch:
     p.connect(t2, 1, mp, 1)
     p.connect(t2, 0, mp, 0)
     p.connect(mp, 0, sender(p, x3 + 280, yy + 200, SoundMaster, "sound", 2), 0)
+    graphics_section(p, 20, y2 + 190, load)
     return p
+
+
+CAMERA_PRESETS = ("front", "side", "top", "drummer", "orbit", "free")
+CAMERA_DEFAULTS = {"azimuth": 20.0, "elevation": 18.0, "distance": 3.2, "target-x": 0.0, "target-y": 0.35,
+                   "target-z": 0.75}
+"""What the camera pack starts with (the view's front camera); a slider moved sends the camera as ``free``."""
+
+
+def graphics_section(p: Patch, x: int, y: int, load: int) -> None:
+    """The 2009 paper's middle panel: camera, what is drawn, trails, tip-height plot, delay, mode (to graphics)."""
+    p.text(x, y, "GRAPHICS - the 3D view (graphics node)")
+    # camera: a preset, or free with the orbit angles, distance and target
+    preset = choices(p, x, y + 25, "camera preset", CAMERA_PRESETS, "bp-camera")
+    cam = p.obj(x + 300, y + 470, "pack s " + " ".join(f"{v:g}" for v in CAMERA_DEFAULTS.values()))
+    p.connect(preset, 0, cam, 0)
+    free = p.msg(x + 300, y + 440, "symbol free")
+    p.connect(free, 0, cam, 0)
+    rows = [("azimuth deg (-180..180)", -180, 180, False), ("elevation deg (-10..89)", -10, 89, False),
+            ("distance m (0.5..10)", 0.5, 10, True), ("target x m (-2..2)", -2, 2, False),
+            ("target y m (-2..2)", -2, 2, False), ("target z m (0..2)", 0, 2, False)]
+    for k, ((label, lo, hi, log), name) in enumerate(zip(rows, CAMERA_DEFAULTS, strict=True)):
+        col, row = k % 2, k // 2
+        value = slider(p, x + 300 * col, y + 120 + 60 * row, label, lo, hi, log, f"bp-{name}")
+        order = p.obj(x + 300 * col + 270, y + 142 + 60 * row, "t b f")  # the value first, then send as free
+        p.connect(value, 0, order, 0)
+        p.connect(order, 1, cam, k + 1)
+        p.connect(order, 0, free, 0)
+    p.connect(cam, 0, sender(p, x + 300, y + 500, GraphicsCamera, "graphics", 7), 0)
+    # layers: one toggle each, shown at load (the view starts with everything drawn)
+    layers: tuple[str, ...] = get_args(Layer)
+    p.text(x + 700, y + 25, "show")
+    show = sender(p, x + 960, y + 50, GraphicsShow, "graphics", 2)
+    init = p.msg(x + 960, y + 110, "; " + "; ".join(f"bp-show-{name} set 1" for name in layers))
+    p.connect(load, 0, init, 0)
+    for k, name in enumerate(layers):
+        t = p.tgl(x + 700, y + 50 + 24 * k, f"bp-show-{name}")
+        p.text(x + 722, y + 50 + 24 * k, name)
+        pre = p.obj(x + 800, y + 50 + 24 * k, f"list prepend {name}")
+        p.connect(t, 0, pre, 0)
+        p.connect(pre, 0, show, 0)
+    # trails, tip-height plot, delay, mode
+    trails = slider(p, x + 700, y + 250, "trails s (0..10; 0 hides)", 0, 10, False, "bp-trails")
+    p.connect(trails, 0, sender(p, x + 1000, y + 272, GraphicsTrails, "graphics", 1), 0)
+    plot = p.obj(x + 1060, y + 510, "pack 4 0.5 1.6")
+    window = slider(p, x + 700, y + 320, "plot window s (0.5..30)", 0.5, 30, True, "bp-plot-window")
+    p.connect(window, 0, plot, 0)
+    for k, (label, receive) in enumerate((("plot lowest height m (-1..3)", "bp-plot-zmin"),
+                                          ("plot highest height m (-1..3)", "bp-plot-zmax"))):
+        value = slider(p, x + 700, y + 380 + 60 * k, label, -1, 3, False, receive)
+        order = p.obj(x + 970, y + 402 + 60 * k, "t b f")
+        p.connect(value, 0, order, 0)
+        p.connect(order, 1, plot, k + 1)
+        p.connect(order, 0, plot, 0)
+    p.connect(plot, 0, sender(p, x + 1060, y + 540, GraphicsPlot, "graphics", 3), 0)
+    latency = slider(p, x + 300, y + 320, "picture delay s (0..0.5; = the sound's latency)", 0, 0.5, False,
+                     "bp-view-latency")
+    p.connect(latency, 0, sender(p, x + 300, y + 370, GraphicsLatency, "graphics", 1), 0)
+    mode = choices(p, x, y + 320, "view", ("live", "preview"), "bp-view-mode")
+    p.connect(mode, 0, sender(p, x, y + 410, GraphicsMode, "graphics", 1), 0)
 
 
 def main() -> int:

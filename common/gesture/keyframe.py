@@ -13,14 +13,26 @@ Hermite curves (velocities from neighbouring frames; at a contact the
 approach velocity), so the baseline is also continuous in position and
 velocity.
 
+Key poses (the 2001 paper's UP and DOWN poses, saved by the graphics pose
+editor in ``poses.yaml``, :mod:`common.gesture.keyposes`): when the poses
+``EVENT.limb.UP`` and ``EVENT.limb.DOWN`` exist, the *before* and *after*
+frames of that limb's strokes on that event are raised along the saved
+DOWN -> UP move of the effector instead of the surface normal; the UP pose is
+the preparation of a full-velocity stroke, so the raise is that move scaled by
+``height(velocity) / height(1)``. Without a file or a pose the shipped default
+(the surface normal) applies, so ``plan_keyframes`` without poses is unchanged.
+
 Cymbals swing after a stroke as ``eta ** t * alpha_max * sin(beta * t)``.
 """
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from common.gesture.heights import foot_height, stick_height
+from common.gesture.keyposes import KeyPoses
 from common.gesture.plan import CymbalSwing, GesturePlan, LimbTrajectory, PlannedStroke
 from common.gesture.planner import PlannerConfig, _head, _rest_event
 from common.kit import Kit, Limb
@@ -44,8 +56,14 @@ def plan_keyframes(
     delta: float = DELTA,
     lead_in: float = 1.0,
     tail: float = 1.0,
+    poses: KeyPoses | Path | str | None = None,
 ) -> GesturePlan:
-    """Key-frame plan (mode ``"keyframe"``) of an assignment; see the module docstring."""
+    """Key-frame plan (mode ``"keyframe"``) of an assignment; see the module docstring.
+
+    ``poses``: the editor's key poses (a :class:`KeyPoses` or the path of a ``poses.yaml``; a missing file
+    means the defaults). Raises ``ValueError`` for an invalid poses file.
+    """
+    keys = poses if isinstance(poses, KeyPoses) else KeyPoses.load(poses)
     notes = assignment.notes
     first = notes[0].time if notes else 0.0
     last = notes[-1].time if notes else 0.0
@@ -62,21 +80,28 @@ def plan_keyframes(
             target, normal = (np.array(v) for v in kit.effector_target(n.event, limb, n.pitch))
             obj = kit.object_for(n.event, n.pitch)
             h = stick_height(n.velocity) if hand else foot_height(n.velocity)
-            info.append((n, target, normal, h, obj))
-        for k, (n, target, normal, h, obj) in enumerate(info):
-            before = (n.time - delta, target + h * normal, "before")
+            up = normal  # the direction the effector is raised along (unit)
+            lift = keys.lift(n.event, limb)
+            if lift is not None:  # the saved UP/DOWN poses: their move, scaled from a full-velocity stroke
+                full = stick_height(1.0) if hand else foot_height(1.0)
+                size = float(np.linalg.norm(lift))
+                up, h = lift / size, size * h / full
+            info.append((n, target, normal, up, h, obj))
+        for k, (n, target, normal, up, h, obj) in enumerate(info):
+            before = (n.time - delta, target + h * up, "before")
             if k > 0:
-                pn, pt, pnorm, ph, pobj = info[k - 1]
+                pn, pt, _, pnorm, ph, pobj = info[k - 1]
                 interval = n.time - pn.time
                 if interval < 2.5 * delta:  # overlap (or nearly): one frame halfway
                     frames.pop()  # the previous stroke's after frame
                     scale = min(1.0, interval / (2 * delta))
                     height = min(ph * pobj.elasticity, h) * scale
-                    normal_mid = (pnorm + normal) / np.linalg.norm(pnorm + normal)
+                    both = pnorm + up
+                    normal_mid = both / np.linalg.norm(both) if np.linalg.norm(both) > 1e-6 else up
                     before = ((pn.time + n.time) / 2, (pt + target) / 2 + height * normal_mid, "mid")
             frames.append(before)
             frames.append((n.time, target, "contact"))
-            frames.append((n.time + delta, target + h * obj.elasticity * normal, "after"))
+            frames.append((n.time + delta, target + h * obj.elasticity * up, "after"))
             speed = h / delta
             hit, _ = kit.hit_point(n.event, n.pitch)
             strokes.append(

@@ -121,3 +121,21 @@ class JointTarget(OscMessage):
 
     time: RigTime = Field(description="rig time of this waypoint, seconds")
     values: tuple[float, ...] = Field(description="57 joint angles, radians, then 57 joint velocities, rad/s")
+
+
+@register
+class PhysicsPosture(OscMessage):
+    """Drummer scene: glide every joint to a posture and hold it (the graphics pose editor sends it).
+
+    Physics clamps the angles into its joint limits, moves from the current target
+    to the posture over ``duration`` seconds from ``max(time, now)`` (cubic, zero
+    velocity at both ends) and holds it until the next posture or /batteur/physics/reset.
+    """
+
+    ADDRESS = "/batteur/physics/posture"
+    FAMILY = Family.CONTROL
+
+    time: RigTime = Field(description="rig time the move starts (a past time: at once), seconds")
+    duration: float = Field(ge=0, le=10, description="time to reach the posture, seconds")
+    values: tuple[float, ...] = Field(description="57 joint angles, radians, in skeleton DOF order "
+                                      "(common/character.py DOF_NAMES)")

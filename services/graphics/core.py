@@ -10,7 +10,10 @@ messages (:mod:`common.messages.graphics`) change the view settings sent to
 every page.
 
 Everything for the page leaves through :meth:`GraphicsCore.take_page_messages`
-as plain JSON-able dicts; the node sends them over the WebSocket.
+as plain JSON-able dicts; the node sends them over the WebSocket. The only OSC
+the core sends is the pose editor's (:meth:`GraphicsCore.request_posture`):
+``/batteur/physics/posture`` to physics (at most one per ``posture_period``,
+on physics' clock) and ``/batteur/physics/reset`` when the editor lets go.
 """
 
 from __future__ import annotations
@@ -37,6 +40,7 @@ from common.messages.graphics import (
     GraphicsTrails,
     ScorePosition,
 )
+from common.messages.physics import PhysicsPosture, PhysicsReset
 from services.graphics.scene import HISTORY, KitAnimator, kit_json
 from services.graphics.sequence import FLOATS_PER_LINK, PoseSequence, interpolate_pose
 from services.graphics.skeleton import guess_parents
@@ -58,6 +62,10 @@ class GraphicsSettings(BaseModel):
     )
     status_period: float = Field(default=0.5, gt=0, le=10, description="status panel update period, seconds")
     decimals: int = Field(default=4, ge=2, le=7, description="decimals of positions/quaternions sent to the page")
+    posture_period: float = Field(default=0.1, gt=0, le=5,
+                                  description="pose editor: at most one posture to physics per this many seconds")
+    posture_duration: float = Field(default=0.3, ge=0, le=10,
+                                    description="pose editor: time physics takes to reach an edited posture, s")
 
 
 class ViewSettings(BaseModel):
@@ -150,13 +158,16 @@ class GraphicsCore:
         self._lags: deque[tuple[float, float]] = deque()
         self.counters: dict[str, int] = {
             "poses": 0, "impacts": 0, "frames": 0, "bad_layout": 0, "no_skeleton": 0, "duplicate_impacts": 0,
-            "starved": 0, "clock_jumps": 0,
+            "starved": 0, "clock_jumps": 0, "postures_sent": 0,
         }
         self._outbox: list[dict[str, Any]] = []
         self._last_status = -math.inf
         self.last_frame: ViewFrame | None = None
         self._edit: np.ndarray | None = None
         self._live_skeleton: tuple[list[str], int] | None = None
+        self._posture: np.ndarray | None = None
+        self._posture_sent = -math.inf
+        self._release = False
         self.page_sink: Callable[[list[dict[str, Any]]], None] | None = None
         """If set, called with the page messages at the end of every step (the node's WebSocket broadcast)."""
 
@@ -193,7 +204,45 @@ class GraphicsCore:
             self._outbox.append(self.status(now))
         if self.page_sink is not None:
             self.page_sink(self.take_page_messages())
-        return []
+        return self._postures(now)
+
+    # --- the pose editor driving physics ------------------------------------------------------
+    def request_posture(self, angles: np.ndarray | None) -> None:
+        """Pose editor: send physics these 57 joint angles (radians) at the next step (rate-limited).
+
+        ``None`` releases the body: a /batteur/physics/reset if any posture was sent.
+        """
+        if angles is None:
+            self._release = self._release or self.counters["postures_sent"] > 0 or self._posture is not None
+            self._posture = None
+            return
+        self._release = False
+        self._posture = np.asarray(angles, dtype=float).copy()
+
+    def _postures(self, now: float) -> list[Outgoing]:
+        physics_now = now + self.clock_offset  # physics' rig time as its poses tell (auto clock)
+        if self._release:
+            self._release = False
+            self.counters["postures_sent"] = 0
+            return [Outgoing(PhysicsReset(time=max(physics_now, 0.0)), "physics")]
+        if self._posture is None or now - self._posture_sent < self.settings.posture_period:
+            return []
+        message = PhysicsPosture(time=max(physics_now, 0.0), duration=self.settings.posture_duration,
+                                 values=tuple(float(v) for v in self._posture))
+        self._posture = None
+        self._posture_sent = now
+        self.counters["postures_sent"] += 1
+        return [Outgoing(message, "physics")]
+
+    def live_body(self) -> tuple[list[str], np.ndarray] | None:
+        """The newest pose received (names, (L, 7)), not an edited one; None before any."""
+        if self._edit is not None and self._live_skeleton is not None:
+            names = self._live_skeleton[0]
+        else:
+            names = self.names
+        if not self._poses or len(self._poses[-1]) != len(names):
+            return None
+        return list(names), self._poses[-1].copy()
 
     # --- inputs -------------------------------------------------------------------------------
     def _on_skeleton(self, message: Skeleton) -> None:

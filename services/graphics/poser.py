@@ -1,103 +1,196 @@
-"""The pose editor's model (2001 paper's poser GUI): joint angles on the stick figure, forward kinematics.
+"""The pose editor's model (the 2001 paper's poser GUI) on physics' 57-DOF percussionist.
 
-The figure's rest pose is the synthetic drummer's (:mod:`services.graphics.figure`)
-with its constant link offsets; each joint gets three extra angles (degrees,
-intrinsic x-y-z in the joint's own frame) from the page's sliders. UP/DOWN key
-poses are saved as ``{name: {joint: [rx, ry, rz]}}`` in a YAML file (by
-default ``poses.yaml`` in the editor's directory), which the keyframe
-animation (``common.gesture``) can read.
+The editor's sliders are the body's 57 DOF (19 joints x intrinsic x-y-z angles,
+:mod:`common.character`). :class:`CharacterPoser` does the forward kinematics
+of that body from one of its poses, as physics publishes it (``/batteur/skeleton``
+names, ``/batteur/pose`` link frames): the link offsets and the current joint
+angles are read back from the frames (a child's frame is its parent's turned by
+``Rx Ry Rz``), sticks stay in their hands, kit links stay where they are.
+Without a live body (physics not running) the editor shows a snapshot of the
+default drummer (``character.json``, built from physics by
+``python -m tests.graphics.character_snapshot``), which also gives the joint
+limits for the sliders and where the stick tips and balls of the feet are in
+their links (the effectors saved with each key pose).
 """
 
 from __future__ import annotations
 
-import re
+import json
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
-import yaml
-from pydantic import BaseModel, ConfigDict, Field, field_validator
 from scipy.spatial.transform import Rotation
 
-from services.graphics.figure import LINK_NAMES, SyntheticDrummer
-from services.graphics.skeleton import guess_parents
+from common.character import AXES, BASE_LINK, DOF_NAMES, HELD_LINKS, JOINT_LINKS, JOINTS, N_DOF
+from common.gesture.keyposes import KeyPose
 
-POSE_NAME = re.compile(r"^[A-Za-z0-9_]+(\.[A-Za-z0-9_]+)*$")
-Angles = tuple[float, float, float]
-
-
-class PoseLibrary(BaseModel):
-    """Named key poses: pose name -> joint -> (rx, ry, rz) degrees."""
-
-    model_config = ConfigDict(extra="forbid")
-
-    poses: dict[str, dict[str, Angles]] = Field(default_factory=dict)
-
-    @field_validator("poses")
-    @classmethod
-    def _check(cls, value: dict[str, dict[str, Angles]]) -> dict[str, dict[str, Angles]]:
-        for name, joints in value.items():
-            if not POSE_NAME.match(name):
-                raise ValueError(f"pose name {name!r}: letters, digits, '_' and '.' only (e.g. SNARE.left_hand.UP)")
-            for joint, angles in joints.items():
-                if joint not in LINK_NAMES:
-                    raise ValueError(f"pose {name!r}: unknown joint {joint!r}")
-                if any(not -360 <= a <= 360 for a in angles):
-                    raise ValueError(f"pose {name!r}: angles of {joint!r} must be within +-360 degrees")
-        return value
-
-    @classmethod
-    def load(cls, path: Path) -> PoseLibrary:
-        if not path.is_file():
-            return cls()
-        return cls.model_validate({"poses": yaml.safe_load(path.read_text(encoding="utf-8")) or {}})
-
-    def save(self, path: Path) -> None:
-        data = {name: {j: [float(a) for a in ang] for j, ang in joints.items()} for name, joints in self.poses.items()}
-        path.write_text(yaml.safe_dump(data, sort_keys=True), encoding="utf-8")
+SNAPSHOT = Path(__file__).with_name("character.json")
+LIMBS = ("left_hand", "right_hand", "left_foot", "right_foot")
 
 
-class Poser:
-    """Forward kinematics of the stick figure from per-joint angle offsets."""
+@dataclass(frozen=True)
+class CharacterInfo:
+    """The default drummer as physics builds it (see the module docstring).
 
-    def __init__(self) -> None:
-        rest = SyntheticDrummer(strokes={}, duration=0.0).pose(0.0)
-        self.names = list(LINK_NAMES)
-        self.parents = guess_parents(self.names)
-        self.root_position = rest[0, :3].copy()
-        self.root_rotation = Rotation.from_quat(rest[0, 3:])
-        world = [Rotation.from_quat(q) for q in rest[:, 3:]]
-        self.local: list[Rotation] = []
-        self.offsets = np.zeros((len(self.names), 3))
-        for i, parent in enumerate(self.parents):
-            if parent < 0:
-                self.local.append(world[i])
-                continue
-            self.local.append(world[parent].inv() * world[i])
-            self.offsets[i] = world[parent].inv().apply(rest[i, :3] - rest[parent, :3])
-        # joints the sliders move: every link except the stick parts and the tip of the foot
-        self.joints = [n for n in self.names if not n.endswith(("stick", "stick_tip", "toe"))]
+    Attributes
+    ----------
+    names : list of str
+        Body link names, in /batteur/skeleton order.
+    rest : np.ndarray, shape (L, 7)
+        Rest pose: link frames, metres and quaternions (x y z w).
+    lower, upper : np.ndarray, shape (57,)
+        Joint limits (physics' Euler boxes), radians.
+    effectors : dict
+        limb -> (link name, offset (3,) metres in that link's frame) of the stick tip / ball of the foot.
+    """
 
-    def pose(self, angles: dict[str, Angles] | None = None) -> np.ndarray:
-        """World poses (L, 7) with ``angles`` (joint -> degrees) added to the rest pose."""
-        angles = angles or {}
-        out = np.zeros((len(self.names), 7))
-        world: list[Rotation] = []
-        for i, parent in enumerate(self.parents):
-            extra = Rotation.from_euler("XYZ", angles.get(self.names[i], (0.0, 0.0, 0.0)), degrees=True)
-            if parent < 0:
-                rot = self.local[i] * extra
-                pos = self.root_position
+    names: list[str]
+    rest: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    effectors: dict[str, tuple[str, np.ndarray]]
+
+
+@lru_cache(maxsize=2)
+def load_character(path: Path = SNAPSHOT) -> CharacterInfo:
+    data = json.loads(path.read_text(encoding="utf-8"))
+    limits = np.radians(np.asarray(data["limits_deg"], dtype=float))
+    return CharacterInfo(
+        names=list(data["names"]),
+        rest=np.asarray(data["rest"], dtype=float),
+        lower=limits[:, 0],
+        upper=limits[:, 1],
+        effectors={limb: (e["link"], np.asarray(e["offset"], dtype=float)) for limb, e in data["effectors"].items()},
+    )
+
+
+def is_character(names: Sequence[str]) -> bool:
+    """Whether a skeleton has every link the 57 DOF move (physics' drummer)."""
+    have = set(names)
+    return all(child in have for _, child in JOINT_LINKS.values())
+
+
+class CharacterPoser:
+    """Forward kinematics of the 57-DOF body, set up from one pose of it (see the module docstring).
+
+    Parameters
+    ----------
+    names : sequence of str
+        Link names of the pose (physics' skeleton; kit and other links are kept still).
+    pose : np.ndarray, shape (L, 7)
+        Link frames, metres and quaternions (x y z w).
+    info : CharacterInfo, optional
+        Limits and effector offsets (default: the shipped snapshot).
+
+    Raises ``ValueError`` when a link the joints move is missing.
+    """
+
+    def __init__(self, names: Sequence[str], pose: np.ndarray, info: CharacterInfo | None = None) -> None:
+        self.info = info or load_character()
+        self.names = list(names)
+        self.reference = np.asarray(pose, dtype=float).reshape(len(self.names), 7).copy()
+        index = {n: i for i, n in enumerate(self.names)}
+        missing = [child for _, child in JOINT_LINKS.values() if child not in index]
+        if missing:
+            raise ValueError(f"not physics' 57-DOF body: no link {', '.join(missing[:4])}")
+        self.index = index
+        ref = self.reference
+        rot = Rotation.from_quat(ref[:, 3:])
+        self.rows: list[tuple[int, int]] = []  # (parent row or -1 for the base, child row) per joint
+        self.offsets = np.zeros((len(JOINTS), 3))
+        angles = np.zeros(N_DOF)
+        for k, joint in enumerate(JOINTS):
+            parent, child = JOINT_LINKS[joint]
+            c = index[child]
+            p = -1 if parent == BASE_LINK else index[parent]
+            self.rows.append((p, c))
+            if p < 0:  # the base: pinned at the pelvis origin, not turned
+                local = rot[c]
             else:
-                rot = world[parent] * self.local[i] * extra
-                pos = out[parent, :3] + world[parent].apply(self.offsets[i])
-            world.append(rot)
-            out[i, :3] = pos
-            out[i, 3:] = rot.as_quat()
+                local = rot[p].inv() * rot[c]
+                self.offsets[k] = rot[p].inv().apply(ref[c, :3] - ref[p, :3])
+            angles[3 * k: 3 * k + 3] = local.as_euler("XYZ")
+        self.base = ref[index[JOINT_LINKS[JOINTS[0]][1]], :3].copy()
+        self.angles = angles
+        """The joint angles of the reference pose (57,) radians."""
+        self.held: list[tuple[int, int, np.ndarray, Rotation]] = []  # (row, carrier row, offset, rotation)
+        for link, carrier in HELD_LINKS.items():
+            if link in index and carrier in index:
+                i, c = index[link], index[carrier]
+                self.held.append((i, c, rot[c].inv().apply(ref[i, :3] - ref[c, :3]), rot[c].inv() * rot[i]))
+
+    def pose(self, q: np.ndarray | None = None) -> np.ndarray:
+        """Link frames (L, 7) with joint angles ``q`` (57,) radians (default: the reference pose's)."""
+        q = self.angles if q is None else np.asarray(q, dtype=float)
+        if q.shape != (N_DOF,):
+            raise ValueError(f"expected {N_DOF} joint angles, got {q.size}")
+        out = self.reference.copy()
+        rots: dict[int, Rotation] = {}
+        for k, (p, c) in enumerate(self.rows):
+            local = Rotation.from_euler("XYZ", q[3 * k: 3 * k + 3])
+            if p < 0:
+                rots[c] = local
+                out[c, :3] = self.base
+            else:
+                rots[c] = rots[p] * local
+                out[c, :3] = out[p, :3] + rots[p].apply(self.offsets[k])
+            out[c, 3:] = rots[c].as_quat()
+        for i, c, offset, local in self.held:
+            out[i, :3] = out[c, :3] + rots[c].apply(offset)
+            out[i, 3:] = (rots[c] * local).as_quat()
         return out
 
-    @staticmethod
-    def clean(angles: object) -> dict[str, Angles]:
-        """Validate angles sent by the page; ``ValueError`` when malformed."""
-        if not isinstance(angles, dict):
-            raise ValueError("angles must be an object {joint: [rx, ry, rz]}")
-        return PoseLibrary.model_validate({"poses": {"edit": angles}}).poses["edit"]
+    def effectors(self, pose: np.ndarray) -> dict[str, tuple[float, float, float]]:
+        """Stick tips and balls of the feet of a pose (L, 7): limb -> (x, y, z) metres."""
+        out: dict[str, tuple[float, float, float]] = {}
+        for limb, (link, offset) in self.info.effectors.items():
+            if link in self.index:
+                row = pose[self.index[link]]
+                x, y, z = row[:3] + Rotation.from_quat(row[3:]).apply(offset)
+                out[limb] = (float(x), float(y), float(z))
+        return out
+
+    def angles_from(self, edits: Mapping[str, Sequence[float]], base: np.ndarray | None = None) -> np.ndarray:
+        """Joint angles (57,) radians: ``base`` (default: the reference) with ``edits`` {joint: (x, y, z) degrees}.
+
+        Raises ``ValueError`` for an unknown joint or a non-finite or out-of-range angle (+-360 degrees).
+        """
+        q = (self.angles if base is None else base).copy()
+        if not isinstance(edits, Mapping):
+            raise ValueError("angles must be an object {joint: [x, y, z] degrees}")
+        for joint, values in edits.items():
+            if joint not in JOINTS:
+                raise ValueError(f"unknown joint {joint!r} (the 19 joints: {', '.join(JOINTS)})")
+            if not isinstance(values, Sequence) or len(values) != 3 or \
+                    not all(isinstance(v, int | float) and math.isfinite(v) and -360 <= v <= 360 for v in values):
+                raise ValueError(f"angles of {joint!r}: three numbers within +-360 degrees")
+            k = JOINTS.index(joint)
+            q[3 * k: 3 * k + 3] = np.radians(np.asarray(values, dtype=float))
+        return q
+
+    def key_pose(self, q: np.ndarray) -> KeyPose:
+        """What the editor saves for angles ``q`` (57,) radians: every joint in degrees and the effectors."""
+        joints = {j: tuple(round(float(math.degrees(a)), 3) for a in q[3 * k: 3 * k + 3]) for k, j in enumerate(JOINTS)}
+        effectors = {limb: tuple(round(v, 5) for v in p) for limb, p in self.effectors(self.pose(q)).items()}
+        return KeyPose.model_validate({"joints": joints, "effectors": effectors})
+
+    def page_description(self, q: np.ndarray) -> dict[str, object]:
+        """The editor's sliders for the page: joints, each DOF's name and limits (degrees), the angles (degrees)."""
+        lo, hi = np.degrees(self.info.lower), np.degrees(self.info.upper)
+        return {
+            "joints": list(JOINTS),
+            "dofs": {j: [[DOF_NAMES[3 * k + a], round(float(lo[3 * k + a]), 1), round(float(hi[3 * k + a]), 1)]
+                         for a in range(len(AXES))] for k, j in enumerate(JOINTS)},
+            "angles": {j: [round(float(math.degrees(v)), 2) for v in q[3 * k: 3 * k + 3]]
+                       for k, j in enumerate(JOINTS)},
+        }
+
+
+def rest_poser() -> CharacterPoser:
+    """The editor's body when no live one has been seen: the shipped snapshot's rest pose."""
+    info = load_character()
+    return CharacterPoser(info.names, info.rest, info)

@@ -12,7 +12,10 @@ WebSocket, so a page from another site cannot drive the editor.
 
 Page -> node messages (JSON): ``save_kit`` (validated with ``common.kit``,
 written only into the configured kit directory), ``poser_on``/``poser``/
-``poser_off`` (the pose editor), ``save_pose``. Bad messages get an error
+``poser_off`` (the pose editor on physics' 57-DOF body: ``poser`` carries
+``{joint: [x, y, z] degrees}`` and ``drive``; with ``drive`` the node sends the
+posture to physics, /batteur/physics/posture), ``save_pose`` (a key pose into
+``poses.yaml``, :mod:`common.gesture.keyposes`). Bad messages get an error
 reply and are counted; they never stop the server.
 """
 
@@ -28,15 +31,17 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import urlparse
 
+import numpy as np
 from pydantic import ValidationError
 from websockets.asyncio.server import Server, ServerConnection, broadcast, serve
 from websockets.datastructures import Headers
 from websockets.exceptions import ConnectionClosed
 from websockets.http11 import Request, Response
 
+from common.gesture.keyposes import POSE_NAME, KeyPoses
 from common.kit import Kit, save_kit
 from services.graphics.core import GraphicsCore
-from services.graphics.poser import PoseLibrary, Poser
+from services.graphics.poser import CharacterPoser, is_character, rest_poser
 
 log = logging.getLogger("batteur.graphics")
 
@@ -62,7 +67,11 @@ class ViewServer:
         self.clients: set[ServerConnection] = set()
         self.server: Server | None = None
         self.port = 0
-        self.poser: Poser | None = None
+        self.poser: CharacterPoser | None = None
+        self.poser_angles: np.ndarray | None = None
+        """The edited joint angles (57,) radians."""
+        self.poser_body = "rest"
+        """Which body the editor poses: "live" (physics' newest pose) or "rest" (the shipped snapshot)."""
         self.counters = {"http": 0, "not_found": 0, "ws_connects": 0, "page_errors": 0, "sent": 0, "foreign_origin": 0}
         core.page_sink = self.broadcast
 
@@ -160,12 +169,14 @@ class ViewServer:
             if kind == "save_kit":
                 return self._save_kit(msg)
             if kind == "poser_on":
-                self.poser = self.poser or Poser()
-                self.core.show_pose(self.poser.names, self.poser.pose())
-                return {"type": "poser", "joints": self.poser.joints, "angles": {}}
+                return self._poser_on()
             if kind == "poser":
-                self.poser = self.poser or Poser()
-                self.core.show_pose(self.poser.names, self.poser.pose(Poser.clean(msg.get("angles", {}))))
+                poser = self.poser or self._start_poser()
+                q = poser.angles_from(msg.get("angles", {}), self.poser_angles)
+                self.poser_angles = q
+                self.core.show_pose(poser.names, poser.pose(q))
+                if msg.get("drive", False) is True:
+                    self.core.request_posture(q)
                 return None
             if kind == "poser_off":
                 self._poser_off()
@@ -178,8 +189,23 @@ class ViewServer:
             log.warning("bad page message: %s", exc)
             return {"type": "saved", "ok": False, "error": str(exc)[:500]}
 
+    def _start_poser(self) -> CharacterPoser:
+        """The editor's body: the newest live pose of physics' drummer, else the shipped rest snapshot."""
+        live = self.core.live_body()
+        self.poser_body = "live" if live is not None and is_character(live[0]) else "rest"
+        poser = CharacterPoser(*live) if live is not None and self.poser_body == "live" else rest_poser()
+        self.poser, self.poser_angles = poser, poser.angles.copy()
+        return poser
+
+    def _poser_on(self) -> dict[str, Any]:
+        poser = self._start_poser()
+        self.core.show_pose(poser.names, poser.pose())
+        return {"type": "poser", "body": self.poser_body, **poser.page_description(poser.angles)}
+
     def _poser_off(self) -> None:
         self.core.show_pose(None, None)
+        self.core.request_posture(None)
+        self.poser, self.poser_angles = None, None
 
     def _target(self, file: object) -> Path:
         if self.kit_dir is None:
@@ -206,11 +232,15 @@ class ViewServer:
         return {"type": "saved", "ok": True, "path": str(path)}
 
     def _save_pose(self, msg: dict[str, Any]) -> dict[str, Any]:
+        """Save the edited posture (``angles`` {joint: degrees} over the editor's current ones) as a key pose."""
         path = self._target(msg.get("file", "poses.yaml"))
         name = msg.get("name")
-        angles = Poser.clean(msg.get("angles", {}))
-        library = PoseLibrary.load(path)
-        library = PoseLibrary.model_validate({"poses": {**library.poses, str(name): angles}})
+        if not isinstance(name, str) or not POSE_NAME.match(name):
+            raise ValueError("pose name: letters, digits, '_' and '.' (e.g. SNARE.left_hand.UP)")
+        poser = self.poser or self._start_poser()
+        q = poser.angles_from(msg.get("angles", {}), self.poser_angles)
+        library = KeyPoses.load(path).with_pose(name, poser.key_pose(q))
+        self.kit_dir.mkdir(parents=True, exist_ok=True)  # type: ignore[union-attr]
         library.save(path)
         return {"type": "saved", "ok": True, "path": str(path)}
 

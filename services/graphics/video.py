@@ -272,7 +272,8 @@ class VideoInfo:
 def render_video(sequence: PoseSequence, impacts: list[Impact], wav_path: Path | None, out_dir: Path,
                  kit: Kit | None = None, fps: float = 30.0, width: int = 640, height: int = 360,
                  audio_start: float = 0.0, latency: float = 0.0, camera: dict[str, object] | None = None,
-                 name: str = "performance.mp4") -> VideoInfo:
+                 name: str = "performance.mp4",
+                 on_progress: Callable[[int, int], None] | None = None) -> VideoInfo:
     """Write ``out_dir/performance.mp4``: the performance rendered headless, the WAV muxed in sync.
 
     Parameters
@@ -297,6 +298,10 @@ def render_video(sequence: PoseSequence, impacts: list[Impact], wav_path: Path |
         Delay of every strike in the WAV relative to its rig time, seconds (the sound's latency window).
     camera : dict, optional
         ``azimuth_deg``, ``elevation_deg``, ``distance`` (metres), ``target`` (x, y, z metres).
+    on_progress : callable, optional
+        Called with (frames written, total frames) after every frame.
+
+    Raises ``FileNotFoundError`` (no ffmpeg), ``ValueError`` (odd frame size) and ``RuntimeError`` (ffmpeg failed).
     """
     if width % 2 or height % 2:
         raise ValueError("width and height must be even for H.264")
@@ -318,15 +323,23 @@ def render_video(sequence: PoseSequence, impacts: list[Impact], wav_path: Path |
     proc = subprocess.Popen(command, stdin=subprocess.PIPE, stderr=subprocess.PIPE)
     assert proc.stdin is not None
 
-    def write(_: int, rgb: np.ndarray) -> None:
+    def write(i: int, rgb: np.ndarray) -> None:
         proc.stdin.write(np.ascontiguousarray(rgb).tobytes())  # type: ignore[union-attr]
+        if on_progress is not None:
+            on_progress(i + 1, frames)
 
+    broken = False
     try:
         render_frames(sequence, impacts, times, kit, width, height, camera, write)
+    except BrokenPipeError:  # ffmpeg stopped reading: its exit status and message say why
+        broken = True
     finally:
-        proc.stdin.close()
+        try:
+            proc.stdin.close()
+        except BrokenPipeError:
+            broken = True
         stderr = proc.stderr.read().decode(errors="replace") if proc.stderr else ""
         code = proc.wait()
-    if code != 0:
-        raise RuntimeError(f"ffmpeg failed ({code}): {stderr.strip()[-800:]}")
+    if code != 0 or broken:
+        raise RuntimeError(f"ffmpeg failed (exit status {code}): {stderr.strip()[-800:] or 'no message'}")
     return VideoInfo(out, frames, fps, frames / fps, width, height)

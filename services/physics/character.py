@@ -26,18 +26,16 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from common.character import AXES, DOF_NAMES, SIDES, joint_kind
+from common.character import CENTRAL_JOINTS as CENTRAL_JOINTS
+from common.character import JOINTS as JOINTS
+from common.character import LIMB_JOINTS as LIMB_JOINTS
 from services.physics.anthropometry import Anthropometry, Segment
 from services.physics.sticks import StickSpec
 from services.physics.urdf import Inertial, Joint, Link, Robot, Shape
 
-SIDES = ("left", "right")
-CENTRAL_JOINTS = ("seat", "lumbar", "thoracic", "neck", "head")
-LIMB_JOINTS = ("clavicle", "shoulder", "elbow", "wrist", "hip", "knee", "ankle")
-JOINTS: tuple[str, ...] = CENTRAL_JOINTS + tuple(f"{s}_{j}" for s in SIDES for j in LIMB_JOINTS)
-"""The 19 three-DOF joints, in DOF order."""
-AXES = ("x", "y", "z")
-DOF_NAMES: tuple[str, ...] = tuple(f"{j}_{a}" for j in JOINTS for a in AXES)
-"""The 57 actuated DOF, in order (the order of /batteur/physics/joints values)."""
+# The joint layout (SIDES, CENTRAL_JOINTS, LIMB_JOINTS, JOINTS, AXES, DOF_NAMES, joint_kind) lives in
+# common/character.py, shared with graphics' pose editor; imported here for the modules that use it from physics.
 
 JOINT_GROUP = {
     "seat": "trunk", "lumbar": "trunk", "thoracic": "trunk", "neck": "head", "head": "head",
@@ -73,14 +71,6 @@ Heavy so that the seat joint's reaction torque does not spin a light base agains
 _SKIN = (0.86, 0.72, 0.6, 1.0)
 _SHIRT = (0.2, 0.3, 0.5, 1.0)
 _TROUSERS = (0.15, 0.15, 0.2, 1.0)
-
-
-def joint_kind(joint: str) -> str:
-    """'left_elbow' -> 'elbow'."""
-    for side in SIDES:
-        if joint.startswith(side + "_"):
-            return joint[len(side) + 1:]
-    return joint
 
 
 @dataclass(frozen=True)

@@ -17,6 +17,14 @@ import soundfile as sf
 from common.config import load_settings
 from common.core import Core, Outgoing
 from common.messages import Impact, OscMessage, encode, encode_raw
+from common.messages.graphics import (
+    GraphicsCamera,
+    GraphicsLatency,
+    GraphicsMode,
+    GraphicsPlot,
+    GraphicsShow,
+    GraphicsTrails,
+)
 from common.messages.physics import PhysicsControlMode, PhysicsGrip
 from common.messages.score import GestureStyle, ScoreLoad, ScoreTransport, TempoScale
 from common.messages.sound import SoundDamping, SoundLatency, SoundLevel, SoundModel, SoundModes, SoundTension
@@ -133,6 +141,55 @@ def test_control_panel_drives_physics_and_sound_cores() -> None:
         assert sound.of(SoundLevel) and sound.of(SoundDamping)
         snare = sound.core.instruments.instruments["snare"]
         assert snare.p.tension != pytest.approx(800)  # only the chosen instrument changed
+
+    asyncio.run(main())
+
+
+def test_control_panel_drives_the_graphics_view() -> None:
+    """The GRAPHICS section: camera, layers, trails, tip-height plot, delay and mode arrive typed and are applied."""
+    require_pd()
+    from services.graphics.core import GraphicsCore
+
+    async def main() -> None:
+        graphics = Recorder(GraphicsCore())
+        node = Node(graphics, load_settings({"role": "graphics", "discovery": False,  # type: ignore[arg-type]
+                                             "clock_master": "self", "oscquery": False}))
+        await node.start()
+        assert node.endpoint is not None
+        sends = [
+            f"bp-port-graphics {node.endpoint.port}",
+            "bp-camera symbol side", "bp-azimuth 45", "bp-distance 5",
+            "bp-show-kit 0", "bp-show-plot 0", "bp-show-plot 1", "bp-show-trails 0",
+            "bp-trails 2.5", "bp-plot-window 6", "bp-plot-zmin 0.2", "bp-plot-zmax 1.8",
+            "bp-view-latency 0.12", "bp-view-mode symbol live",
+        ]
+        pd = PdProcess(PD_DIR / "control.pd", sends=sends)
+        try:
+            await wait_for(lambda: len(graphics.of(GraphicsMode)) >= 1)
+        finally:
+            pd.stop()
+            await node.stop()
+        stats = node.endpoint.stats
+        assert pd.errors() == [], "\n".join(pd.lines)
+        assert stats.dropped_total == 0, stats.drops_by_reason()  # every message decoded and validated
+        cams = graphics.of(GraphicsCamera)
+        # the preset, then each slider moved sends the camera as "free" with every value so far
+        assert cams[0].preset == "side"
+        assert cams[-1].preset == "free" and cams[-1].azimuth_deg == pytest.approx(45, abs=1e-4)
+        assert cams[-1].distance == pytest.approx(5, rel=1e-4) and cams[-1].elevation_deg == pytest.approx(18)
+        assert (cams[-1].target_x, cams[-1].target_y, cams[-1].target_z) == pytest.approx((0, 0.35, 0.75))
+        view = graphics.core.view
+        assert view.camera["preset"] == "free" and view.camera["distance"] == pytest.approx(5, rel=1e-4)
+        assert [(m.layer, m.visible) for m in graphics.of(GraphicsShow)] == [
+            ("kit", 0), ("plot", 0), ("plot", 1), ("trails", 0)]
+        assert view.layers == {**view.layers, "kit": False, "plot": True, "trails": False, "body": True}
+        assert graphics.of(GraphicsTrails)[-1].seconds == pytest.approx(2.5) and view.trails == pytest.approx(2.5)
+        plot = graphics.of(GraphicsPlot)[-1]
+        assert (plot.window, plot.z_min, plot.z_max) == pytest.approx((6, 0.2, 1.8), rel=1e-4)
+        assert view.plot == pytest.approx({"window": 6, "z_min": 0.2, "z_max": 1.8}, rel=1e-4)
+        assert graphics.of(GraphicsLatency)[-1].seconds == pytest.approx(0.12) and graphics.core.latency == \
+            pytest.approx(0.12)
+        assert graphics.of(GraphicsMode)[-1].mode == "live"
 
     asyncio.run(main())
 

@@ -39,11 +39,12 @@ def free_port(kind: int = socket.SOCK_STREAM) -> int:
 class GraphicsNodeProcess:
     """``python -m services.graphics.node`` on loopback, discovery off, fixed ports (restartable)."""
 
-    def __init__(self, tmp: Path, latency: float = 0.05) -> None:
+    def __init__(self, tmp: Path, latency: float = 0.05, extra: list[str] | None = None) -> None:
         self.http_port = free_port()
         self.osc_port = free_port(socket.SOCK_DGRAM)
         self.tmp = tmp
         self.latency = latency
+        self.extra = list(extra or [])
         self.proc: subprocess.Popen[bytes] | None = None
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
 
@@ -56,7 +57,7 @@ class GraphicsNodeProcess:
         self.proc = subprocess.Popen(
             [sys.executable, "-m", "services.graphics.node", "--no-discovery", "--host", "127.0.0.1",
              "--port", str(self.osc_port), "--http-port", str(self.http_port), "--latency-s", str(self.latency),
-             "--kit-dir", str(self.tmp / "kits")],
+             "--kit-dir", str(self.tmp / "kits"), *self.extra],
             cwd=ROOT, stdout=log, stderr=subprocess.STDOUT, env={**os.environ, "PYTHONUNBUFFERED": "1"},
         )
         deadline = time.monotonic() + 20

@@ -9,13 +9,20 @@ and reconnects by itself after the node restarts.
 from __future__ import annotations
 
 import math
+import socket
 import threading
 import time
+from pathlib import Path
+from typing import Any
 
 import numpy as np
+import pytest
 
-from common.messages import Impact, Pose, Skeleton
+from common.character import JOINTS
+from common.messages import Impact, Pose, Skeleton, decode
+from common.messages.physics import PhysicsPosture, PhysicsReset
 from services.graphics.figure import LINK_NAMES, SyntheticDrummer
+from services.graphics.poser import load_character
 
 from .conftest import CHROMIUM, CHROMIUM_FLAGS, GraphicsNodeProcess, needs_browser, project
 
@@ -29,8 +36,9 @@ BACKGROUND = np.array([0x1B, 0x1D, 0x22])
 class PoseSender:
     """Sends the skeleton once a second and a still pose at 30 Hz (shifted by ``dx`` metres) until stopped."""
 
-    def __init__(self, node: GraphicsNodeProcess, pose: np.ndarray) -> None:
+    def __init__(self, node: GraphicsNodeProcess, pose: np.ndarray, names: list[str] | None = None) -> None:
         self.node, self.pose, self.dx = node, pose, 0.0
+        self.names = tuple(names or LINK_NAMES)
         self.t0 = time.monotonic()
         self._stop = threading.Event()
         self.thread = threading.Thread(target=self._run, daemon=True)
@@ -40,7 +48,7 @@ class PoseSender:
         n = 0
         while not self._stop.is_set():
             if n % 30 == 0:
-                self.node.send(Skeleton(layout=3, names=tuple(LINK_NAMES)))
+                self.node.send(Skeleton(layout=3, names=self.names))
             values = self.pose.copy()
             values[:, 0] += self.dx
             try:
@@ -140,3 +148,68 @@ def test_page_draws_drummer_and_reconnects(graphics_node: GraphicsNodeProcess) -
             browser.close()
     finally:
         sender.stop()
+
+
+@needs_browser
+def test_pose_editor_poses_the_57_dof_body_and_drives_physics(tmp_path: Path) -> None:
+    """Editor open: sliders are physics' DOF; moving one bends the drawn body and sends physics the posture."""
+    from playwright.sync_api import sync_playwright
+
+    physics = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)  # stands in for the physics node
+    physics.bind(("127.0.0.1", 0))
+    physics.settimeout(0.2)
+    node = GraphicsNodeProcess(tmp_path, extra=["--peer", f"physics=127.0.0.1:{physics.getsockname()[1]}"])
+    node.start()
+    body = load_character()
+    sender = PoseSender(node, body.rest, names=body.names)  # physics' drummer at rest, streamed live
+
+    def received(kind: type, timeout: float = 10.0) -> list[Any]:
+        deadline, out = time.monotonic() + timeout, list[Any]()
+        while time.monotonic() < deadline and not out:
+            try:
+                data = physics.recv(65536)
+            except TimeoutError:
+                continue
+            out = [m for m in decode(data).messages if isinstance(m, kind)]
+        return out
+
+    try:
+        with sync_playwright() as p:
+            browser = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_FLAGS)
+            page = browser.new_page(viewport={"width": WIDTH, "height": HEIGHT})
+            errors: list[str] = []
+            page.on("pageerror", lambda e: errors.append(str(e)))
+            page.goto(node.url)
+            page.wait_for_function("window.batteur && window.batteur.frames > 10", timeout=20000)
+            page.click("#edit-toggle")
+            page.wait_for_function("window.batteur.poser && window.batteur.poser.joints", timeout=10000)
+            poser = page.evaluate("window.batteur.poser")
+            assert poser["body"] == "live" and poser["joints"] == list(JOINTS)
+            page.select_option("#pose-joint", "right_elbow")
+            labels = page.eval_on_selector_all("#pose-sliders .slider",
+                                               "rows => rows.map(r => r.firstChild.textContent)")
+            assert labels == ["right_elbow_x", "right_elbow_y", "right_elbow_z"]
+            lo, hi = (float(page.get_attribute("#pose-sliders input", k) or "nan") for k in ("min", "max"))
+            assert lo == pytest.approx(math.degrees(body.lower[JOINTS.index("right_elbow") * 3]), abs=0.1) and hi > lo
+            hand = body.names.index("right_hand")
+            before = np.array(page.evaluate(f"window.batteur.lastFrame.p.slice({hand * 7}, {hand * 7 + 3})"))
+            start = poser["angles"]["right_elbow"][0]
+            page.eval_on_selector("#pose-sliders input",
+                                  "(el, v) => { el.value = v; el.dispatchEvent(new Event('input')); }", str(start + 30))
+            postures = received(PhysicsPosture)
+            assert postures, "no /batteur/physics/posture reached physics"
+            q = np.array(postures[-1].values)
+            elbow = JOINTS.index("right_elbow") * 3
+            assert math.degrees(q[elbow]) == pytest.approx(start + 30, abs=0.3)
+            page.wait_for_function(
+                f"Math.hypot(...window.batteur.lastFrame.p.slice({hand * 7}, {hand * 7 + 3})"
+                f".map((v, i) => v - {before.tolist()}[i])) > 0.05", timeout=10000)  # the drawn hand moved
+            page.screenshot(path=str(tmp_path / "editor.png"))
+            page.click("#edit-toggle")  # closing the editor releases the body
+            assert received(PhysicsReset), "closing the editor sent no /batteur/physics/reset"
+            assert errors == []
+            browser.close()
+    finally:
+        sender.stop()
+        node.close()
+        physics.close()

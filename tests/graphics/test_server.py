@@ -15,8 +15,6 @@ from websockets.asyncio.client import connect
 from common.kit import load_kit
 from common.messages import Skeleton
 from services.graphics.core import GraphicsCore, GraphicsSettings
-from services.graphics.figure import LINK_NAMES
-from services.graphics.poser import PoseLibrary
 from services.graphics.server import ViewServer
 
 
@@ -116,32 +114,6 @@ def test_saving_is_off_without_a_kit_directory() -> None:
         assert server.counters["page_errors"] == 3
 
     _run(None, body)
-
-
-def test_pose_editor_moves_the_figure_and_saves_key_poses(tmp_path: Path) -> None:
-    async def body(server: ViewServer, host: str) -> None:
-        core = server.core
-        reply = server.handle_page_message(json.dumps({"type": "poser_on"}))
-        assert reply is not None and "right_forearm" in reply["joints"]
-        rest = core.frame_at(0.0)
-        server.handle_page_message(json.dumps({"type": "poser", "angles": {"right_forearm": [0, 40, 0]}}))
-        bent = core.frame_at(0.0)
-        assert rest is not None and bent is not None and core.names == LINK_NAMES
-        tip = LINK_NAMES.index("right_stick_tip")
-        assert float(((bent.pose[tip, :3] - rest.pose[tip, :3]) ** 2).sum()) > 0.01
-        assert bent.pose[LINK_NAMES.index("right_upper_arm"), :3] == pytest.approx(
-            rest.pose[LINK_NAMES.index("right_upper_arm"), :3])
-        bad = server.handle_page_message(json.dumps({"type": "poser", "angles": {"tail": [0, 0, 0]}}))
-        assert bad is not None and bad["ok"] is False
-        saved = server.handle_page_message(json.dumps({"type": "save_pose", "name": "SNARE.right_hand.UP",
-                                                       "angles": {"right_forearm": [0, 40, 0]}}))
-        assert saved is not None and saved["ok"] is True
-        library = PoseLibrary.load(tmp_path / "poses.yaml")
-        assert library.poses["SNARE.right_hand.UP"]["right_forearm"] == (0.0, 40.0, 0.0)
-        server.handle_page_message(json.dumps({"type": "poser_off"}))
-        assert core.frame_at(0.0) is None  # back to the (empty) live stream
-
-    _run(tmp_path, body)
 
 
 def test_the_served_bundle_is_built_from_the_current_sources() -> None:

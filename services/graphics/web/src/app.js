@@ -417,7 +417,7 @@ function onMessage(m) {
       applyPose(m.p, m.t); applyKitState(m.k); applyHits(m.h);
       break;
     case "status": state.status = m; renderStatus(); break;
-    case "poser": state.poser = m; buildEditorPose(); break;
+    case "poser": state.poser = m; buildEditorPose(); break; // the 57-DOF editor (buildEditorPose)
     case "saved": editorMsg(m.ok ? `saved ${m.path}` : `not saved: ${m.error}`, m.ok); break;
     default: break;
   }
@@ -428,6 +428,7 @@ const editor = document.getElementById("editor");
 document.getElementById("edit-toggle").addEventListener("click", () => {
   state.editing = !state.editing;
   editor.classList.toggle("hidden", !state.editing);
+  if (!state.editing) state.poser = null;
   send({ type: state.editing ? "poser_on" : "poser_off" });
 });
 function editorMsg(text, ok) {
@@ -471,14 +472,34 @@ kitSelect.addEventListener("change", buildKitSliders);
 document.getElementById("kit-save").addEventListener("click", () => {
   send({ type: "save_kit", file: document.getElementById("kit-file").value, kit: state.kit });
 });
+// The pose editor poses physics' 57-DOF body: 19 joints x (x, y, z) degrees, each DOF within physics' limits.
+// The node does the forward kinematics (the frames show the edited body) and, with "drive physics", sends the
+// posture to physics (/batteur/physics/posture).
 const jointSelect = document.getElementById("pose-joint");
+const driveBox = document.getElementById("pose-drive");
 function buildEditorPose() {
   const p = state.poser;
   if (!p) return;
+  p.initial = p.initial ?? JSON.parse(JSON.stringify(p.angles));
   const chosen = jointSelect.value;
   jointSelect.innerHTML = p.joints.map((j) => `<option>${j}</option>`).join("");
-  if (chosen) jointSelect.value = chosen;
+  if (chosen && p.joints.includes(chosen)) jointSelect.value = chosen;
+  document.getElementById("pose-body").textContent = p.body === "live"
+    ? "physics' body (live)" : "the default body (no physics seen)";
   buildPoseSliders();
+}
+let poseTimer = null, posePending = false;
+function sendPose() { // at most every 50 ms, the last change always sent
+  posePending = true;
+  if (poseTimer) return;
+  const flush = () => {
+    poseTimer = null;
+    if (!posePending || !state.poser) return;
+    posePending = false;
+    send({ type: "poser", angles: state.poser.angles, drive: driveBox.checked });
+    poseTimer = setTimeout(flush, 50);
+  };
+  flush();
 }
 function buildPoseSliders() {
   const box = document.getElementById("pose-sliders");
@@ -486,22 +507,24 @@ function buildPoseSliders() {
   const p = state.poser;
   const joint = jointSelect.value;
   if (!p || !joint) return;
-  const angles = p.angles[joint] ?? [0, 0, 0];
-  ["rx", "ry", "rz"].forEach((axis, i) => slider(box, `${axis} (deg)`, angles[i], -150, 150, 1, (v) => {
-    p.angles[joint] = p.angles[joint] ?? [0, 0, 0];
-    p.angles[joint][i] = v;
-    send({ type: "poser", angles: p.angles });
-  }));
+  p.dofs[joint].forEach(([dof, lo, hi], i) => {
+    const value = p.angles[joint][i];
+    slider(box, dof, value, Math.min(lo, value), Math.max(hi, value), 0.5, (v) => {
+      p.angles[joint][i] = v;
+      sendPose();
+    });
+  });
 }
 jointSelect.addEventListener("change", buildPoseSliders);
 document.getElementById("pose-save").addEventListener("click", () => {
-  if (state.poser) send({ type: "save_pose", name: document.getElementById("pose-name").value, angles: state.poser.angles });
+  if (state.poser) send({ type: "save_pose", name: document.getElementById("pose-name").value,
+    angles: state.poser.angles });
 });
 document.getElementById("pose-reset").addEventListener("click", () => {
   if (!state.poser) return;
-  state.poser.angles = {};
+  state.poser.angles = JSON.parse(JSON.stringify(state.poser.initial));
   buildPoseSliders();
-  send({ type: "poser", angles: {} });
+  sendPose();
 });
 
 // ---------------------------------------------------------------- render loop

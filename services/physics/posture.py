@@ -1,0 +1,49 @@
+"""Postures from the graphics pose editor (/batteur/physics/posture): a separate handler of the physics core.
+
+The editor may send angles outside the joint limits (it does not know them): they
+are clamped into the Euler boxes and quaternion ellipsoids the controller
+enforces, then queued as two joint-track knots (where the joint target is now,
+and the posture ``duration`` seconds later, both with zero velocity), so the body
+glides there and holds it. A joint track overrides Cartesian targets until
+/batteur/physics/reset clears it (see services/physics/drummer.py).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from common.character import N_DOF
+from common.messages.physics import PhysicsPosture
+from services.physics.targets import TargetError
+
+if TYPE_CHECKING:
+    from services.physics.core import PhysicsCore
+
+
+def apply_posture(core: PhysicsCore, message: PhysicsPosture) -> None:
+    """Queue ``message``'s posture on the drummer's joint track; raises :class:`TargetError`."""
+    from services.physics.drummer import DrummerScene
+
+    scene = core.scene
+    if not isinstance(scene, DrummerScene):
+        raise TargetError("/batteur/physics/posture needs the drummer scene")
+    q = np.asarray(message.values, dtype=float)
+    if q.shape != (N_DOF,):
+        raise TargetError(f"a posture needs {N_DOF} joint angles, got {q.size}")
+    if not np.all(np.isfinite(q)):
+        raise TargetError("a posture's joint angles must be finite")
+    now = core.time
+    start = max(float(message.time), now)
+    clamp = scene.controller.clamp_targets
+    if len(scene.joint_track):
+        here = scene.joint_track.sample(start)[0]
+    else:
+        here = scene.body.state()[0]
+    zeros = np.zeros(N_DOF)
+    scene.add_joints(start, np.concatenate([clamp(np.asarray(here, dtype=float)), zeros]), now)
+    if message.duration > 0:
+        scene.add_joints(start + message.duration, np.concatenate([clamp(q), zeros]), now)
+    else:
+        scene.add_joints(start, np.concatenate([clamp(q), zeros]), now)
