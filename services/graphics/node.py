@@ -8,13 +8,19 @@ from ``services/graphics/web`` with npm (three.js from the npm registry).
 
 Extra options: ``--http-port``, ``--kit-dir`` (where the editor may save kits
 and poses), ``--preview FILE.npz`` (a pose sequence to show instead of the
-live stream, e.g. the keyframe animation of a score), ``--synthetic`` (feed
-the synthetic drummer as if physics were running: a demo without physics).
+live stream), ``--preview-score SCORE`` with ``--preview-planner
+keyframe|gestures`` (plan a MIDI or text score with the view's kit and show
+its kinematic preview, looping; the keyframe strokes follow the editor's
+UP/DOWN poses in ``--kit-dir/poses.yaml`` and are re-planned when that file
+or the kit changes), ``--synthetic`` (feed the synthetic drummer as if physics
+were running: a demo without physics).
 """
 
 from __future__ import annotations
 
 import argparse
+import asyncio
+import logging
 import shutil
 import subprocess
 import sys
@@ -25,12 +31,21 @@ from typing import Any, Literal
 from pydantic import Field
 
 from common.config import NodeSettings
+from common.kit import Kit
+from common.messages.graphics import GraphicsMode
 from common.runtime import Node, run_node
 from services.graphics.core import GraphicsCore, GraphicsSettings
+from services.graphics.preview import ScorePreview, score_preview
 from services.graphics.sequence import PoseSequence
 from services.graphics.server import ViewServer
 
 WEB_DIR = Path(__file__).parent / "web"
+POSES_FILE = "poses.yaml"
+"""The pose editor's key poses in ``--kit-dir`` (read by the keyframe preview)."""
+WATCH_PERIOD_S = 1.0
+"""How often the node checks whether the poses file or the kit changed (seconds)."""
+
+log = logging.getLogger("batteur.graphics")
 
 
 class GraphicsNodeSettings(NodeSettings):
@@ -40,6 +55,11 @@ class GraphicsNodeSettings(NodeSettings):
     kit: str = Field(default="default", description="kit name or file to draw")
     kit_dir: str = Field(default="", description="directory the editor may save kits and poses into ('': no saving)")
     preview: str = Field(default="", description="pose sequence (.npz) to show instead of the live stream")
+    preview_score: str = Field(
+        default="", description="score (MIDI or text) to plan with the kit and show as a looping kinematic preview")
+    preview_planner: Literal["keyframe", "gestures"] = Field(
+        default="keyframe", description="planner of --preview-score: keyframe (the 2001 paper's strokes, shaped "
+        "by --kit-dir/poses.yaml if present) or gestures (the gesture planner)")
     synthetic: bool = Field(default=False, description="feed the synthetic drummer (demo without physics)")
     view_clock: Literal["auto", "rig"] = Field(
         default="auto", description="auto: follow the clock of the poses; rig: trust the rig clock")
@@ -58,12 +78,77 @@ def build_assets(web_dir: Path = WEB_DIR) -> int:
     return 0
 
 
+def poses_path(settings: GraphicsNodeSettings) -> Path | None:
+    """``--kit-dir/poses.yaml`` (None without a kit directory); it need not exist."""
+    return Path(settings.kit_dir) / POSES_FILE if settings.kit_dir else None
+
+
+def plan_score_preview(settings: GraphicsNodeSettings, kit: Kit) -> ScorePreview:
+    """Plan ``--preview-score`` with ``kit``; ``ValueError`` (a ScoreError) naming the problem."""
+    return score_preview(settings.preview_score, kit, settings.preview_planner, poses=poses_path(settings),
+                         rate_hz=settings.rate_hz or 60.0)
+
+
 def make_core(settings: NodeSettings, args: argparse.Namespace) -> GraphicsCore:
+    """The graphics core, with the preview loaded; ``ValueError`` for a bad kit, sequence or score (exit 2)."""
     s = settings if isinstance(settings, GraphicsNodeSettings) else GraphicsNodeSettings(**settings.model_dump())
-    core = GraphicsCore(GraphicsSettings(rate_hz=s.rate_hz or 60.0, latency=s.latency_s, kit=s.kit, clock=s.view_clock))
+    if s.preview and s.preview_score:
+        raise ValueError("give --preview FILE.npz or --preview-score SCORE, not both")
+    try:
+        core = GraphicsCore(GraphicsSettings(rate_hz=s.rate_hz or 60.0, latency=s.latency_s, kit=s.kit,
+                                             clock=s.view_clock))
+    except FileNotFoundError as exc:
+        raise ValueError(f"--kit: {exc}") from None
     if s.preview:
-        core.load_preview(PoseSequence.load(Path(s.preview)))
+        try:
+            sequence = PoseSequence.load(Path(s.preview))
+        except (ValueError, OSError, EOFError) as exc:  # missing, not an .npz, or an .npz of something else
+            why = str(exc) if s.preview in str(exc) else f"{s.preview}: not a pose sequence file ({exc})"
+            raise ValueError(f"--preview: {why}") from None
+        core.load_preview(sequence)
+    if s.preview_score:
+        preview = plan_score_preview(s, core.kit)
+        core.load_preview(preview.sequence, preview.impacts)
+        log.info("preview of %s", preview.summary())
     return core
+
+
+def _preview_inputs(settings: GraphicsNodeSettings, core: GraphicsCore) -> tuple[float | None, Kit]:
+    """What the score preview depends on besides the score: the poses file's mtime (None: absent) and the kit."""
+    path = poses_path(settings) if settings.preview_planner == "keyframe" else None
+    try:
+        mtime = path.stat().st_mtime if path is not None else None
+    except OSError:
+        mtime = None
+    return mtime, core.kit
+
+
+async def _watch_preview(node: Node, core: GraphicsCore, settings: GraphicsNodeSettings,
+                         period: float = WATCH_PERIOD_S) -> None:
+    """Re-plan the score preview when the editor saves a pose (``poses.yaml`` changes) or a kit.
+
+    The new preview starts from its beginning; the view keeps its mode (live or preview). A file that
+    cannot be planned (e.g. a hand-edited poses file that is not valid) is logged and the old preview kept.
+    """
+    seen = _preview_inputs(settings, core)
+    while True:
+        await asyncio.sleep(period)
+        now_inputs = _preview_inputs(settings, core)
+        if now_inputs[0] == seen[0] and now_inputs[1] is seen[1]:
+            continue
+        seen = now_inputs
+        try:
+            preview = await asyncio.to_thread(plan_score_preview, settings, now_inputs[1])
+        except ValueError as exc:
+            core.counters["preview_errors"] = core.counters.get("preview_errors", 0) + 1
+            log.error("preview not re-planned, keeping the previous one: %s", exc)
+            continue
+        mode = core.mode
+        core.load_preview(preview.sequence, preview.impacts, now=node.clock.now())
+        if mode == "live":
+            core.apply_control(GraphicsMode(mode="live"))
+        core.counters["preview_replans"] = core.counters.get("preview_replans", 0) + 1
+        log.info("preview re-planned: %s", preview.summary())
 
 
 async def _feed_synthetic(node: Node, core: GraphicsCore) -> None:
@@ -118,6 +203,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         node.spawn(server.serve_forever(), "view server")
         if s.synthetic:
             node.spawn(_feed_synthetic(node, core), "synthetic drummer")
+        if s.preview_score:
+            node.spawn(_watch_preview(node, core, s), "preview re-planner")
 
     return run_node(
         "graphics",

@@ -9,17 +9,27 @@ stick tilting with the tip's height above the surface of the nearest stroke)
 and turns every planned contact into an :class:`~common.messages.Impact`, so
 the view (``GraphicsCore.load_preview``), the video and the exports can show
 a score before, or without, the physics run.
+
+:func:`score_preview` does the whole chain for a score file (what
+``batteur graphics --preview-score SCORE`` shows): read (MIDI or text score,
+``common.score``), distribute over the limbs, plan (``keyframe``: the 2001
+paper's strokes shaped by the pose editor's saved UP/DOWN poses when given;
+``gestures``: the gesture planner) and pose the figure.
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
 
 import numpy as np
 
 from common.gesture.plan import GesturePlan, PlannedStroke
-from common.kit import Limb
+from common.kit import Kit, Limb
 from common.messages import Impact
+from common.score.events import Score, ScoreError
 from services.graphics.figure import LINK_NAMES, LimbGoal, figure_pose
 from services.graphics.sequence import PoseSequence
 
@@ -76,3 +86,96 @@ def plan_preview(plan: GesturePlan, rate_hz: float = 60.0) -> tuple[PoseSequence
         for i, s in enumerate(sorted(plan.strokes, key=lambda s: s.time))
     ]
     return PoseSequence(list(LINK_NAMES), times, np.stack(frames)), impacts
+
+
+Planner = Literal["keyframe", "gestures"]
+PLANNERS: tuple[Planner, ...] = ("keyframe", "gestures")
+"""``keyframe``: the 2001 paper's key-frame strokes (``plan_keyframes``); ``gestures``: ``plan_gestures``."""
+
+
+@dataclass
+class ScorePreview:
+    """A score planned and posed for the view: what ``GraphicsCore.load_preview`` takes, and where it came from."""
+
+    sequence: PoseSequence
+    impacts: list[Impact]
+    plan: GesturePlan
+    score: Score
+    poses: Path | None
+    """The poses file the keyframe plan read (None: the built-in strokes)."""
+
+    def summary(self) -> str:
+        """One line for the log: notes, duration (seconds), planner, poses."""
+        shaped = f", UP/DOWN poses from {self.poses}" if self.poses is not None else ""
+        issues = f", {len(self.plan.issues)} feasibility issues" if self.plan.issues else ""
+        return (f"{self.score.source or 'score'}: {len(self.impacts)} strokes over "
+                f"{self.sequence.duration:.1f} s ({self.plan.mode} planner{shaped}{issues})")
+
+
+def score_preview(path: str | Path, kit: Kit, planner: Planner = "keyframe", poses: str | Path | None = None,
+                  rate_hz: float = 60.0) -> ScorePreview:
+    """Read, distribute, plan and pose a score file for the kinematic preview (no physics).
+
+    Parameters
+    ----------
+    path : str | Path
+        A MIDI file (``.mid``, ``.midi``, ``.smf``) or a Batteur text score (docs/score-format.md).
+    kit : Kit
+        The kit played (hit points, limbs); the view's kit.
+    planner : {"keyframe", "gestures"}
+        ``keyframe``: the 2001 paper's strokes; ``gestures``: the gesture planner (grip and nuance of a
+        text score's ``grip``/``nuance`` directives).
+    poses : str | Path | None
+        ``keyframe`` only: the pose editor's ``poses.yaml``; a missing file (or None) means the built-in
+        strokes (the tip raised along the surface normal).
+    rate_hz : float
+        Pose rate of the sequence, Hz.
+
+    Returns
+    -------
+    ScorePreview
+        ``sequence`` (poses from the plan's start, 1 s before the first note, to its end, 1 s after the
+        last, on the score's clock: the first note at its score time), ``impacts`` (one per planned stroke).
+
+    Raises
+    ------
+    ScoreError
+        (a ``ValueError``) naming the file: missing, unreadable or invalid score, a score with no drum
+        event the kit plays, an invalid poses file, an unknown planner.
+    """
+    from common.gesture.keyframe import plan_keyframes
+    from common.gesture.keyposes import KeyPoses
+    from common.gesture.planner import PlannerConfig, plan_gestures
+    from common.score.limbs import distribute
+    from common.score.text import read_score
+
+    if planner not in PLANNERS:
+        raise ScoreError(f"unknown preview planner {planner!r} (one of: {', '.join(PLANNERS)})")
+    if not math.isfinite(rate_hz) or rate_hz <= 0:
+        raise ScoreError(f"preview pose rate must be positive, got {rate_hz}")
+    score = read_score(path)
+    if not score.events:
+        why = "; ".join(score.warnings[-2:]) if score.warnings else "empty"
+        raise ScoreError(f"{path}: no drum events to preview ({why})")
+    assignment = distribute(score, kit)
+    if not assignment.notes:
+        raise ScoreError(f"{path}: none of the score's {len(score.events)} events can be played on kit "
+                         f"{kit.name!r}")
+    used: Path | None = None
+    if planner == "keyframe":
+        poses_path = Path(poses) if poses is not None else None
+        try:
+            keys = KeyPoses.load(poses_path)
+        except OSError as exc:
+            raise ScoreError(f"{poses_path}: cannot read the poses file ({exc.strerror or exc})") from None
+        except ValueError as exc:
+            raise ScoreError(str(exc)) from None
+        used = poses_path if keys.poses else None
+        plan = plan_keyframes(assignment, kit, score, poses=keys)
+    else:
+        default = PlannerConfig()
+        config = PlannerConfig(grip=getattr(score, "grip", None) or default.grip,
+                               nuance=getattr(score, "nuance", None) or default.nuance)
+        plan = plan_gestures(assignment, kit, score, config)
+    sequence, impacts = plan_preview(plan, rate_hz=rate_hz)
+    return ScorePreview(sequence, impacts, plan, score, used)
