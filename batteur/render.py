@@ -87,6 +87,8 @@ class RenderOptions:
     """Rig time at which the plan starts (the body settles at rest before), seconds."""
     tail_s: float = 1.0
     rate_hz: float = 1000.0
+    control_rate_hz: float | None = None
+    """Drummer's full control updates per second, Hz (None: the physics default)."""
     pose_rate_hz: float = 60.0
     calibration: Path | None = None
     video: bool = False
@@ -159,14 +161,15 @@ def run_score(score: Score, assignment: Assignment, plan: GesturePlan, kit: Kit,
     """
     from common.bus import OfflineRunner
     from services.interaction.core import InteractionCore
-    from services.physics.core import PhysicsCore
+    from services.physics.core import PhysicsCore, PhysicsSettings
     from services.physics.targets import TargetError
     from services.sound.core import SoundCore, SoundSettings
 
     started = time.perf_counter()
     cpu_started = time.process_time()
+    control_rate_hz = opts.control_rate_hz or PhysicsSettings.model_fields["control_rate_hz"].default
     physics = PhysicsCore(scene="drummer", kit=kit, control=CONTROL_MODES[opts.control], grip=opts.grip,
-                          rate_hz=opts.rate_hz, pose_rate_hz=opts.pose_rate_hz)
+                          rate_hz=opts.rate_hz, pose_rate_hz=opts.pose_rate_hz, control_rate_hz=control_rate_hz)
     offset = opts.settle_s - plan.start_time
     try:
         physics.load_plan(plan, opts.settle_s)
@@ -190,6 +193,7 @@ def run_score(score: Score, assignment: Assignment, plan: GesturePlan, kit: Kit,
         poses = None
     stats = {"contacts_sent": physics.contacts_sent, "rejected": dict(physics.rejected),
              "control": physics.settings.control, "grip": physics.settings.grip, "rate_hz": physics.rate_hz,
+             "control_rate_hz": physics.settings.control_rate_hz,
              "cpu_time_s": round(time.process_time() - cpu_started, 3)}
     return ScoreRender(score, assignment, plan, recorder.impacts.sorted(), physics.contacts_sent, audio,
                        sound.sample_rate, duration, offset, time.perf_counter() - started, poses, stats)
@@ -407,6 +411,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--event", default="SNARE", choices=[e.value for e in EventType if e != EventType.HIHATPEDAL],
                         help="strike scene: which kit event the stick strikes (default SNARE)")
     parser.add_argument("--latency", type=float, default=0.05, help="sound latency window, seconds (default 0.05)")
+    parser.add_argument("--control-rate", type=float, default=None, metavar="HZ",
+                        help="drummer's full control updates (IK, inverse dynamics) per second; the torques are "
+                             "corrected at every 1 ms physics step between (default: physics' default, 500)")
     parser.add_argument("--video", action="store_true",
                         help="also write DIR/performance.mp4: the motion rendered headless (PyBullet TinyRenderer) "
                         "with the WAV muxed in sync (needs ffmpeg; score mode)")
@@ -428,7 +435,7 @@ def options_from(args: argparse.Namespace) -> RenderOptions:
     return RenderOptions(kit=args.kit, grip=args.grip, nuance=Nuance(args.nuance), tempo_scale=args.tempo_scale,
                          control=args.control, algorithm=HandAlgorithm(args.algorithm), latency_s=args.latency,
                          calibration=args.calibration, video=args.video, video_fps=args.video_fps,
-                         video_size=args.video_size)
+                         video_size=args.video_size, control_rate_hz=args.control_rate)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -9,6 +9,14 @@ zeroconf discovery on the given interfaces.
 Output lines are prefixed with the role. Ctrl-C (SIGINT) or SIGTERM stops
 every child with SIGINT, waits up to ``--stop-timeout`` seconds, then kills
 what is left. If one service exits, the others are stopped too.
+
+``--score FILE`` (a .mid or text score, or ``demo`` for the demo groove of
+``batteur demo``) makes the drummer play it live: the physics node gets
+``--score FILE --play-at SECONDS`` (it loads the score before it listens and
+plans it once its clock runs, so no message can be lost at start-up; the
+file's directory becomes its score library, so the Pd panel can load it again
+by name). Rig time 0 is ``--start-delay`` seconds after launch; the score
+starts at rig time ``--play-at``.
 """
 
 from __future__ import annotations
@@ -17,6 +25,7 @@ import argparse
 import asyncio
 import signal
 import sys
+import tempfile
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -69,6 +78,8 @@ def role_args(role: str, opts: argparse.Namespace) -> list[str]:
     """Arguments specific to one role: what to play, where to record, plus pass-through."""
     args: list[str] = []
     if role == "physics":
+        if getattr(opts, "score", None):
+            args += ["--score", str(Path(opts.score).resolve()), "--play-at", repr(opts.play_at)]
         if opts.strike_period:
             args += ["--scene", "strike", "--strike-period", repr(opts.strike_period),
                      "--strike-velocity", repr(opts.strike_velocity)]
@@ -171,6 +182,11 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--strike-period", type=float, default=0.0,
                         help="strike scene instead of a score: a strike every this many seconds of rig time")
     parser.add_argument("--strike-velocity", type=float, default=3.0, help="strike scene: tip speed, m/s (default 3)")
+    parser.add_argument("--score", default=None, metavar="FILE",
+                        help="the drummer plays this score live (.mid or text score; 'demo': the groove of "
+                        "batteur demo)")
+    parser.add_argument("--play-at", type=float, default=1.0,
+                        help="rig time at which --score starts, seconds after rig time 0 (default 1)")
     parser.add_argument("--log-level", default="", help="log level for every service (default: theirs)")
     for role in ROLES:
         parser.add_argument(f"--{role}-arg", action="append", metavar="ARGS",
@@ -178,14 +194,39 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def check_score(opts: argparse.Namespace) -> None:
+    """Raise ValueError for a --score the rig cannot play (missing file, strike scene, no physics)."""
+    if opts.score is None:
+        return
+    if opts.strike_period:
+        raise ValueError("--score and --strike-period exclude each other (the drummer or the strike scene)")
+    roles = [r.strip() for r in opts.services.split(",")]
+    if "physics" not in roles:
+        raise ValueError("--score needs the physics service (--services)")
+    if not Path(opts.score).is_file():
+        raise ValueError(f"--score {opts.score}: no such file")
+    if opts.play_at < 0:
+        raise ValueError("--play-at must be >= 0 (rig seconds)")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     opts = build_parser().parse_args(argv)
-    epoch = time.time() + opts.start_delay
-    try:
-        plans = plan_rig(opts, epoch)
-    except ValueError as exc:
-        print(f"batteur rig: {exc}", file=sys.stderr)
-        return 2
-    if opts.record:
-        Path(opts.record).mkdir(parents=True, exist_ok=True)
-    return asyncio.run(Rig(plans, opts.stop_timeout).run(opts.duration))
+    with tempfile.TemporaryDirectory(prefix="batteur-rig-") as tmp:
+        if opts.score == "demo" and not Path("demo").exists():
+            from batteur.demo import DEMO_GROOVE
+
+            opts.score = str(Path(tmp) / "demo-groove.txt")
+            Path(opts.score).write_text(DEMO_GROOVE, encoding="utf-8")
+        epoch = time.time() + opts.start_delay
+        try:
+            check_score(opts)
+            plans = plan_rig(opts, epoch)
+        except ValueError as exc:
+            print(f"batteur rig: {exc}", file=sys.stderr)
+            return 2
+        if opts.record:
+            Path(opts.record).mkdir(parents=True, exist_ok=True)
+        if opts.score:
+            print(f"batteur rig: the drummer plays {opts.score} from rig time {opts.play_at:g} s "
+                  f"({opts.start_delay + opts.play_at:g} s after launch)", flush=True)
+        return asyncio.run(Rig(plans, opts.stop_timeout).run(opts.duration))

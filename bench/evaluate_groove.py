@@ -62,6 +62,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--reuse", action="store_true", help="reuse renders already in --renders")
     parser.add_argument("--calibration", type=Path, default=None, help="calibration JSON applied to the plans")
     parser.add_argument("--json", type=Path, default=None, help="also write every figure to this JSON file")
+    parser.add_argument("--control-rate", type=float, default=None, metavar="HZ",
+                        help="drummer's full control updates per second (default: physics' default)")
     args = parser.parse_args(argv)
     files = validation_files(args.root, None if args.all else args.limit, None if args.all else args.max_duration)
     if not files:
@@ -74,7 +76,7 @@ def main(argv: list[str] | None = None) -> int:
     dump: dict[str, object] = {"files": [str(p) for p, _ in files]}
     for control in [c.strip() for c in args.controls.split(",") if c.strip()]:
         started = time.perf_counter()
-        opts = RenderOptions(control=control, calibration=args.calibration)
+        opts = RenderOptions(control=control, calibration=args.calibration, control_rate_hz=args.control_rate)
         renders = args.renders / control if args.renders is not None else None
         results = evaluate_scores([p for p, _ in files], opts, renders, quiet=True, reuse=args.reuse)
         agg = aggregate(results)

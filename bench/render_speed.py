@@ -93,6 +93,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seconds", type=float, default=20.0, help="length of the piece (default 20; issue: 180)")
     parser.add_argument("--control", default="cartesian", help="control mode (cartesian, joint, joint_spd)")
+    parser.add_argument("--control-rate", type=float, default=None, metavar="HZ",
+                        help="drummer's full control updates per second (default: physics' default)")
     parser.add_argument("--no-breakdown", action="store_true", help="do not time the parts (no wrapper overhead)")
     args = parser.parse_args(argv)
     timings: dict[str, float] = defaultdict(float)
@@ -102,7 +104,8 @@ def main(argv: list[str] | None = None) -> int:
         score.write_text(piece(args.seconds), encoding="utf-8")
         t0, c0 = time.perf_counter(), time.process_time()
         try:
-            report = render_score(score, Path(tmp) / "out", RenderOptions(control=args.control), quiet=True)
+            opts = RenderOptions(control=args.control, control_rate_hz=args.control_rate)
+            report = render_score(score, Path(tmp) / "out", opts, quiet=True)
         finally:
             restore()
         wall, cpu = time.perf_counter() - t0, time.process_time() - c0

@@ -31,12 +31,13 @@ class LiveNote(OscMessage):
 
 @register
 class ScoreLoad(OscMessage):
-    """Load a score file (Standard MIDI File or Batteur text score) on the receiving node."""
+    """Load a score (Standard MIDI File or Batteur text score) from the receiving node's score library."""
 
     ADDRESS = "/batteur/score/load"
     FAMILY = Family.CONTROL
 
-    path: Text = Field(description="score file path on the receiving machine (.mid or text)")
+    path: Text = Field(description="score file name (or path) inside the receiving node's score library "
+                                   "(physics --score-dir); .mid or text")
 
 
 @register

@@ -38,6 +38,7 @@ class Body:
         self.dofs = np.array([self.joint_index[n] for n in model.dof_names], dtype=int)
         self.dof_list = [int(j) for j in self.dofs]
         self.passive = [self.joint_index[n] for n in model.passive]
+        self._all_joints = self.dof_list + self.passive
         self.lower = np.array([c.getJointInfo(self.id, j)[8] for j in self.dof_list])
         self.upper = np.array([c.getJointInfo(self.id, j)[9] for j in self.dof_list])
         self.torque_limit = np.array([model.torque_limits[n] for n in model.dof_names])
@@ -72,8 +73,17 @@ class Body:
         return np.array([s[0] for s in states]), np.array([s[1] for s in states])
 
     def passive_state(self) -> tuple[np.ndarray, np.ndarray]:
+        """Angles (P,) radians and velocities (P,) rad/s of the passive joints (the sticks' fulcrums)."""
         states = self.world.client.getJointStates(self.id, self.passive)
         return np.array([s[0] for s in states]), np.array([s[1] for s in states])
+
+    def full_state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`state` and :meth:`passive_state` in one read: (57,), (57,), (P,), (P,)."""
+        states = self.world.client.getJointStates(self.id, self._all_joints)
+        q = np.array([s[0] for s in states])
+        qd = np.array([s[1] for s in states])
+        n = len(self.dof_list)
+        return q[:n], qd[:n], q[n:], qd[n:]
 
     def set_state(self, q: np.ndarray, qd: np.ndarray | None = None) -> None:
         """Teleport the joints (resets, tests and the kinematic IK); velocities default to zero."""

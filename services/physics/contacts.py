@@ -62,6 +62,11 @@ class ContactTracker:
         self._velocities: dict[Key, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
         self._episodes: dict[tuple[Key, str], _Episode] = {}
         self._groups: list[tuple[int, list[int]]] | None = None
+        self._instrument_groups: list[tuple[int, list[int]]] = []
+        self.instrument_every = 1
+        """Read the moving instruments' (cymbals') velocities every this many steps; strikers every step. A
+        cymbal swings at about 1 Hz: a few milliseconds old, its velocity is still its velocity."""
+        self._calls = 0
         self.touching: set[str] = set()
         """Base part names of the strikers in contact at the last step (e.g. left_stick, kick_beater)."""
         self.episodes_started = 0
@@ -73,14 +78,15 @@ class ContactTracker:
     def before_step(self) -> None:
         """Record striker and moving-instrument velocities before the step (for approach velocities)."""
         vel = self._velocities
-        vel.clear()
         if self._groups is None:
-            groups: dict[int, list[int]] = {}
-            for body, link in [*self.strikers, *self._moving_instruments]:
-                groups.setdefault(body, []).append(link)
-            self._groups = sorted((body, sorted(set(links))) for body, links in groups.items())
+            self._groups = _by_body(list(self.strikers))
+            self._instrument_groups = _by_body([k for k in self._moving_instruments if k not in self.strikers])
+        groups = self._groups
+        if self._calls % self.instrument_every == 0:
+            groups = groups + self._instrument_groups
+        self._calls += 1
         c = self.world.client
-        for body, links in self._groups:
+        for body, links in groups:
             real = [k for k in links if k >= 0]
             if real:
                 states = c.getLinkStates(body, real, computeLinkVelocity=1, computeForwardKinematics=1)
@@ -161,3 +167,11 @@ class ContactTracker:
                 del self._episodes[pair]
         self.touching = {self.strikers[key].part for key, _ in groups}
         return out
+
+
+def _by_body(keys: list[Key]) -> list[tuple[int, list[int]]]:
+    """(body, link) keys grouped per body, sorted: one state read per body."""
+    groups: dict[int, list[int]] = {}
+    for body, link in keys:
+        groups.setdefault(body, []).append(link)
+    return sorted((body, sorted(set(links))) for body, links in groups.items())

@@ -161,6 +161,11 @@ class Controller:
         self.params = params or ControlParams()
         self.rest = rest.copy()
         self.mode = "cartesian"
+        self.control_dt = world.dt
+        """Seconds between two full control updates (IK, inverse dynamics, limits); between them
+        :meth:`apply_between` corrects the held torques at every physics step (see :meth:`apply`)."""
+        self._held: _HeldTorques | None = None
+        self._ct_mass: np.ndarray | None = None
         c = world.client
         n = len(body.dof_list)
         # joint-space inertia at the rest posture (floating base: 6 base DOF first, then every joint)
@@ -317,8 +322,9 @@ class Controller:
     # ------------------------------------------------------------------ Cartesian (Algorithm 2)
 
     def reset_reference(self) -> None:
-        """Forget the integrated Cartesian reference (after a reset or a mode switch)."""
+        """Forget the integrated Cartesian reference and the held torques (after a reset or a mode switch)."""
         self.theta_ref = None
+        self._held = None
 
     def ik_targets(self, theta: np.ndarray, targets: dict[str, tuple[np.ndarray, np.ndarray]],
                    touching: set[str] | frozenset[str] = frozenset()) -> tuple[np.ndarray, np.ndarray]:
@@ -357,8 +363,7 @@ class Controller:
         fastest = float(np.max(np.abs(qdot)))
         if fastest > self.params.max_joint_speed:  # near a singularity (arm stretched): slow down, do not whip
             qdot *= self.params.max_joint_speed / fastest
-        dt = self.world.dt
-        new_ref = np.where(active, ref + qdot * dt, self.rest)
+        new_ref = np.where(active, ref + qdot * self.control_dt, self.rest)
         # keep the reference within reach of the state (no wind-up) and inside the Euler boxes (apply()
         # projects the targets into the quaternion limits)
         lead = np.full(len(theta), self.params.max_lead_rad)
@@ -411,6 +416,9 @@ class Controller:
         pq, pqd = self.body.passive_state()
         q_all[passive_pos], qd_all[passive_pos] = pq, pqd
         tau = world.client.calculateInverseDynamics(body_id, q_all.tolist(), qd_all.tolist(), qdd_all.tolist())
+        if self.control_dt > self.world.dt:  # held between updates: keep M(q) for the PD's correction
+            mass = np.array(world.client.calculateMassMatrix(body_id, q_all.tolist()), dtype=float)
+            self._ct_mass = mass[np.ix_(dof_pos, dof_pos)]
         return np.asarray(tau)[dof_pos]
 
     def apply(self, theta: np.ndarray, theta_dot: np.ndarray, theta_t: np.ndarray, theta_dot_t: np.ndarray,
@@ -421,7 +429,7 @@ class Controller:
         theta_t, extra = self.enforce_limits(theta, np.clip(theta_t, body.lower, body.upper))
         if self._last_theta_dot_t is None:
             self._last_theta_dot_t = theta_dot_t.copy()
-        qdd_ff = np.clip((theta_dot_t - self._last_theta_dot_t) / self.world.dt, -self.params.max_ff_accel,
+        qdd_ff = np.clip((theta_dot_t - self._last_theta_dot_t) / self.control_dt, -self.params.max_ff_accel,
                          self.params.max_ff_accel)
         self._last_theta_dot_t = theta_dot_t.copy()
         if self.mode == "joint_spd":
@@ -443,14 +451,68 @@ class Controller:
         else:
             if self.mode in COMPUTED_TORQUE_MODES:
                 tau = self.computed_torque(theta, theta_dot, theta_t, theta_dot_t, qdd_ff) + extra
+                # between control updates: the same PD through the mass matrix of the update
+                k_between = self._w_ct**2 * self.scale_ks
+                d_between = 2 * self.params.damping_ratio * self._w_ct * self.scale_kd
+                mass = self._ct_mass
             else:
                 if self.params.gravity_compensation:
                     extra = extra + self.gravity_torque()
                 tau = self.ks * (theta_t - theta) + self.kd * (theta_dot_t - theta_dot) + extra
+                k_between, d_between, mass = self.ks, self.kd, None
+            self._held = _HeldTorques(tau, theta.copy(), theta_dot.copy(), theta_dot_t.copy(), k_between, d_between,
+                                      mass)
             tau = np.clip(tau, -body.torque_limit, body.torque_limit)
             self.last_tau = tau
             c.setJointMotorControlArray(body.id, body.dof_list, p.TORQUE_CONTROL, forces=tau.tolist())
         c.setJointMotorControlArray(body.id, body.passive, p.TORQUE_CONTROL, forces=passive_tau.tolist())
+
+    @property
+    def _w_ct(self) -> float:
+        return 2 * math.pi * self.params.ct_frequency_hz
+
+    def can_hold(self) -> bool:
+        """Whether :meth:`apply_between` may stand in for a full update (PyBullet's stable PD may not)."""
+        return self._held is not None and self.mode != "joint_spd"
+
+    def apply_between(self, theta: np.ndarray, theta_dot: np.ndarray, elapsed_s: float,
+                      passive_tau: np.ndarray) -> None:
+        """A physics step between two control updates: the last update's torques (PyBullet clears applied
+        torques after every step), corrected by its PD for how the state moved since: ``tau = tau_0 +
+        k (theta_0 + theta_dot_t elapsed - theta) + d (theta_dot_0 - theta_dot)``.
+
+        For the explicit PD that is exactly the PD at the current state with the target moving on at its
+        target velocity (gravity and limit torques held); for the computed-torque modes the same correction of
+        the joint accelerations goes through the update's mass matrix ``M(q)``. ``elapsed_s``: seconds since
+        the update.
+        """
+        held = self._held
+        assert held is not None
+        body = self.body
+        correction = held.k * (held.theta + held.theta_dot_t * elapsed_s - theta) \
+            + held.d * (held.theta_dot - theta_dot)
+        tau = held.tau + (correction if held.mass is None else held.mass @ correction)
+        tau = np.clip(tau, -body.torque_limit, body.torque_limit)
+        self.last_tau = tau
+        c = self.world.client
+        c.setJointMotorControlArray(body.id, body.dof_list, p.TORQUE_CONTROL, forces=tau.tolist())
+        c.setJointMotorControlArray(body.id, body.passive, p.TORQUE_CONTROL, forces=passive_tau.tolist())
+
+
+@dataclass(frozen=True)
+class _HeldTorques:
+    """The last full control update: unclipped torques (57,) N m, the state it saw (rad, rad/s), the
+    target velocity (rad/s) and the PD used between updates."""
+
+    tau: np.ndarray
+    theta: np.ndarray
+    theta_dot: np.ndarray
+    theta_dot_t: np.ndarray
+    k: np.ndarray
+    d: np.ndarray
+    mass: np.ndarray | None = None
+    """Computed-torque modes: the joint-space mass matrix (57, 57) kg m^2 of the update; the correction is
+    ``mass @ (k e + d e_dot)`` with k, d in 1/s^2 and 1/s. Explicit PD: None, k and d are the gains."""
 
 
 def _conj(q: np.ndarray) -> np.ndarray:

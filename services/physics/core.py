@@ -41,8 +41,10 @@ from pydantic import BaseModel, ConfigDict, Field
 from common.core import Outgoing
 from common.kit import EventType, Kit, load_kit
 from common.messages import Contact, Hello, OscMessage, Pose, Skeleton
-from common.messages.physics import ControlModeName, PhysicsControlMode, PhysicsReset, PhysicsStrike
+from common.messages.physics import ControlModeName, PhysicsControlMode, PhysicsPosture, PhysicsReset, PhysicsStrike
 from services.physics.contacts import ContactTracker
+from services.physics.posture import apply_posture
+from services.physics.score_player import SCORE_MESSAGES, ScorePlayer
 from services.physics.strike_scene import Strike, StrikeScene
 from services.physics.targets import TargetError
 from services.physics.world import World, WorldSettings
@@ -61,6 +63,9 @@ class PhysicsSettings(BaseModel):
     scene: Literal["strike", "drummer"] = Field(default="drummer", description="what to simulate")
     mode: Literal["offline", "live"] = Field(default="offline", description="time handling, see PhysicsCore")
     rate_hz: float = Field(default=1000.0, ge=100, le=10000, description="physics step rate, Hz")
+    control_rate_hz: float = Field(default=500.0, ge=50, le=10000,
+                                   description="drummer: full control updates (IK, inverse dynamics) per second, "
+                                               "Hz; the PD corrects the torques at every physics step between")
     pose_rate_hz: float = Field(default=60.0, ge=0, le=240, description="pose publishing rate, Hz (0: off)")
     kit: str = Field(default="default", description="kit name or YAML/JSON path (common/kits)")
     left_handed: bool = Field(default=False, description="mirror the kit for a left-handed drummer")
@@ -138,6 +143,8 @@ class PhysicsCore:
         self._last_skeleton = -math.inf
         self._last_skip_warning = -math.inf
         self._poses_sent = 0
+        self.score_player = ScorePlayer(self)
+        """Score control messages -> gesture plans for the drummer (services/physics/score_player.py)."""
 
     # ---------------------------------------------------------------- Core protocol
 
@@ -183,15 +190,22 @@ class PhysicsCore:
             return [Outgoing(self.skeleton(), "reply")]
         if isinstance(message, PhysicsReset):
             self.scene.reset()
+            self.score_player.reset()
             return []
         if isinstance(message, PhysicsControlMode):
             self.settings = self.settings.model_copy(update={"control": message.mode})
+        if isinstance(message, PhysicsPosture):  # graphics' pose editor: a separate handler (posture.py)
+            apply_posture(self, message)
+            return []
         if isinstance(message, PhysicsStrike):
             if not isinstance(self.scene, StrikeScene):
                 raise TargetError("/batteur/physics/strike needs the strike scene")
             if message.time < self.time + self.world.dt:
                 raise TargetError(f"strike at {message.time:.4f} s is in the past (now {self.time:.4f} s)")
             self.scene.schedule([Strike(message.time, message.velocity)])
+            return []
+        if isinstance(message, SCORE_MESSAGES):  # score player (its errors are ValueErrors: rejected and logged)
+            self.score_player.handle(message, now)
             return []
         handler = getattr(self.scene, "handle", None)
         if handler is not None:
@@ -202,8 +216,9 @@ class PhysicsCore:
 
     @property
     def late(self) -> int:
-        """Steps skipped in live mode because the simulation fell behind the rig clock (Health.late)."""
-        return self.skipped_steps
+        """Health.late: steps skipped in live mode (the simulation fell behind the rig clock) plus score notes
+        that arrived too late to be prepared (``score_player.late_notes``)."""
+        return self.skipped_steps + self.score_player.late_notes
 
     @property
     def time(self) -> float:

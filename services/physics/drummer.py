@@ -200,12 +200,23 @@ class DrummerScene:
         self.rest = self.controller.clamp_targets(self.rest)
         self.controller.rest = self.rest.copy()
         self.controller.mode = settings.control
+        self.control_every = max(1, round(settings.rate_hz / settings.control_rate_hz))
+        """Physics steps per full control update (1: every step)."""
+        self.controller.control_dt = self.control_every * world.dt
+        self._steps_to_update = 0
+        self._last_update_s = 0.0
+        self._touching_at_update: frozenset[str] = frozenset()
         self.body.set_state(self.rest)
         self._kin: tuple[World, Body] | None = None
         self._kin_q = self.rest.copy()
         self.limb_tracks: dict[str, Track] = {limb: Track(3) for limb in LIMBS}
         self.joint_track = Track(N_DOF)
+        hihat_pedal = self.kit_bodies.hihat.pedal if self.kit_bodies.hihat is not None else None
+        self._beater_pedals = [pedal for pedal in self.kit_bodies.pedals.values() if pedal is not hihat_pedal]
+        """Pedals a resting foot must not press (their beaters would rest on the head); the hi-hat foot presses
+        its pedal to the plan's depth (a closed hi-hat is held closed by the foot)."""
         self.tracker = ContactTracker(world, self.kit_bodies)
+        self.tracker.instrument_every = self.control_every
         for side in ("left", "right"):
             self.tracker.add_striker(Striker(self.body.id, self.body.link_index[f"{side}_stick"], f"{side}_stick",
                                              stick=self.spec.stick, side=side))
@@ -402,6 +413,7 @@ class DrummerScene:
         self.controller.rest = self.rest.copy()
 
     def reset(self) -> None:
+        self._steps_to_update = 0
         for track in self.limb_tracks.values():
             track.clear()
         self.joint_track.clear()
@@ -485,9 +497,11 @@ class DrummerScene:
         base[i_neck] = float(np.clip(pitch / 2, -0.5, 0.3))
         base[i_head] = float(np.clip(pitch / 2 - nod, -0.5, 0.3))
 
-    def passive_torques(self) -> np.ndarray:
-        """Fulcrum spring-damper torques (fingers), N m, for [left x, left z, right x, right z]."""
-        q, qd = self.body.passive_state()
+    def passive_torques(self, q: np.ndarray | None = None, qd: np.ndarray | None = None) -> np.ndarray:
+        """Fulcrum spring-damper torques (fingers), N m, for [left x, left z, right x, right z], at the fulcrum
+        angles ``q`` (rad) and velocities ``qd`` (rad/s) (default: read them)."""
+        if q is None or qd is None:
+            q, qd = self.body.passive_state()
         k = []
         for side in ("left", "right"):
             g = grip_for(self.grip[side], side)
@@ -498,9 +512,25 @@ class DrummerScene:
         return -ks * q - kd * qd
 
     def pre_step(self, t_next: float) -> None:
-        """Compute and apply this step's torques for the state at the start of the step ending at ``t_next``."""
+        """Compute and apply this step's torques for the state at the start of the step ending at ``t_next``.
+
+        A full control update (targets, IK, inverse dynamics, limits) every ``control_every`` steps; the steps
+        between keep its torques with the PD's correction for the state (:meth:`Controller.apply_between`),
+        the fingers' springs and the kit's springs at every step.
+        """
+        sticks_touching = frozenset(self.tracker.touching)
+        if self._steps_to_update > 0 and self.controller.can_hold() and sticks_touching == self._touching_at_update:
+            self._steps_to_update -= 1
+            theta, theta_dot, pq, pqd = self.body.full_state()
+            self.controller.apply_between(theta, theta_dot, t_next - self._last_update_s,
+                                          self.passive_torques(pq, pqd))
+            self.kit_bodies.pre_step(self.world, update=False)
+            return
+        self._steps_to_update = self.control_every - 1
+        self._last_update_s = t_next
+        self._touching_at_update = sticks_touching  # a stick touching or leaving a surface: update at once
         self.body.update()
-        theta, theta_dot = self.body.state()
+        theta, theta_dot, pq, pqd = self.body.full_state()
         touching = {f"{side}_hand" for side in ("left", "right") if f"{side}_stick" in self.tracker.touching}
         targets = self.cartesian_targets(t_next)
         c = self.world.client
@@ -510,7 +540,7 @@ class DrummerScene:
                 continue  # a pedal stroke: the foot drives the footboard down (its end stop and the beater stop it)
             foot = self.body.link_index[limb]
             if any(c.getContactPoints(bodyA=self.body.id, bodyB=pedal.body, linkIndexA=foot)
-                   for pedal in self.kit_bodies.pedals.values()):
+                   for pedal in self._beater_pedals):
                 touching.add(limb)
         self.controller.touching = touching
         self.last_targets = targets
@@ -520,7 +550,7 @@ class DrummerScene:
         else:
             theta_t, theta_dot_t = self.joint_reference(t_next, targets)
         self.last_joint_target = (theta_t, theta_dot_t)
-        self.controller.apply(theta, theta_dot, theta_t, theta_dot_t, self.passive_torques())
+        self.controller.apply(theta, theta_dot, theta_t, theta_dot_t, self.passive_torques(pq, pqd))
         self.kit_bodies.pre_step(self.world)
 
 

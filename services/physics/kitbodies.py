@@ -76,6 +76,10 @@ def contact_parameters(obj: KitObject) -> ContactParameters:
     return ContactParameters(stiffness=30000.0, damping=60.0 * (1.0 - e) + 5.0, friction=0.9)
 
 
+HIHAT_GAP_RESOLUTION_M = 1e-5
+"""The hi-hat rod's motor target is re-sent when the pedal moved the gap by more than this, metres."""
+
+
 @dataclass
 class Spring:
     """An explicit spring-damper on one joint: tau = -k (q - rest) - c q_dot (N m/rad, N m s/rad)."""
@@ -85,6 +89,9 @@ class Spring:
     stiffness: float
     damping: float
     rest: float = 0.0
+    fast: bool = False
+    """Updated at every physics step (a pedal's return spring under the foot); slow springs (cymbals swinging
+    at about 1 Hz) may keep their torque between control updates."""
 
 
 @dataclass
@@ -129,32 +136,49 @@ class KitBodies:
     hihat: HiHat | None = None
     pose_links: list[tuple[str, int, int]] = field(default_factory=list)
     """(name, body, link) of every kit link the graphics rate publishes."""
-    _spring_groups: list[tuple[int, list[int], np.ndarray, np.ndarray, np.ndarray]] | None = None
+    _spring_groups: list[tuple[int, bool, list[int], np.ndarray, np.ndarray, np.ndarray]] | None = None
+    _spring_torques: list[list[float]] = field(default_factory=list)
+    _hihat_gap: float = -1.0
 
-    def pre_step(self, world: World) -> None:
-        """Apply the spring torques and the hi-hat rod coupling for the next step."""
+    def pre_step(self, world: World, update: bool = True) -> None:
+        """Apply the spring torques and the hi-hat rod coupling for the next step.
+
+        ``update=False`` recomputes only the fast springs (pedals) and re-applies the slow ones' last torques
+        (PyBullet clears applied torques after every step): the cymbals swing at about 1 Hz, so the drummer's
+        control rate is fast enough for them.
+        """
         c = world.client
         if self._spring_groups is None:
-            groups: dict[int, list[Spring]] = {}
+            groups: dict[tuple[int, bool], list[Spring]] = {}
             for s in self.springs:
-                groups.setdefault(s.body, []).append(s)
+                groups.setdefault((s.body, s.fast), []).append(s)
             self._spring_groups = [
-                (body, [s.joint for s in group], np.array([s.stiffness for s in group]),
+                (body, fast, [s.joint for s in group], np.array([s.stiffness for s in group]),
                  np.array([s.damping for s in group]), np.array([s.rest for s in group]))
-                for body, group in groups.items()
+                for (body, fast), group in groups.items()
             ]
-        for body, joints, k, d, rest in self._spring_groups:
-            states = c.getJointStates(body, joints)
-            q = np.array([s[0] for s in states])
-            qd = np.array([s[1] for s in states])
-            c.setJointMotorControlArray(body, joints, p.TORQUE_CONTROL, forces=(-k * (q - rest) - d * qd).tolist())
+            self._spring_torques = [[] for _ in self._spring_groups]
+        for g, (body, fast, joints, k, d, rest) in enumerate(self._spring_groups):
+            if update or fast or not self._spring_torques[g]:
+                states = c.getJointStates(body, joints)
+                q = np.array([s[0] for s in states])
+                qd = np.array([s[1] for s in states])
+                self._spring_torques[g] = (-k * (q - rest) - d * qd).tolist()
+            c.setJointMotorControlArray(body, joints, p.TORQUE_CONTROL, forces=self._spring_torques[g])
+        self._hihat_coupling(world)
+
+    def _hihat_coupling(self, world: World) -> None:
+        """The hi-hat's top follows its pedal: the rod's motor target is the gap the pedal leaves."""
+        c = world.client
         hh = self.hihat
         if hh is not None:
             press = hh.pedal.press(world) if hh.pedal is not None else 0.0
             gap = HIHAT_MAX_GAP_M * hh.rest_opening * (1.0 - press)
-            c.setJointMotorControl2(
-                hh.top_body, hh.rod_joint, p.POSITION_CONTROL, targetPosition=gap, force=400.0, positionGain=1.0
-            )
+            if abs(gap - self._hihat_gap) > HIHAT_GAP_RESOLUTION_M:  # a motor keeps its target: send changes
+                self._hihat_gap = gap
+                c.setJointMotorControl2(
+                    hh.top_body, hh.rod_joint, p.POSITION_CONTROL, targetPosition=gap, force=400.0, positionGain=1.0
+                )
 
     def hihat_opening(self, world: World) -> float:
         """Current hi-hat gap as a fraction of the maximum (0 closed ... 1 fully open)."""
@@ -292,7 +316,8 @@ def _pedal(world: World, kb: KitBodies, obj: KitObject) -> None:
     foot = names["footboard"]
     world.client.resetJointState(body, foot, PEDAL_REST_ANGLE)
     pedal = Pedal(obj.id, body, foot, foot)
-    kb.springs.append(Spring(body, foot, stiffness=PEDAL_SPRING_NM_PER_RAD, damping=0.3, rest=PEDAL_REST_ANGLE))
+    kb.springs.append(Spring(body, foot, stiffness=PEDAL_SPRING_NM_PER_RAD, damping=0.3, rest=PEDAL_REST_ANGLE,
+                             fast=True))
     _set_contact(world, body, foot, obj)
     kb.pose_links.append((f"kit.{obj.id}.footboard", body, foot))
     if "beater" in names:

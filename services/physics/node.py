@@ -3,25 +3,37 @@
     batteur physics                                   # the drummer at the default kit, 1 kHz
     batteur physics --scene strike --strike-period 0.5 --strike-velocity 3
     batteur physics --kit double_pedal --left-handed --control joint_pd --grip german
+    batteur physics --score groove.mid --play-at 1.0                 # play a score from rig time 1 s
+    batteur physics --score-dir ~/scores                              # the score library for /batteur/score/load
 
 Contacts go to ``interaction`` every step while in contact; poses to
 ``graphics`` at ``--pose-rate-hz``. Targets, control mode, gains, grip and
-reset arrive as /batteur/physics/... messages (docs/physics.md).
+reset arrive as /batteur/physics/... messages (docs/physics.md). Scores arrive as
+/batteur/score/... messages (load by name from the ``--score-dir`` library,
+transport, live notes, style, tempo: the score player,
+services/physics/score_player.py); ``--score FILE`` loads one at start and
+``--play-at SECONDS`` plays it from that rig time (the rig's ``--score`` uses
+these), without any message.
 """
 
 from __future__ import annotations
 
 import argparse
+import logging
 from collections.abc import Sequence
-from typing import Literal
+from pathlib import Path
+from typing import Annotated, Any, Literal
 
-from pydantic import Field
+from pydantic import Field, field_validator
+from pydantic_settings import NoDecode
 
 from common.config import NodeSettings
 from common.kit import EventType
 from common.messages.physics import ControlModeName
-from common.runtime import run_node
+from common.runtime import Node, run_node
 from services.physics.core import PhysicsCore, PhysicsSettings
+
+log = logging.getLogger("batteur.physics")
 
 
 class PhysicsNodeSettings(NodeSettings):
@@ -38,22 +50,46 @@ class PhysicsNodeSettings(NodeSettings):
     height_m: float = Field(default=1.75, ge=1.2, le=2.2, description="drummer's height, metres")
     mass_kg: float = Field(default=73.0, ge=35, le=150, description="drummer's mass, kilograms")
     pose_rate_hz: float = Field(default=60.0, ge=0, le=240, description="pose publishing rate, Hz")
+    control_rate_hz: float = Field(default=PhysicsSettings.model_fields["control_rate_hz"].default, ge=50,
+                                   le=10000, description="drummer: full control updates (IK, inverse dynamics) "
+                                   "per second, Hz; torques are corrected at every physics step between")
     strike_event: EventType = Field(default=EventType.SNARE, description="strike scene: the event's hit point")
     strike_period: float = Field(default=0.0, ge=0, le=60,
                                  description="strike scene: strike every this many seconds (0: only on request)")
     strike_velocity: float = Field(default=3.0, gt=0, le=30, description="strike scene: tip speed, m/s")
+    score: str = Field(default="", description="drummer: score file (MIDI or text) loaded at start; its "
+                       "directory joins the score library")
+    play_at: float | None = Field(default=None, ge=0, le=1e6, description="rig time at which --score starts "
+                                  "playing (its beginning), seconds (unset: load only)")
+    score_dir: Annotated[list[str], NoDecode] = Field(
+        default_factory=list, description="score library directory: /batteur/score/load names are looked up here")
+
+    @field_validator("score_dir", mode="before")
+    @classmethod
+    def _score_dirs(cls, value: Any) -> Any:
+        """BATTEUR_SCORE_DIR and config files may give several directories, comma-separated."""
+        if isinstance(value, str):
+            return [v.strip() for v in value.split(",") if v.strip()]
+        return value
 
 
 def make_core(settings: NodeSettings, extra: argparse.Namespace) -> PhysicsCore:
     """Build the core (live mode); ValueError (printed, exit 2) for a bad kit or setting."""
     if not isinstance(settings, PhysicsNodeSettings):
         settings = PhysicsNodeSettings.model_validate(settings.model_dump())
+    if settings.play_at is not None and not settings.score:
+        raise ValueError("--play-at needs --score")
+    if settings.score and settings.scene != "drummer":
+        raise ValueError("--score needs the drummer scene")
+    if settings.score and not Path(settings.score).expanduser().is_file():
+        raise ValueError(f"score {settings.score!r}: no such file")
     try:
         core_settings = PhysicsSettings(
             scene=settings.scene,
             mode="live",
             rate_hz=settings.rate_hz or 1000.0,
             pose_rate_hz=settings.pose_rate_hz,
+            control_rate_hz=settings.control_rate_hz,
             kit=settings.kit,
             left_handed=settings.left_handed,
             strike_event=settings.strike_event,
@@ -64,9 +100,35 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace) -> PhysicsCore:
             strike_period_s=settings.strike_period,
             strike_velocity=settings.strike_velocity,
         )
-        return PhysicsCore(core_settings)
+        core = PhysicsCore(core_settings)
     except FileNotFoundError as exc:
         raise ValueError(str(exc)) from None
+    player = core.score_player
+    player.library = [Path(d).expanduser() for d in settings.score_dir]
+    if settings.scene == "drummer":
+        _ = player.preparation_s  # loads the gesture database now (about 1 s), not in the first score message
+    if settings.score:
+        try:
+            player.load(settings.score, trusted=True)  # a command-line path: trusted, unlike a message's
+        except ValueError as exc:
+            core.close()
+            raise ValueError(str(exc)) from None
+        player.library.append(Path(settings.score).expanduser().resolve().parent)
+    return core
+
+
+def start_score(node: Node) -> None:
+    """Once the node listens: play ``--score`` from rig time ``--play-at`` (notes already too close are
+    counted late; a score that cannot be played is logged, the node keeps running)."""
+    settings, core = node.settings, node.core
+    if not isinstance(settings, PhysicsNodeSettings) or not isinstance(core, PhysicsCore):
+        return
+    if not settings.score or settings.play_at is None:
+        return
+    try:
+        core.score_player.play(settings.play_at, 0.0, node.clock.now())
+    except ValueError as exc:
+        log.error("cannot play %s: %s", settings.score, exc)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -76,6 +138,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         argv,
         description="Batteur physics: the simulated percussionist and kit (PyBullet), contacts and poses.",
         settings_cls=PhysicsNodeSettings,
+        setup=start_score,
     )
 
 

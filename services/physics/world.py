@@ -8,8 +8,10 @@ bit-identical results (offline determinism).
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pybullet as p
@@ -36,6 +38,20 @@ class WorldSettings:
     gravity: float = 9.81
 
 
+class BoundClient(bullet_client.BulletClient):
+    """A :class:`BulletClient` that binds each pybullet function to its client once.
+
+    The stock client builds a ``functools.partial`` on every attribute access (about 1 us); the physics
+    step makes dozens of calls, so the bound functions are kept.
+    """
+
+    def __getattr__(self, name: str) -> Any:
+        attribute = super().__getattr__(name)
+        if name != "disconnect" and isinstance(attribute, functools.partial):
+            self.__dict__[name] = attribute
+        return attribute
+
+
 class World:
     """A PyBullet DIRECT client configured for Batteur (z up, fixed step)."""
 
@@ -43,7 +59,7 @@ class World:
         self.settings = settings or WorldSettings()
         if not (0 < self.settings.timestep_s <= 0.01):
             raise ValueError(f"timestep_s must be in (0, 0.01] seconds, got {self.settings.timestep_s}")
-        self.client = bullet_client.BulletClient(connection_mode=p.DIRECT)
+        self.client: Any = BoundClient(connection_mode=p.DIRECT)
         self.client.setGravity(0.0, 0.0, -self.settings.gravity)
         self.client.setPhysicsEngineParameter(
             fixedTimeStep=self.settings.timestep_s,

@@ -9,6 +9,7 @@ from common.gesture.planner import plan_score
 from common.kit import EventType, load_kit
 from common.messages import Contact
 from common.score.events import DrumEvent, Score
+from services.interaction.detect import DetectionConfig
 from services.physics.core import PhysicsCore
 
 BEAT_S = 0.6  # 100 bpm
@@ -25,13 +26,15 @@ def _rock_bar(t0: float = 0.5) -> Score:
 
 
 def _onsets(contacts: list[Contact]) -> list[tuple[float, str]]:
-    """(time s, instrument) of each contact episode: a striker's first contact after a gap."""
+    """(time s, instrument) of each contact episode that is a strike: a striker's first contact after a gap,
+    arriving faster than interaction's slowest strike (a hi-hat closing gently under the foot is no note)."""
+    slowest = DetectionConfig().strike_velocity_min
     last: dict[tuple[str, str], float] = {}
     out = []
     for c in contacts:
         striker = c.part.split("_")[0] if "stick" in c.part else c.part  # tip and shaft of one stick: one striker
         key = (c.instrument, striker)
-        if key not in last or c.time - last[key] > ONSET_GAP_S:
+        if (key not in last or c.time - last[key] > ONSET_GAP_S) and c.normal_velocity >= slowest:
             out.append((c.time, c.instrument))
         last[key] = c.time
     return out
