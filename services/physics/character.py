@@ -65,6 +65,10 @@ percent of the inertia each joint moves.
 """
 FULCRUM_ARMATURE_KGM2 = 3e-4
 """Inertia of the dummy link between a stick's two fulcrum axes (the fingers around the stick), kg m^2."""
+STICK_GRIP_TILT_RAD = math.radians(45.0)
+"""The stick leaves the fist between thumb and index, tilted this much from square to the hand toward the
+fingers (about in line with the forearm when the wrist is a little flexed). Square to the hand (0) left the
+wrists at their flexion limit at rest, and loud strokes whipped the stick into a second, harder touch."""
 SEAT_MASS_KG = 20.0
 """Mass of the base link: the throne's cushion under the pelvis, pinned to the throne (not part of the body).
 Heavy so that the seat joint's reaction torque does not spin a light base against the pin constraint."""
@@ -208,8 +212,10 @@ def build_character(spec: CharacterSpec) -> CharacterModel:
         pitch_link = f"{side}_fulcrum"
         fingers = FULCRUM_ARMATURE_KGM2
         robot.add_link(Link(pitch_link, Inertial(DUMMY_MASS_KG, inertia=(fingers, fingers, fingers, 0.0, 0.0, 0.0))))
+        tilt = STICK_GRIP_TILT_RAD  # the stick leaves the fist toward the fingers' side, not square to the hand
         robot.add_joint(Joint(f"{side}_fulcrum_x", "revolute", f"{side}_hand", pitch_link, xyz=fulcrum,
-                              axis=(1.0, 0.0, 0.0), lower=-0.8, upper=0.8, effort=20.0, velocity=100.0))
+                              rpy=(-tilt, 0.0, 0.0), axis=(1.0, 0.0, 0.0), lower=-0.8, upper=0.8, effort=20.0,
+                              velocity=100.0))
         spec.stick.add_to(robot, f"{side}_stick", pitch_link,
                           Joint(f"{side}_fulcrum_z", "revolute", pitch_link, f"{side}_stick", axis=(0.0, 0.0, 1.0),
                                 lower=-0.8, upper=0.8, effort=20.0, velocity=100.0))
@@ -220,7 +226,8 @@ def build_character(spec: CharacterSpec) -> CharacterModel:
         aim = f"{side}_stick_aim"
         robot.add_link(Link(aim, Inertial(1e-4, inertia=(1e-9, 1e-9, 1e-9, 0.0, 0.0, 0.0))))
         robot.add_joint(Joint(f"{aim}_joint", "fixed", f"{side}_hand", aim,
-                              xyz=(fulcrum[0], fulcrum[1] + spec.stick.tip_offset, fulcrum[2])))
+                              xyz=(fulcrum[0], fulcrum[1] + spec.stick.tip_offset * math.cos(tilt),
+                                   fulcrum[2] - spec.stick.tip_offset * math.sin(tilt))))
         model.effectors[f"{side}_hand"] = aim
         model.tips[f"{side}_hand"] = f"{side}_stick_tip"
 
