@@ -63,7 +63,7 @@ class PhysicsSettings(BaseModel):
     scene: Literal["strike", "drummer"] = Field(default="drummer", description="what to simulate")
     mode: Literal["offline", "live"] = Field(default="offline", description="time handling, see PhysicsCore")
     rate_hz: float = Field(default=1000.0, ge=100, le=10000, description="physics step rate, Hz")
-    control_rate_hz: float = Field(default=500.0, ge=50, le=10000,
+    control_rate_hz: float = Field(default=1000.0, ge=50, le=10000,
                                    description="drummer: full control updates (IK, inverse dynamics) per second, "
                                                "Hz; the PD corrects the torques at every physics step between")
     pose_rate_hz: float = Field(default=60.0, ge=0, le=240, description="pose publishing rate, Hz (0: off)")
