@@ -52,6 +52,11 @@ MOVE_CLEARANCE = 0.3
 """Extra lift per metre of horizontal move to the next target, metres."""
 HOLD_RISE = 0.08
 """Seconds in which a bass-drum foot lets its footboard back up after a stroke."""
+FOOT_RISE_SPEED = 0.6
+"""A foot's lift above its pedal (rest height plus stroke lift) is at most this times the time since its
+previous stroke, m/s. Without it a kick double 90 ms apart was planned as a 9 cm lift and fall (4.5 m/s) and
+played at 10 m/s whatever its velocity; with it (10 Groove validation files, one run) the kick's velocity
+ranking went from Spearman 0.29 to 0.36 and the pooled one from 0.83 to 0.86, F@25 unchanged (0.91)."""
 HOLD_FALL = 0.12
 """Seconds before a stroke over which the foot's rest height blends into the stroke."""
 TAIL_RISE = 0.25
@@ -230,10 +235,16 @@ def _limb_knots(
             away = np.linalg.norm((st.target - p)[:2])
             need = CLEARANCE + REBOUND_CLEARANCE * float(np.linalg.norm(v)) + MOVE_CLEARANCE * float(away)
             lift = max(lift, min(need, 0.9 * (st.time - t)))
+        rest_rise = hold if i > 0 else 0.0
+        if cycle is not None and lift + rest_rise > 0:
+            # a foot lifts only as high as it can rise and fall in the time it has (fast doubles are heel-toe
+            # strokes from the footboard, not full lifts at several metres per second)
+            scale = min(1.0, FOOT_RISE_SPEED * (st.time - t) / (lift + rest_rise))
+            lift, rest_rise = lift * scale, rest_rise * scale
         # rebound not yet finished: the lift also has to account for where we start
         tt, pp, vv = _segment(
             t, p, v, n, st.time, st.target, strike_v, st.normal, lift, unit, cfg.knots_per_second, cycle,
-            hold if i > 0 else 0.0,
+            rest_rise,
         )
         times.append(tt[:-1])
         pos.append(pp[:-1])
