@@ -18,6 +18,9 @@ tip and shaft, share one track: :meth:`Segmenter.striker_of`):
   or **buzz** (the following ones) of the same stroke; otherwise a **strike**.
   Bounces and buzz are real strikes and sound; their kind is reported.
 * A contact slower than ``strike_velocity_min`` is a **touch**: no impact.
+* A contact of a rattle striker (``rattle_parts``: a closed hi-hat's top plate
+  on its bottom) within ``rattle_window`` after another striker's impact on the
+  same instrument is that stroke's **rattle**: no impact (counted).
 * A contact (touch or strike) lasting ``press_after`` or longer is a **press**:
   :class:`DampingChange` on, and off when it ends. A strike that turns into a
   press is a **dead** stroke: its figures are final when the press begins.
@@ -54,6 +57,13 @@ class DetectionConfig(BaseModel):
     bounce_window: float = Field(default=0.06, ge=0, le=1, description="a faster re-strike is a bounce, s")
     bounce_ratio: float = Field(default=0.85, ge=0, le=1, description="a bounce is slower than this x previous")
     press_after: float = Field(default=0.025, gt=0, le=2, description="contact this long is a press, s")
+    rattle_window: float = Field(default=0.08, ge=0, le=1,
+                                 description="a rattle striker's contact this soon after another striker's impact "
+                                             "on the same instrument is that stroke's rattle, s")
+    rattle_parts: tuple[str, ...] = Field(
+        default=("hihat_top",),
+        description="strikers that rattle when the instrument is struck (a closed hi-hat's top plate on its bottom)",
+    )
     default_step: float = Field(default=0.001, gt=0, le=0.1, description="physics step until measured, s")
     part_suffixes: tuple[str, ...] = Field(
         default=("_tip", "_shaft", "_shoulder", "_butt"),
@@ -165,6 +175,7 @@ class DetectionStats:
     unknown_instrument: int = 0
     out_of_order: int = 0
     reopened: int = 0  # contacts the receiver's clock ended too early, continued by later steps
+    rattles: int = 0  # a rattle striker's contacts right after a stroke on its instrument (no impact)
     impacts: Counter[str] = field(default_factory=Counter)  # by kind
     by_instrument: dict[str, Counter[str]] = field(default_factory=dict)  # instrument -> kind -> count
     dampings: int = 0
@@ -211,6 +222,8 @@ class Segmenter:
         self.step_dt = self.config.default_step
         self._objects = {o.id: o for o in kit.objects}
         self._tracks: dict[tuple[str, str], _Track] = {}
+        self._struck: dict[str, float] = {}
+        """instrument -> time of its last impact by a striker that does not rattle (seconds)."""
         self._next_seq = seq_start % SEQ_LIMIT
         self._next_damping_seq = seq_start % SEQ_LIMIT
         self._physics_time = -math.inf
@@ -320,6 +333,14 @@ class Segmenter:
         if velocity < self.config.strike_velocity_min:
             self.stats.touches += 1
             return
+        striker = self.striker_of(c.part)
+        if striker in self.config.rattle_parts:
+            if c.time - self._struck.get(c.instrument, -math.inf) <= self.config.rattle_window:
+                self.stats.rattles += 1
+                self.stats.touches += 1  # a contact that makes no impact (InteractionStats.touches)
+                return
+        else:
+            self._struck[c.instrument] = c.time
         kind = self._classify(track, c.time, velocity)
         track.prev_velocity = velocity
         r, theta = polar(track.obj, c.local_x, c.local_y)

@@ -182,6 +182,18 @@ def test_two_sticks_at_once_are_two_impacts_and_tracks_do_not_interfere() -> Non
     assert len(ends) == 3
 
 
+def test_closed_hihat_plates_rattling_after_a_stick_stroke_are_not_a_strike_but_a_pedal_chick_is() -> None:
+    stick = strike(StreamBuilder(KIT, "hihat", "right_stick_tip"), t=1.0, velocity=3.0)
+    rattle = strike(StreamBuilder(KIT, "hihat", "hihat_top"), t=1.008, velocity=0.3)  # plates knocked together
+    chick = strike(StreamBuilder(KIT, "hihat", "hihat_top"), t=1.5, velocity=0.3)  # the foot closes the hi-hat
+    impacts, _, _ = run(merged(stick, rattle, chick))
+    assert [(round(i.time, 3), i.part) for i in impacts] == [(1.0, "right_stick_tip"), (1.5, "hihat_top")]
+    window = DetectionConfig().rattle_window
+    late = strike(StreamBuilder(KIT, "hihat", "hihat_top"), t=1.0 + window + 0.01, velocity=0.3)
+    stick_again = strike(StreamBuilder(KIT, "hihat", "right_stick_tip"), t=1.0, velocity=3.0)
+    assert len(run(merged(stick_again, late))[0]) == 2  # after the window: a chick of its own
+
+
 def test_unknown_instrument_and_throne_are_counted_not_impacts() -> None:
     segmenter = Segmenter(KIT)
     base = strike(StreamBuilder(KIT, "snare"), t=0.0).contacts[0]

@@ -26,16 +26,22 @@ def _rock_bar(t0: float = 0.5) -> Score:
 
 
 def _onsets(contacts: list[Contact]) -> list[tuple[float, str]]:
-    """(time s, instrument) of each contact episode that is a strike: a striker's first contact after a gap,
-    arriving faster than interaction's slowest strike (a hi-hat closing gently under the foot is no note)."""
-    slowest = DetectionConfig().strike_velocity_min
+    """(time s, instrument) of each contact episode that is a strike, as interaction segments them: a striker's
+    first contact after a gap, arriving faster than the slowest strike (a hi-hat closing gently under the foot
+    is no note), and not a closed hi-hat's plates rattling right after a stick stroke."""
+    detection = DetectionConfig()
     last: dict[tuple[str, str], float] = {}
+    struck: dict[str, float] = {}
     out = []
     for c in contacts:
         striker = c.part.split("_")[0] if "stick" in c.part else c.part  # tip and shaft of one stick: one striker
         key = (c.instrument, striker)
-        if (key not in last or c.time - last[key] > ONSET_GAP_S) and c.normal_velocity >= slowest:
-            out.append((c.time, c.instrument))
+        if (key not in last or c.time - last[key] > ONSET_GAP_S) and c.normal_velocity >= detection.strike_velocity_min:
+            if c.part not in detection.rattle_parts:
+                struck[c.instrument] = c.time
+                out.append((c.time, c.instrument))
+            elif c.time - struck.get(c.instrument, -1.0) > detection.rattle_window:  # not the plates' rattle
+                out.append((c.time, c.instrument))
         last[key] = c.time
     return out
 

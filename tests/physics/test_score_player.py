@@ -82,17 +82,21 @@ def test_the_live_plan_is_the_render_plan_and_sounds_the_same(played: dict[str, 
     assert [(s.limb, s.event, round(s.time, 6)) for s in live.strokes] == \
         [(s.limb, s.event, round(s.time + offset, 6)) for s in plan.strokes]
     offline = run_score(score, assignment, plan, kit, opts).impacts
-    # the same notes: every offline impact on a note has a live one on its instrument within 5 ms, at a similar
-    # speed (the re-hits a loud stroke may add are chaotic: their speed differs between any two runs that differ
-    # at all, so only their number is compared)
-    assert abs(len(offline) - len(played["impacts"])) <= 1
-    notes = [(s.time + offset, s.object_id) for s in plan.strokes]
-    for i in offline:
-        if not any(obj == i.instrument and abs(i.time - t) <= 0.010 for t, obj in notes):
-            continue
-        twins = [j for j in played["impacts"] if j.instrument == i.instrument and abs(j.time - i.time) <= 0.005]
-        assert twins, f"offline {i.instrument} at {i.time:.3f} s has no live twin"
-        assert min(abs(j.velocity - i.velocity) for j in twins) <= 0.25 * i.velocity + 0.1
+    # the same notes: each planned note sounds offline and live on its instrument within 5 ms of each other, at
+    # a similar speed (soft bounces and plate rattles a few ms after a stroke are chaotic: any two runs that
+    # differ at all differ in them, so only the loudest impact near each note is compared)
+    assert abs(len(offline) - len(played["impacts"])) <= 2
+    for s in plan.strokes:
+        t = s.time + offset
+
+        def loudest(impacts: list[Any], near: float = t, instrument: str = s.object_id) -> Any:
+            mine = [i for i in impacts if i.instrument == instrument and abs(i.time - near) <= 0.010]
+            return max(mine, key=lambda i: i.velocity, default=None)
+
+        off, live = loudest(offline), loudest(played["impacts"])
+        assert off is not None and live is not None, f"{s.object_id} at {t:.3f} s: offline {off}, live {live}"
+        assert abs(live.time - off.time) <= 0.005
+        assert abs(live.velocity - off.velocity) <= 0.25 * off.velocity + 0.1
 
 
 def test_live_notes_in_time_are_played_late_ones_counted_and_stop_cancels() -> None:
