@@ -19,21 +19,10 @@ from common.kit import Limb, load_kit
 from common.score.events import DrumEvent, Score
 from common.score.limbs import distribute
 from common.score.midi import read_midi
+from tests.gesture.continuity import largest_jumps
 
 DATA = Path(__file__).parent.parent / "data"
 KIT = load_kit()
-
-
-def _continuity(plan: GesturePlan, eps: float = 1e-9) -> tuple[float, float]:
-    """Largest jump (m, m/s) in position and velocity across every knot of every limb (left vs right limit)."""
-    worst_p = worst_v = 0.0
-    for traj in plan.trajectories.values():
-        inner = traj.times[1:-1]
-        p0, v0 = traj.sample_many(inner - eps)
-        p1, v1 = traj.sample_many(inner + eps)
-        worst_p = max(worst_p, float(np.abs(p1 - p0).max(initial=0.0)))
-        worst_v = max(worst_v, float(np.abs(v1 - v0).max(initial=0.0)))
-    return worst_p, worst_v
 
 
 def _max_speed(plan: GesturePlan) -> float:
@@ -72,7 +61,7 @@ def test_plan_continuous_with_contact_at_every_note(groove: Score, algorithm: st
     assignment = distribute(groove, KIT, algorithm)
     plan = plan_gestures(assignment, KIT, groove)
     _check_contacts(plan, [n.time for n in assignment.notes])
-    jump_p, jump_v = _continuity(plan)
+    jump_p, jump_v = largest_jumps(plan)
     # across a knot, +-1 ns: a stroke of 6 m/s reversing in 4 ms accelerates at 3,000 m/s^2 (6e-6 m/s per 2 ns)
     assert jump_p < 1e-7
     assert jump_v < 1e-4
@@ -86,7 +75,7 @@ def test_keyframe_mode_contacts_and_swing(groove: Score) -> None:
     plan = plan_keyframes(assignment, KIT, groove)
     assert plan.mode == "keyframe"
     _check_contacts(plan, [n.time for n in assignment.notes], moving_in=False)
-    jump_p, jump_v = _continuity(plan)
+    jump_p, jump_v = largest_jumps(plan)
     assert jump_p < 1e-7 and jump_v < 1e-4
     # overlap rule: fast notes get one mid frame, so no frame order problems and all within range
     cym = [s for s in plan.cymbal_swings]
@@ -133,7 +122,7 @@ def test_config_grip_and_nuance(grip: Grip) -> None:
     for nuance in Nuance:
         plan = plan_gestures(distribute(score, KIT), KIT, score, PlannerConfig(grip=grip, nuance=nuance))
         assert {s.nuance for s in plan.strokes} == {nuance}
-        assert _continuity(plan)[1] < 1e-4
+        assert largest_jumps(plan)[1] < 1e-4
 
 
 def test_database_covers_grips_nuances_tempi() -> None:
@@ -210,7 +199,7 @@ def test_feet_rest_on_pedals_and_hihat_foot_opens_for_open_notes() -> None:
     resting = hat.sample(0.5).position[2]
     assert resting < hat_pedal[2] + 0.012  # resting on the pedal: closed
     assert hat.sample(1.0).position[2] == pytest.approx(resting + 0.03, abs=1e-3)  # pedal up: open
-    jump_p, jump_v = _continuity(plan)
+    jump_p, jump_v = largest_jumps(plan)
     assert jump_p < 1e-7 and jump_v < 1e-4
 
 

@@ -12,6 +12,7 @@ from common.kit import EventType as E
 from common.kit import Limb, load_kit
 from common.score.events import DrumEvent, Score
 from common.score.limbs import distribute
+from tests.gesture.continuity import largest_jumps
 
 KIT = load_kit()
 
@@ -19,17 +20,6 @@ KIT = load_kit()
 def _plan(events: list[tuple[float, E, float]]) -> tuple[GesturePlan, Score]:
     score = Score(sorted((DrumEvent(t, e, v) for t, e, v in events), key=lambda d: d.time))
     return plan_gestures(distribute(score, KIT, "viterbi"), KIT, score), score
-
-
-def _jumps(plan: GesturePlan, eps: float = 1e-9) -> tuple[float, float]:
-    worst_p = worst_v = 0.0
-    for traj in plan.trajectories.values():
-        inner = traj.times[1:-1]
-        p0, v0 = traj.sample_many(inner - eps)
-        p1, v1 = traj.sample_many(inner + eps)
-        worst_p = max(worst_p, float(np.abs(p1 - p0).max(initial=0.0)))
-        worst_v = max(worst_v, float(np.abs(v1 - v0).max(initial=0.0)))
-    return worst_p, worst_v
 
 
 ROLL = [(0.5 + 0.03 * k, E.SNARE, 0.4) for k in range(12)] + [(0.86, E.SNARE, 0.8)]
@@ -43,7 +33,7 @@ def test_rebound_doubles_are_planned_as_stroke_and_bounce(events: list[tuple[flo
     assert sorted(s.time for s in plan.strokes) == pytest.approx(sorted(t for t, _, _ in events))  # every note
     bounces = [s for s in plan.strokes if s.rebound_double]
     assert bounces
-    jump_p, jump_v = _jumps(plan)
+    jump_p, jump_v = largest_jumps(plan)
     assert jump_p < 1e-7 and jump_v < 1e-4
     for limb in (Limb.LEFT_HAND, Limb.RIGHT_HAND):
         strokes = plan.strokes_of(limb)

@@ -12,6 +12,8 @@ import math
 import socket
 import threading
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -90,6 +92,24 @@ def _wait_for(page: object, spots: list[tuple[float, float]], check: object, tim
         time.sleep(0.1)
 
 
+@contextmanager
+def _open_page(url: str, frames: int) -> Iterator[tuple[Any, list[str]]]:
+    """The page in headless chromium once it has drawn ``frames`` frames: (page, page errors so far)."""
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_FLAGS)
+        page = browser.new_page(viewport={"width": WIDTH, "height": HEIGHT})
+        errors: list[str] = []
+        page.on("pageerror", lambda e: errors.append(str(e)))
+        page.goto(url)
+        page.wait_for_function(f"window.batteur && window.batteur.frames > {frames}", timeout=20000)
+        try:
+            yield page, errors
+        finally:
+            browser.close()
+
+
 def _is_body_blue(patch: np.ndarray) -> bool:
     """The body material is blue (0x4f86c6, lit): blue clearly above red in most pixels."""
     return float(np.mean(patch[:, 2] - patch[:, 0] > 40)) > 0.6
@@ -97,21 +117,13 @@ def _is_body_blue(patch: np.ndarray) -> bool:
 
 @needs_browser
 def test_page_draws_drummer_and_reconnects(graphics_node: GraphicsNodeProcess) -> None:
-    from playwright.sync_api import sync_playwright
-
     drummer = SyntheticDrummer(strokes={}, duration=0.0)
     rest = drummer.pose(0.0)
     head = rest[LINK_NAMES.index("head"), :3] + np.array([0.0, 0.0, 0.09])  # the page draws the head there
     kick = np.asarray(drummer.kit.object("kick").position)
     sender = PoseSender(graphics_node, rest)
     try:
-        with sync_playwright() as p:
-            browser = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_FLAGS)
-            page = browser.new_page(viewport={"width": WIDTH, "height": HEIGHT})
-            errors: list[str] = []
-            page.on("pageerror", lambda e: errors.append(str(e)))
-            page.goto(graphics_node.url)
-            page.wait_for_function("window.batteur && window.batteur.frames > 20", timeout=20000)
+        with _open_page(graphics_node.url, 20) as (page, errors):
             head_px = project(head, EYE, TARGET, 45, WIDTH, HEIGHT)
             kick_px = project(kick, EYE, TARGET, 45, WIDTH, HEIGHT)
             head_patch, kick_patch, sky = _wait_for(page, [head_px, kick_px, (WIDTH * 0.5, 12)],
@@ -145,7 +157,6 @@ def test_page_draws_drummer_and_reconnects(graphics_node: GraphicsNodeProcess) -
             frames = page.evaluate("window.batteur.frames")
             page.wait_for_function(f"window.batteur.frames > {frames + 10}", timeout=10000)
             assert errors == []
-            browser.close()
     finally:
         sender.stop()
 
@@ -153,8 +164,6 @@ def test_page_draws_drummer_and_reconnects(graphics_node: GraphicsNodeProcess) -
 @needs_browser
 def test_pose_editor_poses_the_57_dof_body_and_drives_physics(tmp_path: Path) -> None:
     """Editor open: sliders are physics' DOF; moving one bends the drawn body and sends physics the posture."""
-    from playwright.sync_api import sync_playwright
-
     physics = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)  # stands in for the physics node
     physics.bind(("127.0.0.1", 0))
     physics.settimeout(0.2)
@@ -174,13 +183,7 @@ def test_pose_editor_poses_the_57_dof_body_and_drives_physics(tmp_path: Path) ->
         return out
 
     try:
-        with sync_playwright() as p:
-            browser = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_FLAGS)
-            page = browser.new_page(viewport={"width": WIDTH, "height": HEIGHT})
-            errors: list[str] = []
-            page.on("pageerror", lambda e: errors.append(str(e)))
-            page.goto(node.url)
-            page.wait_for_function("window.batteur && window.batteur.frames > 10", timeout=20000)
+        with _open_page(node.url, 10) as (page, errors):
             page.click("#edit-toggle")
             page.wait_for_function("window.batteur.poser && window.batteur.poser.joints", timeout=10000)
             poser = page.evaluate("window.batteur.poser")
@@ -208,7 +211,6 @@ def test_pose_editor_poses_the_57_dof_body_and_drives_physics(tmp_path: Path) ->
             page.click("#edit-toggle")  # closing the editor releases the body
             assert received(PhysicsReset), "closing the editor sent no /batteur/physics/reset"
             assert errors == []
-            browser.close()
     finally:
         sender.stop()
         node.close()
