@@ -413,7 +413,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--latency", type=float, default=0.05, help="sound latency window, seconds (default 0.05)")
     parser.add_argument("--control-rate", type=float, default=None, metavar="HZ",
                         help="drummer's full control updates (IK, inverse dynamics) per second; the torques are "
-                             "corrected at every 1 ms physics step between (default: physics' default, 1000: every step)")
+                        "corrected at every 1 ms physics step between (default: physics' default, 1000: every step)")
     parser.add_argument("--video", action="store_true",
                         help="also write DIR/performance.mp4: the motion rendered headless (PyBullet TinyRenderer) "
                         "with the WAV muxed in sync (needs ffmpeg; score mode)")
