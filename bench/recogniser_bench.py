@@ -7,9 +7,10 @@ F-measure, and the transcription speed as a multiple of real time.
 Goals (issue 10): onsets F >= 0.93; kick, snare, hi-hat each F >= 0.85; speed >= 50x.
 The hi-hat row pools closed and open hi-hat (the open/closed split is shown too).
 
-Needs Debian's hydrogen-drumkits (the kit) and mir_eval. Usage::
+Needs Debian's hydrogen-drumkits (the kit; exits 1 with an install hint without it) and mir_eval. Usage::
 
     python bench/recogniser_bench.py [--files 30] [--seconds 60] [--augment] [--live]
+    python bench/recogniser_bench.py --kit Millo_MultiLayered2 --split train   # the validation kit, to tune on
 """
 
 from __future__ import annotations
@@ -31,7 +32,14 @@ from services.recogniser.classes import CLASS_NAMES, class_of_note  # noqa: E402
 from services.recogniser.core import LiveRecogniser  # noqa: E402
 from services.recogniser.model import MODEL_PATH, load_model  # noqa: E402
 from services.recogniser.training.dataset import groove_files  # noqa: E402
-from services.recogniser.training.kits import TEST_KITS, TRAIN_KITS, load_kit  # noqa: E402
+from services.recogniser.training.kits import (  # noqa: E402
+    TEST_KITS,
+    TRAIN_KITS,
+    VALID_KITS,
+    KitsMissingError,
+    load_kit,
+    require_kits,
+)
 from services.recogniser.training.render import Hit, Note, augment, normalise, read_notes, render  # noqa: E402
 from services.recogniser.transcribe import PEAK, transcribe  # noqa: E402
 
@@ -55,18 +63,26 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--files", type=int, default=30, help="validation performances (default 30)")
     ap.add_argument("--seconds", type=float, default=60.0, help="at most this much of each, seconds")
     ap.add_argument("--kit", default=TEST_KITS[0], help="hydrogen kit to render with (default: the held-out one)")
+    ap.add_argument("--split", default="validation", choices=("validation", "train", "test"),
+                    help="Groove split to render (default validation; use train with --kit of VALID_KITS to tune)")
     ap.add_argument("--augment", action="store_true", help="add room, EQ and noise as in training")
     ap.add_argument("--model", type=Path, default=MODEL_PATH)
     ap.add_argument("--seed", type=int, default=7)
     ap.add_argument("--live", action="store_true", help="also score the live core (fed 128-sample blocks)")
     args = ap.parse_args(argv)
-    if args.kit in TRAIN_KITS:
-        print(f"warning: {args.kit} was used for training", file=sys.stderr)
+    try:
+        require_kits([args.kit])
+    except KitsMissingError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
 
     model = load_model(args.model)
+    trained_on = set(model.meta.get("trained_on", TRAIN_KITS))
+    if args.kit in trained_on:
+        print(f"warning: {args.kit} was used for training this model", file=sys.stderr)
     kit = load_kit(args.kit)
     rng = np.random.default_rng(args.seed)
-    files = groove_files("validation")
+    files = groove_files(args.split)
     picks = rng.choice(len(files), size=min(args.files, len(files)), replace=False)
     runs: dict[str, list[tuple[list[Hit], list[tuple[float, int]]]]] = {"offline": [], "live": []}
     latencies: list[float] = []
@@ -101,7 +117,9 @@ def main(argv: list[str] | None = None) -> int:
                         latencies.append(fed / SAMPLE_RATE - hit.time)
             runs["live"].append((hits, found))
 
-    print(f"kit: {args.kit} (never seen in training); {len(picks)} Groove validation files, "
+    seen = ("used for training" if args.kit in trained_on else "validation kit: thresholds chosen on it"
+            if args.kit in model.meta.get("thresholds_from", VALID_KITS) else "never seen in training")
+    print(f"kit: {args.kit} ({seen}); {len(picks)} Groove {args.split} files, "
           f"{audio_s:.0f} s of audio; {'augmented' if args.augment else 'dry'} render")
     for name, files_run in runs.items():
         if files_run:

@@ -5,7 +5,9 @@ the node feeds it blocks of samples with the rig time of their first sample.
 It computes the same frames, SuperFlux functions and onsets as the offline path
 (peak picking looks one frame ahead) and classifies each onset with the model's
 short-context ``live`` variant (a strike of a class within ``SUPPRESS_S`` of the
-previous one of that class is not sent again), so a hit is known about
+previous one of that class is not sent again; unlike offline, strikes of different classes
+are not grouped into chords: that would date some hits up to ``CHORD_S`` earlier, adding
+as much to their latency), so a hit is known about
 ``(max(offsets) + 0.5) * HOP + N_FFT / 2`` samples (about 33 ms) after its onset.
 """
 
@@ -128,7 +130,7 @@ class LiveRecogniser:
         vel = self.clf.velocities(feats)[0]
         when = self.start_time + max(0.0, c * F.HOP / SAMPLE_RATE + self.clf.time_offset_s)
         out = []
-        for k in np.flatnonzero(prob >= self.clf.thresholds):
+        for k in np.flatnonzero(self.clf.decide(prob[None])[0]):
             if when - self._last_hit[int(k)] < SUPPRESS_S:  # causal form of the offline suppression
                 continue
             self._last_hit[int(k)] = when

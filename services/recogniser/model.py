@@ -4,6 +4,8 @@ The file holds, for each variant (``offline``: long context, ``live``: short
 context for <= 50 ms latency), the input standardisation, the layer weights,
 per-class decision thresholds and a linear velocity regressor per class, plus
 JSON metadata (class names, context offsets, onset threshold, timing offset).
+A variant may have one output more than there are classes: the probability that
+the candidate is a strike of any class (see :meth:`Classifier.decide`).
 It is loaded with ``allow_pickle=False``: no code is ever unpickled.
 """
 
@@ -33,6 +35,8 @@ class Classifier:
     peak-picking threshold; ``time_offset_s``: added to onset frame times.
     ``weights[i]`` has shape (n_in, n_out) for layer i (ReLU between, sigmoid out).
     ``vel_w`` (n_features + 1, N_CLASSES): velocity / 127 from standardised features.
+    ``thresholds`` has one entry per output; with an onset output (``N_CLASSES + 1`` outputs),
+    the last output and threshold are those of "any strike" (see :meth:`decide`).
     """
 
     offsets: tuple[int, ...]
@@ -52,14 +56,34 @@ class Classifier:
     def standardise(self, features: np.ndarray) -> np.ndarray:
         return ((features - self.mean) / self.scale).astype(np.float32)
 
+    @property
+    def has_onset_output(self) -> bool:
+        return int(self.weights[-1].shape[1]) == N_CLASSES + 1
+
     def probabilities(self, features: np.ndarray) -> np.ndarray:
-        """Class probabilities, shape (n, N_CLASSES), for raw features of shape (n, n_features)."""
+        """Output probabilities, shape (n, N_CLASSES) or (n, N_CLASSES + 1) with the onset output,
+        for raw features of shape (n, n_features)."""
         h = self.standardise(features)
         for i, (w, b) in enumerate(zip(self.weights, self.biases, strict=True)):
             h = h @ w + b
             if i < len(self.weights) - 1:
                 h = np.maximum(h, 0.0)
         return (1.0 / (1.0 + np.exp(-np.clip(h, -60, 60)))).astype(np.float32)
+
+    def decide(self, prob: np.ndarray) -> np.ndarray:
+        """Which classes are struck at each candidate, boolean (n, N_CLASSES), from :meth:`probabilities`.
+
+        A class is struck when its probability reaches its threshold. With an onset
+        output, a candidate whose onset probability reaches its threshold but no class
+        does is still a strike: of the most probable class (not the highest probability / threshold,
+        which would favour the rare classes whose thresholds are low).
+        """
+        hit = prob[:, :N_CLASSES] >= self.thresholds[:N_CLASSES]
+        if self.has_onset_output:
+            lone = (prob[:, N_CLASSES] >= self.thresholds[N_CLASSES]) & ~hit.any(axis=1)
+            best = np.argmax(prob[:, :N_CLASSES], axis=1)
+            hit[np.flatnonzero(lone), best[lone]] = True
+        return hit
 
     def velocities(self, features: np.ndarray) -> np.ndarray:
         """MIDI velocities (1..127) per class, shape (n, N_CLASSES)."""
@@ -135,8 +159,10 @@ def load_model(path: str | Path = MODEL_PATH) -> Model:
             thresholds=data[f"{name}.thresholds"].astype(np.float32),
             vel_w=data[f"{name}.vel_w"].astype(np.float32),
         )
-        if c.weights[-1].shape[1] != N_CLASSES or c.weights[0].shape[0] != c.n_features:
+        if c.weights[-1].shape[1] not in (N_CLASSES, N_CLASSES + 1) or c.weights[0].shape[0] != c.n_features:
             raise ModelError(f"{p}: {name} layer shapes do not match")
+        if c.thresholds.shape != (c.weights[-1].shape[1],):
+            raise ModelError(f"{p}: {name} has {c.thresholds.shape[0]} thresholds for {c.weights[-1].shape[1]} outputs")
         if c.n_features != n_features(c.offsets):
             raise ModelError(f"{p}: {name} expects {c.n_features} features, this version computes "
                              f"{n_features(c.offsets)} (retrain the model)")

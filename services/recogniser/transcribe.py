@@ -2,7 +2,8 @@
 
 Each detected onset is classified by the model's ``offline`` MLP (multi-label: a
 kick and a hi-hat struck together are two events at the same time); an onset
-whose every class is below threshold is dropped as a false onset.
+whose every class is below threshold is dropped as a false onset, unless the
+model's onset output says it is a strike (then it is its most probable class).
 """
 
 from __future__ import annotations
@@ -69,6 +70,32 @@ def suppress(events: list[DrumEvent], window: float = SUPPRESS_S) -> list[DrumEv
     return kept
 
 
+CHORD_S = 0.02
+"""Strikes of different classes closer than this to the first of a group are one chord: they get its time,
+seconds. One strike often makes two candidate onsets 20 ms apart (a kick's thump, then the hi-hat's
+attack) that the classifier may label with different classes; grouping keeps them one onset."""
+
+
+def group_chords(events: list[DrumEvent], window: float = CHORD_S) -> list[DrumEvent]:
+    """Give every event within ``window`` of the first event of its group that group's time.
+
+    Events arrive sorted by time; a group starts at an event farther than ``window`` from the
+    current group's first event, or of a class the group already has (a second strike)."""
+    out: list[DrumEvent] = []
+    start = -np.inf
+    classes: set[int] = set()
+    for e in events:
+        if e.time - start < window and e.cls not in classes:
+            out.append(DrumEvent(start, e.cls, e.velocity, e.confidence))
+        else:
+            start = e.time
+            classes = set()
+            out.append(e)
+        classes.add(e.cls)
+    out.sort(key=lambda e: (e.time, e.cls))
+    return out
+
+
 def classify(clf: Classifier, feats: np.ndarray, times: np.ndarray, chunk: int = 4096) -> list[DrumEvent]:
     """Turn onset features (n, n_features) at ``times`` (n,) seconds into events (before suppression)."""
     events: list[DrumEvent] = []
@@ -76,7 +103,7 @@ def classify(clf: Classifier, feats: np.ndarray, times: np.ndarray, chunk: int =
         x = feats[s : s + chunk]
         prob = clf.probabilities(x)
         vel = clf.velocities(x)
-        hit = prob >= clf.thresholds
+        hit = clf.decide(prob)
         for i, c in zip(*np.nonzero(hit), strict=True):
             events.append(DrumEvent(float(times[s + i]), int(c), int(vel[i, c]), float(prob[i, c])))
     events.sort(key=lambda e: (e.time, e.cls))
@@ -106,7 +133,7 @@ def transcribe(
     odf = F.superflux(spec)
     frames = F.pick_onsets(odf, clf.delta)
     times = np.maximum(F.frame_times(len(odf))[frames] + clf.time_offset_s, 0.0)
-    events = suppress(classify(clf, F.onset_features(spec, odf, frames, clf.offsets), times))
+    events = group_chords(suppress(classify(clf, F.onset_features(spec, odf, frames, clf.offsets), times)))
     if progress:
         progress(1.0)
     return events

@@ -13,9 +13,12 @@ from services.recogniser.classes import N_CLASSES
 from services.recogniser.training.render import Hit
 
 GROOVE_DIR = Path("/work/shared/data/groove")
-OFFLINE_OFFSETS = tuple(range(-2, 10))
-"""Context frames for offline transcription (-20 ms .. +90 ms)."""
-LIVE_OFFSETS = (-2, -1, 0, 1)
+BACK_OFFSETS = (-8, -5, -3)
+"""Earlier context frames (80, 50, 30 ms before): what was already ringing, so a candidate in a loud
+strike's tail can be told from a new soft strike."""
+OFFLINE_OFFSETS = (*BACK_OFFSETS, *range(-2, 10))
+"""Context frames for offline transcription (-80 ms .. +90 ms)."""
+LIVE_OFFSETS = (*BACK_OFFSETS, -2, -1, 0, 1)
 """Context frames for live mode (needs audio up to about 33 ms after the onset)."""
 CANDIDATE_DELTA = 0.06
 """Low onset threshold: the classifier rejects the false candidates."""
@@ -45,6 +48,9 @@ class Examples:
     velocity: np.ndarray  # (n, N_CLASSES) 0..127 (0: class absent)
     dt: np.ndarray  # (n,) true time - frame time of the earliest matched hit, s (nan: none)
     missed: int  # true hits that no candidate matched
+    time: np.ndarray  # (n,) candidate frame time, s
+    excerpt: np.ndarray  # (n,) index of the excerpt the candidate comes from
+    hits: np.ndarray  # (k, 3) every true hit: excerpt index, time s, class index
 
 
 def label(audio: np.ndarray, hits: list[Hit], delta: float = CANDIDATE_DELTA) -> Examples:
@@ -75,12 +81,20 @@ def label(audio: np.ndarray, hits: list[Hit], delta: float = CANDIDATE_DELTA) ->
             dt[i] = d
     x_offline = F.onset_features(spec, odf, frames, OFFLINE_OFFSETS)
     x_live = F.onset_features(spec, odf, frames, LIVE_OFFSETS)
-    return Examples(x_offline, x_live, y, vel, dt, missed)
+    truth = np.array([[0.0, h.time, h.cls] for h in hits], dtype=np.float64).reshape(-1, 3)
+    return Examples(x_offline, x_live, y, vel, dt, missed, times.astype(np.float64), np.zeros(len(frames), int), truth)
+
+
+FIELDS = ("x_offline", "x_live", "y", "velocity", "dt", "missed", "time", "excerpt", "hits")
 
 
 def concat(parts: list[Examples]) -> Examples:
+    """One set of examples from several excerpts (renumbering the excerpts)."""
+    hits = [np.column_stack([np.full(len(p.hits), i, float), p.hits[:, 1:]]) for i, p in enumerate(parts)]
     return Examples(
         np.concatenate([p.x_offline for p in parts]), np.concatenate([p.x_live for p in parts]),
         np.concatenate([p.y for p in parts]), np.concatenate([p.velocity for p in parts]),
         np.concatenate([p.dt for p in parts]), sum(p.missed for p in parts),
+        np.concatenate([p.time for p in parts]), np.concatenate([np.full(len(p.y), i) for i, p in enumerate(parts)]),
+        np.concatenate(hits) if hits else np.zeros((0, 3)),
     )

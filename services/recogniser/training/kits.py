@@ -40,7 +40,24 @@ KITS: dict[str, str] = {
 TEST_KITS = ("The Black Pearl 1.0",)
 """Kits never used for training: the benchmark renders its audio with these."""
 
-TRAIN_KITS = tuple(k for k in KITS if k not in TEST_KITS)
+VALID_KITS = ("Millo_MultiLayered2",)
+"""Kits kept out of fitting to choose decision thresholds on (a validation kit, not the test kit)."""
+
+TRAIN_KITS = tuple(k for k in KITS if k not in TEST_KITS and k not in VALID_KITS)
+
+
+class KitsMissingError(RuntimeError):
+    """The hydrogen-drumkits samples the training and the benchmark render with are not installed."""
+
+
+def require_kits(names: tuple[str, ...] | list[str], root: Path = DRUMKITS_DIR) -> None:
+    """Raise :class:`KitsMissingError` with an install hint unless every kit folder in ``names`` exists."""
+    missing = [n for n in names if not (root / n / "drumkit.xml").exists()]
+    if missing:
+        raise KitsMissingError(
+            f"hydrogen drum kits not found in {root}: {', '.join(missing)}. "
+            "Install them with `apt-get install hydrogen-drumkits` (Debian/Ubuntu)."
+        )
 
 # kind -> class index (see services.recogniser.classes.CLASSES)
 KIND_CLASS = {

@@ -62,8 +62,8 @@ class Variation:
     @staticmethod
     def random(rng: np.random.Generator) -> Variation:
         return Variation(float(2 ** (rng.uniform(-3, 3) / 12)), float(np.exp(rng.uniform(np.log(80), np.log(8000)))),
-                         float(rng.uniform(-9, 9)), gain=float(10 ** (rng.uniform(-8, 8) / 20)),
-                         curve=float(rng.uniform(1.0, 2.2)))
+                         float(rng.uniform(-9, 9)), gain=float(10 ** (rng.uniform(-12, 10) / 20)),
+                         curve=float(rng.uniform(1.0, 2.6)))
 
     def apply(self, sample: np.ndarray) -> np.ndarray:
         key = id(sample)
@@ -100,7 +100,7 @@ def render(
     """Render notes with a kit (dry, mono, SAMPLE_RATE).
 
     With ``vary``, each instrument is detuned by up to 3 semitones, given a random
-    peaking EQ (+-9 dB), a level offset (+-8 dB) and a velocity curve (gain = v ** 1.0..2.2
+    peaking EQ (+-9 dB), a level offset (-12..+10 dB) and a velocity curve (gain = v ** 1.0..2.6
     instead of v ** 1.6), to widen the timbres and balances seen in training.
 
     Notes whose pitch is none of the classes, or whose kind the kit lacks, are left out

@@ -2,30 +2,36 @@
 
 Usage::
 
-    python -m services.recogniser.training.train [--excerpts 800] [--out services/recogniser/models/recogniser.npz]
+    nice -n 10 python -m services.recogniser.training.train [--excerpts 1000] [--val-excerpts 150] [--workers 2]
 
 Needs scikit-learn and Debian's ``hydrogen-drumkits`` (``apt-get install hydrogen-drumkits``).
-Audio is rendered in memory (kits in ``TRAIN_KITS`` only; ``TEST_KITS`` are kept
-for the benchmark); features are cached in ``--cache`` (default: a temp dir).
-Deterministic for a given ``--seed``.
+Audio is rendered in memory: the network is fitted on ``TRAIN_KITS`` plus Batteur's own
+modal and signal synthesis (:mod:`~services.recogniser.training.modal`; ``--no-synth`` leaves
+them out), half the excerpts on kits mixed from several; the decision thresholds are chosen
+on excerpts rendered with ``VALID_KITS`` (a validation kit, never fitted on), and
+``TEST_KITS`` are kept for the benchmark. Features are cached in ``--cache`` (default: a temp dir).
+Deterministic for a given ``--seed``. About 13 minutes on a shared 2-core machine.
 """
 
 from __future__ import annotations
 
 import argparse
 import multiprocessing as mp
+import sys
 import tempfile
 import time
 from pathlib import Path
 
+import mir_eval
 import numpy as np
 from sklearn.linear_model import Ridge
 from sklearn.neural_network import MLPClassifier
 
 from services.recogniser.classes import CLASS_NAMES, N_CLASSES
-from services.recogniser.model import MODEL_PATH, Classifier, Model
+from services.recogniser.model import MODEL_PATH, Classifier, Model, load_model
 from services.recogniser.training.dataset import (
     CANDIDATE_DELTA,
+    FIELDS,
     LIVE_OFFSETS,
     OFFLINE_OFFSETS,
     Examples,
@@ -33,64 +39,123 @@ from services.recogniser.training.dataset import (
     groove_files,
     label,
 )
-from services.recogniser.training.kits import TRAIN_KITS, load_kit
-from services.recogniser.training.render import augment, read_notes, render
+from services.recogniser.training.kits import (
+    KIND_CLASS,
+    TRAIN_KITS,
+    VALID_KITS,
+    Kit,
+    KitsMissingError,
+    load_kit,
+    require_kits,
+)
+from services.recogniser.training.modal import MODAL_KITS, render_modal_kit
+from services.recogniser.training.render import Note, augment, normalise, read_notes, render
+from services.recogniser.transcribe import SUPPRESS_S, DrumEvent, group_chords
+
+FIT_KITS = TRAIN_KITS + MODAL_KITS
+"""Kits the network is fitted on: the Hydrogen training kits and Batteur's own synthesis."""
+CACHE_TAG = "v6"
+"""Changes when the rendering or features change, so stale cached examples are not reused."""
 
 EXCERPT_S = 30.0
+VARY_P = 0.9
+"""Fraction of excerpts whose instruments get a random detune, EQ, level and velocity curve."""
+HIDDEN_OFFLINE = (192, 96)
+"""Hidden layer widths of the offline MLP."""
+HIDDEN_LIVE = (64, 32)
+"""Hidden layer widths of the live MLP (kept small: it runs once per candidate in real time)."""
+MIX_P = 0.5
+"""Fraction of excerpts played on a kit mixed from several (each instrument kind from a random kit)."""
+DRY_P = 0.3
+"""Fraction of excerpts left dry (no room, EQ, noise or clipping)."""
+VALID_DRY_P = 0.5
+"""Fraction of the validation kit's excerpts left dry."""
+MAX_WEIGHT = 4.0
+"""Cap of the class-balancing weight of a candidate with a hit of a rare class."""
 
 _KITS: dict = {}
 
 
-def _excerpt(job: tuple[int, str, float, int]) -> Examples:
-    seed, path, duration, _ = job
+def _excerpt(job: tuple[int, str, float, tuple[str, ...], float]) -> Examples:
+    seed, path, duration, kits, dry_p = job
     rng = np.random.default_rng(seed)
-    name = TRAIN_KITS[int(rng.integers(len(TRAIN_KITS)))]
+    name = kits[int(rng.integers(len(kits)))]
     if name not in _KITS:
-        _KITS[name] = load_kit(name)
+        _KITS[name] = _load(name)
+    kit = _KITS[name]
+    if len(kits) > 1 and rng.random() < MIX_P:
+        kit = _mixed_kit(kits, rng)
     start = float(rng.uniform(0, max(0.0, duration - EXCERPT_S)))
-    notes = [n for n in read_notes(path) if start <= n.time < start + EXCERPT_S]
-    from services.recogniser.training.render import Note
-
-    notes = [Note(n.time - start + 0.2, n.pitch, n.velocity) for n in notes]
-    audio, hits = render(notes, _KITS[name], rng, duration=EXCERPT_S + 0.2, vary=rng.random() < 0.7)
-    return label(augment(audio, rng), hits)
+    notes = [Note(n.time - start + 0.2, n.pitch, n.velocity) for n in read_notes(path)
+             if start <= n.time < start + EXCERPT_S]
+    audio, hits = render(notes, kit, rng, duration=EXCERPT_S + 0.2, vary=rng.random() < VARY_P)
+    return label(augment(audio, rng) if rng.random() >= dry_p else normalise(audio), hits)
 
 
-def make_examples(n: int, seed: int, workers: int) -> Examples:
+def _mixed_kit(kits: tuple[str, ...], rng: np.random.Generator) -> Kit:
+    """A kit whose every instrument kind comes from a kit drawn at random (kick of one, snare of another ...)."""
+    for name in kits:
+        if name not in _KITS:
+            _KITS[name] = _load(name)
+    mixed = Kit(name="mixed", licence="mixed")
+    for kind in KIND_CLASS:
+        having = [n for n in kits if _KITS[n].instruments.get(kind)]
+        if having:
+            mixed.instruments[kind] = _KITS[having[int(rng.integers(len(having)))]].instruments[kind]
+    return mixed
+
+
+def _load(name: str) -> Kit:
+    """A Hydrogen kit, or one of Batteur's own synthesised kits (:data:`MODAL_KITS`)."""
+    if name in MODAL_KITS:
+        return render_modal_kit(name.removeprefix("batteur-"))
+    return load_kit(name)
+
+
+def make_examples(n: int, seed: int, workers: int, kits: tuple[str, ...], dry_p: float = DRY_P) -> Examples:
+    """Render ``n`` excerpts of Groove train-split performances with ``kits`` (a share ``dry_p`` of them
+    dry, the others with room, EQ and noise) and label their candidates."""
+    for name in kits:  # synthesised kits are made once, before the workers fork
+        if name in MODAL_KITS and name not in _KITS:
+            print(f"rendering {name} one-shots with the sound service ...", flush=True)
+            _KITS[name] = _load(name)
     files = [f for f in groove_files("train") if f[1] >= 20.0]  # long performances (beats with fills)
     rng = np.random.default_rng(seed)
     picks = rng.choice(len(files), size=n, replace=n > len(files))
-    jobs = [(seed * 100_000 + i, str(files[k][0]), files[k][1], i) for i, k in enumerate(picks)]
+    jobs = [(seed * 100_000 + i, str(files[k][0]), files[k][1], kits, dry_p) for i, k in enumerate(picks)]
+    if workers <= 1:
+        return concat([_excerpt(j) for j in jobs])
     with mp.Pool(workers) as pool:
         parts = pool.map(_excerpt, jobs, chunksize=4)
     return concat(parts)
 
 
-def fit_variant(x: np.ndarray, ex: Examples, val: np.ndarray, offsets: tuple[int, ...], hidden: tuple[int, ...],
-                seed: int, negatives: float = 0.4, epochs: int = 25) -> Classifier:
-    """Fit one MLP variant; ``negatives``: fraction of the no-hit candidates used for fitting (all are used
-    to choose the thresholds on the ``val`` rows)."""
-    mean = x[~val].mean(axis=0)
-    scale = x[~val].std(axis=0) + 1e-3
+def class_weights(y: np.ndarray) -> np.ndarray:
+    """Per-row fitting weight: rows with a hit of a rare class weigh (n_most_common / n_class) ** 0.5,
+    capped at :data:`MAX_WEIGHT`; rows without a hit weigh 1."""
+    n = np.maximum(y.sum(axis=0), 1.0)
+    per_class = np.minimum((n.max() / n) ** 0.5, MAX_WEIGHT)
+    return np.maximum(1.0, (y * per_class).max(axis=1)).astype(np.float64)
+
+
+def fit_variant(x: np.ndarray, ex: Examples, x_val: np.ndarray, val: Examples, offsets: tuple[int, ...],
+                hidden: tuple[int, ...], seed: int, negatives: float = 0.4, epochs: int = 30) -> Classifier:
+    """Fit one MLP variant with a class output per class plus an onset output (any class struck).
+
+    ``negatives``: fraction of the no-hit candidates used for fitting. Thresholds are chosen
+    on ``x_val``/``val``, candidates of excerpts rendered with the validation kits only.
+    """
+    mean = x.mean(axis=0)
+    scale = x.std(axis=0) + 1e-3
     z = ((x - mean) / scale).astype(np.float32)
     rng = np.random.default_rng(seed)
-    fit_rows = ~val & ((ex.y.sum(axis=1) > 0) | (rng.random(len(x)) < negatives))
+    y = np.concatenate([ex.y, (ex.y.sum(axis=1, keepdims=True) > 0)], axis=1).astype(int)
+    fit_rows = (ex.y.sum(axis=1) > 0) | (rng.random(len(x)) < negatives)
     mlp = MLPClassifier(hidden_layer_sizes=hidden, alpha=1e-3, batch_size=512, learning_rate_init=2e-3,
                         max_iter=epochs, early_stopping=True, n_iter_no_change=4, random_state=seed, verbose=True)
-    mlp.fit(z[fit_rows], ex.y[fit_rows].astype(int))
-    prob = mlp.predict_proba(z[val])
-    thresholds = np.zeros(N_CLASSES, np.float32)
-    for c in range(N_CLASSES):  # threshold maximising F1 on the held-out excerpts
-        yt = ex.y[val, c] > 0
-        best = (0.0, 0.5)
-        for th in np.linspace(0.1, 0.9, 33):
-            yp = prob[:, c] >= th
-            tp = np.sum(yp & yt)
-            f = 2 * tp / max(1, np.sum(yp) + np.sum(yt))
-            if f > best[0]:
-                best = (f, th)
-        thresholds[c] = best[1]
-        print(f"  {CLASS_NAMES[c]:13s} val F1 {best[0]:.3f} at {best[1]:.2f} (n={int(yt.sum())})")
+    mlp.fit(z[fit_rows], y[fit_rows], sample_weight=class_weights(ex.y[fit_rows]))
+    prob = mlp.predict_proba(((x_val - mean) / scale).astype(np.float32))
+    thresholds = choose_thresholds(prob, val)
     vel_w = np.zeros((x.shape[1] + 1, N_CLASSES), np.float32)
     for c in range(N_CLASSES):
         pos = ex.y[:, c] > 0
@@ -107,34 +172,155 @@ def fit_variant(x: np.ndarray, ex: Examples, val: np.ndarray, offsets: tuple[int
     )
 
 
+def _events(val: Examples, hit: np.ndarray, prob: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Per validation excerpt: (times s, classes) of the strikes decided, after per-class suppression and
+    grouping into chords (as :func:`~services.recogniser.transcribe.transcribe` does)."""
+    out = []
+    for e in range(int(val.excerpt.max()) + 1 if len(val.excerpt) else 0):
+        rows = np.flatnonzero(val.excerpt == e)
+        times: list[float] = []
+        classes: list[int] = []
+        for c in range(N_CLASSES):
+            sel = rows[hit[rows, c]]
+            kept: list[float] = []
+            for i in sel[np.argsort(-prob[sel, c], kind="stable")]:
+                if all(abs(val.time[i] - t) >= SUPPRESS_S for t in kept):
+                    kept.append(float(val.time[i]))
+            times += kept
+            classes += [c] * len(kept)
+        order = np.argsort(times, kind="stable")
+        grouped = group_chords([DrumEvent(times[i], classes[i], 64, 1.0) for i in order])
+        out.append((np.array([g.time for g in grouped]), np.array([g.cls for g in grouped], int)))
+    return out
+
+
+def event_f(val: Examples, found: list[tuple[np.ndarray, np.ndarray]], classes: tuple[int, ...] | None,
+            window: float = 0.05) -> float:
+    """F-measure pooled over the validation excerpts for strikes of ``classes`` (None: class-agnostic onsets,
+    reference strikes closer than 20 ms being one onset), ``window`` seconds tolerance."""
+    matched = n_ref = n_est = 0
+    for e, (times, cls) in enumerate(found):
+        h = val.hits[val.hits[:, 0] == e]
+        if classes is None:
+            ref = _merge(h[:, 1], 0.02)
+            est = _merge(times, 1e-4)
+        else:
+            ref = np.unique(h[np.isin(h[:, 2], classes), 1])
+            est = np.unique(times[np.isin(cls, classes)])
+        if len(ref) and len(est):
+            matched += len(mir_eval.util.match_events(ref, est, window))
+        n_ref += len(ref)
+        n_est += len(est)
+    return 2 * matched / max(1, n_ref + n_est)
+
+
+def _merge(times: np.ndarray, gap: float) -> np.ndarray:
+    out: list[float] = []
+    for t in np.sort(times):
+        if not out or t - out[-1] > gap:
+            out.append(float(t))
+    return np.asarray(out)
+
+
+def choose_thresholds(prob: np.ndarray, val: Examples) -> np.ndarray:
+    """Decision thresholds (one per class, then the onset output's) maximising strike-level F-measure
+    (50 ms) on the validation kit's excerpts: each class's on its own, then the onset output's on the
+    class-agnostic onsets with the class thresholds fixed."""
+    n_out = prob.shape[1]
+    thresholds = np.full(n_out, 0.5, np.float32)
+    if n_out > N_CLASSES:
+        thresholds[N_CLASSES] = 1.01  # onset output off while the classes are tuned
+    grid = np.linspace(0.05, 0.9, 18)
+    for c in range(N_CLASSES):
+        scores = []
+        for th in grid:
+            hit = np.zeros((len(prob), N_CLASSES), bool)
+            hit[:, c] = prob[:, c] >= th
+            scores.append(event_f(val, _events(val, hit, prob), (c,)))
+        thresholds[c] = grid[int(np.argmax(scores))]
+        n = int(np.sum(val.hits[:, 2] == c))
+        print(f"  {CLASS_NAMES[c]:13s} validation-kit F {max(scores):.3f} at {thresholds[c]:.2f} (n={n})", flush=True)
+    if n_out > N_CLASSES:
+        scores = []
+        options = [*grid, 1.01]
+        for th in options:
+            thresholds[N_CLASSES] = th
+            scores.append(event_f(val, _events(val, _decide(prob, thresholds), prob), None))
+        thresholds[N_CLASSES] = options[int(np.argmax(scores))]
+        print(f"  {'onsets':13s} validation-kit F {max(scores):.3f} with onset threshold "
+              f"{thresholds[N_CLASSES]:.2f} (off: {scores[-1]:.3f})", flush=True)
+    return thresholds
+
+
+def _decide(prob: np.ndarray, thresholds: np.ndarray) -> np.ndarray:
+    c = Classifier(offsets=(0,), delta=0.0, time_offset_s=0.0, mean=np.zeros(1), scale=np.ones(1),
+                   weights=[np.zeros((1, N_CLASSES + 1))], biases=[np.zeros(N_CLASSES + 1)],
+                   thresholds=thresholds, vel_w=np.zeros((2, N_CLASSES)))
+    return c.decide(prob)
+
+
+def _examples(cache: Path, n: int, seed: int, workers: int, kits: tuple[str, ...], dry_p: float = DRY_P) -> Examples:
+    if cache.exists():
+        with np.load(cache) as z:
+            d = {k: z[k] for k in FIELDS}
+        return Examples(d["x_offline"], d["x_live"], d["y"], d["velocity"], d["dt"], int(d["missed"]), d["time"],
+                        d["excerpt"], d["hits"])
+    ex = make_examples(n, seed, workers, kits, dry_p)
+    np.savez(cache, **{k: getattr(ex, k) for k in FIELDS})
+    return ex
+
+
+def retune(path: Path, val: Examples, out: Path) -> int:
+    """Choose the thresholds of a fitted model again on the validation examples and write it to ``out``."""
+    model = load_model(path)
+    for name, clf, x in (("offline", model.offline, val.x_offline), ("live", model.live, val.x_live)):
+        print(f"{name} variant:")
+        clf.thresholds = choose_thresholds(clf.probabilities(x), val)
+    model.meta["retuned"] = True
+    model.save(out)
+    print(f"wrote {out}")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--excerpts", type=int, default=800, help="30-second excerpts to render (default 800)")
+    ap.add_argument("--excerpts", type=int, default=1000, help="30-second training excerpts (default 1000)")
+    ap.add_argument("--val-excerpts", type=int, default=150,
+                    help="30-second excerpts rendered with the validation kit, to choose thresholds (default 150)")
+    ap.add_argument("--no-synth", dest="synth", action="store_false",
+                    help="fit on the Hydrogen kits only (default: also Batteur's own modal and signal synthesis)")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--cache", type=Path, default=Path(tempfile.gettempdir()) / "batteur-recogniser-cache")
     ap.add_argument("--out", type=Path, default=MODEL_PATH)
+    ap.add_argument("--retune", type=Path, default=None, metavar="MODEL",
+                    help="only choose the thresholds of an already fitted MODEL again on the validation kit")
     args = ap.parse_args(argv)
+    try:
+        require_kits(TRAIN_KITS + VALID_KITS)
+    except KitsMissingError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
     args.cache.mkdir(parents=True, exist_ok=True)
-    cache = args.cache / f"examples-{args.excerpts}-{args.seed}.npz"
     t0 = time.time()
-    if cache.exists():
-        with np.load(cache) as z:
-            ex = Examples(z["x_offline"], z["x_live"], z["y"], z["velocity"], z["dt"], int(z["missed"]))
-    else:
-        ex = make_examples(args.excerpts, args.seed, args.workers)
-        np.savez(cache, x_offline=ex.x_offline, x_live=ex.x_live, y=ex.y, velocity=ex.velocity, dt=ex.dt,
-                 missed=ex.missed)
-    n_hits = int(ex.y.sum()) + ex.missed
-    print(f"{len(ex.y)} candidate onsets, {int((ex.y.sum(1) > 0).sum())} with a hit; "
-          f"{ex.missed}/{n_hits} hits without a candidate; {time.time() - t0:.0f} s")
-    rng = np.random.default_rng(args.seed)
-    val = rng.random(len(ex.y)) < 0.1
+    val = _examples(args.cache / f"{CACHE_TAG}-val-{args.val_excerpts}-{args.seed}.npz", args.val_excerpts,
+                    args.seed + 1000, args.workers, VALID_KITS, VALID_DRY_P)
+    if args.retune is not None:
+        return retune(args.retune, val, args.out)
+    kits = FIT_KITS if args.synth else TRAIN_KITS
+    tag = CACHE_TAG + ("s" if args.synth else "")
+    ex = _examples(args.cache / f"{tag}-train-{args.excerpts}-{args.seed}.npz", args.excerpts, args.seed,
+                   args.workers, kits)
+    for name, e in (("training", ex), ("validation-kit", val)):
+        n_hits = int(e.y.sum()) + e.missed
+        print(f"{name}: {len(e.y)} candidate onsets, {int((e.y.sum(1) > 0).sum())} with a hit; "
+              f"{e.missed}/{n_hits} hits without a candidate; {time.time() - t0:.0f} s")
     print("offline variant:")
-    offline = fit_variant(ex.x_offline, ex, val, OFFLINE_OFFSETS, (128, 64), args.seed)
+    offline = fit_variant(ex.x_offline, ex, val.x_offline, val, OFFLINE_OFFSETS, HIDDEN_OFFLINE, args.seed)
     print("live variant:")
-    live = fit_variant(ex.x_live, ex, val, LIVE_OFFSETS, (64, 32), args.seed)
-    meta = {"trained_on": list(TRAIN_KITS), "excerpts": args.excerpts, "seed": args.seed,
+    live = fit_variant(ex.x_live, ex, val.x_live, val, LIVE_OFFSETS, HIDDEN_LIVE, args.seed)
+    meta = {"trained_on": list(kits), "thresholds_from": list(VALID_KITS), "excerpts": args.excerpts,
+            "val_excerpts": args.val_excerpts, "seed": args.seed,
             "data": "Groove MIDI Dataset train split (CC BY 4.0) rendered with hydrogen-drumkits"}
     Model(offline=offline, live=live, meta=meta).save(args.out)
     print(f"wrote {args.out} ({args.out.stat().st_size / 1024:.0f} KiB) in {time.time() - t0:.0f} s")

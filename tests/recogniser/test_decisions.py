@@ -1,0 +1,68 @@
+"""Decision rules after the classifier: the onset output, chord grouping, and the kits check of training/bench."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from services.recogniser.classes import N_CLASSES
+from services.recogniser.model import Classifier, load_model
+from services.recogniser.training.kits import KitsMissingError, require_kits
+from services.recogniser.transcribe import CHORD_S, DrumEvent, group_chords
+
+
+def _classifier(n_out: int) -> Classifier:
+    return Classifier(offsets=(0,), delta=0.1, time_offset_s=0.0, mean=np.zeros(1, np.float32),
+                      scale=np.ones(1, np.float32), weights=[np.zeros((1, n_out), np.float32)],
+                      biases=[np.zeros(n_out, np.float32)], thresholds=np.full(n_out, 0.5, np.float32),
+                      vel_w=np.zeros((2, N_CLASSES), np.float32))
+
+
+def test_onset_output_keeps_a_strike_no_class_is_sure_of() -> None:
+    clf = _classifier(N_CLASSES + 1)
+    clf.thresholds[1] = 0.2  # snare: a low threshold
+    prob = np.zeros((3, N_CLASSES + 1), np.float32)
+    prob[0, [0, 1, N_CLASSES]] = [0.45, 0.19, 0.9]  # a strike, no class sure: the most probable, kick
+    prob[1, [0, N_CLASSES]] = [0.45, 0.3]  # not a strike
+    prob[2, [0, 2, N_CLASSES]] = [0.7, 0.6, 0.9]  # kick and closed hi-hat: the onset output adds nothing
+    hit = clf.decide(prob)
+    assert np.flatnonzero(hit[0]).tolist() == [0]
+    assert not hit[1].any()
+    assert np.flatnonzero(hit[2]).tolist() == [0, 2]
+
+
+def test_without_onset_output_only_class_thresholds_count() -> None:
+    clf = _classifier(N_CLASSES)
+    prob = np.full((1, N_CLASSES), 0.4, np.float32)
+    prob[0, 3] = 0.6
+    assert np.flatnonzero(clf.decide(prob)[0]).tolist() == [3]
+
+
+def test_chords_share_the_time_of_their_first_strike() -> None:
+    near = CHORD_S * 0.99
+    events = [DrumEvent(1.0, 0, 100, 0.9), DrumEvent(1.0 + near, 2, 80, 0.8),  # kick + hi-hat: one chord
+              DrumEvent(1.0 + near, 0, 60, 0.7),  # a second kick is a second strike, not part of the chord
+              DrumEvent(2.0, 1, 90, 0.9), DrumEvent(2.0 + 2 * CHORD_S, 2, 70, 0.9)]  # too far apart: two
+    got = [(round(e.time, 6), e.cls) for e in group_chords(events)]
+    assert got == [(1.0, 0), (1.0, 2), (round(1.0 + near, 6), 0), (2.0, 1), (round(2.0 + 2 * CHORD_S, 6), 2)]
+
+
+def test_shipped_model_has_a_threshold_per_output_and_never_saw_the_test_kit() -> None:
+    model = load_model()
+    for clf in (model.offline, model.live):
+        assert clf.thresholds.shape == (clf.weights[-1].shape[1],)
+        assert clf.weights[-1].shape[1] == N_CLASSES + int(clf.has_onset_output)
+    assert "The Black Pearl 1.0" not in model.meta["trained_on"]
+    # a model whose thresholds come from a validation kit never fitted on it (nor on the test kit)
+    assert not set(model.meta.get("thresholds_from", ())) & {"The Black Pearl 1.0", *model.meta["trained_on"]}
+
+
+def test_missing_kits_fail_with_an_install_hint(tmp_path: Path) -> None:
+    (tmp_path / "Present").mkdir()
+    (tmp_path / "Present" / "drumkit.xml").write_text("<drumkit_info/>")
+    require_kits(["Present"], root=tmp_path)
+    with pytest.raises(KitsMissingError, match="apt-get install hydrogen-drumkits") as err:
+        require_kits(["Present", "Absent Kit"], root=tmp_path)
+    assert "Absent Kit" in str(err.value) and "Present," not in str(err.value)
