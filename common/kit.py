@@ -73,6 +73,19 @@ class KitObject(_Strict):
     bell_radius: float = Field(default=0.0, ge=0, description="cymbal bell radius, metres (0: none)")
     opening: Unit = Field(default=0.3, description="hi-hat opening at rest, 0 closed ... 1 open")
 
+    @property
+    def bell_height(self) -> float:
+        """How far a cymbal's bell top stands above its bow's playing surface, metres (0: no bell): the
+        given ``depth``, else 0.4 x the bell radius, less the plate's thickness."""
+        if self.bell_radius <= 0:
+            return 0.0
+        return max(self.depth, 0.4 * self.bell_radius) - self.thickness
+
+    def surface_height(self, r_m: float) -> float:
+        """Height of the playing surface above the object's plane ``r_m`` metres from its centre (the bell's
+        top within the bell radius, else 0), metres."""
+        return self.bell_height if r_m < self.bell_radius else 0.0
+
     def normal(self) -> Vec3:
         """World direction of the local +z axis (the playing surface's normal)."""
         r, p, y = (math.radians(a) for a in self.rotation_deg)
@@ -202,12 +215,14 @@ class Kit(_Strict):
     def hit_point(self, event: EventType, pitch: int | None = None) -> tuple[Vec3, Vec3]:
         """World hit point (metres) and outward surface normal (unit) of ``event``.
 
-        The hit point is ``(r * radius * cos theta, r * radius * sin theta, 0)`` in
-        the object's local frame, rotated and translated into the world.
+        The hit point is ``(r * radius * cos theta, r * radius * sin theta, h)`` in
+        the object's local frame, rotated and translated into the world, with ``h`` the
+        surface's height there (a cymbal's bell top stands above its bow).
         """
         spec = self.spec(event)
         obj = self.object_for(event, pitch)
-        local = (spec.r * obj.radius * math.cos(spec.theta), spec.r * obj.radius * math.sin(spec.theta), 0.0)
+        r_m = spec.r * obj.radius
+        local = (r_m * math.cos(spec.theta), r_m * math.sin(spec.theta), obj.surface_height(r_m))
         return obj.to_world(local), obj.normal()
 
     def effector_target(self, event: EventType, limb: Limb, pitch: int | None = None) -> tuple[Vec3, Vec3]:

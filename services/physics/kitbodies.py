@@ -227,7 +227,7 @@ def _cymbal(world: World, kb: KitBodies, obj: KitObject) -> None:
     inertia = cylinder_inertia(mass, obj.radius, obj.thickness)
     shapes = [Shape("cylinder", (obj.radius, obj.thickness, 0.0), xyz=(0, 0, -obj.thickness / 2), rgba=_BRASS)]
     if obj.bell_radius > 0:
-        bell_h = max(obj.depth, 0.4 * obj.bell_radius)
+        bell_h = obj.bell_height + obj.thickness  # the bell's cylinder starts at the plate's underside
         shapes.append(Shape("cylinder", (obj.bell_radius, bell_h, 0.0), xyz=(0, 0, bell_h / 2 - obj.thickness),
                             rgba=_BRASS))
     robot = Robot(obj.id)

@@ -16,12 +16,21 @@ import pytest
 from batteur.render import RenderOptions, prepare
 from common.gesture.database import default_database
 from common.gesture.plan import Grip, Nuance
-from common.kit import Limb, load_kit
+from common.kit import KitObject, Limb, load_kit
 
 HERE = Path(__file__).parent
 SCORES = [HERE / "short_groove.txt", HERE.parent / "data" / "groove_drummer6_s3_1_rock_90_beat_4-4.mid"]
 GUARD_S = 0.006
 """Time around each planned contact (its approach and contact) left out of the check, seconds."""
+
+
+def _height_above_surface(obj: KitObject, points: np.ndarray) -> np.ndarray:
+    """Height (metres) of world points (n, 3) above the object's playing surface under them: its plane, or a
+    cymbal's bell top within the bell radius."""
+    rot = np.array(obj.rotation_matrix())
+    local = (points - np.array(obj.position)) @ rot  # world -> local: R^T p
+    r = np.hypot(local[:, 0], local[:, 1])
+    return local[:, 2] - np.array([obj.surface_height(float(x)) for x in r])
 
 
 @pytest.mark.parametrize("score", SCORES, ids=lambda p: p.name)
@@ -37,7 +46,7 @@ def test_hands_stay_above_the_next_surface_between_strokes(score: Path) -> None:
                 continue
             t = np.arange(prev.time + prev.contact_duration + GUARD_S, nxt.time - GUARD_S, 0.001)
             pos, _ = traj.sample_many(t)
-            height = (pos - nxt.target) @ nxt.normal
+            height = _height_above_surface(kit.object(nxt.object_id), pos)
             worst = min(worst, float(height.min()))
             assert height.min() > 0.001, (
                 f"{limb.value}: tip {height.min() * 1000:.1f} mm from {nxt.object_id} at "

@@ -27,12 +27,16 @@ def test_hit_point_on_surface_and_ride_bell_on_same_cymbal() -> None:
     ride, bell = kit.hit_point(EventType.RIDE)[0], kit.hit_point(EventType.RIDEBELL)[0]
     obj = kit.object("ride")
     assert kit.spec(EventType.RIDE).object == kit.spec(EventType.RIDEBELL).object == "ride"
-    # both on the cymbal's plane, at r * radius from its centre
+    # both on the cymbal's playing surface at r * radius from its centre: the bow on the plate's plane,
+    # the bell on the bell's top, which stands above the bow (a stick aimed at the plane would meet it early)
     n = np.array(obj.normal())
-    for point, spec in ((ride, kit.spec(EventType.RIDE)), (bell, kit.spec(EventType.RIDEBELL))):
+    assert obj.bell_height > 0.01
+    for point, spec, height in ((ride, kit.spec(EventType.RIDE), 0.0),
+                                (bell, kit.spec(EventType.RIDEBELL), obj.bell_height)):
         offset = np.array(point) - np.array(obj.position)
-        assert abs(offset @ n) < 1e-9
-        assert np.linalg.norm(offset) == pytest.approx(spec.r * obj.radius)
+        assert offset @ n == pytest.approx(height, abs=1e-9)
+        assert np.linalg.norm(offset - (offset @ n) * n) == pytest.approx(spec.r * obj.radius)
+    assert kit.spec(EventType.RIDEBELL).r * obj.radius < obj.bell_radius < kit.spec(EventType.RIDE).r * obj.radius
     # drums tilt toward the drummer (normal has a -y component)
     assert kit.object("snare").normal()[1] < 0 and kit.object("hightom").normal()[1] < 0
 
