@@ -3,7 +3,9 @@
 One browser session: the page loads from the graphics node, receives poses
 sent over OSC, draws the drummer and the kit where the camera must see them
 (pixels checked against a projection computed here), follows a moved pose,
-and reconnects by itself after the node restarts.
+and reconnects by itself after the node restarts. Then the pose editor on
+physics' 57-DOF body, and the Pure Data panel and the kit editor changing what
+the page draws.
 """
 
 from __future__ import annotations
@@ -21,10 +23,12 @@ import numpy as np
 import pytest
 
 from common.character import JOINTS
+from common.kit import load_kit
 from common.messages import Impact, Pose, Skeleton, decode
 from common.messages.physics import PhysicsPosture, PhysicsReset
 from services.graphics.figure import LINK_NAMES, SyntheticDrummer
 from services.graphics.poser import load_character
+from tests.deploy.pdrun import PD_DIR, PdProcess, pd_binary
 
 from .conftest import CHROMIUM, CHROMIUM_FLAGS, GraphicsNodeProcess, needs_browser, project
 
@@ -32,7 +36,13 @@ WIDTH, HEIGHT = 800, 450
 # the page's "front" preset: azimuth 0, elevation 18 degrees, 3 m from (0, 0.35, 0.75), 45 degree fov
 TARGET = np.array([0.0, 0.35, 0.75])
 EYE = TARGET + 3.0 * np.array([0.0, math.cos(math.radians(18)), math.sin(math.radians(18))])
+# the "side" preset: azimuth 90, elevation 12 degrees, 3 m from the same target
+SIDE_EYE = TARGET + 3.0 * np.array([math.cos(math.radians(12)), 0.0, math.sin(math.radians(12))])
 BACKGROUND = np.array([0x1B, 0x1D, 0x22])
+SET_SLIDER = "(el, v) => { el.value = v; el.dispatchEvent(new Event('input')); }"
+"""Page script: move a range input (el) to v as a user would (an input event)."""
+SLIDER_LABELS = "rows => rows.map(r => r.firstChild.textContent)"
+"""Page script: the labels of the editor's slider rows."""
 
 
 class PoseSender:
@@ -115,6 +125,11 @@ def _is_body_blue(patch: np.ndarray) -> bool:
     return float(np.mean(patch[:, 2] - patch[:, 0] > 40)) > 0.6
 
 
+def _is_drum_red(patch: np.ndarray) -> bool:
+    """The drum shells are red: red clearly above green and blue in most pixels (not the wooden pedal)."""
+    return float(np.mean((patch[:, 0] - patch[:, 1] > 50) & (patch[:, 0] - patch[:, 2] > 50))) > 0.6
+
+
 @needs_browser
 def test_page_draws_drummer_and_reconnects(graphics_node: GraphicsNodeProcess) -> None:
     drummer = SyntheticDrummer(strokes={}, duration=0.0)
@@ -189,16 +204,14 @@ def test_pose_editor_poses_the_57_dof_body_and_drives_physics(tmp_path: Path) ->
             poser = page.evaluate("window.batteur.poser")
             assert poser["body"] == "live" and poser["joints"] == list(JOINTS)
             page.select_option("#pose-joint", "right_elbow")
-            labels = page.eval_on_selector_all("#pose-sliders .slider",
-                                               "rows => rows.map(r => r.firstChild.textContent)")
+            labels = page.eval_on_selector_all("#pose-sliders .slider", SLIDER_LABELS)
             assert labels == ["right_elbow_x", "right_elbow_y", "right_elbow_z"]
             lo, hi = (float(page.get_attribute("#pose-sliders input", k) or "nan") for k in ("min", "max"))
             assert lo == pytest.approx(math.degrees(body.lower[JOINTS.index("right_elbow") * 3]), abs=0.1) and hi > lo
             hand = body.names.index("right_hand")
             before = np.array(page.evaluate(f"window.batteur.lastFrame.p.slice({hand * 7}, {hand * 7 + 3})"))
             start = poser["angles"]["right_elbow"][0]
-            page.eval_on_selector("#pose-sliders input",
-                                  "(el, v) => { el.value = v; el.dispatchEvent(new Event('input')); }", str(start + 30))
+            page.eval_on_selector("#pose-sliders input", SET_SLIDER, str(start + 30))
             postures = received(PhysicsPosture)
             assert postures, "no /batteur/physics/posture reached physics"
             q = np.array(postures[-1].values)
@@ -215,3 +228,73 @@ def test_pose_editor_poses_the_57_dof_body_and_drives_physics(tmp_path: Path) ->
         sender.stop()
         node.close()
         physics.close()
+
+
+@needs_browser
+@pytest.mark.skipif(pd_binary() is None, reason="needs Pure Data (Debian: apt-get install puredata-core)")
+def test_pd_panel_and_kit_editor_change_what_the_page_draws(graphics_node: GraphicsNodeProcess) -> None:
+    """The Pd panel's GRAPHICS controls reach the page through the node (layers, trails, plot, camera), and the
+    kit editor's sliders move a drum in the picture and save the kit file every service loads."""
+    drummer = SyntheticDrummer(strokes={}, duration=0.0)
+    rest = drummer.pose(0.0)
+    head = rest[LINK_NAMES.index("head"), :3] + np.array([0.0, 0.0, 0.09])
+    kick = np.asarray(drummer.kit.object("kick").position)
+    moved_kick = kick + np.array([-0.65, 0.0, 0.0])  # to the drummer's left, where nothing red stands
+    sender = PoseSender(graphics_node, rest)
+
+    def panel(*sends: str, until: str, page: Any) -> None:
+        """Run pd/control.pd headless with these -send messages until the page's state satisfies ``until``."""
+        pd = PdProcess(PD_DIR / "control.pd", sends=[f"bp-port-graphics {graphics_node.osc_port}", *sends])
+        try:
+            page.wait_for_function(until, timeout=15000)
+        finally:
+            pd.stop()
+        assert pd.errors() == [], "\n".join(pd.lines)
+
+    try:
+        with _open_page(graphics_node.url, 20) as (page, errors):
+            kick_px, moved_px = (project(p, EYE, TARGET, 45, WIDTH, HEIGHT) for p in (kick, moved_kick))
+            (old,) = _wait_for(page, [kick_px], lambda p: _is_drum_red(p[0]))
+            assert _is_drum_red(old), f"no red kick drum at {kick_px}"
+
+            # kit editor: the kick's "pos x" slider moves the drawn drum; "save kit" writes a kit every service loads
+            page.click("#edit-toggle")
+            page.select_option("#kit-object", "kick")
+            labels = page.eval_on_selector_all("#kit-sliders .slider", SLIDER_LABELS)
+            assert labels == ["pos x", "pos y", "pos z", "roll", "pitch", "yaw", "radius"]
+            page.eval_on_selector("#kit-sliders input", SET_SLIDER, str(round(float(moved_kick[0]), 3)))
+            new, old = _wait_for(page, [moved_px, kick_px], lambda p: _is_drum_red(p[0]) and not _is_drum_red(p[1]))
+            assert _is_drum_red(new), f"the moved kick is not drawn at {moved_px}"
+            assert not _is_drum_red(old), f"the kick is still drawn at {kick_px}"
+            page.fill("#kit-file", "moved-kick.yaml")
+            page.click("#kit-save")
+            saved = graphics_node.tmp / "kits" / "moved-kick.yaml"
+            deadline = time.monotonic() + 10
+            while not saved.is_file() and time.monotonic() < deadline:
+                time.sleep(0.1)
+            assert load_kit(saved).object("kick").position == pytest.approx(tuple(moved_kick), abs=1e-3)
+            page.click("#edit-toggle")
+
+            # the Pd panel: hide the kit, trails off, plot hidden and a 2 s window
+            panel("bp-show-kit 0", "bp-trails 0", "bp-plot-window 2", "bp-show-plot 0",
+                  until="window.batteur.view && window.batteur.view.layers.kit === false && "
+                  "window.batteur.view.layers.plot === false && window.batteur.view.trails === 0 && "
+                  "Math.abs(window.batteur.view.plot.window - 2) < 1e-3", page=page)
+            (hidden,) = _wait_for(page, [moved_px], lambda p: not _is_drum_red(p[0]))
+            assert not _is_drum_red(hidden), "the kit is still drawn after bp-show-kit 0"
+            assert page.eval_on_selector("#plot", "el => el.classList.contains('hidden')")
+            trail_points = page.evaluate("Math.max(...[...window.batteur.trails.values()].map(t => t.points.length))")
+            assert trail_points <= 1  # no trail behind the tips (the newest point only)
+
+            # kit back on, side camera: the head is where the side view must show it
+            side_head = project(head, SIDE_EYE, TARGET, 45, WIDTH, HEIGHT)
+            panel("bp-show-kit 1", "bp-show-plot 1", "bp-camera symbol side",
+                  until="window.batteur.view.camera.preset === 'side' && window.batteur.view.layers.kit === true",
+                  page=page)
+            (seen,) = _wait_for(page, [side_head], lambda p: _is_body_blue(p[0]))
+            assert _is_body_blue(seen), f"no body at the head's pixel {side_head} in the side view"
+            assert not page.eval_on_selector("#plot", "el => el.classList.contains('hidden')")
+            page.screenshot(path=str(graphics_node.tmp / "side.png"))
+            assert errors == []
+    finally:
+        sender.stop()

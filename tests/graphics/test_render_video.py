@@ -60,10 +60,15 @@ def test_render_video_duration_rate_audio_and_report(tmp_path: Path) -> None:
     lags = np.arange(-200, 201)
     score = [float(np.dot(env_wav[200:-200], env_mp4[200 + k : n - 200 + k])) for k in lags]
     assert abs(int(lags[int(np.argmax(score))])) < 1000 / FPS  # milliseconds
-    # and the first strike is heard at its impact time + the latency window, as the picture shows it
-    first_impact = min(float(r.split(",")[1]) for r in (out / "impacts.csv").read_text().splitlines()[1:])
-    heard = onsets(muxed, rate, 0.02 * float(np.abs(muxed).max()))[0]
-    assert heard == pytest.approx(first_impact + report["latency_s"], abs=1 / FPS)
+    # and every strike is heard at its impact time + the latency window, as the picture shows it, within one
+    # video frame (strikes closer than the onset detector's 50 ms refractory time are heard as one onset)
+    times = sorted(float(r.split(",")[1]) for r in (out / "impacts.csv").read_text().splitlines()[1:])
+    groups = [t for k, t in enumerate(times) if k == 0 or t - times[k - 1] > 0.05]
+    assert len(groups) >= 2  # hi-hat + kick, then hi-hat + snare
+    heard = onsets(muxed, rate, 0.02 * float(np.abs(muxed).max()))
+    assert len(heard) == len(groups), (heard, groups)
+    for onset, strike in zip(heard, groups, strict=True):
+        assert onset == pytest.approx(strike + report["latency_s"], abs=1 / FPS)
 
 
 def test_render_video_without_ffmpeg_fails_before_rendering(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
