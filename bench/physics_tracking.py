@@ -125,7 +125,7 @@ def forward_tips(core: PhysicsCore, q: np.ndarray) -> np.ndarray:
     out = np.zeros((len(q), 2, 3))
     for f in range(len(q)):
         kin.set_state(q[f])
-        eff, _, _ = kin.kinematics()
+        eff, _ = kin.kinematics()
         out[f] = eff[[LIMBS.index("left_hand"), LIMBS.index("right_hand")]]
     return out
 
@@ -167,6 +167,10 @@ def run_case(case: str, control: str, clip: str | None, seconds: float) -> Resul
                 scene.add_cartesian(limb, 0.0, tips[0, h], np.zeros(3), 0.0)
                 for f in range(len(times)):
                     scene.add_cartesian(limb, float(times[f]), tips[f, h], vel[f, h], 0.0)
+            # Algorithm 2's posture term: the captured joint motion in the IK's null space
+            scene.add_posture(0.0, np.concatenate([q[0], np.zeros(len(DOF_NAMES))]), 0.0)
+            for f in range(len(times)):
+                scene.add_posture(float(times[f]), np.concatenate([q[f], qd[f]]), 0.0)
         else:
             scene.add_joints(0.0, np.concatenate([q[0], np.zeros(len(DOF_NAMES))]), 0.0)
             for f in range(len(times)):

@@ -209,7 +209,7 @@ def build() -> Patch:
     both = p.obj(620, y + 85, "list prepend both")
     p.connect(grip, 0, both, 0)
     p.connect(both, 0, sender(p, 620, y + 110, PhysicsGrip, "physics", 2), 0)
-    mode = choices(p, 620, y + 180, "control mode", ("joint_pd", "joint_spd", "cartesian"), "bp-mode")
+    mode = choices(p, 620, y + 180, "control mode", ("joint_pd", "joint_ct", "cartesian"), "bp-mode")
     p.connect(mode, 0, sender(p, 620, y + 270, PhysicsControlMode, "physics", 1), 0)
     reset = p.msg(900, y + 25, "0 0")
     p.text(900, y, "reset drummer")

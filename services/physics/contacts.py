@@ -11,9 +11,11 @@ gets the incoming velocity.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+import pybullet as p
 
 from common.messages import Contact
 from services.physics.kitbodies import KitBodies, instrument_frame
@@ -47,8 +49,23 @@ class _Episode:
     approach_velocity: float
 
 
+@dataclass(frozen=True)
+class _ChainJoint:
+    joint: int
+    prismatic: bool
+    axis_local: np.ndarray
+
+
 class ContactTracker:
-    """Turns PyBullet contact points into Contact messages, one per pair and step."""
+    """Turns PyBullet contact points into Contact messages, one per pair and step.
+
+    Approach velocities come from joint velocities: before every step the tracker keeps the joint
+    velocities of every body with a striker or a moving instrument (the scene hands over those it has
+    read anyway, :meth:`provide_joint_velocities`; the tracker reads the kit's small bodies itself), and
+    only when a contact starts does it turn them into the velocity of the contact point through the
+    chain of joints above the link (``sum axis_j x (p - o_j) qd_j``). Reading the strikers' link
+    velocities at every step cost more than the rest of the bookkeeping together.
+    """
 
     def __init__(self, world: World, kit: KitBodies) -> None:
         self.world = world
@@ -59,13 +76,17 @@ class ContactTracker:
         self._moving_instruments: list[Key] = [
             key for key in kit.instrument_of if world.client.getDynamicsInfo(key[0], key[1])[0] > 0
         ]
-        self._velocities: dict[Key, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
         self._episodes: dict[tuple[Key, str], _Episode] = {}
-        self._groups: list[tuple[int, list[int]]] | None = None
-        self._instrument_groups: list[tuple[int, list[int]]] = []
+        self._read_bodies: tuple[list[tuple[int, list[int]]], list[tuple[int, list[int]]]] | None = None
+        self._provided: set[int] = set()
+        self._qd: dict[int, tuple[dict[int, int], Sequence[float] | np.ndarray]] = {}
+        """body -> ({joint: index}, velocities before the step (rad/s or m/s) by index)."""
+        self._index_maps: dict[tuple[int, ...], dict[int, int]] = {}
+        self._chains: dict[Key, list[_ChainJoint]] = {}
+        self._striker_bodies: list[int] | None = None
         self.instrument_every = 1
-        """Read the moving instruments' (cymbals') velocities every this many steps; strikers every step. A
-        cymbal swings at about 1 Hz: a few milliseconds old, its velocity is still its velocity."""
+        """Read the moving instruments' (cymbals') joint velocities every this many steps; strikers every step.
+        A cymbal swings at about 1 Hz: a few milliseconds old, its velocity is still its velocity."""
         self._calls = 0
         self.touching: set[str] = set()
         """Base part names of the strikers in contact at the last step (e.g. left_stick, kick_beater)."""
@@ -73,40 +94,90 @@ class ContactTracker:
 
     def add_striker(self, striker: Striker) -> None:
         self.strikers[(striker.body, striker.link)] = striker
-        self._groups = None
+        self._read_bodies = None
+        self._striker_bodies = None
+
+    def provide_joint_velocities(self, body: int, joints: list[int], velocities: np.ndarray) -> None:
+        """The scene's reading of ``body``'s joint velocities at the start of this step (the tracker then does
+        not read that body itself)."""
+        if body not in self._provided:
+            self._provided.add(body)
+            self._read_bodies = None
+        self._qd[body] = (self._index_map(joints), velocities)
+
+    def _index_map(self, joints: Sequence[int]) -> dict[int, int]:
+        key = tuple(joints)
+        index = self._index_maps.get(key)
+        if index is None:
+            index = self._index_maps[key] = {j: k for k, j in enumerate(key)}
+        return index
 
     def before_step(self) -> None:
-        """Record striker and moving-instrument velocities before the step (for approach velocities)."""
-        vel = self._velocities
-        if self._groups is None:
-            self._groups = _by_body(list(self.strikers))
-            self._instrument_groups = _by_body([k for k in self._moving_instruments if k not in self.strikers])
-        groups = self._groups
-        if self._calls % self.instrument_every == 0:
-            groups = groups + self._instrument_groups
+        """Keep the joint velocities of the bodies that may touch (for approach velocities)."""
+        if self._read_bodies is None:
+            c = self.world.client
+            striker_bodies = sorted({k[0] for k in self.strikers} - self._provided)
+            instrument_bodies = sorted({k[0] for k in self._moving_instruments} - self._provided - set(striker_bodies))
+            self._read_bodies = tuple(  # type: ignore[assignment]
+                [(b, [j for j in range(c.getNumJoints(b)) if c.getJointInfo(b, j)[2] != p.JOINT_FIXED])
+                 for b in bodies] for bodies in (striker_bodies, instrument_bodies))
+        assert self._read_bodies is not None
+        strikers, instruments = self._read_bodies
+        bodies = strikers + instruments if self._calls % self.instrument_every == 0 else strikers
         self._calls += 1
         c = self.world.client
-        for body, links in groups:
-            real = [k for k in links if k >= 0]
-            if real:
-                states = c.getLinkStates(body, real, computeLinkVelocity=1, computeForwardKinematics=1)
-                for k, s in zip(real, states, strict=True):
-                    vel[(body, k)] = (np.asarray(s[0]), np.asarray(s[6]), np.asarray(s[7]))
-            if -1 in links:
-                vel[(body, -1)] = self.world.link_velocity(body, -1)
+        step = self.world.steps
+        for body, joints in bodies:
+            reading = self.kit.readings.get(body)
+            if reading is not None and reading[0] == step and reading[1] == joints:  # the kit's springs read it
+                self._qd[body] = (self._index_map(joints), reading[2])
+            elif joints:
+                self._qd[body] = (self._index_map(joints), [s[1] for s in c.getJointStates(body, joints)])
+
+    def _chain(self, key: Key) -> list[_ChainJoint]:
+        """The moving joints from ``key``'s link up to its body's base."""
+        chain = self._chains.get(key)
+        if chain is None:
+            c = self.world.client
+            body, link = key
+            chain = []
+            while link >= 0:
+                info = c.getJointInfo(body, link)
+                if info[2] in (p.JOINT_REVOLUTE, p.JOINT_PRISMATIC):
+                    chain.append(_ChainJoint(link, info[2] == p.JOINT_PRISMATIC, np.asarray(info[13], dtype=float)))
+                link = info[16]
+            self._chains[key] = chain
+        return chain
 
     def _point_velocity(self, key: Key, point: np.ndarray) -> np.ndarray:
-        rec = self._velocities.get(key)
-        if rec is None:
-            return np.zeros(3)
-        com, lin, ang = rec
-        return lin + np.cross(ang, point - com)
+        """Velocity (3,) m/s before this step of the point ``point`` (world, metres) fixed to link ``key``."""
+        body = key[0]
+        record = self._qd.get(body)
+        chain = self._chain(key)
+        c = self.world.client
+        base, _ = c.getBasePositionAndOrientation(body)
+        lin, ang = c.getBaseVelocity(body)  # zero for a fixed base; a pinned floating base barely moves
+        v = np.asarray(lin, dtype=float) + np.cross(np.asarray(ang, dtype=float), point - np.asarray(base))
+        if record is None or not chain:
+            return v
+        index, qd = record
+        states = c.getLinkStates(body, [j.joint for j in chain], computeForwardKinematics=1)
+        for joint, state in zip(chain, states, strict=True):
+            k = index.get(joint.joint)
+            rate = 0.0 if k is None else float(qd[k])
+            if rate == 0.0:
+                continue
+            axis = rotation_matrix(state[5]) @ joint.axis_local
+            v += rate * (axis if joint.prismatic else np.cross(axis, point - np.asarray(state[4])))
+        return v
 
     def after_step(self, time: float, step: int) -> list[Contact]:
         """Contacts of the step just taken; ``time``: rig time of the step, seconds."""
         c = self.world.client
         groups: dict[tuple[Key, str], list[tuple[np.ndarray, np.ndarray, float, Key]]] = {}
-        for body in sorted({k[0] for k in self.strikers}):
+        if self._striker_bodies is None:
+            self._striker_bodies = sorted({k[0] for k in self.strikers})
+        for body in self._striker_bodies:
             for cp in c.getContactPoints(bodyA=body):
                 key = (cp[1], cp[3])
                 if key not in self.strikers:
@@ -167,11 +238,3 @@ class ContactTracker:
                 del self._episodes[pair]
         self.touching = {self.strikers[key].part for key, _ in groups}
         return out
-
-
-def _by_body(keys: list[Key]) -> list[tuple[int, list[int]]]:
-    """(body, link) keys grouped per body, sorted: one state read per body."""
-    groups: dict[int, list[int]] = {}
-    for body, link in keys:
-        groups.setdefault(body, []).append(link)
-    return sorted((body, sorted(set(links))) for body, links in groups.items())

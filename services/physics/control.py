@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from itertools import chain
 
 import numpy as np
 import pybullet as p
@@ -118,6 +119,11 @@ COMPUTED_TORQUE_MODES = ("joint_ct", "cartesian")
 """Modes whose PD goes through inverse dynamics; joint_pd and cartesian_pd use the explicit diagonal PD."""
 """Explicit damping stays below KD_CAP * I_free / dt (measured: 1.5 slowly destabilises the arms at 1 ms)."""
 
+MASS_REFRESH_S = 0.03
+"""Computed-torque modes with updates held over several steps: the joint-space mass matrix used between updates
+is recomputed at least this often, seconds of simulation (it costs about 100 us, 20 times the inverse dynamics,
+and only scales the small correction between updates; the update itself is exact inverse dynamics)."""
+
 TRUNK_IK_WEIGHT = 0.3
 """Inverse DLS weight of the lumbar and thoracic DOF (0: they keep the posture; 1: as free as the arms)."""
 
@@ -166,15 +172,19 @@ class Controller:
         :meth:`apply_between` corrects the held torques at every physics step (see :meth:`apply`)."""
         self._held: _HeldTorques | None = None
         self._ct_mass: np.ndarray | None = None
+        self._mass_age = 0.0
         c = world.client
         n = len(body.dof_list)
-        # joint-space inertia at the rest posture (floating base: 6 base DOF first, then every joint)
+        # joint-space inertia at the rest posture (a floating base: 6 base DOF first, then every joint)
         body.set_state(rest)
         q_all = [c.getJointState(body.id, j)[0] for j in range(c.getNumJoints(body.id))
                  if c.getJointInfo(body.id, j)[2] == p.JOINT_REVOLUTE]
-        base_pos, base_quat = c.getBasePositionAndOrientation(body.id)
         movable = [j for j in range(c.getNumJoints(body.id)) if c.getJointInfo(body.id, j)[2] == p.JOINT_REVOLUTE]
-        mass = np.asarray(c.calculateMassMatrix(body.id, [*base_pos, *base_quat, *q_all]))
+        base: list[float] = []
+        if body.floating_base:
+            base_pos, base_quat = c.getBasePositionAndOrientation(body.id)
+            base = [*base_pos, *base_quat]
+        mass = np.asarray(c.calculateMassMatrix(body.id, [*base, *q_all]))
         offset = mass.shape[0] - len(movable)
         col = {j: offset + k for k, j in enumerate(movable)}
         # effective inertia of each DOF with every other joint free: 1 / (M^-1)_jj. The diagonal of M itself
@@ -198,6 +208,7 @@ class Controller:
         # quaternion-limited joints: DOF index triples
         self.q_joints = [j for j in JOINTS if j in limits.quaternion]
         self.q_index = np.array([[JOINTS.index(j) * 3 + k for k in range(3)] for j in self.q_joints], dtype=int)
+        self._limit_tiles: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
         if self.q_joints:
             self.q_mean_inv = np.array([_conj(limits.quaternion[j].mean) for j in self.q_joints])
             self.q_mean = np.array([limits.quaternion[j].mean for j in self.q_joints])
@@ -223,6 +234,8 @@ class Controller:
         self._last_theta_dot_t: np.ndarray | None = None
         self.touching: set[str] = set()
         """Limbs whose stick touches an instrument at the last step (set by the scene before apply)."""
+        self.posture_rate: np.ndarray | None = None
+        """Rates (57,) rad/s of a moving null-space posture (``rest``), fed forward by the IK; None: still."""
 
     def _update_gains(self) -> None:
         """ks = I w^2, kd = 2 zeta w I with I the DOF's inertia with every other joint free.
@@ -267,17 +280,20 @@ class Controller:
     def _project(self, e: np.ndarray, repeat: int = 1) -> tuple[np.ndarray, np.ndarray]:
         """Project Euler triples (repeat * K, 3) of the limited joints into their ellipsoids."""
         q = quat_from_euler_xyz(e)
-        mean_inv = np.tile(self.q_mean_inv, (repeat, 1))
+        tiles = self._limit_tiles.get(repeat)
+        if tiles is None:  # the limits stacked ``repeat`` times, made once
+            tiles = self._limit_tiles[repeat] = (
+                np.tile(self.q_mean_inv, (repeat, 1)), np.tile(self.q_mean, (repeat, 1)),
+                np.tile(self.q_axes, (repeat, 1, 1)), np.tile(self.q_extents, (repeat, 1)))
+        mean_inv, mean, axes, extents = tiles
         v = quat_log(quat_mul(mean_inv, q))
-        axes = np.tile(self.q_axes, (repeat, 1, 1))
-        extents = np.tile(self.q_extents, (repeat, 1))
         coords = np.einsum("kij,ki->kj", axes, v)
         r = np.sqrt(np.sum((coords / extents) ** 2, axis=1))
         outside = r > 1.0
         if not np.any(outside):
             return e, outside
         scale = np.where(outside, 1.0 / np.maximum(r, 1e-12), 1.0)
-        qp = quat_mul(np.tile(self.q_mean, (repeat, 1)), quat_exp(v * scale[:, None]))
+        qp = quat_mul(mean, quat_exp(v * scale[:, None]))
         return euler_xyz_from_quat(qp), outside
 
     def limit_torque(self, theta: np.ndarray) -> np.ndarray:
@@ -325,6 +341,7 @@ class Controller:
         """Forget the integrated Cartesian reference and the held torques (after a reset or a mode switch)."""
         self.theta_ref = None
         self._held = None
+        self._ct_mass = None
 
     def ik_targets(self, theta: np.ndarray, targets: dict[str, tuple[np.ndarray, np.ndarray]],
                    touching: set[str] | frozenset[str] = frozenset()) -> tuple[np.ndarray, np.ndarray]:
@@ -338,7 +355,7 @@ class Controller:
         target is below it, its error is not integrated and the reference may barely lead the state: the
         surface stops the limb where the plan goes through, and winding up would press it in.
         """
-        eff, jac, _ = self.body.kinematics()
+        eff, jac = self.body.kinematics()
         rows = [LIMBS.index(limb) for limb in LIMBS if limb in targets]
         if self.theta_ref is None:
             self.theta_ref = theta.copy()
@@ -354,10 +371,14 @@ class Controller:
         gain = self.params.task_gain if self.mode in COMPUTED_TORQUE_MODES else self.params.task_gain_pd
         xdot = vel + gain * err
         jw = j * self.ik_weight_inv[None, :]
-        a = jw @ j.T + self.params.ik_damping**2 * np.eye(j.shape[0])
-        jpinv = jw.T @ np.linalg.inv(a)  # W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1
+        a = jw @ j.T
+        a.flat[:: a.shape[0] + 1] += self.params.ik_damping**2
+        jpinv = np.linalg.solve(a, jw).T  # W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 (a is symmetric)
         active = self.body.chain_mask[rows].any(axis=0)
-        posture = np.where(active, self.params.posture_gain * (self.rest - ref), 0.0)
+        pull = self.params.posture_gain * (self.rest - ref)
+        if self.posture_rate is not None:
+            pull += self.posture_rate
+        posture = np.where(active, pull, 0.0)
         null_term = posture - jpinv @ (j @ posture)
         qdot = jpinv @ xdot + null_term
         fastest = float(np.max(np.abs(qdot)))
@@ -394,11 +415,19 @@ class Controller:
         pos = {j: k for k, j in enumerate(revolute)}
         self._id = (world, body_id, np.array([pos[j] for j in self.body.dof_list]),
                     np.array([pos[j] for j in self.body.passive]), len(revolute))
+        dof_pos = self._id[2]
+        self._dof_block = (dof_pos[:, None] * len(revolute) + dof_pos[None, :]).reshape(-1)
+        """Flat indices of the DOF x DOF block of the copy's mass matrix (which also has the fulcrums)."""
 
     def computed_torque(self, theta: np.ndarray, theta_dot: np.ndarray, theta_t: np.ndarray,
-                        theta_dot_t: np.ndarray, theta_ddot_ff: np.ndarray) -> np.ndarray:
+                        theta_dot_t: np.ndarray, theta_ddot_ff: np.ndarray,
+                        passive: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
         """tau = M(q) (qdd_ff + w^2 (q_t - q) + 2 zeta w (qd_t - qd)) + C(q, qd) + g(q): a PD whose gains are
-        scaled by the body's own inertia (inverse dynamics on a fixed-base copy; the seat is pinned)."""
+        scaled by the body's own inertia (inverse dynamics on a fixed-base copy; the seat does not move).
+
+        ``passive``: the fulcrum angles and velocities (rad, rad/s) if already read. With updates held over
+        several steps, ``M(q)`` for the correction between updates is refreshed every ``MASS_REFRESH_S``
+        (the posture changes little in that time)."""
         self._ensure_id_model()
         assert self._id is not None
         world, body_id, dof_pos, passive_pos, n = self._id
@@ -413,17 +442,23 @@ class Controller:
         qd_all = np.zeros(n)
         qdd_all = np.zeros(n)
         q_all[dof_pos], qd_all[dof_pos], qdd_all[dof_pos] = theta, theta_dot, qdd
-        pq, pqd = self.body.passive_state()
+        pq, pqd = self.body.passive_state() if passive is None else passive
         q_all[passive_pos], qd_all[passive_pos] = pq, pqd
-        tau = world.client.calculateInverseDynamics(body_id, q_all.tolist(), qd_all.tolist(), qdd_all.tolist())
+        q_list = q_all.tolist()
+        tau = world.client.calculateInverseDynamics(body_id, q_list, qd_all.tolist(), qdd_all.tolist())
         if self.control_dt > self.world.dt:  # held between updates: keep M(q) for the PD's correction
-            mass = np.array(world.client.calculateMassMatrix(body_id, q_all.tolist()), dtype=float)
-            self._ct_mass = mass[np.ix_(dof_pos, dof_pos)]
+            self._mass_age += self.control_dt
+            if self._ct_mass is None or self._mass_age >= MASS_REFRESH_S - 1e-9:
+                rows = world.client.calculateMassMatrix(body_id, q_list)  # nested lists: read flat, not np.array
+                mass = np.fromiter(chain.from_iterable(rows), float, n * n)
+                self._ct_mass = mass.take(self._dof_block).reshape(len(dof_pos), len(dof_pos))
+                self._mass_age = 0.0
         return np.asarray(tau)[dof_pos]
 
     def apply(self, theta: np.ndarray, theta_dot: np.ndarray, theta_t: np.ndarray, theta_dot_t: np.ndarray,
-              passive_tau: np.ndarray) -> None:
-        """Send this step's torques for the current mode (see the module docstring)."""
+              passive_tau: np.ndarray, passive: tuple[np.ndarray, np.ndarray] | None = None) -> None:
+        """Send this step's torques for the current mode (see the module docstring); ``passive``: the
+        fulcrums' angles and velocities if already read."""
         c = self.world.client
         body = self.body
         theta_t, extra = self.enforce_limits(theta, np.clip(theta_t, body.lower, body.upper))
@@ -450,7 +485,7 @@ class Controller:
             self.last_tau = np.zeros_like(theta)
         else:
             if self.mode in COMPUTED_TORQUE_MODES:
-                tau = self.computed_torque(theta, theta_dot, theta_t, theta_dot_t, qdd_ff) + extra
+                tau = self.computed_torque(theta, theta_dot, theta_t, theta_dot_t, qdd_ff, passive) + extra
                 # between control updates: the same PD through the mass matrix of the update
                 k_between = self._w_ct**2 * self.scale_ks
                 d_between = 2 * self.params.damping_ratio * self._w_ct * self.scale_kd
@@ -464,7 +499,9 @@ class Controller:
                                       mass)
             tau = np.clip(tau, -body.torque_limit, body.torque_limit)
             self.last_tau = tau
-            c.setJointMotorControlArray(body.id, body.dof_list, p.TORQUE_CONTROL, forces=tau.tolist())
+            c.setJointMotorControlArray(body.id, body.state_joints, p.TORQUE_CONTROL,
+                                        forces=tau.tolist() + passive_tau.tolist())
+            return
         c.setJointMotorControlArray(body.id, body.passive, p.TORQUE_CONTROL, forces=passive_tau.tolist())
 
     @property
@@ -494,9 +531,8 @@ class Controller:
         tau = held.tau + (correction if held.mass is None else held.mass @ correction)
         tau = np.clip(tau, -body.torque_limit, body.torque_limit)
         self.last_tau = tau
-        c = self.world.client
-        c.setJointMotorControlArray(body.id, body.dof_list, p.TORQUE_CONTROL, forces=tau.tolist())
-        c.setJointMotorControlArray(body.id, body.passive, p.TORQUE_CONTROL, forces=passive_tau.tolist())
+        self.world.client.setJointMotorControlArray(body.id, body.state_joints, p.TORQUE_CONTROL,
+                                                    forces=tau.tolist() + passive_tau.tolist())
 
 
 @dataclass(frozen=True)

@@ -80,6 +80,10 @@ class PhysicsSettings(BaseModel):
     height_m: float = Field(default=1.75, ge=1.2, le=2.2, description="drummer's height, metres")
     mass_kg: float = Field(default=73.0, ge=35, le=150, description="drummer's mass, kilograms")
     control: ControlModeName = Field(default="cartesian", description="controller")
+    floating_base: bool = Field(default=False,
+                                description="drummer: a floating base pinned to the throne instead of a fixed base "
+                                            "(PyBullet's stable PD, joint_spd, needs it; the pin costs about a "
+                                            "fifth of each step); on by itself with control joint_spd")
     grip: Literal["french", "german", "american", "traditional"] = Field(default="american", description="grip")
 
 
@@ -143,6 +147,8 @@ class PhysicsCore:
         self._last_skeleton = -math.inf
         self._last_skip_warning = -math.inf
         self._poses_sent = 0
+        self._pose_plan: list[tuple[int, list[int], list[int]]] | None = None
+        self._pose_static: list[float] = []
         self.score_player = ScorePlayer(self)
         """Score control messages -> gesture plans for the drummer (services/physics/score_player.py)."""
 
@@ -192,8 +198,6 @@ class PhysicsCore:
             self.scene.reset()
             self.score_player.reset()
             return []
-        if isinstance(message, PhysicsControlMode):
-            self.settings = self.settings.model_copy(update={"control": message.mode})
         if isinstance(message, PhysicsPosture):  # graphics' pose editor: a separate handler (posture.py)
             apply_posture(self, message)
             return []
@@ -210,6 +214,8 @@ class PhysicsCore:
         handler = getattr(self.scene, "handle", None)
         if handler is not None:
             handler(message, self.time)
+        if isinstance(message, PhysicsControlMode):  # after the scene accepted it
+            self.settings = self.settings.model_copy(update={"control": message.mode})
         return []
 
     # ---------------------------------------------------------------- helpers
@@ -246,12 +252,31 @@ class PhysicsCore:
         self.scene.load_plan(plan, self.time if start_at is None else start_at, now=self.time)
 
     def pose(self) -> Pose:
-        values: list[float] = []
-        for _, body, link in self.scene.pose_links:
-            pos, quat = self.world.link_frame(body, link)
-            values.extend(float(v) for v in pos)
-            values.extend(float(v) for v in quat)
+        """Every pose link's world position (m) and quaternion (xyzw): one link-state read per moving body; the
+        bases of fixed bodies (drums, stands) never move and are read once."""
+        if self._pose_plan is None:
+            self._pose_plan = self._plan_pose_reads()
+        values = self._pose_static.copy()
+        c = self.world.client
+        for body, links, slots in self._pose_plan:
+            for state, slot in zip(c.getLinkStates(body, links, computeForwardKinematics=1), slots, strict=True):
+                values[slot:slot + 3] = state[4]
+                values[slot + 3:slot + 7] = state[5]
         return Pose(time=self.time, layout=self.layout, values=tuple(values))
+
+    def _plan_pose_reads(self) -> list[tuple[int, list[int], list[int]]]:
+        """(body, links, value offsets) per body with moving pose links; fills ``_pose_static``."""
+        self._pose_static = [0.0] * (7 * len(self.scene.pose_links))
+        plan: dict[int, tuple[list[int], list[int]]] = {}
+        for k, (_, body, link) in enumerate(self.scene.pose_links):
+            if link < 0:  # every body's base is fixed (or, the drummer's seat, pinned): it never moves
+                pos, quat = self.world.link_frame(body, link)
+                self._pose_static[7 * k:7 * k + 7] = [*map(float, pos), *map(float, quat)]
+            else:
+                links, slots = plan.setdefault(body, ([], []))
+                links.append(link)
+                slots.append(7 * k)
+        return [(body, links, slots) for body, (links, slots) in plan.items()]
 
     def _one_step(self) -> list[Outgoing]:
         world = self.world

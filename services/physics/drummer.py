@@ -88,6 +88,9 @@ GRIPS: dict[str, GripSpec] = {
 """Soft fingers in the stroke direction (15-20 N m/rad): the stick rebounds in the hand while the hand follows
 through (stiffer fingers press the stick into the head for 20-30 ms at 3 m/s)."""
 TRADITIONAL_LEFT = GripSpec(math.radians(-60.0), 15.0, 60.0)
+FINGER_INERTIA_KGM2 = 1.2e-3
+"""The stick's moment of inertia about the fulcrum that the finger springs' damping is scaled by, kg m^2."""
+FINGER_DAMPING_RATIO = 0.3
 
 _LIMIT_CACHE: dict[str, JointLimits] = {}
 
@@ -152,7 +155,7 @@ def solve_posture(body: Body, targets: dict[str, np.ndarray], q0: np.ndarray, cl
     err_max = math.inf
     for _ in range(iterations):
         body.set_state(q)
-        eff, jac, _ = body.kinematics(links)
+        eff, jac = body.kinematics(links)
         err = np.concatenate([g - e for g, e in zip(goals, eff, strict=True)])
         err_max = float(np.max(np.abs(err)))
         if err_max < 2e-4:
@@ -182,8 +185,11 @@ class DrummerScene:
         self.anthro = anthropometry(settings.height_m, settings.mass_kg)
         self.spec = CharacterSpec(self.anthro, limits=self.limits.dof_limits())
         self.model = build_character(self.spec)
-        self.body = Body(world, self.model, self.seat_position)  # type: ignore[arg-type]
+        self.body = Body(world, self.model, self.seat_position,  # type: ignore[arg-type]
+                         floating_base=settings.floating_base or settings.control == "joint_spd")
         self.grip: dict[str, str] = {"left": settings.grip, "right": settings.grip}
+        self._finger_gains: tuple[np.ndarray, np.ndarray] | None = None
+        """Fulcrum spring stiffness and damping for the grips (N m/rad, N m s/rad), set from ``grip``."""
         # rest posture by IK, then the controller
         self.rest_targets = self._rest_targets()
         guess = initial_guess(settings.grip)
@@ -211,6 +217,9 @@ class DrummerScene:
         self._kin_q = self.rest.copy()
         self.limb_tracks: dict[str, Track] = {limb: Track(3) for limb in LIMBS}
         self.joint_track = Track(N_DOF)
+        self.posture_track = Track(N_DOF)
+        """Cartesian modes: a posture (57 angles, rad, and rates, rad/s) for the IK's null space instead of the
+        rest posture, e.g. the captured joint trajectory of a gesture whose stick tips are the targets."""
         hihat_pedal = self.kit_bodies.hihat.pedal if self.kit_bodies.hihat is not None else None
         self._beater_pedals = [pedal for pedal in self.kit_bodies.pedals.values() if pedal is not hihat_pedal]
         """Pedals a resting foot must not press (their beaters would rest on the head); the hi-hat foot presses
@@ -354,6 +363,21 @@ class DrummerScene:
                               f"{f' (and {out.size - 1} more)' if out.size > 1 else ''}")
         self.joint_track.add(time, q, v[N_DOF:])
 
+    def add_posture(self, time: float, values: np.ndarray | tuple[float, ...], now: float) -> None:
+        """Queue one null-space posture knot for the Cartesian modes: 57 angles (rad) then 57 rates (rad/s).
+
+        The IK then keeps the arms, trunk and head near this posture while the stick tips and feet follow their
+        targets (Algorithm 2's posture term); outside the joint limits it is projected inside. Raises
+        :class:`TargetError` like :meth:`add_joints`."""
+        v = np.asarray(values, dtype=float).reshape(-1)
+        if v.size != 2 * N_DOF:
+            raise TargetError(f"a posture needs {2 * N_DOF} values ({N_DOF} angles then {N_DOF} rates), got {v.size}")
+        if not np.all(np.isfinite(v)) or not math.isfinite(time):
+            raise TargetError("posture has non-finite values")
+        if time < now - 1e-9:
+            raise TargetError(f"posture at {time:.4f} s is in the past (now {now:.4f} s)")
+        self.posture_track.add(time, self.controller.clamp_targets(v[:N_DOF]), v[N_DOF:])
+
     def load_plan(self, plan: GesturePlan, start_at: float, now: float | None = None) -> None:
         """Track a whole gesture plan: its time ``plan.start_time`` maps to rig time ``start_at`` (seconds).
 
@@ -380,7 +404,7 @@ class DrummerScene:
     def current_targets(self) -> dict[str, np.ndarray]:
         """Where each limb's target point is now (the inverse of the hands' bead offset), metres."""
         self.body.update()
-        eff, _, _ = self.body.kinematics()
+        eff, _ = self.body.kinematics()
         return {limb: eff[i] - self.target_offset[limb] for i, limb in enumerate(LIMBS)}
 
     def handle(self, message: OscMessage, now: float) -> None:
@@ -390,6 +414,9 @@ class DrummerScene:
         elif isinstance(message, JointTarget):
             self.add_joints(message.time, message.values, now)
         elif isinstance(message, PhysicsControlMode):
+            if message.mode == "joint_spd" and not self.body.floating_base:
+                raise TargetError("joint_spd (PyBullet's stable PD) needs a floating base: start physics with "
+                                  "--floating-base or --control joint_spd")
             self.controller.mode = message.mode
             self.controller.reset_reference()
         elif isinstance(message, PhysicsGains):
@@ -411,12 +438,15 @@ class DrummerScene:
             sx = 1.0 if side == "right" else -1.0
             self.rest[JOINTS.index(f"{side}_elbow") * 3 + 2] = sx * spec.pronation
         self.controller.rest = self.rest.copy()
+        self._finger_gains = None
 
     def reset(self) -> None:
         self._steps_to_update = 0
         for track in self.limb_tracks.values():
             track.clear()
         self.joint_track.clear()
+        self.posture_track.clear()
+        self.controller.posture_rate = None
         self.body.set_state(self.rest)
         self._kin_q = self.rest.copy()
         self.controller.rest = self.rest.copy()
@@ -466,7 +496,7 @@ class DrummerScene:
         # one damped least-squares iteration per step from the previous solution (targets move little in 1 ms)
         q = self._kin_q
         kin.set_state(q)
-        eff, jac, _ = kin.kinematics()
+        eff, jac = kin.kinematics()
         j = jac[rows].reshape(3 * len(rows), -1)
         err = np.concatenate([targets[LIMBS[r]][0] - eff[r] for r in rows])
         vel = np.concatenate([targets[LIMBS[r]][1] for r in rows])
@@ -486,7 +516,7 @@ class DrummerScene:
             return
         head, offset = self.head
         target, nod = head.sample(t - offset)
-        neck = self.body.link_pose(self.body.link_index["head"])[0]
+        neck = self.body.link_pos[self.body.link_index["head"]]  # read by the update's Body.update()
         d = np.asarray(target) - neck
         yaw = math.atan2(-d[0], d[1])  # +z turns the face (+y) toward -x
         pitch = math.atan2(d[2], math.hypot(d[0], d[1]))  # looking down: negative
@@ -502,14 +532,22 @@ class DrummerScene:
         angles ``q`` (rad) and velocities ``qd`` (rad/s) (default: read them)."""
         if q is None or qd is None:
             q, qd = self.body.passive_state()
-        k = []
-        for side in ("left", "right"):
-            g = grip_for(self.grip[side], side)
-            k += [g.k_pitch, g.k_yaw]
-        ks = np.array(k)
-        inertia = 1.2e-3
-        kd = 2 * 0.3 * np.sqrt(ks * inertia)
+        if self._finger_gains is None:
+            k = []
+            for side in ("left", "right"):
+                g = grip_for(self.grip[side], side)
+                k += [g.k_pitch, g.k_yaw]
+            ks = np.array(k)
+            self._finger_gains = (ks, 2 * FINGER_DAMPING_RATIO * np.sqrt(ks * FINGER_INERTIA_KGM2))
+        ks, kd = self._finger_gains
         return -ks * q - kd * qd
+
+    def _read_state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The body's joint state at the start of the step (:meth:`Body.full_state`), also handed to the contact
+        tracker for approach velocities."""
+        theta, theta_dot, pq, pqd = self.body.full_state()
+        self.tracker.provide_joint_velocities(self.body.id, self.body.state_joints, self.body.last_qd)
+        return theta, theta_dot, pq, pqd
 
     def pre_step(self, t_next: float) -> None:
         """Compute and apply this step's torques for the state at the start of the step ending at ``t_next``.
@@ -521,7 +559,7 @@ class DrummerScene:
         sticks_touching = frozenset(self.tracker.touching)
         if self._steps_to_update > 0 and self.controller.can_hold() and sticks_touching == self._touching_at_update:
             self._steps_to_update -= 1
-            theta, theta_dot, pq, pqd = self.body.full_state()
+            theta, theta_dot, pq, pqd = self._read_state()
             self.controller.apply_between(theta, theta_dot, t_next - self._last_update_s,
                                           self.passive_torques(pq, pqd))
             self.kit_bodies.pre_step(self.world, update=False)
@@ -530,7 +568,7 @@ class DrummerScene:
         self._last_update_s = t_next
         self._touching_at_update = sticks_touching  # a stick touching or leaving a surface: update at once
         self.body.update()
-        theta, theta_dot, pq, pqd = self.body.full_state()
+        theta, theta_dot, pq, pqd = self._read_state()
         touching = {f"{side}_hand" for side in ("left", "right") if f"{side}_stick" in self.tracker.touching}
         targets = self.cartesian_targets(t_next)
         c = self.world.client
@@ -544,13 +582,17 @@ class DrummerScene:
                 touching.add(limb)
         self.controller.touching = touching
         self.last_targets = targets
+        if len(self.posture_track):
+            self.posture_track.prune(t_next - 1.0)
+            posture, rate = self.posture_track.sample(t_next)
+            self.controller.rest, self.controller.posture_rate = posture, rate
         self._head_posture(t_next)
         if self.controller.mode.startswith("cartesian") and not len(self.joint_track):
             theta_t, theta_dot_t = self.controller.ik_targets(theta, targets, touching)
         else:
             theta_t, theta_dot_t = self.joint_reference(t_next, targets)
         self.last_joint_target = (theta_t, theta_dot_t)
-        self.controller.apply(theta, theta_dot, theta_t, theta_dot_t, self.passive_torques(pq, pqd))
+        self.controller.apply(theta, theta_dot, theta_t, theta_dot_t, self.passive_torques(pq, pqd), (pq, pqd))
         self.kit_bodies.pre_step(self.world)
 
 

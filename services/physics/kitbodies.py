@@ -114,8 +114,12 @@ class Pedal:
 
     def press(self, world: World) -> float:
         """How far the footboard is pressed, 0 (rest) ... 1 (flat)."""
-        q = world.client.getJointState(self.body, self.footboard_joint)[0]
-        return float(np.clip((PEDAL_REST_ANGLE - q) / PEDAL_REST_ANGLE, 0.0, 1.0))
+        return self.press_at(world.client.getJointState(self.body, self.footboard_joint)[0])
+
+    @staticmethod
+    def press_at(angle_rad: float) -> float:
+        """How far a footboard at ``angle_rad`` is pressed, 0 (rest) ... 1 (flat)."""
+        return min(max((PEDAL_REST_ANGLE - angle_rad) / PEDAL_REST_ANGLE, 0.0), 1.0)
 
 
 @dataclass
@@ -143,7 +147,14 @@ class KitBodies:
     hihat: HiHat | None = None
     pose_links: list[tuple[str, int, int]] = field(default_factory=list)
     """(name, body, link) of every kit link the graphics rate publishes."""
-    _spring_groups: list[tuple[int, bool, list[int], np.ndarray, np.ndarray, np.ndarray]] | None = None
+    _spring_groups: list[tuple[int, bool, list[int], list[int], list[int], list[float], list[float], list[float]]] \
+        | None = None
+    """(body, fast, spring joints, joints read, their places in the reading, stiffness, damping, rest)."""
+    readings: dict[int, tuple[int, list[int], list[float]]] = field(default_factory=dict)
+    """body -> (world step, joints, velocities rad/s or m/s) of the bodies :meth:`pre_step` read for that step
+    (the contact tracker takes the kit's velocities from here rather than reading them again)."""
+    _joint_angles: dict[tuple[int, int], float] = field(default_factory=dict)
+    """(body, joint) -> angle (rad) of the spring joints at their last reading."""
     _spring_torques: list[list[float]] = field(default_factory=list)
     _hihat_gap: float = -1.0
 
@@ -159,18 +170,25 @@ class KitBodies:
             groups: dict[tuple[int, bool], list[Spring]] = {}
             for s in self.springs:
                 groups.setdefault((s.body, s.fast), []).append(s)
-            self._spring_groups = [
-                (body, fast, [s.joint for s in group], np.array([s.stiffness for s in group]),
-                 np.array([s.damping for s in group]), np.array([s.rest for s in group]))
-                for (body, fast), group in groups.items()
-            ]
+            self._spring_groups = []
+            for (body, fast), group in groups.items():
+                # read every moving joint of the body (a pedal's beater too): the contact tracker reuses it
+                read = [j for j in range(c.getNumJoints(body)) if c.getJointInfo(body, j)[2] != p.JOINT_FIXED]
+                self._spring_groups.append((body, fast, [s.joint for s in group], read,
+                                            [read.index(s.joint) for s in group], [s.stiffness for s in group],
+                                            [s.damping for s in group], [s.rest for s in group]))
             self._spring_torques = [[] for _ in self._spring_groups]
-        for g, (body, fast, joints, k, d, rest) in enumerate(self._spring_groups):
+        angles = self._joint_angles
+        for g, (body, fast, joints, read, at, k, d, rest) in enumerate(self._spring_groups):
             if update or fast or not self._spring_torques[g]:
-                states = c.getJointStates(body, joints)
-                q = np.array([s[0] for s in states])
-                qd = np.array([s[1] for s in states])
-                self._spring_torques[g] = (-k * (q - rest) - d * qd).tolist()
+                states = c.getJointStates(body, read)
+                self.readings[body] = (world.steps, read, [s[1] for s in states])
+                torques = []
+                for joint, i, k_i, d_i, r_i in zip(joints, at, k, d, rest, strict=True):
+                    q, qd = states[i][0], states[i][1]
+                    angles[(body, joint)] = q
+                    torques.append(-k_i * (q - r_i) - d_i * qd)
+                self._spring_torques[g] = torques
             c.setJointMotorControlArray(body, joints, p.TORQUE_CONTROL, forces=self._spring_torques[g])
         self._hihat_coupling(world)
 
@@ -179,7 +197,10 @@ class KitBodies:
         c = world.client
         hh = self.hihat
         if hh is not None:
-            press = hh.pedal.press(world) if hh.pedal is not None else 0.0
+            press = 0.0
+            if hh.pedal is not None:  # its angle as the pedal's return spring just read it
+                q = self._joint_angles.get((hh.pedal.body, hh.pedal.footboard_joint))
+                press = hh.pedal.press(world) if q is None else hh.pedal.press_at(q)
             gap = HIHAT_MAX_GAP_M * hh.rest_opening * (1.0 - press) + HIHAT_CLOSED_GAP_M
             if abs(gap - self._hihat_gap) > HIHAT_GAP_RESOLUTION_M:  # a motor keeps its target: send changes
                 self._hihat_gap = gap

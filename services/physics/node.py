@@ -47,6 +47,7 @@ class PhysicsNodeSettings(NodeSettings):
                                                                    description="controller at start")
     grip: Literal["french", "german", "american", "traditional"] = Field(default="american",
                                                                          description="grip at start")
+    floating_base: bool = Field(default=False, description=PhysicsSettings.model_fields["floating_base"].description)
     height_m: float = Field(default=1.75, ge=1.2, le=2.2, description="drummer's height, metres")
     mass_kg: float = Field(default=73.0, ge=35, le=150, description="drummer's mass, kilograms")
     pose_rate_hz: float = Field(default=60.0, ge=0, le=240, description="pose publishing rate, Hz")
@@ -94,6 +95,7 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace) -> PhysicsCore:
             left_handed=settings.left_handed,
             strike_event=settings.strike_event,
             control=settings.control,
+            floating_base=settings.floating_base,
             grip=settings.grip,
             height_m=settings.height_m,
             mass_kg=settings.mass_kg,

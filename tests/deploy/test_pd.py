@@ -104,7 +104,7 @@ def test_control_panel_drives_physics_and_sound_cores() -> None:
         sends = [
             f"bp-port-physics {pport}", f"bp-port-score {pport}", f"bp-port-sound {sport}",
             "bp-grip symbol german", "bp-nuance symbol staccato", "bp-algorithm symbol viterbi",
-            "bp-mode symbol joint_spd", "bp-tempo 1.5", "bp-score symbol groove-1",
+            "bp-mode symbol joint_ct", "bp-tempo 1.5", "bp-score symbol groove-1",
             "bp-position 2", "bp-transport symbol play",
             "bp-instrument symbol kick", "bp-model symbol synth", "bp-model symbol modal", "bp-tension 800",
             "bp-level -6", "bp-modes 120", "bp-sigma1 0.0001", "bp-sigma0 20", "bp-latency 0.08",
@@ -121,7 +121,7 @@ def test_control_panel_drives_physics_and_sound_cores() -> None:
         assert physics.of(PhysicsGrip)[-1] == PhysicsGrip(hand="both", grip="german")
         scene = physics.core.scene
         assert scene.grip == {"left": "german", "right": "german"}
-        assert physics.of(PhysicsControlMode)[-1].mode == "joint_spd" and scene.controller.mode == "joint_spd"
+        assert physics.of(PhysicsControlMode)[-1].mode == "joint_ct" and scene.controller.mode == "joint_ct"
         # score messages arrive whole and typed (the score's player acts on them)
         assert physics.of(GestureStyle)[-1] == GestureStyle(grip="german", nuance="staccato", algorithm="viterbi",
                                                             sticking="none")

@@ -74,7 +74,8 @@ def test_a_stroke_onto_the_snare_gives_one_short_contact_with_rebound() -> None:
     for k in range(1, 501):
         contacts += [o.message for o in core.step(k / 1000)
                      if isinstance(o.message, Contact) and o.message.instrument == "snare"]
-        tip_normal_speed[k] = float(scene.body.link_vel[scene.body.tip_links["left_hand"]] @ normal)
+        _, tip_velocity, _ = core.world.link_velocity(scene.body.id, scene.body.tip_links["left_hand"])
+        tip_normal_speed[k] = float(tip_velocity @ normal)
     steps = [c.step for c in contacts]
     assert contacts, "the stick never reached the snare"
     assert steps == list(range(steps[0], steps[0] + len(steps))), f"more than one contact: {steps}"
@@ -212,7 +213,10 @@ def test_live_switching_grip_mode_and_reset_keeps_the_drummer_stable() -> None:
     _run(core, 0.0, 0.1)
     core.handle(PhysicsControlMode(mode="joint_pd"), 0.1, "test")
     _run(core, 0.1, 0.2)
+    # PyBullet's stable PD needs a floating base: on the (default) fixed base the switch is refused and counted
     core.handle(PhysicsControlMode(mode="joint_spd"), 0.2, "test")
+    assert scene.controller.mode == "joint_pd" and core.settings.control == "joint_pd"
+    assert core.rejected["PhysicsControlMode"] == 1
     _run(core, 0.2, 0.22)
     core.handle(PhysicsReset(time=0.22), 0.22, "test")
     core.handle(PhysicsControlMode(mode="cartesian"), 0.22, "test")
@@ -220,6 +224,48 @@ def test_live_switching_grip_mode_and_reset_keeps_the_drummer_stable() -> None:
     theta, theta_dot = scene.body.state()
     assert np.all(np.isfinite(theta)) and np.all(np.isfinite(theta_dot))
     core.close()
+
+
+def test_joint_spd_runs_on_a_floating_base_pinned_to_the_throne() -> None:
+    core = PhysicsCore(scene="drummer", control="joint_spd")
+    scene = _scene(core)
+    assert scene.body.floating_base and scene.body.pin is not None
+    seat = core.world.client.getBasePositionAndOrientation(scene.body.id)[0]
+    _run(core, 0.0, 0.02)
+    assert np.allclose(core.world.client.getBasePositionAndOrientation(scene.body.id)[0], seat, atol=1e-3)
+    core.close()
+
+
+def test_a_captured_posture_in_the_null_space_keeps_the_arm_configuration() -> None:
+    """Algorithm 2's posture term: with the same tip targets, the IK follows a posture track (here: the posture
+    whose tips the targets are) instead of drifting toward the rest posture."""
+    errors = {}
+    for with_posture in (False, True):
+        core = PhysicsCore(scene="drummer", control="cartesian")
+        scene = _scene(core)
+        posture = scene.rest.copy()
+        for dof, delta in (("right_shoulder_y", -0.25), ("right_elbow_z", 0.5), ("right_shoulder_z", 0.3)):
+            posture[DOF_NAMES.index(dof)] += delta
+        kin = scene._kinematic()
+        kin.set_state(posture)
+        tip = kin.kinematics()[0][LIMBS.index("right_hand")] - scene.target_offset["right_hand"]
+        scene.add_cartesian("right_hand", 0.0, scene.rest_targets["right_hand"], np.zeros(3), 0.0)
+        scene.add_cartesian("right_hand", 0.4, tip, np.zeros(3), 0.0)
+        if with_posture:
+            scene.add_posture(0.0, np.concatenate([scene.rest, np.zeros(57)]), 0.0)
+            scene.add_posture(0.4, np.concatenate([posture, np.zeros(57)]), 0.0)
+        _run(core, 0.0, 0.9)
+        theta, _ = scene.body.state()
+        arm = [i for i, n in enumerate(DOF_NAMES) if n.startswith(("right_shoulder", "right_elbow"))]
+        errors[with_posture] = float(np.sqrt(np.mean((theta[arm] - posture[arm]) ** 2)))
+        target = scene.cartesian_targets(0.9)["right_hand"][0]
+        assert np.linalg.norm(scene.body.effector_positions(actual=False)[LIMBS.index("right_hand")] - target) < 0.01
+        with pytest.raises(TargetError, match="114 values"):
+            scene.add_posture(1.0, np.zeros(57), 0.9)
+        with pytest.raises(TargetError, match="non-finite"):
+            scene.add_posture(1.0, np.full(114, np.nan), 0.9)
+        core.close()
+    assert errors[True] < 0.5 * errors[False], errors
 
 
 def test_poses_skeleton_and_a_left_handed_kit() -> None:
