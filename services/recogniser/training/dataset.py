@@ -1,4 +1,4 @@
-"""Turn rendered audio into training examples: candidate onsets, their context features and labels."""
+"""Training examples of the live classifier: candidate onsets of rendered audio, their context features and labels."""
 
 from __future__ import annotations
 
@@ -16,8 +16,6 @@ GROOVE_DIR = Path("/work/shared/data/groove")
 BACK_OFFSETS = (-8, -5, -3)
 """Earlier context frames (80, 50, 30 ms before): what was already ringing, so a candidate in a loud
 strike's tail can be told from a new soft strike."""
-OFFLINE_OFFSETS = (*BACK_OFFSETS, *range(-2, 10))
-"""Context frames for offline transcription (-80 ms .. +90 ms)."""
 LIVE_OFFSETS = (*BACK_OFFSETS, -2, -1, 0, 1)
 """Context frames for live mode (needs audio up to about 33 ms after the onset)."""
 CANDIDATE_DELTA = 0.06
@@ -42,7 +40,6 @@ def groove_files(split: str) -> list[tuple[Path, float]]:
 class Examples:
     """Candidate onsets of one or more excerpts."""
 
-    x_offline: np.ndarray  # (n, len(OFFLINE_OFFSETS) * N_BANDS)
     x_live: np.ndarray  # (n, len(LIVE_OFFSETS) * N_BANDS)
     y: np.ndarray  # (n, N_CLASSES) 0/1
     velocity: np.ndarray  # (n, N_CLASSES) 0..127 (0: class absent)
@@ -79,20 +76,19 @@ def label(audio: np.ndarray, hits: list[Hit], delta: float = CANDIDATE_DELTA) ->
         d = h.time - times[i]
         if np.isnan(dt[i]) or abs(d) < abs(dt[i]):
             dt[i] = d
-    x_offline = F.onset_features(spec, odf, frames, OFFLINE_OFFSETS)
     x_live = F.onset_features(spec, odf, frames, LIVE_OFFSETS)
     truth = np.array([[0.0, h.time, h.cls] for h in hits], dtype=np.float64).reshape(-1, 3)
-    return Examples(x_offline, x_live, y, vel, dt, missed, times.astype(np.float64), np.zeros(len(frames), int), truth)
+    return Examples(x_live, y, vel, dt, missed, times.astype(np.float64), np.zeros(len(frames), int), truth)
 
 
-FIELDS = ("x_offline", "x_live", "y", "velocity", "dt", "missed", "time", "excerpt", "hits")
+FIELDS = ("x_live", "y", "velocity", "dt", "missed", "time", "excerpt", "hits")
 
 
 def concat(parts: list[Examples]) -> Examples:
     """One set of examples from several excerpts (renumbering the excerpts)."""
     hits = [np.column_stack([np.full(len(p.hits), i, float), p.hits[:, 1:]]) for i, p in enumerate(parts)]
     return Examples(
-        np.concatenate([p.x_offline for p in parts]), np.concatenate([p.x_live for p in parts]),
+        np.concatenate([p.x_live for p in parts]),
         np.concatenate([p.y for p in parts]), np.concatenate([p.velocity for p in parts]),
         np.concatenate([p.dt for p in parts]), sum(p.missed for p in parts),
         np.concatenate([p.time for p in parts]), np.concatenate([np.full(len(p.y), i) for i, p in enumerate(parts)]),

@@ -49,7 +49,9 @@ class Hit:
 
 @dataclass
 class Variation:
-    """A random change of one instrument's sound: resampling (pitch and length) and a peaking EQ."""
+    """A random change of one instrument's sound: resampling (pitch and length), a peaking EQ and a tilt
+    (``tilt_db`` more above ``tilt_hz`` than below: first-order low and high pass outputs, which sum to the
+    input, weighted by -+ half of it)."""
 
     factor: float = 1.0
     eq_hz: float = 0.0
@@ -58,12 +60,16 @@ class Variation:
 
     gain: float = 1.0
     curve: float = 1.6
+    tilt_hz: float = 1000.0
+    tilt_db: float = 0.0
 
     @staticmethod
     def random(rng: np.random.Generator) -> Variation:
-        return Variation(float(2 ** (rng.uniform(-3, 3) / 12)), float(np.exp(rng.uniform(np.log(80), np.log(8000)))),
+        return Variation(float(2 ** (rng.uniform(-4, 4) / 12)), float(np.exp(rng.uniform(np.log(80), np.log(8000)))),
                          float(rng.uniform(-9, 9)), gain=float(10 ** (rng.uniform(-12, 10) / 20)),
-                         curve=float(rng.uniform(1.0, 2.6)))
+                         curve=float(rng.uniform(1.0, 2.6)),
+                         tilt_hz=float(np.exp(rng.uniform(np.log(300), np.log(5000)))),
+                         tilt_db=float(rng.uniform(-8, 8)))
 
     def apply(self, sample: np.ndarray) -> np.ndarray:
         key = id(sample)
@@ -75,6 +81,10 @@ class Variation:
         if self.eq_db:
             b, a = _peaking(self.eq_hz, self.eq_db)
             y = lfilter(b, a, y).astype(np.float32)
+        if self.tilt_db:
+            low = sosfilt(butter(1, self.tilt_hz, btype="low", fs=SAMPLE_RATE, output="sos"), y)
+            high = sosfilt(butter(1, self.tilt_hz, btype="high", fs=SAMPLE_RATE, output="sos"), y)
+            y = (low * 10 ** (-self.tilt_db / 40) + high * 10 ** (self.tilt_db / 40)).astype(np.float32)
         self._cache[key] = y
         return y
 
@@ -99,9 +109,9 @@ def render(
 ) -> tuple[np.ndarray, list[Hit]]:
     """Render notes with a kit (dry, mono, SAMPLE_RATE).
 
-    With ``vary``, each instrument is detuned by up to 3 semitones, given a random
-    peaking EQ (+-9 dB), a level offset (-12..+10 dB) and a velocity curve (gain = v ** 1.0..2.6
-    instead of v ** 1.6), to widen the timbres and balances seen in training.
+    With ``vary``, each instrument is detuned by up to 4 semitones, given a random
+    peaking EQ (+-9 dB), a spectral tilt (+-8 dB), a level offset (-12..+10 dB) and a velocity curve
+    (gain = v ** 1.0..2.6 instead of v ** 1.6), to widen the timbres and balances seen in training.
 
     Notes whose pitch is none of the classes, or whose kind the kit lacks, are left out
     of both the audio and the returned hits. An open hi-hat is choked (20 ms fade) by the

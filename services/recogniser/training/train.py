@@ -1,11 +1,13 @@
-"""Fit the recogniser's model on Groove MIDI performances rendered with the training kits.
+"""Fit the recogniser's live classifier (a per-candidate MLP) on Groove performances rendered with the training kits.
 
 Usage::
 
-    nice -n 10 python -m services.recogniser.training.train [--excerpts 1000] [--val-excerpts 150] [--workers 2]
+    nice -n 15 python -m services.recogniser.training.train [--excerpts 1000] [--val-excerpts 150] [--workers 2]
 
+Writes ``--out`` with this live classifier and the offline network of ``--offline-from``
+(:mod:`.train_net` trains that one).
 Needs scikit-learn and Debian's ``hydrogen-drumkits`` (``apt-get install hydrogen-drumkits``).
-Audio is rendered in memory: the network is fitted on ``TRAIN_KITS`` plus Batteur's own
+Audio is rendered in memory: the MLP is fitted on ``TRAIN_KITS`` plus Batteur's own
 modal and signal synthesis (:mod:`~services.recogniser.training.modal`; ``--no-synth`` leaves
 them out), half the excerpts on kits mixed from several; the decision thresholds are chosen
 on excerpts rendered with ``VALID_KITS`` (a validation kit, never fitted on), and
@@ -17,8 +19,6 @@ from __future__ import annotations
 
 import argparse
 import multiprocessing as mp
-import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -33,100 +33,46 @@ from services.recogniser.training.dataset import (
     CANDIDATE_DELTA,
     FIELDS,
     LIVE_OFFSETS,
-    OFFLINE_OFFSETS,
     Examples,
     concat,
-    groove_files,
     label,
 )
-from services.recogniser.training.kits import (
-    KIND_CLASS,
-    TRAIN_KITS,
-    VALID_KITS,
-    Kit,
-    KitsMissingError,
-    load_kit,
-    require_kits,
+from services.recogniser.training.excerpts import (
+    DRY_P,
+    FIT_KITS,
+    VALID_DRY_P,
+    Job,
+    add_arguments,
+    jobs,
+    kits_installed,
+    prepare,
+    render_excerpt,
 )
-from services.recogniser.training.modal import MODAL_KITS, render_modal_kit
-from services.recogniser.training.render import Note, augment, normalise, read_notes, render
+from services.recogniser.training.kits import TRAIN_KITS, VALID_KITS
+from services.recogniser.training.tune import merge
 from services.recogniser.transcribe import SUPPRESS_S, DrumEvent, group_chords
 
-FIT_KITS = TRAIN_KITS + MODAL_KITS
-"""Kits the network is fitted on: the Hydrogen training kits and Batteur's own synthesis."""
-CACHE_TAG = "v6"
+CACHE_TAG = "v7"
 """Changes when the rendering or features change, so stale cached examples are not reused."""
-
-EXCERPT_S = 30.0
-VARY_P = 0.9
-"""Fraction of excerpts whose instruments get a random detune, EQ, level and velocity curve."""
-HIDDEN_OFFLINE = (192, 96)
-"""Hidden layer widths of the offline MLP."""
 HIDDEN_LIVE = (64, 32)
 """Hidden layer widths of the live MLP (kept small: it runs once per candidate in real time)."""
-MIX_P = 0.5
-"""Fraction of excerpts played on a kit mixed from several (each instrument kind from a random kit)."""
-DRY_P = 0.3
-"""Fraction of excerpts left dry (no room, EQ, noise or clipping)."""
-VALID_DRY_P = 0.5
-"""Fraction of the validation kit's excerpts left dry."""
 MAX_WEIGHT = 4.0
 """Cap of the class-balancing weight of a candidate with a hit of a rare class."""
 
-_KITS: dict = {}
 
-
-def _excerpt(job: tuple[int, str, float, tuple[str, ...], float]) -> Examples:
-    seed, path, duration, kits, dry_p = job
-    rng = np.random.default_rng(seed)
-    name = kits[int(rng.integers(len(kits)))]
-    if name not in _KITS:
-        _KITS[name] = _load(name)
-    kit = _KITS[name]
-    if len(kits) > 1 and rng.random() < MIX_P:
-        kit = _mixed_kit(kits, rng)
-    start = float(rng.uniform(0, max(0.0, duration - EXCERPT_S)))
-    notes = [Note(n.time - start + 0.2, n.pitch, n.velocity) for n in read_notes(path)
-             if start <= n.time < start + EXCERPT_S]
-    audio, hits = render(notes, kit, rng, duration=EXCERPT_S + 0.2, vary=rng.random() < VARY_P)
-    return label(augment(audio, rng) if rng.random() >= dry_p else normalise(audio), hits)
-
-
-def _mixed_kit(kits: tuple[str, ...], rng: np.random.Generator) -> Kit:
-    """A kit whose every instrument kind comes from a kit drawn at random (kick of one, snare of another ...)."""
-    for name in kits:
-        if name not in _KITS:
-            _KITS[name] = _load(name)
-    mixed = Kit(name="mixed", licence="mixed")
-    for kind in KIND_CLASS:
-        having = [n for n in kits if _KITS[n].instruments.get(kind)]
-        if having:
-            mixed.instruments[kind] = _KITS[having[int(rng.integers(len(having)))]].instruments[kind]
-    return mixed
-
-
-def _load(name: str) -> Kit:
-    """A Hydrogen kit, or one of Batteur's own synthesised kits (:data:`MODAL_KITS`)."""
-    if name in MODAL_KITS:
-        return render_modal_kit(name.removeprefix("batteur-"))
-    return load_kit(name)
+def _excerpt(job: Job) -> Examples:
+    return label(*render_excerpt(job))
 
 
 def make_examples(n: int, seed: int, workers: int, kits: tuple[str, ...], dry_p: float = DRY_P) -> Examples:
     """Render ``n`` excerpts of Groove train-split performances with ``kits`` (a share ``dry_p`` of them
     dry, the others with room, EQ and noise) and label their candidates."""
-    for name in kits:  # synthesised kits are made once, before the workers fork
-        if name in MODAL_KITS and name not in _KITS:
-            print(f"rendering {name} one-shots with the sound service ...", flush=True)
-            _KITS[name] = _load(name)
-    files = [f for f in groove_files("train") if f[1] >= 20.0]  # long performances (beats with fills)
-    rng = np.random.default_rng(seed)
-    picks = rng.choice(len(files), size=n, replace=n > len(files))
-    jobs = [(seed * 100_000 + i, str(files[k][0]), files[k][1], kits, dry_p) for i, k in enumerate(picks)]
+    prepare(kits)
+    todo = jobs(n, seed, kits, dry_p)
     if workers <= 1:
-        return concat([_excerpt(j) for j in jobs])
+        return concat([_excerpt(j) for j in todo])
     with mp.Pool(workers) as pool:
-        parts = pool.map(_excerpt, jobs, chunksize=4)
+        parts = pool.map(_excerpt, todo, chunksize=4)
     return concat(parts)
 
 
@@ -202,8 +148,8 @@ def event_f(val: Examples, found: list[tuple[np.ndarray, np.ndarray]], classes: 
     for e, (times, cls) in enumerate(found):
         h = val.hits[val.hits[:, 0] == e]
         if classes is None:
-            ref = _merge(h[:, 1], 0.02)
-            est = _merge(times, 1e-4)
+            ref = merge(h[:, 1], 0.02)
+            est = merge(times, 1e-4)
         else:
             ref = np.unique(h[np.isin(h[:, 2], classes), 1])
             est = np.unique(times[np.isin(cls, classes)])
@@ -212,14 +158,6 @@ def event_f(val: Examples, found: list[tuple[np.ndarray, np.ndarray]], classes: 
         n_ref += len(ref)
         n_est += len(est)
     return 2 * matched / max(1, n_ref + n_est)
-
-
-def _merge(times: np.ndarray, gap: float) -> np.ndarray:
-    out: list[float] = []
-    for t in np.sort(times):
-        if not out or t - out[-1] > gap:
-            out.append(float(t))
-    return np.asarray(out)
 
 
 def choose_thresholds(prob: np.ndarray, val: Examples) -> np.ndarray:
@@ -263,7 +201,7 @@ def _examples(cache: Path, n: int, seed: int, workers: int, kits: tuple[str, ...
     if cache.exists():
         with np.load(cache) as z:
             d = {k: z[k] for k in FIELDS}
-        return Examples(d["x_offline"], d["x_live"], d["y"], d["velocity"], d["dt"], int(d["missed"]), d["time"],
+        return Examples(d["x_live"], d["y"], d["velocity"], d["dt"], int(d["missed"]), d["time"],
                         d["excerpt"], d["hits"])
     ex = make_examples(n, seed, workers, kits, dry_p)
     np.savez(cache, **{k: getattr(ex, k) for k in FIELDS})
@@ -273,10 +211,8 @@ def _examples(cache: Path, n: int, seed: int, workers: int, kits: tuple[str, ...
 def retune(path: Path, val: Examples, out: Path) -> int:
     """Choose the thresholds of a fitted model again on the validation examples and write it to ``out``."""
     model = load_model(path)
-    for name, clf, x in (("offline", model.offline, val.x_offline), ("live", model.live, val.x_live)):
-        print(f"{name} variant:")
-        clf.thresholds = choose_thresholds(clf.probabilities(x), val)
-    model.meta["retuned"] = True
+    model.live.thresholds = choose_thresholds(model.live.probabilities(val.x_live), val)
+    model.meta["live_retuned"] = True
     model.save(out)
     print(f"wrote {out}")
     return 0
@@ -284,22 +220,15 @@ def retune(path: Path, val: Examples, out: Path) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--excerpts", type=int, default=1000, help="30-second training excerpts (default 1000)")
-    ap.add_argument("--val-excerpts", type=int, default=150,
-                    help="30-second excerpts rendered with the validation kit, to choose thresholds (default 150)")
+    add_arguments(ap, excerpts=1000)
     ap.add_argument("--no-synth", dest="synth", action="store_false",
                     help="fit on the Hydrogen kits only (default: also Batteur's own modal and signal synthesis)")
-    ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--workers", type=int, default=2)
-    ap.add_argument("--cache", type=Path, default=Path(tempfile.gettempdir()) / "batteur-recogniser-cache")
-    ap.add_argument("--out", type=Path, default=MODEL_PATH)
+    ap.add_argument("--offline-from", type=Path, default=MODEL_PATH,
+                    help="model file whose offline network is kept (default: the shipped one)")
     ap.add_argument("--retune", type=Path, default=None, metavar="MODEL",
-                    help="only choose the thresholds of an already fitted MODEL again on the validation kit")
+                    help="only choose the live thresholds of an already fitted MODEL again on the validation kit")
     args = ap.parse_args(argv)
-    try:
-        require_kits(TRAIN_KITS + VALID_KITS)
-    except KitsMissingError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+    if not kits_installed():
         return 1
     args.cache.mkdir(parents=True, exist_ok=True)
     t0 = time.time()
@@ -315,14 +244,12 @@ def main(argv: list[str] | None = None) -> int:
         n_hits = int(e.y.sum()) + e.missed
         print(f"{name}: {len(e.y)} candidate onsets, {int((e.y.sum(1) > 0).sum())} with a hit; "
               f"{e.missed}/{n_hits} hits without a candidate; {time.time() - t0:.0f} s")
-    print("offline variant:")
-    offline = fit_variant(ex.x_offline, ex, val.x_offline, val, OFFLINE_OFFSETS, HIDDEN_OFFLINE, args.seed)
-    print("live variant:")
+    print("live classifier:")
     live = fit_variant(ex.x_live, ex, val.x_live, val, LIVE_OFFSETS, HIDDEN_LIVE, args.seed)
-    meta = {"trained_on": list(kits), "thresholds_from": list(VALID_KITS), "excerpts": args.excerpts,
-            "val_excerpts": args.val_excerpts, "seed": args.seed,
-            "data": "Groove MIDI Dataset train split (CC BY 4.0) rendered with hydrogen-drumkits"}
-    Model(offline=offline, live=live, meta=meta).save(args.out)
+    base = load_model(args.offline_from)
+    meta = dict(base.meta, live_trained_on=list(kits), live_thresholds_from=list(VALID_KITS),
+                live_excerpts=args.excerpts, live_seed=args.seed)
+    Model(offline=base.offline, live=live, meta=meta).save(args.out)
     print(f"wrote {args.out} ({args.out.stat().st_size / 1024:.0f} KiB) in {time.time() - t0:.0f} s")
     return 0
 

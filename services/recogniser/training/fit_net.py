@@ -1,0 +1,150 @@
+"""Fitting the framewise network (PyTorch, CPU) on a :class:`~services.recogniser.training.frames.FrameSet`.
+
+Random crops of excerpts are the batches; the loss is taken only on each crop's
+central frames, whose whole context lies inside the crop (so no crop edge is seen
+as silence). Loss: binary cross-entropy of the class and onset activations
+against widened targets (:func:`~services.recogniser.training.frames.targets`),
+plus the squared velocity error at strike frames. The state with the lowest
+validation-kit loss is kept. Crops are augmented on the spectrum (gain, EQ, band shift).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import torch
+from torch.nn import functional as TF
+
+from services.recogniser import features as F
+from services.recogniser.classes import N_CLASSES
+from services.recogniser.training.frames import FrameSet, targets
+from services.recogniser.training.net import Net
+
+CROP_FRAMES = 400
+"""Frames per crop whose loss counts (4 s)."""
+BATCH = 16
+"""Crops per batch."""
+VEL_WEIGHT = 2.0
+"""Weight of the velocity error relative to the activation loss."""
+EQ_P = 0.5
+"""Share of crops given a random gain and a smooth random EQ curve (on the spectrum, exactly as on the audio)."""
+EQ_DB = 6.0
+"""Range of that gain and of each of the curve's three cosine terms, +- dB."""
+SHIFT_P = 0.2
+"""Share of crops shifted up or down by one band (about two semitones)."""
+
+
+def augment_spectrum(x: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """A crop's band spectrum (frames, N_BANDS) as if its audio had been filtered and shifted in pitch.
+
+    Band magnitudes are linear in the audio, so a gain per band is exact on the spectrum
+    (undoing and redoing the log compression), unlike an offset added to the log values."""
+    if rng.random() < EQ_P:
+        pos = np.linspace(0.0, 1.0, x.shape[1])
+        db = rng.uniform(-EQ_DB, EQ_DB) + sum(rng.uniform(-EQ_DB, EQ_DB) * np.cos(np.pi * k * pos + rng.uniform(0, 6.3))
+                                               for k in (1, 2, 3))
+        lin = (10.0 ** x - 1.0) / F.LOG_MUL
+        x = np.log10(1.0 + F.LOG_MUL * lin * 10 ** (db / 20)).astype(np.float32)
+    if rng.random() < SHIFT_P:
+        x = np.concatenate([x[:, :1], x[:, :-1]], axis=1) if rng.random() < 0.5 else \
+            np.concatenate([x[:, 1:], x[:, -1:]], axis=1)
+    return x
+
+
+class Batches:
+    """Crops of a frame set with their targets (targets made once per excerpt)."""
+
+    def __init__(self, data: FrameSet, margin: int) -> None:
+        self.data = data
+        self.margin = margin
+        self.tgt = [targets(data.starts[e + 1] - data.starts[e], data.excerpt_hits(e)) for e in range(data.n_excerpts)]
+
+    def crop(self, e: int, a: int, n: int) -> tuple[np.ndarray, ...]:
+        """Input frames a - margin .. a + n + margin (silence outside) and the targets of frames a .. a + n."""
+        m = self.margin
+        spec = self.data.excerpt(e)
+        x = np.zeros((n + 2 * m, spec.shape[1]), np.float32)
+        lo, hi = max(0, a - m), min(len(spec), a + n + m)
+        x[lo - (a - m) : hi - (a - m)] = spec[lo:hi]
+        act, vel, mask = self.tgt[e]
+        return x, act[a : a + n], vel[a : a + n], mask[a : a + n]
+
+    def random(self, rng: np.random.Generator, batch: int, n: int) -> list[torch.Tensor]:
+        """A batch of random crops, each spectrum augmented (:func:`augment_spectrum`)."""
+        parts = []
+        for _ in range(batch):
+            e = int(rng.integers(self.data.n_excerpts))
+            length = self.data.starts[e + 1] - self.data.starts[e]
+            x, *tgt = self.crop(e, int(rng.integers(0, max(1, length - n))), n)
+            parts.append((augment_spectrum(x, rng), *tgt))
+        return [torch.from_numpy(np.stack(p)) for p in zip(*parts, strict=True)]
+
+
+def loss_of(net: Net, x: torch.Tensor, act: torch.Tensor, vel: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+    m = net.margin
+    out = net(x)[:, :, m:-m].transpose(1, 2)  # (batch, frames, N_OUT)
+    loss = TF.binary_cross_entropy_with_logits(out[..., : N_CLASSES + 1], act)
+    pred = torch.sigmoid(out[..., N_CLASSES + 1 :])
+    if mask.any():
+        loss = loss + VEL_WEIGHT * ((pred - vel)[mask] ** 2).mean()
+    return loss
+
+
+def validation_loss(net: Net, val: Batches, n: int = 1000) -> float:
+    """Mean loss over the validation excerpts cut into consecutive crops of ``n`` frames."""
+    net.eval()
+    total = count = 0.0
+    with torch.no_grad():
+        for e in range(val.data.n_excerpts):
+            length = val.data.starts[e + 1] - val.data.starts[e]
+            for a in range(0, length - n + 1, n):
+                x, act, vel, mask = (torch.from_numpy(v[None]) for v in val.crop(e, a, n))
+                total += float(loss_of(net, x, act, vel, mask))
+                count += 1
+    net.train()
+    return total / max(count, 1)
+
+
+def fit(train: FrameSet, val: FrameSet, epochs: float, seed: int, lr: float = 2e-3, log_every: int = 250,
+        minutes: float | None = None, width: int = 128) -> Net:
+    """Fit a :class:`Net`; ``epochs``: passes over the training frames (fractional allowed), or as many
+    steps as fit in ``minutes`` of training (measured on the first steps), whichever is fewer.
+    Learning rate: a linear warm-up over the first 3 % of the steps, then a cosine decay to zero."""
+    torch.manual_seed(seed)
+    rng = np.random.default_rng(seed)
+    net = Net(c1=width // 8, c2=width // 4, width=width)
+    tb, vb = Batches(train, net.margin), Batches(val, net.margin)
+    steps = max(1, int(epochs * len(train.spec) / (BATCH * CROP_FRAMES)))
+    opt = torch.optim.AdamW(net.parameters(), lr=lr, weight_decay=1e-4)
+    best, best_state = np.inf, None
+    t0, running = time.time(), 0.0
+    step = 0
+    while step < steps:
+        step += 1
+        warm = max(1, int(0.03 * steps))
+        rate = step / warm if step <= warm else 0.5 * (1 + np.cos(np.pi * (step - warm) / max(1, steps - warm)))
+        for group in opt.param_groups:
+            group["lr"] = lr * float(rate)
+        loss = loss_of(net, *tb.random(rng, BATCH, CROP_FRAMES))
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+        if minutes is not None and step == 20:  # the time budget, from the speed of the first steps
+            per_step = (time.time() - t0) / step
+            steps = max(step + 1, min(steps, int(minutes * 60 / (per_step * (1 + 40 / log_every)))))
+            print(f"  {per_step:.2f} s per step: {steps} steps ({steps * BATCH * CROP_FRAMES / len(train.spec):.2f}"
+                  " epochs)", flush=True)
+        running += loss.item()
+        if step % log_every == 0 or step == steps:
+            v = validation_loss(net, vb)
+            mark = ""
+            if v < best:
+                best, best_state, mark = v, {k: t.clone() for k, t in net.state_dict().items()}, " *"
+            print(f"  step {step}/{steps}: training loss {running / log_every:.4f}, validation-kit loss {v:.4f}{mark}"
+                  f" ({time.time() - t0:.0f} s)", flush=True)
+            running = 0.0
+    if best_state is not None:
+        net.load_state_dict(best_state)
+    net.eval()
+    return net
