@@ -2,12 +2,13 @@
 
 Deterministic and free of sockets, threads and wall clock (see :mod:`common.core`):
 the node feeds it blocks of samples with the rig time of their first sample.
-It computes the same frames, SuperFlux functions and onsets as the offline path
-(peak picking looks one frame ahead) and classifies each onset with the model's
-short-context ``live`` variant (a strike of a class within ``SUPPRESS_S`` of the
-previous one of that class is not sent again; unlike offline, strikes of different classes
-are not grouped into chords: that would date some hits up to ``CHORD_S`` earlier, adding
-as much to their latency), so a hit is known about
+It computes the same band spectrogram frames as the offline path, the SuperFlux
+candidate onsets of :func:`~services.recogniser.features.pick_onsets` (peak picking
+looks one frame ahead), and classifies each candidate with the model's short-context
+``live`` MLP (a strike of a class within ``SUPPRESS_S`` of the previous one of that
+class is not sent again; strikes of different classes are not grouped into chords:
+that would date some hits up to ``CHORD_S`` earlier, adding as much to their
+latency), so a hit is known about
 ``(max(offsets) + 0.5) * HOP + N_FFT / 2`` samples (about 33 ms) after its onset.
 """
 

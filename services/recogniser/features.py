@@ -10,8 +10,10 @@ maximum-filtered copy of the spectrum ``LAG`` frames earlier, summed over bands.
 It is computed separately in three band groups (kick, snare/tom, cymbal
 ranges) so that a soft note under a ringing drum of another range still makes a
 peak; the candidates are the union of the groups' peaks, kept permissive: the
-classifier rejects false ones. Peak picking looks one frame ahead only, so the
-offline and live paths find the same onsets.
+live classifier rejects false ones. Peak picking looks one frame ahead only, so the
+streaming core finds exactly the onsets this module finds offline. (Offline
+transcription does not use these candidates: its network, :mod:`~services.recogniser.framenet`,
+scores every frame.)
 """
 
 from __future__ import annotations

@@ -1,11 +1,14 @@
-"""The shipped classifier: a small multi-label MLP stored as plain arrays (.npz), run with NumPy.
+"""The shipped model, stored as plain arrays (.npz) and run with NumPy.
 
-The file holds, for each variant (``offline``: long context, ``live``: short
-context for <= 50 ms latency), the input standardisation, the layer weights,
-per-class decision thresholds and a linear velocity regressor per class, plus
-JSON metadata (class names, context offsets, onset threshold, timing offset).
-A variant may have one output more than there are classes: the probability that
-the candidate is a strike of any class (see :meth:`Classifier.decide`).
+Two variants: ``offline``, the framewise convolutional network of
+:mod:`services.recogniser.framenet` (its layer weights and per-output thresholds),
+and ``live``, a small multi-label MLP classifying each candidate onset from a
+short context (<= 50 ms latency): the input standardisation, the layer weights,
+per-class decision thresholds and a linear velocity regressor per class. JSON
+metadata holds the class names, the network's layer layout, context offsets,
+onset threshold and timing offsets. The live MLP may have one output more than
+there are classes: the probability that the candidate is a strike of any class
+(see :meth:`Classifier.decide`).
 It is loaded with ``allow_pickle=False``: no code is ever unpickled.
 """
 
@@ -20,16 +23,17 @@ import numpy as np
 from services.recogniser.classes import CLASS_NAMES, N_CLASSES
 from services.recogniser.errors import ModelError
 from services.recogniser.features import n_features
+from services.recogniser.framenet import N_OUT, FrameNet, Layer
 
 MODEL_PATH = Path(__file__).parent / "models" / "recogniser.npz"
 """The model shipped with Batteur."""
 
-FORMAT = "batteur-recogniser/1"
+FORMAT = "batteur-recogniser/2"
 
 
 @dataclass
 class Classifier:
-    """One MLP variant.
+    """The live MLP.
 
     ``offsets``: context frames relative to the onset frame; ``delta``: onset
     peak-picking threshold; ``time_offset_s``: added to onset frame times.
@@ -94,33 +98,97 @@ class Classifier:
 
 @dataclass
 class Model:
-    """Both classifier variants and the metadata."""
+    """The offline network, the live classifier and the metadata."""
 
-    offline: Classifier
+    offline: FrameNet
     live: Classifier
     meta: dict
 
     def save(self, path: str | Path) -> None:
         arrays: dict[str, np.ndarray] = {}
-        for name, c in (("offline", self.offline), ("live", self.live)):
-            arrays[f"{name}.mean"] = c.mean
-            arrays[f"{name}.scale"] = c.scale
-            arrays[f"{name}.thresholds"] = c.thresholds
-            arrays[f"{name}.vel_w"] = c.vel_w
-            for i, (w, b) in enumerate(zip(c.weights, c.biases, strict=True)):
-                arrays[f"{name}.w{i}"] = w.astype(np.float32)
-                arrays[f"{name}.b{i}"] = b.astype(np.float32)
+        c = self.live
+        arrays["live.mean"] = c.mean
+        arrays["live.scale"] = c.scale
+        arrays["live.thresholds"] = c.thresholds
+        arrays["live.vel_w"] = c.vel_w
+        for i, (w, b) in enumerate(zip(c.weights, c.biases, strict=True)):
+            arrays[f"live.w{i}"] = w.astype(np.float32)
+            arrays[f"live.b{i}"] = b.astype(np.float32)
+        net = self.offline
+        arrays["offline.thresholds"] = net.thresholds.astype(np.float32)
+        for i, la in enumerate(net.layers):
+            arrays[f"offline.w{i}"] = la.w.astype(np.float32)
+            arrays[f"offline.b{i}"] = la.b.astype(np.float32)
         meta = dict(self.meta)
         meta.update(
             format=FORMAT,
             classes=list(CLASS_NAMES),
-            offline={"offsets": list(self.offline.offsets), "delta": self.offline.delta,
-                     "time_offset_s": self.offline.time_offset_s, "layers": len(self.offline.weights)},
-            live={"offsets": list(self.live.offsets), "delta": self.live.delta,
-                  "time_offset_s": self.live.time_offset_s, "layers": len(self.live.weights)},
+            offline={"kind": "framenet", "peak_frames": net.peak_frames, "time_offset_s": net.time_offset_s,
+                     "chord_s": net.chord_s,
+                     "layers": [{"kind": la.kind, "dilation": la.dilation, "pool": la.pool, "relu": la.relu,
+                                 "residual": la.residual} for la in net.layers]},
+            live={"offsets": list(c.offsets), "delta": c.delta, "time_offset_s": c.time_offset_s,
+                  "layers": len(c.weights)},
         )
         arrays["meta"] = np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8)
         np.savez_compressed(path, **arrays)  # type: ignore[arg-type]
+
+
+LIVE_FORMATS = ("batteur-recogniser/1", FORMAT)
+"""Formats whose live classifier :func:`load_live` reads (its arrays did not change)."""
+
+
+def _read(path: str | Path, formats: tuple[str, ...]) -> tuple[Path, dict[str, np.ndarray], dict]:
+    p = Path(path)
+    if not p.exists():
+        raise ModelError(f"{p}: model file not found (train one with services/recogniser/training/train_net.py)")
+    try:
+        with np.load(p, allow_pickle=False) as z:
+            data = {k: z[k] for k in z.files}
+        meta = json.loads(bytes(data["meta"]).decode())
+    except Exception as exc:
+        raise ModelError(f"{p}: not a Batteur recogniser model: {exc}") from exc
+    if meta.get("format") not in formats:
+        raise ModelError(f"{p}: unknown model format {meta.get('format')!r}, expected {FORMAT!r}")
+    if tuple(meta.get("classes", ())) != CLASS_NAMES:
+        raise ModelError(f"{p}: model classes {meta.get('classes')} differ from {list(CLASS_NAMES)}")
+    return p, data, meta
+
+
+def _network(p: Path, data: dict[str, np.ndarray], m: dict) -> FrameNet:
+    layers = [Layer(str(la["kind"]), data[f"offline.w{i}"].astype(np.float32), data[f"offline.b{i}"].astype(np.float32),
+                    int(la["dilation"]), int(la["pool"]), bool(la["relu"]), bool(la["residual"]))
+              for i, la in enumerate(m["layers"])]
+    net = FrameNet(layers, data["offline.thresholds"].astype(np.float32), int(m["peak_frames"]),
+                   float(m["time_offset_s"]), float(m["chord_s"]))
+    if not layers or layers[0].w.shape[2] != 1 or layers[-1].w.shape[-1] != N_OUT:
+        raise ModelError(f"{p}: offline network layer shapes do not match")
+    if net.thresholds.shape != (N_CLASSES + 1,):
+        raise ModelError(f"{p}: offline network has {net.thresholds.shape[0]} thresholds, expected {N_CLASSES + 1}")
+    return net
+
+
+def _classifier(p: Path, data: dict[str, np.ndarray], m: dict, name: str) -> Classifier:
+    n_layers = int(m["layers"])
+    c = Classifier(
+        offsets=tuple(int(o) for o in m["offsets"]),
+        delta=float(m["delta"]),
+        time_offset_s=float(m["time_offset_s"]),
+        mean=data[f"{name}.mean"].astype(np.float32),
+        scale=data[f"{name}.scale"].astype(np.float32),
+        weights=[data[f"{name}.w{i}"].astype(np.float32) for i in range(n_layers)],
+        biases=[data[f"{name}.b{i}"].astype(np.float32) for i in range(n_layers)],
+        thresholds=data[f"{name}.thresholds"].astype(np.float32),
+        vel_w=data[f"{name}.vel_w"].astype(np.float32),
+    )
+    if c.weights[-1].shape[1] not in (N_CLASSES, N_CLASSES + 1) or c.weights[0].shape[0] != c.n_features:
+        raise ModelError(f"{p}: {name} layer shapes do not match")
+    if c.thresholds.shape != (c.weights[-1].shape[1],):
+        raise ModelError(f"{p}: {name} has {c.thresholds.shape[0]} thresholds for {c.weights[-1].shape[1]} outputs")
+    if c.n_features != n_features(c.offsets):
+        raise ModelError(f"{p}: {name} expects {c.n_features} features, this version computes "
+                         f"{n_features(c.offsets)} (retrain the model)")
+    return c
 
 
 def load_model(path: str | Path = MODEL_PATH) -> Model:
@@ -131,44 +199,18 @@ def load_model(path: str | Path = MODEL_PATH) -> Model:
     ModelError
         missing file, wrong format, or classes that differ from :data:`CLASS_NAMES`.
     """
-    p = Path(path)
-    if not p.exists():
-        raise ModelError(f"{p}: model file not found (train one with services/recogniser/training/train.py)")
+    p, data, meta = _read(path, (FORMAT,))
     try:
-        with np.load(p, allow_pickle=False) as z:
-            data = {k: z[k] for k in z.files}
-        meta = json.loads(bytes(data["meta"]).decode())
-    except Exception as exc:
-        raise ModelError(f"{p}: not a Batteur recogniser model: {exc}") from exc
-    if meta.get("format") != FORMAT:
-        raise ModelError(f"{p}: unknown model format {meta.get('format')!r}, expected {FORMAT!r}")
-    if tuple(meta.get("classes", ())) != CLASS_NAMES:
-        raise ModelError(f"{p}: model classes {meta.get('classes')} differ from {list(CLASS_NAMES)}")
+        return Model(offline=_network(p, data, meta["offline"]), live=_classifier(p, data, meta["live"], "live"),
+                     meta=meta)
+    except KeyError as exc:
+        raise ModelError(f"{p}: missing array {exc}") from exc
 
-    def variant(name: str) -> Classifier:
-        m = meta[name]
-        n_layers = int(m["layers"])
-        c = Classifier(
-            offsets=tuple(int(o) for o in m["offsets"]),
-            delta=float(m["delta"]),
-            time_offset_s=float(m["time_offset_s"]),
-            mean=data[f"{name}.mean"].astype(np.float32),
-            scale=data[f"{name}.scale"].astype(np.float32),
-            weights=[data[f"{name}.w{i}"].astype(np.float32) for i in range(n_layers)],
-            biases=[data[f"{name}.b{i}"].astype(np.float32) for i in range(n_layers)],
-            thresholds=data[f"{name}.thresholds"].astype(np.float32),
-            vel_w=data[f"{name}.vel_w"].astype(np.float32),
-        )
-        if c.weights[-1].shape[1] not in (N_CLASSES, N_CLASSES + 1) or c.weights[0].shape[0] != c.n_features:
-            raise ModelError(f"{p}: {name} layer shapes do not match")
-        if c.thresholds.shape != (c.weights[-1].shape[1],):
-            raise ModelError(f"{p}: {name} has {c.thresholds.shape[0]} thresholds for {c.weights[-1].shape[1]} outputs")
-        if c.n_features != n_features(c.offsets):
-            raise ModelError(f"{p}: {name} expects {c.n_features} features, this version computes "
-                             f"{n_features(c.offsets)} (retrain the model)")
-        return c
 
+def load_live(path: str | Path) -> tuple[Classifier, dict]:
+    """Only the live classifier of a model file (of this or the previous format) and the file's metadata."""
+    p, data, meta = _read(path, LIVE_FORMATS)
     try:
-        return Model(offline=variant("offline"), live=variant("live"), meta=meta)
+        return _classifier(p, data, meta["live"], "live"), meta
     except KeyError as exc:
         raise ModelError(f"{p}: missing array {exc}") from exc

@@ -1,9 +1,9 @@
-"""Offline transcription: audio -> onsets (SuperFlux) -> drum classes and velocities per onset.
+"""Offline transcription: audio -> band spectrogram -> framewise network -> strikes per class.
 
-Each detected onset is classified by the model's ``offline`` MLP (multi-label: a
-kick and a hi-hat struck together are two events at the same time); an onset
-whose every class is below threshold is dropped as a false onset, unless the
-model's onset output says it is a strike (then it is its most probable class).
+The model's ``offline`` network (:mod:`services.recogniser.framenet`) gives, for every
+10 ms frame, the probability that each class is struck there; each class's peaks
+above its threshold are its strikes (a kick and a hi-hat struck together are two
+events at the same time), with the velocity the network gives at that frame.
 """
 
 from __future__ import annotations
@@ -17,7 +17,8 @@ import numpy as np
 from services.recogniser import features as F
 from services.recogniser.audio import MAX_DURATION_S, SAMPLE_RATE, load_audio
 from services.recogniser.classes import CLASSES
-from services.recogniser.model import Classifier, Model, load_model
+from services.recogniser.framenet import FrameNet
+from services.recogniser.model import Model, load_model
 
 PEAK = 0.9
 """Audio is scaled to this peak before analysis (as the training audio was)."""
@@ -49,25 +50,7 @@ class DrumEvent:
 
 
 SUPPRESS_S = 0.035
-"""Two strikes of one class closer than this are one strike (the more probable is kept), seconds."""
-
-
-def suppress(events: list[DrumEvent], window: float = SUPPRESS_S) -> list[DrumEvent]:
-    """Per-class non-maximum suppression: keep the most probable of strikes closer than ``window``."""
-    kept: list[DrumEvent] = []
-    by_class: dict[int, list[DrumEvent]] = {}
-    for e in events:
-        by_class.setdefault(e.cls, []).append(e)
-    for evs in by_class.values():
-        times = np.array([e.time for e in evs])
-        taken = np.zeros(len(evs), dtype=bool)
-        for i in np.argsort([-e.confidence for e in evs], kind="stable"):
-            near = np.abs(times - times[i]) < window
-            if not np.any(taken & near):
-                taken[i] = True
-        kept += [e for e, k in zip(evs, taken, strict=True) if k]
-    kept.sort(key=lambda e: (e.time, e.cls))
-    return kept
+"""Live mode: a strike of a class this soon after the previous one of that class is not sent again, seconds."""
 
 
 CHORD_S = 0.02
@@ -96,18 +79,12 @@ def group_chords(events: list[DrumEvent], window: float = CHORD_S) -> list[DrumE
     return out
 
 
-def classify(clf: Classifier, feats: np.ndarray, times: np.ndarray, chunk: int = 4096) -> list[DrumEvent]:
-    """Turn onset features (n, n_features) at ``times`` (n,) seconds into events (before suppression)."""
-    events: list[DrumEvent] = []
-    for s in range(0, len(times), chunk):
-        x = feats[s : s + chunk]
-        prob = clf.probabilities(x)
-        vel = clf.velocities(x)
-        hit = clf.decide(prob)
-        for i, c in zip(*np.nonzero(hit), strict=True):
-            events.append(DrumEvent(float(times[s + i]), int(c), int(vel[i, c]), float(prob[i, c])))
+def strikes(net: FrameNet, out: np.ndarray) -> list[DrumEvent]:
+    """Events from the network's framewise outputs (:meth:`FrameNet.forward`), grouped into chords."""
+    times = F.frame_times(len(out))
+    events = [DrumEvent(max(0.0, float(times[t]) + net.time_offset_s), c, v, p) for t, c, v, p in net.detect(out)]
     events.sort(key=lambda e: (e.time, e.cls))
-    return events
+    return group_chords(events, net.chord_s) if net.chord_s > 0 else events
 
 
 def transcribe(
@@ -125,15 +102,12 @@ def transcribe(
     -------
     list of :class:`DrumEvent`, sorted by time
     """
-    model = model or load_model()
-    clf = model.offline
+    net = (model or load_model()).offline
     peak = float(np.max(np.abs(audio))) if len(audio) else 0.0
     x = audio * (PEAK / peak) if peak > 0 else audio
-    spec = F.band_spectrogram(x, progress=(lambda f: progress(0.9 * f)) if progress else None)
-    odf = F.superflux(spec)
-    frames = F.pick_onsets(odf, clf.delta)
-    times = np.maximum(F.frame_times(len(odf))[frames] + clf.time_offset_s, 0.0)
-    events = group_chords(suppress(classify(clf, F.onset_features(spec, odf, frames, clf.offsets), times)))
+    spec = F.band_spectrogram(x, progress=(lambda f: progress(0.5 * f)) if progress else None)
+    out = net.forward(spec, progress=(lambda f: progress(0.5 + 0.45 * f)) if progress else None)
+    events = strikes(net, out)
     if progress:
         progress(1.0)
     return events

@@ -25,7 +25,7 @@ def test_shipped_model_is_small_and_plain_arrays() -> None:
     with np.load(MODEL_PATH, allow_pickle=False) as z:  # no pickled objects inside
         assert all(z[k].dtype != object for k in z.files)
     model = load_model()
-    assert model.offline.n_features == F.n_features(model.offline.offsets)
+    assert model.live.n_features == F.n_features(model.live.offsets)
     assert "The Black Pearl 1.0" not in model.meta["trained_on"]
 
 

@@ -1,0 +1,151 @@
+"""The offline recogniser network: a small convolutional network over the band spectrogram, run with NumPy.
+
+For every spectrogram frame (about 10 ms) it gives the probability that a strike of
+each class starts there, the probability that a strike of any class does (the
+"onset" output) and a velocity per class. Two 3x3 convolutions over time and
+frequency (each followed by a 2:1 maximum over frequency) see a strike's local
+shape wherever its energy sits, so a kit tuned differently looks alike; a stack
+of dilated convolutions over time then sees about +-170 ms of context (what was
+already ringing, what follows). Strikes are the activation peaks above a
+per-class threshold (:meth:`FrameNet.detect`).
+
+Batch normalisation is folded into the convolution weights when the trained
+network is exported, so inference is convolutions, ReLUs, maxima and sigmoids.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from services.recogniser import features as F
+from services.recogniser.classes import N_CLASSES
+
+N_OUT = 2 * N_CLASSES + 1
+"""Outputs per frame: N_CLASSES class activations, the onset activation, N_CLASSES velocities / 127."""
+
+
+@dataclass
+class Layer:
+    """One convolution. ``kind`` 'conv2d': w (kt, kf, c_in, c_out) over (time, band); 'conv1d': w (kt, c_in, c_out)
+    over time (the bands flattened into channels before the first one). ``pool``: maximum over this many
+    neighbouring bands after the ReLU; ``residual``: the input is added to the output (same width)."""
+
+    kind: str
+    w: np.ndarray
+    b: np.ndarray
+    dilation: int = 1
+    pool: int = 1
+    relu: bool = True
+    residual: bool = False
+
+    @property
+    def margin(self) -> int:
+        """Context frames this layer needs on each side."""
+        return (int(self.w.shape[0]) // 2) * self.dilation
+
+
+def _conv2d(x: np.ndarray, w: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """'Same' 2-D convolution of x (t, bands, c_in) as one matrix product (im2col)."""
+    kt, kf, c_in, c_out = w.shape
+    t, nb, _ = x.shape
+    xp = np.pad(x, ((kt // 2, kt // 2), (kf // 2, kf // 2), (0, 0)))
+    cols = np.empty((t, nb, kt, kf, c_in), np.float32)
+    for i in range(kt):
+        for j in range(kf):
+            cols[:, :, i, j] = xp[i : i + t, j : j + nb]
+    return (cols.reshape(t * nb, -1) @ w.reshape(-1, c_out) + b).reshape(t, nb, c_out)
+
+
+def _conv1d(x: np.ndarray, w: np.ndarray, b: np.ndarray, dilation: int) -> np.ndarray:
+    """'Same' dilated convolution over time of x (t, c_in)."""
+    kt, c_in, c_out = w.shape
+    t = x.shape[0]
+    half = (kt // 2) * dilation
+    xp = np.pad(x, ((half, half), (0, 0)))
+    cols = np.concatenate([xp[i * dilation : i * dilation + t] for i in range(kt)], axis=1)
+    return cols @ w.reshape(-1, c_out) + b
+
+
+@dataclass
+class FrameNet:
+    """The framewise network and its decision rule.
+
+    ``thresholds``: N_CLASSES + 1 activation thresholds (the last: the onset output; above 1: unused);
+    ``peak_frames``: a strike is an activation maximum over +-this many frames; ``time_offset_s`` is
+    added to frame times; ``chord_s``: strikes of different classes this close to the first of a group
+    are given its time (see :func:`~services.recogniser.transcribe.group_chords`; 0: off).
+    """
+
+    layers: list[Layer]
+    thresholds: np.ndarray
+    peak_frames: int = 1
+    time_offset_s: float = 0.0
+    chord_s: float = 0.02
+
+    @property
+    def margin(self) -> int:
+        """Frames of context the whole network needs on each side of an output frame."""
+        return sum(la.margin for la in self.layers)
+
+    def _run(self, spec: np.ndarray) -> np.ndarray:
+        x = spec[:, :, None].astype(np.float32)
+        for la in self.layers:
+            if la.kind == "conv1d" and x.ndim == 3:
+                x = x.transpose(0, 2, 1).reshape(x.shape[0], -1)  # channel-major, as torch's flatten
+            y = _conv2d(x, la.w, la.b) if la.kind == "conv2d" else _conv1d(x, la.w, la.b, la.dilation)
+            if la.relu:
+                y = np.maximum(y, 0.0)
+            if la.pool > 1:
+                y = y.reshape(y.shape[0], y.shape[1] // la.pool, la.pool, y.shape[2]).max(axis=2)
+            x = x + y if la.residual else y
+        return x
+
+    def forward(self, spec: np.ndarray, chunk_frames: int = 2048,
+                progress: Callable[[float], None] | None = None) -> np.ndarray:
+        """Sigmoid outputs (t, N_OUT) for a band spectrogram (t, N_BANDS) (:func:`~services.recogniser.features.
+        band_spectrogram`). The spectrogram is padded with silence; chunks overlap by the network's
+        context, so the result does not depend on ``chunk_frames``. ``progress``: called with the fraction done."""
+        t = spec.shape[0]
+        m = self.margin
+        padded = np.concatenate([np.zeros((m, F.N_BANDS), np.float32), np.asarray(spec, np.float32),
+                                 np.zeros((m, F.N_BANDS), np.float32)])
+        out = np.empty((t, N_OUT), np.float32)
+        for a in range(0, t, chunk_frames):
+            b = min(t, a + chunk_frames)
+            logits = self._run(padded[a : b + 2 * m])[m : m + b - a]
+            out[a:b] = 1.0 / (1.0 + np.exp(-np.clip(logits, -60, 60)))
+            if progress is not None:
+                progress(b / t)
+        return out
+
+    def peaks(self, act: np.ndarray, threshold: float) -> np.ndarray:
+        """Frames where ``act`` (t,) reaches ``threshold`` and is the maximum of +-peak_frames (the first of equals)."""
+        w = self.peak_frames
+        p = np.concatenate([np.full(w, -np.inf), act, np.full(w, -np.inf)])
+        win = np.lib.stride_tricks.sliding_window_view(p, 2 * w + 1)
+        keep = (act >= threshold) & (act >= win.max(axis=1)) & (act > win[:, :w].max(axis=1))
+        return np.flatnonzero(keep)
+
+    def detect(self, out: np.ndarray) -> list[tuple[int, int, int, float]]:
+        """Strikes from :meth:`forward`'s outputs: (frame, class, MIDI velocity, probability), by frame.
+
+        A class strikes at its activation peaks above its threshold. An onset-output peak above its
+        threshold with no class strike within +-peak_frames is a strike of the class most probable there.
+        """
+        found: list[tuple[int, int, int, float]] = []
+        vel = np.clip(np.rint(out[:, N_CLASSES + 1 :] * 127.0), 1, 127).astype(int)
+        struck = np.zeros(out.shape[0], bool)
+        for c in range(N_CLASSES):
+            for t in self.peaks(out[:, c], float(self.thresholds[c])):
+                found.append((int(t), c, int(vel[t, c]), float(out[t, c])))
+                struck[max(0, t - self.peak_frames) : t + self.peak_frames + 1] = True
+        if self.thresholds[N_CLASSES] <= 1.0:
+            for t in self.peaks(out[:, N_CLASSES], float(self.thresholds[N_CLASSES])):
+                if not struck[t]:
+                    c = int(np.argmax(out[t, :N_CLASSES]))
+                    found.append((int(t), c, int(vel[t, c]), float(out[t, c])))
+        found.sort()
+        return found
