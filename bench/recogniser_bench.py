@@ -123,8 +123,10 @@ def main(argv: list[str] | None = None) -> int:
           f"{audio_s:.0f} s of audio; {'augmented' if args.augment else 'dry'} render")
     for name, files_run in runs.items():
         if files_run:
-            print(f"\n{name} ({'model.live, short context' if name == 'live' else 'model.offline'}):")
+            what = "model.live, per-candidate MLP" if name == "live" else "model.offline, framewise network"
+            print(f"\n{name} ({what}):")
             table(files_run)
+            soft_recall(files_run)
     print(f"\nspeed (offline): {audio_s / max(compute_s, 1e-9):.0f}x real time "
           f"({compute_s:.2f} s for {audio_s:.0f} s of audio)")
     if latencies:
@@ -132,6 +134,36 @@ def main(argv: list[str] | None = None) -> int:
         print(f"live: audio needed after an onset before its hit is out (128-sample blocks): median "
               f"{np.median(lat):.1f} ms, 95th percentile {np.percentile(lat, 95):.1f} ms, max {lat.max():.1f} ms")
     return 0
+
+
+VELOCITY_EDGES = (0, 20, 30, 40, 60, 128)
+"""MIDI velocity bins of the onset recall table."""
+
+
+def soft_recall(files_run: list[tuple[list[Hit], list[tuple[float, int]]]], window: float = 0.05) -> None:
+    """Print the class-agnostic onset recall by the loudest MIDI velocity of the onset's strikes."""
+    found = np.zeros(len(VELOCITY_EDGES) - 1)
+    total = np.zeros(len(VELOCITY_EDGES) - 1)
+    for hits, est in files_run:
+        order = sorted(hits, key=lambda h: h.time)
+        onsets: list[list[float]] = []  # [time, loudest velocity]
+        for h in order:
+            if onsets and h.time - onsets[-1][0] <= MERGE_S:
+                onsets[-1][1] = max(onsets[-1][1], h.velocity)
+            else:
+                onsets.append([h.time, h.velocity])
+        ref = np.array([o[0] for o in onsets])
+        vel = np.array([o[1] for o in onsets])
+        e = merge(np.array([t for t, _ in est]), 1e-4)
+        hit = np.zeros(len(ref), bool)
+        if len(ref) and len(e):
+            hit[[i for i, _ in mir_eval.util.match_events(ref, e, window)]] = True
+        b = np.digitize(vel, VELOCITY_EDGES) - 1
+        np.add.at(total, b, 1)
+        np.add.at(found, b, hit)
+    cells = [f"{lo}-{hi - 1}: {f / t:.2f} ({t / total.sum():.0%})" if t else f"{lo}-{hi - 1}: -"
+             for lo, hi, f, t in zip(VELOCITY_EDGES[:-1], VELOCITY_EDGES[1:], found, total, strict=True)]
+    print("onset recall at 50 ms by loudest velocity (share of onsets): " + ", ".join(cells))
 
 
 def table(files_run: list[tuple[list[Hit], list[tuple[float, int]]]]) -> None:
