@@ -94,8 +94,9 @@ def jobs(n: int, seed: int, kits: tuple[str, ...], dry_p: float = DRY_P) -> list
     return [(seed * 100_000 + i, str(files[k][0]), files[k][1], kits, dry_p) for i, k in enumerate(picks)]
 
 
-def add_arguments(ap: argparse.ArgumentParser, excerpts: int) -> None:
-    """The options both trainers take: how many excerpts, seed, rendering processes, cache and output."""
+def add_arguments(ap: argparse.ArgumentParser, excerpts: int, keeps: str) -> None:
+    """The options both trainers take: how many excerpts, seed, rendering processes, cache, output, the model
+    file whose other part (``keeps``: 'live' or 'offline') is kept, and --retune."""
     ap.add_argument("--excerpts", type=int, default=excerpts, help=f"30-second training excerpts (default {excerpts})")
     ap.add_argument("--val-excerpts", type=int, default=150,
                     help="30-second excerpts rendered with the validation kit, to choose thresholds (default 150)")
@@ -103,6 +104,10 @@ def add_arguments(ap: argparse.ArgumentParser, excerpts: int) -> None:
     ap.add_argument("--workers", type=int, default=2, help="rendering processes (default 2)")
     ap.add_argument("--cache", type=Path, default=Path(tempfile.gettempdir()) / "batteur-recogniser-cache")
     ap.add_argument("--out", type=Path, default=MODEL_PATH)
+    ap.add_argument(f"--{keeps}-from", type=Path, default=MODEL_PATH,
+                    help=f"model file whose {keeps} part is kept (default: the shipped one)")
+    ap.add_argument("--retune", type=Path, default=None, metavar="MODEL",
+                    help="only choose the thresholds of what this trainer fits in MODEL again, on the validation kit")
 
 
 def kits_installed() -> bool:

@@ -28,7 +28,7 @@ from sklearn.linear_model import Ridge
 from sklearn.neural_network import MLPClassifier
 
 from services.recogniser.classes import CLASS_NAMES, N_CLASSES
-from services.recogniser.model import MODEL_PATH, Classifier, Model, load_model
+from services.recogniser.model import Classifier, Model, load_model
 from services.recogniser.training.dataset import (
     CANDIDATE_DELTA,
     FIELDS,
@@ -220,13 +220,9 @@ def retune(path: Path, val: Examples, out: Path) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    add_arguments(ap, excerpts=1000)
+    add_arguments(ap, excerpts=1000, keeps="offline")
     ap.add_argument("--no-synth", dest="synth", action="store_false",
                     help="fit on the Hydrogen kits only (default: also Batteur's own modal and signal synthesis)")
-    ap.add_argument("--offline-from", type=Path, default=MODEL_PATH,
-                    help="model file whose offline network is kept (default: the shipped one)")
-    ap.add_argument("--retune", type=Path, default=None, metavar="MODEL",
-                    help="only choose the live thresholds of an already fitted MODEL again on the validation kit")
     args = ap.parse_args(argv)
     if not kits_installed():
         return 1

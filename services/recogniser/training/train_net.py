@@ -23,7 +23,7 @@ from pathlib import Path
 
 import torch
 
-from services.recogniser.model import MODEL_PATH, Model, load_live, load_model
+from services.recogniser.model import Model, load_live, load_model
 from services.recogniser.training.excerpts import FIT_KITS, VALID_DRY_P, add_arguments, kits_installed
 from services.recogniser.training.fit_net import fit
 from services.recogniser.training.frames import FrameSet, make_frames
@@ -46,17 +46,13 @@ def frames(cache: Path, name: str, n: int, seed: int, workers: int, kits: tuple[
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    add_arguments(ap, excerpts=3200)
+    add_arguments(ap, excerpts=3200, keeps="live")
     ap.add_argument("--epochs", type=float, default=5.0, help="passes over the training frames (default 5)")
     ap.add_argument("--minutes", type=float, default=None,
                     help="stop the fitting earlier to take about this long (the learning rate schedule follows)")
     ap.add_argument("--width", type=int, default=128,
                     help="channels of the network's time convolutions (the 2-D ones have 1/8 and 1/4 of it)")
     ap.add_argument("--threads", type=int, default=2, help="PyTorch threads (default 2)")
-    ap.add_argument("--live-from", type=Path, default=MODEL_PATH,
-                    help="model file whose live classifier is kept (default: the shipped one)")
-    ap.add_argument("--retune", type=Path, default=None, metavar="MODEL",
-                    help="only choose the thresholds of MODEL's network again on the validation kit")
     args = ap.parse_args(argv)
     if not kits_installed():
         return 1
