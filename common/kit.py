@@ -55,6 +55,49 @@ Vec3 = tuple[float, float, float]
 Unit = Annotated[float, Field(ge=0.0, le=1.0)]
 
 
+FOOTBOARD_LENGTH_M = 0.26
+"""Length of a pedal's footboard, heel hinge to toe, metres."""
+PEDAL_REST_ANGLE_RAD = math.radians(22.0)
+"""A footboard's angle above its floor plate at rest, radians (0: pressed flat)."""
+FOOT_BALL_ALONG = 0.65
+"""The ball of the foot presses a footboard this far along it from the heel (fraction of its length)."""
+
+
+HIHAT_CLOSED_GAP_M = 0.0016
+"""Gap between a closed hi-hat's plates, metres: the physics' collision margins keep them this far apart when the
+pedal clamps them together (services/physics/kitbodies.py); the top plate's surface is this plus its thickness
+above the bottom plate's."""
+
+
+def footboard_rise(press: float) -> float:
+    """Height (metres) of a footboard pressed ``press`` (0 at rest ... 1 flat) above its flat position, at
+    ``FOOT_BALL_ALONG`` of its length."""
+    return FOOT_BALL_ALONG * FOOTBOARD_LENGTH_M * math.sin(PEDAL_REST_ANGLE_RAD * (1.0 - press))
+
+
+FOOT_PRESS_TABLE: tuple[tuple[float, float], ...] = (
+    (0.0, 0.986), (0.005, 0.971), (0.010, 0.937), (0.015, 0.901), (0.020, 0.863), (0.030, 0.774), (0.040, 0.665),
+)
+"""(foot target above the pedal's flat target, metres; how far the simulated foot holding it there presses the
+footboard, 0 rest ... 1 flat), measured with services/physics (tests/physics/test_physics_groove.py checks it):
+the shoe meets the tilted board nearer its hinge than the ball, so the board rises about 0.56 times as much as
+the foot (and the sole sinks 1-2 mm into it)."""
+
+
+def foot_target_for_press(press: float) -> float:
+    """How far above a pedal's flat target (metres) a foot target must be for the foot to hold the footboard
+    pressed ``press`` (``FOOT_PRESS_TABLE``, interpolated; clamped to the table's range)."""
+    heights = [h for h, _ in FOOT_PRESS_TABLE][::-1]
+    presses = [p for _, p in FOOT_PRESS_TABLE][::-1]
+    if press <= presses[0]:
+        return heights[0]
+    for k in range(1, len(presses)):
+        if press <= presses[k]:
+            f = (press - presses[k - 1]) / (presses[k] - presses[k - 1])
+            return heights[k - 1] + f * (heights[k] - heights[k - 1])
+    return heights[-1]
+
+
 class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
@@ -72,6 +115,9 @@ class KitObject(_Strict):
     elasticity: Unit = Field(default=0.6, description="restitution of a stick strike, 0..1")
     bell_radius: float = Field(default=0.0, ge=0, description="cymbal bell radius, metres (0: none)")
     opening: Unit = Field(default=0.3, description="hi-hat opening at rest, 0 closed ... 1 open")
+    closes_at: float = Field(default=0.85, gt=0.0, lt=1.0,
+                             description="hi-hat: fraction of its pedal's travel at which the cymbals meet (the "
+                                         "clutch); pressed further, the foot clamps them together")
 
     @property
     def bell_height(self) -> float:
@@ -83,8 +129,9 @@ class KitObject(_Strict):
 
     def surface_height(self, r_m: float) -> float:
         """Height of the playing surface above the object's plane ``r_m`` metres from its centre (the bell's
-        top within the bell radius, else 0), metres."""
-        return self.bell_height if r_m < self.bell_radius else 0.0
+        top within the bell radius, else 0; for a hi-hat, the closed top plate's top), metres."""
+        base = HIHAT_CLOSED_GAP_M + self.thickness if self.kind == "hihat" else 0.0
+        return base + (self.bell_height if r_m < self.bell_radius else 0.0)
 
     def normal(self) -> Vec3:
         """World direction of the local +z axis (the playing surface's normal)."""
@@ -229,7 +276,9 @@ class Kit(_Strict):
         """Where the limb's tracked point is at contact (metres) and the approach normal.
 
         Stick events: the hit point. Foot events: the footboard (pedal object
-        centre; the left bass pedal when the left foot plays BASS), normal +z.
+        centre, the footboard pressed flat; the left bass pedal when the left foot plays BASS), normal +z;
+        for the hi-hat pedal, the footboard where the cymbals meet (``closes_at`` of the hi-hat, the chick),
+        which a stroke passes at speed on its way down.
         """
         spec = self.spec(event)
         if spec.pedal is None:
@@ -237,7 +286,15 @@ class Kit(_Strict):
         pedal = spec.pedal
         if event == EventType.BASS and self.left_bass_pedal is not None and limb != spec.preferred:
             pedal = self.left_bass_pedal
-        return self.object(pedal).position, (0.0, 0.0, 1.0)
+        x, y, z = self.object(pedal).position
+        if event == EventType.HIHATPEDAL:
+            z += foot_target_for_press(self.hihat_closes_at())
+        return (x, y, z), (0.0, 0.0, 1.0)
+
+    def hihat_closes_at(self) -> float:
+        """The hi-hat's ``closes_at`` (its pedal travel at which the cymbals meet); the default without a hi-hat."""
+        hihat = next((o for o in self.objects if o.kind == "hihat"), None)
+        return hihat.closes_at if hihat is not None else float(KitObject.model_fields["closes_at"].default)
 
     def pair(self, a: EventType, b: EventType) -> float:
         """pair(a, b) in [-1, 1]; antisymmetric, 0 when unspecified."""

@@ -87,13 +87,18 @@ class PlannerConfig:
     lead_in: float = 1.0  # rest before the first note, seconds
     tail: float = 1.0  # after the last note, seconds
     rest_height: float = 0.10  # hands hover this far above their first/last target, metres
-    foot_rest_height: float = 0.01  # the hi-hat foot rests here (pedal held down: hi-hat closed), metres
+    # the hi-hat foot rests this far above its chick target, the footboard where the cymbals meet: below it, the
+    # pedal held past the closing point clamps the hi-hat shut (between strokes too), metres
+    foot_rest_height: float = -0.010
     kick_rest_height: float = 0.055  # a bass-drum foot rests on the raised footboard (beater off the head), metres
     foot_contact: float = 0.010  # footboard bottom-out time, seconds
     foot_cycle: float = (
         0.30  # a pedal stroke's lift and fall take at most this long; the foot rests on the pedal between
     )
     hihat_open_lift: float = 0.03  # the hi-hat foot lifts the pedal this much (metres) around open hi-hat notes
+    # ... and lets it down again over this long (seconds): slowly enough that the plates meet below interaction's
+    # slowest hi-hat chick (closing in 0.1 s, they met at 0.11-0.16 m/s: a chick the score does not have)
+    hihat_close_s: float = 0.2
     knots_per_second: float = 120.0
     nod_amplitude: float = 0.08  # radians
     nod_width: float = 0.06  # seconds
@@ -117,6 +122,31 @@ def _min_jerk(s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return s**3 * (10 - 15 * s + 6 * s**2), 30 * s**2 * (1 - s) ** 2
 
 
+FOOT_FALL_SHARE = 0.6
+"""A foot stroke's fall takes at most this share of its cycle (the rest is the lift)."""
+
+
+def foot_profile(phi: np.ndarray, lift: float, speed: float, cycle: float) -> tuple[np.ndarray, np.ndarray]:
+    """Height above the pedal (0..1 of ``lift``) and its rate per unit phase of a foot stroke over ``cycle`` s.
+
+    The foot lifts (minimum jerk) to the apex, then falls on a cubic that leaves the apex at rest and meets the
+    pedal at ``speed`` m/s: the fall takes ``3 lift / speed`` (the curve ``1 - s^3``, a foot accelerating into
+    the pedal), at most ``FOOT_FALL_SHARE`` of the cycle (then faster, still monotonic). A gesture unit's
+    stick profile, used before, ended at a fraction of the planned speed, and the last milliseconds' correction
+    asked the foot for an acceleration it could not make: the hi-hat's plates met slowly and late or not at all.
+    """
+    fall = min(3.0 * lift / max(speed, 1e-6), FOOT_FALL_SHARE * cycle) / cycle  # phase units
+    apex = 1.0 - fall
+    up, dup = _min_jerk(np.clip(phi / max(apex, 1e-9), 0.0, 1.0))
+    dup = np.where(phi < apex, dup / max(apex, 1e-9), 0.0)
+    s = np.clip((phi - apex) / fall, 0.0, 1.0)
+    slope = speed * fall * cycle / max(lift, 1e-9)  # the end velocity in these units (s per fall, height per lift)
+    h_fall = 2 * s**3 - 3 * s**2 + 1 - slope * (s**3 - s**2)
+    dh_fall = (6 * s**2 - 6 * s - slope * (3 * s**2 - 2 * s)) / fall
+    falling = phi > apex
+    return np.where(falling, h_fall, up), np.where(falling, dh_fall, dup)
+
+
 def _segment(
     t0: float,
     p0: np.ndarray,
@@ -131,12 +161,15 @@ def _segment(
     knots_per_second: float,
     cycle: float | None = None,
     hold: float = 0.0,
+    hold_from_start: bool = False,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Knots (times (K,), positions (K, 3), velocities (K, 3)) from t0 to t1 inclusive.
 
     ``cycle`` (feet): the unit's profile plays over the last ``cycle`` seconds only and
     the effector rests on the target line before (the foot stays on the pedal), raised by
-    ``hold`` metres along the normal (a bass-drum foot lets the footboard up between strokes).
+    ``hold`` metres along the normal (a bass-drum foot lets the footboard up between strokes; the hi-hat foot,
+    negative, holds its pedal past the closing point); ``hold_from_start``: the segment starts already held
+    (a foot's first stroke, from its rest), else the hold rises in after the previous stroke.
     """
     d = t1 - t0
     k = int(np.clip(d * knots_per_second, 4, 80))
@@ -147,7 +180,8 @@ def _segment(
     s = tau / d
     m, dm = _min_jerk(s)
     # over the top: rise early when the next target is higher, descend late when it is lower
-    delta = p1 - p0
+    start = p0 - hold * n0 if hold_from_start else p0  # a held start: the base path runs on the pedal line
+    delta = p1 - start
     horizontal = np.array([delta[0], delta[1], 0.0])
     vertical = np.array([0.0, 0.0, delta[2]])
     if delta[2] > 0:
@@ -156,7 +190,7 @@ def _segment(
     else:
         mz, dmz = _min_jerk(np.clip((s - (1 - VERTICAL_SHARE)) / VERTICAL_SHARE, 0.0, 1.0))
         dmz = np.where(s > 1 - VERTICAL_SHARE, dmz / VERTICAL_SHARE, 0.0)
-    base = p0 + np.outer(m, horizontal) + np.outer(mz, vertical)
+    base = start + np.outer(m, horizontal) + np.outer(mz, vertical)
     dbase = np.outer(dm / d, horizontal) + np.outer(dmz / d, vertical)
     if unit is not None and lift > 0:
         period = unit.period
@@ -171,15 +205,21 @@ def _segment(
             dphi = np.where((tau < rise) | (tau > d - fall), 1.0 / period, 0.0)
         else:
             phi, dphi = s, np.full_like(s, 1.0 / d)
-        h = unit.profile(phi)
-        dh = unit.profile(phi, 1) * dphi
+        if cycle is not None:  # a foot: its own lift and fall into the pedal at the stroke's speed
+            h, dh = foot_profile(phi, lift, max(float(-(v1 @ n1)), 0.0), min(cycle, d))
+            dh = dh * dphi
+        else:
+            h = unit.profile(phi)
+            dh = unit.profile(phi, 1) * dphi
         normal = np.outer(1 - m, n0) + np.outer(m, n1)
         normal /= np.linalg.norm(normal, axis=1, keepdims=True)
         base = base + normal * (lift * h)[:, None]
         dbase = dbase + normal * (lift * dh)[:, None]
-    if hold > 0:
+    if hold != 0.0:
         rise, fall = min(HOLD_RISE, d / 3), min(HOLD_FALL, d / 3)
         up, dup = _min_jerk(np.clip(tau / rise, 0.0, 1.0))
+        if hold_from_start:
+            up, dup = np.ones_like(tau), np.zeros_like(tau)
         down, ddown = _min_jerk(np.clip((d - tau) / fall, 0.0, 1.0))
         r = up * down
         dr = np.where(tau < rise, dup / rise, 0.0) * down - np.where(tau > d - fall, ddown / fall, 0.0) * up
@@ -226,6 +266,10 @@ def _limb_knots(
     vel: list[np.ndarray] = []
     zero = np.zeros(3)
     p, v, n, t = rest0[0], zero, rest0[1], start
+    held = False
+    """The next segment starts at the hold (rest) height already: a foot's first stroke, or after a press-through."""
+    if cycle is not None and hold != 0.0:  # a foot starts held at its rest (its base path on the pedal line)
+        held = True
     for i, (st, unit) in enumerate(zip(strokes, units, strict=True)):
         strike_v = -st.speed * st.normal
         lift = st.lift
@@ -235,7 +279,7 @@ def _limb_knots(
             away = np.linalg.norm((st.target - p)[:2])
             need = CLEARANCE + REBOUND_CLEARANCE * float(np.linalg.norm(v)) + MOVE_CLEARANCE * float(away)
             lift = max(lift, min(need, 0.9 * (st.time - t)))
-        rest_rise = hold if i > 0 else 0.0
+        rest_rise = hold if (i > 0 or cycle is not None) else 0.0
         if cycle is not None and lift + rest_rise > 0:
             # a foot lifts only as high as it can rise and fall in the time it has (fast doubles are heel-toe
             # strokes from the footboard, not full lifts at several metres per second)
@@ -244,11 +288,23 @@ def _limb_knots(
         # rebound not yet finished: the lift also has to account for where we start
         tt, pp, vv = _segment(
             t, p, v, n, st.time, st.target, strike_v, st.normal, lift, unit, cfg.knots_per_second, cycle,
-            rest_rise,
+            rest_rise, hold_from_start=held,
         )
         times.append(tt[:-1])
         pos.append(pp[:-1])
         vel.append(vv[:-1])
+        if cycle is not None and hold < 0.0:
+            # a foot whose rest is below its target (the hi-hat foot: the chick is on the way down) presses
+            # through to its rest, slowing evenly, and stays there: no rebound, which left the footboard short of
+            # the closing point in fast strokes
+            c = 2.0 * -hold / max(st.speed, 1e-3)
+            times.append(np.array([st.time]))
+            pos.append(st.target[None, :])
+            vel.append(strike_v[None, :])
+            t, p, v, n = st.time + c, st.target + hold * st.normal, zero, st.normal
+            held = True
+            continue
+        held = False
         c = st.contact
         depth = st.speed * c / 4
         times.append(np.array([st.time, st.time + c / 2]))
@@ -289,18 +345,19 @@ def _open_hihat(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Lift the hi-hat foot (pedal up, hi-hat open) around open hi-hat notes when the foot is resting.
 
-    Windows [t - 80 ms, t + 120 ms] of open notes are merged; a window is used only
+    Windows [t - 80 ms, t + 120 ms] of open notes are merged; the pedal rises over the 0.1 s before a window
+    and falls over ``hihat_close_s`` after it. A window is used only
     when the foot plays no pedal stroke within ``foot_cycle`` of it (its lift would start inside).
     """
     windows: list[list[float]] = []
     for t in sorted(opens):
-        if windows and t - 0.08 <= windows[-1][1]:
+        if windows and t - 0.08 - 0.1 <= windows[-1][1] + cfg.hihat_close_s:  # no close and reopen between
             windows[-1][1] = t + 0.12
         else:
             windows.append([t - 0.08, t + 0.12])
     strokes = np.array(foot_strokes)
     for w0, w1 in windows:
-        a, b = w0 - 0.1, w1 + 0.1
+        a, b = w0 - 0.1, w1 + cfg.hihat_close_s
         if strokes.size and np.any((strokes > a - cfg.foot_cycle) & (strokes < b + cfg.foot_cycle + 0.01)):
             continue
         if a <= times[0] or b >= times[-1]:
@@ -454,7 +511,7 @@ def plan_gestures(
             rest_target, rest_normal = (np.array(v) for v in kit.effector_target(ev, limb))
             rest0 = (rest_target + rest_h * rest_normal, rest_normal)
         times, pos, vel = _limb_knots(strokes, rest0, rest_h, start, end, units, cfg, None if hand else cfg.foot_cycle,
-                                      rest_h if kick_foot else 0.0)
+                                      0.0 if hand else rest_h)  # a foot rests at its rest height between strokes
         if EventType.HIHATPEDAL in kit.events and limb == kit.spec(EventType.HIHATPEDAL).preferred:
             opens = [n.time for n in notes if n.event == EventType.HIHATOPEN]
             times, pos, vel = _open_hihat(times, pos, vel, opens, [s.time for s in strokes], cfg)

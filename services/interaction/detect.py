@@ -17,7 +17,15 @@ tip and shaft, share one track: :meth:`Segmenter.striker_of`):
   than ``bounce_ratio`` times the previous impact, is a **bounce** (the first)
   or **buzz** (the following ones) of the same stroke; otherwise a **strike**.
   Bounces and buzz are real strikes and sound; their kind is reported.
-* A contact slower than ``strike_velocity_min`` is a **touch**: no impact.
+* A contact slower than ``strike_velocity_min`` (or its striker's own
+  ``part_velocity_min``) is a **touch**: no impact.
+* A re-contact of the same striker within ``mask_window`` (30 ms) of its last
+  impact's onset and slower than ``mask_ratio`` (0.5) times that impact is the
+  stroke's own rebound touch (the stick falling back onto the head 10-25 ms
+  later at a fraction of the speed): no impact, counted as ``masked``. An
+  e-kit's trigger does the same (retrigger mask: a second hit must beat a
+  threshold set by the first), so a stroke sounds once; a double stroke of
+  similar speed 20 ms apart still gives two strikes.
 * A contact of a rattle striker (``rattle_parts``: a closed hi-hat's top plate
   on its bottom) within ``rattle_window`` after another striker's impact on the
   same instrument is that stroke's **rattle**: no impact (counted).
@@ -53,6 +61,11 @@ class DetectionConfig(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     strike_velocity_min: float = Field(default=0.05, ge=0, le=10, description="slowest strike, m/s")
+    part_velocity_min: dict[str, float] = Field(
+        default_factory=lambda: {"hihat_top": 0.1},
+        description="slowest strike of particular strikers, m/s (default: a hi-hat's top plate closing slower than "
+                    "0.1 m/s is the foot letting it down, silent, as an e-kit's pedal sensor does not report it)",
+    )
     retrigger_gap: float = Field(default=0.004, gt=0, le=0.1, description="re-contact sooner is chatter, s")
     bounce_window: float = Field(default=0.06, ge=0, le=1, description="a faster re-strike is a bounce, s")
     bounce_ratio: float = Field(default=0.85, ge=0, le=1, description="a bounce is slower than this x previous")
@@ -60,6 +73,11 @@ class DetectionConfig(BaseModel):
     rattle_window: float = Field(default=0.08, ge=0, le=1,
                                  description="a rattle striker's contact this soon after another striker's impact "
                                              "on the same instrument is that stroke's rattle, s")
+    mask_window: float = Field(default=0.03, ge=0, le=0.2,
+                               description="a re-contact this soon after a striker's impact onset ... s")
+    mask_ratio: float = Field(default=0.5, ge=0, le=1,
+                              description="... and slower than this x that impact is the same stroke's rebound "
+                                          "touch (an e-kit trigger's retrigger mask): no impact")
     rattle_parts: tuple[str, ...] = Field(
         default=("hihat_top",),
         description="strikers that rattle when the instrument is struck (a closed hi-hat's top plate on its bottom)",
@@ -176,6 +194,7 @@ class DetectionStats:
     out_of_order: int = 0
     reopened: int = 0  # contacts the receiver's clock ended too early, continued by later steps
     rattles: int = 0  # a rattle striker's contacts right after a stroke on its instrument (no impact)
+    masked: int = 0  # re-contacts inside a striker's retrigger mask (the stroke's own rebound touch; no impact)
     impacts: Counter[str] = field(default_factory=Counter)  # by kind
     by_instrument: dict[str, Counter[str]] = field(default_factory=dict)  # instrument -> kind -> count
     dampings: int = 0
@@ -199,6 +218,8 @@ class _Track:
     press_steps: int = 0
     first_contact: Contact | None = None
     prev_velocity: float = 0.0
+    prev_onset: float = -math.inf
+    """Time of the track's last impact onset, seconds."""
     prev_end: float | None = None
     chain: int = 0
     ended_by_clock: bool = False
@@ -330,10 +351,10 @@ class Segmenter:
         track.first_contact = c
         track.open = None
         velocity = min(max(c.normal_velocity, 0.0), 100.0)
-        if velocity < self.config.strike_velocity_min:
+        striker = self.striker_of(c.part)
+        if velocity < self.config.part_velocity_min.get(striker, self.config.strike_velocity_min):
             self.stats.touches += 1
             return
-        striker = self.striker_of(c.part)
         if striker in self.config.rattle_parts:
             if c.time - self._struck.get(c.instrument, -math.inf) <= self.config.rattle_window:
                 self.stats.rattles += 1
@@ -341,8 +362,14 @@ class Segmenter:
                 return
         else:
             self._struck[c.instrument] = c.time
+        if (c.time - track.prev_onset <= self.config.mask_window
+                and velocity < self.config.mask_ratio * track.prev_velocity):
+            self.stats.masked += 1  # the stick falling back onto the head it just struck: part of that stroke
+            self.stats.touches += 1
+            return
         kind = self._classify(track, c.time, velocity)
         track.prev_velocity = velocity
+        track.prev_onset = c.time
         r, theta = polar(track.obj, c.local_x, c.local_y)
         impact = ImpactFeatures(
             seq=self._take_seq(),

@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from common.kit import EventType, Kit
+from common.kit import FOOT_BALL_ALONG, FOOTBOARD_LENGTH_M, PEDAL_REST_ANGLE_RAD, EventType, Kit
 from common.messages import OscMessage
 from common.messages.physics import (
     CartesianTarget,
@@ -46,7 +46,7 @@ from services.physics.body import LIMBS, Body
 from services.physics.character import DOF_NAMES, JOINTS, CharacterSpec, build_character
 from services.physics.contacts import ContactTracker, Striker
 from services.physics.control import Controller
-from services.physics.kitbodies import FOOTBOARD_LENGTH_M, PEDAL_REST_ANGLE, build_kit
+from services.physics.kitbodies import build_kit
 from services.physics.limits import JointLimits, default_limits
 from services.physics.targets import TargetError, Track
 from services.physics.urdf import Inertial, Link, Robot, Shape, load_robot
@@ -131,11 +131,11 @@ def grip_for(grip: str, side: str) -> GripSpec:
     return GRIPS[grip]
 
 
-def footboard_point(position: tuple[float, float, float], along: float = 0.65) -> np.ndarray:
+def footboard_point(position: tuple[float, float, float], along: float = FOOT_BALL_ALONG) -> np.ndarray:
     """A point on a pedal's footboard top surface at rest, ``along`` its length from the heel (metres)."""
     heel = np.array(position) + np.array([0.0, -FOOTBOARD_LENGTH_M / 2, 0.0])
     d = along * FOOTBOARD_LENGTH_M
-    return heel + np.array([0.0, d * math.cos(PEDAL_REST_ANGLE), d * math.sin(PEDAL_REST_ANGLE) + 0.012])
+    return heel + np.array([0.0, d * math.cos(PEDAL_REST_ANGLE_RAD), d * math.sin(PEDAL_REST_ANGLE_RAD) + 0.012])
 
 
 def solve_posture(body: Body, targets: dict[str, np.ndarray], q0: np.ndarray, clamp: Any,

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pybullet as p
 
-from common.kit import Kit, KitObject
+from common.kit import FOOTBOARD_LENGTH_M, HIHAT_CLOSED_GAP_M, PEDAL_REST_ANGLE_RAD, Kit, KitObject
 from services.physics.urdf import Inertial, Joint, Link, Robot, Shape, cylinder_inertia, load_robot
 from services.physics.world import World, quat_from_rpy_deg, rotation_matrix
 
@@ -37,10 +37,9 @@ CYMBAL_DENSITY = 8600.0 * 0.6
 HIHAT_MAX_GAP_M = 0.025
 """Gap between the hi-hat cymbals at opening 1, metres."""
 
-PEDAL_REST_ANGLE = math.radians(22.0)
-"""Footboard angle at rest above the floor plate, radians (0: pressed flat)."""
+PEDAL_REST_ANGLE = PEDAL_REST_ANGLE_RAD
+"""Footboard angle at rest above the floor plate, radians (0: pressed flat); the kit model's (common/kit.py)."""
 
-FOOTBOARD_LENGTH_M = 0.26
 PEDAL_SPRING_NM_PER_RAD = 40.0
 """Return spring of a footboard, N m/rad."""
 
@@ -77,14 +76,27 @@ def contact_parameters(obj: KitObject) -> ContactParameters:
 
 
 HIHAT_GAP_RESOLUTION_M = 1e-5
-HIHAT_CLOSED_GAP_M = 0.0015
-"""With the pedal flat the clutch holds the top plate this far above the bottom one, metres. PyBullet's solver
-pushes the plates apart from about 2 mm (collision margin, measured), so the closed hi-hat rests on its bottom
-plate with a light preload and, in a pedal stroke, the plates meet at about 93 % of the travel, where the foot
-moves fast: the chick lands near the note time (0.08-0.1 m/s). With the clutch at 0 the plates met at 80 % of
-the travel, 30-40 ms early at 0.02-0.03 m/s, below interaction's slowest strike. A stick stroke on the closed
-hi-hat rattles the plates: interaction counts that as the stroke's rattle (``rattle_parts``), not a strike."""
 """The hi-hat rod's motor target is re-sent when the pedal moved the gap by more than this, metres."""
+HIHAT_CONTACT_GAP_M = 0.002
+"""PyBullet reports the hi-hat's plates touching (pushing each other apart) from about this gap, metres
+(their collision margins, measured)."""
+HIHAT_CLAMP_M = HIHAT_CONTACT_GAP_M - HIHAT_CLOSED_GAP_M
+"""A pedal pressed to the end clamps the plates this much past first touch, metres (a closed hi-hat: the kit
+model's ``HIHAT_CLOSED_GAP_M`` apart, where the planner aims the sticks)."""
+
+
+def hihat_gap(press: float, opening: float, closes_at: float) -> float:
+    """The hi-hat clutch's gap target (metres) for its pedal pressed ``press`` (0 rest ... 1 flat).
+
+    The gap closes linearly with the pedal from ``opening`` x ``HIHAT_MAX_GAP_M`` (above first touch) at rest to
+    first touch at ``closes_at`` of the travel (the kit's clutch setting), where the plates meet while the foot
+    still moves: the pedal chick, at about a quarter of the foot's speed. Pressed further, the plates are clamped
+    together, up to ``HIHAT_CLAMP_M``. (Before: the plates met only in the last 3 % of the travel, where the
+    foot stops on the end stop, at 0.05-0.13 m/s: one pedal note in three had no contact at all.)
+    """
+    if press < closes_at:
+        return HIHAT_CONTACT_GAP_M + HIHAT_MAX_GAP_M * opening * (closes_at - press) / closes_at
+    return HIHAT_CONTACT_GAP_M - HIHAT_CLAMP_M * min(1.0, (press - closes_at) / (1.0 - closes_at))
 
 
 @dataclass
@@ -128,6 +140,8 @@ class HiHat:
     top_body: int
     rod_joint: int
     rest_opening: float
+    closes_at: float
+    """Fraction of the pedal's travel at which the plates meet (the kit's clutch setting)."""
     pedal: Pedal | None = None
 
 
@@ -201,7 +215,7 @@ class KitBodies:
             if hh.pedal is not None:  # its angle as the pedal's return spring just read it
                 q = self._joint_angles.get((hh.pedal.body, hh.pedal.footboard_joint))
                 press = hh.pedal.press(world) if q is None else hh.pedal.press_at(q)
-            gap = HIHAT_MAX_GAP_M * hh.rest_opening * (1.0 - press) + HIHAT_CLOSED_GAP_M
+            gap = hihat_gap(press, hh.rest_opening, hh.closes_at)
             if abs(gap - self._hihat_gap) > HIHAT_GAP_RESOLUTION_M:  # a motor keeps its target: send changes
                 self._hihat_gap = gap
                 c.setJointMotorControl2(
@@ -378,13 +392,13 @@ def _hihat(world: World, kb: KitBodies, obj: KitObject) -> None:
     top.add_joint(Joint("clutch", "prismatic", "rod", "top", axis=(0, 0, 1), lower=0.0, upper=HIHAT_MAX_GAP_M,
                         effort=400, velocity=5))
     t_body = load_robot(world.client, top, obj.position, quat, fixed_base=True, flags=p.URDF_USE_INERTIA_FROM_FILE)
-    world.client.resetJointState(t_body, 0, HIHAT_MAX_GAP_M * obj.opening)
+    world.client.resetJointState(t_body, 0, hihat_gap(0.0, obj.opening, obj.closes_at))
     _set_contact(world, t_body, 0, obj)
     kb.instrument_of[(b_body, -1)] = obj.id
     kb.instrument_of[(t_body, 0)] = obj.id
     kb.strikers[(t_body, 0)] = "hihat_top"
     kb.frame_of[obj.id] = (b_body, -1)
-    kb.hihat = HiHat(b_body, t_body, 0, obj.opening)
+    kb.hihat = HiHat(b_body, t_body, 0, obj.opening, obj.closes_at)
     kb.pose_links.append((f"kit.{obj.id}.bottom", b_body, -1))
     kb.pose_links.append((f"kit.{obj.id}.top", t_body, 0))
 

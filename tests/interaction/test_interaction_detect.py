@@ -125,6 +125,22 @@ def test_double_stroke_20_ms_apart_gives_two_strikes() -> None:
     assert len({i.seq for i in impacts}) == 2
 
 
+def test_a_stick_falling_back_onto_the_head_it_just_struck_is_part_of_that_stroke() -> None:
+    """The retrigger mask: a slow re-contact 12 ms after a strike is the stroke's own rebound touch (no impact);
+    the same touch later than the mask, or a fast one inside it, is a strike of its own."""
+    b = strike(StreamBuilder(KIT, "snare", "left_stick_tip"), t=1.0, velocity=3.0)
+    b = strike(b, t=1.012, velocity=0.6)  # falls back at a fifth of the speed
+    b = strike(b, t=2.0, velocity=3.0)
+    b = strike(b, t=2.045, velocity=0.6)  # after the mask: a (soft) strike of its own
+    b = strike(b, t=3.0, velocity=3.0)
+    b = strike(b, t=3.015, velocity=2.5)  # a double stroke inside the mask
+    segmenter = Segmenter(KIT)
+    onsets = [round(e.impact.time, 3) for c in b.contacts for e in segmenter.contact(c, c.time)
+              if hasattr(e, "impact") and not e.impact.final]
+    assert onsets == [1.0, 2.0, 2.045, 3.0, 3.015]
+    assert segmenter.stats.masked == 1
+
+
 def test_buzz_roll_gives_one_impact_per_rebound_then_damping() -> None:
     left = StreamBuilder(KIT, "snare", "left_stick_tip")
     right = StreamBuilder(KIT, "snare", "right_stick_tip")
@@ -167,6 +183,15 @@ def test_slow_touch_is_not_a_strike() -> None:
     b.pulse(0.2, 0.02, steps=3)  # under strike_velocity_min
     impacts, _, dampings = run(b.contacts)
     assert impacts == [] and dampings == []
+
+
+def test_a_hihat_let_down_slowly_is_silent_but_a_stick_as_slow_strikes() -> None:
+    """The top plate's own slowest strike (part_velocity_min): the foot letting the hi-hat down is no chick."""
+    slow_close = strike(StreamBuilder(KIT, "hihat", "hihat_top"), t=1.0, velocity=0.07)
+    chick = strike(StreamBuilder(KIT, "hihat", "hihat_top"), t=2.0, velocity=0.2)
+    soft_stick = strike(StreamBuilder(KIT, "snare", "left_stick_tip"), t=1.0, velocity=0.07)
+    impacts, _, _ = run(merged(slow_close, chick, soft_stick))
+    assert [(round(i.time, 3), i.part) for i in impacts] == [(1.0, "left_stick_tip"), (2.0, "hihat_top")]
 
 
 def test_two_sticks_at_once_are_two_impacts_and_tracks_do_not_interfere() -> None:

@@ -11,6 +11,7 @@ from common.messages import Contact
 from common.score.events import DrumEvent, Score
 from services.interaction.detect import DetectionConfig
 from services.physics.core import PhysicsCore
+from services.physics.drummer import DrummerScene
 
 BEAT_S = 0.6  # 100 bpm
 ONSET_GAP_S = 0.015
@@ -36,7 +37,8 @@ def _onsets(contacts: list[Contact]) -> list[tuple[float, str]]:
     for c in contacts:
         striker = c.part.split("_")[0] if "stick" in c.part else c.part  # tip and shaft of one stick: one striker
         key = (c.instrument, striker)
-        if (key not in last or c.time - last[key] > ONSET_GAP_S) and c.normal_velocity >= detection.strike_velocity_min:
+        slowest = detection.part_velocity_min.get(c.part, detection.strike_velocity_min)
+        if (key not in last or c.time - last[key] > ONSET_GAP_S) and c.normal_velocity >= slowest:
             if c.part not in detection.rattle_parts:
                 struck[c.instrument] = c.time
                 out.append((c.time, c.instrument))
@@ -46,9 +48,11 @@ def _onsets(contacts: list[Contact]) -> list[tuple[float, str]]:
     return out
 
 
-def test_a_planned_groove_gives_one_onset_per_note_near_its_time() -> None:
+def _play(score: Score) -> tuple[list[tuple[float, str, EventType, float]], list[tuple[float, str]], list[Contact]]:
+    """Plan and play a score: (note time s, object, event, velocity) of every planned stroke, strike onsets, and
+    every contact, on the rig clock."""
     kit = load_kit("default")
-    plan = plan_score(_rock_bar(), kit)
+    plan = plan_score(score, kit)
     core = PhysicsCore(scene="drummer", kit=kit, pose_rate_hz=0)
     start = 0.5
     offset = start - plan.start_time
@@ -57,11 +61,15 @@ def test_a_planned_groove_gives_one_onset_per_note_near_its_time() -> None:
     for k in range(1, round((plan.end_time + offset) * 1000) + 1):
         contacts += [o.message for o in core.step(k / 1000) if isinstance(o.message, Contact)]
     core.close()
-    onsets = _onsets(contacts)
-    notes = sorted((s.time + offset, s.object_id, s.event) for s in plan.strokes)
+    notes = sorted((s.time + offset, s.object_id, s.event, s.note_velocity) for s in plan.strokes)
+    return notes, _onsets(contacts), contacts
+
+
+def test_a_planned_groove_gives_one_onset_per_note_near_its_time() -> None:
+    notes, onsets, _ = _play(_rock_bar())
     assert len(notes) == 13
     unmatched = list(onsets)
-    for t, obj, event in notes:
+    for t, obj, event, _ in notes:
         mine = [o for o in unmatched if o[1] == obj and abs(o[0] - t) < 0.06]
         assert len(mine) == 1, f"{event.value} at {t:.3f} s: onsets {mine}"
         # sticks land within a few ms; the pedal (its beater is geared to a footboard the foot presses
@@ -70,3 +78,51 @@ def test_a_planned_groove_gives_one_onset_per_note_near_its_time() -> None:
         assert abs(mine[0][0] - t) <= tolerance, f"{event.value} at {t:.3f} s sounded at {mine[0][0]:.3f} s"
         unmatched.remove(mine[0])
     assert unmatched == [], f"onsets without a note: {unmatched}"
+
+
+def test_hihat_pedal_chicks_sound_on_their_notes_and_louder_with_velocity() -> None:
+    """Ride eighths, hi-hat pedal on 2 and 4 (soft and loud) and then eighths: each pedal note closes the
+    hi-hat's plates once, within a few ms of the note, faster for a louder note; the foot holding the hi-hat
+    shut between notes makes no chick."""
+    t0 = 0.5
+    ev = [DrumEvent(time=t0 + k * BEAT_S / 2, event=EventType.RIDE, velocity=0.6, pitch=51) for k in range(8)]
+    ev += [DrumEvent(time=t0 + k * BEAT_S, event=EventType.HIHATPEDAL, velocity=v, pitch=44)
+           for k, v in ((1, 0.3), (3, 0.9))]
+    ev += [DrumEvent(time=t0 + 4 * BEAT_S + k * BEAT_S / 2, event=EventType.HIHATPEDAL, velocity=0.6, pitch=44)
+           for k in range(4)]
+    ev.sort(key=lambda e: e.time)
+    notes, _, contacts = _play(Score(events=ev, beats=t0 + BEAT_S * np.arange(6)))
+    detection = DetectionConfig()
+    chicks = []
+    last = -1.0
+    for c in contacts:
+        if c.part == "hihat_top":
+            if c.time - last > ONSET_GAP_S and c.normal_velocity >= detection.part_velocity_min["hihat_top"]:
+                chicks.append((c.time, c.normal_velocity))
+            last = c.time
+    pedal = [(t, v) for t, obj, event, v in notes if event == EventType.HIHATPEDAL]
+    assert len(pedal) == 6 and len(chicks) == 6, (pedal, chicks)
+    for (t, _), (heard, _) in zip(pedal, chicks, strict=True):
+        assert abs(heard - t) <= 0.008, f"pedal note at {t:.3f} s closed at {heard:.3f} s"
+    assert chicks[1][1] > chicks[0][1] * 1.3  # the loud note (0.9) closes faster than the soft one (0.3)
+
+
+def test_the_kits_foot_press_table_is_what_the_simulated_foot_does() -> None:
+    """common.kit.FOOT_PRESS_TABLE (where the planner aims a hi-hat chick) against the drummer's own foot: a
+    foot target held above the pedal's flat target presses the footboard as far as the table says."""
+    from common.kit import FOOT_PRESS_TABLE
+
+    kit = load_kit("default")
+    flat = np.array(kit.object("hihat_pedal").position)
+    for height, expected in (FOOT_PRESS_TABLE[2], FOOT_PRESS_TABLE[4], FOOT_PRESS_TABLE[6]):
+        core = PhysicsCore(scene="drummer", kit=kit, pose_rate_hz=0)
+        scene = core.scene
+        assert isinstance(scene, DrummerScene)
+        scene.add_cartesian("left_foot", 0.0, scene.current_targets()["left_foot"], np.zeros(3), 0.0)
+        scene.add_cartesian("left_foot", 0.4, flat + np.array([0.0, 0.0, height]), np.zeros(3), 0.0)
+        for k in range(1, 801):
+            core.step(k / 1000)
+        assert scene.kit_bodies.hihat is not None and scene.kit_bodies.hihat.pedal is not None
+        press = scene.kit_bodies.hihat.pedal.press(core.world)
+        core.close()
+        assert abs(press - expected) < 0.02, f"foot {height * 1000:.0f} mm above flat pressed {press:.3f}"

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from common.kit import KITS_DIR, EventType, Kit, Limb, load_kit, save_kit
+from common.kit import KITS_DIR, EventType, Kit, Limb, foot_target_for_press, footboard_rise, load_kit, save_kit
 
 
 @pytest.mark.parametrize("name", sorted(p.stem for p in KITS_DIR.glob("*.yaml")))
@@ -45,7 +45,15 @@ def test_foot_targets_are_pedals() -> None:
     kit = load_kit("double_pedal")
     assert kit.effector_target(EventType.BASS, Limb.RIGHT_FOOT)[0] == kit.object("kick_pedal").position
     assert kit.effector_target(EventType.BASS, Limb.LEFT_FOOT)[0] == kit.object("kick_pedal_left").position
-    assert kit.effector_target(EventType.HIHATPEDAL, Limb.LEFT_FOOT)[0] == kit.object("hihat_pedal").position
+    # the hi-hat pedal's target is where the cymbals meet: the footboard not yet flat, the chick on the way down
+    chick = np.array(kit.effector_target(EventType.HIHATPEDAL, Limb.LEFT_FOOT)[0])
+    flat = np.array(kit.object("hihat_pedal").position)
+    assert np.allclose(chick[:2], flat[:2])
+    assert chick[2] - flat[2] == pytest.approx(foot_target_for_press(kit.object("hihat").closes_at))
+    assert 0.0 < footboard_rise(0.85) < footboard_rise(0.5) < footboard_rise(0.0)
+    assert footboard_rise(1.0) == 0.0
+    assert foot_target_for_press(0.863) == pytest.approx(0.020)  # the measured table, interpolated
+    assert 0.015 < foot_target_for_press(0.85) < 0.030
     assert kit.effector_target(EventType.SNARE, Limb.LEFT_HAND) == kit.hit_point(EventType.SNARE)
 
 
