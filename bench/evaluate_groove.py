@@ -1,7 +1,7 @@
 """Evaluate the simulated drummer on the Groove MIDI Dataset's validation split; print the aggregate table.
 
     python bench/evaluate_groove.py                    # a short default subset, cartesian and joint control
-    python bench/evaluate_groove.py --all              # the whole validation split (124 files, ~82 min of music)
+    python bench/evaluate_groove.py --all --jobs 2     # the whole validation split (124 files, ~82 min of music)
     python bench/evaluate_groove.py --limit 10 --controls cartesian --renders /tmp/groove-renders
 
 Files: the rows of /work/shared/data/groove/info.csv whose ``split`` is
@@ -18,11 +18,13 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import multiprocessing
 import sys
 import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
-from batteur.evaluate import aggregate, evaluate_scores, format_table
+from batteur.evaluate import FileResult, aggregate, evaluate_scores, format_table
 from batteur.render import RenderOptions
 
 GROOVE = Path("/work/shared/data/groove")
@@ -50,6 +52,23 @@ def validation_files(root: Path, limit: int | None, max_duration: float | None) 
     return [(root / r["midi_filename"], float(r["duration"])) for r in rows]
 
 
+def _evaluate(files: list[tuple[Path, float]], opts: RenderOptions, renders: Path | None, reuse: bool,
+              jobs: int) -> list[FileResult]:
+    """Render and evaluate every file (longest first over ``jobs`` processes); results in the files' order."""
+    paths = [p for p, _ in files]
+    if jobs == 1:
+        return evaluate_scores(paths, opts, renders, quiet=True, reuse=reuse)
+    order = sorted(range(len(files)), key=lambda k: -files[k][1])  # long files first: the pool ends together
+    results: dict[int, FileResult] = {}
+    with ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
+        futures = {pool.submit(evaluate_scores, [paths[k]], opts, renders, True, reuse): k for k in order}
+        for done, future in enumerate(as_completed(futures), 1):
+            k = futures[future]
+            results[k] = future.result()[0]
+            print(f"  [{done}/{len(files)}] {paths[k].name}", file=sys.stderr)
+    return [results[k] for k in range(len(files))]
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--root", type=Path, default=GROOVE, help="Groove MIDI Dataset directory")
@@ -64,7 +83,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", type=Path, default=None, help="also write every figure to this JSON file")
     parser.add_argument("--control-rate", type=float, default=None, metavar="HZ",
                         help="drummer's full control updates per second (default: physics' default)")
+    parser.add_argument("--jobs", type=int, default=1,
+                        help="render this many files at once, one process each (default 1; wall-clock real-time "
+                             "factors then count the sharing, CPU ones do not)")
     args = parser.parse_args(argv)
+    if args.jobs < 1:
+        parser.error("--jobs must be at least 1")
     files = validation_files(args.root, None if args.all else args.limit, None if args.all else args.max_duration)
     if not files:
         print("no validation files found", file=sys.stderr)
@@ -78,7 +102,7 @@ def main(argv: list[str] | None = None) -> int:
         started = time.perf_counter()
         opts = RenderOptions(control=control, calibration=args.calibration, control_rate_hz=args.control_rate)
         renders = args.renders / control if args.renders is not None else None
-        results = evaluate_scores([p for p, _ in files], opts, renders, quiet=True, reuse=args.reuse)
+        results = _evaluate(files, opts, renders, args.reuse, args.jobs)
         agg = aggregate(results)
         rows.append((control, agg))
         dump[control] = {"aggregate": agg, "files": [r.summary() for r in results]}

@@ -84,6 +84,13 @@ the shoe meets the tilted board nearer its hinge than the ball, so the board ris
 the foot (and the sole sinks 1-2 mm into it)."""
 
 
+CHICK_PRESS_MARGIN = 0.08
+"""A hi-hat pedal stroke aims this much further down the pedal's travel than where the cymbals meet: a foot moving
+at a metre per second leaves the footboard behind (its compliant contact, the board's inertia), so at the aimed
+foot height the board reaches the closing point, not beyond (aimed at the closing point itself, the plates met
+only after the foot had stopped, slowly or not at all)."""
+
+
 def foot_target_for_press(press: float) -> float:
     """How far above a pedal's flat target (metres) a foot target must be for the foot to hold the footboard
     pressed ``press`` (``FOOT_PRESS_TABLE``, interpolated; clamped to the table's range)."""
@@ -277,8 +284,9 @@ class Kit(_Strict):
 
         Stick events: the hit point. Foot events: the footboard (pedal object
         centre, the footboard pressed flat; the left bass pedal when the left foot plays BASS), normal +z;
-        for the hi-hat pedal, the footboard where the cymbals meet (``closes_at`` of the hi-hat, the chick),
-        which a stroke passes at speed on its way down.
+        for the hi-hat pedal, the foot height at which the footboard reaches the point where the cymbals meet
+        (``closes_at`` of the hi-hat, plus ``CHICK_PRESS_MARGIN`` for the board's lag), which a stroke passes
+        at speed on its way down (the chick).
         """
         spec = self.spec(event)
         if spec.pedal is None:
@@ -288,7 +296,7 @@ class Kit(_Strict):
             pedal = self.left_bass_pedal
         x, y, z = self.object(pedal).position
         if event == EventType.HIHATPEDAL:
-            z += foot_target_for_press(self.hihat_closes_at())
+            z += foot_target_for_press(min(self.hihat_closes_at() + CHICK_PRESS_MARGIN, 1.0))
         return (x, y, z), (0.0, 0.0, 1.0)
 
     def hihat_closes_at(self) -> float:

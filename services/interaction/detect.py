@@ -26,9 +26,10 @@ tip and shaft, share one track: :meth:`Segmenter.striker_of`):
   e-kit's trigger does the same (retrigger mask: a second hit must beat a
   threshold set by the first), so a stroke sounds once; a double stroke of
   similar speed 20 ms apart still gives two strikes.
-* A contact of a rattle striker (``rattle_parts``: a closed hi-hat's top plate
-  on its bottom) within ``rattle_window`` after another striker's impact on the
-  same instrument is that stroke's **rattle**: no impact (counted).
+* A contact of a rattle part (``rattle_parts``: ``hihat_rattle``, the hi-hat's
+  plates knocked together by a stick while the foot is not closing the pedal, as
+  physics reports them) is that stroke's **rattle**: no impact (counted). The
+  plates meeting while the foot closes the pedal (``hihat_top``) are a chick.
 * A contact (touch or strike) lasting ``press_after`` or longer is a **press**:
   :class:`DampingChange` on, and off when it ends. A strike that turns into a
   press is a **dead** stroke: its figures are final when the press begins.
@@ -70,17 +71,15 @@ class DetectionConfig(BaseModel):
     bounce_window: float = Field(default=0.06, ge=0, le=1, description="a faster re-strike is a bounce, s")
     bounce_ratio: float = Field(default=0.85, ge=0, le=1, description="a bounce is slower than this x previous")
     press_after: float = Field(default=0.025, gt=0, le=2, description="contact this long is a press, s")
-    rattle_window: float = Field(default=0.08, ge=0, le=1,
-                                 description="a rattle striker's contact this soon after another striker's impact "
-                                             "on the same instrument is that stroke's rattle, s")
     mask_window: float = Field(default=0.03, ge=0, le=0.2,
                                description="a re-contact this soon after a striker's impact onset ... s")
     mask_ratio: float = Field(default=0.5, ge=0, le=1,
                               description="... and slower than this x that impact is the same stroke's rebound "
                                           "touch (an e-kit trigger's retrigger mask): no impact")
     rattle_parts: tuple[str, ...] = Field(
-        default=("hihat_top",),
-        description="strikers that rattle when the instrument is struck (a closed hi-hat's top plate on its bottom)",
+        default=("hihat_rattle",),
+        description="parts whose contacts are another stroke's rattle, never strikes (physics reports the hi-hat's "
+                    "plates meeting while the foot is not closing the pedal as hihat_rattle; closing: hihat_top)",
     )
     default_step: float = Field(default=0.001, gt=0, le=0.1, description="physics step until measured, s")
     part_suffixes: tuple[str, ...] = Field(
@@ -243,8 +242,6 @@ class Segmenter:
         self.step_dt = self.config.default_step
         self._objects = {o.id: o for o in kit.objects}
         self._tracks: dict[tuple[str, str], _Track] = {}
-        self._struck: dict[str, float] = {}
-        """instrument -> time of its last impact by a striker that does not rattle (seconds)."""
         self._next_seq = seq_start % SEQ_LIMIT
         self._next_damping_seq = seq_start % SEQ_LIMIT
         self._physics_time = -math.inf
@@ -356,12 +353,9 @@ class Segmenter:
             self.stats.touches += 1
             return
         if striker in self.config.rattle_parts:
-            if c.time - self._struck.get(c.instrument, -math.inf) <= self.config.rattle_window:
-                self.stats.rattles += 1
-                self.stats.touches += 1  # a contact that makes no impact (InteractionStats.touches)
-                return
-        else:
-            self._struck[c.instrument] = c.time
+            self.stats.rattles += 1
+            self.stats.touches += 1  # a contact that makes no impact (InteractionStats.touches)
+            return
         if (c.time - track.prev_onset <= self.config.mask_window
                 and velocity < self.config.mask_ratio * track.prev_velocity):
             self.stats.masked += 1  # the stick falling back onto the head it just struck: part of that stroke

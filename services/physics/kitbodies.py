@@ -80,6 +80,9 @@ HIHAT_GAP_RESOLUTION_M = 1e-5
 HIHAT_CONTACT_GAP_M = 0.002
 """PyBullet reports the hi-hat's plates touching (pushing each other apart) from about this gap, metres
 (their collision margins, measured)."""
+HIHAT_CHICK_RATE_M_S = 0.02
+"""The hi-hat's clutch target closing faster than this (m/s) is the foot closing the pedal: the plates meeting
+then are a pedal chick; otherwise (a stick knocking the top plate onto the bottom) they rattle."""
 HIHAT_CLAMP_M = HIHAT_CONTACT_GAP_M - HIHAT_CLOSED_GAP_M
 """A pedal pressed to the end clamps the plates this much past first touch, metres (a closed hi-hat: the kit
 model's ``HIHAT_CLOSED_GAP_M`` apart, where the planner aims the sticks)."""
@@ -171,6 +174,13 @@ class KitBodies:
     """(body, joint) -> angle (rad) of the spring joints at their last reading."""
     _spring_torques: list[list[float]] = field(default_factory=list)
     _hihat_gap: float = -1.0
+    _hihat_target: float = -1.0
+    hihat_closing_rate: float = 0.0
+    """How fast the pedal closes the hi-hat's clutch target this step, m/s (negative: opening)."""
+
+    def pedal_closing(self) -> bool:
+        """Whether the foot is closing the hi-hat now (a plate contact is a chick, not a rattle)."""
+        return self.hihat_closing_rate > HIHAT_CHICK_RATE_M_S
 
     def pre_step(self, world: World, update: bool = True) -> None:
         """Apply the spring torques and the hi-hat rod coupling for the next step.
@@ -216,6 +226,9 @@ class KitBodies:
                 q = self._joint_angles.get((hh.pedal.body, hh.pedal.footboard_joint))
                 press = hh.pedal.press(world) if q is None else hh.pedal.press_at(q)
             gap = hihat_gap(press, hh.rest_opening, hh.closes_at)
+            if self._hihat_target >= 0.0:
+                self.hihat_closing_rate = (self._hihat_target - gap) / world.dt
+            self._hihat_target = gap
             if abs(gap - self._hihat_gap) > HIHAT_GAP_RESOLUTION_M:  # a motor keeps its target: send changes
                 self._hihat_gap = gap
                 c.setJointMotorControl2(

@@ -121,7 +121,8 @@ def test_hihat_opens_when_the_left_foot_lifts_and_the_kick_pedal_follows_the_foo
     opened = core.frame_at(0.5 + 3.5 * beat + 0.05)  # last eighth of the bar: foot up
     assert closed is not None and opened is not None
     assert closed.kit[ids.index("hihat"), 3] == pytest.approx(0.0, abs=1e-3)
-    assert opened.kit[ids.index("hihat"), 3] == pytest.approx(core.kit.object("hihat").opening * HIHAT_MAX_GAP, rel=0.05)
+    rest_gap = core.kit.object("hihat").opening * HIHAT_MAX_GAP
+    assert opened.kit[ids.index("hihat"), 3] == pytest.approx(rest_gap, rel=0.05)
     kick_hit = core.frame_at(0.5)  # bass drum stroke: pedal pressed
     between = core.frame_at(0.5 + 0.5 * beat * 1.5)
     assert kick_hit is not None and between is not None

@@ -32,17 +32,13 @@ def _onsets(contacts: list[Contact]) -> list[tuple[float, str]]:
     is no note), and not a closed hi-hat's plates rattling right after a stick stroke."""
     detection = DetectionConfig()
     last: dict[tuple[str, str], float] = {}
-    struck: dict[str, float] = {}
     out = []
     for c in contacts:
         striker = c.part.split("_")[0] if "stick" in c.part else c.part  # tip and shaft of one stick: one striker
         key = (c.instrument, striker)
         slowest = detection.part_velocity_min.get(c.part, detection.strike_velocity_min)
         if (key not in last or c.time - last[key] > ONSET_GAP_S) and c.normal_velocity >= slowest:
-            if c.part not in detection.rattle_parts:
-                struck[c.instrument] = c.time
-                out.append((c.time, c.instrument))
-            elif c.time - struck.get(c.instrument, -1.0) > detection.rattle_window:  # not the plates' rattle
+            if c.part not in detection.rattle_parts:  # not the plates' rattle after a stick stroke
                 out.append((c.time, c.instrument))
         last[key] = c.time
     return out
