@@ -12,7 +12,9 @@ Reported per file and in aggregate (micro-averaged over all notes):
   error (the systematic lag); the same over a loose 100 ms matching, so a
   systematic lag beyond the windows still shows;
 * Spearman rank correlation between score velocity and impact velocity
-  (normal approach speed, m/s) over the 25 ms pairs, pooled and per instrument;
+  (normal approach speed, m/s) over the 25 ms pairs, pooled and per instrument,
+  and within each sound (:func:`spearman_within`: a pedal chick and a stick
+  stroke on the hi-hat are two sounds whose speeds are not comparable);
 * spurious impacts (not matched at 25 ms);
 * every missed note with a reason: the planner's feasibility issue (dropped,
   too fast, ...), or what the performance did instead (``timing``: an impact
@@ -46,6 +48,8 @@ from common.score.events import Score
 
 WINDOWS_S: tuple[float, float] = (0.010, 0.025)
 """Tolerance windows, seconds."""
+MIN_SOUND_PAIRS = 5
+"""Pairs a sound (kit object and drum event) needs before its own Spearman counts in :func:`spearman_within`."""
 LOOSE_WINDOW_S = 0.100
 """Window of the loose matching (systematic lag, missed-note reasons), seconds."""
 
@@ -98,6 +102,7 @@ class FileResult:
     timing_loose_ms: dict[str, float | None]
     spearman: float | None
     spearman_by_instrument: dict[str, float | None]
+    spearman_within_sound: float | None
     spurious: int
     missed: list[Flag]
     missed_by_reason: dict[str, int]
@@ -206,6 +211,34 @@ def spearman(pairs: Sequence[tuple[float, float, str]]) -> float | None:
     return None if not np.isfinite(rho) else round(float(rho), 4)
 
 
+def sound_pairs(notes: Sequence[NoteRef], hits: Sequence[Hit], pairs: Iterable[tuple[int, int]]
+                ) -> dict[str, list[tuple[float, float, str]]]:
+    """(score velocity, impact velocity, instrument) of matched pairs grouped by sound: ``"object/EVENT"``."""
+    out: dict[str, list[tuple[float, float, str]]] = defaultdict(list)
+    for i, j in pairs:
+        note = notes[i]
+        out[f"{note.instrument}/{note.event}"].append((note.velocity, hits[j].velocity, note.instrument))
+    return out
+
+
+def spearman_within(groups: dict[str, list[tuple[float, float, str]]]) -> float | None:
+    """Spearman within each sound, averaged weighted by its pairs (sounds with >= ``MIN_SOUND_PAIRS`` and a
+    defined correlation); None when no sound qualifies.
+
+    Whether louder written notes are played louder on each sound, whatever the sounds' different gains: the
+    pooled figure also asks that equal score velocities give equal approach speeds across objects and
+    strikers, which a foot closing the hi-hat (plates meeting at 0.1-0.4 m/s) cannot match against sticks
+    (1-8 m/s).
+    """
+    total, weight = 0.0, 0
+    for pairs in groups.values():
+        rho = spearman(pairs) if len(pairs) >= MIN_SOUND_PAIRS else None
+        if rho is not None:
+            total += rho * len(pairs)
+            weight += len(pairs)
+    return round(total / weight, 4) if weight else None
+
+
 def evaluate_performance(name: str, notes: Sequence[NoteRef], hits: Sequence[Hit],
                          planner_flags: Sequence[Flag] = (), windows: Sequence[float] = WINDOWS_S) -> FileResult:
     """Score one performance (see the module docstring). ``planner_flags``: notes the planner flagged."""
@@ -261,6 +294,7 @@ def evaluate_performance(name: str, notes: Sequence[NoteRef], hits: Sequence[Hit
         timing_loose_ms=timing_stats(hits[j].time - notes[i].time for i, j in loose),
         spearman=spearman(vel_pairs),
         spearman_by_instrument={k: spearman(v) for k, v in sorted(by_inst.items())},
+        spearman_within_sound=spearman_within(sound_pairs(notes, hits, pairs)),
         spurious=len(hits) - len(pairs), missed=missed,
         missed_by_reason=dict(sorted(Counter(f.reason for f in missed).items())),
         planner_flags=len(planner_flags), errors_s=errors, velocity_pairs=vel_pairs,
@@ -288,6 +322,12 @@ def aggregate(results: Sequence[FileResult], windows: Sequence[float] = WINDOWS_
         for vp in r.velocity_pairs:
             by_inst[vp[2]].append(vp)
     out["spearman_by_instrument"] = {k: spearman(v) for k, v in sorted(by_inst.items())}
+    sounds: dict[str, list[tuple[float, float, str]]] = defaultdict(list)
+    for r in results:
+        for key, v in sound_pairs(r.note_refs, r.hits, r.pairs_25).items():
+            sounds[key] += v
+    out["spearman_within_sound"] = spearman_within(sounds)
+    out["spearman_by_sound"] = {k: spearman(v) for k, v in sorted(sounds.items())}
     out["spurious"] = sum(r.spurious for r in results)
     out["missed"] = sum(len(r.missed) for r in results)
     reasons: Counter[str] = Counter()
@@ -435,7 +475,7 @@ def plot_result(result: FileResult, directory: Path) -> list[Path]:
 def format_table(rows: Sequence[tuple[str, dict[str, Any]]]) -> str:
     """A plain-text table of aggregate (or per-file) figures, one row per label."""
     head = (f"{'':<28} {'notes':>6} {'F@10':>6} {'F@25':>6} {'P@25':>6} {'R@25':>6} {'med|e|':>7} {'p95|e|':>7} "
-            f"{'bias':>7} {'rho':>6} {'spur':>5} {'miss':>5} {'flag':>5} {'RTF':>5}")
+            f"{'bias':>7} {'rho':>6} {'rho_s':>6} {'spur':>5} {'miss':>5} {'flag':>5} {'RTF':>5}")
     lines = [head]
     for label, a in rows:
         t = a["timing_ms"]
@@ -448,7 +488,8 @@ def format_table(rows: Sequence[tuple[str, dict[str, Any]]]) -> str:
             f"{label[:28]:<28} {a['notes']:>6} {a['f_measure']['10ms']:>6.3f} {a['f_measure']['25ms']:>6.3f} "
             f"{a['precision']['25ms']:>6.3f} {a['recall']['25ms']:>6.3f} {num(t['median_abs'], '7.2f')} "
             f"{num(t['p95_abs'], '7.2f')} {num(t['median_signed'], '+7.2f')} {num(a['spearman'], '6.3f')} "
-            f"{a['spurious']:>5} {missed:>5} {a['planner_flags']:>5} {num(a['real_time_factor'], '5.2f')}")
+            f"{num(a.get('spearman_within_sound'), '6.3f')} {a['spurious']:>5} {missed:>5} {a['planner_flags']:>5} "
+            f"{num(a['real_time_factor'], '5.2f')}")
     return "\n".join(lines)
 
 

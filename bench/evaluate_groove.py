@@ -28,7 +28,8 @@ from batteur.evaluate import FileResult, aggregate, evaluate_scores, format_tabl
 from batteur.render import RenderOptions
 
 GROOVE = Path("/work/shared/data/groove")
-GOALS = "goals (cartesian): F@25 >= 0.99, median |e| <= 3 ms, p95 |e| <= 10 ms, Spearman >= 0.9, RTF >= 2"
+GOALS = ("goals (cartesian): F@25 >= 0.99, median |e| <= 3 ms, p95 |e| <= 10 ms, Spearman >= 0.9 (rho, pooled; rho_s: "
+         "within each sound), RTF >= 2")
 
 
 def validation_files(root: Path, limit: int | None, max_duration: float | None) -> list[tuple[Path, float]]:
@@ -112,9 +113,11 @@ def main(argv: list[str] | None = None) -> int:
         t = agg["timing_ms"]
         print(f"{label}: F@10 {agg['f_measure']['10ms']:.3f}, F@25 {agg['f_measure']['25ms']:.3f}, "
               f"median |e| {t['median_abs']} ms, p95 |e| {t['p95_abs']} ms, bias {t['median_signed']} ms, "
-              f"Spearman {agg['spearman']}, spurious {agg['spurious']}, missed {agg['missed']} "
+              f"Spearman {agg['spearman']} (within each sound {agg['spearman_within_sound']}), "
+              f"spurious {agg['spurious']}, missed {agg['missed']} "
               f"{agg['missed_by_reason']}, RTF wall {agg['real_time_factor']} / cpu {agg['real_time_factor_cpu']}")
         print(f"  Spearman per instrument: {agg['spearman_by_instrument']}")
+        print(f"  Spearman per sound: {agg['spearman_by_sound']}")
     print(GOALS)
     if args.json is not None:
         args.json.write_text(json.dumps(dump, indent=2), encoding="utf-8")

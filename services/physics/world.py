@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import functools
 import math
+import os
 from dataclasses import dataclass
 from typing import Any
 
@@ -45,6 +46,13 @@ class BoundClient(bullet_client.BulletClient):
     step makes dozens of calls, so the bound functions are kept.
     """
 
+    def __init__(self) -> None:
+        # a headless client connected without an options string: with one (the stock client passes ''), pybullet
+        # prints "argv[0]=" to the process's stdout for every world, into every render's and tool's output
+        self._shapes: dict = {}
+        self._pid = os.getpid()
+        self._client = p.connect(p.DIRECT)
+
     def __getattr__(self, name: str) -> Any:
         attribute = super().__getattr__(name)
         if name != "disconnect" and isinstance(attribute, functools.partial):
@@ -59,7 +67,7 @@ class World:
         self.settings = settings or WorldSettings()
         if not (0 < self.settings.timestep_s <= 0.01):
             raise ValueError(f"timestep_s must be in (0, 0.01] seconds, got {self.settings.timestep_s}")
-        self.client: Any = BoundClient(connection_mode=p.DIRECT)
+        self.client: Any = BoundClient()
         self.client.setGravity(0.0, 0.0, -self.settings.gravity)
         self.client.setPhysicsEngineParameter(
             fixedTimeStep=self.settings.timestep_s,

@@ -106,6 +106,26 @@ def test_spearman_follows_velocity_rank() -> None:
     assert evaluate_performance("few", notes[:2], rising[:2]).spearman is None
 
 
+def test_within_sound_spearman_ignores_the_sounds_different_gains() -> None:
+    """Each sound ranked right but a soft pedal chick beside stick strokes: pooled rank breaks, within holds."""
+    vel = [0.2, 0.4, 0.6, 0.8, 1.0]
+    notes = [NoteRef(i, float(i), "hihat", v, "HIHATCLOSED") for i, v in enumerate(vel)]
+    notes += [NoteRef(5 + i, 5.0 + i, "hihat", v, "HIHATPEDAL") for i, v in enumerate(vel)]
+    hits = [Hit(float(i), "hihat", 1.0 + 2 * v) for i, v in enumerate(vel)]
+    hits += [Hit(5.0 + i, "hihat", 0.1 + 0.3 * v) for i, v in enumerate(vel)]
+    r = evaluate_performance("hh", notes, hits)
+    assert r.spearman is not None and r.spearman < 0.7
+    assert r.spearman_within_sound == pytest.approx(1.0)
+    # one sound played backwards: the within-sound figure falls to the weighted mean (1 - 1) / 2
+    backwards = hits[:5] + [Hit(5.0 + i, "hihat", 0.4 - 0.3 * v) for i, v in enumerate(vel)]
+    assert evaluate_performance("hh", notes, backwards).spearman_within_sound == pytest.approx(0.0)
+    agg = aggregate([r, r])
+    assert agg["spearman_within_sound"] == pytest.approx(1.0)
+    assert set(agg["spearman_by_sound"]) == {"hihat/HIHATCLOSED", "hihat/HIHATPEDAL"}
+    # a sound with fewer than five pairs does not count
+    assert evaluate_performance("few", notes[:4], hits[:4]).spearman_within_sound is None
+
+
 def test_aggregate_is_micro_averaged() -> None:
     a = evaluate_performance("a", notes_at([0.0, 1.0]), hits_at([0.0, 1.0]))
     b = evaluate_performance("b", notes_at([0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0]), hits_at([0.0]))
