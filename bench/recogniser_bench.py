@@ -11,6 +11,10 @@ Needs Debian's hydrogen-drumkits (the kit; exits 1 with an install hint without 
 
     python bench/recogniser_bench.py [--files 30] [--seconds 60] [--augment] [--live]
     python bench/recogniser_bench.py --kit Millo_MultiLayered2 --split train   # the validation kit, to tune on
+    python bench/recogniser_bench.py --model new.npz services/recogniser/models/recogniser.npz  # same renders
+
+Several ``--model`` files are scored on the same renders, each file transcribed by each model in turn
+(so their speeds are measured under the same load).
 """
 
 from __future__ import annotations
@@ -30,7 +34,7 @@ from common.messages.recogniser import DrumHit  # noqa: E402
 from services.recogniser.audio import SAMPLE_RATE  # noqa: E402
 from services.recogniser.classes import CLASS_NAMES, class_of_note  # noqa: E402
 from services.recogniser.core import LiveRecogniser  # noqa: E402
-from services.recogniser.model import MODEL_PATH, load_model  # noqa: E402
+from services.recogniser.model import MODEL_PATH, Model, load_model  # noqa: E402
 from services.recogniser.training.dataset import groove_files  # noqa: E402
 from services.recogniser.training.kits import (  # noqa: E402
     TEST_KITS,
@@ -66,7 +70,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--split", default="validation", choices=("validation", "train", "test"),
                     help="Groove split to render (default validation; use train with --kit of VALID_KITS to tune)")
     ap.add_argument("--augment", action="store_true", help="add room, EQ and noise as in training")
-    ap.add_argument("--model", type=Path, default=MODEL_PATH)
+    ap.add_argument("--model", type=Path, nargs="+", default=[MODEL_PATH],
+                    help="model file(s) to score; several are scored on the same renders (default: the shipped one)")
     ap.add_argument("--seed", type=int, default=7)
     ap.add_argument("--live", action="store_true", help="also score the live core (fed 128-sample blocks)")
     args = ap.parse_args(argv)
@@ -76,18 +81,22 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 1
 
-    model = load_model(args.model)
-    trained_on = set(model.meta.get("trained_on", TRAIN_KITS))
-    if args.kit in trained_on:
-        print(f"warning: {args.kit} was used for training this model", file=sys.stderr)
+    models = [load_model(p) for p in args.model]
+    for path, model in zip(args.model, models, strict=True):
+        if args.kit in set(model.meta.get("trained_on", TRAIN_KITS)):
+            print(f"warning: {args.kit} was used for training {path}", file=sys.stderr)
     kit = load_kit(args.kit)
     rng = np.random.default_rng(args.seed)
     files = groove_files(args.split)
     picks = rng.choice(len(files), size=min(args.files, len(files)), replace=False)
-    runs: dict[str, list[tuple[list[Hit], list[tuple[float, int]]]]] = {"offline": [], "live": []}
-    latencies: list[float] = []
+    runs: list[dict[str, list[tuple[list[Hit], list[tuple[float, int]]]]]] = [
+        {"offline": [], "live": []} for _ in models]
+    latencies: list[list[float]] = [[] for _ in models]
+    compute_s = [0.0 for _ in models]
     audio_s = 0.0
-    compute_s = 0.0
+    warm = (0.01 * np.random.default_rng(0).standard_normal(SAMPLE_RATE)).astype(np.float32)
+    for model in models:  # first calls (filterbanks, FFT set-up) are not timed
+        transcribe(warm, model)
     for k in picks:
         path, _ = files[int(k)]
         notes = [Note(n.time + 0.1, n.pitch, n.velocity) for n in read_notes(path) if n.time < args.seconds]
@@ -95,45 +104,57 @@ def main(argv: list[str] | None = None) -> int:
             continue
         audio, hits = render(notes, kit, rng, duration=min(args.seconds, notes[-1].time + 1.5))
         audio = augment(audio, rng) if args.augment else normalise(audio)
-        t0 = time.perf_counter()
-        events = transcribe(audio, model)
-        compute_s += time.perf_counter() - t0
         audio_s += len(audio) / SAMPLE_RATE
-        runs["offline"].append((hits, [(e.time, e.cls) for e in events]))
-        if args.live:
-            core = LiveRecogniser(model, gain=PEAK / float(np.max(np.abs(audio))))
-            found: list[tuple[float, int]] = []
-            fed = 0
-            for start in range(0, len(audio) + 128, 128):
-                block = audio[start : start + 128]
-                fed += len(block)
-                for o in core.feed(block) if len(block) else core.flush():
-                    hit = o.message
-                    assert isinstance(hit, DrumHit)
-                    c = class_of_note(hit.note)
-                    if c is not None:
-                        found.append((hit.time, c))
-                    if len(block):
-                        latencies.append(fed / SAMPLE_RATE - hit.time)
-            runs["live"].append((hits, found))
+        for i, model in enumerate(models):
+            t0 = time.perf_counter()
+            events = transcribe(audio, model)
+            compute_s[i] += time.perf_counter() - t0
+            runs[i]["offline"].append((hits, [(e.time, e.cls) for e in events]))
+            if args.live:
+                runs[i]["live"].append((hits, live_hits(model, audio, latencies[i])))
 
-    seen = ("used for training" if args.kit in trained_on else "validation kit: thresholds chosen on it"
-            if args.kit in model.meta.get("thresholds_from", VALID_KITS) else "never seen in training")
-    print(f"kit: {args.kit} ({seen}); {len(picks)} Groove {args.split} files, "
+    print(f"kit: {args.kit}; {len(picks)} Groove {args.split} files, "
           f"{audio_s:.0f} s of audio; {'augmented' if args.augment else 'dry'} render")
-    for name, files_run in runs.items():
-        if files_run:
-            what = "model.live, per-candidate MLP" if name == "live" else "model.offline, framewise network"
-            print(f"\n{name} ({what}):")
-            table(files_run)
-            soft_recall(files_run)
-    print(f"\nspeed (offline): {audio_s / max(compute_s, 1e-9):.0f}x real time "
-          f"({compute_s:.2f} s for {audio_s:.0f} s of audio)")
-    if latencies:
-        lat = np.asarray(latencies) * 1000
-        print(f"live: audio needed after an onset before its hit is out (128-sample blocks): median "
-              f"{np.median(lat):.1f} ms, 95th percentile {np.percentile(lat, 95):.1f} ms, max {lat.max():.1f} ms")
+    for i, (path, model) in enumerate(zip(args.model, models, strict=True)):
+        seen = ("used for training" if args.kit in set(model.meta.get("trained_on", TRAIN_KITS))
+                else "validation kit: thresholds chosen on it"
+                if args.kit in model.meta.get("thresholds_from", VALID_KITS) else "never seen in training")
+        net = model.offline
+        print(f"\n=== model: {path} ({len(net.networks)} network{'s' if len(net.networks) > 1 else ''}, input "
+              f"windows {', '.join(str(w) for w in net.inputs)} samples; kit {seen})")
+        for name, files_run in runs[i].items():
+            if files_run:
+                what = "model.live, per-candidate MLP" if name == "live" else "model.offline, framewise network"
+                print(f"\n{name} ({what}):")
+                table(files_run)
+                soft_recall(files_run)
+        print(f"\nspeed (offline): {audio_s / max(compute_s[i], 1e-9):.0f}x real time "
+              f"({compute_s[i]:.2f} s for {audio_s:.0f} s of audio)")
+        if latencies[i]:
+            lat = np.asarray(latencies[i]) * 1000
+            print(f"live: audio needed after an onset before its hit is out (128-sample blocks): median "
+                  f"{np.median(lat):.1f} ms, 95th percentile {np.percentile(lat, 95):.1f} ms, max {lat.max():.1f} ms")
     return 0
+
+
+def live_hits(model: Model, audio: np.ndarray, latencies: list[float]) -> list[tuple[float, int]]:
+    """The live core's strikes (time s, class) for ``audio`` fed in 128-sample blocks; appends to ``latencies``
+    the audio it needed after each onset before sending its hit, seconds."""
+    core = LiveRecogniser(model, gain=PEAK / float(np.max(np.abs(audio))))
+    found: list[tuple[float, int]] = []
+    fed = 0
+    for start in range(0, len(audio) + 128, 128):
+        block = audio[start : start + 128]
+        fed += len(block)
+        for o in core.feed(block) if len(block) else core.flush():
+            hit = o.message
+            assert isinstance(hit, DrumHit)
+            c = class_of_note(hit.note)
+            if c is not None:
+                found.append((hit.time, c))
+            if len(block):
+                latencies.append(fed / SAMPLE_RATE - hit.time)
+    return found
 
 
 VELOCITY_EDGES = (0, 20, 30, 40, 60, 128)

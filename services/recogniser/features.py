@@ -19,6 +19,7 @@ scores every frame.)
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from functools import cache
 
 import numpy as np
 from scipy.ndimage import maximum_filter1d
@@ -51,9 +52,11 @@ LOG_MUL = 1000.0
 """Log compression: log10(1 + LOG_MUL * magnitude)."""
 
 
-def _band_matrix() -> np.ndarray:
-    """Triangular log-frequency filterbank, shape (N_FFT // 2 + 1, N_BANDS)."""
-    n_bins = N_FFT // 2 + 1
+@cache
+def band_matrix(n_fft: int = N_FFT) -> np.ndarray:
+    """Triangular log-frequency filterbank of an ``n_fft``-sample window, shape (n_fft // 2 + 1, N_BANDS)
+    (each band averages its bins; a band narrower than the bin spacing takes its nearest bin)."""
+    n_bins = n_fft // 2 + 1
     freqs = np.linspace(0, SAMPLE_RATE / 2, n_bins)
     edges = np.geomspace(40.0, 10500.0, N_BANDS + 2)
     bins = np.searchsorted(freqs, edges)
@@ -68,8 +71,15 @@ def _band_matrix() -> np.ndarray:
     return fb
 
 
-BANDS = _band_matrix()
-WINDOW = np.hanning(N_FFT).astype(np.float32)
+@cache
+def window(n_fft: int = N_FFT) -> np.ndarray:
+    """Hann window of ``n_fft`` samples, scaled by ``N_FFT / n_fft`` so that a steady tone has the same band
+    magnitude whatever the window length."""
+    return (np.hanning(n_fft) * (N_FFT / n_fft)).astype(np.float32)
+
+
+BANDS = band_matrix()
+WINDOW = window()
 
 
 def n_frames(n_samples: int) -> int:
@@ -83,7 +93,8 @@ def frame_times(n: int) -> np.ndarray:
 
 
 def band_spectrogram(
-    signal: np.ndarray, progress: Callable[[float], None] | None = None, chunk_frames: int = 4096
+    signal: np.ndarray, progress: Callable[[float], None] | None = None, chunk_frames: int = 4096,
+    n_fft: int = N_FFT,
 ) -> np.ndarray:
     """Log-magnitude band spectrogram.
 
@@ -92,24 +103,53 @@ def band_spectrogram(
     signal : np.ndarray [shape=(n,)], mono at SAMPLE_RATE
     progress : called with the fraction done (0..1) after each chunk
     chunk_frames : frames computed per chunk (bounds memory)
+    n_fft : analysis window, samples (frame ``t`` is still centred on sample ``t * HOP``)
 
     Returns
     -------
     np.ndarray [shape=(n_frames(n), N_BANDS), dtype=float32]
     """
     x = np.asarray(signal, dtype=np.float32)
-    pad = N_FFT // 2
+    pad = n_fft // 2
     x = np.concatenate([np.zeros(pad, np.float32), x, np.zeros(pad + HOP, np.float32)])
     total = n_frames(len(signal))
     out = np.empty((total, N_BANDS), dtype=np.float32)
-    frames = np.lib.stride_tricks.sliding_window_view(x, N_FFT)[::HOP]
+    frames = np.lib.stride_tricks.sliding_window_view(x, n_fft)[::HOP]
+    win, bands = window(n_fft), band_matrix(n_fft)
     for start in range(0, total, chunk_frames):
         stop = min(total, start + chunk_frames)
-        mag = np.abs(np.fft.rfft(frames[start:stop] * WINDOW, axis=1)).astype(np.float32)
-        out[start:stop] = np.log10(1.0 + LOG_MUL * (mag @ BANDS))
+        mag = np.abs(np.fft.rfft(frames[start:stop] * win, axis=1)).astype(np.float32)
+        out[start:stop] = np.log10(1.0 + LOG_MUL * (mag @ bands))
         if progress is not None:
             progress(stop / total)
     return out
+
+
+def multi_spectrogram(
+    signal: np.ndarray, windows: Sequence[int], progress: Callable[[float], None] | None = None
+) -> np.ndarray:
+    """Band spectrograms of several analysis windows (:func:`band_spectrogram`), same frames.
+
+    Returns
+    -------
+    np.ndarray [shape=(n_frames(n), N_BANDS, len(windows)), dtype=float32]
+    """
+    out = np.empty((n_frames(len(signal)), N_BANDS, len(windows)), np.float32)
+    for i, n_fft in enumerate(windows):
+        out[:, :, i] = band_spectrogram(signal, n_fft=n_fft, progress=part_progress(progress, i, len(windows)))
+    return out
+
+
+def part_progress(progress: Callable[[float], None] | None, i: int, n: int) -> Callable[[float], None] | None:
+    """A progress callback for part ``i`` of ``n`` equal parts of a job reporting to ``progress``."""
+    if progress is None:
+        return None
+    report = progress
+
+    def part(f: float) -> None:
+        report((i + f) / n)
+
+    return part
 
 
 def band_frame(frame: np.ndarray) -> np.ndarray:

@@ -16,7 +16,7 @@ network is exported, so inference is convolutions, ReLUs, maxima and sigmoids.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -70,28 +70,19 @@ def _conv1d(x: np.ndarray, w: np.ndarray, b: np.ndarray, dilation: int) -> np.nd
 
 
 @dataclass
-class FrameNet:
-    """The framewise network and its decision rule.
-
-    ``thresholds``: N_CLASSES + 1 activation thresholds (the last: the onset output; above 1: unused);
-    ``peak_frames``: a strike is an activation maximum over +-this many frames; ``time_offset_s`` is
-    added to frame times; ``chord_s``: strikes of different classes this close to the first of a group
-    are given its time (see :func:`~services.recogniser.transcribe.group_chords`; 0: off).
-    """
+class Network:
+    """One convolutional network: its layers and the analysis windows (samples) of its input channels."""
 
     layers: list[Layer]
-    thresholds: np.ndarray
-    peak_frames: int = 1
-    time_offset_s: float = 0.0
-    chord_s: float = 0.02
+    windows: tuple[int, ...] = (F.N_FFT,)
 
     @property
     def margin(self) -> int:
-        """Frames of context the whole network needs on each side of an output frame."""
+        """Frames of context the network needs on each side of an output frame."""
         return sum(la.margin for la in self.layers)
 
-    def _run(self, spec: np.ndarray) -> np.ndarray:
-        x = spec[:, :, None].astype(np.float32)
+    def logits(self, x: np.ndarray) -> np.ndarray:
+        """Output logits (t, N_OUT) for input frames (t, N_BANDS, len(windows)) ('same' padding)."""
         for la in self.layers:
             if la.kind == "conv1d" and x.ndim == 3:
                 x = x.transpose(0, 2, 1).reshape(x.shape[0], -1)  # channel-major, as torch's flatten
@@ -103,23 +94,77 @@ class FrameNet:
             x = x + y if la.residual else y
         return x
 
-    def forward(self, spec: np.ndarray, chunk_frames: int = 2048,
-                progress: Callable[[float], None] | None = None) -> np.ndarray:
-        """Sigmoid outputs (t, N_OUT) for a band spectrogram (t, N_BANDS) (:func:`~services.recogniser.features.
-        band_spectrogram`). The spectrogram is padded with silence; chunks overlap by the network's
-        context, so the result does not depend on ``chunk_frames``. ``progress``: called with the fraction done."""
-        t = spec.shape[0]
+    def sigmoids(self, x: np.ndarray, chunk_frames: int = 2048,
+                 progress: Callable[[float], None] | None = None) -> np.ndarray:
+        """Sigmoid outputs (t, N_OUT) for input frames (t, N_BANDS, len(windows)), padded with silence and run
+        in chunks that overlap by the network's context (the result does not depend on ``chunk_frames``)."""
+        t = x.shape[0]
         m = self.margin
-        padded = np.concatenate([np.zeros((m, F.N_BANDS), np.float32), np.asarray(spec, np.float32),
-                                 np.zeros((m, F.N_BANDS), np.float32)])
+        pad = np.zeros((m, *x.shape[1:]), np.float32)
+        padded = np.concatenate([pad, x, pad])
         out = np.empty((t, N_OUT), np.float32)
         for a in range(0, t, chunk_frames):
             b = min(t, a + chunk_frames)
-            logits = self._run(padded[a : b + 2 * m])[m : m + b - a]
+            logits = self.logits(padded[a : b + 2 * m])[m : m + b - a]
             out[a:b] = 1.0 / (1.0 + np.exp(-np.clip(logits, -60, 60)))
             if progress is not None:
                 progress(b / t)
         return out
+
+
+@dataclass
+class FrameNet:
+    """The framewise network (or an ensemble of networks) and its decision rule.
+
+    ``layers`` and ``windows``: the (first) network's layers and the analysis windows (samples) of its input
+    spectrograms, one input channel each (:func:`~services.recogniser.features.multi_spectrogram`);
+    ``members``: further networks whose outputs are averaged with the first's (an ensemble; each reads its
+    own windows);
+    ``thresholds``: N_CLASSES + 1 activation thresholds (the last: the onset output; above 1: unused);
+    ``peak_frames``: a strike is an activation maximum over +-this many frames; ``time_offset_s`` is
+    added to frame times; ``chord_s``: strikes of different classes this close to the first of a group
+    are given its time (see :func:`~services.recogniser.transcribe.group_chords`; 0: off).
+    """
+
+    layers: list[Layer]
+    thresholds: np.ndarray
+    peak_frames: int = 1
+    time_offset_s: float = 0.0
+    chord_s: float = 0.02
+    windows: tuple[int, ...] = (F.N_FFT,)
+    members: list[Network] = field(default_factory=list)
+
+    @property
+    def networks(self) -> list[Network]:
+        return [Network(self.layers, self.windows), *self.members]
+
+    @property
+    def inputs(self) -> tuple[int, ...]:
+        """The analysis windows of the input spectrograms (every network's), increasing."""
+        return tuple(sorted({w for n in self.networks for w in n.windows}))
+
+    @property
+    def margin(self) -> int:
+        """Frames of context the whole network needs on each side of an output frame."""
+        return max(n.margin for n in self.networks)
+
+    def spectrogram(self, signal: np.ndarray, progress: Callable[[float], None] | None = None) -> np.ndarray:
+        """The input for mono audio at SAMPLE_RATE: (t, N_BANDS, len(inputs))."""
+        return F.multi_spectrogram(signal, self.inputs, progress)
+
+    def forward(self, spec: np.ndarray, chunk_frames: int = 2048,
+                progress: Callable[[float], None] | None = None) -> np.ndarray:
+        """Sigmoid outputs (t, N_OUT) for the input spectrograms (t, N_BANDS, len(inputs)) (:meth:`spectrogram`;
+        (t, N_BANDS) with one window), the mean of the networks' outputs. The input is padded with silence;
+        the result does not depend on ``chunk_frames``. ``progress``: called with the fraction done."""
+        x = np.asarray(spec, np.float32)
+        x = x[:, :, None] if x.ndim == 2 else x
+        nets, inputs = self.networks, self.inputs
+        out = np.zeros((x.shape[0], N_OUT), np.float32)
+        for k, net in enumerate(nets):
+            part = x[:, :, [inputs.index(w) for w in net.windows]]
+            out += net.sigmoids(part, chunk_frames, F.part_progress(progress, k, len(nets)))
+        return out / len(nets)
 
     def peaks(self, act: np.ndarray, threshold: float) -> np.ndarray:
         """Frames where ``act`` (t,) reaches ``threshold`` and is the maximum of +-peak_frames (the first of equals)."""

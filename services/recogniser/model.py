@@ -22,8 +22,8 @@ import numpy as np
 
 from services.recogniser.classes import CLASS_NAMES, N_CLASSES
 from services.recogniser.errors import ModelError
-from services.recogniser.features import n_features
-from services.recogniser.framenet import N_OUT, FrameNet, Layer
+from services.recogniser.features import N_FFT, n_features
+from services.recogniser.framenet import N_OUT, FrameNet, Layer, Network
 
 MODEL_PATH = Path(__file__).parent / "models" / "recogniser.npz"
 """The model shipped with Batteur."""
@@ -104,7 +104,9 @@ class Model:
     live: Classifier
     meta: dict
 
-    def save(self, path: str | Path) -> None:
+    def save(self, path: str | Path, half: bool = False) -> None:
+        """Write the model; ``half``: the offline networks' weights as float16 (half the size; they are
+        computed in float32 when loaded)."""
         arrays: dict[str, np.ndarray] = {}
         c = self.live
         arrays["live.mean"] = c.mean
@@ -116,22 +118,29 @@ class Model:
             arrays[f"live.b{i}"] = b.astype(np.float32)
         net = self.offline
         arrays["offline.thresholds"] = net.thresholds.astype(np.float32)
-        for i, la in enumerate(net.layers):
-            arrays[f"offline.w{i}"] = la.w.astype(np.float32)
-            arrays[f"offline.b{i}"] = la.b.astype(np.float32)
+        dtype = np.float16 if half else np.float32
+        for k, member in enumerate(net.networks):
+            prefix = "offline" if k == 0 else f"offline.m{k}"
+            for i, la in enumerate(member.layers):
+                arrays[f"{prefix}.w{i}"] = la.w.astype(dtype)
+                arrays[f"{prefix}.b{i}"] = la.b.astype(dtype)
         meta = dict(self.meta)
         meta.update(
             format=FORMAT,
             classes=list(CLASS_NAMES),
             offline={"kind": "framenet", "peak_frames": net.peak_frames, "time_offset_s": net.time_offset_s,
-                     "chord_s": net.chord_s,
-                     "layers": [{"kind": la.kind, "dilation": la.dilation, "pool": la.pool, "relu": la.relu,
-                                 "residual": la.residual} for la in net.layers]},
+                     "chord_s": net.chord_s, "windows": list(net.windows), "layers": _layout(net.layers),
+                     "members": [{"windows": list(m.windows), "layers": _layout(m.layers)} for m in net.members]},
             live={"offsets": list(c.offsets), "delta": c.delta, "time_offset_s": c.time_offset_s,
                   "layers": len(c.weights)},
         )
         arrays["meta"] = np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8)
         np.savez_compressed(path, **arrays)  # type: ignore[arg-type]
+
+
+def _layout(layers: list[Layer]) -> list[dict]:
+    return [{"kind": la.kind, "dilation": la.dilation, "pool": la.pool, "relu": la.relu, "residual": la.residual}
+            for la in layers]
 
 
 LIVE_FORMATS = ("batteur-recogniser/1", FORMAT)
@@ -155,14 +164,21 @@ def _read(path: str | Path, formats: tuple[str, ...]) -> tuple[Path, dict[str, n
     return p, data, meta
 
 
+def _layers(data: dict[str, np.ndarray], prefix: str, layout: list[dict]) -> list[Layer]:
+    return [Layer(str(la["kind"]), data[f"{prefix}.w{i}"].astype(np.float32), data[f"{prefix}.b{i}"].astype(np.float32),
+                  int(la["dilation"]), int(la["pool"]), bool(la["relu"]), bool(la["residual"]))
+            for i, la in enumerate(layout)]
+
+
 def _network(p: Path, data: dict[str, np.ndarray], m: dict) -> FrameNet:
-    layers = [Layer(str(la["kind"]), data[f"offline.w{i}"].astype(np.float32), data[f"offline.b{i}"].astype(np.float32),
-                    int(la["dilation"]), int(la["pool"]), bool(la["relu"]), bool(la["residual"]))
-              for i, la in enumerate(m["layers"])]
-    net = FrameNet(layers, data["offline.thresholds"].astype(np.float32), int(m["peak_frames"]),
-                   float(m["time_offset_s"]), float(m["chord_s"]))
-    if not layers or layers[0].w.shape[2] != 1 or layers[-1].w.shape[-1] != N_OUT:
-        raise ModelError(f"{p}: offline network layer shapes do not match")
+    members = [Network(_layers(data, f"offline.m{k + 1}", mm["layers"]), tuple(int(w) for w in mm["windows"]))
+               for k, mm in enumerate(m.get("members", []))]
+    net = FrameNet(_layers(data, "offline", m["layers"]), data["offline.thresholds"].astype(np.float32),
+                   int(m["peak_frames"]), float(m["time_offset_s"]), float(m["chord_s"]),
+                   tuple(int(w) for w in m.get("windows", [N_FFT])), members)
+    for n in net.networks:
+        if not n.layers or n.layers[0].w.shape[2] != len(n.windows) or n.layers[-1].w.shape[-1] != N_OUT:
+            raise ModelError(f"{p}: offline network layer shapes do not match")
     if net.thresholds.shape != (N_CLASSES + 1,):
         raise ModelError(f"{p}: offline network has {net.thresholds.shape[0]} thresholds, expected {N_CLASSES + 1}")
     return net

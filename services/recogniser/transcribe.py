@@ -105,7 +105,7 @@ def transcribe(
     net = (model or load_model()).offline
     peak = float(np.max(np.abs(audio))) if len(audio) else 0.0
     x = audio * (PEAK / peak) if peak > 0 else audio
-    spec = F.band_spectrogram(x, progress=(lambda f: progress(0.5 * f)) if progress else None)
+    spec = net.spectrogram(x, progress=(lambda f: progress(0.5 * f)) if progress else None)
     out = net.forward(spec, progress=(lambda f: progress(0.5 + 0.45 * f)) if progress else None)
     events = strikes(net, out)
     if progress:

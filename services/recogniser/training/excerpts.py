@@ -13,14 +13,17 @@ from pathlib import Path
 
 import numpy as np
 
+from services.recogniser.audio import SAMPLE_RATE
 from services.recogniser.model import MODEL_PATH
 from services.recogniser.training.dataset import groove_files
 from services.recogniser.training.kits import (
     KIND_CLASS,
     TRAIN_KITS,
     VALID_KITS,
+    Instrument,
     Kit,
     KitsMissingError,
+    Layer,
     load_kit,
     require_kits,
 )
@@ -40,8 +43,12 @@ DRY_P = 0.3
 VALID_DRY_P = 0.5
 """Fraction of the validation kit's excerpts left dry."""
 
-Job = tuple[int, str, float, tuple[str, ...], float]
-"""(seed, MIDI path, performance duration s, kit names, share left dry)."""
+LAYER_P = {"snare": 0.35, "hh_closed": 0.35, "hh_open": 0.35, "hh_pedal": 0.35}
+"""With ``variety``: chance that an instrument of a kind is layered with one of another kit (default 0.15)."""
+
+Job = tuple[int, str, float, tuple[str, ...], float, bool]
+"""(seed, MIDI path, performance duration s, kit names, share left dry, variety: layered instruments and the
+further changes of :meth:`~.render.Variation.random_wide`)."""
 
 _KITS: dict[str, Kit] = {}
 
@@ -72,9 +79,47 @@ def mixed_kit(kits: tuple[str, ...], rng: np.random.Generator) -> Kit:
     return mixed
 
 
+def layered(a: Instrument, b: Instrument, rng: np.random.Generator) -> Instrument:
+    """``a`` with ``b`` sounding under it: each velocity layer of ``a`` plus ``b``'s layer at the same velocity,
+    brought to ``a``'s level (over the first 100 ms) times 0.3..1 and delayed by up to 1.5 ms."""
+    ratio = float(rng.uniform(0.3, 1.0))
+    delay = int(rng.uniform(0, 0.0015) * SAMPLE_RATE)
+    head = int(0.1 * SAMPLE_RATE)
+    layers = []
+    for la in a.layers:
+        lb = b.layer(0.5 * (la.lo + la.hi), rng)
+        ra = float(np.sqrt(np.mean(la.audio[:head] ** 2)))
+        rb = max(float(np.sqrt(np.mean(lb.audio[:head] ** 2))), 1e-9)
+        y = np.zeros(max(len(la.audio), len(lb.audio) + delay), np.float32)
+        y[: len(la.audio)] += la.audio
+        y[delay : delay + len(lb.audio)] += lb.audio * (ratio * ra / rb)
+        layers.append(Layer(la.lo, la.hi, la.gain, y / (1.0 + ratio)))
+    return Instrument(f"{a.name} + {b.name}", a.kind, a.gain, layers)
+
+
+def with_layers(kit: Kit, kits: tuple[str, ...], rng: np.random.Generator) -> Kit:
+    """A copy of ``kit`` whose instruments are, each with the chance of :data:`LAYER_P`, layered with the
+    same kind from another of ``kits``."""
+    out = Kit(name=kit.name, licence=kit.licence, instruments=dict(kit.instruments))
+    others = [load_any_kit(n) for n in kits]
+    for kind, insts in kit.instruments.items():
+        if not insts or rng.random() >= LAYER_P.get(kind, 0.15):
+            continue
+        pool = [i for k in others for i in k.instruments.get(kind, []) if all(i is not x for x in insts)]
+        if pool:
+            a = insts[int(rng.integers(len(insts)))]
+            out.instruments[kind] = [layered(a, pool[int(rng.integers(len(pool)))], rng)]
+    return out
+
+
+def excerpt_samples() -> int:
+    """Samples of one rendered excerpt."""
+    return int((EXCERPT_S + 0.2) * SAMPLE_RATE) + 1
+
+
 def render_excerpt(job: Job) -> tuple[np.ndarray, list[Hit]]:
     """Render one job: audio (mono, SAMPLE_RATE, peak 0.9) and its hits (times from the excerpt's start)."""
-    seed, path, duration, kits, dry_p = job
+    seed, path, duration, kits, dry_p, variety = job
     rng = np.random.default_rng(seed)
     kit = load_any_kit(kits[int(rng.integers(len(kits)))])
     if len(kits) > 1 and rng.random() < MIX_P:
@@ -82,16 +127,19 @@ def render_excerpt(job: Job) -> tuple[np.ndarray, list[Hit]]:
     start = float(rng.uniform(0, max(0.0, duration - EXCERPT_S)))
     notes = [Note(n.time - start + 0.2, n.pitch, n.velocity) for n in read_notes(path)
              if start <= n.time < start + EXCERPT_S]
-    audio, hits = render(notes, kit, rng, duration=EXCERPT_S + 0.2, vary=rng.random() < VARY_P)
+    vary = rng.random() < VARY_P
+    if variety and len(kits) > 1:
+        kit = with_layers(kit, kits, np.random.default_rng(seed + 7_777_777))
+    audio, hits = render(notes, kit, rng, duration=EXCERPT_S + 0.2, vary=vary, wide=variety)
     return (augment(audio, rng) if rng.random() >= dry_p else normalise(audio)), hits
 
 
-def jobs(n: int, seed: int, kits: tuple[str, ...], dry_p: float = DRY_P) -> list[Job]:
+def jobs(n: int, seed: int, kits: tuple[str, ...], dry_p: float = DRY_P, variety: bool = False) -> list[Job]:
     """``n`` excerpt jobs drawn from the long (>= 20 s) Groove train-split performances."""
     files = [f for f in groove_files("train") if f[1] >= 20.0]  # long performances (beats with fills)
     rng = np.random.default_rng(seed)
     picks = rng.choice(len(files), size=n, replace=n > len(files))
-    return [(seed * 100_000 + i, str(files[k][0]), files[k][1], kits, dry_p) for i, k in enumerate(picks)]
+    return [(seed * 100_000 + i, str(files[k][0]), files[k][1], kits, dry_p, variety) for i, k in enumerate(picks)]
 
 
 def add_arguments(ap: argparse.ArgumentParser, excerpts: int, keeps: str) -> None:

@@ -6,6 +6,7 @@ as silence). Loss: binary cross-entropy of the class and onset activations
 against widened targets (:func:`~services.recogniser.training.frames.targets`),
 plus the squared velocity error at strike frames. The state with the lowest
 validation-kit loss is kept. Crops are augmented on the spectrum (gain, EQ, band shift).
+Negative frames of a class where another class is struck can weigh more (confusions).
 """
 
 from __future__ import annotations
@@ -33,19 +34,22 @@ EQ_DB = 6.0
 """Range of that gain and of each of the curve's three cosine terms, +- dB."""
 SHIFT_P = 0.2
 """Share of crops shifted up or down by one band (about two semitones)."""
+HARD_WEIGHT = 1.0
+"""Default extra weight of a class's negative frames where another class is struck (confusions; 0: none)."""
 
 
 def augment_spectrum(x: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """A crop's band spectrum (frames, N_BANDS) as if its audio had been filtered and shifted in pitch.
+    """A crop's band spectra (frames, N_BANDS, windows) as if its audio had been filtered and shifted in pitch.
 
     Band magnitudes are linear in the audio, so a gain per band is exact on the spectrum
     (undoing and redoing the log compression), unlike an offset added to the log values."""
     if rng.random() < EQ_P:
         pos = np.linspace(0.0, 1.0, x.shape[1])
-        db = rng.uniform(-EQ_DB, EQ_DB) + sum(rng.uniform(-EQ_DB, EQ_DB) * np.cos(np.pi * k * pos + rng.uniform(0, 6.3))
-                                               for k in (1, 2, 3))
+        gain = rng.uniform(-EQ_DB, EQ_DB)
+        db = gain + np.sum([rng.uniform(-EQ_DB, EQ_DB) * np.cos(np.pi * k * pos + rng.uniform(0, 6.3))
+                            for k in (1, 2, 3)], axis=0)
         lin = (10.0 ** x - 1.0) / F.LOG_MUL
-        x = np.log10(1.0 + F.LOG_MUL * lin * 10 ** (db / 20)).astype(np.float32)
+        x = np.log10(1.0 + F.LOG_MUL * lin * 10 ** (db[:, None] / 20)).astype(np.float32)
     if rng.random() < SHIFT_P:
         x = np.concatenate([x[:, :1], x[:, :-1]], axis=1) if rng.random() < 0.5 else \
             np.concatenate([x[:, 1:], x[:, -1:]], axis=1)
@@ -53,19 +57,20 @@ def augment_spectrum(x: np.ndarray, rng: np.random.Generator) -> np.ndarray:
 
 
 class Batches:
-    """Crops of a frame set with their targets (targets made once per excerpt)."""
+    """Crops of a frame set's spectra of some ``windows`` with their targets (targets made once per excerpt)."""
 
-    def __init__(self, data: FrameSet, margin: int) -> None:
+    def __init__(self, data: FrameSet, margin: int, windows: tuple[int, ...]) -> None:
         self.data = data
         self.margin = margin
+        self.windows = windows
         self.tgt = [targets(data.starts[e + 1] - data.starts[e], data.excerpt_hits(e)) for e in range(data.n_excerpts)]
 
     def crop(self, e: int, a: int, n: int) -> tuple[np.ndarray, ...]:
         """Input frames a - margin .. a + n + margin (silence outside) and the targets of frames a .. a + n."""
         m = self.margin
-        spec = self.data.excerpt(e)
-        x = np.zeros((n + 2 * m, spec.shape[1]), np.float32)
+        spec = self.data.excerpt(e, self.windows)
         lo, hi = max(0, a - m), min(len(spec), a + n + m)
+        x = np.zeros((n + 2 * m, *spec.shape[1:]), np.float32)
         x[lo - (a - m) : hi - (a - m)] = spec[lo:hi]
         act, vel, mask = self.tgt[e]
         return x, act[a : a + n], vel[a : a + n], mask[a : a + n]
@@ -81,10 +86,18 @@ class Batches:
         return [torch.from_numpy(np.stack(p)) for p in zip(*parts, strict=True)]
 
 
-def loss_of(net: Net, x: torch.Tensor, act: torch.Tensor, vel: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+def loss_of(net: Net, x: torch.Tensor, act: torch.Tensor, vel: torch.Tensor, mask: torch.Tensor,
+            hard: float = 0.0) -> torch.Tensor:
+    """Activation loss (binary cross-entropy; a class's frames with target 0 where another class has a strike
+    target of at least 0.5 weigh ``1 + hard``) plus the velocity loss."""
     m = net.margin
     out = net(x)[:, :, m:-m].transpose(1, 2)  # (batch, frames, N_OUT)
-    loss = TF.binary_cross_entropy_with_logits(out[..., : N_CLASSES + 1], act)
+    weight = None
+    if hard:
+        struck = (act[..., :N_CLASSES] >= 0.5).any(dim=-1, keepdim=True)
+        weight = torch.ones_like(act)
+        weight[..., :N_CLASSES] += hard * ((act[..., :N_CLASSES] == 0) & struck).float()
+    loss = TF.binary_cross_entropy_with_logits(out[..., : N_CLASSES + 1], act, weight=weight)
     pred = torch.sigmoid(out[..., N_CLASSES + 1 :])
     if mask.any():
         loss = loss + VEL_WEIGHT * ((pred - vel)[mask] ** 2).mean()
@@ -107,43 +120,47 @@ def validation_loss(net: Net, val: Batches, n: int = 1000) -> float:
 
 
 def fit(train: FrameSet, val: FrameSet, epochs: float, seed: int, lr: float = 2e-3, log_every: int = 250,
-        minutes: float | None = None, width: int = 128) -> Net:
-    """Fit a :class:`Net`; ``epochs``: passes over the training frames (fractional allowed), or as many
-    steps as fit in ``minutes`` of training (measured on the first steps), whichever is fewer.
-    Learning rate: a linear warm-up over the first 3 % of the steps, then a cosine decay to zero."""
+        minutes: float | None = None, width: int = 128, windows: tuple[int, ...] = (F.N_FFT,),
+        hard: float = HARD_WEIGHT) -> Net:
+    """Fit a :class:`Net` on the spectra of ``windows``; ``epochs``: passes over the training frames (fractional
+    allowed), or only as many steps as fit in ``minutes``, whichever is fewer. ``hard``: see :func:`loss_of`
+    (the validation loss is unweighted).
+    Learning rate: a linear warm-up over the first 3 % of the run, then a cosine decay to zero; with ``minutes``
+    the run's progress is the share of the time budget spent (so on a shared machine whose speed changes the
+    schedule still ends at zero), else the share of the steps."""
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
-    net = Net(c1=width // 8, c2=width // 4, width=width)
-    tb, vb = Batches(train, net.margin), Batches(val, net.margin)
+    net = Net(c1=width // 8, c2=width // 4, width=width, windows=windows)
+    tb, vb = Batches(train, net.margin, windows), Batches(val, net.margin, windows)
     steps = max(1, int(epochs * len(train.spec) / (BATCH * CROP_FRAMES)))
     opt = torch.optim.AdamW(net.parameters(), lr=lr, weight_decay=1e-4)
     best, best_state = np.inf, None
     t0, running = time.time(), 0.0
     step = 0
-    while step < steps:
+    done = 0.0
+    while step < steps and done < 1.0:
         step += 1
-        warm = max(1, int(0.03 * steps))
-        rate = step / warm if step <= warm else 0.5 * (1 + np.cos(np.pi * (step - warm) / max(1, steps - warm)))
+        done = step / steps if minutes is None else max(step / steps, (time.time() - t0) / (minutes * 60))
+        rate = done / 0.03 if done <= 0.03 else 0.5 * (1 + np.cos(np.pi * (done - 0.03) / 0.97))
         for group in opt.param_groups:
-            group["lr"] = lr * float(rate)
-        loss = loss_of(net, *tb.random(rng, BATCH, CROP_FRAMES))
+            group["lr"] = lr * float(min(1.0, rate))
+        x, act, vel, mask = tb.random(rng, BATCH, CROP_FRAMES)
+        loss = loss_of(net, x, act, vel, mask, hard=hard)
         opt.zero_grad()
         loss.backward()
         opt.step()
-        if minutes is not None and step == 20:  # the time budget, from the speed of the first steps
-            per_step = (time.time() - t0) / step
-            steps = max(step + 1, min(steps, int(minutes * 60 / (per_step * (1 + 40 / log_every)))))
-            print(f"  {per_step:.2f} s per step: {steps} steps ({steps * BATCH * CROP_FRAMES / len(train.spec):.2f}"
-                  " epochs)", flush=True)
         running += loss.item()
-        if step % log_every == 0 or step == steps:
+        last = step == steps or (minutes is not None and time.time() - t0 >= minutes * 60)
+        if step % log_every == 0 or last:
             v = validation_loss(net, vb)
             mark = ""
             if v < best:
                 best, best_state, mark = v, {k: t.clone() for k, t in net.state_dict().items()}, " *"
-            print(f"  step {step}/{steps}: training loss {running / log_every:.4f}, validation-kit loss {v:.4f}{mark}"
-                  f" ({time.time() - t0:.0f} s)", flush=True)
+            print(f"  step {step} ({done:.0%}): training loss {running / ((step - 1) % log_every + 1):.4f}, "
+                  f"validation-kit loss {v:.4f}{mark} ({time.time() - t0:.0f} s, "
+                  f"{step * BATCH * CROP_FRAMES / len(train.spec):.2f} epochs)", flush=True)
             running = 0.0
+            done = 1.0 if last else done
     if best_state is not None:
         net.load_state_dict(best_state)
     net.eval()

@@ -1,14 +1,15 @@
 """Framewise training data: band spectrograms of rendered excerpts and their strikes.
 
 Each excerpt is rendered (:mod:`.excerpts`), turned into the recogniser's band
-spectrogram (:func:`~services.recogniser.features.band_spectrogram`, the network's
-input) and kept with its true strikes. Targets are made from the strikes when
+spectrograms for three analysis windows (:func:`~services.recogniser.features.multi_spectrogram`;
+a network's input is some of them) and kept with its true strikes. Targets are made from the strikes when
 training (:func:`targets`), so the cache holds only spectra (float16) and strikes.
 """
 
 from __future__ import annotations
 
 import multiprocessing as mp
+from contextlib import nullcontext
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -16,62 +17,86 @@ import numpy as np
 
 from services.recogniser import features as F
 from services.recogniser.classes import N_CLASSES
-from services.recogniser.training.excerpts import DRY_P, Job, jobs, prepare, render_excerpt
+from services.recogniser.training.excerpts import DRY_P, Job, excerpt_samples, jobs, prepare, render_excerpt
 
 NEIGHBOUR_TARGET = 0.5
 """Target of the frames next to a strike's frame (target widening: the exact frame is uncertain by half a hop)."""
+
+
+WINDOWS = (512, 1024, 2048)
+"""Analysis windows rendered into the frame sets, samples (23, 46 and 93 ms); a network uses any of them."""
 
 
 @dataclass
 class FrameSet:
     """Spectra of several excerpts, concatenated.
 
-    spec : (n_frames, N_BANDS) float16, excerpt ``e`` is rows ``starts[e]:starts[e + 1]``
+    spec : (n_frames, N_BANDS, len(windows)) float16, excerpt ``e`` is rows ``starts[e]:starts[e + 1]``
     starts : (n_excerpts + 1,) row offsets
     hits : (k, 4) float64: excerpt index, time s (from the excerpt's start), class index, MIDI velocity
+    windows : the analysis window of each channel of ``spec``, samples
     """
 
     spec: np.ndarray
     starts: np.ndarray
     hits: np.ndarray
+    windows: tuple[int, ...] = WINDOWS
 
     @property
     def n_excerpts(self) -> int:
         return len(self.starts) - 1
 
-    def excerpt(self, e: int) -> np.ndarray:
-        return self.spec[self.starts[e] : self.starts[e + 1]]
+    def excerpt(self, e: int, windows: tuple[int, ...] | None = None) -> np.ndarray:
+        """Spectra of excerpt ``e`` (frames, N_BANDS, len(windows)) for these windows (default: all)."""
+        x = self.spec[self.starts[e] : self.starts[e + 1]]
+        return x if windows is None or windows == self.windows else x[:, :, [self.windows.index(w) for w in windows]]
 
     def excerpt_hits(self, e: int) -> np.ndarray:
         return self.hits[self.hits[:, 0] == e]
 
     def save(self, path: Path) -> None:
-        np.savez(path, spec=self.spec, starts=self.starts, hits=self.hits)
+        """Write to ``path`` (starts, hits, windows) and ``path`` + '.spec.npy' (unless the spectra already are
+        a memory map of that file), which :meth:`load` maps into memory (processes share it)."""
+        spec_path = Path(f"{path}.spec.npy")
+        if not (isinstance(self.spec, np.memmap) and Path(str(self.spec.filename)) == spec_path.resolve()):
+            np.save(spec_path, self.spec)
+        np.savez(path, starts=self.starts, hits=self.hits, windows=np.asarray(self.windows))
 
     @staticmethod
     def load(path: Path) -> FrameSet:
         with np.load(path) as z:
-            return FrameSet(z["spec"], z["starts"], z["hits"])
+            starts, hits, windows = z["starts"], z["hits"], tuple(int(w) for w in z["windows"])
+        return FrameSet(np.load(f"{path}.spec.npy", mmap_mode="r"), starts, hits, windows)
 
 
 def _one(job: Job) -> tuple[np.ndarray, np.ndarray]:
     audio, hits = render_excerpt(job)
-    spec = F.band_spectrogram(audio).astype(np.float16)
+    spec = F.multi_spectrogram(audio, WINDOWS).astype(np.float16)
     return spec, np.array([[h.time, h.cls, h.velocity] for h in hits], np.float64).reshape(-1, 3)
 
 
-def make_frames(n: int, seed: int, workers: int, kits: tuple[str, ...], dry_p: float = DRY_P) -> FrameSet:
-    """Render ``n`` excerpts with ``kits`` (a share ``dry_p`` dry) into a :class:`FrameSet`."""
+def make_frames(n: int, seed: int, workers: int, kits: tuple[str, ...], dry_p: float = DRY_P,
+                variety: bool = False, path: Path | None = None) -> FrameSet:
+    """Render ``n`` excerpts with ``kits`` (a share ``dry_p`` dry; ``variety``: see :class:`.excerpts.Job`) into a
+    :class:`FrameSet`, and save it to ``path`` if given (the spectra are written as they come, never all held)."""
     prepare(kits)
-    todo = jobs(n, seed, kits, dry_p)
-    if workers <= 1:
-        parts = [_one(j) for j in todo]
-    else:
-        with mp.Pool(workers) as pool:
-            parts = pool.map(_one, todo, chunksize=4)
-    starts = np.concatenate([[0], np.cumsum([len(s) for s, _ in parts])]).astype(np.int64)
-    hits = [np.column_stack([np.full(len(h), e, np.float64), h]) for e, (_, h) in enumerate(parts)]
-    return FrameSet(np.concatenate([s for s, _ in parts]), starts, np.concatenate(hits))
+    todo = jobs(n, seed, kits, dry_p, variety)
+    per = F.n_frames(excerpt_samples())
+    shape = (n * per, F.N_BANDS, len(WINDOWS))
+    spec = (np.lib.format.open_memmap(f"{path}.spec.npy", mode="w+", dtype=np.float16, shape=shape)
+            if path is not None else np.empty(shape, np.float16))
+    hits = []
+    with mp.Pool(workers) if workers > 1 else nullcontext() as pool:
+        results = pool.imap(_one, todo, chunksize=4) if pool is not None else map(_one, todo)
+        for e, (s, h) in enumerate(results):
+            assert len(s) == per, (len(s), per)
+            spec[e * per : (e + 1) * per] = s
+            hits.append(np.column_stack([np.full(len(h), e, np.float64), h]))
+    data = FrameSet(spec, np.arange(n + 1, dtype=np.int64) * per, np.concatenate(hits), WINDOWS)
+    if path is not None:
+        spec.flush()  # type: ignore[union-attr]
+        data.save(path)
+    return data
 
 
 def targets(n_frames: int, hits: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

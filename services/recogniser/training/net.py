@@ -18,12 +18,14 @@ from services.recogniser.framenet import N_OUT, FrameNet, Layer
 
 
 class Net(nn.Module):
-    """Input (batch, t, N_BANDS) band spectra; output (batch, N_OUT, t) logits."""
+    """Input (batch, t, N_BANDS, len(windows)) band spectra of the analysis ``windows`` (samples), or
+    (batch, t, N_BANDS) with one window; output (batch, N_OUT, t) logits."""
 
     def __init__(self, c1: int = 16, c2: int = 32, width: int = 128, dilations: tuple[int, ...] = (2, 4, 8, 16),
-                 dropout: float = 0.2) -> None:
+                 dropout: float = 0.2, windows: tuple[int, ...] = (F.N_FFT,)) -> None:
         super().__init__()
-        self.conv1 = nn.Conv2d(1, c1, 3, padding=1, bias=False)
+        self.windows = windows
+        self.conv1 = nn.Conv2d(len(windows), c1, 3, padding=1, bias=False)
         self.bn1 = nn.BatchNorm2d(c1)
         self.conv2 = nn.Conv2d(c1, c2, 3, padding=1, bias=False)
         self.bn2 = nn.BatchNorm2d(c2)
@@ -42,8 +44,8 @@ class Net(nn.Module):
         return 2 + 1 + sum(self.dilations)
 
     def forward(self, spec: torch.Tensor) -> torch.Tensor:
-        b, t, _ = spec.shape
-        x = spec[:, None]
+        b, t = spec.shape[:2]
+        x = spec[:, None] if spec.dim() == 3 else spec.permute(0, 3, 1, 2)  # (batch, windows, t, bands)
         x = TF.max_pool2d(TF.relu(self.bn1(self.conv1(x))), (1, 2))
         x = TF.max_pool2d(TF.relu(self.bn2(self.conv2(x))), (1, 2))
         x = x.permute(0, 1, 3, 2).reshape(b, -1, t)  # channel-major: channel * bands + band
@@ -81,4 +83,4 @@ def export(net: Net, thresholds: np.ndarray | None = None) -> FrameNet:
         la.w = la.w.astype(np.float32)
         la.b = la.b.astype(np.float32)
     th = thresholds if thresholds is not None else np.array([0.5] * N_CLASSES + [1.01], np.float32)
-    return FrameNet(layers, np.asarray(th, np.float32))
+    return FrameNet(layers, np.asarray(th, np.float32), windows=net.windows)

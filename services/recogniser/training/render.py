@@ -47,11 +47,19 @@ class Hit:
     velocity: int
 
 
+METAL_KINDS = frozenset({"hh_closed", "hh_pedal", "hh_open", "crash", "china", "splash", "ride", "ride_bell"})
+"""Cymbal and hi-hat kinds (inharmonic: they take a wider detune and other filter ranges)."""
+MIN_DECAY_S = {"hh_open": 0.3, "crash": 0.5, "china": 0.5, "splash": 0.3, "ride": 0.5, "ride_bell": 0.4}
+"""Shortest decay time constant a shaped instrument of these kinds may get, s (an open hi-hat or a crash
+shortened further would sound like another class)."""
+
+
 @dataclass
 class Variation:
     """A random change of one instrument's sound: resampling (pitch and length), a peaking EQ and a tilt
     (``tilt_db`` more above ``tilt_hz`` than below: first-order low and high pass outputs, which sum to the
-    input, weighted by -+ half of it)."""
+    input, weighted by -+ half of it). :meth:`random_wide` adds second-order low and high passes, band-passed
+    noise that follows the sample's envelope (snare wires), a shorter decay and a transient gain."""
 
     factor: float = 1.0
     eq_hz: float = 0.0
@@ -62,6 +70,16 @@ class Variation:
     curve: float = 1.6
     tilt_hz: float = 1000.0
     tilt_db: float = 0.0
+    lowpass_hz: float = 0.0
+    highpass_hz: float = 0.0
+    noise_db: float | None = None  # wires: band-passed noise this far above the sample's RMS, dB (None: none)
+    noise_band: tuple[float, float] = (2000.0, 8000.0)
+    noise_decay_s: float = 0.15
+    decay_s: float = 0.0  # 0: the sample's own decay; else exp(-(t - decay_hold_s) / decay_s) after a hold
+    decay_hold_s: float = 0.01
+    attack_db: float = 0.0  # gain of the first milliseconds (1 + a exp(-t / attack_s))
+    attack_s: float = 0.005
+    seed: int = 0
 
     @staticmethod
     def random(rng: np.random.Generator) -> Variation:
@@ -70,6 +88,34 @@ class Variation:
                          curve=float(rng.uniform(1.0, 2.6)),
                          tilt_hz=float(np.exp(rng.uniform(np.log(300), np.log(5000)))),
                          tilt_db=float(rng.uniform(-8, 8)))
+
+    @staticmethod
+    def random_wide(rng: np.random.Generator, kind: str) -> Variation:
+        """:meth:`random` and, each with some probability, the further changes (training variety)."""
+        v = Variation.random(rng)
+        metal = kind in METAL_KINDS
+
+        def logu(lo: float, hi: float) -> float:
+            return float(np.exp(rng.uniform(np.log(lo), np.log(hi))))
+
+        if metal and rng.random() < 0.5:  # cymbals: up to 7 semitones
+            v.factor = float(2 ** (rng.uniform(-7, 7) / 12))
+        if rng.random() < 0.4:
+            v.lowpass_hz = logu(2500, 14000) if metal else logu(1200, 12000)
+        if rng.random() < 0.25:
+            v.highpass_hz = logu(200, 4000) if metal else logu(30, 120 if kind == "kick" else 400)
+        if kind in ("snare", "rimshot") and rng.random() < 0.5:
+            v.noise_db = float(rng.uniform(-18, 3))
+            v.noise_band = (logu(1000, 4000), logu(5000, 10000))
+            v.noise_decay_s = logu(0.04, 0.35)
+        if rng.random() < 0.3:
+            v.decay_s = max(logu(0.03, 0.6), MIN_DECAY_S.get(kind, 0.0))
+            v.decay_hold_s = float(rng.uniform(0.005, 0.03))
+        if rng.random() < 0.4:
+            v.attack_db = float(rng.uniform(-6, 9))
+            v.attack_s = logu(0.002, 0.015)
+        v.seed = int(rng.integers(2**31))
+        return v
 
     def apply(self, sample: np.ndarray) -> np.ndarray:
         key = id(sample)
@@ -85,8 +131,33 @@ class Variation:
             low = sosfilt(butter(1, self.tilt_hz, btype="low", fs=SAMPLE_RATE, output="sos"), y)
             high = sosfilt(butter(1, self.tilt_hz, btype="high", fs=SAMPLE_RATE, output="sos"), y)
             y = (low * 10 ** (-self.tilt_db / 40) + high * 10 ** (self.tilt_db / 40)).astype(np.float32)
+        y = self._shape(np.asarray(y, np.float32))
         self._cache[key] = y
         return y
+
+    def _shape(self, y: np.ndarray) -> np.ndarray:
+        """The changes of :meth:`random_wide` (none by default)."""
+        t = np.arange(len(y)) / SAMPLE_RATE
+        if self.noise_db is not None and len(y):
+            lo, hi = self.noise_band
+            noise = np.random.default_rng(self.seed).standard_normal(len(y))
+            noise = sosfilt(butter(2, (lo, min(hi, 0.45 * SAMPLE_RATE)), btype="band", fs=SAMPLE_RATE,
+                                   output="sos"), noise)
+            env = np.minimum(1.0, t / 0.002) * np.exp(-t / self.noise_decay_s)
+            head = y[: int(0.1 * SAMPLE_RATE)]
+            level = float(np.sqrt(np.mean(head**2))) * 10 ** (self.noise_db / 20)
+            noise *= env * level / max(float(np.sqrt(np.mean((noise * env)[: len(head)] ** 2))), 1e-12)
+            y = y + noise.astype(np.float32)
+        if self.lowpass_hz:
+            y = sosfilt(butter(2, min(self.lowpass_hz, 0.45 * SAMPLE_RATE), btype="low", fs=SAMPLE_RATE,
+                               output="sos"), y)
+        if self.highpass_hz:
+            y = sosfilt(butter(2, self.highpass_hz, btype="high", fs=SAMPLE_RATE, output="sos"), y)
+        if self.decay_s:
+            y = y * np.exp(-np.maximum(t - self.decay_hold_s, 0.0) / self.decay_s)
+        if self.attack_db:
+            y = y * (1.0 + (10 ** (self.attack_db / 20) - 1.0) * np.exp(-t / self.attack_s))
+        return np.asarray(y, np.float32)
 
 
 def _peaking(f0: float, gain_db: float, q: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
@@ -106,12 +177,14 @@ def render(
     duration: float | None = None,
     tail: float = 1.0,
     vary: bool = False,
+    wide: bool = False,
 ) -> tuple[np.ndarray, list[Hit]]:
     """Render notes with a kit (dry, mono, SAMPLE_RATE).
 
     With ``vary``, each instrument is detuned by up to 4 semitones, given a random
     peaking EQ (+-9 dB), a spectral tilt (+-8 dB), a level offset (-12..+10 dB) and a velocity curve
-    (gain = v ** 1.0..2.6 instead of v ** 1.6), to widen the timbres and balances seen in training.
+    (gain = v ** 1.0..2.6 instead of v ** 1.6), to widen the timbres and balances seen in training;
+    ``wide`` adds the further changes of :meth:`Variation.random_wide`.
 
     Notes whose pitch is none of the classes, or whose kind the kit lacks, are left out
     of both the audio and the returned hits. An open hi-hat is choked (20 ms fade) by the
@@ -137,7 +210,8 @@ def render(
         if kind is None or cls is None:
             continue
         if kind not in chosen:
-            chosen[kind] = (kit.choose(kind, rng), Variation.random(rng) if vary else Variation())
+            chosen[kind] = (kit.choose(kind, rng), (Variation.random_wide(rng, kind) if wide else
+                                                    Variation.random(rng)) if vary else Variation())
         inst, variation = chosen[kind]
         if inst is None:
             continue

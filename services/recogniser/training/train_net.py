@@ -2,13 +2,15 @@
 
 Usage::
 
-    nice -n 15 python -m services.recogniser.training.train_net [--excerpts 1600] [--epochs 3] [--workers 2]
+    nice -n 15 python -m services.recogniser.training.train_net [--excerpts 3200] [--minutes 45] [--threads 1]
 
 Needs PyTorch (CPU; training only: ``pip install -e '.[train]'``) and Debian's
 ``hydrogen-drumkits``. Renders ``--excerpts`` 30 s excerpts of Groove train-split
 performances with the Hydrogen training kits and Batteur's own modal and signal
-synthesis (half of them on kits mixed from several; room, EQ, noise on 70 %), fits
-the framewise network (:mod:`.fit_net`), exports it to NumPy arrays and chooses its
+synthesis (half of them on kits mixed from several; room, EQ, noise on 70 %; unless
+``--plain``, layered instruments and wider per-instrument changes), fits the framewise
+network (:mod:`.fit_net`) on the band spectrograms of ``--windows`` (analysis windows,
+samples), exports it to NumPy arrays and chooses its
 thresholds on excerpts rendered with the validation kit (:mod:`.tune`). The held-out
 kit is never used. The live classifier is copied from ``--live-from`` (made by
 :mod:`.train`). Spectra are cached in ``--cache``; deterministic for a ``--seed``
@@ -23,25 +25,46 @@ from pathlib import Path
 
 import torch
 
+from services.recogniser.framenet import FrameNet
 from services.recogniser.model import Model, load_live, load_model
 from services.recogniser.training.excerpts import FIT_KITS, VALID_DRY_P, add_arguments, kits_installed
-from services.recogniser.training.fit_net import fit
-from services.recogniser.training.frames import FrameSet, make_frames
+from services.recogniser.training.fit_net import HARD_WEIGHT, fit
+from services.recogniser.training.frames import WINDOWS, FrameSet, make_frames
 from services.recogniser.training.kits import VALID_KITS
 from services.recogniser.training.net import export
 from services.recogniser.training.tune import choose
 
-CACHE_TAG = "f2"
+CACHE_TAG = "f3"
 """Changes when the rendering or the spectrogram change, so stale cached spectra are not reused."""
 
 
-def frames(cache: Path, name: str, n: int, seed: int, workers: int, kits: tuple[str, ...], dry_p: float) -> FrameSet:
-    path = cache / f"{CACHE_TAG}-{name}-{n}-{seed}.npz"
+def frames(cache: Path, name: str, n: int, seed: int, workers: int, kits: tuple[str, ...], dry_p: float,
+           variety: bool = False) -> FrameSet:
+    path = cache / f"{CACHE_TAG}-{name}{'-variety' if variety else ''}-{n}-{seed}.npz"
     if path.exists():
         return FrameSet.load(path)
-    data = make_frames(n, seed, workers, kits, dry_p)
-    data.save(path)
-    return data
+    make_frames(n, seed, workers, kits, dry_p, variety, path)
+    return FrameSet.load(path)
+
+
+MEMBER_KEYS = ("excerpts", "epochs", "minutes", "width", "seed", "windows", "hard", "variety")
+"""Metadata of a trained network kept for each member of an ensemble."""
+
+
+def ensemble(paths: list[Path], val: FrameSet) -> Model:
+    """One model whose offline network averages the offline networks of the model files ``paths``, with
+    thresholds chosen on ``val``; the live MLP and the metadata are the first file's."""
+    models = [load_model(p) for p in paths]
+    first = models[0].offline
+    nets = [n for m in models for n in m.offline.networks]
+    net = FrameNet(nets[0].layers, first.thresholds.copy(), first.peak_frames, first.time_offset_s, first.chord_s,
+                   nets[0].windows, nets[1:])
+    print(f"ensemble of {len(nets)} networks; thresholds:", flush=True)
+    choose(net, val)
+    meta = dict(models[0].meta)
+    meta["ensemble_of"] = [{k: m.meta.get(k) for k in MEMBER_KEYS} | {"file": p.name}
+                           for p, m in zip(paths, models, strict=True)]
+    return Model(offline=net, live=models[0].live, meta=meta)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -53,6 +76,18 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--width", type=int, default=128,
                     help="channels of the network's time convolutions (the 2-D ones have 1/8 and 1/4 of it)")
     ap.add_argument("--threads", type=int, default=2, help="PyTorch threads (default 2)")
+    ap.add_argument("--windows", type=int, nargs="+", default=list(WINDOWS), choices=WINDOWS,
+                    help="analysis windows of the network's input spectrograms, samples (default: all three)")
+    ap.add_argument("--hard", type=float, default=HARD_WEIGHT,
+                    help="extra loss weight of a class's negatives where another class is struck "
+                         f"(default {HARD_WEIGHT})")
+    ap.add_argument("--plain", action="store_true",
+                    help="render without layered instruments and the wider per-instrument changes (recipe 3's data)")
+    ap.add_argument("--render-only", action="store_true", help="render (and cache) the excerpts, do not fit")
+    ap.add_argument("--ensemble", type=Path, nargs="+", default=None, metavar="MODEL",
+                    help="only average the offline networks of these model files into one (the live MLP and metadata "
+                         "of the first) and choose its thresholds on the validation kit")
+    ap.add_argument("--half", action="store_true", help="store the offline network's weights as float16")
     args = ap.parse_args(argv)
     if not kits_installed():
         return 1
@@ -63,25 +98,33 @@ def main(argv: list[str] | None = None) -> int:
     if args.retune is not None:
         model = load_model(args.retune)
         choose(model.offline, val)
-        model.save(args.out)
+        model.save(args.out, half=args.half)
         print(f"wrote {args.out}")
         return 0
+    if args.ensemble:
+        ensemble(args.ensemble, val).save(args.out, half=args.half)
+        print(f"wrote {args.out} ({args.out.stat().st_size / 1024:.0f} KiB)")
+        return 0
     live, live_meta = load_live(args.live_from)
-    train = frames(args.cache, "train", args.excerpts, args.seed, args.workers, FIT_KITS, 0.3)
+    train = frames(args.cache, "train", args.excerpts, args.seed, args.workers, FIT_KITS, 0.3, not args.plain)
+    if args.render_only:
+        return 0
     print(f"training: {train.n_excerpts} excerpts, {len(train.spec)} frames, {len(train.hits)} strikes; "
           f"validation kit: {val.n_excerpts} excerpts; {time.time() - t0:.0f} s", flush=True)
-    net = export(fit(train, val, args.epochs, args.seed, minutes=args.minutes, width=args.width))
+    windows = tuple(sorted(set(args.windows)))
+    net = export(fit(train, val, args.epochs, args.seed, minutes=args.minutes, width=args.width, windows=windows,
+                     hard=args.hard))
     print("thresholds:", flush=True)
     choose(net, val)
     meta = {"trained_on": list(FIT_KITS), "thresholds_from": list(VALID_KITS), "excerpts": args.excerpts,
             "val_excerpts": args.val_excerpts, "epochs": args.epochs, "minutes": args.minutes, "width": args.width,
-            "seed": args.seed,
+            "seed": args.seed, "windows": list(windows), "hard": args.hard, "variety": not args.plain,
             # where the live MLP came from (a file of this format already records it as live_*)
             "live_trained_on": live_meta.get("live_trained_on", live_meta.get("trained_on", [])),
             "live_excerpts": live_meta.get("live_excerpts", live_meta.get("excerpts")),
             "data": "Groove MIDI Dataset train split (CC BY 4.0) rendered with hydrogen-drumkits and Batteur's "
                     "synthesis"}
-    Model(offline=net, live=live, meta=meta).save(args.out)
+    Model(offline=net, live=live, meta=meta).save(args.out, half=args.half)
     print(f"wrote {args.out} ({args.out.stat().st_size / 1024:.0f} KiB) in {time.time() - t0:.0f} s")
     return 0
 

@@ -46,7 +46,7 @@ def pooled_f(pairs: list[tuple[np.ndarray, np.ndarray]], window: float = 0.05) -
 
 def outputs(net: FrameNet, val: FrameSet) -> list[np.ndarray]:
     """The network's framewise outputs for every validation excerpt."""
-    return [net.forward(val.excerpt(e).astype(np.float32)) for e in range(val.n_excerpts)]
+    return [net.forward(val.excerpt(e, net.inputs).astype(np.float32)) for e in range(val.n_excerpts)]
 
 
 def _onset_f(net: FrameNet, val: FrameSet, outs: list[np.ndarray]) -> float:

@@ -1,0 +1,73 @@
+"""Training data variety: per-instrument changes and layered instruments keep what the labels say."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.signal import butter, sosfilt
+
+from services.recogniser.audio import SAMPLE_RATE
+from services.recogniser.training import excerpts as ex
+from services.recogniser.training.excerpts import layered, with_layers
+from services.recogniser.training.kits import Instrument, Kit, Layer
+from services.recogniser.training.render import MIN_DECAY_S, Variation
+
+
+def _burst(seed: int, decay_s: float, length_s: float = 0.6) -> np.ndarray:
+    t = np.arange(int(length_s * SAMPLE_RATE)) / SAMPLE_RATE
+    return (np.random.default_rng(seed).standard_normal(len(t)) * np.exp(-t / decay_s)).astype(np.float32)
+
+
+def _instrument(kind: str, seed: int) -> Instrument:
+    return Instrument(f"{kind} {seed}", kind, 1.0, [Layer(0.0, 0.5, 0.5, _burst(seed, 0.1)),
+                                                     Layer(0.5, 1.0, 1.0, _burst(seed + 1, 0.2))])
+
+
+def test_plain_variation_leaves_the_sample_alone() -> None:
+    x = _burst(0, 0.1)
+    assert np.array_equal(Variation().apply(x), x)
+
+
+def test_wide_variation_keeps_the_onset_at_the_start_and_open_cymbals_long() -> None:
+    rng = np.random.default_rng(1)
+    x = _burst(2, 0.4)
+    for kind in ("snare", "hh_closed", "hh_open", "kick", "crash") * 8:
+        v = Variation.random_wide(rng, kind)
+        y = v.apply(x)
+        env = np.abs(y)
+        first = int(np.argmax(env > 0.1 * env.max()))
+        assert first < int(0.003 * SAMPLE_RATE), (kind, v)
+        assert v.decay_s == 0.0 or v.decay_s >= MIN_DECAY_S.get(kind, 0.0)
+
+
+def test_snare_wires_add_high_band_noise() -> None:
+    x = _burst(3, 0.15)
+    x = sosfilt(butter(4, 800, btype="low", fs=SAMPLE_RATE, output="sos"), x).astype(np.float32)  # a dull snare
+    wired = Variation(noise_db=0.0, noise_band=(2000.0, 8000.0), seed=4).apply(x)
+    high = butter(4, 2000, btype="high", fs=SAMPLE_RATE, output="sos")
+    assert np.sum(sosfilt(high, wired) ** 2) > 20 * np.sum(sosfilt(high, x) ** 2)
+
+
+def test_layering_sums_two_instruments_without_changing_the_kits() -> None:
+    a, b = _instrument("snare", 10), _instrument("snare", 20)
+    both = layered(a, b, np.random.default_rng(5))
+    assert [(la.lo, la.hi, la.gain) for la in both.layers] == [(la.lo, la.hi, la.gain) for la in a.layers]
+    for la, lb, lab in zip(a.layers, b.layers, both.layers, strict=True):
+        n, m = len(la.audio), len(lb.audio)
+        assert np.corrcoef(lab.audio[:n], la.audio)[0, 1] > 0.5
+        # b sounds at the same velocity, at most 1.5 ms late
+        lags = [np.corrcoef(lab.audio[d : d + m - 40], lb.audio[: m - 40])[0, 1]
+                for d in range(int(0.0015 * SAMPLE_RATE) + 1)]
+        assert max(lags) > 0.3
+
+    kit = Kit("one", "test", {"snare": [a], "kick": [_instrument("kick", 30)]})
+    other = Kit("two", "test", {"snare": [b], "kick": [_instrument("kick", 40)]})
+    ex._KITS.update({"one": kit, "two": other})
+    try:
+        changed = 0
+        for seed in range(20):
+            out = with_layers(kit, ("one", "two"), np.random.default_rng(seed))
+            changed += out.instruments["snare"][0] is not a
+            assert kit.instruments["snare"] == [a] and kit.instruments["kick"][0].name == "kick 30"
+        assert 0 < changed < 20
+    finally:
+        del ex._KITS["one"], ex._KITS["two"]
