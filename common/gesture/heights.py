@@ -51,3 +51,15 @@ def foot_height(velocity: float) -> float:
 def foot_speed(velocity: float) -> float:
     """Footboard speed at the bottom of a pedal stroke, m/s."""
     return 0.3 + 2.0 * velocity
+
+
+def chick_speed(velocity: float) -> float:
+    """Foot speed (m/s) where a hi-hat pedal stroke closes the cymbals, for a score velocity in [0, 1].
+
+    The plates meet at about a sixth to a quarter of the foot's speed; the softest chick must still close them
+    faster than a foot letting the pedal down after an open note (0.10-0.13 m/s, which interaction takes for
+    silent), so the range starts higher than a kick's: with ``foot_speed`` a chick at velocity 0.16 closed at
+    0.098 m/s and was not heard (soft pedal notes were most of the 380 hi-hat pedal notes without a contact on
+    76 Groove validation files).
+    """
+    return 0.8 + 1.5 * velocity

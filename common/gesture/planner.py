@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from common.gesture.database import GestureDatabase, GestureUnit, default_database
-from common.gesture.heights import foot_height, foot_speed, stick_height, stick_speed, tempo_cap
+from common.gesture.heights import chick_speed, foot_height, foot_speed, stick_height, stick_speed, tempo_cap
 from common.gesture.plan import (
     GesturePlan,
     Grip,
@@ -468,7 +468,7 @@ def plan_gestures(
             else:
                 unit = db.select(cfg.grip, Nuance.LEGATO, interval)
                 lift = tempo_cap(foot_height(n.velocity), interval)
-                speed = foot_speed(n.velocity)
+                speed = chick_speed(n.velocity) if n.event == EventType.HIHATPEDAL else foot_speed(n.velocity)
                 contact = cfg.foot_contact
                 rebound = 0.5 * obj.elasticity * speed
             bounce = hand and n.rebound and bool(strokes)

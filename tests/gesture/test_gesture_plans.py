@@ -203,6 +203,18 @@ def test_feet_rest_on_pedals_and_hihat_foot_opens_for_open_notes() -> None:
     assert jump_p < 1e-7 and jump_v < 1e-4
 
 
+def test_the_softest_chick_closes_faster_than_the_foot_lets_an_open_hihat_down() -> None:
+    """Interaction hears a closing of the hi-hat only above a speed (a foot letting the pedal down after an open
+    note is silent): the planned chick of the softest pedal note must be well above the let-down's speed."""
+    score = Score([DrumEvent(1.0, E.HIHATOPEN, 0.8), DrumEvent(3.0, E.HIHATPEDAL, 0.0)])
+    plan = plan_gestures(distribute(score, KIT), KIT, score)
+    hat = plan.trajectories[Limb.LEFT_FOOT]
+    times = np.arange(1.1, 1.6, 1e-3)  # the let-down after the open note
+    let_down = float(np.max(-hat.sample_many(times)[1][:, 2]))
+    chick = float(-hat.sample(3.0).velocity[2])
+    assert 0.0 < let_down and chick > 3.0 * let_down, (let_down, chick)
+
+
 def test_scalar_sample_matches_vectorised(groove: Score) -> None:
     plan = plan_gestures(distribute(groove, KIT), KIT, groove)
     rng = np.random.default_rng(1)

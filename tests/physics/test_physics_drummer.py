@@ -299,3 +299,24 @@ def test_double_pedal_left_footboard_drives_its_own_beater_into_the_kick() -> No
                   if isinstance(o.message, Contact) and o.message.instrument == "kick"}
     assert "kick_beater_left" in parts
     core.close()
+
+
+@pytest.mark.parametrize("press, sounds", [(0.975, True), (0.9, False)])
+def test_a_kick_pedal_pressed_slowly_sounds_only_near_the_end_of_its_travel(press: float, sounds: bool) -> None:
+    """A soft kick follows the footboard without overshooting the beater's gear: pressed steadily to where a foot
+    holds it (about 0.98 of the travel, common.kit.FOOT_PRESS_TABLE) the beater must still reach the head;
+    half-way it must not."""
+    from services.physics.kitbodies import PEDAL_REST_ANGLE
+
+    core = PhysicsCore(scene="drummer")
+    pedal = _scene(core).kit_bodies.pedals["kick_pedal"]
+    c = core.world.client
+    beaters = []
+    for k in range(1, 401):  # the footboard driven down over 0.3 s (a soft stroke), then held
+        s = min(k / 300, 1.0)
+        c.setJointMotorControl2(pedal.body, pedal.footboard_joint, p.POSITION_CONTROL,
+                                targetPosition=PEDAL_REST_ANGLE * (1.0 - press * s), force=400.0)
+        beaters += [o.message for o in core.step(k / 1000)
+                    if isinstance(o.message, Contact) and o.message.part == "kick_beater"]
+    assert bool(beaters) == sounds, [(round(b.time, 3), round(b.normal_velocity, 3)) for b in beaters]
+    core.close()
