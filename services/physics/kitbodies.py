@@ -53,6 +53,10 @@ the head only with the board flat, which a foot pressing it steadily never reach
 of the head and did not sound (341 of 28,247 notes on 76 Groove validation files)."""
 
 BEATER_BALL_RADIUS_M = 0.03
+"""Radius of a bass-drum beater's ball, metres."""
+
+BEATER_AXLE_TO_HEAD_M = 0.12
+"""How far in front of the kick's head (toward the drummer) the beater's axle sits, metres."""
 
 _SILVER = (0.75, 0.75, 0.78, 1.0)
 _BRASS = (0.85, 0.68, 0.25, 1.0)
@@ -340,13 +344,14 @@ def _pedal_robot(obj: KitObject, kick: KitObject | None, beater_dx: float) -> Ro
     _footboard_robot(robot, "", "plate", (0.0, -FOOTBOARD_LENGTH_M / 2, 0.0))
     if kick is not None:
         # beater axle in front of the footboard; its head reaches the kick head 0.2 radius above centre
-        axle_y = kick.position[1] - obj.position[1] - 0.12
+        axle_y = kick.position[1] - obj.position[1] - BEATER_AXLE_TO_HEAD_M
         axle_z = 0.10
         hit_z = kick.position[2] - obj.position[2] + 0.2 * kick.radius
         # at q = 0 the ball is pressed this far into the head, so it meets the head at BEATER_CONTACT_PRESS (the
         # ball moves rod x q, about along the head's normal)
-        depth = (1.0 - BEATER_CONTACT_PRESS) * BEATER_REST_RAD * math.hypot(0.12, hit_z - axle_z)
-        rod = math.hypot(0.12 - BEATER_BALL_RADIUS_M + depth, hit_z - axle_z)
+        depth = (1.0 - BEATER_CONTACT_PRESS) * BEATER_REST_RAD * math.hypot(BEATER_AXLE_TO_HEAD_M, hit_z - axle_z)
+        reach = BEATER_AXLE_TO_HEAD_M - BEATER_BALL_RADIUS_M + depth  # axle to the ball's centre, along y
+        rod = math.hypot(reach, hit_z - axle_z)
         m_head, m_rod = 0.05, 0.03
         inertial = Inertial(m_head + m_rod, com=(0, 0, rod * 0.8), inertia=(2e-4, 2e-4, 1e-5, 0, 0, 0))
         robot.add_link(Link("beater", inertial,
@@ -354,7 +359,7 @@ def _pedal_robot(obj: KitObject, kick: KitObject | None, beater_dx: float) -> Ro
                              Shape("sphere", (BEATER_BALL_RADIUS_M, 0, 0), xyz=(0, 0, rod), rgba=_HEAD))))
         # q = 0: the rod points from the axle to the ball pressed into the head; positive q tilts it back toward the
         # drummer
-        lean = math.atan2(0.12 - BEATER_BALL_RADIUS_M + depth, hit_z - axle_z)
+        lean = math.atan2(reach, hit_z - axle_z)
         robot.add_joint(Joint("beater_axle", "revolute", "plate", "beater", xyz=(beater_dx, axle_y, axle_z),
                               rpy=(-lean, 0, 0), axis=(1, 0, 0), lower=-0.02, upper=1.6, effort=200, velocity=80))
     return robot
