@@ -122,3 +122,21 @@ def test_the_kits_foot_press_table_is_what_the_simulated_foot_does() -> None:
         press = scene.kit_bodies.hihat.pedal.press(core.world)
         core.close()
         assert abs(press - expected) < 0.02, f"foot {height * 1000:.0f} mm above flat pressed {press:.3f}"
+
+
+def test_a_kick_soon_after_another_is_played_as_fast_as_the_same_kick_alone() -> None:
+    """Two soft kicks 0.2 s apart and the same kick alone: the beater meets the head at about the same speed
+    for the second of the pair as alone (a foot letting its footboard up and down again in a fifth of a second
+    must not turn a soft note into a loud one)."""
+    t0 = 0.5
+    ev = [DrumEvent(time=t, event=EventType.BASS, velocity=0.2, pitch=36) for t in (t0, t0 + 0.2, t0 + 1.2)]
+    _, _, contacts = _play(Score(events=ev, beats=t0 + BEAT_S * np.arange(4)))
+    strikes: list[float] = []
+    last = -1.0
+    for c in contacts:
+        if c.part == "kick_beater":
+            if c.time - last > ONSET_GAP_S:
+                strikes.append(c.normal_velocity)
+            last = c.time
+    assert len(strikes) == 3, strikes
+    assert abs(strikes[1] - strikes[2]) <= 0.25 * strikes[2], f"beater speeds {strikes} m/s (pair, pair, alone)"
