@@ -20,7 +20,7 @@ from torch.nn import functional as TF
 from services.recogniser import features as F
 from services.recogniser.classes import N_CLASSES
 from services.recogniser.training.frames import FrameSet, targets
-from services.recogniser.training.net import Net
+from services.recogniser.training.net import Net, calibrate
 
 CROP_FRAMES = 400
 """Frames per crop whose loss counts (4 s)."""
@@ -121,27 +121,36 @@ def validation_loss(net: Net, val: Batches, n: int = 1000) -> float:
 
 def fit(train: FrameSet, val: FrameSet, epochs: float, seed: int, lr: float = 2e-3, log_every: int = 250,
         minutes: float | None = None, width: int = 128, windows: tuple[int, ...] = (F.N_FFT,),
-        hard: float = HARD_WEIGHT) -> Net:
+        hard: float = HARD_WEIGHT, init: Net | None = None, warmup: float = 0.03) -> Net:
     """Fit a :class:`Net` on the spectra of ``windows``; ``epochs``: passes over the training frames (fractional
     allowed), or only as many steps as fit in ``minutes``, whichever is fewer. ``hard``: see :func:`loss_of`
     (the validation loss is unweighted).
-    Learning rate: a linear warm-up over the first 3 % of the run, then a cosine decay to zero; with ``minutes``
-    the run's progress is the share of the time budget spent (so on a shared machine whose speed changes the
-    schedule still ends at zero), else the share of the steps."""
+    ``init``: continue from this network (of these ``windows``; e.g. :func:`~.net.from_export` of a model file),
+    its batch normalisations first calibrated on 8 training batches (:func:`~.net.calibrate`); it is kept
+    unless a fitted state has a lower validation-kit loss.
+    Learning rate: a linear warm-up to ``lr`` over the first ``warmup`` (share) of the run, then a cosine decay
+    to zero; with ``minutes`` the run's progress is the share of the time budget spent (so on a shared machine
+    whose speed changes the schedule still ends at zero), else the share of the steps."""
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
-    net = Net(c1=width // 8, c2=width // 4, width=width, windows=windows)
+    net = init if init is not None else Net(c1=width // 8, c2=width // 4, width=width, windows=windows)
+    if net.windows != windows:
+        raise ValueError(f"the network reads windows {net.windows}, not {windows}")
     tb, vb = Batches(train, net.margin, windows), Batches(val, net.margin, windows)
+    best, best_state = np.inf, None
+    if init is not None:
+        calibrate(net, [tb.random(np.random.default_rng(seed + 1), BATCH, CROP_FRAMES)[0] for _ in range(8)])
+        best, best_state = validation_loss(net, vb), {k: t.clone() for k, t in net.state_dict().items()}
+        print(f"  initial network: validation-kit loss {best:.4f}", flush=True)
     steps = max(1, int(epochs * len(train.spec) / (BATCH * CROP_FRAMES)))
     opt = torch.optim.AdamW(net.parameters(), lr=lr, weight_decay=1e-4)
-    best, best_state = np.inf, None
     t0, running = time.time(), 0.0
     step = 0
     done = 0.0
     while step < steps and done < 1.0:
         step += 1
         done = step / steps if minutes is None else max(step / steps, (time.time() - t0) / (minutes * 60))
-        rate = done / 0.03 if done <= 0.03 else 0.5 * (1 + np.cos(np.pi * (done - 0.03) / 0.97))
+        rate = done / warmup if done < warmup else 0.5 * (1 + np.cos(np.pi * (done - warmup) / (1 - warmup)))
         for group in opt.param_groups:
             group["lr"] = lr * float(min(1.0, rate))
         x, act, vel, mask = tb.random(rng, BATCH, CROP_FRAMES)

@@ -7,6 +7,8 @@ on export; dropout is a no-op there).
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import torch
 from torch import nn
@@ -14,7 +16,7 @@ from torch.nn import functional as TF
 
 from services.recogniser import features as F
 from services.recogniser.classes import N_CLASSES
-from services.recogniser.framenet import N_OUT, FrameNet, Layer
+from services.recogniser.framenet import N_OUT, FrameNet, Layer, Network
 
 
 class Net(nn.Module):
@@ -84,3 +86,81 @@ def export(net: Net, thresholds: np.ndarray | None = None) -> FrameNet:
         la.b = la.b.astype(np.float32)
     th = thresholds if thresholds is not None else np.array([0.5] * N_CLASSES + [1.01], np.float32)
     return FrameNet(layers, np.asarray(th, np.float32), windows=net.windows)
+
+
+def batch_norms(net: Net) -> list[nn.BatchNorm1d | nn.BatchNorm2d]:
+    """The network's batch normalisations in order (each follows one convolution)."""
+    return [net.bn1, net.bn2, net.bn_t1, *(bn for bn in net.bn_res if isinstance(bn, nn.BatchNorm1d))]
+
+
+def from_export(fn: FrameNet | Network, dropout: float = 0.2) -> Net:
+    """A :class:`Net` that computes (in eval mode) what the exported network ``fn`` (its first network, if an
+    ensemble) computes: the folded convolution weights go back into the convolutions and each batch
+    normalisation starts as the identity (mean 0, variance 1 - eps, scale 1, shift: the folded bias).
+    Before training on it, call :func:`calibrate` so its batch statistics start where they will be.
+
+    Raises ValueError when the layers are not of :class:`Net`'s layout (two 2-D convolutions, one time
+    convolution, residual dilated ones, a 1x1 head)."""
+    layers = fn.layers
+    kinds = [la.kind for la in layers]
+    if len(layers) < 4 or kinds[:3] != ["conv2d", "conv2d", "conv1d"] or not all(la.residual for la in layers[3:-1]):
+        raise ValueError(f"not a network of the trainer's layout: layers {kinds}")
+    c1, c2, width = int(layers[0].w.shape[3]), int(layers[1].w.shape[3]), int(layers[2].w.shape[2])
+    net = Net(c1=c1, c2=c2, width=width, dilations=tuple(la.dilation for la in layers[3:-1]), dropout=dropout,
+              windows=tuple(fn.windows))
+    convs = [net.conv1, net.conv2, net.t1, *net.res]
+    bns = batch_norms(net)
+    with torch.no_grad():
+        for la, conv, bn in zip(layers[:-1], convs, bns, strict=True):
+            order = (3, 2, 0, 1) if la.kind == "conv2d" else (2, 1, 0)
+            w = torch.from_numpy(np.ascontiguousarray(la.w.transpose(order), np.float32))
+            if w.shape != conv.weight.shape:
+                raise ValueError(f"layer shape {tuple(w.shape)} where the trainer's network has "
+                                 f"{tuple(conv.weight.shape)}")
+            conv.weight.copy_(w)
+            assert bn.running_mean is not None and bn.running_var is not None
+            bn.running_mean.zero_()
+            bn.running_var.fill_(1.0 - bn.eps)
+            bn.weight.fill_(1.0)
+            bn.bias.copy_(torch.from_numpy(la.b.astype(np.float32)))
+        head = layers[-1]
+        assert net.head.bias is not None
+        net.head.weight.copy_(torch.from_numpy(np.ascontiguousarray(head.w.transpose(2, 1, 0), np.float32)))
+        net.head.bias.copy_(torch.from_numpy(head.b.astype(np.float32)))
+    net.eval()
+    return net
+
+
+def calibrate(net: Net, inputs: list[torch.Tensor]) -> None:
+    """Give each batch normalisation of ``net`` the per-channel mean m and variance v of its inputs over the
+    spectra ``inputs`` (each (batch, t, N_BANDS, windows)) as running statistics, with scale sqrt(v + eps) and
+    shift + m, so the eval-mode function is unchanged (to rounding) and training-mode batch statistics start
+    near the running ones (a network from :func:`from_export` would otherwise be renormalised when training)."""
+    bns = batch_norms(net)
+    sums: dict[int, list[torch.Tensor]] = {}
+
+    def hook(k: int) -> Callable[[nn.Module, tuple[torch.Tensor, ...]], None]:
+        def record(_module: nn.Module, args: tuple[torch.Tensor, ...]) -> None:
+            x = args[0].transpose(0, 1).reshape(args[0].shape[1], -1).double()  # (channels, everything else)
+            s = sums.setdefault(k, [torch.zeros(x.shape[0], dtype=torch.float64)] * 2 + [torch.zeros(())])
+            sums[k] = [s[0] + x.sum(1), s[1] + (x * x).sum(1), s[2] + x.shape[1]]
+        return record
+
+    handles = [bn.register_forward_pre_hook(hook(k)) for k, bn in enumerate(bns)]
+    net.eval()
+    with torch.no_grad():
+        for x in inputs:
+            net(x)
+        for h in handles:
+            h.remove()
+        for k, bn in enumerate(bns):
+            total, squares, n = sums[k]
+            mean = total / n
+            var = (squares / n - mean * mean).clamp_min(0.0)
+            assert bn.running_mean is not None and bn.running_var is not None
+            # g (x - m0) / s0 + b == g' (x - m) / s + b' for g' = g s / s0, b' = b + g (m - m0) / s0
+            ratio = bn.weight.double() / torch.sqrt(bn.running_var.double() + bn.eps)
+            bn.bias.add_((ratio * (mean - bn.running_mean.double())).float())
+            bn.weight.copy_((ratio * torch.sqrt(var + bn.eps)).float())
+            bn.running_mean.copy_(mean.float())
+            bn.running_var.copy_(var.float())

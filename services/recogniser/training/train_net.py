@@ -14,24 +14,27 @@ samples), exports it to NumPy arrays and chooses its
 thresholds on excerpts rendered with the validation kit (:mod:`.tune`). The held-out
 kit is never used. The live classifier is copied from ``--live-from`` (made by
 :mod:`.train`). Spectra are cached in ``--cache``; deterministic for a ``--seed``
-(up to PyTorch's threading).
+(up to PyTorch's threading). ``--init MODEL`` continues fitting a model file's network (a warm start;
+consider a lower ``--lr``).
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from pathlib import Path
 
 import torch
 
+from services.recogniser.errors import ModelError
 from services.recogniser.framenet import FrameNet
 from services.recogniser.model import Model, load_live, load_model
 from services.recogniser.training.excerpts import FIT_KITS, VALID_DRY_P, add_arguments, kits_installed
 from services.recogniser.training.fit_net import HARD_WEIGHT, fit
 from services.recogniser.training.frames import WINDOWS, FrameSet, make_frames
 from services.recogniser.training.kits import VALID_KITS
-from services.recogniser.training.net import export
+from services.recogniser.training.net import Net, export, from_export
 from services.recogniser.training.tune import choose
 
 CACHE_TAG = "f3"
@@ -67,6 +70,21 @@ def ensemble(paths: list[Path], val: FrameSet) -> Model:
     return Model(offline=net, live=models[0].live, meta=meta)
 
 
+def init_net(path: Path, windows: tuple[int, ...], width: int) -> Net:
+    """The PyTorch form of the offline network of the model file ``path`` (analysis ``windows``, samples, and
+    time-convolution ``width``, channels, must be the file's), to continue fitting it.
+
+    Raises ModelError (unreadable file) or ValueError (an ensemble, other windows or width)."""
+    offline = load_model(path).offline
+    if offline.members:
+        raise ValueError(f"an ensemble of {len(offline.networks)} networks; give one of its members' files")
+    net = from_export(offline)
+    if net.windows != windows or int(net.t1.out_channels) != width:
+        raise ValueError(f"its network reads windows {list(net.windows)} with width {net.t1.out_channels}, "
+                         f"not {list(windows)} with width {width} (give --windows and --width to match)")
+    return net
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     add_arguments(ap, excerpts=3200, keeps="live")
@@ -88,9 +106,23 @@ def main(argv: list[str] | None = None) -> int:
                     help="only average the offline networks of these model files into one (the live MLP and metadata "
                          "of the first) and choose its thresholds on the validation kit")
     ap.add_argument("--half", action="store_true", help="store the offline network's weights as float16")
+    ap.add_argument("--init", type=Path, default=None, metavar="MODEL",
+                    help="continue fitting the offline network of this model file (its windows and width must be "
+                         "those given)")
+    ap.add_argument("--lr", type=float, default=2e-3, help="peak learning rate (default 2e-3)")
+    ap.add_argument("--warmup", type=float, default=0.03,
+                    help="share of the run over which the learning rate rises to its peak (default 0.03)")
     args = ap.parse_args(argv)
     if not kits_installed():
         return 1
+    windows = tuple(sorted(set(args.windows)))
+    init = None
+    if args.init is not None:
+        try:
+            init = init_net(args.init, windows, args.width)
+        except (ModelError, ValueError) as exc:
+            print(f"error: --init {args.init}: {exc}", file=sys.stderr)
+            return 1
     torch.set_num_threads(args.threads)
     args.cache.mkdir(parents=True, exist_ok=True)
     t0 = time.time()
@@ -111,14 +143,14 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     print(f"training: {train.n_excerpts} excerpts, {len(train.spec)} frames, {len(train.hits)} strikes; "
           f"validation kit: {val.n_excerpts} excerpts; {time.time() - t0:.0f} s", flush=True)
-    windows = tuple(sorted(set(args.windows)))
-    net = export(fit(train, val, args.epochs, args.seed, minutes=args.minutes, width=args.width, windows=windows,
-                     hard=args.hard))
+    net = export(fit(train, val, args.epochs, args.seed, lr=args.lr, minutes=args.minutes, width=args.width,
+                     windows=windows, hard=args.hard, init=init, warmup=args.warmup))
     print("thresholds:", flush=True)
     choose(net, val)
     meta = {"trained_on": list(FIT_KITS), "thresholds_from": list(VALID_KITS), "excerpts": args.excerpts,
             "val_excerpts": args.val_excerpts, "epochs": args.epochs, "minutes": args.minutes, "width": args.width,
             "seed": args.seed, "windows": list(windows), "hard": args.hard, "variety": not args.plain,
+            "lr": args.lr, "warmup": args.warmup, "init": None if args.init is None else args.init.name,
             # where the live MLP came from (a file of this format already records it as live_*)
             "live_trained_on": live_meta.get("live_trained_on", live_meta.get("trained_on", [])),
             "live_excerpts": live_meta.get("live_excerpts", live_meta.get("excerpts")),

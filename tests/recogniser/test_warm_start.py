@@ -1,0 +1,49 @@
+"""Warm start: the shipped model's offline network back in PyTorch computes what the NumPy network computes."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from services.recogniser import features as F
+from services.recogniser.model import load_model
+
+SHIPPED = Path(__file__).resolve().parents[2] / "services/recogniser/models/recogniser.npz"
+
+
+def test_the_shipped_network_loaded_into_torch_gives_the_numpy_activations() -> None:
+    torch = pytest.importorskip("torch")  # training-only dependency
+    from services.recogniser.training.net import calibrate
+    from services.recogniser.training.train_net import init_net
+
+    fn = load_model(SHIPPED).offline
+    net = init_net(SHIPPED, fn.windows, int(fn.layers[2].w.shape[2]))
+    rng = np.random.default_rng(12)
+    spec = (rng.random((300, F.N_BANDS, len(fn.windows))) * 2).astype(np.float32)
+    m = fn.margin
+    padded = torch.from_numpy(np.concatenate([np.zeros((m, *spec.shape[1:]), np.float32), spec,
+                                              np.zeros((m, *spec.shape[1:]), np.float32)]))[None]
+    want = fn.forward(spec)
+
+    def torch_out() -> np.ndarray:
+        with torch.no_grad():
+            return torch.sigmoid(net(padded))[0].numpy().T[m:-m]
+
+    assert net.margin == m and np.abs(torch_out() - want).max() < 1e-4
+    # calibrated batch normalisations (running statistics of real inputs) keep the function
+    calibrate(net, [torch.from_numpy(spec[None, :200]), torch.from_numpy(spec[None, 100:])])
+    var = net.bn_t1.running_var
+    assert var is not None and float(var.mean()) != pytest.approx(1.0, abs=1e-3)
+    assert np.abs(torch_out() - want).max() < 1e-4
+
+
+def test_a_warm_start_must_match_the_files_windows_and_width() -> None:
+    pytest.importorskip("torch")
+    from services.recogniser.training.train_net import init_net
+
+    with pytest.raises(ValueError, match="windows"):
+        init_net(SHIPPED, (1024,), 128)
+    with pytest.raises(ValueError, match="width"):
+        init_net(SHIPPED, (512, 1024, 2048), 64)
