@@ -3,6 +3,8 @@ per note, on its instrument, near the note time, and no other onset."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from common.gesture.planner import plan_score
@@ -61,6 +63,19 @@ def _play(score: Score) -> tuple[list[tuple[float, str, EventType, float]], list
     return notes, _onsets(contacts), contacts
 
 
+def _part_strikes(contacts: list[Contact], part: str, slowest: float = -math.inf) -> list[tuple[float, float]]:
+    """(time s, approach velocity m/s) of each contact episode of one striker ``part``: its first contact after a
+    gap of ``ONSET_GAP_S``, arriving at ``slowest`` m/s or faster."""
+    out = []
+    last = -1.0
+    for c in contacts:
+        if c.part == part:
+            if c.time - last > ONSET_GAP_S and c.normal_velocity >= slowest:
+                out.append((c.time, c.normal_velocity))
+            last = c.time
+    return out
+
+
 def test_a_planned_groove_gives_one_onset_per_note_near_its_time() -> None:
     notes, onsets, _ = _play(_rock_bar())
     assert len(notes) == 13
@@ -88,14 +103,7 @@ def test_hihat_pedal_chicks_sound_on_their_notes_and_louder_with_velocity() -> N
            for k in range(4)]
     ev.sort(key=lambda e: e.time)
     notes, _, contacts = _play(Score(events=ev, beats=t0 + BEAT_S * np.arange(6)))
-    detection = DetectionConfig()
-    chicks = []
-    last = -1.0
-    for c in contacts:
-        if c.part == "hihat_top":
-            if c.time - last > ONSET_GAP_S and c.normal_velocity >= detection.part_velocity_min["hihat_top"]:
-                chicks.append((c.time, c.normal_velocity))
-            last = c.time
+    chicks = _part_strikes(contacts, "hihat_top", DetectionConfig().part_velocity_min["hihat_top"])
     pedal = [(t, v) for t, obj, event, v in notes if event == EventType.HIHATPEDAL]
     assert len(pedal) == 6 and len(chicks) == 6, (pedal, chicks)
     for (t, _), (heard, _) in zip(pedal, chicks, strict=True):
@@ -131,12 +139,6 @@ def test_a_kick_soon_after_another_is_played_as_fast_as_the_same_kick_alone() ->
     t0 = 0.5
     ev = [DrumEvent(time=t, event=EventType.BASS, velocity=0.2, pitch=36) for t in (t0, t0 + 0.2, t0 + 1.2)]
     _, _, contacts = _play(Score(events=ev, beats=t0 + BEAT_S * np.arange(4)))
-    strikes: list[float] = []
-    last = -1.0
-    for c in contacts:
-        if c.part == "kick_beater":
-            if c.time - last > ONSET_GAP_S:
-                strikes.append(c.normal_velocity)
-            last = c.time
+    strikes = [v for _, v in _part_strikes(contacts, "kick_beater")]
     assert len(strikes) == 3, strikes
     assert abs(strikes[1] - strikes[2]) <= 0.25 * strikes[2], f"beater speeds {strikes} m/s (pair, pair, alone)"
