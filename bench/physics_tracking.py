@@ -40,7 +40,6 @@ from scipy.spatial.transform import Rotation
 from common.kit import EventType, Kit
 from services.physics.body import LIMBS
 from services.physics.character import DOF_NAMES, JOINTS
-from services.physics.control import euler_xyz_from_quat
 from services.physics.core import PhysicsCore
 from services.physics.drummer import DrummerScene
 from services.physics.mocap import UPPER_BODY, load_deepmimic
@@ -111,7 +110,7 @@ def clip_targets(core: PhysicsCore, clip_name: str, scale: float = 0.5, start: f
         rel = Rotation.from_rotvec((rot[0].inv() * rot).as_rotvec() * scale)
         i = JOINTS.index(joint) * 3
         base = Rotation.from_euler("XYZ", scene.rest[i:i + 3])
-        q[:, i:i + 3] = euler_xyz_from_quat((base * rel).as_quat())
+        q[:, i:i + 3] = (base * rel).as_euler("XYZ")
         driven[i:i + 3] = True
     q = np.clip(q, scene.body.lower, scene.body.upper)
     times = clip.times + start

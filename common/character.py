@@ -24,7 +24,12 @@ DOF_NAMES: tuple[str, ...] = tuple(f"{j}_{a}" for j in JOINTS for a in AXES)
 N_DOF = len(DOF_NAMES)
 
 BASE_LINK = "seat"
-"""The base link (pinned to the throne, not published in /batteur/pose): the seat joint's parent."""
+"""The trunk's base link (pinned to the throne, not published in /batteur/pose): the seat joint's parent."""
+HIP_MOUNTS: dict[str, str] = {s: f"{s}_hip_mount" for s in SIDES}
+"""Each leg's base link: fixed on the throne where the hip joint centre is at rest (the thighs rest on the seat, so
+the pelvis rocking on it does not swing the legs; physics builds each leg as its own multibody)."""
+BASE_LINKS: frozenset[str] = frozenset({BASE_LINK, *HIP_MOUNTS.values()})
+"""Links fixed to the throne, not published in /batteur/pose."""
 
 
 def _joint_links() -> dict[str, tuple[str, str]]:
@@ -33,7 +38,7 @@ def _joint_links() -> dict[str, tuple[str, str]]:
     for s in SIDES:
         links |= {f"{s}_clavicle": ("thorax", f"{s}_clavicle"), f"{s}_shoulder": (f"{s}_clavicle", f"{s}_upper_arm"),
                   f"{s}_elbow": (f"{s}_upper_arm", f"{s}_forearm"), f"{s}_wrist": (f"{s}_forearm", f"{s}_hand"),
-                  f"{s}_hip": ("pelvis", f"{s}_thigh"), f"{s}_knee": (f"{s}_thigh", f"{s}_shank"),
+                  f"{s}_hip": (HIP_MOUNTS[s], f"{s}_thigh"), f"{s}_knee": (f"{s}_thigh", f"{s}_shank"),
                   f"{s}_ankle": (f"{s}_shank", f"{s}_foot")}
     return links
 

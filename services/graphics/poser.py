@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from common.character import AXES, BASE_LINK, DOF_NAMES, HELD_LINKS, JOINT_LINKS, JOINTS, N_DOF
+from common.character import AXES, BASE_LINKS, DOF_NAMES, HELD_LINKS, JOINT_LINKS, JOINTS, N_DOF
 from common.gesture.keyposes import KeyPose
 
 SNAPSHOT = Path(__file__).with_name("character.json")
@@ -100,21 +100,23 @@ class CharacterPoser:
         self.index = index
         ref = self.reference
         rot = Rotation.from_quat(ref[:, 3:])
-        self.rows: list[tuple[int, int]] = []  # (parent row or -1 for the base, child row) per joint
+        self.rows: list[tuple[int, int]] = []  # (parent row or -1 for a base on the throne, child row) per joint
         self.offsets = np.zeros((len(JOINTS), 3))
+        """Per joint: the child's origin in its parent's frame, or for a joint on a base (the seat, a hip mount),
+        where the child's origin is in the world (the bases do not move), metres."""
         angles = np.zeros(N_DOF)
         for k, joint in enumerate(JOINTS):
             parent, child = JOINT_LINKS[joint]
             c = index[child]
-            p = -1 if parent == BASE_LINK else index[parent]
+            p = -1 if parent in BASE_LINKS else index[parent]
             self.rows.append((p, c))
-            if p < 0:  # the base: pinned at the pelvis origin, not turned
+            if p < 0:  # a base fixed on the throne, aligned with the world: the child's origin stays put
                 local = rot[c]
+                self.offsets[k] = ref[c, :3]
             else:
                 local = rot[p].inv() * rot[c]
                 self.offsets[k] = rot[p].inv().apply(ref[c, :3] - ref[p, :3])
             angles[3 * k: 3 * k + 3] = local.as_euler("XYZ")
-        self.base = ref[index[JOINT_LINKS[JOINTS[0]][1]], :3].copy()
         self.angles = angles
         """The joint angles of the reference pose (57,) radians."""
         self.held: list[tuple[int, int, np.ndarray, Rotation]] = []  # (row, carrier row, offset, rotation)
@@ -134,7 +136,7 @@ class CharacterPoser:
             local = Rotation.from_euler("XYZ", q[3 * k: 3 * k + 3])
             if p < 0:
                 rots[c] = local
-                out[c, :3] = self.base
+                out[c, :3] = self.offsets[k]
             else:
                 rots[c] = rots[p] * local
                 out[c, :3] = out[p, :3] + rots[p].apply(self.offsets[k])

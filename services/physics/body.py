@@ -1,13 +1,20 @@
 """The percussionist loaded in a world: index maps, state access, the seat on the throne, kinematics.
 
 :class:`Body` turns the generated :class:`~services.physics.character.CharacterModel`
-into a PyBullet multibody whose base (the seat) is fixed on the throne, and
-gives vectorised access in DOF order (57,) to joint angles and velocities,
-and the geometric Jacobian of the effectors.
+into PyBullet multibodies (the trunk with arms and sticks, and each leg; see
+character.py) whose bases are fixed on the throne, and gives vectorised access
+in DOF order (57,) to joint angles and velocities, and the geometric Jacobian
+of the effectors.
+
+Links are numbered across the parts ("global" link indices): the trunk's links
+keep their PyBullet indices (0 ... 46, its base ``seat`` is -1), each leg's
+follow. :attr:`Body.link_ref` turns a global index into the (body id, link)
+pair PyBullet calls take.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from itertools import chain
 from typing import Any
 
@@ -15,18 +22,37 @@ import numpy as np
 import pybullet as p
 
 from services.physics.character import CharacterModel
+from services.physics.kernels import dof_frames, jacobian
 from services.physics.urdf import load_robot
 from services.physics.world import World
 
 LIMBS = ("left_hand", "right_hand", "left_foot", "right_foot")
 
 
+@dataclass(frozen=True)
+class LoadedPart:
+    """One multibody of the body in the world.
+
+    ``id``: PyBullet body id; ``offset``: its global link index of local link 0; ``links``: its link count;
+    ``state_joints``: its local joints in the order it is read and commanded (its DOF in DOF order, then its
+    passive joints); ``state_slots``: where those joints stand in :attr:`Body.state_joints` order;
+    ``movable``: its revolute joints in PyBullet's own order (the columns of its mass matrix).
+    """
+
+    id: int
+    offset: int
+    links: int
+    state_joints: list[int]
+    state_slots: np.ndarray
+    movable: list[int]
+
+
 class Body:
     """A generated character in a :class:`World`, its seat fixed at ``seat_position`` (metres).
 
-    ``floating_base``: load the base as a free body pinned to the seat by a fixed constraint instead of a
-    fixed base. The body moves the same; PyBullet's stable PD needs it (it silently fails to track on a
-    fixed base), but the constraint's six rows cost about a fifth of every step.
+    ``floating_base``: load each part's base as a free body pinned to the throne by a fixed constraint instead
+    of a fixed base. The body moves the same; PyBullet's stable PD needs it (it silently fails to track on a
+    fixed base), but the constraints' rows cost about a fifth of every step.
     """
 
     def __init__(self, world: World, model: CharacterModel, seat_position: tuple[float, float, float],
@@ -35,42 +61,94 @@ class Body:
         self.model = model
         self.floating_base = floating_base
         c = world.client
-        self.id = load_robot(c, model.robot, seat_position, (0.0, 0.0, 0.0, 1.0), fixed_base=not floating_base,
-                             flags=p.URDF_USE_INERTIA_FROM_FILE)
-        self.pin: int | None = None
-        if floating_base:
-            self.pin = c.createConstraint(self.id, -1, -1, -1, p.JOINT_FIXED, [0, 0, 0], [0, 0, 0],
-                                          list(seat_position))
-            c.changeConstraint(self.pin, maxForce=1e5)
+        self.ids: list[int] = []
+        self.pins: list[int] = []
         self.joint_index: dict[str, int] = {}
+        """Joint name -> global index of its child link (a joint and its child link share PyBullet's index)."""
         self.link_index: dict[str, int] = {"seat": -1}
-        for j in range(c.getNumJoints(self.id)):
-            info = c.getJointInfo(self.id, j)
-            self.joint_index[info[1].decode()] = j
-            self.link_index[info[12].decode()] = j
+        self.link_ref: dict[int, tuple[int, int]] = {}
+        """Global link index -> (body id, link index in that body); a leg's base is not a global link."""
+        self._parent: dict[int, int] = {}
+        offset = 0
+        bases: list[tuple[int, int]] = []
+        for spec in model.parts:
+            base = tuple(float(s + o) for s, o in zip(seat_position, spec.base_offset_m, strict=True))
+            body = load_robot(c, spec.robot, base, (0.0, 0.0, 0.0, 1.0),  # type: ignore[arg-type]
+                              fixed_base=not floating_base, flags=p.URDF_USE_INERTIA_FROM_FILE)
+            self.ids.append(body)
+            if floating_base:
+                pin = c.createConstraint(body, -1, -1, -1, p.JOINT_FIXED, [0, 0, 0], [0, 0, 0], list(base))
+                c.changeConstraint(pin, maxForce=1e5)
+                self.pins.append(pin)
+            n = c.getNumJoints(body)
+            for j in range(n):
+                info = c.getJointInfo(body, j)
+                self.joint_index[info[1].decode()] = offset + j
+                self.link_index[info[12].decode()] = offset + j
+                self.link_ref[offset + j] = (body, j)
+                self._parent[offset + j] = -1 if info[16] < 0 else offset + info[16]
+                c.setJointMotorControl2(body, j, p.VELOCITY_CONTROL, force=0.0)
+                c.changeDynamics(body, j, linearDamping=0.0, angularDamping=0.0, jointDamping=0.0)
+            bases.append((body, offset))
+            offset += n
+        self.id = self.ids[0]
+        """The trunk's body id (its links' global indices are its own PyBullet indices)."""
+        self.link_ref[-1] = (self.id, -1)
         self.dofs = np.array([self.joint_index[n] for n in model.dof_names], dtype=int)
         self.dof_list = [int(j) for j in self.dofs]
         self.passive = [self.joint_index[n] for n in model.passive]
         self.state_joints = self.dof_list + self.passive
-        """The 57 DOF then the passive joints: the order of :meth:`full_state` and of the torques sent."""
-        self.lower = np.array([c.getJointInfo(self.id, j)[8] for j in self.dof_list])
-        self.upper = np.array([c.getJointInfo(self.id, j)[9] for j in self.dof_list])
+        """The 57 DOF then the passive joints (global indices): the order of :meth:`full_state` and of the torques
+        sent."""
+        self.parts: list[LoadedPart] = []
+        for body, start in bases:
+            n = c.getNumJoints(body)
+            slots = [k for k, j in enumerate(self.state_joints) if start <= j < start + n]
+            movable = [j for j in range(n) if c.getJointInfo(body, j)[2] == p.JOINT_REVOLUTE]
+            self.parts.append(LoadedPart(body, start, n, [self.state_joints[k] - start for k in slots],
+                                         np.array(slots, dtype=int), movable))
+        self._read_order = np.concatenate([part.state_slots for part in self.parts])
+        self._from_read = np.argsort(self._read_order)
+        """Index that puts the parts' readings (concatenated) into :attr:`state_joints` order."""
+        self.lower = np.array([self._joint_info(j)[8] for j in self.dof_list])
+        self.upper = np.array([self._joint_info(j)[9] for j in self.dof_list])
         self.torque_limit = np.array([model.torque_limits[n] for n in model.dof_names])
-        for j in range(c.getNumJoints(self.id)):
-            c.setJointMotorControl2(self.id, j, p.VELOCITY_CONTROL, force=0.0)
-            c.changeDynamics(self.id, j, linearDamping=0.0, angularDamping=0.0, jointDamping=0.0)
         self.effector_links = {limb: self.link_index[model.effectors[limb]] for limb in LIMBS}
         self.tip_links = {limb: self.link_index[model.tips[limb]] for limb in LIMBS}
         # ancestors: which DOF move which link
-        self._parent = {j: c.getJointInfo(self.id, j)[16] for j in range(c.getNumJoints(self.id))}
         self._dof_pos = {j: k for k, j in enumerate(self.dof_list)}
         self.chain_mask = np.array([self.mask_of(self.effector_links[limb]) for limb in LIMBS])
-        self.axes_local = np.array([c.getJointInfo(self.id, j)[13] for j in self.dof_list], dtype=float)
-        self.all_links = list(range(c.getNumJoints(self.id)))
-        self.effector_array = np.array([self.effector_links[limb] for limb in LIMBS], dtype=int)
-        self._states: list[tuple[Any, ...]] = []
+        self.all_links = list(range(offset))
+        # the links a control update reads: each joint's child (its three DOF share its origin; their axes follow
+        # from its frame and the angles, kernels.dof_frames), the effectors and the stick tips
+        joint_children = [int(self.dofs[3 * k + 2]) for k in range(len(self.dofs) // 3)]
+        frame_links = list(dict.fromkeys(joint_children + list(self.effector_links.values())
+                                         + list(self.tip_links.values())))
+        self._frame_row = {link: row for row, link in enumerate(frame_links)}
+        self._joint_rows = np.array([self._frame_row[link] for link in joint_children], dtype=int)
+        self._effector_rows = np.array([self._frame_row[self.effector_links[limb]] for limb in LIMBS], dtype=int)
+        self._frame_reads: list[tuple[int, list[int]]] = []
+        order: list[int] = []
+        for part in self.parts:
+            local = [link - part.offset for link in frame_links if part.offset <= link < part.offset + part.links]
+            self._frame_reads.append((part.id, local))
+            order += [self._frame_row[part.offset + j] for j in local]
+        self._frame_order = np.argsort(np.array(order, dtype=int))
+        """Index that puts the parts' frame readings (concatenated) into ``frame_links`` order."""
+        self._full_states: list[tuple[Any, ...]] | None = None
+        self._link_pos: np.ndarray | None = None
         self._link_com: np.ndarray | None = None
+        self.last_qd = np.zeros(len(self.state_joints))
         self.update()
+
+    def _joint_info(self, link: int) -> tuple[Any, ...]:
+        body, j = self.link_ref[link]
+        info: tuple[Any, ...] = self.world.client.getJointInfo(body, j)
+        return info
+
+    def parent_of(self, link: int) -> int:
+        """Global index of a link's parent (-1: its part's base)."""
+        return self._parent[link]
 
     def mask_of(self, link: int) -> np.ndarray:
         """(57,) bool: the DOF that move ``link``."""
@@ -85,55 +163,105 @@ class Body:
 
     def state(self) -> tuple[np.ndarray, np.ndarray]:
         """Joint angles (57,) radians and velocities (57,) rad/s."""
-        states = self.world.client.getJointStates(self.id, self.dof_list)
-        return np.array([s[0] for s in states]), np.array([s[1] for s in states])
+        q, qd, _, _ = self.full_state()
+        return q, qd
 
     def passive_state(self) -> tuple[np.ndarray, np.ndarray]:
         """Angles (P,) radians and velocities (P,) rad/s of the passive joints (the sticks' fulcrums)."""
-        states = self.world.client.getJointStates(self.id, self.passive)
-        return np.array([s[0] for s in states]), np.array([s[1] for s in states])
+        _, _, pq, pqd = self.full_state()
+        return pq, pqd
 
     def full_state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """:meth:`state` and :meth:`passive_state` in one read: (57,), (57,), (P,), (P,)."""
-        states = self.world.client.getJointStates(self.id, self.state_joints)
+        """:meth:`state` and :meth:`passive_state` in one read per part: (57,), (57,), (P,), (P,)."""
+        c = self.world.client
+        states = [s for part in self.parts for s in c.getJointStates(part.id, part.state_joints)]
         m = len(states)
-        q = np.fromiter((s[0] for s in states), float, m)
-        qd = np.fromiter((s[1] for s in states), float, m)
+        # angles then velocities in one flat read, put into state order (each row contiguous)
+        both = np.fromiter(chain((s[0] for s in states), (s[1] for s in states)), float, 2 * m).reshape(2, m)
+        both = both[:, self._from_read]
+        q, qd = both[0], both[1]
         self.last_qd = qd
         """Every state joint's velocity (rad/s) at the last :meth:`full_state`, in ``state_joints`` order."""
         n = len(self.dof_list)
         return q[:n], qd[:n], q[n:], qd[n:]
 
+    def trunk_velocities(self) -> np.ndarray:
+        """The trunk's joint velocities (rad/s) from the last :meth:`full_state`, in its ``state_joints`` order
+        (the sticks are on the trunk: the contact tracker's approach velocities)."""
+        return self.last_qd[self.parts[0].state_slots]
+
+    def send_torques(self, tau: np.ndarray) -> None:
+        """Apply joint torques (N m) in :attr:`state_joints` order (57 DOF then the passive joints) for the next
+        step (PyBullet clears them after every step)."""
+        c = self.world.client
+        for part in self.parts:
+            c.setJointMotorControlArray(part.id, part.state_joints, p.TORQUE_CONTROL,
+                                        forces=tau[part.state_slots].tolist())
+
     def set_state(self, q: np.ndarray, qd: np.ndarray | None = None) -> None:
         """Teleport the joints (resets, tests and the kinematic IK); velocities default to zero."""
         c = self.world.client
-        vel = np.zeros(len(q)) if qd is None else qd
-        joints = self.dof_list + self.passive
-        values = [[float(a)] for a in q] + [[0.0]] * len(self.passive)
-        rates = [[float(v)] for v in vel] + [[0.0]] * len(self.passive)
-        c.resetJointStatesMultiDof(self.id, joints, targetValues=values, targetVelocities=rates)
-        self.update()
+        n = len(self.dof_list)
+        values = np.zeros(len(self.state_joints))
+        rates = np.zeros(len(self.state_joints))
+        values[:n] = q
+        if qd is not None:
+            rates[:n] = qd
+        for part in self.parts:
+            c.resetJointStatesMultiDof(part.id, part.state_joints,
+                                       targetValues=[[float(a)] for a in values[part.state_slots]],
+                                       targetVelocities=[[float(v)] for v in rates[part.state_slots]])
+        self.update(values[:n])
 
-    def update(self) -> None:
-        """Read every link's pose once (call at the start of a control update; kinematics and gravity use it)."""
+    def update(self, q: np.ndarray | None = None) -> None:
+        """Read the joint frames, effectors and stick tips once (at the start of a control update; the
+        kinematics use them). ``q``: the DOF angles (57,) radians of this state if already read."""
         c = self.world.client
-        states = c.getLinkStates(self.id, self.all_links, computeForwardKinematics=1)
+        if q is None:
+            q = self.state()[0]
+        states = list(chain.from_iterable(c.getLinkStates(body, links, computeForwardKinematics=1)
+                                          for body, links in self._frame_reads))
         n = len(states)
         # one flat read per field (np.array on a list of tuples is several times slower)
-        self._states = states
+        pos = np.fromiter(chain.from_iterable(s[4] for s in states), float, 3 * n).reshape(n, 3)[self._frame_order]
+        quat = np.fromiter(chain.from_iterable(s[5] for s in states), float, 4 * n).reshape(n, 4)[self._frame_order]
+        self.frame_pos = pos
+        self.dof_pos, self.dof_axes = dof_frames(pos[self._joint_rows], quat[self._joint_rows],
+                                                 np.ascontiguousarray(q, dtype=float))
+        self.effector_pos = pos[self._effector_rows]
+        self._full_states = None
+        self._link_pos = None
         self._link_com = None
-        self.link_pos = np.fromiter(chain.from_iterable(s[4] for s in states), float, 3 * n).reshape(n, 3)
-        self.link_quat = np.fromiter(chain.from_iterable(s[5] for s in states), float, 4 * n).reshape(n, 4)
-        self.dof_pos = self.link_pos[self.dofs]
-        self.dof_axes = rotate(self.link_quat[self.dofs], self.axes_local)
+
+    def _read_all_links(self) -> list[tuple[Any, ...]]:
+        if self._full_states is None:
+            c = self.world.client
+            self._full_states = list(chain.from_iterable(
+                c.getLinkStates(part.id, list(range(part.links)), computeForwardKinematics=1) for part in self.parts))
+        return self._full_states
+
+    @property
+    def link_pos(self) -> np.ndarray:
+        """Every link's frame origin (links, 3) metres in this state (read when first asked after an update)."""
+        if self._link_pos is None:
+            states = self._read_all_links()
+            n = len(states)
+            self._link_pos = np.fromiter(chain.from_iterable(s[4] for s in states), float, 3 * n).reshape(n, 3)
+        return self._link_pos
 
     @property
     def link_com(self) -> np.ndarray:
-        """Centres of mass (links, 3) metres at the last :meth:`update` (read when first asked)."""
+        """Centres of mass (links, 3) metres in this state (read when first asked after an update)."""
         if self._link_com is None:
-            n = len(self._states)
-            self._link_com = np.fromiter(chain.from_iterable(s[0] for s in self._states), float, 3 * n).reshape(n, 3)
+            states = self._read_all_links()
+            n = len(states)
+            self._link_com = np.fromiter(chain.from_iterable(s[0] for s in states), float, 3 * n).reshape(n, 3)
         return self._link_com
+
+    def position(self, link: int) -> np.ndarray:
+        """A link's frame origin (3,) metres at the last :meth:`update`."""
+        row = self._frame_row.get(link)
+        return self.frame_pos[row] if row is not None else self.link_pos[link]
 
     def kinematics(self, links: list[int] | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Positions (L, 3) metres and Jacobians (L, 3, 57) of links (default: the four effectors, in LIMBS
@@ -143,36 +271,18 @@ class Body:
         ancestor of e (else 0).
         """
         if links is None:
-            idx, mask = self.effector_array, self.chain_mask
+            eff, mask = self.effector_pos, self.chain_mask
         else:
-            idx = np.asarray(links, dtype=int)
-            mask = np.array([self.mask_of(int(k)) for k in idx])
-        eff = self.link_pos[idx]
-        d = eff[:, None, :] - self.dof_pos[None, :, :]  # (L, 57, 3)
-        a = self.dof_axes[None, :, :]
-        jac = np.stack([a[..., 1] * d[..., 2] - a[..., 2] * d[..., 1],
-                        a[..., 2] * d[..., 0] - a[..., 0] * d[..., 2],
-                        a[..., 0] * d[..., 1] - a[..., 1] * d[..., 0]], axis=1)  # (L, 3, 57)
-        return eff, jac * mask[:, None, :]
+            eff = np.array([self.position(int(k)) for k in links]).reshape(-1, 3)
+            mask = np.array([self.mask_of(int(k)) for k in links]).reshape(len(eff), -1)
+        return eff, jacobian(eff, self.dof_pos, self.dof_axes, mask)
 
     def effector_positions(self, actual: bool = True) -> np.ndarray:
         """(4, 3) metres, in LIMBS order: the actual stick tips (``actual``) or the controlled aim points."""
-        c = self.world.client
         links = [(self.tip_links if actual else self.effector_links)[limb] for limb in LIMBS]
-        states = c.getLinkStates(self.id, links, computeForwardKinematics=1)
-        return np.array([s[4] for s in states])
+        return np.array([self.link_pose(link)[0] for link in links])
 
     def link_pose(self, link: int) -> tuple[np.ndarray, np.ndarray]:
-        return self.world.link_frame(self.id, link)
+        """World position (3,) metres and quaternion (4,) xyzw of a link (global index; -1: the seat)."""
+        return self.world.link_frame(*self.link_ref[link])
 
-
-def rotate(quats: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Rotate vectors v (K, 3) by unit quaternions (K, 4) x y z w."""
-    u = quats[:, :3]
-    w = quats[:, 3:4]
-    uv = np.stack([u[:, 1] * v[:, 2] - u[:, 2] * v[:, 1], u[:, 2] * v[:, 0] - u[:, 0] * v[:, 2],
-                   u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]], axis=1)
-    t = 2.0 * uv
-    ut = np.stack([u[:, 1] * t[:, 2] - u[:, 2] * t[:, 1], u[:, 2] * t[:, 0] - u[:, 0] * t[:, 2],
-                   u[:, 0] * t[:, 1] - u[:, 1] * t[:, 0]], axis=1)
-    return v + w * t + ut

@@ -16,9 +16,14 @@ Each hand holds a stick on a passive two-axis fulcrum (spring-damper: the
 fingers), so the stick rebounds from a head. Marker links with no mass to
 speak of carry the effectors: ``<side>_stick_tip`` and ``<side>_foot_ball``.
 
-The base link ``seat`` (the point between the ischial tuberosities) is pinned
-to the throne by a fixed constraint (floating base, so PyBullet's stable PD
-works; see docs/physics.md).
+Three multibodies (:class:`BodyPart`): the trunk, whose base link ``seat`` (the
+point between the ischial tuberosities) sits on the throne and carries the
+pelvis, spine, head, arms and sticks; and each leg, whose base link
+``<side>_hip_mount`` sits on the throne where the hip joint centre is at rest.
+The thighs rest on the seat: the pelvis rocking on it (the ``seat`` DOF) does
+not swing the legs, and a foot's contact with its pedal is solved through the
+leg's 9 links, not through the whole body's 67 (docs/physics.md, "On the
+throne").
 """
 
 from __future__ import annotations
@@ -87,11 +92,21 @@ class CharacterSpec:
     """DOF name -> (lower, upper) radians; DOFs not listed are unlimited (+-pi)."""
 
 
-@dataclass
-class CharacterModel:
-    """The generated robot and its bookkeeping (names of the effector and pose links)."""
+@dataclass(frozen=True)
+class BodyPart:
+    """One multibody of the character: its robot and where its base link sits relative to the seat point
+    (metres, body frame)."""
 
     robot: Robot
+    base_offset_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
+@dataclass
+class CharacterModel:
+    """The generated robots and their bookkeeping (names of the effector and pose links)."""
+
+    parts: list[BodyPart]
+    """The trunk first (base ``seat``), then the left and right legs (bases ``<side>_hip_mount``)."""
     spec: CharacterSpec
     dof_names: tuple[str, ...] = DOF_NAMES
     passive: tuple[str, ...] = ()
@@ -144,10 +159,10 @@ def build_character(spec: CharacterSpec) -> CharacterModel:
     seg = a.segments
     s = a.scale
     robot = Robot("percussionist")
-    model = CharacterModel(robot=robot, spec=spec)
+    model = CharacterModel(parts=[BodyPart(robot)], spec=spec)
 
     def segment_link(name: str, segment: Segment, com: tuple[float, float, float], shapes: tuple[Shape, ...],
-                     long_axis: str = "z") -> None:
+                     long_axis: str = "z", robot: Robot = robot) -> None:
         robot.add_link(Link(name, _inertial(segment, com, long_axis), shapes))
         model.segments.append(name)
 
@@ -231,21 +246,28 @@ def build_character(spec: CharacterSpec) -> CharacterModel:
         model.effectors[f"{side}_hand"] = aim
         model.tips[f"{side}_hand"] = f"{side}_stick_tip"
 
+        # the leg: its own multibody, based on the throne at the hip joint centre (see the module docstring)
+        leg = Robot(f"percussionist_{side}_leg")
+        mount = f"{side}_hip_mount"
+        leg.add_link(Link(mount, Inertial(0.0)))
+        model.parts.append(BodyPart(leg, (sx * a.hip_width_m / 2, hip_y, hip_z)))
         th, sh, foot = seg["thigh"], seg["shank"], seg["foot"]
-        segment_link(f"{side}_thigh", th, (0.0, 0.0, -th.com_from_proximal_m), (bone(th, -1.0, _TROUSERS),))
-        _add_3dof(robot, model, f"{side}_hip", "pelvis", f"{side}_thigh", (sx * a.hip_width_m / 2, hip_y, hip_z))
-        segment_link(f"{side}_shank", sh, (0.0, 0.0, -sh.com_from_proximal_m), (bone(sh, -1.0, _TROUSERS),))
-        _add_3dof(robot, model, f"{side}_knee", f"{side}_thigh", f"{side}_shank", (0.0, 0.0, -th.length_m))
+        segment_link(f"{side}_thigh", th, (0.0, 0.0, -th.com_from_proximal_m), (bone(th, -1.0, _TROUSERS),),
+                     robot=leg)
+        _add_3dof(leg, model, f"{side}_hip", mount, f"{side}_thigh", (0.0, 0.0, 0.0))
+        segment_link(f"{side}_shank", sh, (0.0, 0.0, -sh.com_from_proximal_m), (bone(sh, -1.0, _TROUSERS),),
+                     robot=leg)
+        _add_3dof(leg, model, f"{side}_knee", f"{side}_thigh", f"{side}_shank", (0.0, 0.0, -th.length_m))
         heel_y, sole_z = -0.045 * s, -0.08 * s
         segment_link(f"{side}_foot", foot, (0.0, heel_y + foot.com_from_proximal_m, sole_z + 0.03 * s),
                      (Shape("box", (0.09 * s, foot.length_m, 0.05 * s),
                             xyz=(0.0, heel_y + foot.length_m / 2, sole_z + 0.025 * s), rgba=_DARK_SHOE),),
-                     long_axis="y")
-        _add_3dof(robot, model, f"{side}_ankle", f"{side}_shank", f"{side}_foot", (0.0, 0.0, -sh.length_m))
+                     long_axis="y", robot=leg)
+        _add_3dof(leg, model, f"{side}_ankle", f"{side}_shank", f"{side}_foot", (0.0, 0.0, -sh.length_m))
         ball = f"{side}_foot_ball"
-        robot.add_link(Link(ball, Inertial(1e-4, inertia=(1e-9, 1e-9, 1e-9, 0.0, 0.0, 0.0))))
-        robot.add_joint(Joint(f"{ball}_joint", "fixed", f"{side}_foot", ball,
-                              xyz=(0.0, heel_y + 0.72 * foot.length_m, sole_z)))
+        leg.add_link(Link(ball, Inertial(1e-4, inertia=(1e-9, 1e-9, 1e-9, 0.0, 0.0, 0.0))))
+        leg.add_joint(Joint(f"{ball}_joint", "fixed", f"{side}_foot", ball,
+                            xyz=(0.0, heel_y + 0.72 * foot.length_m, sole_z)))
         model.effectors[f"{side}_foot"] = ball
         model.tips[f"{side}_foot"] = ball
     return model

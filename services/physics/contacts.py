@@ -95,7 +95,6 @@ class ContactTracker:
         """body -> ({joint: index}, velocities before the step (rad/s or m/s) by index)."""
         self._index_maps: dict[tuple[int, ...], dict[int, int]] = {}
         self._chains: dict[Key, list[_ChainJoint]] = {}
-        self._striker_bodies: list[int] | None = None
         self.instrument_every = 1
         """Read the moving instruments' (cymbals') joint velocities every this many steps; strikers every step.
         A cymbal swings at about 1 Hz: a few milliseconds old, its velocity is still its velocity."""
@@ -107,7 +106,6 @@ class ContactTracker:
     def add_striker(self, striker: Striker) -> None:
         self.strikers[(striker.body, striker.link)] = striker
         self._read_bodies = None
-        self._striker_bodies = None
 
     def provide_joint_velocities(self, body: int, joints: list[int], velocities: np.ndarray) -> None:
         """The scene's reading of ``body``'s joint velocities at the start of this step (the tracker then does
@@ -187,22 +185,23 @@ class ContactTracker:
         """Contacts of the step just taken; ``time``: rig time of the step, seconds."""
         c = self.world.client
         groups: dict[tuple[Key, str], list[tuple[np.ndarray, np.ndarray, float, Key]]] = {}
-        if self._striker_bodies is None:
-            self._striker_bodies = sorted({k[0] for k in self.strikers})
-        for body in self._striker_bodies:
-            for cp in c.getContactPoints(bodyA=body):
-                key = (cp[1], cp[3])
-                if key not in self.strikers:
+        strikers, instrument_of = self.strikers, self.kit.instrument_of
+        # one read of every contact point in the world (a call per striker body cost more); a pair is reported
+        # once, in either order: take each point from the side of its striker (position on the instrument,
+        # normal from the instrument to the striker)
+        for cp in c.getContactPoints():
+            force = float(cp[9])
+            if force <= 0.0:
+                continue  # within the collision margin, or separating: no push this step
+            a, b = (cp[1], cp[3]), (cp[2], cp[4])
+            for key, inst_key, point, sign in ((a, b, cp[6], 1.0), (b, a, cp[5], -1.0)):
+                if key not in strikers or inst_key == key:
                     continue
-                inst_key = (cp[2], cp[4])
-                instrument = self.kit.instrument_of.get(inst_key)
-                if instrument is None or inst_key == key:
+                instrument = instrument_of.get(inst_key)
+                if instrument is None:
                     continue
-                force = float(cp[9])
-                if force <= 0.0:
-                    continue  # within the collision margin, or separating: no push this step
                 groups.setdefault((key, instrument), []).append(
-                    (np.asarray(cp[6], dtype=float), np.asarray(cp[7], dtype=float), force, inst_key)
+                    (np.asarray(point, dtype=float), sign * np.asarray(cp[7], dtype=float), force, inst_key)
                 )
         out: list[Contact] = []
         dt = self.world.dt

@@ -40,76 +40,10 @@ import pybullet as p
 
 from services.physics.body import LIMBS, Body
 from services.physics.character import JOINT_GROUP, JOINTS, joint_kind
+from services.physics.kernels import dls_reference, enforce_limits, held_torque, project_into_ellipsoids
 from services.physics.limits import JointLimits
 from services.physics.urdf import load_robot
 from services.physics.world import World, WorldSettings
-
-# ---------------------------------------------------------------------- quaternions (x y z w), vectorised
-
-
-def quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton product of quaternions (K, 4) x y z w (or broadcastable (4,) / (K, 4))."""
-    a = np.atleast_2d(a)
-    b = np.atleast_2d(b)
-    ax, ay, az, aw = a[:, 0], a[:, 1], a[:, 2], a[:, 3]
-    bx, by, bz, bw = b[:, 0], b[:, 1], b[:, 2], b[:, 3]
-    out = np.empty((max(len(a), len(b)), 4))
-    out[:, 0] = aw * bx + ax * bw + ay * bz - az * by
-    out[:, 1] = aw * by - ax * bz + ay * bw + az * bx
-    out[:, 2] = aw * bz + ax * by - ay * bx + az * bw
-    out[:, 3] = aw * bw - ax * bx - ay * by - az * bz
-    return out
-
-
-def quat_from_euler_xyz(e: np.ndarray) -> np.ndarray:
-    """(K, 3) intrinsic x-y-z angles -> (K, 4) quaternions: q = qx(a) qy(b) qz(c)."""
-    h = np.atleast_2d(e) / 2.0
-    ca, sa = np.cos(h[:, 0]), np.sin(h[:, 0])
-    cb, sb = np.cos(h[:, 1]), np.sin(h[:, 1])
-    cc, sc = np.cos(h[:, 2]), np.sin(h[:, 2])
-    out = np.empty((len(h), 4))
-    out[:, 0] = sa * cb * cc + ca * sb * sc
-    out[:, 1] = ca * sb * cc - sa * cb * sc
-    out[:, 2] = ca * cb * sc + sa * sb * cc
-    out[:, 3] = ca * cb * cc - sa * sb * sc
-    return out
-
-
-def quat_log(q: np.ndarray) -> np.ndarray:
-    """(K, 4) unit quaternions -> (K, 3) rotation vectors (radians), shortest arc."""
-    q = np.where(q[:, 3:4] < 0, -q, q)
-    v = q[:, :3]
-    s = np.sqrt(np.sum(v * v, axis=1))
-    angle = 2.0 * np.arctan2(s, q[:, 3])
-    scale = np.where(s > 1e-12, angle / np.maximum(s, 1e-12), 2.0)
-    return v * scale[:, None]
-
-
-def quat_exp(r: np.ndarray) -> np.ndarray:
-    """(K, 3) rotation vectors -> (K, 4) unit quaternions."""
-    angle = np.sqrt(np.sum(r * r, axis=1))
-    half = angle / 2.0
-    scale = np.where(angle > 1e-12, np.sin(half) / np.maximum(angle, 1e-12), 0.5)
-    out = np.empty((len(r), 4))
-    out[:, :3] = r * scale[:, None]
-    out[:, 3] = np.cos(half)
-    return out
-
-
-def euler_xyz_from_quat(q: np.ndarray) -> np.ndarray:
-    """(K, 4) -> (K, 3) intrinsic x-y-z angles (inverse of :func:`quat_from_euler_xyz`)."""
-    x, y, z, w = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
-    r02 = 2 * (x * z + w * y)
-    r12 = 2 * (y * z - w * x)
-    r22 = 1 - 2 * (x * x + y * y)
-    r01 = 2 * (x * y - w * z)
-    r00 = 1 - 2 * (y * y + z * z)
-    out = np.empty((len(q), 3))
-    out[:, 0] = np.arctan2(-r12, r22)
-    out[:, 1] = np.arcsin(np.clip(r02, -1.0, 1.0))
-    out[:, 2] = np.arctan2(-r01, r00)
-    return out
-
 
 # ---------------------------------------------------------------------- settings
 
@@ -175,24 +109,28 @@ class Controller:
         self._mass_age = 0.0
         c = world.client
         n = len(body.dof_list)
-        # joint-space inertia at the rest posture (a floating base: 6 base DOF first, then every joint)
+        # joint-space inertia at the rest posture, part by part (a floating base: 6 base DOF first, then its joints)
         body.set_state(rest)
-        q_all = [c.getJointState(body.id, j)[0] for j in range(c.getNumJoints(body.id))
-                 if c.getJointInfo(body.id, j)[2] == p.JOINT_REVOLUTE]
-        movable = [j for j in range(c.getNumJoints(body.id)) if c.getJointInfo(body.id, j)[2] == p.JOINT_REVOLUTE]
-        base: list[float] = []
-        if body.floating_base:
-            base_pos, base_quat = c.getBasePositionAndOrientation(body.id)
-            base = [*base_pos, *base_quat]
-        mass = np.asarray(c.calculateMassMatrix(body.id, [*base, *q_all]))
-        offset = mass.shape[0] - len(movable)
-        col = {j: offset + k for k, j in enumerate(movable)}
-        # effective inertia of each DOF with every other joint free: 1 / (M^-1)_jj. The diagonal of M itself
-        # (others locked) overestimates it for short links between co-linear DOF (clavicle-shoulder, neck-head),
-        # whose explicit PD then goes unstable at a 1 ms step
-        inv = np.linalg.inv(mass)
-        self.inertia_locked = np.array([mass[col[j], col[j]] for j in body.dof_list])
-        self.inertia = np.array([max(1.0 / inv[col[j], col[j]], 1e-4) for j in body.dof_list])
+        self.inertia_locked = np.zeros(n)
+        self.inertia = np.zeros(n)
+        dof_of = {j: k for k, j in enumerate(body.dof_list)}
+        for part in body.parts:
+            q_all = [c.getJointState(part.id, j)[0] for j in part.movable]
+            base: list[float] = []
+            if body.floating_base:
+                base_pos, base_quat = c.getBasePositionAndOrientation(part.id)
+                base = [*base_pos, *base_quat]
+            mass = np.asarray(c.calculateMassMatrix(part.id, [*base, *q_all]))
+            offset = mass.shape[0] - len(part.movable)
+            # effective inertia of each DOF with every other joint free: 1 / (M^-1)_jj. The diagonal of M itself
+            # (others locked) overestimates it for short links between co-linear DOF (clavicle-shoulder,
+            # neck-head), whose explicit PD then goes unstable at a 1 ms step
+            inv = np.linalg.inv(mass)
+            for k, j in enumerate(part.movable):
+                dof = dof_of.get(part.offset + j)
+                if dof is not None:
+                    self.inertia_locked[dof] = mass[offset + k, offset + k]
+                    self.inertia[dof] = max(1.0 / inv[offset + k, offset + k], 1e-4)
         names = body.model.dof_names
         self.ik_weight_inv = np.array([0.0 if n_.split("_")[0] == "seat" or "clavicle" in n_
                                        else TRUNK_IK_WEIGHT if n_.split("_")[0] in ("lumbar", "thoracic")
@@ -208,16 +146,14 @@ class Controller:
         # quaternion-limited joints: DOF index triples
         self.q_joints = [j for j in JOINTS if j in limits.quaternion]
         self.q_index = np.array([[JOINTS.index(j) * 3 + k for k in range(3)] for j in self.q_joints], dtype=int)
-        self._limit_tiles: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
         if self.q_joints:
             self.q_mean_inv = np.array([_conj(limits.quaternion[j].mean) for j in self.q_joints])
             self.q_mean = np.array([limits.quaternion[j].mean for j in self.q_joints])
             self.q_axes = np.array([limits.quaternion[j].axes for j in self.q_joints])
             self.q_extents = np.array([limits.quaternion[j].extents for j in self.q_joints])
         # gravity compensation: subtree masses per DOF
-        self._links = list(range(c.getNumJoints(body.id)))
-        self._link_mass = np.array([c.getDynamicsInfo(body.id, j)[0] for j in self._links])
-        parent = {j: c.getJointInfo(body.id, j)[16] for j in self._links}
+        self._links = body.all_links
+        self._link_mass = np.array([c.getDynamicsInfo(*body.link_ref[j])[0] for j in self._links])
         self._desc = np.zeros((n, len(self._links)))
         dof_pos = {j: k for k, j in enumerate(body.dof_list)}
         for link in self._links:
@@ -225,17 +161,19 @@ class Controller:
             while a >= 0:
                 if a in dof_pos:
                     self._desc[dof_pos[a], link] = 1.0
-                a = parent[a]
+                a = body.parent_of(a)
         self._g = np.array([0.0, 0.0, -world.settings.gravity])
         self.limit_violations = 0
         self.last_tau = np.zeros(n)
         self.theta_ref: np.ndarray | None = None
-        self._id: tuple[World, int, np.ndarray, np.ndarray, int] | None = None
+        self._id: tuple[World, list[tuple[int, np.ndarray]]] | None = None
         self._last_theta_dot_t: np.ndarray | None = None
         self.touching: set[str] = set()
         """Limbs whose stick touches an instrument at the last step (set by the scene before apply)."""
         self.posture_rate: np.ndarray | None = None
         """Rates (57,) rad/s of a moving null-space posture (``rest``), fed forward by the IK; None: still."""
+        self._no_rate = np.zeros(n)
+        self._no_mass = np.zeros((0, 0))
 
     def _update_gains(self) -> None:
         """ks = I w^2, kd = 2 zeta w I with I the DOF's inertia with every other joint free.
@@ -279,47 +217,22 @@ class Controller:
 
     def _project(self, e: np.ndarray, repeat: int = 1) -> tuple[np.ndarray, np.ndarray]:
         """Project Euler triples (repeat * K, 3) of the limited joints into their ellipsoids."""
-        q = quat_from_euler_xyz(e)
-        tiles = self._limit_tiles.get(repeat)
-        if tiles is None:  # the limits stacked ``repeat`` times, made once
-            tiles = self._limit_tiles[repeat] = (
-                np.tile(self.q_mean_inv, (repeat, 1)), np.tile(self.q_mean, (repeat, 1)),
-                np.tile(self.q_axes, (repeat, 1, 1)), np.tile(self.q_extents, (repeat, 1)))
-        mean_inv, mean, axes, extents = tiles
-        v = quat_log(quat_mul(mean_inv, q))
-        coords = np.einsum("kij,ki->kj", axes, v)
-        r = np.sqrt(np.sum((coords / extents) ** 2, axis=1))
-        outside = r > 1.0
-        if not np.any(outside):
-            return e, outside
-        scale = np.where(outside, 1.0 / np.maximum(r, 1e-12), 1.0)
-        qp = quat_mul(mean, quat_exp(v * scale[:, None]))
-        return euler_xyz_from_quat(qp), outside
+        return project_into_ellipsoids(np.ascontiguousarray(e, dtype=float), self.q_mean_inv, self.q_mean,
+                                       self.q_axes, self.q_extents)
 
     def limit_torque(self, theta: np.ndarray) -> np.ndarray:
         """Restoring torque (57,) for joints outside their quaternion ellipsoid."""
         return self.enforce_limits(theta, np.clip(theta, self.body.lower, self.body.upper))[1]
 
     def enforce_limits(self, theta: np.ndarray, theta_t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(targets projected into the quaternion ellipsoids (57,), restoring torque for the state (57,)).
-
-        One vectorised projection for both (the state's and the targets' limited joints, stacked).
-        """
-        tau = np.zeros_like(theta)
+        """(targets clipped to the Euler boxes and projected into the quaternion ellipsoids (57,), restoring torque
+        for the state (57,)); :func:`kernels.enforce_limits`."""
         if not self.q_joints:
-            return theta_t, tau
-        k = len(self.q_joints)
-        e = np.concatenate([theta[self.q_index], theta_t[self.q_index]])
-        proj, outside = self._project(e, repeat=2)
-        out = theta_t
-        if np.any(outside[k:]):
-            out = theta_t.copy()
-            out[self.q_index[outside[k:]]] = proj[k:][outside[k:]]
-            out = np.clip(out, self.body.lower, self.body.upper)
-        if np.any(outside[:k]):
-            self.limit_violations += int(outside[:k].sum())
-            idx = self.q_index[outside[:k]]
-            tau[idx] = self.params.limit_stiffness_scale * self.ks[idx] * (proj[:k][outside[:k]] - e[:k][outside[:k]])
+            return np.clip(theta_t, self.body.lower, self.body.upper), np.zeros_like(theta)
+        out, tau, violations = enforce_limits(theta, theta_t, self.q_index, self.q_mean_inv, self.q_mean, self.q_axes,
+                                              self.q_extents, self.ks, self.params.limit_stiffness_scale,
+                                              self.body.lower, self.body.upper)
+        self.limit_violations += violations
         return out, tau
 
     # ------------------------------------------------------------------ gravity
@@ -355,45 +268,25 @@ class Controller:
         target is below it, its error is not integrated and the reference may barely lead the state: the
         surface stops the limb where the plan goes through, and winding up would press it in.
         """
-        eff, jac = self.body.kinematics()
+        eff = self.body.effector_pos
         rows = [LIMBS.index(limb) for limb in LIMBS if limb in targets]
         if self.theta_ref is None:
             self.theta_ref = theta.copy()
         if not rows:
             self.theta_ref = self.rest.copy()
             return self.rest.copy(), np.zeros_like(theta)
-        ref = self.theta_ref
-        j = jac[rows].reshape(3 * len(rows), -1)
         # a touching limb whose target is below it would only push into the surface: hold its error
-        pressing = {LIMBS[r] for r in rows if LIMBS[r] in touching and targets[LIMBS[r]][0][2] < eff[r][2]}
-        err = np.concatenate([(targets[LIMBS[r]][0] - eff[r]) * (LIMBS[r] not in pressing) for r in rows])
-        vel = np.concatenate([targets[LIMBS[r]][1] for r in rows])
+        pressing = np.array([LIMBS[r] in touching and targets[LIMBS[r]][0][2] < eff[r][2] for r in rows])
         gain = self.params.task_gain if self.mode in COMPUTED_TORQUE_MODES else self.params.task_gain_pd
-        xdot = vel + gain * err
-        jw = j * self.ik_weight_inv[None, :]
-        a = jw @ j.T
-        a.flat[:: a.shape[0] + 1] += self.params.ik_damping**2
-        jpinv = np.linalg.solve(a, jw).T  # W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1 (a is symmetric)
-        active = self.body.chain_mask[rows].any(axis=0)
-        pull = self.params.posture_gain * (self.rest - ref)
-        if self.posture_rate is not None:
-            pull += self.posture_rate
-        posture = np.where(active, pull, 0.0)
-        null_term = posture - jpinv @ (j @ posture)
-        qdot = jpinv @ xdot + null_term
-        fastest = float(np.max(np.abs(qdot)))
-        if fastest > self.params.max_joint_speed:  # near a singularity (arm stretched): slow down, do not whip
-            qdot *= self.params.max_joint_speed / fastest
-        new_ref = np.where(active, ref + qdot * self.control_dt, self.rest)
-        # keep the reference within reach of the state (no wind-up) and inside the Euler boxes (apply()
-        # projects the targets into the quaternion limits)
-        lead = np.full(len(theta), self.params.max_lead_rad)
-        for limb in pressing:  # a stick on a head: let it bounce, do not push it through
-            lead[self.body.chain_mask[LIMBS.index(limb)]] = self.params.contact_lead_rad
-        new_ref = theta + np.clip(new_ref - theta, -lead, lead)
-        new_ref = np.clip(new_ref, self.body.lower, self.body.upper)
+        rate = self.posture_rate if self.posture_rate is not None else self._no_rate
+        new_ref, qdot = dls_reference(
+            theta, self.theta_ref, self.rest, rate, eff, self.body.dof_pos, self.body.dof_axes, self.body.chain_mask,
+            np.array(rows, dtype=np.int64), np.array([targets[LIMBS[r]][0] for r in rows]),
+            np.array([targets[LIMBS[r]][1] for r in rows]), pressing, self.ik_weight_inv, self.params.ik_damping,
+            gain, self.params.posture_gain, self.control_dt, self.params.max_joint_speed, self.params.max_lead_rad,
+            self.params.contact_lead_rad, self.body.lower, self.body.upper)
         self.theta_ref = new_ref
-        return new_ref, np.where(active, qdot, 0.0)
+        return new_ref, qdot
 
     # ------------------------------------------------------------------ apply
 
@@ -403,21 +296,19 @@ class Controller:
             self._id = None
 
     def _ensure_id_model(self) -> None:
-        """A fixed-base copy of the body in its own client, for inverse dynamics (RNEA, ~20 us a call)."""
+        """Fixed-base copies of the body's parts in their own client, for inverse dynamics (RNEA, ~20 us a call
+        for the trunk): (world, [(copy's body id, the state slots of its revolute joints in its own order)])."""
         if self._id is not None:
             return
         world = World(WorldSettings(timestep_s=self.world.dt))
         world.client.setGravity(0.0, 0.0, -self.world.settings.gravity)
-        body_id = load_robot(world.client, self.body.model.robot, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0),
-                             fixed_base=True, flags=p.URDF_USE_INERTIA_FROM_FILE)
-        c = world.client
-        revolute = [j for j in range(c.getNumJoints(body_id)) if c.getJointInfo(body_id, j)[2] == p.JOINT_REVOLUTE]
-        pos = {j: k for k, j in enumerate(revolute)}
-        self._id = (world, body_id, np.array([pos[j] for j in self.body.dof_list]),
-                    np.array([pos[j] for j in self.body.passive]), len(revolute))
-        dof_pos = self._id[2]
-        self._dof_block = (dof_pos[:, None] * len(revolute) + dof_pos[None, :]).reshape(-1)
-        """Flat indices of the DOF x DOF block of the copy's mass matrix (which also has the fulcrums)."""
+        slot_of = {j: k for k, j in enumerate(self.body.state_joints)}
+        copies: list[tuple[int, np.ndarray]] = []
+        for spec, part in zip(self.body.model.parts, self.body.parts, strict=True):
+            body_id = load_robot(world.client, spec.robot, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0),
+                                 fixed_base=True, flags=p.URDF_USE_INERTIA_FROM_FILE)
+            copies.append((body_id, np.array([slot_of[part.offset + j] for j in part.movable], dtype=int)))
+        self._id = (world, copies)
 
     def computed_torque(self, theta: np.ndarray, theta_dot: np.ndarray, theta_t: np.ndarray,
                         theta_dot_t: np.ndarray, theta_ddot_ff: np.ndarray,
@@ -430,30 +321,40 @@ class Controller:
         (the posture changes little in that time)."""
         self._ensure_id_model()
         assert self._id is not None
-        world, body_id, dof_pos, passive_pos, n = self._id
+        world, copies = self._id
         w = 2 * math.pi * self.params.ct_frequency_hz
         zeta = self.params.damping_ratio
-        soft = np.ones(len(theta))
-        for limb in self.touching:  # a relaxed grip while the stick is on a head
-            soft[self.body.chain_mask[LIMBS.index(limb)]] = self.params.contact_softening
-        qdd = theta_ddot_ff * soft + w * w * soft**2 * (theta_t - theta) * self.scale_ks \
-            + 2 * zeta * w * soft * (theta_dot_t - theta_dot) * self.scale_kd
-        q_all = np.zeros(n)
-        qd_all = np.zeros(n)
-        qdd_all = np.zeros(n)
-        q_all[dof_pos], qd_all[dof_pos], qdd_all[dof_pos] = theta, theta_dot, qdd
+        n = len(theta)
+        if self.touching:
+            soft = np.ones(n)
+            for limb in self.touching:  # a relaxed grip while the stick is on a head
+                soft[self.body.chain_mask[LIMBS.index(limb)]] = self.params.contact_softening
+            qdd = theta_ddot_ff * soft + w * w * soft**2 * (theta_t - theta) * self.scale_ks \
+                + 2 * zeta * w * soft * (theta_dot_t - theta_dot) * self.scale_kd
+        else:
+            qdd = theta_ddot_ff + w * w * (theta_t - theta) * self.scale_ks \
+                + 2 * zeta * w * (theta_dot_t - theta_dot) * self.scale_kd
         pq, pqd = self.body.passive_state() if passive is None else passive
-        q_all[passive_pos], qd_all[passive_pos] = pq, pqd
-        q_list = q_all.tolist()
-        tau = world.client.calculateInverseDynamics(body_id, q_list, qd_all.tolist(), qdd_all.tolist())
-        if self.control_dt > self.world.dt:  # held between updates: keep M(q) for the PD's correction
+        # rows q, qd, qdd in state order: the 57 DOF then the passive joints (not driven: accelerations 0)
+        state = np.zeros((3, n + len(pq)))
+        state[0, :n], state[0, n:], state[1, :n], state[1, n:], state[2, :n] = theta, pq, theta_dot, pqd, qdd
+        tau = np.zeros(state.shape[1])
+        refresh = self.control_dt > self.world.dt  # held between updates: keep M(q) for the PD's correction
+        if refresh:
             self._mass_age += self.control_dt
-            if self._ct_mass is None or self._mass_age >= MASS_REFRESH_S - 1e-9:
+            refresh = self._ct_mass is None or self._mass_age >= MASS_REFRESH_S - 1e-9
+        mass_state = np.zeros((state.shape[1], state.shape[1])) if refresh else None
+        for body_id, slots in copies:
+            q_list, qd_list, qdd_list = state[:, slots].tolist()
+            tau[slots] = world.client.calculateInverseDynamics(body_id, q_list, qd_list, qdd_list)
+            if mass_state is not None:
                 rows = world.client.calculateMassMatrix(body_id, q_list)  # nested lists: read flat, not np.array
-                mass = np.fromiter(chain.from_iterable(rows), float, n * n)
-                self._ct_mass = mass.take(self._dof_block).reshape(len(dof_pos), len(dof_pos))
-                self._mass_age = 0.0
-        return np.asarray(tau)[dof_pos]
+                m = len(slots)
+                mass_state[np.ix_(slots, slots)] = np.fromiter(chain.from_iterable(rows), float, m * m).reshape(m, m)
+        if mass_state is not None:
+            self._ct_mass = np.ascontiguousarray(mass_state[:n, :n])
+            self._mass_age = 0.0
+        return tau[:n]
 
     def apply(self, theta: np.ndarray, theta_dot: np.ndarray, theta_t: np.ndarray, theta_dot_t: np.ndarray,
               passive_tau: np.ndarray, passive: tuple[np.ndarray, np.ndarray] | None = None) -> None:
@@ -461,7 +362,7 @@ class Controller:
         fulcrums' angles and velocities if already read."""
         c = self.world.client
         body = self.body
-        theta_t, extra = self.enforce_limits(theta, np.clip(theta_t, body.lower, body.upper))
+        theta_t, extra = self.enforce_limits(theta, theta_t)
         if self._last_theta_dot_t is None:
             self._last_theta_dot_t = theta_dot_t.copy()
         qdd_ff = np.clip((theta_dot_t - self._last_theta_dot_t) / self.control_dt, -self.params.max_ff_accel,
@@ -474,14 +375,17 @@ class Controller:
                 extra = extra + self.gravity_torque()
             shift = extra / np.maximum(self.ks, 1e-9)
             target = theta_t + shift
-            c.setJointMotorControlMultiDofArray(
-                body.id, body.dof_list, p.STABLE_PD_CONTROL,
-                targetPositions=[[float(v)] for v in target],
-                targetVelocities=[[float(v)] for v in theta_dot_t],
-                positionGains=[float(v) for v in self.ks],
-                velocityGains=[float(v) for v in self.kd],
-                forces=[[float(v)] for v in body.torque_limit],
-            )
+            n = len(theta)
+            for part in body.parts:
+                dofs = part.state_slots[part.state_slots < n]
+                c.setJointMotorControlMultiDofArray(
+                    part.id, part.state_joints[:len(dofs)], p.STABLE_PD_CONTROL,
+                    targetPositions=[[float(v)] for v in target[dofs]],
+                    targetVelocities=[[float(v)] for v in theta_dot_t[dofs]],
+                    positionGains=[float(v) for v in self.ks[dofs]],
+                    velocityGains=[float(v) for v in self.kd[dofs]],
+                    forces=[[float(v)] for v in body.torque_limit[dofs]],
+                )
             self.last_tau = np.zeros_like(theta)
         else:
             if self.mode in COMPUTED_TORQUE_MODES:
@@ -499,8 +403,7 @@ class Controller:
                                       mass)
             tau = np.clip(tau, -body.torque_limit, body.torque_limit)
             self.last_tau = tau
-            c.setJointMotorControlArray(body.id, body.state_joints, p.TORQUE_CONTROL,
-                                        forces=tau.tolist() + passive_tau.tolist())
+            body.send_torques(np.concatenate([tau, passive_tau]))
             return
         c.setJointMotorControlArray(body.id, body.passive, p.TORQUE_CONTROL, forces=passive_tau.tolist())
 
@@ -526,13 +429,11 @@ class Controller:
         held = self._held
         assert held is not None
         body = self.body
-        correction = held.k * (held.theta + held.theta_dot_t * elapsed_s - theta) \
-            + held.d * (held.theta_dot - theta_dot)
-        tau = held.tau + (correction if held.mass is None else held.mass @ correction)
-        tau = np.clip(tau, -body.torque_limit, body.torque_limit)
+        tau = held_torque(held.tau, held.theta, held.theta_dot, held.theta_dot_t, held.k, held.d,
+                          self._no_mass if held.mass is None else held.mass, elapsed_s, theta, theta_dot,
+                          body.torque_limit)
         self.last_tau = tau
-        self.world.client.setJointMotorControlArray(body.id, body.state_joints, p.TORQUE_CONTROL,
-                                                    forces=tau.tolist() + passive_tau.tolist())
+        body.send_torques(np.concatenate([tau, passive_tau]))
 
 
 @dataclass(frozen=True)

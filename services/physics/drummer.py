@@ -230,7 +230,7 @@ class DrummerScene:
             self.tracker.add_striker(Striker(self.body.id, self.body.link_index[f"{side}_stick"], f"{side}_stick",
                                              stick=self.spec.stick, side=side))
         self.pose_links: list[tuple[str, int, int]] = [
-            (name, self.body.id, self.body.link_index[name]) for name in self.model.segments
+            (name, *self.body.link_ref[self.body.link_index[name]]) for name in self.model.segments
         ] + self.kit_bodies.pose_links
         self.reach = self._reach()
         bead = np.array([0.0, 0.0, self.spec.stick.tip_radius_m])
@@ -516,7 +516,7 @@ class DrummerScene:
             return
         head, offset = self.head
         target, nod = head.sample(t - offset)
-        neck = self.body.link_pos[self.body.link_index["head"]]  # read by the update's Body.update()
+        neck = self.body.position(self.body.link_index["head"])  # read by the update's Body.update()
         d = np.asarray(target) - neck
         yaw = math.atan2(-d[0], d[1])  # +z turns the face (+y) toward -x
         pitch = math.atan2(d[2], math.hypot(d[0], d[1]))  # looking down: negative
@@ -546,7 +546,8 @@ class DrummerScene:
         """The body's joint state at the start of the step (:meth:`Body.full_state`), also handed to the contact
         tracker for approach velocities."""
         theta, theta_dot, pq, pqd = self.body.full_state()
-        self.tracker.provide_joint_velocities(self.body.id, self.body.state_joints, self.body.last_qd)
+        trunk = self.body.parts[0]  # the legs carry no striker: the tracker needs the trunk's velocities only
+        self.tracker.provide_joint_velocities(trunk.id, trunk.state_joints, self.body.trunk_velocities())
         return theta, theta_dot, pq, pqd
 
     def pre_step(self, t_next: float) -> None:
@@ -567,8 +568,8 @@ class DrummerScene:
         self._steps_to_update = self.control_every - 1
         self._last_update_s = t_next
         self._touching_at_update = sticks_touching  # a stick touching or leaving a surface: update at once
-        self.body.update()
         theta, theta_dot, pq, pqd = self._read_state()
+        self.body.update(theta)
         touching = {f"{side}_hand" for side in ("left", "right") if f"{side}_stick" in self.tracker.touching}
         targets = self.cartesian_targets(t_next)
         c = self.world.client
@@ -576,8 +577,8 @@ class DrummerScene:
             limb = f"{side}_foot"
             if limb in targets and targets[limb][1][2] < -FOOT_STROKE_SPEED:
                 continue  # a pedal stroke: the foot drives the footboard down (its end stop and the beater stop it)
-            foot = self.body.link_index[limb]
-            if any(c.getContactPoints(bodyA=self.body.id, bodyB=pedal.body, linkIndexA=foot)
+            leg, foot = self.body.link_ref[self.body.link_index[limb]]
+            if any(c.getContactPoints(bodyA=leg, bodyB=pedal.body, linkIndexA=foot)
                    for pedal in self._beater_pedals):
                 touching.add(limb)
         self.controller.touching = touching

@@ -117,6 +117,11 @@ def hihat_gap(press: float, opening: float, closes_at: float) -> float:
     return HIHAT_CONTACT_GAP_M - HIHAT_CLAMP_M * min(1.0, (press - closes_at) / (1.0 - closes_at))
 
 
+SPRING_TORQUE_FLOOR_NM = 1e-6
+"""A slow spring (a cymbal's) whose torques are all below this (N m) is at rest: nothing is sent (PyBullet's
+torques are zero after every step anyway), which saves a call per resting cymbal and step."""
+
+
 @dataclass
 class Spring:
     """An explicit spring-damper on one joint: tau = -k (q - rest) - c q_dot (N m/rad, N m s/rad)."""
@@ -228,7 +233,8 @@ class KitBodies:
                     angles[(body, joint)] = q
                     torques.append(-k_i * (q - r_i) - d_i * qd)
                 self._spring_torques[g] = torques
-            c.setJointMotorControlArray(body, joints, p.TORQUE_CONTROL, forces=self._spring_torques[g])
+            if fast or any(abs(t) > SPRING_TORQUE_FLOOR_NM for t in self._spring_torques[g]):
+                c.setJointMotorControlArray(body, joints, p.TORQUE_CONTROL, forces=self._spring_torques[g])
         self._hihat_coupling(world)
 
     def _hihat_coupling(self, world: World) -> None:

@@ -14,6 +14,8 @@ import math
 
 import numpy as np
 
+from services.physics.kernels import hermite
+
 
 class TargetError(ValueError):
     """A target the physics service cannot use: non-finite, wrong length, unreachable, out of limits, past."""
@@ -71,15 +73,8 @@ class Track:
             return self.values[0], np.zeros(self.dim)
         if k >= len(self.times) - 1:
             return self.values[-1], np.zeros(self.dim)
-        t0, t1 = self.times[k], self.times[k + 1]
-        h = t1 - t0
-        s = (t - t0) / h
-        p0, p1 = self.values[k], self.values[k + 1]
-        m0, m1 = self.velocities[k] * h, self.velocities[k + 1] * h
-        s2, s3 = s * s, s * s * s
-        pos = (2 * s3 - 3 * s2 + 1) * p0 + (s3 - 2 * s2 + s) * m0 + (-2 * s3 + 3 * s2) * p1 + (s3 - s2) * m1
-        vel = ((6 * s2 - 6 * s) * p0 + (3 * s2 - 4 * s + 1) * m0 + (-6 * s2 + 6 * s) * p1 + (3 * s2 - 2 * s) * m1) / h
-        return pos, vel
+        return hermite(t, self.times[k], self.times[k + 1], self.values[k], self.values[k + 1], self.velocities[k],
+                       self.velocities[k + 1])
 
     def prune(self, before: float) -> None:
         """Drop knots no longer needed to sample at times >= ``before``."""

@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pybullet as p
 import pytest
+from scipy.spatial.transform import Rotation
 
 from common.gesture.plan import GesturePlan, HeadTrajectory, LimbTrajectory
 from common.kit import EventType, Limb, load_kit
@@ -22,7 +23,6 @@ from common.messages.physics import (
 )
 from services.physics.body import LIMBS
 from services.physics.character import DOF_NAMES, JOINTS
-from services.physics.control import quat_from_euler_xyz
 from services.physics.core import PhysicsCore
 from services.physics.drummer import DrummerScene
 from services.physics.strokes import strokes_knots
@@ -161,7 +161,7 @@ def test_euler_and_quaternion_limits_are_enforced_in_simulation() -> None:
     for x in np.linspace(body.lower[shoulder], body.upper[shoulder], 9):
         for y in np.linspace(body.lower[shoulder + 1], body.upper[shoulder + 1], 9):
             e = np.array([x, y, scene.rest[shoulder + 2]])
-            r = float(limit.radius(quat_from_euler_xyz(e[None, :]))[0])
+            r = float(limit.radius(Rotation.from_euler("XYZ", e[None, :]).as_quat())[0])
             if best is None or r > best[0]:
                 best = (r, e)
     assert best is not None and best[0] > 1.3
@@ -171,7 +171,7 @@ def test_euler_and_quaternion_limits_are_enforced_in_simulation() -> None:
     scene.add_joints(0.001, np.concatenate([target, np.zeros(57)]), 0.0)
     _run(core, 0.0, 0.4)
     theta, _ = body.state()
-    radius = float(limit.radius(quat_from_euler_xyz(theta[None, shoulder:shoulder + 3]))[0])
+    radius = float(limit.radius(Rotation.from_euler("XYZ", theta[None, shoulder:shoulder + 3]).as_quat())[0])
     assert radius < 1.1
     assert np.all(theta >= body.lower - 0.03) and np.all(theta <= body.upper + 0.03)  # Euler boxes hold
     core.close()
@@ -229,10 +229,11 @@ def test_live_switching_grip_mode_and_reset_keeps_the_drummer_stable() -> None:
 def test_joint_spd_runs_on_a_floating_base_pinned_to_the_throne() -> None:
     core = PhysicsCore(scene="drummer", control="joint_spd")
     scene = _scene(core)
-    assert scene.body.floating_base and scene.body.pin is not None
-    seat = core.world.client.getBasePositionAndOrientation(scene.body.id)[0]
+    assert scene.body.floating_base and len(scene.body.pins) == len(scene.body.ids) == 3  # the trunk and each leg
+    bases = [core.world.client.getBasePositionAndOrientation(body)[0] for body in scene.body.ids]
     _run(core, 0.0, 0.02)
-    assert np.allclose(core.world.client.getBasePositionAndOrientation(scene.body.id)[0], seat, atol=1e-3)
+    for body, base in zip(scene.body.ids, bases, strict=True):
+        assert np.allclose(core.world.client.getBasePositionAndOrientation(body)[0], base, atol=1e-3)
     core.close()
 
 

@@ -10,42 +10,54 @@ import pybullet as p
 import pytest
 
 from services.physics.anthropometry import DE_LEVA, REFERENCE, anthropometry, body_mass_of
+from services.physics.body import Body
 from services.physics.character import (
     DOF_NAMES,
     DUMMY_MASS_KG,
     JOINTS,
-    SEAT_MASS_KG,
+    CharacterModel,
     CharacterSpec,
     build_character,
 )
 from services.physics.mocap import bvh_segment_lengths
-from services.physics.urdf import load_robot
 from services.physics.world import World
 
 
-def _load(height: float = 1.75, mass: float = 73.0) -> tuple[World, int, object]:
+def _load(height: float = 1.75, mass: float = 73.0) -> tuple[World, Body, CharacterModel]:
     model = build_character(CharacterSpec(anthropometry(height, mass)))
     world = World()
-    body = load_robot(world.client, model.robot, (0.0, 0.0, 1.2), (0.0, 0.0, 0.0, 1.0), fixed_base=False,
-                      flags=p.URDF_USE_INERTIA_FROM_FILE)
-    return world, body, model
+    return world, Body(world, model, (0.0, 0.0, 1.2)), model
+
+
+def _joints(world: World, body: Body) -> list[tuple[int, int]]:
+    """(body id, joint) of every joint of every part."""
+    c = world.client
+    return [(b, j) for b in body.ids for j in range(c.getNumJoints(b))]
 
 
 def test_the_body_has_19_joints_of_3_revolute_dof_57_actuated() -> None:
     world, body, model = _load()
     c = world.client
     assert len(JOINTS) == 19 and len(DOF_NAMES) == 57
-    revolute = {c.getJointInfo(body, j)[1].decode() for j in range(c.getNumJoints(body))
-                if c.getJointInfo(body, j)[2] == p.JOINT_REVOLUTE}
-    passive = set(model.passive)  # type: ignore[attr-defined]
+    joints = _joints(world, body)
+    names = [c.getJointInfo(b, j)[1].decode() for b, j in joints]
+    revolute = {c.getJointInfo(b, j)[1].decode() for b, j in joints if c.getJointInfo(b, j)[2] == p.JOINT_REVOLUTE}
+    assert len(names) == len(set(names))  # no DOF twice across the parts
+    passive = set(model.passive)
     assert passive == {"left_fulcrum_x", "left_fulcrum_z", "right_fulcrum_x", "right_fulcrum_z"}
     assert revolute - passive == set(DOF_NAMES)
-    assert not any(c.getJointInfo(body, j)[2] == p.JOINT_SPHERICAL for j in range(c.getNumJoints(body)))
+    assert not any(c.getJointInfo(b, j)[2] == p.JOINT_SPHERICAL for b, j in joints)
     # each joint's three DOF are about x, y, z in turn
     for name in DOF_NAMES:
-        j = next(k for k in range(c.getNumJoints(body)) if c.getJointInfo(body, k)[1].decode() == name)
-        axis = c.getJointInfo(body, j)[13]
+        axis = c.getJointInfo(*body.link_ref[body.joint_index[name]])[13]
         assert axis == tuple(1.0 if a == name[-1] else 0.0 for a in "xyz")
+    # the legs are their own multibodies, based on the throne at the hips (the pelvis rocking does not move them)
+    assert len(body.ids) == 3
+    for side in ("left", "right"):
+        leg, _ = body.link_ref[body.joint_index[f"{side}_hip_x"]]
+        assert leg != body.id
+        assert {c.getJointInfo(leg, j)[1].decode() for j in range(c.getNumJoints(leg))} >= {
+            f"{side}_{joint}_{axis}" for joint in ("hip", "knee", "ankle") for axis in "xyz"}
     world.close()
 
 
@@ -55,11 +67,12 @@ def test_total_mass_matches_the_body_mass(height: float, mass: float) -> None:
     assert body_mass_of(a) == pytest.approx(mass, rel=1e-3)
     world, body, model = _load(height, mass)
     c = world.client
-    total = sum(c.getDynamicsInfo(body, j)[0] for j in range(-1, c.getNumJoints(body)))
-    stick = 2 * (model.spec.stick.mass_kg + 1e-4)  # type: ignore[attr-defined]
+    # every link of every part; the bases (the seat's cushion on the throne, the hip mounts) are not the body's
+    total = sum(c.getDynamicsInfo(b, j)[0] for b in body.ids for j in range(c.getNumJoints(b)))
+    stick = 2 * (model.spec.stick.mass_kg + 1e-4)
     markers = 4 * 1e-4 + 2 * 1e-4  # tips, aims, balls of the feet
     dummies = 2 * 19 * DUMMY_MASS_KG + 2 * DUMMY_MASS_KG  # two per joint, one per fulcrum
-    assert total - SEAT_MASS_KG - stick - markers - dummies == pytest.approx(mass, rel=1e-3)
+    assert total - stick - markers - dummies == pytest.approx(mass, rel=1e-3)
     world.close()
 
 
@@ -77,11 +90,9 @@ def test_segment_lengths_and_masses_follow_de_leva_scaled_by_height_and_mass() -
         assert seg.com_from_proximal_m == pytest.approx(table[theirs].com_pct / 100 * seg.length_m)
     # proportions in the generated body: joint centres are as far apart as the table says
     world, body, model = _load(height, mass)
-    c = world.client
-    index = {c.getJointInfo(body, j)[1].decode(): j for j in range(c.getNumJoints(body))}
 
     def pos(name: str) -> np.ndarray:
-        return np.asarray(c.getLinkState(body, index[name], computeForwardKinematics=1)[4])
+        return body.link_pose(body.joint_index[name])[0]
 
     for upper, lower, name in (("right_shoulder_x", "right_elbow_x", "upper_arm"),
                               ("right_elbow_x", "right_wrist_x", "forearm"),

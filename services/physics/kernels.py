@@ -1,0 +1,325 @@
+"""Compiled numeric kernels of the body and its controller (numba): joint frames, Jacobians, the damped
+least-squares reference of Algorithm 2, quaternion joint limits, the held-torque correction, Hermite samples.
+
+The controller's arrays are small (57 DOF, up to 12 task rows), so NumPy's per-call overhead (about 1-40 us
+a call: ``np.linalg.solve`` of a 12 x 12 system costs 38 us) was most of a control update; these loops do
+the same arithmetic in a few microseconds. Pure functions of arrays, no state; compiled on first use and
+cached on disk next to this file (``cache=True``), so only the first process of a fresh install pays the
+compilation (a few seconds).
+
+Conventions: quaternions (x, y, z, w); intrinsic x-y-z Euler angles (``Rx(a) Ry(b) Rz(c)``); radians,
+metres, seconds, N m.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+# ---------------------------------------------------------------------- quaternions and Euler angles
+
+
+@njit(cache=True)
+def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product of two quaternions (4,)."""
+    out = np.empty(4)
+    out[0] = a[3] * b[0] + a[0] * b[3] + a[1] * b[2] - a[2] * b[1]
+    out[1] = a[3] * b[1] - a[0] * b[2] + a[1] * b[3] + a[2] * b[0]
+    out[2] = a[3] * b[2] + a[0] * b[1] - a[1] * b[0] + a[2] * b[3]
+    out[3] = a[3] * b[3] - a[0] * b[0] - a[1] * b[1] - a[2] * b[2]
+    return out
+
+
+@njit(cache=True)
+def _quat_from_euler(a: float, b: float, c: float) -> np.ndarray:
+    """Quaternion of ``Rx(a) Ry(b) Rz(c)``."""
+    ca, sa = math.cos(a / 2), math.sin(a / 2)
+    cb, sb = math.cos(b / 2), math.sin(b / 2)
+    cc, sc = math.cos(c / 2), math.sin(c / 2)
+    out = np.empty(4)
+    out[0] = sa * cb * cc + ca * sb * sc
+    out[1] = ca * sb * cc - sa * cb * sc
+    out[2] = ca * cb * sc + sa * sb * cc
+    out[3] = ca * cb * cc - sa * sb * sc
+    return out
+
+
+@njit(cache=True)
+def _euler_from_quat(q: np.ndarray) -> np.ndarray:
+    """Intrinsic x-y-z angles (3,) of a unit quaternion (inverse of :func:`_quat_from_euler`)."""
+    x, y, z, w = q[0], q[1], q[2], q[3]
+    r02 = 2 * (x * z + w * y)
+    r12 = 2 * (y * z - w * x)
+    r22 = 1 - 2 * (x * x + y * y)
+    r01 = 2 * (x * y - w * z)
+    r00 = 1 - 2 * (y * y + z * z)
+    out = np.empty(3)
+    out[0] = math.atan2(-r12, r22)
+    out[1] = math.asin(min(max(r02, -1.0), 1.0))
+    out[2] = math.atan2(-r01, r00)
+    return out
+
+
+@njit(cache=True)
+def _quat_log(q: np.ndarray) -> np.ndarray:
+    """Rotation vector (3,) radians of a unit quaternion, shortest arc."""
+    sign = -1.0 if q[3] < 0 else 1.0
+    vx, vy, vz, w = sign * q[0], sign * q[1], sign * q[2], sign * q[3]
+    s = math.sqrt(vx * vx + vy * vy + vz * vz)
+    angle = 2.0 * math.atan2(s, w)
+    scale = angle / s if s > 1e-12 else 2.0
+    out = np.empty(3)
+    out[0], out[1], out[2] = vx * scale, vy * scale, vz * scale
+    return out
+
+
+@njit(cache=True)
+def _quat_exp(r: np.ndarray) -> np.ndarray:
+    """Unit quaternion of a rotation vector (3,) radians."""
+    angle = math.sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2])
+    scale = math.sin(angle / 2) / angle if angle > 1e-12 else 0.5
+    out = np.empty(4)
+    out[0], out[1], out[2] = r[0] * scale, r[1] * scale, r[2] * scale
+    out[3] = math.cos(angle / 2)
+    return out
+
+
+@njit(cache=True)
+def project_into_ellipsoids(e: np.ndarray, mean_inv: np.ndarray, mean: np.ndarray, axes: np.ndarray,
+                            extents: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Project Euler triples into their joints' quaternion limit ellipsoids (Algorithm 1's limits).
+
+    ``e`` (R K, 3): the triples of K limited joints, R times over (the state's and the targets' stacked);
+    ``mean_inv``, ``mean`` (K, 4): each joint's mean orientation and its inverse; ``axes`` (K, 3, 3): principal
+    axes as columns; ``extents`` (K, 3): radians along them. Returns the projected triples (R K, 3) (a triple
+    inside its ellipsoid is returned as is) and which were outside (R K,).
+    """
+    k = mean.shape[0]
+    proj = e.copy()
+    outside = np.zeros(e.shape[0], dtype=np.bool_)
+    coords = np.empty(3)
+    for row in range(e.shape[0]):
+        j = row % k
+        v = _quat_log(_quat_mul(mean_inv[j], _quat_from_euler(e[row, 0], e[row, 1], e[row, 2])))
+        r2 = 0.0
+        for c in range(3):
+            coords[c] = axes[j, 0, c] * v[0] + axes[j, 1, c] * v[1] + axes[j, 2, c] * v[2]
+            r2 += (coords[c] / extents[j, c]) ** 2
+        r = math.sqrt(r2)
+        if r > 1.0:
+            outside[row] = True
+            proj[row] = _euler_from_quat(_quat_mul(mean[j], _quat_exp(v / r)))
+    return proj, outside
+
+
+@njit(cache=True)
+def enforce_limits(theta: np.ndarray, theta_t: np.ndarray, q_index: np.ndarray, mean_inv: np.ndarray,
+                   mean: np.ndarray, axes: np.ndarray, extents: np.ndarray, ks: np.ndarray, stiffness_scale: float,
+                   lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+    """Joint limits for one control update: the targets ``theta_t`` (N,) clipped to the Euler boxes
+    (``lower``, ``upper``) and projected into the quaternion ellipsoids of the K joints whose DOF are
+    ``q_index`` (K, 3), and a restoring torque (N,) N m, ``stiffness_scale ks`` times the distance to the
+    projection, on the DOF of joints whose *state* ``theta`` (N,) is outside its ellipsoid. Returns the targets,
+    the torque and how many joints were outside."""
+    k = q_index.shape[0]
+    e = np.empty((2 * k, 3))
+    out = np.empty(theta_t.shape[0])
+    for i in range(theta_t.shape[0]):
+        out[i] = min(max(theta_t[i], lower[i]), upper[i])
+    for j in range(k):
+        for c in range(3):
+            e[j, c] = theta[q_index[j, c]]
+            e[k + j, c] = out[q_index[j, c]]
+    proj, outside = project_into_ellipsoids(e, mean_inv, mean, axes, extents)
+    tau = np.zeros(theta.shape[0])
+    violations = 0
+    for j in range(k):
+        if outside[k + j]:
+            for c in range(3):
+                i = q_index[j, c]
+                out[i] = min(max(proj[k + j, c], lower[i]), upper[i])
+        if outside[j]:
+            violations += 1
+            for c in range(3):
+                i = q_index[j, c]
+                tau[i] = stiffness_scale * ks[i] * (proj[j, c] - e[j, c])
+    return out, tau, violations
+
+
+# ---------------------------------------------------------------------- kinematics
+
+
+@njit(cache=True)
+def dof_frames(child_pos: np.ndarray, child_quat: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Origins (3 J, 3) metres and world axes (3 J, 3) of the DOF of J three-DOF joints, from each joint's
+    child link frame (``child_pos`` (J, 3), ``child_quat`` (J, 4)) and the joint angles ``q`` (3 J,) (joint-major:
+    x, y, z of each joint).
+
+    The three DOF share the child's origin. The child frame is ``R_c = R_p Rx(a) Ry(b) Rz(c)``, so the z axis is
+    ``R_c e_z``, the y axis ``R_c Rz(-c) e_y = R_c (sin c, cos c, 0)`` and the x axis
+    ``R_c Rz(-c) Ry(-b) e_x = R_c (cos b cos c, -cos b sin c, sin b)``.
+    """
+    n_joints = child_pos.shape[0]
+    pos = np.empty((3 * n_joints, 3))
+    ax = np.empty((3 * n_joints, 3))
+    local = np.empty((3, 3))
+    for j in range(n_joints):
+        x, y, z, w = child_quat[j, 0], child_quat[j, 1], child_quat[j, 2], child_quat[j, 3]
+        r00, r01, r02 = 1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)
+        r10, r11, r12 = 2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)
+        r20, r21, r22 = 2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)
+        b, c = q[3 * j + 1], q[3 * j + 2]
+        cb, sb, cc, sc = math.cos(b), math.sin(b), math.cos(c), math.sin(c)
+        local[0, 0], local[0, 1], local[0, 2] = cb * cc, -cb * sc, sb
+        local[1, 0], local[1, 1], local[1, 2] = sc, cc, 0.0
+        local[2, 0], local[2, 1], local[2, 2] = 0.0, 0.0, 1.0
+        for a in range(3):
+            k = 3 * j + a
+            u0, u1, u2 = local[a, 0], local[a, 1], local[a, 2]
+            ax[k, 0] = r00 * u0 + r01 * u1 + r02 * u2
+            ax[k, 1] = r10 * u0 + r11 * u1 + r12 * u2
+            ax[k, 2] = r20 * u0 + r21 * u1 + r22 * u2
+            pos[k, 0], pos[k, 1], pos[k, 2] = child_pos[j, 0], child_pos[j, 1], child_pos[j, 2]
+    return pos, ax
+
+
+@njit(cache=True)
+def jacobian(points: np.ndarray, dof_pos: np.ndarray, dof_axes: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """Geometric Jacobians (L, 3, N) of L points (L, 3) fixed to links, for N revolute DOF: column k is
+    ``axis_k x (p - o_k)`` where ``mask[l, k]`` (DOF k moves the point's link), else 0."""
+    n_points, n = points.shape[0], dof_pos.shape[0]
+    jac = np.zeros((n_points, 3, n))
+    for i in range(n_points):
+        for k in range(n):
+            if mask[i, k]:
+                d0 = points[i, 0] - dof_pos[k, 0]
+                d1 = points[i, 1] - dof_pos[k, 1]
+                d2 = points[i, 2] - dof_pos[k, 2]
+                a0, a1, a2 = dof_axes[k, 0], dof_axes[k, 1], dof_axes[k, 2]
+                jac[i, 0, k] = a1 * d2 - a2 * d1
+                jac[i, 1, k] = a2 * d0 - a0 * d2
+                jac[i, 2, k] = a0 * d1 - a1 * d0
+    return jac
+
+
+@njit(cache=True)
+def _cholesky_solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """X = A^-1 B for a symmetric positive definite A (m, m) and B (m, n)."""
+    m = a.shape[0]
+    low = np.zeros((m, m))
+    for i in range(m):
+        for j in range(i + 1):
+            s = a[i, j]
+            for k in range(j):
+                s -= low[i, k] * low[j, k]
+            low[i, j] = math.sqrt(s) if i == j else s / low[j, j]
+    x = b.copy()
+    for col in range(b.shape[1]):
+        for i in range(m):  # L y = b
+            s = x[i, col]
+            for k in range(i):
+                s -= low[i, k] * x[k, col]
+            x[i, col] = s / low[i, i]
+        for i in range(m - 1, -1, -1):  # L^T x = y
+            s = x[i, col]
+            for k in range(i + 1, m):
+                s -= low[k, i] * x[k, col]
+            x[i, col] = s / low[i, i]
+    return x
+
+
+@njit(cache=True)
+def dls_reference(theta: np.ndarray, ref: np.ndarray, rest: np.ndarray, posture_rate: np.ndarray,
+                  eff: np.ndarray, dof_pos: np.ndarray, dof_axes: np.ndarray, chain_mask: np.ndarray,
+                  rows: np.ndarray, target_pos: np.ndarray, target_vel: np.ndarray, pressing: np.ndarray,
+                  weight_inv: np.ndarray, damping: float, gain: float, posture_gain: float, dt: float,
+                  max_joint_speed: float, max_lead: float, contact_lead: float, lower: np.ndarray,
+                  upper: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """One step of Algorithm 2's joint reference (see :meth:`Controller.ik_targets` for the law).
+
+    ``theta`` (N,) the state, ``ref`` (N,) the reference, ``rest`` (N,) the null-space posture and
+    ``posture_rate`` (N,) its rate (rad, rad/s); ``eff`` (4, 3) the effectors (LIMBS order) and
+    ``chain_mask`` (4, N) the DOF that move each; ``rows`` (m,) the limbs with targets, ``target_pos`` and
+    ``target_vel`` (m, 3) their targets (m, m/s), ``pressing`` (m,) the limbs whose error is held (touching,
+    target below); ``weight_inv`` (N,) the DLS's inverse weights; ``damping`` lambda (m); ``gain`` the task
+    feedback (1/s); ``posture_gain`` (1/s); ``dt`` the control period (s); ``max_joint_speed`` (rad/s);
+    ``max_lead`` and ``contact_lead`` (rad) how far the reference may lead the state. Returns the new
+    reference (N,) and its rate (N,), zero for the DOF no limb with a target moves.
+    """
+    n = theta.shape[0]
+    m = rows.shape[0]
+    points = np.empty((m, 3))
+    mask = np.zeros((m, n), dtype=np.bool_)
+    for i in range(m):
+        points[i] = eff[rows[i]]
+        mask[i] = chain_mask[rows[i]]
+    jac3 = jacobian(points, dof_pos, dof_axes, mask)
+    j = jac3.reshape(3 * m, n)
+    xdot = np.empty(3 * m)
+    for i in range(m):
+        for c in range(3):
+            err = 0.0 if pressing[i] else target_pos[i, c] - points[i, c]
+            xdot[3 * i + c] = target_vel[i, c] + gain * err
+    jw = j * weight_inv.reshape(1, n)
+    a = jw @ j.T
+    for i in range(3 * m):
+        a[i, i] += damping * damping
+    jpinv = _cholesky_solve(a, jw).T  # W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1, (N, 3m)
+    active = np.zeros(n, dtype=np.bool_)
+    for i in range(m):
+        active |= mask[i]
+    posture = np.where(active, posture_gain * (rest - ref) + posture_rate, 0.0)
+    qdot = jpinv @ xdot + posture - jpinv @ (j @ posture)
+    fastest = np.max(np.abs(qdot))
+    if fastest > max_joint_speed:  # near a singularity (arm stretched): slow down, do not whip
+        qdot *= max_joint_speed / fastest
+    lead = np.full(n, max_lead)
+    for i in range(m):
+        if pressing[i]:
+            for k in range(n):
+                if mask[i, k]:
+                    lead[k] = contact_lead
+    new_ref = np.empty(n)
+    for k in range(n):
+        r = ref[k] + qdot[k] * dt if active[k] else rest[k]
+        r = theta[k] + min(max(r - theta[k], -lead[k]), lead[k])
+        new_ref[k] = min(max(r, lower[k]), upper[k])
+        if not active[k]:
+            qdot[k] = 0.0
+    return new_ref, qdot
+
+
+# ---------------------------------------------------------------------- torques and targets
+
+
+@njit(cache=True)
+def held_torque(tau0: np.ndarray, theta0: np.ndarray, theta_dot0: np.ndarray, theta_dot_t: np.ndarray,
+                k: np.ndarray, d: np.ndarray, mass: np.ndarray, elapsed_s: float, theta: np.ndarray,
+                theta_dot: np.ndarray, limit: np.ndarray) -> np.ndarray:
+    """A held control update's torques (N,) N m corrected for how the state moved since, clipped to ``limit``:
+    ``tau0 + M (k (theta0 + theta_dot_t elapsed - theta) + d (theta_dot0 - theta_dot))`` (``M`` the identity
+    when ``mass`` is empty (0, 0): the explicit PD, whose k and d are its gains)."""
+    n = tau0.shape[0]
+    corr = k * (theta0 + theta_dot_t * elapsed_s - theta) + d * (theta_dot0 - theta_dot)
+    if mass.shape[0] == n:
+        corr = mass @ corr
+    out = np.empty(n)
+    for i in range(n):
+        out[i] = min(max(tau0[i] + corr[i], -limit[i]), limit[i])
+    return out
+
+
+@njit(cache=True)
+def hermite(t: float, t0: float, t1: float, p0: np.ndarray, p1: np.ndarray, v0: np.ndarray,
+            v1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Cubic Hermite value and rate at time ``t`` (s) between knots at ``t0`` and ``t1`` with values
+    ``p0``, ``p1`` and rates ``v0``, ``v1`` (per second)."""
+    h = t1 - t0
+    s = (t - t0) / h
+    s2, s3 = s * s, s * s * s
+    m0, m1 = v0 * h, v1 * h
+    pos = (2 * s3 - 3 * s2 + 1) * p0 + (s3 - 2 * s2 + s) * m0 + (-2 * s3 + 3 * s2) * p1 + (s3 - s2) * m1
+    vel = ((6 * s2 - 6 * s) * p0 + (3 * s2 - 4 * s + 1) * m0 + (-6 * s2 + 6 * s) * p1 + (3 * s2 - 2 * s) * m1) / h
+    return pos, vel
