@@ -7,7 +7,10 @@ import time
 from typing import Any
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from pydantic import Field
+from pythonosc.osc_message import OscMessage as PyOscMessage
 
 from common.messages import (
     REGISTRY,
@@ -20,7 +23,10 @@ from common.messages import (
     encode,
     encode_bundle,
     encode_raw,
+    parse_packet,
 )
+from common.messages.base import MessageError
+from common.messages.codec import _build as build_with_python_osc
 
 
 def example_args(model: type[OscMessage]) -> dict[str, Any]:
@@ -132,3 +138,33 @@ def test_a_value_sent_exactly_at_a_range_bound_survives_float32() -> None:
         assert decoded.errors == [] and decoded.messages[0] == Gain(level=value)
     # beyond float32 rounding it is still out of range
     assert [e.reason for e in decode(encode_raw(Gain.ADDRESS, [0.0099]), registry).errors] == [DropReason.OUT_OF_RANGE]
+
+
+_ARGS = st.lists(st.one_of(
+    st.floats(width=32, allow_nan=False), st.integers(-2**31, 2**31 - 1), st.booleans(),
+    st.text(st.characters(blacklist_categories=("Cs",), blacklist_characters="\0"), max_size=12)), max_size=40)
+
+
+@settings(max_examples=300, deadline=None)
+@given(address=st.from_regex(r"/[a-z/_]{0,20}", fullmatch=True), args=_ARGS)
+def test_the_fast_codec_gives_python_oscs_bytes_and_values(address: str, args: list[Any]) -> None:
+    """Batteur's messages take a one-struct-call path (codec.py); it must be python-osc's encoding exactly."""
+    data = encode_raw(address, args)
+    assert data == bytes(build_with_python_osc(address, args).dgram)
+    (raw,) = parse_packet(data)
+    reference = PyOscMessage(data)
+    assert raw.address == reference.address
+    assert raw.args == [int(a) if isinstance(a, bool) else a for a in reference.params]
+
+
+def test_the_fast_codec_leaves_errors_and_other_types_to_python_osc() -> None:
+    with pytest.raises(Exception, match="(?i)float|range|pack"):
+        encode_raw("/batteur/x", [1e40])  # beyond float32: python-osc's error
+    blob = b"/x\0\0,b\0\0\0\0\0\x02ab\0\0"  # a blob argument: parsed by python-osc
+    (raw,) = parse_packet(blob)
+    assert raw.address == "/x" and len(raw.args) == 1
+    for malformed in (b"/x\0\0,s\0\0abc", b"/x\0\0,i\0\0\0\0"):  # a string without its null; half an int
+        with pytest.raises(MessageError):
+            parse_packet(malformed)
+    # python-osc reads a float cut short as padded with zeros (some senders drop the trailing nulls): so do we
+    assert parse_packet(b"/x\0\0,f\0\0\0\0")[0].args == [0.0]

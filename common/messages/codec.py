@@ -4,10 +4,19 @@ python-osc builds and parses the bytes; this module adds the registry lookup,
 validation and one :class:`~common.messages.base.DropReason` per failure.
 Bundles are accepted (nested too); their timetags are ignored, because timed
 messages carry their time as an explicit argument (ARCHITECTURE.md, Messages).
+
+Batteur's own messages (one message of ``i``, ``f`` and ``s`` arguments) take
+a fast path: one ``struct`` call packs or unpacks all the arguments, the same
+bytes and values python-osc gives (tested). python-osc builds a message by
+appending argument by argument to a byte string and then parses it back, and
+parses a float per function call: a pose of 280 floats cost about 0.3 ms each
+way, a fifth of an offline render. Anything else (bundles, other argument
+types, a packet that is not canonical, every error) goes through python-osc.
 """
 
 from __future__ import annotations
 
+import struct
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 
@@ -36,8 +45,44 @@ def _build(address: str, args: Sequence[Arg]) -> PyOscMessage:
     return builder.build()
 
 
+def _osc_string(text: str) -> bytes:
+    """An OSC string: UTF-8, a null, padded with nulls to a multiple of 4 bytes (python-osc's ``write_string``)."""
+    raw = text.encode("utf-8")
+    return raw + b"\0" * (4 - len(raw) % 4)
+
+
+def _pack(address: str, args: Sequence[Arg]) -> bytes:
+    """The fast path of :func:`encode_raw`: every argument in one ``struct.pack``."""
+    tags: list[str] = []
+    fmt: list[str] = [">"]
+    values: list[object] = []
+    for arg in args:
+        kind = type(arg)
+        if kind is float:
+            tags.append("f")
+            fmt.append("f")
+            values.append(arg)
+        elif kind is int or kind is bool:
+            tags.append("i")
+            fmt.append("i")
+            values.append(int(arg))
+        elif kind is str:
+            raw = _osc_string(arg)  # type: ignore[arg-type]
+            tags.append("s")
+            fmt.append(f"{len(raw)}s")
+            values.append(raw)
+        else:
+            raise TypeError(f"{address}: argument {arg!r} is not int, float or str")
+    return _osc_string(address) + _osc_string("," + "".join(tags)) + struct.pack("".join(fmt), *values)
+
+
 def encode_raw(address: str, args: Sequence[Arg]) -> bytes:
     """One OSC message from an address and plain arguments (ints as i, floats as f)."""
+    if address:
+        try:
+            return _pack(address, args)
+        except (struct.error, OverflowError, UnicodeError):
+            pass  # out of range or not encodable: python-osc says why
     return bytes(_build(address, args).dgram)
 
 
@@ -70,8 +115,51 @@ class Decoded:
     errors: list[MessageError] = field(default_factory=list)
 
 
+def _padded(end: int) -> int:
+    """Index after an OSC string whose terminating null is at ``end``."""
+    return end + 4 - end % 4
+
+
+def _unpack(data: bytes) -> RawMessage | None:
+    """The fast path of :func:`parse_packet`: a canonical message of ``i``, ``f`` and ``s`` arguments in as few
+    ``struct`` calls as it has strings; None for anything else (python-osc parses it, or says what is wrong)."""
+    if not data.startswith(b"/"):
+        return None
+    try:
+        end = data.index(0)
+        address = data[:end].decode("utf-8")
+        index = _padded(end)
+        end = data.index(0, index)
+        tags = data[index:end].decode("ascii")
+        index = _padded(end)
+        if not tags.startswith(","):
+            return None
+        args: list[Arg] = []
+        run = ""
+        for tag in tags[1:] + "|":
+            if tag in "if":
+                run += tag
+                continue
+            if run:
+                args.extend(struct.unpack_from(">" + run, data, index))
+                index += 4 * len(run)
+                run = ""
+            if tag == "s":
+                end = data.index(0, index)
+                args.append(data[index:end].decode("utf-8"))
+                index = _padded(end)
+            elif tag != "|":
+                return None
+    except (ValueError, struct.error):
+        return None
+    return RawMessage(address=address, args=args) if index == len(data) else None
+
+
 def parse_packet(data: bytes) -> list[RawMessage]:
     """Parse an OSC packet (message or bundle) into raw messages; raise MessageError if malformed."""
+    fast = _unpack(data)
+    if fast is not None:
+        return [fast]
     try:
         packet = OscPacket(data)
     except ParseError as exc:
