@@ -21,10 +21,11 @@ from typing import Any
 import numpy as np
 import pybullet as p
 
+from common.character import JOINT_LINKS, JOINTS
 from services.physics.character import CharacterModel
-from services.physics.kernels import dof_frames, jacobian
+from services.physics.kernels import forward_kinematics, jacobian
 from services.physics.urdf import load_robot
-from services.physics.world import World
+from services.physics.world import World, rotation_matrix
 
 LIMBS = ("left_hand", "right_hand", "left_foot", "right_foot")
 
@@ -119,22 +120,12 @@ class Body:
         self._dof_pos = {j: k for k, j in enumerate(self.dof_list)}
         self.chain_mask = np.array([self.mask_of(self.effector_links[limb]) for limb in LIMBS])
         self.all_links = list(range(offset))
-        # the links a control update reads: each joint's child (its three DOF share its origin; their axes follow
-        # from its frame and the angles, kernels.dof_frames), the effectors and the stick tips
+        # forward kinematics of the 19 joints in numba (kernels.forward_kinematics): each joint's origin in its
+        # parent's child frame, the bases on the throne, the effectors in their carriers' frames
+        self._fk = self._kinematic_tree(seat_position)
         joint_children = [int(self.dofs[3 * k + 2]) for k in range(len(self.dofs) // 3)]
-        frame_links = list(dict.fromkeys(joint_children + list(self.effector_links.values())
-                                         + list(self.tip_links.values())))
-        self._frame_row = {link: row for row, link in enumerate(frame_links)}
-        self._joint_rows = np.array([self._frame_row[link] for link in joint_children], dtype=int)
-        self._effector_rows = np.array([self._frame_row[self.effector_links[limb]] for limb in LIMBS], dtype=int)
-        self._frame_reads: list[tuple[int, list[int]]] = []
-        order: list[int] = []
-        for part in self.parts:
-            local = [link - part.offset for link in frame_links if part.offset <= link < part.offset + part.links]
-            self._frame_reads.append((part.id, local))
-            order += [self._frame_row[part.offset + j] for j in local]
-        self._frame_order = np.argsort(np.array(order, dtype=int))
-        """Index that puts the parts' frame readings (concatenated) into ``frame_links`` order."""
+        self._frame_row = {link: row for row, link in enumerate(joint_children)}
+        self._frame_row |= {self.effector_links[limb]: len(joint_children) + k for k, limb in enumerate(LIMBS)}
         self._full_states: list[tuple[Any, ...]] | None = None
         self._link_pos: np.ndarray | None = None
         self._link_com: np.ndarray | None = None
@@ -213,22 +204,50 @@ class Body:
                                        targetVelocities=[[float(v)] for v in rates[part.state_slots]])
         self.update(values[:n])
 
+    def _kinematic_tree(self, seat_position: tuple[float, float, float]) -> tuple[np.ndarray, ...]:
+        """The arrays of :func:`kernels.forward_kinematics` for this body (see :meth:`update`)."""
+        joints = {j.name: j for spec in self.model.parts for j in spec.robot.joints}
+        base_of = {spec.robot.links[0].name: np.add(seat_position, spec.base_offset_m) for spec in self.model.parts}
+        carrier = {JOINT_LINKS[joint][1]: k for k, joint in enumerate(JOINTS)}
+        parent = np.full(len(JOINTS), -1, dtype=np.int64)
+        offset = np.zeros((len(JOINTS), 3))
+        base_pos = np.zeros((len(JOINTS), 3))
+        for k, joint in enumerate(JOINTS):
+            first = joints[f"{joint}_x"]
+            if any(joints[f"{joint}_{axis}"].rpy != (0.0, 0.0, 0.0) for axis in "xyz"):
+                raise ValueError(f"joint {joint}: forward kinematics assumes no rotation offset")
+            offset[k] = first.xyz
+            if first.parent in carrier:
+                parent[k] = carrier[first.parent]
+            else:
+                base_pos[k] = base_of[first.parent]
+        effector_joint = np.zeros(len(LIMBS), dtype=np.int64)
+        effector_offset = np.zeros((len(LIMBS), 3))
+        for e, limb in enumerate(LIMBS):
+            fixed = next(j for j in joints.values() if j.child == self.model.effectors[limb])
+            effector_joint[e] = carrier[fixed.parent]
+            effector_offset[e] = fixed.xyz
+        base_rot = np.tile(np.eye(3), (len(JOINTS), 1, 1))
+        return parent, offset, base_pos, base_rot, effector_joint, effector_offset
+
     def update(self, q: np.ndarray | None = None) -> None:
-        """Read the joint frames, effectors and stick tips once (at the start of a control update; the
-        kinematics use them). ``q``: the DOF angles (57,) radians of this state if already read."""
-        c = self.world.client
+        """Forward kinematics of the joints and effectors at the DOF angles ``q`` (57,) radians (default: read
+        them): :attr:`dof_pos`, :attr:`dof_axes`, :attr:`effector_pos` (call at the start of a control update;
+        the kinematics use them). No PyBullet call with a fixed base (the bases never move)."""
         if q is None:
             q = self.state()[0]
-        states = list(chain.from_iterable(c.getLinkStates(body, links, computeForwardKinematics=1)
-                                          for body, links in self._frame_reads))
-        n = len(states)
-        # one flat read per field (np.array on a list of tuples is several times slower)
-        pos = np.fromiter(chain.from_iterable(s[4] for s in states), float, 3 * n).reshape(n, 3)[self._frame_order]
-        quat = np.fromiter(chain.from_iterable(s[5] for s in states), float, 4 * n).reshape(n, 4)[self._frame_order]
-        self.frame_pos = pos
-        self.dof_pos, self.dof_axes = dof_frames(pos[self._joint_rows], quat[self._joint_rows],
-                                                 np.ascontiguousarray(q, dtype=float))
-        self.effector_pos = pos[self._effector_rows]
+        parent, offset, base_pos, base_rot, effector_joint, effector_offset = self._fk
+        if self.floating_base:  # pinned bases may give a little: use where they are now
+            c = self.world.client
+            for k in np.flatnonzero(parent < 0):
+                part = next(p for p in self.parts if self.link_ref[int(self.dofs[3 * k])][0] == p.id)
+                pos, quat = c.getBasePositionAndOrientation(part.id)  # the bases' inertial frames are their own
+                base_pos[k] = pos
+                base_rot[k] = rotation_matrix(quat)
+        self.dof_pos, self.dof_axes, joint_pos, self.effector_pos = forward_kinematics(
+            np.ascontiguousarray(q, dtype=float), parent, offset, base_pos, base_rot, effector_joint,
+            effector_offset)
+        self.frame_pos = np.concatenate([joint_pos, self.effector_pos])
         self._full_states = None
         self._link_pos = None
         self._link_com = None

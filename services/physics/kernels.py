@@ -152,37 +152,57 @@ def enforce_limits(theta: np.ndarray, theta_t: np.ndarray, q_index: np.ndarray, 
 
 
 @njit(cache=True)
-def dof_frames(child_pos: np.ndarray, child_quat: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Origins (3 J, 3) metres and world axes (3 J, 3) of the DOF of J three-DOF joints, from each joint's
-    child link frame (``child_pos`` (J, 3), ``child_quat`` (J, 4)) and the joint angles ``q`` (3 J,) (joint-major:
-    x, y, z of each joint).
+def forward_kinematics(q: np.ndarray, parent: np.ndarray, offset: np.ndarray, base_pos: np.ndarray,
+                       base_rot: np.ndarray, effector_joint: np.ndarray,
+                       effector_offset: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Forward kinematics of J three-DOF joints, each ``Rx(a) Ry(b) Rz(c)`` about its child's origin.
 
-    The three DOF share the child's origin. The child frame is ``R_c = R_p Rx(a) Ry(b) Rz(c)``, so the z axis is
-    ``R_c e_z``, the y axis ``R_c Rz(-c) e_y = R_c (sin c, cos c, 0)`` and the x axis
-    ``R_c Rz(-c) Ry(-b) e_x = R_c (cos b cos c, -cos b sin c, sin b)``.
+    ``q`` (3 J,) radians, joint-major (x, y, z of each joint); ``parent`` (J,): the joint whose child link
+    carries this joint (-1: a base), parents before children; ``offset`` (J, 3): the joint's origin in its
+    parent's child frame (a root joint's: in its base frame), metres; ``base_pos`` (J, 3) and ``base_rot``
+    (J, 3, 3): a root joint's base frame in the world (other rows unused); ``effector_joint`` (E,) and
+    ``effector_offset`` (E, 3): points fixed in a joint's child frame. Returns the DOF origins (3 J, 3) and world
+    axes (3 J, 3), the joints' child origins (J, 3) and the effectors (E, 3), metres.
+
+    The x axis is the parent's x, the y axis that of the frame turned by ``Rx(a)``, the z axis the child's.
     """
-    n_joints = child_pos.shape[0]
-    pos = np.empty((3 * n_joints, 3))
-    ax = np.empty((3 * n_joints, 3))
-    local = np.empty((3, 3))
+    n_joints = parent.shape[0]
+    rot = np.empty((n_joints, 3, 3))
+    pos = np.empty((n_joints, 3))
+    dof_pos = np.empty((3 * n_joints, 3))
+    dof_axes = np.empty((3 * n_joints, 3))
+    r1 = np.empty((3, 3))
+    r2 = np.empty((3, 3))
     for j in range(n_joints):
-        x, y, z, w = child_quat[j, 0], child_quat[j, 1], child_quat[j, 2], child_quat[j, 3]
-        r00, r01, r02 = 1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)
-        r10, r11, r12 = 2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)
-        r20, r21, r22 = 2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)
-        b, c = q[3 * j + 1], q[3 * j + 2]
-        cb, sb, cc, sc = math.cos(b), math.sin(b), math.cos(c), math.sin(c)
-        local[0, 0], local[0, 1], local[0, 2] = cb * cc, -cb * sc, sb
-        local[1, 0], local[1, 1], local[1, 2] = sc, cc, 0.0
-        local[2, 0], local[2, 1], local[2, 2] = 0.0, 0.0, 1.0
-        for a in range(3):
-            k = 3 * j + a
-            u0, u1, u2 = local[a, 0], local[a, 1], local[a, 2]
-            ax[k, 0] = r00 * u0 + r01 * u1 + r02 * u2
-            ax[k, 1] = r10 * u0 + r11 * u1 + r12 * u2
-            ax[k, 2] = r20 * u0 + r21 * u1 + r22 * u2
-            pos[k, 0], pos[k, 1], pos[k, 2] = child_pos[j, 0], child_pos[j, 1], child_pos[j, 2]
-    return pos, ax
+        rp = base_rot[j] if parent[j] < 0 else rot[parent[j]]
+        pp = base_pos[j] if parent[j] < 0 else pos[parent[j]]
+        for i in range(3):
+            pos[j, i] = pp[i] + rp[i, 0] * offset[j, 0] + rp[i, 1] * offset[j, 1] + rp[i, 2] * offset[j, 2]
+        ca, sa = math.cos(q[3 * j]), math.sin(q[3 * j])
+        cb, sb = math.cos(q[3 * j + 1]), math.sin(q[3 * j + 1])
+        cc, sc = math.cos(q[3 * j + 2]), math.sin(q[3 * j + 2])
+        for i in range(3):  # r1 = rp Rx(a), r2 = r1 Ry(b), child = r2 Rz(c)
+            r1[i, 0] = rp[i, 0]
+            r1[i, 1] = rp[i, 1] * ca + rp[i, 2] * sa
+            r1[i, 2] = -rp[i, 1] * sa + rp[i, 2] * ca
+            r2[i, 0] = r1[i, 0] * cb - r1[i, 2] * sb
+            r2[i, 1] = r1[i, 1]
+            r2[i, 2] = r1[i, 0] * sb + r1[i, 2] * cb
+            rot[j, i, 0] = r2[i, 0] * cc + r2[i, 1] * sc
+            rot[j, i, 1] = -r2[i, 0] * sc + r2[i, 1] * cc
+            rot[j, i, 2] = r2[i, 2]
+            dof_axes[3 * j, i] = rp[i, 0]
+            dof_axes[3 * j + 1, i] = r1[i, 1]
+            dof_axes[3 * j + 2, i] = r2[i, 2]
+        for k in range(3):
+            dof_pos[3 * j + k] = pos[j]
+    eff = np.empty((effector_joint.shape[0], 3))
+    for e in range(effector_joint.shape[0]):
+        j = effector_joint[e]
+        for i in range(3):
+            eff[e, i] = pos[j, i] + rot[j, i, 0] * effector_offset[e, 0] + rot[j, i, 1] * effector_offset[e, 1] \
+                + rot[j, i, 2] * effector_offset[e, 2]
+    return dof_pos, dof_axes, pos, eff
 
 
 @njit(cache=True)
