@@ -291,37 +291,50 @@ def _membrane(world: World, kb: KitBodies, obj: KitObject) -> None:
     kb.pose_links.append((f"kit.{obj.id}", body, -1))
 
 
-def _cymbal(world: World, kb: KitBodies, obj: KitObject) -> None:
-    mass = math.pi * obj.radius**2 * obj.thickness * CYMBAL_DENSITY
-    inertia = cylinder_inertia(mass, obj.radius, obj.thickness)
-    shapes = [Shape("cylinder", (obj.radius, obj.thickness, 0.0), xyz=(0, 0, -obj.thickness / 2), rgba=_BRASS)]
-    if obj.bell_radius > 0:
-        bell_h = obj.bell_height + obj.thickness  # the bell's cylinder starts at the plate's underside
-        shapes.append(Shape("cylinder", (obj.bell_radius, bell_h, 0.0), xyz=(0, 0, bell_h / 2 - obj.thickness),
-                            rgba=_BRASS))
-    robot = Robot(obj.id)
-    robot.add_link(Link("mount", Inertial(0.0)))
-    robot.add_link(Link("hinge_x", Inertial(1e-3, inertia=(1e-7, 1e-7, 1e-7, 0, 0, 0))))
-    robot.add_link(Link(obj.id, Inertial(mass, inertia=inertia), tuple(shapes)))
+def _cymbals(world: World, kb: KitBodies, objects: list[KitObject]) -> None:
+    """Every cymbal in one fixed-base body: per cymbal a mount fixed where the kit puts it, and the cymbal on a
+    two-axis spring hinge. One body rather than one per cymbal: the springs are read and their torques sent in
+    one call each per step (they are independent branches of one tree, so they swing as separate bodies would).
+    """
+    if not objects:
+        return
+    robot = Robot("cymbals")
+    robot.add_link(Link("cymbal_stands", Inertial(0.0)))
     swing = 0.6
-    robot.add_joint(Joint("swing_x", "revolute", "mount", "hinge_x", axis=(1, 0, 0), lower=-swing, upper=swing,
-                          effort=100, velocity=50))
-    robot.add_joint(Joint("swing_y", "revolute", "hinge_x", obj.id, axis=(0, 1, 0), lower=-swing, upper=swing,
-                          effort=100, velocity=50))
-    body = load_robot(world.client, robot, obj.position, quat_from_rpy_deg(obj.rotation_deg), fixed_base=True,
+    for obj in objects:
+        mass = math.pi * obj.radius**2 * obj.thickness * CYMBAL_DENSITY
+        inertia = cylinder_inertia(mass, obj.radius, obj.thickness)
+        shapes = [Shape("cylinder", (obj.radius, obj.thickness, 0.0), xyz=(0, 0, -obj.thickness / 2), rgba=_BRASS)]
+        if obj.bell_radius > 0:
+            bell_h = obj.bell_height + obj.thickness  # the bell's cylinder starts at the plate's underside
+            shapes.append(Shape("cylinder", (obj.bell_radius, bell_h, 0.0), xyz=(0, 0, bell_h / 2 - obj.thickness),
+                                rgba=_BRASS))
+        mount, hinge = f"{obj.id}_mount", f"{obj.id}_hinge_x"
+        robot.add_link(Link(mount, Inertial(0.0)))
+        robot.add_link(Link(hinge, Inertial(1e-3, inertia=(1e-7, 1e-7, 1e-7, 0, 0, 0))))
+        robot.add_link(Link(obj.id, Inertial(mass, inertia=inertia), tuple(shapes)))
+        robot.add_joint(Joint(f"{obj.id}_stand", "fixed", "cymbal_stands", mount, xyz=tuple(obj.position),
+                              rpy=tuple(math.radians(a) for a in obj.rotation_deg)))  # type: ignore[arg-type]
+        robot.add_joint(Joint(f"{obj.id}_swing_x", "revolute", mount, hinge, axis=(1, 0, 0), lower=-swing,
+                              upper=swing, effort=100, velocity=50))
+        robot.add_joint(Joint(f"{obj.id}_swing_y", "revolute", hinge, obj.id, axis=(0, 1, 0), lower=-swing,
+                              upper=swing, effort=100, velocity=50))
+    body = load_robot(world.client, robot, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0), fixed_base=True,
                       flags=p.URDF_USE_INERTIA_FROM_FILE)
     _free_joints(world, body)
-    # swing at about 1.2 Hz, amplitude decaying with a 1.5 s time constant
-    i_diam = inertia[0]
-    k = i_diam * (2 * math.pi * 1.2) ** 2
-    c = 2 * i_diam / 1.5
-    kb.springs += [Spring(body, 0, k, c), Spring(body, 1, k, c)]
-    _set_contact(world, body, 1, obj)
-    for link in (-1, 0):
-        world.client.setCollisionFilterGroupMask(body, link, 0, 0)
-    kb.instrument_of[(body, 1)] = obj.id
-    kb.frame_of[obj.id] = (body, 1)
-    kb.pose_links.append((f"kit.{obj.id}", body, 1))
+    names = {world.client.getJointInfo(body, j)[12].decode(): j for j in range(world.client.getNumJoints(body))}
+    for obj in objects:
+        link = names[obj.id]
+        # swing at about 1.2 Hz, amplitude decaying with a 1.5 s time constant
+        i_diam = cylinder_inertia(math.pi * obj.radius**2 * obj.thickness * CYMBAL_DENSITY, obj.radius,
+                                  obj.thickness)[0]
+        k = i_diam * (2 * math.pi * 1.2) ** 2
+        c = 2 * i_diam / 1.5
+        kb.springs += [Spring(body, names[f"{obj.id}_hinge_x"], k, c), Spring(body, link, k, c)]
+        _set_contact(world, body, link, obj)
+        kb.instrument_of[(body, link)] = obj.id
+        kb.frame_of[obj.id] = (body, link)
+        kb.pose_links.append((f"kit.{obj.id}", body, link))
 
 
 def _footboard_robot(robot: Robot, prefix: str, parent: str, xyz: tuple[float, float, float]) -> str:
@@ -484,14 +497,13 @@ def build_kit(world: World, kit: Kit, only: set[str] | None = None) -> KitBodies
     for obj in objects:
         if obj.kind in ("membrane", "bell"):
             _membrane(world, kb, obj)
-        elif obj.kind == "cymbal":
-            _cymbal(world, kb, obj)
         elif obj.kind == "hihat":
             _hihat(world, kb, obj)
         elif obj.kind == "pedal":
             _pedal(world, kb, obj)
         elif obj.kind == "throne":
             _throne(world, kb, obj)
+    _cymbals(world, kb, [obj for obj in objects if obj.kind == "cymbal"])
     if kb.hihat is not None and "hihat_pedal" in kb.pedals:
         kb.hihat.pedal = kb.pedals["hihat_pedal"]
     if only is None:
