@@ -96,9 +96,8 @@ class ContactTracker:
         self._index_maps: dict[tuple[int, ...], dict[int, int]] = {}
         self._chains: dict[Key, list[_ChainJoint]] = {}
         self.instrument_every = 1
-        """Read the moving instruments' (cymbals') joint velocities every this many steps; strikers every step.
-        A cymbal swings at about 1 Hz: a few milliseconds old, its velocity is still its velocity."""
-        self._calls = 0
+        """Read the moving instruments' (cymbals') joint velocities at steps that are multiples of this; strikers
+        every step. A cymbal swings at about 1 Hz: a few milliseconds old, its velocity is still its velocity."""
         self.touching: set[str] = set()
         """Base part names of the strikers in contact at the last step (e.g. left_stick, kick_beater)."""
         self.episodes_started = 0
@@ -133,10 +132,9 @@ class ContactTracker:
                  for b in bodies] for bodies in (striker_bodies, instrument_bodies))
         assert self._read_bodies is not None
         strikers, instruments = self._read_bodies
-        bodies = strikers + instruments if self._calls % self.instrument_every == 0 else strikers
-        self._calls += 1
-        c = self.world.client
         step = self.world.steps
+        bodies = strikers + instruments if step % self.instrument_every == 0 else strikers
+        c = self.world.client
         for body, joints in bodies:
             reading = self.kit.readings.get(body)
             if reading is not None and reading[0] == step and reading[1] == joints:  # the kit's springs read it

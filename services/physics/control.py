@@ -40,7 +40,13 @@ import pybullet as p
 
 from services.physics.body import LIMBS, Body
 from services.physics.character import JOINT_GROUP, JOINTS, joint_kind
-from services.physics.kernels import dls_reference, enforce_limits, held_torque, project_into_ellipsoids
+from services.physics.kernels import (
+    computed_torque_state,
+    dls_reference,
+    enforce_limits,
+    held_torque,
+    project_into_ellipsoids,
+)
 from services.physics.limits import JointLimits
 from services.physics.urdf import load_robot
 from services.physics.world import World, WorldSettings
@@ -174,6 +180,7 @@ class Controller:
         """Rates (57,) rad/s of a moving null-space posture (``rest``), fed forward by the IK; None: still."""
         self._no_rate = np.zeros(n)
         self._no_mass = np.zeros((0, 0))
+        self._no_softening = np.ones(n)
 
     def _update_gains(self) -> None:
         """ks = I w^2, kd = 2 zeta w I with I the DOF's inertia with every other joint free.
@@ -322,22 +329,17 @@ class Controller:
         self._ensure_id_model()
         assert self._id is not None
         world, copies = self._id
-        w = 2 * math.pi * self.params.ct_frequency_hz
-        zeta = self.params.damping_ratio
         n = len(theta)
+        soft = self._no_softening
         if self.touching:
             soft = np.ones(n)
             for limb in self.touching:  # a relaxed grip while the stick is on a head
                 soft[self.body.chain_mask[LIMBS.index(limb)]] = self.params.contact_softening
-            qdd = theta_ddot_ff * soft + w * w * soft**2 * (theta_t - theta) * self.scale_ks \
-                + 2 * zeta * w * soft * (theta_dot_t - theta_dot) * self.scale_kd
-        else:
-            qdd = theta_ddot_ff + w * w * (theta_t - theta) * self.scale_ks \
-                + 2 * zeta * w * (theta_dot_t - theta_dot) * self.scale_kd
         pq, pqd = self.body.passive_state() if passive is None else passive
         # rows q, qd, qdd in state order: the 57 DOF then the passive joints (not driven: accelerations 0)
-        state = np.zeros((3, n + len(pq)))
-        state[0, :n], state[0, n:], state[1, :n], state[1, n:], state[2, :n] = theta, pq, theta_dot, pqd, qdd
+        state = computed_torque_state(theta, theta_dot, theta_t, theta_dot_t, theta_ddot_ff, soft, self.scale_ks,
+                                      self.scale_kd, 2 * math.pi * self.params.ct_frequency_hz,
+                                      self.params.damping_ratio, pq, pqd)
         tau = np.zeros(state.shape[1])
         refresh = self.control_dt > self.world.dt  # held between updates: keep M(q) for the PD's correction
         if refresh:
@@ -367,7 +369,7 @@ class Controller:
             self._last_theta_dot_t = theta_dot_t.copy()
         qdd_ff = np.clip((theta_dot_t - self._last_theta_dot_t) / self.control_dt, -self.params.max_ff_accel,
                          self.params.max_ff_accel)
-        self._last_theta_dot_t = theta_dot_t.copy()
+        self._last_theta_dot_t = theta_dot_t
         if self.mode == "joint_spd":
             # PyBullet's stable PD with the pinned floating base; gravity and limit torques are
             # not expressible there, so they go in as the PD's target shift tau / ks
@@ -399,8 +401,9 @@ class Controller:
                     extra = extra + self.gravity_torque()
                 tau = self.ks * (theta_t - theta) + self.kd * (theta_dot_t - theta_dot) + extra
                 k_between, d_between, mass = self.ks, self.kd, None
-            self._held = _HeldTorques(tau, theta.copy(), theta_dot.copy(), theta_dot_t.copy(), k_between, d_between,
-                                      mass)
+            if self.control_dt > self.world.dt:  # updates held over several steps (apply_between)
+                self._held = _HeldTorques(tau, theta.copy(), theta_dot.copy(), theta_dot_t.copy(), k_between,
+                                          d_between, mass)
             tau = np.clip(tau, -body.torque_limit, body.torque_limit)
             self.last_tau = tau
             body.send_torques(np.concatenate([tau, passive_tau]))

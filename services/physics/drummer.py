@@ -46,7 +46,7 @@ from services.physics.body import LIMBS, Body
 from services.physics.character import DOF_NAMES, JOINTS, CharacterSpec, build_character
 from services.physics.contacts import ContactTracker, Striker
 from services.physics.control import Controller
-from services.physics.kitbodies import build_kit
+from services.physics.kitbodies import SLOW_SPRING_PERIOD_S, build_kit
 from services.physics.limits import JointLimits, default_limits
 from services.physics.targets import TargetError, Track
 from services.physics.urdf import Inertial, Link, Robot, Shape, load_robot
@@ -225,7 +225,7 @@ class DrummerScene:
         """Pedals a resting foot must not press (their beaters would rest on the head); the hi-hat foot presses
         its pedal to the plan's depth (a closed hi-hat is held closed by the foot)."""
         self.tracker = ContactTracker(world, self.kit_bodies)
-        self.tracker.instrument_every = self.control_every
+        self.tracker.instrument_every = max(1, round(SLOW_SPRING_PERIOD_S / world.dt))  # with the kit's readings
         for side in ("left", "right"):
             self.tracker.add_striker(Striker(self.body.id, self.body.link_index[f"{side}_stick"], f"{side}_stick",
                                              stick=self.spec.stick, side=side))
@@ -563,7 +563,7 @@ class DrummerScene:
             theta, theta_dot, pq, pqd = self._read_state()
             self.controller.apply_between(theta, theta_dot, t_next - self._last_update_s,
                                           self.passive_torques(pq, pqd))
-            self.kit_bodies.pre_step(self.world, update=False)
+            self.kit_bodies.pre_step(self.world)
             return
         self._steps_to_update = self.control_every - 1
         self._last_update_s = t_next

@@ -286,12 +286,14 @@ def dls_reference(theta: np.ndarray, ref: np.ndarray, rest: np.ndarray, posture_
     a = jw @ j.T
     for i in range(3 * m):
         a[i, i] += damping * damping
-    jpinv = _cholesky_solve(a, jw).T  # W^-1 J^T (J W^-1 J^T + lambda^2 I)^-1, (N, 3m)
     active = np.zeros(n, dtype=np.bool_)
     for i in range(m):
         active |= mask[i]
     posture = np.where(active, posture_gain * (rest - ref) + posture_rate, 0.0)
-    qdot = jpinv @ xdot + posture - jpinv @ (j @ posture)
+    # with J+ = W^-1 J^T A^-1 (A = J W^-1 J^T + lambda^2 I, symmetric), J+ xdot + (I - J+ J) posture is
+    # W^-1 J^T A^-1 (xdot - J posture) + posture: one solve of the task-sized system
+    y = _cholesky_solve(a, (xdot - j @ posture).reshape(3 * m, 1))
+    qdot = (jw.T @ y).reshape(n) + posture
     fastest = np.max(np.abs(qdot))
     if fastest > max_joint_speed:  # near a singularity (arm stretched): slow down, do not whip
         qdot *= max_joint_speed / fastest
@@ -329,6 +331,28 @@ def held_torque(tau0: np.ndarray, theta0: np.ndarray, theta_dot0: np.ndarray, th
     for i in range(n):
         out[i] = min(max(tau0[i] + corr[i], -limit[i]), limit[i])
     return out
+
+
+@njit(cache=True)
+def computed_torque_state(theta: np.ndarray, theta_dot: np.ndarray, theta_t: np.ndarray, theta_dot_t: np.ndarray,
+                          theta_ddot_ff: np.ndarray, soft: np.ndarray, scale_ks: np.ndarray, scale_kd: np.ndarray,
+                          w: float, zeta: float, passive_q: np.ndarray, passive_qd: np.ndarray) -> np.ndarray:
+    """The inverse dynamics' input (3, N + P): joint angles (rad), rates (rad/s) and the accelerations (rad/s^2)
+    ``qdd_ff s + w^2 s^2 ks (theta_t - theta) + 2 zeta w s kd (theta_dot_t - theta_dot)`` of the computed-torque
+    PD (``s`` the grip softening per DOF, ``ks``, ``kd`` the gain scales), then the P passive joints' angles and
+    rates (accelerations 0: the fingers are not driven)."""
+    n, extra = theta.shape[0], passive_q.shape[0]
+    state = np.zeros((3, n + extra))
+    for i in range(n):
+        s = soft[i]
+        state[0, i] = theta[i]
+        state[1, i] = theta_dot[i]
+        state[2, i] = theta_ddot_ff[i] * s + w * w * s * s * (theta_t[i] - theta[i]) * scale_ks[i] \
+            + 2 * zeta * w * s * (theta_dot_t[i] - theta_dot[i]) * scale_kd[i]
+    for i in range(extra):
+        state[0, n + i] = passive_q[i]
+        state[1, n + i] = passive_qd[i]
+    return state
 
 
 @njit(cache=True)

@@ -117,6 +117,8 @@ def hihat_gap(press: float, opening: float, closes_at: float) -> float:
     return HIHAT_CONTACT_GAP_M - HIHAT_CLAMP_M * min(1.0, (press - closes_at) / (1.0 - closes_at))
 
 
+SLOW_SPRING_PERIOD_S = 0.004
+"""The cymbals' springs are recomputed this often, seconds (they swing at about 1.2 Hz)."""
 SPRING_TORQUE_FLOOR_NM = 1e-6
 """A slow spring (a cymbal's) whose torques are all below this (N m) is at rest: nothing is sent (PyBullet's
 torques are zero after every step anyway), which saves a call per resting cymbal and step."""
@@ -202,14 +204,15 @@ class KitBodies:
         """Whether the foot is closing the hi-hat now (a plate contact is a chick, not a rattle)."""
         return self.hihat_closing_rate > HIHAT_CHICK_RATE_M_S
 
-    def pre_step(self, world: World, update: bool = True) -> None:
+    def pre_step(self, world: World) -> None:
         """Apply the spring torques and the hi-hat rod coupling for the next step.
 
-        ``update=False`` recomputes only the fast springs (pedals) and re-applies the slow ones' last torques
-        (PyBullet clears applied torques after every step): the cymbals swing at about 1 Hz, so the drummer's
-        control rate is fast enough for them.
+        The fast springs (pedals) are computed at every step; the slow ones (cymbals, swinging at about 1 Hz)
+        every ``SLOW_SPRING_PERIOD_S``, their torques re-applied in between (PyBullet clears applied torques
+        after every step).
         """
         c = world.client
+        update = world.steps % max(1, round(SLOW_SPRING_PERIOD_S / world.dt)) == 0
         if self._spring_groups is None:
             groups: dict[tuple[int, bool], list[Spring]] = {}
             for s in self.springs:
