@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from itertools import chain
+from operator import itemgetter
 from typing import Any
 
 import numpy as np
@@ -28,6 +29,8 @@ from services.physics.urdf import load_robot
 from services.physics.world import World, rotation_matrix
 
 LIMBS = ("left_hand", "right_hand", "left_foot", "right_foot")
+_ANGLE, _RATE = itemgetter(0), itemgetter(1)
+"""A joint state's angle and rate (``getJointStates`` rows)."""
 
 
 @dataclass(frozen=True)
@@ -168,7 +171,7 @@ class Body:
         states = [s for part in self.parts for s in c.getJointStates(part.id, part.state_joints)]
         m = len(states)
         # angles then velocities in one flat read, put into state order (each row contiguous)
-        both = np.fromiter(chain((s[0] for s in states), (s[1] for s in states)), float, 2 * m).reshape(2, m)
+        both = np.fromiter(chain(map(_ANGLE, states), map(_RATE, states)), float, 2 * m).reshape(2, m)
         both = both[:, self._from_read]
         q, qd = both[0], both[1]
         self.last_qd = qd

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pybullet as p
@@ -101,6 +102,8 @@ class ContactTracker:
         self.touching: set[str] = set()
         """Base part names of the strikers in contact at the last step (e.g. left_stick, kick_beater)."""
         self.episodes_started = 0
+        self.last_points: tuple[tuple[Any, ...], ...] = ()
+        """Every contact point of the last step, as PyBullet reads them (the drummer's feet on the pedals too)."""
 
     def add_striker(self, striker: Striker) -> None:
         self.strikers[(striker.body, striker.link)] = striker
@@ -187,7 +190,8 @@ class ContactTracker:
         # one read of every contact point in the world (a call per striker body cost more); a pair is reported
         # once, in either order: take each point from the side of its striker (position on the instrument,
         # normal from the instrument to the striker)
-        for cp in c.getContactPoints():
+        self.last_points = c.getContactPoints()
+        for cp in self.last_points:
             force = float(cp[9])
             if force <= 0.0:
                 continue  # within the collision margin, or separating: no push this step

@@ -318,10 +318,12 @@ class Controller:
         self._id = (world, copies)
 
     def computed_torque(self, theta: np.ndarray, theta_dot: np.ndarray, theta_t: np.ndarray,
-                        theta_dot_t: np.ndarray, theta_ddot_ff: np.ndarray,
+                        theta_dot_t: np.ndarray, last_theta_dot_t: np.ndarray,
                         passive: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
         """tau = M(q) (qdd_ff + w^2 (q_t - q) + 2 zeta w (qd_t - qd)) + C(q, qd) + g(q): a PD whose gains are
-        scaled by the body's own inertia (inverse dynamics on a fixed-base copy; the seat does not move).
+        scaled by the body's own inertia (inverse dynamics on a fixed-base copies; the bases do not move). The
+        feed-forward ``qdd_ff`` is the target rate's change since the last update, ``last_theta_dot_t``
+        (rad/s), over the control period, within ``max_ff_accel``.
 
         ``passive``: the fulcrum angles and velocities (rad, rad/s) if already read. With updates held over
         several steps, ``M(q)`` for the correction between updates is refreshed every ``MASS_REFRESH_S``
@@ -337,9 +339,9 @@ class Controller:
                 soft[self.body.chain_mask[LIMBS.index(limb)]] = self.params.contact_softening
         pq, pqd = self.body.passive_state() if passive is None else passive
         # rows q, qd, qdd in state order: the 57 DOF then the passive joints (not driven: accelerations 0)
-        state = computed_torque_state(theta, theta_dot, theta_t, theta_dot_t, theta_ddot_ff, soft, self.scale_ks,
-                                      self.scale_kd, 2 * math.pi * self.params.ct_frequency_hz,
-                                      self.params.damping_ratio, pq, pqd)
+        state = computed_torque_state(theta, theta_dot, theta_t, theta_dot_t, last_theta_dot_t, self.control_dt,
+                                      self.params.max_ff_accel, soft, self.scale_ks, self.scale_kd,
+                                      2 * math.pi * self.params.ct_frequency_hz, self.params.damping_ratio, pq, pqd)
         tau = np.zeros(state.shape[1])
         refresh = self.control_dt > self.world.dt  # held between updates: keep M(q) for the PD's correction
         if refresh:
@@ -365,10 +367,7 @@ class Controller:
         c = self.world.client
         body = self.body
         theta_t, extra = self.enforce_limits(theta, theta_t)
-        if self._last_theta_dot_t is None:
-            self._last_theta_dot_t = theta_dot_t.copy()
-        qdd_ff = np.clip((theta_dot_t - self._last_theta_dot_t) / self.control_dt, -self.params.max_ff_accel,
-                         self.params.max_ff_accel)
+        last_rate = theta_dot_t if self._last_theta_dot_t is None else self._last_theta_dot_t
         self._last_theta_dot_t = theta_dot_t
         if self.mode == "joint_spd":
             # PyBullet's stable PD with the pinned floating base; gravity and limit torques are
@@ -391,7 +390,7 @@ class Controller:
             self.last_tau = np.zeros_like(theta)
         else:
             if self.mode in COMPUTED_TORQUE_MODES:
-                tau = self.computed_torque(theta, theta_dot, theta_t, theta_dot_t, qdd_ff, passive) + extra
+                tau = self.computed_torque(theta, theta_dot, theta_t, theta_dot_t, last_rate, passive) + extra
                 # between control updates: the same PD through the mass matrix of the update
                 k_between = self._w_ct**2 * self.scale_ks
                 d_between = 2 * self.params.damping_ratio * self._w_ct * self.scale_kd

@@ -222,6 +222,7 @@ class DrummerScene:
         rest posture, e.g. the captured joint trajectory of a gesture whose stick tips are the targets."""
         hihat_pedal = self.kit_bodies.hihat.pedal if self.kit_bodies.hihat is not None else None
         self._beater_pedals = [pedal for pedal in self.kit_bodies.pedals.values() if pedal is not hihat_pedal]
+        self._beater_pedal_bodies = {pedal.body for pedal in self._beater_pedals}
         """Pedals a resting foot must not press (their beaters would rest on the head); the hi-hat foot presses
         its pedal to the plan's depth (a closed hi-hat is held closed by the foot)."""
         self.tracker = ContactTracker(world, self.kit_bodies)
@@ -572,14 +573,14 @@ class DrummerScene:
         self.body.update(theta)
         touching = {f"{side}_hand" for side in ("left", "right") if f"{side}_stick" in self.tracker.touching}
         targets = self.cartesian_targets(t_next)
-        c = self.world.client
+        pedals = self._beater_pedal_bodies
         for side in ("left", "right"):  # a foot resting on a footboard: no wind-up either
             limb = f"{side}_foot"
             if limb in targets and targets[limb][1][2] < -FOOT_STROKE_SPEED:
                 continue  # a pedal stroke: the foot drives the footboard down (its end stop and the beater stop it)
-            leg, foot = self.body.link_ref[self.body.link_index[limb]]
-            if any(c.getContactPoints(bodyA=leg, bodyB=pedal.body, linkIndexA=foot)
-                   for pedal in self._beater_pedals):
+            foot = self.body.link_ref[self.body.link_index[limb]]
+            if any(((cp[1], cp[3]) == foot and cp[2] in pedals) or ((cp[2], cp[4]) == foot and cp[1] in pedals)
+                   for cp in self.tracker.last_points):  # the last step's contact points, as the tracker read them
                 touching.add(limb)
         self.controller.touching = touching
         self.last_targets = targets

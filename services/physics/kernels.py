@@ -335,19 +335,22 @@ def held_torque(tau0: np.ndarray, theta0: np.ndarray, theta_dot0: np.ndarray, th
 
 @njit(cache=True)
 def computed_torque_state(theta: np.ndarray, theta_dot: np.ndarray, theta_t: np.ndarray, theta_dot_t: np.ndarray,
-                          theta_ddot_ff: np.ndarray, soft: np.ndarray, scale_ks: np.ndarray, scale_kd: np.ndarray,
-                          w: float, zeta: float, passive_q: np.ndarray, passive_qd: np.ndarray) -> np.ndarray:
+                          last_theta_dot_t: np.ndarray, dt: float, max_ff: float, soft: np.ndarray,
+                          scale_ks: np.ndarray, scale_kd: np.ndarray, w: float, zeta: float, passive_q: np.ndarray,
+                          passive_qd: np.ndarray) -> np.ndarray:
     """The inverse dynamics' input (3, N + P): joint angles (rad), rates (rad/s) and the accelerations (rad/s^2)
     ``qdd_ff s + w^2 s^2 ks (theta_t - theta) + 2 zeta w s kd (theta_dot_t - theta_dot)`` of the computed-torque
-    PD (``s`` the grip softening per DOF, ``ks``, ``kd`` the gain scales), then the P passive joints' angles and
+    PD (``qdd_ff`` the target rate's change from ``last_theta_dot_t`` over ``dt`` seconds, within ``max_ff``;
+    ``s`` the grip softening per DOF; ``ks``, ``kd`` the gain scales), then the P passive joints' angles and
     rates (accelerations 0: the fingers are not driven)."""
     n, extra = theta.shape[0], passive_q.shape[0]
     state = np.zeros((3, n + extra))
     for i in range(n):
         s = soft[i]
+        ff = min(max((theta_dot_t[i] - last_theta_dot_t[i]) / dt, -max_ff), max_ff)
         state[0, i] = theta[i]
         state[1, i] = theta_dot[i]
-        state[2, i] = theta_ddot_ff[i] * s + w * w * s * s * (theta_t[i] - theta[i]) * scale_ks[i] \
+        state[2, i] = ff * s + w * w * s * s * (theta_t[i] - theta[i]) * scale_ks[i] \
             + 2 * zeta * w * s * (theta_dot_t[i] - theta_dot[i]) * scale_kd[i]
     for i in range(extra):
         state[0, n + i] = passive_q[i]

@@ -316,8 +316,9 @@ def _cymbals(world: World, kb: KitBodies, objects: list[KitObject]) -> None:
         robot.add_link(Link(mount, Inertial(0.0)))
         robot.add_link(Link(hinge, Inertial(1e-3, inertia=(1e-7, 1e-7, 1e-7, 0, 0, 0))))
         robot.add_link(Link(obj.id, Inertial(mass, inertia=inertia), tuple(shapes)))
-        robot.add_joint(Joint(f"{obj.id}_stand", "fixed", "cymbal_stands", mount, xyz=tuple(obj.position),
-                              rpy=tuple(math.radians(a) for a in obj.rotation_deg)))  # type: ignore[arg-type]
+        roll, pitch, yaw = (math.radians(a) for a in obj.rotation_deg)
+        robot.add_joint(Joint(f"{obj.id}_stand", "fixed", "cymbal_stands", mount, xyz=obj.position,
+                              rpy=(roll, pitch, yaw)))
         robot.add_joint(Joint(f"{obj.id}_swing_x", "revolute", mount, hinge, axis=(1, 0, 0), lower=-swing,
                               upper=swing, effort=100, velocity=50))
         robot.add_joint(Joint(f"{obj.id}_swing_y", "revolute", hinge, obj.id, axis=(0, 1, 0), lower=-swing,
