@@ -54,9 +54,11 @@ class LoadedPart:
 class Body:
     """A generated character in a :class:`World`, its seat fixed at ``seat_position`` (metres).
 
-    ``floating_base``: load each part's base as a free body pinned to the throne by a fixed constraint instead
+    ``floating_base``: load the trunk's base as a free body pinned to the throne by a fixed constraint instead
     of a fixed base. The body moves the same; PyBullet's stable PD needs it (it silently fails to track on a
-    fixed base), but the constraints' rows cost about a fifth of every step.
+    fixed base), but the constraint's rows cost about a fifth of every step. The legs keep fixed bases: PyBullet's
+    stable PD on a pinned leg gave NaN at its first step about one run in seven (the same inputs otherwise
+    tracked), so the stable-PD mode drives the legs with explicit torques (:meth:`Controller.apply`).
     """
 
     def __init__(self, world: World, model: CharacterModel, seat_position: tuple[float, float, float],
@@ -75,12 +77,13 @@ class Body:
         self._parent: dict[int, int] = {}
         offset = 0
         bases: list[tuple[int, int]] = []
-        for spec in model.parts:
+        for k, spec in enumerate(model.parts):
             base = tuple(float(s + o) for s, o in zip(seat_position, spec.base_offset_m, strict=True))
+            floating = floating_base and k == 0  # the trunk only (see the class docstring)
             body = load_robot(c, spec.robot, base, (0.0, 0.0, 0.0, 1.0),  # type: ignore[arg-type]
-                              fixed_base=not floating_base, flags=p.URDF_USE_INERTIA_FROM_FILE)
+                              fixed_base=not floating, flags=p.URDF_USE_INERTIA_FROM_FILE)
             self.ids.append(body)
-            if floating_base:
+            if floating:
                 pin = c.createConstraint(body, -1, -1, -1, p.JOINT_FIXED, [0, 0, 0], [0, 0, 0], list(base))
                 c.changeConstraint(pin, maxForce=1e5)
                 self.pins.append(pin)
@@ -240,13 +243,10 @@ class Body:
         if q is None:
             q = self.state()[0]
         parent, offset, base_pos, base_rot, effector_joint, effector_offset = self._fk
-        if self.floating_base:  # pinned bases may give a little: use where they are now
-            c = self.world.client
-            for k in np.flatnonzero(parent < 0):
-                part = next(p for p in self.parts if self.link_ref[int(self.dofs[3 * k])][0] == p.id)
-                pos, quat = c.getBasePositionAndOrientation(part.id)  # the bases' inertial frames are their own
-                base_pos[k] = pos
-                base_rot[k] = rotation_matrix(quat)
+        if self.floating_base:  # the trunk's pinned base may give a little: use where it is now
+            pos, quat = self.world.client.getBasePositionAndOrientation(self.id)  # its inertial frame is its own
+            base_pos[0] = pos
+            base_rot[0] = rotation_matrix(quat)
         self.dof_pos, self.dof_axes, joint_pos, self.effector_pos = forward_kinematics(
             np.ascontiguousarray(q, dtype=float), parent, offset, base_pos, base_rot, effector_joint,
             effector_offset)

@@ -75,8 +75,10 @@ STICK_GRIP_TILT_RAD = math.radians(45.0)
 fingers (about in line with the forearm when the wrist is a little flexed). Square to the hand (0) left the
 wrists at their flexion limit at rest, and loud strokes whipped the stick into a second, harder touch."""
 SEAT_MASS_KG = 20.0
-"""Mass of the base link: the throne's cushion under the pelvis, pinned to the throne (not part of the body).
-Heavy so that the seat joint's reaction torque does not spin a light base against the pin constraint."""
+"""Mass of the trunk's base link: the throne's cushion under the pelvis (not part of the body); each leg's base
+(the cushion under a thigh) has half of it. Only a floating base pinned to the throne (``--floating-base``) moves:
+heavy, so that a joint's reaction torque does not spin a light base against the pin constraint (a massless one
+would be static in PyBullet, where the stable PD silently fails)."""
 _SKIN = (0.86, 0.72, 0.6, 1.0)
 _SHIRT = (0.2, 0.3, 0.5, 1.0)
 _TROUSERS = (0.15, 0.15, 0.2, 1.0)
@@ -249,7 +251,7 @@ def build_character(spec: CharacterSpec) -> CharacterModel:
         # the leg: its own multibody, based on the throne at the hip joint centre (see the module docstring)
         leg = Robot(f"percussionist_{side}_leg")
         mount = f"{side}_hip_mount"
-        leg.add_link(Link(mount, Inertial(0.0)))
+        leg.add_link(Link(mount, Inertial(SEAT_MASS_KG / 2, inertia=(0.5, 0.5, 0.5, 0.0, 0.0, 0.0))))
         model.parts.append(BodyPart(leg, (sx * a.hip_width_m / 2, hip_y, hip_z)))
         th, sh, foot = seg["thigh"], seg["shank"], seg["foot"]
         segment_link(f"{side}_thigh", th, (0.0, 0.0, -th.com_from_proximal_m), (bone(th, -1.0, _TROUSERS),),

@@ -370,24 +370,29 @@ class Controller:
         last_rate = theta_dot_t if self._last_theta_dot_t is None else self._last_theta_dot_t
         self._last_theta_dot_t = theta_dot_t
         if self.mode == "joint_spd":
-            # PyBullet's stable PD with the pinned floating base; gravity and limit torques are
-            # not expressible there, so they go in as the PD's target shift tau / ks
+            # PyBullet's stable PD on the trunk, whose floating base is pinned to the throne; gravity and limit
+            # torques are not expressible there, so they go in as the PD's target shift tau / ks. The legs (fixed
+            # bases, see Body) take the computed-torque PD's explicit torques
+            legs = self.computed_torque(theta, theta_dot, theta_t, theta_dot_t, last_rate, passive) + extra
             if self.params.gravity_compensation:
                 extra = extra + self.gravity_torque()
-            shift = extra / np.maximum(self.ks, 1e-9)
-            target = theta_t + shift
+            target = theta_t + extra / np.maximum(self.ks, 1e-9)
             n = len(theta)
-            for part in body.parts:
-                dofs = part.state_slots[part.state_slots < n]
-                c.setJointMotorControlMultiDofArray(
-                    part.id, part.state_joints[:len(dofs)], p.STABLE_PD_CONTROL,
-                    targetPositions=[[float(v)] for v in target[dofs]],
-                    targetVelocities=[[float(v)] for v in theta_dot_t[dofs]],
-                    positionGains=[float(v) for v in self.ks[dofs]],
-                    velocityGains=[float(v) for v in self.kd[dofs]],
-                    forces=[[float(v)] for v in body.torque_limit[dofs]],
-                )
-            self.last_tau = np.zeros_like(theta)
+            trunk = body.parts[0]
+            dofs = trunk.state_slots[trunk.state_slots < n]
+            c.setJointMotorControlMultiDofArray(
+                trunk.id, trunk.state_joints[:len(dofs)], p.STABLE_PD_CONTROL,
+                targetPositions=[[float(v)] for v in target[dofs]],
+                targetVelocities=[[float(v)] for v in theta_dot_t[dofs]],
+                positionGains=[float(v) for v in self.ks[dofs]],
+                velocityGains=[float(v) for v in self.kd[dofs]],
+                forces=[[float(v)] for v in body.torque_limit[dofs]],
+            )
+            legs = np.clip(legs, -body.torque_limit, body.torque_limit)
+            for part in body.parts[1:]:
+                c.setJointMotorControlArray(part.id, part.state_joints, p.TORQUE_CONTROL,
+                                            forces=legs[part.state_slots].tolist())
+            self.last_tau = np.where(np.isin(np.arange(n), dofs), 0.0, legs)
         else:
             if self.mode in COMPUTED_TORQUE_MODES:
                 tau = self.computed_torque(theta, theta_dot, theta_t, theta_dot_t, last_rate, passive) + extra
