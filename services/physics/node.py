@@ -32,6 +32,7 @@ from common.kit import EventType
 from common.messages.physics import ControlModeName
 from common.runtime import Node, run_node
 from services.physics.core import PhysicsCore, PhysicsSettings
+from services.physics.precompile import warm_up
 
 log = logging.getLogger("batteur.physics")
 
@@ -109,6 +110,8 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace) -> PhysicsCore:
     player.library = [Path(d).expanduser() for d in settings.score_dir]
     if settings.scene == "drummer":
         _ = player.preparation_s  # loads the gesture database now (about 1 s), not in the first score message
+        # compiles the numba kernels now (or loads them from the cache), not in the first live steps
+        log.info("physics kernels ready (%.1f s)", warm_up())
     if settings.score:
         try:
             player.load(settings.score, trusted=True)  # a command-line path: trusted, unlike a message's

@@ -103,6 +103,24 @@ def test_dockerfiles_copy_what_the_services_need() -> None:
     assert "puredata-core" in pd_text and "sound-client.pd" in pd_text and "batteur-voice.pd" in pd_text
 
 
+@pytest.mark.slow
+def test_the_image_build_step_compiles_the_physics_kernels_into_its_cache(tmp_path: Path) -> None:
+    """The Dockerfile's ``python -I -m services.physics.precompile`` fills NUMBA_CACHE_DIR; a service started
+    later (another process) finds every kernel there and compiles nothing."""
+    text = (ROOT / "docker" / "Dockerfile").read_text()
+    assert "ENV NUMBA_CACHE_DIR=" in text and "python -I -m services.physics.precompile" in text
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
+    command = [sys.executable, "-I", "-m", "services.physics.precompile"]
+    first = subprocess.run(command, env=env, capture_output=True, text=True, timeout=600, check=True, cwd=tmp_path)
+    assert "physics kernels ready" in first.stdout
+    cached = {p.name: p.stat().st_mtime_ns for p in (tmp_path / "cache").rglob("*.nb*")}
+    assert any(name.startswith("kernels.dls_reference") for name in cached), cached
+    again = subprocess.run(command, env=env, capture_output=True, text=True, timeout=600, check=True, cwd=tmp_path)
+    assert "physics kernels ready" in again.stdout
+    # nothing compiled or written again: the same cache files, untouched
+    assert {p.name: p.stat().st_mtime_ns for p in (tmp_path / "cache").rglob("*.nb*")} == cached
+
+
 # --------------------------------------------------------------------------- the rig in namespaces
 
 

@@ -1,0 +1,43 @@
+"""Compile the physics kernels ahead of time: ``python -m services.physics.precompile``.
+
+numba compiles services/physics/kernels.py on first use (about 10 s on a laptop)
+and caches the result on disk (``NUMBA_CACHE_DIR``, else next to the module).
+:func:`warm_up` runs a throwaway drummer for 50 ms, holding its rest posture
+with Cartesian targets and control updates at 250 Hz (held torques between
+them): that calls every kernel the physics service uses, with the types it uses
+them with. The container image runs it at build time; the physics node runs it
+before its real-time loop, so a cold cache costs start-up time, never steps of
+a live performance (0.4 s when the cache is warm).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from services.physics.body import LIMBS
+from services.physics.core import PhysicsCore
+from services.physics.drummer import DrummerScene
+
+
+def warm_up() -> float:
+    """Compile (or load from the cache) every physics kernel; returns the seconds it took."""
+    started = time.perf_counter()
+    core = PhysicsCore(scene="drummer", control_rate_hz=250.0, pose_rate_hz=0.0)
+    scene = core.scene
+    assert isinstance(scene, DrummerScene)
+    for limb in LIMBS:
+        scene.add_cartesian(limb, 0.05, scene.rest_targets[limb], np.zeros(3), 0.0)
+    for k in range(1, 51):
+        core.step(k / core.rate_hz)
+    core.close()
+    return time.perf_counter() - started
+
+
+def main() -> None:
+    print(f"physics kernels ready ({warm_up():.1f} s)")
+
+
+if __name__ == "__main__":
+    main()
