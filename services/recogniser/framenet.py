@@ -25,6 +25,10 @@ from services.recogniser.classes import N_CLASSES
 
 N_OUT = 2 * N_CLASSES + 1
 """Outputs per frame: N_CLASSES class activations, the onset activation, N_CLASSES velocities / 127."""
+SNARE, HIHATS = 1, (2, 3)
+"""Class indices of the snare and of the closed and open hi-hat (see :mod:`services.recogniser.classes`)."""
+SNAP_MIN = 0.1
+"""Onset-output peaks at least this high are the times class strikes may be moved to (``snap_frames``)."""
 
 
 @dataclass
@@ -124,6 +128,10 @@ class FrameNet:
     ``peak_frames``: a strike is an activation maximum over +-this many frames; ``time_offset_s`` is
     added to frame times; ``chord_s``: strikes of different classes this close to the first of a group
     are given its time (see :func:`~services.recogniser.transcribe.group_chords`; 0: off).
+    ``snap_frames``: a class strike is moved to the nearest onset-output peak (of at least :data:`SNAP_MIN`)
+    within this many frames (0: off), so classes of one strike that peak a few frames apart share its time;
+    ``hihat_snare``: a snare peak is dropped where a hi-hat activation within +-1 frame reaches its threshold
+    and this ratio times it exceeds the snare activation (a hi-hat heard as a snare too; 0: off).
     """
 
     layers: list[Layer]
@@ -133,6 +141,8 @@ class FrameNet:
     chord_s: float = 0.02
     windows: tuple[int, ...] = (F.N_FFT,)
     members: list[Network] = field(default_factory=list)
+    snap_frames: int = 0
+    hihat_snare: float = 0.0
 
     @property
     def networks(self) -> list[Network]:
@@ -177,14 +187,18 @@ class FrameNet:
     def detect(self, out: np.ndarray) -> list[tuple[int, int, int, float]]:
         """Strikes from :meth:`forward`'s outputs: (frame, class, MIDI velocity, probability), by frame.
 
-        A class strikes at its activation peaks above its threshold. An onset-output peak above its
-        threshold with no class strike within +-peak_frames is a strike of the class most probable there.
+        A class strikes at its activation peaks above its threshold (a snare peak under a hi-hat may be
+        dropped: ``hihat_snare``). An onset-output peak above its threshold with no class strike within
+        +-peak_frames is a strike of the class most probable there. With ``snap_frames``, strikes are then
+        moved to the nearest onset-output peak (velocity and probability stay those of the class's own peak).
         """
         found: list[tuple[int, int, int, float]] = []
         vel = np.clip(np.rint(out[:, N_CLASSES + 1 :] * 127.0), 1, 127).astype(int)
         struck = np.zeros(out.shape[0], bool)
         for c in range(N_CLASSES):
             for t in self.peaks(out[:, c], float(self.thresholds[c])):
+                if c == SNARE and self.hihat_snare > 0 and self._under_hihat(out, int(t)):
+                    continue
                 found.append((int(t), c, int(vel[t, c]), float(out[t, c])))
                 struck[max(0, t - self.peak_frames) : t + self.peak_frames + 1] = True
         if self.thresholds[N_CLASSES] <= 1.0:
@@ -192,5 +206,29 @@ class FrameNet:
                 if not struck[t]:
                     c = int(np.argmax(out[t, :N_CLASSES]))
                     found.append((int(t), c, int(vel[t, c]), float(out[t, c])))
+        if self.snap_frames > 0:
+            found = self._snap(out, found)
         found.sort()
         return found
+
+    def _under_hihat(self, out: np.ndarray, t: int) -> bool:
+        """Whether a hi-hat activation within +-1 frame of ``t`` reaches its threshold and, times
+        ``hihat_snare``, exceeds the snare activation at ``t``."""
+        near = out[max(0, t - 1) : t + 2, list(HIHATS)]
+        hh = near[near >= self.thresholds[list(HIHATS)]]
+        return bool(hh.size) and float(out[t, SNARE]) < self.hihat_snare * float(hh.max())
+
+    def _snap(self, out: np.ndarray, found: list[tuple[int, int, int, float]]) -> list[tuple[int, int, int, float]]:
+        """``found`` with each frame moved to the nearest onset-output peak within ``snap_frames`` (the earlier
+        of two equally near), a class struck twice at one frame kept once (the more probable)."""
+        anchors = self.peaks(out[:, N_CLASSES], SNAP_MIN)
+        if not len(anchors):
+            return found
+        best: dict[tuple[int, int], tuple[int, int, int, float]] = {}
+        for t, c, v, p in found:
+            i = int(np.searchsorted(anchors, t))
+            near = min((int(anchors[k]) for k in (i - 1, i) if 0 <= k < len(anchors)), key=lambda a: abs(a - t))
+            s = near if abs(near - t) <= self.snap_frames else t
+            if (s, c) not in best or p > best[(s, c)][3]:
+                best[(s, c)] = (s, c, v, p)
+        return list(best.values())

@@ -46,9 +46,9 @@ VALID_DRY_P = 0.5
 LAYER_P = {"snare": 0.35, "hh_closed": 0.35, "hh_open": 0.35, "hh_pedal": 0.35}
 """With ``variety``: chance that an instrument of a kind is layered with one of another kit (default 0.15)."""
 
-Job = tuple[int, str, float, tuple[str, ...], float, bool]
+Job = tuple[int, str, float, tuple[str, ...], float, bool, float]
 """(seed, MIDI path, performance duration s, kit names, share left dry, variety: layered instruments and the
-further changes of :meth:`~.render.Variation.random_wide`)."""
+further changes of :meth:`~.render.Variation.random_wide`, share of excerpts whose instruments are varied)."""
 
 _KITS: dict[str, Kit] = {}
 
@@ -119,7 +119,7 @@ def excerpt_samples() -> int:
 
 def render_excerpt(job: Job) -> tuple[np.ndarray, list[Hit]]:
     """Render one job: audio (mono, SAMPLE_RATE, peak 0.9) and its hits (times from the excerpt's start)."""
-    seed, path, duration, kits, dry_p, variety = job
+    seed, path, duration, kits, dry_p, variety, vary_p = job
     rng = np.random.default_rng(seed)
     kit = load_any_kit(kits[int(rng.integers(len(kits)))])
     if len(kits) > 1 and rng.random() < MIX_P:
@@ -127,19 +127,22 @@ def render_excerpt(job: Job) -> tuple[np.ndarray, list[Hit]]:
     start = float(rng.uniform(0, max(0.0, duration - EXCERPT_S)))
     notes = [Note(n.time - start + 0.2, n.pitch, n.velocity) for n in read_notes(path)
              if start <= n.time < start + EXCERPT_S]
-    vary = rng.random() < VARY_P
+    vary = rng.random() < vary_p
     if variety and len(kits) > 1:
         kit = with_layers(kit, kits, np.random.default_rng(seed + 7_777_777))
     audio, hits = render(notes, kit, rng, duration=EXCERPT_S + 0.2, vary=vary, wide=variety)
     return (augment(audio, rng) if rng.random() >= dry_p else normalise(audio)), hits
 
 
-def jobs(n: int, seed: int, kits: tuple[str, ...], dry_p: float = DRY_P, variety: bool = False) -> list[Job]:
-    """``n`` excerpt jobs drawn from the long (>= 20 s) Groove train-split performances."""
+def jobs(n: int, seed: int, kits: tuple[str, ...], dry_p: float = DRY_P, variety: bool = False,
+         vary_p: float = VARY_P) -> list[Job]:
+    """``n`` excerpt jobs drawn from the long (>= 20 s) Groove train-split performances (``dry_p`` = 1 and
+    ``vary_p`` = 0: rendered as the benchmark renders, the kit as it is and dry)."""
     files = [f for f in groove_files("train") if f[1] >= 20.0]  # long performances (beats with fills)
     rng = np.random.default_rng(seed)
     picks = rng.choice(len(files), size=n, replace=n > len(files))
-    return [(seed * 100_000 + i, str(files[k][0]), files[k][1], kits, dry_p, variety) for i, k in enumerate(picks)]
+    return [(seed * 100_000 + i, str(files[k][0]), files[k][1], kits, dry_p, variety, vary_p)
+            for i, k in enumerate(picks)]
 
 
 def add_arguments(ap: argparse.ArgumentParser, excerpts: int, keeps: str) -> None:

@@ -87,16 +87,16 @@ class Batches:
 
 
 def loss_of(net: Net, x: torch.Tensor, act: torch.Tensor, vel: torch.Tensor, mask: torch.Tensor,
-            hard: float = 0.0) -> torch.Tensor:
+            hard: float = 0.0, outputs: torch.Tensor | None = None) -> torch.Tensor:
     """Activation loss (binary cross-entropy; a class's frames with target 0 where another class has a strike
-    target of at least 0.5 weigh ``1 + hard``) plus the velocity loss."""
+    target of at least 0.5 weigh ``1 + hard``; every frame of activation ``k`` is further weighted by
+    ``outputs[k]``, shape (N_CLASSES + 1,), the last the onset output) plus the velocity loss."""
     m = net.margin
     out = net(x)[:, :, m:-m].transpose(1, 2)  # (batch, frames, N_OUT)
-    weight = None
+    weight = torch.ones_like(act) if outputs is None else outputs.expand_as(act).clone()
     if hard:
         struck = (act[..., :N_CLASSES] >= 0.5).any(dim=-1, keepdim=True)
-        weight = torch.ones_like(act)
-        weight[..., :N_CLASSES] += hard * ((act[..., :N_CLASSES] == 0) & struck).float()
+        weight[..., :N_CLASSES] *= 1 + hard * ((act[..., :N_CLASSES] == 0) & struck).float()
     loss = TF.binary_cross_entropy_with_logits(out[..., : N_CLASSES + 1], act, weight=weight)
     pred = torch.sigmoid(out[..., N_CLASSES + 1 :])
     if mask.any():
@@ -121,10 +121,12 @@ def validation_loss(net: Net, val: Batches, n: int = 1000) -> float:
 
 def fit(train: FrameSet, val: FrameSet, epochs: float, seed: int, lr: float = 2e-3, log_every: int = 250,
         minutes: float | None = None, width: int = 128, windows: tuple[int, ...] = (F.N_FFT,),
-        hard: float = HARD_WEIGHT, init: Net | None = None, warmup: float = 0.03) -> Net:
+        hard: float = HARD_WEIGHT, init: Net | None = None, warmup: float = 0.03,
+        outputs: dict[int, float] | None = None) -> Net:
     """Fit a :class:`Net` on the spectra of ``windows``; ``epochs``: passes over the training frames (fractional
     allowed), or only as many steps as fit in ``minutes``, whichever is fewer. ``hard``: see :func:`loss_of`
-    (the validation loss is unweighted).
+    (the validation loss is unweighted). ``outputs``: loss weight of activation ``k`` (class index; N_CLASSES: the
+    onset output) where not 1 (e.g. {1: 2.0}: snare errors count twice; the validation loss is unweighted).
     ``init``: continue from this network (of these ``windows``; e.g. :func:`~.net.from_export` of a model file),
     its batch normalisations first calibrated on 8 training batches (:func:`~.net.calibrate`); it is kept
     unless a fitted state has a lower validation-kit loss.
@@ -137,6 +139,11 @@ def fit(train: FrameSet, val: FrameSet, epochs: float, seed: int, lr: float = 2e
     if net.windows != windows:
         raise ValueError(f"the network reads windows {net.windows}, not {windows}")
     tb, vb = Batches(train, net.margin, windows), Batches(val, net.margin, windows)
+    out_w = None
+    if outputs:
+        out_w = torch.ones(N_CLASSES + 1)
+        for k, w in outputs.items():
+            out_w[k] = w
     best, best_state = np.inf, None
     if init is not None:
         calibrate(net, [tb.random(np.random.default_rng(seed + 1), BATCH, CROP_FRAMES)[0] for _ in range(8)])
@@ -154,7 +161,7 @@ def fit(train: FrameSet, val: FrameSet, epochs: float, seed: int, lr: float = 2e
         for group in opt.param_groups:
             group["lr"] = lr * float(min(1.0, rate))
         x, act, vel, mask = tb.random(rng, BATCH, CROP_FRAMES)
-        loss = loss_of(net, x, act, vel, mask, hard=hard)
+        loss = loss_of(net, x, act, vel, mask, hard=hard, outputs=out_w)
         opt.zero_grad()
         loss.backward()
         opt.step()

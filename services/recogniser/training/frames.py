@@ -17,7 +17,15 @@ import numpy as np
 
 from services.recogniser import features as F
 from services.recogniser.classes import N_CLASSES
-from services.recogniser.training.excerpts import DRY_P, Job, excerpt_samples, jobs, prepare, render_excerpt
+from services.recogniser.training.excerpts import (
+    DRY_P,
+    VARY_P,
+    Job,
+    excerpt_samples,
+    jobs,
+    prepare,
+    render_excerpt,
+)
 
 NEIGHBOUR_TARGET = 0.5
 """Target of the frames next to a strike's frame (target widening: the exact frame is uncertain by half a hop)."""
@@ -76,11 +84,11 @@ def _one(job: Job) -> tuple[np.ndarray, np.ndarray]:
 
 
 def make_frames(n: int, seed: int, workers: int, kits: tuple[str, ...], dry_p: float = DRY_P,
-                variety: bool = False, path: Path | None = None) -> FrameSet:
+                variety: bool = False, path: Path | None = None, vary_p: float = VARY_P) -> FrameSet:
     """Render ``n`` excerpts with ``kits`` (a share ``dry_p`` dry; ``variety``: see :class:`.excerpts.Job`) into a
     :class:`FrameSet`, and save it to ``path`` if given (the spectra are written as they come, never all held)."""
     prepare(kits)
-    todo = jobs(n, seed, kits, dry_p, variety)
+    todo = jobs(n, seed, kits, dry_p, variety, vary_p)
     per = F.n_frames(excerpt_samples())
     shape = (n * per, F.N_BANDS, len(WINDOWS))
     spec = (np.lib.format.open_memmap(f"{path}.spec.npy", mode="w+", dtype=np.float16, shape=shape)

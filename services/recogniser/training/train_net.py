@@ -27,10 +27,11 @@ from pathlib import Path
 
 import torch
 
+from services.recogniser.classes import CLASS_NAMES
 from services.recogniser.errors import ModelError
 from services.recogniser.framenet import FrameNet
 from services.recogniser.model import Model, load_live, load_model
-from services.recogniser.training.excerpts import FIT_KITS, VALID_DRY_P, add_arguments, kits_installed
+from services.recogniser.training.excerpts import FIT_KITS, VALID_DRY_P, VARY_P, add_arguments, kits_installed
 from services.recogniser.training.fit_net import HARD_WEIGHT, fit
 from services.recogniser.training.frames import WINDOWS, FrameSet, make_frames
 from services.recogniser.training.kits import VALID_KITS
@@ -42,11 +43,14 @@ CACHE_TAG = "f3"
 
 
 def frames(cache: Path, name: str, n: int, seed: int, workers: int, kits: tuple[str, ...], dry_p: float,
-           variety: bool = False) -> FrameSet:
-    path = cache / f"{CACHE_TAG}-{name}{'-variety' if variety else ''}-{n}-{seed}.npz"
+           variety: bool = False, plain: bool = False) -> FrameSet:
+    """The cached frame set of these excerpts, rendered first if need be (``plain``: as the benchmark renders,
+    the kit unvaried and dry, whatever ``dry_p``)."""
+    tag = ("-variety" if variety else "") + ("-plain" if plain else "")
+    path = cache / f"{CACHE_TAG}-{name}{tag}-{n}-{seed}.npz"
     if path.exists():
         return FrameSet.load(path)
-    make_frames(n, seed, workers, kits, dry_p, variety, path)
+    make_frames(n, seed, workers, kits, 1.0 if plain else dry_p, variety, path, 0.0 if plain else VARY_P)
     return FrameSet.load(path)
 
 
@@ -54,16 +58,17 @@ MEMBER_KEYS = ("excerpts", "epochs", "minutes", "width", "seed", "windows", "har
 """Metadata of a trained network kept for each member of an ensemble."""
 
 
-def ensemble(paths: list[Path], val: FrameSet) -> Model:
+def ensemble(paths: list[Path], val: FrameSet, rules: bool = False) -> Model:
     """One model whose offline network averages the offline networks of the model files ``paths``, with
-    thresholds chosen on ``val``; the live MLP and the metadata are the first file's."""
+    thresholds (and with ``rules`` the strike rules, :func:`.tune.choose`) chosen on ``val``; the live MLP and the
+    metadata are the first file's."""
     models = [load_model(p) for p in paths]
     first = models[0].offline
     nets = [n for m in models for n in m.offline.networks]
     net = FrameNet(nets[0].layers, first.thresholds.copy(), first.peak_frames, first.time_offset_s, first.chord_s,
                    nets[0].windows, nets[1:])
     print(f"ensemble of {len(nets)} networks; thresholds:", flush=True)
-    choose(net, val)
+    choose(net, val, rules=rules)
     meta = dict(models[0].meta)
     meta["ensemble_of"] = [{k: m.meta.get(k) for k in MEMBER_KEYS} | {"file": p.name}
                            for p, m in zip(paths, models, strict=True)]
@@ -85,6 +90,18 @@ def init_net(path: Path, windows: tuple[int, ...], width: int) -> Net:
     return net
 
 
+def output_weights(items: list[str]) -> dict[int, float]:
+    """``NAME=W`` items (a class name or 'onset') as {activation index: loss weight}; raises ValueError."""
+    names = [*CLASS_NAMES, "onset"]
+    out: dict[int, float] = {}
+    for item in items:
+        name, _, w = item.partition("=")
+        if name not in names or not w:
+            raise ValueError(f"{item!r}: give NAME=WEIGHT with NAME one of {', '.join(names)}")
+        out[names.index(name)] = float(w)
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     add_arguments(ap, excerpts=3200, keeps="live")
@@ -99,8 +116,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--hard", type=float, default=HARD_WEIGHT,
                     help="extra loss weight of a class's negatives where another class is struck "
                          f"(default {HARD_WEIGHT})")
+    ap.add_argument("--weight", nargs="+", default=[], metavar="NAME=W",
+                    help="loss weight of a class's activation or of the onset output (e.g. snare=2; default 1)")
     ap.add_argument("--plain", action="store_true",
                     help="render without layered instruments and the wider per-instrument changes (recipe 3's data)")
+    ap.add_argument("--val-plain", action="store_true",
+                    help="render the validation-kit excerpts the thresholds are chosen on as the benchmark renders: "
+                         "the kit as it is (no per-instrument changes) and dry")
+    ap.add_argument("--rules", action="store_true",
+                    help="also choose on the validation kit how far class strikes move to onset-output peaks and the "
+                         "ratio that drops snare peaks under hi-hat peaks (FrameNet.snap_frames, hihat_snare)")
     ap.add_argument("--render-only", action="store_true", help="render (and cache) the excerpts, do not fit")
     ap.add_argument("--ensemble", type=Path, nargs="+", default=None, metavar="MODEL",
                     help="only average the offline networks of these model files into one (the live MLP and metadata "
@@ -116,6 +141,11 @@ def main(argv: list[str] | None = None) -> int:
     if not kits_installed():
         return 1
     windows = tuple(sorted(set(args.windows)))
+    try:
+        weights = output_weights(args.weight)
+    except ValueError as exc:
+        print(f"error: --weight {exc}", file=sys.stderr)
+        return 1
     init = None
     if args.init is not None:
         try:
@@ -126,15 +156,17 @@ def main(argv: list[str] | None = None) -> int:
     torch.set_num_threads(args.threads)
     args.cache.mkdir(parents=True, exist_ok=True)
     t0 = time.time()
-    val = frames(args.cache, "val", args.val_excerpts, args.seed + 1000, args.workers, VALID_KITS, VALID_DRY_P)
+    val = frames(args.cache, "val", args.val_excerpts, args.seed + 1000, args.workers, VALID_KITS, VALID_DRY_P,
+                 plain=args.val_plain)
     if args.retune is not None:
         model = load_model(args.retune)
-        choose(model.offline, val)
+        choose(model.offline, val, rules=args.rules)
+        model.meta.update(val_plain=args.val_plain, rules=args.rules)
         model.save(args.out, half=args.half)
         print(f"wrote {args.out}")
         return 0
     if args.ensemble:
-        ensemble(args.ensemble, val).save(args.out, half=args.half)
+        ensemble(args.ensemble, val, args.rules).save(args.out, half=args.half)
         print(f"wrote {args.out} ({args.out.stat().st_size / 1024:.0f} KiB)")
         return 0
     live, live_meta = load_live(args.live_from)
@@ -144,12 +176,15 @@ def main(argv: list[str] | None = None) -> int:
     print(f"training: {train.n_excerpts} excerpts, {len(train.spec)} frames, {len(train.hits)} strikes; "
           f"validation kit: {val.n_excerpts} excerpts; {time.time() - t0:.0f} s", flush=True)
     net = export(fit(train, val, args.epochs, args.seed, lr=args.lr, minutes=args.minutes, width=args.width,
-                     windows=windows, hard=args.hard, init=init, warmup=args.warmup))
+                     windows=windows, hard=args.hard, init=init, warmup=args.warmup,
+                     outputs=weights))
     print("thresholds:", flush=True)
-    choose(net, val)
+    choose(net, val, rules=args.rules)
     meta = {"trained_on": list(FIT_KITS), "thresholds_from": list(VALID_KITS), "excerpts": args.excerpts,
-            "val_excerpts": args.val_excerpts, "epochs": args.epochs, "minutes": args.minutes, "width": args.width,
+            "val_excerpts": args.val_excerpts, "val_plain": args.val_plain, "rules": args.rules,
+            "epochs": args.epochs, "minutes": args.minutes, "width": args.width,
             "seed": args.seed, "windows": list(windows), "hard": args.hard, "variety": not args.plain,
+            "weights": {([*CLASS_NAMES, "onset"])[k]: w for k, w in weights.items()},
             "lr": args.lr, "warmup": args.warmup, "init": None if args.init is None else args.init.name,
             # where the live MLP came from (a file of this format already records it as live_*)
             "live_trained_on": live_meta.get("live_trained_on", live_meta.get("trained_on", [])),
