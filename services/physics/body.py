@@ -255,29 +255,28 @@ class Body:
         self._link_pos = None
         self._link_com = None
 
-    def _read_all_links(self) -> list[tuple[Any, ...]]:
+    def _all_links(self, field: int) -> np.ndarray:
+        """One vector field (links, 3) of every link's state in this state (``getLinkStates``: 0 the centre of
+        mass, 4 the link frame's origin), the states read once after an update."""
         if self._full_states is None:
             c = self.world.client
             self._full_states = list(chain.from_iterable(
                 c.getLinkStates(part.id, list(range(part.links)), computeForwardKinematics=1) for part in self.parts))
-        return self._full_states
+        n = len(self._full_states)
+        return np.fromiter(chain.from_iterable(s[field] for s in self._full_states), float, 3 * n).reshape(n, 3)
 
     @property
     def link_pos(self) -> np.ndarray:
         """Every link's frame origin (links, 3) metres in this state (read when first asked after an update)."""
         if self._link_pos is None:
-            states = self._read_all_links()
-            n = len(states)
-            self._link_pos = np.fromiter(chain.from_iterable(s[4] for s in states), float, 3 * n).reshape(n, 3)
+            self._link_pos = self._all_links(4)
         return self._link_pos
 
     @property
     def link_com(self) -> np.ndarray:
         """Centres of mass (links, 3) metres in this state (read when first asked after an update)."""
         if self._link_com is None:
-            states = self._read_all_links()
-            n = len(states)
-            self._link_com = np.fromiter(chain.from_iterable(s[0] for s in states), float, 3 * n).reshape(n, 3)
+            self._link_com = self._all_links(0)
         return self._link_com
 
     def position(self, link: int) -> np.ndarray:
