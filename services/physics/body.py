@@ -116,6 +116,10 @@ class Body:
                                          np.array(slots, dtype=int), movable))
         self._read_order = np.concatenate([part.state_slots for part in self.parts])
         self._from_read = np.argsort(self._read_order)
+        ends = np.cumsum([len(part.state_slots) for part in self.parts])
+        self._read_runs = [(int(e - len(part.state_slots)), int(e)) for part, e in zip(self.parts, ends, strict=True)]
+        """Each part's (start, stop) in the read order."""
+        self._send = np.zeros(len(self.state_joints))
         """Index that puts the parts' readings (concatenated) into :attr:`state_joints` order."""
         self.lower = np.array([self._joint_info(j)[8] for j in self.dof_list])
         self.upper = np.array([self._joint_info(j)[9] for j in self.dof_list])
@@ -133,6 +137,7 @@ class Body:
         self._frame_row = {link: row for row, link in enumerate(joint_children)}
         self._frame_row |= {self.effector_links[limb]: len(joint_children) + k for k, limb in enumerate(LIMBS)}
         self._full_states: list[tuple[Any, ...]] | None = None
+        self._frame_pos: np.ndarray | None = None
         self._link_pos: np.ndarray | None = None
         self._link_com: np.ndarray | None = None
         self.last_qd = np.zeros(len(self.state_joints))
@@ -187,13 +192,19 @@ class Body:
         (the sticks are on the trunk: the contact tracker's approach velocities)."""
         return self.last_qd[self.parts[0].state_slots]
 
-    def send_torques(self, tau: np.ndarray) -> None:
-        """Apply joint torques (N m) in :attr:`state_joints` order (57 DOF then the passive joints) for the next
-        step (PyBullet clears them after every step)."""
+    def send_torques(self, tau: np.ndarray, passive_tau: np.ndarray | None = None) -> None:
+        """Apply joint torques (N m) for the next step (PyBullet clears them after every step): ``tau`` in
+        :attr:`state_joints` order (57 DOF then the passive joints), or the 57 DOF's with ``passive_tau`` the
+        passive joints'."""
         c = self.world.client
-        for part in self.parts:
-            c.setJointMotorControlArray(part.id, part.state_joints, p.TORQUE_CONTROL,
-                                        forces=tau[part.state_slots].tolist())
+        if passive_tau is not None:
+            n = len(tau)
+            self._send[:n] = tau
+            self._send[n:] = passive_tau
+            tau = self._send
+        forces = tau[self._read_order].tolist()  # one conversion, then each part's run of it
+        for part, (start, stop) in zip(self.parts, self._read_runs, strict=True):
+            c.setJointMotorControlArray(part.id, part.state_joints, p.TORQUE_CONTROL, forces=forces[start:stop])
 
     def set_state(self, q: np.ndarray, qd: np.ndarray | None = None) -> None:
         """Teleport the joints (resets, tests and the kinematic IK); velocities default to zero."""
@@ -247,10 +258,10 @@ class Body:
             pos, quat = self.world.client.getBasePositionAndOrientation(self.id)  # its inertial frame is its own
             base_pos[0] = pos
             base_rot[0] = rotation_matrix(quat)
-        self.dof_pos, self.dof_axes, joint_pos, self.effector_pos = forward_kinematics(
+        self.dof_pos, self.dof_axes, self._joint_pos, self.effector_pos = forward_kinematics(
             np.ascontiguousarray(q, dtype=float), parent, offset, base_pos, base_rot, effector_joint,
             effector_offset)
-        self.frame_pos = np.concatenate([joint_pos, self.effector_pos])
+        self._frame_pos = None
         self._full_states = None
         self._link_pos = None
         self._link_com = None
@@ -278,6 +289,13 @@ class Body:
         if self._link_com is None:
             self._link_com = self._all_links(0)
         return self._link_com
+
+    @property
+    def frame_pos(self) -> np.ndarray:
+        """The 19 joints' frame origins then the 4 effectors (23, 3) metres at the last :meth:`update`."""
+        if self._frame_pos is None:
+            self._frame_pos = np.concatenate([self._joint_pos, self.effector_pos])
+        return self._frame_pos
 
     def position(self, link: int) -> np.ndarray:
         """A link's frame origin (3,) metres at the last :meth:`update`."""

@@ -92,8 +92,8 @@ class ContactTracker:
         self._episodes: dict[tuple[Key, str], _Episode] = {}
         self._read_bodies: tuple[list[tuple[int, list[int]]], list[tuple[int, list[int]]]] | None = None
         self._provided: set[int] = set()
-        self._qd: dict[int, tuple[dict[int, int], Sequence[float] | np.ndarray]] = {}
-        """body -> ({joint: index}, velocities before the step (rad/s or m/s) by index)."""
+        self._qd: dict[int, tuple[dict[int, int], Sequence[float] | np.ndarray, Sequence[int]]] = {}
+        """body -> ({joint: index}, velocities before the step (rad/s or m/s) by index, the joints read)."""
         self._index_maps: dict[tuple[int, ...], dict[int, int]] = {}
         self._chains: dict[Key, list[_ChainJoint]] = {}
         self.instrument_every = 1
@@ -115,7 +115,9 @@ class ContactTracker:
         if body not in self._provided:
             self._provided.add(body)
             self._read_bodies = None
-        self._qd[body] = (self._index_map(joints), velocities)
+        record = self._qd.get(body)
+        index = record[0] if record is not None and record[2] is joints else self._index_map(joints)
+        self._qd[body] = (index, velocities, joints)
 
     def _index_map(self, joints: Sequence[int]) -> dict[int, int]:
         key = tuple(joints)
@@ -141,9 +143,9 @@ class ContactTracker:
         for body, joints in bodies:
             reading = self.kit.readings.get(body)
             if reading is not None and reading[0] == step and reading[1] == joints:  # the kit's springs read it
-                self._qd[body] = (self._index_map(joints), reading[2])
+                self._qd[body] = (self._index_map(joints), reading[2], joints)
             elif joints:
-                self._qd[body] = (self._index_map(joints), [s[1] for s in c.getJointStates(body, joints)])
+                self._qd[body] = (self._index_map(joints), [s[1] for s in c.getJointStates(body, joints)], joints)
 
     def _chain(self, key: Key) -> list[_ChainJoint]:
         """The moving joints from ``key``'s link up to its body's base."""
@@ -171,7 +173,7 @@ class ContactTracker:
         v = np.asarray(lin, dtype=float) + np.cross(np.asarray(ang, dtype=float), point - np.asarray(base))
         if record is None or not chain:
             return v
-        index, qd = record
+        index, qd, _ = record
         states = c.getLinkStates(body, [j.joint for j in chain], computeForwardKinematics=1)
         for joint, state in zip(chain, states, strict=True):
             k = index.get(joint.joint)
@@ -196,8 +198,10 @@ class ContactTracker:
             if force <= 0.0:
                 continue  # within the collision margin, or separating: no push this step
             a, b = (cp[1], cp[3]), (cp[2], cp[4])
+            if a == b or (a not in strikers and b not in strikers):
+                continue  # most points: a foot on a pedal, the hi-hat's plates at rest
             for key, inst_key, point, sign in ((a, b, cp[6], 1.0), (b, a, cp[5], -1.0)):
-                if key not in strikers or inst_key == key:
+                if key not in strikers:
                     continue
                 instrument = instrument_of.get(inst_key)
                 if instrument is None:

@@ -41,6 +41,7 @@ import pybullet as p
 from services.physics.body import LIMBS, Body
 from services.physics.character import JOINT_GROUP, JOINTS, joint_kind
 from services.physics.kernels import (
+    clip_torques,
     computed_torque_state,
     dls_reference,
     enforce_limits,
@@ -181,6 +182,9 @@ class Controller:
         self._no_rate = np.zeros(n)
         self._no_mass = np.zeros((0, 0))
         self._no_softening = np.ones(n)
+        self._rows: dict[tuple[str, ...], np.ndarray] = {}
+        """Limbs with targets -> their rows in LIMBS (int64), for the IK kernel."""
+        self._ensure_id_model()  # here, not at the first step of a computed-torque mode: a live step must not wait
 
     def _update_gains(self) -> None:
         """ks = I w^2, kd = 2 zeta w I with I the DOF's inertia with every other joint free.
@@ -276,20 +280,24 @@ class Controller:
         surface stops the limb where the plan goes through, and winding up would press it in.
         """
         eff = self.body.effector_pos
-        rows = [LIMBS.index(limb) for limb in LIMBS if limb in targets]
+        limbs = tuple(limb for limb in LIMBS if limb in targets)
         if self.theta_ref is None:
             self.theta_ref = theta.copy()
-        if not rows:
+        if not limbs:
             self.theta_ref = self.rest.copy()
             return self.rest.copy(), np.zeros_like(theta)
+        rows = self._rows.get(limbs)
+        if rows is None:
+            rows = self._rows[limbs] = np.array([LIMBS.index(limb) for limb in limbs], dtype=np.int64)
+        target_pos = np.array([targets[limb][0] for limb in limbs])
         # a touching limb whose target is below it would only push into the surface: hold its error
-        pressing = np.array([LIMBS[r] in touching and targets[LIMBS[r]][0][2] < eff[r][2] for r in rows])
+        pressing = (target_pos[:, 2] < eff[rows, 2]) & np.array([limb in touching for limb in limbs])
         gain = self.params.task_gain if self.mode in COMPUTED_TORQUE_MODES else self.params.task_gain_pd
         rate = self.posture_rate if self.posture_rate is not None else self._no_rate
         new_ref, qdot = dls_reference(
             theta, self.theta_ref, self.rest, rate, eff, self.body.dof_pos, self.body.dof_axes, self.body.chain_mask,
-            np.array(rows, dtype=np.int64), np.array([targets[LIMBS[r]][0] for r in rows]),
-            np.array([targets[LIMBS[r]][1] for r in rows]), pressing, self.ik_weight_inv, self.params.ik_damping,
+            rows, target_pos, np.array([targets[limb][1] for limb in limbs]), pressing, self.ik_weight_inv,
+            self.params.ik_damping,
             gain, self.params.posture_gain, self.control_dt, self.params.max_joint_speed, self.params.max_lead_rad,
             self.params.contact_lead_rad, self.body.lower, self.body.upper)
         self.theta_ref = new_ref
@@ -316,6 +324,10 @@ class Controller:
                                  fixed_base=True, flags=p.URDF_USE_INERTIA_FROM_FILE)
             copies.append((body_id, np.array([slot_of[part.offset + j] for j in part.movable], dtype=int)))
         self._id = (world, copies)
+        ends = np.cumsum([len(slots) for _, slots in copies])
+        self._id_order = (np.concatenate([slots for _, slots in copies]),
+                          [(int(e - len(slots)), int(e)) for (_, slots), e in zip(copies, ends, strict=True)])
+        """The copies' slots one after another, and each copy's (start, stop) in that order."""
 
     def computed_torque(self, theta: np.ndarray, theta_dot: np.ndarray, theta_t: np.ndarray,
                         theta_dot_t: np.ndarray, last_theta_dot_t: np.ndarray,
@@ -342,19 +354,23 @@ class Controller:
         state = computed_torque_state(theta, theta_dot, theta_t, theta_dot_t, last_theta_dot_t, self.control_dt,
                                       self.params.max_ff_accel, soft, self.scale_ks, self.scale_kd,
                                       2 * math.pi * self.params.ct_frequency_hz, self.params.damping_ratio, pq, pqd)
-        tau = np.zeros(state.shape[1])
         refresh = self.control_dt > self.world.dt  # held between updates: keep M(q) for the PD's correction
         if refresh:
             self._mass_age += self.control_dt
             refresh = self._ct_mass is None or self._mass_age >= MASS_REFRESH_S - 1e-9
         mass_state = np.zeros((state.shape[1], state.shape[1])) if refresh else None
-        for body_id, slots in copies:
-            q_list, qd_list, qdd_list = state[:, slots].tolist()
-            tau[slots] = world.client.calculateInverseDynamics(body_id, q_list, qd_list, qdd_list)
+        order, runs = self._id_order
+        q_all, qd_all, qdd_all = state[:, order].tolist()  # one conversion, each copy takes its run
+        torques: list[float] = []
+        for (body_id, slots), (start, stop) in zip(copies, runs, strict=True):
+            q_list = q_all[start:stop]
+            torques += world.client.calculateInverseDynamics(body_id, q_list, qd_all[start:stop], qdd_all[start:stop])
             if mass_state is not None:
                 rows = world.client.calculateMassMatrix(body_id, q_list)  # nested lists: read flat, not np.array
                 m = len(slots)
                 mass_state[np.ix_(slots, slots)] = np.fromiter(chain.from_iterable(rows), float, m * m).reshape(m, m)
+        tau = np.zeros(state.shape[1])
+        tau[order] = torques
         if mass_state is not None:
             self._ct_mass = np.ascontiguousarray(mass_state[:n, :n])
             self._mass_age = 0.0
@@ -396,21 +412,21 @@ class Controller:
         else:
             if self.mode in COMPUTED_TORQUE_MODES:
                 tau = self.computed_torque(theta, theta_dot, theta_t, theta_dot_t, last_rate, passive) + extra
-                # between control updates: the same PD through the mass matrix of the update
-                k_between = self._w_ct**2 * self.scale_ks
-                d_between = 2 * self.params.damping_ratio * self._w_ct * self.scale_kd
-                mass = self._ct_mass
             else:
                 if self.params.gravity_compensation:
                     extra = extra + self.gravity_torque()
                 tau = self.ks * (theta_t - theta) + self.kd * (theta_dot_t - theta_dot) + extra
-                k_between, d_between, mass = self.ks, self.kd, None
             if self.control_dt > self.world.dt:  # updates held over several steps (apply_between)
+                if self.mode in COMPUTED_TORQUE_MODES:  # between updates: the same PD through the update's M(q)
+                    k_between = self._w_ct**2 * self.scale_ks
+                    d_between = 2 * self.params.damping_ratio * self._w_ct * self.scale_kd
+                    mass = self._ct_mass
+                else:
+                    k_between, d_between, mass = self.ks, self.kd, None
                 self._held = _HeldTorques(tau, theta.copy(), theta_dot.copy(), theta_dot_t.copy(), k_between,
                                           d_between, mass)
-            tau = np.clip(tau, -body.torque_limit, body.torque_limit)
-            self.last_tau = tau
-            body.send_torques(np.concatenate([tau, passive_tau]))
+            self.last_tau = clip_torques(tau, body.torque_limit)
+            body.send_torques(self.last_tau, passive_tau)
             return
         c.setJointMotorControlArray(body.id, body.passive, p.TORQUE_CONTROL, forces=passive_tau.tolist())
 
@@ -440,7 +456,7 @@ class Controller:
                           self._no_mass if held.mass is None else held.mass, elapsed_s, theta, theta_dot,
                           body.torque_limit)
         self.last_tau = tau
-        body.send_torques(np.concatenate([tau, passive_tau]))
+        body.send_torques(tau, passive_tau)
 
 
 @dataclass(frozen=True)

@@ -223,6 +223,9 @@ class DrummerScene:
         hihat_pedal = self.kit_bodies.hihat.pedal if self.kit_bodies.hihat is not None else None
         self._beater_pedals = [pedal for pedal in self.kit_bodies.pedals.values() if pedal is not hihat_pedal]
         self._beater_pedal_bodies = {pedal.body for pedal in self._beater_pedals}
+        self._feet = [(f"{side}_foot", self.body.link_ref[self.body.link_index[f"{side}_foot"]])
+                      for side in ("left", "right")]
+        """(limb, its foot's (body, link)), for the pedal contacts of each update."""
         """Pedals a resting foot must not press (their beaters would rest on the head); the hi-hat foot presses
         its pedal to the plan's depth (a closed hi-hat is held closed by the foot)."""
         self.tracker = ContactTracker(world, self.kit_bodies)
@@ -571,14 +574,13 @@ class DrummerScene:
         self._touching_at_update = sticks_touching  # a stick touching or leaving a surface: update at once
         theta, theta_dot, pq, pqd = self._read_state()
         self.body.update(theta)
-        touching = {f"{side}_hand" for side in ("left", "right") if f"{side}_stick" in self.tracker.touching}
+        sticks = self.tracker.touching
+        touching = {hand for hand, stick in _HAND_STICKS if stick in sticks}
         targets = self.cartesian_targets(t_next)
         pedals = self._beater_pedal_bodies
-        for side in ("left", "right"):  # a foot resting on a footboard: no wind-up either
-            limb = f"{side}_foot"
+        for limb, foot in self._feet:  # a foot resting on a footboard: no wind-up either
             if limb in targets and targets[limb][1][2] < -FOOT_STROKE_SPEED:
                 continue  # a pedal stroke: the foot drives the footboard down (its end stop and the beater stop it)
-            foot = self.body.link_ref[self.body.link_index[limb]]
             if any(((cp[1], cp[3]) == foot and cp[2] in pedals) or ((cp[2], cp[4]) == foot and cp[1] in pedals)
                    for cp in self.tracker.last_points):  # the last step's contact points, as the tracker read them
                 touching.add(limb)
@@ -596,6 +598,9 @@ class DrummerScene:
         self.last_joint_target = (theta_t, theta_dot_t)
         self.controller.apply(theta, theta_dot, theta_t, theta_dot_t, self.passive_torques(pq, pqd), (pq, pqd))
         self.kit_bodies.pre_step(self.world)
+
+
+_HAND_STICKS = (("left_hand", "left_stick"), ("right_hand", "right_stick"))
 
 
 def _box_clamp(body: Body) -> Any:

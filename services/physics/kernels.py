@@ -317,6 +317,18 @@ def dls_reference(theta: np.ndarray, ref: np.ndarray, rest: np.ndarray, posture_
 
 
 @njit(cache=True)
+def clip_torques(tau: np.ndarray, limit: np.ndarray) -> np.ndarray:
+    """``tau`` (N,) N m within ``[-limit, limit]`` (N,) as a new array (``np.clip``'s result, NaN kept)."""
+    out = tau.copy()
+    for i in range(tau.shape[0]):
+        if out[i] > limit[i]:
+            out[i] = limit[i]
+        elif out[i] < -limit[i]:
+            out[i] = -limit[i]
+    return out
+
+
+@njit(cache=True)
 def held_torque(tau0: np.ndarray, theta0: np.ndarray, theta_dot0: np.ndarray, theta_dot_t: np.ndarray,
                 k: np.ndarray, d: np.ndarray, mass: np.ndarray, elapsed_s: float, theta: np.ndarray,
                 theta_dot: np.ndarray, limit: np.ndarray) -> np.ndarray:

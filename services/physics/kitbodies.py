@@ -195,6 +195,9 @@ class KitBodies:
     _joint_angles: dict[tuple[int, int], float] = field(default_factory=dict)
     """(body, joint) -> angle (rad) of the spring joints at their last reading."""
     _spring_torques: list[list[float]] = field(default_factory=list)
+    _spring_sends: list[bool] = field(default_factory=list)
+    """Per group: whether its torques are sent (a resting cymbal's are not: below SPRING_TORQUE_FLOOR_NM)."""
+    _slow_period_steps: int = 1
     _hihat_gap: float = -1.0
     _hihat_target: float = -1.0
     hihat_closing_rate: float = 0.0
@@ -212,7 +215,6 @@ class KitBodies:
         after every step).
         """
         c = world.client
-        update = world.steps % max(1, round(SLOW_SPRING_PERIOD_S / world.dt)) == 0
         if self._spring_groups is None:
             groups: dict[tuple[int, bool], list[Spring]] = {}
             for s in self.springs:
@@ -225,6 +227,9 @@ class KitBodies:
                                             [read.index(s.joint) for s in group], [s.stiffness for s in group],
                                             [s.damping for s in group], [s.rest for s in group]))
             self._spring_torques = [[] for _ in self._spring_groups]
+            self._spring_sends = [True for _ in self._spring_groups]
+            self._slow_period_steps = max(1, round(SLOW_SPRING_PERIOD_S / world.dt))
+        update = world.steps % self._slow_period_steps == 0
         angles = self._joint_angles
         for g, (body, fast, joints, read, at, k, d, rest) in enumerate(self._spring_groups):
             if update or fast or not self._spring_torques[g]:
@@ -236,7 +241,8 @@ class KitBodies:
                     angles[(body, joint)] = q
                     torques.append(-k_i * (q - r_i) - d_i * qd)
                 self._spring_torques[g] = torques
-            if fast or any(abs(t) > SPRING_TORQUE_FLOOR_NM for t in self._spring_torques[g]):
+                self._spring_sends[g] = fast or any(abs(t) > SPRING_TORQUE_FLOOR_NM for t in torques)
+            if self._spring_sends[g]:
                 c.setJointMotorControlArray(body, joints, p.TORQUE_CONTROL, forces=self._spring_torques[g])
         self._hihat_coupling(world)
 
