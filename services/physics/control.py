@@ -65,7 +65,7 @@ MASS_REFRESH_S = 0.03
 is recomputed at least this often, seconds of simulation (it costs about 100 us, 20 times the inverse dynamics,
 and only scales the small correction between updates; the update itself is exact inverse dynamics)."""
 
-TRUNK_IK_WEIGHT = 0.3
+TRUNK_IK_WEIGHT = 0.1
 """Inverse DLS weight of the lumbar and thoracic DOF (0: they keep the posture; 1: as free as the arms)."""
 
 
