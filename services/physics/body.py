@@ -51,6 +51,16 @@ class LoadedPart:
     movable: list[int]
 
 
+def consecutive_runs(lengths: list[int]) -> list[tuple[int, int]]:
+    """(start, stop) of runs of the given lengths laid one after another: [2, 3] -> [(0, 2), (2, 5)]."""
+    runs = []
+    start = 0
+    for length in lengths:
+        runs.append((start, start + length))
+        start += length
+    return runs
+
+
 class Body:
     """A generated character in a :class:`World`, its seat fixed at ``seat_position`` (metres).
 
@@ -116,11 +126,11 @@ class Body:
                                          np.array(slots, dtype=int), movable))
         self._read_order = np.concatenate([part.state_slots for part in self.parts])
         self._from_read = np.argsort(self._read_order)
-        ends = np.cumsum([len(part.state_slots) for part in self.parts])
-        self._read_runs = [(int(e - len(part.state_slots)), int(e)) for part, e in zip(self.parts, ends, strict=True)]
+        """Index that puts the parts' readings (concatenated) into :attr:`state_joints` order."""
+        self._read_runs = consecutive_runs([len(part.state_slots) for part in self.parts])
         """Each part's (start, stop) in the read order."""
         self._send = np.zeros(len(self.state_joints))
-        """Index that puts the parts' readings (concatenated) into :attr:`state_joints` order."""
+        """Buffer of the torques sent, in :attr:`state_joints` order."""
         self.lower = np.array([self._joint_info(j)[8] for j in self.dof_list])
         self.upper = np.array([self._joint_info(j)[9] for j in self.dof_list])
         self.torque_limit = np.array([model.torque_limits[n] for n in model.dof_names])

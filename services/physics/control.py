@@ -38,7 +38,7 @@ from itertools import chain
 import numpy as np
 import pybullet as p
 
-from services.physics.body import LIMBS, Body
+from services.physics.body import LIMBS, Body, consecutive_runs
 from services.physics.character import JOINT_GROUP, JOINTS, joint_kind
 from services.physics.kernels import (
     clip_torques,
@@ -324,9 +324,8 @@ class Controller:
                                  fixed_base=True, flags=p.URDF_USE_INERTIA_FROM_FILE)
             copies.append((body_id, np.array([slot_of[part.offset + j] for j in part.movable], dtype=int)))
         self._id = (world, copies)
-        ends = np.cumsum([len(slots) for _, slots in copies])
         self._id_order = (np.concatenate([slots for _, slots in copies]),
-                          [(int(e - len(slots)), int(e)) for (_, slots), e in zip(copies, ends, strict=True)])
+                          consecutive_runs([len(slots) for _, slots in copies]))
         """The copies' slots one after another, and each copy's (start, stop) in that order."""
 
     def computed_torque(self, theta: np.ndarray, theta_dot: np.ndarray, theta_t: np.ndarray,

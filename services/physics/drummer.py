@@ -223,11 +223,11 @@ class DrummerScene:
         hihat_pedal = self.kit_bodies.hihat.pedal if self.kit_bodies.hihat is not None else None
         self._beater_pedals = [pedal for pedal in self.kit_bodies.pedals.values() if pedal is not hihat_pedal]
         self._beater_pedal_bodies = {pedal.body for pedal in self._beater_pedals}
+        """Pedals a resting foot must not press (their beaters would rest on the head); the hi-hat foot presses
+        its pedal to the plan's depth (a closed hi-hat is held closed by the foot)."""
         self._feet = [(f"{side}_foot", self.body.link_ref[self.body.link_index[f"{side}_foot"]])
                       for side in ("left", "right")]
         """(limb, its foot's (body, link)), for the pedal contacts of each update."""
-        """Pedals a resting foot must not press (their beaters would rest on the head); the hi-hat foot presses
-        its pedal to the plan's depth (a closed hi-hat is held closed by the foot)."""
         self.tracker = ContactTracker(world, self.kit_bodies)
         self.tracker.instrument_every = max(1, round(SLOW_SPRING_PERIOD_S / world.dt))  # with the kit's readings
         for side in ("left", "right"):
