@@ -46,6 +46,7 @@ from services.physics.body import LIMBS, Body
 from services.physics.character import DOF_NAMES, JOINTS, CharacterSpec, build_character
 from services.physics.contacts import ContactTracker, Striker
 from services.physics.control import Controller
+from services.physics.kernels import swing_displacement
 from services.physics.kitbodies import SLOW_SPRING_PERIOD_S, build_kit
 from services.physics.limits import JointLimits, default_limits
 from services.physics.targets import TargetError, Track
@@ -68,6 +69,11 @@ FOOT_STROKE_SPEED = 0.3
 FOOT_TARGET_OFFSET_M = 0.035
 """A foot target is on the pedal's plate (the kit's pedal position: the footboard pressed flat); the ball of the
 foot is then this far above it, metres (board thickness and the shoe's tilt; measured)."""
+CYMBAL_AIM_ABOVE_M = 0.30
+"""A hand target up to this far over a cymbal's plate follows the plate's swing (see :meth:`cartesian_targets`);
+the share fades out over ``CYMBAL_AIM_REACH_M`` beyond it, beyond the rim and under the plate, metres."""
+CYMBAL_AIM_BELOW_M = 0.03
+CYMBAL_AIM_REACH_M = 0.08
 
 
 @dataclass(frozen=True)
@@ -478,12 +484,22 @@ class DrummerScene:
 
         A hand's target is where its bead touches (the stick's lowest point, as the gesture planner
         gives hit points on the surface); the controlled aim point is the bead centre, one bead radius up.
+        The planner aims at cymbals at rest; a hand target over a swinging cymbal is carried along with the
+        plate (as a drummer follows the cymbal with the eye), else a knocked, tilted ride stays under the
+        stick's planned lift and the stick rests on it, pressing it, instead of striking it.
         """
         out: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        hinges = self.kit_bodies.cymbal_hinges
+        swinging = hinges is not None and hinges.angles.any()
         for limb, track in self.limb_tracks.items():
             if len(track):
                 track.prune(t - 1.0)
                 pos, vel = track.sample(t)
+                if swinging and limb in _HANDS:
+                    assert hinges is not None
+                    pos = pos + swing_displacement(pos.reshape(1, 3), hinges.centre, hinges.rotation,
+                                                   hinges.radius, hinges.angles, CYMBAL_AIM_REACH_M,
+                                                   CYMBAL_AIM_ABOVE_M, CYMBAL_AIM_BELOW_M)[0]
                 out[limb] = (pos + self.target_offset[limb], vel)
         return out
 
@@ -601,6 +617,7 @@ class DrummerScene:
 
 
 _HAND_STICKS = (("left_hand", "left_stick"), ("right_hand", "right_stick"))
+_HANDS = tuple(hand for hand, _ in _HAND_STICKS)
 
 
 def _box_clamp(body: Body) -> Any:

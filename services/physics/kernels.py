@@ -382,3 +382,53 @@ def hermite(t: float, t0: float, t1: float, p0: np.ndarray, p1: np.ndarray, v0: 
     pos = (2 * s3 - 3 * s2 + 1) * p0 + (s3 - 2 * s2 + s) * m0 + (-2 * s3 + 3 * s2) * p1 + (s3 - s2) * m1
     vel = ((6 * s2 - 6 * s) * p0 + (3 * s2 - 4 * s + 1) * m0 + (-6 * s2 + 6 * s) * p1 + (3 * s2 - 2 * s) * m1) / h
     return pos, vel
+
+
+# ---------------------------------------------------------------------- swinging cymbals
+
+
+@njit(cache=True)
+def _fade(x: float, full: float, zero: float) -> float:
+    """1 up to ``full``, 0 from ``zero`` on, a smoothstep between (either order of the two)."""
+    s = min(max((x - full) / (zero - full), 0.0), 1.0)
+    return 1.0 - s * s * (3.0 - 2.0 * s)
+
+
+@njit(cache=True)
+def swing_displacement(points: np.ndarray, centre: np.ndarray, rotation: np.ndarray, radius: np.ndarray,
+                       angles: np.ndarray, reach: float, above: float, below: float) -> np.ndarray:
+    """How far (P, 3) m points (P, 3) m aimed at cymbals move when each cymbal carries them along its swing.
+
+    Cymbal ``c`` pivots about ``centre[c]`` (3,) m, its rest frame ``rotation[c]`` (3, 3) (z: the plate's
+    normal), turned now by ``Rx(angles[c, 0]) Ry(angles[c, 1])`` (rad) in that frame. A point over the plate
+    (within ``radius[c]`` of its axis and between ``below`` m under and ``above`` m over it) moves rigidly with
+    the plate; the share fades smoothly to nothing ``reach`` m beyond the rim and as far again beyond
+    ``above`` and ``below``, so a path leaving a cymbal's neighbourhood stays continuous.
+    """
+    out = np.zeros_like(points)
+    local = np.empty(3)
+    moved = np.empty(3)
+    for c in range(centre.shape[0]):
+        a, b = angles[c, 0], angles[c, 1]
+        if abs(a) < 1e-5 and abs(b) < 1e-5:
+            continue
+        ca, sa, cb, sb = math.cos(a), math.sin(a), math.cos(b), math.sin(b)
+        rot = rotation[c]
+        for i in range(points.shape[0]):
+            for k in range(3):  # the point in the cymbal's rest frame
+                local[k] = rot[0, k] * (points[i, 0] - centre[c, 0]) + rot[1, k] * (points[i, 1] - centre[c, 1]) \
+                    + rot[2, k] * (points[i, 2] - centre[c, 2])
+            w = _fade(math.hypot(local[0], local[1]), radius[c], radius[c] + reach)
+            if w == 0.0:
+                continue
+            h = local[2]
+            w *= _fade(h, above, above + reach) if h > 0.0 else _fade(-h, below, below + reach)
+            if w == 0.0:
+                continue
+            # Rx(a) Ry(b) local - local, in the rest frame
+            moved[0] = cb * local[0] + sb * local[2] - local[0]
+            moved[1] = sa * sb * local[0] + ca * local[1] - sa * cb * local[2] - local[1]
+            moved[2] = -ca * sb * local[0] + sa * local[1] + ca * cb * local[2] - local[2]
+            for k in range(3):
+                out[i, k] += w * (rot[k, 0] * moved[0] + rot[k, 1] * moved[1] + rot[k, 2] * moved[2])
+    return out

@@ -171,6 +171,23 @@ class HiHat:
 
 
 @dataclass
+class CymbalHinges:
+    """Every cymbal's pivot and rest frame, and how its spring hinge is turned now (what a drummer aiming at a
+    swinging cymbal sees; :func:`kernels.swing_displacement`)."""
+
+    centre: np.ndarray
+    """(C, 3) pivots, world metres (the plate's top centre)."""
+    rotation: np.ndarray
+    """(C, 3, 3) rest frames in the world (z: the plate's normal)."""
+    radius: np.ndarray
+    """(C,) plate radii, metres."""
+    joints: list[tuple[int, int, int]]
+    """(body, x joint, y joint) of each cymbal's hinge."""
+    angles: np.ndarray
+    """(C, 2) hinge angles (rad) as the springs last read them."""
+
+
+@dataclass
 class KitBodies:
     """Bodies of a kit in one world, and what contact extraction needs to know about them."""
 
@@ -192,6 +209,7 @@ class KitBodies:
     readings: dict[int, tuple[int, list[int], list[float]]] = field(default_factory=dict)
     """body -> (world step, joints, velocities rad/s or m/s) of the bodies :meth:`pre_step` read for that step
     (the contact tracker takes the kit's velocities from here rather than reading them again)."""
+    cymbal_hinges: CymbalHinges | None = None
     _joint_angles: dict[tuple[int, int], float] = field(default_factory=dict)
     """(body, joint) -> angle (rad) of the spring joints at their last reading."""
     _spring_torques: list[list[float]] = field(default_factory=list)
@@ -244,6 +262,11 @@ class KitBodies:
                 self._spring_sends[g] = fast or any(abs(t) > SPRING_TORQUE_FLOOR_NM for t in torques)
             if self._spring_sends[g]:
                 c.setJointMotorControlArray(body, joints, p.TORQUE_CONTROL, forces=self._spring_torques[g])
+        hinges = self.cymbal_hinges
+        if update and hinges is not None:
+            for cymbal, (hinge_body, x_joint, y_joint) in enumerate(hinges.joints):
+                hinges.angles[cymbal, 0] = angles.get((hinge_body, x_joint), 0.0)
+                hinges.angles[cymbal, 1] = angles.get((hinge_body, y_joint), 0.0)
         self._hihat_coupling(world)
 
     def _hihat_coupling(self, world: World) -> None:
@@ -333,6 +356,14 @@ def _cymbals(world: World, kb: KitBodies, objects: list[KitObject]) -> None:
                       flags=p.URDF_USE_INERTIA_FROM_FILE)
     _free_joints(world, body)
     names = {world.client.getJointInfo(body, j)[12].decode(): j for j in range(world.client.getNumJoints(body))}
+    frames = [world.link_frame(body, names[obj.id]) for obj in objects]  # at rest: the hinges at zero
+    kb.cymbal_hinges = CymbalHinges(
+        centre=np.array([pos for pos, _ in frames], dtype=float),
+        rotation=np.array([rotation_matrix(quat) for _, quat in frames]),
+        radius=np.array([obj.radius for obj in objects]),
+        joints=[(body, names[f"{obj.id}_hinge_x"], names[obj.id]) for obj in objects],
+        angles=np.zeros((len(objects), 2)),
+    )
     for obj in objects:
         link = names[obj.id]
         # swing at about 1.2 Hz, amplitude decaying with a 1.5 s time constant
