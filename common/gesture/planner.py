@@ -40,6 +40,14 @@ from common.score.limbs import HANDS, Assignment, Note, distribute
 
 VERTICAL_SHARE = 0.6
 """Share of a segment over which a height change between targets is made (early when rising, late when falling)."""
+MAX_DESCENT_SPEED = 3.0
+"""A fall to a lower target is spread over more of its segment (up to all of it) so that its peak speed stays
+under this, m/s: a hand coming down late from the hi-hat to the snare (28 cm in 0.17 s) was planned at 6.3 m/s,
+braking to the stroke's 0.9 m/s in 40 ms, which the arm cannot follow: the stick hit the head 14 ms early at
+4.2 m/s."""
+MAX_DESCENT_SHARE = 0.8
+"""The fall never starts in the first fifth of a segment: the stick first leaves the instrument it struck (a fall
+from the first instant clipped the hi-hat's edge on the way to the snare)."""
 CORRECTION_WINDOW = 0.06
 """Seconds at each end of a segment over which the boundary velocities are matched."""
 REBOUND_BLEND = 0.25
@@ -196,9 +204,10 @@ def _segment(
     if delta[2] > 0:
         mz, dmz = _min_jerk(np.clip(s / VERTICAL_SHARE, 0.0, 1.0))
         dmz = np.where(s < VERTICAL_SHARE, dmz / VERTICAL_SHARE, 0.0)
-    else:
-        mz, dmz = _min_jerk(np.clip((s - (1 - VERTICAL_SHARE)) / VERTICAL_SHARE, 0.0, 1.0))
-        dmz = np.where(s > 1 - VERTICAL_SHARE, dmz / VERTICAL_SHARE, 0.0)
+    else:  # a minimum-jerk fall over ``share`` of the segment peaks at 1.875 |dz| / (share d)
+        share = min(MAX_DESCENT_SHARE, max(VERTICAL_SHARE, 1.875 * -delta[2] / (d * MAX_DESCENT_SPEED)))
+        mz, dmz = _min_jerk(np.clip((s - (1 - share)) / share, 0.0, 1.0))
+        dmz = np.where(s > 1 - share, dmz / share, 0.0)
     base = start + np.outer(m, horizontal) + np.outer(mz, vertical)
     dbase = np.outer(dm / d, horizontal) + np.outer(dmz / d, vertical)
     if unit is not None and lift > 0:

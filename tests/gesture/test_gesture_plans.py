@@ -225,3 +225,24 @@ def test_scalar_sample_matches_vectorised(groove: Score) -> None:
             s = traj.sample(float(t))
             np.testing.assert_allclose(s.position, pos[k], atol=1e-12)
             np.testing.assert_allclose(s.velocity, vel[k], atol=1e-9)
+
+
+def test_a_hand_falling_from_the_hihat_to_the_snare_is_not_planned_faster_than_an_arm_brakes() -> None:
+    """The right hand plays the hi-hat, then a ghost note on the snare 0.17 s later (28 cm lower): the fall is
+    spread over the segment, not left to its last 40 %, where it peaked at 6.3 m/s and braked to the stroke's
+    0.9 m/s in 40 ms (the arm overshot: the stick hit the head 14 ms early at 4.2 m/s)."""
+    from common.gesture.planner import MAX_DESCENT_SHARE
+    from common.score.text import parse_text
+
+    score = parse_text(f"tempo 88\nHH |x{'.' * 15}|\nSN |.g{'.' * 14}|\nST |RR{'.' * 14}|\n")  # 16ths: 0.17 s
+    plan = plan_gestures(distribute(score, KIT), KIT, score)
+    hihat, snare = sorted((s for s in plan.strokes if s.limb == Limb.RIGHT_HAND), key=lambda s: s.time)
+    assert snare.event == E.SNARE and snare.time - hihat.time == pytest.approx(0.17, abs=0.005)
+    assert hihat.target[2] - snare.target[2] > 0.2
+    tr = plan.trajectories[Limb.RIGHT_HAND]
+    t = np.linspace(hihat.time, snare.time, 400)  # from the hi-hat contact to the snare contact
+    pos, vel = tr.sample_many(t)[:2]
+    assert -vel[1:, 2].min() < 5.0  # m/s, past the hi-hat contact itself (it peaked at 6.3)
+    # past the contact itself (10 ms), the stick rises off the hi-hat before it falls toward the snare
+    lift_off = (t > hihat.time + 0.01) & (t < hihat.time + (1 - MAX_DESCENT_SHARE) * (snare.time - hihat.time))
+    assert np.all(pos[lift_off, 2] >= hihat.target[2])
