@@ -186,6 +186,11 @@ class EventSpec(_Strict):
         description="stick events: shortest interval of a rebound double (the second note a bounce played with the "
         "fingers), seconds; None: the kit's rebound_min_time_gap",
     )
+    off_hand: tuple[Annotated[float, Field(ge=0, le=1.2)], float] | None = Field(
+        default=None,
+        description="stick events: the hit point (r/a, theta radians) when the other hand than ``preferred`` plays "
+        "it, where that hand's stick reaches the surface tip first; None: the same point for both hands",
+    )
 
 
 class Kit(_Strict):
@@ -274,22 +279,27 @@ class Kit(_Strict):
         surface's height there (a cymbal's bell top stands above its bow).
         """
         spec = self.spec(event)
-        obj = self.object_for(event, pitch)
-        r_m = spec.r * obj.radius
-        local = (r_m * math.cos(spec.theta), r_m * math.sin(spec.theta), obj.surface_height(r_m))
+        return self._point_on(self.object_for(event, pitch), spec.r, spec.theta)
+
+    @staticmethod
+    def _point_on(obj: KitObject, r: float, theta: float) -> tuple[Vec3, Vec3]:
+        r_m = r * obj.radius
+        local = (r_m * math.cos(theta), r_m * math.sin(theta), obj.surface_height(r_m))
         return obj.to_world(local), obj.normal()
 
     def effector_target(self, event: EventType, limb: Limb, pitch: int | None = None) -> tuple[Vec3, Vec3]:
         """Where the limb's tracked point is at contact (metres) and the approach normal.
 
-        Stick events: the hit point. Foot events: the footboard (pedal object
-        centre, the footboard pressed flat; the left bass pedal when the left foot plays BASS), normal +z;
+        Stick events: the hit point (``off_hand``'s when the other hand plays it). Foot events: the footboard
+        (pedal object centre, the footboard pressed flat; the left bass pedal when the left foot plays BASS), normal +z;
         for the hi-hat pedal, the foot height at which the footboard reaches the point where the cymbals meet
         (``closes_at`` of the hi-hat, plus ``CHICK_PRESS_MARGIN`` for the board's lag), which a stroke passes
         at speed on its way down (the chick).
         """
         spec = self.spec(event)
         if spec.pedal is None:
+            if spec.off_hand is not None and limb != spec.preferred:
+                return self._point_on(self.object_for(event, pitch), *spec.off_hand)
             return self.hit_point(event, pitch)
         pedal = spec.pedal
         if event == EventType.BASS and self.left_bass_pedal is not None and limb != spec.preferred:
@@ -330,7 +340,9 @@ class Kit(_Strict):
             for o in self.objects
         ]
         events = {
-            e: s.model_copy(update={"preferred": swap[s.preferred], "theta": math.pi - s.theta})
+            e: s.model_copy(update={"preferred": swap[s.preferred], "theta": math.pi - s.theta,
+                                    "off_hand": None if s.off_hand is None else (s.off_hand[0],
+                                                                                 math.pi - s.off_hand[1])})
             for e, s in self.events.items()
         }
         pairs = {k: -v for k, v in self.pair_preference.items()}

@@ -86,6 +86,27 @@ def test_mirrored_kit_swaps_sides_and_limbs() -> None:
     assert left.spec(EventType.BASS).preferred == Limb.LEFT_FOOT
     assert left.spec(EventType.SNARE).preferred == Limb.RIGHT_HAND
     assert left.pair(EventType.HIHATCLOSED, EventType.SNARE) == -kit.pair(EventType.HIHATCLOSED, EventType.SNARE)
+    for kit_b in (left, kit.mirrored()):  # the other hand's hi-hat point mirrors too
+        a = np.array(kit.effector_target(EventType.HIHATCLOSED, Limb.LEFT_HAND)[0])
+        b = np.array(kit_b.effector_target(EventType.HIHATCLOSED, Limb.RIGHT_HAND)[0])
+        np.testing.assert_allclose(b, a * [-1, 1, 1], atol=1e-4)
+
+
+def test_the_other_hand_strikes_the_hihat_where_its_stick_reaches_tip_first() -> None:
+    """The left hand plays the hi-hat on its near side (the right hand's point is far from it: the left stick,
+    rising from below the plates, met the rim with its shaft 20-30 ms before its tip reached that point)."""
+    kit = load_kit()
+    for event in (EventType.HIHATCLOSED, EventType.HIHATOPEN):
+        right = np.array(kit.effector_target(event, Limb.RIGHT_HAND)[0])
+        left = np.array(kit.effector_target(event, Limb.LEFT_HAND)[0])
+        np.testing.assert_allclose(right, kit.hit_point(event)[0])
+        hihat = kit.object("hihat")
+        r, theta = kit.spec(event).off_hand or (0.0, 0.0)
+        local = np.array(hihat.rotation_matrix()).T @ (left - np.array(hihat.position))
+        np.testing.assert_allclose(np.hypot(local[0], local[1]), r * hihat.radius, atol=1e-9)
+        assert left[1] < right[1] - 0.05  # nearer the drummer
+    snare = [np.array(kit.effector_target(EventType.SNARE, limb)[0]) for limb in (Limb.LEFT_HAND, Limb.RIGHT_HAND)]
+    np.testing.assert_array_equal(snare[0], snare[1])  # without off_hand: one point for both hands
 
 
 def test_pair_is_antisymmetric() -> None:
