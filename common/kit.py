@@ -287,6 +287,14 @@ class Kit(_Strict):
         local = (r_m * math.cos(theta), r_m * math.sin(theta), obj.surface_height(r_m))
         return obj.to_world(local), obj.normal()
 
+    def struck_point(self, event: EventType, limb: Limb) -> tuple[float, float]:
+        """(r as a fraction of the radius, theta radians) of the point ``limb`` strikes for ``event``: the event's
+        ``off_hand`` point when a hand other than the preferred one plays it, else its own."""
+        spec = self.spec(event)
+        if spec.pedal is None and spec.off_hand is not None and limb != spec.preferred:
+            return spec.off_hand
+        return spec.r, spec.theta
+
     def effector_target(self, event: EventType, limb: Limb, pitch: int | None = None) -> tuple[Vec3, Vec3]:
         """Where the limb's tracked point is at contact (metres) and the approach normal.
 
@@ -298,9 +306,7 @@ class Kit(_Strict):
         """
         spec = self.spec(event)
         if spec.pedal is None:
-            if spec.off_hand is not None and limb != spec.preferred:
-                return self._point_on(self.object_for(event, pitch), *spec.off_hand)
-            return self.hit_point(event, pitch)
+            return self._point_on(self.object_for(event, pitch), *self.struck_point(event, limb))
         pedal = spec.pedal
         if event == EventType.BASS and self.left_bass_pedal is not None and limb != spec.preferred:
             pedal = self.left_bass_pedal

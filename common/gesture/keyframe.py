@@ -103,22 +103,22 @@ def plan_keyframes(
             frames.append((n.time, target, "contact"))
             frames.append((n.time + delta, target + h * obj.elasticity * up, "after"))
             speed = h / delta
-            hit, _ = kit.hit_point(n.event, n.pitch)
+            hit = target if limb in HANDS else np.array(kit.hit_point(n.event, n.pitch)[0])  # a hand's own point
             strokes.append(
                 PlannedStroke(
                     time=n.time,
                     limb=limb,
                     event=n.event,
                     object_id=obj.id,
-                    hit_point=np.array(hit),
+                    hit_point=hit,
                     target=target,
                     normal=normal,
                     velocity=speed,
                     note_velocity=n.velocity,
                     note_index=n.index,
                     zone=kit.spec(n.event).zone,
-                    r=kit.spec(n.event).r,
-                    theta=kit.spec(n.event).theta,
+                    r=kit.struck_point(n.event, limb)[0],
+                    theta=kit.struck_point(n.event, limb)[1],
                     lift=h,
                     rebound_velocity=speed * obj.elasticity,
                     contact_duration=0.0,

@@ -217,7 +217,8 @@ class PlannedStroke:
     object_id : str
         Kit object struck (the sounding object; for BASS the kick drum).
     hit_point : np.ndarray, shape (3,)
-        Where the sounding object is struck, world metres.
+        Where the sounding object is struck, world metres (by a hand that is not the event's preferred one, at
+        the event's ``off_hand`` point).
     target : np.ndarray, shape (3,)
         Where the limb's effector is at contact, world metres: ``hit_point``
         for hands; the pedal footboard for feet.
@@ -230,7 +231,7 @@ class PlannedStroke:
     note_index : int
         Index of the note in the score's event list.
     zone, r, theta : str, float, float
-        Hit zone, radius r/a and angle (radians) on the object.
+        Hit zone, radius r/a and angle (radians) on the object of the point struck (``hit_point``).
     lift : float
         Preparatory height above the target before the stroke, metres.
     rebound_velocity : float

@@ -470,7 +470,7 @@ def plan_gestures(
                 geometry[key] = (
                     np.array(tgt),
                     np.array(nrm),
-                    np.array(kit.hit_point(n.event, n.pitch)[0]),
+                    np.array(tgt if hand else kit.hit_point(n.event, n.pitch)[0]),  # a hand's own point (off_hand)
                     kit.object_for(n.event, n.pitch),
                 )
             target, normal, hit, obj = geometry[key]
@@ -505,8 +505,8 @@ def plan_gestures(
                     note_velocity=n.velocity,
                     note_index=n.index,
                     zone=kit.spec(n.event).zone,
-                    r=kit.spec(n.event).r,
-                    theta=kit.spec(n.event).theta,
+                    r=kit.struck_point(n.event, limb)[0],
+                    theta=kit.struck_point(n.event, limb)[1],
                     lift=lift,
                     rebound_velocity=rebound,
                     contact_duration=contact,

@@ -74,6 +74,12 @@ CYMBAL_AIM_ABOVE_M = 0.30
 the share fades out over ``CYMBAL_AIM_REACH_M`` beyond it, beyond the rim and under the plate, metres."""
 CYMBAL_AIM_BELOW_M = 0.03
 CYMBAL_AIM_REACH_M = 0.08
+LEAD_IN_RISE_M = 0.05
+"""A hand moving from where it is to a plan's first knot passes this far above the higher of the two halfway, so
+its stick clears what lies between (going from the rest over the hi-hat to the snare, a straight path met the
+hi-hat's edge), metres."""
+LEAD_IN_ARC_MIN_S = 0.2
+"""Shorter moves to a plan's first knot go straight (an arc would ask for a rise at several metres per second)."""
 
 
 @dataclass(frozen=True)
@@ -392,7 +398,8 @@ class DrummerScene:
         """Track a whole gesture plan: its time ``plan.start_time`` maps to rig time ``start_at`` (seconds).
 
         Every knot is checked first (nothing is queued if one is unreachable). When the plan starts later
-        than ``now``, each limb first moves smoothly from where it is to the plan's first knot.
+        than ``now``, each limb first moves smoothly from where it is to the plan's first knot (a hand, given
+        ``LEAD_IN_ARC_MIN_S`` or more, over an arc ``LEAD_IN_RISE_M`` above the higher end).
         """
         offset = start_at - plan.start_time
         for limb, traj in plan.trajectories.items():
@@ -407,8 +414,11 @@ class DrummerScene:
             name = str(limb.value if hasattr(limb, "value") else limb)
             track = self.limb_tracks[name]
             track.clear()
-            if now is not None and traj.times[0] + offset > now + 1e-3:
+            first = traj.times[0] + offset
+            if now is not None and first > now + 1e-3:
                 track.add(now, here[name], np.zeros(3))
+                if name in _HANDS and first - now >= LEAD_IN_ARC_MIN_S:
+                    track.add(*_lead_in_apex(now, here[name], first, np.asarray(traj.positions[0], dtype=float)))
             track.extend(traj.times + offset, traj.positions, traj.velocities)
 
     def current_targets(self) -> dict[str, np.ndarray]:
@@ -614,6 +624,16 @@ class DrummerScene:
         self.last_joint_target = (theta_t, theta_dot_t)
         self.controller.apply(theta, theta_dot, theta_t, theta_dot_t, self.passive_torques(pq, pqd), (pq, pqd))
         self.kit_bodies.pre_step(self.world)
+
+
+def _lead_in_apex(t0: float, p0: np.ndarray, t1: float, p1: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    """The middle knot of a hand's move from ``p0`` at ``t0`` to ``p1`` at ``t1`` (seconds, metres): halfway across,
+    ``LEAD_IN_RISE_M`` above the higher end, moving across at the mean speed (m/s) and not vertically."""
+    across = (p1 - p0) / (t1 - t0)
+    across[2] = 0.0
+    apex = 0.5 * (p0 + p1)
+    apex[2] = max(p0[2], p1[2]) + LEAD_IN_RISE_M
+    return 0.5 * (t0 + t1), apex, across
 
 
 _HAND_STICKS = (("left_hand", "left_stick"), ("right_hand", "right_stick"))

@@ -246,3 +246,22 @@ def test_a_hand_falling_from_the_hihat_to_the_snare_is_not_planned_faster_than_a
     # past the contact itself (10 ms), the stick rises off the hi-hat before it falls toward the snare
     lift_off = (t > hihat.time + 0.01) & (t < hihat.time + (1 - MAX_DESCENT_SHARE) * (snare.time - hihat.time))
     assert np.all(pos[lift_off, 2] >= hihat.target[2])
+
+
+@pytest.mark.parametrize("mode", ["gesture", "keyframe"])
+def test_a_stroke_by_the_other_hand_reports_the_point_it_strikes(mode: str) -> None:
+    """A flam on the snare: the right hand strikes the snare's off_hand point, and its planned stroke says so (hit
+    point, r and theta: what the head looks at and what a Pd patch or the viewer is told)."""
+    score = Score([DrumEvent(0.5, E.SNARE, 0.7), DrumEvent(0.53, E.SNARE, 0.9)])
+    assignment = distribute(score, KIT)
+    plan = plan_gestures(assignment, KIT, score) if mode == "gesture" else plan_keyframes(assignment, KIT, score)
+    left, right = sorted(plan.strokes, key=lambda s: s.time)
+    assert (left.limb, right.limb) == (Limb.LEFT_HAND, Limb.RIGHT_HAND)
+    spec = KIT.spec(E.SNARE)
+    assert spec.off_hand is not None
+    assert (left.r, left.theta) == (spec.r, spec.theta)
+    assert (right.r, right.theta) == spec.off_hand
+    for s in (left, right):
+        np.testing.assert_allclose(s.hit_point, s.target)
+    np.testing.assert_allclose(right.hit_point, KIT.effector_target(E.SNARE, Limb.RIGHT_HAND)[0])
+    assert np.linalg.norm(right.hit_point - left.hit_point) > 0.08

@@ -105,8 +105,8 @@ def test_the_other_hand_strikes_the_hihat_where_its_stick_reaches_tip_first() ->
         local = np.array(hihat.rotation_matrix()).T @ (left - np.array(hihat.position))
         np.testing.assert_allclose(np.hypot(local[0], local[1]), r * hihat.radius, atol=1e-9)
         assert left[1] < right[1] - 0.05  # nearer the drummer
-    snare = [np.array(kit.effector_target(EventType.SNARE, limb)[0]) for limb in (Limb.LEFT_HAND, Limb.RIGHT_HAND)]
-    np.testing.assert_array_equal(snare[0], snare[1])  # without off_hand: one point for both hands
+    tom = [np.array(kit.effector_target(EventType.HIGHTOM, limb)[0]) for limb in (Limb.LEFT_HAND, Limb.RIGHT_HAND)]
+    np.testing.assert_array_equal(tom[0], tom[1])  # without off_hand: one point for both hands
 
 
 def test_pair_is_antisymmetric() -> None:
