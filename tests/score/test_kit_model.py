@@ -128,3 +128,16 @@ def test_invalid_kits_are_refused(tmp_path: Path) -> None:
     path = tmp_path / "k.json"
     save_kit(load_kit("double_pedal"), path)
     assert load_kit(path) == load_kit("double_pedal")
+
+
+def test_the_right_hand_strikes_the_snare_nearer_the_drummer_than_the_left() -> None:
+    """Its rebound no longer carries the right stick's tip into the high tom's rim, which overhangs the snare's far
+    side (a hard right-hand snare stroke was followed 15-20 ms later by a loud hit on the high tom)."""
+    right, left = Limb.RIGHT_HAND, Limb.LEFT_HAND
+    for name, near_hand in (("default", right), ("double_pedal", right), ("left_handed", left)):
+        kit = load_kit(name)
+        far_hand = left if near_hand == right else right
+        near = kit.effector_target(EventType.SNARE, near_hand)[0]
+        far = kit.effector_target(EventType.SNARE, far_hand)[0]
+        assert far[1] - near[1] > 0.08  # metres, along the drummer's facing direction
+        assert abs(far[0] - near[0]) < 1e-6
