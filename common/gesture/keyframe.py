@@ -104,6 +104,7 @@ def plan_keyframes(
             frames.append((n.time + delta, target + h * obj.elasticity * up, "after"))
             speed = h / delta
             hit = target if limb in HANDS else np.array(kit.hit_point(n.event, n.pitch)[0])  # a hand's own point
+            struck_r, struck_theta = kit.struck_point(n.event, limb)
             strokes.append(
                 PlannedStroke(
                     time=n.time,
@@ -117,8 +118,8 @@ def plan_keyframes(
                     note_velocity=n.velocity,
                     note_index=n.index,
                     zone=kit.spec(n.event).zone,
-                    r=kit.struck_point(n.event, limb)[0],
-                    theta=kit.struck_point(n.event, limb)[1],
+                    r=struck_r,
+                    theta=struck_theta,
                     lift=h,
                     rebound_velocity=speed * obj.elasticity,
                     contact_duration=0.0,

@@ -492,6 +492,7 @@ def plan_gestures(
             bounce = hand and n.rebound and bool(strokes)
             strokes.append(_Stroke(n.time, target, normal, speed, rebound, lift, contact, nuance, bounce))
             units.append(unit)
+            struck_r, struck_theta = kit.struck_point(n.event, limb)
             planned.append(
                 PlannedStroke(
                     time=n.time,
@@ -505,8 +506,8 @@ def plan_gestures(
                     note_velocity=n.velocity,
                     note_index=n.index,
                     zone=kit.spec(n.event).zone,
-                    r=kit.struck_point(n.event, limb)[0],
-                    theta=kit.struck_point(n.event, limb)[1],
+                    r=struck_r,
+                    theta=struck_theta,
                     lift=lift,
                     rebound_velocity=rebound,
                     contact_duration=contact,
