@@ -79,6 +79,11 @@ class ControlParams:
     error feedback (1/s) with the computed-torque / the explicit PD;
     ``gravity_compensation``: add tau_g; ``max_joint_speed``: the IK's joint velocity reference is scaled
     down to at most this (rad/s), a guard near singular (stretched) arm configurations.
+    ``ct_frequency_hz``: the computed-torque PD's natural frequency; ``trunk_ct_frequency_hz``: the same for
+    the seat, lumbar and thoracic DOF (the damping ratio is kept). The upper body weighs 5-14 kg m^2 about
+    them and gets 250-400 N m, so it can take only 30-80 rad/s^2; a 15 Hz PD asks it for hundreds after every
+    stroke, and clipped joint by joint those demands set the pelvis and spine chattering between their torque
+    limits (docs/physics.md, "The trunk's gains").
     """
 
     frequency_hz: float = 25.0
@@ -90,6 +95,7 @@ class ControlParams:
     gravity_compensation: bool = True
     limit_stiffness_scale: float = 2.0
     ct_frequency_hz: float = 15.0
+    trunk_ct_frequency_hz: float = 10.6
     max_lead_rad: float = 0.1
     contact_lead_rad: float = 0.005
     contact_softening: float = 1.0
@@ -202,6 +208,12 @@ class Controller:
         kd_slow = 2 * zeta * np.sqrt(self.ks * self.inertia_locked)
         kd_cap = KD_CAP * self.inertia / self.world.dt
         self.kd = np.minimum(np.maximum(2 * zeta * w * self.inertia, kd_slow), kd_cap) * self.scale_kd
+        ratio = np.where(self.group_of == "trunk", self.params.trunk_ct_frequency_hz / self.params.ct_frequency_hz,
+                         1.0)
+        self.ct_ks = self.scale_ks * ratio * ratio
+        self.ct_kd = self.scale_kd * ratio
+        """The computed-torque PD's per-DOF scales of ``w^2`` and ``2 zeta w`` (the live scales and the trunk's
+        lower frequency)."""
 
     def set_gains(self, group: str, ks_scale: float, kd_scale: float) -> None:
         mask = np.ones(len(self.ks), dtype=bool) if group == "all" else self.group_of == group
@@ -351,7 +363,7 @@ class Controller:
         pq, pqd = self.body.passive_state() if passive is None else passive
         # rows q, qd, qdd in state order: the 57 DOF then the passive joints (not driven: accelerations 0)
         state = computed_torque_state(theta, theta_dot, theta_t, theta_dot_t, last_theta_dot_t, self.control_dt,
-                                      self.params.max_ff_accel, soft, self.scale_ks, self.scale_kd,
+                                      self.params.max_ff_accel, soft, self.ct_ks, self.ct_kd,
                                       2 * math.pi * self.params.ct_frequency_hz, self.params.damping_ratio, pq, pqd)
         refresh = self.control_dt > self.world.dt  # held between updates: keep M(q) for the PD's correction
         if refresh:
@@ -417,8 +429,8 @@ class Controller:
                 tau = self.ks * (theta_t - theta) + self.kd * (theta_dot_t - theta_dot) + extra
             if self.control_dt > self.world.dt:  # updates held over several steps (apply_between)
                 if self.mode in COMPUTED_TORQUE_MODES:  # between updates: the same PD through the update's M(q)
-                    k_between = self._w_ct**2 * self.scale_ks
-                    d_between = 2 * self.params.damping_ratio * self._w_ct * self.scale_kd
+                    k_between = self._w_ct**2 * self.ct_ks
+                    d_between = 2 * self.params.damping_ratio * self._w_ct * self.ct_kd
                     mass = self._ct_mass
                 else:
                     k_between, d_between, mass = self.ks, self.kd, None
