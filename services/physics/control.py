@@ -80,10 +80,10 @@ class ControlParams:
     ``gravity_compensation``: add tau_g; ``max_joint_speed``: the IK's joint velocity reference is scaled
     down to at most this (rad/s), a guard near singular (stretched) arm configurations.
     ``ct_frequency_hz``: the computed-torque PD's natural frequency; ``trunk_ct_frequency_hz``: the same for
-    the seat, lumbar and thoracic DOF (the damping ratio is kept). The upper body weighs 5-14 kg m^2 about
-    them and gets 250-400 N m, so it can take only 30-80 rad/s^2; a 15 Hz PD asks it for hundreds after every
-    stroke, and clipped joint by joint those demands set the pelvis and spine chattering between their torque
-    limits (docs/physics.md, "The trunk's gains").
+    the seat, lumbar and thoracic DOF (the damping ratio is kept). About the seat's and lumbar's horizontal
+    axes the upper body weighs 5-12 kg m^2 and gets 250-400 N m, a few tens of rad/s^2; a 15 Hz PD asked it
+    for hundreds after strokes, and clipped joint by joint those demands set the pelvis and spine chattering
+    between their torque limits (docs/physics.md, "The trunk's gains").
     """
 
     frequency_hz: float = 25.0

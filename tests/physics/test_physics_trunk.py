@@ -1,10 +1,10 @@
 """The trunk under the computed-torque PD during a real groove: the pelvis and spine stay off their torque limits
 in most steps and both hands follow their plans.
 
-The upper body (5-14 kg m^2 about the seat and spine DOF) gets 250-400 N m. At the arms' 15 Hz the trunk's PD
-asked it for hundreds of rad/s^2 after every stroke; clipped joint by joint, the demands set the pelvis and spine
-chattering between their limits (a fifth of the steps of these 12 s) and the hands' aim points dropped under
-their plans (99th percentile 26 mm). ``ControlParams.trunk_ct_frequency_hz`` runs the trunk's PD slower.
+The upper body (5-12 kg m^2 about the seat's and lumbar's horizontal axes) gets 250-400 N m. At the arms'
+15 Hz the trunk's PD asked it for hundreds of rad/s^2 after strokes; clipped joint by joint, the demands set the
+pelvis and spine chattering between their limits (a fifth of the steps of these 12 s) and the hands' aim points
+dropped under their plans (99th percentile 26 mm). ``ControlParams.trunk_ct_frequency_hz`` runs the trunk's PD slower.
 """
 
 from __future__ import annotations
@@ -43,7 +43,7 @@ def groove_run() -> tuple[float, np.ndarray]:
     steps = saturated = 0
     errors: list[float] = []
     for k in range(round(START_S * 1000) + 1, round((SECONDS + offset) * 1000) + 1):
-        core.step(k / 1000)
+        core.step(k / 1000)  # the first call also runs the settling steps before START_S (not counted)
         steps += 1
         saturated += int(np.any(np.abs(controller.last_tau[trunk]) >= body.torque_limit[trunk] - 1e-9))
         if k % 5 == 0:
