@@ -2,8 +2,10 @@
 
 Rules (Kragtwijk, Nijholt and Zwiers 2001):
 
-* at most one hi-hat event (HIHATOPEN, HIHATCLOSED, HIHATPEDAL) at a time: a
-  stick hi-hat wins over the pedal, then the louder one;
+* at most one stick hi-hat event (HIHATOPEN, HIHATCLOSED) and one HIHATPEDAL at
+  a time, the louder one kept; a pedal under a stick hi-hat is played by the
+  left foot (a human drummer's chick under the stick, as in the Groove MIDI
+  performances);
 * when three or more non-bass events coincide, the hi-hat pedal substitutes
   for a stick hi-hat (the left foot closes the hi-hat instead of a hand);
 * at most two stick events at once (the quietest extra ones are dropped);
@@ -146,10 +148,13 @@ def distribute(
 
     for g in _groups([e.time for e in events], window):
         group = [(index_of[id(events[i])], events[i]) for i in g]
-        # one hi-hat event at a time
-        hats = [(i, e) for i, e in group if e.event in HIHAT]
-        if len(hats) > 1:
-            keep = max(hats, key=lambda ie: (ie[1].event in STICK_HIHAT, ie[1].velocity, ie[1].event.value))
+        # one stick hi-hat and one pedal at a time: drummers often close the hi-hat with the foot as a hand
+        # strikes it (a chick under the stick, or a splash beside an open hit), so the two are kept together
+        for kind in (STICK_HIHAT, {EventType.HIHATPEDAL}):
+            hats = [(i, e) for i, e in group if e.event in kind]
+            if len(hats) < 2:
+                continue
+            keep = max(hats, key=lambda ie: (ie[1].velocity, ie[1].event.value))
             for i, e in hats:
                 if i != keep[0]:
                     issue(
@@ -158,7 +163,7 @@ def distribute(
                         IssueAction.DROPPED,
                         f"{e.event.value} with {keep[1].event.value} at the same time",
                     )
-            group = [(i, e) for i, e in group if e.event not in HIHAT or i == keep[0]]
+            group = [(i, e) for i, e in group if e.event not in kind or i == keep[0]]
         # pedal substitution when three or more non-bass events coincide
         non_bass = [(i, e) for i, e in group if e.event != EventType.BASS]
         stick = [(i, e) for i, e in group if e.event not in (EventType.BASS, EventType.HIHATPEDAL)]
