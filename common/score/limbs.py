@@ -30,7 +30,7 @@ import numpy as np
 
 from common.gesture.plan import FeasibilityIssue, IssueAction, IssueReason, Nuance
 from common.kit import EventType, Kit, Limb
-from common.score.events import Score
+from common.score.events import DrumEvent, Score
 from common.score.hands import HandAlgorithm, HandNote, Sticking, assign_hands, crossed
 from common.score.rebound import Interval, Stroke, classify, rebound_gap, why_too_fast
 
@@ -88,6 +88,12 @@ def _groups(times: list[float], window: float) -> list[list[int]]:
         else:
             groups.append([i])
     return groups
+
+
+def _keep_rank(e: DrumEvent, pedal_sounding: bool) -> tuple[bool, bool, float]:
+    """Rank of a stick event among too many at once (higher is kept): a forced hand, not a stick hi-hat
+    the pedal already sounds, then loudness."""
+    return (e.limb is not None, not (pedal_sounding and e.event in STICK_HIHAT), e.velocity)
 
 
 def distribute(
@@ -181,7 +187,9 @@ def distribute(
                     break
         stick = [(i, e) for i, e in group if e.event not in (EventType.BASS, EventType.HIHATPEDAL)]
         if len(stick) > 2:
-            ranked = sorted(stick, key=lambda ie: (ie[1].limb is not None, ie[1].velocity), reverse=True)
+            # with the pedal sounding the hi-hat, a stick hi-hat is the note to give up, then the quietest
+            pedal = any(e.event == EventType.HIHATPEDAL for _, e in group)
+            ranked = sorted(stick, key=lambda ie: _keep_rank(ie[1], pedal), reverse=True)
             for i, _e in ranked[2:]:
                 issue(
                     i, IssueReason.TOO_MANY_HANDS, IssueAction.DROPPED, f"{len(stick)} stick events at once, two hands"

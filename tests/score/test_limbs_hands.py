@@ -36,6 +36,11 @@ def test_one_stick_hihat_at_a_time_with_the_pedal_under_it() -> None:
     b = distribute(_score((0.0, E.HIHATPEDAL, 0.3), (0.005, E.HIHATPEDAL, 0.6)), KIT)
     assert [(n.event, n.velocity) for n in b.notes] == [(E.HIHATPEDAL, 0.6)]
     assert [i.reason for i in b.issues] == [IssueReason.HIHAT_CONFLICT]
+    # a pedal under a stick hi-hat among three stick notes: the stick hi-hat is given up, the pedal sounds it
+    group = ((0.0, E.HIHATCLOSED, 0.9), (0.0, E.HIHATPEDAL), (0.0, E.SNARE, 0.5), (0.0, E.CRASH, 0.6))
+    c = distribute(_score(*group), KIT)
+    assert sorted(n.event.value for n in c.notes) == ["CRASH", "HIHATPEDAL", "SNARE"]
+    assert [(i.event, i.reason) for i in c.issues] == [(E.HIHATCLOSED, IssueReason.TOO_MANY_HANDS)]
 
 
 def test_pedal_substitutes_when_three_non_bass_events_coincide() -> None:
