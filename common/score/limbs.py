@@ -3,8 +3,8 @@
 Rules (Kragtwijk, Nijholt and Zwiers 2001):
 
 * at most one stick hi-hat event (HIHATOPEN, HIHATCLOSED) and one HIHATPEDAL at
-  a time, the louder one kept; a pedal under a stick hi-hat is played by the
-  left foot (a human drummer's chick under the stick, as in the Groove MIDI
+  a time, the louder of each kind kept; a pedal under a stick hi-hat is played by the
+  hi-hat foot (a human drummer's chick under the stick, as in the Groove MIDI
   performances);
 * when three or more non-bass events coincide, the hi-hat pedal substitutes
   for a stick hi-hat (the left foot closes the hi-hat instead of a hand);
@@ -34,7 +34,6 @@ from common.score.events import DrumEvent, Score
 from common.score.hands import HandAlgorithm, HandNote, Sticking, assign_hands, crossed
 from common.score.rebound import Interval, Stroke, classify, rebound_gap, why_too_fast
 
-HIHAT = {EventType.HIHATOPEN, EventType.HIHATCLOSED, EventType.HIHATPEDAL}
 STICK_HIHAT = {EventType.HIHATOPEN, EventType.HIHATCLOSED}
 FEET = {Limb.LEFT_FOOT, Limb.RIGHT_FOOT}
 HANDS = {Limb.LEFT_HAND, Limb.RIGHT_HAND}

@@ -32,6 +32,10 @@ def test_one_stick_hihat_at_a_time_with_the_pedal_under_it() -> None:
     assert [(i.event, i.reason, i.action) for i in a.issues] == [
         (E.HIHATOPEN, IssueReason.HIHAT_CONFLICT, IssueAction.DROPPED)
     ]
+    # on the mirrored kit the hi-hat foot is the right one, beside the left foot's bass drum
+    mirrored = distribute(_score((0.0, E.HIHATCLOSED), (0.008, E.HIHATPEDAL), (0.0, E.BASS)), load_kit("left_handed"))
+    assert {n.event: n.limb for n in mirrored.notes} == {E.HIHATCLOSED: LH, E.HIHATPEDAL: RF, E.BASS: LF}
+    assert not mirrored.issues
     # two pedal chicks at once are one: the louder stays
     b = distribute(_score((0.0, E.HIHATPEDAL, 0.3), (0.005, E.HIHATPEDAL, 0.6)), KIT)
     assert [(n.event, n.velocity) for n in b.notes] == [(E.HIHATPEDAL, 0.6)]
