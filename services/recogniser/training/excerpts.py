@@ -29,6 +29,7 @@ from services.recogniser.training.kits import (
 )
 from services.recogniser.training.modal import MODAL_KITS, render_modal_kit
 from services.recogniser.training.render import Hit, Note, augment, normalise, read_notes, render
+from services.recogniser.training.soundfont import SOUNDFONT_KITS, render_soundfont_kit
 
 FIT_KITS = TRAIN_KITS + MODAL_KITS
 """Kits the models are fitted on: the Hydrogen training kits and Batteur's own synthesis."""
@@ -54,17 +55,24 @@ _KITS: dict[str, Kit] = {}
 
 
 def load_any_kit(name: str) -> Kit:
-    """A Hydrogen kit, or one of Batteur's own synthesised kits (:data:`MODAL_KITS`), loaded once per process."""
+    """A Hydrogen kit, one of Batteur's own synthesised kits (:data:`MODAL_KITS`) or a soundfont's drum kit
+    (:data:`~.soundfont.SOUNDFONT_KITS`), loaded once per process."""
     if name not in _KITS:
-        _KITS[name] = render_modal_kit(name.removeprefix("batteur-")) if name in MODAL_KITS else load_kit(name)
+        if name in MODAL_KITS:
+            _KITS[name] = render_modal_kit(name.removeprefix("batteur-"))
+        elif name in SOUNDFONT_KITS:
+            _KITS[name] = render_soundfont_kit(name)
+        else:
+            _KITS[name] = load_kit(name)
     return _KITS[name]
 
 
 def prepare(kits: tuple[str, ...]) -> None:
-    """Make the synthesised kits before worker processes fork (so the sound demo runs once)."""
+    """Make the rendered kits before worker processes fork (so each is rendered once)."""
     for name in kits:
-        if name in MODAL_KITS and name not in _KITS:
-            print(f"rendering {name} one-shots with the sound service ...", flush=True)
+        if (name in MODAL_KITS or name in SOUNDFONT_KITS) and name not in _KITS:
+            how = "the sound service" if name in MODAL_KITS else "FluidSynth"
+            print(f"rendering {name} one-shots with {how} ...", flush=True)
             load_any_kit(name)
 
 

@@ -9,6 +9,7 @@ training (:func:`targets`), so the cache holds only spectra (float16) and strike
 from __future__ import annotations
 
 import multiprocessing as mp
+import time
 from contextlib import nullcontext
 from dataclasses import dataclass
 from pathlib import Path
@@ -29,8 +30,8 @@ from services.recogniser.training.excerpts import (
 
 NEIGHBOUR_TARGET = 0.5
 """Target of the frames next to a strike's frame (target widening: the exact frame is uncertain by half a hop)."""
-
-
+PROGRESS_EVERY = 250
+"""Excerpts between two progress lines while rendering."""
 WINDOWS = (512, 1024, 2048)
 """Analysis windows rendered into the frame sets, samples (23, 46 and 93 ms); a network uses any of them."""
 
@@ -94,12 +95,15 @@ def make_frames(n: int, seed: int, workers: int, kits: tuple[str, ...], dry_p: f
     spec = (np.lib.format.open_memmap(f"{path}.spec.npy", mode="w+", dtype=np.float16, shape=shape)
             if path is not None else np.empty(shape, np.float16))
     hits = []
+    t0 = time.monotonic()
     with mp.Pool(workers) if workers > 1 else nullcontext() as pool:
         results = pool.imap(_one, todo, chunksize=4) if pool is not None else map(_one, todo)
         for e, (s, h) in enumerate(results):
             assert len(s) == per, (len(s), per)
             spec[e * per : (e + 1) * per] = s
             hits.append(np.column_stack([np.full(len(h), e, np.float64), h]))
+            if (e + 1) % PROGRESS_EVERY == 0 and e + 1 < n:
+                print(f"  rendered {e + 1}/{n} excerpts, {time.monotonic() - t0:.0f} s", flush=True)
     data = FrameSet(spec, np.arange(n + 1, dtype=np.int64) * per, np.concatenate(hits), WINDOWS)
     if path is not None:
         spec.flush()  # type: ignore[union-attr]

@@ -36,6 +36,7 @@ from services.recogniser.training.fit_net import HARD_WEIGHT, fit
 from services.recogniser.training.frames import WINDOWS, FrameSet, make_frames
 from services.recogniser.training.kits import VALID_KITS
 from services.recogniser.training.net import Net, export, from_export
+from services.recogniser.training.soundfont import SOUNDFONT_KITS, SoundfontsMissingError, require_soundfonts
 from services.recogniser.training.tune import choose
 
 CACHE_TAG = "f3"
@@ -126,6 +127,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--rules", action="store_true",
                     help="also choose on the validation kit how far class strikes move to onset-output peaks and the "
                          "ratio that drops snare peaks under hi-hat peaks (FrameNet.snap_frames, hihat_snare)")
+    ap.add_argument("--soundfonts", action="store_true",
+                    help="also fit on the drum kits of General MIDI soundfonts rendered by FluidSynth "
+                         "(training/soundfont.py; Debian packages fluidsynth, fluid-soundfont-gm, "
+                         "musescore-general-soundfont-small, timgm6mb-soundfont)")
     ap.add_argument("--render-only", action="store_true", help="render (and cache) the excerpts, do not fit")
     ap.add_argument("--ensemble", type=Path, nargs="+", default=None, metavar="MODEL",
                     help="only average the offline networks of these model files into one (the live MLP and metadata "
@@ -140,6 +145,14 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if not kits_installed():
         return 1
+    fit_kits = FIT_KITS
+    if args.soundfonts:
+        try:
+            require_soundfonts(list(SOUNDFONT_KITS))
+        except SoundfontsMissingError as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return 1
+        fit_kits = FIT_KITS + tuple(SOUNDFONT_KITS)
     windows = tuple(sorted(set(args.windows)))
     try:
         weights = output_weights(args.weight)
@@ -170,7 +183,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"wrote {args.out} ({args.out.stat().st_size / 1024:.0f} KiB)")
         return 0
     live, live_meta = load_live(args.live_from)
-    train = frames(args.cache, "train", args.excerpts, args.seed, args.workers, FIT_KITS, 0.3, not args.plain)
+    train = frames(args.cache, "train" + ("-sf" if args.soundfonts else ""), args.excerpts, args.seed, args.workers,
+                   fit_kits, 0.3, not args.plain)
     if args.render_only:
         return 0
     print(f"training: {train.n_excerpts} excerpts, {len(train.spec)} frames, {len(train.hits)} strikes; "
@@ -180,7 +194,7 @@ def main(argv: list[str] | None = None) -> int:
                      outputs=weights))
     print("thresholds:", flush=True)
     choose(net, val, rules=args.rules)
-    meta = {"trained_on": list(FIT_KITS), "thresholds_from": list(VALID_KITS), "excerpts": args.excerpts,
+    meta = {"trained_on": list(fit_kits), "thresholds_from": list(VALID_KITS), "excerpts": args.excerpts,
             "val_excerpts": args.val_excerpts, "val_plain": args.val_plain, "rules": args.rules,
             "epochs": args.epochs, "minutes": args.minutes, "width": args.width,
             "seed": args.seed, "windows": list(windows), "hard": args.hard, "variety": not args.plain,
@@ -190,7 +204,7 @@ def main(argv: list[str] | None = None) -> int:
             "live_trained_on": live_meta.get("live_trained_on", live_meta.get("trained_on", [])),
             "live_excerpts": live_meta.get("live_excerpts", live_meta.get("excerpts")),
             "data": "Groove MIDI Dataset train split (CC BY 4.0) rendered with hydrogen-drumkits and Batteur's "
-                    "synthesis"}
+                    "synthesis" + (" and General MIDI soundfonts' drum kits" if args.soundfonts else "")}
     Model(offline=net, live=live, meta=meta).save(args.out, half=args.half)
     print(f"wrote {args.out} ({args.out.stat().st_size / 1024:.0f} KiB) in {time.time() - t0:.0f} s")
     return 0
