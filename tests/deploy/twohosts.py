@@ -211,6 +211,8 @@ class Matching:
     onsets: int
     missed: list[float]
     errors_s: list[float]
+    unmatched_s: list[float]
+    """Rig times of the onsets no impact explains (seconds)."""
 
 
 def match_onsets(onset_samples: Sequence[int], rate: int, impacts: Sequence[dict[str, Any]], latency_s: float,
@@ -239,17 +241,21 @@ def match_onsets(onset_samples: Sequence[int], rate: int, impacts: Sequence[dict
                 continue
             expected = times + latency_s - origin  # seconds into the WAV
             errors = []
+            unmatched = []
             for n in onset_samples:
                 d = np.abs(expected - n / rate)
                 if d.size and d.min() <= tolerance_s:
                     errors.append(float((n / rate) - expected[int(d.argmin())]))
+                else:
+                    unmatched.append(origin + n / rate)
             if best is None or len(errors) > best.matched:
                 inside = [float(t2) for t2, e, hidden in zip(times, expected, shadowed, strict=True)
                           if 0.1 < e < duration_s - 0.1 and t2 > sent_after and not hidden]
                 missed = [t2 for t2 in inside
                           if not any(abs(n / rate - (t2 + latency_s - origin)) <= tolerance_s for n in onset_samples)]
-                best = Matching(origin, len(errors), len(onset_samples), missed, errors)
-    return best or Matching(0.0, 0, len(onset_samples), [float(t) for t in times], [])
+                best = Matching(origin, len(errors), len(onset_samples), missed, errors, unmatched)
+    return best or Matching(0.0, 0, len(onset_samples), [float(t) for t in times], [],
+                            [n / rate for n in onset_samples])
 
 
 def wav_duration(path: Path) -> float:
