@@ -534,6 +534,11 @@ def build_parser() -> argparse.ArgumentParser:
                         help="fit a calibration (timing offsets, velocity map) from these performances; write JSON")
     parser.add_argument("--list", action="store_true",
                         help="list every impact: matched or spurious, striker part, velocity, nearest note")
+    parser.add_argument("--jobs", type=int, default=1, metavar="N",
+                        help="render each score on N processes in time segments, as `batteur render --jobs` "
+                        "(0: one per CPU; default 1: in one piece)")
+    parser.add_argument("--segment", type=float, default=30.0, metavar="SECONDS",
+                        help="segment length with --jobs above 1, seconds (default 30)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     return parser
 
@@ -553,15 +558,16 @@ def impact_listing(result: FileResult) -> list[str]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    from batteur.render import RenderError, RenderOptions
+    from batteur.render import RenderError, RenderOptions, resolve_jobs
     from common.gesture.plan import Nuance
     from common.score.events import ScoreError
 
     args = build_parser().parse_args(argv)
-    opts = RenderOptions(kit=args.kit, grip=args.grip, nuance=Nuance(args.nuance), tempo_scale=args.tempo_scale,
-                         control=args.control, calibration=args.calibration)
     started = time.perf_counter()
     try:
+        opts = RenderOptions(kit=args.kit, grip=args.grip, nuance=Nuance(args.nuance), tempo_scale=args.tempo_scale,
+                             control=args.control, calibration=args.calibration, jobs=resolve_jobs(args.jobs),
+                             segment_s=args.segment)
         results = evaluate_scores(args.scores, opts, args.renders, quiet=args.quiet, reuse=args.reuse)
     except (ScoreError, RenderError, ValueError, FileNotFoundError, KeyError) as exc:
         print(f"batteur evaluate: {exc}", file=sys.stderr)

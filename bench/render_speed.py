@@ -3,13 +3,17 @@
     python bench/render_speed.py                 # 20 s of a rock groove (short default)
     python bench/render_speed.py --seconds 180   # the 3-minute piece of issue 7
     python bench/render_speed.py --control joint
+    python bench/render_speed.py --seconds 180 --jobs 1,2   # one process against two (time segments)
 
 The piece is a text score (hi-hat eighths, snare backbeat, kick, a tom fill
 every fourth bar, crash on the downbeat after it) at 100 bpm, repeated to the
 requested length. Prints the wall-clock and CPU real-time factors and where
 the time goes (each core's step/handle, the bus's encode/decode and the rest),
-so the physics can be told what to speed up. Timing figures on a shared
-machine are noisy: compare ratios measured in one run.
+so the physics can be told what to speed up. With ``--jobs`` above 1 the
+render cuts the piece into time segments played on that many processes
+(batteur/segments.py); the breakdown is then not timed (the cores run in the
+workers). Timing figures on a shared machine are noisy: compare ratios
+measured in one run.
 """
 
 from __future__ import annotations
@@ -96,34 +100,57 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--control-rate", type=float, default=None, metavar="HZ",
                         help="drummer's full control updates per second (default: physics' default)")
     parser.add_argument("--no-breakdown", action="store_true", help="do not time the parts (no wrapper overhead)")
+    parser.add_argument("--jobs", default="1",
+                        help="processes per render, comma-separated to compare in one run (e.g. 1,2; above 1: "
+                        "render --jobs, time segments in parallel; default 1)")
     args = parser.parse_args(argv)
+    try:
+        jobs = [int(j) for j in args.jobs.split(",")]
+    except ValueError:
+        parser.error(f"--jobs {args.jobs!r}: whole numbers, comma-separated")
+    if any(j < 1 for j in jobs):
+        parser.error("--jobs: each count must be at least 1")
+    factors = {n: run_once(args, n) for n in jobs}
+    if len(factors) > 1:
+        base = factors[jobs[0]]
+        print("wall-clock real-time factors, same run: " + ", ".join(
+            f"{n} process{'es' if n > 1 else ''} {f:.2f}x ({f / base:.2f} of {jobs[0]})" for n, f in factors.items()))
+    return 0
+
+
+def run_once(args: argparse.Namespace, jobs: int) -> float:
+    """Render the piece on ``jobs`` processes, print its figures; returns the whole command's wall-clock factor."""
     timings: dict[str, float] = defaultdict(float)
-    restore = (lambda: None) if args.no_breakdown else instrument(timings)
+    restore = (lambda: None) if args.no_breakdown or jobs > 1 else instrument(timings)
     with tempfile.TemporaryDirectory(prefix="render-speed-") as tmp:
         score = Path(tmp) / "piece.txt"
         score.write_text(piece(args.seconds), encoding="utf-8")
-        t0, c0 = time.perf_counter(), time.process_time()
+        t0 = time.perf_counter()
         try:
-            opts = RenderOptions(control=args.control, control_rate_hz=args.control_rate)
+            opts = RenderOptions(control=args.control, control_rate_hz=args.control_rate, jobs=jobs)
             report = render_score(score, Path(tmp) / "out", opts, quiet=True)
         finally:
             restore()
-        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+        wall = time.perf_counter() - t0
     rendered = report["duration_s"]
+    cpu = report["cpu_time_s"]
+    segments = report["physics"].get("segments")
+    how = "one process" if segments is None else (f"{segments['jobs']} processes, {segments['count']} segments "
+                                                  f"of {segments['segment_s']:g} s")
     print(f"piece: {report['notes']} notes, {report['music_duration_s']:.1f} s planned, {rendered:.1f} s rendered "
-          f"({args.control} control, {report['physics']['rate_hz']:g} Hz physics)")
-    print(f"whole command: wall {wall:.1f} s, cpu {cpu:.1f} s -> real-time factor {rendered / wall:.2f}x wall, "
-          f"{rendered / cpu:.2f}x cpu (goal >= 2x)")
-    print(f"render loop only (report.json): {report['real_time_factor']}x wall, {report['real_time_factor_cpu']}x cpu")
+          f"({args.control} control, {report['physics']['rate_hz']:g} Hz physics, {how})")
+    print(f"  whole command: wall {wall:.1f} s -> real-time factor {rendered / wall:.2f}x (goal >= 2x); "
+          f"render cpu {cpu:.1f} s in all processes ({rendered / cpu:.2f}x per cpu second)")
+    print(f"  render loop only (report.json): {report['real_time_factor']}x wall")
     if timings:
         total = report["wall_time_s"]
-        print("where the render loop's wall time goes:")
+        print("  where the render loop's wall time goes:")
         parts = dict(timings)
         parts["rest (setup, runner, recorder)"] = max(0.0, total - sum(timings.values()))
         for label, seconds in sorted(parts.items(), key=lambda kv: -kv[1]):
-            print(f"  {label:<32} {seconds:7.2f} s  {100 * seconds / total:5.1f} %  "
+            print(f"    {label:<32} {seconds:7.2f} s  {100 * seconds / total:5.1f} %  "
                   f"({seconds / rendered * 1000:.2f} ms per rendered second)")
-    return 0
+    return rendered / wall
 
 
 if __name__ == "__main__":

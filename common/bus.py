@@ -7,6 +7,7 @@ ordered, which keeps offline runs deterministic.
 
 from __future__ import annotations
 
+import math
 from collections import deque
 from collections.abc import Callable
 
@@ -96,18 +97,19 @@ class OfflineRunner:
     event-driven cores (rate 0) only handle messages. Deterministic.
     """
 
-    def __init__(self, cores: list[Core], registry: MessageRegistry = REGISTRY) -> None:
+    def __init__(self, cores: list[Core], registry: MessageRegistry = REGISTRY, start_s: float = 0.0) -> None:
+        """``start_s``: rig time the run starts at, seconds (each core's first step is its first one after it)."""
         self.bus = MemoryBus(registry)
         self.cores = cores
         self._endpoints: dict[str, MemoryEndpoint] = {}
         self._steps_done: dict[str, int] = {}
-        self.now = 0.0
+        self.now = start_s
         for core in cores:
             ep = self.bus.endpoint(core.ROLE)
             self._endpoints[core.ROLE] = ep
             ep.set_handler(self._make_handler(core, ep))
             if core.rate_hz > 0:
-                self._steps_done[core.ROLE] = 0
+                self._steps_done[core.ROLE] = math.ceil(start_s * core.rate_hz - 1e-9)
 
     def _make_handler(self, core: Core, ep: MemoryEndpoint) -> Handler:
         def handle(message: OscMessage, source: str) -> None:

@@ -28,6 +28,7 @@ angle) and the per-note feasibility issues found while planning.
 from __future__ import annotations
 
 import bisect
+import dataclasses
 import enum
 from dataclasses import dataclass, field
 from typing import NamedTuple
@@ -349,6 +350,21 @@ class GesturePlan:
     def strokes_of(self, limb: Limb) -> list[PlannedStroke]:
         """The strokes one limb plays, in time order."""
         return [s for s in self.strokes if s.limb == limb]
+
+    def from_time(self, t: float) -> GesturePlan:
+        """The plan from time ``t`` (seconds) on: each limb's knots at or after ``t`` (a limb with none keeps its
+        last knot, where it ends) and the strokes from ``t``; ``start_time`` stays, so rig times map as before.
+
+        A performer joining at ``t`` moves from wherever it is to each limb's first remaining knot.
+        """
+        trajectories = {}
+        for limb, traj in self.trajectories.items():
+            first = min(int(np.searchsorted(traj.times, t, side="left")), len(traj.times) - 1)
+            trajectories[limb] = LimbTrajectory(limb, traj.times[first:], traj.positions[first:],
+                                                traj.velocities[first:])
+        return dataclasses.replace(self, trajectories=trajectories,
+                                   strokes=[s for s in self.strokes if s.time >= t],
+                                   cymbal_swings=[c for c in self.cymbal_swings if c.time >= t])
 
     def next_stroke(self, limb: Limb, t: float) -> PlannedStroke | None:
         """The first stroke of ``limb`` at or after time ``t``, or None."""

@@ -1,0 +1,324 @@
+"""Render a score in time segments on several processes (``batteur render --jobs N``).
+
+The rig timeline is cut into segments of ``segment_s`` seconds (boundaries at
+whole multiples of it, so the cut never depends on the number of processes).
+Each segment runs physics and interaction alone in a worker process, from a
+``warmup_s`` lead-in before its start: the drummer starts at rest, joins the
+plan there (:meth:`~common.gesture.plan.GesturePlan.from_time`) and is in the
+flow of the performance when the segment begins. What the segment sends to
+sound and graphics is kept for its own window only, by the rig time a message
+is about (an impact's first contact, a pose's instant; otherwise when it was
+sent), impacts are numbered again in time order, and the parent process plays
+the merged stream into one sound core and one recorder, so the WAV, the
+impacts and the motion come out as one performance.
+
+A segmented render is deterministic (the same score and options give the same
+files for any number of processes above one) but not identical to a
+single-process render: each segment's drummer is a fresh simulation that has
+tracked the plan for ``warmup_s`` seconds, not the one that played everything
+before. A stick resting on a head across a boundary (damping) is not carried
+over.
+"""
+
+from __future__ import annotations
+
+import math
+import multiprocessing
+import os
+import time
+from collections.abc import Callable
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, ClassVar
+
+from common.core import Outgoing
+from common.messages import OscMessage
+from common.messages.events import Impact
+from common.messages.interaction import ImpactEnd
+
+if TYPE_CHECKING:
+    from batteur.render import RenderOptions, ScoreRender
+    from common.gesture.plan import GesturePlan
+    from common.kit import Kit
+    from common.score.events import Score
+    from common.score.limbs import Assignment
+
+SEGMENT_S = 30.0
+"""Default segment length, rig seconds."""
+WARMUP_S = 3.0
+"""Default lead-in of every segment but the first, seconds: the drummer joins the plan at its start + JOIN_S."""
+JOIN_S = 0.5
+"""A segment's drummer leaves the rest posture for the plan's knots from this long after the lead-in starts, s."""
+OVERHANG_S = 0.25
+"""A segment simulates this long past its end, so the impacts that began inside it are completed, seconds."""
+
+Sent = tuple[float, str, str, OscMessage]
+"""(rig time sent, seconds; from role; to role; message)."""
+
+
+@dataclass(frozen=True)
+class Segment:
+    """One worker's share: it owns what is about rig times in [start_s, end_s) and simulates from ``run_from_s``
+    to ``run_to_s`` (seconds)."""
+
+    index: int
+    start_s: float
+    end_s: float
+    run_from_s: float
+    run_to_s: float
+
+
+def plan_segments(duration_s: float, segment_s: float = SEGMENT_S, warmup_s: float = WARMUP_S) -> list[Segment]:
+    """Segments covering [0, ``duration_s``): boundaries at multiples of ``segment_s``; a last piece shorter than
+    half a segment joins the one before. Raises ``ValueError`` for a non-positive length."""
+    if not segment_s > 0 or not duration_s > 0:
+        raise ValueError(f"segment length {segment_s:g} s and duration {duration_s:g} s must be > 0")
+    if warmup_s < JOIN_S + 0.5:
+        raise ValueError(f"warm-up {warmup_s:g} s is under {JOIN_S + 0.5:g} s: the drummer has no time to join")
+    count = max(1, math.floor(duration_s / segment_s + 0.5))
+    bounds = [k * segment_s for k in range(count)] + [duration_s]
+    return [Segment(k, bounds[k], bounds[k + 1], max(0.0, bounds[k] - warmup_s) if k else 0.0,
+                    duration_s if k == count - 1 else min(duration_s, bounds[k + 1] + OVERHANG_S))
+            for k in range(count)]
+
+
+def about_time(message: OscMessage, sent_s: float) -> float:
+    """The rig time a message is about, seconds: its own ``time`` field when it has one, else when it was sent."""
+    value = getattr(message, "time", None)
+    return float(value) if isinstance(value, (int, float)) else sent_s
+
+
+class _Collector:
+    """Stands in for ``ROLE`` in a segment: keeps what it is sent that the segment owns."""
+
+    ROLE: ClassVar[str] = ""
+    rate_hz = 0.0
+
+    def __init__(self, segment: Segment, kept: list[Sent]) -> None:
+        self.segment = segment
+        self.kept = kept
+
+    def handle(self, message: OscMessage, now: float, source: str) -> list[Outgoing]:
+        if self.segment.start_s <= about_time(message, now) < self.segment.end_s:
+            self.kept.append((now, source, self.ROLE, message))
+        return []
+
+    def step(self, now: float) -> list[Outgoing]:
+        return []
+
+
+class _SoundCollector(_Collector):
+    ROLE = "sound"
+
+
+class _GraphicsCollector(_Collector):
+    ROLE = "graphics"
+
+
+@dataclass
+class SegmentResult:
+    """What a worker sends back: the owned messages to sound and graphics, and its counters."""
+
+    index: int
+    sent: list[Sent]
+    contacts: int
+    rejected: dict[str, int]
+    cpu_time_s: float
+    settings: dict[str, Any] = field(default_factory=dict)
+
+
+def run_segment(plan: GesturePlan, kit: Kit, opts: RenderOptions, segment: Segment,
+                progress: Any = None) -> SegmentResult:
+    """Simulate one segment (physics and interaction) and keep what it owns; runs in a worker process.
+
+    ``progress``: a queue that gets (segment index, rig seconds simulated) now and then.
+    """
+    from batteur.render import CONTROL_MODES, RenderError
+    from common.bus import OfflineRunner
+    from services.interaction.core import InteractionCore
+    from services.physics.core import PhysicsCore, PhysicsSettings
+    from services.physics.targets import TargetError
+
+    cpu = time.process_time()
+    control_rate_hz = opts.control_rate_hz or PhysicsSettings.model_fields["control_rate_hz"].default
+    physics = PhysicsCore(scene="drummer", kit=kit, control=CONTROL_MODES[opts.control], grip=opts.grip,
+                          rate_hz=opts.rate_hz, pose_rate_hz=opts.pose_rate_hz, control_rate_hz=control_rate_hz)
+    physics.time_offset = segment.run_from_s
+    offset = opts.settle_s - plan.start_time
+    joined = plan if segment.index == 0 else plan.from_time(segment.run_from_s + JOIN_S - offset)
+    try:
+        physics.load_plan(joined, opts.settle_s)
+    except TargetError as exc:
+        physics.close()
+        raise RenderError(f"physics refused the gesture plan: {exc}") from exc
+    kept: list[Sent] = []
+    counted = _CountingPhysics(physics, segment)
+    runner = OfflineRunner([counted, InteractionCore(kit=kit), _SoundCollector(segment, kept),
+                            _GraphicsCollector(segment, kept)], start_s=segment.run_from_s)
+    last = [segment.run_from_s]
+
+    def report(t: float) -> None:
+        if progress is not None and t - last[0] >= 0.5:
+            progress.put((segment.index, t - segment.run_from_s))
+            last[0] = t
+
+    try:
+        runner.run_until(segment.run_to_s, report)
+    finally:
+        physics.close()
+    if progress is not None:
+        progress.put((segment.index, segment.run_to_s - segment.run_from_s))
+    return SegmentResult(segment.index, kept, counted.contacts, dict(physics.rejected), time.process_time() - cpu,
+                         {"control": physics.settings.control, "grip": physics.settings.grip,
+                          "rate_hz": physics.rate_hz, "control_rate_hz": physics.settings.control_rate_hz})
+
+
+class _CountingPhysics:
+    """The physics core, counting the contacts it sends in its segment's window."""
+
+    ROLE: ClassVar[str] = "physics"
+
+    def __init__(self, physics: Any, segment: Segment) -> None:
+        self.physics = physics
+        self.segment = segment
+        self.rate_hz = physics.rate_hz
+        self.contacts = 0
+
+    def handle(self, message: OscMessage, now: float, source: str) -> list[Outgoing]:
+        out: list[Outgoing] = self.physics.handle(message, now, source)
+        return out
+
+    def step(self, now: float) -> list[Outgoing]:
+        out: list[Outgoing] = self.physics.step(now)
+        for o in out:
+            if o.to == "interaction" and self.segment.start_s <= about_time(o.message, now) < self.segment.end_s:
+                self.contacts += 1
+        return out
+
+
+def merge(results: list[SegmentResult]) -> list[Sent]:
+    """Every segment's owned messages in time order, their sequence numbers made unique again.
+
+    An impact and its end share a number (as interaction sends them); other numbered messages (damping) keep
+    a sequence of their own.
+    """
+    ordered = sorted(results, key=lambda r: r.index)
+    stream = [(now, r.index, k, source, to, m) for r in ordered for k, (now, source, to, m) in enumerate(r.sent)]
+    stream.sort(key=lambda e: (e[0], e[1], e[2]))
+    numbers: dict[tuple[int, str, str, int], int] = {}
+    counters: dict[tuple[str, str], int] = {}
+    out: list[Sent] = []
+    for now, index, _, source, _to, message in stream:
+        seq = getattr(message, "seq", None)
+        if isinstance(seq, int):
+            family = "impact" if isinstance(message, (Impact, ImpactEnd)) else type(message).__name__
+            key = (index, source, family, seq)
+            if key not in numbers:
+                numbers[key] = counters.get((source, family), 0)
+                counters[(source, family)] = numbers[key] + 1
+            message = message.model_copy(update={"seq": numbers[key]})
+        out.append((now, source, _to, message))
+    return out
+
+
+class _Replay:
+    """Sends recorded messages again at the rig times they were sent, as role ``ROLE``."""
+
+    ROLE: ClassVar[str] = ""
+
+    def __init__(self, sent: list[Sent], rate_hz: float) -> None:
+        self.rate_hz = rate_hz
+        self._queue = [(now, to, m) for now, source, to, m in sent if source == self.ROLE]
+        self._next = 0
+
+    def handle(self, message: OscMessage, now: float, source: str) -> list[Outgoing]:
+        return []
+
+    def step(self, now: float) -> list[Outgoing]:
+        out: list[Outgoing] = []
+        queue = self._queue
+        while self._next < len(queue) and queue[self._next][0] <= now + 1e-9:
+            _, to, message = queue[self._next]
+            out.append(Outgoing(message, to))
+            self._next += 1
+        return out
+
+
+class _PhysicsReplay(_Replay):
+    ROLE = "physics"
+
+
+class _InteractionReplay(_Replay):
+    ROLE = "interaction"
+
+
+def default_jobs() -> int:
+    """Processes a segmented render uses when asked for all: the CPUs this process may run on."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def run_segmented(score: Score, assignment: Assignment, plan: GesturePlan, kit: Kit, opts: RenderOptions,
+                  jobs: int, on_progress: Callable[[float, float], None] | None = None,
+                  segment_s: float = SEGMENT_S, warmup_s: float = WARMUP_S) -> ScoreRender:
+    """:func:`batteur.render.run_score` in segments on ``jobs`` processes (see the module docstring)."""
+    from batteur.render import RecorderCore, ScoreRender
+    from common.bus import OfflineRunner
+    from services.sound.core import SoundCore, SoundSettings
+
+    started = time.perf_counter()
+    cpu_started = time.process_time()
+    offset = opts.settle_s - plan.start_time
+    duration = plan.end_time + offset + opts.latency_s + opts.tail_s
+    segments = plan_segments(duration, segment_s, warmup_s)
+    total = sum(s.run_to_s - s.run_from_s for s in segments)
+    context = multiprocessing.get_context("spawn")  # PyBullet, pyo and numba do not survive a fork
+    with context.Manager() as manager, ProcessPoolExecutor(max_workers=max(1, min(jobs, len(segments))),
+                                                          mp_context=context) as pool:
+        queue = manager.Queue()
+        futures: dict[Future[SegmentResult], Segment] = {
+            pool.submit(run_segment, plan, kit, opts, s, queue): s for s in segments}
+        done_s = {s.index: 0.0 for s in segments}
+        pending = set(futures)
+        try:
+            while pending:
+                finished, pending = wait(pending, timeout=0.25, return_when=FIRST_COMPLETED)
+                while not queue.empty():
+                    index, simulated = queue.get_nowait()
+                    done_s[index] = simulated
+                if on_progress is not None:  # simulated seconds of all segments, scaled to the piece
+                    on_progress(duration * sum(done_s.values()) / total, duration)
+                for future in finished:
+                    future.result()  # a worker's error ends the render here
+        except BaseException:
+            for future in pending:  # the segments not started yet are not simulated for nothing
+                future.cancel()
+            raise
+        results = [f.result() for f in futures]
+    sent = merge(results)
+    sound = SoundCore(SoundSettings(latency=opts.latency_s, origin=0.0), kit=kit)
+    recorder = RecorderCore()
+    runner = OfflineRunner([_PhysicsReplay(sent, opts.rate_hz), _InteractionReplay(sent, opts.rate_hz), sound,
+                            recorder])
+    try:
+        runner.run_until(duration)
+        audio = sound.recording()
+    finally:
+        sound.close()
+    try:
+        poses = recorder.poses.sequence()
+    except ValueError:
+        poses = None
+    rejected: dict[str, int] = {}
+    for r in results:
+        for kind, n in r.rejected.items():
+            rejected[kind] = rejected.get(kind, 0) + n
+    contacts = sum(r.contacts for r in results)
+    stats = {"contacts_sent": contacts, "rejected": rejected, **results[0].settings,
+             "cpu_time_s": round(time.process_time() - cpu_started + sum(r.cpu_time_s for r in results), 3),
+             "segments": {"count": len(segments), "segment_s": segment_s, "warmup_s": warmup_s,
+                          "jobs": max(1, min(jobs, len(segments)))}}
+    return ScoreRender(score, assignment, plan, recorder.impacts.sorted(), contacts, audio, sound.sample_rate,
+                       duration, offset, time.perf_counter() - started, poses, stats)
