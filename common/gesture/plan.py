@@ -181,9 +181,25 @@ class HeadTrajectory:
     nod: np.ndarray
 
     def sample(self, t: float) -> tuple[np.ndarray, float]:
-        """Look-at point (3,) metres and nod angle (radians) at time ``t``, linearly interpolated."""
-        target = np.array([np.interp(t, self.times, self.targets[:, k]) for k in range(3)])
-        return target, float(np.interp(t, self.times, self.nod))
+        """Look-at point (3,) metres and nod angle (radians) at time ``t``, linearly interpolated (held before the
+        first knot and after the last).
+
+        The same numbers as ``np.interp`` on each column (its formula, in the same order), found by one binary
+        search: the physics asks at every 1 ms step, and ``np.interp`` on a column copies the whole column.
+        """
+        times = self.times
+        n = len(times)
+        j = bisect.bisect_right(times, t) - 1  # times[j] <= t < times[j + 1]
+        if j < 0:
+            return self.targets[0].copy(), float(self.nod[0])
+        if j >= n - 1 or times[j] == t:
+            return self.targets[j].copy(), float(self.nod[j])
+        x0, x1 = float(times[j]), float(times[j + 1])
+        a, b = self.targets[j], self.targets[j + 1]
+        values = [float(a[k]) for k in range(3)] + [float(self.nod[j])]
+        ends = [float(b[k]) for k in range(3)] + [float(self.nod[j + 1])]
+        out = [(y1 - y0) / (x1 - x0) * (t - x0) + y0 for y0, y1 in zip(values, ends, strict=True)]
+        return np.array(out[:3]), out[3]
 
 
 class Grip(enum.StrEnum):

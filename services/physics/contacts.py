@@ -213,6 +213,10 @@ class ContactTracker:
         dt = self.world.dt
         for pair in sorted(groups):
             key, instrument = pair
+            episode = self._episodes.get(pair)
+            if (episode is not None and self.strikers[key].part == HIHAT_TOP
+                    and (step - episode.first_step) * dt >= PLATE_CONTACT_S):
+                continue  # the plates resting together (before any arithmetic: most steps of a closed hi-hat)
             points = groups[pair]
             forces = np.array([f for _, _, f, _ in points])
             total = float(forces.sum())
@@ -222,7 +226,6 @@ class ContactTracker:
             assert isinstance(pos, np.ndarray) and isinstance(normal, np.ndarray)
             norm = float(np.linalg.norm(normal))
             normal = normal / norm if norm > 0 else np.asarray(points[0][1])
-            episode = self._episodes.get(pair)
             if episode is None:
                 v_rel = self._point_velocity(key, pos) - self._point_velocity(points[0][3], pos)
                 episode = _Episode(first_step=step, approach_velocity=float(-v_rel @ normal))
@@ -230,8 +233,6 @@ class ContactTracker:
                     episode.part = HIHAT_RATTLE
                 self._episodes[pair] = episode
                 self.episodes_started += 1
-            if self.strikers[key].part == HIHAT_TOP and (step - episode.first_step) * dt >= PLATE_CONTACT_S:
-                continue  # the plates resting together
             origin, rot = instrument_frame(self.world, self.kit, instrument)
             local = rot.T @ (pos - origin)
             out.append(

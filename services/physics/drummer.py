@@ -553,9 +553,9 @@ class DrummerScene:
         base = self.controller.rest
         i_neck, i_head = JOINTS.index("neck") * 3, JOINTS.index("head") * 3
         # +x tilts an upright segment backward: looking down and nodding are -x
-        base[i_neck + 2] = base[i_head + 2] = float(np.clip(yaw / 2, -0.6, 0.6))
-        base[i_neck] = float(np.clip(pitch / 2, -0.5, 0.3))
-        base[i_head] = float(np.clip(pitch / 2 - nod, -0.5, 0.3))
+        base[i_neck + 2] = base[i_head + 2] = _clip(yaw / 2, -0.6, 0.6)
+        base[i_neck] = _clip(pitch / 2, -0.5, 0.3)
+        base[i_head] = _clip(pitch / 2 - nod, -0.5, 0.3)
 
     def passive_torques(self, q: np.ndarray | None = None, qd: np.ndarray | None = None) -> np.ndarray:
         """Fulcrum spring-damper torques (fingers), N m, for [left x, left z, right x, right z], at the fulcrum
@@ -624,6 +624,11 @@ class DrummerScene:
         self.last_joint_target = (theta_t, theta_dot_t)
         self.controller.apply(theta, theta_dot, theta_t, theta_dot_t, self.passive_torques(pq, pqd), (pq, pqd))
         self.kit_bodies.pre_step(self.world)
+
+
+def _clip(x: float, low: float, high: float) -> float:
+    """``x`` within [low, high] (``np.clip``'s value for one float, without its per-call cost)."""
+    return min(max(x, low), high)
 
 
 def _lead_in_apex(t0: float, p0: np.ndarray, t1: float, p1: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:

@@ -11,7 +11,7 @@ from common.gesture.bvh import BvhError, parse_bvh, read_bvh, write_bvh
 from common.gesture.database import GestureDatabase, default_database, load_unit
 from common.gesture.heights import stick_height, stick_speed
 from common.gesture.keyframe import plan_keyframes
-from common.gesture.plan import GesturePlan, Grip, LimbTrajectory, Nuance
+from common.gesture.plan import GesturePlan, Grip, HeadTrajectory, LimbTrajectory, Nuance
 from common.gesture.planner import PlannerConfig, plan_gestures
 from common.gesture.synth import UNITS_DIR, make_unit
 from common.kit import EventType as E
@@ -265,3 +265,15 @@ def test_a_stroke_by_the_other_hand_reports_the_point_it_strikes(mode: str) -> N
         np.testing.assert_allclose(s.hit_point, s.target)
     np.testing.assert_allclose(right.hit_point, KIT.effector_target(E.SNARE, Limb.RIGHT_HAND)[0])
     assert np.linalg.norm(right.hit_point - left.hit_point) > 0.08
+
+
+def test_head_look_at_interpolates_as_np_interp_and_holds_the_ends() -> None:
+    rng = np.random.default_rng(3)
+    times = np.cumsum(rng.uniform(0.001, 0.3, 200))
+    head = HeadTrajectory(times, rng.normal(size=(200, 3)), rng.normal(size=200))
+    for t in [*rng.uniform(times[0] - 1.0, times[-1] + 1.0, 500), *times]:
+        target, nod = head.sample(float(t))
+        expected = [np.interp(t, times, head.targets[:, k]) for k in range(3)]
+        assert target.tolist() == expected and nod == np.interp(t, times, head.nod)  # the same bits
+    assert head.sample(times[0] - 5.0)[0].tolist() == head.targets[0].tolist()
+    assert head.sample(times[-1] + 5.0)[1] == head.nod[-1]
