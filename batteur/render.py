@@ -55,6 +55,7 @@ from common.score.limbs import Assignment
 
 if TYPE_CHECKING:
     from batteur.calibration import Calibration
+    from services.interaction.config import InteractionConfig
 
 CONTROL_MODES: dict[str, str] = {
     "cartesian": "cartesian",  # DLS IK on the stick tips feeding the PD (the paper's Cartesian tracking)
@@ -180,7 +181,7 @@ def run_score(score: Score, assignment: Assignment, plan: GesturePlan, kit: Kit,
     except TargetError as exc:
         physics.close()
         raise RenderError(f"physics refused the gesture plan: {exc}") from exc
-    interaction = InteractionCore(kit=kit)
+    interaction = InteractionCore(kit=kit, config=offline_interaction_config())
     sound = SoundCore(SoundSettings(latency=opts.latency_s, origin=0.0), kit=kit)
     recorder = RecorderCore()
     runner = OfflineRunner([physics, interaction, sound, recorder])
@@ -201,6 +202,15 @@ def run_score(score: Score, assignment: Assignment, plan: GesturePlan, kit: Kit,
              "cpu_time_s": round(time.process_time() - cpu_started, 3)}
     return ScoreRender(score, assignment, plan, recorder.impacts.sorted(), physics.contacts_sent, audio,
                        sound.sample_rate, duration, offset, time.perf_counter() - started, poses, stats)
+
+
+def offline_interaction_config() -> InteractionConfig:
+    """Interaction's default configuration, each message sent once: the in-memory bus loses nothing, and the
+    rig's redundant copies (5 of every impact) were most of a render's messages (sound and the recorder kept
+    the first copy of each anyway)."""
+    from services.interaction.config import InteractionConfig, RedundancyConfig
+
+    return InteractionConfig(redundancy=RedundancyConfig(copies=1))
 
 
 class RecorderCore:

@@ -133,7 +133,7 @@ def run_segment(plan: GesturePlan, kit: Kit, opts: RenderOptions, segment: Segme
 
     ``progress``: a queue that gets (segment index, rig seconds simulated) now and then.
     """
-    from batteur.render import CONTROL_MODES, RenderError
+    from batteur.render import CONTROL_MODES, RenderError, offline_interaction_config
     from common.bus import OfflineRunner
     from services.interaction.core import InteractionCore
     from services.physics.core import PhysicsCore, PhysicsSettings
@@ -153,8 +153,9 @@ def run_segment(plan: GesturePlan, kit: Kit, opts: RenderOptions, segment: Segme
         raise RenderError(f"physics refused the gesture plan: {exc}") from exc
     kept: list[Sent] = []
     counted = _CountingPhysics(physics, segment)
-    runner = OfflineRunner([counted, InteractionCore(kit=kit), _SoundCollector(segment, kept),
-                            _GraphicsCollector(segment, kept)], start_s=segment.run_from_s)
+    interaction = InteractionCore(kit=kit, config=offline_interaction_config())
+    runner = OfflineRunner([counted, interaction, _SoundCollector(segment, kept), _GraphicsCollector(segment, kept)],
+                           start_s=segment.run_from_s)
     last = [segment.run_from_s]
 
     def report(t: float) -> None:

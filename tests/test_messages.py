@@ -27,6 +27,7 @@ from common.messages import (
 )
 from common.messages.base import MessageError
 from common.messages.codec import _build as build_with_python_osc
+from common.messages.state import Pose
 
 
 def example_args(model: type[OscMessage]) -> dict[str, Any]:
@@ -168,3 +169,30 @@ def test_the_fast_codec_leaves_errors_and_other_types_to_python_osc() -> None:
             parse_packet(malformed)
     # python-osc reads a float cut short as padded with zeros (some senders drop the trailing nulls): so do we
     assert parse_packet(b"/x\0\0,f\0\0\0\0")[0].args == [0.0]
+
+
+@settings(max_examples=200, deadline=None)
+@given(head=_ARGS, tail=st.lists(st.one_of(st.floats(width=32, allow_nan=False, allow_infinity=False),
+                                           st.integers(-5, 5)), max_size=60),
+       start=st.integers(0, 3))
+def test_a_float_tail_packed_as_one_run_gives_python_oscs_bytes(head: list[Any], tail: list[Any], start: int) -> None:
+    """``floats_from`` (a pose's values) changes only the speed: a tail with an int in it is packed value by value."""
+    args = head + tail
+    at = max(0, len(head) - start)
+    assert encode_raw("/batteur/pose", args, at) == bytes(build_with_python_osc("/batteur/pose", args).dgram)
+
+
+def test_a_pose_round_trips_and_a_bad_value_in_its_tail_is_still_refused() -> None:
+    pose = Pose(time=12.5, layout=7, values=tuple(float(k) / 8 for k in range(700)))
+    data = encode(pose)
+    assert data == bytes(build_with_python_osc(Pose.ADDRESS, pose.to_args()).dgram)
+    (back,) = decode(data).messages
+    assert back == pose
+    raw = pose.to_args()
+    for bad, reason in ((math.nan, DropReason.OUT_OF_RANGE), (math.inf, DropReason.OUT_OF_RANGE),
+                        ("x", DropReason.WRONG_TYPE)):
+        args = [*raw[:100], bad, *raw[101:]]
+        with pytest.raises(MessageError) as caught:
+            Pose.from_args(args)
+        assert caught.value.reason is reason
+    assert Pose.from_args([*raw[:3], 1, *raw[4:]]).values[0] == 1.0  # an int (Pure Data) is a float there

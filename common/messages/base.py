@@ -218,7 +218,10 @@ class OscMessage(BaseModel):
         for f in self.wire_fields():
             value = getattr(self, f.name)
             if f.variadic:
-                out.extend(_plain(v) for v in value)
+                if f.kind is WireKind.FLOAT:  # validated floats already (a pose's hundreds of values)
+                    out.extend(value)
+                else:
+                    out.extend(_plain(v) for v in value)
             elif f.kind is WireKind.TIME:
                 whole = math.floor(value)
                 out.append(int(whole))
@@ -261,7 +264,12 @@ class OscMessage(BaseModel):
                 pos += 1
         if has_tail:
             tail = fields[-1]
-            values[tail.name] = tuple(_coerce(a, tail.kind, tail.name, cls.ADDRESS) for a in args[pos:])
+            rest = args[pos:]
+            # a tail of finite floats (a pose) is taken whole; anything else is checked value by value
+            if tail.kind is WireKind.FLOAT and set(map(type, rest)) <= {float} and math.isfinite(sum(rest)):
+                values[tail.name] = tuple(rest)
+            else:
+                values[tail.name] = tuple(_coerce(a, tail.kind, tail.name, cls.ADDRESS) for a in rest)
         for f in fixed:
             if f.kind is WireKind.FLOAT:
                 values[f.name] = _snap_to_bounds(values[f.name], f)

@@ -10,8 +10,11 @@ a fast path: one ``struct`` call packs or unpacks all the arguments, the same
 bytes and values python-osc gives (tested). python-osc builds a message by
 appending argument by argument to a byte string and then parses it back, and
 parses a float per function call: a pose of 280 floats cost about 0.3 ms each
-way, a fifth of an offline render. Anything else (bundles, other argument
-types, a packet that is not canonical, every error) goes through python-osc.
+way, a fifth of an offline render. A message's variadic float tail (a
+pose's values) is also typed and checked as one run, not value by value (the
+drummer's pose of 700 floats: 89 -> 38 us to encode, 141 -> 52 us to decode
+with its validation). Anything else (bundles, other argument types, a packet
+that is not canonical, every error) goes through python-osc.
 """
 
 from __future__ import annotations
@@ -51,11 +54,15 @@ def _osc_string(text: str) -> bytes:
     return raw + b"\0" * (4 - len(raw) % 4)
 
 
-def _pack(address: str, args: Sequence[Arg]) -> bytes:
-    """The fast path of :func:`encode_raw`: every argument in one ``struct.pack``."""
+def _pack(address: str, args: Sequence[Arg], floats_from: int | None = None) -> bytes:
+    """The fast path of :func:`encode_raw`: every argument in one ``struct.pack``. ``floats_from``: where a tail
+    of floats may start (a pose's values), packed as one run when it holds floats only."""
     tags: list[str] = []
     fmt: list[str] = [">"]
     values: list[object] = []
+    tail: Sequence[Arg] = ()
+    if floats_from is not None and set(map(type, args[floats_from:])) <= {float}:
+        args, tail = args[:floats_from], args[floats_from:]
     for arg in args:
         kind = type(arg)
         if kind is float:
@@ -73,14 +80,19 @@ def _pack(address: str, args: Sequence[Arg]) -> bytes:
             values.append(raw)
         else:
             raise TypeError(f"{address}: argument {arg!r} is not int, float or str")
+    if tail:
+        tags.append("f" * len(tail))
+        fmt.append(f"{len(tail)}f")
+        values.extend(tail)
     return _osc_string(address) + _osc_string("," + "".join(tags)) + struct.pack("".join(fmt), *values)
 
 
-def encode_raw(address: str, args: Sequence[Arg]) -> bytes:
-    """One OSC message from an address and plain arguments (ints as i, floats as f)."""
+def encode_raw(address: str, args: Sequence[Arg], floats_from: int | None = None) -> bytes:
+    """One OSC message from an address and plain arguments (ints as i, floats as f). ``floats_from``: where
+    a tail of floats may start (only speed depends on it)."""
     if address:
         try:
-            return _pack(address, args)
+            return _pack(address, args, floats_from)
         except (struct.error, OverflowError, UnicodeError):
             pass  # out of range or not encodable: python-osc says why
     return bytes(_build(address, args).dgram)
@@ -88,7 +100,10 @@ def encode_raw(address: str, args: Sequence[Arg]) -> bytes:
 
 def encode(message: OscMessage) -> bytes:
     """The OSC packet for one typed message."""
-    return encode_raw(message.ADDRESS, message.to_args())
+    args = message.to_args()
+    fields = message.wire_fields()
+    tail = len(args) - len(getattr(message, fields[-1].name)) if fields and fields[-1].variadic else None
+    return encode_raw(message.ADDRESS, args, tail)
 
 
 def encode_bundle(messages: Iterable[OscMessage], timetag: float | None = None) -> bytes:
