@@ -101,8 +101,11 @@ def encode_raw(address: str, args: Sequence[Arg], floats_from: int | None = None
 def encode(message: OscMessage) -> bytes:
     """The OSC packet for one typed message."""
     args = message.to_args()
-    fields = message.wire_fields()
-    tail = len(args) - len(getattr(message, fields[-1].name)) if fields and fields[-1].variadic else None
+    tail = None
+    if type(message).to_args is OscMessage.to_args:  # the wire layout is the fields' (not a custom to_args)
+        fields = message.wire_fields()
+        if fields and fields[-1].variadic:
+            tail = len(args) - len(getattr(message, fields[-1].name))
     return encode_raw(message.ADDRESS, args, tail)
 
 
