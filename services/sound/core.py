@@ -47,6 +47,7 @@ from common.messages.sound import (
     SoundTension,
     SoundThickness,
 )
+from services.sound.excitation import warm_up as excitation_warm_up
 from services.sound.instruments import (
     INSTRUMENT_CLASSES,
     Instrument,
@@ -169,6 +170,7 @@ class SoundCore:
         self.pool = VoicePool(s.max_voices, float(self.sample_rate))
         self.samples = SampleBank(self.sample_rate)
         self.instruments = self._build_instruments(self.kit)
+        excitation_warm_up()  # the contact kernel compiled now, not at the first live strike
         self.stats = SoundStats()
         self.next_sample = 0  # first output sample not rendered yet
         self.master_db = s.master_db
