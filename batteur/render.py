@@ -56,6 +56,7 @@ from common.score.limbs import Assignment
 if TYPE_CHECKING:
     from batteur.calibration import Calibration
     from services.interaction.config import InteractionConfig
+    from services.physics.core import PhysicsCore
 
 CONTROL_MODES: dict[str, str] = {
     "cartesian": "cartesian",  # DLS IK on the stick tips feeding the PD (the paper's Cartesian tracking)
@@ -166,21 +167,12 @@ def run_score(score: Score, assignment: Assignment, plan: GesturePlan, kit: Kit,
     """
     from common.bus import OfflineRunner
     from services.interaction.core import InteractionCore
-    from services.physics.core import PhysicsCore, PhysicsSettings
-    from services.physics.targets import TargetError
     from services.sound.core import SoundCore, SoundSettings
 
     started = time.perf_counter()
     cpu_started = time.process_time()
-    control_rate_hz = opts.control_rate_hz or PhysicsSettings.model_fields["control_rate_hz"].default
-    physics = PhysicsCore(scene="drummer", kit=kit, control=CONTROL_MODES[opts.control], grip=opts.grip,
-                          rate_hz=opts.rate_hz, pose_rate_hz=opts.pose_rate_hz, control_rate_hz=control_rate_hz)
+    physics = start_drummer(plan, kit, opts)
     offset = opts.settle_s - plan.start_time
-    try:
-        physics.load_plan(plan, opts.settle_s)
-    except TargetError as exc:
-        physics.close()
-        raise RenderError(f"physics refused the gesture plan: {exc}") from exc
     interaction = InteractionCore(kit=kit, config=offline_interaction_config())
     sound = SoundCore(SoundSettings(latency=opts.latency_s, origin=0.0), kit=kit)
     recorder = RecorderCore()
@@ -202,6 +194,24 @@ def run_score(score: Score, assignment: Assignment, plan: GesturePlan, kit: Kit,
              "cpu_time_s": round(time.process_time() - cpu_started, 3)}
     return ScoreRender(score, assignment, plan, recorder.impacts.sorted(), physics.contacts_sent, audio,
                        sound.sample_rate, duration, offset, time.perf_counter() - started, poses, stats)
+
+
+def start_drummer(plan: GesturePlan, kit: Kit, opts: RenderOptions, start_s: float = 0.0) -> PhysicsCore:
+    """The offline drummer of ``opts``, its clock at rig time ``start_s`` (seconds), tracking ``plan`` (whose
+    ``start_time`` is at rig time ``opts.settle_s``). Raises :class:`RenderError` when physics refuses the plan."""
+    from services.physics.core import PhysicsCore, PhysicsSettings
+    from services.physics.targets import TargetError
+
+    control_rate_hz = opts.control_rate_hz or PhysicsSettings.model_fields["control_rate_hz"].default
+    physics = PhysicsCore(scene="drummer", kit=kit, control=CONTROL_MODES[opts.control], grip=opts.grip,
+                          rate_hz=opts.rate_hz, pose_rate_hz=opts.pose_rate_hz, control_rate_hz=control_rate_hz)
+    physics.time_offset = start_s
+    try:
+        physics.load_plan(plan, opts.settle_s)
+    except TargetError as exc:
+        physics.close()
+        raise RenderError(f"physics refused the gesture plan: {exc}") from exc
+    return physics
 
 
 def offline_interaction_config() -> InteractionConfig:

@@ -133,24 +133,14 @@ def run_segment(plan: GesturePlan, kit: Kit, opts: RenderOptions, segment: Segme
 
     ``progress``: a queue that gets (segment index, rig seconds simulated) now and then.
     """
-    from batteur.render import CONTROL_MODES, RenderError, offline_interaction_config
+    from batteur.render import offline_interaction_config, start_drummer
     from common.bus import OfflineRunner
     from services.interaction.core import InteractionCore
-    from services.physics.core import PhysicsCore, PhysicsSettings
-    from services.physics.targets import TargetError
 
     cpu = time.process_time()
-    control_rate_hz = opts.control_rate_hz or PhysicsSettings.model_fields["control_rate_hz"].default
-    physics = PhysicsCore(scene="drummer", kit=kit, control=CONTROL_MODES[opts.control], grip=opts.grip,
-                          rate_hz=opts.rate_hz, pose_rate_hz=opts.pose_rate_hz, control_rate_hz=control_rate_hz)
-    physics.time_offset = segment.run_from_s
     offset = opts.settle_s - plan.start_time
     joined = plan if segment.index == 0 else plan.from_time(segment.run_from_s + JOIN_S - offset)
-    try:
-        physics.load_plan(joined, opts.settle_s)
-    except TargetError as exc:
-        physics.close()
-        raise RenderError(f"physics refused the gesture plan: {exc}") from exc
+    physics = start_drummer(joined, kit, opts, segment.run_from_s)
     kept: list[Sent] = []
     counted = _CountingPhysics(physics, segment)
     interaction = InteractionCore(kit=kit, config=offline_interaction_config())
@@ -203,8 +193,7 @@ def merge(results: list[SegmentResult]) -> list[Sent]:
     An impact and its end share a number (as interaction sends them); other numbered messages (damping) keep
     a sequence of their own.
     """
-    ordered = sorted(results, key=lambda r: r.index)
-    stream = [(now, r.index, k, source, to, m) for r in ordered for k, (now, source, to, m) in enumerate(r.sent)]
+    stream = [(now, r.index, k, source, to, m) for r in results for k, (now, source, to, m) in enumerate(r.sent)]
     stream.sort(key=lambda e: (e[0], e[1], e[2]))
     numbers: dict[tuple[int, str, str, int], int] = {}
     counters: dict[tuple[str, str], int] = {}
