@@ -187,18 +187,21 @@ class HeadTrajectory:
         The same numbers as ``np.interp`` on each column (its formula, in the same order), found by one binary
         search: the physics asks at every 1 ms step, and ``np.interp`` on a column copies the whole column.
         """
-        times = self.times
+        cache = self.__dict__.get("_lists")
+        if cache is None:  # plain-float copies (bisect and indexing on lists, not array scalars), made on first use
+            cache = (self.times.tolist(), [[*row, nod] for row, nod in zip(self.targets.tolist(), self.nod.tolist(),
+                                                                             strict=True)])
+            object.__setattr__(self, "_lists", cache)
+        times: list[float] = cache[0]
+        rows: list[list[float]] = cache[1]
         n = len(times)
         j = bisect.bisect_right(times, t) - 1  # times[j] <= t < times[j + 1]
         if j < 0:
             return self.targets[0].copy(), float(self.nod[0])
         if j >= n - 1 or times[j] == t:
             return self.targets[j].copy(), float(self.nod[j])
-        x0, x1 = float(times[j]), float(times[j + 1])
-        a, b = self.targets[j], self.targets[j + 1]
-        values = [float(a[k]) for k in range(3)] + [float(self.nod[j])]
-        ends = [float(b[k]) for k in range(3)] + [float(self.nod[j + 1])]
-        out = [(y1 - y0) / (x1 - x0) * (t - x0) + y0 for y0, y1 in zip(values, ends, strict=True)]
+        x0, x1 = times[j], times[j + 1]
+        out = [(y1 - y0) / (x1 - x0) * (t - x0) + y0 for y0, y1 in zip(rows[j], rows[j + 1], strict=True)]
         return np.array(out[:3]), out[3]
 
 

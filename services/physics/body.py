@@ -310,7 +310,10 @@ class Body:
     def position(self, link: int) -> np.ndarray:
         """A link's frame origin (3,) metres at the last :meth:`update`."""
         row = self._frame_row.get(link)
-        return self.frame_pos[row] if row is not None else self.link_pos[link]
+        if row is None:
+            return self.link_pos[link]
+        joints = len(self._joint_pos)  # a row of frame_pos, without building it
+        return self._joint_pos[row] if row < joints else self.effector_pos[row - joints]
 
     def kinematics(self, links: list[int] | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Positions (L, 3) metres and Jacobians (L, 3, 57) of links (default: the four effectors, in LIMBS

@@ -187,7 +187,8 @@ class ContactTracker:
     def after_step(self, time: float, step: int) -> list[Contact]:
         """Contacts of the step just taken; ``time``: rig time of the step, seconds."""
         c = self.world.client
-        groups: dict[tuple[Key, str], list[tuple[np.ndarray, np.ndarray, float, Key]]] = {}
+        # per pair: (point, normal as read, its sign, force, instrument key), made arrays only for the pairs reported
+        groups: dict[tuple[Key, str], list[tuple[Any, Any, float, float, Key]]] = {}
         strikers, instrument_of = self.strikers, self.kit.instrument_of
         # one read of every contact point in the world (a call per striker body cost more); a pair is reported
         # once, in either order: take each point from the side of its striker (position on the instrument,
@@ -206,9 +207,7 @@ class ContactTracker:
                 instrument = instrument_of.get(inst_key)
                 if instrument is None:
                     continue
-                groups.setdefault((key, instrument), []).append(
-                    (np.asarray(point, dtype=float), sign * np.asarray(cp[7], dtype=float), force, inst_key)
-                )
+                groups.setdefault((key, instrument), []).append((point, cp[7], sign, force, inst_key))
         out: list[Contact] = []
         dt = self.world.dt
         for pair in sorted(groups):
@@ -217,7 +216,8 @@ class ContactTracker:
             if (episode is not None and self.strikers[key].part == HIHAT_TOP
                     and (step - episode.first_step) * dt >= PLATE_CONTACT_S):
                 continue  # the plates resting together (before any arithmetic: most steps of a closed hi-hat)
-            points = groups[pair]
+            points = [(np.asarray(point, dtype=float), sign * np.asarray(normal, dtype=float), force, inst_key)
+                      for point, normal, sign, force, inst_key in groups[pair]]
             forces = np.array([f for _, _, f, _ in points])
             total = float(forces.sum())
             weights = forces / total if total > 0 else np.full(len(points), 1.0 / len(points))

@@ -500,7 +500,7 @@ class DrummerScene:
         """
         out: dict[str, tuple[np.ndarray, np.ndarray]] = {}
         hinges = self.kit_bodies.cymbal_hinges
-        swinging = hinges is not None and hinges.angles.any()
+        swinging = hinges is not None and hinges.swinging
         for limb, track in self.limb_tracks.items():
             if len(track):
                 track.prune(t - 1.0)
@@ -551,7 +551,7 @@ class DrummerScene:
         yaw = math.atan2(-d[0], d[1])  # +z turns the face (+y) toward -x
         pitch = math.atan2(d[2], math.hypot(d[0], d[1]))  # looking down: negative
         base = self.controller.rest
-        i_neck, i_head = JOINTS.index("neck") * 3, JOINTS.index("head") * 3
+        i_neck, i_head = _NECK_DOF, _HEAD_DOF
         # +x tilts an upright segment backward: looking down and nodding are -x
         base[i_neck + 2] = base[i_head + 2] = _clip(yaw / 2, -0.6, 0.6)
         base[i_neck] = _clip(pitch / 2, -0.5, 0.3)
@@ -643,6 +643,8 @@ def _lead_in_apex(t0: float, p0: np.ndarray, t1: float, p1: np.ndarray) -> tuple
 
 _HAND_STICKS = (("left_hand", "left_stick"), ("right_hand", "right_stick"))
 _HANDS = tuple(hand for hand, _ in _HAND_STICKS)
+_NECK_DOF, _HEAD_DOF = JOINTS.index("neck") * 3, JOINTS.index("head") * 3
+"""The first (x) DOF of the neck and of the head in the 57."""
 
 
 def _box_clamp(body: Body) -> Any:

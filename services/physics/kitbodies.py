@@ -185,6 +185,8 @@ class CymbalHinges:
     """(body, x joint, y joint) of each cymbal's hinge."""
     angles: np.ndarray
     """(C, 2) hinge angles (rad) as the springs last read them."""
+    swinging: bool = False
+    """Whether any of ``angles`` is non-zero (judged when they are read, not at every use)."""
 
 
 @dataclass
@@ -267,6 +269,7 @@ class KitBodies:
             for cymbal, (hinge_body, x_joint, y_joint) in enumerate(hinges.joints):
                 hinges.angles[cymbal, 0] = angles.get((hinge_body, x_joint), 0.0)
                 hinges.angles[cymbal, 1] = angles.get((hinge_body, y_joint), 0.0)
+            hinges.swinging = bool(hinges.angles.any())
         self._hihat_coupling(world)
 
     def _hihat_coupling(self, world: World) -> None:
