@@ -188,8 +188,8 @@ class Controller:
         self._no_rate = np.zeros(n)
         self._no_mass = np.zeros((0, 0))
         self._no_softening = np.ones(n)
-        self._softening: dict[tuple[frozenset[str], float], np.ndarray] = {}
-        """(touching limbs, contact_softening) -> the grip softening per DOF (57,), built once per case."""
+        self._softening: tuple[float, dict[frozenset[str], np.ndarray]] = (math.nan, {})
+        """contact_softening and, for it, touching limbs -> the grip softening per DOF (57,), built once per set."""
         self._rows: dict[tuple[str, ...], np.ndarray] = {}
         """Limbs with targets -> their rows in LIMBS (int64), for the IK kernel."""
         self._ensure_id_model()  # here, not at the first step of a computed-torque mode: a live step must not wait
@@ -305,8 +305,8 @@ class Controller:
             rows = self._rows[limbs] = np.array([LIMBS.index(limb) for limb in limbs], dtype=np.int64)
         target_pos = np.array([targets[limb][0] for limb in limbs])
         # a touching limb whose target is below it would only push into the surface: hold its error
-        pressing = np.array([limb in touching and targets[limb][0][2] < eff[LIMBS.index(limb), 2] for limb in limbs],
-                            dtype=np.bool_)
+        pressing = np.array([limb in touching and targets[limb][0][2] < eff[row, 2]
+                             for limb, row in zip(limbs, rows, strict=True)], dtype=np.bool_)
         gain = self.params.task_gain if self.mode in COMPUTED_TORQUE_MODES else self.params.task_gain_pd
         rate = self.posture_rate if self.posture_rate is not None else self._no_rate
         new_ref, qdot = dls_reference(
@@ -360,10 +360,13 @@ class Controller:
         n = len(theta)
         soft = self._no_softening
         if self.touching:
-            key = (frozenset(self.touching), self.params.contact_softening)
-            cached = self._softening.get(key)
+            value, by_limbs = self._softening
+            if value != self.params.contact_softening:  # a live change of the parameter: build them again
+                value, by_limbs = self._softening = (self.params.contact_softening, {})
+            key = frozenset(self.touching)
+            cached = by_limbs.get(key)
             if cached is None:
-                cached = self._softening[key] = np.ones(n)
+                cached = by_limbs[key] = np.ones(n)
                 for limb in self.touching:  # a relaxed grip while the stick is on a head
                     cached[self.body.chain_mask[LIMBS.index(limb)]] = self.params.contact_softening
             soft = cached
