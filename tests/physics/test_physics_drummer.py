@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -320,4 +321,27 @@ def test_a_kick_pedal_pressed_slowly_sounds_only_near_the_end_of_its_travel(pres
         beaters += [o.message for o in core.step(k / 1000)
                     if isinstance(o.message, Contact) and o.message.part == "kick_beater"]
     assert bool(beaters) == sounds, [(round(b.time, 3), round(b.normal_velocity, 3)) for b in beaters]
+    core.close()
+
+
+def test_a_live_change_of_the_contact_softening_reaches_the_touching_arm_only() -> None:
+    core = PhysicsCore(scene="drummer", control="cartesian")
+    controller = _scene(core).controller
+    theta, theta_dot = _scene(core).body.state()
+    target = theta + 0.05  # a PD error on every DOF, so the softening shows in the torques
+
+    def torques(softening: float, touching: set[str]) -> np.ndarray:
+        controller.set_params(dataclasses.replace(controller.params, contact_softening=softening))
+        controller.touching = touching
+        return controller.computed_torque(theta, theta_dot, target, np.zeros_like(theta), np.zeros_like(theta))
+
+    free = torques(0.5, set())
+    soft = torques(0.5, {"right_hand"})
+    softer = torques(0.25, {"right_hand"})  # the same contact, the parameter changed live
+    # the arm's chain (spine included) is softened, which the whole trunk feels; the legs are bodies of their own
+    legs = np.array([name.split("_")[1] in ("hip", "knee", "ankle") for name in DOF_NAMES])
+    assert legs.sum() == 18
+    assert np.any(soft[~legs] != free[~legs]) and np.all(soft[legs] == free[legs])
+    assert np.any(softer[~legs] != soft[~legs]) and np.all(softer[legs] == soft[legs])
+    np.testing.assert_array_equal(torques(0.5, {"right_hand"}), soft)  # and back
     core.close()
