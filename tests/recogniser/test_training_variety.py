@@ -5,9 +5,12 @@ from __future__ import annotations
 import numpy as np
 from scipy.signal import butter, sosfilt
 
+from services.recogniser import features as F
 from services.recogniser.audio import SAMPLE_RATE
+from services.recogniser.classes import N_CLASSES
 from services.recogniser.training import excerpts as ex
 from services.recogniser.training.excerpts import layered, with_layers
+from services.recogniser.training.frames import NEIGHBOUR_TARGET, targets
 from services.recogniser.training.kits import Instrument, Kit, Layer
 from services.recogniser.training.render import MIN_DECAY_S, Variation
 
@@ -71,3 +74,14 @@ def test_layering_sums_two_instruments_without_changing_the_kits() -> None:
         assert 0 < changed < 20
     finally:
         del ex._KITS["one"], ex._KITS["two"]
+
+
+def test_frame_targets_mark_strike_frames_and_their_neighbours_at_the_chosen_level() -> None:
+    snare, hihat = 1, 2
+    hits = np.array([[10 / F.FPS, hihat, 100], [12 / F.FPS, snare, 64]])  # 20 ms apart: two peaks, one frame between
+    act, vel, mask = targets(30, hits)
+    assert act[9:14, N_CLASSES].tolist() == [NEIGHBOUR_TARGET, 1.0, NEIGHBOUR_TARGET, 1.0, NEIGHBOUR_TARGET]
+    assert act[11, hihat] == act[11, snare] == NEIGHBOUR_TARGET and act[14, hihat] == 0.0
+    assert mask[10, hihat] and mask[12, snare] and vel[12, snare] == np.float32(64 / 127)
+    sharp, _, _ = targets(30, hits, neighbour=0.2)
+    assert sharp[9:14, N_CLASSES].tolist() == [np.float32(0.2), 1.0, np.float32(0.2), 1.0, np.float32(0.2)]

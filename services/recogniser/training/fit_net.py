@@ -19,7 +19,7 @@ from torch.nn import functional as TF
 
 from services.recogniser import features as F
 from services.recogniser.classes import N_CLASSES
-from services.recogniser.training.frames import FrameSet, targets
+from services.recogniser.training.frames import NEIGHBOUR_TARGET, FrameSet, targets
 from services.recogniser.training.net import Net, calibrate
 
 CROP_FRAMES = 400
@@ -59,11 +59,13 @@ def augment_spectrum(x: np.ndarray, rng: np.random.Generator) -> np.ndarray:
 class Batches:
     """Crops of a frame set's spectra of some ``windows`` with their targets (targets made once per excerpt)."""
 
-    def __init__(self, data: FrameSet, margin: int, windows: tuple[int, ...]) -> None:
+    def __init__(self, data: FrameSet, margin: int, windows: tuple[int, ...],
+                 neighbour: float = NEIGHBOUR_TARGET) -> None:
         self.data = data
         self.margin = margin
         self.windows = windows
-        self.tgt = [targets(data.starts[e + 1] - data.starts[e], data.excerpt_hits(e)) for e in range(data.n_excerpts)]
+        self.tgt = [targets(data.starts[e + 1] - data.starts[e], data.excerpt_hits(e), neighbour)
+                    for e in range(data.n_excerpts)]
 
     def crop(self, e: int, a: int, n: int) -> tuple[np.ndarray, ...]:
         """Input frames a - margin .. a + n + margin (silence outside) and the targets of frames a .. a + n."""
@@ -89,13 +91,13 @@ class Batches:
 def loss_of(net: Net, x: torch.Tensor, act: torch.Tensor, vel: torch.Tensor, mask: torch.Tensor,
             hard: float = 0.0, outputs: torch.Tensor | None = None) -> torch.Tensor:
     """Activation loss (binary cross-entropy; a class's frames with target 0 where another class has a strike
-    target of at least 0.5 weigh ``1 + hard``; every frame of activation ``k`` is further weighted by
-    ``outputs[k]``, shape (N_CLASSES + 1,), the last the onset output) plus the velocity loss."""
+    target (the strike's frame or one beside it) weigh ``1 + hard``; every frame of activation ``k`` is further
+    weighted by ``outputs[k]``, shape (N_CLASSES + 1,), the last the onset output) plus the velocity loss."""
     m = net.margin
     out = net(x)[:, :, m:-m].transpose(1, 2)  # (batch, frames, N_OUT)
     weight = torch.ones_like(act) if outputs is None else outputs.expand_as(act).clone()
     if hard:
-        struck = (act[..., :N_CLASSES] >= 0.5).any(dim=-1, keepdim=True)
+        struck = (act[..., :N_CLASSES] > 0).any(dim=-1, keepdim=True)
         weight[..., :N_CLASSES] *= 1 + hard * ((act[..., :N_CLASSES] == 0) & struck).float()
     loss = TF.binary_cross_entropy_with_logits(out[..., : N_CLASSES + 1], act, weight=weight)
     pred = torch.sigmoid(out[..., N_CLASSES + 1 :])
@@ -122,11 +124,12 @@ def validation_loss(net: Net, val: Batches, n: int = 1000) -> float:
 def fit(train: FrameSet, val: FrameSet, epochs: float, seed: int, lr: float = 2e-3, log_every: int = 250,
         minutes: float | None = None, width: int = 128, windows: tuple[int, ...] = (F.N_FFT,),
         hard: float = HARD_WEIGHT, init: Net | None = None, warmup: float = 0.03,
-        outputs: dict[int, float] | None = None) -> Net:
+        outputs: dict[int, float] | None = None, neighbour: float = NEIGHBOUR_TARGET) -> Net:
     """Fit a :class:`Net` on the spectra of ``windows``; ``epochs``: passes over the training frames (fractional
     allowed), or only as many steps as fit in ``minutes``, whichever is fewer. ``hard``: see :func:`loss_of`
     (the validation loss is unweighted). ``outputs``: loss weight of activation ``k`` (class index; N_CLASSES: the
     onset output) where not 1 (e.g. {1: 2.0}: snare errors count twice; the validation loss is unweighted).
+    ``neighbour``: the target of the frames beside a strike's (:func:`~.frames.targets`; training and validation).
     ``init``: continue from this network (of these ``windows``; e.g. :func:`~.net.from_export` of a model file),
     its batch normalisations first calibrated on 8 training batches (:func:`~.net.calibrate`); it is kept
     unless a fitted state has a lower validation-kit loss.
@@ -138,7 +141,7 @@ def fit(train: FrameSet, val: FrameSet, epochs: float, seed: int, lr: float = 2e
     net = init if init is not None else Net(c1=width // 8, c2=width // 4, width=width, windows=windows)
     if net.windows != windows:
         raise ValueError(f"the network reads windows {net.windows}, not {windows}")
-    tb, vb = Batches(train, net.margin, windows), Batches(val, net.margin, windows)
+    tb, vb = Batches(train, net.margin, windows, neighbour), Batches(val, net.margin, windows, neighbour)
     out_w = None
     if outputs:
         out_w = torch.ones(N_CLASSES + 1)

@@ -111,13 +111,14 @@ def make_frames(n: int, seed: int, workers: int, kits: tuple[str, ...], dry_p: f
     return data
 
 
-def targets(n_frames: int, hits: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def targets(n_frames: int, hits: np.ndarray, neighbour: float = NEIGHBOUR_TARGET
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Frame targets of one excerpt from its hits (rows: time s, class, velocity; or :class:`FrameSet` rows).
 
     Returns
     -------
-    act : (n_frames, N_CLASSES + 1) float32, 1 at each strike's nearest frame, :data:`NEIGHBOUR_TARGET`
-        at the frames beside it; the last column is "a strike of any class"
+    act : (n_frames, N_CLASSES + 1) float32, 1 at each strike's nearest frame, ``neighbour`` (0..1, default
+        :data:`NEIGHBOUR_TARGET`) at the frames beside it; the last column is "a strike of any class"
     vel : (n_frames, N_CLASSES) float32, velocity / 127 at strike frames
     vel_mask : (n_frames, N_CLASSES) bool, where ``vel`` is defined
     """
@@ -131,8 +132,8 @@ def targets(n_frames: int, hits: np.ndarray) -> tuple[np.ndarray, np.ndarray, np
     frame, cls, v = frame[ok], cls[ok], h[ok, 2]
     for d in (-1, 1):
         f = np.clip(frame + d, 0, n_frames - 1)
-        act[f, cls] = np.maximum(act[f, cls], NEIGHBOUR_TARGET)
-        act[f, N_CLASSES] = np.maximum(act[f, N_CLASSES], NEIGHBOUR_TARGET)
+        act[f, cls] = np.maximum(act[f, cls], neighbour)
+        act[f, N_CLASSES] = np.maximum(act[f, N_CLASSES], neighbour)
     act[frame, cls] = 1.0
     act[frame, N_CLASSES] = 1.0
     vel[frame, cls] = np.maximum(vel[frame, cls], v / 127.0)

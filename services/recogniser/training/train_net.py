@@ -33,7 +33,7 @@ from services.recogniser.framenet import FrameNet
 from services.recogniser.model import Model, load_live, load_model
 from services.recogniser.training.excerpts import FIT_KITS, VALID_DRY_P, VARY_P, add_arguments, kits_installed
 from services.recogniser.training.fit_net import HARD_WEIGHT, fit
-from services.recogniser.training.frames import WINDOWS, FrameSet, make_frames
+from services.recogniser.training.frames import NEIGHBOUR_TARGET, WINDOWS, FrameSet, make_frames
 from services.recogniser.training.kits import VALID_KITS
 from services.recogniser.training.net import Net, export, from_export
 from services.recogniser.training.soundfont import SOUNDFONT_KITS, SoundfontsMissingError, require_soundfonts
@@ -119,6 +119,9 @@ def main(argv: list[str] | None = None) -> int:
                          f"(default {HARD_WEIGHT})")
     ap.add_argument("--weight", nargs="+", default=[], metavar="NAME=W",
                     help="loss weight of a class's activation or of the onset output (e.g. snare=2; default 1)")
+    ap.add_argument("--neighbour-target", type=float, default=NEIGHBOUR_TARGET, metavar="T",
+                    help="target of the frames beside a strike's frame, 0..1 (lower: sharper peaks, so strikes "
+                         f"20-30 ms apart can give two; default {NEIGHBOUR_TARGET})")
     ap.add_argument("--plain", action="store_true",
                     help="render without layered instruments and the wider per-instrument changes (recipe 3's data)")
     ap.add_argument("--val-plain", action="store_true",
@@ -159,6 +162,9 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:
         print(f"error: --weight {exc}", file=sys.stderr)
         return 1
+    if not 0.0 <= args.neighbour_target <= 1.0:
+        print(f"error: --neighbour-target must be within 0..1, got {args.neighbour_target}", file=sys.stderr)
+        return 1
     init = None
     if args.init is not None:
         try:
@@ -191,13 +197,14 @@ def main(argv: list[str] | None = None) -> int:
           f"validation kit: {val.n_excerpts} excerpts; {time.time() - t0:.0f} s", flush=True)
     net = export(fit(train, val, args.epochs, args.seed, lr=args.lr, minutes=args.minutes, width=args.width,
                      windows=windows, hard=args.hard, init=init, warmup=args.warmup,
-                     outputs=weights))
+                     outputs=weights, neighbour=args.neighbour_target))
     print("thresholds:", flush=True)
     choose(net, val, rules=args.rules)
     meta = {"trained_on": list(fit_kits), "thresholds_from": list(VALID_KITS), "excerpts": args.excerpts,
             "val_excerpts": args.val_excerpts, "val_plain": args.val_plain, "rules": args.rules,
             "epochs": args.epochs, "minutes": args.minutes, "width": args.width,
             "seed": args.seed, "windows": list(windows), "hard": args.hard, "variety": not args.plain,
+            "neighbour_target": args.neighbour_target,
             "weights": {([*CLASS_NAMES, "onset"])[k]: w for k, w in weights.items()},
             "lr": args.lr, "warmup": args.warmup, "init": None if args.init is None else args.init.name,
             # where the live MLP came from (a file of this format already records it as live_*)
