@@ -91,8 +91,9 @@ class Batches:
 def loss_of(net: Net, x: torch.Tensor, act: torch.Tensor, vel: torch.Tensor, mask: torch.Tensor,
             hard: float = 0.0, outputs: torch.Tensor | None = None) -> torch.Tensor:
     """Activation loss (binary cross-entropy; a class's frames with target 0 where another class has a strike
-    target (the strike's frame or one beside it) weigh ``1 + hard``; every frame of activation ``k`` is further
-    weighted by ``outputs[k]``, shape (N_CLASSES + 1,), the last the onset output) plus the velocity loss."""
+    target above 0 (its frame, and those beside it unless their target is 0) weigh ``1 + hard``; every frame
+    of activation ``k`` is further weighted by ``outputs[k]``, shape (N_CLASSES + 1,), the last the onset
+    output) plus the velocity loss."""
     m = net.margin
     out = net(x)[:, :, m:-m].transpose(1, 2)  # (batch, frames, N_OUT)
     weight = torch.ones_like(act) if outputs is None else outputs.expand_as(act).clone()
