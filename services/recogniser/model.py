@@ -130,6 +130,7 @@ class Model:
             classes=list(CLASS_NAMES),
             offline={"kind": "framenet", "peak_frames": net.peak_frames, "time_offset_s": net.time_offset_s,
                      "chord_s": net.chord_s, "snap_frames": net.snap_frames, "hihat_snare": net.hihat_snare,
+                     "subframe": net.subframe,
                      "windows": list(net.windows), "layers": _layout(net.layers),
                      "members": [{"windows": list(m.windows), "layers": _layout(m.layers)} for m in net.members]},
             live={"offsets": list(c.offsets), "delta": c.delta, "time_offset_s": c.time_offset_s,
@@ -177,7 +178,8 @@ def _network(p: Path, data: dict[str, np.ndarray], m: dict) -> FrameNet:
     net = FrameNet(_layers(data, "offline", m["layers"]), data["offline.thresholds"].astype(np.float32),
                    int(m["peak_frames"]), float(m["time_offset_s"]), float(m["chord_s"]),
                    tuple(int(w) for w in m.get("windows", [N_FFT])), members,
-                   int(m.get("snap_frames", 0)), float(m.get("hihat_snare", 0.0)))  # 0: files made before these
+                   int(m.get("snap_frames", 0)), float(m.get("hihat_snare", 0.0)),  # 0: files made before these
+                   bool(m.get("subframe", False)))
     for n in net.networks:
         if not n.layers or n.layers[0].w.shape[2] != len(n.windows) or n.layers[-1].w.shape[-1] != N_OUT:
             raise ModelError(f"{p}: offline network layer shapes do not match")

@@ -1,5 +1,6 @@
-"""The offline network's decision rule beyond thresholds: class strikes moved to onset-output peaks, snare peaks
-dropped under hi-hat peaks, how the tuner chooses both, and the trainer's options behind the shipped model."""
+"""The offline network's decision rule beyond thresholds: class strikes moved to onset-output peaks, strike times
+between frames, snare peaks dropped under hi-hat peaks, how the tuner chooses both, and the trainer's options behind
+the shipped model."""
 
 from __future__ import annotations
 
@@ -53,6 +54,35 @@ def test_class_strikes_move_to_the_nearest_onset_peak_within_snap_frames() -> No
     assert [(t, c) for t, c, _, _ in net.detect(out)][:2] == [(10, KICK), (14, HH)]
 
 
+def test_subframe_times_keep_two_strikes_20_to_30_ms_apart_as_two_onsets() -> None:
+    net = _net()
+    out = _out()
+    out[19:22, HH] = 0.5, 0.9, 0.5  # a hi-hat centred on frame 20
+    out[21:24, SNARE] = 0.3, 0.9, 0.6  # a snare about 23 ms later, its peak two frames (19.95 ms) on
+    frame_s = F.HOP / F.SAMPLE_RATE
+    assert len({e.time for e in strikes(net, out)}) == 1  # frame times: one chord of the 20 ms window
+    net.subframe = True
+    found = net.detect(out)
+    assert net.positions(out, found) == pytest.approx([20.0, 22 + 0.5 * (0.3 - 0.6) / (0.3 - 1.8 + 0.6)])
+    times = sorted(e.time for e in strikes(net, out))
+    assert len(times) == 2 and times[1] - times[0] == pytest.approx((2 + 1 / 6) * frame_s)
+    out[21:24, SNARE] = 0.0, 0.9, 0.9  # a two-frame plateau: halfway between its frames
+    assert net.positions(out, net.detect(out)).tolist() == [20.0, 22.5]
+
+
+def test_a_strike_moved_to_an_onset_peak_is_placed_by_the_onset_output() -> None:
+    net = _net()
+    net.snap_frames, net.subframe = 2, True
+    out = _out()
+    out[10, KICK], out[13, HH] = 0.9, 0.8  # one strike whose classes peak 30 ms apart
+    out[11:14, ONSET] = 0.2, 0.8, 0.6  # the onset output peaks at 12, leaning towards 13
+    found = net.detect(out)
+    assert [(t, c) for t, c, _, _ in found] == [(12, KICK), (12, HH)]
+    lean = 12 + 0.5 * (0.2 - 0.6) / (0.2 - 1.6 + 0.6)
+    assert net.positions(out, found) == pytest.approx([lean, lean])
+    assert len({e.time for e in strikes(net, out)}) == 1
+
+
 def test_a_snare_peak_under_a_stronger_hi_hat_peak_is_dropped() -> None:
     net = _net()
     out = _out()
@@ -71,18 +101,18 @@ def test_a_snare_peak_under_a_stronger_hi_hat_peak_is_dropped() -> None:
 def test_the_rule_is_stored_in_the_model_file_and_older_files_have_it_off(tmp_path: Path) -> None:
     live, _ = load_live(SHIPPED)
     net = _net()
-    net.snap_frames, net.hihat_snare = 3, 0.7
+    net.snap_frames, net.hihat_snare, net.subframe = 3, 0.7, True
     Model(net, live, {}).save(tmp_path / "m.npz")
     back = load_model(tmp_path / "m.npz").offline
-    assert (back.snap_frames, back.hihat_snare) == (3, 0.7)
+    assert (back.snap_frames, back.hihat_snare, back.subframe) == (3, 0.7, True)
     with np.load(tmp_path / "m.npz") as z:  # a file written before the rule: no such keys
         arrays = {k: z[k] for k in z.files}
     meta = json.loads(bytes(arrays["meta"]).decode())
-    del meta["offline"]["snap_frames"], meta["offline"]["hihat_snare"]
+    del meta["offline"]["snap_frames"], meta["offline"]["hihat_snare"], meta["offline"]["subframe"]
     arrays["meta"] = np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8)
     np.savez(tmp_path / "old.npz", **arrays)  # type: ignore[arg-type]
     old = load_model(tmp_path / "old.npz").offline
-    assert (old.snap_frames, old.hihat_snare) == (0, 0.0)
+    assert (old.snap_frames, old.hihat_snare, old.subframe) == (0, 0.0, False)
 
 
 def test_the_tuner_moves_strikes_and_drops_snares_when_asked_and_that_raises_the_f_measures() -> None:

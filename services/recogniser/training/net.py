@@ -85,7 +85,7 @@ def export(net: Net, thresholds: np.ndarray | None = None) -> FrameNet:
         la.w = la.w.astype(np.float32)
         la.b = la.b.astype(np.float32)
     th = thresholds if thresholds is not None else np.array([0.5] * N_CLASSES + [1.01], np.float32)
-    return FrameNet(layers, np.asarray(th, np.float32), windows=net.windows)
+    return FrameNet(layers, np.asarray(th, np.float32), windows=net.windows, subframe=True)
 
 
 def batch_norms(net: Net) -> list[nn.BatchNorm1d | nn.BatchNorm2d]:

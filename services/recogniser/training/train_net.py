@@ -67,7 +67,7 @@ def ensemble(paths: list[Path], val: FrameSet, rules: bool = False) -> Model:
     first = models[0].offline
     nets = [n for m in models for n in m.offline.networks]
     net = FrameNet(nets[0].layers, first.thresholds.copy(), first.peak_frames, first.time_offset_s, first.chord_s,
-                   nets[0].windows, nets[1:])
+                   nets[0].windows, nets[1:], subframe=True)
     print(f"ensemble of {len(nets)} networks; thresholds:", flush=True)
     choose(net, val, rules=rules)
     meta = dict(models[0].meta)
