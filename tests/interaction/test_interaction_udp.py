@@ -5,10 +5,12 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import multiprocessing
 import random
+import select
 import socket
-import threading
 from collections.abc import Callable
+from multiprocessing.connection import Connection
 from pathlib import Path
 
 from common.dedupe import Deduplicator
@@ -36,68 +38,73 @@ class Collector(asyncio.DatagramProtocol):
 IMPACT_PREFIX = b"/batteur/impact\x00"  # the OSC address of /batteur/impact, null-padded
 
 
-class ThreadedReceiver:
-    """A loopback UDP socket read by its own thread, so a busy event loop cannot overflow its buffer."""
+class LossyLink:
+    """A lossy relay and the sound side it forwards to, served by a child process of their own.
 
-    def __init__(self) -> None:
-        self.sock = bound_socket()
-        self.sock.settimeout(0.05)
-        self.port: int = self.sock.getsockname()[1]
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, daemon=True)
-
-    def start(self) -> None:
-        self._thread.start()
-
-    def close(self) -> None:
-        self._stop.set()
-        self._thread.join(timeout=5)
-        self.sock.close()
-
-    def _run(self) -> None:
-        while not self._stop.is_set():
-            try:
-                data, _ = self.sock.recvfrom(65536)
-            except TimeoutError:
-                continue
-            self.received(data)
-
-    def received(self, data: bytes) -> None:
-        raise NotImplementedError
-
-
-class SoundSide(ThreadedReceiver):
-    """Sound's side: keeps every datagram."""
-
-    def __init__(self) -> None:
-        super().__init__()
-        self.datagrams: list[bytes] = []
-
-    def received(self, data: bytes) -> None:
-        self.datagrams.append(data)
-
-
-class LossyRelay(ThreadedReceiver):
-    """Forwards datagrams to ``target``, dropping each impact with probability ``loss`` (seeded).
-
-    Other datagrams (the node's hello and health) pass, so they do not shift the random sequence.
+    The relay drops each impact datagram with probability ``loss`` (seeded); other datagrams (the node's hello
+    and health) pass, so they do not shift the random sequence. The sound side keeps every datagram. Both
+    sockets are read by a process that shares no interpreter lock with the node under test: in one process
+    with it, a busy node starved the readers and the kernel dropped datagrams beyond their 32 MB buffers,
+    which the test then took for loss of its own.
     """
 
-    def __init__(self, target: tuple[str, int], loss: float, seed: int) -> None:
-        super().__init__()
-        self.target = target
-        self.loss = loss
-        self.rng = random.Random(seed)
-        self.seen = 0
-        self.dropped = 0
+    def __init__(self, loss: float, seed: int) -> None:
+        self.relay_sock, self.sound_sock = bound_socket(), bound_socket()
+        self.port: int = self.relay_sock.getsockname()[1]
+        self._control, child_end = multiprocessing.get_context("fork").Pipe()
+        self._process = multiprocessing.get_context("fork").Process(
+            target=_serve_link, args=(self.relay_sock, self.sound_sock, loss, seed, child_end), daemon=True)
 
-    def received(self, data: bytes) -> None:
-        if data.startswith(IMPACT_PREFIX):
-            self.seen += 1
-            if self.rng.random() < self.loss:
-                self.dropped += 1
+    def start(self) -> None:
+        self._process.start()
+
+    def counts(self) -> tuple[int, int, int]:
+        """Impact datagrams the relay has seen, those it dropped, and those the sound side received."""
+        self._control.send("counts")
+        seen, dropped, arrived = self._control.recv()
+        return int(seen), int(dropped), int(arrived)
+
+    def datagrams(self) -> list[bytes]:
+        """Every datagram the sound side received so far."""
+        self._control.send("datagrams")
+        return list(self._control.recv())
+
+    def close(self) -> None:
+        if self._process.is_alive():
+            self._control.send("stop")
+            self._process.join(timeout=5)
+        if self._process.is_alive():
+            self._process.kill()
+        self.relay_sock.close()
+        self.sound_sock.close()
+
+
+def _serve_link(relay_sock: socket.socket, sound_sock: socket.socket, loss: float, seed: int,
+                control: Connection) -> None:
+    """The child process of :class:`LossyLink`: forward, drop, keep, and answer the parent's questions."""
+    rng = random.Random(seed)
+    target = sound_sock.getsockname()
+    seen = dropped = arrived = 0
+    kept: list[bytes] = []
+    while True:
+        readable, _, _ = select.select([relay_sock, sound_sock, control], [], [], 0.05)
+        if relay_sock in readable:
+            data = relay_sock.recv(65536)
+            if data.startswith(IMPACT_PREFIX):
+                seen += 1
+                if rng.random() < loss:
+                    dropped += 1
+                    continue
+            relay_sock.sendto(data, target)
+        if sound_sock in readable:
+            data = sound_sock.recv(65536)
+            arrived += data.startswith(IMPACT_PREFIX)
+            kept.append(data)
+        if control in readable:
+            what = control.recv()
+            if what == "stop":
                 return
-        self.sock.sendto(data, self.target)
+            control.send((seen, dropped, arrived) if what == "counts" else kept)
 
 
 def bound_socket() -> socket.socket:
@@ -181,18 +188,15 @@ def test_no_impact_is_lost_under_5_percent_packet_loss(tmp_path: Path) -> None:
     total = 10_000
 
     async def scenario() -> None:
-        sound = SoundSide()
-        relay = LossyRelay(("127.0.0.1", sound.port), loss=0.05, seed=20261122)
-        sound.start()
-        relay.start()
-        relay_port = relay.port
+        link = LossyLink(loss=0.05, seed=20261122)
+        link.start()
         path = tmp_path / "interaction.yaml"
         config = InteractionConfig(
             redundancy=RedundancyConfig(),  # the defaults: 5 copies, 4 ms apart
             routes=[{"to": "sound", "ends": False}],  # type: ignore[list-item]
         )
         save_config(config, path)
-        node = await start_node(path, peers=[f"sound=127.0.0.1:{relay_port}"])
+        node = await start_node(path, peers=[f"sound=127.0.0.1:{link.port}"])
         sender = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         try:
             assert node.endpoint is not None
@@ -207,26 +211,27 @@ def test_no_impact_is_lost_under_5_percent_packet_loss(tmp_path: Path) -> None:
             assert await wait_for(lambda: core.segmenter.stats.contacts == total, 60.0), "contacts lost on input"
             assert await wait_for(lambda: len(core.scheduler) == 0, 60.0)
             copies = core.config.redundancy.copies
-            assert await wait_for(lambda: relay.seen == copies * total, 60.0), (relay.seen, copies * total)
+            assert await wait_for(lambda: link.counts()[0] == copies * total, 60.0), (link.counts(), copies * total)
 
             def all_arrived() -> bool:
-                return sum(d.startswith(IMPACT_PREFIX) for d in sound.datagrams) == relay.seen - relay.dropped
+                seen, dropped, arrived = link.counts()
+                return arrived == seen - dropped
 
-            assert await wait_for(all_arrived, 60.0)
+            assert await wait_for(all_arrived, 60.0), link.counts()
             dedupe = Deduplicator(window=8192)
             seqs = set()
-            for data in sound.datagrams:
+            for data in link.datagrams():
                 for message in decode(data).messages:  # impacts, and the node's hello and health
                     if isinstance(message, Impact) and dedupe.accept_message("interaction", message):
                         seqs.add(message.seq)
+            seen, dropped, _ = link.counts()
             assert core.impacts_sent == total
-            assert 0.04 < relay.dropped / relay.seen < 0.06  # the loss really happened
+            assert 0.04 < dropped / seen < 0.06  # the loss really happened
             assert len(seqs) == total  # ... and no impact was lost
         finally:
             sender.close()
             await node.stop()
-            relay.close()
-            sound.close()
+            link.close()
 
     asyncio.run(scenario())
 
