@@ -51,8 +51,9 @@ class LossyLink:
     def __init__(self, loss: float, seed: int) -> None:
         self.relay_sock, self.sound_sock = bound_socket(), bound_socket()
         self.port: int = self.relay_sock.getsockname()[1]
-        self._control, child_end = multiprocessing.get_context("fork").Pipe()
-        self._process = multiprocessing.get_context("fork").Process(
+        fork = multiprocessing.get_context("fork")
+        self._control, child_end = fork.Pipe()
+        self._process = fork.Process(
             target=_serve_link, args=(self.relay_sock, self.sound_sock, loss, seed, child_end), daemon=True)
 
     def start(self) -> None:
