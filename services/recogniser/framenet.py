@@ -215,6 +215,10 @@ class FrameNet:
         found.sort()
         return found
 
+    def anchors(self, out: np.ndarray) -> np.ndarray:
+        """Frames of the onset-output peaks of at least :data:`SNAP_MIN`: where ``snap_frames`` moves strikes."""
+        return self.peaks(out[:, N_CLASSES], SNAP_MIN)
+
     def positions(self, out: np.ndarray, found: list[tuple[int, int, int, float]]) -> np.ndarray:
         """Frame positions (k,) of :meth:`detect`'s strikes, fractional with ``subframe`` (else their frames).
 
@@ -225,7 +229,7 @@ class FrameNet:
         pos = np.array([t for t, _, _, _ in found], np.float64)
         if not self.subframe or not found:
             return pos
-        anchors = set(self.peaks(out[:, N_CLASSES], SNAP_MIN).tolist()) if self.snap_frames > 0 else set()
+        anchors = set(self.anchors(out).tolist()) if self.snap_frames > 0 else set()
         last = out.shape[0] - 1
         for i, (t, c, _, _) in enumerate(found):
             if 0 < t < last:
@@ -245,7 +249,7 @@ class FrameNet:
     def _snap(self, out: np.ndarray, found: list[tuple[int, int, int, float]]) -> list[tuple[int, int, int, float]]:
         """``found`` with each frame moved to the nearest onset-output peak within ``snap_frames`` (the earlier
         of two equally near), a class struck twice at one frame kept once (the more probable)."""
-        anchors = self.peaks(out[:, N_CLASSES], SNAP_MIN)
+        anchors = self.anchors(out)
         if not len(anchors):
             return found
         best: dict[tuple[int, int], tuple[int, int, int, float]] = {}
