@@ -110,12 +110,13 @@ def test_an_ensemble_averages_its_networks_and_may_be_stored_in_half_precision(t
     assert 0 < np.abs(back.forward(spec) - mean).max() < 1e-2  # rounded, not lost
 
 
-def test_export_computes_what_the_torch_network_computes() -> None:
+@pytest.mark.parametrize("dilations", [(2, 4, 8, 16), (2, 4, 8, 16, 32, 64)])
+def test_export_computes_what_the_torch_network_computes(dilations: tuple[int, ...]) -> None:
     torch = pytest.importorskip("torch")  # training-only dependency
     from services.recogniser.training.net import Net, export
 
     torch.manual_seed(0)
-    net = Net(windows=(512, 1024))
+    net = Net(windows=(512, 1024), dilations=dilations)
     for m in net.modules():  # non-trivial batch statistics, so the folding is exercised
         if isinstance(m, torch.nn.BatchNorm1d | torch.nn.BatchNorm2d):
             m.running_mean.uniform_(-1, 1)

@@ -39,7 +39,7 @@ def test_the_shipped_network_loaded_into_torch_gives_the_numpy_activations() -> 
     assert np.abs(torch_out() - want).max() < 1e-4
 
 
-def test_a_warm_start_must_match_the_files_windows_and_width() -> None:
+def test_a_warm_start_must_match_the_files_windows_width_and_dilations() -> None:
     pytest.importorskip("torch")
     from services.recogniser.training.train_net import init_net
 
@@ -47,3 +47,5 @@ def test_a_warm_start_must_match_the_files_windows_and_width() -> None:
         init_net(SHIPPED, (1024,), 128)
     with pytest.raises(ValueError, match="width"):
         init_net(SHIPPED, (512, 1024, 2048), 64)
+    with pytest.raises(ValueError, match="dilations"):
+        init_net(SHIPPED, (512, 1024, 2048), 128, (2, 4, 8, 16, 32))

@@ -20,7 +20,7 @@ from torch.nn import functional as TF
 from services.recogniser import features as F
 from services.recogniser.classes import N_CLASSES
 from services.recogniser.training.frames import NEIGHBOUR_TARGET, FrameSet, targets
-from services.recogniser.training.net import Net, calibrate
+from services.recogniser.training.net import DILATIONS, Net, calibrate
 
 CROP_FRAMES = 400
 """Frames per crop whose loss counts (4 s)."""
@@ -125,12 +125,14 @@ def validation_loss(net: Net, val: Batches, n: int = 1000) -> float:
 def fit(train: FrameSet, val: FrameSet, epochs: float, seed: int, lr: float = 2e-3, log_every: int = 250,
         minutes: float | None = None, width: int = 128, windows: tuple[int, ...] = (F.N_FFT,),
         hard: float = HARD_WEIGHT, init: Net | None = None, warmup: float = 0.03,
-        outputs: dict[int, float] | None = None, neighbour: float = NEIGHBOUR_TARGET) -> Net:
+        outputs: dict[int, float] | None = None, neighbour: float = NEIGHBOUR_TARGET,
+        dilations: tuple[int, ...] = DILATIONS) -> Net:
     """Fit a :class:`Net` on the spectra of ``windows``; ``epochs``: passes over the training frames (fractional
     allowed), or only as many steps as fit in ``minutes``, whichever is fewer. ``hard``: see :func:`loss_of`
     (the validation loss is unweighted). ``outputs``: loss weight of activation ``k`` (class index; N_CLASSES: the
     onset output) where not 1 (e.g. {1: 2.0}: snare errors count twice; the validation loss is unweighted).
     ``neighbour``: the target of the frames beside a strike's (:func:`~.frames.targets`; training and validation).
+    ``dilations``: of the residual time convolutions (frames), whose sum sets the context each side (a new network).
     ``init``: continue from this network (of these ``windows``; e.g. :func:`~.net.from_export` of a model file),
     its batch normalisations first calibrated on 8 training batches (:func:`~.net.calibrate`); it is kept
     unless a fitted state has a lower validation-kit loss.
@@ -139,7 +141,8 @@ def fit(train: FrameSet, val: FrameSet, epochs: float, seed: int, lr: float = 2e
     whose speed changes the schedule still ends at zero), else the share of the steps."""
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
-    net = init if init is not None else Net(c1=width // 8, c2=width // 4, width=width, windows=windows)
+    net = init if init is not None else Net(c1=width // 8, c2=width // 4, width=width, windows=windows,
+                                            dilations=dilations)
     if net.windows != windows:
         raise ValueError(f"the network reads windows {net.windows}, not {windows}")
     tb, vb = Batches(train, net.margin, windows, neighbour), Batches(val, net.margin, windows, neighbour)

@@ -18,12 +18,15 @@ from services.recogniser import features as F
 from services.recogniser.classes import N_CLASSES
 from services.recogniser.framenet import N_OUT, FrameNet, Layer, Network
 
+DILATIONS = (2, 4, 8, 16)
+"""Dilations of the residual time convolutions (frames): kernel 3, so each side sees 3 + their sum frames."""
+
 
 class Net(nn.Module):
     """Input (batch, t, N_BANDS, len(windows)) band spectra of the analysis ``windows`` (samples), or
     (batch, t, N_BANDS) with one window; output (batch, N_OUT, t) logits."""
 
-    def __init__(self, c1: int = 16, c2: int = 32, width: int = 128, dilations: tuple[int, ...] = (2, 4, 8, 16),
+    def __init__(self, c1: int = 16, c2: int = 32, width: int = 128, dilations: tuple[int, ...] = DILATIONS,
                  dropout: float = 0.2, windows: tuple[int, ...] = (F.N_FFT,)) -> None:
         super().__init__()
         self.windows = windows

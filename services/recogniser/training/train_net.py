@@ -35,7 +35,7 @@ from services.recogniser.training.excerpts import FIT_KITS, VALID_DRY_P, VARY_P,
 from services.recogniser.training.fit_net import HARD_WEIGHT, fit
 from services.recogniser.training.frames import NEIGHBOUR_TARGET, WINDOWS, FrameSet, make_frames
 from services.recogniser.training.kits import VALID_KITS
-from services.recogniser.training.net import Net, export, from_export
+from services.recogniser.training.net import DILATIONS, Net, export, from_export
 from services.recogniser.training.soundfont import SOUNDFONT_KITS, SoundfontsMissingError, require_soundfonts
 from services.recogniser.training.tune import choose
 
@@ -76,11 +76,12 @@ def ensemble(paths: list[Path], val: FrameSet, rules: bool = False) -> Model:
     return Model(offline=net, live=models[0].live, meta=meta)
 
 
-def init_net(path: Path, windows: tuple[int, ...], width: int) -> Net:
-    """The PyTorch form of the offline network of the model file ``path`` (analysis ``windows``, samples, and
-    time-convolution ``width``, channels, must be the file's), to continue fitting it.
+def init_net(path: Path, windows: tuple[int, ...], width: int, dilations: tuple[int, ...] = DILATIONS) -> Net:
+    """The PyTorch form of the offline network of the model file ``path`` (analysis ``windows``, samples,
+    time-convolution ``width``, channels, and residual ``dilations``, frames, must be the file's), to continue
+    fitting it.
 
-    Raises ModelError (unreadable file) or ValueError (an ensemble, other windows or width)."""
+    Raises ModelError (unreadable file) or ValueError (an ensemble, other windows, width or dilations)."""
     offline = load_model(path).offline
     if offline.members:
         raise ValueError(f"an ensemble of {len(offline.networks)} networks; give one of its members' files")
@@ -88,6 +89,9 @@ def init_net(path: Path, windows: tuple[int, ...], width: int) -> Net:
     if net.windows != windows or int(net.t1.out_channels) != width:
         raise ValueError(f"its network reads windows {list(net.windows)} with width {net.t1.out_channels}, "
                          f"not {list(windows)} with width {width} (give --windows and --width to match)")
+    if net.dilations != dilations:
+        raise ValueError(f"its network's dilations are {list(net.dilations)}, not {list(dilations)} "
+                         "(give --dilations to match)")
     return net
 
 
@@ -111,6 +115,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="stop the fitting earlier to take about this long (the learning rate schedule follows)")
     ap.add_argument("--width", type=int, default=128,
                     help="channels of the network's time convolutions (the 2-D ones have 1/8 and 1/4 of it)")
+    ap.add_argument("--dilations", type=int, nargs="+", default=list(DILATIONS), metavar="D",
+                    help="dilations of the residual time convolutions, frames (kernel 3: the context each side is "
+                         f"3 + their sum frames of 10 ms; default {' '.join(map(str, DILATIONS))})")
     ap.add_argument("--threads", type=int, default=2, help="PyTorch threads (default 2)")
     ap.add_argument("--windows", type=int, nargs="+", default=list(WINDOWS), choices=WINDOWS,
                     help="analysis windows of the network's input spectrograms, samples (default: all three)")
@@ -165,10 +172,13 @@ def main(argv: list[str] | None = None) -> int:
     if not 0.0 <= args.neighbour_target <= 1.0:
         print(f"error: --neighbour-target must be within 0..1, got {args.neighbour_target}", file=sys.stderr)
         return 1
+    if min(args.dilations) < 1:
+        print(f"error: --dilations must be positive frame counts, got {args.dilations}", file=sys.stderr)
+        return 1
     init = None
     if args.init is not None:
         try:
-            init = init_net(args.init, windows, args.width)
+            init = init_net(args.init, windows, args.width, tuple(args.dilations))
         except (ModelError, ValueError) as exc:
             print(f"error: --init {args.init}: {exc}", file=sys.stderr)
             return 1
@@ -197,12 +207,12 @@ def main(argv: list[str] | None = None) -> int:
           f"validation kit: {val.n_excerpts} excerpts; {time.time() - t0:.0f} s", flush=True)
     net = export(fit(train, val, args.epochs, args.seed, lr=args.lr, minutes=args.minutes, width=args.width,
                      windows=windows, hard=args.hard, init=init, warmup=args.warmup,
-                     outputs=weights, neighbour=args.neighbour_target))
+                     outputs=weights, neighbour=args.neighbour_target, dilations=tuple(args.dilations)))
     print("thresholds:", flush=True)
     choose(net, val, rules=args.rules)
     meta = {"trained_on": list(fit_kits), "thresholds_from": list(VALID_KITS), "excerpts": args.excerpts,
             "val_excerpts": args.val_excerpts, "val_plain": args.val_plain, "rules": args.rules,
-            "epochs": args.epochs, "minutes": args.minutes, "width": args.width,
+            "epochs": args.epochs, "minutes": args.minutes, "width": args.width, "dilations": args.dilations,
             "seed": args.seed, "windows": list(windows), "hard": args.hard, "variety": not args.plain,
             "neighbour_target": args.neighbour_target,
             "weights": {([*CLASS_NAMES, "onset"])[k]: w for k, w in weights.items()},
