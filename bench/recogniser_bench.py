@@ -9,8 +9,9 @@ The hi-hat row pools closed and open hi-hat (the open/closed split is shown too)
 
 Needs Debian's hydrogen-drumkits (the kit; exits 1 with an install hint without it) and mir_eval. Usage::
 
-    python bench/recogniser_bench.py [--files 30] [--seconds 60] [--augment] [--live]
-    python bench/recogniser_bench.py --kit Millo_MultiLayered2 --split train   # the validation kit, to tune on
+    python bench/recogniser_bench.py          # the whole validation split, whole performances (about 3 min)
+    python bench/recogniser_bench.py --files 30 --seconds 60 [--augment] [--live]   # a quicker sample
+    python bench/recogniser_bench.py --kit Millo_MultiLayered2 --split train --files 60 --seconds 60   # to tune on
     python bench/recogniser_bench.py --model new.npz services/recogniser/models/recogniser.npz  # same renders
 
 Several ``--model`` files are scored on the same renders, each file transcribed by each model in turn
@@ -64,8 +65,10 @@ def merge(times: np.ndarray, gap: float = MERGE_S) -> np.ndarray:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--files", type=int, default=30, help="validation performances (default 30)")
-    ap.add_argument("--seconds", type=float, default=60.0, help="at most this much of each, seconds")
+    ap.add_argument("--files", type=int, default=None,
+                    help="performances drawn at random from the split (default: all of them)")
+    ap.add_argument("--seconds", type=float, default=None,
+                    help="at most this much of each, seconds (default: the whole performance)")
     ap.add_argument("--kit", default=TEST_KITS[0], help="hydrogen kit to render with (default: the held-out one)")
     ap.add_argument("--split", default="validation", choices=("validation", "train", "test"),
                     help="Groove split to render (default validation; use train with --kit of VALID_KITS to tune)")
@@ -88,7 +91,9 @@ def main(argv: list[str] | None = None) -> int:
     kit = load_kit(args.kit)
     rng = np.random.default_rng(args.seed)
     files = groove_files(args.split)
-    picks = rng.choice(len(files), size=min(args.files, len(files)), replace=False)
+    wanted = len(files) if args.files is None else min(args.files, len(files))
+    picks = rng.choice(len(files), size=wanted, replace=False)
+    longest = np.inf if args.seconds is None else args.seconds
     runs: list[dict[str, list[tuple[list[Hit], list[tuple[float, int]]]]]] = [
         {"offline": [], "live": []} for _ in models]
     latencies: list[list[float]] = [[] for _ in models]
@@ -97,12 +102,13 @@ def main(argv: list[str] | None = None) -> int:
     warm = (0.01 * np.random.default_rng(0).standard_normal(SAMPLE_RATE)).astype(np.float32)
     for model in models:  # first calls (filterbanks, FFT set-up) are not timed
         transcribe(warm, model)
-    for k in picks:
+    for done, k in enumerate(picks, 1):
+        print(f"\r  rendering and transcribing {done}/{len(picks)}", end="", file=sys.stderr, flush=True)
         path, _ = files[int(k)]
-        notes = [Note(n.time + 0.1, n.pitch, n.velocity) for n in read_notes(path) if n.time < args.seconds]
+        notes = [Note(n.time + 0.1, n.pitch, n.velocity) for n in read_notes(path) if n.time < longest]
         if not notes:
             continue
-        audio, hits = render(notes, kit, rng, duration=min(args.seconds, notes[-1].time + 1.5))
+        audio, hits = render(notes, kit, rng, duration=min(longest, notes[-1].time + 1.5))
         audio = augment(audio, rng) if args.augment else normalise(audio)
         audio_s += len(audio) / SAMPLE_RATE
         for i, model in enumerate(models):
@@ -113,6 +119,7 @@ def main(argv: list[str] | None = None) -> int:
             if args.live:
                 runs[i]["live"].append((hits, live_hits(model, audio, latencies[i])))
 
+    print(file=sys.stderr)
     print(f"kit: {args.kit}; {len(picks)} Groove {args.split} files, "
           f"{audio_s:.0f} s of audio; {'augmented' if args.augment else 'dry'} render")
     for i, (path, model) in enumerate(zip(args.model, models, strict=True)):
