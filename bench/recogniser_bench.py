@@ -78,6 +78,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=7)
     ap.add_argument("--live", action="store_true", help="also score the live core (fed 128-sample blocks)")
     args = ap.parse_args(argv)
+    if (args.files is not None and args.files < 1) or (args.seconds is not None and args.seconds <= 0):
+        ap.error("--files must be at least 1 and --seconds above 0")
     try:
         require_kits([args.kit])
     except KitsMissingError as exc:
