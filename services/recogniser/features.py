@@ -82,19 +82,19 @@ BANDS = band_matrix()
 WINDOW = window()
 
 
-def n_frames(n_samples: int) -> int:
-    """Number of frames for a signal of ``n_samples`` samples."""
-    return n_samples // HOP + 1
+def n_frames(n_samples: int, hop: int = HOP) -> int:
+    """Number of frames of ``hop`` samples for a signal of ``n_samples`` samples."""
+    return n_samples // hop + 1
 
 
-def frame_times(n: int) -> np.ndarray:
-    """Centre times of frames 0..n-1, seconds."""
-    return np.arange(n) * (HOP / SAMPLE_RATE)
+def frame_times(n: int, hop: int = HOP) -> np.ndarray:
+    """Centre times of frames 0..n-1 of ``hop`` samples, seconds."""
+    return np.arange(n) * (hop / SAMPLE_RATE)
 
 
 def band_spectrogram(
     signal: np.ndarray, progress: Callable[[float], None] | None = None, chunk_frames: int = 4096,
-    n_fft: int = N_FFT,
+    n_fft: int = N_FFT, hop: int = HOP,
 ) -> np.ndarray:
     """Log-magnitude band spectrogram.
 
@@ -103,18 +103,19 @@ def band_spectrogram(
     signal : np.ndarray [shape=(n,)], mono at SAMPLE_RATE
     progress : called with the fraction done (0..1) after each chunk
     chunk_frames : frames computed per chunk (bounds memory)
-    n_fft : analysis window, samples (frame ``t`` is still centred on sample ``t * HOP``)
+    n_fft : analysis window, samples (frame ``t`` is still centred on sample ``t * hop``)
+    hop : samples between frames (default :data:`HOP`, 10 ms)
 
     Returns
     -------
-    np.ndarray [shape=(n_frames(n), N_BANDS), dtype=float32]
+    np.ndarray [shape=(n_frames(n, hop), N_BANDS), dtype=float32]
     """
     x = np.asarray(signal, dtype=np.float32)
     pad = n_fft // 2
-    x = np.concatenate([np.zeros(pad, np.float32), x, np.zeros(pad + HOP, np.float32)])
-    total = n_frames(len(signal))
+    x = np.concatenate([np.zeros(pad, np.float32), x, np.zeros(pad + hop, np.float32)])
+    total = n_frames(len(signal), hop)
     out = np.empty((total, N_BANDS), dtype=np.float32)
-    frames = np.lib.stride_tricks.sliding_window_view(x, n_fft)[::HOP]
+    frames = np.lib.stride_tricks.sliding_window_view(x, n_fft)[::hop]
     win, bands = window(n_fft), band_matrix(n_fft)
     for start in range(0, total, chunk_frames):
         stop = min(total, start + chunk_frames)
@@ -126,17 +127,18 @@ def band_spectrogram(
 
 
 def multi_spectrogram(
-    signal: np.ndarray, windows: Sequence[int], progress: Callable[[float], None] | None = None
+    signal: np.ndarray, windows: Sequence[int], progress: Callable[[float], None] | None = None, hop: int = HOP
 ) -> np.ndarray:
-    """Band spectrograms of several analysis windows (:func:`band_spectrogram`), same frames.
+    """Band spectrograms of several analysis windows (:func:`band_spectrogram`), same frames of ``hop`` samples.
 
     Returns
     -------
-    np.ndarray [shape=(n_frames(n), N_BANDS, len(windows)), dtype=float32]
+    np.ndarray [shape=(n_frames(n, hop), N_BANDS, len(windows)), dtype=float32]
     """
-    out = np.empty((n_frames(len(signal)), N_BANDS, len(windows)), np.float32)
+    out = np.empty((n_frames(len(signal), hop), N_BANDS, len(windows)), np.float32)
     for i, n_fft in enumerate(windows):
-        out[:, :, i] = band_spectrogram(signal, n_fft=n_fft, progress=part_progress(progress, i, len(windows)))
+        out[:, :, i] = band_spectrogram(signal, n_fft=n_fft, hop=hop,
+                                        progress=part_progress(progress, i, len(windows)))
     return out
 
 

@@ -1,6 +1,6 @@
 """The offline recogniser network: a small convolutional network over the band spectrogram, run with NumPy.
 
-For every spectrogram frame (about 10 ms) it gives the probability that a strike of
+For every spectrogram frame (10 ms, or 5 ms for a network trained so) it gives the probability that a strike of
 each class starts there, the probability that a strike of any class does (the
 "onset" output) and a velocity per class. Two 3x3 convolutions over time and
 frequency (each followed by a 2:1 maximum over frequency) see a strike's local
@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from services.recogniser import features as F
+from services.recogniser.audio import SAMPLE_RATE
 from services.recogniser.classes import N_CLASSES
 
 N_OUT = 2 * N_CLASSES + 1
@@ -75,10 +76,12 @@ def _conv1d(x: np.ndarray, w: np.ndarray, b: np.ndarray, dilation: int) -> np.nd
 
 @dataclass
 class Network:
-    """One convolutional network: its layers and the analysis windows (samples) of its input channels."""
+    """One convolutional network: its layers, the analysis windows (samples) of its input channels and the
+    samples between its frames."""
 
     layers: list[Layer]
     windows: tuple[int, ...] = (F.N_FFT,)
+    hop: int = F.HOP
 
     @property
     def margin(self) -> int:
@@ -134,7 +137,9 @@ class FrameNet:
     and this ratio times it exceeds the snare activation (a hi-hat heard as a snare too; 0: off).
     ``subframe``: strike times fall between frames, at the vertex of a parabola through the peak and its two
     neighbours (:meth:`positions`), so two strikes 20-30 ms apart whose peaks are two frames apart are not
-    taken for one chord, and times are finer than the 10 ms frames.
+    taken for one chord, and times are finer than the frames.
+    ``hop``: samples between frames (every network's; 220: 10 ms, 110: 5 ms). ``peak_frames`` and
+    ``snap_frames`` count these frames.
     """
 
     layers: list[Layer]
@@ -147,10 +152,21 @@ class FrameNet:
     snap_frames: int = 0
     hihat_snare: float = 0.0
     subframe: bool = False
+    hop: int = F.HOP
+
+    def __post_init__(self) -> None:
+        hops = {m.hop for m in self.members} - {self.hop}
+        if hops:
+            raise ValueError(f"an ensemble's networks must share their frames: hops {sorted(hops)} and {self.hop}")
+
+    @property
+    def fps(self) -> float:
+        """Frames per second of the outputs."""
+        return SAMPLE_RATE / self.hop
 
     @property
     def networks(self) -> list[Network]:
-        return [Network(self.layers, self.windows), *self.members]
+        return [Network(self.layers, self.windows, self.hop), *self.members]
 
     @property
     def inputs(self) -> tuple[int, ...]:
@@ -163,8 +179,8 @@ class FrameNet:
         return max(n.margin for n in self.networks)
 
     def spectrogram(self, signal: np.ndarray, progress: Callable[[float], None] | None = None) -> np.ndarray:
-        """The input for mono audio at SAMPLE_RATE: (t, N_BANDS, len(inputs))."""
-        return F.multi_spectrogram(signal, self.inputs, progress)
+        """The input for mono audio at SAMPLE_RATE: (t, N_BANDS, len(inputs)), frames ``hop`` samples apart."""
+        return F.multi_spectrogram(signal, self.inputs, progress, self.hop)
 
     def forward(self, spec: np.ndarray, chunk_frames: int = 2048,
                 progress: Callable[[float], None] | None = None) -> np.ndarray:

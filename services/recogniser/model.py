@@ -22,7 +22,7 @@ import numpy as np
 
 from services.recogniser.classes import CLASS_NAMES, N_CLASSES
 from services.recogniser.errors import ModelError
-from services.recogniser.features import N_FFT, n_features
+from services.recogniser.features import HOP, N_FFT, n_features
 from services.recogniser.framenet import N_OUT, FrameNet, Layer, Network
 
 MODEL_PATH = Path(__file__).parent / "models" / "recogniser.npz"
@@ -130,7 +130,7 @@ class Model:
             classes=list(CLASS_NAMES),
             offline={"kind": "framenet", "peak_frames": net.peak_frames, "time_offset_s": net.time_offset_s,
                      "chord_s": net.chord_s, "snap_frames": net.snap_frames, "hihat_snare": net.hihat_snare,
-                     "subframe": net.subframe,
+                     "subframe": net.subframe, "hop": net.hop,
                      "windows": list(net.windows), "layers": _layout(net.layers),
                      "members": [{"windows": list(m.windows), "layers": _layout(m.layers)} for m in net.members]},
             live={"offsets": list(c.offsets), "delta": c.delta, "time_offset_s": c.time_offset_s,
@@ -173,13 +173,16 @@ def _layers(data: dict[str, np.ndarray], prefix: str, layout: list[dict]) -> lis
 
 
 def _network(p: Path, data: dict[str, np.ndarray], m: dict) -> FrameNet:
-    members = [Network(_layers(data, f"offline.m{k + 1}", mm["layers"]), tuple(int(w) for w in mm["windows"]))
+    hop = int(m.get("hop", HOP))  # files made before the hop was recorded: 10 ms frames
+    if not 32 <= hop <= 1024:
+        raise ModelError(f"{p}: offline network frames {hop} samples apart (expected 32..1024)")
+    members = [Network(_layers(data, f"offline.m{k + 1}", mm["layers"]), tuple(int(w) for w in mm["windows"]), hop)
                for k, mm in enumerate(m.get("members", []))]
     net = FrameNet(_layers(data, "offline", m["layers"]), data["offline.thresholds"].astype(np.float32),
                    int(m["peak_frames"]), float(m["time_offset_s"]), float(m["chord_s"]),
                    tuple(int(w) for w in m.get("windows", [N_FFT])), members,
                    int(m.get("snap_frames", 0)), float(m.get("hihat_snare", 0.0)),  # 0: files made before these
-                   bool(m.get("subframe", False)))
+                   bool(m.get("subframe", False)), hop)
     for n in net.networks:
         if not n.layers or n.layers[0].w.shape[2] != len(n.windows) or n.layers[-1].w.shape[-1] != N_OUT:
             raise ModelError(f"{p}: offline network layer shapes do not match")

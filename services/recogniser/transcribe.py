@@ -14,7 +14,6 @@ from pathlib import Path
 
 import numpy as np
 
-from services.recogniser import features as F
 from services.recogniser.audio import MAX_DURATION_S, SAMPLE_RATE, load_audio
 from services.recogniser.classes import CLASSES
 from services.recogniser.framenet import FrameNet
@@ -82,7 +81,7 @@ def group_chords(events: list[DrumEvent], window: float = CHORD_S) -> list[DrumE
 def strikes(net: FrameNet, out: np.ndarray) -> list[DrumEvent]:
     """Events from the network's framewise outputs (:meth:`FrameNet.forward`), grouped into chords."""
     found = net.detect(out)
-    times = net.positions(out, found) / F.FPS + net.time_offset_s
+    times = net.positions(out, found) / net.fps + net.time_offset_s
     events = [DrumEvent(max(0.0, float(s)), c, v, p) for s, (_, c, v, p) in zip(times, found, strict=True)]
     events.sort(key=lambda e: (e.time, e.cls))
     return group_chords(events, net.chord_s) if net.chord_s > 0 else events

@@ -68,3 +68,24 @@ def test_missing_kits_fail_with_an_install_hint(tmp_path: Path) -> None:
     with pytest.raises(KitsMissingError, match="apt-get install hydrogen-drumkits") as err:
         require_kits(["Present", "Absent Kit"], root=tmp_path)
     assert "Absent Kit" in str(err.value) and "Present," not in str(err.value)
+
+
+def test_thresholds_and_peak_window_are_chosen_on_validation_frames_of_5_ms() -> None:
+    from services.recogniser import features as F
+    from services.recogniser.framenet import N_OUT, FrameNet
+    from services.recogniser.training.frames import FrameSet
+    from services.recogniser.training.tune import choose
+
+    hop, n = F.HOP // 2, 1000  # 5 s of 5 ms frames
+    fps = F.SAMPLE_RATE / hop
+    times = np.arange(0.5, 4.6, 0.25)  # snares every 250 ms
+    hits = np.array([[0, t, 1, 100] for t in times], np.float64)
+    val = FrameSet(np.zeros((n, F.N_BANDS, 1), np.float16), np.array([0, n]), hits, (F.N_FFT,), hop)
+    out = np.zeros((n, N_OUT), np.float32)
+    for k, t in enumerate(times):  # loud strikes peak twice 10 ms apart, soft ones once: with +-1 frame no
+        f = round(t * fps)        # threshold takes every strike once; with +-2 frames any up to 0.5 does
+        out[f : f + 3, 1] = (0.9, 0.3, 0.85) if k % 2 else (0.5, 0.2, 0.0)
+    net = FrameNet([], np.full(N_CLASSES + 1, 0.5, np.float32), hop=hop)
+    choose(net, val, outs=[out], rules=True)
+    assert net.peak_frames == 2 and net.thresholds[1] <= 0.5
+    assert net.snap_frames in range(0, 7)  # 0-30 ms of 5 ms frames

@@ -81,6 +81,32 @@ def test_input_spectrograms_of_several_windows() -> None:
     assert net.forward(spec).shape == (len(spec), N_OUT)
 
 
+def test_frames_of_5_ms_are_the_10_ms_frames_and_those_between() -> None:
+    t = np.arange(int(0.7 * SAMPLE_RATE)) / SAMPLE_RATE
+    audio = (0.5 * np.sin(2 * np.pi * 220 * t) * np.exp(-8 * np.maximum(0, t - 0.3)) * (t > 0.3)).astype(np.float32)
+    fine = F.multi_spectrogram(audio, (512, 1024), hop=F.HOP // 2)
+    coarse = F.multi_spectrogram(audio, (512, 1024))
+    assert len(fine) == F.n_frames(len(audio), F.HOP // 2) and len(fine) in (2 * len(coarse) - 1, 2 * len(coarse))
+    assert np.allclose(fine[::2][: len(coarse)], coarse, atol=1e-5)  # frame 2k at 5 ms is frame k at 10 ms
+    assert np.allclose(F.frame_times(3, F.HOP // 2), [0.0, 0.005, 0.01], atol=1e-4)
+
+
+def test_a_network_of_5_ms_frames_reads_its_frames_and_gives_times_in_seconds(tmp_path: Path) -> None:
+    live, _ = load_live(Path(__file__).resolve().parents[2] / "services/recogniser/models/recogniser.npz")
+    net = _random_net(12)
+    net.hop = F.HOP // 2
+    assert net.fps == pytest.approx(2 * F.FPS)
+    audio = np.zeros(SAMPLE_RATE, np.float32)
+    assert len(net.spectrogram(audio)) == F.n_frames(SAMPLE_RATE, F.HOP // 2)  # 201 frames for 1 s
+    out = np.zeros((200, N_OUT), np.float32)
+    out[100, 0] = 0.9  # a kick at frame 100 of 5 ms: 0.5 s
+    assert [e.time for e in strikes(net, out)] == pytest.approx([100 / (2 * F.FPS)])
+    Model(net, live, {}).save(tmp_path / "m.npz")
+    assert load_model(tmp_path / "m.npz").offline.hop == F.HOP // 2
+    with pytest.raises(ValueError, match="share their frames"):
+        FrameNet(net.layers, net.thresholds, members=[Network(net.layers, net.windows, F.HOP // 2)])
+
+
 def test_model_file_round_trip(tmp_path: Path) -> None:
     live, _ = load_live(Path(__file__).resolve().parents[2] / "services/recogniser/models/recogniser.npz")
     net = _random_net(2, windows=(512, 2048))
@@ -92,6 +118,7 @@ def test_model_file_round_trip(tmp_path: Path) -> None:
     assert np.array_equal(back.offline.forward(spec), net.forward(spec))
     assert np.array_equal(back.offline.thresholds, net.thresholds)
     assert (back.offline.chord_s, back.offline.peak_frames, back.offline.windows) == (0.03, 2, (512, 2048))
+    assert back.offline.hop == F.HOP  # 10 ms frames, as every file written before the hop was recorded
     assert np.array_equal(back.live.weights[0], live.weights[0])
 
 

@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
+import pytest
 from scipy.signal import butter, sosfilt
 
 from services.recogniser import features as F
@@ -85,3 +88,34 @@ def test_frame_targets_mark_strike_frames_and_their_neighbours_at_the_chosen_lev
     assert mask[10, hihat] and mask[12, snare] and vel[12, snare] == np.float32(64 / 127)
     sharp, _, _ = targets(30, hits, neighbour=0.2)
     assert sharp[9:14, N_CLASSES].tolist() == [np.float32(0.2), 1.0, np.float32(0.2), 1.0, np.float32(0.2)]
+
+
+def test_at_5_ms_frames_strikes_20_ms_apart_are_four_frames_apart_with_nothing_between() -> None:
+    snare, hihat = 1, 2
+    hits = np.array([[0.1, hihat, 100], [0.12, snare, 64]])
+    act, _, mask = targets(60, hits, fps=2 * F.FPS)
+    assert np.flatnonzero(act[:, N_CLASSES] == 1.0).tolist() == [20, 24]
+    assert act[22, N_CLASSES] == 0.0  # a valley between the two peaks (at 10 ms frames: a neighbour of both)
+    assert mask[20, hihat] and mask[24, snare]
+
+
+def test_the_network_fits_on_frames_of_5_ms(tmp_path: Path) -> None:
+    pytest.importorskip("torch")  # training-only dependency
+    from services.recogniser.training.fit_net import fit
+    from services.recogniser.training.frames import FrameSet
+    from services.recogniser.training.net import export
+
+    rng = np.random.default_rng(3)
+    hop = F.HOP // 2
+    n = 2 * round(6 * 2 * F.FPS)  # two excerpts of 6 s of 5 ms frames
+    spec = (rng.random((n, F.N_BANDS, 1)) * 2).astype(np.float16)
+    hits = np.array([[e, t, c, 90] for e in (0, 1) for t, c in ((1.0, 0), (2.0, 1), (3.0, 2))], np.float64)
+    data = FrameSet(spec, np.array([0, n // 2, n]), hits, (F.N_FFT,), hop)
+    data.save(tmp_path / "d.npz")
+    back = FrameSet.load(tmp_path / "d.npz")
+    assert back.hop == hop and back.fps == pytest.approx(2 * F.FPS)
+    net = fit(back, back, epochs=0.5, seed=0, width=16, dilations=(4, 8), log_every=1)
+    fn = export(net)
+    assert fn.hop == hop and fn.forward(back.excerpt(0).astype(np.float32)).shape[0] == n // 2
+    with pytest.raises(ValueError, match="samples apart"):
+        fit(back, FrameSet(spec, np.array([0, n // 2, n]), hits, (F.N_FFT,)), epochs=0.1, seed=0, width=16)

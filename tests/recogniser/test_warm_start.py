@@ -49,3 +49,5 @@ def test_a_warm_start_must_match_the_files_windows_width_and_dilations() -> None
         init_net(SHIPPED, (512, 1024, 2048), 64)
     with pytest.raises(ValueError, match="dilations"):
         init_net(SHIPPED, (512, 1024, 2048), 128, (2, 4, 8, 16, 32))
+    with pytest.raises(ValueError, match="samples apart"):
+        init_net(SHIPPED, (512, 1024, 2048), 128, (2, 4, 8, 16), F.HOP // 2)

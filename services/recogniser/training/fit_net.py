@@ -22,8 +22,10 @@ from services.recogniser.classes import N_CLASSES
 from services.recogniser.training.frames import NEIGHBOUR_TARGET, FrameSet, targets
 from services.recogniser.training.net import DILATIONS, Net, calibrate
 
-CROP_FRAMES = 400
-"""Frames per crop whose loss counts (4 s)."""
+CROP_S = 4.0
+"""Length of a crop whose loss counts, seconds (400 frames of 10 ms)."""
+VAL_CROP_S = 10.0
+"""Length of the consecutive crops the validation loss is taken on, seconds."""
 BATCH = 16
 """Crops per batch."""
 VEL_WEIGHT = 2.0
@@ -64,7 +66,7 @@ class Batches:
         self.data = data
         self.margin = margin
         self.windows = windows
-        self.tgt = [targets(data.starts[e + 1] - data.starts[e], data.excerpt_hits(e), neighbour)
+        self.tgt = [targets(data.starts[e + 1] - data.starts[e], data.excerpt_hits(e), neighbour, data.fps)
                     for e in range(data.n_excerpts)]
 
     def crop(self, e: int, a: int, n: int) -> tuple[np.ndarray, ...]:
@@ -107,8 +109,10 @@ def loss_of(net: Net, x: torch.Tensor, act: torch.Tensor, vel: torch.Tensor, mas
     return loss
 
 
-def validation_loss(net: Net, val: Batches, n: int = 1000) -> float:
-    """Mean loss over the validation excerpts cut into consecutive crops of ``n`` frames."""
+def validation_loss(net: Net, val: Batches, n: int | None = None) -> float:
+    """Mean loss over the validation excerpts cut into consecutive crops of ``n`` frames (default
+    :data:`VAL_CROP_S`)."""
+    n = n if n is not None else round(VAL_CROP_S * val.data.fps)
     net.eval()
     total = count = 0.0
     with torch.no_grad():
@@ -141,10 +145,15 @@ def fit(train: FrameSet, val: FrameSet, epochs: float, seed: int, lr: float = 2e
     whose speed changes the schedule still ends at zero), else the share of the steps."""
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
+    if val.hop != train.hop:
+        raise ValueError(f"training frames are {train.hop} samples apart, validation frames {val.hop}")
     net = init if init is not None else Net(c1=width // 8, c2=width // 4, width=width, windows=windows,
-                                            dilations=dilations)
+                                            dilations=dilations, hop=train.hop)
     if net.windows != windows:
         raise ValueError(f"the network reads windows {net.windows}, not {windows}")
+    if net.hop != train.hop:
+        raise ValueError(f"the network reads frames {net.hop} samples apart, the training set has {train.hop}")
+    crop = round(CROP_S * train.fps)
     tb, vb = Batches(train, net.margin, windows, neighbour), Batches(val, net.margin, windows, neighbour)
     out_w = None
     if outputs:
@@ -153,10 +162,10 @@ def fit(train: FrameSet, val: FrameSet, epochs: float, seed: int, lr: float = 2e
             out_w[k] = w
     best, best_state = np.inf, None
     if init is not None:
-        calibrate(net, [tb.random(np.random.default_rng(seed + 1), BATCH, CROP_FRAMES)[0] for _ in range(8)])
+        calibrate(net, [tb.random(np.random.default_rng(seed + 1), BATCH, crop)[0] for _ in range(8)])
         best, best_state = validation_loss(net, vb), {k: t.clone() for k, t in net.state_dict().items()}
         print(f"  initial network: validation-kit loss {best:.4f}", flush=True)
-    steps = max(1, int(epochs * len(train.spec) / (BATCH * CROP_FRAMES)))
+    steps = max(1, int(epochs * len(train.spec) / (BATCH * crop)))
     opt = torch.optim.AdamW(net.parameters(), lr=lr, weight_decay=1e-4)
     t0, running = time.time(), 0.0
     step = 0
@@ -167,7 +176,7 @@ def fit(train: FrameSet, val: FrameSet, epochs: float, seed: int, lr: float = 2e
         rate = done / warmup if done < warmup else 0.5 * (1 + np.cos(np.pi * (done - warmup) / (1 - warmup)))
         for group in opt.param_groups:
             group["lr"] = lr * float(min(1.0, rate))
-        x, act, vel, mask = tb.random(rng, BATCH, CROP_FRAMES)
+        x, act, vel, mask = tb.random(rng, BATCH, crop)
         loss = loss_of(net, x, act, vel, mask, hard=hard, outputs=out_w)
         opt.zero_grad()
         loss.backward()
@@ -181,7 +190,7 @@ def fit(train: FrameSet, val: FrameSet, epochs: float, seed: int, lr: float = 2e
                 best, best_state, mark = v, {k: t.clone() for k, t in net.state_dict().items()}, " *"
             print(f"  step {step} ({done:.0%}): training loss {running / ((step - 1) % log_every + 1):.4f}, "
                   f"validation-kit loss {v:.4f}{mark} ({time.time() - t0:.0f} s, "
-                  f"{step * BATCH * CROP_FRAMES / len(train.spec):.2f} epochs)", flush=True)
+                  f"{step * BATCH * crop / len(train.spec):.2f} epochs)", flush=True)
             running = 0.0
             done = 1.0 if last else done
     if best_state is not None:

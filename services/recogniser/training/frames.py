@@ -12,11 +12,13 @@ import multiprocessing as mp
 import time
 from contextlib import nullcontext
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 
 import numpy as np
 
 from services.recogniser import features as F
+from services.recogniser.audio import SAMPLE_RATE
 from services.recogniser.classes import N_CLASSES
 from services.recogniser.training.excerpts import (
     DRY_P,
@@ -44,12 +46,19 @@ class FrameSet:
     starts : (n_excerpts + 1,) row offsets
     hits : (k, 4) float64: excerpt index, time s (from the excerpt's start), class index, MIDI velocity
     windows : the analysis window of each channel of ``spec``, samples
+    hop : samples between frames (at :data:`~services.recogniser.audio.SAMPLE_RATE`)
     """
 
     spec: np.ndarray
     starts: np.ndarray
     hits: np.ndarray
     windows: tuple[int, ...] = WINDOWS
+    hop: int = F.HOP
+
+    @property
+    def fps(self) -> float:
+        """Frames per second."""
+        return SAMPLE_RATE / self.hop
 
     @property
     def n_excerpts(self) -> int:
@@ -69,51 +78,55 @@ class FrameSet:
         spec_path = Path(f"{path}.spec.npy")
         if not (isinstance(self.spec, np.memmap) and Path(str(self.spec.filename)) == spec_path.resolve()):
             np.save(spec_path, self.spec)
-        np.savez(path, starts=self.starts, hits=self.hits, windows=np.asarray(self.windows))
+        np.savez(path, starts=self.starts, hits=self.hits, windows=np.asarray(self.windows), hop=self.hop)
 
     @staticmethod
     def load(path: Path) -> FrameSet:
         with np.load(path) as z:
             starts, hits, windows = z["starts"], z["hits"], tuple(int(w) for w in z["windows"])
-        return FrameSet(np.load(f"{path}.spec.npy", mmap_mode="r"), starts, hits, windows)
+            hop = int(z["hop"]) if "hop" in z.files else F.HOP  # caches written before the hop was recorded
+        return FrameSet(np.load(f"{path}.spec.npy", mmap_mode="r"), starts, hits, windows, hop)
 
 
-def _one(job: Job) -> tuple[np.ndarray, np.ndarray]:
+def _one(job: Job, hop: int = F.HOP) -> tuple[np.ndarray, np.ndarray]:
     audio, hits = render_excerpt(job)
-    spec = F.multi_spectrogram(audio, WINDOWS).astype(np.float16)
+    spec = F.multi_spectrogram(audio, WINDOWS, hop=hop).astype(np.float16)
     return spec, np.array([[h.time, h.cls, h.velocity] for h in hits], np.float64).reshape(-1, 3)
 
 
 def make_frames(n: int, seed: int, workers: int, kits: tuple[str, ...], dry_p: float = DRY_P,
-                variety: bool = False, path: Path | None = None, vary_p: float = VARY_P) -> FrameSet:
+                variety: bool = False, path: Path | None = None, vary_p: float = VARY_P, hop: int = F.HOP) -> FrameSet:
     """Render ``n`` excerpts with ``kits`` (a share ``dry_p`` dry; ``variety``: see :class:`.excerpts.Job`) into a
-    :class:`FrameSet`, and save it to ``path`` if given (the spectra are written as they come, never all held)."""
+    :class:`FrameSet` of frames ``hop`` samples apart, and save it to ``path`` if given (the spectra are written
+    as they come, never all held)."""
     prepare(kits)
     todo = jobs(n, seed, kits, dry_p, variety, vary_p)
-    per = F.n_frames(excerpt_samples())
+    per = F.n_frames(excerpt_samples(), hop)
+    one = partial(_one, hop=hop)
     shape = (n * per, F.N_BANDS, len(WINDOWS))
     spec = (np.lib.format.open_memmap(f"{path}.spec.npy", mode="w+", dtype=np.float16, shape=shape)
             if path is not None else np.empty(shape, np.float16))
     hits = []
     t0 = time.monotonic()
     with mp.Pool(workers) if workers > 1 else nullcontext() as pool:
-        results = pool.imap(_one, todo, chunksize=4) if pool is not None else map(_one, todo)
+        results = pool.imap(one, todo, chunksize=4) if pool is not None else map(one, todo)
         for e, (s, h) in enumerate(results):
             assert len(s) == per, (len(s), per)
             spec[e * per : (e + 1) * per] = s
             hits.append(np.column_stack([np.full(len(h), e, np.float64), h]))
             if (e + 1) % PROGRESS_EVERY == 0 and e + 1 < n:
                 print(f"  rendered {e + 1}/{n} excerpts, {time.monotonic() - t0:.0f} s", flush=True)
-    data = FrameSet(spec, np.arange(n + 1, dtype=np.int64) * per, np.concatenate(hits), WINDOWS)
+    data = FrameSet(spec, np.arange(n + 1, dtype=np.int64) * per, np.concatenate(hits), WINDOWS, hop)
     if path is not None:
         spec.flush()  # type: ignore[union-attr]
         data.save(path)
     return data
 
 
-def targets(n_frames: int, hits: np.ndarray, neighbour: float = NEIGHBOUR_TARGET
+def targets(n_frames: int, hits: np.ndarray, neighbour: float = NEIGHBOUR_TARGET, fps: float = F.FPS
             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Frame targets of one excerpt from its hits (rows: time s, class, velocity; or :class:`FrameSet` rows).
+    """Frame targets of one excerpt from its hits (rows: time s, class, velocity; or :class:`FrameSet` rows),
+    ``fps`` frames per second.
 
     Returns
     -------
@@ -126,7 +139,7 @@ def targets(n_frames: int, hits: np.ndarray, neighbour: float = NEIGHBOUR_TARGET
     act = np.zeros((n_frames, N_CLASSES + 1), np.float32)
     vel = np.zeros((n_frames, N_CLASSES), np.float32)
     mask = np.zeros((n_frames, N_CLASSES), bool)
-    frame = np.rint(h[:, 0] * F.FPS).astype(int)
+    frame = np.rint(h[:, 0] * fps).astype(int)
     cls = h[:, 1].astype(int)
     ok = (frame >= 0) & (frame < n_frames)
     frame, cls, v = frame[ok], cls[ok], h[ok, 2]

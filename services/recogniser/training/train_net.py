@@ -27,6 +27,7 @@ from pathlib import Path
 
 import torch
 
+from services.recogniser import features as F
 from services.recogniser.classes import CLASS_NAMES
 from services.recogniser.errors import ModelError
 from services.recogniser.framenet import FrameNet
@@ -44,14 +45,14 @@ CACHE_TAG = "f3"
 
 
 def frames(cache: Path, name: str, n: int, seed: int, workers: int, kits: tuple[str, ...], dry_p: float,
-           variety: bool = False, plain: bool = False) -> FrameSet:
-    """The cached frame set of these excerpts, rendered first if need be (``plain``: as the benchmark renders,
-    the kit unvaried and dry, whatever ``dry_p``)."""
-    tag = ("-variety" if variety else "") + ("-plain" if plain else "")
+           variety: bool = False, plain: bool = False, hop: int = F.HOP) -> FrameSet:
+    """The cached frame set of these excerpts, frames ``hop`` samples apart, rendered first if need be
+    (``plain``: as the benchmark renders, the kit unvaried and dry, whatever ``dry_p``)."""
+    tag = ("-variety" if variety else "") + ("-plain" if plain else "") + (f"-hop{hop}" if hop != F.HOP else "")
     path = cache / f"{CACHE_TAG}-{name}{tag}-{n}-{seed}.npz"
     if path.exists():
         return FrameSet.load(path)
-    make_frames(n, seed, workers, kits, 1.0 if plain else dry_p, variety, path, 0.0 if plain else VARY_P)
+    make_frames(n, seed, workers, kits, 1.0 if plain else dry_p, variety, path, 0.0 if plain else VARY_P, hop)
     return FrameSet.load(path)
 
 
@@ -67,7 +68,7 @@ def ensemble(paths: list[Path], val: FrameSet, rules: bool = False) -> Model:
     first = models[0].offline
     nets = [n for m in models for n in m.offline.networks]
     net = FrameNet(nets[0].layers, first.thresholds.copy(), first.peak_frames, first.time_offset_s, first.chord_s,
-                   nets[0].windows, nets[1:], subframe=True)
+                   nets[0].windows, nets[1:], subframe=True, hop=nets[0].hop)
     print(f"ensemble of {len(nets)} networks; thresholds:", flush=True)
     choose(net, val, rules=rules)
     meta = dict(models[0].meta)
@@ -76,12 +77,13 @@ def ensemble(paths: list[Path], val: FrameSet, rules: bool = False) -> Model:
     return Model(offline=net, live=models[0].live, meta=meta)
 
 
-def init_net(path: Path, windows: tuple[int, ...], width: int, dilations: tuple[int, ...] = DILATIONS) -> Net:
+def init_net(path: Path, windows: tuple[int, ...], width: int, dilations: tuple[int, ...] = DILATIONS,
+             hop: int = F.HOP) -> Net:
     """The PyTorch form of the offline network of the model file ``path`` (analysis ``windows``, samples,
-    time-convolution ``width``, channels, and residual ``dilations``, frames, must be the file's), to continue
-    fitting it.
+    time-convolution ``width``, channels, residual ``dilations``, frames, and ``hop``, samples, must be the
+    file's), to continue fitting it.
 
-    Raises ModelError (unreadable file) or ValueError (an ensemble, other windows, width or dilations)."""
+    Raises ModelError (unreadable file) or ValueError (an ensemble, other windows, width, dilations or hop)."""
     offline = load_model(path).offline
     if offline.members:
         raise ValueError(f"an ensemble of {len(offline.networks)} networks; give one of its members' files")
@@ -92,6 +94,8 @@ def init_net(path: Path, windows: tuple[int, ...], width: int, dilations: tuple[
     if net.dilations != dilations:
         raise ValueError(f"its network's dilations are {list(net.dilations)}, not {list(dilations)} "
                          "(give --dilations to match)")
+    if net.hop != hop:
+        raise ValueError(f"its network's frames are {net.hop} samples apart, not {hop} (give --hop to match)")
     return net
 
 
@@ -118,6 +122,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--dilations", type=int, nargs="+", default=list(DILATIONS), metavar="D",
                     help="dilations of the residual time convolutions, frames (kernel 3: the context each side is "
                          f"3 + their sum frames of 10 ms; default {' '.join(map(str, DILATIONS))})")
+    ap.add_argument("--hop", type=int, default=F.HOP,
+                    help=f"samples at {F.SAMPLE_RATE} Hz between the network's frames (default {F.HOP}: 10 ms; "
+                         "110: 5 ms, twice the frames, so strikes 20-30 ms apart are 4-6 frames apart; "
+                         "the dilations count frames, so double them to keep the context in seconds)")
     ap.add_argument("--threads", type=int, default=2, help="PyTorch threads (default 2)")
     ap.add_argument("--windows", type=int, nargs="+", default=list(WINDOWS), choices=WINDOWS,
                     help="analysis windows of the network's input spectrograms, samples (default: all three)")
@@ -172,13 +180,16 @@ def main(argv: list[str] | None = None) -> int:
     if not 0.0 <= args.neighbour_target <= 1.0:
         print(f"error: --neighbour-target must be within 0..1, got {args.neighbour_target}", file=sys.stderr)
         return 1
+    if not 32 <= args.hop <= 1024:
+        print(f"error: --hop must be 32..1024 samples, got {args.hop}", file=sys.stderr)
+        return 1
     if min(args.dilations) < 1:
         print(f"error: --dilations must be positive frame counts, got {args.dilations}", file=sys.stderr)
         return 1
     init = None
     if args.init is not None:
         try:
-            init = init_net(args.init, windows, args.width, tuple(args.dilations))
+            init = init_net(args.init, windows, args.width, tuple(args.dilations), args.hop)
         except (ModelError, ValueError) as exc:
             print(f"error: --init {args.init}: {exc}", file=sys.stderr)
             return 1
@@ -186,7 +197,7 @@ def main(argv: list[str] | None = None) -> int:
     args.cache.mkdir(parents=True, exist_ok=True)
     t0 = time.time()
     val = frames(args.cache, "val", args.val_excerpts, args.seed + 1000, args.workers, VALID_KITS, VALID_DRY_P,
-                 plain=args.val_plain)
+                 plain=args.val_plain, hop=args.hop)
     if args.retune is not None:
         model = load_model(args.retune)
         choose(model.offline, val, rules=args.rules)
@@ -200,7 +211,7 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     live, live_meta = load_live(args.live_from)
     train = frames(args.cache, "train" + ("-sf" if args.soundfonts else ""), args.excerpts, args.seed, args.workers,
-                   fit_kits, 0.3, not args.plain)
+                   fit_kits, 0.3, not args.plain, hop=args.hop)
     if args.render_only:
         return 0
     print(f"training: {train.n_excerpts} excerpts, {len(train.spec)} frames, {len(train.hits)} strikes; "
@@ -214,7 +225,7 @@ def main(argv: list[str] | None = None) -> int:
             "val_excerpts": args.val_excerpts, "val_plain": args.val_plain, "rules": args.rules,
             "epochs": args.epochs, "minutes": args.minutes, "width": args.width, "dilations": args.dilations,
             "seed": args.seed, "windows": list(windows), "hard": args.hard, "variety": not args.plain,
-            "neighbour_target": args.neighbour_target,
+            "neighbour_target": args.neighbour_target, "hop": args.hop,
             "weights": {([*CLASS_NAMES, "onset"])[k]: w for k, w in weights.items()},
             "lr": args.lr, "warmup": args.warmup, "init": None if args.init is None else args.init.name,
             # where the live MLP came from (a file of this format already records it as live_*)

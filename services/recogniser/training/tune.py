@@ -14,17 +14,20 @@ import mir_eval
 import numpy as np
 
 from services.recogniser.classes import CLASS_NAMES, N_CLASSES
-from services.recogniser.features import FPS
 from services.recogniser.framenet import SNARE, FrameNet
 from services.recogniser.training.frames import FrameSet
 from services.recogniser.transcribe import strikes
 
 GRID = np.round(np.arange(0.1, 0.91, 0.05), 2)
 """Thresholds tried."""
-CHORD_OPTIONS = (0.0, 0.02, 0.03)
+CHORD_OPTIONS = (0.0, 0.01, 0.02, 0.03)
 """Chord windows tried, seconds."""
-SNAP_OPTIONS = (0, 1, 2, 3)
-"""Distances tried within which a class strike moves to an onset-output peak, frames (``FrameNet.snap_frames``)."""
+SNAP_OPTIONS_S = (0.0, 0.01, 0.02, 0.03)
+"""Distances tried within which a class strike moves to an onset-output peak, seconds (``FrameNet.snap_frames``,
+in frames: 0-3 frames of 10 ms, 0-6 of 5 ms)."""
+PEAK_MAX_S = 0.01
+"""Peak windows tried: a strike is the maximum of +-1 .. this many seconds of frames (``FrameNet.peak_frames``;
+10 ms frames: 1 only; 5 ms frames: 1 or 2)."""
 HIHAT_SNARE_OPTIONS = (0.0, 0.5, 0.7, 1.0, 1.3)
 """Ratios tried for dropping a snare peak under a hi-hat peak (``FrameNet.hihat_snare``; 0: never)."""
 MERGE_S = 0.02
@@ -72,25 +75,50 @@ def _onset_f(net: FrameNet, val: FrameSet, outs: list[np.ndarray]) -> float:
     return pooled_f(pairs)
 
 
-def choose(net: FrameNet, val: FrameSet, outs: list[np.ndarray] | None = None, rules: bool = False) -> None:
-    """Set ``net.thresholds`` and ``net.chord_s`` from the validation excerpts (printing the F-measures); with
-    ``rules`` also ``net.snap_frames`` and ``net.hihat_snare`` (else both are off)."""
-    outs = outs if outs is not None else outputs(net, val)
-    refs = [val.excerpt_hits(e) for e in range(val.n_excerpts)]
+def _class_thresholds(net: FrameNet, refs: list[np.ndarray], outs: list[np.ndarray]
+                      ) -> tuple[np.ndarray, list[float], float]:
+    """Each class's best threshold on its own strikes with the net's ``peak_frames``: (thresholds, each
+    class's F-measure, the F-measure of all classes' strikes pooled)."""
     th = np.full(N_CLASSES + 1, 1.01, np.float32)
+    best_f, matched, total = [], 0.0, 0
     for c in range(N_CLASSES):
-        scores = []
+        scores, counts = [], []
         for g in GRID:
-            pairs = [(np.unique(h[h[:, 2] == c, 1]), net.peaks(out[:, c], float(g)) / FPS + net.time_offset_s)
+            pairs = [(np.unique(h[h[:, 2] == c, 1]), net.peaks(out[:, c], float(g)) / net.fps + net.time_offset_s)
                      for h, out in zip(refs, outs, strict=True)]
             scores.append(pooled_f(pairs))
-        th[c] = GRID[int(np.argmax(scores))]
+            counts.append(sum(len(r) + len(e) for r, e in pairs))
+        k = int(np.argmax(scores))
+        th[c] = GRID[k]
+        best_f.append(scores[k])
+        matched += scores[k] * counts[k] / 2
+        total += counts[k]
+    return th, best_f, 2 * matched / max(1, total)
+
+
+def choose(net: FrameNet, val: FrameSet, outs: list[np.ndarray] | None = None, rules: bool = False) -> None:
+    """Set ``net.thresholds`` and ``net.chord_s`` from the validation excerpts (printing the F-measures); with
+    ``rules`` also ``net.snap_frames`` and ``net.hihat_snare`` (else both are off). With frames finer than
+    :data:`PEAK_MAX_S`, also ``net.peak_frames`` (the best F-measure of all classes' strikes pooled)."""
+    outs = outs if outs is not None else outputs(net, val)
+    refs = [val.excerpt_hits(e) for e in range(val.n_excerpts)]
+    peak_options = range(1, max(1, round(PEAK_MAX_S * net.fps)) + 1)
+    tried = []
+    for w in peak_options:
+        net.peak_frames = w
+        tried.append((*_class_thresholds(net, refs, outs), w))
+    th, class_f, _, net.peak_frames = max(tried, key=lambda r: r[2])
+    for c in range(N_CLASSES):
         n = sum(int(np.sum(h[:, 2] == c)) for h in refs)
-        print(f"  {CLASS_NAMES[c]:13s} validation-kit F {max(scores):.3f} at {th[c]:.2f} (n={n})", flush=True)
+        print(f"  {CLASS_NAMES[c]:13s} validation-kit F {class_f[c]:.3f} at {th[c]:.2f} (n={n})", flush=True)
+    if len(tried) > 1:
+        print(f"  strikes are maxima over +-{net.peak_frames} frames (class strikes, F pooled: "
+              + ", ".join(f"+-{w}: {f:.4f}" for *_, f, w in tried) + ")", flush=True)
     net.thresholds = th
     net.hihat_snare = 0.0
     best = (-1.0, 1.01, net.chord_s, 0)
-    for snap in SNAP_OPTIONS if rules else (0,):
+    snaps = sorted({round(s * net.fps) for s in SNAP_OPTIONS_S})
+    for snap in snaps if rules else [0]:
         net.snap_frames = snap
         for chord in CHORD_OPTIONS:
             net.chord_s = chord
