@@ -32,6 +32,8 @@ HOP = 220
 """Hop between frames, samples (about 10 ms)."""
 FPS = SAMPLE_RATE / HOP
 """Frames per second."""
+HOP_RANGE = (32, 1024)
+"""Hops a trained network may use, samples (1.5-46 ms)."""
 N_BANDS = 48
 """Log-spaced triangular bands, 40 Hz to 10.5 kHz."""
 LAG = 1

@@ -22,7 +22,7 @@ import numpy as np
 
 from services.recogniser.classes import CLASS_NAMES, N_CLASSES
 from services.recogniser.errors import ModelError
-from services.recogniser.features import HOP, N_FFT, n_features
+from services.recogniser.features import HOP, HOP_RANGE, N_FFT, n_features
 from services.recogniser.framenet import N_OUT, FrameNet, Layer, Network
 
 MODEL_PATH = Path(__file__).parent / "models" / "recogniser.npz"
@@ -174,8 +174,8 @@ def _layers(data: dict[str, np.ndarray], prefix: str, layout: list[dict]) -> lis
 
 def _network(p: Path, data: dict[str, np.ndarray], m: dict) -> FrameNet:
     hop = int(m.get("hop", HOP))  # files made before the hop was recorded: 10 ms frames
-    if not 32 <= hop <= 1024:
-        raise ModelError(f"{p}: offline network frames {hop} samples apart (expected 32..1024)")
+    if not HOP_RANGE[0] <= hop <= HOP_RANGE[1]:
+        raise ModelError(f"{p}: offline network frames {hop} samples apart (expected {HOP_RANGE[0]}..{HOP_RANGE[1]})")
     members = [Network(_layers(data, f"offline.m{k + 1}", mm["layers"]), tuple(int(w) for w in mm["windows"]), hop)
                for k, mm in enumerate(m.get("members", []))]
     net = FrameNet(_layers(data, "offline", m["layers"]), data["offline.thresholds"].astype(np.float32),

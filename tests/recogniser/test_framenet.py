@@ -10,6 +10,7 @@ import pytest
 from services.recogniser import features as F
 from services.recogniser.audio import SAMPLE_RATE
 from services.recogniser.classes import N_CLASSES
+from services.recogniser.errors import ModelError
 from services.recogniser.framenet import N_OUT, FrameNet, Layer, Network
 from services.recogniser.model import Model, load_live, load_model
 from services.recogniser.transcribe import strikes
@@ -103,6 +104,10 @@ def test_a_network_of_5_ms_frames_reads_its_frames_and_gives_times_in_seconds(tm
     assert [e.time for e in strikes(net, out)] == pytest.approx([100 / (2 * F.FPS)])
     Model(net, live, {}).save(tmp_path / "m.npz")
     assert load_model(tmp_path / "m.npz").offline.hop == F.HOP // 2
+    net.hop = 5  # a corrupt or foreign file: refused with a clear error, not read as 0.2 ms frames
+    Model(net, live, {}).save(tmp_path / "bad.npz")
+    with pytest.raises(ModelError, match="5 samples apart"):
+        load_model(tmp_path / "bad.npz")
     with pytest.raises(ValueError, match="share their frames"):
         FrameNet(net.layers, net.thresholds, members=[Network(net.layers, net.windows, F.HOP // 2)])
 

@@ -180,8 +180,8 @@ def main(argv: list[str] | None = None) -> int:
     if not 0.0 <= args.neighbour_target <= 1.0:
         print(f"error: --neighbour-target must be within 0..1, got {args.neighbour_target}", file=sys.stderr)
         return 1
-    if not 32 <= args.hop <= 1024:
-        print(f"error: --hop must be 32..1024 samples, got {args.hop}", file=sys.stderr)
+    if not F.HOP_RANGE[0] <= args.hop <= F.HOP_RANGE[1]:
+        print(f"error: --hop must be {F.HOP_RANGE[0]}..{F.HOP_RANGE[1]} samples, got {args.hop}", file=sys.stderr)
         return 1
     if min(args.dilations) < 1:
         print(f"error: --dilations must be positive frame counts, got {args.dilations}", file=sys.stderr)
