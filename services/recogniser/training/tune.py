@@ -99,10 +99,11 @@ def _class_thresholds(net: FrameNet, refs: list[np.ndarray], outs: list[np.ndarr
 def choose(net: FrameNet, val: FrameSet, outs: list[np.ndarray] | None = None, rules: bool = False) -> None:
     """Set ``net.thresholds`` and ``net.chord_s`` from the validation excerpts (printing the F-measures); with
     ``rules`` also ``net.snap_frames`` and ``net.hihat_snare`` (else both are off). With frames finer than
-    :data:`PEAK_MAX_S`, also ``net.peak_frames`` (the best F-measure of all classes' strikes pooled)."""
+    :data:`PEAK_MAX_S` (or a net whose ``peak_frames`` is above 1), also ``net.peak_frames``: from 1 to the
+    larger of the two, the best F-measure of all classes' strikes pooled."""
     outs = outs if outs is not None else outputs(net, val)
     refs = [val.excerpt_hits(e) for e in range(val.n_excerpts)]
-    peak_options = range(1, max(1, round(PEAK_MAX_S * net.fps)) + 1)
+    peak_options = range(1, max(net.peak_frames, round(PEAK_MAX_S * net.fps)) + 1)
     tried = []
     for w in peak_options:
         net.peak_frames = w
