@@ -43,13 +43,19 @@ def merge(times: np.ndarray, gap: float) -> np.ndarray:
     return np.asarray(out)
 
 
-def pooled_f(pairs: list[tuple[np.ndarray, np.ndarray]], window: float = 0.05) -> float:
-    """F-measure of (reference times, estimated times) pairs, matches and counts pooled."""
+def pooled_counts(pairs: list[tuple[np.ndarray, np.ndarray]], window: float = 0.05) -> tuple[int, int]:
+    """(matches, references + estimates) of (reference times, estimated times) pairs, summed over the pairs."""
     matched = n = 0
     for ref, est in pairs:
         if len(ref) and len(est):
             matched += len(mir_eval.util.match_events(ref, est, window))
         n += len(ref) + len(est)
+    return matched, n
+
+
+def pooled_f(pairs: list[tuple[np.ndarray, np.ndarray]], window: float = 0.05) -> float:
+    """F-measure of (reference times, estimated times) pairs, matches and counts pooled."""
+    matched, n = pooled_counts(pairs, window)
     return 2 * matched / max(1, n)
 
 
@@ -80,19 +86,19 @@ def _class_thresholds(net: FrameNet, refs: list[np.ndarray], outs: list[np.ndarr
     """Each class's best threshold on its own strikes with the net's ``peak_frames``: (thresholds, each
     class's F-measure, the F-measure of all classes' strikes pooled)."""
     th = np.full(N_CLASSES + 1, 1.01, np.float32)
-    best_f, matched, total = [], 0.0, 0
+    best_f, matched, total = [], 0, 0
     for c in range(N_CLASSES):
-        scores, counts = [], []
+        counts = []
         for g in GRID:
             pairs = [(np.unique(h[h[:, 2] == c, 1]), net.peaks(out[:, c], float(g)) / net.fps + net.time_offset_s)
                      for h, out in zip(refs, outs, strict=True)]
-            scores.append(pooled_f(pairs))
-            counts.append(sum(len(r) + len(e) for r, e in pairs))
+            counts.append(pooled_counts(pairs))
+        scores = [2 * m / max(1, n) for m, n in counts]
         k = int(np.argmax(scores))
         th[c] = GRID[k]
         best_f.append(scores[k])
-        matched += scores[k] * counts[k] / 2
-        total += counts[k]
+        matched += counts[k][0]
+        total += counts[k][1]
     return th, best_f, 2 * matched / max(1, total)
 
 
