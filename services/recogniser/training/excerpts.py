@@ -143,12 +143,20 @@ def render_excerpt(job: Job) -> tuple[np.ndarray, list[Hit]]:
 
 
 def jobs(n: int, seed: int, kits: tuple[str, ...], dry_p: float = DRY_P, variety: bool = False,
-         vary_p: float = VARY_P) -> list[Job]:
+         vary_p: float = VARY_P, by_duration: bool = False) -> list[Job]:
     """``n`` excerpt jobs drawn from the long (>= 20 s) Groove train-split performances (``dry_p`` = 1 and
-    ``vary_p`` = 0: rendered as the benchmark renders, the kit as it is and dry)."""
+    ``vary_p`` = 0: rendered as the benchmark renders, the kit as it is and dry).
+
+    Each performance is equally likely, or with ``by_duration`` drawn with a probability proportional to its
+    duration, so every second of them is about equally likely, as the benchmark weighs the validation split
+    (its long, dense performances hold most of its strikes)."""
     files = [f for f in groove_files("train") if f[1] >= 20.0]  # long performances (beats with fills)
     rng = np.random.default_rng(seed)
-    picks = rng.choice(len(files), size=n, replace=n > len(files))
+    if by_duration:
+        seconds = np.array([d for _, d in files])
+        picks = rng.choice(len(files), size=n, replace=True, p=seconds / seconds.sum())
+    else:
+        picks = rng.choice(len(files), size=n, replace=n > len(files))
     return [(seed * 100_000 + i, str(files[k][0]), files[k][1], kits, dry_p, variety, vary_p)
             for i, k in enumerate(picks)]
 

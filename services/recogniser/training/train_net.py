@@ -45,18 +45,21 @@ CACHE_TAG = "f3"
 
 
 def frames(cache: Path, name: str, n: int, seed: int, workers: int, kits: tuple[str, ...], dry_p: float,
-           variety: bool = False, plain: bool = False, hop: int = F.HOP) -> FrameSet:
+           variety: bool = False, plain: bool = False, hop: int = F.HOP, by_duration: bool = False) -> FrameSet:
     """The cached frame set of these excerpts, frames ``hop`` samples apart, rendered first if need be
-    (``plain``: as the benchmark renders, the kit unvaried and dry, whatever ``dry_p``)."""
-    tag = ("-variety" if variety else "") + ("-plain" if plain else "") + (f"-hop{hop}" if hop != F.HOP else "")
+    (``plain``: as the benchmark renders, the kit unvaried and dry, whatever ``dry_p``; ``by_duration``:
+    performances drawn in proportion to their duration, :func:`.excerpts.jobs`)."""
+    tag = (("-variety" if variety else "") + ("-plain" if plain else "") + (f"-hop{hop}" if hop != F.HOP else "")
+           + ("-bysec" if by_duration else ""))
     path = cache / f"{CACHE_TAG}-{name}{tag}-{n}-{seed}.npz"
     if path.exists():
         return FrameSet.load(path)
-    make_frames(n, seed, workers, kits, 1.0 if plain else dry_p, variety, path, 0.0 if plain else VARY_P, hop)
+    make_frames(n, seed, workers, kits, 1.0 if plain else dry_p, variety, path, 0.0 if plain else VARY_P, hop,
+                by_duration)
     return FrameSet.load(path)
 
 
-MEMBER_KEYS = ("excerpts", "epochs", "minutes", "width", "seed", "windows", "hard", "variety")
+MEMBER_KEYS = ("excerpts", "epochs", "minutes", "width", "seed", "windows", "hard", "variety", "by_duration")
 """Metadata of a trained network kept for each member of an ensemble."""
 
 
@@ -149,6 +152,10 @@ def main(argv: list[str] | None = None) -> int:
                     help="also fit on the drum kits of General MIDI soundfonts rendered by FluidSynth "
                          "(training/soundfont.py; Debian packages fluidsynth, fluid-soundfont-gm, "
                          "musescore-general-soundfont-small, timgm6mb-soundfont)")
+    ap.add_argument("--by-duration", action="store_true",
+                    help="draw the excerpts' performances (training and validation kit) in proportion to their "
+                         "duration, so every second is about equally likely, as the benchmark weighs the split "
+                         "(default: every performance equally likely)")
     ap.add_argument("--render-only", action="store_true", help="render (and cache) the excerpts, do not fit")
     ap.add_argument("--ensemble", type=Path, nargs="+", default=None, metavar="MODEL",
                     help="only average the offline networks of these model files into one (the live MLP and metadata "
@@ -197,7 +204,7 @@ def main(argv: list[str] | None = None) -> int:
     args.cache.mkdir(parents=True, exist_ok=True)
     t0 = time.time()
     val = frames(args.cache, "val", args.val_excerpts, args.seed + 1000, args.workers, VALID_KITS, VALID_DRY_P,
-                 plain=args.val_plain, hop=args.hop)
+                 plain=args.val_plain, hop=args.hop, by_duration=args.by_duration)
     if args.retune is not None:
         model = load_model(args.retune)
         choose(model.offline, val, rules=args.rules)
@@ -211,7 +218,7 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     live, live_meta = load_live(args.live_from)
     train = frames(args.cache, "train" + ("-sf" if args.soundfonts else ""), args.excerpts, args.seed, args.workers,
-                   fit_kits, 0.3, not args.plain, hop=args.hop)
+                   fit_kits, 0.3, not args.plain, hop=args.hop, by_duration=args.by_duration)
     if args.render_only:
         return 0
     print(f"training: {train.n_excerpts} excerpts, {len(train.spec)} frames, {len(train.hits)} strikes; "
@@ -225,7 +232,7 @@ def main(argv: list[str] | None = None) -> int:
             "val_excerpts": args.val_excerpts, "val_plain": args.val_plain, "rules": args.rules,
             "epochs": args.epochs, "minutes": args.minutes, "width": args.width, "dilations": args.dilations,
             "seed": args.seed, "windows": list(windows), "hard": args.hard, "variety": not args.plain,
-            "neighbour_target": args.neighbour_target, "hop": args.hop,
+            "neighbour_target": args.neighbour_target, "hop": args.hop, "by_duration": args.by_duration,
             "weights": {([*CLASS_NAMES, "onset"])[k]: w for k, w in weights.items()},
             "lr": args.lr, "warmup": args.warmup, "init": None if args.init is None else args.init.name,
             # where the live MLP came from (a file of this format already records it as live_*)
