@@ -124,13 +124,14 @@ def test_the_network_fits_on_frames_of_5_ms(tmp_path: Path) -> None:
 def test_excerpts_by_duration_draw_long_performances_as_often_as_their_seconds(
         monkeypatch: pytest.MonkeyPatch) -> None:
     files = [(Path("beat.mid"), 30.0), (Path("long.mid"), 270.0), (Path("short.mid"), 12.0)]
+    durations = {p.name: d for p, d in files}
     monkeypatch.setattr(ex, "groove_files", lambda split: files)
 
     def share_of_long(by_duration: bool) -> float:
         todo = ex.jobs(4000, 5, ("kit",), by_duration=by_duration)
         drawn = [Path(j[1]).name for j in todo]
         assert "short.mid" not in drawn  # under 20 s: never an excerpt of 30 s
-        assert all(j[2] == dict((p.name, d) for p, d in files)[Path(j[1]).name] for j in todo)
+        assert all(j[2] == durations[Path(j[1]).name] for j in todo)  # each job carries its performance's length
         return drawn.count("long.mid") / len(drawn)
 
     assert share_of_long(False) == pytest.approx(0.5, abs=0.03)  # every performance alike
