@@ -53,10 +53,14 @@ def pooled_counts(pairs: list[tuple[np.ndarray, np.ndarray]], window: float = 0.
     return matched, n
 
 
+def f_measure(matched: int, n: int) -> float:
+    """F-measure from the matches and the count of references plus estimates (0 when both are none)."""
+    return 2 * matched / max(1, n)
+
+
 def pooled_f(pairs: list[tuple[np.ndarray, np.ndarray]], window: float = 0.05) -> float:
     """F-measure of (reference times, estimated times) pairs, matches and counts pooled."""
-    matched, n = pooled_counts(pairs, window)
-    return 2 * matched / max(1, n)
+    return f_measure(*pooled_counts(pairs, window))
 
 
 def outputs(net: FrameNet, val: FrameSet) -> list[np.ndarray]:
@@ -93,13 +97,13 @@ def _class_thresholds(net: FrameNet, refs: list[np.ndarray], outs: list[np.ndarr
             pairs = [(np.unique(h[h[:, 2] == c, 1]), net.peaks(out[:, c], float(g)) / net.fps + net.time_offset_s)
                      for h, out in zip(refs, outs, strict=True)]
             counts.append(pooled_counts(pairs))
-        scores = [2 * m / max(1, n) for m, n in counts]
+        scores = [f_measure(m, n) for m, n in counts]
         k = int(np.argmax(scores))
         th[c] = GRID[k]
         best_f.append(scores[k])
         matched += counts[k][0]
         total += counts[k][1]
-    return th, best_f, 2 * matched / max(1, total)
+    return th, best_f, f_measure(matched, total)
 
 
 def choose(net: FrameNet, val: FrameSet, outs: list[np.ndarray] | None = None, rules: bool = False) -> None:
