@@ -17,7 +17,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from itertools import chain
 from operator import itemgetter
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import pybullet as p
@@ -25,7 +25,7 @@ import pybullet as p
 from common.character import JOINT_LINKS, JOINTS
 from services.physics.character import CharacterModel
 from services.physics.kernels import forward_kinematics, jacobian
-from services.physics.urdf import load_robot
+from services.physics.urdf import Joint, load_robot
 from services.physics.world import World, rotation_matrix
 
 LIMBS = ("left_hand", "right_hand", "left_foot", "right_foot")
@@ -49,6 +49,20 @@ class LoadedPart:
     state_joints: list[int]
     state_slots: np.ndarray
     movable: list[int]
+
+
+class DynamicsTree(NamedTuple):
+    """Fixed-base trees of revolute and fixed joints, per link (L links, parents before children), as
+    :func:`kernels.inverse_dynamics` takes them (see there for units and frames)."""
+
+    parent: np.ndarray
+    origin_pos: np.ndarray
+    origin_rot: np.ndarray
+    axis: np.ndarray
+    slot: np.ndarray
+    mass: np.ndarray
+    com: np.ndarray
+    inertia: np.ndarray
 
 
 def consecutive_runs(lengths: list[int]) -> list[tuple[int, int]]:
@@ -230,6 +244,44 @@ class Body:
                                        targetValues=[[float(a)] for a in values[part.state_slots]],
                                        targetVelocities=[[float(v)] for v in rates[part.state_slots]])
         self.update(values[:n])
+
+    def dynamics_tree(self) -> DynamicsTree:
+        """The arrays of :func:`kernels.inverse_dynamics` for every part of the body (each a fixed-base tree,
+        parents before children), from the generated model, its revolute joints' columns in
+        :attr:`state_joints` order."""
+        slot_of = {j: k for k, j in enumerate(self.state_joints)}
+        rows: list[tuple[int, Joint, int]] = []  # (parent row, joint, state slot)
+        for spec in self.model.parts:
+            joints_from: dict[str, list[Joint]] = {}
+            for joint in spec.robot.joints:
+                joints_from.setdefault(joint.parent, []).append(joint)
+            row_of = {spec.robot.links[0].name: -1}
+            todo = [spec.robot.links[0].name]
+            while todo:
+                link = todo.pop(0)
+                for joint in joints_from.get(link, []):
+                    if joint.kind not in ("revolute", "continuous", "fixed"):
+                        raise ValueError(f"joint {joint.name}: inverse dynamics takes revolute and fixed joints")
+                    slot = -1 if joint.kind == "fixed" else slot_of[self.joint_index[joint.name]]
+                    row_of[joint.child] = len(rows)
+                    rows.append((row_of[link], joint, slot))
+                    todo.append(joint.child)
+        inertials = {lk.name: lk.inertial for spec in self.model.parts for lk in spec.robot.links}
+        n = len(rows)
+        tree = DynamicsTree(
+            parent=np.array([r[0] for r in rows], dtype=np.int64),
+            origin_pos=np.array([r[1].xyz for r in rows], dtype=float),
+            origin_rot=np.array([rotation_matrix(p.getQuaternionFromEuler(r[1].rpy)) for r in rows]),
+            axis=np.zeros((n, 3)), slot=np.array([r[2] for r in rows], dtype=np.int64),
+            mass=np.zeros(n), com=np.zeros((n, 3)), inertia=np.zeros((n, 3, 3)))
+        for k, (_, joint, slot_k) in enumerate(rows):
+            if slot_k >= 0:
+                tree.axis[k] = np.asarray(joint.axis, dtype=float) / np.linalg.norm(joint.axis)
+            inertial = inertials[joint.child]
+            ixx, iyy, izz, ixy, ixz, iyz = inertial.inertia
+            tree.mass[k], tree.com[k] = inertial.mass, inertial.com
+            tree.inertia[k] = ((ixx, ixy, ixz), (ixy, iyy, iyz), (ixz, iyz, izz))
+        return tree
 
     def _kinematic_tree(self, seat_position: tuple[float, float, float]) -> tuple[np.ndarray, ...]:
         """The arrays of :func:`kernels.forward_kinematics` for this body (see :meth:`update`)."""

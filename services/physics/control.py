@@ -46,6 +46,7 @@ from services.physics.kernels import (
     dls_reference,
     enforce_limits,
     held_torque,
+    inverse_dynamics,
     project_into_ellipsoids,
 )
 from services.physics.limits import JointLimits
@@ -326,8 +327,10 @@ class Controller:
             self._id = None
 
     def _ensure_id_model(self) -> None:
-        """Fixed-base copies of the body's parts in their own client, for inverse dynamics (RNEA, ~20 us a call
-        for the trunk): (world, [(copy's body id, the state slots of its revolute joints in its own order)])."""
+        """Fixed-base copies of the body's parts in their own client, for their mass matrices (the held updates'
+        correction): (world, [(copy's body id, the state slots of its revolute joints in its own order)]); and the
+        body's trees for the inverse dynamics (:func:`kernels.inverse_dynamics`, one call for the three parts:
+        PyBullet's, through the copies, took three calls and their list conversions, about 25 us an update)."""
         if self._id is not None:
             return
         world = World(WorldSettings(timestep_s=self.world.dt))
@@ -339,6 +342,8 @@ class Controller:
                                  fixed_base=True, flags=p.URDF_USE_INERTIA_FROM_FILE)
             copies.append((body_id, np.array([slot_of[part.offset + j] for j in part.movable], dtype=int)))
         self._id = (world, copies)
+        self._id_tree = self.body.dynamics_tree()
+        """The body's trees for :func:`kernels.inverse_dynamics` (the copies give the mass matrix)."""
         self._id_order = (np.concatenate([slots for _, slots in copies]),
                           consecutive_runs([len(slots) for _, slots in copies]))
         """The copies' slots one after another, and each copy's (start, stop) in that order."""
@@ -347,7 +352,7 @@ class Controller:
                         theta_dot_t: np.ndarray, last_theta_dot_t: np.ndarray,
                         passive: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
         """tau = M(q) (qdd_ff + w^2 (q_t - q) + 2 zeta w (qd_t - qd)) + C(q, qd) + g(q): a PD whose gains are
-        scaled by the body's own inertia (inverse dynamics on a fixed-base copies; the bases do not move). The
+        scaled by the body's own inertia (inverse dynamics of its fixed-base trees; the bases do not move). The
         feed-forward ``qdd_ff`` is the target rate's change since the last update, ``last_theta_dot_t``
         (rad/s), over the control period, within ``max_ff_accel``.
 
@@ -379,22 +384,17 @@ class Controller:
         if refresh:
             self._mass_age += self.control_dt
             refresh = self._ct_mass is None or self._mass_age >= MASS_REFRESH_S - 1e-9
-        mass_state = np.zeros((state.shape[1], state.shape[1])) if refresh else None
-        order, runs = self._id_order
-        q_all, qd_all, qdd_all = state[:, order].tolist()  # one conversion, each copy takes its run
-        torques: list[float] = []
-        for (body_id, slots), (start, stop) in zip(copies, runs, strict=True):
-            q_list = q_all[start:stop]
-            torques += world.client.calculateInverseDynamics(body_id, q_list, qd_all[start:stop], qdd_all[start:stop])
-            if mass_state is not None:
-                rows = world.client.calculateMassMatrix(body_id, q_list)  # nested lists: read flat, not np.array
+        if refresh:
+            mass_state = np.zeros((state.shape[1], state.shape[1]))
+            order, runs = self._id_order
+            q_all = state[0, order].tolist()  # one conversion, each copy takes its run
+            for (body_id, slots), (start, stop) in zip(copies, runs, strict=True):
+                rows = world.client.calculateMassMatrix(body_id, q_all[start:stop])  # nested lists: read flat
                 m = len(slots)
                 mass_state[np.ix_(slots, slots)] = np.fromiter(chain.from_iterable(rows), float, m * m).reshape(m, m)
-        tau = np.zeros(state.shape[1])
-        tau[order] = torques
-        if mass_state is not None:
             self._ct_mass = np.ascontiguousarray(mass_state[:n, :n])
             self._mass_age = 0.0
+        tau = inverse_dynamics(state, *self._id_tree, self.world.settings.gravity)  # type: ignore[call-arg]
         return tau[:n]
 
     def apply(self, theta: np.ndarray, theta_dot: np.ndarray, theta_t: np.ndarray, theta_dot_t: np.ndarray,

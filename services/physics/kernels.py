@@ -371,6 +371,111 @@ def computed_torque_state(theta: np.ndarray, theta_dot: np.ndarray, theta_t: np.
 
 
 @njit(cache=True)
+def inverse_dynamics(state: np.ndarray, parent: np.ndarray, origin_pos: np.ndarray, origin_rot: np.ndarray,
+                     axis: np.ndarray, slot: np.ndarray, mass: np.ndarray, com: np.ndarray, inertia: np.ndarray,
+                     gravity: float) -> np.ndarray:
+    """Joint torques (N,) N m that give the accelerations ``state[2]`` at the angles ``state[0]`` (rad) and rates
+    ``state[1]`` (rad/s), gravity ``gravity`` m/s^2 along -z: the recursive Newton-Euler algorithm on fixed-base
+    trees of revolute and fixed joints (what PyBullet's ``calculateInverseDynamics`` gives, in one call for
+    every tree and without its per-call conversions).
+
+    Per link ``i`` (L links, parents before children; ``parent`` -1: a fixed, unrotated base): its joint's origin
+    ``origin_pos`` (L, 3) m and rotation ``origin_rot`` (L, 3, 3) in the parent's frame, its unit ``axis`` (L, 3)
+    in its own frame, ``slot`` (L,) the column of ``state`` of its angle (-1: a fixed joint), ``mass`` (L,) kg,
+    ``com`` (L, 3) m and ``inertia`` (L, 3, 3) kg m^2 about the COM, in its frame. Torques of columns no link
+    drives are 0."""
+    n_links = parent.shape[0]
+    rot = np.empty((n_links, 3, 3))  # link frame in its parent's frame
+    w = np.empty((n_links, 3))  # angular velocity, link frame
+    wd = np.empty((n_links, 3))  # angular acceleration, link frame
+    acc = np.empty((n_links, 3))  # linear acceleration of the link origin (gravity as the base rising), link frame
+    force = np.empty((n_links, 3))  # force on the link from its parent, link frame
+    moment = np.empty((n_links, 3))  # moment about the link origin from its parent, link frame
+    for i in range(n_links):
+        k = slot[i]
+        angle = state[0, k] if k >= 0 else 0.0
+        rate = state[1, k] if k >= 0 else 0.0
+        accel = state[2, k] if k >= 0 else 0.0
+        ux, uy, uz = axis[i, 0], axis[i, 1], axis[i, 2]
+        c, s_ = math.cos(angle), math.sin(angle)
+        t = 1.0 - c
+        j00, j01, j02 = c + t * ux * ux, t * ux * uy - s_ * uz, t * ux * uz + s_ * uy
+        j10, j11, j12 = t * ux * uy + s_ * uz, c + t * uy * uy, t * uy * uz - s_ * ux
+        j20, j21, j22 = t * ux * uz - s_ * uy, t * uy * uz + s_ * ux, c + t * uz * uz
+        o = origin_rot[i]
+        for r in range(3):
+            rot[i, r, 0] = o[r, 0] * j00 + o[r, 1] * j10 + o[r, 2] * j20
+            rot[i, r, 1] = o[r, 0] * j01 + o[r, 1] * j11 + o[r, 2] * j21
+            rot[i, r, 2] = o[r, 0] * j02 + o[r, 1] * j12 + o[r, 2] * j22
+        p = parent[i]
+        if p < 0:
+            wx = wy = wz = 0.0
+            bx = by = bz = 0.0
+            ax, ay, az = 0.0, 0.0, gravity
+        else:
+            wx, wy, wz = w[p, 0], w[p, 1], w[p, 2]
+            bx, by, bz = wd[p, 0], wd[p, 1], wd[p, 2]
+            ax, ay, az = acc[p, 0], acc[p, 1], acc[p, 2]
+        px, py, pz = origin_pos[i, 0], origin_pos[i, 1], origin_pos[i, 2]
+        # the parent's acceleration at this joint's origin: a + wd x r + w x (w x r)
+        vx, vy, vz = wy * pz - wz * py, wz * px - wx * pz, wx * py - wy * px
+        ax += by * pz - bz * py + wy * vz - wz * vy
+        ay += bz * px - bx * pz + wz * vx - wx * vz
+        az += bx * py - by * px + wx * vy - wy * vx
+        # into this link's frame (the transpose of its rotation), then its own joint's motion
+        R = rot[i]
+        wx, wy, wz = (R[0, 0] * wx + R[1, 0] * wy + R[2, 0] * wz, R[0, 1] * wx + R[1, 1] * wy + R[2, 1] * wz,
+                      R[0, 2] * wx + R[1, 2] * wy + R[2, 2] * wz)
+        bx, by, bz = (R[0, 0] * bx + R[1, 0] * by + R[2, 0] * bz, R[0, 1] * bx + R[1, 1] * by + R[2, 1] * bz,
+                      R[0, 2] * bx + R[1, 2] * by + R[2, 2] * bz)
+        ax, ay, az = (R[0, 0] * ax + R[1, 0] * ay + R[2, 0] * az, R[0, 1] * ax + R[1, 1] * ay + R[2, 1] * az,
+                      R[0, 2] * ax + R[1, 2] * ay + R[2, 2] * az)
+        sx, sy, sz = ux * rate, uy * rate, uz * rate
+        bx += ux * accel + wy * sz - wz * sy
+        by += uy * accel + wz * sx - wx * sz
+        bz += uz * accel + wx * sy - wy * sx
+        wx, wy, wz = wx + sx, wy + sy, wz + sz
+        w[i, 0], w[i, 1], w[i, 2] = wx, wy, wz
+        wd[i, 0], wd[i, 1], wd[i, 2] = bx, by, bz
+        acc[i, 0], acc[i, 1], acc[i, 2] = ax, ay, az
+        # the centre of mass's acceleration, and the force and moment (about the link origin) it takes
+        cx, cy, cz = com[i, 0], com[i, 1], com[i, 2]
+        vx, vy, vz = wy * cz - wz * cy, wz * cx - wx * cz, wx * cy - wy * cx
+        m = mass[i]
+        fx = m * (ax + by * cz - bz * cy + wy * vz - wz * vy)
+        fy = m * (ay + bz * cx - bx * cz + wz * vx - wx * vz)
+        fz = m * (az + bx * cy - by * cx + wx * vy - wy * vx)
+        inn = inertia[i]
+        hx = inn[0, 0] * wx + inn[0, 1] * wy + inn[0, 2] * wz
+        hy = inn[1, 0] * wx + inn[1, 1] * wy + inn[1, 2] * wz
+        hz = inn[2, 0] * wx + inn[2, 1] * wy + inn[2, 2] * wz
+        force[i, 0], force[i, 1], force[i, 2] = fx, fy, fz
+        moment[i, 0] = inn[0, 0] * bx + inn[0, 1] * by + inn[0, 2] * bz + wy * hz - wz * hy + cy * fz - cz * fy
+        moment[i, 1] = inn[1, 0] * bx + inn[1, 1] * by + inn[1, 2] * bz + wz * hx - wx * hz + cz * fx - cx * fz
+        moment[i, 2] = inn[2, 0] * bx + inn[2, 1] * by + inn[2, 2] * bz + wx * hy - wy * hx + cx * fy - cy * fx
+    tau = np.zeros(state.shape[1])
+    for i in range(n_links - 1, -1, -1):  # children before parents: each passes its load on to its parent
+        if slot[i] >= 0:
+            tau[slot[i]] = axis[i, 0] * moment[i, 0] + axis[i, 1] * moment[i, 1] + axis[i, 2] * moment[i, 2]
+        p = parent[i]
+        if p >= 0:
+            R = rot[i]
+            fx = R[0, 0] * force[i, 0] + R[0, 1] * force[i, 1] + R[0, 2] * force[i, 2]
+            fy = R[1, 0] * force[i, 0] + R[1, 1] * force[i, 1] + R[1, 2] * force[i, 2]
+            fz = R[2, 0] * force[i, 0] + R[2, 1] * force[i, 1] + R[2, 2] * force[i, 2]
+            px, py, pz = origin_pos[i, 0], origin_pos[i, 1], origin_pos[i, 2]
+            force[p, 0] += fx
+            force[p, 1] += fy
+            force[p, 2] += fz
+            for r in range(3):
+                moment[p, r] += R[r, 0] * moment[i, 0] + R[r, 1] * moment[i, 1] + R[r, 2] * moment[i, 2]
+            moment[p, 0] += py * fz - pz * fy
+            moment[p, 1] += pz * fx - px * fz
+            moment[p, 2] += px * fy - py * fx
+    return tau
+
+
+@njit(cache=True)
 def hermite(t: float, t0: float, t1: float, p0: np.ndarray, p1: np.ndarray, v0: np.ndarray,
             v1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Cubic Hermite value and rate at time ``t`` (s) between knots at ``t0`` and ``t1`` with values

@@ -127,3 +127,25 @@ def test_segment_lengths_from_a_bvh_skeleton(tmp_path: Path) -> None:
     a = anthropometry(1.75, 73.0, lengths_m=lengths)
     assert a.segments["thigh"].length_m == pytest.approx(0.44)
     assert math.isclose(a.segments["thigh"].mass_kg, anthropometry(1.75, 73.0).segments["thigh"].mass_kg)
+
+
+def test_inverse_dynamics_of_the_body_match_pybullets() -> None:
+    """The controller's compiled inverse dynamics give PyBullet's torques for the same state (the three parts'
+    fixed-base trees, sticks and fingers included), against ``calculateInverseDynamics`` on each part."""
+    from services.physics.kernels import inverse_dynamics
+
+    world, body, _ = _load(1.62, 58.0)
+    tree = body.dynamics_tree()
+    rng = np.random.default_rng(3)
+    m = len(body.state_joints)
+    for _ in range(5):
+        state = np.vstack([rng.uniform(-1, 1, m), rng.uniform(-4, 4, m), rng.uniform(-80, 80, m)])
+        expected = np.zeros(m)
+        for part in body.parts:  # each part's revolute joints are state joints, in its own joint order
+            slots = [body.state_joints.index(part.offset + j) for j in part.movable]
+            q, qd, qdd = (state[row, slots].tolist() for row in range(3))
+            expected[slots] = world.client.calculateInverseDynamics(part.id, q, qd, qdd)
+        tau = inverse_dynamics(state, *tree, world.settings.gravity)
+        assert np.abs(expected).max() > 50.0  # loaded joints: the comparison is not of zeros
+        np.testing.assert_allclose(tau, expected, rtol=0, atol=1e-6 * np.abs(expected).max())
+    world.close()
