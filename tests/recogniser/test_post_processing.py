@@ -158,10 +158,10 @@ def test_a_plain_job_renders_the_kit_unvaried_and_dry(monkeypatch: pytest.Monkey
     monkeypatch.setattr(ex, "augment", lambda audio, rng: audio * 0.5)  # augmented audio peaks at 0.25
     layer = Layer(0.0, 1.0, 1.0, np.ones(10, np.float32))
     monkeypatch.setitem(ex._KITS, "one", Kit("one", "test", {"snare": [Instrument("s", "snare", 1.0, [layer])]}))
-    peaks = [float(ex.render_excerpt((s, "x.mid", 60.0, ("one",), 1.0, False, 0.0))[0].max()) for s in range(40)]
+    peaks = [float(ex.render_excerpt((s, "x.mid", 60.0, ("one",), 1.0, False, 0.0, 0.0))[0].max()) for s in range(40)]
     assert varied == [False] * 40 and peaks == pytest.approx([0.9] * 40)
     varied.clear()
-    peaks = [float(ex.render_excerpt((s, "x.mid", 60.0, ("one",), 0.0, False, ex.VARY_P))[0].max())
+    peaks = [float(ex.render_excerpt((s, "x.mid", 60.0, ("one",), 0.0, False, ex.VARY_P, 0.0))[0].max())
              for s in range(40)]
     assert 20 < sum(varied) < 40 and peaks == pytest.approx([0.25] * 40)
 

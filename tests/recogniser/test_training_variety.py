@@ -137,3 +137,20 @@ def test_excerpts_by_duration_draw_long_performances_as_often_as_their_seconds(
     assert share_of_long(False) == pytest.approx(0.5, abs=0.03)  # every performance alike
     assert share_of_long(True) == pytest.approx(0.9, abs=0.03)  # 270 of the 300 seconds
     assert ex.jobs(50, 5, ("kit",), by_duration=True) == ex.jobs(50, 5, ("kit",), by_duration=True)
+
+
+def test_quiet_hihats_lower_every_hihat_together_and_nothing_else() -> None:
+    kinds = ("kick", "snare", "hh_closed", "hh_pedal", "hh_open")
+    kit = Kit("k", "CC0", {kind: [_instrument(kind, 10 * i)] for i, kind in enumerate(kinds)})
+    quiet = [ex.quiet_hihats(kit, seed, 0.4) for seed in range(400)]
+    share = sum(q is not kit for q in quiet) / len(quiet)
+    assert share == pytest.approx(0.4, abs=0.07)  # the share asked for, drawn per excerpt
+    assert all(ex.quiet_hihats(kit, seed, 0.0) is kit for seed in range(50))
+    for q in (q for q in quiet if q is not kit):
+        db = [20 * np.log10(q.instruments[kind][0].gain) for kind in ("hh_closed", "hh_pedal", "hh_open")]
+        assert db[0] == db[1] == db[2]  # the hi-hats keep their balance with each other
+        assert ex.QUIET_HIHAT_DB[0] <= -db[0] <= ex.QUIET_HIHAT_DB[1]
+        assert q.instruments["kick"] is kit.instruments["kick"] and q.instruments["snare"] is kit.instruments["snare"]
+        assert q.instruments["hh_pedal"][0].layers is kit.instruments["hh_pedal"][0].layers  # same samples
+    assert all(kit.instruments[kind][0].gain == 1.0 for kind in kinds)  # the loaded kit is never changed
+    assert [q is kit for q in quiet] == [ex.quiet_hihats(kit, s, 0.4) is kit for s in range(400)]  # deterministic

@@ -47,9 +47,15 @@ VALID_DRY_P = 0.5
 LAYER_P = {"snare": 0.35, "hh_closed": 0.35, "hh_open": 0.35, "hh_pedal": 0.35}
 """With ``variety``: chance that an instrument of a kind is layered with one of another kit (default 0.15)."""
 
-Job = tuple[int, str, float, tuple[str, ...], float, bool, float]
+QUIET_HIHAT_KINDS = ("hh_closed", "hh_pedal", "hh_open")
+"""The kinds a quiet hi-hat lowers together (a kit whose hi-hats sound below its drums)."""
+QUIET_HIHAT_DB = (6.0, 18.0)
+"""Range of a quiet hi-hat's attenuation, dB (drawn uniformly)."""
+
+Job = tuple[int, str, float, tuple[str, ...], float, bool, float, float]
 """(seed, MIDI path, performance duration s, kit names, share left dry, variety: layered instruments and the
-further changes of :meth:`~.render.Variation.random_wide`, share of excerpts whose instruments are varied)."""
+further changes of :meth:`~.render.Variation.random_wide`, share of excerpts whose instruments are varied,
+share of excerpts whose hi-hats are quiet: :func:`quiet_hihats`)."""
 
 _KITS: dict[str, Kit] = {}
 
@@ -120,6 +126,23 @@ def with_layers(kit: Kit, kits: tuple[str, ...], rng: np.random.Generator) -> Ki
     return out
 
 
+def quiet_hihats(kit: Kit, seed: int, share: float) -> Kit:
+    """``kit``, or with the chance ``share`` a copy whose hi-hats (:data:`QUIET_HIHAT_KINDS`, together) sound
+    :data:`QUIET_HIHAT_DB` quieter: training excerpts like a kit whose hi-hats sit 10 dB below its drums, where
+    a pedal's chick under a snare is otherwise lost. Drawn from its own generator (seeded by the job's
+    ``seed``), so the rest of the excerpt is the same with and without it."""
+    rng = np.random.default_rng(seed + 13_131_313)
+    if share <= 0.0 or rng.random() >= share:
+        return kit
+    scale = float(10 ** (-rng.uniform(*QUIET_HIHAT_DB) / 20))
+    out = Kit(name=kit.name, licence=kit.licence, instruments=dict(kit.instruments))
+    for kind in QUIET_HIHAT_KINDS:
+        if kind in out.instruments:
+            out.instruments[kind] = [Instrument(i.name, i.kind, i.gain * scale, i.layers)
+                                     for i in out.instruments[kind]]
+    return out
+
+
 def excerpt_samples() -> int:
     """Samples of one rendered excerpt."""
     return int((EXCERPT_S + 0.2) * SAMPLE_RATE) + 1
@@ -127,7 +150,7 @@ def excerpt_samples() -> int:
 
 def render_excerpt(job: Job) -> tuple[np.ndarray, list[Hit]]:
     """Render one job: audio (mono, SAMPLE_RATE, peak 0.9) and its hits (times from the excerpt's start)."""
-    seed, path, duration, kits, dry_p, variety, vary_p = job
+    seed, path, duration, kits, dry_p, variety, vary_p, quiet_p = job
     rng = np.random.default_rng(seed)
     kit = load_any_kit(kits[int(rng.integers(len(kits)))])
     if len(kits) > 1 and rng.random() < MIX_P:
@@ -138,18 +161,20 @@ def render_excerpt(job: Job) -> tuple[np.ndarray, list[Hit]]:
     vary = rng.random() < vary_p
     if variety and len(kits) > 1:
         kit = with_layers(kit, kits, np.random.default_rng(seed + 7_777_777))
+    kit = quiet_hihats(kit, seed, quiet_p)
     audio, hits = render(notes, kit, rng, duration=EXCERPT_S + 0.2, vary=vary, wide=variety)
     return (augment(audio, rng) if rng.random() >= dry_p else normalise(audio)), hits
 
 
 def jobs(n: int, seed: int, kits: tuple[str, ...], dry_p: float = DRY_P, variety: bool = False,
-         vary_p: float = VARY_P, by_duration: bool = False) -> list[Job]:
+         vary_p: float = VARY_P, by_duration: bool = False, quiet_hihat_p: float = 0.0) -> list[Job]:
     """``n`` excerpt jobs drawn from the long (>= 20 s) Groove train-split performances (``dry_p`` = 1 and
     ``vary_p`` = 0: rendered as the benchmark renders, the kit as it is and dry).
 
     Each performance is equally likely, or with ``by_duration`` drawn with a probability proportional to its
     duration, so every second of them is about equally likely, as the benchmark weighs the validation split
-    (its long, dense performances hold most of its strikes)."""
+    (its long, dense performances hold most of its strikes). A share ``quiet_hihat_p`` of the excerpts get
+    quiet hi-hats (:func:`quiet_hihats`)."""
     files = [f for f in groove_files("train") if f[1] >= 20.0]  # long performances (beats with fills)
     rng = np.random.default_rng(seed)
     if by_duration:
@@ -157,7 +182,7 @@ def jobs(n: int, seed: int, kits: tuple[str, ...], dry_p: float = DRY_P, variety
         picks = rng.choice(len(files), size=n, replace=True, p=seconds / seconds.sum())
     else:
         picks = rng.choice(len(files), size=n, replace=n > len(files))
-    return [(seed * 100_000 + i, str(files[k][0]), files[k][1], kits, dry_p, variety, vary_p)
+    return [(seed * 100_000 + i, str(files[k][0]), files[k][1], kits, dry_p, variety, vary_p, quiet_hihat_p)
             for i, k in enumerate(picks)]
 
 

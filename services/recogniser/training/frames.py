@@ -96,12 +96,12 @@ def _one(job: Job, hop: int = F.HOP) -> tuple[np.ndarray, np.ndarray]:
 
 def make_frames(n: int, seed: int, workers: int, kits: tuple[str, ...], dry_p: float = DRY_P,
                 variety: bool = False, path: Path | None = None, vary_p: float = VARY_P, hop: int = F.HOP,
-                by_duration: bool = False) -> FrameSet:
+                by_duration: bool = False, quiet_hihat_p: float = 0.0) -> FrameSet:
     """Render ``n`` excerpts with ``kits`` (a share ``dry_p`` dry; ``variety``: see :class:`.excerpts.Job`;
-    ``by_duration``: see :func:`.excerpts.jobs`) into a :class:`FrameSet` of frames ``hop`` samples apart, and
-    save it to ``path`` if given (the spectra are written as they come, never all held)."""
+    ``by_duration``, ``quiet_hihat_p``: see :func:`.excerpts.jobs`) into a :class:`FrameSet` of frames ``hop``
+    samples apart, and save it to ``path`` if given (the spectra are written as they come, never all held)."""
     prepare(kits)
-    todo = jobs(n, seed, kits, dry_p, variety, vary_p, by_duration)
+    todo = jobs(n, seed, kits, dry_p, variety, vary_p, by_duration, quiet_hihat_p)
     per = F.n_frames(excerpt_samples(), hop)
     one = partial(_one, hop=hop)
     shape = (n * per, F.N_BANDS, len(WINDOWS))

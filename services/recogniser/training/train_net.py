@@ -45,21 +45,24 @@ CACHE_TAG = "f3"
 
 
 def frames(cache: Path, name: str, n: int, seed: int, workers: int, kits: tuple[str, ...], dry_p: float,
-           variety: bool = False, plain: bool = False, hop: int = F.HOP, by_duration: bool = False) -> FrameSet:
+           variety: bool = False, plain: bool = False, hop: int = F.HOP, by_duration: bool = False,
+           quiet_hihat_p: float = 0.0) -> FrameSet:
     """The cached frame set of these excerpts, frames ``hop`` samples apart, rendered first if need be
     (``plain``: as the benchmark renders, the kit unvaried and dry, whatever ``dry_p``; ``by_duration``:
-    performances drawn in proportion to their duration, :func:`.excerpts.jobs`)."""
+    performances drawn in proportion to their duration, :func:`.excerpts.jobs`; ``quiet_hihat_p``: the share of
+    excerpts with quiet hi-hats, :func:`.excerpts.quiet_hihats`)."""
     tag = (("-variety" if variety else "") + ("-plain" if plain else "") + (f"-hop{hop}" if hop != F.HOP else "")
-           + ("-bysec" if by_duration else ""))
+           + ("-bysec" if by_duration else "") + (f"-quiet{round(100 * quiet_hihat_p)}" if quiet_hihat_p else ""))
     path = cache / f"{CACHE_TAG}-{name}{tag}-{n}-{seed}.npz"
     if path.exists():
         return FrameSet.load(path)
     make_frames(n, seed, workers, kits, 1.0 if plain else dry_p, variety, path, 0.0 if plain else VARY_P, hop,
-                by_duration)
+                by_duration, quiet_hihat_p)
     return FrameSet.load(path)
 
 
-MEMBER_KEYS = ("excerpts", "epochs", "minutes", "width", "seed", "windows", "hard", "variety", "by_duration")
+MEMBER_KEYS = ("excerpts", "epochs", "minutes", "width", "seed", "windows", "hard", "variety", "by_duration",
+               "quiet_hihats")
 """Metadata of a trained network kept for each member of an ensemble."""
 
 
@@ -156,6 +159,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="draw the excerpts' performances (training and validation kit) in proportion to their "
                          "duration, so every second is about equally likely, as the benchmark weighs the split "
                          "(default: every performance equally likely)")
+    ap.add_argument("--quiet-hihats", type=float, default=0.0, metavar="P",
+                    help="share of training excerpts (0..1) whose hi-hats, pedal included, sound 6-18 dB quieter "
+                         "than the kit's (as in a kit whose hi-hats sit below its drums; default 0)")
     ap.add_argument("--render-only", action="store_true", help="render (and cache) the excerpts, do not fit")
     ap.add_argument("--ensemble", type=Path, nargs="+", default=None, metavar="MODEL",
                     help="only average the offline networks of these model files into one (the live MLP and metadata "
@@ -200,6 +206,9 @@ def main(argv: list[str] | None = None) -> int:
         except (ModelError, ValueError) as exc:
             print(f"error: --init {args.init}: {exc}", file=sys.stderr)
             return 1
+    if not 0.0 <= args.quiet_hihats <= 1.0:
+        print(f"error: --quiet-hihats {args.quiet_hihats}: a share between 0 and 1", file=sys.stderr)
+        return 2
     torch.set_num_threads(args.threads)
     args.cache.mkdir(parents=True, exist_ok=True)
     t0 = time.time()
@@ -218,7 +227,8 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     live, live_meta = load_live(args.live_from)
     train = frames(args.cache, "train" + ("-sf" if args.soundfonts else ""), args.excerpts, args.seed, args.workers,
-                   fit_kits, 0.3, not args.plain, hop=args.hop, by_duration=args.by_duration)
+                   fit_kits, 0.3, not args.plain, hop=args.hop, by_duration=args.by_duration,
+                   quiet_hihat_p=args.quiet_hihats)
     if args.render_only:
         return 0
     print(f"training: {train.n_excerpts} excerpts, {len(train.spec)} frames, {len(train.hits)} strikes; "
@@ -233,6 +243,7 @@ def main(argv: list[str] | None = None) -> int:
             "epochs": args.epochs, "minutes": args.minutes, "width": args.width, "dilations": args.dilations,
             "seed": args.seed, "windows": list(windows), "hard": args.hard, "variety": not args.plain,
             "neighbour_target": args.neighbour_target, "hop": args.hop, "by_duration": args.by_duration,
+            "quiet_hihats": args.quiet_hihats,
             "weights": {([*CLASS_NAMES, "onset"])[k]: w for k, w in weights.items()},
             "lr": args.lr, "warmup": args.warmup, "init": None if args.init is None else args.init.name,
             # where the live MLP came from (a file of this format already records it as live_*)
