@@ -63,7 +63,7 @@ COMPUTED_TORQUE_MODES = ("joint_ct", "cartesian")
 
 MASS_REFRESH_S = 0.03
 """Computed-torque modes with updates held over several steps: the joint-space mass matrix used between updates
-is recomputed at least this often, seconds of simulation (it costs about 100 us, 20 times the inverse dynamics,
+is recomputed at least this often, seconds of simulation (it costs about 100 us, 25 times the inverse dynamics,
 and only scales the small correction between updates; the update itself is exact inverse dynamics)."""
 
 TRUNK_IK_WEIGHT = 0.1
