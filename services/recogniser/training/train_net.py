@@ -193,6 +193,9 @@ def main(argv: list[str] | None = None) -> int:
     if not 0.0 <= args.neighbour_target <= 1.0:
         print(f"error: --neighbour-target must be within 0..1, got {args.neighbour_target}", file=sys.stderr)
         return 1
+    if not 0.0 <= args.quiet_hihats <= 1.0:
+        print(f"error: --quiet-hihats must be within 0..1, got {args.quiet_hihats}", file=sys.stderr)
+        return 1
     if not F.HOP_RANGE[0] <= args.hop <= F.HOP_RANGE[1]:
         print(f"error: --hop must be {F.HOP_RANGE[0]}..{F.HOP_RANGE[1]} samples, got {args.hop}", file=sys.stderr)
         return 1
@@ -206,9 +209,6 @@ def main(argv: list[str] | None = None) -> int:
         except (ModelError, ValueError) as exc:
             print(f"error: --init {args.init}: {exc}", file=sys.stderr)
             return 1
-    if not 0.0 <= args.quiet_hihats <= 1.0:
-        print(f"error: --quiet-hihats {args.quiet_hihats}: a share between 0 and 1", file=sys.stderr)
-        return 2
     torch.set_num_threads(args.threads)
     args.cache.mkdir(parents=True, exist_ok=True)
     t0 = time.time()
