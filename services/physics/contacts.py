@@ -101,6 +101,8 @@ class ContactTracker:
         every step. A cymbal swings at about 1 Hz: a few milliseconds old, its velocity is still its velocity."""
         self.touching: set[str] = set()
         """Base part names of the strikers in contact at the last step (e.g. left_stick, kick_beater)."""
+        self.touching_instruments: set[tuple[str, str]] = set()
+        """(striker base part, instrument) pairs in contact at the last step."""
         self.episodes_started = 0
         self.last_points: tuple[tuple[Any, ...], ...] = ()
         """Every contact point of the last step, as PyBullet reads them (the drummer's feet on the pedals too)."""
@@ -258,5 +260,6 @@ class ContactTracker:
         for pair in list(self._episodes):
             if pair not in groups:
                 del self._episodes[pair]
-        self.touching = {self.strikers[key].part for key, _ in groups}
+        self.touching_instruments = {(self.strikers[key].part, instrument) for key, instrument in groups}
+        self.touching = {part for part, _ in self.touching_instruments}
         return out

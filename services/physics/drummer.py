@@ -46,6 +46,7 @@ from services.physics.body import LIMBS, Body
 from services.physics.character import DOF_NAMES, JOINTS, CharacterSpec, build_character
 from services.physics.contacts import ContactTracker, Striker
 from services.physics.control import Controller
+from services.physics.follow_through import LimbTrack, strike_of
 from services.physics.kernels import swing_displacement
 from services.physics.kitbodies import SLOW_SPRING_PERIOD_S, build_kit
 from services.physics.limits import JointLimits, default_limits
@@ -227,7 +228,10 @@ class DrummerScene:
         self.body.set_state(self.rest)
         self._kin: tuple[World, Body] | None = None
         self._kin_q = self.rest.copy()
-        self.limb_tracks: dict[str, Track] = {limb: Track(3) for limb in LIMBS}
+        self.limb_tracks: dict[str, LimbTrack] = {limb: LimbTrack() for limb in LIMBS}
+        self._last_touch: dict[str, dict[str, float]] = {hand: {} for hand in _HANDS}
+        """Hand -> instrument -> when its stick last touched it, rig seconds (strokes follow through until it
+        does)."""
         self.joint_track = Track(N_DOF)
         self.posture_track = Track(N_DOF)
         """Cartesian modes: a posture (57 angles, rad, and rates, rad/s) for the IK's null space instead of the
@@ -420,6 +424,9 @@ class DrummerScene:
                 if name in _HANDS and first - now >= LEAD_IN_ARC_MIN_S:
                     track.add(*_lead_in_apex(now, here[name], first, np.asarray(traj.positions[0], dtype=float)))
             track.extend(traj.times + offset, traj.positions, traj.velocities)
+            if name in _HANDS:
+                for stroke in plan.strokes_of(limb):
+                    track.add_strike(strike_of(stroke, offset))
 
     def current_targets(self) -> dict[str, np.ndarray]:
         """Where each limb's target point is now (the inverse of the hands' bead offset), metres."""
@@ -462,6 +469,7 @@ class DrummerScene:
 
     def reset(self) -> None:
         self._steps_to_update = 0
+        self._last_touch = {hand: {} for hand in _HANDS}
         for track in self.limb_tracks.values():
             track.clear()
         self.joint_track.clear()
@@ -504,7 +512,8 @@ class DrummerScene:
         for limb, track in self.limb_tracks.items():
             if len(track):
                 track.prune(t - 1.0)
-                pos, vel = track.sample(t)
+                late = track.follow_through(t, self._last_touch[limb]) if limb in _HANDS else None
+                pos, vel = track.sample(t) if late is None else late
                 if swinging and limb in _HANDS:
                     assert hinges is not None
                     pos = pos + swing_displacement(pos.reshape(1, 3), hinges.centre, hinges.rotation,
@@ -588,6 +597,10 @@ class DrummerScene:
         the fingers' springs and the kit's springs at every step.
         """
         sticks_touching = frozenset(self.tracker.touching)
+        for stick, instrument in self.tracker.touching_instruments:
+            hand = _STICK_HANDS.get(stick)
+            if hand is not None:
+                self._last_touch[hand][instrument] = t_next
         if self._steps_to_update > 0 and self.controller.can_hold() and sticks_touching == self._touching_at_update:
             self._steps_to_update -= 1
             theta, theta_dot, pq, pqd = self._read_state()
@@ -643,6 +656,8 @@ def _lead_in_apex(t0: float, p0: np.ndarray, t1: float, p1: np.ndarray) -> tuple
 
 _HAND_STICKS = (("left_hand", "left_stick"), ("right_hand", "right_stick"))
 _HANDS = tuple(hand for hand, _ in _HAND_STICKS)
+_STICK_HANDS = {stick: hand for hand, stick in _HAND_STICKS}
+
 _NECK_DOF, _HEAD_DOF = JOINTS.index("neck") * 3, JOINTS.index("head") * 3
 """The first (x) DOF of the neck and of the head in the 57."""
 

@@ -66,6 +66,7 @@ from common.messages.score import GestureStyle, KitSelect, LiveNote, ScoreLoad, 
 from common.score.events import DrumEvent, Score, ScoreError
 from common.score.hands import HandAlgorithm, Sticking
 from common.score.live import LiveNotes
+from services.physics.follow_through import strike_of
 from services.physics.targets import TargetError, Track
 
 if TYPE_CHECKING:
@@ -149,6 +150,7 @@ def splice_plan(scene: DrummerScene, plan: GesturePlan, t_s: float, limbs: set[L
         bridge: list[tuple[float, np.ndarray]] = []
         if times[0] > t_s + 1e-6:  # the plan starts later: join its first knot, braking first when there is room
             keep = np.ones(len(times), dtype=bool)
+            cut = t_s
             if times[0] - t_s > 2 * brake_s and float(np.linalg.norm(v0)) > 1e-6:
                 bridge.append((t_s + brake_s, _brake_point(p0, v0, brake_s, 0.0)))
         else:
@@ -165,6 +167,10 @@ def splice_plan(scene: DrummerScene, plan: GesturePlan, t_s: float, limbs: set[L
             track.add(t, p, np.zeros(3))
         if np.any(keep):
             _append(track, times[keep], pos[keep], vel[keep])
+            if limb in HANDS:
+                for stroke in plan.strokes_of(limb):
+                    if stroke.time > cut:
+                        track.add_strike(strike_of(stroke, 0.0))
     if plan.head is not None:
         scene.head = (plan.head, 0.0)
 

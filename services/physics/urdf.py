@@ -179,7 +179,11 @@ def cylinder_inertia(mass: float, radius: float, length: float) -> tuple[float, 
 
 def load_robot(client: object, robot: Robot, base_xyz: Vec3, base_quat: tuple[float, float, float, float],
                fixed_base: bool, flags: int = 0) -> int:
-    """Write ``robot`` to a temporary URDF file and load it into a PyBullet client; returns the body id."""
+    """Write ``robot`` to a temporary URDF file and load it into a PyBullet client; returns the body id.
+
+    PyBullet gives every link a collision object, with no shape where the URDF has none (the 3-DOF joints'
+    dummy links, most of the body's segments): those are taken out of collision detection, whose broadphase
+    would otherwise pair them with everything near them at every step."""
     xml = robot.to_xml()
     fd, path = tempfile.mkstemp(suffix=".urdf", prefix=f"batteur_{robot.name}_")
     try:
@@ -190,4 +194,10 @@ def load_robot(client: object, robot: Robot, base_xyz: Vec3, base_quat: tuple[fl
         )
     finally:
         os.unlink(path)
+    shapeless = {link.name for link in robot.links if not any(shape.collision for shape in link.shapes)}
+    if client.getBodyInfo(body)[0].decode() in shapeless:  # type: ignore[attr-defined]
+        client.setCollisionFilterGroupMask(body, -1, 0, 0)  # type: ignore[attr-defined]
+    for j in range(client.getNumJoints(body)):  # type: ignore[attr-defined]
+        if client.getJointInfo(body, j)[12].decode() in shapeless:  # type: ignore[attr-defined]
+            client.setCollisionFilterGroupMask(body, j, 0, 0)  # type: ignore[attr-defined]
     return body

@@ -1,0 +1,109 @@
+"""Strokes that follow through: a hand whose stick has not met the surface by the planned bottom keeps going.
+
+The gesture planner ends a stroke at the struck surface: the tip's target
+reaches the hit point at the note time, moving into the surface at the
+stroke's speed, and turns back within half the contact time (a few
+millimetres under the surface; common/gesture/plan.py). A tip that lags its
+target by a few millimetres (a fast double, a hand braking from a long move)
+then turns back above the head and the note is lost. A drummer throws the
+stick through the head, not to it: here, while a hand's stick has not touched
+the struck instrument since shortly before the note, its target at the
+planned bottom keeps moving into the surface at the stroke's speed, for at
+most :data:`FOLLOW_THROUGH_S` and :data:`FOLLOW_THROUGH_DEPTH_M`; the first
+touch ends it and the plan's rebound takes over. A stroke whose stick has
+touched by the planned bottom is played exactly as planned.
+
+:class:`LimbTrack` is a :class:`~services.physics.targets.Track` of a limb's
+target that also carries the planned strikes, cut and pruned with its knots.
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, NamedTuple
+
+import numpy as np
+
+from services.physics.targets import Track
+
+if TYPE_CHECKING:
+    from common.gesture.plan import PlannedStroke
+
+FOLLOW_THROUGH_S = 0.015
+"""A stroke keeps going at most this long after its planned bottom, seconds."""
+FOLLOW_THROUGH_DEPTH_M = 0.015
+"""... and at most this far past the planned bottom, metres."""
+TOUCH_LEAD_S = 0.010
+"""A touch of the stick up to this long before the note counts as the stroke's (an early contact), seconds."""
+
+
+class Strike(NamedTuple):
+    """A planned contact of a limb's effector (rig seconds, metres, m/s)."""
+
+    time: float
+    """Planned first touch, seconds."""
+    bottom: float
+    """When the planned target is deepest (the note time plus half the contact time), seconds."""
+    direction: np.ndarray
+    """(3,) unit vector into the surface."""
+    speed: float
+    """Planned speed into the surface, m/s."""
+    instrument: str
+    """The kit object struck."""
+
+
+def strike_of(stroke: PlannedStroke, offset: float) -> Strike:
+    """A planned stroke's contact on the rig clock (its plan time plus ``offset`` seconds)."""
+    time = stroke.time + offset
+    return Strike(time, time + 0.5 * stroke.contact_duration, -np.asarray(stroke.normal, dtype=float),
+                  float(stroke.velocity), stroke.object_id)
+
+
+class LimbTrack(Track):
+    """A limb's target track (3 values) and its planned strikes, sorted by time."""
+
+    def __init__(self) -> None:
+        super().__init__(3)
+        self.strikes: list[Strike] = []
+
+    def add(self, time: float, value: np.ndarray, velocity: np.ndarray) -> None:
+        """As :meth:`Track.add`; strikes at or after ``time`` seconds go with the knots it replaces."""
+        super().add(time, value, velocity)
+        if self.strikes and self.strikes[-1].time >= time:
+            del self.strikes[bisect.bisect_left([s.time for s in self.strikes], time):]
+
+    def add_strike(self, strike: Strike) -> None:
+        """Mark a planned contact (after the track's strikes so far)."""
+        if self.strikes and strike.time <= self.strikes[-1].time:
+            raise ValueError("strikes must be added in time order")
+        if not (math.isfinite(strike.time) and math.isfinite(strike.speed) and strike.speed >= 0.0):
+            raise ValueError("a strike needs a finite time and a finite speed >= 0")
+        self.strikes.append(strike)
+
+    def clear(self) -> None:
+        super().clear()
+        self.strikes.clear()
+
+    def prune(self, before: float) -> None:
+        super().prune(before)
+        k = 0
+        while k < len(self.strikes) and self.strikes[k].bottom + FOLLOW_THROUGH_S < before:
+            k += 1
+        if k:
+            del self.strikes[:k]
+
+    def follow_through(self, t: float, last_touch: Mapping[str, float]) -> tuple[np.ndarray, np.ndarray] | None:
+        """The target (3,) m and velocity (3,) m/s at rig time ``t`` seconds of a stroke still following
+        through, or None (sample the track). ``last_touch``: instrument -> when the limb's stick last touched
+        it, seconds."""
+        for strike in self.strikes:  # pruned to the last second: one or two to look at
+            if strike.bottom > t:
+                return None
+            late = t - strike.bottom
+            if late <= FOLLOW_THROUGH_S and last_touch.get(strike.instrument, -math.inf) < strike.time - TOUCH_LEAD_S:
+                base, _ = self.sample(strike.bottom)
+                depth = min(strike.speed * late, FOLLOW_THROUGH_DEPTH_M)
+                return base + depth * strike.direction, strike.speed * strike.direction
+        return None
