@@ -46,7 +46,7 @@ from services.physics.body import LIMBS, Body
 from services.physics.character import DOF_NAMES, JOINTS, CharacterSpec, build_character
 from services.physics.contacts import ContactTracker, Striker
 from services.physics.control import Controller
-from services.physics.follow_through import LimbTrack, strike_of
+from services.physics.follow_through import LimbTrack, follows_through, strike_of
 from services.physics.kernels import swing_displacement
 from services.physics.kitbodies import SLOW_SPRING_PERIOD_S, build_kit
 from services.physics.limits import JointLimits, default_limits
@@ -229,9 +229,9 @@ class DrummerScene:
         self._kin: tuple[World, Body] | None = None
         self._kin_q = self.rest.copy()
         self.limb_tracks: dict[str, LimbTrack] = {limb: LimbTrack() for limb in LIMBS}
-        self._last_touch: dict[str, dict[str, float]] = {hand: {} for hand in _HANDS}
-        """Hand -> instrument -> when its stick last touched it, rig seconds (strokes follow through until it
-        does)."""
+        self._last_touch: dict[str, dict[str, float]] = {limb: {} for limb in LIMBS}
+        """Limb -> instrument -> when its striker (stick, beater) last touched it, rig seconds (strokes follow
+        through until it does)."""
         self.joint_track = Track(N_DOF)
         self.posture_track = Track(N_DOF)
         """Cartesian modes: a posture (57 angles, rad, and rates, rad/s) for the IK's null space instead of the
@@ -241,6 +241,12 @@ class DrummerScene:
         self._beater_pedal_bodies = {pedal.body for pedal in self._beater_pedals}
         """Pedals a resting foot must not press (their beaters would rest on the head); the hi-hat foot presses
         its pedal to the plan's depth (a closed hi-hat is held closed by the foot)."""
+        bass_foot, other_foot = ("left_foot", "right_foot") if kit.handedness == "left" else ("right_foot",
+                                                                                              "left_foot")
+        self._striker_limbs = {stick: hand for hand, stick in _HAND_STICKS} | {
+            part: bass_foot if pedal.object_id == "kick_pedal" else other_foot
+            for pedal in self._beater_pedals for part in pedal.beater_parts}
+        """Striker part -> the limb that plays it (the second bass pedal's beater: the hi-hat foot's)."""
         self._feet = [(f"{side}_foot", self.body.link_ref[self.body.link_index[f"{side}_foot"]])
                       for side in ("left", "right")]
         """(limb, its foot's (body, link)), for the pedal contacts of each update."""
@@ -424,8 +430,8 @@ class DrummerScene:
                 if name in _HANDS and first - now >= LEAD_IN_ARC_MIN_S:
                     track.add(*_lead_in_apex(now, here[name], first, np.asarray(traj.positions[0], dtype=float)))
             track.extend(traj.times + offset, traj.positions, traj.velocities)
-            if name in _HANDS:
-                for stroke in plan.strokes_of(limb):
+            for stroke in plan.strokes_of(limb):
+                if follows_through(stroke):
                     track.add_strike(strike_of(stroke, offset))
 
     def current_targets(self) -> dict[str, np.ndarray]:
@@ -469,7 +475,7 @@ class DrummerScene:
 
     def reset(self) -> None:
         self._steps_to_update = 0
-        self._last_touch = {hand: {} for hand in _HANDS}
+        self._last_touch = {limb: {} for limb in LIMBS}
         for track in self.limb_tracks.values():
             track.clear()
         self.joint_track.clear()
@@ -512,7 +518,7 @@ class DrummerScene:
         for limb, track in self.limb_tracks.items():
             if len(track):
                 track.prune(t - 1.0)
-                late = track.follow_through(t, self._last_touch[limb]) if limb in _HANDS else None
+                late = track.follow_through(t, self._last_touch[limb])
                 pos, vel = track.sample(t) if late is None else late
                 if swinging and limb in _HANDS:
                     assert hinges is not None
@@ -597,10 +603,10 @@ class DrummerScene:
         the fingers' springs and the kit's springs at every step.
         """
         sticks_touching = frozenset(self.tracker.touching)
-        for stick, instrument in self.tracker.touching_instruments:
-            hand = _STICK_HANDS.get(stick)
-            if hand is not None:
-                self._last_touch[hand][instrument] = t_next
+        for striker, instrument in self.tracker.touching_instruments:
+            limb = self._striker_limbs.get(striker)
+            if limb is not None:
+                self._last_touch[limb][instrument] = t_next
         if self._steps_to_update > 0 and self.controller.can_hold() and sticks_touching == self._touching_at_update:
             self._steps_to_update -= 1
             theta, theta_dot, pq, pqd = self._read_state()
@@ -656,7 +662,6 @@ def _lead_in_apex(t0: float, p0: np.ndarray, t1: float, p1: np.ndarray) -> tuple
 
 _HAND_STICKS = (("left_hand", "left_stick"), ("right_hand", "right_stick"))
 _HANDS = tuple(hand for hand, _ in _HAND_STICKS)
-_STICK_HANDS = {stick: hand for hand, stick in _HAND_STICKS}
 
 _NECK_DOF, _HEAD_DOF = JOINTS.index("neck") * 3, JOINTS.index("head") * 3
 """The first (x) DOF of the neck and of the head in the 57."""

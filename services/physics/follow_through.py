@@ -1,17 +1,20 @@
-"""Strokes that follow through: a hand whose stick has not met the surface by the planned bottom keeps going.
+"""Strokes that follow through: a limb whose striker has not met the instrument by the planned bottom keeps going.
 
-The gesture planner ends a stroke at the struck surface: the tip's target
-reaches the hit point at the note time, moving into the surface at the
-stroke's speed, and turns back within half the contact time (a few
-millimetres under the surface; common/gesture/plan.py). A tip that lags its
-target by a few millimetres (a fast double, a hand braking from a long move)
-then turns back above the head and the note is lost. A drummer throws the
-stick through the head, not to it: here, while a hand's stick has not touched
-the struck instrument since shortly before the note, its target at the
-planned bottom keeps moving into the surface at the stroke's speed, for at
-most :data:`FOLLOW_THROUGH_S` and :data:`FOLLOW_THROUGH_DEPTH_M`; the first
-touch ends it and the plan's rebound takes over. A stroke whose stick has
-touched by the planned bottom is played exactly as planned.
+The gesture planner ends a stroke at the struck surface: the target reaches
+the hit point at the note time, moving into the surface at the stroke's
+speed, and turns back within half the contact time (a few millimetres under
+the surface; common/gesture/plan.py). A stick tip that lags its target by a
+few millimetres (a fast double, a hand braking from a long move) then turns
+back above the head and the note is lost; so does a soft kick whose foot
+stops the footboard a little early. A drummer throws the stick through the
+head, not to it: here, while a limb's striker (its stick, or the beater its
+foot drives) has not touched the struck instrument since shortly before the
+note, the limb's target at the planned bottom keeps moving into the surface
+at the stroke's speed, for at most :data:`FOLLOW_THROUGH_S` and
+:data:`FOLLOW_THROUGH_DEPTH_M`; the first touch ends it and the plan's
+rebound takes over. A stroke whose striker has touched by the planned bottom
+is played exactly as planned. The hi-hat pedal's strokes do not follow
+through (its foot presses through to its rest anyway).
 
 :class:`LimbTrack` is a :class:`~services.physics.targets.Track` of a limb's
 target that also carries the planned strikes, cut and pruned with its knots.
@@ -26,6 +29,7 @@ from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
+from common.kit import EventType, Limb
 from services.physics.targets import Track
 
 if TYPE_CHECKING:
@@ -52,6 +56,13 @@ class Strike(NamedTuple):
     """Planned speed into the surface, m/s."""
     instrument: str
     """The kit object struck."""
+
+
+def follows_through(stroke: PlannedStroke) -> bool:
+    """Whether a planned stroke follows through: a stick's, or a bass drum's (the foot presses the footboard
+    on until the beater meets the head); not the hi-hat pedal's, whose foot presses through to its rest
+    anyway."""
+    return stroke.limb in (Limb.LEFT_HAND, Limb.RIGHT_HAND) or stroke.event == EventType.BASS
 
 
 def strike_of(stroke: PlannedStroke, offset: float) -> Strike:
