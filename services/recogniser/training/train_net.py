@@ -162,6 +162,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--quiet-hihats", type=float, default=0.0, metavar="P",
                     help="share of training excerpts (0..1) whose hi-hats, pedal included, sound 6-18 dB quieter "
                          "than the kit's (as in a kit whose hi-hats sit below its drums; default 0)")
+    ap.add_argument("--val-quiet-hihats", type=float, default=0.0, metavar="P",
+                    help="the same for the validation kit's excerpts, so thresholds are chosen where a quiet hi-hat "
+                         "is hard to hear too (default 0)")
     ap.add_argument("--render-only", action="store_true", help="render (and cache) the excerpts, do not fit")
     ap.add_argument("--ensemble", type=Path, nargs="+", default=None, metavar="MODEL",
                     help="only average the offline networks of these model files into one (the live MLP and metadata "
@@ -193,9 +196,10 @@ def main(argv: list[str] | None = None) -> int:
     if not 0.0 <= args.neighbour_target <= 1.0:
         print(f"error: --neighbour-target must be within 0..1, got {args.neighbour_target}", file=sys.stderr)
         return 1
-    if not 0.0 <= args.quiet_hihats <= 1.0:
-        print(f"error: --quiet-hihats must be within 0..1, got {args.quiet_hihats}", file=sys.stderr)
-        return 1
+    for flag, share in (("--quiet-hihats", args.quiet_hihats), ("--val-quiet-hihats", args.val_quiet_hihats)):
+        if not 0.0 <= share <= 1.0:
+            print(f"error: {flag} must be within 0..1, got {share}", file=sys.stderr)
+            return 1
     if not F.HOP_RANGE[0] <= args.hop <= F.HOP_RANGE[1]:
         print(f"error: --hop must be {F.HOP_RANGE[0]}..{F.HOP_RANGE[1]} samples, got {args.hop}", file=sys.stderr)
         return 1
@@ -213,11 +217,11 @@ def main(argv: list[str] | None = None) -> int:
     args.cache.mkdir(parents=True, exist_ok=True)
     t0 = time.time()
     val = frames(args.cache, "val", args.val_excerpts, args.seed + 1000, args.workers, VALID_KITS, VALID_DRY_P,
-                 plain=args.val_plain, hop=args.hop, by_duration=args.by_duration)
+                 plain=args.val_plain, hop=args.hop, by_duration=args.by_duration, quiet_hihat_p=args.val_quiet_hihats)
     if args.retune is not None:
         model = load_model(args.retune)
         choose(model.offline, val, rules=args.rules)
-        model.meta.update(val_plain=args.val_plain, rules=args.rules)
+        model.meta.update(val_plain=args.val_plain, rules=args.rules, val_quiet_hihats=args.val_quiet_hihats)
         model.save(args.out, half=args.half)
         print(f"wrote {args.out}")
         return 0
@@ -243,7 +247,7 @@ def main(argv: list[str] | None = None) -> int:
             "epochs": args.epochs, "minutes": args.minutes, "width": args.width, "dilations": args.dilations,
             "seed": args.seed, "windows": list(windows), "hard": args.hard, "variety": not args.plain,
             "neighbour_target": args.neighbour_target, "hop": args.hop, "by_duration": args.by_duration,
-            "quiet_hihats": args.quiet_hihats,
+            "quiet_hihats": args.quiet_hihats, "val_quiet_hihats": args.val_quiet_hihats,
             "weights": {([*CLASS_NAMES, "onset"])[k]: w for k, w in weights.items()},
             "lr": args.lr, "warmup": args.warmup, "init": None if args.init is None else args.init.name,
             # where the live MLP came from (a file of this format already records it as live_*)
