@@ -78,42 +78,48 @@ class LimbTrack(Track):
     def __init__(self) -> None:
         super().__init__(3)
         self.strikes: list[Strike] = []
+        self._times: list[float] = []  # the strikes' times and bottoms, for bisection
+        self._bottoms: list[float] = []
 
     def add(self, time: float, value: np.ndarray, velocity: np.ndarray) -> None:
         """As :meth:`Track.add`; strikes at or after ``time`` seconds go with the knots it replaces."""
         super().add(time, value, velocity)
-        if self.strikes and self.strikes[-1].time >= time:
-            del self.strikes[bisect.bisect_left([s.time for s in self.strikes], time):]
+        if self._times and self._times[-1] >= time:
+            self._drop_from(bisect.bisect_left(self._times, time))
 
     def add_strike(self, strike: Strike) -> None:
         """Mark a planned contact (after the track's strikes so far)."""
-        if self.strikes and strike.time <= self.strikes[-1].time:
+        if self._times and strike.time <= self._times[-1]:
             raise ValueError("strikes must be added in time order")
         if not (math.isfinite(strike.time) and math.isfinite(strike.speed) and strike.speed >= 0.0):
             raise ValueError("a strike needs a finite time and a finite speed >= 0")
         self.strikes.append(strike)
+        self._times.append(strike.time)
+        self._bottoms.append(strike.bottom)
 
     def clear(self) -> None:
         super().clear()
-        self.strikes.clear()
+        self._drop_from(0)
 
     def prune(self, before: float) -> None:
         super().prune(before)
-        k = 0
-        while k < len(self.strikes) and self.strikes[k].bottom + FOLLOW_THROUGH_S < before:
-            k += 1
+        k = bisect.bisect_left(self._bottoms, before - FOLLOW_THROUGH_S)
         if k:
-            del self.strikes[:k]
+            del self.strikes[:k], self._times[:k], self._bottoms[:k]
+
+    def _drop_from(self, k: int) -> None:
+        del self.strikes[k:], self._times[k:], self._bottoms[k:]
 
     def follow_through(self, t: float, last_touch: Mapping[str, float]) -> tuple[np.ndarray, np.ndarray] | None:
         """The target (3,) m and velocity (3,) m/s at rig time ``t`` seconds of a stroke still following
-        through, or None (sample the track). ``last_touch``: instrument -> when the limb's stick last touched
+        through, or None (sample the track). ``last_touch``: instrument -> when the limb's striker last touched
         it, seconds."""
-        for strike in self.strikes:  # pruned to the last second: one or two to look at
+        for k in range(bisect.bisect_left(self._bottoms, t - FOLLOW_THROUGH_S), len(self.strikes)):
+            strike = self.strikes[k]
             if strike.bottom > t:
                 return None
-            late = t - strike.bottom
-            if late <= FOLLOW_THROUGH_S and last_touch.get(strike.instrument, -math.inf) < strike.time - TOUCH_LEAD_S:
+            if last_touch.get(strike.instrument, -math.inf) < strike.time - TOUCH_LEAD_S:
+                late = t - strike.bottom
                 base, _ = self.sample(strike.bottom)
                 depth = min(strike.speed * late, FOLLOW_THROUGH_DEPTH_M)
                 return base + depth * strike.direction, strike.speed * strike.direction
