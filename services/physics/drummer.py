@@ -662,7 +662,6 @@ def _lead_in_apex(t0: float, p0: np.ndarray, t1: float, p1: np.ndarray) -> tuple
 
 _HAND_STICKS = (("left_hand", "left_stick"), ("right_hand", "right_stick"))
 _HANDS = tuple(hand for hand, _ in _HAND_STICKS)
-
 _NECK_DOF, _HEAD_DOF = JOINTS.index("neck") * 3, JOINTS.index("head") * 3
 """The first (x) DOF of the neck and of the head in the 57."""
 
