@@ -29,7 +29,8 @@ from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
-from common.kit import EventType, Limb
+from common.kit import EventType
+from common.score.limbs import HANDS
 from services.physics.targets import Track
 
 if TYPE_CHECKING:
@@ -62,7 +63,7 @@ def follows_through(stroke: PlannedStroke) -> bool:
     """Whether a planned stroke follows through: a stick's, or a bass drum's (the foot presses the footboard
     on until the beater meets the head); not the hi-hat pedal's, whose foot presses through to its rest
     anyway."""
-    return stroke.limb in (Limb.LEFT_HAND, Limb.RIGHT_HAND) or stroke.event == EventType.BASS
+    return stroke.limb in HANDS or stroke.event == EventType.BASS
 
 
 def strike_of(stroke: PlannedStroke, offset: float) -> Strike:
