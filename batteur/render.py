@@ -188,7 +188,7 @@ def run_score(score: Score, assignment: Assignment, plan: GesturePlan, kit: Kit,
         poses = recorder.poses.sequence()
     except ValueError:
         poses = None
-    stats = {"contacts_sent": physics.contacts_sent, "rejected": dict(physics.rejected),
+    stats = {"contacts_sent": physics.contacts_sent, "rejected": dict(physics.rejected), "diverged": physics.diverged,
              "control": physics.settings.control, "grip": physics.settings.grip, "rate_hz": physics.rate_hz,
              "control_rate_hz": physics.settings.control_rate_hz,
              "cpu_time_s": round(time.process_time() - cpu_started, 3)}

@@ -124,6 +124,7 @@ class SegmentResult:
     contacts: int
     rejected: dict[str, int]
     cpu_time_s: float
+    diverged: int = 0
     settings: dict[str, Any] = field(default_factory=dict)
 
 
@@ -160,6 +161,7 @@ def run_segment(plan: GesturePlan, kit: Kit, opts: RenderOptions, segment: Segme
     if progress is not None:
         progress.put((segment.index, segment.run_to_s - segment.run_from_s))
     return SegmentResult(segment.index, kept, counted.contacts, dict(physics.rejected), time.process_time() - cpu,
+                         physics.diverged,
                          {"control": physics.settings.control, "grip": physics.settings.grip,
                           "rate_hz": physics.rate_hz, "control_rate_hz": physics.settings.control_rate_hz})
 
@@ -306,7 +308,8 @@ def run_segmented(score: Score, assignment: Assignment, plan: GesturePlan, kit: 
         for kind, n in r.rejected.items():
             rejected[kind] = rejected.get(kind, 0) + n
     contacts = sum(r.contacts for r in results)
-    stats = {"contacts_sent": contacts, "rejected": rejected, **results[0].settings,
+    stats = {"contacts_sent": contacts, "rejected": rejected, "diverged": sum(r.diverged for r in results),
+             **results[0].settings,
              "cpu_time_s": round(time.process_time() - cpu_started + sum(r.cpu_time_s for r in results), 3),
              "segments": {"count": len(segments), "segment_s": segment_s, "warmup_s": warmup_s,
                           "jobs": max(1, min(jobs, len(segments)))}}

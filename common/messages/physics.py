@@ -18,7 +18,7 @@ from common.messages.base import Family, OscMessage, RigTime
 from common.messages.registry import register
 
 ControlModeName = Literal["joint_pd", "joint_spd", "joint_ct", "cartesian", "cartesian_pd"]
-"""joint_pd: explicit PD torques (the paper's); joint_spd: PyBullet's stable PD; joint_ct: PD through inverse
+"""joint_pd: explicit PD torques (the paper's); joint_spd: stable PD (Tan et al. 2011); joint_ct: PD through inverse
 dynamics (computed torque); cartesian: damped least squares IK feeding the computed-torque PD; cartesian_pd:
 the same IK feeding the explicit PD (the paper's Algorithm 2 as written)."""
 

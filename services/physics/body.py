@@ -101,12 +101,15 @@ class Body:
         self._parent: dict[int, int] = {}
         offset = 0
         bases: list[tuple[int, int]] = []
+        self.base_positions: list[tuple[float, ...]] = []
+        """Each part's base position as loaded, metres (world frame, unrotated)."""
         for k, spec in enumerate(model.parts):
             base = tuple(float(s + o) for s, o in zip(seat_position, spec.base_offset_m, strict=True))
             floating = floating_base and k == 0  # the trunk only (see the class docstring)
             body = load_robot(c, spec.robot, base, (0.0, 0.0, 0.0, 1.0),  # type: ignore[arg-type]
                               fixed_base=not floating, flags=p.URDF_USE_INERTIA_FROM_FILE)
             self.ids.append(body)
+            self.base_positions.append(base)
             if floating:
                 pin = c.createConstraint(body, -1, -1, -1, p.JOINT_FIXED, [0, 0, 0], [0, 0, 0], list(base))
                 c.changeConstraint(pin, maxForce=1e5)
@@ -244,6 +247,14 @@ class Body:
                                        targetValues=[[float(a)] for a in values[part.state_slots]],
                                        targetVelocities=[[float(v)] for v in rates[part.state_slots]])
         self.update(values[:n])
+
+    def restore_bases(self) -> None:
+        """Put every part's base back where it was loaded, at rest (after a divergence: a fixed base's pose reads
+        NaN once its joints have)."""
+        c = self.world.client
+        for body, base in zip(self.ids, self.base_positions, strict=True):
+            c.resetBasePositionAndOrientation(body, base, (0.0, 0.0, 0.0, 1.0))
+            c.resetBaseVelocity(body, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
 
     def dynamics_tree(self) -> DynamicsTree:
         """The arrays of :func:`kernels.inverse_dynamics` for every part of the body (each a fixed-base tree,

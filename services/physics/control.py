@@ -1,7 +1,7 @@
 """Controllers: joint-space PD (explicit, PyBullet's stable PD, computed torque) and Cartesian DLS IK (Algorithm 2).
 
-Modes: ``joint_pd`` (explicit PD below), ``joint_spd`` (PyBullet's stable PD,
-experimental: it diverges on this body), ``joint_ct`` (the PD through inverse
+Modes: ``joint_pd`` (explicit PD below), ``joint_spd`` (the stable PD of Tan, Liu and Turk,
+:meth:`Controller.stable_pd`), ``joint_ct`` (the PD through inverse
 dynamics, :meth:`Controller.computed_torque`), ``cartesian`` (Algorithm 2
 feeding ``joint_ct``) and ``cartesian_pd`` (Algorithm 2 feeding ``joint_pd``).
 
@@ -385,79 +385,89 @@ class Controller:
             self._mass_age += self.control_dt
             refresh = self._ct_mass is None or self._mass_age >= MASS_REFRESH_S - 1e-9
         if refresh:
-            mass_state = np.zeros((state.shape[1], state.shape[1]))
-            order, runs = self._id_order
-            q_all = state[0, order].tolist()  # one conversion, each copy takes its run
-            for (body_id, slots), (start, stop) in zip(copies, runs, strict=True):
-                rows = world.client.calculateMassMatrix(body_id, q_all[start:stop])  # nested lists: read flat
-                m = len(slots)
-                mass_state[np.ix_(slots, slots)] = np.fromiter(chain.from_iterable(rows), float, m * m).reshape(m, m)
-            self._ct_mass = np.ascontiguousarray(mass_state[:n, :n])
+            self._ct_mass = self._mass_matrix(state[0], n)
             self._mass_age = 0.0
         tau = inverse_dynamics(state, *self._id_tree, self.world.settings.gravity)  # type: ignore[call-arg]
         return tau[:n]
+
+    def _mass_matrix(self, q_state: np.ndarray, n: int) -> np.ndarray:
+        """The joint-space mass matrix (n, n), kg m^2, of the first ``n`` state columns at the angles ``q_state``
+        (rad, state order: the 57 DOF then the passive joints), from the fixed-base copies (about 100 us)."""
+        self._ensure_id_model()
+        assert self._id is not None
+        world, copies = self._id
+        mass_state = np.zeros((len(q_state), len(q_state)))
+        order, runs = self._id_order
+        q_all = q_state[order].tolist()  # one conversion, each copy takes its run
+        for (body_id, slots), (start, stop) in zip(copies, runs, strict=True):
+            rows = world.client.calculateMassMatrix(body_id, q_all[start:stop])  # nested lists: read flat
+            m = len(slots)
+            mass_state[np.ix_(slots, slots)] = np.fromiter(chain.from_iterable(rows), float, m * m).reshape(m, m)
+        return np.ascontiguousarray(mass_state[:n, :n])
+
+    def stable_pd(self, theta: np.ndarray, theta_dot: np.ndarray, theta_t: np.ndarray, theta_dot_t: np.ndarray,
+                  extra: np.ndarray, passive: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+        """Stable PD (Tan, Liu and Turk 2011), joint torques (n,) N m: the PD evaluated at the end of the step,
+        ``tau = ks (theta_t - theta - dt theta_dot) + kd (theta_dot_t - theta_dot - dt theta_ddot) + extra``,
+        the accelerations (rad/s^2) from ``(M + kd dt) theta_ddot = ks (theta_t - theta - dt theta_dot)
+        + kd (theta_dot_t - theta_dot) + extra - C(q, qd) - g(q)``. ``extra``: torques added outside the PD
+        (limits, gravity compensation). ``dt`` is the control period; ``passive``: the fulcrums' angles and
+        velocities if already read.
+
+        The same law as PyBullet's ``STABLE_PD_CONTROL``, computed here from the body's own mass matrix and
+        inverse dynamics: PyBullet's needs a floating base, and on this body it is not deterministic (the same
+        inputs give different torques, now and then NaN; see docs/physics.md)."""
+        self._ensure_id_model()
+        n = len(theta)
+        pq, pqd = self.body.passive_state() if passive is None else passive
+        state = np.zeros((3, n + len(pq)))
+        state[0, :n], state[1, :n] = theta, theta_dot
+        state[0, n:], state[1, n:] = pq, pqd
+        bias = inverse_dynamics(state, *self._id_tree, self.world.settings.gravity)[:n]  # type: ignore[call-arg]
+        dt = self.control_dt
+        position_error = theta_t - theta - dt * theta_dot
+        rate_error = theta_dot_t - theta_dot
+        implicit = self._mass_matrix(state[0], n)
+        implicit[np.diag_indices(n)] += self.kd * dt
+        accel = np.linalg.solve(implicit, self.ks * position_error + self.kd * rate_error + extra - bias)
+        return self.ks * position_error + self.kd * (rate_error - dt * accel) + extra
 
     def apply(self, theta: np.ndarray, theta_dot: np.ndarray, theta_t: np.ndarray, theta_dot_t: np.ndarray,
               passive_tau: np.ndarray, passive: tuple[np.ndarray, np.ndarray] | None = None) -> None:
         """Send this step's torques for the current mode (see the module docstring); ``passive``: the
         fulcrums' angles and velocities if already read."""
-        c = self.world.client
         body = self.body
         theta_t, extra = self.enforce_limits(theta, theta_t)
         last_rate = theta_dot_t if self._last_theta_dot_t is None else self._last_theta_dot_t
         self._last_theta_dot_t = theta_dot_t
-        if self.mode == "joint_spd":
-            # PyBullet's stable PD on the trunk, whose floating base is pinned to the throne; gravity and limit
-            # torques are not expressible there, so they go in as the PD's target shift tau / ks. The legs (fixed
-            # bases, see Body) take the computed-torque PD's explicit torques
-            legs = self.computed_torque(theta, theta_dot, theta_t, theta_dot_t, last_rate, passive) + extra
+        if self.mode in COMPUTED_TORQUE_MODES:
+            tau = self.computed_torque(theta, theta_dot, theta_t, theta_dot_t, last_rate, passive) + extra
+        else:
             if self.params.gravity_compensation:
                 extra = extra + self.gravity_torque()
-            target = theta_t + extra / np.maximum(self.ks, 1e-9)
-            n = len(theta)
-            trunk = body.parts[0]
-            dofs = trunk.state_slots[trunk.state_slots < n]
-            c.setJointMotorControlMultiDofArray(
-                trunk.id, trunk.state_joints[:len(dofs)], p.STABLE_PD_CONTROL,
-                targetPositions=[[float(v)] for v in target[dofs]],
-                targetVelocities=[[float(v)] for v in theta_dot_t[dofs]],
-                positionGains=[float(v) for v in self.ks[dofs]],
-                velocityGains=[float(v) for v in self.kd[dofs]],
-                forces=[[float(v)] for v in body.torque_limit[dofs]],
-            )
-            legs = np.clip(legs, -body.torque_limit, body.torque_limit)
-            for part in body.parts[1:]:
-                c.setJointMotorControlArray(part.id, part.state_joints, p.TORQUE_CONTROL,
-                                            forces=legs[part.state_slots].tolist())
-            self.last_tau = np.where(np.isin(np.arange(n), dofs), 0.0, legs)
-        else:
-            if self.mode in COMPUTED_TORQUE_MODES:
-                tau = self.computed_torque(theta, theta_dot, theta_t, theta_dot_t, last_rate, passive) + extra
+            if self.mode == "joint_spd":
+                tau = self.stable_pd(theta, theta_dot, theta_t, theta_dot_t, extra, passive)
             else:
-                if self.params.gravity_compensation:
-                    extra = extra + self.gravity_torque()
                 tau = self.ks * (theta_t - theta) + self.kd * (theta_dot_t - theta_dot) + extra
-            if self.control_dt > self.world.dt:  # updates held over several steps (apply_between)
-                if self.mode in COMPUTED_TORQUE_MODES:  # between updates: the same PD through the update's M(q)
-                    k_between = self._w_ct**2 * self.ct_ks
-                    d_between = 2 * self.params.damping_ratio * self._w_ct * self.ct_kd
-                    mass = self._ct_mass
-                else:
-                    k_between, d_between, mass = self.ks, self.kd, None
-                self._held = _HeldTorques(tau, theta.copy(), theta_dot.copy(), theta_dot_t.copy(), k_between,
-                                          d_between, mass)
-            self.last_tau = clip_torques(tau, body.torque_limit)
-            body.send_torques(self.last_tau, passive_tau)
-            return
-        c.setJointMotorControlArray(body.id, body.passive, p.TORQUE_CONTROL, forces=passive_tau.tolist())
+        if self.control_dt > self.world.dt:  # updates held over several steps (apply_between)
+            if self.mode in COMPUTED_TORQUE_MODES:  # between updates: the same PD through the update's M(q)
+                k_between = self._w_ct**2 * self.ct_ks
+                d_between = 2 * self.params.damping_ratio * self._w_ct * self.ct_kd
+                mass = self._ct_mass
+            else:
+                k_between, d_between, mass = self.ks, self.kd, None
+            self._held = _HeldTorques(tau, theta.copy(), theta_dot.copy(), theta_dot_t.copy(), k_between,
+                                      d_between, mass)
+        self.last_tau = clip_torques(tau, body.torque_limit)
+        body.send_torques(self.last_tau, passive_tau)
 
     @property
     def _w_ct(self) -> float:
         return 2 * math.pi * self.params.ct_frequency_hz
 
     def can_hold(self) -> bool:
-        """Whether :meth:`apply_between` may stand in for a full update (PyBullet's stable PD may not)."""
-        return self._held is not None and self.mode != "joint_spd"
+        """Whether :meth:`apply_between` may stand in for a full update."""
+        return self._held is not None
 
     def apply_between(self, theta: np.ndarray, theta_dot: np.ndarray, elapsed_s: float,
                       passive_tau: np.ndarray) -> None:

@@ -82,8 +82,7 @@ class PhysicsSettings(BaseModel):
     control: ControlModeName = Field(default="cartesian", description="controller")
     floating_base: bool = Field(default=False,
                                 description="drummer: a floating base pinned to the throne instead of a fixed base "
-                                            "(PyBullet's stable PD, joint_spd, needs it; the pin costs about a "
-                                            "fifth of each step); on by itself with control joint_spd")
+                                            "(the pin costs about a fifth of each step; no controller needs it)")
     grip: Literal["french", "german", "american", "traditional"] = Field(default="american", description="grip")
 
 
@@ -143,6 +142,8 @@ class PhysicsCore:
         self.overruns = 0
         self.skipped_steps = 0
         self.rejected: Counter[str] = Counter()
+        self.diverged = 0
+        """Steps whose simulation diverged (non-finite state); each reset the scene (see :meth:`_one_step`)."""
         self.contacts_sent = 0
         self._last_skeleton = -math.inf
         self._last_skip_warning = -math.inf
@@ -279,6 +280,23 @@ class PhysicsCore:
         return [(body, links, slots) for body, (links, slots) in plan.items()]
 
     def _one_step(self) -> list[Outgoing]:
+        """One physics step; a simulation that diverged (non-finite state) is reset to the rest posture, as
+        /batteur/physics/reset would, counted in ``diverged`` and logged, so the service keeps running."""
+        try:
+            return self._advance()
+        except Exception:
+            if self.world.finite_state():
+                raise  # not a divergence: the node counts it as a step error
+        self.diverged += 1
+        log.error("physics diverged at %.3f s (non-finite state): reset to the rest posture (%d in all)",
+                  self.time, self.diverged)
+        self.scene.reset()
+        self.score_player.reset()
+        if not self.world.finite_state():
+            raise RuntimeError("physics diverged and a reset did not bring the state back to finite numbers")
+        return []
+
+    def _advance(self) -> list[Outgoing]:
         world = self.world
         t_next = world.time + world.dt
         self.scene.pre_step(t_next + self.time_offset)

@@ -199,7 +199,7 @@ class DrummerScene:
         self.spec = CharacterSpec(self.anthro, limits=self.limits.dof_limits())
         self.model = build_character(self.spec)
         self.body = Body(world, self.model, self.seat_position,  # type: ignore[arg-type]
-                         floating_base=settings.floating_base or settings.control == "joint_spd")
+                         floating_base=settings.floating_base)
         self.grip: dict[str, str] = {"left": settings.grip, "right": settings.grip}
         self._finger_gains: tuple[np.ndarray, np.ndarray] | None = None
         """Fulcrum spring stiffness and damping for the grips (N m/rad, N m s/rad), set from ``grip``."""
@@ -447,9 +447,6 @@ class DrummerScene:
         elif isinstance(message, JointTarget):
             self.add_joints(message.time, message.values, now)
         elif isinstance(message, PhysicsControlMode):
-            if message.mode == "joint_spd" and not self.body.floating_base:
-                raise TargetError("joint_spd (PyBullet's stable PD) needs a floating base: start physics with "
-                                  "--floating-base or --control joint_spd")
             self.controller.mode = message.mode
             self.controller.reset_reference()
         elif isinstance(message, PhysicsGains):
@@ -481,6 +478,7 @@ class DrummerScene:
         self.joint_track.clear()
         self.posture_track.clear()
         self.controller.posture_rate = None
+        self.body.restore_bases()
         self.body.set_state(self.rest)
         self._kin_q = self.rest.copy()
         self.controller.rest = self.rest.copy()

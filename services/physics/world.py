@@ -90,6 +90,22 @@ class World:
         self.client.stepSimulation()
         self.steps += 1
 
+    def finite_state(self) -> bool:
+        """Whether every body's base pose and velocity and every joint's angle and rate are finite numbers (a
+        diverged simulation has NaN or inf in them). Reads the whole world: for a failure's diagnosis, not for
+        every step."""
+        c = self.client
+        values: list[float] = []
+        for k in range(c.getNumBodies()):
+            body = c.getBodyUniqueId(k)
+            position, orientation = c.getBasePositionAndOrientation(body)
+            linear, angular = c.getBaseVelocity(body)
+            values += [*position, *orientation, *linear, *angular]
+            joints = c.getNumJoints(body)
+            if joints:
+                values += [v for state in c.getJointStates(body, range(joints)) for v in state[:2]]
+        return all(math.isfinite(v) for v in values)
+
     def close(self) -> None:
         try:
             self.client.disconnect()
