@@ -135,9 +135,11 @@ def test_the_tuner_moves_strikes_and_drops_snares_when_asked_and_that_raises_the
     val = FrameSet(np.zeros((n * per, F.N_BANDS, 1), np.float16), np.arange(n + 1) * per,
                    np.array(hits, np.float64), (1024,))
     net = _net()
-    net.snap_frames, net.hihat_snare = 2, 1.0
-    choose(net, val, outs)  # the thresholds only: both rules off
+    choose(net, val, outs)  # the thresholds only: a new network's rules stay off
     assert (net.snap_frames, net.hihat_snare) == (0, 0.0)
+    net.snap_frames, net.hihat_snare = 2, 1.0
+    choose(net, val, outs)  # a model retuned without rules keeps its own
+    assert (net.snap_frames, net.hihat_snare) == (2, 1.0)
     choose(net, val, outs, rules=True)
     assert net.snap_frames >= 2  # no chord window tried (30 ms at most) joins peaks 40 ms apart
     assert net.hihat_snare in (1.0, 1.3)  # 0.7 < r x 0.9 drops the false snares, 0.7 < r x 0.5 would drop true ones

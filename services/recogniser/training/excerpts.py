@@ -199,7 +199,8 @@ def add_arguments(ap: argparse.ArgumentParser, excerpts: int, keeps: str) -> Non
     ap.add_argument(f"--{keeps}-from", type=Path, default=MODEL_PATH,
                     help=f"model file whose {keeps} part is kept (default: the shipped one)")
     ap.add_argument("--retune", type=Path, default=None, metavar="MODEL",
-                    help="only choose the thresholds of what this trainer fits in MODEL again, on the validation kit")
+                    help="only choose the thresholds of what this trainer fits in MODEL again, on the validation kit "
+                         "(its strike rules too with --rules, else MODEL keeps its own)")
 
 
 def kits_installed() -> bool:

@@ -108,7 +108,8 @@ def _class_thresholds(net: FrameNet, refs: list[np.ndarray], outs: list[np.ndarr
 
 def choose(net: FrameNet, val: FrameSet, outs: list[np.ndarray] | None = None, rules: bool = False) -> None:
     """Set ``net.thresholds`` and ``net.chord_s`` from the validation excerpts (printing the F-measures); with
-    ``rules`` also ``net.snap_frames`` and ``net.hihat_snare`` (else both are off). With frames finer than
+    ``rules`` also ``net.snap_frames`` and ``net.hihat_snare``, else the net keeps its own (a new network's are
+    off; a model retuned keeps the rules it was shipped with). With frames finer than
     :data:`PEAK_MAX_S` (or a net whose ``peak_frames`` is above 1), also ``net.peak_frames``: from 1 to the
     larger of the two, the best F-measure of all classes' strikes pooled."""
     outs = outs if outs is not None else outputs(net, val)
@@ -126,10 +127,11 @@ def choose(net: FrameNet, val: FrameSet, outs: list[np.ndarray] | None = None, r
         print(f"  strikes are maxima over +-{net.peak_frames} frames (class strikes, F pooled: "
               + ", ".join(f"+-{w}: {f:.4f}" for *_, f, w in tried) + ")", flush=True)
     net.thresholds = th
-    net.hihat_snare = 0.0
-    best = (-1.0, 1.01, net.chord_s, 0)
+    if rules:
+        net.hihat_snare = 0.0  # chosen last, on the snare alone
+    best = (-1.0, 1.01, net.chord_s, net.snap_frames)
     snaps = sorted({round(s * net.fps) for s in SNAP_OPTIONS_S})
-    for snap in snaps if rules else [0]:
+    for snap in snaps if rules else [net.snap_frames]:
         net.snap_frames = snap
         for chord in CHORD_OPTIONS:
             net.chord_s = chord
@@ -140,8 +142,7 @@ def choose(net: FrameNet, val: FrameSet, outs: list[np.ndarray] | None = None, r
                     best = (f, float(g), chord, snap)
     net.thresholds[N_CLASSES], net.chord_s, net.snap_frames = best[1], best[2], best[3]
     print(f"  {'onsets':13s} validation-kit F {best[0]:.3f} with onset threshold {best[1]:.2f}, "
-          f"chord window {best[2] * 1000:.0f} ms" + (f", strikes moved to onset peaks within {best[3]} frames"
-                                                     if rules else ""), flush=True)
+          f"chord window {best[2] * 1000:.0f} ms, strikes moved to onset peaks within {best[3]} frames", flush=True)
     if not rules:
         return
     scores = []
