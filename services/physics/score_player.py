@@ -65,6 +65,7 @@ from common.messages import OscMessage
 from common.messages.score import GestureStyle, KitSelect, LiveNote, ScoreLoad, ScoreTransport, TempoScale
 from common.score.events import DrumEvent, Score, ScoreError
 from common.score.hands import HandAlgorithm, Sticking
+from common.score.limbs import HANDS
 from common.score.live import LiveNotes
 from services.physics.follow_through import follows_through, strike_of
 from services.physics.targets import TargetError, Track
@@ -102,7 +103,6 @@ AGREE_M_S = 0.02
 within ``AGREE_M_S`` m/s."""
 POSITION_TOLERANCE_S = 1e-3
 """A note this close before a ``play`` position still plays (OSC floats are 32-bit: 1.2 arrives as 1.2000000477)."""
-HANDS = (Limb.LEFT_HAND, Limb.RIGHT_HAND)
 
 
 class ScorePlayerError(ValueError):
