@@ -114,7 +114,7 @@ def layered(a: Instrument, b: Instrument, rng: np.random.Generator) -> Instrumen
 def with_layers(kit: Kit, kits: tuple[str, ...], rng: np.random.Generator) -> Kit:
     """A copy of ``kit`` whose instruments are, each with the chance of :data:`LAYER_P`, layered with the
     same kind from another of ``kits``."""
-    out = Kit(name=kit.name, licence=kit.licence, instruments=dict(kit.instruments))
+    out = kit.copy()
     others = [load_any_kit(n) for n in kits]
     for kind, insts in kit.instruments.items():
         if not insts or rng.random() >= LAYER_P.get(kind, 0.15):
@@ -135,7 +135,7 @@ def quiet_hihats(kit: Kit, seed: int, share: float) -> Kit:
     if share <= 0.0 or rng.random() >= share:
         return kit
     scale = float(10 ** (-rng.uniform(*QUIET_HIHAT_DB) / 20))
-    out = Kit(name=kit.name, licence=kit.licence, instruments=dict(kit.instruments))
+    out = kit.copy()
     for kind in QUIET_HIHAT_KINDS:
         if kind in out.instruments:
             out.instruments[kind] = [Instrument(i.name, i.kind, i.gain * scale, i.layers)

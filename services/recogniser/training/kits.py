@@ -136,6 +136,11 @@ class Kit:
     licence: str
     instruments: dict[str, list[Instrument]] = field(default_factory=dict)
 
+    def copy(self) -> Kit:
+        """A copy whose instrument lists can be replaced without touching this kit's (the instruments and
+        their samples are shared)."""
+        return Kit(self.name, self.licence, dict(self.instruments))
+
     def choose(self, kind: str, rng: np.random.Generator) -> Instrument | None:
         """An instrument of that kind, else of the main kind of its class, else None."""
         options = self.instruments.get(kind) or self.instruments.get(CLASS_MAIN_KIND[KIND_CLASS[kind]])
