@@ -17,8 +17,9 @@ Cases:
   tracks the stick tips they produce.
 
 Controllers: joint_pd and cartesian_pd use the explicit diagonal PD
-(tau = ks e + kd e_dot + gravity); joint_ct and cartesian the PD through
-inverse dynamics (computed torque).
+(tau = ks e + kd e_dot + gravity); joint_spd the same gains as a stable PD
+(the PD evaluated at the end of the step); joint_ct and cartesian the PD
+through inverse dynamics (computed torque).
 
 Printed per case and controller: stick-tip RMS error (mm, the actual tip after
 the fingers' fulcrum) and joint-angle RMS error (degrees, over the DOF the case
@@ -45,8 +46,9 @@ from services.physics.drummer import DrummerScene
 from services.physics.mocap import UPPER_BODY, load_deepmimic
 from services.physics.strokes import strokes_knots
 
-CONTROLLERS = ("joint_pd", "joint_ct", "cartesian_pd", "cartesian")
-"""joint_pd / cartesian_pd: explicit diagonal PD (the paper's); joint_ct / cartesian: PD through inverse dynamics."""
+CONTROLLERS = ("joint_pd", "joint_spd", "joint_ct", "cartesian_pd", "cartesian")
+"""joint_pd / cartesian_pd: explicit diagonal PD (the paper's); joint_spd: its stable PD; joint_ct / cartesian: PD
+through inverse dynamics."""
 
 ACTUAL_TIP = False
 """Measure the tip of the stick as the hand holds it at rest (the controlled point); True: the actual tip, which
@@ -221,7 +223,8 @@ def plot(results: list[Result], path: Path) -> None:
 
     cases = list(dict.fromkeys(r.case for r in results))
     fig, axes = plt.subplots(len(cases), 2, figsize=(12, 3.2 * len(cases)), squeeze=False)
-    colours = {"joint_pd": "tab:orange", "joint_ct": "tab:red", "cartesian_pd": "tab:cyan", "cartesian": "tab:blue"}
+    colours = {"joint_pd": "tab:orange", "joint_spd": "tab:olive", "joint_ct": "tab:red", "cartesian_pd": "tab:cyan",
+               "cartesian": "tab:blue"}
     for row, case in enumerate(cases):
         for r in (r for r in results if r.case == case):
             axes[row][0].plot(r.times, r.tip_error_mm, color=colours[r.control], lw=0.8,
