@@ -1,4 +1,4 @@
-"""Controllers: joint-space PD (explicit, PyBullet's stable PD, computed torque) and Cartesian DLS IK (Algorithm 2).
+"""Controllers: joint-space PD (explicit, stable, computed torque) and Cartesian DLS IK (Algorithm 2).
 
 Modes: ``joint_pd`` (explicit PD below), ``joint_spd`` (the stable PD of Tan, Liu and Turk,
 :meth:`Controller.stable_pd`), ``joint_ct`` (the PD through inverse
