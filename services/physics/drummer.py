@@ -46,7 +46,7 @@ from services.physics.body import LIMBS, Body
 from services.physics.character import DOF_NAMES, JOINTS, CharacterSpec, build_character
 from services.physics.contacts import ContactTracker, Striker
 from services.physics.control import Controller
-from services.physics.follow_through import LimbTrack, follows_through, strike_of
+from services.physics.follow_through import LimbTrack
 from services.physics.kernels import swing_displacement
 from services.physics.kitbodies import SLOW_SPRING_PERIOD_S, build_kit
 from services.physics.limits import JointLimits, default_limits
@@ -430,9 +430,7 @@ class DrummerScene:
                 if name in _HANDS and first - now >= LEAD_IN_ARC_MIN_S:
                     track.add(*_lead_in_apex(now, here[name], first, np.asarray(traj.positions[0], dtype=float)))
             track.extend(traj.times + offset, traj.positions, traj.velocities)
-            for stroke in plan.strokes_of(limb):
-                if follows_through(stroke):
-                    track.add_strike(strike_of(stroke, offset))
+            track.add_strokes(plan.strokes_of(limb), offset)
 
     def current_targets(self) -> dict[str, np.ndarray]:
         """Where each limb's target point is now (the inverse of the hands' bead offset), metres."""

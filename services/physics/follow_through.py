@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import bisect
 import math
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
@@ -97,6 +97,13 @@ class LimbTrack(Track):
         self.strikes.append(strike)
         self._times.append(strike.time)
         self._bottoms.append(strike.bottom)
+
+    def add_strokes(self, strokes: Iterable[PlannedStroke], offset: float, after: float = -math.inf) -> None:
+        """Mark the strikes of a plan's strokes that follow through (:func:`follows_through`), those planned
+        after ``after`` seconds of the plan, on the rig clock (plan time plus ``offset`` seconds)."""
+        for stroke in strokes:
+            if stroke.time > after and follows_through(stroke):
+                self.add_strike(strike_of(stroke, offset))
 
     def clear(self) -> None:
         super().clear()

@@ -67,7 +67,6 @@ from common.score.events import DrumEvent, Score, ScoreError
 from common.score.hands import HandAlgorithm, Sticking
 from common.score.limbs import HANDS
 from common.score.live import LiveNotes
-from services.physics.follow_through import follows_through, strike_of
 from services.physics.targets import TargetError, Track
 
 if TYPE_CHECKING:
@@ -167,9 +166,7 @@ def splice_plan(scene: DrummerScene, plan: GesturePlan, t_s: float, limbs: set[L
             track.add(t, p, np.zeros(3))
         if np.any(keep):
             _append(track, times[keep], pos[keep], vel[keep])
-            for stroke in plan.strokes_of(limb):
-                if stroke.time > cut and follows_through(stroke):
-                    track.add_strike(strike_of(stroke, 0.0))
+            track.add_strokes(plan.strokes_of(limb), 0.0, after=cut)
     if plan.head is not None:
         scene.head = (plan.head, 0.0)
 
