@@ -32,12 +32,13 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import mir_eval  # noqa: E402
 
 from common.messages.recogniser import DrumHit  # noqa: E402
-from services.recogniser.audio import SAMPLE_RATE  # noqa: E402
+from services.recogniser.audio import SAMPLE_RATE, resample  # noqa: E402
 from services.recogniser.classes import CLASS_NAMES, class_of_note  # noqa: E402
 from services.recogniser.core import LiveRecogniser  # noqa: E402
 from services.recogniser.model import MODEL_PATH, Model, load_model  # noqa: E402
 from services.recogniser.training.dataset import groove_files  # noqa: E402
 from services.recogniser.training.kits import (  # noqa: E402
+    RENDER_RATE,
     TEST_KITS,
     TRAIN_KITS,
     VALID_KITS,
@@ -101,9 +102,9 @@ def main(argv: list[str] | None = None) -> int:
     latencies: list[list[float]] = [[] for _ in models]
     compute_s = [0.0 for _ in models]
     audio_s = 0.0
-    warm = (0.01 * np.random.default_rng(0).standard_normal(SAMPLE_RATE)).astype(np.float32)
+    warm = (0.01 * np.random.default_rng(0).standard_normal(RENDER_RATE)).astype(np.float32)
     for model in models:  # first calls (filterbanks, FFT set-up) are not timed
-        transcribe(warm, model)
+        transcribe(warm, model, sample_rate=RENDER_RATE)
     for done, k in enumerate(picks, 1):
         print(f"\r  rendering and transcribing {done}/{len(picks)}", end="", file=sys.stderr, flush=True)
         path, _ = files[int(k)]
@@ -112,14 +113,15 @@ def main(argv: list[str] | None = None) -> int:
             continue
         audio, hits = render(notes, kit, rng, duration=min(longest, notes[-1].time + 1.5))
         audio = augment(audio, rng) if args.augment else normalise(audio)
-        audio_s += len(audio) / SAMPLE_RATE
+        audio_s += len(audio) / RENDER_RATE
+        live_audio = resample(audio, RENDER_RATE, SAMPLE_RATE) if args.live else audio  # the live path's rate
         for i, model in enumerate(models):
-            t0 = time.perf_counter()
-            events = transcribe(audio, model)
+            t0 = time.perf_counter()  # a network of another rate than the render's: its resampling is timed too
+            events = transcribe(audio, model, sample_rate=RENDER_RATE)
             compute_s[i] += time.perf_counter() - t0
             runs[i]["offline"].append((hits, [(e.time, e.cls) for e in events]))
             if args.live:
-                runs[i]["live"].append((hits, live_hits(model, audio, latencies[i])))
+                runs[i]["live"].append((hits, live_hits(model, live_audio, latencies[i])))
 
     print(file=sys.stderr)
     print(f"kit: {args.kit}; {len(picks)} Groove {args.split} files, "
@@ -147,7 +149,8 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def live_hits(model: Model, audio: np.ndarray, latencies: list[float]) -> list[tuple[float, int]]:
-    """The live core's strikes (time s, class) for ``audio`` fed in 128-sample blocks; appends to ``latencies``
+    """The live core's strikes (time s, class) for ``audio`` (at :data:`SAMPLE_RATE`, the live path's rate) fed
+    in 128-sample blocks; appends to ``latencies``
     the audio it needed after each onset before sending its hit, seconds."""
     core = LiveRecogniser(model, gain=PEAK / float(np.max(np.abs(audio))))
     found: list[tuple[float, int]] = []

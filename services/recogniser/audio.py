@@ -52,8 +52,9 @@ def to_mono(data: np.ndarray) -> np.ndarray:
     return np.mean(data, axis=1)
 
 
-def load_audio(path: str | Path, max_duration_s: float = MAX_DURATION_S) -> np.ndarray:
-    """Read an audio file as mono float32 at :data:`SAMPLE_RATE`.
+def load_audio(path: str | Path, max_duration_s: float = MAX_DURATION_S, sample_rate: int = SAMPLE_RATE
+               ) -> np.ndarray:
+    """Read an audio file as mono float32 at ``sample_rate`` Hz (default :data:`SAMPLE_RATE`).
 
     Parameters
     ----------
@@ -97,4 +98,4 @@ def load_audio(path: str | Path, max_duration_s: float = MAX_DURATION_S) -> np.n
         raise AudioFileError(f"{p}: the audio holds NaN or infinite samples")
     if float(np.max(np.abs(mono))) < SILENCE_PEAK:
         raise AudioFileError(f"{p}: the audio is silent (peak below -70 dBFS); nothing to transcribe")
-    return resample(mono, int(sr))
+    return resample(mono, int(sr), sample_rate)

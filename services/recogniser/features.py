@@ -19,6 +19,7 @@ scores every frame.)
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from functools import cache
 
 import numpy as np
@@ -36,6 +37,10 @@ HOP_RANGE = (32, 1024)
 """Hops a trained network may use, samples (1.5-46 ms)."""
 N_BANDS = 48
 """Log-spaced triangular bands, 40 Hz to 10.5 kHz."""
+F_MIN_HZ = 40.0
+"""Lowest band edge, Hz."""
+F_MAX_HZ = 10500.0
+"""Highest band edge of the :data:`N_BANDS` bands at :data:`SAMPLE_RATE`, Hz."""
 LAG = 1
 """SuperFlux lag, frames."""
 GROUPS = ((0, 12), (12, 28), (28, 48))
@@ -54,16 +59,47 @@ LOG_MUL = 1000.0
 """Log compression: log10(1 + LOG_MUL * magnitude)."""
 
 
+@dataclass(frozen=True)
+class Bands:
+    """The band analysis a network reads: audio at ``sample_rate`` (Hz) in ``n`` log-spaced triangular bands
+    from :data:`F_MIN_HZ` to ``f_max_hz``. Analysis windows and hops are counted in samples at that rate."""
+
+    sample_rate: int = SAMPLE_RATE
+    n: int = N_BANDS
+    f_max_hz: float = F_MAX_HZ
+
+    def __post_init__(self) -> None:
+        if not 8000 <= self.sample_rate <= 192000:
+            raise ValueError(f"band analysis at {self.sample_rate} Hz (expected 8,000..192,000)")
+        if self.n < 8 or self.n % 4:
+            raise ValueError(f"{self.n} bands (expected a multiple of 4, at least 8: the network halves them twice)")
+        if not 4 * F_MIN_HZ < self.f_max_hz < self.sample_rate / 2:
+            raise ValueError(f"highest band edge {self.f_max_hz:g} Hz (expected {4 * F_MIN_HZ:g} Hz to below "
+                             f"half of {self.sample_rate} Hz)")
+
+    def samples(self, n_at_base_rate: int) -> int:
+        """Samples at this rate lasting as long as ``n_at_base_rate`` samples at :data:`SAMPLE_RATE`."""
+        return round(n_at_base_rate * self.sample_rate / SAMPLE_RATE)
+
+
+NARROW = Bands()
+"""The recogniser's analysis until 5 Dec (and the live path's): 22,050 Hz, 48 bands up to 10.5 kHz."""
+WIDE = Bands(44100, 56, 18000.0)
+"""44,100 Hz, 56 bands up to 18 kHz: a hi-hat's (and above all a pedal chick's) energy lies mostly above
+10.5 kHz, where a snare's is 15-20 dB lower; below it the two are alike (docs/recogniser.md)."""
+
+
 @cache
-def band_matrix(n_fft: int = N_FFT) -> np.ndarray:
-    """Triangular log-frequency filterbank of an ``n_fft``-sample window, shape (n_fft // 2 + 1, N_BANDS)
-    (each band averages its bins; a band narrower than the bin spacing takes its nearest bin)."""
+def band_matrix(n_fft: int = N_FFT, bands: Bands = NARROW) -> np.ndarray:
+    """Triangular log-frequency filterbank of an ``n_fft``-sample window at ``bands.sample_rate``, shape
+    (n_fft // 2 + 1, bands.n) (each band averages its bins; a band narrower than the bin spacing takes its
+    nearest bin)."""
     n_bins = n_fft // 2 + 1
-    freqs = np.linspace(0, SAMPLE_RATE / 2, n_bins)
-    edges = np.geomspace(40.0, 10500.0, N_BANDS + 2)
+    freqs = np.linspace(0, bands.sample_rate / 2, n_bins)
+    edges = np.geomspace(F_MIN_HZ, bands.f_max_hz, bands.n + 2)
     bins = np.searchsorted(freqs, edges)
-    fb = np.zeros((n_bins, N_BANDS), dtype=np.float32)
-    for b in range(N_BANDS):
+    fb = np.zeros((n_bins, bands.n), dtype=np.float32)
+    for b in range(bands.n):
         lo, mid, hi = bins[b], bins[b + 1], bins[b + 2]
         mid = max(mid, lo + 1)
         hi = max(hi, mid + 1)
@@ -89,57 +125,59 @@ def n_frames(n_samples: int, hop: int = HOP) -> int:
     return n_samples // hop + 1
 
 
-def frame_times(n: int, hop: int = HOP) -> np.ndarray:
-    """Centre times of frames 0..n-1 of ``hop`` samples, seconds."""
-    return np.arange(n) * (hop / SAMPLE_RATE)
+def frame_times(n: int, hop: int = HOP, sample_rate: int = SAMPLE_RATE) -> np.ndarray:
+    """Centre times of frames 0..n-1 of ``hop`` samples at ``sample_rate`` Hz, seconds."""
+    return np.arange(n) * (hop / sample_rate)
 
 
 def band_spectrogram(
     signal: np.ndarray, progress: Callable[[float], None] | None = None, chunk_frames: int = 4096,
-    n_fft: int = N_FFT, hop: int = HOP,
+    n_fft: int = N_FFT, hop: int = HOP, bands: Bands = NARROW,
 ) -> np.ndarray:
     """Log-magnitude band spectrogram.
 
     Parameters
     ----------
-    signal : np.ndarray [shape=(n,)], mono at SAMPLE_RATE
+    signal : np.ndarray [shape=(n,)], mono at ``bands.sample_rate`` (default :data:`SAMPLE_RATE`)
     progress : called with the fraction done (0..1) after each chunk
     chunk_frames : frames computed per chunk (bounds memory)
     n_fft : analysis window, samples (frame ``t`` is still centred on sample ``t * hop``)
-    hop : samples between frames (default :data:`HOP`, 10 ms)
+    hop : samples between frames (default :data:`HOP`, 10 ms at :data:`SAMPLE_RATE`)
+    bands : the band analysis (default :data:`NARROW`: 48 bands to 10.5 kHz)
 
     Returns
     -------
-    np.ndarray [shape=(n_frames(n, hop), N_BANDS), dtype=float32]
+    np.ndarray [shape=(n_frames(n, hop), bands.n), dtype=float32]
     """
     x = np.asarray(signal, dtype=np.float32)
     pad = n_fft // 2
     x = np.concatenate([np.zeros(pad, np.float32), x, np.zeros(pad + hop, np.float32)])
     total = n_frames(len(signal), hop)
-    out = np.empty((total, N_BANDS), dtype=np.float32)
+    out = np.empty((total, bands.n), dtype=np.float32)
     frames = np.lib.stride_tricks.sliding_window_view(x, n_fft)[::hop]
-    win, bands = window(n_fft), band_matrix(n_fft)
+    win, fb = window(n_fft), band_matrix(n_fft, bands)
     for start in range(0, total, chunk_frames):
         stop = min(total, start + chunk_frames)
         mag = np.abs(np.fft.rfft(frames[start:stop] * win, axis=1)).astype(np.float32)
-        out[start:stop] = np.log10(1.0 + LOG_MUL * (mag @ bands))
+        out[start:stop] = np.log10(1.0 + LOG_MUL * (mag @ fb))
         if progress is not None:
             progress(stop / total)
     return out
 
 
 def multi_spectrogram(
-    signal: np.ndarray, windows: Sequence[int], progress: Callable[[float], None] | None = None, hop: int = HOP
+    signal: np.ndarray, windows: Sequence[int], progress: Callable[[float], None] | None = None, hop: int = HOP,
+    bands: Bands = NARROW,
 ) -> np.ndarray:
     """Band spectrograms of several analysis windows (:func:`band_spectrogram`), same frames of ``hop`` samples.
 
     Returns
     -------
-    np.ndarray [shape=(n_frames(n, hop), N_BANDS, len(windows)), dtype=float32]
+    np.ndarray [shape=(n_frames(n, hop), bands.n, len(windows)), dtype=float32]
     """
-    out = np.empty((n_frames(len(signal), hop), N_BANDS, len(windows)), np.float32)
+    out = np.empty((n_frames(len(signal), hop), bands.n, len(windows)), np.float32)
     for i, n_fft in enumerate(windows):
-        out[:, :, i] = band_spectrogram(signal, n_fft=n_fft, hop=hop,
+        out[:, :, i] = band_spectrogram(signal, n_fft=n_fft, hop=hop, bands=bands,
                                         progress=part_progress(progress, i, len(windows)))
     return out
 

@@ -21,7 +21,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from services.recogniser import features as F
-from services.recogniser.audio import SAMPLE_RATE
 from services.recogniser.classes import N_CLASSES
 
 N_OUT = 2 * N_CLASSES + 1
@@ -76,12 +75,14 @@ def _conv1d(x: np.ndarray, w: np.ndarray, b: np.ndarray, dilation: int) -> np.nd
 
 @dataclass
 class Network:
-    """One convolutional network: its layers, the analysis windows (samples) of its input channels and the
-    samples between its frames."""
+    """One convolutional network: its layers, the analysis windows (samples) of its input channels, the
+    samples between its frames and the band analysis of its input (the windows and the hop count samples at
+    ``bands.sample_rate``)."""
 
     layers: list[Layer]
     windows: tuple[int, ...] = (F.N_FFT,)
     hop: int = F.HOP
+    bands: F.Bands = F.NARROW
 
     @property
     def margin(self) -> int:
@@ -138,8 +139,9 @@ class FrameNet:
     ``subframe``: strike times fall between frames, at the vertex of a parabola through the peak and its two
     neighbours (:meth:`positions`), so two strikes 20-30 ms apart whose peaks are two frames apart are not
     taken for one chord, and times are finer than the frames.
-    ``hop``: samples between frames (every network's; 220: 10 ms, 110: 5 ms). ``peak_frames`` and
-    ``snap_frames`` count these frames.
+    ``hop``: samples between frames (every network's; 220: 10 ms, 110: 5 ms at 22,050 Hz). ``peak_frames`` and
+    ``snap_frames`` count these frames. ``bands``: the band analysis of the input (every network's; its
+    sample rate is the rate of the audio :meth:`spectrogram` takes, the windows and the hop count samples at it).
     """
 
     layers: list[Layer]
@@ -153,20 +155,30 @@ class FrameNet:
     hihat_snare: float = 0.0
     subframe: bool = False
     hop: int = F.HOP
+    bands: F.Bands = F.NARROW
 
     def __post_init__(self) -> None:
         hops = {m.hop for m in self.members} - {self.hop}
         if hops:
             raise ValueError(f"an ensemble's networks must share their frames: hops {sorted(hops)} and {self.hop}")
+        others = {m.bands for m in self.members} - {self.bands}
+        if others:
+            raise ValueError(f"an ensemble's networks must share their band analysis: {sorted(map(str, others))} "
+                             f"and {self.bands}")
+
+    @property
+    def sample_rate(self) -> int:
+        """Sample rate of the audio the network reads, Hz."""
+        return self.bands.sample_rate
 
     @property
     def fps(self) -> float:
         """Frames per second of the outputs."""
-        return SAMPLE_RATE / self.hop
+        return self.bands.sample_rate / self.hop
 
     @property
     def networks(self) -> list[Network]:
-        return [Network(self.layers, self.windows, self.hop), *self.members]
+        return [Network(self.layers, self.windows, self.hop, self.bands), *self.members]
 
     @property
     def inputs(self) -> tuple[int, ...]:
@@ -179,8 +191,9 @@ class FrameNet:
         return max(n.margin for n in self.networks)
 
     def spectrogram(self, signal: np.ndarray, progress: Callable[[float], None] | None = None) -> np.ndarray:
-        """The input for mono audio at SAMPLE_RATE: (t, N_BANDS, len(inputs)), frames ``hop`` samples apart."""
-        return F.multi_spectrogram(signal, self.inputs, progress, self.hop)
+        """The input for mono audio at :attr:`sample_rate`: (t, bands.n, len(inputs)), frames ``hop`` samples
+        apart."""
+        return F.multi_spectrogram(signal, self.inputs, progress, self.hop, self.bands)
 
     def forward(self, spec: np.ndarray, chunk_frames: int = 2048,
                 progress: Callable[[float], None] | None = None) -> np.ndarray:

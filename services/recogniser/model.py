@@ -22,7 +22,7 @@ import numpy as np
 
 from services.recogniser.classes import CLASS_NAMES, N_CLASSES
 from services.recogniser.errors import ModelError
-from services.recogniser.features import HOP, HOP_RANGE, N_FFT, n_features
+from services.recogniser.features import HOP, HOP_RANGE, N_FFT, NARROW, Bands, n_features
 from services.recogniser.framenet import N_OUT, FrameNet, Layer, Network
 
 MODEL_PATH = Path(__file__).parent / "models" / "recogniser.npz"
@@ -131,6 +131,8 @@ class Model:
             offline={"kind": "framenet", "peak_frames": net.peak_frames, "time_offset_s": net.time_offset_s,
                      "chord_s": net.chord_s, "snap_frames": net.snap_frames, "hihat_snare": net.hihat_snare,
                      "subframe": net.subframe, "hop": net.hop,
+                     "bands": {"sample_rate": net.bands.sample_rate, "n": net.bands.n,
+                               "f_max_hz": net.bands.f_max_hz},
                      "windows": list(net.windows), "layers": _layout(net.layers),
                      "members": [{"windows": list(m.windows), "layers": _layout(m.layers)} for m in net.members]},
             live={"offsets": list(c.offsets), "delta": c.delta, "time_offset_s": c.time_offset_s,
@@ -176,19 +178,43 @@ def _network(p: Path, data: dict[str, np.ndarray], m: dict) -> FrameNet:
     hop = int(m.get("hop", HOP))  # files made before the hop was recorded: 10 ms frames
     if not HOP_RANGE[0] <= hop <= HOP_RANGE[1]:
         raise ModelError(f"{p}: offline network frames {hop} samples apart (expected {HOP_RANGE[0]}..{HOP_RANGE[1]})")
-    members = [Network(_layers(data, f"offline.m{k + 1}", mm["layers"]), tuple(int(w) for w in mm["windows"]), hop)
+    try:  # files made before the band analysis was recorded: 22,050 Hz, 48 bands to 10.5 kHz
+        b = m.get("bands")
+        bands = NARROW if b is None else Bands(int(b["sample_rate"]), int(b["n"]), float(b["f_max_hz"]))
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ModelError(f"{p}: offline network band analysis {m.get('bands')!r}: {exc}") from exc
+    members = [Network(_layers(data, f"offline.m{k + 1}", mm["layers"]), tuple(int(w) for w in mm["windows"]), hop,
+                       bands)
                for k, mm in enumerate(m.get("members", []))]
     net = FrameNet(_layers(data, "offline", m["layers"]), data["offline.thresholds"].astype(np.float32),
                    int(m["peak_frames"]), float(m["time_offset_s"]), float(m["chord_s"]),
                    tuple(int(w) for w in m.get("windows", [N_FFT])), members,
                    int(m.get("snap_frames", 0)), float(m.get("hihat_snare", 0.0)),  # 0: files made before these
-                   bool(m.get("subframe", False)), hop)
+                   bool(m.get("subframe", False)), hop, bands)
     for n in net.networks:
         if not n.layers or n.layers[0].w.shape[2] != len(n.windows) or n.layers[-1].w.shape[-1] != N_OUT:
             raise ModelError(f"{p}: offline network layer shapes do not match")
+        if _flat_width(n.layers, bands.n) is None:
+            raise ModelError(f"{p}: offline network layers do not read {bands.n} bands")
     if net.thresholds.shape != (N_CLASSES + 1,):
         raise ModelError(f"{p}: offline network has {net.thresholds.shape[0]} thresholds, expected {N_CLASSES + 1}")
     return net
+
+
+def _flat_width(layers: list[Layer], n_bands: int) -> int | None:
+    """The width of the first time convolution's input for ``n_bands`` input bands, or None where the
+    2-D layers' pooling does not divide the bands or that convolution reads another width."""
+    bands, channels = n_bands, 0
+    for la in layers:
+        if la.kind == "conv2d":
+            channels = int(la.w.shape[3])
+            if bands % la.pool:
+                return None
+            bands //= la.pool
+        else:
+            width = channels * bands
+            return width if int(la.w.shape[1]) == width else None
+    return None
 
 
 def _classifier(p: Path, data: dict[str, np.ndarray], m: dict, name: str) -> Classifier:

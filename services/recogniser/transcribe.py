@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from services.recogniser.audio import MAX_DURATION_S, SAMPLE_RATE, load_audio
+from services.recogniser.audio import MAX_DURATION_S, SAMPLE_RATE, load_audio, resample
 from services.recogniser.classes import CLASSES
 from services.recogniser.framenet import FrameNet
 from services.recogniser.model import Model, load_model
@@ -88,21 +88,25 @@ def strikes(net: FrameNet, out: np.ndarray) -> list[DrumEvent]:
 
 
 def transcribe(
-    audio: np.ndarray, model: Model | None = None, progress: Callable[[float], None] | None = None
+    audio: np.ndarray, model: Model | None = None, progress: Callable[[float], None] | None = None,
+    sample_rate: int = SAMPLE_RATE,
 ) -> list[DrumEvent]:
-    """Transcribe mono audio at :data:`SAMPLE_RATE`.
+    """Transcribe mono audio.
 
     Parameters
     ----------
-    audio : np.ndarray [shape=(n,)]
+    audio : np.ndarray [shape=(n,)], at ``sample_rate`` Hz (resampled to the network's rate if it differs)
     model : the classifier (default: the shipped model)
     progress : called with the fraction done, 0..1
+    sample_rate : Hz (default :data:`SAMPLE_RATE`)
 
     Returns
     -------
     list of :class:`DrumEvent`, sorted by time
     """
     net = (model or load_model()).offline
+    if sample_rate != net.sample_rate:
+        audio = resample(audio, sample_rate, net.sample_rate)
     peak = float(np.max(np.abs(audio))) if len(audio) else 0.0
     x = audio * (PEAK / peak) if peak > 0 else audio
     spec = net.spectrogram(x, progress=(lambda f: progress(0.5 * f)) if progress else None)
@@ -123,5 +127,7 @@ def transcribe_file(
 
     Raises :class:`~services.recogniser.errors.AudioFileError` for unusable files.
     """
-    audio = load_audio(path, max_duration_s=max_duration_s)
-    return transcribe(audio, model, progress), len(audio) / SAMPLE_RATE
+    model = model or load_model()
+    rate = model.offline.sample_rate
+    audio = load_audio(path, max_duration_s=max_duration_s, sample_rate=rate)
+    return transcribe(audio, model, progress, rate), len(audio) / rate

@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from services.recogniser.audio import SAMPLE_RATE
 from services.recogniser.training import soundfont
 from services.recogniser.training.excerpts import load_any_kit
+from services.recogniser.training.kits import RENDER_RATE
 from services.recogniser.training.one_shots import KIND_NOTE, VELOCITIES
 from services.recogniser.training.soundfont import (
     SOUNDFONT_KITS,
@@ -37,11 +37,11 @@ def test_every_drum_note_becomes_velocity_layers_starting_at_the_strike() -> Non
             env = np.abs(layer.audio)
             assert env.max() == pytest.approx(1.0, abs=1e-6)  # loudness comes from the velocity curve
             # the strike is at the start (a one-shot cut late or early would shift every training label)
-            assert int(np.argmax(env > 0.1)) < int(0.01 * SAMPLE_RATE), kind
+            assert int(np.argmax(env > 0.1)) < int(0.01 * RENDER_RATE), kind
     # a closed hi-hat dies away long before a crash (they are different samples, cut at the right strikes)
     def tail(kind: str) -> float:
         x = kit.instruments[kind][0].layers[-1].audio
-        return float(np.sqrt(np.mean(x[int(0.5 * SAMPLE_RATE) : int(1.0 * SAMPLE_RATE)] ** 2)))
+        return float(np.sqrt(np.mean(x[int(0.5 * RENDER_RATE) : int(1.0 * RENDER_RATE)] ** 2)))
 
     assert tail("hh_closed") < 0.1 * tail("crash")
 

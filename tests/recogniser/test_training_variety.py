@@ -9,17 +9,16 @@ import pytest
 from scipy.signal import butter, sosfilt
 
 from services.recogniser import features as F
-from services.recogniser.audio import SAMPLE_RATE
 from services.recogniser.classes import N_CLASSES
 from services.recogniser.training import excerpts as ex
 from services.recogniser.training.excerpts import layered, with_layers
 from services.recogniser.training.frames import NEIGHBOUR_TARGET, targets
-from services.recogniser.training.kits import Instrument, Kit, Layer
+from services.recogniser.training.kits import RENDER_RATE, Instrument, Kit, Layer
 from services.recogniser.training.render import MIN_DECAY_S, Variation
 
 
 def _burst(seed: int, decay_s: float, length_s: float = 0.6) -> np.ndarray:
-    t = np.arange(int(length_s * SAMPLE_RATE)) / SAMPLE_RATE
+    t = np.arange(int(length_s * RENDER_RATE)) / RENDER_RATE
     return (np.random.default_rng(seed).standard_normal(len(t)) * np.exp(-t / decay_s)).astype(np.float32)
 
 
@@ -41,15 +40,15 @@ def test_wide_variation_keeps_the_onset_at_the_start_and_open_cymbals_long() -> 
         y = v.apply(x)
         env = np.abs(y)
         first = int(np.argmax(env > 0.1 * env.max()))
-        assert first < int(0.003 * SAMPLE_RATE), (kind, v)
+        assert first < int(0.003 * RENDER_RATE), (kind, v)
         assert v.decay_s == 0.0 or v.decay_s >= MIN_DECAY_S.get(kind, 0.0)
 
 
 def test_snare_wires_add_high_band_noise() -> None:
     x = _burst(3, 0.15)
-    x = sosfilt(butter(4, 800, btype="low", fs=SAMPLE_RATE, output="sos"), x).astype(np.float32)  # a dull snare
+    x = sosfilt(butter(4, 800, btype="low", fs=RENDER_RATE, output="sos"), x).astype(np.float32)  # a dull snare
     wired = Variation(noise_db=0.0, noise_band=(2000.0, 8000.0), seed=4).apply(x)
-    high = butter(4, 2000, btype="high", fs=SAMPLE_RATE, output="sos")
+    high = butter(4, 2000, btype="high", fs=RENDER_RATE, output="sos")
     assert np.sum(sosfilt(high, wired) ** 2) > 20 * np.sum(sosfilt(high, x) ** 2)
 
 
@@ -62,7 +61,7 @@ def test_layering_sums_two_instruments_without_changing_the_kits() -> None:
         assert np.corrcoef(lab.audio[:n], la.audio)[0, 1] > 0.5
         # b sounds at the same velocity, at most 1.5 ms late
         lags = [np.corrcoef(lab.audio[d : d + m - 40], lb.audio[: m - 40])[0, 1]
-                for d in range(int(0.0015 * SAMPLE_RATE) + 1)]
+                for d in range(int(0.0015 * RENDER_RATE) + 1)]
         assert max(lags) > 0.3
 
     kit = Kit("one", "test", {"snare": [a], "kick": [_instrument("kick", 30)]})

@@ -51,7 +51,8 @@ class Examples:
 
 
 def label(audio: np.ndarray, hits: list[Hit], delta: float = CANDIDATE_DELTA) -> Examples:
-    """Detect candidate onsets in ``audio`` and label them with ``hits``."""
+    """Detect candidate onsets in ``audio`` (mono at :data:`~services.recogniser.audio.SAMPLE_RATE`, the live
+    classifier's rate) and label them with ``hits``."""
     spec = F.band_spectrogram(audio)
     odf = F.superflux(spec)
     frames = F.pick_onsets(odf, delta)

@@ -13,11 +13,11 @@ from pathlib import Path
 
 import numpy as np
 
-from services.recogniser.audio import SAMPLE_RATE
 from services.recogniser.model import MODEL_PATH
 from services.recogniser.training.dataset import groove_files
 from services.recogniser.training.kits import (
     KIND_CLASS,
+    RENDER_RATE,
     TRAIN_KITS,
     VALID_KITS,
     Instrument,
@@ -97,8 +97,8 @@ def layered(a: Instrument, b: Instrument, rng: np.random.Generator) -> Instrumen
     """``a`` with ``b`` sounding under it: each velocity layer of ``a`` plus ``b``'s layer at the same velocity,
     brought to ``a``'s level (over the first 100 ms) times 0.3..1 and delayed by up to 1.5 ms."""
     ratio = float(rng.uniform(0.3, 1.0))
-    delay = int(rng.uniform(0, 0.0015) * SAMPLE_RATE)
-    head = int(0.1 * SAMPLE_RATE)
+    delay = int(rng.uniform(0, 0.0015) * RENDER_RATE)
+    head = int(0.1 * RENDER_RATE)
     layers = []
     for la in a.layers:
         lb = b.layer(0.5 * (la.lo + la.hi), rng)
@@ -145,11 +145,11 @@ def quiet_hihats(kit: Kit, seed: int, share: float) -> Kit:
 
 def excerpt_samples() -> int:
     """Samples of one rendered excerpt."""
-    return int((EXCERPT_S + 0.2) * SAMPLE_RATE) + 1
+    return int((EXCERPT_S + 0.2) * RENDER_RATE) + 1
 
 
 def render_excerpt(job: Job) -> tuple[np.ndarray, list[Hit]]:
-    """Render one job: audio (mono, SAMPLE_RATE, peak 0.9) and its hits (times from the excerpt's start)."""
+    """Render one job: audio (mono, RENDER_RATE, peak 0.9) and its hits (times from the excerpt's start)."""
     seed, path, duration, kits, dry_p, variety, vary_p, quiet_p = job
     rng = np.random.default_rng(seed)
     kit = load_any_kit(kits[int(rng.integers(len(kits)))])

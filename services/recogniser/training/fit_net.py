@@ -41,7 +41,7 @@ HARD_WEIGHT = 1.0
 
 
 def augment_spectrum(x: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """A crop's band spectra (frames, N_BANDS, windows) as if its audio had been filtered and shifted in pitch.
+    """A crop's band spectra (frames, bands, windows) as if its audio had been filtered and shifted in pitch.
 
     Band magnitudes are linear in the audio, so a gain per band is exact on the spectrum
     (undoing and redoing the log compression), unlike an offset added to the log values."""
@@ -147,12 +147,16 @@ def fit(train: FrameSet, val: FrameSet, epochs: float, seed: int, lr: float = 2e
     rng = np.random.default_rng(seed)
     if val.hop != train.hop:
         raise ValueError(f"training frames are {train.hop} samples apart, validation frames {val.hop}")
+    if val.bands != train.bands:
+        raise ValueError(f"training spectra of {train.bands}, validation spectra of {val.bands}")
     net = init if init is not None else Net(c1=width // 8, c2=width // 4, width=width, windows=windows,
-                                            dilations=dilations, hop=train.hop)
+                                            dilations=dilations, hop=train.hop, bands=train.bands)
     if net.windows != windows:
         raise ValueError(f"the network reads windows {net.windows}, not {windows}")
     if net.hop != train.hop:
         raise ValueError(f"the network reads frames {net.hop} samples apart, the training set has {train.hop}")
+    if net.bands != train.bands:
+        raise ValueError(f"the network reads {net.bands}, the training set has {train.bands}")
     crop = round(CROP_S * train.fps)
     tb, vb = Batches(train, net.margin, windows, neighbour), Batches(val, net.margin, windows, neighbour)
     out_w = None

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from services.recogniser import features as F
-from services.recogniser.audio import SAMPLE_RATE
+from services.recogniser.audio import resample
 from services.recogniser.classes import N_CLASSES
 from services.recogniser.training.excerpts import (
     DRY_P,
@@ -29,24 +29,37 @@ from services.recogniser.training.excerpts import (
     prepare,
     render_excerpt,
 )
+from services.recogniser.training.kits import RENDER_RATE
 
 NEIGHBOUR_TARGET = 0.5
 """Target of the frames next to a strike's frame (target widening: the exact frame is uncertain by half a hop)."""
 PROGRESS_EVERY = 250
 """Excerpts between two progress lines while rendering."""
 WINDOWS = (512, 1024, 2048)
-"""Analysis windows rendered into the frame sets, samples (23, 46 and 93 ms); a network uses any of them."""
+"""Analysis windows rendered into the frame sets, samples at 22,050 Hz (23, 46 and 93 ms); a network uses any
+of them. At another analysis rate the windows last as long (:func:`windows_for`)."""
+
+
+def windows_for(bands: F.Bands, windows: tuple[int, ...] = WINDOWS) -> tuple[int, ...]:
+    """``windows`` (samples at 22,050 Hz) in samples at ``bands.sample_rate``: the same durations."""
+    return tuple(bands.samples(w) for w in windows)
+
+
+def default_hop(bands: F.Bands) -> int:
+    """Samples at ``bands.sample_rate`` between frames 10 ms apart (220 at 22,050 Hz, 441 at 44,100 Hz)."""
+    return round(0.01 * bands.sample_rate)
 
 
 @dataclass
 class FrameSet:
     """Spectra of several excerpts, concatenated.
 
-    spec : (n_frames, N_BANDS, len(windows)) float16, excerpt ``e`` is rows ``starts[e]:starts[e + 1]``
+    spec : (n_frames, bands.n, len(windows)) float16, excerpt ``e`` is rows ``starts[e]:starts[e + 1]``
     starts : (n_excerpts + 1,) row offsets
     hits : (k, 4) float64: excerpt index, time s (from the excerpt's start), class index, MIDI velocity
-    windows : the analysis window of each channel of ``spec``, samples
-    hop : samples between frames (at :data:`~services.recogniser.audio.SAMPLE_RATE`)
+    windows : the analysis window of each channel of ``spec``, samples at ``bands.sample_rate``
+    hop : samples between frames (at ``bands.sample_rate``)
+    bands : the band analysis of the spectra
     """
 
     spec: np.ndarray
@@ -54,18 +67,19 @@ class FrameSet:
     hits: np.ndarray
     windows: tuple[int, ...] = WINDOWS
     hop: int = F.HOP
+    bands: F.Bands = F.NARROW
 
     @property
     def fps(self) -> float:
         """Frames per second."""
-        return SAMPLE_RATE / self.hop
+        return self.bands.sample_rate / self.hop
 
     @property
     def n_excerpts(self) -> int:
         return len(self.starts) - 1
 
     def excerpt(self, e: int, windows: tuple[int, ...] | None = None) -> np.ndarray:
-        """Spectra of excerpt ``e`` (frames, N_BANDS, len(windows)) for these windows (default: all)."""
+        """Spectra of excerpt ``e`` (frames, bands.n, len(windows)) for these windows (default: all)."""
         x = self.spec[self.starts[e] : self.starts[e + 1]]
         return x if windows is None or windows == self.windows else x[:, :, [self.windows.index(w) for w in windows]]
 
@@ -78,33 +92,44 @@ class FrameSet:
         spec_path = Path(f"{path}.spec.npy")
         if not (isinstance(self.spec, np.memmap) and Path(str(self.spec.filename)) == spec_path.resolve()):
             np.save(spec_path, self.spec)
-        np.savez(path, starts=self.starts, hits=self.hits, windows=np.asarray(self.windows), hop=self.hop)
+        b = self.bands
+        np.savez(path, starts=self.starts, hits=self.hits, windows=np.asarray(self.windows), hop=self.hop,
+                 bands=np.array([b.sample_rate, b.n, b.f_max_hz]))
 
     @staticmethod
     def load(path: Path) -> FrameSet:
         with np.load(path) as z:
             starts, hits, windows = z["starts"], z["hits"], tuple(int(w) for w in z["windows"])
             hop = int(z["hop"]) if "hop" in z.files else F.HOP  # caches written before the hop was recorded
-        return FrameSet(np.load(f"{path}.spec.npy", mmap_mode="r"), starts, hits, windows, hop)
+            b = z["bands"] if "bands" in z.files else None  # ... or the band analysis (22,050 Hz, 48 bands)
+        bands = F.NARROW if b is None else F.Bands(int(b[0]), int(b[1]), float(b[2]))
+        return FrameSet(np.load(f"{path}.spec.npy", mmap_mode="r"), starts, hits, windows, hop, bands)
 
 
-def _one(job: Job, hop: int = F.HOP) -> tuple[np.ndarray, np.ndarray]:
+def _at_rate(audio: np.ndarray, bands: F.Bands) -> np.ndarray:
+    """Rendered audio (at :data:`~.kits.RENDER_RATE`) at the band analysis's rate."""
+    return audio if bands.sample_rate == RENDER_RATE else resample(audio, RENDER_RATE, bands.sample_rate)
+
+
+def _one(job: Job, hop: int, bands: F.Bands) -> tuple[np.ndarray, np.ndarray]:
     audio, hits = render_excerpt(job)
-    spec = F.multi_spectrogram(audio, WINDOWS, hop=hop).astype(np.float16)
-    return spec, np.array([[h.time, h.cls, h.velocity] for h in hits], np.float64).reshape(-1, 3)
+    spec = F.multi_spectrogram(_at_rate(audio, bands), windows_for(bands), hop=hop, bands=bands)
+    return spec.astype(np.float16), np.array([[h.time, h.cls, h.velocity] for h in hits], np.float64).reshape(-1, 3)
 
 
 def make_frames(n: int, seed: int, workers: int, kits: tuple[str, ...], dry_p: float = DRY_P,
                 variety: bool = False, path: Path | None = None, vary_p: float = VARY_P, hop: int = F.HOP,
-                by_duration: bool = False, quiet_hihat_p: float = 0.0) -> FrameSet:
+                by_duration: bool = False, quiet_hihat_p: float = 0.0, bands: F.Bands = F.NARROW) -> FrameSet:
     """Render ``n`` excerpts with ``kits`` (a share ``dry_p`` dry; ``variety``: see :class:`.excerpts.Job`;
-    ``by_duration``, ``quiet_hihat_p``: see :func:`.excerpts.jobs`) into a :class:`FrameSet` of frames ``hop``
-    samples apart, and save it to ``path`` if given (the spectra are written as they come, never all held)."""
+    ``by_duration``, ``quiet_hihat_p``: see :func:`.excerpts.jobs`) into a :class:`FrameSet` of the band
+    analysis ``bands``, frames ``hop`` samples apart (at its rate), the windows of :func:`windows_for`, and
+    save it to ``path`` if given (the spectra are written as they come, never all held)."""
     prepare(kits)
     todo = jobs(n, seed, kits, dry_p, variety, vary_p, by_duration, quiet_hihat_p)
-    per = F.n_frames(excerpt_samples(), hop)
-    one = partial(_one, hop=hop)
-    shape = (n * per, F.N_BANDS, len(WINDOWS))
+    per = F.n_frames(len(_at_rate(np.zeros(excerpt_samples(), np.float32), bands)), hop)
+    one = partial(_one, hop=hop, bands=bands)
+    windows = windows_for(bands)
+    shape = (n * per, bands.n, len(windows))
     spec = (np.lib.format.open_memmap(f"{path}.spec.npy", mode="w+", dtype=np.float16, shape=shape)
             if path is not None else np.empty(shape, np.float16))
     hits = []
@@ -117,7 +142,7 @@ def make_frames(n: int, seed: int, workers: int, kits: tuple[str, ...], dry_p: f
             hits.append(np.column_stack([np.full(len(h), e, np.float64), h]))
             if (e + 1) % PROGRESS_EVERY == 0 and e + 1 < n:
                 print(f"  rendered {e + 1}/{n} excerpts, {time.monotonic() - t0:.0f} s", flush=True)
-    data = FrameSet(spec, np.arange(n + 1, dtype=np.int64) * per, np.concatenate(hits), WINDOWS, hop)
+    data = FrameSet(spec, np.arange(n + 1, dtype=np.int64) * per, np.concatenate(hits), windows, hop, bands)
     if path is not None:
         spec.flush()  # type: ignore[union-attr]
         data.save(path)

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import soundfile as sf
 
-from services.recogniser.audio import SAMPLE_RATE, resample, to_mono
+from services.recogniser.audio import resample, to_mono
 
 DRUMKITS_DIR = Path("/usr/share/hydrogen/data/drumkits")
 
@@ -58,6 +58,10 @@ def require_kits(names: tuple[str, ...] | list[str], root: Path = DRUMKITS_DIR) 
             f"hydrogen drum kits not found in {root}: {', '.join(missing)}. "
             "Install them with `apt-get install hydrogen-drumkits` (Debian/Ubuntu)."
         )
+
+RENDER_RATE = 44100
+"""Sample rate of training and benchmark audio, Hz: kits are loaded and excerpts rendered at it (a network
+whose band analysis reads another rate gets the audio resampled; the live classifier reads 22,050 Hz)."""
 
 # kind -> class index (see services.recogniser.classes.CLASSES)
 KIND_CLASS = {
@@ -107,7 +111,7 @@ def kind_of(name: str) -> str | None:
 
 @dataclass
 class Layer:
-    """One velocity layer: velocity range 0..1 and its sample (mono, SAMPLE_RATE)."""
+    """One velocity layer: velocity range 0..1 and its sample (mono, RENDER_RATE)."""
 
     lo: float
     hi: float
@@ -156,14 +160,14 @@ def _text(el: ET.Element, tag: str, ns: str, default: str = "") -> str:
 
 def _read_sample(path: Path) -> np.ndarray:
     data, sr = sf.read(str(path), dtype="float32", always_2d=False)
-    mono = resample(to_mono(np.asarray(data, np.float32)), int(sr), SAMPLE_RATE)
+    mono = resample(to_mono(np.asarray(data, np.float32)), int(sr), RENDER_RATE)
     # trim leading silence (some samples start late) so the onset is at the start
     above = np.flatnonzero(np.abs(mono) > 10 ** (-50 / 20) * max(float(np.max(np.abs(mono))), 1e-9))
     return mono[int(above[0]) if above.size else 0 :]
 
 
 def load_kit(name: str, root: Path = DRUMKITS_DIR) -> Kit:
-    """Load a Hydrogen kit's mapped instruments (samples resampled to SAMPLE_RATE, mono)."""
+    """Load a Hydrogen kit's mapped instruments (samples resampled to RENDER_RATE, mono)."""
     folder = root / name
     tree = ET.parse(folder / "drumkit.xml")
     r = tree.getroot()

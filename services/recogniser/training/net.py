@@ -23,19 +23,22 @@ DILATIONS = (2, 4, 8, 16)
 
 
 class Net(nn.Module):
-    """Input (batch, t, N_BANDS, len(windows)) band spectra of the analysis ``windows`` (samples), or
-    (batch, t, N_BANDS) with one window, frames ``hop`` samples apart; output (batch, N_OUT, t) logits."""
+    """Input (batch, t, bands.n, len(windows)) band spectra of the analysis ``windows`` (samples), or
+    (batch, t, bands.n) with one window, frames ``hop`` samples apart (both at ``bands.sample_rate``); output
+    (batch, N_OUT, t) logits."""
 
     def __init__(self, c1: int = 16, c2: int = 32, width: int = 128, dilations: tuple[int, ...] = DILATIONS,
-                 dropout: float = 0.2, windows: tuple[int, ...] = (F.N_FFT,), hop: int = F.HOP) -> None:
+                 dropout: float = 0.2, windows: tuple[int, ...] = (F.N_FFT,), hop: int = F.HOP,
+                 bands: F.Bands = F.NARROW) -> None:
         super().__init__()
         self.windows = windows
         self.hop = hop
+        self.bands = bands
         self.conv1 = nn.Conv2d(len(windows), c1, 3, padding=1, bias=False)
         self.bn1 = nn.BatchNorm2d(c1)
         self.conv2 = nn.Conv2d(c1, c2, 3, padding=1, bias=False)
         self.bn2 = nn.BatchNorm2d(c2)
-        self.bands_out = F.N_BANDS // 4
+        self.bands_out = bands.n // 4
         self.t1 = nn.Conv1d(c2 * self.bands_out, width, 3, padding=1, bias=False)
         self.bn_t1 = nn.BatchNorm1d(width)
         self.res = nn.ModuleList(nn.Conv1d(width, width, 3, dilation=d, padding=d, bias=False) for d in dilations)
@@ -89,7 +92,8 @@ def export(net: Net, thresholds: np.ndarray | None = None) -> FrameNet:
         la.w = la.w.astype(np.float32)
         la.b = la.b.astype(np.float32)
     th = thresholds if thresholds is not None else np.array([0.5] * N_CLASSES + [1.01], np.float32)
-    return FrameNet(layers, np.asarray(th, np.float32), windows=net.windows, subframe=True, hop=net.hop)
+    return FrameNet(layers, np.asarray(th, np.float32), windows=net.windows, subframe=True, hop=net.hop,
+                    bands=net.bands)
 
 
 def batch_norms(net: Net) -> list[nn.BatchNorm1d | nn.BatchNorm2d]:
@@ -111,7 +115,7 @@ def from_export(fn: FrameNet | Network, dropout: float = 0.2) -> Net:
         raise ValueError(f"not a network of the trainer's layout: layers {kinds}")
     c1, c2, width = int(layers[0].w.shape[3]), int(layers[1].w.shape[3]), int(layers[2].w.shape[2])
     net = Net(c1=c1, c2=c2, width=width, dilations=tuple(la.dilation for la in layers[3:-1]), dropout=dropout,
-              windows=tuple(fn.windows), hop=fn.hop)
+              windows=tuple(fn.windows), hop=fn.hop, bands=fn.bands)
     convs = [net.conv1, net.conv2, net.t1, *net.res]
     bns = batch_norms(net)
     with torch.no_grad():

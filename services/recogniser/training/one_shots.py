@@ -15,8 +15,8 @@ from pathlib import Path
 import mido
 import numpy as np
 
-from services.recogniser.audio import SAMPLE_RATE, resample, to_mono
-from services.recogniser.training.kits import Instrument, Kit, Layer
+from services.recogniser.audio import resample, to_mono
+from services.recogniser.training.kits import RENDER_RATE, Instrument, Kit, Layer
 
 KIND_NOTE = {
     "kick": 36, "snare": 38, "stick": 37, "rimshot": 40, "hh_closed": 42, "hh_pedal": 44, "hh_open": 46,
@@ -66,13 +66,13 @@ def cut_kit(name: str, licence: str, audio: np.ndarray, sample_rate: int, strike
     Hz, its first strike at ``start_s`` seconds. Each one-shot starts at its first sample within 50 dB of its
     peak and is scaled to a peak of 1 (loudness comes from the velocity curve, timbre from the layer); a
     silent one (the kit lacks the note) is left out."""
-    mono = resample(to_mono(np.asarray(audio, np.float32)), int(sample_rate), SAMPLE_RATE)
+    mono = resample(to_mono(np.asarray(audio, np.float32)), int(sample_rate), RENDER_RATE)
     kit = Kit(name=name, licence=licence)
     layers: dict[str, list[Layer]] = {}
     edges = [0.0, *[(a + b) / 2 / 127 for a, b in zip(VELOCITIES[:-1], VELOCITIES[1:], strict=True)], 1.0]
     for kind, v, when in strikes:
-        a = max(0, int(round((start_s + when - 0.005) * SAMPLE_RATE)))
-        one = mono[a : a + int((SPACING_S - 0.05) * SAMPLE_RATE)]
+        a = max(0, int(round((start_s + when - 0.005) * RENDER_RATE)))
+        one = mono[a : a + int((SPACING_S - 0.05) * RENDER_RATE)]
         peak = float(np.max(np.abs(one))) if one.size else 0.0
         if peak <= 1e-5:
             continue

@@ -13,9 +13,9 @@ import mido
 import numpy as np
 from scipy.signal import butter, fftconvolve, lfilter, sosfilt
 
-from services.recogniser.audio import SAMPLE_RATE, resample
+from services.recogniser.audio import resample
 from services.recogniser.classes import class_of_pitch
-from services.recogniser.training.kits import KIND_CLASS, PITCH_KIND, Kit
+from services.recogniser.training.kits import KIND_CLASS, PITCH_KIND, RENDER_RATE, Kit
 
 
 @dataclass(frozen=True)
@@ -123,13 +123,13 @@ class Variation:
             return self._cache[key]
         y = sample
         if abs(self.factor - 1.0) > 1e-3:
-            y = resample(y, int(round(SAMPLE_RATE * self.factor)), SAMPLE_RATE)
+            y = resample(y, int(round(RENDER_RATE * self.factor)), RENDER_RATE)
         if self.eq_db:
             b, a = _peaking(self.eq_hz, self.eq_db)
             y = lfilter(b, a, y).astype(np.float32)
         if self.tilt_db:
-            low = sosfilt(butter(1, self.tilt_hz, btype="low", fs=SAMPLE_RATE, output="sos"), y)
-            high = sosfilt(butter(1, self.tilt_hz, btype="high", fs=SAMPLE_RATE, output="sos"), y)
+            low = sosfilt(butter(1, self.tilt_hz, btype="low", fs=RENDER_RATE, output="sos"), y)
+            high = sosfilt(butter(1, self.tilt_hz, btype="high", fs=RENDER_RATE, output="sos"), y)
             y = (low * 10 ** (-self.tilt_db / 40) + high * 10 ** (self.tilt_db / 40)).astype(np.float32)
         y = self._shape(np.asarray(y, np.float32))
         self._cache[key] = y
@@ -137,22 +137,22 @@ class Variation:
 
     def _shape(self, y: np.ndarray) -> np.ndarray:
         """The changes of :meth:`random_wide` (none by default)."""
-        t = np.arange(len(y)) / SAMPLE_RATE
+        t = np.arange(len(y)) / RENDER_RATE
         if self.noise_db is not None and len(y):
             lo, hi = self.noise_band
             noise = np.random.default_rng(self.seed).standard_normal(len(y))
-            noise = sosfilt(butter(2, (lo, min(hi, 0.45 * SAMPLE_RATE)), btype="band", fs=SAMPLE_RATE,
+            noise = sosfilt(butter(2, (lo, min(hi, 0.45 * RENDER_RATE)), btype="band", fs=RENDER_RATE,
                                    output="sos"), noise)
             env = np.minimum(1.0, t / 0.002) * np.exp(-t / self.noise_decay_s)
-            head = y[: int(0.1 * SAMPLE_RATE)]
+            head = y[: int(0.1 * RENDER_RATE)]
             level = float(np.sqrt(np.mean(head**2))) * 10 ** (self.noise_db / 20)
             noise *= env * level / max(float(np.sqrt(np.mean((noise * env)[: len(head)] ** 2))), 1e-12)
             y = y + noise.astype(np.float32)
         if self.lowpass_hz:
-            y = sosfilt(butter(2, min(self.lowpass_hz, 0.45 * SAMPLE_RATE), btype="low", fs=SAMPLE_RATE,
+            y = sosfilt(butter(2, min(self.lowpass_hz, 0.45 * RENDER_RATE), btype="low", fs=RENDER_RATE,
                                output="sos"), y)
         if self.highpass_hz:
-            y = sosfilt(butter(2, self.highpass_hz, btype="high", fs=SAMPLE_RATE, output="sos"), y)
+            y = sosfilt(butter(2, self.highpass_hz, btype="high", fs=RENDER_RATE, output="sos"), y)
         if self.decay_s:
             y = y * np.exp(-np.maximum(t - self.decay_hold_s, 0.0) / self.decay_s)
         if self.attack_db:
@@ -163,7 +163,7 @@ class Variation:
 def _peaking(f0: float, gain_db: float, q: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
     """RBJ peaking-EQ biquad coefficients."""
     amp = 10 ** (gain_db / 40)
-    w0 = 2 * np.pi * min(f0, 0.45 * SAMPLE_RATE) / SAMPLE_RATE
+    w0 = 2 * np.pi * min(f0, 0.45 * RENDER_RATE) / RENDER_RATE
     alpha = np.sin(w0) / (2 * q)
     b = np.array([1 + alpha * amp, -2 * np.cos(w0), 1 - alpha * amp])
     a = np.array([1 + alpha / amp, -2 * np.cos(w0), 1 - alpha / amp])
@@ -179,7 +179,7 @@ def render(
     vary: bool = False,
     wide: bool = False,
 ) -> tuple[np.ndarray, list[Hit]]:
-    """Render notes with a kit (dry, mono, SAMPLE_RATE).
+    """Render notes with a kit (dry, mono, RENDER_RATE).
 
     With ``vary``, each instrument is detuned by up to 4 semitones, given a random
     peaking EQ (+-9 dB), a spectral tilt (+-8 dB), a level offset (-12..+10 dB) and a velocity curve
@@ -196,7 +196,7 @@ def render(
     hits : list of :class:`Hit`, the ground truth
     """
     end = duration if duration is not None else (notes[-1].time + tail if notes else tail)
-    n = int(end * SAMPLE_RATE) + 1
+    n = int(end * RENDER_RATE) + 1
     out = np.zeros(n, np.float32)
     # one instrument per kind for the whole excerpt (like a drummer's kit), detuned and coloured at random
     chosen: dict[str, tuple[object, Variation]] = {}
@@ -222,12 +222,12 @@ def render(
         if KIND_CLASS[kind] == 3:  # open hi-hat: choke at the next hi-hat note
             later = [t for t in hh_times if t > nt.time + 0.03]
             if later:
-                keep = int((later[0] - nt.time) * SAMPLE_RATE)
+                keep = int((later[0] - nt.time) * RENDER_RATE)
                 if keep < len(sample):
-                    fade = min(int(0.02 * SAMPLE_RATE), len(sample) - keep)
+                    fade = min(int(0.02 * RENDER_RATE), len(sample) - keep)
                     sample = sample[: keep + fade].copy()
                     sample[keep:] *= np.linspace(1, 0, fade, dtype=np.float32)
-        start = int(round(nt.time * SAMPLE_RATE))
+        start = int(round(nt.time * RENDER_RATE))
         stop = min(n, start + len(sample))
         out[start:stop] += sample[: stop - start]
         hits.append(Hit(nt.time, cls, nt.velocity))
@@ -237,10 +237,10 @@ def render(
 def room_ir(rng: np.random.Generator) -> np.ndarray:
     """A synthetic room impulse response: direct sound plus exponentially decaying noise."""
     rt60 = rng.uniform(0.15, 0.9)
-    length = int(rt60 * SAMPLE_RATE)
-    t = np.arange(length) / SAMPLE_RATE
+    length = int(rt60 * RENDER_RATE)
+    t = np.arange(length) / RENDER_RATE
     tail = rng.standard_normal(length).astype(np.float32) * np.exp(-6.9 * t / rt60).astype(np.float32)
-    sos = butter(2, rng.uniform(2000, 8000), btype="low", fs=SAMPLE_RATE, output="sos")
+    sos = butter(2, rng.uniform(2000, 8000), btype="low", fs=RENDER_RATE, output="sos")
     tail = sosfilt(sos, tail).astype(np.float32)
     tail *= 10 ** (rng.uniform(-24, -8) / 20) / max(float(np.sqrt(np.sum(tail**2))), 1e-9)
     ir = tail
@@ -254,16 +254,16 @@ def augment(audio: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     if rng.random() < 0.8:
         x = fftconvolve(x, room_ir(rng))[: len(audio)].astype(np.float32)
     if rng.random() < 0.5:
-        sos = butter(1, rng.uniform(3000, 10000), btype="low", fs=SAMPLE_RATE, output="sos")
+        sos = butter(1, rng.uniform(3000, 10000), btype="low", fs=RENDER_RATE, output="sos")
         x = (x * (1 - (w := rng.uniform(0.2, 0.8))) + w * sosfilt(sos, x)).astype(np.float32)
     if rng.random() < 0.3:
-        sos = butter(1, rng.uniform(40, 150), btype="high", fs=SAMPLE_RATE, output="sos")
+        sos = butter(1, rng.uniform(40, 150), btype="high", fs=RENDER_RATE, output="sos")
         x = sosfilt(sos, x).astype(np.float32)
     rms = float(np.sqrt(np.mean(x**2))) + 1e-9
     noise = rng.standard_normal(len(x)).astype(np.float32)
     if rng.random() < 0.5:  # pinkish noise
         noise = np.cumsum(noise).astype(np.float32)
-        noise -= sosfilt(butter(1, 20, btype="low", fs=SAMPLE_RATE, output="sos"), noise).astype(np.float32)
+        noise -= sosfilt(butter(1, 20, btype="low", fs=RENDER_RATE, output="sos"), noise).astype(np.float32)
         noise /= float(np.std(noise)) + 1e-9
     x = x + noise * rms * 10 ** (-rng.uniform(20, 60) / 20)
     if rng.random() < 0.2:

@@ -27,6 +27,7 @@ import numpy as np
 from sklearn.linear_model import Ridge
 from sklearn.neural_network import MLPClassifier
 
+from services.recogniser.audio import SAMPLE_RATE, resample
 from services.recogniser.classes import CLASS_NAMES, N_CLASSES
 from services.recogniser.model import Classifier, Model, load_model
 from services.recogniser.training.dataset import (
@@ -48,11 +49,11 @@ from services.recogniser.training.excerpts import (
     prepare,
     render_excerpt,
 )
-from services.recogniser.training.kits import TRAIN_KITS, VALID_KITS
+from services.recogniser.training.kits import RENDER_RATE, TRAIN_KITS, VALID_KITS
 from services.recogniser.training.tune import merge
 from services.recogniser.transcribe import SUPPRESS_S, DrumEvent, group_chords
 
-CACHE_TAG = "v7"
+CACHE_TAG = "v8"
 """Changes when the rendering or features change, so stale cached examples are not reused."""
 HIDDEN_LIVE = (64, 32)
 """Hidden layer widths of the live MLP (kept small: it runs once per candidate in real time)."""
@@ -61,7 +62,8 @@ MAX_WEIGHT = 4.0
 
 
 def _excerpt(job: Job) -> Examples:
-    return label(*render_excerpt(job))
+    audio, hits = render_excerpt(job)  # the live classifier reads 22,050 Hz
+    return label(resample(audio, RENDER_RATE, SAMPLE_RATE), hits)
 
 
 def make_examples(n: int, seed: int, workers: int, kits: tuple[str, ...], dry_p: float = DRY_P) -> Examples:

@@ -34,30 +34,42 @@ from services.recogniser.framenet import FrameNet
 from services.recogniser.model import Model, load_live, load_model
 from services.recogniser.training.excerpts import FIT_KITS, VALID_DRY_P, VARY_P, add_arguments, kits_installed
 from services.recogniser.training.fit_net import HARD_WEIGHT, fit
-from services.recogniser.training.frames import NEIGHBOUR_TARGET, WINDOWS, FrameSet, make_frames
+from services.recogniser.training.frames import (
+    NEIGHBOUR_TARGET,
+    WINDOWS,
+    FrameSet,
+    default_hop,
+    make_frames,
+    windows_for,
+)
 from services.recogniser.training.kits import VALID_KITS
 from services.recogniser.training.net import DILATIONS, Net, export, from_export
 from services.recogniser.training.soundfont import SOUNDFONT_KITS, SoundfontsMissingError, require_soundfonts
 from services.recogniser.training.tune import choose
 
+BANDS = {"narrow": F.NARROW, "wide": F.WIDE}
+"""The band analyses ``--bands`` names."""
 CACHE_TAG = "f3"
 """Changes when the rendering or the spectrogram change, so stale cached spectra are not reused."""
 
 
 def frames(cache: Path, name: str, n: int, seed: int, workers: int, kits: tuple[str, ...], dry_p: float,
            variety: bool = False, plain: bool = False, hop: int = F.HOP, by_duration: bool = False,
-           quiet_hihat_p: float = 0.0) -> FrameSet:
-    """The cached frame set of these excerpts, frames ``hop`` samples apart, rendered first if need be
+           quiet_hihat_p: float = 0.0, bands: F.Bands = F.NARROW) -> FrameSet:
+    """The cached frame set of these excerpts, spectra of ``bands``, frames ``hop`` samples apart, rendered first
+    if need be
     (``plain``: as the benchmark renders, the kit unvaried and dry, whatever ``dry_p``; ``by_duration``:
     performances drawn in proportion to their duration, :func:`.excerpts.jobs`; ``quiet_hihat_p``: the share of
     excerpts with quiet hi-hats, :func:`.excerpts.quiet_hihats`)."""
-    tag = (("-variety" if variety else "") + ("-plain" if plain else "") + (f"-hop{hop}" if hop != F.HOP else "")
+    tag = (("-variety" if variety else "") + ("-plain" if plain else "")
+           + ("" if bands == F.NARROW else f"-{bands.sample_rate}hz{bands.n}")
+           + (f"-hop{hop}" if hop != default_hop(bands) else "")
            + ("-bysec" if by_duration else "") + (f"-quiet{round(100 * quiet_hihat_p)}" if quiet_hihat_p else ""))
     path = cache / f"{CACHE_TAG}-{name}{tag}-{n}-{seed}.npz"
     if path.exists():
         return FrameSet.load(path)
     make_frames(n, seed, workers, kits, 1.0 if plain else dry_p, variety, path, 0.0 if plain else VARY_P, hop,
-                by_duration, quiet_hihat_p)
+                by_duration, quiet_hihat_p, bands)
     return FrameSet.load(path)
 
 
@@ -74,7 +86,7 @@ def ensemble(paths: list[Path], val: FrameSet, rules: bool = False) -> Model:
     first = models[0].offline
     nets = [n for m in models for n in m.offline.networks]
     net = FrameNet(nets[0].layers, first.thresholds.copy(), first.peak_frames, first.time_offset_s, first.chord_s,
-                   nets[0].windows, nets[1:], subframe=True, hop=nets[0].hop)
+                   nets[0].windows, nets[1:], subframe=True, hop=nets[0].hop, bands=nets[0].bands)
     print(f"ensemble of {len(nets)} networks; thresholds:", flush=True)
     choose(net, val, rules=rules)
     meta = dict(models[0].meta)
@@ -84,12 +96,13 @@ def ensemble(paths: list[Path], val: FrameSet, rules: bool = False) -> Model:
 
 
 def init_net(path: Path, windows: tuple[int, ...], width: int, dilations: tuple[int, ...] = DILATIONS,
-             hop: int = F.HOP) -> Net:
+             hop: int = F.HOP, bands: F.Bands = F.NARROW) -> Net:
     """The PyTorch form of the offline network of the model file ``path`` (analysis ``windows``, samples,
-    time-convolution ``width``, channels, residual ``dilations``, frames, and ``hop``, samples, must be the
-    file's), to continue fitting it.
+    time-convolution ``width``, channels, residual ``dilations``, frames, ``hop``, samples, and the band
+    analysis ``bands`` must be the file's), to continue fitting it.
 
-    Raises ModelError (unreadable file) or ValueError (an ensemble, other windows, width, dilations or hop)."""
+    Raises ModelError (unreadable file) or ValueError (an ensemble, other windows, width, dilations, hop or
+    bands)."""
     offline = load_model(path).offline
     if offline.members:
         raise ValueError(f"an ensemble of {len(offline.networks)} networks; give one of its members' files")
@@ -102,6 +115,8 @@ def init_net(path: Path, windows: tuple[int, ...], width: int, dilations: tuple[
                          "(give --dilations to match)")
     if net.hop != hop:
         raise ValueError(f"its network's frames are {net.hop} samples apart, not {hop} (give --hop to match)")
+    if net.bands != bands:
+        raise ValueError(f"its network reads {net.bands}, not {bands} (give --bands to match)")
     return net
 
 
@@ -128,13 +143,18 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--dilations", type=int, nargs="+", default=list(DILATIONS), metavar="D",
                     help="dilations of the residual time convolutions, frames (kernel 3: the context each side is "
                          f"3 + their sum frames of 10 ms; default {' '.join(map(str, DILATIONS))})")
-    ap.add_argument("--hop", type=int, default=F.HOP,
-                    help=f"samples at {F.SAMPLE_RATE} Hz between the network's frames (default {F.HOP}: 10 ms; "
-                         "110: 5 ms, twice the frames, so strikes 20-30 ms apart are 4-6 frames apart; "
-                         "the dilations count frames, so double them to keep the context in seconds)")
+    ap.add_argument("--bands", choices=sorted(BANDS), default="narrow",
+                    help="the network's band analysis: 'narrow', 22,050 Hz, 48 bands to 10.5 kHz (default); "
+                         "'wide', 44,100 Hz, 56 bands to 18 kHz (where hi-hats are heard above snares)")
+    ap.add_argument("--hop", type=int, default=None,
+                    help="samples at the band analysis's rate between the network's frames (default: 10 ms, 220 "
+                         "at 22,050 Hz, 441 at 44,100 Hz; 110 at 22,050 Hz: 5 ms, twice the frames, so strikes "
+                         "20-30 ms apart are 4-6 frames apart; the dilations count frames, so double them to keep "
+                         "the context in seconds)")
     ap.add_argument("--threads", type=int, default=2, help="PyTorch threads (default 2)")
     ap.add_argument("--windows", type=int, nargs="+", default=list(WINDOWS), choices=WINDOWS,
-                    help="analysis windows of the network's input spectrograms, samples (default: all three)")
+                    help="analysis windows of the network's input spectrograms, samples at 22,050 Hz (23, 46, 93 "
+                         "ms; the wide bands' windows last as long; default: all three)")
     ap.add_argument("--hard", type=float, default=HARD_WEIGHT,
                     help="extra loss weight of a class's negatives where another class is struck "
                          f"(default {HARD_WEIGHT})")
@@ -187,7 +207,9 @@ def main(argv: list[str] | None = None) -> int:
             print(f"error: {exc}", file=sys.stderr)
             return 1
         fit_kits = FIT_KITS + tuple(SOUNDFONT_KITS)
-    windows = tuple(sorted(set(args.windows)))
+    bands = BANDS[args.bands]
+    windows = windows_for(bands, tuple(sorted(set(args.windows))))
+    args.hop = default_hop(bands) if args.hop is None else args.hop
     try:
         weights = output_weights(args.weight)
     except ValueError as exc:
@@ -209,7 +231,7 @@ def main(argv: list[str] | None = None) -> int:
     init = None
     if args.init is not None:
         try:
-            init = init_net(args.init, windows, args.width, tuple(args.dilations), args.hop)
+            init = init_net(args.init, windows, args.width, tuple(args.dilations), args.hop, bands)
         except (ModelError, ValueError) as exc:
             print(f"error: --init {args.init}: {exc}", file=sys.stderr)
             return 1
@@ -217,7 +239,8 @@ def main(argv: list[str] | None = None) -> int:
     args.cache.mkdir(parents=True, exist_ok=True)
     t0 = time.time()
     val = frames(args.cache, "val", args.val_excerpts, args.seed + 1000, args.workers, VALID_KITS, VALID_DRY_P,
-                 plain=args.val_plain, hop=args.hop, by_duration=args.by_duration, quiet_hihat_p=args.val_quiet_hihats)
+                 plain=args.val_plain, hop=args.hop, by_duration=args.by_duration, quiet_hihat_p=args.val_quiet_hihats,
+                 bands=bands)
     if args.retune is not None:
         model = load_model(args.retune)
         choose(model.offline, val, rules=args.rules)
@@ -232,7 +255,7 @@ def main(argv: list[str] | None = None) -> int:
     live, live_meta = load_live(args.live_from)
     train = frames(args.cache, "train" + ("-sf" if args.soundfonts else ""), args.excerpts, args.seed, args.workers,
                    fit_kits, 0.3, not args.plain, hop=args.hop, by_duration=args.by_duration,
-                   quiet_hihat_p=args.quiet_hihats)
+                   quiet_hihat_p=args.quiet_hihats, bands=bands)
     if args.render_only:
         return 0
     print(f"training: {train.n_excerpts} excerpts, {len(train.spec)} frames, {len(train.hits)} strikes; "
@@ -246,7 +269,8 @@ def main(argv: list[str] | None = None) -> int:
             "val_excerpts": args.val_excerpts, "val_plain": args.val_plain, "rules": args.rules,
             "epochs": args.epochs, "minutes": args.minutes, "width": args.width, "dilations": args.dilations,
             "seed": args.seed, "windows": list(windows), "hard": args.hard, "variety": not args.plain,
-            "neighbour_target": args.neighbour_target, "hop": args.hop, "by_duration": args.by_duration,
+            "neighbour_target": args.neighbour_target, "hop": args.hop, "bands": args.bands,
+            "by_duration": args.by_duration,
             "quiet_hihats": args.quiet_hihats, "val_quiet_hihats": args.val_quiet_hihats,
             "weights": {([*CLASS_NAMES, "onset"])[k]: w for k, w in weights.items()},
             "lr": args.lr, "warmup": args.warmup, "init": None if args.init is None else args.init.name,
