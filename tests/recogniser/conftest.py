@@ -7,8 +7,6 @@ from pathlib import Path
 import pytest
 import soundfile as sf
 
-from services.recogniser.audio import SAMPLE_RATE
-
 from .pattern import Pattern, render_pattern
 
 
@@ -20,5 +18,5 @@ def pattern() -> Pattern:
 @pytest.fixture(scope="session")
 def pattern_wav(tmp_path_factory: pytest.TempPathFactory, pattern: Pattern) -> Path:
     path = tmp_path_factory.mktemp("rec") / "pattern.wav"
-    sf.write(path, pattern.audio, SAMPLE_RATE, subtype="PCM_16")
+    sf.write(path, pattern.audio, pattern.sample_rate, subtype="PCM_16")
     return path

@@ -8,17 +8,18 @@ from pathlib import Path
 import numpy as np
 import soundfile as sf
 
-from services.recogniser.audio import SAMPLE_RATE
-
 DATA = Path(__file__).resolve().parents[1] / "data" / "recogniser"
+RATE = 44100
+"""Sample rate of the held-out kit's test samples and of the pattern, Hz."""
 
 
 @dataclass(frozen=True)
 class Pattern:
-    """A rendered pattern: audio (mono, SAMPLE_RATE) and its notes (time s, class name, velocity)."""
+    """A rendered pattern: audio (mono, ``sample_rate`` Hz) and its notes (time s, class name, velocity)."""
 
     audio: np.ndarray
     notes: list[tuple[float, str, int]]
+    sample_rate: int = RATE
 
     def times(self, name: str) -> np.ndarray:
         return np.array([t for t, n, _ in self.notes if n == name])
@@ -26,7 +27,7 @@ class Pattern:
 
 def load_sample(name: str) -> np.ndarray:
     data, sr = sf.read(DATA / f"blackpearl_{name}.flac", dtype="float32")
-    assert sr == SAMPLE_RATE
+    assert sr == RATE
     return data
 
 
@@ -53,12 +54,12 @@ def render_pattern(bars: int = 4, bpm: float = 100.0, seed: int = 3) -> Pattern:
         notes += [(t0 + beat, "snare", 115), (t0 + 3 * beat, "snare", 112)]
     notes.append((0.2, "crash", 120))
     notes.sort()
-    length = int((0.2 + bars * 4 * beat + 1.5) * SAMPLE_RATE)
+    length = int((0.2 + bars * 4 * beat + 1.5) * RATE)
     audio = np.zeros(length, np.float32)
     samples = {n: load_sample(n) for n in {n for _, n, _ in notes}}
     for t, n, v in notes:
         s = samples[n] * (v / 127.0) ** 1.6
-        i = int(round(t * SAMPLE_RATE))
+        i = int(round(t * RATE))
         audio[i : i + len(s)] += s[: length - i]
     audio += 1e-4 * rng.standard_normal(length).astype(np.float32)
     return Pattern(audio * (0.9 / float(np.max(np.abs(audio)))), notes)

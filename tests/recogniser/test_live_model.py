@@ -11,7 +11,7 @@ import numpy as np
 from common.messages.recogniser import DrumHit
 from common.transport import UdpEndpoint
 from services.recogniser import features as F
-from services.recogniser.audio import SAMPLE_RATE
+from services.recogniser.audio import SAMPLE_RATE, resample
 from services.recogniser.core import LiveRecogniser
 from services.recogniser.model import MODEL_PATH, load_model
 from services.recogniser.node import play_file
@@ -34,12 +34,13 @@ def test_streaming_core_finds_the_offline_onsets(pattern: Pattern) -> None:
     core = LiveRecogniser(model, gain=1.0)
     emitted: list[tuple[int, DrumHit]] = []
     fed = 0
-    for start in range(0, len(pattern.audio), 128):
-        block = pattern.audio[start : start + 128]
+    audio = resample(pattern.audio, pattern.sample_rate, SAMPLE_RATE)  # the live path's rate
+    for start in range(0, len(audio), 128):
+        block = audio[start : start + 128]
         fed += len(block)
         emitted += [(fed, o.message) for o in core.feed(block)]  # type: ignore[misc]
     emitted += [(fed, o.message) for o in core.flush()]  # type: ignore[misc]
-    spec = F.band_spectrogram(pattern.audio * (PEAK / float(np.max(np.abs(pattern.audio)))))
+    spec = F.band_spectrogram(audio * (PEAK / float(np.max(np.abs(audio)))))
     offline = F.pick_onsets(F.superflux(spec), model.live.delta)
     assert core.onsets == offline.tolist()
     # every hit is known within 50 ms of audio after its onset (plus one 128-sample block)

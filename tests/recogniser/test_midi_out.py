@@ -61,7 +61,7 @@ def test_midi_passes_through_the_score_reader(tmp_path: Path) -> None:
 
 
 def test_transcription_of_a_pattern_reads_as_a_score(tmp_path: Path, pattern: Pattern) -> None:
-    events = transcribe(pattern.audio)
+    events = transcribe(pattern.audio, sample_rate=pattern.sample_rate)
     score = read_midi(write_midi(events, tmp_path / "pattern.mid"))
     assert not score.unknown
     kicks = np.array([e.time for e in score.events if e.event == EventType.BASS])

@@ -9,10 +9,10 @@ import numpy as np
 import soundfile as sf
 from scipy.signal import resample_poly
 
-from services.recogniser.audio import SAMPLE_RATE, load_audio
+from services.recogniser.audio import load_audio
 from services.recogniser.transcribe import transcribe, transcribe_file
 
-from .pattern import Pattern, load_sample
+from .pattern import RATE, Pattern, load_sample
 
 
 def _times(events, *names: str) -> np.ndarray:
@@ -24,7 +24,7 @@ def _f(ref: np.ndarray, est: np.ndarray, window: float = 0.05) -> float:
 
 
 def test_pattern_transcribes_to_the_right_notes(pattern: Pattern) -> None:
-    events = transcribe(pattern.audio)
+    events = transcribe(pattern.audio, sample_rate=pattern.sample_rate)
     # the kit is one the model never saw; the shipped model gets 0.92 / 1.00 / 0.91 here
     for name in ("kick", "snare", "hihat_closed"):
         f = _f(pattern.times(name), _times(events, name))
@@ -33,10 +33,11 @@ def test_pattern_transcribes_to_the_right_notes(pattern: Pattern) -> None:
     # toms); the open hi-hat found as open
     toms = np.concatenate([pattern.times("tom_high"), pattern.times("tom_floor")])
     assert _f(np.sort(toms), np.unique(_times(events, "tom_high", "tom_mid", "tom_floor"))) == 1.0
-    # the open hi-hat is found as open; the shipped network also gives the opening crash (struck with a kick
-    # and a closed hi-hat) an open hi-hat: at most that one more
+    # the open hi-hat is found as open; the shipped network (recipe 5: open hi-hats found more often, heard
+    # more often where cymbals ring) also hears as open the closed hi-hats struck with the opening crash and in
+    # its ring (0.2, 0.5 s) and the one after the open hi-hat (7.4 s): at most three more
     opened = _times(events, "hihat_open")
-    assert len(mir_eval.util.match_events(pattern.times("hihat_open"), opened, 0.05)) == 1 and len(opened) <= 2
+    assert len(mir_eval.util.match_events(pattern.times("hihat_open"), opened, 0.05)) == 1 and len(opened) <= 4
     # almost nothing is invented: every recognised time but two (the shipped model hears a soft closed
     # hi-hat where the file's noise floor starts, at 0 s, and one in the open hi-hat's ring, 7.21 s) is
     # near a played note
@@ -45,7 +46,7 @@ def test_pattern_transcribes_to_the_right_notes(pattern: Pattern) -> None:
 
 
 def test_onset_times_are_accurate(pattern: Pattern) -> None:
-    events = transcribe(pattern.audio)
+    events = transcribe(pattern.audio, sample_rate=pattern.sample_rate)
     # every kick and snare found (within 50 ms) is within 20 ms of its note; all are found but at most one
     # kick (the shipped network misses the kick at 8.9 s, velocity 95 under a high tom at 110)
     for name, missed in (("kick", 1), ("snare", 0)):
@@ -58,12 +59,12 @@ def test_onset_times_are_accurate(pattern: Pattern) -> None:
 
 def test_velocity_follows_loudness() -> None:
     kick = load_sample("kick")
-    audio = np.zeros(int(6 * SAMPLE_RATE), np.float32)
+    audio = np.zeros(int(6 * RATE), np.float32)
     velocities = [120, 40, 120, 40, 120, 40, 120, 40]
     for i, v in enumerate(velocities):
-        start = int((0.2 + 0.6 * i) * SAMPLE_RATE)
+        start = int((0.2 + 0.6 * i) * RATE)
         audio[start : start + len(kick)] += kick * (v / 127) ** 1.6
-    events = [e for e in transcribe(audio * 0.9 / np.max(np.abs(audio))) if e.name == "kick"]
+    events = [e for e in transcribe(audio * 0.9 / np.max(np.abs(audio)), sample_rate=RATE) if e.name == "kick"]
     assert len(events) == 8
     loud = [e.velocity for e in events[0::2]]
     soft = [e.velocity for e in events[1::2]]
@@ -72,9 +73,9 @@ def test_velocity_follows_loudness() -> None:
 
 def test_other_rates_and_stereo_give_the_same_notes(tmp_path: Path, pattern: Pattern) -> None:
     mono = tmp_path / "mono.wav"
-    sf.write(mono, pattern.audio, SAMPLE_RATE)
+    sf.write(mono, pattern.audio, pattern.sample_rate)
     stereo48 = tmp_path / "stereo48.flac"
-    up = resample_poly(pattern.audio, 320, 147).astype(np.float32)  # 22,050 -> 48,000 Hz
+    up = resample_poly(pattern.audio, 160, 147).astype(np.float32)  # 44,100 -> 48,000 Hz
     sf.write(stereo48, np.stack([up, up * 0.8], axis=1), 48000)
     a, dur_a = transcribe_file(mono)
     b, dur_b = transcribe_file(stereo48)

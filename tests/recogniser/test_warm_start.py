@@ -19,9 +19,9 @@ def test_the_shipped_network_loaded_into_torch_gives_the_numpy_activations() -> 
     from services.recogniser.training.train_net import init_net
 
     fn = load_model(SHIPPED).offline
-    net = init_net(SHIPPED, fn.windows, int(fn.layers[2].w.shape[2]))
+    net = init_net(SHIPPED, fn.windows, int(fn.layers[2].w.shape[2]), hop=fn.hop, bands=fn.bands)
     rng = np.random.default_rng(12)
-    spec = (rng.random((300, F.N_BANDS, len(fn.windows))) * 2).astype(np.float32)
+    spec = (rng.random((300, fn.bands.n, len(fn.windows))) * 2).astype(np.float32)
     m = fn.margin
     padded = torch.from_numpy(np.concatenate([np.zeros((m, *spec.shape[1:]), np.float32), spec,
                                               np.zeros((m, *spec.shape[1:]), np.float32)]))[None]
@@ -39,15 +39,20 @@ def test_the_shipped_network_loaded_into_torch_gives_the_numpy_activations() -> 
     assert np.abs(torch_out() - want).max() < 1e-4
 
 
-def test_a_warm_start_must_match_the_files_windows_width_and_dilations() -> None:
+def test_a_warm_start_must_match_the_files_windows_width_dilations_hop_and_bands() -> None:
     pytest.importorskip("torch")
     from services.recogniser.training.train_net import init_net
 
+    fn = load_model(SHIPPED).offline
+    windows, hop, bands = fn.windows, fn.hop, fn.bands
     with pytest.raises(ValueError, match="windows"):
-        init_net(SHIPPED, (1024,), 128)
+        init_net(SHIPPED, windows[:1], 128, hop=hop, bands=bands)
     with pytest.raises(ValueError, match="width"):
-        init_net(SHIPPED, (512, 1024, 2048), 64)
+        init_net(SHIPPED, windows, 64, hop=hop, bands=bands)
     with pytest.raises(ValueError, match="dilations"):
-        init_net(SHIPPED, (512, 1024, 2048), 128, (2, 4, 8, 16, 32))
+        init_net(SHIPPED, windows, 128, (2, 4, 8, 16, 32), hop, bands)
     with pytest.raises(ValueError, match="samples apart"):
-        init_net(SHIPPED, (512, 1024, 2048), 128, (2, 4, 8, 16), F.HOP // 2)
+        init_net(SHIPPED, windows, 128, (2, 4, 8, 16), hop // 2, bands)
+    other = F.NARROW if bands != F.NARROW else F.WIDE
+    with pytest.raises(ValueError, match="--bands"):
+        init_net(SHIPPED, windows, 128, (2, 4, 8, 16), hop, other)

@@ -10,7 +10,8 @@ performances with the Hydrogen training kits and Batteur's own modal and signal
 synthesis (half of them on kits mixed from several; room, EQ, noise on 70 %; unless
 ``--plain``, layered instruments and wider per-instrument changes), fits the framewise
 network (:mod:`.fit_net`) on the band spectrograms of ``--windows`` (analysis windows,
-samples), exports it to NumPy arrays and chooses its
+samples) and ``--bands`` (default: 44,100 Hz, 56 bands to 18 kHz; the excerpts are rendered at 44,100 Hz),
+exports it to NumPy arrays and chooses its
 thresholds on excerpts rendered with the validation kit (:mod:`.tune`). The held-out
 kit is never used. The live classifier is copied from ``--live-from`` (made by
 :mod:`.train`). Spectra are cached in ``--cache``; deterministic for a ``--seed``
@@ -143,9 +144,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--dilations", type=int, nargs="+", default=list(DILATIONS), metavar="D",
                     help="dilations of the residual time convolutions, frames (kernel 3: the context each side is "
                          f"3 + their sum frames of 10 ms; default {' '.join(map(str, DILATIONS))})")
-    ap.add_argument("--bands", choices=sorted(BANDS), default="narrow",
-                    help="the network's band analysis: 'narrow', 22,050 Hz, 48 bands to 10.5 kHz (default); "
-                         "'wide', 44,100 Hz, 56 bands to 18 kHz (where hi-hats are heard above snares)")
+    ap.add_argument("--bands", choices=sorted(BANDS), default="wide",
+                    help="the network's band analysis: 'wide', 44,100 Hz, 56 bands to 18 kHz, where hi-hats are "
+                         "heard above snares (default, recipe 5); 'narrow', 22,050 Hz, 48 bands to 10.5 kHz "
+                         "(recipes 3 and 4)")
     ap.add_argument("--hop", type=int, default=None,
                     help="samples at the band analysis's rate between the network's frames (default: 10 ms, 220 "
                          "at 22,050 Hz, 441 at 44,100 Hz; 110 at 22,050 Hz: 5 ms, twice the frames, so strikes "
