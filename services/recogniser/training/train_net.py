@@ -50,7 +50,7 @@ from services.recogniser.training.tune import choose
 
 BANDS = {"narrow": F.NARROW, "wide": F.WIDE}
 """The band analyses ``--bands`` names."""
-CACHE_TAG = "f3"
+CACHE_TAG = "f4"
 """Changes when the rendering or the spectrogram change, so stale cached spectra are not reused."""
 
 
