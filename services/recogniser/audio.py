@@ -1,7 +1,7 @@
 """Reading audio files for transcription: any sample rate, mono or stereo.
 
 Files are read with soundfile (WAV, FLAC, OGG/Vorbis, AIFF, ...), mixed down
-to mono and resampled to :data:`SAMPLE_RATE` with a polyphase filter
+to mono and resampled to the rate asked for (default :data:`SAMPLE_RATE`) with a polyphase filter
 (:func:`scipy.signal.resample_poly`).
 """
 
@@ -17,7 +17,8 @@ from scipy.signal import resample_poly
 from services.recogniser.errors import AudioFileError
 
 SAMPLE_RATE = 22050
-"""Sample rate the recogniser works at, Hz."""
+"""Sample rate of the live path and the default of :func:`load_audio`, Hz (the offline network reads audio at its
+own rate, :attr:`~services.recogniser.framenet.FrameNet.sample_rate`: 44,100 Hz for the shipped one)."""
 
 MAX_DURATION_S = 3600.0
 """Longest file accepted by default, seconds (one hour)."""
