@@ -85,8 +85,9 @@ class Bands:
 NARROW = Bands()
 """The recogniser's analysis until 5 Dec (and the live path's): 22,050 Hz, 48 bands up to 10.5 kHz."""
 WIDE = Bands(44100, 56, 18000.0)
-"""44,100 Hz, 56 bands up to 18 kHz: a hi-hat's (and above all a pedal chick's) energy lies mostly above
-10.5 kHz, where a snare's is 15-20 dB lower; below it the two are alike (docs/recogniser.md)."""
+"""44,100 Hz, 56 bands up to 18 kHz: hi-hats reach far above 10.5 kHz (the held-out kit's, its pedal chick's
+above all, lie mostly there), where every kit's snare is 7-16 dB weaker than below; below it a chick and a snare
+are alike (docs/recogniser.md, "Recipe 5")."""
 
 
 @cache
