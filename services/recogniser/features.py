@@ -126,9 +126,9 @@ def n_frames(n_samples: int, hop: int = HOP) -> int:
     return n_samples // hop + 1
 
 
-def frame_times(n: int, hop: int = HOP, sample_rate: int = SAMPLE_RATE) -> np.ndarray:
-    """Centre times of frames 0..n-1 of ``hop`` samples at ``sample_rate`` Hz, seconds."""
-    return np.arange(n) * (hop / sample_rate)
+def frame_times(n: int, hop: int = HOP) -> np.ndarray:
+    """Centre times of frames 0..n-1 of ``hop`` samples, seconds."""
+    return np.arange(n) * (hop / SAMPLE_RATE)
 
 
 def band_spectrogram(

@@ -194,27 +194,25 @@ def _network(p: Path, data: dict[str, np.ndarray], m: dict) -> FrameNet:
     for n in net.networks:
         if not n.layers or n.layers[0].w.shape[2] != len(n.windows) or n.layers[-1].w.shape[-1] != N_OUT:
             raise ModelError(f"{p}: offline network layer shapes do not match")
-        if _flat_width(n.layers, bands.n) is None:
+        if not _reads_bands(n.layers, bands.n):
             raise ModelError(f"{p}: offline network layers do not read {bands.n} bands")
     if net.thresholds.shape != (N_CLASSES + 1,):
         raise ModelError(f"{p}: offline network has {net.thresholds.shape[0]} thresholds, expected {N_CLASSES + 1}")
     return net
 
 
-def _flat_width(layers: list[Layer], n_bands: int) -> int | None:
-    """The width of the first time convolution's input for ``n_bands`` input bands, or None where the
-    2-D layers' pooling does not divide the bands or that convolution reads another width."""
+def _reads_bands(layers: list[Layer], n_bands: int) -> bool:
+    """Whether the 2-D layers' pooling divides ``n_bands`` input bands and the first time convolution reads
+    what they leave (channels x bands per frame)."""
     bands, channels = n_bands, 0
     for la in layers:
-        if la.kind == "conv2d":
-            channels = int(la.w.shape[3])
-            if bands % la.pool:
-                return None
-            bands //= la.pool
-        else:
-            width = channels * bands
-            return width if int(la.w.shape[1]) == width else None
-    return None
+        if la.kind != "conv2d":
+            return int(la.w.shape[1]) == channels * bands
+        channels = int(la.w.shape[3])
+        if bands % la.pool:
+            return False
+        bands //= la.pool
+    return False
 
 
 def _classifier(p: Path, data: dict[str, np.ndarray], m: dict, name: str) -> Classifier:

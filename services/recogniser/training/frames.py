@@ -111,9 +111,9 @@ def _at_rate(audio: np.ndarray, bands: F.Bands) -> np.ndarray:
     return audio if bands.sample_rate == RENDER_RATE else resample(audio, RENDER_RATE, bands.sample_rate)
 
 
-def _one(job: Job, hop: int, bands: F.Bands) -> tuple[np.ndarray, np.ndarray]:
+def _one(job: Job, hop: int, bands: F.Bands, windows: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
     audio, hits = render_excerpt(job)
-    spec = F.multi_spectrogram(_at_rate(audio, bands), windows_for(bands), hop=hop, bands=bands)
+    spec = F.multi_spectrogram(_at_rate(audio, bands), windows, hop=hop, bands=bands)
     return spec.astype(np.float16), np.array([[h.time, h.cls, h.velocity] for h in hits], np.float64).reshape(-1, 3)
 
 
@@ -127,8 +127,8 @@ def make_frames(n: int, seed: int, workers: int, kits: tuple[str, ...], dry_p: f
     prepare(kits)
     todo = jobs(n, seed, kits, dry_p, variety, vary_p, by_duration, quiet_hihat_p)
     per = F.n_frames(len(_at_rate(np.zeros(excerpt_samples(), np.float32), bands)), hop)
-    one = partial(_one, hop=hop, bands=bands)
     windows = windows_for(bands)
+    one = partial(_one, hop=hop, bands=bands, windows=windows)
     shape = (n * per, bands.n, len(windows))
     spec = (np.lib.format.open_memmap(f"{path}.spec.npy", mode="w+", dtype=np.float16, shape=shape)
             if path is not None else np.empty(shape, np.float16))
