@@ -13,6 +13,7 @@ Needs Debian's hydrogen-drumkits (the kit; exits 1 with an install hint without 
     python bench/recogniser_bench.py --files 30 --seconds 60 [--augment] [--live]   # a quicker sample
     python bench/recogniser_bench.py --kit Millo_MultiLayered2 --split train --files 60 --seconds 60   # to tune on
     python bench/recogniser_bench.py --model new.npz services/recogniser/models/recogniser.npz  # same renders
+    python bench/recogniser_bench.py --losses   # also: where the onset F-measure is lost, and bounds on decoding
 
 Several ``--model`` files are scored on the same renders, each file transcribed by each model in turn
 (so their speeds are measured under the same load).
@@ -23,6 +24,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -35,6 +37,7 @@ from common.messages.recogniser import DrumHit  # noqa: E402
 from services.recogniser.audio import SAMPLE_RATE, resample  # noqa: E402
 from services.recogniser.classes import CLASS_NAMES, class_of_note  # noqa: E402
 from services.recogniser.core import LiveRecogniser  # noqa: E402
+from services.recogniser.framenet import FrameNet  # noqa: E402
 from services.recogniser.model import MODEL_PATH, Model, load_model  # noqa: E402
 from services.recogniser.training.dataset import groove_files  # noqa: E402
 from services.recogniser.training.kits import (  # noqa: E402
@@ -47,7 +50,14 @@ from services.recogniser.training.kits import (  # noqa: E402
     require_kits,
 )
 from services.recogniser.training.render import Hit, Note, augment, normalise, read_notes, render  # noqa: E402
-from services.recogniser.transcribe import PEAK, transcribe  # noqa: E402
+from services.recogniser.transcribe import (  # noqa: E402
+    PEAK,
+    DrumEvent,
+    group_chords,
+    network_outputs,
+    strikes,
+    transcribe,
+)
 
 GROUPS: dict[str, tuple[int, ...]] = {name: (i,) for i, name in enumerate(CLASS_NAMES)}
 GROUPS["hihat (open+closed)"] = (2, 3)
@@ -78,6 +88,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="model file(s) to score; several are scored on the same renders (default: the shipped one)")
     ap.add_argument("--seed", type=int, default=7)
     ap.add_argument("--live", action="store_true", help="also score the live core (fed 128-sample blocks)")
+    ap.add_argument("--losses", action="store_true",
+                    help="also count where the class-agnostic onsets are lost (missed and extra onsets by cause) and "
+                         "what the network's strikes would score with an ideal chord grouping or exact times")
     args = ap.parse_args(argv)
     if (args.files is not None and args.files < 1) or (args.seconds is not None and args.seconds <= 0):
         ap.error("--files must be at least 1 and --seconds above 0")
@@ -99,6 +112,7 @@ def main(argv: list[str] | None = None) -> int:
     longest = np.inf if args.seconds is None else args.seconds
     runs: list[dict[str, list[tuple[list[Hit], list[tuple[float, int]]]]]] = [
         {"offline": [], "live": []} for _ in models]
+    outputs: list[list[tuple[list[Hit], np.ndarray]]] = [[] for _ in models]  # with --losses
     latencies: list[list[float]] = [[] for _ in models]
     compute_s = [0.0 for _ in models]
     audio_s = 0.0
@@ -117,8 +131,11 @@ def main(argv: list[str] | None = None) -> int:
         live_audio = resample(audio, RENDER_RATE, SAMPLE_RATE) if args.live else audio  # the live path's rate
         for i, model in enumerate(models):
             t0 = time.perf_counter()  # a network of another rate than the render's: its resampling is timed too
-            events = transcribe(audio, model, sample_rate=RENDER_RATE)
+            out = network_outputs(audio, model.offline, sample_rate=RENDER_RATE)  # transcribe(), in its two parts
+            events = strikes(model.offline, out)
             compute_s[i] += time.perf_counter() - t0
+            if args.losses:
+                outputs[i].append((hits, out))
             runs[i]["offline"].append((hits, [(e.time, e.cls) for e in events]))
             if args.live:
                 runs[i]["live"].append((hits, live_hits(model, live_audio, latencies[i])))
@@ -139,6 +156,8 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"\n{name} ({what}):")
                 table(files_run)
                 soft_recall(files_run)
+        if outputs[i]:
+            onset_losses(model.offline, outputs[i])
         print(f"\nspeed (offline): {audio_s / max(compute_s[i], 1e-9):.0f}x real time "
               f"({compute_s[i]:.2f} s for {audio_s:.0f} s of audio)")
         if latencies[i]:
@@ -233,6 +252,101 @@ def table(files_run: list[tuple[list[Hit], list[tuple[float, int]]]]) -> None:
             f = 2 * prec * rec / (prec + rec) if prec + rec else 0.0
             row += f" {f:7.3f} {prec:6.3f} {rec:6.3f} |"
         print(row)
+
+
+NEIGHBOUR_S = 0.05
+"""A reference onset with another this close (seconds) is "close": two strikes the 50 ms window cannot tell apart
+by time alone."""
+FOUND_S = 0.015
+"""A missed onset counts as found-but-merged when a strike of one of its classes, before chord grouping, lies
+this close to it, seconds."""
+
+
+def onset_scores(ref: np.ndarray, est: np.ndarray, window: float = 0.05) -> tuple[int, int, int]:
+    """(matched, reference onsets, estimated onsets) of mir_eval's one-to-one matching; ``ref`` is already merged
+    (:func:`merge`), ``est`` is merged only where times coincide, as :func:`table` scores onsets."""
+    e = merge(est, 1e-4) if len(est) else np.zeros(0)
+    m = len(mir_eval.util.match_events(ref, e, window)) if len(ref) and len(e) else 0
+    return m, len(ref), len(e)
+
+
+def ideal_grouping(ref: np.ndarray, est: np.ndarray, window: float = 0.05) -> tuple[int, int, int]:
+    """(matched, reference onsets, estimated onsets) if every strike within ``window`` of a reference onset
+    were grouped into that onset's estimate (a grouping that knows the answer); the strikes near none stay,
+    grouped as the reference is (:data:`MERGE_S`). An upper bound for any rule that groups these strikes."""
+    e = np.sort(est)
+    pairs = mir_eval.util.match_events(ref, e, window) if len(ref) and len(e) else []
+    used = {j for _, j in pairs}
+    stray = np.array([t for j, t in enumerate(e) if j not in used and (not len(ref) or np.abs(ref - t).min() > window)])
+    return len(pairs), len(ref), len(pairs) + len(merge(stray))
+
+
+def exact_times(hits: list[Hit], events: list[tuple[float, int]], within: float = FOUND_S) -> list[tuple[float, int]]:
+    """``events`` (time s, class) with each time moved onto the nearest reference strike of its class within
+    ``within`` seconds (the others unchanged): the strikes with the times an ideal network would give them."""
+    by_class = {c: np.array([h.time for h in hits if h.cls == c]) for c in {h.cls for h in hits}}
+    moved = []
+    for t, c in events:
+        ref = by_class.get(c, np.zeros(0))
+        if len(ref):
+            near = float(ref[np.abs(ref - t).argmin()])
+            t = near if abs(near - t) <= within else t
+        moved.append((t, c))
+    return moved
+
+
+def chord_times(events: list[tuple[float, int]], window: float) -> np.ndarray:
+    """Times of ``events`` (time s, class) after the transcriber's chord grouping (:func:`group_chords`)."""
+    dummies = [DrumEvent(t, c, 64, 1.0) for t, c in sorted(events)]
+    return np.array([e.time for e in group_chords(dummies, window)] if window > 0 else [e.time for e in dummies])
+
+
+def onset_losses(net: FrameNet, files: list[tuple[list[Hit], np.ndarray]]) -> None:
+    """Print where the class-agnostic onset F-measure at 50 ms is lost, for ``net``'s outputs on ``files``
+    (reference hits, :func:`network_outputs`): missed onsets and extra onsets by cause, and what the same strikes
+    score (1) with an ideal chord grouping, (2) with exact times and the chord grouping used."""
+    loose = replace(net, chord_s=0.0)
+    totals = {k: np.zeros(3, int) for k in ("as decoded", "ideal grouping", "exact times")}
+    missed = {k: 0 for k in ("close, found but given a neighbour's time", "close, not found", "alone, not found",
+                             "alone, found")}
+    extra = {"near a reference onset (a second estimate for it)": 0, "far from every reference onset": 0}
+    for hits, out in files:
+        ref_t = np.array([h.time for h in hits])
+        ref_c = np.array([h.cls for h in hits])
+        ref = merge(ref_t) if len(ref_t) else np.zeros(0)
+        decoded = np.array([e.time for e in strikes(net, out)])
+        raw = [(e.time, e.cls) for e in strikes(loose, out)]
+        raw_t = np.array([t for t, _ in raw])
+        totals["as decoded"] += onset_scores(ref, decoded)
+        totals["ideal grouping"] += ideal_grouping(ref, raw_t)
+        totals["exact times"] += onset_scores(ref, chord_times(exact_times(hits, raw), net.chord_s))
+        est = merge(decoded, 1e-4) if len(decoded) else np.zeros(0)
+        pairs = mir_eval.util.match_events(ref, est, 0.05) if len(ref) and len(est) else []
+        hit_ref, hit_est = {i for i, _ in pairs}, {j for _, j in pairs}
+        for i, t in enumerate(ref):
+            if i in hit_ref:
+                continue
+            others = np.abs(np.delete(ref, i) - t)
+            close = bool(len(others)) and float(others.min()) < NEIGHBOUR_S
+            classes = set(ref_c[(ref_t >= t) & (ref_t <= t + MERGE_S)].tolist())
+            found = any(abs(rt - t) <= FOUND_S for rt, c in raw if c in classes)
+            key = ("close, found but given a neighbour's time" if found else "close, not found") if close else (
+                "alone, found" if found else "alone, not found")
+            missed[key] += 1
+        for j, t in enumerate(est):
+            if j not in hit_est:
+                near = bool(len(ref)) and float(np.abs(ref - t).min()) <= 0.05
+                extra["near a reference onset (a second estimate for it)" if near
+                      else "far from every reference onset"] += 1
+    n_ref = int(totals["as decoded"][1])
+    print(f"\nwhere the onsets are lost (F at 50 ms; {n_ref} reference onsets, strikes closer than "
+          f"{MERGE_S * 1000:.0f} ms one onset):")
+    for name, (m, nr, ne) in totals.items():
+        prec, rec = m / max(ne, 1), m / max(nr, 1)
+        f = 2 * prec * rec / (prec + rec) if prec + rec else 0.0
+        print(f"  {name:15s} F {f:.3f} (P {prec:.3f} / R {rec:.3f})")
+    print(f"  missed onsets: {sum(missed.values())}, of them " + "; ".join(f"{k} {v}" for k, v in missed.items()))
+    print(f"  extra onsets: {sum(extra.values())}, of them " + "; ".join(f"{k} {v}" for k, v in extra.items()))
 
 
 if __name__ == "__main__":

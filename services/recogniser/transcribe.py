@@ -105,16 +105,25 @@ def transcribe(
     list of :class:`DrumEvent`, sorted by time
     """
     net = (model or load_model()).offline
+    events = strikes(net, network_outputs(audio, net, progress, sample_rate))
+    if progress:
+        progress(1.0)
+    return events
+
+
+def network_outputs(
+    audio: np.ndarray, net: FrameNet, progress: Callable[[float], None] | None = None,
+    sample_rate: int = SAMPLE_RATE,
+) -> np.ndarray:
+    """The offline network's framewise outputs for mono audio: (frames, N_OUT), frames ``net.hop`` samples apart
+    at ``net.sample_rate`` (:meth:`FrameNet.forward`), the audio resampled to that rate and scaled to
+    :data:`PEAK` first. :func:`strikes` turns them into events; ``progress`` is called up to 0.95."""
     if sample_rate != net.sample_rate:
         audio = resample(audio, sample_rate, net.sample_rate)
     peak = float(np.max(np.abs(audio))) if len(audio) else 0.0
     x = audio * (PEAK / peak) if peak > 0 else audio
     spec = net.spectrogram(x, progress=(lambda f: progress(0.5 * f)) if progress else None)
-    out = net.forward(spec, progress=(lambda f: progress(0.5 + 0.45 * f)) if progress else None)
-    events = strikes(net, out)
-    if progress:
-        progress(1.0)
-    return events
+    return net.forward(spec, progress=(lambda f: progress(0.5 + 0.45 * f)) if progress else None)
 
 
 def transcribe_file(
