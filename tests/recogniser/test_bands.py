@@ -14,6 +14,7 @@ from services.recogniser.classes import N_CLASSES
 from services.recogniser.errors import ModelError
 from services.recogniser.framenet import N_OUT, FrameNet, Layer, Network
 from services.recogniser.model import Model, load_live, load_model
+from services.recogniser.training.frames import SHORT_WINDOW, windows_for
 
 MODEL = Path(__file__).resolve().parents[2] / "services/recogniser/models/recogniser.npz"
 
@@ -103,3 +104,17 @@ def test_audio_at_another_rate_is_resampled_to_the_networks() -> None:
     assert [e.cls for e in at_22k] == [e.cls for e in at_44k]  # resampled twice: times equal within 1 us
     assert np.allclose([e.time for e in at_22k], [e.time for e in at_44k], atol=1e-6)
     assert sorted({round(e.time, 1) for e in at_22k}) == [0.5, 1.5, 2.5]
+
+
+def test_the_short_window_parts_two_strikes_20_ms_apart() -> None:
+    # two clicks 20 ms apart, frames 10 ms apart: the frame between them lies 10 ms from each
+    audio = np.zeros(44100, np.float32)
+    audio[[22050, 22050 + 882]] = 1.0
+    frame = 50  # sample 22,050 at a hop of 441
+    levels = {}
+    for w in windows_for(F.WIDE, (SHORT_WINDOW, 1024)):
+        spec = F.band_spectrogram(audio, n_fft=w, hop=441, bands=F.WIDE).mean(axis=1)
+        levels[w] = spec[frame : frame + 3]
+    short, long_ = levels[512], levels[2048]
+    assert short[1] < 0.5 * min(short[0], short[2])  # 11.6 ms: a dip between the strikes
+    assert long_[1] >= 0.9 * min(long_[0], long_[2])  # 46 ms: one lump

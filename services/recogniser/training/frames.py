@@ -36,8 +36,11 @@ NEIGHBOUR_TARGET = 0.5
 PROGRESS_EVERY = 250
 """Excerpts between two progress lines while rendering."""
 WINDOWS = (512, 1024, 2048)
-"""Analysis windows rendered into the frame sets, samples at 22,050 Hz (23, 46 and 93 ms); a network uses any
-of them. At another analysis rate the windows last as long (:func:`windows_for`)."""
+"""Analysis windows rendered into the frame sets by default, samples at 22,050 Hz (23, 46 and 93 ms); a network
+uses any of them. At another analysis rate the windows last as long (:func:`windows_for`)."""
+SHORT_WINDOW = 256
+"""A shorter window a frame set may also hold, samples at 22,050 Hz (11.6 ms: two strikes 20 ms apart are apart
+in it; its bins are 86 Hz wide, so the lowest bands share bins)."""
 
 
 def windows_for(bands: F.Bands, windows: tuple[int, ...] = WINDOWS) -> tuple[int, ...]:
@@ -119,15 +122,17 @@ def _one(job: Job, hop: int, bands: F.Bands, windows: tuple[int, ...]) -> tuple[
 
 def make_frames(n: int, seed: int, workers: int, kits: tuple[str, ...], dry_p: float = DRY_P,
                 variety: bool = False, path: Path | None = None, vary_p: float = VARY_P, hop: int = F.HOP,
-                by_duration: bool = False, quiet_hihat_p: float = 0.0, bands: F.Bands = F.NARROW) -> FrameSet:
+                by_duration: bool = False, quiet_hihat_p: float = 0.0, bands: F.Bands = F.NARROW,
+                windows_22k: tuple[int, ...] = WINDOWS) -> FrameSet:
     """Render ``n`` excerpts with ``kits`` (a share ``dry_p`` dry; ``variety``: see :class:`.excerpts.Job`;
     ``by_duration``, ``quiet_hihat_p``: see :func:`.excerpts.jobs`) into a :class:`FrameSet` of the band
-    analysis ``bands``, frames ``hop`` samples apart (at its rate), the windows of :func:`windows_for`, and
-    save it to ``path`` if given (the spectra are written as they come, never all held)."""
+    analysis ``bands``, frames ``hop`` samples apart (at its rate), the windows ``windows_22k`` (samples at
+    22,050 Hz, :func:`windows_for`), and save it to ``path`` if given (the spectra are written as they come,
+    never all held)."""
     prepare(kits)
     todo = jobs(n, seed, kits, dry_p, variety, vary_p, by_duration, quiet_hihat_p)
     per = F.n_frames(len(_at_rate(np.zeros(excerpt_samples(), np.float32), bands)), hop)
-    windows = windows_for(bands)
+    windows = windows_for(bands, windows_22k)
     one = partial(_one, hop=hop, bands=bands, windows=windows)
     shape = (n * per, bands.n, len(windows))
     spec = (np.lib.format.open_memmap(f"{path}.spec.npy", mode="w+", dtype=np.float16, shape=shape)

@@ -37,6 +37,7 @@ from services.recogniser.training.excerpts import FIT_KITS, VALID_DRY_P, VARY_P,
 from services.recogniser.training.fit_net import HARD_WEIGHT, fit
 from services.recogniser.training.frames import (
     NEIGHBOUR_TARGET,
+    SHORT_WINDOW,
     WINDOWS,
     FrameSet,
     default_hop,
@@ -56,21 +57,22 @@ CACHE_TAG = "f4"
 
 def frames(cache: Path, name: str, n: int, seed: int, workers: int, kits: tuple[str, ...], dry_p: float,
            variety: bool = False, plain: bool = False, hop: int = F.HOP, by_duration: bool = False,
-           quiet_hihat_p: float = 0.0, bands: F.Bands = F.NARROW) -> FrameSet:
-    """The cached frame set of these excerpts, spectra of ``bands``, frames ``hop`` samples apart, rendered first
-    if need be
+           quiet_hihat_p: float = 0.0, bands: F.Bands = F.NARROW, windows_22k: tuple[int, ...] = WINDOWS) -> FrameSet:
+    """The cached frame set of these excerpts, spectra of ``bands`` in the analysis windows ``windows_22k``
+    (samples at 22,050 Hz), frames ``hop`` samples apart, rendered first if need be
     (``plain``: as the benchmark renders, the kit unvaried and dry, whatever ``dry_p``; ``by_duration``:
     performances drawn in proportion to their duration, :func:`.excerpts.jobs`; ``quiet_hihat_p``: the share of
     excerpts with quiet hi-hats, :func:`.excerpts.quiet_hihats`)."""
     tag = (("-variety" if variety else "") + ("-plain" if plain else "")
            + ("" if bands == F.NARROW else f"-{bands.sample_rate}hz{bands.n}")
            + (f"-hop{hop}" if hop != default_hop(bands) else "")
-           + ("-bysec" if by_duration else "") + (f"-quiet{round(100 * quiet_hihat_p)}" if quiet_hihat_p else ""))
+           + ("-bysec" if by_duration else "") + (f"-quiet{round(100 * quiet_hihat_p)}" if quiet_hihat_p else "")
+           + ("" if windows_22k == WINDOWS else "-w" + "-".join(map(str, windows_22k))))
     path = cache / f"{CACHE_TAG}-{name}{tag}-{n}-{seed}.npz"
     if path.exists():
         return FrameSet.load(path)
     make_frames(n, seed, workers, kits, 1.0 if plain else dry_p, variety, path, 0.0 if plain else VARY_P, hop,
-                by_duration, quiet_hihat_p, bands)
+                by_duration, quiet_hihat_p, bands, windows_22k)
     return FrameSet.load(path)
 
 
@@ -154,9 +156,10 @@ def main(argv: list[str] | None = None) -> int:
                          "20-30 ms apart are 4-6 frames apart; the dilations count frames, so double them to keep "
                          "the context in seconds)")
     ap.add_argument("--threads", type=int, default=2, help="PyTorch threads (default 2)")
-    ap.add_argument("--windows", type=int, nargs="+", default=list(WINDOWS), choices=WINDOWS,
-                    help="analysis windows of the network's input spectrograms, samples at 22,050 Hz (23, 46, 93 "
-                         "ms; the wide bands' windows last as long; default: all three)")
+    ap.add_argument("--windows", type=int, nargs="+", default=list(WINDOWS), choices=(SHORT_WINDOW, *WINDOWS),
+                    help="analysis windows of the network's input spectrograms, samples at 22,050 Hz (12, 23, 46, 93 "
+                         "ms; the wide bands' windows last as long; default: 512 1024 2048; with 256 the frame sets "
+                         "are rendered with it too)")
     ap.add_argument("--hard", type=float, default=HARD_WEIGHT,
                     help="extra loss weight of a class's negatives where another class is struck "
                          f"(default {HARD_WEIGHT})")
@@ -211,6 +214,7 @@ def main(argv: list[str] | None = None) -> int:
         fit_kits = FIT_KITS + tuple(SOUNDFONT_KITS)
     bands = BANDS[args.bands]
     windows = windows_for(bands, tuple(sorted(set(args.windows))))
+    rendered = (SHORT_WINDOW, *WINDOWS) if SHORT_WINDOW in args.windows else WINDOWS  # windows in the frame sets
     args.hop = default_hop(bands) if args.hop is None else args.hop
     try:
         weights = output_weights(args.weight)
@@ -242,7 +246,7 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.time()
     val = frames(args.cache, "val", args.val_excerpts, args.seed + 1000, args.workers, VALID_KITS, VALID_DRY_P,
                  plain=args.val_plain, hop=args.hop, by_duration=args.by_duration, quiet_hihat_p=args.val_quiet_hihats,
-                 bands=bands)
+                 bands=bands, windows_22k=rendered)
     if args.retune is not None:
         model = load_model(args.retune)
         choose(model.offline, val, rules=args.rules)
@@ -257,7 +261,7 @@ def main(argv: list[str] | None = None) -> int:
     live, live_meta = load_live(args.live_from)
     train = frames(args.cache, "train" + ("-sf" if args.soundfonts else ""), args.excerpts, args.seed, args.workers,
                    fit_kits, 0.3, not args.plain, hop=args.hop, by_duration=args.by_duration,
-                   quiet_hihat_p=args.quiet_hihats, bands=bands)
+                   quiet_hihat_p=args.quiet_hihats, bands=bands, windows_22k=rendered)
     if args.render_only:
         return 0
     print(f"training: {train.n_excerpts} excerpts, {len(train.spec)} frames, {len(train.hits)} strikes; "
