@@ -317,11 +317,11 @@ def onset_losses(net: FrameNet, files: list[tuple[list[Hit], np.ndarray]]) -> No
         decoded = np.array([e.time for e in strikes(net, out)])
         raw = [(e.time, e.cls) for e in strikes(loose, out)]
         raw_t = np.array([t for t, _ in raw])
-        totals["as decoded"] += onset_scores(ref, decoded)
-        totals["ideal grouping"] += ideal_grouping(ref, raw_t)
-        totals["exact times"] += onset_scores(ref, chord_times(exact_times(hits, raw), net.chord_s))
         est = merge(decoded, 1e-4) if len(decoded) else np.zeros(0)
         pairs = mir_eval.util.match_events(ref, est, 0.05) if len(ref) and len(est) else []
+        totals["as decoded"] += (len(pairs), len(ref), len(est))
+        totals["ideal grouping"] += ideal_grouping(ref, raw_t)
+        totals["exact times"] += onset_scores(ref, chord_times(exact_times(hits, raw), net.chord_s))
         hit_ref, hit_est = {i for i, _ in pairs}, {j for _, j in pairs}
         for i, t in enumerate(ref):
             if i in hit_ref:
