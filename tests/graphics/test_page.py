@@ -132,6 +132,8 @@ def _is_drum_red(patch: np.ndarray) -> bool:
 
 @needs_browser
 def test_page_draws_drummer_and_reconnects(graphics_node: GraphicsNodeProcess) -> None:
+    from playwright.sync_api import TimeoutError as PlaywrightTimeout
+
     drummer = SyntheticDrummer(strokes={}, duration=0.0)
     rest = drummer.pose(0.0)
     head = rest[LINK_NAMES.index("head"), :3] + np.array([0.0, 0.0, 0.09])  # the page draws the head there
@@ -156,12 +158,20 @@ def test_page_draws_drummer_and_reconnects(graphics_node: GraphicsNodeProcess) -
             assert not _is_body_blue(old), "the head is still drawn where it was"
             sender.dx = 0.0
 
-            # impacts sent over OSC reach the page: the struck snare's flash value rises
+            # impacts sent over OSC reach the page: the struck snare's flash value rises. The flash is above 0.5
+            # for 83 ms of display time, which a node starved of CPU can skip between two frames: strike again
+            # (up to 10 times) rather than fail on the machine's load
             assert page.evaluate("window.batteur.peakFlash") == 0
-            graphics_node.send(Impact(seq=1, time=time.monotonic() - sender.t0, instrument="snare", zone="centre",
-                                      r=0.3, theta=0.0, velocity=4.0, impulse=0.05, peak_force=400.0,
-                                      duration=0.004, part="left_stick_tip"))
-            page.wait_for_function("window.batteur.peakFlash > 0.5", timeout=10000)
+            for seq in range(1, 11):
+                graphics_node.send(Impact(seq=seq, time=time.monotonic() - sender.t0, instrument="snare",
+                                          zone="centre", r=0.3, theta=0.0, velocity=4.0, impulse=0.05,
+                                          peak_force=400.0, duration=0.004, part="left_stick_tip"))
+                try:
+                    page.wait_for_function("window.batteur.peakFlash > 0.5", timeout=1000)
+                    break
+                except PlaywrightTimeout:
+                    continue
+            assert page.evaluate("window.batteur.peakFlash") > 0.5, "no snare flash after 10 strikes"
             assert errors == []
 
             # restart the node: the page must reconnect by itself and show frames again

@@ -28,6 +28,7 @@ from services.recogniser.training.kits import (
     require_kits,
 )
 from services.recogniser.training.modal import MODAL_KITS, render_modal_kit
+from services.recogniser.training.more_kits import MORE_KITS, load_more_kit
 from services.recogniser.training.render import Hit, Note, augment, normalise, read_notes, render
 from services.recogniser.training.soundfont import SOUNDFONT_KITS, render_soundfont_kit
 
@@ -61,13 +62,16 @@ _KITS: dict[str, Kit] = {}
 
 
 def load_any_kit(name: str) -> Kit:
-    """A Hydrogen kit, one of Batteur's own synthesised kits (:data:`MODAL_KITS`) or a soundfont's drum kit
-    (:data:`~.soundfont.SOUNDFONT_KITS`), loaded once per process."""
+    """A Hydrogen kit, one of Batteur's own synthesised kits (:data:`MODAL_KITS`), a soundfont's drum kit
+    (:data:`~.soundfont.SOUNDFONT_KITS`) or a further acoustic kit (:data:`~.more_kits.MORE_KITS`), loaded once
+    per process."""
     if name not in _KITS:
         if name in MODAL_KITS:
             _KITS[name] = render_modal_kit(name.removeprefix("batteur-"))
         elif name in SOUNDFONT_KITS:
             _KITS[name] = render_soundfont_kit(name)
+        elif name in MORE_KITS:
+            _KITS[name] = load_more_kit(name)
         else:
             _KITS[name] = load_kit(name)
     return _KITS[name]
@@ -76,9 +80,9 @@ def load_any_kit(name: str) -> Kit:
 def prepare(kits: tuple[str, ...]) -> None:
     """Make the rendered kits before worker processes fork (so each is rendered once)."""
     for name in kits:
-        if (name in MODAL_KITS or name in SOUNDFONT_KITS) and name not in _KITS:
-            how = "the sound service" if name in MODAL_KITS else "FluidSynth"
-            print(f"rendering {name} one-shots with {how} ...", flush=True)
+        if (name in MODAL_KITS or name in SOUNDFONT_KITS or name in MORE_KITS) and name not in _KITS:
+            how = "the sound service" if name in MODAL_KITS else "FluidSynth" if name.startswith("sf-") else "files"
+            print(f"making {name} one-shots with {how} ...", flush=True)
             load_any_kit(name)
 
 

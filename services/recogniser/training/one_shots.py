@@ -34,30 +34,43 @@ Strike = tuple[str, int, float]
 """(instrument kind, MIDI velocity, time from the first strike, seconds)."""
 
 
-def write_strike_file(path: Path, program: int | None = None, start_s: float = 0.0) -> list[Strike]:
-    """Write the one-shot MIDI file (channel 10; ``program``: a drum kit's program change first, as General
-    MIDI soundfonts select their kits; the first strike ``start_s`` seconds in); returns its strikes (times
-    from the first strike)."""
+def write_strike_file(path: Path, program: int | None = None, start_s: float = 0.0, channel: int = 9,
+                      notes: dict[str, int] | None = None) -> list[Strike]:
+    """Write the one-shot MIDI file (on ``channel``, 0-based, default 9: General MIDI's drums; ``program``: a
+    drum kit's program change first, as General MIDI soundfonts select their kits; the first strike ``start_s``
+    seconds in; ``notes``: kind -> note of the kinds to strike, default :data:`KIND_NOTE`); returns its strikes
+    (times from the first strike)."""
+    notes = KIND_NOTE if notes is None else notes
     mid = mido.MidiFile(ticks_per_beat=480)
     track = mido.MidiTrack()
     mid.tracks.append(track)
     track.append(mido.MetaMessage("set_tempo", tempo=500_000))  # 120 BPM: 960 ticks per second
     if program is not None:
-        track.append(mido.Message("program_change", channel=9, program=program, time=0))
+        track.append(mido.Message("program_change", channel=channel, program=program, time=0))
     strikes: list[Strike] = []
     t = 0.0
-    for kind in KIND_NOTE:
+    for kind in notes:
         for v in VELOCITIES:
             strikes.append((kind, v, t))
             t += SPACING_S
     last = 0
     for kind, v, when in strikes:
         tick = int(round((start_s + when) * 960))
-        track.append(mido.Message("note_on", channel=9, note=KIND_NOTE[kind], velocity=v, time=tick - last))
-        track.append(mido.Message("note_off", channel=9, note=KIND_NOTE[kind], velocity=0, time=10))
+        track.append(mido.Message("note_on", channel=channel, note=notes[kind], velocity=v, time=tick - last))
+        track.append(mido.Message("note_off", channel=channel, note=notes[kind], velocity=0, time=10))
         last = tick + 10
     mid.save(str(path))
     return strikes
+
+
+def trimmed(one: np.ndarray) -> np.ndarray | None:
+    """A one-shot (samples,) from its first sample within 50 dB of its peak, scaled to a peak of 1 (float32);
+    None if it is silent."""
+    peak = float(np.max(np.abs(one))) if one.size else 0.0
+    if peak <= 1e-5:
+        return None
+    above = np.flatnonzero(np.abs(one) > 10 ** (-50 / 20) * peak)
+    return (one[int(above[0]) :] / peak).astype(np.float32)
 
 
 def cut_kit(name: str, licence: str, audio: np.ndarray, sample_rate: int, strikes: list[Strike],
@@ -72,14 +85,11 @@ def cut_kit(name: str, licence: str, audio: np.ndarray, sample_rate: int, strike
     edges = [0.0, *[(a + b) / 2 / 127 for a, b in zip(VELOCITIES[:-1], VELOCITIES[1:], strict=True)], 1.0]
     for kind, v, when in strikes:
         a = max(0, int(round((start_s + when - 0.005) * RENDER_RATE)))
-        one = mono[a : a + int((SPACING_S - 0.05) * RENDER_RATE)]
-        peak = float(np.max(np.abs(one))) if one.size else 0.0
-        if peak <= 1e-5:
+        one = trimmed(mono[a : a + int((SPACING_S - 0.05) * RENDER_RATE)])
+        if one is None:
             continue
-        above = np.flatnonzero(np.abs(one) > 10 ** (-50 / 20) * peak)
-        one = one[int(above[0]) :] / peak
         i = VELOCITIES.index(v)
-        layers.setdefault(kind, []).append(Layer(edges[i], edges[i + 1], 1.0, one.astype(np.float32)))
+        layers.setdefault(kind, []).append(Layer(edges[i], edges[i + 1], 1.0, one))
     for kind, ls in layers.items():
         kit.instruments[kind] = [Instrument(f"{name} {kind}", kind, 1.0, ls)]
     return kit

@@ -36,6 +36,12 @@ class SoundfontKit:
     licence: str
     package: str
     """Debian package that installs the font."""
+    channel: int = 9
+    """MIDI channel (0-based) the strikes are played on: 9, General MIDI's drums (bank 128), or a melodic
+    channel for a font whose kit is a bank-0 preset."""
+    notes: dict[str, int] | None = None
+    """Instrument kind -> the note that plays it, for the kinds taken from the font (default: every kind, at
+    its General MIDI note, :data:`~.one_shots.KIND_NOTE`)."""
 
 
 _FLUID = Path("/usr/share/sounds/sf2/FluidR3_GM.sf2")
@@ -61,7 +67,13 @@ class SoundfontsMissingError(RuntimeError):
 def require_soundfonts(names: tuple[str, ...] | list[str]) -> None:
     """Raise :class:`SoundfontsMissingError` with an install hint unless FluidSynth and every font of
     ``names`` (keys of :data:`SOUNDFONT_KITS`) are installed."""
-    packages = sorted({SOUNDFONT_KITS[n].package for n in names if not SOUNDFONT_KITS[n].path.exists()})
+    require_font(*(SOUNDFONT_KITS[n] for n in names))
+
+
+def require_font(*specs: SoundfontKit) -> None:
+    """Raise :class:`SoundfontsMissingError` with an install hint unless FluidSynth and every font of
+    ``specs`` are installed."""
+    packages = sorted({s.package for s in specs if not s.path.exists()})
     if shutil.which("fluidsynth") is None:
         packages.insert(0, "fluidsynth")
     if packages:
@@ -72,23 +84,27 @@ def require_soundfonts(names: tuple[str, ...] | list[str]) -> None:
 
 
 def render_soundfont_kit(name: str) -> Kit:
-    """Render the one-shots of the soundfont kit ``name`` (a key of :data:`SOUNDFONT_KITS`) and cut them.
+    """Render the one-shots of the soundfont kit ``name`` (a key of :data:`SOUNDFONT_KITS`) and cut them
+    (:func:`render_font_kit`)."""
+    return render_font_kit(name, SOUNDFONT_KITS[name])
+
+
+def render_font_kit(name: str, spec: SoundfontKit) -> Kit:
+    """Render the one-shots of the soundfont kit ``spec`` and cut them into the kit ``name``.
 
     Raises
     ------
-    KeyError
-        ``name`` is not a soundfont kit.
     SoundfontsMissingError
         FluidSynth or the font is not installed.
     RuntimeError
         FluidSynth failed (its error output is in the message).
     """
-    spec = SOUNDFONT_KITS[name]
-    require_soundfonts([name])
+    require_font(spec)
     with tempfile.TemporaryDirectory() as tmp:
         midi = Path(tmp) / "strikes.mid"
         wav = Path(tmp) / "strikes.wav"
-        strikes = write_strike_file(midi, program=spec.program, start_s=START_S)
+        strikes = write_strike_file(midi, program=spec.program, start_s=START_S, channel=spec.channel,
+                                    notes=spec.notes)
         cmd = ["fluidsynth", "-ni", "-R", "0", "-C", "0", "-g", "0.5", "-r", str(RENDER_RATE_HZ),
                "-F", str(wav), str(spec.path), str(midi)]
         done = subprocess.run(cmd, capture_output=True, text=True)

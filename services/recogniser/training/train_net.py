@@ -45,6 +45,7 @@ from services.recogniser.training.frames import (
     windows_for,
 )
 from services.recogniser.training.kits import VALID_KITS
+from services.recogniser.training.more_kits import MORE_KITS, MoreKitsMissingError, require_more_kits
 from services.recogniser.training.net import DILATIONS, Net, export, from_export
 from services.recogniser.training.soundfont import SOUNDFONT_KITS, SoundfontsMissingError, require_soundfonts
 from services.recogniser.training.tune import choose
@@ -180,6 +181,10 @@ def main(argv: list[str] | None = None) -> int:
                     help="also fit on the drum kits of General MIDI soundfonts rendered by FluidSynth "
                          "(training/soundfont.py; Debian packages fluidsynth, fluid-soundfont-gm, "
                          "musescore-general-soundfont-small, timgm6mb-soundfont)")
+    ap.add_argument("--more-kits", action="store_true",
+                    help="also fit on two further recorded acoustic kits: Sonic Pi's and AVL's Red Zeppelin without "
+                         "its hi-hats (training/more_kits.py; Debian packages sonic-pi-samples, "
+                         "avldrums.lv2-soundfont, fluidsynth)")
     ap.add_argument("--by-duration", action="store_true",
                     help="draw the excerpts' performances (training and validation kit) in proportion to their "
                          "duration, so every second is about equally likely, as the benchmark weighs the split "
@@ -212,6 +217,13 @@ def main(argv: list[str] | None = None) -> int:
             print(f"error: {exc}", file=sys.stderr)
             return 1
         fit_kits = FIT_KITS + tuple(SOUNDFONT_KITS)
+    if args.more_kits:
+        try:
+            require_more_kits()
+        except (MoreKitsMissingError, SoundfontsMissingError) as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return 1
+        fit_kits = fit_kits + tuple(MORE_KITS)
     bands = BANDS[args.bands]
     windows = windows_for(bands, tuple(sorted(set(args.windows))))
     rendered = (SHORT_WINDOW, *WINDOWS) if SHORT_WINDOW in args.windows else WINDOWS  # windows in the frame sets
@@ -259,7 +271,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"wrote {args.out} ({args.out.stat().st_size / 1024:.0f} KiB)")
         return 0
     live, live_meta = load_live(args.live_from)
-    train = frames(args.cache, "train" + ("-sf" if args.soundfonts else ""), args.excerpts, args.seed, args.workers,
+    train = frames(args.cache, "train" + ("-sf" if args.soundfonts else "") + ("-mk" if args.more_kits else ""),
+                   args.excerpts, args.seed, args.workers,
                    fit_kits, 0.3, not args.plain, hop=args.hop, by_duration=args.by_duration,
                    quiet_hihat_p=args.quiet_hihats, bands=bands, windows_22k=rendered)
     if args.render_only:
@@ -284,7 +297,9 @@ def main(argv: list[str] | None = None) -> int:
             "live_trained_on": live_meta.get("live_trained_on", live_meta.get("trained_on", [])),
             "live_excerpts": live_meta.get("live_excerpts", live_meta.get("excerpts")),
             "data": "Groove MIDI Dataset train split (CC BY 4.0) rendered with hydrogen-drumkits and Batteur's "
-                    "synthesis" + (" and General MIDI soundfonts' drum kits" if args.soundfonts else "")}
+                    "synthesis" + (" and General MIDI soundfonts' drum kits" if args.soundfonts else "")
+                    + (", Sonic Pi's drum samples (CC0) and AVL's Red Zeppelin kit (CC-BY-SA-3.0)"
+                       if args.more_kits else "")}
     Model(offline=net, live=live, meta=meta).save(args.out, half=args.half)
     print(f"wrote {args.out} ({args.out.stat().st_size / 1024:.0f} KiB) in {time.time() - t0:.0f} s")
     return 0
