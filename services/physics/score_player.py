@@ -356,7 +356,11 @@ class ScorePlayer:
             raise ScorePlayerError(f"play: nothing to play after {position:g} s (the score ends at "
                                    f"{score.duration:.3f} s)")
         if at <= base:  # "at once"
+            asked = at
             at = base + START_LEAD_S + PLAN_MARGIN_PER_NOTE_S * len(remaining)
+            if asked > 0.0:  # a time that has passed (0 is the panel's "at once"): say how late it starts
+                log.warning("play at rig time %.3f s asked at %.3f s, already past: the score starts at %.3f s "
+                            "instead (%.3f s late)", asked, base, at, at - asked)
         t_s = base + SPLICE_MARGIN_S
         earliest = t_s + TRANSITION_S + self.preparation_s - SPLICE_MARGIN_S
         events = [dataclasses.replace(e, time=at + (e.time - position) / tempo) for e in remaining]

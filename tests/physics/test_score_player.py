@@ -190,6 +190,21 @@ def test_a_midi_score_plays_from_a_position_at_a_tempo() -> None:
     physics.close()
 
 
+def test_a_play_time_already_past_starts_at_once_and_says_how_late(caplog: pytest.LogCaptureFixture) -> None:
+    """A node ready only after the rig time it was asked to start at (a slow start) plays the whole score as
+    soon as it can, and warns: the notes move later together rather than being lost."""
+    physics, runner, _, control = _rig()
+    player = physics.score_player
+    player.library = [MIDI.parent]
+    control.send(ScoreLoad(path=MIDI.name), "physics")
+    runner.run_until(0.4)
+    with caplog.at_level("WARNING", logger="batteur.physics.score"):
+        control.send(ScoreTransport(action="play", time=0.3, position=2.0), "physics")
+    assert physics.rejected["ScoreTransport"] == 0 and player.late_notes == 0
+    assert player.mapping is not None and player.mapping[0] > 0.4 + 0.5  # START_LEAD_S after now
+    assert any("already past" in r.getMessage() and "0.300" in r.getMessage() for r in caplog.records)
+
+
 def test_a_tempo_change_while_playing_re_times_the_rest_of_the_score() -> None:
     """Notes within the preparation time keep their times; the rest follow the new tempo from there."""
     from common.score.text import read_score
