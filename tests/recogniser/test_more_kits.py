@@ -23,6 +23,7 @@ from services.recogniser.training.more_kits import (
     require_more_kits,
 )
 from services.recogniser.training.one_shots import VELOCITIES, write_strike_file
+from services.recogniser.training.soundfont import SoundfontKit, render_font_kit
 
 needs_sonic_pi = pytest.mark.skipif(
     not (more_kits.SONIC_PI_DIR / "drum_bass_hard.flac").exists(), reason="needs sonic-pi-samples (.ci/run)")
@@ -90,8 +91,8 @@ def test_no_further_kit_plays_the_held_out_kits_hihats_or_cymbals() -> None:
                     assert worst < 0.5, (name, kind, worst)
     # the check can fail: the Red Zeppelin font's own closed hi-hat (left out) is the held-out kit's
     assert AVL_RED_ZEPPELIN.notes is not None
-    with_hats = more_kits.SoundfontKit(AVL_RED_ZEPPELIN.path, 0, "", "", channel=0, notes={"hh_closed": 42})
-    hats = more_kits.render_font_kit("check", with_hats).instruments["hh_closed"][0].layers
+    with_hats = SoundfontKit(AVL_RED_ZEPPELIN.path, 0, "", "", channel=0, notes={"hh_closed": 42})
+    hats = render_font_kit("check", with_hats).instruments["hh_closed"][0].layers
     assert max(_likeness(hats[-1].audio, h) for h in held_samples) > 0.8
 
 

@@ -45,7 +45,7 @@ AVL_RED_ZEPPELIN = SoundfontKit(
 )
 """The AVL Red Zeppelin kit: a bank-0 preset (played on channel 1); its 14" rack tom plays the high tom."""
 
-MORE_KITS: dict[str, str] = {"sonicpi-menegass": "CC0", "sf-avl-red-zeppelin": "CC-BY-SA-3.0"}
+MORE_KITS: dict[str, str] = {"sonicpi-menegass": "CC0", "sf-avl-red-zeppelin": AVL_RED_ZEPPELIN.licence}
 """Kit name -> licence."""
 
 
@@ -56,10 +56,15 @@ class MoreKitsMissingError(RuntimeError):
 def require_more_kits() -> None:
     """Raise :class:`MoreKitsMissingError` (or the soundfont's error) with an install hint unless every
     further kit can be made."""
+    require_sonic_pi()
+    require_font(AVL_RED_ZEPPELIN)
+
+
+def require_sonic_pi() -> None:
+    """Raise :class:`MoreKitsMissingError` with an install hint unless Sonic Pi's drum samples are installed."""
     if not all((SONIC_PI_DIR / f"{n}.flac").exists() for names in SONIC_PI_KIT.values() for n in names):
         raise MoreKitsMissingError(f"Sonic Pi's drum samples not found in {SONIC_PI_DIR}: install them with "
                                    "`apt-get install sonic-pi-samples` (Debian/Ubuntu)")
-    require_font(AVL_RED_ZEPPELIN)
 
 
 def load_more_kit(name: str) -> Kit:
@@ -76,7 +81,7 @@ def load_more_kit(name: str) -> Kit:
         return render_font_kit(name, AVL_RED_ZEPPELIN)
     if name != "sonicpi-menegass":
         raise KeyError(name)
-    require_more_kits()
+    require_sonic_pi()
     kit = Kit(name=name, licence=MORE_KITS[name])
     for kind, names in SONIC_PI_KIT.items():
         layers = []
