@@ -10,6 +10,8 @@ every ``open`` during the handler calls.
 
 from __future__ import annotations
 
+import atexit
+import shutil
 import string
 import sys
 import tempfile
@@ -26,7 +28,8 @@ from common.messages import REGISTRY, OscMessage, WireField, WireKind
 pytestmark = pytest.mark.timeout(300)
 
 ALLOWED_DIR = Path(tempfile.mkdtemp(prefix="batteur-fuzz-"))
-"""The only directory the cores under test are configured with (for saving)."""
+"""The only directory the cores under test are configured with (for saving); removed when the run ends."""
+atexit.register(shutil.rmtree, ALLOWED_DIR, ignore_errors=True)
 _opens: list[tuple[str, str]] = []
 """(path, "role address") of every file opened by a handler."""
 _auditing = [""]
