@@ -89,6 +89,19 @@ def test_frame_targets_mark_strike_frames_and_their_neighbours_at_the_chosen_lev
     assert sharp[9:14, N_CLASSES].tolist() == [np.float32(0.2), 1.0, np.float32(0.2), 1.0, np.float32(0.2)]
 
 
+def test_onset_target_marks_one_peak_per_onset_as_the_benchmark_merges_strikes() -> None:
+    kick, snare, hihat = 0, 1, 2
+    # a kick and a snare 12 ms apart are one onset (within 20 ms of its first strike); the hi-hat 25 ms after
+    # the kick starts another
+    hits = np.array([[0.100, kick, 100], [0.112, snare, 90], [0.124, hihat, 70], [0.300, snare, 50]])
+    act, _, _ = targets(40, hits, fps=100.0, onset_merge_s=0.02)
+    assert np.flatnonzero(act[:, N_CLASSES] == 1.0).tolist() == [10, 12, 30]
+    assert act[11, N_CLASSES] == NEIGHBOUR_TARGET  # the valley between the two onsets
+    every, _, _ = targets(40, hits, fps=100.0)
+    assert np.flatnonzero(every[:, N_CLASSES] == 1.0).tolist() == [10, 11, 12, 30]
+    assert np.array_equal(act[:, :N_CLASSES], every[:, :N_CLASSES])  # the classes' own targets do not change
+
+
 def test_at_5_ms_frames_strikes_20_ms_apart_are_four_frames_apart_with_nothing_between() -> None:
     snare, hihat = 1, 2
     hits = np.array([[0.1, hihat, 100], [0.12, snare, 64]])

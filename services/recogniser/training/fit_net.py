@@ -62,12 +62,12 @@ class Batches:
     """Crops of a frame set's spectra of some ``windows`` with their targets (targets made once per excerpt)."""
 
     def __init__(self, data: FrameSet, margin: int, windows: tuple[int, ...],
-                 neighbour: float = NEIGHBOUR_TARGET) -> None:
+                 neighbour: float = NEIGHBOUR_TARGET, onset_merge_s: float | None = None) -> None:
         self.data = data
         self.margin = margin
         self.windows = windows
-        self.tgt = [targets(data.starts[e + 1] - data.starts[e], data.excerpt_hits(e), neighbour, data.fps)
-                    for e in range(data.n_excerpts)]
+        self.tgt = [targets(data.starts[e + 1] - data.starts[e], data.excerpt_hits(e), neighbour, data.fps,
+                            onset_merge_s) for e in range(data.n_excerpts)]
 
     def crop(self, e: int, a: int, n: int) -> tuple[np.ndarray, ...]:
         """Input frames a - margin .. a + n + margin (silence outside) and the targets of frames a .. a + n."""
@@ -130,12 +130,14 @@ def fit(train: FrameSet, val: FrameSet, epochs: float, seed: int, lr: float = 2e
         minutes: float | None = None, width: int = 128, windows: tuple[int, ...] = (F.N_FFT,),
         hard: float = HARD_WEIGHT, init: Net | None = None, warmup: float = 0.03,
         outputs: dict[int, float] | None = None, neighbour: float = NEIGHBOUR_TARGET,
-        dilations: tuple[int, ...] = DILATIONS) -> Net:
+        dilations: tuple[int, ...] = DILATIONS, onset_merge_s: float | None = None) -> Net:
     """Fit a :class:`Net` on the spectra of ``windows``; ``epochs``: passes over the training frames (fractional
     allowed), or only as many steps as fit in ``minutes``, whichever is fewer. ``hard``: see :func:`loss_of`
     (the validation loss is unweighted). ``outputs``: loss weight of activation ``k`` (class index; N_CLASSES: the
     onset output) where not 1 (e.g. {1: 2.0}: snare errors count twice; the validation loss is unweighted).
     ``neighbour``: the target of the frames beside a strike's (:func:`~.frames.targets`; training and validation).
+    ``onset_merge_s``: the onset output's target marks onsets, strikes this close (seconds) being one
+    (:func:`~.frames.targets`; default: every strike).
     ``dilations``: of the residual time convolutions (frames), whose sum sets the context each side (a new network).
     ``init``: continue from this network (of these ``windows``; e.g. :func:`~.net.from_export` of a model file),
     its batch normalisations first calibrated on 8 training batches (:func:`~.net.calibrate`); it is kept
@@ -158,7 +160,8 @@ def fit(train: FrameSet, val: FrameSet, epochs: float, seed: int, lr: float = 2e
     if net.bands != train.bands:
         raise ValueError(f"the network reads {net.bands}, the training set has {train.bands}")
     crop = round(CROP_S * train.fps)
-    tb, vb = Batches(train, net.margin, windows, neighbour), Batches(val, net.margin, windows, neighbour)
+    tb = Batches(train, net.margin, windows, neighbour, onset_merge_s)
+    vb = Batches(val, net.margin, windows, neighbour, onset_merge_s)
     out_w = None
     if outputs:
         out_w = torch.ones(N_CLASSES + 1)

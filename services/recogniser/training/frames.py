@@ -154,15 +154,28 @@ def make_frames(n: int, seed: int, workers: int, kits: tuple[str, ...], dry_p: f
     return data
 
 
-def targets(n_frames: int, hits: np.ndarray, neighbour: float = NEIGHBOUR_TARGET, fps: float = F.FPS
-            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def onset_times(times: np.ndarray, merge_s: float) -> np.ndarray:
+    """Onsets of strikes at ``times`` (seconds): sorted, a strike within ``merge_s`` (seconds) after the first
+    strike of an onset belongs to it (the benchmark's class-agnostic reference, ``bench/recogniser_bench.py``'s
+    ``merge``). Returns the onsets' times (seconds, the first strike's)."""
+    out: list[float] = []
+    for t in np.sort(times):
+        if not out or t - out[-1] > merge_s:
+            out.append(float(t))
+    return np.asarray(out, np.float64)
+
+
+def targets(n_frames: int, hits: np.ndarray, neighbour: float = NEIGHBOUR_TARGET, fps: float = F.FPS,
+            onset_merge_s: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Frame targets of one excerpt from its hits (rows: time s, class, velocity; or :class:`FrameSet` rows),
     ``fps`` frames per second.
 
     Returns
     -------
     act : (n_frames, N_CLASSES + 1) float32, 1 at each strike's nearest frame, ``neighbour`` (0..1, default
-        :data:`NEIGHBOUR_TARGET`) at the frames beside it; the last column is "a strike of any class"
+        :data:`NEIGHBOUR_TARGET`) at the frames beside it; the last column is "a strike of any class", or with
+        ``onset_merge_s`` (seconds) "an onset": strikes within it of an onset's first strike are that onset
+        (:func:`onset_times`), so the onset output peaks once per onset as the benchmark counts onsets
     vel : (n_frames, N_CLASSES) float32, velocity / 127 at strike frames
     vel_mask : (n_frames, N_CLASSES) bool, where ``vel`` is defined
     """
@@ -174,12 +187,16 @@ def targets(n_frames: int, hits: np.ndarray, neighbour: float = NEIGHBOUR_TARGET
     cls = h[:, 1].astype(int)
     ok = (frame >= 0) & (frame < n_frames)
     frame, cls, v = frame[ok], cls[ok], h[ok, 2]
+    onset = frame
+    if onset_merge_s is not None:
+        onset = np.rint(onset_times(h[ok, 0], onset_merge_s) * fps).astype(int)
     for d in (-1, 1):
         f = np.clip(frame + d, 0, n_frames - 1)
         act[f, cls] = np.maximum(act[f, cls], neighbour)
+        f = np.clip(onset + d, 0, n_frames - 1)
         act[f, N_CLASSES] = np.maximum(act[f, N_CLASSES], neighbour)
     act[frame, cls] = 1.0
-    act[frame, N_CLASSES] = 1.0
+    act[onset, N_CLASSES] = 1.0
     vel[frame, cls] = np.maximum(vel[frame, cls], v / 127.0)
     mask[frame, cls] = True
     return act, vel, mask
