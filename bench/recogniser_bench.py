@@ -40,6 +40,7 @@ from services.recogniser.core import LiveRecogniser  # noqa: E402
 from services.recogniser.framenet import FrameNet  # noqa: E402
 from services.recogniser.model import MODEL_PATH, Model, load_model  # noqa: E402
 from services.recogniser.training.dataset import groove_files  # noqa: E402
+from services.recogniser.training.frames import onset_times  # noqa: E402
 from services.recogniser.training.kits import (  # noqa: E402
     RENDER_RATE,
     TEST_KITS,
@@ -67,11 +68,8 @@ MERGE_S = 0.02
 
 
 def merge(times: np.ndarray, gap: float = MERGE_S) -> np.ndarray:
-    out: list[float] = []
-    for t in np.sort(times):
-        if not out or t - out[-1] > gap:
-            out.append(float(t))
-    return np.asarray(out)
+    """Onsets of ``times`` (seconds), strikes within ``gap`` of an onset's first strike being one."""
+    return onset_times(times, gap)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -15,7 +15,7 @@ import numpy as np
 
 from services.recogniser.classes import CLASS_NAMES, N_CLASSES
 from services.recogniser.framenet import SNARE, FrameNet
-from services.recogniser.training.frames import FrameSet
+from services.recogniser.training.frames import FrameSet, onset_times
 from services.recogniser.transcribe import strikes
 
 GRID = np.round(np.arange(0.1, 0.91, 0.05), 2)
@@ -33,14 +33,6 @@ HIHAT_SNARE_OPTIONS = (0.0, 0.5, 0.7, 1.0, 1.3)
 MERGE_S = 0.02
 """Reference strikes closer than this are one onset (as the benchmark counts them), seconds."""
 
-
-def merge(times: np.ndarray, gap: float) -> np.ndarray:
-    """Sorted times with any time within ``gap`` of the previous kept one dropped."""
-    out: list[float] = []
-    for t in np.sort(times):
-        if not out or t - out[-1] > gap:
-            out.append(float(t))
-    return np.asarray(out)
 
 
 def pooled_counts(pairs: list[tuple[np.ndarray, np.ndarray]], window: float = 0.05) -> tuple[int, int]:
@@ -81,7 +73,7 @@ def _onset_f(net: FrameNet, val: FrameSet, outs: list[np.ndarray]) -> float:
     pairs = []
     for e, out in enumerate(outs):
         est = np.unique([ev.time for ev in strikes(net, out)])
-        pairs.append((merge(val.excerpt_hits(e)[:, 1], MERGE_S), est))
+        pairs.append((onset_times(val.excerpt_hits(e)[:, 1], MERGE_S), est))
     return pooled_f(pairs)
 
 
