@@ -91,7 +91,7 @@ def test_frame_targets_mark_strike_frames_and_their_neighbours_at_the_chosen_lev
 
 def test_onset_target_marks_one_peak_per_onset_as_the_benchmark_merges_strikes() -> None:
     kick, snare, hihat = 0, 1, 2
-    # a kick and a snare 12 ms apart are one onset (within 20 ms of its first strike); the hi-hat 25 ms after
+    # a kick and a snare 12 ms apart are one onset (within 20 ms of its first strike); the hi-hat 24 ms after
     # the kick starts another
     hits = np.array([[0.100, kick, 100], [0.112, snare, 90], [0.124, hihat, 70], [0.300, snare, 50]])
     act, _, _ = targets(40, hits, fps=100.0, onset_merge_s=0.02)

@@ -156,8 +156,8 @@ def make_frames(n: int, seed: int, workers: int, kits: tuple[str, ...], dry_p: f
 
 def onset_times(times: np.ndarray, merge_s: float) -> np.ndarray:
     """Onsets of strikes at ``times`` (seconds): sorted, a strike within ``merge_s`` (seconds) after the first
-    strike of an onset belongs to it (the benchmark's class-agnostic reference, ``bench/recogniser_bench.py``'s
-    ``merge``). Returns the onsets' times (seconds, the first strike's)."""
+    strike of an onset belongs to it (how ``bench/recogniser_bench.py`` and the trainer's tuning count onsets,
+    with 0.02 s). Returns the onsets' times (seconds, the first strike's)."""
     out: list[float] = []
     for t in np.sort(times):
         if not out or t - out[-1] > merge_s:

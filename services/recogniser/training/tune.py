@@ -34,7 +34,6 @@ MERGE_S = 0.02
 """Reference strikes closer than this are one onset (as the benchmark counts them), seconds."""
 
 
-
 def pooled_counts(pairs: list[tuple[np.ndarray, np.ndarray]], window: float = 0.05) -> tuple[int, int]:
     """(matches, references + estimates) of (reference times, estimated times) pairs, summed over the pairs."""
     matched = n = 0
