@@ -40,7 +40,7 @@ from services.recogniser.core import LiveRecogniser  # noqa: E402
 from services.recogniser.framenet import FrameNet  # noqa: E402
 from services.recogniser.model import MODEL_PATH, Model, load_model  # noqa: E402
 from services.recogniser.training.dataset import groove_files  # noqa: E402
-from services.recogniser.training.frames import onset_times  # noqa: E402
+from services.recogniser.training.frames import ONSET_MERGE_S, onset_times  # noqa: E402
 from services.recogniser.training.kits import (  # noqa: E402
     RENDER_RATE,
     TEST_KITS,
@@ -63,11 +63,7 @@ from services.recogniser.transcribe import (  # noqa: E402
 GROUPS: dict[str, tuple[int, ...]] = {name: (i,) for i, name in enumerate(CLASS_NAMES)}
 GROUPS["hihat (open+closed)"] = (2, 3)
 GROUPS["toms (all)"] = (4, 5, 6)
-MERGE_S = 0.02
-"""Reference onsets closer than this are one onset for the class-agnostic score, seconds."""
-
-
-def merge(times: np.ndarray, gap: float = MERGE_S) -> np.ndarray:
+def merge(times: np.ndarray, gap: float = ONSET_MERGE_S) -> np.ndarray:
     """Onsets of ``times`` (seconds), strikes within ``gap`` of an onset's first strike being one."""
     return onset_times(times, gap)
 
@@ -198,7 +194,7 @@ def soft_recall(files_run: list[tuple[list[Hit], list[tuple[float, int]]]], wind
         order = sorted(hits, key=lambda h: h.time)
         onsets: list[list[float]] = []  # [time, loudest velocity]
         for h in order:
-            if onsets and h.time - onsets[-1][0] <= MERGE_S:
+            if onsets and h.time - onsets[-1][0] <= ONSET_MERGE_S:
                 onsets[-1][1] = max(onsets[-1][1], h.velocity)
             else:
                 onsets.append([h.time, h.velocity])
@@ -271,7 +267,7 @@ def onset_scores(ref: np.ndarray, est: np.ndarray, window: float = 0.05) -> tupl
 def ideal_grouping(ref: np.ndarray, est: np.ndarray, window: float = 0.05) -> tuple[int, int, int]:
     """(matched, reference onsets, estimated onsets) if every strike within ``window`` of a reference onset
     were grouped into that onset's estimate (a grouping that knows the answer); the strikes near none stay,
-    grouped as the reference is (:data:`MERGE_S`). An upper bound for any rule that groups these strikes."""
+    grouped as the reference is (:data:`ONSET_MERGE_S`). An upper bound for any rule that groups these strikes."""
     e = np.sort(est)
     pairs = mir_eval.util.match_events(ref, e, window) if len(ref) and len(e) else []
     used = {j for _, j in pairs}
@@ -326,7 +322,7 @@ def onset_losses(net: FrameNet, files: list[tuple[list[Hit], np.ndarray]]) -> No
                 continue
             others = np.abs(np.delete(ref, i) - t)
             close = bool(len(others)) and float(others.min()) < NEIGHBOUR_S
-            classes = set(ref_c[(ref_t >= t) & (ref_t <= t + MERGE_S)].tolist())
+            classes = set(ref_c[(ref_t >= t) & (ref_t <= t + ONSET_MERGE_S)].tolist())
             found = any(abs(rt - t) <= FOUND_S for rt, c in raw if c in classes)
             key = ("close, found but given a neighbour's time" if found else "close, not found") if close else (
                 "alone, found" if found else "alone, not found")
@@ -338,7 +334,7 @@ def onset_losses(net: FrameNet, files: list[tuple[list[Hit], np.ndarray]]) -> No
                       else "far from every reference onset"] += 1
     n_ref = int(totals["as decoded"][1])
     print(f"\nwhere the onsets are lost (F at 50 ms; {n_ref} reference onsets, strikes closer than "
-          f"{MERGE_S * 1000:.0f} ms one onset):")
+          f"{ONSET_MERGE_S * 1000:.0f} ms one onset):")
     for name, (m, nr, ne) in totals.items():
         prec, rec = m / max(ne, 1), m / max(nr, 1)
         f = 2 * prec * rec / (prec + rec) if prec + rec else 0.0

@@ -154,10 +154,15 @@ def make_frames(n: int, seed: int, workers: int, kits: tuple[str, ...], dry_p: f
     return data
 
 
+ONSET_MERGE_S = 0.02
+"""Strikes within this of an onset's first strike are one onset, seconds: how the benchmark, the trainer's tuning
+and ``train_net --onset-merge`` count class-agnostic onsets."""
+
+
 def onset_times(times: np.ndarray, merge_s: float) -> np.ndarray:
     """Onsets of strikes at ``times`` (seconds): sorted, a strike within ``merge_s`` (seconds) after the first
-    strike of an onset belongs to it (how ``bench/recogniser_bench.py`` and the trainer's tuning count onsets,
-    with 0.02 s). Returns the onsets' times (seconds, the first strike's)."""
+    strike of an onset belongs to it (:data:`ONSET_MERGE_S`: how the benchmark and the trainer's tuning count
+    onsets). Returns the onsets' times (seconds, the first strike's)."""
     out: list[float] = []
     for t in np.sort(times):
         if not out or t - out[-1] > merge_s:

@@ -49,7 +49,7 @@ from services.recogniser.training.excerpts import (
     prepare,
     render_excerpt,
 )
-from services.recogniser.training.frames import onset_times
+from services.recogniser.training.frames import ONSET_MERGE_S, onset_times
 from services.recogniser.training.kits import RENDER_RATE, TRAIN_KITS, VALID_KITS
 from services.recogniser.transcribe import SUPPRESS_S, DrumEvent, group_chords
 
@@ -150,7 +150,7 @@ def event_f(val: Examples, found: list[tuple[np.ndarray, np.ndarray]], classes: 
     for e, (times, cls) in enumerate(found):
         h = val.hits[val.hits[:, 0] == e]
         if classes is None:
-            ref = onset_times(h[:, 1], 0.02)
+            ref = onset_times(h[:, 1], ONSET_MERGE_S)
             est = onset_times(times, 1e-4)
         else:
             ref = np.unique(h[np.isin(h[:, 2], classes), 1])

@@ -37,6 +37,7 @@ from services.recogniser.training.excerpts import FIT_KITS, VALID_DRY_P, VARY_P,
 from services.recogniser.training.fit_net import HARD_WEIGHT, fit
 from services.recogniser.training.frames import (
     NEIGHBOUR_TARGET,
+    ONSET_MERGE_S,
     SHORT_WINDOW,
     WINDOWS,
     FrameSet,
@@ -171,8 +172,8 @@ def main(argv: list[str] | None = None) -> int:
                          f"20-30 ms apart can give two; default {NEIGHBOUR_TARGET})")
     ap.add_argument("--onset-merge", type=float, default=None, metavar="S",
                     help="train the onset output on onsets rather than strikes: strikes within S seconds of an "
-                         "onset's first strike are that onset, as the benchmark counts onsets (0.02); default: "
-                         "every strike is an onset")
+                         f"onset's first strike are that onset, as the benchmark counts onsets ({ONSET_MERGE_S}); "
+                         "default: every strike is an onset")
     ap.add_argument("--plain", action="store_true",
                     help="render without layered instruments and the wider per-instrument changes (recipe 3's data)")
     ap.add_argument("--val-plain", action="store_true",

@@ -15,7 +15,7 @@ import numpy as np
 
 from services.recogniser.classes import CLASS_NAMES, N_CLASSES
 from services.recogniser.framenet import SNARE, FrameNet
-from services.recogniser.training.frames import FrameSet, onset_times
+from services.recogniser.training.frames import ONSET_MERGE_S, FrameSet, onset_times
 from services.recogniser.transcribe import strikes
 
 GRID = np.round(np.arange(0.1, 0.91, 0.05), 2)
@@ -30,8 +30,6 @@ PEAK_MAX_S = 0.01
 10 ms frames: 1 only; 5 ms frames: 1 or 2)."""
 HIHAT_SNARE_OPTIONS = (0.0, 0.5, 0.7, 1.0, 1.3)
 """Ratios tried for dropping a snare peak under a hi-hat peak (``FrameNet.hihat_snare``; 0: never)."""
-MERGE_S = 0.02
-"""Reference strikes closer than this are one onset (as the benchmark counts them), seconds."""
 
 
 def pooled_counts(pairs: list[tuple[np.ndarray, np.ndarray]], window: float = 0.05) -> tuple[int, int]:
@@ -72,7 +70,7 @@ def _onset_f(net: FrameNet, val: FrameSet, outs: list[np.ndarray]) -> float:
     pairs = []
     for e, out in enumerate(outs):
         est = np.unique([ev.time for ev in strikes(net, out)])
-        pairs.append((onset_times(val.excerpt_hits(e)[:, 1], MERGE_S), est))
+        pairs.append((onset_times(val.excerpt_hits(e)[:, 1], ONSET_MERGE_S), est))
     return pooled_f(pairs)
 
 
