@@ -28,7 +28,7 @@ from services.recogniser.training.kits import (
     require_kits,
 )
 from services.recogniser.training.modal import MODAL_KITS, render_modal_kit
-from services.recogniser.training.more_kits import MORE_KITS, load_more_kit
+from services.recogniser.training.more_kits import FONT_KITS, MORE_KITS, load_more_kit
 from services.recogniser.training.render import Hit, Note, augment, normalise, read_notes, render
 from services.recogniser.training.soundfont import SOUNDFONT_KITS, render_soundfont_kit
 
@@ -81,7 +81,8 @@ def prepare(kits: tuple[str, ...]) -> None:
     """Make the rendered kits before worker processes fork (so each is rendered once)."""
     for name in kits:
         if (name in MODAL_KITS or name in SOUNDFONT_KITS or name in MORE_KITS) and name not in _KITS:
-            how = "the sound service" if name in MODAL_KITS else "FluidSynth" if name.startswith("sf-") else "files"
+            how = ("the sound service" if name in MODAL_KITS
+                   else "FluidSynth" if name in SOUNDFONT_KITS or name in FONT_KITS else "files")
             print(f"making {name} one-shots with {how} ...", flush=True)
             load_any_kit(name)
 

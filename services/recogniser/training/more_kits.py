@@ -45,7 +45,9 @@ AVL_RED_ZEPPELIN = SoundfontKit(
 )
 """The AVL Red Zeppelin kit: a bank-0 preset (played on channel 1); its 14" rack tom plays the high tom."""
 
-MORE_KITS: dict[str, str] = {"sonicpi-menegass": "CC0", "sf-avl-red-zeppelin": AVL_RED_ZEPPELIN.licence}
+FONT_KITS: dict[str, SoundfontKit] = {"sf-avl-red-zeppelin": AVL_RED_ZEPPELIN}
+"""The further kits FluidSynth renders from a soundfont: kit name -> font."""
+MORE_KITS: dict[str, str] = {"sonicpi-menegass": "CC0", **{n: f.licence for n, f in FONT_KITS.items()}}
 """Kit name -> licence."""
 
 
@@ -77,8 +79,8 @@ def load_more_kit(name: str) -> Kit:
     MoreKitsMissingError, SoundfontsMissingError
         its package is not installed.
     """
-    if name == "sf-avl-red-zeppelin":
-        return render_font_kit(name, AVL_RED_ZEPPELIN)
+    if name in FONT_KITS:
+        return render_font_kit(name, FONT_KITS[name])
     if name != "sonicpi-menegass":
         raise KeyError(name)
     require_sonic_pi()
