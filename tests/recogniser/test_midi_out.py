@@ -67,6 +67,6 @@ def test_transcription_of_a_pattern_reads_as_a_score(tmp_path: Path, pattern: Pa
     kicks = np.array([e.time for e in score.events if e.event == EventType.BASS])
     ref = pattern.times("kick")
     assert len(kicks) >= len(ref) - 1
-    # every kick but at most one is in the score (the shipped network misses the one under a high tom at 8.9 s)
+    # every kick but at most one is in the score (recipe 4 missed the one under a high tom at 8.9 s)
     assert sum(np.min(np.abs(kicks - t)) >= 0.05 for t in ref) <= 1
     assert {EventType.BASS, EventType.SNARE, EventType.HIHATCLOSED} <= {e.event for e in score.events}
