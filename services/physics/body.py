@@ -166,7 +166,6 @@ class Body:
         self._full_states: list[tuple[Any, ...]] | None = None
         self._frame_pos: np.ndarray | None = None
         self._link_pos: np.ndarray | None = None
-        self._link_com: np.ndarray | None = None
         self.last_qd = np.zeros(len(self.state_joints))
         self.update()
 
@@ -337,7 +336,6 @@ class Body:
         self._frame_pos = None
         self._full_states = None
         self._link_pos = None
-        self._link_com = None
 
     def _all_links(self, field: int) -> np.ndarray:
         """One vector field (links, 3) of every link's state in this state (``getLinkStates``: 0 the centre of
@@ -355,13 +353,6 @@ class Body:
         if self._link_pos is None:
             self._link_pos = self._all_links(4)
         return self._link_pos
-
-    @property
-    def link_com(self) -> np.ndarray:
-        """Centres of mass (links, 3) metres in this state (read when first asked after an update)."""
-        if self._link_com is None:
-            self._link_com = self._all_links(0)
-        return self._link_com
 
     @property
     def frame_pos(self) -> np.ndarray:

@@ -165,18 +165,6 @@ class Controller:
             self.q_mean = np.array([limits.quaternion[j].mean for j in self.q_joints])
             self.q_axes = np.array([limits.quaternion[j].axes for j in self.q_joints])
             self.q_extents = np.array([limits.quaternion[j].extents for j in self.q_joints])
-        # gravity compensation: subtree masses per DOF
-        self._links = body.all_links
-        self._link_mass = np.array([c.getDynamicsInfo(*body.link_ref[j])[0] for j in self._links])
-        self._desc = np.zeros((n, len(self._links)))
-        dof_pos = {j: k for k, j in enumerate(body.dof_list)}
-        for link in self._links:
-            a = link
-            while a >= 0:
-                if a in dof_pos:
-                    self._desc[dof_pos[a], link] = 1.0
-                a = body.parent_of(a)
-        self._g = np.array([0.0, 0.0, -world.settings.gravity])
         self.limit_violations = 0
         self.last_tau = np.zeros(n)
         self.theta_ref: np.ndarray | None = None
@@ -263,16 +251,17 @@ class Controller:
 
     # ------------------------------------------------------------------ gravity
 
-    def gravity_torque(self) -> np.ndarray:
-        """Joint torques (57,) that hold every subtree against gravity at the current pose (from Body.update)."""
-        b = self.body
-        weighted = self._desc @ (self._link_mass[:, None] * b.link_com)  # (57, 3): sum of m_i c_i over subtree
-        sub_mass = self._desc @ self._link_mass
-        r = weighted - sub_mass[:, None] * b.dof_pos
-        g = self._g
-        moment = np.stack([r[:, 1] * g[2] - r[:, 2] * g[1], r[:, 2] * g[0] - r[:, 0] * g[2],
-                           r[:, 0] * g[1] - r[:, 1] * g[0]], axis=1)
-        return -np.einsum("ij,ij->i", b.dof_axes, moment)
+    def gravity_torque(self, theta: np.ndarray, passive: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+        """Joint torques (n,) N m that hold every subtree against gravity at the angles ``theta`` (n,) rad: the
+        inverse dynamics at rest of the body's fixed-base trees (:func:`kernels.inverse_dynamics`, as the
+        computed-torque modes use it; no read of every link's state). ``passive``: the fulcrums' angles and
+        velocities if already read (the sticks hang from them)."""
+        self._ensure_id_model()
+        n = len(theta)
+        pq, _ = self.body.passive_state() if passive is None else passive
+        state = np.zeros((3, n + len(pq)))
+        state[0, :n], state[0, n:] = theta, pq
+        return inverse_dynamics(state, *self._id_tree, self.world.settings.gravity)[:n]  # type: ignore[call-arg]
 
     # ------------------------------------------------------------------ Cartesian (Algorithm 2)
 
@@ -444,7 +433,7 @@ class Controller:
             tau = self.computed_torque(theta, theta_dot, theta_t, theta_dot_t, last_rate, passive) + extra
         else:
             if self.params.gravity_compensation:
-                extra = extra + self.gravity_torque()
+                extra = extra + self.gravity_torque(theta, passive)
             if self.mode == "joint_spd":
                 tau = self.stable_pd(theta, theta_dot, theta_t, theta_dot_t, extra, passive)
             else:
