@@ -386,3 +386,25 @@ def test_a_diverged_simulation_is_reset_counted_and_keeps_stepping() -> None:
     theta, _ = scene.body.state()
     assert np.allclose(theta, scene.rest, atol=0.05)  # back near the rest posture it was reset to
     core.close()
+
+
+
+def _arm_sag_rad(compensate: bool) -> float:
+    """Largest error (rad) of the arms' DOF (clavicles to wrists) from the rest posture after 0.5 s of joint_pd
+    holding it (the feet, on the pedals, are held by their contacts as much as by the PD)."""
+    arms = [i for i, name in enumerate(DOF_NAMES) if name.split("_")[1] in ("clavicle", "shoulder", "elbow", "wrist")]
+    assert len(arms) == 24
+    core = PhysicsCore(scene="drummer", control="joint_pd")
+    controller = _scene(core).controller
+    controller.params = dataclasses.replace(controller.params, gravity_compensation=compensate)
+    _run(core, 0.0, 0.5)
+    theta, _ = _scene(core).body.state()
+    core.close()
+    return float(np.abs(theta - controller.rest)[arms].max())
+
+
+def test_gravity_compensation_holds_the_resting_arms() -> None:
+    """joint_pd's gravity term (the inverse dynamics at rest of the body's trees) holds the arms where the PD
+    alone lets them sag (by about 0.01 rad at the shoulders)."""
+    held, sagging = _arm_sag_rad(True), _arm_sag_rad(False)
+    assert held < 1e-3 and sagging > 5e-3, (held, sagging)
