@@ -156,7 +156,6 @@ class Body:
         # ancestors: which DOF move which link
         self._dof_pos = {j: k for k, j in enumerate(self.dof_list)}
         self.chain_mask = np.array([self.mask_of(self.effector_links[limb]) for limb in LIMBS])
-        self.all_links = list(range(offset))
         # forward kinematics of the 19 joints in numba (kernels.forward_kinematics): each joint's origin in its
         # parent's child frame, the bases on the throne, the effectors in their carriers' frames
         self._fk = self._kinematic_tree(seat_position)
@@ -173,10 +172,6 @@ class Body:
         body, j = self.link_ref[link]
         info: tuple[Any, ...] = self.world.client.getJointInfo(body, j)
         return info
-
-    def parent_of(self, link: int) -> int:
-        """Global index of a link's parent (-1: its part's base)."""
-        return self._parent[link]
 
     def mask_of(self, link: int) -> np.ndarray:
         """(57,) bool: the DOF that move ``link``."""

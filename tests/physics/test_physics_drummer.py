@@ -388,7 +388,6 @@ def test_a_diverged_simulation_is_reset_counted_and_keeps_stepping() -> None:
     core.close()
 
 
-
 def _arm_sag_rad(compensate: bool) -> float:
     """Largest error (rad) of the arms' DOF (clavicles to wrists) from the rest posture after 0.5 s of joint_pd
     holding it (the feet, on the pedals, are held by their contacts as much as by the PD)."""
