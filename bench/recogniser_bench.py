@@ -63,9 +63,6 @@ from services.recogniser.transcribe import (  # noqa: E402
 GROUPS: dict[str, tuple[int, ...]] = {name: (i,) for i, name in enumerate(CLASS_NAMES)}
 GROUPS["hihat (open+closed)"] = (2, 3)
 GROUPS["toms (all)"] = (4, 5, 6)
-def merge(times: np.ndarray, gap: float = ONSET_MERGE_S) -> np.ndarray:
-    """Onsets of ``times`` (seconds), strikes within ``gap`` of an onset's first strike being one."""
-    return onset_times(times, gap)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -200,7 +197,7 @@ def soft_recall(files_run: list[tuple[list[Hit], list[tuple[float, int]]]], wind
                 onsets.append([h.time, h.velocity])
         ref = np.array([o[0] for o in onsets])
         vel = np.array([o[1] for o in onsets])
-        e = merge(np.array([t for t, _ in est]), 1e-4)
+        e = onset_times(np.array([t for t, _ in est]), 1e-4)
         hit = np.zeros(len(ref), bool)
         if len(ref) and len(e):
             hit[[i for i, _ in mir_eval.util.match_events(ref, e, window)]] = True
@@ -223,14 +220,14 @@ def table(files_run: list[tuple[list[Hit], list[tuple[float, int]]]]) -> None:
         est_c = np.array([c for _, c in found])
         for w in windows:
             for g, cls in GROUPS.items():
-                r = merge(ref_t[np.isin(ref_c, cls)], 1e-4) if len(ref_t) else np.zeros(0)
-                e = merge(est_t[np.isin(est_c, cls)], 1e-4) if len(est_t) else np.zeros(0)
+                r = onset_times(ref_t[np.isin(ref_c, cls)], 1e-4) if len(ref_t) else np.zeros(0)
+                e = onset_times(est_t[np.isin(est_c, cls)], 1e-4) if len(est_t) else np.zeros(0)
                 m = len(mir_eval.util.match_events(r, e, w)) if len(r) and len(e) else 0
                 c = counts[w][g]
                 c[0] += m
                 c[1] += len(r)
                 c[2] += len(e)
-            ro, eo = merge(ref_t), merge(est_t, 1e-4)
+            ro, eo = onset_times(ref_t, ONSET_MERGE_S), onset_times(est_t, 1e-4)
             m = len(mir_eval.util.match_events(ro, eo, w)) if len(ro) and len(eo) else 0
             c = counts[w]["onsets"]
             c[0] += m
@@ -258,8 +255,8 @@ this close to it, seconds."""
 
 def onset_scores(ref: np.ndarray, est: np.ndarray, window: float = 0.05) -> tuple[int, int, int]:
     """(matched, reference onsets, estimated onsets) of mir_eval's one-to-one matching; ``ref`` is already merged
-    (:func:`merge`), ``est`` is merged only where times coincide, as :func:`table` scores onsets."""
-    e = merge(est, 1e-4) if len(est) else np.zeros(0)
+    (:func:`onset_times`), ``est`` is merged only where times coincide, as :func:`table` scores onsets."""
+    e = onset_times(est, 1e-4) if len(est) else np.zeros(0)
     m = len(mir_eval.util.match_events(ref, e, window)) if len(ref) and len(e) else 0
     return m, len(ref), len(e)
 
@@ -272,7 +269,7 @@ def ideal_grouping(ref: np.ndarray, est: np.ndarray, window: float = 0.05) -> tu
     pairs = mir_eval.util.match_events(ref, e, window) if len(ref) and len(e) else []
     used = {j for _, j in pairs}
     stray = np.array([t for j, t in enumerate(e) if j not in used and (not len(ref) or np.abs(ref - t).min() > window)])
-    return len(pairs), len(ref), len(pairs) + len(merge(stray))
+    return len(pairs), len(ref), len(pairs) + len(onset_times(stray, ONSET_MERGE_S))
 
 
 def exact_times(hits: list[Hit], events: list[tuple[float, int]], within: float = FOUND_S) -> list[tuple[float, int]]:
@@ -307,11 +304,11 @@ def onset_losses(net: FrameNet, files: list[tuple[list[Hit], np.ndarray]]) -> No
     for hits, out in files:
         ref_t = np.array([h.time for h in hits])
         ref_c = np.array([h.cls for h in hits])
-        ref = merge(ref_t) if len(ref_t) else np.zeros(0)
+        ref = onset_times(ref_t, ONSET_MERGE_S) if len(ref_t) else np.zeros(0)
         decoded = np.array([e.time for e in strikes(net, out)])
         raw = [(e.time, e.cls) for e in strikes(loose, out)]
         raw_t = np.array([t for t, _ in raw])
-        est = merge(decoded, 1e-4) if len(decoded) else np.zeros(0)
+        est = onset_times(decoded, 1e-4) if len(decoded) else np.zeros(0)
         pairs = mir_eval.util.match_events(ref, est, 0.05) if len(ref) and len(est) else []
         totals["as decoded"] += (len(pairs), len(ref), len(est))
         totals["ideal grouping"] += ideal_grouping(ref, raw_t)
