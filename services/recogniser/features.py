@@ -87,7 +87,7 @@ NARROW = Bands()
 WIDE = Bands(44100, 56, 18000.0)
 """44,100 Hz, 56 bands up to 18 kHz: hi-hats reach far above 10.5 kHz (the held-out kit's, its pedal chick's
 above all, lie mostly there), where every kit's snare is 7-16 dB weaker than below; below it a chick and a snare
-are alike (docs/recogniser.md, "Recipe 5")."""
+are alike (docs/recogniser-history.md, "Recipe 5")."""
 
 
 @cache
