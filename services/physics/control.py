@@ -256,11 +256,20 @@ class Controller:
         inverse dynamics at rest of the body's fixed-base trees (:func:`kernels.inverse_dynamics`, as the
         computed-torque modes use it; no read of every link's state). ``passive``: the fulcrums' angles and
         velocities if already read (the sticks hang from them)."""
+        pq, _ = self.body.passive_state() if passive is None else passive
+        return self._bias_torque(theta, np.zeros_like(theta), (pq, np.zeros_like(pq)))
+
+    def _bias_torque(self, theta: np.ndarray, theta_dot: np.ndarray,
+                     passive: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+        """``C(q, qd) + g(q)``, joint torques (n,) N m: the inverse dynamics at zero acceleration of the body's
+        fixed-base trees at the angles ``theta`` (n,) rad and rates ``theta_dot`` (n,) rad/s, the passive joints
+        (the fulcrums) at ``passive`` (angles rad, rates rad/s)."""
         self._ensure_id_model()
         n = len(theta)
-        pq, _ = self.body.passive_state() if passive is None else passive
+        pq, pqd = passive
         state = np.zeros((3, n + len(pq)))
-        state[0, :n], state[0, n:] = theta, pq
+        state[0, :n], state[1, :n] = theta, theta_dot
+        state[0, n:], state[1, n:] = pq, pqd
         return inverse_dynamics(state, *self._id_tree, self.world.settings.gravity)[:n]  # type: ignore[call-arg]
 
     # ------------------------------------------------------------------ Cartesian (Algorithm 2)
@@ -406,17 +415,13 @@ class Controller:
         The same law as PyBullet's ``STABLE_PD_CONTROL``, computed here from the body's own mass matrix and
         inverse dynamics: PyBullet's needs a floating base, and on this body it is not deterministic (the same
         inputs give different torques, now and then NaN; see docs/physics.md)."""
-        self._ensure_id_model()
         n = len(theta)
-        pq, pqd = self.body.passive_state() if passive is None else passive
-        state = np.zeros((3, n + len(pq)))
-        state[0, :n], state[1, :n] = theta, theta_dot
-        state[0, n:], state[1, n:] = pq, pqd
-        bias = inverse_dynamics(state, *self._id_tree, self.world.settings.gravity)[:n]  # type: ignore[call-arg]
+        passive = self.body.passive_state() if passive is None else passive
+        bias = self._bias_torque(theta, theta_dot, passive)
         dt = self.control_dt
         position_error = theta_t - theta - dt * theta_dot
         rate_error = theta_dot_t - theta_dot
-        implicit = self._mass_matrix(state[0], n)
+        implicit = self._mass_matrix(np.concatenate([theta, passive[0]]), n)
         implicit[np.diag_indices(n)] += self.kd * dt
         accel = np.linalg.solve(implicit, self.ks * position_error + self.kd * rate_error + extra - bias)
         return self.ks * position_error + self.kd * (rate_error - dt * accel) + extra
