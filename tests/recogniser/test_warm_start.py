@@ -56,3 +56,28 @@ def test_a_warm_start_must_match_the_files_windows_width_dilations_hop_and_bands
     other = F.NARROW if bands != F.NARROW else F.WIDE
     with pytest.raises(ValueError, match="--bands"):
         init_net(SHIPPED, windows, 128, (2, 4, 8, 16), hop, other)
+
+
+def test_a_warm_start_can_grow_the_network_keeping_its_function() -> None:
+    torch = pytest.importorskip("torch")
+    from services.recogniser.training.net import export
+    from services.recogniser.training.train_net import init_net
+
+    fn = load_model(SHIPPED).offline
+    windows, hop, bands = fn.windows, fn.hop, fn.bands
+    net = init_net(SHIPPED, windows, 192, hop=hop, bands=bands, seed=3)
+    assert (net.conv1.out_channels, net.conv2.out_channels, net.t1.out_channels) == (24, 48, 192)
+    grown = export(net, fn.thresholds)
+    rng = np.random.default_rng(5)
+    spec = (rng.random((200, bands.n, len(windows))) * 2).astype(np.float32)
+    assert np.abs(grown.forward(spec) - fn.forward(spec)).max() < 1e-4
+    # the added channels compute something (they are not dead), and the same seed draws the same weights
+    with torch.no_grad():
+        assert float(net.t1.weight[128:].abs().sum()) > 0 and float(net.res[0].weight[:128, 128:].abs().sum()) == 0
+    again = init_net(SHIPPED, windows, 192, hop=hop, bands=bands, seed=3)
+    assert torch.equal(again.res[2].weight, net.res[2].weight)
+    front_only = init_net(SHIPPED, windows, 128, hop=hop, bands=bands, front=(32, 64))
+    assert (front_only.conv2.out_channels, front_only.t1.in_channels) == (64, 64 * bands.n // 4)
+    assert np.abs(export(front_only, fn.thresholds).forward(spec) - fn.forward(spec)).max() < 1e-4
+    with pytest.raises(ValueError, match="not shrink"):
+        init_net(SHIPPED, windows, 192, hop=hop, bands=bands, front=(8, 48))

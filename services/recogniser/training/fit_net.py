@@ -127,7 +127,8 @@ def validation_loss(net: Net, val: Batches, n: int | None = None) -> float:
 
 
 def fit(train: FrameSet, val: FrameSet, epochs: float, seed: int, lr: float = 2e-3, log_every: int = 250,
-        minutes: float | None = None, width: int = 128, windows: tuple[int, ...] = (F.N_FFT,),
+        minutes: float | None = None, width: int = 128, front: tuple[int, int] | None = None,
+        windows: tuple[int, ...] = (F.N_FFT,),
         hard: float = HARD_WEIGHT, init: Net | None = None, warmup: float = 0.03,
         outputs: dict[int, float] | None = None, neighbour: float = NEIGHBOUR_TARGET,
         dilations: tuple[int, ...] = DILATIONS, onset_merge_s: float | None = None) -> Net:
@@ -138,7 +139,9 @@ def fit(train: FrameSet, val: FrameSet, epochs: float, seed: int, lr: float = 2e
     ``neighbour``: the target of the frames beside a strike's (:func:`~.frames.targets`; training and validation).
     ``onset_merge_s``: the onset output's target marks onsets, strikes this close (seconds) being one
     (:func:`~.frames.targets`; default: every strike).
-    ``dilations``: of the residual time convolutions (frames), whose sum sets the context each side (a new network).
+    ``dilations``: of the residual time convolutions (frames), whose sum sets the context each side, and
+    ``width`` and ``front``: channels of the time convolutions and of the two 2-D ones (default width/8 and
+    width/4), of a new network.
     ``init``: continue from this network (of these ``windows``; e.g. :func:`~.net.from_export` of a model file),
     its batch normalisations first calibrated on 8 training batches (:func:`~.net.calibrate`); it is kept
     unless a fitted state has a lower validation-kit loss.
@@ -151,7 +154,8 @@ def fit(train: FrameSet, val: FrameSet, epochs: float, seed: int, lr: float = 2e
         raise ValueError(f"training frames are {train.hop} samples apart, validation frames {val.hop}")
     if val.bands != train.bands:
         raise ValueError(f"training spectra of {train.bands}, validation spectra of {val.bands}")
-    net = init if init is not None else Net(c1=width // 8, c2=width // 4, width=width, windows=windows,
+    c1, c2 = front if front is not None else (width // 8, width // 4)
+    net = init if init is not None else Net(c1=c1, c2=c2, width=width, windows=windows,
                                             dilations=dilations, hop=train.hop, bands=train.bands)
     if net.windows != windows:
         raise ValueError(f"the network reads windows {net.windows}, not {windows}")

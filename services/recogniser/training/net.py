@@ -139,6 +139,52 @@ def from_export(fn: FrameNet | Network, dropout: float = 0.2) -> Net:
     return net
 
 
+def widen(net: Net, c1: int, c2: int, width: int, seed: int = 0) -> Net:
+    """A copy of ``net`` with ``c1`` and ``c2`` channels in its 2-D convolutions and ``width`` in its time
+    convolutions (each at least ``net``'s), computing in eval mode what ``net`` computes: the added channels
+    start from PyTorch's random initialisation (drawn from ``seed``), and every weight by which an existing
+    channel or the head reads an added one is zero (so the added channels first learn through those weights).
+    The batch normalisations of the added channels start as the identity; call :func:`calibrate` before
+    training.
+
+    Raises ValueError when a size is smaller than ``net``'s."""
+    old = (net.conv1.out_channels, net.conv2.out_channels, net.t1.out_channels)
+    if c1 < old[0] or c2 < old[1] or width < old[2]:
+        raise ValueError(f"a network of {old[0]}, {old[1]} and {old[2]} channels cannot narrow to "
+                         f"{c1}, {c2} and {width}")
+    with torch.random.fork_rng():  # the caller's random state is left as it was
+        torch.manual_seed(seed)
+        wide = Net(c1=c1, c2=c2, width=width, dilations=net.dilations, dropout=net.drop.p, windows=net.windows,
+                   hop=net.hop, bands=net.bands)
+    bands_out = net.bands_out
+    # (old convolution, new one, channels it reads that existed before, of the new ones' total)
+    pairs: list[tuple[nn.Module, nn.Module, int]] = [
+        (net.conv1, wide.conv1, net.conv1.in_channels),
+        (net.conv2, wide.conv2, old[0]),
+        (net.t1, wide.t1, old[1] * bands_out),  # channel-major flattening: the old channels' bands come first
+        *((a, b, old[2]) for a, b in zip(net.res, wide.res, strict=True)),
+        (net.head, wide.head, old[2]),
+    ]
+    with torch.no_grad():
+        for a, b, reads in pairs:
+            assert isinstance(a, nn.Conv1d | nn.Conv2d) and isinstance(b, nn.Conv1d | nn.Conv2d)
+            n_out = a.out_channels
+            b.weight[:n_out].zero_()
+            b.weight[:n_out, :reads] = a.weight
+            if a.bias is not None and b.bias is not None:
+                b.bias[:n_out] = a.bias
+        for a_bn, b_bn in zip(batch_norms(net), batch_norms(wide), strict=True):
+            n = a_bn.num_features
+            assert a_bn.running_mean is not None and a_bn.running_var is not None
+            assert b_bn.running_mean is not None and b_bn.running_var is not None
+            b_bn.weight[:n] = a_bn.weight
+            b_bn.bias[:n] = a_bn.bias
+            b_bn.running_mean[:n] = a_bn.running_mean
+            b_bn.running_var[:n] = a_bn.running_var
+    wide.eval()
+    return wide
+
+
 def calibrate(net: Net, inputs: list[torch.Tensor]) -> None:
     """Give each batch normalisation of ``net`` the per-channel mean m and variance v of its inputs over the
     spectra ``inputs`` (each (batch, t, N_BANDS, windows)) as running statistics, with scale sqrt(v + eps) and

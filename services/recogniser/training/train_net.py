@@ -47,7 +47,7 @@ from services.recogniser.training.frames import (
 )
 from services.recogniser.training.kits import VALID_KITS
 from services.recogniser.training.more_kits import MORE_KITS, MoreKitsMissingError, require_more_kits
-from services.recogniser.training.net import DILATIONS, Net, export, from_export
+from services.recogniser.training.net import DILATIONS, Net, export, from_export, widen
 from services.recogniser.training.soundfont import SOUNDFONT_KITS, SoundfontsMissingError, require_soundfonts
 from services.recogniser.training.tune import choose
 
@@ -101,20 +101,32 @@ def ensemble(paths: list[Path], val: FrameSet, rules: bool = False) -> Model:
 
 
 def init_net(path: Path, windows: tuple[int, ...], width: int, dilations: tuple[int, ...] = DILATIONS,
-             hop: int = F.HOP, bands: F.Bands = F.NARROW) -> Net:
+             hop: int = F.HOP, bands: F.Bands = F.NARROW, front: tuple[int, int] | None = None,
+             seed: int = 0) -> Net:
     """The PyTorch form of the offline network of the model file ``path`` (analysis ``windows``, samples,
-    time-convolution ``width``, channels, residual ``dilations``, frames, ``hop``, samples, and the band
-    analysis ``bands`` must be the file's), to continue fitting it.
+    residual ``dilations``, frames, ``hop``, samples, and the band analysis ``bands`` must be the file's), to
+    continue fitting it. A time-convolution ``width`` or 2-D convolution channels ``front`` (c1, c2) larger than
+    the file's grow the network with the same function (:func:`~.net.widen`); ``front`` defaults to the file's,
+    or to width/8 and width/4 when the width grows; the added channels' weights are drawn from ``seed``.
 
-    Raises ModelError (unreadable file) or ValueError (an ensemble, other windows, width, dilations, hop or
-    bands)."""
+    Raises ModelError (unreadable file) or ValueError (an ensemble, other windows, dilations, hop or bands, or
+    a smaller width or front)."""
     offline = load_model(path).offline
     if offline.members:
         raise ValueError(f"an ensemble of {len(offline.networks)} networks; give one of its members' files")
     net = from_export(offline)
-    if net.windows != windows or int(net.t1.out_channels) != width:
-        raise ValueError(f"its network reads windows {list(net.windows)} with width {net.t1.out_channels}, "
-                         f"not {list(windows)} with width {width} (give --windows and --width to match)")
+    if net.windows != windows:
+        raise ValueError(f"its network reads windows {list(net.windows)}, not {list(windows)} (give --windows "
+                         "to match)")
+    has = (net.conv1.out_channels, net.conv2.out_channels, net.t1.out_channels)
+    if front is None:
+        front = (has[0], has[1]) if width == has[2] else (max(has[0], width // 8), max(has[1], width // 4))
+    if width < has[2] or front[0] < has[0] or front[1] < has[1]:
+        raise ValueError(f"its network has width {has[2]} and 2-D channels {has[0]} and {has[1]}: a warm start "
+                         f"can keep or grow them, not shrink them to width {width} and {front[0]} and {front[1]} "
+                         "(give --width and --front to match)")
+    if (*front, width) != has:
+        net = widen(net, front[0], front[1], width, seed)
     if net.dilations != dilations:
         raise ValueError(f"its network's dilations are {list(net.dilations)}, not {list(dilations)} "
                          "(give --dilations to match)")
@@ -144,7 +156,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--minutes", type=float, default=None,
                     help="stop the fitting earlier to take about this long (the learning rate schedule follows)")
     ap.add_argument("--width", type=int, default=128,
-                    help="channels of the network's time convolutions (the 2-D ones have 1/8 and 1/4 of it)")
+                    help="channels of the network's time convolutions (the 2-D ones have 1/8 and 1/4 of it unless "
+                         "--front; with --init, a width above the file's grows its network, computing the same "
+                         "function at the start)")
+    ap.add_argument("--front", type=int, nargs=2, default=None, metavar=("C1", "C2"),
+                    help="channels of the network's two 2-D convolutions (default: width/8 and width/4; with "
+                         "--init, the file's unless the width grows; larger than the file's grows them)")
     ap.add_argument("--dilations", type=int, nargs="+", default=list(DILATIONS), metavar="D",
                     help="dilations of the residual time convolutions, frames (kernel 3: the context each side is "
                          f"3 + their sum frames of 10 ms; default {' '.join(map(str, DILATIONS))})")
@@ -206,8 +223,8 @@ def main(argv: list[str] | None = None) -> int:
                          "of the first) and choose its thresholds on the validation kit")
     ap.add_argument("--half", action="store_true", help="store the offline network's weights as float16")
     ap.add_argument("--init", type=Path, default=None, metavar="MODEL",
-                    help="continue fitting the offline network of this model file (its windows and width must be "
-                         "those given)")
+                    help="continue fitting the offline network of this model file (its windows, dilations, hop "
+                         "and bands must be those given; --width and --front may grow it)")
     ap.add_argument("--lr", type=float, default=2e-3, help="peak learning rate (default 2e-3)")
     ap.add_argument("--warmup", type=float, default=0.03,
                     help="share of the run over which the learning rate rises to its peak (default 0.03)")
@@ -254,10 +271,15 @@ def main(argv: list[str] | None = None) -> int:
     if min(args.dilations) < 1:
         print(f"error: --dilations must be positive frame counts, got {args.dilations}", file=sys.stderr)
         return 1
+    if args.width < 8 or (args.front is not None and min(args.front) < 1):
+        print(f"error: --width must be at least 8 and --front positive, got {args.width} and {args.front}",
+              file=sys.stderr)
+        return 1
     init = None
     if args.init is not None:
         try:
-            init = init_net(args.init, windows, args.width, tuple(args.dilations), args.hop, bands)
+            init = init_net(args.init, windows, args.width, tuple(args.dilations), args.hop, bands,
+                            None if args.front is None else (args.front[0], args.front[1]), args.seed)
         except (ModelError, ValueError) as exc:
             print(f"error: --init {args.init}: {exc}", file=sys.stderr)
             return 1
@@ -287,15 +309,18 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     print(f"training: {train.n_excerpts} excerpts, {len(train.spec)} frames, {len(train.hits)} strikes; "
           f"validation kit: {val.n_excerpts} excerpts; {time.time() - t0:.0f} s", flush=True)
+    front = None if args.front is None else (args.front[0], args.front[1])
     net = export(fit(train, val, args.epochs, args.seed, lr=args.lr, minutes=args.minutes, width=args.width,
-                     windows=windows, hard=args.hard, init=init, warmup=args.warmup,
+                     front=front, windows=windows, hard=args.hard, init=init, warmup=args.warmup,
                      outputs=weights, neighbour=args.neighbour_target, dilations=tuple(args.dilations),
                      onset_merge_s=args.onset_merge))
     print("thresholds:", flush=True)
     choose(net, val, rules=args.rules)
     meta = {"trained_on": list(fit_kits), "thresholds_from": list(VALID_KITS), "excerpts": args.excerpts,
             "val_excerpts": args.val_excerpts, "val_plain": args.val_plain, "rules": args.rules,
-            "epochs": args.epochs, "minutes": args.minutes, "width": args.width, "dilations": args.dilations,
+            "epochs": args.epochs, "minutes": args.minutes, "width": args.width,
+            "front": [init.conv1.out_channels, init.conv2.out_channels] if init is not None
+            else args.front or [args.width // 8, args.width // 4], "dilations": args.dilations,
             "seed": args.seed, "windows": list(windows), "hard": args.hard, "variety": not args.plain,
             "neighbour_target": args.neighbour_target, "onset_merge_s": args.onset_merge, "hop": args.hop,
             "bands": args.bands,
