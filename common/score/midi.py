@@ -39,7 +39,7 @@ def _open(source: str | Path | bytes) -> tuple[mido.MidiFile, str]:
     except ScoreError:
         raise
     except EOFError as exc:
-        raise ScoreError(f"{name}: truncated MIDI file ({exc or 'data ended early'})") from exc
+        raise ScoreError(f"{name}: truncated MIDI file ({str(exc) or 'the data ends early'})") from exc
     except (OSError, ValueError, KeyError, IndexError, TypeError) as exc:
         raise ScoreError(f"{name}: not a valid Standard MIDI File ({type(exc).__name__}: {exc})") from exc
 
