@@ -141,3 +141,18 @@ def test_the_right_hand_strikes_the_snare_nearer_the_drummer_than_the_left() -> 
         far = kit.effector_target(EventType.SNARE, far_hand)[0]
         assert far[1] - near[1] > 0.08  # metres, along the drummer's facing direction
         assert abs(far[0] - near[0]) < 1e-6
+
+
+@pytest.mark.parametrize(("name", "content", "says"), [
+    ("k.yaml", b"objects: [snare\n", "not valid YAML: expected ',' or ']', but got '<stream end>' at line 2, column 1"),
+    ("k.json", b'{"objects": ', "not valid JSON: Expecting value"),
+    ("k.yaml", bytes(range(128, 256)), "not valid YAML: 'utf-8' codec can't decode"),
+    ("k.yaml", b"- 1\n- 2\n", "not a valid kit: 1 validation error for Kit"),
+])
+def test_a_broken_kit_file_is_refused_with_its_name_and_the_problem(tmp_path: Path, name: str, content: bytes,
+                                                                    says: str) -> None:
+    path = tmp_path / name
+    path.write_bytes(content)
+    with pytest.raises(ValueError, match="k.(yaml|json)' is ") as refused:
+        load_kit(path)
+    assert says in str(refused.value)
