@@ -202,7 +202,9 @@ def start_drummer(plan: GesturePlan, kit: Kit, opts: RenderOptions, start_s: flo
     from services.physics.core import PhysicsCore, PhysicsSettings
     from services.physics.targets import TargetError
 
-    control_rate_hz = opts.control_rate_hz or PhysicsSettings.model_fields["control_rate_hz"].default
+    control_rate_hz = opts.control_rate_hz
+    if control_rate_hz is None:  # not `or`: 0 Hz is refused by the physics settings, not taken as the default
+        control_rate_hz = PhysicsSettings.model_fields["control_rate_hz"].default
     physics = PhysicsCore(scene="drummer", kit=kit, control=CONTROL_MODES[opts.control], grip=opts.grip,
                           rate_hz=opts.rate_hz, pose_rate_hz=opts.pose_rate_hz, control_rate_hz=control_rate_hz)
     physics.time_offset = start_s

@@ -87,6 +87,15 @@ def test_corrupted_midi_fails_clearly_and_writes_nothing(tmp_path: Path, capsys:
     assert not out.exists()
 
 
+def test_a_control_rate_of_zero_is_refused_not_taken_as_the_default(tmp_path: Path,
+                                                                      capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "out"
+    assert render.main([str(MIDI), "-o", str(out), "--control-rate", "0", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "control_rate_hz" in err and "greater than or equal to 50" in err
+    assert not out.exists()
+
+
 def test_bad_text_score_names_the_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     bad = tmp_path / "bad.txt"
     bad.write_text("tempo 100\nZZ |x...|\n")
