@@ -558,6 +558,7 @@ def impact_listing(result: FileResult) -> list[str]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    from batteur.output_dir import check_output_dir, check_output_file
     from batteur.render import RenderError, RenderOptions, resolve_jobs
     from common.gesture.plan import Nuance
     from common.score.events import ScoreError
@@ -565,6 +566,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     started = time.perf_counter()
     try:
+        for option, folder in (("--plots", args.plots), ("--renders", args.renders)):
+            if folder is not None:  # before the renders: a typo must not cost them
+                check_output_dir(folder, option)
+        if args.fit_calibration is not None:
+            check_output_file(args.fit_calibration, "--fit-calibration")
         opts = RenderOptions(kit=args.kit, grip=args.grip, nuance=Nuance(args.nuance), tempo_scale=args.tempo_scale,
                              control=args.control, calibration=args.calibration, jobs=resolve_jobs(args.jobs),
                              segment_s=args.segment)

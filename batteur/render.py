@@ -42,6 +42,7 @@ import numpy as np
 import soundfile as sf
 
 from batteur.impact_log import ImpactLog, write_impacts_csv
+from batteur.output_dir import check_output_dir
 from batteur.progress import Progress
 from batteur.strike import DEFAULT_STRIKES, parse_strikes, run_strikes
 from common.core import Outgoing
@@ -345,6 +346,7 @@ def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: boo
     """
     from batteur.calibration import Calibration
 
+    check_output_dir(output, "-o")  # before the long part, as the video's checks
     if opts.video:
         check_video(opts)  # before the long part: no ffmpeg, no render
     kit = load_kit(opts.kit)
@@ -521,6 +523,7 @@ def _main_strikes(opts: argparse.Namespace) -> int:
     try:
         strikes = parse_strikes(opts.strikes)
         kit = load_kit(opts.kit)
+        check_output_dir(opts.output, "-o")
     except (ValueError, FileNotFoundError) as exc:
         print(f"batteur render: {exc}", file=sys.stderr)
         return 2

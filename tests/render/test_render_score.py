@@ -96,6 +96,26 @@ def test_a_control_rate_of_zero_is_refused_not_taken_as_the_default(tmp_path: Pa
     assert not out.exists()
 
 
+def test_an_output_that_cannot_be_a_directory_is_refused_before_rendering(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    a_file = tmp_path / "notes.txt"
+    a_file.write_text("mine")
+    assert render.main([str(MIDI), "-o", str(a_file), "--quiet"]) == 2
+    assert "exists and is not a directory" in capsys.readouterr().err
+    assert a_file.read_text() == "mine"
+    assert render.main([str(MIDI), "-o", str(a_file / "out"), "--quiet"]) == 2
+    assert "is a file, not a directory" in capsys.readouterr().err
+    assert render.main(["--strikes", "0.25:2", "-o", str(a_file), "--quiet"]) == 2
+    assert "exists and is not a directory" in capsys.readouterr().err
+    for option, value, says in (("--plots", a_file / "plots", "is a file"), ("--renders", a_file, "not a directory"),
+                                ("--fit-calibration", tmp_path / "missing" / "c.json", "does not exist"),
+                                ("--fit-calibration", tmp_path, "is a directory")):
+        assert evaluate.main([str(MIDI), option, str(value), "--quiet"]) == 2
+        err = capsys.readouterr().err
+        assert option in err and says in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.txt"]
+
+
 def test_bad_text_score_names_the_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     bad = tmp_path / "bad.txt"
     bad.write_text("tempo 100\nZZ |x...|\n")
