@@ -31,6 +31,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from batteur.output_dir import check_output_dir
+
 ROLES = ("physics", "interaction", "sound", "graphics")
 PORT_OFFSET = {role: i for i, role in enumerate(ROLES)}
 
@@ -220,6 +222,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         epoch = time.time() + opts.start_delay
         try:
             check_score(opts)
+            if opts.record:
+                check_output_dir(Path(opts.record), "--record")
             plans = plan_rig(opts, epoch)
         except ValueError as exc:
             print(f"batteur rig: {exc}", file=sys.stderr)

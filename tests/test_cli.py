@@ -7,6 +7,7 @@ import subprocess
 import sys
 import time
 from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
 
@@ -63,6 +64,17 @@ def test_send_refuses_a_message_that_would_be_rejected(
     assert error in capsys.readouterr().err
 
 
+def test_send_names_a_bad_target_and_a_failed_send(capsys: pytest.CaptureFixture[str]) -> None:
+    hello = ["/batteur/hello", "sound", "n1", "1", "9000"]
+    assert send.main([*hello, "--to", "127.0.0.1:99999"]) == 2
+    assert "port out of range" in capsys.readouterr().err
+    assert send.main([*hello, "--to", "::1:9000"]) == 2
+    assert "brackets" in capsys.readouterr().err
+    # a datagram larger than UDP allows: the OS refuses it (nothing leaves loopback), the command says so
+    assert send.main(["--raw", "/x", "a" * 70_000, "--to", "127.0.0.1:9"]) == 1
+    assert "cannot send to 127.0.0.1:9" in capsys.readouterr().err
+
+
 @pytest.fixture
 def interaction_node() -> Iterator[int]:
     """An interaction node on loopback (no discovery), yielding its UDP port."""
@@ -100,3 +112,13 @@ def test_echo_prints_matching_messages_from_a_node(interaction_node: int) -> Non
     out, err = echo.communicate(timeout=30)
     assert echo.returncode == 0, err
     assert out.startswith("/batteur/hello 'cli' 'tester' 1 9")
+
+
+def test_rig_refuses_a_recording_folder_it_cannot_write_before_starting(tmp_path: Path,
+                                                                        capsys: pytest.CaptureFixture[str]) -> None:
+    from batteur import rig
+
+    a_file = tmp_path / "take.wav"
+    a_file.write_bytes(b"mine")
+    assert rig.main(["--record", str(a_file), "--score", "demo"]) == 2
+    assert "--record" in capsys.readouterr().err and a_file.read_bytes() == b"mine"

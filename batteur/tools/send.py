@@ -15,6 +15,7 @@ import sys
 from collections.abc import Sequence
 
 from common.messages import REGISTRY, Arg, MessageError, WireKind, encode, encode_raw
+from common.transport import parse_address
 
 
 def guess_arg(text: str) -> Arg:
@@ -60,7 +61,7 @@ def _resolve(target: str, timeout_s: float) -> list[tuple[str, int]]:
     """``host:port`` as given, or the discovered nodes of a role."""
     host, sep, port = target.rpartition(":")
     if sep and port.isdigit():
-        return [(host.strip("[]"), int(port))]
+        return [parse_address(target)]  # ValueError: a bad host form or a port outside 1-65535
     from common.discovery import browse_nodes  # only when a role must be found
 
     nodes = asyncio.run(browse_nodes(timeout_s, None))
@@ -91,12 +92,21 @@ def main(argv: Sequence[str] | None = None) -> int:
     except MessageError as exc:
         print(f"batteur send: {exc}", file=sys.stderr)
         return 2
-    targets = _resolve(opts.to, opts.timeout)
+    try:
+        targets = _resolve(opts.to, opts.timeout)
+    except ValueError as exc:
+        print(f"batteur send: --to {exc}", file=sys.stderr)
+        return 2
     if not targets:
         print(f"batteur send: no node found for {opts.to!r}", file=sys.stderr)
         return 1
+    failed = 0
     for host, port in targets:
         family = socket.AF_INET6 if ":" in host else socket.AF_INET
-        with socket.socket(family, socket.SOCK_DGRAM) as sock:
-            sock.sendto(data, (host, port))
-    return 0
+        try:
+            with socket.socket(family, socket.SOCK_DGRAM) as sock:
+                sock.sendto(data, (host, port))
+        except OSError as exc:  # an unknown host name, an unreachable network: say so, try the other nodes
+            failed += 1
+            print(f"batteur send: cannot send to {host}:{port}: {exc}", file=sys.stderr)
+    return 1 if failed else 0
