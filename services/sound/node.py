@@ -143,7 +143,12 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace) -> SoundCore:
                           pedal_impacts=bool(getattr(extra, "pedal_impacts", False)))
     core = SoundCore(sound, kit)
     if extra.wav is not None:
-        core.sinks.append(WavSink(extra.wav, core.sample_rate, core.channels, lambda: core.scheduler.origin))
+        if extra.wav.is_dir():
+            raise ValueError(f"--wav {extra.wav} is a directory: give a file, e.g. {extra.wav / 'take.wav'}")
+        try:
+            core.sinks.append(WavSink(extra.wav, core.sample_rate, core.channels, lambda: core.scheduler.origin))
+        except (OSError, TypeError, RuntimeError) as exc:  # soundfile: unknown extension, unwritable path
+            raise ValueError(f"--wav {extra.wav}: cannot write it ({exc})") from None
         log.info("writing %s", extra.wav)
     if extra.device == "auto":
         devices = audio_device_count()

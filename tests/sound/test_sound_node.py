@@ -10,6 +10,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+import pytest
 import soundfile as sf
 from sound_helpers import impact
 
@@ -65,3 +66,16 @@ def test_node_plays_impacts_into_a_wav_and_counts_bad_controls(tmp_path: Path) -
     audio, rate = sf.read(wav)
     assert rate == 48000 and audio.shape[1] == 2
     assert np.max(np.abs(audio)) > 0.05  # the snare is in the file
+
+
+def test_a_wav_path_that_cannot_be_written_is_a_clear_error(tmp_path: Path) -> None:
+    settings = load_settings({"role": "sound", "discovery": False, "clock_master": "self"})
+    a_file = tmp_path / "notes.txt"
+    a_file.write_text("mine")
+    for wav, says in ((tmp_path, "is a directory"), (tmp_path / "take.txt", "cannot write it"),
+                      (a_file / "take.wav", "cannot write it")):
+        extra = argparse.Namespace(kit="default", wav=wav, device="none", model="modal", block_size=256,
+                                   channels=2, reverb=0.0)
+        with pytest.raises(ValueError, match=says):
+            make_core(settings, extra)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.txt"]
