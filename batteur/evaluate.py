@@ -389,6 +389,9 @@ def planner_flags(issues: Iterable[dict[str, Any]]) -> list[Flag]:
 
 def render_dir_score(render_dir: Path) -> Path:
     """The score of a render directory: its copy ``score.*``, else the path in report.json."""
+    if not (render_dir / "report.json").is_file():
+        raise ValueError(f"{render_dir}: not a render directory (no report.json; `batteur render SCORE -o DIR` "
+                         "makes one)")
     copies = sorted(render_dir.glob("score.*"))
     if copies:
         return copies[0]

@@ -15,6 +15,7 @@ It is loaded with ``allow_pickle=False``: no code is ever unpickled.
 from __future__ import annotations
 
 import json
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -155,6 +156,8 @@ def _read(path: str | Path, formats: tuple[str, ...]) -> tuple[Path, dict[str, n
     p = Path(path)
     if not p.exists():
         raise ModelError(f"{p}: model file not found (train one with services/recogniser/training/train_net.py)")
+    if not zipfile.is_zipfile(p):  # else NumPy would report it as pickled data it refuses to load
+        raise ModelError(f"{p}: not a Batteur recogniser model: not an .npz archive")
     try:
         with np.load(p, allow_pickle=False) as z:
             data = {k: z[k] for k in z.files}

@@ -97,3 +97,8 @@ def test_model_errors(tmp_path: Path) -> None:
     with pytest.raises(ModelError, match="unknown model format"):
         load_model(bad)
     assert main(["x.wav", "-o", str(tmp_path / "y.mid"), "--model", str(bad)]) == 1
+    text = tmp_path / "model.json"
+    text.write_text('{"format": "batteur-recogniser/2"}')
+    with pytest.raises(ModelError, match="not an .npz archive") as refused:
+        load_model(text)
+    assert "pickle" not in str(refused.value)

@@ -114,6 +114,8 @@ def test_an_output_that_cannot_be_a_directory_is_refused_before_rendering(
         err = capsys.readouterr().err
         assert option in err and says in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.txt"]
+    assert evaluate.main([str(tmp_path), "--quiet"]) == 2  # a folder, but not a render
+    assert "not a render directory" in capsys.readouterr().err
 
 
 def test_bad_text_score_names_the_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
