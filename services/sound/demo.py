@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -86,8 +87,21 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--mono", action="store_true", help="mono instead of stereo")
     parser.add_argument("--reverb", type=float, default=0.12, help="room reverb wet/dry 0..1 (default 0.12)")
     args = parser.parse_args(argv)
-    kit = load_kit(args.kit)
-    impacts = impacts_from_midi(args.midi, kit, args.seconds)
+    try:
+        kit = load_kit(args.kit)
+        if args.output.is_dir() or not args.output.absolute().parent.is_dir():
+            raise ValueError(f"-o {args.output}: give a WAV file in an existing folder")
+    except (FileNotFoundError, ValueError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    try:
+        impacts = impacts_from_midi(args.midi, kit, args.seconds)
+    except EOFError:  # mido's, without a message
+        print(f"error: {args.midi}: truncated MIDI file", file=sys.stderr)
+        return 2
+    except (OSError, ValueError, KeyError, IndexError) as exc:
+        print(f"error: {args.midi}: not a readable MIDI file ({exc})", file=sys.stderr)
+        return 2
     if not impacts:
         print(f"no drum notes in the first {args.seconds} s of {args.midi}")
         return 1

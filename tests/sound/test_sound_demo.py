@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pytest
 import soundfile as sf
 
 from common.kit import load_kit
@@ -28,3 +29,18 @@ def test_demo_writes_a_listenable_stereo_wav(tmp_path: Path) -> None:
     assert rate == 48000 and audio.ndim == 2 and audio.shape[1] == 2
     assert 0.05 < np.max(np.abs(audio)) <= 1.0
     assert np.all(np.isfinite(audio))
+
+
+def test_broken_inputs_and_outputs_are_named_and_nothing_is_written(tmp_path: Path,
+                                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    truncated = tmp_path / "cut.mid"
+    truncated.write_bytes(DEFAULT_MIDI.read_bytes()[:60])
+    not_midi = tmp_path / "notes.txt"
+    not_midi.write_text("kick snare")
+    out = tmp_path / "groove.wav"
+    for args, says in ((["--midi", str(truncated)], "cut.mid: truncated MIDI file"),
+                       (["--midi", str(not_midi)], "notes.txt: not a readable MIDI file"),
+                       (["-o", str(not_midi / "g.wav")], "give a WAV file in an existing folder")):
+        assert main(["-o", str(out), *args]) == 2
+        assert says in capsys.readouterr().err
+    assert not out.exists()
