@@ -19,13 +19,11 @@ import os
 import re
 import socket
 import time
-import tomllib
 from collections.abc import Mapping
 from contextvars import ContextVar
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-import yaml
 from pydantic import Field, ValidationError, field_validator, model_validator
 from pydantic_settings import (
     BaseSettings,
@@ -35,6 +33,7 @@ from pydantic_settings import (
     SettingsConfigDict,
 )
 
+from common.datafile import parse_file
 from common.peers import Peer, parse_static_peer
 from common.transport import MAX_UDP_PAYLOAD
 
@@ -204,16 +203,11 @@ def read_config_file(path: str | Path) -> dict[str, Any]:
     """Settings from a YAML (``.yaml``/``.yml``) or TOML (``.toml``) file; raise SettingsError."""
     file = Path(path)
     try:
-        text = file.read_text(encoding="utf-8")
+        data: Any = parse_file(file)
     except OSError as exc:
         raise SettingsError(f"config file {file}: {exc.strerror or exc}") from None
-    try:
-        if file.suffix.lower() == ".toml":
-            data: Any = tomllib.loads(text)
-        else:
-            data = yaml.safe_load(text)
-    except (tomllib.TOMLDecodeError, yaml.YAMLError) as exc:
-        raise SettingsError(f"config file {file}: not valid {file.suffix.lstrip('.') or 'YAML'}: {exc}") from None
+    except ValueError as exc:
+        raise SettingsError(f"config file {file}: {exc}") from None
     if data is None:
         return {}
     if not isinstance(data, dict):

@@ -20,6 +20,8 @@ from typing import Annotated, Literal
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from common.datafile import parse_file
+
 KITS_DIR = Path(__file__).parent / "kits"
 
 
@@ -378,15 +380,10 @@ def load_kit(source: str | Path = "default") -> Kit:
     if not path.is_file():
         shipped = sorted(p.stem for p in KITS_DIR.glob("*.yaml"))
         raise FileNotFoundError(f"no kit file {str(source)!r} (shipped kits: {', '.join(shipped)})")
-    kind = "JSON" if path.suffix == ".json" else "YAML"
     try:
-        text = path.read_text(encoding="utf-8")
-        data = json.loads(text) if path.suffix == ".json" else yaml.safe_load(text)
-    except yaml.MarkedYAMLError as exc:  # its str() quotes the lines around the problem: one line is enough
-        at = f" at line {exc.problem_mark.line + 1}, column {exc.problem_mark.column + 1}" if exc.problem_mark else ""
-        raise ValueError(f"kit file {str(path)!r} is not valid YAML: {exc.problem or exc.context}{at}") from None
-    except (ValueError, yaml.YAMLError) as exc:  # not UTF-8 text, or not JSON
-        raise ValueError(f"kit file {str(path)!r} is not valid {kind}: {exc}") from None
+        data = parse_file(path)
+    except ValueError as exc:
+        raise ValueError(f"kit file {str(path)!r} is {exc}") from None
     try:
         return Kit.model_validate(data)
     except ValidationError as exc:

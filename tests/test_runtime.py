@@ -423,8 +423,16 @@ def test_bad_config_files(tmp_path: Path) -> None:
         load_settings({}, tmp_path / "missing.yaml")
     broken = tmp_path / "broken.toml"
     broken.write_text("port = = 3")
-    with pytest.raises(SettingsError, match="not valid toml"):
+    with pytest.raises(SettingsError, match="broken.toml: not valid TOML: "):
         load_settings({}, broken)
+    yaml_file = tmp_path / "broken.yaml"
+    yaml_file.write_text("peers: [a\n")
+    with pytest.raises(SettingsError, match="not valid YAML: .* at line 2, column 1$"):
+        load_settings({}, yaml_file)
+    binary = tmp_path / "binary.yaml"
+    binary.write_bytes(bytes(range(128, 256)))
+    with pytest.raises(SettingsError, match="binary.yaml: not UTF-8 text"):  # was a UnicodeDecodeError
+        load_settings({}, binary)
     listing = tmp_path / "list.yaml"
     listing.write_text("- 1\n- 2\n")
     with pytest.raises(SettingsError, match="mapping"):

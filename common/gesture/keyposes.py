@@ -27,6 +27,7 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from common.character import JOINTS
+from common.datafile import parse_file
 from common.kit import EventType, Limb
 
 POSE_NAME = re.compile(r"^[A-Za-z0-9_]+(\.[A-Za-z0-9_]+)*$")
@@ -84,15 +85,15 @@ class KeyPoses(BaseModel):
         if path is None or not Path(path).is_file():
             return cls()
         try:
-            data = yaml.safe_load(Path(path).read_text(encoding="utf-8")) or {}
+            data = parse_file(Path(path)) or {}
             return cls.model_validate({"poses": data})
-        except yaml.YAMLError as exc:
-            raise ValueError(f"{path}: not a valid poses file: {exc}") from None
         except ValidationError as exc:
             first = exc.errors()[0]
             where = ".".join(str(p) for p in first.get("loc", ())[1:])
             detail = f"{first.get('msg')} (at {where or 'top level'})"
             raise ValueError(f"{path}: not a valid poses file: {detail}") from None
+        except ValueError as exc:  # not UTF-8 text, not YAML
+            raise ValueError(f"{path}: not a valid poses file: {exc}") from None
 
     def save(self, path: Path) -> None:
         path.write_text(yaml.safe_dump(self.model_dump(mode="json")["poses"], sort_keys=True), encoding="utf-8")

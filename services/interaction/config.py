@@ -16,6 +16,7 @@ from typing import Literal
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
+from common.datafile import parse_file
 from services.interaction.detect import DetectionConfig
 from services.interaction.mapping import RegisteredMessage, Route, default_routes
 
@@ -68,11 +69,10 @@ def load_config(path: str | Path) -> InteractionConfig:
     with the reason when it is not a valid configuration.
     """
     path = Path(path)
-    text = path.read_text(encoding="utf-8")
     try:
-        data = json.loads(text) if path.suffix == ".json" else yaml.safe_load(text)
-    except (json.JSONDecodeError, yaml.YAMLError) as exc:
-        raise ValueError(f"{path}: not valid {'JSON' if path.suffix == '.json' else 'YAML'}: {exc}") from None
+        data = parse_file(path)
+    except ValueError as exc:
+        raise ValueError(f"{path}: {exc}") from None
     try:
         return InteractionConfig.model_validate(data or {})
     except ValidationError as exc:

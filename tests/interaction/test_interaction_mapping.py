@@ -133,6 +133,12 @@ def test_invalid_config_file_names_the_problem(tmp_path: Path) -> None:
     path.write_text("routes:\n  - {to: sound, fields: {colour: {feature: velocity}}}\n")
     with pytest.raises(ValueError, match="colour"):
         load_config(path)
+    path.write_bytes(bytes(range(128, 256)))
+    with pytest.raises(ValueError, match="bad.yaml: not UTF-8 text"):
+        load_config(path)
+    path.write_text("routes: [\n")
+    with pytest.raises(ValueError, match="bad.yaml: not valid YAML: .* at line 2, column 1$"):
+        load_config(path)
 
 
 # --------------------------------------------------------------------------- through the offline bus

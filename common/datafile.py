@@ -1,0 +1,46 @@
+"""Reading the project's data files (YAML, JSON, TOML) with errors of one line that say what is wrong and where.
+
+YAML's own messages quote the lines around the problem over several lines, and a file that is not UTF-8
+text raises ``UnicodeDecodeError``; every reader of kits, settings, interaction configurations and poses
+reports these the same way through :func:`parse_file`.
+"""
+
+from __future__ import annotations
+
+import json
+import tomllib
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+
+def parse_file(path: Path) -> Any:
+    """The data of ``path``: JSON for ``.json``, TOML for ``.toml``, else YAML.
+
+    Raises ``OSError`` when the file cannot be read, and ``ValueError`` (one line, without the path, for the
+    caller to prefix) when it is not UTF-8 text or not valid in its format, e.g. ``not valid YAML: expected
+    ',' or ']', but got '<stream end>' at line 2, column 1``.
+    """
+    suffix = path.suffix.lower()
+    kind = {".json": "JSON", ".toml": "TOML"}.get(suffix, "YAML")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+    try:
+        if kind == "JSON":
+            return json.loads(text)
+        if kind == "TOML":
+            return tomllib.loads(text)
+        return yaml.safe_load(text)
+    except (ValueError, yaml.YAMLError) as exc:  # JSONDecodeError and TOMLDecodeError are ValueErrors
+        raise ValueError(f"not valid {kind}: {_one_line(exc)}") from None
+
+
+def _one_line(exc: Exception) -> str:
+    if isinstance(exc, yaml.MarkedYAMLError):
+        mark = exc.problem_mark
+        at = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+        return f"{exc.problem or exc.context}{at}"
+    return " ".join(str(exc).split())
