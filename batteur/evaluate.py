@@ -387,15 +387,29 @@ def planner_flags(issues: Iterable[dict[str, Any]]) -> list[Flag]:
     return out
 
 
-def render_dir_score(render_dir: Path) -> Path:
-    """The score of a render directory: its copy ``score.*``, else the path in report.json."""
-    if not (render_dir / "report.json").is_file():
+def read_report(render_dir: Path) -> dict[str, Any]:
+    """A render directory's report.json; ``ValueError`` naming it when it is missing or not a render report."""
+    path = render_dir / "report.json"
+    if not path.is_file():
         raise ValueError(f"{render_dir}: not a render directory (no report.json; `batteur render SCORE -o DIR` "
                          "makes one)")
+    try:
+        report = json.loads(path.read_text(encoding="utf-8"))
+    except ValueError as exc:  # not JSON, or not UTF-8
+        raise ValueError(f"{path}: not a render report ({exc})") from None
+    if not isinstance(report, dict):
+        raise ValueError(f"{path}: not a render report (not a JSON object)")
+    return report
+
+
+def render_dir_score(render_dir: Path) -> Path:
+    """The score of a render directory: its copy ``score.*``, else the path in report.json."""
+    report = read_report(render_dir)
     copies = sorted(render_dir.glob("score.*"))
     if copies:
         return copies[0]
-    report = json.loads((render_dir / "report.json").read_text(encoding="utf-8"))
+    if "score" not in report:
+        raise ValueError(f"{render_dir}: holds no score.* and its report.json names no score")
     return Path(report["score"])
 
 
@@ -405,12 +419,16 @@ def evaluate_render_dir(score_path: Path, render_dir: Path, kit: Kit | None = No
     from batteur.render import scale_tempo
     from common.score.text import read_score
 
-    report = json.loads((render_dir / "report.json").read_text(encoding="utf-8"))
+    report = read_report(render_dir)
     if report.get("scene") != "drummer":
         raise ValueError(f"{render_dir}: not a score render (scene {report.get('scene')!r})")
+    if "score_offset_s" not in report:
+        raise ValueError(f"{render_dir / 'report.json'}: not a render report (no score_offset_s)")
     kit = kit if kit is not None else load_kit(report.get("kit", "default"))
     score = scale_tempo(read_score(score_path), float(report.get("tempo_scale", 1.0)))
     offset = float(report["score_offset_s"])
+    if not (render_dir / "impacts.csv").is_file():
+        raise ValueError(f"{render_dir}: no impacts.csv (not a whole render)")
     impacts = read_impacts_csv(render_dir / "impacts.csv")
     hits = [Hit(i.time - offset, i.instrument, i.velocity, i.part) for i in impacts]
     result = evaluate_performance(Path(str(report.get("score", score_path))).name, note_refs(score, kit), hits,

@@ -10,6 +10,8 @@ import csv
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from pydantic import ValidationError
+
 from common.messages import Impact, OscMessage
 
 COLUMNS = list(Impact.model_fields)
@@ -55,7 +57,15 @@ def read_impacts_csv(path: Path) -> list[Impact]:
         reader = csv.DictReader(handle)
         if reader.fieldnames != COLUMNS:
             raise ValueError(f"{path}: expected columns {COLUMNS}, got {reader.fieldnames}")
-        return [Impact.model_validate(row) for row in reader]
+        impacts = []
+        for row in reader:
+            try:
+                impacts.append(Impact.model_validate(row))
+            except ValidationError as exc:  # the first problem of the row, on one line
+                first = exc.errors()[0]
+                field = ".".join(str(p) for p in first.get("loc", ()))
+                raise ValueError(f"{path}: line {reader.line_num}: {field}: {first.get('msg')}") from None
+        return impacts
 
 
 def _fmt(value: object) -> str:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import csv
 import json
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -52,6 +53,28 @@ def test_render_writes_wav_impacts_bvh_and_report(rendered: Path) -> None:
     assert abs(frames / 60.0 - report["duration_s"]) < 0.2  # poses at 60 Hz over the whole render
     assert (rendered / "score.txt").read_text() == SCORE.read_text()  # the directory evaluates on its own
     assert not [p for p in rendered.iterdir() if p.name.startswith(".render-")]  # no staging left
+
+
+def test_a_damaged_render_directory_is_named_with_what_is_wrong(rendered: Path, tmp_path: Path,
+                                                              capsys: pytest.CaptureFixture[str]) -> None:
+    copy = tmp_path / "copy"
+    shutil.copytree(rendered, copy)
+    report, impacts = (copy / "report.json").read_text(), (copy / "impacts.csv").read_text()
+    for name, damaged, says in (
+            ("impacts.csv", impacts + "garbage,row\n", "impacts.csv: line "),
+            ("impacts.csv", None, "no impacts.csv"),
+            ("report.json", "{not json", "report.json: not a render report"),
+            ("report.json", "[1, 2]", "not a JSON object"),
+            ("report.json", '{"scene": "drummer"}', "no score_offset_s")):
+        (copy / "report.json").write_text(report)
+        (copy / "impacts.csv").write_text(impacts)
+        if damaged is None:
+            (copy / name).unlink()
+        else:
+            (copy / name).write_text(damaged)
+        assert evaluate.main([str(copy), "--quiet"]) == 2, name
+        err = capsys.readouterr().err
+        assert says in err and "Traceback" not in err
 
 
 def test_evaluation_of_the_render(rendered: Path, capsys: pytest.CaptureFixture[str]) -> None:
