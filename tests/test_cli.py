@@ -122,3 +122,16 @@ def test_rig_refuses_a_recording_folder_it_cannot_write_before_starting(tmp_path
     a_file.write_bytes(b"mine")
     assert rig.main(["--record", str(a_file), "--score", "demo"]) == 2
     assert "--record" in capsys.readouterr().err and a_file.read_bytes() == b"mine"
+
+
+@pytest.mark.parametrize(("tool", "option", "value"), [("ls", "--timeout", "-1"), ("ls", "--browse", "0"),
+                                                        ("echo", "--duration", "nan"), ("send", "--timeout", "x")])
+def test_tool_durations_must_be_positive_seconds(tool: str, option: str, value: str,
+                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    import importlib
+
+    module = importlib.import_module(f"batteur.tools.{tool}")
+    args = ["/x", "--to", "127.0.0.1:9"] if tool == "send" else ["/x"] if tool == "echo" else []
+    with pytest.raises(SystemExit) as refused:
+        module.main([*args, option, value])
+    assert refused.value.code == 2 and option in capsys.readouterr().err

@@ -15,7 +15,7 @@ import signal
 import sys
 from collections.abc import Sequence
 
-from batteur.tools.nodes import bind_address, find_targets
+from batteur.tools.nodes import bind_address, find_targets, seconds
 from batteur.tools.nodes import target_networks as _networks
 from common.messages import OscMessage, Subscribe
 from common.transport import UdpEndpoint
@@ -73,9 +73,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="subscribe at this node instead of browsing (repeatable)")
     parser.add_argument("--interface", action="append", default=[],
                         help="interface to browse on (repeatable; default loopback)")
-    parser.add_argument("--browse", type=float, default=3.0, help="seconds to browse for nodes (default 3)")
+    parser.add_argument("--browse", type=seconds, default=3.0, help="seconds to browse for nodes (default 3)")
     parser.add_argument("--count", type=int, default=0, help="stop after this many messages (default: never)")
-    parser.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
+    parser.add_argument("--duration", type=seconds, default=None, help="stop after this many seconds")
     parser.add_argument("--json", action="store_true", help="one JSON object per line")
     opts = parser.parse_args(argv)
     if not opts.pattern.startswith("/"):

@@ -14,7 +14,7 @@ import json
 import sys
 from collections.abc import Sequence
 
-from batteur.tools.nodes import Target, bind_address, find_targets
+from batteur.tools.nodes import Target, bind_address, find_targets, seconds
 from batteur.tools.nodes import target_networks as _networks
 from common.messages import PROTOCOL_VERSION, Health, Hello, OscMessage
 from common.transport import UdpEndpoint
@@ -84,8 +84,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="ask this node instead of browsing (repeatable)")
     parser.add_argument("--interface", action="append", default=[],
                         help="interface to browse on (repeatable; default loopback)")
-    parser.add_argument("--browse", type=float, default=3.0, help="seconds to browse for nodes (default 3)")
-    parser.add_argument("--timeout", type=float, default=2.0, help="seconds to wait for health answers (default 2)")
+    parser.add_argument("--browse", type=seconds, default=3.0, help="seconds to browse for nodes (default 3)")
+    parser.add_argument("--timeout", type=seconds, default=2.0, help="seconds to wait for health answers (default 2)")
     parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
     opts = parser.parse_args(argv)
     try:

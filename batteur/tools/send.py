@@ -14,6 +14,7 @@ import socket
 import sys
 from collections.abc import Sequence
 
+from batteur.tools.nodes import seconds
 from common.messages import REGISTRY, Arg, MessageError, WireKind, encode, encode_raw
 from common.transport import parse_address
 
@@ -78,7 +79,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("args", nargs="*", help="the message's arguments, in order")
     parser.add_argument("--to", required=True, help="HOST:PORT, or a role (physics, sound, ...) found by discovery")
     parser.add_argument("--raw", action="store_true", help="allow an address without a model (sent as typed)")
-    parser.add_argument("--timeout", type=float, default=2.0, help="seconds to look for a role (default 2)")
+    parser.add_argument("--timeout", type=seconds, default=2.0, help="seconds to look for a role (default 2)")
     opts = parser.parse_args(argv)
 
     model = REGISTRY.get(opts.address)
