@@ -29,6 +29,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import math
 import shutil
 import sys
 import tempfile
@@ -125,8 +126,8 @@ class ScoreRender:
 
 def scale_tempo(score: Score, scale: float) -> Score:
     """The score played ``scale`` times faster (every time divided by ``scale``)."""
-    if not scale > 0:
-        raise ValueError(f"tempo scale must be > 0, got {scale}")
+    if not 0 < scale < math.inf:
+        raise ValueError(f"tempo scale must be a positive finite number, got {scale}")
     if scale == 1.0:
         return score
     return dataclasses.replace(
