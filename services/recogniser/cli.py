@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import collections
+import math
 import sys
 import time
 from collections.abc import Sequence
@@ -15,6 +16,7 @@ import numpy as np
 from services.recogniser.audio import MAX_DURATION_S
 from services.recogniser.classes import CLASSES
 from services.recogniser.errors import RecogniserError
+from services.recogniser.midi import TEMPO_RANGE_BPM
 from services.recogniser.model import MODEL_PATH, load_model
 from services.recogniser.transcribe import DrumEvent, transcribe_file
 
@@ -84,8 +86,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error("-o/--output SCORE.mid is required (unless --live)")
     if args.device is not None and not args.live:
         parser.error("--device needs --live")
-    if args.speed <= 0 or args.tempo <= 0 or args.max_duration <= 0:
-        parser.error("--speed, --tempo and --max-duration must be positive")
+    if not (0 < args.speed < math.inf and args.max_duration > 0):  # written so NaN fails too
+        parser.error("--speed must be a positive finite number and --max-duration positive")
+    if not TEMPO_RANGE_BPM[0] <= args.tempo <= TEMPO_RANGE_BPM[1]:
+        parser.error(f"--tempo must be {TEMPO_RANGE_BPM[0]:g}..{TEMPO_RANGE_BPM[1]:g} BPM, got {args.tempo:g}")
     try:
         from services.recogniser.midi import write_midi
 

@@ -13,6 +13,10 @@ DRUM_CHANNEL = 9
 """MIDI channel 10 (0-based index 9): General MIDI percussion."""
 
 
+TEMPO_RANGE_BPM = (10.0, 1000.0)
+"""Tempos the MIDI file may carry, BPM (a grid for score editors; times are exact at any of them)."""
+
+
 def events_to_midi(
     events: Sequence[DrumEvent], tempo_bpm: float = 120.0, ticks_per_beat: int = 480, note_length_s: float = 0.05
 ) -> mido.MidiFile:
@@ -22,6 +26,8 @@ def events_to_midi(
     tempo only sets the grid a score editor shows. Each note lasts ``note_length_s``
     or until the next strike of the same note.
     """
+    if not TEMPO_RANGE_BPM[0] <= tempo_bpm <= TEMPO_RANGE_BPM[1]:
+        raise ValueError(f"tempo {tempo_bpm} BPM is outside {TEMPO_RANGE_BPM[0]}..{TEMPO_RANGE_BPM[1]}")
     tempo = mido.bpm2tempo(tempo_bpm)
     sec_per_tick = tempo / 1e6 / ticks_per_beat
 

@@ -87,6 +87,10 @@ def test_cli_usage_errors(capsys: pytest.CaptureFixture[str], pattern_wav: Path)
     assert e.value.code == 0
     out = capsys.readouterr().out
     assert "--live" in out and "General MIDI" in out
+    for option, value in (("--tempo", "inf"), ("--tempo", "1e9"), ("--tempo", "nan"), ("--speed", "nan")):
+        with pytest.raises(SystemExit) as e:  # each was a traceback from the MIDI writer or the live loop
+            main([str(pattern_wav), "-o", "x.mid", option, value])
+        assert e.value.code == 2 and option in capsys.readouterr().err
 
 
 def test_model_errors(tmp_path: Path) -> None:

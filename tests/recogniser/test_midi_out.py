@@ -6,6 +6,7 @@ from pathlib import Path
 
 import mido
 import numpy as np
+import pytest
 
 from common.kit import EventType
 from common.score.midi import read_midi
@@ -70,3 +71,10 @@ def test_transcription_of_a_pattern_reads_as_a_score(tmp_path: Path, pattern: Pa
     # every kick but at most one is in the score (recipe 4 missed the one under a high tom at 8.9 s)
     assert sum(np.min(np.abs(kicks - t)) >= 0.05 for t in ref) <= 1
     assert {EventType.BASS, EventType.SNARE, EventType.HIHATCLOSED} <= {e.event for e in score.events}
+
+
+def test_a_tempo_a_midi_file_cannot_hold_is_refused(tmp_path: Path) -> None:
+    for bpm in (0.001, 1e9, float("inf"), float("nan")):
+        with pytest.raises(ValueError, match="BPM is outside"):
+            write_midi(EVENTS, tmp_path / "x.mid", tempo_bpm=bpm)
+    assert not (tmp_path / "x.mid").exists()
