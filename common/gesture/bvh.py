@@ -125,7 +125,11 @@ def read_bvh(path: str | Path) -> Bvh:
     p = Path(path)
     if not p.is_file():
         raise BvhError(f"{p}: no such file")
-    return parse_bvh(p.read_text(encoding="utf-8"), str(p))
+    try:
+        text = p.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:  # a binary file: a BVH is text
+        raise BvhError(f"{p}: not a BVH text file ({exc.reason} at byte {exc.start})") from None
+    return parse_bvh(text, str(p))
 
 
 def _num(v: float) -> str:

@@ -18,7 +18,6 @@ are then detected as the tip's height minima).
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -27,6 +26,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 from scipy.signal import find_peaks
 
+from common.datafile import parse_file
 from common.gesture.bvh import Bvh, BvhError, forward_kinematics, read_bvh
 from common.gesture.plan import Grip, Nuance
 from common.gesture.synth import UNITS_DIR
@@ -115,9 +115,11 @@ def load_unit(
     meta_path = path.with_suffix(".json")
     if meta_path.is_file():
         try:
-            meta = json.loads(meta_path.read_text(encoding="utf-8"))
-        except json.JSONDecodeError as exc:
-            raise BvhError(f"{meta_path}: bad metadata JSON ({exc})") from exc
+            meta = parse_file(meta_path)
+        except ValueError as exc:  # not UTF-8, not JSON
+            raise BvhError(f"{meta_path}: bad metadata JSON ({exc})") from None
+        if not isinstance(meta, dict):
+            raise BvhError(f"{meta_path}: bad metadata JSON (not an object)")
     bvh: Bvh = read_bvh(path)
     positions = forward_kinematics(bvh)
     tip_name = tip or str(meta.get("tip", ""))

@@ -165,6 +165,14 @@ def test_user_bvh_roundtrip_and_contact_detection(tmp_path: Path) -> None:
         parse_bvh("HIERARCHY\nJOINT x")
     with pytest.raises(BvhError, match="no such file"):
         read_bvh(tmp_path / "nope.bvh")
+    for meta in ("[1, 2]", "{not json"):
+        path.with_suffix(".json").write_text(meta)
+        with pytest.raises(BvhError, match="bad metadata JSON"):
+            load_unit(path, grip="french", nuance="tenuto")
+    binary = tmp_path / "binary.bvh"
+    binary.write_bytes(bytes(range(128, 256)))
+    with pytest.raises(BvhError, match="binary.bvh: not a BVH text file"):  # was a UnicodeDecodeError
+        read_bvh(binary)
 
 
 def test_text_score_sticking_and_nuance_reach_the_plan() -> None:
