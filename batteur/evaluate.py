@@ -535,6 +535,7 @@ def evaluate_scores(paths: Sequence[Path], opts: Any, renders: Path | None, quie
 
 def build_parser() -> argparse.ArgumentParser:
     from batteur.render import CONTROL_MODES, GRIPS
+    from common.gesture.plan import Nuance
 
     parser = argparse.ArgumentParser(
         prog="batteur evaluate",
@@ -547,7 +548,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--reuse", action="store_true", help="with --renders: reuse renders already there")
     parser.add_argument("--kit", default="default")
     parser.add_argument("--grip", default="german", choices=GRIPS)
-    parser.add_argument("--nuance", default="tenuto")
+    parser.add_argument("--nuance", default=Nuance.TENUTO.value, choices=[n.value for n in Nuance],
+                        help="global playing nuance (default: tenuto)")
     parser.add_argument("--tempo-scale", type=float, default=1.0)
     parser.add_argument("--control", default="cartesian", choices=list(CONTROL_MODES))
     parser.add_argument("--calibration", type=Path, default=None, help="calibration JSON applied to the plans")

@@ -173,3 +173,9 @@ def test_tempo_scale_divides_every_time() -> None:
     for bad in (0.0, -1.0, float("nan"), float("inf")):  # inf would put every note at 0 s
         with pytest.raises(ValueError, match="positive finite"):
             render.scale_tempo(score, bad)
+
+
+def test_evaluate_lists_the_nuances_it_knows(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as refused:
+        evaluate.main([str(SCORE), "--nuance", "bogus"])
+    assert refused.value.code == 2 and "staccato" in capsys.readouterr().err
