@@ -197,7 +197,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def check_score(opts: argparse.Namespace) -> None:
-    """Raise ValueError for a --score the rig cannot play (missing file, strike scene, no physics)."""
+    """Raise ValueError for a --score the rig cannot play (missing, broken or empty file, strike scene, no
+    physics)."""
     if opts.score is None:
         return
     if opts.strike_period:
@@ -209,6 +210,10 @@ def check_score(opts: argparse.Namespace) -> None:
         raise ValueError(f"--score {opts.score}: no such file")
     if opts.play_at < 0:
         raise ValueError("--play-at must be >= 0 (rig seconds)")
+    from common.score.text import read_score
+
+    if not read_score(opts.score).events:  # ScoreError (a ValueError) for a broken file, before any service starts
+        raise ValueError(f"--score {opts.score}: no drum events to play")
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -135,3 +135,15 @@ def test_tool_durations_must_be_positive_seconds(tool: str, option: str, value: 
     with pytest.raises(SystemExit) as refused:
         module.main([*args, option, value])
     assert refused.value.code == 2 and option in capsys.readouterr().err
+
+
+def test_rig_reads_the_score_before_starting_a_service(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from batteur import rig
+
+    broken = tmp_path / "cut.mid"
+    broken.write_bytes(b"MThd\x00\x00\x00\x06\x00\x01\x00\x01\x01\xe0MTrk\x00\x00\x00\x10\x00\x90")
+    empty = tmp_path / "empty.txt"
+    empty.write_text("tempo 100\n")
+    for score, says in ((broken, "truncated MIDI file"), (empty, "no drum events")):
+        assert rig.main(["--score", str(score)]) == 2
+        assert says in capsys.readouterr().err
