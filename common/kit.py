@@ -371,8 +371,8 @@ class Kit(_Strict):
 def load_kit(source: str | Path = "default") -> Kit:
     """Load a kit by shipped name (``default``) or from a YAML/JSON file path.
 
-    Raises ``FileNotFoundError`` for an unknown name or path and
-    ``ValueError`` with pydantic's explanation for an invalid file.
+    Raises ``FileNotFoundError`` for an unknown name or path and ``ValueError`` naming the file for one that is
+    not UTF-8 text, not valid YAML/JSON (line and column) or not a valid kit (pydantic's explanation).
     """
     path = Path(source)
     if not path.suffix:
