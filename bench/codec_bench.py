@@ -19,6 +19,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from batteur.arg_types import count  # noqa: E402
 from common.messages import (  # noqa: E402
     REGISTRY,
     Arg,
@@ -102,7 +103,7 @@ def bench(message: OscMessage, count: int) -> tuple[float, float, int]:
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--count", type=int, default=5000, help="encodes and decodes per kind (default 5000)")
+    parser.add_argument("--count", type=count, default=5000, help="encodes and decodes per kind (default 5000)")
     args = parser.parse_args(argv)
     print(f"codec throughput, {args.count} encodes + {args.count} decodes per kind (python-osc + pydantic)")
     print(f"{'message':<20} {'bytes':>6} {'encode/s':>10} {'decode/s':>10} {'round trip/s':>13}")

@@ -24,6 +24,7 @@ import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
+from batteur.arg_types import count, seconds
 from batteur.evaluate import FileResult, aggregate, evaluate_scores, format_table
 from batteur.render import RenderOptions
 
@@ -74,15 +75,15 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--root", type=Path, default=GROOVE, help="Groove MIDI Dataset directory")
     parser.add_argument("--all", action="store_true", help="every validation file (long: hours at today's speed)")
-    parser.add_argument("--limit", type=int, default=4, help="files in the default subset (default 4)")
-    parser.add_argument("--max-duration", type=float, default=12.0,
+    parser.add_argument("--limit", type=count, default=4, help="files in the default subset (default 4)")
+    parser.add_argument("--max-duration", type=seconds, default=12.0,
                         help="default subset: only files up to this long, seconds (default 12)")
     parser.add_argument("--controls", default="cartesian,joint", help="control modes, comma-separated")
     parser.add_argument("--renders", type=Path, default=None, help="keep renders in DIR/<control>/<stem>")
     parser.add_argument("--reuse", action="store_true", help="reuse renders already in --renders")
     parser.add_argument("--calibration", type=Path, default=None, help="calibration JSON applied to the plans")
     parser.add_argument("--json", type=Path, default=None, help="also write every figure to this JSON file")
-    parser.add_argument("--control-rate", type=float, default=None, metavar="HZ",
+    parser.add_argument("--control-rate", type=seconds, default=None, metavar="HZ",
                         help="drummer's full control updates per second (default: physics' default)")
     parser.add_argument("--jobs", type=int, default=1,
                         help="render this many files at once, one process each (default 1; wall-clock real-time "

@@ -18,6 +18,7 @@ import time
 import numpy as np
 from websockets.asyncio.client import connect
 
+from batteur.arg_types import seconds
 from common.messages import Pose, Skeleton, encode
 from services.graphics.core import GraphicsCore, GraphicsSettings
 from services.graphics.figure import synthetic_performance
@@ -61,8 +62,8 @@ async def measure(names: list[str], values: np.ndarray, seconds: float, rate: fl
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--seconds", type=float, default=3.0)
-    parser.add_argument("--rate", type=float, default=60.0, help="pose and view rate, Hz")
+    parser.add_argument("--seconds", type=seconds, default=3.0)
+    parser.add_argument("--rate", type=seconds, default=60.0, help="pose and view rate, Hz")
     args = parser.parse_args()
     sequence, _ = synthetic_performance(duration=2.0, rate_hz=60.0)
     big_names = [f"link{i}" for i in range(60)]

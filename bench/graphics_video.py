@@ -18,22 +18,23 @@ from pathlib import Path
 import numpy as np
 import soundfile
 
+from batteur.arg_types import count, seconds
 from services.graphics.figure import synthetic_performance
 from services.graphics.video import render_frames, render_video
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--seconds", type=float, default=2.0, help="performance length, seconds")
-    parser.add_argument("--width", type=int, default=640)
-    parser.add_argument("--height", type=int, default=360)
-    parser.add_argument("--fps", type=float, default=30.0)
+    parser.add_argument("--seconds", type=seconds, default=2.0, help="performance length, seconds")
+    parser.add_argument("--width", type=count, default=640)
+    parser.add_argument("--height", type=count, default=360)
+    parser.add_argument("--fps", type=seconds, default=30.0)
     parser.add_argument("--score", type=Path, default=None, help="also time `batteur render SCORE --video`")
     args = parser.parse_args()
     sequence, impacts = synthetic_performance(duration=args.seconds, rate_hz=60.0)
     times = np.arange(int(args.seconds * args.fps)) / args.fps
     t0 = time.perf_counter()
-    count = render_frames(sequence, impacts, times, width=args.width, height=args.height)
+    frames = render_frames(sequence, impacts, times, width=args.width, height=args.height)
     render_s = time.perf_counter() - t0
     with tempfile.TemporaryDirectory() as tmp:
         wav = Path(tmp) / "silence.wav"
@@ -42,8 +43,9 @@ def main() -> None:
         info = render_video(sequence, impacts, wav, Path(tmp), fps=args.fps, width=args.width, height=args.height)
         video_s = time.perf_counter() - t0
         size = info.path.stat().st_size
-    print(f"offline frames at {args.width}x{args.height}, {count} frames ({args.seconds:g} s at {args.fps:g} fps)")
-    print(f"  render only (TinyRenderer):  {count / render_s:7.1f} frames/s  ({1000 * render_s / count:.1f} ms/frame)")
+    print(f"offline frames at {args.width}x{args.height}, {frames} frames ({args.seconds:g} s at {args.fps:g} fps)")
+    print(f"  render only (TinyRenderer):  {frames / render_s:7.1f} frames/s  "
+          f"({1000 * render_s / frames:.1f} ms/frame)")
     print(f"  render + H.264/AAC encode:   {info.frames / video_s:7.1f} frames/s  "
           f"({video_s / args.seconds:.2f} x real time, {size / 1024:.0f} KiB)")
     if args.score is not None:

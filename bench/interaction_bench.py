@@ -32,6 +32,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from batteur.arg_types import count, seconds  # noqa: E402
 from common.dedupe import Deduplicator  # noqa: E402
 from common.kit import load_kit  # noqa: E402
 from common.messages import Contact, Impact, decode, encode  # noqa: E402
@@ -218,9 +219,9 @@ def bench_loopback(samples: int, seconds: float, copies: int) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--samples", type=int, default=2000, help="latency samples (default 2000)")
-    parser.add_argument("--seconds", type=float, default=3.0, help="sustained-rate duration, s (default 3)")
-    parser.add_argument("--copies", type=int, default=5, help="redundant copies per impact (default 5)")
+    parser.add_argument("--samples", type=count, default=2000, help="latency samples (default 2000)")
+    parser.add_argument("--seconds", type=seconds, default=3.0, help="sustained-rate duration, s (default 3)")
+    parser.add_argument("--copies", type=count, default=5, help="redundant copies per impact (default 5)")
     args = parser.parse_args(argv)
     print(f"interaction bench on {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.1f}")
     bench_core(args.samples)

@@ -22,6 +22,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from batteur.arg_types import count, seconds
 from common.kit import EventType, Kit
 from services.physics.core import PhysicsCore
 from services.physics.drummer import DrummerScene
@@ -79,8 +80,8 @@ def best_of(repeat: int, make: Callable[[], PhysicsCore], seconds: float) -> tup
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seconds", type=float, default=2.0, help="simulated seconds per case")
-    parser.add_argument("--repeat", type=int, default=1, help="runs per case, the best is printed (default 1)")
+    parser.add_argument("--seconds", type=seconds, default=2.0, help="simulated seconds per case")
+    parser.add_argument("--repeat", type=count, default=1, help="runs per case, the best is printed (default 1)")
     parser.add_argument("--profile", action="store_true", help="print the top functions of a drummer run")
     args = parser.parse_args()
 

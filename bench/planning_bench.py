@@ -45,6 +45,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
+from batteur.arg_types import count
 from common.gesture.database import default_database  # noqa: E402
 from common.gesture.plan import GesturePlan, IssueAction, IssueReason  # noqa: E402
 from common.gesture.planner import plan_gestures  # noqa: E402
@@ -121,7 +122,7 @@ def fewest_left_out(score: Score, a: Assignment, kit: Kit) -> int:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--all", action="store_true", help="every file (slow: about 1,000 files)")
-    parser.add_argument("--limit", type=int, default=40, help="files in the default subset (every k-th file)")
+    parser.add_argument("--limit", type=count, default=40, help="files in the default subset (every k-th file)")
     parser.add_argument("--kit", default="default")
     parser.add_argument("--groove", type=Path, default=GROOVE)
     args = parser.parse_args()

@@ -33,6 +33,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import mir_eval  # noqa: E402
 
+from batteur.arg_types import count, seconds  # noqa: E402
 from common.messages.recogniser import DrumHit  # noqa: E402
 from services.recogniser.audio import SAMPLE_RATE, resample  # noqa: E402
 from services.recogniser.classes import CLASS_NAMES, class_of_note  # noqa: E402
@@ -67,9 +68,9 @@ GROUPS["toms (all)"] = (4, 5, 6)
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--files", type=int, default=None,
+    ap.add_argument("--files", type=count, default=None,
                     help="performances drawn at random from the split (default: all of them)")
-    ap.add_argument("--seconds", type=float, default=None,
+    ap.add_argument("--seconds", type=seconds, default=None,
                     help="at most this much of each, seconds (default: the whole performance)")
     ap.add_argument("--kit", default=TEST_KITS[0], help="hydrogen kit to render with (default: the held-out one)")
     ap.add_argument("--split", default="validation", choices=("validation", "train", "test"),

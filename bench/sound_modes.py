@@ -25,6 +25,7 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
+from batteur.arg_types import count
 from services.sound.modal_bank import ModeSet  # noqa: E402
 from services.sound.pyo_stage import _quiet_stderr, import_pyo  # noqa: E402
 
@@ -78,10 +79,10 @@ def pyo_block_times(modes: int, block: int, sr: int, blocks: int, seed: int = 0)
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--modes", type=int, default=50000, help="modes in the vectorised bank (default 50000)")
-    parser.add_argument("--pyo-modes", type=int, default=2000, help="pyo resonator objects (default 2000)")
-    parser.add_argument("--block", type=int, default=256, help="block size, samples (default 256)")
-    parser.add_argument("--blocks", type=int, default=300, help="blocks timed (default 300)")
+    parser.add_argument("--modes", type=count, default=50000, help="modes in the vectorised bank (default 50000)")
+    parser.add_argument("--pyo-modes", type=count, default=2000, help="pyo resonator objects (default 2000)")
+    parser.add_argument("--block", type=count, default=256, help="block size, samples (default 256)")
+    parser.add_argument("--blocks", type=count, default=300, help="blocks timed (default 300)")
     args = parser.parse_args(argv)
     sr = 48000
     budget = args.block / sr

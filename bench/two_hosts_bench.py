@@ -29,6 +29,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from batteur.arg_types import count, seconds  # noqa: E402
 from tests.deploy.twohosts import TwoHosts, impacts_from_echo, settle_echo, wait_line  # noqa: E402
 from tests.netns import NetnsLab, netns_unavailable_reason  # noqa: E402
 
@@ -156,9 +157,9 @@ def lost_strikes(rig: TwoHosts, tmp: Path, strikes: int, gap: float, copies: int
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--pings", type=int, default=2000, help="one-way latency samples")
-    parser.add_argument("--strikes", type=int, default=400, help="strikes per redundancy setting")
-    parser.add_argument("--gap", type=float, default=0.03, help="seconds between strikes")
+    parser.add_argument("--pings", type=count, default=2000, help="one-way latency samples")
+    parser.add_argument("--strikes", type=count, default=400, help="strikes per redundancy setting")
+    parser.add_argument("--gap", type=seconds, default=0.03, help="seconds between strikes")
     parser.add_argument("--loss", type=int, default=5, help="percent of datagrams dropped on B")
     args = parser.parse_args(argv)
     reason = netns_unavailable_reason()

@@ -147,3 +147,20 @@ def test_rig_reads_the_score_before_starting_a_service(tmp_path: Path, capsys: p
     for score, says in ((broken, "truncated MIDI file"), (empty, "no drum events")):
         assert rig.main(["--score", str(score)]) == 2
         assert says in capsys.readouterr().err
+
+
+def test_positive_number_types_of_the_tools_and_benchmarks() -> None:
+    import argparse
+
+    from batteur.arg_types import count, seconds
+
+    assert seconds("2.5") == 2.5 and count("3") == 3
+    for bad in ("0", "-1", "nan", "inf", "x"):
+        with pytest.raises(argparse.ArgumentTypeError):
+            seconds(bad)
+    for bad in ("0", "-2", "1.5", "x"):
+        with pytest.raises(argparse.ArgumentTypeError):
+            count(bad)
+    bench = subprocess.run([sys.executable, "bench/physics_rtf.py", "--seconds", "0"], capture_output=True,
+                           text=True, cwd=Path(__file__).resolve().parents[1], timeout=120)
+    assert bench.returncode == 2 and "--seconds" in bench.stderr  # was a ZeroDivisionError after building

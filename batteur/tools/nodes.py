@@ -2,25 +2,12 @@
 
 from __future__ import annotations
 
-import argparse
 import ipaddress
-import math
 import socket
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 from common.peers import parse_static_peer
-
-
-def seconds(text: str) -> float:
-    """An ``argparse`` type: a positive, finite number of seconds."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
-    if not 0.0 < value < math.inf:
-        raise argparse.ArgumentTypeError(f"{text!r}: give a positive number of seconds")
-    return value
 
 
 @dataclass(frozen=True)
