@@ -30,6 +30,8 @@ def check_output_file(path: Path, option: str) -> None:
     if path.is_dir():
         raise ValueError(f"{option} {path}: is a directory, not a file")
     folder = path.absolute().parent
+    if folder.exists() and not folder.is_dir():
+        raise ValueError(f"{option} {path}: {folder} is a file, not a folder")
     if not folder.is_dir():
         raise ValueError(f"{option} {path}: folder {folder} does not exist")
     if not os.access(folder, os.W_OK | os.X_OK):

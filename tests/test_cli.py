@@ -164,3 +164,13 @@ def test_positive_number_types_of_the_tools_and_benchmarks() -> None:
     bench = subprocess.run([sys.executable, "bench/physics_rtf.py", "--seconds", "0"], capture_output=True,
                            text=True, cwd=Path(__file__).resolve().parents[1], timeout=120)
     assert bench.returncode == 2 and "--seconds" in bench.stderr  # was a ZeroDivisionError after building
+
+
+def test_docs_refuses_an_output_it_cannot_write(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from batteur.tools import docs
+
+    a_file = tmp_path / "osc.md"
+    a_file.write_text("mine")
+    assert docs.main(["-o", str(a_file / "osc.md")]) == 2
+    assert "is a file, not a folder" in capsys.readouterr().err and a_file.read_text() == "mine"
+    assert docs.main(["-o", str(tmp_path / "osc2.md")]) == 0 and "/batteur/" in (tmp_path / "osc2.md").read_text()

@@ -94,6 +94,8 @@ def make_core(settings: NodeSettings, args: argparse.Namespace) -> GraphicsCore:
     s = settings if isinstance(settings, GraphicsNodeSettings) else GraphicsNodeSettings(**settings.model_dump())
     if s.preview and s.preview_score:
         raise ValueError("give --preview FILE.npz or --preview-score SCORE, not both")
+    if s.kit_dir and Path(s.kit_dir).exists() and not Path(s.kit_dir).is_dir():
+        raise ValueError(f"--kit-dir {s.kit_dir}: exists and is not a directory")
     try:
         core = GraphicsCore(GraphicsSettings(rate_hz=s.rate_hz or 60.0, latency=s.latency_s, kit=s.kit,
                                              clock=s.view_clock))

@@ -10,6 +10,7 @@ figure) hands the graphics service a ``PoseSequence``.
 
 from __future__ import annotations
 
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -131,6 +132,10 @@ class PoseSequence:
     @classmethod
     def load(cls, path: Path) -> PoseSequence:
         """Read a sequence written by :meth:`save`; ``ValueError`` if it is not one."""
+        if not Path(path).is_file():
+            raise ValueError(f"{path}: no such file")
+        if not zipfile.is_zipfile(path):  # NumPy would speak of pickled data it refuses to load
+            raise ValueError(f"{path}: not a pose sequence file (not an .npz archive)")
         try:
             with np.load(path, allow_pickle=False) as data:
                 return cls([str(n) for n in data["names"]], data["times"], data["values"])

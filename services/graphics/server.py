@@ -188,6 +188,10 @@ class ViewServer:
             self.counters["page_errors"] += 1
             log.warning("bad page message: %s", exc)
             return {"type": "saved", "ok": False, "error": str(exc)[:500]}
+        except OSError as exc:  # the kit directory cannot be written (a file, read-only, full): the page is told
+            self.counters["page_errors"] += 1
+            log.warning("cannot save: %s", exc)
+            return {"type": "saved", "ok": False, "error": f"cannot save: {exc}"[:500]}
 
     def _start_poser(self) -> CharacterPoser:
         """The editor's body: the newest live pose of physics' drummer, else the shipped rest snapshot."""

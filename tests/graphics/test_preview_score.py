@@ -215,6 +215,8 @@ def test_cli_bad_score_exits_2_with_a_clear_error(tmp_path: Path) -> None:
         (["--preview-score", str(tmp_path / "missing.txt")], "missing.txt: no such file"),
         (["--preview-score", str(tmp_path / "broken.mid")], "broken.mid"),
         (["--preview-score", str(tmp_path / "broken.mid"), "--preview-planner", "physics"], "preview_planner"),
+        (["--preview", str(tmp_path / "broken.mid")], "not a pose sequence file (not an .npz archive)"),
+        (["--kit-dir", str(tmp_path / "broken.mid")], "--kit-dir"),
     ]
     for extra, message in cases:
         result = subprocess.run(

@@ -116,6 +116,21 @@ def test_saving_is_off_without_a_kit_directory() -> None:
     _run(None, body)
 
 
+def test_a_kit_directory_that_cannot_be_written_is_an_error_reply_not_a_crash(tmp_path: Path) -> None:
+    blocked = tmp_path / "kits"
+    blocked.write_text("a file where the kit directory should be")
+
+    async def body(server: ViewServer, host: str) -> None:
+        kit = load_kit().model_dump(mode="json")
+        reply = server.handle_page_message(json.dumps({"type": "save_kit", "file": "mine.yaml", "kit": kit}))
+        assert reply is not None and reply["ok"] is False and "cannot save" in reply["error"]
+        assert server.counters["page_errors"] == 1
+        async with connect(f"ws://{host}/ws") as ws:  # the server still serves pages
+            assert (await _until(ws, "kit"))["kit"]["name"] == kit["name"]
+
+    _run(blocked, body)
+
+
 def test_the_served_bundle_is_built_from_the_current_sources() -> None:
     """`batteur graphics build` was run after the last change to the page (static/ is committed)."""
     import hashlib
