@@ -19,7 +19,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from batteur.arg_types import count  # noqa: E402
+from common.arg_types import count  # noqa: E402
 from common.messages import (  # noqa: E402
     REGISTRY,
     Arg,

@@ -24,9 +24,9 @@ import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
-from batteur.arg_types import count, seconds
 from batteur.evaluate import FileResult, aggregate, evaluate_scores, format_table
 from batteur.render import RenderOptions
+from common.arg_types import count, seconds
 
 GROOVE = Path("/work/shared/data/groove")
 GOALS = ("goals (cartesian): F@25 >= 0.99, median |e| <= 3 ms, p95 |e| <= 10 ms, Spearman >= 0.9 (rho, pooled; rho_s: "

@@ -18,7 +18,7 @@ import time
 import numpy as np
 from websockets.asyncio.client import connect
 
-from batteur.arg_types import seconds
+from common.arg_types import seconds
 from common.messages import Pose, Skeleton, encode
 from services.graphics.core import GraphicsCore, GraphicsSettings
 from services.graphics.figure import synthetic_performance

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import soundfile
 
-from batteur.arg_types import count, seconds
+from common.arg_types import count, seconds
 from services.graphics.figure import synthetic_performance
 from services.graphics.video import render_frames, render_video
 

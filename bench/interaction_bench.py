@@ -32,7 +32,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from batteur.arg_types import count, seconds  # noqa: E402
+from common.arg_types import count, seconds  # noqa: E402
 from common.dedupe import Deduplicator  # noqa: E402
 from common.kit import load_kit  # noqa: E402
 from common.messages import Contact, Impact, decode, encode  # noqa: E402

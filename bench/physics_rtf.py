@@ -22,7 +22,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from batteur.arg_types import count, seconds
+from common.arg_types import count, seconds
 from common.kit import EventType, Kit
 from services.physics.core import PhysicsCore
 from services.physics.drummer import DrummerScene

@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from batteur.arg_types import seconds
+from common.arg_types import seconds
 from common.kit import EventType, Kit
 from services.physics.body import LIMBS
 from services.physics.character import DOF_NAMES, JOINTS

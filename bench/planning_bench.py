@@ -45,7 +45,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from batteur.arg_types import count
+from common.arg_types import count
 from common.gesture.database import default_database  # noqa: E402
 from common.gesture.plan import GesturePlan, IssueAction, IssueReason  # noqa: E402
 from common.gesture.planner import plan_gestures  # noqa: E402

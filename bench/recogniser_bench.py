@@ -33,7 +33,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import mir_eval  # noqa: E402
 
-from batteur.arg_types import count, seconds  # noqa: E402
+from common.arg_types import count, seconds  # noqa: E402
 from common.messages.recogniser import DrumHit  # noqa: E402
 from services.recogniser.audio import SAMPLE_RATE, resample  # noqa: E402
 from services.recogniser.classes import CLASS_NAMES, class_of_note  # noqa: E402

@@ -27,8 +27,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from batteur.arg_types import seconds
 from batteur.render import RenderOptions, render_score
+from common.arg_types import seconds
 
 BARS = """HH |x.x.x.x.x.x.x.x.|
 SN |....X.......X...|

@@ -25,7 +25,7 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from batteur.arg_types import count
+from common.arg_types import count
 from services.sound.modal_bank import ModeSet  # noqa: E402
 from services.sound.pyo_stage import _quiet_stderr, import_pyo  # noqa: E402
 

@@ -37,7 +37,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from batteur.arg_types import count, seconds
+from common.arg_types import count, seconds
 from common.messages import ClockPing, Hello, Impact, OscMessage  # noqa: E402
 from common.transport import DEFAULT_RCVBUF, UdpEndpoint  # noqa: E402
 

@@ -29,7 +29,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from batteur.arg_types import count, seconds  # noqa: E402
+from common.arg_types import count, seconds  # noqa: E402
 from tests.deploy.twohosts import TwoHosts, impacts_from_echo, settle_echo, wait_line  # noqa: E402
 from tests.netns import NetnsLab, netns_unavailable_reason  # noqa: E402
 

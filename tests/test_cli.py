@@ -152,7 +152,7 @@ def test_rig_reads_the_score_before_starting_a_service(tmp_path: Path, capsys: p
 def test_positive_number_types_of_the_tools_and_benchmarks() -> None:
     import argparse
 
-    from batteur.arg_types import count, seconds
+    from common.arg_types import count, seconds
 
     assert seconds("2.5") == 2.5 and count("3") == 3
     for bad in ("0", "-1", "nan", "inf", "x"):

@@ -15,9 +15,9 @@ import signal
 import sys
 from collections.abc import Sequence
 
-from batteur.arg_types import seconds
 from batteur.tools.nodes import bind_address, find_targets
 from batteur.tools.nodes import target_networks as _networks
+from common.arg_types import seconds
 from common.messages import OscMessage, Subscribe
 from common.transport import UdpEndpoint
 

@@ -14,9 +14,9 @@ import json
 import sys
 from collections.abc import Sequence
 
-from batteur.arg_types import seconds
 from batteur.tools.nodes import Target, bind_address, find_targets
 from batteur.tools.nodes import target_networks as _networks
+from common.arg_types import seconds
 from common.messages import PROTOCOL_VERSION, Health, Hello, OscMessage
 from common.transport import UdpEndpoint
 

@@ -14,7 +14,7 @@ import socket
 import sys
 from collections.abc import Sequence
 
-from batteur.arg_types import seconds
+from common.arg_types import seconds
 from common.messages import REGISTRY, Arg, MessageError, WireKind, encode, encode_raw
 from common.transport import parse_address
 

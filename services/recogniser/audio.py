@@ -85,7 +85,7 @@ def load_audio(path: str | Path, max_duration_s: float = MAX_DURATION_S, sample_
     duration = info.frames / info.samplerate
     if duration > max_duration_s:
         raise AudioFileError(
-            f"{p}: {duration:.0f} s long, over the limit of {max_duration_s:.0f} s "
+            f"{p}: {duration:.4g} s long, over the limit of {max_duration_s:.4g} s "
             "(cut the file, or raise the limit with --max-duration)"
         )
     try:

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from common.arg_types import seconds
 from services.recogniser.audio import MAX_DURATION_S
 from services.recogniser.classes import CLASSES
 from services.recogniser.errors import RecogniserError
@@ -63,7 +64,7 @@ def build_parser(prog: str = "batteur transcribe") -> argparse.ArgumentParser:
     live.add_argument("--live", action="store_true", help="play the file in real time and send hits over OSC")
     live.add_argument("--device", nargs="?", const="", default=None, metavar="NAME",
                       help="with --live: listen to an audio input device instead of a file (needs sounddevice)")
-    live.add_argument("--seconds", type=float, default=None, help="with --device: stop after this long, seconds")
+    live.add_argument("--seconds", type=seconds, default=None, help="with --device: stop after this long, seconds")
     live.add_argument("--to", action="append", default=[], metavar="HOST:PORT",
                       help="send /batteur/recogniser/hit here (repeatable; default 127.0.0.1:9900)")
     live.add_argument("--speed", type=float, default=1.0, help="with --live and a file: play this much faster")

@@ -48,6 +48,8 @@ def test_too_long_file_is_refused(tmp_path: Path) -> None:
     sf.write(path, np.full(8000 * 5, 0.1, np.float32), 8000)
     with pytest.raises(AudioFileError, match="over the limit of 2 s"):
         load_audio(path, max_duration_s=2.0)
+    with pytest.raises(AudioFileError, match="5 s long, over the limit of 0.25 s"):  # was "0 s"
+        load_audio(path, max_duration_s=0.25)
 
 
 def test_cli_reports_bad_files_without_traceback(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
