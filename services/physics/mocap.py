@@ -86,8 +86,16 @@ def load_deepmimic(name_or_path: str | Path) -> MotionClip:
         path = MOTIONS_DIR / f"humanoid3d_{name_or_path}.txt"
     if not path.is_file():
         raise FileNotFoundError(f"no clip {str(name_or_path)!r} (shipped: {', '.join(deepmimic_clip_names())})")
-    data = json.loads(path.read_text(encoding="utf-8"))
-    frames = np.asarray(data.get("Frames", []), dtype=float)
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except ValueError as exc:  # not UTF-8, not JSON
+        raise ValueError(f"{path.name}: not a DeepMimic clip (JSON with 'Frames'): {exc}") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"{path.name}: not a DeepMimic clip (JSON with 'Frames')")
+    try:
+        frames = np.asarray(data.get("Frames", []), dtype=float)
+    except (TypeError, ValueError) as exc:  # ragged rows, strings
+        raise ValueError(f"{path.name}: frames are not rows of numbers ({exc})") from None
     if frames.ndim != 2 or frames.shape[1] != FRAME_LENGTH or len(frames) < 2:
         raise ValueError(f"{path.name}: expected frames of {FRAME_LENGTH} values, got shape {frames.shape}")
     if not np.all(np.isfinite(frames)):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -26,6 +27,18 @@ def test_deepmimic_clips_load_in_our_axes() -> None:
     assert np.ptp(knee[:, 0]) > math.radians(40)
     with pytest.raises(FileNotFoundError, match="shipped"):
         load_deepmimic("moonwalk")
+
+
+@pytest.mark.parametrize(("content", "says"), [
+    (b"{not json", "not a DeepMimic clip"), (b"[1, 2]", "not a DeepMimic clip"),
+    (bytes(range(128, 256)), "not a DeepMimic clip"), (b'{"Frames": [[0, 1], [2]]}', "frames are not rows of numbers"),
+    (b'{"Frames": [[0.1, 2, 3]]}', "expected frames of"),
+])
+def test_a_broken_clip_file_is_named_with_the_problem(tmp_path: Path, content: bytes, says: str) -> None:
+    clip = tmp_path / "mine.txt"
+    clip.write_bytes(content)
+    with pytest.raises(ValueError, match=f"mine.txt: {says}"):
+        load_deepmimic(clip)
 
 
 @pytest.mark.parametrize("name", ["punch", "dance_a", "walk"])
