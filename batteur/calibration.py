@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 from collections import defaultdict
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -51,6 +52,9 @@ PEDAL_EVENTS = frozenset({"HIHATPEDAL", "BASS"})
 """Events played by a foot: their lag does not set the object's fallback lag."""
 MIN_SAMPLES = 5
 """Pairs needed on an object before its offset or velocity map is fitted."""
+
+CALIBRATION_KEYS = ("timing_s", "velocity", "reference", "samples")
+"""The keys of a calibration JSON file (:meth:`Calibration.save`)."""
 
 
 @dataclass
@@ -98,11 +102,18 @@ class Calibration:
         """Read a calibration JSON; ``ValueError`` naming the file when it is not one."""
         try:
             data = json.loads(Path(path).read_text(encoding="utf-8"))
+            unknown = sorted(set(data) - set(CALIBRATION_KEYS))
+            if unknown:  # a misspelt key would otherwise calibrate nothing, silently
+                raise ValueError(f"unknown keys {unknown}; a calibration has {list(CALIBRATION_KEYS)}")
             ref = data.get("reference")
-            return cls(timing={str(k): float(v) for k, v in data.get("timing_s", {}).items()},
-                       velocity={str(k): (float(v[0]), float(v[1])) for k, v in data.get("velocity", {}).items()},
-                       reference=(float(ref[0]), float(ref[1])) if ref else None,
-                       samples={str(k): int(v) for k, v in data.get("samples", {}).items()})
+            cal = cls(timing={str(k): float(v) for k, v in data.get("timing_s", {}).items()},
+                      velocity={str(k): (float(v[0]), float(v[1])) for k, v in data.get("velocity", {}).items()},
+                      reference=(float(ref[0]), float(ref[1])) if ref else None,
+                      samples={str(k): int(v) for k, v in data.get("samples", {}).items()})
+            numbers = [*cal.timing.values(), *(x for v in cal.velocity.values() for x in v), *(cal.reference or ())]
+            if not all(math.isfinite(x) for x in numbers):
+                raise ValueError("a timing offset or velocity fit is not a finite number")
+            return cal
         except (OSError, ValueError, TypeError, KeyError, IndexError, AttributeError) as exc:
             raise ValueError(f"{path}: not a calibration file ({exc})") from exc
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -169,6 +170,11 @@ def test_calibration_fits_lag_and_velocity_and_shifts_notes(tmp_path: Path) -> N
     with pytest.raises(ValueError, match="not a calibration"):
         (tmp_path / "bad.json").write_text("[1, 2")
         Calibration.load(tmp_path / "bad.json")
+    for text, says in (('{"timing": {"snare": 0.01}}', "unknown keys ['timing']"),  # misspelt: would do nothing
+                       ('{"timing_s": {"snare": NaN}}', "not a finite number")):
+        (tmp_path / "bad.json").write_text(text)
+        with pytest.raises(ValueError, match=re.escape(says)):
+            Calibration.load(tmp_path / "bad.json")
 
 
 def test_calibration_separates_events_on_one_object_and_moves_assignment_notes() -> None:
