@@ -403,11 +403,12 @@ def read_report(render_dir: Path) -> dict[str, Any]:
 
 
 def render_dir_score(render_dir: Path) -> Path:
-    """The score of a render directory: its copy ``score.*``, else the path in report.json."""
-    report = read_report(render_dir)
+    """The score of a render directory: its copy ``score.*``, else the path in report.json (which
+    :func:`evaluate_render_dir` reads and checks in any case)."""
     copies = sorted(render_dir.glob("score.*"))
     if copies:
         return copies[0]
+    report = read_report(render_dir)
     if "score" not in report:
         raise ValueError(f"{render_dir}: holds no score.* and its report.json names no score")
     return Path(report["score"])
