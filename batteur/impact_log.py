@@ -12,6 +12,7 @@ from pathlib import Path
 
 from pydantic import ValidationError
 
+from common.datafile import first_error
 from common.messages import Impact, OscMessage
 
 COLUMNS = list(Impact.model_fields)
@@ -62,9 +63,7 @@ def read_impacts_csv(path: Path) -> list[Impact]:
             try:
                 impacts.append(Impact.model_validate(row))
             except ValidationError as exc:  # the first problem of the row, on one line
-                first = exc.errors()[0]
-                field = ".".join(str(p) for p in first.get("loc", ()))
-                raise ValueError(f"{path}: line {reader.line_num}: {field}: {first.get('msg')}") from None
+                raise ValueError(f"{path}: line {reader.line_num}: {first_error(exc)}") from None
         return impacts
 
 

@@ -2,7 +2,8 @@
 
 YAML's own messages quote the lines around the problem over several lines, and a file that is not UTF-8
 text raises ``UnicodeDecodeError``; every reader of kits, settings, interaction configurations and poses
-reports these the same way through :func:`parse_file`.
+reports these the same way through :func:`parse_file` (BVH files through :func:`read_text`), and pydantic's
+first complaint about what was read through :func:`first_error`.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 import yaml
+from pydantic import ValidationError
 
 
 def parse_file(path: Path) -> Any:
@@ -22,12 +24,8 @@ def parse_file(path: Path) -> Any:
     caller to prefix) when it is not UTF-8 text or not valid in its format, e.g. ``not valid YAML: expected
     ',' or ']', but got '<stream end>' at line 2, column 1``.
     """
-    suffix = path.suffix.lower()
-    kind = {".json": "JSON", ".toml": "TOML"}.get(suffix, "YAML")
-    try:
-        text = path.read_text(encoding="utf-8")
-    except UnicodeDecodeError as exc:
-        raise ValueError(f"not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+    kind = {".json": "JSON", ".toml": "TOML"}.get(path.suffix.lower(), "YAML")
+    text = read_text(path)
     try:
         if kind == "JSON":
             return json.loads(text)
@@ -36,6 +34,21 @@ def parse_file(path: Path) -> Any:
         return yaml.safe_load(text)
     except (ValueError, yaml.YAMLError) as exc:  # JSONDecodeError and TOMLDecodeError are ValueErrors
         raise ValueError(f"not valid {kind}: {_one_line(exc)}") from None
+
+
+def read_text(path: Path) -> str:
+    """The UTF-8 text of ``path``. Raises ``OSError`` when it cannot be read and ``ValueError`` (one line,
+    without the path) when it is not UTF-8 text, e.g. a binary file."""
+    try:
+        return path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+
+
+def first_error(exc: ValidationError) -> str:
+    """The first problem pydantic found, on one line: ``field.path: message``."""
+    first = exc.errors()[0]
+    return f"{'.'.join(str(p) for p in first.get('loc', ()))}: {first.get('msg')}"
 
 
 def _one_line(exc: Exception) -> str:

@@ -14,6 +14,8 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from common.datafile import read_text
+
 
 class BvhError(ValueError):
     """A BVH file that cannot be read; the message names the problem."""
@@ -126,9 +128,9 @@ def read_bvh(path: str | Path) -> Bvh:
     if not p.is_file():
         raise BvhError(f"{p}: no such file")
     try:
-        text = p.read_text(encoding="utf-8")
-    except UnicodeDecodeError as exc:  # a binary file: a BVH is text
-        raise BvhError(f"{p}: not a BVH text file ({exc.reason} at byte {exc.start})") from None
+        text = read_text(p)
+    except ValueError as exc:  # a binary file: a BVH is text
+        raise BvhError(f"{p}: not a BVH text file ({exc})") from None
     return parse_bvh(text, str(p))
 
 

@@ -28,6 +28,8 @@ from typing import Annotated, Any, ClassVar, Self, Union, get_args, get_origin
 
 from pydantic import BaseModel, ConfigDict, ValidationError
 
+from common.datafile import first_error
+
 Arg = int | float | str
 """One OSC argument as Batteur sends it."""
 
@@ -276,9 +278,7 @@ class OscMessage(BaseModel):
         try:
             return cls.model_validate(values)
         except ValidationError as exc:
-            first = exc.errors()[0]
-            where = ".".join(str(p) for p in first.get("loc", ()))
-            raise MessageError(DropReason.OUT_OF_RANGE, f"{where}: {first.get('msg')}", cls.ADDRESS) from None
+            raise MessageError(DropReason.OUT_OF_RANGE, first_error(exc), cls.ADDRESS) from None
 
 
 FLOAT32_EPS = 2.0**-23
