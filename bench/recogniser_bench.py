@@ -14,6 +14,7 @@ Needs Debian's hydrogen-drumkits (the kit; exits 1 with an install hint without 
     python bench/recogniser_bench.py --kit Millo_MultiLayered2 --split train --files 60 --seconds 60   # to tune on
     python bench/recogniser_bench.py --model new.npz services/recogniser/models/recogniser.npz  # same renders
     python bench/recogniser_bench.py --losses   # also: where the onset F-measure is lost, and bounds on decoding
+    python bench/recogniser_bench.py --onset-merge 0.03   # onsets counted as madmom's evaluation combines them
 
 Several ``--model`` files are scored on the same renders, each file transcribed by each model in turn
 (so their speeds are measured under the same load).
@@ -80,6 +81,10 @@ def main(argv: list[str] | None = None) -> int:
                     help="model file(s) to score; several are scored on the same renders (default: the shipped one)")
     ap.add_argument("--seed", type=int, default=7)
     ap.add_argument("--live", action="store_true", help="also score the live core (fed 128-sample blocks)")
+    ap.add_argument("--onset-merge", type=seconds, default=ONSET_MERGE_S, metavar="S",
+                    help="reference strikes within S seconds of an onset's first strike are one class-agnostic onset "
+                         f"(default {ONSET_MERGE_S}, as the trainer counts them; madmom's onset evaluation combines "
+                         "annotations within 0.03 s)")
     ap.add_argument("--losses", action="store_true",
                     help="also count where the class-agnostic onsets are lost (missed and extra onsets by cause) and "
                          "what the network's strikes would score with an ideal chord grouping or exact times")
@@ -146,10 +151,10 @@ def main(argv: list[str] | None = None) -> int:
             if files_run:
                 what = "model.live, per-candidate MLP" if name == "live" else "model.offline, framewise network"
                 print(f"\n{name} ({what}):")
-                table(files_run)
-                soft_recall(files_run)
+                table(files_run, args.onset_merge)
+                soft_recall(files_run, merge_s=args.onset_merge)
         if outputs[i]:
-            onset_losses(model.offline, outputs[i])
+            onset_losses(model.offline, outputs[i], args.onset_merge)
         print(f"\nspeed (offline): {audio_s / max(compute_s[i], 1e-9):.0f}x real time "
               f"({compute_s[i]:.2f} s for {audio_s:.0f} s of audio)")
         if latencies[i]:
@@ -184,15 +189,17 @@ VELOCITY_EDGES = (0, 20, 30, 40, 60, 128)
 """MIDI velocity bins of the onset recall table."""
 
 
-def soft_recall(files_run: list[tuple[list[Hit], list[tuple[float, int]]]], window: float = 0.05) -> None:
-    """Print the class-agnostic onset recall by the loudest MIDI velocity of the onset's strikes."""
+def soft_recall(files_run: list[tuple[list[Hit], list[tuple[float, int]]]], window: float = 0.05,
+                merge_s: float = ONSET_MERGE_S) -> None:
+    """Print the class-agnostic onset recall by the loudest MIDI velocity of the onset's strikes (reference strikes
+    within ``merge_s`` seconds of an onset's first strike are one onset)."""
     found = np.zeros(len(VELOCITY_EDGES) - 1)
     total = np.zeros(len(VELOCITY_EDGES) - 1)
     for hits, est in files_run:
         order = sorted(hits, key=lambda h: h.time)
         onsets: list[list[float]] = []  # [time, loudest velocity]
         for h in order:
-            if onsets and h.time - onsets[-1][0] <= ONSET_MERGE_S:
+            if onsets and h.time - onsets[-1][0] <= merge_s:
                 onsets[-1][1] = max(onsets[-1][1], h.velocity)
             else:
                 onsets.append([h.time, h.velocity])
@@ -210,8 +217,9 @@ def soft_recall(files_run: list[tuple[list[Hit], list[tuple[float, int]]]], wind
     print("onset recall at 50 ms by loudest velocity (share of onsets): " + ", ".join(cells))
 
 
-def table(files_run: list[tuple[list[Hit], list[tuple[float, int]]]]) -> None:
-    """Print F, precision and recall per class group at 50 and 30 ms, pooled over files."""
+def table(files_run: list[tuple[list[Hit], list[tuple[float, int]]]], merge_s: float = ONSET_MERGE_S) -> None:
+    """Print F, precision and recall per class group at 50 and 30 ms, pooled over files; the class-agnostic
+    onsets count reference strikes within ``merge_s`` seconds of an onset's first strike as one onset."""
     windows = (0.05, 0.03)
     counts = {w: {g: [0, 0, 0] for g in [*GROUPS, "onsets"]} for w in windows}  # matched, n_ref, n_est
     for hits, found in files_run:
@@ -228,12 +236,14 @@ def table(files_run: list[tuple[list[Hit], list[tuple[float, int]]]]) -> None:
                 c[0] += m
                 c[1] += len(r)
                 c[2] += len(e)
-            ro, eo = onset_times(ref_t, ONSET_MERGE_S), onset_times(est_t, 1e-4)
+            ro, eo = onset_times(ref_t, merge_s), onset_times(est_t, 1e-4)
             m = len(mir_eval.util.match_events(ro, eo, w)) if len(ro) and len(eo) else 0
             c = counts[w]["onsets"]
             c[0] += m
             c[1] += len(ro)
             c[2] += len(eo)
+    if merge_s != ONSET_MERGE_S:
+        print(f"(onsets: reference strikes within {merge_s * 1000:g} ms of an onset's first strike are one onset)")
     print(f"{'class':22s} {'n_ref':>6s} | {'F@50ms':>7s} {'P':>6s} {'R':>6s} | {'F@30ms':>7s} {'P':>6s} {'R':>6s}")
     for g in ["onsets", *GROUPS]:
         row = f"{g:22s} {counts[0.05][g][1]:6d} |"
@@ -262,15 +272,17 @@ def onset_scores(ref: np.ndarray, est: np.ndarray, window: float = 0.05) -> tupl
     return m, len(ref), len(e)
 
 
-def ideal_grouping(ref: np.ndarray, est: np.ndarray, window: float = 0.05) -> tuple[int, int, int]:
+def ideal_grouping(ref: np.ndarray, est: np.ndarray, window: float = 0.05,
+                   merge_s: float = ONSET_MERGE_S) -> tuple[int, int, int]:
     """(matched, reference onsets, estimated onsets) if every strike within ``window`` of a reference onset
     were grouped into that onset's estimate (a grouping that knows the answer); the strikes near none stay,
-    grouped as the reference is (:data:`ONSET_MERGE_S`). An upper bound for any rule that groups these strikes."""
+    grouped as the reference is (strikes within ``merge_s`` seconds one onset). An upper bound for any rule that
+    groups these strikes."""
     e = np.sort(est)
     pairs = mir_eval.util.match_events(ref, e, window) if len(ref) and len(e) else []
     used = {j for _, j in pairs}
     stray = np.array([t for j, t in enumerate(e) if j not in used and (not len(ref) or np.abs(ref - t).min() > window)])
-    return len(pairs), len(ref), len(pairs) + len(onset_times(stray, ONSET_MERGE_S))
+    return len(pairs), len(ref), len(pairs) + len(onset_times(stray, merge_s))
 
 
 def exact_times(hits: list[Hit], events: list[tuple[float, int]], within: float = FOUND_S) -> list[tuple[float, int]]:
@@ -293,7 +305,7 @@ def chord_times(events: list[tuple[float, int]], window: float) -> np.ndarray:
     return np.array([e.time for e in group_chords(dummies, window)] if window > 0 else [e.time for e in dummies])
 
 
-def onset_losses(net: FrameNet, files: list[tuple[list[Hit], np.ndarray]]) -> None:
+def onset_losses(net: FrameNet, files: list[tuple[list[Hit], np.ndarray]], merge_s: float = ONSET_MERGE_S) -> None:
     """Print where the class-agnostic onset F-measure at 50 ms is lost, for ``net``'s outputs on ``files``
     (reference hits, :func:`network_outputs`): missed onsets and extra onsets by cause, and what the same strikes
     score (1) with an ideal chord grouping, (2) with exact times and the chord grouping used."""
@@ -305,14 +317,14 @@ def onset_losses(net: FrameNet, files: list[tuple[list[Hit], np.ndarray]]) -> No
     for hits, out in files:
         ref_t = np.array([h.time for h in hits])
         ref_c = np.array([h.cls for h in hits])
-        ref = onset_times(ref_t, ONSET_MERGE_S) if len(ref_t) else np.zeros(0)
+        ref = onset_times(ref_t, merge_s) if len(ref_t) else np.zeros(0)
         decoded = np.array([e.time for e in strikes(net, out)])
         raw = [(e.time, e.cls) for e in strikes(loose, out)]
         raw_t = np.array([t for t, _ in raw])
         est = onset_times(decoded, 1e-4) if len(decoded) else np.zeros(0)
         pairs = mir_eval.util.match_events(ref, est, 0.05) if len(ref) and len(est) else []
         totals["as decoded"] += (len(pairs), len(ref), len(est))
-        totals["ideal grouping"] += ideal_grouping(ref, raw_t)
+        totals["ideal grouping"] += ideal_grouping(ref, raw_t, merge_s=merge_s)
         totals["exact times"] += onset_scores(ref, chord_times(exact_times(hits, raw), net.chord_s))
         hit_ref, hit_est = {i for i, _ in pairs}, {j for _, j in pairs}
         for i, t in enumerate(ref):
@@ -320,7 +332,7 @@ def onset_losses(net: FrameNet, files: list[tuple[list[Hit], np.ndarray]]) -> No
                 continue
             others = np.abs(np.delete(ref, i) - t)
             close = bool(len(others)) and float(others.min()) < NEIGHBOUR_S
-            classes = set(ref_c[(ref_t >= t) & (ref_t <= t + ONSET_MERGE_S)].tolist())
+            classes = set(ref_c[(ref_t >= t) & (ref_t <= t + merge_s)].tolist())
             found = any(abs(rt - t) <= FOUND_S for rt, c in raw if c in classes)
             key = ("close, found but given a neighbour's time" if found else "close, not found") if close else (
                 "alone, found" if found else "alone, not found")
@@ -332,7 +344,7 @@ def onset_losses(net: FrameNet, files: list[tuple[list[Hit], np.ndarray]]) -> No
                       else "far from every reference onset"] += 1
     n_ref = int(totals["as decoded"][1])
     print(f"\nwhere the onsets are lost (F at 50 ms; {n_ref} reference onsets, strikes closer than "
-          f"{ONSET_MERGE_S * 1000:.0f} ms one onset):")
+          f"{merge_s * 1000:g} ms one onset):")
     for name, (m, nr, ne) in totals.items():
         prec, rec = m / max(ne, 1), m / max(nr, 1)
         f = 2 * prec * rec / (prec + rec) if prec + rec else 0.0

@@ -37,3 +37,17 @@ def test_chord_times_follow_the_transcribers_grouping() -> None:
     events = [(1.0, 0), (1.015, 2), (1.03, 1)]
     assert bench.chord_times(events, 0.02).tolist() == [1.0, 1.0, 1.03]
     assert bench.chord_times(events, 0.0).tolist() == [1.0, 1.015, 1.03]
+
+
+def test_onset_merge_sets_which_close_strikes_are_one_reference_onset(capsys: pytest.CaptureFixture[str]) -> None:
+    # a flam: snare 25 ms after a hi-hat, transcribed as one strike; then a lone kick found
+    hits = [Hit(1.0, 2, 90), Hit(1.025, 1, 100), Hit(2.0, 0, 100)]
+    found = [(1.0, 2), (2.0, 0)]
+
+    def onsets_row(merge_s: float) -> list[str]:
+        bench.table([(hits, found)], merge_s)
+        row = next(line for line in capsys.readouterr().out.splitlines() if line.startswith("onsets "))
+        return row.split()
+
+    assert onsets_row(0.02)[1:3] == ["3", "|"] and onsets_row(0.02)[3] == "0.800"  # two onsets for the flam
+    assert onsets_row(0.03)[1:4] == ["2", "|", "1.000"]  # the flam is one onset, found
