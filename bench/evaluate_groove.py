@@ -26,7 +26,7 @@ from pathlib import Path
 
 from batteur.evaluate import FileResult, aggregate, evaluate_scores, format_table
 from batteur.render import RenderOptions
-from common.arg_types import count, seconds
+from common.arg_types import count, hertz, seconds
 
 GROOVE = Path("/work/shared/data/groove")
 GOALS = ("goals (cartesian): F@25 >= 0.99, median |e| <= 3 ms, p95 |e| <= 10 ms, Spearman >= 0.9 (rho, pooled; rho_s: "
@@ -83,14 +83,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--reuse", action="store_true", help="reuse renders already in --renders")
     parser.add_argument("--calibration", type=Path, default=None, help="calibration JSON applied to the plans")
     parser.add_argument("--json", type=Path, default=None, help="also write every figure to this JSON file")
-    parser.add_argument("--control-rate", type=seconds, default=None, metavar="HZ",
+    parser.add_argument("--control-rate", type=hertz, default=None, metavar="HZ",
                         help="drummer's full control updates per second (default: physics' default)")
-    parser.add_argument("--jobs", type=int, default=1,
+    parser.add_argument("--jobs", type=count, default=1,
                         help="render this many files at once, one process each (default 1; wall-clock real-time "
                              "factors then count the sharing, CPU ones do not)")
     args = parser.parse_args(argv)
-    if args.jobs < 1:
-        parser.error("--jobs must be at least 1")
     files = validation_files(args.root, None if args.all else args.limit, None if args.all else args.max_duration)
     if not files:
         print("no validation files found", file=sys.stderr)

@@ -18,7 +18,7 @@ import time
 import numpy as np
 from websockets.asyncio.client import connect
 
-from common.arg_types import seconds
+from common.arg_types import hertz, seconds
 from common.messages import Pose, Skeleton, encode
 from services.graphics.core import GraphicsCore, GraphicsSettings
 from services.graphics.figure import synthetic_performance
@@ -63,7 +63,7 @@ async def measure(names: list[str], values: np.ndarray, seconds: float, rate: fl
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seconds", type=seconds, default=3.0)
-    parser.add_argument("--rate", type=seconds, default=60.0, help="pose and view rate, Hz")
+    parser.add_argument("--rate", type=hertz, default=60.0, help="pose and view rate, Hz")
     args = parser.parse_args()
     sequence, _ = synthetic_performance(duration=2.0, rate_hz=60.0)
     big_names = [f"link{i}" for i in range(60)]

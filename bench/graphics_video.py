@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import soundfile
 
-from common.arg_types import count, seconds
+from common.arg_types import count, hertz, seconds
 from services.graphics.figure import synthetic_performance
 from services.graphics.video import render_frames, render_video
 
@@ -28,7 +28,7 @@ def main() -> None:
     parser.add_argument("--seconds", type=seconds, default=2.0, help="performance length, seconds")
     parser.add_argument("--width", type=count, default=640)
     parser.add_argument("--height", type=count, default=360)
-    parser.add_argument("--fps", type=seconds, default=30.0)
+    parser.add_argument("--fps", type=hertz, default=30.0)
     parser.add_argument("--score", type=Path, default=None, help="also time `batteur render SCORE --video`")
     args = parser.parse_args()
     sequence, impacts = synthetic_performance(duration=args.seconds, rate_hz=60.0)

@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from common.arg_types import seconds
+from common.arg_types import hertz, seconds
 from common.kit import EventType, Kit
 from services.physics.body import LIMBS
 from services.physics.character import DOF_NAMES, JOINTS
@@ -251,7 +251,7 @@ def main() -> None:
     parser.add_argument("--clips", nargs="*", default=["punch", "dance_a"], help="DeepMimic clips (upper body)")
     parser.add_argument("--seconds", type=seconds, default=2.5, help="longest simulated time per case")
     parser.add_argument("--out", type=Path, default=Path("physics_tracking.png"), help="PNG to write")
-    parser.add_argument("--control-rate", type=seconds, default=1000.0,
+    parser.add_argument("--control-rate", type=hertz, default=1000.0,
                         help="control updates per second, Hz (IK and inverse dynamics; the PD corrects the held "
                              "torques at every 1 ms step between; default 1000: every step)")
     args = parser.parse_args()

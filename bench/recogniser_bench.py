@@ -89,8 +89,6 @@ def main(argv: list[str] | None = None) -> int:
                     help="also count where the class-agnostic onsets are lost (missed and extra onsets by cause) and "
                          "what the network's strikes would score with an ideal chord grouping or exact times")
     args = ap.parse_args(argv)
-    if (args.files is not None and args.files < 1) or (args.seconds is not None and args.seconds <= 0):
-        ap.error("--files must be at least 1 and --seconds above 0")
     try:
         require_kits([args.kit])
     except KitsMissingError as exc:

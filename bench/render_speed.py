@@ -28,7 +28,7 @@ from pathlib import Path
 from typing import Any
 
 from batteur.render import RenderOptions, render_score
-from common.arg_types import seconds
+from common.arg_types import hertz, seconds
 
 BARS = """HH |x.x.x.x.x.x.x.x.|
 SN |....X.......X...|
@@ -98,7 +98,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seconds", type=seconds, default=20.0, help="length of the piece (default 20; issue: 180)")
     parser.add_argument("--control", default="cartesian", help="control mode (cartesian, joint, joint_spd)")
-    parser.add_argument("--control-rate", type=seconds, default=None, metavar="HZ",
+    parser.add_argument("--control-rate", type=hertz, default=None, metavar="HZ",
                         help="drummer's full control updates per second (default: physics' default)")
     parser.add_argument("--no-breakdown", action="store_true", help="do not time the parts (no wrapper overhead)")
     parser.add_argument("--jobs", default="1",

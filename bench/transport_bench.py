@@ -37,7 +37,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from common.arg_types import count, seconds
+from common.arg_types import count, hertz
 from common.messages import ClockPing, Hello, Impact, OscMessage  # noqa: E402
 from common.transport import DEFAULT_RCVBUF, UdpEndpoint  # noqa: E402
 
@@ -148,7 +148,7 @@ async def send(
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--pings", type=count, default=3000, help="latency samples (default 3000)")
-    parser.add_argument("--pace-hz", type=seconds, default=1000.0, help="latency send rate, Hz (default 1000)")
+    parser.add_argument("--pace-hz", type=hertz, default=1000.0, help="latency send rate, Hz (default 1000)")
     parser.add_argument("--burst", type=count, default=10_000, help="messages per burst (default 10000)")
     parser.add_argument("--busy", type=float, default=1.0,
                         help="seconds the receiver is busy during each burst (default 1)")

@@ -7,8 +7,8 @@ import argparse
 import math
 
 
-def seconds(text: str) -> float:
-    """A positive, finite number of seconds (or of hertz: any positive finite quantity)."""
+def positive(text: str) -> float:
+    """A positive, finite number (a duration, a rate, a speed factor)."""
     try:
         value = float(text)
     except ValueError:
@@ -16,6 +16,12 @@ def seconds(text: str) -> float:
     if not 0.0 < value < math.inf:
         raise argparse.ArgumentTypeError(f"{text!r}: give a positive finite number")
     return value
+
+
+seconds = positive
+"""A positive, finite number of seconds."""
+hertz = positive
+"""A positive, finite rate, Hz."""
 
 
 def count(text: str) -> int:

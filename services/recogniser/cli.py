@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from common.arg_types import seconds
+from common.arg_types import positive, seconds
 from services.recogniser.audio import MAX_DURATION_S
 from services.recogniser.classes import CLASSES
 from services.recogniser.errors import RecogniserError
@@ -66,7 +66,7 @@ def build_parser(prog: str = "batteur transcribe") -> argparse.ArgumentParser:
     live.add_argument("--seconds", type=seconds, default=None, help="with --device: stop after this long, seconds")
     live.add_argument("--to", action="append", default=[], metavar="HOST:PORT",
                       help="send /batteur/recogniser/hit here (repeatable; default 127.0.0.1:9900)")
-    live.add_argument("--speed", type=seconds, default=1.0, help="with --live and a file: play this much faster")
+    live.add_argument("--speed", type=positive, default=1.0, help="with --live and a file: play this much faster")
     return p
 
 
