@@ -582,9 +582,9 @@ def impact_listing(result: FileResult) -> list[str]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    from batteur.output_dir import check_output_dir, check_output_file
     from batteur.render import RenderError, RenderOptions, resolve_jobs
     from common.gesture.plan import Nuance
+    from common.output_paths import check_output_dir, check_output_file
     from common.score.events import ScoreError
 
     args = build_parser().parse_args(argv)

@@ -43,7 +43,6 @@ import numpy as np
 import soundfile as sf
 
 from batteur.impact_log import ImpactLog, write_impacts_csv
-from batteur.output_dir import check_output_dir
 from batteur.progress import Progress
 from batteur.strike import DEFAULT_STRIKES, parse_strikes, run_strikes
 from common.core import Outgoing
@@ -51,6 +50,7 @@ from common.gesture.plan import GesturePlan, Grip, Nuance
 from common.kit import EventType, Kit, load_kit
 from common.messages import OscMessage
 from common.messages.physics import ControlModeName
+from common.output_paths import check_output_dir
 from common.score.events import Score, ScoreError
 from common.score.hands import HandAlgorithm
 from common.score.limbs import Assignment

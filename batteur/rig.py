@@ -31,7 +31,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from batteur.output_dir import check_output_dir
+from common.output_paths import check_output_dir
 
 ROLES = ("physics", "interaction", "sound", "graphics")
 PORT_OFFSET = {role: i for i, role in enumerate(ROLES)}

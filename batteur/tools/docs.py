@@ -7,8 +7,8 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from batteur.output_dir import check_output_file
 from common.messages.docs import render_markdown
+from common.output_paths import check_output_file
 
 
 def main(argv: Sequence[str] | None = None) -> int:

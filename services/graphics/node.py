@@ -33,6 +33,7 @@ from pydantic import Field
 from common.config import NodeSettings
 from common.kit import Kit
 from common.messages.graphics import GraphicsMode
+from common.output_paths import check_output_dir
 from common.runtime import Node, run_node
 from services.graphics.core import GraphicsCore, GraphicsSettings
 from services.graphics.preview import ScorePreview, score_preview
@@ -94,8 +95,8 @@ def make_core(settings: NodeSettings, args: argparse.Namespace) -> GraphicsCore:
     s = settings if isinstance(settings, GraphicsNodeSettings) else GraphicsNodeSettings(**settings.model_dump())
     if s.preview and s.preview_score:
         raise ValueError("give --preview FILE.npz or --preview-score SCORE, not both")
-    if s.kit_dir and Path(s.kit_dir).exists() and not Path(s.kit_dir).is_dir():
-        raise ValueError(f"--kit-dir {s.kit_dir}: exists and is not a directory")
+    if s.kit_dir:
+        check_output_dir(Path(s.kit_dir), "--kit-dir")
     try:
         core = GraphicsCore(GraphicsSettings(rate_hz=s.rate_hz or 60.0, latency=s.latency_s, kit=s.kit,
                                              clock=s.view_clock))

@@ -25,6 +25,7 @@ import numpy as np
 
 from common.kit import EventType, Kit, load_kit
 from common.messages import Impact
+from common.output_paths import check_output_file
 from services.sound.core import SoundSettings, render_offline
 
 DEFAULT_MIDI = Path(__file__).resolve().parents[2] / "tests" / "data" / "groove_drummer6_s3_1_rock_90_beat_4-4.mid"
@@ -89,8 +90,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         kit = load_kit(args.kit)
-        if args.output.is_dir() or not args.output.absolute().parent.is_dir():
-            raise ValueError(f"-o {args.output}: give a WAV file in an existing folder")
+        check_output_file(args.output, "-o")
     except (FileNotFoundError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

@@ -217,6 +217,7 @@ def test_cli_bad_score_exits_2_with_a_clear_error(tmp_path: Path) -> None:
         (["--preview-score", str(tmp_path / "broken.mid"), "--preview-planner", "physics"], "preview_planner"),
         (["--preview", str(tmp_path / "broken.mid")], "not a pose sequence file (not an .npz archive)"),
         (["--kit-dir", str(tmp_path / "broken.mid")], "--kit-dir"),
+        (["--kit-dir", str(tmp_path / "broken.mid" / "kits")], "broken.mid is a file, not a directory"),
     ]
     for extra, message in cases:
         result = subprocess.run(

@@ -40,7 +40,9 @@ def test_broken_inputs_and_outputs_are_named_and_nothing_is_written(tmp_path: Pa
     out = tmp_path / "groove.wav"
     for args, says in ((["--midi", str(truncated)], "cut.mid: truncated MIDI file"),
                        (["--midi", str(not_midi)], "notes.txt: not a readable MIDI file"),
-                       (["-o", str(not_midi / "g.wav")], "give a WAV file in an existing folder")):
+                       (["-o", str(not_midi / "g.wav")], "notes.txt is a file, not a folder"),
+                       (["-o", str(tmp_path / "no" / "g.wav")], "does not exist"),
+                       (["-o", str(tmp_path)], "is a directory, not a file")):
         assert main(["-o", str(out), *args]) == 2
         assert says in capsys.readouterr().err
     assert not out.exists()

@@ -1,4 +1,4 @@
-"""Checks that an output directory can be written before a long render starts (nothing is lost to a typo)."""
+"""Checks that an output directory or file can be written before long work starts (nothing is lost to a typo)."""
 
 from __future__ import annotations
 
