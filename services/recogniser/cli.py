@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from common.arg_types import positive, seconds
+from common.output_paths import check_output_file
 from services.recogniser.audio import MAX_DURATION_S
 from services.recogniser.classes import CLASSES
 from services.recogniser.errors import RecogniserError
@@ -93,8 +94,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         from services.recogniser.midi import write_midi
 
-        if args.output is not None and args.output.parent and not args.output.parent.exists():
-            raise RecogniserError(f"{args.output}: folder {args.output.parent} does not exist")
+        if args.output is not None:  # before the long part: nothing is lost to a typo
+            try:
+                check_output_file(args.output, "-o")
+            except ValueError as exc:
+                raise RecogniserError(str(exc)) from None
         model = load_model(args.model)
         if args.live:
             return _live(args, model, say)

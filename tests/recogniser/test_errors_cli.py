@@ -60,6 +60,18 @@ def test_cli_reports_bad_files_without_traceback(tmp_path: Path, capsys: pytest.
     assert not (tmp_path / "x.mid").exists()
 
 
+def test_cli_refuses_an_unwritable_output_before_transcribing(tmp_path: Path, pattern_wav: Path,
+                                                              capsys: pytest.CaptureFixture[str]) -> None:
+    a_file = tmp_path / "notes.txt"
+    a_file.write_text("kick")
+    for output, words in ((tmp_path / "no" / "x.mid", "folder"), (tmp_path, "is a directory, not a file"),
+                          (a_file / "x.mid", "notes.txt is a file, not a folder")):
+        assert main([str(pattern_wav), "-o", str(output)]) == 1
+        err = capsys.readouterr().err
+        assert f"error: -o {output}" in err and words in err and "notes (" not in err  # refused, not transcribed
+    assert not (tmp_path / "no").exists()
+
+
 def test_cli_writes_midi(tmp_path: Path, pattern_wav: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "pattern.mid"
     assert main([str(pattern_wav), "-o", str(out)]) == 0
