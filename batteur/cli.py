@@ -55,11 +55,15 @@ def load_command(name: str) -> Callable[[Sequence[str] | None], int]:
 def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     try:
-        command = load_command(args.command)
-    except ModuleNotFoundError as exc:
-        print(f"batteur {args.command}: not available in this installation ({exc})", file=sys.stderr)
-        return 2
-    return int(command(args.args) or 0)
+        try:
+            command = load_command(args.command)
+        except ModuleNotFoundError as exc:
+            print(f"batteur {args.command}: not available in this installation ({exc})", file=sys.stderr)
+            return 2
+        return int(command(args.args) or 0)
+    except KeyboardInterrupt:  # Ctrl-C in a command that does not handle it (or while its modules load)
+        print(f"\nbatteur {args.command}: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

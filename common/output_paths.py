@@ -1,8 +1,10 @@
-"""Checks that an output directory or file can be written before long work starts (nothing is lost to a typo)."""
+"""Output files and directories: checked before long work starts (nothing is lost to a typo), files written whole
+or not at all."""
 
 from __future__ import annotations
 
 import os
+import tempfile
 from pathlib import Path
 
 
@@ -36,3 +38,32 @@ def check_output_file(path: Path, option: str) -> None:
         raise ValueError(f"{option} {path}: folder {folder} does not exist")
     if not os.access(folder, os.W_OK | os.X_OK):
         raise ValueError(f"{option} {path}: folder {folder} is not writable")
+
+
+def write_atomically(path: Path, data: bytes) -> None:
+    """Write ``data`` to the file ``path``: to a temporary file beside it, renamed over it, so a failed write (a
+    full disk, Ctrl-C) leaves neither a partial file nor a damaged earlier one. The file keeps its permission bits,
+    or gets a new file's (the temporary file's are owner-only); a symlink keeps pointing at the file it names.
+    Anything not a regular file (``/dev/null``, a pipe) is written in place: renaming over it would replace it."""
+    if path.exists() and not path.is_file():
+        path.write_bytes(data)
+        return
+    target = path.resolve()
+    fd, part = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".part", dir=target.parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+        os.chmod(part, _file_mode(target))
+        os.replace(part, target)
+    except BaseException:
+        Path(part).unlink(missing_ok=True)
+        raise
+
+
+def _file_mode(path: Path) -> int:
+    """Permission bits for a file written over ``path``: its own, or what ``open`` would give a new file."""
+    if path.exists():
+        return path.stat().st_mode & 0o7777
+    umask = os.umask(0)
+    os.umask(umask)
+    return 0o666 & ~umask

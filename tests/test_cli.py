@@ -174,3 +174,21 @@ def test_docs_refuses_an_output_it_cannot_write(tmp_path: Path, capsys: pytest.C
     assert docs.main(["-o", str(a_file / "osc.md")]) == 2
     assert "is a file, not a folder" in capsys.readouterr().err and a_file.read_text() == "mine"
     assert docs.main(["-o", str(tmp_path / "osc2.md")]) == 0 and "/batteur/" in (tmp_path / "osc2.md").read_text()
+
+
+def test_ctrl_c_in_a_command_exits_130_without_a_traceback(monkeypatch: pytest.MonkeyPatch,
+                                                            capsys: pytest.CaptureFixture[str]) -> None:
+    """Ctrl-C in a command that does not handle it, or while its modules load, is a clean stop (exit status 130,
+    as a shell reports a SIGINT), not a Python traceback."""
+    def interrupted(args: list[str]) -> int:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli, "load_command", lambda name: interrupted)
+    assert cli.main(["evaluate", "x.mid"]) == 130
+    assert "batteur evaluate: interrupted" in capsys.readouterr().err
+
+    def loading(name: str) -> object:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli, "load_command", loading)
+    assert cli.main(["transcribe", "x.wav"]) == 130

@@ -7,6 +7,8 @@ to mono and resampled to the rate asked for (default :data:`SAMPLE_RATE`) with a
 
 from __future__ import annotations
 
+import re
+from collections.abc import Callable
 from fractions import Fraction
 from pathlib import Path
 
@@ -53,18 +55,34 @@ def to_mono(data: np.ndarray) -> np.ndarray:
     return np.mean(data, axis=1)
 
 
-def load_audio(path: str | Path, max_duration_s: float = MAX_DURATION_S, sample_rate: int = SAMPLE_RATE
-               ) -> np.ndarray:
+_SHORT_DATA = re.compile(r"^data\s*:\s*(\d+)\s*\(should be (\d+)\)", re.MULTILINE)
+"""libsndfile's log line for a WAV data chunk shorter than its header says (a recording cut off)."""
+
+
+def truncation(extra_info: str) -> str | None:
+    """Why the file holds less audio than its header announces (from soundfile's ``info().extra_info``), or None."""
+    found = _SHORT_DATA.search(extra_info or "")
+    if found is None or int(found.group(2)) >= int(found.group(1)):
+        return None
+    return f"shorter than its header says ({found.group(2)} of {found.group(1)} data bytes: truncated?)"
+
+
+def load_audio(path: str | Path, max_duration_s: float = MAX_DURATION_S, sample_rate: int = SAMPLE_RATE,
+               warn: Callable[[str], None] | None = None) -> np.ndarray:
     """Read an audio file as mono float32 at ``sample_rate`` Hz (default :data:`SAMPLE_RATE`).
+
+    The mean (a DC offset) is removed: it is inaudible, yet it would count in the silence test and the
+    peak the audio is scaled by, and the step from the silence around the file would sound like a kick.
 
     Parameters
     ----------
     path : audio file (WAV, FLAC, OGG, ...)
     max_duration_s : longer files are refused, seconds
+    warn : called with a message naming the file when it is usable but suspect (truncated)
 
     Returns
     -------
-    np.ndarray [shape=(n,), dtype=float32], samples in [-1, 1]
+    np.ndarray [shape=(n,), dtype=float32], zero mean
 
     Raises
     ------
@@ -97,6 +115,12 @@ def load_audio(path: str | Path, max_duration_s: float = MAX_DURATION_S, sample_
         raise AudioFileError(f"{p}: the file holds no audio (0 samples)")
     if not np.all(np.isfinite(mono)):
         raise AudioFileError(f"{p}: the audio holds NaN or infinite samples")
+    offset = float(np.mean(mono, dtype=np.float64))
+    mono = mono - np.float32(offset)
     if float(np.max(np.abs(mono))) < SILENCE_PEAK:
-        raise AudioFileError(f"{p}: the audio is silent (peak below -70 dBFS); nothing to transcribe")
+        dc = f" but for a constant offset of {offset:.3g}" if abs(offset) >= SILENCE_PEAK else ""
+        raise AudioFileError(f"{p}: the audio is silent{dc} (peak below -70 dBFS); nothing to transcribe")
+    short = truncation(info.extra_info)
+    if short and warn:
+        warn(f"{p}: {short}; transcribing the {len(mono) / sr:.4g} s it holds")
     return resample(mono, int(sr), sample_rate)

@@ -67,7 +67,8 @@ def build_parser(prog: str = "batteur transcribe") -> argparse.ArgumentParser:
     live.add_argument("--seconds", type=seconds, default=None, help="with --device: stop after this long, seconds")
     live.add_argument("--to", action="append", default=[], metavar="HOST:PORT",
                       help="send /batteur/recogniser/hit here (repeatable; default 127.0.0.1:9900)")
-    live.add_argument("--speed", type=positive, default=1.0, help="with --live and a file: play this much faster")
+    live.add_argument("--speed", type=positive, default=None, help="with --live and a file: play this much faster "
+                      "(default 1)")
     return p
 
 
@@ -81,24 +82,34 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     say = (lambda *a: None) if args.quiet else (lambda *a: print(*a, file=sys.stderr))
+
+    def warn(text: str) -> None:
+        say(f"warning: {text}")
+
     if args.device is None and not args.audio:
         parser.error("give an AUDIO file (or --live --device)")
     if not args.live and args.output is None:
         parser.error("-o/--output SCORE.mid is required (unless --live)")
-    if args.device is not None and not args.live:
-        parser.error("--device needs --live")
+    for given, option in ((args.device is not None, "--device"), (args.to, "--to"), (args.speed, "--speed"),
+                          (args.seconds, "--seconds")):
+        if given and not args.live:  # else ignored: a forgotten --live would send nothing, silently
+            parser.error(f"{option} needs --live")
+    if args.seconds is not None and args.device is None:
+        parser.error("--seconds needs --device (a file stops at its end)")
+    if args.speed is not None and args.device is not None:
+        parser.error("--speed plays a file faster; a device plays in real time")
     if not args.max_duration > 0:  # written so NaN fails too (inf: no limit)
         parser.error("--max-duration must be positive")
     if not TEMPO_RANGE_BPM[0] <= args.tempo <= TEMPO_RANGE_BPM[1]:
         parser.error(f"--tempo must be {TEMPO_RANGE_BPM[0]:g}..{TEMPO_RANGE_BPM[1]:g} BPM, got {args.tempo:g}")
     try:
-        from services.recogniser.midi import write_midi
-
         if args.output is not None:  # before the long part: nothing is lost to a typo
             try:
                 check_output_file(args.output, "-o")
             except ValueError as exc:
                 raise RecogniserError(str(exc)) from None
+            if args.audio and args.output.resolve() == Path(args.audio).resolve():  # a slip that loses the take
+                raise RecogniserError(f"-o {args.output}: is the audio file itself; give another name")
         model = load_model(args.model)
         if args.live:
             return _live(args, model, say)
@@ -117,11 +128,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         except Exception:
             long = False  # load_audio reports the problem
         t0 = time.perf_counter()
-        events, duration = transcribe_file(args.audio, model, progress if long else None, args.max_duration)
+        events, duration = transcribe_file(args.audio, model, progress if long else None, args.max_duration, warn)
         elapsed = time.perf_counter() - t0
         if long:
             print(file=sys.stderr)
-        write_midi(events, args.output, tempo_bpm=args.tempo)
+        _write(events, args)
         say(f"{len(events)} notes ({_summary(events)}) from {duration:.1f} s of audio "
             f"in {elapsed:.2f} s ({duration / max(elapsed, 1e-9):.0f}x real time) -> {args.output}")
         if not events:
@@ -133,11 +144,23 @@ def main(argv: Sequence[str] | None = None) -> int:
     except OSError as exc:
         print(f"batteur transcribe: error: {exc}", file=sys.stderr)
         return 1
+    except KeyboardInterrupt:  # the live path handles its own: Ctrl-C is how it stops
+        print("\nbatteur transcribe: interrupted; nothing written", file=sys.stderr)
+        return 130
+
+
+def _write(events: Sequence[DrumEvent], args: argparse.Namespace) -> None:
+    """Write the MIDI file, a failure (a full disk) reported naming it: no partial file is left."""
+    from services.recogniser.midi import write_midi
+
+    try:
+        write_midi(events, args.output, tempo_bpm=args.tempo)
+    except OSError as exc:
+        raise RecogniserError(f"-o {args.output}: cannot write the MIDI file: {exc.strerror or exc}") from exc
 
 
 def _live(args: argparse.Namespace, model: object, say: object) -> int:
-    from services.recogniser.midi import write_midi
-    from services.recogniser.node import listen_device, play_file
+    from services.recogniser.node import LiveReport, listen_device, play_file
 
     targets = args.to or ["127.0.0.1:9900"]
 
@@ -146,19 +169,24 @@ def _live(args: argparse.Namespace, model: object, say: object) -> int:
             print(f"{hit.time:9.3f} s  {hit.event_type.value:12s} vel {hit.velocity:3d}  "  # type: ignore[attr-defined]
                   f"latency {latency * 1000:5.1f} ms", file=sys.stderr)
 
-    if args.device is not None:
-        report = asyncio.run(listen_device(targets, model, args.device or None, args.seconds,  # type: ignore[arg-type]
-                                           on_hit=on_hit))
-    else:
-        report = asyncio.run(play_file(args.audio, targets, model, speed=args.speed,  # type: ignore[arg-type]
-                                       max_duration_s=args.max_duration, on_hit=on_hit))
+    report = LiveReport()  # filled as hits go, so Ctrl-C keeps them
+    try:
+        if args.device is not None:
+            asyncio.run(listen_device(targets, model, args.device or None, args.seconds,  # type: ignore[arg-type]
+                                      on_hit=on_hit, report=report))
+        else:
+            asyncio.run(play_file(args.audio, targets, model, speed=args.speed or 1.0,  # type: ignore[arg-type]
+                                  max_duration_s=args.max_duration, on_hit=on_hit, report=report,
+                                  warn=lambda text: say(f"warning: {text}")))  # type: ignore[operator]
+    except KeyboardInterrupt:  # the way to stop listening to a device; a file stops early
+        say("stopped (Ctrl-C)")  # type: ignore[operator]
     lat = np.asarray(report.latencies_s) * 1000
     if not args.quiet:
         stats = (f"latency median {np.median(lat):.1f} ms, 95th percentile {np.percentile(lat, 95):.1f} ms, "
                  f"max {lat.max():.1f} ms") if lat.size else "no hits"
         print(f"{len(report.hits)} hits sent to {', '.join(targets)}; {stats}", file=sys.stderr)
     if args.output is not None:
-        write_midi(report.events(), args.output, tempo_bpm=args.tempo)
+        _write(report.events(), args)
     return 0
 
 

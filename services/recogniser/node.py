@@ -7,7 +7,9 @@ from __future__ import annotations
 
 import asyncio
 import importlib.util
+import ipaddress
 import logging
+import socket
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -52,14 +54,42 @@ class LiveReport:
 
 
 def check_targets(targets: Sequence[str]) -> list[tuple[str, int]]:
-    """Parse ``host:port`` destinations; raise RecogniserError on a bad one."""
+    """Parse ``host:port`` destinations and resolve their hosts to addresses; raise RecogniserError on a bad
+    one (an unknown host would otherwise be dropped by the endpoint at every hit while the run reports them sent)."""
     out = []
     for t in targets:
         try:
-            out.append(parse_address(t))
+            host, port = parse_address(t)
         except ValueError as exc:
             raise RecogniserError(f"--to {t}: {exc}") from exc
+        try:
+            infos = socket.getaddrinfo(host, port, socket.AF_UNSPEC, socket.SOCK_DGRAM)
+        except (OSError, UnicodeError) as exc:
+            raise RecogniserError(f"--to {t}: cannot resolve host {host!r}: {getattr(exc, 'strerror', None) or exc}"
+                                  ) from exc
+        v4 = [i for i in infos if i[0] == socket.AF_INET]  # as before for names: IPv4 first (localhost)
+        out.append((str((v4 or infos)[0][4][0]).split("%")[0], port))
     return out
+
+
+def bind_address(dests: Sequence[tuple[str, int]]) -> str:
+    """The local address to send to ``dests`` (resolved by :func:`check_targets`) from: the loopback when every
+    one is local (nothing listens on the network), else every interface, IPv6 and IPv4 if any is IPv6 (a socket
+    bound to 127.0.0.1 cannot reach another machine, nor an IPv4 socket an IPv6 host)."""
+    ips = [ipaddress.ip_address(host) for host, _ in dests]
+    v6 = any(ip.version == 6 and getattr(ip, "ipv4_mapped", None) is None for ip in ips)
+    if all(ip.is_loopback for ip in ips):
+        return "::1" if v6 and all(ip.version == 6 for ip in ips) else ("::" if v6 else "127.0.0.1")
+    return "::" if v6 else "0.0.0.0"
+
+
+async def open_sender(dests: Sequence[tuple[str, int]], bind: str | None) -> UdpEndpoint:
+    """A send-only endpoint (it accepts no datagram) bound to ``bind`` or to :func:`bind_address`."""
+    host = bind or bind_address(dests)
+    try:
+        return await UdpEndpoint.open(host=host, port=0, allow=[])
+    except OSError as exc:
+        raise RecogniserError(f"cannot open a UDP socket on {host} to send hits: {exc.strerror or exc}") from exc
 
 
 async def play_file(
@@ -69,29 +99,33 @@ async def play_file(
     speed: float = 1.0,
     block: int = BLOCK,
     max_duration_s: float = MAX_DURATION_S,
-    bind: str = "127.0.0.1",
+    bind: str | None = None,
     on_hit: Callable[[DrumHit, float], None] | None = None,
+    report: LiveReport | None = None,
+    warn: Callable[[str], None] | None = None,
 ) -> LiveReport:
     """Play an audio file in real time (``speed`` times faster) through the live recogniser.
 
     Each block is fed when its last sample would have been played; each hit is
     sent at once to every target (``host:port``). The input gain is fixed from
-    the file's peak, as a level meter set before a take would be.
+    the file's peak, as a level meter set before a take would be. ``bind``: the
+    local address to send from (default: :func:`bind_address`). Hits are added to
+    ``report`` as they are sent, so a caller stopped by Ctrl-C still has them.
     """
     dests = check_targets(targets)
-    audio = load_audio(path, max_duration_s=max_duration_s)
+    audio = load_audio(path, max_duration_s=max_duration_s, warn=warn)
     peak = float(np.max(np.abs(audio)))
     core = LiveRecogniser(model or load_model(), gain=PEAK / peak, start_time=0.0)
-    endpoint = await UdpEndpoint.open(host=bind, port=0)
-    report = LiveReport(duration_s=len(audio) / SAMPLE_RATE)
+    endpoint = await open_sender(dests, bind)
+    report = report if report is not None else LiveReport()
+    report.duration_s = len(audio) / SAMPLE_RATE
     t0 = time.perf_counter()
     try:
         for start in range(0, len(audio) + block, block):
             chunk = audio[start : start + block]
             end_s = min(len(audio), start + block) / SAMPLE_RATE
-            wait = t0 + end_s / speed - time.perf_counter()
-            if wait > 0:
-                await asyncio.sleep(wait)
+            # always yield, even when behind: Ctrl-C (a task cancellation) is only delivered at an await
+            await asyncio.sleep(max(0.0, t0 + end_s / speed - time.perf_counter()))
             out = core.feed(chunk) if len(chunk) else core.flush()
             send_hits(out, endpoint, dests, report, t0, speed, on_hit)
             if not len(chunk):
@@ -137,9 +171,11 @@ def input_device_available() -> str | None:
 
 async def listen_device(
     targets: Sequence[str], model: Model | None = None, device: str | None = None, seconds: float | None = None,
-    bind: str = "127.0.0.1", on_hit: Callable[[DrumHit, float], None] | None = None,
+    bind: str | None = None, on_hit: Callable[[DrumHit, float], None] | None = None,
+    report: LiveReport | None = None,
 ) -> LiveReport:
-    """Listen to an input device (mono mix, resampled by PortAudio to 22,050 Hz) and send hits."""
+    """Listen to an input device (mono mix, resampled by PortAudio to 22,050 Hz) and send hits (into ``report``
+    as they go: Ctrl-C is how an endless listen stops)."""
     problem = input_device_available()
     if problem:
         raise RecogniserError(problem)
@@ -153,8 +189,8 @@ async def listen_device(
     def callback(indata: np.ndarray, frames: int, time_info: object, status: object) -> None:
         loop.call_soon_threadsafe(queue.put_nowait, indata.mean(axis=1).copy())
 
-    endpoint = await UdpEndpoint.open(host=bind, port=0)
-    report = LiveReport()
+    endpoint = await open_sender(dests, bind)
+    report = report if report is not None else LiveReport()
     t0 = time.perf_counter()
     try:
         with sounddevice.InputStream(samplerate=SAMPLE_RATE, blocksize=BLOCK, device=device, channels=1,
@@ -163,5 +199,5 @@ async def listen_device(
                 send_hits(core.feed(await queue.get()), endpoint, dests, report, t0, 1.0, on_hit)
     finally:
         endpoint.close()
-    report.duration_s = time.perf_counter() - t0
+        report.duration_s = time.perf_counter() - t0
     return report

@@ -131,12 +131,14 @@ def transcribe_file(
     model: Model | None = None,
     progress: Callable[[float], None] | None = None,
     max_duration_s: float = MAX_DURATION_S,
+    warn: Callable[[str], None] | None = None,
 ) -> tuple[list[DrumEvent], float]:
     """Read and transcribe an audio file; returns the events and the duration in seconds.
 
-    Raises :class:`~services.recogniser.errors.AudioFileError` for unusable files.
+    Raises :class:`~services.recogniser.errors.AudioFileError` for unusable files; ``warn`` hears of suspect
+    ones (:func:`~services.recogniser.audio.load_audio`).
     """
     model = model or load_model()
     rate = model.offline.sample_rate
-    audio = load_audio(path, max_duration_s=max_duration_s, sample_rate=rate)
+    audio = load_audio(path, max_duration_s=max_duration_s, sample_rate=rate, warn=warn)
     return transcribe(audio, model, progress, rate), len(audio) / rate
