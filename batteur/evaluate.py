@@ -376,15 +376,38 @@ def unplayable_flags(score: Score, kit: Kit) -> list[Flag]:
             for i, e in enumerate(score.events) if e.event not in kit.events]
 
 
-def planner_flags(issues: Iterable[dict[str, Any]]) -> list[Flag]:
-    """Flags from report.json's issues: notes the planner found beyond limits (dropped, merged, moved...)."""
+def planner_flags(issues: Any, where: Path | str = "report.json") -> list[Flag]:
+    """Flags from report.json's issues: notes the planner found beyond limits (dropped, merged, moved...).
+
+    ``ValueError`` naming ``where`` (the report) and the issue when they are not the render's issues.
+    """
+    if not isinstance(issues, list):
+        raise ValueError(f"{where}: issues must be a list, got {type(issues).__name__}")
     out = []
-    for issue in issues:
-        if issue.get("note_index") is None:
-            continue
-        out.append(Flag(int(issue["note_index"]), float(issue["time_s"]), issue.get("event") or "",
-                        str(issue["reason"]), "planner", f"{issue['action']}: {issue.get('detail', '')}"))
+    for k, issue in enumerate(issues):
+        try:
+            if not isinstance(issue, dict):
+                raise TypeError(f"a {type(issue).__name__}, not an object")
+            if issue.get("note_index") is None:
+                continue
+            out.append(Flag(int(issue["note_index"]), float(issue["time_s"]), issue.get("event") or "",
+                            str(issue["reason"]), "planner", f"{issue['action']}: {issue.get('detail', '')}"))
+        except KeyError as exc:
+            raise ValueError(f"{where}: issue {k} has no {exc}") from None
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"{where}: issue {k} is not a planner issue ({exc})") from None
     return out
+
+
+def report_number(report: dict[str, Any], key: str, where: Path) -> float | None:
+    """``report[key]`` as a finite float, None when missing or null; ``ValueError`` naming the file and key for
+    anything else (a hand-edited or damaged report must not give figures computed from NaN)."""
+    value = report.get(key)
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ValueError(f"{where}: {key} must be a finite number, got {value!r}")
+    return float(value)
 
 
 def read_report(render_dir: Path) -> dict[str, Any]:
@@ -403,15 +426,17 @@ def read_report(render_dir: Path) -> dict[str, Any]:
 
 
 def render_dir_score(render_dir: Path) -> Path:
-    """The score of a render directory: its copy ``score.*``, else the path in report.json (which
+    """The score of a render directory: its copy ``score.<suffix of the score in report.json>`` (a folder
+    rendered into twice may hold an earlier render's copy too), else the path in report.json (which
     :func:`evaluate_render_dir` reads and checks in any case)."""
+    source = read_report(render_dir).get("score")
+    if isinstance(source, str) and source:
+        copy = render_dir / f"score{Path(source).suffix}"
+        return copy if copy.is_file() else Path(source)
     copies = sorted(render_dir.glob("score.*"))
     if copies:
         return copies[0]
-    report = read_report(render_dir)
-    if "score" not in report:
-        raise ValueError(f"{render_dir}: holds no score.* and its report.json names no score")
-    return Path(report["score"])
+    raise ValueError(f"{render_dir}: holds no score.* and its report.json names no score")
 
 
 def evaluate_render_dir(score_path: Path, render_dir: Path, kit: Kit | None = None) -> FileResult:
@@ -421,25 +446,36 @@ def evaluate_render_dir(score_path: Path, render_dir: Path, kit: Kit | None = No
     from common.score.text import read_score
 
     report = read_report(render_dir)
+    where = render_dir / "report.json"
     if report.get("scene") != "drummer":
         raise ValueError(f"{render_dir}: not a score render (scene {report.get('scene')!r})")
-    if "score_offset_s" not in report:
-        raise ValueError(f"{render_dir / 'report.json'}: not a render report (no score_offset_s)")
-    kit = kit if kit is not None else load_kit(report.get("kit", "default"))
-    score = scale_tempo(read_score(score_path), float(report.get("tempo_scale", 1.0)))
-    offset = float(report["score_offset_s"])
+    offset = report_number(report, "score_offset_s", where)
+    if offset is None:
+        raise ValueError(f"{where}: not a render report (no score_offset_s)")
+    kit_name = report.get("kit", "default")
+    if not isinstance(kit_name, str):
+        raise ValueError(f"{where}: kit must be a kit name or file, got {kit_name!r}")
+    tempo_scale = report_number(report, "tempo_scale", where)
+    if tempo_scale is not None and tempo_scale <= 0:
+        raise ValueError(f"{where}: tempo_scale must be positive, got {tempo_scale:g}")
+    flags = planner_flags(report.get("issues", []), where)
+    timing = {key: report_number(report, key, where) for key in ("real_time_factor", "duration_s", "wall_time_s",
+                                                                   "cpu_time_s")}
+    kit = kit if kit is not None else load_kit(kit_name)
+    score = scale_tempo(read_score(score_path), 1.0 if tempo_scale is None else tempo_scale)
     if not (render_dir / "impacts.csv").is_file():
         raise ValueError(f"{render_dir}: no impacts.csv (not a whole render)")
     impacts = read_impacts_csv(render_dir / "impacts.csv")
     hits = [Hit(i.time - offset, i.instrument, i.velocity, i.part) for i in impacts]
-    result = evaluate_performance(Path(str(report.get("score", score_path))).name, note_refs(score, kit), hits,
-                                  planner_flags(report.get("issues", [])))
+    source = report.get("score")
+    name = Path(source if isinstance(source, str) and source else score_path).name
+    result = evaluate_performance(name, note_refs(score, kit), hits, flags)
     result.missed += unplayable_flags(score, kit)
     result.missed_by_reason = dict(sorted(Counter(f.reason for f in result.missed).items()))
-    result.real_time_factor = report.get("real_time_factor")
-    result.music_duration_s = float(report.get("duration_s", 0.0))
-    result.wall_time_s = float(report.get("wall_time_s", 0.0))
-    result.cpu_time_s = float(report.get("cpu_time_s") or 0.0)
+    result.real_time_factor = timing["real_time_factor"]
+    result.music_duration_s = timing["duration_s"] or 0.0
+    result.wall_time_s = timing["wall_time_s"] or 0.0
+    result.cpu_time_s = timing["cpu_time_s"] or 0.0
     return result
 
 
@@ -503,8 +539,8 @@ def format_table(rows: Sequence[tuple[str, dict[str, Any]]]) -> str:
         t = a["timing_ms"]
         missed = len(a["missed"]) if isinstance(a["missed"], list) else a["missed"]
 
-        def num(v: Any, fmt: str) -> str:
-            return "-" if v is None else format(v, fmt)
+        def num(v: Any, fmt: str) -> str:  # a missing figure keeps its column's width
+            return format(v, fmt) if v is not None else "-".rjust(int(fmt.lstrip("+").split(".")[0]))
 
         lines.append(
             f"{label[:28]:<28} {a['notes']:>6} {a['f_measure']['10ms']:>6.3f} {a['f_measure']['25ms']:>6.3f} "
@@ -528,10 +564,37 @@ def evaluate_scores(paths: Sequence[Path], opts: Any, renders: Path | None, quie
                 results.append(evaluate_render_dir(render_dir_score(path), path))
                 continue
             out = base / path.stem
-            if not (reuse and (out / "report.json").exists()):
+            if not (reuse and reusable(out, path, opts)):
                 render_score(path, out, opts, quiet=quiet)
             results.append(evaluate_render_dir(path, out))
     return results
+
+
+def reusable(render_dir: Path, score: Path, opts: Any) -> bool:
+    """Whether ``render_dir`` is a render of this very score with these options (``--reuse``): a render of
+    another score of the same name, or with another kit or tempo, would be evaluated against the wrong notes."""
+    try:
+        report = read_report(render_dir)
+        copy = render_dir / f"score{score.suffix}"
+        same_score = copy.is_file() and copy.read_bytes() == score.read_bytes()
+    except (ValueError, OSError):
+        return False
+    wanted = {"kit": opts.kit, "grip": opts.grip, "nuance": opts.nuance.value, "tempo_scale": opts.tempo_scale,
+              "control": opts.control, "calibration": str(opts.calibration) if opts.calibration else None}
+    return same_score and all(report.get(key) == value for key, value in wanted.items())
+
+
+def check_render_names(paths: Sequence[Path], renders: Path) -> None:
+    """``ValueError`` when two scores would be rendered into the same ``renders/<stem>`` (the second would
+    replace the first's render)."""
+    seen: dict[str, Path] = {}
+    for path in paths:
+        if path.is_dir():
+            continue
+        if path.stem in seen and seen[path.stem].resolve() != path.resolve():
+            raise ValueError(f"--renders {renders}: {seen[path.stem]} and {path} would both render into "
+                             f"{renders / path.stem}; rename one")
+        seen.setdefault(path.stem, path)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -544,17 +607,25 @@ def build_parser() -> argparse.ArgumentParser:
         "precision/recall/F at 10 and 25 ms, timing error, velocity Spearman, spurious and missed notes.")
     parser.add_argument("scores", nargs="+", type=Path, help="scores (.mid or text), or render directories")
     parser.add_argument("--json", action="store_true", help="print the figures as JSON")
-    parser.add_argument("--plots", type=Path, default=None, help="write piano roll and timing histogram PNGs here")
-    parser.add_argument("--renders", type=Path, default=None, help="keep the renders in DIR/<score stem>")
-    parser.add_argument("--reuse", action="store_true", help="with --renders: reuse renders already there")
-    parser.add_argument("--kit", default="default")
-    parser.add_argument("--grip", default="german", choices=GRIPS)
+    parser.add_argument("--plots", type=Path, default=None, metavar="DIR",
+                        help="write <stem>_pianoroll.png and <stem>_timing.png here (default: no plots)")
+    parser.add_argument("--renders", type=Path, default=None, metavar="DIR",
+                        help="keep the renders in DIR/<score stem> (default: a temporary folder, removed)")
+    parser.add_argument("--reuse", action="store_true",
+                        help="with --renders: reuse a render already there when it is of the same score with the "
+                        "same options")
+    parser.add_argument("--kit", default="default", help="kit name or YAML/JSON file (default: default)")
+    parser.add_argument("--grip", default="german", choices=GRIPS, help="stick grip (default: german)")
     parser.add_argument("--nuance", default=Nuance.TENUTO.value, choices=[n.value for n in Nuance],
                         help="global playing nuance (default: tenuto)")
-    parser.add_argument("--tempo-scale", type=float, default=1.0)
-    parser.add_argument("--control", default="cartesian", choices=list(CONTROL_MODES))
-    parser.add_argument("--calibration", type=Path, default=None, help="calibration JSON applied to the plans")
-    parser.add_argument("--fit-calibration", type=Path, default=None,
+    parser.add_argument("--tempo-scale", type=float, default=1.0, metavar="X",
+                        help="play X times faster, 0.1 to 10 (default 1)")
+    parser.add_argument("--control", default="cartesian", choices=list(CONTROL_MODES),
+                        help="tracking: cartesian (DLS IK on the stick tips) or joint (PD on joint targets) "
+                        "(default: cartesian)")
+    parser.add_argument("--calibration", type=Path, default=None, metavar="FILE",
+                        help="calibration JSON applied to the plans (default: none)")
+    parser.add_argument("--fit-calibration", type=Path, default=None, metavar="FILE",
                         help="fit a calibration (timing offsets, velocity map) from these performances; write JSON")
     parser.add_argument("--list", action="store_true",
                         help="list every impact: matched or spurious, striker part, velocity, nearest note")
@@ -582,35 +653,52 @@ def impact_listing(result: FileResult) -> list[str]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    from batteur.render import RenderError, RenderOptions, resolve_jobs
+    from batteur.render import INTERRUPTED
+
+    args = build_parser().parse_args(argv)
+    try:
+        return _main(args)
+    except KeyboardInterrupt:  # Ctrl-C: a render in progress is staged, so nothing of it was written
+        print("batteur evaluate: interrupted", file=sys.stderr)
+        return INTERRUPTED
+
+
+def _main(args: argparse.Namespace) -> int:
+    from batteur.calibration import Calibration
+    from batteur.render import RenderError, RenderOptions, one_line, resolve_jobs
     from common.gesture.plan import Nuance
     from common.output_paths import check_output_dir, check_output_file
     from common.score.events import ScoreError
 
-    args = build_parser().parse_args(argv)
     started = time.perf_counter()
+    base_calibration, fit_kit = None, None
     try:
         for option, folder in (("--plots", args.plots), ("--renders", args.renders)):
             if folder is not None:  # before the renders: a typo must not cost them
                 check_output_dir(folder, option)
+        if args.renders is not None:
+            check_render_names(args.scores, args.renders)
         if args.fit_calibration is not None:
             check_output_file(args.fit_calibration, "--fit-calibration")
+            fit_kit = load_kit(args.kit)  # read now, as the base of the fit: a bad file must not cost the renders
+            if args.calibration is not None:
+                base_calibration = Calibration.load(args.calibration)
         opts = RenderOptions(kit=args.kit, grip=args.grip, nuance=Nuance(args.nuance), tempo_scale=args.tempo_scale,
                              control=args.control, calibration=args.calibration, jobs=resolve_jobs(args.jobs),
                              segment_s=args.segment)
         results = evaluate_scores(args.scores, opts, args.renders, quiet=args.quiet, reuse=args.reuse)
     except (ScoreError, RenderError, ValueError, FileNotFoundError, KeyError) as exc:
-        print(f"batteur evaluate: {exc}", file=sys.stderr)
+        print(f"batteur evaluate: {one_line(exc)}", file=sys.stderr)
         return 2
     agg = aggregate(results)
     if args.plots is not None:
         for r in results:
             for p in plot_result(r, args.plots):
                 print(f"wrote {p}", file=sys.stderr)
-    if args.fit_calibration is not None:
+    if args.fit_calibration is not None and fit_kit is not None:
         from batteur.calibration import fit_calibration
 
-        cal = fit_calibration(results, load_kit(args.kit), base=args.calibration)
+        cal = fit_calibration(results, fit_kit, base=base_calibration)
         cal.save(args.fit_calibration)
         print(f"wrote {args.fit_calibration} ({len(cal.timing)} timing offsets)", file=sys.stderr)
     if args.json:

@@ -53,7 +53,17 @@ def write_impacts_csv(impacts: list[Impact], path: Path) -> None:
 
 
 def read_impacts_csv(path: Path) -> list[Impact]:
-    """Read a CSV written by :func:`write_impacts_csv`; raises ValueError on a bad row."""
+    """Read a CSV written by :func:`write_impacts_csv`; raises ValueError naming the file on a bad row, or on a
+    file that is not UTF-8 text or not CSV."""
+    try:
+        return _read_impacts(path)
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+    except csv.Error as exc:
+        raise ValueError(f"{path}: not a CSV file ({exc})") from None
+
+
+def _read_impacts(path: Path) -> list[Impact]:
     with path.open(newline="", encoding="utf-8") as handle:
         reader = csv.DictReader(handle)
         if reader.fieldnames != COLUMNS:

@@ -46,6 +46,7 @@ from batteur.impact_log import ImpactLog, write_impacts_csv
 from batteur.progress import Progress
 from batteur.strike import DEFAULT_STRIKES, parse_strikes, run_strikes
 from common.core import Outgoing
+from common.datafile import first_error
 from common.gesture.plan import GesturePlan, Grip, Nuance
 from common.kit import EventType, Kit, load_kit
 from common.messages import OscMessage
@@ -69,6 +70,12 @@ CONTROL_MODES: dict[str, str] = {
 
 GRIPS = ("german", "french", "american", "traditional")
 """Physics grips; the planner's gesture database has french and german (others plan as german)."""
+
+TEMPO_SCALE_RANGE = (0.1, 10.0)
+"""Accepted ``--tempo-scale``: slower stretches the render (and its memory) without bound, faster piles every
+note onto the first instant."""
+INTERRUPTED = 130
+"""Exit status after Ctrl-C (128 + SIGINT), as a shell reports it."""
 
 
 class RenderError(RuntimeError):
@@ -152,8 +159,10 @@ def prepare(path: Path | str, kit: Kit, opts: RenderOptions,
     from common.score.text import read_score
 
     score = scale_tempo(read_score(path), opts.tempo_scale)
-    if not score.events:
-        raise ScoreError(f"{path}: no drum events to play")
+    if not score.events:  # the reader's warnings say why (unknown pitches, no drum channel)
+        why = "; ".join(w.removeprefix(f"{Path(path).name}: ") for w in score.warnings
+                        if not w.endswith("no drum events"))
+        raise ScoreError(f"{path}: no drum events to play" + (f" ({why})" if why else ""))
     assignment = distribute(score, kit, opts.algorithm)
     planned = assignment if calibration is None else calibration.apply(assignment, kit)
     grip = Grip(opts.grip) if opts.grip in (g.value for g in Grip) else Grip.GERMAN
@@ -275,6 +284,7 @@ def score_report(result: ScoreRender, source: str, opts: RenderOptions) -> dict[
     return {
         "scene": "drummer",
         "score": source,
+        "warnings": list(result.score.warnings),
         "kit": opts.kit,
         "grip": opts.grip,
         "nuance": opts.nuance.value,
@@ -310,6 +320,7 @@ def write_outputs(output: Path, audio: np.ndarray, sample_rate: int, impacts: li
     """
     created = not output.exists()
     output.mkdir(parents=True, exist_ok=True)
+    earlier = earlier_outputs(output)
     names: list[str] = []
     try:
         with tempfile.TemporaryDirectory(dir=output, prefix=".render-") as tmp:
@@ -328,6 +339,8 @@ def write_outputs(output: Path, audio: np.ndarray, sample_rate: int, impacts: li
             names = sorted(p.name for p in staging.iterdir())
             for name in names:
                 (staging / name).replace(output / name)
+            for name in sorted(earlier - set(names)):  # an earlier render's video or score copy: not this one's
+                (output / name).unlink(missing_ok=True)
     except BaseException:
         if created:
             for name in names:
@@ -340,6 +353,30 @@ def write_outputs(output: Path, audio: np.ndarray, sample_rate: int, impacts: li
     return [output / n for n in names]
 
 
+def earlier_outputs(output: Path) -> set[str]:
+    """The files an earlier render wrote in ``output``, from its report.json (none without one).
+
+    A new render removes those it does not write again: a stale score copy would be evaluated against the new
+    impacts (``batteur evaluate DIR``), a stale video taken for this performance's. Only what that report
+    names is touched, never other files in the folder.
+    """
+    try:
+        report = json.loads((output / "report.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return set()
+    if not isinstance(report, dict):
+        return set()
+    names = {"performance.wav", "impacts.csv", "report.json"}
+    if report.get("scene") == "drummer":
+        names.add("performance.bvh")
+    video = report.get("video")
+    if isinstance(video, dict) and isinstance(video.get("file"), str):
+        names.add(Path(video["file"]).name)
+    if isinstance(report.get("score"), str):
+        names.add(f"score{Path(report['score']).suffix}")
+    return names
+
+
 def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: bool = False) -> dict[str, Any]:
     """Render a score into ``output`` (see the module docstring); returns the report.
 
@@ -348,11 +385,14 @@ def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: boo
     from batteur.calibration import Calibration
 
     check_output_dir(output, "-o")  # before the long part, as the video's checks
+    check_options(opts)
     if opts.video:
         check_video(opts)  # before the long part: no ffmpeg, no render
     kit = load_kit(opts.kit)
     calibration = Calibration.load(opts.calibration) if opts.calibration else None
     score, assignment, plan = prepare(path, kit, opts, calibration)
+    for warning in score.warnings:  # e.g. a MIDI file without a drum channel, read as drums
+        print(f"batteur render: warning: {warning}", file=sys.stderr)
     progress = Progress(f"rendering {Path(path).name}", plan.end_time - plan.start_time + opts.settle_s,
                         enabled=False if quiet else None)
     try:
@@ -373,6 +413,38 @@ def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: boo
         video = video_writer(result, kit, opts, quiet)
     write_outputs(output, result.audio, result.sample_rate, result.impacts, report, result.poses, Path(path), video)
     return report
+
+
+def check_options(opts: RenderOptions) -> None:
+    """Raise ``ValueError`` naming the option for a value the render would refuse late: after the simulation
+    (the sound's latency in a segmented render), in a worker process, or by running out of memory."""
+    from pydantic import ValidationError
+
+    from services.physics.core import PhysicsSettings
+    from services.sound.core import SoundSettings
+
+    low, high = TEMPO_SCALE_RANGE
+    if not low <= opts.tempo_scale <= high:  # NaN fails too
+        raise ValueError(f"--tempo-scale {opts.tempo_scale:g}: {low:g} to {high:g} (times faster)")
+    checks: list[tuple[str, Callable[[], object]]] = [
+        (f"--latency {opts.latency_s:g} s", lambda: SoundSettings(latency=opts.latency_s, origin=0.0))]
+    if opts.control_rate_hz is not None:
+        checks.append((f"--control-rate {opts.control_rate_hz:g} Hz",
+                       lambda: PhysicsSettings(control_rate_hz=opts.control_rate_hz)))
+    for option, build in checks:
+        try:
+            build()
+        except ValidationError as exc:
+            raise ValueError(f"{option}: {first_error(exc)}") from None
+
+
+def one_line(exc: BaseException) -> str:
+    """An error message on one line (pydantic's span several: its first complaint only)."""
+    from pydantic import ValidationError
+
+    if isinstance(exc, ValidationError):
+        return first_error(exc)
+    return " ".join(str(exc).split())
 
 
 def check_video(opts: RenderOptions) -> None:
@@ -432,14 +504,15 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--nuance", default=Nuance.TENUTO.value, choices=[n.value for n in Nuance],
                         help="global playing nuance (default: tenuto)")
     parser.add_argument("--tempo-scale", type=float, default=1.0,
-                        help="play this many times faster (0.5: half tempo; default 1)")
+                        help="play this many times faster, 0.1 to 10 (0.5: half tempo; default 1)")
     parser.add_argument("--control", default="cartesian", choices=list(CONTROL_MODES),
-                        help="tracking: cartesian (DLS IK on the stick tips) or joint (PD on joint targets)")
+                        help="tracking: cartesian (DLS IK on the stick tips) or joint (PD on joint targets) "
+                        "(default: cartesian)")
     parser.add_argument("--algorithm", default=HandAlgorithm.VITERBI.value, choices=[a.value for a in HandAlgorithm],
                         help="hand assignment algorithm (default: viterbi)")
     parser.add_argument("--calibration", type=Path, default=None,
                         help="calibration JSON (from `batteur evaluate --fit-calibration`): lag anticipation and "
-                        "velocity map applied to the plan")
+                        "velocity map applied to the plan (default: none)")
     parser.add_argument("--strikes", default=None,
                         help="strike scene instead of a score: TIME:SPEED,... in seconds:m/s "
                         f"(e.g. {','.join(f'{t:g}:{v:g}' for t, v in DEFAULT_STRIKES)})")
@@ -500,12 +573,18 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error("give either a SCORE or --strikes, not both")
     if opts.strikes is not None and opts.video:
         parser.error("--video renders a SCORE (the strike scene has no body to draw)")
-    if opts.strikes is not None:
-        return _main_strikes(opts)
+    try:
+        return _main_strikes(opts) if opts.strikes is not None else _main_score(opts)
+    except KeyboardInterrupt:  # Ctrl-C: the outputs are staged, so nothing was written
+        print(f"batteur render: interrupted; nothing written to {opts.output}", file=sys.stderr)
+        return INTERRUPTED
+
+
+def _main_score(opts: argparse.Namespace) -> int:
     try:
         report = render_score(opts.score, opts.output, options_from(opts), quiet=opts.quiet)
     except (ScoreError, RenderError, ValueError, FileNotFoundError) as exc:
-        print(f"batteur render: {exc}", file=sys.stderr)
+        print(f"batteur render: {one_line(exc)}", file=sys.stderr)
         return 2
     out = opts.output
     print(f"wrote {out / 'performance.wav'} ({report['duration_s']:.1f} s)")
@@ -526,7 +605,7 @@ def _main_strikes(opts: argparse.Namespace) -> int:
         kit = load_kit(opts.kit)
         check_output_dir(opts.output, "-o")
     except (ValueError, FileNotFoundError) as exc:
-        print(f"batteur render: {exc}", file=sys.stderr)
+        print(f"batteur render: {one_line(exc)}", file=sys.stderr)
         return 2
     started = time.monotonic()
     progress = Progress("rendering", max(t for t, _ in strikes) + opts.latency + 1.0,
@@ -535,7 +614,7 @@ def _main_strikes(opts: argparse.Namespace) -> int:
         result = run_strikes(strikes, EventType(opts.event), kit, opts.latency,
                              on_progress=lambda t, total: progress.update(t))
     except ValueError as exc:
-        print(f"batteur render: {exc}", file=sys.stderr)
+        print(f"batteur render: {one_line(exc)}", file=sys.stderr)
         return 2
     finally:
         progress.close()

@@ -128,17 +128,25 @@ class SegmentResult:
     settings: dict[str, Any] = field(default_factory=dict)
 
 
+class SegmentStopped(RuntimeError):
+    """A segment abandoned because the whole render was (Ctrl-C, or another segment failed)."""
+
+
 def run_segment(plan: GesturePlan, kit: Kit, opts: RenderOptions, segment: Segment,
-                progress: Any = None) -> SegmentResult:
+                progress: Any = None, stop: Any = None) -> SegmentResult:
     """Simulate one segment (physics and interaction) and keep what it owns; runs in a worker process.
 
-    ``progress``: a queue that gets (segment index, rig seconds simulated) now and then.
+    ``progress``: a queue that gets (segment index, rig seconds simulated) now and then. ``stop``: an event
+    that, once set, ends the segment with :class:`SegmentStopped` (checked as often as progress is sent): the
+    pool cannot cancel a segment already running or queued to a worker.
     """
     from batteur.render import offline_interaction_config, start_drummer
     from common.bus import OfflineRunner
     from services.interaction.core import InteractionCore
 
     cpu = time.process_time()
+    if stop is not None and stop.is_set():
+        raise SegmentStopped(f"segment {segment.index} not started: the render was given up")
     offset = opts.settle_s - plan.start_time
     joined = plan if segment.index == 0 else plan.from_time(segment.run_from_s + JOIN_S - offset)
     physics = start_drummer(joined, kit, opts, segment.run_from_s)
@@ -150,9 +158,12 @@ def run_segment(plan: GesturePlan, kit: Kit, opts: RenderOptions, segment: Segme
     last = [segment.run_from_s]
 
     def report(t: float) -> None:
-        if progress is not None and t - last[0] >= 0.5:
-            progress.put((segment.index, t - segment.run_from_s))
+        if t - last[0] >= 0.5:
             last[0] = t
+            if progress is not None:
+                progress.put((segment.index, t - segment.run_from_s))
+            if stop is not None and stop.is_set():
+                raise SegmentStopped(f"segment {segment.index} given up at rig time {t:.1f} s")
 
     try:
         runner.run_until(segment.run_to_s, report)
@@ -269,9 +280,9 @@ def run_segmented(score: Score, assignment: Assignment, plan: GesturePlan, kit: 
     context = multiprocessing.get_context("spawn")  # PyBullet, pyo and numba do not survive a fork
     with context.Manager() as manager, ProcessPoolExecutor(max_workers=max(1, min(jobs, len(segments))),
                                                           mp_context=context) as pool:
-        queue = manager.Queue()
+        queue, stop = manager.Queue(), manager.Event()
         futures: dict[Future[SegmentResult], Segment] = {
-            pool.submit(run_segment, plan, kit, opts, s, queue): s for s in segments}
+            pool.submit(run_segment, plan, kit, opts, s, queue, stop): s for s in segments}
         done_s = {s.index: 0.0 for s in segments}
         pending = set(futures)
         try:
@@ -285,6 +296,7 @@ def run_segmented(score: Score, assignment: Assignment, plan: GesturePlan, kit: 
                 for future in finished:
                     future.result()  # a worker's error ends the render here
         except BaseException:
+            stop.set()  # the running and queued segments end at their next check, not at their end
             for future in pending:  # the segments not started yet are not simulated for nothing
                 future.cancel()
             raise

@@ -48,7 +48,8 @@ def read_text(path: Path) -> str:
 def first_error(exc: ValidationError) -> str:
     """The first problem pydantic found, on one line: ``field.path: message``."""
     first = exc.errors()[0]
-    return f"{'.'.join(str(p) for p in first.get('loc', ()))}: {first.get('msg')}"
+    where = ".".join(str(p) for p in first.get("loc", ()))
+    return f"{where}: {first.get('msg')}" if where else str(first.get("msg"))  # the whole input: no field
 
 
 def _one_line(exc: Exception) -> str:

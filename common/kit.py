@@ -20,7 +20,7 @@ from typing import Annotated, Literal
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from common.datafile import parse_file
+from common.datafile import first_error, parse_file
 
 KITS_DIR = Path(__file__).parent / "kits"
 
@@ -372,7 +372,7 @@ def load_kit(source: str | Path = "default") -> Kit:
     """Load a kit by shipped name (``default``) or from a YAML/JSON file path.
 
     Raises ``FileNotFoundError`` for an unknown name or path and ``ValueError`` naming the file for one that is
-    not UTF-8 text, not valid YAML/JSON (line and column) or not a valid kit (pydantic's explanation).
+    not UTF-8 text, not valid YAML/JSON (line and column) or not a valid kit (the first problem, on one line).
     """
     path = Path(source)
     if not path.suffix:
@@ -387,7 +387,8 @@ def load_kit(source: str | Path = "default") -> Kit:
     try:
         return Kit.model_validate(data)
     except ValidationError as exc:
-        raise ValueError(f"kit file {str(path)!r} is not a valid kit: {exc}") from None
+        more = f" (and {exc.error_count() - 1} more)" if exc.error_count() > 1 else ""
+        raise ValueError(f"kit file {str(path)!r} is not a valid kit: {first_error(exc)}{more}") from None
 
 
 def save_kit(kit: Kit, path: Path) -> None:

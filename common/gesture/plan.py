@@ -106,6 +106,8 @@ class LimbTrajectory:
             raise ValueError("times must be a non-empty 1-D array")
         if positions.shape != (len(times), 3) or velocities.shape != (len(times), 3):
             raise ValueError(f"positions and velocities must have shape ({len(times)}, 3)")
+        if not np.all(np.isfinite(times)):  # a NaN compares False and would pass the order check
+            raise ValueError("times must be finite")
         if np.any(np.diff(times) <= 0):
             raise ValueError("times must be strictly increasing")
         if not (np.all(np.isfinite(positions)) and np.all(np.isfinite(velocities))):

@@ -198,7 +198,9 @@ class Controller:
         # explicit damper on the fast mode (inertia I_free) stays stable
         kd_slow = 2 * zeta * np.sqrt(self.ks * self.inertia_locked)
         kd_cap = KD_CAP * self.inertia / self.world.dt
-        self.kd = np.minimum(np.maximum(2 * zeta * w * self.inertia, kd_slow), kd_cap) * self.scale_kd
+        # a live scale above 1 may not take the damper past that cap either (kd_scale 1.5 shook the body)
+        self.kd = np.minimum(np.minimum(np.maximum(2 * zeta * w * self.inertia, kd_slow), kd_cap) * self.scale_kd,
+                             kd_cap)
         ratio = np.where(self.group_of == "trunk", self.params.trunk_ct_frequency_hz / self.params.ct_frequency_hz,
                          1.0)
         self.ct_ks = self.scale_ks * ratio * ratio

@@ -41,7 +41,18 @@ from pydantic import BaseModel, ConfigDict, Field
 from common.core import Outgoing
 from common.kit import EventType, Kit, load_kit
 from common.messages import Contact, Hello, OscMessage, Pose, Skeleton
-from common.messages.physics import ControlModeName, PhysicsControlMode, PhysicsPosture, PhysicsReset, PhysicsStrike
+from common.messages.physics import (
+    CartesianTarget,
+    ControlModeName,
+    JointTarget,
+    PhysicsControlMode,
+    PhysicsGains,
+    PhysicsGrip,
+    PhysicsIk,
+    PhysicsPosture,
+    PhysicsReset,
+    PhysicsStrike,
+)
 from services.physics.contacts import ContactTracker
 from services.physics.posture import apply_posture
 from services.physics.score_player import SCORE_MESSAGES, ScorePlayer
@@ -53,6 +64,12 @@ if TYPE_CHECKING:
     from common.gesture.plan import GesturePlan
 
 log = logging.getLogger("batteur.physics")
+
+DRUMMER_MESSAGES = (CartesianTarget, JointTarget, PhysicsControlMode, PhysicsGains, PhysicsGrip, PhysicsIk)
+"""Messages only the drummer scene acts on: the strike scene rejects them (counted) rather than drop them unseen."""
+REJECT_LOG_INTERVAL_S = 1.0
+"""Rejections of one message kind are logged at most once per this many seconds of rig time (the rest are counted
+and summed into the next warning), so a stream of bad targets cannot flood the log."""
 
 
 class PhysicsSettings(BaseModel):
@@ -142,6 +159,10 @@ class PhysicsCore:
         self.overruns = 0
         self.skipped_steps = 0
         self.rejected: Counter[str] = Counter()
+        self._reject_logged: dict[str, float] = {}
+        """Message kind -> rig time (s) its last rejection was logged."""
+        self._reject_quiet: Counter[str] = Counter()
+        """Message kind -> rejections not logged since (see ``REJECT_LOG_INTERVAL_S``)."""
         self.diverged = 0
         """Steps whose simulation diverged (non-finite state); each reset the scene (see :meth:`_one_step`)."""
         self.contacts_sent = 0
@@ -187,10 +208,20 @@ class PhysicsCore:
         try:
             return self._handle(message, now)
         except (TargetError, ValueError) as exc:
-            kind = type(message).__name__
-            self.rejected[kind] += 1
-            log.warning("physics rejected %s from %s: %s", kind, source, exc)
+            self._reject(type(message).__name__, source, exc, now)
             return []
+
+    def _reject(self, kind: str, source: str, exc: Exception, now: float) -> None:
+        """Count a rejected message; log it unless this kind was logged within ``REJECT_LOG_INTERVAL_S``."""
+        self.rejected[kind] += 1
+        last = self._reject_logged.get(kind)
+        if last is not None and 0.0 <= now - last < REJECT_LOG_INTERVAL_S:
+            self._reject_quiet[kind] += 1
+            return
+        quiet = self._reject_quiet.pop(kind, 0)
+        extra = f" (+{quiet} more since the last report)" if quiet else ""
+        log.warning("physics rejected %s from %s: %s%s", kind, source, exc, extra)
+        self._reject_logged[kind] = now
 
     def _handle(self, message: OscMessage, now: float) -> list[Outgoing]:
         if isinstance(message, Hello):
@@ -213,8 +244,12 @@ class PhysicsCore:
             self.score_player.handle(message, now)
             return []
         handler = getattr(self.scene, "handle", None)
-        if handler is not None:
-            handler(message, self.time)
+        if handler is None:
+            if isinstance(message, DRUMMER_MESSAGES):
+                raise TargetError(f"{message.ADDRESS} needs the drummer scene (this is the {self.settings.scene} "
+                                  "scene)")
+            return []
+        handler(message, self.time)
         if isinstance(message, PhysicsControlMode):  # after the scene accepted it
             self.settings = self.settings.model_copy(update={"control": message.mode})
         return []

@@ -416,6 +416,11 @@ class DrummerScene:
             name = str(limb.value if hasattr(limb, "value") else limb)
             if name not in self.limb_tracks:
                 raise TargetError(f"plan has unknown limb {name!r}")
+            # checked here, not when queued: queueing clears the limb's track first
+            times = np.asarray(traj.times, dtype=float) + offset
+            if not (np.all(np.isfinite(times)) and np.all(np.diff(times) > 0)):
+                raise TargetError(f"plan's {name} knot times, started at {start_at} s, are not finite and "
+                                  "strictly increasing")
             for k in range(len(traj.times)):
                 self.check_cartesian(name, traj.positions[k])
         here = self.current_targets()

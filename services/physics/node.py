@@ -22,14 +22,14 @@ import argparse
 import logging
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, get_args
 
 from pydantic import Field, field_validator
 from pydantic_settings import NoDecode
 
 from common.config import NodeSettings
 from common.kit import EventType
-from common.messages.physics import ControlModeName
+from common.messages.physics import ControlModeName, GripName
 from common.runtime import Node, run_node
 from services.physics.core import PhysicsCore, PhysicsSettings
 from services.physics.precompile import warm_up
@@ -45,17 +45,19 @@ class PhysicsNodeSettings(NodeSettings):
     kit: str = Field(default="default", min_length=1, description="kit name or kit file (YAML or JSON)")
     left_handed: bool = Field(default=False, description="mirror the kit for a left-handed drummer")
     control: ControlModeName = Field(default="cartesian",
-                                                                   description="controller at start")
-    grip: Literal["french", "german", "american", "traditional"] = Field(default="american",
-                                                                         description="grip at start")
+                                     description=f"controller at start: {', '.join(get_args(ControlModeName))} "
+                                     "(docs/physics.md; /batteur/physics/control switches it live)")
+    grip: GripName = Field(default="american", description=f"grip of both hands at start: "
+                           f"{', '.join(get_args(GripName))} (/batteur/physics/grip changes it live)")
     floating_base: bool = Field(default=False, description=PhysicsSettings.model_fields["floating_base"].description)
     height_m: float = Field(default=1.75, ge=1.2, le=2.2, description="drummer's height, metres")
     mass_kg: float = Field(default=73.0, ge=35, le=150, description="drummer's mass, kilograms")
-    pose_rate_hz: float = Field(default=60.0, ge=0, le=240, description="pose publishing rate, Hz")
+    pose_rate_hz: float = Field(default=60.0, ge=0, le=240, description="pose publishing rate, Hz (0: off)")
     control_rate_hz: float = Field(default=PhysicsSettings.model_fields["control_rate_hz"].default, ge=50,
                                    le=10000, description="drummer: full control updates (IK, inverse dynamics) "
                                    "per second, Hz; torques are corrected at every physics step between")
-    strike_event: EventType = Field(default=EventType.SNARE, description="strike scene: the event's hit point")
+    strike_event: EventType = Field(default=EventType.SNARE, description="strike scene: the event whose hit point "
+                                    f"the stick strikes: {', '.join(e.value for e in EventType)}")
     strike_period: float = Field(default=0.0, ge=0, le=60,
                                  description="strike scene: strike every this many seconds (0: only on request)")
     strike_velocity: float = Field(default=3.0, gt=0, le=30, description="strike scene: tip speed, m/s")

@@ -49,6 +49,9 @@ def test_trajectory_sample_is_hermite_and_validates() -> None:
     assert traj.sample(2.0).velocity.tolist() == [0, 0, 0]
     with pytest.raises(ValueError):
         LimbTrajectory(Limb.RIGHT_HAND, np.array([0.0, 0.0]), np.zeros((2, 3)), np.zeros((2, 3)))
+    for times in ([0.0, np.nan], [np.nan, 1.0], [0.0, np.inf]):  # NaN passes an order check: refused as such
+        with pytest.raises(ValueError, match="finite"):
+            LimbTrajectory(Limb.RIGHT_HAND, np.array(times), np.zeros((2, 3)), np.zeros((2, 3)))
 
 
 @pytest.fixture(scope="module")

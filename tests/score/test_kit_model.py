@@ -147,7 +147,8 @@ def test_the_right_hand_strikes_the_snare_nearer_the_drummer_than_the_left() -> 
     ("k.yaml", b"objects: [snare\n", "not valid YAML: expected ',' or ']', but got '<stream end>' at line 2, column 1"),
     ("k.json", b'{"objects": ', "not valid JSON: Expecting value"),
     ("k.yaml", bytes(range(128, 256)), "is not UTF-8 text (invalid start byte at byte 0)"),
-    ("k.yaml", b"- 1\n- 2\n", "not a valid kit: 1 validation error for Kit"),
+    ("k.yaml", b"- 1\n- 2\n", "not a valid kit: Input should be a valid dictionary"),
+    ("k.yaml", b"objects: 5\n", "not a valid kit: name: Field required (and 2 more)"),
 ])
 def test_a_broken_kit_file_is_refused_with_its_name_and_the_problem(tmp_path: Path, name: str, content: bytes,
                                                                     says: str) -> None:
