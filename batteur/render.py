@@ -111,6 +111,11 @@ class RenderOptions:
     """Processes: 1 renders in one piece; more render time segments in parallel (batteur/segments.py)."""
     segment_s: float = 30.0
     """Length of a segment when ``jobs`` > 1, rig seconds."""
+    limits_from: tuple[str, ...] = ()
+    """Motion clips the drummer's joint limits come from (BVH files, DeepMimic files or clip names; none: every
+    DeepMimic clip)."""
+    skeleton_bvh: Path | None = None
+    """BVH file whose skeleton gives the drummer's arm and leg segment lengths (None: de Leva's table)."""
 
 
 @dataclass
@@ -217,7 +222,9 @@ def start_drummer(plan: GesturePlan, kit: Kit, opts: RenderOptions, start_s: flo
     if control_rate_hz is None:  # not `or`: 0 Hz is refused by the physics settings, not taken as the default
         control_rate_hz = PhysicsSettings.model_fields["control_rate_hz"].default
     physics = PhysicsCore(scene="drummer", kit=kit, control=CONTROL_MODES[opts.control], grip=opts.grip,
-                          rate_hz=opts.rate_hz, pose_rate_hz=opts.pose_rate_hz, control_rate_hz=control_rate_hz)
+                          rate_hz=opts.rate_hz, pose_rate_hz=opts.pose_rate_hz, control_rate_hz=control_rate_hz,
+                          limits_from=opts.limits_from,
+                          skeleton_bvh=None if opts.skeleton_bvh is None else str(opts.skeleton_bvh))
     physics.time_offset = start_s
     try:
         physics.load_plan(plan, opts.settle_s)
@@ -290,6 +297,8 @@ def score_report(result: ScoreRender, source: str, opts: RenderOptions) -> dict[
         "nuance": opts.nuance.value,
         "tempo_scale": opts.tempo_scale,
         "control": opts.control,
+        "limits_from": list(opts.limits_from),
+        "skeleton_bvh": None if opts.skeleton_bvh is None else str(opts.skeleton_bvh),
         "physics": result.physics,
         "calibration": str(opts.calibration) if opts.calibration else None,
         "notes": len(result.score.events),
@@ -428,6 +437,7 @@ def check_options(opts: RenderOptions) -> None:
         raise ValueError(f"--tempo-scale {opts.tempo_scale:g}: {low:g} to {high:g} (times faster)")
     checks: list[tuple[str, Callable[[], object]]] = [
         (f"--latency {opts.latency_s:g} s", lambda: SoundSettings(latency=opts.latency_s, origin=0.0))]
+    _check_motion_capture(opts)
     if opts.control_rate_hz is not None:
         checks.append((f"--control-rate {opts.control_rate_hz:g} Hz",
                        lambda: PhysicsSettings(control_rate_hz=opts.control_rate_hz)))
@@ -436,6 +446,26 @@ def check_options(opts: RenderOptions) -> None:
             build()
         except ValidationError as exc:
             raise ValueError(f"{option}: {first_error(exc)}") from None
+
+
+def _check_motion_capture(opts: RenderOptions) -> None:
+    """Read the clips and skeleton the drummer is built from now (``ValueError`` naming the option): a bad file
+    must not wait for the score's planning, and the limits are cached for the render."""
+    from services.physics.bvh_motion import bvh_segment_lengths
+    from services.physics.drummer import cached_clips
+
+    try:
+        cached_clips(opts.limits_from)
+    except (ValueError, FileNotFoundError) as exc:
+        raise ValueError(f"--limits-from: {exc}") from None
+    if opts.skeleton_bvh is not None:
+        try:
+            lengths = bvh_segment_lengths(opts.skeleton_bvh)
+        except (ValueError, FileNotFoundError) as exc:
+            raise ValueError(f"--skeleton-bvh: {exc}") from None
+        if not lengths:
+            raise ValueError(f"--skeleton-bvh {opts.skeleton_bvh}: no arm or leg joints found by their usual BVH "
+                             "names (e.g. LeftArm, LeftForeArm, LeftUpLeg, LeftLeg)")
 
 
 def one_line(exc: BaseException) -> str:
@@ -522,6 +552,13 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--control-rate", type=float, default=None, metavar="HZ",
                         help="drummer's full control updates (IK, inverse dynamics) per second; the torques are "
                         "corrected at every 1 ms physics step between (default: physics' default, 1000: every step)")
+    parser.add_argument("--limits-from", action="append", default=[], metavar="CLIP",
+                        help="motion clip the drummer's joint limits are estimated from (repeatable): a BVH file, a "
+                        "DeepMimic clip file or the name of one of pybullet's DeepMimic clips (default: all of "
+                        "those)")
+    parser.add_argument("--skeleton-bvh", type=Path, default=None, metavar="FILE",
+                        help="BVH file whose skeleton gives the drummer's arm and leg segment lengths, so the "
+                        "simulated performer matches the captured one (default: de Leva's table for 1.75 m, 73 kg)")
     parser.add_argument("--video", action="store_true",
                         help="also write DIR/performance.mp4: the motion rendered headless (PyBullet TinyRenderer) "
                         "with the WAV muxed in sync (needs ffmpeg; score mode)")
@@ -550,7 +587,8 @@ def options_from(args: argparse.Namespace) -> RenderOptions:
                          control=args.control, algorithm=HandAlgorithm(args.algorithm), latency_s=args.latency,
                          calibration=args.calibration, video=args.video, video_fps=args.video_fps,
                          video_size=args.video_size, control_rate_hz=args.control_rate,
-                         jobs=resolve_jobs(args.jobs), segment_s=args.segment)
+                         jobs=resolve_jobs(args.jobs), segment_s=args.segment,
+                         limits_from=tuple(args.limits_from), skeleton_bvh=args.skeleton_bvh)
 
 
 def resolve_jobs(jobs: int) -> int:

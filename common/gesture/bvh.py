@@ -118,8 +118,14 @@ def parse_bvh(text: str, name: str = "<bvh>") -> Bvh:
         if isinstance(exc, BvhError):
             raise
         raise BvhError(f"{name}: malformed BVH ({exc})") from exc
-    if frame_time <= 0:
-        raise BvhError(f"{name}: frame time must be positive")
+    if not (frame_time > 0 and np.isfinite(frame_time)):  # "nan" and "inf" parse as floats
+        raise BvhError(f"{name}: frame time must be a positive number of seconds, got {frame_time}")
+    bad = [j.name for j in joints if not np.all(np.isfinite(j.offset))]
+    if bad:
+        raise BvhError(f"{name}: offset of joint {bad[0]} is not finite")
+    if not np.all(np.isfinite(motion)):
+        frame = int(np.argwhere(~np.isfinite(motion))[0, 0])
+        raise BvhError(f"{name}: motion frame {frame} holds a value that is not finite")
     return Bvh(joints, frame_time, motion)
 
 
@@ -167,10 +173,13 @@ def write_bvh(bvh: Bvh) -> str:
     return "\n".join(lines) + "\n"
 
 
-def forward_kinematics(bvh: Bvh) -> dict[str, np.ndarray]:
-    """World positions (F, 3) of every joint and of each end site (named ``<joint>_end``)."""
+def world_frames(bvh: Bvh) -> tuple[list[Rotation], list[np.ndarray]]:
+    """Every joint's world orientation (a Rotation of length F) and position (F, 3), in file order.
+
+    A joint's frame is its parent's turned by its rotation channels (degrees, intrinsic, in channel order); at
+    zero rotation every frame is aligned with the file's axes (the rest pose of the offsets).
+    """
     frames = len(bvh.motion)
-    out: dict[str, np.ndarray] = {}
     rots: list[Rotation] = []
     pos: list[np.ndarray] = []
     col = 0
@@ -197,6 +206,23 @@ def forward_kinematics(bvh: Bvh) -> dict[str, np.ndarray]:
             r = pr * local
         rots.append(r)
         pos.append(p)
+    return rots, pos
+
+
+def rest_positions(bvh: Bvh) -> np.ndarray:
+    """(J, 3) joint positions of the rest pose (every rotation zero, the root at its offset), file units."""
+    out = np.zeros((len(bvh.joints), 3))
+    for i, j in enumerate(bvh.joints):
+        out[i] = j.offset + (out[j.parent] if j.parent >= 0 else 0.0)
+    return out
+
+
+def forward_kinematics(bvh: Bvh) -> dict[str, np.ndarray]:
+    """World positions (F, 3) of every joint and of each end site (named ``<joint>_end``)."""
+    frames = len(bvh.motion)
+    rots, pos = world_frames(bvh)
+    out: dict[str, np.ndarray] = {}
+    for j, r, p in zip(bvh.joints, rots, pos, strict=True):
         out[j.name] = p
         if j.end_site is not None:
             out[f"{j.name}_end"] = p + r.apply(np.tile(j.end_site, (frames, 1)))

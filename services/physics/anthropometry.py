@@ -150,7 +150,7 @@ def anthropometry(height_m: float = 1.75, mass_kg: float = 73.0, sex: Sex = "mal
         Which table.
     lengths_m : dict, optional
         Segment lengths (metres) overriding the scaled table, e.g. measured
-        from a BVH skeleton (:func:`services.physics.mocap.bvh_segment_lengths`);
+        from a BVH skeleton (:func:`services.physics.bvh_motion.bvh_segment_lengths`);
         masses stay from the table, centres of mass and radii follow the lengths.
 
     Returns

@@ -173,6 +173,17 @@ class Body:
         info: tuple[Any, ...] = self.world.client.getJointInfo(body, j)
         return info
 
+    def set_limits(self, limits: dict[str, tuple[float, float]]) -> None:
+        """Change the DOF's joint limits (DOF name -> (lower, upper), radians) in PyBullet and in :attr:`lower`
+        and :attr:`upper` (PyBullet's ``getJointInfo`` keeps reporting the URDF's; its solver uses these)."""
+        c = self.world.client
+        for k, (name, link) in enumerate(zip(self.model.dof_names, self.dof_list, strict=True)):
+            if name in limits:
+                lower, upper = limits[name]
+                body, j = self.link_ref[link]
+                c.changeDynamics(body, j, jointLowerLimit=lower, jointUpperLimit=upper)
+                self.lower[k], self.upper[k] = lower, upper
+
     def mask_of(self, link: int) -> np.ndarray:
         """(57,) bool: the DOF that move ``link``."""
         mask = np.zeros(len(self.dof_list), dtype=bool)

@@ -101,6 +101,12 @@ class PhysicsSettings(BaseModel):
                                 description="drummer: a floating base pinned to the throne instead of a fixed base "
                                             "(the pin costs about a fifth of each step; no controller needs it)")
     grip: Literal["french", "german", "american", "traditional"] = Field(default="american", description="grip")
+    limits_from: tuple[str, ...] = Field(
+        default=(), description="drummer: motion clips the joint limits are estimated from: BVH files, DeepMimic "
+        "clip files or names of pybullet's DeepMimic clips (empty: every DeepMimic humanoid clip)")
+    skeleton_bvh: str | None = Field(
+        default=None, description="drummer: BVH file whose skeleton gives the arms' and legs' segment lengths "
+        "(the rest of the body from de Leva's table for the height and mass)")
 
 
 class Scene(Protocol):

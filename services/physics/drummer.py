@@ -1,9 +1,11 @@
 """The drummer scene: the 57-DOF percussionist on the throne at the whole kit.
 
-Build order: kit bodies (common/kit.py), joint limits (DeepMimic clips, see
-limits.py), the generated body pinned to the throne, the rest posture (solved
-by IK: right stick over the hi-hat, left over the snare, feet on their pedals
-for a right-handed kit; mirrored for a left-handed one), the controller.
+Build order: kit bodies (common/kit.py), joint limits (pybullet's DeepMimic clips,
+limits.py), the generated body (segment lengths from ``skeleton_bvh`` if given) pinned
+to the throne, the rest posture (solved by IK: right stick over the hi-hat, left over
+the snare, feet on their pedals for a right-handed kit; mirrored for a left-handed
+one), the limits of the ``limits_from`` clips if given (grown where they do not hold
+the rest posture), the controller.
 
 Inputs, all timed in rig seconds and streamed ahead of time:
 
@@ -43,13 +45,15 @@ from common.messages.physics import (
 )
 from services.physics.anthropometry import anthropometry
 from services.physics.body import LIMBS, Body
+from services.physics.bvh_motion import bvh_segment_lengths
 from services.physics.character import DOF_NAMES, JOINTS, CharacterSpec, build_character
 from services.physics.contacts import ContactTracker, Striker
 from services.physics.control import Controller
 from services.physics.follow_through import LimbTrack
 from services.physics.kernels import swing_displacement
 from services.physics.kitbodies import SLOW_SPRING_PERIOD_S, build_kit
-from services.physics.limits import JointLimits, default_limits
+from services.physics.limits import JointLimits, default_limits, limits_from_clips, load_clip
+from services.physics.mocap import MotionClip
 from services.physics.targets import TargetError, Track
 from services.physics.urdf import Inertial, Link, Robot, Shape, load_robot
 from services.physics.world import World, WorldSettings
@@ -106,6 +110,7 @@ FINGER_INERTIA_KGM2 = 1.2e-3
 FINGER_DAMPING_RATIO = 0.3
 
 _LIMIT_CACHE: dict[str, JointLimits] = {}
+_CLIP_CACHE: dict[tuple[str, ...], list[MotionClip]] = {}
 
 
 def cached_default_limits() -> JointLimits:
@@ -113,6 +118,21 @@ def cached_default_limits() -> JointLimits:
     if "default" not in _LIMIT_CACHE:
         _LIMIT_CACHE["default"] = default_limits()
     return _LIMIT_CACHE["default"]
+
+
+def cached_clips(sources: tuple[str, ...]) -> list[MotionClip]:
+    """The motion clips of ``limits_from`` (:func:`limits.load_clip`: BVH files, DeepMimic files or names), read
+    once per process; ``ValueError`` / ``FileNotFoundError`` naming a file that cannot be read."""
+    if sources not in _CLIP_CACHE:
+        _CLIP_CACHE[sources] = [load_clip(source) for source in sources]
+    return _CLIP_CACHE[sources]
+
+
+def posture_limits(clips: list[MotionClip], posture: np.ndarray) -> JointLimits:
+    """Limits from ``clips`` that hold the playing ``posture`` (57,) radians: a joint the clips never bring
+    there keeps a box grown to it (:func:`limits.limits_from_clips`, ``+posture`` in its sources)."""
+    need = {joint: posture[3 * k:3 * k + 3] for k, joint in enumerate(JOINTS)}
+    return limits_from_clips(clips, must_contain=need)
 
 
 def initial_guess(grip: str) -> np.ndarray:
@@ -190,12 +210,14 @@ class DrummerScene:
         self.world = world
         self.kit = kit
         self.settings = settings
+        # the rest posture is solved within the DeepMimic limits; the clips of limits_from then replace them
         self.limits = limits if limits is not None else cached_default_limits()
         self.kit_bodies = build_kit(world, kit)
         throne = next((o for o in kit.objects if o.kind == "throne"), None)
         self.seat_position = (0.0, 0.0, 0.52) if throne is None else tuple(throne.position)
         self._floor(world)
-        self.anthro = anthropometry(settings.height_m, settings.mass_kg)
+        lengths = bvh_segment_lengths(settings.skeleton_bvh) if settings.skeleton_bvh else None
+        self.anthro = anthropometry(settings.height_m, settings.mass_kg, lengths_m=lengths)
         self.spec = CharacterSpec(self.anthro, limits=self.limits.dof_limits())
         self.model = build_character(self.spec)
         self.body = Body(world, self.model, self.seat_position,  # type: ignore[arg-type]
@@ -215,6 +237,9 @@ class DrummerScene:
         extra = self._stick_holds()
         self.rest, self.rest_error = solve_posture(self.body, self.rest_targets, guess, clamp, iterations=300,
                                                    frozen=frozen, rest=guess, posture_gain=0.05, extra=extra)
+        if limits is None and settings.limits_from:
+            self.limits = posture_limits(cached_clips(settings.limits_from), self.rest)
+            self.body.set_limits(self.limits.dof_limits())
         self.controller = Controller(world, self.body, self.limits, self.rest)
         self.rest = self.controller.clamp_targets(self.rest)
         self.controller.rest = self.rest.copy()

@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -187,7 +188,8 @@ def limits_from_clips(clips: Iterable[MotionClip], margin_rad: float = math.radi
     the clips' samples; a DOF the clips hardly move (range under 10 degrees,
     like a DeepMimic knee's y and z) keeps its anatomical range.
     ``must_contain``: joint -> Euler angles (3,) that must lie inside (the
-    playing posture); the box grows to include them (recorded in ``sources``).
+    playing posture); the box grows to include them, and a joint whose box or ellipsoid did not hold them
+    keeps the box only (recorded in ``sources`` as ``+posture``).
     """
     samples_e: dict[str, list[np.ndarray]] = {}
     samples_q: dict[str, list[np.ndarray]] = {}
@@ -219,15 +221,38 @@ def limits_from_clips(clips: Iterable[MotionClip], margin_rad: float = math.radi
         if must_contain and joint in must_contain:
             need = np.asarray(must_contain[joint], dtype=float)
             lim = euler[joint]
-            if not bool(lim.contains(need)[0]):
+            outside = not bool(lim.contains(need)[0])
+            if outside:
                 euler[joint] = EulerLimit(np.minimum(lim.lower, need - margin_rad),
                                           np.maximum(lim.upper, need + margin_rad), lim.mean, lim.std)
+            ellipsoid = quaternion.get(joint)
+            if ellipsoid is not None:
+                outside |= not bool(ellipsoid.contains(Rotation.from_euler("XYZ", need).as_quat()[None])[0])
+            if outside:  # the grown box only: an ellipsoid of the clips' motion does not reach the posture
                 sources[joint] += "+posture"
                 quaternion.pop(joint, None)
     return JointLimits(euler, quaternion, sources)
 
 
-def default_limits(clips: Iterable[str] | None = None) -> JointLimits:
-    """Limits from pybullet's DeepMimic clips (all humanoid clips by default)."""
+def load_clip(source: str | Path) -> MotionClip:
+    """A motion clip in our joints: a BVH file (``.bvh``, :mod:`services.physics.bvh_motion`), a DeepMimic
+    clip file, or a DeepMimic clip shipped with pybullet (a name such as ``"punch"``).
+
+    Raises ``FileNotFoundError`` for a missing file or unknown name, ``ValueError`` naming the file for one that
+    cannot be read as motion."""
+    from services.physics.bvh_motion import load_bvh_clip
+
+    if Path(source).suffix.lower() == ".bvh":
+        if not Path(source).is_file():
+            raise FileNotFoundError(f"no BVH file {str(source)!r}")
+        return load_bvh_clip(source)
+    return load_deepmimic(source)
+
+
+def default_limits(clips: Iterable[str | Path] | None = None) -> JointLimits:
+    """Limits from motion clips (:func:`load_clip`: BVH files, DeepMimic files or names); by default every
+    DeepMimic humanoid clip shipped with pybullet."""
     names = list(clips) if clips is not None else deepmimic_clip_names()
-    return limits_from_clips([load_deepmimic(n) for n in names])
+    if not names:
+        raise ValueError("no motion clip to take joint limits from")
+    return limits_from_clips([load_clip(n) for n in names])

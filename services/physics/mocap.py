@@ -1,4 +1,5 @@
-"""Motion capture input: DeepMimic clips (real human motion shipped with pybullet_data) and BVH skeletons.
+"""Motion capture input: DeepMimic clips (real human motion shipped with pybullet_data); BVH files are read by
+:mod:`services.physics.bvh_motion`.
 
 DeepMimic's humanoid is y-up, facing +x, with +z to its right; a frame is
 ``[duration, root position (3), root rotation (4, w x y z), chest (4), neck
@@ -118,35 +119,3 @@ def load_deepmimic(name_or_path: str | Path) -> MotionClip:
         else:
             rotations[joint] = rot
     return MotionClip(path.stem.removeprefix("humanoid3d_"), times, rotations)
-
-
-BVH_NAMES: dict[str, tuple[str, ...]] = {
-    "upper_arm": ("RightForeArm", "RightElbow", "rForeArm", "LeftForeArm"),
-    "forearm": ("RightHand", "RightWrist", "rHand", "LeftHand", "Hand"),
-    "hand": ("Stick", "RightHandEnd", "RightFingerBase"),
-    "thigh": ("RightLeg", "RightKnee", "rShin", "LeftLeg"),
-    "shank": ("RightFoot", "RightAnkle", "rFoot", "LeftFoot"),
-}
-"""Our segment -> BVH joints whose OFFSET is that segment's length (first found wins)."""
-
-
-def bvh_segment_lengths(path: str | Path, units_to_m: float | None = None) -> dict[str, float]:
-    """Segment lengths (metres) from a BVH skeleton's offsets, for :func:`anthropometry`'s ``lengths_m``.
-
-    ``units_to_m``: factor from the file's units to metres; by default guessed
-    (a skeleton whose longest offset exceeds 3 is taken to be in centimetres).
-    Only the segments found in the file are returned.
-    """
-    from common.gesture.bvh import read_bvh
-
-    bvh = read_bvh(path)
-    offsets = {j.name: float(np.linalg.norm(j.offset)) for j in bvh.joints}
-    if units_to_m is None:
-        units_to_m = 0.01 if max(offsets.values(), default=0.0) > 3.0 else 1.0
-    lengths: dict[str, float] = {}
-    for segment, names in BVH_NAMES.items():
-        for name in names:
-            if name in offsets and offsets[name] > 0:
-                lengths[segment] = offsets[name] * units_to_m
-                break
-    return lengths

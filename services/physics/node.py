@@ -67,11 +67,14 @@ class PhysicsNodeSettings(NodeSettings):
                                   "playing (its beginning), seconds (unset: load only)")
     score_dir: Annotated[list[str], NoDecode] = Field(
         default_factory=list, description="score library directory: /batteur/score/load names are looked up here")
+    limits_from: Annotated[list[str], NoDecode] = Field(
+        default_factory=list, description=PhysicsSettings.model_fields["limits_from"].description)
+    skeleton_bvh: str | None = Field(default=None, description=PhysicsSettings.model_fields["skeleton_bvh"].description)
 
-    @field_validator("score_dir", mode="before")
+    @field_validator("score_dir", "limits_from", mode="before")
     @classmethod
-    def _score_dirs(cls, value: Any) -> Any:
-        """BATTEUR_SCORE_DIR and config files may give several directories, comma-separated."""
+    def _comma_lists(cls, value: Any) -> Any:
+        """Environment variables and config files may give several entries, comma-separated."""
         if isinstance(value, str):
             return [v.strip() for v in value.split(",") if v.strip()]
         return value
@@ -104,9 +107,11 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace) -> PhysicsCore:
             mass_kg=settings.mass_kg,
             strike_period_s=settings.strike_period,
             strike_velocity=settings.strike_velocity,
+            limits_from=tuple(settings.limits_from),
+            skeleton_bvh=settings.skeleton_bvh,
         )
         core = PhysicsCore(core_settings)
-    except FileNotFoundError as exc:
+    except FileNotFoundError as exc:  # a kit, clip or BVH file that is not there
         raise ValueError(str(exc)) from None
     player = core.score_player
     player.library = [Path(d).expanduser() for d in settings.score_dir]

@@ -11,6 +11,7 @@ import pytest
 
 from services.physics.anthropometry import DE_LEVA, REFERENCE, anthropometry, body_mass_of
 from services.physics.body import Body
+from services.physics.bvh_motion import bvh_segment_lengths
 from services.physics.character import (
     DOF_NAMES,
     DUMMY_MASS_KG,
@@ -19,7 +20,6 @@ from services.physics.character import (
     CharacterSpec,
     build_character,
 )
-from services.physics.mocap import bvh_segment_lengths
 from services.physics.world import World
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 import pytest
 
@@ -28,3 +29,15 @@ def test_bad_kit_is_a_clear_error() -> None:
 def test_show_settings(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["--show-settings", "--scene", "strike", "--no-discovery"]) == 0
     assert '"scene": "strike"' in capsys.readouterr().out
+
+
+def test_motion_capture_files_of_the_node_are_clear_errors(tmp_path: Path) -> None:
+    """--limits-from and --skeleton-bvh (or BATTEUR_LIMITS_FROM, comma-separated): a file that is not there is a
+    clear error at start, not a traceback."""
+    missing = tmp_path / "none.bvh"
+    settings = PhysicsNodeSettings.model_validate({"limits_from": f"punch, {missing}", "discovery": False})
+    assert settings.limits_from == ["punch", str(tmp_path / "none.bvh")]
+    with pytest.raises(ValueError, match="no BVH file"):
+        make_core(settings, argparse.Namespace())
+    with pytest.raises(ValueError, match="none.bvh: no such file"):
+        make_core(PhysicsNodeSettings(skeleton_bvh=str(tmp_path / "none.bvh"), discovery=False), argparse.Namespace())

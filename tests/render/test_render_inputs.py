@@ -216,3 +216,24 @@ def test_a_render_folder_with_an_earlier_score_copy_is_judged_against_its_own(tm
     (folder / "score.mid").write_bytes(b"MThd")  # left by a render of a MIDI file before this fix
     assert evaluate.render_dir_score(folder) == folder / "score.txt"
 
+
+def test_motion_capture_options_are_read_before_simulating(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                           capsys: pytest.CaptureFixture[str]) -> None:
+    """--limits-from and --skeleton-bvh name files the drummer is built from: a missing or unusable one is
+    refused, naming the option, before the score is planned or anything simulated."""
+    def simulated(*args: Any, **kwargs: Any) -> Any:
+        raise AssertionError("simulated before the motion capture files were read")
+
+    monkeypatch.setattr(render, "run_score", simulated)
+    legs_only = tmp_path / "legs.bvh"
+    legs_only.write_text("HIERARCHY\nROOT Hips\n{\n OFFSET 0 0 0\n CHANNELS 3 Zrotation Xrotation Yrotation\n"
+                         " End Site\n {\n  OFFSET 0 10 0\n }\n}\nMOTION\nFrames: 2\nFrame Time: 0.03\n0 0 0\n0 0 0\n",
+                         encoding="utf-8")
+    out = tmp_path / "out"
+    for args, says in ((["--limits-from", str(tmp_path / "none.bvh")], "--limits-from: no BVH file"),
+                       (["--limits-from", "moonwalk"], "--limits-from: no clip 'moonwalk'"),
+                       (["--limits-from", str(legs_only)], "cannot tell which way is up"),
+                       (["--skeleton-bvh", str(legs_only)], "--skeleton-bvh")):
+        assert render.main([str(SCORE), "-o", str(out), "--quiet", *args]) == 2, args
+        assert says in _one_line_error(capsys), args
+        assert not out.exists()

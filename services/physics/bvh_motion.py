@@ -1,0 +1,300 @@
+"""Joint rotations of any BVH motion in our body convention: joint limits from motion capture.
+
+A BVH names its joints its own way, points its axes its own way and rests in its own pose. Three steps bring
+its motion onto our 19 joints (docs/physics.md, "Joint limits"):
+
+1. **Segments.** Each of our links (pelvis, abdomen, thorax, neck, head, and per side clavicle, upper arm,
+   forearm, hand, thigh, shank, foot) is the frame of one BVH joint, found by name (:data:`SEGMENT_NAMES`: our
+   own export, CMU, Mixamo, Biovision, Poser/DAZ spellings) among the descendants of the link's parent's joint.
+   BVH joints between two of them (CMU's Spine between LowerBack and Spine1) are folded into the rotation.
+2. **Axes.** Up is from the hips to the head in the rest pose, right from the left shoulder (or hip) to the
+   right one: ``C`` maps the file's vectors to ours (x right, y forward, z up).
+3. **Rest pose.** Our zero pose stands with the arms hanging; a BVH at rest may hold a T- or A-pose. A link
+   whose rest direction (to the next joint of its chain) is more than :data:`REST_TOLERANCE_RAD` from ours is
+   turned onto it by the shortest arc ``A``; a smaller difference is the skeleton's own shape and is kept.
+
+A link's orientation is ``O = C W C^T A`` (``W``: the BVH joint's world frame) and a joint's rotation is
+``O_parent^T O_child``. As for DeepMimic clips (:mod:`services.physics.mocap`), the seat is not driven (the
+performer's heading is not a joint's range) and the hips are taken relative to the pelvis. A spine given by
+one joint for two of ours (no abdomen, or no neck) shares its rotation equally between them; an arm without a
+clavicle gives the shoulder the whole rotation. Joints the file lacks keep their anatomical limits.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from common.character import SIDES
+from common.gesture.bvh import Bvh, BvhError, read_bvh, rest_positions, world_frames
+from services.physics.mocap import MotionClip
+
+_SIDE_WORDS = {"left": ("left", "l"), "right": ("right", "r")}
+
+_LIMB_NAMES: dict[str, tuple[str, ...]] = {
+    # {side}: left/right, {s}: l/r; names compared lower-case without separators or a "namespace:" prefix.
+    # Order matters where conventions disagree: Biovision's LeftShoulder is the upper arm (beside its
+    # LeftCollar), CMU's and Mixamo's the clavicle (beside their LeftArm); the upper arm is matched first.
+    "upper_arm": ("{side}upperarm", "{side}arm", "{side}uparm", "{s}shldr", "{s}upperarm", "{side}shoulder"),
+    "clavicle": ("{side}clavicle", "{side}collar", "{s}collar", "{s}clavicle", "{side}shoulder"),
+    "forearm": ("{side}forearm", "{side}lowerarm", "{side}lowarm", "{s}forearm", "{side}elbow"),
+    "hand": ("{side}hand", "{s}hand", "{side}wrist"),
+    "thigh": ("{side}thigh", "{side}upleg", "{side}upperleg", "{s}thigh", "{side}hip"),
+    "shank": ("{side}shank", "{side}leg", "{side}lowerleg", "{side}lowleg", "{side}shin", "{s}shin", "{side}knee"),
+    "foot": ("{side}foot", "{s}foot", "{side}ankle"),
+}
+_CENTRAL_NAMES: dict[str, tuple[str, ...]] = {
+    "pelvis": ("pelvis", "hips", "hip", "root"),
+    "abdomen": ("abdomen", "lowerback", "spine", "spine0"),
+    "thorax": ("thorax", "upperchest", "chest", "spine3", "spine2", "spine1"),
+    "neck": ("neck", "neck1"),
+    "head": ("head",),
+}
+
+
+def _segment_names() -> dict[str, tuple[str, ...]]:
+    names = dict(_CENTRAL_NAMES)
+    for side in SIDES:
+        word, letter = _SIDE_WORDS[side]
+        for kind, patterns in _LIMB_NAMES.items():
+            names[f"{side}_{kind}"] = tuple(p.format(side=word, s=letter) for p in patterns)
+    return names
+
+
+SEGMENT_NAMES: dict[str, tuple[str, ...]] = _segment_names()
+"""Our link -> the BVH joint names that may stand for it (normalised: lower case, no separators), first found
+wins, in :data:`MATCH_ORDER`."""
+
+SEGMENT_PARENT: dict[str, str] = {
+    "abdomen": "pelvis", "thorax": "abdomen", "neck": "thorax", "head": "neck",
+    **{f"{s}_{k}": p.format(s=s) for s in SIDES for k, p in (
+        ("clavicle", "thorax"), ("upper_arm", "{s}_clavicle"), ("forearm", "{s}_upper_arm"),
+        ("hand", "{s}_forearm"), ("thigh", "pelvis"), ("shank", "{s}_thigh"), ("foot", "{s}_shank"))},
+}
+"""Our link -> its parent link in the chain the BVH is read along (the thighs hang from the pelvis)."""
+
+MATCH_ORDER: tuple[str, ...] = ("pelvis", "abdomen", "thorax", "neck", "head") + tuple(
+    f"{s}_{k}" for s in SIDES for k in ("upper_arm", "clavicle", "forearm", "hand", "thigh", "shank", "foot"))
+
+JOINT_SEGMENTS: dict[str, tuple[str, str]] = {
+    "lumbar": ("pelvis", "abdomen"), "thoracic": ("abdomen", "thorax"), "neck": ("thorax", "neck"),
+    "head": ("neck", "head"),
+    **{f"{s}_{j}": (f"{s}_{a}" if a != "thorax" and a != "pelvis" else a, f"{s}_{b}") for s in SIDES
+       for j, a, b in (("clavicle", "thorax", "clavicle"), ("shoulder", "clavicle", "upper_arm"),
+                       ("elbow", "upper_arm", "forearm"), ("wrist", "forearm", "hand"), ("hip", "pelvis", "thigh"),
+                       ("knee", "thigh", "shank"), ("ankle", "shank", "foot"))},
+}
+"""Our joint -> (parent link, child link) as read from a BVH (the seat is not: see the module docstring)."""
+
+REST_DIRECTION: dict[str, np.ndarray] = {
+    "abdomen": np.array([0.0, 0.0, 1.0]), "thorax": np.array([0.0, 0.0, 1.0]), "neck": np.array([0.0, 0.0, 1.0]),
+    "head": np.array([0.0, 0.0, 1.0]),
+    **{f"{s}_{k}": d for s, x in (("left", -1.0), ("right", 1.0)) for k, d in (
+        ("clavicle", np.array([x, 0.0, 0.0])), ("upper_arm", np.array([0.0, 0.0, -1.0])),
+        ("forearm", np.array([0.0, 0.0, -1.0])), ("hand", np.array([0.0, 0.0, -1.0])),
+        ("thigh", np.array([0.0, 0.0, -1.0])), ("shank", np.array([0.0, 0.0, -1.0])),
+        ("foot", np.array([0.0, 1.0, 0.0])))},
+}
+"""Our link's direction towards the next joint of its chain in our zero pose (body axes; the foot: forward,
+compared in the horizontal plane, its pitch being the skeleton's shape)."""
+
+NEXT_SEGMENT: dict[str, str] = {
+    "abdomen": "thorax", "thorax": "neck", "neck": "head",
+    **{f"{s}_{a}": f"{s}_{b}" for s in SIDES for a, b in (
+        ("clavicle", "upper_arm"), ("upper_arm", "forearm"), ("forearm", "hand"), ("thigh", "shank"),
+        ("shank", "foot"))},
+}
+
+REST_TOLERANCE_RAD = math.radians(30.0)
+"""A link's rest direction further than this from ours is a different rest pose (a T- or A-pose arm), turned
+onto ours; closer, it is the skeleton's shape (a spine's curve, a toe-out) and left as it is."""
+
+SHARED: dict[str, tuple[str, str]] = {"abdomen": ("lumbar", "thoracic"), "neck": ("neck", "head")}
+"""A central link the BVH lacks -> our two joints that share the rotation across it equally."""
+
+
+def _normalise(name: str) -> str:
+    return re.sub(r"[\s_\-.]", "", name.rsplit(":", 1)[-1]).lower()
+
+
+def map_segments(bvh: Bvh) -> dict[str, int]:
+    """Our link -> the index of the BVH joint standing for it (only the links found; the pelvis always, the BVH
+    root if no joint is named for it). A link's joint must descend from its parent link's (or the nearest
+    mapped ancestor's), and no BVH joint stands for two links."""
+    normal = [_normalise(j.name) for j in bvh.joints]
+    ancestors: list[set[int]] = []
+    for j in bvh.joints:
+        ancestors.append(set() if j.parent < 0 else ancestors[j.parent] | {j.parent})
+    found: dict[str, int] = {}
+    used: set[int] = set()
+    for link in MATCH_ORDER:
+        above = _mapped_ancestor(link, found)
+        for name in SEGMENT_NAMES[link]:
+            hits = [i for i, n in enumerate(normal) if n == name and i not in used
+                    and (above is None or found[above] in ancestors[i])]
+            if hits:
+                found[link] = hits[0]
+                used.add(hits[0])
+                break
+        if link == "pelvis" and "pelvis" not in found:
+            found["pelvis"] = 0
+            used.add(0)
+    return found
+
+
+def _mapped_ancestor(link: str, found: dict[str, int]) -> str | None:
+    parent = SEGMENT_PARENT.get(link)
+    while parent is not None and parent not in found:
+        parent = SEGMENT_PARENT.get(parent)
+    return parent
+
+
+def body_axes(rest: np.ndarray, segments: dict[str, int], name: str = "<bvh>") -> np.ndarray:
+    """(3, 3) ``C``: rows are our right, forward and up axes in the file's; ``C v`` is a file vector in ours.
+
+    Raises :class:`BvhError` when the rest pose does not tell up (no head, neck or thorax above the pelvis) or
+    right (no left and right shoulders or hips)."""
+    top = next((segments[k] for k in ("head", "neck", "thorax") if k in segments), None)
+    if top is None:
+        raise BvhError(f"{name}: no head, neck or chest joint: cannot tell which way is up")
+    up = rest[top] - rest[segments["pelvis"]]
+    for kind in ("upper_arm", "clavicle", "thigh"):  # on the trunk first: a thigh's offset may follow the legs
+        left, right = segments.get(f"left_{kind}"), segments.get(f"right_{kind}")
+        if left is not None and right is not None:
+            across = rest[right] - rest[left]
+            break
+    else:
+        raise BvhError(f"{name}: no left and right shoulders or hips: cannot tell left from right")
+    if np.linalg.norm(up) < 1e-9:
+        raise BvhError(f"{name}: the head is at the hips in the rest pose: cannot tell which way is up")
+    up = up / np.linalg.norm(up)
+    across = across - np.dot(across, up) * up
+    if np.linalg.norm(across) < 1e-9:
+        raise BvhError(f"{name}: left and right lie along the spine in the rest pose: cannot tell them apart")
+    right = across / np.linalg.norm(across)
+    return np.array([right, np.cross(up, right), up])
+
+
+def rest_alignment(link: str, direction: np.ndarray) -> Rotation | None:
+    """``A``: turns our link's zero-pose frame onto the BVH's rest frame of it, given the link's rest
+    ``direction`` in our axes (see :data:`REST_TOLERANCE_RAD`); identity within the tolerance, None when the
+    direction says nothing (zero; a foot's pointing more down than forward, as an end site along the shank)."""
+    ours = REST_DIRECTION[link]
+    d = np.array(direction, dtype=float)
+    length = float(np.linalg.norm(d))
+    if link.endswith("foot"):
+        d[2] = 0.0
+    if length < 1e-9 or float(np.linalg.norm(d)) < 0.3 * length:
+        return None
+    d /= np.linalg.norm(d)
+    angle = math.acos(float(np.clip(np.dot(ours, d), -1.0, 1.0)))
+    if angle <= REST_TOLERANCE_RAD:
+        return Rotation.identity()
+    axis = np.cross(ours, d)
+    if np.linalg.norm(axis) < 1e-9:  # opposite: any perpendicular axis (a limb pointing up at rest)
+        axis = np.cross(ours, [1.0, 0.0, 0.0] if abs(ours[0]) < 0.9 else [0.0, 1.0, 0.0])
+    return Rotation.from_rotvec(axis / np.linalg.norm(axis) * angle)
+
+
+def _rest_direction(bvh: Bvh, rest: np.ndarray, link: str, segments: dict[str, int]) -> np.ndarray | None:
+    """The link's rest direction in the file (to the next mapped link's joint, else its first child joint or end
+    site), or None when it has nothing beyond it."""
+    i = segments[link]
+    nxt = NEXT_SEGMENT.get(link)
+    while nxt is not None and nxt not in segments:
+        nxt = NEXT_SEGMENT.get(nxt)
+    if nxt is not None:
+        return rest[segments[nxt]] - rest[i]
+    joint = bvh.joints[i]
+    if joint.children:
+        return np.asarray(bvh.joints[joint.children[0]].offset, dtype=float)
+    return None if joint.end_site is None else np.asarray(joint.end_site, dtype=float)
+
+
+def _half(rot: Rotation) -> Rotation:
+    return Rotation.from_rotvec(rot.as_rotvec() / 2.0)
+
+
+def bvh_clip(bvh: Bvh, name: str = "<bvh>", where: str | None = None) -> MotionClip:
+    """Our joints' rotations over the BVH's frames (see the module docstring); ``name`` names the clip,
+    ``where`` (default: the name) the file in errors.
+
+    Raises :class:`BvhError` when no joint of ours can be read (nothing matches our links' names, or the rest
+    pose does not tell up and right).
+    """
+    where = where or name
+    segments = map_segments(bvh)
+    rest = rest_positions(bvh)
+    c = body_axes(rest, segments, where)
+    to_ours = Rotation.from_matrix(c)
+    world, _ = world_frames(bvh)
+    frames: dict[str, Rotation] = {"pelvis": to_ours * world[segments["pelvis"]] * to_ours.inv()}
+    aligned: dict[str, Rotation] = {"pelvis": Rotation.identity()}
+    for link in MATCH_ORDER[1:]:  # parents first
+        if link not in segments:
+            continue
+        direction = _rest_direction(bvh, rest, link, segments)
+        align = None if direction is None else rest_alignment(link, c @ direction)
+        if align is None:  # nothing tells its rest direction: it continues its parent's
+            align = aligned[_mapped_ancestor(link, segments) or "pelvis"]
+        aligned[link] = align
+        frames[link] = to_ours * world[segments[link]] * to_ours.inv() * align
+    rotations: dict[str, Rotation] = {}
+    for joint, (parent, child) in JOINT_SEGMENTS.items():
+        if parent in frames and child in frames:
+            rotations[joint] = frames[parent].inv() * frames[child]
+    for missing, (lower, upper) in SHARED.items():
+        below, above = SEGMENT_PARENT[missing], NEXT_SEGMENT[missing]
+        if missing not in frames and below in frames and above in frames:
+            rotations[lower] = rotations[upper] = _half(frames[below].inv() * frames[above])
+    for side in SIDES:  # no clavicle: the shoulder turns the arm from the thorax
+        arm = f"{side}_upper_arm"
+        if f"{side}_clavicle" not in frames and arm in frames and "thorax" in frames:
+            rotations[f"{side}_shoulder"] = frames["thorax"].inv() * frames[arm]
+    if not rotations:
+        raise BvhError(f"{where}: none of its joints ({', '.join(j.name for j in bvh.joints[:8])}, ...) could be "
+                       "matched to the body's (hips, spine, neck, head, arms, legs by their usual BVH names)")
+    times = np.arange(len(bvh.motion)) * bvh.frame_time
+    return MotionClip(name, times, rotations)
+
+
+def load_bvh_clip(path: str | Path) -> MotionClip:
+    """:func:`bvh_clip` of a BVH file, named by its stem; :class:`BvhError` (a ``ValueError``) naming the file
+    for one that cannot be read or has fewer than two frames."""
+    p = Path(path)
+    bvh = read_bvh(p)
+    if len(bvh.motion) < 2:
+        raise BvhError(f"{p}: {len(bvh.motion)} motion frame(s): a range of motion needs at least two")
+    return bvh_clip(bvh, p.stem, str(p))
+
+
+LENGTH_SEGMENTS: tuple[str, ...] = ("upper_arm", "forearm", "thigh", "shank")
+"""The segments whose length a skeleton tells without doubt: from one joint centre to the next along a limb
+(a trunk's joints, a hand's or a foot's end are placed differently from one convention to another)."""
+NEXT_KIND = {"upper_arm": "forearm", "forearm": "hand", "thigh": "shank", "shank": "foot"}
+"""Each of those segments -> the segment whose joint ends it."""
+
+
+def bvh_segment_lengths(path: str | Path, units_to_m: float | None = None) -> dict[str, float]:
+    """Segment lengths (metres) from a BVH skeleton's rest pose, for :func:`anthropometry`'s ``lengths_m``:
+    each of :data:`LENGTH_SEGMENTS` found (by :func:`map_segments`), the mean of both sides where both are.
+
+    ``units_to_m``: factor from the file's units to metres; by default guessed (a skeleton whose longest
+    offset exceeds 3 is taken to be in centimetres).
+    """
+    bvh = read_bvh(path)
+    rest = rest_positions(bvh)
+    segments = map_segments(bvh)
+    if units_to_m is None:
+        units_to_m = 0.01 if max((float(np.linalg.norm(j.offset)) for j in bvh.joints), default=0.0) > 3.0 else 1.0
+    lengths: dict[str, float] = {}
+    for kind in LENGTH_SEGMENTS:
+        sides = [float(np.linalg.norm(rest[segments[f"{s}_{NEXT_KIND[kind]}"]] - rest[segments[f"{s}_{kind}"]]))
+                 for s in SIDES if f"{s}_{kind}" in segments and f"{s}_{NEXT_KIND[kind]}" in segments]
+        if sides:
+            lengths[kind] = float(np.mean(sides)) * units_to_m
+    return lengths
