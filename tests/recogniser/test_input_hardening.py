@@ -156,8 +156,10 @@ def _run_until(args: list[str], marker: str, tmp_path: Path) -> tuple[int, str]:
     """Run the CLI, press Ctrl-C once ``marker`` is printed; the exit status and stderr."""
     err_path = tmp_path / "stderr.txt"
     with err_path.open("w") as err:
+        # SIGINT at its default: a suite run in the background (``cmd &``) ignores it, and so would the child
         proc = subprocess.Popen([sys.executable, "-m", "services.recogniser.cli", *args], cwd=ROOT,
-                                stdout=subprocess.DEVNULL, stderr=err)
+                                stdout=subprocess.DEVNULL, stderr=err,
+                                preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
         try:
             deadline = time.monotonic() + 60
             while marker not in err_path.read_text() and proc.poll() is None and time.monotonic() < deadline:
