@@ -101,10 +101,14 @@ def bench(message: OscMessage, count: int) -> tuple[float, float, int]:
     return count / (t1 - t0), count / (t2 - t1), len(data)
 
 
-def main(argv: Sequence[str] | None = None) -> int:
+def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--count", type=count, default=5000, help="encodes and decodes per kind (default 5000)")
-    args = parser.parse_args(argv)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
     print(f"codec throughput, {args.count} encodes + {args.count} decodes per kind (python-osc + pydantic)")
     print(f"{'message':<20} {'bytes':>6} {'encode/s':>10} {'decode/s':>10} {'round trip/s':>13}")
     for name, message in samples().items():

@@ -1,6 +1,7 @@
 """Evaluate the simulated drummer on the Groove MIDI Dataset's validation split; print the aggregate table.
 
     python bench/evaluate_groove.py                    # a short default subset, cartesian and joint control
+                                                       # (4 files of at most 12 s: about 40 s)
     python bench/evaluate_groove.py --all --jobs 2     # the whole validation split (124 files, ~82 min of music)
     python bench/evaluate_groove.py --limit 10 --controls cartesian --renders /tmp/groove-renders
 
@@ -21,12 +22,14 @@ import json
 import multiprocessing
 import sys
 import time
+from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
 from batteur.evaluate import FileResult, aggregate, evaluate_scores, format_table
-from batteur.render import RenderOptions
+from batteur.render import CONTROL_MODES, RenderOptions, check_options
 from common.arg_types import count, hertz, seconds
+from common.output_paths import check_output_dir, check_output_file, write_atomically
 
 GROOVE = Path("/work/shared/data/groove")
 GOALS = ("goals (cartesian): F@25 >= 0.99, median |e| <= 3 ms, p95 |e| <= 10 ms, Spearman >= 0.9 (rho, pooled; rho_s: "
@@ -58,8 +61,12 @@ def _evaluate(files: list[tuple[Path, float]], opts: RenderOptions, renders: Pat
               jobs: int) -> list[FileResult]:
     """Render and evaluate every file (longest first over ``jobs`` processes); results in the files' order."""
     paths = [p for p, _ in files]
-    if jobs == 1:
-        return evaluate_scores(paths, opts, renders, quiet=True, reuse=reuse)
+    if jobs == 1:  # one file at a time, so that a long run shows its progress
+        out = []
+        for done, path in enumerate(paths, 1):
+            out += evaluate_scores([path], opts, renders, quiet=True, reuse=reuse)
+            print(f"  [{done}/{len(files)}] {path.name}", file=sys.stderr)
+        return out
     order = sorted(range(len(files)), key=lambda k: -files[k][1])  # long files first: the pool ends together
     results: dict[int, FileResult] = {}
     with ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
@@ -71,15 +78,19 @@ def _evaluate(files: list[tuple[Path, float]], opts: RenderOptions, renders: Pat
     return [results[k] for k in range(len(files))]
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--root", type=Path, default=GROOVE, help="Groove MIDI Dataset directory")
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--root", type=Path, default=GROOVE,
+                        help=f"Groove MIDI Dataset directory, with info.csv (default {GROOVE})")
     parser.add_argument("--all", action="store_true", help="every validation file (long: hours at today's speed)")
     parser.add_argument("--limit", type=count, default=4, help="files in the default subset (default 4)")
     parser.add_argument("--max-duration", type=seconds, default=12.0,
                         help="default subset: only files up to this long, seconds (default 12)")
-    parser.add_argument("--controls", default="cartesian,joint", help="control modes, comma-separated")
-    parser.add_argument("--renders", type=Path, default=None, help="keep renders in DIR/<control>/<stem>")
+    parser.add_argument("--controls", default="cartesian,joint",
+                        help=f"control modes, comma-separated, of: {', '.join(CONTROL_MODES)} "
+                             "(default cartesian,joint)")
+    parser.add_argument("--renders", type=Path, default=None, metavar="DIR",
+                        help="keep renders in DIR/<control>/<stem> (default: a temporary directory)")
     parser.add_argument("--reuse", action="store_true", help="reuse renders already in --renders")
     parser.add_argument("--calibration", type=Path, default=None, help="calibration JSON applied to the plans")
     parser.add_argument("--json", type=Path, default=None, help="also write every figure to this JSON file")
@@ -88,7 +99,44 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--jobs", type=count, default=1,
                         help="render this many files at once, one process each (default 1; wall-clock real-time "
                              "factors then count the sharing, CPU ones do not)")
+    return parser
+
+
+def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
+    """The options, checked before the first render (a bad one otherwise fails after minutes, or hours, of work);
+    ``args.controls`` becomes a list."""
+    from batteur.calibration import Calibration
+
+    parser = build_parser()
     args = parser.parse_args(argv)
+    if not (args.root / "info.csv").is_file():
+        parser.error(f"--root {args.root}: no info.csv there (the Groove MIDI Dataset's directory)")
+    controls = list(dict.fromkeys(c.strip() for c in args.controls.split(",") if c.strip()))
+    unknown = [c for c in controls if c not in CONTROL_MODES]
+    if not controls or unknown:
+        parser.error(f"--controls {args.controls!r}: {'unknown ' + ', '.join(unknown) if unknown else 'none given'}"
+                     f" (choose from {', '.join(CONTROL_MODES)})")
+    args.controls = controls
+    if args.reuse and args.renders is None:
+        parser.error("--reuse needs --renders DIR (the renders to reuse)")
+    if args.calibration is not None:
+        try:
+            Calibration.load(args.calibration)
+        except ValueError as exc:
+            parser.error(f"--calibration {exc}")
+    try:
+        check_options(RenderOptions(control_rate_hz=args.control_rate))
+        if args.renders is not None:
+            check_output_dir(args.renders, "--renders")
+        if args.json is not None:
+            check_output_file(args.json, "--json")
+    except ValueError as exc:
+        parser.error(str(exc))
+    return args
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = parse_args(argv)
     files = validation_files(args.root, None if args.all else args.limit, None if args.all else args.max_duration)
     if not files:
         print("no validation files found", file=sys.stderr)
@@ -98,7 +146,7 @@ def main(argv: list[str] | None = None) -> int:
           f"{' (all)' if args.all else f' (subset: --limit {args.limit}, --max-duration {args.max_duration:g})'}")
     rows = []
     dump: dict[str, object] = {"files": [str(p) for p, _ in files]}
-    for control in [c.strip() for c in args.controls.split(",") if c.strip()]:
+    for control in args.controls:
         started = time.perf_counter()
         opts = RenderOptions(control=control, calibration=args.calibration, control_rate_hz=args.control_rate)
         renders = args.renders / control if args.renders is not None else None
@@ -119,7 +167,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"  Spearman per sound: {agg['spearman_by_sound']}")
     print(GOALS)
     if args.json is not None:
-        args.json.write_text(json.dumps(dump, indent=2), encoding="utf-8")
+        write_atomically(args.json, json.dumps(dump, indent=2).encode("utf-8"))
         print(f"wrote {args.json}")
     return 0
 

@@ -6,7 +6,7 @@ the synthetic drummer (23 links), physics' 57-DOF drummer as it publishes
 itself (21 body links + 17 kit links, moving through random postures by the
 editor's forward kinematics) and a 60-link body. Prints figures; asserts nothing.
 
-    python bench/graphics_stream.py [--seconds S] [--rate HZ]
+    python bench/graphics_stream.py [--seconds S] [--rate HZ]    # about 3 x (S + 0.5) s: 12 s by default
 """
 
 from __future__ import annotations
@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import time
+from collections.abc import Sequence
 
 import numpy as np
 from websockets.asyncio.client import connect
@@ -60,11 +61,30 @@ async def measure(names: list[str], values: np.ndarray, seconds: float, rate: fl
     return received[0] / seconds, received[1] / seconds, osc_bytes
 
 
-def main() -> None:
+def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--seconds", type=seconds, default=3.0)
-    parser.add_argument("--rate", type=hertz, default=60.0, help="pose and view rate, Hz")
-    args = parser.parse_args()
+    parser.add_argument("--seconds", type=seconds, default=3.0,
+                        help="streaming time per body measured, seconds (default 3)")
+    parser.add_argument("--rate", type=hertz, default=60.0, help="pose and view rate, Hz, 1 to 240 (default 60)")
+    return parser
+
+
+def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
+    from pydantic import ValidationError
+
+    from common.datafile import first_error
+
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:  # the graphics node's own limits, before any server starts
+        GraphicsSettings(latency=0.0, clock="rig", rate_hz=args.rate)
+    except ValidationError as exc:
+        parser.error(f"--rate {args.rate:g}: {first_error(exc)}")
+    return args
+
+
+def main(argv: Sequence[str] | None = None) -> None:
+    args = parse_args(argv)
     sequence, _ = synthetic_performance(duration=2.0, rate_hz=60.0)
     big_names = [f"link{i}" for i in range(60)]
     big = np.tile(sequence.values, (1, 3, 1))[:, :60]

@@ -13,6 +13,7 @@ import argparse
 import json
 import tempfile
 import time
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -22,15 +23,41 @@ from common.arg_types import count, hertz, seconds
 from services.graphics.figure import synthetic_performance
 from services.graphics.video import render_frames, render_video
 
+VIDEO_SIZE = (16, 7680, 16, 4320)
+"""Frame sizes ``batteur render --video`` accepts: even widths 16 to 7680, even heights 16 to 4320, pixels."""
+VIDEO_FPS = (1.0, 240.0)
+"""Frame rates it accepts, frames per second."""
 
-def main() -> None:
+
+def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--seconds", type=seconds, default=2.0, help="performance length, seconds")
-    parser.add_argument("--width", type=count, default=640)
-    parser.add_argument("--height", type=count, default=360)
-    parser.add_argument("--fps", type=hertz, default=30.0)
+    parser.add_argument("--seconds", type=seconds, default=2.0, help="performance length, seconds (default 2)")
+    parser.add_argument("--width", type=count, default=640, help="frame width, pixels, even, 16 to 7680 (default 640)")
+    parser.add_argument("--height", type=count, default=360,
+                        help="frame height, pixels, even, 16 to 4320 (default 360)")
+    parser.add_argument("--fps", type=hertz, default=30.0, help="frames per second, 1 to 240 (default 30)")
     parser.add_argument("--score", type=Path, default=None, help="also time `batteur render SCORE --video`")
-    args = parser.parse_args()
+    return parser
+
+
+def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
+    """The options, checked before the frames are rendered (H.264 refuses odd sizes only after them)."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    w_min, w_max, h_min, h_max = VIDEO_SIZE
+    if args.width % 2 or args.height % 2 or not (w_min <= args.width <= w_max and h_min <= args.height <= h_max):
+        parser.error(f"--width {args.width} --height {args.height}: even numbers, {w_min}x{h_min} to {w_max}x{h_max}")
+    if not VIDEO_FPS[0] <= args.fps <= VIDEO_FPS[1]:
+        parser.error(f"--fps {args.fps:g}: {VIDEO_FPS[0]:g} to {VIDEO_FPS[1]:g} frames per second")
+    if int(args.seconds * args.fps) < 1:
+        parser.error(f"--seconds {args.seconds:g} at --fps {args.fps:g}: not one frame")
+    if args.score is not None and not args.score.is_file():
+        parser.error(f"--score {args.score}: no such file")
+    return args
+
+
+def main(argv: Sequence[str] | None = None) -> None:
+    args = parse_args(argv)
     sequence, impacts = synthetic_performance(duration=args.seconds, rate_hz=60.0)
     times = np.arange(int(args.seconds * args.fps)) / args.fps
     t0 = time.perf_counter()

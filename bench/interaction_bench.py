@@ -13,7 +13,7 @@ the figures of one run with each other). Three measurements:
 3. sustained: contacts sent as fast as the node keeps up (a bounded number in
    flight), impacts per second de-duplicated at the receiver, over a few seconds.
 
-    python bench/interaction_bench.py [--samples 2000] [--seconds 3] [--copies 4]
+    python bench/interaction_bench.py [--samples 2000] [--seconds 3] [--copies 5]   # about 10 s
 """
 
 from __future__ import annotations
@@ -217,12 +217,31 @@ def bench_loopback(samples: int, seconds: float, copies: int) -> None:
                 print(proc.stderr.read().decode(errors="replace")[-2000:], file=sys.stderr)
 
 
-def main(argv: list[str] | None = None) -> int:
+def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--samples", type=count, default=2000, help="latency samples (default 2000)")
     parser.add_argument("--seconds", type=seconds, default=3.0, help="sustained-rate duration, s (default 3)")
-    parser.add_argument("--copies", type=count, default=5, help="redundant copies per impact (default 5)")
+    parser.add_argument("--copies", type=count, default=5,
+                        help="redundant copies per impact, as interaction's config allows (default 5)")
+    return parser
+
+
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
+    from pydantic import ValidationError
+
+    from common.datafile import first_error
+
+    parser = build_parser()
     args = parser.parse_args(argv)
+    try:  # the node's own limit, before it is started
+        RedundancyConfig(copies=args.copies)
+    except ValidationError as exc:
+        parser.error(f"--copies {args.copies}: {first_error(exc)}")
+    return args
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_args(argv)
     print(f"interaction bench on {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.1f}")
     bench_core(args.samples)
     bench_loopback(args.samples, args.seconds, args.copies)

@@ -11,6 +11,10 @@ head right after the contact / speed into it) and the total impulse.
 
 from __future__ import annotations
 
+import argparse
+import math
+from collections.abc import Sequence
+
 from common.kit import EventType
 from common.messages import Contact
 from services.physics.core import PhysicsCore
@@ -19,6 +23,8 @@ from services.physics.strike_scene import StrikeScene
 EVENTS = (EventType.SNARE, EventType.FLOORTOM, EventType.HIGHTOM, EventType.RIDE, EventType.CRASH,
           EventType.HIHATCLOSED, EventType.COWBELL)
 SPEEDS = (1.0, 3.0, 6.0)
+STEPS = 120
+"""Steps simulated per throw (1 ms each)."""
 
 
 def measure(event: EventType, speed: float) -> tuple[int, float, float, float, float]:
@@ -27,7 +33,7 @@ def measure(event: EventType, speed: float) -> tuple[int, float, float, float, f
     assert isinstance(scene, StrikeScene)
     contacts: list[Contact] = []
     omega: dict[int, float] = {}
-    for k in range(1, 121):
+    for k in range(1, STEPS + 1):
         contacts += [o.message for o in core.step(k / 1000) if isinstance(o.message, Contact)]
         omega[k] = core.world.client.getJointState(scene.body, 0)[1]
     core.close()
@@ -38,18 +44,27 @@ def measure(event: EventType, speed: float) -> tuple[int, float, float, float, f
         if c.step == last + 1:
             last = c.step
     episode = [c for c in contacts if first <= c.step <= last]
-    rebound = omega[last + 1] / max(-omega[first - 1], 1e-9)
+    # a stick still on the head when the throw's time is up (it came to rest there) has no rebound: NaN
+    rebound = omega[last + 1] / max(-omega[first - 1], 1e-9) if last + 1 in omega else math.nan
     elasticity = core.kit.object(core.kit.events[event].object).elasticity
     return len(episode), episode[0].normal_velocity, rebound, sum(c.impulse for c in episode), elasticity
 
 
-def main() -> None:
+def build_parser() -> argparse.ArgumentParser:
+    return argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter,
+                                   epilog=f"No options. A rebound of nan: the stick was still on the head after "
+                                          f"{STEPS} ms (it came to rest there).")
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    build_parser().parse_args(argv)
     print(f"{'event':<13}{'elast.':>7}{'speed m/s':>10}{'steps':>7}{'v_in m/s':>10}{'rebound':>9}{'impulse Ns':>12}")
     for event in EVENTS:
         for speed in SPEEDS:
             steps, v_in, rebound, impulse, e = measure(event, speed)
             print(f"{event.value:<13}{e:7.2f}{speed:10.1f}{steps:7d}{v_in:10.2f}{rebound:9.2f}{impulse:12.4f}")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

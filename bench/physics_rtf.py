@@ -18,7 +18,7 @@ import cProfile
 import math
 import pstats
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -78,12 +78,25 @@ def best_of(repeat: int, make: Callable[[], PhysicsCore], seconds: float) -> tup
     return best
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seconds", type=seconds, default=2.0, help="simulated seconds per case")
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--seconds", type=seconds, default=2.0,
+                        help="simulated seconds per case, at least 0.001 (one step; default 2)")
     parser.add_argument("--repeat", type=count, default=1, help="runs per case, the best is printed (default 1)")
     parser.add_argument("--profile", action="store_true", help="print the top functions of a drummer run")
-    args = parser.parse_args()
+    return parser
+
+
+def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if round(args.seconds * 1000) < 1:  # no step to time: a division by zero after the whole run
+        parser.error(f"--seconds {args.seconds:g}: at least 0.001 (one 1 ms step)")
+    return args
+
+
+def main(argv: Sequence[str] | None = None) -> None:
+    args = parse_args(argv)
 
     print(f"physics real-time factor at 1 kHz, {args.seconds:.1f} simulated s per case (goal >= 5x)")
     t0 = time.perf_counter()

@@ -30,8 +30,10 @@ A PNG like the paper's figure is written to ``--out``.
 from __future__ import annotations
 
 import argparse
+import io
 import math
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -40,6 +42,7 @@ from scipy.spatial.transform import Rotation
 
 from common.arg_types import hertz, seconds
 from common.kit import EventType, Kit
+from common.output_paths import check_output_file, write_atomically
 from services.physics.body import LIMBS
 from services.physics.character import DOF_NAMES, JOINTS
 from services.physics.core import PhysicsCore
@@ -242,19 +245,63 @@ def plot(results: list[Result], path: Path) -> None:
             ax.grid(alpha=0.3)
     fig.suptitle("Joint-space vs Cartesian tracking (cf. Bouënard et al. 2009, Fig. 4)")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    png = io.BytesIO()
+    fig.savefig(png, format="png", dpi=110)
     plt.close(fig)
+    write_atomically(path, png.getvalue())
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--clips", nargs="*", default=["punch", "dance_a"], help="DeepMimic clips (upper body)")
-    parser.add_argument("--seconds", type=seconds, default=2.5, help="longest simulated time per case")
-    parser.add_argument("--out", type=Path, default=Path("physics_tracking.png"), help="PNG to write")
+SETTLE_S = 0.25
+"""The first 250 steps settle on the rest targets and are not measured."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--clips", nargs="*", default=["punch", "dance_a"],
+                        help="DeepMimic clips (upper body; default: punch dance_a; none: strokes only)")
+    parser.add_argument("--seconds", type=seconds, default=2.5,
+                        help=f"longest simulated time per case, seconds, above {SETTLE_S:g} (the settling; "
+                             "default 2.5)")
+    parser.add_argument("--out", type=Path, default=Path("physics_tracking.png"),
+                        help="PNG to write (default physics_tracking.png)")
     parser.add_argument("--control-rate", type=hertz, default=1000.0,
                         help="control updates per second, Hz (IK and inverse dynamics; the PD corrects the held "
                              "torques at every 1 ms step between; default 1000: every step)")
-    args = parser.parse_args()
+    return parser
+
+
+def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
+    """The options, checked before the first case runs (a bad one otherwise fails after minutes of work)."""
+    from pydantic import ValidationError
+
+    from common.datafile import first_error
+    from services.physics.core import PhysicsSettings
+
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.seconds <= SETTLE_S:
+        parser.error(f"--seconds {args.seconds:g}: more than {SETTLE_S:g} (the first {SETTLE_S:g} s settle and are "
+                     "not measured)")
+    for clip in args.clips:
+        try:
+            load_deepmimic(clip)
+        except (OSError, ValueError) as exc:
+            parser.error(f"--clips: {exc}")
+    try:
+        PhysicsSettings(control_rate_hz=args.control_rate)
+    except ValidationError as exc:
+        parser.error(f"--control-rate {args.control_rate:g}: {first_error(exc)}")
+    if args.out.suffix.lower() != ".png":
+        parser.error(f"--out {args.out}: a .png file")
+    try:
+        check_output_file(args.out, "--out")
+    except ValueError as exc:
+        parser.error(str(exc))
+    return args
+
+
+def main(argv: Sequence[str] | None = None) -> None:
+    args = parse_args(argv)
     cases: list[tuple[str, str | None]] = [("strokes", None)] + [(f"deepmimic {c}", c) for c in args.clips]
     results = []
     print(f"control updates at {args.control_rate:g} Hz, physics step 1 kHz")

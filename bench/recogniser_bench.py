@@ -39,11 +39,13 @@ from common.messages.recogniser import DrumHit  # noqa: E402
 from services.recogniser.audio import SAMPLE_RATE, resample  # noqa: E402
 from services.recogniser.classes import CLASS_NAMES, class_of_note  # noqa: E402
 from services.recogniser.core import LiveRecogniser  # noqa: E402
+from services.recogniser.errors import ModelError  # noqa: E402
 from services.recogniser.framenet import FrameNet  # noqa: E402
 from services.recogniser.model import MODEL_PATH, Model, load_model  # noqa: E402
 from services.recogniser.training.dataset import groove_files  # noqa: E402
 from services.recogniser.training.frames import ONSET_MERGE_S, onset_times  # noqa: E402
 from services.recogniser.training.kits import (  # noqa: E402
+    DRUMKITS_DIR,
     RENDER_RATE,
     TEST_KITS,
     TRAIN_KITS,
@@ -67,7 +69,7 @@ GROUPS["hihat (open+closed)"] = (2, 3)
 GROUPS["toms (all)"] = (4, 5, 6)
 
 
-def main(argv: list[str] | None = None) -> int:
+def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--files", type=count, default=None,
                     help="performances drawn at random from the split (default: all of them)")
@@ -79,7 +81,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--augment", action="store_true", help="add room, EQ and noise as in training")
     ap.add_argument("--model", type=Path, nargs="+", default=[MODEL_PATH],
                     help="model file(s) to score; several are scored on the same renders (default: the shipped one)")
-    ap.add_argument("--seed", type=int, default=7)
+    ap.add_argument("--seed", type=int, default=7, help="seed of the file draw and the renders, 0 or more (default 7)")
     ap.add_argument("--live", action="store_true", help="also score the live core (fed 128-sample blocks)")
     ap.add_argument("--onset-merge", type=seconds, default=ONSET_MERGE_S, metavar="S",
                     help="reference strikes within S seconds of an onset's first strike are one class-agnostic onset "
@@ -88,14 +90,33 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--losses", action="store_true",
                     help="also count where the class-agnostic onsets are lost (missed and extra onsets by cause) and "
                          "what the network's strikes would score with an ideal chord grouping or exact times")
+    return ap
+
+
+def parse_args(argv: list[str] | None = None, ap: argparse.ArgumentParser | None = None) -> argparse.Namespace:
+    """The options, checked (``ap.error``) before anything is rendered."""
+    ap = ap or build_parser()
     args = ap.parse_args(argv)
+    if args.seed < 0:
+        ap.error(f"--seed {args.seed}: 0 or more")
+    installed = sorted(d.name for d in DRUMKITS_DIR.glob("*") if (d / "drumkit.xml").is_file())
+    if installed and args.kit not in installed:  # the kits are there, the name is not one of them
+        ap.error(f"--kit {args.kit!r}: no such hydrogen kit in {DRUMKITS_DIR} (installed: {', '.join(installed)})")
+    return args
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = build_parser()
+    args = parse_args(argv, ap)
     try:
         require_kits([args.kit])
     except KitsMissingError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 1
-
-    models = [load_model(p) for p in args.model]
+    try:
+        models = [load_model(p) for p in args.model]
+    except ModelError as exc:
+        ap.error(f"--model {exc}")
     for path, model in zip(args.model, models, strict=True):
         if args.kit in set(model.meta.get("trained_on", TRAIN_KITS)):
             print(f"warning: {args.kit} was used for training {path}", file=sys.stderr)

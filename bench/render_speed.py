@@ -23,11 +23,11 @@ import math
 import tempfile
 import time
 from collections import defaultdict
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from batteur.render import RenderOptions, render_score
+from batteur.render import CONTROL_MODES, RenderOptions, check_options, render_score
 from common.arg_types import hertz, seconds
 
 BARS = """HH |x.x.x.x.x.x.x.x.|
@@ -94,16 +94,25 @@ def instrument(timings: dict[str, float]) -> Callable[[], None]:
     return restore
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--seconds", type=seconds, default=20.0, help="length of the piece (default 20; issue: 180)")
-    parser.add_argument("--control", default="cartesian", help="control mode (cartesian, joint, joint_spd)")
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter,
+                                     epilog="A run takes about the piece's length divided by the real-time factor "
+                                            "(default 20 s: about 20 s; 180 s: about two minutes per --jobs entry).")
+    parser.add_argument("--seconds", type=seconds, default=20.0,
+                        help="length of the piece, seconds (default 20; issue: 180)")
+    parser.add_argument("--control", default="cartesian", choices=list(CONTROL_MODES),
+                        help="control mode (default cartesian)")
     parser.add_argument("--control-rate", type=hertz, default=None, metavar="HZ",
                         help="drummer's full control updates per second (default: physics' default)")
     parser.add_argument("--no-breakdown", action="store_true", help="do not time the parts (no wrapper overhead)")
     parser.add_argument("--jobs", default="1",
                         help="processes per render, comma-separated to compare in one run (e.g. 1,2; above 1: "
                         "render --jobs, time segments in parallel; default 1)")
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
     args = parser.parse_args(argv)
     try:
         jobs = [int(j) for j in args.jobs.split(",")]
@@ -111,6 +120,10 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--jobs {args.jobs!r}: whole numbers, comma-separated")
     if any(j < 1 for j in jobs):
         parser.error("--jobs: each count must be at least 1")
+    try:  # before the render: a rate physics refuses fails there with a traceback
+        check_options(RenderOptions(control=args.control, control_rate_hz=args.control_rate))
+    except ValueError as exc:
+        parser.error(str(exc))
     factors = {n: run_once(args, n) for n in jobs}
     if len(factors) > 1:
         base = factors[jobs[0]]

@@ -1,6 +1,6 @@
 """Strike-to-output latency of the sound service: distribution, late strikes, real-time margin.
 
-    python bench/sound_latency.py
+    python bench/sound_latency.py            # no options; part 2 runs 5 s on the wall clock
 
 1. Scheduling (deterministic, simulated network): impacts at random rig times
    reach the core after a random network delay (log-normal, median 2 ms, long
@@ -21,7 +21,9 @@ import os
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
+import argparse  # noqa: E402
 import time  # noqa: E402
+from collections.abc import Sequence  # noqa: E402
 
 import numpy as np  # noqa: E402
 
@@ -98,7 +100,12 @@ def live(seconds: float = 5.0, latency: float = 0.02, seed: int = 5) -> None:
           f"(block {block * 1e3:.2f} ms)")
 
 
-def main() -> int:
+def build_parser() -> argparse.ArgumentParser:
+    return argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    build_parser().parse_args(argv)
     print("1. scheduling with simulated network delay (log-normal, median 2 ms)")
     for latency in (0.003, 0.01, 0.02, 0.05):
         lat, late = scheduling(latency)

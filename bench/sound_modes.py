@@ -1,6 +1,6 @@
 """How many sounding modes the sound service sustains in real time: vectorised bank vs one pyo object per mode.
 
-    python bench/sound_modes.py            # 50,000 modes, 256-sample blocks at 48 kHz
+    python bench/sound_modes.py            # 50,000 modes, 256-sample blocks at 48 kHz (a few seconds)
     python bench/sound_modes.py --modes 20000 --pyo-modes 1000 --blocks 200
 
 Both are measured in the same run on one core (BLAS limited to one thread).
@@ -22,10 +22,13 @@ os.environ.setdefault("MKL_NUM_THREADS", "1")
 
 import argparse  # noqa: E402
 import time  # noqa: E402
+from collections.abc import Sequence  # noqa: E402
+from typing import get_args  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from common.arg_types import count
+from common.arg_types import count  # noqa: E402
+from services.sound.core import SoundSettings  # noqa: E402
 from services.sound.modal_bank import ModeSet  # noqa: E402
 from services.sound.pyo_stage import _quiet_stderr, import_pyo  # noqa: E402
 
@@ -77,13 +80,22 @@ def pyo_block_times(modes: int, block: int, sr: int, blocks: int, seed: int = 0)
         server.shutdown()
 
 
-def main(argv: list[str] | None = None) -> int:
+BLOCK_SIZES: tuple[int, ...] = get_args(SoundSettings.model_fields["block_size"].annotation)
+"""The sound service's block sizes (any other, with a large prime factor, needs a table of modes x block)."""
+
+
+def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--modes", type=count, default=50000, help="modes in the vectorised bank (default 50000)")
     parser.add_argument("--pyo-modes", type=count, default=2000, help="pyo resonator objects (default 2000)")
-    parser.add_argument("--block", type=count, default=256, help="block size, samples (default 256)")
+    parser.add_argument("--block", type=int, default=256, choices=BLOCK_SIZES,
+                        help="block size, samples, as the sound service offers (default 256)")
     parser.add_argument("--blocks", type=count, default=300, help="blocks timed (default 300)")
-    args = parser.parse_args(argv)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
     sr = 48000
     budget = args.block / sr
     half = budget / 2

@@ -37,7 +37,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from common.arg_types import count, hertz
+from common.arg_types import count, hertz, seconds  # noqa: E402
 from common.messages import ClockPing, Hello, Impact, OscMessage  # noqa: E402
 from common.transport import DEFAULT_RCVBUF, UdpEndpoint  # noqa: E402
 
@@ -145,20 +145,42 @@ async def send(
     return results
 
 
-def main(argv: Sequence[str] | None = None) -> int:
+MAX_BUSY_S = 65.535
+"""The receiver is told how long to be busy in a Hello's port field (milliseconds, at most 65535)."""
+MAX_RCVBUF = 2**31 - 1
+"""The largest receive buffer a socket option can ask for (a C int), bytes."""
+
+
+def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--pings", type=count, default=3000, help="latency samples (default 3000)")
     parser.add_argument("--pace-hz", type=hertz, default=1000.0, help="latency send rate, Hz (default 1000)")
     parser.add_argument("--burst", type=count, default=10_000, help="messages per burst (default 10000)")
-    parser.add_argument("--busy", type=float, default=1.0,
-                        help="seconds the receiver is busy during each burst (default 1)")
-    parser.add_argument("--rcvbuf", type=int, default=DEFAULT_RCVBUF, help="tuned receive buffer to ask for, bytes")
+    parser.add_argument("--busy", type=seconds, default=1.0,
+                        help=f"seconds the receiver is busy during each burst, at most {MAX_BUSY_S:g} (default 1)")
+    parser.add_argument("--rcvbuf", type=count, default=DEFAULT_RCVBUF,
+                        help=f"tuned receive buffer to ask for, bytes (default {DEFAULT_RCVBUF})")
     parser.add_argument("--realtime", action="store_true",
                         help="run all three processes at SCHED_FIFO priority 10 (needs root): measures the transport "
                         "rather than a busy machine's scheduler")
     parser.add_argument("--receive", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--raw-receive", action="store_true", help=argparse.SUPPRESS)
+    return parser
+
+
+def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
+    """The options, checked before the child processes start (a bad value otherwise fails half-way through)."""
+    parser = build_parser()
     args = parser.parse_args(argv)
+    if args.busy > MAX_BUSY_S:
+        parser.error(f"--busy {args.busy:g}: at most {MAX_BUSY_S:g} seconds")
+    if args.rcvbuf > MAX_RCVBUF:
+        parser.error(f"--rcvbuf {args.rcvbuf}: at most {MAX_RCVBUF} bytes")
+    return args
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = parse_args(argv)
     if args.receive:
         asyncio.run(receive(args.rcvbuf))
         return 0

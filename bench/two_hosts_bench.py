@@ -24,6 +24,7 @@ import json
 import sys
 import textwrap
 import time
+from collections.abc import Sequence
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -155,13 +156,27 @@ def lost_strikes(rig: TwoHosts, tmp: Path, strikes: int, gap: float, copies: int
     return len(sent), len(got), int(done["copies"])
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--pings", type=count, default=2000, help="one-way latency samples")
-    parser.add_argument("--strikes", type=count, default=400, help="strikes per redundancy setting")
-    parser.add_argument("--gap", type=seconds, default=0.03, help="seconds between strikes")
-    parser.add_argument("--loss", type=int, default=5, help="percent of datagrams dropped on B")
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--pings", type=count, default=2000,
+                        help="one-way latency samples (default 2000; a quarter of them through the relay)")
+    parser.add_argument("--strikes", type=count, default=400, help="strikes per redundancy setting (default 400)")
+    parser.add_argument("--gap", type=seconds, default=0.03, help="seconds between strikes (default 0.03)")
+    parser.add_argument("--loss", type=int, default=5, help="percent of datagrams dropped on B, 0 to 100 (default 5)")
+    return parser
+
+
+def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
+    """The options, checked before the namespaces are made (a bad --loss otherwise fails in nft half-way)."""
+    parser = build_parser()
     args = parser.parse_args(argv)
+    if not 0 <= args.loss <= 100:
+        parser.error(f"--loss {args.loss}: a percentage, 0 to 100")
+    return args
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = parse_args(argv)
     reason = netns_unavailable_reason()
     if reason is not None:
         print(f"two_hosts_bench: {reason}", file=sys.stderr)
