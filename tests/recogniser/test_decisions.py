@@ -68,6 +68,7 @@ def test_missing_kits_fail_with_an_install_hint(tmp_path: Path) -> None:
     with pytest.raises(KitsMissingError, match="apt-get install hydrogen-drumkits") as err:
         require_kits(["Present", "Absent Kit"], root=tmp_path)
     assert "Absent Kit" in str(err.value) and "Present," not in str(err.value)
+    assert "(installed there: Present)" in str(err.value)  # a misspelt kit name shows beside the real ones
 
 
 def test_thresholds_and_peak_window_are_chosen_on_validation_frames_of_5_ms() -> None:

@@ -54,10 +54,10 @@ def require_kits(names: tuple[str, ...] | list[str], root: Path = DRUMKITS_DIR) 
     """Raise :class:`KitsMissingError` with an install hint unless every kit folder in ``names`` exists."""
     missing = [n for n in names if not (root / n / "drumkit.xml").exists()]
     if missing:
-        raise KitsMissingError(
-            f"hydrogen drum kits not found in {root}: {', '.join(missing)}. "
-            "Install them with `apt-get install hydrogen-drumkits` (Debian/Ubuntu)."
-        )
+        installed = sorted(p.parent.name for p in root.glob("*/drumkit.xml")) if root.is_dir() else []
+        there = f" (installed there: {', '.join(installed)})" if installed else ""  # a misspelt name shows
+        raise KitsMissingError(f"hydrogen drum kits not found in {root}: {', '.join(missing)}{there}. "
+                               "Install them with `apt-get install hydrogen-drumkits` (Debian/Ubuntu).")
 
 RENDER_RATE = 44100
 """Sample rate of training and benchmark audio, Hz: kits are loaded and excerpts rendered at it (a network
