@@ -6,9 +6,11 @@ epoch (so all local nodes share one rig clock), static peers for the others
 (so the rig works where loopback has no multicast; ``--no-static-peers``
 leaves finding each other to zeroconf alone) and, unless ``--no-discovery``,
 zeroconf discovery on the given interfaces.
-Output lines are prefixed with the role. Ctrl-C (SIGINT) or SIGTERM stops
-every child with SIGINT, waits up to ``--stop-timeout`` seconds, then kills
-what is left. If one service exits, the others are stopped too.
+Output lines are prefixed with the role. Ctrl-C (SIGINT), SIGTERM or SIGHUP
+stops every child with SIGTERM, waits up to ``--stop-timeout`` seconds, then
+kills what is left. If one service exits, the others are stopped too.
+``--record DIR``: sound writes ``DIR/.performance.part.wav``, renamed to
+``DIR/performance.wav`` once sound has stopped cleanly (removed otherwise).
 
 ``--score FILE`` (a .mid or text score, or ``demo`` for the demo groove of
 ``batteur demo``) makes the drummer play it live: the physics node gets
@@ -23,18 +25,35 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import contextlib
+import errno
+import math
+import os
 import signal
+import socket
 import sys
 import tempfile
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TextIO
 
+from common.arg_types import positive, seconds
 from common.output_paths import check_output_dir
 
 ROLES = ("physics", "interaction", "sound", "graphics")
 PORT_OFFSET = {role: i for i, role in enumerate(ROLES)}
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+"""Signals that stop the rig: Ctrl-C, kill, and the terminal closing (the services, in their own sessions, would
+not get its SIGHUP and would run on as orphans)."""
+CLEAN_STOP = (0, -signal.SIGTERM)
+"""Exit codes of a service the rig stopped that mean it stopped cleanly: a node stops on SIGTERM with 0; one still
+loading (no handler yet) just ends, with nothing to clean up (sound's recording is kept only after a 0)."""
+RECORDING = "performance.wav"
+RECORDING_PART = ".performance.part.wav"
+"""What sound writes while it runs; renamed to RECORDING once sound has stopped cleanly, so a failed rig leaves
+no partial recording (nor replaces an earlier one)."""
 
 
 @dataclass
@@ -56,7 +75,12 @@ def plan_rig(opts: argparse.Namespace, epoch: float) -> list[ServicePlan]:
     if unknown or not roles:
         named = ", ".join(unknown) or "(none)"
         raise ValueError(f"--services: unknown role(s) {named}; choose from {', '.join(ROLES)}")
+    if len(set(roles)) < len(roles):  # two services of a role would share its port; the rig runs one of each
+        raise ValueError(f"--services {opts.services}: each role at most once")
     ports = {role: opts.base_port + PORT_OFFSET[role] for role in roles}
+    if max(ports.values()) > 65535:
+        raise ValueError(f"--base-port {opts.base_port}: {', '.join(roles)} would need UDP ports up to "
+                         f"{max(ports.values())}, above 65535")
     plans: list[ServicePlan] = []
     for role in roles:
         args = ["--host", opts.host, "--epoch", repr(epoch), "--node-id", f"{role}-rig{opts.base_port}"]
@@ -86,113 +110,233 @@ def role_args(role: str, opts: argparse.Namespace) -> list[str]:
             args += ["--scene", "strike", "--strike-period", repr(opts.strike_period),
                      "--strike-velocity", repr(opts.strike_velocity)]
     if role == "sound" and opts.record:
-        args += ["--wav", str(Path(opts.record) / "performance.wav")]
+        args += ["--wav", str(Path(opts.record) / RECORDING_PART)]
     for item in getattr(opts, f"{role}_arg") or []:
         args += item.split()
     return args
 
 
+def describe_exit(code: int) -> str:
+    """How a service ended, from its exit code (negative: the signal that killed it)."""
+    if code >= 0:
+        return f"exited with code {code}"
+    try:
+        return f"was killed by {signal.Signals(-code).name}"
+    except ValueError:
+        return f"was killed by signal {-code}"
+
+
+class Output:
+    """The rig's lines to one stream. Once the stream is gone (``batteur rig | head``, a closed terminal) lines are
+    dropped, so the rig still drains the services' output (a service blocked on a full pipe would not stop) and
+    still stops them."""
+
+    def __init__(self, stream: TextIO) -> None:
+        self.stream = stream
+        self.broken = False
+
+    def write(self, text: str) -> None:
+        if self.broken:
+            return
+        try:
+            self.stream.write(text)
+            self.stream.flush()
+        except (OSError, ValueError):  # BrokenPipeError; ValueError: the file was closed
+            self.broken = True
+            _point_at_devnull(self.stream)
+
+
+def _point_at_devnull(stream: TextIO) -> None:
+    """Point a broken stream's descriptor at /dev/null, so the interpreter's last flush does not fail at exit."""
+    try:
+        fd = stream.fileno()
+    except (OSError, ValueError, AttributeError):
+        return
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, fd)
+    os.close(devnull)
+
+
 class Rig:
     """Runs the planned services and stops them together."""
 
-    def __init__(self, plans: list[ServicePlan], stop_timeout_s: float) -> None:
+    LINE_LIMIT = 1 << 20
+    """Longest service output line read whole, bytes (a longer one is dropped, reading goes on)."""
+
+    def __init__(self, plans: list[ServicePlan], stop_timeout_s: float,
+                 out: TextIO | None = None, err: TextIO | None = None) -> None:
         self.plans = plans
         self.stop_timeout_s = stop_timeout_s
+        self.out = Output(out or sys.stdout)
+        self.err = Output(err or sys.stderr)
         self.procs: dict[str, asyncio.subprocess.Process] = {}
         self.stopping = asyncio.Event()
         self.exit_codes: dict[str, int] = {}
+        self.failures: dict[str, int] = {}
+        """Services that ended on their own with a non-zero code or could not start, in the order they did."""
 
     async def _pump(self, role: str, stream: asyncio.StreamReader | None) -> None:
         if stream is None:
             return
         width = max(len(p.role) for p in self.plans)
-        while line := await stream.readline():
-            sys.stdout.write(f"[{role:<{width}}] {line.decode(errors='replace')}")
-            sys.stdout.flush()
+        while True:
+            try:
+                line = await stream.readline()
+            except ValueError:  # a line over LINE_LIMIT (asyncio drops it); keep reading so the service never blocks
+                continue
+            if not line:
+                return
+            self.out.write(f"[{role:<{width}}] {line.decode(errors='replace')}")
 
     async def _watch(self, role: str, proc: asyncio.subprocess.Process) -> None:
         code = await proc.wait()
         self.exit_codes[role] = code
         if not self.stopping.is_set():
-            print(f"batteur rig: {role} exited with code {code}; stopping the rig", file=sys.stderr)
+            if code != 0:
+                self.failures.setdefault(role, code)
+            self.err.write(f"batteur rig: {role} {describe_exit(code)}; stopping the rig\n")
             self.stopping.set()
 
-    async def run(self, duration_s: float | None) -> int:
-        loop = asyncio.get_running_loop()
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            loop.add_signal_handler(sig, self.stopping.set)
-        tasks: list[asyncio.Task[None]] = []
-        for plan in self.plans:
+    async def _start(self, plan: ServicePlan) -> asyncio.subprocess.Process | None:
+        try:
             proc = await asyncio.create_subprocess_exec(
                 *plan.argv(), stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.STDOUT,
                 start_new_session=True,  # Ctrl-C reaches the rig only; the rig stops the children in order
+                limit=self.LINE_LIMIT,
             )
-            self.procs[plan.role] = proc
-            print(f"batteur rig: started {plan.role} (pid {proc.pid}) on UDP port {plan.port}", flush=True)
-            tasks.append(asyncio.create_task(self._pump(plan.role, proc.stdout)))
-            tasks.append(asyncio.create_task(self._watch(plan.role, proc)))
-        try:
-            if duration_s is None:
-                await self.stopping.wait()
-            else:
+        except OSError as exc:
+            self.err.write(f"batteur rig: cannot start {plan.role}: {exc.strerror or exc}\n")
+            self.failures[plan.role] = 1
+            return None
+        self.out.write(f"batteur rig: started {plan.role} (pid {proc.pid}) on UDP port {plan.port}\n")
+        return proc
+
+    async def run(self, duration_s: float | None) -> int:
+        """Start the services, run until a stop signal, ``duration_s`` or a service ending; the exit code."""
+        loop = asyncio.get_running_loop()
+        for sig in STOP_SIGNALS:
+            loop.add_signal_handler(sig, self.stopping.set)
+        tasks: list[asyncio.Task[None]] = []
+        try:  # whatever happens here, the services started are stopped: none is left running
+            for plan in self.plans:
+                if self.stopping.is_set():  # stopped while starting: start no more
+                    break
+                proc = await self._start(plan)
+                if proc is None:
+                    break
+                self.procs[plan.role] = proc
+                tasks.append(asyncio.create_task(self._pump(plan.role, proc.stdout)))
+                tasks.append(asyncio.create_task(self._watch(plan.role, proc)))
+            try:
                 await asyncio.wait_for(self.stopping.wait(), timeout=duration_s)
-        except TimeoutError:
-            pass
-        self.stopping.set()
-        await self.stop()
-        await asyncio.gather(*tasks, return_exceptions=True)
-        failed = {role: code for role, code in self.exit_codes.items() if code not in (0, -signal.SIGINT)}
-        return 1 if failed else 0
+            except TimeoutError:
+                pass
+        finally:
+            self.stopping.set()
+            await self.stop()
+            await asyncio.gather(*tasks, return_exceptions=True)
+        return self.exit_code()
+
+    def stopped_cleanly(self, role: str) -> bool:
+        """Whether the service ran and stopped cleanly when the rig stopped it."""
+        return role not in self.failures and self.exit_codes.get(role) in CLEAN_STOP
+
+    def exit_code(self) -> int:
+        """0 when every service stopped cleanly; else the code of the first that failed (2: it refused its
+        options), or 1 (it was killed)."""
+        failed = [*self.failures.values(), *(c for r, c in self.exit_codes.items() if not self.stopped_cleanly(r)
+                                             and r not in self.failures)]
+        return 0 if not failed else failed[0] if failed[0] > 0 else 1
 
     async def stop(self) -> None:
-        """SIGINT every child, wait up to the stop timeout, then SIGKILL the rest."""
+        """SIGTERM every child, wait up to the stop timeout, then SIGKILL the rest.
+
+        SIGTERM, not SIGINT: a node handles both the same, but a service still loading ends quietly on SIGTERM,
+        where SIGINT would print a KeyboardInterrupt traceback (or "Fatal Python error" during interpreter start).
+        """
         for proc in self.procs.values():
             if proc.returncode is None:
-                proc.send_signal(signal.SIGINT)
+                with contextlib.suppress(ProcessLookupError):
+                    proc.send_signal(signal.SIGTERM)
         deadline = time.monotonic() + self.stop_timeout_s
         for role, proc in self.procs.items():
             remaining = max(0.0, deadline - time.monotonic())
             try:
                 await asyncio.wait_for(proc.wait(), timeout=remaining)
             except TimeoutError:
-                print(f"batteur rig: {role} did not stop in {self.stop_timeout_s:g} s; killing it", file=sys.stderr)
-                proc.kill()
+                self.err.write(f"batteur rig: {role} did not stop in {self.stop_timeout_s:g} s; killing it\n")
+                with contextlib.suppress(ProcessLookupError):
+                    proc.kill()
                 await proc.wait()
+
+
+def non_negative(text: str) -> float:
+    """A finite number of at least 0 (seconds)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not 0.0 <= value < math.inf:
+        raise argparse.ArgumentTypeError(f"{text!r}: give a finite number of at least 0")
+    return value
+
+
+def port_number(text: str) -> int:
+    """A UDP port, 1 to 65535."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if not 1 <= value <= 65535:
+        raise argparse.ArgumentTypeError(f"{text!r}: give a port from 1 to 65535")
+    return value
 
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="batteur rig",
         description="Start the Batteur services as local processes (the embedded default rig). "
-        "Ctrl-C stops them all.",
+        "Ctrl-C stops them all; so does a service that exits (exit code: 0 after a clean stop, else the failing "
+        "service's code, or 1).",
     )
-    parser.add_argument("--services", default=",".join(ROLES), help="comma-separated roles to start (default: all)")
-    parser.add_argument("--base-port", type=int, default=9101,
-                        help="UDP port of physics; interaction, sound, graphics take the next ones (default 9101)")
+    parser.add_argument("--services", default=",".join(ROLES),
+                        help=f"comma-separated roles to start, each at most once (default: {','.join(ROLES)})")
+    parser.add_argument("--base-port", type=port_number, default=9101,
+                        help="UDP port of physics; interaction, sound, graphics take the next three "
+                        "(default 9101, so 9101-9104)")
     parser.add_argument("--host", default="127.0.0.1", help="address the services listen on (default 127.0.0.1)")
-    parser.add_argument("--no-discovery", action="store_true", help="static peers only, no zeroconf")
+    parser.add_argument("--no-discovery", action="store_true",
+                        help="static peers only, no zeroconf (default: zeroconf on --interfaces too)")
     parser.add_argument("--no-static-peers", action="store_true",
-                        help="find each other by zeroconf only (needs multicast on the interfaces)")
-    parser.add_argument("--interfaces", default="", help="comma-separated interfaces for zeroconf (default: loopback)")
-    parser.add_argument("--start-delay", type=float, default=3.0,
+                        help="find each other by zeroconf only (needs multicast on the interfaces; default: each "
+                        "service also gets the others' ports)")
+    parser.add_argument("--interfaces", default="",
+                        help="comma-separated addresses or interface names for zeroconf (default: loopback)")
+    parser.add_argument("--start-delay", type=non_negative, default=3.0,
                         help="seconds between launch and rig time 0, so every service is up (default 3)")
-    parser.add_argument("--duration", type=float, default=None,
-                        help="stop after this many seconds of wall time (default: run until Ctrl-C)")
-    parser.add_argument("--stop-timeout", type=float, default=4.0,
+    parser.add_argument("--duration", type=seconds, default=None,
+                        help="stop after this many seconds of wall time from launch (default: run until Ctrl-C)")
+    parser.add_argument("--stop-timeout", type=seconds, default=4.0,
                         help="seconds to wait for services to stop before killing them (default 4)")
-    parser.add_argument("--record", type=Path, default=None, help="directory for performance.wav (sound output)")
-    parser.add_argument("--strike-period", type=float, default=0.0,
-                        help="strike scene instead of a score: a strike every this many seconds of rig time")
-    parser.add_argument("--strike-velocity", type=float, default=3.0, help="strike scene: tip speed, m/s (default 3)")
+    parser.add_argument("--record", type=Path, default=None, metavar="DIR",
+                        help=f"sound writes what it plays to DIR/{RECORDING} (+ .json: rig time of its first "
+                        "sample), kept only if sound stops cleanly; DIR is created (default: no recording)")
+    parser.add_argument("--strike-period", type=non_negative, default=0.0,
+                        help="strike scene instead of a score: a strike every this many seconds of rig time "
+                        "(default 0: off)")
+    parser.add_argument("--strike-velocity", type=positive, default=3.0,
+                        help="strike scene: tip speed, m/s (default 3)")
     parser.add_argument("--score", default=None, metavar="FILE",
                         help="the drummer plays this score live (.mid or text score; 'demo': the groove of "
-                        "batteur demo)")
-    parser.add_argument("--play-at", type=float, default=1.0,
+                        "batteur demo; default: none, the drummer idles)")
+    parser.add_argument("--play-at", type=non_negative, default=1.0,
                         help="rig time at which --score starts, seconds after rig time 0 (default 1)")
-    parser.add_argument("--log-level", default="", help="log level for every service (default: theirs)")
+    parser.add_argument("--log-level", type=str.upper, choices=("DEBUG", "INFO", "WARNING", "ERROR"), default=None,
+                        help="log level for every service (default: theirs, INFO)")
     for role in ROLES:
         parser.add_argument(f"--{role}-arg", action="append", metavar="ARGS",
-                            help=f"extra arguments for {role} (repeatable; split on spaces)")
+                            help=f"extra arguments for {role}, e.g. --{role}-arg='--log-level DEBUG' (repeatable; "
+                            f"split on spaces; see batteur {role} --help)")
     return parser
 
 
@@ -208,18 +352,82 @@ def check_score(opts: argparse.Namespace) -> None:
         raise ValueError("--score needs the physics service (--services)")
     if not Path(opts.score).is_file():
         raise ValueError(f"--score {opts.score}: no such file")
-    if opts.play_at < 0:
-        raise ValueError("--play-at must be >= 0 (rig seconds)")
     from common.score.text import read_score
 
     if not read_score(opts.score).events:  # ScoreError (a ValueError) for a broken file, before any service starts
         raise ValueError(f"--score {opts.score}: no drum events to play")
 
 
+def check_ports(plans: list[ServicePlan], host: str) -> None:
+    """Raise ValueError when a service could not listen on its UDP port, before any service starts (else the
+    others start, and the one that cannot bind stops them)."""
+    for plan in plans:
+        try:
+            family, kind, proto, _, address = socket.getaddrinfo(host, plan.port, type=socket.SOCK_DGRAM)[0]
+            with socket.socket(family, kind, proto) as probe:
+                probe.bind(address)
+        except socket.gaierror as exc:
+            raise ValueError(f"--host {host}: {exc.strerror}") from None
+        except OSError as exc:
+            if exc.errno == errno.EADDRINUSE:
+                raise ValueError(f"UDP port {plan.port} ({plan.role}) on {host} is in use (another rig?); choose "
+                                 "another --base-port") from None
+            raise ValueError(f"--host {host}: cannot listen there ({exc.strerror or exc})") from None
+
+
+def check_record(opts: argparse.Namespace) -> None:
+    """Raise ValueError for a --record folder that cannot be written, or when no sound service would record."""
+    if opts.record is None:
+        return
+    if "sound" not in [r.strip() for r in opts.services.split(",")]:
+        raise ValueError("--record needs the sound service (--services)")
+    check_output_dir(Path(opts.record), "--record")
+
+
+def make_record_dir(opts: argparse.Namespace) -> None:
+    """Create the --record folder (ValueError when it cannot be, e.g. under /proc)."""
+    if opts.record is None:
+        return
+    try:
+        Path(opts.record).mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ValueError(f"--record {opts.record}: cannot create it ({exc.strerror or exc})") from None
+
+
+def finish_recording(folder: Path, sound_stopped_cleanly: bool, out: Output, err: Output) -> None:
+    """Give sound's recording its name once sound stopped cleanly (the file is whole); else remove it, since it may
+    be cut short, and leave an earlier recording in place."""
+    part = folder / RECORDING_PART
+    meta = part.with_name(part.name + ".json")
+    if not part.exists():
+        err.write(f"batteur rig: nothing recorded in {folder} (sound did not start recording)\n")
+        return
+    if not sound_stopped_cleanly:
+        part.unlink()
+        meta.unlink(missing_ok=True)
+        err.write(f"batteur rig: sound did not stop cleanly; its recording was discarded ({folder / RECORDING} "
+                  "not written)\n")
+        return
+    if meta.exists():
+        os.replace(meta, folder / f"{RECORDING}.json")
+    os.replace(part, folder / RECORDING)
+    out.write(f"batteur rig: recorded {folder / RECORDING}\n")
+
+
+async def run_rig(plans: list[ServicePlan], opts: argparse.Namespace) -> int:
+    """Run the rig, then name or discard the recording (still under the rig's signal handlers)."""
+    rig = Rig(plans, opts.stop_timeout)
+    code = await rig.run(opts.duration)
+    if opts.record is not None:  # the WAV is whole only when sound closed it itself
+        finish_recording(Path(opts.record), rig.stopped_cleanly("sound") and rig.exit_codes["sound"] == 0,
+                         rig.out, rig.err)
+    return code
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     opts = build_parser().parse_args(argv)
     with tempfile.TemporaryDirectory(prefix="batteur-rig-") as tmp:
-        if opts.score == "demo" and not Path("demo").exists():
+        if opts.score == "demo" and not Path("demo").is_file():  # a folder named demo is not a score
             from batteur.demo import DEMO_GROOVE
 
             opts.score = str(Path(tmp) / "demo-groove.txt")
@@ -227,15 +435,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         epoch = time.time() + opts.start_delay
         try:
             check_score(opts)
-            if opts.record:
-                check_output_dir(Path(opts.record), "--record")
             plans = plan_rig(opts, epoch)
+            check_record(opts)
+            check_ports(plans, opts.host)
+            make_record_dir(opts)  # last: a refused option leaves no folder behind
         except ValueError as exc:
             print(f"batteur rig: {exc}", file=sys.stderr)
             return 2
-        if opts.record:
-            Path(opts.record).mkdir(parents=True, exist_ok=True)
         if opts.score:
             print(f"batteur rig: the drummer plays {opts.score} from rig time {opts.play_at:g} s "
                   f"({opts.start_delay + opts.play_at:g} s after launch)", flush=True)
-        return asyncio.run(Rig(plans, opts.stop_timeout).run(opts.duration))
+        return asyncio.run(run_rig(plans, opts))
