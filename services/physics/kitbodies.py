@@ -222,6 +222,9 @@ class KitBodies:
     _hihat_target: float = -1.0
     hihat_closing_rate: float = 0.0
     """How fast the pedal closes the hi-hat's clutch target this step, m/s (negative: opening)."""
+    held_press: float = 0.0
+    """A kit without the hi-hat's pedal body (the strike scene): how far a foot holds that pedal down (0 rest ...
+    1 flat), the hi-hat's gap following as if the pedal were there."""
 
     def pedal_closing(self) -> bool:
         """Whether the foot is closing the hi-hat now (a plate contact is a chick, not a rattle)."""
@@ -277,7 +280,7 @@ class KitBodies:
         c = world.client
         hh = self.hihat
         if hh is not None:
-            press = 0.0
+            press = self.held_press
             if hh.pedal is not None:  # its angle as the pedal's return spring just read it
                 q = self._joint_angles.get((hh.pedal.body, hh.pedal.footboard_joint))
                 press = hh.pedal.press(world) if q is None else hh.pedal.press_at(q)

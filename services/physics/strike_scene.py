@@ -20,7 +20,7 @@ import pybullet as p
 
 from common.kit import EventType, Kit
 from services.physics.contacts import ContactTracker, Striker
-from services.physics.kitbodies import KitBodies, build_kit
+from services.physics.kitbodies import KitBodies, build_kit, hihat_gap
 from services.physics.sticks import StickSpec
 from services.physics.urdf import Inertial, Joint, Link, Robot, load_robot
 from services.physics.world import World
@@ -57,6 +57,13 @@ class StrikeScene:
         obj = kit.object(spec.object)
         self.instrument = obj.id
         self.kit_bodies: KitBodies = build_kit(world, kit, only={obj.id})
+        hihat = self.kit_bodies.hihat
+        if event == EventType.HIHATCLOSED and hihat is not None:
+            # a closed hi-hat: its pedal held down from the start (at rest it stands open, its top above the
+            # closed hit point the stick is aimed at, and the stick was released into the plate)
+            self.kit_bodies.held_press = 1.0
+            world.client.resetJointState(hihat.top_body, hihat.rod_joint,
+                                         hihat_gap(1.0, hihat.rest_opening, hihat.closes_at))
         self.lead_s = lead_s
         self.pending: list[Strike] = []
         self._free_until = -1.0

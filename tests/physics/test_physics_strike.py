@@ -135,3 +135,23 @@ def test_bad_strikes_are_rejected_with_a_clear_error() -> None:
     _run(core, 0.05)
     assert core.handle(PhysicsStrike(time=0.01, velocity=2.0), 0.05, "test") == []
     assert core.rejected["PhysicsStrike"] == 1
+
+
+@pytest.mark.parametrize("speed", [1.0, 3.0, 6.0])
+def test_a_closed_hi_hat_gives_one_short_contact_with_rebound_at_any_speed(speed: float) -> None:
+    """The strike scene holds a closed hi-hat's pedal down. It stood open (its top above the closed hit point the
+    stick is aimed at), so a soft stroke released the stick into the plate: one contact of 80 steps, the stick
+    frozen against the plate's motor at 200 N."""
+    from common.kit import EventType
+
+    core = PhysicsCore(scene="strike", strikes=[(0.05, speed)], strike_event=EventType.HIHATCLOSED)
+    contacts = [c for c in _run(core, 0.12) if "stick" in c.part]  # the plates report their resting contact too
+    episodes = _episodes(contacts)
+    assert len(episodes) == 1, [c.step for c in contacts]
+    assert 0.001 <= len(episodes[0]) / core.rate_hz <= 0.010
+    first = episodes[0][0]
+    # the closed top stands about 3 mm above the kit's hit point: a 1 m/s stroke lands 4 ms early, 3 m/s on time
+    assert first.instrument == "hihat" and abs(first.time - 0.05) <= 0.0051
+    assert first.normal_velocity == pytest.approx(speed, rel=0.1)
+    assert core.world.client.getJointState(core.scene.body, 0)[1] > 0.0  # type: ignore[attr-defined]  # rebounds
+    core.close()
