@@ -665,7 +665,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def _main(args: argparse.Namespace) -> int:
     from batteur.calibration import Calibration
-    from batteur.render import RenderError, RenderOptions, one_line, resolve_jobs
+    from batteur.render import RenderError, RenderOptions, resolve_jobs
+    from common.datafile import one_line
     from common.gesture.plan import Nuance
     from common.output_paths import check_output_dir, check_output_file
     from common.score.events import ScoreError

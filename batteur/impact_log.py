@@ -7,12 +7,13 @@ impact redundantly), with every feature the Impact message carries.
 from __future__ import annotations
 
 import csv
+import io
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from pydantic import ValidationError
 
-from common.datafile import first_error
+from common.datafile import first_error, read_text
 from common.messages import Impact, OscMessage
 
 COLUMNS = list(Impact.model_fields)
@@ -56,16 +57,10 @@ def read_impacts_csv(path: Path) -> list[Impact]:
     """Read a CSV written by :func:`write_impacts_csv`; raises ValueError naming the file on a bad row, or on a
     file that is not UTF-8 text or not CSV."""
     try:
-        return _read_impacts(path)
-    except UnicodeDecodeError as exc:
-        raise ValueError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
-    except csv.Error as exc:
-        raise ValueError(f"{path}: not a CSV file ({exc})") from None
-
-
-def _read_impacts(path: Path) -> list[Impact]:
-    with path.open(newline="", encoding="utf-8") as handle:
-        reader = csv.DictReader(handle)
+        reader = csv.DictReader(io.StringIO(read_text(path)))
+    except ValueError as exc:  # not UTF-8 text
+        raise ValueError(f"{path}: {exc}") from None
+    try:
         if reader.fieldnames != COLUMNS:
             raise ValueError(f"{path}: expected columns {COLUMNS}, got {reader.fieldnames}")
         impacts = []
@@ -75,6 +70,8 @@ def _read_impacts(path: Path) -> list[Impact]:
             except ValidationError as exc:  # the first problem of the row, on one line
                 raise ValueError(f"{path}: line {reader.line_num}: {first_error(exc)}") from None
         return impacts
+    except csv.Error as exc:
+        raise ValueError(f"{path}: not a CSV file ({exc})") from None
 
 
 def _fmt(value: object) -> str:

@@ -46,7 +46,7 @@ from batteur.impact_log import ImpactLog, write_impacts_csv
 from batteur.progress import Progress
 from batteur.strike import DEFAULT_STRIKES, parse_strikes, run_strikes
 from common.core import Outgoing
-from common.datafile import first_error
+from common.datafile import first_error, one_line
 from common.gesture.plan import GesturePlan, Grip, Nuance
 from common.kit import EventType, Kit, load_kit
 from common.messages import OscMessage
@@ -466,15 +466,6 @@ def _check_motion_capture(opts: RenderOptions) -> None:
         if not lengths:
             raise ValueError(f"--skeleton-bvh {opts.skeleton_bvh}: no arm or leg joints found by their usual BVH "
                              "names (e.g. LeftArm, LeftForeArm, LeftUpLeg, LeftLeg)")
-
-
-def one_line(exc: BaseException) -> str:
-    """An error message on one line (pydantic's span several: its first complaint only)."""
-    from pydantic import ValidationError
-
-    if isinstance(exc, ValidationError):
-        return first_error(exc)
-    return " ".join(str(exc).split())
 
 
 def check_video(opts: RenderOptions) -> None:

@@ -33,7 +33,7 @@ def parse_file(path: Path) -> Any:
             return tomllib.loads(text)
         return yaml.safe_load(text)
     except (ValueError, yaml.YAMLError) as exc:  # JSONDecodeError and TOMLDecodeError are ValueErrors
-        raise ValueError(f"not valid {kind}: {_one_line(exc)}") from None
+        raise ValueError(f"not valid {kind}: {one_line(exc)}") from None
 
 
 def read_text(path: Path) -> str:
@@ -52,7 +52,11 @@ def first_error(exc: ValidationError) -> str:
     return f"{where}: {first.get('msg')}" if where else str(first.get("msg"))  # the whole input: no field
 
 
-def _one_line(exc: Exception) -> str:
+def one_line(exc: BaseException) -> str:
+    """An error's message on one line: pydantic's first complaint (:func:`first_error`), YAML's problem and where,
+    any other message with its line breaks folded."""
+    if isinstance(exc, ValidationError):
+        return first_error(exc)
     if isinstance(exc, yaml.MarkedYAMLError):
         mark = exc.problem_mark
         at = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""

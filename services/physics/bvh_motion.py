@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from common.character import SIDES
+from common.character import BASE_LINK, HIP_MOUNTS, JOINT_LINKS, SIDES
 from common.gesture.bvh import Bvh, BvhError, read_bvh, rest_positions, world_frames
 from services.physics.mocap import MotionClip
 
@@ -69,26 +69,17 @@ SEGMENT_NAMES: dict[str, tuple[str, ...]] = _segment_names()
 """Our link -> the BVH joint names that may stand for it (normalised: lower case, no separators), first found
 wins, in :data:`MATCH_ORDER`."""
 
-SEGMENT_PARENT: dict[str, str] = {
-    "abdomen": "pelvis", "thorax": "abdomen", "neck": "thorax", "head": "neck",
-    **{f"{s}_{k}": p.format(s=s) for s in SIDES for k, p in (
-        ("clavicle", "thorax"), ("upper_arm", "{s}_clavicle"), ("forearm", "{s}_upper_arm"),
-        ("hand", "{s}_forearm"), ("thigh", "pelvis"), ("shank", "{s}_thigh"), ("foot", "{s}_shank"))},
-}
-"""Our link -> its parent link in the chain the BVH is read along (the thighs hang from the pelvis)."""
+JOINT_SEGMENTS: dict[str, tuple[str, str]] = {
+    joint: ("pelvis" if parent in HIP_MOUNTS.values() else parent, child)
+    for joint, (parent, child) in JOINT_LINKS.items() if parent != BASE_LINK}
+"""Our joint -> (parent link, child link) as read from a BVH: the body's tree (common.character) without the
+seat, the thighs hanging from the pelvis (see the module docstring)."""
+
+SEGMENT_PARENT: dict[str, str] = {child: parent for parent, child in JOINT_SEGMENTS.values()}
+"""Our link -> its parent link in the chain the BVH is read along."""
 
 MATCH_ORDER: tuple[str, ...] = ("pelvis", "abdomen", "thorax", "neck", "head") + tuple(
     f"{s}_{k}" for s in SIDES for k in ("upper_arm", "clavicle", "forearm", "hand", "thigh", "shank", "foot"))
-
-JOINT_SEGMENTS: dict[str, tuple[str, str]] = {
-    "lumbar": ("pelvis", "abdomen"), "thoracic": ("abdomen", "thorax"), "neck": ("thorax", "neck"),
-    "head": ("neck", "head"),
-    **{f"{s}_{j}": (f"{s}_{a}" if a != "thorax" and a != "pelvis" else a, f"{s}_{b}") for s in SIDES
-       for j, a, b in (("clavicle", "thorax", "clavicle"), ("shoulder", "clavicle", "upper_arm"),
-                       ("elbow", "upper_arm", "forearm"), ("wrist", "forearm", "hand"), ("hip", "pelvis", "thigh"),
-                       ("knee", "thigh", "shank"), ("ankle", "shank", "foot"))},
-}
-"""Our joint -> (parent link, child link) as read from a BVH (the seat is not: see the module docstring)."""
 
 REST_DIRECTION: dict[str, np.ndarray] = {
     "abdomen": np.array([0.0, 0.0, 1.0]), "thorax": np.array([0.0, 0.0, 1.0]), "neck": np.array([0.0, 0.0, 1.0]),
@@ -275,8 +266,6 @@ def load_bvh_clip(path: str | Path) -> MotionClip:
 LENGTH_SEGMENTS: tuple[str, ...] = ("upper_arm", "forearm", "thigh", "shank")
 """The segments whose length a skeleton tells without doubt: from one joint centre to the next along a limb
 (a trunk's joints, a hand's or a foot's end are placed differently from one convention to another)."""
-NEXT_KIND = {"upper_arm": "forearm", "forearm": "hand", "thigh": "shank", "shank": "foot"}
-"""Each of those segments -> the segment whose joint ends it."""
 
 
 def bvh_segment_lengths(path: str | Path, units_to_m: float | None = None) -> dict[str, float]:
@@ -293,8 +282,9 @@ def bvh_segment_lengths(path: str | Path, units_to_m: float | None = None) -> di
         units_to_m = 0.01 if max((float(np.linalg.norm(j.offset)) for j in bvh.joints), default=0.0) > 3.0 else 1.0
     lengths: dict[str, float] = {}
     for kind in LENGTH_SEGMENTS:
-        sides = [float(np.linalg.norm(rest[segments[f"{s}_{NEXT_KIND[kind]}"]] - rest[segments[f"{s}_{kind}"]]))
-                 for s in SIDES if f"{s}_{kind}" in segments and f"{s}_{NEXT_KIND[kind]}" in segments]
+        pairs = [(f"{s}_{kind}", NEXT_SEGMENT[f"{s}_{kind}"]) for s in SIDES]  # the segment, the one it ends at
+        sides = [float(np.linalg.norm(rest[segments[end]] - rest[segments[start]]))
+                 for start, end in pairs if start in segments and end in segments]
         if sides:
             lengths[kind] = float(np.mean(sides)) * units_to_m
     return lengths
