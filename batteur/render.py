@@ -115,7 +115,7 @@ class RenderOptions:
     """Motion clips the drummer's joint limits come from (BVH files, DeepMimic files or clip names; none: every
     DeepMimic clip)."""
     skeleton_bvh: Path | None = None
-    """BVH file whose skeleton gives the drummer's arm and leg segment lengths (None: de Leva's table)."""
+    """BVH file whose skeleton gives the drummer's proportions (None: de Leva's table)."""
 
 
 @dataclass
@@ -451,6 +451,7 @@ def check_options(opts: RenderOptions) -> None:
 def _check_motion_capture(opts: RenderOptions) -> None:
     """Read the clips and skeleton the drummer is built from now (``ValueError`` naming the option): a bad file
     must not wait for the score's planning, and the limits are cached for the render."""
+    from services.physics.anthropometry import anthropometry
     from services.physics.bvh_motion import bvh_segment_lengths
     from services.physics.drummer import cached_clips
 
@@ -464,8 +465,12 @@ def _check_motion_capture(opts: RenderOptions) -> None:
         except (ValueError, FileNotFoundError) as exc:
             raise ValueError(f"--skeleton-bvh: {exc}") from None
         if not lengths:
-            raise ValueError(f"--skeleton-bvh {opts.skeleton_bvh}: no arm or leg joints found by their usual BVH "
-                             "names (e.g. LeftArm, LeftForeArm, LeftUpLeg, LeftLeg)")
+            raise ValueError(f"--skeleton-bvh {opts.skeleton_bvh}: no arm, leg or trunk joints found by their usual "
+                             "BVH names (e.g. LeftArm, LeftForeArm, LeftUpLeg, LeftLeg, Neck)")
+        try:  # proportions no body can have (a skeleton lying down, in unexpected units) are refused now too
+            anthropometry(lengths_m=lengths)
+        except ValueError as exc:
+            raise ValueError(f"--skeleton-bvh {opts.skeleton_bvh}: {exc}") from None
 
 
 def check_video(opts: RenderOptions) -> None:
@@ -548,8 +553,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "DeepMimic clip file or the name of one of pybullet's DeepMimic clips (default: all of "
                         "those)")
     parser.add_argument("--skeleton-bvh", type=Path, default=None, metavar="FILE",
-                        help="BVH file whose skeleton gives the drummer's arm and leg segment lengths, so the "
-                        "simulated performer matches the captured one (default: de Leva's table for 1.75 m, 73 kg)")
+                        help="BVH file whose skeleton gives the drummer's proportions (arms, legs, neck, shoulder "
+                        "height above the hips, shoulder and hip widths), so the simulated performer matches the "
+                        "captured one (default: de Leva's table for 1.75 m, 73 kg)")
     parser.add_argument("--video", action="store_true",
                         help="also write DIR/performance.mp4: the motion rendered headless (PyBullet TinyRenderer) "
                         "with the WAV muxed in sync (needs ffmpeg; score mode)")

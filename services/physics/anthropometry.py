@@ -77,6 +77,25 @@ NECK_SHARE_OF_HEAD = 0.25
 NECK_LENGTH_SHARE = 0.35
 """The neck link spans this share of de Leva's VERT-CERV length, from CERV up."""
 
+CLAVICLE_MIDLINE_OFFSET = 0.015
+"""Each sternoclavicular joint's distance from the midline / de Leva's scale (metres at the reference
+stature); the clavicle spans the rest of the half shoulder width."""
+SEGMENT_NAMES = ("pelvis", "abdomen", "thorax", "neck", "head", "clavicle", "upper_arm", "forearm", "hand", "thigh",
+                 "shank", "foot")
+"""Every segment :func:`anthropometry` makes (one of each side-independent kind)."""
+SHOULDER_BELOW_NECK = 0.02
+"""The shoulder joint centres' height below the neck joint / de Leva's scale (metres at the reference
+stature)."""
+TRUNK_SEGMENTS = ("pelvis", "abdomen", "thorax")
+"""The trunk from the hip joint centres up to the neck joint, bottom to top."""
+WHOLE_LENGTHS: dict[str, tuple[float, float]] = {
+    "trunk": (0.2, 1.2), "shoulder_height": (0.2, 1.2), "shoulder_width": (0.15, 0.8), "hip_width": (0.08, 0.5)}
+"""Lengths of :func:`anthropometry`'s ``lengths_m`` that are not one segment's -> plausible range, metres.
+``trunk``: the neck joint's height above the hip joint centres (the pelvis, abdomen and thorax share it in the
+table's proportions); ``shoulder_height``: the shoulder joint centres' height above the hip joint centres (the
+trunk follows: :data:`SHOULDER_BELOW_NECK` shorter); ``shoulder_width``: between the shoulder joint centres (the
+clavicles follow); ``hip_width``: between the hip joint centres."""
+
 SHOULDER_WIDTH_RATIO = 0.20
 """Distance between the shoulder joint centres / stature."""
 HIP_WIDTH_RATIO = 0.105
@@ -112,18 +131,14 @@ class Anthropometry:
     mass_kg: float
     sex: Sex
     segments: dict[str, Segment]
+    shoulder_width_m: float
+    """Distance between the shoulder joint centres, metres."""
+    hip_width_m: float
+    """Distance between the hip joint centres, metres."""
 
     @property
     def scale(self) -> float:
         return self.height_m * 1000.0 / REFERENCE[self.sex][0]
-
-    @property
-    def shoulder_width_m(self) -> float:
-        return SHOULDER_WIDTH_RATIO * self.height_m
-
-    @property
-    def hip_width_m(self) -> float:
-        return HIP_WIDTH_RATIO * self.height_m
 
 
 def _segment(name: str, row: SegmentRow, scale: float, mass_kg: float, com_from_distal: bool = False) -> Segment:
@@ -149,9 +164,12 @@ def anthropometry(height_m: float = 1.75, mass_kg: float = 73.0, sex: Sex = "mal
     sex : {"male", "female"}
         Which table.
     lengths_m : dict, optional
-        Segment lengths (metres) overriding the scaled table, e.g. measured
-        from a BVH skeleton (:func:`services.physics.bvh_motion.bvh_segment_lengths`);
-        masses stay from the table, centres of mass and radii follow the lengths.
+        Lengths (metres) overriding the scaled table, e.g. measured from a
+        BVH skeleton (:func:`services.physics.bvh_motion.bvh_segment_lengths`):
+        segments (:data:`SEGMENT_NAMES`) and :data:`WHOLE_LENGTHS` (``trunk``
+        or ``shoulder_height``, ``shoulder_width``, ``hip_width``); a segment
+        named itself wins over the trunk. Masses stay from the table, centres of mass and radii follow
+        the lengths.
 
     Returns
     -------
@@ -181,23 +199,51 @@ def anthropometry(height_m: float = 1.75, mass_kg: float = 73.0, sex: Sex = "mal
     head_com_above_cerv = (head.mass_kg * head.com_from_proximal_m - neck_mass * neck_len / 2) / head_mass
     seg["neck"] = Segment("neck", neck_len, neck_mass, neck_len / 2, (0.3 * neck_len, 0.3 * neck_len, 0.25 * neck_len))
     seg["head"] = Segment("head", head.length_m - neck_len, head_mass, head_com_above_cerv - neck_len, head.radii_m)
-    clav_len = SHOULDER_WIDTH_RATIO * height_m / 2 - 0.015 * scale
-    seg["clavicle"] = Segment("clavicle", clav_len, girdle_mass, clav_len / 2,
-                              (0.2 * clav_len, 0.3 * clav_len, 0.3 * clav_len))
     for name, key in (("upper_arm", "upper_arm"), ("forearm", "forearm"), ("hand", "hand"), ("thigh", "thigh"),
                       ("shank", "shank"), ("foot", "foot")):
         seg[name] = _segment(name, table[key], scale, mass_kg)
-    if lengths_m:
-        for name, length in lengths_m.items():
-            if name not in seg:
-                raise ValueError(f"unknown segment {name!r} (known: {', '.join(sorted(seg))})")
-            if not 0.01 <= length <= 1.5:
-                raise ValueError(f"segment {name} length {length} m is implausible")
-            old = seg[name]
-            k = length / old.length_m
-            seg[name] = Segment(name, length, old.mass_kg, old.com_from_proximal_m * k,
-                                (old.radii_m[0] * k, old.radii_m[1] * k, old.radii_m[2] * k))
-    return Anthropometry(height_m, mass_kg, sex, seg)
+    given = _checked_lengths(lengths_m or {})
+    widths = {"shoulder_width": SHOULDER_WIDTH_RATIO * height_m, "hip_width": HIP_WIDTH_RATIO * height_m}
+    widths.update({k: v for k, v in given.items() if k in widths})
+    clav_len = widths["shoulder_width"] / 2 - CLAVICLE_MIDLINE_OFFSET * scale  # as the character places it
+    if clav_len < 0.01:
+        raise ValueError(f"shoulder_width {widths['shoulder_width']} m is implausible for a performer of "
+                         f"{height_m} m (no room for the clavicles)")
+    seg["clavicle"] = Segment("clavicle", clav_len, girdle_mass, clav_len / 2,
+                              (0.2 * clav_len, 0.3 * clav_len, 0.3 * clav_len))
+    if "shoulder_height" in given:
+        given["trunk"] = given.pop("shoulder_height") + SHOULDER_BELOW_NECK * scale
+    if "trunk" in given:  # one length for three segments: each keeps its share of the table's trunk
+        table_trunk = sum(seg[name].length_m for name in TRUNK_SEGMENTS)
+        for name in TRUNK_SEGMENTS:
+            seg[name] = _resized(seg[name], seg[name].length_m * given["trunk"] / table_trunk)
+    for name, length in given.items():
+        if name in seg:
+            seg[name] = _resized(seg[name], length)
+    seg = {name: seg[name] for name in SEGMENT_NAMES}  # in the table's order
+    return Anthropometry(height_m, mass_kg, sex, seg, widths["shoulder_width"], widths["hip_width"])
+
+
+def _checked_lengths(lengths_m: dict[str, float]) -> dict[str, float]:
+    """``lengths_m`` if every name is a segment or one of :data:`WHOLE_LENGTHS` and every length plausible;
+    else ``ValueError`` naming the first that is not."""
+    known = (*SEGMENT_NAMES, *WHOLE_LENGTHS)
+    for name, length in lengths_m.items():
+        if name not in known:
+            raise ValueError(f"unknown segment {name!r} (known: {', '.join(known)})")
+        low, high = WHOLE_LENGTHS.get(name, (0.01, 1.5))
+        if not low <= length <= high:
+            raise ValueError(f"segment {name} length {length} m is implausible (expected {low:g} ... {high:g} m)")
+    if "trunk" in lengths_m and "shoulder_height" in lengths_m:
+        raise ValueError("give the trunk or the shoulder_height, not both (one sets the other)")
+    return dict(lengths_m)
+
+
+def _resized(old: Segment, length_m: float) -> Segment:
+    """``old`` at another length: the same mass, centre of mass and radii scaled with the length."""
+    k = length_m / old.length_m
+    return Segment(old.name, length_m, old.mass_kg, old.com_from_proximal_m * k,
+                   (old.radii_m[0] * k, old.radii_m[1] * k, old.radii_m[2] * k))
 
 
 def body_mass_of(a: Anthropometry) -> float:

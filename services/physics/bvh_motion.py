@@ -264,13 +264,19 @@ def load_bvh_clip(path: str | Path) -> MotionClip:
 
 
 LENGTH_SEGMENTS: tuple[str, ...] = ("upper_arm", "forearm", "thigh", "shank")
-"""The segments whose length a skeleton tells without doubt: from one joint centre to the next along a limb
-(a trunk's joints, a hand's or a foot's end are placed differently from one convention to another)."""
+"""The limb segments whose length a skeleton tells without doubt: from one joint centre to the next (a hand's or
+a foot's end is placed differently from one convention to another, so they keep the table's)."""
 
 
 def bvh_segment_lengths(path: str | Path, units_to_m: float | None = None) -> dict[str, float]:
-    """Segment lengths (metres) from a BVH skeleton's rest pose, for :func:`anthropometry`'s ``lengths_m``:
-    each of :data:`LENGTH_SEGMENTS` found (by :func:`map_segments`), the mean of both sides where both are.
+    """Lengths (metres) from a BVH skeleton's rest pose, for :func:`anthropometry`'s ``lengths_m``, each measured
+    between joint centres found by :func:`map_segments` (what the file lacks is left out):
+
+    - :data:`LENGTH_SEGMENTS`, the mean of both sides where both are;
+    - ``neck``: the neck joint to the head joint;
+    - ``shoulder_height``: the shoulder joints' height above the hip joints (midpoints; what places the arms at
+      the kit), or where the file has no shoulders, ``trunk``: the neck joint's;
+    - ``shoulder_width`` and ``hip_width``: between the two shoulder joints, the two hip joints.
 
     ``units_to_m``: factor from the file's units to metres; by default guessed (a skeleton whose longest
     offset exceeds 3 is taken to be in centimetres).
@@ -280,11 +286,32 @@ def bvh_segment_lengths(path: str | Path, units_to_m: float | None = None) -> di
     segments = map_segments(bvh)
     if units_to_m is None:
         units_to_m = 0.01 if max((float(np.linalg.norm(j.offset)) for j in bvh.joints), default=0.0) > 3.0 else 1.0
-    lengths: dict[str, float] = {}
+
+    def at(link: str) -> np.ndarray | None:  # the centre of the joint that starts ``link``, metres
+        return rest[segments[link]] * units_to_m if link in segments else None
+
+    def distance(a: np.ndarray | None, b: np.ndarray | None) -> float | None:
+        return None if a is None or b is None else float(np.linalg.norm(b - a))
+
+    lengths: dict[str, float | None] = {}
     for kind in LENGTH_SEGMENTS:
-        pairs = [(f"{s}_{kind}", NEXT_SEGMENT[f"{s}_{kind}"]) for s in SIDES]  # the segment, the one it ends at
-        sides = [float(np.linalg.norm(rest[segments[end]] - rest[segments[start]]))
-                 for start, end in pairs if start in segments and end in segments]
-        if sides:
-            lengths[kind] = float(np.mean(sides)) * units_to_m
-    return lengths
+        sides = [distance(at(f"{s}_{kind}"), at(NEXT_SEGMENT[f"{s}_{kind}"])) for s in SIDES]
+        known = [d for d in sides if d is not None]
+        lengths[kind] = float(np.mean(known)) if known else None
+    lengths["neck"] = distance(at("neck"), at("head"))
+    hips, shoulders, neck = [at(f"{s}_thigh") for s in SIDES], [at(f"{s}_upper_arm") for s in SIDES], at("neck")
+    if hips[0] is not None and hips[1] is not None:
+        lengths["hip_width"] = distance(hips[0], hips[1])
+        hip_centre = (hips[0] + hips[1]) / 2
+        try:  # heights above the hips: the hip joints may sit forward of the spine
+            up = body_axes(rest, segments, str(path))[2]
+        except BvhError:  # no pelvis to tell up from
+            up = None
+        if shoulders[0] is not None and shoulders[1] is not None:  # what places the arms: the trunk follows it
+            top, name = (shoulders[0] + shoulders[1]) / 2, "shoulder_height"
+        else:
+            top, name = neck, "trunk"
+        if top is not None:
+            lengths[name] = distance(hip_centre, top) if up is None else float(np.dot(top - hip_centre, up))
+    lengths["shoulder_width"] = distance(*(at(f"{s}_upper_arm") for s in SIDES))
+    return {name: length for name, length in lengths.items() if length is not None}

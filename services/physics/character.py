@@ -35,9 +35,13 @@ from common.character import AXES, DOF_NAMES, SIDES, joint_kind
 from common.character import CENTRAL_JOINTS as CENTRAL_JOINTS
 from common.character import JOINTS as JOINTS
 from common.character import LIMB_JOINTS as LIMB_JOINTS
-from services.physics.anthropometry import Anthropometry, Segment
+from services.physics.anthropometry import CLAVICLE_MIDLINE_OFFSET, SHOULDER_BELOW_NECK, Anthropometry, Segment
 from services.physics.sticks import StickSpec
 from services.physics.urdf import Inertial, Joint, Link, Robot, Shape
+
+SHOULDER_ABOVE_STERNOCLAVICULAR = 0.02
+"""The shoulder joint centre's height above the sternoclavicular joint / de Leva's scale (metres at the
+reference stature)."""
 
 # The joint layout (SIDES, CENTRAL_JOINTS, LIMB_JOINTS, JOINTS, AXES, DOF_NAMES, joint_kind) lives in
 # common/character.py, shared with graphics' pose editor; imported here for the modules that use it from physics.
@@ -213,11 +217,12 @@ def build_character(spec: CharacterSpec) -> CharacterModel:
                             xyz=(sx * clav.length_m / 2, -0.025 * s, 0.01 * s), rpy=(0.0, math.pi / 2, 0.0),
                             rgba=_SHIRT, collision=False),), long_axis="x")
         _add_3dof(robot, model, f"{side}_clavicle", "thorax", f"{side}_clavicle",
-                  (sx * 0.015 * s, 0.05 * s, tho.length_m - 0.04 * s))
+                  (sx * CLAVICLE_MIDLINE_OFFSET * s, 0.05 * s,
+                   tho.length_m - (SHOULDER_BELOW_NECK + SHOULDER_ABOVE_STERNOCLAVICULAR) * s))
         ua, fa, hand = seg["upper_arm"], seg["forearm"], seg["hand"]
         segment_link(f"{side}_upper_arm", ua, (0.0, 0.0, -ua.com_from_proximal_m), (bone(ua, -1.0, _SHIRT),))
         _add_3dof(robot, model, f"{side}_shoulder", f"{side}_clavicle", f"{side}_upper_arm",
-                  (sx * clav.length_m, -0.05 * s, 0.02 * s))
+                  (sx * clav.length_m, -0.05 * s, SHOULDER_ABOVE_STERNOCLAVICULAR * s))
         segment_link(f"{side}_forearm", fa, (0.0, 0.0, -fa.com_from_proximal_m), (bone(fa, -1.0, _SKIN),))
         _add_3dof(robot, model, f"{side}_elbow", f"{side}_upper_arm", f"{side}_forearm", (0.0, 0.0, -ua.length_m))
         segment_link(f"{side}_hand", hand, (0.0, 0.0, -hand.com_from_proximal_m),

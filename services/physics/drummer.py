@@ -217,7 +217,10 @@ class DrummerScene:
         self.seat_position = (0.0, 0.0, 0.52) if throne is None else tuple(throne.position)
         self._floor(world)
         lengths = bvh_segment_lengths(settings.skeleton_bvh) if settings.skeleton_bvh else None
-        self.anthro = anthropometry(settings.height_m, settings.mass_kg, lengths_m=lengths)
+        try:
+            self.anthro = anthropometry(settings.height_m, settings.mass_kg, lengths_m=lengths)
+        except ValueError as exc:  # the skeleton's proportions: name the file they come from
+            raise ValueError(f"skeleton_bvh {settings.skeleton_bvh}: {exc}" if lengths else str(exc)) from None
         self.spec = CharacterSpec(self.anthro, limits=self.limits.dof_limits())
         self.model = build_character(self.spec)
         self.body = Body(world, self.model, self.seat_position,  # type: ignore[arg-type]

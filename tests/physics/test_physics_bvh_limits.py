@@ -9,7 +9,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from common.gesture.bvh import BvhError
-from services.physics.bvh_motion import load_bvh_clip
+from services.physics.bvh_motion import bvh_segment_lengths, load_bvh_clip
 from services.physics.limits import default_limits, limits_from_clips, load_clip
 from services.physics.mocap import MotionClip, load_deepmimic
 
@@ -218,6 +218,72 @@ def test_our_own_bvh_export_reads_back_as_the_simulated_joint_angles(tmp_path: P
         assert error.max() < 1e-4, joint  # radians; OSC's 32-bit floats and the file's decimals
     arm = clip.rotations["right_shoulder"]
     assert (arm[0].inv() * arm[-1]).magnitude() > 0.05  # radians (0.064): the arm moved, not only rest poses
+
+
+def test_a_skeletons_proportions_are_read_from_its_rest_pose(tmp_path: Path) -> None:
+    """The shoulders' height above the hips (joint centres' midpoints), the neck, the shoulder and hip widths and
+    the limbs, in both conventions' names."""
+    for skeleton, shoulder_height in ((CMU, 0.53), (BIOVISION, 0.50)):
+        path = tmp_path / "punch.bvh"
+        write_bvh_of(load_deepmimic("punch"), path, skeleton)
+        assert bvh_segment_lengths(path) == pytest.approx({
+            "upper_arm": 0.28, "forearm": 0.25, "thigh": 0.42, "shank": 0.42, "neck": 0.08,
+            "shoulder_height": shoulder_height, "shoulder_width": 0.36, "hip_width": 0.18})
+
+
+def test_a_drummer_built_from_a_bvh_skeleton_has_its_proportions(tmp_path: Path) -> None:
+    """`skeleton_bvh`: the joint centres of the body PyBullet simulates are where the file's are (the rest of the
+    body keeps de Leva's table); and the drummer's own export reads back as the body it came from."""
+    from services.physics.anthropometry import SHOULDER_BELOW_NECK
+    from services.physics.core import PhysicsCore
+    from services.physics.drummer import DrummerScene
+
+    skeleton = [(name, parent, (offset[0], offset[1], offset[2] + 12) if name in ("Neck", "LeftShoulder",
+                 "RightShoulder") else offset, link) for name, parent, offset, link in CMU]
+    # shoulders 0.65 m above the hips, the table's 0.57 m at 1.75 m
+    path = tmp_path / "tall.bvh"
+    write_bvh_of(load_deepmimic("punch"), path, skeleton)
+    core = PhysicsCore(scene="drummer", skeleton_bvh=str(path), pose_rate_hz=50.0)
+    scene = core.scene
+    assert isinstance(scene, DrummerScene)
+    body = scene.body
+    # measured on the body in its zero pose, frames aligned with the world: x right, z up
+    for part in body.parts:
+        for j in part.movable:
+            body.world.client.resetJointState(part.id, j, 0.0, 0.0)
+
+    def centre(joint: str) -> np.ndarray:
+        return np.asarray(body.link_pose(body.joint_index[f"{joint}_x"])[0])
+
+    hips = (centre("left_hip") + centre("right_hip")) / 2
+    shoulders = (centre("left_shoulder") + centre("right_shoulder")) / 2
+    assert shoulders[2] - hips[2] == pytest.approx(0.65, abs=1e-6)
+    assert np.linalg.norm(centre("left_shoulder") - centre("right_shoulder")) == pytest.approx(0.36, abs=1e-6)
+    assert np.linalg.norm(centre("left_hip") - centre("right_hip")) == pytest.approx(0.18, abs=1e-6)
+    assert np.linalg.norm(centre("head") - centre("neck")) == pytest.approx(0.08, abs=1e-6)
+    core.close()
+
+    # the default drummer's export: its own proportions come back
+    from common.messages import Pose, Skeleton
+    from services.graphics.export.bvh import write_bvh
+    from services.graphics.recorder import PerformanceRecorder
+
+    core = PhysicsCore(scene="drummer", pose_rate_hz=50.0)
+    scene = core.scene
+    assert isinstance(scene, DrummerScene)
+    recorder = PerformanceRecorder()
+    for k in range(1, 61):
+        for out in core.step(k / 1000):
+            if isinstance(out.message, (Pose, Skeleton)):
+                recorder.record(out.message)
+    core.close()
+    write_bvh(recorder.sequence(), tmp_path / "performance.bvh")
+    seg = scene.anthro.segments
+    assert bvh_segment_lengths(tmp_path / "performance.bvh") == pytest.approx({
+        **{kind: seg[kind].length_m for kind in ("upper_arm", "forearm", "thigh", "shank", "neck")},
+        "shoulder_height": seg["pelvis"].length_m + seg["abdomen"].length_m + seg["thorax"].length_m
+        - SHOULDER_BELOW_NECK * scene.anthro.scale,
+        "shoulder_width": scene.anthro.shoulder_width_m, "hip_width": scene.anthro.hip_width_m}, abs=1e-4)
 
 
 def test_a_drummer_takes_its_limits_and_arm_lengths_from_a_bvh(tmp_path: Path) -> None:

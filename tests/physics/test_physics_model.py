@@ -9,7 +9,14 @@ import numpy as np
 import pybullet as p
 import pytest
 
-from services.physics.anthropometry import DE_LEVA, REFERENCE, anthropometry, body_mass_of
+from services.physics.anthropometry import (
+    CLAVICLE_MIDLINE_OFFSET,
+    DE_LEVA,
+    REFERENCE,
+    SHOULDER_BELOW_NECK,
+    anthropometry,
+    body_mass_of,
+)
 from services.physics.body import Body
 from services.physics.bvh_motion import bvh_segment_lengths
 from services.physics.character import (
@@ -109,6 +116,29 @@ def test_bad_anthropometry_is_rejected() -> None:
         anthropometry(1.7, 10.0)
     with pytest.raises(ValueError, match="unknown segment"):
         anthropometry(1.7, 70.0, lengths_m={"tail": 0.3})
+    with pytest.raises(ValueError, match="not both"):
+        anthropometry(1.7, 70.0, lengths_m={"trunk": 0.6, "shoulder_height": 0.55})
+    with pytest.raises(ValueError, match="shoulder_width length 2.0 m is implausible"):
+        anthropometry(1.7, 70.0, lengths_m={"shoulder_width": 2.0})
+    with pytest.raises(ValueError, match="trunk length -0.1 m"):  # a skeleton upside down
+        anthropometry(1.7, 70.0, lengths_m={"trunk": -0.1})
+
+
+def test_a_whole_trunk_keeps_the_tables_proportions() -> None:
+    table = anthropometry(1.75, 73.0)
+    trunk = ("pelvis", "abdomen", "thorax")
+    table_trunk = sum(table.segments[n].length_m for n in trunk)
+    a = anthropometry(1.75, 73.0, lengths_m={"shoulder_height": 0.6, "shoulder_width": 0.4, "hip_width": 0.2})
+    assert sum(a.segments[n].length_m for n in trunk) == pytest.approx(0.6 + SHOULDER_BELOW_NECK * a.scale)
+    for n in trunk:
+        assert a.segments[n].length_m / table.segments[n].length_m == pytest.approx(
+            (0.6 + SHOULDER_BELOW_NECK * a.scale) / table_trunk)
+        assert a.segments[n].mass_kg == table.segments[n].mass_kg
+    assert (a.shoulder_width_m, a.hip_width_m) == (0.4, 0.2)
+    assert a.segments["clavicle"].length_m == pytest.approx(0.2 - CLAVICLE_MIDLINE_OFFSET * a.scale)
+    # a segment named itself wins over the trunk it is part of
+    b = anthropometry(1.75, 73.0, lengths_m={"trunk": 0.7, "pelvis": 0.1})
+    assert b.segments["pelvis"].length_m == 0.1
 
 
 def test_segment_lengths_from_a_bvh_skeleton(tmp_path: Path) -> None:

@@ -229,11 +229,17 @@ def test_motion_capture_options_are_read_before_simulating(tmp_path: Path, monke
     legs_only.write_text("HIERARCHY\nROOT Hips\n{\n OFFSET 0 0 0\n CHANNELS 3 Zrotation Xrotation Yrotation\n"
                          " End Site\n {\n  OFFSET 0 10 0\n }\n}\nMOTION\nFrames: 2\nFrame Time: 0.03\n0 0 0\n0 0 0\n",
                          encoding="utf-8")
+    giant = tmp_path / "giant.bvh"  # a skeleton in millimetres, read as centimetres: ten times a performer
+    arms = "".join(f" JOINT {side}Arm\n {{\n  OFFSET {x} 0 0\n  CHANNELS 3 Zrotation Xrotation Yrotation\n"
+                   "  End Site\n  {\n   OFFSET 0 -280 0\n  }\n }\n" for side, x in (("Left", 180), ("Right", -180)))
+    giant.write_text("HIERARCHY\nROOT Hips\n{\n OFFSET 0 0 0\n CHANNELS 3 Zrotation Xrotation Yrotation\n" + arms
+                     + "}\nMOTION\nFrames: 2\nFrame Time: 0.03\n" + "0 0 0 0 0 0 0 0 0\n" * 2, encoding="utf-8")
     out = tmp_path / "out"
     for args, says in ((["--limits-from", str(tmp_path / "none.bvh")], "--limits-from: no BVH file"),
                        (["--limits-from", "moonwalk"], "--limits-from: no clip 'moonwalk'"),
                        (["--limits-from", str(legs_only)], "cannot tell which way is up"),
-                       (["--skeleton-bvh", str(legs_only)], "--skeleton-bvh")):
+                       (["--skeleton-bvh", str(legs_only)], "--skeleton-bvh"),
+                       (["--skeleton-bvh", str(giant)], "shoulder_width length 3.6 m is implausible")):
         assert render.main([str(SCORE), "-o", str(out), "--quiet", *args]) == 2, args
         assert says in _one_line_error(capsys), args
         assert not out.exists()
