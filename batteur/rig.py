@@ -11,6 +11,9 @@ stops every child with SIGTERM, waits up to ``--stop-timeout`` seconds, then
 kills what is left. If one service exits, the others are stopped too.
 ``--record DIR``: sound writes ``DIR/.performance.part.wav``, renamed to
 ``DIR/performance.wav`` once sound has stopped cleanly (removed otherwise).
+The graphics view listens on TCP ``--http-port`` (default 8080; a second rig on
+the same machine needs another). On Linux the services get SIGTERM when the
+rig itself dies, even by SIGKILL, so none is left running as an orphan.
 
 ``--score FILE`` (a .mid or text score, or ``demo`` for the demo groove of
 ``batteur demo``) makes the drummer play it live: the physics node gets
@@ -26,6 +29,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import contextlib
+import ctypes
 import errno
 import math
 import os
@@ -34,7 +38,7 @@ import socket
 import sys
 import tempfile
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TextIO
@@ -50,6 +54,8 @@ not get its SIGHUP and would run on as orphans)."""
 CLEAN_STOP = (0, -signal.SIGTERM)
 """Exit codes of a service the rig stopped that mean it stopped cleanly: a node stops on SIGTERM with 0; one still
 loading (no handler yet) just ends, with nothing to clean up (sound's recording is kept only after a 0)."""
+PR_SET_PDEATHSIG = 1
+"""Linux prctl option: the signal a process gets when the thread that started it ends."""
 RECORDING = "performance.wav"
 RECORDING_PART = ".performance.part.wav"
 """What sound writes while it runs; renamed to RECORDING once sound has stopped cleanly, so a failed rig leaves
@@ -111,6 +117,8 @@ def role_args(role: str, opts: argparse.Namespace) -> list[str]:
                      "--strike-velocity", repr(opts.strike_velocity)]
     if role == "sound" and opts.record:
         args += ["--wav", str(Path(opts.record) / RECORDING_PART)]
+    if role == "graphics":
+        args += ["--http-port", str(opts.http_port)]
     for item in getattr(opts, f"{role}_arg") or []:
         args += item.split()
     return args
@@ -124,6 +132,26 @@ def describe_exit(code: int) -> str:
         return f"was killed by {signal.Signals(-code).name}"
     except ValueError:
         return f"was killed by signal {-code}"
+
+
+def stop_with_the_rig() -> Callable[[], None] | None:
+    """What a child runs before it starts its service, so the service gets SIGTERM when the rig dies, even by
+    SIGKILL (Linux's PR_SET_PDEATHSIG; the rig's own handlers cover every other ending). None where there is no
+    prctl: there a rig killed with SIGKILL leaves its services running."""
+    if not sys.platform.startswith("linux"):
+        return None
+    try:
+        prctl = ctypes.CDLL(None, use_errno=True).prctl  # looked up here: the child only calls it
+    except (OSError, AttributeError):
+        return None
+    rig_pid = os.getpid()
+
+    def arm() -> None:
+        prctl(PR_SET_PDEATHSIG, int(signal.SIGTERM), 0, 0, 0)
+        if os.getppid() != rig_pid:  # the rig died before the signal was armed
+            os._exit(1)
+
+    return arm
 
 
 class Output:
@@ -174,6 +202,7 @@ class Rig:
         self.exit_codes: dict[str, int] = {}
         self.failures: dict[str, int] = {}
         """Services that ended on their own with a non-zero code or could not start, in the order they did."""
+        self.arm_child = stop_with_the_rig()
 
     async def _pump(self, role: str, stream: asyncio.StreamReader | None) -> None:
         if stream is None:
@@ -202,6 +231,7 @@ class Rig:
             proc = await asyncio.create_subprocess_exec(
                 *plan.argv(), stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.STDOUT,
                 start_new_session=True,  # Ctrl-C reaches the rig only; the rig stops the children in order
+                preexec_fn=self.arm_child,
                 limit=self.LINE_LIMIT,
             )
         except OSError as exc:
@@ -281,15 +311,20 @@ def non_negative(text: str) -> float:
     return value
 
 
-def port_number(text: str) -> int:
-    """A UDP port, 1 to 65535."""
+def port_number(text: str, lowest: int = 1) -> int:
+    """A port, ``lowest`` to 65535."""
     try:
         value = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
-    if not 1 <= value <= 65535:
-        raise argparse.ArgumentTypeError(f"{text!r}: give a port from 1 to 65535")
+    if not lowest <= value <= 65535:
+        raise argparse.ArgumentTypeError(f"{text!r}: give a port from {lowest} to 65535")
     return value
+
+
+def port_or_any(text: str) -> int:
+    """A TCP port, 1 to 65535, or 0: any free port."""
+    return port_number(text, lowest=0)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -304,6 +339,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--base-port", type=port_number, default=9101,
                         help="UDP port of physics; interaction, sound, graphics take the next three "
                         "(default 9101, so 9101-9104)")
+    parser.add_argument("--http-port", type=port_or_any, default=8080,
+                        help="TCP port of the graphics view in the browser (default 8080; 0: any free port, "
+                        "printed by graphics; a second rig on this machine needs another)")
     parser.add_argument("--host", default="127.0.0.1", help="address the services listen on (default 127.0.0.1)")
     parser.add_argument("--no-discovery", action="store_true",
                         help="static peers only, no zeroconf (default: zeroconf on --interfaces too)")
@@ -358,21 +396,31 @@ def check_score(opts: argparse.Namespace) -> None:
         raise ValueError(f"--score {opts.score}: no drum events to play")
 
 
-def check_ports(plans: list[ServicePlan], host: str) -> None:
-    """Raise ValueError when a service could not listen on its UDP port, before any service starts (else the
-    others start, and the one that cannot bind stops them)."""
+def check_ports(plans: list[ServicePlan], host: str, http_port: int = 0) -> None:
+    """Raise ValueError when a service could not listen on its UDP port, or graphics on TCP ``http_port`` (0: any,
+    nothing to check), before any service starts (else the others start, and the one that cannot bind stops
+    them)."""
     for plan in plans:
-        try:
-            family, kind, proto, _, address = socket.getaddrinfo(host, plan.port, type=socket.SOCK_DGRAM)[0]
-            with socket.socket(family, kind, proto) as probe:
-                probe.bind(address)
-        except socket.gaierror as exc:
-            raise ValueError(f"--host {host}: {exc.strerror}") from None
-        except OSError as exc:
-            if exc.errno == errno.EADDRINUSE:
-                raise ValueError(f"UDP port {plan.port} ({plan.role}) on {host} is in use (another rig?); choose "
-                                 "another --base-port") from None
-            raise ValueError(f"--host {host}: cannot listen there ({exc.strerror or exc})") from None
+        probe_port(host, plan.port, socket.SOCK_DGRAM, f"UDP port {plan.port} ({plan.role})", "--base-port")
+        if plan.role == "graphics" and http_port:
+            probe_port(host, http_port, socket.SOCK_STREAM, f"TCP port {http_port} (graphics view)", "--http-port")
+
+
+def probe_port(host: str, port: int, kind: socket.SocketKind, what: str, option: str) -> None:
+    """Raise ValueError unless a socket of ``kind`` can listen on ``host:port``; ``what`` and ``option`` name
+    the port and the option that chooses it in the message."""
+    try:
+        family, kind, proto, _, address = socket.getaddrinfo(host, port, type=kind)[0]
+        with socket.socket(family, kind, proto) as probe:
+            if kind == socket.SOCK_STREAM:  # as the view's server binds: a closing connection does not hold it
+                probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            probe.bind(address)
+    except socket.gaierror as exc:
+        raise ValueError(f"--host {host}: {exc.strerror}") from None
+    except OSError as exc:
+        if exc.errno == errno.EADDRINUSE:
+            raise ValueError(f"{what} on {host} is in use (another rig?); choose another {option}") from None
+        raise ValueError(f"--host {host}: cannot listen there ({exc.strerror or exc})") from None
 
 
 def check_record(opts: argparse.Namespace) -> None:
@@ -399,14 +447,15 @@ def finish_recording(folder: Path, sound_stopped_cleanly: bool, out: Output, err
     be cut short, and leave an earlier recording in place."""
     part = folder / RECORDING_PART
     meta = part.with_name(part.name + ".json")
-    if not part.exists():
-        err.write(f"batteur rig: nothing recorded in {folder} (sound did not start recording)\n")
-        return
+    unfinished = list(folder.glob(f".{RECORDING_PART}.*.part"))  # what sound writes into until it closes the file
     if not sound_stopped_cleanly:
-        part.unlink()
-        meta.unlink(missing_ok=True)
+        for leftover in (part, meta, *unfinished):
+            leftover.unlink(missing_ok=True)
         err.write(f"batteur rig: sound did not stop cleanly; its recording was discarded ({folder / RECORDING} "
                   "not written)\n")
+        return
+    if not part.exists():
+        err.write(f"batteur rig: nothing recorded in {folder} (sound did not start recording)\n")
         return
     if meta.exists():
         os.replace(meta, folder / f"{RECORDING}.json")
@@ -437,7 +486,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             check_score(opts)
             plans = plan_rig(opts, epoch)
             check_record(opts)
-            check_ports(plans, opts.host)
+            check_ports(plans, opts.host, opts.http_port)
             make_record_dir(opts)  # last: a refused option leaves no folder behind
         except ValueError as exc:
             print(f"batteur rig: {exc}", file=sys.stderr)

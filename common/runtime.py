@@ -31,6 +31,7 @@ import inspect
 import json
 import logging
 import signal
+import struct
 import sys
 import threading
 import time
@@ -205,6 +206,14 @@ def check_interfaces(interfaces: Sequence[str]) -> str:
 
 Setup = Callable[["Node"], Awaitable[None] | None]
 """Called with the node once it listens (may be async)."""
+
+
+def core_count(core: object, name: str) -> int:
+    """A core's optional running total ``name`` (0 when it has none, or holds something that is not a count)."""
+    try:
+        return max(0, int(getattr(core, name, 0) or 0))
+    except (TypeError, ValueError):
+        return 0
 
 
 class Node:
@@ -414,13 +423,24 @@ class Node:
         await self._stop_requested.wait()
 
     async def stop(self) -> None:
-        """Cancel the tasks, stop discovery, close the endpoint and the core (idempotent)."""
+        """Cancel the tasks, close the endpoint and the core, then stop discovery and OSCQuery (idempotent).
+
+        The core closes first: what it writes (a recording) is then whole even if the process is killed while
+        discovery says goodbye (up to 2 s each)."""
         if self.stopped.is_set():
             return
         for task in self._tasks:
             task.cancel()
         await asyncio.gather(*self._tasks, return_exceptions=True)
         self._tasks.clear()
+        if self.endpoint is not None:
+            self.endpoint.close()
+        close = getattr(self.core, "close", None)
+        if callable(close):
+            try:
+                close()
+            except Exception as exc:
+                log.warning("core close failed: %s", exc)
         if self.discovery is not None:
             try:
                 await asyncio.wait_for(self.discovery.stop(), timeout=2.0)
@@ -433,14 +453,6 @@ class Node:
             except Exception as exc:
                 log.warning("OSCQuery server did not stop cleanly: %s", exc)
             self.oscquery = None
-        if self.endpoint is not None:
-            self.endpoint.close()
-        close = getattr(self.core, "close", None)
-        if callable(close):
-            try:
-                close()
-            except Exception as exc:
-                log.warning("core close failed: %s", exc)
         self.stopped.set()
         log.info("%s node %s stopped", self.role, self.node_id)
 
@@ -475,9 +487,11 @@ class Node:
             await self.wait_stop_requested()
             log.info("%s node %s stopping", self.role, self.node_id)
         finally:
-            for sig in installed:
-                loop.remove_signal_handler(sig)
-            await self.stop()
+            try:  # a second Ctrl-C while stopping must not kill the node before the core has closed
+                await self.stop()
+            finally:
+                for sig in installed:
+                    loop.remove_signal_handler(sig)
 
     # ------------------------------------------------------------ stepping and routing
 
@@ -522,7 +536,12 @@ class Node:
             if not to:
                 self.endpoint.unroutable += 1
                 continue
-            self.endpoint.send(out.message, to)
+            try:
+                self.endpoint.send(out.message, to)
+            except (OverflowError, struct.error, ValueError, UnicodeError) as exc:
+                # a message OSC cannot carry (a float beyond 32 bits, say): not sent, counted; the others go on
+                self.endpoint.send_errors += 1
+                self._log_error("cannot send %s: %s: %s", out.message.ADDRESS, type(exc).__name__, exc)
 
     def _on_message(self, message: OscMessage, source: str) -> None:
         endpoint = self.endpoint
@@ -609,7 +628,8 @@ class Node:
         assert self.endpoint is not None
         stats = self.endpoint.stats
         d = stats.dropped
-        other = sum(
+        refused = core_count(self.core, "rejected_total")  # valid messages its core refused: dropped all the same
+        other = refused + sum(
             d[r]
             for r in (DropReason.OVERSIZE, DropReason.NOT_ALLOWED, DropReason.RATE_LIMITED, DropReason.HANDLER_ERROR)
         )
@@ -623,13 +643,13 @@ class Node:
             overruns=self.loop.overruns if self.loop is not None else 0,
             messages_in=stats.messages_in,
             messages_out=stats.messages_out,
-            dropped=stats.dropped_total,
+            dropped=stats.dropped_total + refused,
             dropped_malformed=d[DropReason.MALFORMED],
             dropped_unknown=d[DropReason.UNKNOWN_ADDRESS],
             dropped_type=d[DropReason.WRONG_ARITY] + d[DropReason.WRONG_TYPE],
             dropped_range=d[DropReason.OUT_OF_RANGE],
             dropped_other=other,
-            late=max(0, int(getattr(self.core, "late", 0) or 0)),
+            late=core_count(self.core, "late"),
             peers=len(self.peers),
         )
 

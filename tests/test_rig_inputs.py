@@ -98,7 +98,7 @@ def no_rig(monkeypatch: pytest.MonkeyPatch) -> Iterator[None]:
     ["--score", "demo", "--play-at", "nan"], ["--score", "demo", "--play-at", "inf"],
     ["--base-port", "0"], ["--base-port", "65534"], ["--services", "interaction,interaction"],
     ["--strike-period", "-1"], ["--strike-period", "1", "--strike-velocity", "inf"], ["--log-level", "loud"],
-    ["--record", "rec", "--services", "physics,interaction"],
+    ["--record", "rec", "--services", "physics,interaction"], ["--http-port", "-1"], ["--http-port", "65536"],
 ])
 def test_bad_values_are_refused_before_any_service_starts(argv: list[str], no_rig: None, tmp_path: Path,
                                                           monkeypatch: pytest.MonkeyPatch,
@@ -231,6 +231,52 @@ def test_closing_the_terminal_stops_the_services(tmp_path: Path) -> None:
             os.kill(pid, signal.SIGKILL)
 
 
+@pytest.mark.skipif(rig.stop_with_the_rig() is None, reason="needs Linux's prctl")
+def test_a_rig_killed_outright_leaves_no_service_running(tmp_path: Path) -> None:
+    # SIGKILL gives the rig no chance to stop its services: they, in their own sessions, ran on as orphans
+    pid_file = tmp_path / "pid"
+    script = (
+        "import asyncio, sys\n"
+        "from batteur.rig import Rig\n"
+        "from tests.test_rig_inputs import Plan, WRITE_PID\n"
+        f"sys.exit(asyncio.run(Rig([Plan('sound', WRITE_PID, {str(pid_file)!r})], 20).run(None)))\n"
+    )
+    the_rig = subprocess.Popen([sys.executable, "-c", script], cwd=Path(__file__).resolve().parents[1],
+                               stdout=subprocess.DEVNULL)
+    pid = 0
+    try:
+        pid = int(wait_for_file(pid_file))
+        the_rig.kill()
+        the_rig.wait(timeout=30)
+        deadline = time.monotonic() + 30
+        while running(pid) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert not running(pid)
+    finally:
+        the_rig.kill()
+        if pid and running(pid):
+            os.kill(pid, signal.SIGKILL)
+
+
+def test_a_view_port_in_use_is_refused_before_any_service_starts(no_rig: None,
+                                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    # a second rig on one machine: its graphics could not serve the view on 8080, and stopped the rig once started
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as held:
+        held.bind(("127.0.0.1", 0))
+        held.listen()
+        port = held.getsockname()[1]
+        err = refused(["--no-discovery", "--services", "graphics", "--base-port", str(free_port()),
+                       "--http-port", str(port)], capsys)
+    assert f"TCP port {port} (graphics view) on 127.0.0.1 is in use" in err and "--http-port" in err
+
+
+def test_graphics_serves_the_view_on_the_rigs_http_port() -> None:
+    opts = rig.build_parser().parse_args(["--http-port", "8181"])
+    args = rig.role_args("graphics", opts)
+    assert args[args.index("--http-port") + 1] == "8181"
+    assert "--http-port" not in rig.role_args("sound", opts)
+
+
 def test_the_recording_is_named_only_once_sound_stopped_cleanly(tmp_path: Path) -> None:
     out, err = rig.Output(io.StringIO()), rig.Output(io.StringIO())
     opts = rig.build_parser().parse_args(["--record", str(tmp_path)])
@@ -242,6 +288,12 @@ def test_the_recording_is_named_only_once_sound_stopped_cleanly(tmp_path: Path) 
     part.write_bytes(b"cut short")
     rig.finish_recording(tmp_path, False, out, err)
     assert not part.exists() and (tmp_path / rig.RECORDING).read_bytes() == b"an earlier take"
+    # sound killed before it closed its file: what it was writing into goes too, and the message says why
+    unfinished = tmp_path / f".{part.name}.x1y2.part"
+    unfinished.write_bytes(b"cut short")
+    rig.finish_recording(tmp_path, False, out, err)
+    assert sorted(p.name for p in tmp_path.iterdir()) == [rig.RECORDING]
+    assert "sound did not stop cleanly" in err.stream.getvalue().splitlines()[-1]  # type: ignore[attr-defined]
 
     part.write_bytes(b"whole")
     part.with_name(part.name + ".json").write_text("{}")

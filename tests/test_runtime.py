@@ -136,7 +136,7 @@ def test_rate_loop_rejects_a_zero_rate() -> None:
 
 
 class EchoCore:
-    """Counts steps; answers every Impact with a Hello to the sender; raises on Impact seq 13."""
+    """Counts steps; answers every Impact with a Hello to the sender; raises on Impact seq 13, refuses seq 7."""
 
     ROLE: ClassVar[str] = "echo"
 
@@ -146,6 +146,7 @@ class EchoCore:
         self.handled: list[tuple[OscMessage, float, str]] = []
         self.step_seconds = step_seconds
         self.late = 4
+        self.rejected_total = 0
         self.closed = False
 
     def handle(self, message: OscMessage, now: float, source: str) -> list[Outgoing]:
@@ -153,6 +154,13 @@ class EchoCore:
         if isinstance(message, Impact):
             if message.seq == 13:
                 raise RuntimeError("unlucky")
+            if message.seq == 7:  # a valid message this core cannot use (as physics refuses an unreachable target)
+                self.rejected_total += 1
+                return []
+            if message.seq == 9:  # an answer OSC cannot carry (a float beyond 32 bits), then one it can
+                unsendable = impact(9).model_copy(update={"impulse": 1e39})
+                return [Outgoing(unsendable, "reply"),
+                        Outgoing(Hello(role="echo", node_id="core", protocol=1, osc_port=9), "reply")]
             return [Outgoing(Hello(role="echo", node_id="core", protocol=1, osc_port=message.seq), "reply")]
         return []
 
@@ -220,6 +228,12 @@ def test_node_steps_handles_replies_greets_and_publishes_health() -> None:
         tester.send(impact(6), target)
         await wait_for(lambda: any(isinstance(m, Hello) and m.osc_port == 6 for m, _ in got))
         assert node.endpoint.stats.dropped[DropReason.HANDLER_ERROR] == 1
+        tester.send(impact(7), target)
+        await wait_for(lambda: core.rejected_total == 1)
+        # a message the core made that cannot be encoded is counted and not sent; the node sends the rest, runs on
+        tester.send(impact(9), target)
+        await wait_for(lambda: any(isinstance(m, Hello) and m.osc_port == 9 for m, _ in got))
+        assert node.endpoint.send_errors == 1
         # the clock answers pings
         tester.send(ClockPing(node_id="tester", seq=3, t_send=1.5), target)
         await wait_for(lambda: any(isinstance(m, ClockPong) for m, _ in got))
@@ -246,7 +260,8 @@ def test_node_steps_handles_replies_greets_and_publishes_health() -> None:
         assert isinstance(health, Health)
         assert health.role == "echo" and health.target_rate_hz == 100.0
         assert 50.0 < health.rate_hz < 150.0
-        assert health.dropped_type == 1 and health.dropped_other == 1 and health.dropped == 2
+        # the core's refusal is dropped like the handler's error
+        assert health.dropped_type == 1 and health.dropped_other == 2 and health.dropped == 3
         assert health.late == 4 and health.peers == 1
         assert health.messages_in >= 5
         # steps carry increasing rig times
@@ -304,6 +319,33 @@ def test_discovery_is_injected_started_stopped_and_its_peers_greeted() -> None:
         tester.close()
 
     asyncio.run(main())
+
+
+class SlowGoodbye(FakeDiscovery):
+    """Discovery that takes its time to say goodbye, during which the user presses Ctrl-C again."""
+
+    async def stop(self) -> None:
+        os.kill(os.getpid(), signal.SIGINT)
+        await asyncio.sleep(0.2)
+        self.stopped = True
+
+
+def test_a_second_ctrl_c_while_the_node_stops_neither_kills_it_nor_skips_closing_its_core() -> None:
+    # the signal handlers were removed before stopping: a second Ctrl-C while discovery said goodbye killed the
+    # node before its core closed (sound's recording was left unfinished)
+    core = EchoCore(rate_hz=0.0)
+
+    async def main() -> None:
+        settings = load_settings({"role": "echo", "clock_master": "self", "interfaces": ["127.0.0.1"]})
+        node = Node(core, settings, discovery_factory=lambda **kwargs: SlowGoodbye([], **kwargs))
+        task = asyncio.ensure_future(node.run(install_signal_handlers=True))
+        await wait_for(lambda: node.endpoint is not None and bool(SlowGoodbye.instances))
+        node.request_stop()
+        await asyncio.wait_for(task, 5.0)
+        assert SlowGoodbye.instances[-1].stopped
+
+    asyncio.run(main())
+    assert core.closed
 
 
 def test_node_runs_without_discovery_when_it_is_unavailable() -> None:

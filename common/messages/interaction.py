@@ -298,6 +298,11 @@ class InteractionStats(OscMessage):
     latency_p50: float = Field(ge=0, description="rig time from contact step to impact out, median, seconds")
     latency_p99: float = Field(ge=0, description="rig time from contact step to impact out, 99th percentile, seconds")
     latency_max: float = Field(ge=0, description="rig time from contact step to impact out, maximum, seconds")
+    out_of_order: Count = Field(default=0, description="contact steps older than their contact's last, or late "
+                                "steps of a contact already ended (dropped)")
+    dropped_contacts: Count = Field(default=0, description="contacts of a new striker refused: too many tracked")
+    clock_resets: Count = Field(default=0, description="times the physics clock went back (physics restarted) "
+                                "and segmentation started again")
 
 
 @register

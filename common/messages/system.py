@@ -51,7 +51,8 @@ class Health(OscMessage):
     dropped_unknown: Count = Field(description="dropped: unknown address")
     dropped_type: Count = Field(description="dropped: wrong argument count or type")
     dropped_range: Count = Field(description="dropped: value out of range")
-    dropped_other: Count = Field(description="dropped: oversize, not allowed, rate limited, handler error")
+    dropped_other: Count = Field(description="dropped: oversize, not allowed, rate limited, handler error, "
+                                   "refused by the service (e.g. an unreachable target)")
     late: Count = Field(description="service-specific late events (e.g. late strikes), total")
     peers: Count = Field(description="peers currently known")
 

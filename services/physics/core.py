@@ -105,8 +105,9 @@ class PhysicsSettings(BaseModel):
         default=(), description="drummer: motion clips the joint limits are estimated from: BVH files, DeepMimic "
         "clip files or names of pybullet's DeepMimic clips (empty: every DeepMimic humanoid clip)")
     skeleton_bvh: str | None = Field(
-        default=None, description="drummer: BVH file whose skeleton gives the arms' and legs' segment lengths "
-        "(the rest of the body from de Leva's table for the height and mass)")
+        default=None, description="drummer: BVH file whose skeleton gives the body's proportions (arms, legs, neck, "
+        "shoulder height above the hips, shoulder and hip widths; hands, feet and head from de Leva's table for the "
+        "height and mass)")
 
 
 class Scene(Protocol):
@@ -216,6 +217,12 @@ class PhysicsCore:
         except (TargetError, ValueError) as exc:
             self._reject(type(message).__name__, source, exc, now)
             return []
+
+    @property
+    def rejected_total(self) -> int:
+        """Messages this core refused (bad or unreachable targets, score errors ...), total; the node's Health
+        counts them as dropped."""
+        return sum(self.rejected.values())
 
     def _reject(self, kind: str, source: str, exc: Exception, now: float) -> None:
         """Count a rejected message; log it unless this kind was logged within ``REJECT_LOG_INTERVAL_S``."""

@@ -144,6 +144,7 @@ def test_bad_targets_are_rejected_with_a_clear_error_and_counted() -> None:
                        "test") == []
     assert core.handle(JointTarget(time=0.5, values=(0.0,) * 10), 0.0, "test") == []
     assert core.rejected == {"CartesianTarget": 1, "JointTarget": 1}
+    assert core.rejected_total == 2  # what the node's Health reports as dropped
     assert len(scene.limb_tracks["left_hand"]) == 0 and len(scene.joint_track) == 0
     _run(core, 0.0, 0.05)
     core.close()
