@@ -14,10 +14,10 @@ from typing import Literal
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
-from common.datafile import parse_file
+from common.datafile import one_line, parse_file
 from common.output_paths import write_atomically
 from services.interaction.detect import DetectionConfig
-from services.interaction.mapping import RegisteredMessage, Route, default_routes
+from services.interaction.mapping import MAX_MESSAGES, MAX_ROUTES, RegisteredMessage, Route, default_routes
 
 
 class RedundancyConfig(BaseModel):
@@ -50,6 +50,8 @@ class InteractionConfig(BaseModel):
         targets = [r.to for r in value]
         if len(targets) != len(set(targets)):
             raise ValueError("two routes go to the same target; merge them")
+        if len(value) > MAX_ROUTES:
+            raise ValueError(f"at most {MAX_ROUTES} routes (remove one first)")
         return value
 
     @field_validator("messages")
@@ -58,6 +60,8 @@ class InteractionConfig(BaseModel):
         names = [m.name for m in value]
         if len(names) != len(set(names)):
             raise ValueError("registered message names must be unique")
+        if len(value) > MAX_MESSAGES:
+            raise ValueError(f"at most {MAX_MESSAGES} registered messages (remove one first)")
         return value
 
 
@@ -65,7 +69,7 @@ def load_config(path: str | Path) -> InteractionConfig:
     """Read a configuration file (YAML, or JSON by extension).
 
     Raises ``FileNotFoundError`` when it does not exist and ``ValueError``
-    with the reason when it is not a valid configuration.
+    with the reason, on one line, when it is not a valid configuration.
     """
     path = Path(path)
     try:
@@ -74,8 +78,8 @@ def load_config(path: str | Path) -> InteractionConfig:
         raise ValueError(f"{path}: {exc}") from None
     try:
         return InteractionConfig.model_validate(data or {})
-    except ValidationError as exc:
-        raise ValueError(f"{path}: {exc}") from None
+    except ValidationError as exc:  # pydantic's report spans lines and links its docs: the first problem
+        raise ValueError(f"{path}: {one_line(exc)}") from None
 
 
 def save_config(config: InteractionConfig, path: str | Path) -> None:
@@ -83,7 +87,8 @@ def save_config(config: InteractionConfig, path: str | Path) -> None:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     data = config.model_dump(mode="json", exclude_none=True)
-    text = json.dumps(data, indent=2) if path.suffix == ".json" else yaml.safe_dump(data, sort_keys=False)
+    as_json = path.suffix.lower() == ".json"  # as parse_file reads it back
+    text = json.dumps(data, indent=2) if as_json else yaml.safe_dump(data, sort_keys=False)
     write_atomically(path, text.encode("utf-8"))
 
 
@@ -107,7 +112,8 @@ class FileConfigStore:
         """
         if not name:
             return load_config(self.path)
-        if Path(name).name != name or name in (".", "..") or Path(name).suffix not in (".yaml", ".yml", ".json"):
+        suffix = Path(name).suffix.lower()
+        if Path(name).name != name or name in (".", "..") or suffix not in (".yaml", ".yml", ".json"):
             raise ValueError(f"{name!r}: give a file name (.yaml, .yml or .json) in {self.path.parent}, not a path")
         return load_config(self.path.parent / name)
 
@@ -115,5 +121,10 @@ class FileConfigStore:
         save_config(config, self.path)
 
     def load_or_default(self) -> InteractionConfig:
-        """This store's file if it exists, else the default configuration."""
+        """This store's file if it exists, else the default configuration.
+
+        Raises ``ValueError`` when the path is a directory: nothing could ever be saved there.
+        """
+        if self.path.is_dir():
+            raise ValueError(f"{self.path} is a directory; give a configuration file (.yaml or .json)")
         return load_config(self.path) if self.path.is_file() else InteractionConfig()

@@ -22,8 +22,8 @@ What an impact carries when (docs/interaction.md):
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Callable
-from typing import ClassVar, Protocol
+from collections.abc import Callable, Mapping
+from typing import ClassVar, Literal, Protocol
 
 import numpy as np
 from pydantic import ValidationError
@@ -63,6 +63,7 @@ from services.interaction.detect import (
     Segmenter,
     SegmentEvent,
 )
+from services.interaction.features import PLAYABLE_KINDS
 from services.interaction.mapping import (
     MAPPABLE_FIELDS,
     ArgSpec,
@@ -114,6 +115,8 @@ class InteractionCore:
         self.scheduler = RedundantScheduler()
         self.mapping_errors = 0
         self.control_errors = 0
+        self.rejected_total = 0
+        """Control messages refused (answered with an error), total: the node's Health counts them as dropped."""
         self.impacts_sent = 0
         self.latencies: deque[float] = deque(maxlen=10_000)
         self.on_config_error: Callable[[str], None] | None = None
@@ -147,6 +150,7 @@ class InteractionCore:
             return control(message, now)
         except (MappingError, ValidationError, ValueError, OSError) as exc:
             self.control_errors += 1
+            self.rejected_total += 1
             return [Outgoing(InteractionError(request=message.ADDRESS, detail=_short(exc)), "reply")]
 
     def step(self, now: float) -> list[Outgoing]:
@@ -277,12 +281,15 @@ class InteractionCore:
     # ------------------------------------------------------------------ configuration
 
     def set_config(self, config: InteractionConfig, persist: bool = True) -> None:
-        """Replace the whole configuration (detection thresholds apply to contacts from now on)."""
+        """Replace the whole configuration (detection thresholds apply to contacts from now on).
+
+        Saved first: when the file cannot be written (OSError) nothing changes, as the error reply says.
+        """
+        if persist and self.store is not None:
+            self.store.save(config)
         self.config = config
         self.segmenter.config = config.detection
         self.rate_hz = self._rate_for(config)
-        if persist and self.store is not None:
-            self.store.save(config)
 
     def _changed(self, **update: object) -> None:
         self.set_config(InteractionConfig.model_validate({**self.config.model_dump(), **update}))
@@ -295,10 +302,37 @@ class InteractionCore:
             wanted = max(wanted, 1.0 / config.redundancy.spacing)
         return min(wanted, MAX_STEP_HZ)
 
+    def _playable(self) -> list[str]:
+        return [o.id for o in self.kit.objects if o.kind in PLAYABLE_KINDS]
+
+    def _instruments(self, text: str) -> list[str]:
+        """The instrument list of a route or registered message; ValueError naming any the kit cannot play
+        (a typo would make the route silently never match)."""
+        names = parse_instruments(text)
+        playable = self._playable()
+        unknown = [n for n in names if n not in playable]
+        if unknown:
+            raise ValueError(f"no instrument {', '.join(map(repr, unknown))} in kit {self.kit.name!r} "
+                             f"(it has: {', '.join(playable)})")
+        return names
+
+    def unplayable_instruments(self) -> list[str]:
+        """Routes and registered messages of the configuration naming instruments the kit cannot play, one
+        line each (a configuration file may come from another kit, so this is for a warning, not an error)."""
+        playable = self._playable()
+        owners = [(f"route to {r.to}", r.instruments) for r in self.config.routes]
+        owners += [(f"registered message {m.name}", m.instruments) for m in self.config.messages]
+        lines = []
+        for owner, names in owners:
+            unknown = [n for n in names if n not in playable]
+            if unknown:
+                lines.append(f"{owner}: no instrument {', '.join(map(repr, unknown))} in kit {self.kit.name!r}")
+        return lines
+
     def _route_set(self, message: OscMessage, now: float) -> list[Outgoing]:
         assert isinstance(message, RouteSet)
         routes = [r.model_dump() for r in self.config.routes]
-        instruments = parse_instruments(message.instruments)
+        instruments = self._instruments(message.instruments)
         for route in routes:
             if route["to"] == message.to:
                 route["instruments"] = instruments
@@ -347,15 +381,15 @@ class InteractionCore:
         return []
 
     def _map_list(self, message: OscMessage, now: float) -> list[Outgoing]:
-        out: list[Outgoing] = []
+        listing = _Listing(MapList.ADDRESS)
         for route in self.config.routes:
             instruments = format_instruments(route.instruments)
-            out.append(Outgoing(MapInfo(to=route.to, instruments=instruments, field="", spec=""), "reply"))
-            for name, spec in route.fields.items():
-                info = MapInfo(to=route.to, instruments=instruments, field=name, spec=spec.to_spec())
-                out.append(Outgoing(info, "reply"))
-        out.append(Outgoing(ListEnd(what="map", count=len(out)), "reply"))
-        return out
+            entries = [("", "")] + [(name, spec.to_spec()) for name, spec in route.fields.items()]
+            for name, spec in entries:
+                fields = {"to": route.to, "instruments": instruments, "field": name, "spec": spec}
+                listing.add(MapInfo, fields, f"route {route.to} field {name or '-'}")
+        self.control_errors += len(listing.refused)
+        return listing.replies("map")
 
     def _message_add(self, message: OscMessage, now: float) -> list[Outgoing]:
         assert isinstance(message, MessageAdd)
@@ -363,7 +397,7 @@ class InteractionCore:
             name=message.name,
             to=message.to,
             address=message.address,
-            instruments=parse_instruments(message.instruments),
+            instruments=self._instruments(message.instruments),
             when=message.when,
             args=[ArgSpec.parse(text) for text in message.specs],
         )
@@ -381,22 +415,14 @@ class InteractionCore:
         return []
 
     def _message_list(self, message: OscMessage, now: float) -> list[Outgoing]:
-        out = [
-            Outgoing(
-                MessageInfo(
-                    name=m.name,
-                    to=m.to,
-                    address=m.address,
-                    instruments=format_instruments(m.instruments),
-                    when=m.when,
-                    specs=tuple(spec.to_spec() for spec in m.args),
-                ),
-                "reply",
-            )
-            for m in self.config.messages
-        ]
-        out.append(Outgoing(ListEnd(what="message", count=len(out)), "reply"))
-        return out
+        listing = _Listing(MessageList.ADDRESS)
+        for m in self.config.messages:
+            fields = {"name": m.name, "to": m.to, "address": m.address,
+                      "instruments": format_instruments(m.instruments), "when": m.when,
+                      "specs": tuple(spec.to_spec() for spec in m.args)}
+            listing.add(MessageInfo, fields, f"registered message {m.name}")
+        self.control_errors += len(listing.refused)
+        return listing.replies("message")
 
     def _redundancy(self, message: OscMessage, now: float) -> list[Outgoing]:
         assert isinstance(message, Redundancy)
@@ -448,6 +474,9 @@ class InteractionCore:
             latency_p50=p50,
             latency_p99=p99,
             latency_max=worst,
+            out_of_order=det.out_of_order,
+            dropped_contacts=det.dropped,
+            clock_resets=det.clock_resets,
         )
 
     def instrument_stats(self) -> list[InstrumentStats]:
@@ -471,7 +500,29 @@ class InteractionCore:
         return out
 
 
-def _short(exc: BaseException) -> str:
+class _Listing:
+    """The answers to map/list or message/list. An entry the configuration file allows but an OSC reply cannot
+    carry (a long table, a long instrument list) gets an error of its own; the rest is listed all the same."""
+
+    def __init__(self, request: str) -> None:
+        self.request = request
+        self.infos: list[OscMessage] = []
+        self.refused: list[InteractionError] = []
+
+    def add(self, cls: type[OscMessage], fields: Mapping[str, object], what: str) -> None:
+        try:
+            self.infos.append(cls.model_validate(fields))
+        except ValidationError as exc:
+            detail = _short(f"{what} cannot be listed over OSC: {_short(exc)}")
+            self.refused.append(InteractionError(request=self.request, detail=detail))
+
+    def replies(self, what: Literal["map", "message"]) -> list[Outgoing]:
+        """Every entry, the errors, then list/end with the number of entries."""
+        messages = [*self.infos, *self.refused, ListEnd(what=what, count=len(self.infos))]
+        return [Outgoing(m, "reply") for m in messages]
+
+
+def _short(exc: BaseException | str) -> str:
     text = str(exc)
     if isinstance(exc, ValidationError):
         errors = exc.errors()

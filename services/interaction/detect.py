@@ -34,6 +34,12 @@ tip and shaft, share one track: :meth:`Segmenter.striker_of`):
   :class:`DampingChange` on, and off when it ends. A strike that turns into a
   press is a **dead** stroke: its figures are final when the press begins.
 
+Bad streams: a step of a contact already over, delivered late or twice, is
+dropped (``out_of_order``); a contact more than ``CLOCK_JUMP_S`` older than
+the newest is a physics clock that went back (a restarted physics node):
+every contact ends and segmentation starts again (``clock_resets``). At most
+``MAX_TRACKS`` tracks are kept (``dropped`` counts contacts refused for room).
+
 Deterministic; no clock but the times given.
 """
 
@@ -42,7 +48,7 @@ from __future__ import annotations
 import math
 from collections import Counter
 from dataclasses import dataclass, field, replace
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -53,6 +59,18 @@ from services.interaction.features import PLAYABLE_KINDS, ZoneConfig, polar, zon
 SEQ_LIMIT = 2**31
 """Sequence numbers wrap here (they travel as OSC int32)."""
 
+FLOAT32_MAX = 3.4028234663852886e38
+"""Largest value an OSC float32 carries; larger figures cannot be sent, so they are held to it."""
+
+MAX_TRACKS = 256
+"""Most (instrument, striker) tracks kept: a kit has about 15 instruments and a few strikers; contacts of
+ever new striker names (a broken or hostile sender) must not grow memory or the per-contact work."""
+
+CLOCK_JUMP_S = 1.0
+"""A contact this much older than the newest physics time (seconds) comes from a physics clock that went back
+(physics restarted with a new epoch): segmentation starts again, or every later step would end and restart
+its contact (one impact per step, no presses) until physics' time caught up with the old one."""
+
 ImpactKind = Literal["strike", "bounce", "buzz", "dead"]
 
 
@@ -62,7 +80,7 @@ class DetectionConfig(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     strike_velocity_min: float = Field(default=0.05, ge=0, le=10, description="slowest strike, m/s")
-    part_velocity_min: dict[str, float] = Field(
+    part_velocity_min: dict[str, Annotated[float, Field(ge=0, le=100)]] = Field(
         default_factory=lambda: {"hihat_top": 0.1},
         description="slowest strike of particular strikers, m/s (default: a hi-hat's top plate closing slower than "
                     "0.1 m/s is the foot letting it down, silent, as an e-kit's pedal sensor does not report it)",
@@ -82,7 +100,7 @@ class DetectionConfig(BaseModel):
                     "plates meeting while the foot is not closing the pedal as hihat_rattle; closing: hihat_top)",
     )
     default_step: float = Field(default=0.001, gt=0, le=0.1, description="physics step until measured, s")
-    part_suffixes: tuple[str, ...] = Field(
+    part_suffixes: tuple[Annotated[str, Field(min_length=1)], ...] = Field(
         default=("_tip", "_shaft", "_shoulder", "_butt"),
         description="parts of one striker: contacts of left_stick_tip and left_stick_shaft are one track",
     )
@@ -190,7 +208,9 @@ class DetectionStats:
     touches: int = 0
     ignored: int = 0
     unknown_instrument: int = 0
-    out_of_order: int = 0
+    out_of_order: int = 0  # steps older than their track's last (counted), and late steps of ended contacts (dropped)
+    dropped: int = 0  # contacts of a new striker while MAX_TRACKS tracks are in use
+    clock_resets: int = 0  # the physics clock went back (physics restarted): segmentation started again
     reopened: int = 0  # contacts the receiver's clock ended too early, continued by later steps
     rattles: int = 0  # a rattle striker's contacts right after a stroke on its instrument (no impact)
     masked: int = 0  # re-contacts inside a striker's retrigger mask (the stroke's own rebound touch; no impact)
@@ -255,6 +275,8 @@ class Segmenter:
         self.stats.contacts += 1
         self._note_offset(now - c.time, now)
         events: list[SegmentEvent] = []
+        if c.time < self._physics_time - CLOCK_JUMP_S:
+            self._restart(events)  # physics' clock went back (a restart); UDP does not hold a datagram seconds
         self._physics_time = max(self._physics_time, c.time)
         self._end_stale(self._physics_time, events, skip=(c.instrument, self.striker_of(c.part)))
         obj = self._objects.get(c.instrument)
@@ -267,10 +289,16 @@ class Segmenter:
         key = (c.instrument, self.striker_of(c.part))
         track = self._tracks.get(key)
         if track is None:
+            if not self._make_room():
+                self.stats.dropped += 1
+                return events
             track = _Track(instrument=c.instrument, part=c.part, obj=obj)
             self._tracks[key] = track
         if track.active and c.time - track.last > self.config.retrigger_gap:
             self._end(track, events)
+        if self._late(track, c):
+            self.stats.out_of_order += 1  # a late (or repeated) step of a contact already ended: not a new one
+            return events
         if (not track.active and track.ended_by_clock and track.prev_end is not None
                 and 0.0 <= c.time - track.prev_end <= self.config.retrigger_gap):
             # the receiver's clock ended this contact early (a live physics node catching up delivers its
@@ -308,6 +336,11 @@ class Segmenter:
     def active_tracks(self) -> int:
         return sum(1 for t in self._tracks.values() if t.active)
 
+    @property
+    def track_count(self) -> int:
+        """Tracks kept (active or remembered for bounce and mask classification), at most MAX_TRACKS."""
+        return len(self._tracks)
+
     # ------------------------------------------------------------------ internals
 
     def _note_offset(self, offset: float, now: float) -> None:
@@ -316,6 +349,38 @@ class Segmenter:
             previous, current = current, math.inf
             self._offset_window_start = now
         self._offset_min = (min(current, offset), previous)
+
+    @staticmethod
+    def _late(track: _Track, c: Contact) -> bool:
+        """True for a step of an earlier, ended contact of this track delivered late: it would start a second
+        impact (the approach velocity is repeated in every step) or add its impulse to the next one. A step at
+        the time of the last step of a contact the receiver's clock ended is another contact point of that
+        step: it reopens the contact. A reordered step of the current contact is no earlier contact's."""
+        if track.prev_end is None:
+            return False
+        if track.active:
+            return c.time < track.start and c.time <= track.prev_end
+        return c.time < track.prev_end or (c.time == track.prev_end and not track.ended_by_clock)
+
+    def _make_room(self) -> bool:
+        """Room for one more track: forget the idle track that ended longest ago when MAX_TRACKS are kept
+        (it loses only its bounce and mask history); False when every track is in contact."""
+        if len(self._tracks) < MAX_TRACKS:
+            return True
+        idle = [(t.last, key) for key, t in self._tracks.items() if not t.active]
+        if not idle:
+            return False
+        del self._tracks[min(idle)[1]]
+        return True
+
+    def _restart(self, events: list[SegmentEvent]) -> None:
+        """Physics' clock went back: end every contact and forget the tracks (their times are of the old clock)."""
+        for track in self._tracks.values():
+            if track.active:
+                self._end(track, events)
+        self._tracks.clear()
+        self._physics_time = -math.inf
+        self.stats.clock_resets += 1
 
     def _end_stale(self, physics_now: float, events: list[SegmentEvent], skip: tuple[str, str] | None = None,
                    by_clock: bool = False) -> None:
@@ -403,7 +468,7 @@ class Segmenter:
             self.stats.out_of_order += 1
         # the same step again: another contact point of the same pair; its impulse adds up
         if track.open is not None:
-            track.open.impulse += c.impulse
+            track.open.impulse = min(track.open.impulse + c.impulse, FLOAT32_MAX)
             track.open.peak_force = max(track.open.peak_force, c.normal_force)
         if track.pressing:
             track.press_force += c.normal_force

@@ -15,6 +15,11 @@ A :class:`Route` says where impacts go and which of the Impact's fields are
 replaced by mapped values (the default, no field maps, is the one-to-one
 physical mapping). A :class:`RegisteredMessage` is an extra message, any
 address and arguments, sent to a role or host:port on every matching impact.
+
+Everything must be sendable: numbers finite and within an OSC float32 (or
+int32), ``host:port`` targets valid; a configuration holds at most
+``MAX_ROUTES`` routes and ``MAX_MESSAGES`` registered messages of at most
+``MAX_ARGS`` arguments.
 """
 
 from __future__ import annotations
@@ -25,8 +30,19 @@ from typing import Annotated, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
+from common.datafile import one_line
 from common.messages.base import INT32_MAX, INT32_MIN
-from services.interaction.detect import FEATURES, STRING_FEATURES, ImpactFeatures
+from common.transport import parse_address
+from services.interaction.detect import FEATURES, FLOAT32_MAX, STRING_FEATURES, ImpactFeatures
+
+MAX_ROUTES = 32
+"""Most routes a configuration holds: every impact goes out once per route and copy."""
+
+MAX_MESSAGES = 64
+"""Most registered messages a configuration holds (the file is written back on every edit)."""
+
+MAX_ARGS = 32
+"""Most arguments of one registered message."""
 
 
 class MappingError(ValueError):
@@ -34,7 +50,21 @@ class MappingError(ValueError):
 
 
 class _Model(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+
+def _sendable(value: float, what: str) -> float:
+    """``value`` if an OSC float32 can carry it; ValueError otherwise (python-osc cannot pack it)."""
+    if abs(value) > FLOAT32_MAX:
+        raise ValueError(f"{what} {value:g} is beyond the largest OSC float ({FLOAT32_MAX:.4g})")
+    return value
+
+
+def _check_target(to: str) -> str:
+    """A role name, or a HOST:PORT that can be sent to (ValueError with the reason)."""
+    if ":" in to or to.startswith("["):
+        parse_address(to)
+    return to
 
 
 class LinearCurve(_Model):
@@ -49,6 +79,13 @@ class LinearCurve(_Model):
     def _distinct(cls, value: tuple[float, float]) -> tuple[float, float]:
         if value[0] == value[1]:
             raise ValueError("in_range needs two different values")
+        return value
+
+    @field_validator("out_range")
+    @classmethod
+    def _out_sendable(cls, value: tuple[float, float]) -> tuple[float, float]:
+        for v in value:
+            _sendable(v, "out_range value")
         return value
 
     def unit(self, x: float) -> float:
@@ -96,6 +133,8 @@ class TableCurve(_Model):
         xs = [p[0] for p in value]
         if any(b <= a for a, b in zip(xs, xs[1:], strict=False)):
             raise ValueError("table x values must increase")
+        for _, y in value:
+            _sendable(y, "table y value")
         return value
 
     def __call__(self, x: float) -> float:
@@ -133,6 +172,8 @@ class ArgSpec(_Model):
             raise ValueError("a constant takes no curve")
         elif isinstance(self.value, int) and self.type in ("auto", "i") and not INT32_MIN <= self.value <= INT32_MAX:
             raise ValueError(f"{self.value} does not fit an OSC int32")
+        elif isinstance(self.value, int | float) and self.type in ("auto", "f"):
+            _sendable(self.value, "constant")
         if self.type in ("i", "f") and (
             self.feature in STRING_FEATURES or (self.value is not None and isinstance(self.value, str))
         ):
@@ -151,6 +192,12 @@ class ArgSpec(_Model):
                 value = self.curve(float(value))
         if isinstance(value, float) and not math.isfinite(value):
             raise MappingError(f"{self.to_spec()}: value is not finite")
+        if self.type == "f" or (self.type == "auto" and isinstance(value, float)):
+            assert not isinstance(value, str)
+            try:
+                _sendable(value, "value")
+            except ValueError as exc:
+                raise MappingError(f"{self.to_spec()}: {exc}") from None
         if self.type == "i" or (self.type == "auto" and isinstance(value, int)):
             assert not isinstance(value, str)
             whole = int(round(value))
@@ -223,8 +270,8 @@ def _constant(text: str) -> int | float | str:
 
 
 def _first_line(exc: Exception) -> str:
-    lines = [line for line in str(exc).splitlines() if line.strip()]
-    return lines[-1].strip() if lines else type(exc).__name__
+    """The reason on one line: pydantic's first complaint (its report's last line is a link to its docs)."""
+    return one_line(exc) or type(exc).__name__
 
 
 # impact fields a route may map, with the Impact message's ranges
@@ -232,8 +279,8 @@ MAPPABLE_FIELDS: dict[str, tuple[float, float]] = {
     "r": (0.0, 2.0),
     "theta": (-7.0, 7.0),
     "velocity": (0.0, 100.0),
-    "impulse": (0.0, math.inf),
-    "peak_force": (0.0, math.inf),
+    "impulse": (0.0, FLOAT32_MAX),
+    "peak_force": (0.0, FLOAT32_MAX),
     "duration": (0.0, 1.0),
 }
 
@@ -266,9 +313,11 @@ class Route(_Model):
         for name, spec in value.items():
             if name not in MAPPABLE_FIELDS:
                 raise ValueError(f"field {name!r} cannot be mapped (mappable: {', '.join(MAPPABLE_FIELDS)})")
-            if spec.feature in STRING_FEATURES or isinstance(spec.value, str):
+            if spec.feature in STRING_FEATURES or isinstance(spec.value, str) or spec.type == "s":
                 raise ValueError(f"field {name!r} is a number; {spec.to_spec()!r} is a string")
         return value
+
+    _target = field_validator("to")(_check_target)
 
     def matches(self, instrument: str) -> bool:
         return not self.instruments or instrument in self.instruments
@@ -282,8 +331,10 @@ class RegisteredMessage(_Model):
     address: str = Field(pattern=r"^/[^\s#*?,\[\]{}]*$", max_length=128, description="OSC address")
     instruments: list[str] = Field(default_factory=list, description="kit object ids; empty: every instrument")
     when: Literal["onset", "end"] = "onset"
-    args: list[ArgSpec] = Field(default_factory=list)
+    args: list[ArgSpec] = Field(default_factory=list, max_length=MAX_ARGS)
     repeat: int = Field(default=1, ge=1, le=16, description="copies sent (receivers without de-duplication: 1)")
+
+    _target = field_validator("to")(_check_target)
 
     def matches(self, instrument: str) -> bool:
         return not self.instruments or instrument in self.instruments

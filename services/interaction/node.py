@@ -73,6 +73,8 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace) -> InteractionC
         log.info("interaction configuration: %s (%s)", path, "loaded" if path.is_file() else "defaults")
     seq_start = int(time.time() * 1000) % SEQ_LIMIT
     core = InteractionCore(kit=kit, config=config, seq_start=seq_start, store=store)
+    for problem in core.unplayable_instruments():
+        log.warning("%s: %s (never matches)", path, problem)
     core.on_config_error = _rate_limited_warning(5.0)
     return core
 

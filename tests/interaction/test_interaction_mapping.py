@@ -281,6 +281,7 @@ def test_bad_control_messages_get_an_error_reply_and_change_nothing() -> None:
         assert isinstance(error, InteractionError) and error.request == message.ADDRESS and error.detail
     assert core.config == before
     assert core.control_errors == 6
+    assert core.rejected_total == 6  # the node's Health counts them as dropped
 
 
 def test_mapped_value_out_of_the_impact_range_is_clamped_and_counted() -> None:
