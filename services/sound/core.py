@@ -12,6 +12,8 @@ one) and/or a WAV file; offline, the recording is kept in memory
 from __future__ import annotations
 
 import collections
+import io
+import logging
 import math
 from collections import Counter
 from collections.abc import Callable
@@ -47,6 +49,7 @@ from common.messages.sound import (
     SoundTension,
     SoundThickness,
 )
+from common.output_paths import write_atomically
 from services.sound.excitation import warm_up as excitation_warm_up
 from services.sound.instruments import (
     INSTRUMENT_CLASSES,
@@ -83,6 +86,29 @@ PARAM_MESSAGES: dict[type[OscMessage], tuple[str, tuple[str, ...]]] = {
 }
 
 
+WAV_FORMATS = frozenset(f for f in sf.available_formats() if sf.check_format(f, "PCM_24"))
+"""File formats libsndfile writes as 24-bit PCM, named by extension (WAV, FLAC, AIFF, W64, RF64, ...)."""
+
+
+def wav_format(path: Path, option: str) -> str:
+    """The libsndfile format that ``path``'s extension names; ValueError naming ``option`` (e.g. ``--wav``)
+    when it names none that takes 24-bit PCM (.mp3, .ogg, no extension)."""
+    fmt = path.suffix[1:].upper()
+    if fmt not in WAV_FORMATS:
+        raise ValueError(f"{option} {path}: give a file ending in .wav (or .flac, .aiff, .w64), "
+                         f"not {path.suffix or 'no extension'}")
+    return fmt
+
+
+log = logging.getLogger("batteur.sound")
+
+DROP_LOG_INTERVAL_S = 1.0
+"""Dropped impacts of one kind are logged at most once per this many seconds of rig time (the rest are counted and
+summed into the next warning), so a flood cannot flood the log too."""
+
+MAX_LATENCY_S = 2.0
+"""Longest latency window, seconds: /batteur/sound/latency's range."""
+
 KNEE = 0.7
 """Master soft limiter: linear below this level, a tanh knee above, never beyond 1."""
 
@@ -110,7 +136,8 @@ class SoundSettings(BaseModel):
 
     sample_rate: Literal[44100, 48000, 96000] = Field(48000, description="output rate, Hz")
     block_size: Literal[64, 128, 256, 512] = Field(256, description="samples per block")
-    latency: float = Field(0.05, ge=0.0, le=2.0, description="scheduling window added to impact times, seconds")
+    latency: float = Field(0.05, ge=0.0, le=MAX_LATENCY_S, description="scheduling window added to impact times, "
+                           "seconds")
     origin: float | None = Field(0.0, description="rig time of the first output sample, seconds "
                                  "(None: the rig time of the first step or message, for live nodes)")
     render_ahead: float = Field(0.0, ge=0.0, le=1.0, description="live: step(now) renders up to now + this, "
@@ -122,6 +149,14 @@ class SoundSettings(BaseModel):
     master_db: float = Field(0.0, ge=-80.0, le=12.0, description="master gain, dB")
     record: bool = Field(True, description="keep every rendered block in memory (offline renders)")
     model: Literal["modal", "sample", "synth"] = Field("modal", description="initial model of every instrument")
+    max_strikes_per_block: int = Field(16, ge=1, le=4096, description="strikes started in one block at most: "
+                                       "beyond (more than any drummer plays) the loudest are kept and the rest "
+                                       "dropped and counted (overload), so a burst cannot stall the renderer")
+    horizon: float | None = Field(None, gt=0.0, description="impacts more than this many seconds after the render "
+                                  "position are dropped and counted (too_early): a sender's clock error would "
+                                  "otherwise hold them in memory for ever. None: no limit (offline renders)")
+    max_pending: int | None = Field(None, ge=1, description="impacts waiting for their block at most; beyond, "
+                                    "new ones are dropped and counted (overload). None: no limit (offline)")
     pedal_impacts: bool = Field(False, description="sound impacts on pedal objects (footboards) on the instrument "
                                 "they drive; off by default because the physics reports the beater on the kick "
                                 "and the hi-hat's top plate closing (part hihat_top) as impacts of their own")
@@ -136,12 +171,16 @@ class SoundStats:
     duplicates: int = 0
     unknown_instrument: int = 0
     pedal_impacts: int = 0  # impacts on footboards, not sounded (unless settings.pedal_impacts)
+    too_early: int = 0  # impacts beyond the horizon (a sender's clock far ahead)
+    overload: int = 0  # strikes dropped by a burst: over max_strikes_per_block or max_pending
+    silenced: int = 0  # times an instrument's output went non-finite and it was stopped
     rejected: Counter[str] = field(default_factory=Counter)  # by control address
     blocks: int = 0
 
     @property
     def rejected_total(self) -> int:
-        return sum(self.rejected.values())
+        """Valid messages refused: controls, and impacts not played (the node's Health counts them as dropped)."""
+        return sum(self.rejected.values()) + self.unknown_instrument + self.too_early + self.overload
 
 
 class SoundCore:
@@ -188,6 +227,8 @@ class SoundCore:
         """Output time of each strike's first sample minus its impact time, seconds (most recent last)."""
         self._bus: dict[str, F32] = {}
         self._pedal_ids = {o.id for o in self.kit.objects if o.kind == "pedal"}
+        self._drop_logged: dict[str, float] = {}  # kind -> rig time of its last warning, seconds
+        self._drop_quiet: Counter[str] = Counter()  # kind -> drops since that warning
         self._pans = {i.id: self._pan(i.obj.position[0]) for i in self.instruments.instruments.values()}
 
     # ------------------------------------------------------------- building
@@ -261,10 +302,47 @@ class SoundCore:
                 self.stats.pedal_impacts += 1  # a foot on a footboard: the beater / top plate sound instead
             else:
                 self.stats.unknown_instrument += 1
+                known = ", ".join(sorted(self.instruments.instruments))
+                self._log_drop("unknown_instrument", f"dropped an impact from {source} on {impact.instrument!r}, "
+                               f"which the kit does not have (known: {known})")
+            return
+        horizon = self.settings.horizon
+        if horizon is not None and impact.time - self.now > horizon:
+            self.stats.too_early += 1
+            self._log_drop("too_early", f"dropped an impact from {source} at rig time {impact.time:.3f} s, "
+                           f"{impact.time - self.now:.1f} s ahead of the sound (more than {horizon:g} s: "
+                           "is its clock synchronised?)")
+            return
+        if self.settings.max_pending is not None and len(self.scheduler) >= self.settings.max_pending:
+            self.stats.overload += 1
+            self._log_drop("overload", f"dropped an impact from {source}: {len(self.scheduler)} already waiting")
             return
         payload = (impact.instrument, impact)
         self.scheduler.push(impact.time, payload, self.next_sample)
         self.stats.late = self.scheduler.late
+
+    def _log_drop(self, kind: str, detail: str) -> None:
+        """Warn about input not played, at most once per DROP_LOG_INTERVAL_S of rig time for each kind."""
+        now = self.now
+        last = self._drop_logged.get(kind)
+        if last is not None and 0.0 <= now - last < DROP_LOG_INTERVAL_S:
+            self._drop_quiet[kind] += 1
+            return
+        self._drop_logged[kind] = now
+        quiet = self._drop_quiet.pop(kind, 0)
+        more = f" (+{quiet} more since the last report)" if quiet else ""
+        log.warning("%s%s", detail, more)
+
+    def _within_budget(self, due: list[tuple[int, tuple[str, Impact]]]) -> list[tuple[int, tuple[str, Impact]]]:
+        """The strikes of one block, at most ``max_strikes_per_block``: the loudest, in time order."""
+        cap = self.settings.max_strikes_per_block
+        if len(due) <= cap:
+            return due
+        loudest = sorted(range(len(due)), key=lambda i: -due[i][1][1].velocity)[:cap]
+        dropped = len(due) - cap
+        self.stats.overload += dropped
+        self._log_drop("overload", f"{len(due)} strikes due in one block: the {cap} loudest play, {dropped} dropped")
+        return [due[i] for i in sorted(loudest)]
 
     def step(self, now: float) -> list[Outgoing]:
         """Render every block that ends at or before rig time ``now`` (plus ``render_ahead``)."""
@@ -310,7 +388,7 @@ class SoundCore:
         """Render the next block; returns float32 (block,) or (block, 2)."""
         n = self.block
         start = self.next_sample
-        for sample, payload in self.scheduler.pop_until(start + n):
+        for sample, payload in self._within_budget(self.scheduler.pop_until(start + n)):
             self._strike(sample - start, payload)
         for buf in self._bus.values():
             buf[:] = 0.0
@@ -319,6 +397,9 @@ class SoundCore:
                 buf = self._bus_for(inst.id)
                 inst.process(buf)
         self.pool.render(self._bus_for)
+        for inst_id, buf in self._bus.items():
+            if not np.isfinite(buf).all():
+                self._silence(inst_id, buf)
         mix = np.zeros((n, self.channels), dtype=np.float32)
         for inst_id, buf in self._bus.items():
             inst = self.instruments.instruments[inst_id]
@@ -342,9 +423,32 @@ class SoundCore:
             self._record.append(out)
         if self.on_block is not None:
             self.on_block(out)
-        for sink in self.sinks:
-            sink(out)
+        for sink in list(self.sinks):
+            try:
+                sink(out)
+            except Exception as exc:  # noqa: BLE001 - one output failing (a full disk) must not silence the others
+                self._drop_sink(sink, exc)
         return out
+
+    def _drop_sink(self, sink: Sink, exc: Exception) -> None:
+        """Stop feeding an output that failed, and close it (a WAV file keeps what it holds so far)."""
+        self.sinks.remove(sink)
+        name = getattr(sink, "path", type(sink).__name__)
+        log.error("sound output %s failed at rig time %.1f s: %s; it was closed, the other outputs go on",
+                  name, self.now, exc)
+        try:
+            sink.close()
+        except Exception as close_exc:  # noqa: BLE001
+            log.error("sound output %s could not be closed either (%s)", name, close_exc)
+
+    def _silence(self, instrument: str, buf: F32) -> None:
+        """Stop an instrument whose output went non-finite: NaN in the mix would ruin every instrument for good."""
+        self.instruments.instruments[instrument].silence()
+        self.pool.voices = [v for v in self.pool.voices if v.instrument != instrument]
+        buf[:] = 0.0
+        self.stats.silenced += 1
+        self._log_drop("silenced", f"{instrument} produced non-finite samples with its current parameters: "
+                       "its ringing was stopped")
 
     def _strike(self, offset: int, payload: tuple[str, Impact]) -> None:
         name, impact = payload
@@ -370,10 +474,14 @@ class SoundCore:
         return np.concatenate(self._record, axis=0)
 
     def write_wav(self, path: str | Path) -> Path:
-        """Write the recording as a 24-bit WAV file; returns the path."""
+        """Write the recording as a 24-bit WAV file (whole or not at all: an earlier file survives a failed
+        write); returns the path. ValueError for a name that is not a sound file (.wav, .flac, ...)."""
         p = Path(path)
+        fmt = wav_format(p, "wav")
         p.parent.mkdir(parents=True, exist_ok=True)
-        sf.write(p, self.recording(), self.sample_rate, subtype="PCM_24")
+        data = io.BytesIO()
+        sf.write(data, self.recording(), self.sample_rate, subtype="PCM_24", format=fmt)
+        write_atomically(p, data.getvalue())
         return p
 
     @property
@@ -386,15 +494,25 @@ class SoundCore:
         """Strikes that arrived too late and played at once."""
         return self.scheduler.late
 
+    @property
+    def rejected_total(self) -> int:
+        """Valid messages refused or impacts not played, total (:attr:`SoundStats.rejected_total`): the node's
+        Health counts them as dropped."""
+        return self.stats.rejected_total
+
     def sounding_modes(self) -> int:
         """Modes of instruments currently ringing."""
         return sum(i.bank.size for i in self.instruments.instruments.values() if i.sounding)
 
     def close(self) -> None:
         """Close the sinks and free the pyo server (idempotent)."""
-        sinks, self.sinks = self.sinks, []
-        for sink in sinks:
-            sink.close()
+        while self.sinks:  # each leaves the list once closed: a close cut short (Ctrl-C) is retried next call
+            sink = self.sinks[0]
+            try:
+                sink.close()
+            except Exception as exc:  # noqa: BLE001 - the other outputs are still closed
+                log.error("sound output %s could not be closed (%s)", getattr(sink, "path", type(sink).__name__), exc)
+            self.sinks.pop(0)
         if self._stage is not None:
             self._stage.close()
             self._stage = None

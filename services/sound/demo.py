@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import signal
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -26,7 +27,7 @@ import numpy as np
 from common.kit import EventType, Kit, load_kit
 from common.messages import Impact
 from common.output_paths import check_output_file
-from services.sound.core import SoundSettings, render_offline
+from services.sound.core import SoundSettings, render_offline, wav_format
 
 DEFAULT_MIDI = Path(__file__).resolve().parents[2] / "tests" / "data" / "groove_drummer6_s3_1_rock_90_beat_4-4.mid"
 
@@ -77,20 +78,44 @@ def impacts_from_midi(path: Path, kit: Kit, max_seconds: float = math.inf, start
     return impacts
 
 
+def _play_seconds(text: str) -> float:
+    """``--seconds``: a positive number of seconds, ``inf`` for the whole file."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not value > 0.0:  # also refuses nan
+        raise argparse.ArgumentTypeError(f"{text!r}: give a positive number of seconds (inf: the whole file)")
+    return value
+
+
+def _unit(text: str) -> float:
+    """A number from 0 to 1 (a wet/dry balance)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not 0.0 <= value <= 1.0:  # also refuses nan
+        raise argparse.ArgumentTypeError(f"{text!r}: give a number from 0 to 1")
+    return value
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m services.sound.demo", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("-o", "--output", type=Path, default=Path("groove.wav"), help="WAV file to write")
     parser.add_argument("--midi", type=Path, default=DEFAULT_MIDI, help="General MIDI drum file")
-    parser.add_argument("--seconds", type=float, default=16.0, help="how much of the file to play (default 16)")
+    parser.add_argument("--seconds", type=_play_seconds, default=16.0,
+                        help="how much of the file to play, seconds (default 16; inf: all of it)")
     parser.add_argument("--model", choices=("modal", "sample", "synth"), default="modal", help="synthesis model")
     parser.add_argument("--kit", default="default", help="kit name or file")
     parser.add_argument("--mono", action="store_true", help="mono instead of stereo")
-    parser.add_argument("--reverb", type=float, default=0.12, help="room reverb wet/dry 0..1 (default 0.12)")
+    parser.add_argument("--reverb", type=_unit, default=0.12, help="room reverb wet/dry 0..1 (default 0.12)")
     args = parser.parse_args(argv)
     try:
         kit = load_kit(args.kit)
         check_output_file(args.output, "-o")
+        wav_format(args.output, "-o")  # before the render, not after it
     except (FileNotFoundError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
@@ -110,7 +135,17 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     t0 = time.perf_counter()
     duration = impacts[-1].time + 2.5
-    audio = render_offline(impacts, duration, kit, settings, wav=args.output)
+    try:  # the line too: a Ctrl-C may land as it is written
+        print(f"rendering {len(impacts)} strikes ({duration:.1f} s) to {args.output} ...", file=sys.stderr,
+              flush=True)
+        audio = render_offline(impacts, duration, kit, settings, wav=args.output)
+    except OSError as exc:  # a full disk: the file is written whole or not at all
+        print(f"error: -o {args.output}: cannot write it ({exc.strerror or exc})", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not cut the exit short (a traceback)
+        print(f"interrupted: {args.output} not written", file=sys.stderr)
+        return 130
     took = time.perf_counter() - t0
     print(f"{args.output}: {len(impacts)} strikes, {audio.shape[0] / 48000:.1f} s rendered in {took:.1f} s "
           f"({audio.shape[0] / 48000 / took:.1f}x real time), peak {float(np.max(np.abs(audio))):.2f}")

@@ -338,6 +338,11 @@ class Instrument:
     def sounding(self) -> bool:
         return self.bank.active or bool(self._delayed)
 
+    def silence(self) -> None:
+        """Stop ringing at once: modes and strikes still to come (their injections) alike."""
+        self.bank.clear()
+        self._delayed.clear()
+
 
 class Membrane(Instrument):
     """A drum: a circular head (Bessel modes) plus its metal hoop; snare wires as a noise component.

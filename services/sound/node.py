@@ -17,6 +17,8 @@ import argparse
 import collections
 import json
 import logging
+import os
+import tempfile
 import threading
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -28,37 +30,101 @@ import soundfile as sf
 
 from common.config import NodeSettings
 from common.kit import load_kit
+from common.output_paths import write_atomically
 from common.runtime import run_node
-from services.sound.core import SoundCore, SoundSettings
+from services.sound.core import MAX_LATENCY_S, SoundCore, SoundSettings, wav_format
 from services.sound.pyo_stage import _quiet_stderr, audio_device_count, import_pyo
 
 log = logging.getLogger("batteur.sound")
 
 
-class WavSink:
-    """Appends blocks to a WAV file (24-bit) as they are rendered.
+HORIZON_S = 10.0
+"""Impacts due more than this many seconds after the sound being rendered are dropped (a sender's clock error:
+impacts are sent as they happen, so a live one is due within the latency window)."""
+MAX_PENDING = 4096
+"""Impacts waiting for their block at most (far more than 10 s of drumming), so a flood cannot fill memory."""
 
-    On close it writes ``FILE.wav.json`` beside it: the rig time of the first
-    sample (seconds), so what the WAV holds can be lined up with the rig's
-    impacts.
+
+SFC_SET_UPDATE_HEADER_AUTO = 0x1061
+"""libsndfile command (sndfile.h): rewrite the header's lengths after every write."""
+
+
+class WavSink:
+    """Appends blocks to a WAV file (24-bit) as they are rendered, whole or not at all.
+
+    The blocks go to a hidden ``.NAME.XXXX.part`` file beside ``path``, renamed to ``path`` by :meth:`close`:
+    a run killed before closing (SIGKILL, power loss) leaves the part file (a playable WAV up to the last block:
+    its header is kept up to date) and neither a cut file nor a damaged earlier take at ``path``. On close it also
+    writes ``FILE.wav.json`` beside it: the rig time of the first sample (seconds), so what the WAV holds can
+    be lined up with the rig's impacts.
     """
 
     def __init__(self, path: Path, sample_rate: int, channels: int, origin: Callable[[], float]) -> None:
+        fmt = wav_format(path, "--wav")
         path.parent.mkdir(parents=True, exist_ok=True)
         self.path = path
         self.origin = origin
-        self.file = sf.SoundFile(path, "w", samplerate=sample_rate, channels=channels, subtype="PCM_24")
+        self.meta: dict[str, float] = {}  # what the .json says, taken when the file is closed
+        self.finished = False  # closed, named, and its .json written
+        # a symlink keeps naming the file it points to; a device or pipe is written in place
+        self.in_place = path.exists() and not path.is_file()
+        self.target = path if self.in_place else path.resolve()
+        self.part = self.target
+        if not self.in_place:
+            fd, part = tempfile.mkstemp(prefix=f".{self.target.name}.", suffix=".part", dir=self.target.parent)
+            os.close(fd)
+            self.part = Path(part)
+        try:
+            self.file = sf.SoundFile(self.part, "w", samplerate=sample_rate, channels=channels, subtype="PCM_24",
+                                     format=fmt)
+            # the header follows every write: a node killed before close leaves a part file that still plays
+            sf._snd.sf_command(self.file._file, SFC_SET_UPDATE_HEADER_AUTO, sf._ffi.NULL, 1)
+        except BaseException:
+            self._discard()
+            raise
 
     def __call__(self, block: npt.NDArray[np.float32]) -> None:
-        self.file.write(block)
+        try:
+            self.file.write(block)
+        except (sf.LibsndfileError, RuntimeError) as exc:  # libsndfile says only "System error."
+            raise OSError(f"cannot write more than its first {self.file.frames / self.file.samplerate:.1f} s "
+                          f"(libsndfile: {exc} Is the disk full?)") from None
+
+    def _discard(self) -> None:
+        if not self.in_place:
+            self.part.unlink(missing_ok=True)
+
+    def discard(self) -> None:
+        """Close and remove what was recorded (a start that failed): ``path`` is left as it was."""
+        if not self.file.closed:
+            self.file.close()
+        self._discard()
 
     def close(self) -> None:
-        if self.file.closed:
+        """Finish the file (header with the real length) and give it its name. Idempotent, and resumable: a
+        close cut short (a second Ctrl-C) finishes when called again."""
+        if self.finished:
             return
-        meta = {"origin_rig_time_s": self.origin(), "sample_rate_hz": self.file.samplerate,
-                "channels": self.file.channels, "frames": self.file.frames}
-        self.file.close()
-        self.path.with_name(self.path.name + ".json").write_text(json.dumps(meta, indent=2), encoding="utf-8")
+        if not self.file.closed:
+            self.meta = {"origin_rig_time_s": self.origin(), "sample_rate_hz": self.file.samplerate,
+                         "channels": self.file.channels, "frames": self.file.frames}
+            self.file.close()
+        if not self.in_place and self.part.exists():
+            os.chmod(self.part, _new_file_mode(self.target))
+            os.replace(self.part, self.target)
+        write_atomically(self.path.with_name(self.path.name + ".json"),
+                         json.dumps(self.meta, indent=2).encode("utf-8"))
+        self.finished = True
+
+
+def _new_file_mode(path: Path) -> int:
+    """Permission bits for the finished file: those of the file it replaces, else a new file's (mkstemp's part
+    file is owner-only)."""
+    if path.exists():
+        return path.stat().st_mode & 0o7777
+    umask = os.umask(0)
+    os.umask(umask)
+    return 0o666 & ~umask
 
 
 class DeviceSink:
@@ -113,7 +179,9 @@ class DeviceSink:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     group = parser.add_argument_group("sound")
     group.add_argument("--kit", default="default", help="kit name or kit file (default: default)")
-    group.add_argument("--wav", type=Path, default=None, help="also write the output to this WAV file")
+    group.add_argument("--wav", type=Path, default=None,
+                       help="also record the output to this file, 24-bit (.wav; .w64 or .rf64 for takes over 4 h, "
+                       ".flac); written under a temporary name and given this one when the node stops")
     group.add_argument("--device", choices=("auto", "none"), default="auto",
                        help="auto: play on the sound card if portaudio finds one; none: never")
     group.add_argument("--model", choices=("modal", "sample", "synth"), default="modal",
@@ -133,6 +201,9 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace) -> SoundCore:
         raise ValueError(str(exc)) from None
     if not 0.0 <= extra.reverb <= 1.0:
         raise ValueError(f"--reverb {extra.reverb} is outside 0..1")
+    if settings.latency_s > MAX_LATENCY_S:  # the other nodes take up to 5 s
+        raise ValueError(f"--latency-s {settings.latency_s:g}: the sound service plays at most "
+                         f"{MAX_LATENCY_S:g} s late (the range of /batteur/sound/latency)")
     block_s = extra.block_size / 48000
     if settings.latency_s < 3 * block_s:
         log.warning("latency %.1f ms is under three blocks (%.1f ms): most strikes will be late",
@@ -140,24 +211,45 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace) -> SoundCore:
     sound = SoundSettings(latency=settings.latency_s, origin=None, block_size=extra.block_size,
                           render_ahead=2 * block_s + 0.002,
                           channels=extra.channels, record=False, model=extra.model, reverb=extra.reverb,
-                          pedal_impacts=bool(getattr(extra, "pedal_impacts", False)))
-    core = SoundCore(sound, kit)
-    if extra.wav is not None:
+                          pedal_impacts=bool(getattr(extra, "pedal_impacts", False)),
+                          horizon=HORIZON_S, max_pending=MAX_PENDING)
+    if extra.wav is not None:  # checked before the (slow) core is built
         if extra.wav.is_dir():
             raise ValueError(f"--wav {extra.wav} is a directory: give a file, e.g. {extra.wav / 'take.wav'}")
+        wav_format(extra.wav, "--wav")
+    core = SoundCore(sound, kit)
+    try:
+        _attach_sinks(core, extra)
+    except BaseException:  # a failed start (or Ctrl-C) records nothing and leaves an earlier take alone
+        for sink in core.sinks:
+            if isinstance(sink, WavSink):
+                sink.discard()
+        core.sinks = [s for s in core.sinks if not isinstance(s, WavSink)]
+        core.close()
+        raise
+    return core
+
+
+def _attach_sinks(core: SoundCore, extra: argparse.Namespace) -> None:
+    """The WAV file and the sound card, as asked; ValueError naming the option that cannot be served."""
+    if extra.wav is not None:
         try:
-            core.sinks.append(WavSink(extra.wav, core.sample_rate, core.channels, lambda: core.scheduler.origin))
-        except (OSError, TypeError, RuntimeError) as exc:  # soundfile: unknown extension, unwritable path
+            wav = WavSink(extra.wav, core.sample_rate, core.channels, lambda: core.scheduler.origin)
+        except (OSError, RuntimeError) as exc:  # soundfile: unwritable path
             raise ValueError(f"--wav {extra.wav}: cannot write it ({exc})") from None
-        log.info("writing %s", extra.wav)
+        core.sinks.append(wav)
+        log.info("recording to %s, renamed %s when the node stops", wav.part, extra.wav)
     if extra.device == "auto":
         devices = audio_device_count()
         if devices > 0:
-            core.sinks.append(DeviceSink(core.sample_rate, core.block, core.channels))
+            try:
+                core.sinks.append(DeviceSink(core.sample_rate, core.block, core.channels))
+            except Exception as exc:  # noqa: BLE001 - pyo raises plain Exceptions for a card it cannot open
+                raise ValueError(f"--device auto: cannot play on the sound card ({exc}); "
+                                 "--device none records without it") from None
             log.info("playing on the sound card (%d portaudio devices)", devices)
         else:
             log.info("no audio device found: not playing (use --wav to record)")
-    return core
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -89,6 +89,9 @@ def test_sound_on_laptop_b_syncs_plays_on_time_and_is_found_again_after_a_restar
     settle_echo(impacts_echo)
     impacts = impacts_from_echo(impacts_echo)
     assert len(impacts) >= 15, impacts
+    # the killed node never named its take: what it recorded is in the hidden part file beside take1.wav
+    assert not take1.exists()
+    (take1,) = tmp_path.glob(f".{take1.name}.*.part")
     starts = {take1: core_start_rig_time(sound, rig.epoch), take2: core_start_rig_time(sound2, rig.epoch)}
     sent = {take1: found1 - rig.epoch, take2: found - rig.epoch}  # interaction sends to it from then on
     for take, least in ((take1, 8), (take2, 6)):

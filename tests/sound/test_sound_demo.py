@@ -2,6 +2,11 @@
 
 from __future__ import annotations
 
+import resource
+import signal
+import subprocess
+import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -10,6 +15,8 @@ import soundfile as sf
 
 from common.kit import load_kit
 from services.sound.demo import DEFAULT_MIDI, impacts_from_midi, main
+
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_groove_midi_becomes_impacts_on_kit_objects() -> None:
@@ -46,3 +53,69 @@ def test_broken_inputs_and_outputs_are_named_and_nothing_is_written(tmp_path: Pa
         assert main(["-o", str(out), *args]) == 2
         assert says in capsys.readouterr().err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("args, says", [
+    (["--reverb", "2"], "argument --reverb: '2': give a number from 0 to 1"),  # was a pydantic traceback
+    (["--reverb", "nan"], "argument --reverb: 'nan': give a number from 0 to 1"),
+    (["--seconds", "nan"], "argument --seconds: 'nan': give a positive number"),  # was: the whole file, silently
+    (["--seconds", "-1"], "argument --seconds: '-1': give a positive number"),
+])
+def test_out_of_range_numbers_are_usage_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[str],
+                                               says: str) -> None:
+    out = tmp_path / "groove.wav"
+    with pytest.raises(SystemExit) as stop:
+        main(["-o", str(out), *args])
+    assert stop.value.code == 2 and says in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_an_output_name_that_is_not_a_sound_file_is_refused_before_rendering(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
+    rendered: list[object] = []
+    monkeypatch.setattr("services.sound.demo.render_offline", lambda *a, **k: rendered.append(a))
+    for name in ("groove.mp3", "groove"):
+        # was: the whole groove rendered, then a soundfile traceback
+        assert main(["-o", str(tmp_path / name)]) == 2
+        assert f"-o {tmp_path / name}: give a file ending in .wav" in capsys.readouterr().err
+    assert rendered == [] and list(tmp_path.iterdir()) == []
+
+
+def _no_bigger_than(size: int) -> Callable[[], None]:
+    def limit() -> None:  # in the child: writes past `size` bytes fail with EFBIG, as on a full disk
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (size, size))
+    return limit
+
+
+def test_a_failed_write_keeps_the_earlier_file(tmp_path: Path) -> None:
+    out = tmp_path / "groove.wav"
+    sf.write(out, np.zeros(4800), 48000)
+    earlier = out.read_bytes()
+    run = subprocess.run([sys.executable, "-m", "services.sound.demo", "-o", str(out), "--seconds", "1", "--mono"],
+                         cwd=ROOT, capture_output=True, text=True, timeout=300, preexec_fn=_no_bigger_than(65536))
+    # was: a traceback, and groove.wav cut to 64 kB of a new render (its header saying more)
+    assert run.returncode == 1 and f"error: -o {out}: cannot write it (File too large)" in run.stderr
+    assert out.read_bytes() == earlier and sorted(p.name for p in tmp_path.iterdir()) == ["groove.wav"]
+
+
+def test_ctrl_c_while_rendering_writes_nothing_and_says_so(tmp_path: Path) -> None:
+    out = tmp_path / "groove.wav"
+    # SIGINT at its default: a suite run in the background ignores it, and so would the child
+    proc = subprocess.Popen([sys.executable, "-m", "services.sound.demo", "-o", str(out), "--seconds", "inf"],
+                            cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    assert proc.stderr is not None
+    line = proc.stderr.readline()  # the render has started
+    assert line.startswith("rendering ")
+    while True:  # as a user would: again if nothing happens (numba swallows one that lands while it compiles)
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(2.0)
+            break
+        except subprocess.TimeoutExpired:
+            continue
+    err = proc.stderr.read()
+    # was: a KeyboardInterrupt traceback
+    assert proc.returncode == 130 and err.strip().splitlines()[-1] == f"interrupted: {out} not written"
+    assert list(tmp_path.iterdir()) == []
