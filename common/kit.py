@@ -21,6 +21,7 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from common.datafile import first_error, parse_file
+from common.output_paths import write_atomically
 
 KITS_DIR = Path(__file__).parent / "kits"
 
@@ -392,9 +393,8 @@ def load_kit(source: str | Path = "default") -> Kit:
 
 
 def save_kit(kit: Kit, path: Path) -> None:
-    """Write a kit as YAML (or JSON when the path ends in .json)."""
+    """Write a kit as YAML (or JSON when the path ends in .json), whole or not at all (a crash or a full disk
+    leaves the earlier file)."""
     data = kit.model_dump(mode="json")
-    if path.suffix == ".json":
-        path.write_text(json.dumps(data, indent=2), encoding="utf-8")
-    else:
-        path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
+    text = json.dumps(data, indent=2) if path.suffix == ".json" else yaml.safe_dump(data, sort_keys=False)
+    write_atomically(path, text.encode("utf-8"))

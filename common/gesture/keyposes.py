@@ -29,6 +29,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 from common.character import JOINTS
 from common.datafile import parse_file
 from common.kit import EventType, Limb
+from common.output_paths import write_atomically
 
 POSE_NAME = re.compile(r"^[A-Za-z0-9_]+(\.[A-Za-z0-9_]+)*$")
 MIN_LIFT_M = 0.01
@@ -96,7 +97,9 @@ class KeyPoses(BaseModel):
             raise ValueError(f"{path}: not a valid poses file: {exc}") from None
 
     def save(self, path: Path) -> None:
-        path.write_text(yaml.safe_dump(self.model_dump(mode="json")["poses"], sort_keys=True), encoding="utf-8")
+        """Write the poses as YAML, whole or not at all (a crash or a full disk leaves the earlier file)."""
+        text = yaml.safe_dump(self.model_dump(mode="json")["poses"], sort_keys=True)
+        write_atomically(path, text.encode("utf-8"))
 
     def with_pose(self, name: str, pose: KeyPose) -> KeyPoses:
         """A copy with ``name`` added or replaced (validated)."""

@@ -42,10 +42,13 @@ from common.messages.graphics import (
 )
 from common.messages.physics import PhysicsPosture, PhysicsReset
 from services.graphics.scene import HISTORY, KitAnimator, kit_json
-from services.graphics.sequence import FLOATS_PER_LINK, PoseSequence, interpolate_pose
+from services.graphics.sequence import FLOATS_PER_LINK, PoseSequence, interpolate_pose, normalize_quats
 from services.graphics.skeleton import guess_parents
 
 CLOCK_JUMP = 0.5  # seconds: a pose clock this much behind the current offset has been restarted
+SEEN_IMPACTS = 4096  # impacts remembered per sender to drop redundant copies
+MAX_SENDERS = 64  # impact senders remembered (least recently heard forgotten first)
+MAX_NODES = 256  # nodes in the status table (least recently heard forgotten first)
 
 
 class GraphicsSettings(BaseModel):
@@ -142,11 +145,16 @@ class GraphicsCore:
         self.view = ViewSettings()
         self.animator = KitAnimator(self.kit)
         self.names: list[str] = []
+        """The links the pages draw: the live stream's, the preview's figure or the editor's body."""
         self.parents: list[int] = []
+        self.live_names: list[str] = []
+        """The links of the live pose stream (/batteur/skeleton), whatever is shown."""
         self.layout = -1
+        """The live stream's layout id (-1: no skeleton yet)."""
         self._times: deque[float] = deque()
         self._poses: deque[np.ndarray] = deque()
-        self._seen_impacts: dict[str, set[int]] = {}
+        self._seen_impacts: dict[str, dict[int, float]] = {}
+        """Per sender, the recent impacts' seq -> time (oldest first)."""
         self.nodes: dict[str, NodeSeen] = {}
         self.score: ScorePosition | None = None
         self.mode: Literal["live", "preview"] = "live"
@@ -158,13 +166,13 @@ class GraphicsCore:
         self._lags: deque[tuple[float, float]] = deque()
         self.counters: dict[str, int] = {
             "poses": 0, "impacts": 0, "frames": 0, "bad_layout": 0, "no_skeleton": 0, "duplicate_impacts": 0,
-            "starved": 0, "clock_jumps": 0, "postures_sent": 0,
+            "starved": 0, "clock_jumps": 0, "postures_sent": 0, "pose_resets": 0,
         }
         self._outbox: list[dict[str, Any]] = []
         self._last_status = -math.inf
         self.last_frame: ViewFrame | None = None
         self._edit: np.ndarray | None = None
-        self._live_skeleton: tuple[list[str], int] | None = None
+        self._edit_names: list[str] = []
         self._posture: np.ndarray | None = None
         self._posture_sent = -math.inf
         self._release = False
@@ -180,13 +188,12 @@ class GraphicsCore:
         elif isinstance(message, Impact):
             self._on_impact(message, source)
         elif isinstance(message, Health):
-            node = self.nodes.setdefault(message.node_id, NodeSeen(message.role, message.node_id, now))
-            node.role, node.last_seen = message.role, now
+            node = self._node_seen(message.node_id, message.role, now)
+            node.role = message.role
             node.rate_hz, node.target_rate_hz = message.rate_hz, message.target_rate_hz
             node.late, node.dropped = message.late, message.dropped
         elif isinstance(message, Hello):
-            node = self.nodes.setdefault(message.node_id, NodeSeen(message.role, message.node_id, now))
-            node.last_seen = now
+            self._node_seen(message.node_id, message.role, now)
         elif isinstance(message, ScorePosition):
             self.score = message
         else:
@@ -205,6 +212,15 @@ class GraphicsCore:
         if self.page_sink is not None:
             self.page_sink(self.take_page_messages())
         return self._postures(now)
+
+    def _node_seen(self, node_id: str, role: str, now: float) -> NodeSeen:
+        """The status table's entry of ``node_id``, heard at ``now``; the table keeps :data:`MAX_NODES`."""
+        node = self.nodes.pop(node_id, None) or NodeSeen(role, node_id, now)
+        node.last_seen = now
+        self.nodes[node_id] = node  # most recently heard last
+        while len(self.nodes) > MAX_NODES:  # made-up ids (a broken tool) must not grow it without bound
+            del self.nodes[next(iter(self.nodes))]
+        return node
 
     # --- the pose editor driving physics ------------------------------------------------------
     def request_posture(self, angles: np.ndarray | None) -> None:
@@ -236,41 +252,63 @@ class GraphicsCore:
 
     def live_body(self) -> tuple[list[str], np.ndarray] | None:
         """The newest pose received (names, (L, 7)), not an edited one; None before any."""
-        if self._edit is not None and self._live_skeleton is not None:
-            names = self._live_skeleton[0]
-        else:
-            names = self.names
-        if not self._poses or len(self._poses[-1]) != len(names):
+        if not self._poses or len(self._poses[-1]) != len(self.live_names):
             return None
-        return list(names), self._poses[-1].copy()
+        return list(self.live_names), self._poses[-1].copy()
 
     # --- inputs -------------------------------------------------------------------------------
     def _on_skeleton(self, message: Skeleton) -> None:
         names = list(message.names)
-        if message.layout == self.layout and names == self.names:
+        if message.layout == self.layout and names == self.live_names:
             return
         self.set_skeleton(names, message.layout)
 
     def set_skeleton(self, names: list[str], layout: int = 0) -> None:
-        """Adopt a new link layout; forgets buffered poses of the old one."""
-        self.names = names
-        self.parents = guess_parents(names)
+        """Adopt a new link layout of the live stream; forgets buffered poses of the old one."""
+        self.live_names = list(names)
         self.layout = layout
         self._times.clear()
         self._poses.clear()
-        self.animator.bind(names)
-        self._outbox.append(self.skeleton_json())
+        self.animator.bind(self.live_names)
+        self._show()
+
+    def _shown_names(self) -> list[str]:
+        """The links drawn now: the editor's body over the preview's figure over the live stream's."""
+        if self._edit is not None:
+            return self._edit_names
+        if self.mode == "preview" and self.preview is not None:
+            return list(self.preview.names)
+        return self.live_names
+
+    def _show(self) -> None:
+        """Tell the pages when the links they must draw change (live, preview and editor each have theirs).
+
+        Frames the page gets must match its skeleton (it drops the others): a live skeleton arriving while
+        the preview is shown must not replace the preview's on the page.
+        """
+        names = self._shown_names()
+        if names != self.names:
+            self.names = list(names)
+            self.parents = guess_parents(self.names)
+            self._outbox.append(self.skeleton_json())
 
     def _on_pose(self, message: Pose, now: float) -> None:
         if self.layout < 0:
             self.counters["no_skeleton"] += 1
             return
-        if message.layout != self.layout or len(message.values) != FLOATS_PER_LINK * len(self.names):
+        if message.layout != self.layout or len(message.values) != FLOATS_PER_LINK * len(self.live_names):
             self.counters["bad_layout"] += 1
             return
         if self.settings.clock == "auto":
             self._follow_clock(message.time - now, now)
-        values = np.asarray(message.values, dtype=float).reshape(len(self.names), FLOATS_PER_LINK)
+        if self._times and message.time < self._times[-1] - CLOCK_JUMP:
+            # the pose clock went back (physics restarted, or the newest pose was a stray from the future):
+            # the buffered poses would hide the new ones until the new clock caught up with them
+            self._times.clear()
+            self._poses.clear()
+            self.counters["pose_resets"] += 1
+        values = np.asarray(message.values, dtype=float).reshape(len(self.live_names), FLOATS_PER_LINK)
+        values[:, 3:] = normalize_quats(values[:, 3:])  # a zero quaternion (broken sender) would stop the kit
         if self._times and message.time <= self._times[-1]:
             if message.time == self._times[-1]:
                 return
@@ -303,14 +341,22 @@ class GraphicsCore:
         self.clock_offset = max(value for _, value in lags)
 
     def _on_impact(self, message: Impact, source: str) -> None:
-        seen = self._seen_impacts.setdefault(source, set())
-        if message.seq in seen:
+        """Animate the kit with a strike; a redundant copy (same sender, ``seq`` and time) is counted, dropped.
+
+        The time is part of the key: a restarted interaction node counts from seq 0 again on the same
+        address, and its strikes must not be taken for copies of the old ones.
+        """
+        seen = self._seen_impacts.pop(source, None) or {}
+        self._seen_impacts[source] = seen  # most recently heard last
+        while len(self._seen_impacts) > MAX_SENDERS:
+            del self._seen_impacts[next(iter(self._seen_impacts))]
+        if seen.get(message.seq) == message.time:
             self.counters["duplicate_impacts"] += 1
             return
-        seen.add(message.seq)
-        if len(seen) > 4096:
-            for old in sorted(seen)[:2048]:
-                seen.discard(old)
+        seen.pop(message.seq, None)
+        seen[message.seq] = message.time
+        while len(seen) > SEEN_IMPACTS:
+            del seen[next(iter(seen))]
         self.counters["impacts"] += 1
         self.animator.add(message)
 
@@ -333,6 +379,7 @@ class GraphicsCore:
             self.latency = message.seconds
         elif isinstance(message, GraphicsMode):
             self.mode = message.mode if (message.mode == "live" or self.preview is not None) else "live"
+            self._show()
         else:
             return False
         self._outbox.append(self.view_json())
@@ -351,24 +398,16 @@ class GraphicsCore:
         self._preview_animator = KitAnimator(self.kit)
         self._preview_animator.bind(sequence.names)
         self.mode = "preview"
-        self.set_skeleton(list(sequence.names), layout=max(self.layout, 0))
+        self._show()
         self._outbox.append(self.view_json())
 
     def show_pose(self, names: list[str] | None, pose: np.ndarray | None) -> None:
         """Show one still pose (L, 7) of links ``names`` (the pose editor); ``None`` goes back to the stream."""
         if names is None or pose is None:
-            if self._edit is not None and self._live_skeleton is not None:
-                live_names, live_layout = self._live_skeleton
-                if live_names != self.names:
-                    self.set_skeleton(live_names, live_layout)
-            self._edit = None
-            self._live_skeleton = None
-            return
-        if self._edit is None:
-            self._live_skeleton = (list(self.names), self.layout)
-        if list(names) != self.names:
-            self.set_skeleton(list(names), max(self.layout, 0))
-        self._edit = np.asarray(pose, dtype=float)
+            self._edit, self._edit_names = None, []
+        else:
+            self._edit, self._edit_names = np.asarray(pose, dtype=float), list(names)
+        self._show()
 
     def _preview_frame(self, now: float) -> ViewFrame | None:
         seq = self.preview

@@ -21,17 +21,21 @@ from __future__ import annotations
 import argparse
 import asyncio
 import logging
+import os
 import shutil
 import subprocess
 import sys
-from collections.abc import Sequence
+import threading
+import time
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import Field
+from pydantic import Field, ValidationError
 
 from common.config import NodeSettings
 from common.kit import Kit
+from common.messages import Impact
 from common.messages.graphics import GraphicsMode
 from common.output_paths import check_output_dir
 from common.runtime import Node, run_node
@@ -45,6 +49,9 @@ POSES_FILE = "poses.yaml"
 """The pose editor's key poses in ``--kit-dir`` (read by the keyframe preview)."""
 WATCH_PERIOD_S = 1.0
 """How often the node checks whether the poses file or the kit changed (seconds)."""
+
+PROGRESS_PERIOD_S = 2.0
+"""How often posing a score preview logs its progress (seconds)."""
 
 log = logging.getLogger("batteur.graphics")
 
@@ -84,10 +91,56 @@ def poses_path(settings: GraphicsNodeSettings) -> Path | None:
     return Path(settings.kit_dir) / POSES_FILE if settings.kit_dir else None
 
 
-def plan_score_preview(settings: GraphicsNodeSettings, kit: Kit) -> ScorePreview:
-    """Plan ``--preview-score`` with ``kit``; ``ValueError`` (a ScoreError) naming the problem."""
-    return score_preview(settings.preview_score, kit, settings.preview_planner, poses=poses_path(settings),
-                         rate_hz=settings.rate_hz or 60.0)
+class PlanCancelled(Exception):
+    """Planning the preview was given up (the node is stopping)."""
+
+
+def plan_score_preview(settings: GraphicsNodeSettings, kit: Kit, clock: Callable[[], float] = time.monotonic,
+                       cancel: threading.Event | None = None) -> ScorePreview:
+    """Plan ``--preview-score`` with ``kit``; ``ValueError`` (a ScoreError) naming the problem.
+
+    ``cancel`` set (from another thread): :class:`PlanCancelled` at the next pose.
+
+    A long score takes seconds (tens on a busy machine) to pose: once the score is read and planned (a bad
+    one is refused before any line is logged) the log says so and, every :data:`PROGRESS_PERIOD_S` seconds of
+    ``clock``, how far it got.
+    """
+    name = settings.preview_score
+    last = clock()
+
+    def progress(done: int, total: int) -> None:
+        nonlocal last
+        if cancel is not None and cancel.is_set():
+            raise PlanCancelled
+        now = clock()
+        if done == 1:
+            log.info("preview: posing %s (%s planner): %d poses", name, settings.preview_planner, total)
+        elif now - last >= PROGRESS_PERIOD_S:
+            last = now
+            log.info("preview: posing %s: %d%% (%d/%d poses)", name, 100 * done // total, done, total)
+
+    return score_preview(name, kit, settings.preview_planner, poses=poses_path(settings),
+                         rate_hz=settings.rate_hz or 60.0, on_progress=progress)
+
+
+_FLAGS = {"rate_hz": "--rate-hz", "latency": "--latency-s", "kit": "--kit", "clock": "--view-clock"}
+"""The command-line flag of each graphics core setting the node sets."""
+
+
+def _bound(name: str, kind: str) -> float | None:
+    """The ``ge``/``le`` bound of a GraphicsSettings field, if it has one."""
+    field = GraphicsSettings.model_fields.get(name)
+    return next((getattr(m, kind) for m in (field.metadata if field else []) if getattr(m, kind, None) is not None),
+                None)
+
+
+def _settings_error(exc: ValidationError) -> str:
+    """``--rate-hz 1000: ... (allowed 1 to 240)`` from the first error of a GraphicsSettings validation."""
+    error = exc.errors()[0]
+    name = str(error["loc"][0]) if error.get("loc") else ""
+    low, high = _bound(name, "ge"), _bound(name, "le")
+    allowed = f" (allowed {low:g} to {high:g})" if low is not None and high is not None else ""
+    return f"{_FLAGS.get(name, name)} {error.get('input')}: {error['msg'].lower()}{allowed}"
 
 
 def make_core(settings: NodeSettings, args: argparse.Namespace) -> GraphicsCore:
@@ -98,8 +151,11 @@ def make_core(settings: NodeSettings, args: argparse.Namespace) -> GraphicsCore:
     if s.kit_dir:
         check_output_dir(Path(s.kit_dir), "--kit-dir")
     try:
-        core = GraphicsCore(GraphicsSettings(rate_hz=s.rate_hz or 60.0, latency=s.latency_s, kit=s.kit,
-                                             clock=s.view_clock))
+        view = GraphicsSettings(rate_hz=s.rate_hz or 60.0, latency=s.latency_s, kit=s.kit, clock=s.view_clock)
+    except ValidationError as exc:  # one line naming the flag, not pydantic's report
+        raise ValueError(_settings_error(exc)) from None
+    try:
+        core = GraphicsCore(view)
     except FileNotFoundError as exc:
         raise ValueError(f"--kit: {exc}") from None
     if s.preview:
@@ -140,8 +196,12 @@ async def _watch_preview(node: Node, core: GraphicsCore, settings: GraphicsNodeS
         if now_inputs[0] == seen[0] and now_inputs[1] is seen[1]:
             continue
         seen = now_inputs
+        cancel = threading.Event()
         try:
-            preview = await asyncio.to_thread(plan_score_preview, settings, now_inputs[1])
+            preview = await asyncio.to_thread(plan_score_preview, settings, now_inputs[1], cancel=cancel)
+        except asyncio.CancelledError:  # the node stops: its exit must not wait for a long plan to finish
+            cancel.set()
+            raise
         except ValueError as exc:
             core.counters["preview_errors"] = core.counters.get("preview_errors", 0) + 1
             log.error("preview not re-planned, keeping the previous one: %s", exc)
@@ -154,13 +214,21 @@ async def _watch_preview(node: Node, core: GraphicsCore, settings: GraphicsNodeS
         log.info("preview re-planned: %s", preview.summary())
 
 
-async def _feed_synthetic(node: Node, core: GraphicsCore) -> None:
-    """Play the synthetic drummer into the core in real time, looping (stands in for physics)."""
-    import asyncio
-
+def synthetic_groove(kit: Kit, source: str = "") -> tuple[PoseSequence, list[Impact]]:
+    """The synthetic drummer's 8 s groove on ``kit`` (from ``--kit source``); ``ValueError`` if it lacks what
+    the groove plays (exit 2)."""
     from services.graphics.figure import synthetic_performance
 
-    sequence, impacts = synthetic_performance(duration=8.0, rate_hz=60.0, kit=core.kit)
+    try:
+        return synthetic_performance(duration=8.0, rate_hz=60.0, kit=kit)
+    except KeyError as exc:  # the groove plays the default kit's snare, hi-hat, crash, kick...
+        missing = getattr(exc.args[0], "value", exc.args[0]) if exc.args else "an instrument"
+        raise ValueError(f"--synthetic: kit {source or kit.name!r} has no {missing}, which the synthetic groove plays "
+                         "(use a kit that has it, e.g. --kit default)") from None
+
+
+async def _feed_synthetic(node: Node, core: GraphicsCore, sequence: PoseSequence, impacts: list[Impact]) -> None:
+    """Play the synthetic drummer into the core in real time, looping (stands in for physics)."""
     poses = sequence.pose_messages(layout=1)
     core.handle(sequence.skeleton_message(layout=1), node.clock.now(), "synthetic")
     loop_start = node.clock.now()
@@ -194,6 +262,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     def make(settings: NodeSettings, extra: argparse.Namespace) -> GraphicsCore:
         holder["settings"] = settings
         core = make_core(settings, extra)
+        if isinstance(settings, GraphicsNodeSettings) and settings.synthetic:
+            # before listening: a kit without the groove's instruments is a start error, not a crash later
+            holder["synthetic"] = synthetic_groove(core.kit, settings.kit)
         holder["core"] = core
         return core
 
@@ -201,11 +272,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         s: GraphicsNodeSettings = holder["settings"]
         core: GraphicsCore = holder["core"]
         server = ViewServer(core, kit_dir=Path(s.kit_dir) if s.kit_dir else None, clock=node.clock.now)
-        await server.start(s.host, s.http_port)
-        print(f"graphics view: http://{s.host}:{server.port}/", file=sys.stderr, flush=True)
+        try:
+            await server.start(s.host, s.http_port)
+        except OSError as exc:  # asyncio's text names neither the option nor what to do
+            raise OSError(exc.errno, f"--http-port {s.http_port}: {os.strerror(exc.errno) if exc.errno else exc} "
+                          "(another program listens there? pick another port, or 0 for any)") from None
+        host = f"[{s.host}]" if ":" in s.host else s.host  # an IPv6 address needs brackets in a URL
+        print(f"graphics view: http://{host}:{server.port}/", file=sys.stderr, flush=True)
         node.spawn(server.serve_forever(), "view server")
         if s.synthetic:
-            node.spawn(_feed_synthetic(node, core), "synthetic drummer")
+            node.spawn(_feed_synthetic(node, core, *holder["synthetic"]), "synthetic drummer")
         if s.preview_score:
             node.spawn(_watch_preview(node, core, s), "preview re-planner")
 

@@ -20,6 +20,7 @@ paper's strokes shaped by the pose editor's saved UP/DOWN poses when given;
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
@@ -54,8 +55,15 @@ def _goal(limb: Limb, position: np.ndarray, stroke: PlannedStroke | None) -> Lim
     return LimbGoal(position - normal * height, normal, height)
 
 
-def plan_preview(plan: GesturePlan, rate_hz: float = 60.0) -> tuple[PoseSequence, list[Impact]]:
+Progress = Callable[[int, int], None]
+"""Called with (poses done, poses in all) while a preview is posed (the long part: the figure's IK)."""
+
+
+def plan_preview(plan: GesturePlan, rate_hz: float = 60.0,
+                 on_progress: Progress | None = None) -> tuple[PoseSequence, list[Impact]]:
     """The figure's pose sequence (``rate_hz``) and the impacts of ``plan``'s strokes.
+
+    ``on_progress(done, total)`` is called after every pose.
 
     Returns
     -------
@@ -78,6 +86,8 @@ def plan_preview(plan: GesturePlan, rate_hz: float = 60.0) -> tuple[PoseSequence
         }
         nod = math.degrees(plan.head.sample(float(t))[1]) if plan.head is not None else 0.0
         frames.append(figure_pose(goals, nod_deg=nod))
+        if on_progress is not None:
+            on_progress(k + 1, count)
     impacts = [
         Impact(seq=i, time=s.time, instrument=s.object_id, zone=s.zone, r=min(max(s.r, 0.0), 2.0),
                theta=min(max(s.theta, -7.0), 7.0), velocity=min(max(s.velocity, 0.0), 100.0),
@@ -113,7 +123,7 @@ class ScorePreview:
 
 
 def score_preview(path: str | Path, kit: Kit, planner: Planner = "keyframe", poses: str | Path | None = None,
-                  rate_hz: float = 60.0) -> ScorePreview:
+                  rate_hz: float = 60.0, on_progress: Progress | None = None) -> ScorePreview:
     """Read, distribute, plan and pose a score file for the kinematic preview (no physics).
 
     Parameters
@@ -130,6 +140,8 @@ def score_preview(path: str | Path, kit: Kit, planner: Planner = "keyframe", pos
         strokes (the tip raised along the surface normal).
     rate_hz : float
         Pose rate of the sequence, Hz.
+    on_progress : callable(done, total), optional
+        Called after every pose of the sequence (posing a long score takes seconds).
 
     Returns
     -------
@@ -177,5 +189,5 @@ def score_preview(path: str | Path, kit: Kit, planner: Planner = "keyframe", pos
         config = PlannerConfig(grip=getattr(score, "grip", None) or default.grip,
                                nuance=getattr(score, "nuance", None) or default.nuance)
         plan = plan_gestures(assignment, kit, score, config)
-    sequence, impacts = plan_preview(plan, rate_hz=rate_hz)
+    sequence, impacts = plan_preview(plan, rate_hz=rate_hz, on_progress=on_progress)
     return ScorePreview(sequence, impacts, plan, score, used)

@@ -30,6 +30,7 @@ from scipy.spatial.transform import Rotation
 
 from common.kit import EventType, Kit, KitObject
 from common.messages import Impact
+from services.graphics.sequence import normalize_quats
 from services.graphics.skeleton import canonical, kit_link
 
 FLASH_TAU = 0.12  # seconds
@@ -46,6 +47,11 @@ HISTORY = 6.0  # seconds of impacts kept
 def object_rotation(obj: KitObject) -> Rotation:
     """Rotation from the object's local frame (+z = surface normal) to the world frame."""
     return Rotation.from_euler("xyz", obj.rotation_deg, degrees=True)
+
+
+def link_rotation(q: np.ndarray) -> Rotation:
+    """Rotation of a link's quaternion (x y z w); a zero one (a broken sender or file) is the identity."""
+    return Rotation.from_quat(normalize_quats(q))
 
 
 def impact_point(obj: KitObject, r: float, theta: float) -> np.ndarray:
@@ -78,7 +84,13 @@ class KitAnimator:
         self.bind(self._names)
 
     def add(self, impact: Impact) -> None:
-        """Remember an impact (kept :data:`HISTORY` seconds past the newest one)."""
+        """Remember an impact (kept :data:`HISTORY` seconds past the newest one).
+
+        One older than that is not late but from a restarted clock (or the newest was a stray from the
+        future): the old impacts are forgotten, else every new one would be dropped at once.
+        """
+        if self.impacts and impact.time < self.impacts[-1].time - HISTORY:
+            self.impacts.clear()
         self.impacts.append(impact)
         if len(self.impacts) > 1 and self.impacts[-2].time > impact.time:
             self.impacts.sort(key=lambda i: i.time)
@@ -142,7 +154,7 @@ class KitAnimator:
                 out[k, 3] = press.get(obj.id, self._impact_press(obj, t))
                 board = self._kit_links.get(obj.id, {}).get("footboard")
                 if pose is not None and board is not None and board < len(pose):
-                    local = object_rotation(obj).inv() * Rotation.from_quat(pose[board, 3:])
+                    local = object_rotation(obj).inv() * link_rotation(pose[board, 3:])
                     angle = abs(math.degrees(local.as_rotvec()[0]))
                     out[k, 3] = float(np.clip(1.0 - angle / FOOTBOARD_REST_DEG, 0.0, 1.0))
         for k, obj in enumerate(objects):
@@ -163,7 +175,7 @@ class KitAnimator:
             rest = object_rotation(obj)
             base = links.get("")
             if base is not None and base < len(pose):
-                local = rest.inv() * Rotation.from_quat(pose[base, 3:])
+                local = rest.inv() * link_rotation(pose[base, 3:])
                 out[k, 1:3] = local.as_rotvec()[:2]
             top = links.get("top")
             if top is not None and top < len(pose):

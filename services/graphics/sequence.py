@@ -76,6 +76,10 @@ class PoseSequence:
     def __post_init__(self) -> None:
         self.times = np.asarray(self.times, dtype=float)
         self.values = np.asarray(self.values, dtype=float)
+        if self.times.ndim != 1:  # e.g. a hand-made --preview file: every frame would fail later
+            raise ValueError(f"times must be a list of seconds, got an array of shape {self.times.shape}")
+        if not np.all(np.isfinite(self.times)):
+            raise ValueError("pose times must be finite")
         n, links = len(self.times), len(self.names)
         if self.values.shape != (n, links, FLOATS_PER_LINK):
             raise ValueError(f"values must have shape ({n}, {links}, 7), got {self.values.shape}")
@@ -138,6 +142,9 @@ class PoseSequence:
             raise ValueError(f"{path}: not a pose sequence file (not an .npz archive)")
         try:
             with np.load(path, allow_pickle=False) as data:
-                return cls([str(n) for n in data["names"]], data["times"], data["values"])
+                names = data["names"]
+                if names.ndim != 1:
+                    raise ValueError(f"names must be a list of link names, got an array of shape {names.shape}")
+                return cls([str(n) for n in names], data["times"], data["values"])
         except (KeyError, OSError) as exc:
             raise ValueError(f"{path}: not a pose sequence file ({exc})") from exc

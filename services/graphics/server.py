@@ -4,8 +4,8 @@ Built on the ``websockets`` library: ``process_request`` answers plain HTTP
 requests (the page, its script, ``/api/*``) and lets ``/ws`` upgrade to a
 WebSocket. Every page gets a welcome (kit, skeleton, view settings) and then
 whatever the core produces (frames, status, settings). Slow pages skip frames
-(``websockets.broadcast`` drops a message for a client whose buffer is full)
-instead of slowing the node.
+(while more than ``MAX_BACKLOG`` bytes wait for them) instead of slowing the node
+or piling up memory.
 
 Only same-origin pages (or clients that send no ``Origin``) may open the
 WebSocket, so a page from another site cannot drive the editor.
@@ -39,7 +39,7 @@ from websockets.exceptions import ConnectionClosed
 from websockets.http11 import Request, Response
 
 from common.gesture.keyposes import POSE_NAME, KeyPoses
-from common.kit import Kit, save_kit
+from common.kit import Kit, load_kit, save_kit
 from services.graphics.core import GraphicsCore
 from services.graphics.poser import CharacterPoser, is_character, rest_poser
 
@@ -48,6 +48,10 @@ log = logging.getLogger("batteur.graphics")
 STATIC_DIR = Path(__file__).parent / "static"
 FILE_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,80}\.(yaml|yml|json)$")
 MAX_PAGE_MESSAGE = 256 * 1024  # bytes
+CLOSE_TIMEOUT_S = 1.0
+"""How long closing waits for a page to answer (a frozen tab would hold Ctrl-C up 10 s by default)."""
+MAX_BACKLOG = 64 * 1024
+"""Bytes waiting to be sent to a page above which it skips frames (about half a second of frames)."""
 
 
 def assets_missing(static_dir: Path = STATIC_DIR) -> list[str]:
@@ -72,7 +76,8 @@ class ViewServer:
         """The edited joint angles (57,) radians."""
         self.poser_body = "rest"
         """Which body the editor poses: "live" (physics' newest pose) or "rest" (the shipped snapshot)."""
-        self.counters = {"http": 0, "not_found": 0, "ws_connects": 0, "page_errors": 0, "sent": 0, "foreign_origin": 0}
+        self.counters = {"http": 0, "not_found": 0, "ws_connects": 0, "page_errors": 0, "sent": 0, "foreign_origin": 0,
+                         "skipped_frames": 0}
         core.page_sink = self.broadcast
 
     # --- lifecycle ----------------------------------------------------------------------------
@@ -80,7 +85,8 @@ class ViewServer:
         """Listen on ``host:port`` (0: any free port); returns the port."""
         logging.getLogger("websockets.server").setLevel(logging.WARNING)
         self.server = await serve(self._ws_handler, host, port, process_request=self._http,
-                                  max_size=MAX_PAGE_MESSAGE, compression=None, ping_interval=5, ping_timeout=10)
+                                  max_size=MAX_PAGE_MESSAGE, compression=None, ping_interval=5, ping_timeout=10,
+                                  close_timeout=CLOSE_TIMEOUT_S)
         sock = next(iter(self.server.sockets))
         self.port = int(sock.getsockname()[1])
         missing = assets_missing(self.static_dir)
@@ -115,7 +121,7 @@ class ViewServer:
             return None
         self.counters["http"] += 1
         if path == "/api/status":
-            return _json_response(self.core.status(self.clock()))
+            return _json_response({**self.core.status(self.clock()), "server": dict(self.counters)})
         if path == "/api/kit":
             return _json_response(self.core.kit.model_dump(mode="json"))
         if path == "/healthz":
@@ -152,11 +158,20 @@ class ViewServer:
                 self._poser_off()
 
     def broadcast(self, messages: list[dict[str, Any]]) -> None:
-        """Send ``messages`` to every page (called from the core's step, on the event loop)."""
+        """Send ``messages`` to every page (called from the core's step, on the event loop).
+
+        ``websockets.broadcast`` has no backpressure, so a page that does not keep up (a slow link, a frozen
+        tab) skips frames while more than :data:`MAX_BACKLOG` bytes wait for it; it still gets every other
+        message (kit, skeleton, view, status), so it is right again as soon as it reads.
+        """
         if not self.clients:
             return
         for message in messages:
-            broadcast(self.clients, json.dumps(message, separators=(",", ":")))
+            targets = self.clients
+            if message.get("type") == "frame":
+                targets = {c for c in self.clients if _backlog(c) <= MAX_BACKLOG}
+                self.counters["skipped_frames"] += len(self.clients) - len(targets)
+            broadcast(targets, json.dumps(message, separators=(",", ":")))
             self.counters["sent"] += 1
 
     def handle_page_message(self, raw: str | bytes) -> dict[str, Any] | None:
@@ -184,6 +199,10 @@ class ViewServer:
             if kind == "save_pose":
                 return self._save_pose(msg)
             raise ValueError(f"unknown message type {kind!r}")
+        except RecursionError:  # e.g. "[[[[..." : the JSON parser gives up, the connection must not
+            self.counters["page_errors"] += 1
+            log.warning("bad page message: JSON nested too deeply")
+            return {"type": "saved", "ok": False, "error": "JSON nested too deeply"}
         except (ValueError, TypeError, ValidationError) as exc:
             self.counters["page_errors"] += 1
             log.warning("bad page message: %s", exc)
@@ -228,6 +247,8 @@ class ViewServer:
         except ValidationError as exc:
             raise ValueError(f"invalid kit: {exc.errors()[0].get('msg')} at "
                              f"{'.'.join(str(p) for p in exc.errors()[0].get('loc', ()))}") from None
+        if path.exists():
+            _check_is_kit(path)
         self.kit_dir.mkdir(parents=True, exist_ok=True)  # type: ignore[union-attr]
         save_kit(kit, path)
         self.core.set_kit(kit)
@@ -247,6 +268,20 @@ class ViewServer:
         self.kit_dir.mkdir(parents=True, exist_ok=True)  # type: ignore[union-attr]
         library.save(path)
         return {"type": "saved", "ok": True, "path": str(path)}
+
+
+def _check_is_kit(path: Path) -> None:
+    """``ValueError`` unless ``path`` holds a kit: a kit may replace a kit, never another file (poses.yaml)."""
+    try:
+        load_kit(path)
+    except (ValueError, OSError):
+        raise ValueError(f"{path.name} exists and is not a kit (the editor's poses?): "
+                         "save the kit under another name") from None
+
+
+def _backlog(connection: ServerConnection) -> int:
+    """Bytes written to ``connection`` that the network has not taken yet."""
+    return int(connection.transport.get_write_buffer_size())
 
 
 def _response(status: HTTPStatus, body: bytes, content_type: str) -> Response:

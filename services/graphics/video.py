@@ -276,6 +276,8 @@ def render_video(sequence: PoseSequence, impacts: list[Impact], wav_path: Path |
                  on_progress: Callable[[int, int], None] | None = None) -> VideoInfo:
     """Write ``out_dir/performance.mp4``: the performance rendered headless, the WAV muxed in sync.
 
+    The file appears only when complete: a failed or interrupted render leaves any previous one as it was.
+
     Parameters
     ----------
     sequence : PoseSequence
@@ -308,6 +310,7 @@ def render_video(sequence: PoseSequence, impacts: list[Impact], wav_path: Path |
     ffmpeg = find_ffmpeg()
     out_dir.mkdir(parents=True, exist_ok=True)
     out = out_dir / name
+    partial = out.with_name(f".{out.stem}.partial{out.suffix}")  # renamed to ``out`` only when complete
     if wav_path is not None:
         duration = float(soundfile.info(str(wav_path)).duration)
     else:
@@ -319,7 +322,21 @@ def render_video(sequence: PoseSequence, impacts: list[Impact], wav_path: Path |
     if wav_path is not None:
         command += ["-i", str(wav_path), "-map", "0:v", "-map", "1:a", "-c:a", "aac", "-b:a", "192k"]
     command += ["-c:v", "libx264", "-preset", "veryfast", "-crf", "20", "-pix_fmt", "yuv420p", "-r", f"{fps:g}",
-                "-movflags", "+faststart", str(out)]
+                "-movflags", "+faststart", str(partial)]
+    try:
+        _encode(command, sequence, impacts, times, kit, width, height, camera, on_progress)
+        partial.replace(out)
+    except BaseException:  # Ctrl-C too: ffmpeg would finish a truncated file that looks like the take
+        partial.unlink(missing_ok=True)
+        raise
+    return VideoInfo(out, frames, fps, frames / fps, width, height)
+
+
+def _encode(command: list[str], sequence: PoseSequence, impacts: list[Impact], times: np.ndarray, kit: Kit | None,
+            width: int, height: int, camera: dict[str, object] | None,
+            on_progress: Callable[[int, int], None] | None) -> None:
+    """Render the frames at rig ``times`` into ffmpeg running ``command``; ``RuntimeError`` if it fails."""
+    frames = len(times)
     proc = subprocess.Popen(command, stdin=subprocess.PIPE, stderr=subprocess.PIPE)
     assert proc.stdin is not None
 
@@ -333,6 +350,9 @@ def render_video(sequence: PoseSequence, impacts: list[Impact], wav_path: Path |
         render_frames(sequence, impacts, times, kit, width, height, camera, write)
     except BrokenPipeError:  # ffmpeg stopped reading: its exit status and message say why
         broken = True
+    except BaseException:  # the video is abandoned (Ctrl-C, a failure): no need for ffmpeg to finish it
+        proc.kill()
+        raise
     finally:
         try:
             proc.stdin.close()
@@ -342,4 +362,3 @@ def render_video(sequence: PoseSequence, impacts: list[Impact], wav_path: Path |
         code = proc.wait()
     if code != 0 or broken:
         raise RuntimeError(f"ffmpeg failed (exit status {code}): {stderr.strip()[-800:] or 'no message'}")
-    return VideoInfo(out, frames, fps, frames / fps, width, height)

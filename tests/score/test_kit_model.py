@@ -130,6 +130,28 @@ def test_invalid_kits_are_refused(tmp_path: Path) -> None:
     assert load_kit(path) == load_kit("double_pedal")
 
 
+def test_saving_a_kit_or_key_poses_that_fails_leaves_the_earlier_file(tmp_path: Path,
+                                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    # the pose editor saves both; a full disk mid-write left them cut short, the user's work lost
+    from common.gesture.keyposes import KeyPoses
+
+    kit_file, poses_file = tmp_path / "mine.yaml", tmp_path / "poses.yaml"
+    save_kit(load_kit("default"), kit_file)
+    poses_file.write_text("# the user's key poses\n", encoding="utf-8")
+    before = {p: p.read_bytes() for p in (kit_file, poses_file)}
+
+    def disk_full(*args: object) -> None:
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr("common.output_paths.os.replace", disk_full)
+    with pytest.raises(OSError):
+        save_kit(load_kit("double_pedal"), kit_file)
+    with pytest.raises(OSError):
+        KeyPoses().save(poses_file)
+    assert {p: p.read_bytes() for p in (kit_file, poses_file)} == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["mine.yaml", "poses.yaml"]
+
+
 def test_the_right_hand_strikes_the_snare_nearer_the_drummer_than_the_left() -> None:
     """Its rebound no longer carries the right stick's tip into the high tom's rim, which overhangs the snare's far
     side (a hard right-hand snare stroke was followed 15-20 ms later by a loud hit on the high tom)."""
