@@ -2,13 +2,16 @@
 
 The panel is generated so its wiring stays consistent with the message models
 (common/messages): every control below names the model it sends, and the
-generator checks each one's OSC address and argument count against the model.
-Run ``python pd/make_control.py`` after changing it; tests/deploy/test_pd.py
-checks that the file on disk is what this script writes.
+generator checks each one's OSC address and the kind of each argument (symbol, number,
+whole number) against the model.
+Run ``python pd/make_control.py`` after changing it (``--output PATH`` writes
+elsewhere, ``--check`` only compares); tests/deploy/test_pd.py checks that the
+file on disk is what this script writes.
 """
 
 from __future__ import annotations
 
+import argparse
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -102,15 +105,35 @@ class Patch:
         return "\n".join([head, *self.lines, *self.connects]) + "\n"
 
 
-def wire_count(model: type[OscMessage]) -> int:
-    return sum(2 if f.kind is WireKind.TIME else 1 for f in model.wire_fields())
+ACCEPTS = {WireKind.STR: "s", WireKind.FLOAT: "fi", WireKind.INT: "i"}
+"""What the panel may send for each wire kind: ``s`` a symbol, ``f`` any number, ``i`` a whole number (Pd sends
+every number as a float; the rig takes a float with an integral value where an int is expected, never a fraction)."""
 
 
-def sender(p: Patch, x: int, y: int, model: type[OscMessage], role: str, n_args: int) -> int:
-    """[oscformat ADDRESS] -> [s bp-out-ROLE]; returns the oscformat's index (its inlet takes the argument list)."""
-    assert REGISTRY.get(model.ADDRESS) is model
-    if n_args != wire_count(model):
-        raise SystemExit(f"{model.__name__}: the panel sends {n_args} arguments, the model takes {wire_count(model)}")
+def wire_signature(model: type[OscMessage]) -> str:
+    """The model's wire kinds, one letter per OSC argument (a rig time is two: whole seconds ``i``, fraction ``f``)."""
+    return "".join("if" if f.kind is WireKind.TIME else str(f.kind) for f in model.wire_fields())
+
+
+def check_sends(model: type[OscMessage], sends: str) -> None:
+    """Refuse (SystemExit, naming the control) a control whose address or argument kinds do not fit its model."""
+    if REGISTRY.get(model.ADDRESS) is not model:
+        raise SystemExit(f"{model.__name__}: {model.ADDRESS} is not the registered address of this model")
+    expected = wire_signature(model)
+    fits = len(sends) == len(expected) and all(
+        sent in ACCEPTS.get(WireKind(kind), kind) for sent, kind in zip(sends, expected, strict=True))
+    if not fits:
+        raise SystemExit(f"{model.__name__} ({model.ADDRESS}): the panel sends {sends!r} "
+                         f"({len(sends)} arguments), the model takes {expected!r} ({len(expected)}): "
+                         "s symbol, f number, i whole number")
+
+
+def sender(p: Patch, x: int, y: int, model: type[OscMessage], role: str, sends: str) -> int:
+    """[oscformat ADDRESS] -> [s bp-out-ROLE]; returns the oscformat's index (its inlet takes the argument list).
+
+    ``sends`` names what the control feeding it sends, one letter per argument: ``s`` a symbol, ``f`` a number,
+    ``i`` a whole number; it is checked against the model (:func:`check_sends`)."""
+    check_sends(model, sends)
     fmt = p.obj(x, y, "oscformat " + " ".join(model.ADDRESS.strip("/").split("/")))
     out = p.obj(x, y + 25, f"s bp-out-{role}")
     p.connect(fmt, 0, out, 0)
@@ -204,26 +227,26 @@ def build() -> Patch:
     for k, keep in enumerate(stores):
         p.connect(fire, k, keep, 0)  # right to left: the hot inlet (grip) last
         p.connect(keep, 0, pack, k)
-    p.connect(pack, 0, sender(p, 420, y + 450, GestureStyle, "score", 4), 0)
+    p.connect(pack, 0, sender(p, 420, y + 450, GestureStyle, "score", "ssss"), 0)
     # the grip also goes to physics (both hands)
     both = p.obj(620, y + 85, "list prepend both")
     p.connect(grip, 0, both, 0)
-    p.connect(both, 0, sender(p, 620, y + 110, PhysicsGrip, "physics", 2), 0)
+    p.connect(both, 0, sender(p, 620, y + 110, PhysicsGrip, "physics", "ss"), 0)
     mode = choices(p, 620, y + 180, "control mode", ("joint_pd", "joint_ct", "cartesian"), "bp-mode")
-    p.connect(mode, 0, sender(p, 620, y + 270, PhysicsControlMode, "physics", 1), 0)
+    p.connect(mode, 0, sender(p, 620, y + 270, PhysicsControlMode, "physics", "s"), 0)
     reset = p.msg(900, y + 25, "0 0")
     p.text(900, y, "reset drummer")
     rr = p.obj(960, y + 25, "r bp-reset")
     p.connect(rr, 0, reset, 0)
-    p.connect(reset, 0, sender(p, 900, y + 50, PhysicsReset, "physics", 2), 0)
+    p.connect(reset, 0, sender(p, 900, y + 50, PhysicsReset, "physics", "ii"), 0)
     # ------------------------------------------------------------ score: tempo, load, transport
     y2 = y + 500
     p.text(20, y2, "SCORE")
     tempo = slider(p, 20, y2 + 25, "tempo factor (0.25..4)", 0.25, 4.0, True, "bp-tempo")
-    p.connect(tempo, 0, sender(p, 20, y2 + 70, TempoScale, "score", 1), 0)
+    p.connect(tempo, 0, sender(p, 20, y2 + 70, TempoScale, "score", "f"), 0)
     p.text(330, y2 + 25, "score file (name in the score library \\, or path) - type and press Enter")
     path = p.symbolatom(330, y2 + 47, 30, "bp-score", "-")
-    p.connect(path, 0, sender(p, 330, y2 + 75, ScoreLoad, "score", 1), 0)
+    p.connect(path, 0, sender(p, 330, y2 + 75, ScoreLoad, "score", "s"), 0)
     p.text(700, y2 + 25, "position s")
     pos = p.nbx(700, y2 + 47, 0, 100000, 6, "bp-position")
     play = p.msg(790, y2 + 47, "play")
@@ -237,12 +260,18 @@ def build() -> Patch:
     tp = p.obj(790, y2 + 100, "pack s 0 0 0")
     p.connect(act, 0, tp, 0)
     p.connect(pos, 0, tp, 3)
-    p.connect(tp, 0, sender(p, 790, y2 + 125, ScoreTransport, "score", 4), 0)
+    p.connect(tp, 0, sender(p, 790, y2 + 125, ScoreTransport, "score", "siif"), 0)
     # ------------------------------------------------------------ sound: per instrument
     x3 = 1200
     p.text(x3, 10, "SOUND - instrument:")
-    p.symbolatom(x3 + 160, 10, 10, "bp-instrument", "-")  # shows the instrument the controls below act on
+    # shows the instrument the controls below act on; typing one in (and Enter) chooses it. The box only
+    # displays what bp-instrument says ("set": no output), so choosing never loops back through it.
+    p.symbolatom(x3 + 160, 10, 10, "bp-instrument-show", "bp-instrument")
     sink = p.obj(x3 + 300, 10, "s bp-instrument")
+    shown = p.obj(x3 + 540, 900, "r bp-instrument")
+    show = p.msg(x3 + 540, 925, "set $1")
+    p.connect(shown, 0, show, 0)
+    p.connect(show, 0, p.obj(x3 + 540, 950, "s bp-instrument-show"), 0)
     for k, name in enumerate(INSTRUMENTS):
         m = p.msg(x3 + 100 * (k % 6), 40 + 25 * (k // 6), f"symbol {name}")
         p.connect(m, 0, sink, 0)
@@ -250,15 +279,15 @@ def build() -> Patch:
     p.connect(load, 0, init_inst, 0)
     p.connect(init_inst, 0, sink, 0)
 
-    def per_instrument(y: int, model: type[OscMessage], source: int, n_values: int) -> None:
+    def per_instrument(y: int, model: type[OscMessage], source: int, values: str) -> None:
         pre = p.obj(x3 + 380, y, "list prepend")
         r = p.obj(x3 + 480, y - 25, "r bp-instrument")
         p.connect(r, 0, pre, 1)
         p.connect(source, 0, pre, 0)
-        p.connect(pre, 0, sender(p, x3 + 380, y + 25, model, "sound", 1 + n_values), 0)
+        p.connect(pre, 0, sender(p, x3 + 380, y + 25, model, "sound", "s" + values), 0)
 
     model = choices(p, x3, 100, "synthesis model", ("modal", "sample", "synth"), "bp-model")
-    per_instrument(185, SoundModel, model, 1)
+    per_instrument(185, SoundModel, model, "s")
     rows: list[tuple[str, type[OscMessage], float, float, bool, str, bool]] = [
         ("level dB (-80..12)", SoundLevel, -80, 12, False, "bp-level", False),
         ("radius m (0.02..0.6)", SoundRadius, 0.02, 0.6, False, "bp-radius", False),
@@ -269,7 +298,7 @@ def build() -> Patch:
     yy = 250
     for label, m_, lo, hi, log, receive, integer in rows:
         src = slider(p, x3, yy, label, lo, hi, log, receive, integer)
-        per_instrument(yy + 22, m_, src, 1)
+        per_instrument(yy + 22, m_, src, "i" if integer else "f")
         yy += 80
     # damping: two values in one message
     p.text(x3, yy, "damping sigma0 1/s (0..500) and sigma1 s (0..0.001)")
@@ -285,11 +314,11 @@ def build() -> Patch:
     p.connect(n1, 0, t1, 0)
     p.connect(t1, 1, dp, 1)
     p.connect(t1, 0, dp, 0)
-    per_instrument(yy + 100, SoundDamping, dp, 2)
+    per_instrument(yy + 100, SoundDamping, dp, "ff")
     yy += 160
     p.text(x3, yy, "SOUND - whole rig")
     lat = slider(p, x3, yy + 25, "latency window s (0..0.5)", 0, 0.5, False, "bp-latency")
-    p.connect(lat, 0, sender(p, x3 + 300, yy + 47, SoundLatency, "sound", 1), 0)
+    p.connect(lat, 0, sender(p, x3 + 300, yy + 47, SoundLatency, "sound", "f"), 0)
     p.text(x3, yy + 100, "master gain dB (-80..12) and reverb (0..1)")
     g = p.hsl(x3, yy + 122, -80, 12, False, "bp-master")
     gn = p.nbx(x3 + 175, yy + 122, -80, 12)
@@ -303,7 +332,7 @@ def build() -> Patch:
     p.connect(rn, 0, t2, 0)
     p.connect(t2, 1, mp, 1)
     p.connect(t2, 0, mp, 0)
-    p.connect(mp, 0, sender(p, x3 + 280, yy + 200, SoundMaster, "sound", 2), 0)
+    p.connect(mp, 0, sender(p, x3 + 280, yy + 200, SoundMaster, "sound", "ff"), 0)
     graphics_section(p, 20, y2 + 190, load)
     return p
 
@@ -333,11 +362,11 @@ def graphics_section(p: Patch, x: int, y: int, load: int) -> None:
         p.connect(value, 0, order, 0)
         p.connect(order, 1, cam, k + 1)
         p.connect(order, 0, free, 0)
-    p.connect(cam, 0, sender(p, x + 300, y + 500, GraphicsCamera, "graphics", 7), 0)
+    p.connect(cam, 0, sender(p, x + 300, y + 500, GraphicsCamera, "graphics", "sffffff"), 0)
     # layers: one toggle each, shown at load (the view starts with everything drawn)
     layers: tuple[str, ...] = get_args(Layer)
     p.text(x + 700, y + 25, "show")
-    show = sender(p, x + 960, y + 50, GraphicsShow, "graphics", 2)
+    show = sender(p, x + 960, y + 50, GraphicsShow, "graphics", "si")
     init = p.msg(x + 960, y + 110, "; " + "; ".join(f"bp-show-{name} set 1" for name in layers))
     p.connect(load, 0, init, 0)
     for k, name in enumerate(layers):
@@ -348,7 +377,7 @@ def graphics_section(p: Patch, x: int, y: int, load: int) -> None:
         p.connect(pre, 0, show, 0)
     # trails, tip-height plot, delay, mode
     trails = slider(p, x + 700, y + 250, "trails s (0..10; 0 hides)", 0, 10, False, "bp-trails")
-    p.connect(trails, 0, sender(p, x + 1000, y + 272, GraphicsTrails, "graphics", 1), 0)
+    p.connect(trails, 0, sender(p, x + 1000, y + 272, GraphicsTrails, "graphics", "f"), 0)
     plot = p.obj(x + 1060, y + 510, "pack 4 0.5 1.6")
     window = slider(p, x + 700, y + 320, "plot window s (0.5..30)", 0.5, 30, True, "bp-plot-window")
     p.connect(window, 0, plot, 0)
@@ -359,17 +388,47 @@ def graphics_section(p: Patch, x: int, y: int, load: int) -> None:
         p.connect(value, 0, order, 0)
         p.connect(order, 1, plot, k + 1)
         p.connect(order, 0, plot, 0)
-    p.connect(plot, 0, sender(p, x + 1060, y + 540, GraphicsPlot, "graphics", 3), 0)
+    p.connect(plot, 0, sender(p, x + 1060, y + 540, GraphicsPlot, "graphics", "fff"), 0)
     latency = slider(p, x + 300, y + 320, "picture delay s (0..0.5; = the sound's latency)", 0, 0.5, False,
                      "bp-view-latency")
-    p.connect(latency, 0, sender(p, x + 300, y + 370, GraphicsLatency, "graphics", 1), 0)
+    p.connect(latency, 0, sender(p, x + 300, y + 370, GraphicsLatency, "graphics", "f"), 0)
     mode = choices(p, x, y + 320, "view", ("live", "preview"), "bp-view-mode")
-    p.connect(mode, 0, sender(p, x, y + 410, GraphicsMode, "graphics", 1), 0)
+    p.connect(mode, 0, sender(p, x, y + 410, GraphicsMode, "graphics", "s"), 0)
 
 
-def main() -> int:
-    OUT.write_text(build().render(), encoding="utf-8")
-    print(f"wrote {OUT}")
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="python pd/make_control.py",
+        description="Write Batteur's Pure Data control panel (pd/control.pd by default), checking every control "
+                    "against its message model.")
+    parser.add_argument("-o", "--output", type=Path, default=OUT, metavar="PATH",
+                        help="where to write the patch (default: %(default)s); '-' writes it to stdout")
+    parser.add_argument("--check", action="store_true",
+                        help="write nothing: exit 1 if the patch at --output is not what this script writes")
+    args = parser.parse_args(argv)
+    text = build().render()
+    output: Path = args.output
+    if args.check:
+        try:
+            current = output.read_text(encoding="utf-8")
+        except OSError as exc:
+            print(f"make_control.py: cannot read {output}: {exc.strerror or exc}", file=sys.stderr)
+            return 1
+        if current != text:
+            print(f"{output} is stale: run python pd/make_control.py", file=sys.stderr)
+            return 1
+        print(f"{output} is up to date")
+        return 0
+    if str(output) == "-":
+        sys.stdout.write(text)
+        return 0
+    if output.is_dir():
+        parser.error(f"--output {output} is a directory; give a file name (e.g. {output / 'control.pd'})")
+    try:
+        output.write_text(text, encoding="utf-8")
+    except OSError as exc:
+        parser.error(f"cannot write {output}: {exc.strerror or exc}")
+    print(f"wrote {output}")
     return 0
 
 

@@ -9,8 +9,8 @@ GUI objects from their own size arguments; inlets and outlets are counted from t
 
 from __future__ import annotations
 
+import argparse
 import re
-import sys
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -36,8 +36,14 @@ def _unescape(text: str) -> str:
     return text.replace("\\$", "$").replace(" \\,", ",").replace(" \\;", ";").replace("\\,", ",").replace("\\;", ";")
 
 
+class PatchError(ValueError):
+    """The file is not a Pure Data patch this script can read."""
+
+
 def parse(path: Path) -> tuple[list[Box], list[tuple[int, int, int, int]], tuple[int, int]]:
     content = path.read_text(encoding="utf-8")
+    if not content.startswith("#N canvas"):
+        raise PatchError(f"{path} is not a Pure Data patch (a .pd file starts with '#N canvas')")
     records = [r.strip() for r in re.split(r"(?<!\\);\s*\n", content) if r.strip()]
     boxes: list[Box] = []
     connects: list[tuple[int, int, int, int]] = []
@@ -52,6 +58,9 @@ def parse(path: Path) -> tuple[list[Box], list[tuple[int, int, int, int]], tuple
             continue
         if rec.startswith("#X restore"):
             depth -= 1
+            if depth == 1:  # a subpatch is one box of its parent, [pd NAME]: it counts in the connections
+                boxes.append(Box("obj", int(parts[2]), int(parts[3]), _unescape(parts[4].rstrip(";"))
+                                 if len(parts) > 4 else "pd"))
             continue
         if depth != 1 or not rec.startswith("#X "):
             continue
@@ -169,12 +178,29 @@ def render(src: Path, dst: Path) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = sys.argv[1:] if argv is None else argv
-    if len(args) != 2:
-        print("usage: python pd/render_patch.py PATCH.pd OUT.png", file=sys.stderr)
-        return 2
-    render(Path(args[0]), Path(args[1]))
-    print(f"wrote {args[1]}")
+    parser = argparse.ArgumentParser(
+        prog="python pd/render_patch.py",
+        description="Draw a Pure Data patch file as a picture, the way Pd's editor lays it out (no Pd GUI needed).",
+        epilog="example: python pd/render_patch.py pd/control.pd docs/img/pd-control.png")
+    parser.add_argument("patch", type=Path, metavar="PATCH.pd", help="the patch file to draw")
+    parser.add_argument("out", type=Path, metavar="OUT.png",
+                        help="the picture to write (its extension chooses the format: .png, .jpg, ...)")
+    args = parser.parse_args(argv)
+    formats = Image.registered_extensions()
+    if args.out.suffix.lower() not in formats:
+        parser.error(f"{args.out}: unknown picture format {args.out.suffix or '(no extension)'!r}; "
+                     "use .png (or another extension Pillow knows, e.g. .jpg)")
+    try:
+        render(args.patch, args.out)
+    except PatchError as exc:
+        parser.error(str(exc))
+    except UnicodeDecodeError:
+        parser.error(f"{args.patch} is not a Pure Data patch (not text)")
+    except (ValueError, IndexError) as exc:
+        parser.error(f"{args.patch}: cannot read this patch: {exc}")
+    except OSError as exc:
+        parser.error(f"{exc.filename or args.patch}: {exc.strerror or exc}")
+    print(f"wrote {args.out}")
     return 0
 
 
