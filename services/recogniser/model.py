@@ -14,6 +14,7 @@ It is loaded with ``allow_pickle=False``: no code is ever unpickled.
 
 from __future__ import annotations
 
+import io
 import json
 import zipfile
 from dataclasses import dataclass
@@ -21,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from common.output_paths import write_atomically
 from services.recogniser.classes import CLASS_NAMES, N_CLASSES
 from services.recogniser.errors import ModelError
 from services.recogniser.features import HOP, HOP_RANGE, N_FFT, NARROW, Bands, n_features
@@ -106,8 +108,9 @@ class Model:
     meta: dict
 
     def save(self, path: str | Path, half: bool = False) -> None:
-        """Write the model; ``half``: the offline networks' weights as float16 (half the size; they are
-        computed in float32 when loaded)."""
+        """Write the model to exactly ``path`` (NumPy alone would add '.npz' to another name), whole or not at all
+        (a Ctrl-C or a full disk leaves an earlier file as it was); ``half``: the offline networks' weights as
+        float16 (half the size; they are computed in float32 when loaded)."""
         arrays: dict[str, np.ndarray] = {}
         c = self.live
         arrays["live.mean"] = c.mean
@@ -140,7 +143,9 @@ class Model:
                   "layers": len(c.weights)},
         )
         arrays["meta"] = np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8)
-        np.savez_compressed(path, **arrays)  # type: ignore[arg-type]
+        packed = io.BytesIO()
+        np.savez_compressed(packed, **arrays)  # type: ignore[arg-type]
+        write_atomically(Path(path), packed.getvalue())
 
 
 def _layout(layers: list[Layer]) -> list[dict]:
@@ -168,6 +173,9 @@ def _read(path: str | Path, formats: tuple[str, ...]) -> tuple[Path, dict[str, n
         raise ModelError(f"{p}: unknown model format {meta.get('format')!r}, expected {FORMAT!r}")
     if tuple(meta.get("classes", ())) != CLASS_NAMES:
         raise ModelError(f"{p}: model classes {meta.get('classes')} differ from {list(CLASS_NAMES)}")
+    for name, array in data.items():  # a training run that diverged: every transcription would be garbage
+        if array.dtype.kind == "f" and not np.all(np.isfinite(array)):
+            raise ModelError(f"{p}: {name} holds NaN or infinite values (written by a training run that diverged?)")
     return p, data, meta
 
 

@@ -120,3 +120,30 @@ def test_model_errors(tmp_path: Path) -> None:
     with pytest.raises(ModelError, match="not an .npz archive") as refused:
         load_model(text)
     assert "pickle" not in str(refused.value)
+
+
+def test_a_model_with_nan_weights_is_refused(tmp_path: Path) -> None:
+    # a diverged training run's file: loading it silently gave garbage (or no) notes for every recording
+    model = load_model()
+    model.offline.layers[0].w[0, 0, 0, 0] = np.nan
+    broken = tmp_path / "diverged.npz"
+    model.save(broken)
+    with pytest.raises(ModelError, match="NaN or infinite"):
+        load_model(broken)
+
+
+def test_a_model_is_saved_at_exactly_its_path_and_whole(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    model = load_model()
+    out = tmp_path / "model.bin"  # NumPy alone writes model.bin.npz
+    model.save(out)
+    assert [p.name for p in tmp_path.iterdir()] == ["model.bin"]
+    assert load_model(out).offline.thresholds.tolist() == model.offline.thresholds.tolist()
+    before = out.read_bytes()
+
+    def disk_full(*args: object, **kwargs: object) -> None:
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr("common.output_paths.os.replace", disk_full)
+    with pytest.raises(OSError):
+        model.save(out, half=True)
+    assert out.read_bytes() == before and [p.name for p in tmp_path.iterdir()] == ["model.bin"]

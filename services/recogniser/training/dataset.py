@@ -36,6 +36,29 @@ def groove_files(split: str) -> list[tuple[Path, float]]:
     return out
 
 
+class GrooveMissingError(RuntimeError):
+    """The Groove MIDI Dataset the trainers render is not where they read it."""
+
+
+def require_groove(splits: tuple[str, ...] = ("train",), root: Path | None = None) -> None:
+    """Raise :class:`GrooveMissingError` unless ``root`` (default :data:`GROOVE_DIR`) holds the dataset's
+    ``info.csv`` and every MIDI file of ``splits`` (checked before rendering starts, not by a worker midway)."""
+    root = GROOVE_DIR if root is None else root
+    hint = (f"unpack the Groove MIDI Dataset (groove-v1.0.0-midionly.zip, "
+            f"https://magenta.tensorflow.org/datasets/groove) so that {root / 'info.csv'} exists")
+    try:
+        with open(root / "info.csv", newline="") as f:
+            rows = [r for r in csv.DictReader(f) if r.get("split") in splits]
+        missing = [r["midi_filename"] for r in rows if not (root / r["midi_filename"]).is_file()]
+    except (OSError, KeyError, csv.Error, UnicodeDecodeError) as exc:
+        raise GrooveMissingError(f"cannot read the Groove MIDI Dataset in {root} ({exc}): {hint}") from exc
+    if not rows:
+        raise GrooveMissingError(f"{root / 'info.csv'} lists no performance of the {'/'.join(splits)} split: {hint}")
+    if missing:
+        raise GrooveMissingError(f"{len(missing)} of the {len(rows)} Groove MIDI files of the {'/'.join(splits)} "
+                                 f"split are missing in {root}, e.g. {missing[0]}: {hint}")
+
+
 @dataclass
 class Examples:
     """Candidate onsets of one or more excerpts."""
@@ -95,3 +118,9 @@ def concat(parts: list[Examples]) -> Examples:
         np.concatenate([p.time for p in parts]), np.concatenate([np.full(len(p.y), i) for i, p in enumerate(parts)]),
         np.concatenate(hits) if hits else np.zeros((0, 3)),
     )
+
+
+if __name__ == "__main__":  # run as a program by mistake: say which commands train
+    from services.recogniser.training.options import not_a_command
+
+    not_a_command(__spec__.name)

@@ -9,12 +9,15 @@ from __future__ import annotations
 import argparse
 import sys
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
+from common.arg_types import count
+from services.recogniser.errors import ModelError
 from services.recogniser.model import MODEL_PATH
-from services.recogniser.training.dataset import groove_files
+from services.recogniser.training.dataset import GrooveMissingError, groove_files, require_groove
 from services.recogniser.training.kits import (
     KIND_CLASS,
     RENDER_RATE,
@@ -29,6 +32,7 @@ from services.recogniser.training.kits import (
 )
 from services.recogniser.training.modal import MODAL_KITS, render_modal_kit
 from services.recogniser.training.more_kits import FONT_KITS, MORE_KITS, load_more_kit
+from services.recogniser.training.options import check_cache, check_output, seed
 from services.recogniser.training.render import Hit, Note, augment, normalise, read_notes, render
 from services.recogniser.training.soundfont import SOUNDFONT_KITS, render_soundfont_kit
 
@@ -193,14 +197,22 @@ def jobs(n: int, seed: int, kits: tuple[str, ...], dry_p: float = DRY_P, variety
 
 def add_arguments(ap: argparse.ArgumentParser, excerpts: int, keeps: str) -> None:
     """The options both trainers take: how many excerpts, seed, rendering processes, cache, output, the model
-    file whose other part (``keeps``: 'live' or 'offline') is kept, and --retune."""
-    ap.add_argument("--excerpts", type=int, default=excerpts, help=f"30-second training excerpts (default {excerpts})")
-    ap.add_argument("--val-excerpts", type=int, default=150,
+    file whose other part (``keeps``: 'live' or 'offline') is kept, and --retune. Numbers are checked here, so a
+    bad one is a usage error before anything is rendered."""
+    ap.add_argument("--excerpts", type=count, default=excerpts,
+                    help=f"30-second training excerpts, at least 1 (default {excerpts})")
+    ap.add_argument("--val-excerpts", type=count, default=150,
                     help="30-second excerpts rendered with the validation kit, to choose thresholds (default 150)")
-    ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--workers", type=int, default=2, help="rendering processes (default 2)")
-    ap.add_argument("--cache", type=Path, default=Path(tempfile.gettempdir()) / "batteur-recogniser-cache")
-    ap.add_argument("--out", type=Path, default=MODEL_PATH)
+    ap.add_argument("--seed", type=seed, default=1,
+                    help="random seed of the excerpts drawn and rendered (and of the fitting), 0 or more; the "
+                         "validation kit's excerpts use seed + 1000 (default 1)")
+    ap.add_argument("--workers", type=count, default=2, help="rendering processes (default 2)")
+    ap.add_argument("--cache", type=Path, default=Path(tempfile.gettempdir()) / "batteur-recogniser-cache",
+                    help="directory where rendered excerpts are kept and reused by later runs with the same "
+                         "excerpts, seed and rendering options (default: %(default)s)")
+    ap.add_argument("--out", type=Path, default=MODEL_PATH,
+                    help="model file to write, replaced whole when the run ends (its directory must exist; "
+                         "default: the shipped model, %(default)s)")
     ap.add_argument(f"--{keeps}-from", type=Path, default=MODEL_PATH,
                     help=f"model file whose {keeps} part is kept (default: the shipped one)")
     ap.add_argument("--retune", type=Path, default=None, metavar="MODEL",
@@ -208,11 +220,34 @@ def add_arguments(ap: argparse.ArgumentParser, excerpts: int, keeps: str) -> Non
                          "(its strike rules too with --rules, else MODEL keeps its own)")
 
 
+def check_files(args: argparse.Namespace, models: list[tuple[str, Path, Callable[[Path], object]]]) -> bool:
+    """Whether ``args.out`` can be written, ``args.cache`` used and every model file of ``models`` (option, path,
+    the reader that must accept it) read; if not, says which and why. Checked before anything is rendered."""
+    problems = [f"--out {args.out}: {why}" for why in [check_output(args.out)] if why]
+    problems += [f"--cache {args.cache}: {why}" for why in [check_cache(args.cache)] if why]
+    for option, path, read in models:
+        try:
+            read(path)
+        except ModelError as exc:
+            problems.append(f"{option}: {exc}")
+    for problem in problems:
+        print(f"error: {problem}", file=sys.stderr)
+    return not problems
+
+
 def kits_installed() -> bool:
-    """Whether the training and validation kits are installed (if not, says how to install them)."""
+    """Whether the training and validation kits and the Groove MIDI Dataset are installed (if not, says how to
+    install them)."""
     try:
         require_kits(TRAIN_KITS + VALID_KITS)
-    except KitsMissingError as exc:
+        require_groove(("train",))
+    except (KitsMissingError, GrooveMissingError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return False
     return True
+
+
+if __name__ == "__main__":  # run as a program by mistake: say which commands train
+    from services.recogniser.training.options import not_a_command
+
+    not_a_command(__spec__.name)

@@ -145,6 +145,8 @@ def fit(train: FrameSet, val: FrameSet, epochs: float, seed: int, lr: float = 2e
     ``init``: continue from this network (of these ``windows``; e.g. :func:`~.net.from_export` of a model file),
     its batch normalisations first calibrated on 8 training batches (:func:`~.net.calibrate`); it is kept
     unless a fitted state has a lower validation-kit loss.
+    Ctrl-C (KeyboardInterrupt) or a training loss that is not a number stops the fitting early, keeping the state
+    of the lowest validation-kit loss so far; raises :class:`FitError` when no state has a loss that is a number.
     Learning rate: a linear warm-up to ``lr`` over the first ``warmup`` (share) of the run, then a cosine decay
     to zero; with ``minutes`` the run's progress is the share of the time budget spent (so on a shared machine
     whose speed changes the schedule still ends at zero), else the share of the steps."""
@@ -181,30 +183,68 @@ def fit(train: FrameSet, val: FrameSet, epochs: float, seed: int, lr: float = 2e
     t0, running = time.time(), 0.0
     step = 0
     done = 0.0
+    stopped = ""  # why the fitting stopped before its end: Ctrl-C, or a loss that is not a number
     while step < steps and done < 1.0:
-        step += 1
-        done = step / steps if minutes is None else max(step / steps, (time.time() - t0) / (minutes * 60))
-        rate = done / warmup if done < warmup else 0.5 * (1 + np.cos(np.pi * (done - warmup) / (1 - warmup)))
-        for group in opt.param_groups:
-            group["lr"] = lr * float(min(1.0, rate))
-        x, act, vel, mask = tb.random(rng, BATCH, crop)
-        loss = loss_of(net, x, act, vel, mask, hard=hard, outputs=out_w)
-        opt.zero_grad()
-        loss.backward()
-        opt.step()
-        running += loss.item()
-        last = step == steps or (minutes is not None and time.time() - t0 >= minutes * 60)
-        if step % log_every == 0 or last:
-            v = validation_loss(net, vb)
-            mark = ""
-            if v < best:
-                best, best_state, mark = v, {k: t.clone() for k, t in net.state_dict().items()}, " *"
-            print(f"  step {step} ({done:.0%}): training loss {running / ((step - 1) % log_every + 1):.4f}, "
-                  f"validation-kit loss {v:.4f}{mark} ({time.time() - t0:.0f} s, "
-                  f"{step * BATCH * crop / len(train.spec):.2f} epochs)", flush=True)
-            running = 0.0
-            done = 1.0 if last else done
-    if best_state is not None:
-        net.load_state_dict(best_state)
+        try:
+            step += 1
+            done = step / steps if minutes is None else max(step / steps, (time.time() - t0) / (minutes * 60))
+            rate = done / warmup if done < warmup else 0.5 * (1 + np.cos(np.pi * (done - warmup) / (1 - warmup)))
+            for group in opt.param_groups:
+                group["lr"] = lr * float(min(1.0, rate))
+            x, act, vel, mask = tb.random(rng, BATCH, crop)
+            loss = loss_of(net, x, act, vel, mask, hard=hard, outputs=out_w)
+            if not torch.isfinite(loss):  # diverged: every later step would be wasted, its state useless
+                stopped = f"the training loss is {loss.item()} at step {step} (try a lower --lr)"
+                break
+            opt.zero_grad()
+            loss.backward()
+            opt.step()
+            running += loss.item()
+            last = step == steps or (minutes is not None and time.time() - t0 >= minutes * 60)
+            if step % log_every == 0 or last:
+                v = validation_loss(net, vb)
+                mark = ""
+                if v < best:
+                    best, best_state, mark = v, {k: t.clone() for k, t in net.state_dict().items()}, " *"
+                print(f"  step {step} ({done:.0%}): training loss {running / ((step - 1) % log_every + 1):.4f}, "
+                      f"validation-kit loss {v:.4f}{mark} ({time.time() - t0:.0f} s, "
+                      f"{step * BATCH * crop / len(train.spec):.2f} epochs)", flush=True)
+                running = 0.0
+                done = 1.0 if last else done
+        except KeyboardInterrupt:  # the user stops the fitting: keep what was fitted so far
+            stopped = f"Ctrl-C at step {step}"
+            break
+    if stopped:
+        best_state = _after_stop(net, vb, stopped, best, best_state, diverged=not stopped.startswith("Ctrl-C"))
+    if best_state is None:
+        raise FitError("no fitted state has a validation-kit loss that is a number (try a lower --lr)")
+    net.load_state_dict(best_state)
     net.eval()
     return net
+
+
+class FitError(RuntimeError):
+    """The fitting produced no usable network (its losses are not numbers)."""
+
+
+def _after_stop(net: Net, vb: Batches, why: str, best: float, best_state: dict[str, torch.Tensor] | None,
+                diverged: bool) -> dict[str, torch.Tensor] | None:
+    """The state to keep when the fitting stopped early (``why``): the one of the lowest validation-kit loss so
+    far, else (none validated yet, and not ``diverged``) the state as it is, if its validation loss is a number."""
+    if best_state is not None:
+        print(f"  fitting stopped ({why}): keeping the state of validation-kit loss {best:.4f} (Ctrl-C again "
+              "before the model is written: nothing written)", flush=True)
+        return best_state
+    if diverged:
+        raise FitError(f"the fitting diverged before any state was validated: {why}")
+    print(f"  fitting stopped ({why}) before its first validation: validating the network as it is "
+          "(Ctrl-C again: stop without writing anything)", flush=True)
+    v = validation_loss(net, vb)
+    print(f"  validation-kit loss {v:.4f}", flush=True)
+    return {k: t.clone() for k, t in net.state_dict().items()} if np.isfinite(v) else None
+
+
+if __name__ == "__main__":  # run as a program by mistake: say which commands train
+    from services.recogniser.training.options import not_a_command
+
+    not_a_command(__spec__.name)

@@ -9,7 +9,9 @@ training (:func:`targets`), so the cache holds only spectra (float16) and strike
 from __future__ import annotations
 
 import multiprocessing as mp
+import shutil
 import time
+import zipfile
 from contextlib import nullcontext
 from dataclasses import dataclass
 from functools import partial
@@ -34,7 +36,25 @@ from services.recogniser.training.kits import RENDER_RATE
 NEIGHBOUR_TARGET = 0.5
 """Target of the frames next to a strike's frame (target widening: the exact frame is uncertain by half a hop)."""
 PROGRESS_EVERY = 250
-"""Excerpts between two progress lines while rendering."""
+"""Excerpts between two progress lines while rendering ..."""
+PROGRESS_S = 60.0
+"""... or seconds, whichever comes first (a validation set of 150 excerpts on one worker takes minutes)."""
+
+
+class Progress:
+    """Progress lines of a rendering of ``n`` excerpts: every :data:`PROGRESS_EVERY` excerpts or
+    :data:`PROGRESS_S` seconds."""
+
+    def __init__(self, n: int) -> None:
+        self.n = n
+        self.t0 = self.last = time.monotonic()
+
+    def done(self, k: int) -> None:
+        """``k`` excerpts are rendered."""
+        now = time.monotonic()
+        if k < self.n and (k % PROGRESS_EVERY == 0 or now - self.last >= PROGRESS_S):
+            self.last = now
+            print(f"  rendered {k}/{self.n} excerpts, {now - self.t0:.0f} s", flush=True)
 WINDOWS = (512, 1024, 2048)
 """Analysis windows rendered into the frame sets by default, samples at 22,050 Hz (23, 46 and 93 ms); a network
 uses any of them. At another analysis rate the windows last as long (:func:`windows_for`)."""
@@ -96,8 +116,26 @@ class FrameSet:
         if not (isinstance(self.spec, np.memmap) and Path(str(self.spec.filename)) == spec_path.resolve()):
             np.save(spec_path, self.spec)
         b = self.bands
-        np.savez(path, starts=self.starts, hits=self.hits, windows=np.asarray(self.windows), hop=self.hop,
-                 bands=np.array([b.sample_rate, b.n, b.f_max_hz]))
+        part = Path(path).with_name(f".{Path(path).name}.part.npz")  # renamed when whole: a Ctrl-C while writing
+        np.savez(part, starts=self.starts, hits=self.hits, windows=np.asarray(self.windows), hop=self.hop,
+                 bands=np.array([b.sample_rate, b.n, b.f_max_hz]))  # leaves no cache that later runs trust
+        part.replace(path)
+
+    @staticmethod
+    def load_cached(path: Path) -> FrameSet | None:
+        """The frame set cached at ``path``, or None when there is none or it cannot be read whole (a file
+        deleted or cut short: it is rendered again, saying so, rather than failing every later run)."""
+        if not path.exists():
+            return None
+        try:
+            data = FrameSet.load(path)
+            if data.starts[-1] != len(data.spec) or data.spec.shape[1:] != (data.bands.n, len(data.windows)):
+                raise ValueError(f"{len(data.spec)} frames of shape {data.spec.shape[1:]}, expected "
+                                 f"{data.starts[-1]} of ({data.bands.n}, {len(data.windows)})")
+        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
+            print(f"the cached {path} cannot be read ({exc}): rendering it again", flush=True)
+            return None
+        return data
 
     @staticmethod
     def load(path: Path) -> FrameSet:
@@ -129,29 +167,45 @@ def make_frames(n: int, seed: int, workers: int, kits: tuple[str, ...], dry_p: f
     analysis ``bands``, frames ``hop`` samples apart (at its rate), the windows ``windows_22k`` (samples at
     22,050 Hz, :func:`windows_for`), and save it to ``path`` if given (the spectra are written as they come,
     never all held)."""
-    prepare(kits)
-    todo = jobs(n, seed, kits, dry_p, variety, vary_p, by_duration, quiet_hihat_p)
     per = F.n_frames(len(_at_rate(np.zeros(excerpt_samples(), np.float32), bands)), hop)
     windows = windows_for(bands, windows_22k)
-    one = partial(_one, hop=hop, bands=bands, windows=windows)
     shape = (n * per, bands.n, len(windows))
+    if path is not None:
+        _require_space(Path(path).parent, int(np.prod(shape)) * 2)  # float16
+    prepare(kits)
+    todo = jobs(n, seed, kits, dry_p, variety, vary_p, by_duration, quiet_hihat_p)
+    one = partial(_one, hop=hop, bands=bands, windows=windows)
+    print(f"rendering {n} excerpts" + (f" into {path}" if path is not None else "") + " ...", flush=True)
     spec = (np.lib.format.open_memmap(f"{path}.spec.npy", mode="w+", dtype=np.float16, shape=shape)
             if path is not None else np.empty(shape, np.float16))
     hits = []
-    t0 = time.monotonic()
+    progress = Progress(n)
     with mp.Pool(workers) if workers > 1 else nullcontext() as pool:
         results = pool.imap(one, todo, chunksize=4) if pool is not None else map(one, todo)
         for e, (s, h) in enumerate(results):
             assert len(s) == per, (len(s), per)
             spec[e * per : (e + 1) * per] = s
             hits.append(np.column_stack([np.full(len(h), e, np.float64), h]))
-            if (e + 1) % PROGRESS_EVERY == 0 and e + 1 < n:
-                print(f"  rendered {e + 1}/{n} excerpts, {time.monotonic() - t0:.0f} s", flush=True)
+            progress.done(e + 1)
     data = FrameSet(spec, np.arange(n + 1, dtype=np.int64) * per, np.concatenate(hits), windows, hop, bands)
     if path is not None:
         spec.flush()  # type: ignore[union-attr]
         data.save(path)
     return data
+
+
+class CacheFullError(RuntimeError):
+    """The cache's file system has no room for the spectra about to be rendered."""
+
+
+def _require_space(directory: Path, n_bytes: int) -> None:
+    """Raise :class:`CacheFullError` unless ``directory`` has ``n_bytes`` free: the spectra are written through a
+    memory map, which a full disk stops with SIGBUS (a crash without a message) midway through the rendering."""
+    free = shutil.disk_usage(directory).free
+    if free < n_bytes:
+        raise CacheFullError(f"the cache {directory} has {free / 2**30:.1f} GiB free, the spectra of these "
+                             f"excerpts need {n_bytes / 2**30:.1f} GiB (give --cache on a larger disk, or fewer "
+                             "excerpts)")
 
 
 ONSET_MERGE_S = 0.02
@@ -205,3 +259,9 @@ def targets(n_frames: int, hits: np.ndarray, neighbour: float = NEIGHBOUR_TARGET
     vel[frame, cls] = np.maximum(vel[frame, cls], v / 127.0)
     mask[frame, cls] = True
     return act, vel, mask
+
+
+if __name__ == "__main__":  # run as a program by mistake: say which commands train
+    from services.recogniser.training.options import not_a_command
+
+    not_a_command(__spec__.name)

@@ -192,3 +192,9 @@ def load_kit(name: str, root: Path = DRUMKITS_DIR) -> Kit:
         if layers:
             kit.instruments.setdefault(kind, []).append(Instrument(iname, kind, gain, layers))
     return kit
+
+
+if __name__ == "__main__":  # run as a program by mistake: say which commands train
+    from services.recogniser.training.options import not_a_command
+
+    not_a_command(__spec__.name)

@@ -50,3 +50,9 @@ def render_modal_kit(model: str = "modal") -> Kit:
         data, sr = sf.read(str(wav), dtype="float32", always_2d=False)
     return cut_kit(f"batteur-{model}", "Batteur's own synthesis", np.asarray(data, np.float32), int(sr), strikes,
                    START_S)
+
+
+if __name__ == "__main__":  # run as a program by mistake: say which commands train
+    from services.recogniser.training.options import not_a_command
+
+    not_a_command(__spec__.name)

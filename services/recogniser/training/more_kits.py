@@ -94,3 +94,9 @@ def load_more_kit(name: str) -> Kit:
                 layers.append(Layer(i / len(names), (i + 1) / len(names), 1.0, one))
         kit.instruments[kind] = [Instrument(f"{name} {kind}", kind, 1.0, layers)]
     return kit
+
+
+if __name__ == "__main__":  # run as a program by mistake: say which commands train
+    from services.recogniser.training.options import not_a_command
+
+    not_a_command(__spec__.name)

@@ -218,3 +218,9 @@ def calibrate(net: Net, inputs: list[torch.Tensor]) -> None:
             bn.weight.copy_((ratio * torch.sqrt(var + bn.eps)).float())
             bn.running_mean.copy_(mean.float())
             bn.running_var.copy_(var.float())
+
+
+if __name__ == "__main__":  # run as a program by mistake: say which commands train
+    from services.recogniser.training.options import not_a_command
+
+    not_a_command(__spec__.name)

@@ -93,3 +93,9 @@ def cut_kit(name: str, licence: str, audio: np.ndarray, sample_rate: int, strike
     for kind, ls in layers.items():
         kit.instruments[kind] = [Instrument(f"{name} {kind}", kind, 1.0, ls)]
     return kit
+
+
+if __name__ == "__main__":  # run as a program by mistake: say which commands train
+    from services.recogniser.training.options import not_a_command
+
+    not_a_command(__spec__.name)

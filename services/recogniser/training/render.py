@@ -276,3 +276,9 @@ def normalise(x: np.ndarray, peak: float = 0.9) -> np.ndarray:
     """Scale to a given peak amplitude."""
     m = float(np.max(np.abs(x)))
     return (x * (peak / m)).astype(np.float32) if m > 0 else x
+
+
+if __name__ == "__main__":  # run as a program by mistake: say which commands train
+    from services.recogniser.training.options import not_a_command
+
+    not_a_command(__spec__.name)

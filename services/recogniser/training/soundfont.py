@@ -112,3 +112,9 @@ def render_font_kit(name: str, spec: SoundfontKit) -> Kit:
             raise RuntimeError(f"fluidsynth failed ({' '.join(cmd)}): {done.stderr.strip()[-500:]}")
         data, sr = sf.read(str(wav), dtype="float32", always_2d=False)
     return cut_kit(name, spec.licence, data, int(sr), strikes, START_S)
+
+
+if __name__ == "__main__":  # run as a program by mistake: say which commands train
+    from services.recogniser.training.options import not_a_command
+
+    not_a_command(__spec__.name)

@@ -6,7 +6,8 @@ Usage::
 
 Writes ``--out`` with this live classifier and the offline network of ``--offline-from``
 (:mod:`.train_net` trains that one).
-Needs scikit-learn and Debian's ``hydrogen-drumkits`` (``apt-get install hydrogen-drumkits``).
+Needs scikit-learn (``pip install -e '.[train]'``), mir_eval and Debian's ``hydrogen-drumkits``
+(``apt-get install hydrogen-drumkits``).
 Audio is rendered in memory: the MLP is fitted on ``TRAIN_KITS`` plus Batteur's own
 modal and signal synthesis (:mod:`~services.recogniser.training.modal`; ``--no-synth`` leaves
 them out), half the excerpts on kits mixed from several; the decision thresholds are chosen
@@ -19,13 +20,25 @@ from __future__ import annotations
 
 import argparse
 import multiprocessing as mp
+import sys
 import time
+import zipfile
+from collections.abc import Callable
+from contextlib import nullcontext
 from pathlib import Path
 
-import mir_eval
 import numpy as np
-from sklearn.linear_model import Ridge
-from sklearn.neural_network import MLPClassifier
+
+from services.recogniser.training.options import missing_dependency, save_model
+
+try:  # scikit-learn and mir_eval are training-only: run as a program, their absence is a one-line error
+    import mir_eval
+    from sklearn.linear_model import Ridge
+    from sklearn.neural_network import MLPClassifier
+except ModuleNotFoundError as exc:
+    if __name__ != "__main__":
+        raise
+    raise SystemExit(missing_dependency(exc)) from None
 
 from services.recogniser.audio import SAMPLE_RATE, resample
 from services.recogniser.classes import CLASS_NAMES, N_CLASSES
@@ -44,12 +57,13 @@ from services.recogniser.training.excerpts import (
     VALID_DRY_P,
     Job,
     add_arguments,
+    check_files,
     jobs,
     kits_installed,
     prepare,
     render_excerpt,
 )
-from services.recogniser.training.frames import ONSET_MERGE_S, onset_times
+from services.recogniser.training.frames import ONSET_MERGE_S, Progress, onset_times
 from services.recogniser.training.kits import RENDER_RATE, TRAIN_KITS, VALID_KITS
 from services.recogniser.transcribe import SUPPRESS_S, DrumEvent, group_chords
 
@@ -71,10 +85,14 @@ def make_examples(n: int, seed: int, workers: int, kits: tuple[str, ...], dry_p:
     dry, the others with room, EQ and noise) and label their candidates."""
     prepare(kits)
     todo = jobs(n, seed, kits, dry_p)
-    if workers <= 1:
-        return concat([_excerpt(j) for j in todo])
-    with mp.Pool(workers) as pool:
-        parts = pool.map(_excerpt, todo, chunksize=4)
+    parts = []
+    print(f"rendering {n} excerpts ...", flush=True)
+    progress = Progress(n)
+    with mp.Pool(workers) if workers > 1 else nullcontext() as pool:
+        results = pool.imap(_excerpt, todo, chunksize=4) if pool is not None else map(_excerpt, todo)
+        for e, part in enumerate(results):  # imap, not map: progress lines while a long render runs
+            parts.append(part)
+            progress.done(e + 1)
     return concat(parts)
 
 
@@ -201,12 +219,17 @@ def _decide(prob: np.ndarray, thresholds: np.ndarray) -> np.ndarray:
 
 def _examples(cache: Path, n: int, seed: int, workers: int, kits: tuple[str, ...], dry_p: float = DRY_P) -> Examples:
     if cache.exists():
-        with np.load(cache) as z:
-            d = {k: z[k] for k in FIELDS}
-        return Examples(d["x_live"], d["y"], d["velocity"], d["dt"], int(d["missed"]), d["time"],
-                        d["excerpt"], d["hits"])
+        try:
+            with np.load(cache) as z:
+                d = {k: z[k] for k in FIELDS}
+            return Examples(d["x_live"], d["y"], d["velocity"], d["dt"], int(d["missed"]), d["time"],
+                            d["excerpt"], d["hits"])
+        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:  # cut short: render again
+            print(f"the cached {cache} cannot be read ({exc}): rendering it again", flush=True)
     ex = make_examples(n, seed, workers, kits, dry_p)
-    np.savez(cache, **{k: getattr(ex, k) for k in FIELDS})
+    part = cache.with_name(f".{cache.name}.part.npz")  # renamed when whole: a Ctrl-C leaves no broken cache
+    np.savez(part, **{k: getattr(ex, k) for k in FIELDS})
+    part.replace(cache)
     return ex
 
 
@@ -215,7 +238,7 @@ def retune(path: Path, val: Examples, out: Path) -> int:
     model = load_model(path)
     model.live.thresholds = choose_thresholds(model.live.probabilities(val.x_live), val)
     model.meta["live_retuned"] = True
-    model.save(out)
+    save_model(model, out)
     print(f"wrote {out}")
     return 0
 
@@ -226,9 +249,19 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-synth", dest="synth", action="store_false",
                     help="fit on the Hydrogen kits only (default: also Batteur's own modal and signal synthesis)")
     args = ap.parse_args(argv)
-    if not kits_installed():
+    models: list[tuple[str, Path, Callable[[Path], object]]] = [("--offline-from", args.offline_from, load_model)]
+    models += [("--retune", args.retune, load_model)] if args.retune is not None else []
+    if not check_files(args, models) or not kits_installed():
         return 1
-    args.cache.mkdir(parents=True, exist_ok=True)
+    try:
+        return run(args)
+    except KeyboardInterrupt:
+        print(f"interrupted: nothing written to {args.out}", file=sys.stderr)
+        return 130
+
+
+def run(args: argparse.Namespace) -> int:
+    """Render, fit, tune and write what the checked command line ``args`` asks for."""
     t0 = time.time()
     val = _examples(args.cache / f"{CACHE_TAG}-val-{args.val_excerpts}-{args.seed}.npz", args.val_excerpts,
                     args.seed + 1000, args.workers, VALID_KITS, VALID_DRY_P)
@@ -247,8 +280,8 @@ def main(argv: list[str] | None = None) -> int:
     base = load_model(args.offline_from)
     meta = dict(base.meta, live_trained_on=list(kits), live_thresholds_from=list(VALID_KITS),
                 live_excerpts=args.excerpts, live_seed=args.seed)
-    Model(offline=base.offline, live=live, meta=meta).save(args.out)
-    print(f"wrote {args.out} ({args.out.stat().st_size / 1024:.0f} KiB) in {time.time() - t0:.0f} s")
+    size = save_model(Model(offline=base.offline, live=live, meta=meta), args.out)
+    print(f"wrote {args.out} ({size / 1024:.0f} KiB) in {time.time() - t0:.0f} s")
     return 0
 
 

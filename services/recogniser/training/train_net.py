@@ -4,10 +4,14 @@ Usage::
 
     nice -n 15 python -m services.recogniser.training.train_net [--excerpts 3200] [--minutes 45] [--threads 1]
 
-Needs PyTorch (CPU; training only: ``pip install -e '.[train]'``) and Debian's
-``hydrogen-drumkits``. Renders ``--excerpts`` 30 s excerpts of Groove train-split
-performances with the Hydrogen training kits and Batteur's own modal and signal
-synthesis (half of them on kits mixed from several; room, EQ, noise on 70 %; unless
+Needs PyTorch (its CPU build, installed by hand: ``pip install torch==2.13.0 --index-url
+https://download.pytorch.org/whl/cpu``; it is not in the 'train' extra), mir_eval and Debian's
+``hydrogen-drumkits``. Bad numbers, an ``--out`` that cannot be written and unreadable model files are refused
+before anything is rendered; Ctrl-C while fitting keeps the network of the lowest validation-kit loss so far
+(Ctrl-C again before it is written: nothing is written); ``--out`` is replaced whole or not at all.
+
+Renders ``--excerpts`` 30 s excerpts of Groove train-split performances with the Hydrogen training kits and
+Batteur's own modal and signal synthesis (half of them on kits mixed from several; room, EQ, noise on 70 %; unless
 ``--plain``, layered instruments and wider per-instrument changes), fits the framewise
 network (:mod:`.fit_net`) on the band spectrograms of ``--windows`` (analysis windows,
 samples) and ``--bands`` (default: 44,100 Hz, 56 bands to 18 kHz; the excerpts are rendered at 44,100 Hz),
@@ -24,22 +28,42 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
-
-import torch
 
 from services.recogniser import features as F
 from services.recogniser.classes import CLASS_NAMES
 from services.recogniser.errors import ModelError
 from services.recogniser.framenet import FrameNet
 from services.recogniser.model import Model, load_live, load_model
-from services.recogniser.training.excerpts import FIT_KITS, VALID_DRY_P, VARY_P, add_arguments, kits_installed
-from services.recogniser.training.fit_net import HARD_WEIGHT, fit
+from services.recogniser.training.options import missing_dependency
+
+try:  # PyTorch and mir_eval are training-only: run as a program, their absence is a one-line error
+    import torch
+
+    from services.recogniser.training.fit_net import HARD_WEIGHT, FitError, fit
+    from services.recogniser.training.net import DILATIONS, Net, export, from_export, widen
+    from services.recogniser.training.tune import choose
+except ModuleNotFoundError as exc:
+    if __name__ != "__main__":
+        raise
+    raise SystemExit(missing_dependency(exc)) from None
+
+from common.arg_types import count, positive
+from services.recogniser.training.excerpts import (
+    FIT_KITS,
+    VALID_DRY_P,
+    VARY_P,
+    add_arguments,
+    check_files,
+    kits_installed,
+)
 from services.recogniser.training.frames import (
     NEIGHBOUR_TARGET,
     ONSET_MERGE_S,
     SHORT_WINDOW,
     WINDOWS,
+    CacheFullError,
     FrameSet,
     default_hop,
     make_frames,
@@ -47,9 +71,8 @@ from services.recogniser.training.frames import (
 )
 from services.recogniser.training.kits import VALID_KITS
 from services.recogniser.training.more_kits import MORE_KITS, MoreKitsMissingError, require_more_kits
-from services.recogniser.training.net import DILATIONS, Net, export, from_export, widen
+from services.recogniser.training.options import below_one, non_negative, save_model
 from services.recogniser.training.soundfont import SOUNDFONT_KITS, SoundfontsMissingError, require_soundfonts
-from services.recogniser.training.tune import choose
 
 BANDS = {"narrow": F.NARROW, "wide": F.WIDE}
 """The band analyses ``--bands`` names."""
@@ -71,8 +94,9 @@ def frames(cache: Path, name: str, n: int, seed: int, workers: int, kits: tuple[
            + ("-bysec" if by_duration else "") + (f"-quiet{round(100 * quiet_hihat_p)}" if quiet_hihat_p else "")
            + ("" if windows_22k == WINDOWS else "-w" + "-".join(map(str, windows_22k))))
     path = cache / f"{CACHE_TAG}-{name}{tag}-{n}-{seed}.npz"
-    if path.exists():
-        return FrameSet.load(path)
+    cached = FrameSet.load_cached(path)
+    if cached is not None:
+        return cached
     make_frames(n, seed, workers, kits, 1.0 if plain else dry_p, variety, path, 0.0 if plain else VARY_P, hop,
                 by_duration, quiet_hihat_p, bands, windows_22k)
     return FrameSet.load(path)
@@ -111,7 +135,7 @@ def init_net(path: Path, windows: tuple[int, ...], width: int, dilations: tuple[
 
     Raises ModelError (unreadable file) or ValueError (an ensemble, other windows, dilations, hop or bands, or
     a smaller width or front)."""
-    offline = load_model(path).offline
+    offline = read_network(path).offline
     if offline.members:
         raise ValueError(f"an ensemble of {len(offline.networks)} networks; give one of its members' files")
     net = from_export(offline)
@@ -137,6 +161,30 @@ def init_net(path: Path, windows: tuple[int, ...], width: int, dilations: tuple[
     return net
 
 
+def read_network(path: Path) -> Model:
+    """The model file ``path`` whose offline network is to be fitted further, retuned or averaged; raises
+    ModelError if it cannot be read (:func:`load_model` also refuses weights that are not all finite: a file from
+    a fitting that diverged, which fitting further or retuning would only copy)."""
+    return load_model(path)
+
+
+def analysis_mismatch(net: FrameNet, bands: F.Bands, hop: int, rendered: tuple[int, ...]) -> str | None:
+    """Why the validation excerpts rendered with ``bands``, frames ``hop`` samples apart and the analysis windows
+    ``rendered`` (samples at ``bands.sample_rate``) cannot be read by the offline network ``net`` of a model file
+    (to retune it or make an ensemble of it), naming the options that would match; None if they can."""
+    names = {b: name for name, b in BANDS.items()}
+    if net.bands != bands or net.hop != hop:
+        give = (f"--bands {names[net.bands]} --hop {net.hop}" if net.bands in names
+                else "a band analysis this trainer does not render")
+        b = net.bands
+        return (f"its network reads {b.n} bands to {b.f_max_hz:.0f} Hz at {b.sample_rate} Hz, frames {net.hop} "
+                f"samples apart (give {give})")
+    unread = sorted(set(net.inputs) - set(rendered))
+    if unread:
+        return f"its network reads analysis windows {unread} samples long, which are not rendered (give --windows)"
+    return None
+
+
 def output_weights(items: list[str]) -> dict[int, float]:
     """``NAME=W`` items (a class name or 'onset') as {activation index: loss weight}; raises ValueError."""
     names = [*CLASS_NAMES, "onset"]
@@ -145,16 +193,21 @@ def output_weights(items: list[str]) -> dict[int, float]:
         name, _, w = item.partition("=")
         if name not in names or not w:
             raise ValueError(f"{item!r}: give NAME=WEIGHT with NAME one of {', '.join(names)}")
-        out[names.index(name)] = float(w)
+        value = float(w)
+        if not 0.0 <= value < float("inf"):  # also NaN: a loss weighted by it is NaN, the network fitted useless
+            raise ValueError(f"{item!r}: the weight must be a finite number of at least 0")
+        out[names.index(name)] = value
     return out
 
 
-def main(argv: list[str] | None = None) -> int:
+def build_parser() -> argparse.ArgumentParser:
+    """The trainer's command line (numbers checked as they are parsed)."""
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     add_arguments(ap, excerpts=3200, keeps="live")
-    ap.add_argument("--epochs", type=float, default=5.0, help="passes over the training frames (default 5)")
-    ap.add_argument("--minutes", type=float, default=None,
-                    help="stop the fitting earlier to take about this long (the learning rate schedule follows)")
+    ap.add_argument("--epochs", type=positive, default=5.0, help="passes over the training frames (default 5)")
+    ap.add_argument("--minutes", type=positive, default=None,
+                    help="stop the fitting earlier to take about this long (the learning rate schedule follows; "
+                         "Ctrl-C also stops it, keeping the network of the lowest validation-kit loss so far)")
     ap.add_argument("--width", type=int, default=128,
                     help="channels of the network's time convolutions (the 2-D ones have 1/8 and 1/4 of it unless "
                          "--front; with --init, a width above the file's grows its network, computing the same "
@@ -174,12 +227,12 @@ def main(argv: list[str] | None = None) -> int:
                          "at 22,050 Hz, 441 at 44,100 Hz; 110 at 22,050 Hz: 5 ms, twice the frames, so strikes "
                          "20-30 ms apart are 4-6 frames apart; the dilations count frames, so double them to keep "
                          "the context in seconds)")
-    ap.add_argument("--threads", type=int, default=2, help="PyTorch threads (default 2)")
+    ap.add_argument("--threads", type=count, default=2, help="PyTorch threads (default 2)")
     ap.add_argument("--windows", type=int, nargs="+", default=list(WINDOWS), choices=(SHORT_WINDOW, *WINDOWS),
                     help="analysis windows of the network's input spectrograms, samples at 22,050 Hz (12, 23, 46, 93 "
                          "ms; the wide bands' windows last as long; default: 512 1024 2048; with 256 the frame sets "
                          "are rendered with it too)")
-    ap.add_argument("--hard", type=float, default=HARD_WEIGHT,
+    ap.add_argument("--hard", type=non_negative, default=HARD_WEIGHT,
                     help="extra loss weight of a class's negatives where another class is struck "
                          f"(default {HARD_WEIGHT})")
     ap.add_argument("--weight", nargs="+", default=[], metavar="NAME=W",
@@ -225,12 +278,34 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--init", type=Path, default=None, metavar="MODEL",
                     help="continue fitting the offline network of this model file (its windows, dilations, hop "
                          "and bands must be those given; --width and --front may grow it)")
-    ap.add_argument("--lr", type=float, default=2e-3, help="peak learning rate (default 2e-3)")
-    ap.add_argument("--warmup", type=float, default=0.03,
-                    help="share of the run over which the learning rate rises to its peak (default 0.03)")
-    args = ap.parse_args(argv)
-    if not kits_installed():
+    ap.add_argument("--lr", type=positive, default=2e-3, help="peak learning rate (default 2e-3)")
+    ap.add_argument("--warmup", type=below_one, default=0.03,
+                    help="share of the run over which the learning rate rises to its peak, 0 up to 1 "
+                         "(default 0.03)")
+    return ap
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    models: list[tuple[str, Path, Callable[[Path], object]]] = [("--live-from", args.live_from, load_live)]
+    models += [(option, path, read_network) for option, path in
+               [("--retune", args.retune), ("--init", args.init)] if path is not None]
+    models += [("--ensemble", p, read_network) for p in args.ensemble or []]
+    if not check_files(args, models) or not kits_installed():
         return 1
+    try:
+        return run(args)
+    except KeyboardInterrupt:
+        print(f"interrupted: nothing written to {args.out} (sets of excerpts rendered in full are kept in "
+              f"{args.cache} for the next run)", file=sys.stderr)
+        return 130
+    except (FitError, CacheFullError) as exc:
+        print(f"error: {exc}; nothing written to {args.out}", file=sys.stderr)
+        return 1
+
+
+def run(args: argparse.Namespace) -> int:
+    """Render, fit, tune and write what the checked command line ``args`` asks for."""
     fit_kits = FIT_KITS
     if args.soundfonts:
         try:
@@ -275,6 +350,12 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: --width must be at least 8 and --front positive, got {args.width} and {args.front}",
               file=sys.stderr)
         return 1
+    for option, path in [("--retune", args.retune)] * (args.retune is not None) + [("--ensemble", p)
+                                                                                  for p in args.ensemble or []]:
+        why = analysis_mismatch(load_model(path).offline, bands, args.hop, windows_for(bands, rendered))
+        if why:  # found now, not once the validation excerpts are rendered
+            print(f"error: {option} {path}: {why}", file=sys.stderr)
+            return 1
     init = None
     if args.init is not None:
         try:
@@ -284,7 +365,6 @@ def main(argv: list[str] | None = None) -> int:
             print(f"error: --init {args.init}: {exc}", file=sys.stderr)
             return 1
     torch.set_num_threads(args.threads)
-    args.cache.mkdir(parents=True, exist_ok=True)
     t0 = time.time()
     val = frames(args.cache, "val", args.val_excerpts, args.seed + 1000, args.workers, VALID_KITS, VALID_DRY_P,
                  plain=args.val_plain, hop=args.hop, by_duration=args.by_duration, quiet_hihat_p=args.val_quiet_hihats,
@@ -293,12 +373,12 @@ def main(argv: list[str] | None = None) -> int:
         model = load_model(args.retune)
         choose(model.offline, val, rules=args.rules)
         model.meta.update(val_plain=args.val_plain, rules=args.rules, val_quiet_hihats=args.val_quiet_hihats)
-        model.save(args.out, half=args.half)
+        save_model(model, args.out, half=args.half)
         print(f"wrote {args.out}")
         return 0
     if args.ensemble:
-        ensemble(args.ensemble, val, args.rules).save(args.out, half=args.half)
-        print(f"wrote {args.out} ({args.out.stat().st_size / 1024:.0f} KiB)")
+        size = save_model(ensemble(args.ensemble, val, args.rules), args.out, half=args.half)
+        print(f"wrote {args.out} ({size / 1024:.0f} KiB)")
         return 0
     live, live_meta = load_live(args.live_from)
     train = frames(args.cache, "train" + ("-sf" if args.soundfonts else "") + ("-mk" if args.more_kits else ""),
@@ -335,8 +415,8 @@ def main(argv: list[str] | None = None) -> int:
                     "synthesis" + (" and General MIDI soundfonts' drum kits" if args.soundfonts else "")
                     + (", Sonic Pi's drum samples (CC0) and AVL's Red Zeppelin kit (CC-BY-SA-3.0)"
                        if args.more_kits else "")}
-    Model(offline=net, live=live, meta=meta).save(args.out, half=args.half)
-    print(f"wrote {args.out} ({args.out.stat().st_size / 1024:.0f} KiB) in {time.time() - t0:.0f} s")
+    size = save_model(Model(offline=net, live=live, meta=meta), args.out, half=args.half)
+    print(f"wrote {args.out} ({size / 1024:.0f} KiB) in {time.time() - t0:.0f} s")
     return 0
 
 

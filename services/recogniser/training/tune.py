@@ -142,3 +142,8 @@ def choose(net: FrameNet, val: FrameSet, outs: list[np.ndarray] | None = None, r
     print(f"  {'snare':13s} validation-kit F {max(scores):.3f} ({scores[0]:.3f} before) dropping snare peaks under "
           f"hi-hat peaks at ratio {net.hihat_snare:.1f}", flush=True)
 
+
+if __name__ == "__main__":  # run as a program by mistake: say which commands train
+    from services.recogniser.training.options import not_a_command
+
+    not_a_command(__spec__.name)

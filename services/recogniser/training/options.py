@@ -1,0 +1,115 @@
+"""What the trainers' command lines check before any rendering or fitting, and how they write a model file.
+
+A training run renders for minutes and fits for up to an hour: a bad number, an output directory that does not
+exist or an unreadable model file must stop it at once with a one-line error, not after the work is done. The
+model file is written whole or not at all (a Ctrl-C or a full disk while writing leaves an earlier file as it
+was).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import tempfile
+from pathlib import Path
+
+from services.recogniser.model import Model
+
+INSTALL = {
+    "torch": "PyTorch is needed to fit the network: install its CPU build with `pip install torch==2.13.0 "
+             "--index-url https://download.pytorch.org/whl/cpu` (it is not in the 'train' extra; "
+             "docs/recogniser.md)",
+    "sklearn": "scikit-learn is needed to fit the live classifier: install the 'train' extra with "
+               "`pip install -e '.[train]'`",
+    "mir_eval": "mir_eval is needed to choose the thresholds: `pip install mir_eval` (it is in the 'test' extra: "
+                "`pip install -e '.[test]'`)",
+}
+"""How to install each optional module a trainer imports (named by its top-level module)."""
+
+
+def missing_dependency(exc: ModuleNotFoundError) -> str:
+    """A one-line error for a trainer whose optional module is not installed, naming what to install."""
+    top = (exc.name or "").split(".")[0]
+    return f"error: {INSTALL.get(top, f'the Python module {top!r} is not installed ({exc})')}"
+
+
+def _number(text: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+
+
+def non_negative(text: str) -> float:
+    """A finite number of at least 0 (a loss weight)."""
+    value = _number(text)
+    if not 0.0 <= value < math.inf:
+        raise argparse.ArgumentTypeError(f"{text!r}: give a finite number of at least 0")
+    return value
+
+
+def below_one(text: str) -> float:
+    """A share from 0 up to, not including, 1 (the learning rate's warm-up: the decay after it needs some run)."""
+    value = _number(text)
+    if not 0.0 <= value < 1.0:
+        raise argparse.ArgumentTypeError(f"{text!r}: give a share from 0 up to (not including) 1")
+    return value
+
+
+def seed(text: str) -> int:
+    """A random seed: a whole number of at least 0 (NumPy refuses negative seeds)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"{text!r}: give a whole number of at least 0")
+    return value
+
+
+def check_output(path: Path) -> str | None:
+    """Why a model file cannot be written at ``path`` (its directory missing, not a directory or not writable,
+    or ``path`` a directory), or None. Tried by creating and removing a file beside it."""
+    parent = path.parent
+    if path.is_dir():
+        return f"{path} is a directory; give a file name such as {path / 'recogniser.npz'}"
+    if not parent.is_dir():
+        return f"{parent} is not a directory (create it first)"
+    try:
+        with tempfile.NamedTemporaryFile(dir=parent, prefix=f".{path.name}.", suffix=".check"):
+            pass
+    except OSError as exc:
+        return f"cannot write in {parent}: {exc.strerror or exc}"
+    return None
+
+
+def check_cache(path: Path) -> str | None:
+    """Why the cache directory ``path`` cannot be made and written, or None (made if need be)."""
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=path, suffix=".check"):
+            pass
+    except OSError as exc:
+        return f"cannot use {path} as the cache: {exc.strerror or exc}"
+    return None
+
+
+def save_model(model: Model, path: Path, half: bool = False) -> int:
+    """Write ``model`` to exactly ``path``, whole or not at all (:meth:`Model.save`). Returns the file's size,
+    bytes."""
+    model.save(path, half=half)
+    return path.stat().st_size
+
+
+COMMANDS = ("services.recogniser.training.train_net", "services.recogniser.training.train")
+"""The trainers' commands: the offline network's and the live classifier's."""
+
+
+def not_a_command(module: str) -> None:
+    """Exit 2 saying that ``module``, run as a program, is a part of the trainers (rather than do nothing and
+    exit 0, as if it had worked)."""
+    print(f"error: {module} is a part of the trainers, not a command: run python -m {COMMANDS[0]} (the offline "
+          f"network) or python -m {COMMANDS[1]} (the live classifier); --help lists their options",
+          file=sys.stderr)
+    raise SystemExit(2)
