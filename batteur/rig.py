@@ -31,7 +31,6 @@ import asyncio
 import contextlib
 import ctypes
 import errno
-import math
 import os
 import signal
 import socket
@@ -43,7 +42,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TextIO
 
-from common.arg_types import positive, seconds
+from common.arg_types import non_negative, positive, seconds, whole
 from common.output_paths import check_output_dir
 
 ROLES = ("physics", "interaction", "sound", "graphics")
@@ -300,23 +299,9 @@ class Rig:
                 await proc.wait()
 
 
-def non_negative(text: str) -> float:
-    """A finite number of at least 0 (seconds)."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not 0.0 <= value < math.inf:
-        raise argparse.ArgumentTypeError(f"{text!r}: give a finite number of at least 0")
-    return value
-
-
 def port_number(text: str, lowest: int = 1) -> int:
     """A port, ``lowest`` to 65535."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    value = whole(text)
     if not lowest <= value <= 65535:
         raise argparse.ArgumentTypeError(f"{text!r}: give a port from {lowest} to 65535")
     return value

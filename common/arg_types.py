@@ -7,12 +7,25 @@ import argparse
 import math
 
 
-def positive(text: str) -> float:
-    """A positive, finite number (a duration, a rate, a speed factor)."""
+def number(text: str) -> float:
+    """Any number (``nan`` and ``inf`` too: the types below refuse what they must)."""
     try:
-        value = float(text)
+        return float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+
+
+def whole(text: str) -> int:
+    """Any whole number."""
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+
+
+def positive(text: str) -> float:
+    """A positive, finite number (a duration, a rate, a speed factor)."""
+    value = number(text)
     if not 0.0 < value < math.inf:
         raise argparse.ArgumentTypeError(f"{text!r}: give a positive finite number")
     return value
@@ -24,12 +37,33 @@ hertz = positive
 """A positive, finite rate, Hz."""
 
 
+def non_negative(text: str) -> float:
+    """A finite number of at least 0 (seconds that may be none, a weight)."""
+    value = number(text)
+    if not 0.0 <= value < math.inf:
+        raise argparse.ArgumentTypeError(f"{text!r}: give a finite number of at least 0")
+    return value
+
+
+def unit(text: str) -> float:
+    """A number from 0 to 1 (a share, a wet/dry balance)."""
+    value = number(text)
+    if not 0.0 <= value <= 1.0:  # also refuses nan
+        raise argparse.ArgumentTypeError(f"{text!r}: give a number from 0 to 1")
+    return value
+
+
 def count(text: str) -> int:
     """A whole number of at least 1."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    value = whole(text)
     if value < 1:
         raise argparse.ArgumentTypeError(f"{text!r}: give at least 1")
+    return value
+
+
+def seed(text: str) -> int:
+    """A random seed: a whole number of at least 0 (NumPy refuses negative seeds)."""
+    value = whole(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"{text!r}: give a whole number of at least 0")
     return value

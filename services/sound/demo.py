@@ -24,6 +24,7 @@ from pathlib import Path
 import mido
 import numpy as np
 
+from common.arg_types import number, unit
 from common.kit import EventType, Kit, load_kit
 from common.messages import Impact
 from common.output_paths import check_output_file
@@ -80,23 +81,9 @@ def impacts_from_midi(path: Path, kit: Kit, max_seconds: float = math.inf, start
 
 def _play_seconds(text: str) -> float:
     """``--seconds``: a positive number of seconds, ``inf`` for the whole file."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    value = number(text)
     if not value > 0.0:  # also refuses nan
         raise argparse.ArgumentTypeError(f"{text!r}: give a positive number of seconds (inf: the whole file)")
-    return value
-
-
-def _unit(text: str) -> float:
-    """A number from 0 to 1 (a wet/dry balance)."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not 0.0 <= value <= 1.0:  # also refuses nan
-        raise argparse.ArgumentTypeError(f"{text!r}: give a number from 0 to 1")
     return value
 
 
@@ -110,7 +97,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--model", choices=("modal", "sample", "synth"), default="modal", help="synthesis model")
     parser.add_argument("--kit", default="default", help="kit name or file")
     parser.add_argument("--mono", action="store_true", help="mono instead of stereo")
-    parser.add_argument("--reverb", type=_unit, default=0.12, help="room reverb wet/dry 0..1 (default 0.12)")
+    parser.add_argument("--reverb", type=unit, default=0.12, help="room reverb wet/dry 0..1 (default 0.12)")
     args = parser.parse_args(argv)
     try:
         kit = load_kit(args.kit)

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from common.arg_types import count
+from common.arg_types import count, seed
 from services.recogniser.errors import ModelError
 from services.recogniser.model import MODEL_PATH
 from services.recogniser.training.dataset import GrooveMissingError, groove_files, require_groove
@@ -32,7 +32,7 @@ from services.recogniser.training.kits import (
 )
 from services.recogniser.training.modal import MODAL_KITS, render_modal_kit
 from services.recogniser.training.more_kits import FONT_KITS, MORE_KITS, load_more_kit
-from services.recogniser.training.options import check_cache, check_output, seed
+from services.recogniser.training.options import check_cache, check_output
 from services.recogniser.training.render import Hit, Note, augment, normalise, read_notes, render
 from services.recogniser.training.soundfont import SOUNDFONT_KITS, render_soundfont_kit
 

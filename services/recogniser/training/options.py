@@ -9,11 +9,11 @@ was).
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 import tempfile
 from pathlib import Path
 
+from common.arg_types import number
 from services.recogniser.model import Model
 
 INSTALL = {
@@ -34,37 +34,11 @@ def missing_dependency(exc: ModuleNotFoundError) -> str:
     return f"error: {INSTALL.get(top, f'the Python module {top!r} is not installed ({exc})')}"
 
 
-def _number(text: str) -> float:
-    try:
-        return float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-
-
-def non_negative(text: str) -> float:
-    """A finite number of at least 0 (a loss weight)."""
-    value = _number(text)
-    if not 0.0 <= value < math.inf:
-        raise argparse.ArgumentTypeError(f"{text!r}: give a finite number of at least 0")
-    return value
-
-
 def below_one(text: str) -> float:
     """A share from 0 up to, not including, 1 (the learning rate's warm-up: the decay after it needs some run)."""
-    value = _number(text)
+    value = number(text)
     if not 0.0 <= value < 1.0:
         raise argparse.ArgumentTypeError(f"{text!r}: give a share from 0 up to (not including) 1")
-    return value
-
-
-def seed(text: str) -> int:
-    """A random seed: a whole number of at least 0 (NumPy refuses negative seeds)."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"{text!r}: give a whole number of at least 0")
     return value
 
 

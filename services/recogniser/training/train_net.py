@@ -49,7 +49,7 @@ except ModuleNotFoundError as exc:
         raise
     raise SystemExit(missing_dependency(exc)) from None
 
-from common.arg_types import count, positive
+from common.arg_types import count, non_negative, positive
 from services.recogniser.training.excerpts import (
     FIT_KITS,
     VALID_DRY_P,
@@ -71,7 +71,7 @@ from services.recogniser.training.frames import (
 )
 from services.recogniser.training.kits import VALID_KITS
 from services.recogniser.training.more_kits import MORE_KITS, MoreKitsMissingError, require_more_kits
-from services.recogniser.training.options import below_one, non_negative, save_model
+from services.recogniser.training.options import below_one, save_model
 from services.recogniser.training.soundfont import SOUNDFONT_KITS, SoundfontsMissingError, require_soundfonts
 
 BANDS = {"narrow": F.NARROW, "wide": F.WIDE}
