@@ -59,6 +59,15 @@ def test_compose_file_is_valid() -> None:
         assert result.returncode == 0, result.stderr
 
 
+def published(port: str | dict[str, Any]) -> tuple[str, int, int]:
+    """(host address, published port, container port) of a compose port, in either form docker-compose prints:
+    ``{"published": ..., "target": ...}`` or, with a host address, ``"127.0.0.1:8080:8080/tcp"``."""
+    if isinstance(port, dict):
+        return str(port.get("host_ip", "0.0.0.0")), int(port["published"]), int(port["target"])
+    host, outside, inside = port.split("/")[0].rsplit(":", 2)
+    return host, int(outside), int(inside)
+
+
 def test_compose_services_and_their_settings() -> None:
     config = compose_config(profiles=("pd",))
     services = config["services"]
@@ -73,14 +82,15 @@ def test_compose_services_and_their_settings() -> None:
         assert test[:3] == ["CMD", "batteur", "ls"] and "--node" in test
         port = service["command"][service["command"].index("--port") + 1]
         assert test[test.index("--node") + 1] == f"127.0.0.1:{port}"
-    assert services["graphics"]["ports"][0]["target"] == 8080
+    # the view (whose pose editor can drive the drummer) is published on the host's loopback only
+    assert published(services["graphics"]["ports"][0]) == ("127.0.0.1", 8080, 8080)
     mounts = [v if isinstance(v, str) else f"{v.get('source')}:{v.get('target')}" for v in services["sound"]["volumes"]]
     assert any(":/out" in m for m in mounts), mounts
     # environment variables configure it
     custom = compose_config({"BATTEUR_PEERS": "sound=10.0.0.9:9103", "BATTEUR_GRAPHICS_PORT": "9999",
                              "BATTEUR_SOUND_DEVICE": "auto"})["services"]
     assert custom["physics"]["environment"]["BATTEUR_PEERS"] == "sound=10.0.0.9:9103"
-    assert custom["graphics"]["ports"][0]["published"] == 9999
+    assert published(custom["graphics"]["ports"][0]) == ("127.0.0.1", 9999, 8080)
     assert custom["sound"]["command"][-1] == "auto"
 
 
