@@ -18,7 +18,9 @@ Whatever the split of the round trip into its two one-way delays, the true
 offset lies in ``[offset - round_trip / 2, offset + round_trip / 2]``. The
 estimator keeps the samples with the smallest round trips in a sliding
 window and intersects those intervals: the estimate is the intersection's
-midpoint and the uncertainty its half-width.
+midpoint and the uncertainty its half-width. A sample whose interval misses the
+estimate's (beyond drift) is an outlier and rejected, unless several in a row
+agree: then the master's clock really moved and the estimate follows it.
 """
 
 from __future__ import annotations
@@ -120,6 +122,14 @@ def sample_from_pong(pong: ClockPong, t_arrive: float) -> ClockSample:
 class OffsetEstimator:
     """Estimates the offset of a local clock to the rig clock master from ping/pong samples.
 
+    A pong is used only if it answers a ping still pending (same node id, sequence
+    number and send time), its master timestamps are in order and its round trip is
+    plausible. Once there is an estimate, a sample whose offset interval misses it (by
+    more than clock drift since explains) is an *outlier*: rejected and counted, so one
+    forged or stray pong cannot move rig time. ``step_after`` consecutive outliers
+    that agree with each other mean the master's clock really moved (a restart under
+    the same address, a suspended laptop): the window restarts from them.
+
     Parameters
     ----------
     node_id : str
@@ -130,19 +140,55 @@ class OffsetEstimator:
         How many of the window's smallest-round-trip samples the estimate uses.
     max_round_trip_s : float
         Samples with a longer round trip (seconds) are discarded.
+    tolerance_s : float
+        Slack (seconds) before a sample disagreeing with the estimate is an outlier.
+    max_drift : float
+        Largest rate difference of the two clocks (seconds per second), widening that slack with age.
+    step_after : int
+        Consecutive agreeing outliers that replace the estimate.
+    max_age_s : float
+        Samples older than this (seconds, by the newest) are dropped: after the master was away for
+        a while, the clocks have drifted and the fresh samples alone say where the master is.
     """
 
-    def __init__(self, node_id: str, window: int = 32, best: int = 4, max_round_trip_s: float = 1.0) -> None:
+    def __init__(
+        self,
+        node_id: str,
+        window: int = 32,
+        best: int = 4,
+        max_round_trip_s: float = 1.0,
+        tolerance_s: float = 0.001,
+        max_drift: float = 1e-3,
+        step_after: int = 4,
+        max_age_s: float = 60.0,
+    ) -> None:
         if window < 1 or not 1 <= best <= window:
             raise ValueError("need window >= 1 and 1 <= best <= window")
+        if not (tolerance_s >= 0 and max_drift >= 0 and step_after >= 1 and max_age_s > 0):
+            raise ValueError("need tolerance_s >= 0, max_drift >= 0, step_after >= 1 and max_age_s > 0")
         self.node_id = node_id
         self.best = best
         self.max_round_trip_s = max_round_trip_s
+        self.tolerance_s = tolerance_s
+        self.max_drift = max_drift
+        self.step_after = step_after
+        self.max_age_s = max_age_s
         self.samples: deque[ClockSample] = deque(maxlen=window)
         self.rejected = 0
-        """pongs ignored: unknown sequence number, other node, negative or too long round trip"""
+        """pongs ignored: unknown sequence number, other node, disordered, too long a round trip, or outliers"""
+        self.outliers = 0
+        """of ``rejected``: samples that disagreed with the estimate"""
+        self.steps = 0
+        """times agreeing outliers replaced the estimate (the master's clock moved)"""
         self._seq = 0
         self._pending: dict[int, float] = {}
+        self._candidates: list[ClockSample] = []
+
+    def reset(self) -> None:
+        """Forget every sample and pending ping (a new master: its answers to old pings are stale)."""
+        self.samples.clear()
+        self._pending.clear()
+        self._candidates.clear()
 
     def make_ping(self, t_local: float) -> ClockPing:
         """A new ping sent at local time ``t_local`` (seconds)."""
@@ -155,15 +201,53 @@ class OffsetEstimator:
 
     def add_pong(self, pong: ClockPong, t_local: float) -> ClockSample | None:
         """Take one pong received at local time ``t_local`` (seconds); the sample, or None if rejected."""
-        sent = self._pending.pop(pong.seq, None)
-        if pong.node_id != self.node_id or sent is None or not math.isclose(sent, pong.t_send, abs_tol=1e-6):
+        sample = self._checked_sample(pong, t_local)
+        if sample is None:
             self.rejected += 1
+            return None
+        if self._agrees(sample):
+            self._candidates.clear()
+            self.samples.append(sample)
+            while sample.at - self.samples[0].at > self.max_age_s:
+                self.samples.popleft()
+            return sample
+        return self._outlier(sample)
+
+    def _checked_sample(self, pong: ClockPong, t_local: float) -> ClockSample | None:
+        """The sample of a pong answering a pending ping, plausible on its own; else None."""
+        sent = self._pending.get(pong.seq)
+        # a pong that does not match leaves the ping pending: a stray one must not void the real answer
+        if pong.node_id != self.node_id or sent is None or not math.isclose(sent, pong.t_send, abs_tol=1e-6):
+            return None
+        del self._pending[pong.seq]
+        if pong.t_reply < pong.t_receive - 1e-6:  # the master answered before it was asked: not a master's pong
             return None
         sample = sample_from_pong(pong, t_local)
-        if not 0.0 <= sample.round_trip <= self.max_round_trip_s:
-            self.rejected += 1
+        if not (0.0 <= sample.round_trip <= self.max_round_trip_s and math.isfinite(sample.offset)):
             return None
-        self.samples.append(sample)
+        return sample
+
+    def _agrees(self, sample: ClockSample) -> bool:
+        """True if the sample's interval meets that of every sample the estimate uses, each widened by
+        the tolerance and by the drift its age allows (so the true offset lies in all of them)."""
+        return all(
+            _overlap(sample, s, self.tolerance_s + self.max_drift * abs(sample.at - s.at))
+            for s in self._best_samples()
+        )
+
+    def _outlier(self, sample: ClockSample) -> ClockSample | None:
+        """Count an outlier; the sample if it completes ``step_after`` agreeing ones (the window restarts)."""
+        if self._candidates and not all(_overlap(sample, c, self.tolerance_s) for c in self._candidates):
+            self._candidates.clear()
+        self._candidates.append(sample)
+        if len(self._candidates) < self.step_after:
+            self.rejected += 1
+            self.outliers += 1
+            return None
+        self.samples.clear()
+        self.samples.extend(self._candidates)
+        self._candidates.clear()
+        self.steps += 1
         return sample
 
     def _best_samples(self) -> list[ClockSample]:
@@ -199,3 +283,8 @@ class OffsetEstimator:
         # intervals disagree (clock drift or a stalled master): trust the shortest round trip
         first = best[0]
         return first.offset, first.round_trip / 2
+
+
+def _overlap(a: ClockSample, b: ClockSample, slack_s: float) -> bool:
+    """True if the offset intervals of two samples meet, allowing ``slack_s`` seconds."""
+    return a.low - slack_s <= b.high and b.low - slack_s <= a.high

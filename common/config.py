@@ -110,7 +110,8 @@ class NodeSettings(BaseSettings):
         default_factory=list, description="networks allowed to send to this node, e.g. 192.168.1.0/24 "
         "(required when listening off loopback; loopback is always allowed)")
     max_rate: float | None = Field(default=None, gt=0,
-                                   description="datagrams per second accepted from one source (default: no limit)")
+                                   description="messages per second accepted from one source, a bundle counting each "
+                                   "message it holds (default: no limit)")
     log_level: Literal["DEBUG", "INFO", "WARNING", "ERROR"] = Field(default="INFO", description="logging level")
     oscquery: bool = Field(default=True, description="serve the OSC namespace over OSCQuery (HTTP + WebSocket) "
                            "and advertise it as _oscjson._tcp")

@@ -547,6 +547,10 @@ class Node:
         endpoint = self.endpoint
         assert endpoint is not None
         if isinstance(message, ClockPing):
+            if not self.clock.synced:  # no rig time to give yet: an answer would sync the asker to a wrong clock
+                endpoint.stats.record_drop(DropReason.NOT_ALLOWED, "clock ping before this node's clock is synced",
+                                           source)
+                return
             t = self.clock.now()
             endpoint.send(answer_ping(message, t, self.clock.now()), source)
             return
@@ -665,17 +669,25 @@ class Node:
                     sent.add(peer.address)
                     self.endpoint.send(health, peer.address)
 
+    def clock_master_peer(self) -> Peer | None:
+        """The clock master to ping: the one in use while it is known, else the lowest node id of the master role
+        (every node picks the same one when there are two, e.g. a restarted master's lingering record, and a
+        record flapping does not switch masters)."""
+        masters = self.peers.for_role(self.settings.clock_master)
+        current = next((p for p in masters if p.node_id == self._master_id), None)
+        return current or min(masters, key=lambda p: p.node_id, default=None)
+
     async def _clock_task(self) -> None:
         """Ping the clock master: quickly until a few samples are in, then every ``ping_interval_s``."""
         while True:
             assert self.endpoint is not None
-            masters = self.peers.for_role(self.settings.clock_master)
-            if masters:
-                if masters[0].node_id != self._master_id:  # a new (or restarted) master: start over
-                    self._master_id = masters[0].node_id
-                    self.estimator.samples.clear()
+            master = self.clock_master_peer()
+            if master is not None:
+                if master.node_id != self._master_id:  # a new (or restarted) master: its answers to old pings are
+                    self._master_id = master.node_id   # stale, start over
+                    self.estimator.reset()
                 ping = self.estimator.make_ping(self.clock.local_now())
-                self.endpoint.send(ping, masters[0].address)
+                self.endpoint.send(ping, master.address)
             fast = len(self.estimator.samples) < 8
             await asyncio.sleep(min(0.1, self.ping_interval_s) if fast else self.ping_interval_s)
 

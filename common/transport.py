@@ -24,9 +24,11 @@ same form.
 from __future__ import annotations
 
 import asyncio
+import functools
 import ipaddress
 import logging
 import socket
+import struct
 import sys
 import time
 from collections import OrderedDict
@@ -54,6 +56,12 @@ MAX_UDP_PAYLOAD = 65507
 """Largest UDP payload over IPv4, bytes."""
 DEFAULT_RCVBUF = 16 * 1024 * 1024
 """Receive buffer requested by default, bytes (a 10,000-message burst on loopback fits)."""
+NAME_TTL_S = 30.0
+"""A host name's address is looked up again (in the background) after this long, seconds."""
+NAME_RETRY_S = 5.0
+"""A host name that did not resolve is tried again after this long, seconds."""
+MAX_WAITING = 64
+"""Packets held per host name while its first lookup runs; more are not sent (``unroutable``)."""
 
 
 def format_address(host: str, port: int) -> str:
@@ -84,13 +92,27 @@ def _unmap(ip: IpAddress) -> IpAddress:
 
 
 class _Bucket:
-    """Token bucket: ``rate`` datagrams per second, up to ``burst`` at once."""
+    """Token bucket: ``rate`` messages per second, up to ``burst`` at once."""
 
     __slots__ = ("tokens", "stamp")
 
     def __init__(self, burst: float, now: float) -> None:
         self.tokens = burst
         self.stamp = now
+
+
+class _Name:
+    """A host name's lookup: its address ("" if it failed), when it was looked up, packets waiting for it."""
+
+    __slots__ = ("address", "stamp", "waiting", "task")
+
+    def __init__(self) -> None:
+        self.address: str | None = None
+        """None until the first lookup ends."""
+        self.stamp = 0.0
+        self.waiting: list[tuple[bytes, int, int]] = []
+        """(packet, port, message count) sent once the name resolves"""
+        self.task: asyncio.Task[None] | None = None
 
 
 class _Protocol(asyncio.DatagramProtocol):
@@ -155,7 +177,8 @@ class UdpEndpoint:
         self._raw_routes: list[tuple[str, RawHandler]] = []
         self._transport: asyncio.DatagramTransport | None = None
         self._buckets: OrderedDict[str, _Bucket] = OrderedDict()
-        self._resolved: dict[str, tuple[str, float]] = {}
+        self._names: dict[str, _Name] = {}
+        self._loop: asyncio.AbstractEventLoop | None = None
         self._allowed_cache: dict[str, bool] = {}
         self._last_log: dict[str, float] = {}
         host, port = sock.getsockname()[:2]
@@ -195,9 +218,10 @@ class UdpEndpoint:
         allow : list of ip networks or None
             Only these source networks are accepted (``not_allowed``); None: any source.
         max_rate : float or None
-            Datagrams per second accepted from one source IP (``rate_limited``); None: no limit.
+            Messages per second accepted from one source IP, a bundle counting each message it holds
+            (``rate_limited``: the whole datagram); None: no limit.
         max_burst : float or None
-            Datagrams a source may send at once before the rate applies (default: ``max_rate``).
+            Messages a source may send at once before the rate applies (default: ``max_rate``).
         rcvbuf_bytes : int
             Receive buffer to ask the kernel for, bytes (root may exceed ``net.core.rmem_max``).
         clock : callable -> float
@@ -219,6 +243,7 @@ class UdpEndpoint:
         loop = asyncio.get_running_loop()
         transport, _ = await loop.create_datagram_endpoint(lambda: _Protocol(endpoint), sock=sock)
         endpoint._transport = transport
+        endpoint._loop = loop
         log.info("listening on %s (receive buffer %d bytes)", endpoint.local_address, endpoint.rcvbuf_bytes)
         return endpoint
 
@@ -235,7 +260,12 @@ class UdpEndpoint:
         self._raw_routes.append((prefix, handler))
 
     def close(self) -> None:
-        """Stop receiving and close the socket."""
+        """Stop receiving and close the socket (pending host name lookups are abandoned)."""
+        for name in self._names.values():
+            if name.task is not None:
+                name.task.cancel()
+            self.unroutable += sum(count for _, _, count in name.waiting)
+            name.waiting.clear()
         if self._transport is not None:
             self._transport.close()
             self._transport = None
@@ -272,9 +302,9 @@ class UdpEndpoint:
 
     def send_copy(self, data: bytes, to: tuple[str, int]) -> None:
         """Send an already encoded packet to one socket address, outside the message counters (copies)."""
-        if self._transport is not None and len(data) <= self.max_datagram:
+        if self._transport is not None and len(data) <= self.max_datagram and _valid_target(*to):
             ip = self._resolve(to[0])
-            if ip is not None:
+            if ip:
                 self._transport.sendto(data, (ip, to[1]))
 
     def receive_datagram(self, data: bytes, host: str, port: int) -> None:
@@ -290,19 +320,26 @@ class UdpEndpoint:
                 self._log_limited("tap", logging.WARNING, "tap failed: %s: %s", type(exc).__name__, exc)
 
     def destinations(self, to: Target) -> list[tuple[str, int]]:
-        """The socket addresses ``to`` means now (empty if none is known or reachable)."""
-        if isinstance(to, tuple):
-            targets = [to]
-        elif ":" in to or to.startswith("["):
-            targets = [parse_address(to)]
-        else:
-            targets = [p.address for p in self.peers.for_role(to)]
+        """The socket addresses ``to`` means now (empty if none is known or reachable).
+
+        A host name not looked up yet is left out; its lookup starts in the background.
+        """
         out: list[tuple[str, int]] = []
-        for host, port in targets:
+        for host, port in self._targets(to):
             ip = self._resolve(host)
-            if ip is not None:
+            if ip:
                 out.append((ip, port))
         return out
+
+    def _targets(self, to: Target) -> list[tuple[str, int]]:
+        """(host, port) pairs of a destination, unresolved; raise ValueError for a malformed one."""
+        if isinstance(to, tuple):
+            if not _valid_target(*to):
+                raise ValueError(f"{to!r} is not a (host, port 1-65535) pair")
+            return [to]
+        if ":" in to or to.startswith("["):
+            return [parse_address(to)]
+        return [p.address for p in self.peers.for_role(to) if _valid_target(*p.address)]
 
     def _send_packet(self, data: bytes, to: Target, count: int) -> None:
         if self._transport is None:
@@ -313,7 +350,7 @@ class UdpEndpoint:
                               len(data), self.max_datagram, to)
             return
         try:
-            targets = self.destinations(to)
+            targets = self._targets(to)
         except ValueError as exc:
             self.unroutable += count
             self._log_limited("bad-target", logging.WARNING, "not sent: %s", exc)
@@ -322,39 +359,84 @@ class UdpEndpoint:
             self.unroutable += count
             self._log_limited(f"unroutable:{to}", logging.DEBUG, "not sent: no peer for %s", to)
             return
-        for addr in targets:
-            self._transport.sendto(data, addr)
-            self.stats.messages_out += count
+        for host, port in targets:
+            ip = self._resolve(host)
+            if ip:
+                self._transport.sendto(data, (ip, port))
+                self.stats.messages_out += count
+            elif ip is None:
+                self._wait_for_name(host, data, port, count)
+            else:
+                self.unroutable += count
 
     def _resolve(self, host: str) -> str | None:
-        """Numeric address for the socket's family, or None (cached 30 s for names)."""
-        cached = self._resolved.get(host)
-        now = self._clock()
-        if cached is not None and now - cached[1] < 30.0:
-            return cached[0] or None
+        """Numeric address of ``host`` for the socket's family: "" if unreachable, None while a name is looked up.
+
+        Names are looked up off the event loop (``getaddrinfo`` may block for seconds) and
+        cached; a stale entry is still used while its refresh runs.
+        """
+        address = _numeric(host, self._family)
+        if address is None:
+            return self._resolve_name(host)
+        if not address:
+            self._log_limited("family", logging.WARNING, "cannot reach IPv6 %s from an IPv4 socket", host)
+        return address
+
+    def _resolve_name(self, host: str) -> str | None:
+        name = self._names.get(host)
+        if name is None:
+            if len(self._names) >= 1024:  # names come from config and discovery; this only bounds a runaway
+                self._forget_idle_names()
+            name = self._names[host] = _Name()
+        age_s = self._clock() - name.stamp
+        ttl_s = NAME_TTL_S if name.address else NAME_RETRY_S
+        if name.task is None and (name.address is None or age_s >= ttl_s):
+            name.task = self._start_lookup(host, name)
+        return name.address
+
+    def _start_lookup(self, host: str, name: _Name) -> asyncio.Task[None] | None:
+        loop = self._loop
+        if loop is None or loop.is_closed():
+            name.address, name.stamp = "", self._clock()
+            return None
+        return loop.create_task(self._look_up(host, name))
+
+    async def _look_up(self, host: str, name: _Name) -> None:
+        """Resolve ``host`` in the loop's executor, then send what waited for it."""
+        family = socket.AF_INET if self._family == socket.AF_INET else socket.AF_UNSPEC
+        assert self._loop is not None
         try:
-            ip: IpAddress = ipaddress.ip_address(host)
-        except ValueError:
-            try:
-                family = socket.AF_INET if self._family == socket.AF_INET else socket.AF_UNSPEC
-                infos = socket.getaddrinfo(host, None, family, socket.SOCK_DGRAM)
-                ip = ipaddress.ip_address(str(infos[0][4][0]).split("%")[0])
-            except (OSError, IndexError, ValueError) as exc:
-                self._log_limited(f"resolve:{host}", logging.WARNING, "cannot resolve %s: %s", host, exc)
-                self._resolved[host] = ("", now)
-                return None
-        result: str | None
-        if self._family == socket.AF_INET6 and isinstance(ip, ipaddress.IPv4Address):
-            result = f"::ffff:{ip}"
-        elif self._family == socket.AF_INET and isinstance(ip, ipaddress.IPv6Address):
-            mapped = ip.ipv4_mapped
-            result = str(mapped) if mapped is not None else None
-            if result is None:
-                self._log_limited("family", logging.WARNING, "cannot reach IPv6 %s from an IPv4 socket", host)
-        else:
-            result = str(ip)
-        self._resolved[host] = (result or "", now)
-        return result
+            infos = await self._loop.getaddrinfo(host, None, family=family, type=socket.SOCK_DGRAM)
+            address = _numeric(str(infos[0][4][0]).split("%")[0], self._family) or ""
+        # UnicodeError (a label over 63 bytes) is a ValueError; RuntimeError: the executor is shut down
+        except (OSError, IndexError, ValueError, RuntimeError) as exc:
+            self._log_limited(f"resolve:{host}", logging.WARNING, "cannot resolve %s: %s", host, exc)
+            address = ""
+        finally:
+            name.task = None
+        if address or not name.address:
+            name.address, name.stamp = address, self._clock()
+        else:  # a failed refresh: keep the last address (the host is likely still there), retry soon
+            name.stamp = self._clock() - NAME_TTL_S + NAME_RETRY_S
+        waiting, name.waiting = name.waiting, []
+        for data, port, count in waiting:
+            if address and self._transport is not None:
+                self._transport.sendto(data, (address, port))
+                self.stats.messages_out += count
+            else:
+                self.unroutable += count
+
+    def _wait_for_name(self, host: str, data: bytes, port: int, count: int) -> None:
+        name = self._names[host]
+        if len(name.waiting) >= MAX_WAITING:
+            self.unroutable += count
+            self._log_limited(f"waiting:{host}", logging.WARNING, "not sent: %s still being looked up", host)
+            return
+        name.waiting.append((data, port, count))
+
+    def _forget_idle_names(self) -> None:
+        for host in [h for h, n in self._names.items() if n.task is None and not n.waiting]:
+            del self._names[host]
 
     # -------------------------------------------------------------- receiving
 
@@ -370,8 +452,8 @@ class UdpEndpoint:
         if len(data) > self.max_datagram:
             stats.record_drop(DropReason.OVERSIZE, f"{len(data)} bytes > {self.max_datagram}", source)
             return
-        if self.max_rate is not None and not self._take_token(host):
-            stats.record_drop(DropReason.RATE_LIMITED, f"over {self.max_rate:g} datagrams/s", source)
+        if self.max_rate is not None and not self._take_tokens(host, _message_count(data)):
+            stats.record_drop(DropReason.RATE_LIMITED, f"over {self.max_rate:g} messages/s", source)
             return
         try:
             raws = parse_packet(data)
@@ -435,7 +517,12 @@ class UdpEndpoint:
             self._allowed_cache[host] = known
         return known
 
-    def _take_token(self, host: str) -> bool:
+    def _take_tokens(self, host: str, count: int) -> bool:
+        """Charge ``count`` messages to ``host``'s bucket; False (nothing charged) if it is empty.
+
+        A bundle may take the bucket below zero (so one larger than the burst still passes, once);
+        the debt is paid back at ``max_rate`` before the source is heard again.
+        """
         assert self.max_rate is not None
         now = self._clock()
         bucket = self._buckets.get(host)
@@ -450,7 +537,7 @@ class UdpEndpoint:
             bucket.tokens = min(burst, bucket.tokens + (now - bucket.stamp) * self.max_rate)
             bucket.stamp = now
         if bucket.tokens >= 1.0:
-            bucket.tokens -= 1.0
+            bucket.tokens -= count
             return True
         return False
 
@@ -458,8 +545,57 @@ class UdpEndpoint:
         now = self._clock()
         last = self._last_log.get(key)
         if last is None or now - last >= 5.0:
+            if last is None and len(self._last_log) >= 1024:  # keys name hosts: keep the table bounded
+                self._last_log.clear()
             self._last_log[key] = now
             log.log(level, text, *args)
+
+
+_BUNDLE = b"#bundle\0"
+
+
+def _message_count(data: bytes) -> int:
+    """How many messages a packet holds, from the bundle element sizes alone (parsing costs ~12 us each).
+
+    A malformed packet counts what could be walked (at least 1); the parser rejects it later.
+    """
+    if not data.startswith(_BUNDLE):
+        return 1
+    count = 0
+    stack = [(16, len(data))]  # (next element, end) of each bundle being walked
+    while stack:
+        pos, end = stack.pop()
+        while pos + 4 <= end:
+            (size,) = struct.unpack_from(">i", data, pos)
+            pos += 4
+            if size <= 0 or pos + size > end:
+                break
+            if data.startswith(_BUNDLE, pos, pos + size):
+                stack.append((pos + size, end))
+                pos, end = pos + 16, pos + size
+                continue
+            count += 1
+            pos += size
+    return max(count, 1)
+
+
+@functools.lru_cache(maxsize=1024)
+def _numeric(host: str, family: int) -> str | None:
+    """``host`` as a numeric address a socket of ``family`` can send to; "" if it cannot; None for a name."""
+    try:
+        ip = ipaddress.ip_address(host)
+    except ValueError:
+        return None
+    if family == socket.AF_INET6 and isinstance(ip, ipaddress.IPv4Address):
+        return f"::ffff:{ip}"
+    if family == socket.AF_INET and isinstance(ip, ipaddress.IPv6Address):
+        return str(ip.ipv4_mapped or "")
+    return str(ip)
+
+
+def _valid_target(host: object, port: object) -> bool:
+    """True for a host and UDP port a datagram can go to (asyncio closes the whole transport on a bad port)."""
+    return isinstance(host, str) and bool(host) and isinstance(port, int) and 0 < port < 65536
 
 
 def _bind(host: str, port: int, rcvbuf_bytes: int) -> socket.socket:

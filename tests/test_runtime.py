@@ -630,3 +630,54 @@ def test_two_node_processes_find_each_other_and_sync_clocks_in_a_namespace(tmp_p
                 proc.kill()
                 proc.wait()
         subprocess.run(["ip", "netns", "del", ns], check=False)
+
+
+def test_every_node_pings_the_same_master_and_keeps_it_while_it_is_there() -> None:
+    # two records of the master role (a restarted master's lingering one, two rigs on a LAN): nodes took the
+    # first in insertion order, so they could differ, and a record flapping switched masters (rig time jumped)
+    settings = load_settings({"role": "echo", "discovery": False, "clock_master": "physics"})
+    node = Node(EchoCore(rate_hz=0.0), settings)
+    b = Peer(role="physics", host="127.0.0.1", port=9201, node_id="physics-b")
+    a = Peer(role="physics", host="127.0.0.1", port=9202, node_id="physics-a")
+    node.peers.add(b)
+    node.peers.add(a)
+    master = node.clock_master_peer()
+    assert master is not None and master.node_id == "physics-a"  # the same choice on every node
+    node._master_id = "physics-b"  # in use: kept while it is known
+    chosen = node.clock_master_peer()
+    assert chosen is not None and chosen.node_id == "physics-b"
+    node.peers.remove("physics-b")
+    chosen = node.clock_master_peer()
+    assert chosen is not None and chosen.node_id == "physics-a"
+
+
+def test_a_node_whose_clock_is_not_synced_does_not_answer_clock_pings() -> None:
+    # it answered with its own clock: a node pinging it (a restarted master's old port) synced to a wrong time
+    async def main() -> tuple[list[OscMessage], list[OscMessage]]:
+        answers: dict[str, list[OscMessage]] = {"waiting": [], "master": []}
+        nodes = {
+            "waiting": Node(EchoCore(rate_hz=0.0), load_settings({"role": "echo", "discovery": False,
+                                                                  "clock_master": "physics"}), clock_wait_s=60.0),
+            "master": Node(EchoCore(rate_hz=0.0), load_settings({"role": "echo", "discovery": False,
+                                                                 "clock_master": "self"})),
+        }
+        tasks = [asyncio.ensure_future(n.run()) for n in nodes.values()]
+        await wait_for(lambda: all(n.endpoint is not None for n in nodes.values()))
+        for name, node in nodes.items():
+            asker = await UdpEndpoint.open()
+            asker.set_handler(lambda m, s, name=name: answers[name].append(m))
+            assert node.endpoint is not None
+            asker.send(ClockPing(node_id="asker", seq=1, t_send=0.5), node.endpoint.local_address)
+            endpoint = node.endpoint
+            await wait_for(lambda: endpoint.stats.messages_in >= 1)  # noqa: B023 (awaited here)
+            await asyncio.sleep(0.2)
+            asker.close()
+        waiting = nodes["waiting"].endpoint
+        assert waiting is not None and waiting.stats.dropped[DropReason.NOT_ALLOWED] == 1
+        for node in nodes.values():
+            node.request_stop()
+        await asyncio.gather(*tasks)
+        return answers["waiting"], answers["master"]
+
+    waiting, master = asyncio.run(main())
+    assert waiting == [] and any(isinstance(m, ClockPong) for m in master)
