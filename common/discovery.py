@@ -25,6 +25,7 @@ import hashlib
 import ipaddress
 import json
 import logging
+import os
 import re
 import signal
 import sys
@@ -43,6 +44,8 @@ from zeroconf import (
 )
 from zeroconf.asyncio import AsyncServiceBrowser, AsyncServiceInfo, AsyncZeroconf
 
+from common.arg_types import count, non_negative, seconds, whole
+from common.datafile import one_line
 from common.messages.system import PROTOCOL_VERSION, NodeId, Role
 from common.peers import Peer, PeerTable, parse_static_peer
 
@@ -601,6 +604,8 @@ class Discovery:
             The registered info (unregistered by :meth:`stop`), or None before :meth:`start`: the
             service is then queued and registered at start (with the interface addresses).
         """
+        if not 0 < port < 65536:
+            raise ValueError(f"extra service {type_}: port {port} out of range 1-65535")
         if name is None:
             full = instance_name(self.role, self.node_id, type_)
         else:
@@ -830,13 +835,16 @@ async def browse_nodes(
             remaining_ms = max(200.0, (deadline - loop.time()) * 1000)
 
             async def resolve(name: str) -> NodeInfo | None:
-                info = AsyncServiceInfo(type_, name)
-                if not await info.async_request(aiozc.zeroconf, remaining_ms, question_type=QUESTION_TYPE):
-                    return None
                 try:
+                    info = AsyncServiceInfo(type_, name)
+                    if not await info.async_request(aiozc.zeroconf, remaining_ms, question_type=QUESTION_TYPE):
+                        return None
                     txt = ServiceTxt.from_properties(info.decoded_properties)
                 except ValidationError:
                     log.info("ls: %s has no valid Batteur TXT record", name)
+                    return None
+                except Exception as exc:  # an odd record from another program: skip it, list the others
+                    log.info("ls: %s cannot be resolved: %s: %s", name, type(exc).__name__, exc)
                     return None
                 addrs = _info_addresses(info)
                 return NodeInfo(
@@ -857,9 +865,29 @@ async def browse_nodes(
 
 # --------------------------------------------------------------------------- command line
 
+CLI_DESCRIPTION = """\
+Run one node's discovery alone, or list the Batteur nodes zeroconf finds (see docs/discovery.md).
+
+  run  registers a node (role, node id, OSC port) and prints one JSON line per event:
+       started, added, updated, removed, rejected, stopped (or error); stops on Ctrl-C or SIGTERM.
+  ls   prints one JSON line per node found (role, node_id, host, port, protocol, addresses, name).
+
+mDNS runs on loopback unless --interface names others."""
+
+
+class _OutputClosed(Exception):
+    """The reader of our standard output has gone (``... ls | head``)."""
+
 
 def _emit(record: dict[str, object]) -> None:
-    print(json.dumps(record, sort_keys=True), flush=True)
+    try:
+        print(json.dumps(record, sort_keys=True), flush=True)
+    except BrokenPipeError:
+        # point stdout at /dev/null so the interpreter's last flush stays quiet; `run` keeps announcing
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+        raise _OutputClosed from None
 
 
 def _peer_json(peer: Peer) -> dict[str, object]:
@@ -871,42 +899,57 @@ class _RunState:
     stop: asyncio.Event = field(default_factory=asyncio.Event)
 
 
+def _extra_service(spec: str) -> tuple[str, int]:
+    """``TYPE:PORT`` of ``--extra``; ValueError saying what is wrong."""
+    type_, _, port = spec.rpartition(":")
+    if not type_ or not port.isdigit() or not 0 < int(port) < 65536:
+        raise ValueError(f"--extra {spec!r}: expected TYPE:PORT with a port 1-65535, e.g. _oscjson._tcp.local.:8080")
+    return type_, int(port)
+
+
 async def _run_node(args: argparse.Namespace) -> int:
     peers = PeerTable()
-    for spec in args.peer:
-        peers.add(parse_static_peer(spec))
     roles = sorted(set(args.browse))
 
     def on_peer(kind: str, peer: Peer) -> None:
-        _emit({"event": kind, "peer": _peer_json(peer),
-               "for_role": {r: [_peer_json(p) for p in peers.for_role(r)] for r in roles}})
+        with contextlib.suppress(_OutputClosed):
+            _emit({"event": kind, "peer": _peer_json(peer),
+                   "for_role": {r: [_peer_json(p) for p in peers.for_role(r)] for r in roles}})
 
-    peers.listeners.append(on_peer)
+    def on_rejection(rejection: Rejection) -> None:
+        with contextlib.suppress(_OutputClosed):
+            _emit({"event": "rejected", **asdict(rejection)})
+
     try:
+        for spec in args.peer:
+            peers.add(parse_static_peer(spec))
+        peers.listeners.append(on_peer)
+        extras = [_extra_service(spec) for spec in args.extra]
         discovery = Discovery(
             args.role, args.node_id, args.port, args.interface or None, peers, roles,
             protocol=args.proto, host_addresses=args.host_address or None, allow_loopback=args.allow_loopback,
             ttl_s=args.ttl, check_interval_s=args.check_interval, resolve_timeout_s=args.resolve_timeout,
             retry_interval_s=args.retry_interval, allowed=args.allow or None,
         )
-        discovery.rejection_listeners.append(lambda r: _emit({"event": "rejected", **asdict(r)}))
-        for spec in args.extra:
-            type_, _, port = spec.rpartition(":")
-            await discovery.register_extra(type_, int(port), {"role": args.role, "node_id": args.node_id})
+        discovery.rejection_listeners.append(on_rejection)
+        for type_, port in extras:
+            await discovery.register_extra(type_, port, {"role": args.role, "node_id": args.node_id})
         await discovery.start()
     except (DiscoveryError, ValueError) as exc:
-        _emit({"event": "error", "detail": str(exc)})
+        _emit({"event": "error", "detail": one_line(exc)})
         return 2
     state = _RunState()
     loop = asyncio.get_running_loop()
     for sig in (signal.SIGINT, signal.SIGTERM):
         loop.add_signal_handler(sig, state.stop.set)
-    _emit({"event": "started", "name": discovery.info.name if discovery.info else "",
-           "addresses": discovery.addresses, "port": args.port, "node_id": args.node_id})
+    with contextlib.suppress(_OutputClosed):
+        _emit({"event": "started", "name": discovery.info.name if discovery.info else "",
+               "addresses": discovery.addresses, "port": args.port, "node_id": args.node_id})
     with contextlib.suppress(asyncio.TimeoutError):
         await asyncio.wait_for(state.stop.wait(), args.duration if args.duration > 0 else None)
     await discovery.stop()
-    _emit({"event": "stopped", "stats": asdict(discovery.stats)})
+    with contextlib.suppress(_OutputClosed):
+        _emit({"event": "stopped", "stats": asdict(discovery.stats)})
     return 0
 
 
@@ -917,36 +960,49 @@ async def _run_ls(args: argparse.Namespace) -> int:
     return 0
 
 
+def _port(text: str) -> int:
+    """A UDP port, 1-65535."""
+    value = whole(text)
+    if not 0 < value < 65536:
+        raise argparse.ArgumentTypeError(f"{text!r}: give a port from 1 to 65535")
+    return value
+
+
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="python -m common.discovery", description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(prog="python -m common.discovery", description=CLI_DESCRIPTION,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("-v", "--verbose", action="store_true", help="log at debug level")
-    sub = parser.add_subparsers(dest="command", required=True)
+    sub = parser.add_subparsers(dest="command", required=True, metavar="{run,ls}")
     common = argparse.ArgumentParser(add_help=False)
     common.add_argument("--interface", action="append", default=[],
                         help="interface address or name (repeatable; 'all' = every IPv4 address); default 127.0.0.1")
     common.add_argument("--allow-loopback", action=argparse.BooleanOptionalAction, default=None,
                         help="accept loopback peer addresses (default: only when on loopback)")
-    run = sub.add_parser("run", parents=[common], help="register a node and print peer events as JSON lines")
-    run.add_argument("--role", required=True)
-    run.add_argument("--node-id", required=True)
-    run.add_argument("--port", type=int, required=True, help="OSC UDP port to announce")
+    run = sub.add_parser("run", parents=[common], help="register a node and print peer events as JSON lines",
+                         description="Register a node and print peer events as JSON lines until Ctrl-C or SIGTERM.")
+    run.add_argument("--role", required=True, help="role to announce (lower case: sound, physics, ...)")
+    run.add_argument("--node-id", required=True, help="unique node id to announce (letters, digits, _ . : -)")
+    run.add_argument("--port", type=_port, required=True, help="OSC UDP port to announce (1-65535)")
     run.add_argument("--browse", action="append", default=[], help="role to look for (repeatable)")
     run.add_argument("--peer", action="append", default=[], help="static peer ROLE=HOST:PORT (repeatable)")
-    run.add_argument("--proto", type=int, default=PROTOCOL_VERSION, help="protocol version to announce")
-    run.add_argument("--ttl", type=int, default=DEFAULT_TTL_S, help="TTL of our records, seconds")
-    run.add_argument("--check-interval", type=float, default=1.0, help="peer re-check period, seconds")
-    run.add_argument("--retry-interval", type=float, default=10.0,
+    run.add_argument("--proto", type=whole, default=PROTOCOL_VERSION, help="protocol version to announce")
+    run.add_argument("--ttl", type=count, default=DEFAULT_TTL_S, help="TTL of our records, whole seconds")
+    run.add_argument("--check-interval", type=seconds, default=1.0, help="peer re-check period, seconds")
+    run.add_argument("--retry-interval", type=seconds, default=10.0,
                      help="re-ask a peer dropped for not answering this often, seconds")
-    run.add_argument("--resolve-timeout", type=float, default=3.0, help="wait for a service's records, seconds")
+    run.add_argument("--resolve-timeout", type=seconds, default=3.0, help="wait for a service's records, seconds")
     run.add_argument("--extra", action="append", default=[],
                      help="extra service TYPE:PORT to register, e.g. _oscjson._tcp.local.:8080 (repeatable)")
     run.add_argument("--allow", action="append", default=[],
                      help="allow-list: peer address or CIDR (repeatable; default: any)")
     run.add_argument("--host-address", action="append", default=[],
                      help="address to announce (repeatable; default: the interface addresses)")
-    run.add_argument("--duration", type=float, default=0.0, help="stop after this many seconds (0: until signal)")
-    ls = sub.add_parser("ls", parents=[common], help="list nodes found as JSON lines")
-    ls.add_argument("--timeout", type=float, default=3.0, help="browse time, seconds")
+    run.add_argument("--duration", type=non_negative, default=0.0,
+                     help="stop after this many seconds (0: until a signal)")
+    ls = sub.add_parser("ls", parents=[common], help="list nodes found as JSON lines",
+                        description="List the Batteur nodes found, one JSON line each (any protocol version).")
+    ls.add_argument("--timeout", type=seconds, default=3.0, help="browse time, seconds (default 3; less than 2 "
+                    "can miss nodes)")
     return parser
 
 
@@ -957,7 +1013,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.verbose:
         logging.getLogger("zeroconf").setLevel(logging.DEBUG)
     runner = _run_node if args.command == "run" else _run_ls
-    return asyncio.run(runner(args))
+    prog = f"python -m common.discovery {args.command}"
+    try:
+        return asyncio.run(runner(args))
+    except _OutputClosed:  # `ls | head`: the reader has what it wanted
+        return 0
+    except (DiscoveryError, ValueError, OSError) as exc:  # a bad --interface, mDNS that cannot start
+        print(f"{prog}: {one_line(exc)}", file=sys.stderr)
+        return 2 if isinstance(exc, (DiscoveryError, ValueError)) else 1
+    except KeyboardInterrupt:
+        print(f"\n{prog}: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

@@ -54,6 +54,10 @@ from common.messages import REGISTRY, Family, MessageRegistry, OscMessage, WireK
 from common.messages.base import MessageError
 
 log = logging.getLogger("batteur.oscquery")
+_connection_log = logging.getLogger("batteur.oscquery.connections")
+"""websockets logs two INFO lines per HTTP request and per WebSocket: a client polling the namespace would flood
+the node's log; warnings and errors still show."""
+_connection_log.setLevel(logging.WARNING)
 
 SERVICE_TYPE = "_oscjson._tcp.local."
 """DNS-SD type of an OSCQuery server."""
@@ -247,7 +251,7 @@ class OscQueryServer:
         """Listen for HTTP and WebSocket clients on ``host:port`` (0: any free port)."""
         self._server = await serve(
             self._session, host, port, process_request=self._process_request, max_size=65536,
-            ping_interval=None, server_header="batteur-oscquery",
+            ping_interval=None, server_header="batteur-oscquery", logger=_connection_log,
         )
         sock = next(iter(self._server.sockets))
         self.host, self.port = host, int(sock.getsockname()[1])

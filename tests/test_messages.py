@@ -9,7 +9,7 @@ from typing import Any
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from pydantic import Field
+from pydantic import Field, ValidationError
 from pythonosc.osc_message import OscMessage as PyOscMessage
 
 from common.messages import (
@@ -196,3 +196,23 @@ def test_a_pose_round_trips_and_a_bad_value_in_its_tail_is_still_refused() -> No
             Pose.from_args(args)
         assert caught.value.reason is reason
     assert Pose.from_args([*raw[:3], 1, *raw[4:]]).values[0] == 1.0  # an int (Pure Data) is a float there
+
+
+def test_a_float_beyond_32_bits_is_refused_when_the_message_is_made() -> None:
+    # it was accepted and then failed to encode ("float too large to pack"), after the sender had committed to it
+    checked = 0
+    for model in REGISTRY:
+        args = example_args(model)
+        for f in model.wire_fields():
+            if f.kind is not WireKind.FLOAT or (f.maximum is not None and f.maximum < 1e39):
+                continue
+            big = (0.0, 1e39) if f.variadic else 1e39
+            with pytest.raises(ValidationError, match=f.name):  # its own range, or the wire's
+                model(**{**args, f.name: big})
+            checked += 1
+    assert checked >= 5  # impulses, forces, joint values, poses ...
+    with pytest.raises(ValidationError, match="impulse: beyond a 32-bit float"):
+        Impact(**{**example_args(Impact), "impulse": 1e39})
+    largest = Impact(**{**example_args(Impact), "impulse": 3.0e38})
+    (back,) = decode(encode(largest)).messages  # the largest a 32-bit float holds still goes
+    assert isinstance(back, Impact) and back.impulse == pytest.approx(3.0e38, rel=1e-7)

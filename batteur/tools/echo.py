@@ -15,13 +15,38 @@ import signal
 import sys
 from collections.abc import Sequence
 
-from batteur.tools.nodes import bind_address, find_targets
-from batteur.tools.nodes import target_networks as _networks
-from common.arg_types import seconds
+from batteur.tools.ls import query_health
+from batteur.tools.nodes import (
+    INTERRUPTED,
+    OutputClosed,
+    Target,
+    bind_address,
+    find_targets,
+    run_tool,
+    target_networks,
+    write_line,
+)
+from common.arg_types import count, seconds
 from common.messages import OscMessage, Subscribe
+from common.subscribe import matches, pattern_regex
 from common.transport import UdpEndpoint
 
 RENEW_S = 5.0
+PROBE_S = 2.0
+"""How long to wait for each node's Health before saying it does not answer."""
+
+DESCRIPTION = """\
+Print the OSC messages whose address matches PATTERN, as the nodes send or receive them.
+Each node found by zeroconf (or given with --node) is asked to copy matching messages
+to this command (a Subscribe, renewed every 5 s). One line per message:
+the address, then the arguments (strings quoted).
+
+Patterns (OSC 1.0): ? one character, * any run of characters but '/', [abc] [a-z] [!abc]
+one character of (or not of) a set, {foo,bar} one of several strings, // any number of levels.
+Examples: '/batteur/impact', '/batteur/*', '/batteur/{impact,damping}', '//health'.
+
+Stops on Ctrl-C (exit status 130), after --count messages or after --duration seconds
+(exit status 0, or 1 when no node answered)."""
 
 
 def format_message(message: OscMessage, as_json: bool) -> str:
@@ -31,59 +56,103 @@ def format_message(message: OscMessage, as_json: bool) -> str:
                                          else str(a) for a in message.to_args())])
 
 
-async def _run(opts: argparse.Namespace) -> int:
+def check_pattern(pattern: str) -> Subscribe:
+    """The Subscribe for ``pattern``; ValueError saying what is wrong with it (a node would refuse it silently)."""
+    pattern_regex(pattern)  # PatternError (a ValueError): unbalanced [ or {, no leading /
+    return Subscribe(pattern=pattern, duration_s=RENEW_S * 2)  # ValidationError: too long
+
+
+async def _probe(targets: Sequence[Target]) -> list[Target]:
+    """The targets that answer a Hello; say which do not (echo would otherwise wait in silence)."""
+    reachable = [t for t in targets if t.ip]
+    for target in targets:
+        if not target.ip:
+            print(f"batteur echo: {target.role} {target.node_id} announced no usable address "
+                  f"({', '.join(target.announced) or 'none'}); skipped", file=sys.stderr)
+    answers = await query_health(reachable, PROBE_S)
+    answered = [t for t in reachable if t.socket_address in answers]
+    for target in reachable:
+        if target not in answered:
+            print(f"batteur echo: {target.address} did not answer within {PROBE_S:g} s; subscribing anyway "
+                  "(is a Batteur node running there?)", file=sys.stderr)
+    return answered
+
+
+async def _run(opts: argparse.Namespace, subscribe: Subscribe) -> int:
     targets = await find_targets(opts.node, opts.browse, opts.interface)
     if not targets:
-        print("batteur echo: no nodes found", file=sys.stderr)
+        print(f"batteur echo: no nodes found within {opts.browse:g} s (start one, or give --node HOST:PORT)",
+              file=sys.stderr)
         return 1
-    endpoint = await UdpEndpoint.open(bind_address(targets), allow=_networks(targets) or None)
+    answered = await _probe(targets)
+    reachable = [t for t in targets if t.ip]
+    if not reachable:
+        return 1
+    endpoint = await UdpEndpoint.open(bind_address(reachable), allow=target_networks(reachable))
     stop = asyncio.Event()
     printed = 0
+    outcome: list[int] = []  # set by what stopped us: Ctrl-C, or the reader of our output going away
 
     def on_message(message: OscMessage, source: str) -> None:
         nonlocal printed
-        print(format_message(message, opts.json), flush=True)
+        if stop.is_set() or not matches(opts.pattern, message.ADDRESS):
+            return
+        try:
+            write_line(format_message(message, opts.json))
+        except OutputClosed:  # `batteur echo ... | head`: head has what it wanted
+            outcome.append(0)
+            stop.set()
+            return
         printed += 1
         if opts.count and printed >= opts.count:
             stop.set()
 
+    def on_signal(code: int) -> None:
+        outcome.append(code)
+        stop.set()
+
     endpoint.set_handler(on_message)
     loop = asyncio.get_running_loop()
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        loop.add_signal_handler(sig, stop.set)
-    subscribe = Subscribe(pattern=opts.pattern, duration_s=RENEW_S * 2)
+    loop.add_signal_handler(signal.SIGINT, on_signal, INTERRUPTED)
+    loop.add_signal_handler(signal.SIGTERM, on_signal, 0)
+    print(f"batteur echo: printing {subscribe.pattern} from {', '.join(t.address for t in reachable)} "
+          "(Ctrl-C stops)", file=sys.stderr)
     deadline = None if opts.duration is None else loop.time() + opts.duration
-    while not stop.is_set():
-        for target in targets:
-            endpoint.send(subscribe, target.address)
-        wait = RENEW_S if deadline is None else min(RENEW_S, deadline - loop.time())
-        if wait <= 0:
-            break
-        try:
-            await asyncio.wait_for(stop.wait(), wait)
-        except TimeoutError:
-            pass
-    endpoint.close()
-    return 0
+    try:
+        while not stop.is_set():
+            for target in reachable:
+                endpoint.send(subscribe, target.socket_address)
+            wait = RENEW_S if deadline is None else min(RENEW_S, deadline - loop.time())
+            if wait <= 0:
+                break
+            try:
+                await asyncio.wait_for(stop.wait(), wait)
+            except TimeoutError:
+                pass
+    finally:
+        endpoint.close()
+    if outcome:
+        return outcome[0]
+    return 0 if answered or printed else 1
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="batteur echo", description=__doc__.split("\n\n")[0] if __doc__ else None)
-    parser.add_argument("pattern", help="OSC address pattern, e.g. '/batteur/impact' or '/batteur/*'")
+    parser = argparse.ArgumentParser(prog="batteur echo", description=DESCRIPTION,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("pattern", help="OSC address pattern, e.g. '/batteur/impact' or '/batteur/*' (quote it)")
     parser.add_argument("--node", action="append", default=[], metavar="HOST:PORT",
                         help="subscribe at this node instead of browsing (repeatable)")
     parser.add_argument("--interface", action="append", default=[],
-                        help="interface to browse on (repeatable; default loopback)")
+                        help="interface to browse on: address, name or 'all' (repeatable; default loopback)")
     parser.add_argument("--browse", type=seconds, default=3.0, help="seconds to browse for nodes (default 3)")
-    parser.add_argument("--count", type=int, default=0, help="stop after this many messages (default: never)")
-    parser.add_argument("--duration", type=seconds, default=None, help="stop after this many seconds")
+    parser.add_argument("--count", type=count, default=0, help="stop after this many messages (default: no limit)")
+    parser.add_argument("--duration", type=seconds, default=None,
+                        help="stop after this many seconds (default: until Ctrl-C)")
     parser.add_argument("--json", action="store_true", help="one JSON object per line")
     opts = parser.parse_args(argv)
-    if not opts.pattern.startswith("/"):
-        print(f"batteur echo: pattern {opts.pattern!r} must start with '/'", file=sys.stderr)
-        return 2
-    try:
-        return asyncio.run(_run(opts))
-    except ValueError as exc:
-        print(f"batteur echo: {exc}", file=sys.stderr)
-        return 2
+
+    def run() -> int:
+        subscribe = check_pattern(opts.pattern)
+        return asyncio.run(_run(opts, subscribe))
+
+    return run_tool("batteur echo", run)

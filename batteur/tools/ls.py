@@ -14,39 +14,68 @@ import json
 import sys
 from collections.abc import Sequence
 
-from batteur.tools.nodes import Target, bind_address, find_targets
-from batteur.tools.nodes import target_networks as _networks
+from batteur.tools.nodes import Target, bind_address, find_targets, run_tool, target_networks, write_line
 from common.arg_types import seconds
 from common.messages import PROTOCOL_VERSION, Health, Hello, OscMessage
 from common.transport import UdpEndpoint
 
+DESCRIPTION = """\
+List the Batteur nodes found by zeroconf (or given with --node), each with the Health it
+answers to a Hello: role, node id, address, loop rate, dropped messages, peers.
+
+Exit status: 0 when every node listed answered, 1 when one did not (or none was found),
+2 on bad arguments; so `batteur ls --node 127.0.0.1:9103` is a healthcheck."""
+
 
 async def query_health(targets: Sequence[Target], timeout_s: float) -> dict[str, Health]:
-    """Send a Hello to each target; collect the Health answers by source address within ``timeout_s``."""
+    """Send a Hello to each reachable target; collect the Health answers by source address within
+    ``timeout_s`` (only the targets may answer)."""
+    reachable = [t for t in targets if t.ip]
     answers: dict[str, Health] = {}
-    endpoint = await UdpEndpoint.open(bind_address(targets), allow=_networks(targets) or None)
+    if not reachable:
+        return answers
+    endpoint = await UdpEndpoint.open(bind_address(reachable), allow=target_networks(reachable))
     done = asyncio.Event()
 
     def on_message(message: OscMessage, source: str) -> None:
         if isinstance(message, Health):
             answers[source] = message
-            if len(answers) >= len(targets):
+            if len(answers) >= len(reachable):
                 done.set()
 
     endpoint.set_handler(on_message)
-    hello = Hello(role="cli", node_id="batteur-ls", protocol=PROTOCOL_VERSION, osc_port=endpoint.port)
-    for target in targets:
-        endpoint.send(hello, target.address)
     try:
-        await asyncio.wait_for(done.wait(), timeout_s)
-    except TimeoutError:
-        pass
-    endpoint.close()
+        hello = Hello(role="cli", node_id="batteur-ls", protocol=PROTOCOL_VERSION, osc_port=endpoint.port)
+        for target in reachable:
+            endpoint.send(hello, target.socket_address)
+        try:
+            await asyncio.wait_for(done.wait(), timeout_s)
+        except TimeoutError:
+            pass
+    finally:
+        endpoint.close()
     return answers
+
+
+def match_answers(targets: Sequence[Target], answers: dict[str, Health]) -> list[Health | None]:
+    """The Health each target answered: the one from its own address, else one carrying its node id (a
+    node answering from another of its addresses). Never another node's answer on the same port."""
+    left = dict(answers)
+    matched: list[Health | None] = [left.pop(t.socket_address, None) if t.ip else None for t in targets]
+    for i, target in enumerate(targets):
+        if matched[i] is None and target.ip and target.node_id:
+            source = next((s for s, h in left.items() if h.node_id == target.node_id), None)
+            if source is not None:
+                matched[i] = left.pop(source)
+    return matched
 
 
 def _row(target: Target, health: Health | None) -> dict[str, object]:
     row: dict[str, object] = {"role": target.role, "node_id": target.node_id, "address": target.address}
+    if not target.ip:
+        row["status"] = "no address"
+        row["announced"] = list(target.announced)
+        return row
     if health is None:
         row["status"] = "no answer"
         return row
@@ -59,38 +88,38 @@ def _row(target: Target, health: Health | None) -> dict[str, object]:
     return row
 
 
+def table(rows: Sequence[dict[str, object]]) -> list[str]:
+    """The rows as aligned text lines, a header first."""
+    lines = [f"{'role':<12} {'node id':<28} {'address':<22} {'status':<10} {'rate Hz':>8} {'dropped':>8} {'peers':>5}"]
+    for r in rows:
+        lines.append(f"{r['role']!s:<12} {r['node_id']!s:<28} {r['address']!s:<22} {r['status']!s:<10} "
+                     f"{r.get('rate_hz', '')!s:>8} {r.get('dropped', '')!s:>8} {r.get('peers', '')!s:>5}")
+    return lines
+
+
 async def _run(opts: argparse.Namespace) -> int:
     targets = await find_targets(opts.node, opts.browse, opts.interface)
     if not targets:
-        print("batteur ls: no nodes found", file=sys.stderr)
+        print(f"batteur ls: no nodes found within {opts.browse:g} s (start one, or give --node HOST:PORT)",
+              file=sys.stderr)
         return 1
     answers = await query_health(targets, opts.timeout)
-    rows = []
-    for target in targets:
-        health = next((h for src, h in answers.items() if src.rsplit(":", 1)[-1] == str(target.port)), None)
-        rows.append(_row(target, health))
-    if opts.json:
-        print(json.dumps(rows, indent=2))
-    else:
-        print(f"{'role':<12} {'node id':<28} {'address':<22} {'status':<10} {'rate Hz':>8} {'dropped':>8} {'peers':>5}")
-        for r in rows:
-            print(f"{r['role']!s:<12} {r['node_id']!s:<28} {r['address']!s:<22} {r['status']!s:<10} "
-                  f"{r.get('rate_hz', '')!s:>8} {r.get('dropped', '')!s:>8} {r.get('peers', '')!s:>5}")
+    rows = [_row(t, h) for t, h in zip(targets, match_answers(targets, answers), strict=True)]
+    for line in [json.dumps(rows, indent=2)] if opts.json else table(rows):
+        write_line(line)
     return 0 if all(r["status"] == "ok" for r in rows) else 1
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="batteur ls", description=__doc__.split("\n\n")[0] if __doc__ else None)
+    parser = argparse.ArgumentParser(prog="batteur ls", description=DESCRIPTION,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--node", action="append", default=[], metavar="HOST:PORT",
                         help="ask this node instead of browsing (repeatable)")
     parser.add_argument("--interface", action="append", default=[],
-                        help="interface to browse on (repeatable; default loopback)")
-    parser.add_argument("--browse", type=seconds, default=3.0, help="seconds to browse for nodes (default 3)")
+                        help="interface to browse on: address, name or 'all' (repeatable; default loopback)")
+    parser.add_argument("--browse", type=seconds, default=3.0,
+                        help="seconds to browse for nodes (default 3; less than 2 can miss nodes)")
     parser.add_argument("--timeout", type=seconds, default=2.0, help="seconds to wait for health answers (default 2)")
     parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
     opts = parser.parse_args(argv)
-    try:
-        return asyncio.run(_run(opts))
-    except ValueError as exc:
-        print(f"batteur ls: {exc}", file=sys.stderr)
-        return 2
+    return run_tool("batteur ls", lambda: asyncio.run(_run(opts)))

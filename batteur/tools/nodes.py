@@ -1,13 +1,21 @@
-"""Finding nodes for the command-line tools: explicit ``HOST:PORT`` or zeroconf discovery."""
+"""Finding nodes for the command-line tools (explicit ``HOST:PORT`` or zeroconf discovery), and what every tool
+does the same way: one-line errors with their exit codes, output into a pipe that closes, Ctrl-C."""
 
 from __future__ import annotations
 
 import ipaddress
+import os
 import socket
-from collections.abc import Sequence
-from dataclasses import dataclass
+import sys
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
+from typing import TextIO
 
-from common.peers import parse_static_peer
+from common.datafile import one_line
+from common.transport import format_address, parse_address
+
+INTERRUPTED = 130
+"""Exit status after Ctrl-C, as a shell reports a SIGINT."""
 
 
 @dataclass(frozen=True)
@@ -15,56 +23,146 @@ class Target:
     """A node to talk to."""
 
     host: str
+    """As given or discovered ('' when the node announced no address this machine can use)."""
     port: int
     role: str = "?"
     node_id: str = ""
+    ip: str = ""
+    """Numeric address the tool sends to ('' when unreachable)."""
+    announced: tuple[str, ...] = ()
+    """Every address the node announced (discovered nodes)."""
 
     @property
     def address(self) -> str:
-        return f"[{self.host}]:{self.port}" if ":" in self.host else f"{self.host}:{self.port}"
+        return format_address(self.host, self.port) if self.host else f"?:{self.port}"
+
+    @property
+    def socket_address(self) -> str:
+        """``ip:port`` as the transport names the source of a datagram."""
+        return format_address(self.ip, self.port)
+
+
+class OutputClosed(Exception):
+    """The reader of our standard output has gone (``batteur echo ... | head``)."""
+
+
+def write_line(text: str, stream: TextIO | None = None) -> None:
+    """Print one line now; raise :class:`OutputClosed` once the reader has gone."""
+    out = stream if stream is not None else sys.stdout
+    try:
+        out.write(text + "\n")
+        out.flush()
+    except (BrokenPipeError, ValueError) as exc:  # ValueError: the stream was closed
+        _point_at_devnull(out)
+        raise OutputClosed from exc
+
+
+def _point_at_devnull(stream: TextIO) -> None:
+    """Point a broken stream's descriptor at /dev/null, so the interpreter's last flush at exit stays quiet."""
+    try:
+        fd = stream.fileno()
+    except (OSError, ValueError, AttributeError):
+        return
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, fd)
+    os.close(devnull)
+
+
+def run_tool(prog: str, run: Callable[[], int]) -> int:
+    """Run a tool's body: bad input is one line and exit 2, a network failure one line and exit 1, Ctrl-C exit
+    130, a reader that went away a quiet stop; never a traceback."""
+    try:
+        return run()
+    except OutputClosed:
+        return 0
+    except ValueError as exc:
+        print(f"{prog}: {one_line(exc)}", file=sys.stderr)
+        return 2
+    except OSError as exc:  # a socket that cannot be opened, mDNS that cannot start
+        print(f"{prog}: {one_line(exc)}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print(f"\n{prog}: interrupted", file=sys.stderr)
+        return INTERRUPTED
+    except Exception as exc:
+        # a bad --interface; common.discovery (zeroconf) is imported only by the tools that browse
+        discovery = sys.modules.get("common.discovery")
+        if discovery is None or not isinstance(exc, discovery.DiscoveryError):
+            raise
+        print(f"{prog}: {one_line(exc)}", file=sys.stderr)
+        return 2
 
 
 def bind_address(targets: Sequence[Target]) -> str:
-    """Where a tool should listen to hear answers from ``targets``: loopback unless one is elsewhere."""
-    remote = [t for t in targets if not ipaddress_is_loopback(t.host)]
-    if not remote:
-        return "127.0.0.1"
-    return "::" if any(":" in t.host for t in remote) else "0.0.0.0"
+    """Where a tool should listen to hear answers from ``targets``: loopback unless one is elsewhere, and an
+    IPv6 socket when one is IPv6 (an IPv4 socket cannot reach ``[::1]``)."""
+    ips = [ipaddress.ip_address(t.ip.split("%", 1)[0]) for t in targets if t.ip]
+    v6 = any(ip.version == 6 for ip in ips)
+    if all(ip.is_loopback for ip in ips):
+        if not v6:
+            return "127.0.0.1"
+        if all(ip.version == 6 for ip in ips):
+            return "::1"
+    return "::" if v6 else "0.0.0.0"
 
 
 def target_networks(targets: Sequence[Target]) -> list[str]:
-    """Allow-list for a tool listening off loopback: only the targets themselves may answer."""
+    """Allow-list of a tool's socket: only the targets themselves may answer."""
     networks: list[str] = []
     for target in targets:
-        if ipaddress_is_loopback(target.host):
-            continue
-        try:
-            addresses = [ipaddress.ip_address(target.host)]
-        except ValueError:  # a host name: every address it resolves to
-            infos = socket.getaddrinfo(target.host, target.port, type=socket.SOCK_DGRAM)
-            addresses = [ipaddress.ip_address(info[4][0]) for info in infos]
-        networks += [f"{a}/{a.max_prefixlen}" for a in addresses]
+        if target.ip:
+            ip = ipaddress.ip_address(target.ip.split("%", 1)[0])
+            networks.append(f"{ip}/{ip.max_prefixlen}")
     return networks
 
 
-def ipaddress_is_loopback(host: str) -> bool:
+def resolve_host(host: str) -> str:
+    """The numeric address of ``host`` (IPv4 first); ValueError naming the host when it does not resolve."""
     try:
-        return ipaddress.ip_address(host).is_loopback
+        ipaddress.ip_address(host.split("%", 1)[0])
+        return host  # already numeric (an IPv6 scope kept)
     except ValueError:
-        return host == "localhost"
+        pass
+    try:
+        infos = socket.getaddrinfo(host, None, socket.AF_UNSPEC, socket.SOCK_DGRAM)
+    except (OSError, UnicodeError) as exc:
+        raise ValueError(f"cannot resolve host {host!r}: {getattr(exc, 'strerror', None) or exc}") from None
+    infos.sort(key=lambda info: info[0] != socket.AF_INET)
+    return str(infos[0][4][0])
 
 
 def parse_node(spec: str) -> Target:
-    """``HOST:PORT`` (or ``[v6]:PORT``) as a target; raises ValueError."""
-    peer = parse_static_peer(f"node={spec}")
-    return Target(peer.host, peer.port)
+    """``HOST:PORT`` (or ``[v6]:PORT``) as a target, its host resolved; raises ValueError."""
+    try:
+        host, port = parse_address(spec.strip())
+    except ValueError as exc:
+        example = "" if "e.g." in str(exc) else " (e.g. 127.0.0.1:9000 or [::1]:9000)"
+        raise ValueError(f"--node {exc}{example}") from None
+    try:
+        return Target(host, port, ip=resolve_host(host))
+    except ValueError as exc:
+        raise ValueError(f"--node {spec}: {exc}") from None
+
+
+def unique(targets: Sequence[Target]) -> list[Target]:
+    """Targets without repeats (the same socket address given twice)."""
+    seen: set[tuple[str, int]] = set()
+    out: list[Target] = []
+    for target in targets:
+        key = (target.ip or target.host or target.node_id, target.port)
+        if key not in seen:
+            seen.add(key)
+            out.append(target)
+    return out
 
 
 async def find_targets(nodes: Sequence[str], timeout_s: float, interfaces: Sequence[str] | None) -> list[Target]:
-    """The explicit ``--node`` targets if any, else the nodes zeroconf finds within ``timeout_s``."""
+    """The explicit ``--node`` targets if any, else the nodes zeroconf finds within ``timeout_s`` (a node
+    without a usable address is kept, with ``ip`` empty, so the tools can say so)."""
     if nodes:
-        return [parse_node(n) for n in nodes]
+        return unique([parse_node(n) for n in nodes])
     from common.discovery import browse_nodes  # zeroconf only when asked to browse
 
     found = await browse_nodes(timeout_s, list(interfaces) if interfaces else None)
-    return [Target(n.host, n.port, n.role, n.node_id) for n in found if n.host]
+    targets = [Target(n.host, n.port, n.role, n.node_id, announced=n.addresses) for n in found]
+    return unique([replace(t, ip=t.host) if t.host else t for t in targets])

@@ -10,13 +10,25 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import re
 import socket
+import struct
 import sys
 from collections.abc import Sequence
 
+from pythonosc.osc_message_builder import BuildError
+
+from batteur.tools.nodes import run_tool
 from common.arg_types import seconds
+from common.datafile import one_line
 from common.messages import REGISTRY, Arg, MessageError, WireKind, encode, encode_raw
-from common.transport import parse_address
+from common.transport import format_address, parse_address
+
+OSC_ADDRESS = re.compile(r"(?:/[!-.0-~]+)+")
+"""An OSC address: '/'-separated parts of printable ASCII..."""
+OSC_RESERVED = set(" #*,?[]{}")
+"""...without the characters OSC reserves for patterns and type tags (a node could not match the message)."""
+ROLE = re.compile(r"[a-z][a-z0-9_-]*")
 
 
 def guess_arg(text: str) -> Arg:
@@ -58,48 +70,81 @@ def typed_args(address: str, texts: Sequence[str]) -> list[Arg]:
     return args
 
 
-def _resolve(target: str, timeout_s: float) -> list[tuple[str, int]]:
-    """``host:port`` as given, or the discovered nodes of a role."""
-    host, sep, port = target.rpartition(":")
-    if sep and port.isdigit():
+def check_raw_address(address: str) -> None:
+    """ValueError unless ``address`` is one OSC address (not a pattern)."""
+    bad = sorted(OSC_RESERVED.intersection(address))
+    if not OSC_ADDRESS.fullmatch(address) or bad:
+        why = f" (no {' '.join(repr(c) for c in bad)})" if bad else ""
+        raise ValueError(f"{address!r} is not an OSC address: '/'-separated parts of printable ASCII{why}")
+
+
+def _resolve(target: str, timeout_s: float, interfaces: Sequence[str] | None) -> list[tuple[str, int]]:
+    """``host:port`` as given, or the discovered nodes of a role; ValueError when ``target`` is neither."""
+    if ":" in target or target.startswith("["):
         return [parse_address(target)]  # ValueError: a bad host form or a port outside 1-65535
+    if not ROLE.fullmatch(target):
+        raise ValueError(f"{target!r} is neither HOST:PORT nor a role (physics, sound, ...)")
     from common.discovery import browse_nodes  # only when a role must be found
 
-    nodes = asyncio.run(browse_nodes(timeout_s, None))
-    return [(n.host, n.port) for n in nodes if n.role == target]
+    nodes = asyncio.run(browse_nodes(timeout_s, interfaces))
+    found = [(n.host, n.port) for n in nodes if n.role == target and n.host]
+    if not found:
+        roles = ", ".join(sorted({n.role for n in nodes})) or "none"
+        print(f"batteur send: no {target} node found within {timeout_s:g} s (roles found: {roles}; "
+              "HOST:PORT needs the port)", file=sys.stderr)
+    return found
+
+
+def _encode(address: str, args: Sequence[Arg]) -> bytes:
+    """The packet; MessageError when the model refuses it, ValueError when OSC cannot carry a value."""
+    model = REGISTRY.get(address)
+    try:
+        return encode(model.from_args(args)) if model is not None else encode_raw(address, args)
+    except (OverflowError, struct.error, BuildError) as exc:  # a float beyond 32 bits, an int beyond int32
+        raise ValueError(f"{address}: a value does not fit its OSC type ({one_line(exc)})") from None
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         prog="batteur send",
         description="Send one OSC message. Arguments are checked against the message model at ADDRESS "
-        "(see docs/osc.md); a message that would be rejected is not sent.",
+        "(see docs/osc.md for every address and its arguments); a message that would be rejected is not sent. "
+        "Exit status: 0 sent, 1 not sent (no node found, network error), 2 bad arguments.",
+        epilog="example: batteur send /batteur/graphics/latency 0.1 --to graphics",
     )
     parser.add_argument("address", help="OSC address, e.g. /batteur/sound/param")
-    parser.add_argument("args", nargs="*", help="the message's arguments, in order")
-    parser.add_argument("--to", required=True, help="HOST:PORT, or a role (physics, sound, ...) found by discovery")
+    parser.add_argument("args", nargs="*", help="the message's arguments, in order (a rig time is two: "
+                        "whole seconds, then the fraction)")
+    parser.add_argument("--to", required=True,
+                        help="HOST:PORT ([::1]:9000 for IPv6), or a role (physics, sound, ...) found by discovery: "
+                        "every node of that role")
     parser.add_argument("--raw", action="store_true", help="allow an address without a model (sent as typed)")
     parser.add_argument("--timeout", type=seconds, default=2.0, help="seconds to look for a role (default 2)")
+    parser.add_argument("--interface", action="append", default=[],
+                        help="interface to look for a role on: address, name or 'all' (repeatable; default loopback)")
     opts = parser.parse_args(argv)
+    return run_tool("batteur send", lambda: _send(opts))
 
+
+def _send(opts: argparse.Namespace) -> int:
     model = REGISTRY.get(opts.address)
     if model is None and not opts.raw:
-        print(f"batteur send: no message is registered at {opts.address} (use --raw to send it anyway)",
+        print(f"batteur send: no message is registered at {opts.address} (see docs/osc.md; --raw sends it anyway)",
               file=sys.stderr)
         return 2
     try:
-        args = typed_args(opts.address, opts.args)
-        data = encode(model.from_args(args)) if model is not None else encode_raw(opts.address, args)
+        if model is None:
+            check_raw_address(opts.address)
+        data = _encode(opts.address, typed_args(opts.address, opts.args))
     except MessageError as exc:
         print(f"batteur send: {exc}", file=sys.stderr)
         return 2
     try:
-        targets = _resolve(opts.to, opts.timeout)
+        targets = _resolve(opts.to, opts.timeout, opts.interface or None)
     except ValueError as exc:
-        print(f"batteur send: --to {exc}", file=sys.stderr)
+        print(f"batteur send: --to {one_line(exc)}", file=sys.stderr)
         return 2
     if not targets:
-        print(f"batteur send: no node found for {opts.to!r}", file=sys.stderr)
         return 1
     failed = 0
     for host, port in targets:
@@ -107,7 +152,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         try:
             with socket.socket(family, socket.SOCK_DGRAM) as sock:
                 sock.sendto(data, (host, port))
-        except OSError as exc:  # an unknown host name, an unreachable network: say so, try the other nodes
+        except (OSError, UnicodeError) as exc:  # an unknown host name, an unreachable network: say so, try the others
             failed += 1
-            print(f"batteur send: cannot send to {host}:{port}: {exc}", file=sys.stderr)
+            print(f"batteur send: cannot send to {format_address(host, port)}: {getattr(exc, 'strerror', None) or exc}",
+                  file=sys.stderr)
     return 1 if failed else 0

@@ -26,7 +26,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Annotated, Any, ClassVar, Self, Union, get_args, get_origin
 
-from pydantic import BaseModel, ConfigDict, ValidationError
+from pydantic import BaseModel, ConfigDict, ValidationError, model_validator
 
 from common.datafile import first_error
 
@@ -35,6 +35,8 @@ Arg = int | float | str
 
 INT32_MIN = -(2**31)
 INT32_MAX = 2**31 - 1
+FLOAT32_MAX = 3.4028234663852886e38
+"""The largest number an OSC ``f`` argument (a 32-bit float) holds."""
 
 
 class DropReason(enum.StrEnum):
@@ -203,6 +205,25 @@ class OscMessage(BaseModel):
         result = tuple(fields)
         type.__setattr__(cls, "_wire_fields_cached", result)
         return result
+
+    @classmethod
+    def _unbounded_floats(cls) -> tuple[tuple[str, bool], ...]:
+        """(name, variadic) of the float fields whose declared range lets a value beyond a 32-bit float in."""
+        cached = cls.__dict__.get("_unbounded_floats_cached")
+        if cached is None:
+            cached = tuple((f.name, f.variadic) for f in cls.wire_fields() if f.kind is WireKind.FLOAT and not (
+                f.minimum is not None and f.maximum is not None and max(-f.minimum, f.maximum) <= FLOAT32_MAX))
+            type.__setattr__(cls, "_unbounded_floats_cached", cached)
+        return typing.cast(tuple[tuple[str, bool], ...], cached)
+
+    @model_validator(mode="after")
+    def _fits_the_wire(self) -> Self:
+        """Refuse a float OSC cannot carry (beyond 32 bits) when the message is made, not when it is sent."""
+        for name, variadic in self._unbounded_floats():
+            value = getattr(self, name)
+            if (max(map(abs, value), default=0.0) if variadic else abs(value)) > FLOAT32_MAX:
+                raise ValueError(f"{name}: beyond a 32-bit float (OSC 'f' holds at most {FLOAT32_MAX:.4g})")
+        return self
 
     @classmethod
     def type_tags(cls) -> str:
