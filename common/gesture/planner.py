@@ -80,6 +80,9 @@ TAIL_RISE = 0.25
 """Seconds in which a limb rises to its rest height after its last stroke (then it holds there)."""
 BOUNCE_MIN_LIFT = 0.004
 """Least height of the bounce of a rebound double between its two contacts, metres."""
+NOD_REACH = 28.0
+"""A head nod's bump exp(-(dt / width)^2) is exactly 0.0 in float64 beyond 27.3 widths (exp underflows below
+-745), so it is summed only within this many widths of its beat."""
 
 
 def bounce_height(rebound: float, speed: float, flight: float, cap: float) -> float:
@@ -373,25 +376,42 @@ def _open_hihat(
             windows[-1][1] = t + 0.12
         else:
             windows.append([t - 0.08, t + 0.12])
-    strokes = np.array(foot_strokes)
+    strokes = np.sort(np.array(foot_strokes, dtype=float))
+    # one pass, splicing each window in where it falls: windows are disjoint and increasing, so the knots around
+    # a window are the last one spliced in and the originals after it (re-sorting the whole track per window
+    # made a long score with many open hi-hats quadratic: 200,000 notes took minutes)
+    out_t: list[np.ndarray] = []
+    out_p: list[np.ndarray] = []
+    out_v: list[np.ndarray] = []
+    done = 0  # originals before this index are out (kept or replaced)
+    up = np.array([0.0, 0.0, cfg.hihat_open_lift])
     for w0, w1 in windows:
         a, b = w0 - 0.1, w1 + cfg.hihat_close_s
-        if strokes.size and np.any((strokes > a - cfg.foot_cycle) & (strokes < b + cfg.foot_cycle + 0.01)):
+        k = int(np.searchsorted(strokes, a - cfg.foot_cycle, side="right"))  # the first stroke after a - cycle
+        if k < len(strokes) and strokes[k] < b + cfg.foot_cycle + 0.01:
             continue
         if a <= times[0] or b >= times[-1]:
             continue
-        ends, _ = hermite(times, pos, vel, np.array([a, b]))
+        lo = int(np.searchsorted(times, a, side="left"))  # originals in [lo, hi) lie in [a, b]: replaced
+        hi = int(np.searchsorted(times, b, side="right"))
+        near = slice(done, hi + 1)  # up to the first original after b (b < times[-1])
+        if out_t:  # the window before ends with its knot at its b, before these originals
+            ends, _ = hermite(np.concatenate([out_t[-1][-1:], times[near]]),
+                              np.concatenate([out_p[-1][-1:], pos[near]]),
+                              np.concatenate([out_v[-1][-1:], vel[near]]), np.array([a, b]))
+        else:
+            ends, _ = hermite(times[near], pos[near], vel[near], np.array([a, b]))
         rest_a, rest_b = ends[0], ends[1]
-        up = np.array([0.0, 0.0, cfg.hihat_open_lift])
-        keep = (times < a) | (times > b)
-        new_t = np.array([a, w0, w1, b])
-        new_p = np.array([rest_a, rest_a + up, rest_b + up, rest_b])
-        times = np.concatenate([times[keep], new_t])
-        pos = np.concatenate([pos[keep], new_p])
-        vel = np.concatenate([vel[keep], np.zeros((4, 3))])
-        order = np.argsort(times, kind="stable")
-        times, pos, vel = times[order], pos[order], vel[order]
-    return times, pos, vel
+        out_t += [times[done:lo], np.array([a, w0, w1, b])]
+        out_p += [pos[done:lo], np.array([rest_a, rest_a + up, rest_b + up, rest_b])]
+        out_v += [vel[done:lo], np.zeros((4, 3))]
+        done = hi
+    if not out_t:
+        return times, pos, vel
+    out_t.append(times[done:])
+    out_p.append(pos[done:])
+    out_v.append(vel[done:])
+    return np.concatenate(out_t), np.concatenate(out_p), np.concatenate(out_v)
 
 
 def _rest_event(kit: Kit, limb: Limb) -> EventType | None:
@@ -568,9 +588,13 @@ def _head(
         targets = np.tile([0.0, 0.5, 0.7], (len(t), 1))
     nod = np.zeros_like(t)
     beats = score.beats if score is not None and len(score.beats) else np.zeros(0)
+    # each bump only where exp() does not underflow to exactly 0: the same sums, but a long score's beats no
+    # longer each sweep the whole head track (3 h of beats took minutes, a day's ran out of memory)
+    reach = NOD_REACH * cfg.nod_width
     for b in beats:
         if start - 1 <= b <= end + 1:
-            nod += cfg.nod_amplitude * np.exp(-(((t - b) / cfg.nod_width) ** 2))
+            lo, hi = np.searchsorted(t, [b - reach, b + reach])
+            nod[lo:hi] += cfg.nod_amplitude * np.exp(-(((t[lo:hi] - b) / cfg.nod_width) ** 2))
     return HeadTrajectory(t, targets, nod)
 
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 import numpy as np
 
@@ -21,6 +22,35 @@ from common.score.gm import DRUM_MAP, note_name
 
 DUPLICATE_WINDOW = 0.010
 """Two events of the same type closer than this (seconds) are one double event."""
+MAX_SCORE_SECONDS = 24 * 3600.0
+"""The longest score read, seconds: a note later than a day in is a corrupt file's timing (a MIDI delta of
+2^28 ticks put one 388 h in), and planning would run out of memory and time on the silence before it."""
+MAX_SCORE_NOTES = 500_000
+"""The most notes a score may hold (about 14 h of dense drumming at 10 notes a second): planning takes some
+0.5 ms and 6 kB per note, and a text score's ``repeat 100000000`` would not fit in memory at all."""
+MAX_SCORE_BYTES = 8 * 1024 * 1024
+"""The largest score file read: hours of drumming are about 1 MB of MIDI, and mido holds some 300 bytes per
+3-byte MIDI message in memory."""
+
+
+def check_file(path: Path, name: str) -> None:
+    """Raise :class:`ScoreError` (one line, naming ``name``) unless ``path`` is a score-sized regular file."""
+    try:
+        if not path.exists():
+            raise ScoreError(f"{name}: no such file")
+        if not path.is_file():
+            raise ScoreError(f"{name}: not a file")
+        size = path.stat().st_size
+    except OSError as exc:
+        raise ScoreError(f"{name}: cannot read the file ({exc.strerror or exc})") from None
+    if size > MAX_SCORE_BYTES:
+        raise ScoreError(f"{name}: {size / 2**20:.0f} MB is too large for a score (at most "
+                         f"{MAX_SCORE_BYTES // 2**20} MB)")
+
+
+def hours(seconds: float) -> str:
+    """A time for a message about the limits: ``24 h``, ``388.4 h``, ``1.389e+05 h``."""
+    return f"{seconds / 3600:.4g} h"
 
 
 class ScoreError(ValueError):

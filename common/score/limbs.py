@@ -213,7 +213,7 @@ def distribute(
                 if (
                     any(f.event == EventType.BASS for _, f in group)
                     and hihat_foot == other_foot
-                    and any(n.limb == hihat_foot and abs(n.time - e.time) <= window for n in feet)
+                    and _foot_busy(feet, hihat_foot, e.time, window)
                 ):
                     issue(i, IssueReason.LIMB_BUSY, IssueAction.DROPPED, "hi-hat foot is playing the bass drum")
                     continue
@@ -236,6 +236,20 @@ def distribute(
     assignment = Assignment(notes=notes, issues=issues, algorithm=algorithm, kit_name=kit.name)
     check_feasibility(assignment, kit, window)
     return assignment
+
+
+def _foot_busy(feet: list[Note], foot: Limb, time: float, window: float) -> bool:
+    """Whether ``foot`` plays a note within ``window`` of ``time``; ``feet`` is in time order.
+
+    Only the notes at the end of the list can be that close: scanning them all for every hi-hat pedal under a
+    bass note made a long score quadratic (20,000 such pairs took 36 s).
+    """
+    for n in reversed(feet):
+        if time - n.time > window:  # this one and all before it are too early
+            return False
+        if n.limb == foot and abs(n.time - time) <= window:
+            return True
+    return False
 
 
 def _merge_or_drop(left_out: list[Note], notes: list[Note], kit: Kit, issues: list[FeasibilityIssue]) -> list[Note]:

@@ -16,36 +16,58 @@ from pathlib import Path
 
 import mido
 import numpy as np
+from mido.midifiles.meta import KeySignatureError
 
 from common.kit import EventType
-from common.score.events import DrumNote, Score, ScoreError, score_from_notes
+from common.score.events import (
+    MAX_SCORE_BYTES,
+    MAX_SCORE_NOTES,
+    MAX_SCORE_SECONDS,
+    DrumNote,
+    Score,
+    ScoreError,
+    check_file,
+    hours,
+    score_from_notes,
+)
 from common.score.gm import DRUM_MAP
 
 GM_DRUM_CHANNEL = 10
 """General MIDI's percussion channel (1-based)."""
 
 _DRUM_BANKS = {120, 127}
+MAX_BEATS = int(MAX_SCORE_SECONDS * 400 / 60)
+"""The most beats kept: a whole day at 400 bpm, the fastest tempo of a text score."""
 
 
 def _open(source: str | Path | bytes) -> tuple[mido.MidiFile, str]:
     name = "<bytes>" if isinstance(source, bytes) else str(source)
+    if isinstance(source, bytes):
+        data = source
+    else:
+        check_file(Path(source), name)
+        try:
+            data = Path(source).read_bytes()
+        except OSError as exc:  # not "not a valid MIDI file": the file could not be read at all
+            raise ScoreError(f"{name}: cannot read the file ({exc.strerror or exc})") from None
+    if len(data) > MAX_SCORE_BYTES:
+        raise ScoreError(f"{name}: {len(data) / 2**20:.0f} MB is too large for a score (at most "
+                         f"{MAX_SCORE_BYTES // 2**20} MB)")
     try:
-        if isinstance(source, bytes):
-            return mido.MidiFile(file=io.BytesIO(source), clip=False), name
-        path = Path(source)
-        if not path.is_file():
-            raise ScoreError(f"{name}: no such file")
-        return mido.MidiFile(path, clip=False), name
-    except ScoreError:
-        raise
+        return mido.MidiFile(file=io.BytesIO(data), clip=False), name
     except EOFError as exc:
         raise ScoreError(f"{name}: truncated MIDI file ({str(exc) or 'the data ends early'})") from exc
-    except (OSError, ValueError, KeyError, IndexError, TypeError) as exc:
+    except (OSError, ValueError, KeyError, IndexError, TypeError, KeySignatureError) as exc:  # a bad key signature
         raise ScoreError(f"{name}: not a valid Standard MIDI File ({type(exc).__name__}: {exc})") from exc
 
 
-def _timeline(mid: mido.MidiFile) -> list[tuple[int, mido.Message | mido.MetaMessage]]:
-    """All messages with absolute ticks, in playing order (type 2: tracks one after another)."""
+def _timeline(mid: mido.MidiFile) -> tuple[list[tuple[int, mido.Message | mido.MetaMessage]], int]:
+    """All messages with absolute ticks, in playing order (type 2: tracks one after another), and the end tick.
+
+    Types 0 and 1: every track's messages sorted by tick (ties in track order) without their end-of-track
+    markers, as ``mido.merge_tracks`` gives them, but without its two copies of every message (a million
+    notes took 80 s and a gigabyte more).
+    """
     out: list[tuple[int, mido.Message | mido.MetaMessage]] = []
     if mid.type == 2:
         offset = 0
@@ -55,12 +77,17 @@ def _timeline(mid: mido.MidiFile) -> list[tuple[int, mido.Message | mido.MetaMes
                 tick += msg.time
                 out.append((tick, msg))
             offset = tick
-        return out
-    tick = 0
-    for msg in mido.merge_tracks(mid.tracks):
-        tick += msg.time
-        out.append((tick, msg))
-    return out
+        return out, (out[-1][0] if out else 0)
+    end = 0
+    for track in mid.tracks:
+        tick = 0
+        for msg in track:
+            tick += msg.time
+            if msg.type != "end_of_track":
+                out.append((tick, msg))
+        end = max(end, tick)
+    out.sort(key=lambda tm: tm[0])
+    return out, end
 
 
 def read_midi(
@@ -90,32 +117,35 @@ def read_midi(
     mid, name = _open(source)
     if mid.ticks_per_beat <= 0:
         raise ScoreError(f"{name}: SMPTE time division is not supported (ticks per beat {mid.ticks_per_beat})")
-    timeline = _timeline(mid)
+    timeline, end_tick = _timeline(mid)
     tempo = 500000  # microseconds per beat (120 bpm) until told otherwise
     seconds = 0.0
     last_tick = 0
     per_tick = tempo / 1e6 / mid.ticks_per_beat
     drums = {GM_DRUM_CHANNEL - 1} | {c - 1 for c in (drum_channels or ())}
-    raw: list[tuple[float, int, int, int]] = []  # seconds, pitch, velocity, channel index
+    raw: list[tuple[float, int, int, int, int]] = []  # seconds, pitch, velocity, channel index, tick
     tempo_points: list[tuple[int, float, float]] = [(0, 0.0, per_tick)]  # tick, seconds, seconds/tick
     for tick, msg in timeline:
         seconds += (tick - last_tick) * per_tick
         last_tick = tick
         if msg.type == "set_tempo":
+            if msg.tempo <= 0:  # every later note would sound at once, each reported as a double of the first
+                raise ScoreError(f"{name}: tempo 0 at tick {tick} (a tempo is microseconds per beat, at least 1)")
             per_tick = msg.tempo / 1e6 / mid.ticks_per_beat
             tempo_points.append((tick, seconds, per_tick))
         elif msg.type == "control_change" and msg.control == 0 and msg.value in _DRUM_BANKS:
             drums.add(msg.channel)
         elif msg.type == "note_on" and msg.velocity > 0:
-            raw.append((seconds, msg.note, msg.velocity, msg.channel))
+            raw.append((seconds, msg.note, msg.velocity, msg.channel, tick))
     warnings: list[str] = []
     chosen = [r for r in raw if r[3] in drums]
     if not chosen and raw and not drum_channels:
         channels = sorted({r[3] + 1 for r in raw})
         warnings.append(f"{name}: no notes on a drum channel; reading channels {channels} as drums")
         chosen = raw
-    notes = [DrumNote(time=s, pitch=p, velocity=v / 127.0, channel=c + 1) for s, p, v, c in chosen]
-    beats = _beats(tempo_points, last_tick, mid.ticks_per_beat)
+    _check_size(chosen, name)
+    notes = [DrumNote(time=s, pitch=p, velocity=v / 127.0, channel=c + 1) for s, p, v, c, _ in chosen]
+    beats = _beats(tempo_points, end_tick, mid.ticks_per_beat)
     score = score_from_notes(notes, drum_map=drum_map, beats=beats, source=name)
     score.warnings = warnings + score.warnings
     if not score.events:
@@ -123,9 +153,23 @@ def read_midi(
     return score
 
 
+def _check_size(notes: list[tuple[float, int, int, int, int]], name: str) -> None:
+    """Refuse more notes than a score may hold, or a note later than a score may last (a corrupt delta time)."""
+    if len(notes) > MAX_SCORE_NOTES:
+        raise ScoreError(f"{name}: {len(notes)} notes, more than the {MAX_SCORE_NOTES} a score may hold")
+    late = next((n for n in notes if n[0] > MAX_SCORE_SECONDS), None)
+    if late is not None:
+        raise ScoreError(f"{name}: a note at tick {late[4]} sounds {hours(late[0])} in, later than the "
+                         f"{hours(MAX_SCORE_SECONDS)} a score may last (a corrupt delta time or tempo?)")
+
+
 def _beats(tempo_points: list[tuple[int, float, float]], end_tick: int, ticks_per_beat: int) -> np.ndarray:
-    """Beat times (seconds) from tick 0 to ``end_tick`` given (tick, seconds, seconds/tick) tempo points."""
-    ticks = np.arange(0, end_tick + 1, ticks_per_beat)
+    """Beat times (seconds) from tick 0 to ``end_tick`` given (tick, seconds, seconds/tick) tempo points.
+
+    At most ``MAX_BEATS``: a file's end can lie far beyond its notes (2^28 ticks of silence made a terabyte
+    array); the beats past its last note only nod the head, and no plan reaches that far.
+    """
+    ticks = np.arange(0, min(end_tick, (MAX_BEATS - 1) * ticks_per_beat) + 1, ticks_per_beat)
     starts = np.array([p[0] for p in tempo_points])
     idx = np.searchsorted(starts, ticks, side="right") - 1
     base_sec = np.array([p[1] for p in tempo_points])[idx]

@@ -17,13 +17,25 @@ directive ends a block, and the next block starts where it ended. Errors raise
 
 from __future__ import annotations
 
+import bisect
+import math
 from pathlib import Path
 
 import numpy as np
 
+from common.datafile import read_text
 from common.gesture.plan import Grip, Nuance
 from common.kit import EventType, Limb
-from common.score.events import DrumEvent, Score, ScoreError, remove_duplicates
+from common.score.events import (
+    MAX_SCORE_NOTES,
+    MAX_SCORE_SECONDS,
+    DrumEvent,
+    Score,
+    ScoreError,
+    check_file,
+    hours,
+    remove_duplicates,
+)
 
 ALIASES: dict[str, EventType] = {
     "BD": EventType.BASS,
@@ -87,6 +99,7 @@ class _Tempo:
 
     def __init__(self) -> None:
         self.points: list[tuple[float, float, float]] = [(0.0, 0.0, 120.0)]  # beat, seconds, bpm
+        self.starts: list[float] = [0.0]  # the points' beats, increasing (a tempo is set where the score is)
 
     def set(self, beat: float, bpm: float) -> None:
         b0, s0, old = self.points[-1]
@@ -95,12 +108,16 @@ class _Tempo:
             self.points[-1] = (b0, s0, bpm)
         else:
             self.points.append((beat, seconds, bpm))
+            self.starts.append(beat)
 
     def seconds(self, beat: float) -> float:
-        for b0, s0, bpm in reversed(self.points):
-            if beat >= b0:
-                return s0 + (beat - b0) * 60.0 / bpm
-        return beat * 0.5
+        # the last point at or before ``beat``, found by bisection: a scan per beat made a score with a tempo
+        # line per bar quadratic (7 h of them took 50 s)
+        k = bisect.bisect_right(self.starts, beat) - 1
+        if k < 0:
+            return beat * 0.5
+        b0, s0, bpm = self.points[k]
+        return s0 + (beat - b0) * 60.0 / bpm
 
 
 def _split_cells(row: str, lineno: int) -> tuple[list[str], int]:
@@ -112,6 +129,46 @@ def _split_cells(row: str, lineno: int) -> tuple[list[str], int]:
     if len(widths) != 1:
         raise ScoreError(f"line {lineno}: bars of one row must have the same number of cells (got {sorted(widths)})")
     return [c for b in bars for c in b], len(bars)
+
+
+def _note_cells(cells: list[str], lineno: int) -> int:
+    """The number of notes in an instrument row; a cell that is neither a note nor a rest is an error."""
+    notes = 0
+    for k, ch in enumerate(cells):
+        if ch in ".-":
+            continue
+        if ch not in CELL_VELOCITY and ch not in DIGITS:  # not str.isdigit: '²' is a digit to it, not to int()
+            raise ScoreError(f"line {lineno}: cell {k + 1}: unknown character {ch!r}")
+        notes += 1
+    return notes
+
+
+def _marks(name: str, rows: list[tuple[list[str], int, int]], allowed: str) -> list[str] | None:
+    """The cells of the one ST or NU row of a block (None without one); a second row or another letter is an
+    error (the row was silently ignored)."""
+    if not rows:
+        return None
+    if len(rows) > 1:
+        raise ScoreError(f"line {rows[1][2]}: a second {name} row in one block (the first is on line {rows[0][2]})")
+    cells, _, lineno = rows[0]
+    for k, ch in enumerate(cells):
+        if ch not in allowed:
+            raise ScoreError(f"line {lineno}: {name} cell {k + 1}: unknown character {ch!r} (use "
+                             f"{', '.join(allowed[:-2])} or '.')")
+    return cells
+
+
+def _finite(value: str, what: str, lineno: int) -> float:
+    """A number of a directive: finite (float() reads 'nan' and 'inf')."""
+    number = float(value)
+    if not math.isfinite(number):
+        raise ScoreError(f"line {lineno}: {what} must be a finite number, got {value!r}")
+    return number
+
+
+DIGITS = "123456789"
+STICK_MARKS = "RL.-"
+NUANCE_MARKS = "ltavs.-"
 
 
 def parse_text(text: str, source: str = "text") -> TextScore:
@@ -126,43 +183,55 @@ def parse_text(text: str, source: str = "text") -> TextScore:
     grip: Grip | None = None
     nuance: Nuance | None = None
 
+    def check_until(beat: float, notes: int, lineno: int) -> None:
+        """Refuse a score that would last longer or hold more notes than a score may, before making it."""
+        if notes > MAX_SCORE_NOTES:
+            raise ScoreError(f"line {lineno}: the score would hold {notes} notes, more than the "
+                             f"{MAX_SCORE_NOTES} a score may hold")
+        if tempo.seconds(beat) > MAX_SCORE_SECONDS:
+            raise ScoreError(f"line {lineno}: the score would last {hours(tempo.seconds(beat))}, longer than the "
+                             f"{hours(MAX_SCORE_SECONDS)} a score may last")
+
     def flush() -> None:
         nonlocal position, block, last_block, last_block_beats
         if not block:
             return
-        grid: dict[str, tuple[list[str], int, int]] = {}
+        # rows by name, in the order names first appear: a name given twice plays both rows (the second one
+        # replaced the first, whose notes were lost without a word)
+        grid: dict[str, list[tuple[list[str], int, int]]] = {}
         for lineno, name, row in block:
             cells, bars = _split_cells(row, lineno)
-            grid[name] = (cells, bars, lineno)
-        sizes = {(len(c), b) for c, b, _ in grid.values()}
+            grid.setdefault(name, []).append((cells, bars, lineno))
+        sizes = {(len(c), b) for rows in grid.values() for c, b, _ in rows}
         if len(sizes) != 1:
             first = block[0][0]
             raise ScoreError(f"line {first}: rows of one block must have the same bars and cells, got {sorted(sizes)}")
         n_cells, n_bars = sizes.pop()
         cell_beats = beats_per_bar * n_bars / n_cells
-        sticking = grid.pop("ST", None)
-        nuances = grid.pop("NU", None)
+        sticking = _marks("ST", grid.pop("ST", []), STICK_MARKS)
+        nuances = _marks("NU", grid.pop("NU", []), NUANCE_MARKS)
+        notes = len(events)
+        for name, rows in grid.items():
+            if event_type(name) is None:
+                raise ScoreError(f"line {rows[0][2]}: unknown instrument {name!r} (use an event type or an alias)")
+            notes += sum(_note_cells(cells, lineno) for cells, _, lineno in rows)
+        check_until(position + n_bars * beats_per_bar, notes, block[0][0])
         block_events: list[DrumEvent] = []
-        for name, (cells, _, lineno) in grid.items():
+        for name, rows in grid.items():
             ev = event_type(name)
-            if ev is None:
-                raise ScoreError(f"line {lineno}: unknown instrument {name!r} (use an event type or an alias)")
-            for k, ch in enumerate(cells):
-                if ch in ".-":
-                    continue
-                if ch in CELL_VELOCITY:
-                    vel = CELL_VELOCITY[ch]
-                elif ch.isdigit() and ch != "0":
-                    vel = int(ch) / 9.0
-                else:
-                    raise ScoreError(f"line {lineno}: cell {k + 1}: unknown character {ch!r}")
-                limb = None
-                if sticking is not None and sticking[0][k] in STICKING and ev not in FOOT_EVENTS:
-                    limb = STICKING[sticking[0][k]]
-                note_nuance = None
-                if nuances is not None and nuances[0][k] in NUANCE_LETTERS:
-                    note_nuance = NUANCE_LETTERS[nuances[0][k]]
-                block_events.append(DrumEvent(k * cell_beats, ev, vel, None, limb, note_nuance))
+            assert ev is not None
+            for cells, _, _ in rows:
+                for k, ch in enumerate(cells):
+                    if ch in ".-":
+                        continue
+                    vel = CELL_VELOCITY[ch] if ch in CELL_VELOCITY else int(ch) / 9.0
+                    limb = None
+                    if sticking is not None and sticking[k] in STICKING and ev not in FOOT_EVENTS:
+                        limb = STICKING[sticking[k]]
+                    note_nuance = None
+                    if nuances is not None and nuances[k] in NUANCE_LETTERS:
+                        note_nuance = NUANCE_LETTERS[nuances[k]]
+                    block_events.append(DrumEvent(k * cell_beats, ev, vel, None, limb, note_nuance))
         _place(block_events, position)
         last_block, last_block_beats = block_events, n_bars * beats_per_bar
         position += last_block_beats
@@ -172,13 +241,33 @@ def parse_text(text: str, source: str = "text") -> TextScore:
         for e in evs:
             events.append(DrumEvent(tempo.seconds(start + e.time), e.event, e.velocity, e.pitch, e.limb, e.nuance))
 
-    for lineno, raw_line in enumerate(text.splitlines(), start=1):
+    def note(lineno: int, rest: str) -> None:
+        """``at BEAT NAME [VELOCITY] [L|R]``."""
+        parts = rest.split()
+        beat = _finite(parts[0], "the beat", lineno)
+        ev = event_type(parts[1]) if len(parts) > 1 else None
+        if ev is None or len(parts) > 4:
+            raise ScoreError(f"line {lineno}: note needs '<beat> <instrument> [velocity] [L|R]'")
+        vel = float(parts[2]) if len(parts) > 2 else 0.7
+        if not 0 <= vel <= 1:
+            raise ScoreError(f"line {lineno}: velocity {vel} outside [0, 1]")
+        if len(parts) > 3 and parts[3].upper() not in STICKING:
+            raise ScoreError(f"line {lineno}: the hand must be L or R, got {parts[3]!r}")
+        limb = STICKING.get(parts[3].upper()) if len(parts) > 3 else None
+        if position + beat < 0:
+            raise ScoreError(f"line {lineno}: beat {parts[0]} is before the start of the score "
+                             f"({position:g} beats so far)")
+        check_until(position + beat, len(events) + 1, lineno)
+        events.append(DrumEvent(tempo.seconds(position + beat), ev, vel, None, limb, None))
+
+    lines = text.removeprefix("\ufeff").splitlines()  # a byte order mark, as Windows editors write
+    for lineno, raw_line in enumerate(lines, start=1):
         line = raw_line.split("#", 1)[0].rstrip()
         if not line.strip():
             flush()
             continue
-        head, _, rest = line.strip().partition(" ")
-        rest = rest.strip()
+        head, *more = line.split(None, 1)  # any white space after the name: editors indent with tabs
+        rest = more[0].strip() if more else ""
         if "|" in rest:
             block.append((lineno, head.upper(), rest))
             continue
@@ -193,12 +282,13 @@ def parse_text(text: str, source: str = "text") -> TextScore:
             elif word == "meter":
                 num, _, den = rest.partition("/")
                 beats_per_bar = float(num)
-                if beats_per_bar <= 0 or not den.strip().isdigit():
+                if not 0 < beats_per_bar < math.inf or not den.strip().isdigit():
                     raise ValueError(rest)
             elif word == "repeat":
                 count = int(rest)
                 if count < 1 or not last_block_beats:
                     raise ScoreError(f"line {lineno}: repeat needs a count >= 1 after a grid block")
+                check_until(position + count * last_block_beats, len(events) + count * len(last_block), lineno)
                 for _ in range(count):
                     _place(last_block, position)
                     position += last_block_beats
@@ -207,25 +297,20 @@ def parse_text(text: str, source: str = "text") -> TextScore:
             elif word == "nuance":
                 nuance = Nuance(rest.lower().replace(" ", "_"))
             elif word in ("at", "note"):
-                parts = rest.split()
-                beat = float(parts[0])
-                ev = event_type(parts[1]) if len(parts) > 1 else None
-                if ev is None:
-                    raise ScoreError(f"line {lineno}: note needs '<beat> <instrument> [velocity] [L|R]'")
-                vel = float(parts[2]) if len(parts) > 2 else 0.7
-                if not 0 <= vel <= 1:
-                    raise ScoreError(f"line {lineno}: velocity {vel} outside [0, 1]")
-                limb = STICKING.get(parts[3].upper()) if len(parts) > 3 else None
-                events.append(DrumEvent(tempo.seconds(position + beat), ev, vel, None, limb, None))
+                note(lineno, rest)
             elif word == "rest":
-                position += float(rest) if rest else beats_per_bar
+                length = _finite(rest, "a rest", lineno) if rest else beats_per_bar
+                if length < 0:
+                    raise ScoreError(f"line {lineno}: a rest cannot be negative, got {rest}")
+                check_until(position + length, len(events), lineno)
+                position += length
             elif word in ("kit", "title"):
                 pass
             else:
                 raise ScoreError(f"line {lineno}: unknown directive {head!r}")
         except ScoreError:
             raise
-        except (ValueError, IndexError) as exc:
+        except (ValueError, IndexError, OverflowError) as exc:
             raise ScoreError(f"line {lineno}: cannot read {line.strip()!r} ({exc})") from exc
     flush()
     kept, removed = remove_duplicates(events)
@@ -243,12 +328,13 @@ def read_score(path: str | Path, **kwargs: object) -> Score:
     p = Path(path)
     if p.suffix.lower() in (".mid", ".midi", ".smf"):
         return read_midi(p, **kwargs)  # type: ignore[arg-type]
-    if not p.is_file():
-        raise ScoreError(f"{p}: no such file")
+    check_file(p, str(p))
     try:
-        text = p.read_text(encoding="utf-8")
-    except UnicodeDecodeError as exc:
-        raise ScoreError(f"{p}: not a text score (not UTF-8: {exc})") from exc
+        text = read_text(p)
+    except OSError as exc:
+        raise ScoreError(f"{p}: cannot read the file ({exc.strerror or exc})") from None
+    except ValueError as exc:  # not UTF-8: a binary file (an audio file given as the score?)
+        raise ScoreError(f"{p}: not a text score ({exc})") from None
     try:
         return parse_text(text, source=str(p))
     except ScoreError as exc:
