@@ -211,7 +211,11 @@ class OscMessage(BaseModel):
         """(name, variadic) of the float fields whose declared range lets a value beyond a 32-bit float in."""
         cached = cls.__dict__.get("_unbounded_floats_cached")
         if cached is None:
-            cached = tuple((f.name, f.variadic) for f in cls.wire_fields() if f.kind is WireKind.FLOAT and not (
+            try:
+                fields = cls.wire_fields()
+            except TypeError:  # a message with its own wire layout (interaction's registered ones): nothing to check
+                fields = ()
+            cached = tuple((f.name, f.variadic) for f in fields if f.kind is WireKind.FLOAT and not (
                 f.minimum is not None and f.maximum is not None and max(-f.minimum, f.maximum) <= FLOAT32_MAX))
             type.__setattr__(cls, "_unbounded_floats_cached", cached)
         return typing.cast(tuple[tuple[str, bool], ...], cached)
