@@ -43,7 +43,7 @@ from pathlib import Path
 from typing import TextIO
 
 from common.arg_types import non_negative, positive, seconds, whole
-from common.output_paths import check_output_dir
+from common.output_paths import check_output_dir, point_at_devnull
 
 ROLES = ("physics", "interaction", "sound", "graphics")
 PORT_OFFSET = {role: i for i, role in enumerate(ROLES)}
@@ -170,18 +170,7 @@ class Output:
             self.stream.flush()
         except (OSError, ValueError):  # BrokenPipeError; ValueError: the file was closed
             self.broken = True
-            _point_at_devnull(self.stream)
-
-
-def _point_at_devnull(stream: TextIO) -> None:
-    """Point a broken stream's descriptor at /dev/null, so the interpreter's last flush does not fail at exit."""
-    try:
-        fd = stream.fileno()
-    except (OSError, ValueError, AttributeError):
-        return
-    devnull = os.open(os.devnull, os.O_WRONLY)
-    os.dup2(devnull, fd)
-    os.close(devnull)
+            point_at_devnull(self.stream)
 
 
 class Rig:

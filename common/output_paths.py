@@ -6,6 +6,7 @@ from __future__ import annotations
 import os
 import tempfile
 from pathlib import Path
+from typing import TextIO
 
 
 def check_output_dir(path: Path, option: str) -> None:
@@ -67,3 +68,15 @@ def _file_mode(path: Path) -> int:
     umask = os.umask(0)
     os.umask(umask)
     return 0o666 & ~umask
+
+
+def point_at_devnull(stream: TextIO) -> None:
+    """Point a broken output's descriptor (``| head`` gone, a closed terminal) at /dev/null, so the interpreter's
+    last flush at exit stays quiet instead of failing with a BrokenPipeError."""
+    try:
+        fd = stream.fileno()
+    except (OSError, ValueError, AttributeError):
+        return
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, fd)
+    os.close(devnull)

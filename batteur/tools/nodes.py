@@ -4,7 +4,6 @@ does the same way: one-line errors with their exit codes, output into a pipe tha
 from __future__ import annotations
 
 import ipaddress
-import os
 import socket
 import sys
 from collections.abc import Callable, Sequence
@@ -12,6 +11,7 @@ from dataclasses import dataclass, replace
 from typing import TextIO
 
 from common.datafile import one_line
+from common.output_paths import point_at_devnull
 from common.transport import format_address, parse_address
 
 INTERRUPTED = 130
@@ -53,19 +53,8 @@ def write_line(text: str, stream: TextIO | None = None) -> None:
         out.write(text + "\n")
         out.flush()
     except (BrokenPipeError, ValueError) as exc:  # ValueError: the stream was closed
-        _point_at_devnull(out)
+        point_at_devnull(out)
         raise OutputClosed from exc
-
-
-def _point_at_devnull(stream: TextIO) -> None:
-    """Point a broken stream's descriptor at /dev/null, so the interpreter's last flush at exit stays quiet."""
-    try:
-        fd = stream.fileno()
-    except (OSError, ValueError, AttributeError):
-        return
-    devnull = os.open(os.devnull, os.O_WRONLY)
-    os.dup2(devnull, fd)
-    os.close(devnull)
 
 
 def run_tool(prog: str, run: Callable[[], int]) -> int:
