@@ -8,6 +8,7 @@ here builds a drummer.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import io
 import os
 import signal
@@ -208,8 +209,9 @@ def test_a_service_printing_a_very_long_line_does_not_block(tmp_path: Path, monk
     asyncio.run(run_then_stop())
 
 
-def test_closing_the_terminal_stops_the_services(tmp_path: Path) -> None:
-    # SIGHUP (the terminal closed) killed the rig and left its services, in their own sessions, running
+@contextlib.contextmanager
+def rig_with_one_service(tmp_path: Path) -> Iterator[tuple[subprocess.Popen[bytes], int]]:
+    """A rig process running one stand-in service: (the rig, the service's pid); both are gone afterwards."""
     pid_file = tmp_path / "pid"
     script = (
         "import asyncio, sys\n"
@@ -222,40 +224,31 @@ def test_closing_the_terminal_stops_the_services(tmp_path: Path) -> None:
     pid = 0
     try:
         pid = int(wait_for_file(pid_file))
-        the_rig.send_signal(signal.SIGHUP)
-        assert the_rig.wait(timeout=30) == 0
-        assert not running(pid)
+        yield the_rig, pid
     finally:
         the_rig.kill()
         if pid and running(pid):
             os.kill(pid, signal.SIGKILL)
 
 
+def test_closing_the_terminal_stops_the_services(tmp_path: Path) -> None:
+    # SIGHUP (the terminal closed) killed the rig and left its services, in their own sessions, running
+    with rig_with_one_service(tmp_path) as (the_rig, pid):
+        the_rig.send_signal(signal.SIGHUP)
+        assert the_rig.wait(timeout=30) == 0
+        assert not running(pid)
+
+
 @pytest.mark.skipif(rig.stop_with_the_rig() is None, reason="needs Linux's prctl")
 def test_a_rig_killed_outright_leaves_no_service_running(tmp_path: Path) -> None:
     # SIGKILL gives the rig no chance to stop its services: they, in their own sessions, ran on as orphans
-    pid_file = tmp_path / "pid"
-    script = (
-        "import asyncio, sys\n"
-        "from batteur.rig import Rig\n"
-        "from tests.test_rig_inputs import Plan, WRITE_PID\n"
-        f"sys.exit(asyncio.run(Rig([Plan('sound', WRITE_PID, {str(pid_file)!r})], 20).run(None)))\n"
-    )
-    the_rig = subprocess.Popen([sys.executable, "-c", script], cwd=Path(__file__).resolve().parents[1],
-                               stdout=subprocess.DEVNULL)
-    pid = 0
-    try:
-        pid = int(wait_for_file(pid_file))
+    with rig_with_one_service(tmp_path) as (the_rig, pid):
         the_rig.kill()
         the_rig.wait(timeout=30)
         deadline = time.monotonic() + 30
         while running(pid) and time.monotonic() < deadline:
             time.sleep(0.05)
         assert not running(pid)
-    finally:
-        the_rig.kill()
-        if pid and running(pid):
-            os.kill(pid, signal.SIGKILL)
 
 
 def test_a_view_port_in_use_is_refused_before_any_service_starts(no_rig: None,

@@ -135,7 +135,7 @@ def init_net(path: Path, windows: tuple[int, ...], width: int, dilations: tuple[
 
     Raises ModelError (unreadable file) or ValueError (an ensemble, other windows, dilations, hop or bands, or
     a smaller width or front)."""
-    offline = read_network(path).offline
+    offline = load_model(path).offline
     if offline.members:
         raise ValueError(f"an ensemble of {len(offline.networks)} networks; give one of its members' files")
     net = from_export(offline)
@@ -159,13 +159,6 @@ def init_net(path: Path, windows: tuple[int, ...], width: int, dilations: tuple[
     if net.bands != bands:
         raise ValueError(f"its network reads {net.bands}, not {bands} (give --bands to match)")
     return net
-
-
-def read_network(path: Path) -> Model:
-    """The model file ``path`` whose offline network is to be fitted further, retuned or averaged; raises
-    ModelError if it cannot be read (:func:`load_model` also refuses weights that are not all finite: a file from
-    a fitting that diverged, which fitting further or retuning would only copy)."""
-    return load_model(path)
 
 
 def analysis_mismatch(net: FrameNet, bands: F.Bands, hop: int, rendered: tuple[int, ...]) -> str | None:
@@ -288,9 +281,9 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     models: list[tuple[str, Path, Callable[[Path], object]]] = [("--live-from", args.live_from, load_live)]
-    models += [(option, path, read_network) for option, path in
+    models += [(option, path, load_model) for option, path in  # also refuses NaN weights
                [("--retune", args.retune), ("--init", args.init)] if path is not None]
-    models += [("--ensemble", p, read_network) for p in args.ensemble or []]
+    models += [("--ensemble", p, load_model) for p in args.ensemble or []]
     if not check_files(args, models) or not kits_installed():
         return 1
     try:
