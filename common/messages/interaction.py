@@ -303,6 +303,8 @@ class InteractionStats(OscMessage):
     dropped_contacts: Count = Field(default=0, description="contacts of a new striker refused: too many tracked")
     clock_resets: Count = Field(default=0, description="times the physics clock went back (physics restarted) "
                                 "and segmentation started again")
+    duplicate_contacts: Count = Field(default=0, description="contact datagrams received twice (dropped, so "
+                                      "their impulse is not counted twice)")
 
 
 @register

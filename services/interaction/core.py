@@ -477,6 +477,7 @@ class InteractionCore:
             out_of_order=det.out_of_order,
             dropped_contacts=det.dropped,
             clock_resets=det.clock_resets,
+            duplicate_contacts=det.duplicates,
         )
 
     def instrument_stats(self) -> list[InstrumentStats]:

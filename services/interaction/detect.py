@@ -35,7 +35,10 @@ tip and shaft, share one track: :meth:`Segmenter.striker_of`):
   press is a **dead** stroke: its figures are final when the press begins.
 
 Bad streams: a step of a contact already over, delivered late or twice, is
-dropped (``out_of_order``); a contact more than ``CLOCK_JUMP_S`` older than
+dropped (``out_of_order``); a contact datagram delivered twice (UDP may
+duplicate) is dropped (``duplicates``): it is told from another contact point
+of the same step by its content, which two points never share (their
+positions differ), so its impulse is not added twice; a contact more than ``CLOCK_JUMP_S`` older than
 the newest is a physics clock that went back (a restarted physics node):
 every contact ends and segmentation starts again (``clock_resets``). At most
 ``MAX_TRACKS`` tracks are kept (``dropped`` counts contacts refused for room).
@@ -46,7 +49,7 @@ Deterministic; no clock but the times given.
 from __future__ import annotations
 
 import math
-from collections import Counter
+from collections import Counter, deque
 from dataclasses import dataclass, field, replace
 from typing import Annotated, Literal
 
@@ -58,6 +61,9 @@ from services.interaction.features import PLAYABLE_KINDS, ZoneConfig, polar, zon
 
 SEQ_LIMIT = 2**31
 """Sequence numbers wrap here (they travel as OSC int32)."""
+RECENT_CONTACTS = 64
+"""Contacts remembered per track to drop repeated datagrams: PyBullet reports at most 4 points per pair and
+step, so this covers the last 16 steps at least; a network repeats a datagram within microseconds."""
 
 FLOAT32_MAX = 3.4028234663852886e38
 """Largest value an OSC float32 carries; larger figures cannot be sent, so they are held to it."""
@@ -214,6 +220,7 @@ class DetectionStats:
     reopened: int = 0  # contacts the receiver's clock ended too early, continued by later steps
     rattles: int = 0  # a rattle striker's contacts right after a stroke on its instrument (no impact)
     masked: int = 0  # re-contacts inside a striker's retrigger mask (the stroke's own rebound touch; no impact)
+    duplicates: int = 0  # contact datagrams received twice (dropped: their impulse would count twice)
     impacts: Counter[str] = field(default_factory=Counter)  # by kind
     by_instrument: dict[str, Counter[str]] = field(default_factory=dict)  # instrument -> kind -> count
     dampings: int = 0
@@ -242,6 +249,8 @@ class _Track:
     prev_end: float | None = None
     chain: int = 0
     ended_by_clock: bool = False
+    recent: deque[tuple[object, ...]] = field(default_factory=lambda: deque(maxlen=RECENT_CONTACTS))
+    """Contents of the track's last contacts, to tell a datagram delivered twice from another contact point."""
 
 
 class Segmenter:
@@ -299,6 +308,11 @@ class Segmenter:
         if self._late(track, c):
             self.stats.out_of_order += 1  # a late (or repeated) step of a contact already ended: not a new one
             return events
+        content = _content(c)
+        if content in track.recent:
+            self.stats.duplicates += 1  # the same datagram again (UDP may repeat one), not another contact point
+            return events
+        track.recent.append(content)
         if (not track.active and track.ended_by_clock and track.prev_end is not None
                 and 0.0 <= c.time - track.prev_end <= self.config.retrigger_gap):
             # the receiver's clock ended this contact early (a live physics node catching up delivers its
@@ -547,3 +561,8 @@ class Segmenter:
         seq = self._next_damping_seq
         self._next_damping_seq = (seq + 1) % SEQ_LIMIT
         return seq
+
+
+def _content(c: Contact) -> tuple[object, ...]:
+    """What tells one contact datagram from another: two contact points of a step differ in position."""
+    return (c.step, c.time, c.part, c.x, c.y, c.z, c.impulse, c.normal_force, c.normal_velocity)

@@ -343,3 +343,32 @@ def test_the_node_warns_of_instruments_its_kit_does_not_have(tmp_path: Path,
         make_core(InteractionSettings(interaction_config=str(path), discovery=False), argparse.Namespace())
     warned = " ".join(r.getMessage() for r in caplog.records if r.levelname == "WARNING")
     assert "'snrae'" in warned and "'flortom'" in warned and "'snare'" not in warned
+
+
+def test_a_contact_datagram_delivered_twice_adds_its_impulse_once() -> None:
+    def impulse_of(stream: list[Contact]) -> tuple[float, InteractionStats]:
+        core = one_copy_core()
+        out: list[Outgoing] = []
+        for c in stream:
+            out += core.handle(c, c.time, "physics") + core.step(c.time)
+        for i in range(10, 40):
+            out += core.step(1.0 + i * 0.001)
+        ends = [o.message for o in out if isinstance(o.message, ImpactEnd)]
+        assert len(ends) == 1 and [type(o.message) for o in out].count(Impact) == 1
+        stats = core.handle(StatsGet(), 1.25, "pd")[0].message
+        assert isinstance(stats, InteractionStats)
+        return ends[0].impulse, stats
+
+    # a strike of three steps; its middle step has two contact points (the stick's tip on the head twice)
+    first = contact(1.000, 1000, impulse=0.010)
+    point_a = contact(1.001, 1001, impulse=0.004)
+    point_b = point_a.model_copy(update={"x": 0.003, "impulse": 0.004})  # another point of the same step
+    last = contact(1.002, 1002, impulse=0.002)
+    clean, clean_stats = impulse_of([first, point_a, point_b, last])
+    assert clean == pytest.approx(0.020)  # both points of a step count
+    # the network repeats datagrams: the first step, a point of the middle step, the last one
+    repeated, stats = impulse_of([first, first, point_a, point_b, point_a, last, last])
+    assert repeated == pytest.approx(clean)
+    assert stats.duplicate_contacts == 3 and clean_stats.duplicate_contacts == 0
+    assert stats.out_of_order == 0
+    assert decode(encode(stats)).messages == [stats]
