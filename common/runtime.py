@@ -30,6 +30,7 @@ import gc
 import inspect
 import json
 import logging
+import math
 import signal
 import struct
 import sys
@@ -41,7 +42,17 @@ from typing import Any, Protocol, cast
 from common.clock import OffsetEstimator, RigClock, answer_ping
 from common.config import ENV_PREFIX, NodeSettings, SettingsError, flag_name, load_settings
 from common.core import Core, Outgoing
-from common.messages import PROTOCOL_VERSION, ClockPing, ClockPong, DropReason, Health, Hello, OscMessage, Subscribe
+from common.messages import (
+    PROTOCOL_VERSION,
+    ClockPing,
+    ClockPong,
+    DropReason,
+    Health,
+    Hello,
+    OscMessage,
+    Subscribe,
+    SubscribeRefused,
+)
 from common.peers import Peer, PeerTable
 from common.subscribe import Subscriptions
 from common.transport import UdpEndpoint, parse_address
@@ -93,6 +104,11 @@ class RateLoop:
     a short stall is caught up with back-to-back ticks, a long one or an
     overloaded core gets fewer ticks, never a silently lower rate.
 
+    :meth:`set_rate` changes the rate from the deadline after the next tick on
+    (the grid is re-anchored on that tick's deadline, so nothing drifts or
+    bursts); :meth:`stop` ends :meth:`run` before the next tick, and after a
+    :meth:`set_rate` ``run`` may be awaited again (the counts go on).
+
     Parameters
     ----------
     rate_hz : float
@@ -121,6 +137,10 @@ class RateLoop:
         self.max_catch_up = max(0, max_catch_up)
         self.rate_hz = rate_hz
         self.period = 1.0 / rate_hz
+        self._new_rate: tuple[float, int] | None = None
+        self._stop = False
+        self.running = False
+        """True while :meth:`run` is ticking."""
         self.tick = tick
         self.clock = clock
         self._sleeper = _Sleeper() if sleep_until is None else None
@@ -133,17 +153,45 @@ class RateLoop:
         """deadlines skipped because the loop was a whole period or more behind"""
         self._mark = (0.0, 0)
 
+    def set_rate(self, rate_hz: float, max_catch_up: int | None = None) -> None:
+        """Tick at ``rate_hz`` (Hz, positive and finite) once the next tick has run; cancels a :meth:`stop`."""
+        if not (math.isfinite(rate_hz) and rate_hz > 0):
+            raise ValueError(f"rate_hz must be positive and finite, got {rate_hz!r}")
+        self._new_rate = (rate_hz, self.max_catch_up if max_catch_up is None else max(0, max_catch_up))
+        self._stop = False
+        if not self.running:
+            self._apply_new_rate()
+
+    def stop(self) -> None:
+        """End :meth:`run` before its next tick (an event-driven core: rate 0)."""
+        self._stop = True
+
+    def _apply_new_rate(self) -> None:
+        if self._new_rate is not None:
+            self.rate_hz, self.max_catch_up = self._new_rate
+            self.period = 1.0 / self.rate_hz
+            self._new_rate = None
+
     async def run(self, max_ticks: int | None = None) -> None:
-        """Tick until cancelled (or ``max_ticks`` ticks)."""
+        """Tick until cancelled, stopped (:meth:`stop`) or ``max_ticks`` ticks in all."""
         start = self.clock()
-        self._mark = (start, 0)
+        if self.ticks == 0:
+            self._mark = (start, 0)
         n = 0
+        self.running = True
         try:
             while max_ticks is None or self.ticks < max_ticks:
                 await self.sleep_until(start + n * self.period)
+                if self._stop:
+                    break
                 self.tick()
                 self.ticks += 1
                 n += 1
+                if self._stop:
+                    break
+                if self._new_rate is not None:  # re-anchor on the deadline of the tick just run
+                    start, n = start + (n - 1) * self.period, 1
+                    self._apply_new_rate()
                 end = self.clock()
                 next_deadline = start + n * self.period
                 if end > next_deadline:
@@ -153,6 +201,8 @@ class RateLoop:
                         n += skip
                         self.skipped += skip
         finally:
+            self.running = False
+            self._apply_new_rate()  # a change asked for during the last tick
             if self._sleeper is not None:
                 self._sleeper.close()
 
@@ -206,6 +256,21 @@ def check_interfaces(interfaces: Sequence[str]) -> str:
 
 Setup = Callable[["Node"], Awaitable[None] | None]
 """Called with the node once it listens (may be async)."""
+
+
+def _clip(text: str, length: int) -> str:
+    """``text`` cut to ``length`` characters (an ellipsis at the end when cut)."""
+    return text if len(text) <= length else text[: length - 3] + "..."
+
+
+def _same_number(a: object, b: object) -> bool:
+    """``a == b``, NaN equal to NaN (a core's rate that stays NaN is refused once, not at every step)."""
+    if isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b):
+        return True
+    try:
+        return bool(a == b)
+    except Exception:
+        return False
 
 
 def core_count(core: object, name: str) -> int:
@@ -265,6 +330,8 @@ class Node:
                 core.rate_hz = settings.rate_hz
             except AttributeError:
                 pass
+        self._core_rate_seen: object = getattr(core, "rate_hz", None)
+        """The core's rate_hz when last looked at (:meth:`follow_core_rate`)."""
         self.clock = clock or RigClock(settings.epoch)
         self.peers = PeerTable()
         self.discovery_factory = discovery_factory
@@ -277,6 +344,7 @@ class Node:
         self.estimator = OffsetEstimator(self.node_id)
         self.endpoint: UdpEndpoint | None = None
         self.loop: RateLoop | None = None
+        self._loop_task: asyncio.Task[Any] | None = None
         self.discovery: DiscoveryService | None = None
         self.peer_health: dict[str, tuple[Health, str, float]] = {}
         """Last Health heard from each node id: (message, source, local monotonic time)."""
@@ -330,9 +398,8 @@ class Node:
         self.peers.listeners.append(self._on_peer_change)
         for peer in s.static_peers:
             self.peers.add(peer)
-        if self.rate_hz > 0:
-            self.loop = RateLoop(self.rate_hz, self._step, max_catch_up=int(self.rate_hz * self.max_catch_up_s))
-            self.spawn(self.loop.run(), "rate loop")
+        self.follow_core_rate()
+        self._start_loop()
         self.spawn(self._health_task(), "health")
         if not self.is_clock_master:
             self.spawn(self._clock_task(), "clock")
@@ -495,6 +562,52 @@ class Node:
 
     # ------------------------------------------------------------ stepping and routing
 
+    def follow_core_rate(self) -> None:
+        """Take up a change of ``core.rate_hz`` (a core reconfigured while running): the loop's period from its
+        next tick on, no steps at 0 Hz, steps again above; Health's target rate.
+
+        The node looks after each step and each message handled. A rate given to the node (``--rate-hz``)
+        stays. A value that is no rate (negative, not a finite number) is refused with a log line and the
+        node keeps its rate.
+        """
+        raw = getattr(self.core, "rate_hz", None)
+        seen = self._core_rate_seen
+        if raw is seen or _same_number(raw, seen) or self.settings.rate_hz is not None:
+            return
+        self._core_rate_seen = raw
+        try:
+            rate = float(cast(float, raw))
+        except (TypeError, ValueError):
+            rate = math.nan
+        if not (math.isfinite(rate) and rate >= 0):
+            log.warning("%s core asks for rate_hz %r: not a rate (0 or more Hz); keeping %g Hz", self.role, raw,
+                        self.rate_hz)
+            return
+        if rate != self.rate_hz:
+            self._set_rate(rate)
+
+    def _set_rate(self, rate_hz: float) -> None:
+        log.info("%s core rate %g Hz -> %g Hz", self.role, self.rate_hz, rate_hz)
+        self.rate_hz = rate_hz
+        if self.endpoint is None or self.endpoint.closed:  # not started (start takes the rate) or stopped
+            return
+        if rate_hz == 0:
+            if self.loop is not None:
+                self.loop.stop()
+            return
+        if self.loop is not None:
+            self.loop.set_rate(rate_hz, int(rate_hz * self.max_catch_up_s))
+        self._start_loop()
+
+    def _start_loop(self) -> None:
+        """Step the core at ``rate_hz`` unless the loop already runs (or the rate is 0: event-driven)."""
+        if not self.rate_hz > 0 or (self._loop_task is not None and not self._loop_task.done()):
+            return
+        if self.loop is None:
+            self.loop = RateLoop(self.rate_hz, self._step, max_catch_up=int(self.rate_hz * self.max_catch_up_s))
+        self._tasks = [t for t in self._tasks if not t.done()]  # an earlier run of the loop, ended at 0 Hz
+        self._loop_task = self.spawn(self.loop.run(), "rate loop")
+
     def start_core(self, reason: str = "") -> None:
         """Let the core run: hand it the messages held while waiting for the clock."""
         if self.core_started:
@@ -509,6 +622,7 @@ class Node:
             except Exception as exc:
                 assert self.endpoint is not None
                 self.endpoint.stats.record_drop(DropReason.HANDLER_ERROR, f"{type(exc).__name__}: {exc}", source)
+        self.follow_core_rate()
 
     async def _core_start_timer(self) -> None:
         await asyncio.sleep(self.clock_wait_s)
@@ -525,8 +639,9 @@ class Node:
         except Exception as exc:
             self.step_errors += 1
             self._log_error("core step failed: %s: %s", type(exc).__name__, exc)
-            return
+            outgoing = []
         self.route(outgoing)
+        self.follow_core_rate()
 
     def route(self, outgoing: Sequence[Outgoing], reply_to: str = "") -> None:
         """Send a core's messages: to a role, ``host:port``, or ``"reply"`` (``reply_to``)."""
@@ -567,8 +682,10 @@ class Node:
         if not self.core_started:
             self._held.append((message, source))
             return
-        # an exception here is counted by the endpoint as a handler error
-        self.route(self.core.handle(message, self.clock.now(), source), reply_to=source)
+        try:  # an exception here is counted by the endpoint as a handler error
+            self.route(self.core.handle(message, self.clock.now(), source), reply_to=source)
+        finally:
+            self.follow_core_rate()
 
     def _send_copy(self, data: bytes, to: tuple[str, int]) -> None:
         if self.endpoint is not None and not self.endpoint.closed:
@@ -586,11 +703,14 @@ class Node:
             to = parse_address(source)
         except ValueError:
             return
-        if self.subscriptions.subscribe(to, message.pattern, message.duration_s):
+        refusal = self.subscriptions.request(to, message.pattern, message.duration_s)
+        if not refusal:
             log.info("forwarding %s to %s for %g s", message.pattern, source, message.duration_s)
-        else:
-            self._log_error("subscription of %s to %s refused (%d active, pattern checked)", source,
-                            message.pattern, len(self.subscriptions.active))
+            return
+        self._log_error("subscription of %s to %s refused: %s", source, message.pattern, refusal)
+        if self.subscriptions.may_reply(to) and self.endpoint is not None:  # the subscriber learns why it gets nothing
+            reply = SubscribeRefused(node_id=self.node_id, pattern=message.pattern, reason=_clip(refusal, 512))
+            self.endpoint.send(reply, source)
 
     def _on_pong(self, pong: ClockPong) -> None:
         sample = self.estimator.add_pong(pong, self.clock.local_now())
@@ -661,6 +781,7 @@ class Node:
         while True:
             await asyncio.sleep(self.health_interval_s)
             assert self.endpoint is not None
+            self.follow_core_rate()  # a core that changed its rate outside step and handle
             self._achieved_rate = self.loop.achieved_rate() if self.loop is not None else 0.0
             health = self.health()
             sent: set[tuple[str, int]] = set()

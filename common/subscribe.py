@@ -5,7 +5,10 @@ copy of every message whose address matches the OSC address pattern to the subsc
 address (the source of the Subscribe) until the duration has passed. Renewing (same source,
 same pattern) extends it. The table is bounded (``max_subscribers``) and each subscriber's
 copies are rate limited (``max_rate`` messages per second), so a Subscribe cannot turn a node
-into a traffic amplifier; refusals and dropped copies are counted.
+into a traffic amplifier; refusals and dropped copies are counted. A refused Subscribe is
+answered (:class:`~common.messages.SubscribeRefused`, sent by the node) at most once a second
+per source and ``MAX_REFUSAL_REPLY_RATE`` times a second in all, so a flood of bad Subscribes
+(from spoofed sources too) makes no flood of replies; the replies held back are counted.
 
 OSC 1.0 address patterns: ``?`` one character, ``*`` any run of characters (never ``/``),
 ``[abc]``, ``[a-z]``, ``[!abc]`` one character of (or not of) a set, ``{foo,bar}`` one of
@@ -23,6 +26,10 @@ MAX_SUBSCRIBERS = 16
 """Subscriptions a node keeps at once; further Subscribe requests are refused until one expires."""
 MAX_COPY_RATE = 5000.0
 """Copies per second one subscription may receive; more are dropped and counted."""
+REFUSAL_REPLY_INTERVAL_S = 1.0
+"""Seconds between two answers to the refused Subscribes of one source; the ones between are not answered."""
+MAX_REFUSAL_REPLY_RATE = 20.0
+"""Answers to refused Subscribes per second, all sources together (burst of as many)."""
 
 
 class PatternError(ValueError):
@@ -144,25 +151,54 @@ class Subscriptions:
         """Copies not sent because a subscriber was over its rate."""
         self.forwarded = 0
         """Copies sent."""
+        self.replies = 0
+        """Refused Subscribes answered."""
+        self.replies_suppressed = 0
+        """Refused Subscribes not answered (their source was answered less than a second ago, or too many)."""
+        self._replied: dict[tuple[str, int], float] = {}
+        self._reply_tokens = MAX_REFUSAL_REPLY_RATE
+        self._reply_stamp = clock()
 
     def subscribe(self, to: tuple[str, int], pattern: str, duration_s: float) -> bool:
         """Add or renew a subscription; False if refused (bad pattern or table full)."""
+        return not self.request(to, pattern, duration_s)
+
+    def request(self, to: tuple[str, int], pattern: str, duration_s: float) -> str:
+        """Add or renew a subscription: "" when done, else why it was refused (bad pattern, table full)."""
         try:
             pattern_regex(pattern)
-        except PatternError:
+        except PatternError as exc:
             self.refused += 1
-            return False
+            return f"bad pattern {exc}"
         now = self.clock()
         self.expire(now)
         key = (to, pattern)
         known = self.active.get(key)
         if known is not None:
             known.expires = now + duration_s
-            return True
+            return ""
         if len(self.active) >= self.max_subscribers:
             self.refused += 1
-            return False
+            return f"table full ({self.max_subscribers} subscriptions)"
         self.active[key] = Subscription(to, pattern, now + duration_s, tokens=self.max_rate, stamp=now)
+        return ""
+
+    def may_reply(self, to: tuple[str, int]) -> bool:
+        """Whether a refusal may be answered to ``to`` now (counted either way): once a second per source, and
+        ``MAX_REFUSAL_REPLY_RATE`` a second in all."""
+        now = self.clock()
+        last = self._replied.get(to)
+        rate = MAX_REFUSAL_REPLY_RATE
+        self._reply_tokens = min(rate, self._reply_tokens + max(0.0, now - self._reply_stamp) * rate)
+        self._reply_stamp = now
+        if (last is not None and now - last < REFUSAL_REPLY_INTERVAL_S) or self._reply_tokens < 1.0:
+            self.replies_suppressed += 1
+            return False
+        self._reply_tokens -= 1.0
+        if len(self._replied) >= 2 * rate:  # forget sources answered over a second ago: the total rate bounds the rest
+            self._replied = {k: t for k, t in self._replied.items() if now - t < REFUSAL_REPLY_INTERVAL_S}
+        self._replied[to] = now
+        self.replies += 1
         return True
 
     def expire(self, now: float | None = None) -> None:

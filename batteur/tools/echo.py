@@ -2,8 +2,9 @@
 
 Each node found (zeroconf, or ``--node HOST:PORT``) is sent a ``Subscribe``
 and copies every matching message it sends or receives to this tool, which
-renews the subscription while it runs. Stops on Ctrl-C, after ``--count``
-messages or after ``--duration`` seconds.
+renews the subscription while it runs. A node that refuses it (table full, bad
+pattern) answers ``SubscribeRefused``: echo says so once per node. Stops on
+Ctrl-C, after ``--count`` messages or after ``--duration`` seconds.
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ from batteur.tools.nodes import (
     write_line,
 )
 from common.arg_types import count, seconds
-from common.messages import OscMessage, Subscribe
+from common.messages import OscMessage, Subscribe, SubscribeRefused
 from common.subscribe import matches, pattern_regex
 from common.transport import UdpEndpoint
 
@@ -39,7 +40,8 @@ DESCRIPTION = """\
 Print the OSC messages whose address matches PATTERN, as the nodes send or receive them.
 Each node found by zeroconf (or given with --node) is asked to copy matching messages
 to this command (a Subscribe, renewed every 5 s). One line per message:
-the address, then the arguments (strings quoted).
+the address, then the arguments (strings quoted). A node that refuses the subscription
+(its table full, say) is named once on standard error, with its reason.
 
 Patterns (OSC 1.0): ? one character, * any run of characters but '/', [abc] [a-z] [!abc]
 one character of (or not of) a set, {foo,bar} one of several strings, // any number of levels.
@@ -60,6 +62,24 @@ def check_pattern(pattern: str) -> Subscribe:
     """The Subscribe for ``pattern``; ValueError saying what is wrong with it (a node would refuse it silently)."""
     pattern_regex(pattern)  # PatternError (a ValueError): unbalanced [ or {, no leading /
     return Subscribe(pattern=pattern, duration_s=RENEW_S * 2)  # ValidationError: too long
+
+
+class Refusals:
+    """The nodes that refused our subscription: each is named once (it refuses every renewal)."""
+
+    def __init__(self, pattern: str, targets: Sequence[Target]) -> None:
+        self.pattern = pattern
+        self.targets = {t.socket_address: t for t in targets if t.ip}
+        self.told: set[str] = set()
+
+    def line(self, message: OscMessage, source: str) -> str | None:
+        """What to say about ``message`` from ``source`` if it is a node's first refusal of our pattern, else None."""
+        if not isinstance(message, SubscribeRefused) or message.pattern != self.pattern or source in self.told:
+            return None
+        self.told.add(source)
+        target = self.targets.get(source)
+        where = target.address if target is not None else source
+        return f"batteur echo: node {message.node_id} at {where} refused {message.pattern}: {message.reason}"
 
 
 async def _probe(targets: Sequence[Target]) -> list[Target]:
@@ -92,9 +112,13 @@ async def _run(opts: argparse.Namespace, subscribe: Subscribe) -> int:
     stop = asyncio.Event()
     printed = 0
     outcome: list[int] = []  # set by what stopped us: Ctrl-C, or the reader of our output going away
+    refusals = Refusals(subscribe.pattern, reachable)
 
     def on_message(message: OscMessage, source: str) -> None:
         nonlocal printed
+        refused = refusals.line(message, source)
+        if refused is not None:
+            print(refused, file=sys.stderr)
         if stop.is_set() or not matches(opts.pattern, message.ADDRESS):
             return
         try:

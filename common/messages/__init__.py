@@ -29,7 +29,15 @@ from common.messages.codec import Decoded, RawMessage, decode, encode, encode_bu
 from common.messages.events import Contact, Impact
 from common.messages.registry import REGISTRY, MessageRegistry, register
 from common.messages.state import Pose, Skeleton
-from common.messages.system import PROTOCOL_VERSION, ClockPing, ClockPong, Health, Hello, Subscribe
+from common.messages.system import (
+    PROTOCOL_VERSION,
+    ClockPing,
+    ClockPong,
+    Health,
+    Hello,
+    Subscribe,
+    SubscribeRefused,
+)
 
 __all__ = [
     "Arg",
@@ -49,6 +57,7 @@ __all__ = [
     "Pose",
     "Skeleton",
     "Subscribe",
+    "SubscribeRefused",
     "REGISTRY",
     "RawMessage",
     "RigTime",

@@ -97,3 +97,19 @@ class Subscribe(OscMessage):
 
     pattern: str = Field(min_length=1, max_length=256, pattern=r"^/", description="OSC address pattern")
     duration_s: float = Field(gt=0, le=3600, description="how long to forward, seconds")
+
+
+@register
+class SubscribeRefused(OscMessage):
+    """A node did not take a Subscribe, and why (sent back to the subscriber, at most once a second each).
+
+    A node refuses when its subscription table is full or the pattern is not a valid OSC
+    address pattern; ``batteur echo`` prints the reason once per node.
+    """
+
+    ADDRESS = "/batteur/subscribe/refused"
+    FAMILY = Family.HEALTH
+
+    node_id: NodeId = Field(description="id of the node that refused")
+    pattern: str = Field(min_length=1, max_length=256, pattern=r"^/", description="the pattern it was asked for")
+    reason: str = Field(max_length=512, description="why, e.g. 'table full (16 subscriptions)' or 'bad pattern ...'")
