@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from collections.abc import Callable
+from dataclasses import dataclass
 
 from common.core import Core, Outgoing
 from common.messages import OscMessage, decode, encode
@@ -102,14 +103,13 @@ class OfflineRunner:
         self.bus = MemoryBus(registry)
         self.cores = cores
         self._endpoints: dict[str, MemoryEndpoint] = {}
-        self._steps_done: dict[str, int] = {}
+        self._schedules: dict[str, _Schedule] = {}
         self.now = start_s
         for core in cores:
             ep = self.bus.endpoint(core.ROLE)
             self._endpoints[core.ROLE] = ep
             ep.set_handler(self._make_handler(core, ep))
-            if core.rate_hz > 0:
-                self._steps_done[core.ROLE] = math.ceil(start_s * core.rate_hz - 1e-9)
+            self._schedules[core.ROLE] = _Schedule.starting(core.rate_hz, start_s)
 
     def _make_handler(self, core: Core, ep: MemoryEndpoint) -> Handler:
         def handle(message: OscMessage, source: str) -> None:
@@ -123,25 +123,60 @@ class OfflineRunner:
 
     def run_until(self, t_end: float, on_progress: Callable[[float], None] | None = None) -> None:
         """Advance every stepped core until rig time ``t_end`` (seconds)."""
-        stepped = [c for c in self.cores if c.rate_hz > 0]
-        if not stepped:
-            self.now = t_end
-            return
-        by_role = {c.ROLE: c for c in stepped}
+        by_role = {c.ROLE: c for c in self.cores}
+        schedules = self._schedules
         while True:
-            # step counts, not accumulated periods, so long runs do not drift
-            role, due = min(
-                ((r, n / by_role[r].rate_hz) for r, n in self._steps_done.items()),
-                key=lambda kv: (kv[1], kv[0]),
-            )
-            if due > t_end:
+            next_step: tuple[float, str] | None = None
+            for role, core in by_role.items():
+                sched = schedules[role]
+                if core.rate_hz != sched.rate_hz:  # changed in a step or a handle: follow it from now
+                    sched = schedules[role] = sched.following(core.rate_hz, self.now)
+                if sched.rate_hz > 0 and (next_step is None or (sched.due(), role) < next_step):
+                    next_step = (sched.due(), role)
+            if next_step is None or next_step[0] > t_end:
                 break
+            due, role = next_step
             self.now = due
             self._send_all(self._endpoints[role], by_role[role].step(due))
-            self._steps_done[role] += 1
+            self._schedules[role].steps += 1
             if on_progress is not None:
                 on_progress(due)
         self.now = t_end
 
     def stats(self, role: str) -> TrafficStats:
         return self._endpoints[role].stats
+
+
+@dataclass
+class _Schedule:
+    """When a core's next step is due: step ``steps`` at ``origin_s + (steps - origin_steps) / rate_hz`` seconds.
+
+    Times come from step counts, not accumulated periods, so long runs do not drift; a rate change starts a
+    new origin at the time it was seen, the next step one new period later: times never go back.
+    """
+
+    rate_hz: float
+    steps: int
+    origin_s: float = 0.0
+    origin_steps: int = 0
+
+    @classmethod
+    def starting(cls, rate_hz: float, start_s: float) -> _Schedule:
+        """The first step at or after ``start_s`` seconds (none for an event-driven core, rate 0)."""
+        rate = _usable_rate(rate_hz)
+        return cls(rate, math.ceil(start_s * rate - 1e-9) if rate > 0 else 0)
+
+    def due(self) -> float:
+        return self.origin_s + (self.steps - self.origin_steps) / self.rate_hz
+
+    def following(self, rate_hz: float, now_s: float) -> _Schedule:
+        """This schedule, or a new one from ``now_s`` seconds when the core's rate is no longer ``rate_hz``."""
+        rate = _usable_rate(rate_hz)
+        if rate == self.rate_hz:
+            return self
+        return _Schedule(rate, 1, origin_s=now_s) if rate > 0 else _Schedule(0.0, 0)
+
+
+def _usable_rate(rate_hz: float) -> float:
+    """A core's rate as the runner steps it (Hz): 0 (event-driven) for 0, negative or non-finite rates."""
+    return float(rate_hz) if math.isfinite(rate_hz) and rate_hz > 0 else 0.0

@@ -77,3 +77,43 @@ def test_bus_drops_bad_messages_with_their_reason() -> None:
     assert len(got) == 1
     assert a.stats.dropped[DropReason.WRONG_ARITY] == 1
     assert a.stats.dropped[DropReason.UNKNOWN_ADDRESS] == 1
+
+
+class Retuner(Ticker):
+    """A ticker whose rate changes at given times, as interaction's does when its redundancy is set."""
+
+    def __init__(self, rate_hz: float, changes: dict[float, float]) -> None:
+        super().__init__(rate_hz)
+        self.changes = changes
+
+    def step(self, now: float) -> list[Outgoing]:
+        out = super().step(now)
+        for at, rate in self.changes.items():
+            if abs(now - at) < 1e-9:
+                self.rate_hz = rate
+        return out
+
+
+def test_runner_follows_a_core_that_changes_its_rate() -> None:
+    # 100 Hz, then 50 Hz from its step at 0.1 s, event-driven (0 Hz) from 0.2 s, then back to stepping at 200 Hz
+    # (a message handled at 0.3 s), and a bad rate (NaN) from 0.4 s: it stops stepping, nothing raises
+    retuner = Retuner(100.0, {0.1: 50.0, 0.2: 0.0, 0.4: float("nan")})
+    waker = Ticker(10.0)
+    waker.ROLE = "waker"  # type: ignore[misc]
+
+    class Waking(Listener):
+        def handle(self, message: OscMessage, now: float, source: str) -> list[Outgoing]:
+            if source == "waker" and abs(now - 0.3) < 1e-9:
+                retuner.rate_hz = 200.0
+            return []
+
+    waking = Waking()
+    retuner.ROLE = "ticker"  # type: ignore[misc]
+    runner = OfflineRunner([retuner, waker, waking])
+    runner.run_until(0.5)
+    steps = retuner.steps
+    assert steps == sorted(steps) and len(set(steps)) == len(steps)  # time never goes back nor repeats
+    assert steps[:11] == [k / 100 for k in range(11)]  # bit-exact step counts before any change
+    assert [round(t, 9) for t in steps[11:]] == [0.12, 0.14, 0.16, 0.18, 0.2] + [
+        round(0.3 + k / 200, 9) for k in range(1, 21)]
+    assert len(waker.steps) == 6 and runner.now == 0.5
