@@ -53,6 +53,7 @@ from common.messages.physics import (
     PhysicsReset,
     PhysicsStrike,
 )
+from common.score.events import MAX_SCORE_NOTES
 from services.physics.contacts import ContactTracker
 from services.physics.posture import apply_posture
 from services.physics.score_player import SCORE_MESSAGES, ScorePlayer
@@ -67,6 +68,12 @@ log = logging.getLogger("batteur.physics")
 
 DRUMMER_MESSAGES = (CartesianTarget, JointTarget, PhysicsControlMode, PhysicsGains, PhysicsGrip, PhysicsIk)
 """Messages only the drummer scene acts on: the strike scene rejects them (counted) rather than drop them unseen."""
+MAX_PENDING_STRIKES = MAX_SCORE_NOTES
+"""Strike scene: most strikes scheduled and not yet thrown (a score's most notes, 500,000): a
+/batteur/physics/strike past it is refused (TargetError, counted), the schedule kept."""
+PLAN_LEAD_IN_KNOTS = 2
+"""Knots :meth:`PhysicsCore.load_plan` keeps room for ahead of a limb's plan: the drummer's lead-in (where the limb
+is now, and a hand's arc apex)."""
 REJECT_LOG_INTERVAL_S = 1.0
 """Rejections of one message kind are logged at most once per this many seconds of rig time (the rest are counted
 and summed into the next warning), so a stream of bad targets cannot flood the log."""
@@ -151,8 +158,8 @@ class PhysicsCore:
         if s.scene == "strike":
             strike_scene = StrikeScene(self.world, kit_model, event=s.strike_event, period_s=s.strike_period_s,
                                        period_velocity=s.strike_velocity)
-            strike_scene.schedule([Strike(float(t), float(v)) for t, v in strikes])
             self.scene = strike_scene
+            self.schedule_strikes(list(strikes))
         else:
             from services.physics.drummer import DrummerScene
 
@@ -251,7 +258,7 @@ class PhysicsCore:
                 raise TargetError("/batteur/physics/strike needs the strike scene")
             if message.time < self.time + self.world.dt:
                 raise TargetError(f"strike at {message.time:.4f} s is in the past (now {self.time:.4f} s)")
-            self.scene.schedule([Strike(message.time, message.velocity)])
+            self.schedule_strikes([(message.time, message.velocity)])
             return []
         if isinstance(message, SCORE_MESSAGES):  # score player (its errors are ValueErrors: rejected and logged)
             self.score_player.handle(message, now)
@@ -284,20 +291,34 @@ class PhysicsCore:
         return Skeleton(layout=self.layout, names=tuple(self.names))
 
     def schedule_strikes(self, strikes: Sequence[tuple[float, float]]) -> None:
-        """Strike scene: add (time s, velocity m/s) strikes."""
+        """Strike scene: add (time s, velocity m/s) strikes; :class:`TargetError` (none added) past
+        :data:`MAX_PENDING_STRIKES` pending."""
         if not isinstance(self.scene, StrikeScene):
             raise TargetError("strikes need the strike scene")
-        self.scene.schedule([Strike(float(t), float(v)) for t, v in strikes])
+        batch = [Strike(float(t), float(v)) for t, v in strikes]
+        pending = len(self.scene.pending)
+        if pending + len(batch) > MAX_PENDING_STRIKES:
+            raise TargetError(f"strike schedule full: {pending} strikes pending and {len(batch)} more would pass the "
+                              f"limit of {MAX_PENDING_STRIKES} (MAX_PENDING_STRIKES); refused, the schedule is kept")
+        self.scene.schedule(batch)
 
     def load_plan(self, plan: GesturePlan, start_at: float | None = None) -> None:
         """Drummer scene: track a gesture plan; its ``start_time`` maps to rig time ``start_at`` (default: now).
 
-        Raises :class:`TargetError` for a plan the drummer cannot follow (unknown limb, unreachable knot).
+        Raises :class:`TargetError` for a plan the drummer cannot follow (unknown limb, unreachable knot, more
+        knots than a track holds with the lead-in: ``max_knots`` of the track, :data:`PLAN_LEAD_IN_KNOTS`); the
+        queued targets are kept then.
         """
         from services.physics.drummer import DrummerScene
 
         if not isinstance(self.scene, DrummerScene):
             raise TargetError("gesture plans need the drummer scene")
+        for limb, traj in plan.trajectories.items():  # checked here: the scene clears a limb's track to queue its plan
+            track = self.scene.limb_tracks.get(str(getattr(limb, "value", limb)))
+            if track is not None and len(traj.times) + PLAN_LEAD_IN_KNOTS > track.max_knots:
+                raise TargetError(f"plan has {len(traj.times)} {getattr(limb, 'value', limb)} knots; with the "
+                                  f"{PLAN_LEAD_IN_KNOTS} lead-in knots that passes the limit of {track.max_knots} "
+                                  "knots per track (MAX_TRACK_KNOTS); refused, the queued targets are kept")
         self.scene.load_plan(plan, self.time if start_at is None else start_at, now=self.time)
 
     def pose(self) -> Pose:

@@ -42,6 +42,8 @@ def apply_posture(core: PhysicsCore, message: PhysicsPosture) -> None:
     else:
         here = scene.body.state()[0]
     zeros = np.zeros(N_DOF)
+    # both knots or neither: a glide cut in half at a full queue would hold the body where it is
+    scene.joint_track.check_room(start, 2 if message.duration > 0 else 1)
     scene.add_joints(start, np.concatenate([clamp(np.asarray(here, dtype=float)), zeros]), now)
     if message.duration > 0:
         scene.add_joints(start + message.duration, np.concatenate([clamp(q), zeros]), now)

@@ -41,7 +41,9 @@ with the track at ``t_s`` (a re-plan that only adds later notes) the plan
 continues at once; where it does not, its knots in the next :data:`BLEND_S`
 are dropped so that the cubic Hermite segment blends into it; a plan that
 starts after ``t_s`` is joined from the track's state (braked to a stop first
-when there is room). Nothing is queued if a knot is out of a limb's reach.
+when there is room). Nothing is queued (no limb changes) if a knot is out of a
+limb's reach or a limb's track would pass its bound (``Track.max_knots``); a
+live note is refused past :data:`MAX_PERFORMANCE_NOTES` notes.
 
 Deterministic: no wall clock, no threads; times are the rig times the core
 passes in. Planning a score takes about 0.4 ms per note on this machine, in
@@ -59,11 +61,11 @@ from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
-from common.gesture.plan import GesturePlan, Grip, Nuance, hermite
+from common.gesture.plan import GesturePlan, Grip, LimbTrajectory, Nuance, hermite
 from common.kit import EventType, Limb
 from common.messages import OscMessage
 from common.messages.score import GestureStyle, KitSelect, LiveNote, ScoreLoad, ScoreTransport, TempoScale
-from common.score.events import DrumEvent, Score, ScoreError
+from common.score.events import MAX_SCORE_NOTES, DrumEvent, Score, ScoreError
 from common.score.hands import HandAlgorithm, Sticking
 from common.score.limbs import HANDS
 from common.score.live import LiveNotes
@@ -102,6 +104,12 @@ AGREE_M_S = 0.02
 within ``AGREE_M_S`` m/s."""
 POSITION_TOLERANCE_S = 1e-3
 """A note this close before a ``play`` position still plays (OSC floats are 32-bit: 1.2 arrives as 1.2000000477)."""
+MAX_PERFORMANCE_NOTES = MAX_SCORE_NOTES
+"""Most notes a performance holds from the re-planning context on (as many as a score may have, 500,000): a live note
+past it is refused (each live note is planned with every later one, so a sender streaming notes far ahead would
+grow the list and the planning without end)."""
+UNKNOWN_PITCHES_KEPT = 100
+"""Live notes of unknown pitch are counted; only the latest this many are kept (``live.unknown``)."""
 
 
 class ScorePlayerError(ValueError):
@@ -120,7 +128,8 @@ def splice_plan(scene: DrummerScene, plan: GesturePlan, t_s: float, limbs: set[L
     """Replace the drummer's tracks with ``plan`` from rig time ``t_s`` on, without a jump (module docstring).
 
     ``plan`` times are rig seconds. ``limbs``: only these limbs (default: every limb of the plan).
-    Raises :class:`TargetError` (nothing queued) when a knot after ``t_s`` is out of a limb's reach.
+    Raises :class:`TargetError` (nothing queued, no track changed) when a knot after ``t_s`` is out of a limb's
+    reach or a limb's track would hold more knots than its bound (``Track.max_knots``).
     """
     chosen = [(limb, traj) for limb, traj in plan.trajectories.items() if limbs is None or limb in limbs]
     for limb, traj in chosen:
@@ -137,7 +146,8 @@ def splice_plan(scene: DrummerScene, plan: GesturePlan, t_s: float, limbs: set[L
         if stroke.time > t_s and stroke.limb not in first_stroke:
             first_stroke[stroke.limb] = stroke.time
     here: dict[str, np.ndarray] | None = None
-    for limb, traj in chosen:
+    splices: list[_Splice] = []
+    for limb, traj in chosen:  # every limb's splice worked out and checked before any track changes
         track = scene.limb_tracks[limb.value]
         if len(track):
             p0, v0 = (np.array(a, dtype=float) for a in track.sample(t_s))
@@ -145,34 +155,60 @@ def splice_plan(scene: DrummerScene, plan: GesturePlan, t_s: float, limbs: set[L
             if here is None:
                 here = scene.current_targets()
             p0, v0 = here[limb.value].copy(), np.zeros(3)
-        times, pos, vel = traj.times, traj.positions, traj.velocities
-        bridge: list[tuple[float, np.ndarray]] = []
-        if times[0] > t_s + 1e-6:  # the plan starts later: join its first knot, braking first when there is room
-            keep = np.ones(len(times), dtype=bool)
-            cut = t_s
-            if times[0] - t_s > 2 * brake_s and float(np.linalg.norm(v0)) > 1e-6:
-                bridge.append((t_s + brake_s, _brake_point(p0, v0, brake_s, 0.0)))
-        else:
-            p1, v1 = hermite(times, pos, vel, np.array([t_s]))
-            agree = float(np.max(np.abs(p1[0] - p0))) <= AGREE_M and float(np.max(np.abs(v1[0] - v0))) <= AGREE_M_S
-            if agree:
-                cut = t_s + 1e-4
-            else:
-                room = first_stroke.get(limb, math.inf) - t_s
-                cut = t_s + min(blend_s, 0.5 * room)
-            keep = times > cut
-        track.add(t_s, p0, v0)  # cuts the track's knots at and after t_s
-        for t, p in bridge:
+        splice = _splice(traj, t_s, p0, v0, first_stroke.get(limb, math.inf) - t_s, blend_s, brake_s)
+        track.check_room(t_s, 1 + len(splice.bridge) + int(np.count_nonzero(splice.keep)))
+        splices.append(splice)
+    for (limb, traj), splice in zip(chosen, splices, strict=True):
+        track = scene.limb_tracks[limb.value]
+        track.add(t_s, splice.p0, splice.v0)  # cuts the track's knots at and after t_s
+        for t, p in splice.bridge:
             track.add(t, p, np.zeros(3))
+        keep = splice.keep
         if np.any(keep):
-            _append(track, times[keep], pos[keep], vel[keep])
-            track.add_strokes(plan.strokes_of(limb), 0.0, after=cut)
+            _append(track, traj.times[keep], traj.positions[keep], traj.velocities[keep])
+            track.add_strokes(plan.strokes_of(limb), 0.0, after=splice.cut)
     if plan.head is not None:
         scene.head = (plan.head, 0.0)
 
 
+@dataclasses.dataclass(frozen=True)
+class _Splice:
+    """How one limb's trajectory joins its track at the splice time (see :func:`splice_plan`)."""
+
+    p0: np.ndarray
+    """The track's position (3,) m at the splice, the first knot queued."""
+    v0: np.ndarray
+    """... and its velocity (3,) m/s."""
+    bridge: list[tuple[float, np.ndarray]]
+    """Knots (rig time s, position m, at rest) between the splice and the plan: a brake before a later start."""
+    keep: np.ndarray
+    """Which of the trajectory's knots are queued, (N,) bool."""
+    cut: float
+    """Rig time (s) after which the plan's knots and strokes are queued."""
+
+
+def _splice(traj: LimbTrajectory, t_s: float, p0: np.ndarray, v0: np.ndarray, room: float, blend_s: float,
+            brake_s: float) -> _Splice:
+    """One limb's splice at rig time ``t_s`` from the track state ``p0``, ``v0``; ``room``: seconds from ``t_s``
+    to the limb's first stroke after it."""
+    times, pos, vel = traj.times, traj.positions, traj.velocities
+    bridge: list[tuple[float, np.ndarray]] = []
+    if times[0] > t_s + 1e-6:  # the plan starts later: join its first knot, braking first when there is room
+        keep = np.ones(len(times), dtype=bool)
+        cut = t_s
+        if times[0] - t_s > 2 * brake_s and float(np.linalg.norm(v0)) > 1e-6:
+            bridge.append((t_s + brake_s, _brake_point(p0, v0, brake_s, 0.0)))
+    else:
+        p1, v1 = hermite(times, pos, vel, np.array([t_s]))
+        agree = float(np.max(np.abs(p1[0] - p0))) <= AGREE_M and float(np.max(np.abs(v1[0] - v0))) <= AGREE_M_S
+        cut = t_s + 1e-4 if agree else t_s + min(blend_s, 0.5 * room)
+        keep = times > cut
+    return _Splice(p0, v0, bridge, keep, cut)
+
+
 def _append(track: Track, times: np.ndarray, values: np.ndarray, velocities: np.ndarray) -> None:
-    """``Track.extend`` for a plan's knots in one go (checked once: finite, increasing, after the track's end)."""
+    """``Track.extend`` for a plan's knots in one go (checked once: finite, increasing, after the track's end; the
+    caller has checked the track's room, ``Track.check_room``)."""
     if not (np.all(np.isfinite(times)) and np.all(np.isfinite(values)) and np.all(np.isfinite(velocities))):
         raise TargetError("plan knots must be finite")
     if np.any(np.diff(times) <= 0) or times[0] <= track.end_time:
@@ -180,6 +216,14 @@ def _append(track: Track, times: np.ndarray, values: np.ndarray, velocities: np.
     track.times.extend(float(t) for t in times)
     track.values.extend(np.array(values, dtype=float))
     track.velocities.extend(np.array(velocities, dtype=float))
+
+
+def _check_room(scene: DrummerScene, t_s: float, count: int) -> None:
+    """Raise :class:`TargetError` (before any track changes) if a limb's track with knots has no room for ``count``
+    knots from rig time ``t_s`` seconds on (``Track.check_room``)."""
+    for track in scene.limb_tracks.values():
+        if len(track):
+            track.check_room(t_s, count)
 
 
 def _brake_point(p0: np.ndarray, v0: np.ndarray, brake_s: float, lift: float) -> np.ndarray:
@@ -222,6 +266,9 @@ class ScorePlayer:
         self._live_keys: set[tuple[float, str]] = set()
         """(rig time, event) of the live notes in ``events`` (a score re-timing leaves them where they are)."""
         self.live = LiveNotes()
+        self.unknown_pitches = 0
+        """Live notes whose pitch has no drum event type (not played), counted; ``live.unknown`` keeps the latest
+        :data:`UNKNOWN_PITCHES_KEPT`."""
         self.late_notes = 0
         """Notes (score or live) that arrived too late to be prepared: counted and not played."""
         self.errors: Counter[str] = Counter()
@@ -390,6 +437,7 @@ class ScorePlayer:
         """From rig time ``at`` (or at once), brake every limb and bring it to its rest posture."""
         scene = self._drummer()
         t_s = max(at, self._base(now) + SPLICE_MARGIN_S)
+        _check_room(scene, t_s, 3)
         for limb, track in scene.limb_tracks.items():
             if not len(track):
                 continue
@@ -409,6 +457,7 @@ class ScorePlayer:
         """From rig time ``at`` (or at once), brake every limb and hold it there."""
         scene = self._drummer()
         t_s = max(at, self._base(now) + SPLICE_MARGIN_S)
+        _check_room(scene, t_s, 2)
         for track in scene.limb_tracks.values():
             if not len(track):
                 continue
@@ -464,6 +513,8 @@ class ScorePlayer:
         if event is None:
             if len(self.live.unknown) > unknown:
                 self.errors["unknown_pitch"] += 1
+                self.unknown_pitches += 1
+                del self.live.unknown[:-UNKNOWN_PITCHES_KEPT]  # a stream of them must not grow the list
                 log.warning("live note: pitch %d has no drum event type; not played", note.pitch)
             return None
         t_s = self._base(now) + SPLICE_MARGIN_S
@@ -475,6 +526,10 @@ class ScorePlayer:
                             self.late_notes)
             return None
         events = sorted([e for e in self.events if e.time >= t_s - CONTEXT_S] + [event], key=lambda e: e.time)
+        if len(events) > MAX_PERFORMANCE_NOTES:
+            raise ScorePlayerError(f"live note {event.event.value} at {event.time:.3f} s: the performance already "
+                                   f"holds {len(events) - 1} notes, the limit of {MAX_PERFORMANCE_NOTES} "
+                                   "(MAX_PERFORMANCE_NOTES); refused, the queued notes are kept")
         plan = self._plan(events, np.zeros(0), 1.0)
         moving = {s.limb for s in plan.strokes if s.time > t_s}
         if any(s.event == EventType.HIHATOPEN and s.time > t_s for s in plan.strokes) \
@@ -554,5 +609,5 @@ class ScorePlayer:
         state = "idle" if self.state == "playing" and self.core.time > self.end_time else self.state
         return {"state": state, "score": str(self.score_path) if self.score_path else None,
                 "late_notes": self.late_notes, "errors": dict(self.errors), "flagged": self.flagged,
-                "plans": self.plans, "unknown_live_pitches": len(self.live.unknown),
+                "plans": self.plans, "unknown_live_pitches": self.unknown_pitches,
                 "live_duplicates": self.live.duplicates}

@@ -5,6 +5,11 @@ position and velocity at any time (C1 cubic Hermite between knots, the last
 knot held with zero velocity after it, the first before it). A new knot at or
 before the last one replaces the tail from there (re-planning). Knots older
 than the one in use are pruned.
+
+A track holds at most ``max_knots`` knots (default :data:`MAX_TRACK_KNOTS`, a
+24 h plan of the densest music with margin): a knot, or a batch of knots, that
+would pass it is refused with :class:`TargetError` and the knots already queued
+stay as they were (a remote sender cannot grow the queue without end).
 """
 
 from __future__ import annotations
@@ -14,7 +19,19 @@ import math
 
 import numpy as np
 
+from common.score.events import MAX_SCORE_SECONDS
 from services.physics.kernels import hermite
+
+PLAN_KNOTS_PER_SECOND = 300.0
+"""Knots per second of music a track is sized for. The densest gesture plans of the Groove dataset (all 969 files
+of a second or more, default kit and planner) queue at most 237 knots per second on one limb between the first and
+the last note (a 1.7 s hip-hop fill, right hand) and 216 over a long beat (143 s of frevo, left hand): 300 is a
+quarter more than the densest."""
+MAX_TRACK_KNOTS = int(PLAN_KNOTS_PER_SECOND * MAX_SCORE_SECONDS)
+"""Most knots one track queues: 300 knots/s x 86,400 s (the longest score the reader accepts) = 25,920,000. The most
+notes a score may have (500,000) evenly on one hand over 24 h plan at 197 knots/s (17 M knots); denser passages
+cost notes faster than they add knots (docs/physics.md, "Bounded queues"). Memory at the bound (measured per knot:
+0.32 kB from a plan, 0.54 kB streamed one by one, 1.4 kB on the 57-DOF joint track): 8 GB, 14 GB, 37 GB."""
 
 
 class TargetError(ValueError):
@@ -24,8 +41,10 @@ class TargetError(ValueError):
 class Track:
     """A Hermite-interpolated trajectory of ``dim`` values (see the module docstring)."""
 
-    def __init__(self, dim: int) -> None:
+    def __init__(self, dim: int, max_knots: int = MAX_TRACK_KNOTS) -> None:
         self.dim = dim
+        self.max_knots = max_knots
+        """Most knots queued at once (older ones are pruned as time passes)."""
         self.times: list[float] = []
         self.values: list[np.ndarray] = []
         self.velocities: list[np.ndarray] = []
@@ -41,19 +60,39 @@ class Track:
             raise TargetError(f"expected {self.dim} values and {self.dim} velocities, got {v.size} and {d.size}")
         if not (math.isfinite(time) and np.all(np.isfinite(v)) and np.all(np.isfinite(d))):
             raise TargetError("target time, values and velocities must be finite (no NaN or inf)")
+        self.check_room(time, 1)
         cut = bisect.bisect_left(self.times, time)
         del self.times[cut:], self.values[cut:], self.velocities[cut:]
         self.times.append(float(time))
         self.values.append(v)
         self.velocities.append(d)
 
+    def check_room(self, time: float, count: int) -> None:
+        """Raise :class:`TargetError` if ``count`` knots from ``time`` seconds on (replacing the knots at and after
+        it, as :meth:`add` does) would queue more than ``max_knots``."""
+        kept = bisect.bisect_left(self.times, time)
+        if kept + count > self.max_knots:
+            raise TargetError(f"target queue full: {kept} knots queued before {time:.4f} s and {count} more would pass "
+                              f"the limit of {self.max_knots} knots per track (MAX_TRACK_KNOTS); refused, the queued "
+                              "knots are kept")
+
     def extend(self, times: np.ndarray, values: np.ndarray, velocities: np.ndarray) -> None:
-        """Add many knots: times (N,), values (N, dim), velocities (N, dim)."""
+        """Add many knots: times (N,), values (N, dim), velocities (N, dim); all checked before the first is queued
+        (a refused batch leaves the track as it was)."""
         t = np.asarray(times, dtype=float)
-        if t.ndim != 1 or np.any(np.diff(t) <= 0):
-            raise TargetError("knot times must be a strictly increasing 1-D array")
+        v = np.asarray(values, dtype=float)
+        d = np.asarray(velocities, dtype=float)
+        if t.ndim != 1 or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
+            raise TargetError("knot times must be a finite, strictly increasing 1-D array")
+        if v.shape != (len(t), self.dim) or d.shape != (len(t), self.dim):
+            raise TargetError(f"expected ({len(t)}, {self.dim}) values and velocities, got {v.shape} and {d.shape}")
+        if not (np.all(np.isfinite(v)) and np.all(np.isfinite(d))):
+            raise TargetError("target time, values and velocities must be finite (no NaN or inf)")
+        if not len(t):
+            return
+        self.check_room(float(t[0]), len(t))
         for k in range(len(t)):
-            self.add(float(t[k]), values[k], velocities[k])
+            self.add(float(t[k]), v[k], d[k])
 
     def clear(self) -> None:
         self.times.clear()
