@@ -2,6 +2,7 @@
 
     python bench/sound_modes.py            # 50,000 modes, 256-sample blocks at 48 kHz (a few seconds)
     python bench/sound_modes.py --modes 20000 --pyo-modes 1000 --blocks 200
+    python bench/sound_modes.py --change-modes 20000 --blocks 0   # only the /batteur/sound/modes change
 
 Both are measured in the same run on one core (BLAS limited to one thread).
 The vectorised bank (services/sound/modal_bank.py) renders every mode of a
@@ -10,6 +11,12 @@ resonator object per mode in a manual-mode server. Prints per-block compute
 times (median, p99) against the real-time budget, the cost per mode-sample of
 each, the modes each sustains at p99 < half a block, and their ratio. Timing
 is noisy on a shared machine: compare the two numbers of one run.
+
+Then how long a ``/batteur/sound/modes`` change on the snare blocks the render
+loop: applied at once (offline renders; the live node before background
+rebuilds), the first change (SciPy's Bessel-zero table) and a later one; and
+with ``background_rebuilds`` (the live node): the longest gap between the
+loop's steps, paced at the block rate, while the worker computes the change.
 """
 
 from __future__ import annotations
@@ -27,8 +34,10 @@ from typing import get_args  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from common.arg_types import count  # noqa: E402
-from services.sound.core import SoundSettings  # noqa: E402
+from common.arg_types import count, whole  # noqa: E402
+from common.messages.sound import SoundModes  # noqa: E402
+from services.sound import membrane  # noqa: E402
+from services.sound.core import SoundCore, SoundSettings  # noqa: E402
 from services.sound.modal_bank import ModeSet  # noqa: E402
 from services.sound.pyo_stage import _quiet_stderr, import_pyo  # noqa: E402
 
@@ -80,8 +89,61 @@ def pyo_block_times(modes: int, block: int, sr: int, blocks: int, seed: int = 0)
         server.shutdown()
 
 
+def change_blocking(modes: int, block: int, sr: int) -> dict[str, float]:
+    """Seconds the render loop is held by a SoundModes change to ``modes`` on the snare (see the docstring)."""
+    out: dict[str, float] = {}
+    membrane._TABLES.clear()  # as in a fresh process: the first change computes the Bessel-zero table
+    core = SoundCore(SoundSettings(block_size=block, sample_rate=sr, use_pyo=False, record=False,
+                                   origin=None, background_rebuilds=True))
+    try:
+        period = block / sr
+        core.step(0.0)
+        for key, value in (("first", modes), ("later", modes - 1)):
+            t0 = time.perf_counter()
+            core.handle(SoundModes(instrument="snare", value=value), core.now, "bench")
+            handled = time.perf_counter()
+            worst, steps = handled - t0, 0
+            while core.rebuilding or steps == 0:  # step at the block rate, as the node does
+                due = handled + steps * period
+                time.sleep(max(0.0, due - time.perf_counter()))
+                s0 = time.perf_counter()
+                core.step(core.now + period)
+                worst = max(worst, time.perf_counter() - s0, s0 - due)  # a step's own time, or how late it began
+                steps += 1
+            out[f"background {key} held"], out[f"background {key} ready"] = worst, time.perf_counter() - t0
+        assert core.instruments.instruments["snare"].p.n_modes == modes - 1
+    finally:
+        core.close()
+    membrane._TABLES.clear()
+    core = SoundCore(SoundSettings(block_size=block, sample_rate=sr, use_pyo=False, record=False))
+    try:
+        for key, value in (("first", modes), ("later", modes - 1)):
+            t0 = time.perf_counter()
+            core.handle(SoundModes(instrument="snare", value=value), 0.0, "bench")
+            out[f"at once {key}"] = time.perf_counter() - t0
+    finally:
+        core.close()
+    return out
+
+
 BLOCK_SIZES: tuple[int, ...] = get_args(SoundSettings.model_fields["block_size"].annotation)
 """The sound service's block sizes (any other, with a large prime factor, needs a table of modes x block)."""
+
+
+def _blocks(text: str) -> int:
+    """A number of blocks, 0 (skip) or more."""
+    value = whole(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"{text!r}: give 0 or more")
+    return value
+
+
+def _change_modes(text: str) -> int:
+    """0 (skip) or a mode count /batteur/sound/modes takes (2..20000: the later change asks one fewer)."""
+    value = whole(text)
+    if value != 0 and not 2 <= value <= 20000:
+        raise argparse.ArgumentTypeError(f"{text!r}: give 0 or 2..20000 (the range of /batteur/sound/modes)")
+    return value
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -90,13 +152,33 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--pyo-modes", type=count, default=2000, help="pyo resonator objects (default 2000)")
     parser.add_argument("--block", type=int, default=256, choices=BLOCK_SIZES,
                         help="block size, samples, as the sound service offers (default 256)")
-    parser.add_argument("--blocks", type=count, default=300, help="blocks timed (default 300)")
+    parser.add_argument("--blocks", type=_blocks, default=300, help="blocks timed (default 300; 0: skip the bank "
+                        "and pyo timings)")
+    parser.add_argument("--change-modes", type=_change_modes, default=20000,
+                        help="time a /batteur/sound/modes change to this many modes on the snare (default 20000, "
+                        "the most it takes; 0: skip)")
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     sr = 48000
+    if args.blocks > 0:
+        _bank_vs_pyo(args, sr)
+    if args.change_modes > 0:
+        t = change_blocking(args.change_modes, args.block, sr)
+        print(f"/batteur/sound/modes {args.change_modes} on the snare, render loop held "
+              f"(block {args.block / sr * 1e3:.2f} ms):")
+        print(f"  applied at once (offline): first change {t['at once first']:.3f} s, "
+              f"later {t['at once later']:.3f} s")
+        for key in ("first", "later"):
+            print(f"  in the background (live node), {key} change: loop held at most "
+                  f"{t[f'background {key} held'] * 1e3:.1f} ms, new modes playing after "
+                  f"{t[f'background {key} ready']:.3f} s")
+    return 0
+
+
+def _bank_vs_pyo(args: argparse.Namespace, sr: int) -> None:
     budget = args.block / sr
     half = budget / 2
 
@@ -120,7 +202,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     pyo_sustained = int(args.pyo_modes * half / float(np.percentile(pyo_cpu, 99)))
     print(f"modes sustainable at CPU p99 < half a block: vectorised {bank_sustained}, pyo objects {pyo_sustained}")
     print(f"ratio (pyo cost / vectorised cost per mode-sample, same run): {pyo_ns / bank_ns:.1f}x")
-    return 0
 
 
 if __name__ == "__main__":

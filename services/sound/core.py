@@ -17,6 +17,7 @@ import logging
 import math
 from collections import Counter
 from collections.abc import Callable
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import ClassVar, Literal, Protocol
@@ -59,6 +60,7 @@ from services.sound.instruments import (
     Strike,
     default_params,
 )
+from services.sound.modal_bank import MAX_T60_S
 from services.sound.pyo_stage import PyoStage
 from services.sound.samples import SampleBank
 from services.sound.scheduler import Scheduler
@@ -84,6 +86,8 @@ PARAM_MESSAGES: dict[type[OscMessage], tuple[str, tuple[str, ...]]] = {
     SoundAirLoading: ("air_loading", ("value",)),
     SoundSecondHead: ("second_head", ("gain", "ratio")),
 }
+CHEAP_PARAMS = frozenset({"model", "level"})
+"""Parameters that rebuild nothing: applied at once even with ``background_rebuilds`` (unless queued behind one)."""
 
 
 WAV_FORMATS = frozenset(f for f in sf.available_formats() if sf.check_format(f, "PCM_24"))
@@ -160,6 +164,11 @@ class SoundSettings(BaseModel):
     pedal_impacts: bool = Field(False, description="sound impacts on pedal objects (footboards) on the instrument "
                                 "they drive; off by default because the physics reports the beater on the kick "
                                 "and the hi-hat's top plate closing (part hihat_top) as impacts of their own")
+    background_rebuilds: bool = Field(False, description="live nodes: a parameter change that rebuilds an "
+                                      "instrument's modes is computed in a worker thread and swapped in at the "
+                                      "next step (the old modes play until then), so a large one (20,000 modes: "
+                                      "seconds) never stalls the render loop. False (offline): applied at once, "
+                                      "in message order, so renders are deterministic")
 
 
 @dataclass
@@ -174,6 +183,7 @@ class SoundStats:
     too_early: int = 0  # impacts beyond the horizon (a sender's clock far ahead)
     overload: int = 0  # strikes dropped by a burst: over max_strikes_per_block or max_pending
     silenced: int = 0  # times an instrument's output went non-finite and it was stopped
+    ring_limited: int = 0  # damping changes applied with some modes' ring cut to MAX_T60_S (damping near 0)
     rejected: Counter[str] = field(default_factory=Counter)  # by control address
     blocks: int = 0
 
@@ -181,6 +191,36 @@ class SoundStats:
     def rejected_total(self) -> int:
         """Valid messages refused: controls, and impacts not played (the node's Health counts them as dropped)."""
         return sum(self.rejected.values()) + self.unknown_instrument + self.too_early + self.overload
+
+
+@dataclass(frozen=True)
+class _Change:
+    """A parameter message waiting to be applied in the background."""
+
+    message: OscMessage
+    source: str  # "host:port" of its sender, for a rejection
+    name: str
+    values: dict[str, float | tuple[float, ...] | str]
+
+
+@dataclass(frozen=True)
+class _Rebuild:
+    """Changes being applied to a detached copy of an instrument in the worker thread."""
+
+    base: object  # the instrument's Params when the copy was made (a strike may replace them meanwhile)
+    changes: list[_Change]
+    future: Future[tuple[Instrument, list[tuple[_Change, str]]]]
+
+
+def _apply_changes(twin: Instrument, changes: list[_Change]) -> tuple[Instrument, list[tuple[_Change, str]]]:
+    """In the worker: apply ``changes`` in order to ``twin``; returns it with the refused ones and why."""
+    refused = []
+    for change in changes:
+        try:
+            twin.set_param(change.name, **change.values)
+        except ParamError as exc:
+            refused.append((change, str(exc)))
+    return twin, refused
 
 
 class SoundCore:
@@ -230,6 +270,10 @@ class SoundCore:
         self._drop_logged: dict[str, float] = {}  # kind -> rig time of its last warning, seconds
         self._drop_quiet: Counter[str] = Counter()  # kind -> drops since that warning
         self._pans = {i.id: self._pan(i.obj.position[0]) for i in self.instruments.instruments.values()}
+        self._worker = (ThreadPoolExecutor(1, thread_name_prefix="sound-rebuild") if s.background_rebuilds
+                        else None)
+        self._rebuilds: dict[str, _Rebuild] = {}  # instrument id -> changes in the worker
+        self._queued: dict[str, list[_Change]] = {}  # instrument id -> changes that arrived meanwhile, in order
 
     # ------------------------------------------------------------- building
     def _build_instruments(self, kit: Kit) -> InstrumentSet:
@@ -283,15 +327,72 @@ class SoundCore:
         if inst is None:
             return self._reject(message, instrument_id, f"no instrument {instrument_id!r} "
                                 f"(known: {', '.join(sorted(self.instruments.instruments))})")
+        values = {f: getattr(message, f) for f in fields}
+        if self._worker is not None and name in inst.accepted and (
+                instrument_id in self._rebuilds or name not in CHEAP_PARAMS):
+            change = _Change(message, source, name, values)
+            if instrument_id in self._rebuilds:  # after the change in flight, in message order
+                self._queued.setdefault(instrument_id, []).append(change)
+            else:
+                self._start_rebuild(inst, [change])
+            return []
         try:
-            inst.set_param(name, **{f: getattr(message, f) for f in fields})
+            inst.set_param(name, **values)
         except ParamError as exc:
             return self._reject(message, instrument_id, str(exc))
+        self._note_ring_limit(inst, name)
         return []
 
-    def _reject(self, message: OscMessage, instrument: str, reason: str) -> list[Outgoing]:
+    def _reject(self, message: OscMessage, instrument: str, reason: str, to: str = "reply") -> list[Outgoing]:
         self.stats.rejected[message.ADDRESS] += 1
-        return [Outgoing(SoundRejected(address=message.ADDRESS, instrument=instrument, reason=reason[:512]), "reply")]
+        return [Outgoing(SoundRejected(address=message.ADDRESS, instrument=instrument, reason=reason[:512]), to)]
+
+    def _note_ring_limit(self, inst: Instrument, name: str) -> None:
+        """Count (and warn, rate-limited) a damping change that leaves modes ringing longer than MAX_T60_S."""
+        if name == "damping" and inst.bank.slowed:
+            self.stats.ring_limited += 1
+            self._log_drop("ring_limited", f"{inst.id}: damping {inst.p.damping0:g} 1/s, {inst.p.damping1:g} s "
+                           f"leaves {inst.bank.slowed} modes decaying slower than T60 {MAX_T60_S:g} s: they ring "
+                           f"{MAX_T60_S:g} s (the longest the sound service renders)")
+
+    # ------------------------------------------------------ background rebuilds
+    def _start_rebuild(self, inst: Instrument, changes: list[_Change]) -> None:
+        assert self._worker is not None
+        future = self._worker.submit(_apply_changes, inst.detached(), changes)
+        self._rebuilds[inst.id] = _Rebuild(inst.p, changes, future)
+
+    def _finish_rebuilds(self) -> list[Outgoing]:
+        """Swap in the instruments the worker has finished (cheap: the tables are built); returns rejections,
+        sent to the senders of the refused messages."""
+        out: list[Outgoing] = []
+        for inst_id, job in list(self._rebuilds.items()):
+            if not job.future.done():
+                continue
+            del self._rebuilds[inst_id]
+            inst = self.instruments.instruments[inst_id]
+            if inst.p is not job.base:  # a strike changed it meanwhile (the hi-hat's openness): redo on top
+                self._start_rebuild(inst, job.changes)
+                continue
+            try:
+                twin, refused = job.future.result()
+            except Exception as exc:  # noqa: BLE001 - a bug in a rebuild must not stop the sound
+                twin, refused = inst, [(c, f"{type(exc).__name__}: {exc}") for c in job.changes]
+                log.error("%s: rebuilding its modes failed (%s): parameters unchanged", inst_id, exc)
+            if twin is not inst:
+                inst.adopt(twin)
+            for change, reason in refused:
+                out += self._reject(change.message, inst_id, reason, change.source or "reply")
+            if any(c.name == "damping" for c in job.changes):
+                self._note_ring_limit(inst, "damping")
+            queued = self._queued.pop(inst_id, None)
+            if queued:
+                self._start_rebuild(inst, queued)
+        return out
+
+    @property
+    def rebuilding(self) -> bool:
+        """True while a parameter change is being computed in the background (``background_rebuilds``)."""
+        return bool(self._rebuilds)
 
     def _schedule(self, impact: Impact, source: str) -> None:
         if self.scheduler.is_duplicate(source, impact.seq):
@@ -347,8 +448,9 @@ class SoundCore:
     def step(self, now: float) -> list[Outgoing]:
         """Render every block that ends at or before rig time ``now`` (plus ``render_ahead``)."""
         self._set_origin(now)
+        out = self._finish_rebuilds() if self._rebuilds else []
         self.render(now + self.settings.render_ahead)
-        return []
+        return out
 
     def _set_origin(self, now: float) -> None:
         if not self._origin_set:
@@ -516,6 +618,10 @@ class SoundCore:
         if self._stage is not None:
             self._stage.close()
             self._stage = None
+        worker = getattr(self, "_worker", None)
+        if worker is not None:  # a rebuild in flight finishes in its thread; nothing waits for it
+            worker.shutdown(wait=False, cancel_futures=True)
+            self._worker = None
 
     def __del__(self) -> None:
         try:

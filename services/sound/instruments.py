@@ -18,6 +18,7 @@ head is quieter, a tighter one higher).
 
 from __future__ import annotations
 
+import copy
 import zlib
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
@@ -216,6 +217,22 @@ class Instrument:
             self.p = old
             self.rebuild()
             raise ParamError(f"{self.id}: every mode would be above the Nyquist frequency")
+
+    def detached(self) -> Instrument:
+        """A copy to change parameters on away from the render loop (a worker thread): it shares nothing the
+        loop mutates, and its silent bank gets the new tables. Apply it with :meth:`adopt`."""
+        twin = copy.copy(self)
+        twin.bank = ModeSet(self.sr, self.block)
+        twin._delayed = []
+        return twin
+
+    def adopt(self, twin: Instrument) -> None:
+        """Take the parameters and modes of ``twin`` (from :meth:`detached`), keeping what rings: the same as
+        having applied its parameter changes here, but cheap (the tables were built with ``twin``)."""
+        bank, delayed = self.bank, self._delayed
+        self.__dict__.update({k: v for k, v in vars(twin).items() if k not in ("bank", "_delayed")})
+        self.bank, self._delayed = bank, delayed
+        self.bank.adopt(twin.bank)
 
     def damping_law(self, freq: F64) -> F64:
         """Decay rate per mode, 1/s: sigma0 + sigma1 f^2."""

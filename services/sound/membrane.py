@@ -20,8 +20,11 @@ Optional corrections (both tunable, both 0 gives the ideal membrane):
 
 from __future__ import annotations
 
+import io
+import subprocess
+import sys
+import threading
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
 import numpy.typing as npt
@@ -31,9 +34,50 @@ RHO_AIR = 1.2
 """Density of air, kg/m^3."""
 
 
-@lru_cache(maxsize=8)
+CHILD_PROCESS_ZEROS = 2000
+"""Off the main thread, a table with more zeros than this is computed in a child process: SciPy's ``jn_zeros``
+holds the GIL for 10-40 ms per order at large sizes, which would stall the node's render loop (the main thread)
+as surely as computing it there. The default kit's tables have under 500 zeros."""
+
+_TABLES: list[npt.NDArray[np.float64]] = []  # Bessel-zero tables computed so far, none covering another
+_TABLES_LOCK = threading.Lock()  # rebuilds run in the node's worker thread as well as in the loop
+
+
 def bessel_table(m_max: int = 40, n_max: int = 20) -> npt.NDArray[np.float64]:
-    """Zeros j_mn of J_m, shape (m_max + 1, n_max): row m, column n - 1."""
+    """Zeros j_mn of J_m, shape (m_max + 1, n_max): row m, column n - 1 (read-only).
+
+    Computed once per process for the largest table asked so far and sliced for smaller ones: the table for
+    20,000 modes (the most /batteur/sound/modes allows) takes SciPy seconds. A slice is bit-identical to a table
+    computed at its own size (``jn_zeros(m, n)`` is the prefix of ``jn_zeros(m, N)``).
+    """
+    with _TABLES_LOCK:
+        for table in _TABLES:
+            if table.shape[0] > m_max and table.shape[1] >= n_max:
+                return table[: m_max + 1, :n_max]
+    table = _compute_table(m_max, n_max)
+    table.flags.writeable = False
+    with _TABLES_LOCK:
+        _TABLES[:] = [t for t in _TABLES if t.shape[0] > table.shape[0] or t.shape[1] > table.shape[1]]
+        _TABLES.append(table)
+    return table
+
+
+_CHILD = ("import sys, numpy as np; from scipy.special import jn_zeros; m, n = map(int, sys.argv[1:]); "
+          "np.save(sys.stdout.buffer, np.array([jn_zeros(k, n) for k in range(m + 1)]))")
+
+
+def _compute_table(m_max: int, n_max: int) -> npt.NDArray[np.float64]:
+    """The table of :func:`bessel_table`, in a child interpreter when large and off the main thread (the same
+    SciPy, so the same bits; a plain child, so nothing of this process is imported again or forked)."""
+    if threading.current_thread() is not threading.main_thread() and (m_max + 1) * n_max > CHILD_PROCESS_ZEROS:
+        try:
+            done = subprocess.run([sys.executable, "-c", _CHILD, str(m_max), str(n_max)], capture_output=True,
+                                  check=True, timeout=600)
+            table = np.load(io.BytesIO(done.stdout))
+            if table.shape == (m_max + 1, n_max):
+                return np.asarray(table, dtype=np.float64)
+        except (OSError, subprocess.SubprocessError, ValueError):
+            pass  # no child possible here: computed in this thread, slower for the loop but as right
     return np.array([jn_zeros(m, n_max) for m in range(m_max + 1)])
 
 

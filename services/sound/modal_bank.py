@@ -37,6 +37,16 @@ overflow to NaN and take the whole mix with it. Such modes die within a few mill
 256 samples) at this rate too."""
 
 
+MAX_T60_S = 30.0
+"""Longest ring a mode renders with, seconds (time to decay by 60 dB): slower decay rates, down to the zero that
+``/batteur/sound/damping 0 0`` allows, are raised to ``6.91 / MAX_T60_S`` (0.23 1/s). Undamped modes would ring at
+full level for ever (the instrument never stops costing its bank) and every strike would add to them without
+bound. The slowest mode of the default kit (the ride, 0.35 1/s, T60 20 s) is above it, so it changes nothing there;
+with the bank's floor, an undamped drum falls silent about a minute after its last strike."""
+MIN_DECAY_PER_S = 6.91 / MAX_T60_S
+"""Slowest decay rate a mode renders with, 1/s (see ``MAX_T60_S``)."""
+
+
 def _split(block: int) -> tuple[int, int]:
     """Factor a block length into (A, Bn), A as large as 16 with Bn >= 8 (256 -> 16 x 16)."""
     for a in (16, 8, 4, 2):
@@ -75,6 +85,7 @@ class ModeSet:
         self.z: ComplexArray = np.zeros(0, dtype=np.complex128)
         self._pending: list[tuple[int, ComplexArray]] = []
         self._blocks = 0
+        self.slowed = 0  # modes whose decay rate was raised to MIN_DECAY_PER_S by the last set_modes
         self._set_tables()
 
     # ------------------------------------------------------------------ modes
@@ -92,7 +103,8 @@ class ModeSet:
         """Set mode frequencies (Hz, shape (K,)) and decay rates (1/s, shape (K,)).
 
         Modes above 0.48 sr get zero output (they would alias); decay rates are capped at
-        ``MAX_DECAY_PER_BLOCK`` nepers per block (stored capped). The state of
+        ``MAX_DECAY_PER_BLOCK`` nepers per block and raised to at least ``MIN_DECAY_PER_S`` (stored so; the
+        raised ones counted in ``slowed``). The state of
         modes that keep their index is kept, so a live change bends the pitch
         of a ringing drum instead of cutting it; new modes start silent.
         """
@@ -104,7 +116,8 @@ class ModeSet:
             raise ValueError("mode frequencies and decay rates must be finite and >= 0")
         old = self.z
         self.freq = f
-        self.decay = np.minimum(d, MAX_DECAY_PER_BLOCK * self.sr / self.block)
+        self.slowed = int(np.count_nonzero(d < MIN_DECAY_PER_S))
+        self.decay = np.minimum(np.maximum(d, MIN_DECAY_PER_S), MAX_DECAY_PER_BLOCK * self.sr / self.block)
         z = np.zeros(f.shape[0], dtype=np.complex128)
         n = min(old.shape[0], z.shape[0])
         z[:n] = old[:n]
@@ -132,6 +145,25 @@ class ModeSet:
         self._p_block = np.exp(s * self.block)  # (K,)
         self._live = bool(np.any(self.z != 0))
         self.n_live = k if self._live else 0
+
+    def adopt(self, other: ModeSet) -> None:
+        """Take ``other``'s modes and tables (built elsewhere, e.g. in a worker thread), keeping this bank's
+        ringing state and pending strikes: the same result as ``set_modes`` with ``other``'s modes, without its
+        cost. Both banks must have the same sample rate and block."""
+        if (other.sr, other.block) != (self.sr, self.block):
+            raise ValueError("banks differ in sample rate or block")
+        old = self.z
+        self.freq, self.decay, self.slowed = other.freq, other.decay, other.slowed
+        z = np.zeros(self.freq.shape[0], dtype=np.complex128)
+        n = min(old.shape[0], z.shape[0])
+        z[:n] = old[:n]
+        self.z = z
+        self._pending = [(off, _fit(amp, self.freq.shape[0])) for off, amp in self._pending]
+        self.poles_log, self._table, self._p_bn = other.poles_log, other._table, other._p_bn
+        self._p_b_rows, self._p_a_rows, self._p_block = other._p_b_rows, other._p_a_rows, other._p_block
+        self._scaled = np.empty_like(other._scaled)
+        self._live = bool(np.any(self.z != 0))
+        self.n_live = self.size if self._live else 0
 
     def powers(self, n: int) -> ComplexArray:
         """p_k^n for every mode, shape (K,)."""

@@ -47,10 +47,19 @@ MAX_PENDING = 4096
 
 SFC_SET_UPDATE_HEADER_AUTO = 0x1061
 """libsndfile command (sndfile.h): rewrite the header's lengths after every write."""
+SFC_RF64_AUTO_DOWNGRADE = 0x1210
+"""libsndfile command (sndfile.h): an RF64 file is written with a plain RIFF/WAVE header (and a JUNK chunk that
+reserves room for RF64's ds64) for as long as it stays under 4 GiB, and switches to RF64 beyond."""
+WAV_LIMIT_BYTES = 0xFFFFFFFF
+"""A RIFF/WAVE header's 32-bit sizes cannot describe more (about 4 h of 48 kHz stereo 24-bit)."""
 
 
 class WavSink:
     """Appends blocks to a WAV file (24-bit) as they are rendered, whole or not at all.
+
+    A ``.wav`` take is written as RF64 with libsndfile's auto-downgrade: it is an ordinary WAV file
+    (WAVE_FORMAT_EXTENSIBLE, plus a JUNK chunk) while under 4 GiB and becomes RF64 past it, where a WAV header's
+    32-bit sizes would saturate and lose everything after (about 4 h of 48 kHz stereo).
 
     The blocks go to a hidden ``.NAME.XXXX.part`` file beside ``path``, renamed to ``path`` by :meth:`close`:
     a run killed before closing (SIGKILL, power loss) leaves the part file (a playable WAV up to the last block:
@@ -74,12 +83,17 @@ class WavSink:
             fd, part = tempfile.mkstemp(prefix=f".{self.target.name}.", suffix=".part", dir=self.target.parent)
             os.close(fd)
             self.part = Path(part)
+        rf64 = fmt == "WAV" and not self.in_place  # libsndfile writes no RF64 to a pipe (nor could it upgrade)
         try:
             self.file = sf.SoundFile(self.part, "w", samplerate=sample_rate, channels=channels, subtype="PCM_24",
-                                     format=fmt)
+                                     format="RF64" if rf64 else fmt)
+            if rf64 and not sf._snd.sf_command(self.file._file, SFC_RF64_AUTO_DOWNGRADE, sf._ffi.NULL, 1):
+                raise RuntimeError("this libsndfile cannot write RF64 that stays WAV under 4 GiB")
             # the header follows every write: a node killed before close leaves a part file that still plays
             sf._snd.sf_command(self.file._file, SFC_SET_UPDATE_HEADER_AUTO, sf._ffi.NULL, 1)
         except BaseException:
+            if getattr(self, "file", None) is not None and not self.file.closed:
+                self.file.close()
             self._discard()
             raise
 
@@ -109,6 +123,9 @@ class WavSink:
             self.meta = {"origin_rig_time_s": self.origin(), "sample_rate_hz": self.file.samplerate,
                          "channels": self.file.channels, "frames": self.file.frames}
             self.file.close()
+            if self.file.format == "RF64" and self.part.exists() and self.part.stat().st_size > WAV_LIMIT_BYTES:
+                log.info("%s is over 4 GiB: written as RF64 (a WAV header cannot hold its length); "
+                         "players that read only WAV need it split or converted", self.path)
         if not self.in_place and self.part.exists():
             os.chmod(self.part, _new_file_mode(self.target))
             os.replace(self.part, self.target)
@@ -180,8 +197,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     group = parser.add_argument_group("sound")
     group.add_argument("--kit", default="default", help="kit name or kit file (default: default)")
     group.add_argument("--wav", type=Path, default=None,
-                       help="also record the output to this file, 24-bit (.wav; .w64 or .rf64 for takes over 4 h, "
-                       ".flac); written under a temporary name and given this one when the node stops")
+                       help="also record the output to this file, 24-bit (.wav, .flac, .w64, .rf64; a .wav take "
+                       "that passes 4 GiB, about 4 h, becomes RF64 instead of losing its end); written under a "
+                       "temporary name and given this one when the node stops")
     group.add_argument("--device", choices=("auto", "none"), default="auto",
                        help="auto: play on the sound card if portaudio finds one; none: never")
     group.add_argument("--model", choices=("modal", "sample", "synth"), default="modal",
@@ -212,7 +230,7 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace) -> SoundCore:
                           render_ahead=2 * block_s + 0.002,
                           channels=extra.channels, record=False, model=extra.model, reverb=extra.reverb,
                           pedal_impacts=bool(getattr(extra, "pedal_impacts", False)),
-                          horizon=HORIZON_S, max_pending=MAX_PENDING)
+                          horizon=HORIZON_S, max_pending=MAX_PENDING, background_rebuilds=True)
     if extra.wav is not None:  # checked before the (slow) core is built
         if extra.wav.is_dir():
             raise ValueError(f"--wav {extra.wav} is a directory: give a file, e.g. {extra.wav / 'take.wav'}")
