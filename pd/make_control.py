@@ -44,6 +44,7 @@ from common.messages.sound import (  # noqa: E402
     SoundRadius,
     SoundTension,
 )
+from services.graphics.camera import default_camera  # noqa: E402
 
 OUT = Path(__file__).with_name("control.pd")
 PORTS = {"physics": 9101, "interaction": 9102, "sound": 9103, "graphics": 9104, "score": 9101}
@@ -338,9 +339,12 @@ def build() -> Patch:
 
 
 CAMERA_PRESETS = ("front", "side", "top", "drummer", "orbit", "free")
-CAMERA_DEFAULTS = {"azimuth": 20.0, "elevation": 18.0, "distance": 3.2, "target-x": 0.0, "target-y": 0.35,
-                   "target-z": 0.75}
-"""What the camera pack starts with (the view's front camera); a slider moved sends the camera as ``free``."""
+_DEFAULT_CAMERA = default_camera()
+CAMERA_DEFAULTS = {"azimuth": _DEFAULT_CAMERA["azimuth_deg"], "elevation": _DEFAULT_CAMERA["elevation_deg"],
+                   "distance": _DEFAULT_CAMERA["distance"],
+                   **dict(zip(("target-x", "target-y", "target-z"), _DEFAULT_CAMERA["target"], strict=True))}
+"""What the camera pack starts with: the view's default camera (services/graphics/camera.py, the page's front
+preset), so a slider moved first (sent as ``free`` with every value so far) keeps the framing the page had."""
 
 
 def graphics_section(p: Patch, x: int, y: int, load: int) -> None:

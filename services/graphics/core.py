@@ -41,6 +41,7 @@ from common.messages.graphics import (
     ScorePosition,
 )
 from common.messages.physics import PhysicsPosture, PhysicsReset
+from services.graphics.camera import default_camera, presets_json
 from services.graphics.scene import HISTORY, KitAnimator, kit_json
 from services.graphics.sequence import FLOATS_PER_LINK, PoseSequence, interpolate_pose, normalize_quats
 from services.graphics.skeleton import guess_parents
@@ -76,10 +77,7 @@ class ViewSettings(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    camera: dict[str, Any] = Field(
-        default_factory=lambda: {"preset": "front", "azimuth_deg": 20.0, "elevation_deg": 20.0,
-                                 "distance": 3.2, "target": [0.0, 0.35, 0.75]}
-    )
+    camera: dict[str, Any] = Field(default_factory=default_camera)  # the page's front preset (camera.py)
     layers: dict[str, bool] = Field(
         default_factory=lambda: {"body": True, "sticks": True, "kit": True, "contacts": True, "trails": True,
                                  "plot": True, "status": True, "floor": True}
@@ -461,7 +459,8 @@ class GraphicsCore:
         return {"type": "kit", "kit": kit_json(self.kit)}
 
     def view_json(self) -> dict[str, Any]:
-        return {"type": "view", "mode": self.mode, "latency": self.latency, **self.view.model_dump()}
+        return {"type": "view", "mode": self.mode, "latency": self.latency, **self.view.model_dump(),
+                "presets": presets_json()}
 
     def set_kit(self, kit: Kit) -> None:
         """Adopt an edited kit (already validated) and tell every page."""

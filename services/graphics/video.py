@@ -35,11 +35,14 @@ from scipy.spatial.transform import Rotation
 
 from common.kit import Kit, KitObject, load_kit
 from common.messages import Impact
+from services.graphics.camera import camera_eye as orbit_eye
+from services.graphics.camera import default_camera
 from services.graphics.scene import KitAnimator, object_rotation
 from services.graphics.sequence import PoseSequence
 from services.graphics.skeleton import guess_parents, kit_link
 
-DEFAULT_CAMERA = {"azimuth_deg": 20.0, "elevation_deg": 18.0, "distance": 3.0, "target": (0.0, 0.35, 0.75)}
+DEFAULT_CAMERA: dict[str, object] = {key: value for key, value in default_camera().items() if key != "preset"}
+"""The view's default camera (the page's front preset, services/graphics/camera.py), so videos frame as the page."""
 BODY_RGBA = (0.31, 0.53, 0.78, 1.0)
 STICK_RGBA = (0.85, 0.7, 0.48, 1.0)
 SHELL_RGBA = (0.55, 0.11, 0.14, 1.0)
@@ -66,9 +69,7 @@ def find_ffmpeg() -> str:
 def camera_eye(azimuth_deg: float, elevation_deg: float, distance: float,
                target: tuple[float, float, float]) -> np.ndarray:
     """Camera position (3,) metres for an orbit camera (azimuth 0 = in front of the kit, +y; 90 = +x)."""
-    a, e = math.radians(azimuth_deg), math.radians(elevation_deg)
-    return np.asarray(target) + distance * np.array([math.sin(a) * math.cos(e), math.cos(a) * math.cos(e),
-                                                     math.sin(e)])
+    return np.asarray(orbit_eye(azimuth_deg, elevation_deg, distance, target))
 
 
 @dataclass

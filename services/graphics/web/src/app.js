@@ -21,6 +21,7 @@ const camera = new THREE.PerspectiveCamera(45, 1, 0.05, 100);
 camera.up.set(0, 0, 1);
 const controls = new OrbitControls(camera, canvas);
 controls.target.set(0, 0.35, 0.75);
+Object.assign(state, { camera, controls }); // for tests and the console: where the view looks from
 controls.addEventListener("start", () => { if (state.view) state.view.camera.preset = "free"; syncPresetSelect(); });
 scene.add(new THREE.HemisphereLight(0xffffff, 0x303040, 1.6));
 const sun = new THREE.DirectionalLight(0xffffff, 1.8);
@@ -317,24 +318,19 @@ function drawPlot() {
 }
 
 // ---------------------------------------------------------------- camera
-const PRESETS = {
-  front: { az: 0, el: 18, dist: 3.0 }, side: { az: 90, el: 12, dist: 3.0 }, top: { az: 0, el: 85, dist: 3.2 },
-};
+// The presets are the node's (services/graphics/camera.py, in every view message), so the page frames each one as
+// the video and the Pd panel do. A preset is an orbit about its target, or a fixed eye (drummer); orbit turns.
 function placeCamera(cam, now) {
-  let target = new THREE.Vector3(...(cam.target ?? [0, 0.35, 0.75]));
-  let az = cam.azimuth_deg, el = cam.elevation_deg, dist = cam.distance;
-  if (cam.preset === "drummer") {
-    camera.position.set(0.05, -0.55, 1.75);
-    controls.target.set(0, 0.55, 0.8);
-    controls.update();
-    return;
+  const c = state.view?.presets?.[cam.preset] ?? cam; // free: the message's own numbers
+  const target = new THREE.Vector3(...(c.target ?? [0, 0.35, 0.75]));
+  if (c.eye) {
+    camera.position.set(...c.eye);
+  } else {
+    const az = c.azimuth_deg + (c.turn_deg_per_s ?? 0) * (now / 1000), el = c.elevation_deg, dist = c.distance;
+    const a = (az * Math.PI) / 180, e = (el * Math.PI) / 180;
+    camera.position.set(target.x + dist * Math.sin(a) * Math.cos(e), target.y + dist * Math.cos(a) * Math.cos(e),
+      target.z + dist * Math.sin(e));
   }
-  if (PRESETS[cam.preset]) ({ az, el, dist } = PRESETS[cam.preset]);
-  if (cam.preset === "orbit") { az = (now / 1000) * 12; el = 20; dist = 3.2; }
-  if (cam.preset !== "free") target = new THREE.Vector3(0, 0.35, 0.75);
-  const a = (az * Math.PI) / 180, e = (el * Math.PI) / 180;
-  camera.position.set(target.x + dist * Math.sin(a) * Math.cos(e), target.y + dist * Math.cos(a) * Math.cos(e),
-    target.z + dist * Math.sin(e));
   controls.target.copy(target);
   controls.update();
 }
