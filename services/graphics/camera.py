@@ -69,9 +69,18 @@ DEFAULT_PRESET: CameraPreset = "front"
 
 def default_camera() -> dict[str, Any]:
     """The view's starting camera as the core keeps it and sends it to the page (a fresh, JSON-ready dict)."""
-    view = PRESETS[DEFAULT_PRESET]
-    return {"preset": DEFAULT_PRESET, "azimuth_deg": view.azimuth_deg, "elevation_deg": view.elevation_deg,
-            "distance": view.distance, "target": list(view.target)}
+    return camera_for(DEFAULT_PRESET, 0.0, 0.0, 1.0, TARGET)
+
+
+def camera_for(preset: CameraPreset, azimuth_deg: float, elevation_deg: float, distance: float,
+               target: Vec3) -> dict[str, Any]:
+    """The camera as the core keeps it (JSON-ready): ``free`` with the numbers given (degrees, metres), a named
+    preset with its own numbers, which the page uses whatever a message carried besides the name."""
+    if preset != "free":
+        view = PRESETS[preset]
+        azimuth_deg, elevation_deg, distance, target = view.azimuth_deg, view.elevation_deg, view.distance, view.target
+    return {"preset": preset, "azimuth_deg": azimuth_deg, "elevation_deg": elevation_deg, "distance": distance,
+            "target": list(target)}
 
 
 def presets_json() -> dict[str, dict[str, Any]]:

@@ -41,7 +41,7 @@ from common.messages.graphics import (
     ScorePosition,
 )
 from common.messages.physics import PhysicsPosture, PhysicsReset
-from services.graphics.camera import default_camera, presets_json
+from services.graphics.camera import camera_for, default_camera, presets_json
 from services.graphics.scene import HISTORY, KitAnimator, kit_json
 from services.graphics.sequence import FLOATS_PER_LINK, PoseSequence, interpolate_pose, normalize_quats
 from services.graphics.skeleton import guess_parents
@@ -361,11 +361,9 @@ class GraphicsCore:
     def apply_control(self, message: OscMessage) -> bool:
         """Apply one graphics control message; True when it was one."""
         if isinstance(message, GraphicsCamera):
-            self.view.camera = {
-                "preset": message.preset, "azimuth_deg": message.azimuth_deg,
-                "elevation_deg": message.elevation_deg, "distance": message.distance,
-                "target": [message.target_x, message.target_y, message.target_z],
-            }
+            # a named preset keeps its own numbers (the page draws those), so the core reports where the view is
+            self.view.camera = camera_for(message.preset, message.azimuth_deg, message.elevation_deg,
+                                          message.distance, (message.target_x, message.target_y, message.target_z))
         elif isinstance(message, GraphicsShow):
             self.view.layers[message.layer] = bool(message.visible)
         elif isinstance(message, GraphicsTrails):
