@@ -90,6 +90,10 @@ CHEAP_PARAMS = frozenset({"model", "level"})
 """Parameters that rebuild nothing: applied at once even with ``background_rebuilds`` (unless queued behind one)."""
 
 
+WAV_DATA_LIMIT_BYTES = 0xFFFFFFFF - 1024
+"""Most sample bytes a RIFF/WAVE file's 32-bit sizes describe (less room for the header): longer offline renders
+(about 4 h of 48 kHz stereo 24-bit) are written as RF64."""
+
 WAV_FORMATS = frozenset(f for f in sf.available_formats() if sf.check_format(f, "PCM_24"))
 """File formats libsndfile writes as 24-bit PCM, named by extension (WAV, FLAC, AIFF, W64, RF64, ...)."""
 
@@ -581,8 +585,12 @@ class SoundCore:
         p = Path(path)
         fmt = wav_format(p, "wav")
         p.parent.mkdir(parents=True, exist_ok=True)
+        audio = self.recording()
+        if fmt == "WAV" and audio.size * 3 > WAV_DATA_LIMIT_BYTES:
+            fmt = "RF64"  # a RIFF/WAVE header cannot hold the length: the end of the render would be lost to readers
+            log.info("%s is over 4 GiB: written as RF64 (a WAV header cannot hold its length)", p)
         data = io.BytesIO()
-        sf.write(data, self.recording(), self.sample_rate, subtype="PCM_24", format=fmt)
+        sf.write(data, audio, self.sample_rate, subtype="PCM_24", format=fmt)
         write_atomically(p, data.getvalue())
         return p
 

@@ -6,8 +6,11 @@ import os
 from pathlib import Path
 
 import numpy as np
+import pytest
 import soundfile as sf
 
+from services.sound import core as sound_core
+from services.sound.core import SoundCore, SoundSettings
 from services.sound.node import WAV_LIMIT_BYTES, WavSink
 
 BLOCK = np.full((256, 2), 0.25, dtype=np.float32)
@@ -36,3 +39,15 @@ def test_a_short_wav_take_is_an_ordinary_wav(tmp_path: Path) -> None:
     assert wav.read_bytes()[:4] == b"RIFF"
     audio, rate = sf.read(wav, dtype="float32")
     assert rate == 48000 and audio.shape == (2560, 2) and np.allclose(audio, 0.25, atol=1e-6)
+
+
+def test_an_offline_render_past_the_wav_limit_is_written_as_rf64(tmp_path: Path,
+                                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    core = SoundCore(SoundSettings(record=True))
+    core.render(0.5)
+    frames = len(core.recording())
+    assert sf.info(core.write_wav(tmp_path / "short.wav")).format == "WAV"  # under the limit: a plain WAV
+    # the limit lowered below this render's size stands in for a 4 h render (about 4 GiB of samples)
+    monkeypatch.setattr(sound_core, "WAV_DATA_LIMIT_BYTES", frames)
+    info = sf.info(core.write_wav(tmp_path / "long.wav"))
+    assert info.format == "RF64" and info.frames == frames  # was: a WAV whose header cannot hold the length
