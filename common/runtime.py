@@ -325,6 +325,8 @@ class Node:
         self.role = settings.role
         self.node_id = settings.node_id
         self.rate_hz = settings.rate_hz if settings.rate_hz is not None else float(core.rate_hz)
+        if not (math.isfinite(self.rate_hz) and self.rate_hz >= 0):  # inf: a busy loop; NaN: no loop, bad Health
+            raise ValueError(f"{settings.role}: rate {self.rate_hz!r} Hz is not a rate (0 or more Hz, finite)")
         if settings.rate_hz is not None:
             try:
                 core.rate_hz = settings.rate_hz

@@ -178,3 +178,10 @@ def test_a_rate_given_on_the_command_line_stays_when_the_core_changes_its_own() 
         await asyncio.wait_for(task, 3.0)
 
     asyncio.run(main())
+
+
+@pytest.mark.parametrize("rate", [float("inf"), float("nan"), -1.0])
+def test_a_node_refuses_a_core_that_starts_at_no_rate(rate: float) -> None:
+    # was: inf stepped in a busy loop (period 0), NaN never stepped and sent Health no receiver accepts
+    with pytest.raises(ValueError, match="not a rate"):
+        Node(RateCore(rate, []), load_settings({"role": "echo", "discovery": False, "clock_master": "self"}))
