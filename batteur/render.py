@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import functools
 import json
 import math
 import shutil
@@ -151,13 +152,15 @@ def scale_tempo(score: Score, scale: float) -> Score:
     )
 
 
-def prepare(path: Path | str, kit: Kit, opts: RenderOptions,
-            calibration: Calibration | None = None) -> tuple[Score, Assignment, GesturePlan]:
+def prepare(path: Path | str, kit: Kit, opts: RenderOptions, calibration: Calibration | None = None,
+            progress: Callable[[str, int, int], None] | None = None) -> tuple[Score, Assignment, GesturePlan]:
     """Read, distribute and plan a score; raises :class:`ScoreError` for a bad score.
 
     With a ``calibration`` the notes are shifted (lag anticipation) and their
     velocities remapped before planning; the returned ``score`` keeps the
-    written times (what the performance is judged against).
+    written times (what the performance is judged against). ``progress``: called with (stage, notes done,
+    notes total) while the notes are given limbs (stage ``"limbs"``, ``distribute``'s progress) and planned
+    (``"gestures"``, ``plan_gestures``'); what it raises stops the preparation.
     """
     from common.gesture.planner import PlannerConfig, plan_gestures
     from common.score.limbs import distribute
@@ -168,11 +171,38 @@ def prepare(path: Path | str, kit: Kit, opts: RenderOptions,
         why = "; ".join(w.removeprefix(f"{Path(path).name}: ") for w in score.warnings
                         if not w.endswith("no drum events"))
         raise ScoreError(f"{path}: no drum events to play" + (f" ({why})" if why else ""))
-    assignment = distribute(score, kit, opts.algorithm)
+    assignment = distribute(score, kit, opts.algorithm,
+                            progress=None if progress is None else functools.partial(progress, "limbs"))
     planned = assignment if calibration is None else calibration.apply(assignment, kit)
     grip = Grip(opts.grip) if opts.grip in (g.value for g in Grip) else Grip.GERMAN
-    plan = plan_gestures(planned, kit, score, PlannerConfig(grip=grip, nuance=opts.nuance))
+    plan = plan_gestures(planned, kit, score, PlannerConfig(grip=grip, nuance=opts.nuance),
+                         progress=None if progress is None else functools.partial(progress, "gestures"))
     return score, assignment, plan
+
+
+class PlanningProgress:
+    """The planning bars of a score render, one per stage of :func:`prepare` ("limbs", "gestures"), counted in
+    notes; each line is ended when the next stage begins. On stderr on a terminal, like the render's bar."""
+
+    def __init__(self, name: str, quiet: bool) -> None:
+        self.name = name
+        self.quiet = quiet
+        self.stage: str | None = None
+        self.bar: Progress | None = None
+
+    def __call__(self, stage: str, done: int, total: int) -> None:
+        if self.bar is None or stage != self.stage:
+            self.close()
+            self.stage = stage
+            self.bar = Progress(f"planning {self.name} ({stage})", total, unit="notes", decimals=0,
+                                enabled=False if self.quiet else None)
+        self.bar.update(done)
+
+    def close(self, finished: bool = True) -> None:
+        """End the current stage's line (``finished=False``: where it stands, the planning given up)."""
+        if self.bar is not None:
+            self.bar.close(finished)
+            self.bar = None
 
 
 def run_score(score: Score, assignment: Assignment, plan: GesturePlan, kit: Kit, opts: RenderOptions,
@@ -399,11 +429,18 @@ def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: boo
         check_video(opts)  # before the long part: no ffmpeg, no render
     kit = load_kit(opts.kit)
     calibration = Calibration.load(opts.calibration) if opts.calibration else None
-    score, assignment, plan = prepare(path, kit, opts, calibration)
+    planning = PlanningProgress(Path(path).name, quiet)
+    try:
+        score, assignment, plan = prepare(path, kit, opts, calibration, planning)
+    except BaseException:  # a bad score or Ctrl-C: the line ends where it stood, not at 100 %
+        planning.close(finished=False)
+        raise
+    planning.close()
     for warning in score.warnings:  # e.g. a MIDI file without a drum channel, read as drums
         print(f"batteur render: warning: {warning}", file=sys.stderr)
     progress = Progress(f"rendering {Path(path).name}", plan.end_time - plan.start_time + opts.settle_s,
                         enabled=False if quiet else None)
+    finished = False  # a render given up (Ctrl-C, an error) leaves its bar where it stood, not at 100 %
     try:
         if opts.jobs > 1:
             from batteur.segments import run_segmented
@@ -412,8 +449,9 @@ def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: boo
                                    on_progress=lambda t, total: progress.update(t))
         else:
             result = run_score(score, assignment, plan, kit, opts, on_progress=lambda t, total: progress.update(t))
+        finished = True
     finally:
-        progress.close()
+        progress.close(finished)
     report = score_report(result, str(path), opts)
     video = None
     if opts.video:
@@ -492,20 +530,22 @@ def video_writer(result: ScoreRender, kit: Kit, opts: RenderOptions, quiet: bool
     def write(staging: Path) -> dict[str, Any]:
         started = time.perf_counter()
         width, height = opts.video_size
-        progress = Progress("video", 1.0, unit="frames", enabled=False if quiet else None)
+        progress = Progress("video", 1.0, unit="frames", decimals=0, enabled=False if quiet else None)
 
         def on_progress(done: int, total: int) -> None:
             progress.total = total
             progress.update(done)
 
+        finished = False
         try:
             info = video.render_video(result.poses, result.impacts, staging / "performance.wav", staging, kit=kit,
                                       fps=opts.video_fps, width=width, height=height, audio_start=0.0,
                                       latency=opts.latency_s, on_progress=on_progress)
+            finished = True
         except (RuntimeError, OSError) as exc:  # ffmpeg failed or died: nothing is written (staging)
             raise RenderError(f"--video: {exc}") from exc
         finally:
-            progress.close()
+            progress.close(finished)
         return {"file": info.path.name, "frames": info.frames, "fps": info.fps, "duration_s": info.duration,
                 "width": info.width, "height": info.height, "audio": "performance.wav (AAC)",
                 "wall_time_s": round(time.perf_counter() - started, 3)}
@@ -645,14 +685,16 @@ def _main_strikes(opts: argparse.Namespace) -> int:
     started = time.monotonic()
     progress = Progress("rendering", max(t for t, _ in strikes) + opts.latency + 1.0,
                         enabled=False if opts.quiet else None)
+    finished = False
     try:
         result = run_strikes(strikes, EventType(opts.event), kit, opts.latency,
                              on_progress=lambda t, total: progress.update(t))
+        finished = True
     except ValueError as exc:
         print(f"batteur render: {one_line(exc)}", file=sys.stderr)
         return 2
     finally:
-        progress.close()
+        progress.close(finished)
     elapsed = time.monotonic() - started
     report = {
         "scene": "strike",

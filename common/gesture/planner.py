@@ -18,6 +18,7 @@ the beats.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -36,7 +37,7 @@ from common.gesture.plan import (
 from common.kit import EventType, Kit, KitObject, Limb
 from common.score.events import Score
 from common.score.hands import HandAlgorithm, Sticking
-from common.score.limbs import HANDS, Assignment, Note, distribute
+from common.score.limbs import HANDS, PROGRESS_EVERY, Assignment, Note, ProgressCallback, distribute
 
 VERTICAL_SHARE = 0.6
 """Share of a segment over which a height change between targets is made (early when rising, late when falling)."""
@@ -281,7 +282,10 @@ def _limb_knots(
     cfg: PlannerConfig,
     cycle: float | None = None,
     hold: float = 0.0,
+    on_laid: Callable[[int], None] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Knots (times, positions, velocities) of one limb through its strokes; ``on_laid`` is told how many
+    strokes are laid every ``PROGRESS_EVERY`` strokes."""
     times: list[np.ndarray] = []
     pos: list[np.ndarray] = []
     vel: list[np.ndarray] = []
@@ -292,6 +296,8 @@ def _limb_knots(
     if cycle is not None and hold != 0.0:  # a foot starts held at its rest (its base path on the pedal line)
         held = True
     for i, (st, unit) in enumerate(zip(strokes, units, strict=True)):
+        if on_laid is not None and i and i % PROGRESS_EVERY == 0:
+            on_laid(i)
         strike_v = -st.speed * st.normal
         lift = st.lift
         if cycle is None and i > 0 and not st.bounce:
@@ -446,6 +452,7 @@ def plan_gestures(
     score: Score | None = None,
     config: PlannerConfig | None = None,
     database: GestureDatabase | None = None,
+    progress: ProgressCallback | None = None,
 ) -> GesturePlan:
     """Plan Cartesian effector trajectories for an assignment.
 
@@ -461,6 +468,11 @@ def plan_gestures(
         Grip, global nuance, timing.
     database : GestureDatabase | None
         Gesture units (default: the shipped database).
+    progress : Callable[[int, int], None] | None
+        Called with (notes done, notes total), ``total`` the assignment's notes and ``done`` those whose
+        trajectory is laid (limb after limb, the bulk of the work): ``(0, total)`` first, ``(total, total)``
+        last, and between at least once every ``PROGRESS_EVERY`` notes laid and at the end of each limb.
+        Whatever it raises (``KeyboardInterrupt``) stops the planning. The plan is the same with or without it.
 
     Returns
     -------
@@ -476,6 +488,9 @@ def plan_gestures(
     trajectories: dict[Limb, LimbTrajectory] = {}
     planned: list[PlannedStroke] = []
     geometry: dict[tuple[EventType, int | None, Limb], tuple[np.ndarray, np.ndarray, np.ndarray, KitObject]] = {}
+    laid = 0  # notes of the limbs done so far
+    if progress is not None:
+        progress(0, len(notes))
     for limb in Limb:
         mine = [n for n in notes if n.limb == limb]
         hand = limb in HANDS
@@ -549,8 +564,13 @@ def plan_gestures(
                 continue
             rest_target, rest_normal = (np.array(v) for v in kit.effector_target(ev, limb))
             rest0 = (rest_target + rest_h * rest_normal, rest_normal)
+        on_laid = None if progress is None else lambda k, before=laid: progress(before + k, len(notes))
         times, pos, vel = _limb_knots(strokes, rest0, rest_h, start, end, units, cfg, None if hand else cfg.foot_cycle,
-                                      0.0 if hand else rest_h)  # a foot rests at its rest height between strokes
+                                      0.0 if hand else rest_h,  # a foot rests at its rest height between strokes
+                                      on_laid)
+        laid += len(strokes)
+        if progress is not None:
+            progress(laid, len(notes))
         if EventType.HIHATPEDAL in kit.events and limb == kit.spec(EventType.HIHATPEDAL).preferred:
             opens = [n.time for n in notes if n.event == EventType.HIHATOPEN]
             times, pos, vel = _open_hihat(times, pos, vel, opens, [s.time for s in strokes], cfg)
@@ -558,6 +578,8 @@ def plan_gestures(
     planned.sort(key=lambda s: (s.time, s.limb.value))
     plan_end = max((tr.end_time for tr in trajectories.values()), default=end)
     head = _head(planned, score, start, plan_end, cfg)
+    if progress is not None:
+        progress(len(notes), len(notes))
     return GesturePlan(
         trajectories=trajectories,
         strokes=planned,

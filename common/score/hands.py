@@ -31,12 +31,17 @@ from __future__ import annotations
 
 import enum
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 from common.kit import EventType, Kit, Limb
 from common.score.rebound import Interval, Stroke, classify
+
+PROGRESS_EVERY = 256
+"""Notes between two calls of a progress callback (here, in the limb assignment and in the gesture planner):
+under a tenth of a second of work on a long score, and a call per note would cost more than it tells."""
 
 L, R = Limb.LEFT_HAND, Limb.RIGHT_HAND
 HANDS = (L, R)
@@ -210,6 +215,7 @@ def assign_hands(
     rho: float = 0.02,
     default_weight: float = 0.5,
     costs: Costs | None = None,
+    progress: Callable[[int, int], None] | None = None,
 ) -> list[Limb | None]:
     """Assign a hand to each stick note (sorted by time; at most two within ``window`` seconds).
 
@@ -231,6 +237,10 @@ def assign_hands(
         Pair-wise algorithm: weight of the preferred hand's vote.
     costs : Costs | None
         Shortest-path weights.
+    progress : Callable[[int, int], None] | None
+        ``viterbi`` (the slow one: most of a long score's limb assignment): called with (notes searched,
+        notes) every ``PROGRESS_EVERY`` notes or so; what it raises stops the search. The hands are the
+        same with or without it.
 
     Returns
     -------
@@ -246,7 +256,7 @@ def assign_hands(
     t = _table(notes, kit)
     groups = _groups(notes, window)
     if algorithm == HandAlgorithm.VITERBI:
-        return _viterbi(notes, groups, t, kit, costs or Costs())
+        return _viterbi(notes, groups, t, kit, costs or Costs(), progress)
     hands: list[Limb | None] = [None] * len(notes)
     last: dict[Limb, float] = {L: -math.inf, R: -math.inf}
     for gi, g in enumerate(groups):
@@ -278,7 +288,8 @@ def assign_hands(
     return [h if h is not None else R for h in hands]
 
 
-def _viterbi(notes: list[HandNote], groups: list[list[int]], t: _Table, kit: Kit, c: Costs) -> list[Limb | None]:
+def _viterbi(notes: list[HandNote], groups: list[list[int]], t: _Table, kit: Kit, c: Costs,
+             progress: Callable[[int, int], None] | None = None) -> list[Limb | None]:
     """Beam-pruned Viterbi over states (last note of each hand, whether it was a rebound bounce).
 
     A hand never plays an interval that :func:`common.score.rebound.classify` calls too fast: such
@@ -350,7 +361,11 @@ def _viterbi(notes: list[HandNote], groups: list[list[int]], t: _Table, kit: Kit
         f = notes[i].forced
         return f is None or f == h
 
+    next_report = PROGRESS_EVERY
     for g in groups:
+        if progress is not None and g[0] >= next_report:
+            progress(g[0], len(notes))
+            next_report = g[0] + PROGRESS_EVERY
         options: list[Option]
         if len(g) == 1:
             i = g[0]

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import bisect
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -31,7 +32,7 @@ import numpy as np
 from common.gesture.plan import FeasibilityIssue, IssueAction, IssueReason, Nuance
 from common.kit import EventType, Kit, Limb
 from common.score.events import DrumEvent, Score
-from common.score.hands import HandAlgorithm, HandNote, Sticking, assign_hands, crossed
+from common.score.hands import PROGRESS_EVERY, HandAlgorithm, HandNote, Sticking, assign_hands, crossed
 from common.score.rebound import Interval, Stroke, classify, rebound_gap, why_too_fast
 
 STICK_HIHAT = {EventType.HIHATOPEN, EventType.HIHATCLOSED}
@@ -44,6 +45,12 @@ HARD_MIN_INTERVAL = 0.03
 SHOULDERS = {Limb.LEFT_HAND: (-0.19, 0.05, 1.30), Limb.RIGHT_HAND: (0.19, 0.05, 1.30)}
 REACH = 1.15
 """Shoulder-to-stick-tip reach (metres): arm, stick and some lean of the trunk."""
+PROGRESS_SHARES = (0.08, 0.86)
+"""Shares of :func:`distribute`'s progress for its limb rules and its hand assignment (the feasibility check has
+the rest): their shares of its time on a 200,000-note Groove score (8 %, 86 %, 6 %)."""
+
+ProgressCallback = Callable[[int, int], None]
+"""Told (notes done, notes total) while a long score is worked on."""
 
 
 @dataclass(frozen=True)
@@ -101,6 +108,7 @@ def distribute(
     algorithm: HandAlgorithm | str = HandAlgorithm.VITERBI,
     sticking: Sticking | str = Sticking.NONE,
     window: float = SIMULTANEITY,
+    progress: ProgressCallback | None = None,
 ) -> Assignment:
     """Distribute a score's events over the limbs and check feasibility.
 
@@ -116,8 +124,17 @@ def distribute(
         Sticking pattern forced on rolls.
     window : float
         Simultaneity window, seconds.
+    progress : Callable[[int, int], None] | None
+        Called with (notes done, notes total), ``total`` the score's events: ``(0, total)`` first,
+        ``(total, total)`` last, and between once every ``PROGRESS_EVERY`` notes a pass goes through.
+        ``done`` is the work done counted in notes: the limb rules move it over their share of ``total``
+        (``PROGRESS_SHARES``), the hand assignment over its share (the ``viterbi`` search as it goes, the others
+        at once when they end), the feasibility check over the rest. Whatever it raises (``KeyboardInterrupt``)
+        stops the distribution. The assignment is the same with or without it.
     """
     algorithm = HandAlgorithm(algorithm)
+    report = _Shares(progress, len(score.events))
+    report.at(0.0)
     events = [e for e in score.events if e.event in kit.events]
     index_of = {id(e): i for i, e in enumerate(score.events)}
     issues: list[FeasibilityIssue] = []
@@ -151,7 +168,12 @@ def distribute(
         e = score.events[idx]
         issues.append(FeasibilityIssue(idx, e.time, e.event, reason, action, detail))
 
+    rules, hands_share = PROGRESS_SHARES
+    next_report = PROGRESS_EVERY
     for g in _groups([e.time for e in events], window):
+        if progress is not None and g[0] >= next_report:
+            report.at(rules * g[0] / len(events))
+            next_report = g[0] + PROGRESS_EVERY
         group = [(index_of[id(events[i])], events[i]) for i in g]
         # one stick hi-hat and one pedal at a time: drummers often close the hi-hat with the foot as a hand
         # strikes it (a chick under the stick, or a splash beside an open hit), so the two are kept together
@@ -223,7 +245,10 @@ def distribute(
                 forced = e.limb if e.limb in HANDS else None
                 hand_notes.append(HandNote(len(hand_notes), e.time, e.event, e.pitch, forced, e.velocity))
                 hand_meta.append((i, e.velocity, e.pitch, e.nuance, e.event))
-    hands = assign_hands(hand_notes, kit, algorithm, sticking, window)
+    report.at(rules)
+    hands = assign_hands(hand_notes, kit, algorithm, sticking, window, progress=None if progress is None else
+                         lambda k, n: report.at(rules + hands_share * k / max(n, 1)))
+    report.at(rules + hands_share)
     notes = list(feet)
     left_out: list[Note] = []
     for hn, h, (i, vel, pitch, nuance, ev) in zip(hand_notes, hands, hand_meta, strict=True):
@@ -234,8 +259,23 @@ def distribute(
     notes = _merge_or_drop(left_out, notes, kit, issues)
     notes.sort(key=lambda n: (n.time, n.limb.value))
     assignment = Assignment(notes=notes, issues=issues, algorithm=algorithm, kit_name=kit.name)
-    check_feasibility(assignment, kit, window)
+    checked_from = rules + hands_share
+    check_feasibility(assignment, kit, window, None if progress is None else
+                      lambda k, n: report.at(checked_from + (1.0 - checked_from) * k / max(n, 1)))
+    report.at(1.0)
     return assignment
+
+
+class _Shares:
+    """Reports a fraction of the work as (notes done, notes total) to a progress callback (none: nothing)."""
+
+    def __init__(self, progress: ProgressCallback | None, total: int) -> None:
+        self.progress = progress
+        self.total = total
+
+    def at(self, fraction: float) -> None:
+        if self.progress is not None:
+            self.progress(min(self.total, int(fraction * self.total)), self.total)
 
 
 def _foot_busy(feet: list[Note], foot: Limb, time: float, window: float) -> bool:
@@ -292,7 +332,8 @@ def _merge_or_drop(left_out: list[Note], notes: list[Note], kit: Kit, issues: li
     return out
 
 
-def check_feasibility(assignment: Assignment, kit: Kit, window: float = SIMULTANEITY) -> None:
+def check_feasibility(assignment: Assignment, kit: Kit, window: float = SIMULTANEITY,
+                      progress: ProgressCallback | None = None) -> None:
     """Flag notes beyond human limits; drop strokes a limb cannot repeat at all; mark rebound doubles.
 
     Adds to ``assignment.issues``: ``too_fast`` (same limb closer than the
@@ -300,7 +341,8 @@ def check_feasibility(assignment: Assignment, kit: Kit, window: float = SIMULTAN
     played anyway, or dropped below ``HARD_MIN_INTERVAL``), ``crossing`` (arms
     crossed for simultaneous stick events) and ``unreachable`` (hit point beyond
     the arm's reach). A hand's note that is the bounce of a rebound double gets
-    ``Note.rebound = True`` and no issue.
+    ``Note.rebound = True`` and no issue. ``progress``: called with (notes checked, notes total) every
+    ``PROGRESS_EVERY`` notes (not at the end); what it raises stops the check.
     """
     kept: list[Note] = []
     last: dict[Limb, Note] = {}
@@ -311,7 +353,10 @@ def check_feasibility(assignment: Assignment, kit: Kit, window: float = SIMULTAN
             points[(event, pitch)] = kit.hit_point(event, pitch)[0]
         return points[(event, pitch)]
 
-    for n in assignment.notes:
+    total = len(assignment.notes)
+    for k, n in enumerate(assignment.notes):
+        if progress is not None and k % PROGRESS_EVERY == 0:
+            progress(k, total)
         prev = last.get(n.limb)
         if n.limb in HANDS:
             kind = Interval.FIRST
