@@ -15,12 +15,15 @@ from __future__ import annotations
 
 import argparse
 import collections
+import glob
 import json
 import logging
 import os
+import string
 import tempfile
 import threading
 from collections.abc import Callable, Sequence
+from datetime import datetime
 from pathlib import Path
 from typing import Any
 
@@ -52,6 +55,56 @@ SFC_RF64_AUTO_DOWNGRADE = 0x1210
 reserves room for RF64's ds64) for as long as it stays under 4 GiB, and switches to RF64 beyond."""
 WAV_LIMIT_BYTES = 0xFFFFFFFF
 """A RIFF/WAVE header's 32-bit sizes cannot describe more (about 4 h of 48 kHz stereo 24-bit)."""
+
+
+START_PLACEHOLDER = "{start}"
+"""In ``--wav``'s file name: the take's start time, local, as :data:`START_FORMAT` (once, when recording starts)."""
+START_FORMAT = "%Y%m%d-%H%M%S"
+
+
+def wav_name_has_start(path: Path) -> bool:
+    """Whether ``path``'s file name holds ``{start}``; ValueError for any other placeholder or a lone brace.
+
+    The file name is read as a :meth:`str.format` string (``{{`` and ``}}`` for a brace); the folders are taken
+    as written, so the rig's ``--record DIR`` may hold any character.
+    """
+    try:
+        parts = list(string.Formatter().parse(path.name))
+    except ValueError as exc:  # "Single '}' encountered in format string"
+        raise ValueError(f"--wav {path}: {exc} in the file name (a brace is written {{{{ or }}}})") from None
+    fields = [(name, conversion, spec) for _, name, spec, conversion in parts if name is not None]
+    for name, conversion, spec in fields:
+        if (name, conversion, spec) != ("start", None, ""):
+            shown = "{" + name + (f"!{conversion}" if conversion else "") + (f":{spec}" if spec else "") + "}"
+            raise ValueError(f"--wav {path}: unknown placeholder {shown}: the only one is {START_PLACEHOLDER}, "
+                             "the take's start time")
+    return bool(fields)
+
+
+def expand_wav_path(path: Path, now: datetime) -> Path:
+    """The file ``--wav`` names for a take starting at ``now`` (local time).
+
+    Without ``{start}`` that is ``path`` itself, replaced at the end as always. With it, the first of
+    ``NAME``, ``NAME-2``, ``NAME-3`` ... (before the extension) that no take holds yet: no file, no ``.json``
+    and no part file of a node still recording it, so two takes in the same second are both kept.
+    """
+    if "{" not in path.name and "}" not in path.name:
+        return path
+    name = path.name.format(start=now.strftime(START_FORMAT))
+    if not wav_name_has_start(path):
+        return path.with_name(name)  # only escaped braces
+    stem, suffix = Path(name).stem, Path(name).suffix
+    candidate, n = path.with_name(name), 1
+    while _taken(candidate):
+        n += 1
+        candidate = path.with_name(f"{stem}-{n}{suffix}")
+    return candidate
+
+
+def _taken(path: Path) -> bool:
+    """A take is, or is being, written at ``path`` (see :class:`WavSink`'s part and .json files)."""
+    parts = glob.glob(glob.escape(str(path.parent / f".{path.name}.")) + "*.part")
+    return path.exists() or path.is_symlink() or path.with_name(path.name + ".json").exists() or bool(parts)
 
 
 class WavSink:
@@ -199,7 +252,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument("--wav", type=Path, default=None,
                        help="also record the output to this file, 24-bit (.wav, .flac, .w64, .rf64; a .wav take "
                        "that passes 4 GiB, about 4 h, becomes RF64 instead of losing its end); written under a "
-                       "temporary name and given this one when the node stops")
+                       "temporary name and given this one when the node stops. {start} in the file name is the "
+                       "take's start time, local YYYYmmdd-HHMMSS (take-{start}.wav: take-20260131-201500.wav, "
+                       "then -2, -3 ... if that name is taken), so each run keeps its own file; the log says "
+                       "the name")
     group.add_argument("--device", choices=("auto", "none"), default="auto",
                        help="auto: play on the sound card if portaudio finds one; none: never")
     group.add_argument("--model", choices=("modal", "sample", "synth"), default="modal",
@@ -235,6 +291,7 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace) -> SoundCore:
         if extra.wav.is_dir():
             raise ValueError(f"--wav {extra.wav} is a directory: give a file, e.g. {extra.wav / 'take.wav'}")
         wav_format(extra.wav, "--wav")
+        wav_name_has_start(extra.wav)
     core = SoundCore(sound, kit)
     try:
         _attach_sinks(core, extra)
@@ -251,12 +308,13 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace) -> SoundCore:
 def _attach_sinks(core: SoundCore, extra: argparse.Namespace) -> None:
     """The WAV file and the sound card, as asked; ValueError naming the option that cannot be served."""
     if extra.wav is not None:
+        path = expand_wav_path(extra.wav, datetime.now())  # {start}: when recording starts, i.e. now
         try:
-            wav = WavSink(extra.wav, core.sample_rate, core.channels, lambda: core.scheduler.origin)
+            wav = WavSink(path, core.sample_rate, core.channels, lambda: core.scheduler.origin)
         except (OSError, RuntimeError) as exc:  # soundfile: unwritable path
-            raise ValueError(f"--wav {extra.wav}: cannot write it ({exc})") from None
+            raise ValueError(f"--wav {path}: cannot write it ({exc})") from None
         core.sinks.append(wav)
-        log.info("recording to %s, renamed %s when the node stops", wav.part, extra.wav)
+        log.info("recording to %s, renamed %s when the node stops", wav.part, path)
     if extra.device == "auto":
         devices = audio_device_count()
         if devices > 0:
