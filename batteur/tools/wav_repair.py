@@ -1,0 +1,121 @@
+"""``python3 -m batteur.tools.wav_repair FILE...``: give a cut-short WAV take the length of what it holds.
+
+Pd's ``[writesf~]`` writes a WAV header saying 0 frames when it opens a take and the real length only when the
+take is closed (``/pd/stop``). A take still recording when Pd exits (``docker compose stop``, Ctrl-C, a crash)
+keeps its samples but says it holds none, and players (libsndfile too) read nothing. This rewrites the RIFF and
+``data`` sizes from the file's size: every whole frame written is kept (a partial last frame is dropped).
+
+Only a file whose ``data`` chunk says 0 bytes is changed (the audio is taken to run from there to the end of the
+file, as ``[writesf~]`` writes no chunk after it); a finished take is left as it is.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import struct
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import BinaryIO
+
+from pydantic import BaseModel
+
+RIFF_LIMIT_BYTES = 0xFFFFFFFF
+"""A RIFF header's 32-bit sizes cannot describe more."""
+
+
+class WavLayout(BaseModel):
+    """Where a WAV file's audio lies, as read from its chunks (offsets and sizes in bytes)."""
+
+    block_align: int
+    """Bytes per frame (all channels)."""
+    data_size_offset: int
+    """Offset of the ``data`` chunk's 32-bit size field; the audio starts 4 bytes later."""
+    data_size: int
+    """What the ``data`` chunk says it holds."""
+
+
+class RepairResult(BaseModel):
+    """What :func:`repair_wav` found and did."""
+
+    repaired: bool
+    frames: int
+    """Frames the file holds (after the repair)."""
+    dropped_bytes: int = 0
+    """Bytes of a partial last frame removed."""
+
+
+def read_layout(f: BinaryIO) -> WavLayout:
+    """The chunks of a RIFF/WAVE file; ValueError if it is not one or has no ``fmt `` and ``data``."""
+    f.seek(0)
+    head = f.read(12)
+    if len(head) < 12 or head[:4] != b"RIFF" or head[8:12] != b"WAVE":
+        raise ValueError("not a RIFF/WAVE file")
+    end = os.fstat(f.fileno()).st_size
+    block_align = 0
+    offset = 12
+    while offset + 8 <= end:
+        f.seek(offset)
+        chunk_id, size = struct.unpack("<4sI", f.read(8))
+        if chunk_id == b"fmt ":
+            block_align = struct.unpack("<H", f.read(16)[12:14])[0]
+        elif chunk_id == b"data":
+            if block_align <= 0:
+                raise ValueError("no format chunk before the audio")
+            return WavLayout(block_align=block_align, data_size_offset=offset + 4, data_size=size)
+        offset += 8 + size + (size & 1)  # chunks are padded to an even size
+    raise ValueError("no data chunk")
+
+
+def repair_wav(path: Path) -> RepairResult:
+    """Rewrite the sizes of a take whose header says 0 frames (see the module); ValueError if it cannot."""
+    with path.open("r+b") as f:
+        layout = read_layout(f)
+        audio_start = layout.data_size_offset + 4
+        if layout.data_size != 0:  # a finished take (or not one [writesf~] left open)
+            return RepairResult(repaired=False, frames=layout.data_size // layout.block_align)
+        size = os.fstat(f.fileno()).st_size
+        frames = (size - audio_start) // layout.block_align
+        data_size = frames * layout.block_align
+        if audio_start + data_size + (data_size & 1) - 8 > RIFF_LIMIT_BYTES:
+            raise ValueError("holds more than a WAV header can describe (4 GiB): convert it with a tool that "
+                             "reads raw PCM")
+        if frames == 0:
+            return RepairResult(repaired=False, frames=0)
+        f.truncate(audio_start + data_size)  # a partial last frame is not audio
+        if data_size & 1:
+            f.seek(0, os.SEEK_END)
+            f.write(b"\0")  # RIFF's pad byte after an odd-sized chunk
+        f.seek(layout.data_size_offset)
+        f.write(struct.pack("<I", data_size))
+        f.seek(4)
+        f.write(struct.pack("<I", audio_start + data_size + (data_size & 1) - 8))
+    return RepairResult(repaired=True, frames=frames, dropped_bytes=size - audio_start - data_size)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="batteur wav-repair",
+        description="Give WAV takes cut short (header saying 0 frames, e.g. a Pd take still recording when Pd "
+        "exited) the length of the audio they hold; finished files are left as they are. "
+        "Exit status: 0 every file is readable now, 1 a file could not be read or repaired.")
+    parser.add_argument("files", nargs="+", type=Path, metavar="FILE", help="WAV files, e.g. out/take-*.wav")
+    args = parser.parse_args(argv)
+    status = 0
+    for path in args.files:
+        try:
+            result = repair_wav(path)
+        except (OSError, ValueError) as exc:
+            print(f"{path}: not repaired: {exc}", file=sys.stderr)
+            status = 1
+            continue
+        if result.repaired:
+            print(f"{path}: repaired, {result.frames} frames")
+        else:
+            print(f"{path}: left as it is ({result.frames} frames)")
+    return status
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
