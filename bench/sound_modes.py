@@ -34,7 +34,7 @@ from typing import get_args  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from common.arg_types import count, whole  # noqa: E402
+from common.arg_types import count, whole, whole_non_negative  # noqa: E402
 from common.messages.sound import SoundModes  # noqa: E402
 from services.sound import membrane  # noqa: E402
 from services.sound.core import SoundCore, SoundSettings  # noqa: E402
@@ -130,14 +130,6 @@ BLOCK_SIZES: tuple[int, ...] = get_args(SoundSettings.model_fields["block_size"]
 """The sound service's block sizes (any other, with a large prime factor, needs a table of modes x block)."""
 
 
-def _blocks(text: str) -> int:
-    """A number of blocks, 0 (skip) or more."""
-    value = whole(text)
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"{text!r}: give 0 or more")
-    return value
-
-
 def _change_modes(text: str) -> int:
     """0 (skip) or a mode count /batteur/sound/modes takes (2..20000: the later change asks one fewer)."""
     value = whole(text)
@@ -152,8 +144,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--pyo-modes", type=count, default=2000, help="pyo resonator objects (default 2000)")
     parser.add_argument("--block", type=int, default=256, choices=BLOCK_SIZES,
                         help="block size, samples, as the sound service offers (default 256)")
-    parser.add_argument("--blocks", type=_blocks, default=300, help="blocks timed (default 300; 0: skip the bank "
-                        "and pyo timings)")
+    parser.add_argument("--blocks", type=whole_non_negative, default=300,
+                        help="blocks timed (default 300; 0: skip the bank and pyo timings)")
     parser.add_argument("--change-modes", type=_change_modes, default=20000,
                         help="time a /batteur/sound/modes change to this many modes on the snare (default 20000, "
                         "the most it takes; 0: skip)")

@@ -61,9 +61,13 @@ def count(text: str) -> int:
     return value
 
 
-def seed(text: str) -> int:
-    """A random seed: a whole number of at least 0 (NumPy refuses negative seeds)."""
+def whole_non_negative(text: str) -> int:
+    """A whole number of at least 0 (a count where 0 means none, or skip)."""
     value = whole(text)
     if value < 0:
         raise argparse.ArgumentTypeError(f"{text!r}: give a whole number of at least 0")
     return value
+
+
+seed = whole_non_negative
+"""A random seed: a whole number of at least 0 (NumPy refuses negative seeds)."""

@@ -52,12 +52,16 @@ class GraphicsNodeProcess:
     def url(self) -> str:
         return f"http://127.0.0.1:{self.http_port}/"
 
+    def command(self) -> list[str]:
+        """The node's command line (a subclass may run it another way)."""
+        return [sys.executable, "-m", "services.graphics.node", "--no-discovery", "--host", "127.0.0.1",
+                "--port", str(self.osc_port), "--http-port", str(self.http_port), "--latency-s", str(self.latency),
+                "--kit-dir", str(self.tmp / "kits"), *self.extra]
+
     def start(self) -> None:
         log = open(self.tmp / "graphics-node.log", "ab")  # noqa: SIM115 - closed with the process
         self.proc = subprocess.Popen(
-            [sys.executable, "-m", "services.graphics.node", "--no-discovery", "--host", "127.0.0.1",
-             "--port", str(self.osc_port), "--http-port", str(self.http_port), "--latency-s", str(self.latency),
-             "--kit-dir", str(self.tmp / "kits"), *self.extra],
+            self.command(),
             cwd=ROOT, stdout=log, stderr=subprocess.STDOUT, env={**os.environ, "PYTHONUNBUFFERED": "1"},
         )
         deadline = time.monotonic() + 20

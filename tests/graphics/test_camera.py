@@ -8,9 +8,7 @@ preset from the table the node sends (services/graphics/camera.py).
 from __future__ import annotations
 
 import math
-import os
 import socket
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -26,7 +24,7 @@ from services.graphics.figure import LINK_NAMES, SyntheticDrummer
 from services.graphics.video import TinyRendererScene
 from tests.deploy.pdrun import PD_DIR, PdProcess, pd_binary
 
-from .conftest import CHROMIUM, CHROMIUM_FLAGS, ROOT, GraphicsNodeProcess, needs_browser
+from .conftest import CHROMIUM, CHROMIUM_FLAGS, GraphicsNodeProcess, needs_browser
 
 FRONT = {"azimuth_deg": 0.0, "elevation_deg": 18.0, "distance": 3.0, "target": (0.0, 0.35, 0.75)}
 """The page's front preset, what the browser has always shown first."""
@@ -111,23 +109,9 @@ NODE_WITH_ODD_SIDE = (
 class OddSideNode(GraphicsNodeProcess):
     """The graphics node in a subprocess whose side preset is :data:`ODD_SIDE`."""
 
-    def start(self) -> None:
-        log = open(self.tmp / "graphics-node.log", "ab")  # noqa: SIM115 - closed with the process
-        self.proc = subprocess.Popen(
-            [sys.executable, "-c", NODE_WITH_ODD_SIDE, "--no-discovery", "--host", "127.0.0.1",
-             "--port", str(self.osc_port), "--http-port", str(self.http_port)],
-            cwd=ROOT, stdout=log, stderr=subprocess.STDOUT, env={**os.environ, "PYTHONUNBUFFERED": "1"},
-        )
-        deadline = time.monotonic() + 20
-        while time.monotonic() < deadline:
-            if self.proc.poll() is not None:
-                raise RuntimeError((self.tmp / "graphics-node.log").read_text())
-            try:
-                with socket.create_connection(("127.0.0.1", self.http_port), timeout=0.2):
-                    return
-            except OSError:
-                time.sleep(0.1)
-        raise RuntimeError("graphics node did not start listening")
+    def command(self) -> list[str]:
+        return [sys.executable, "-c", NODE_WITH_ODD_SIDE, "--no-discovery", "--host", "127.0.0.1",
+                "--port", str(self.osc_port), "--http-port", str(self.http_port)]
 
 
 CAMERA_NOW = "() => [window.batteur.camera.position.toArray(), window.batteur.controls.target.toArray()]"
