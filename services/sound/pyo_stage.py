@@ -88,6 +88,9 @@ class PyoStage:
             self.server.boot()
             self.server.start()
         self.server.setServer()  # new objects belong to this server even if another one exists
+        # pyo seeds its random objects (Denorm's anti-denormal noise, about 1e-24) from the system clock's
+        # seconds unless given a seed: a render's samples then changed from one second to the next
+        self.server.setGlobalSeed(1)
         self._in = [pyo.DataTable(size=block) for _ in range(channels)]
         self._out = [pyo.DataTable(size=block) for _ in range(channels)]
         self.inputs = [np.asarray(t.getBuffer()) for t in self._in]

@@ -149,9 +149,7 @@ def test_the_default_kit_renders_the_same_with_background_changes_on() -> None:
     kit = load_kit("default")
     audio = []
     for background in (False, True):
-        # without the pyo stage: it adds anti-denormal noise (about 1e-25) whose state lives in pyo's server for
-        # the whole process, so two renders after another test's reverb differ there; the modes do not
-        core = SoundCore(SoundSettings(latency=0.0, use_pyo=False, background_rebuilds=background), kit)
+        core = SoundCore(SoundSettings(latency=0.0, background_rebuilds=background), kit)
         try:
             for seq, (name, t) in enumerate([("snare", 0.01), ("kick", 0.1), ("ride", 0.2), ("hihat", 0.3)]):
                 core.handle(impact(seq, t, name), 0.0, "t")
