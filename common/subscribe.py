@@ -22,6 +22,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import lru_cache
 
+from common.token_bucket import TokenBucket
+
 MAX_SUBSCRIBERS = 16
 """Subscriptions a node keeps at once; further Subscribe requests are refused until one expires."""
 MAX_COPY_RATE = 5000.0
@@ -102,8 +104,8 @@ class Subscription:
     to: tuple[str, int]
     pattern: str
     expires: float
-    tokens: float = MAX_COPY_RATE
-    stamp: float = 0.0
+    bucket: TokenBucket = field(default_factory=lambda: TokenBucket(MAX_COPY_RATE, MAX_COPY_RATE, 0.0))
+    """Copies per second it may receive (:data:`MAX_COPY_RATE`, or the table's ``max_rate``)."""
     sent: int = 0
     dropped: int = 0
     _cache: dict[str, bool] = field(default_factory=dict)
@@ -156,8 +158,7 @@ class Subscriptions:
         self.replies_suppressed = 0
         """Refused Subscribes not answered (their source was answered less than a second ago, or too many)."""
         self._replied: dict[tuple[str, int], float] = {}
-        self._reply_tokens = MAX_REFUSAL_REPLY_RATE
-        self._reply_stamp = clock()
+        self._reply_bucket = TokenBucket(MAX_REFUSAL_REPLY_RATE, MAX_REFUSAL_REPLY_RATE, clock())
 
     def subscribe(self, to: tuple[str, int], pattern: str, duration_s: float) -> bool:
         """Add or renew a subscription; False if refused (bad pattern or table full)."""
@@ -180,7 +181,7 @@ class Subscriptions:
         if len(self.active) >= self.max_subscribers:
             self.refused += 1
             return f"table full ({self.max_subscribers} subscriptions)"
-        self.active[key] = Subscription(to, pattern, now + duration_s, tokens=self.max_rate, stamp=now)
+        self.active[key] = Subscription(to, pattern, now + duration_s, TokenBucket(self.max_rate, self.max_rate, now))
         return ""
 
     def may_reply(self, to: tuple[str, int]) -> bool:
@@ -188,14 +189,11 @@ class Subscriptions:
         ``MAX_REFUSAL_REPLY_RATE`` a second in all."""
         now = self.clock()
         last = self._replied.get(to)
-        rate = MAX_REFUSAL_REPLY_RATE
-        self._reply_tokens = min(rate, self._reply_tokens + max(0.0, now - self._reply_stamp) * rate)
-        self._reply_stamp = now
-        if (last is not None and now - last < REFUSAL_REPLY_INTERVAL_S) or self._reply_tokens < 1.0:
+        if (last is not None and now - last < REFUSAL_REPLY_INTERVAL_S) or not self._reply_bucket.take(now):
             self.replies_suppressed += 1
             return False
-        self._reply_tokens -= 1.0
-        if len(self._replied) >= 2 * rate:  # forget sources answered over a second ago: the total rate bounds the rest
+        if len(self._replied) >= 2 * MAX_REFUSAL_REPLY_RATE:
+            # forget sources answered over a second ago: the total rate bounds the rest
             self._replied = {k: t for k, t in self._replied.items() if now - t < REFUSAL_REPLY_INTERVAL_S}
         self._replied[to] = now
         self.replies += 1
@@ -223,13 +221,10 @@ class Subscriptions:
                 continue
             if not sub.wants(address):
                 continue
-            sub.tokens = min(self.max_rate, sub.tokens + (now - sub.stamp) * self.max_rate)
-            sub.stamp = now
-            if sub.tokens < 1.0:
+            if not sub.bucket.take(now):
                 sub.dropped += 1
                 self.dropped += 1
                 continue
-            sub.tokens -= 1.0
             if data is None:
                 data = packet()
             self.send(data, sub.to)

@@ -39,6 +39,7 @@ from common.messages import REGISTRY, Arg, DropReason, MessageError, MessageRegi
 from common.messages.codec import RawMessage, encode, encode_bundle, encode_raw, parse_packet, to_model
 from common.peers import PeerTable
 from common.stats import TrafficStats
+from common.token_bucket import TokenBucket
 
 log = logging.getLogger("batteur.transport")
 
@@ -89,16 +90,6 @@ def _unmap(ip: IpAddress) -> IpAddress:
     if isinstance(ip, ipaddress.IPv6Address) and ip.ipv4_mapped is not None:
         return ip.ipv4_mapped
     return ip
-
-
-class _Bucket:
-    """Token bucket: ``rate`` messages per second, up to ``burst`` at once."""
-
-    __slots__ = ("tokens", "stamp")
-
-    def __init__(self, burst: float, now: float) -> None:
-        self.tokens = burst
-        self.stamp = now
 
 
 class _Name:
@@ -176,7 +167,7 @@ class UdpEndpoint:
         """Called for every valid message received and every message sent (``batteur echo``, OSCQuery)."""
         self._raw_routes: list[tuple[str, RawHandler]] = []
         self._transport: asyncio.DatagramTransport | None = None
-        self._buckets: OrderedDict[str, _Bucket] = OrderedDict()
+        self._buckets: OrderedDict[str, TokenBucket] = OrderedDict()
         self._names: dict[str, _Name] = {}
         self._loop: asyncio.AbstractEventLoop | None = None
         self._allowed_cache: dict[str, bool] = {}
@@ -526,20 +517,14 @@ class UdpEndpoint:
         assert self.max_rate is not None
         now = self._clock()
         bucket = self._buckets.get(host)
-        burst = max(self.max_burst, 1.0)
         if bucket is None:
-            bucket = _Bucket(burst, now)
+            bucket = TokenBucket(self.max_rate, max(self.max_burst, 1.0), now)
             self._buckets[host] = bucket
             if len(self._buckets) > 1024:
                 self._buckets.popitem(last=False)
         else:
             self._buckets.move_to_end(host)
-            bucket.tokens = min(burst, bucket.tokens + (now - bucket.stamp) * self.max_rate)
-            bucket.stamp = now
-        if bucket.tokens >= 1.0:
-            bucket.tokens -= count
-            return True
-        return False
+        return bucket.take(now, count)
 
     def _log_limited(self, key: str, level: int, text: str, *args: object) -> None:
         now = self._clock()
