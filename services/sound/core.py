@@ -90,9 +90,10 @@ CHEAP_PARAMS = frozenset({"model", "level"})
 """Parameters that rebuild nothing: applied at once even with ``background_rebuilds`` (unless queued behind one)."""
 
 
-WAV_DATA_LIMIT_BYTES = 0xFFFFFFFF - 1024
-"""Most sample bytes a RIFF/WAVE file's 32-bit sizes describe (less room for the header): longer offline renders
-(about 4 h of 48 kHz stereo 24-bit) are written as RF64."""
+WAV_LIMIT_BYTES = 0xFFFFFFFF
+"""A RIFF/WAVE header's 32-bit sizes cannot describe more (about 4 h of 48 kHz stereo 24-bit)."""
+WAV_DATA_LIMIT_BYTES = WAV_LIMIT_BYTES - 1024
+"""Most sample bytes a WAV file holds with room for its header: longer offline renders are written as RF64."""
 
 WAV_FORMATS = frozenset(f for f in sf.available_formats() if sf.check_format(f, "PCM_24"))
 """File formats libsndfile writes as 24-bit PCM, named by extension (WAV, FLAC, AIFF, W64, RF64, ...)."""

@@ -35,7 +35,7 @@ from common.config import NodeSettings
 from common.kit import load_kit
 from common.output_paths import write_atomically
 from common.runtime import run_node
-from services.sound.core import MAX_LATENCY_S, SoundCore, SoundSettings, wav_format
+from services.sound.core import MAX_LATENCY_S, WAV_LIMIT_BYTES, SoundCore, SoundSettings, wav_format
 from services.sound.pyo_stage import _quiet_stderr, audio_device_count, import_pyo
 
 log = logging.getLogger("batteur.sound")
@@ -53,8 +53,6 @@ SFC_SET_UPDATE_HEADER_AUTO = 0x1061
 SFC_RF64_AUTO_DOWNGRADE = 0x1210
 """libsndfile command (sndfile.h): an RF64 file is written with a plain RIFF/WAVE header (and a JUNK chunk that
 reserves room for RF64's ds64) for as long as it stays under 4 GiB, and switches to RF64 beyond."""
-WAV_LIMIT_BYTES = 0xFFFFFFFF
-"""A RIFF/WAVE header's 32-bit sizes cannot describe more (about 4 h of 48 kHz stereo 24-bit)."""
 
 
 START_PLACEHOLDER = "{start}"

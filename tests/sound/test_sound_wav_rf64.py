@@ -10,8 +10,8 @@ import pytest
 import soundfile as sf
 
 from services.sound import core as sound_core
-from services.sound.core import SoundCore, SoundSettings
-from services.sound.node import WAV_LIMIT_BYTES, WavSink
+from services.sound.core import WAV_LIMIT_BYTES, SoundCore, SoundSettings
+from services.sound.node import WavSink
 
 BLOCK = np.full((256, 2), 0.25, dtype=np.float32)
 
