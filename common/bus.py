@@ -131,8 +131,10 @@ class OfflineRunner:
                 sched = schedules[role]
                 if core.rate_hz != sched.rate_hz:  # changed in a step or a handle: follow it from now
                     sched = schedules[role] = sched.following(core.rate_hz, self.now)
-                if sched.rate_hz > 0 and (next_step is None or (sched.due(), role) < next_step):
-                    next_step = (sched.due(), role)
+                if sched.rate_hz > 0:
+                    candidate = (sched.due(), role)
+                    if next_step is None or candidate < next_step:
+                        next_step = candidate
             if next_step is None or next_step[0] > t_end:
                 break
             due, role = next_step
