@@ -6,18 +6,17 @@ from __future__ import annotations
 import asyncio
 import threading
 from collections.abc import Iterator
-from typing import ClassVar
 
 import pytest
 
 from batteur.tools import echo
 from batteur.tools.nodes import Target
 from common.config import load_settings
-from common.core import Outgoing
 from common.messages import REGISTRY, Hello, OscMessage, Subscribe, SubscribeRefused
 from common.runtime import Node
 from common.subscribe import MAX_REFUSAL_REPLY_RATE, Subscriptions
 from common.transport import UdpEndpoint
+from tests.null_core import NullCore
 from tests.waiting import wait_for
 
 pytestmark = pytest.mark.timeout(60)
@@ -65,19 +64,8 @@ def test_the_reply_is_a_registered_message_that_round_trips() -> None:
 # --------------------------------------------------------------------------- the node
 
 
-class QuietCore:
-    ROLE: ClassVar[str] = "sound"
-    rate_hz = 0.0
-
-    def handle(self, message: OscMessage, now: float, source: str) -> list[Outgoing]:
-        return []
-
-    def step(self, now: float) -> list[Outgoing]:
-        return []
-
-
 def quiet_node(node_id: str = "sound-1") -> Node:
-    return Node(QuietCore(), load_settings({"role": "sound", "node_id": node_id, "discovery": False,
+    return Node(NullCore(), load_settings({"role": "sound", "node_id": node_id, "discovery": False,
                                             "clock_master": "self"}))
 
 

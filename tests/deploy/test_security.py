@@ -10,31 +10,19 @@ import asyncio
 import json
 import socket
 import time
-from typing import ClassVar
 
 import pytest
 
 from common.config import NodeSettings, SettingsError, load_settings
-from common.core import Outgoing
 from common.messages import DropReason, Hello, OscMessage, encode, encode_raw
 from common.runtime import Node
 from common.transport import UdpEndpoint
 from tests.deploy.twohosts import wait_line
 from tests.netns import NetnsLab, netns_lab  # noqa: F401  (fixture)
+from tests.null_core import NullCore
 from tests.waiting import wait_for
 
 pytestmark = pytest.mark.timeout(120)
-
-
-class NullCore:
-    ROLE: ClassVar[str] = "sound"
-    rate_hz = 0.0
-
-    def handle(self, message: OscMessage, now: float, source: str) -> list[Outgoing]:
-        return []
-
-    def step(self, now: float) -> list[Outgoing]:
-        return []
 
 
 
