@@ -46,6 +46,7 @@ from common.messages import (
     PROTOCOL_VERSION,
     ClockPing,
     ClockPong,
+    ClockStatus,
     DropReason,
     Health,
     Hello,
@@ -55,7 +56,7 @@ from common.messages import (
 )
 from common.peers import Peer, PeerTable
 from common.subscribe import Subscriptions
-from common.transport import UdpEndpoint, parse_address
+from common.transport import UdpEndpoint, format_address, parse_address, same_ip
 
 log = logging.getLogger("batteur.runtime")
 
@@ -273,6 +274,11 @@ def _same_number(a: object, b: object) -> bool:
         return False
 
 
+def _or_minus_one(value: float) -> float:
+    """``value``, or -1 when it is not finite (no estimate yet: OSC carries no infinity)."""
+    return value if math.isfinite(value) else -1.0
+
+
 def core_count(core: object, name: str) -> int:
     """A core's optional running total ``name`` (0 when it has none, or holds something that is not a count)."""
     try:
@@ -343,6 +349,11 @@ class Node:
         self.max_catch_up_s = max_catch_up_s
         self._achieved_rate = 0.0
         self._master_id = ""
+        self._ping_to: tuple[str, int] | None = None
+        """Where the clock pings go (the master's host and port as the peer table has them); pongs must come from
+        there."""
+        self.foreign_pongs = 0
+        """Clock pongs dropped because they came from elsewhere than the master's address."""
         self.estimator = OffsetEstimator(self.node_id)
         self.endpoint: UdpEndpoint | None = None
         self.loop: RateLoop | None = None
@@ -672,7 +683,7 @@ class Node:
             endpoint.send(answer_ping(message, t, self.clock.now()), source)
             return
         if isinstance(message, ClockPong):
-            self._on_pong(message)
+            self._on_pong(message, source)
             return
         if isinstance(message, Subscribe):
             self._on_subscribe(message, source)
@@ -714,7 +725,16 @@ class Node:
             reply = SubscribeRefused(node_id=self.node_id, pattern=message.pattern, reason=_clip(refusal, 512))
             self.endpoint.send(reply, source)
 
-    def _on_pong(self, pong: ClockPong) -> None:
+    def _on_pong(self, pong: ClockPong, source: str) -> None:
+        if not self._from_clock_master(source):
+            # a host that sees the pings could answer them first, echoing what the estimator checks
+            self.foreign_pongs += 1
+            assert self.endpoint is not None
+            pinged = "no master pinged yet" if self._ping_to is None else \
+                f"the master {self._master_id} is at {format_address(*self._ping_to)}"
+            self.endpoint.stats.record_drop(DropReason.NOT_ALLOWED, f"clock pong not from the clock master ({pinged})",
+                                            source)
+            return
         sample = self.estimator.add_pong(pong, self.clock.local_now())
         if sample is not None:
             first = not self.clock.synced
@@ -728,6 +748,17 @@ class Node:
                     self.estimator.uncertainty,
                 )
                 self.start_core()
+
+    def _from_clock_master(self, source: str) -> bool:
+        """True if ``source`` (``host:port``) is the address the clock pings are sent to, as resolved for sending."""
+        if self._ping_to is None or self.endpoint is None:
+            return False
+        try:
+            host, port = parse_address(source)
+            pinged = self.endpoint.destinations(self._ping_to)
+        except ValueError:
+            return False
+        return any(port == p and same_ip(host, ip) for ip, p in pinged)
 
     def _on_peer_change(self, event: str, peer: Peer) -> None:
         if event == "removed" or peer.node_id == self.node_id:
@@ -786,11 +817,31 @@ class Node:
             self.follow_core_rate()  # a core that changed its rate outside step and handle
             self._achieved_rate = self.loop.achieved_rate() if self.loop is not None else 0.0
             health = self.health()
+            status = None if self.is_clock_master else self.clock_status()
             sent: set[tuple[str, int]] = set()
             for peer in self.peers.all():
                 if peer.node_id != self.node_id and peer.address not in sent:
                     sent.add(peer.address)
                     self.endpoint.send(health, peer.address)
+                    if status is not None:
+                        self.endpoint.send(status, peer.address)
+
+    def clock_status(self) -> ClockStatus:
+        """How this node's clock follows its master now: the estimator's figures and counters."""
+        est = self.estimator
+        return ClockStatus(
+            node_id=self.node_id,
+            synced=int(self.clock.synced),
+            offset_s=self.clock.offset,
+            uncertainty_s=_or_minus_one(est.uncertainty),
+            round_trip_s=_or_minus_one(est.round_trip),
+            samples=len(est.samples),
+            rejected=est.rejected,
+            outliers=est.outliers,
+            steps=est.steps,
+            foreign_pongs=self.foreign_pongs,
+            master=self._master_id,
+        )
 
     def clock_master_peer(self) -> Peer | None:
         """The clock master to ping: the one in use while it is known, else the lowest node id of the master role
@@ -810,6 +861,7 @@ class Node:
                     self._master_id = master.node_id   # stale, start over
                     self.estimator.reset()
                 ping = self.estimator.make_ping(self.clock.local_now())
+                self._ping_to = master.address
                 self.endpoint.send(ping, master.address)
             fast = len(self.estimator.samples) < 8
             await asyncio.sleep(min(0.1, self.ping_interval_s) if fast else self.ping_interval_s)

@@ -92,6 +92,16 @@ def _unmap(ip: IpAddress) -> IpAddress:
     return ip
 
 
+def same_ip(a: str, b: str) -> bool:
+    """True if two numeric addresses are the same host (an IPv4-mapped IPv6 address is its IPv4 one; a scope
+    ``%zone`` is ignored); text that is not an address is compared as it is."""
+    try:
+        ip_a, ip_b = (ipaddress.ip_address(x.split("%")[0]) for x in (a, b))
+    except ValueError:
+        return a == b
+    return _unmap(ip_a) == _unmap(ip_b)
+
+
 class _Name:
     """A host name's lookup: its address ("" if it failed), when it was looked up, packets waiting for it."""
 

@@ -13,6 +13,7 @@ from common.clock import OffsetEstimator, answer_ping
 from common.config import load_settings
 from common.messages import ClockPong, decode, encode
 from common.runtime import Node
+from common.transport import parse_address
 from tests.test_runtime import EchoCore
 from tests.waiting import wait_for
 
@@ -182,7 +183,7 @@ def test_a_synced_node_ignores_a_forged_pong_end_to_end() -> None:
         ping = remote.estimator.make_ping(remote.clock.local_now())
         t = remote.clock.local_now() + 3600.0
         forged = ClockPong(node_id=ping.node_id, seq=ping.seq, t_send=ping.t_send, t_receive=t, t_reply=t)
-        remote.endpoint.receive_datagram(encode(forged), "127.0.0.1", 9)
+        remote.endpoint.receive_datagram(encode(forged), *parse_address(master.endpoint.local_address))
         assert remote.clock.offset == pytest.approx(before, abs=0.005)
         assert remote.estimator.outliers >= 1
         await remote.stop()

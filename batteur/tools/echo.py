@@ -28,7 +28,7 @@ from batteur.tools.nodes import (
     write_line,
 )
 from common.arg_types import count, seconds
-from common.messages import OscMessage, Subscribe, SubscribeRefused
+from common.messages import ClockStatus, OscMessage, Subscribe, SubscribeRefused
 from common.subscribe import matches, pattern_regex
 from common.transport import UdpEndpoint
 
@@ -40,8 +40,9 @@ DESCRIPTION = """\
 Print the OSC messages whose address matches PATTERN, as the nodes send or receive them.
 Each node found by zeroconf (or given with --node) is asked to copy matching messages
 to this command (a Subscribe, renewed every 5 s). One line per message:
-the address, then the arguments (strings quoted). A node that refuses the subscription
-(its table full, say) is named once on standard error, with its reason.
+the address, then the arguments (strings quoted); /batteur/clock/status is spelt out in words
+(--json gives its fields). A node that refuses the subscription (its table full, say) is
+named once on standard error, with its reason.
 
 Patterns (OSC 1.0): ? one character, * any run of characters but '/', [abc] [a-z] [!abc]
 one character of (or not of) a set, {foo,bar} one of several strings, // any number of levels.
@@ -54,8 +55,23 @@ Stops on Ctrl-C (exit status 130), after --count messages or after --duration se
 def format_message(message: OscMessage, as_json: bool) -> str:
     if as_json:
         return json.dumps({"address": message.ADDRESS, **message.model_dump(mode="json")})
+    if isinstance(message, ClockStatus):
+        return format_clock_status(message)
     return " ".join([message.ADDRESS, *(repr(a) if isinstance(a, str) else f"{a:g}" if isinstance(a, float)
                                          else str(a) for a in message.to_args())])
+
+
+def format_clock_status(status: ClockStatus) -> str:
+    """One line a person reads: offset and uncertainty in seconds to the microsecond, then the counters."""
+    master = status.master or "none found"
+    if status.uncertainty_s < 0:
+        estimate = f"offset {status.offset_s:+.6f} s, no estimate yet"
+    else:
+        estimate = (f"offset {status.offset_s:+.6f} s +/- {status.uncertainty_s:.6f} s, "
+                    f"best round trip {status.round_trip_s:.6f} s")
+    return (f"{status.ADDRESS} {status.node_id} {'synced' if status.synced else 'not synced'} "
+            f"(master {master}): {estimate}, {status.samples} samples, {status.rejected} rejected "
+            f"({status.outliers} outliers), {status.steps} steps, {status.foreign_pongs} foreign pongs")
 
 
 def check_pattern(pattern: str) -> Subscribe:

@@ -113,3 +113,33 @@ class SubscribeRefused(OscMessage):
     node_id: NodeId = Field(description="id of the node that refused")
     pattern: str = Field(min_length=1, max_length=256, pattern=r"^/", description="the pattern it was asked for")
     reason: str = Field(max_length=512, description="why, e.g. 'table full (16 subscriptions)' or 'bad pattern ...'")
+
+
+@register
+class ClockStatus(OscMessage):
+    """How well a node's rig clock follows the clock master, published at 1 Hz beside its Health.
+
+    Sent by every node whose clock master is another node, to the same peers as its Health.
+    ``uncertainty_s`` and ``round_trip_s`` are -1 until the first sample.
+    """
+
+    ADDRESS = "/batteur/clock/status"
+    FAMILY = Family.CLOCK
+
+    node_id: NodeId = Field(description="unique id of the node process")
+    synced: int = Field(ge=0, le=1, description="1 once the offset comes from an estimate, 0 before")
+    offset_s: float = Field(description="offset added to the node's own clock (master minus local), seconds "
+                            "(a 32-bit float: to about 1e-7 of its size)")
+    uncertainty_s: float = Field(ge=-1, description="half-width of the interval the true offset lies in, seconds "
+                                 "(-1: no estimate yet)")
+    round_trip_s: float = Field(ge=-1, description="smallest ping round trip among the samples, seconds "
+                                "(-1: no sample yet)")
+    samples: Count = Field(description="samples in the estimator's window")
+    rejected: Count = Field(description="pongs from the master the estimator refused (stray, stale, implausible "
+                            "or outliers), total")
+    outliers: Count = Field(description="of rejected: samples that disagreed with the estimate, total")
+    steps: Count = Field(description="times agreeing outliers replaced the estimate (the master's clock moved), total")
+    foreign_pongs: Count = Field(description="pongs dropped because they did not come from the master's address, "
+                                 "total")
+    master: str = Field(max_length=64, pattern=r"^[A-Za-z0-9_.:-]*$",
+                        description="node id of the clock master pinged ('' while none is known)")
