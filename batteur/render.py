@@ -158,15 +158,17 @@ def prepare(path: Path | str, kit: Kit, opts: RenderOptions, calibration: Calibr
 
     With a ``calibration`` the notes are shifted (lag anticipation) and their
     velocities remapped before planning; the returned ``score`` keeps the
-    written times (what the performance is judged against). ``progress``: called with (stage, notes done,
-    notes total) while the notes are given limbs (stage ``"limbs"``, ``distribute``'s progress) and planned
-    (``"gestures"``, ``plan_gestures``'); what it raises stops the preparation.
+    written times (what the performance is judged against). ``progress``: called with (stage, done, total)
+    while a MIDI file is read (stage ``"reading"``, in bytes: ``read_midi``'s progress), its notes are given
+    limbs (``"limbs"``, in notes: ``distribute``'s) and planned (``"gestures"``, ``plan_gestures``'); what it
+    raises stops the preparation.
     """
     from common.gesture.planner import PlannerConfig, plan_gestures
     from common.score.limbs import distribute
     from common.score.text import read_score
 
-    score = scale_tempo(read_score(path), opts.tempo_scale)
+    reading = None if progress is None else functools.partial(progress, "reading")  # MIDI only: text is quick
+    score = scale_tempo(read_score(path, progress=reading), opts.tempo_scale)
     if not score.events:  # the reader's warnings say why (unknown pitches, no drum channel)
         why = "; ".join(w.removeprefix(f"{Path(path).name}: ") for w in score.warnings
                         if not w.endswith("no drum events"))
@@ -181,7 +183,8 @@ def prepare(path: Path | str, kit: Kit, opts: RenderOptions, calibration: Calibr
 
 
 class PlanningProgress:
-    """The planning bars of a score render, one per stage of :func:`prepare` ("limbs", "gestures"), counted in
+    """The bars of a score render before its simulation, one per stage of :func:`prepare`: ``reading SCORE`` (a MIDI
+    file, counted in its bytes, shown in kB or MB), then ``planning SCORE (limbs)`` and ``(gestures)``, counted in
     notes; each line is ended when the next stage begins. On stderr on a terminal, like the render's bar."""
 
     def __init__(self, name: str, quiet: bool) -> None:
@@ -189,14 +192,25 @@ class PlanningProgress:
         self.quiet = quiet
         self.stage: str | None = None
         self.bar: Progress | None = None
+        self.scale = 1.0
+        """What one unit of the bar is worth in the stage's counts (bytes per kB or MB while reading)."""
 
     def __call__(self, stage: str, done: int, total: int) -> None:
         if self.bar is None or stage != self.stage:
             self.close()
             self.stage = stage
-            self.bar = Progress(f"planning {self.name} ({stage})", total, unit="notes", decimals=0,
-                                enabled=False if self.quiet else None)
-        self.bar.update(done)
+            self.bar = self._bar(stage, total)
+        self.bar.update(done / self.scale)
+
+    def _bar(self, stage: str, total: int) -> Progress:
+        enabled = False if self.quiet else None
+        if stage != "reading":
+            self.scale = 1.0
+            return Progress(f"planning {self.name} ({stage})", total, unit="notes", decimals=0, enabled=enabled)
+        megabytes = total >= 2**20
+        self.scale = 2.0**20 if megabytes else 2.0**10
+        return Progress(f"reading {self.name}", total / self.scale, unit="MB" if megabytes else "kB", decimals=1,
+                        enabled=enabled)
 
     def close(self, finished: bool = True) -> None:
         """End the current stage's line (``finished=False``: where it stands, the planning given up)."""

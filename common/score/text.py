@@ -322,7 +322,10 @@ def parse_text(text: str, source: str = "text") -> TextScore:
 
 
 def read_score(path: str | Path, **kwargs: object) -> Score:
-    """Read a score file: ``.mid``/``.midi``/``.smf`` as MIDI, anything else as the text format."""
+    """Read a score file: ``.mid``/``.midi``/``.smf`` as MIDI, anything else as the text format.
+
+    Keyword arguments (``drum_channels``, ``progress``, ...) go to :func:`common.score.midi.read_midi`; a text score
+    ignores them (it has no channels, and reads quickly: 208,000 notes in about 1 s, without progress reports)."""
     from common.score.midi import read_midi
 
     p = Path(path)

@@ -59,7 +59,7 @@ from services.physics.urdf import Inertial, Link, Robot, Shape, load_robot
 from services.physics.world import World, WorldSettings
 
 if TYPE_CHECKING:
-    from common.gesture.plan import GesturePlan
+    from common.gesture.plan import GesturePlan, LimbTrajectory
     from services.physics.core import PhysicsSettings
 
 log = logging.getLogger("batteur.physics")
@@ -435,13 +435,15 @@ class DrummerScene:
     def load_plan(self, plan: GesturePlan, start_at: float, now: float | None = None) -> None:
         """Track a whole gesture plan: its time ``plan.start_time`` maps to rig time ``start_at`` (seconds).
 
-        Every knot is checked first (nothing is queued if one is unreachable). When the plan starts later
-        than ``now``, each limb first moves smoothly from where it is to the plan's first knot (a hand, given
-        ``LEAD_IN_ARC_MIN_S`` or more, over an arc ``LEAD_IN_RISE_M`` above the higher end).
+        Every knot is checked first (nothing is queued if one is unreachable, or if a limb's knots with its
+        lead-in would pass its track's ``max_knots``: :class:`TargetError`, every track kept as it was). When
+        the plan starts later than ``now``, each limb first moves smoothly from where it is to the plan's first
+        knot (a hand, given ``LEAD_IN_ARC_MIN_S`` or more, over an arc ``LEAD_IN_RISE_M`` above the higher end).
         """
         offset = start_at - plan.start_time
+        names = {limb: str(limb.value if hasattr(limb, "value") else limb) for limb in plan.trajectories}
         for limb, traj in plan.trajectories.items():
-            name = str(limb.value if hasattr(limb, "value") else limb)
+            name = names[limb]
             if name not in self.limb_tracks:
                 raise TargetError(f"plan has unknown limb {name!r}")
             # checked here, not when queued: queueing clears the limb's track first
@@ -452,18 +454,38 @@ class DrummerScene:
             for k in range(len(traj.times)):
                 self.check_cartesian(name, traj.positions[k])
         here = self.current_targets()
+        lead_ins = {limb: self._lead_in(names[limb], traj, offset, here, now)
+                    for limb, traj in plan.trajectories.items()}
+        for limb, traj in plan.trajectories.items():  # before any track is cleared: a refusal keeps them all
+            self._check_plan_room(names[limb], len(traj.times), len(lead_ins[limb]))
         self.head = (plan.head, offset) if plan.head is not None else None
         for limb, traj in plan.trajectories.items():
-            name = str(limb.value if hasattr(limb, "value") else limb)
-            track = self.limb_tracks[name]
+            track = self.limb_tracks[names[limb]]
             track.clear()
-            first = traj.times[0] + offset
-            if now is not None and first > now + 1e-3:
-                track.add(now, here[name], np.zeros(3))
-                if name in _HANDS and first - now >= LEAD_IN_ARC_MIN_S:
-                    track.add(*_lead_in_apex(now, here[name], first, np.asarray(traj.positions[0], dtype=float)))
+            for knot in lead_ins[limb]:
+                track.add(*knot)
             track.extend(traj.times + offset, traj.positions, traj.velocities)
             track.add_strokes(plan.strokes_of(limb), offset)
+
+    def _lead_in(self, name: str, traj: LimbTrajectory, offset: float, here: dict[str, np.ndarray],
+                 now: float | None) -> list[tuple[float, np.ndarray, np.ndarray]]:
+        """The knots (rig time s, m, m/s) that bring limb ``name`` from where it is to its plan's first knot: none
+        when the plan starts now (or ``now`` is unknown), else a start knot, and a hand's arc apex if time allows."""
+        first = traj.times[0] + offset
+        if now is None or first <= now + 1e-3:
+            return []
+        knots = [(now, here[name], np.zeros(3))]
+        if name in _HANDS and first - now >= LEAD_IN_ARC_MIN_S:
+            knots.append(_lead_in_apex(now, here[name], first, np.asarray(traj.positions[0], dtype=float)))
+        return knots
+
+    def _check_plan_room(self, name: str, knots: int, lead_in: int) -> None:
+        """Raise :class:`TargetError` if ``knots`` plan knots after ``lead_in`` lead-in knots would pass limb
+        ``name``'s track bound (the track is cleared first, so nothing queued counts)."""
+        bound = self.limb_tracks[name].max_knots
+        if knots + lead_in > bound:
+            raise TargetError(f"plan has {knots} {name} knots; with the {lead_in} lead-in knots that passes the limit "
+                              f"of {bound} knots per track (MAX_TRACK_KNOTS); refused, the queued targets are kept")
 
     def current_targets(self) -> dict[str, np.ndarray]:
         """Where each limb's target point is now (the inverse of the hands' bead offset), metres."""
