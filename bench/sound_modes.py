@@ -3,6 +3,7 @@
     python bench/sound_modes.py            # 50,000 modes, 256-sample blocks at 48 kHz (a few seconds)
     python bench/sound_modes.py --modes 20000 --pyo-modes 1000 --blocks 200
     python bench/sound_modes.py --change-modes 20000 --blocks 0   # only the /batteur/sound/modes change
+    python bench/sound_modes.py --blocks 0 --change-modes 0 --strike-modes 20000   # only the strike cost
 
 Both are measured in the same run on one core (BLAS limited to one thread).
 The vectorised bank (services/sound/modal_bank.py) renders every mode of a
@@ -17,6 +18,11 @@ loop: applied at once (offline renders; the live node before background
 rebuilds), the first change (SciPy's Bessel-zero table) and a later one; and
 with ``background_rebuilds`` (the live node): the longest gap between the
 loop's steps, paced at the block rate, while the worker computes the change.
+
+Then what a strike on the snare costs the render loop, at its default mode
+count and after ``/batteur/sound/modes N``: the time of the block the strike
+starts in and of the next one (the contact's later chunks land there), median
+over strikes at varied points, against a block without a strike.
 """
 
 from __future__ import annotations
@@ -35,6 +41,7 @@ from typing import get_args  # noqa: E402
 import numpy as np  # noqa: E402
 
 from common.arg_types import count, whole, whole_non_negative  # noqa: E402
+from common.messages import Impact  # noqa: E402
 from common.messages.sound import SoundModes  # noqa: E402
 from services.sound import membrane  # noqa: E402
 from services.sound.core import SoundCore, SoundSettings  # noqa: E402
@@ -89,10 +96,17 @@ def pyo_block_times(modes: int, block: int, sr: int, blocks: int, seed: int = 0)
         server.shutdown()
 
 
+def _fresh_tables() -> None:
+    """Forget the per-process tables, as in a fresh process: the first change computes its Bessel-zero table and
+    (over SHAPE_TABLE_MODES modes) its grid of Bessel functions."""
+    membrane._TABLES.clear()
+    membrane._GRIDS.clear()
+
+
 def change_blocking(modes: int, block: int, sr: int) -> dict[str, float]:
     """Seconds the render loop is held by a SoundModes change to ``modes`` on the snare (see the docstring)."""
     out: dict[str, float] = {}
-    membrane._TABLES.clear()  # as in a fresh process: the first change computes the Bessel-zero table
+    _fresh_tables()
     core = SoundCore(SoundSettings(block_size=block, sample_rate=sr, use_pyo=False, record=False,
                                    origin=None, background_rebuilds=True))
     try:
@@ -114,13 +128,47 @@ def change_blocking(modes: int, block: int, sr: int) -> dict[str, float]:
         assert core.instruments.instruments["snare"].p.n_modes == modes - 1
     finally:
         core.close()
-    membrane._TABLES.clear()
+    _fresh_tables()
     core = SoundCore(SoundSettings(block_size=block, sample_rate=sr, use_pyo=False, record=False))
     try:
         for key, value in (("first", modes), ("later", modes - 1)):
             t0 = time.perf_counter()
             core.handle(SoundModes(instrument="snare", value=value), 0.0, "bench")
             out[f"at once {key}"] = time.perf_counter() - t0
+    finally:
+        core.close()
+    return out
+
+
+def strike_cost(modes: int, block: int, sr: int, strikes: int = 15) -> dict[str, float]:
+    """Median seconds of the render loop's block with a snare strike, of the block after it and of a block
+    without one, at the snare's default mode count (keys ``default ...``) and at ``modes`` (``N ...``)."""
+    core = SoundCore(SoundSettings(block_size=block, sample_rate=sr, use_pyo=False, record=False, latency=0.0))
+    out: dict[str, float] = {}
+    rng = np.random.default_rng(1)
+    seq = 0
+    try:
+        for key, value in (("default", 0), ("N", modes)):
+            if value:
+                core.handle(SoundModes(instrument="snare", value=value), core.now, "bench")  # applied at once
+            struck, after, quiet = [], [], []
+            for _ in range(strikes + 2):
+                seq += 1
+                t = core.now + float(rng.uniform(0.0, block / sr))  # somewhere in the next block
+                core.handle(Impact(seq=seq, time=t, instrument="snare", zone="centre", r=float(rng.uniform(0.1, 0.9)),
+                                   theta=float(rng.uniform(-3.0, 3.0)), velocity=3.0, impulse=0.0, peak_force=0.0,
+                                   duration=0.0, part="right_stick_tip"), core.now, "bench")
+                times = []
+                for _ in range(4):
+                    t0 = time.perf_counter()
+                    core.render_block()
+                    times.append(time.perf_counter() - t0)
+                struck.append(times[0])
+                after.append(times[1])
+                quiet.append(times[3])
+            for name, values in (("strike", struck), ("after", after), ("quiet", quiet)):
+                out[f"{key} {name}"] = float(np.median(values[2:]))  # the first two warm up
+            out[f"{key} modes"] = float(core.instruments.instruments["snare"].bank.size)
     finally:
         core.close()
     return out
@@ -149,6 +197,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--change-modes", type=_change_modes, default=20000,
                         help="time a /batteur/sound/modes change to this many modes on the snare (default 20000, "
                         "the most it takes; 0: skip)")
+    parser.add_argument("--strike-modes", type=_change_modes, default=20000,
+                        help="time the render loop's blocks of a snare strike at its default mode count and at this "
+                        "many modes (default 20000; 0: skip)")
     return parser
 
 
@@ -167,6 +218,13 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"  in the background (live node), {key} change: loop held at most "
                   f"{t[f'background {key} held'] * 1e3:.1f} ms, new modes playing after "
                   f"{t[f'background {key} ready']:.3f} s")
+    if args.strike_modes > 0:
+        c = strike_cost(args.strike_modes, args.block, sr)
+        print(f"a strike on the snare, render loop's blocks (median; block {args.block / sr * 1e3:.2f} ms):")
+        for key, label in (("default", "default modes"), ("N", f"/batteur/sound/modes {args.strike_modes}")):
+            print(f"  {label} ({c[f'{key} modes']:.0f} in its bank): block with the strike "
+                  f"{c[f'{key} strike'] * 1e3:.2f} ms, the next {c[f'{key} after'] * 1e3:.2f} ms, "
+                  f"a block without one {c[f'{key} quiet'] * 1e3:.2f} ms")
     return 0
 
 

@@ -17,7 +17,7 @@ import logging
 import math
 from collections import Counter
 from collections.abc import Callable
-from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import Future
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import ClassVar, Literal, Protocol
@@ -62,6 +62,7 @@ from services.sound.instruments import (
 )
 from services.sound.modal_bank import MAX_T60_S
 from services.sound.pyo_stage import PyoStage
+from services.sound.rebuild_worker import RebuildWorker
 from services.sound.samples import SampleBank
 from services.sound.scheduler import Scheduler
 from services.sound.voices import VoicePool
@@ -275,8 +276,7 @@ class SoundCore:
         self._drop_logged: dict[str, float] = {}  # kind -> rig time of its last warning, seconds
         self._drop_quiet: Counter[str] = Counter()  # kind -> drops since that warning
         self._pans = {i.id: self._pan(i.obj.position[0]) for i in self.instruments.instruments.values()}
-        self._worker = (ThreadPoolExecutor(1, thread_name_prefix="sound-rebuild") if s.background_rebuilds
-                        else None)
+        self._worker = RebuildWorker() if s.background_rebuilds else None
         self._rebuilds: dict[str, _Rebuild] = {}  # instrument id -> changes in the worker
         self._queued: dict[str, list[_Change]] = {}  # instrument id -> changes that arrived meanwhile, in order
 
@@ -628,9 +628,11 @@ class SoundCore:
             self._stage.close()
             self._stage = None
         worker = getattr(self, "_worker", None)
-        if worker is not None:  # a rebuild in flight finishes in its thread; nothing waits for it
-            worker.shutdown(wait=False, cancel_futures=True)
+        if worker is not None:  # a rebuild in flight is abandoned (its child interpreter killed), not waited for
+            worker.close()
             self._worker = None
+            self._rebuilds.clear()
+            self._queued.clear()
 
     def __del__(self) -> None:
         try:

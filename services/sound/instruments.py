@@ -298,10 +298,12 @@ class Instrument:
 
     def strike_modal(self, strike: Strike, pool: VoicePool, gain: float = 1.0) -> None:
         pulse = self.pulse(strike)
-        w = self.weights(strike) * (self.calibration * gain)
-        for start, resp in mode_response_chunks(pulse, self.bank.poles_log):
+        weights = self.weights(strike)  # the mode shapes at the strike point: once per strike
+        w = weights * (self.calibration * gain)
+        tables = self.bank.tables
+        for start, resp in mode_response_chunks(pulse, tables.poles_log, inverse_powers=tables.inverse_powers):
             self.inject(strike.offset + start, w * resp)
-        self.extras(strike, pulse, pool)
+        self.extras(strike, pulse, pool, weights)
 
     def inject(self, delay: int, amplitudes: npt.NDArray[np.complex128]) -> None:
         """Add ``amplitudes`` to the modes ``delay`` samples after the current block's start."""
@@ -310,8 +312,8 @@ class Instrument:
         else:
             self.add_delayed(delay, amplitudes)
 
-    def extras(self, strike: Strike, pulse: ContactPulse, pool: VoicePool) -> None:
-        """Non-modal components of a modal strike (snare wires, ...)."""
+    def extras(self, strike: Strike, pulse: ContactPulse, pool: VoicePool, weights: F64) -> None:
+        """Non-modal components of a modal strike (snare wires, ...); ``weights``: :meth:`weights` of ``strike``."""
 
     def sample_name(self, strike: Strike) -> tuple[str, float]:
         """(sample name, playback rate) for a strike."""
@@ -423,7 +425,7 @@ class Membrane(Instrument):
             striker = replace(self.striker(), stiffness=max(self.p.stick_stiffness, 3e8))
         return super().pulse(strike, striker)
 
-    def extras(self, strike: Strike, pulse: ContactPulse, pool: VoicePool) -> None:
+    def extras(self, strike: Strike, pulse: ContactPulse, pool: VoicePool, weights: F64) -> None:
         v = strike.velocity / REFERENCE_VELOCITY
         kick = "kick" in self.id or "bass" in self.id
         # the striker's own click (beater felt on the head, stick tip): a very short high burst
@@ -484,12 +486,13 @@ class Cymbal(Instrument):
         bell = bell_w * self.bell_gains / (self.modes.mass[0] if self.n_plate else 1.0)
         return np.asarray(self.gains * np.concatenate([plate, bell]))
 
-    def extras(self, strike: Strike, pulse: ContactPulse, pool: VoicePool) -> None:
+    def extras(self, strike: Strike, pulse: ContactPulse, pool: VoicePool, weights: F64) -> None:
         if self.p.shimmer <= 0 or self.n_plate == 0:
             return
         rng = np.random.default_rng(strike.seq * 104729 + _seed(self.id))
         f = self.bank.freq
-        base = np.sum(np.abs(self.amplitudes(strike, pulse))) * self.calibration / max(self.bank.size, 1)
+        amplitudes = np.asarray(weights * mode_response(pulse, self.bank.poles_log))  # = amplitudes(strike, pulse)
+        base = np.sum(np.abs(amplitudes)) * self.calibration / max(self.bank.size, 1)
         for delay_s, share in ((0.012, 0.6), (0.035, 0.4)):
             phase = np.exp(2j * np.pi * rng.random(self.bank.size))
             tilt = np.clip(f / 6000.0, 0.0, 1.5)
@@ -535,7 +538,7 @@ class HiHat(Cymbal):
             return
         super().strike(strike, pool)
 
-    def extras(self, strike: Strike, pulse: ContactPulse, pool: VoicePool) -> None:
+    def extras(self, strike: Strike, pulse: ContactPulse, pool: VoicePool, weights: F64) -> None:
         if self.p.openness < 0.3:
             # stick tick on a closed hat
             amp = 0.05 * min(strike.velocity / REFERENCE_VELOCITY, 3.0)

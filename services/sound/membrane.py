@@ -30,6 +30,8 @@ import numpy as np
 import numpy.typing as npt
 from scipy.special import jn_zeros, jv
 
+from services.sound.rebuild_worker import run_child
+
 RHO_AIR = 1.2
 """Density of air, kg/m^3."""
 
@@ -38,6 +40,14 @@ CHILD_PROCESS_ZEROS = 2000
 """Off the main thread, a table with more zeros than this is computed in a child process: SciPy's ``jn_zeros``
 holds the GIL for 10-40 ms per order at large sizes, which would stall the node's render loop (the main thread)
 as surely as computing it there. The default kit's tables have under 500 zeros."""
+
+SHAPE_TABLE_MODES = 1500
+"""Mode sets with more modes than this read their radial shapes J_m(k r) from a :class:`BesselGrid` (interpolated,
+error under 1e-8) instead of calling SciPy's ``jv`` per mode at every strike (2-7 us a mode: 95 ms a strike at
+20,000 modes, in the render loop). No instrument of the default kit has more (cymbals at most 1500, membranes
+160), so their shapes, and renders, are exactly as before."""
+GRID_STEP = 0.25
+"""Spacing of a :class:`BesselGrid` in x (a power of two, so x / step is exact)."""
 
 _TABLES: list[npt.NDArray[np.float64]] = []  # Bessel-zero tables computed so far, none covering another
 _TABLES_LOCK = threading.Lock()  # rebuilds run in the node's worker thread as well as in the loop
@@ -70,15 +80,103 @@ def _compute_table(m_max: int, n_max: int) -> npt.NDArray[np.float64]:
     """The table of :func:`bessel_table`, in a child interpreter when large and off the main thread (the same
     SciPy, so the same bits; a plain child, so nothing of this process is imported again or forked)."""
     if threading.current_thread() is not threading.main_thread() and (m_max + 1) * n_max > CHILD_PROCESS_ZEROS:
-        try:
-            done = subprocess.run([sys.executable, "-c", _CHILD, str(m_max), str(n_max)], capture_output=True,
-                                  check=True, timeout=600)
-            table = np.load(io.BytesIO(done.stdout))
+        try:  # in a rebuild worker, its close() kills the child (Abandoned: no fallback, the result is not wanted)
+            table = np.load(io.BytesIO(run_child([sys.executable, "-c", _CHILD, str(m_max), str(n_max)], 600.0)))
             if table.shape == (m_max + 1, n_max):
                 return np.asarray(table, dtype=np.float64)
         except (OSError, subprocess.SubprocessError, ValueError):
             pass  # no child possible here: computed in this thread, slower for the loop but as right
     return np.array([jn_zeros(m, n_max) for m in range(m_max + 1)])
+
+
+@dataclass(frozen=True)
+class BesselGrid:
+    """J_m(x) and its first two derivatives at x = i GRID_STEP, for m = 0..m_max and i = 0..n - 1: ``points`` has
+    shape (m_max + 1, n, 3), the three side by side so that a strike's lookups touch one or two cache lines per
+    mode. Quintic Hermite interpolation between two grid points is within 1e-8 of J_m (the sixth derivative of
+    J_m is at most 1: error <= step^6 / 46080)."""
+
+    points: npt.NDArray[np.float64]
+
+    @property
+    def columns(self) -> int:
+        return int(self.points.shape[1])
+
+    @property
+    def x_max(self) -> float:
+        """Largest x the grid interpolates."""
+        return (self.columns - 1) * GRID_STEP
+
+    def covers(self, m_max: int, x_max: float) -> bool:
+        return self.points.shape[0] > m_max and self.x_max >= x_max
+
+
+_GRIDS: list[BesselGrid] = []  # the largest grid computed so far (at most one)
+
+
+def bessel_grid(m_max: int, x_max: float) -> BesselGrid:
+    """A :class:`BesselGrid` covering orders 0..m_max and x in [0, x_max]: computed once per process for the largest
+    asked so far (20,000 modes: about 1 s; SciPy's ``jv`` releases the GIL, so a worker thread does not hold the
+    render loop) and reused for smaller ones. The grid's points do not depend on its size (x = i step), so the
+    shapes read from it do not depend on what was computed before."""
+    with _TABLES_LOCK:
+        if _GRIDS and _GRIDS[0].covers(m_max, x_max):
+            return _GRIDS[0]
+        if _GRIDS:  # the new grid covers the old one too, so one grid serves every size asked so far
+            m_max, x_max = max(m_max, _GRIDS[0].points.shape[0] - 1), max(x_max, _GRIDS[0].x_max)
+    n = int(np.ceil(x_max / GRID_STEP)) + 2
+    x = np.arange(n) * GRID_STEP
+    # J_-2 .. J_(m_max + 2): J_-m = (-1)^m J_m; J' = (J_(m-1) - J_(m+1)) / 2, J'' = (J_(m-2) - 2 J_m + J_(m+2)) / 4
+    ext = jv(np.abs(np.arange(-2, m_max + 3))[:, None], x[None, :])
+    ext[1] = -ext[1]
+    value = ext[2:-2]
+    grid = BesselGrid(np.stack([value, 0.5 * (ext[1:-3] - ext[3:-1]), 0.25 * (ext[:-4] - 2.0 * value + ext[4:])],
+                               axis=-1))
+    with _TABLES_LOCK:
+        if not _GRIDS or grid.covers(_GRIDS[0].points.shape[0] - 1, _GRIDS[0].x_max):
+            _GRIDS[:] = [grid]
+    return grid
+
+
+@dataclass(frozen=True)
+class RadialShapes:
+    """J_m(k_a r) of a fixed set of modes, interpolated in a :class:`BesselGrid` (a few vector operations per
+    strike, whatever the orders)."""
+
+    grid: BesselGrid
+    k_a: npt.NDArray[np.float64]
+    row: npt.NDArray[np.int64]  # m * grid columns: each mode's row in the grid, as (order, x) pairs
+
+    @classmethod
+    def build(cls, m: npt.NDArray[np.int64], k_a: npt.NDArray[np.float64]) -> RadialShapes:
+        grid = bessel_grid(int(m.max()), float(k_a.max()))
+        return cls(grid, k_a, m.astype(np.int64) * grid.columns)
+
+    def at(self, r: float) -> npt.NDArray[np.float64]:
+        """J_m(k_a r) for every mode, r / a in [0, 1]."""
+        u = self.k_a * (r / GRID_STEP)
+        i = np.minimum(u.astype(np.int64), self.grid.columns - 2)
+        t = u - i
+        pairs = self.grid.points.reshape(-1, 3)
+        at = self.row + i
+        here, there = pairs.take(at, axis=0), pairs.take(at + 1, axis=0)  # (K, 3): J, J', J'' at both ends
+        t2 = t * t
+        t3 = t2 * t
+        # quintic Hermite basis: value, slope (times the step) and curvature (times step^2) at both ends
+        h_val1 = t3 * (10.0 + t * (-15.0 + 6.0 * t))
+        h_d0 = GRID_STEP * t * (1.0 + t2 * (-6.0 + t * (8.0 - 3.0 * t)))
+        h_d1 = GRID_STEP * t3 * (-4.0 + t * (7.0 - 3.0 * t))
+        h_c0 = GRID_STEP**2 * 0.5 * t2 * (1.0 + t * (-3.0 + t * (3.0 - t)))
+        h_c1 = GRID_STEP**2 * 0.5 * t3 * (1.0 + t * (-2.0 + t))
+        j0 = here[:, 0]
+        return np.asarray(j0 + h_val1 * (there[:, 0] - j0) + h_d0 * here[:, 1] + h_d1 * there[:, 1]
+                          + h_c0 * here[:, 2] + h_c1 * there[:, 2])
+
+
+def radial_shapes(m: npt.NDArray[np.int64], k_a: npt.NDArray[np.float64]) -> RadialShapes | None:
+    """The interpolated shapes of a mode set larger than SHAPE_TABLE_MODES (computed now, where the modes are
+    built: the node's worker thread), else None (shapes computed exactly at each strike)."""
+    return RadialShapes.build(m, k_a) if m.shape[0] > SHAPE_TABLE_MODES else None
 
 
 @dataclass(frozen=True)
@@ -97,6 +195,8 @@ class MembraneModes:
         Frequencies, Hz, shape (K,).
     mass : np.ndarray
         Modal masses, kg, shape (K,).
+    radial : RadialShapes or None
+        Interpolated radial shapes (more than SHAPE_TABLE_MODES modes), else None.
     """
 
     m: npt.NDArray[np.int64]
@@ -105,10 +205,11 @@ class MembraneModes:
     zeros: npt.NDArray[np.float64]
     freq: npt.NDArray[np.float64]
     mass: npt.NDArray[np.float64]
+    radial: RadialShapes | None = None
 
     def shape_at(self, r: float, theta: float) -> npt.NDArray[np.float64]:
         """Mode shapes at the point (r / a, theta radians), shape (K,)."""
-        return circular_mode_shapes(self.m, self.orientation, self.zeros, r, theta)
+        return circular_mode_shapes(self.m, self.orientation, self.zeros, r, theta, self.radial)
 
 
 def circular_mode_shapes(
@@ -117,12 +218,15 @@ def circular_mode_shapes(
     k_a: npt.NDArray[np.float64],
     r: float,
     theta: float,
+    table: RadialShapes | None = None,
 ) -> npt.NDArray[np.float64]:
     """J_m(k_a r/a) times cos(m theta) (orientation 0) or sin(m theta) (orientation 1), shape (K,).
 
-    The mode shapes of a circular membrane or plate at (r / a clipped to [0, 1], theta radians).
+    The mode shapes of a circular membrane or plate at (r / a clipped to [0, 1], theta radians); the radial part
+    is read from ``table`` (the same modes' :class:`RadialShapes`) when given.
     """
-    radial = jv(m, k_a * min(max(r, 0.0), 1.0))
+    rc = min(max(r, 0.0), 1.0)
+    radial = jv(m, k_a * rc) if table is None else table.at(rc)
     angular = np.where(orientation == 0, np.cos(m * theta), np.sin(m * theta))
     return np.asarray(radial * angular)
 
@@ -186,4 +290,4 @@ def membrane_modes(
         freq = freq * (1.0 + splitting * orient)
     eps = np.where(ms_e == 0, 1.0, 2.0)
     mass = density * np.pi * radius**2 * jv(ms_e + 1, zeros) ** 2 / eps
-    return MembraneModes(ms_e, ns_e, orient, zeros, freq, mass)
+    return MembraneModes(ms_e, ns_e, orient, zeros, freq, mass, radial_shapes(ms_e, zeros))

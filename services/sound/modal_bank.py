@@ -22,6 +22,8 @@ never reach denormal floats.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import numpy.typing as npt
 
@@ -47,6 +49,12 @@ MIN_DECAY_PER_S = 6.91 / MAX_T60_S
 """Slowest decay rate a mode renders with, 1/s (see ``MAX_T60_S``)."""
 
 
+INVERSE_POWERS = 8
+"""Columns of :attr:`BankTables.inverse_powers`: p^-j for j < 8, what a contact force injected in chunks of 8
+samples needs (:func:`services.sound.excitation.mode_response_chunks`), computed with the modes and not per
+strike."""
+
+
 def _split(block: int) -> tuple[int, int]:
     """Factor a block length into (A, Bn), A as large as 16 with Bn >= 8 (256 -> 16 x 16)."""
     for a in (16, 8, 4, 2):
@@ -60,6 +68,49 @@ def _fit(values: ComplexArray, k: int) -> ComplexArray:
     if values.shape[0] >= k:
         return values[:k]
     return np.pad(values, (0, k - values.shape[0]))
+
+
+@dataclass(frozen=True)
+class BankTables:
+    """Everything a bank computes from its modes, read-only: :meth:`ModeSet.adopt` takes it whole, so a table
+    added here is adopted with the rest.
+
+    ``table`` is (2K, Bn) float32, rows interleaved per mode (2k: Im p^b, 2k+1: Re p^b, zero for modes that would
+    alias) to match a complex64 array viewed as float32 pairs (Re, Im): no copy, and the first n modes are a
+    prefix. ``p_b_rows`` (Bn, K) and ``p_a_rows`` (A, K) give p^q = p^(Bn a) p^b for a strike inside a block.
+    """
+
+    freq: FloatArray  # Hz, (K,)
+    decay: FloatArray  # 1/s, (K,), limited to [MIN_DECAY_PER_S, MAX_DECAY_PER_BLOCK per block]
+    slowed: int  # modes whose decay rate was raised to MIN_DECAY_PER_S
+    poles_log: ComplexArray  # log p per sample, (K,)
+    table: npt.NDArray[np.float32]  # (2K, Bn): Im p^b, Re p^b
+    p_bn: npt.NDArray[np.complex64]  # (K,): p^Bn
+    p_b_rows: ComplexArray  # (Bn, K): p^b
+    p_a_rows: ComplexArray  # (A, K): p^(Bn a)
+    p_block: ComplexArray  # (K,): p^block
+    inverse_powers: ComplexArray  # (K, INVERSE_POWERS): p^-j
+
+
+def _tables(freq: FloatArray, decay: FloatArray, slowed: int, sr: float, block: int, a_rows: int,
+            bn: int) -> BankTables:
+    """The tables of modes ``freq`` (Hz) decaying at ``decay`` (1/s, already limited)."""
+    k = freq.shape[0]
+    s = (-decay + 2j * np.pi * freq) / sr
+    audible = (freq < 0.48 * sr).astype(np.float64)
+    b = np.exp(np.outer(s, np.arange(bn)))  # (K, Bn): p^b
+    # Im(x y) = Re(x) Im(y) + Im(x) Re(y)
+    table = np.empty((k, 2, bn))
+    table[:, 0, :] = b.imag * audible[:, None]
+    table[:, 1, :] = b.real * audible[:, None]
+    return BankTables(
+        freq=freq, decay=decay, slowed=slowed, poles_log=np.asarray(s, dtype=np.complex128),
+        table=np.ascontiguousarray(table.reshape(2 * k, bn), dtype=np.float32),
+        p_bn=np.exp(s * bn).astype(np.complex64),
+        p_b_rows=np.ascontiguousarray(b.T),
+        p_a_rows=np.exp(np.outer(np.arange(a_rows) * bn, s)),
+        p_block=np.exp(s * block),
+        inverse_powers=np.exp(-np.outer(s, np.arange(INVERSE_POWERS))))
 
 
 class ModeSet:
@@ -80,13 +131,37 @@ class ModeSet:
         self.block = int(block)
         self.floor = float(floor)
         self.A, self.Bn = _split(self.block)
-        self.freq: FloatArray = np.zeros(0)
-        self.decay: FloatArray = np.zeros(0)
         self.z: ComplexArray = np.zeros(0, dtype=np.complex128)
         self._pending: list[tuple[int, ComplexArray]] = []
         self._blocks = 0
-        self.slowed = 0  # modes whose decay rate was raised to MIN_DECAY_PER_S by the last set_modes
-        self._set_tables()
+        self._live = False
+        self.n_live = 0
+        self._use(_tables(np.zeros(0), np.zeros(0), 0, self.sr, self.block, self.A, self.Bn))
+
+    # ------------------------------------------------- tables (read-only, shared by adopt)
+    @property
+    def freq(self) -> FloatArray:
+        """Mode frequencies, Hz, shape (K,)."""
+        return self.tables.freq
+
+    @property
+    def decay(self) -> FloatArray:
+        """Decay rates as rendered (limited), 1/s, shape (K,)."""
+        return self.tables.decay
+
+    @property
+    def slowed(self) -> int:
+        """Modes whose decay rate the last ``set_modes`` raised to ``MIN_DECAY_PER_S``."""
+        return self.tables.slowed
+
+    @property
+    def poles_log(self) -> ComplexArray:
+        """log of each mode's pole per sample, shape (K,)."""
+        return self.tables.poles_log
+
+    @property
+    def _table(self) -> npt.NDArray[np.float32]:
+        return self.tables.table
 
     # ------------------------------------------------------------------ modes
     @property
@@ -114,37 +189,8 @@ class ModeSet:
             raise ValueError(f"freq and decay shapes differ: {f.shape} vs {d.shape}")
         if np.any(~np.isfinite(f)) or np.any(~np.isfinite(d)) or np.any(f < 0) or np.any(d < 0):
             raise ValueError("mode frequencies and decay rates must be finite and >= 0")
-        old = self.z
-        self.freq = f
-        self.slowed = int(np.count_nonzero(d < MIN_DECAY_PER_S))
-        self.decay = np.minimum(np.maximum(d, MIN_DECAY_PER_S), MAX_DECAY_PER_BLOCK * self.sr / self.block)
-        z = np.zeros(f.shape[0], dtype=np.complex128)
-        n = min(old.shape[0], z.shape[0])
-        z[:n] = old[:n]
-        self.z = z
-        self._pending = [(off, _fit(amp, f.shape[0])) for off, amp in self._pending]
-        self._set_tables()
-
-    def _set_tables(self) -> None:
-        k = self.freq.shape[0]
-        s = (-self.decay + 2j * np.pi * self.freq) / self.sr
-        audible = (self.freq < 0.48 * self.sr).astype(np.float64)
-        self.poles_log: ComplexArray = np.asarray(s, dtype=np.complex128)
-        b = np.exp(np.outer(s, np.arange(self.Bn)))  # (K, Bn): p^b
-        # Im(x y) = Re(x) Im(y) + Im(x) Re(y). Rows interleaved per mode (2k: Im p^b, 2k+1: Re p^b) to match
-        # a complex64 array viewed as float32 pairs (Re, Im): no copy, and the first n modes are a prefix.
-        table = np.empty((k, 2, self.Bn))
-        table[:, 0, :] = b.imag * audible[:, None]
-        table[:, 1, :] = b.real * audible[:, None]
-        self._table = np.ascontiguousarray(table.reshape(2 * k, self.Bn), dtype=np.float32)  # (2K, Bn)
-        self._p_bn = np.exp(s * self.Bn).astype(np.complex64)  # (K,): p^Bn
-        # for strikes inside a block: p^q = p^(Bn a) p^b, rows contiguous
-        self._p_b_rows = np.ascontiguousarray(b.T)  # (Bn, K) complex128: p^b
-        self._p_a_rows = np.exp(np.outer(np.arange(self.A) * self.Bn, s))  # (A, K) complex128: p^(Bn a)
-        self._scaled = np.empty((self.A, k), dtype=np.complex64)  # z p^(Bn a), built by repeated products
-        self._p_block = np.exp(s * self.block)  # (K,)
-        self._live = bool(np.any(self.z != 0))
-        self.n_live = k if self._live else 0
+        self._use(_tables(f, np.minimum(np.maximum(d, MIN_DECAY_PER_S), MAX_DECAY_PER_BLOCK * self.sr / self.block),
+                          int(np.count_nonzero(d < MIN_DECAY_PER_S)), self.sr, self.block, self.A, self.Bn))
 
     def adopt(self, other: ModeSet) -> None:
         """Take ``other``'s modes and tables (built elsewhere, e.g. in a worker thread), keeping this bank's
@@ -152,29 +198,33 @@ class ModeSet:
         cost. Both banks must have the same sample rate and block."""
         if (other.sr, other.block) != (self.sr, self.block):
             raise ValueError("banks differ in sample rate or block")
-        old = self.z
-        self.freq, self.decay, self.slowed = other.freq, other.decay, other.slowed
-        z = np.zeros(self.freq.shape[0], dtype=np.complex128)
-        n = min(old.shape[0], z.shape[0])
-        z[:n] = old[:n]
+        self._use(other.tables)
+
+    def _use(self, tables: BankTables) -> None:
+        """Render with ``tables`` from now on: modes that keep their index keep their state, new ones start
+        silent, pending strikes are fitted to the new count."""
+        self.tables = tables
+        k = tables.freq.shape[0]
+        z = np.zeros(k, dtype=np.complex128)
+        n = min(self.z.shape[0], k)
+        z[:n] = self.z[:n]
         self.z = z
-        self._pending = [(off, _fit(amp, self.freq.shape[0])) for off, amp in self._pending]
-        self.poles_log, self._table, self._p_bn = other.poles_log, other._table, other._p_bn
-        self._p_b_rows, self._p_a_rows, self._p_block = other._p_b_rows, other._p_a_rows, other._p_block
-        self._scaled = np.empty_like(other._scaled)
+        self._pending = [(off, _fit(amp, k)) for off, amp in self._pending]
+        self._scaled = np.empty((self.A, k), dtype=np.complex64)  # z p^(Bn a), built by repeated products
         self._live = bool(np.any(self.z != 0))
-        self.n_live = self.size if self._live else 0
+        self.n_live = k if self._live else 0
 
     def powers(self, n: int) -> ComplexArray:
         """p_k^n for every mode, shape (K,)."""
-        return np.asarray(np.exp(self.poles_log * n))
+        return np.asarray(np.exp(self.tables.poles_log * n))
 
     def _advance(self, q: int) -> ComplexArray:
         """p_k^q for 0 <= q <= block from the tables (no exp): (p^Bn)^a p^b with q = Bn a + b."""
+        t = self.tables
         if q == self.block:
-            return self._p_block
+            return t.p_block
         a, b = divmod(q, self.Bn)
-        return np.asarray(self._p_a_rows[a] * self._p_b_rows[b])
+        return np.asarray(t.p_a_rows[a] * t.p_b_rows[b])
 
     # ---------------------------------------------------------------- strikes
     def strike(self, amplitude: npt.ArrayLike, offset: int = 0) -> None:
@@ -210,10 +260,10 @@ class ModeSet:
             return np.zeros(rows * self.Bn, dtype=np.float32)
         scaled = self._scaled[:rows, :n]  # (rows, n) complex64: z p^(Bn a), each row from the previous one
         scaled[0] = z[:n]
-        p_bn = self._p_bn[:n]
+        p_bn = self.tables.p_bn[:n]
         for a in range(1, rows):
             np.multiply(scaled[a - 1], p_bn, out=scaled[a])
-        return (scaled.view(np.float32) @ self._table[: 2 * n]).reshape(-1)
+        return (scaled.view(np.float32) @ self.tables.table[: 2 * n]).reshape(-1)
 
     def process(self, out: npt.NDArray[np.float32]) -> None:
         """Add the next block of the bank's output into ``out`` (shape (block,)).
@@ -240,7 +290,7 @@ class ModeSet:
         if self._live:
             n = self.n_live
             out += self._block_of(self.z, n)
-            self.z[:n] *= self._p_block[:n]
+            self.z[:n] *= self.tables.p_block[:n]
         self._blocks += 1
         if self._live and self._blocks % 8 == 0:
             # modes are sorted by frequency and high modes decay first: keep rendering only the

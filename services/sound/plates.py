@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from services.sound.membrane import circular_mode_shapes
+from services.sound.membrane import RadialShapes, circular_mode_shapes, radial_shapes
 
 BRONZE_E = 1.1e11
 """Young's modulus of B20 bronze, Pa."""
@@ -48,6 +48,8 @@ class PlateModes:
         Hz, shape (K,).
     mass : np.ndarray
         Modal masses, kg, shape (K,).
+    radial : RadialShapes or None
+        Interpolated radial shapes (more than SHAPE_TABLE_MODES modes), else None.
     """
 
     m: npt.NDArray[np.int64]
@@ -55,10 +57,11 @@ class PlateModes:
     k_a: npt.NDArray[np.float64]
     freq: npt.NDArray[np.float64]
     mass: npt.NDArray[np.float64]
+    radial: RadialShapes | None = None
 
     def shape_at(self, r: float, theta: float) -> npt.NDArray[np.float64]:
         """Approximate mode shapes at (r / a, theta radians), shape (K,), |value| <= 1."""
-        return circular_mode_shapes(self.m, self.orientation, self.k_a, r, theta)
+        return circular_mode_shapes(self.m, self.orientation, self.k_a, r, theta, self.radial)
 
 
 def plate_modes(
@@ -119,7 +122,8 @@ def plate_modes(
     freq, mm_e, orient, lam2_e = freq[sel][:n_modes], mm_e[sel][:n_modes], orient[sel][:n_modes], lam2_e[sel][:n_modes]
     plate_mass = BRONZE_RHO * thickness * np.pi * radius**2
     mass = np.full(freq.shape[0], plate_mass / 4.0)
-    return PlateModes(mm_e, orient, np.sqrt(lam2_e), freq, mass)
+    k_a = np.sqrt(lam2_e)
+    return PlateModes(mm_e, orient, k_a, freq, mass, radial_shapes(mm_e, k_a))
 
 
 # Partials of a cowbell and of a ride bell relative to their lowest, from published spectra

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import signal
 
-from services.sound.voices import F64, Voice
+from services.sound.voices import F64, Voice, bandpass
 
 METAL_RATIOS = np.array([1.0, 1.4471, 1.6170, 1.9265, 2.5028, 2.6637])
 """The TR-808's six square-wave oscillator ratios (205.3 Hz ... 546.8 Hz)."""
@@ -111,7 +111,7 @@ class SynthVoice(Voice):
         for b in recipe.bands:
             hi = min(b.hi * (0.5 + 0.5 * brightness), nyq)
             lo = min(b.lo, hi * 0.7)
-            sos = signal.butter(2, [lo, hi], btype="bandpass", fs=self.sr, output="sos")
+            sos = bandpass(float(lo), float(hi), self.sr)
             self.filters.append([sos, np.zeros((sos.shape[0], 2))])
         self.length = max([t.decay for t in recipe.tones] + [b.decay for b in recipe.bands] + [0.01]) * 7.0  # -60 dB
         self.level = abs(self.gain)
