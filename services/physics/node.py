@@ -14,6 +14,12 @@ transport, live notes, style, tempo: the score player,
 services/physics/score_player.py); ``--score FILE`` loads one at start and
 ``--play-at SECONDS`` plays it from that rig time (the rig's ``--score`` uses
 these), without any message.
+
+The node runs :class:`LivePhysicsCore`: score plans (``play``, style and tempo
+re-plans, live notes) are computed in a worker process and spliced in at the
+first step after they are ready, so the 1 kHz loop never waits for the planner;
+messages take effect in arrival order (services/physics/score_player.py,
+docs/physics.md "Background plans").
 """
 
 from __future__ import annotations
@@ -28,11 +34,15 @@ from pydantic import Field, field_validator
 from pydantic_settings import NoDecode
 
 from common.config import NodeSettings
+from common.core import Outgoing
 from common.kit import EventType
+from common.messages import Hello, OscMessage
 from common.messages.physics import ControlModeName, GripName
 from common.runtime import Node, run_node
 from services.physics.core import PhysicsCore, PhysicsSettings
+from services.physics.plan_worker import PlanWorker
 from services.physics.precompile import warm_up
+from services.physics.targets import TargetError
 
 log = logging.getLogger("batteur.physics")
 
@@ -80,6 +90,41 @@ class PhysicsNodeSettings(NodeSettings):
         return value
 
 
+class LivePhysicsCore(PhysicsCore):
+    """:class:`PhysicsCore` as the live node runs it: background score plans.
+
+    Every message but ``Hello`` goes through the score player's FIFO (:meth:`ScorePlayer.submit`): with no plan in
+    flight it acts at once as in :class:`PhysicsCore`; a message that plans starts its plan in the worker (a
+    process by default; ``planner="thread"``: a thread, which shares the interpreter lock with the loop);
+    while one is in flight, the messages after it wait and act, in order, once it is spliced. Each step first
+    splices a plan that is ready (:meth:`ScorePlayer.pump`). ``close`` stops the worker without waiting for it.
+    Offline (``PhysicsCore``) nothing of this runs: plans are computed in the handler, renders are deterministic.
+    """
+
+    def __init__(self, settings: PhysicsSettings | None = None, *, planner: PlanWorker = "process",
+                 **kwargs: Any) -> None:
+        super().__init__(settings, **kwargs)
+        if self.settings.scene == "drummer":  # the strike scene plays no scores: no worker
+            self.score_player.start_background(super().handle, planner)
+
+    def handle(self, message: OscMessage, now: float, source: str) -> list[Outgoing]:
+        if isinstance(message, Hello) or not self.score_player.background:  # Hello changes nothing: at once
+            return super().handle(message, now, source)
+        try:
+            return self.score_player.submit(message, now, source)
+        except (TargetError, ValueError) as exc:
+            self._reject(type(message).__name__, source, exc, now)
+            return []
+
+    def step(self, now: float) -> list[Outgoing]:
+        self.score_player.pump(now)
+        return super().step(now)
+
+    def close(self) -> None:
+        self.score_player.close()
+        super().close()
+
+
 def make_core(settings: NodeSettings, extra: argparse.Namespace) -> PhysicsCore:
     """Build the core (live mode); ValueError (printed, exit 2) for a bad kit or setting."""
     if not isinstance(settings, PhysicsNodeSettings):
@@ -110,7 +155,7 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace) -> PhysicsCore:
             limits_from=tuple(settings.limits_from),
             skeleton_bvh=settings.skeleton_bvh,
         )
-        core = PhysicsCore(core_settings)
+        core = LivePhysicsCore(core_settings)
     except FileNotFoundError as exc:  # a kit, clip or BVH file that is not there
         raise ValueError(str(exc)) from None
     player = core.score_player

@@ -45,33 +45,47 @@ when there is room). Nothing is queued (no limb changes) if a knot is out of a
 limb's reach or a limb's track would pass its bound (``Track.max_knots``); a
 live note is refused past :data:`MAX_PERFORMANCE_NOTES` notes.
 
-Deterministic: no wall clock, no threads; times are the rig times the core
-passes in. Planning a score takes about 0.4 ms per note on this machine, in
-the handler (the live node catches up afterwards, counting skipped steps).
+Deterministic by default: no wall clock, no threads; times are the rig times
+the core passes in, and planning runs in the handler (about 0.4 ms per note).
+The live node (services/physics/node.py) turns on **background plans**
+(:meth:`ScorePlayer.start_background`): ``play``, style and tempo re-plans and
+live notes are planned in a worker (a process of its own in the node) and
+spliced in at the first step after the plan is ready, so the physics loop
+never waits for the planner (docs/physics.md, "Background plans"). Every
+message then takes effect in arrival order: while a plan is in flight the
+messages after it wait in a FIFO (:meth:`ScorePlayer.submit`, :meth:`ScorePlayer.pump`),
+and live notes waiting together are planned together.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
 import logging
 import math
-from collections import Counter
+import time
+from collections import Counter, deque
+from collections.abc import Callable
+from concurrent.futures import BrokenExecutor, Executor, Future
+from concurrent.futures import wait as wait_futures
 from pathlib import Path
 from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
 from common.gesture.plan import GesturePlan, Grip, LimbTrajectory, Nuance, hermite
-from common.kit import EventType, Limb
+from common.kit import EventType, Kit, Limb
 from common.messages import OscMessage
 from common.messages.score import GestureStyle, KitSelect, LiveNote, ScoreLoad, ScoreTransport, TempoScale
 from common.score.events import MAX_SCORE_NOTES, DrumEvent, Score, ScoreError
 from common.score.hands import HandAlgorithm, Sticking
 from common.score.limbs import HANDS
 from common.score.live import LiveNotes
+from services.physics.plan_worker import PlanWorker, plan_executor, stop_executor
 from services.physics.targets import TargetError, Track
 
 if TYPE_CHECKING:
+    from common.core import Outgoing
     from services.physics.core import PhysicsCore
     from services.physics.drummer import DrummerScene
 
@@ -110,6 +124,24 @@ past it is refused (each live note is planned with every later one, so a sender 
 grow the list and the planning without end)."""
 UNKNOWN_PITCHES_KEPT = 100
 """Live notes of unknown pitch are counted; only the latest this many are kept (``live.unknown``)."""
+PLAN_OVERHEAD_S = 0.01
+"""Background plans: planning time estimated for any plan on top of its notes' share, seconds."""
+PLAN_PER_NOTE_S = 0.001
+"""Background plans: planning time per note assumed until plans of at least :data:`PLAN_MEASURED_NOTES` notes
+have been timed (about 0.4 ms alone, more while the physics loop shares the core), seconds."""
+PLAN_MEASURED_NOTES = 20
+"""Background plans: plans of at least this many notes give the per-note planning time (smaller ones are mostly
+overhead)."""
+PLAN_SAFETY = 1.5
+"""Background plans: the splice is put this many estimated planning times after the message."""
+PLAN_HISTORY = 8
+"""Background plans: the per-note planning time is the slowest of this many latest timed plans."""
+MAX_PLAN_RETRIES = 3
+"""Background plans: a ``play`` or re-plan whose plan is ready after its splice time is planned again from the
+state then, at most this many times (each with the larger estimate it measured)."""
+MAX_WAITING_MESSAGES = 10_000
+"""Background plans: most messages waiting behind a plan in flight; more are refused (counted in
+``PhysicsCore.rejected``)."""
 
 
 class ScorePlayerError(ValueError):
@@ -233,6 +265,73 @@ def _brake_point(p0: np.ndarray, v0: np.ndarray, brake_s: float, lift: float) ->
     return p
 
 
+def _plan_events(events: list[DrumEvent], beats: np.ndarray, lead_in: float, kit: Kit, algorithm: HandAlgorithm,
+                 sticking: Sticking, grip: Grip, nuance: Nuance) -> GesturePlan:
+    """Distribute and plan rig-timed events (the planner's times are rig seconds); raises :class:`ScorePlayerError`."""
+    from common.gesture.planner import PlannerConfig, plan_gestures
+    from common.score.limbs import distribute
+
+    score = Score(events=events, beats=beats, source="performance")
+    assignment = distribute(score, kit, algorithm, sticking)
+    if not assignment.notes:
+        raise ScorePlayerError("nothing to play: the kit has none of these notes' instruments")
+    config = PlannerConfig(grip=grip, nuance=nuance, lead_in=max(lead_in, 0.05))
+    try:
+        return plan_gestures(assignment, kit, score, config)
+    except Exception as exc:  # a planner failure rejects this message; it never stops the service
+        log.exception("the gesture planner failed")
+        raise ScorePlayerError(f"the gesture planner failed: {type(exc).__name__}: {exc}") from None
+
+
+@dataclasses.dataclass(frozen=True)
+class _Waiting:
+    """A message waiting its turn behind a background plan (applied in arrival order)."""
+
+    message: OscMessage
+    now: float
+    """Rig time it arrived, seconds."""
+    source: str
+    """Its sender, "host:port" (for a rejection)."""
+    event: DrumEvent | None = None
+    """A live note already accepted, waiting to be planned again (its first plan was ready too late for another
+    note of the same plan)."""
+    tries: int = 0
+    """Plans of it ready too late so far (``play``, re-plans)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class _Prepared:
+    """A plan's inputs, worked out from the player's state, and what to do with the plan."""
+
+    t_s: float
+    """Splice rig time, seconds."""
+    events: list[DrumEvent]
+    beats: np.ndarray
+    lead_in: float
+    commit: Callable[[GesturePlan, float], GesturePlan]
+    """Splice the plan at the given rig time (s) and update the performance."""
+    announce: Callable[[], None] = lambda: None
+    """Count and log what the plan leaves out (run once, before ``commit``)."""
+
+
+@dataclasses.dataclass
+class _Job:
+    """A plan being computed in the worker."""
+
+    requests: list[_Waiting]
+    """The messages it answers (several live notes are planned together)."""
+    prepared: _Prepared
+    future: Future[GesturePlan]
+    started: float
+    """``time.perf_counter()`` at submission, seconds."""
+    generation: int
+    """The player's reset count then: a plan for a performance since reset is dropped."""
+    finish: Callable[[_Job, GesturePlan, float], None]
+    """Splice the ready plan (or plan again) at rig time ``now``, s."""
+    notes: tuple[DrumEvent, ...] = ()
+    """Live notes: the note of each request, in the same order."""
+
+
 class ScorePlayer:
     """Plays scores and live notes on a :class:`PhysicsCore`'s drummer scene (see the module docstring).
 
@@ -279,6 +378,17 @@ class ScorePlayer:
         """Plans spliced so far."""
         self.last_plan: GesturePlan | None = None
         self._preparation_s: float | None = None
+        self._worker: Executor | None = None
+        """Background plans: the planning worker (None: plans are computed in the handler)."""
+        self._direct: Callable[[OscMessage, float, str], list[Outgoing]] | None = None
+        """Background plans: the core's own handler, for the other messages that waited in the FIFO."""
+        self._waiting: deque[_Waiting] = deque()
+        self._job: _Job | None = None
+        self._generation = 0
+        self._plan_times: deque[float] = deque(maxlen=PLAN_HISTORY)
+        """Seconds per note of the latest timed background plans (of at least PLAN_MEASURED_NOTES notes)."""
+        self.replanned_late = 0
+        """Background plans ready after their splice time (spliced later, planned again or counted late)."""
 
     @property
     def preparation_s(self) -> float:
@@ -299,15 +409,19 @@ class ScorePlayer:
         (a ``ValueError``: the core logs and counts it) for what it cannot do."""
         try:
             self._dispatch(message, now)
-        except ScoreError as exc:
+        except (ValueError, OSError) as exc:
+            raise self._counted(message, exc) from None
+
+    def _counted(self, message: OscMessage, exc: ValueError | OSError) -> ScorePlayerError:
+        """Count a failure in ``errors`` (by kind) and return the error to reject the message with."""
+        if isinstance(exc, ScoreError):
             self.errors["score"] += 1
-            raise ScorePlayerError(str(exc)) from None
-        except ValueError as exc:
+            return ScorePlayerError(str(exc))
+        if isinstance(exc, ValueError):
             self.errors[type(message).__name__] += 1
-            raise ScorePlayerError(str(exc)) from None
-        except OSError as exc:
-            self.errors["score"] += 1
-            raise ScorePlayerError(f"cannot read the score: {exc.strerror or exc}") from None
+            return ScorePlayerError(str(exc))
+        self.errors["score"] += 1
+        return ScorePlayerError(f"cannot read the score: {exc.strerror or exc}")
 
     def _dispatch(self, message: OscMessage, now: float) -> None:
         if isinstance(message, ScoreLoad):
@@ -321,15 +435,19 @@ class ScorePlayer:
                 self.pause(message.time, now)
         elif isinstance(message, LiveNote):
             self.live_note(message, now)
-        elif isinstance(message, GestureStyle):
-            self.set_style(message.grip, message.nuance, message.algorithm, message.sticking)
-            self.replan(now)
-        elif isinstance(message, TempoScale):
-            self.tempo = float(message.factor)
-            log.info("tempo factor %g", self.tempo)
+        elif isinstance(message, (GestureStyle, TempoScale)):
+            self._apply_settings(message)
             self.replan(now)
         elif isinstance(message, KitSelect):
             self.select_kit(message.kit)
+
+    def _apply_settings(self, message: GestureStyle | TempoScale) -> None:
+        """A style or tempo message's settings (the re-plan of a playing score follows)."""
+        if isinstance(message, GestureStyle):
+            self.set_style(message.grip, message.nuance, message.algorithm, message.sticking)
+        else:
+            self.tempo = float(message.factor)
+            log.info("tempo factor %g", self.tempo)
 
     # ------------------------------------------------------------------ score and settings
 
@@ -392,6 +510,13 @@ class ScorePlayer:
 
     def play(self, at: float, position: float, now: float) -> GesturePlan:
         """Play the loaded score from ``position`` (score seconds as written) with that note at rig time ``at``."""
+        prepared = self._prepare_play(at, position, now, 0.0)
+        prepared.announce()
+        return prepared.commit(self._plan(prepared.events, prepared.beats, prepared.lead_in), prepared.t_s)
+
+    def _prepare_play(self, at: float, position: float, now: float, delay_s: float) -> _Prepared:
+        """``play``'s plan inputs; ``delay_s``: seconds the splice (and an "at once" start) moves later, the time a
+        background plan is expected to take."""
         scene = self._drummer()
         if self.score is None:
             raise ScorePlayerError("play: no score loaded (send /batteur/score/load first)")
@@ -402,36 +527,43 @@ class ScorePlayer:
         if not remaining:
             raise ScorePlayerError(f"play: nothing to play after {position:g} s (the score ends at "
                                    f"{score.duration:.3f} s)")
+        asked = None
         if at <= base:  # "at once"
             asked = at
-            at = base + START_LEAD_S + PLAN_MARGIN_PER_NOTE_S * len(remaining)
-            if asked > 0.0:  # a time that has passed (0 is the panel's "at once"): say how late it starts
-                log.warning("play at rig time %.3f s asked at %.3f s, already past: the score starts at %.3f s "
-                            "instead (%.3f s late)", asked, base, at, at - asked)
-        t_s = base + SPLICE_MARGIN_S
+            at = base + delay_s + START_LEAD_S + PLAN_MARGIN_PER_NOTE_S * len(remaining)
+        t_s = base + SPLICE_MARGIN_S + delay_s
         earliest = t_s + TRANSITION_S + self.preparation_s - SPLICE_MARGIN_S
         events = [dataclasses.replace(e, time=at + (e.time - position) / tempo) for e in remaining]
         late = [e for e in events if e.time < earliest]
-        if late:
-            self.late_notes += len(late)
-            log.warning("play at %.3f s: %d notes before %.3f s cannot be prepared in time; not played",
-                        at, len(late), earliest)
+
+        def announce() -> None:
+            if asked is not None and asked > 0.0:  # a time that has passed (0 is the panel's "at once"): how late
+                log.warning("play at rig time %.3f s asked at %.3f s, already past: the score starts at %.3f s "
+                            "instead (%.3f s late)", asked, base, at, at - asked)
+            if late:
+                self.late_notes += len(late)
+                log.warning("play at %.3f s: %d notes before %.3f s cannot be prepared in time; not played",
+                            at, len(late), earliest)
+
         events = [e for e in events if e.time >= earliest]
         if not events:
+            announce()
             raise ScorePlayerError(f"play at {at:.3f} s: every note is too close to now ({base:.3f} s) to prepare")
         beats = np.asarray(score.beats, dtype=float)
         beats = at + (beats[beats >= position - POSITION_TOLERANCE_S] - position) / tempo
-        lead_in = min(1.0, events[0].time - t_s - TRANSITION_S)
-        plan = self._plan(events, beats, lead_in)
-        splice_plan(scene, plan, t_s)
-        self.events = self._assigned(events, plan)
-        self.mapping = (at, position, tempo)
-        self.state = "playing"
-        self.end_time = plan.end_time
-        log.info("playing %s from %.3f s at rig time %.3f s (tempo x%g): %d notes until %.3f s",
-                 self.score_path.name if self.score_path else "score", position, at, tempo, len(events),
-                 plan.end_time)
-        return plan
+
+        def commit(plan: GesturePlan, t_s: float) -> GesturePlan:
+            splice_plan(scene, plan, t_s)
+            self.events = self._assigned(events, plan)
+            self.mapping = (at, position, tempo)
+            self.state = "playing"
+            self.end_time = plan.end_time
+            log.info("playing %s from %.3f s at rig time %.3f s (tempo x%g): %d notes until %.3f s",
+                     self.score_path.name if self.score_path else "score", position, at, tempo, len(events),
+                     plan.end_time)
+            return plan
+
+        return _Prepared(t_s, events, beats, min(1.0, events[0].time - t_s - TRANSITION_S), commit, announce)
 
     def stop(self, at: float, now: float) -> None:
         """From rig time ``at`` (or at once), brake every limb and bring it to its rest posture."""
@@ -476,10 +608,17 @@ class ScorePlayer:
         re-timed so that the score position there stays put, re-planned with the notes around it and
         spliced in. Nothing happens when no score is playing (the settings apply to the next play).
         """
+        prepared = self._prepare_replan(now, 0.0)
+        if prepared is None:
+            return None
+        return prepared.commit(self._plan(prepared.events, prepared.beats, prepared.lead_in), prepared.t_s)
+
+    def _prepare_replan(self, now: float, delay_s: float) -> _Prepared | None:
+        """``replan``'s plan inputs (None: nothing to re-plan); ``delay_s``: seconds the splice moves later."""
         scene = self._maybe_drummer()
         if scene is None or self.mapping is None or self.score is None or self.state != "playing":
             return None
-        t_s = self._base(now) + SPLICE_MARGIN_S
+        t_s = self._base(now) + SPLICE_MARGIN_S + delay_s
         if t_s >= self.end_time:
             return None
         t_c = t_s + self.preparation_s - SPLICE_MARGIN_S
@@ -496,51 +635,294 @@ class ScorePlayer:
         beats = t_c + (beats[beats >= p_c] - p_c) / tempo
         live = [e for e in self.events if e.time >= t_c and (e.time, e.event.value) in self._live_keys]
         events = sorted(kept + ahead + live, key=lambda e: e.time)
-        plan = self._plan(events, beats, 1.0)
-        splice_plan(scene, plan, t_s, limbs={s.limb for s in plan.strokes if s.time > t_s})
-        self.events = self._assigned(events, plan)
-        self.mapping = (t_c, p_c, tempo)
-        self.end_time = plan.end_time
-        log.info("re-planned from %.3f s (score %.3f s): tempo x%g, %s grip, %s", t_c, p_c, tempo, self.grip.value,
-                 self.nuance.value)
-        return plan
+
+        def commit(plan: GesturePlan, t_s: float) -> GesturePlan:
+            splice_plan(scene, plan, t_s, limbs={s.limb for s in plan.strokes if s.time > t_s})
+            self.events = self._assigned(events, plan)
+            self.mapping = (t_c, p_c, tempo)
+            self.end_time = plan.end_time
+            log.info("re-planned from %.3f s (score %.3f s): tempo x%g, %s grip, %s", t_c, p_c, tempo,
+                     self.grip.value, self.nuance.value)
+            return plan
+
+        return _Prepared(t_s, events, beats, 1.0, commit)
 
     def live_note(self, note: LiveNote, now: float) -> GesturePlan | None:
         """Plan one live note with the notes around it and splice it in; a late note is counted, not played."""
-        scene = self._drummer()
-        unknown = len(self.live.unknown)
-        event = self.live.accept(note)
+        self._drummer()
+        event = self._accept(note)
         if event is None:
-            if len(self.live.unknown) > unknown:
-                self.errors["unknown_pitch"] += 1
-                self.unknown_pitches += 1
-                del self.live.unknown[:-UNKNOWN_PITCHES_KEPT]  # a stream of them must not grow the list
-                log.warning("live note: pitch %d has no drum event type; not played", note.pitch)
             return None
         t_s = self._base(now) + SPLICE_MARGIN_S
         if event.time - t_s < self.preparation_s - SPLICE_MARGIN_S:
-            self.late_notes += 1
-            if self.late_notes <= 10 or self.late_notes % 100 == 0:
-                log.warning("live note %s at %.3f s arrived at %.3f s: less than %.0f ms to prepare it; not played "
-                            "(%d late so far)", event.event.value, event.time, now, self.preparation_s * 1000,
-                            self.late_notes)
+            self._count_late(event, f"arrived at {now:.3f} s")
             return None
-        events = sorted([e for e in self.events if e.time >= t_s - CONTEXT_S] + [event], key=lambda e: e.time)
+        prepared = self._prepare_live([event], t_s)
+        return prepared.commit(self._plan(prepared.events, prepared.beats, prepared.lead_in), t_s)
+
+    def _accept(self, note: LiveNote) -> DrumEvent | None:
+        """A live note's drum event, or None (a note-off, a double, or an unknown pitch: counted and logged)."""
+        unknown = len(self.live.unknown)
+        event = self.live.accept(note)
+        if event is None and len(self.live.unknown) > unknown:
+            self.errors["unknown_pitch"] += 1
+            self.unknown_pitches += 1
+            del self.live.unknown[:-UNKNOWN_PITCHES_KEPT]  # a stream of them must not grow the list
+            log.warning("live note: pitch %d has no drum event type; not played", note.pitch)
+        return event
+
+    def _count_late(self, event: DrumEvent, why: str) -> None:
+        """Count a live note too late to prepare (not played) and log it (the first ten, then every 100th)."""
+        self.late_notes += 1
+        if self.late_notes <= 10 or self.late_notes % 100 == 0:
+            log.warning("live note %s at %.3f s %s: less than %.0f ms to prepare it; not played (%d late so far)",
+                        event.event.value, event.time, why, self.preparation_s * 1000, self.late_notes)
+
+    def _prepare_live(self, new: list[DrumEvent], t_s: float) -> _Prepared:
+        """The plan inputs of live notes ``new`` (in time to be prepared) spliced at rig time ``t_s``."""
+        scene = self._drummer()
+        events = sorted([e for e in self.events if e.time >= t_s - CONTEXT_S] + new, key=lambda e: e.time)
         if len(events) > MAX_PERFORMANCE_NOTES:
+            event = new[-1]
             raise ScorePlayerError(f"live note {event.event.value} at {event.time:.3f} s: the performance already "
-                                   f"holds {len(events) - 1} notes, the limit of {MAX_PERFORMANCE_NOTES} "
+                                   f"holds {len(events) - len(new)} notes, the limit of {MAX_PERFORMANCE_NOTES} "
                                    "(MAX_PERFORMANCE_NOTES); refused, the queued notes are kept")
-        plan = self._plan(events, np.zeros(0), 1.0)
-        moving = {s.limb for s in plan.strokes if s.time > t_s}
-        if any(s.event == EventType.HIHATOPEN and s.time > t_s for s in plan.strokes) \
-                and EventType.HIHATPEDAL in self.core.kit.events:
-            moving.add(self.core.kit.spec(EventType.HIHATPEDAL).preferred)
-        splice_plan(scene, plan, t_s, limbs=moving)
-        self.events = self._assigned(events, plan)
-        self._live_keys = {k for k in self._live_keys if k[0] >= t_s - CONTEXT_S} | {(event.time, event.event.value)}
-        self.state = "playing"
-        self.end_time = max(self.end_time, plan.end_time)
-        return plan
+
+        def commit(plan: GesturePlan, t_s: float) -> GesturePlan:
+            moving = {s.limb for s in plan.strokes if s.time > t_s}
+            if any(s.event == EventType.HIHATOPEN and s.time > t_s for s in plan.strokes) \
+                    and EventType.HIHATPEDAL in self.core.kit.events:
+                moving.add(self.core.kit.spec(EventType.HIHATPEDAL).preferred)
+            splice_plan(scene, plan, t_s, limbs=moving)
+            self.events = self._assigned(events, plan)
+            self._live_keys = ({k for k in self._live_keys if k[0] >= t_s - CONTEXT_S}
+                               | {(e.time, e.event.value) for e in new})
+            self.state = "playing"
+            self.end_time = max(self.end_time, plan.end_time)
+            return plan
+
+        return _Prepared(t_s, events, np.zeros(0), 1.0, commit)
+
+    # ------------------------------------------------------------------ background plans
+
+    def start_background(self, direct: Callable[[OscMessage, float, str], list[Outgoing]],
+                         worker: PlanWorker = "process") -> None:
+        """Plan in a worker from now on (the live node). ``direct(message, now, source)``: the core's own handler,
+        which every other message goes to, in its turn (see :meth:`submit`)."""
+        if self._worker is None:
+            self._worker = plan_executor(worker)
+        self._direct = direct
+
+    @property
+    def background(self) -> bool:
+        """Plans run in a worker (:meth:`start_background`), not in the handler."""
+        return self._direct is not None and self._worker is not None
+
+    @property
+    def busy(self) -> bool:
+        """Background plans: a plan is in flight or messages wait behind one."""
+        return self._job is not None or bool(self._waiting)
+
+    def submit(self, message: OscMessage, now: float, source: str) -> list[Outgoing]:
+        """Background plans: take any message at rig time ``now`` (s), in arrival order.
+
+        With nothing in flight or waiting, a message that plans (``play``, style, tempo, live note) starts its
+        plan in the worker and any other is applied at once (``direct``); otherwise it waits its turn, so a stop
+        or a target after a live note acts after that note's plan. Raises :class:`ScorePlayerError` past
+        :data:`MAX_WAITING_MESSAGES` waiting (the core rejects the message).
+        """
+        if self._direct is None:
+            raise RuntimeError("background plans are off (start_background)")
+        if not self.busy and not isinstance(message, SCORE_MESSAGES):
+            return self._direct(message, now, source)
+        if len(self._waiting) >= MAX_WAITING_MESSAGES:
+            raise ScorePlayerError(f"{len(self._waiting)} messages already wait behind the plan in flight, the "
+                                   f"limit (MAX_WAITING_MESSAGES); refused")
+        self._waiting.append(_Waiting(message, now, source))
+        self.pump(now)
+        return []
+
+    def pump(self, now: float) -> None:
+        """Background plans, at every step and message (rig time ``now``, s): splice the plan that is ready, then
+        act on the messages waiting, in order, until one starts a plan. Never raises: failures are counted and
+        logged as the handler's are (``errors``, ``PhysicsCore.rejected``)."""
+        while True:
+            job = self._job
+            if job is not None:
+                if not job.future.done():
+                    return
+                self._job = None
+                self._finish(job, now)
+                continue
+            if not self._waiting:
+                return
+            self._start(self._waiting.popleft(), now)
+
+    def wait(self, timeout_s: float | None = None) -> bool:
+        """Block until the plan in flight is ready (tests and benchmarks; the node never waits); True if it is
+        (or there is none), False after ``timeout_s`` seconds. The next :meth:`pump` splices it."""
+        job = self._job
+        if job is None:
+            return True
+        done, _ = wait_futures([job.future], timeout=timeout_s)
+        return bool(done)
+
+    def close(self) -> None:
+        """Stop the planning worker (a process is terminated): a plan in flight is abandoned (nothing waits for
+        it), waiting messages dropped; from then on plans run in the handler."""
+        worker, self._worker = self._worker, None
+        self._job = None
+        self._waiting.clear()
+        self._generation += 1
+        if worker is not None:
+            stop_executor(worker)
+
+    def _start(self, waiting: _Waiting, now: float) -> None:
+        """Act on one waiting message: start its plan in the worker, or apply it at once."""
+        message = waiting.message
+        try:
+            if isinstance(message, LiveNote):
+                self._start_live(waiting, now)
+            elif isinstance(message, ScoreTransport) and message.action == "play":
+                self._start_play(waiting, now)
+            elif isinstance(message, (GestureStyle, TempoScale)):
+                if waiting.tries == 0:  # a retry only plans again
+                    self._apply_settings(message)
+                self._start_replan(waiting, now)
+            elif isinstance(message, SCORE_MESSAGES):
+                self._dispatch(message, now)
+            else:
+                assert self._direct is not None
+                self._direct(message, now, waiting.source)  # the core counts and logs its own rejections
+        except (ValueError, OSError) as exc:
+            self._fail([waiting], exc, now)
+        except Exception as exc:  # a bug must not stop the loop or lose the messages after it
+            log.exception("score player: %s failed", type(message).__name__)
+            self._fail([waiting], ValueError(f"{type(exc).__name__}: {exc}"), now)
+
+    def _fail(self, requests: list[_Waiting], exc: ValueError | OSError, now: float) -> None:
+        """Count and log each request as rejected, as the handler would (``errors``, ``PhysicsCore.rejected``)."""
+        for waiting in requests:
+            error = self._counted(waiting.message, exc)
+            self.core._reject(type(waiting.message).__name__, waiting.source, error, now)
+
+    def _estimate(self, notes: int) -> float:
+        """Seconds a background plan of ``notes`` notes is expected to take (from the latest timed plans)."""
+        per_note = max(self._plan_times, default=PLAN_PER_NOTE_S)
+        return PLAN_SAFETY * (PLAN_OVERHEAD_S + per_note * notes)
+
+    def _submit(self, requests: list[_Waiting], prepared: _Prepared,
+                finish: Callable[[_Job, GesturePlan, float], None], notes: tuple[DrumEvent, ...] = ()) -> None:
+        assert self._worker is not None
+        planner = self._planner(prepared.events, prepared.beats, prepared.lead_in)
+        try:
+            future = self._worker.submit(planner)
+        except BrokenExecutor as exc:  # the planning process died (killed, out of memory): plan in a thread
+            log.error("the planning process stopped (%s): planning in a thread of the node from now on", exc)
+            stop_executor(self._worker)
+            self._worker = plan_executor("thread")
+            future = self._worker.submit(planner)
+        self._job = _Job(requests, prepared, future, time.perf_counter(), self._generation, finish, notes)
+
+    def _start_play(self, waiting: _Waiting, now: float) -> None:
+        assert isinstance(waiting.message, ScoreTransport)
+        notes = len(self.score.events) if self.score is not None else 0
+        prepared = self._prepare_play(waiting.message.time, waiting.message.position, now, self._estimate(notes))
+        self._submit([waiting], prepared, self._finish_whole)
+
+    def _start_replan(self, waiting: _Waiting, now: float) -> None:
+        prepared = self._prepare_replan(now, self._estimate(len(self.events)))
+        if prepared is not None:
+            self._submit([waiting], prepared, self._finish_whole)
+
+    def _start_live(self, waiting: _Waiting, now: float) -> None:
+        """Plan this live note and the live notes waiting right after it together."""
+        batch = [waiting]
+        while self._waiting and isinstance(self._waiting[0].message, LiveNote):
+            batch.append(self._waiting.popleft())
+        t0 = self._base(now) + SPLICE_MARGIN_S
+        accepted: list[tuple[_Waiting, DrumEvent]] = []
+        for item in batch:
+            assert isinstance(item.message, LiveNote)
+            try:
+                self._drummer()
+                event = item.event if item.event is not None else self._accept(item.message)
+            except ValueError as exc:
+                self._fail([item], exc, now)
+                continue
+            if event is None:
+                continue
+            if event.time - t0 < self.preparation_s - SPLICE_MARGIN_S:
+                waited = f", its turn came at {now:.3f} s" if now > item.now else ""  # behind another plan
+                self._count_late(event, f"arrived at {item.now:.3f} s{waited}")
+                continue
+            accepted.append((item, event))
+        if not accepted:
+            return
+        requests, new = [a[0] for a in accepted], [a[1] for a in accepted]
+        latest = min(e.time for e in new) - (self.preparation_s - SPLICE_MARGIN_S)
+        context = sum(1 for e in self.events if e.time >= t0 - CONTEXT_S)
+        t_s = max(t0, min(t0 + self._estimate(context + len(new)), latest))
+        try:
+            prepared = self._prepare_live(new, t_s)
+        except ValueError as exc:
+            self._fail(requests, exc, now)
+            return
+        self._submit(requests, prepared, self._finish_live, tuple(new))
+
+    def _finish(self, job: _Job, now: float) -> None:
+        """A plan is ready (at rig time ``now``, s): splice it, plan again, or reject its messages."""
+        if job.generation != self._generation:
+            log.info("a plan for %d message(s) was ready after a reset: dropped", len(job.requests))
+            return
+        try:
+            plan = job.future.result()
+            if len(job.prepared.events) >= PLAN_MEASURED_NOTES:
+                self._plan_times.append((time.perf_counter() - job.started) / len(job.prepared.events))
+            job.finish(job, plan, now)
+        except (ValueError, OSError) as exc:  # the planner's and the splice's errors, as in the handler
+            self._fail(job.requests, exc, now)
+        except Exception as exc:  # a bug must not stop the loop or lose the messages after it
+            log.exception("score player: applying a plan failed")
+            self._fail(job.requests, ValueError(f"{type(exc).__name__}: {exc}"), now)
+
+    def _finish_whole(self, job: _Job, plan: GesturePlan, now: float) -> None:
+        """``play`` or a re-plan: splice at the chosen time, or plan again from now if that has passed."""
+        waiting, prepared = job.requests[0], job.prepared
+        if self._base(now) + SPLICE_MARGIN_S > prepared.t_s:
+            self.replanned_late += 1
+            took = time.perf_counter() - job.started
+            if waiting.tries >= MAX_PLAN_RETRIES:
+                raise ScorePlayerError(f"its plan took {took:.3f} s and was ready after its splice time "
+                                       f"({prepared.t_s:.3f} s, now {now:.3f} s) {waiting.tries + 1} times; "
+                                       "not played")
+            log.warning("%s: its plan took %.3f s and was ready after its splice time (%.3f s, now %.3f s): "
+                        "planned again", type(waiting.message).__name__, took, prepared.t_s, now)
+            self._waiting.appendleft(dataclasses.replace(waiting, tries=waiting.tries + 1))
+            return
+        prepared.announce()
+        prepared.commit(self._account(plan), prepared.t_s)
+
+    def _finish_live(self, job: _Job, plan: GesturePlan, now: float) -> None:
+        """Live notes: splice at the chosen time or, if that has passed, at the next step when every note still
+        has its preparation time; notes that no longer have it are counted late and the others planned again."""
+        prepared = job.prepared
+        t_s = max(prepared.t_s, self._base(now) + SPLICE_MARGIN_S)
+        need = self.preparation_s - SPLICE_MARGIN_S
+        pairs = list(zip(job.requests, job.notes, strict=True))
+        short = [e for _, e in pairs if e.time - t_s < need - 1e-9]  # t_s may be the latest time (_start_live)
+        if t_s > prepared.t_s:
+            self.replanned_late += 1
+        if short:
+            took = time.perf_counter() - job.started
+            for event in short:
+                self._count_late(event, f"was planned by {now:.3f} s (planning took {took:.3f} s)")
+            rest = [dataclasses.replace(w, event=e) for w, e in pairs if e.time - t_s >= need - 1e-9]
+            self._waiting.extendleft(reversed(rest))
+            return
+        if t_s > prepared.t_s:
+            log.info("live notes: plan ready after its splice time %.3f s: spliced at %.3f s", prepared.t_s, t_s)
+        prepared.commit(self._account(plan), t_s)
 
     # ------------------------------------------------------------------ helpers
 
@@ -561,20 +943,17 @@ class ScorePlayer:
         return max(float(now), self.core.time)
 
     def _plan(self, events: list[DrumEvent], beats: np.ndarray, lead_in: float) -> GesturePlan:
-        """Distribute and plan rig-timed events (the planner's times are rig seconds)."""
-        from common.gesture.planner import PlannerConfig, plan_gestures
-        from common.score.limbs import distribute
+        """Distribute and plan rig-timed events (the planner's times are rig seconds), in this thread."""
+        return self._account(self._planner(events, beats, lead_in)())
 
-        score = Score(events=events, beats=beats, source="performance")
-        assignment = distribute(score, self.core.kit, self.algorithm, self.sticking)
-        if not assignment.notes:
-            raise ScorePlayerError("nothing to play: the kit has none of these notes' instruments")
-        config = PlannerConfig(grip=self.grip, nuance=self.nuance, lead_in=max(lead_in, 0.05))
-        try:
-            plan = plan_gestures(assignment, self.core.kit, score, config)
-        except Exception as exc:  # a planner failure rejects this message; it never stops the service
-            log.exception("the gesture planner failed")
-            raise ScorePlayerError(f"the gesture planner failed: {type(exc).__name__}: {exc}") from None
+    def _planner(self, events: list[DrumEvent], beats: np.ndarray, lead_in: float) -> Callable[[], GesturePlan]:
+        """The planning of rig-timed events with the present style, as a call that reads nothing of the player's
+        state (it may run in the worker while the loop changes it; picklable, for a worker process)."""
+        return functools.partial(_plan_events, events, beats, lead_in, self.core.kit, self.algorithm, self.sticking,
+                                 self.grip, self.nuance)
+
+    def _account(self, plan: GesturePlan) -> GesturePlan:
+        """Count and log a plan about to be spliced (its flagged notes)."""
         self.flagged += len(plan.issues)
         for issue in plan.issues:
             log.info("planner: note at %.3f s (%s): %s, %s (%s)", issue.time, issue.event.value if issue.event else "-",
@@ -598,7 +977,9 @@ class ScorePlayer:
         self.end_time = min(self.end_time, t_s)
 
     def reset(self) -> None:
-        """The scene was reset (tracks cleared): nothing is playing any more."""
+        """The scene was reset (tracks cleared): nothing is playing any more (a plan in flight is dropped when
+        ready)."""
+        self._generation += 1
         self.events = []
         self.state = "idle"
         self.mapping = None
@@ -610,4 +991,4 @@ class ScorePlayer:
         return {"state": state, "score": str(self.score_path) if self.score_path else None,
                 "late_notes": self.late_notes, "errors": dict(self.errors), "flagged": self.flagged,
                 "plans": self.plans, "unknown_live_pitches": self.unknown_pitches,
-                "live_duplicates": self.live.duplicates}
+                "live_duplicates": self.live.duplicates, "replanned_late": self.replanned_late}
