@@ -71,9 +71,6 @@ DRUMMER_MESSAGES = (CartesianTarget, JointTarget, PhysicsControlMode, PhysicsGai
 MAX_PENDING_STRIKES = MAX_SCORE_NOTES
 """Strike scene: most strikes scheduled and not yet thrown (a score's most notes, 500,000): a
 /batteur/physics/strike past it is refused (TargetError, counted), the schedule kept."""
-PLAN_LEAD_IN_KNOTS = 2
-"""Knots :meth:`PhysicsCore.load_plan` keeps room for ahead of a limb's plan: the drummer's lead-in (where the limb
-is now, and a hand's arc apex)."""
 REJECT_LOG_INTERVAL_S = 1.0
 """Rejections of one message kind are logged at most once per this many seconds of rig time (the rest are counted
 and summed into the next warning), so a stream of bad targets cannot flood the log."""
@@ -306,19 +303,13 @@ class PhysicsCore:
         """Drummer scene: track a gesture plan; its ``start_time`` maps to rig time ``start_at`` (default: now).
 
         Raises :class:`TargetError` for a plan the drummer cannot follow (unknown limb, unreachable knot, more
-        knots than a track holds with the lead-in: ``max_knots`` of the track, :data:`PLAN_LEAD_IN_KNOTS`); the
+        knots than a track holds with its lead-in: the scene checks every limb before it clears any track); the
         queued targets are kept then.
         """
         from services.physics.drummer import DrummerScene
 
         if not isinstance(self.scene, DrummerScene):
             raise TargetError("gesture plans need the drummer scene")
-        for limb, traj in plan.trajectories.items():  # checked here: the scene clears a limb's track to queue its plan
-            track = self.scene.limb_tracks.get(str(getattr(limb, "value", limb)))
-            if track is not None and len(traj.times) + PLAN_LEAD_IN_KNOTS > track.max_knots:
-                raise TargetError(f"plan has {len(traj.times)} {getattr(limb, 'value', limb)} knots; with the "
-                                  f"{PLAN_LEAD_IN_KNOTS} lead-in knots that passes the limit of {track.max_knots} "
-                                  "knots per track (MAX_TRACK_KNOTS); refused, the queued targets are kept")
         self.scene.load_plan(plan, self.time if start_at is None else start_at, now=self.time)
 
     def pose(self) -> Pose:
