@@ -179,6 +179,8 @@ class PhysicsCore:
         self.contacts_sent = 0
         self._last_skeleton = -math.inf
         self._last_skip_warning = -math.inf
+        self._live_started = False
+        """Live mode: the loop has called :meth:`step` (its first call sets where the simulation starts)."""
         self._poses_sent = 0
         self._pose_plan: list[tuple[int, list[int], list[int]]] | None = None
         self._pose_static: list[float] = []
@@ -196,6 +198,14 @@ class PhysicsCore:
         dt = self.world.dt
         target = math.floor((now - self.time_offset) / dt + 1e-6)
         behind = target - self.world.steps
+        if self.settings.mode == "live" and not self._live_started:
+            self._live_started = True
+            if behind > 1:
+                # the loop's first call: the rig clock ran while the scene was built (2-3 s); the simulation
+                # starts here, which is not falling behind (nothing was due before it)
+                self.time_offset += (behind - 1) * dt
+                behind = 1
+            log.info("physics simulation starts at rig time %.3f s", self.time + max(behind, 0) * dt)
         if behind <= 0:
             return out
         if self.settings.mode == "live":

@@ -41,3 +41,18 @@ def test_motion_capture_files_of_the_node_are_clear_errors(tmp_path: Path) -> No
         make_core(settings, argparse.Namespace())
     with pytest.raises(ValueError, match="none.bvh: no such file"):
         make_core(PhysicsNodeSettings(skeleton_bvh=str(tmp_path / "none.bvh"), discovery=False), argparse.Namespace())
+
+
+def test_a_live_core_starts_at_the_rig_time_of_its_first_step_without_counting_it_late() -> None:
+    """The rig clock runs from the launch; the node builds its scene first (2-3 s), so its loop's first step comes
+    at rig time 2-3 s. That is where the simulation starts, not steps it fell behind (Health's late count)."""
+    settings = PhysicsNodeSettings(scene="strike", discovery=False, strike_period=0.5, strike_velocity=2.0)
+    core = make_core(settings, argparse.Namespace())
+    core.step(2.9604)
+    assert core.time == pytest.approx(2.960, abs=1e-9)
+    assert core.skipped_steps == 0 and core.late == 0 and core.overruns == 0
+    core.step(3.0)  # 40 steps later: caught up, none skipped
+    assert core.time == pytest.approx(3.0, abs=1e-9) and core.skipped_steps == 0
+    core.step(13.0)  # then falling 10 s behind is counted as before
+    assert core.skipped_steps == 10_000 - core.settings.max_catchup_steps and core.late == core.skipped_steps
+    core.close()
