@@ -45,6 +45,18 @@ when there is room). Nothing is queued (no limb changes) if a knot is out of a
 limb's reach or a limb's track would pass its bound (``Track.max_knots``); a
 live note is refused past :data:`MAX_PERFORMANCE_NOTES` notes.
 
+A live note during a performance re-plans a **window** around it, not the
+rest of the performance: the notes from :data:`CONTEXT_S` before the splice
+to a little after the note (:meth:`ScorePlayer._window_end`). The planner is
+causal per limb and keeps the hands already assigned, so each limb's window
+plan meets its queued plan again (the limb that plays the note after its
+next stroke); :func:`splice_window` replaces each moving limb's knots only
+from ``t_s`` to that join time (:func:`join_time`: from there every knot of
+both agrees, as ``splice_plan``'s "agrees" rule) and keeps the queued knots
+and strikes after it. The tracks are those a plan of the whole rest would
+give. A window that does not re-join is planned again with the whole rest
+(counted in ``window_misses``).
+
 Deterministic by default: no wall clock, no threads; times are the rig times
 the core passes in, and planning runs in the handler (about 0.4 ms per note).
 The live node (services/physics/node.py) turns on **background plans**
@@ -59,6 +71,7 @@ and live notes waiting together are planned together.
 
 from __future__ import annotations
 
+import bisect
 import dataclasses
 import functools
 import logging
@@ -73,7 +86,7 @@ from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
-from common.gesture.plan import GesturePlan, Grip, LimbTrajectory, Nuance, hermite
+from common.gesture.plan import GesturePlan, Grip, HeadTrajectory, LimbTrajectory, Nuance, hermite
 from common.kit import EventType, Kit, Limb
 from common.messages import OscMessage
 from common.messages.score import GestureStyle, KitSelect, LiveNote, ScoreLoad, ScoreTransport, TempoScale
@@ -81,6 +94,7 @@ from common.score.events import MAX_SCORE_NOTES, DrumEvent, Score, ScoreError
 from common.score.hands import HandAlgorithm, Sticking
 from common.score.limbs import HANDS
 from common.score.live import LiveNotes
+from services.physics.follow_through import Strike
 from services.physics.plan_worker import PlanWorker, plan_executor, stop_executor
 from services.physics.targets import TargetError, Track
 
@@ -88,6 +102,7 @@ if TYPE_CHECKING:
     from common.core import Outgoing
     from services.physics.core import PhysicsCore
     from services.physics.drummer import DrummerScene
+    from services.physics.follow_through import LimbTrack
 
 log = logging.getLogger("batteur.physics.score")
 
@@ -108,6 +123,18 @@ PLAN_MARGIN_PER_NOTE_S = 0.001
 """Extra start delay per note to plan for a ``play`` "at once" (planning runs about 0.4 ms per note), s."""
 CONTEXT_S = 2.0
 """A re-plan (live note) includes the notes of the last this many seconds, for co-articulation, s."""
+WINDOW_AFTER_S = 1.0
+"""A live note's plan (its window) takes the performance's notes until at least this long after the (last) new
+note, and each limb's first note after the splice and after the new notes, s."""
+WINDOW_MAX_S = 8.0
+"""A limb's next note is looked for at most this long after the new note (a limb idle for longer keeps its
+track), seconds."""
+JOIN_GUARD_S = 0.5
+"""Notes past a live note's window can change a limb's plan up to this long before them (an open hi-hat lifts the
+pedal 0.18 s early, a foot's cycle, a merged opening): the window's plan re-joins the queued one no later than this
+long before the window's end, s."""
+KNOT_TIME_S = 1e-9
+"""Knots of two plans this close in time are the same knot (both come from the same note times), seconds."""
 STOP_MOVE_S = 0.5
 """``stop``: time from the braked state to the rest posture, seconds."""
 STOP_LIFT_M = 0.06
@@ -120,8 +147,8 @@ POSITION_TOLERANCE_S = 1e-3
 """A note this close before a ``play`` position still plays (OSC floats are 32-bit: 1.2 arrives as 1.2000000477)."""
 MAX_PERFORMANCE_NOTES = MAX_SCORE_NOTES
 """Most notes a performance holds from the re-planning context on (as many as a score may have, 500,000): a live note
-past it is refused (each live note is planned with every later one, so a sender streaming notes far ahead would
-grow the list and the planning without end)."""
+past it is refused (a sender streaming notes far ahead would grow the list without end; a live note whose window
+does not re-join is planned with all of them)."""
 UNKNOWN_PITCHES_KEPT = 100
 """Live notes of unknown pitch are counted; only the latest this many are kept (``live.unknown``)."""
 PLAN_OVERHEAD_S = 0.01
@@ -148,6 +175,10 @@ class ScorePlayerError(ValueError):
     """A score control message the player cannot act on (the message says why)."""
 
 
+class _WindowMissed(Exception):
+    """A live note's window plan does not re-join the queued plan (nothing was changed): plan the whole rest."""
+
+
 def shortest_unit_period() -> float:
     """The shortest captured gesture unit's inter-onset interval, seconds (the fastest a stroke is prepared)."""
     from common.gesture.database import default_database
@@ -164,32 +195,11 @@ def splice_plan(scene: DrummerScene, plan: GesturePlan, t_s: float, limbs: set[L
     reach or a limb's track would hold more knots than its bound (``Track.max_knots``).
     """
     chosen = [(limb, traj) for limb, traj in plan.trajectories.items() if limbs is None or limb in limbs]
-    for limb, traj in chosen:
-        if limb.value not in scene.limb_tracks:
-            raise TargetError(f"plan has unknown limb {limb.value!r}")
-        later = traj.positions[traj.times > t_s]
-        if len(later):  # the scene's reach check (check_cartesian), for every knot at once
-            root, reach = scene.reach[limb.value]
-            far = np.flatnonzero(np.linalg.norm(later - root, axis=1) > reach)
-            if far.size:
-                scene.check_cartesian(limb.value, later[far[0]])  # raises, with the scene's own message
-    first_stroke: dict[Limb, float] = {}
-    for stroke in plan.strokes:
-        if stroke.time > t_s and stroke.limb not in first_stroke:
-            first_stroke[stroke.limb] = stroke.time
-    here: dict[str, np.ndarray] | None = None
-    splices: list[_Splice] = []
-    for limb, traj in chosen:  # every limb's splice worked out and checked before any track changes
+    _check_reach(scene, chosen, t_s, math.inf)
+    splices = _splices(scene, plan, chosen, t_s, blend_s, brake_s)
+    for (limb, _), splice in zip(chosen, splices, strict=True):  # every splice checked before any track changes
         track = scene.limb_tracks[limb.value]
-        if len(track):
-            p0, v0 = (np.array(a, dtype=float) for a in track.sample(t_s))
-        else:
-            if here is None:
-                here = scene.current_targets()
-            p0, v0 = here[limb.value].copy(), np.zeros(3)
-        splice = _splice(traj, t_s, p0, v0, first_stroke.get(limb, math.inf) - t_s, blend_s, brake_s)
         track.check_room(t_s, 1 + len(splice.bridge) + int(np.count_nonzero(splice.keep)))
-        splices.append(splice)
     for (limb, traj), splice in zip(chosen, splices, strict=True):
         track = scene.limb_tracks[limb.value]
         track.add(t_s, splice.p0, splice.v0)  # cuts the track's knots at and after t_s
@@ -201,6 +211,121 @@ def splice_plan(scene: DrummerScene, plan: GesturePlan, t_s: float, limbs: set[L
             track.add_strokes(plan.strokes_of(limb), 0.0, after=splice.cut)
     if plan.head is not None:
         scene.head = (plan.head, 0.0)
+
+
+def _check_reach(scene: DrummerScene, chosen: list[tuple[Limb, LimbTrajectory]], t_s: float, until: float) -> None:
+    """Raise :class:`TargetError` if a limb is unknown or a knot of its trajectory after ``t_s`` (and before
+    ``until``) seconds is out of its reach (the scene's ``check_cartesian``, for every knot at once)."""
+    for limb, traj in chosen:
+        if limb.value not in scene.limb_tracks:
+            raise TargetError(f"plan has unknown limb {limb.value!r}")
+        later = traj.positions[(traj.times > t_s) & (traj.times < until)]
+        if len(later):
+            root, reach = scene.reach[limb.value]
+            far = np.flatnonzero(np.linalg.norm(later - root, axis=1) > reach)
+            if far.size:
+                scene.check_cartesian(limb.value, later[far[0]])  # raises, with the scene's own message
+
+
+def _splices(scene: DrummerScene, plan: GesturePlan, chosen: list[tuple[Limb, LimbTrajectory]], t_s: float,
+             blend_s: float, brake_s: float) -> list[_Splice]:
+    """How each chosen limb's trajectory joins its track (or, for an empty track, the scene's targets) at ``t_s``."""
+    first_stroke: dict[Limb, float] = {}
+    for stroke in plan.strokes:
+        if stroke.time > t_s and stroke.limb not in first_stroke:
+            first_stroke[stroke.limb] = stroke.time
+    here: dict[str, np.ndarray] | None = None
+    splices: list[_Splice] = []
+    for limb, traj in chosen:
+        track = scene.limb_tracks[limb.value]
+        if len(track):
+            p0, v0 = (np.array(a, dtype=float) for a in track.sample(t_s))
+        else:
+            if here is None:
+                here = scene.current_targets()
+            p0, v0 = here[limb.value].copy(), np.zeros(3)
+        splices.append(_splice(traj, t_s, p0, v0, first_stroke.get(limb, math.inf) - t_s, blend_s, brake_s))
+    return splices
+
+
+def splice_window(scene: DrummerScene, plan: GesturePlan, t_s: float, joins: dict[Limb, float],
+                  head_until: float) -> None:
+    """Splice a window's plan (a live note's) at rig time ``t_s`` as :func:`splice_plan` does, but on each limb of
+    ``joins`` only until its join time ``t_j`` (s): from there on the queued knots and strikes stay (the window
+    re-joins the queued plan there, :func:`join_time`). The head follows the window's plan until ``head_until``
+    (s) and the queued head after it. Raises :class:`TargetError` (no track changed) as :func:`splice_plan`."""
+    chosen = [(limb, plan.trajectories[limb]) for limb in joins]
+    for limb, traj in chosen:
+        _check_reach(scene, [(limb, traj)], t_s, joins[limb])
+    splices = _splices(scene, plan, chosen, t_s, BLEND_S, BRAKE_S)
+    spans: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+    for (limb, traj), splice in zip(chosen, splices, strict=True):  # every span checked before any track changes
+        t_j = joins[limb]
+        keep = splice.keep & (traj.times < t_j)
+        times = np.concatenate([[t_s], [t for t, _ in splice.bridge], traj.times[keep]])
+        values = np.concatenate([splice.p0[None, :], *[p[None, :] for _, p in splice.bridge], traj.positions[keep]])
+        velocities = np.concatenate([splice.v0[None, :], np.zeros((len(splice.bridge), 3)), traj.velocities[keep]])
+        if not (np.all(np.isfinite(times)) and np.all(np.isfinite(values)) and np.all(np.isfinite(velocities))):
+            raise TargetError("plan knots must be finite")
+        if np.any(np.diff(times) <= 0) or times[-1] >= t_j:
+            raise TargetError("plan knot times must increase and end before the join")
+        track = scene.limb_tracks[limb.value]
+        track.check_room(t_s, len(times) + len(track) - bisect.bisect_left(track.times, t_j))
+        spans.append((times, values, velocities))
+    for (limb, _), splice, (times, values, velocities) in zip(chosen, splices, spans, strict=True):
+        track = scene.limb_tracks[limb.value]
+        t_j = joins[limb]
+        queued = [s for s in track.strikes if s.time >= t_j]  # replace_span's add drops the strikes from t_s on
+        track.replace_span(times, values, velocities, t_j)
+        track.add_strokes([s for s in plan.strokes_of(limb) if s.time < t_j], 0.0, after=splice.cut)
+        _restore_strikes(track, queued)
+    if plan.head is not None:
+        scene.head = (_joined_head(plan.head, scene.head, head_until), 0.0)
+
+
+def _restore_strikes(track: LimbTrack, strikes: list[Strike]) -> None:
+    """Put back queued strikes (in time order) after the window's."""
+    for strike in strikes:
+        if not track.strikes or strike.time > track.strikes[-1].time:
+            track.add_strike(strike)
+
+
+def _joined_head(new: HeadTrajectory, queued: tuple[HeadTrajectory, float] | None, until: float) -> HeadTrajectory:
+    """The window's head trajectory (rig times) before ``until`` seconds, the queued one (its times plus its
+    offset) from there on."""
+    if queued is None:
+        return new
+    old, offset = queued
+    mine = new.times < until
+    theirs = old.times + offset >= until
+    if not np.any(theirs):
+        return new
+    return HeadTrajectory(np.concatenate([new.times[mine], old.times[theirs] + offset]),
+                          np.concatenate([new.targets[mine], old.targets[theirs]]),
+                          np.concatenate([new.nod[mine], old.nod[theirs]]))
+
+
+def join_time(track: Track, traj: LimbTrajectory, after: float, until: float) -> float | None:
+    """Where a window's plan ``traj`` re-joins a queued ``track``: the earliest knot time after ``after`` from
+    which, up to ``until`` (s), every knot of either is a knot of both (times within :data:`KNOT_TIME_S`) where
+    they agree (positions within :data:`AGREE_M`, velocities within :data:`AGREE_M_S`); None if there is none."""
+    lo, hi = np.searchsorted(traj.times, [after, until], side="right")
+    if hi <= lo or not len(track):
+        return None
+    times = traj.times[lo:hi]
+    a = bisect.bisect_left(track.times, float(times[0]) - KNOT_TIME_S)  # only the queued knots of the span
+    b = min(bisect.bisect_right(track.times, float(times[-1]) + KNOT_TIME_S) + 1, len(track))
+    if b <= a:
+        return None
+    queued = np.asarray(track.times[a:b])
+    idx = np.minimum(np.searchsorted(queued, times - KNOT_TIME_S), len(queued) - 1)
+    shared = np.abs(queued[idx] - times) <= KNOT_TIME_S
+    dp = np.abs(np.asarray(track.values[a:b])[idx] - traj.positions[lo:hi]).max(axis=1)
+    dv = np.abs(np.asarray(track.velocities[a:b])[idx] - traj.velocities[lo:hi]).max(axis=1)
+    bad = np.flatnonzero(~(shared & (dp <= AGREE_M) & (dv <= AGREE_M_S)))
+    gaps = np.flatnonzero(np.diff(idx) != 1) + 1  # a queued knot the plan lacks (or the reverse) before these
+    start = max(int(bad[-1]) + 1 if bad.size else 0, int(gaps[-1]) if gaps.size else 0)
+    return float(times[start]) if start < len(times) else None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -297,6 +422,8 @@ class _Waiting:
     note of the same plan)."""
     tries: int = 0
     """Plans of it ready too late so far (``play``, re-plans)."""
+    whole: bool = False
+    """A live note whose window did not re-join the queued plan: planned again with the rest of the performance."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -389,6 +516,9 @@ class ScorePlayer:
         """Seconds per note of the latest timed background plans (of at least PLAN_MEASURED_NOTES notes)."""
         self.replanned_late = 0
         """Background plans ready after their splice time (spliced later, planned again or counted late)."""
+        self.window_misses = 0
+        """Live notes whose window's plan did not re-join the queued plan: planned again with the whole rest of
+        the performance."""
 
     @property
     def preparation_s(self) -> float:
@@ -658,7 +788,12 @@ class ScorePlayer:
             self._count_late(event, f"arrived at {now:.3f} s")
             return None
         prepared = self._prepare_live([event], t_s)
-        return prepared.commit(self._plan(prepared.events, prepared.beats, prepared.lead_in), t_s)
+        try:
+            plan = prepared.commit(self._planner(prepared.events, prepared.beats, prepared.lead_in)(), t_s)
+        except _WindowMissed:
+            prepared = self._prepare_live([event], t_s, whole=True)
+            plan = prepared.commit(self._planner(prepared.events, prepared.beats, prepared.lead_in)(), t_s)
+        return self._account(plan)
 
     def _accept(self, note: LiveNote) -> DrumEvent | None:
         """A live note's drum event, or None (a note-off, a double, or an unknown pitch: counted and logged)."""
@@ -678,23 +813,42 @@ class ScorePlayer:
             log.warning("live note %s at %.3f s %s: less than %.0f ms to prepare it; not played (%d late so far)",
                         event.event.value, event.time, why, self.preparation_s * 1000, self.late_notes)
 
-    def _prepare_live(self, new: list[DrumEvent], t_s: float) -> _Prepared:
-        """The plan inputs of live notes ``new`` (in time to be prepared) spliced at rig time ``t_s``."""
+    def _prepare_live(self, new: list[DrumEvent], t_s: float, whole: bool = False) -> _Prepared:
+        """The plan inputs of live notes ``new`` (in time to be prepared) spliced at rig time ``t_s``: the notes of
+        their window (:meth:`_window_end`), or with ``whole`` every note from the context on. The commit raises
+        :class:`_WindowMissed` (nothing changed) when the window's plan does not re-join the queued one."""
         scene = self._drummer()
-        events = sorted([e for e in self.events if e.time >= t_s - CONTEXT_S] + new, key=lambda e: e.time)
-        if len(events) > MAX_PERFORMANCE_NOTES:
+        start = bisect.bisect_left(self.events, t_s - CONTEXT_S, key=lambda e: e.time)
+        if len(self.events) - start + len(new) > MAX_PERFORMANCE_NOTES:
             event = new[-1]
             raise ScorePlayerError(f"live note {event.event.value} at {event.time:.3f} s: the performance already "
-                                   f"holds {len(events) - len(new)} notes, the limit of {MAX_PERFORMANCE_NOTES} "
+                                   f"holds {len(self.events) - start} notes, the limit of {MAX_PERFORMANCE_NOTES} "
                                    "(MAX_PERFORMANCE_NOTES); refused, the queued notes are kept")
+        end = math.inf if whole else self._window_end(new, t_s)
+        stop = bisect.bisect_right(self.events, end, key=lambda e: e.time)
+        later = self.events[stop:]
+        events = sorted(self.events[start:stop] + new, key=lambda e: e.time)
+        if not later:  # the window holds the whole rest of the performance
+            end = math.inf
 
         def commit(plan: GesturePlan, t_s: float) -> GesturePlan:
             moving = {s.limb for s in plan.strokes if s.time > t_s}
-            if any(s.event == EventType.HIHATOPEN and s.time > t_s for s in plan.strokes) \
-                    and EventType.HIHATPEDAL in self.core.kit.events:
+            # an open hi-hat lifts the pedal foot (a window's: a new one; the queued ones already do)
+            opens = new if end < math.inf else [s for s in plan.strokes if s.time > t_s]
+            if any(e.event == EventType.HIHATOPEN for e in opens) and EventType.HIHATPEDAL in self.core.kit.events:
                 moving.add(self.core.kit.spec(EventType.HIHATPEDAL).preferred)
-            splice_plan(scene, plan, t_s, limbs=moving)
-            self.events = self._assigned(events, plan)
+            if end == math.inf:
+                splice_plan(scene, plan, t_s, limbs=moving)
+            else:
+                joins = self._joins(scene, plan, t_s, moving, new, end - JOIN_GUARD_S)
+                if joins is None:
+                    self.window_misses += 1
+                    log.debug("live notes at %s s: the window's plan does not re-join the queued plan by %.3f s; "
+                              "planned again with the rest of the performance",
+                              ", ".join(f"{e.time:.3f}" for e in new), end - JOIN_GUARD_S)
+                    raise _WindowMissed
+                splice_window(scene, plan, t_s, joins, end - JOIN_GUARD_S)
+            self.events = self._assigned(events, plan) + later
             self._live_keys = ({k for k in self._live_keys if k[0] >= t_s - CONTEXT_S}
                                | {(e.time, e.event.value) for e in new})
             self.state = "playing"
@@ -702,6 +856,65 @@ class ScorePlayer:
             return plan
 
         return _Prepared(t_s, events, np.zeros(0), 1.0, commit)
+
+    def _window_end(self, new: list[DrumEvent], t_s: float) -> float:
+        """Rig time (s) up to which a live note's plan takes the performance's notes: :data:`WINDOW_AFTER_S` after
+        the last new note, past the next note after the new notes of every limb that may take one (so that limb
+        can re-join its queued plan after it) and past the first note after ``t_s`` of each limb with no note in
+        the context (re-planned from its rest, as a plan of the whole rest would), plus :data:`JOIN_GUARD_S`;
+        limbs are looked for at most :data:`WINDOW_MAX_S` after the last new note."""
+        last = max(e.time for e in new)
+        end = last + WINDOW_AFTER_S
+        start = bisect.bisect_left(self.events, t_s - CONTEXT_S, key=lambda e: e.time)
+        split = bisect.bisect_left(self.events, t_s, key=lambda e: e.time)
+        first = set(Limb).difference(*(self._limbs_of(e) for e in self.events[start:split]))
+        after_new = set().union(*(self._limbs_of(e) for e in new))
+        if any(e.event == EventType.HIHATOPEN for e in new) and EventType.HIHATPEDAL in self.core.kit.events:
+            after_new.add(self.core.kit.spec(EventType.HIHATPEDAL).preferred)  # the pedal lifts for it
+        for e in self.events[split:]:
+            if e.time > last + WINDOW_MAX_S or (e.time > end and not first and not after_new):
+                break
+            limbs = self._limbs_of(e)
+            if limbs & first or (e.time > last and limbs & after_new):
+                end = max(end, e.time)
+                first -= limbs
+                if e.time > last:
+                    after_new -= limbs
+        return end + JOIN_GUARD_S
+
+    def _limbs_of(self, event: DrumEvent) -> set[Limb]:
+        """The limb a note is played with: its hand once assigned, a pedal's foot, else either hand."""
+        if event.limb in HANDS:
+            return {event.limb}
+        if event.event in (EventType.BASS, EventType.HIHATPEDAL) and event.event in self.core.kit.events:
+            return {self.core.kit.spec(event.event).preferred}
+        return set(HANDS)
+
+    @staticmethod
+    def _joins(scene: DrummerScene, plan: GesturePlan, t_s: float, moving: set[Limb], new: list[DrumEvent],
+               trusted: float) -> dict[Limb, float] | None:
+        """Each moving limb's join time (s): where the window's plan re-joins its queued track (:func:`join_time`)
+        after the splice's blend and the new notes it plays, and no later than ``trusted`` (s; after that the
+        window's plan may differ from a plan of the whole performance) nor than its last stroke in the window
+        (after which the window's plan brings it to rest); None if a limb has none."""
+        new_times = {e.time for e in new}
+        joins: dict[Limb, float] = {}
+        chosen = [(limb, plan.trajectories[limb]) for limb in moving if limb in plan.trajectories]
+        if len(chosen) < len(moving):
+            return None
+        for (limb, _), splice in zip(chosen, _splices(scene, plan, chosen, t_s, BLEND_S, BRAKE_S), strict=True):
+            strokes = [s.time for s in plan.strokes_of(limb) if s.time > t_s]
+            if not strokes:  # the window's plan rests it: it cannot re-join
+                return None
+            played = [t for t in strokes if t in new_times]
+            after = max([splice.cut, *played])  # past any blend at the splice and the new strokes
+            # after its last stroke the window's plan brings the limb to rest: join before that
+            until = trusted if strokes[-1] > trusted else strokes[-1]
+            t_j = join_time(scene.limb_tracks[limb.value], plan.trajectories[limb], after, until)
+            if t_j is None:
+                return None
+            joins[limb] = t_j
+        return joins
 
     # ------------------------------------------------------------------ background plans
 
@@ -860,11 +1073,13 @@ class ScorePlayer:
         if not accepted:
             return
         requests, new = [a[0] for a in accepted], [a[1] for a in accepted]
+        whole = any(item.whole for item, _ in accepted)
         latest = min(e.time for e in new) - (self.preparation_s - SPLICE_MARGIN_S)
-        context = sum(1 for e in self.events if e.time >= t0 - CONTEXT_S)
+        end = math.inf if whole else self._window_end(new, t0)
+        context = sum(1 for e in self.events if t0 - CONTEXT_S <= e.time <= end)
         t_s = max(t0, min(t0 + self._estimate(context + len(new)), latest))
         try:
-            prepared = self._prepare_live(new, t_s)
+            prepared = self._prepare_live(new, t_s, whole)
         except ValueError as exc:
             self._fail(requests, exc, now)
             return
@@ -922,7 +1137,12 @@ class ScorePlayer:
             return
         if t_s > prepared.t_s:
             log.info("live notes: plan ready after its splice time %.3f s: spliced at %.3f s", prepared.t_s, t_s)
-        prepared.commit(self._account(plan), t_s)
+        try:
+            prepared.commit(plan, t_s)
+        except _WindowMissed:  # plan them again with the rest of the performance
+            self._waiting.extendleft(reversed([dataclasses.replace(w, event=e, whole=True) for w, e in pairs]))
+            return
+        self._account(plan)
 
     # ------------------------------------------------------------------ helpers
 
@@ -991,4 +1211,5 @@ class ScorePlayer:
         return {"state": state, "score": str(self.score_path) if self.score_path else None,
                 "late_notes": self.late_notes, "errors": dict(self.errors), "flagged": self.flagged,
                 "plans": self.plans, "unknown_live_pitches": self.unknown_pitches,
-                "live_duplicates": self.live.duplicates, "replanned_late": self.replanned_late}
+                "live_duplicates": self.live.duplicates, "replanned_late": self.replanned_late,
+                "live_window_misses": self.window_misses}

@@ -3,7 +3,9 @@
 A :class:`Track` holds knots (time s, value (D,), velocity (D,)) and samples
 position and velocity at any time (C1 cubic Hermite between knots, the last
 knot held with zero velocity after it, the first before it). A new knot at or
-before the last one replaces the tail from there (re-planning). Knots older
+before the last one replaces the tail from there (re-planning);
+:meth:`Track.replace_span` replaces only the knots of a time span and keeps
+those after it (a re-planned window that re-joins the queued plan). Knots older
 than the one in use are pruned.
 
 A track holds at most ``max_knots`` knots (default :data:`MAX_TRACK_KNOTS`, a
@@ -93,6 +95,35 @@ class Track:
         self.check_room(float(t[0]), len(t))
         for k in range(len(t)):
             self.add(float(t[k]), v[k], d[k])
+
+    def replace_span(self, times: np.ndarray, values: np.ndarray, velocities: np.ndarray, until: float) -> None:
+        """Replace the knots from ``times[0]`` up to ``until`` seconds (exclusive) by the given ones: times (N,),
+        values (N, dim), velocities (N, dim), all before ``until``; the knots before ``times[0]`` and from ``until``
+        on stay (a re-plan of a window that re-joins the queued plan). As :meth:`add` at ``times[0]`` (which a
+        subclass may extend) followed by the rest of the knots and the kept tail. Everything is checked before
+        the track changes: a refused batch leaves it as it was."""
+        t = np.asarray(times, dtype=float)
+        v = np.asarray(values, dtype=float)
+        d = np.asarray(velocities, dtype=float)
+        if t.ndim != 1 or not len(t) or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
+            raise TargetError("knot times must be a finite, strictly increasing, non-empty 1-D array")
+        if v.shape != (len(t), self.dim) or d.shape != (len(t), self.dim):
+            raise TargetError(f"expected ({len(t)}, {self.dim}) values and velocities, got {v.shape} and {d.shape}")
+        if not (np.all(np.isfinite(v)) and np.all(np.isfinite(d)) and math.isfinite(until)):
+            raise TargetError("target time, values and velocities must be finite (no NaN or inf)")
+        if t[-1] >= until:
+            raise TargetError(f"replacement knots must end before {until:.4f} s, the first knot kept")
+        tail = bisect.bisect_left(self.times, until)
+        kept_times, kept_values = self.times[tail:], self.values[tail:]
+        kept_velocities = self.velocities[tail:]
+        self.check_room(float(t[0]), len(t) + len(kept_times))
+        self.add(float(t[0]), v[0], d[0])
+        self.times.extend(float(x) for x in t[1:])
+        self.values.extend(v[1:])
+        self.velocities.extend(d[1:])
+        self.times.extend(kept_times)
+        self.values.extend(kept_values)
+        self.velocities.extend(kept_velocities)
 
     def clear(self) -> None:
         self.times.clear()
