@@ -34,7 +34,7 @@ control messages (common/messages/score.py):
   reach interaction and sound too, so it is rejected with a clear error
   (restart the rig with ``--kit``).
 
-Splicing (:func:`splice_plan`) replaces each limb's track from a rig time
+Splicing (services/physics/splice.py: :func:`splice_plan`) replaces each limb's track from a rig time
 ``t_s`` on without a jump: the track's own position and velocity at ``t_s``
 become a knot, then the plan's knots follow. Where the plan already agrees
 with the track at ``t_s`` (a re-plan that only adds later notes) the plan
@@ -86,7 +86,7 @@ from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
-from common.gesture.plan import GesturePlan, Grip, HeadTrajectory, LimbTrajectory, Nuance, hermite
+from common.gesture.plan import GesturePlan, Grip, Nuance
 from common.kit import EventType, Kit, Limb
 from common.messages import OscMessage
 from common.messages.score import GestureStyle, KitSelect, LiveNote, ScoreLoad, ScoreTransport, TempoScale
@@ -94,15 +94,22 @@ from common.score.events import MAX_SCORE_NOTES, DrumEvent, Score, ScoreError
 from common.score.hands import HandAlgorithm, Sticking
 from common.score.limbs import HANDS
 from common.score.live import LiveNotes
-from services.physics.follow_through import Strike
 from services.physics.plan_worker import PlanWorker, plan_executor, stop_executor
-from services.physics.targets import TargetError, Track
+from services.physics.splice import (
+    BLEND_S,
+    BRAKE_S,
+    brake_point,
+    check_room,
+    join_time,
+    plan_splices,
+    splice_plan,
+    splice_window,
+)
 
 if TYPE_CHECKING:
     from common.core import Outgoing
     from services.physics.core import PhysicsCore
     from services.physics.drummer import DrummerScene
-    from services.physics.follow_through import LimbTrack
 
 log = logging.getLogger("batteur.physics.score")
 
@@ -111,10 +118,6 @@ SCORE_MESSAGES = (ScoreLoad, ScoreTransport, LiveNote, GestureStyle, TempoScale,
 
 SPLICE_MARGIN_S = 0.02
 """A splice happens at least this long after the rig time of the message, seconds (the step in flight)."""
-BLEND_S = 0.1
-"""Where a re-plan disagrees with a limb's track, its knots within this long after the splice are dropped, s."""
-BRAKE_S = 0.12
-"""A moving limb is braked to a stop over this long (pause, stop, or before a plan that starts later), s."""
 TRANSITION_S = 0.2
 """Least time for the limbs to move from where they are to a new performance's first knot, seconds."""
 START_LEAD_S = 0.5
@@ -133,16 +136,10 @@ JOIN_GUARD_S = 0.5
 """Notes past a live note's window can change a limb's plan up to this long before them (an open hi-hat lifts the
 pedal 0.18 s early, a foot's cycle, a merged opening): the window's plan re-joins the queued one no later than this
 long before the window's end, s."""
-KNOT_TIME_S = 1e-9
-"""Knots of two plans this close in time are the same knot (both come from the same note times), seconds."""
 STOP_MOVE_S = 0.5
 """``stop``: time from the braked state to the rest posture, seconds."""
 STOP_LIFT_M = 0.06
 """``stop``: a stick is lifted this much while braking, so it leaves the drum it is over, metres."""
-AGREE_M = 1e-3
-AGREE_M_S = 0.02
-"""A plan agrees with a track at the splice when positions are within ``AGREE_M`` metres and velocities
-within ``AGREE_M_S`` m/s."""
 POSITION_TOLERANCE_S = 1e-3
 """A note this close before a ``play`` position still plays (OSC floats are 32-bit: 1.2 arrives as 1.2000000477)."""
 MAX_PERFORMANCE_NOTES = MAX_SCORE_NOTES
@@ -184,210 +181,6 @@ def shortest_unit_period() -> float:
     from common.gesture.database import default_database
 
     return min(u.period for u in default_database().units)
-
-
-def splice_plan(scene: DrummerScene, plan: GesturePlan, t_s: float, limbs: set[Limb] | None = None,
-                blend_s: float = BLEND_S, brake_s: float = BRAKE_S) -> None:
-    """Replace the drummer's tracks with ``plan`` from rig time ``t_s`` on, without a jump (module docstring).
-
-    ``plan`` times are rig seconds. ``limbs``: only these limbs (default: every limb of the plan).
-    Raises :class:`TargetError` (nothing queued, no track changed) when a knot after ``t_s`` is out of a limb's
-    reach or a limb's track would hold more knots than its bound (``Track.max_knots``).
-    """
-    chosen = [(limb, traj) for limb, traj in plan.trajectories.items() if limbs is None or limb in limbs]
-    _check_reach(scene, chosen, t_s, math.inf)
-    splices = _splices(scene, plan, chosen, t_s, blend_s, brake_s)
-    for (limb, _), splice in zip(chosen, splices, strict=True):  # every splice checked before any track changes
-        track = scene.limb_tracks[limb.value]
-        track.check_room(t_s, 1 + len(splice.bridge) + int(np.count_nonzero(splice.keep)))
-    for (limb, traj), splice in zip(chosen, splices, strict=True):
-        track = scene.limb_tracks[limb.value]
-        track.add(t_s, splice.p0, splice.v0)  # cuts the track's knots at and after t_s
-        for t, p in splice.bridge:
-            track.add(t, p, np.zeros(3))
-        keep = splice.keep
-        if np.any(keep):
-            _append(track, traj.times[keep], traj.positions[keep], traj.velocities[keep])
-            track.add_strokes(plan.strokes_of(limb), 0.0, after=splice.cut)
-    if plan.head is not None:
-        scene.head = (plan.head, 0.0)
-
-
-def _check_reach(scene: DrummerScene, chosen: list[tuple[Limb, LimbTrajectory]], t_s: float, until: float) -> None:
-    """Raise :class:`TargetError` if a limb is unknown or a knot of its trajectory after ``t_s`` (and before
-    ``until``) seconds is out of its reach (the scene's ``check_cartesian``, for every knot at once)."""
-    for limb, traj in chosen:
-        if limb.value not in scene.limb_tracks:
-            raise TargetError(f"plan has unknown limb {limb.value!r}")
-        later = traj.positions[(traj.times > t_s) & (traj.times < until)]
-        if len(later):
-            root, reach = scene.reach[limb.value]
-            far = np.flatnonzero(np.linalg.norm(later - root, axis=1) > reach)
-            if far.size:
-                scene.check_cartesian(limb.value, later[far[0]])  # raises, with the scene's own message
-
-
-def _splices(scene: DrummerScene, plan: GesturePlan, chosen: list[tuple[Limb, LimbTrajectory]], t_s: float,
-             blend_s: float, brake_s: float) -> list[_Splice]:
-    """How each chosen limb's trajectory joins its track (or, for an empty track, the scene's targets) at ``t_s``."""
-    first_stroke: dict[Limb, float] = {}
-    for stroke in plan.strokes:
-        if stroke.time > t_s and stroke.limb not in first_stroke:
-            first_stroke[stroke.limb] = stroke.time
-    here: dict[str, np.ndarray] | None = None
-    splices: list[_Splice] = []
-    for limb, traj in chosen:
-        track = scene.limb_tracks[limb.value]
-        if len(track):
-            p0, v0 = (np.array(a, dtype=float) for a in track.sample(t_s))
-        else:
-            if here is None:
-                here = scene.current_targets()
-            p0, v0 = here[limb.value].copy(), np.zeros(3)
-        splices.append(_splice(traj, t_s, p0, v0, first_stroke.get(limb, math.inf) - t_s, blend_s, brake_s))
-    return splices
-
-
-def splice_window(scene: DrummerScene, plan: GesturePlan, t_s: float, joins: dict[Limb, float],
-                  head_until: float) -> None:
-    """Splice a window's plan (a live note's) at rig time ``t_s`` as :func:`splice_plan` does, but on each limb of
-    ``joins`` only until its join time ``t_j`` (s): from there on the queued knots and strikes stay (the window
-    re-joins the queued plan there, :func:`join_time`). The head follows the window's plan until ``head_until``
-    (s) and the queued head after it. Raises :class:`TargetError` (no track changed) as :func:`splice_plan`."""
-    chosen = [(limb, plan.trajectories[limb]) for limb in joins]
-    for limb, traj in chosen:
-        _check_reach(scene, [(limb, traj)], t_s, joins[limb])
-    splices = _splices(scene, plan, chosen, t_s, BLEND_S, BRAKE_S)
-    spans: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
-    for (limb, traj), splice in zip(chosen, splices, strict=True):  # every span checked before any track changes
-        t_j = joins[limb]
-        keep = splice.keep & (traj.times < t_j)
-        times = np.concatenate([[t_s], [t for t, _ in splice.bridge], traj.times[keep]])
-        values = np.concatenate([splice.p0[None, :], *[p[None, :] for _, p in splice.bridge], traj.positions[keep]])
-        velocities = np.concatenate([splice.v0[None, :], np.zeros((len(splice.bridge), 3)), traj.velocities[keep]])
-        if not (np.all(np.isfinite(times)) and np.all(np.isfinite(values)) and np.all(np.isfinite(velocities))):
-            raise TargetError("plan knots must be finite")
-        if np.any(np.diff(times) <= 0) or times[-1] >= t_j:
-            raise TargetError("plan knot times must increase and end before the join")
-        track = scene.limb_tracks[limb.value]
-        track.check_room(t_s, len(times) + len(track) - bisect.bisect_left(track.times, t_j))
-        spans.append((times, values, velocities))
-    for (limb, _), splice, (times, values, velocities) in zip(chosen, splices, spans, strict=True):
-        track = scene.limb_tracks[limb.value]
-        t_j = joins[limb]
-        queued = [s for s in track.strikes if s.time >= t_j]  # replace_span's add drops the strikes from t_s on
-        track.replace_span(times, values, velocities, t_j)
-        track.add_strokes([s for s in plan.strokes_of(limb) if s.time < t_j], 0.0, after=splice.cut)
-        _restore_strikes(track, queued)
-    if plan.head is not None:
-        scene.head = (_joined_head(plan.head, scene.head, head_until), 0.0)
-
-
-def _restore_strikes(track: LimbTrack, strikes: list[Strike]) -> None:
-    """Put back queued strikes (in time order) after the window's."""
-    for strike in strikes:
-        if not track.strikes or strike.time > track.strikes[-1].time:
-            track.add_strike(strike)
-
-
-def _joined_head(new: HeadTrajectory, queued: tuple[HeadTrajectory, float] | None, until: float) -> HeadTrajectory:
-    """The window's head trajectory (rig times) before ``until`` seconds, the queued one (its times plus its
-    offset) from there on."""
-    if queued is None:
-        return new
-    old, offset = queued
-    mine = new.times < until
-    theirs = old.times + offset >= until
-    if not np.any(theirs):
-        return new
-    return HeadTrajectory(np.concatenate([new.times[mine], old.times[theirs] + offset]),
-                          np.concatenate([new.targets[mine], old.targets[theirs]]),
-                          np.concatenate([new.nod[mine], old.nod[theirs]]))
-
-
-def join_time(track: Track, traj: LimbTrajectory, after: float, until: float) -> float | None:
-    """Where a window's plan ``traj`` re-joins a queued ``track``: the earliest knot time after ``after`` from
-    which, up to ``until`` (s), every knot of either is a knot of both (times within :data:`KNOT_TIME_S`) where
-    they agree (positions within :data:`AGREE_M`, velocities within :data:`AGREE_M_S`); None if there is none."""
-    lo, hi = np.searchsorted(traj.times, [after, until], side="right")
-    if hi <= lo or not len(track):
-        return None
-    times = traj.times[lo:hi]
-    a = bisect.bisect_left(track.times, float(times[0]) - KNOT_TIME_S)  # only the queued knots of the span
-    b = min(bisect.bisect_right(track.times, float(times[-1]) + KNOT_TIME_S) + 1, len(track))
-    if b <= a:
-        return None
-    queued = np.asarray(track.times[a:b])
-    idx = np.minimum(np.searchsorted(queued, times - KNOT_TIME_S), len(queued) - 1)
-    shared = np.abs(queued[idx] - times) <= KNOT_TIME_S
-    dp = np.abs(np.asarray(track.values[a:b])[idx] - traj.positions[lo:hi]).max(axis=1)
-    dv = np.abs(np.asarray(track.velocities[a:b])[idx] - traj.velocities[lo:hi]).max(axis=1)
-    bad = np.flatnonzero(~(shared & (dp <= AGREE_M) & (dv <= AGREE_M_S)))
-    gaps = np.flatnonzero(np.diff(idx) != 1) + 1  # a queued knot the plan lacks (or the reverse) before these
-    start = max(int(bad[-1]) + 1 if bad.size else 0, int(gaps[-1]) if gaps.size else 0)
-    return float(times[start]) if start < len(times) else None
-
-
-@dataclasses.dataclass(frozen=True)
-class _Splice:
-    """How one limb's trajectory joins its track at the splice time (see :func:`splice_plan`)."""
-
-    p0: np.ndarray
-    """The track's position (3,) m at the splice, the first knot queued."""
-    v0: np.ndarray
-    """... and its velocity (3,) m/s."""
-    bridge: list[tuple[float, np.ndarray]]
-    """Knots (rig time s, position m, at rest) between the splice and the plan: a brake before a later start."""
-    keep: np.ndarray
-    """Which of the trajectory's knots are queued, (N,) bool."""
-    cut: float
-    """Rig time (s) after which the plan's knots and strokes are queued."""
-
-
-def _splice(traj: LimbTrajectory, t_s: float, p0: np.ndarray, v0: np.ndarray, room: float, blend_s: float,
-            brake_s: float) -> _Splice:
-    """One limb's splice at rig time ``t_s`` from the track state ``p0``, ``v0``; ``room``: seconds from ``t_s``
-    to the limb's first stroke after it."""
-    times, pos, vel = traj.times, traj.positions, traj.velocities
-    bridge: list[tuple[float, np.ndarray]] = []
-    if times[0] > t_s + 1e-6:  # the plan starts later: join its first knot, braking first when there is room
-        keep = np.ones(len(times), dtype=bool)
-        cut = t_s
-        if times[0] - t_s > 2 * brake_s and float(np.linalg.norm(v0)) > 1e-6:
-            bridge.append((t_s + brake_s, _brake_point(p0, v0, brake_s, 0.0)))
-    else:
-        p1, v1 = hermite(times, pos, vel, np.array([t_s]))
-        agree = float(np.max(np.abs(p1[0] - p0))) <= AGREE_M and float(np.max(np.abs(v1[0] - v0))) <= AGREE_M_S
-        cut = t_s + 1e-4 if agree else t_s + min(blend_s, 0.5 * room)
-        keep = times > cut
-    return _Splice(p0, v0, bridge, keep, cut)
-
-
-def _append(track: Track, times: np.ndarray, values: np.ndarray, velocities: np.ndarray) -> None:
-    """``Track.extend`` for a plan's knots in one go (checked once: finite, increasing, after the track's end; the
-    caller has checked the track's room, ``Track.check_room``)."""
-    if not (np.all(np.isfinite(times)) and np.all(np.isfinite(values)) and np.all(np.isfinite(velocities))):
-        raise TargetError("plan knots must be finite")
-    if np.any(np.diff(times) <= 0) or times[0] <= track.end_time:
-        raise TargetError("plan knot times must increase and follow the splice")
-    track.times.extend(float(t) for t in times)
-    track.values.extend(np.array(values, dtype=float))
-    track.velocities.extend(np.array(velocities, dtype=float))
-
-
-def _check_room(scene: DrummerScene, t_s: float, count: int) -> None:
-    """Raise :class:`TargetError` (before any track changes) if a limb's track with knots has no room for ``count``
-    knots from rig time ``t_s`` seconds on (``Track.check_room``)."""
-    for track in scene.limb_tracks.values():
-        if len(track):
-            track.check_room(t_s, count)
-
-
-def _brake_point(p0: np.ndarray, v0: np.ndarray, brake_s: float, lift: float) -> np.ndarray:
-    """Where a limb moving at ``v0`` from ``p0`` stops when braked evenly over ``brake_s`` (never lower), m."""
-    p = p0 + v0 * brake_s / 2
-    p[2] = max(p[2], p0[2]) + lift
-    return p
 
 
 def _plan_events(events: list[DrumEvent], beats: np.ndarray, lead_in: float, kit: Kit, algorithm: HandAlgorithm,
@@ -699,14 +492,14 @@ class ScorePlayer:
         """From rig time ``at`` (or at once), brake every limb and bring it to its rest posture."""
         scene = self._drummer()
         t_s = max(at, self._base(now) + SPLICE_MARGIN_S)
-        _check_room(scene, t_s, 3)
+        check_room(scene, t_s, 3)
         for limb, track in scene.limb_tracks.items():
             if not len(track):
                 continue
             p0, v0 = (np.array(a, dtype=float) for a in track.sample(t_s))
             hand = limb.endswith("hand")
             track.add(t_s, p0, v0)
-            track.add(t_s + BRAKE_S, _brake_point(p0, v0, BRAKE_S, STOP_LIFT_M if hand else 0.0), np.zeros(3))
+            track.add(t_s + BRAKE_S, brake_point(p0, v0, BRAKE_S, STOP_LIFT_M if hand else 0.0), np.zeros(3))
             if limb in scene.rest_targets:
                 track.add(t_s + BRAKE_S + STOP_MOVE_S, scene.rest_targets[limb] - scene.target_offset[limb],
                           np.zeros(3))
@@ -719,13 +512,13 @@ class ScorePlayer:
         """From rig time ``at`` (or at once), brake every limb and hold it there."""
         scene = self._drummer()
         t_s = max(at, self._base(now) + SPLICE_MARGIN_S)
-        _check_room(scene, t_s, 2)
+        check_room(scene, t_s, 2)
         for track in scene.limb_tracks.values():
             if not len(track):
                 continue
             p0, v0 = (np.array(a, dtype=float) for a in track.sample(t_s))
             track.add(t_s, p0, v0)
-            track.add(t_s + BRAKE_S, _brake_point(p0, v0, BRAKE_S, 0.0), np.zeros(3))
+            track.add(t_s + BRAKE_S, brake_point(p0, v0, BRAKE_S, 0.0), np.zeros(3))
         self._forget(t_s)
         self.state = "paused"
         self.mapping = None
@@ -902,7 +695,7 @@ class ScorePlayer:
         chosen = [(limb, plan.trajectories[limb]) for limb in moving if limb in plan.trajectories]
         if len(chosen) < len(moving):
             return None
-        for (limb, _), splice in zip(chosen, _splices(scene, plan, chosen, t_s, BLEND_S, BRAKE_S), strict=True):
+        for (limb, _), splice in zip(chosen, plan_splices(scene, plan, chosen, t_s, BLEND_S, BRAKE_S), strict=True):
             strokes = [s.time for s in plan.strokes_of(limb) if s.time > t_s]
             if not strokes:  # the window's plan rests it: it cannot re-join
                 return None

@@ -28,7 +28,7 @@ from services.physics import core as core_module
 from services.physics import score_player as player_module
 from services.physics.core import PhysicsCore
 from services.physics.drummer import DrummerScene
-from services.physics.score_player import splice_plan
+from services.physics.splice import splice_plan
 from services.physics.targets import MAX_TRACK_KNOTS, TargetError, Track
 
 DENSE_GROOVE = Path(__file__).parents[1] / "data" / "groove_drummer1_s2_1_latin-chacarera_157_beat_3-4.mid"
