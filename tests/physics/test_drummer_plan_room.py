@@ -5,8 +5,6 @@ did not fit were cleared and re-queued, and that one was cleared and left with i
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-
 import numpy as np
 import pytest
 
@@ -21,13 +19,6 @@ BOUND = 40
 """Knots per limb track in these tests (monkeypatched: the real bound is 25,920,000)."""
 
 Knots = tuple[list[float], list[list[float]], list[list[float]]]
-
-
-@pytest.fixture(scope="module")
-def drummer() -> Iterator[PhysicsCore]:
-    core = PhysicsCore(scene="drummer", pose_rate_hz=0)
-    yield core
-    core.close()
 
 
 @pytest.fixture

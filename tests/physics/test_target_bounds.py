@@ -8,7 +8,6 @@ The bound itself fits a 24 h plan as dense as the densest Groove file's (docs/ph
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -108,13 +107,6 @@ def test_the_bound_fits_a_24_hour_plan_as_dense_as_a_dense_groove() -> None:
 
 
 # ---------------------------------------------------------------------- the drummer core
-
-
-@pytest.fixture(scope="module")
-def drummer() -> Iterator[PhysicsCore]:
-    core = PhysicsCore(scene="drummer", pose_rate_hz=0)
-    yield core
-    core.close()
 
 
 @pytest.fixture
