@@ -117,13 +117,7 @@ def splice_window(scene: DrummerScene, plan: GesturePlan, t_s: float, joins: dic
         times = np.concatenate([[t_s], [t for t, _ in splice.bridge], traj.times[keep]])
         values = np.concatenate([splice.p0[None, :], *[p[None, :] for _, p in splice.bridge], traj.positions[keep]])
         velocities = np.concatenate([splice.v0[None, :], np.zeros((len(splice.bridge), 3)), traj.velocities[keep]])
-        if not (np.all(np.isfinite(times)) and np.all(np.isfinite(values)) and np.all(np.isfinite(velocities))):
-            raise TargetError("plan knots must be finite")
-        if np.any(np.diff(times) <= 0) or times[-1] >= t_j:
-            raise TargetError("plan knot times must increase and end before the join")
-        track = scene.limb_tracks[limb.value]
-        track.check_room(t_s, len(times) + len(track) - bisect.bisect_left(track.times, t_j))
-        spans.append((times, values, velocities))
+        spans.append(scene.limb_tracks[limb.value].check_span(times, values, velocities, t_j))
     for (limb, _), splice, (times, values, velocities) in zip(chosen, splices, spans, strict=True):
         track = scene.limb_tracks[limb.value]
         t_j = joins[limb]

@@ -81,20 +81,40 @@ class Track:
     def extend(self, times: np.ndarray, values: np.ndarray, velocities: np.ndarray) -> None:
         """Add many knots: times (N,), values (N, dim), velocities (N, dim); all checked before the first is queued
         (a refused batch leaves the track as it was)."""
-        t = np.asarray(times, dtype=float)
-        v = np.asarray(values, dtype=float)
-        d = np.asarray(velocities, dtype=float)
-        if t.ndim != 1 or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
-            raise TargetError("knot times must be a finite, strictly increasing 1-D array")
-        if v.shape != (len(t), self.dim) or d.shape != (len(t), self.dim):
-            raise TargetError(f"expected ({len(t)}, {self.dim}) values and velocities, got {v.shape} and {d.shape}")
-        if not (np.all(np.isfinite(v)) and np.all(np.isfinite(d))):
-            raise TargetError("target time, values and velocities must be finite (no NaN or inf)")
+        t, v, d = self._checked_batch(times, values, velocities)
         if not len(t):
             return
         self.check_room(float(t[0]), len(t))
         for k in range(len(t)):
             self.add(float(t[k]), v[k], d[k])
+
+    def _checked_batch(self, times: np.ndarray, values: np.ndarray, velocities: np.ndarray,
+                       non_empty: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """A batch of knots as float arrays (N,), (N, dim), (N, dim); :class:`TargetError` unless the times are
+        finite and strictly increasing (and some, with ``non_empty``) and every value and velocity finite."""
+        t = np.asarray(times, dtype=float)
+        v = np.asarray(values, dtype=float)
+        d = np.asarray(velocities, dtype=float)
+        if t.ndim != 1 or (non_empty and not len(t)) or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
+            raise TargetError("knot times must be a finite, strictly increasing" + (", non-empty" if non_empty else "")
+                              + " 1-D array")
+        if v.shape != (len(t), self.dim) or d.shape != (len(t), self.dim):
+            raise TargetError(f"expected ({len(t)}, {self.dim}) values and velocities, got {v.shape} and {d.shape}")
+        if not (np.all(np.isfinite(v)) and np.all(np.isfinite(d))):
+            raise TargetError("target time, values and velocities must be finite (no NaN or inf)")
+        return t, v, d
+
+    def check_span(self, times: np.ndarray, values: np.ndarray, velocities: np.ndarray,
+                   until: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Raise :class:`TargetError` if :meth:`replace_span` would refuse these knots (bad batch, not ending before
+        ``until`` seconds, or no room for them and the kept tail); else the batch as float arrays."""
+        t, v, d = self._checked_batch(times, values, velocities, non_empty=True)
+        if not math.isfinite(until):
+            raise TargetError("target time, values and velocities must be finite (no NaN or inf)")
+        if t[-1] >= until:
+            raise TargetError(f"replacement knots must end before {until:.4f} s, the first knot kept")
+        self.check_room(float(t[0]), len(t) + len(self.times) - bisect.bisect_left(self.times, until))
+        return t, v, d
 
     def replace_span(self, times: np.ndarray, values: np.ndarray, velocities: np.ndarray, until: float) -> None:
         """Replace the knots from ``times[0]`` up to ``until`` seconds (exclusive) by the given ones: times (N,),
@@ -102,21 +122,10 @@ class Track:
         on stay (a re-plan of a window that re-joins the queued plan). As :meth:`add` at ``times[0]`` (which a
         subclass may extend) followed by the rest of the knots and the kept tail. Everything is checked before
         the track changes: a refused batch leaves it as it was."""
-        t = np.asarray(times, dtype=float)
-        v = np.asarray(values, dtype=float)
-        d = np.asarray(velocities, dtype=float)
-        if t.ndim != 1 or not len(t) or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
-            raise TargetError("knot times must be a finite, strictly increasing, non-empty 1-D array")
-        if v.shape != (len(t), self.dim) or d.shape != (len(t), self.dim):
-            raise TargetError(f"expected ({len(t)}, {self.dim}) values and velocities, got {v.shape} and {d.shape}")
-        if not (np.all(np.isfinite(v)) and np.all(np.isfinite(d)) and math.isfinite(until)):
-            raise TargetError("target time, values and velocities must be finite (no NaN or inf)")
-        if t[-1] >= until:
-            raise TargetError(f"replacement knots must end before {until:.4f} s, the first knot kept")
+        t, v, d = self.check_span(times, values, velocities, until)
         tail = bisect.bisect_left(self.times, until)
         kept_times, kept_values = self.times[tail:], self.values[tail:]
         kept_velocities = self.velocities[tail:]
-        self.check_room(float(t[0]), len(t) + len(kept_times))
         self.add(float(t[0]), v[0], d[0])
         self.times.extend(float(x) for x in t[1:])
         self.values.extend(v[1:])
