@@ -325,6 +325,11 @@ class ScorePlayer:
     def preparation_s(self, value: float) -> None:
         self._preparation_s = float(value)
 
+    def _in_time(self, event: DrumEvent, t_s: float, slack_s: float = 0.0) -> bool:
+        """True if a note spliced at rig time ``t_s`` (s) still has the time a stroke needs to be prepared: at
+        least ``preparation_s`` less the splice margin (less ``slack_s``) between the splice and the note."""
+        return event.time - t_s >= self.preparation_s - SPLICE_MARGIN_S - slack_s
+
     # ------------------------------------------------------------------ messages
 
     def handle(self, message: OscMessage, now: float) -> None:
@@ -577,7 +582,7 @@ class ScorePlayer:
         if event is None:
             return None
         t_s = self._base(now) + SPLICE_MARGIN_S
-        if event.time - t_s < self.preparation_s - SPLICE_MARGIN_S:
+        if not self._in_time(event, t_s):
             self._count_late(event, f"arrived at {now:.3f} s")
             return None
         prepared = self._prepare_live([event], t_s)
@@ -858,7 +863,7 @@ class ScorePlayer:
                 continue
             if event is None:
                 continue
-            if event.time - t0 < self.preparation_s - SPLICE_MARGIN_S:
+            if not self._in_time(event, t0):
                 waited = f", its turn came at {now:.3f} s" if now > item.now else ""  # behind another plan
                 self._count_late(event, f"arrived at {item.now:.3f} s{waited}")
                 continue
@@ -916,16 +921,15 @@ class ScorePlayer:
         has its preparation time; notes that no longer have it are counted late and the others planned again."""
         prepared = job.prepared
         t_s = max(prepared.t_s, self._base(now) + SPLICE_MARGIN_S)
-        need = self.preparation_s - SPLICE_MARGIN_S
         pairs = list(zip(job.requests, job.notes, strict=True))
-        short = [e for _, e in pairs if e.time - t_s < need - 1e-9]  # t_s may be the latest time (_start_live)
+        short = [e for _, e in pairs if not self._in_time(e, t_s, 1e-9)]  # t_s may be the latest (_start_live)
         if t_s > prepared.t_s:
             self.replanned_late += 1
         if short:
             took = time.perf_counter() - job.started
             for event in short:
                 self._count_late(event, f"was planned by {now:.3f} s (planning took {took:.3f} s)")
-            rest = [dataclasses.replace(w, event=e) for w, e in pairs if e.time - t_s >= need - 1e-9]
+            rest = [dataclasses.replace(w, event=e) for w, e in pairs if self._in_time(e, t_s, 1e-9)]
             self._waiting.extendleft(reversed(rest))
             return
         if t_s > prepared.t_s:
