@@ -25,6 +25,9 @@ DUPLICATE_WINDOW = 0.010
 MAX_SCORE_SECONDS = 24 * 3600.0
 """The longest score read, seconds: a note later than a day in is a corrupt file's timing (a MIDI delta of
 2^28 ticks put one 388 h in), and planning would run out of memory and time on the silence before it."""
+MAX_SCORE_BARS = int(MAX_SCORE_SECONDS * 400 / 60)
+"""The most bar starts a score keeps (a whole day of one-beat bars at 400 bpm): later bars are not counted (a
+meter of a thousandth of a beat must not fill the memory)."""
 MAX_SCORE_NOTES = 500_000
 """The most notes a score may hold (about 14 h of dense drumming at 10 notes a second): planning takes some
 0.5 ms and 6 kB per note, and a text score's ``repeat 100000000`` would not fit in memory at all."""
@@ -126,6 +129,10 @@ class Score:
         Other things the reader wants the user to know.
     source : str
         File name or "live"/"text".
+    bar_beats : np.ndarray, shape (M,)
+        Where each bar starts, in beats from the first (an index into ``beats``, fractional where a bar starts
+        between two); increasing. Empty when the reader knows no bars (:mod:`common.score.position` then counts
+        bars of 4 beats).
     """
 
     events: list[DrumEvent]
@@ -134,6 +141,7 @@ class Score:
     duplicates: list[DrumEvent] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
     source: str = ""
+    bar_beats: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def duration(self) -> float:
@@ -178,6 +186,7 @@ def score_from_notes(
     beats: np.ndarray | None = None,
     source: str = "",
     duplicate_window: float = DUPLICATE_WINDOW,
+    bar_beats: np.ndarray | None = None,
 ) -> Score:
     """Turn raw notes into a :class:`Score`: map pitches, clamp velocities to [0, 1], remove doubles."""
     events: list[DrumEvent] = []
@@ -197,6 +206,7 @@ def score_from_notes(
     return Score(
         events=kept,
         beats=np.zeros(0) if beats is None else beats,
+        bar_beats=np.zeros(0) if bar_beats is None else bar_beats,
         unknown=unknown,
         duplicates=removed,
         warnings=warnings,

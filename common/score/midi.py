@@ -16,6 +16,7 @@ from __future__ import annotations
 import contextlib
 import gc
 import io
+import math
 from collections.abc import Callable, Collection, Iterator, Mapping
 from pathlib import Path
 
@@ -25,6 +26,7 @@ from mido.midifiles.meta import KeySignatureError
 
 from common.kit import EventType
 from common.score.events import (
+    MAX_SCORE_BARS,
     MAX_SCORE_BYTES,
     MAX_SCORE_NOTES,
     MAX_SCORE_SECONDS,
@@ -188,6 +190,7 @@ def _read(source: str | Path | bytes, drum_channels: Collection[int] | None, dru
     drums = {GM_DRUM_CHANNEL - 1} | {c - 1 for c in (drum_channels or ())}
     raw: list[tuple[float, int, int, int, int]] = []  # seconds, pitch, velocity, channel index, tick
     tempo_points: list[tuple[int, float, float]] = [(0, 0.0, per_tick)]  # tick, seconds, seconds/tick
+    meters: list[tuple[int, int, int]] = [(0, 4, 4)]  # tick, numerator, denominator (4/4 until told otherwise)
     for tick, msg in timeline:
         seconds += (tick - last_tick) * per_tick
         last_tick = tick
@@ -196,6 +199,8 @@ def _read(source: str | Path | bytes, drum_channels: Collection[int] | None, dru
                 raise ScoreError(f"{name}: tempo 0 at tick {tick} (a tempo is microseconds per beat, at least 1)")
             per_tick = msg.tempo / 1e6 / mid.ticks_per_beat
             tempo_points.append((tick, seconds, per_tick))
+        elif msg.type == "time_signature" and msg.numerator > 0 and msg.denominator > 0:  # 0/x has no bars
+            meters.append((tick, msg.numerator, msg.denominator))
         elif msg.type == "control_change" and msg.control == 0 and msg.value in _DRUM_BANKS:
             drums.add(msg.channel)
         elif msg.type == "note_on" and msg.velocity > 0:
@@ -209,7 +214,8 @@ def _read(source: str | Path | bytes, drum_channels: Collection[int] | None, dru
     _check_size(chosen, name)
     notes = [DrumNote(time=s, pitch=p, velocity=v / 127.0, channel=c + 1) for s, p, v, c, _ in chosen]
     beats = _beats(tempo_points, end_tick, mid.ticks_per_beat)
-    score = score_from_notes(notes, drum_map=drum_map, beats=beats, source=name)
+    score = score_from_notes(notes, drum_map=drum_map, beats=beats, source=name,
+                             bar_beats=_bar_beats(meters, end_tick, mid.ticks_per_beat))
     score.warnings = warnings + score.warnings
     if not score.events:
         score.warnings.append(f"{name}: no drum events")
@@ -224,6 +230,23 @@ def _check_size(notes: list[tuple[float, int, int, int, int]], name: str) -> Non
     if late is not None:
         raise ScoreError(f"{name}: a note at tick {late[4]} sounds {hours(late[0])} in, later than the "
                          f"{hours(MAX_SCORE_SECONDS)} a score may last (a corrupt delta time or tempo?)")
+
+
+def _bar_beats(meters: list[tuple[int, int, int]], end_tick: int, ticks_per_beat: int) -> np.ndarray:
+    """Where bars start (beats from tick 0) up to ``end_tick`` given (tick, numerator, denominator) time
+    signatures in tick order: a signature starts a bar where it stands (the one before is cut short there). At
+    most :data:`MAX_SCORE_BARS`."""
+    starts: list[np.ndarray] = []
+    count = 0
+    for k, (tick, numerator, denominator) in enumerate(meters):
+        until = meters[k + 1][0] if k + 1 < len(meters) else end_tick + 1
+        if until <= tick:  # replaced at the same tick
+            continue
+        bar_ticks = numerator * ticks_per_beat * 4 / denominator
+        n = min(math.ceil((until - tick) / bar_ticks), MAX_SCORE_BARS - count)
+        starts.append(tick + bar_ticks * np.arange(max(n, 0)))
+        count += max(n, 0)
+    return np.concatenate(starts) / ticks_per_beat if starts else np.zeros(0)
 
 
 def _beats(tempo_points: list[tuple[int, float, float]], end_tick: int, ticks_per_beat: int) -> np.ndarray:

@@ -27,6 +27,7 @@ from common.datafile import read_text
 from common.gesture.plan import Grip, Nuance
 from common.kit import EventType, Limb
 from common.score.events import (
+    MAX_SCORE_BARS,
     MAX_SCORE_NOTES,
     MAX_SCORE_SECONDS,
     DrumEvent,
@@ -180,6 +181,7 @@ def parse_text(text: str, source: str = "text") -> TextScore:
     block: list[tuple[int, str, str]] = []  # lineno, name, cells
     last_block: list[DrumEvent] = []  # events of the last block, in beats (time field holds beats)
     last_block_beats = 0.0
+    bars: list[float] = []  # where bars start, beats
     grip: Grip | None = None
     nuance: Nuance | None = None
 
@@ -191,6 +193,12 @@ def parse_text(text: str, source: str = "text") -> TextScore:
         if tempo.seconds(beat) > MAX_SCORE_SECONDS:
             raise ScoreError(f"line {lineno}: the score would last {hours(tempo.seconds(beat))}, longer than the "
                              f"{hours(MAX_SCORE_SECONDS)} a score may last")
+
+    def add_bars(start: float, length: float) -> None:
+        """Bars of ``beats_per_bar`` from ``start`` over ``length`` beats (a last bar may be cut short); past
+        :data:`MAX_SCORE_BARS` they are not kept."""
+        count = min(math.ceil(length / beats_per_bar - 1e-9), MAX_SCORE_BARS - len(bars))
+        bars.extend(start + k * beats_per_bar for k in range(max(count, 0)))
 
     def flush() -> None:
         nonlocal position, block, last_block, last_block_beats
@@ -234,6 +242,7 @@ def parse_text(text: str, source: str = "text") -> TextScore:
                     block_events.append(DrumEvent(k * cell_beats, ev, vel, None, limb, note_nuance))
         _place(block_events, position)
         last_block, last_block_beats = block_events, n_bars * beats_per_bar
+        add_bars(position, last_block_beats)
         position += last_block_beats
         block = []
 
@@ -291,6 +300,7 @@ def parse_text(text: str, source: str = "text") -> TextScore:
                 check_until(position + count * last_block_beats, len(events) + count * len(last_block), lineno)
                 for _ in range(count):
                     _place(last_block, position)
+                    add_bars(position, last_block_beats)
                     position += last_block_beats
             elif word == "grip":
                 grip = Grip(rest.lower())
@@ -303,6 +313,7 @@ def parse_text(text: str, source: str = "text") -> TextScore:
                 if length < 0:
                     raise ScoreError(f"line {lineno}: a rest cannot be negative, got {rest}")
                 check_until(position + length, len(events), lineno)
+                add_bars(position, length)
                 position += length
             elif word in ("kit", "title"):
                 pass
@@ -315,7 +326,8 @@ def parse_text(text: str, source: str = "text") -> TextScore:
     flush()
     kept, removed = remove_duplicates(events)
     beats = np.array([tempo.seconds(b) for b in np.arange(0.0, position + 1e-9, 1.0)])
-    score = TextScore(events=kept, beats=beats, duplicates=removed, source=source)
+    score = TextScore(events=kept, beats=beats, bar_beats=np.array(bars, dtype=float), duplicates=removed,
+                      source=source)
     score.grip = grip
     score.nuance = nuance
     return score

@@ -50,6 +50,7 @@ CLOCK_JUMP = 0.5  # seconds: a pose clock this much behind the current offset ha
 SEEN_IMPACTS = 4096  # impacts remembered per sender to drop redundant copies
 MAX_SENDERS = 64  # impact senders remembered (least recently heard forgotten first)
 MAX_NODES = 256  # nodes in the status table (least recently heard forgotten first)
+SCORE_POSITION_KEPT_S = 1.0  # seconds a score position is shown after it arrived (the player sends 10 a second)
 
 
 class GraphicsSettings(BaseModel):
@@ -155,6 +156,8 @@ class GraphicsCore:
         """Per sender, the recent impacts' seq -> time (oldest first)."""
         self.nodes: dict[str, NodeSeen] = {}
         self.score: ScorePosition | None = None
+        self._score_seen = -math.inf
+        """Local rig time the score position arrived, seconds (a stopped score stops sending)."""
         self.mode: Literal["live", "preview"] = "live"
         self.preview: PoseSequence | None = None
         self.preview_impacts: list[Impact] = []
@@ -193,7 +196,7 @@ class GraphicsCore:
         elif isinstance(message, Hello):
             self._node_seen(message.node_id, message.role, now)
         elif isinstance(message, ScorePosition):
-            self.score = message
+            self.score, self._score_seen = message, now
         else:
             self.apply_control(message)
         return []
@@ -483,7 +486,7 @@ class GraphicsCore:
         ]
         late = sum(int(n["late"]) for n in nodes if n["role"] == "sound")
         score = None
-        if self.score is not None:
+        if self.score is not None and now - self._score_seen <= SCORE_POSITION_KEPT_S:
             score = {"bar": self.score.bar, "beat": round(self.score.beat, 2), "tempo_bpm": self.score.tempo_bpm}
         newest = self._times[-1] if self._times else None
         return {

@@ -7,7 +7,8 @@
     batteur physics --score-dir ~/scores                              # the score library for /batteur/score/load
 
 Contacts go to ``interaction`` every step while in contact; poses to
-``graphics`` at ``--pose-rate-hz``. Targets, control mode, gains, grip and
+``graphics`` at ``--pose-rate-hz``, and while a score plays its bar and beat
+(``/batteur/graphics/score_position``) ten times a second. Targets, control mode, gains, grip and
 reset arrive as /batteur/physics/... messages (docs/physics.md). Scores arrive as
 /batteur/score/... messages (load by name from the ``--score-dir`` library,
 transport, live notes, style, tempo: the score player,
@@ -26,6 +27,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import math
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Annotated, Any, Literal, get_args
@@ -37,11 +39,13 @@ from common.config import NodeSettings
 from common.core import Outgoing
 from common.kit import EventType
 from common.messages import Hello, OscMessage
+from common.messages.graphics import ScorePosition
 from common.messages.physics import ControlModeName, GripName
 from common.runtime import Node, run_node
 from services.physics.core import PhysicsCore, PhysicsSettings
 from services.physics.plan_worker import PlanWorker
 from services.physics.precompile import warm_up
+from services.physics.score_position import SCORE_POSITION_PERIOD_S, score_position
 from services.physics.targets import TargetError
 
 log = logging.getLogger("batteur.physics")
@@ -106,6 +110,8 @@ class LivePhysicsCore(PhysicsCore):
         super().__init__(settings, **kwargs)
         if self.settings.scene == "drummer":  # the strike scene plays no scores: no worker
             self.score_player.start_background(super().handle, planner)
+        self._position_sent = -math.inf
+        """Rig time the last score position was sent, seconds."""
 
     def handle(self, message: OscMessage, now: float, source: str) -> list[Outgoing]:
         if isinstance(message, Hello) or not self.score_player.background:  # Hello changes nothing: at once
@@ -118,7 +124,20 @@ class LivePhysicsCore(PhysicsCore):
 
     def step(self, now: float) -> list[Outgoing]:
         self.score_player.pump(now)
-        return super().step(now)
+        out = super().step(now)
+        if now - self._position_sent >= SCORE_POSITION_PERIOD_S:
+            position = self._score_position(now)
+            if position is not None:
+                out.append(Outgoing(position, "graphics"))
+                self._position_sent = now
+        return out
+
+    def _score_position(self, now: float) -> ScorePosition | None:
+        """Where the playing score is at rig time ``now`` (s); None while no score plays (or past its plan)."""
+        player = self.score_player
+        if player.state != "playing" or player.score is None or player.mapping is None or now > player.end_time:
+            return None
+        return score_position(player.score, player.mapping, now)
 
     def close(self) -> None:
         self.score_player.close()

@@ -161,6 +161,14 @@ def test_status_lists_nodes_late_strikes_and_score_position() -> None:
     assert status["score"] == {"bar": 2, "beat": 1.5, "tempo_bpm": 120.0}
 
 
+def test_a_score_position_no_longer_sent_leaves_the_panel() -> None:
+    """The player sends ten a second while the score plays; one older than a second is a stopped score."""
+    core = _core()
+    core.handle(ScorePosition(time=5.0, bar=2, beat=1.5, tempo_bpm=120.0), 1.0, "physics")  # another clock
+    assert core.status(1.9)["score"] == {"bar": 2, "beat": 1.5, "tempo_bpm": 120.0}
+    assert core.status(2.1)["score"] is None
+
+
 @pytest.mark.parametrize("offset", [1000.0, 0.3, -0.2])
 def test_auto_clock_follows_a_pose_clock_that_is_not_shared(offset: float) -> None:
     core = GraphicsCore(GraphicsSettings(latency=0.1, clock="auto"))
