@@ -29,6 +29,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from common.gcpause import cyclic_gc_paused
 from common.gesture.plan import FeasibilityIssue, IssueAction, IssueReason, Nuance
 from common.kit import EventType, Kit, Limb
 from common.score.events import DrumEvent, Score
@@ -132,6 +133,13 @@ def distribute(
         at once when they end), the feasibility check over the rest. Whatever it raises (``KeyboardInterrupt``)
         stops the distribution. The assignment is the same with or without it.
     """
+    with cyclic_gc_paused():  # many small objects, no cycles: collections only walked them (common/gcpause.py)
+        return _distribute(score, kit, algorithm, sticking, window, progress)
+
+
+def _distribute(score: Score, kit: Kit, algorithm: HandAlgorithm | str, sticking: Sticking | str, window: float,
+                progress: ProgressCallback | None) -> Assignment:
+    """:func:`distribute`'s work."""
     algorithm = HandAlgorithm(algorithm)
     report = _Shares(progress, len(score.events))
     report.at(0.0)

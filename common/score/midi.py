@@ -13,17 +13,16 @@ progress=)`` is told how many of the file's bytes mido has parsed as it goes.
 
 from __future__ import annotations
 
-import contextlib
-import gc
 import io
 import math
-from collections.abc import Callable, Collection, Iterator, Mapping
+from collections.abc import Callable, Collection, Mapping
 from pathlib import Path
 
 import mido
 import numpy as np
 from mido.midifiles.meta import KeySignatureError
 
+from common.gcpause import cyclic_gc_paused
 from common.kit import EventType
 from common.score.events import (
     MAX_SCORE_BARS,
@@ -70,19 +69,6 @@ class _ReportingBytes(io.BytesIO):
             self._asked = 0
             self._progress(position, self._size)
         return position
-
-
-@contextlib.contextmanager
-def _cyclic_gc_paused() -> Iterator[None]:
-    """No cyclic garbage collection inside: reading makes millions of objects that form no cycles (mido's messages,
-    our tuples and notes), and each full collection walked them all again (a fifth of a 200,000-note read)."""
-    enabled = gc.isenabled()
-    gc.disable()
-    try:
-        yield
-    finally:
-        if enabled:
-            gc.enable()
 
 
 def _open(source: str | Path | bytes, progress: ReadProgress | None = None) -> tuple[mido.MidiFile, str, int]:
@@ -169,7 +155,7 @@ def read_midi(
         Events in seconds, velocities in [0, 1], beats from the file's own
         ticks-per-beat and tempo map, unknown notes and removed doubles listed.
     """
-    with _cyclic_gc_paused():
+    with cyclic_gc_paused():
         score, size = _read(source, drum_channels, drum_map, progress)
     if progress is not None:
         progress(size, size)
