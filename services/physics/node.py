@@ -111,7 +111,7 @@ class LivePhysicsCore(PhysicsCore):
         if self.settings.scene == "drummer":  # the strike scene plays no scores: no worker
             self.score_player.start_background(super().handle, planner)
         self._position_sent = -math.inf
-        """Rig time the last score position was sent, seconds."""
+        """Rig time the score's position was last looked at (and sent, if one plays), seconds."""
 
     def handle(self, message: OscMessage, now: float, source: str) -> list[Outgoing]:
         if isinstance(message, Hello) or not self.score_player.background:  # Hello changes nothing: at once
@@ -125,11 +125,11 @@ class LivePhysicsCore(PhysicsCore):
     def step(self, now: float) -> list[Outgoing]:
         self.score_player.pump(now)
         out = super().step(now)
-        if now - self._position_sent >= SCORE_POSITION_PERIOD_S:
+        if now - self._position_sent >= SCORE_POSITION_PERIOD_S:  # looked at ten times a second, not every step
+            self._position_sent = now
             position = self._score_position(now)
             if position is not None:
                 out.append(Outgoing(position, "graphics"))
-                self._position_sent = now
         return out
 
     def _score_position(self, now: float) -> ScorePosition | None:
