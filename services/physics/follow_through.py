@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import bisect
 import math
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
@@ -73,6 +73,12 @@ def strike_of(stroke: PlannedStroke, offset: float) -> Strike:
                   float(stroke.velocity), stroke.object_id)
 
 
+def _check_strike(strike: Strike) -> None:
+    """ValueError unless a strike's time and speed are finite and its speed >= 0."""
+    if not (math.isfinite(strike.time) and math.isfinite(strike.speed) and strike.speed >= 0.0):
+        raise ValueError("a strike needs a finite time and a finite speed >= 0")
+
+
 class LimbTrack(Track):
     """A limb's target track (3 values) and its planned strikes, sorted by time."""
 
@@ -88,12 +94,32 @@ class LimbTrack(Track):
         if self._times and self._times[-1] >= time:
             self._drop_from(bisect.bisect_left(self._times, time))
 
+    def replace_span(self, times: np.ndarray, values: np.ndarray, velocities: np.ndarray, until: float,
+                     strikes: Sequence[Strike] = ()) -> None:
+        """As :meth:`Track.replace_span`; the strikes from ``times[0]`` up to ``until`` seconds go with the knots
+        it replaces and ``strikes`` (the span's own, in time order, from ``times[0]`` to before ``until``) take
+        their place; the strikes before and from ``until`` on stay. Everything is checked first: a refused call
+        leaves the track and its strikes as they were."""
+        t = np.asarray(times, dtype=float).reshape(-1)
+        self.check_span(t, values, velocities, until)
+        for k, strike in enumerate(strikes):
+            if not (t[0] <= strike.time < until) or (k and strike.time <= strikes[k - 1].time):
+                raise ValueError("a span's strikes must be in time order, from its first knot to before `until`")
+            _check_strike(strike)
+        kept = bisect.bisect_left(self._times, until)
+        tail = self.strikes[kept:], self._times[kept:], self._bottoms[kept:]
+        super().replace_span(t, values, velocities, until)  # its add at times[0] drops the strikes from there on
+        for strike in strikes:
+            self.add_strike(strike)
+        self.strikes += tail[0]
+        self._times += tail[1]
+        self._bottoms += tail[2]
+
     def add_strike(self, strike: Strike) -> None:
         """Mark a planned contact (after the track's strikes so far)."""
         if self._times and strike.time <= self._times[-1]:
             raise ValueError("strikes must be added in time order")
-        if not (math.isfinite(strike.time) and math.isfinite(strike.speed) and strike.speed >= 0.0):
-            raise ValueError("a strike needs a finite time and a finite speed >= 0")
+        _check_strike(strike)
         self.strikes.append(strike)
         self._times.append(strike.time)
         self._bottoms.append(strike.bottom)

@@ -53,9 +53,13 @@ plan meets its queued plan again (the limb that plays the note after its
 next stroke); :func:`splice_window` replaces each moving limb's knots only
 from ``t_s`` to that join time (:func:`join_time`: from there every knot of
 both agrees, as ``splice_plan``'s "agrees" rule) and keeps the queued knots
-and strikes after it. The tracks are those a plan of the whole rest would
-give. A window that does not re-join is planned again with the whole rest
-(counted in ``window_misses``).
+and strikes after it. The hi-hat foot also moves when the window changes its
+open-hi-hat lifts (the one part of a limb's plan made from other limbs' notes:
+an open hi-hat dropped for the new note, a chain of them cut at the context's
+start or at the window's end). The tracks are those a plan of the whole rest would give. A window
+that does not re-join is planned again (counted in ``window_misses``): with
+the window widened to the hi-hat foot's next note when only the foot's lifts
+changed, else with the whole rest.
 
 Deterministic by default: no wall clock, no threads; times are the rig times
 the core passes in, and planning runs in the handler (about 0.4 ms per note).
@@ -98,6 +102,7 @@ from services.physics.plan_worker import PlanWorker, plan_executor, stop_executo
 from services.physics.splice import (
     BLEND_S,
     BRAKE_S,
+    agrees,
     brake_point,
     check_room,
     join_time,
@@ -173,7 +178,13 @@ class ScorePlayerError(ValueError):
 
 
 class _WindowMissed(Exception):
-    """A live note's window plan does not re-join the queued plan (nothing was changed): plan the whole rest."""
+    """A live note's window plan does not re-join the queued plan (nothing was changed): plan the window widened to
+    the hi-hat foot's next note (``widen``: the window changed only the foot's open-hi-hat lifts, and the foot has
+    no note in it to re-join after), else the whole rest."""
+
+    def __init__(self, widen: bool) -> None:
+        super().__init__("the window's plan does not re-join the queued plan")
+        self.widen = widen
 
 
 def shortest_unit_period() -> float:
@@ -217,6 +228,8 @@ class _Waiting:
     """Plans of it ready too late so far (``play``, re-plans)."""
     whole: bool = False
     """A live note whose window did not re-join the queued plan: planned again with the rest of the performance."""
+    widen: bool = False
+    """... or with its window widened to the hi-hat foot's next note (``_WindowMissed.widen``)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -310,8 +323,8 @@ class ScorePlayer:
         self.replanned_late = 0
         """Background plans ready after their splice time (spliced later, planned again or counted late)."""
         self.window_misses = 0
-        """Live notes whose window's plan did not re-join the queued plan: planned again with the whole rest of
-        the performance."""
+        """Live-note windows whose plan did not re-join the queued plan: the notes planned again, with the window
+        widened to the hi-hat foot's next note (only the foot's open-hi-hat lifts changed) or the whole rest."""
 
     @property
     def preparation_s(self) -> float:
@@ -585,13 +598,15 @@ class ScorePlayer:
         if not self._in_time(event, t_s):
             self._count_late(event, f"arrived at {now:.3f} s")
             return None
-        prepared = self._prepare_live([event], t_s)
-        try:
-            plan = prepared.commit(self._planner(prepared.events, prepared.beats, prepared.lead_in)(), t_s)
-        except _WindowMissed:
-            prepared = self._prepare_live([event], t_s, whole=True)
-            plan = prepared.commit(self._planner(prepared.events, prepared.beats, prepared.lead_in)(), t_s)
-        return self._account(plan)
+        whole = widen = False
+        while True:  # the window, maybe widened, then the whole rest (whose commit always splices)
+            prepared = self._prepare_live([event], t_s, whole, widen)
+            try:
+                plan = prepared.commit(self._planner(prepared.events, prepared.beats, prepared.lead_in)(), t_s)
+            except _WindowMissed as missed:
+                whole, widen = not missed.widen, missed.widen
+                continue
+            return self._account(plan)
 
     def _accept(self, note: LiveNote) -> DrumEvent | None:
         """A live note's drum event, or None (a note-off, a double, or an unknown pitch: counted and logged)."""
@@ -611,10 +626,12 @@ class ScorePlayer:
             log.warning("live note %s at %.3f s %s: less than %.0f ms to prepare it; not played (%d late so far)",
                         event.event.value, event.time, why, self.preparation_s * 1000, self.late_notes)
 
-    def _prepare_live(self, new: list[DrumEvent], t_s: float, whole: bool = False) -> _Prepared:
+    def _prepare_live(self, new: list[DrumEvent], t_s: float, whole: bool = False, widen: bool = False
+                      ) -> _Prepared:
         """The plan inputs of live notes ``new`` (in time to be prepared) spliced at rig time ``t_s``: the notes of
-        their window (:meth:`_window_end`), or with ``whole`` every note from the context on. The commit raises
-        :class:`_WindowMissed` (nothing changed) when the window's plan does not re-join the queued one."""
+        their window (:meth:`_window_end`; ``widen``: to the hi-hat foot's next note too), or with ``whole`` every
+        note from the context on. The commit raises :class:`_WindowMissed` (nothing changed) when the window's plan
+        does not re-join the queued one."""
         scene = self._drummer()
         start = bisect.bisect_left(self.events, t_s - CONTEXT_S, key=lambda e: e.time)
         if len(self.events) - start + len(new) > MAX_PERFORMANCE_NOTES:
@@ -622,7 +639,7 @@ class ScorePlayer:
             raise ScorePlayerError(f"live note {event.event.value} at {event.time:.3f} s: the performance already "
                                    f"holds {len(self.events) - start} notes, the limit of {MAX_PERFORMANCE_NOTES} "
                                    "(MAX_PERFORMANCE_NOTES); refused, the queued notes are kept")
-        end = math.inf if whole else self._window_end(new, t_s)
+        end = math.inf if whole else self._window_end(new, t_s, widen)
         stop = bisect.bisect_right(self.events, end, key=lambda e: e.time)
         later = self.events[stop:]
         events = sorted(self.events[start:stop] + new, key=lambda e: e.time)
@@ -633,18 +650,30 @@ class ScorePlayer:
             moving = {s.limb for s in plan.strokes if s.time > t_s}
             # an open hi-hat lifts the pedal foot (a window's: a new one; the queued ones already do)
             opens = new if end < math.inf else [s for s in plan.strokes if s.time > t_s]
-            if any(e.event == EventType.HIHATOPEN for e in opens) and EventType.HIHATPEDAL in self.core.kit.events:
-                moving.add(self.core.kit.spec(EventType.HIHATPEDAL).preferred)
+            pedal = self._pedal_foot()
+            if pedal is not None and any(e.event == EventType.HIHATOPEN for e in opens):
+                moving.add(pedal)
             if end == math.inf:
                 splice_plan(scene, plan, t_s, limbs=moving)
             else:
+                # the pedal's lifts come from the hands' open hi-hats: a window can change them without a pedal
+                # note in it (an open dropped for the new note, a chain of opens cut at the context's start or at
+                # the window's end, where a pedal note just past it would have cancelled the chain's lift)
+                lifts = False
+                if pedal is not None and pedal not in moving and pedal in plan.trajectories:
+                    lifts = not agrees(scene.limb_tracks[pedal.value], plan.trajectories[pedal], t_s,
+                                       end - JOIN_GUARD_S)
+                    if lifts:
+                        moving.add(pedal)
                 joins = self._joins(scene, plan, t_s, moving, new, end - JOIN_GUARD_S)
                 if joins is None:
                     self.window_misses += 1
+                    # only the pedal's lifts changed: a window past the foot's next note re-joins after it
+                    wider = lifts and not widen and self._pedal_note_within(later, max(e.time for e in new))
                     log.debug("live notes at %s s: the window's plan does not re-join the queued plan by %.3f s; "
-                              "planned again with the rest of the performance",
-                              ", ".join(f"{e.time:.3f}" for e in new), end - JOIN_GUARD_S)
-                    raise _WindowMissed
+                              "planned again with %s", ", ".join(f"{e.time:.3f}" for e in new), end - JOIN_GUARD_S,
+                              "its window widened to the hi-hat foot's next note" if wider else "the whole rest")
+                    raise _WindowMissed(widen=wider)
                 splice_window(scene, plan, t_s, joins, end - JOIN_GUARD_S)
             self.events = self._assigned(events, plan) + later
             self._live_keys = ({k for k in self._live_keys if k[0] >= t_s - CONTEXT_S}
@@ -655,20 +684,22 @@ class ScorePlayer:
 
         return _Prepared(t_s, events, np.zeros(0), 1.0, commit)
 
-    def _window_end(self, new: list[DrumEvent], t_s: float) -> float:
+    def _window_end(self, new: list[DrumEvent], t_s: float, widen: bool = False) -> float:
         """Rig time (s) up to which a live note's plan takes the performance's notes: :data:`WINDOW_AFTER_S` after
         the last new note, past the next note after the new notes of every limb that may take one (so that limb
         can re-join its queued plan after it) and past the first note after ``t_s`` of each limb with no note in
         the context (re-planned from its rest, as a plan of the whole rest would), plus :data:`JOIN_GUARD_S`;
-        limbs are looked for at most :data:`WINDOW_MAX_S` after the last new note."""
+        limbs are looked for at most :data:`WINDOW_MAX_S` after the last new note. ``widen``: past the hi-hat
+        foot's next note too, as for an open hi-hat."""
         last = max(e.time for e in new)
         end = last + WINDOW_AFTER_S
         start = bisect.bisect_left(self.events, t_s - CONTEXT_S, key=lambda e: e.time)
         split = bisect.bisect_left(self.events, t_s, key=lambda e: e.time)
         first = set(Limb).difference(*(self._limbs_of(e) for e in self.events[start:split]))
         after_new = set().union(*(self._limbs_of(e) for e in new))
-        if any(e.event == EventType.HIHATOPEN for e in new) and EventType.HIHATPEDAL in self.core.kit.events:
-            after_new.add(self.core.kit.spec(EventType.HIHATPEDAL).preferred)  # the pedal lifts for it
+        pedal = self._pedal_foot()
+        if pedal is not None and (widen or any(e.event == EventType.HIHATOPEN for e in new)):
+            after_new.add(pedal)  # the pedal lifts for it
         for e in self.events[split:]:
             if e.time > last + WINDOW_MAX_S or (e.time > end and not first and not after_new):
                 break
@@ -679,6 +710,22 @@ class ScorePlayer:
                 if e.time > last:
                     after_new -= limbs
         return end + JOIN_GUARD_S
+
+    def _pedal_foot(self) -> Limb | None:
+        """The foot that plays the kit's hi-hat pedal (and lifts it for open hi-hats), or None."""
+        if EventType.HIHATPEDAL not in self.core.kit.events:
+            return None
+        return self.core.kit.spec(EventType.HIHATPEDAL).preferred
+
+    def _pedal_note_within(self, events: list[DrumEvent], last: float) -> bool:
+        """Whether ``events`` (sorted) hold a note of the hi-hat foot by :data:`WINDOW_MAX_S` after ``last`` (s)."""
+        pedal = self._pedal_foot()
+        for e in events:
+            if e.time > last + WINDOW_MAX_S:
+                break
+            if pedal in self._limbs_of(e):
+                return True
+        return False
 
     def _limbs_of(self, event: DrumEvent) -> set[Limb]:
         """The limb a note is played with: its hand once assigned, a pedal's foot, else either hand."""
@@ -872,12 +919,13 @@ class ScorePlayer:
             return
         requests, new = [a[0] for a in accepted], [a[1] for a in accepted]
         whole = any(item.whole for item, _ in accepted)
+        widen = any(item.widen for item, _ in accepted)
         latest = min(e.time for e in new) - (self.preparation_s - SPLICE_MARGIN_S)
-        end = math.inf if whole else self._window_end(new, t0)
+        end = math.inf if whole else self._window_end(new, t0, widen)
         context = sum(1 for e in self.events if t0 - CONTEXT_S <= e.time <= end)
         t_s = max(t0, min(t0 + self._estimate(context + len(new)), latest))
         try:
-            prepared = self._prepare_live(new, t_s, whole)
+            prepared = self._prepare_live(new, t_s, whole, widen)
         except ValueError as exc:
             self._fail(requests, exc, now)
             return
@@ -936,8 +984,9 @@ class ScorePlayer:
             log.info("live notes: plan ready after its splice time %.3f s: spliced at %.3f s", prepared.t_s, t_s)
         try:
             prepared.commit(plan, t_s)
-        except _WindowMissed:  # plan them again with the rest of the performance
-            self._waiting.extendleft(reversed([dataclasses.replace(w, event=e, whole=True) for w, e in pairs]))
+        except _WindowMissed as missed:  # plan them again: a widened window, or with the rest of the performance
+            self._waiting.extendleft(reversed([dataclasses.replace(w, event=e, whole=not missed.widen,
+                                                                   widen=missed.widen) for w, e in pairs]))
             return
         self._account(plan)
 

@@ -19,12 +19,11 @@ import numpy as np
 
 from common.gesture.plan import GesturePlan, HeadTrajectory, LimbTrajectory, hermite
 from common.kit import Limb
-from services.physics.follow_through import Strike
+from services.physics.follow_through import follows_through, strike_of
 from services.physics.targets import TargetError, Track
 
 if TYPE_CHECKING:
     from services.physics.drummer import DrummerScene
-    from services.physics.follow_through import LimbTrack
 
 BLEND_S = 0.1
 """Where a re-plan disagrees with a limb's track, its knots within this long after the splice are dropped, s."""
@@ -119,21 +118,11 @@ def splice_window(scene: DrummerScene, plan: GesturePlan, t_s: float, joins: dic
         velocities = np.concatenate([splice.v0[None, :], np.zeros((len(splice.bridge), 3)), traj.velocities[keep]])
         spans.append(scene.limb_tracks[limb.value].check_span(times, values, velocities, t_j))
     for (limb, _), splice, (times, values, velocities) in zip(chosen, splices, spans, strict=True):
-        track = scene.limb_tracks[limb.value]
         t_j = joins[limb]
-        queued = [s for s in track.strikes if s.time >= t_j]  # replace_span's add drops the strikes from t_s on
-        track.replace_span(times, values, velocities, t_j)
-        track.add_strokes([s for s in plan.strokes_of(limb) if s.time < t_j], 0.0, after=splice.cut)
-        _restore_strikes(track, queued)
+        strikes = [strike_of(s, 0.0) for s in plan.strokes_of(limb) if splice.cut < s.time < t_j and follows_through(s)]
+        scene.limb_tracks[limb.value].replace_span(times, values, velocities, t_j, strikes)
     if plan.head is not None:
         scene.head = (_joined_head(plan.head, scene.head, head_until), 0.0)
-
-
-def _restore_strikes(track: LimbTrack, strikes: list[Strike]) -> None:
-    """Put back queued strikes (in time order) after the window's."""
-    for strike in strikes:
-        if not track.strikes or strike.time > track.strikes[-1].time:
-            track.add_strike(strike)
 
 
 def _joined_head(new: HeadTrajectory, queued: tuple[HeadTrajectory, float] | None, until: float) -> HeadTrajectory:
@@ -172,6 +161,24 @@ def join_time(track: Track, traj: LimbTrajectory, after: float, until: float) ->
     gaps = np.flatnonzero(np.diff(idx) != 1) + 1  # a queued knot the plan lacks (or the reverse) before these
     start = max(int(bad[-1]) + 1 if bad.size else 0, int(gaps[-1]) if gaps.size else 0)
     return float(times[start]) if start < len(times) else None
+
+
+def agrees(track: Track, traj: LimbTrajectory, t_s: float, until: float) -> bool:
+    """Whether a plan's trajectory ``traj`` agrees with a queued ``track`` from rig time ``t_s`` to ``until`` (s):
+    positions within :data:`AGREE_M` and velocities within :data:`AGREE_M_S` at both ends and at every knot of
+    either between (both are one cubic on each interval between these times, so agreeing there they agree
+    between, within about the same margins). False for an empty track."""
+    if not len(track):
+        return False
+    until = max(until, t_s)
+    a = max(bisect.bisect_right(track.times, t_s) - 1, 0)  # the queued knots that shape [t_s, until]
+    b = min(bisect.bisect_left(track.times, until) + 1, len(track))
+    queued = np.asarray(track.times[a:b])
+    inner = (traj.times > t_s) & (traj.times < until)
+    times = np.unique(np.concatenate([[t_s, until], traj.times[inner], queued[(queued > t_s) & (queued < until)]]))
+    p1, v1 = hermite(traj.times, traj.positions, traj.velocities, times)
+    p2, v2 = hermite(queued, np.asarray(track.values[a:b]), np.asarray(track.velocities[a:b]), times)
+    return bool(np.abs(p1 - p2).max() <= AGREE_M and np.abs(v1 - v2).max() <= AGREE_M_S)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -42,7 +42,7 @@ re-plan; the score's kicks are checked within 40 ms in test_score_player.py)."""
 
 def _whole(monkeypatch: pytest.MonkeyPatch) -> None:
     """Every live note re-planned with the whole rest of the performance (the behaviour before the window)."""
-    monkeypatch.setattr(ScorePlayer, "_window_end", lambda self, new, t_s: math.inf)
+    monkeypatch.setattr(ScorePlayer, "_window_end", lambda self, new, t_s, widen=False: math.inf)
 
 
 def _scene(physics: Any) -> DrummerScene:
