@@ -31,6 +31,7 @@ import asyncio
 import contextlib
 import ctypes
 import errno
+import ipaddress
 import os
 import signal
 import socket
@@ -73,6 +74,22 @@ class ServicePlan:
         return [sys.executable, "-m", "batteur", self.role, "--port", str(self.port), *self.args]
 
 
+def peer_host(host: str) -> str:
+    """The address the rig's services send each other, given the one they listen on (``--host``).
+
+    A wildcard (0.0.0.0, ::) is no address to send to: the kernel delivers such a datagram over loopback, so
+    the replies come from 127.0.0.1 (::1), and a clock pong from an address other than its pings' is dropped
+    as not from the master. The services are on this machine: loopback then.
+    """
+    try:
+        ip = ipaddress.ip_address(host)
+    except ValueError:  # a host name
+        return host
+    if ip.is_unspecified:
+        return "127.0.0.1" if ip.version == 4 else "::1"
+    return host
+
+
 def plan_rig(opts: argparse.Namespace, epoch: float) -> list[ServicePlan]:
     """The services to start, each with its port, peers, epoch and own arguments."""
     roles = [r.strip() for r in opts.services.split(",") if r.strip()]
@@ -82,17 +99,21 @@ def plan_rig(opts: argparse.Namespace, epoch: float) -> list[ServicePlan]:
         raise ValueError(f"--services: unknown role(s) {named}; choose from {', '.join(ROLES)}")
     if len(set(roles)) < len(roles):  # two services of a role would share its port; the rig runs one of each
         raise ValueError(f"--services {opts.services}: each role at most once")
+    if opts.no_static_peers and opts.no_discovery and len(roles) > 1:
+        raise ValueError("--no-static-peers with --no-discovery: the services could not find each other; "
+                         "drop one of the two")
     ports = {role: opts.base_port + PORT_OFFSET[role] for role in roles}
     if max(ports.values()) > 65535:
         raise ValueError(f"--base-port {opts.base_port}: {', '.join(roles)} would need UDP ports up to "
                          f"{max(ports.values())}, above 65535")
     plans: list[ServicePlan] = []
+    peer_at = peer_host(opts.host)
     for role in roles:
         args = ["--host", opts.host, "--epoch", repr(epoch), "--node-id", f"{role}-rig{opts.base_port}"]
         if not opts.no_static_peers:
             for other in roles:
                 if other != role:
-                    args += ["--peer", f"{other}={opts.host}:{ports[other]}"]
+                    args += ["--peer", f"{other}={peer_at}:{ports[other]}"]
         if opts.no_discovery:
             args += ["--no-discovery"]
         else:

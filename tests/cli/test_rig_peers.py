@@ -1,0 +1,46 @@
+"""How ``batteur rig`` tells its services where the others are.
+
+``batteur rig --host 0.0.0.0`` (the LAN case of docs/deployment.md): the rig gives each service the others as
+static peers. A wildcard listen address is no address to send to: a datagram sent to 0.0.0.0 is delivered over
+loopback, so the clock master's pongs came back from 127.0.0.1 while the pings went to 0.0.0.0, and every node
+dropped them as not from its master ("clock pong not from the clock master"): no node but physics ever synced
+its clock. The peers must be the address the replies come from.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from batteur.rig import build_parser, plan_rig
+from common.peers import parse_static_peer
+
+
+def _peers(host: str) -> dict[str, dict[str, tuple[str, int]]]:
+    opts = build_parser().parse_args(["--host", host, "--no-discovery"])
+    peers: dict[str, dict[str, tuple[str, int]]] = {}
+    for plan in plan_rig(opts, epoch=0.0):
+        specs = [plan.args[i + 1] for i, a in enumerate(plan.args) if a == "--peer"]
+        peers[plan.role] = {p.role: p.address for p in map(parse_static_peer, specs)}
+    return peers
+
+
+@pytest.mark.parametrize(("host", "loopback"), [("0.0.0.0", "127.0.0.1"), ("::", "::1")])
+def test_a_wildcard_host_gives_loopback_peers(host: str, loopback: str) -> None:
+    peers = _peers(host)
+    assert peers["sound"]["physics"] == (loopback, 9101)  # the clock master, where its pongs come from
+    assert {addr[0] for table in peers.values() for addr in table.values()} == {loopback}
+
+
+@pytest.mark.parametrize("host", ["127.0.0.1", "192.168.1.10", "::1"])
+def test_an_address_host_is_the_peers_address(host: str) -> None:
+    peers = _peers(host)
+    assert peers["interaction"]["sound"] == (host, 9103)
+
+
+def test_no_static_peers_and_no_discovery_is_refused_for_several_services() -> None:
+    """Neither a peer list nor zeroconf: the services would run side by side without ever finding each other."""
+    opts = build_parser().parse_args(["--no-discovery", "--no-static-peers"])
+    with pytest.raises(ValueError, match="--no-static-peers"):
+        plan_rig(opts, epoch=0.0)
+    alone = build_parser().parse_args(["--no-discovery", "--no-static-peers", "--services", "sound"])
+    assert [p.role for p in plan_rig(alone, epoch=0.0)] == ["sound"]  # one service has no one to find
