@@ -364,8 +364,12 @@ def score_report(result: ScoreRender, source: str, opts: RenderOptions) -> dict[
 
 def write_outputs(output: Path, audio: np.ndarray, sample_rate: int, impacts: list[Any], report: dict[str, Any],
                   poses: Any = None, score: Path | None = None,
-                  video: Callable[[Path], dict[str, Any]] | None = None) -> list[Path]:
+                  video: Callable[[Path], dict[str, Any]] | None = None, bvh_rate_hz: float | None = None
+                  ) -> list[Path]:
     """Write every output into a staging directory, then move them into ``output`` (nothing partial).
+
+    ``bvh_rate_hz``: the BVH's frame rate (physics' pose rate); None: the poses' median interval, which on the
+    1 ms step grid is 17 ms for 60 Hz poses (58.8 frames a second, an odd rate for animation tools).
 
     ``score``: copied in as ``score<suffix>`` so the directory can be evaluated on its own.
     ``video``: called with the staging directory once the WAV is there; writes the video into it and returns
@@ -383,7 +387,7 @@ def write_outputs(output: Path, audio: np.ndarray, sample_rate: int, impacts: li
             if poses is not None:
                 from services.graphics.export.bvh import write_bvh
 
-                write_bvh(poses, staging / "performance.bvh")
+                write_bvh(poses, staging / "performance.bvh", rate_hz=bvh_rate_hz)
             if video is not None:
                 report["video"] = video(staging)
             if score is not None:
@@ -472,7 +476,8 @@ def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: boo
         if result.poses is None:
             raise RenderError("--video: physics sent no poses to draw")
         video = video_writer(result, kit, opts, quiet)
-    write_outputs(output, result.audio, result.sample_rate, result.impacts, report, result.poses, Path(path), video)
+    write_outputs(output, result.audio, result.sample_rate, result.impacts, report, result.poses, Path(path), video,
+                  bvh_rate_hz=opts.pose_rate_hz or None)
     return report
 
 

@@ -50,7 +50,8 @@ def test_render_writes_wav_impacts_bvh_and_report(rendered: Path) -> None:
     bvh = (rendered / "performance.bvh").read_text()
     assert bvh.startswith("HIERARCHY") and "MOTION" in bvh
     frames = int(bvh.split("Frames:")[1].split()[0])
-    assert abs(frames / 60.0 - report["duration_s"]) < 0.2  # poses at 60 Hz over the whole render
+    assert float(bvh.split("Frame Time:")[1].split()[0]) == pytest.approx(1 / 60, abs=1e-8)  # physics' pose rate
+    assert abs(frames / 60.0 - report["duration_s"]) < 0.05  # over the whole render
     assert (rendered / "score.txt").read_text() == SCORE.read_text()  # the directory evaluates on its own
     assert not [p for p in rendered.iterdir() if p.name.startswith(".render-")]  # no staging left
 
