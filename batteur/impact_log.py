@@ -1,7 +1,10 @@
 """Impacts as a table: collected from a bus or a UDP listener, written as CSV.
 
 One row per impact, de-duplicated by sequence number (interaction sends each
-impact redundantly), with every feature the Impact message carries.
+impact redundantly), with every feature the Impact message carries. An impact
+is sent at its first contact step, when its impulse, peak force and duration
+are not known yet (0); its ``/batteur/impact/end`` (same sender and sequence
+number) brings them when the contact is over, and they replace the zeros.
 """
 
 from __future__ import annotations
@@ -15,27 +18,44 @@ from pydantic import ValidationError
 
 from common.datafile import first_error, read_text
 from common.messages import Impact, OscMessage
+from common.messages.interaction import ImpactEnd
 
 COLUMNS = list(Impact.model_fields)
 
 
 @dataclass
 class ImpactLog:
-    """Unique impacts in arrival order (first copy of each sequence number wins)."""
+    """Unique impacts in arrival order (first copy of each sequence number wins), completed by their ends."""
 
     impacts: list[Impact] = field(default_factory=list)
-    _seen: set[tuple[str, int]] = field(default_factory=set)
+    _seen: dict[tuple[str, int], int] = field(default_factory=dict)
+    """(sender, seq) -> index in ``impacts``."""
+    unmatched_ends: int = 0
+    """Impact ends whose impact was never recorded (lost, or sent before the log started): counted, dropped."""
 
     def add(self, message: OscMessage, source: str = "") -> bool:
-        """Record an impact; False for anything else or a redundant copy."""
+        """Record an impact, or fold an impact end's figures into its impact; False for anything else or a
+        redundant copy of an impact."""
+        if isinstance(message, ImpactEnd):
+            self._complete(message, source)
+            return True
         if not isinstance(message, Impact):
             return False
         key = (source, message.seq)
         if key in self._seen:
             return False
-        self._seen.add(key)
+        self._seen[key] = len(self.impacts)
         self.impacts.append(message)
         return True
+
+    def _complete(self, end: ImpactEnd, source: str) -> None:
+        """The impact's final impulse, peak force and duration (every copy of the end gives the same)."""
+        k = self._seen.get((source, end.seq))
+        if k is None or self.impacts[k].time != end.time or self.impacts[k].instrument != end.instrument:
+            self.unmatched_ends += 1
+            return
+        self.impacts[k] = self.impacts[k].model_copy(
+            update={"impulse": end.impulse, "peak_force": end.peak_force, "duration": end.duration})
 
     def sorted(self) -> list[Impact]:
         return sorted(self.impacts, key=lambda i: (i.time, i.instrument, i.seq))

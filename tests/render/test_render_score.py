@@ -45,6 +45,8 @@ def test_render_writes_wav_impacts_bvh_and_report(rendered: Path) -> None:
         rows = list(csv.DictReader(handle))
     assert len(rows) == report["impacts"] > 0
     assert {r["instrument"] for r in rows} >= {"snare", "hihat"}
+    for r in rows:  # each impact completed by its end (sent with the first contact, they were 0 there)
+        assert float(r["impulse"]) > 0 and float(r["peak_force"]) > 0 and 0 < float(r["duration"]) <= 0.05
     times = [float(r["time"]) for r in rows]
     assert times == sorted(times)
     bvh = (rendered / "performance.bvh").read_text()
