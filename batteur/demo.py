@@ -47,7 +47,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     quiet = ["--quiet"] if opts.quiet else []
     if opts.strikes:
         strikes = "0.25:2,0.5:3,0.75:2,1.0:4.5,1.25:1.5,1.375:1.5,1.5:5"
-        return render.main(["-o", str(opts.output), "--strikes", strikes, *quiet])
+        code = render.main(["-o", str(opts.output), "--strikes", strikes, *quiet])
+        if code == 0:  # no score: nothing to evaluate against
+            print(f"listen: {opts.output / 'performance.wav'}")
+            print(f"report: {opts.output / 'report.json'}")
+        return code
     with tempfile.TemporaryDirectory(prefix="batteur-demo-") as tmp:
         score = Path(tmp) / "demo-groove.txt"
         score.write_text(DEMO_GROOVE, encoding="utf-8")

@@ -192,3 +192,15 @@ def test_ctrl_c_in_a_command_exits_130_without_a_traceback(monkeypatch: pytest.M
 
     monkeypatch.setattr(cli, "load_command", loading)
     assert cli.main(["transcribe", "x.wav"]) == 130
+
+
+def test_demo_strikes_says_where_to_listen(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``batteur demo --strikes`` (the quick check without the drummer) ends as the demo does: where the WAV and
+    the report are (it printed neither)."""
+    from batteur import demo
+
+    out = tmp_path / "strikes"
+    assert demo.main(["--strikes", "-o", str(out), "--quiet"]) == 0
+    printed = capsys.readouterr().out
+    assert f"listen: {out / 'performance.wav'}" in printed and f"report: {out / 'report.json'}" in printed
+    assert (out / "performance.wav").is_file() and (out / "report.json").is_file()

@@ -14,6 +14,7 @@ import numpy as np
 
 from common.arg_types import positive, seconds
 from common.output_paths import check_output_file
+from common.transport import parse_address
 from services.recogniser.audio import MAX_DURATION_S
 from services.recogniser.classes import CLASSES
 from services.recogniser.errors import RecogniserError
@@ -96,6 +97,11 @@ def main(argv: Sequence[str] | None = None) -> int:
             parser.error(f"{option} needs --live")
     if args.seconds is not None and args.device is None:
         parser.error("--seconds needs --device (a file stops at its end)")
+    for target in args.to:  # before the model loads: a usage error (exit 2), not a failure of the run
+        try:
+            parse_address(target)
+        except ValueError as exc:
+            parser.error(f"--to {exc}")
     if args.speed is not None and args.device is not None:
         parser.error("--speed plays a file faster; a device plays in real time")
     if not args.max_duration > 0:  # written so NaN fails too (inf: no limit)

@@ -90,12 +90,15 @@ def _play_seconds(text: str) -> float:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m services.sound.demo", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("-o", "--output", type=Path, default=Path("groove.wav"), help="WAV file to write")
-    parser.add_argument("--midi", type=Path, default=DEFAULT_MIDI, help="General MIDI drum file")
+    parser.add_argument("-o", "--output", type=Path, default=Path("groove.wav"),
+                        help="WAV file to write (default groove.wav)")
+    parser.add_argument("--midi", type=Path, default=DEFAULT_MIDI,
+                        help=f"General MIDI drum file (default {DEFAULT_MIDI.name})")
     parser.add_argument("--seconds", type=_play_seconds, default=16.0,
                         help="how much of the file to play, seconds (default 16; inf: all of it)")
-    parser.add_argument("--model", choices=("modal", "sample", "synth"), default="modal", help="synthesis model")
-    parser.add_argument("--kit", default="default", help="kit name or file")
+    parser.add_argument("--model", choices=("modal", "sample", "synth"), default="modal",
+                        help="synthesis model (default modal)")
+    parser.add_argument("--kit", default="default", help="kit name or file (default: the default kit)")
     parser.add_argument("--mono", action="store_true", help="mono instead of stereo")
     parser.add_argument("--reverb", type=unit, default=0.12, help="room reverb wet/dry 0..1 (default 0.12)")
     args = parser.parse_args(argv)

@@ -255,10 +255,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                        "then -2, -3 ... if that name is taken), so each run keeps its own file; the log says "
                        "the name")
     group.add_argument("--device", choices=("auto", "none"), default="auto",
-                       help="auto: play on the sound card if portaudio finds one; none: never")
+                       help="auto: play on the sound card if portaudio finds one; none: never (default auto)")
     group.add_argument("--model", choices=("modal", "sample", "synth"), default="modal",
                        help="initial synthesis model of every instrument (default: modal)")
-    group.add_argument("--block-size", type=int, choices=(64, 128, 256, 512), default=256, help="samples per block")
+    group.add_argument("--block-size", type=int, choices=(64, 128, 256, 512), default=256,
+                       help="samples per block (default 256)")
     group.add_argument("--channels", type=int, choices=(1, 2), default=2, help="1 mono, 2 stereo (default 2)")
     group.add_argument("--reverb", type=float, default=0.1, help="room reverb wet/dry 0..1 (default 0.1)")
     group.add_argument("--pedal-impacts", action="store_true",

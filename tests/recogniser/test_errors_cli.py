@@ -105,6 +105,10 @@ def test_cli_usage_errors(capsys: pytest.CaptureFixture[str], pattern_wav: Path)
         with pytest.raises(SystemExit) as e:  # each was a traceback from the MIDI writer or the live loop
             main([str(pattern_wav), "-o", "x.mid", option, value])
         assert e.value.code == 2 and option in capsys.readouterr().err
+    for target in ("127.0.0.1", "[::1]", "127.0.0.1:0", "host:port"):  # a usage error, before the model loads
+        with pytest.raises(SystemExit) as e:
+            main([str(pattern_wav), "--live", "--to", target])
+        assert e.value.code == 2 and "--to" in capsys.readouterr().err
 
 
 def test_model_errors(tmp_path: Path) -> None:
