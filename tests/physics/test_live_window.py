@@ -40,6 +40,18 @@ TOLERANCE_S = {49: 0.005, 36: 0.010, 46: 0.005}
 re-plan; the score's kicks are checked within 40 ms in test_score_player.py)."""
 
 
+def live_playing() -> tuple[LivePhysicsCore, Any, Any, Any]:
+    """The live node's core (plans in a thread) with the 55 s groove playing from rig time 1 s, its plan spliced:
+    (physics, runner, recorder, control endpoint)."""
+    physics, runner, recorder, control = _live_rig("thread")
+    assert isinstance(physics, LivePhysicsCore)
+    physics.score_player.library = [MIDI.parent]
+    control.send(ScoreLoad(path=MIDI.name), "physics")
+    control.send(ScoreTransport(action="play", time=1.0, position=0.0), "physics")
+    assert physics.score_player.wait(60.0)
+    return physics, runner, recorder, control
+
+
 def _whole(monkeypatch: pytest.MonkeyPatch) -> None:
     """Every live note re-planned with the whole rest of the performance (the behaviour before the window)."""
     monkeypatch.setattr(ScorePlayer, "_window_end", lambda self, new, t_s, widen=False: math.inf)
@@ -136,13 +148,8 @@ def test_a_background_live_note_plans_its_window_or_else_the_whole_rest_and_is_p
     the whole rest (given 1 s of lead, so the second plan has time)."""
     if not joins:
         monkeypatch.setattr(score_player_module, "join_time", lambda *args: None)
-    physics, runner, recorder, control = _live_rig("thread")
-    assert isinstance(physics, LivePhysicsCore)
+    physics, runner, recorder, control = live_playing()
     player = physics.score_player
-    player.library = [MIDI.parent]
-    control.send(ScoreLoad(path=MIDI.name), "physics")
-    control.send(ScoreTransport(action="play", time=1.0, position=0.0), "physics")
-    assert player.wait(60.0)
     t = NOTE_AT_S + LEAD_S
     runner.run_until(t - 1.0)
     plans = player.plans

@@ -21,9 +21,8 @@ import pytest
 from common.gesture.plan import hermite
 from common.messages.score import LiveNote, ScoreLoad, ScoreTransport
 from services.physics.drummer import DrummerScene
-from services.physics.node import LivePhysicsCore
 from services.physics.score_player import ScorePlayer
-from tests.physics.test_live_replan import _rig as _live_rig
+from tests.physics.test_live_window import live_playing
 from tests.physics.test_score_player import MIDI, _rig
 
 LEAD_S = 0.4
@@ -94,13 +93,8 @@ def test_the_live_node_plans_the_crash_again_with_a_widened_window_and_closes_th
     """The live node (background plans): the crash's window does not re-join (the pedal must close earlier and the
     foot has no note in the window), so it is planned again with the window widened to the foot's next note, not
     with the whole rest; the crash sounds and the pedal is down again by 21.06 s (the queued lift held it up)."""
-    physics, runner, recorder, control = _live_rig("thread")
-    assert isinstance(physics, LivePhysicsCore)
+    physics, runner, recorder, control = live_playing()
     player = physics.score_player
-    player.library = [MIDI.parent]
-    control.send(ScoreLoad(path=MIDI.name), "physics")
-    control.send(ScoreTransport(action="play", time=1.0, position=0.0), "physics")
-    assert player.wait(60.0)
     for at, pitch in NOTES:
         runner.run_until(at)
         control.send(LiveNote(time=at + LEAD_S, pitch=pitch, velocity=100, channel=10), "physics")
