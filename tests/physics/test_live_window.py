@@ -40,6 +40,17 @@ TOLERANCE_S = {49: 0.005, 36: 0.010, 46: 0.005}
 re-plan; the score's kicks are checked within 40 ms in test_score_player.py)."""
 
 
+def offline_playing() -> tuple[Any, Any, Any, Any]:
+    """A PhysicsCore (plans in the handler) with the 55 s groove asked to play from rig time 1 s:
+    (physics, runner, recorder, control endpoint)."""
+    physics, runner, recorder, control = _rig()
+    physics.score_player.library = [MIDI.parent]
+    control.send(ScoreLoad(path=MIDI.name), "physics")
+    runner.run_until(0.2)
+    control.send(ScoreTransport(action="play", time=1.0, position=0.0), "physics")
+    return physics, runner, recorder, control
+
+
 def live_playing() -> tuple[LivePhysicsCore, Any, Any, Any]:
     """The live node's core (plans in a thread) with the 55 s groove playing from rig time 1 s, its plan spliced:
     (physics, runner, recorder, control endpoint)."""
@@ -65,12 +76,8 @@ def _scene(physics: Any) -> DrummerScene:
 def _play(pitch: int, until: float | None = None) -> tuple[Any, Any, Any, dict[str, Any]]:
     """Play the score, send the live note at NOTE_AT_S; returns the core, runner, recorder and what the tracks
     hold right after the note's plan (knots, strikes) with the performance's notes."""
-    physics, runner, recorder, control = _rig()
+    physics, runner, recorder, control = offline_playing()
     player = physics.score_player
-    player.library = [MIDI.parent]
-    control.send(ScoreLoad(path=MIDI.name), "physics")
-    runner.run_until(0.2)
-    control.send(ScoreTransport(action="play", time=1.0, position=0.0), "physics")
     runner.run_until(NOTE_AT_S)
     control.send(LiveNote(time=NOTE_AT_S + LEAD_S, pitch=pitch, velocity=100, channel=10), "physics")
     queued = {name: (list(track.times), [v.copy() for v in track.values], [v.copy() for v in track.velocities],

@@ -19,11 +19,10 @@ import numpy as np
 import pytest
 
 from common.gesture.plan import hermite
-from common.messages.score import LiveNote, ScoreLoad, ScoreTransport
+from common.messages.score import LiveNote
 from services.physics.drummer import DrummerScene
 from services.physics.score_player import ScorePlayer
-from tests.physics.test_live_window import live_playing
-from tests.physics.test_score_player import MIDI, _rig
+from tests.physics.test_live_window import live_playing, offline_playing
 
 LEAD_S = 0.4
 """Each live note sounds this long after it is sent, s."""
@@ -42,12 +41,8 @@ def _play(whole: bool) -> tuple[list[dict[str, Knots]], list[int], list[Any], di
     """Play the score and send NOTES; the tracks (knots, strikes) right after each note's plan and how many notes
     that plan had, the performance's notes at the end and the player's status. ``whole``: every live note
     re-planned with the whole rest."""
-    physics, runner, _, control = _rig()
+    physics, runner, _, control = offline_playing()
     player = physics.score_player
-    player.library = [MIDI.parent]
-    control.send(ScoreLoad(path=MIDI.name), "physics")
-    runner.run_until(0.2)
-    control.send(ScoreTransport(action="play", time=1.0, position=0.0), "physics")
     scene = physics.scene
     assert isinstance(scene, DrummerScene)
     states: list[dict[str, Knots]] = []
