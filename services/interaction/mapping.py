@@ -62,6 +62,8 @@ def _sendable(value: float, what: str) -> float:
 
 def _check_target(to: str) -> str:
     """A role name, or a HOST:PORT that can be sent to (ValueError with the reason)."""
+    if to == "reply":  # the runtime's word for "the sender of the message being handled": physics, for an impact
+        raise ValueError("'reply' is not a target (it would answer the physics node): give the client's host:port")
     if ":" in to or to.startswith("["):
         parse_address(to)
     return to
@@ -218,7 +220,7 @@ class ArgSpec(_Model):
         else:
             text = self.feature
             if self.curve is not None:
-                text += ":" + ":".join([self.curve.kind, *(f"{v:g}" for v in self.curve.spec_tail())])
+                text += ":" + ":".join([self.curve.kind, *(_spec_number(v) for v in self.curve.spec_tail())])
         return text if self.type == "auto" else f"{text}@{self.type}"
 
     @classmethod
@@ -255,6 +257,13 @@ class ArgSpec(_Model):
             raise
         except ValueError as exc:  # float() or pydantic
             raise MappingError(f"{text!r}: {_first_line(exc)}") from None
+
+
+def _spec_number(value: float) -> str:
+    """The shortest text that parses back to ``value`` exactly ('127', '0.1234567', '1e-05'): a listed spec
+    re-added as is must map the same (``:g`` kept six digits, so 0.1234567 came back as 0.123457)."""
+    text = repr(float(value))
+    return text[:-2] if text.endswith(".0") else text
 
 
 def _constant(text: str) -> int | float | str:

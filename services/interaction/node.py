@@ -97,8 +97,8 @@ def _rate_limited_warning(interval_s: float) -> Callable[[str], None]:
 
 
 async def report_stats(node: Node, interval_s: float = 30.0) -> None:
-    """Log interaction's counters every ``interval_s`` seconds while impacts keep coming."""
-    last = -1
+    """Log interaction's counters every ``interval_s`` seconds while impacts keep coming (an idle node logs nothing)."""
+    last = 0
     while True:
         await asyncio.sleep(interval_s)
         core = node.core

@@ -119,6 +119,10 @@ class Params:
     reso_ratio: float = 1.1  # its frequency ratio to the batter head
 
 
+POSITION_REFERENCE_THETA = 0.0
+"""Strike angle, radians, of the fixed point that stands in for the strike point as ``position`` goes to 0 (with
+r/a 0.35 on a head, 0.6 on a plate): at 0 every strike point in a zone sounds the same."""
+
 COMMON_PARAMS = frozenset({"damping", "n_modes", "position", "resonances", "stick", "level", "model"})
 KIND_PARAMS: dict[str, frozenset[str]] = {
     "membrane": COMMON_PARAMS | {"radius", "tension", "density", "snares", "air_loading", "second_head"},
@@ -403,15 +407,18 @@ class Membrane(Instrument):
         elif zone == "rimshot":
             head_r, head_w, ring_w = min(max(strike.r, 0.85), 0.95), 1.0, 0.8
         shape = self.modes.shape_at(head_r, strike.theta)
-        if p.position < 1.0:
-            shape = p.position * shape + (1.0 - p.position) * self.modes.shape_at(0.35, strike.theta)
-        head = head_w * shape / self.modes.mass
         # the second head is pushed by the air the batter head moves: its axisymmetric modes get the
         # batter's volume displacement (the (0,1) shape at the strike), the others a little shell coupling
         n = self.n_reso
         reso_m, reso_n = self.reso.m[:n], self.reso.n[:n]
         drive = head_w * float(jv(0, 2.405 * min(max(head_r, 0.0), 1.0)))
         reso_shape = self.reso.shape_at(head_r, strike.theta)[:n]
+        if p.position < 1.0:  # towards a fixed point, angle included: at 0 the strike point is ignored
+            w, ref_r, ref_theta = p.position, 0.35, POSITION_REFERENCE_THETA
+            shape = w * shape + (1.0 - w) * self.modes.shape_at(ref_r, ref_theta)
+            drive = w * drive + (1.0 - w) * head_w * float(jv(0, 2.405 * ref_r))
+            reso_shape = w * reso_shape + (1.0 - w) * self.reso.shape_at(ref_r, ref_theta)[:n]
+        head = head_w * shape / self.modes.mass
         coupling = np.where(reso_m == 0, drive / reso_n, 0.15 * head_w * reso_shape)
         reso = p.second_head * coupling / self.reso.mass[:n]
         # the hoop is much stiffer and lighter in play: a short metallic click
@@ -480,7 +487,7 @@ class Cymbal(Instrument):
         on_bell = strike.zone == "bell" or strike.r < bell_r
         shape = self.modes.shape_at(strike.r, strike.theta)
         if p.position < 1.0:
-            shape = p.position * shape + (1.0 - p.position) * self.modes.shape_at(0.6, strike.theta)
+            shape = p.position * shape + (1.0 - p.position) * self.modes.shape_at(0.6, POSITION_REFERENCE_THETA)
         plate = shape / self.modes.mass * (0.3 if on_bell else 1.0)
         bell_w = 1.0 if on_bell else 0.08
         bell = bell_w * self.bell_gains / (self.modes.mass[0] if self.n_plate else 1.0)
@@ -514,7 +521,7 @@ class Cymbal(Instrument):
 class HiHat(Cymbal):
     """Two plates whose contact damps them: the openness (0 closed, 1 open) sets the damping live.
 
-    Zones ``open``, ``half``, ``closed`` set the openness for that strike;
+    Zones ``open``, ``half``, ``closed`` set the openness from that strike on (as /batteur/sound/openness does);
     ``pedal`` (or the instrument ``hihat_pedal``) is the foot chick, which also
     closes the hat and so chokes it.
     """
