@@ -377,3 +377,49 @@ def test_one_odd_service_does_not_lose_the_listing(netns_lab: NetnsLab) -> None:
     browse = ns.python("-c", BROWSE_WITH_A_BROKEN_RECORD)
     assert browse.wait(timeout=30) == 0, browse.describe("browse failed")  # the whole listing was a traceback
     assert browse.events() == [{"found": ["good"]}]
+
+
+def _answering_node(answers: list[tuple[str, list[object]]]) -> tuple[socket.socket, threading.Thread]:
+    """A UDP node on 127.0.0.1 that answers the first datagram it gets with ``answers`` (address, args)."""
+    from common.messages import encode_raw
+
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sock.bind(("127.0.0.1", 0))
+    sock.settimeout(30.0)
+
+    def serve() -> None:
+        _, source = sock.recvfrom(65536)
+        for address, args in answers:
+            sock.sendto(encode_raw(address, args), source)  # type: ignore[arg-type]
+
+    thread = threading.Thread(target=serve, daemon=True)
+    thread.start()
+    return sock, thread
+
+
+def test_send_replies_prints_the_answers_and_fails_on_a_refusal(capsys: pytest.CaptureFixture[str]) -> None:
+    """``--replies``: a control a node refuses (its error comes back to the sender) no longer passes as sent."""
+    node, thread = _answering_node([("/batteur/interaction/error", ["/batteur/interaction/route/remove",
+                                                                    "no route to 'nope'"])])
+    with node:
+        to = f"127.0.0.1:{node.getsockname()[1]}"
+        assert send.main(["/batteur/interaction/route/remove", "nope", "--to", to, "--replies", "2"]) == 1
+        thread.join(5.0)
+    assert f"{to} /batteur/interaction/error /batteur/interaction/route/remove no route to 'nope'" in \
+        capsys.readouterr().out
+    node, thread = _answering_node([("/batteur/interaction/map/info", ["sound", "*", "", ""]),
+                                    ("/batteur/interaction/list/end", ["map", 1])])
+    with node:
+        to = f"127.0.0.1:{node.getsockname()[1]}"
+        assert send.main(["/batteur/interaction/map/list", "--to", to, "--replies", "0.5"]) == 0
+        thread.join(5.0)
+    assert f"{to} /batteur/interaction/list/end map 1" in capsys.readouterr().out
+
+
+def test_send_replies_says_when_nothing_listens(capsys: pytest.CaptureFixture[str]) -> None:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:  # a port nobody listens on once closed
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    assert send.main(["/batteur/interaction/map/list", "--to", f"127.0.0.1:{port}"]) == 0  # UDP: sent is all
+    assert send.main(["/batteur/interaction/map/list", "--to", f"127.0.0.1:{port}", "--replies", "1"]) == 1
+    assert f"nothing listens at 127.0.0.1:{port}" in capsys.readouterr().err

@@ -11,9 +11,11 @@ from __future__ import annotations
 import argparse
 import asyncio
 import re
+import select
 import socket
 import struct
 import sys
+import time
 from collections.abc import Sequence
 
 from pythonosc.osc_message_builder import BuildError
@@ -21,7 +23,7 @@ from pythonosc.osc_message_builder import BuildError
 from batteur.tools.nodes import run_tool
 from common.arg_types import seconds
 from common.datafile import one_line
-from common.messages import REGISTRY, Arg, MessageError, WireKind, encode, encode_raw
+from common.messages import REGISTRY, Arg, MessageError, WireKind, encode, encode_raw, parse_packet
 from common.transport import format_address, parse_address
 
 OSC_ADDRESS = re.compile(r"(?:/[!-.0-~]+)+")
@@ -109,7 +111,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         prog="batteur send",
         description="Send one OSC message. Arguments are checked against the message model at ADDRESS "
         "(see docs/osc.md for every address and its arguments); a message that would be rejected is not sent. "
-        "Exit status: 0 sent, 1 not sent (no node found, network error), 2 bad arguments.",
+        "Exit status: 0 sent, 1 not sent (no node found, network error; with --replies also: refused, or "
+        "nothing listening), 2 bad arguments.",
         epilog="example: batteur send /batteur/graphics/latency 0.1 --to graphics",
     )
     parser.add_argument("address", help="OSC address, e.g. /batteur/sound/param")
@@ -119,6 +122,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="HOST:PORT ([::1]:9000 for IPv6), or a role (physics, sound, ...) found by discovery: "
                         "every node of that role")
     parser.add_argument("--raw", action="store_true", help="allow an address without a model (sent as typed)")
+    parser.add_argument("--replies", type=seconds, default=0.0, metavar="SECONDS",
+                        help="then listen this long for answers and print them, one line each (a control's error, "
+                        "a list...); exit 1 if a node refused the message or nothing listened (default 0: do not "
+                        "wait)")
     parser.add_argument("--timeout", type=seconds, default=2.0, help="seconds to look for a role (default 2)")
     parser.add_argument("--interface", action="append", default=[],
                         help="interface to look for a role on: address, name or 'all' (repeatable; default loopback)")
@@ -147,13 +154,63 @@ def _send(opts: argparse.Namespace) -> int:
     if not targets:
         return 1
     failed = 0
-    for host, port in targets:
-        family = socket.AF_INET6 if ":" in host else socket.AF_INET
-        try:
-            with socket.socket(family, socket.SOCK_DGRAM) as sock:
-                sock.sendto(data, (host, port))
-        except (OSError, UnicodeError) as exc:  # an unknown host name, an unreachable network: say so, try the others
-            failed += 1
-            print(f"batteur send: cannot send to {format_address(host, port)}: {getattr(exc, 'strerror', None) or exc}",
-                  file=sys.stderr)
+    sent: list[tuple[socket.socket, str]] = []  # kept open to hear the answers (--replies)
+    try:
+        for host, port in targets:
+            family = socket.AF_INET6 if ":" in host else socket.AF_INET
+            sock = socket.socket(family, socket.SOCK_DGRAM)
+            try:  # connected, so the kernel reports a port nobody listens on (ICMP) to --replies
+                sock.connect((host, port))
+                sock.send(data)
+            except (OSError, UnicodeError) as exc:  # an unknown host name, an unreachable network: say so, go on
+                sock.close()
+                failed += 1
+                print(f"batteur send: cannot send to {format_address(host, port)}: "
+                      f"{getattr(exc, 'strerror', None) or exc}", file=sys.stderr)
+                continue
+            sent.append((sock, format_address(host, port)))
+        if opts.replies > 0 and sent:
+            failed += _print_replies(sent, opts.replies)
+    finally:
+        for sock, _ in sent:
+            sock.close()
     return 1 if failed else 0
+
+
+REFUSALS = ("/error", "/rejected", "/refused")
+"""How the addresses of the answers that refuse a message end (``/batteur/interaction/error``,
+``/batteur/sound/rejected``, ``/batteur/subscribe/refused``)."""
+
+
+def _print_replies(sent: Sequence[tuple[socket.socket, str]], wait_s: float) -> int:
+    """Print every answer the targets send back within ``wait_s`` seconds, one line each (``FROM ADDRESS ARGS``);
+    returns how many targets refused the message (an answer at an address ending as :data:`REFUSALS`) or were
+    not listening (the kernel's port-unreachable)."""
+    deadline = time.monotonic() + wait_s
+    names = {sock: name for sock, name in sent}
+    refused: set[str] = set()
+    while names and (left := deadline - time.monotonic()) > 0:
+        ready, _, _ = select.select(list(names), [], [], left)
+        for sock in ready:
+            name = names[sock]
+            try:
+                data, _ = sock.recvfrom(65536)
+            except ConnectionRefusedError:  # ICMP port unreachable for what was sent
+                print(f"batteur send: nothing listens at {name}", file=sys.stderr)
+                refused.add(name)
+                del names[sock]
+                continue
+            except OSError as exc:
+                print(f"batteur send: {name}: {exc.strerror or exc}", file=sys.stderr)
+                del names[sock]
+                continue
+            try:
+                raws = parse_packet(data)
+            except MessageError as exc:
+                print(f"{name} (an answer that is not OSC: {exc})")
+                continue
+            for raw in raws:
+                print(" ".join([name, raw.address, *(str(a) for a in raw.args)]), flush=True)
+                if raw.address.endswith(REFUSALS):
+                    refused.add(name)
+    return len(refused)
