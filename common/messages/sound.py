@@ -83,7 +83,8 @@ class SoundDensity(OscMessage):
 
 @register
 class SoundThickness(OscMessage):
-    """Thickness of a cymbal or hi-hat plate: mode frequencies go as thickness."""
+    """Thickness of a cymbal or hi-hat plate: the flat plate's mode frequencies go as thickness (the lowest modes
+    less, held up by the dome's curvature: sqrt(f_plate^2 + f_curvature^2))."""
 
     ADDRESS = "/batteur/sound/thickness"
     FAMILY = Family.CONTROL
