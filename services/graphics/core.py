@@ -362,13 +362,19 @@ class GraphicsCore:
         self.animator.add(message)
 
     def apply_control(self, message: OscMessage) -> bool:
-        """Apply one graphics control message; True when it was one."""
+        """Apply one graphics control message; True when it was one.
+
+        The view message it sends names the setting (``control``: ``camera``, ``layer:NAME``, ...), so a page
+        replaces its own camera or layer choice only with one the node was sent, not on any other control.
+        """
+        control = type(message).ADDRESS.rsplit("/", 1)[-1]
         if isinstance(message, GraphicsCamera):
             # a named preset keeps its own numbers (the page draws those), so the core reports where the view is
             self.view.camera = camera_for(message.preset, message.azimuth_deg, message.elevation_deg,
                                           message.distance, (message.target_x, message.target_y, message.target_z))
         elif isinstance(message, GraphicsShow):
             self.view.layers[message.layer] = bool(message.visible)
+            control = f"layer:{message.layer}"
         elif isinstance(message, GraphicsTrails):
             self.view.trails = message.seconds
         elif isinstance(message, GraphicsPlot):
@@ -381,7 +387,7 @@ class GraphicsCore:
             self._show()
         else:
             return False
-        self._outbox.append(self.view_json())
+        self._outbox.append({**self.view_json(), "control": control})
         return True
 
     # --- preview (kinematic keyframe animation, no physics) ----------------------------------

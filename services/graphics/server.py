@@ -72,6 +72,8 @@ class ViewServer:
         self.server: Server | None = None
         self.port = 0
         self.poser: CharacterPoser | None = None
+        self.editors: set[object] = set()
+        """The pages with the editor open: the body is released when the last one closes it or goes."""
         self.poser_angles: np.ndarray | None = None
         """The edited joint angles (57,) radians."""
         self.poser_body = "rest"
@@ -147,14 +149,15 @@ class ViewServer:
             for message in self.core.welcome():
                 await connection.send(json.dumps(message))
             async for raw in connection:
-                reply = self.handle_page_message(raw)
+                reply = self.handle_page_message(raw, connection)
                 if reply is not None:
                     await connection.send(json.dumps(reply))
         except ConnectionClosed:
             pass
         finally:
             self.clients.discard(connection)
-            if not self.clients and self.poser is not None:
+            self.editors.discard(connection)
+            if (not self.clients or not self.editors) and self.poser is not None:
                 self._poser_off()
 
     def broadcast(self, messages: list[dict[str, Any]]) -> None:
@@ -174,8 +177,8 @@ class ViewServer:
             broadcast(targets, json.dumps(message, separators=(",", ":")))
             self.counters["sent"] += 1
 
-    def handle_page_message(self, raw: str | bytes) -> dict[str, Any] | None:
-        """One message from a page; returns the reply (or None). Never raises."""
+    def handle_page_message(self, raw: str | bytes, page: object = None) -> dict[str, Any] | None:
+        """One message from ``page`` (its connection); returns the reply (or None). Never raises."""
         try:
             msg = json.loads(raw)
             if not isinstance(msg, dict) or not isinstance(msg.get("type"), str):
@@ -184,6 +187,7 @@ class ViewServer:
             if kind == "save_kit":
                 return self._save_kit(msg)
             if kind == "poser_on":
+                self.editors.add(page)
                 return self._poser_on()
             if kind == "poser":
                 poser = self.poser or self._start_poser()
@@ -193,8 +197,10 @@ class ViewServer:
                 if msg.get("drive", False) is True:
                     self.core.request_posture(q)
                 return None
-            if kind == "poser_off":
-                self._poser_off()
+            if kind == "poser_off":  # another page still editing keeps the body
+                self.editors.discard(page)
+                if not self.editors:
+                    self._poser_off()
                 return None
             if kind == "save_pose":
                 return self._save_pose(msg)
@@ -221,9 +227,13 @@ class ViewServer:
         return poser
 
     def _poser_on(self) -> dict[str, Any]:
-        poser = self._start_poser()
-        self.core.show_pose(poser.names, poser.pose())
-        return {"type": "poser", "body": self.poser_body, **poser.page_description(poser.angles)}
+        """Open the editor; a page joining another page's edit starts from the posture being edited."""
+        if self.poser is None or self.poser_angles is None or len(self.editors) <= 1:
+            self._start_poser()
+        poser, angles = self.poser, self.poser_angles
+        assert poser is not None and angles is not None  # set by _start_poser
+        self.core.show_pose(poser.names, poser.pose(angles))
+        return {"type": "poser", "body": self.poser_body, **poser.page_description(angles)}
 
     def _poser_off(self) -> None:
         self.core.show_pose(None, None)

@@ -23,6 +23,7 @@ const controls = new OrbitControls(camera, canvas);
 controls.target.set(0, 0.35, 0.75);
 Object.assign(state, { camera, controls }); // for tests and the console: where the view looks from
 controls.addEventListener("start", () => { if (state.view) state.view.camera.preset = "free"; syncPresetSelect(); });
+window.addEventListener("resize", placePanels);
 scene.add(new THREE.HemisphereLight(0xffffff, 0x303040, 1.6));
 const sun = new THREE.DirectionalLight(0xffffff, 1.8);
 sun.position.set(1.5, 2.5, 4);
@@ -257,7 +258,8 @@ function applyPose(p, t) {
     tmpA.set(0, tr.tipOffset, 0).applyQuaternion(tmpQ.set(p[o + 3], p[o + 4], p[o + 5], p[o + 6]));
     tr.points.push([t, p[o] + tmpA.x, p[o + 1] + tmpA.y, p[o + 2] + tmpA.z]);
     while (tr.points.length && (tr.points[0][0] < t - seconds || tr.points.length > 600)) tr.points.shift();
-    if (tr.points.length && tr.points[tr.points.length - 1][0] < tr.points[0][0]) tr.points = [];
+    // time went back (a looping preview, physics restarted): the trail starts again from the new point
+    if (tr.points[tr.points.length - 1][0] < tr.points[0][0]) tr.points = tr.points.slice(-1);
     const arr = tr.line.geometry.attributes.position.array;
     tr.points.forEach((pt, j) => { arr[j * 3] = pt[1]; arr[j * 3 + 1] = pt[2]; arr[j * 3 + 2] = pt[3]; });
     tr.line.geometry.setDrawRange(0, tr.points.length);
@@ -323,10 +325,12 @@ function drawPlot() {
 function placeCamera(cam, now) {
   const c = state.view?.presets?.[cam.preset] ?? cam; // free: the message's own numbers
   const target = new THREE.Vector3(...(c.target ?? [0, 0.35, 0.75]));
+  if (state.orbitSince === null) state.orbitSince = now; // a turning preset turns from its own azimuth when picked
   if (c.eye) {
     camera.position.set(...c.eye);
   } else {
-    const az = c.azimuth_deg + (c.turn_deg_per_s ?? 0) * (now / 1000), el = c.elevation_deg, dist = c.distance;
+    const turned = (c.turn_deg_per_s ?? 0) * ((now - (state.orbitSince ?? now)) / 1000);
+    const az = c.azimuth_deg + turned, el = c.elevation_deg, dist = c.distance;
     const a = (az * Math.PI) / 180, e = (el * Math.PI) / 180;
     camera.position.set(target.x + dist * Math.sin(a) * Math.cos(e), target.y + dist * Math.cos(a) * Math.cos(e),
       target.z + dist * Math.sin(e));
@@ -336,31 +340,65 @@ function placeCamera(cam, now) {
 }
 const presetSelect = document.getElementById("camera-preset");
 function syncPresetSelect() { if (state.view) presetSelect.value = state.view.camera.preset; }
+function pickCamera(cam) { // the page shows ``cam`` from now on (an orbit starts turning now)
+  state.view.camera = { ...cam };
+  state.orbitSince = null;
+  placeCamera(state.view.camera, performance.now());
+}
 presetSelect.addEventListener("change", () => {
   if (!state.view) return;
-  state.view.camera.preset = presetSelect.value;
-  placeCamera(state.view.camera, performance.now());
+  if (presetSelect.value === "free") state.view.camera.preset = "free"; // stay where the view is, mouse-driven
+  else pickCamera({ ...state.view.camera, preset: presetSelect.value });
 });
 
+// state.view is the view as this page shows it: the node's, except the camera and layers picked on this page,
+// which hold until the node is sent that setting (its view message names it in ``control``) or changes it.
 function applyView(view) {
-  const fresh = !state.view || JSON.stringify(state.view.camera) !== JSON.stringify(view.camera);
-  state.view = view;
-  for (const [name, group] of Object.entries(layers)) group.visible = view.layers[name] !== false;
-  plotCanvas.classList.toggle("hidden", view.layers.plot === false);
-  document.getElementById("status").classList.toggle("hidden", view.layers.status === false);
-  if (fresh) placeCamera(view.camera, performance.now());
+  const before = state.nodeView, shown = state.view;
+  state.nodeView = JSON.parse(JSON.stringify(view));
+  const fromNode = (key, now, was) => !before || view.control === key || JSON.stringify(now) !== JSON.stringify(was);
+  const layersShown = { ...view.layers };
+  if (shown) {
+    for (const name of Object.keys(layersShown)) {
+      if (!fromNode(`layer:${name}`, view.layers[name], before.layers[name])) layersShown[name] = shown.layers[name];
+    }
+  }
+  const newCamera = fromNode("camera", view.camera, before?.camera);
+  state.view = { ...view, camera: newCamera ? { ...view.camera } : shown.camera, layers: layersShown };
+  if (newCamera) pickCamera(view.camera);
+  showLayers();
+}
+function showLayers() {
+  const shown = state.view.layers;
+  for (const [name, group] of Object.entries(layers)) group.visible = shown[name] !== false;
+  plotCanvas.classList.toggle("hidden", shown.plot === false);
+  document.getElementById("status").classList.toggle("hidden", shown.status === false);
   syncPresetSelect();
   const box = document.getElementById("layers");
   box.innerHTML = "";
-  for (const name of Object.keys(view.layers)) {
+  for (const name of Object.keys(shown)) {
     const label = document.createElement("label");
     const cb = document.createElement("input");
     cb.type = "checkbox";
-    cb.checked = view.layers[name];
-    cb.addEventListener("change", () => { state.view.layers[name] = cb.checked; applyView(state.view); });
+    cb.checked = shown[name];
+    cb.addEventListener("change", () => { state.view.layers[name] = cb.checked; showLayers(); });
     label.append(cb, name);
     box.append(label);
   }
+  placePanels();
+}
+
+// The toolbar (and the editor under it) sits right of the status panel, or below it when the window is too
+// narrow for both side by side: a panel never covers another.
+function placePanels() {
+  const status = document.getElementById("status"), toolbar = document.getElementById("toolbar");
+  const editor = document.getElementById("editor");
+  toolbar.style.top = "8px";
+  const s = status.getBoundingClientRect(), t = toolbar.getBoundingClientRect();
+  const besideStatus = status.classList.contains("hidden") || t.left >= s.right + 8;
+  if (!besideStatus) toolbar.style.top = `${s.bottom + 8}px`;
+  editor.style.top = `${toolbar.getBoundingClientRect().bottom + 8}px`;
+  editor.style.maxHeight = `${Math.max(120, window.innerHeight - toolbar.getBoundingClientRect().bottom - 24)}px`;
 }
 
 // ---------------------------------------------------------------- status panel
@@ -370,6 +408,7 @@ function renderStatus() {
   conn.textContent = state.connected ? "connected" : `reconnecting (try ${state.retry})`;
   conn.className = state.connected ? "ok" : "bad";
   const body = document.getElementById("status-body");
+  body.classList.toggle("stale", !state.connected); // what the node last said, not what the rig does now
   if (!s) { body.textContent = ""; return; }
   const rows = s.nodes.map((n) => `<tr><td>${n.role}</td><td>${n.rate_hz}/${n.target_hz} Hz</td>` +
     `<td>late ${n.late}</td><td>${n.age}s</td></tr>`).join("");
@@ -380,6 +419,7 @@ function renderStatus() {
     `late strikes ${s.late} · poses ${s.counters.poses} · impacts ${s.counters.impacts}` +
     (s.pose_lag === null ? "" : ` · pose age ${(s.pose_lag * 1000).toFixed(0)} ms`) +
     `<table>${rows || "<tr><td>no other nodes seen</td></tr>"}</table>`;
+  placePanels(); // the panel grows with the nodes seen
 }
 
 // ---------------------------------------------------------------- WebSocket with auto-reconnect
