@@ -317,6 +317,10 @@ class SoundCore:
             return []
         if isinstance(message, SoundLatency):
             self.scheduler.latency = float(message.value)
+            three_blocks_s = 3 * self.block / self.sample_rate
+            if self.scheduler.latency < three_blocks_s:  # as the node warns for --latency-s
+                log.warning("latency %.1f ms (from %s) is under three blocks (%.1f ms): most strikes will be late",
+                            self.scheduler.latency * 1e3, source, three_blocks_s * 1e3)
             return []
         if isinstance(message, SoundMaster):
             self.master_db, self.reverb = float(message.gain_db), float(message.reverb)

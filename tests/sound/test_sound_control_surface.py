@@ -59,3 +59,16 @@ def test_position_0_ignores_the_strike_point(instrument: str) -> None:
     half = [_strike_at(instrument, *point, position=0.5) for point in (here, there)]
     full_diff, half_diff = (float(np.max(np.abs(a - b))) for a, b in (full, half))
     assert 0.0 < half_diff < full_diff and full_diff > 0.1 * float(np.max(np.abs(full[0])))
+
+
+def test_a_latency_under_three_blocks_sent_live_is_warned_about(caplog: pytest.LogCaptureFixture) -> None:
+    """As the node warns for --latency-s at start: under three blocks (16 ms at 256 samples) most strikes are late."""
+    from common.messages.sound import SoundLatency
+
+    core = SoundCore(SoundSettings(latency=0.05, use_pyo=False))
+    with caplog.at_level("WARNING", logger="batteur.sound"):
+        core.handle(SoundLatency(value=0.05), 0.0, "panel")
+        assert not caplog.records
+        core.handle(SoundLatency(value=0.01), 0.0, "panel")
+    assert core.scheduler.latency == pytest.approx(0.01)  # applied: the user may know better
+    assert "under three blocks" in caplog.text and "panel" in caplog.text
