@@ -44,6 +44,9 @@ GM_DRUM_CHANNEL = 10
 _DRUM_BANKS = {120, 127}
 MAX_BEATS = int(MAX_SCORE_SECONDS * 400 / 60)
 """The most beats kept: a whole day at 400 bpm, the fastest tempo of a text score."""
+MAX_DENOMINATOR = 256
+"""The largest time signature denominator read: a 256th note (the file stores its power of two, so a corrupt
+byte makes a bar of 2^-255 beats); a larger one is ignored."""
 REPORT_EVERY_MESSAGES = 4096
 """Messages mido parses between two progress reports: some 20 ms of parsing, a hundred reports for 2 MB."""
 
@@ -85,6 +88,7 @@ def _open(source: str | Path | bytes, progress: ReadProgress | None = None) -> t
     if len(data) > MAX_SCORE_BYTES:
         raise ScoreError(f"{name}: {len(data) / 2**20:.0f} MB is too large for a score (at most "
                          f"{MAX_SCORE_BYTES // 2**20} MB)")
+    data = _without_alien_chunks(data)
     if progress is not None:
         progress(0, len(data))
     stream = io.BytesIO(data) if progress is None else _ReportingBytes(data, progress)
@@ -94,6 +98,30 @@ def _open(source: str | Path | bytes, progress: ReadProgress | None = None) -> t
         raise ScoreError(f"{name}: truncated MIDI file ({str(exc) or 'the data ends early'})") from exc
     except (OSError, ValueError, KeyError, IndexError, TypeError, KeySignatureError) as exc:  # a bad key signature
         raise ScoreError(f"{name}: not a valid Standard MIDI File ({type(exc).__name__}: {exc})") from exc
+
+
+def _without_alien_chunks(data: bytes) -> bytes:
+    """The file without chunks other than ``MThd`` and ``MTrk`` among its tracks: the Standard MIDI File
+    specification tells readers to skip such "alien" chunks (Yamaha's XF files have some), and mido reads
+    whatever chunk follows a track as the next track. A file without any comes back as it is, and so does one
+    whose chunks cannot be followed (mido then names the problem)."""
+    if data[:4] != b"MThd" or len(data) < 14:
+        return data
+    tracks = int.from_bytes(data[10:12], "big")
+    offset = 8 + int.from_bytes(data[4:8], "big")
+    kept = [data[:offset]]
+    alien = False
+    while tracks > 0 and offset + 8 <= len(data):
+        name, end = data[offset : offset + 4], offset + 8 + int.from_bytes(data[offset + 4 : offset + 8], "big")
+        if name == b"MTrk":
+            kept.append(data[offset:end])
+            tracks -= 1
+        elif all(0x20 <= c < 0x7F for c in name) and end <= len(data):  # a chunk type is four ASCII letters
+            alien = True
+        else:
+            return data
+        offset = end
+    return b"".join(kept) + data[offset:] if alien else data
 
 
 def _timeline(mid: mido.MidiFile) -> tuple[list[tuple[int, mido.Message | mido.MetaMessage]], int]:
@@ -166,8 +194,11 @@ def _read(source: str | Path | bytes, drum_channels: Collection[int] | None, dru
           progress: ReadProgress | None) -> tuple[Score, int]:
     """:func:`read_midi`'s work; also returns the file's size in bytes."""
     mid, name, size = _open(source, progress)
-    if mid.ticks_per_beat <= 0:
-        raise ScoreError(f"{name}: SMPTE time division is not supported (ticks per beat {mid.ticks_per_beat})")
+    if mid.ticks_per_beat < 0:  # the division's top bit: frames a second and ticks a frame
+        raise ScoreError(f"{name}: SMPTE time division ({-(mid.ticks_per_beat >> 8)} frames a second, "
+                         f"{mid.ticks_per_beat & 0xFF} ticks a frame) is not supported; save it with ticks per beat")
+    if mid.ticks_per_beat == 0:
+        raise ScoreError(f"{name}: 0 ticks per beat in the header (a corrupt file?)")
     timeline, end_tick = _timeline(mid)
     tempo = 500000  # microseconds per beat (120 bpm) until told otherwise
     seconds = 0.0
@@ -185,7 +216,8 @@ def _read(source: str | Path | bytes, drum_channels: Collection[int] | None, dru
                 raise ScoreError(f"{name}: tempo 0 at tick {tick} (a tempo is microseconds per beat, at least 1)")
             per_tick = msg.tempo / 1e6 / mid.ticks_per_beat
             tempo_points.append((tick, seconds, per_tick))
-        elif msg.type == "time_signature" and msg.numerator > 0 and msg.denominator > 0:  # 0/x has no bars
+        elif msg.type == "time_signature" and msg.numerator > 0 and 0 < msg.denominator <= MAX_DENOMINATOR:
+            # 0/x has no bars; x/2^40 (a corrupt byte) had bars of 1e-11 beats, half a million of them
             meters.append((tick, msg.numerator, msg.denominator))
         elif msg.type == "control_change" and msg.control == 0 and msg.value in _DRUM_BANKS:
             drums.add(msg.channel)

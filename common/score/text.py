@@ -159,6 +159,11 @@ def _marks(name: str, rows: list[tuple[list[str], int, int]], allowed: str) -> l
     return cells
 
 
+def _size(cells: int, bars: int) -> str:
+    """'8 cells in 2 bars' (a grid row's size, for a message)."""
+    return f"{cells} cell{'s' * (cells != 1)} in {bars} bar{'s' * (bars != 1)}"
+
+
 def _finite(value: str, what: str, lineno: int) -> float:
     """A number of a directive: finite (float() reads 'nan' and 'inf')."""
     number = float(value)
@@ -167,6 +172,8 @@ def _finite(value: str, what: str, lineno: int) -> float:
     return number
 
 
+DIRECTIVES = frozenset({"tempo", "meter", "repeat", "grip", "nuance", "at", "note", "rest", "kit", "title"})
+"""The directive words (docs/score-format.md)."""
 DIGITS = "123456789"
 STICK_MARKS = "RL.-"
 NUANCE_MARKS = "ltavs.-"
@@ -181,6 +188,7 @@ def parse_text(text: str, source: str = "text") -> TextScore:
     block: list[tuple[int, str, str]] = []  # lineno, name, cells
     last_block: list[DrumEvent] = []  # events of the last block, in beats (time field holds beats)
     last_block_beats = 0.0
+    last_block_bar = 4.0  # the last block's beats per bar: a repeat plays its bars, whatever the meter is now
     bars: list[float] = []  # where bars start, beats
     grip: Grip | None = None
     nuance: Nuance | None = None
@@ -194,27 +202,30 @@ def parse_text(text: str, source: str = "text") -> TextScore:
             raise ScoreError(f"line {lineno}: the score would last {hours(tempo.seconds(beat))}, longer than the "
                              f"{hours(MAX_SCORE_SECONDS)} a score may last")
 
-    def add_bars(start: float, length: float) -> None:
-        """Bars of ``beats_per_bar`` from ``start`` over ``length`` beats (a last bar may be cut short); past
-        :data:`MAX_SCORE_BARS` they are not kept."""
-        count = min(math.ceil(length / beats_per_bar - 1e-9), MAX_SCORE_BARS - len(bars))
-        bars.extend(start + k * beats_per_bar for k in range(max(count, 0)))
+    def add_bars(start: float, length: float, bar: float | None = None) -> None:
+        """Bars of ``bar`` beats (default ``beats_per_bar``) from ``start`` over ``length`` beats (a last bar may be
+        cut short); past :data:`MAX_SCORE_BARS` they are not kept."""
+        bar = beats_per_bar if bar is None else bar
+        count = min(math.ceil(length / bar - 1e-9), MAX_SCORE_BARS - len(bars))
+        bars.extend(start + k * bar for k in range(max(count, 0)))
 
     def flush() -> None:
-        nonlocal position, block, last_block, last_block_beats
+        nonlocal position, block, last_block, last_block_beats, last_block_bar
         if not block:
             return
         # rows by name, in the order names first appear: a name given twice plays both rows (the second one
         # replaced the first, whose notes were lost without a word)
         grid: dict[str, list[tuple[list[str], int, int]]] = {}
+        n_cells = n_bars = 0
         for lineno, name, row in block:
             cells, bars = _split_cells(row, lineno)
+            if not grid:
+                n_cells, n_bars = len(cells), bars
+            elif (len(cells), bars) != (n_cells, n_bars):  # named at the row that differs (was the block's first)
+                raise ScoreError(f"line {lineno}: rows of one block must have the same bars and cells: this row has "
+                                 f"{_size(len(cells), bars)}, the block's first row (line {block[0][0]}) "
+                                 f"{_size(n_cells, n_bars)}")
             grid.setdefault(name, []).append((cells, bars, lineno))
-        sizes = {(len(c), b) for rows in grid.values() for c, b, _ in rows}
-        if len(sizes) != 1:
-            first = block[0][0]
-            raise ScoreError(f"line {first}: rows of one block must have the same bars and cells, got {sorted(sizes)}")
-        n_cells, n_bars = sizes.pop()
         cell_beats = beats_per_bar * n_bars / n_cells
         sticking = _marks("ST", grid.pop("ST", []), STICK_MARKS)
         nuances = _marks("NU", grid.pop("NU", []), NUANCE_MARKS)
@@ -241,7 +252,7 @@ def parse_text(text: str, source: str = "text") -> TextScore:
                         note_nuance = NUANCE_LETTERS[nuances[k]]
                     block_events.append(DrumEvent(k * cell_beats, ev, vel, None, limb, note_nuance))
         _place(block_events, position)
-        last_block, last_block_beats = block_events, n_bars * beats_per_bar
+        last_block, last_block_beats, last_block_bar = block_events, n_bars * beats_per_bar, beats_per_bar
         add_bars(position, last_block_beats)
         position += last_block_beats
         block = []
@@ -253,10 +264,12 @@ def parse_text(text: str, source: str = "text") -> TextScore:
     def note(lineno: int, rest: str) -> None:
         """``at BEAT NAME [VELOCITY] [L|R]``."""
         parts = rest.split()
-        beat = _finite(parts[0], "the beat", lineno)
-        ev = event_type(parts[1]) if len(parts) > 1 else None
-        if ev is None or len(parts) > 4:
+        if not 2 <= len(parts) <= 4:
             raise ScoreError(f"line {lineno}: note needs '<beat> <instrument> [velocity] [L|R]'")
+        beat = _finite(parts[0], "the beat", lineno)
+        ev = event_type(parts[1])
+        if ev is None:
+            raise ScoreError(f"line {lineno}: unknown instrument {parts[1]!r} (use an event type or an alias)")
         vel = float(parts[2]) if len(parts) > 2 else 0.7
         if not 0 <= vel <= 1:
             raise ScoreError(f"line {lineno}: velocity {vel} outside [0, 1]")
@@ -277,7 +290,7 @@ def parse_text(text: str, source: str = "text") -> TextScore:
             continue
         head, *more = line.split(None, 1)  # any white space after the name: editors indent with tabs
         rest = more[0].strip() if more else ""
-        if "|" in rest:
+        if "|" in rest and head.lower() not in DIRECTIVES:  # no row is named like a directive: 'title A | B'
             block.append((lineno, head.upper(), rest))
             continue
         flush()
@@ -291,7 +304,7 @@ def parse_text(text: str, source: str = "text") -> TextScore:
             elif word == "meter":
                 num, _, den = rest.partition("/")
                 beats_per_bar = float(num)
-                if not 0 < beats_per_bar < math.inf or not den.strip().isdigit():
+                if not 0 < beats_per_bar < math.inf or not den.strip().isdigit() or not int(den) > 0:
                     raise ValueError(rest)
             elif word == "repeat":
                 count = int(rest)
@@ -300,7 +313,7 @@ def parse_text(text: str, source: str = "text") -> TextScore:
                 check_until(position + count * last_block_beats, len(events) + count * len(last_block), lineno)
                 for _ in range(count):
                     _place(last_block, position)
-                    add_bars(position, last_block_beats)
+                    add_bars(position, last_block_beats, last_block_bar)
                     position += last_block_beats
             elif word == "grip":
                 grip = Grip(rest.lower())
@@ -334,7 +347,8 @@ def parse_text(text: str, source: str = "text") -> TextScore:
 
 
 def read_score(path: str | Path, **kwargs: object) -> Score:
-    """Read a score file: ``.mid``/``.midi``/``.smf`` as MIDI, anything else as the text format.
+    """Read a score file: ``.mid``/``.midi``/``.smf`` or a file starting as a Standard MIDI File does as MIDI,
+    anything else as the text format.
 
     Keyword arguments (``drum_channels``, ``progress``, ...) go to :func:`common.score.midi.read_midi`; a text score
     ignores them (it has no channels, and reads quickly: 208,000 notes in about 1 s, without progress reports)."""
@@ -345,6 +359,9 @@ def read_score(path: str | Path, **kwargs: object) -> Score:
         return read_midi(p, **kwargs)  # type: ignore[arg-type]
     check_file(p, str(p))
     try:
+        with p.open("rb") as f:
+            if f.read(4) == b"MThd":  # a MIDI file by another name (.kar, none): it was "not UTF-8 text"
+                return read_midi(p, **kwargs)  # type: ignore[arg-type]
         text = read_text(p)
     except OSError as exc:
         raise ScoreError(f"{p}: cannot read the file ({exc.strerror or exc})") from None

@@ -55,16 +55,72 @@ def to_mono(data: np.ndarray) -> np.ndarray:
     return np.mean(data, axis=1)
 
 
-_SHORT_DATA = re.compile(r"^data\s*:\s*(\d+)\s*\(should be (\d+)\)", re.MULTILINE)
-"""libsndfile's log line for a WAV data chunk shorter than its header says (a recording cut off)."""
+_SHORT_DATA = re.compile(r"^\s*(?:data|SSND)\s*:\s*(\d+)\s*\(should be (\d+)\)", re.MULTILINE)
+"""libsndfile's log line for a WAV data (AIFF SSND) chunk shorter than its header says (a recording cut off)."""
+
+_OGG_CUT = "Last page lacks an end-of-stream bit"
+"""libsndfile's log line for an Ogg stream that stops without its last page (a recording cut off)."""
 
 
 def truncation(extra_info: str) -> str | None:
     """Why the file holds less audio than its header announces (from soundfile's ``info().extra_info``), or None."""
+    if _OGG_CUT in (extra_info or ""):
+        return "its Ogg stream stops without its end mark (truncated?)"
     found = _SHORT_DATA.search(extra_info or "")
     if found is None or int(found.group(2)) >= int(found.group(1)):
         return None
     return f"shorter than its header says ({found.group(2)} of {found.group(1)} data bytes: truncated?)"
+
+
+_DATA_SIZE = re.compile(r"^data\s*:\s*(\d+)\s*$", re.MULTILINE)
+"""libsndfile's log line for a WAV data chunk whose size it takes as given."""
+
+_FILE_LENGTH = re.compile(r"^Length\s*:\s*(\d+)", re.MULTILINE)
+"""libsndfile's log line for the file's size in bytes."""
+
+_NOT_A_CHUNK = re.compile(r"Unknown chunk marker|> file length")
+"""libsndfile's log for bytes that are not a chunk (an unprintable marker, a size past the file's end)."""
+
+
+def unread_tail(extra_info: str) -> str | None:
+    """Why audio after the WAV data chunk is not read (its header says less than the file holds, as a recorder
+    that updates the header now and then leaves it when it stops abruptly), or None."""
+    text = extra_info or ""
+    found, length = _DATA_SIZE.search(text), _FILE_LENGTH.search(text)
+    if found is None or length is None or not _NOT_A_CHUNK.search(text, found.end()):
+        return None
+    return (f"its header gives the audio {found.group(1)} bytes of the file's {length.group(1)}, and what follows "
+            "is not a WAV chunk (a header not updated when the recording stopped?): the rest is not read")
+
+
+def _unfinished(extra_info: str, path: Path) -> str | None:
+    """The error for a WAV whose header says 0 bytes of audio while the file holds more (a take still recording
+    when its recorder exited: Pd's writesf~), else None."""
+    found, length = _DATA_SIZE.search(extra_info or ""), _FILE_LENGTH.search(extra_info or "")
+    if found is None or length is None or int(found.group(1)) != 0 or int(length.group(1)) <= 1024:
+        return None
+    return (f"{path}: its header says it holds no audio (0 samples), yet the file is {length.group(1)} bytes: a "
+            f"recording cut short? `batteur wav-repair {path}` gives it the length it holds")
+
+
+DECODE_BLOCK = 4096
+"""Frames read at a time when a file's decoding fails part way, to keep what comes before."""
+
+
+def _decodable_start(path: Path, failure: Exception) -> tuple[np.ndarray, int]:
+    """The audio of ``path`` up to where decoding fails (a FLAC file cut off loses its decoder's sync there), and
+    its sample rate; :class:`AudioFileError` naming ``failure`` if nothing decodes."""
+    blocks: list[np.ndarray] = []
+    try:
+        with sf.SoundFile(str(path)) as f:
+            rate = f.samplerate
+            while len(block := f.read(DECODE_BLOCK, dtype="float32", always_2d=False)):
+                blocks.append(block)
+    except Exception:  # where the decoding stops: what came before is kept
+        pass
+    if not blocks:
+        raise AudioFileError(f"{path}: cannot decode the audio: {failure}") from failure
+    return np.concatenate(blocks), rate
 
 
 def load_audio(path: str | Path, max_duration_s: float = MAX_DURATION_S, sample_rate: int = SAMPLE_RATE,
@@ -87,19 +143,26 @@ def load_audio(path: str | Path, max_duration_s: float = MAX_DURATION_S, sample_
     Raises
     ------
     AudioFileError
-        the file is missing, unreadable, empty, silent or longer than ``max_duration_s``.
+        the file is missing, not a regular file (a FIFO), unreadable, empty, silent or longer than
+        ``max_duration_s``.
     """
     p = Path(path)
     if not p.exists():
         raise AudioFileError(f"{p}: no such file")
     if p.is_dir():
         raise AudioFileError(f"{p}: is a directory, not an audio file")
+    if not p.is_file():  # a FIFO or a device: opening it waits for a writer, and the file is opened twice
+        raise AudioFileError(f"{p}: not a regular file (a pipe or a device?); save the audio to a file first")
+    try:  # libsndfile says only "System error" when it may not read the file
+        p.open("rb").close()
+    except OSError as exc:
+        raise AudioFileError(f"{p}: cannot read the file ({exc.strerror or exc})") from None
     try:
         info = sf.info(str(p))
     except Exception as exc:  # soundfile raises several types (LibsndfileError, RuntimeError, TypeError)
         raise AudioFileError(f"{p}: not a readable audio file (WAV, FLAC, OGG...): {exc}") from exc
     if info.frames <= 0 or info.samplerate <= 0:
-        raise AudioFileError(f"{p}: the file holds no audio (0 samples)")
+        raise AudioFileError(_unfinished(info.extra_info, p) or f"{p}: the file holds no audio (0 samples)")
     duration = info.frames / info.samplerate
     if duration > max_duration_s:
         raise AudioFileError(
@@ -109,7 +172,9 @@ def load_audio(path: str | Path, max_duration_s: float = MAX_DURATION_S, sample_
     try:
         data, sr = sf.read(str(p), dtype="float32", always_2d=False)
     except Exception as exc:
-        raise AudioFileError(f"{p}: cannot decode the audio: {exc}") from exc
+        data, sr = _decodable_start(p, exc)
+        if warn:
+            warn(f"{p}: cannot decode the audio after {len(data) / sr:.4g} s ({exc}: cut off?)")
     mono = to_mono(np.asarray(data, dtype=np.float32))
     if mono.size == 0:
         raise AudioFileError(f"{p}: the file holds no audio (0 samples)")
@@ -119,8 +184,10 @@ def load_audio(path: str | Path, max_duration_s: float = MAX_DURATION_S, sample_
     mono = mono - np.float32(offset)
     if float(np.max(np.abs(mono))) < SILENCE_PEAK:
         dc = f" but for a constant offset of {offset:.3g}" if abs(offset) >= SILENCE_PEAK else ""
+        if data.ndim > 1 and float(np.max(np.abs(data - np.mean(data, axis=0)))) >= SILENCE_PEAK:
+            dc = " once its channels are mixed: they cancel (one channel's polarity inverted?)"
         raise AudioFileError(f"{p}: the audio is silent{dc} (peak below -70 dBFS); nothing to transcribe")
-    short = truncation(info.extra_info)
+    short = truncation(info.extra_info) or unread_tail(info.extra_info)
     if short and warn:
         warn(f"{p}: {short}; transcribing the {len(mono) / sr:.4g} s it holds")
     return resample(mono, int(sr), sample_rate)

@@ -129,8 +129,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
         import soundfile as sf
 
-        try:
-            long = sf.info(args.audio).duration > LONG_FILE_S and not args.quiet
+        try:  # not a FIFO: opening one waits for a writer (load_audio refuses it)
+            long = Path(args.audio).is_file() and sf.info(args.audio).duration > LONG_FILE_S and not args.quiet
         except Exception:
             long = False  # load_audio reports the problem
         t0 = time.perf_counter()
