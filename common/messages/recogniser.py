@@ -21,7 +21,8 @@ class DrumHit(OscMessage):
     FAMILY = Family.CONTROL
 
     seq: int = Field(ge=0, description="hit sequence number (per recogniser node)")
-    time: RigTime = Field(description="rig time of the onset, seconds")
+    time: RigTime = Field(description="onset time, seconds from the start of the audio (the file, or listening to "
+                                      "the device); sent as a rig time's two arguments")
     note: int = Field(ge=0, le=127, description="General MIDI drum note (channel 10), e.g. 36 kick, 38 snare")
     event_type: EventType = Field(description="drum event type (Kragtwijk et al. 2001), e.g. BASS, SNARE")
     velocity: int = Field(ge=1, le=127, description="MIDI velocity 1..127")

@@ -189,7 +189,7 @@ def parse_text(text: str, source: str = "text") -> TextScore:
     last_block: list[DrumEvent] = []  # events of the last block, in beats (time field holds beats)
     last_block_beats = 0.0
     last_block_bar = 4.0  # the last block's beats per bar: a repeat plays its bars, whatever the meter is now
-    bars: list[float] = []  # where bars start, beats
+    bar_starts: list[float] = []  # where bars start, beats
     grip: Grip | None = None
     nuance: Nuance | None = None
 
@@ -206,8 +206,8 @@ def parse_text(text: str, source: str = "text") -> TextScore:
         """Bars of ``bar`` beats (default ``beats_per_bar``) from ``start`` over ``length`` beats (a last bar may be
         cut short); past :data:`MAX_SCORE_BARS` they are not kept."""
         bar = beats_per_bar if bar is None else bar
-        count = min(math.ceil(length / bar - 1e-9), MAX_SCORE_BARS - len(bars))
-        bars.extend(start + k * bar for k in range(max(count, 0)))
+        count = min(math.ceil(length / bar - 1e-9), MAX_SCORE_BARS - len(bar_starts))
+        bar_starts.extend(start + k * bar for k in range(max(count, 0)))
 
     def flush() -> None:
         nonlocal position, block, last_block, last_block_beats, last_block_bar
@@ -339,7 +339,7 @@ def parse_text(text: str, source: str = "text") -> TextScore:
     flush()
     kept, removed = remove_duplicates(events)
     beats = np.array([tempo.seconds(b) for b in np.arange(0.0, position + 1e-9, 1.0)])
-    score = TextScore(events=kept, beats=beats, bar_beats=np.array(bars, dtype=float), duplicates=removed,
+    score = TextScore(events=kept, beats=beats, bar_beats=np.array(bar_starts, dtype=float), duplicates=removed,
                       source=source)
     score.grip = grip
     score.nuance = nuance

@@ -116,6 +116,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                 raise RecogniserError(str(exc)) from None
             if args.audio and args.output.resolve() == Path(args.audio).resolve():  # a slip that loses the take
                 raise RecogniserError(f"-o {args.output}: is the audio file itself; give another name")
+            if _holds_other_data(args.output):  # an earlier take or the model: a typo must not replace it
+                raise RecogniserError(f"-o {args.output}: exists and is not a MIDI file (it would be replaced by "
+                                      "one); give another name, or remove it first")
         model = load_model(args.model)
         if args.live:
             return _live(args, model, say)
@@ -163,6 +166,18 @@ def _write(events: Sequence[DrumEvent], args: argparse.Namespace) -> None:
         write_midi(events, args.output, tempo_bpm=args.tempo)
     except OSError as exc:
         raise RecogniserError(f"-o {args.output}: cannot write the MIDI file: {exc.strerror or exc}") from exc
+
+
+def _holds_other_data(path: Path) -> bool:
+    """Whether ``path`` is a non-empty regular file that is not a Standard MIDI File (an earlier transcription
+    is replaced as asked; /dev/null and other non-files are written in place)."""
+    try:
+        if not path.is_file() or path.stat().st_size == 0:
+            return False
+        with path.open("rb") as f:
+            return f.read(4) != b"MThd"
+    except OSError:
+        return False  # check_output_file and the write report what is wrong
 
 
 def _live(args: argparse.Namespace, model: object, say: object) -> int:

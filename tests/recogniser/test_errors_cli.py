@@ -72,6 +72,21 @@ def test_cli_refuses_an_unwritable_output_before_transcribing(tmp_path: Path, pa
     assert not (tmp_path / "no").exists()
 
 
+def test_cli_never_replaces_a_file_that_is_not_midi(tmp_path: Path, pattern_wav: Path,
+                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    """-o naming an earlier take (or the model file): refused before transcribing, the file kept; an earlier
+    transcription is replaced as asked."""
+    take = tmp_path / "take2.wav"
+    take.write_bytes(pattern_wav.read_bytes())
+    assert main([str(pattern_wav), "-o", str(take)]) == 1
+    assert "exists and is not a MIDI file" in capsys.readouterr().err
+    assert take.read_bytes() == pattern_wav.read_bytes()
+    out = tmp_path / "out.mid"
+    assert main([str(pattern_wav), "-o", str(out)]) == 0
+    first = out.read_bytes()
+    assert main([str(pattern_wav), "-o", str(out)]) == 0 and out.read_bytes() == first
+
+
 def test_cli_writes_midi(tmp_path: Path, pattern_wav: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "pattern.mid"
     assert main([str(pattern_wav), "-o", str(out)]) == 0
