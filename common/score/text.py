@@ -190,6 +190,7 @@ def parse_text(text: str, source: str = "text") -> TextScore:
     last_block_beats = 0.0
     last_block_bar = 4.0  # the last block's beats per bar: a repeat plays its bars, whatever the meter is now
     bar_starts: list[float] = []  # where bars start, beats
+    warnings: list[str] = []
     grip: Grip | None = None
     nuance: Nuance | None = None
 
@@ -276,6 +277,9 @@ def parse_text(text: str, source: str = "text") -> TextScore:
         if len(parts) > 3 and parts[3].upper() not in STICKING:
             raise ScoreError(f"line {lineno}: the hand must be L or R, got {parts[3]!r}")
         limb = STICKING.get(parts[3].upper()) if len(parts) > 3 else None
+        if limb is not None and ev in FOOT_EVENTS:  # as a sticking row skips them: a foot plays it
+            warnings.append(f"line {lineno}: {parts[1]} is played by a foot; the hand {parts[3]} is ignored")
+            limb = None
         if position + beat < 0:
             raise ScoreError(f"line {lineno}: beat {parts[0]} is before the start of the score "
                              f"({position:g} beats so far)")
@@ -343,6 +347,7 @@ def parse_text(text: str, source: str = "text") -> TextScore:
                       source=source)
     score.grip = grip
     score.nuance = nuance
+    score.warnings = warnings
     return score
 
 

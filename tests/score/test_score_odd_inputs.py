@@ -105,3 +105,12 @@ def test_a_midi_file_by_another_name_is_read_as_midi(tmp_path: Path) -> None:
     text = tmp_path / "groove"
     text.write_text("SN |x...|\n")
     assert [e.event for e in read_score(text).events] == [E.SNARE]
+
+
+def test_a_hand_given_for_a_foot_note_is_ignored_with_a_warning() -> None:
+    from common.score.text import parse_text
+
+    score = parse_text("tempo 120\nat 1 BD 0.5 L\nat 2 SN 0.5 R\n")
+    kick, snare = score.events
+    assert kick.limb is None and snare.limb is not None  # the foot plays the kick; the snare keeps its hand
+    assert score.warnings == ["line 2: BD is played by a foot; the hand L is ignored"]
