@@ -133,11 +133,13 @@ class LivePhysicsCore(PhysicsCore):
         return out
 
     def _score_position(self, now: float) -> ScorePosition | None:
-        """Where the playing score is at rig time ``now`` (s); None while no score plays (or past its plan)."""
+        """Where the playing score is at rig time ``now`` (s); None while no score plays (or past its plan, or
+        past a stop or pause)."""
         player = self.score_player
-        if player.state != "playing" or player.score is None or player.mapping is None or now > player.end_time:
+        clock = player.clock(now)
+        if player.score is None or clock is None:
             return None
-        return score_position(player.score, player.mapping, now)
+        return score_position(player.score, clock, now)
 
     def close(self) -> None:
         self.score_player.close()

@@ -295,6 +295,9 @@ class ScorePlayer:
         """The current performance's notes in rig seconds (hands once assigned are kept: ``DrumEvent.limb``)."""
         self.mapping: tuple[float, float, float] | None = None
         """The playing score's clock: (rig time s, score position s as written, tempo factor) of one instant."""
+        self._stopping: tuple[tuple[float, float, float], float] | None = None
+        """A stop or pause sent ahead of its time: the score's clock before it and the rig time (s) it plays
+        until (the score plays on until then, and its position is shown: :meth:`clock`)."""
         self._live_keys: set[tuple[float, str]] = set()
         """(rig time, event) of the live notes in ``events`` (a score re-timing leaves them where they are)."""
         self.live = LiveNotes()
@@ -424,6 +427,7 @@ class ScorePlayer:
         if not score.events:
             raise ScoreError(f"{path}: no drum events to play")
         self.score, self.score_path = score, path
+        self._stopping = None  # a stop ahead: the clock was the other score's
         log.info("score %s loaded: %d notes, %.2f s%s", path.name, len(score.events), score.duration,
                  f" ({'; '.join(score.warnings)})" if score.warnings else "")
         return score
@@ -497,6 +501,7 @@ class ScorePlayer:
             splice_plan(scene, plan, t_s)
             self.events = self._assigned(events, plan)
             self.mapping = (at, position, tempo)
+            self._stopping = None
             self.state = "playing"
             self.end_time = plan.end_time
             log.info("playing %s from %.3f s at rig time %.3f s (tempo x%g): %d notes until %.3f s",
@@ -522,8 +527,8 @@ class ScorePlayer:
                 track.add(t_s + BRAKE_S + STOP_MOVE_S, scene.rest_targets[limb] - scene.target_offset[limb],
                           np.zeros(3))
         self._forget(t_s)
+        self._stop_clock()
         self.state = "idle"
-        self.mapping = None
         log.info("stop at %.3f s", t_s)
 
     def pause(self, at: float, now: float) -> None:
@@ -538,9 +543,27 @@ class ScorePlayer:
             track.add(t_s, p0, v0)
             track.add(t_s + BRAKE_S, brake_point(p0, v0, BRAKE_S, 0.0), np.zeros(3))
         self._forget(t_s)
+        self._stop_clock()
         self.state = "paused"
-        self.mapping = None
         log.info("pause at %.3f s", t_s)
+
+    def _stop_clock(self) -> None:
+        """A stop or pause (after :meth:`_forget`): keep the playing score's clock until the plan's new end (a
+        second one sent ahead only brings that end earlier)."""
+        if self.state == "playing" and self.mapping is not None:
+            self._stopping = (self.mapping, self.end_time)
+        elif self._stopping is not None:
+            self._stopping = (self._stopping[0], min(self._stopping[1], self.end_time))
+        self.mapping = None
+
+    def clock(self, now: float) -> tuple[float, float, float] | None:
+        """The score's clock (as :attr:`mapping`) at rig time ``now`` (s) if a score plays then: a playing score
+        until its plan ends, or one with a stop or pause ahead until that time; None otherwise."""
+        if self.state == "playing" and self.mapping is not None and now <= self.end_time:
+            return self.mapping
+        if self._stopping is not None and now <= self._stopping[1]:
+            return self._stopping[0]
+        return None
 
     def replan(self, now: float) -> GesturePlan | None:
         """A playing score follows a new tempo or style from ``preparation_s`` after ``now`` on.
@@ -564,25 +587,28 @@ class ScorePlayer:
             return None
         t_c = t_s + self.preparation_s - SPLICE_MARGIN_S
         at, position, old_tempo = self.mapping
-        p_c = position + (t_c - at) * old_tempo
+        # the score clock's new anchor: its position at t_c, or the play's start if the score has not started
+        # then (extrapolated back, the start would move: the asked position must still sound at the asked time)
+        t_a = max(t_c, at)
+        p_a = position + (t_a - at) * old_tempo
         tempo = self.tempo
         kept = [e for e in self.events if t_s - CONTEXT_S <= e.time < t_c]
         # split the score where the old clock reaches t_c (the same formula that timed ``events``: no note in both)
-        ahead = [dataclasses.replace(e, time=t_c + (e.time - p_c) / tempo) for e in self.score.events
+        ahead = [dataclasses.replace(e, time=t_a + (e.time - p_a) / tempo) for e in self.score.events
                  if at + (e.time - position) / old_tempo >= t_c and e.time >= position - POSITION_TOLERANCE_S]
         if not ahead:
             return None
         beats = np.asarray(self.score.beats, dtype=float)
-        beats = t_c + (beats[beats >= p_c] - p_c) / tempo
+        beats = t_a + (beats[beats >= p_a] - p_a) / tempo
         live = [e for e in self.events if e.time >= t_c and (e.time, e.event.value) in self._live_keys]
         events = sorted(kept + ahead + live, key=lambda e: e.time)
 
         def commit(plan: GesturePlan, t_s: float) -> GesturePlan:
             splice_plan(scene, plan, t_s, limbs={s.limb for s in plan.strokes if s.time > t_s})
             self.events = self._assigned(events, plan)
-            self.mapping = (t_c, p_c, tempo)
+            self.mapping = (t_a, p_a, tempo)
             self.end_time = plan.end_time
-            log.info("re-planned from %.3f s (score %.3f s): tempo x%g, %s grip, %s", t_c, p_c, tempo,
+            log.info("re-planned from %.3f s (score %.3f s): tempo x%g, %s grip, %s", t_a, p_a, tempo,
                      self.grip.value, self.nuance.value)
             return plan
 
@@ -1049,6 +1075,7 @@ class ScorePlayer:
         self.events = []
         self.state = "idle"
         self.mapping = None
+        self._stopping = None
         self.end_time = -math.inf
 
     def status(self) -> dict[str, object]:

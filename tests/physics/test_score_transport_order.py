@@ -1,0 +1,109 @@
+"""Score transport messages in the orders a user sends them: a tempo change before the start, a stop or pause
+scheduled ahead (the score plays, and its position is shown, until then).
+
+The core is driven offline through its handler (rig times as sent; no wall clock).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from common.messages.physics import PhysicsReset
+from common.messages.score import ScoreLoad, ScoreTransport, TempoScale
+from common.score.text import read_score
+from services.physics.core import PhysicsCore
+
+SCORES = Path(__file__).parents[1] / "render"
+SCORE = SCORES / "short_groove.txt"
+SOURCE = "127.0.0.1:9"
+
+
+@pytest.fixture
+def core() -> Iterator[PhysicsCore]:
+    physics = PhysicsCore(scene="drummer", grip="german", pose_rate_hz=0)
+    physics.score_player.library = [SCORES]
+    physics.handle(ScoreLoad(path=SCORE.name), 0.0, SOURCE)
+    yield physics
+    physics.close()
+
+
+def test_a_tempo_change_before_the_start_keeps_the_asked_start(core: PhysicsCore) -> None:
+    """play TIME POSITION: POSITION sounds at TIME. A tempo change sent before TIME re-times the notes after it
+    at the new tempo; it does not move the start (it moved it 0.7 s later: the score position was extrapolated
+    back before POSITION)."""
+    player = core.score_player
+    written = sorted({e.time for e in read_score(SCORE).events if e.time >= 0.6 - 1e-6})
+    core.handle(ScoreTransport(action="play", time=3.0, position=0.6), 0.0, SOURCE)
+    core.handle(TempoScale(factor=0.5), 0.1, SOURCE)
+    assert core.rejected_total == 0 and player.state == "playing"
+    assert player.mapping == pytest.approx((3.0, 0.6, 0.5))
+    strokes = sorted({round(e.time, 6) for e in player.events})
+    assert strokes == pytest.approx([3.0 + (t - 0.6) / 0.5 for t in written])
+
+
+FOUR_BARS = "tempo 100\nmeter 4/4\nHH |x.x.x.x.|x.x.x.x.|x.x.x.x.|x.x.x.x.|\nBD |x...x...|x...x...|x...x...|x...x...|\n"
+"""Four bars at 100 bpm: a beat every 0.6 s."""
+
+
+@pytest.mark.parametrize("action", ["stop", "pause"])
+def test_a_stop_or_pause_sent_ahead_leaves_the_position_shown_until_its_time(tmp_path: Path, action: str) -> None:
+    """The score plays until the time a stop or pause was asked for, and the view's panel shows where it is until
+    then (the positions stopped when the message arrived: 2 s early here); from then on it shows none."""
+    from common.bus import OfflineRunner
+    from common.kit import load_kit
+    from services.graphics.core import GraphicsCore, GraphicsSettings
+    from services.physics.node import LivePhysicsCore
+
+    (tmp_path / "four_bars.txt").write_text(FOUR_BARS)
+    kit = load_kit("default")
+    physics = LivePhysicsCore(planner="thread", scene="drummer", kit=kit, grip="german", pose_rate_hz=0,
+                              mode="live")
+    physics.score_player.library = [tmp_path]
+    graphics = GraphicsCore(GraphicsSettings(clock="rig"), kit=kit)
+    runner = OfflineRunner([physics, graphics])
+    control = runner.bus.endpoint("control")
+    try:
+        control.send(ScoreLoad(path="four_bars.txt"), "physics")
+        control.send(ScoreTransport(action="play", time=1.5, position=0.0), "physics")
+        assert physics.score_player.wait(60.0)
+        runner.run_until(2.0)
+        control.send(ScoreTransport(action=action, time=4.0, position=0.0), "physics")
+        runner.run_until(3.5)  # score time 2 s: bar 0, beat 3.33 (a position older than 1 s is not shown)
+        panel = graphics.status(runner.now)["score"]
+        assert isinstance(panel, dict) and panel["bar"] == 0 and panel["beat"] == pytest.approx(3.33, abs=0.2)
+        runner.run_until(5.2)
+        assert graphics.status(runner.now)["score"] is None  # stopped (paused) at 4 s: nothing sent since
+        assert physics.rejected_total == 0
+    finally:
+        physics.close()
+
+
+def test_a_reset_sent_while_a_play_is_planned_leaves_nothing_to_play(tmp_path: Path) -> None:
+    """The live node: a reset behind a ``play`` whose plan is in flight acts once the plan is spliced and clears it;
+    the drummer is at rest with no targets and no score playing (docs: "Background plans")."""
+    from services.physics.node import LivePhysicsCore
+
+    (tmp_path / "four_bars.txt").write_text(FOUR_BARS)
+    physics = LivePhysicsCore(planner="thread", scene="drummer", grip="german", pose_rate_hz=0, mode="live")
+    player = physics.score_player
+    player.library = [tmp_path]
+    try:
+        physics.step(0.1)
+        physics.handle(ScoreLoad(path="four_bars.txt"), 0.1, SOURCE)
+        physics.handle(ScoreTransport(action="play", time=0.0, position=0.0), 0.1, SOURCE)
+        physics.handle(PhysicsReset(time=0.1), 0.1, SOURCE)
+        assert player.busy  # the reset waits behind the plan
+        for _ in range(10):  # rig time stands still while the plan is computed: it is spliced at the next step
+            assert player.wait(60.0)
+            physics.step(physics.time + 0.001)
+            if not player.busy:
+                break
+        assert not player.busy and player.state == "idle" and player.clock(physics.time) is None
+        assert player.plans == 1  # the play was spliced, then cleared by the reset
+        assert all(len(track) == 0 for track in physics.scene.limb_tracks.values())
+        assert physics.rejected_total == 0
+    finally:
+        physics.close()
