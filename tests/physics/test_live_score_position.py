@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -22,20 +23,28 @@ def _panel(graphics: GraphicsCore, now: float) -> dict[str, float] | None:
     return score
 
 
-def test_the_view_shows_bar_beat_and_tempo_while_the_score_plays_and_nothing_after(tmp_path: Path) -> None:
-    (tmp_path / "four_bars.txt").write_text(SCORE)
+def playing_with_view(library: Path) -> tuple[LivePhysicsCore, GraphicsCore, OfflineRunner, Any]:
+    """The live core (plans in a thread) and the view's core on the in-memory bus, :data:`SCORE` (written to
+    ``library`` as four_bars.txt) asked to play from rig time 1.5 s, its plan spliced: (physics, graphics,
+    runner, control endpoint). Close ``physics`` after."""
+    (library / "four_bars.txt").write_text(SCORE)
     kit = load_kit("default")
     physics = LivePhysicsCore(planner="thread", scene="drummer", kit=kit, grip="german", pose_rate_hz=0,
                               mode="live")
-    physics.score_player.library = [tmp_path]
+    physics.score_player.library = [library]
     graphics = GraphicsCore(GraphicsSettings(clock="rig"), kit=kit)
     runner = OfflineRunner([physics, graphics])
     control = runner.bus.endpoint("control")
+    control.send(ScoreLoad(path="four_bars.txt"), "physics")
+    control.send(ScoreTransport(action="play", time=1.5, position=0.0), "physics")
+    assert physics.score_player.wait(60.0)
+    return physics, graphics, runner, control
+
+
+def test_the_view_shows_bar_beat_and_tempo_while_the_score_plays_and_nothing_after(tmp_path: Path) -> None:
+    physics, graphics, runner, control = playing_with_view(tmp_path)
     player = physics.score_player
     try:
-        control.send(ScoreLoad(path="four_bars.txt"), "physics")
-        control.send(ScoreTransport(action="play", time=1.5, position=0.0), "physics")
-        assert player.wait(60.0)
         runner.run_until(1.2)
         assert _panel(graphics, runner.now) is None  # nothing before the score's first beat
         runner.run_until(1.5 + 3.3 * 0.6)  # score time 1.98 s: beat 3.3, bar 0

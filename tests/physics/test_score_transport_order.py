@@ -15,6 +15,7 @@ from common.messages.physics import PhysicsReset
 from common.messages.score import ScoreLoad, ScoreTransport, TempoScale
 from common.score.text import read_score
 from services.physics.core import PhysicsCore
+from tests.physics.test_live_score_position import SCORE as FOUR_BARS  # four bars at 100 bpm
 
 SCORES = Path(__file__).parents[1] / "render"
 SCORE = SCORES / "short_groove.txt"
@@ -44,31 +45,15 @@ def test_a_tempo_change_before_the_start_keeps_the_asked_start(core: PhysicsCore
     assert strokes == pytest.approx([3.0 + (t - 0.6) / 0.5 for t in written])
 
 
-FOUR_BARS = "tempo 100\nmeter 4/4\nHH |x.x.x.x.|x.x.x.x.|x.x.x.x.|x.x.x.x.|\nBD |x...x...|x...x...|x...x...|x...x...|\n"
-"""Four bars at 100 bpm: a beat every 0.6 s."""
-
 
 @pytest.mark.parametrize("action", ["stop", "pause"])
 def test_a_stop_or_pause_sent_ahead_leaves_the_position_shown_until_its_time(tmp_path: Path, action: str) -> None:
     """The score plays until the time a stop or pause was asked for, and the view's panel shows where it is until
     then (the positions stopped when the message arrived: 2 s early here); from then on it shows none."""
-    from common.bus import OfflineRunner
-    from common.kit import load_kit
-    from services.graphics.core import GraphicsCore, GraphicsSettings
-    from services.physics.node import LivePhysicsCore
+    from tests.physics.test_live_score_position import playing_with_view
 
-    (tmp_path / "four_bars.txt").write_text(FOUR_BARS)
-    kit = load_kit("default")
-    physics = LivePhysicsCore(planner="thread", scene="drummer", kit=kit, grip="german", pose_rate_hz=0,
-                              mode="live")
-    physics.score_player.library = [tmp_path]
-    graphics = GraphicsCore(GraphicsSettings(clock="rig"), kit=kit)
-    runner = OfflineRunner([physics, graphics])
-    control = runner.bus.endpoint("control")
+    physics, graphics, runner, control = playing_with_view(tmp_path)
     try:
-        control.send(ScoreLoad(path="four_bars.txt"), "physics")
-        control.send(ScoreTransport(action="play", time=1.5, position=0.0), "physics")
-        assert physics.score_player.wait(60.0)
         runner.run_until(2.0)
         control.send(ScoreTransport(action=action, time=4.0, position=0.0), "physics")
         runner.run_until(3.5)  # score time 2 s: bar 0, beat 3.33 (a position older than 1 s is not shown)
