@@ -10,12 +10,14 @@ import subprocess
 import sys
 import time
 from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 
-from common.messages import OscMessage, encode
+from common.messages import OscMessage, decode, encode
 
 ROOT = Path(__file__).resolve().parents[2]
 CHROMIUM = "/usr/bin/chromium"
@@ -128,3 +130,36 @@ def project(point: np.ndarray, eye: np.ndarray, target: np.ndarray, fov_deg: flo
     ndc_x = f * x / z / (width / height)
     ndc_y = f * y / z
     return (ndc_x + 1) / 2 * width, (1 - ndc_y) / 2 * height
+
+
+def received_from(sock: socket.socket, kind: type, timeout: float = 10.0) -> list[Any]:
+    """Messages of ``kind`` that reach ``sock`` (standing in for physics) within ``timeout`` seconds."""
+    deadline, out = time.monotonic() + timeout, list[Any]()
+    while time.monotonic() < deadline and not out:
+        try:
+            data = sock.recv(65536)
+        except TimeoutError:
+            continue
+        out = [m for m in decode(data).messages if isinstance(m, kind)]
+    return out
+
+
+@contextmanager
+def open_page(url: str, frames: int = 10, width: int = 800, height: int = 450,
+              wait_for_status: bool = False) -> Iterator[tuple[Any, list[str]]]:
+    """The page in headless chromium once it has drawn more than ``frames`` frames (and, with ``wait_for_status``,
+    shown a status): (page, page errors so far)."""
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_FLAGS)
+        page = browser.new_page(viewport={"width": width, "height": height})
+        errors: list[str] = []
+        page.on("pageerror", lambda e: errors.append(str(e)))
+        page.goto(url)
+        ready = f"window.batteur && window.batteur.frames > {frames}"
+        page.wait_for_function(ready + (" && window.batteur.status" if wait_for_status else ""), timeout=20000)
+        try:
+            yield page, errors
+        finally:
+            browser.close()

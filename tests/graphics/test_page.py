@@ -14,8 +14,6 @@ import math
 import socket
 import threading
 import time
-from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -24,13 +22,13 @@ import pytest
 
 from common.character import JOINTS
 from common.kit import load_kit
-from common.messages import Impact, Pose, Skeleton, decode
+from common.messages import Impact, Pose, Skeleton
 from common.messages.physics import PhysicsPosture, PhysicsReset
 from services.graphics.figure import LINK_NAMES, SyntheticDrummer
 from services.graphics.poser import load_character
 from tests.deploy.pdrun import PD_DIR, PdProcess, pd_binary
 
-from .conftest import CHROMIUM, CHROMIUM_FLAGS, GraphicsNodeProcess, needs_browser, project
+from .conftest import GraphicsNodeProcess, needs_browser, open_page, project, received_from
 
 WIDTH, HEIGHT = 800, 450
 # the page's "front" preset: azimuth 0, elevation 18 degrees, 3 m from (0, 0.35, 0.75), 45 degree fov
@@ -102,22 +100,9 @@ def _wait_for(page: object, spots: list[tuple[float, float]], check: object, tim
         time.sleep(0.1)
 
 
-@contextmanager
-def _open_page(url: str, frames: int) -> Iterator[tuple[Any, list[str]]]:
-    """The page in headless chromium once it has drawn ``frames`` frames: (page, page errors so far)."""
-    from playwright.sync_api import sync_playwright
-
-    with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_FLAGS)
-        page = browser.new_page(viewport={"width": WIDTH, "height": HEIGHT})
-        errors: list[str] = []
-        page.on("pageerror", lambda e: errors.append(str(e)))
-        page.goto(url)
-        page.wait_for_function(f"window.batteur && window.batteur.frames > {frames}", timeout=20000)
-        try:
-            yield page, errors
-        finally:
-            browser.close()
+def _open_page(url: str, frames: int) -> Any:
+    """The page once it has drawn ``frames`` frames, WIDTH x HEIGHT: (page, page errors so far)."""
+    return open_page(url, frames, WIDTH, HEIGHT)
 
 
 def _is_body_blue(patch: np.ndarray) -> bool:
@@ -197,16 +182,6 @@ def test_pose_editor_poses_the_57_dof_body_and_drives_physics(tmp_path: Path) ->
     body = load_character()
     sender = PoseSender(node, body.rest, names=body.names)  # physics' drummer at rest, streamed live
 
-    def received(kind: type, timeout: float = 10.0) -> list[Any]:
-        deadline, out = time.monotonic() + timeout, list[Any]()
-        while time.monotonic() < deadline and not out:
-            try:
-                data = physics.recv(65536)
-            except TimeoutError:
-                continue
-            out = [m for m in decode(data).messages if isinstance(m, kind)]
-        return out
-
     try:
         with _open_page(node.url, 10) as (page, errors):
             page.click("#edit-toggle")
@@ -222,7 +197,7 @@ def test_pose_editor_poses_the_57_dof_body_and_drives_physics(tmp_path: Path) ->
             before = np.array(page.evaluate(f"window.batteur.lastFrame.p.slice({hand * 7}, {hand * 7 + 3})"))
             start = poser["angles"]["right_elbow"][0]
             page.eval_on_selector("#pose-sliders input", SET_SLIDER, str(start + 30))
-            postures = received(PhysicsPosture)
+            postures = received_from(physics, PhysicsPosture)
             assert postures, "no /batteur/physics/posture reached physics"
             q = np.array(postures[-1].values)
             elbow = JOINTS.index("right_elbow") * 3
@@ -232,7 +207,7 @@ def test_pose_editor_poses_the_57_dof_body_and_drives_physics(tmp_path: Path) ->
                 f".map((v, i) => v - {before.tolist()}[i])) > 0.05", timeout=10000)  # the drawn hand moved
             page.screenshot(path=str(tmp_path / "editor.png"))
             page.click("#edit-toggle")  # closing the editor releases the body
-            assert received(PhysicsReset), "closing the editor sent no /batteur/physics/reset"
+            assert received_from(physics, PhysicsReset), "closing the editor sent no /batteur/physics/reset"
             assert errors == []
     finally:
         sender.stop()

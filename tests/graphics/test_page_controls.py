@@ -8,9 +8,7 @@ changes something else, and the orbit preset starts from the front.
 from __future__ import annotations
 
 import socket
-import time
 from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -20,7 +18,7 @@ from common.messages import decode
 from common.messages.graphics import GraphicsCamera, GraphicsShow, GraphicsTrails
 from common.messages.physics import PhysicsPosture, PhysicsReset
 
-from .conftest import CHROMIUM, CHROMIUM_FLAGS, GraphicsNodeProcess, needs_browser
+from .conftest import CHROMIUM, CHROMIUM_FLAGS, GraphicsNodeProcess, needs_browser, open_page, received_from
 
 PANELS = "ids => ids.map(id => { const r = document.getElementById(id).getBoundingClientRect(); " \
          "return [r.left, r.top, r.right, r.bottom]; })"
@@ -43,23 +41,9 @@ def synthetic_node(tmp_path: Path) -> Iterator[GraphicsNodeProcess]:
         node.close()
 
 
-@contextmanager
-def _page(url: str, width: int = 1000, height: int = 600) -> Iterator[tuple[Any, list[str]]]:
-    """The page in headless chromium once frames are drawn: (page, page errors so far)."""
-    from playwright.sync_api import sync_playwright
-
-    with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_FLAGS)
-        page = browser.new_page(viewport={"width": width, "height": height})
-        errors: list[str] = []
-        page.on("pageerror", lambda e: errors.append(str(e)))
-        page.goto(url)
-        page.wait_for_function("window.batteur && window.batteur.frames > 10 && window.batteur.status",
-                               timeout=20000)
-        try:
-            yield page, errors
-        finally:
-            browser.close()
+def _page(url: str, width: int = 1000, height: int = 600) -> Any:
+    """The page once frames are drawn and a status shown: (page, page errors so far)."""
+    return open_page(url, 10, width, height, wait_for_status=True)
 
 
 def _overlap(a: list[float], b: list[float]) -> bool:
@@ -166,18 +150,6 @@ def test_a_looping_preview_draws_on_without_errors(tmp_path: Path) -> None:
         node.close()
 
 
-def _received(sock: socket.socket, kind: type, timeout: float = 10.0) -> list[Any]:
-    """Messages of ``kind`` that reach ``sock`` (standing in for physics) within ``timeout`` seconds."""
-    deadline, out = time.monotonic() + timeout, list[Any]()
-    while time.monotonic() < deadline and not out:
-        try:
-            data = sock.recv(65536)
-        except TimeoutError:
-            continue
-        out = [m for m in decode(data).messages if isinstance(m, kind)]
-    return out
-
-
 def _waiting(sock: socket.socket) -> list[Any]:
     """Every message already waiting at ``sock`` (without waiting for more)."""
     out: list[Any] = []
@@ -219,7 +191,7 @@ def test_the_editor_of_one_tab_is_released_when_that_tab_closes(tmp_path: Path) 
             editing.wait_for_function("window.batteur.poser && window.batteur.poser.joints", timeout=10000)
             editing.select_option("#pose-joint", "right_elbow")
             editing.eval_on_selector("#pose-sliders input", SET_SLIDER, "100")
-            assert _received(physics, PhysicsPosture), "no posture reached physics"
+            assert received_from(physics, PhysicsPosture), "no posture reached physics"
             edited = "!window.batteur.names.includes('right_stick_tip')"  # physics' body drawn, not the figure
             editing.wait_for_function(edited, timeout=10000)
 
@@ -236,7 +208,7 @@ def test_the_editor_of_one_tab_is_released_when_that_tab_closes(tmp_path: Path) 
             assert not any(isinstance(m, PhysicsReset) for m in _waiting(physics)), "physics was released"
 
             editing.close()  # closing the editing tab releases the body although another tab stays
-            assert _received(physics, PhysicsReset), "closing the editing tab sent no /batteur/physics/reset"
+            assert received_from(physics, PhysicsReset), "closing the editing tab sent no /batteur/physics/reset"
             assert errors == []
             browser.close()
     finally:
