@@ -22,13 +22,11 @@ over.
 
 from __future__ import annotations
 
-import contextlib
 import math
 import multiprocessing
 import os
-import signal
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, ClassVar
@@ -257,25 +255,6 @@ class _InteractionReplay(_Replay):
     ROLE = "interaction"
 
 
-@contextlib.contextmanager
-def _ctrl_c_held() -> Iterator[None]:
-    """SIGINT blocked in this thread meanwhile; a Ctrl-C meanwhile is delivered when it ends.
-
-    A terminal's Ctrl-C reaches the whole process group. Worker processes started meanwhile inherit the
-    block and keep it: the parent stops them itself (``stop``), whereas a worker interrupted while it imports
-    or waits for a segment printed a KeyboardInterrupt traceback, and one that died before reading its first
-    segment could leave the pool's feeder thread blocked, so the render never exited.
-    """
-    if not hasattr(signal, "pthread_sigmask"):  # not POSIX
-        yield
-        return
-    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
-    try:
-        yield
-    finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
-
-
 def default_jobs() -> int:
     """Processes a segmented render uses when asked for all: the CPUs this process may run on."""
     try:
@@ -302,13 +281,11 @@ def run_segmented(score: Score, assignment: Assignment, plan: GesturePlan, kit: 
     with context.Manager() as manager, ProcessPoolExecutor(max_workers=max(1, min(jobs, len(segments))),
                                                           mp_context=context) as pool:
         queue, stop = manager.Queue(), manager.Event()
-        futures: dict[Future[SegmentResult], Segment] = {}
+        futures: dict[Future[SegmentResult], Segment] = {
+            pool.submit(run_segment, plan, kit, opts, s, queue, stop): s for s in segments}
         done_s = {s.index: 0.0 for s in segments}
+        pending = set(futures)
         try:
-            with _ctrl_c_held():  # the pool starts its workers as segments are submitted
-                for s in segments:
-                    futures[pool.submit(run_segment, plan, kit, opts, s, queue, stop)] = s
-            pending = set(futures)
             while pending:
                 finished, pending = wait(pending, timeout=0.25, return_when=FIRST_COMPLETED)
                 while not queue.empty():
