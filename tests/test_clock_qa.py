@@ -165,6 +165,19 @@ def test_reset_forgets_pings_sent_to_the_previous_master() -> None:
     assert not est.ready
 
 
+def assert_far_pong_from_master_ignored(master: Node, remote: Node) -> None:
+    """Deliver to ``remote`` (synced to ``master``) a pong from the master's address that echoes its pending ping
+    but claims a clock an hour away: rig time must not move, and the estimator counts an outlier."""
+    assert master.endpoint is not None and remote.endpoint is not None
+    before = remote.clock.offset
+    ping = remote.estimator.make_ping(remote.clock.local_now())
+    t = remote.clock.local_now() + 3600.0
+    forged = ClockPong(node_id=ping.node_id, seq=ping.seq, t_send=ping.t_send, t_receive=t, t_reply=t)
+    remote.endpoint.receive_datagram(encode(forged), *parse_address(master.endpoint.local_address))
+    assert remote.clock.offset == pytest.approx(before, abs=0.005)
+    assert remote.estimator.outliers >= 1
+
+
 def test_a_synced_node_ignores_a_forged_pong_end_to_end() -> None:
     """Over UDP: a pong echoing the pending ping but claiming another clock does not move the node's rig time."""
 
@@ -179,13 +192,7 @@ def test_a_synced_node_ignores_a_forged_pong_end_to_end() -> None:
         await remote.start()
         await wait_for(lambda: len(remote.estimator.samples) >= 8)
         assert remote.endpoint is not None
-        before = remote.clock.offset
-        ping = remote.estimator.make_ping(remote.clock.local_now())
-        t = remote.clock.local_now() + 3600.0
-        forged = ClockPong(node_id=ping.node_id, seq=ping.seq, t_send=ping.t_send, t_receive=t, t_reply=t)
-        remote.endpoint.receive_datagram(encode(forged), *parse_address(master.endpoint.local_address))
-        assert remote.clock.offset == pytest.approx(before, abs=0.005)
-        assert remote.estimator.outliers >= 1
+        assert_far_pong_from_master_ignored(master, remote)
         await remote.stop()
         await master.stop()
 
