@@ -7,6 +7,7 @@ from __future__ import annotations
 import io
 import pickle
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 import mido
@@ -95,18 +96,27 @@ class _Terminal(io.StringIO):
         return True
 
 
-def test_render_draws_planning_bars_on_a_terminal_only(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+def interrupted_render_stderr(score: Path, out: Path,
+                              monkeypatch: pytest.MonkeyPatch) -> Iterator[tuple[list[str], bool, str]]:
+    """``batteur render SCORE -o OUT`` stopped (Ctrl-C) where the simulation would start, on a terminal, with
+    ``--quiet`` on a terminal, and not on a terminal: (arguments, on a terminal, what it wrote to stderr) of each,
+    once it exited 130."""
+
     def stop_before_simulating(*args: object, **kwargs: object) -> None:
         raise KeyboardInterrupt
 
     monkeypatch.setattr(render, "run_score", stop_before_simulating)
-    notes = len(read_score(SHORT).events)
-    out = tmp_path / "out"
     for args, terminal in (([], True), (["--quiet"], True), ([], False)):
         stderr = _Terminal() if terminal else io.StringIO()
         monkeypatch.setattr(sys, "stderr", stderr)
-        assert render.main([str(SHORT), "-o", str(out), *args]) == 130
-        text = stderr.getvalue()
+        assert render.main([str(score), "-o", str(out), *args]) == 130
+        yield args, terminal, stderr.getvalue()
+
+
+def test_render_draws_planning_bars_on_a_terminal_only(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    notes = len(read_score(SHORT).events)
+    out = tmp_path / "out"
+    for args, terminal, text in interrupted_render_stderr(SHORT, out, monkeypatch):
         if terminal and not args:
             limbs = text.index(f"planning {SHORT.name} (limbs) [")
             gestures = text.index(f"planning {SHORT.name} (gestures) [")

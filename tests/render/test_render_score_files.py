@@ -5,40 +5,25 @@ written."""
 
 from __future__ import annotations
 
-import io
 import os
 import struct
-import sys
 from pathlib import Path
 
 import pytest
 
 from batteur import evaluate, render
 from common.score.events import MAX_SCORE_BYTES
+from tests.test_planning_progress import interrupted_render_stderr
 
 GROOVE = Path(__file__).parents[1] / "data" / "groove_drummer6_s3_1_rock_90_beat_4-4.mid"
 """4,626 bytes, 439 notes."""
 
 
-class _Terminal(io.StringIO):
-    def isatty(self) -> bool:
-        return True
-
-
-def _stop_before_simulating(*args: object, **kwargs: object) -> None:
-    raise KeyboardInterrupt
-
-
 def test_render_draws_a_reading_bar_for_a_midi_file_on_a_terminal_only(monkeypatch: pytest.MonkeyPatch,
                                                                        tmp_path: Path) -> None:
-    monkeypatch.setattr(render, "run_score", _stop_before_simulating)
     out = tmp_path / "out"
     kilobytes = GROOVE.stat().st_size / 1024
-    for args, terminal in (([], True), (["--quiet"], True), ([], False)):
-        stderr = _Terminal() if terminal else io.StringIO()
-        monkeypatch.setattr(sys, "stderr", stderr)
-        assert render.main([str(GROOVE), "-o", str(out), *args]) == 130
-        text = stderr.getvalue()
+    for args, terminal, text in interrupted_render_stderr(GROOVE, out, monkeypatch):
         if terminal and not args:
             reading = text.index(f"reading {GROOVE.name} [")
             assert reading < text.index(f"planning {GROOVE.name} (limbs) [")
