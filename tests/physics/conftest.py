@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Iterator
+from typing import Any
 
 import pytest
 
+import common.gesture.planner as planner_module
 from services.physics.core import PhysicsCore
 
 
@@ -15,3 +18,24 @@ def drummer() -> Iterator[PhysicsCore]:
     core = PhysicsCore(scene="drummer", pose_rate_hz=0)
     yield core
     core.close()
+
+
+@pytest.fixture
+def gate(monkeypatch: pytest.MonkeyPatch) -> Iterator[threading.Event]:
+    """The planner waits until the returned event is set (a plan that takes as long as the test wants); set after
+    60 s at the latest, so a core that waited for it fails the test instead of hanging it."""
+    original = planner_module.plan_gestures
+    release = threading.Event()
+
+    def held(*args: Any, **kwargs: Any) -> Any:
+        release.wait()
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(planner_module, "plan_gestures", held)
+    safety = threading.Timer(60.0, release.set)
+    safety.start()
+    try:
+        yield release
+    finally:
+        release.set()
+        safety.cancel()

@@ -60,27 +60,6 @@ def planner_threads(monkeypatch: pytest.MonkeyPatch) -> Iterator[list[bool]]:
     yield calls
 
 
-@pytest.fixture
-def gate(monkeypatch: pytest.MonkeyPatch) -> Iterator[threading.Event]:
-    """The planner waits until the returned event is set (a plan that takes as long as the test wants); set after
-    60 s at the latest, so a core that waited for it fails the test instead of hanging it."""
-    original = planner_module.plan_gestures
-    release = threading.Event()
-
-    def held(*args: Any, **kwargs: Any) -> Any:
-        release.wait()
-        return original(*args, **kwargs)
-
-    monkeypatch.setattr(planner_module, "plan_gestures", held)
-    safety = threading.Timer(60.0, release.set)
-    safety.start()
-    try:
-        yield release
-    finally:
-        release.set()
-        safety.cancel()
-
-
 def _send_and_plan(control: Any, player: Any, message: Any) -> None:
     control.send(message, "physics")
     assert player.wait(60.0)
@@ -219,9 +198,10 @@ def test_the_benchmark_checks_its_options_before_running(capsys: pytest.CaptureF
     assert stop.value.code == 2 and "--planner" in capsys.readouterr().err
 
 
-def test_targets_sent_right_after_a_live_note_act_after_its_plan() -> None:
+def test_targets_sent_right_after_a_live_note_act_after_its_plan(gate: threading.Event) -> None:
     """Every message, not only the score's, waits behind a plan in flight: a hand's waypoint sent after a note is
-    queued after the note's gesture (a splice applied later would have cut it out of the track)."""
+    queued after the note's gesture (a splice applied later would have cut it out of the track). The planner is
+    held until the targets are sent (a loaded machine could otherwise finish the plan before them)."""
     from common.messages.physics import CartesianTarget
 
     physics, runner, _, control = _rig()
@@ -233,6 +213,7 @@ def test_targets_sent_right_after_a_live_note_act_after_its_plan() -> None:
         x, y, z = (float(v) for v in here[hand])
         control.send(CartesianTarget(limb=hand, time=1.6, x=x, y=y, z=z, vx=0.0, vy=0.0, vz=0.0), "physics")
     assert player.busy
+    gate.set()
     _settle(runner, player)
     tracks = physics.scene.limb_tracks  # type: ignore[attr-defined]
     physics.close()

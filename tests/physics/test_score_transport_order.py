@@ -6,6 +6,7 @@ The core is driven offline through its handler (rig times as sent; no wall clock
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -66,9 +67,10 @@ def test_a_stop_or_pause_sent_ahead_leaves_the_position_shown_until_its_time(tmp
         physics.close()
 
 
-def test_a_reset_sent_while_a_play_is_planned_leaves_nothing_to_play(tmp_path: Path) -> None:
+def test_a_reset_sent_while_a_play_is_planned_leaves_nothing_to_play(tmp_path: Path, gate: threading.Event) -> None:
     """The live node: a reset behind a ``play`` whose plan is in flight acts once the plan is spliced and clears it;
-    the drummer is at rest with no targets and no score playing (docs: "Background plans")."""
+    the drummer is at rest with no targets and no score playing (docs: "Background plans"). The planner is held
+    until the reset is sent (a loaded machine could otherwise finish the plan before it)."""
     from services.physics.node import LivePhysicsCore
 
     (tmp_path / "four_bars.txt").write_text(FOUR_BARS)
@@ -81,6 +83,7 @@ def test_a_reset_sent_while_a_play_is_planned_leaves_nothing_to_play(tmp_path: P
         physics.handle(ScoreTransport(action="play", time=0.0, position=0.0), 0.1, SOURCE)
         physics.handle(PhysicsReset(time=0.1), 0.1, SOURCE)
         assert player.busy  # the reset waits behind the plan
+        gate.set()
         for _ in range(10):  # rig time stands still while the plan is computed: it is spliced at the next step
             assert player.wait(60.0)
             physics.step(physics.time + 0.001)
