@@ -31,7 +31,7 @@ from scipy.special import jv
 from common.kit import KitObject
 from services.sound.excitation import ContactPulse, Striker, hunt_crossley, mode_response, mode_response_chunks
 from services.sound.membrane import membrane_modes
-from services.sound.modal_bank import ModeSet
+from services.sound.modal_bank import MIN_DECAY_PER_S, ModeSet
 from services.sound.plates import BELL_GAINS, BELL_RATIOS, COWBELL_GAINS, COWBELL_RATIOS, plate_modes, ring_modes
 from services.sound.samples import SampleBank
 from services.sound.synth import SynthVoice, recipe_for
@@ -45,6 +45,9 @@ REFERENCE_VELOCITY = 3.0
 """Velocity of the calibration strike, m/s (a medium stroke)."""
 REFERENCE_PEAK = 0.2
 """Output peak the calibration strike aims at (full scale 1), before the per-instrument mix level."""
+WIRE_DECAY_S = 0.09
+"""Decay time constant of the snare wires' buzz with the drum's initial damping, seconds. The head drives the wires,
+so the time scales with the head's decay rate: a damping change (a hand on the head) shortens ringing wires too."""
 
 
 def mix_level(instrument_id: str, kind: str) -> float:
@@ -377,6 +380,49 @@ class Membrane(Instrument):
 
     KIND = "membrane"
 
+    def __init__(self, obj: KitObject, params: Params, sample_rate: float, block: int, samples: SampleBank) -> None:
+        self._wires: list[NoiseVoice] = []  # snare-wire voices that may still ring (they follow the head's damping)
+        self._wire_reference = 0.0  # head decay rate the wires' WIRE_DECAY_S goes with, 1/s (0: not built yet)
+        super().__init__(obj, params, sample_rate, block, samples)
+        self._wire_reference = self.head_decay_rate()
+
+    def head_decay_rate(self) -> float:
+        """Decay rate of the head's lowest mode, (0, 1), 1/s: the one whose air push drives the snare-side head
+        and so the wires (as the bank renders it: at least MIN_DECAY_PER_S)."""
+        return max(float(self.damping_law(self.modes.freq[:1])[0]), MIN_DECAY_PER_S)
+
+    def wire_decay(self) -> float:
+        """Decay time constant of the snare wires now, seconds: WIRE_DECAY_S scaled by the head's decay rate
+        relative to the initial one (exactly WIRE_DECAY_S until the damping changes)."""
+        if self._wire_reference <= 0.0:
+            return WIRE_DECAY_S
+        scale = self.head_decay_rate() / self._wire_reference
+        return min(WIRE_DECAY_S / scale, 1.0 / MIN_DECAY_PER_S)
+
+    def _retune_wires(self) -> None:
+        """Ringing wires take the head's current damping from the next sample on."""
+        self._wires = [w for w in self._wires if not w.done]
+        if self._wires:
+            decay = self.wire_decay()
+            for wire in self._wires:
+                wire.set_decay(decay)
+
+    def detached(self) -> Instrument:
+        twin = super().detached()
+        assert isinstance(twin, Membrane)
+        twin._wires = []  # the ringing voices belong to the render loop, not to the worker's copy
+        return twin
+
+    def adopt(self, twin: Instrument) -> None:
+        wires = self._wires
+        super().adopt(twin)
+        self._wires = wires
+        self._retune_wires()
+
+    def silence(self) -> None:
+        super().silence()
+        self._wires.clear()
+
     def rebuild(self) -> None:
         p = self.p
         self.modes = membrane_modes(p.radius, p.tension, p.density, p.n_modes, p.air_loading, p.splitting)
@@ -396,6 +442,7 @@ class Membrane(Instrument):
                               np.full(self.ring_f.shape[0], 1.0)])
         self.gains = self._apply_resonances(rad)
         self.bank.set_modes(freq, decay)
+        self._retune_wires()
 
     def weights(self, strike: Strike) -> F64:
         p = self.p
@@ -443,8 +490,11 @@ class Membrane(Instrument):
             return
         # snare wires buzz with the bottom head: noise whose level follows the drive
         amp = 0.06 * self.p.snares * min(v, 4.0) ** 1.2
-        pool.add(NoiseVoice(self.id, (1800.0, 9000.0 * min(0.6 + 0.2 * v, 1.0)), amp, 0.002, 0.09,
-                            strike.seq * 7919 + 1, self.sr, strike.offset))
+        wire = NoiseVoice(self.id, (1800.0, 9000.0 * min(0.6 + 0.2 * v, 1.0)), amp, 0.002, self.wire_decay(),
+                          strike.seq * 7919 + 1, self.sr, strike.offset)
+        pool.add(wire)
+        self._wires = [w for w in self._wires if not w.done]
+        self._wires.append(wire)
 
     def sample_name(self, strike: Strike) -> tuple[str, float]:
         if strike.zone in ("rim", "rimshot") and "snare" in self.id:

@@ -211,14 +211,43 @@ class NoiseVoice(Voice):
         self.sr = float(sample_rate)
         self.t = 0
         self.level = self.amplitude
+        self._knee: tuple[float, float] | None = None
+        """(seconds into the voice, nepers decayed by then) where the decay last changed; None: never changed."""
+
+    def _nepers(self, t: F64) -> F64:
+        """Decay of the envelope at ``t`` seconds into the voice, nepers (the attack aside)."""
+        if self._knee is None:
+            return t / self.decay
+        t0, n0 = self._knee
+        return n0 + (t - t0) / self.decay
+
+    def set_decay(self, decay: float) -> None:
+        """Decay with time constant ``decay`` (seconds) from the next sample handed out (a head damped while its
+        wires ring); samples synthesised ahead are rescaled, so the change lands on that sample."""
+        decay = max(float(decay), 1e-3)
+        if decay == self.decay:
+            return
+        ahead = self._buf.shape[0]
+        t0 = (self.t - ahead) / self.sr
+        n0 = float(self._nepers(np.array(t0)))
+        if ahead:
+            self._buf = self._buf * np.exp(-(np.arange(ahead) / self.sr) * (1.0 / decay - 1.0 / self.decay))
+        self._knee, self.decay = (t0, n0), decay
+        self.level = self.amplitude * float(np.exp(-n0))
 
     def synth(self, n: int) -> F64:
         t = (self.t + np.arange(n)) / self.sr
         self.t += n
-        env = self.amplitude * (1.0 - np.exp(-t / self.attack)) * np.exp(-t / self.decay)
+        if self._knee is None:  # the original expression: renders without a change stay bit-identical
+            env = self.amplitude * (1.0 - np.exp(-t / self.attack)) * np.exp(-t / self.decay)
+            finished = t[-1] > self.attack + 9.0 * self.decay  # below -78 dB
+        else:
+            nepers = self._nepers(t)
+            env = self.amplitude * (1.0 - np.exp(-t / self.attack)) * np.exp(-nepers)
+            finished = t[-1] > self.attack and nepers[-1] > 9.0
         noise = self.rng.standard_normal(n)
         y, self.zi = signal.sosfilt(self.sos, noise, zi=self.zi)
         self.level = float(env[-1])
-        if t[-1] > self.attack + 9.0 * self.decay:  # below -78 dB
+        if finished:
             self._finished = True
         return np.asarray(y * env * 2.0)
