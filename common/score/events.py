@@ -132,7 +132,8 @@ class Score:
     bar_beats : np.ndarray, shape (M,)
         Where each bar starts, in beats from the first (an index into ``beats``, fractional where a bar starts
         between two); increasing. Empty when the reader knows no bars (:mod:`common.score.position` then counts
-        bars of 4 beats).
+        bars of 4 beats). A MIDI file's last start lies past its last beat: where the bar holding its end ends
+        (bars after it are as long).
     """
 
     events: list[DrumEvent]

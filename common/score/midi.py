@@ -4,8 +4,9 @@ Tempo changes anywhere in the file are honoured (a type 1 file's conductor
 track or inline), running status is handled by mido's parser, and notes are
 taken from the drum channels: channel 10 (index 9), any channel whose bank
 select MSB is 120 (GM2 rhythm) or 127 (XG drums), and any channel the caller
-names. A file that is not a MIDI file, is truncated or is corrupt raises
-:class:`ScoreError` naming the file and the problem.
+names. A RIFF MIDI file (``.rmi``: a Standard MIDI File in a RIFF ``RMID`` form's ``data`` chunk) is read as the
+file it wraps. A key signature mido cannot decode is ignored with a warning (a drum score has no key). A file that
+is not a MIDI file, is truncated or is corrupt raises :class:`ScoreError` naming the file and the problem.
 
 A long file takes seconds: 200,184 notes (2 MB) about 3 s, mido's parser most of it. ``read_midi(...,
 progress=)`` is told how many of the file's bytes mido has parsed as it goes.
@@ -15,12 +16,16 @@ from __future__ import annotations
 
 import io
 import math
-from collections.abc import Callable, Collection, Mapping
+import struct
+import threading
+from collections.abc import Callable, Collection, Iterator, Mapping
+from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
 import mido
 import numpy as np
-from mido.midifiles.meta import KeySignatureError
+from mido.midifiles.meta import KeySignatureError, MetaSpec_key_signature, add_meta_spec
 
 from common.gcpause import cyclic_gc_paused
 from common.kit import EventType
@@ -52,6 +57,44 @@ REPORT_EVERY_MESSAGES = 4096
 
 ReadProgress = Callable[[int, int], None]
 """Told (bytes parsed, bytes in the file) while a MIDI file is read."""
+RIFF_MIDI_FORM = b"RMID"
+"""The form type of a RIFF MIDI file (``.rmi``), whose ``data`` chunk holds a Standard MIDI File."""
+
+
+class _TolerantKeySignature(MetaSpec_key_signature):
+    """mido's key signature, which in a thread reading a score (:func:`_noting_bad_keys`) notes a key it cannot
+    decode and leaves the message at mido's default key instead of refusing the whole file.
+
+    mido has no option to skip a bad message (mido issue #187); a meta spec registered with ``add_meta_spec`` (its
+    documented way to define meta messages) is what it offers. Every other thread, and this one outside a score
+    reading, gets mido's own behaviour: its ``KeySignatureError``."""
+
+    type = "key_signature"
+    _reading = threading.local()
+
+    def decode(self, message: Any, data: Any) -> None:
+        try:
+            super().decode(message, data)
+        except (KeySignatureError, IndexError) as exc:  # IndexError: fewer than the key's two bytes
+            problems: list[str] | None = getattr(self._reading, "problems", None)
+            if problems is None:
+                raise
+            problems.append(str(exc) if isinstance(exc, KeySignatureError) else
+                            f"{len(data)} byte{'s' * (len(data) != 1)} of the 2 a key signature holds")
+
+
+add_meta_spec(_TolerantKeySignature)
+
+
+@contextmanager
+def _noting_bad_keys() -> Iterator[list[str]]:
+    """While mido parses in this thread, a key signature it cannot decode is listed (why) instead of raised."""
+    problems: list[str] = []
+    _TolerantKeySignature._reading.problems = problems
+    try:
+        yield problems
+    finally:
+        _TolerantKeySignature._reading.problems = None
 
 
 class _ReportingBytes(io.BytesIO):
@@ -74,8 +117,10 @@ class _ReportingBytes(io.BytesIO):
         return position
 
 
-def _open(source: str | Path | bytes, progress: ReadProgress | None = None) -> tuple[mido.MidiFile, str, int]:
-    """The parsed file, its name for messages and its size in bytes; :class:`ScoreError` if it cannot be."""
+def _open(source: str | Path | bytes,
+          progress: ReadProgress | None = None) -> tuple[mido.MidiFile, str, int, list[str]]:
+    """The parsed file, its name for messages, its size in bytes (of the Standard MIDI File) and warnings;
+    :class:`ScoreError` if it cannot be."""
     name = "<bytes>" if isinstance(source, bytes) else str(source)
     if isinstance(source, bytes):
         data = source
@@ -88,16 +133,53 @@ def _open(source: str | Path | bytes, progress: ReadProgress | None = None) -> t
     if len(data) > MAX_SCORE_BYTES:
         raise ScoreError(f"{name}: {len(data) / 2**20:.0f} MB is too large for a score (at most "
                          f"{MAX_SCORE_BYTES // 2**20} MB)")
-    data = _without_alien_chunks(data)
+    data = _without_alien_chunks(_unwrapped_riff(data, name))
     if progress is not None:
         progress(0, len(data))
     stream = io.BytesIO(data) if progress is None else _ReportingBytes(data, progress)
     try:
-        return mido.MidiFile(file=stream, clip=False), name, len(data)
+        with _noting_bad_keys() as bad_keys:
+            mid = mido.MidiFile(file=stream, clip=False)
     except EOFError as exc:
         raise ScoreError(f"{name}: truncated MIDI file ({str(exc) or 'the data ends early'})") from exc
-    except (OSError, ValueError, KeyError, IndexError, TypeError, KeySignatureError) as exc:  # a bad key signature
+    except (OSError, ValueError, KeyError, IndexError, TypeError, KeySignatureError) as exc:
+        # KeySignatureError (no ValueError) only if another module replaced the tolerant key signature spec
         raise ScoreError(f"{name}: not a valid Standard MIDI File ({type(exc).__name__}: {exc})") from exc
+    warnings = []
+    if bad_keys:
+        count = f"{len(bad_keys)} key signatures" if len(bad_keys) > 1 else "a key signature"
+        warnings.append(f"{name}: {count} that cannot be read ignored (a drum score needs no key; "
+                        f"{bad_keys[0]})")
+    return mid, name, len(data), warnings
+
+
+def _unwrapped_riff(data: bytes, name: str) -> bytes:
+    """The Standard MIDI File a RIFF MIDI file (``RIFF`` size ``RMID``, then chunks) holds in its ``data`` chunk;
+    any other bytes as they are. A RIFF file of another form (a WAV) or a broken one raises :class:`ScoreError`.
+
+    The RIFF size is not trusted (writers get it wrong); the chunks are followed to the first ``data`` one, each
+    a 4-byte type, a little-endian 32-bit size and its bytes, padded to an even length."""
+    if data[:4] != b"RIFF":
+        return data
+    if len(data) < 12:
+        raise ScoreError(f"{name}: truncated RIFF file ({len(data)} bytes, shorter than its 12-byte header)")
+    form = data[8:12]
+    if form != RIFF_MIDI_FORM:
+        raise ScoreError(f"{name}: not a valid Standard MIDI File (a RIFF {form.decode('latin-1')!r} file, not "
+                         f"RIFF MIDI {RIFF_MIDI_FORM.decode()!r})")
+    offset = 12
+    while offset + 8 <= len(data):
+        kind, size = data[offset : offset + 4], struct.unpack("<I", data[offset + 4 : offset + 8])[0]
+        start = offset + 8
+        if kind == b"data":
+            if start + size > len(data):
+                raise ScoreError(f"{name}: truncated RIFF MIDI file (its 'data' chunk holds {size} bytes, "
+                                 f"{len(data) - start} are in the file)")
+            return data[start : start + size]
+        offset = start + size + size % 2
+    if offset < len(data):  # a chunk header cut short
+        raise ScoreError(f"{name}: truncated RIFF MIDI file (a chunk header at byte {offset} is cut short)")
+    raise ScoreError(f"{name}: RIFF MIDI file without a 'data' chunk (the Standard MIDI File it should hold)")
 
 
 def _without_alien_chunks(data: bytes) -> bytes:
@@ -193,7 +275,7 @@ def read_midi(
 def _read(source: str | Path | bytes, drum_channels: Collection[int] | None, drum_map: Mapping[int, EventType],
           progress: ReadProgress | None) -> tuple[Score, int]:
     """:func:`read_midi`'s work; also returns the file's size in bytes."""
-    mid, name, size = _open(source, progress)
+    mid, name, size, open_warnings = _open(source, progress)
     if mid.ticks_per_beat < 0:  # the division's top bit: frames a second and ticks a frame
         raise ScoreError(f"{name}: SMPTE time division ({-(mid.ticks_per_beat >> 8)} frames a second, "
                          f"{mid.ticks_per_beat & 0xFF} ticks a frame) is not supported; save it with ticks per beat")
@@ -223,7 +305,7 @@ def _read(source: str | Path | bytes, drum_channels: Collection[int] | None, dru
             drums.add(msg.channel)
         elif msg.type == "note_on" and msg.velocity > 0:
             raw.append((seconds, msg.note, msg.velocity, msg.channel, tick))
-    warnings: list[str] = []
+    warnings = open_warnings
     chosen = [r for r in raw if r[3] in drums]
     if not chosen and raw and not drum_channels:
         channels = sorted({r[3] + 1 for r in raw})
@@ -251,17 +333,21 @@ def _check_size(notes: list[tuple[float, int, int, int, int]], name: str) -> Non
 
 
 def _bar_beats(meters: list[tuple[int, int, int]], end_tick: int, ticks_per_beat: int) -> np.ndarray:
-    """Where bars start (beats from tick 0) up to ``end_tick`` given (tick, numerator, denominator) time
-    signatures in tick order: a signature starts a bar where it stands (the one before is cut short there). At
-    most :data:`MAX_SCORE_BARS`."""
+    """Where bars start (beats from tick 0) given (tick, numerator, denominator) time signatures in tick order: a
+    signature starts a bar where it stands (the one before is cut short there). The last start is where the bar
+    holding ``end_tick`` ends, so that bars past the file's end go on as long as its last signature's
+    (:func:`common.score.position.bar_beat` counts on from the last two starts; the file usually ends inside a bar,
+    whose part before the end made them a beat or so long). At most :data:`MAX_SCORE_BARS`."""
     starts: list[np.ndarray] = []
     count = 0
     for k, (tick, numerator, denominator) in enumerate(meters):
-        until = meters[k + 1][0] if k + 1 < len(meters) else end_tick + 1
-        if until <= tick:  # replaced at the same tick
+        last = k + 1 == len(meters)
+        until = end_tick if last else meters[k + 1][0]
+        if until <= tick and not last:  # replaced at the same tick
             continue
         bar_ticks = numerator * ticks_per_beat * 4 / denominator
-        n = min(math.ceil((until - tick) / bar_ticks), MAX_SCORE_BARS - count)
+        whole = math.floor((until - tick) / bar_ticks) + 2 if last else math.ceil((until - tick) / bar_ticks)
+        n = min(whole, MAX_SCORE_BARS - count)
         starts.append(tick + bar_ticks * np.arange(max(n, 0)))
         count += max(n, 0)
     return np.concatenate(starts) / ticks_per_beat if starts else np.zeros(0)

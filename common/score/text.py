@@ -184,6 +184,7 @@ def parse_text(text: str, source: str = "text") -> TextScore:
     tempo = _Tempo()
     beats_per_bar = 4.0
     position = 0.0  # beats
+    last_note = 0.0  # the latest beat an `at` line placed a note on
     events: list[DrumEvent] = []
     block: list[tuple[int, str, str]] = []  # lineno, name, cells
     last_block: list[DrumEvent] = []  # events of the last block, in beats (time field holds beats)
@@ -264,6 +265,7 @@ def parse_text(text: str, source: str = "text") -> TextScore:
 
     def note(lineno: int, rest: str) -> None:
         """``at BEAT NAME [VELOCITY] [L|R]``."""
+        nonlocal last_note
         parts = rest.split()
         if not 2 <= len(parts) <= 4:
             raise ScoreError(f"line {lineno}: note needs '<beat> <instrument> [velocity] [L|R]'")
@@ -285,6 +287,7 @@ def parse_text(text: str, source: str = "text") -> TextScore:
                              f"({position:g} beats so far)")
         check_until(position + beat, len(events) + 1, lineno)
         events.append(DrumEvent(tempo.seconds(position + beat), ev, vel, None, limb, None))
+        last_note = max(last_note, position + beat)
 
     lines = text.removeprefix("\ufeff").splitlines()  # a byte order mark, as Windows editors write
     for lineno, raw_line in enumerate(lines, start=1):
@@ -341,6 +344,10 @@ def parse_text(text: str, source: str = "text") -> TextScore:
         except (ValueError, IndexError, OverflowError) as exc:
             raise ScoreError(f"line {lineno}: cannot read {line.strip()!r} ({exc})") from exc
     flush()
+    if events and not bar_starts:  # `at` lines only: no block or rest gave a bar, and the score had a single beat
+        # bars of the meter in force, through the one holding the last note (a whole bar, as a block's)
+        position = (math.floor(last_note / beats_per_bar + 1e-9) + 1) * beats_per_bar
+        add_bars(0.0, position)
     kept, removed = remove_duplicates(events)
     beats = np.array([tempo.seconds(b) for b in np.arange(0.0, position + 1e-9, 1.0)])
     score = TextScore(events=kept, beats=beats, bar_beats=np.array(bar_starts, dtype=float), duplicates=removed,
@@ -351,21 +358,30 @@ def parse_text(text: str, source: str = "text") -> TextScore:
     return score
 
 
+MIDI_SUFFIXES = (".mid", ".midi", ".smf", ".rmi")
+"""File names read as MIDI whatever they hold (``.rmi``: RIFF MIDI)."""
+
+
+def _starts_as_midi(head: bytes) -> bool:
+    """Whether a file's first 12 bytes are a Standard MIDI File's (``MThd``) or a RIFF MIDI file's."""
+    return head[:4] == b"MThd" or (head[:4] == b"RIFF" and head[8:12] == b"RMID")
+
+
 def read_score(path: str | Path, **kwargs: object) -> Score:
-    """Read a score file: ``.mid``/``.midi``/``.smf`` or a file starting as a Standard MIDI File does as MIDI,
-    anything else as the text format.
+    """Read a score file: ``.mid``/``.midi``/``.smf``/``.rmi`` or a file starting as a Standard MIDI File or a RIFF
+    MIDI file does as MIDI, anything else as the text format.
 
     Keyword arguments (``drum_channels``, ``progress``, ...) go to :func:`common.score.midi.read_midi`; a text score
     ignores them (it has no channels, and reads quickly: 208,000 notes in about 1 s, without progress reports)."""
     from common.score.midi import read_midi
 
     p = Path(path)
-    if p.suffix.lower() in (".mid", ".midi", ".smf"):
+    if p.suffix.lower() in MIDI_SUFFIXES:
         return read_midi(p, **kwargs)  # type: ignore[arg-type]
     check_file(p, str(p))
     try:
         with p.open("rb") as f:
-            if f.read(4) == b"MThd":  # a MIDI file by another name (.kar, none): it was "not UTF-8 text"
+            if _starts_as_midi(f.read(12)):  # a MIDI file by another name (.kar, none): it was "not UTF-8 text"
                 return read_midi(p, **kwargs)  # type: ignore[arg-type]
         text = read_text(p)
     except OSError as exc:

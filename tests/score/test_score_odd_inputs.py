@@ -68,9 +68,11 @@ def test_smpte_and_zero_divisions_are_refused_in_words() -> None:
 def test_a_time_signature_with_a_corrupt_denominator_is_ignored(power: int) -> None:
     signature = (0, b"\xff\x58\x04\x03" + bytes([power]) + b"\x18\x08")
     score = read_midi(_smf([_track([signature, *BEAT, (2 * 480, b"\x99\x24\x64")])]))  # a kick at beat 4
-    assert score.bar_beats.tolist() == [0, 4]  # as without it; was half a million bars of 2^-40 beats or less
+    # as without it (the last start: where the bar holding the file's end ends); was half a million bars of 2^-40
+    # beats or less
+    assert score.bar_beats.tolist() == [0, 4, 8]
     small = read_midi(_smf([_track([(0, b"\xff\x58\x04\x03\x05\x18\x08"), *BEAT, (2 * 480, b"\x99\x24\x64")])]))
-    assert small.bar_beats.tolist() == [0, 0.375, 0.75, 1.125, 1.5, 1.875, 2.25, 2.625, 3, 3.375, 3.75]  # 3/32
+    assert small.bar_beats.tolist() == [0, 0.375, 0.75, 1.125, 1.5, 1.875, 2.25, 2.625, 3, 3.375, 3.75, 4.125]  # 3/32
 
 
 def test_a_repeat_after_a_meter_change_keeps_the_repeated_blocks_bars() -> None:

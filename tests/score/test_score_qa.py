@@ -55,11 +55,13 @@ def test_tempo_zero_is_an_error() -> None:
         read_midi(_snares(8, tempo=0))
 
 
-def test_a_bad_key_signature_is_a_one_line_error() -> None:
-    # mido's KeySignatureError is no ValueError: a traceback from `batteur render`
+def test_a_bad_key_signature_is_ignored_with_a_warning() -> None:
+    # mido's KeySignatureError is no ValueError: a traceback from `batteur render`, then the whole file refused
     data = _smf(b"\x00\xff\x59\x02\x00\x2f" + b"\x00\x99\x26\x64\x00\xff\x2f\x00")
-    with pytest.raises(ScoreError, match="not a valid Standard MIDI File.*key"):
-        read_midi(data)
+    score = read_midi(data)
+    assert [e.event for e in score.events] == [E.SNARE]
+    assert score.warnings == ["<bytes>: a key signature that cannot be read ignored (a drum score needs no key; "
+                              "Could not decode key with 0 flats and mode 47)"]
 
 
 def test_too_many_notes_and_too_large_files_are_refused(tmp_path: Path) -> None:
