@@ -433,6 +433,8 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as exc:
         parser.error(f"cannot write {output}: {exc.strerror or exc}")
     print(f"wrote {output}")
+    if output.resolve() == OUT.resolve():  # docs/pd.md shows it: a test fails until the picture is redrawn
+        print("redraw its picture in docs/pd.md: python pd/render_patch.py pd/control.pd docs/img/pd-control.png")
     return 0
 
 

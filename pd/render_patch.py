@@ -5,20 +5,27 @@
 No Pd GUI or X server needed: the .pd file gives every box's position and text, and every
 connection. Boxes are sized from their text (Pd's 12-point font is about 7 pixels a character),
 GUI objects from their own size arguments; inlets and outlets are counted from the connections.
+A PNG keeps the SHA-256 of the patch it was drawn from (``--check`` compares it with the patch as
+it is now; tests/deploy/test_pd_walkthrough.py does so for the pictures of docs/pd.md).
 """
 
 from __future__ import annotations
 
 import argparse
+import hashlib
 import re
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 
 from PIL import Image, ImageDraw, ImageFont
+from PIL.PngImagePlugin import PngInfo
 
 CHAR_W = 7
 LINE_H = 16
 MAX_CHARS = 60
+SOURCE_KEY = "batteur-patch-sha256"
+"""PNG text chunk holding the SHA-256 (hex) of the patch file a picture was drawn from."""
 
 
 @dataclass
@@ -174,7 +181,35 @@ def render(src: Path, dst: Path) -> None:
                 px = port_x(box, k, inlets[index])
                 draw.rectangle([px - 3, y0, px + 4, y0 + 2], fill="black")
     dst.parent.mkdir(parents=True, exist_ok=True)
-    image.save(dst)
+    info = PngInfo()
+    info.add_text(SOURCE_KEY, patch_digest(src))
+    image.save(dst, pnginfo=info)  # formats other than PNG ignore the chunk
+
+
+def patch_digest(patch: Path) -> str:
+    """SHA-256 (hex) of a patch file's bytes."""
+    return hashlib.sha256(patch.read_bytes()).hexdigest()
+
+
+def drawn_from(picture: Path) -> str | None:
+    """The digest of the patch a PNG was drawn from (:func:`patch_digest`), or None if it does not say."""
+    with Image.open(picture) as image:
+        value = image.info.get(SOURCE_KEY)
+    return value if isinstance(value, str) else None
+
+
+def check(patch: Path, picture: Path) -> int:
+    """0 if ``picture`` was drawn from ``patch`` as it is now, else 1 (with the command that redraws it)."""
+    try:
+        current = drawn_from(picture) == patch_digest(patch)
+    except OSError as exc:
+        print(f"render_patch.py: cannot read {exc.filename or picture}: {exc.strerror or exc}", file=sys.stderr)
+        return 1
+    if not current:
+        print(f"{picture} is stale: run python pd/render_patch.py {patch} {picture}", file=sys.stderr)
+        return 1
+    print(f"{picture} is up to date")
+    return 0
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -185,7 +220,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("patch", type=Path, metavar="PATCH.pd", help="the patch file to draw")
     parser.add_argument("out", type=Path, metavar="OUT.png",
                         help="the picture to write (its extension chooses the format: .png, .jpg, ...)")
+    parser.add_argument("--check", action="store_true",
+                        help="write nothing: exit 1 if OUT.png was not drawn from PATCH.pd as it is now")
     args = parser.parse_args(argv)
+    if args.check:
+        return check(args.patch, args.out)
     formats = Image.registered_extensions()
     if args.out.suffix.lower() not in formats:
         parser.error(f"{args.out}: unknown picture format {args.out.suffix or '(no extension)'!r}; "
