@@ -2,10 +2,12 @@
 
 Static peers (``--peer sound=host:port``) override discovery for their role:
 once a role has a static peer, discovered nodes of that role are ignored.
+Every static peer given for a role is sent to (two sound servers: both play).
 """
 
 from __future__ import annotations
 
+import hashlib
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -44,7 +46,23 @@ def parse_static_peer(spec: str) -> Peer:
         raise ValueError(f"peer {spec!r}: port {port_text!r} is not a number") from None
     if not 0 < port < 65536:
         raise ValueError(f"peer {spec!r}: port {port} out of range 1-65535")
-    return Peer(role=role.strip(), host=host, port=port, node_id=f"static:{role}", static=True)
+    role = role.strip()
+    return Peer(role=role, host=host, port=port, node_id=static_peer_id(role, host, port), static=True)
+
+
+STATIC_ID_MAX = 64
+"""Longest static peer id: it names the clock master in ``ClockStatus.master`` (at most 64 characters)."""
+
+
+def static_peer_id(role: str, host: str, port: int) -> str:
+    """``static:ROLE:HOST:PORT``, one id per address, so several static peers of a role are all kept (the same
+    address given twice is one peer); a digest of the address where that would be longer than
+    :data:`STATIC_ID_MAX`."""
+    node_id = f"static:{role}:{host}:{port}"
+    if len(node_id) <= STATIC_ID_MAX:
+        return node_id
+    digest = hashlib.sha256(f"{host}:{port}".encode()).hexdigest()[:16]
+    return f"static:{role}"[: STATIC_ID_MAX - 17] + ":" + digest
 
 
 @dataclass

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import re
 import threading
 import time
 from collections.abc import Iterator
@@ -90,7 +91,7 @@ def test_a_synced_node_publishes_its_clock_status_to_its_peers_and_the_master_do
 
             await wait_for(lambda: any(s.synced and s.samples >= 8 for s in statuses()))
             status = next(s for s in statuses() if s.synced and s.samples >= 8)
-            assert status.node_id == remote.node_id and status.master == "static:physics"
+            assert status.node_id == remote.node_id and status.master == f"static:physics:{masters}"
             assert status.offset_s == pytest.approx(10.0, abs=0.005)
             assert 0.0 <= status.uncertainty_s < 0.005 and 0.0 <= status.round_trip_s < 1.0
             assert (status.rejected, status.outliers, status.steps, status.foreign_pongs) == (0, 0, 0, 0)
@@ -164,7 +165,8 @@ def test_batteur_echo_prints_a_live_nodes_clock_status(synced_sound_node: Node,
     assert echo.main(["/batteur/clock/status", "--node", address, "--count", "1", "--duration", "20"]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert len(lines) == 1
-    head = f"/batteur/clock/status {synced_sound_node.node_id} synced (master static:physics): offset "
-    assert lines[0].startswith(head)
-    assert float(lines[0][len(head):].split()[0]) == pytest.approx(10.0, abs=0.005)
+    found = re.match(rf"/batteur/clock/status {synced_sound_node.node_id} synced "
+                     r"\(master static:physics:127\.0\.0\.1:\d+\): offset (\S+)", lines[0])
+    assert found, lines[0]
+    assert float(found[1]) == pytest.approx(10.0, abs=0.005)
     assert lines[0].endswith("0 foreign pongs")

@@ -81,7 +81,7 @@ def test_the_pd_profile_sends_interactions_impacts_to_pd_sound(netns_lab: NetnsL
         while len([line for line in client.errors if line.startswith("batteur-impact:")]) < 3:
             assert time.monotonic() < deadline, client.describe("fewer than 3 strikes played")
             time.sleep(0.05)
-        assert any("peer sound static:sound at pd-sound" in line for line in interaction.errors), interaction.errors
+        assert any("peer sound static:sound:pd-sound:9103 at pd-sound" in line for line in interaction.errors), interaction.errors
         played = [line.split()[2:] for line in client.errors if line.startswith("batteur-impact:")]
         # four copies of each impact: each played once, at its rig time
         assert [p[0] for p in played] == ["snare", "floortom", "crash"], client.errors
