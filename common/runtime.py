@@ -61,6 +61,12 @@ from common.transport import UdpEndpoint, format_address, parse_address, same_ip
 log = logging.getLogger("batteur.runtime")
 
 DEFAULT_BROWSE_ROLES = ("physics", "interaction", "sound", "graphics")
+START_UNCERTAINTY_S = 0.005
+"""A node whose clock master is another node starts its core once its offset is known to this, seconds (or after
+:data:`FAST_PING_SAMPLES` samples, the best it will get soon): the first sample of a loaded machine can be off by
+tens of milliseconds, and the core would play that much early or late until better ones came."""
+FAST_PING_SAMPLES = 8
+"""Clock samples gathered with fast pings (10 Hz) before pinging every ``ping_interval_s``."""
 """Roles a node looks for by default (it publishes Health to all of them)."""
 
 
@@ -309,8 +315,10 @@ class Node:
         (10 ticks at 1 kHz, none at 60 Hz); the rest is skipped. Seconds.
     clock_wait_s : float
         A node whose clock master is another node holds its core (no steps; messages for the
-        core queued, up to 1024) until its clock offset is estimated, so the core never sees rig
-        time jump by the offset; after this long without a master it starts anyway. Seconds.
+        core queued, up to 1024) until its clock offset is estimated to :data:`START_UNCERTAINTY_S`
+        (or from :data:`FAST_PING_SAMPLES` samples), so the core never sees rig time jump by the
+        offset; after this long it starts anyway (on the estimate so far, or without a master on its
+        own clock). Seconds.
     """
 
     def __init__(
@@ -639,7 +647,11 @@ class Node:
 
     async def _core_start_timer(self) -> None:
         await asyncio.sleep(self.clock_wait_s)
-        if not self.core_started:
+        if not self.core_started and self.clock.synced:
+            log.warning("rig clock offset known to +/- %.6f s only after %g s (%d samples): starting on it",
+                        self.estimator.uncertainty, self.clock_wait_s, len(self.estimator.samples))
+            self.start_core("clock offset uncertain")
+        elif not self.core_started:
             log.warning("no clock master (%s) within %g s: starting on this node's own clock; rig time will "
                         "jump when the master appears", self.settings.clock_master, self.clock_wait_s)
             self.start_core("clock master not found")
@@ -747,7 +759,17 @@ class Node:
                     self.clock.offset,
                     self.estimator.uncertainty,
                 )
+            if not self.core_started and self._clock_good_enough():
+                if not first:
+                    log.info("rig clock offset %+.6f s (+/- %.6f s) after %d samples", self.clock.offset,
+                             self.estimator.uncertainty, len(self.estimator.samples))
                 self.start_core()
+
+    def _clock_good_enough(self) -> bool:
+        """Whether the offset is known well enough to start the core (:data:`START_UNCERTAINTY_S`), or as well as
+        the fast pings will know it."""
+        return (self.estimator.uncertainty <= START_UNCERTAINTY_S
+                or len(self.estimator.samples) >= FAST_PING_SAMPLES)
 
     def _from_clock_master(self, source: str) -> bool:
         """True if ``source`` (``host:port``) is the address the clock pings are sent to, as resolved for sending."""
@@ -863,7 +885,7 @@ class Node:
                 ping = self.estimator.make_ping(self.clock.local_now())
                 self._ping_to = master.address
                 self.endpoint.send(ping, master.address)
-            fast = len(self.estimator.samples) < 8
+            fast = len(self.estimator.samples) < FAST_PING_SAMPLES
             await asyncio.sleep(min(0.1, self.ping_interval_s) if fast else self.ping_interval_s)
 
     def _log_error(self, text: str, *args: object) -> None:
