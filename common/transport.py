@@ -13,7 +13,11 @@ networks), the size limit, the per-source rate limit, parsing, the message
 model, the handler. A failure at any stage drops what failed (one datagram,
 or one message of a bundle), counts it in ``stats`` under its
 :class:`~common.messages.DropReason` and logs it at most once per reason per
-interval; the loop carries on.
+interval; the loop carries on. A control message of a known address that the
+model refuses (wrong argument count or type, a value out of range) is also
+answered to its sender with its service's refusal (:func:`decode_refusal`),
+within a reply budget per sender host; streams (contacts, poses, impacts ...)
+never are.
 
 Addresses: a destination ``to`` is a role (every peer of that role in the
 :class:`~common.peers.PeerTable`), ``"host:port"`` (IPv6 as ``"[::1]:9000"``)
@@ -31,15 +35,17 @@ import socket
 import struct
 import sys
 import time
-from collections import OrderedDict
 from collections.abc import Callable, Iterable, Sequence
 from typing import Any
 
-from common.messages import REGISTRY, Arg, DropReason, MessageError, MessageRegistry, OscMessage
+from common.messages import REGISTRY, Arg, DropReason, Family, MessageError, MessageRegistry, OscMessage
 from common.messages.codec import RawMessage, encode, encode_bundle, encode_raw, parse_packet, to_model
+from common.messages.interaction import InteractionError
+from common.messages.physics import PhysicsRejected
+from common.messages.sound import SoundRejected
 from common.peers import PeerTable
 from common.stats import TrafficStats
-from common.token_bucket import TokenBucket
+from common.token_bucket import TokenBuckets
 
 log = logging.getLogger("batteur.transport")
 
@@ -63,6 +69,36 @@ NAME_RETRY_S = 5.0
 """A host name that did not resolve is tried again after this long, seconds."""
 MAX_WAITING = 64
 """Packets held per host name while its first lookup runs; more are not sent (``unroutable``)."""
+DECODE_REPLY_RATE_HZ = 5.0
+"""Undecodable control messages answered per second to one sender host (past it, and the burst, they are only
+counted: ``decode_unanswered``), so forged packets cannot turn a node into a reflector."""
+DECODE_REPLY_BURST = 10.0
+"""Undecodable control messages answered to one sender host at once before :data:`DECODE_REPLY_RATE_HZ`."""
+DECODE_REPLY_REASONS = frozenset({DropReason.WRONG_ARITY, DropReason.WRONG_TYPE, DropReason.OUT_OF_RANGE})
+"""Decoding failures answered: the address is known, its arguments are not what its model takes."""
+REFUSAL_ENDINGS = ("/error", "/rejected", "/refused")
+"""Addresses of refusals (as ``batteur send --replies`` knows them): a malformed one is never answered, so two
+peers cannot answer each other's refusals without end."""
+
+
+def decode_refusal(address: str, reason: str, registry: MessageRegistry = REGISTRY) -> OscMessage | None:
+    """The refusal of the service that owns ``address`` for a control message there that could not be decoded
+    (``reason``, clipped to 512 characters): /batteur/physics/... and /batteur/score/... (the physics node plays
+    scores) :class:`PhysicsRejected`, /batteur/sound/... :class:`SoundRejected` (no instrument named),
+    /batteur/interaction/... :class:`InteractionError`. None for a stream (any family but control), a refusal
+    itself, an unknown address, or a service without a refusal message (graphics, recogniser)."""
+    model = registry.get(address)
+    if model is None or model.FAMILY is not Family.CONTROL or address.endswith(REFUSAL_ENDINGS):
+        return None
+    reason = reason[:512]
+    service = address.split("/")[2] if address.startswith("/batteur/") else ""
+    if service in ("physics", "score"):
+        return PhysicsRejected(address=address, reason=reason)
+    if service == "sound":
+        return SoundRejected(address=address, instrument="", reason=reason)
+    if service == "interaction":
+        return InteractionError(request=address, detail=reason)
+    return None
 
 
 def format_address(host: str, port: int) -> str:
@@ -141,6 +177,9 @@ class UdpEndpoint:
     unroutable : int
         Sends to a role with no known peer, or to an address that cannot be
         resolved or reached from this socket's address family.
+    decode_unanswered : int
+        Undecodable control messages not answered: their sender host was over
+        its reply budget (:data:`DECODE_REPLY_RATE_HZ`).
     send_errors : int
         Socket errors while sending, and messages too large to send.
     rcvbuf_bytes : int
@@ -177,7 +216,11 @@ class UdpEndpoint:
         """Called for every valid message received and every message sent (``batteur echo``, OSCQuery)."""
         self._raw_routes: list[tuple[str, RawHandler]] = []
         self._transport: asyncio.DatagramTransport | None = None
-        self._buckets: OrderedDict[str, TokenBucket] = OrderedDict()
+        self._buckets = TokenBuckets(self.max_rate or 0.0, max(self.max_burst, 1.0))
+        """Sender host -> its budget of messages (``max_rate``)."""
+        self._reply_budgets = TokenBuckets(DECODE_REPLY_RATE_HZ, DECODE_REPLY_BURST)
+        """Sender host -> its budget of answers to undecodable control messages."""
+        self.decode_unanswered = 0
         self._names: dict[str, _Name] = {}
         self._loop: asyncio.AbstractEventLoop | None = None
         self._allowed_cache: dict[str, bool] = {}
@@ -468,6 +511,8 @@ class UdpEndpoint:
                 if exc.reason is DropReason.UNKNOWN_ADDRESS and self._route_raw(raw, source):
                     continue
                 stats.record_drop(exc.reason, str(exc), source)
+                if exc.reason in DECODE_REPLY_REASONS:
+                    self._answer_undecodable(raw.address, exc, host, source)
                 continue
             stats.messages_in += 1
             if self.tap is not None:
@@ -478,6 +523,17 @@ class UdpEndpoint:
                 except Exception as exc:  # a handler bug must not stop the endpoint
                     stats.record_drop(DropReason.HANDLER_ERROR, f"{raw.address}: {type(exc).__name__}: {exc}", source)
                     log.debug("handler error on %s", raw.address, exc_info=True)
+
+    def _answer_undecodable(self, address: str, error: MessageError, host: str, source: str) -> None:
+        """Tell the sender why its control message was dropped (:func:`decode_refusal`), within its host's reply
+        budget; over it, count it in ``decode_unanswered``."""
+        reply = decode_refusal(address, str(error), self.registry)
+        if reply is None:
+            return
+        if not self._reply_budgets.take(host, self._clock()):
+            self.decode_unanswered += 1
+            return
+        self.send(reply, source)
 
     def _tap_in(self, message: OscMessage) -> None:
         tap = self.tap
@@ -525,16 +581,7 @@ class UdpEndpoint:
         the debt is paid back at ``max_rate`` before the source is heard again.
         """
         assert self.max_rate is not None
-        now = self._clock()
-        bucket = self._buckets.get(host)
-        if bucket is None:
-            bucket = TokenBucket(self.max_rate, max(self.max_burst, 1.0), now)
-            self._buckets[host] = bucket
-            if len(self._buckets) > 1024:
-                self._buckets.popitem(last=False)
-        else:
-            self._buckets.move_to_end(host)
-        return bucket.take(now, count)
+        return self._buckets.take(host, self._clock(), count)
 
     def _log_limited(self, key: str, level: int, text: str, *args: object) -> None:
         now = self._clock()

@@ -5,7 +5,8 @@ limb (or the joints) should be there, and the velocity it should have then.
 The physics service interpolates between received targets (cubic Hermite),
 so a sender can stream at any rate (the 250 Hz of motion capture, or sparse
 key frames). Targets in the past, non-finite values, unreachable positions and
-wrong lengths are rejected with a clear error and counted.
+wrong lengths are rejected with a clear error, counted and answered to the
+sender (:class:`PhysicsRejected`).
 """
 
 from __future__ import annotations
@@ -76,7 +77,8 @@ class PhysicsIk(OscMessage):
 
 @register
 class PhysicsReset(OscMessage):
-    """Put the drummer back in the rest posture and clear every queued target."""
+    """Put the drummer back in the rest posture and clear every queued target (at once: a score plan being
+    computed is dropped)."""
 
     ADDRESS = "/batteur/physics/reset"
     FAMILY = Family.CONTROL
@@ -139,3 +141,18 @@ class PhysicsPosture(OscMessage):
     duration: float = Field(ge=0, le=10, description="time to reach the posture, seconds")
     values: tuple[float, ...] = Field(description="57 joint angles, radians, in skeleton DOF order "
                                       "(common/character.py DOF_NAMES)")
+
+
+@register
+class PhysicsRejected(OscMessage):
+    """Reply to a physics or score control message (/batteur/physics/..., /batteur/score/...) that was refused, and
+    why, sent back to its sender: a target out of reach, a strike outside the strike scene, a score that cannot be
+    read or played, a pause with nothing playing, a live note too late to prepare ...; also a message the node
+    could not decode (a wrong argument count or type, a value out of range). Accepted messages get no answer.
+    Budgeted per sender host (physics: 20 at once, then 10 a second; past it, counted and not answered)."""
+
+    ADDRESS = "/batteur/physics/rejected"
+    FAMILY = Family.CONTROL
+
+    address: str = Field(max_length=128, description="address of the refused message")
+    reason: str = Field(max_length=512, description="why it was refused")

@@ -50,10 +50,12 @@ from common.messages.physics import (
     PhysicsGrip,
     PhysicsIk,
     PhysicsPosture,
+    PhysicsRejected,
     PhysicsReset,
     PhysicsStrike,
 )
 from common.score.events import MAX_SCORE_NOTES
+from common.token_bucket import TokenBuckets
 from services.physics.contacts import ContactTracker
 from services.physics.posture import apply_posture
 from services.physics.score_player import SCORE_MESSAGES, ScorePlayer
@@ -74,6 +76,14 @@ MAX_PENDING_STRIKES = MAX_SCORE_NOTES
 REJECT_LOG_INTERVAL_S = 1.0
 """Rejections of one message kind are logged at most once per this many seconds of rig time (the rest are counted
 and summed into the next warning), so a stream of bad targets cannot flood the log."""
+REPLY_RATE_HZ = 10.0
+"""Refusals answered (:class:`PhysicsRejected`) per second of rig time to one sender host; past it (and the
+burst) a refusal is still counted and logged but not answered (``replies_unanswered``), so a flood of bad packets
+(perhaps with a forged source) cannot make physics send as much back."""
+REPLY_BURST = 20.0
+"""Refusals answered to one sender host at once before :data:`REPLY_RATE_HZ` applies."""
+REPLY_SENDERS = 1024
+"""Sender hosts whose reply budget is remembered (the least recently refused is forgotten first)."""
 
 
 class PhysicsSettings(BaseModel):
@@ -174,6 +184,13 @@ class PhysicsCore:
         """Message kind -> rig time (s) its last rejection was logged."""
         self._reject_quiet: Counter[str] = Counter()
         """Message kind -> rejections not logged since (see ``REJECT_LOG_INTERVAL_S``)."""
+        self._replies: list[Outgoing] = []
+        """Refusals to send back (:class:`PhysicsRejected`), handed out by the next :meth:`handle` or :meth:`step`
+        (a plan refused in the background is answered from a step)."""
+        self._reply_budgets = TokenBuckets(REPLY_RATE_HZ, REPLY_BURST, REPLY_SENDERS)
+        """Sender host -> its reply budget."""
+        self.replies_unanswered = 0
+        """Refusals not answered: their sender was over its reply budget."""
         self.diverged = 0
         """Steps whose simulation diverged (non-finite state); each reset the scene (see :meth:`_one_step`)."""
         self.contacts_sent = 0
@@ -191,7 +208,7 @@ class PhysicsCore:
 
     def step(self, now: float) -> list[Outgoing]:
         """Advance the simulation to rig time ``now`` seconds; return contacts, poses and layout messages."""
-        out: list[Outgoing] = []
+        out = self._take_replies()
         if now - self._last_skeleton >= self.settings.skeleton_period_s:
             out.append(Outgoing(self.skeleton(), "graphics"))
             self._last_skeleton = now
@@ -225,11 +242,17 @@ class PhysicsCore:
         return out
 
     def handle(self, message: OscMessage, now: float, source: str) -> list[Outgoing]:
-        """React to Hello (answer the layout) and to physics control messages."""
+        """React to Hello (answer the layout) and to physics control messages; a refused one is answered with a
+        :class:`PhysicsRejected` to ``source`` (see :meth:`_reject`)."""
+        return self.handle_counted(message, now, source) + self._take_replies()
+
+    def handle_counted(self, message: OscMessage, now: float, source: str) -> list[Outgoing]:
+        """:meth:`handle` without handing out the refusals' replies (they wait for the next :meth:`handle` or
+        :meth:`step`): the score player's handler for the messages that waited behind a background plan."""
         try:
-            return self._handle(message, now)
+            return self._handle(message, now, source)
         except (TargetError, ValueError) as exc:
-            self._reject(type(message).__name__, source, exc, now)
+            self._reject(message, source, exc, now)
             return []
 
     @property
@@ -238,9 +261,12 @@ class PhysicsCore:
         counts them as dropped."""
         return sum(self.rejected.values())
 
-    def _reject(self, kind: str, source: str, exc: Exception, now: float) -> None:
-        """Count a rejected message; log it unless this kind was logged within ``REJECT_LOG_INTERVAL_S``."""
+    def _reject(self, message: OscMessage, source: str, exc: Exception, now: float) -> None:
+        """Count a refused message, answer its sender (a :class:`PhysicsRejected` to ``source``, within the
+        sender's reply budget) and log it unless this kind was logged within ``REJECT_LOG_INTERVAL_S``."""
+        kind = type(message).__name__
         self.rejected[kind] += 1
+        self._reply(message.ADDRESS, str(exc), source, now)
         last = self._reject_logged.get(kind)
         if last is not None and 0.0 <= now - last < REJECT_LOG_INTERVAL_S:
             self._reject_quiet[kind] += 1
@@ -250,7 +276,23 @@ class PhysicsCore:
         log.warning("physics rejected %s from %s: %s%s", kind, source, exc, extra)
         self._reject_logged[kind] = now
 
-    def _handle(self, message: OscMessage, now: float) -> list[Outgoing]:
+    def _reply(self, address: str, reason: str, source: str, now: float) -> None:
+        """Queue a :class:`PhysicsRejected` for ``source`` ("host:port", or a role offline) if its host is within
+        its reply budget at rig time ``now`` (s); else count it in ``replies_unanswered``."""
+        if not source:
+            return
+        host = source.rpartition(":")[0] or source  # the budget is the host's: a flood may vary its ports
+        if not self._reply_budgets.take(host, now):
+            self.replies_unanswered += 1
+            return
+        self._replies.append(Outgoing(PhysicsRejected(address=address[:128], reason=reason[:512]), source))
+
+    def _take_replies(self) -> list[Outgoing]:
+        """The refusals' replies queued since the last call (emptied)."""
+        replies, self._replies = self._replies, []
+        return replies
+
+    def _handle(self, message: OscMessage, now: float, source: str) -> list[Outgoing]:
         if isinstance(message, Hello):
             return [Outgoing(self.skeleton(), "reply")]
         if isinstance(message, PhysicsReset):
@@ -268,7 +310,7 @@ class PhysicsCore:
             self.schedule_strikes([(message.time, message.velocity)])
             return []
         if isinstance(message, SCORE_MESSAGES):  # score player (its errors are ValueErrors: rejected and logged)
-            self.score_player.handle(message, now)
+            self.score_player.handle(message, now, source)
             return []
         handler = getattr(self.scene, "handle", None)
         if handler is None:

@@ -19,8 +19,9 @@ these), without any message.
 The node runs :class:`LivePhysicsCore`: score plans (``play``, style and tempo
 re-plans, live notes) are computed in a worker process and spliced in at the
 first step after they are ready, so the 1 kHz loop never waits for the planner;
-messages take effect in arrival order (services/physics/score_player.py,
-docs/physics.md "Background plans").
+messages take effect in arrival order, but a reset drops the plan in flight and acts at once
+(services/physics/score_player.py, docs/physics.md "Background plans"). A refused message is answered to
+its sender with ``/batteur/physics/rejected`` (docs/physics.md "Replies").
 """
 
 from __future__ import annotations
@@ -100,7 +101,8 @@ class LivePhysicsCore(PhysicsCore):
     Every message but ``Hello`` goes through the score player's FIFO (:meth:`ScorePlayer.submit`): with no plan in
     flight it acts at once as in :class:`PhysicsCore`; a message that plans starts its plan in the worker (a
     process by default; ``planner="thread"``: a thread, which shares the interpreter lock with the loop);
-    while one is in flight, the messages after it wait and act, in order, once it is spliced. Each step first
+    while one is in flight, the messages after it wait and act, in order, once it is spliced (a reset drops it
+    and acts at once). Refusals found while a plan is applied are answered from :meth:`step`. Each step first
     splices a plan that is ready (:meth:`ScorePlayer.pump`). ``close`` stops the worker without waiting for it.
     Offline (``PhysicsCore``) nothing of this runs: plans are computed in the handler, renders are deterministic.
     """
@@ -109,7 +111,7 @@ class LivePhysicsCore(PhysicsCore):
                  **kwargs: Any) -> None:
         super().__init__(settings, **kwargs)
         if self.settings.scene == "drummer":  # the strike scene plays no scores: no worker
-            self.score_player.start_background(super().handle, planner)
+            self.score_player.start_background(self.handle_counted, planner)
         self._position_sent = -math.inf
         """Rig time the score's position was last looked at (and sent, if one plays), seconds."""
 
@@ -117,10 +119,11 @@ class LivePhysicsCore(PhysicsCore):
         if isinstance(message, Hello) or not self.score_player.background:  # Hello changes nothing: at once
             return super().handle(message, now, source)
         try:
-            return self.score_player.submit(message, now, source)
+            out = self.score_player.submit(message, now, source)
         except (TargetError, ValueError) as exc:
-            self._reject(type(message).__name__, source, exc, now)
-            return []
+            self._reject(message, source, exc, now)
+            out = []
+        return out + self._take_replies()  # this message's refusal, and any of those that waited behind a plan
 
     def step(self, now: float) -> list[Outgoing]:
         self.score_player.pump(now)

@@ -70,7 +70,12 @@ spliced in at the first step after the plan is ready, so the physics loop
 never waits for the planner (docs/physics.md, "Background plans"). Every
 message then takes effect in arrival order: while a plan is in flight the
 messages after it wait in a FIFO (:meth:`ScorePlayer.submit`, :meth:`ScorePlayer.pump`),
-and live notes waiting together are planned together.
+and live notes waiting together are planned together; a ``/batteur/physics/reset``
+does not wait: it drops the plan in flight (:meth:`ScorePlayer._drop_for_reset`).
+
+A ``pause`` when nothing plays and no limb moves then, or a ``stop`` of a
+drummer that never moved, is refused (a :class:`ScorePlayerError`, answered to
+its sender by the core); tempo and style are kept for the next ``play``.
 """
 
 from __future__ import annotations
@@ -93,6 +98,7 @@ import numpy as np
 from common.gesture.plan import GesturePlan, Grip, Nuance
 from common.kit import EventType, Kit, Limb
 from common.messages import OscMessage
+from common.messages.physics import PhysicsReset
 from common.messages.score import GestureStyle, KitSelect, LiveNote, ScoreLoad, ScoreTransport, TempoScale
 from common.score.events import MAX_SCORE_NOTES, DrumEvent, Score, ScoreError
 from common.score.hands import HandAlgorithm, Sticking
@@ -348,11 +354,11 @@ class ScorePlayer:
 
     # ------------------------------------------------------------------ messages
 
-    def handle(self, message: OscMessage, now: float) -> None:
-        """Act on one score control message at rig time ``now``; raises :class:`ScorePlayerError`
-        (a ``ValueError``: the core logs and counts it) for what it cannot do."""
+    def handle(self, message: OscMessage, now: float, source: str = "") -> None:
+        """Act on one score control message from ``source`` at rig time ``now``; raises :class:`ScorePlayerError`
+        (a ``ValueError``: the core logs, counts and answers it) for what it cannot do."""
         try:
-            self._dispatch(message, now)
+            self._dispatch(message, now, source)
         except (ValueError, OSError) as exc:
             raise self._counted(message, exc) from None
 
@@ -367,7 +373,7 @@ class ScorePlayer:
         self.errors["score"] += 1
         return ScorePlayerError(f"cannot read the score: {exc.strerror or exc}")
 
-    def _dispatch(self, message: OscMessage, now: float) -> None:
+    def _dispatch(self, message: OscMessage, now: float, source: str = "") -> None:
         if isinstance(message, ScoreLoad):
             self.load(message.path)
         elif isinstance(message, ScoreTransport):
@@ -378,7 +384,7 @@ class ScorePlayer:
             else:
                 self.pause(message.time, now)
         elif isinstance(message, LiveNote):
-            self.live_note(message, now)
+            self.live_note(message, now, source)
         elif isinstance(message, (GestureStyle, TempoScale)):
             self._apply_settings(message)
             self.replan(now)
@@ -512,9 +518,13 @@ class ScorePlayer:
         return _Prepared(t_s, events, beats, min(1.0, events[0].time - t_s - TRANSITION_S), commit, announce)
 
     def stop(self, at: float, now: float) -> None:
-        """From rig time ``at`` (or at once), brake every limb and bring it to its rest posture."""
+        """From rig time ``at`` (or at once), brake every limb and bring it to its rest posture; refused
+        (:class:`ScorePlayerError`) when nothing plays then, nothing is paused and no limb ever moved (no target
+        since the start or the last reset: the drummer is at rest)."""
         scene = self._drummer()
         t_s = max(at, self._base(now) + SPLICE_MARGIN_S)
+        if self.state != "paused" and not any(len(track) for track in scene.limb_tracks.values()):
+            self._check_playing("stop", t_s)  # a drummer that never moved (or was reset): nothing to bring to rest
         check_room(scene, t_s, 3)
         for limb, track in scene.limb_tracks.items():
             if not len(track):
@@ -532,9 +542,13 @@ class ScorePlayer:
         log.info("stop at %.3f s", t_s)
 
     def pause(self, at: float, now: float) -> None:
-        """From rig time ``at`` (or at once), brake every limb and hold it there."""
+        """From rig time ``at`` (or at once), brake every limb and hold it there; refused
+        (:class:`ScorePlayerError`) when nothing plays then and no limb moves then (streamed targets move them
+        too; the state is left as it was)."""
         scene = self._drummer()
         t_s = max(at, self._base(now) + SPLICE_MARGIN_S)
+        if not any(track.end_time > t_s for track in scene.limb_tracks.values() if len(track)):
+            self._check_playing("pause", t_s)  # no limb moves then, not even by streamed targets
         check_room(scene, t_s, 2)
         for track in scene.limb_tracks.values():
             if not len(track):
@@ -546,6 +560,14 @@ class ScorePlayer:
         self._stop_clock()
         self.state = "paused"
         log.info("pause at %.3f s", t_s)
+
+    def _check_playing(self, action: str, t_s: float) -> None:
+        """Refuse a stop or pause at rig time ``t_s`` (s) with nothing to act on: no performance (score or live
+        notes) whose plan lasts past ``t_s`` (it ended, was never started, was reset, or stops or pauses before)."""
+        if t_s < self.end_time:
+            return
+        was = {"paused": " (paused)", "idle": ""}.get(self.state, f" (the performance ended at {self.end_time:.3f} s)")
+        raise ScorePlayerError(f"{action} at {t_s:.3f} s: nothing is playing then{was}")
 
     def _stop_clock(self) -> None:
         """A stop or pause (after :meth:`_forget`): keep the playing score's clock until the plan's new end (a
@@ -614,15 +636,16 @@ class ScorePlayer:
 
         return _Prepared(t_s, events, beats, 1.0, commit)
 
-    def live_note(self, note: LiveNote, now: float) -> GesturePlan | None:
-        """Plan one live note with the notes around it and splice it in; a late note is counted, not played."""
+    def live_note(self, note: LiveNote, now: float, source: str = "") -> GesturePlan | None:
+        """Plan one live note with the notes around it and splice it in; a late note is counted, not played (and
+        ``source`` told so)."""
         self._drummer()
-        event = self._accept(note)
+        event = self._accept(note, source, now)
         if event is None:
             return None
         t_s = self._base(now) + SPLICE_MARGIN_S
         if not self._in_time(event, t_s):
-            self._count_late(event, f"arrived at {now:.3f} s")
+            self._count_late(event, f"arrived at {now:.3f} s", source, now)
             return None
         whole = widen = False
         while True:  # the window, maybe widened, then the whole rest (whose commit always splices)
@@ -634,8 +657,9 @@ class ScorePlayer:
                 continue
             return self._account(plan)
 
-    def _accept(self, note: LiveNote) -> DrumEvent | None:
-        """A live note's drum event, or None (a note-off, a double, or an unknown pitch: counted and logged)."""
+    def _accept(self, note: LiveNote, source: str = "", now: float = 0.0) -> DrumEvent | None:
+        """A live note's drum event, or None (a note-off, a double, or an unknown pitch: counted, logged and
+        ``source`` told at rig time ``now``, s)."""
         unknown = len(self.live.unknown)
         event = self.live.accept(note)
         if event is None and len(self.live.unknown) > unknown:
@@ -643,14 +667,19 @@ class ScorePlayer:
             self.unknown_pitches += 1
             del self.live.unknown[:-UNKNOWN_PITCHES_KEPT]  # a stream of them must not grow the list
             log.warning("live note: pitch %d has no drum event type; not played", note.pitch)
+            self.core._reply(note.ADDRESS, f"live note: pitch {note.pitch} has no drum event type; not played",
+                             source, now)
         return event
 
-    def _count_late(self, event: DrumEvent, why: str) -> None:
-        """Count a live note too late to prepare (not played) and log it (the first ten, then every 100th)."""
+    def _count_late(self, event: DrumEvent, why: str, source: str = "", now: float = 0.0) -> None:
+        """Count a live note too late to prepare (not played), log it (the first ten, then every 100th) and tell
+        ``source`` at rig time ``now`` (s): counted late (Health's ``late``), not as a rejection."""
         self.late_notes += 1
+        reason = (f"live note {event.event.value} at {event.time:.3f} s {why}: less than "
+                  f"{self.preparation_s * 1000:.0f} ms to prepare it; not played")
         if self.late_notes <= 10 or self.late_notes % 100 == 0:
-            log.warning("live note %s at %.3f s %s: less than %.0f ms to prepare it; not played (%d late so far)",
-                        event.event.value, event.time, why, self.preparation_s * 1000, self.late_notes)
+            log.warning("%s (%d late so far)", reason, self.late_notes)
+        self.core._reply(LiveNote.ADDRESS, reason, source, now)
 
     def _prepare_live(self, new: list[DrumEvent], t_s: float, whole: bool = False, widen: bool = False
                       ) -> _Prepared:
@@ -812,12 +841,16 @@ class ScorePlayer:
 
         With nothing in flight or waiting, a message that plans (``play``, style, tempo, live note) starts its
         plan in the worker and any other is applied at once (``direct``); otherwise it waits its turn, so a stop
-        or a target after a live note acts after that note's plan. Raises :class:`ScorePlayerError` past
+        or a target after a live note acts after that note's plan, except a reset, which drops the plan in flight
+        and acts at once (:meth:`_drop_for_reset`). Raises :class:`ScorePlayerError` past
         :data:`MAX_WAITING_MESSAGES` waiting (the core rejects the message).
         """
         if self._direct is None:
             raise RuntimeError("background plans are off (start_background)")
         if not self.busy and not isinstance(message, SCORE_MESSAGES):
+            return self._direct(message, now, source)
+        if isinstance(message, PhysicsReset):  # at once: what waits for the planner is stale
+            self._drop_for_reset(now)
             return self._direct(message, now, source)
         if len(self._waiting) >= MAX_WAITING_MESSAGES:
             raise ScorePlayerError(f"{len(self._waiting)} messages already wait behind the plan in flight, the "
@@ -825,6 +858,30 @@ class ScorePlayer:
         self._waiting.append(_Waiting(message, now, source))
         self.pump(now)
         return []
+
+    def _drop_for_reset(self, now: float) -> None:
+        """A reset while busy (rig time ``now``, s): drop the plan in flight (the reset clears the tracks it would
+        be spliced into; the worker may finish it, nothing takes it), then act on the messages that waited behind
+        it, in order, without planning: a transport message or live note is dropped with the plan (the reset
+        leaves nothing playing), a style or tempo keeps its settings, any other message acts as it would have
+        (a controller change stays; targets are cleared by the reset)."""
+        job, self._job = self._job, None
+        if job is not None:
+            job.future.cancel()  # a plan not started yet is never computed
+            self._generation += 1
+        waiting, self._waiting = list(self._waiting), deque()
+        dropped = 0
+        for item in waiting:
+            message = item.message
+            if isinstance(message, (ScoreTransport, LiveNote)):
+                dropped += 1
+            elif isinstance(message, (GestureStyle, TempoScale)):
+                if item.tries == 0:  # a retry's settings were applied when it first started
+                    self._apply_settings(message)
+            else:
+                self._start(item, now)  # never plans: a score load, a kit, a target, a controller change ...
+        log.info("reset at %.3f s: the plan in flight (%d message(s)) and %d waiting transport message(s) or live "
+                 "note(s) dropped", now, len(job.requests) if job is not None else 0, dropped)
 
     def pump(self, now: float) -> None:
         """Background plans, at every step and message (rig time ``now``, s): splice the plan that is ready, then
@@ -888,7 +945,7 @@ class ScorePlayer:
         """Count and log each request as rejected, as the handler would (``errors``, ``PhysicsCore.rejected``)."""
         for waiting in requests:
             error = self._counted(waiting.message, exc)
-            self.core._reject(type(waiting.message).__name__, waiting.source, error, now)
+            self.core._reject(waiting.message, waiting.source, error, now)
 
     def _estimate(self, notes: int) -> float:
         """Seconds a background plan of ``notes`` notes is expected to take (from the latest timed plans)."""
@@ -930,7 +987,7 @@ class ScorePlayer:
             assert isinstance(item.message, LiveNote)
             try:
                 self._drummer()
-                event = item.event if item.event is not None else self._accept(item.message)
+                event = item.event if item.event is not None else self._accept(item.message, item.source, now)
             except ValueError as exc:
                 self._fail([item], exc, now)
                 continue
@@ -938,7 +995,7 @@ class ScorePlayer:
                 continue
             if not self._in_time(event, t0):
                 waited = f", its turn came at {now:.3f} s" if now > item.now else ""  # behind another plan
-                self._count_late(event, f"arrived at {item.now:.3f} s{waited}")
+                self._count_late(event, f"arrived at {item.now:.3f} s{waited}", item.source, now)
                 continue
             accepted.append((item, event))
         if not accepted:
@@ -996,13 +1053,14 @@ class ScorePlayer:
         prepared = job.prepared
         t_s = max(prepared.t_s, self._base(now) + SPLICE_MARGIN_S)
         pairs = list(zip(job.requests, job.notes, strict=True))
-        short = [e for _, e in pairs if not self._in_time(e, t_s, 1e-9)]  # t_s may be the latest (_start_live)
+        short = [(w, e) for w, e in pairs if not self._in_time(e, t_s, 1e-9)]  # t_s may be the latest (_start_live)
         if t_s > prepared.t_s:
             self.replanned_late += 1
         if short:
             took = time.perf_counter() - job.started
-            for event in short:
-                self._count_late(event, f"was planned by {now:.3f} s (planning took {took:.3f} s)")
+            for waiting, event in short:
+                self._count_late(event, f"was planned by {now:.3f} s (planning took {took:.3f} s)", waiting.source,
+                                 now)
             rest = [dataclasses.replace(w, event=e) for w, e in pairs if self._in_time(e, t_s, 1e-9)]
             self._waiting.extendleft(reversed(rest))
             return

@@ -140,9 +140,10 @@ def test_bad_targets_are_rejected_with_a_clear_error_and_counted() -> None:
     with pytest.raises(TargetError, match="right_elbow_x"):
         scene.add_joints(0.5, np.concatenate([bad, np.zeros(57)]), 0.0)
     # over the wire: refused, counted, nothing queued, no crash
-    assert core.handle(CartesianTarget(limb="left_hand", time=0.5, x=0.0, y=4.0, z=1.0, vx=0, vy=0, vz=0), 0.0,
-                       "test") == []
-    assert core.handle(JointTarget(time=0.5, values=(0.0,) * 10), 0.0, "test") == []
+    far = CartesianTarget(limb="left_hand", time=0.5, x=0.0, y=4.0, z=1.0, vx=0, vy=0, vz=0)
+    assert [o.message.ADDRESS for o in core.handle(far, 0.0, "test")] == ["/batteur/physics/rejected"]
+    short = JointTarget(time=0.5, values=(0.0,) * 10)
+    assert [o.message.ADDRESS for o in core.handle(short, 0.0, "test")] == ["/batteur/physics/rejected"]
     assert core.rejected == {"CartesianTarget": 1, "JointTarget": 1}
     assert core.rejected_total == 2  # what the node's Health reports as dropped
     assert len(scene.limb_tracks["left_hand"]) == 0 and len(scene.joint_track) == 0

@@ -39,7 +39,7 @@ def test_the_strike_scene_rejects_and_counts_the_drummers_messages() -> None:
         PhysicsIk(damping=0.1, posture_gain=1.0),
     ]
     for message in drummer_only:
-        assert core.handle(message, 0.0, "test") == []
+        assert [o.message.ADDRESS for o in core.handle(message, 0.0, "test")] == ["/batteur/physics/rejected"]
     assert core.rejected == {type(m).__name__: 1 for m in drummer_only}
     assert core.settings.control == "cartesian"  # not switched: the strike scene has no controller
     core.handle(PhysicsStrike(time=0.1, velocity=3.0), 0.0, "test")

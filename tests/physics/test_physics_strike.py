@@ -133,7 +133,8 @@ def test_bad_strikes_are_rejected_with_a_clear_error() -> None:
         PhysicsCore(scene="strike", strikes=[(-1.0, 2.0)])
     core = PhysicsCore(scene="strike")
     _run(core, 0.05)
-    assert core.handle(PhysicsStrike(time=0.01, velocity=2.0), 0.05, "test") == []
+    replies = core.handle(PhysicsStrike(time=0.01, velocity=2.0), 0.05, "test")
+    assert [o.message.ADDRESS for o in replies] == ["/batteur/physics/rejected"]
     assert core.rejected["PhysicsStrike"] == 1
 
 

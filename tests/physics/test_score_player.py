@@ -136,13 +136,15 @@ def test_bad_loads_and_requests_are_counted_and_never_raise(tmp_path: Path) -> N
     (tmp_path / "folder.mid").mkdir()
     core = PhysicsCore(PhysicsSettings(scene="strike", mode="live"))
     player = core.score_player
-    assert core.handle(ScoreLoad(path="good.txt"), 0.0, "127.0.0.1:9") == []  # no library yet: rejected
+    refused = ["/batteur/physics/rejected"]
+    # no library yet: rejected
+    assert [o.message.ADDRESS for o in core.handle(ScoreLoad(path="good.txt"), 0.0, "127.0.0.1:9")] == refused
     player.library = [tmp_path]
     core.handle(ScoreLoad(path="good.txt"), 0.0, "127.0.0.1:9")
     assert player.score is not None and len(player.score.events) == 13
     for name in ("broken.mid", "bad.txt", "empty.txt", "folder.mid", "missing.mid", "/etc/passwd", "../x.txt",
                  str(MIDI)):
-        assert core.handle(ScoreLoad(path=name), 0.0, "127.0.0.1:9") == []
+        assert [o.message.ADDRESS for o in core.handle(ScoreLoad(path=name), 0.0, "127.0.0.1:9")] == refused
     assert core.rejected["ScoreLoad"] == 9
     assert player.errors["score"] == 3 and player.errors["ScoreLoad"] == 6
     assert player.score_path is not None and player.score_path.name == "good.txt"  # the good score stays loaded

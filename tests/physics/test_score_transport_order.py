@@ -6,17 +6,14 @@ The core is driven offline through its handler (rig times as sent; no wall clock
 
 from __future__ import annotations
 
-import threading
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
-from common.messages.physics import PhysicsReset
 from common.messages.score import ScoreLoad, ScoreTransport, TempoScale
 from common.score.text import read_score
 from services.physics.core import PhysicsCore
-from tests.physics.test_live_score_position import SCORE as FOUR_BARS  # four bars at 100 bpm
 
 SCORES = Path(__file__).parents[1] / "render"
 SCORE = SCORES / "short_groove.txt"
@@ -62,36 +59,6 @@ def test_a_stop_or_pause_sent_ahead_leaves_the_position_shown_until_its_time(tmp
         assert isinstance(panel, dict) and panel["bar"] == 0 and panel["beat"] == pytest.approx(3.33, abs=0.2)
         runner.run_until(5.2)
         assert graphics.status(runner.now)["score"] is None  # stopped (paused) at 4 s: nothing sent since
-        assert physics.rejected_total == 0
-    finally:
-        physics.close()
-
-
-def test_a_reset_sent_while_a_play_is_planned_leaves_nothing_to_play(tmp_path: Path, gate: threading.Event) -> None:
-    """The live node: a reset behind a ``play`` whose plan is in flight acts once the plan is spliced and clears it;
-    the drummer is at rest with no targets and no score playing (docs: "Background plans"). The planner is held
-    until the reset is sent (a loaded machine could otherwise finish the plan before it)."""
-    from services.physics.node import LivePhysicsCore
-
-    (tmp_path / "four_bars.txt").write_text(FOUR_BARS)
-    physics = LivePhysicsCore(planner="thread", scene="drummer", grip="german", pose_rate_hz=0, mode="live")
-    player = physics.score_player
-    player.library = [tmp_path]
-    try:
-        physics.step(0.1)
-        physics.handle(ScoreLoad(path="four_bars.txt"), 0.1, SOURCE)
-        physics.handle(ScoreTransport(action="play", time=0.0, position=0.0), 0.1, SOURCE)
-        physics.handle(PhysicsReset(time=0.1), 0.1, SOURCE)
-        assert player.busy  # the reset waits behind the plan
-        gate.set()
-        for _ in range(10):  # rig time stands still while the plan is computed: it is spliced at the next step
-            assert player.wait(60.0)
-            physics.step(physics.time + 0.001)
-            if not player.busy:
-                break
-        assert not player.busy and player.state == "idle" and player.clock(physics.time) is None
-        assert player.plans == 1  # the play was spliced, then cleared by the reset
-        assert all(len(track) == 0 for track in physics.scene.limb_tracks.values())
         assert physics.rejected_total == 0
     finally:
         physics.close()

@@ -1,0 +1,99 @@
+"""A control message the transport cannot decode (wrong argument count or type, a value out of range) is answered to
+its sender with its service's refusal, within a reply budget per sender host; a stream message never is."""
+
+from __future__ import annotations
+
+import asyncio
+
+import pytest
+
+from common.messages import OscMessage
+from common.messages.interaction import InteractionError
+from common.messages.physics import PhysicsRejected
+from common.messages.sound import SoundRejected
+from common.transport import DECODE_REPLY_BURST, UdpEndpoint, decode_refusal
+from tests.waiting import wait_for
+
+pytestmark = pytest.mark.timeout(60)
+
+BAD_TARGET = ("/batteur/physics/target", ["left_hand", 1, 0.0, 0.0, 0.4, 1.0])  # 6 of its 9 arguments
+
+
+class Client:
+    """An endpoint that sends raw messages to ``node`` and keeps what comes back."""
+
+    def __init__(self, endpoint: UdpEndpoint, node: UdpEndpoint) -> None:
+        self.endpoint, self.node = endpoint, node
+        self.got: list[OscMessage] = []
+        endpoint.set_handler(lambda message, _: self.got.append(message))
+
+    def send(self, address: str, args: list[int | float | str]) -> None:
+        self.endpoint.send_raw(address, args, self.node.local_address)
+
+    async def answered(self, n: int) -> list[OscMessage]:
+        await wait_for(lambda: len(self.got) >= n, 10.0)
+        return self.got
+
+
+async def _pair() -> tuple[UdpEndpoint, Client]:
+    node = await UdpEndpoint.open("127.0.0.1", clock=lambda: 0.0)  # the reply budget never refills
+    client = await UdpEndpoint.open("127.0.0.1")
+    return node, Client(client, node)
+
+
+def test_an_undecodable_control_message_is_answered_with_its_services_refusal() -> None:
+    async def main() -> None:
+        node, client = await _pair()
+        try:
+            client.send("/batteur/contact", [1, 2])  # a stream: never answered
+            client.send("/batteur/physics/rejected", ["x"])  # a refusal: never answered
+            client.send("/batteur/graphics/latency", ["soon"])  # graphics has no refusal message
+            client.send(*BAD_TARGET)
+            client.send("/batteur/score/tempo", [-1.0])
+            client.send("/batteur/sound/level", ["snare", "loud"])
+            client.send("/batteur/interaction/redundancy", [])
+            got = await client.answered(4)
+            await asyncio.sleep(0)
+            assert node.stats.dropped_total == 7 and node.stats.messages_in == 0
+            target, tempo, level, redundancy = got
+            assert isinstance(target, PhysicsRejected) and target.address == "/batteur/physics/target"
+            assert "wrong_arity" in target.reason and "expected 9 arguments, got 6" in target.reason
+            assert isinstance(tempo, PhysicsRejected) and tempo.address == "/batteur/score/tempo"
+            assert "out_of_range" in tempo.reason
+            assert isinstance(level, SoundRejected) and level.address == "/batteur/sound/level"
+            assert level.instrument == "" and "wrong_type" in level.reason
+            assert isinstance(redundancy, InteractionError)
+            assert redundancy.request == "/batteur/interaction/redundancy" and "wrong_arity" in redundancy.detail
+            client.send(*BAD_TARGET)  # the sentinel: once it is answered, nothing else came before it
+            assert len(await client.answered(5)) == 5
+        finally:
+            client.endpoint.close()
+            node.close()
+
+    asyncio.run(main())
+
+
+def test_a_flood_of_undecodable_controls_is_answered_within_the_senders_budget_and_the_rest_counted() -> None:
+    async def main() -> None:
+        node, client = await _pair()
+        try:
+            flood = 3 * int(DECODE_REPLY_BURST)
+            for _ in range(flood):
+                client.send(*BAD_TARGET)
+            await wait_for(lambda: node.stats.dropped_total == flood, 10.0)
+            assert len(await client.answered(int(DECODE_REPLY_BURST))) == DECODE_REPLY_BURST
+            assert node.decode_unanswered == flood - DECODE_REPLY_BURST
+        finally:
+            client.endpoint.close()
+            node.close()
+
+    asyncio.run(main())
+
+
+def test_only_known_control_addresses_have_a_refusal() -> None:
+    assert decode_refusal("/batteur/pose", "wrong_arity") is None
+    assert decode_refusal("/batteur/impact", "wrong_arity") is None
+    assert decode_refusal("/batteur/nowhere", "unknown") is None
+    assert decode_refusal("/batteur/interaction/error", "wrong_arity") is None
+    long = decode_refusal("/batteur/physics/reset", "x" * 2000)
+    assert isinstance(long, PhysicsRejected) and len(long.reason) == 512
