@@ -69,6 +69,10 @@ NAME_RETRY_S = 5.0
 """A host name that did not resolve is tried again after this long, seconds."""
 MAX_WAITING = 64
 """Packets held per host name while its first lookup runs; more are not sent (``unroutable``)."""
+DRAIN_DATAGRAMS = 256
+"""Datagrams read from the socket at most after each one asyncio hands over (see ``UdpEndpoint._drain``)."""
+MAX_READ_BYTES = 65536
+"""Receive size: any UDP datagram (longer than ``max_datagram`` is dropped as oversize, as asyncio's read)."""
 DECODE_REPLY_RATE_HZ = 5.0
 """Undecodable control messages answered per second to one sender host (past it, and the burst, they are only
 counted: ``decode_unanswered``), so forged packets cannot turn a node into a reflector."""
@@ -158,6 +162,7 @@ class _Protocol(asyncio.DatagramProtocol):
 
     def datagram_received(self, data: bytes, addr: tuple[str | Any, int]) -> None:
         self.endpoint._receive(data, addr)
+        self.endpoint._drain()
 
     def error_received(self, exc: Exception) -> None:
         self.endpoint.send_errors += 1
@@ -483,6 +488,24 @@ class UdpEndpoint:
             del self._names[host]
 
     # -------------------------------------------------------------- receiving
+
+    def _drain(self) -> None:
+        """Read the datagrams already waiting on the socket, up to :data:`DRAIN_DATAGRAMS`.
+
+        asyncio reads one datagram per loop iteration; a node whose loop runs back-to-back ticks (physics catching
+        up) gets one iteration between them, so it read one message a tick while more arrived."""
+        for _ in range(DRAIN_DATAGRAMS):
+            if self.closed:
+                return
+            try:
+                data, addr = self._sock.recvfrom(MAX_READ_BYTES)
+            except (BlockingIOError, InterruptedError):
+                return
+            except OSError as exc:  # an ICMP error for an earlier send, as asyncio reports it
+                self.send_errors += 1
+                self._log_limited("socket", logging.WARNING, "socket error: %s", exc)
+                continue
+            self._receive(data, addr)
 
     def _receive(self, data: bytes, addr: tuple[Any, ...]) -> None:
         host = str(addr[0])
