@@ -389,7 +389,9 @@ function showLayers() {
 }
 
 // The toolbar (and the editor under it) sits right of the status panel, or below it when the window is too
-// narrow for both side by side: a panel never covers another.
+// narrow for both side by side; the editor ends above the plot (scrolling), or, in a window too short to leave it
+// EDITOR_MIN_PX there, the plot moves left of the editor: a panel never covers another.
+const EDITOR_MIN_PX = 160;
 function placePanels() {
   const status = document.getElementById("status"), toolbar = document.getElementById("toolbar");
   const editor = document.getElementById("editor");
@@ -397,8 +399,16 @@ function placePanels() {
   const s = status.getBoundingClientRect(), t = toolbar.getBoundingClientRect();
   const besideStatus = status.classList.contains("hidden") || t.left >= s.right + 8;
   if (!besideStatus) toolbar.style.top = `${s.bottom + 8}px`;
-  editor.style.top = `${toolbar.getBoundingClientRect().bottom + 8}px`;
-  editor.style.maxHeight = `${Math.max(120, window.innerHeight - toolbar.getBoundingClientRect().bottom - 24)}px`;
+  const top = toolbar.getBoundingClientRect().bottom + 8;
+  editor.style.top = `${top}px`;
+  plotCanvas.style.right = ""; // the stylesheet's place, bottom right
+  let bottom = window.innerHeight - 8; // the editor's lowest edge (CSS pixels; its box is border-box)
+  if (!editor.classList.contains("hidden") && !plotCanvas.classList.contains("hidden")) {
+    const aboveplot = plotCanvas.getBoundingClientRect().top - 8;
+    if (aboveplot - top >= EDITOR_MIN_PX) bottom = aboveplot;
+    else plotCanvas.style.right = `${window.innerWidth - editor.getBoundingClientRect().left + 8}px`;
+  }
+  editor.style.maxHeight = `${Math.max(EDITOR_MIN_PX, bottom - top)}px`;
 }
 
 // ---------------------------------------------------------------- status panel
@@ -428,7 +438,7 @@ function connect() {
   const ws = new WebSocket(`${proto}://${location.host}/ws`);
   state.ws = ws;
   ws.onopen = () => { state.connected = true; state.retry = 0; state.connects = (state.connects ?? 0) + 1;
-    renderStatus(); };
+    state.connectedAt = performance.now(); renderStatus(); };
   ws.onmessage = (ev) => { try { onMessage(JSON.parse(ev.data)); } catch (e) { console.error(e); } };
   ws.onclose = () => {
     state.connected = false;
@@ -448,7 +458,7 @@ function onMessage(m) {
     case "view": applyView(m); break;
     case "frame":
       if (m.p.length !== links.length * 7) break;
-      state.lastFrame = m; state.frames += 1;
+      state.lastFrame = m; state.frames += 1; state.lastFrameAt = performance.now();
       state.peakFlash = Math.max(state.peakFlash ?? 0, ...m.k.filter((_, i) => i % 4 === 0));
       applyPose(m.p, m.t); applyKitState(m.k); applyHits(m.h);
       break;
@@ -466,6 +476,7 @@ document.getElementById("edit-toggle").addEventListener("click", () => {
   editor.classList.toggle("hidden", !state.editing);
   if (!state.editing) state.poser = null;
   send({ type: state.editing ? "poser_on" : "poser_off" });
+  placePanels();
 });
 function editorMsg(text, ok) {
   const el = document.getElementById("editor-msg");
@@ -516,6 +527,7 @@ const driveBox = document.getElementById("pose-drive");
 function buildEditorPose() {
   const p = state.poser;
   if (!p) return;
+  for (const joint of Object.keys(p.angles)) p.angles[joint] = p.angles[joint].map(toAngleStep);
   p.initial = p.initial ?? JSON.parse(JSON.stringify(p.angles));
   const chosen = jointSelect.value;
   jointSelect.innerHTML = p.joints.map((j) => `<option>${j}</option>`).join("");
@@ -537,6 +549,30 @@ function sendPose() { // at most every 50 ms, the last change always sent
   };
   flush();
 }
+// A joint angle is set to ANGLE_STEP_DEG: what the number field shows is exactly what is sent, and a value
+// physics reports or a user types is kept (to that step) instead of snapping to a coarse slider grid.
+const ANGLE_STEP_DEG = 0.01;
+const toAngleStep = (deg) => Number((Math.round(deg / ANGLE_STEP_DEG) * ANGLE_STEP_DEG).toFixed(2));
+function angleSlider(parent, label, value, min, max, onChange) {
+  const row = document.createElement("div");
+  row.className = "slider";
+  const range = document.createElement("input");
+  Object.assign(range, { type: "range", min, max, step: "any", value });
+  const field = document.createElement("input");
+  Object.assign(field, { type: "number", min, max, step: ANGLE_STEP_DEG, value: value.toFixed(2),
+    title: "degrees" });
+  const set = (deg) => { // clamp into the joint's limits, on the step; show and send that very value
+    const v = toAngleStep(Math.min(max, Math.max(min, deg)));
+    range.value = v;
+    field.value = v.toFixed(2);
+    onChange(v);
+  };
+  range.addEventListener("input", () => set(Number(range.value)));
+  field.addEventListener("change", () => { if (field.value !== "" && Number.isFinite(Number(field.value))) {
+    set(Number(field.value)); } else field.value = Number(range.value).toFixed(2); });
+  row.append(label, range, field);
+  parent.append(row);
+}
 function buildPoseSliders() {
   const box = document.getElementById("pose-sliders");
   box.innerHTML = "";
@@ -545,7 +581,7 @@ function buildPoseSliders() {
   if (!p || !joint) return;
   p.dofs[joint].forEach(([dof, lo, hi], i) => {
     const value = p.angles[joint][i];
-    slider(box, dof, value, Math.min(lo, value), Math.max(hi, value), 0.5, (v) => {
+    angleSlider(box, dof, value, Math.min(lo, value), Math.max(hi, value), (v) => {
       p.angles[joint][i] = v;
       sendPose();
     });
@@ -563,8 +599,20 @@ document.getElementById("pose-reset").addEventListener("click", () => {
   sendPose();
 });
 
+// ---------------------------------------------------------------- nothing to show
+// Before any pose (no physics running, the preview mode asked of a node with no preview loaded) the view is an
+// empty kit: the notice says why and how to get a drummer, once the node has sent no frame for NOTICE_AFTER_MS.
+const NOTICE_AFTER_MS = 1000;
+const notice = document.getElementById("notice");
+function showNotice(now) {
+  const idle = state.connected && now - Math.max(state.connectedAt ?? now, state.lastFrameAt ?? -Infinity)
+    > NOTICE_AFTER_MS;
+  if (notice.classList.contains("hidden") === idle) notice.classList.toggle("hidden", !idle);
+}
+
 // ---------------------------------------------------------------- render loop
 function animate(now) {
+  showNotice(now);
   if (state.view?.camera?.preset === "orbit") placeCamera(state.view.camera, now);
   controls.update();
   if (state.view?.layers?.plot !== false) drawPlot();
