@@ -40,6 +40,7 @@ from typing import Any
 
 from common.messages import REGISTRY, Arg, DropReason, Family, MessageError, MessageRegistry, OscMessage
 from common.messages.codec import RawMessage, encode, encode_bundle, encode_raw, parse_packet, to_model
+from common.messages.graphics import GraphicsRejected
 from common.messages.interaction import InteractionError
 from common.messages.physics import PhysicsRejected
 from common.messages.sound import SoundRejected
@@ -89,8 +90,9 @@ def decode_refusal(address: str, reason: str, registry: MessageRegistry = REGIST
     """The refusal of the service that owns ``address`` for a control message there that could not be decoded
     (``reason``, clipped to 512 characters): /batteur/physics/... and /batteur/score/... (the physics node plays
     scores) :class:`PhysicsRejected`, /batteur/sound/... :class:`SoundRejected` (no instrument named),
-    /batteur/interaction/... :class:`InteractionError`. None for a stream (any family but control), a refusal
-    itself, an unknown address, or a service without a refusal message (graphics, recogniser)."""
+    /batteur/interaction/... :class:`InteractionError`, /batteur/graphics/... :class:`GraphicsRejected`. None for a
+    stream (any family but control), a refusal itself, an unknown address, or a service without a refusal message
+    (the recogniser)."""
     model = registry.get(address)
     if model is None or model.FAMILY is not Family.CONTROL or address.endswith(REFUSAL_ENDINGS):
         return None
@@ -102,6 +104,8 @@ def decode_refusal(address: str, reason: str, registry: MessageRegistry = REGIST
         return SoundRejected(address=address, instrument="", reason=reason)
     if service == "interaction":
         return InteractionError(request=address, detail=reason)
+    if service == "graphics":
+        return GraphicsRejected(address=address, reason=reason)
     return None
 
 

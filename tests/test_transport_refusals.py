@@ -8,6 +8,7 @@ import asyncio
 import pytest
 
 from common.messages import OscMessage
+from common.messages.graphics import GraphicsRejected
 from common.messages.interaction import InteractionError
 from common.messages.physics import PhysicsRejected
 from common.messages.sound import SoundRejected
@@ -47,15 +48,16 @@ def test_an_undecodable_control_message_is_answered_with_its_services_refusal() 
         try:
             client.send("/batteur/contact", [1, 2])  # a stream: never answered
             client.send("/batteur/physics/rejected", ["x"])  # a refusal: never answered
-            client.send("/batteur/graphics/latency", ["soon"])  # graphics has no refusal message
+            client.send("/batteur/recogniser/hit", ["soon"])  # the recogniser has no refusal message
             client.send(*BAD_TARGET)
             client.send("/batteur/score/tempo", [-1.0])
             client.send("/batteur/sound/level", ["snare", "loud"])
             client.send("/batteur/interaction/redundancy", [])
-            got = await client.answered(4)
+            client.send("/batteur/graphics/latency", ["soon"])
+            got = await client.answered(5)
             await asyncio.sleep(0)
-            assert node.stats.dropped_total == 7 and node.stats.messages_in == 0
-            target, tempo, level, redundancy = got
+            assert node.stats.dropped_total == 8 and node.stats.messages_in == 0
+            target, tempo, level, redundancy, latency = got
             assert isinstance(target, PhysicsRejected) and target.address == "/batteur/physics/target"
             assert "wrong_arity" in target.reason and "expected 9 arguments, got 6" in target.reason
             assert isinstance(tempo, PhysicsRejected) and tempo.address == "/batteur/score/tempo"
@@ -64,8 +66,10 @@ def test_an_undecodable_control_message_is_answered_with_its_services_refusal() 
             assert level.instrument == "" and "wrong_type" in level.reason
             assert isinstance(redundancy, InteractionError)
             assert redundancy.request == "/batteur/interaction/redundancy" and "wrong_arity" in redundancy.detail
+            assert isinstance(latency, GraphicsRejected) and latency.address == "/batteur/graphics/latency"
+            assert "wrong_type" in latency.reason
             client.send(*BAD_TARGET)  # the sentinel: once it is answered, nothing else came before it
-            assert len(await client.answered(5)) == 5
+            assert len(await client.answered(6)) == 6
         finally:
             client.endpoint.close()
             node.close()

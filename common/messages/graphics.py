@@ -92,6 +92,17 @@ class GraphicsMode(OscMessage):
 
 
 @register
+class GraphicsRejected(OscMessage):
+    """Reply to a graphics control message that could not be applied (or decoded), and why."""
+
+    ADDRESS = "/batteur/graphics/rejected"
+    FAMILY = Family.CONTROL
+
+    address: str = Field(max_length=128, description="address of the rejected message")
+    reason: str = Field(max_length=512, description="why it was rejected")
+
+
+@register
 class ScorePosition(OscMessage):
     """Where the score being played is, for the view's status panel (sent by whoever plays the score)."""
 

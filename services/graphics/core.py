@@ -36,6 +36,7 @@ from common.messages.graphics import (
     GraphicsLatency,
     GraphicsMode,
     GraphicsPlot,
+    GraphicsRejected,
     GraphicsShow,
     GraphicsTrails,
     ScorePosition,
@@ -50,6 +51,9 @@ CLOCK_JUMP = 0.5  # seconds: a pose clock this much behind the current offset ha
 SEEN_IMPACTS = 4096  # impacts remembered per sender to drop redundant copies
 MAX_SENDERS = 64  # impact senders remembered (least recently heard forgotten first)
 MAX_NODES = 256  # nodes in the status table (least recently heard forgotten first)
+NO_PREVIEW = ("no preview is loaded, the view stays live: start the graphics node with --preview-score SCORE or "
+              "--preview FILE.npz")
+"""Why ``/batteur/graphics/mode preview`` is refused on a node without a preview."""
 SCORE_POSITION_KEPT_S = 1.0  # seconds a score position is shown after it arrived (the player sends 10 a second)
 
 
@@ -197,6 +201,9 @@ class GraphicsCore:
             self._node_seen(message.node_id, message.role, now)
         elif isinstance(message, ScorePosition):
             self.score, self._score_seen = message, now
+        elif isinstance(message, GraphicsMode) and message.mode == "preview" and self.preview is None:
+            self.apply_control(message)  # the view stays live, and the pages are told so
+            return [Outgoing(GraphicsRejected(address=message.ADDRESS, reason=NO_PREVIEW), "reply")]
         else:
             self.apply_control(message)
         return []
