@@ -30,6 +30,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from common.core import Outgoing
 from common.kit import EventType, Kit, load_kit
 from common.messages import Impact, OscMessage
+from common.messages.interaction import Damping
 from common.messages.sound import (
     SoundAirLoading,
     SoundDamping,
@@ -57,6 +58,7 @@ from services.sound.instruments import (
     Instrument,
     InstrumentSet,
     ParamError,
+    Press,
     Strike,
     default_params,
 )
@@ -118,6 +120,14 @@ summed into the next warning), so a flood cannot flood the log too."""
 
 MAX_LATENCY_S = 2.0
 """Longest latency window, seconds: /batteur/sound/latency's range."""
+
+MAX_PRESS_FORCE_N = 5000.0
+"""Largest press force taken, newtons (a drummer leaning on a head: a few hundred): a larger or non-finite one is
+malformed, dropped and counted (press_malformed)."""
+
+PASSIVE_PRESS_PARTS = frozenset({"hihat_top", "hihat_rattle"})
+"""Parts whose presses the instrument models already: the hi-hat's top plate held on the bottom one is its
+openness (closed), set by the chick. Counted (press_ignored), not applied."""
 
 KNEE = 0.7
 """Master soft limiter: linear below this level, a tanh knee above, never beyond 1."""
@@ -190,13 +200,21 @@ class SoundStats:
     overload: int = 0  # strikes dropped by a burst: over max_strikes_per_block or max_pending
     silenced: int = 0  # times an instrument's output went non-finite and it was stopped
     ring_limited: int = 0  # damping changes applied with some modes' ring cut to MAX_T60_S (damping near 0)
+    presses: int = 0  # /batteur/damping state 1 applied (a part resting on an instrument, or its new force)
+    lifts: int = 0  # state 0 applied (that part lifted)
+    stray_lifts: int = 0  # state 0 for a part not resting there (its state 1 lost or never sent): ignored
+    press_unknown: int = 0  # presses on an instrument the kit does not have: dropped
+    press_malformed: int = 0  # presses with a force above MAX_PRESS_FORCE_N or not finite: dropped
+    press_ignored: int = 0  # presses on pedals or of PASSIVE_PRESS_PARTS: counted, not applied
+    implicit_lifts: int = 0  # parts lifted by their own next strike (their state 0 lost, or not sent yet)
     rejected: Counter[str] = field(default_factory=Counter)  # by control address
     blocks: int = 0
 
     @property
     def rejected_total(self) -> int:
         """Valid messages refused: controls, and impacts not played (the node's Health counts them as dropped)."""
-        return sum(self.rejected.values()) + self.unknown_instrument + self.too_early + self.overload
+        return (sum(self.rejected.values()) + self.unknown_instrument + self.too_early + self.overload
+                + self.press_unknown + self.press_malformed)
 
 
 @dataclass(frozen=True)
@@ -252,6 +270,11 @@ class SoundCore:
         self.channels = int(s.channels)
         self.scheduler: Scheduler[tuple[str, Impact]] = Scheduler(
             float(self.sample_rate), s.latency, s.origin if s.origin is not None else 0.0)
+        self.press_scheduler: Scheduler[Damping] = Scheduler(
+            float(self.sample_rate), s.latency, s.origin if s.origin is not None else 0.0)
+        """Presses and lifts (/batteur/damping), on the same sample clock as impacts; their own seq space."""
+        self._resting: dict[str, set[str]] = {}  # part -> instruments it rests on (as applied, in time order)
+        self._touched: set[str] = set()  # instruments whose presses changed in the block being rendered
         self.pool = VoicePool(s.max_voices, float(self.sample_rate))
         self.samples = SampleBank(self.sample_rate)
         self.instruments = self._build_instruments(self.kit)
@@ -315,8 +338,12 @@ class SoundCore:
         if isinstance(message, Impact):
             self._schedule(message, source)
             return []
+        if isinstance(message, Damping):
+            self._schedule_press(message, source)
+            return []
         if isinstance(message, SoundLatency):
             self.scheduler.latency = float(message.value)
+            self.press_scheduler.latency = self.scheduler.latency
             three_blocks_s = 3 * self.block / self.sample_rate
             if self.scheduler.latency < three_blocks_s:  # as the node warns for --latency-s
                 log.warning("latency %.1f ms (from %s) is under three blocks (%.1f ms): most strikes will be late",
@@ -431,6 +458,69 @@ class SoundCore:
         self.scheduler.push(impact.time, payload, self.next_sample)
         self.stats.late = self.scheduler.late
 
+    def _schedule_press(self, damping: Damping, source: str) -> None:
+        """Queue a press or lift for the sample of its time + latency (as impacts are)."""
+        if self.press_scheduler.is_duplicate(source, damping.seq):
+            self.stats.duplicates += 1
+            return
+        if damping.instrument in self._pedal_ids or damping.part in PASSIVE_PRESS_PARTS:
+            self.stats.press_ignored += 1
+            return
+        if damping.instrument not in self.instruments.instruments:
+            self.stats.press_unknown += 1
+            known = ", ".join(sorted(self.instruments.instruments))
+            self._log_drop("press_unknown", f"dropped a press from {source} on {damping.instrument!r}, which the "
+                           f"kit does not have (known: {known})")
+            return
+        if not math.isfinite(damping.force) or damping.force > MAX_PRESS_FORCE_N:
+            self.stats.press_malformed += 1
+            self._log_drop("press_malformed", f"dropped a press from {source} on {damping.instrument}: force "
+                           f"{damping.force:g} N (at most {MAX_PRESS_FORCE_N:g} N)")
+            return
+        horizon = self.settings.horizon
+        if horizon is not None and damping.time - self.now > horizon:
+            self.stats.too_early += 1
+            self._log_drop("too_early", f"dropped a press from {source} at rig time {damping.time:.3f} s, "
+                           f"{damping.time - self.now:.1f} s ahead of the sound (more than {horizon:g} s)")
+            return
+        if self.settings.max_pending is not None and len(self.press_scheduler) >= self.settings.max_pending:
+            self.stats.overload += 1
+            self._log_drop("overload", f"dropped a press from {source}: {len(self.press_scheduler)} already waiting")
+            return
+        self.press_scheduler.push(damping.time, damping, self.next_sample)
+
+    def _press(self, offset: int, damping: Damping) -> None:
+        """Hand a press or lift, in time order, to its instrument from sample ``offset`` of this block."""
+        inst = self.instruments.instruments[damping.instrument]
+        part = damping.part
+        self._touched.add(inst.id)
+        if damping.state == 0:
+            if inst.id not in self._resting.get(part, ()):
+                self.stats.stray_lifts += 1
+                return
+            self._lift(offset, part, inst.id)
+            self.stats.lifts += 1
+            return
+        self._resting.setdefault(part, set()).add(inst.id)
+        rate = inst.press_rate(part, float(damping.force))
+        inst.press(offset, part, Press(rate, float(damping.r), float(damping.theta)))
+        self.stats.presses += 1
+
+    def _lift(self, offset: int, part: str, instrument: str) -> None:
+        resting = self._resting[part]
+        resting.discard(instrument)
+        if not resting:
+            del self._resting[part]  # nothing resting: the strike path's check stays one empty-dict test
+        self.instruments.instruments[instrument].press(offset, part, None)
+        self._touched.add(instrument)
+
+    def _lift_striker(self, offset: int, part: str) -> None:
+        """A part that strikes has left whatever it rested on (its lift may be lost, or in another render
+        segment): lifted there from the strike's sample, counted as implicit_lifts."""
+        for instrument in sorted(self._resting.get(part, ())):
+            self._lift(offset, part, instrument)
+            self.stats.implicit_lifts += 1
+
     def _log_drop(self, kind: str, detail: str) -> None:
         """Warn about input not played, at most once per DROP_LOG_INTERVAL_S of rig time for each kind."""
         now = self.now
@@ -464,6 +554,7 @@ class SoundCore:
     def _set_origin(self, now: float) -> None:
         if not self._origin_set:
             self.scheduler.origin = float(now)
+            self.press_scheduler.origin = float(now)
             self._origin_set = True
 
     # ------------------------------------------------------------- render
@@ -501,12 +592,18 @@ class SoundCore:
         start = self.next_sample
         for sample, payload in self._within_budget(self.scheduler.pop_until(start + n)):
             self._strike(sample - start, payload)
+        if len(self.press_scheduler):
+            for sample, damping in self.press_scheduler.pop_until(start + n):
+                self._press(sample - start, damping)
         for buf in self._bus.values():
             buf[:] = 0.0
         for inst in self.instruments.instruments.values():
             if inst.sounding:
                 buf = self._bus_for(inst.id)
                 inst.process(buf)
+        if self._touched:
+            self._follow_presses(self._touched)
+            self._touched = set()
         self.pool.render(self._bus_for)
         for inst_id, buf in self._bus.items():
             if not np.isfinite(buf).all():
@@ -541,6 +638,18 @@ class SoundCore:
                 self._drop_sink(sink, exc)
         return out
 
+    def _follow_presses(self, instruments: set[str]) -> None:
+        """Presses on silent instruments (not processed) apply now; voices (samples, synthesis, noise) of
+        ``instruments`` decay by their presses' mean rate from this block."""
+        for inst_id in instruments:
+            inst = self.instruments.instruments[inst_id]
+            inst.apply_presses()  # nothing left to apply if it was processed
+            rate = inst.press_rate_total
+            if rate > 0.0:
+                self.pool.press_rates[inst_id] = rate
+            else:
+                self.pool.press_rates.pop(inst_id, None)
+
     def _drop_sink(self, sink: Sink, exc: Exception) -> None:
         """Stop feeding an output that failed, and close it (a WAV file keeps what it holds so far)."""
         self.sinks.remove(sink)
@@ -567,6 +676,8 @@ class SoundCore:
         if resolved is None:
             return
         inst, zone, r = resolved
+        if self._resting and impact.part in self._resting:
+            self._lift_striker(offset, impact.part)
         if impact.part == "hihat_top":
             zone = "pedal"  # the top plate closing on the bottom one: the foot chick
         strike = Strike(offset, float(impact.velocity), float(impact.impulse), float(r), float(impact.theta),
@@ -606,8 +717,8 @@ class SoundCore:
 
     @property
     def late(self) -> int:
-        """Strikes that arrived too late and played at once."""
-        return self.scheduler.late
+        """Strikes and presses that arrived too late and played (applied) at once."""
+        return self.scheduler.late + self.press_scheduler.late
 
     @property
     def rejected_total(self) -> int:

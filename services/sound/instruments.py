@@ -32,7 +32,15 @@ from common.kit import KitObject
 from services.sound.excitation import ContactPulse, Striker, hunt_crossley, mode_response, mode_response_chunks
 from services.sound.membrane import membrane_modes
 from services.sound.modal_bank import MIN_DECAY_PER_S, ModeSet
-from services.sound.plates import BELL_GAINS, BELL_RATIOS, COWBELL_GAINS, COWBELL_RATIOS, plate_modes, ring_modes
+from services.sound.plates import (
+    BELL_GAINS,
+    BELL_RATIOS,
+    BRONZE_RHO,
+    COWBELL_GAINS,
+    COWBELL_RATIOS,
+    plate_modes,
+    ring_modes,
+)
 from services.sound.samples import SampleBank
 from services.sound.synth import SynthVoice, recipe_for
 from services.sound.voices import NoiseVoice, SampleVoice, VoicePool
@@ -48,6 +56,42 @@ REFERENCE_PEAK = 0.2
 WIRE_DECAY_S = 0.09
 """Decay time constant of the snare wires' buzz with the drum's initial damping, seconds. The head drives the wires,
 so the time scales with the head's decay rate: a damping change (a hand on the head) shortens ringing wires too."""
+
+
+PRESS_DASHPOT_S_PER_M: dict[str, float] = {"hand": 20.0, "shaft": 1.2, "tip": 0.6}
+"""Damping a resting contact adds, as a dashpot coefficient per newton of its force, (N s/m) / N = s/m, by
+contact: a hand (palm and fingers: a large soft lossy patch, a choke), a stick's shaft laid across, a stick tip,
+beater or foot (a small hard patch). A dashpot c on a plate or head of vibrating mass M adds the decay rate
+c / (2 M) on average over the modes, so a press's rate is ``PRESS_DASHPOT_S_PER_M[contact] * force / (2 M)``:
+a stick tip resting with 5 N on the default snare (M 0.035 kg) adds 43 1/s, a T60 about 5x shorter; a hand
+holding the default crash (M 1.34 kg) with 10 N adds 75 1/s on average, more to its edge modes (T60
+0.1-0.2 s, a choke)."""
+PRESS_POINT_SHARE = 0.5
+"""Share of a press's damping that follows the modes' amplitude at the press point (the rest is spread evenly):
+a point damper only damps the modes moving under it, but a finger or palm covers a patch and the contact is
+nonlinear, which spreads its losses over every mode."""
+PRESS_POINT_MAX = 6.0
+"""Largest point weight of one mode (its squared shape at the press over its mean square): bounds the damping of
+a mode whose antinode is right under the press."""
+COWBELL_MASS_KG = 0.3
+"""Vibrating mass of a cowbell, kg (for presses; its partials have no mode shapes here)."""
+
+
+def contact_of(part: str) -> str:
+    """The kind of contact of a pressing part (a key of PRESS_DASHPOT_S_PER_M): ``hand``, ``shaft`` or ``tip``."""
+    name = part.lower()
+    if any(k in name for k in ("hand", "palm", "finger")):
+        return "hand"
+    return "shaft" if "shaft" in name else "tip"
+
+
+@dataclass(frozen=True)
+class Press:
+    """A part resting on an instrument: its mean added decay rate (1/s) and where it rests (r / a, radians)."""
+
+    rate: float
+    r: float
+    theta: float
 
 
 def mix_level(instrument_id: str, kind: str) -> float:
@@ -135,6 +179,10 @@ KIND_PARAMS: dict[str, frozenset[str]] = {
 }
 
 
+LOOP_STATE = ("bank", "_delayed", "presses", "_press_events", "press_decay")
+"""Instrument attributes that belong to the render loop: :meth:`Instrument.adopt` keeps them."""
+
+
 def _seed(name: str) -> int:
     return zlib.crc32(name.encode())
 
@@ -170,6 +218,10 @@ class Instrument:
         self.gains: F64 = np.zeros(0)  # radiation gain per mode
         self.calibration = 1.0
         self._delayed: list[tuple[int, npt.NDArray[np.complex128]]] = []  # (samples from block start, amplitudes)
+        self.presses: dict[str, Press] = {}  # part -> its press, while it rests here
+        self._press_events: list[tuple[int, str, Press | None]] = []  # (offset, part, press or None: lifted)
+        self.press_decay: F64 | None = None  # decay rate the presses add per mode, 1/s (None: no press)
+        self._law_decay: F64 = np.zeros(0)  # the modes' own decay rates, 1/s (before presses)
         self.rebuild()
         self.calibration = self._calibrate()
 
@@ -231,15 +283,90 @@ class Instrument:
         twin = copy.copy(self)
         twin.bank = ModeSet(self.sr, self.block)
         twin._delayed = []
+        twin.presses, twin._press_events, twin.press_decay = {}, [], None  # the law only: adopt() adds presses
         return twin
 
     def adopt(self, twin: Instrument) -> None:
         """Take the parameters and modes of ``twin`` (from :meth:`detached`), keeping what rings: the same as
         having applied its parameter changes here, but cheap (the tables were built with ``twin``)."""
         bank, delayed = self.bank, self._delayed
-        self.__dict__.update({k: v for k, v in vars(twin).items() if k not in ("bank", "_delayed")})
+        self.__dict__.update({k: v for k, v in vars(twin).items() if k not in LOOP_STATE})
         self.bank, self._delayed = bank, delayed
         self.bank.adopt(twin.bank)
+        if self.presses:  # still resting here: the new modes are damped by them too
+            self.press_decay = self.press_extra()
+            self.bank.set_decay(self._law_decay + self.press_decay)
+
+    def set_modes(self, freq: F64, decay: F64) -> None:
+        """Render modes ``freq`` (Hz) decaying at their own rates ``decay`` (1/s) plus what the presses add."""
+        self._law_decay = np.asarray(decay, dtype=np.float64)
+        self.bank.set_modes(freq, decay)
+        if not self.presses:
+            self.press_decay = None
+            return
+        self.press_decay = self.press_extra()
+        self.bank.set_decay(self._law_decay + self.press_decay)
+
+    # ---------------------------------------------------------------- presses
+    def vibrating_mass(self) -> float:
+        """Mass of what vibrates, kg (a press's damping rate is inversely proportional to it)."""
+        return COWBELL_MASS_KG
+
+    def press_rate(self, part: str, force: float) -> float:
+        """Mean decay rate, 1/s, that ``part`` resting with ``force`` newtons adds (PRESS_DASHPOT_S_PER_M)."""
+        return PRESS_DASHPOT_S_PER_M[contact_of(part)] * force / (2.0 * self.vibrating_mass())
+
+    def press_weights(self, r: float, theta: float) -> F64:
+        """Relative damping of every mode by a press at (r / a, theta radians); mean about 1 (no mode shapes
+        here: all alike)."""
+        return np.ones(self._law_decay.shape[0])
+
+    def _point_weights(self, shape: F64, modal_mass: F64) -> F64:
+        """Weights of modes of shapes ``shape`` at the press and masses ``modal_mass`` (kg): PRESS_POINT_SHARE
+        follows the squared shape over its mean square (vibrating mass / modal mass), the rest is even."""
+        point = np.minimum(shape**2 * (self.vibrating_mass() / modal_mass), PRESS_POINT_MAX)
+        return np.asarray((1.0 - PRESS_POINT_SHARE) + PRESS_POINT_SHARE * point)
+
+    def press_extra(self) -> F64:
+        """Decay rate every press adds per mode, summed, 1/s."""
+        extra = np.zeros(self._law_decay.shape[0])
+        for press in self.presses.values():
+            extra += press.rate * self.press_weights(press.r, press.theta)
+        return extra
+
+    def press(self, offset: int, part: str, press: Press | None) -> None:
+        """``part`` rests here (``press``) or is lifted (None) from sample ``offset`` of the next block."""
+        self._press_events.append((offset, part, press))
+
+    @property
+    def press_rate_total(self) -> float:
+        """Mean decay rate the presses add, 1/s (what voices without modes decay by: samples, synthesis)."""
+        return sum(p.rate for p in self.presses.values())
+
+    def apply_presses(self) -> None:
+        """This block's presses and lifts, each from its sample: the modes' decay changes there (at once on a
+        silent bank, where the sample makes no difference). :meth:`process` calls it; the core too for an
+        instrument it does not process (silent)."""
+        if not self._press_events:
+            return
+        for offset, part, press in sorted(self._press_events, key=lambda e: e[0]):
+            if press is None:
+                self.presses.pop(part, None)
+            else:
+                self.presses[part] = press
+            self.press_decay = self.press_extra() if self.presses else None
+            decay = self._law_decay if self.press_decay is None else self._law_decay + self.press_decay
+            if not self.bank.size:
+                continue
+            if self.bank.active:
+                self.bank.retune(decay, offset)
+            else:
+                self.bank.set_decay(decay)
+        self._press_events.clear()
+        self.presses_changed()
+
+    def presses_changed(self) -> None:
+        """What else follows the presses (the snare wires)."""
 
     def damping_law(self, freq: F64) -> F64:
         """Decay rate per mode, 1/s: sigma0 + sigma1 f^2."""
@@ -358,6 +485,8 @@ class Instrument:
             else:
                 keep.append((delay - self.block, amp))
         self._delayed = keep
+        if self._press_events:
+            self.apply_presses()
         self.bank.process(out)
 
     @property
@@ -389,7 +518,10 @@ class Membrane(Instrument):
     def head_decay_rate(self) -> float:
         """Decay rate of the head's lowest mode, (0, 1), 1/s: the one whose air push drives the snare-side head
         and so the wires (as the bank renders it: at least MIN_DECAY_PER_S)."""
-        return max(float(self.damping_law(self.modes.freq[:1])[0]), MIN_DECAY_PER_S)
+        rate = float(self.damping_law(self.modes.freq[:1])[0])
+        if self.press_decay is not None:  # a stick or hand resting on the head damps it, and so the wires
+            rate += float(self.press_decay[0])
+        return max(rate, MIN_DECAY_PER_S)
 
     def wire_decay(self) -> float:
         """Decay time constant of the snare wires now, seconds: WIRE_DECAY_S scaled by the head's decay rate
@@ -406,6 +538,18 @@ class Membrane(Instrument):
             decay = self.wire_decay()
             for wire in self._wires:
                 wire.set_decay(decay)
+
+    def presses_changed(self) -> None:
+        self._retune_wires()
+
+    def vibrating_mass(self) -> float:
+        return float(self.p.density * np.pi * self.p.radius**2)
+
+    def press_weights(self, r: float, theta: float) -> F64:
+        """The head's modes by their amplitude at the press; the resonant head and the hoop evenly."""
+        head = self._point_weights(self.modes.shape_at(min(r, 1.0), theta), self.modes.mass)
+        rest = np.full(self.n_reso + self.ring_f.shape[0], 1.0 - PRESS_POINT_SHARE)
+        return np.concatenate([head, rest])
 
     def detached(self) -> Instrument:
         twin = super().detached()
@@ -441,7 +585,7 @@ class Membrane(Instrument):
         rad = np.concatenate([1.0 / (1.0 + 0.6 * self.modes.m), 1.0 / (1.0 + 0.6 * self.reso.m[:n_reso]),
                               np.full(self.ring_f.shape[0], 1.0)])
         self.gains = self._apply_resonances(rad)
-        self.bank.set_modes(freq, decay)
+        self.set_modes(freq, decay)
         self._retune_wires()
 
     def weights(self, strike: Strike) -> F64:
@@ -492,6 +636,7 @@ class Membrane(Instrument):
         amp = 0.06 * self.p.snares * min(v, 4.0) ** 1.2
         wire = NoiseVoice(self.id, (1800.0, 9000.0 * min(0.6 + 0.2 * v, 1.0)), amp, 0.002, self.wire_decay(),
                           strike.seq * 7919 + 1, self.sr, strike.offset)
+        wire.press_exempt = True  # a press damps the head, and the wires with it (wire_decay)
         pool.add(wire)
         self._wires = [w for w in self._wires if not w.done]
         self._wires.append(wire)
@@ -529,7 +674,16 @@ class Cymbal(Instrument):
         # amplitude ~ sqrt(f), which is what makes a cymbal bright rather than gong-like
         tilt = np.concatenate([np.minimum(np.sqrt(plate_f / 3000.0), 2.5), np.ones(bell_f.shape[0])])
         self.gains = self._apply_resonances(tilt)
-        self.bank.set_modes(freq, decay)
+        self.set_modes(freq, decay)
+
+    def vibrating_mass(self) -> float:
+        return float(BRONZE_RHO * self.p.thickness * np.pi * self.p.radius**2)
+
+    def press_weights(self, r: float, theta: float) -> F64:
+        """The plate's modes by their amplitude at the press (a hand on the edge: the edge's antinodes); the
+        bell partials evenly."""
+        plate = self._point_weights(self.modes.shape_at(min(r, 1.0), theta), self.modes.mass)
+        return np.concatenate([plate, np.full(self._law_decay.shape[0] - self.n_plate, 1.0 - PRESS_POINT_SHARE)])
 
     def weights(self, strike: Strike) -> F64:
         p = self.p
@@ -621,7 +775,7 @@ class Bell(Instrument):
         freq = np.repeat(base, 2) * np.tile([1.0, 1.004], n)
         self.base_gains = np.repeat(COWBELL_GAINS[:n], 2)
         self.gains = self._apply_resonances(self.base_gains)
-        self.bank.set_modes(freq, self.damping_law(freq))
+        self.set_modes(freq, self.damping_law(freq))
 
     def weights(self, strike: Strike) -> F64:
         pos = 1.0 + 0.5 * (strike.r - 0.5) * np.linspace(-1, 1, self.bank.size) * self.p.position

@@ -57,6 +57,8 @@ class Voice:
         self._fade_len = 1
         self._buf: F64 = np.zeros(0)
         self._finished = False
+        self.press_exempt = False  # True: follows presses itself (the snare wires follow the head's damping)
+        self._press_gain = 1.0  # what presses have taken off so far (they do not give it back when lifted)
 
     CHUNK = 2048
     """Samples synthesised per call of :meth:`synth` (amortises per-call overhead over several blocks)."""
@@ -89,14 +91,19 @@ class Voice:
             self._fade_left = max(int(n_samples), 1)
             self._fade_len = self._fade_left
 
-    def render(self, out: F32) -> None:
-        """Add the voice's next block into ``out`` (shape (n,))."""
+    def render(self, out: F32, press_per_sample: float = 0.0) -> None:
+        """Add the voice's next block into ``out`` (shape (n,)), decaying by ``press_per_sample`` more nepers a
+        sample (a press on its instrument)."""
         n = out.shape[0]
         start = min(self.delay, n)
         self.delay -= start
         if start >= n or self.done:
             return
         x = self.generate(n - start)
+        if press_per_sample > 0.0 or self._press_gain != 1.0:
+            env = self._press_gain * np.exp(-press_per_sample * np.arange(1, x.shape[0] + 1))
+            x = x * env
+            self._press_gain = float(env[-1])
         if self._fade_left >= 0:
             k = x.shape[0]
             ramp = (self._fade_left - np.arange(k)) / self._fade_len
@@ -126,6 +133,8 @@ class VoicePool:
     sample_rate: float = 48000.0
     voices: list[Voice] = field(default_factory=list)
     stolen: int = 0
+    press_rates: dict[str, float] = field(default_factory=dict)
+    """Instrument id -> decay rate its presses add to its voices, 1/s (only instruments pressed now)."""
 
     def _playing(self) -> list[Voice]:
         return [v for v in self.voices if v._fade_left < 0 and not v.done]
@@ -142,8 +151,13 @@ class VoicePool:
 
     def render(self, bus: Callable[[str], F32]) -> None:
         """Render every voice into ``bus(instrument_id)`` and drop finished ones."""
-        for v in self.voices:
-            v.render(bus(v.instrument))
+        if self.press_rates:
+            per_sample = {inst: rate / self.sample_rate for inst, rate in self.press_rates.items()}
+            for v in self.voices:
+                v.render(bus(v.instrument), 0.0 if v.press_exempt else per_sample.get(v.instrument, 0.0))
+        else:
+            for v in self.voices:
+                v.render(bus(v.instrument))
         self.voices = [v for v in self.voices if not v.done]
 
     @property
