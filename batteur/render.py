@@ -43,7 +43,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, get_args
 import numpy as np
 import soundfile as sf
 
-from batteur.impact_log import ImpactLog, write_impacts_csv
+from batteur.impact_log import ImpactCsvStream, ImpactLog, write_impacts_csv
 from batteur.progress import Progress
 from batteur.strike import DEFAULT_STRIKES, parse_strikes, run_strikes
 from common.core import Outgoing
@@ -59,6 +59,7 @@ from common.score.limbs import Assignment
 
 if TYPE_CHECKING:
     from batteur.calibration import Calibration
+    from services.graphics.export.bvh import BvhStream
     from services.interaction.config import InteractionConfig
     from services.physics.core import PhysicsCore
 
@@ -135,6 +136,12 @@ class ScoreRender:
     wall_time_s: float
     poses: Any = None
     physics: dict[str, Any] = field(default_factory=dict)
+    impact_count: int | None = None
+    """Impacts rendered, when they were streamed to impacts.csv rather than kept in ``impacts`` (None: kept)."""
+
+    @property
+    def impacts_total(self) -> int:
+        return len(self.impacts) if self.impact_count is None else self.impact_count
 
 
 def scale_tempo(score: Score, scale: float) -> Score:
@@ -220,9 +227,12 @@ class PlanningProgress:
 
 
 def run_score(score: Score, assignment: Assignment, plan: GesturePlan, kit: Kit, opts: RenderOptions,
-              on_progress: Callable[[float, float], None] | None = None) -> ScoreRender:
+              on_progress: Callable[[float, float], None] | None = None,
+              outputs: StreamedOutputs | None = None) -> ScoreRender:
     """Play a gesture plan with the full-dynamics drummer and render its sound (see the module docstring).
 
+    ``outputs``: the WAV, impacts and motion are written there as they are rendered (the result then holds no
+    audio, and impacts and poses only if ``outputs.keep``); None: all of it is kept in the result.
     Raises :class:`RenderError` when physics refuses the plan.
     """
     from common.bus import OfflineRunner
@@ -234,26 +244,40 @@ def run_score(score: Score, assignment: Assignment, plan: GesturePlan, kit: Kit,
     physics = start_drummer(plan, kit, opts)
     offset = opts.settle_s - plan.start_time
     interaction = InteractionCore(kit=kit, config=offline_interaction_config())
-    sound = SoundCore(SoundSettings(latency=opts.latency_s, origin=0.0), kit=kit)
-    recorder = RecorderCore()
+    sound = SoundCore(SoundSettings(latency=opts.latency_s, origin=0.0, record=outputs is None), kit=kit)
+    recorder = RecorderCore() if outputs is None else outputs.recorder()
     runner = OfflineRunner([physics, interaction, sound, recorder])
     duration = plan.end_time + offset + opts.latency_s + opts.tail_s
     try:
+        if outputs is not None:
+            outputs.attach(sound)
         runner.run_until(duration, None if on_progress is None else (lambda t: on_progress(t, duration)))
         audio = sound.recording()
     finally:
         sound.close()
         physics.close()
-    try:
-        poses = recorder.poses.sequence()
-    except ValueError:
-        poses = None
+    poses, impacts, count = collect(recorder, outputs)
     stats = {"contacts_sent": physics.contacts_sent, "rejected": dict(physics.rejected), "diverged": physics.diverged,
              "control": physics.settings.control, "grip": physics.settings.grip, "rate_hz": physics.rate_hz,
              "control_rate_hz": physics.settings.control_rate_hz,
              "cpu_time_s": round(time.process_time() - cpu_started, 3)}
-    return ScoreRender(score, assignment, plan, recorder.impacts.sorted(), physics.contacts_sent, audio,
-                       sound.sample_rate, duration, offset, time.perf_counter() - started, poses, stats)
+    return ScoreRender(score, assignment, plan, impacts, physics.contacts_sent, audio, sound.sample_rate, duration,
+                       offset, time.perf_counter() - started, poses, stats, count)
+
+
+def collect(recorder: RecorderCore, outputs: StreamedOutputs | None) -> tuple[Any, list[Any], int | None]:
+    """After the run: (poses, impacts, impact count if streamed), the streamed outputs finished."""
+    if outputs is not None:
+        count = outputs.finish()
+        if not outputs.keep:
+            return None, [], count
+    else:
+        count = None
+    try:
+        poses = recorder.poses.sequence()
+    except ValueError:
+        poses = None
+    return poses, recorder.impacts.sorted(), count
 
 
 def start_drummer(plan: GesturePlan, kit: Kit, opts: RenderOptions, start_s: float = 0.0) -> PhysicsCore:
@@ -296,19 +320,210 @@ class RecorderCore:
     ROLE: ClassVar[str] = "graphics"
     rate_hz = 0.0
 
-    def __init__(self) -> None:
+    def __init__(self, impacts_csv: ImpactCsvStream | None = None, bvh: BvhStream | None = None,
+                 keep: bool = True) -> None:
+        """``impacts_csv``, ``bvh``: where impacts and poses are streamed; ``keep``: also keep them in memory
+        (``impacts``, ``poses``), for the video."""
         from services.graphics.recorder import PerformanceRecorder
 
         self.poses = PerformanceRecorder()
         self.impacts = ImpactLog()
+        self.impacts_csv = impacts_csv
+        self.pose_stream = None if bvh is None else PoseStream(bvh)
+        self.keep = keep
 
     def handle(self, message: OscMessage, now: float, source: str) -> list[Outgoing]:
-        if not self.impacts.add(message, source):
-            self.poses.record(message, source)
+        if self.impacts_csv is None:
+            taken = self.impacts.add(message, source)
+        else:
+            taken = self.impacts_csv.add(message, now, source)
+            if taken and self.keep:
+                self.impacts.add(message, source)
+        if not taken:
+            if self.pose_stream is not None:
+                self.pose_stream.record(message)
+            if self.keep:
+                self.poses.record(message, source)
         return []
 
     def step(self, now: float) -> list[Outgoing]:
         return []
+
+
+class PoseStream:
+    """The poses graphics would receive, by :class:`~services.graphics.recorder.PerformanceRecorder`'s rules (the
+    newest skeleton's layout, each instant once, in time order), handed to a BVH stream instead of kept."""
+
+    def __init__(self, bvh: BvhStream) -> None:
+        self.bvh = bvh
+        self.names: list[str] = []
+        self.layout = -1
+        self.last_time: float | None = None
+        self.dropped = 0
+
+    def record(self, message: OscMessage) -> None:
+        from common.messages import Pose, Skeleton
+        from services.graphics.sequence import FLOATS_PER_LINK
+
+        if isinstance(message, Skeleton):
+            if message.layout != self.layout or list(message.names) != self.names:
+                self.names, self.layout, self.last_time = list(message.names), message.layout, None
+                self.bvh.restart(self.names)
+        elif isinstance(message, Pose):
+            if message.layout != self.layout or len(message.values) != FLOATS_PER_LINK * len(self.names):
+                self.dropped += 1
+                return
+            if self.last_time is not None and message.time <= self.last_time:
+                return  # the same pose delivered to several destinations
+            self.last_time = message.time
+            self.bvh.add(message.time, np.asarray(message.values, dtype=float).reshape(-1, FLOATS_PER_LINK))
+
+
+class WavStream:
+    """performance.wav (24-bit PCM) written as sound renders it (``SoundCore.on_block``), a second at a time:
+    libsndfile's cost per call made block-sized writes (64 samples) 3 % of a render."""
+
+    BUFFER_S = 1.0
+    """Audio gathered before each write, seconds."""
+
+    def __init__(self, path: Path, sample_rate: int, channels: int) -> None:
+        self.path = path
+        self.frames = 0
+        """Samples taken (per channel)."""
+        self.written = 0
+        """Samples in the file so far (per channel)."""
+        size = max(1, round(sample_rate * self.BUFFER_S))
+        self._buffer = np.empty(size if channels == 1 else (size, channels), dtype=np.float32)
+        self._fill = 0
+        self._file: sf.SoundFile | None = sf.SoundFile(path, "w", sample_rate, channels, subtype="PCM_24")
+
+    @property
+    def buffer_frames(self) -> int:
+        """Samples the stream holds at most (per channel)."""
+        return len(self._buffer)
+
+    def write(self, block: np.ndarray) -> None:
+        n = len(block)
+        if self._fill + n > len(self._buffer):
+            self._flush()
+        if n > len(self._buffer):
+            self._write(block)
+        else:
+            self._buffer[self._fill:self._fill + n] = block
+            self._fill += n
+        self.frames += n
+
+    def _flush(self) -> None:
+        if self._fill:
+            self._write(self._buffer[:self._fill])
+            self._fill = 0
+
+    def _write(self, samples: np.ndarray) -> None:
+        if self._file is None:
+            raise ValueError(f"{self.path}: written to after it was closed")
+        self._file.write(samples)
+        self.written += len(samples)
+
+    def close(self) -> None:
+        """Write what is gathered and complete the header (idempotent)."""
+        if self._file is not None:
+            try:
+                self._flush()
+            finally:
+                self._file.close()
+                self._file = None
+
+
+class StreamedOutputs:
+    """performance.wav, impacts.csv and performance.bvh written into ``folder`` while the render goes on, so a
+    render's memory does not grow with the piece (a 1-hour piece kept them all: 4 GB).
+
+    ``bvh_rate_hz``: the BVH's frame rate (None: the poses' median interval, known only at the end: the poses
+    are kept and :func:`write_rest` writes the BVH). ``keep``: also keep the impacts and poses in memory (the
+    video draws them).
+    """
+
+    def __init__(self, folder: Path, bvh_rate_hz: float | None, keep: bool = False) -> None:
+        from services.graphics.export.bvh import BvhStream
+
+        self.folder = folder
+        self.keep = keep or bvh_rate_hz is None
+        self.bvh_rate_hz = bvh_rate_hz
+        self.wav: WavStream | None = None
+        self.impacts = ImpactCsvStream(folder / "impacts.csv")
+        self.bvh = None if bvh_rate_hz is None else BvhStream(folder / "performance.bvh", bvh_rate_hz)
+        self._recorder: RecorderCore | None = None
+
+    def attach(self, sound: Any) -> None:
+        """Write what ``sound`` (a SoundCore) renders into performance.wav."""
+        self.wav = WavStream(self.folder / "performance.wav", sound.sample_rate, sound.channels)
+        sound.on_block = self.wav.write
+
+    def recorder(self) -> RecorderCore:
+        """The recorder whose impacts and poses are streamed here."""
+        self._recorder = RecorderCore(self.impacts, self.bvh, keep=self.keep)
+        return self._recorder
+
+    def finish(self) -> int:
+        """Complete the files; returns the impacts written."""
+        if self.wav is None:
+            raise RuntimeError("no sound was attached to the streamed outputs")
+        self.wav.close()
+        count = self.impacts.finish()
+        if self.bvh is not None:
+            self.bvh.finish()
+        return count
+
+    def close(self) -> None:
+        """Close every file (a render given up; the staging directory is removed with them)."""
+        if self.wav is not None:
+            self.wav.close()
+        self.impacts.close()
+        if self.bvh is not None:
+            self.bvh.close()
+
+
+class Staging:
+    """The render's files written into a temporary directory inside ``output`` and moved in only by
+    :meth:`commit`: a run that fails or is interrupted leaves nothing partial (a directory it created is
+    removed). A context manager: an exception before :meth:`commit` discards the staging."""
+
+    def __init__(self, output: Path) -> None:
+        self.output = output
+        self.created = not output.exists()
+        output.mkdir(parents=True, exist_ok=True)
+        self.path = Path(tempfile.mkdtemp(dir=output, prefix=".render-"))
+        self.moved: list[str] = []
+
+    def __enter__(self) -> Staging:
+        return self
+
+    def __exit__(self, kind: type[BaseException] | None, exc: BaseException | None, tb: Any) -> None:
+        if kind is not None:
+            self.discard()
+
+    def commit(self) -> list[Path]:
+        """Move every staged file into ``output``, remove those of an earlier render this one does not write."""
+        earlier = earlier_outputs(self.output)
+        names = sorted(p.name for p in self.path.iterdir())
+        for name in names:
+            (self.path / name).replace(self.output / name)
+            self.moved.append(name)
+        for name in sorted(earlier - set(names)):  # an earlier render's video or score copy: not this one's
+            (self.output / name).unlink(missing_ok=True)
+        self.path.rmdir()
+        return [self.output / n for n in names]
+
+    def discard(self) -> None:
+        """Remove the staging, and what was moved into a directory this run created (with the directory)."""
+        shutil.rmtree(self.path, ignore_errors=True)
+        if self.created:
+            for name in self.moved:
+                (self.output / name).unlink(missing_ok=True)
+            try:
+                self.output.rmdir()
+            except OSError:
+                pass
 
 
 # ---------------------------------------------------------------------- reports and output
@@ -348,7 +563,7 @@ def score_report(result: ScoreRender, source: str, opts: RenderOptions) -> dict[
         "notes": len(result.score.events),
         "planned_strokes": len(result.plan.strokes),
         "issues": issues_json(result.plan, result.score),
-        "impacts": len(result.impacts),
+        "impacts": result.impacts_total,
         "contacts": result.contacts,
         "score_offset_s": result.score_offset_s,
         "latency_s": opts.latency_s,
@@ -375,39 +590,26 @@ def write_outputs(output: Path, audio: np.ndarray, sample_rate: int, impacts: li
     ``video``: called with the staging directory once the WAV is there; writes the video into it and returns
     what ``report["video"]`` lists.
     """
-    created = not output.exists()
-    output.mkdir(parents=True, exist_ok=True)
-    earlier = earlier_outputs(output)
-    names: list[str] = []
-    try:
-        with tempfile.TemporaryDirectory(dir=output, prefix=".render-") as tmp:
-            staging = Path(tmp)
-            sf.write(staging / "performance.wav", audio, sample_rate, subtype="PCM_24")
-            write_impacts_csv(impacts, staging / "impacts.csv")
-            if poses is not None:
-                from services.graphics.export.bvh import write_bvh
+    with Staging(output) as staging:
+        sf.write(staging.path / "performance.wav", audio, sample_rate, subtype="PCM_24")
+        write_impacts_csv(impacts, staging.path / "impacts.csv")
+        write_rest(staging, report, poses, score, video, bvh_rate_hz)
+        return staging.commit()
 
-                write_bvh(poses, staging / "performance.bvh", rate_hz=bvh_rate_hz)
-            if video is not None:
-                report["video"] = video(staging)
-            if score is not None:
-                shutil.copyfile(score, staging / f"score{score.suffix}")
-            (staging / "report.json").write_text(json.dumps(report, indent=2), encoding="utf-8")
-            names = sorted(p.name for p in staging.iterdir())
-            for name in names:
-                (staging / name).replace(output / name)
-            for name in sorted(earlier - set(names)):  # an earlier render's video or score copy: not this one's
-                (output / name).unlink(missing_ok=True)
-    except BaseException:
-        if created:
-            for name in names:
-                (output / name).unlink(missing_ok=True)
-            try:
-                output.rmdir()
-            except OSError:
-                pass
-        raise
-    return [output / n for n in names]
+
+def write_rest(staging: Staging, report: dict[str, Any], poses: Any = None, score: Path | None = None,
+               video: Callable[[Path], dict[str, Any]] | None = None, bvh_rate_hz: float | None = None) -> None:
+    """The outputs after the WAV and impacts.csv (see :func:`write_outputs`): the BVH of ``poses`` (kept in
+    memory), the video, the score's copy and report.json."""
+    if poses is not None:
+        from services.graphics.export.bvh import write_bvh
+
+        write_bvh(poses, staging.path / "performance.bvh", rate_hz=bvh_rate_hz)
+    if video is not None:
+        report["video"] = video(staging.path)
+    if score is not None:
+        shutil.copyfile(score, staging.path / f"score{score.suffix}")
+    (staging.path / "report.json").write_text(json.dumps(report, indent=2), encoding="utf-8")
 
 
 def earlier_outputs(output: Path) -> set[str]:
@@ -459,25 +661,30 @@ def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: boo
     progress = Progress(f"rendering {Path(path).name}", plan.end_time - plan.start_time + opts.settle_s,
                         enabled=False if quiet else None)
     finished = False  # a render given up (Ctrl-C, an error) leaves its bar where it stood, not at 100 %
-    try:
-        if opts.jobs > 1:
-            from batteur.segments import run_segmented
+    with Staging(output) as staging:  # the WAV, impacts and motion are written as they are rendered
+        outputs = StreamedOutputs(staging.path, opts.pose_rate_hz or None, keep=opts.video)
+        try:
+            if opts.jobs > 1:
+                from batteur.segments import run_segmented
 
-            result = run_segmented(score, assignment, plan, kit, opts, opts.jobs, segment_s=opts.segment_s,
-                                   on_progress=lambda t, total: progress.update(t))
-        else:
-            result = run_score(score, assignment, plan, kit, opts, on_progress=lambda t, total: progress.update(t))
-        finished = True
-    finally:
-        progress.close(finished)
-    report = score_report(result, str(path), opts)
-    video = None
-    if opts.video:
-        if result.poses is None:
-            raise RenderError("--video: physics sent no poses to draw")
-        video = video_writer(result, kit, opts, quiet)
-    write_outputs(output, result.audio, result.sample_rate, result.impacts, report, result.poses, Path(path), video,
-                  bvh_rate_hz=opts.pose_rate_hz or None)
+                result = run_segmented(score, assignment, plan, kit, opts, opts.jobs, segment_s=opts.segment_s,
+                                       on_progress=lambda t, total: progress.update(t), outputs=outputs)
+            else:
+                result = run_score(score, assignment, plan, kit, opts, on_progress=lambda t, total: progress.update(t),
+                                   outputs=outputs)
+            finished = True
+        finally:
+            progress.close(finished)
+            outputs.close()
+        report = score_report(result, str(path), opts)
+        video = None
+        if opts.video:
+            if result.poses is None:
+                raise RenderError("--video: physics sent no poses to draw")
+            video = video_writer(result, kit, opts, quiet)
+        kept_poses = result.poses if outputs.bvh is None else None  # else the BVH is written already
+        write_rest(staging, report, kept_poses, Path(path), video, bvh_rate_hz=opts.pose_rate_hz or None)
+        staging.commit()
     return report
 
 

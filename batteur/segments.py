@@ -17,15 +17,19 @@ files for any number of processes above one) but not identical to a
 single-process render: each segment's drummer is a fresh simulation that has
 tracked the plan for ``warmup_s`` seconds, not the one that played everything
 before. A stick resting on a head across a boundary (damping) is not carried
-over.
+over: a press whose lift falls in the next segment is lifted by that part's
+next strike (sound's implicit lift), and a lift without its press is counted
+and ignored.
 """
 
 from __future__ import annotations
 
+import logging
 import math
 import multiprocessing
 import os
 import time
+from collections import deque
 from collections.abc import Callable
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
@@ -37,7 +41,7 @@ from common.messages.events import Impact
 from common.messages.interaction import ImpactEnd
 
 if TYPE_CHECKING:
-    from batteur.render import RenderOptions, ScoreRender
+    from batteur.render import RenderOptions, ScoreRender, StreamedOutputs
     from common.gesture.plan import GesturePlan
     from common.kit import Kit
     from common.score.events import Score
@@ -128,6 +132,9 @@ class SegmentResult:
     settings: dict[str, Any] = field(default_factory=dict)
 
 
+log = logging.getLogger("batteur.render")
+
+
 class SegmentStopped(RuntimeError):
     """A segment abandoned because the whole render was (Ctrl-C, or another segment failed)."""
 
@@ -206,33 +213,60 @@ def merge(results: list[SegmentResult]) -> list[Sent]:
     An impact and its end share a number (as interaction sends them); other numbered messages (damping) keep
     a sequence of their own.
     """
-    stream = [(now, r.index, k, source, to, m) for r in results for k, (now, source, to, m) in enumerate(r.sent)]
-    stream.sort(key=lambda e: (e[0], e[1], e[2]))
-    numbers: dict[tuple[int, str, str, int], int] = {}
-    counters: dict[tuple[str, str], int] = {}
-    out: list[Sent] = []
-    for now, index, _, source, _to, message in stream:
-        seq = getattr(message, "seq", None)
-        if isinstance(seq, int):
-            family = "impact" if isinstance(message, (Impact, ImpactEnd)) else type(message).__name__
-            key = (index, source, family, seq)
-            if key not in numbers:
-                numbers[key] = counters.get((source, family), 0)
-                counters[(source, family)] = numbers[key] + 1
-            message = message.model_copy(update={"seq": numbers[key]})
-        out.append((now, source, _to, message))
-    return out
+    merger = _Merger()
+    for r in results:
+        merger.add(r)
+    return merger.release(math.inf)
+
+
+class _Merger:
+    """:func:`merge` in pieces, as the segments come: segment ``k``'s messages are all sent at or after its
+    ``run_from_s``, so once segments 0..k-1 are in, every message sent before segment ``k``'s ``run_from_s`` is
+    known and can be played; only the later ones are held (the lead-in and overhang of a segment or two)."""
+
+    def __init__(self) -> None:
+        self._held: list[tuple[float, int, int, str, str, OscMessage]] = []
+        self._numbers: dict[tuple[int, str, str, int], int] = {}
+        self._counters: dict[tuple[str, str], int] = {}
+        self.peak_held = 0
+        """Most messages held at once (not yet released)."""
+
+    def add(self, result: SegmentResult) -> None:
+        self._held += [(now, result.index, k, source, to, m) for k, (now, source, to, m) in enumerate(result.sent)]
+        self.peak_held = max(self.peak_held, len(self._held))
+
+    def release(self, before_s: float) -> list[Sent]:
+        """The held messages sent before ``before_s`` (rig seconds), in time order, numbered again."""
+        self._held.sort(key=lambda e: (e[0], e[1], e[2]))
+        cut = next((i for i, e in enumerate(self._held) if e[0] >= before_s), len(self._held))
+        stream, self._held = self._held[:cut], self._held[cut:]
+        out: list[Sent] = []
+        for now, index, _, source, to, message in stream:
+            seq = getattr(message, "seq", None)
+            if isinstance(seq, int):
+                family = "impact" if isinstance(message, (Impact, ImpactEnd)) else type(message).__name__
+                key = (index, source, family, seq)
+                if key not in self._numbers:
+                    self._numbers[key] = self._counters.get((source, family), 0)
+                    self._counters[(source, family)] = self._numbers[key] + 1
+                message = message.model_copy(update={"seq": self._numbers[key]})
+            out.append((now, source, to, message))
+        return out
 
 
 class _Replay:
-    """Sends recorded messages again at the rig times they were sent, as role ``ROLE``."""
+    """Sends recorded messages again at the rig times they were sent, as role ``ROLE``; messages are added
+    (:meth:`extend`) before the run reaches their time."""
 
     ROLE: ClassVar[str] = ""
 
     def __init__(self, sent: list[Sent], rate_hz: float) -> None:
         self.rate_hz = rate_hz
-        self._queue = [(now, to, m) for now, source, to, m in sent if source == self.ROLE]
-        self._next = 0
+        self._queue: deque[tuple[float, str, OscMessage]] = deque()
+        self.extend(sent)
+
+    def extend(self, sent: list[Sent]) -> None:
+        self._queue.extend((now, to, m) for now, source, to, m in sent if source == self.ROLE)
 
     def handle(self, message: OscMessage, now: float, source: str) -> list[Outgoing]:
         return []
@@ -240,10 +274,9 @@ class _Replay:
     def step(self, now: float) -> list[Outgoing]:
         out: list[Outgoing] = []
         queue = self._queue
-        while self._next < len(queue) and queue[self._next][0] <= now + 1e-9:
-            _, to, message = queue[self._next]
+        while queue and queue[0][0] <= now + 1e-9:
+            _, to, message = queue.popleft()
             out.append(Outgoing(message, to))
-            self._next += 1
         return out
 
 
@@ -253,6 +286,21 @@ class _PhysicsReplay(_Replay):
 
 class _InteractionReplay(_Replay):
     ROLE = "interaction"
+
+
+def _log_given_up(futures: dict[Future[SegmentResult], Segment]) -> None:
+    """After a render was given up: wait for the segments still running (they end at their next check, as the
+    pool's shutdown would wait for them) and log how each ended (given up at which rig time, or played out)."""
+    wait(futures)
+    for future, segment in sorted(futures.items(), key=lambda item: item[1].index):
+        if future.cancelled():
+            continue
+        error = future.exception()
+        if isinstance(error, SegmentStopped):
+            log.info("%s", error)
+        elif error is None:
+            log.info("segment %d played to its end (%.1f s) before it could be given up", segment.index,
+                     segment.run_to_s)
 
 
 def default_jobs() -> int:
@@ -265,9 +313,14 @@ def default_jobs() -> int:
 
 def run_segmented(score: Score, assignment: Assignment, plan: GesturePlan, kit: Kit, opts: RenderOptions,
                   jobs: int, on_progress: Callable[[float, float], None] | None = None,
-                  segment_s: float = SEGMENT_S, warmup_s: float = WARMUP_S) -> ScoreRender:
-    """:func:`batteur.render.run_score` in segments on ``jobs`` processes (see the module docstring)."""
-    from batteur.render import RecorderCore, ScoreRender
+                  segment_s: float = SEGMENT_S, warmup_s: float = WARMUP_S,
+                  outputs: StreamedOutputs | None = None) -> ScoreRender:
+    """:func:`batteur.render.run_score` in segments on ``jobs`` processes (see the module docstring).
+
+    The parent plays each segment's messages into sound and the recorder as soon as the segments before it are
+    in, so it holds a few segments' messages, not the piece's; ``outputs``: as for ``run_score``.
+    """
+    from batteur.render import RecorderCore, ScoreRender, collect
     from common.bus import OfflineRunner
     from services.sound.core import SoundCore, SoundSettings
 
@@ -277,53 +330,95 @@ def run_segmented(score: Score, assignment: Assignment, plan: GesturePlan, kit: 
     duration = plan.end_time + offset + opts.latency_s + opts.tail_s
     segments = plan_segments(duration, segment_s, warmup_s)
     total = sum(s.run_to_s - s.run_from_s for s in segments)
+    sound = SoundCore(SoundSettings(latency=opts.latency_s, origin=0.0, record=outputs is None), kit=kit)
+    recorder = RecorderCore() if outputs is None else outputs.recorder()
+    replays = [_PhysicsReplay([], opts.rate_hz), _InteractionReplay([], opts.rate_hz)]
+    runner = OfflineRunner([*replays, sound, recorder])
+    play = _Player(segments, replays, runner, duration)
     context = multiprocessing.get_context("spawn")  # PyBullet, pyo and numba do not survive a fork
-    with context.Manager() as manager, ProcessPoolExecutor(max_workers=max(1, min(jobs, len(segments))),
-                                                          mp_context=context) as pool:
-        queue, stop = manager.Queue(), manager.Event()
-        futures: dict[Future[SegmentResult], Segment] = {
-            pool.submit(run_segment, plan, kit, opts, s, queue, stop): s for s in segments}
-        done_s = {s.index: 0.0 for s in segments}
-        pending = set(futures)
-        try:
-            while pending:
-                finished, pending = wait(pending, timeout=0.25, return_when=FIRST_COMPLETED)
-                while not queue.empty():
-                    index, simulated = queue.get_nowait()
-                    done_s[index] = simulated
-                if on_progress is not None:  # simulated seconds of all segments, scaled to the piece
-                    on_progress(duration * sum(done_s.values()) / total, duration)
-                for future in finished:
-                    future.result()  # a worker's error ends the render here
-        except BaseException:
-            stop.set()  # the running and queued segments end at their next check, not at their end
-            for future in futures:  # the segments not started yet are not simulated for nothing
-                future.cancel()
-            raise
-        results = [f.result() for f in futures]
-    sent = merge(results)
-    sound = SoundCore(SoundSettings(latency=opts.latency_s, origin=0.0), kit=kit)
-    recorder = RecorderCore()
-    runner = OfflineRunner([_PhysicsReplay(sent, opts.rate_hz), _InteractionReplay(sent, opts.rate_hz), sound,
-                            recorder])
     try:
+        if outputs is not None:
+            outputs.attach(sound)
+        with context.Manager() as manager, ProcessPoolExecutor(max_workers=max(1, min(jobs, len(segments))),
+                                                              mp_context=context) as pool:
+            queue, stop = manager.Queue(), manager.Event()
+            futures: dict[Future[SegmentResult], Segment] = {
+                pool.submit(run_segment, plan, kit, opts, s, queue, stop): s for s in segments}
+            done_s = {s.index: 0.0 for s in segments}
+            pending = set(futures)
+            try:
+                while pending:
+                    finished, pending = wait(pending, timeout=0.25, return_when=FIRST_COMPLETED)
+                    while not queue.empty():
+                        index, simulated = queue.get_nowait()
+                        done_s[index] = simulated
+                    if on_progress is not None:  # simulated seconds of all segments, scaled to the piece
+                        on_progress(duration * sum(done_s.values()) / total, duration)
+                    for future in finished:
+                        play.add(future.result())  # a worker's error ends the render here
+                        del futures[future]  # its messages are the player's now, not kept twice
+                    if finished:
+                        play.advance()
+                    finished = set()
+            except BaseException:
+                stop.set()  # the running and queued segments end at their next check, not at their end
+                for future in futures:  # the segments not started yet are not simulated for nothing
+                    future.cancel()
+                _log_given_up(futures)
+                raise
         runner.run_until(duration)
         audio = sound.recording()
     finally:
         sound.close()
-    try:
-        poses = recorder.poses.sequence()
-    except ValueError:
-        poses = None
-    rejected: dict[str, int] = {}
-    for r in results:
-        for kind, n in r.rejected.items():
-            rejected[kind] = rejected.get(kind, 0) + n
-    contacts = sum(r.contacts for r in results)
-    stats = {"contacts_sent": contacts, "rejected": rejected, "diverged": sum(r.diverged for r in results),
-             **results[0].settings,
-             "cpu_time_s": round(time.process_time() - cpu_started + sum(r.cpu_time_s for r in results), 3),
+    poses, impacts, count = collect(recorder, outputs)
+    stats = {"contacts_sent": play.contacts, "rejected": play.rejected, "diverged": play.diverged,
+             **play.settings,
+             "cpu_time_s": round(time.process_time() - cpu_started + play.cpu_time_s, 3),
              "segments": {"count": len(segments), "segment_s": segment_s, "warmup_s": warmup_s,
                           "jobs": max(1, min(jobs, len(segments)))}}
-    return ScoreRender(score, assignment, plan, recorder.impacts.sorted(), contacts, audio, sound.sample_rate,
-                       duration, offset, time.perf_counter() - started, poses, stats)
+    return ScoreRender(score, assignment, plan, impacts, play.contacts, audio, sound.sample_rate, duration, offset,
+                       time.perf_counter() - started, poses, stats, count)
+
+
+class _Player:
+    """Plays the segments' messages into the parent's sound and recorder as far as the segments in allow."""
+
+    def __init__(self, segments: list[Segment], replays: list[_Replay], runner: Any, duration_s: float) -> None:
+        self.segments = segments
+        self.replays = replays
+        self.runner = runner
+        self.duration_s = duration_s
+        self.merger = _Merger()
+        self._waiting: dict[int, SegmentResult] = {}
+        self._next = 0  # first segment not merged yet
+        self.contacts = 0
+        self.diverged = 0
+        self.cpu_time_s = 0.0
+        self.rejected: dict[str, int] = {}
+        self.settings: dict[str, Any] = {}
+
+    def add(self, result: SegmentResult) -> None:
+        """A segment is done: merge it and those after it that were waiting for it."""
+        self._waiting[result.index] = result
+        while self._next in self._waiting:
+            r = self._waiting.pop(self._next)
+            self.merger.add(r)
+            self.contacts += r.contacts
+            self.diverged += r.diverged
+            self.cpu_time_s += r.cpu_time_s
+            for kind, n in r.rejected.items():
+                self.rejected[kind] = self.rejected.get(kind, 0) + n
+            if r.index == 0:
+                self.settings = r.settings
+            self._next += 1
+
+    def advance(self) -> None:
+        """Play every message known to be in its final place: those sent before the next segment's start."""
+        before = self.segments[self._next].run_from_s if self._next < len(self.segments) else math.inf
+        released = self.merger.release(before)
+        if released:
+            for replay in self.replays:
+                replay.extend(released)
+        until = min(before - 1e-6, self.duration_s)  # the steps that send only released messages
+        if until > self.runner.now:
+            self.runner.run_until(until)

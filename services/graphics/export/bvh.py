@@ -13,14 +13,16 @@ Rotation channels ZXY mean ``R = Rz Rx Ry``, as Blender and three.js read them.
 
 from __future__ import annotations
 
+import shutil
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
+from typing import IO
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from services.graphics.sequence import PoseSequence
+from services.graphics.sequence import PoseSequence, interpolate_pose
 from services.graphics.skeleton import body_links, guess_parents
 
 Z_UP_TO_Y_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
@@ -73,6 +75,90 @@ def _tree(names: list[str]) -> tuple[int, list[int], dict[int, list[int]]]:
     return root, order, {i: children[i] for i in order}
 
 
+class _Layout:
+    """The BVH hierarchy of a sequence's links, fixed by its first frame, and the motion channels it gives any
+    frames (each frame's channels depend on that frame alone, so frames can be converted in chunks)."""
+
+    def __init__(self, names: list[str], first_frame: np.ndarray, scale: float, all_positions: bool) -> None:
+        self.names = names
+        self.scale = scale
+        self.all_positions = all_positions
+        self.root, self.order, self.children = _tree(names)
+        self.parents = guess_parents(names)
+        pos, rots = self._world(first_frame[None])
+        self.first = {i: Rotation.from_quat(rots[i].as_quat()[0]) for i in self.order}
+        self.offsets: dict[int, np.ndarray] = {}
+        for i in self.order:
+            self.offsets[i] = (np.zeros(3) if i == self.root
+                               else self.first[self.parents[i]].inv().apply(pos[0, i] - pos[0, self.parents[i]]))
+        self.hierarchy: list[str] = ["HIERARCHY"]
+        self.channel_order: list[int] = []
+        """Links in the order their channels appear in a motion row."""
+        self._emit(self.root, 0)
+
+    @classmethod
+    def of(cls, names: list[str], first_frame: np.ndarray, scale: float = 1.0, all_positions: bool = False
+           ) -> _Layout:
+        return cls(list(names), np.asarray(first_frame, dtype=float), scale, all_positions)
+
+    def _world(self, values: np.ndarray) -> tuple[np.ndarray, dict[int, Rotation]]:
+        """Positions (N, L, 3) in file units and orientations of the body links, y up."""
+        c = Z_UP_TO_Y_UP
+        pos = values[:, :, :3] @ c.T * self.scale  # (N, L, 3)
+        rots = {i: Rotation.from_matrix(c @ Rotation.from_quat(values[:, i, 3:]).as_matrix() @ c.T)
+                for i in self.order}
+        return pos, rots
+
+    def _emit(self, i: int, depth: int) -> None:
+        lines, scale = self.hierarchy, self.scale
+        pad = "  " * depth
+        kind = "ROOT" if i == self.root else "JOINT"
+        lines.append(f"{pad}{kind} {self.names[i]}")
+        lines.append(f"{pad}{{")
+        ox, oy, oz = self.offsets[i]
+        lines.append(f"{pad}  OFFSET {ox:.6f} {oy:.6f} {oz:.6f}")
+        rot = "Zrotation Xrotation Yrotation"
+        if i == self.root or self.all_positions:
+            lines.append(f"{pad}  CHANNELS 6 Xposition Yposition Zposition {rot}")
+        else:
+            lines.append(f"{pad}  CHANNELS 3 {rot}")
+        self.channel_order.append(i)
+        if self.children[i]:
+            for child in self.children[i]:
+                self._emit(child, depth + 1)
+        else:
+            offset = self.offsets[i]
+            tip = offset * 0.25 if np.linalg.norm(offset) > 1e-6 else np.array([0.0, 0.05 * scale, 0.0])
+            tip = self.first[i].inv().apply(self.first[self.parents[i]].apply(tip)) if i != self.root else tip
+            lines.append(f"{pad}  End Site")
+            lines.append(f"{pad}  {{")
+            lines.append(f"{pad}    OFFSET {tip[0]:.6f} {tip[1]:.6f} {tip[2]:.6f}")
+            lines.append(f"{pad}  }}")
+        lines.append(f"{pad}}}")
+
+    def header(self, frames: int, frame_time: float) -> list[str]:
+        """The file's lines before its motion rows (``frame_time``: seconds)."""
+        return [*self.hierarchy, "MOTION", f"Frames: {frames}", f"Frame Time: {frame_time:.8f}"]
+
+    def motion(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict[int, Rotation]]:
+        """Motion rows (N, channels) of frames ``values`` (N, L, 7), with their positions and orientations."""
+        pos, rots = self._world(values)
+        root, parents = self.root, self.parents
+        cols: list[np.ndarray] = []
+        for i in self.channel_order:
+            if i == root or self.all_positions:
+                cols.append(pos[:, i] if i == root else rots[parents[i]].inv().apply(pos[:, i] - pos[:, parents[i]]))
+            local = rots[i] if i == root else rots[parents[i]].inv() * rots[i]
+            with warnings.catch_warnings():  # at gimbal lock scipy picks one of the equivalent angle sets: still exact
+                warnings.simplefilter("ignore", UserWarning)
+                cols.append(local.as_euler("ZXY", degrees=True))
+        return np.concatenate(cols, axis=1), pos, rots
+
+
+def _rows(motion: np.ndarray) -> list[str]:
+    return [" ".join(f"{v:.6f}" for v in row) for row in motion]
+
+
 def write_bvh(sequence: PoseSequence, path: Path, rate_hz: float | None = None, scale: float = 1.0,
               all_positions: bool = False) -> BvhInfo:
     """Write ``sequence`` as a BVH file at ``path``.
@@ -94,59 +180,13 @@ def write_bvh(sequence: PoseSequence, path: Path, rate_hz: float | None = None, 
         dt = float(np.median(np.diff(sequence.times))) if len(sequence.times) > 1 else 1 / 60
         rate_hz = 1.0 / dt
     seq = sequence.resample(rate_hz)
-    root, order, children = _tree(seq.names)
-    parents = guess_parents(seq.names)
-    c = Z_UP_TO_Y_UP
-    pos = seq.values[:, :, :3] @ c.T * scale  # (N, L, 3)
-    rots = [Rotation.from_matrix(c @ Rotation.from_quat(seq.values[:, i, 3:]).as_matrix() @ c.T)
-            for i in range(len(seq.names))]
-    first = {i: Rotation.from_quat(rots[i].as_quat()[0]) for i in order}
-    offsets = {}
-    for i in order:
-        offsets[i] = np.zeros(3) if i == root else first[parents[i]].inv().apply(pos[0, i] - pos[0, parents[i]])
-
-    lines = ["HIERARCHY"]
-    motion_cols: list[np.ndarray] = []
-
-    def channels(i: int) -> None:
-        if i == root or all_positions:
-            motion_cols.append(pos[:, i] if i == root else rots[parents[i]].inv().apply(pos[:, i] - pos[:, parents[i]]))
-        local = rots[i] if i == root else rots[parents[i]].inv() * rots[i]
-        with warnings.catch_warnings():  # at gimbal lock scipy picks one of the equivalent angle sets: still exact
-            warnings.simplefilter("ignore", UserWarning)
-            motion_cols.append(local.as_euler("ZXY", degrees=True))
-
-    def emit(i: int, depth: int) -> None:
-        pad = "  " * depth
-        kind = "ROOT" if i == root else "JOINT"
-        lines.append(f"{pad}{kind} {seq.names[i]}")
-        lines.append(f"{pad}{{")
-        ox, oy, oz = offsets[i]
-        lines.append(f"{pad}  OFFSET {ox:.6f} {oy:.6f} {oz:.6f}")
-        rot = "Zrotation Xrotation Yrotation"
-        if i == root or all_positions:
-            lines.append(f"{pad}  CHANNELS 6 Xposition Yposition Zposition {rot}")
-        else:
-            lines.append(f"{pad}  CHANNELS 3 {rot}")
-        channels(i)
-        if children[i]:
-            for child in children[i]:
-                emit(child, depth + 1)
-        else:
-            tip = offsets[i] * 0.25 if np.linalg.norm(offsets[i]) > 1e-6 else np.array([0.0, 0.05 * scale, 0.0])
-            tip = first[i].inv().apply(first[parents[i]].apply(tip)) if i != root else tip
-            lines.append(f"{pad}  End Site")
-            lines.append(f"{pad}  {{")
-            lines.append(f"{pad}    OFFSET {tip[0]:.6f} {tip[1]:.6f} {tip[2]:.6f}")
-            lines.append(f"{pad}  }}")
-        lines.append(f"{pad}}}")
-
-    emit(root, 0)
-    motion = np.concatenate(motion_cols, axis=1)
+    layout = _Layout.of(seq.names, seq.values[0], scale, all_positions)
+    motion, pos, rots = layout.motion(seq.values)
     frame_time = 1.0 / rate_hz
-    lines += ["MOTION", f"Frames: {len(seq.times)}", f"Frame Time: {frame_time:.8f}"]
-    lines += [" ".join(f"{v:.6f}" for v in row) for row in motion]
+    lines = layout.header(len(seq.times), frame_time)
+    lines += _rows(motion)
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    root, order, parents, offsets = layout.root, layout.order, layout.parents, layout.offsets
 
     # forward kinematics of what was written, against the input (reports non-rigid input)
     error = 0.0
@@ -163,3 +203,116 @@ def write_bvh(sequence: PoseSequence, path: Path, rate_hz: float | None = None, 
         error = max(error, float(np.abs(world_p[i] - pos[:, i]).max()))
     skipped = [n for k, n in enumerate(seq.names) if k not in set(order)]
     return BvhInfo([seq.names[i] for i in order], len(seq.times), frame_time, skipped, error)
+
+
+class BvhStream:
+    """Writes a BVH file as poses arrive, holding a few seconds of them, not the whole motion.
+
+    The same bytes as :func:`write_bvh` given the whole sequence at ``rate_hz``: frame ``k`` is the pose at
+    ``t0 + k / rate_hz`` (``t0``: the first pose's time), interpolated as :meth:`PoseSequence.sample` does, and
+    the frames up to the last pose's time. Motion rows go to ``path`` + ``.motion`` (next to ``path``) in chunks
+    of ``chunk_frames``; :meth:`finish` writes the header, whose frame count is known only then, and appends
+    them. Poses must come in strictly increasing time (seconds) with the link layout given to :meth:`restart`.
+    """
+
+    def __init__(self, path: Path, rate_hz: float, scale: float = 1.0, all_positions: bool = False,
+                 chunk_frames: int = 240) -> None:
+        if not rate_hz > 0:
+            raise ValueError(f"BVH frame rate must be > 0 Hz, got {rate_hz}")
+        self.path = Path(path)
+        self.motion_path = self.path.with_name(self.path.name + ".motion")
+        self.rate_hz = rate_hz
+        self.scale = scale
+        self.all_positions = all_positions
+        self.chunk_frames = chunk_frames
+        self.peak_held_frames = 0
+        """Most resampled frames held in memory at once (at most ``chunk_frames``): what the stream keeps."""
+        self._file: IO[str] | None = None
+        self.restart([])
+
+    def restart(self, names: list[str]) -> None:
+        """Start again with these link names (a new skeleton): the frames written so far are dropped."""
+        self.names = list(names)
+        self._layout: _Layout | None = None
+        self._t0 = 0.0
+        self._last: tuple[float, np.ndarray] | None = None  # newest pose: (time s, (L, 7))
+        self._next = 0  # index of the next frame to produce
+        self._frames: list[np.ndarray] = []  # produced, not yet converted and written
+        self._written = 0
+        self.valid = True
+        """False once a pose was not finite (or the names not unique): no file, as PoseSequence refuses them."""
+        if len(set(self.names)) != len(self.names):
+            self.valid = False
+        if self._file is not None:
+            self._file.seek(0)
+            self._file.truncate()
+
+    @property
+    def frames(self) -> int:
+        """Frames produced so far."""
+        return self._next
+
+    def add(self, time: float, values: np.ndarray) -> None:
+        """The pose (L, 7) at rig time ``time`` (seconds, after the previous pose's)."""
+        if not self.valid:
+            return
+        if not np.all(np.isfinite(values)):
+            self.valid = False
+            return
+        if self._last is None:
+            self._t0 = time
+            self._frame(values.copy())  # frame 0 is the first pose itself
+        else:
+            t_prev, prev = self._last
+            while (t := self._t0 + self._next / self.rate_hz) < time:
+                u = (t - t_prev) / (time - t_prev)
+                self._frame(interpolate_pose(prev, values, float(u)))
+        self._last = (time, values)
+
+    def _frame(self, frame: np.ndarray) -> None:
+        self._next += 1
+        self._frames.append(frame)
+        self.peak_held_frames = max(self.peak_held_frames, len(self._frames))
+        if len(self._frames) >= self.chunk_frames:
+            self._flush()
+
+    def _flush(self) -> None:
+        if not self._frames:
+            return
+        values = np.stack(self._frames)
+        if self._layout is None:
+            self._layout = _Layout.of(self.names, values[0], self.scale, self.all_positions)
+        if self._file is None:
+            self._file = self.motion_path.open("w+", encoding="utf-8", newline="\n")
+        motion, _, _ = self._layout.motion(values)
+        self._file.writelines(row + "\n" for row in _rows(motion))
+        self._written += len(self._frames)
+        self._frames = []
+
+    def finish(self) -> int | None:
+        """Write the file; returns its frame count (None, and no file, when no valid pose came)."""
+        try:
+            if self._last is None or not self.valid:
+                return None
+            t_end, last = self._last
+            count = max(1, int(np.floor((t_end - self._t0) * self.rate_hz + 1e-9)) + 1)
+            if count < self._next:
+                raise RuntimeError(f"BVH stream produced {self._next} frames, more than the {count} of its span")
+            while self._next < count:  # at or past the last pose: the last pose (PoseSequence.sample clamps)
+                self._frame(last.copy())
+            self._flush()
+            assert self._layout is not None and self._file is not None
+            with self.path.open("w", encoding="utf-8", newline="\n") as out:
+                out.write("\n".join(self._layout.header(count, 1.0 / self.rate_hz)) + "\n")
+                self._file.seek(0)
+                shutil.copyfileobj(self._file, out)
+            return count
+        finally:
+            self.close()
+
+    def close(self) -> None:
+        """Drop the motion rows' file (idempotent; :meth:`finish` does it)."""
+        if self._file is not None:
+            self._file.close()
+            self._file = None
+        self.motion_path.unlink(missing_ok=True)
