@@ -291,7 +291,8 @@ def test_static_peer_overrides_discovery_for_its_role(netns_lab: NetnsLab) -> No
     a = run_node(ns, "sound", "snd-s", 9000, "--extra", "_oscjson._tcp.local.:8080")
     found = b.expect(is_event("added", node_id="snd-s"), START_TIMEOUT_S)
     assert found["peer"]["host"] == "127.0.0.1"  # discovered and in the table...
-    assert [p["node_id"] for p in found["for_role"]["sound"]] == ["static:sound:10.99.0.1:9999"]  # ...but the static peer wins
+    # ...but the static peer wins
+    assert [p["node_id"] for p in found["for_role"]["sound"]] == ["static:sound:10.99.0.1:9999"]
 
     # the extra service (OSCQuery's _oscjson._tcp) is registered next to _osc._udp
     a.expect(is_event("started"), START_TIMEOUT_S)

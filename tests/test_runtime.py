@@ -398,7 +398,8 @@ def test_settings_precedence_cli_over_env_over_file_over_defaults(
     yaml_file.write_text("port: 9001\nlatency_s: 0.1\nrate_hz: 500\npeers: [sound=10.0.0.5:9000]\nlog-level: debug\n")
     s = load_settings({}, yaml_file)
     assert (s.port, s.latency_s, s.rate_hz, s.log_level) == (9001, 0.1, 500.0, "DEBUG")
-    assert s.static_peers == [Peer(role="sound", host="10.0.0.5", port=9000, node_id="static:sound:10.0.0.5:9000", static=True)]
+    assert s.static_peers == [Peer(role="sound", host="10.0.0.5", port=9000, node_id="static:sound:10.0.0.5:9000",
+                                   static=True)]
     assert s.host == "127.0.0.1" and s.discovery is True and s.interfaces == ["127.0.0.1"]  # defaults
     monkeypatch.setenv("BATTEUR_PORT", "9002")
     monkeypatch.setenv("BATTEUR_PEERS", "sound=127.0.0.1:9100, graphics=[::1]:9200")

@@ -443,16 +443,7 @@ class SoundCore:
                 self._log_drop("unknown_instrument", f"dropped an impact from {source} on {impact.instrument!r}, "
                                f"which the kit does not have (known: {known})")
             return
-        horizon = self.settings.horizon
-        if horizon is not None and impact.time - self.now > horizon:
-            self.stats.too_early += 1
-            self._log_drop("too_early", f"dropped an impact from {source} at rig time {impact.time:.3f} s, "
-                           f"{impact.time - self.now:.1f} s ahead of the sound (more than {horizon:g} s: "
-                           "is its clock synchronised?)")
-            return
-        if self.settings.max_pending is not None and len(self.scheduler) >= self.settings.max_pending:
-            self.stats.overload += 1
-            self._log_drop("overload", f"dropped an impact from {source}: {len(self.scheduler)} already waiting")
+        if not self._admitted("an impact", source, impact.time, len(self.scheduler)):
             return
         payload = (impact.instrument, impact)
         self.scheduler.push(impact.time, payload, self.next_sample)
@@ -477,17 +468,25 @@ class SoundCore:
             self._log_drop("press_malformed", f"dropped a press from {source} on {damping.instrument}: force "
                            f"{damping.force:g} N (at most {MAX_PRESS_FORCE_N:g} N)")
             return
-        horizon = self.settings.horizon
-        if horizon is not None and damping.time - self.now > horizon:
-            self.stats.too_early += 1
-            self._log_drop("too_early", f"dropped a press from {source} at rig time {damping.time:.3f} s, "
-                           f"{damping.time - self.now:.1f} s ahead of the sound (more than {horizon:g} s)")
-            return
-        if self.settings.max_pending is not None and len(self.press_scheduler) >= self.settings.max_pending:
-            self.stats.overload += 1
-            self._log_drop("overload", f"dropped a press from {source}: {len(self.press_scheduler)} already waiting")
+        if not self._admitted("a press", source, damping.time, len(self.press_scheduler)):
             return
         self.press_scheduler.push(damping.time, damping, self.next_sample)
+
+    def _admitted(self, what: str, source: str, time: float, waiting: int) -> bool:
+        """Whether an impact or press (``what``) for rig time ``time`` (s) may wait in its scheduler, which holds
+        ``waiting``: not beyond the horizon, not past ``max_pending`` (else counted and logged)."""
+        horizon = self.settings.horizon
+        if horizon is not None and time - self.now > horizon:
+            self.stats.too_early += 1
+            self._log_drop("too_early", f"dropped {what} from {source} at rig time {time:.3f} s, "
+                           f"{time - self.now:.1f} s ahead of the sound (more than {horizon:g} s: "
+                           "is its clock synchronised?)")
+            return False
+        if self.settings.max_pending is not None and waiting >= self.settings.max_pending:
+            self.stats.overload += 1
+            self._log_drop("overload", f"dropped {what} from {source}: {waiting} already waiting")
+            return False
+        return True
 
     def _press(self, offset: int, damping: Damping) -> None:
         """Hand a press or lift, in time order, to its instrument from sample ``offset`` of this block."""

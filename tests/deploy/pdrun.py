@@ -12,6 +12,10 @@ from pathlib import Path
 
 import pytest
 
+from common.kit import load_kit
+from common.messages.events import Contact
+from services.interaction.synthetic import StreamBuilder, strike
+
 PD_DIR = Path(__file__).resolve().parents[2] / "pd"
 
 
@@ -96,3 +100,19 @@ class PdProcess:
                 self.popen.kill()
                 self.popen.wait(timeout=5)
         self._reader.join(timeout=2)
+
+
+THREE_STRIKES = (("snare", 0.2), ("floortom", 0.5), ("crash", 0.8))
+"""(instrument, rig time s) of the strikes :func:`three_strikes` makes."""
+
+
+def three_strikes() -> list[Contact]:
+    """Physics' contact stream of a snare, floor tom and crash strike at 4 m/s (:data:`THREE_STRIKES`), in step
+    order: what a Pd sound client must play once each."""
+    kit = load_kit("default")
+    contacts: list[Contact] = []
+    for instrument, at in THREE_STRIKES:
+        builder = StreamBuilder(kit, instrument)
+        strike(builder, at, velocity=4.0)
+        contacts += builder.contacts
+    return sorted(contacts, key=lambda c: c.step)

@@ -16,10 +16,8 @@ from pathlib import Path
 
 import pytest
 
-from common.kit import load_kit
 from common.messages import encode
-from services.interaction.synthetic import StreamBuilder, strike
-from tests.deploy.pdrun import pd_binary
+from tests.deploy.pdrun import pd_binary, three_strikes
 from tests.deploy.test_compose import ROOT, _compose_network, _entrypoint, _remove_hosts, _translate, compose_config
 from tests.netns import NetnsLab, NsProcess, netns_lab  # noqa: F401  (fixture)
 
@@ -36,13 +34,7 @@ with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
 
 
 def _contacts() -> list[tuple[float, str]]:
-    kit = load_kit("default")
-    contacts = []
-    for k, instrument in enumerate(("snare", "floortom", "crash")):
-        builder = StreamBuilder(kit, instrument)
-        strike(builder, 0.2 + 0.3 * k, velocity=4.0)
-        contacts += builder.contacts
-    return [(c.time, encode(c).hex()) for c in sorted(contacts, key=lambda c: c.step)]
+    return [(c.time, encode(c).hex()) for c in three_strikes()]
 
 
 def _wait_log(proc: NsProcess, needle: str, timeout: float = 60.0) -> None:
@@ -81,7 +73,8 @@ def test_the_pd_profile_sends_interactions_impacts_to_pd_sound(netns_lab: NetnsL
         while len([line for line in client.errors if line.startswith("batteur-impact:")]) < 3:
             assert time.monotonic() < deadline, client.describe("fewer than 3 strikes played")
             time.sleep(0.05)
-        assert any("peer sound static:sound:pd-sound:9103 at pd-sound" in line for line in interaction.errors), interaction.errors
+        peer = "peer sound static:sound:pd-sound:9103 at pd-sound"
+        assert any(peer in line for line in interaction.errors), interaction.errors
         played = [line.split()[2:] for line in client.errors if line.startswith("batteur-impact:")]
         # four copies of each impact: each played once, at its rig time
         assert [p[0] for p in played] == ["snare", "floortom", "crash"], client.errors

@@ -30,7 +30,7 @@ from common.messages.physics import PhysicsControlMode, PhysicsGrip
 from common.messages.score import GestureStyle, ScoreLoad, ScoreTransport, TempoScale
 from common.messages.sound import SoundDamping, SoundLatency, SoundLevel, SoundModel, SoundModes, SoundTension
 from common.runtime import Node
-from tests.deploy.pdrun import PD_DIR, PdProcess, require_pd
+from tests.deploy.pdrun import PD_DIR, PdProcess, require_pd, three_strikes
 
 pytestmark = pytest.mark.timeout(120)
 ROOT = Path(__file__).resolve().parents[2]
@@ -266,8 +266,6 @@ def test_sound_client_only_writes_takes_into_its_directory(tmp_path: Path) -> No
 
 def test_sound_client_receives_impacts_from_a_running_interaction_node(tmp_path: Path) -> None:
     """The rig's interaction node (a real process) turns contacts into impacts and sends them to the Pd client."""
-    from common.kit import load_kit
-    from services.interaction.synthetic import StreamBuilder, strike
 
     port = _free_udp_port()
     iport = _free_udp_port()
@@ -284,12 +282,7 @@ def test_sound_client_receives_impacts_from_a_running_interaction_node(tmp_path:
     reader.start()
     try:
         pd.wait_for(lambda lines: any(f"listen {port}" in line for line in lines))
-        kit = load_kit("default")
-        contacts = []
-        for k, instrument in enumerate(("snare", "floortom", "crash")):
-            b = StreamBuilder(kit, instrument)
-            strike(b, 0.2 + 0.3 * k, velocity=4.0)
-            contacts += b.contacts
+        contacts = three_strikes()
         # contacts sent before the node listens are lost: wait for it (it took 2.1-2.3 s on one loaded core,
         # longer than the fixed 1.5 s this test used to sleep)
         deadline = time.monotonic() + 60
@@ -298,7 +291,7 @@ def test_sound_client_receives_impacts_from_a_running_interaction_node(tmp_path:
             time.sleep(0.05)
         with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
             start = time.monotonic()  # contacts go out at their own pace, one physics step apart, as physics sends
-            for c in sorted(contacts, key=lambda c: c.step):
+            for c in contacts:
                 wait = start + c.time - time.monotonic()
                 if wait > 0:
                     time.sleep(wait)

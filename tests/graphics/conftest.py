@@ -105,6 +105,17 @@ def graphics_node(tmp_path: Path) -> Iterator[GraphicsNodeProcess]:
         node.close()
 
 
+@pytest.fixture
+def synthetic_node(tmp_path: Path) -> Iterator[GraphicsNodeProcess]:
+    """A graphics node playing the synthetic drummer (frames flow without physics)."""
+    node = GraphicsNodeProcess(tmp_path, extra=["--synthetic", "--clock-master", "self"])
+    node.start()
+    try:
+        yield node
+    finally:
+        node.close()
+
+
 def browser_available() -> bool:
     try:
         import playwright  # noqa: F401

@@ -8,7 +8,6 @@ changes something else, and the orbit preset starts from the front.
 from __future__ import annotations
 
 import socket
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -28,17 +27,6 @@ SET_SLIDER = "(el, v) => { el.value = v; el.dispatchEvent(new Event('input')); }
 AZIMUTH = "(() => { const c = window.batteur.camera.position, t = window.batteur.controls.target; " \
           "return Math.atan2(c.x - t.x, c.y - t.y) * 180 / Math.PI; })()"
 """Page script: the camera's azimuth about its target, degrees (0: from the front, +y; 90: from +x)."""
-
-
-@pytest.fixture
-def synthetic_node(tmp_path: Path) -> Iterator[GraphicsNodeProcess]:
-    """A graphics node playing the synthetic drummer (frames flow without physics)."""
-    node = GraphicsNodeProcess(tmp_path, extra=["--synthetic", "--clock-master", "self"])
-    node.start()
-    try:
-        yield node
-    finally:
-        node.close()
 
 
 def _page(url: str, width: int = 1000, height: int = 600) -> Any:

@@ -98,17 +98,6 @@ def test_the_drummer_preset_shows_the_kit_not_the_drummers_head(tmp_path: Path) 
 
 
 # --- the editor never covers the plot ----------------------------------------------------------------------------
-@pytest.fixture
-def synthetic_node(tmp_path: Path) -> Iterator[GraphicsNodeProcess]:
-    """A graphics node playing the synthetic drummer (frames flow without physics)."""
-    node = GraphicsNodeProcess(tmp_path, extra=["--synthetic", "--clock-master", "self"])
-    node.start()
-    try:
-        yield node
-    finally:
-        node.close()
-
-
 @needs_browser
 @pytest.mark.parametrize(("width", "height"), [(1280, 560), (1000, 700), (800, 450), (800, 360), (600, 800)])
 def test_the_open_editor_never_covers_the_plot(synthetic_node: GraphicsNodeProcess, width: int, height: int) -> None:

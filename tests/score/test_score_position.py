@@ -2,34 +2,19 @@
 
 from __future__ import annotations
 
-import io
-
-import mido
 import numpy as np
 import pytest
 
 from common.score.midi import read_midi
 from common.score.position import bar_beat
 from common.score.text import parse_text
+from tests.score.midi_files import drum_midi
 
 
-def _midi_bytes(signatures: list[tuple[int, int, int]], bars_ticks: int, ticks_per_beat: int = 480) -> bytes:
+def _kicks(signatures: list[tuple[int, int, int]], bars_ticks: int, ticks_per_beat: int = 480) -> bytes:
     """One drum track at 120 bpm: (tick, numerator, denominator) time signatures, a kick at tick 0 and at
     ``bars_ticks``."""
-    mid = mido.MidiFile(ticks_per_beat=ticks_per_beat)
-    track = mido.MidiTrack()
-    mid.tracks.append(track)
-    events: list[tuple[int, mido.Message | mido.MetaMessage]] = [
-        (t, mido.MetaMessage("time_signature", numerator=n, denominator=d)) for t, n, d in signatures]
-    events += [(0, mido.Message("note_on", channel=9, note=36, velocity=100)),
-               (bars_ticks, mido.Message("note_on", channel=9, note=36, velocity=100))]
-    last = 0
-    for tick, msg in sorted(events, key=lambda e: e[0]):
-        track.append(msg.copy(time=tick - last))
-        last = tick
-    data = io.BytesIO()
-    mid.save(file=data)
-    return data.getvalue()
+    return drum_midi(signatures, [0, bars_ticks], tpb=ticks_per_beat, note=36)
 
 
 def test_text_score_bars_follow_its_blocks_meter_repeats_and_rests() -> None:
@@ -40,13 +25,13 @@ def test_text_score_bars_follow_its_blocks_meter_repeats_and_rests() -> None:
 
 def test_midi_bars_follow_its_time_signatures() -> None:
     tpb = 480
-    score = read_midi(_midi_bytes([(0, 4, 4), (2 * 4 * tpb, 6, 8)], 4 * 4 * tpb, tpb))
+    score = read_midi(_kicks([(0, 4, 4), (2 * 4 * tpb, 6, 8)], 4 * 4 * tpb, tpb))
     # two bars of 4/4, then 6/8 bars of three quarter-note beats
     assert score.bar_beats[:5].tolist() == [0, 4, 8, 11, 14]
 
 
 def test_midi_without_time_signature_counts_bars_of_four() -> None:
-    score = read_midi(_midi_bytes([], 3 * 4 * 480))
+    score = read_midi(_kicks([], 3 * 4 * 480))
     assert score.bar_beats[:3].tolist() == [0, 4, 8]
 
 

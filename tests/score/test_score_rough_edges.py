@@ -15,29 +15,10 @@ from common.score.events import Score, ScoreError
 from common.score.midi import read_midi
 from common.score.position import bar_beat
 from common.score.text import parse_text, read_score
+from tests.score.midi_files import drum_midi
 
 KEY_C = b"\xff\x59\x02\x00\x00"
 """A key signature meta message of C major, as mido writes it."""
-
-
-def _midi(signatures: list[tuple[int, int, int]], notes: list[int], key: bool = False, tpb: int = 480) -> bytes:
-    """One drum track at 120 bpm: (tick, numerator, denominator) time signatures, a snare at each tick of ``notes``
-    (the file ends at the last one), and a key signature of C at tick 0 when ``key``."""
-    mid = mido.MidiFile(ticks_per_beat=tpb)
-    track = mido.MidiTrack()
-    mid.tracks.append(track)
-    events: list[tuple[int, mido.Message | mido.MetaMessage]] = [
-        (t, mido.MetaMessage("time_signature", numerator=n, denominator=d)) for t, n, d in signatures]
-    if key:
-        events.append((0, mido.MetaMessage("key_signature", key="C")))
-    events += [(t, mido.Message("note_on", channel=9, note=38, velocity=100)) for t in notes]
-    last = 0
-    for tick, msg in sorted(events, key=lambda e: e[0]):
-        track.append(msg.copy(time=tick - last))
-        last = tick
-    data = io.BytesIO()
-    mid.save(file=data)
-    return data.getvalue()
 
 
 def _with_key(data: bytes, key: bytes) -> bytes:
@@ -63,7 +44,7 @@ def _same_reading(a: Score, b: Score) -> None:
 ])
 def test_a_corrupt_key_signature_is_ignored_with_one_warning(key: bytes, problem: str) -> None:
     # the whole file was refused ("not a valid Standard MIDI File"); a drum score has no use for its key
-    good = _midi([(0, 4, 4)], [0, 480, 960, 4 * 480], key=True)
+    good = drum_midi([(0, 4, 4)], [0, 480, 960, 4 * 480], key=True)
     score = read_midi(_with_key(good, key))
     _same_reading(score, read_midi(good))
     assert [e.event for e in score.events] == [E.SNARE] * 4
@@ -72,7 +53,7 @@ def test_a_corrupt_key_signature_is_ignored_with_one_warning(key: bytes, problem
 
 
 def test_corrupt_key_signatures_make_one_warning() -> None:
-    good = _midi([(0, 4, 4)], [0, 480], key=True)
+    good = drum_midi([(0, 4, 4)], [0, 480], key=True)
     bad = _with_key(good, b"\xff\x59\x02\xee\x01" + b"\x00\xff\x59\x02\x09\x00")  # two, at tick 0
     score = read_midi(bad)
     _same_reading(score, read_midi(good))
@@ -80,7 +61,7 @@ def test_corrupt_key_signatures_make_one_warning() -> None:
 
 
 def test_reading_a_score_leaves_mido_strict_for_other_code() -> None:
-    bad = _with_key(_midi([], [0], key=True), b"\xff\x59\x02\xee\x01")
+    bad = _with_key(drum_midi([], [0], key=True), b"\xff\x59\x02\xee\x01")
     read_midi(bad)
     with pytest.raises(mido.midifiles.meta.KeySignatureError):  # whoever else uses mido sees what it always did
         mido.MidiFile(file=io.BytesIO(bad))
@@ -99,7 +80,7 @@ def _rmid(smf: bytes, before: bytes = b"", form: bytes = b"RMID") -> bytes:
 
 
 def test_a_riff_midi_file_reads_as_the_midi_file_it_wraps(tmp_path: Path) -> None:
-    smf = _midi([(0, 3, 4)], [0, 480, 1440, 2400])
+    smf = drum_midi([(0, 3, 4)], [0, 480, 1440, 2400])
     info = _chunk(b"LIST", b"INFOINAM" + struct.pack("<I", 5) + b"Beat\x00")  # 17 bytes and a pad byte before it
     _same_reading(read_midi(_rmid(smf, info)), read_midi(smf))  # was "not a valid Standard MIDI File"
     for name in ("groove.rmi", "groove.RMI", "groove"):  # by its suffix, or by its header
@@ -113,7 +94,7 @@ def test_a_riff_midi_file_reads_as_the_midi_file_it_wraps(tmp_path: Path) -> Non
 @pytest.mark.parametrize(("data", "message"), [
     (_rmid(b"", form=b"WAVE"), r"not a valid Standard MIDI File \(a RIFF 'WAVE' file, not RIFF MIDI"),
     (_rmid(b"")[:-8] + _chunk(b"DISP", b"abcd"), r"RIFF MIDI file without a 'data' chunk"),
-    (_rmid(_midi([], [0]))[:-10], r"truncated RIFF MIDI file \(its 'data' chunk"),
+    (_rmid(drum_midi([], [0]))[:-10], r"truncated RIFF MIDI file \(its 'data' chunk"),
     (b"RIFF\x04\x00\x00\x00RMI", r"truncated RIFF file"),
     (_rmid(b"")[:-8] + b"dat", r"truncated RIFF MIDI file"),
 ])
@@ -150,7 +131,7 @@ def _bar_and_beat(score: Score, beat: float, seconds_per_beat: float = 0.5) -> t
 ])
 def test_bars_past_the_end_of_a_midi_file_are_its_last_signatures(signatures: list[tuple[int, int, int]], end: int,
                                                                    expected: dict[float, tuple[int, float]]) -> None:
-    score = read_midi(_midi(signatures, [0, end * 480]))
+    score = read_midi(drum_midi(signatures, [0, end * 480]))
     assert {beat: _bar_and_beat(score, beat) for beat in expected} == expected
 
 
