@@ -106,9 +106,10 @@ async def _wait_for(condition: Callable[[], bool], timeout: float) -> bool:
     return condition()
 
 
-def test_a_control_its_model_refuses_is_dropped_at_decoding_without_a_reply(tmp_path: Path) -> None:
+def test_a_control_its_model_refuses_is_dropped_at_decoding_and_its_sender_told(tmp_path: Path) -> None:
     """docs/interaction.md: values outside a message's declared ranges (copies 0, impact_at 'soon') never reach
-    the core: no error reply, nothing changed, counted by the node; the next valid control is answered."""
+    the core: nothing changed, counted by the node, the sender told why (by the node's transport); the next valid
+    control is answered."""
 
     async def scenario() -> None:
         settings = InteractionSettings(role="interaction", discovery=False, clock_master="self",
@@ -126,7 +127,9 @@ def test_a_control_its_model_refuses_is_dropped_at_decoding_without_a_reply(tmp_
             transport.sendto(encode_raw("/batteur/interaction/impact_at", ["soon"]), to)
             transport.sendto(encode(MapList()), to)
             assert await _wait_for(lambda: any(isinstance(m, ListEnd) for m in client.messages), 20.0)
-            assert not any(isinstance(m, InteractionError) for m in client.messages)
+            errors = [m for m in client.messages if isinstance(m, InteractionError)]
+            assert [e.request for e in errors] == [Redundancy.ADDRESS, "/batteur/interaction/impact_at"]
+            assert all("out_of_range" in e.detail for e in errors)
             assert core.config.redundancy == before and core.config.impact_at == "onset"
             assert core.control_errors == 0
             assert node.endpoint.stats.dropped[DropReason.OUT_OF_RANGE] == 2  # in Health's dropped_range
