@@ -326,10 +326,10 @@ class RecorderCore:
         (``impacts``, ``poses``), for the video."""
         from services.graphics.recorder import PerformanceRecorder
 
-        self.poses = PerformanceRecorder()
+        self.poses = PerformanceRecorder(keep_poses=keep, on_skeleton=None if bvh is None else bvh.restart,
+                                         on_pose=None if bvh is None else bvh.add)
         self.impacts = ImpactLog()
         self.impacts_csv = impacts_csv
-        self.pose_stream = None if bvh is None else PoseStream(bvh)
         self.keep = keep
 
     def handle(self, message: OscMessage, now: float, source: str) -> list[Outgoing]:
@@ -340,43 +340,11 @@ class RecorderCore:
             if taken and self.keep:
                 self.impacts.add(message, source)
         if not taken:
-            if self.pose_stream is not None:
-                self.pose_stream.record(message)
-            if self.keep:
-                self.poses.record(message, source)
+            self.poses.record(message, source)
         return []
 
     def step(self, now: float) -> list[Outgoing]:
         return []
-
-
-class PoseStream:
-    """The poses graphics would receive, by :class:`~services.graphics.recorder.PerformanceRecorder`'s rules (the
-    newest skeleton's layout, each instant once, in time order), handed to a BVH stream instead of kept."""
-
-    def __init__(self, bvh: BvhStream) -> None:
-        self.bvh = bvh
-        self.names: list[str] = []
-        self.layout = -1
-        self.last_time: float | None = None
-        self.dropped = 0
-
-    def record(self, message: OscMessage) -> None:
-        from common.messages import Pose, Skeleton
-        from services.graphics.sequence import FLOATS_PER_LINK
-
-        if isinstance(message, Skeleton):
-            if message.layout != self.layout or list(message.names) != self.names:
-                self.names, self.layout, self.last_time = list(message.names), message.layout, None
-                self.bvh.restart(self.names)
-        elif isinstance(message, Pose):
-            if message.layout != self.layout or len(message.values) != FLOATS_PER_LINK * len(self.names):
-                self.dropped += 1
-                return
-            if self.last_time is not None and message.time <= self.last_time:
-                return  # the same pose delivered to several destinations
-            self.last_time = message.time
-            self.bvh.add(message.time, np.asarray(message.values, dtype=float).reshape(-1, FLOATS_PER_LINK))
 
 
 class WavStream:

@@ -359,7 +359,7 @@ def run_segmented(score: Score, assignment: Assignment, plan: GesturePlan, kit: 
                         del futures[future]  # its messages are the player's now, not kept twice
                     if finished:
                         play.advance()
-                    finished = set()
+                    finished = set()  # their results (messages) are the player's: not kept alive by this name
             except BaseException:
                 stop.set()  # the running and queued segments end at their next check, not at their end
                 for future in futures:  # the segments not started yet are not simulated for nothing
