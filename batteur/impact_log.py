@@ -56,17 +56,26 @@ class ImpactLog:
     def _complete(self, end: ImpactEnd, source: str) -> None:
         """The impact's final impulse, peak force and duration (every copy of the end gives the same)."""
         k = self._seen.get((source, end.seq))
-        if k is None or self.impacts[k].time != end.time or self.impacts[k].instrument != end.instrument:
+        if k is None or not _ends(end, self.impacts[k]):
             self.unmatched_ends += 1
             return
-        self.impacts[k] = self.impacts[k].model_copy(
-            update={"impulse": end.impulse, "peak_force": end.peak_force, "duration": end.duration})
+        self.impacts[k] = _completed(self.impacts[k], end)
 
     def sorted(self) -> list[Impact]:
         return sorted(self.impacts, key=lambda i: (i.time, i.instrument, i.seq))
 
     def write_csv(self, path: Path) -> None:
         write_impacts_csv(self.sorted(), path)
+
+
+def _ends(end: ImpactEnd, impact: Impact) -> bool:
+    """Whether ``end`` is that of ``impact`` (same sender and seq assumed): the same time and instrument."""
+    return impact.time == end.time and impact.instrument == end.instrument
+
+
+def _completed(impact: Impact, end: ImpactEnd) -> Impact:
+    """``impact`` with its end's impulse, peak force and duration."""
+    return impact.model_copy(update={"impulse": end.impulse, "peak_force": end.peak_force, "duration": end.duration})
 
 
 def write_impacts_csv(impacts: list[Impact], path: Path) -> None:
@@ -151,20 +160,19 @@ class ImpactCsvStream:
 
     def _complete(self, end: ImpactEnd, source: str) -> None:
         key = (source, end.seq)
-        update = {"impulse": end.impulse, "peak_force": end.peak_force, "duration": end.duration}
         impact = self._pending.get(key)
-        if impact is not None and impact.time == end.time and impact.instrument == end.instrument:
-            self._pending[key] = impact.model_copy(update=update)
+        if impact is not None and _ends(end, impact):
+            self._pending[key] = _completed(impact, end)
             self._ended.add(key)
             return
         late = self._late.get(key)
-        if late is not None and late[2].time == end.time and late[2].instrument == end.instrument:
+        if late is not None and _ends(end, late[2]):
             del self._late[key]  # complete now: its row waits for its place in finish()
-            self._late_done.append((late[0], late[1], late[2].time, _row_text(late[2].model_copy(update=update))))
+            self._late_done.append((late[0], late[1], late[2].time, _row_text(_completed(late[2], end))))
             self._remember(key, late[2])
             return
         written = self._recent.get(key)
-        if written is not None and written.time == end.time and written.instrument == end.instrument:
+        if written is not None and _ends(end, written):
             return  # a copy of an end already folded in
         self.unmatched_ends += 1
 
