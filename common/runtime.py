@@ -411,6 +411,7 @@ class Node:
             max_datagram=s.max_datagram,
             allow=s.allow_networks,
             max_rate=s.max_rate,
+            role=self.role,
         )
         self.endpoint.set_handler(self._on_message)
         self.endpoint.tap = self._tap

@@ -16,8 +16,9 @@ or one message of a bundle), counts it in ``stats`` under its
 interval; the loop carries on. A control message of a known address that the
 model refuses (wrong argument count or type, a value out of range) is also
 answered to its sender with its service's refusal (:func:`decode_refusal`),
-within a reply budget per sender host; streams (contacts, poses, impacts ...)
-never are.
+within a reply budget per sender host, by the node of that service only (an
+endpoint opened with ``role``: a sound node counts and drops a malformed
+physics control, unanswered); streams (contacts, poses, impacts ...) never are.
 
 Addresses: a destination ``to`` is a role (every peer of that role in the
 :class:`~common.peers.PeerTable`), ``"host:port"`` (IPv6 as ``"[::1]:9000"``)
@@ -86,19 +87,34 @@ REFUSAL_ENDINGS = ("/error", "/rejected", "/refused")
 peers cannot answer each other's refusals without end."""
 
 
-def decode_refusal(address: str, reason: str, registry: MessageRegistry = REGISTRY) -> OscMessage | None:
+SERVICE_OF = {"score": "physics"}
+"""The role whose node owns an address family (/batteur/FAMILY/...) when it is not the family's name: the physics
+node plays scores."""
+
+
+def owner_role(address: str) -> str:
+    """The role of the node that owns ``address`` (``/batteur/score/tempo``: physics); "" outside /batteur/."""
+    family = address.split("/")[2] if address.startswith("/batteur/") else ""
+    return SERVICE_OF.get(family, family)
+
+
+def decode_refusal(address: str, reason: str, registry: MessageRegistry = REGISTRY,
+                   role: str | None = None) -> OscMessage | None:
     """The refusal of the service that owns ``address`` for a control message there that could not be decoded
     (``reason``, clipped to 512 characters): /batteur/physics/... and /batteur/score/... (the physics node plays
     scores) :class:`PhysicsRejected`, /batteur/sound/... :class:`SoundRejected` (no instrument named),
     /batteur/interaction/... :class:`InteractionError`, /batteur/graphics/... :class:`GraphicsRejected`. None for a
-    stream (any family but control), a refusal itself, an unknown address, or a service without a refusal message
-    (the recogniser)."""
+    stream (any family but control), a refusal itself, an unknown address, a service without a refusal message
+    (the recogniser), or, given the answering node's ``role``, an address another role owns (:func:`owner_role`):
+    a refusal speaks for its service, so only that service's node sends it."""
     model = registry.get(address)
     if model is None or model.FAMILY is not Family.CONTROL or address.endswith(REFUSAL_ENDINGS):
         return None
+    service = owner_role(address)
+    if role is not None and service != role:
+        return None
     reason = reason[:512]
-    service = address.split("/")[2] if address.startswith("/batteur/") else ""
-    if service in ("physics", "score"):
+    if service == "physics":
         return PhysicsRejected(address=address, reason=reason)
     if service == "sound":
         return SoundRejected(address=address, instrument="", reason=reason)
@@ -189,6 +205,9 @@ class UdpEndpoint:
     decode_unanswered : int
         Undecodable control messages not answered: their sender host was over
         its reply budget (:data:`DECODE_REPLY_RATE_HZ`).
+    role : str or None
+        The node's role: only controls its role owns are answered when
+        undecodable (None: any service's, for an endpoint that is no node).
     send_errors : int
         Socket errors while sending, and messages too large to send.
     rcvbuf_bytes : int
@@ -206,6 +225,7 @@ class UdpEndpoint:
         max_burst: float | None,
         stats: TrafficStats,
         clock: Callable[[], float],
+        role: str | None = None,
     ) -> None:
         self._sock = sock
         self.peers = peers
@@ -230,6 +250,7 @@ class UdpEndpoint:
         self._reply_budgets = TokenBuckets(DECODE_REPLY_RATE_HZ, DECODE_REPLY_BURST)
         """Sender host -> its budget of answers to undecodable control messages."""
         self.decode_unanswered = 0
+        self.role = role
         self._names: dict[str, _Name] = {}
         self._loop: asyncio.AbstractEventLoop | None = None
         self._allowed_cache: dict[str, bool] = {}
@@ -255,6 +276,7 @@ class UdpEndpoint:
         rcvbuf_bytes: int = DEFAULT_RCVBUF,
         stats: TrafficStats | None = None,
         clock: Callable[[], float] = time.monotonic,
+        role: str | None = None,
     ) -> UdpEndpoint:
         """Bind a UDP socket and start receiving.
 
@@ -279,6 +301,9 @@ class UdpEndpoint:
             Receive buffer to ask the kernel for, bytes (root may exceed ``net.core.rmem_max``).
         clock : callable -> float
             Monotonic seconds, for the rate limit.
+        role : str or None
+            The node's role (physics, sound, ...): an undecodable control is answered only when this role owns
+            its address (:func:`decode_refusal`); None answers for any service.
         """
         sock = _bind(host, port, rcvbuf_bytes)
         networks = None if allow is None else [ipaddress.ip_network(n, strict=False) for n in allow]
@@ -292,6 +317,7 @@ class UdpEndpoint:
             max_burst,
             stats if stats is not None else TrafficStats(),
             clock,
+            role,
         )
         loop = asyncio.get_running_loop()
         transport, _ = await loop.create_datagram_endpoint(lambda: _Protocol(endpoint), sock=sock)
@@ -552,9 +578,9 @@ class UdpEndpoint:
                     log.debug("handler error on %s", raw.address, exc_info=True)
 
     def _answer_undecodable(self, address: str, error: MessageError, host: str, source: str) -> None:
-        """Tell the sender why its control message was dropped (:func:`decode_refusal`), within its host's reply
-        budget; over it, count it in ``decode_unanswered``."""
-        reply = decode_refusal(address, str(error), self.registry)
+        """Tell the sender why its control message was dropped (:func:`decode_refusal`; only for this node's
+        ``role``), within its host's reply budget; over it, count it in ``decode_unanswered``."""
+        reply = decode_refusal(address, str(error), self.registry, self.role)
         if reply is None:
             return
         if not self._reply_budgets.take(host, self._clock()):

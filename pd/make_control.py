@@ -27,11 +27,13 @@ from common.messages.graphics import (  # noqa: E402
     GraphicsLatency,
     GraphicsMode,
     GraphicsPlot,
+    GraphicsRejected,
     GraphicsShow,
     GraphicsTrails,
     Layer,
 )
-from common.messages.physics import PhysicsControlMode, PhysicsGrip, PhysicsReset  # noqa: E402
+from common.messages.interaction import InteractionError  # noqa: E402
+from common.messages.physics import PhysicsControlMode, PhysicsGrip, PhysicsRejected, PhysicsReset  # noqa: E402
 from common.messages.score import GestureStyle, ScoreLoad, ScoreTransport, TempoScale  # noqa: E402
 from common.messages.sound import (  # noqa: E402
     SoundDamping,
@@ -42,6 +44,7 @@ from common.messages.sound import (  # noqa: E402
     SoundModel,
     SoundModes,
     SoundRadius,
+    SoundRejected,
     SoundTension,
 )
 from services.graphics.camera import default_camera  # noqa: E402
@@ -73,8 +76,10 @@ class Patch:
     def obj(self, x: int, y: int, text: str) -> int:
         return self._add(f"#X obj {x} {y} {esc(text)};")
 
-    def msg(self, x: int, y: int, text: str) -> int:
-        return self._add(f"#X msg {x} {y} {esc(text)};")
+    def msg(self, x: int, y: int, text: str, width: int = 0) -> int:
+        """A message box; ``width`` in characters (0: as wide as its text, up to Pd's 60)."""
+        suffix = f", f {width}" if width else ""
+        return self._add(f"#X msg {x} {y} {esc(text)}{suffix};")
 
     def text(self, x: int, y: int, text: str, width: int = 0) -> int:
         """A comment; ``width`` in characters (0: Pd's default, 60)."""
@@ -181,6 +186,8 @@ def build() -> Patch:
     again = p.bng(460, 70, "bp-connect")
     p.text(485, 70, "(re)connect")
     x = 20
+    nets: list[tuple[int, int, int]] = []
+    """each [netsend] (index, x, y): the services' refusals come back through it"""
     for role, port in PORTS.items():
         p.text(x, 100, role)
         nb = p.nbx(x, 122, 1, 65535, 6, f"bp-port-{role}")
@@ -205,6 +212,7 @@ def build() -> Patch:
         p.connect(pre, 0, trim, 0)
         p.connect(trim, 0, net, 0)
         p.connect(con, 0, net, 0)
+        nets.append((net, x, 345))
         x += 230
     # ------------------------------------------------------------ gesture: grip, nuance, style, mode
     y = 390
@@ -335,6 +343,7 @@ def build() -> Patch:
     p.connect(t2, 0, mp, 0)
     p.connect(mp, 0, sender(p, x3 + 280, yy + 200, SoundMaster, "sound", "ff"), 0)
     graphics_section(p, 20, y2 + 190, load)
+    refusals(p, 995, 490, nets)
     return p
 
 
@@ -398,6 +407,71 @@ def graphics_section(p: Patch, x: int, y: int, load: int) -> None:
     p.connect(latency, 0, sender(p, x + 300, y + 370, GraphicsLatency, "graphics", "f"), 0)
     mode = choices(p, x, y + 320, "view", ("live", "preview"), "bp-view-mode")
     p.connect(mode, 0, sender(p, x, y + 410, GraphicsMode, "graphics", "s"), 0)
+
+
+REFUSALS: tuple[type[OscMessage], ...] = (PhysicsRejected, SoundRejected, InteractionError, GraphicsRejected)
+"""Each service's answer to a control it refused (docs/osc.md; physics answers for score messages too). It goes
+back to the address and port the control came from: the [netsend] that sent it, whose second outlet gives it."""
+
+
+def check_refusal(model: type[OscMessage]) -> tuple[str, str]:
+    """(service, name) of a refusal at /batteur/SERVICE/NAME; SystemExit if the panel could not show it: it shows
+    the first argument (the refused address) and the last (why), so every argument must be a symbol."""
+    parts = model.ADDRESS.strip("/").split("/")
+    signature = wire_signature(model)
+    if REGISTRY.get(model.ADDRESS) is not model or len(parts) != 3 or parts[0] != "batteur" or \
+            len(signature) < 2 or signature != "s" * len(signature):
+        raise SystemExit(f"{model.__name__} ({model.ADDRESS}, {signature!r}): the panel shows refusals at "
+                         "/batteur/SERVICE/NAME whose arguments are symbols, the refused address first and the "
+                         "reason last")
+    return parts[1], parts[2]
+
+
+def refusals(p: Patch, x: int, y: int, nets: list[tuple[int, int, int]]) -> None:
+    """Show the last refusal any service answered (its address and reason), print it to Pd's console as
+    ``batteur-rejected ADDRESS REASON`` and send it to ``bp-rejected``; ``nets``: the [netsend]s (index, x, y) it comes
+    back to."""
+    p.text(x, y, "LAST REFUSAL (address, why)")
+    # the display shows what bp-rejected carries (so another patch may show its own there too)
+    show = p.obj(x, y + 50, "list prepend set")
+    p.connect(p.obj(x, y + 25, "r bp-rejected"), 0, show, 0)
+    set_text = p.obj(x + 130, y + 50, "list trim")
+    p.connect(show, 0, set_text, 0)
+    p.connect(set_text, 0, p.msg(x, y + 80, "none yet", 27), 0)
+    for net, nx, ny in nets:
+        p.connect(net, 1, p.obj(nx + 110, ny, "s bp-replies"), 0)
+    # the parsing sits out of the way, below the SOUND section
+    px, py = 1420, 1080
+    parse = p.obj(px, py + 25, "oscparse")
+    p.connect(p.obj(px, py, "r bp-replies"), 0, parse, 0)
+    trim = p.obj(px, py + 50, "list trim")  # "batteur physics rejected ...": routed by its selector
+    p.connect(parse, 0, trim, 0)
+    top = p.obj(px, py + 75, "route batteur")
+    p.connect(trim, 0, top, 0)
+    names = [check_refusal(model) for model in REFUSALS]
+    by_service = p.obj(px, py + 100, "route " + " ".join(service for service, _ in names))
+    p.connect(top, 0, by_service, 0)
+    last = p.obj(px, py + 225, "t l l")
+    for k, (model, (_, name)) in enumerate(zip(REFUSALS, names, strict=True)):
+        cx = px + 120 * k
+        one = p.obj(cx, py + 125, f"route {name}")
+        p.connect(by_service, k, one, 0)
+        as_list = p.obj(cx, py + 150, "list")  # the refused address came out as the selector: a list again
+        p.connect(one, 0, as_list, 0)
+        count = len(model.wire_fields())
+        if count == 2:
+            p.connect(as_list, 0, last, 0)
+            continue
+        split = p.obj(cx, py + 175, "unpack " + " ".join("s" * count))  # keep the first and the last
+        both = p.obj(cx, py + 200, "pack s s")
+        p.connect(as_list, 0, split, 0)
+        p.connect(split, count - 1, both, 1)
+        p.connect(split, 0, both, 0)
+        p.connect(both, 0, last, 0)
+    p.connect(last, 1, p.obj(px, py + 250, "s bp-rejected"), 0)
+    console = p.obj(px + 120, py + 250, "list trim")
+    p.connect(last, 0, console, 0)
+    p.connect(console, 0, p.obj(px + 120, py + 275, "print batteur-rejected"), 0)
 
 
 def main(argv: list[str] | None = None) -> int:

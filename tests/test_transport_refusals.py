@@ -1,5 +1,6 @@
 """A control message the transport cannot decode (wrong argument count or type, a value out of range) is answered to
-its sender with its service's refusal, within a reply budget per sender host; a stream message never is."""
+its sender with its service's refusal, within a reply budget per sender host, and by that service's node only; a
+stream message never is."""
 
 from __future__ import annotations
 
@@ -7,12 +8,15 @@ import asyncio
 
 import pytest
 
+from common.config import load_settings
 from common.messages import OscMessage
 from common.messages.graphics import GraphicsRejected
 from common.messages.interaction import InteractionError
 from common.messages.physics import PhysicsRejected
 from common.messages.sound import SoundRejected
+from common.runtime import Node
 from common.transport import DECODE_REPLY_BURST, UdpEndpoint, decode_refusal
+from tests.null_core import NullCore
 from tests.waiting import wait_for
 
 pytestmark = pytest.mark.timeout(60)
@@ -36,8 +40,8 @@ class Client:
         return self.got
 
 
-async def _pair() -> tuple[UdpEndpoint, Client]:
-    node = await UdpEndpoint.open("127.0.0.1", clock=lambda: 0.0)  # the reply budget never refills
+async def _pair(role: str | None = None) -> tuple[UdpEndpoint, Client]:
+    node = await UdpEndpoint.open("127.0.0.1", clock=lambda: 0.0, role=role)  # the reply budget never refills
     client = await UdpEndpoint.open("127.0.0.1")
     return node, Client(client, node)
 
@@ -101,3 +105,82 @@ def test_only_known_control_addresses_have_a_refusal() -> None:
     assert decode_refusal("/batteur/interaction/error", "wrong_arity") is None
     long = decode_refusal("/batteur/physics/reset", "x" * 2000)
     assert isinstance(long, PhysicsRejected) and len(long.reason) == 512
+
+
+BAD_TEMPO = ("/batteur/score/tempo", [-1.0])  # out of range: the physics node plays scores
+BAD_LEVEL = ("/batteur/sound/level", ["snare", "loud"])
+BAD_REDUNDANCY = ("/batteur/interaction/redundancy", [])
+
+
+@pytest.mark.parametrize("role, own", [("sound", BAD_LEVEL), ("interaction", BAD_REDUNDANCY)])
+def test_a_node_counts_a_misdirected_undecodable_control_and_answers_only_its_own(
+        role: str, own: tuple[str, list[int | float | str]]) -> None:
+    """A malformed physics or score control sent to a sound (interaction) node is dropped and counted, and not
+    answered with /batteur/physics/rejected: that refusal speaks for physics, which never saw the message."""
+
+    async def main() -> None:
+        node, client = await _pair(role)
+        try:
+            client.send(*BAD_TARGET)
+            client.send(*BAD_TEMPO)
+            client.send(*own)  # the sentinel: once it is answered, nothing else came before it
+            got = await client.answered(1)
+            await asyncio.sleep(0)
+            assert node.stats.dropped_total == 3 and node.stats.messages_in == 0
+            assert [type(m) for m in got] == [SoundRejected if role == "sound" else InteractionError], got
+        finally:
+            client.endpoint.close()
+            node.close()
+
+    asyncio.run(main())
+
+
+def test_the_physics_node_still_answers_a_malformed_physics_or_score_control() -> None:
+    async def main() -> None:
+        node, client = await _pair("physics")
+        try:
+            client.send(*BAD_LEVEL)  # sound's: counted, not answered
+            client.send(*BAD_TARGET)
+            client.send(*BAD_TEMPO)
+            got = await client.answered(2)
+            await asyncio.sleep(0)
+            assert node.stats.dropped_total == 3
+            assert [(type(m), getattr(m, "address", "")) for m in got] == [
+                (PhysicsRejected, "/batteur/physics/target"), (PhysicsRejected, "/batteur/score/tempo")]
+        finally:
+            client.endpoint.close()
+            node.close()
+
+    asyncio.run(main())
+
+
+def test_a_refusal_is_given_only_by_the_role_that_owns_the_address() -> None:
+    assert isinstance(decode_refusal("/batteur/score/tempo", "out_of_range", role="physics"), PhysicsRejected)
+    assert decode_refusal("/batteur/physics/reset", "wrong_arity", role="sound") is None
+    assert decode_refusal("/batteur/score/tempo", "out_of_range", role="graphics") is None
+    assert decode_refusal("/batteur/sound/level", "wrong_type", role="physics") is None
+    assert isinstance(decode_refusal("/batteur/graphics/latency", "wrong_type", role="graphics"), GraphicsRejected)
+    assert decode_refusal("/batteur/graphics/latency", "wrong_type", role="recogniser") is None
+
+
+def test_a_sound_node_does_not_answer_a_malformed_physics_control() -> None:
+    """The same through a real node (the runtime's Node with the sound role): counted, not answered for physics."""
+
+    async def main() -> None:
+        node = Node(NullCore(), load_settings({"role": "sound", "discovery": False,  # type: ignore[arg-type]
+                                               "clock_master": "self", "oscquery": False}))
+        await node.start()
+        assert node.endpoint is not None
+        client = Client(await UdpEndpoint.open("127.0.0.1"), node.endpoint)
+        try:
+            client.send(*BAD_TARGET)
+            client.send(*BAD_LEVEL)  # the sentinel
+            got = await client.answered(1)
+            await asyncio.sleep(0)
+            assert node.endpoint.stats.dropped_total == 2
+            assert [type(m) for m in got] == [SoundRejected], got
+        finally:
+            client.endpoint.close()
+            await node.stop()
+
+    asyncio.run(main())

@@ -65,9 +65,10 @@ def render_markdown(registry: MessageRegistry = REGISTRY) -> str:
         "number as a float: integral floats are accepted for `i` arguments. A rig time takes two arguments,",
         "whole seconds (`i`) then the fraction (`f`). Bundles are accepted; their timetags are ignored.",
         "A message that does not match its model is dropped, counted by reason and reported in",
-        "`/batteur/health`; a physics, score, sound or interaction control that does not is also answered",
-        "to its sender with that service's refusal (`/batteur/physics/rejected`, `/batteur/sound/rejected`,",
-        "`/batteur/interaction/error`), a few a second per sender host at most.",
+        "`/batteur/health`; a physics, score, sound, interaction or graphics control that does not is also",
+        "answered to its sender with that service's refusal (`/batteur/physics/rejected`,",
+        "`/batteur/sound/rejected`, `/batteur/interaction/error`, `/batteur/graphics/rejected`), by a node of",
+        "that service only, a few a second per sender host at most.",
         "",
     ]
     families: dict[str, list[type[OscMessage]]] = {}
