@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import enum
 import json
+import logging
 import math
 from pathlib import Path
 from typing import Annotated, Literal
@@ -22,6 +23,8 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 
 from common.datafile import first_error, parse_file
 from common.output_paths import write_atomically
+
+log = logging.getLogger(__name__)
 
 KITS_DIR = Path(__file__).parent / "kits"
 
@@ -374,6 +377,8 @@ def load_kit(source: str | Path = "default") -> Kit:
 
     Raises ``FileNotFoundError`` for an unknown name or path and ``ValueError`` naming the file for one that is
     not UTF-8 text, not valid YAML/JSON (line and column) or not a valid kit (the first problem, on one line).
+    A valid kit holding instruments the drummer cannot play (out of reach, struck by no event) loads with one
+    logged warning per instrument (:func:`common.score.limbs.unplayable_instruments`).
     """
     path = Path(source)
     if not path.suffix:
@@ -386,10 +391,15 @@ def load_kit(source: str | Path = "default") -> Kit:
     except ValueError as exc:
         raise ValueError(f"kit file {str(path)!r} is {exc}") from None
     try:
-        return Kit.model_validate(data)
+        kit = Kit.model_validate(data)
     except ValidationError as exc:
         more = f" (and {exc.error_count() - 1} more)" if exc.error_count() > 1 else ""
         raise ValueError(f"kit file {str(path)!r} is not a valid kit: {first_error(exc)}{more}") from None
+    from common.score.limbs import unplayable_instruments  # here: the planner's reach, and limbs imports this module
+
+    for problem in unplayable_instruments(kit):  # a valid kit may still hold objects the drummer cannot play
+        log.warning("kit file %r: %s", str(path), problem)
+    return kit
 
 
 def save_kit(kit: Kit, path: Path) -> None:

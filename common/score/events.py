@@ -133,7 +133,8 @@ class Score:
         Where each bar starts, in beats from the first (an index into ``beats``, fractional where a bar starts
         between two); increasing. Empty when the reader knows no bars (:mod:`common.score.position` then counts
         bars of 4 beats). A MIDI file's last start lies past its last beat: where the bar holding its end ends
-        (bars after it are as long).
+        (bars after it are as long); so does a text score's ending in a rest shorter than a bar (a whole bar after
+        the one starting where it ends).
     """
 
     events: list[DrumEvent]

@@ -444,3 +444,56 @@ def check_feasibility(assignment: Assignment, kit: Kit, window: float = SIMULTAN
 
 def _stroke(n: Note) -> Stroke:
     return Stroke(n.time, n.event, n.pitch, n.velocity)
+
+
+STRUCK_KINDS = frozenset({"membrane", "cymbal", "hihat", "bell"})
+"""Kit object kinds a stick strikes (a footboard is pressed; the throne and stands are no instruments)."""
+
+
+def unplayable_instruments(kit: Kit) -> list[str]:
+    """The kit's instruments the drummer cannot play, one line each naming the object and why (for a warning as
+    the kit is loaded: a kit file may place an object anywhere).
+
+    An instrument is unplayable when no event type or ``note_objects`` pitch strikes it, when a stick event strikes
+    an object of a kind no stick strikes (a stand), or when a stick event's hit point is beyond a hand's
+    :data:`REACH` from both :data:`SHOULDERS` (what :func:`check_feasibility` flags ``unreachable`` on every such
+    note; mirroring the kit for a left-hander keeps it, the shoulders being symmetric). The physics' own reach
+    (``services/physics/drummer.py``, from the body's measures) is longer, so every hit point it refuses is among
+    these. Foot events are not checked for reach (common/ knows no leg geometry).
+    """
+    from common.score.gm import DRUM_MAP
+
+    strokes: dict[str, list[tuple[str, EventType, int | None]]] = {}  # object id -> (what, event, pitch) of sticks
+    struck: set[str] = set()
+    for event, spec in kit.events.items():
+        struck.add(spec.object)
+        if spec.pedal is None:
+            strokes.setdefault(spec.object, []).append((event.value, event, None))
+    for pitch, object_id in sorted(kit.note_objects.items()):
+        mapped = DRUM_MAP.get(pitch)
+        if mapped is None or mapped not in kit.events:  # no score note of this pitch reaches the object
+            continue
+        struck.add(object_id)
+        if kit.events[mapped].pedal is None:
+            strokes.setdefault(object_id, []).append((f"{mapped.value} (pitch {pitch})", mapped, pitch))
+    lines: list[str] = []
+    for obj in kit.objects:
+        if obj.id not in struck:
+            if obj.kind in STRUCK_KINDS:
+                lines.append(f"{obj.id} ({obj.kind}): no event type or note_objects pitch strikes it")
+            continue
+        ways = strokes.get(obj.id, [])
+        if ways and obj.kind not in STRUCK_KINDS:
+            lines.append(f"{obj.id}: {', '.join(w for w, _, _ in ways)} strike{'s' * (len(ways) == 1)} it, but it "
+                         f"is a {obj.kind}, which no stick strikes")
+            continue
+        far = []
+        for what, struck_event, struck_pitch in ways:
+            point = np.array(kit.hit_point(struck_event, struck_pitch)[0])
+            nearer = min(float(np.linalg.norm(point - np.array(s))) for s in SHOULDERS.values())
+            if nearer > REACH:
+                far.append(f"{what} {nearer:.2f} m")
+        if far:
+            lines.append(f"{obj.id}: out of both hands' reach ({', '.join(far)} from the nearer shoulder, a hand "
+                         f"reaching {REACH:g} m): the planner flags its notes unreachable")
+    return lines

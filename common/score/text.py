@@ -185,12 +185,14 @@ def parse_text(text: str, source: str = "text") -> TextScore:
     beats_per_bar = 4.0
     position = 0.0  # beats
     last_note = 0.0  # the latest beat an `at` line placed a note on
+    last_note_line = 0  # and its line
     events: list[DrumEvent] = []
     block: list[tuple[int, str, str]] = []  # lineno, name, cells
     last_block: list[DrumEvent] = []  # events of the last block, in beats (time field holds beats)
     last_block_beats = 0.0
     last_block_bar = 4.0  # the last block's beats per bar: a repeat plays its bars, whatever the meter is now
     bar_starts: list[float] = []  # where bars start, beats
+    last_bar = 4.0  # the length of the last bar started, as written (a rest may cut it short), beats
     warnings: list[str] = []
     grip: Grip | None = None
     nuance: Nuance | None = None
@@ -207,9 +209,12 @@ def parse_text(text: str, source: str = "text") -> TextScore:
     def add_bars(start: float, length: float, bar: float | None = None) -> None:
         """Bars of ``bar`` beats (default ``beats_per_bar``) from ``start`` over ``length`` beats (a last bar may be
         cut short); past :data:`MAX_SCORE_BARS` they are not kept."""
+        nonlocal last_bar
         bar = beats_per_bar if bar is None else bar
         count = min(math.ceil(length / bar - 1e-9), MAX_SCORE_BARS - len(bar_starts))
         bar_starts.extend(start + k * bar for k in range(max(count, 0)))
+        if count > 0:
+            last_bar = bar
 
     def flush() -> None:
         nonlocal position, block, last_block, last_block_beats, last_block_bar
@@ -265,7 +270,7 @@ def parse_text(text: str, source: str = "text") -> TextScore:
 
     def note(lineno: int, rest: str) -> None:
         """``at BEAT NAME [VELOCITY] [L|R]``."""
-        nonlocal last_note
+        nonlocal last_note, last_note_line
         parts = rest.split()
         if not 2 <= len(parts) <= 4:
             raise ScoreError(f"line {lineno}: note needs '<beat> <instrument> [velocity] [L|R]'")
@@ -287,7 +292,8 @@ def parse_text(text: str, source: str = "text") -> TextScore:
                              f"({position:g} beats so far)")
         check_until(position + beat, len(events) + 1, lineno)
         events.append(DrumEvent(tempo.seconds(position + beat), ev, vel, None, limb, None))
-        last_note = max(last_note, position + beat)
+        if position + beat >= last_note:
+            last_note, last_note_line = position + beat, lineno
 
     lines = text.removeprefix("\ufeff").splitlines()  # a byte order mark, as Windows editors write
     for lineno, raw_line in enumerate(lines, start=1):
@@ -344,10 +350,20 @@ def parse_text(text: str, source: str = "text") -> TextScore:
         except (ValueError, IndexError, OverflowError) as exc:
             raise ScoreError(f"line {lineno}: cannot read {line.strip()!r} ({exc})") from exc
     flush()
-    if events and not bar_starts:  # `at` lines only: no block or rest gave a bar, and the score had a single beat
-        # bars of the meter in force, through the one holding the last note (a whole bar, as a block's)
-        position = (math.floor(last_note / beats_per_bar + 1e-9) + 1) * beats_per_bar
-        add_bars(0.0, position)
+    if events and (not bar_starts or last_note > position + 1e-9):
+        # `at` notes after the last block or rest (or `at` lines only: the score had no bar and a single beat):
+        # bars of the meter in force from where the score ended, as a block there would start, through the one
+        # holding the last note (a whole bar, as a block's), and beats at the last tempo over them; the beats
+        # stopped at the last block, and the position was counted on at its tempo and in its bars
+        end = position + (math.floor((last_note - position) / beats_per_bar + 1e-9) + 1) * beats_per_bar
+        check_until(end, len(events), last_note_line)  # a bar of a million beats: seconds of beats to fill
+        add_bars(position, end - position)
+        position = end
+    elif bar_starts and position - bar_starts[-1] < last_bar - 1e-9:
+        # a closing rest shorter than a bar: past the end, bars of the meter in force from where it ends, as a
+        # block there would start (they went on as short as the rest's bar). The second start, past the end,
+        # gives them their length (common.score.position counts on from the last two).
+        add_bars(position, 2 * beats_per_bar)
     kept, removed = remove_duplicates(events)
     beats = np.array([tempo.seconds(b) for b in np.arange(0.0, position + 1e-9, 1.0)])
     score = TextScore(events=kept, beats=beats, bar_beats=np.array(bar_starts, dtype=float), duplicates=removed,

@@ -2,12 +2,14 @@
 
     python -m services.sound.demo -o groove.wav
     python -m services.sound.demo -o groove.wav --midi my_beat.mid --seconds 20 --model sample
+    python -m services.sound.demo -o beat.wav --score beat.txt
 
-Each MIDI drum note becomes an :class:`~common.messages.Impact` on the kit
-object its General MIDI / Roland TD-11 note maps to (the Groove MIDI
-Dataset's mapping, reduced to the 15 event types of Kragtwijk et al.), at the
-event type's hit point on the default kit, with a stick velocity from the
-MIDI velocity. The impacts go through the same :class:`SoundCore` as the rig.
+The score is read by Batteur's score reader (``common.score``: MIDI files, RIFF
+MIDI ``.rmi`` files and text scores, with its drum map and its errors). Each
+drum event becomes an :class:`~common.messages.Impact` on the kit object that
+plays it (``note_objects`` of the kit choosing by MIDI pitch), at the event
+type's hit point with a little random scatter, with a stick velocity from the
+note's velocity. The impacts go through the same :class:`SoundCore` as the rig.
 This is a sound-only demo: the full pipeline (score, physics, interaction)
 is ``batteur render``.
 """
@@ -21,62 +23,63 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-import mido
 import numpy as np
 
 from common.arg_types import number, unit
 from common.kit import EventType, Kit, load_kit
 from common.messages import Impact
 from common.output_paths import check_output_file
+from common.score.events import Score, ScoreError
+from common.score.text import read_score
 from services.sound.core import SoundSettings, render_offline, wav_format
 
 DEFAULT_MIDI = Path(__file__).resolve().parents[2] / "tests" / "data" / "groove_drummer6_s3_1_rock_90_beat_4-4.mid"
 
-# note -> (event type, zone override for the sound service or '')
-GM_NOTES: dict[int, tuple[EventType, str]] = {
-    35: (EventType.BASS, ""), 36: (EventType.BASS, ""),
-    38: (EventType.SNARE, ""), 40: (EventType.SNARE, "rimshot"), 37: (EventType.RIM, "rim"), 39: (EventType.RIM, "rim"),
-    48: (EventType.HIGHTOM, ""), 50: (EventType.HIGHTOM, "rimshot"), 47: (EventType.MIDTOM, ""),
-    45: (EventType.MIDTOM, ""), 43: (EventType.FLOORTOM, ""), 58: (EventType.FLOORTOM, "rimshot"),
-    41: (EventType.FLOORTOM, ""),
-    46: (EventType.HIHATOPEN, "open"), 26: (EventType.HIHATOPEN, "half"),
-    42: (EventType.HIHATCLOSED, "closed"), 22: (EventType.HIHATCLOSED, "closed"), 44: (EventType.HIHATPEDAL, "pedal"),
-    49: (EventType.CRASH, ""), 55: (EventType.SPLASH, ""), 57: (EventType.CRASH, ""), 52: (EventType.CHINA, ""),
-    51: (EventType.RIDE, ""), 59: (EventType.RIDE, ""), 53: (EventType.RIDEBELL, "bell"),
-    56: (EventType.COWBELL, ""),
+PITCH_ZONES: dict[int, str] = {
+    40: "rimshot", 37: "rim", 50: "rimshot", 46: "open", 26: "half", 42: "closed", 22: "closed", 44: "pedal",
+    53: "bell",
 }
+"""MIDI pitch -> the zone the sound service plays it on, where it differs from its event type's zone on the kit
+(an electric snare's rimshot, a half-open hi-hat edge, ...); every other note is struck at its event's zone."""
 
 
-def stick_velocity(midi_velocity: int) -> float:
-    """Stick speed at impact, m/s, from a MIDI velocity (1 -> 0.3 m/s, 127 -> 8 m/s)."""
-    return 0.3 + 7.7 * (max(1, min(127, midi_velocity)) / 127.0) ** 1.4
+def stick_velocity(velocity: float) -> float:
+    """Stick speed at impact, m/s, from a note's velocity in [0, 1] (MIDI velocity / 127: 1/127 -> 0.3 m/s,
+    1 -> 8 m/s; softer is played as 1/127)."""
+    return 0.3 + 7.7 * max(1 / 127.0, min(1.0, velocity)) ** 1.4
+
+
+def impacts_from_score(score: Score, kit: Kit, max_seconds: float = math.inf, start: float = 0.5) -> list[Impact]:
+    """Impacts for every drum event of ``score`` the kit plays, up to ``max_seconds`` into it, shifted to begin at
+    ``start`` seconds."""
+    rng = np.random.default_rng(7)
+    impacts: list[Impact] = []
+    hihats = [o.id for o in kit.objects if o.kind == "hihat"]
+    # simultaneous events in pitch order: the order their scatter is drawn in (as the Groove MIDI files list
+    # them, so the default render is as it was), whatever order a file or the reader gives them
+    for e in sorted(score.events, key=lambda e: (e.time, -1 if e.pitch is None else e.pitch, e.event.value)):
+        if e.time > max_seconds:
+            break
+        spec = kit.events.get(e.event)
+        if spec is None:
+            continue
+        instrument = kit.object_for(e.event, e.pitch).id
+        if e.event is EventType.HIHATPEDAL and hihats:  # the pedal closes the hi-hat: its plates sound
+            instrument = hihats[0]
+        zone = PITCH_ZONES.get(e.pitch, spec.zone) if e.pitch is not None else spec.zone
+        r = float(np.clip(spec.r + rng.normal(0.0, 0.03), 0.0, 1.0))
+        theta = spec.theta + float(rng.normal(0.0, 0.1))
+        impacts.append(Impact(seq=len(impacts), time=start + e.time, instrument=instrument, zone=zone, r=r,
+                              theta=theta, velocity=stick_velocity(e.velocity), impulse=0.0, peak_force=0.0,
+                              duration=0.0, part=spec.preferred.value))
+    return impacts
 
 
 def impacts_from_midi(path: Path, kit: Kit, max_seconds: float = math.inf, start: float = 0.5) -> list[Impact]:
-    """Impacts for every drum note of a MIDI file up to ``max_seconds``, shifted to begin at ``start`` seconds."""
-    rng = np.random.default_rng(7)
-    impacts: list[Impact] = []
-    t = 0.0
-    for msg in mido.MidiFile(path):
-        t += msg.time
-        if t > max_seconds:
-            break
-        if msg.type != "note_on" or msg.velocity == 0 or msg.note not in GM_NOTES:
-            continue
-        event, zone = GM_NOTES[msg.note]
-        spec = kit.events.get(event)
-        if spec is None:
-            continue
-        instrument = spec.object
-        if event is EventType.HIHATPEDAL:
-            hihats = [o.id for o in kit.objects if o.kind == "hihat"]
-            instrument = hihats[0] if hihats else instrument
-        r = float(np.clip(spec.r + rng.normal(0.0, 0.03), 0.0, 1.0))
-        theta = spec.theta + float(rng.normal(0.0, 0.1))
-        impacts.append(Impact(seq=len(impacts), time=start + t, instrument=instrument, zone=zone or spec.zone, r=r,
-                              theta=theta, velocity=stick_velocity(msg.velocity), impulse=0.0, peak_force=0.0,
-                              duration=0.0, part=spec.preferred.value))
-    return impacts
+    """Impacts for every drum note of a score file (MIDI, RIFF MIDI or text: :func:`common.score.text.read_score`)
+    up to ``max_seconds``, shifted to begin at ``start`` seconds; :class:`ScoreError` naming the file and the
+    problem if it cannot be read."""
+    return impacts_from_score(read_score(path), kit, max_seconds, start)
 
 
 def _play_seconds(text: str) -> float:
@@ -92,8 +95,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("-o", "--output", type=Path, default=Path("groove.wav"),
                         help="WAV file to write (default groove.wav)")
-    parser.add_argument("--midi", type=Path, default=DEFAULT_MIDI,
-                        help=f"General MIDI drum file (default {DEFAULT_MIDI.name})")
+    parser.add_argument("--midi", "--score", dest="midi", metavar="SCORE", type=Path, default=DEFAULT_MIDI,
+                        help="score to play: a General MIDI drum file (.mid, .rmi) or a text score "
+                             f"(default {DEFAULT_MIDI.name})")
     parser.add_argument("--seconds", type=_play_seconds, default=16.0,
                         help="how much of the file to play, seconds (default 16; inf: all of it)")
     parser.add_argument("--model", choices=("modal", "sample", "synth"), default="modal",
@@ -110,13 +114,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     try:
-        impacts = impacts_from_midi(args.midi, kit, args.seconds)
-    except EOFError:  # mido's, without a message
-        print(f"error: {args.midi}: truncated MIDI file", file=sys.stderr)
+        score = read_score(args.midi)
+    except ScoreError as exc:  # it names the file and the problem
+        print(f"error: {exc}", file=sys.stderr)
         return 2
-    except (OSError, ValueError, KeyError, IndexError) as exc:
-        print(f"error: {args.midi}: not a readable MIDI file ({exc})", file=sys.stderr)
-        return 2
+    for warning in score.warnings:  # unknown notes, a key signature ignored, no drum channel ...
+        print(f"warning: {warning}", file=sys.stderr)
+    impacts = impacts_from_score(score, kit, args.seconds)
     if not impacts:
         print(f"no drum notes in the first {args.seconds} s of {args.midi}")
         return 1

@@ -179,7 +179,9 @@ def test_many_tempo_lines_read_in_linear_work(monkeypatch: pytest.MonkeyPatch) -
 def test_the_tempo_map_gives_the_times_it_gave() -> None:
     score = parse_text("tempo 60\nSN |x...|\ntempo 120\nSN |x...|\nrepeat 1\nat 1 BD\n")
     assert [e.time for e in score.events] == [0.0, 4.0, 6.0, 8.5]
-    assert score.beats.tolist() == [0.0, 1.0, 2.0, 3.0, 4.0, 4.5, 5.0, 5.5, 6.0, 6.5, 7.0, 7.5, 8.0]
+    # the bass drum's `at` line, after the last block, adds the bar holding it (beats 12-16) at the last tempo
+    assert score.beats.tolist() == [0.0, 1.0, 2.0, 3.0, 4.0, 4.5, 5.0, 5.5, 6.0, 6.5, 7.0, 7.5, 8.0, 8.5, 9.0, 9.5,
+                                    10.0]
 
 
 # --- limbs -----------------------------------------------------------------------------------------------------

@@ -15,19 +15,7 @@ from common.score.events import Score, ScoreError
 from common.score.midi import read_midi
 from common.score.position import bar_beat
 from common.score.text import parse_text, read_score
-from tests.score.midi_files import drum_midi
-
-KEY_C = b"\xff\x59\x02\x00\x00"
-"""A key signature meta message of C major, as mido writes it."""
-
-
-def _with_key(data: bytes, key: bytes) -> bytes:
-    """``data`` (one track) with its key signature of C replaced by the meta message bytes ``key``."""
-    assert data.count(KEY_C) == 1 and data.count(b"MTrk") == 1
-    track = data.index(b"MTrk")
-    size = struct.unpack(">I", data[track + 4 : track + 8])[0] + len(key) - len(KEY_C)
-    body = data[track + 8 :].replace(KEY_C, key)
-    return data[:track] + b"MTrk" + struct.pack(">I", size) + body
+from tests.score.midi_files import drum_midi, riff_chunk, riff_midi, with_key
 
 
 def _same_reading(a: Score, b: Score) -> None:
@@ -45,7 +33,7 @@ def _same_reading(a: Score, b: Score) -> None:
 def test_a_corrupt_key_signature_is_ignored_with_one_warning(key: bytes, problem: str) -> None:
     # the whole file was refused ("not a valid Standard MIDI File"); a drum score has no use for its key
     good = drum_midi([(0, 4, 4)], [0, 480, 960, 4 * 480], key=True)
-    score = read_midi(_with_key(good, key))
+    score = read_midi(with_key(good, key))
     _same_reading(score, read_midi(good))
     assert [e.event for e in score.events] == [E.SNARE] * 4
     assert len(score.warnings) == 1 and "<bytes>: a key signature" in score.warnings[0]
@@ -54,14 +42,14 @@ def test_a_corrupt_key_signature_is_ignored_with_one_warning(key: bytes, problem
 
 def test_corrupt_key_signatures_make_one_warning() -> None:
     good = drum_midi([(0, 4, 4)], [0, 480], key=True)
-    bad = _with_key(good, b"\xff\x59\x02\xee\x01" + b"\x00\xff\x59\x02\x09\x00")  # two, at tick 0
+    bad = with_key(good, b"\xff\x59\x02\xee\x01" + b"\x00\xff\x59\x02\x09\x00")  # two, at tick 0
     score = read_midi(bad)
     _same_reading(score, read_midi(good))
     assert len(score.warnings) == 1 and score.warnings[0].startswith("<bytes>: 2 key signatures")
 
 
 def test_reading_a_score_leaves_mido_strict_for_other_code() -> None:
-    bad = _with_key(drum_midi([], [0], key=True), b"\xff\x59\x02\xee\x01")
+    bad = with_key(drum_midi([], [0], key=True), b"\xff\x59\x02\xee\x01")
     read_midi(bad)
     with pytest.raises(mido.midifiles.meta.KeySignatureError):  # whoever else uses mido sees what it always did
         mido.MidiFile(file=io.BytesIO(bad))
@@ -69,34 +57,24 @@ def test_reading_a_score_leaves_mido_strict_for_other_code() -> None:
 
 # --- RIFF MIDI files ---------------------------------------------------------------------------------------------
 
-def _chunk(name: bytes, body: bytes) -> bytes:
-    """A RIFF chunk: little-endian size, padded to an even length."""
-    return name + struct.pack("<I", len(body)) + body + b"\x00" * (len(body) % 2)
-
-
-def _rmid(smf: bytes, before: bytes = b"", form: bytes = b"RMID") -> bytes:
-    body = form + before + _chunk(b"data", smf)
-    return b"RIFF" + struct.pack("<I", len(body)) + body
-
-
 def test_a_riff_midi_file_reads_as_the_midi_file_it_wraps(tmp_path: Path) -> None:
     smf = drum_midi([(0, 3, 4)], [0, 480, 1440, 2400])
-    info = _chunk(b"LIST", b"INFOINAM" + struct.pack("<I", 5) + b"Beat\x00")  # 17 bytes and a pad byte before it
-    _same_reading(read_midi(_rmid(smf, info)), read_midi(smf))  # was "not a valid Standard MIDI File"
+    info = riff_chunk(b"LIST", b"INFOINAM" + struct.pack("<I", 5) + b"Beat\x00")  # 17 bytes and a pad byte before it
+    _same_reading(read_midi(riff_midi(smf, info)), read_midi(smf))  # was "not a valid Standard MIDI File"
     for name in ("groove.rmi", "groove.RMI", "groove"):  # by its suffix, or by its header
         path = tmp_path / name
-        path.write_bytes(_rmid(smf, info))
+        path.write_bytes(riff_midi(smf, info))
         score = read_score(path)
         _same_reading(score, read_midi(smf))
         assert score.source == str(path)
 
 
 @pytest.mark.parametrize(("data", "message"), [
-    (_rmid(b"", form=b"WAVE"), r"not a valid Standard MIDI File \(a RIFF 'WAVE' file, not RIFF MIDI"),
-    (_rmid(b"")[:-8] + _chunk(b"DISP", b"abcd"), r"RIFF MIDI file without a 'data' chunk"),
-    (_rmid(drum_midi([], [0]))[:-10], r"truncated RIFF MIDI file \(its 'data' chunk"),
+    (riff_midi(b"", form=b"WAVE"), r"not a valid Standard MIDI File \(a RIFF 'WAVE' file, not RIFF MIDI"),
+    (riff_midi(b"")[:-8] + riff_chunk(b"DISP", b"abcd"), r"RIFF MIDI file without a 'data' chunk"),
+    (riff_midi(drum_midi([], [0]))[:-10], r"truncated RIFF MIDI file \(its 'data' chunk"),
     (b"RIFF\x04\x00\x00\x00RMI", r"truncated RIFF file"),
-    (_rmid(b"")[:-8] + b"dat", r"truncated RIFF MIDI file"),
+    (riff_midi(b"")[:-8] + b"dat", r"truncated RIFF MIDI file"),
 ])
 def test_a_broken_riff_midi_file_names_the_problem(data: bytes, message: str) -> None:
     with pytest.raises(ScoreError, match="<bytes>: " + message):
@@ -105,7 +83,7 @@ def test_a_broken_riff_midi_file_names_the_problem(data: bytes, message: str) ->
 
 def test_a_riff_file_of_another_kind_by_another_name_is_not_read_as_midi(tmp_path: Path) -> None:
     path = tmp_path / "take"  # an audio file given as the score: still "not a text score", not a MIDI error
-    path.write_bytes(_rmid(b"\xff" * 16, form=b"WAVE"))
+    path.write_bytes(riff_midi(b"\xff" * 16, form=b"WAVE"))
     with pytest.raises(ScoreError, match="not a text score"):
         read_score(path)
 

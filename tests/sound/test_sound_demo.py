@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 import resource
 import signal
 import subprocess
@@ -9,12 +10,15 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
+import mido
 import numpy as np
 import pytest
 import soundfile as sf
 
 from common.kit import load_kit
+from common.messages import Impact
 from services.sound.demo import DEFAULT_MIDI, impacts_from_midi, main
+from tests.score.midi_files import KEY_C, riff_chunk, riff_midi, with_key
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -43,10 +47,13 @@ def test_broken_inputs_and_outputs_are_named_and_nothing_is_written(tmp_path: Pa
     truncated = tmp_path / "cut.mid"
     truncated.write_bytes(DEFAULT_MIDI.read_bytes()[:60])
     not_midi = tmp_path / "notes.txt"
-    not_midi.write_text("kick snare")
+    not_midi.write_text("kick snare")  # read as a text score, which it is not
+    noise = tmp_path / "noise.mid"
+    noise.write_bytes(bytes(range(256)))
     out = tmp_path / "groove.wav"
     for args, says in ((["--midi", str(truncated)], "cut.mid: truncated MIDI file"),
-                       (["--midi", str(not_midi)], "notes.txt: not a readable MIDI file"),
+                       (["--midi", str(not_midi)], "notes.txt: line 1: unknown directive 'kick'"),
+                       (["--score", str(noise)], "noise.mid: not a valid Standard MIDI File"),
                        (["-o", str(not_midi / "g.wav")], "notes.txt is a file, not a folder"),
                        (["-o", str(tmp_path / "no" / "g.wav")], "does not exist"),
                        (["-o", str(tmp_path)], "is a directory, not a file")):
@@ -119,3 +126,53 @@ def test_ctrl_c_while_rendering_writes_nothing_and_says_so(tmp_path: Path) -> No
     # was: a KeyboardInterrupt traceback
     assert proc.returncode == 130 and err.strip().splitlines()[-1] == f"interrupted: {out} not written"
     assert list(tmp_path.iterdir()) == []
+
+
+def _beat() -> bytes:
+    """Half a second of drums at 120 bpm on channel 10: kick, closed hi-hat edge (the TD-11's 22), snare, an eighth
+    note (0.25 s) apart, after a key signature of C."""
+    track = mido.MidiTrack([mido.MetaMessage("key_signature", key="C")])
+    for delta, note in ((0, 36), (240, 22), (240, 38)):
+        track.append(mido.Message("note_on", channel=9, note=note, velocity=100, time=delta))
+    out = io.BytesIO()
+    mido.MidiFile(tracks=[track], ticks_per_beat=480).save(file=out)
+    return out.getvalue()
+
+
+def _played(impacts: list[Impact]) -> list[tuple[float, str, str]]:
+    return [(round(i.time, 6), i.instrument, i.zone) for i in impacts]
+
+
+EXPECTED_BEAT = [(0.5, "kick", "centre"), (0.75, "hihat", "closed"), (1.0, "snare", "centre")]
+"""What :func:`_beat` plays on the default kit (the demo starts a score 0.5 s in)."""
+
+
+def test_a_riff_midi_file_plays_as_the_midi_file_it_wraps(tmp_path: Path) -> None:
+    kit = load_kit("default")
+    smf, rmi = tmp_path / "beat.mid", tmp_path / "beat.rmi"
+    smf.write_bytes(_beat())
+    rmi.write_bytes(riff_midi(_beat(), riff_chunk(b"LIST", b"INFOINAM\x05\x00\x00\x00Beat\x00")))
+    # was "not a readable MIDI file (MThd not found...)": mido reads no RIFF wrapper
+    assert _played(impacts_from_midi(rmi, kit)) == _played(impacts_from_midi(smf, kit)) == EXPECTED_BEAT
+
+
+def test_a_midi_file_with_a_key_signature_mido_refuses_plays_with_a_warning(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert _beat().count(KEY_C) == 1
+    bad = tmp_path / "bad_key.mid"
+    bad.write_bytes(with_key(_beat(), b"\xff\x59\x02\xee\x01"))  # 18 flats
+    out = tmp_path / "beat.wav"
+    # was exit 2, "not a readable MIDI file (Could not decode key with 18 flats and mode 1)"
+    assert main(["-o", str(out), "--midi", str(bad), "--mono", "--reverb", "0"]) == 0
+    err = capsys.readouterr().err
+    assert f"warning: {bad}: a key signature that cannot be read ignored" in err
+    assert _played(impacts_from_midi(bad, load_kit("default"))) == EXPECTED_BEAT
+    audio, rate = sf.read(out)
+    assert rate == 48000 and audio.ndim == 1 and np.max(np.abs(audio)) > 0.05
+
+
+def test_a_text_score_plays_on_the_instruments_it_names(tmp_path: Path) -> None:
+    score = tmp_path / "beat.txt"
+    score.write_text("tempo 120\nBD |x...|\nSN |..x.|\nRD |.x.x|\n")
+    played = _played(impacts_from_midi(score, load_kit("default")))
+    assert played == [(0.5, "kick", "centre"), (1.0, "ride", "bow"), (1.5, "snare", "centre"), (2.0, "ride", "bow")]
