@@ -76,7 +76,7 @@ class KeyPoses(BaseModel):
     @classmethod
     def _names(cls, value: dict[str, KeyPose]) -> dict[str, KeyPose]:
         for name in value:
-            if not POSE_NAME.match(name):
+            if not POSE_NAME.fullmatch(name):
                 raise ValueError(f"pose name {name!r}: letters, digits, '_' and '.' only (e.g. SNARE.left_hand.UP)")
         return value
 

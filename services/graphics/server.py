@@ -243,7 +243,7 @@ class ViewServer:
     def _target(self, file: object) -> Path:
         if self.kit_dir is None:
             raise ValueError("saving is disabled: start the graphics node with --kit-dir DIR")
-        if not isinstance(file, str) or not FILE_NAME.match(file):
+        if not isinstance(file, str) or not FILE_NAME.fullmatch(file):  # match's "$" lets "kit.yaml\n" through
             raise ValueError("file name: letters, digits, '_', '-', '.', ending in .yaml, .yml or .json")
         path = (self.kit_dir / file).resolve()
         if path.parent != self.kit_dir:
@@ -270,7 +270,7 @@ class ViewServer:
         """Save the edited posture (``angles`` {joint: degrees} over the editor's current ones) as a key pose."""
         path = self._target(msg.get("file", "poses.yaml"))
         name = msg.get("name")
-        if not isinstance(name, str) or not POSE_NAME.match(name):
+        if not isinstance(name, str) or not POSE_NAME.fullmatch(name):
             raise ValueError("pose name: letters, digits, '_' and '.' (e.g. SNARE.left_hand.UP)")
         poser = self.poser or self._start_poser()
         q = poser.angles_from(msg.get("angles", {}), self.poser_angles)

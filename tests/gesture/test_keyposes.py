@@ -107,3 +107,10 @@ def test_a_bad_poses_file_is_a_clear_error(tmp_path: Path) -> None:
     path.write_text("[not: a mapping\n", encoding="utf-8")
     with pytest.raises(ValueError, match="not a valid poses file"):
         KeyPoses.load(path)
+
+
+@pytest.mark.parametrize("name", ["SNARE.left_hand.UP\n", "SNARE..UP", "snare/UP"])
+def test_a_pose_name_with_a_line_break_or_odd_characters_is_refused(name: str) -> None:
+    """A name ending in a line break is refused too (a regex's ``$`` alone would let it through)."""
+    with pytest.raises(ValueError, match="pose name"):
+        KeyPoses.model_validate({"poses": {name: {"joints": {}}}})

@@ -21,7 +21,7 @@ const camera = new THREE.PerspectiveCamera(45, 1, 0.05, 100);
 camera.up.set(0, 0, 1);
 const controls = new OrbitControls(camera, canvas);
 controls.target.set(0, 0.35, 0.75);
-Object.assign(state, { camera, controls }); // for tests and the console: where the view looks from
+Object.assign(state, { camera, controls, renderer }); // for tests and the console: the view's eye, GPU memory
 controls.addEventListener("start", () => { if (state.view) state.view.camera.preset = "free"; syncPresetSelect(); });
 window.addEventListener("resize", placePanels);
 scene.add(new THREE.HemisphereLight(0xffffff, 0x303040, 1.6));
@@ -70,8 +70,17 @@ function cylinderZ(radiusTop, radiusBottom, height, mat, segments = 40) {
   return new THREE.Mesh(g, mat);
 }
 
-function buildKit(kit) {
+const SHARED_MATS = new Set([MAT.metal, MAT.dark]);
+function disposeKit() { // the kit is redrawn on every slider step: free the old one's GPU buffers, not just drop it
+  layers.kit.traverse((o) => {
+    if (!o.isMesh) return;
+    o.geometry.dispose();
+    if (!SHARED_MATS.has(o.material)) o.material.dispose();
+  });
   layers.kit.clear();
+}
+function buildKit(kit) {
+  disposeKit();
   kitParts = [];
   for (const obj of kit.objects) {
     const group = new THREE.Group();
@@ -138,7 +147,6 @@ function buildKit(kit) {
     layers.kit.add(group);
     kitParts.push(part);
   }
-  buildEditorKit();
 }
 
 function applyKitState(k) {
@@ -292,13 +300,27 @@ function applyHits(hits) {
 const plotCanvas = document.getElementById("plot");
 const pctx = plotCanvas.getContext("2d");
 const PLOT_COLOURS = ["#ffb347", "#7ec8ff", "#b0ff8a", "#ff7eb6"];
+function plotNotice(text) { // what the plot says it lacks ("" with data), also for screen readers and tests
+  if (state.plotNotice === text) return;
+  state.plotNotice = text;
+  plotCanvas.setAttribute("aria-label", text ? `stick tip height plot: ${text}` : "stick tip height plot");
+}
 function drawPlot() {
   const w = plotCanvas.width, h = plotCanvas.height;
   pctx.clearRect(0, 0, w, h);
   pctx.fillStyle = "rgba(20,22,28,0.85)";
   pctx.fillRect(0, 0, w, h);
   const pl = state.view?.plot ?? { window: 4, z_min: 0.5, z_max: 1.6 };
-  if (!state.plot.length) return;
+  const empty = !state.plot.length ? "no strokes yet" : !state.plot[0][1].length ? "no stick tips in the poses" : "";
+  plotNotice(empty);
+  if (empty) { // say so, as the view does when it has nothing to draw, rather than show an empty box
+    pctx.fillStyle = "#999"; pctx.font = "10px sans-serif";
+    pctx.fillText("stick tip height (m)", 30, 10);
+    pctx.font = "13px sans-serif"; pctx.textAlign = "center";
+    pctx.fillText(empty, w / 2, h / 2 + 4);
+    pctx.textAlign = "start";
+    return;
+  }
   const tEnd = state.plot[state.plot.length - 1][0];
   const x = (t) => ((t - (tEnd - pl.window)) / pl.window) * (w - 30) + 26;
   const y = (z) => h - 14 - ((z - pl.z_min) / (pl.z_max - pl.z_min)) * (h - 24);
@@ -448,11 +470,16 @@ function connect() {
   };
   ws.onerror = () => ws.close();
 }
-function send(msg) { if (state.ws && state.connected) state.ws.send(JSON.stringify(msg)); }
+function send(msg) { // false when the node is not connected (the message is dropped)
+  if (!state.ws || !state.connected) return false;
+  state.ws.send(JSON.stringify(msg));
+  return true;
+}
 
 function onMessage(m) {
   switch (m.type) {
-    case "kit": state.kit = m.kit; buildKit(m.kit); if (state.names.length) buildSkeleton(state.names, state.parents);
+    case "kit": state.kit = m.kit; buildKit(m.kit); buildEditorKit();
+      if (state.names.length) buildSkeleton(state.names, state.parents);
       break;
     case "skeleton": state.names = m.names; state.parents = m.parents; buildSkeleton(m.names, m.parents); break;
     case "view": applyView(m); break;
@@ -483,15 +510,36 @@ function editorMsg(text, ok) {
   el.textContent = text;
   el.className = ok ? "ok" : "bad";
 }
-function slider(parent, label, value, min, max, step, onInput) {
+// A kit value's row: a slider to move it and a number field to type it. Showing the row never changes the kit:
+// the field shows the value as loaded (every digit) and the slider reaches it (its span grows to take it). A drag
+// puts the value on a ``step`` grid (1 mm, 0.1 degree: a pixel of slider is coarser); a typed value is kept
+// exactly, within ``limits`` (the kit model's).
+function kitSlider(parent, label, value, min, max, step, unit, onChange, limits = [-Infinity, Infinity]) {
   const row = document.createElement("div");
-  row.className = "slider";
-  const input = document.createElement("input");
-  Object.assign(input, { type: "range", min, max, step, value });
-  const out = document.createElement("span");
-  out.textContent = Number(value).toFixed(3);
-  input.addEventListener("input", () => { out.textContent = Number(input.value).toFixed(3); onInput(Number(input.value)); });
-  row.append(label, input, out);
+  row.className = "slider kit";
+  const range = document.createElement("input");
+  Object.assign(range, { type: "range", step: "any" });
+  const field = document.createElement("input");
+  Object.assign(field, { type: "number", step, title: unit });
+  const decimals = Math.max(0, Math.round(-Math.log10(step)));
+  let current = value;
+  const show = (v) => { // bounds before the value, or the browser clamps it into the old ones
+    Object.assign(range, { min: Math.min(min, v), max: Math.max(max, v) });
+    range.value = v;
+    field.value = String(v);
+  };
+  const set = (v) => { current = Math.min(limits[1], Math.max(limits[0], v)); onChange(current); };
+  show(value);
+  range.addEventListener("input", () => { // the slider keeps its own span while it is dragged
+    set(Number(Number(range.value).toFixed(decimals)));
+    field.value = String(current);
+  });
+  field.addEventListener("change", () => {
+    const typed = Number(field.value);
+    if (field.value !== "" && Number.isFinite(typed)) set(typed);
+    show(current);
+  });
+  row.append(label, range, field);
   parent.append(row);
 }
 const kitSelect = document.getElementById("kit-object");
@@ -499,7 +547,7 @@ function buildEditorKit() {
   if (!state.kit) return;
   const chosen = kitSelect.value;
   kitSelect.innerHTML = state.kit.objects.map((o) => `<option>${o.id}</option>`).join("");
-  if (chosen) kitSelect.value = chosen;
+  if (state.kit.objects.some((o) => o.id === chosen)) kitSelect.value = chosen; // else the first object
   buildKitSliders();
 }
 function buildKitSliders() {
@@ -507,17 +555,19 @@ function buildKitSliders() {
   box.innerHTML = "";
   const obj = state.kit?.objects.find((o) => o.id === kitSelect.value);
   if (!obj) return;
-  const rebuild = () => { const keep = kitSelect.value; buildKit(state.kit); kitSelect.value = keep;
-    if (state.names.length) buildSkeleton(state.names, state.parents); };
-  ["x", "y", "z"].forEach((axis, i) => slider(box, `pos ${axis}`, obj.position[i], i === 2 ? 0 : -1.5, 1.5, 0.005,
-    (v) => { obj.position[i] = v; rebuild(); }));
-  ["roll", "pitch", "yaw"].forEach((axis, i) => slider(box, axis, obj.rotation_deg[i], -180, 180, 1,
-    (v) => { obj.rotation_deg[i] = v; rebuild(); }));
-  slider(box, "radius", obj.radius, 0.02, 0.5, 0.001, (v) => { obj.radius = v; rebuild(); });
+  const redraw = () => buildKit(state.kit); // the rows stay: rebuilding them would end a drag after one step
+  ["x", "y", "z"].forEach((axis, i) => kitSlider(box, `pos ${axis}`, obj.position[i], i === 2 ? 0 : -1.5, 1.5,
+    0.001, "metres", (v) => { obj.position[i] = v; redraw(); }));
+  ["roll", "pitch", "yaw"].forEach((axis, i) => kitSlider(box, axis, obj.rotation_deg[i], -180, 180, 0.1,
+    "degrees", (v) => { obj.rotation_deg[i] = v; redraw(); }));
+  kitSlider(box, "radius", obj.radius, 0.02, 0.5, 0.001, "metres", (v) => { obj.radius = v; redraw(); },
+    [0.001, 1.0]);
 }
 kitSelect.addEventListener("change", buildKitSliders);
 document.getElementById("kit-save").addEventListener("click", () => {
-  send({ type: "save_kit", file: document.getElementById("kit-file").value, kit: state.kit });
+  const file = document.getElementById("kit-file").value;
+  if (send({ type: "save_kit", file, kit: state.kit })) editorMsg(`saving ${file}...`, true);
+  else editorMsg("not saved: the node is not connected (reconnecting)", false);
 });
 // The pose editor poses physics' 57-DOF body: 19 joints x (x, y, z) degrees, each DOF within physics' limits.
 // The node does the forward kinematics (the frames show the edited body) and, with "drive physics", sends the
@@ -589,8 +639,10 @@ function buildPoseSliders() {
 }
 jointSelect.addEventListener("change", buildPoseSliders);
 document.getElementById("pose-save").addEventListener("click", () => {
-  if (state.poser) send({ type: "save_pose", name: document.getElementById("pose-name").value,
-    angles: state.poser.angles });
+  if (!state.poser) return;
+  const name = document.getElementById("pose-name").value;
+  if (send({ type: "save_pose", name, angles: state.poser.angles })) editorMsg(`saving ${name}...`, true);
+  else editorMsg("not saved: the node is not connected (reconnecting)", false);
 });
 document.getElementById("pose-reset").addEventListener("click", () => {
   if (!state.poser) return;
