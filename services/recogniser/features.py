@@ -183,6 +183,35 @@ def multi_spectrogram(
     return out
 
 
+LEVEL_PERCENTILE = 95.0
+"""A band's long-term level (:func:`band_levels`): this percentile of its values over a file's frames (its loud
+frames, not its silences)."""
+MAX_LEVEL_SHIFT = 1.5
+"""The largest level change :func:`match_level` makes, in log10 of magnitude (+-30 dB)."""
+
+
+def band_levels(spec: np.ndarray) -> np.ndarray:
+    """Long-term level of each band (and input window) of a spectrogram (t, bands[, windows]): the
+    :data:`LEVEL_PERCENTILE` percentile over its frames, in the spectrogram's units, shape (bands[, windows])."""
+    return np.percentile(np.asarray(spec, np.float32), LEVEL_PERCENTILE, axis=0).astype(np.float32)
+
+
+def scale_magnitudes(spec: np.ndarray, log10_gain: float) -> np.ndarray:
+    """The spectrogram of the same audio with every band magnitude times ``10 ** log10_gain`` (a gain applied
+    before the ``log10(1 + LOG_MUL x)`` compression: silence stays 0)."""
+    x = np.asarray(spec, np.float32)
+    return np.log10(1.0 + np.expm1(x * np.float32(np.log(10.0))) * np.float32(10.0**log10_gain)).astype(np.float32)
+
+
+def match_level(spec: np.ndarray, reference: np.ndarray, alpha: float) -> np.ndarray:
+    """Test-time level matching: ``spec`` (t, bands, windows) with one gain on every band so that the mean of its
+    :func:`band_levels` moves ``alpha`` (0..1) of the way to the mean of ``reference`` (bands, windows; the same
+    statistic over training renders), by at most :data:`MAX_LEVEL_SHIFT`. Peak normalisation leaves a file's level
+    to its single loudest moment; this sets it by its loud frames, as the training files' were on average."""
+    shift = alpha * float(np.mean(reference) - np.mean(band_levels(spec)))
+    return scale_magnitudes(spec, min(MAX_LEVEL_SHIFT, max(-MAX_LEVEL_SHIFT, shift)))
+
+
 def part_progress(progress: Callable[[float], None] | None, i: int, n: int) -> Callable[[float], None] | None:
     """A progress callback for part ``i`` of ``n`` equal parts of a job reporting to ``progress``."""
     if progress is None:

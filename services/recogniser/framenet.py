@@ -142,6 +142,10 @@ class FrameNet:
     ``hop``: samples between frames (every network's; 220: 10 ms, 110: 5 ms at 22,050 Hz). ``peak_frames`` and
     ``snap_frames`` count these frames. ``bands``: the band analysis of the input (every network's; its
     sample rate is the rate of the audio :meth:`spectrogram` takes, the windows and the hop count samples at it).
+    ``profile``: the long-term band levels (:func:`~services.recogniser.features.band_levels`, shape
+    (bands.n, len(inputs))) of training renders, or None; ``level_match``: how far (0..1; 0: off) :meth:`adapt`
+    moves a file's level towards the profile's before the network reads it (test-time adaptation to a kit's
+    loudness; recogniser-history.md, "Test-time adaptation").
     """
 
     layers: list[Layer]
@@ -156,6 +160,8 @@ class FrameNet:
     subframe: bool = False
     hop: int = F.HOP
     bands: F.Bands = F.NARROW
+    profile: np.ndarray | None = None
+    level_match: float = 0.0
 
     def __post_init__(self) -> None:
         hops = {m.hop for m in self.members} - {self.hop}
@@ -194,6 +200,14 @@ class FrameNet:
         """The input for mono audio at :attr:`sample_rate`: (t, bands.n, len(inputs)), frames ``hop`` samples
         apart."""
         return F.multi_spectrogram(signal, self.inputs, progress, self.hop, self.bands)
+
+    def adapt(self, spec: np.ndarray) -> np.ndarray:
+        """The network's input for a file's spectrograms (:meth:`spectrogram`): with ``level_match`` and a
+        ``profile``, one gain on every band (:func:`~services.recogniser.features.match_level`); else ``spec``
+        itself."""
+        if self.level_match <= 0.0 or self.profile is None:
+            return spec
+        return F.match_level(spec, self.profile, self.level_match)
 
     def forward(self, spec: np.ndarray, chunk_frames: int = 2048,
                 progress: Callable[[float], None] | None = None) -> np.ndarray:

@@ -122,6 +122,8 @@ class Model:
             arrays[f"live.b{i}"] = b.astype(np.float32)
         net = self.offline
         arrays["offline.thresholds"] = net.thresholds.astype(np.float32)
+        if net.profile is not None:
+            arrays["offline.profile"] = net.profile.astype(np.float32)
         dtype = np.float16 if half else np.float32
         for k, member in enumerate(net.networks):
             prefix = "offline" if k == 0 else f"offline.m{k}"
@@ -129,6 +131,7 @@ class Model:
                 arrays[f"{prefix}.w{i}"] = la.w.astype(dtype)
                 arrays[f"{prefix}.b{i}"] = la.b.astype(dtype)
         meta = dict(self.meta)
+        adapt = {} if net.profile is None else {"level_match": net.level_match}  # files without: as before
         meta.update(
             format=FORMAT,
             classes=list(CLASS_NAMES),
@@ -138,7 +141,8 @@ class Model:
                      "bands": {"sample_rate": net.bands.sample_rate, "n": net.bands.n,
                                "f_max_hz": net.bands.f_max_hz},
                      "windows": list(net.windows), "layers": _layout(net.layers),
-                     "members": [{"windows": list(m.windows), "layers": _layout(m.layers)} for m in net.members]},
+                     "members": [{"windows": list(m.windows), "layers": _layout(m.layers)} for m in net.members],
+                     **adapt},
             live={"offsets": list(c.offsets), "delta": c.delta, "time_offset_s": c.time_offset_s,
                   "layers": len(c.weights)},
         )
@@ -209,7 +213,27 @@ def _network(p: Path, data: dict[str, np.ndarray], m: dict) -> FrameNet:
             raise ModelError(f"{p}: offline network layers do not read {bands.n} bands")
     if net.thresholds.shape != (N_CLASSES + 1,):
         raise ModelError(f"{p}: offline network has {net.thresholds.shape[0]} thresholds, expected {N_CLASSES + 1}")
+    _adaptation(p, data, m, net)
     return net
+
+
+def _adaptation(p: Path, data: dict[str, np.ndarray], m: dict, net: FrameNet) -> None:
+    """Set ``net``'s test-time level matching from the file (none in files without ``offline.profile``)."""
+    profile = data.get("offline.profile")
+    try:
+        match = float(m.get("level_match", 0.0))
+    except (TypeError, ValueError) as exc:
+        raise ModelError(f"{p}: offline level_match {m.get('level_match')!r}: {exc}") from exc
+    if not 0.0 <= match <= 1.0:
+        raise ModelError(f"{p}: offline level_match {match:g} (expected 0..1)")
+    if profile is None:
+        if match > 0.0:
+            raise ModelError(f"{p}: offline level_match {match:g} without offline.profile")
+        return
+    want = (net.bands.n, len(net.inputs))
+    if profile.shape != want:
+        raise ModelError(f"{p}: offline.profile has shape {profile.shape}, expected {want} (bands, input windows)")
+    net.profile, net.level_match = profile.astype(np.float32), match
 
 
 def _reads_bands(layers: list[Layer], n_bands: int) -> bool:

@@ -117,12 +117,13 @@ def network_outputs(
 ) -> np.ndarray:
     """The offline network's framewise outputs for mono audio: (frames, N_OUT), frames ``net.hop`` samples apart
     at ``net.sample_rate`` (:meth:`FrameNet.forward`), the audio resampled to that rate and scaled to
-    :data:`PEAK` first. :func:`strikes` turns them into events; ``progress`` is called up to 0.95."""
+    :data:`PEAK` first, its spectrograms adapted to the file (:meth:`FrameNet.adapt`). :func:`strikes` turns
+    them into events; ``progress`` is called up to 0.95."""
     if sample_rate != net.sample_rate:
         audio = resample(audio, sample_rate, net.sample_rate)
     peak = float(np.max(np.abs(audio))) if len(audio) else 0.0
     x = audio * (PEAK / peak) if peak > 0 else audio
-    spec = net.spectrogram(x, progress=(lambda f: progress(0.5 * f)) if progress else None)
+    spec = net.adapt(net.spectrogram(x, progress=(lambda f: progress(0.5 * f)) if progress else None))
     return net.forward(spec, progress=(lambda f: progress(0.5 + 0.45 * f)) if progress else None)
 
 
