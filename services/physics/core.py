@@ -243,7 +243,7 @@ class PhysicsCore:
 
     def handle(self, message: OscMessage, now: float, source: str) -> list[Outgoing]:
         """React to Hello (answer the layout) and to physics control messages; a refused one is answered with a
-        :class:`PhysicsRejected` to ``source`` (see :meth:`_reject`)."""
+        :class:`PhysicsRejected` to ``source`` (see :meth:`reject`)."""
         return self.handle_counted(message, now, source) + self._take_replies()
 
     def handle_counted(self, message: OscMessage, now: float, source: str) -> list[Outgoing]:
@@ -252,7 +252,7 @@ class PhysicsCore:
         try:
             return self._handle(message, now, source)
         except (TargetError, ValueError) as exc:
-            self._reject(message, source, exc, now)
+            self.reject(message, source, exc, now)
             return []
 
     @property
@@ -261,12 +261,13 @@ class PhysicsCore:
         counts them as dropped."""
         return sum(self.rejected.values())
 
-    def _reject(self, message: OscMessage, source: str, exc: Exception, now: float) -> None:
+    def reject(self, message: OscMessage, source: str, exc: Exception, now: float) -> None:
         """Count a refused message, answer its sender (a :class:`PhysicsRejected` to ``source``, within the
-        sender's reply budget) and log it unless this kind was logged within ``REJECT_LOG_INTERVAL_S``."""
+        sender's reply budget) and log it unless this kind was logged within ``REJECT_LOG_INTERVAL_S`` (the score
+        player's refusals found on the background planning path come here too)."""
         kind = type(message).__name__
         self.rejected[kind] += 1
-        self._reply(message.ADDRESS, str(exc), source, now)
+        self.queue_refusal(message.ADDRESS, str(exc), source, now)
         last = self._reject_logged.get(kind)
         if last is not None and 0.0 <= now - last < REJECT_LOG_INTERVAL_S:
             self._reject_quiet[kind] += 1
@@ -276,9 +277,11 @@ class PhysicsCore:
         log.warning("physics rejected %s from %s: %s%s", kind, source, exc, extra)
         self._reject_logged[kind] = now
 
-    def _reply(self, address: str, reason: str, source: str, now: float) -> None:
-        """Queue a :class:`PhysicsRejected` for ``source`` ("host:port", or a role offline) if its host is within
-        its reply budget at rig time ``now`` (s); else count it in ``replies_unanswered``."""
+    def queue_refusal(self, address: str, reason: str, source: str, now: float) -> None:
+        """Queue a :class:`PhysicsRejected` (``address`` refused for ``reason``) for ``source`` ("host:port", or a
+        role offline) if its host is within its reply budget at rig time ``now`` (s); else count it in
+        ``replies_unanswered``. Counts no rejection: :meth:`reject` does, for a refused message; the score player
+        also answers a live note too late or of no drum this way (counted as late or unknown, not as rejected)."""
         if not source:
             return
         host = source.rpartition(":")[0] or source  # the budget is the host's: a flood may vary its ports

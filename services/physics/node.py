@@ -19,8 +19,9 @@ these), without any message.
 The node runs :class:`LivePhysicsCore`: score plans (``play``, style and tempo
 re-plans, live notes) are computed in a worker process and spliced in at the
 first step after they are ready, so the 1 kHz loop never waits for the planner;
-messages take effect in arrival order, but a reset drops the plan in flight and acts at once
-(services/physics/score_player.py, docs/physics.md "Background plans"). A refused message is answered to
+messages take effect in arrival order, but a reset drops the plan in flight (its process is
+terminated, a spare one plans the next) and acts at once (services/physics/score_player.py,
+services/physics/plan_worker.py, docs/physics.md "Background plans"). A refused message is answered to
 its sender with ``/batteur/physics/rejected`` (docs/physics.md "Replies").
 """
 
@@ -101,10 +102,11 @@ class LivePhysicsCore(PhysicsCore):
     Every message but ``Hello`` goes through the score player's FIFO (:meth:`ScorePlayer.submit`): with no plan in
     flight it acts at once as in :class:`PhysicsCore`; a message that plans starts its plan in the worker (a
     process by default; ``planner="thread"``: a thread, which shares the interpreter lock with the loop);
-    while one is in flight, the messages after it wait and act, in order, once it is spliced (a reset drops it
-    and acts at once). Refusals found while a plan is applied are answered from :meth:`step`. Each step first
-    splices a plan that is ready (:meth:`ScorePlayer.pump`). ``close`` stops the worker without waiting for it.
-    Offline (``PhysicsCore``) nothing of this runs: plans are computed in the handler, renders are deterministic.
+    while one is in flight, the messages after it wait and act, in order, once it is spliced (a reset drops it,
+    stops computing it and acts at once). Refusals found while a plan is applied are answered from :meth:`step`.
+    Each step first splices a plan that is ready (:meth:`ScorePlayer.pump`). ``close`` stops the worker without
+    waiting for it. Offline (``PhysicsCore``) nothing of this runs: plans are computed in the handler, renders are
+    deterministic.
     """
 
     def __init__(self, settings: PhysicsSettings | None = None, *, planner: PlanWorker = "process",
@@ -121,7 +123,7 @@ class LivePhysicsCore(PhysicsCore):
         try:
             out = self.score_player.submit(message, now, source)
         except (TargetError, ValueError) as exc:
-            self._reject(message, source, exc, now)
+            self.reject(message, source, exc, now)
             out = []
         return out + self._take_replies()  # this message's refusal, and any of those that waited behind a plan
 

@@ -3,15 +3,36 @@
 The gesture planner is Python and NumPy; in a thread it takes turns with the 1 kHz loop for the interpreter's
 lock (re-planning a 55 s score: 47-147 ms gaps in the loop), in a process it only takes the CPU the loop leaves
 (15-37 ms; docs/physics.md, "Background plans"). Either can be stopped without waiting for the plan in flight.
+
+A plan dropped while it is computed (a reset) is abandoned (:meth:`PlanWorkers.abandon`): its process is
+terminated and a spare process, started and loaded beforehand, plans the next one at once (a new process takes
+2-5 s to import the planner and load the gesture database, several times a 439-note plan); a thread cannot be
+stopped, so it finishes the dropped plan alone while a new thread plans the next.
 """
 
 from __future__ import annotations
 
+import ctypes
+import logging
 import multiprocessing
 import os
 import signal
-from concurrent.futures import Executor, ProcessPoolExecutor, ThreadPoolExecutor
-from typing import Literal
+import sys
+from collections.abc import Callable
+from concurrent.futures import BrokenExecutor, Executor, Future, ProcessPoolExecutor, ThreadPoolExecutor
+from typing import TYPE_CHECKING, Any, Literal, TypeVar
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from common.gesture.plan import GesturePlan, Grip, Nuance
+    from common.kit import Kit
+    from common.score.events import DrumEvent
+    from common.score.hands import HandAlgorithm, Sticking
+
+log = logging.getLogger("batteur.physics.score")
+
+T = TypeVar("T")
 
 PLANNER_NICE = 10
 """Niceness added to a planning process: sharing a core, the physics loop gets about nine tenths of it (the
@@ -22,16 +43,64 @@ PlanWorker = Literal["thread", "process"]
 of their own (another core, or the OS's scheduling, instead of the interpreter's lock)."""
 
 
-def _start_planner_process() -> None:
-    """A planning process's start: lower priority than the loop, Ctrl-C left to the node (which stops it), the
-    gesture database loaded now."""
-    from common.gesture.database import default_database
+class PlanError(ValueError):
+    """Events the planner cannot plan (the message says why): the score player refuses the message that asked."""
 
+
+def plan_events(events: list[DrumEvent], beats: np.ndarray, lead_in: float, kit: Kit, algorithm: HandAlgorithm,
+                sticking: Sticking, grip: Grip, nuance: Nuance) -> GesturePlan:
+    """Distribute and plan rig-timed events (the planner's times are rig seconds); raises :class:`PlanError`.
+
+    Here, not in the score player, so that a planning process imports the planner only (the score player's
+    module brings the physics kernels: 1.8 s more to start a process)."""
+    from common.gesture.planner import PlannerConfig, plan_gestures
+    from common.score.events import Score
+    from common.score.limbs import distribute
+
+    score = Score(events=events, beats=beats, source="performance")
+    assignment = distribute(score, kit, algorithm, sticking)
+    if not assignment.notes:
+        raise PlanError("nothing to play: the kit has none of these notes' instruments")
+    config = PlannerConfig(grip=grip, nuance=nuance, lead_in=max(lead_in, 0.05))
+    try:
+        return plan_gestures(assignment, kit, score, config)
+    except Exception as exc:  # a planner failure rejects this message; it never stops the service
+        log.exception("the gesture planner failed")
+        raise PlanError(f"the gesture planner failed: {type(exc).__name__}: {exc}") from None
+
+
+PR_SET_PDEATHSIG = 1
+"""Linux prctl option: the signal this process gets when its parent dies."""
+
+
+def _die_with(parent: int) -> None:
+    """Linux: terminate this process when the node (``parent``, its pid) dies without closing it (killed,
+    crashed): an idle planning process, waiting for work, did not notice the node gone and lived on (120 MB
+    each, for good). Elsewhere nothing (the node's close still stops it)."""
+    if not sys.platform.startswith("linux"):
+        return
+    try:
+        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+    except (OSError, AttributeError):  # no prctl here
+        return
+    if os.getppid() != parent:  # the node died before the call
+        os._exit(0)
+
+
+def _start_planner_process(parent: int) -> None:
+    """A planning process's start: it dies with the node (``parent``, its pid), at lower priority than the loop,
+    Ctrl-C left to the node (which stops it), the planner imported and the gesture database loaded now (niced
+    already: 2-5 s of CPU)."""
+    _die_with(parent)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
         os.nice(PLANNER_NICE)
     except (AttributeError, OSError):  # not on this system: plans at the loop's priority
         pass
+    import common.gesture.planner  # noqa: F401 - imported now, not with the first plan
+    import common.score.limbs  # noqa: F401
+    from common.gesture.database import default_database
+
     default_database()
 
 
@@ -39,15 +108,76 @@ def plan_executor(worker: PlanWorker) -> Executor:
     """A one-worker executor of the kind ``worker``; a process is started (and its database loaded) at once."""
     if worker == "thread":
         return ThreadPoolExecutor(1, thread_name_prefix="physics-plan")
+    # started by the calling thread, whose end the child takes for its parent's (PR_SET_PDEATHSIG): the node's
+    # loop thread (or the main thread), which lasts as long as the node
     pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"),
-                               initializer=_start_planner_process)
+                               initializer=_start_planner_process, initargs=(os.getpid(),))
     pool.submit(int)  # starts the process (and loads the database) now, not with the first plan
     return pool
 
 
 def stop_executor(pool: Executor) -> None:
-    """Stop a planning worker without waiting for the plan in flight (a process is terminated)."""
+    """Stop a planning worker without waiting for the plan in flight (a process is terminated; the executor's
+    own thread reaps it)."""
+    # no public way to stop them before Python 3.14; taken before shutdown, which forgets them
+    processes = list((getattr(pool, "_processes", None) or {}).values())
     pool.shutdown(wait=False, cancel_futures=True)
-    processes = getattr(pool, "_processes", None) or {}  # no public way to stop them before Python 3.14
-    for process in list(processes.values()):
+    for process in processes:
         process.terminate()
+
+
+class PlanWorkers:
+    """The node's planning worker, one plan at a time, and for a process a started spare (see the module
+    docstring). ``worker``: a process (the node) or a thread (tests, benchmarks)."""
+
+    def __init__(self, worker: PlanWorker = "process") -> None:
+        self.kind: PlanWorker = worker
+        self._current = plan_executor(worker)
+        self._spare: Executor | None = plan_executor(worker) if worker == "process" else None
+        """A process started (database loaded) beforehand, for the plan after an abandoned one."""
+        self._closed = False
+        self._last: Future[Any] | None = None
+        """The latest plan submitted since the last :meth:`abandon` (None: none yet)."""
+
+    def submit(self, plan: Callable[[], T]) -> Future[T]:
+        """Compute ``plan()`` in the worker, after the plans submitted before it. A planning process that died
+        (killed, out of memory) is replaced by a thread of the node (logged), for good."""
+        try:
+            future = self._current.submit(plan)
+        except BrokenExecutor as exc:
+            log.error("the planning process stopped (%s): planning in a thread of the node from now on", exc)
+            self._stop()
+            self.kind, self._current = "thread", plan_executor("thread")
+            future = self._current.submit(plan)
+        self._last = future
+        return future
+
+    def abandon(self) -> None:
+        """Stop computing the plans submitted so far, without waiting (their futures are never to be read):
+        a process is terminated and the spare takes its place (a new spare starts at the next :meth:`idle`; with
+        none left, a new process starts now); a thread is left to finish alone and a new one plans from now on."""
+        old, self._last = self._current, None
+        if self._spare is not None:
+            self._current, self._spare = self._spare, None
+        else:
+            self._current = plan_executor(self.kind)
+        stop_executor(old)
+
+    def idle(self) -> None:
+        """No plan in flight: start the spare a process worker lacks (after :meth:`abandon`) once a plan has been
+        computed since. Not earlier: on a shared core its start (2-5 s of CPU) took turns with the plan after the
+        abandoned one (0.04 s alone, 0.2-0.3 s with it)."""
+        last = self._last
+        if self._spare is None and last is not None and last.done() and self.kind == "process" and not self._closed:
+            self._spare = plan_executor("process")
+
+    def close(self) -> None:
+        """Stop every worker without waiting for the plan in flight (processes terminated); for good."""
+        self._closed = True
+        self._stop()
+
+    def _stop(self) -> None:
+        for pool in (self._current, self._spare):
+            if pool is not None:
+                stop_executor(pool)
+        self._spare = None

@@ -71,7 +71,9 @@ never waits for the planner (docs/physics.md, "Background plans"). Every
 message then takes effect in arrival order: while a plan is in flight the
 messages after it wait in a FIFO (:meth:`ScorePlayer.submit`, :meth:`ScorePlayer.pump`),
 and live notes waiting together are planned together; a ``/batteur/physics/reset``
-does not wait: it drops the plan in flight (:meth:`ScorePlayer._drop_for_reset`).
+does not wait: it drops the plan in flight (:meth:`ScorePlayer._drop_for_reset`) and
+stops computing it, so the next plan starts at once (a spare planning process:
+services/physics/plan_worker.py ``PlanWorkers``).
 
 A ``pause`` when nothing plays and no limb moves then, or a ``stop`` of a
 drummer that never moved, is refused (a :class:`ScorePlayerError`, answered to
@@ -88,7 +90,7 @@ import math
 import time
 from collections import Counter, deque
 from collections.abc import Callable
-from concurrent.futures import BrokenExecutor, Executor, Future
+from concurrent.futures import Future
 from concurrent.futures import wait as wait_futures
 from pathlib import Path
 from typing import TYPE_CHECKING, Literal
@@ -96,7 +98,7 @@ from typing import TYPE_CHECKING, Literal
 import numpy as np
 
 from common.gesture.plan import GesturePlan, Grip, Nuance
-from common.kit import EventType, Kit, Limb
+from common.kit import EventType, Limb
 from common.messages import OscMessage
 from common.messages.physics import PhysicsReset
 from common.messages.score import GestureStyle, KitSelect, LiveNote, ScoreLoad, ScoreTransport, TempoScale
@@ -104,7 +106,7 @@ from common.score.events import MAX_SCORE_NOTES, DrumEvent, Score, ScoreError
 from common.score.hands import HandAlgorithm, Sticking
 from common.score.limbs import HANDS
 from common.score.live import LiveNotes
-from services.physics.plan_worker import PlanWorker, plan_executor, stop_executor
+from services.physics.plan_worker import PlanWorker, PlanWorkers, plan_events
 from services.physics.splice import (
     BLEND_S,
     BRAKE_S,
@@ -198,24 +200,6 @@ def shortest_unit_period() -> float:
     from common.gesture.database import default_database
 
     return min(u.period for u in default_database().units)
-
-
-def _plan_events(events: list[DrumEvent], beats: np.ndarray, lead_in: float, kit: Kit, algorithm: HandAlgorithm,
-                 sticking: Sticking, grip: Grip, nuance: Nuance) -> GesturePlan:
-    """Distribute and plan rig-timed events (the planner's times are rig seconds); raises :class:`ScorePlayerError`."""
-    from common.gesture.planner import PlannerConfig, plan_gestures
-    from common.score.limbs import distribute
-
-    score = Score(events=events, beats=beats, source="performance")
-    assignment = distribute(score, kit, algorithm, sticking)
-    if not assignment.notes:
-        raise ScorePlayerError("nothing to play: the kit has none of these notes' instruments")
-    config = PlannerConfig(grip=grip, nuance=nuance, lead_in=max(lead_in, 0.05))
-    try:
-        return plan_gestures(assignment, kit, score, config)
-    except Exception as exc:  # a planner failure rejects this message; it never stops the service
-        log.exception("the gesture planner failed")
-        raise ScorePlayerError(f"the gesture planner failed: {type(exc).__name__}: {exc}") from None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -320,7 +304,7 @@ class ScorePlayer:
         """Plans spliced so far."""
         self.last_plan: GesturePlan | None = None
         self._preparation_s: float | None = None
-        self._worker: Executor | None = None
+        self._worker: PlanWorkers | None = None
         """Background plans: the planning worker (None: plans are computed in the handler)."""
         self._direct: Callable[[OscMessage, float, str], list[Outgoing]] | None = None
         """Background plans: the core's own handler, for the other messages that waited in the FIFO."""
@@ -667,8 +651,8 @@ class ScorePlayer:
             self.unknown_pitches += 1
             del self.live.unknown[:-UNKNOWN_PITCHES_KEPT]  # a stream of them must not grow the list
             log.warning("live note: pitch %d has no drum event type; not played", note.pitch)
-            self.core._reply(note.ADDRESS, f"live note: pitch {note.pitch} has no drum event type; not played",
-                             source, now)
+            self.core.queue_refusal(note.ADDRESS, f"live note: pitch {note.pitch} has no drum event type; not "
+                                    "played", source, now)
         return event
 
     def _count_late(self, event: DrumEvent, why: str, source: str = "", now: float = 0.0) -> None:
@@ -679,7 +663,7 @@ class ScorePlayer:
                   f"{self.preparation_s * 1000:.0f} ms to prepare it; not played")
         if self.late_notes <= 10 or self.late_notes % 100 == 0:
             log.warning("%s (%d late so far)", reason, self.late_notes)
-        self.core._reply(LiveNote.ADDRESS, reason, source, now)
+        self.core.queue_refusal(LiveNote.ADDRESS, reason, source, now)
 
     def _prepare_live(self, new: list[DrumEvent], t_s: float, whole: bool = False, widen: bool = False
                       ) -> _Prepared:
@@ -823,7 +807,7 @@ class ScorePlayer:
         """Plan in a worker from now on (the live node). ``direct(message, now, source)``: the core's own handler,
         which every other message goes to, in its turn (see :meth:`submit`)."""
         if self._worker is None:
-            self._worker = plan_executor(worker)
+            self._worker = PlanWorkers(worker)
         self._direct = direct
 
     @property
@@ -861,14 +845,11 @@ class ScorePlayer:
 
     def _drop_for_reset(self, now: float) -> None:
         """A reset while busy (rig time ``now``, s): drop the plan in flight (the reset clears the tracks it would
-        be spliced into; the worker may finish it, nothing takes it), then act on the messages that waited behind
-        it, in order, without planning: a transport message or live note is dropped with the plan (the reset
-        leaves nothing playing), a style or tempo keeps its settings, any other message acts as it would have
-        (a controller change stays; targets are cleared by the reset)."""
-        job, self._job = self._job, None
-        if job is not None:
-            job.future.cancel()  # a plan not started yet is never computed
-            self._generation += 1
+        be spliced into: :meth:`_abandon_job`), then act on the messages that waited behind it, in order, without
+        planning: a transport message or live note is dropped with the plan (the reset leaves nothing playing), a
+        style or tempo keeps its settings, any other message acts as it would have (a controller change stays;
+        targets are cleared by the reset)."""
+        job = self._abandon_job()
         waiting, self._waiting = list(self._waiting), deque()
         dropped = 0
         for item in waiting:
@@ -883,6 +864,18 @@ class ScorePlayer:
         log.info("reset at %.3f s: the plan in flight (%d message(s)) and %d waiting transport message(s) or live "
                  "note(s) dropped", now, len(job.requests) if job is not None else 0, dropped)
 
+    def _abandon_job(self) -> _Job | None:
+        """Drop the plan in flight (returned): nothing takes it, and a worker still computing it is stopped so the
+        next plan starts at once instead of after it (:meth:`PlanWorkers.abandon`)."""
+        job, self._job = self._job, None
+        if job is None:
+            return None
+        self._generation += 1
+        # a plan not started yet is never computed; one being computed is stopped (one already done: nothing to do)
+        if not job.future.cancel() and not job.future.done() and self._worker is not None:
+            self._worker.abandon()
+        return job
+
     def pump(self, now: float) -> None:
         """Background plans, at every step and message (rig time ``now``, s): splice the plan that is ready, then
         act on the messages waiting, in order, until one starts a plan. Never raises: failures are counted and
@@ -896,6 +889,8 @@ class ScorePlayer:
                 self._finish(job, now)
                 continue
             if not self._waiting:
+                if self._worker is not None:
+                    self._worker.idle()
                 return
             self._start(self._waiting.popleft(), now)
 
@@ -916,7 +911,7 @@ class ScorePlayer:
         self._waiting.clear()
         self._generation += 1
         if worker is not None:
-            stop_executor(worker)
+            worker.close()
 
     def _start(self, waiting: _Waiting, now: float) -> None:
         """Act on one waiting message: start its plan in the worker, or apply it at once."""
@@ -945,7 +940,7 @@ class ScorePlayer:
         """Count and log each request as rejected, as the handler would (``errors``, ``PhysicsCore.rejected``)."""
         for waiting in requests:
             error = self._counted(waiting.message, exc)
-            self.core._reject(waiting.message, waiting.source, error, now)
+            self.core.reject(waiting.message, waiting.source, error, now)
 
     def _estimate(self, notes: int) -> float:
         """Seconds a background plan of ``notes`` notes is expected to take (from the latest timed plans)."""
@@ -955,14 +950,7 @@ class ScorePlayer:
     def _submit(self, requests: list[_Waiting], prepared: _Prepared,
                 finish: Callable[[_Job, GesturePlan, float], None], notes: tuple[DrumEvent, ...] = ()) -> None:
         assert self._worker is not None
-        planner = self._planner(prepared.events, prepared.beats, prepared.lead_in)
-        try:
-            future = self._worker.submit(planner)
-        except BrokenExecutor as exc:  # the planning process died (killed, out of memory): plan in a thread
-            log.error("the planning process stopped (%s): planning in a thread of the node from now on", exc)
-            stop_executor(self._worker)
-            self._worker = plan_executor("thread")
-            future = self._worker.submit(planner)
+        future = self._worker.submit(self._planner(prepared.events, prepared.beats, prepared.lead_in))
         self._job = _Job(requests, prepared, future, time.perf_counter(), self._generation, finish, notes)
 
     def _start_play(self, waiting: _Waiting, now: float) -> None:
@@ -1053,15 +1041,16 @@ class ScorePlayer:
         prepared = job.prepared
         t_s = max(prepared.t_s, self._base(now) + SPLICE_MARGIN_S)
         pairs = list(zip(job.requests, job.notes, strict=True))
-        short = [(w, e) for w, e in pairs if not self._in_time(e, t_s, 1e-9)]  # t_s may be the latest (_start_live)
+        in_time = [self._in_time(e, t_s, 1e-9) for _, e in pairs]  # t_s may be the latest (_start_live)
         if t_s > prepared.t_s:
             self.replanned_late += 1
-        if short:
+        if not all(in_time):
             took = time.perf_counter() - job.started
-            for waiting, event in short:
-                self._count_late(event, f"was planned by {now:.3f} s (planning took {took:.3f} s)", waiting.source,
-                                 now)
-            rest = [dataclasses.replace(w, event=e) for w, e in pairs if self._in_time(e, t_s, 1e-9)]
+            for (waiting, event), ok in zip(pairs, in_time, strict=True):
+                if not ok:
+                    self._count_late(event, f"was planned by {now:.3f} s (planning took {took:.3f} s)",
+                                     waiting.source, now)
+            rest = [dataclasses.replace(w, event=e) for (w, e), ok in zip(pairs, in_time, strict=True) if ok]
             self._waiting.extendleft(reversed(rest))
             return
         if t_s > prepared.t_s:
@@ -1099,7 +1088,7 @@ class ScorePlayer:
     def _planner(self, events: list[DrumEvent], beats: np.ndarray, lead_in: float) -> Callable[[], GesturePlan]:
         """The planning of rig-timed events with the present style, as a call that reads nothing of the player's
         state (it may run in the worker while the loop changes it; picklable, for a worker process)."""
-        return functools.partial(_plan_events, events, beats, lead_in, self.core.kit, self.algorithm, self.sticking,
+        return functools.partial(plan_events, events, beats, lead_in, self.core.kit, self.algorithm, self.sticking,
                                  self.grip, self.nuance)
 
     def _account(self, plan: GesturePlan) -> GesturePlan:
@@ -1127,8 +1116,12 @@ class ScorePlayer:
         self.end_time = min(self.end_time, t_s)
 
     def reset(self) -> None:
-        """The scene was reset (tracks cleared): nothing is playing any more (a plan in flight is dropped when
-        ready)."""
+        """The scene was reset (tracks cleared; a reset message, or a divergence): nothing is playing any more; a
+        plan in flight is dropped and no longer computed (:meth:`_abandon_job`), the messages waiting behind it
+        act from the next :meth:`pump` on."""
+        job = self._abandon_job()
+        if job is not None:
+            log.info("reset: the plan in flight (%d message(s)) dropped", len(job.requests))
         self._generation += 1
         self.events = []
         self.state = "idle"
