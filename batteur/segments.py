@@ -10,7 +10,13 @@ sound and graphics is kept for its own window only, by the rig time a message
 is about (an impact's first contact, a pose's instant; otherwise when it was
 sent), impacts are numbered again in time order, and the parent process plays
 the merged stream into one sound core and one recorder, so the WAV, the
-impacts and the motion come out as one performance.
+impacts and the motion come out as one performance. A worker is sent only the
+part of the plan its segment plays (:func:`segment_plan`).
+
+Ctrl-C: a terminal sends SIGINT to the whole process group. The workers ignore
+it from their start (the parent stops their segments through an event), and the
+parent acts on it between its own steps (:class:`_CtrlC`), so the render ends
+with its one line and nothing written.
 
 A segmented render is deterministic (the same score and options give the same
 files for any number of processes above one) but not identical to a
@@ -24,18 +30,25 @@ and ignored.
 
 from __future__ import annotations
 
+import contextlib
+import dataclasses
 import logging
 import math
 import multiprocessing
 import os
+import signal
+import threading
 import time
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, ClassVar
 
+import numpy as np
+
 from common.core import Outgoing
+from common.gesture.plan import HeadTrajectory, LimbTrajectory
 from common.messages import OscMessage
 from common.messages.events import Impact
 from common.messages.interaction import ImpactEnd
@@ -55,6 +68,9 @@ JOIN_S = 0.5
 """A segment's drummer leaves the rest posture for the plan's knots from this long after the lead-in starts, s."""
 OVERHANG_S = 0.25
 """A segment simulates this long past its end, so the impacts that began inside it are completed, seconds."""
+PLAN_MARGIN_S = 1.0
+"""A segment's worker gets the plan from this long before its lead-in to this long past its ``run_to_s`` (and
+the nearest knots outside), seconds: more than its drummer samples, with room."""
 
 Sent = tuple[float, str, str, OscMessage]
 """(rig time sent, seconds; from role; to role; message)."""
@@ -84,6 +100,33 @@ def plan_segments(duration_s: float, segment_s: float = SEGMENT_S, warmup_s: flo
     return [Segment(k, bounds[k], bounds[k + 1], max(0.0, bounds[k] - warmup_s) if k else 0.0,
                     duration_s if k == count - 1 else min(duration_s, bounds[k + 1] + OVERHANG_S))
             for k in range(count)]
+
+
+def segment_plan(plan: GesturePlan, segment: Segment, offset_s: float) -> GesturePlan:
+    """What ``segment``'s drummer tracks of ``plan`` (``offset_s``: rig time minus plan time, seconds): a later
+    segment's plan from its join on (:meth:`~common.gesture.plan.GesturePlan.from_time`), every segment's
+    until ``PLAN_MARGIN_S`` past its ``run_to_s``: each limb's knots to the first one after that, the head's
+    from the last one before its lead-in (less the margin) to the first one after, the strokes and cymbal
+    swings until then, no feasibility issues (physics does not read them). ``start_time`` and ``end_time``
+    stay, so rig times map as before. Sampled anywhere in the segment's run, it gives what the whole plan
+    gives; a worker given the whole plan held and unpickled all of it (0.6 MB for each second of music)."""
+    joined = plan if segment.index == 0 else plan.from_time(segment.run_from_s + JOIN_S - offset_s)
+    since = segment.run_from_s - PLAN_MARGIN_S - offset_s
+    until = segment.run_to_s + PLAN_MARGIN_S - offset_s
+    trajectories = {}
+    for limb, traj in joined.trajectories.items():
+        end = int(np.searchsorted(traj.times, until, side="right")) + 1  # the first knot after it too
+        trajectories[limb] = traj if end >= len(traj.times) else LimbTrajectory(
+            limb, traj.times[:end], traj.positions[:end], traj.velocities[:end])
+    head = joined.head
+    if head is not None:
+        first = max(int(np.searchsorted(head.times, since, side="right")) - 1, 0)
+        end = int(np.searchsorted(head.times, until, side="right")) + 1
+        if first > 0 or end < len(head.times):
+            head = HeadTrajectory(head.times[first:end], head.targets[first:end], head.nod[first:end])
+    return dataclasses.replace(joined, trajectories=trajectories, head=head, issues=[],
+                               strokes=[s for s in joined.strokes if s.time <= until],
+                               cymbal_swings=[c for c in joined.cymbal_swings if c.time <= until])
 
 
 def about_time(message: OscMessage, sent_s: float) -> float:
@@ -143,9 +186,10 @@ def run_segment(plan: GesturePlan, kit: Kit, opts: RenderOptions, segment: Segme
                 progress: Any = None, stop: Any = None) -> SegmentResult:
     """Simulate one segment (physics and interaction) and keep what it owns; runs in a worker process.
 
+    ``plan``: the whole plan, or :func:`segment_plan`'s part of it for this segment (the same render).
     ``progress``: a queue that gets (segment index, rig seconds simulated) now and then. ``stop``: an event
-    that, once set, ends the segment with :class:`SegmentStopped` (checked as often as progress is sent): the
-    pool cannot cancel a segment already running or queued to a worker.
+    that, once set, ends the segment with :class:`SegmentStopped` (checked as often as progress is sent, and
+    before it starts): the pool cannot cancel a segment already running or queued to a worker.
     """
     from batteur.render import offline_interaction_config, start_drummer
     from common.bus import OfflineRunner
@@ -155,8 +199,7 @@ def run_segment(plan: GesturePlan, kit: Kit, opts: RenderOptions, segment: Segme
     if stop is not None and stop.is_set():
         raise SegmentStopped(f"segment {segment.index} not started: the render was given up")
     offset = opts.settle_s - plan.start_time
-    joined = plan if segment.index == 0 else plan.from_time(segment.run_from_s + JOIN_S - offset)
-    physics = start_drummer(joined, kit, opts, segment.run_from_s)
+    physics = start_drummer(segment_plan(plan, segment, offset), kit, opts, segment.run_from_s)
     kept: list[Sent] = []
     counted = _CountingPhysics(physics, segment)
     interaction = InteractionCore(kit=kit, config=offline_interaction_config())
@@ -303,6 +346,76 @@ def _log_given_up(futures: dict[Future[SegmentResult], Segment]) -> None:
                      segment.run_to_s)
 
 
+_channels: tuple[Any, Any] = (None, None)
+"""In a segment worker: the parent's progress queue and stop event (:func:`_start_worker`)."""
+
+
+def _start_worker(progress: Any, stop: Any) -> None:
+    """A segment worker's set-up (the pool's initializer): a terminal's Ctrl-C reaches the whole process group,
+    and a worker must not stop on it (it printed a ``KeyboardInterrupt`` traceback from wherever it was, and one
+    that died left the pool broken): SIGINT is ignored, the parent stops the segments through ``stop``. It was
+    blocked from the worker's start (:func:`_sigint_blocked` in the parent, inherited), so a Ctrl-C while the
+    worker started up is dropped here."""
+    global _channels
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if hasattr(signal, "pthread_sigmask"):
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+    _channels = (progress, stop)
+
+
+def _run_in_worker(plan: GesturePlan, kit: Kit, opts: RenderOptions, segment: Segment) -> SegmentResult:
+    """:func:`run_segment` with the worker's progress queue and stop event."""
+    return run_segment(plan, kit, opts, segment, *_channels)
+
+
+@contextlib.contextmanager
+def _sigint_blocked() -> Iterator[None]:
+    """SIGINT blocked in this thread meanwhile (a Ctrl-C meanwhile is delivered when it ends): the processes and
+    threads started meanwhile inherit the block, so a worker cannot be interrupted while Python starts in it,
+    before its initializer runs."""
+    if not hasattr(signal, "pthread_sigmask"):  # not POSIX
+        yield
+        return
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+
+class _CtrlC:
+    """While the segments run, a Ctrl-C (SIGINT) is noted instead of raised wherever the parent is: raised in the
+    middle of a talk with the workers (a queue read, the pool's bookkeeping) it could leave the pool waiting for
+    ever. :meth:`check` raises ``KeyboardInterrupt`` at the parent's next safe point (at least every 0.25 s), and
+    leaving the block does if one came after the last check. Outside the main thread signals are not Python's to
+    handle: nothing changes."""
+
+    def __init__(self) -> None:
+        self.noted = False
+        self._previous: Any = None
+
+    def __enter__(self) -> _CtrlC:
+        if threading.current_thread() is threading.main_thread():
+            self._previous = signal.signal(signal.SIGINT, self._note)
+        return self
+
+    def _note(self, signum: int, frame: Any) -> None:
+        self.noted = True
+
+    def check(self, *_: object) -> None:
+        """Raise ``KeyboardInterrupt`` if a Ctrl-C came (arguments ignored: a run's progress callback)."""
+        if self.noted:
+            raise KeyboardInterrupt
+
+    def __exit__(self, kind: type[BaseException] | None, exc: BaseException | None, tb: Any) -> None:
+        if self._previous is not None:
+            signal.signal(signal.SIGINT, self._previous)
+        elif threading.current_thread() is threading.main_thread():
+            signal.signal(signal.SIGINT, signal.default_int_handler)
+        if kind is None:
+            self.check()
+
+
 def default_jobs() -> int:
     """Processes a segmented render uses when asked for all: the CPUs this process may run on."""
     try:
@@ -339,33 +452,41 @@ def run_segmented(score: Score, assignment: Assignment, plan: GesturePlan, kit: 
     try:
         if outputs is not None:
             outputs.attach(sound)
-        with context.Manager() as manager, ProcessPoolExecutor(max_workers=max(1, min(jobs, len(segments))),
-                                                              mp_context=context) as pool:
-            queue, stop = manager.Queue(), manager.Event()
-            futures: dict[Future[SegmentResult], Segment] = {
-                pool.submit(run_segment, plan, kit, opts, s, queue, stop): s for s in segments}
-            done_s = {s.index: 0.0 for s in segments}
-            pending = set(futures)
-            try:
-                while pending:
-                    finished, pending = wait(pending, timeout=0.25, return_when=FIRST_COMPLETED)
-                    while not queue.empty():
-                        index, simulated = queue.get_nowait()
-                        done_s[index] = simulated
-                    if on_progress is not None:  # simulated seconds of all segments, scaled to the piece
-                        on_progress(duration * sum(done_s.values()) / total, duration)
-                    for future in finished:
-                        play.add(future.result())  # a worker's error ends the render here
-                        del futures[future]  # its messages are the player's now, not kept twice
-                    if finished:
-                        play.advance()
-                    finished = set()  # their results (messages) are the player's: not kept alive by this name
-            except BaseException:
-                stop.set()  # the running and queued segments end at their next check, not at their end
-                for future in futures:  # the segments not started yet are not simulated for nothing
-                    future.cancel()
-                _log_given_up(futures)
-                raise
+        with _CtrlC() as ctrl_c:  # the segments' Ctrl-C: acted on between the parent's steps (see _CtrlC)
+            play.check = ctrl_c.check
+            queue, stop = context.Queue(), context.Event()
+            with contextlib.ExitStack() as stack:
+                with _sigint_blocked():  # inherited by the workers, started as the segments are submitted
+                    pool = stack.enter_context(ProcessPoolExecutor(
+                        max_workers=max(1, min(jobs, len(segments))), mp_context=context,
+                        initializer=_start_worker, initargs=(queue, stop)))
+                    futures: dict[Future[SegmentResult], Segment] = {
+                        pool.submit(_run_in_worker, segment_plan(plan, s, offset), kit, opts, s): s
+                        for s in segments}  # each worker is sent only its part of the plan
+                done_s = {s.index: 0.0 for s in segments}
+                pending = set(futures)
+                try:
+                    while pending:
+                        ctrl_c.check()
+                        finished, pending = wait(pending, timeout=0.25, return_when=FIRST_COMPLETED)
+                        while not queue.empty():
+                            index, simulated = queue.get_nowait()
+                            done_s[index] = simulated
+                        if on_progress is not None:  # simulated seconds of all segments, scaled to the piece
+                            on_progress(duration * sum(done_s.values()) / total, duration)
+                        for future in finished:
+                            play.add(future.result())  # a worker's error ends the render here
+                            del futures[future]  # its messages are the player's now, not kept twice
+                        if finished:
+                            play.advance()
+                        finished = set()  # their results (messages) are the player's: not kept alive by this name
+                except BaseException:
+                    # the running and queued segments end at their next check (a queued one as it starts), not at
+                    # their end; not cancelled: Python 3.11's pool hangs at shutdown if a worker dies after a
+                    # cancel (its manager thread fails on the cancelled future)
+                    stop.set()
+                    _log_given_up(futures)
+                    raise
         runner.run_until(duration)
         audio = sound.recording()
     finally:
@@ -396,6 +517,8 @@ class _Player:
         self.cpu_time_s = 0.0
         self.rejected: dict[str, int] = {}
         self.settings: dict[str, Any] = {}
+        self.check: Callable[[float], None] | None = None
+        """Called at each step of the play (rig seconds): raises to stop it (a Ctrl-C)."""
 
     def add(self, result: SegmentResult) -> None:
         """A segment is done: merge it and those after it that were waiting for it."""
@@ -421,4 +544,4 @@ class _Player:
                 replay.extend(released)
         until = min(before - 1e-6, self.duration_s)  # the steps that send only released messages
         if until > self.runner.now:
-            self.runner.run_until(until)
+            self.runner.run_until(until, self.check)

@@ -8,6 +8,14 @@ before the last one replaces the tail from there (re-planning);
 those after it (a re-planned window that re-joins the queued plan). Knots older
 than the one in use are pruned.
 
+A batch of knots (:meth:`Track.extend`, e.g. a whole gesture plan) is kept as
+the batch's own arrays, and its knots are taken into the track's lists only as
+sampling comes within one knot of them: copied knot by knot (two small arrays
+each), a plan took 0.32 kB a knot, all of it from the start (10 MB per minute
+of a Groove beat in a render). Reading ``times``, ``values`` or ``velocities``
+takes every queued knot into those lists at once (callers that read or edit
+them, e.g. the score player's splices).
+
 A track holds at most ``max_knots`` knots (default :data:`MAX_TRACK_KNOTS`, a
 24 h plan of the densest music with margin): a knot, or a batch of knots, that
 would pass it is refused with :class:`TargetError` and the knots already queued
@@ -18,6 +26,7 @@ from __future__ import annotations
 
 import bisect
 import math
+from typing import Literal
 
 import numpy as np
 
@@ -33,11 +42,33 @@ MAX_TRACK_KNOTS = int(PLAN_KNOTS_PER_SECOND * MAX_SCORE_SECONDS)
 """Most knots one track queues: 300 knots/s x 86,400 s (the longest score the reader accepts) = 25,920,000. The most
 notes a score may have (500,000) evenly on one hand over 24 h plan at 197 knots/s (17 M knots); denser passages
 cost notes faster than they add knots (docs/physics.md, "Bounded queues"). Memory at the bound (measured per knot:
-0.32 kB from a plan, 0.54 kB streamed one by one, 1.4 kB on the 57-DOF joint track): 8 GB, 14 GB, 37 GB."""
+8 bytes from a plan, whose own arrays hold the rest, 0.54 kB streamed one by one, 1.4 kB on the 57-DOF joint track):
+0.2 GB, 14 GB, 37 GB."""
 
 
 class TargetError(ValueError):
     """A target the physics service cannot use: non-finite, wrong length, unreachable, out of limits, past."""
+
+
+class _Batch:
+    """Knots queued as arrays, not taken into a track's lists yet: times (N,) s, values (N, dim), velocities
+    (N, dim), the caller's own arrays (not copied); those of ``[first, end)`` are still to take."""
+
+    __slots__ = ("times", "values", "velocities", "first", "end")
+
+    def __init__(self, times: np.ndarray, values: np.ndarray, velocities: np.ndarray) -> None:
+        self.times = times
+        self.values = values
+        self.velocities = velocities
+        self.first = 0
+        self.end = len(times)
+
+    def __len__(self) -> int:
+        return self.end - self.first
+
+    def count_before(self, time: float, side: Literal["left", "right"] = "left") -> int:
+        """How many knots still to take are before ``time`` seconds (``side="right"``: at or before it)."""
+        return int(np.searchsorted(self.times[self.first:self.end], time, side=side))
 
 
 class Track:
@@ -47,12 +78,89 @@ class Track:
         self.dim = dim
         self.max_knots = max_knots
         """Most knots queued at once (older ones are pruned as time passes)."""
-        self.times: list[float] = []
-        self.values: list[np.ndarray] = []
-        self.velocities: list[np.ndarray] = []
+        self._knot_times: list[float] = []
+        self._knot_values: list[np.ndarray] = []
+        self._knot_velocities: list[np.ndarray] = []
+        self._ahead: _Batch | None = None
+        """Knots after those of the lists, not taken into them yet (None: none)."""
+
+    @property
+    def times(self) -> list[float]:
+        """Every queued knot's time, seconds (all of them taken into the lists: see the module docstring)."""
+        self._take_all()
+        return self._knot_times
+
+    @times.setter
+    def times(self, times: list[float]) -> None:
+        self._take_all()
+        self._knot_times = times
+
+    @property
+    def values(self) -> list[np.ndarray]:
+        """Every queued knot's values (dim,), as :attr:`times`."""
+        self._take_all()
+        return self._knot_values
+
+    @values.setter
+    def values(self, values: list[np.ndarray]) -> None:
+        self._take_all()
+        self._knot_values = values
+
+    @property
+    def velocities(self) -> list[np.ndarray]:
+        """Every queued knot's velocities (dim,) per second, as :attr:`times`."""
+        self._take_all()
+        return self._knot_velocities
+
+    @velocities.setter
+    def velocities(self, velocities: list[np.ndarray]) -> None:
+        self._take_all()
+        self._knot_velocities = velocities
 
     def __len__(self) -> int:
-        return len(self.times)
+        return len(self._knot_times) + (len(self._ahead) if self._ahead is not None else 0)
+
+    def _take(self, count: int) -> None:
+        """Take the next ``count`` knots queued as arrays into the lists (their rows, as :meth:`add` keeps them)."""
+        ahead = self._ahead
+        assert ahead is not None
+        a = ahead.first
+        b = min(a + count, ahead.end)
+        self._knot_times.extend(ahead.times[a:b].tolist())
+        self._knot_values.extend(ahead.values[k] for k in range(a, b))
+        self._knot_velocities.extend(ahead.velocities[k] for k in range(a, b))
+        ahead.first = b
+        if not len(ahead):
+            self._ahead = None
+
+    def _take_all(self) -> None:
+        if self._ahead is not None:
+            self._take(len(self._ahead))
+
+    def _reach(self, t: float) -> None:
+        """Take knots into the lists until they hold the first knot after ``t`` seconds, or all of them: what
+        sampling at ``t`` needs (the knots before stay until :meth:`prune`)."""
+        ahead = self._ahead
+        if ahead is None or (self._knot_times and self._knot_times[-1] > t):
+            return
+        self._take(ahead.count_before(t, side="right") + 1)
+
+    def _count_before(self, time: float) -> int:
+        """How many queued knots are before ``time`` seconds."""
+        kept = bisect.bisect_left(self._knot_times, time)
+        if self._ahead is not None and kept == len(self._knot_times):
+            kept += self._ahead.count_before(time)
+        return kept
+
+    def _cut(self, time: float) -> None:
+        """Drop the knots at and after ``time`` seconds (what a knot there replaces)."""
+        ahead = self._ahead
+        if ahead is not None and ahead.times[ahead.first] < time:  # every knot of the lists is before it too
+            ahead.end = ahead.first + ahead.count_before(time)  # at least its first knot stays
+            return
+        self._ahead = None
+        cut = bisect.bisect_left(self._knot_times, time)
+        del self._knot_times[cut:], self._knot_values[cut:], self._knot_velocities[cut:]
 
     def add(self, time: float, value: np.ndarray, velocity: np.ndarray) -> None:
         """Append a knot (time seconds, value (dim,), velocity (dim,) per second)."""
@@ -63,16 +171,16 @@ class Track:
         if not (math.isfinite(time) and np.all(np.isfinite(v)) and np.all(np.isfinite(d))):
             raise TargetError("target time, values and velocities must be finite (no NaN or inf)")
         self.check_room(time, 1)
-        cut = bisect.bisect_left(self.times, time)
-        del self.times[cut:], self.values[cut:], self.velocities[cut:]
-        self.times.append(float(time))
-        self.values.append(v)
-        self.velocities.append(d)
+        self._cut(time)
+        self._take_all()  # the queued knots before it (all of them, after the cut) go into the lists first
+        self._knot_times.append(float(time))
+        self._knot_values.append(v)
+        self._knot_velocities.append(d)
 
     def check_room(self, time: float, count: int) -> None:
         """Raise :class:`TargetError` if ``count`` knots from ``time`` seconds on (replacing the knots at and after
         it, as :meth:`add` does) would queue more than ``max_knots``."""
-        kept = bisect.bisect_left(self.times, time)
+        kept = self._count_before(time)
         if kept + count > self.max_knots:
             raise TargetError(f"target queue full: {kept} knots queued before {time:.4f} s and {count} more would pass "
                               f"the limit of {self.max_knots} knots per track (MAX_TRACK_KNOTS); refused, the queued "
@@ -80,13 +188,16 @@ class Track:
 
     def extend(self, times: np.ndarray, values: np.ndarray, velocities: np.ndarray) -> None:
         """Add many knots: times (N,), values (N, dim), velocities (N, dim); all checked before the first is queued
-        (a refused batch leaves the track as it was)."""
+        (a refused batch leaves the track as it was). As :meth:`add` at ``times[0]`` (which a subclass may
+        extend) followed by the rest of the knots, which stay in the given arrays (not copied: the caller leaves
+        them as they are) until sampling reaches them."""
         t, v, d = self._checked_batch(times, values, velocities)
         if not len(t):
             return
         self.check_room(float(t[0]), len(t))
-        for k in range(len(t)):
-            self.add(float(t[k]), v[k], d[k])
+        self.add(float(t[0]), v[0], d[0])
+        if len(t) > 1:
+            self._ahead = _Batch(t[1:], v[1:], d[1:])
 
     def _checked_batch(self, times: np.ndarray, values: np.ndarray, velocities: np.ndarray,
                        non_empty: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -113,7 +224,7 @@ class Track:
             raise TargetError("target time, values and velocities must be finite (no NaN or inf)")
         if t[-1] >= until:
             raise TargetError(f"replacement knots must end before {until:.4f} s, the first knot kept")
-        self.check_room(float(t[0]), len(t) + len(self.times) - bisect.bisect_left(self.times, until))
+        self.check_room(float(t[0]), len(t) + len(self) - self._count_before(until))
         return t, v, d
 
     def replace_span(self, times: np.ndarray, values: np.ndarray, velocities: np.ndarray, until: float) -> None:
@@ -123,40 +234,47 @@ class Track:
         subclass may extend) followed by the rest of the knots and the kept tail. Everything is checked before
         the track changes: a refused batch leaves it as it was."""
         t, v, d = self.check_span(times, values, velocities, until)
-        tail = bisect.bisect_left(self.times, until)
-        kept_times, kept_values = self.times[tail:], self.values[tail:]
-        kept_velocities = self.velocities[tail:]
+        self._take_all()
+        tail = bisect.bisect_left(self._knot_times, until)
+        kept_times, kept_values = self._knot_times[tail:], self._knot_values[tail:]
+        kept_velocities = self._knot_velocities[tail:]
         self.add(float(t[0]), v[0], d[0])
-        self.times.extend(float(x) for x in t[1:])
-        self.values.extend(v[1:])
-        self.velocities.extend(d[1:])
-        self.times.extend(kept_times)
-        self.values.extend(kept_values)
-        self.velocities.extend(kept_velocities)
+        self._knot_times.extend(float(x) for x in t[1:])
+        self._knot_values.extend(v[1:])
+        self._knot_velocities.extend(d[1:])
+        self._knot_times.extend(kept_times)
+        self._knot_values.extend(kept_values)
+        self._knot_velocities.extend(kept_velocities)
 
     def clear(self) -> None:
-        self.times.clear()
-        self.values.clear()
-        self.velocities.clear()
+        self._knot_times.clear()
+        self._knot_values.clear()
+        self._knot_velocities.clear()
+        self._ahead = None
 
     @property
     def end_time(self) -> float:
-        return self.times[-1] if self.times else -math.inf
+        if self._ahead is not None:
+            return float(self._ahead.times[self._ahead.end - 1])
+        return self._knot_times[-1] if self._knot_times else -math.inf
 
     def sample(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """Value (dim,) and velocity (dim,) at time ``t`` seconds. Raises ``IndexError`` when empty."""
-        if not self.times:
+        self._reach(t)
+        times = self._knot_times
+        if not times:
             raise IndexError("empty track")
-        k = bisect.bisect_right(self.times, t) - 1
+        k = bisect.bisect_right(times, t) - 1
         if k < 0:
-            return self.values[0], np.zeros(self.dim)
-        if k >= len(self.times) - 1:
-            return self.values[-1], np.zeros(self.dim)
-        return hermite(t, self.times[k], self.times[k + 1], self.values[k], self.values[k + 1], self.velocities[k],
-                       self.velocities[k + 1])
+            return self._knot_values[0], np.zeros(self.dim)
+        if k >= len(times) - 1:
+            return self._knot_values[-1], np.zeros(self.dim)
+        values, velocities = self._knot_values, self._knot_velocities
+        return hermite(t, times[k], times[k + 1], values[k], values[k + 1], velocities[k], velocities[k + 1])
 
     def prune(self, before: float) -> None:
         """Drop knots no longer needed to sample at times >= ``before``."""
-        k = bisect.bisect_right(self.times, before) - 1
+        self._reach(before)
+        k = bisect.bisect_right(self._knot_times, before) - 1
         if k > 0:
-            del self.times[:k], self.values[:k], self.velocities[:k]
+            del self._knot_times[:k], self._knot_values[:k], self._knot_velocities[:k]

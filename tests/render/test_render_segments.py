@@ -161,3 +161,38 @@ def test_a_segment_keeps_what_is_about_its_own_window() -> None:
     sound.handle(_end(1, 5.0), 10.003, "interaction")  # its end comes after the window: still this one's
     sound.handle(_impact(2, 10.0), 10.001, "interaction")
     assert [(m.seq, type(m).__name__) for _, _, _, m in kept] == [(1, "Impact"), (1, "ImpactEnd")]
+
+
+def test_a_worker_is_sent_only_its_segments_part_of_the_plan(tmp_path: Path) -> None:
+    """Each worker was sent the whole plan and kept it from its lead-in to the piece's end (0.6 MB a second of
+    music in every worker); its part samples as the whole plan wherever its drummer samples it."""
+    import pickle
+
+    from batteur.segments import JOIN_S, segment_plan
+    from common.kit import load_kit
+
+    score = tmp_path / "rock.txt"
+    bar = "HH |x.x.x.x.x.x.x.x.|\nSN |....X.......X...|\nBD |x.......x.x.....|"
+    score.write_text("tempo 100\nmeter 4/4\n" + "\n\n".join([bar] * 24))  # about 58 s
+    kit = load_kit("default")
+    opts = render.RenderOptions()
+    _, _, plan = render.prepare(score, kit, opts)
+    offset = opts.settle_s - plan.start_time
+    segments = plan_segments(plan.end_time + offset + opts.latency_s + opts.tail_s, 5.0, 3.0)
+    assert len(segments) >= 10
+    whole = len(pickle.dumps(plan))
+    for seg in segments:
+        part = segment_plan(plan, seg, offset)
+        assert len(pickle.dumps(part)) < whole / 3, seg
+        assert (part.start_time, part.end_time) == (plan.start_time, plan.end_time)  # rig times map as before
+        joined = plan if seg.index == 0 else plan.from_time(seg.run_from_s + JOIN_S - offset)
+        times = np.arange(seg.run_from_s, seg.run_to_s + 1e-9, 0.001) - offset  # every step it simulates
+        for limb, traj in joined.trajectories.items():
+            assert part.trajectories[limb].times[0] == traj.times[0]  # joins where the whole plan's would
+            for got, want in zip(part.trajectories[limb].sample_many(times), traj.sample_many(times), strict=True):
+                assert np.array_equal(got, want), (seg, limb)
+        assert joined.head is not None and part.head is not None
+        for t in times[::10]:
+            assert np.array_equal(part.head.sample(t)[0], joined.head.sample(t)[0]), (seg, t)
+        needed = [s for s in joined.strokes if s.time <= seg.run_to_s - offset]
+        assert part.strokes[:len(needed)] == needed and set(map(id, part.strokes)) <= set(map(id, joined.strokes))
