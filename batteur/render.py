@@ -76,6 +76,8 @@ GRIPS = ("german", "french", "american", "traditional")
 TEMPO_SCALE_RANGE = (0.1, 10.0)
 """Accepted ``--tempo-scale``: slower stretches the render (and its memory) without bound, faster piles every
 note onto the first instant."""
+MIN_SEGMENT_S = 1.0
+"""Shortest ``--segment``, seconds: each segment's drummer first plays a lead-in of a few seconds."""
 INTERRUPTED = 130
 """Exit status after Ctrl-C (128 + SIGINT), as a shell reports it."""
 
@@ -226,6 +228,12 @@ class PlanningProgress:
             self.bar = None
 
 
+def rendered_seconds(plan: GesturePlan, opts: RenderOptions) -> float:
+    """Length of the render's timeline, seconds: the settle before the plan, the plan, the sound's latency and
+    the ring-out after the last note (what the WAV holds and the progress bar counts)."""
+    return plan.end_time + (opts.settle_s - plan.start_time) + opts.latency_s + opts.tail_s  # summed as before
+
+
 def run_score(score: Score, assignment: Assignment, plan: GesturePlan, kit: Kit, opts: RenderOptions,
               on_progress: Callable[[float, float], None] | None = None,
               outputs: StreamedOutputs | None = None) -> ScoreRender:
@@ -247,7 +255,7 @@ def run_score(score: Score, assignment: Assignment, plan: GesturePlan, kit: Kit,
     sound = SoundCore(SoundSettings(latency=opts.latency_s, origin=0.0, record=outputs is None), kit=kit)
     recorder = RecorderCore() if outputs is None else outputs.recorder()
     runner = OfflineRunner([physics, interaction, sound, recorder])
-    duration = plan.end_time + offset + opts.latency_s + opts.tail_s
+    duration = rendered_seconds(plan, opts)
     try:
         if outputs is not None:
             outputs.attach(sound)
@@ -626,8 +634,7 @@ def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: boo
     planning.close()
     for warning in score.warnings:  # e.g. a MIDI file without a drum channel, read as drums
         print(f"batteur render: warning: {warning}", file=sys.stderr)
-    progress = Progress(f"rendering {Path(path).name}", plan.end_time - plan.start_time + opts.settle_s,
-                        enabled=False if quiet else None)
+    progress = Progress(f"rendering {Path(path).name}", rendered_seconds(plan, opts), enabled=False if quiet else None)
     finished = False  # a render given up (Ctrl-C, an error) leaves its bar where it stood, not at 100 %
     with Staging(output) as staging:  # the WAV, impacts and motion are written as they are rendered
         outputs = StreamedOutputs(staging.path, opts.pose_rate_hz or None, keep=opts.video)
@@ -667,6 +674,9 @@ def check_options(opts: RenderOptions) -> None:
     low, high = TEMPO_SCALE_RANGE
     if not low <= opts.tempo_scale <= high:  # NaN fails too
         raise ValueError(f"--tempo-scale {opts.tempo_scale:g}: {low:g} to {high:g} (times faster)")
+    if not (math.isfinite(opts.segment_s) and opts.segment_s >= MIN_SEGMENT_S):
+        raise ValueError(f"--segment {opts.segment_s:g}: a length of at least {MIN_SEGMENT_S:g} s (each segment "
+                         f"also plays a lead-in, so shorter ones cost more than they share)")
     checks: list[tuple[str, Callable[[], object]]] = [
         (f"--latency {opts.latency_s:g} s", lambda: SoundSettings(latency=opts.latency_s, origin=0.0))]
     _check_motion_capture(opts)

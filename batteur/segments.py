@@ -90,9 +90,9 @@ class Segment:
 
 def plan_segments(duration_s: float, segment_s: float = SEGMENT_S, warmup_s: float = WARMUP_S) -> list[Segment]:
     """Segments covering [0, ``duration_s``): boundaries at multiples of ``segment_s``; a last piece shorter than
-    half a segment joins the one before. Raises ``ValueError`` for a non-positive length."""
-    if not segment_s > 0 or not duration_s > 0:
-        raise ValueError(f"segment length {segment_s:g} s and duration {duration_s:g} s must be > 0")
+    half a segment joins the one before. Raises ``ValueError`` for a length or duration not finite and > 0."""
+    if not (math.isfinite(segment_s) and segment_s > 0 and math.isfinite(duration_s) and duration_s > 0):
+        raise ValueError(f"segment length {segment_s:g} s and duration {duration_s:g} s must be finite and > 0")
     if warmup_s < JOIN_S + 0.5:
         raise ValueError(f"warm-up {warmup_s:g} s is under {JOIN_S + 0.5:g} s: the drummer has no time to join")
     count = max(1, math.floor(duration_s / segment_s + 0.5))
@@ -433,14 +433,14 @@ def run_segmented(score: Score, assignment: Assignment, plan: GesturePlan, kit: 
     The parent plays each segment's messages into sound and the recorder as soon as the segments before it are
     in, so it holds a few segments' messages, not the piece's; ``outputs``: as for ``run_score``.
     """
-    from batteur.render import RecorderCore, ScoreRender, collect
+    from batteur.render import RecorderCore, ScoreRender, collect, rendered_seconds
     from common.bus import OfflineRunner
     from services.sound.core import SoundCore, SoundSettings
 
     started = time.perf_counter()
     cpu_started = time.process_time()
     offset = opts.settle_s - plan.start_time
-    duration = plan.end_time + offset + opts.latency_s + opts.tail_s
+    duration = rendered_seconds(plan, opts)
     segments = plan_segments(duration, segment_s, warmup_s)
     total = sum(s.run_to_s - s.run_from_s for s in segments)
     sound = SoundCore(SoundSettings(latency=opts.latency_s, origin=0.0, record=outputs is None), kit=kit)

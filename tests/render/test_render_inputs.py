@@ -78,7 +78,10 @@ def test_options_are_checked_before_simulating(tmp_path: Path, monkeypatch: pyte
                        (["--latency", "-1"], "--latency -1 s"),
                        (["--control-rate", "nan"], "--control-rate nan Hz: control_rate_hz"),
                        (["--tempo-scale", "1e-9"], "--tempo-scale 1e-09: 0.1 to 10"),  # 373 GiB of head samples
-                       (["--tempo-scale", "nan"], "--tempo-scale nan")):
+                       (["--tempo-scale", "nan"], "--tempo-scale nan"),
+                       (["--jobs", "2", "--segment", "inf"], "--segment inf: a length of at least 1 s"),  # was silent
+                       (["--jobs", "2", "--segment", "0"], "--segment 0: a length of at least 1 s"),
+                       (["--segment", "nan"], "--segment nan")):
         assert render.main([str(SCORE), "-o", str(out), "--quiet", *args]) == 2, args
         assert says in _one_line_error(capsys), args
     assert not out.exists()
