@@ -380,6 +380,19 @@ class DrummerScene:
             raise TargetError(f"{limb} target {np.round(position, 3).tolist()} is unreachable: "
                               f"{dist:.2f} m from the limb's root, reach {reach:.2f} m")
 
+    def check_cartesian_rows(self, limb: str, positions: np.ndarray) -> None:
+        """:meth:`check_cartesian` for every row of ``positions`` (n, 3) at once (metres): raises for the first row
+        that is not finite or out of reach, with that row's message."""
+        if limb not in self.limb_tracks:
+            raise TargetError(f"unknown limb {limb!r} (known: {', '.join(LIMBS)})")
+        rows = np.asarray(positions, dtype=float).reshape(-1, 3)
+        root, reach = self.reach[limb]
+        with np.errstate(invalid="ignore"):
+            bad = ~np.all(np.isfinite(rows), axis=1) | (np.linalg.norm(rows - root, axis=1) > reach)
+        first = np.flatnonzero(bad)
+        if first.size:
+            self.check_cartesian(limb, rows[first[0]])
+
     def add_cartesian(self, limb: str, time: float, position: np.ndarray, velocity: np.ndarray, now: float) -> None:
         """Queue one Cartesian waypoint (rig time s, metres, m/s); raises :class:`TargetError`."""
         position = np.asarray(position, dtype=float)
@@ -451,8 +464,7 @@ class DrummerScene:
             if not (np.all(np.isfinite(times)) and np.all(np.diff(times) > 0)):
                 raise TargetError(f"plan's {name} knot times, started at {start_at} s, are not finite and "
                                   "strictly increasing")
-            for k in range(len(traj.times)):
-                self.check_cartesian(name, traj.positions[k])
+            self.check_cartesian_rows(name, traj.positions)
         here = self.current_targets()
         lead_ins = {limb: self._lead_in(names[limb], traj, offset, here, now)
                     for limb, traj in plan.trajectories.items()}

@@ -70,12 +70,7 @@ def _check_reach(scene: DrummerScene, chosen: list[tuple[Limb, LimbTrajectory]],
     for limb, traj in chosen:
         if limb.value not in scene.limb_tracks:
             raise TargetError(f"plan has unknown limb {limb.value!r}")
-        later = traj.positions[(traj.times > t_s) & (traj.times < until)]
-        if len(later):
-            root, reach = scene.reach[limb.value]
-            far = np.flatnonzero(np.linalg.norm(later - root, axis=1) > reach)
-            if far.size:
-                scene.check_cartesian(limb.value, later[far[0]])  # raises, with the scene's own message
+        scene.check_cartesian_rows(limb.value, traj.positions[(traj.times > t_s) & (traj.times < until)])
 
 
 def plan_splices(scene: DrummerScene, plan: GesturePlan, chosen: list[tuple[Limb, LimbTrajectory]], t_s: float,

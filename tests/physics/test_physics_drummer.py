@@ -196,6 +196,14 @@ def test_a_gesture_plan_is_tracked() -> None:
     far = LimbTrajectory(Limb.RIGHT_HAND, np.array([0.0, 1.0]), np.array([[0, 5.0, 1], [0, 5.0, 1]]), np.zeros((2, 3)))
     with pytest.raises(TargetError, match="unreachable"):
         core.load_plan(GesturePlan(trajectories={Limb.RIGHT_HAND: far}, strokes=[]))
+    rest = scene.rest_targets["right_hand"]
+    rows = np.array([rest, rest, [0.0, 5.0, 1.0], [0.0, 7.0, 1.0]])  # the first bad knot is named, not the worst
+    with pytest.raises(TargetError, match=r"\[0.0, 5.0, 1.0\] is unreachable"):
+        scene.check_cartesian_rows("right_hand", rows)
+    rows[1, 0] = np.nan
+    with pytest.raises(TargetError, match="not finite"):
+        scene.check_cartesian_rows("right_hand", rows)
+    scene.check_cartesian_rows("right_hand", rows[:1])  # reachable rows pass
     core.close()
 
 
