@@ -28,13 +28,14 @@ Renders with :mod:`batteur.render` unless given an existing render directory.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import sys
 import tempfile
 import time
 from collections import Counter, defaultdict
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -109,6 +110,10 @@ class FileResult:
     planner_flags: int
     real_time_factor: float | None = None
     music_duration_s: float = 0.0
+    """The score's planned length, seconds (report.json's ``music_duration_s``)."""
+    duration_s: float = 0.0
+    """What was simulated: the WAV's length with the lead-in and the tail, seconds (report.json's ``duration_s``,
+    what its real-time factor is computed on)."""
     wall_time_s: float = 0.0
     cpu_time_s: float = 0.0
     # raw material for aggregation and plots (not in the JSON summary)
@@ -118,6 +123,9 @@ class FileResult:
     hits: list[Hit] = field(default_factory=list, repr=False)
     pairs_25: list[tuple[int, int]] = field(default_factory=list, repr=False)
     pairs_loose: list[tuple[int, int]] = field(default_factory=list, repr=False)
+    render: str | None = None
+    """The render folder named on the command line, whose row this is (named ``FOLDER (SCORE)``); None for a
+    score rendered by the evaluation."""
 
     def summary(self) -> dict[str, Any]:
         out = {k: v for k, v in asdict(self).items()
@@ -335,14 +343,16 @@ def aggregate(results: Sequence[FileResult], windows: Sequence[float] = WINDOWS_
         reasons.update(r.missed_by_reason)
     out["missed_by_reason"] = dict(sorted(reasons.items()))
     out["planner_flags"] = sum(r.planner_flags for r in results)
-    music = sum(r.music_duration_s for r in results)
+    # the real-time factors as report.json's: seconds simulated (lead-in and tail included) per wall/CPU second
+    simulated = sum(r.duration_s for r in results)
     wall = sum(r.wall_time_s for r in results)
-    out["music_duration_s"] = round(music, 3)
+    out["music_duration_s"] = round(sum(r.music_duration_s for r in results), 3)
+    out["duration_s"] = round(simulated, 3)
     out["wall_time_s"] = round(wall, 3)
-    out["real_time_factor"] = round(music / wall, 3) if wall > 0 else None
+    out["real_time_factor"] = round(simulated / wall, 3) if wall > 0 else None
     cpu = sum(r.cpu_time_s for r in results)
     out["cpu_time_s"] = round(cpu, 3)
-    out["real_time_factor_cpu"] = round(music / cpu, 3) if cpu > 0 else None
+    out["real_time_factor_cpu"] = round(simulated / cpu, 3) if cpu > 0 else None
     return out
 
 
@@ -459,8 +469,8 @@ def evaluate_render_dir(score_path: Path, render_dir: Path, kit: Kit | None = No
     if tempo_scale is not None and tempo_scale <= 0:
         raise ValueError(f"{where}: tempo_scale must be positive, got {tempo_scale:g}")
     flags = planner_flags(report.get("issues", []), where)
-    timing = {key: report_number(report, key, where) for key in ("real_time_factor", "duration_s", "wall_time_s",
-                                                                   "cpu_time_s")}
+    timing = {key: report_number(report, key, where) for key in ("real_time_factor", "duration_s", "music_duration_s",
+                                                                   "wall_time_s", "cpu_time_s")}
     kit = kit if kit is not None else load_kit(kit_name)
     score = scale_tempo(read_score(score_path), 1.0 if tempo_scale is None else tempo_scale)
     if not (render_dir / "impacts.csv").is_file():
@@ -473,13 +483,20 @@ def evaluate_render_dir(score_path: Path, render_dir: Path, kit: Kit | None = No
     result.missed += unplayable_flags(score, kit)
     result.missed_by_reason = dict(sorted(Counter(f.reason for f in result.missed).items()))
     result.real_time_factor = timing["real_time_factor"]
-    result.music_duration_s = timing["duration_s"] or 0.0
+    result.music_duration_s = timing["music_duration_s"] or 0.0
+    result.duration_s = timing["duration_s"] or 0.0
     result.wall_time_s = timing["wall_time_s"] or 0.0
     result.cpu_time_s = timing["cpu_time_s"] or 0.0
     return result
 
 
 # ---------------------------------------------------------------------- plots
+
+
+def plot_stem(result: FileResult) -> str:
+    """The plots' file name stem: the render folder's name for a folder named on the command line (two renders
+    of one score must not overwrite each other's plots), else the score's stem."""
+    return Path(result.render).name if result.render else Path(result.name).stem
 
 
 def plot_result(result: FileResult, directory: Path) -> list[Path]:
@@ -490,7 +507,7 @@ def plot_result(result: FileResult, directory: Path) -> list[Path]:
     import matplotlib.pyplot as plt
 
     directory.mkdir(parents=True, exist_ok=True)
-    stem = Path(result.name).stem
+    stem = plot_stem(result)
     instruments = sorted({n.instrument for n in result.note_refs} | {h.instrument for h in result.hits})
     row = {name: k for k, name in enumerate(instruments)}
     matched_n = {i for i, _ in result.pairs_25}
@@ -557,17 +574,50 @@ def evaluate_scores(paths: Sequence[Path], opts: Any, renders: Path | None, quie
     from batteur.render import render_score
 
     results = []
-    with tempfile.TemporaryDirectory(prefix="batteur-evaluate-") as tmp:
+    created = created_folders(renders) if renders is not None else []
+    with tempfile.TemporaryDirectory(prefix="batteur-evaluate-") as tmp, remove_if_empty(created):
         base = renders if renders is not None else Path(tmp)
         for path in paths:
             if path.is_dir():
-                results.append(evaluate_render_dir(render_dir_score(path), path))
+                result = evaluate_render_dir(render_dir_score(path), path)
+                result.render = str(path)
+                result.name = f"{folder_name(path)} ({result.name})"  # several renders of one score stay apart
+                results.append(result)
                 continue
             out = base / path.stem
             if not (reuse and reusable(out, path, opts)):
                 render_score(path, out, opts, quiet=quiet)
             results.append(evaluate_render_dir(path, out))
     return results
+
+
+def created_folders(folder: Path) -> list[Path]:
+    """The folders a render into ``folder`` would create: ``folder`` and its missing parents, deepest first."""
+    missing = []
+    while not folder.exists() and folder != folder.parent:
+        missing.append(folder)
+        folder = folder.parent
+    return missing
+
+
+@contextlib.contextmanager
+def remove_if_empty(folders: Sequence[Path]) -> Iterator[None]:
+    """On the way out (Ctrl-C or an error before any render was written, e.g. ``--renders DIR`` that held
+    nothing), remove those of ``folders`` (deepest first; ones this run created) left empty. A folder holding a
+    finished render is kept, for ``--reuse``."""
+    try:
+        yield
+    finally:
+        for folder in folders:
+            try:
+                folder.rmdir()  # only an empty folder: never a render, nor a file another program put there
+            except OSError:
+                break
+
+
+def folder_name(path: Path) -> str:
+    """A folder's name as its row shows it: its last part (of the folder it resolves to for ``.`` and ``..``)."""
+    return path.name if path.name not in ("", "..") else (path.resolve().name or str(path))
 
 
 def reusable(render_dir: Path, score: Path, opts: Any) -> bool:
@@ -655,7 +705,10 @@ def impact_listing(result: FileResult) -> list[str]:
 def main(argv: Sequence[str] | None = None) -> int:
     from batteur.render import INTERRUPTED
 
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.reuse and args.renders is None:  # it reuses renders kept in --renders DIR; without one there are none
+        parser.error("--reuse needs --renders DIR (the folder whose renders it reuses)")
     try:
         return _main(args)
     except KeyboardInterrupt:  # Ctrl-C: a render in progress is staged, so nothing of it was written

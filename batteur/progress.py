@@ -25,15 +25,22 @@ class Progress:
         self._start = time.monotonic()
 
     def update(self, done: float) -> None:
+        """Show ``done`` (in ``unit``), unless the bar was drawn less than ``interval_s`` ago: however far the work
+        runs past the total (a total too short), only :meth:`close` draws regardless."""
         now = time.monotonic()
-        if not self.enabled or (now - self._last < self.interval_s and done < self.total):
-            return
+        if self.enabled and now - self._last >= self.interval_s:
+            self._draw(done, now)
+
+    def _draw(self, done: float, now: float) -> None:
+        """Draw the bar with ``done`` clamped to 0 .. total: past the total it shows 100 % and the total, so the
+        amount never goes past the total and then back at :meth:`close`."""
         self._last = now
         self._drawn = True
-        frac = min(1.0, max(0.0, done / self.total))
+        shown = min(self.total, max(0.0, done))
+        frac = shown / self.total
         bar = "#" * int(frac * 30)
         d = self.decimals
-        self.stream.write(f"\r{self.label} [{bar:<30}] {frac:4.0%} {done:.{d}f} {self.unit} / {self.total:.{d}f} "
+        self.stream.write(f"\r{self.label} [{bar:<30}] {frac:4.0%} {shown:.{d}f} {self.unit} / {self.total:.{d}f} "
                           f"{self.unit} ({now - self._start:.1f} s)")
         self.stream.flush()
 
@@ -42,6 +49,6 @@ class Progress:
         line where the bar stands, if it was drawn at all."""
         if self.enabled and (finished or self._drawn):
             if finished:
-                self.update(self.total)
+                self._draw(self.total, time.monotonic())
             self.stream.write("\n")
             self.stream.flush()

@@ -18,23 +18,38 @@ from common.kit import EventType, Kit, load_kit
 from common.messages import Contact, Impact, OscMessage
 from services.interaction.core import InteractionCore
 from services.physics.core import PhysicsCore
+from services.physics.strike_scene import Strike
 from services.sound.core import SoundCore, SoundSettings
 
 DEFAULT_STRIKES: tuple[tuple[float, float], ...] = ((0.25, 3.0), (0.75, 1.5), (1.25, 4.5))
 """(contact time seconds, tip speed m/s) of the default strike demo."""
+MAX_STRIKE_TIME_S = 600.0
+"""The latest strike time, seconds (10 minutes). The strike scene keeps its whole recording in memory (about
+24 MB a minute, measured: float32 at 48 kHz and the WAV's copy), so the 24 h a score may last
+(:data:`common.score.events.MAX_SCORE_SECONDS`, rendered streaming to disk) would need some 35 GB; ``1e9:3``
+ran for 10 minutes, 3.9 GB and counting, before it was stopped."""
 
 
 def parse_strikes(text: str) -> list[tuple[float, float]]:
-    """``"0.25:3,0.75:1.5"`` -> [(0.25, 3.0), (0.75, 1.5)]; raises ValueError with the bad item."""
+    """``"0.25:3,0.75:1.5"`` -> [(0.25, 3.0), (0.75, 1.5)]; raises ValueError with the bad item: not
+    TIME:SPEED, a time outside 0 to :data:`MAX_STRIKE_TIME_S`, or a speed the strike scene refuses."""
     strikes: list[tuple[float, float]] = []
     for item in text.split(","):
         time_text, sep, speed_text = item.strip().partition(":")
         try:
             if not sep:
                 raise ValueError
-            strikes.append((float(time_text), float(speed_text)))
+            time_s, speed = float(time_text), float(speed_text)
         except ValueError:
             raise ValueError(f"strike {item!r}: expected TIME:SPEED (seconds:m/s)") from None
+        if time_s > MAX_STRIKE_TIME_S:  # checked here, before hours of simulation fill the memory
+            raise ValueError(f"strike {item!r}: {time_s:g} s is later than the strike scene renders (at most "
+                             f"{MAX_STRIKE_TIME_S:g} s)")
+        try:
+            Strike(time_s, speed)  # the scene's own checks (a finite time >= 0, a speed in (0, 30] m/s), now
+        except ValueError as exc:
+            raise ValueError(f"strike {item!r}: {exc}") from None
+        strikes.append((time_s, speed))
     return strikes
 
 

@@ -1,0 +1,29 @@
+"""Every ``batteur COMMAND --help`` is plain text: no Sphinx markup (double backquotes, ``:class:`` and the like)
+shown to the user as it is written in a docstring."""
+
+from __future__ import annotations
+
+import re
+
+import pytest
+
+from batteur import cli
+
+MARKUP = re.compile(r"``|:(?:class|func|meth|mod|data|attr|obj|exc|ref|doc):")
+"""Sphinx/reST markup: double backquotes and cross-reference roles."""
+
+
+@pytest.mark.parametrize("command", sorted(cli.COMMANDS))
+def test_help_shows_no_docstring_markup(command: str, capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as exit_info:
+        cli.main([command, "--help"])
+    assert exit_info.value.code == 0
+    out = capsys.readouterr().out
+    assert "usage:" in out
+    assert not MARKUP.search(out), f"batteur {command} --help shows markup: {MARKUP.findall(out)}\n{out}"
+
+
+def test_top_level_help_shows_no_docstring_markup(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit):
+        cli.main(["--help"])
+    assert not MARKUP.search(capsys.readouterr().out)
