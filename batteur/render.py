@@ -38,7 +38,7 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, ClassVar, get_args
+from typing import TYPE_CHECKING, Any, ClassVar, TypeVar, get_args
 
 import numpy as np
 import soundfile as sf
@@ -803,13 +803,13 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--video", action="store_true",
                         help="also write DIR/performance.mp4: the motion rendered headless (PyBullet TinyRenderer) "
                         "with the WAV muxed in sync (needs ffmpeg; score mode)")
-    parser.add_argument("--video-size", default="640x360", type=_size, help="video WIDTHxHEIGHT (default 640x360)")
-    parser.add_argument("--video-fps", type=float, default=30.0, help="video frame rate, Hz (default 30)")
+    parser.add_argument("--video-size", type=_size, help="video WIDTHxHEIGHT (default 640x360)")
+    parser.add_argument("--video-fps", type=float, help="video frame rate, Hz (default 30)")
     parser.add_argument("--jobs", type=int, default=1, metavar="N",
                         help="render on N processes (0: one per CPU): the piece is cut into segments of "
                         "--segment seconds, each played by its own drummer from a 3 s lead-in; faster, and the "
                         "same for any N > 1, but not identical to a one-process render (default 1)")
-    parser.add_argument("--segment", type=float, default=30.0, metavar="SECONDS",
+    parser.add_argument("--segment", type=float, metavar="SECONDS",
                         help="segment length with --jobs above 1, seconds (default 30)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     return parser
@@ -826,10 +826,29 @@ def _size(text: str) -> tuple[int, int]:
 def options_from(args: argparse.Namespace) -> RenderOptions:
     return RenderOptions(kit=args.kit, grip=args.grip, nuance=Nuance(args.nuance), tempo_scale=args.tempo_scale,
                          control=args.control, algorithm=HandAlgorithm(args.algorithm), latency_s=args.latency,
-                         calibration=args.calibration, video=args.video, video_fps=args.video_fps,
-                         video_size=args.video_size, control_rate_hz=args.control_rate,
-                         jobs=resolve_jobs(args.jobs), segment_s=args.segment,
+                         calibration=args.calibration, video=args.video, video_fps=_given(args.video_fps, 30.0),
+                         video_size=_given(args.video_size, (640, 360)), control_rate_hz=args.control_rate,
+                         jobs=resolve_jobs(args.jobs), segment_s=_given(args.segment, 30.0),
                          limits_from=tuple(args.limits_from), skeleton_bvh=args.skeleton_bvh)
+
+
+T = TypeVar("T")
+
+
+def _given(value: T | None, default: T) -> T:
+    """An option's value, or its default when not given (None: so that an option given in vain can be told)."""
+    return default if value is None else value
+
+
+def options_in_vain(args: argparse.Namespace) -> list[str]:
+    """Warnings for options given that do nothing with the others given."""
+    warnings = []
+    if args.segment is not None and args.jobs == 1:
+        warnings.append("--segment has no effect without --jobs above 1")
+    for name, value in (("--video-size", args.video_size), ("--video-fps", args.video_fps)):
+        if value is not None and not args.video:
+            warnings.append(f"{name} has no effect without --video")
+    return warnings
 
 
 def resolve_jobs(jobs: int) -> int:
@@ -852,6 +871,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error("give either a SCORE or --strikes, not both")
     if opts.strikes is not None and opts.video:
         parser.error("--video renders a SCORE (the strike scene has no body to draw)")
+    for warning in options_in_vain(opts):
+        print(f"batteur render: warning: {warning}", file=sys.stderr)
     try:
         return _main_strikes(opts) if opts.strikes is not None else _main_score(opts)
     except KeyboardInterrupt:  # Ctrl-C: the outputs are staged, so nothing was written

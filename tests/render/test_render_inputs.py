@@ -81,7 +81,7 @@ def test_options_are_checked_before_simulating(tmp_path: Path, monkeypatch: pyte
                        (["--tempo-scale", "nan"], "--tempo-scale nan"),
                        (["--jobs", "2", "--segment", "inf"], "--segment inf: a length of at least 1 s"),  # was silent
                        (["--jobs", "2", "--segment", "0"], "--segment 0: a length of at least 1 s"),
-                       (["--segment", "nan"], "--segment nan")):
+                       (["--jobs", "2", "--segment", "nan"], "--segment nan")):
         assert render.main([str(SCORE), "-o", str(out), "--quiet", *args]) == 2, args
         assert says in _one_line_error(capsys), args
     assert not out.exists()
