@@ -8,7 +8,10 @@ leaves finding each other to zeroconf alone) and, unless ``--no-discovery``,
 zeroconf discovery on the given interfaces.
 Output lines are prefixed with the role. Ctrl-C (SIGINT), SIGTERM or SIGHUP
 stops every child with SIGTERM, waits up to ``--stop-timeout`` seconds, then
-kills what is left. If one service exits, the others are stopped too.
+kills what is left; what a service leaves in its process group (planning
+processes, a resource tracker) is stopped once it has exited, and the rig reads
+output for at most ``DRAIN_S`` more seconds, so no grandchild holding the output
+pipe keeps it running. If one service exits, the others are stopped too.
 ``--record DIR``: sound writes ``DIR/.performance.part.wav``, renamed to
 ``DIR/performance.wav`` once sound has stopped cleanly (removed otherwise).
 The graphics view listens on TCP ``--http-port`` (default 8080; a second rig on
@@ -56,6 +59,13 @@ CLEAN_STOP = (0, -signal.SIGTERM)
 loading (no handler yet) just ends, with nothing to clean up (sound's recording is kept only after a 0)."""
 PR_SET_PDEATHSIG = 1
 """Linux prctl option: the signal a process gets when the thread that started it ends."""
+EXIT_POLL_S = 0.05
+"""Seconds between looks at whether a service has exited."""
+GROUP_GRACE_S = 2.0
+"""Seconds what is left in an exited service's process group gets between SIGTERM and SIGKILL."""
+DRAIN_S = 2.0
+"""Seconds the rig still reads a service's output once every service has exited and its process group was
+killed: a grandchild that left the group (its own session) may hold the pipe open for good."""
 RECORDING = "performance.wav"
 RECORDING_PART = ".performance.part.wav"
 """What sound writes while it runs; renamed to RECORDING once sound has stopped cleanly, so a failed rig leaves
@@ -227,13 +237,14 @@ class Rig:
             self.out.write(f"[{role:<{width}}] {line.decode(errors='replace')}")
 
     async def _watch(self, role: str, proc: asyncio.subprocess.Process) -> None:
-        code = await proc.wait()
+        code = await exited(proc)
         self.exit_codes[role] = code
         if not self.stopping.is_set():
             if code != 0:
                 self.failures.setdefault(role, code)
             self.err.write(f"batteur rig: {role} {describe_exit(code)}; stopping the rig\n")
             self.stopping.set()
+        await end_group(proc.pid)
 
     async def _start(self, plan: ServicePlan) -> asyncio.subprocess.Process | None:
         try:
@@ -273,8 +284,22 @@ class Rig:
         finally:
             self.stopping.set()
             await self.stop()
-            await asyncio.gather(*tasks, return_exceptions=True)
+            await self.drain(tasks)
         return self.exit_code()
+
+    async def drain(self, tasks: list[asyncio.Task[None]]) -> None:
+        """Wait for the output readers, at most :data:`DRAIN_S` seconds (every service has exited), then drop
+        them: a grandchild holding a service's output open must not keep the rig running."""
+        if not tasks:
+            return
+        _, pending = await asyncio.wait(tasks, timeout=DRAIN_S)
+        for task in pending:
+            task.cancel()
+        await asyncio.gather(*tasks, return_exceptions=True)
+        for proc in self.procs.values():  # the pipes a grandchild still holds: closed on the rig's side
+            transport = getattr(proc, "_transport", None)
+            if transport is not None:
+                transport.close()
 
     def stopped_cleanly(self, role: str) -> bool:
         """Whether the service ran and stopped cleanly when the rig stopped it."""
@@ -288,7 +313,8 @@ class Rig:
         return 0 if not failed else failed[0] if failed[0] > 0 else 1
 
     async def stop(self) -> None:
-        """SIGTERM every child, wait up to the stop timeout, then SIGKILL the rest.
+        """SIGTERM every child, wait up to the stop timeout, then SIGKILL the rest; then end what each left in its
+        process group (:func:`end_group`).
 
         SIGTERM, not SIGINT: a node handles both the same, but a service still loading ends quietly on SIGTERM,
         where SIGINT would print a KeyboardInterrupt traceback (or "Fatal Python error" during interpreter start).
@@ -301,12 +327,61 @@ class Rig:
         for role, proc in self.procs.items():
             remaining = max(0.0, deadline - time.monotonic())
             try:
-                await asyncio.wait_for(proc.wait(), timeout=remaining)
+                await asyncio.wait_for(exited(proc), timeout=remaining)
             except TimeoutError:
                 self.err.write(f"batteur rig: {role} did not stop in {self.stop_timeout_s:g} s; killing it\n")
                 with contextlib.suppress(ProcessLookupError):
                     proc.kill()
-                await proc.wait()
+                await exited(proc)
+        await asyncio.gather(*(end_group(proc.pid) for proc in self.procs.values()))
+
+
+async def exited(proc: asyncio.subprocess.Process) -> int:
+    """A service's exit code once it has exited. Not ``proc.wait()``: before Python 3.12 that also waits for the
+    service's output pipe to close, which a grandchild that outlived it may hold open for good."""
+    while proc.returncode is None:
+        await asyncio.sleep(EXIT_POLL_S)
+    return proc.returncode
+
+
+async def end_group(pgid: int) -> None:
+    """Stop what is left in an exited service's process group (each service leads its own session): children that
+    outlived it (planning processes, a resource tracker) would run on as orphans and hold the rig's output pipe.
+    SIGTERM first: planning processes end on it, and a resource tracker (which ignores it) then ends by itself,
+    once it has removed the semaphores a killed service left; SIGKILL for what is left after
+    :data:`GROUP_GRACE_S`."""
+    if not signal_group(pgid, signal.SIGTERM):
+        return
+    deadline = time.monotonic() + GROUP_GRACE_S
+    while group_alive(pgid) and time.monotonic() < deadline:
+        await asyncio.sleep(EXIT_POLL_S)
+    signal_group(pgid, signal.SIGKILL)
+
+
+def signal_group(pgid: int, sig: int) -> bool:
+    """Send ``sig`` to the process group ``pgid``; False when the group is gone."""
+    try:
+        os.killpg(pgid, sig)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # a member that is not the rig's user's: nothing the rig can stop
+        return False
+    return True
+
+
+def group_alive(pgid: int) -> bool:
+    """Whether a live process (not a zombie: an orphan's parent may never reap it) is in the process group."""
+    proc = Path("/proc")
+    if not proc.is_dir():  # no /proc to tell zombies apart: the group itself
+        return signal_group(pgid, 0)
+    for stat in proc.glob("[0-9]*/stat"):
+        try:
+            state, _, group = stat.read_text().rsplit(")", 1)[1].split()[:3]
+        except (OSError, IndexError, ValueError):  # gone meanwhile
+            continue
+        if int(group) == pgid and state != "Z":
+            return True
+    return False
 
 
 def port_number(text: str, lowest: int = 1) -> int:
@@ -383,12 +458,23 @@ def check_score(opts: argparse.Namespace) -> None:
     roles = [r.strip() for r in opts.services.split(",")]
     if "physics" not in roles:
         raise ValueError("--score needs the physics service (--services)")
+    if Path(opts.score).is_dir():
+        raise ValueError(f"--score {opts.score}: is a directory, not a score file")
     if not Path(opts.score).is_file():
         raise ValueError(f"--score {opts.score}: no such file")
     from common.score.text import read_score
 
     if not read_score(opts.score).events:  # ScoreError (a ValueError) for a broken file, before any service starts
         raise ValueError(f"--score {opts.score}: no drum events to play")
+
+
+def ignored_options(opts: argparse.Namespace) -> list[str]:
+    """Warnings for options the rig was given but cannot use: ``--interfaces`` names zeroconf's interfaces
+    (docs/discovery.md), so with ``--no-discovery`` it is ignored, wildcard or not."""
+    if opts.no_discovery and opts.interfaces.strip(" ,"):
+        return [f"--interfaces {opts.interfaces} is ignored with --no-discovery (it names the interfaces zeroconf "
+                "uses; the services find each other by their static peers)"]
+    return []
 
 
 def check_ports(plans: list[ServicePlan], host: str, http_port: int = 0) -> None:
@@ -486,6 +572,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         except ValueError as exc:
             print(f"batteur rig: {exc}", file=sys.stderr)
             return 2
+        for warning in ignored_options(opts):
+            print(f"batteur rig: warning: {warning}", file=sys.stderr, flush=True)
         if opts.score:
             print(f"batteur rig: the drummer plays {opts.score} from rig time {opts.play_at:g} s "
                   f"({opts.start_delay + opts.play_at:g} s after launch)", flush=True)

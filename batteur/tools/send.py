@@ -31,6 +31,9 @@ OSC_ADDRESS = re.compile(r"(?:/[!-.0-~]+)+")
 OSC_RESERVED = set(" #*,?[]{}")
 """...without the characters OSC reserves for patterns and type tags (a node could not match the message)."""
 ROLE = re.compile(r"[a-z][a-z0-9_-]*")
+EXAMPLE = "batteur send /batteur/graphics/latency 0.1 --to graphics"
+EXAMPLE_ADDRESS = "/batteur/sound/master"
+"""The help's examples: registered addresses (tests/test_send_help.py checks them)."""
 
 
 def guess_arg(text: str) -> Arg:
@@ -113,9 +116,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         "(see docs/osc.md for every address and its arguments); a message that would be rejected is not sent. "
         "Exit status: 0 sent, 1 not sent (no node found, network error; with --replies also: refused, or "
         "nothing listening), 2 bad arguments.",
-        epilog="example: batteur send /batteur/graphics/latency 0.1 --to graphics",
+        epilog=f"example: {EXAMPLE}",
     )
-    parser.add_argument("address", help="OSC address, e.g. /batteur/sound/param")
+    parser.add_argument("address", help=f"OSC address, e.g. {EXAMPLE_ADDRESS}")
     parser.add_argument("args", nargs="*", help="the message's arguments, in order (a rig time is two: "
                         "whole seconds, then the fraction)")
     parser.add_argument("--to", required=True,
@@ -124,8 +127,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--raw", action="store_true", help="allow an address without a model (sent as typed)")
     parser.add_argument("--replies", type=seconds, default=0.0, metavar="SECONDS",
                         help="then listen this long for answers and print them, one line each (a control's error, "
-                        "a list...); exit 1 if a node refused the message or nothing listened (default 0: do not "
-                        "wait)")
+                        "a list...); exit 1 if a node refused the message or nothing listened; a node that stays "
+                        "silent (an accepted control) is said on stderr (default 0: do not wait)")
     parser.add_argument("--timeout", type=seconds, default=2.0, help="seconds to look for a role (default 2)")
     parser.add_argument("--interface", action="append", default=[],
                         help="interface to look for a role on: address, name or 'all' (repeatable; default loopback)")
@@ -189,6 +192,7 @@ def _print_replies(sent: Sequence[tuple[socket.socket, str]], wait_s: float) -> 
     deadline = time.monotonic() + wait_s
     names = {sock: name for sock, name in sent}
     refused: set[str] = set()
+    answered: set[str] = set()
     while names and (left := deadline - time.monotonic()) > 0:
         ready, _, _ = select.select(list(names), [], [], left)
         for sock in ready:
@@ -204,6 +208,7 @@ def _print_replies(sent: Sequence[tuple[socket.socket, str]], wait_s: float) -> 
                 print(f"batteur send: {name}: {exc.strerror or exc}", file=sys.stderr)
                 del names[sock]
                 continue
+            answered.add(name)
             try:
                 raws = parse_packet(data)
             except MessageError as exc:
@@ -213,4 +218,7 @@ def _print_replies(sent: Sequence[tuple[socket.socket, str]], wait_s: float) -> 
                 print(" ".join([name, raw.address, *(str(a) for a in raw.args)]), flush=True)
                 if raw.address.endswith(REFUSALS):
                     refused.add(name)
+    for name in sorted(set(names.values()) - answered):  # silence: not a failure, an accepted control gets none
+        print(f"batteur send: no reply from {name} within {wait_s:g} s (a node answers a refusal or a request, "
+              "not an accepted control; an address it does not know is dropped)", file=sys.stderr)
     return len(refused)

@@ -172,6 +172,15 @@ def make_core(settings: NodeSettings, args: argparse.Namespace) -> GraphicsCore:
     return core
 
 
+def own_clock_for_preview(settings: NodeSettings) -> None:
+    """A preview (``--preview``, ``--preview-score``) needs no physics: the node is its own clock master unless
+    the clock master was set (flag, environment, config file); else it waited 3 s for physics at start and warned
+    that rig time would jump."""
+    previewing = isinstance(settings, GraphicsNodeSettings) and bool(settings.preview or settings.preview_score)
+    if previewing and "clock_master" not in settings.model_fields_set:
+        settings.clock_master = "self"
+
+
 def _preview_inputs(settings: GraphicsNodeSettings, core: GraphicsCore) -> tuple[float | None, Kit]:
     """What the score preview depends on besides the score: the poses file's mtime (None: absent) and the kit."""
     path = poses_path(settings) if settings.preview_planner == "keyframe" else None
@@ -260,6 +269,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     holder: dict[str, Any] = {}
 
     def make(settings: NodeSettings, extra: argparse.Namespace) -> GraphicsCore:
+        own_clock_for_preview(settings)
         holder["settings"] = settings
         core = make_core(settings, extra)
         if isinstance(settings, GraphicsNodeSettings) and settings.synthetic:

@@ -20,6 +20,7 @@ ffmpeg: the system's (``apt-get install ffmpeg``), else the one shipped by the
 from __future__ import annotations
 
 import math
+import os
 import shutil
 import subprocess
 from collections.abc import Callable
@@ -72,6 +73,16 @@ def camera_eye(azimuth_deg: float, elevation_deg: float, distance: float,
     return np.asarray(orbit_eye(azimuth_deg, elevation_deg, distance, target))
 
 
+class QuietClient(BulletClient):
+    """A headless (DIRECT) client connected without an options string: with one (the stock client passes ''),
+    pybullet prints "argv[0]=" to the process's stdout, into the output of ``batteur render --video``."""
+
+    def __init__(self) -> None:  # the stock __init__'s state, without its options
+        self._shapes: dict[Any, Any] = {}
+        self._pid = os.getpid()
+        self._client = pybullet.connect(pybullet.DIRECT)
+
+
 @dataclass
 class _Part:
     body: int
@@ -86,7 +97,7 @@ class TinyRendererScene:
                  camera: dict[str, object] | None = None, fov_deg: float = 45.0) -> None:
         self.width, self.height = width, height
         self.kit = kit
-        self.client = BulletClient(connection_mode=pybullet.DIRECT)
+        self.client = QuietClient()
         cam: dict[str, Any] = {**DEFAULT_CAMERA, **(camera or {})}
         tx, ty, tz = (float(v) for v in cam["target"])
         target = (tx, ty, tz)
