@@ -73,6 +73,11 @@ class GraphicsNodeSettings(NodeSettings):
         default="auto", description="auto: follow the clock of the poses; rig: trust the rig clock")
 
 
+BUILD_HELP = ("Install the viewer page's npm packages (npm ci: three.js and the build tools) and build the page "
+              "into services/graphics/static (npm run build). Needs npm; the built page is committed, so this is "
+              "only needed after changing services/graphics/web.")
+
+
 def build_assets(web_dir: Path = WEB_DIR) -> int:
     """Install the page's npm packages (three.js) and build it into ``services/graphics/static``."""
     npm = shutil.which("npm")
@@ -265,6 +270,8 @@ async def _feed_synthetic(node: Node, core: GraphicsCore, sequence: PoseSequence
 def main(argv: Sequence[str] | None = None) -> int:
     args = list(sys.argv[1:] if argv is None else argv)
     if args[:1] == ["build"]:
+        build = argparse.ArgumentParser(prog="batteur graphics build", description=BUILD_HELP)
+        build.parse_args(args[1:])  # --help prints and exits; anything else is a usage error
         return build_assets()
     holder: dict[str, Any] = {}
 

@@ -27,3 +27,19 @@ def test_top_level_help_shows_no_docstring_markup(capsys: pytest.CaptureFixture[
     with pytest.raises(SystemExit):
         cli.main(["--help"])
     assert not MARKUP.search(capsys.readouterr().out)
+
+
+def test_graphics_build_help_explains_and_builds_nothing(monkeypatch: pytest.MonkeyPatch,
+                                                          capsys: pytest.CaptureFixture[str]) -> None:
+    """``batteur graphics build --help`` ran npm ci and the page build before (it ignored --help)."""
+    from services.graphics import node
+
+    monkeypatch.setattr(node, "build_assets", lambda *a, **k: pytest.fail("built on --help"))
+    with pytest.raises(SystemExit) as done:
+        node.main(["build", "--help"])
+    assert done.value.code == 0
+    out = capsys.readouterr().out
+    assert "npm ci" in out and not MARKUP.search(out)
+    with pytest.raises(SystemExit) as done:
+        node.main(["build", "--nope"])
+    assert done.value.code == 2
