@@ -33,7 +33,7 @@ from pydantic_settings import (
     SettingsConfigDict,
 )
 
-from common.datafile import parse_file
+from common.datafile import error_message, parse_file
 from common.peers import Peer, parse_static_peer
 from common.transport import MAX_UDP_PAYLOAD
 
@@ -267,8 +267,7 @@ def format_validation_error(exc: ValidationError) -> str:
     lines = []
     for error in exc.errors():
         where = ".".join(str(p) for p in error.get("loc", ())) or "settings"
-        message = str(error.get("msg", "invalid"))
-        message = message.removeprefix("Value error, ")
+        message = error_message(error).removeprefix("Value error, ")
         value = error.get("input")
         got = f" (got {value!r})" if where != "settings" and not isinstance(value, dict) else ""
         name = where.split(".")[0]

@@ -9,12 +9,17 @@ first complaint about what was read through :func:`first_error`.
 from __future__ import annotations
 
 import json
+import math
 import tomllib
 from pathlib import Path
 from typing import Any
 
 import yaml
 from pydantic import ValidationError
+from pydantic_core import ErrorDetails
+
+BOUND_ERRORS = frozenset({"greater_than", "greater_than_equal", "less_than", "less_than_equal"})
+"""pydantic's complaints about a number outside its bounds: a NaN fails every comparison and gets one of them."""
 
 
 def parse_file(path: Path) -> Any:
@@ -49,7 +54,26 @@ def first_error(exc: ValidationError) -> str:
     """The first problem pydantic found, on one line: ``field.path: message``."""
     first = exc.errors()[0]
     where = ".".join(str(p) for p in first.get("loc", ()))
-    return f"{where}: {first.get('msg')}" if where else str(first.get("msg"))  # the whole input: no field
+    return f"{where}: {error_message(first)}" if where else error_message(first)  # the whole input: no field
+
+
+def error_message(error: ErrorDetails) -> str:
+    """pydantic's message for one problem, but "must be a finite number" for a NaN refused by a bound, which
+    pydantic describes as out of range ("less than or equal to 2") though no range would take it."""
+    if error.get("type") in BOUND_ERRORS and _is_nan(error.get("input")):
+        return "must be a finite number"
+    return str(error.get("msg", "invalid"))
+
+
+def _is_nan(value: object) -> bool:
+    """Whether ``value`` is a NaN, as a float or as the text of one (a command-line flag, an environment
+    variable)."""
+    if isinstance(value, bool) or not isinstance(value, (float, int, str)):
+        return False
+    try:
+        return math.isnan(float(value))
+    except ValueError:
+        return False
 
 
 def one_line(exc: BaseException) -> str:

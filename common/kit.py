@@ -381,10 +381,13 @@ def load_kit(source: str | Path = "default") -> Kit:
     logged warning per instrument (:func:`common.score.limbs.unplayable_instruments`).
     """
     path = Path(source)
+    shipped = sorted(p.stem for p in KITS_DIR.glob("*.yaml"))
     if not path.suffix:
+        if str(source) not in shipped and path.exists():  # a name is a shipped kit: a file by that name is none
+            raise FileNotFoundError(f"{str(source)!r} is a {_kind(path)}, not a kit: give a kit file ending in .yaml "
+                                    f"or .json, or a shipped kit ({', '.join(shipped)})")
         path = KITS_DIR / f"{source}.yaml"
     if not path.is_file():
-        shipped = sorted(p.stem for p in KITS_DIR.glob("*.yaml"))
         raise FileNotFoundError(f"no kit file {str(source)!r} (shipped kits: {', '.join(shipped)})")
     try:
         data = parse_file(path)
@@ -400,6 +403,11 @@ def load_kit(source: str | Path = "default") -> Kit:
     for problem in unplayable_instruments(kit):  # a valid kit may still hold objects the drummer cannot play
         log.warning("kit file %r: %s", str(path), problem)
     return kit
+
+
+def _kind(path: Path) -> str:
+    """What ``path`` is, for a message: a file, a folder or another thing (a device, a pipe)."""
+    return "file" if path.is_file() else "folder" if path.is_dir() else "path"
 
 
 def save_kit(kit: Kit, path: Path) -> None:

@@ -18,13 +18,28 @@ def check_output_dir(path: Path, option: str) -> None:
         if not os.access(path, os.W_OK | os.X_OK):
             raise ValueError(f"{option} {path}: the directory is not writable")
         return
-    above = path.absolute().parent
-    while not above.exists():
-        above = above.parent
+    first = path.absolute()  # the outermost folder to create
+    while not first.parent.exists():
+        first = first.parent
+    above = first.parent
     if not above.is_dir():
         raise ValueError(f"{option} {path}: {above} is a file, not a directory")
     if not os.access(above, os.W_OK | os.X_OK):
         raise ValueError(f"{option} {path}: cannot create it, {above} is not writable")
+    _try_mkdir(first, path, option)
+
+
+def _try_mkdir(first: Path, path: Path, option: str) -> None:
+    """Create ``first`` and remove it again, ``ValueError`` naming ``option`` if it cannot be: a folder may look
+    writable and still refuse new entries (``/proc``, or a root process's view of some file systems)."""
+    try:
+        first.mkdir()
+    except FileExistsError:  # made meanwhile by someone else: it is there to write in
+        return
+    except OSError as exc:
+        raise ValueError(f"{option} {path}: cannot create a folder in {first.parent} ({exc.strerror}); choose "
+                         "another place") from None
+    first.rmdir()
 
 
 def check_output_file(path: Path, option: str) -> None:
@@ -39,6 +54,15 @@ def check_output_file(path: Path, option: str) -> None:
         raise ValueError(f"{option} {path}: folder {folder} does not exist")
     if not os.access(folder, os.W_OK | os.X_OK):
         raise ValueError(f"{option} {path}: folder {folder} is not writable")
+
+
+def file_in_the_way(path: Path) -> Path | None:
+    """The nearest existing path above ``path`` when it is not a folder (``afile`` for ``afile/x.wav``): the
+    folders to create for ``path`` cannot be, as a file holds that name. None when it is a folder."""
+    above = path.absolute().parent
+    while not above.exists():
+        above = above.parent
+    return None if above.is_dir() else above
 
 
 def write_atomically(path: Path, data: bytes) -> None:

@@ -5,8 +5,10 @@ take is closed (``/pd/stop``). A take still recording when Pd exits (``docker co
 keeps its samples but says it holds none, and players (libsndfile too) read nothing. This rewrites the RIFF and
 ``data`` sizes from the file's size: every whole frame written is kept (a partial last frame is dropped).
 
-Only a file whose ``data`` chunk says 0 bytes is changed (the audio is taken to run from there to the end of the
-file, as ``[writesf~]`` writes no chunk after it); a finished take is left as it is.
+A file whose ``data`` chunk says 0 bytes is changed (the audio is taken to run from there to the end of the
+file, as ``[writesf~]`` writes no chunk after it), and so is one whose file ends before the audio its header
+announces (a copy or a download cut short: ``head -c``, a full disk): its header is given the whole frames it
+holds. A finished take is left as it is.
 """
 
 from __future__ import annotations
@@ -44,6 +46,8 @@ class RepairResult(BaseModel):
     """Frames the file holds (after the repair)."""
     dropped_bytes: int = 0
     """Bytes of a partial last frame removed."""
+    header_frames: int = 0
+    """Frames the header announced before the repair (0 for a take [writesf~] left open)."""
 
 
 def read_layout(f: BinaryIO) -> WavLayout:
@@ -69,19 +73,22 @@ def read_layout(f: BinaryIO) -> WavLayout:
 
 
 def repair_wav(path: Path) -> RepairResult:
-    """Rewrite the sizes of a take whose header says 0 frames (see the module); ValueError if it cannot."""
+    """Rewrite the sizes of a take whose header says 0 frames, or more than the file holds (see the module);
+    ValueError if it cannot."""
     with path.open("r+b") as f:
         layout = read_layout(f)
         audio_start = layout.data_size_offset + 4
-        if layout.data_size != 0:  # a finished take (or not one [writesf~] left open)
-            return RepairResult(repaired=False, frames=layout.data_size // layout.block_align)
         size = os.fstat(f.fileno()).st_size
+        header_frames = layout.data_size // layout.block_align
+        cut_short = size - audio_start < layout.data_size
+        if layout.data_size != 0 and not cut_short:  # a finished take (or not one [writesf~] left open)
+            return RepairResult(repaired=False, frames=header_frames, header_frames=header_frames)
         frames = (size - audio_start) // layout.block_align
         data_size = frames * layout.block_align
         if audio_start + data_size + (data_size & 1) - 8 > RIFF_LIMIT_BYTES:
             raise ValueError("holds more than a WAV header can describe (4 GiB): convert it with a tool that "
                              "reads raw PCM")
-        if frames == 0:
+        if frames == 0 and not cut_short:
             return RepairResult(repaired=False, frames=0)
         f.truncate(audio_start + data_size)  # a partial last frame is not audio
         if data_size & 1:
@@ -91,14 +98,37 @@ def repair_wav(path: Path) -> RepairResult:
         f.write(struct.pack("<I", data_size))
         f.seek(4)
         f.write(struct.pack("<I", audio_start + data_size + (data_size & 1) - 8))
-    return RepairResult(repaired=True, frames=frames, dropped_bytes=size - audio_start - data_size)
+    return RepairResult(repaired=True, frames=frames, dropped_bytes=size - audio_start - data_size,
+                        header_frames=header_frames)
+
+
+def unreadable(exc: OSError) -> str:
+    """Why a file could not be opened, on one line without the errno."""
+    if isinstance(exc, FileNotFoundError):
+        return "no such file"
+    if isinstance(exc, IsADirectoryError):
+        return "is a folder, not a WAV file"
+    if isinstance(exc, PermissionError):
+        return "cannot open it to rewrite its header (permission denied)"
+    return f"cannot read or rewrite it ({exc.strerror or exc})"
+
+
+def describe(path: Path, result: RepairResult) -> str:
+    """The line printed for a file: repaired (and from what) or left alone."""
+    if not result.repaired:
+        return f"{path}: left as it is ({result.frames} frames)"
+    if result.header_frames > result.frames:
+        return (f"{path}: repaired, {result.frames} frames (the file was cut short: its header said "
+                f"{result.header_frames})")
+    return f"{path}: repaired, {result.frames} frames"
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         prog="batteur wav-repair",
         description="Give WAV takes cut short (header saying 0 frames, e.g. a Pd take still recording when Pd "
-        "exited) the length of the audio they hold; finished files are left as they are. "
+        "exited, or more frames than the file holds, e.g. a copy cut short) the length of the audio they hold; "
+        "finished files are left as they are. "
         "Exit status: 0 every file is readable now, 1 a file could not be read or repaired.")
     parser.add_argument("files", nargs="+", type=Path, metavar="FILE", help="WAV files, e.g. out/take-*.wav")
     args = parser.parse_args(argv)
@@ -106,14 +136,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     for path in args.files:
         try:
             result = repair_wav(path)
-        except (OSError, ValueError) as exc:
+        except OSError as exc:
+            print(f"{path}: not repaired: {unreadable(exc)}", file=sys.stderr)
+            status = 1
+            continue
+        except ValueError as exc:
             print(f"{path}: not repaired: {exc}", file=sys.stderr)
             status = 1
             continue
-        if result.repaired:
-            print(f"{path}: repaired, {result.frames} frames")
-        else:
-            print(f"{path}: left as it is ({result.frames} frames)")
+        print(describe(path, result))
     return status
 
 

@@ -51,6 +51,35 @@ def check_file(path: Path, name: str) -> None:
                          f"{MAX_SCORE_BYTES // 2**20} MB)")
 
 
+def audio_kind(head: bytes) -> str | None:
+    """The audio format a file's first 12 bytes start, or None: a recording given where a score is expected."""
+    if head[:4] in (b"RIFF", b"RF64") and head[8:12] == b"WAVE":
+        return "WAV"
+    if head[:4] == b"FORM" and head[8:12] in (b"AIFF", b"AIFC"):
+        return "AIFF"
+    if head[:4] == b"fLaC":
+        return "FLAC"
+    if head[:4] == b"OggS":
+        return "Ogg"
+    if (head[:3] == b"ID3" and head[3:4] in (b"\x02", b"\x03", b"\x04")) or (
+            len(head) >= 2 and head[0] == 0xFF and head[1] & 0xE6 in (0xE2, 0xE4, 0xE6)):
+        return "MP3"  # an ID3 tag, or an MPEG audio layer III/II/I frame's sync bits without one
+    return None
+
+
+def starts_as_midi(head: bytes) -> bool:
+    """Whether a file's first 12 bytes are a Standard MIDI File's (``MThd``) or a RIFF MIDI file's (``RMID``)."""
+    return head[:4] == b"MThd" or (head[:4] == b"RIFF" and head[8:12] == b"RMID")
+
+
+def check_not_audio(head: bytes, name: str) -> None:
+    """Raise :class:`ScoreError` saying what to do when ``head`` (a file's first bytes) is an audio file's."""
+    kind = audio_kind(head)
+    if kind is not None:
+        raise ScoreError(f"{name}: this is an audio file ({kind}), not a score; to play it, transcribe it first: "
+                         f"batteur transcribe {name} -o score.mid")
+
+
 def hours(seconds: float) -> str:
     """A time for a message about the limits: ``24 h``, ``388.4 h``, ``1.389e+05 h``."""
     return f"{seconds / 3600:.4g} h"

@@ -38,6 +38,7 @@ from common.score.events import (
     Score,
     ScoreError,
     check_file,
+    check_not_audio,
     hours,
     score_from_notes,
 )
@@ -133,6 +134,9 @@ def _open(source: str | Path | bytes,
     if len(data) > MAX_SCORE_BYTES:
         raise ScoreError(f"{name}: {len(data) / 2**20:.0f} MB is too large for a score (at most "
                          f"{MAX_SCORE_BYTES // 2**20} MB)")
+    if not data:  # mido's EOFError would read "truncated MIDI file"
+        raise ScoreError(f"{name}: the file is empty (0 bytes), not a MIDI file")
+    check_not_audio(data[:12], name)
     data = _without_alien_chunks(_unwrapped_riff(data, name))
     if progress is not None:
         progress(0, len(data))

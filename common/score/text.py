@@ -34,8 +34,10 @@ from common.score.events import (
     Score,
     ScoreError,
     check_file,
+    check_not_audio,
     hours,
     remove_duplicates,
+    starts_as_midi,
 )
 
 ALIASES: dict[str, EventType] = {
@@ -378,11 +380,6 @@ MIDI_SUFFIXES = (".mid", ".midi", ".smf", ".rmi")
 """File names read as MIDI whatever they hold (``.rmi``: RIFF MIDI)."""
 
 
-def _starts_as_midi(head: bytes) -> bool:
-    """Whether a file's first 12 bytes are a Standard MIDI File's (``MThd``) or a RIFF MIDI file's."""
-    return head[:4] == b"MThd" or (head[:4] == b"RIFF" and head[8:12] == b"RMID")
-
-
 def read_score(path: str | Path, **kwargs: object) -> Score:
     """Read a score file: ``.mid``/``.midi``/``.smf``/``.rmi`` or a file starting as a Standard MIDI File or a RIFF
     MIDI file does as MIDI, anything else as the text format.
@@ -397,12 +394,14 @@ def read_score(path: str | Path, **kwargs: object) -> Score:
     check_file(p, str(p))
     try:
         with p.open("rb") as f:
-            if _starts_as_midi(f.read(12)):  # a MIDI file by another name (.kar, none): it was "not UTF-8 text"
+            head = f.read(12)
+            if starts_as_midi(head):  # a MIDI file by another name (.kar, none): it was "not UTF-8 text"
                 return read_midi(p, **kwargs)  # type: ignore[arg-type]
         text = read_text(p)
     except OSError as exc:
         raise ScoreError(f"{p}: cannot read the file ({exc.strerror or exc})") from None
     except ValueError as exc:  # not UTF-8: a binary file (an audio file given as the score?)
+        check_not_audio(head, str(p))
         raise ScoreError(f"{p}: not a text score ({exc})") from None
     try:
         return parse_text(text, source=str(p))

@@ -16,6 +16,7 @@ import numpy as np
 import soundfile as sf
 from scipy.signal import resample_poly
 
+from common.score.events import starts_as_midi
 from services.recogniser.errors import AudioFileError
 
 SAMPLE_RATE = 22050
@@ -123,6 +124,16 @@ def _decodable_start(path: Path, failure: Exception) -> tuple[np.ndarray, int]:
     return np.concatenate(blocks), rate
 
 
+def _is_midi(path: Path) -> bool:
+    """Whether ``path`` starts as a Standard MIDI File (``MThd``) or a RIFF MIDI file (``RIFF`` ... ``RMID``)."""
+    try:
+        with path.open("rb") as f:
+            head = f.read(12)
+    except OSError:
+        return False
+    return starts_as_midi(head)
+
+
 def load_audio(path: str | Path, max_duration_s: float = MAX_DURATION_S, sample_rate: int = SAMPLE_RATE,
                warn: Callable[[str], None] | None = None) -> np.ndarray:
     """Read an audio file as mono float32 at ``sample_rate`` Hz (default :data:`SAMPLE_RATE`).
@@ -160,6 +171,9 @@ def load_audio(path: str | Path, max_duration_s: float = MAX_DURATION_S, sample_
     try:
         info = sf.info(str(p))
     except Exception as exc:  # soundfile raises several types (LibsndfileError, RuntimeError, TypeError)
+        if _is_midi(p):  # libsndfile's "Format not recognised" says nothing of what to do
+            raise AudioFileError(f"{p}: this is a MIDI file (a score), not audio: `batteur render {p} -o DIR` "
+                                 "plays it") from None
         raise AudioFileError(f"{p}: not a readable audio file (WAV, FLAC, OGG...): {exc}") from exc
     if info.frames <= 0 or info.samplerate <= 0:
         raise AudioFileError(_unfinished(info.extra_info, p) or f"{p}: the file holds no audio (0 samples)")

@@ -54,7 +54,8 @@ def build_parser(prog: str = "batteur transcribe") -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog=prog, description=DESCRIPTION, epilog=EPILOG,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("audio", nargs="?", help="audio file to transcribe (WAV, FLAC, OGG, ...)")
-    p.add_argument("-o", "--output", type=Path, help="Standard MIDI File to write (required unless --live)")
+    p.add_argument("-o", "--output", type=Path,
+                   help="Standard MIDI File to write, named .mid or .midi (required unless --live)")
     p.add_argument("--tempo", type=float, default=120.0, help="tempo written to the MIDI file, BPM (default 120; "
                    "note times are exact whatever the tempo)")
     p.add_argument("--max-duration", type=float, default=MAX_DURATION_S,
@@ -119,6 +120,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             if _holds_other_data(args.output):  # an earlier take or the model: a typo must not replace it
                 raise RecogniserError(f"-o {args.output}: exists and is not a MIDI file (it would be replaced by "
                                       "one); give another name, or remove it first")
+            if not _midi_name(args.output):
+                raise RecogniserError(f"-o {args.output}: the transcription is a Standard MIDI File; give a name "
+                                      f"ending in {' or '.join(MIDI_SUFFIXES)}")
         model = load_model(args.model)
         if args.live:
             return _live(args, model, say)
@@ -166,6 +170,15 @@ def _write(events: Sequence[DrumEvent], args: argparse.Namespace) -> None:
         write_midi(events, args.output, tempo_bpm=args.tempo)
     except OSError as exc:
         raise RecogniserError(f"-o {args.output}: cannot write the MIDI file: {exc.strerror or exc}") from exc
+
+
+MIDI_SUFFIXES = (".mid", ".midi")
+"""Names the transcription may be written under: a MIDI file named ``tt.wav`` would be taken for audio."""
+
+
+def _midi_name(path: Path) -> bool:
+    """Whether ``path`` may take the MIDI file: named .mid/.midi, or not a regular file (``/dev/null``)."""
+    return path.suffix.lower() in MIDI_SUFFIXES or (path.exists() and not path.is_file())
 
 
 def _holds_other_data(path: Path) -> bool:

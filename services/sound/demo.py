@@ -16,22 +16,40 @@ is ``batteur render``.
 
 from __future__ import annotations
 
-import argparse
-import math
+import os
 import signal
-import sys
-from collections.abc import Sequence
-from pathlib import Path
 
-import numpy as np
+INTERRUPTED = 130
+"""Exit status after Ctrl-C (128 + SIGINT), as a shell gives a command it interrupted."""
 
-from common.arg_types import number, unit
-from common.kit import EventType, Kit, load_kit
-from common.messages import Impact
-from common.output_paths import check_output_file
-from common.score.events import Score, ScoreError
-from common.score.text import read_score
-from services.sound.core import SoundSettings, render_offline, wav_format
+
+def _quit_unwritten(signum: int, frame: object) -> None:
+    """SIGINT before the render starts: nothing is written yet, so leave at once. A KeyboardInterrupt raised while
+    the modules below load can land in importlib's callbacks, which print it as "Exception ignored" and go on."""
+    os.write(2, b"interrupted: nothing written\n")
+    os._exit(INTERRUPTED)
+
+
+if __name__ == "__main__":  # the command: the modules below take about 1 s to load (SciPy, pyo)
+    signal.signal(signal.SIGINT, _quit_unwritten)
+
+# after the handler (E402): a Ctrl-C while they load must not print a traceback
+import argparse  # noqa: E402
+import math  # noqa: E402
+import re  # noqa: E402
+import sys  # noqa: E402
+from collections.abc import Sequence  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from common.arg_types import number, unit  # noqa: E402
+from common.kit import EventType, Kit, load_kit  # noqa: E402
+from common.messages import Impact  # noqa: E402
+from common.output_paths import check_output_file  # noqa: E402
+from common.score.events import Score, ScoreError  # noqa: E402
+from common.score.text import read_score  # noqa: E402
+from services.sound.core import SoundSettings, render_offline, wav_format  # noqa: E402
 
 DEFAULT_MIDI = Path(__file__).resolve().parents[2] / "tests" / "data" / "groove_drummer6_s3_1_rock_90_beat_4-4.mid"
 
@@ -82,6 +100,16 @@ def impacts_from_midi(path: Path, kit: Kit, max_seconds: float = math.inf, start
     return impacts_from_score(read_score(path), kit, max_seconds, start)
 
 
+def plain_text(docstring: str) -> str:
+    """A reStructuredText docstring as a terminal shows it: ``:class:`~a.b.C``` as ``C``, ````code```` as
+    ``code`` (Sphinx's markup is noise in ``--help``)."""
+    def role(match: re.Match[str]) -> str:
+        tilde, target = match.groups()
+        return target.rsplit(".", 1)[-1] if tilde else target  # "~" shows the last name only, as Sphinx does
+
+    return re.sub(r":[a-z]+:`(~?)([^`]+)`", role, docstring).replace("``", "")
+
+
 def _play_seconds(text: str) -> float:
     """``--seconds``: a positive number of seconds, ``inf`` for the whole file."""
     value = number(text)
@@ -91,7 +119,17 @@ def _play_seconds(text: str) -> float:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m services.sound.demo", description=__doc__,
+    """Run the demo; the exit status (130 after Ctrl-C, with one line and nothing written)."""
+    try:
+        return _main(argv)
+    except KeyboardInterrupt:  # before the render (reading the kit or the score): nothing was written yet
+        signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not cut the exit short
+        print("interrupted: nothing written", file=sys.stderr)
+        return INTERRUPTED
+
+
+def _main(argv: Sequence[str] | None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m services.sound.demo", description=plain_text(__doc__ or ""),
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("-o", "--output", type=Path, default=Path("groove.wav"),
                         help="WAV file to write (default groove.wav)")
@@ -129,6 +167,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     t0 = time.perf_counter()
     duration = impacts[-1].time + 2.5
+    if signal.getsignal(signal.SIGINT) is _quit_unwritten:  # from here a Ctrl-C has a staged file to remove
+        signal.signal(signal.SIGINT, signal.default_int_handler)
     try:  # the line too: a Ctrl-C may land as it is written
         print(f"rendering {len(impacts)} strikes ({duration:.1f} s) to {args.output} ...", file=sys.stderr,
               flush=True)
@@ -139,7 +179,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not cut the exit short (a traceback)
         print(f"interrupted: {args.output} not written", file=sys.stderr)
-        return 130
+        return INTERRUPTED
     took = time.perf_counter() - t0
     print(f"{args.output}: {len(impacts)} strikes, {audio.shape[0] / 48000:.1f} s rendered in {took:.1f} s "
           f"({audio.shape[0] / 48000 / took:.1f}x real time), peak {float(np.max(np.abs(audio))):.2f}")

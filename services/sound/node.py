@@ -33,7 +33,7 @@ import soundfile as sf
 
 from common.config import NodeSettings
 from common.kit import load_kit
-from common.output_paths import write_atomically
+from common.output_paths import file_in_the_way, write_atomically
 from common.runtime import run_node
 from services.sound.core import MAX_LATENCY_S, WAV_LIMIT_BYTES, SoundCore, SoundSettings, wav_format
 from services.sound.pyo_stage import _quiet_stderr, audio_device_count, import_pyo
@@ -308,6 +308,9 @@ def _attach_sinks(core: SoundCore, extra: argparse.Namespace) -> None:
     """The WAV file and the sound card, as asked; ValueError naming the option that cannot be served."""
     if extra.wav is not None:
         path = expand_wav_path(extra.wav, datetime.now())  # {start}: when recording starts, i.e. now
+        blocker = file_in_the_way(path)
+        if blocker is not None:  # else mkdir's bare "[Errno 17] File exists"
+            raise ValueError(f"--wav {path}: {blocker} is a file, not a folder")
         try:
             wav = WavSink(path, core.sample_rate, core.channels, lambda: core.scheduler.origin)
         except (OSError, RuntimeError) as exc:  # soundfile: unwritable path

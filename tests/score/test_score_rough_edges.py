@@ -70,7 +70,8 @@ def test_a_riff_midi_file_reads_as_the_midi_file_it_wraps(tmp_path: Path) -> Non
 
 
 @pytest.mark.parametrize(("data", "message"), [
-    (riff_midi(b"", form=b"WAVE"), r"not a valid Standard MIDI File \(a RIFF 'WAVE' file, not RIFF MIDI"),
+    (riff_midi(b"", form=b"WAVE"), r"this is an audio file \(WAV\), not a score; .* batteur transcribe"),
+    (riff_midi(b"", form=b"AVI "), r"not a valid Standard MIDI File \(a RIFF 'AVI ' file, not RIFF MIDI"),
     (riff_midi(b"")[:-8] + riff_chunk(b"DISP", b"abcd"), r"RIFF MIDI file without a 'data' chunk"),
     (riff_midi(drum_midi([], [0]))[:-10], r"truncated RIFF MIDI file \(its 'data' chunk"),
     (b"RIFF\x04\x00\x00\x00RMI", r"truncated RIFF file"),
@@ -82,9 +83,9 @@ def test_a_broken_riff_midi_file_names_the_problem(data: bytes, message: str) ->
 
 
 def test_a_riff_file_of_another_kind_by_another_name_is_not_read_as_midi(tmp_path: Path) -> None:
-    path = tmp_path / "take"  # an audio file given as the score: still "not a text score", not a MIDI error
+    path = tmp_path / "take"  # an audio file given as the score: said to be audio, not a MIDI error
     path.write_bytes(riff_midi(b"\xff" * 16, form=b"WAVE"))
-    with pytest.raises(ScoreError, match="not a text score"):
+    with pytest.raises(ScoreError, match=r"this is an audio file \(WAV\), not a score; to play it, transcribe"):
         read_score(path)
 
 

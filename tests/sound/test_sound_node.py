@@ -73,7 +73,7 @@ def test_a_wav_path_that_cannot_be_written_is_a_clear_error(tmp_path: Path) -> N
     a_file = tmp_path / "notes.txt"
     a_file.write_text("mine")
     for wav, says in ((tmp_path, "is a directory"), (tmp_path / "take.txt", "give a file ending in .wav"),
-                      (a_file / "take.wav", "cannot write it")):
+                      (a_file / "take.wav", "notes.txt is a file, not a folder")):
         extra = argparse.Namespace(kit="default", wav=wav, device="none", model="modal", block_size=256,
                                    channels=2, reverb=0.0)
         with pytest.raises(ValueError, match=says):
