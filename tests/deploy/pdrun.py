@@ -2,18 +2,26 @@
 
 from __future__ import annotations
 
+import asyncio
 import queue
 import shutil
 import subprocess
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import AsyncIterator, Callable, Sequence
+from contextlib import asynccontextmanager
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any, ClassVar
 
 import pytest
 
+from common.config import load_settings
+from common.core import Outgoing
 from common.kit import load_kit
+from common.messages import OscMessage
 from common.messages.events import Contact
+from common.runtime import Node
 from services.interaction.synthetic import StreamBuilder, strike
 
 PD_DIR = Path(__file__).resolve().parents[2] / "pd"
@@ -116,3 +124,68 @@ def three_strikes() -> list[Contact]:
         strike(builder, at, velocity=4.0)
         contacts += builder.contacts
     return sorted(contacts, key=lambda c: c.step)
+
+
+class Recorder:
+    """Wraps a real core: records what it handled, handles it, never steps (rate 0 keeps the test light)."""
+
+    ROLE: ClassVar[str] = "wrapped"
+
+    def __init__(self, core: Any) -> None:
+        self.core = core
+        self.rate_hz = 0.0
+        self.handled: list[OscMessage] = []
+
+    def handle(self, message: OscMessage, now: float, source: str) -> list[Outgoing]:
+        self.handled.append(message)
+        out: list[Outgoing] = self.core.handle(message, now, source)
+        return out
+
+    def step(self, now: float) -> list[Outgoing]:
+        return []
+
+    def of(self, kind: type[OscMessage]) -> list[Any]:
+        return [m for m in self.handled if isinstance(m, kind)]
+
+
+@dataclass
+class PanelTargets:
+    """Real physics and sound cores (recorded) as nodes on loopback, for the control panel to drive."""
+
+    physics: Recorder
+    sound: Recorder
+    physics_port: int
+    sound_port: int
+    nodes: list[Node]
+
+
+@asynccontextmanager
+async def physics_and_sound_nodes() -> AsyncIterator[PanelTargets]:
+    """Start a physics node and a sound node (no discovery, their own clocks, no pyo) around recorded real cores;
+    stopped on exit."""
+    from services.physics.core import PhysicsCore
+    from services.sound.core import SoundCore, SoundSettings
+
+    physics = Recorder(PhysicsCore())
+    sound = Recorder(SoundCore(SoundSettings(use_pyo=False)))
+    nodes = []
+    try:
+        for role, core in (("physics", physics), ("sound", sound)):
+            node = Node(core, load_settings({"role": role, "discovery": False,  # type: ignore[arg-type]
+                                             "clock_master": "self", "oscquery": False}))
+            nodes.append(node)
+            await node.start()
+        pport, sport = (n.endpoint.port for n in nodes if n.endpoint is not None)
+        yield PanelTargets(physics, sound, pport, sport, nodes)
+    finally:
+        for node in nodes:
+            await node.stop()
+
+
+async def wait_for(condition: Callable[[], bool], timeout: float = 15.0) -> None:
+    """Wait until ``condition()`` holds (AssertionError after ``timeout`` seconds)."""
+    deadline = time.monotonic() + timeout
+    while not condition():
+        if time.monotonic() > deadline:
+            raise AssertionError("timed out waiting")
+        await asyncio.sleep(0.02)

@@ -7,17 +7,15 @@ import socket
 import sys
 import threading
 import time
-from collections.abc import Callable
 from pathlib import Path
-from typing import Any, ClassVar
 
 import numpy as np
 import pytest
 import soundfile as sf
 
 from common.config import load_settings
-from common.core import Core, Outgoing
-from common.messages import Impact, OscMessage, encode, encode_raw
+from common.core import Core
+from common.messages import Impact, encode, encode_raw
 from common.messages.graphics import (
     GraphicsCamera,
     GraphicsLatency,
@@ -30,40 +28,10 @@ from common.messages.physics import PhysicsControlMode, PhysicsGrip
 from common.messages.score import GestureStyle, ScoreLoad, ScoreTransport, TempoScale
 from common.messages.sound import SoundDamping, SoundLatency, SoundLevel, SoundModel, SoundModes, SoundTension
 from common.runtime import Node
-from tests.deploy.pdrun import PD_DIR, PdProcess, require_pd, three_strikes
+from tests.deploy.pdrun import PD_DIR, PdProcess, Recorder, physics_and_sound_nodes, require_pd, three_strikes, wait_for
 
 pytestmark = pytest.mark.timeout(120)
 ROOT = Path(__file__).resolve().parents[2]
-
-
-class Recorder:
-    """Wraps a real core: records what it handled, handles it, never steps (rate 0 keeps the test light)."""
-
-    ROLE: ClassVar[str] = "wrapped"
-
-    def __init__(self, core: Any) -> None:
-        self.core = core
-        self.rate_hz = 0.0
-        self.handled: list[OscMessage] = []
-
-    def handle(self, message: OscMessage, now: float, source: str) -> list[Outgoing]:
-        self.handled.append(message)
-        out: list[Outgoing] = self.core.handle(message, now, source)
-        return out
-
-    def step(self, now: float) -> list[Outgoing]:
-        return []
-
-    def of(self, kind: type[OscMessage]) -> list[Any]:
-        return [m for m in self.handled if isinstance(m, kind)]
-
-
-async def wait_for(condition: Callable[[], bool], timeout: float = 15.0) -> None:
-    deadline = time.monotonic() + timeout
-    while not condition():
-        if time.monotonic() > deadline:
-            raise AssertionError("timed out waiting")
-        await asyncio.sleep(0.02)
 
 
 def test_control_panel_file_is_the_generated_one() -> None:
@@ -89,34 +57,23 @@ def test_patches_load_without_errors(patch: str) -> None:
 
 def test_control_panel_drives_physics_and_sound_cores() -> None:
     require_pd()
-    from services.physics.core import PhysicsCore
-    from services.sound.core import SoundCore, SoundSettings
 
     async def main() -> None:
-        physics = Recorder(PhysicsCore())
-        sound = Recorder(SoundCore(SoundSettings(use_pyo=False)))
-        nodes = []
-        for role, core in (("physics", physics), ("sound", sound)):
-            node = Node(core, load_settings({"role": role, "discovery": False, "clock_master": "self",  # type: ignore[arg-type]
-                                             "oscquery": False}))
-            nodes.append(node)
-            await node.start()
-        pport, sport = (n.endpoint.port for n in nodes if n.endpoint is not None)
-        sends = [
-            f"bp-port-physics {pport}", f"bp-port-score {pport}", f"bp-port-sound {sport}",
-            "bp-grip symbol german", "bp-nuance symbol staccato", "bp-algorithm symbol viterbi",
-            "bp-mode symbol joint_ct", "bp-tempo 1.5", "bp-score symbol groove-1",
-            "bp-position 2", "bp-transport symbol play",
-            "bp-instrument symbol kick", "bp-model symbol synth", "bp-model symbol modal", "bp-tension 800",
-            "bp-level -6", "bp-modes 120", "bp-sigma1 0.0001", "bp-sigma0 20", "bp-latency 0.08",
-        ]
-        pd = PdProcess(PD_DIR / "control.pd", sends=sends)
-        try:
-            await wait_for(lambda: len(sound.of(SoundLatency)) >= 1 and len(physics.of(ScoreTransport)) >= 1)
-        finally:
-            pd.stop()
-            for node in nodes:
-                await node.stop()
+        async with physics_and_sound_nodes() as rig:
+            physics, sound, pport, sport = rig.physics, rig.sound, rig.physics_port, rig.sound_port
+            sends = [
+                f"bp-port-physics {pport}", f"bp-port-score {pport}", f"bp-port-sound {sport}",
+                "bp-grip symbol german", "bp-nuance symbol staccato", "bp-algorithm symbol viterbi",
+                "bp-mode symbol joint_ct", "bp-tempo 1.5", "bp-score symbol groove-1",
+                "bp-position 2", "bp-transport symbol play",
+                "bp-instrument symbol kick", "bp-model symbol synth", "bp-model symbol modal", "bp-tension 800",
+                "bp-level -6", "bp-modes 120", "bp-sigma1 0.0001", "bp-sigma0 20", "bp-latency 0.08",
+            ]
+            pd = PdProcess(PD_DIR / "control.pd", sends=sends)
+            try:
+                await wait_for(lambda: len(sound.of(SoundLatency)) >= 1 and len(physics.of(ScoreTransport)) >= 1)
+            finally:
+                pd.stop()
         assert pd.errors() == [], "\n".join(pd.lines)
         # physics acted on grip and control mode
         assert physics.of(PhysicsGrip)[-1] == PhysicsGrip(hand="both", grip="german")

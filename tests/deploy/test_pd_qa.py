@@ -17,7 +17,7 @@ import pytest
 import soundfile as sf
 
 from common.messages import Impact, WireKind, encode, encode_raw
-from tests.deploy.pdrun import PD_DIR, PdProcess, require_pd
+from tests.deploy.pdrun import PD_DIR, PdProcess, physics_and_sound_nodes, require_pd
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -253,66 +253,31 @@ def test_the_clients_impact_fields_match_the_impact_message() -> None:
 # ---------------------------------------------------------------- the control panel
 
 
-class _Recorder:
-    """Wraps a real core: records what it handled, handles it, never steps."""
-
-    ROLE = "wrapped"
-
-    def __init__(self, core: Any) -> None:
-        self.core = core
-        self.rate_hz = 0.0
-        self.handled: list[Any] = []
-
-    def handle(self, message: Any, now: float, source: str) -> list[Any]:
-        self.handled.append(message)
-        out: list[Any] = self.core.handle(message, now, source)
-        return out
-
-    def step(self, now: float) -> list[Any]:
-        return []
-
-    def of(self, kind: type) -> list[Any]:
-        return [m for m in self.handled if isinstance(m, kind)]
-
-
 def test_panel_instrument_box_chooses_what_it_shows_and_every_control_is_accepted() -> None:
     """Typing an instrument into the SOUND box (what a gatom does with a symbol on its receive name) must make the
     controls act on it; and every control of the panel sends a message the rig's cores accept (none dropped)."""
     require_pd()
     import asyncio
 
-    from common.config import load_settings
     from common.messages.physics import PhysicsReset
     from common.messages.score import GestureStyle
     from common.messages.sound import SoundDensity, SoundLevel, SoundMaster, SoundRadius, SoundTension
-    from common.runtime import Node
-    from services.physics.core import PhysicsCore
-    from services.sound.core import SoundCore, SoundSettings
 
     async def main() -> None:
-        physics = _Recorder(PhysicsCore())
-        sound = _Recorder(SoundCore(SoundSettings(use_pyo=False)))
-        nodes = []
-        for role, core in (("physics", physics), ("sound", sound)):
-            node = Node(core, load_settings({"role": role, "discovery": False,  # type: ignore[arg-type]
-                                             "clock_master": "self", "oscquery": False}))
-            nodes.append(node)
-            await node.start()
-        pport, sport = (n.endpoint.port for n in nodes if n.endpoint is not None)
-        sends = [f"bp-port-physics {pport}", f"bp-port-score {pport}", f"bp-port-sound {sport}",
-                 "bp-instrument-show symbol hightom", "bp-tension 900",
-                 "bp-instrument symbol ride", "bp-level -3", "bp-radius 0.3", "bp-density 1.5",
-                 "bp-reset bang", "bp-sticking symbol paradiddle", "bp-master -6", "bp-reverb 0.5"]
-        pd = PdProcess(PD_DIR / "control.pd", sends=sends)
-        try:
-            deadline = time.monotonic() + 20
-            while len(sound.of(SoundMaster)) < 2 or not physics.of(GestureStyle):
-                assert time.monotonic() < deadline, "\n".join(pd.lines)
-                await asyncio.sleep(0.02)
-        finally:
-            pd.stop()
-            for node in nodes:
-                await node.stop()
+        async with physics_and_sound_nodes() as rig:
+            physics, sound, pport, sport, nodes = rig.physics, rig.sound, rig.physics_port, rig.sound_port, rig.nodes
+            sends = [f"bp-port-physics {pport}", f"bp-port-score {pport}", f"bp-port-sound {sport}",
+                     "bp-instrument-show symbol hightom", "bp-tension 900",
+                     "bp-instrument symbol ride", "bp-level -3", "bp-radius 0.3", "bp-density 1.5",
+                     "bp-reset bang", "bp-sticking symbol paradiddle", "bp-master -6", "bp-reverb 0.5"]
+            pd = PdProcess(PD_DIR / "control.pd", sends=sends)
+            try:
+                deadline = time.monotonic() + 20
+                while len(sound.of(SoundMaster)) < 2 or not physics.of(GestureStyle):
+                    assert time.monotonic() < deadline, "\n".join(pd.lines)
+                    await asyncio.sleep(0.02)
+            finally:
+                pd.stop()
         assert pd.errors() == [], "\n".join(pd.lines)
         assert [m.instrument for m in sound.of(SoundTension)] == ["hightom"]
         assert sound.core.instruments.instruments["hightom"].p.tension == pytest.approx(900, rel=1e-4)

@@ -10,16 +10,13 @@ from pathlib import Path
 
 import pytest
 
-from common.config import load_settings
 from common.messages import OscMessage, encode
 from common.messages.graphics import GraphicsRejected
 from common.messages.interaction import InteractionError
 from common.messages.physics import PhysicsControlMode, PhysicsRejected
 from common.messages.score import ScoreTransport
 from common.messages.sound import SoundRejected, SoundTension
-from common.runtime import Node
-from tests.deploy.pdrun import PD_DIR, PdProcess, require_pd
-from tests.deploy.test_pd import Recorder, wait_for
+from tests.deploy.pdrun import PD_DIR, PdProcess, physics_and_sound_nodes, require_pd, wait_for
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -95,28 +92,17 @@ def test_a_pause_with_nothing_playing_and_a_tension_on_a_cymbal_are_refused_on_t
     """Real physics and sound cores as nodes: the panel's pause (nothing plays) and tension on the crash (a cymbal
     has no tension) come back as the services' refusals, printed by the panel."""
     require_pd()
-    from services.physics.core import PhysicsCore
-    from services.sound.core import SoundCore, SoundSettings
 
     async def main() -> None:
-        physics = Recorder(PhysicsCore())
-        sound = Recorder(SoundCore(SoundSettings(use_pyo=False)))
-        nodes = []
-        for role, core in (("physics", physics), ("sound", sound)):
-            node = Node(core, load_settings({"role": role, "discovery": False,  # type: ignore[arg-type]
-                                             "clock_master": "self", "oscquery": False}))
-            nodes.append(node)
-            await node.start()
-        pport, sport = (n.endpoint.port for n in nodes if n.endpoint is not None)
-        sends = [f"bp-port-score {pport}", f"bp-port-sound {sport}", "bp-transport symbol pause",
-                 "bp-instrument symbol crash", "bp-tension 800"]
-        pd = PdProcess(PD_DIR / "control.pd", sends=sends)
-        try:
-            await wait_for(lambda: len(refusals(pd)) >= 2)
-        finally:
-            pd.stop()
-            for node in nodes:
-                await node.stop()
+        async with physics_and_sound_nodes() as rig:
+            physics, sound = rig.physics, rig.sound
+            sends = [f"bp-port-score {rig.physics_port}", f"bp-port-sound {rig.sound_port}",
+                     "bp-transport symbol pause", "bp-instrument symbol crash", "bp-tension 800"]
+            pd = PdProcess(PD_DIR / "control.pd", sends=sends)
+            try:
+                await wait_for(lambda: len(refusals(pd)) >= 2)
+            finally:
+                pd.stop()
         assert physics.of(ScoreTransport)[-1].action == "pause"
         assert sound.of(SoundTension)[-1].instrument == "crash"
         got = dict(refusals(pd))

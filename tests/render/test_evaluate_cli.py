@@ -8,7 +8,6 @@ import json
 import os
 import pty
 import re
-import select
 import signal
 import subprocess
 import sys
@@ -20,6 +19,7 @@ import pytest
 
 from batteur import evaluate
 from batteur.impact_log import COLUMNS
+from tests.render.terminal import read_terminal
 
 ROOT = Path(__file__).resolve().parents[2]
 TINY = "tempo 120\nmeter 4/4\nSN |x.x.|\n"
@@ -154,16 +154,6 @@ def test_a_finished_render_is_kept_when_the_next_is_given_up(tmp_path: Path, mon
     assert sorted(p.name for p in renders.iterdir()) == ["first"]
 
 
-def _read(fd: int, timeout_s: float) -> str:
-    ready, _, _ = select.select([fd], [], [], timeout_s)
-    if not ready:
-        return ""
-    try:
-        return os.read(fd, 65536).decode(errors="replace")
-    except OSError:  # EIO: every process holding the terminal has exited
-        return ""
-
-
 @pytest.mark.slow
 @pytest.mark.timeout(600)
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="a pty and process groups as on Linux")
@@ -183,12 +173,12 @@ def test_ctrl_c_to_the_process_group_leaves_no_renders_folder_behind(tmp_path: P
     try:
         deadline = time.monotonic() + WAIT_S
         while proc.poll() is None and time.monotonic() < deadline and not re.search(r"rendering rock\.txt \[", shown):
-            shown += _read(terminal, 0.1)
+            shown += read_terminal(terminal, 0.1)
         assert proc.poll() is None and "rendering rock.txt [" in shown, shown[-2000:]
         assert renders.is_dir()  # the render is under way inside it
         os.killpg(proc.pid, signal.SIGINT)
         assert proc.wait(timeout=WAIT_S) == 130
-        shown += _read(terminal, 1.0)
+        shown += read_terminal(terminal, 1.0)
     finally:
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)

@@ -15,7 +15,6 @@ from __future__ import annotations
 import os
 import pty
 import re
-import select
 import signal
 import subprocess
 import sys
@@ -23,6 +22,8 @@ import time
 from pathlib import Path
 
 import pytest
+
+from tests.render.terminal import read_terminal
 
 ROOT = Path(__file__).resolve().parents[2]
 BAR = re.compile(r"rendering rock\.txt \[[# ]*\]\s+\d+% ([0-9.]+) s")
@@ -32,17 +33,6 @@ BARS = ("reading ", "planning ", "rendering ", "pybullet build time")
 loaded (in each process)."""
 WAIT_S = 240.0
 """A bound on each wait (the bar, the exit), not a measured figure: the machine may be loaded."""
-
-
-def _read(fd: int, timeout_s: float) -> str:
-    """What the terminal shows within ``timeout_s`` (empty once the other side is closed)."""
-    ready, _, _ = select.select([fd], [], [], timeout_s)
-    if not ready:
-        return ""
-    try:
-        return os.read(fd, 65536).decode(errors="replace")
-    except OSError:  # EIO: every process holding the terminal has exited
-        return ""
 
 
 def _group_gone(pgid: int) -> bool:
@@ -73,7 +63,7 @@ def test_ctrl_c_to_the_process_group_stops_a_segmented_render_in_one_line(tmp_pa
     try:
         deadline = time.monotonic() + WAIT_S
         while proc.poll() is None and time.monotonic() < deadline:
-            shown += _read(terminal, 0.1)
+            shown += read_terminal(terminal, 0.1)
             done = [float(s) for s in BAR.findall(shown)]
             if done and (when == "starting" or max(done) > 0):
                 break
@@ -81,8 +71,8 @@ def test_ctrl_c_to_the_process_group_stops_a_segmented_render_in_one_line(tmp_pa
         os.killpg(proc.pid, signal.SIGINT)
         deadline = time.monotonic() + WAIT_S
         while proc.poll() is None and time.monotonic() < deadline:
-            shown += _read(terminal, 0.1)
-        while chunk := _read(terminal, 0.5):  # what was written just before the exit
+            shown += read_terminal(terminal, 0.1)
+        while chunk := read_terminal(terminal, 0.5):  # what was written just before the exit
             shown += chunk
     finally:
         if proc.poll() is None:
