@@ -100,15 +100,14 @@ class LimbTrack(Track):
         it replaces and ``strikes`` (the span's own, in time order, from ``times[0]`` to before ``until``) take
         their place; the strikes before and from ``until`` on stay. Everything is checked first: a refused call
         leaves the track and its strikes as they were."""
-        t = np.asarray(times, dtype=float).reshape(-1)
-        self.check_span(t, values, velocities, until)
+        t, v, d = self.check_span(np.asarray(times, dtype=float).reshape(-1), values, velocities, until)
         for k, strike in enumerate(strikes):
             if not (t[0] <= strike.time < until) or (k and strike.time <= strikes[k - 1].time):
                 raise ValueError("a span's strikes must be in time order, from its first knot to before `until`")
             _check_strike(strike)
         kept = bisect.bisect_left(self._times, until)
         tail = self.strikes[kept:], self._times[kept:], self._bottoms[kept:]
-        super().replace_span(t, values, velocities, until)  # its add at times[0] drops the strikes from there on
+        self._replace_checked(t, v, d, until)  # its add at times[0] drops the strikes from there on
         for strike in strikes:
             self.add_strike(strike)
         self.strikes += tail[0]

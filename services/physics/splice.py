@@ -10,7 +10,6 @@ checked (reach, each track's room) before any track changes. Times are rig secon
 
 from __future__ import annotations
 
-import bisect
 import dataclasses
 import math
 from typing import TYPE_CHECKING
@@ -143,15 +142,17 @@ def join_time(track: Track, traj: LimbTrajectory, after: float, until: float) ->
     if hi <= lo or not len(track):
         return None
     times = traj.times[lo:hi]
-    a = bisect.bisect_left(track.times, float(times[0]) - KNOT_TIME_S)  # only the queued knots of the span
-    b = min(bisect.bisect_right(track.times, float(times[-1]) + KNOT_TIME_S) + 1, len(track))
+    first, last = float(times[0]) - KNOT_TIME_S, float(times[-1]) + KNOT_TIME_S
+    knot_times, knot_values, knot_velocities = track.knots(first, last)  # only the queued knots of the span
+    a = int(np.searchsorted(knot_times, first, side="left"))
+    b = min(int(np.searchsorted(knot_times, last, side="right")) + 1, len(knot_times))
     if b <= a:
         return None
-    queued = np.asarray(track.times[a:b])
+    queued = knot_times[a:b]
     idx = np.minimum(np.searchsorted(queued, times - KNOT_TIME_S), len(queued) - 1)
     shared = np.abs(queued[idx] - times) <= KNOT_TIME_S
-    dp = np.abs(np.asarray(track.values[a:b])[idx] - traj.positions[lo:hi]).max(axis=1)
-    dv = np.abs(np.asarray(track.velocities[a:b])[idx] - traj.velocities[lo:hi]).max(axis=1)
+    dp = np.abs(knot_values[a:b][idx] - traj.positions[lo:hi]).max(axis=1)
+    dv = np.abs(knot_velocities[a:b][idx] - traj.velocities[lo:hi]).max(axis=1)
     bad = np.flatnonzero(~(shared & (dp <= AGREE_M) & (dv <= AGREE_M_S)))
     gaps = np.flatnonzero(np.diff(idx) != 1) + 1  # a queued knot the plan lacks (or the reverse) before these
     start = max(int(bad[-1]) + 1 if bad.size else 0, int(gaps[-1]) if gaps.size else 0)
@@ -166,13 +167,14 @@ def agrees(track: Track, traj: LimbTrajectory, t_s: float, until: float) -> bool
     if not len(track):
         return False
     until = max(until, t_s)
-    a = max(bisect.bisect_right(track.times, t_s) - 1, 0)  # the queued knots that shape [t_s, until]
-    b = min(bisect.bisect_left(track.times, until) + 1, len(track))
-    queued = np.asarray(track.times[a:b])
+    knot_times, knot_values, knot_velocities = track.knots(t_s, until)
+    a = max(int(np.searchsorted(knot_times, t_s, side="right")) - 1, 0)  # the queued knots that shape [t_s, until]
+    b = min(int(np.searchsorted(knot_times, until, side="left")) + 1, len(knot_times))
+    queued = knot_times[a:b]
     inner = (traj.times > t_s) & (traj.times < until)
     times = np.unique(np.concatenate([[t_s, until], traj.times[inner], queued[(queued > t_s) & (queued < until)]]))
     p1, v1 = hermite(traj.times, traj.positions, traj.velocities, times)
-    p2, v2 = hermite(queued, np.asarray(track.values[a:b]), np.asarray(track.velocities[a:b]), times)
+    p2, v2 = hermite(queued, knot_values[a:b], knot_velocities[a:b], times)
     return bool(np.abs(p1 - p2).max() <= AGREE_M and np.abs(v1 - v2).max() <= AGREE_M_S)
 
 
@@ -212,15 +214,13 @@ def _splice(traj: LimbTrajectory, t_s: float, p0: np.ndarray, v0: np.ndarray, ro
 
 
 def _append(track: Track, times: np.ndarray, values: np.ndarray, velocities: np.ndarray) -> None:
-    """``Track.extend`` for a plan's knots in one go (checked once: finite, increasing, after the track's end; the
-    caller has checked the track's room, ``Track.check_room``)."""
-    if not (np.all(np.isfinite(times)) and np.all(np.isfinite(values)) and np.all(np.isfinite(velocities))):
-        raise TargetError("plan knots must be finite")
-    if np.any(np.diff(times) <= 0) or times[0] <= track.end_time:
+    """Queue a plan's knots (fresh arrays the caller leaves as they are) after the track's last with
+    ``Track.extend``, which keeps them as arrays until sampling reaches them (not copied into the track's lists
+    knot by knot, in the physics loop); :class:`TargetError` unless they follow the track's end (and as
+    ``extend``: finite, increasing, room)."""
+    if times[0] <= track.end_time:
         raise TargetError("plan knot times must increase and follow the splice")
-    track.times.extend(float(t) for t in times)
-    track.values.extend(np.array(values, dtype=float))
-    track.velocities.extend(np.array(velocities, dtype=float))
+    track.extend(times, values, velocities)
 
 
 def check_room(scene: DrummerScene, t_s: float, count: int) -> None:

@@ -12,9 +12,11 @@ A batch of knots (:meth:`Track.extend`, e.g. a whole gesture plan) is kept as
 the batch's own arrays, and its knots are taken into the track's lists only as
 sampling comes within one knot of them: copied knot by knot (two small arrays
 each), a plan took 0.32 kB a knot, all of it from the start (10 MB per minute
-of a Groove beat in a render). Reading ``times``, ``values`` or ``velocities``
-takes every queued knot into those lists at once (callers that read or edit
-them, e.g. the score player's splices).
+of a Groove beat in a render). The score player's splices take in only the
+knots of their window too (:meth:`Track.knots`, :meth:`Track.replace_span`,
+which keeps the queued arrays after the window as they are). Reading
+``times``, ``values`` or ``velocities`` takes every queued knot into those
+lists at once (for callers that read or edit them all, e.g. tests).
 
 A track holds at most ``max_knots`` knots (default :data:`MAX_TRACK_KNOTS`, a
 24 h plan of the densest music with margin): a knot, or a batch of knots, that
@@ -145,6 +147,18 @@ class Track:
             return
         self._take(ahead.count_before(t, side="right") + 1)
 
+    def knots(self, start: float, end: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The queued knots that sampling at times from ``start`` to ``end`` seconds uses: from the last knot at
+        or before ``start`` (the first if none is) to the first knot after ``end`` (the last if none is), as
+        times (n,) s, values (n, dim) and velocities (n, dim) (copies). Takes in only the knots up to the first
+        after ``end``; a plan's later knots stay in its arrays."""
+        self._reach(end)
+        times = self._knot_times
+        a = max(bisect.bisect_right(times, start) - 1, 0)
+        b = min(bisect.bisect_right(times, end) + 1, len(times))
+        return (np.array(times[a:b], dtype=float), np.array(self._knot_values[a:b], dtype=float).reshape(-1, self.dim),
+                np.array(self._knot_velocities[a:b], dtype=float).reshape(-1, self.dim))
+
     def _count_before(self, time: float) -> int:
         """How many queued knots are before ``time`` seconds."""
         kept = bisect.bisect_left(self._knot_times, time)
@@ -232,9 +246,15 @@ class Track:
         values (N, dim), velocities (N, dim), all before ``until``; the knots before ``times[0]`` and from ``until``
         on stay (a re-plan of a window that re-joins the queued plan). As :meth:`add` at ``times[0]`` (which a
         subclass may extend) followed by the rest of the knots and the kept tail. Everything is checked before
-        the track changes: a refused batch leaves it as it was."""
+        the track changes: a refused batch leaves it as it was. Only the knots up to the first after ``until``
+        are taken into the lists; a plan's knots after it stay in its arrays."""
         t, v, d = self.check_span(times, values, velocities, until)
-        self._take_all()
+        self._replace_checked(t, v, d, until)
+
+    def _replace_checked(self, t: np.ndarray, v: np.ndarray, d: np.ndarray, until: float) -> None:
+        """:meth:`replace_span` of a span :meth:`check_span` has just passed (as float arrays)."""
+        self._reach(until)  # every knot before ``until`` in the lists; the queued arrays after it stay as they are
+        ahead, self._ahead = self._ahead, None
         tail = bisect.bisect_left(self._knot_times, until)
         kept_times, kept_values = self._knot_times[tail:], self._knot_values[tail:]
         kept_velocities = self._knot_velocities[tail:]
@@ -245,6 +265,7 @@ class Track:
         self._knot_times.extend(kept_times)
         self._knot_values.extend(kept_values)
         self._knot_velocities.extend(kept_velocities)
+        self._ahead = ahead
 
     def clear(self) -> None:
         self._knot_times.clear()
