@@ -178,11 +178,12 @@ def make_core(settings: NodeSettings, args: argparse.Namespace) -> GraphicsCore:
 
 
 def own_clock_for_preview(settings: NodeSettings) -> None:
-    """A preview (``--preview``, ``--preview-score``) needs no physics: the node is its own clock master unless
-    the clock master was set (flag, environment, config file); else it waited 3 s for physics at start and warned
-    that rig time would jump."""
-    previewing = isinstance(settings, GraphicsNodeSettings) and bool(settings.preview or settings.preview_score)
-    if previewing and "clock_master" not in settings.model_fields_set:
+    """A preview (``--preview``, ``--preview-score``) or the synthetic drummer (``--synthetic``) needs no physics:
+    the node is its own clock master unless the clock master was set (flag, environment, config file); else it
+    waited 3 s for physics at start and warned that rig time would jump."""
+    without_physics = isinstance(settings, GraphicsNodeSettings) and bool(
+        settings.preview or settings.preview_score or settings.synthetic)
+    if without_physics and "clock_master" not in settings.model_fields_set:
         settings.clock_master = "self"
 
 

@@ -61,3 +61,11 @@ def test_the_helper_leaves_other_settings_alone() -> None:
     before = settings.model_dump(exclude={"clock_master"})
     graphics_node.own_clock_for_preview(settings)
     assert settings.clock_master == "self" and settings.model_dump(exclude={"clock_master"}) == before
+
+
+def test_the_synthetic_drummer_is_its_own_clock_master(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``--synthetic`` (a demo without physics) also waited 3 s for physics and warned that rig time would jump."""
+    monkeypatch.delenv("BATTEUR_CLOCK_MASTER", raising=False)
+    monkeypatch.delenv("BATTEUR_CONFIG", raising=False)
+    assert clock_master_of(["--synthetic"], monkeypatch) == "self"
+    assert clock_master_of(["--synthetic", "--clock-master", "physics"], monkeypatch) == "physics"

@@ -7,7 +7,7 @@ import { OrbitControls } from "three/examples/jsm/controls/OrbitControls.js";
 const state = {
   kit: null, names: [], parents: [], view: null, status: null, frames: 0, fps: 0, lastFpsT: performance.now(),
   connected: false, ws: null, retry: 0, lastFrame: null, trails: new Map(), plot: [], hits: [],
-  poser: null, editing: false,
+  poser: null, editing: false, nodeKit: null, pendingKit: null,
 };
 window.batteur = state; // for tests and the console
 
@@ -478,9 +478,7 @@ function send(msg) { // false when the node is not connected (the message is dro
 
 function onMessage(m) {
   switch (m.type) {
-    case "kit": state.kit = m.kit; buildKit(m.kit); buildEditorKit();
-      if (state.names.length) buildSkeleton(state.names, state.parents);
-      break;
+    case "kit": onKit(m.kit); break;
     case "skeleton": state.names = m.names; state.parents = m.parents; buildSkeleton(m.names, m.parents); break;
     case "view": applyView(m); break;
     case "frame":
@@ -542,6 +540,37 @@ function kitSlider(parent, label, value, min, max, step, unit, onChange, limits 
   row.append(label, range, field);
   parent.append(row);
 }
+// state.kit is the kit the page draws and edits, state.nodeKit the node's kit it was loaded from. The node sends
+// its kit on every (re)connect, after a restart and when a page saves: it replaces the page's only when that
+// drops no edit; otherwise it waits (state.pendingKit) and the editor offers to load it.
+const sameKit = (a, b) => JSON.stringify(a) === JSON.stringify(b);
+function onKit(kit) {
+  const edited = state.kit !== null && !sameKit(state.kit, state.nodeKit);
+  if (sameKit(kit, state.kit)) { // already shown (this page's own save, a reconnect): nothing to redraw
+    state.nodeKit = kit;
+    state.pendingKit = null;
+  } else if (edited) {
+    state.pendingKit = sameKit(kit, state.nodeKit) ? null : kit; // the kit the edits started from: nothing new
+  } else {
+    loadKit(kit);
+  }
+  showKitNotice();
+}
+function loadKit(kit) { // show the node's kit, dropping the page's edits
+  state.kit = kit;
+  state.nodeKit = JSON.parse(JSON.stringify(kit)); // state.kit is edited in place
+  state.pendingKit = null;
+  buildKit(kit);
+  buildEditorKit();
+  if (state.names.length) buildSkeleton(state.names, state.parents);
+  showKitNotice();
+}
+function showKitNotice() {
+  document.getElementById("kit-notice").classList.toggle("hidden", !state.pendingKit);
+}
+document.getElementById("kit-load").addEventListener("click", () => {
+  if (state.pendingKit) loadKit(state.pendingKit);
+});
 const kitSelect = document.getElementById("kit-object");
 function buildEditorKit() {
   if (!state.kit) return;
@@ -564,10 +593,14 @@ function buildKitSliders() {
     [0.001, 1.0]);
 }
 kitSelect.addEventListener("change", buildKitSliders);
-document.getElementById("kit-save").addEventListener("click", () => {
+function saveKit() {
   const file = document.getElementById("kit-file").value;
   if (send({ type: "save_kit", file, kit: state.kit })) editorMsg(`saving ${file}...`, true);
   else editorMsg("not saved: the node is not connected (reconnecting)", false);
+}
+document.getElementById("kit-save").addEventListener("click", saveKit);
+document.getElementById("kit-file").addEventListener("keydown", (e) => { // Enter saves, as the button does
+  if (e.key === "Enter" && !e.isComposing) saveKit();
 });
 // The pose editor poses physics' 57-DOF body: 19 joints x (x, y, z) degrees, each DOF within physics' limits.
 // The node does the forward kinematics (the frames show the edited body) and, with "drive physics", sends the
