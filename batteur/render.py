@@ -44,6 +44,7 @@ import numpy as np
 import soundfile as sf
 
 from batteur.impact_log import ImpactCsvStream, ImpactLog, write_impacts_csv
+from batteur.interrupts import DeferredCtrlC
 from batteur.progress import Progress
 from batteur.strike import DEFAULT_STRIKES, parse_strikes, run_strikes
 from common.core import Outgoing
@@ -645,8 +646,13 @@ def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: boo
                 result = run_segmented(score, assignment, plan, kit, opts, opts.jobs, segment_s=opts.segment_s,
                                        on_progress=lambda t, total: progress.update(t), outputs=outputs)
             else:
-                result = run_score(score, assignment, plan, kit, opts, on_progress=lambda t, total: progress.update(t),
-                                   outputs=outputs)
+                with DeferredCtrlC() as ctrl_c:  # acted on between steps: inside a numba kernel it became an error
+
+                    def on_progress(t: float, total: float) -> None:
+                        ctrl_c.check()
+                        progress.update(t)
+
+                    result = run_score(score, assignment, plan, kit, opts, on_progress=on_progress, outputs=outputs)
             finished = True
         finally:
             progress.close(finished)

@@ -15,7 +15,7 @@ part of the plan its segment plays (:func:`segment_plan`).
 
 Ctrl-C: a terminal sends SIGINT to the whole process group. The workers ignore
 it from their start (the parent stops their segments through an event), and the
-parent acts on it between its own steps (:class:`_CtrlC`), so the render ends
+parent acts on it between its own steps (:class:`~batteur.interrupts.DeferredCtrlC`), so the render ends
 with its one line and nothing written.
 
 A segmented render is deterministic (the same score and options give the same
@@ -37,7 +37,6 @@ import math
 import multiprocessing
 import os
 import signal
-import threading
 import time
 from collections import deque
 from collections.abc import Callable, Iterator
@@ -47,6 +46,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
+from batteur.interrupts import DeferredCtrlC
 from common.core import Outgoing
 from common.gesture.plan import HeadTrajectory, LimbTrajectory
 from common.messages import OscMessage
@@ -383,39 +383,6 @@ def _sigint_blocked() -> Iterator[None]:
         signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
-class _CtrlC:
-    """While the segments run, a Ctrl-C (SIGINT) is noted instead of raised wherever the parent is: raised in the
-    middle of a talk with the workers (a queue read, the pool's bookkeeping) it could leave the pool waiting for
-    ever. :meth:`check` raises ``KeyboardInterrupt`` at the parent's next safe point (at least every 0.25 s), and
-    leaving the block does if one came after the last check. Outside the main thread signals are not Python's to
-    handle: nothing changes."""
-
-    def __init__(self) -> None:
-        self.noted = False
-        self._previous: Any = None
-
-    def __enter__(self) -> _CtrlC:
-        if threading.current_thread() is threading.main_thread():
-            self._previous = signal.signal(signal.SIGINT, self._note)
-        return self
-
-    def _note(self, signum: int, frame: Any) -> None:
-        self.noted = True
-
-    def check(self, *_: object) -> None:
-        """Raise ``KeyboardInterrupt`` if a Ctrl-C came (arguments ignored: a run's progress callback)."""
-        if self.noted:
-            raise KeyboardInterrupt
-
-    def __exit__(self, kind: type[BaseException] | None, exc: BaseException | None, tb: Any) -> None:
-        if self._previous is not None:
-            signal.signal(signal.SIGINT, self._previous)
-        elif threading.current_thread() is threading.main_thread():
-            signal.signal(signal.SIGINT, signal.default_int_handler)
-        if kind is None:
-            self.check()
-
-
 def default_jobs() -> int:
     """Processes a segmented render uses when asked for all: the CPUs this process may run on."""
     try:
@@ -452,7 +419,7 @@ def run_segmented(score: Score, assignment: Assignment, plan: GesturePlan, kit: 
     try:
         if outputs is not None:
             outputs.attach(sound)
-        with _CtrlC() as ctrl_c:  # the segments' Ctrl-C: acted on between the parent's steps (see _CtrlC)
+        with DeferredCtrlC() as ctrl_c:  # the segments' Ctrl-C: acted on between the parent's steps (see DeferredCtrlC)
             play.check = ctrl_c.check
             queue, stop = context.Queue(), context.Event()
             with contextlib.ExitStack() as stack:
