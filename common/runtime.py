@@ -374,6 +374,8 @@ class Node:
         """True if one of the node's tasks failed (the node then stops)."""
         self.stopped = asyncio.Event()
         self._stop_requested: asyncio.Event | None = None
+        self._stop_early = False
+        """A stop asked for before :meth:`run` bound the loop."""
         self._tasks: list[asyncio.Task[Any]] = []
         self._aio_loop: asyncio.AbstractEventLoop | None = None
         self._loop_thread = 0
@@ -481,6 +483,8 @@ class Node:
             self._aio_loop = asyncio.get_running_loop()
             self._loop_thread = threading.get_ident()
             self._stop_requested = asyncio.Event()
+            if self._stop_early:  # asked before the loop existed (a signal while the node was being made)
+                self._stop_requested.set()
 
     def spawn(self, coro: Coroutine[Any, Any, Any], name: str = "task") -> asyncio.Task[Any]:
         """Run ``coro`` alongside the node; it is cancelled at shutdown, and its failure stops the node."""
@@ -499,8 +503,10 @@ class Node:
             self.request_stop()
 
     def request_stop(self) -> None:
-        """Ask :meth:`run` to shut down (safe from signal handlers and other threads)."""
+        """Ask :meth:`run` to shut down (safe from signal handlers and other threads); asked before :meth:`run`, it
+        stops at once without starting."""
         if self._stop_requested is None or self._aio_loop is None:
+            self._stop_early = True
             return
         if threading.get_ident() == self._loop_thread:
             self._stop_requested.set()
@@ -565,6 +571,8 @@ class Node:
                 except (NotImplementedError, RuntimeError, ValueError):
                     pass
         try:
+            if self._stop_early:  # stopped before it ran (a signal while the node was being made): never listens
+                return
             await self.start()
             if setup is not None:
                 result = setup(self)
@@ -898,6 +906,72 @@ class Node:
 
 # --------------------------------------------------------------------------- command line
 
+class StoppedWhileStarting(BaseException):
+    """Raised in the main thread by SIGINT or SIGTERM while :func:`run_node`'s ``make_core`` runs: it unwinds the
+    core's making, whose code closes what it had started (``except BaseException``, as for Ctrl-C), and the node
+    exits 0 at once. A BaseException, so that ``except Exception`` does not swallow it."""
+
+
+class _StartSignals:
+    """SIGINT/SIGTERM from when the core starts being made until the node's event loop takes them over.
+
+    The default action killed the process: nothing closed what the core had started (physics: its planning
+    processes, whose named semaphores the resource tracker then unlinked with a "leaked semaphore" warning).
+    Waiting for ``make_core`` to end would not do: physics takes 3-6 s to make on a loaded machine, past the
+    rig's stop timeout (4 s). So the first signal raises :class:`StoppedWhileStarting` inside ``make_core``; once
+    raised, or once the core is made (:meth:`forward_to`), a signal only asks the node to stop (an exception there
+    would skip ``core.close``).
+    """
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self) -> None:
+        self.received = False
+        self._stop: Callable[[], None] | None = None
+        self._raise = True
+        self._previous: dict[signal.Signals, Any] = {}
+
+    def install(self) -> None:
+        """Catch SIGINT and SIGTERM (in the main thread; elsewhere they stay as they are)."""
+        for sig in self.SIGNALS:
+            try:
+                self._previous[sig] = signal.signal(sig, self._on_signal)
+            except ValueError:  # not the main thread: signals stay as they were
+                pass
+
+    def _on_signal(self, signum: int, frame: object) -> None:
+        self.received = True
+        if self._stop is not None:
+            self._stop()
+        elif self._raise:
+            self._raise = False  # once: a second signal must not cut the clean-up the first one started
+            raise StoppedWhileStarting(signal.Signals(signum).name)
+
+    def forward_to(self, stop: Callable[[], None]) -> None:
+        """The core is made: from now on a signal calls ``stop`` (at once if one came already)."""
+        self._raise = False
+        self._stop = stop
+        if self.received:
+            stop()
+
+    def restore(self) -> None:
+        """Put back the handlers there were before."""
+        self._raise = False
+        for sig, handler in self._previous.items():
+            signal.signal(sig, handler)
+        self._previous.clear()
+
+
+def _close_core(core: Core) -> None:
+    """``core.close()`` if it has one (a failure logged)."""
+    close = getattr(core, "close", None)
+    if callable(close):
+        try:
+            close()
+        except Exception as exc:
+            log.warning("core close failed: %s", exc)
+
+
 MakeCore = Callable[[NodeSettings, argparse.Namespace], Core]
 AddArguments = Callable[[argparse.ArgumentParser], object]
 _METAVARS = {"peers": "ROLE=HOST:PORT", "interfaces": "ADDRESS", "allow": "NETWORK"}
@@ -1006,12 +1080,39 @@ def run_node(
     logging.basicConfig(
         level=settings.log_level, format="%(asctime)s %(levelname)s %(name)s: %(message)s", stream=sys.stderr
     )
+    signals = _StartSignals()
     try:
-        core = make_core(settings, extra)
-    except (ValueError, SettingsError) as exc:
-        print(f"batteur {role}: {exc}", file=sys.stderr)
-        return 2
-    node = Node(core, settings, discovery_factory=discovery_factory)
+        signals.install()
+        return _make_and_run(role, make_core, settings, extra, signals, setup, discovery_factory)
+    except StoppedWhileStarting as stop:  # before make_core began
+        log.info("%s stopped while starting (%s)", role, stop)
+        return 0
+    finally:
+        signals.restore()
+
+
+def _make_and_run(role: str, make_core: MakeCore, settings: NodeSettings, extra: argparse.Namespace,
+                  signals: _StartSignals, setup: Setup | None, discovery_factory: DiscoveryFactory | None) -> int:
+    """:func:`run_node` once the settings are loaded: make the core, run it as a node; the exit code."""
+    core: Core | None = None
+    try:
+        try:
+            core = make_core(settings, extra)
+        except (ValueError, SettingsError) as exc:
+            print(f"batteur {role}: {exc}", file=sys.stderr)
+            return 2
+        try:
+            node = Node(core, settings, discovery_factory=discovery_factory)
+        except ValueError as exc:  # the settings refused by the node: what the core started is closed
+            _close_core(core)
+            print(f"batteur {role}: {exc}", file=sys.stderr)
+            return 2
+        signals.forward_to(node.request_stop)
+    except StoppedWhileStarting as stop:
+        if core is not None:  # made already: the node was not
+            _close_core(core)
+        log.info("%s stopped while starting (%s)", role, stop)
+        return 0
     try:
         asyncio.run(node.run(install_signal_handlers=True, setup=setup, freeze_gc=True))
     except OSError as exc:

@@ -113,7 +113,11 @@ class LivePhysicsCore(PhysicsCore):
                  **kwargs: Any) -> None:
         super().__init__(settings, **kwargs)
         if self.settings.scene == "drummer":  # the strike scene plays no scores: no worker
-            self.score_player.start_background(self.handle_counted, planner)
+            try:
+                self.score_player.start_background(self.handle_counted, planner)
+            except BaseException:  # a node stopped while starting (StoppedWhileStarting): its processes stop
+                self.close()
+                raise
         self._position_sent = -math.inf
         """Rig time the score's position was last looked at (and sent, if one plays), seconds."""
 
@@ -184,6 +188,19 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace) -> PhysicsCore:
         core = LivePhysicsCore(core_settings)
     except FileNotFoundError as exc:  # a kit, clip or BVH file that is not there
         raise ValueError(str(exc)) from None
+    try:
+        _prepare(core, settings)
+    except ValueError as exc:
+        core.close()
+        raise ValueError(str(exc)) from None
+    except BaseException:  # a node stopped while starting (StoppedWhileStarting): its planning processes stop
+        core.close()
+        raise
+    return core
+
+
+def _prepare(core: PhysicsCore, settings: PhysicsNodeSettings) -> None:
+    """Load now what the first messages and steps would otherwise wait for (seconds), and ``--score``."""
     player = core.score_player
     player.library = [Path(d).expanduser() for d in settings.score_dir]
     if settings.scene == "drummer":
@@ -191,13 +208,8 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace) -> PhysicsCore:
         # compiles the numba kernels now (or loads them from the cache), not in the first live steps
         log.info("physics kernels ready (%.1f s)", warm_up())
     if settings.score:
-        try:
-            player.load(settings.score, trusted=True)  # a command-line path: trusted, unlike a message's
-        except ValueError as exc:
-            core.close()
-            raise ValueError(str(exc)) from None
+        player.load(settings.score, trusted=True)  # a command-line path: trusted, unlike a message's
         player.library.append(Path(settings.score).expanduser().resolve().parent)
-    return core
 
 
 def start_score(node: Node) -> None:

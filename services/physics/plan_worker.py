@@ -12,13 +12,15 @@ stopped, so it finishes the dropped plan alone while a new thread plans the next
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import logging
 import multiprocessing
 import os
 import signal
 import sys
-from collections.abc import Callable
+import threading
+from collections.abc import Callable, Iterator
 from concurrent.futures import BrokenExecutor, Executor, Future, ProcessPoolExecutor, ThreadPoolExecutor
 from typing import TYPE_CHECKING, Any, Literal, TypeVar
 
@@ -110,10 +112,38 @@ def plan_executor(worker: PlanWorker) -> Executor:
         return ThreadPoolExecutor(1, thread_name_prefix="physics-plan")
     # started by the calling thread, whose end the child takes for its parent's (PR_SET_PDEATHSIG): the node's
     # loop thread (or the main thread), which lasts as long as the node
-    pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"),
-                               initializer=_start_planner_process, initargs=(os.getpid(),))
-    pool.submit(int)  # starts the process (and loads the database) now, not with the first plan
+    pool: ProcessPoolExecutor | None = None
+    try:
+        with _stop_signals_held():
+            pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"),
+                                       initializer=_start_planner_process, initargs=(os.getpid(),))
+            pool.submit(int)  # starts the process (and loads the database) now, not with the first plan
+    except BaseException:  # a node stopped while starting (common.runtime.StoppedWhileStarting): none left behind
+        if pool is not None:
+            stop_executor(pool)
+        raise
     return pool
+
+
+@contextlib.contextmanager
+def _stop_signals_held() -> Iterator[None]:
+    """SIGINT and SIGTERM wait for the end of the block, then go to their handler (main thread only): a node's
+    stop raised inside a process pool's start (common.runtime.StoppedWhileStarting) could leave a process the pool
+    does not know of, which printed a traceback (its start data cut short) or which the interpreter waited for
+    at exit."""
+    stops = (signal.SIGINT, signal.SIGTERM)
+    if threading.current_thread() is not threading.main_thread() or any(signal.getsignal(s) is None for s in stops):
+        yield  # no Python handler to hold (or to put back)
+        return
+    held: list[int] = []
+    previous = {sig: signal.signal(sig, lambda signum, _frame: held.append(signum)) for sig in stops}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        if held:
+            signal.raise_signal(held[0])
 
 
 def stop_executor(pool: Executor) -> None:
@@ -133,8 +163,12 @@ class PlanWorkers:
     def __init__(self, worker: PlanWorker = "process") -> None:
         self.kind: PlanWorker = worker
         self._current = plan_executor(worker)
-        self._spare: Executor | None = plan_executor(worker) if worker == "process" else None
-        """A process started (database loaded) beforehand, for the plan after an abandoned one."""
+        try:
+            self._spare: Executor | None = plan_executor(worker) if worker == "process" else None
+            """A process started (database loaded) beforehand, for the plan after an abandoned one."""
+        except BaseException:  # a node stopped while starting: the first worker stops too
+            stop_executor(self._current)
+            raise
         self._closed = False
         self._last: Future[Any] | None = None
         """The latest plan submitted since the last :meth:`abandon` (None: none yet)."""

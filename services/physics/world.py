@@ -50,6 +50,7 @@ class BoundClient(bullet_client.BulletClient):
         # a headless client connected without an options string: with one (the stock client passes ''), pybullet
         # prints "argv[0]=" to the process's stdout for every world, into every render's and tool's output
         self._shapes: dict = {}
+        self._client = -1  # before anything can be interrupted: BulletClient.__del__ reads it
         self._pid = os.getpid()
         self._client = p.connect(p.DIRECT)
 
