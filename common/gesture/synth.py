@@ -12,6 +12,7 @@ Regenerate with ``python -m common.gesture.synth``.
 
 from __future__ import annotations
 
+import argparse
 import json
 from pathlib import Path
 
@@ -143,6 +144,18 @@ def build(out_dir: Path = UNITS_DIR) -> list[Path]:
     return written
 
 
+def main(argv: list[str] | None = None) -> int:
+    """``python -m common.gesture.synth [--out DIR]``: (re)write the units; the shipped ones by default."""
+    parser = argparse.ArgumentParser(prog="python -m common.gesture.synth",
+                                     description="Synthesise the gesture database's units (grip x nuance x tempo, "
+                                     "BVH + JSON; docs/gestures.md) into DIR, the shipped folder by default.")
+    parser.add_argument("--out", type=Path, default=UNITS_DIR, metavar="DIR",
+                        help=f"folder to write the units into (default: {UNITS_DIR})")
+    args = parser.parse_args(argv)
+    paths = build(args.out)
+    print(f"wrote {len(paths)} units to {args.out}")
+    return 0
+
+
 if __name__ == "__main__":
-    paths = build()
-    print(f"wrote {len(paths)} units to {UNITS_DIR}")
+    raise SystemExit(main())

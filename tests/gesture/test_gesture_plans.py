@@ -288,3 +288,19 @@ def test_head_look_at_interpolates_as_np_interp_and_holds_the_ends() -> None:
         assert target.tolist() == expected and nod == np.interp(t, times, head.nod)  # the same bits
     assert head.sample(times[0] - 5.0)[0].tolist() == head.targets[0].tolist()
     assert head.sample(times[-1] + 5.0)[1] == head.nod[-1]
+
+
+def test_the_unit_builder_explains_on_help_and_writes_where_told(tmp_path: Path,
+                                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    """``python -m common.gesture.synth --help`` rebuilt the shipped units instead of explaining; --out writes
+    the same units elsewhere."""
+    from common.gesture import synth
+
+    before = {p.name: p.stat().st_mtime_ns for p in UNITS_DIR.iterdir() if p.suffix in (".bvh", ".json")}
+    with pytest.raises(SystemExit) as done:
+        synth.main(["--help"])
+    assert done.value.code == 0 and "--out" in capsys.readouterr().out
+    assert {p.name: p.stat().st_mtime_ns for p in UNITS_DIR.iterdir() if p.suffix in (".bvh", ".json")} == before
+    assert synth.main(["--out", str(tmp_path)]) == 0
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(before)
+    assert all((tmp_path / name).read_bytes() == (UNITS_DIR / name).read_bytes() for name in before)
