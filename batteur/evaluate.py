@@ -754,7 +754,9 @@ def _main(args: argparse.Namespace) -> int:
 
         cal = fit_calibration(results, fit_kit, base=base_calibration)
         cal.save(args.fit_calibration)
-        print(f"wrote {args.fit_calibration} ({len(cal.timing)} timing offsets)", file=sys.stderr)
+        objects = sum("/" not in key for key in cal.timing)  # an object's offset, and its events' own
+        print(f"wrote {args.fit_calibration} (timing offsets for {objects} kit objects and "
+              f"{len(cal.timing) - objects} of their sounds, velocity maps for {len(cal.velocity)})", file=sys.stderr)
     if args.json:
         print(json.dumps({"files": [r.summary() for r in results], "aggregate": agg,
                           "elapsed_s": round(time.perf_counter() - started, 3)}, indent=2))

@@ -182,3 +182,15 @@ def test_evaluate_lists_the_nuances_it_knows(capsys: pytest.CaptureFixture[str])
     with pytest.raises(SystemExit) as refused:
         evaluate.main([str(SCORE), "--nuance", "bogus"])
     assert refused.value.code == 2 and "staccato" in capsys.readouterr().err
+
+
+def test_a_fitted_calibration_says_what_it_holds(rendered: Path, tmp_path: Path,
+                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    """The message named the offsets' keys as if each were an instrument ("2 timing offsets" for a snare alone:
+    the snare's and its SNARE sound's)."""
+    fitted = tmp_path / "cal.json"
+    assert evaluate.main([str(rendered), "--fit-calibration", str(fitted), "--quiet"]) == 0
+    timing = json.loads(fitted.read_text())["timing_s"]
+    objects = sorted(key for key in timing if "/" not in key)
+    line = [x for x in capsys.readouterr().err.splitlines() if x.startswith(f"wrote {fitted}")][0]
+    assert f"timing offsets for {len(objects)} kit objects and {len(timing) - len(objects)} of their sounds" in line
