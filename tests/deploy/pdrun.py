@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import asyncio
 import queue
 import shutil
 import subprocess
@@ -180,12 +179,3 @@ async def physics_and_sound_nodes() -> AsyncIterator[PanelTargets]:
     finally:
         for node in nodes:
             await node.stop()
-
-
-async def wait_for(condition: Callable[[], bool], timeout: float = 15.0) -> None:
-    """Wait until ``condition()`` holds (AssertionError after ``timeout`` seconds)."""
-    deadline = time.monotonic() + timeout
-    while not condition():
-        if time.monotonic() > deadline:
-            raise AssertionError("timed out waiting")
-        await asyncio.sleep(0.02)

@@ -28,7 +28,8 @@ from common.messages.physics import PhysicsControlMode, PhysicsGrip
 from common.messages.score import GestureStyle, ScoreLoad, ScoreTransport, TempoScale
 from common.messages.sound import SoundDamping, SoundLatency, SoundLevel, SoundModel, SoundModes, SoundTension
 from common.runtime import Node
-from tests.deploy.pdrun import PD_DIR, PdProcess, Recorder, physics_and_sound_nodes, require_pd, three_strikes, wait_for
+from tests.deploy.pdrun import PD_DIR, PdProcess, Recorder, physics_and_sound_nodes, require_pd, three_strikes
+from tests.waiting import wait_for
 
 pytestmark = pytest.mark.timeout(120)
 ROOT = Path(__file__).resolve().parents[2]
@@ -71,7 +72,8 @@ def test_control_panel_drives_physics_and_sound_cores() -> None:
             ]
             pd = PdProcess(PD_DIR / "control.pd", sends=sends)
             try:
-                await wait_for(lambda: len(sound.of(SoundLatency)) >= 1 and len(physics.of(ScoreTransport)) >= 1)
+                await wait_for(lambda: len(sound.of(SoundLatency)) >= 1 and len(physics.of(ScoreTransport)) >= 1,
+                               timeout=15)
             finally:
                 pd.stop()
         assert pd.errors() == [], "\n".join(pd.lines)
@@ -123,7 +125,7 @@ def test_control_panel_drives_the_graphics_view() -> None:
         ]
         pd = PdProcess(PD_DIR / "control.pd", sends=sends)
         try:
-            await wait_for(lambda: len(graphics.of(GraphicsMode)) >= 1)
+            await wait_for(lambda: len(graphics.of(GraphicsMode)) >= 1, timeout=15)
         finally:
             pd.stop()
             await node.stop()

@@ -16,7 +16,8 @@ from common.messages.interaction import InteractionError
 from common.messages.physics import PhysicsControlMode, PhysicsRejected
 from common.messages.score import ScoreTransport
 from common.messages.sound import SoundRejected, SoundTension
-from tests.deploy.pdrun import PD_DIR, PdProcess, physics_and_sound_nodes, require_pd, wait_for
+from tests.deploy.pdrun import PD_DIR, PdProcess, physics_and_sound_nodes, require_pd
+from tests.waiting import wait_for
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -100,7 +101,7 @@ def test_a_pause_with_nothing_playing_and_a_tension_on_a_cymbal_are_refused_on_t
                      "bp-transport symbol pause", "bp-instrument symbol crash", "bp-tension 800"]
             pd = PdProcess(PD_DIR / "control.pd", sends=sends)
             try:
-                await wait_for(lambda: len(refusals(pd)) >= 2)
+                await wait_for(lambda: len(refusals(pd)) >= 2, timeout=15)
             finally:
                 pd.stop()
         assert physics.of(ScoreTransport)[-1].action == "pause"

@@ -10,7 +10,6 @@ long score took the whole rest of the plan into the lists at once, in the physic
 from __future__ import annotations
 
 import copy
-import tracemalloc
 from collections.abc import Callable
 
 import numpy as np
@@ -24,6 +23,7 @@ from services.physics.drummer import DrummerScene
 from services.physics.follow_through import LimbTrack
 from services.physics.splice import agrees, join_time, splice_plan, splice_window
 from services.physics.targets import Track
+from tests.physics.test_track_plan_arrays import traced
 
 N = 100_000
 """Knots of the long plan: 17 min of one limb at the densest plans' rate."""
@@ -37,17 +37,6 @@ def _knots(n: int, seed: int = 1, start: float = 0.5) -> tuple[np.ndarray, np.nd
     rng = np.random.default_rng(seed)
     times = start + np.cumsum(rng.uniform(0.002, 0.018, n))
     return times, rng.normal(size=(n, 3)), rng.normal(size=(n, 3))
-
-
-def _traced(work: Callable[[], object]) -> tuple[object, int]:
-    """What ``work`` returns and the bytes it left allocated (tracemalloc)."""
-    tracemalloc.start()
-    try:
-        before = tracemalloc.get_traced_memory()[0]
-        kept = work()
-        return kept, tracemalloc.get_traced_memory()[0] - before
-    finally:
-        tracemalloc.stop()
 
 
 def _long(make: Callable[[], Track], times: np.ndarray, values: np.ndarray, velocities: np.ndarray,
@@ -84,7 +73,7 @@ def test_replacing_a_span_near_the_start_of_a_long_plan_leaves_the_rest_in_its_a
     rng = np.random.default_rng(5)
     new_values, new_velocities = rng.normal(size=(7, 3)), rng.normal(size=(7, 3))
 
-    _, held = _traced(lambda: track.replace_span(span, new_values, new_velocities, until))
+    _, held = traced(lambda: track.replace_span(span, new_values, new_velocities, until))
     assert held < TAKEN_IN_B, held
     reference.replace_span(span, new_values, new_velocities, until)
     _assert_same_samples(track, reference, times)
@@ -101,7 +90,7 @@ def test_finding_where_a_window_re_joins_reads_only_the_knots_of_the_window() ->
         return (join_time(one, window, after, until), agrees(one, window, float(times[10]), until),
                 agrees(one, window, float(times[30]), until))
 
-    found, held = _traced(lambda: ask(track))
+    found, held = traced(lambda: ask(track))
     assert held < TAKEN_IN_B, held
     assert found == ask(reference) == (float(times[30]), False, True)
     _assert_same_samples(track, reference, times)
@@ -132,7 +121,7 @@ def _splices_take_in_only_their_window(scene: DrummerScene, splice: Callable[[],
     references = {name: copy.deepcopy(track) for name, track in tracks.items()}
     for reference in references.values():
         _ = reference.times  # every knot taken in, as the splices did before
-    _, held = _traced(splice)
+    _, held = traced(splice)
     assert held < TAKEN_IN_B, held
     spliced = {name: scene.limb_tracks[name] for name in tracks}
     scene.limb_tracks.update(references)

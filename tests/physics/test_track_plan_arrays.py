@@ -36,7 +36,7 @@ def _one_by_one(times: np.ndarray, values: np.ndarray, velocities: np.ndarray) -
     return track
 
 
-def _traced(work: Callable[[], object]) -> tuple[object, int]:
+def traced(work: Callable[[], object]) -> tuple[object, int]:
     """What ``work`` returns and the bytes it left allocated (tracemalloc)."""
     tracemalloc.start()
     try:
@@ -59,7 +59,7 @@ def test_a_track_holds_a_plans_knots_without_copying_them() -> None:
             track.sample(t)
         return track
 
-    track, held = _traced(load)
+    track, held = traced(load)
     # copied knot by knot: 100,000 x 0.32 kB = 32 MB; now the lists hold the knots about the time in use
     assert held < 200_000, held
     assert len(track) == len(times) - int(np.searchsorted(times, 29.0, side="right")) + 1
@@ -119,7 +119,7 @@ def test_the_drummer_loads_a_long_plan_without_copying_it(scene: DrummerScene) -
         positions = np.repeat(scene.rest_targets[name][None, :], n, axis=0)
         trajectories[Limb(name)] = LimbTrajectory(Limb(name), times, positions, np.zeros((n, 3)))
     plan = GesturePlan(trajectories=trajectories, strokes=[], start_time=0.5, end_time=0.5 + 0.01 * (n - 1))
-    _, held = _traced(lambda: scene.load_plan(plan, 0.5, now=0.0))
+    _, held = traced(lambda: scene.load_plan(plan, 0.5, now=0.0))
     # copied knot by knot: 4 x 50,000 x 0.32 kB = 64 MB; now the rig times of the knots (8 bytes each) and a few
     assert held < 4 * n * 8 + 500_000, held
     assert all(len(track) == n + 2 for name, track in scene.limb_tracks.items() if name.endswith("hand"))
