@@ -127,7 +127,7 @@ def test_a_recording_folder_that_cannot_be_made_is_a_one_line_error(no_rig: None
     # /proc passes the writability check as root, and still no folder can be made in it
     err = refused(["--no-discovery", "--services", "sound", "--base-port", str(free_port()),
                    "--record", "/proc/batteur-rig-test/out"], capsys)
-    assert err.startswith("batteur rig: --record /proc/batteur-rig-test/out: cannot create it")
+    assert err.startswith("batteur rig: --record /proc/batteur-rig-test/out: cannot create a folder in /proc")
 
 
 def test_a_folder_named_demo_does_not_hide_the_demo_groove(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

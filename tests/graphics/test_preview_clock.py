@@ -24,6 +24,9 @@ class StartedNode:
         self.started.append(settings)
         self.failed = False
 
+    def request_stop(self) -> None:
+        """What a signal once the core is made calls (common.runtime.run_node)."""
+
     async def run(self, **kwargs: Any) -> None:
         return None
 

@@ -34,7 +34,7 @@ def test_segments_cut_at_multiples_and_a_short_tail_joins_the_last() -> None:
     assert [(s.start_s, s.end_s) for s in plan_segments(80.0, 30.0, 3.0)] == [(0.0, 30.0), (30.0, 60.0),
                                                                                  (60.0, 80.0)]
     assert len(plan_segments(5.0, 30.0, 3.0)) == 1
-    with pytest.raises(ValueError, match="must be > 0"):
+    with pytest.raises(ValueError, match="must be finite and > 0"):
         plan_segments(10.0, 0.0)
     with pytest.raises(ValueError, match="warm-up"):
         plan_segments(10.0, 5.0, 0.2)
