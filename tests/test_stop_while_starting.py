@@ -24,6 +24,7 @@ import pytest
 from common.config import load_settings
 from common.runtime import Node, run_node
 from tests.null_core import NullCore
+from tests.waiting import until
 
 pytestmark = [pytest.mark.timeout(300),
               pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc as on Linux")]
@@ -85,22 +86,13 @@ def _semaphores(pid: int) -> set[str]:
     return {line.split()[-1] for line in maps.splitlines() if "/dev/shm/sem." in line}
 
 
-def _until(condition: Callable[[], bool], timeout_s: float) -> bool:
-    deadline = time.monotonic() + timeout_s
-    while not condition():
-        if time.monotonic() > deadline:
-            return False
-        time.sleep(0.01)
-    return True
-
-
 def test_a_physics_node_stopped_while_its_core_is_made_closes_it_and_exits_cleanly() -> None:
     command = [sys.executable, "-m", "batteur", "physics", "--port", str(_free_port()), "--host", "127.0.0.1",
                "--no-discovery", "--no-oscquery", "--pose-rate-hz", "0", "--node-id", "physics-stop-test"]
     node = subprocess.Popen(command, cwd=ROOT, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, start_new_session=True)  # as the rig starts it
     try:
-        assert _until(lambda: len(_planners(node.pid)) >= PLANNERS or node.poll() is not None, 120.0)
+        assert until(lambda: len(_planners(node.pid)) >= PLANNERS or node.poll() is not None, 120.0, poll_s=0.01)
         assert node.poll() is None, "the node exited before its planning processes ran"
         time.sleep(0.3)  # past the planning pools' own start, into the gesture database's loading
         semaphores = _semaphores(node.pid)
@@ -118,7 +110,7 @@ def test_a_physics_node_stopped_while_its_core_is_made_closes_it_and_exits_clean
     assert node.returncode == 0, err[-3000:]
     assert "leaked semaphore" not in err, err[-3000:]
     assert not [s for s in semaphores if Path(s).exists()]  # no named semaphore left in /dev/shm either
-    assert _until(lambda: not _processes(lambda fields: int(fields[2]) == node.pid), 30.0), \
+    assert until(lambda: not _processes(lambda fields: int(fields[2]) == node.pid), 30.0, poll_s=0.01), \
         "a process of the node's group outlived it"
 
 

@@ -25,6 +25,7 @@ from common.gesture.plan import GesturePlan
 from common.messages.physics import PhysicsReset
 from common.messages.score import ScoreLoad, ScoreTransport
 from services.physics.node import LivePhysicsCore
+from tests.waiting import until
 
 SCORES = Path(__file__).parents[1] / "render"
 SCORE = "short_groove.txt"  # two bars: a plan of milliseconds
@@ -76,15 +77,6 @@ def _children() -> dict[int, str]:
     return out
 
 
-def _until(condition: Callable[[], bool], timeout_s: float = 20.0) -> bool:
-    deadline = time.monotonic() + timeout_s
-    while not condition():
-        if time.monotonic() > deadline:
-            return False
-        time.sleep(0.02)
-    return True
-
-
 @pytest.fixture
 def release(tmp_path: Path) -> Iterator[Path]:
     path = tmp_path / "release"
@@ -106,7 +98,7 @@ def _play_held_then_reset_then_play(core: LivePhysicsCore, release: Path) -> boo
     player = core.score_player
     _hold_next_plan(core, release)
     assert core.handle(ScoreTransport(action="play", time=0.0, position=0.0), 0.1, SENDER) == []
-    assert _until(release.with_name("started").exists, 60.0) and player.busy
+    assert until(release.with_name("started").exists, 60.0) and player.busy
     assert core.handle(PhysicsReset(time=0.1), 0.1, SENDER) == []
     assert core.handle(ScoreTransport(action="play", time=0.0, position=0.0), 0.1, SENDER) == []
     ready = player.wait(READY_S)
@@ -150,7 +142,7 @@ def test_a_divergence_drops_the_plan_in_flight_and_the_next_plan_does_not_wait_f
         core.handle(PhysicsReset(time=core.time), core.time, SENDER)  # at rest: the divergence's reset restores it
         _hold_next_plan(core, release)
         assert core.handle(ScoreTransport(action="play", time=0.0, position=0.0), core.time, SENDER) == []
-        assert _until(release.with_name("started").exists, 60.0) and player.busy
+        assert until(release.with_name("started").exists, 60.0) and player.busy
         trunk = core.scene.body.parts[0]  # type: ignore[attr-defined]
         core.world.client.resetJointState(trunk.id, trunk.state_joints[5], float("nan"), 0.0)
         for _ in range(200):
@@ -178,12 +170,12 @@ def test_the_planning_processes_are_reaped_after_a_reset_and_end_with_the_core(r
         core.step(core.time + 0.001)
         planners = set(_children()) - set(before)
         assert _play_held_then_reset_then_play(core, release)
-        assert _until(lambda: len(set(_children()) - set(before)) == len(planners)), _children()
+        assert until(lambda: len(set(_children()) - set(before)) == len(planners)), _children()
         now = {pid: state for pid, state in _children().items() if pid not in before}
         assert "Z" not in now.values() and len(now) == 2 and len(set(now) & planners) == 1, (planners, now)
     finally:
         core.close()
-    assert _until(lambda: set(_children()) <= set(before)), (before, _children())
+    assert until(lambda: set(_children()) <= set(before)), (before, _children())
 
 
 def test_closing_the_core_ends_a_planning_process_in_the_middle_of_a_plan(release: Path) -> None:
@@ -195,10 +187,10 @@ def test_closing_the_core_ends_a_planning_process_in_the_middle_of_a_plan(releas
     try:
         _hold_next_plan(core, release)
         assert core.handle(ScoreTransport(action="play", time=0.0, position=0.0), 0.0, SENDER) == []
-        assert _until(release.with_name("started").exists, 60.0) and player.busy
+        assert until(release.with_name("started").exists, 60.0) and player.busy
     finally:
         core.close()
-    assert _until(lambda: set(_children()) <= set(before)), (before, _children())
+    assert until(lambda: set(_children()) <= set(before)), (before, _children())
     assert not release.exists()  # ended well before the held plan would have
 
 
@@ -235,4 +227,4 @@ def test_the_planning_processes_end_when_the_node_is_killed() -> None:
     finally:
         node.send_signal(signal.SIGKILL)
         node.wait()
-    assert _until(lambda: all(_dead(pid) for pid in planners)), [(p, _dead(p)) for p in planners]
+    assert until(lambda: all(_dead(pid) for pid in planners)), [(p, _dead(p)) for p in planners]
