@@ -69,6 +69,11 @@ FOOT_BALL_ALONG = 0.65
 """The ball of the foot presses a footboard this far along it from the heel (fraction of its length)."""
 
 
+DEFAULT_SEAT_M: Vec3 = (0.0, 0.0, 0.52)
+"""Where the drummer sits on a kit without a throne object, metres (the shipped kits' throne): the seat point of
+the body (services/physics/drummer.py) and the origin of the planner's reach (common/score/limbs.py)."""
+
+
 HIHAT_CLOSED_GAP_M = 0.0016
 """Gap between a closed hi-hat's plates, metres: the physics' collision margins keep them this far apart when the
 pedal clamps them together (services/physics/kitbodies.py); the top plate's surface is this plus its thickness
@@ -270,6 +275,11 @@ class Kit(_Strict):
             return self.events[event]
         except KeyError:
             raise KeyError(f"kit {self.name!r} does not play {event.value}") from None
+
+    def seat_position(self) -> Vec3:
+        """Where the drummer sits, metres: the throne object's position, else :data:`DEFAULT_SEAT_M`."""
+        throne = next((o for o in self.objects if o.kind == "throne"), None)
+        return DEFAULT_SEAT_M if throne is None else throne.position
 
     def object_for(self, event: EventType, pitch: int | None = None) -> KitObject:
         """The object struck for ``event`` (a pitch in ``note_objects`` overrides it)."""

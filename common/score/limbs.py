@@ -31,7 +31,7 @@ import numpy as np
 
 from common.gcpause import cyclic_gc_paused
 from common.gesture.plan import FeasibilityIssue, IssueAction, IssueReason, Nuance
-from common.kit import EventType, Kit, Limb
+from common.kit import DEFAULT_SEAT_M, EventType, Kit, Limb, Vec3
 from common.score.events import DrumEvent, Score
 from common.score.hands import PROGRESS_EVERY, HandAlgorithm, HandNote, Sticking, assign_hands, crossed
 from common.score.rebound import Interval, Stroke, classify, rebound_gap, why_too_fast
@@ -43,9 +43,21 @@ SIMULTANEITY = 0.015
 """Events closer than this (seconds) are played at the same time."""
 HARD_MIN_INTERVAL = 0.03
 """A limb cannot repeat a stroke faster than this (seconds): such notes are dropped."""
-SHOULDERS = {Limb.LEFT_HAND: (-0.19, 0.05, 1.30), Limb.RIGHT_HAND: (0.19, 0.05, 1.30)}
+SHOULDERS: dict[Limb, Vec3] = {Limb.LEFT_HAND: (-0.19, 0.05, 1.30), Limb.RIGHT_HAND: (0.19, 0.05, 1.30)}
+"""Shoulders (metres) of the drummer seated at :data:`common.kit.DEFAULT_SEAT_M` (the shipped kits' throne); on
+another kit they move with its throne (:func:`shoulders`)."""
 REACH = 1.15
 """Shoulder-to-stick-tip reach (metres): arm, stick and some lean of the trunk."""
+HIPS: dict[Limb, Vec3] = {Limb.LEFT_FOOT: (-0.09, 0.05, 0.61), Limb.RIGHT_FOOT: (0.09, 0.05, 0.61)}
+"""Hip joint centres (metres) of a 1.75 m drummer seated at :data:`common.kit.DEFAULT_SEAT_M`, where physics bases
+the legs (services/physics/character.py: half the hip width, 0.105 x stature, to each side, 0.05 m forward and
+0.09 m above the seat point); on another kit they move with its throne (:func:`hips`)."""
+FOOT_REACH = 1.02
+"""Hip-to-ball-of-the-foot reach (metres) of a 1.75 m drummer, leg straight and toes pointed: thigh 0.424 m + shank
+0.436 m (de Leva's table scaled, services/physics/anthropometry.py) + ankle to the ball of the foot 0.163 m
+(services/physics/character.py). Shorter than the physics' own check (thigh + shank + foot, 1.12 m,
+services/physics/drummer.py ``_reach``), so every pedal target it refuses for the default 1.75 m body is flagged
+here first."""
 PROGRESS_SHARES = (0.08, 0.86)
 """Shares of :func:`distribute`'s progress for its limb rules and its hand assignment (the feasibility check has
 the rest): their shares of its time on a 200,000-note Groove score (8 %, 86 %, 6 %)."""
@@ -340,6 +352,25 @@ def _merge_or_drop(left_out: list[Note], notes: list[Note], kit: Kit, issues: li
     return out
 
 
+def shoulders(kit: Kit) -> dict[Limb, Vec3]:
+    """The shoulders (metres) of the drummer seated on ``kit``'s throne: :data:`SHOULDERS` moved as far as the
+    throne is from :data:`common.kit.DEFAULT_SEAT_M` (the same numbers on the shipped kits, mirrored or not)."""
+    return _from_seat(SHOULDERS, kit)
+
+
+def hips(kit: Kit) -> dict[Limb, Vec3]:
+    """The hip joint centres (metres) of the drummer seated on ``kit``'s throne (:data:`HIPS` moved with it)."""
+    return _from_seat(HIPS, kit)
+
+
+def _from_seat(at_default: dict[Limb, Vec3], kit: Kit) -> dict[Limb, Vec3]:
+    """Points of the body (metres) given for the default seat, moved to ``kit``'s: the body only translates with
+    its throne (physics seats it facing +y whatever the throne's rotation). On the default seat the offsets are 0.0
+    (or -0.0), which leaves every coordinate exactly as given."""
+    dx, dy, dz = (seat - default for seat, default in zip(kit.seat_position(), DEFAULT_SEAT_M, strict=True))
+    return {limb: (x + dx, y + dy, z + dz) for limb, (x, y, z) in at_default.items()}
+
+
 def check_feasibility(assignment: Assignment, kit: Kit, window: float = SIMULTANEITY,
                       progress: ProgressCallback | None = None) -> None:
     """Flag notes beyond human limits; drop strokes a limb cannot repeat at all; mark rebound doubles.
@@ -348,13 +379,23 @@ def check_feasibility(assignment: Assignment, kit: Kit, window: float = SIMULTAN
     event's minTimeGap and not a rebound double (:mod:`common.score.rebound`):
     played anyway, or dropped below ``HARD_MIN_INTERVAL``), ``crossing`` (arms
     crossed for simultaneous stick events) and ``unreachable`` (hit point beyond
-    the arm's reach). A hand's note that is the bounce of a rebound double gets
-    ``Note.rebound = True`` and no issue. ``progress``: called with (notes checked, notes total) every
+    :data:`REACH` of the hand's shoulder, or pedal beyond :data:`FOOT_REACH` of the foot's hip, both where the kit's
+    throne seats the drummer: :func:`shoulders`, :func:`hips`). A hand's note that is the bounce of a rebound double
+    gets ``Note.rebound = True`` and no issue. ``progress``: called with (notes checked, notes total) every
     ``PROGRESS_EVERY`` notes (not at the end); what it raises stops the check.
     """
     kept: list[Note] = []
     last: dict[Limb, Note] = {}
     points: dict[tuple[EventType, int | None], tuple[float, float, float]] = {}
+    shoulder_at = shoulders(kit)
+    hip_at = hips(kit)
+    foot_distances: dict[tuple[EventType, Limb], float] = {}
+
+    def from_hip(event: EventType, foot: Limb) -> float:
+        """Metres from the foot's hip to where it presses the pedal (the planner's target)."""
+        if (event, foot) not in foot_distances:
+            foot_distances[(event, foot)] = math.dist(kit.effector_target(event, foot)[0], hip_at[foot])
+        return foot_distances[(event, foot)]
 
     def point(event: EventType, pitch: int | None) -> tuple[float, float, float]:
         if (event, pitch) not in points:
@@ -407,8 +448,12 @@ def check_feasibility(assignment: Assignment, kit: Kit, window: float = SIMULTAN
                         f"{n.limb.value} {dt * 1000:.0f} ms after its last stroke (minTimeGap {gap * 1000:.0f} ms)",
                     )
                 )
+        if n.limb in FEET and from_hip(n.event, n.limb) > FOOT_REACH:
+            assignment.issues.append(FeasibilityIssue(n.index, n.time, n.event, IssueReason.UNREACHABLE,
+                                                      IssueAction.PLAYED_ANYWAY,
+                                                      f"{from_hip(n.event, n.limb):.2f} m from the hip"))
         if n.limb in HANDS:
-            dist = float(np.linalg.norm(np.array(point(n.event, n.pitch)) - np.array(SHOULDERS[n.limb])))
+            dist = float(np.linalg.norm(np.array(point(n.event, n.pitch)) - np.array(shoulder_at[n.limb])))
             if dist > REACH:
                 assignment.issues.append(
                     FeasibilityIssue(
@@ -455,11 +500,13 @@ def unplayable_instruments(kit: Kit) -> list[str]:
     the kit is loaded: a kit file may place an object anywhere).
 
     An instrument is unplayable when no event type or ``note_objects`` pitch strikes it, when a stick event strikes
-    an object of a kind no stick strikes (a stand), or when a stick event's hit point is beyond a hand's
-    :data:`REACH` from both :data:`SHOULDERS` (what :func:`check_feasibility` flags ``unreachable`` on every such
-    note; mirroring the kit for a left-hander keeps it, the shoulders being symmetric). The physics' own reach
-    (``services/physics/drummer.py``, from the body's measures) is longer, so every hit point it refuses is among
-    these. Foot events are not checked for reach (common/ knows no leg geometry).
+    an object of a kind no stick strikes (a stand), when a stick event's hit point is beyond a hand's
+    :data:`REACH` from both shoulders, or when a pedal is beyond :data:`FOOT_REACH` from the hip of the foot that
+    presses it (what :func:`check_feasibility` flags ``unreachable`` on every such note). Shoulders and hips are
+    where the kit's throne seats the drummer (:func:`shoulders`, :func:`hips`); mirroring the kit for a left-hander
+    mirrors the throne and swaps the feet, so the same instruments are named. The physics' own reach
+    (``services/physics/drummer.py``, from the body's measures) is longer, so every target it refuses is among
+    these.
     """
     from common.score.gm import DRUM_MAP
 
@@ -476,8 +523,13 @@ def unplayable_instruments(kit: Kit) -> list[str]:
         struck.add(object_id)
         if kit.events[mapped].pedal is None:
             strokes.setdefault(object_id, []).append((f"{mapped.value} (pitch {pitch})", mapped, pitch))
+    shoulder_at = shoulders(kit)
+    pedals_far = _pedals_out_of_reach(kit)
     lines: list[str] = []
     for obj in kit.objects:
+        for foot, far_ones in pedals_far.get(obj.id, {}).items():
+            lines.append(f"{obj.id}: out of the {foot.value.replace('_', ' ')}'s reach ({', '.join(far_ones)} from the "
+                         f"hip, a leg reaching {FOOT_REACH:g} m): the planner flags its notes unreachable")
         if obj.id not in struck:
             if obj.kind in STRUCK_KINDS:
                 lines.append(f"{obj.id} ({obj.kind}): no event type or note_objects pitch strikes it")
@@ -490,10 +542,35 @@ def unplayable_instruments(kit: Kit) -> list[str]:
         far = []
         for what, struck_event, struck_pitch in ways:
             point = np.array(kit.hit_point(struck_event, struck_pitch)[0])
-            nearer = min(float(np.linalg.norm(point - np.array(s))) for s in SHOULDERS.values())
+            nearer = min(float(np.linalg.norm(point - np.array(s))) for s in shoulder_at.values())
             if nearer > REACH:
                 far.append(f"{what} {nearer:.2f} m")
         if far:
             lines.append(f"{obj.id}: out of both hands' reach ({', '.join(far)} from the nearer shoulder, a hand "
                          f"reaching {REACH:g} m): the planner flags its notes unreachable")
     return lines
+
+
+def _pedals_out_of_reach(kit: Kit) -> dict[str, dict[Limb, list[str]]]:
+    """Pedal object id -> foot -> its foot events there beyond :data:`FOOT_REACH` from that foot's hip ("EVENT d m").
+
+    The feet are :func:`distribute`'s: each foot event's preferred foot, and with a double pedal the other foot on
+    BASS, which presses the left bass pedal (as :meth:`common.kit.Kit.effector_target` aims it)."""
+    hip_at = hips(kit)
+    out: dict[str, dict[Limb, list[str]]] = {}
+    for event, spec in kit.events.items():
+        if spec.pedal is None:
+            continue
+        feet = [spec.preferred]
+        if event == EventType.BASS and kit.double_pedal:
+            feet.append(Limb.LEFT_FOOT if spec.preferred == Limb.RIGHT_FOOT else Limb.RIGHT_FOOT)
+        for foot in feet:
+            if foot not in hip_at:  # a kit may give a foot event a hand: no leg to measure
+                continue
+            pedal = spec.pedal
+            if event == EventType.BASS and kit.left_bass_pedal is not None and foot != spec.preferred:
+                pedal = kit.left_bass_pedal
+            dist = math.dist(kit.effector_target(event, foot)[0], hip_at[foot])
+            if dist > FOOT_REACH:
+                out.setdefault(pedal, {}).setdefault(foot, []).append(f"{event.value} {dist:.2f} m")
+    return out

@@ -49,7 +49,8 @@ def bar_beat(score: Score, seconds: float) -> BarBeat | None:
     j = int(np.searchsorted(bars, position + 1e-9, side="right")) - 1
     beat = position - float(bars[j])
     if j == len(bars) - 1:  # the last bar ends with the score's beats; after them, bars as long go on (a reader
-        # whose score ends inside a bar puts a last start past the end: the last two starts give the length)
+        # whose score ends inside a bar, or between two beats, puts a last start past the end: the last two starts
+        # give the length)
         length = len(beats) - 1 - float(bars[j])
         if length <= 0:
             length = float(bars[j] - bars[j - 1]) if j > 0 else DEFAULT_BEATS_PER_BAR

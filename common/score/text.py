@@ -366,6 +366,11 @@ def parse_text(text: str, source: str = "text") -> TextScore:
         # block there would start (they went on as short as the rest's bar). The second start, past the end,
         # gives them their length (common.score.position counts on from the last two).
         add_bars(position, 2 * beats_per_bar)
+    if bar_starts and position != math.floor(position) and bar_starts[-1] < position:
+        # a whole last bar ending between two beats (a fractional meter): the beats stop at the last whole one,
+        # which would cut the bar short; a start where it ends gives it and the bars past the end their length
+        # (common.score.position counts on from the last two, as past a MIDI file's end)
+        add_bars(position, last_bar, last_bar)
     kept, removed = remove_duplicates(events)
     beats = np.array([tempo.seconds(b) for b in np.arange(0.0, position + 1e-9, 1.0)])
     score = TextScore(events=kept, beats=beats, bar_beats=np.array(bar_starts, dtype=float), duplicates=removed,
