@@ -213,8 +213,7 @@ class DrummerScene:
         # the rest posture is solved within the DeepMimic limits; the clips of limits_from then replace them
         self.limits = limits if limits is not None else cached_default_limits()
         self.kit_bodies = build_kit(world, kit)
-        throne = next((o for o in kit.objects if o.kind == "throne"), None)
-        self.seat_position = (0.0, 0.0, 0.52) if throne is None else tuple(throne.position)
+        self.seat_position = tuple(kit.seat_position())  # the planner's reach (common/score/limbs.py) starts here too
         self._floor(world)
         lengths = bvh_segment_lengths(settings.skeleton_bvh) if settings.skeleton_bvh else None
         try:
