@@ -2,7 +2,7 @@
 
     batteur physics                                   # the drummer at the default kit, 1 kHz
     batteur physics --scene strike --strike-period 0.5 --strike-velocity 3
-    batteur physics --kit double_pedal --left-handed --control joint_pd --grip german
+    batteur physics --kit double_pedal --left-handed --control joint_pd --grip french
     batteur physics --score groove.mid --play-at 1.0                 # play a score from rig time 1 s
     batteur physics --score-dir ~/scores                              # the score library for /batteur/score/load
 
@@ -63,8 +63,10 @@ class PhysicsNodeSettings(NodeSettings):
     control: ControlModeName = Field(default="cartesian",
                                      description=f"controller at start: {', '.join(get_args(ControlModeName))} "
                                      "(docs/physics.md; /batteur/physics/control switches it live)")
-    grip: GripName = Field(default="american", description=f"grip of both hands at start: "
-                           f"{', '.join(get_args(GripName))} (/batteur/physics/grip changes it live)")
+    grip: GripName = Field(default="german", description=f"grip of both hands at start: "
+                           f"{', '.join(get_args(GripName))}; scores are planned with it where the gesture "
+                           "database has it (french, german), else with german, as batteur render "
+                           "(/batteur/physics/grip changes the hands live, /batteur/score/style hands and plan)")
     floating_base: bool = Field(default=False, description=PhysicsSettings.model_fields["floating_base"].description)
     height_m: float = Field(default=1.75, ge=1.2, le=2.2, description="drummer's height, metres")
     mass_kg: float = Field(default=73.0, ge=35, le=150, description="drummer's mass, kilograms")

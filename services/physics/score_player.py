@@ -34,6 +34,15 @@ control messages (common/messages/score.py):
   reach interaction and sound too, so it is rejected with a clear error
   (restart the rig with ``--kit``).
 
+The **planned grip** (:attr:`ScorePlayer.grip`) starts as the hands' grip
+(``PhysicsSettings.grip``) where the gesture database has it (french, german),
+else german, as ``batteur render`` plans; only ``GestureStyle`` changes it.
+``/batteur/physics/grip`` changes only how the hands hold the sticks (at once,
+the plan in the tracks is kept, nothing is re-planned). A plan made while the
+hands hold another grip than the planned one (american, traditional, or a
+``/batteur/physics/grip`` since) logs a warning naming both, once (again only
+after either grip changes: :meth:`ScorePlayer._check_grip`).
+
 Splicing (services/physics/splice.py: :func:`splice_plan`) replaces each limb's track from a rig time
 ``t_s`` on without a jump: the track's own position and velocity at ``t_s``
 become a knot, then the plan's knots follow. Where the plan already agrees
@@ -195,6 +204,12 @@ class _WindowMissed(Exception):
         self.widen = widen
 
 
+def planned_grip(hands: str) -> Grip:
+    """The grip gestures are planned with for hands holding ``hands``: that grip where the gesture database has it
+    (french, german), else german (american, traditional), as ``batteur render`` plans."""
+    return Grip(hands) if hands in (g.value for g in Grip) else Grip.GERMAN
+
+
 def shortest_unit_period() -> float:
     """The shortest captured gesture unit's inter-onset interval, seconds (the fastest a stroke is prepared)."""
     from common.gesture.database import default_database
@@ -270,8 +285,10 @@ class ScorePlayer:
     def __init__(self, core: PhysicsCore, library: tuple[str | Path, ...] = ()) -> None:
         self.core = core
         self.library: list[Path] = [Path(d) for d in library]
-        grip = core.settings.grip
-        self.grip = Grip(grip) if grip in (g.value for g in Grip) else Grip.GERMAN
+        self.grip = planned_grip(core.settings.grip)
+        """The grip the gestures are planned with (see the module docstring)."""
+        self._grip_warned: tuple[str, str, Grip] | None = None
+        """(left hand's grip, right hand's grip, planned grip) last warned about (:meth:`_check_grip`)."""
         self.nuance = Nuance.TENUTO
         self.algorithm = HandAlgorithm.VITERBI
         self.sticking = Sticking.NONE
@@ -1088,8 +1105,30 @@ class ScorePlayer:
     def _planner(self, events: list[DrumEvent], beats: np.ndarray, lead_in: float) -> Callable[[], GesturePlan]:
         """The planning of rig-timed events with the present style, as a call that reads nothing of the player's
         state (it may run in the worker while the loop changes it; picklable, for a worker process)."""
+        self._check_grip()
         return functools.partial(plan_events, events, beats, lead_in, self.core.kit, self.algorithm, self.sticking,
                                  self.grip, self.nuance)
+
+    def _check_grip(self) -> None:
+        """Warn when the hands hold another grip than the one the gestures are planned with (american,
+        traditional: no gesture units; or a /batteur/physics/grip since the last style), once until either grip
+        changes."""
+        scene = self._maybe_drummer()
+        if scene is None:
+            return
+        left, right = scene.grip["left"], scene.grip["right"]
+        pairing = (left, right, self.grip)
+        if left == right == self.grip.value:
+            self._grip_warned = None  # a later mismatch is news again
+            return
+        if pairing == self._grip_warned:
+            return
+        self._grip_warned = pairing
+        hands = f"the {left} grip" if left == right else f"the {left} (left) and {right} (right) grips"
+        why = ("" if {left, right} <= {g.value for g in Grip} else
+               f" (the gesture database has {' and '.join(g.value for g in Grip)} units only)")
+        log.warning("the drummer's hands hold %s; the gestures are planned with the %s grip%s "
+                    "(/batteur/score/style sets the hands' grip and the planned one)", hands, self.grip.value, why)
 
     def _account(self, plan: GesturePlan) -> GesturePlan:
         """Count and log a plan about to be spliced (its flagged notes)."""
