@@ -222,10 +222,11 @@ def build() -> Patch:
                      "bp-nuance")
     algo = choices(p, 20, y + 205, "hand assignment", ("simple", "pairwise", "viterbi"), "bp-algorithm")
     stick = choices(p, 20, y + 295, "sticking", ("none", "single", "double", "paradiddle"), "bp-sticking")
-    # the style message takes all four: keep them in [symbol]s, send all on any change
+    # the style message takes all four: keep them in [symbol]s, send all on any change; they start as the physics
+    # node's score player does (german, tenuto, viterbi, none), so a first change of one leaves the other three
     stores = []
     fire = p.obj(420, y + 360, "t b b b b")
-    for k, (src, default) in enumerate(((grip, "french"), (nuance, "legato"), (algo, "simple"), (stick, "none"))):
+    for k, (src, default) in enumerate(((grip, "german"), (nuance, "tenuto"), (algo, "viterbi"), (stick, "none"))):
         keep = p.obj(420 + 70 * k, y + 390, f"symbol {default}")
         order = p.obj(300, y + 85 + 90 * k, "t b s")  # store first, then send all four
         p.connect(src, 0, order, 0)

@@ -283,7 +283,9 @@ def test_panel_instrument_box_chooses_what_it_shows_and_every_control_is_accepte
         assert sound.core.instruments.instruments["hightom"].p.tension == pytest.approx(900, rel=1e-4)
         assert [m.instrument for m in sound.of(SoundLevel) + sound.of(SoundRadius) + sound.of(SoundDensity)] == \
             ["ride"] * 3
-        assert physics.of(PhysicsReset) and physics.of(GestureStyle)[-1].sticking == "paradiddle"
+        # only the sticking was changed: the other three stay as the node's score player starts
+        assert physics.of(PhysicsReset) and physics.of(GestureStyle)[-1] == GestureStyle(
+            grip="german", nuance="tenuto", algorithm="viterbi", sticking="paradiddle")
         assert sound.of(SoundMaster)[-1].gain_db == pytest.approx(-6) and sound.of(SoundMaster)[-1].reverb == \
             pytest.approx(0.5)
         for node in nodes:
