@@ -164,6 +164,12 @@ class LimbTrajectory:
         return t, pos, vel
 
 
+HEAD_WINDOW_KNOTS = 256
+"""Knots of a head trajectory :meth:`HeadTrajectory.sample` copies as plain floats at a time (5 s at the planner's
+50 Hz): refilled once per 255 knots on physics' increasing times (after a jump, two knots until sampling walks on)."""
+_NO_WINDOW: tuple[int, list[float], list[list[float]]] = (0, [], [])
+
+
 @dataclass(frozen=True)
 class HeadTrajectory:
     """Where the head looks and how it nods.
@@ -187,24 +193,44 @@ class HeadTrajectory:
         first knot and after the last).
 
         The same numbers as ``np.interp`` on each column (its formula, in the same order), found by one binary
-        search: the physics asks at every 1 ms step, and ``np.interp`` on a column copies the whole column.
+        search: the physics asks at every 1 ms step, and ``np.interp`` on a column copies the whole column. The
+        search runs over plain-float copies of at most :data:`HEAD_WINDOW_KNOTS` knots about the last time asked
+        for, refilled when ``t`` leaves them (a copy of every knot grew with the piece: 0.68 MB a minute).
         """
-        cache = self.__dict__.get("_lists")
-        if cache is None:  # plain-float copies (bisect and indexing on lists, not array scalars), made on first use
-            cache = (self.times.tolist(), [[*row, nod] for row, nod in zip(self.targets.tolist(), self.nod.tolist(),
-                                                                             strict=True)])
-            object.__setattr__(self, "_lists", cache)
-        times: list[float] = cache[0]
-        rows: list[list[float]] = cache[1]
-        n = len(times)
-        j = bisect.bisect_right(times, t) - 1  # times[j] <= t < times[j + 1]
-        if j < 0:
-            return self.targets[0].copy(), float(self.nod[0])
-        if j >= n - 1 or times[j] == t:
-            return self.targets[j].copy(), float(self.nod[j])
-        x0, x1 = times[j], times[j + 1]
-        out = [(y1 - y0) / (x1 - x0) * (t - x0) + y0 for y0, y1 in zip(rows[j], rows[j + 1], strict=True)]
+        start, times, rows = self.__dict__.get("_window", _NO_WINDOW)  # first knot's index, times, x y z nod rows
+        if times and times[0] <= t < times[-1]:
+            i = bisect.bisect_right(times, t) - 1  # times[i] <= t < times[i + 1]
+        else:
+            j = int(np.searchsorted(self.times, t, side="right")) - 1  # bisect_right over every knot
+            if j < 0:
+                return self.targets[0].copy(), float(self.nod[0])
+            if j >= len(self.times) - 1:
+                return self.targets[j].copy(), float(self.nod[j])
+            # walking on (physics' steps): the knots ahead; a jump (a reset, random order): the two about ``t``,
+            # and the knots ahead once sampling walks on from there (a full copy at every jump cost 20 times more)
+            walking = start <= j < start + len(times) + HEAD_WINDOW_KNOTS
+            start, times, rows = self._window_from(j, HEAD_WINDOW_KNOTS if walking else 2)
+            i = 0
+        x0 = times[i]
+        if x0 == t:
+            return self.targets[start + i].copy(), float(self.nod[start + i])
+        x1 = times[i + 1]
+        out = [(y1 - y0) / (x1 - x0) * (t - x0) + y0 for y0, y1 in zip(rows[i], rows[i + 1], strict=True)]
         return np.array(out[:3]), out[3]
+
+    def _window_from(self, j: int, knots: int) -> tuple[int, list[float], list[list[float]]]:
+        """Plain-float copies (bisect and indexing on lists, not array scalars) of ``knots`` knots from ``j`` on,
+        kept for the next calls: one tuple, replaced whole, so a call never sees half of a refill."""
+        end = min(j + knots, len(self.times))
+        rows = [[*row, nod] for row, nod in zip(self.targets[j:end].tolist(), self.nod[j:end].tolist(), strict=True)]
+        window = (j, self.times[j:end].tolist(), rows)
+        object.__setattr__(self, "_window", window)
+        return window
+
+    @property
+    def cached_knots(self) -> int:
+        """Knots :meth:`sample` holds as plain floats now (at most :data:`HEAD_WINDOW_KNOTS`, whatever the length)."""
+        return len(self.__dict__.get("_window", _NO_WINDOW)[1])
 
 
 class Grip(enum.StrEnum):
