@@ -34,6 +34,7 @@ const layers = {
   trails: new THREE.Group(), floor: new THREE.Group(),
 };
 for (const g of Object.values(layers)) scene.add(g);
+state.layers = layers; // for tests and the console: what is drawn
 const grid = new THREE.GridHelper(4, 16, 0x555a66, 0x33363d);
 grid.rotation.x = Math.PI / 2;
 layers.floor.add(grid);
@@ -283,13 +284,29 @@ function applyPose(p, t) {
 
 // ---------------------------------------------------------------- contacts
 const hitGeom = new THREE.SphereGeometry(1, 12, 8);
+const UNIT_SCALE = new THREE.Vector3(1, 1, 1);
+function objectMatrix(obj) { // kit object frame -> world, as buildKit draws it
+  return new THREE.Matrix4().compose(new THREE.Vector3(...obj.position),
+    new THREE.Quaternion().setFromEuler(eulerOf(obj.rotation_deg)), UNIT_SCALE);
+}
+// The node places a strike's marker on its own kit; a page with unsaved edits draws that object elsewhere, so the
+// marker is carried onto the object as drawn: the same point of its surface (object frame, scaled by the radius).
+function onDrawnKit(x, y, z, id) {
+  const from = (state.pendingKit ?? state.nodeKit)?.objects.find((o) => o.id === id);
+  const to = state.kit?.objects.find((o) => o.id === id);
+  if (!from || !to || sameKit(from, to)) return [x, y, z];
+  const p = new THREE.Vector3(x, y, z).applyMatrix4(objectMatrix(from).invert());
+  const scale = to.radius / from.radius;
+  p.x *= scale; p.y *= scale;
+  return p.applyMatrix4(objectMatrix(to)).toArray();
+}
 function applyHits(hits) {
   layers.contacts.clear();
-  for (const [x, y, z, age] of hits) {
+  for (const [x, y, z, age, id] of hits) {
     const s = 0.02 + 0.06 * age;
     const m = new THREE.Mesh(hitGeom, new THREE.MeshBasicMaterial({ color: 0xff5533, transparent: true,
       opacity: Math.max(0, 1 - age / 0.5) }));
-    m.position.set(x, y, z);
+    m.position.set(...onDrawnKit(x, y, z, id));
     m.scale.setScalar(s);
     layers.contacts.add(m);
   }
@@ -496,23 +513,35 @@ function onMessage(m) {
 
 // ---------------------------------------------------------------- editor (2001 paper's poser GUI)
 const editor = document.getElementById("editor");
-document.getElementById("edit-toggle").addEventListener("click", () => {
+function toggleEditor() {
   state.editing = !state.editing;
   editor.classList.toggle("hidden", !state.editing);
   if (!state.editing) state.poser = null;
   send({ type: state.editing ? "poser_on" : "poser_off" });
-  placePanels();
-});
+  showKitNotice(); // with the editor closed, the toolbar says the node's kit changed
+}
+document.getElementById("edit-toggle").addEventListener("click", toggleEditor);
+document.getElementById("kit-flag").addEventListener("click", () => { if (!state.editing) toggleEditor(); });
 function editorMsg(text, ok) {
   const el = document.getElementById("editor-msg");
   el.textContent = text;
   el.className = ok ? "ok" : "bad";
 }
+// Arrow keys on a slider step its value by a unit a user of a 3D editor expects (1 mm, 1 degree; Shift: 10 x),
+// not the browser's 1 % of the slider's span (3 cm of a position, 3.6 degrees of an angle).
+const ARROWS = { ArrowRight: 1, ArrowUp: 1, ArrowLeft: -1, ArrowDown: -1 };
+function arrowStep(e, step) { // the signed step an arrow key asks for; 0 for another key (its default stays)
+  const dir = ARROWS[e.key];
+  if (!dir || e.altKey || e.ctrlKey || e.metaKey) return 0;
+  return dir * step * (e.shiftKey ? 10 : 1);
+}
+const KEY_STEP_M = 0.001, KEY_STEP_DEG = 1;
 // A kit value's row: a slider to move it and a number field to type it. Showing the row never changes the kit:
 // the field shows the value as loaded (every digit) and the slider reaches it (its span grows to take it). A drag
 // puts the value on a ``step`` grid (1 mm, 0.1 degree: a pixel of slider is coarser); a typed value is kept
 // exactly, within ``limits`` (the kit model's).
-function kitSlider(parent, label, value, min, max, step, unit, onChange, limits = [-Infinity, Infinity]) {
+function kitSlider(parent, label, value, min, max, step, unit, onChange, limits = [-Infinity, Infinity],
+  keyStep = unit === "degrees" ? KEY_STEP_DEG : KEY_STEP_M) {
   const row = document.createElement("div");
   row.className = "slider kit";
   const range = document.createElement("input");
@@ -535,6 +564,13 @@ function kitSlider(parent, label, value, min, max, step, unit, onChange, limits 
   field.addEventListener("change", () => {
     const typed = Number(field.value);
     if (field.value !== "" && Number.isFinite(typed)) set(typed);
+    show(current);
+  });
+  range.addEventListener("keydown", (e) => { // from the value as it is (0.1234 m -> 0.1244 m), float noise dropped
+    const d = arrowStep(e, keyStep);
+    if (!d) return;
+    e.preventDefault();
+    set(Number((current + d).toFixed(9)));
     show(current);
   });
   row.append(label, range, field);
@@ -565,8 +601,10 @@ function loadKit(kit) { // show the node's kit, dropping the page's edits
   if (state.names.length) buildSkeleton(state.names, state.parents);
   showKitNotice();
 }
-function showKitNotice() {
+function showKitNotice() { // in the editor, or on the toolbar (opening the editor) while it is closed
   document.getElementById("kit-notice").classList.toggle("hidden", !state.pendingKit);
+  document.getElementById("kit-flag").classList.toggle("hidden", !state.pendingKit || state.editing);
+  placePanels(); // the toolbar's height may change
 }
 document.getElementById("kit-load").addEventListener("click", () => {
   if (state.pendingKit) loadKit(state.pendingKit);
@@ -593,6 +631,33 @@ function buildKitSliders() {
     [0.001, 1.0]);
 }
 kitSelect.addEventListener("change", buildKitSliders);
+// Kit.mirrored (common/kit.py), to the same numbers: the left-handed setup, x mirrored (pitch and yaw negated),
+// hands and feet swapped, hit points mirrored (theta -> pi - theta), pair preferences negated.
+const OTHER_LIMB = {
+  left_hand: "right_hand", right_hand: "left_hand", left_foot: "right_foot", right_foot: "left_foot",
+};
+function mirroredKit(kit) {
+  const out = JSON.parse(JSON.stringify(kit));
+  for (const o of out.objects) {
+    o.position[0] = -o.position[0];
+    o.rotation_deg = [o.rotation_deg[0], -o.rotation_deg[1], -o.rotation_deg[2]];
+  }
+  for (const spec of Object.values(out.events)) {
+    spec.preferred = OTHER_LIMB[spec.preferred];
+    spec.theta = Math.PI - spec.theta;
+    if (spec.off_hand) spec.off_hand = [spec.off_hand[0], Math.PI - spec.off_hand[1]];
+  }
+  for (const key of Object.keys(out.pair_preference)) out.pair_preference[key] = -out.pair_preference[key];
+  out.name = `${kit.name}-mirrored`;
+  out.handedness = kit.handedness === "right" ? "left" : "right";
+  return out;
+}
+document.getElementById("kit-mirror").addEventListener("click", () => {
+  if (!state.kit) return;
+  state.kit = mirroredKit(state.kit); // an edit like any other: unsaved until save kit
+  buildKit(state.kit);
+  buildEditorKit();
+});
 function saveKit() {
   const file = document.getElementById("kit-file").value;
   if (send({ type: "save_kit", file, kit: state.kit })) editorMsg(`saving ${file}...`, true);
@@ -651,6 +716,12 @@ function angleSlider(parent, label, value, min, max, onChange) {
     onChange(v);
   };
   range.addEventListener("input", () => set(Number(range.value)));
+  range.addEventListener("keydown", (e) => {
+    const d = arrowStep(e, KEY_STEP_DEG);
+    if (!d) return;
+    e.preventDefault();
+    set(Number(range.value) + d);
+  });
   field.addEventListener("change", () => { if (field.value !== "" && Number.isFinite(Number(field.value))) {
     set(Number(field.value)); } else field.value = Number(range.value).toFixed(2); });
   row.append(label, range, field);
@@ -671,11 +742,15 @@ function buildPoseSliders() {
   });
 }
 jointSelect.addEventListener("change", buildPoseSliders);
-document.getElementById("pose-save").addEventListener("click", () => {
+function savePose() {
   if (!state.poser) return;
   const name = document.getElementById("pose-name").value;
   if (send({ type: "save_pose", name, angles: state.poser.angles })) editorMsg(`saving ${name}...`, true);
   else editorMsg("not saved: the node is not connected (reconnecting)", false);
+}
+document.getElementById("pose-save").addEventListener("click", savePose);
+document.getElementById("pose-name").addEventListener("keydown", (e) => { // Enter saves, as the button does
+  if (e.key === "Enter" && !e.isComposing) savePose();
 });
 document.getElementById("pose-reset").addEventListener("click", () => {
   if (!state.poser) return;
