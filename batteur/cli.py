@@ -11,6 +11,8 @@ import importlib
 import sys
 from collections.abc import Callable, Sequence
 
+from batteur.errors import INTERRUPTED, report_error
+
 # subcommand -> (module with main(argv) -> int, one-line help)
 COMMANDS: dict[str, tuple[str, str]] = {
     "demo": ("batteur.demo", "render the shipped demo groove and print where the WAV and report are"),
@@ -58,13 +60,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         try:
             command = load_command(args.command)
-        except ModuleNotFoundError as exc:
-            print(f"batteur {args.command}: not available in this installation ({exc})", file=sys.stderr)
-            return 2
+        except ModuleNotFoundError as exc:  # the installation's fault, not the command line's: 1
+            return report_error(f"batteur {args.command}", f"not available in this installation ({exc})")
         return int(command(args.args) or 0)
     except KeyboardInterrupt:  # Ctrl-C in a command that does not handle it (or while its modules load)
         print(f"\nbatteur {args.command}: interrupted", file=sys.stderr)
-        return 130
+        return INTERRUPTED
 
 
 if __name__ == "__main__":

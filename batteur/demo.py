@@ -39,6 +39,8 @@ DESCRIPTION = ("Render the shipped demo groove (two bars of rock, a fill, a cras
                "physics -> interaction -> sound, the rig's cores) into batteur-demo/ (or -o DIR) and print where "
                "the WAV and the report are.")
 """``--help``'s description: plain text (the module docstring's markup would be shown as it is)."""
+PROG = "batteur demo"
+"""The command's name in its usage and error lines (the render's own say ``batteur demo`` too)."""
 
 
 def point_report_at_copy(output: Path) -> None:
@@ -53,7 +55,7 @@ def point_report_at_copy(output: Path) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="batteur demo", description=DESCRIPTION)
+    parser = argparse.ArgumentParser(prog=PROG, description=DESCRIPTION)
     parser.add_argument("-o", "--output", type=Path, default=Path("batteur-demo"),
                         help="output directory (default: batteur-demo)")
     parser.add_argument("--control", default="cartesian", choices=list(render.CONTROL_MODES),
@@ -64,7 +66,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     quiet = ["--quiet"] if opts.quiet else []
     if opts.strikes:
         strikes = "0.25:2,0.5:3,0.75:2,1.0:4.5,1.25:1.5,1.375:1.5,1.5:5"
-        code = render.main(["-o", str(opts.output), "--strikes", strikes, *quiet])
+        code = render.main(["-o", str(opts.output), "--strikes", strikes, *quiet], prog=PROG)
         if code == 0:  # no score: nothing to evaluate against
             print(f"listen: {opts.output / 'performance.wav'}")
             print(f"report: {opts.output / 'report.json'}")
@@ -72,7 +74,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     with tempfile.TemporaryDirectory(prefix="batteur-demo-") as tmp:
         score = Path(tmp) / "demo-groove.txt"
         score.write_text(DEMO_GROOVE, encoding="utf-8")
-        code = render.main([str(score), "-o", str(opts.output), "--control", opts.control, *quiet])
+        code = render.main([str(score), "-o", str(opts.output), "--control", opts.control, *quiet], prog=PROG)
     if code == 0:
         point_report_at_copy(opts.output)
         print(f"listen: {opts.output / 'performance.wav'}")

@@ -44,6 +44,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 from scipy.stats import spearmanr
 
+from batteur.errors import INTERRUPTED, UsageError, report_error
 from common.kit import EventType, Kit, load_kit
 from common.score.events import Score
 
@@ -547,9 +548,27 @@ def plot_result(result: FileResult, directory: Path) -> list[Path]:
 # ---------------------------------------------------------------------- command line
 
 
+LABEL_WIDTH = 28
+"""The label column's width when every label fits, characters."""
+MAX_LABEL_WIDTH = 60
+"""Widest the label column grows to for longer labels, characters (a Groove MIDI file's name is about 52)."""
+
+
+def fit_label(label: str, width: int) -> str:
+    """``label`` in at most ``width`` characters: as it is if it fits, else cut in the middle ("...") so that
+    its start and its end stay (Groove MIDI names of one session differ only at their end: ``..._beat_3-4``)."""
+    if len(label) <= width:
+        return label
+    kept = width - 3
+    head = kept // 2
+    return f"{label[:head]}...{label[len(label) - (kept - head):]}"
+
+
 def format_table(rows: Sequence[tuple[str, dict[str, Any]]]) -> str:
-    """A plain-text table of aggregate (or per-file) figures, one row per label."""
-    head = (f"{'':<28} {'notes':>6} {'F@10':>6} {'F@25':>6} {'P@25':>6} {'R@25':>6} {'med|e|':>7} {'p95|e|':>7} "
+    """A plain-text table of aggregate (or per-file) figures, one row per label; the label column as wide as the
+    longest label, from :data:`LABEL_WIDTH` to :data:`MAX_LABEL_WIDTH` characters (longer ones :func:`fit_label`)."""
+    width = min(MAX_LABEL_WIDTH, max([LABEL_WIDTH, *(len(label) for label, _ in rows)]))
+    head = (f"{'':<{width}} {'notes':>6} {'F@10':>6} {'F@25':>6} {'P@25':>6} {'R@25':>6} {'med|e|':>7} {'p95|e|':>7} "
             f"{'bias':>7} {'rho':>6} {'rho_s':>6} {'spur':>5} {'miss':>5} {'flag':>5} {'RTF':>5}")
     lines = [head]
     for label, a in rows:
@@ -560,11 +579,11 @@ def format_table(rows: Sequence[tuple[str, dict[str, Any]]]) -> str:
             return format(v, fmt) if v is not None else "-".rjust(int(fmt.lstrip("+").split(".")[0]))
 
         lines.append(
-            f"{label[:28]:<28} {a['notes']:>6} {a['f_measure']['10ms']:>6.3f} {a['f_measure']['25ms']:>6.3f} "
-            f"{a['precision']['25ms']:>6.3f} {a['recall']['25ms']:>6.3f} {num(t['median_abs'], '7.2f')} "
-            f"{num(t['p95_abs'], '7.2f')} {num(t['median_signed'], '+7.2f')} {num(a['spearman'], '6.3f')} "
-            f"{num(a.get('spearman_within_sound'), '6.3f')} {a['spurious']:>5} {missed:>5} {a['planner_flags']:>5} "
-            f"{num(a['real_time_factor'], '5.2f')}")
+            f"{fit_label(label, width):<{width}} {a['notes']:>6} {a['f_measure']['10ms']:>6.3f} "
+            f"{a['f_measure']['25ms']:>6.3f} {a['precision']['25ms']:>6.3f} {a['recall']['25ms']:>6.3f} "
+            f"{num(t['median_abs'], '7.2f')} {num(t['p95_abs'], '7.2f')} {num(t['median_signed'], '+7.2f')} "
+            f"{num(a['spearman'], '6.3f')} {num(a.get('spearman_within_sound'), '6.3f')} {a['spurious']:>5} "
+            f"{missed:>5} {a['planner_flags']:>5} {num(a['real_time_factor'], '5.2f')}")
     return "\n".join(lines)
 
 
@@ -635,16 +654,20 @@ def reusable(render_dir: Path, score: Path, opts: Any) -> bool:
 
 
 def check_render_names(paths: Sequence[Path], renders: Path) -> None:
-    """``ValueError`` when two scores would be rendered into the same ``renders/<stem>`` (the second would
+    """:class:`UsageError` when two scores would be rendered into the same ``renders/<stem>`` (the second would
     replace the first's render)."""
     seen: dict[str, Path] = {}
     for path in paths:
         if path.is_dir():
             continue
         if path.stem in seen and seen[path.stem].resolve() != path.resolve():
-            raise ValueError(f"--renders {renders}: {seen[path.stem]} and {path} would both render into "
+            raise UsageError(f"--renders {renders}: {seen[path.stem]} and {path} would both render into "
                              f"{renders / path.stem}; rename one")
         seen.setdefault(path.stem, path)
+
+
+PROG = "batteur evaluate"
+"""The command's name in its usage and error lines."""
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -652,7 +675,7 @@ def build_parser() -> argparse.ArgumentParser:
     from common.gesture.plan import Nuance
 
     parser = argparse.ArgumentParser(
-        prog="batteur evaluate",
+        prog=PROG,
         description="Render scores (or read render directories) and measure the performance against the score: "
         "precision/recall/F at 10 and 25 ms, timing error, velocity Spearman, spurious and missed notes.")
     parser.add_argument("scores", nargs="+", type=Path, help="scores (.mid or text), or render directories")
@@ -703,8 +726,7 @@ def impact_listing(result: FileResult) -> list[str]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    from batteur.render import INTERRUPTED
-
+    """Run ``batteur evaluate``; the exit status (batteur/errors.py)."""
     parser = build_parser()
     args = parser.parse_args(argv)
     if args.reuse and args.renders is None:  # it reuses renders kept in --renders DIR; without one there are none
@@ -712,14 +734,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return _main(args)
     except KeyboardInterrupt:  # Ctrl-C: a render in progress is staged, so nothing of it was written
-        print("batteur evaluate: interrupted", file=sys.stderr)
+        print(f"{PROG}: interrupted", file=sys.stderr)
         return INTERRUPTED
 
 
 def _main(args: argparse.Namespace) -> int:
     from batteur.calibration import Calibration
     from batteur.render import RenderError, RenderOptions, resolve_jobs
-    from common.datafile import one_line
     from common.gesture.plan import Nuance
     from common.output_paths import check_output_dir, check_output_file
     from common.score.events import ScoreError
@@ -741,9 +762,8 @@ def _main(args: argparse.Namespace) -> int:
                              control=args.control, calibration=args.calibration, jobs=resolve_jobs(args.jobs),
                              segment_s=args.segment)
         results = evaluate_scores(args.scores, opts, args.renders, quiet=args.quiet, reuse=args.reuse)
-    except (ScoreError, RenderError, ValueError, FileNotFoundError, KeyError) as exc:
-        print(f"batteur evaluate: {one_line(exc)}", file=sys.stderr)
-        return 2
+    except (ScoreError, RenderError, ValueError, OSError, KeyError) as exc:  # UsageError: 2, a file or a render: 1
+        return report_error(PROG, exc)
     agg = aggregate(results)
     if args.plots is not None:
         for r in results:

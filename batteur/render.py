@@ -43,12 +43,13 @@ from typing import TYPE_CHECKING, Any, ClassVar, TypeVar, get_args
 import numpy as np
 import soundfile as sf
 
+from batteur.errors import INTERRUPTED, USAGE, UsageError, report_error
 from batteur.impact_log import ImpactCsvStream, ImpactLog, write_impacts_csv
 from batteur.interrupts import DeferredCtrlC
 from batteur.progress import Progress
 from batteur.strike import DEFAULT_STRIKES, parse_strikes, run_strikes
 from common.core import Outgoing
-from common.datafile import first_error, one_line
+from common.datafile import first_error
 from common.gesture.plan import GesturePlan, Grip, Nuance
 from common.kit import EventType, Kit, load_kit
 from common.messages import OscMessage
@@ -79,8 +80,6 @@ TEMPO_SCALE_RANGE = (0.1, 10.0)
 note onto the first instant."""
 MIN_SEGMENT_S = 1.0
 """Shortest ``--segment``, seconds: each segment's drummer first plays a lead-in of a few seconds."""
-INTERRUPTED = 130
-"""Exit status after Ctrl-C (128 + SIGINT), as a shell reports it."""
 
 
 class RenderError(RuntimeError):
@@ -356,14 +355,33 @@ class RecorderCore:
         return []
 
 
+def wav_container(frames: int, channels: int) -> str:
+    """The libsndfile format for a 24-bit performance.wav of ``frames`` samples per channel: ``"WAV"``, or
+    ``"RF64"`` when the samples pass what a WAV header's 32-bit sizes describe (4 GiB: 8.3 h of the render's
+    48 kHz mono), where the end of the audio would be lost to readers."""
+    from services.sound.core import WAV_DATA_LIMIT_BYTES
+
+    return "RF64" if frames * channels * 3 > WAV_DATA_LIMIT_BYTES else "WAV"
+
+
+def say_rf64(path: Path, frames: int, sample_rate: int) -> None:
+    """One line on stderr: ``path`` is written as RF64 (see :func:`wav_container`)."""
+    print(f"batteur render: {path.name} will hold {frames / sample_rate / 3600:.1f} h of audio, more than a WAV "
+          "file can describe (4 GiB): written as RF64", file=sys.stderr)
+
+
 class WavStream:
     """performance.wav (24-bit PCM) written as sound renders it (``SoundCore.on_block``), a second at a time:
-    libsndfile's cost per call made block-sized writes (64 samples) 3 % of a render."""
+    libsndfile's cost per call made block-sized writes (64 samples) 3 % of a render.
+
+    ``planned_frames``: the samples per channel the render will write, known before it starts; past the WAV
+    limit the file is RF64 (:func:`wav_container`: ``format``), else a plain WAV.
+    """
 
     BUFFER_S = 1.0
     """Audio gathered before each write, seconds."""
 
-    def __init__(self, path: Path, sample_rate: int, channels: int) -> None:
+    def __init__(self, path: Path, sample_rate: int, channels: int, planned_frames: int = 0) -> None:
         self.path = path
         self.frames = 0
         """Samples taken (per channel)."""
@@ -372,7 +390,10 @@ class WavStream:
         size = max(1, round(sample_rate * self.BUFFER_S))
         self._buffer = np.empty(size if channels == 1 else (size, channels), dtype=np.float32)
         self._fill = 0
-        self._file: sf.SoundFile | None = sf.SoundFile(path, "w", sample_rate, channels, subtype="PCM_24")
+        self.format = wav_container(planned_frames, channels)
+        """libsndfile's format of the file: "WAV" or "RF64"."""
+        self._file: sf.SoundFile | None = sf.SoundFile(path, "w", sample_rate, channels, subtype="PCM_24",
+                                                       format=self.format)
 
     @property
     def buffer_frames(self) -> int:
@@ -417,13 +438,15 @@ class StreamedOutputs:
 
     ``bvh_rate_hz``: the BVH's frame rate (None: the poses' median interval, known only at the end: the poses
     are kept and :func:`write_rest` writes the BVH). ``keep``: also keep the impacts and poses in memory (the
-    video draws them).
+    video draws them). ``planned_s``: the render's length, seconds (:func:`rendered_seconds`): a WAV that would
+    pass 4 GiB is written as RF64.
     """
 
-    def __init__(self, folder: Path, bvh_rate_hz: float | None, keep: bool = False) -> None:
+    def __init__(self, folder: Path, bvh_rate_hz: float | None, keep: bool = False, planned_s: float = 0.0) -> None:
         from services.graphics.export.bvh import BvhStream
 
         self.folder = folder
+        self.planned_s = planned_s
         self.keep = keep or bvh_rate_hz is None
         self.bvh_rate_hz = bvh_rate_hz
         self.wav: WavStream | None = None
@@ -432,8 +455,11 @@ class StreamedOutputs:
         self._recorder: RecorderCore | None = None
 
     def attach(self, sound: Any) -> None:
-        """Write what ``sound`` (a SoundCore) renders into performance.wav."""
-        self.wav = WavStream(self.folder / "performance.wav", sound.sample_rate, sound.channels)
+        """Write what ``sound`` (a SoundCore) renders into performance.wav (RF64 past 4 GiB, said on stderr)."""
+        frames = math.ceil(self.planned_s * sound.sample_rate) + sound.block  # sound renders whole blocks
+        self.wav = WavStream(self.folder / "performance.wav", sound.sample_rate, sound.channels, frames)
+        if self.wav.format == "RF64":
+            say_rf64(self.wav.path, frames, sound.sample_rate)
         sound.on_block = self.wav.write
 
     def recorder(self) -> RecorderCore:
@@ -568,7 +594,11 @@ def write_outputs(output: Path, audio: np.ndarray, sample_rate: int, impacts: li
     what ``report["video"]`` lists.
     """
     with Staging(output) as staging:
-        sf.write(staging.path / "performance.wav", audio, sample_rate, subtype="PCM_24")
+        wav = staging.path / "performance.wav"
+        fmt = wav_container(len(audio), 1 if audio.ndim == 1 else audio.shape[1])
+        if fmt == "RF64":
+            say_rf64(wav, len(audio), sample_rate)
+        sf.write(wav, audio, sample_rate, subtype="PCM_24", format=fmt)
         write_impacts_csv(impacts, staging.path / "impacts.csv")
         write_rest(staging, report, poses, score, video, bvh_rate_hz)
         return staging.commit()
@@ -638,7 +668,8 @@ def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: boo
     progress = Progress(f"rendering {Path(path).name}", rendered_seconds(plan, opts), enabled=False if quiet else None)
     finished = False  # a render given up (Ctrl-C, an error) leaves its bar where it stood, not at 100 %
     with Staging(output) as staging:  # the WAV, impacts and motion are written as they are rendered
-        outputs = StreamedOutputs(staging.path, opts.pose_rate_hz or None, keep=opts.video)
+        outputs = StreamedOutputs(staging.path, opts.pose_rate_hz or None, keep=opts.video,
+                                  planned_s=rendered_seconds(plan, opts))
         try:
             if opts.jobs > 1:
                 from batteur.segments import run_segmented
@@ -679,9 +710,9 @@ def check_options(opts: RenderOptions) -> None:
 
     low, high = TEMPO_SCALE_RANGE
     if not low <= opts.tempo_scale <= high:  # NaN fails too
-        raise ValueError(f"--tempo-scale {opts.tempo_scale:g}: {low:g} to {high:g} (times faster)")
+        raise UsageError(f"--tempo-scale {opts.tempo_scale:g}: {low:g} to {high:g} (times faster)")
     if not (math.isfinite(opts.segment_s) and opts.segment_s >= MIN_SEGMENT_S):
-        raise ValueError(f"--segment {opts.segment_s:g}: a length of at least {MIN_SEGMENT_S:g} s (each segment "
+        raise UsageError(f"--segment {opts.segment_s:g}: a length of at least {MIN_SEGMENT_S:g} s (each segment "
                          f"also plays a lead-in, so shorter ones cost more than they share)")
     checks: list[tuple[str, Callable[[], object]]] = [
         (f"--latency {opts.latency_s:g} s", lambda: SoundSettings(latency=opts.latency_s, origin=0.0))]
@@ -693,7 +724,7 @@ def check_options(opts: RenderOptions) -> None:
         try:
             build()
         except ValidationError as exc:
-            raise ValueError(f"{option}: {first_error(exc)}") from None
+            raise UsageError(f"{option}: {first_error(exc)}") from None
 
 
 def _check_motion_capture(opts: RenderOptions) -> None:
@@ -727,9 +758,9 @@ def check_video(opts: RenderOptions) -> None:
 
     width, height = opts.video_size
     if width % 2 or height % 2 or not (16 <= width <= 7680 and 16 <= height <= 4320):
-        raise ValueError(f"--video-size {width}x{height}: even numbers, 16x16 to 7680x4320")
+        raise UsageError(f"--video-size {width}x{height}: even numbers, 16x16 to 7680x4320")
     if not 1 <= opts.video_fps <= 240:
-        raise ValueError(f"--video-fps {opts.video_fps:g}: 1 to 240 frames per second")
+        raise UsageError(f"--video-fps {opts.video_fps:g}: 1 to 240 frames per second")
     video.find_ffmpeg()
 
 
@@ -860,7 +891,7 @@ def options_in_vain(args: argparse.Namespace) -> list[str]:
 def resolve_jobs(jobs: int) -> int:
     """``--jobs``: 0 means one process per CPU; raises ``ValueError`` for a negative count."""
     if jobs < 0:
-        raise ValueError(f"--jobs {jobs}: give 0 (one per CPU) or more")
+        raise UsageError(f"--jobs {jobs}: give 0 (one per CPU) or more")
     if jobs == 0:
         from batteur.segments import default_jobs
 
@@ -868,7 +899,9 @@ def resolve_jobs(jobs: int) -> int:
     return jobs
 
 
-def main(argv: Sequence[str] | None = None) -> int:
+def main(argv: Sequence[str] | None = None, prog: str = "batteur render") -> int:
+    """Run ``batteur render``; the exit status (batteur/errors.py). ``prog`` names the command in its error lines
+    (``batteur demo`` renders through this)."""
     parser = build_parser()
     opts = parser.parse_args(argv)
     if opts.score is None and opts.strikes is None:
@@ -878,20 +911,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     if opts.strikes is not None and opts.video:
         parser.error("--video renders a SCORE (the strike scene has no body to draw)")
     for warning in options_in_vain(opts):
-        print(f"batteur render: warning: {warning}", file=sys.stderr)
+        print(f"{prog}: warning: {warning}", file=sys.stderr)
     try:
-        return _main_strikes(opts) if opts.strikes is not None else _main_score(opts)
+        return _main_strikes(opts, prog) if opts.strikes is not None else _main_score(opts, prog)
     except KeyboardInterrupt:  # Ctrl-C: the outputs are staged, so nothing was written
-        print(f"batteur render: interrupted; nothing written to {opts.output}", file=sys.stderr)
+        print(f"{prog}: interrupted; nothing written to {opts.output}", file=sys.stderr)
         return INTERRUPTED
 
 
-def _main_score(opts: argparse.Namespace) -> int:
+def _main_score(opts: argparse.Namespace, prog: str) -> int:
     try:
         report = render_score(opts.score, opts.output, options_from(opts), quiet=opts.quiet)
-    except (ScoreError, RenderError, ValueError, FileNotFoundError) as exc:
-        print(f"batteur render: {one_line(exc)}", file=sys.stderr)
-        return 2
+    except (ScoreError, RenderError, ValueError, OSError) as exc:  # UsageError: 2, a file or the render: 1
+        return report_error(prog, exc)
     out = opts.output
     print(f"wrote {out / 'performance.wav'} ({report['duration_s']:.1f} s)")
     print(f"wrote {out / 'impacts.csv'} ({report['impacts']} impacts for {report['notes']} notes, "
@@ -905,14 +937,16 @@ def _main_score(opts: argparse.Namespace) -> int:
     return 0
 
 
-def _main_strikes(opts: argparse.Namespace) -> int:
+def _main_strikes(opts: argparse.Namespace, prog: str) -> int:
     try:
         strikes = parse_strikes(opts.strikes)
+    except ValueError as exc:
+        return report_error(prog, exc, USAGE)
+    try:
         kit = load_kit(opts.kit)
         check_output_dir(opts.output, "-o")
-    except (ValueError, FileNotFoundError) as exc:
-        print(f"batteur render: {one_line(exc)}", file=sys.stderr)
-        return 2
+    except (ValueError, OSError) as exc:
+        return report_error(prog, exc)
     started = time.monotonic()
     progress = Progress("rendering", max(t for t, _ in strikes) + opts.latency + 1.0,
                         enabled=False if opts.quiet else None)
@@ -922,8 +956,7 @@ def _main_strikes(opts: argparse.Namespace) -> int:
                              on_progress=lambda t, total: progress.update(t))
         finished = True
     except ValueError as exc:
-        print(f"batteur render: {one_line(exc)}", file=sys.stderr)
-        return 2
+        return report_error(prog, exc)
     finally:
         progress.close(finished)
     elapsed = time.monotonic() - started

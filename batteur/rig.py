@@ -46,6 +46,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TextIO
 
+from batteur.errors import UsageError, report_error
 from common.arg_types import non_negative, positive, seconds, whole
 from common.output_paths import check_output_dir, point_at_devnull
 
@@ -106,15 +107,15 @@ def plan_rig(opts: argparse.Namespace, epoch: float) -> list[ServicePlan]:
     unknown = [r for r in roles if r not in ROLES]
     if unknown or not roles:
         named = ", ".join(unknown) or "(none)"
-        raise ValueError(f"--services: unknown role(s) {named}; choose from {', '.join(ROLES)}")
+        raise UsageError(f"--services: unknown role(s) {named}; choose from {', '.join(ROLES)}")
     if len(set(roles)) < len(roles):  # two services of a role would share its port; the rig runs one of each
-        raise ValueError(f"--services {opts.services}: each role at most once")
+        raise UsageError(f"--services {opts.services}: each role at most once")
     if opts.no_static_peers and opts.no_discovery and len(roles) > 1:
-        raise ValueError("--no-static-peers with --no-discovery: the services could not find each other; "
+        raise UsageError("--no-static-peers with --no-discovery: the services could not find each other; "
                          "drop one of the two")
     ports = {role: opts.base_port + PORT_OFFSET[role] for role in roles}
     if max(ports.values()) > 65535:
-        raise ValueError(f"--base-port {opts.base_port}: {', '.join(roles)} would need UDP ports up to "
+        raise UsageError(f"--base-port {opts.base_port}: {', '.join(roles)} would need UDP ports up to "
                          f"{max(ports.values())}, above 65535")
     plans: list[ServicePlan] = []
     peer_at = peer_host(opts.host)
@@ -454,10 +455,10 @@ def check_score(opts: argparse.Namespace) -> None:
     if opts.score is None:
         return
     if opts.strike_period:
-        raise ValueError("--score and --strike-period exclude each other (the drummer or the strike scene)")
+        raise UsageError("--score and --strike-period exclude each other (the drummer or the strike scene)")
     roles = [r.strip() for r in opts.services.split(",")]
     if "physics" not in roles:
-        raise ValueError("--score needs the physics service (--services)")
+        raise UsageError("--score needs the physics service (--services)")
     if Path(opts.score).is_dir():
         raise ValueError(f"--score {opts.score}: is a directory, not a score file")
     if not Path(opts.score).is_file():
@@ -509,7 +510,7 @@ def check_record(opts: argparse.Namespace) -> None:
     if opts.record is None:
         return
     if "sound" not in [r.strip() for r in opts.services.split(",")]:
-        raise ValueError("--record needs the sound service (--services)")
+        raise UsageError("--record needs the sound service (--services)")
     check_output_dir(Path(opts.record), "--record")
 
 
@@ -569,9 +570,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             check_record(opts)
             check_ports(plans, opts.host, opts.http_port)
             make_record_dir(opts)  # last: a refused option leaves no folder behind
-        except ValueError as exc:
-            print(f"batteur rig: {exc}", file=sys.stderr)
-            return 2
+        except ValueError as exc:  # UsageError: 2; a score, a folder or a port it cannot use: 1
+            return report_error("batteur rig", exc)
         for warning in ignored_options(opts):
             print(f"batteur rig: warning: {warning}", file=sys.stderr, flush=True)
         if opts.score:

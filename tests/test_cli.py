@@ -111,7 +111,7 @@ def test_rig_refuses_a_recording_folder_it_cannot_write_before_starting(tmp_path
 
     a_file = tmp_path / "take.wav"
     a_file.write_bytes(b"mine")
-    assert rig.main(["--record", str(a_file), "--score", "demo"]) == 2
+    assert rig.main(["--record", str(a_file), "--score", "demo"]) == 1  # an output it cannot use
     assert "--record" in capsys.readouterr().err and a_file.read_bytes() == b"mine"
 
 
@@ -136,7 +136,7 @@ def test_rig_reads_the_score_before_starting_a_service(tmp_path: Path, capsys: p
     empty = tmp_path / "empty.txt"
     empty.write_text("tempo 100\n")
     for score, says in ((broken, "truncated MIDI file"), (empty, "no drum events")):
-        assert rig.main(["--score", str(score)]) == 2
+        assert rig.main(["--score", str(score)]) == 1  # an input it cannot use
         assert says in capsys.readouterr().err
 
 
@@ -162,7 +162,7 @@ def test_docs_refuses_an_output_it_cannot_write(tmp_path: Path, capsys: pytest.C
 
     a_file = tmp_path / "osc.md"
     a_file.write_text("mine")
-    assert docs.main(["-o", str(a_file / "osc.md")]) == 2
+    assert docs.main(["-o", str(a_file / "osc.md")]) == 1  # an output it cannot use
     assert "is a file, not a folder" in capsys.readouterr().err and a_file.read_text() == "mine"
     assert docs.main(["-o", str(tmp_path / "osc2.md")]) == 0 and "/batteur/" in (tmp_path / "osc2.md").read_text()
 

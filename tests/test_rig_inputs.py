@@ -61,13 +61,14 @@ def free_port() -> int:
         return int(probe.getsockname()[1])
 
 
-def refused(argv: list[str], capsys: pytest.CaptureFixture[str]) -> str:
-    """Run the rig with ``argv``; assert exit code 2 and return what it printed to stderr."""
+def refused(argv: list[str], capsys: pytest.CaptureFixture[str], status: int = 2) -> str:
+    """Run the rig with ``argv``; assert exit code ``status`` (2: a bad command line, 1: a file or port it cannot
+    use) and return what it printed to stderr."""
     try:
         code = rig.main(argv)
     except SystemExit as exc:  # argparse's usage error
         code = exc.code  # type: ignore[assignment]
-    assert code == 2
+    assert code == status
     return capsys.readouterr().err
 
 
@@ -117,7 +118,7 @@ def test_a_port_in_use_is_refused_before_any_service_starts(no_rig: None,
         port = held.getsockname()[1]
         if port < 3:
             pytest.skip("no room below the held port")
-        err = refused(["--no-discovery", "--services", "interaction,sound", "--base-port", str(port - 2)], capsys)
+        err = refused(["--no-discovery", "--services", "interaction,sound", "--base-port", str(port - 2)], capsys, 1)
     assert f"UDP port {port} (sound) on 127.0.0.1 is in use" in err
 
 
@@ -126,8 +127,8 @@ def test_a_recording_folder_that_cannot_be_made_is_a_one_line_error(no_rig: None
                                                                    capsys: pytest.CaptureFixture[str]) -> None:
     # /proc passes the writability check as root, and still no folder can be made in it
     err = refused(["--no-discovery", "--services", "sound", "--base-port", str(free_port()),
-                   "--record", "/proc/batteur-rig-test/out"], capsys)
-    assert err.startswith("batteur rig: --record /proc/batteur-rig-test/out: cannot create a folder in /proc")
+                   "--record", "/proc/batteur-rig-test/out"], capsys, 1)
+    assert err.startswith("batteur rig: error: --record /proc/batteur-rig-test/out: cannot create a folder in /proc")
 
 
 def test_a_folder_named_demo_does_not_hide_the_demo_groove(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -259,7 +260,7 @@ def test_a_view_port_in_use_is_refused_before_any_service_starts(no_rig: None,
         held.listen()
         port = held.getsockname()[1]
         err = refused(["--no-discovery", "--services", "graphics", "--base-port", str(free_port()),
-                       "--http-port", str(port)], capsys)
+                       "--http-port", str(port)], capsys, 1)
     assert f"TCP port {port} (graphics view) on 127.0.0.1 is in use" in err and "--http-port" in err
 
 

@@ -27,7 +27,7 @@ def test_a_folder_given_as_the_score_is_called_a_folder(no_rig: None, tmp_path: 
     # it said "no such file" of a folder that is there
     folder = tmp_path / "adir.mid"
     folder.mkdir()
-    err = refused(["--no-discovery", "--score", str(folder), "--base-port", str(free_port())], capsys)
+    err = refused(["--no-discovery", "--score", str(folder), "--base-port", str(free_port())], capsys, 1)
     assert f"--score {folder}: is a directory" in err and "no such file" not in err
 
 

@@ -157,12 +157,12 @@ def test_render_of_a_wav_says_to_transcribe_it(tmp_path: Path) -> None:
     wav = _audio_files(tmp_path)["WAV"]
     run = subprocess.run([sys.executable, "-m", "batteur", "render", str(wav), "-o", str(tmp_path / "out")],
                          cwd=ROOT, capture_output=True, text=True, timeout=120, check=False)
-    assert run.returncode == 2 and f"batteur transcribe {wav} -o score.mid" in run.stderr
+    assert run.returncode == 1 and f"batteur transcribe {wav} -o score.mid" in run.stderr
     assert "Traceback" not in run.stderr
 
 
 def test_render_to_a_folder_that_cannot_be_made_names_o() -> None:
     run = subprocess.run([sys.executable, "-m", "batteur", "render", str(MIDI), "-o", "/proc/nope"],
                          cwd=ROOT, capture_output=True, text=True, timeout=120, check=False)
-    assert run.returncode == 2 and "batteur render: -o /proc/nope: " in run.stderr  # was a bare "[Errno 2] ..."
+    assert run.returncode == 1 and "batteur render: error: -o /proc/nope: " in run.stderr  # was "[Errno 2] ..."
     assert "Errno" not in run.stderr

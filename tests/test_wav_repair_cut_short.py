@@ -63,5 +63,6 @@ def test_a_finished_wav_with_a_chunk_after_its_audio_is_left_alone(tmp_path: Pat
 def test_a_missing_file_and_a_folder_are_said_in_words(tmp_path: Path) -> None:
     run = _repair(tmp_path / "missing.wav", tmp_path)
     assert run.returncode == 1
-    assert run.stderr.splitlines() == [f"{tmp_path / 'missing.wav'}: not repaired: no such file",
-                                       f"{tmp_path}: not repaired: is a folder, not a WAV file"]  # was [Errno 2/21]
+    assert run.stderr.splitlines() == [
+        f"batteur wav-repair: error: {tmp_path / 'missing.wav'}: not repaired: no such file",
+        f"batteur wav-repair: error: {tmp_path}: not repaired: is a folder, not a WAV file"]  # was [Errno 2/21]

@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import argparse
-import sys
 from collections.abc import Sequence
 from pathlib import Path
 
+from batteur.errors import report_error
 from common.messages.docs import render_markdown
 from common.output_paths import check_output_file
 
@@ -17,9 +17,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     opts = parser.parse_args(argv)
     try:
         check_output_file(opts.output, "-o")
-    except ValueError as exc:
-        print(f"batteur docs: {exc}", file=sys.stderr)
-        return 2
-    opts.output.write_text(render_markdown(), encoding="utf-8")
+        opts.output.write_text(render_markdown(), encoding="utf-8")
+    except ValueError as exc:  # a path it cannot write: 1
+        return report_error("batteur docs", exc)
+    except OSError as exc:  # the write itself failed (a full disk)
+        return report_error("batteur docs", f"-o {opts.output}: cannot write it ({exc.strerror or exc})")
     print(f"wrote {opts.output}")
     return 0

@@ -16,6 +16,7 @@ import signal
 import sys
 from collections.abc import Sequence
 
+from batteur.errors import report_error
 from batteur.tools.ls import query_health
 from batteur.tools.nodes import (
     INTERRUPTED,
@@ -117,9 +118,8 @@ async def _probe(targets: Sequence[Target]) -> list[Target]:
 async def _run(opts: argparse.Namespace, subscribe: Subscribe) -> int:
     targets = await find_targets(opts.node, opts.browse, opts.interface)
     if not targets:
-        print(f"batteur echo: no nodes found within {opts.browse:g} s (start one, or give --node HOST:PORT)",
-              file=sys.stderr)
-        return 1
+        return report_error("batteur echo", f"no nodes found within {opts.browse:g} s (start one, or give --node "
+                            "HOST:PORT)")
     answered = await _probe(targets)
     reachable = [t for t in targets if t.ip]
     if not reachable:

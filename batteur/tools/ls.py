@@ -11,9 +11,9 @@ from __future__ import annotations
 import argparse
 import asyncio
 import json
-import sys
 from collections.abc import Sequence
 
+from batteur.errors import report_error
 from batteur.tools.nodes import Target, bind_address, find_targets, run_tool, target_networks, write_line
 from common.arg_types import seconds
 from common.messages import PROTOCOL_VERSION, Health, Hello, OscMessage
@@ -100,9 +100,8 @@ def table(rows: Sequence[dict[str, object]]) -> list[str]:
 async def _run(opts: argparse.Namespace) -> int:
     targets = await find_targets(opts.node, opts.browse, opts.interface)
     if not targets:
-        print(f"batteur ls: no nodes found within {opts.browse:g} s (start one, or give --node HOST:PORT)",
-              file=sys.stderr)
-        return 1
+        return report_error("batteur ls", f"no nodes found within {opts.browse:g} s (start one, or give --node "
+                            "HOST:PORT)")
     answers = await query_health(targets, opts.timeout)
     rows = [_row(t, h) for t, h in zip(targets, match_answers(targets, answers), strict=True)]
     for line in [json.dumps(rows, indent=2)] if opts.json else table(rows):

@@ -10,12 +10,9 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from typing import TextIO
 
-from common.datafile import one_line
+from batteur.errors import FAILED, INTERRUPTED, USAGE, report_error
 from common.output_paths import point_at_devnull
 from common.transport import format_address, parse_address
-
-INTERRUPTED = 130
-"""Exit status after Ctrl-C, as a shell reports a SIGINT."""
 
 
 @dataclass(frozen=True)
@@ -65,11 +62,9 @@ def run_tool(prog: str, run: Callable[[], int]) -> int:
     except OutputClosed:
         return 0
     except ValueError as exc:
-        print(f"{prog}: {one_line(exc)}", file=sys.stderr)
-        return 2
+        return report_error(prog, exc, USAGE)
     except OSError as exc:  # a socket that cannot be opened, mDNS that cannot start
-        print(f"{prog}: {one_line(exc)}", file=sys.stderr)
-        return 1
+        return report_error(prog, exc, FAILED)
     except KeyboardInterrupt:
         print(f"\n{prog}: interrupted", file=sys.stderr)
         return INTERRUPTED
@@ -78,8 +73,7 @@ def run_tool(prog: str, run: Callable[[], int]) -> int:
         discovery = sys.modules.get("common.discovery")
         if discovery is None or not isinstance(exc, discovery.DiscoveryError):
             raise
-        print(f"{prog}: {one_line(exc)}", file=sys.stderr)
-        return 2
+        return report_error(prog, exc, USAGE)
 
 
 def bind_address(targets: Sequence[Target]) -> str:

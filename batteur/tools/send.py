@@ -20,6 +20,7 @@ from collections.abc import Sequence
 
 from pythonosc.osc_message_builder import BuildError
 
+from batteur.errors import USAGE, report_error
 from batteur.tools.nodes import run_tool
 from common.arg_types import seconds
 from common.datafile import one_line
@@ -34,6 +35,8 @@ ROLE = re.compile(r"[a-z][a-z0-9_-]*")
 EXAMPLE = "batteur send /batteur/graphics/latency 0.1 --to graphics"
 EXAMPLE_ADDRESS = "/batteur/sound/master"
 """The help's examples: registered addresses (tests/test_send_help.py checks them)."""
+PROG = "batteur send"
+"""The command's name in its usage and error lines."""
 
 
 def guess_arg(text: str) -> Arg:
@@ -95,8 +98,8 @@ def _resolve(target: str, timeout_s: float, interfaces: Sequence[str] | None) ->
     found = [(n.host, n.port) for n in nodes if n.role == target and n.host]
     if not found:
         roles = ", ".join(sorted({n.role for n in nodes})) or "none"
-        print(f"batteur send: no {target} node found within {timeout_s:g} s (roles found: {roles}; "
-              "HOST:PORT needs the port)", file=sys.stderr)
+        report_error(PROG, f"no {target} node found within {timeout_s:g} s (roles found: {roles}; HOST:PORT needs "
+                     "the port)")
     return found
 
 
@@ -111,7 +114,7 @@ def _encode(address: str, args: Sequence[Arg]) -> bytes:
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
-        prog="batteur send",
+        prog=PROG,
         description="Send one OSC message. Arguments are checked against the message model at ADDRESS "
         "(see docs/osc.md for every address and its arguments); a message that would be rejected is not sent. "
         "Exit status: 0 sent, 1 not sent (no node found, network error; with --replies also: refused, or "
@@ -133,27 +136,24 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--interface", action="append", default=[],
                         help="interface to look for a role on: address, name or 'all' (repeatable; default loopback)")
     opts = parser.parse_args(argv)
-    return run_tool("batteur send", lambda: _send(opts))
+    return run_tool(PROG, lambda: _send(opts))
 
 
 def _send(opts: argparse.Namespace) -> int:
     model = REGISTRY.get(opts.address)
     if model is None and not opts.raw:
-        print(f"batteur send: no message is registered at {opts.address} (see docs/osc.md; --raw sends it anyway)",
-              file=sys.stderr)
-        return 2
+        return report_error(PROG, f"no message is registered at {opts.address} (see docs/osc.md; --raw sends it "
+                            "anyway)", USAGE)
     try:
         if model is None:
             check_raw_address(opts.address)
         data = _encode(opts.address, typed_args(opts.address, opts.args))
     except MessageError as exc:
-        print(f"batteur send: {exc}", file=sys.stderr)
-        return 2
+        return report_error(PROG, str(exc), USAGE)
     try:
         targets = _resolve(opts.to, opts.timeout, opts.interface or None)
     except ValueError as exc:
-        print(f"batteur send: --to {one_line(exc)}", file=sys.stderr)
-        return 2
+        return report_error(PROG, f"--to {one_line(exc)}", USAGE)
     if not targets:
         return 1
     failed = 0
@@ -168,8 +168,8 @@ def _send(opts: argparse.Namespace) -> int:
             except (OSError, UnicodeError) as exc:  # an unknown host name, an unreachable network: say so, go on
                 sock.close()
                 failed += 1
-                print(f"batteur send: cannot send to {format_address(host, port)}: "
-                      f"{getattr(exc, 'strerror', None) or exc}", file=sys.stderr)
+                report_error(PROG, f"cannot send to {format_address(host, port)}: "
+                             f"{getattr(exc, 'strerror', None) or exc}")
                 continue
             sent.append((sock, format_address(host, port)))
         if opts.replies > 0 and sent:
@@ -200,7 +200,7 @@ def _print_replies(sent: Sequence[tuple[socket.socket, str]], wait_s: float) -> 
             try:
                 data, _ = sock.recvfrom(65536)
             except ConnectionRefusedError:  # ICMP port unreachable for what was sent
-                print(f"batteur send: nothing listens at {name}", file=sys.stderr)
+                report_error(PROG, f"nothing listens at {name}")
                 refused.add(name)
                 del names[sock]
                 continue

@@ -16,13 +16,16 @@ from __future__ import annotations
 import argparse
 import os
 import struct
-import sys
 from collections.abc import Sequence
 from pathlib import Path
 from typing import BinaryIO
 
 from pydantic import BaseModel
 
+from batteur.errors import FAILED, report_error
+
+PROG = "batteur wav-repair"
+"""The command's name in its usage and error lines."""
 RIFF_LIMIT_BYTES = 0xFFFFFFFF
 """A RIFF header's 32-bit sizes cannot describe more."""
 
@@ -125,7 +128,7 @@ def describe(path: Path, result: RepairResult) -> str:
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
-        prog="batteur wav-repair",
+        prog=PROG,
         description="Give WAV takes cut short (header saying 0 frames, e.g. a Pd take still recording when Pd "
         "exited, or more frames than the file holds, e.g. a copy cut short) the length of the audio they hold; "
         "finished files are left as they are. "
@@ -137,12 +140,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         try:
             result = repair_wav(path)
         except OSError as exc:
-            print(f"{path}: not repaired: {unreadable(exc)}", file=sys.stderr)
-            status = 1
+            status = report_error(PROG, f"{path}: not repaired: {unreadable(exc)}", FAILED)
             continue
         except ValueError as exc:
-            print(f"{path}: not repaired: {exc}", file=sys.stderr)
-            status = 1
+            status = report_error(PROG, f"{path}: not repaired: {exc}", FAILED)
             continue
         print(describe(path, result))
     return status

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -152,7 +153,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=UNITS_DIR, metavar="DIR",
                         help=f"folder to write the units into (default: {UNITS_DIR})")
     args = parser.parse_args(argv)
-    paths = build(args.out)
+    try:
+        paths = build(args.out)
+    except OSError as exc:  # a folder it cannot write in: 1 (README, "Exit status")
+        print(f"{parser.prog}: error: --out {args.out}: cannot write the units ({exc.strerror or exc})",
+              file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:  # one line, not a traceback; the units written before it stay
+        print(f"{parser.prog}: interrupted", file=sys.stderr)
+        return 130
     print(f"wrote {len(paths)} units to {args.out}")
     return 0
 

@@ -120,9 +120,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             if _holds_other_data(args.output):  # an earlier take or the model: a typo must not replace it
                 raise RecogniserError(f"-o {args.output}: exists and is not a MIDI file (it would be replaced by "
                                       "one); give another name, or remove it first")
-            if not _midi_name(args.output):
-                raise RecogniserError(f"-o {args.output}: the transcription is a Standard MIDI File; give a name "
-                                      f"ending in {' or '.join(MIDI_SUFFIXES)}")
+            if not _midi_name(args.output):  # an option's value refused: 2, as argparse's (README, "Exit status")
+                print(f"batteur transcribe: error: -o {args.output}: the transcription is a Standard MIDI File; give "
+                      f"a name ending in {' or '.join(MIDI_SUFFIXES)}", file=sys.stderr)
+                return 2
         model = load_model(args.model)
         if args.live:
             return _live(args, model, say)

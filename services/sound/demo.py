@@ -21,12 +21,18 @@ import signal
 
 INTERRUPTED = 130
 """Exit status after Ctrl-C (128 + SIGINT), as a shell gives a command it interrupted."""
+USAGE = 2
+"""Exit status for an option's value refused (argparse's own for usage errors)."""
+FAILED = 1
+"""Exit status for a kit, score or output the demo cannot use (README, "Exit status")."""
+PROG = "python -m services.sound.demo"
+"""The command's name in its usage and error lines."""
 
 
 def _quit_unwritten(signum: int, frame: object) -> None:
     """SIGINT before the render starts: nothing is written yet, so leave at once. A KeyboardInterrupt raised while
     the modules below load can land in importlib's callbacks, which print it as "Exception ignored" and go on."""
-    os.write(2, b"interrupted: nothing written\n")
+    os.write(2, f"{PROG}: interrupted: nothing written\n".encode())
     os._exit(INTERRUPTED)
 
 
@@ -124,12 +130,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         return _main(argv)
     except KeyboardInterrupt:  # before the render (reading the kit or the score): nothing was written yet
         signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not cut the exit short
-        print("interrupted: nothing written", file=sys.stderr)
+        print(f"{PROG}: interrupted: nothing written", file=sys.stderr)
         return INTERRUPTED
 
 
 def _main(argv: Sequence[str] | None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m services.sound.demo", description=plain_text(__doc__ or ""),
+    parser = argparse.ArgumentParser(prog=PROG, description=plain_text(__doc__ or ""),
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("-o", "--output", type=Path, default=Path("groove.wav"),
                         help="WAV file to write (default groove.wav)")
@@ -147,21 +153,25 @@ def _main(argv: Sequence[str] | None) -> int:
     try:
         kit = load_kit(args.kit)
         check_output_file(args.output, "-o")
-        wav_format(args.output, "-o")  # before the render, not after it
     except (FileNotFoundError, ValueError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
+        print(f"{PROG}: error: {exc}", file=sys.stderr)
+        return FAILED
+    try:
+        wav_format(args.output, "-o")  # before the render, not after it
+    except ValueError as exc:  # a name no WAV format takes: an option's value refused, as argparse's
+        print(f"{PROG}: error: {exc}", file=sys.stderr)
+        return USAGE
     try:
         score = read_score(args.midi)
     except ScoreError as exc:  # it names the file and the problem
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
+        print(f"{PROG}: error: {exc}", file=sys.stderr)
+        return FAILED
     for warning in score.warnings:  # unknown notes, a key signature ignored, no drum channel ...
         print(f"warning: {warning}", file=sys.stderr)
     impacts = impacts_from_score(score, kit, args.seconds)
     if not impacts:
-        print(f"no drum notes in the first {args.seconds} s of {args.midi}")
-        return 1
+        print(f"{PROG}: error: no drum notes in the first {args.seconds} s of {args.midi}", file=sys.stderr)
+        return FAILED
     settings = SoundSettings(latency=0.0, channels=1 if args.mono else 2, model=args.model, reverb=args.reverb)
     import time
 
@@ -174,11 +184,11 @@ def _main(argv: Sequence[str] | None) -> int:
               flush=True)
         audio = render_offline(impacts, duration, kit, settings, wav=args.output)
     except OSError as exc:  # a full disk: the file is written whole or not at all
-        print(f"error: -o {args.output}: cannot write it ({exc.strerror or exc})", file=sys.stderr)
-        return 1
+        print(f"{PROG}: error: -o {args.output}: cannot write it ({exc.strerror or exc})", file=sys.stderr)
+        return FAILED
     except KeyboardInterrupt:
         signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not cut the exit short (a traceback)
-        print(f"interrupted: {args.output} not written", file=sys.stderr)
+        print(f"{PROG}: interrupted: {args.output} not written", file=sys.stderr)
         return INTERRUPTED
     took = time.perf_counter() - t0
     print(f"{args.output}: {len(impacts)} strikes, {audio.shape[0] / 48000:.1f} s rendered in {took:.1f} s "

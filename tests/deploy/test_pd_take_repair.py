@@ -110,5 +110,6 @@ def test_a_finished_take_and_other_files_are_left_alone(tmp_path: Path) -> None:
     assert whole.read_bytes() == before and notes.read_text() == "not audio"
     assert result.stdout == f"{whole}: left as it is (100 frames)\n"
     assert result.returncode == 1
-    assert result.stderr.splitlines() == [f"{notes}: not repaired: not a RIFF/WAVE file",
-                                          f"{tmp_path / 'missing.wav'}: not repaired: no such file"]
+    assert result.stderr.splitlines() == [
+        f"batteur wav-repair: error: {notes}: not repaired: not a RIFF/WAVE file",
+        f"batteur wav-repair: error: {tmp_path / 'missing.wav'}: not repaired: no such file"]

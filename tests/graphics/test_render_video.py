@@ -78,7 +78,7 @@ def test_render_video_without_ffmpeg_fails_before_rendering(tmp_path: Path, monk
 
     monkeypatch.setattr(video, "find_ffmpeg", missing)
     out = tmp_path / "out"
-    assert render.main([str(SCORE), "-o", str(out), "--quiet", "--video"]) == 2
+    assert render.main([str(SCORE), "-o", str(out), "--quiet", "--video"]) == 1  # the machine lacks it
     assert "ffmpeg not found" in capsys.readouterr().err
     assert not out.exists()  # nothing written, nothing simulated
 
@@ -98,6 +98,6 @@ def test_a_failing_encoder_leaves_nothing(tmp_path: Path, monkeypatch: pytest.Mo
                                           capsys: pytest.CaptureFixture[str]) -> None:
     monkeypatch.setattr(video, "find_ffmpeg", lambda: "/bin/false")  # "ffmpeg" that exits at once with an error
     out = tmp_path / "out"
-    assert render.main([str(SCORE), "-o", str(out), "--quiet", "--video", "--video-size", "64x36"]) == 2
+    assert render.main([str(SCORE), "-o", str(out), "--quiet", "--video", "--video-size", "64x36"]) == 1
     assert "--video: ffmpeg failed (exit status 1)" in capsys.readouterr().err
     assert not out.exists()  # the WAV, BVH and report were staged, not written

@@ -36,7 +36,7 @@ def test_transcribe_of_a_midi_file_fails_in_one_line(tmp_path: Path, capsys: pyt
 def test_an_output_not_named_mid_is_refused_before_transcribing(tmp_path: Path, pattern_wav: Path, name: str,
                                                                 capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / name
-    assert main([str(pattern_wav), "-o", str(out)]) == 1
+    assert main([str(pattern_wav), "-o", str(out)]) == 2  # an option's value refused
     err = capsys.readouterr().err
     assert f"error: -o {out}: the transcription is a Standard MIDI File; give a name ending in .mid or .midi" in err
     assert "notes (" not in err and not out.exists()  # was: a MIDI file written as tt.wav

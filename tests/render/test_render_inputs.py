@@ -112,7 +112,7 @@ def test_a_segmented_render_given_up_stops_its_running_segments(tmp_path: Path,
 
 def test_a_score_without_drum_events_says_why(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     unknown = _midi(tmp_path / "unknown.mid", channel=9, note=20)
-    assert render.main([str(unknown), "-o", str(tmp_path / "out"), "--quiet"]) == 2
+    assert render.main([str(unknown), "-o", str(tmp_path / "out"), "--quiet"]) == 1  # a file it cannot use
     err = _one_line_error(capsys)
     assert "no drum events to play" in err and "pitch 20" in err
     assert not (tmp_path / "out").exists()
@@ -143,7 +143,7 @@ def test_a_midi_file_without_drum_channel_is_played_with_a_warning(tmp_path: Pat
 def test_a_damaged_report_is_named_not_a_traceback(tmp_path: Path, capsys: pytest.CaptureFixture[str],
                                                    report: dict[str, Any], says: str) -> None:
     folder = _fake_render(tmp_path / "render", **report)
-    assert evaluate.main([str(folder), "--quiet"]) == 2
+    assert evaluate.main([str(folder), "--quiet"]) == 1  # a file it cannot use
     err = _one_line_error(capsys)
     assert "report.json" in err and says in err
 
@@ -151,7 +151,7 @@ def test_a_damaged_report_is_named_not_a_traceback(tmp_path: Path, capsys: pytes
 def test_a_binary_impacts_file_is_named(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     folder = _fake_render(tmp_path / "render")
     (folder / "impacts.csv").write_bytes(b"\xff\xfe\x00garbage")
-    assert evaluate.main([str(folder), "--quiet"]) == 2
+    assert evaluate.main([str(folder), "--quiet"]) == 1  # a file it cannot use
     assert "impacts.csv: not UTF-8 text" in _one_line_error(capsys)
 
 
@@ -160,10 +160,10 @@ def test_a_bad_base_calibration_is_refused_before_fitting(tmp_path: Path, capsys
     bad = tmp_path / "bad.json"
     bad.write_text("{not json")
     fitted = tmp_path / "fitted.json"
-    assert evaluate.main([str(folder), "--fit-calibration", str(fitted), "--calibration", str(bad), "--quiet"]) == 2
+    assert evaluate.main([str(folder), "--fit-calibration", str(fitted), "--calibration", str(bad), "--quiet"]) == 1
     assert "bad.json: not a calibration file" in _one_line_error(capsys)
     assert not fitted.exists()
-    assert evaluate.main([str(folder), "--fit-calibration", str(fitted), "--kit", "nokit", "--quiet"]) == 2
+    assert evaluate.main([str(folder), "--fit-calibration", str(fitted), "--kit", "nokit", "--quiet"]) == 1
     assert "nokit" in _one_line_error(capsys)
     assert not fitted.exists()
 
@@ -244,6 +244,6 @@ def test_motion_capture_options_are_read_before_simulating(tmp_path: Path, monke
                        (["--limits-from", str(legs_only)], "cannot tell which way is up"),
                        (["--skeleton-bvh", str(legs_only)], "--skeleton-bvh"),
                        (["--skeleton-bvh", str(giant)], "shoulder_width length 3.6 m is implausible")):
-        assert render.main([str(SCORE), "-o", str(out), "--quiet", *args]) == 2, args
+        assert render.main([str(SCORE), "-o", str(out), "--quiet", *args]) == 1, args  # a file it cannot use
         assert says in _one_line_error(capsys), args
         assert not out.exists()

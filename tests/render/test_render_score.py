@@ -75,7 +75,7 @@ def test_a_damaged_render_directory_is_named_with_what_is_wrong(rendered: Path, 
             (copy / name).unlink()
         else:
             (copy / name).write_text(damaged)
-        assert evaluate.main([str(copy), "--quiet"]) == 2, name
+        assert evaluate.main([str(copy), "--quiet"]) == 1, name  # a file it cannot use
         err = capsys.readouterr().err
         assert says in err and "Traceback" not in err
 
@@ -107,7 +107,7 @@ def test_corrupted_midi_fails_clearly_and_writes_nothing(tmp_path: Path, capsys:
     bad = tmp_path / "broken.mid"
     bad.write_bytes(MIDI.read_bytes()[:200])
     out = tmp_path / "out"
-    assert render.main([str(bad), "-o", str(out), "--quiet"]) == 2
+    assert render.main([str(bad), "-o", str(out), "--quiet"]) == 1
     err = capsys.readouterr().err
     assert "broken.mid" in err and "truncated" in err.lower()
     assert not out.exists()
@@ -126,21 +126,21 @@ def test_an_output_that_cannot_be_a_directory_is_refused_before_rendering(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     a_file = tmp_path / "notes.txt"
     a_file.write_text("mine")
-    assert render.main([str(MIDI), "-o", str(a_file), "--quiet"]) == 2
+    assert render.main([str(MIDI), "-o", str(a_file), "--quiet"]) == 1  # an output it cannot use
     assert "exists and is not a directory" in capsys.readouterr().err
     assert a_file.read_text() == "mine"
-    assert render.main([str(MIDI), "-o", str(a_file / "out"), "--quiet"]) == 2
+    assert render.main([str(MIDI), "-o", str(a_file / "out"), "--quiet"]) == 1
     assert "is a file, not a directory" in capsys.readouterr().err
-    assert render.main(["--strikes", "0.25:2", "-o", str(a_file), "--quiet"]) == 2
+    assert render.main(["--strikes", "0.25:2", "-o", str(a_file), "--quiet"]) == 1
     assert "exists and is not a directory" in capsys.readouterr().err
     for option, value, says in (("--plots", a_file / "plots", "is a file"), ("--renders", a_file, "not a directory"),
                                 ("--fit-calibration", tmp_path / "missing" / "c.json", "does not exist"),
                                 ("--fit-calibration", tmp_path, "is a directory")):
-        assert evaluate.main([str(MIDI), option, str(value), "--quiet"]) == 2
+        assert evaluate.main([str(MIDI), option, str(value), "--quiet"]) == 1
         err = capsys.readouterr().err
         assert option in err and says in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.txt"]
-    assert evaluate.main([str(tmp_path), "--quiet"]) == 2  # a folder, but not a render
+    assert evaluate.main([str(tmp_path), "--quiet"]) == 1  # a folder, but not a render
     assert "not a render directory" in capsys.readouterr().err
 
 
@@ -148,7 +148,7 @@ def test_bad_text_score_names_the_line(tmp_path: Path, capsys: pytest.CaptureFix
     bad = tmp_path / "bad.txt"
     bad.write_text("tempo 100\nZZ |x...|\n")
     out = tmp_path / "out"
-    assert render.main([str(bad), "-o", str(out), "--quiet"]) == 2
+    assert render.main([str(bad), "-o", str(out), "--quiet"]) == 1
     assert "line 2" in capsys.readouterr().err
     assert not out.exists()
 

@@ -54,7 +54,7 @@ def _score_files(folder: Path) -> list[tuple[Path, str]]:
 
 
 @pytest.mark.parametrize("command", ["render", "evaluate"])
-def test_a_score_that_is_no_readable_file_is_one_line_and_exit_2(command: str, tmp_path: Path,
+def test_a_score_that_is_no_readable_file_is_one_line_and_exit_1(command: str, tmp_path: Path,
                                                                  capsys: pytest.CaptureFixture[str]) -> None:
     for score, says in _score_files(tmp_path / "scores"):
         out = tmp_path / f"out-{score.stem}"
@@ -65,6 +65,6 @@ def test_a_score_that_is_no_readable_file_is_one_line_and_exit_2(command: str, t
         else:
             status = evaluate.main([str(score), "--renders", str(out), "--quiet"])
         err = capsys.readouterr().err.strip()
-        assert status == 2, (score, err)
+        assert status == 1, (score, err)  # an input it cannot use (README, "Exit status")
         assert says in err and str(score) in err and "\n" not in err and "Traceback" not in err
         assert not out.exists()

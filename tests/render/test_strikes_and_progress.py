@@ -37,7 +37,7 @@ def test_a_strike_a_billion_seconds_in_is_one_line_before_anything_runs(
     out = tmp_path / "out"
     assert render.main(["--strikes", "1e9:3", "-o", str(out), "--quiet"]) == 2
     err = capsys.readouterr().err.strip()
-    assert err.startswith("batteur render: strike '1e9:3'") and f"at most {MAX_STRIKE_TIME_S:g} s" in err, err
+    assert err.startswith("batteur render: error: strike '1e9:3'") and f"at most {MAX_STRIKE_TIME_S:g} s" in err, err
     assert len(err.splitlines()) == 1
     assert not out.exists()
 

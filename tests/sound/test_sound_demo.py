@@ -17,7 +17,7 @@ import soundfile as sf
 
 from common.kit import load_kit
 from common.messages import Impact
-from services.sound.demo import DEFAULT_MIDI, impacts_from_midi, main
+from services.sound.demo import DEFAULT_MIDI, PROG, impacts_from_midi, main
 from tests.score.midi_files import KEY_C, riff_chunk, riff_midi, with_key
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -57,7 +57,7 @@ def test_broken_inputs_and_outputs_are_named_and_nothing_is_written(tmp_path: Pa
                        (["-o", str(not_midi / "g.wav")], "notes.txt is a file, not a folder"),
                        (["-o", str(tmp_path / "no" / "g.wav")], "does not exist"),
                        (["-o", str(tmp_path)], "is a directory, not a file")):
-        assert main(["-o", str(out), *args]) == 2
+        assert main(["-o", str(out), *args]) == 1  # a file it cannot use
         assert says in capsys.readouterr().err
     assert not out.exists()
 
@@ -124,7 +124,7 @@ def test_ctrl_c_while_rendering_writes_nothing_and_says_so(tmp_path: Path) -> No
             continue
     err = proc.stderr.read()
     # was: a KeyboardInterrupt traceback
-    assert proc.returncode == 130 and err.strip().splitlines()[-1] == f"interrupted: {out} not written"
+    assert proc.returncode == 130 and err.strip().splitlines()[-1] == f"{PROG}: interrupted: {out} not written"
     assert list(tmp_path.iterdir()) == []
 
 

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from services.sound.demo import main
+from services.sound.demo import PROG, main
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -33,7 +33,8 @@ def test_ctrl_c_while_starting_is_one_line_and_status_130(tmp_path: Path, delay_
         assert out.exists()
     else:
         assert proc.returncode == 130, err
-        assert err.strip().splitlines()[-1] in ("interrupted: nothing written", f"interrupted: {out} not written")
+        assert err.strip().splitlines()[-1] in (f"{PROG}: interrupted: nothing written",
+                                                f"{PROG}: interrupted: {out} not written")
         assert list(tmp_path.iterdir()) == []
 
 
@@ -48,7 +49,7 @@ def test_ctrl_c_while_reading_the_score_returns_130(tmp_path: Path, monkeypatch:
     except KeyboardInterrupt:  # caught here: pytest would take it for the user's and stop the session
         pytest.fail("Ctrl-C while reading the score escaped main (a traceback)")
     assert code == 130
-    assert capsys.readouterr().err == "interrupted: nothing written\n"
+    assert capsys.readouterr().err == f"{PROG}: interrupted: nothing written\n"
     assert list(tmp_path.iterdir()) == []
 
 

@@ -1,0 +1,213 @@
+"""Every command follows one convention (README, "Exit status"): 2 for a command line that cannot be run as given,
+1 for an input or output it could not use, 130 for Ctrl-C; the error line is ``PROG: error: MESSAGE`` on stderr.
+
+Each case fails before any simulation, render or network traffic: a script looping over files can tell a bad
+call (2) from a bad file (1) whatever the command."""
+
+from __future__ import annotations
+
+import importlib
+import signal
+from collections.abc import Callable, Iterator, Sequence
+from pathlib import Path
+
+import pytest
+
+from batteur import cli
+
+Main = Callable[[Sequence[str] | None], int]
+MIDI = Path(__file__).resolve().parents[1] / "data" / "groove_drummer6_s3_1_rock_90_beat_4-4.mid"
+SOUND_DEMO = "python -m services.sound.demo"
+SYNTH = "python -m common.gesture.synth"
+NODES = ("physics", "interaction", "sound", "graphics")
+
+
+def command(name: str) -> tuple[Main, str]:
+    """A command's ``main`` and the program name its error lines start with."""
+    if name == SOUND_DEMO:
+        return importlib.import_module("services.sound.demo").main, name
+    if name == SYNTH:
+        return importlib.import_module("common.gesture.synth").main, name
+    return cli.load_command(name), f"batteur {name}"
+
+
+def run(name: str, argv: Sequence[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
+    """Exit status, last stderr line and the program name of one run (argparse's errors exit by SystemExit)."""
+    main, prog = command(name)
+    capsys.readouterr()
+    try:
+        status = main(list(argv))
+    except SystemExit as exc:
+        status = exc.code if isinstance(exc.code, int) else 1
+    except KeyboardInterrupt:  # caught here: pytest would take it for the user's and stop the session
+        pytest.fail(f"Ctrl-C escaped {prog}'s main (a traceback)")
+    lines = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
+    return status, lines[-1] if lines else "", prog
+
+
+@pytest.fixture(autouse=True)
+def sigint_kept() -> Iterator[None]:
+    """SIGINT's handler as it was after each test (a command may ignore a second Ctrl-C on its way out)."""
+    handler = signal.getsignal(signal.SIGINT)
+    yield
+    signal.signal(signal.SIGINT, handler)
+
+
+@pytest.fixture
+def files(tmp_path: Path) -> dict[str, str]:
+    """Inputs that fail: a text file named .mid, a WAV cut in its header, a file where a folder should be."""
+    (tmp_path / "bad.mid").write_text("hello\n", encoding="utf-8")
+    (tmp_path / "bad.wav").write_bytes(b"RIFF\x24\x00\x00\x00WAVEfmt ")
+    (tmp_path / "a_file").write_text("in the way\n", encoding="utf-8")
+    return {"bad_mid": str(tmp_path / "bad.mid"), "bad_wav": str(tmp_path / "bad.wav"),
+            "missing_mid": str(tmp_path / "missing.mid"), "missing_wav": str(tmp_path / "missing.wav"),
+            "blocked": str(tmp_path / "a_file" / "out"), "out": str(tmp_path / "out"),
+            "out_mid": str(tmp_path / "out.mid"), "out_wav": str(tmp_path / "out.wav")}
+
+
+ALL_COMMANDS = [*cli.COMMANDS, SOUND_DEMO, SYNTH]
+
+
+@pytest.mark.parametrize("name", ALL_COMMANDS)
+def test_an_unknown_option_exits_2_with_argparse_s_error_line(name: str, capsys: pytest.CaptureFixture[str]) -> None:
+    status, line, prog = run(name, ["--no-such-option"], capsys)
+    assert status == 2
+    assert line.startswith(f"{prog}: error: ")
+
+
+BAD_VALUES = [  # an option's value out of range or of the wrong type, found before any file is read
+    ("render", ["{missing_mid}", "-o", "{out}", "--tempo-scale", "50"]),
+    ("render", ["{missing_mid}", "-o", "{out}", "--jobs", "-1"]),
+    ("render", ["--strikes", "1:x", "-o", "{out}"]),
+    ("render", ["{missing_mid}", "-o", "{out}", "--video", "--video-size", "15x15"]),
+    ("evaluate", ["{missing_mid}", "--jobs", "-1"]),
+    ("evaluate", ["{missing_mid}", "--tempo-scale", "0"]),
+    ("demo", ["--control", "no-such-mode"]),
+    ("rig", ["--services", "drums", "--no-discovery"]),
+    ("rig", ["--score", "{missing_mid}", "--services", "sound", "--no-discovery"]),
+    ("rig", ["--record", "{out}", "--services", "physics", "--no-discovery"]),
+    ("transcribe", ["{missing_wav}", "-o", "{out_mid}", "--tempo", "0"]),
+    ("transcribe", ["{missing_wav}", "-o", "{out_wav}"]),
+    ("ls", ["--node", "nowhere"]),
+    ("echo", ["no-slash", "--node", "127.0.0.1:9"]),
+    ("send", ["/batteur/graphics/latency", "abc", "--to", "127.0.0.1:9"]),
+    ("send", ["/no/such/address", "--to", "127.0.0.1:9"]),
+    ("wav-repair", []),
+    (SOUND_DEMO, ["--reverb", "2", "-o", "{out_wav}"]),
+]
+
+
+@pytest.mark.parametrize(("name", "argv"), BAD_VALUES)
+def test_a_bad_option_value_exits_2(name: str, argv: list[str], files: dict[str, str],
+                                    capsys: pytest.CaptureFixture[str]) -> None:
+    status, line, prog = run(name, [a.format(**files) for a in argv], capsys)
+    assert (status, line[:len(prog) + 9]) == (2, f"{prog}: error: ")
+
+
+MISSING_INPUTS = [
+    ("render", ["{missing_mid}", "-o", "{out}"]),
+    ("render", ["--strikes", "0.5:2", "--kit", "{missing_mid}", "-o", "{out}"]),
+    ("render", ["{missing_mid}", "-o", "{out}", "--calibration", "{missing_wav}"]),
+    ("evaluate", ["{missing_mid}"]),
+    ("rig", ["--score", "{missing_mid}", "--no-discovery"]),
+    ("transcribe", ["{missing_wav}", "-o", "{out_mid}"]),
+    ("wav-repair", ["{missing_wav}"]),
+    (SOUND_DEMO, ["--midi", "{missing_mid}", "-o", "{out_wav}"]),
+    (SOUND_DEMO, ["--kit", "{missing_mid}", "-o", "{out_wav}"]),
+]
+
+
+@pytest.mark.parametrize(("name", "argv"), MISSING_INPUTS)
+def test_a_missing_input_file_exits_1(name: str, argv: list[str], files: dict[str, str],
+                                      capsys: pytest.CaptureFixture[str]) -> None:
+    status, line, prog = run(name, [a.format(**files) for a in argv], capsys)
+    assert (status, line[:len(prog) + 9]) == (1, f"{prog}: error: ")
+    assert "missing" in line  # the file is named
+
+
+CORRUPT_INPUTS = [
+    ("render", ["{bad_mid}", "-o", "{out}"]),
+    ("evaluate", ["{bad_mid}"]),
+    ("rig", ["--score", "{bad_mid}", "--no-discovery"]),
+    ("transcribe", ["{bad_wav}", "-o", "{out_mid}"]),
+    ("transcribe", ["{bad_mid}", "-o", "{out_mid}"]),
+    ("wav-repair", ["{bad_wav}"]),
+    ("wav-repair", ["{bad_mid}"]),
+    (SOUND_DEMO, ["--midi", "{bad_mid}", "-o", "{out_wav}"]),
+]
+
+
+@pytest.mark.parametrize(("name", "argv"), CORRUPT_INPUTS)
+def test_an_unreadable_input_file_exits_1(name: str, argv: list[str], files: dict[str, str],
+                                          capsys: pytest.CaptureFixture[str]) -> None:
+    status, line, prog = run(name, [a.format(**files) for a in argv], capsys)
+    assert (status, line[:len(prog) + 9]) == (1, f"{prog}: error: ")
+    assert "bad." in line  # the file is named
+
+
+UNWRITABLE_OUTPUTS = [  # a path under a file: no folder can be made there, even as root
+    ("render", ["{missing_mid}", "-o", "{blocked}"]),
+    ("render", ["--strikes", "0.5:2", "-o", "{blocked}"]),
+    ("demo", ["-o", "{blocked}"]),
+    ("evaluate", ["{missing_mid}", "--renders", "{blocked}"]),
+    ("evaluate", ["{missing_mid}", "--fit-calibration", "{blocked}"]),
+    ("rig", ["--record", "{blocked}", "--no-discovery"]),
+    ("transcribe", ["{missing_wav}", "-o", "{blocked}.mid"]),
+    ("docs", ["-o", "{blocked}"]),
+    (SOUND_DEMO, ["-o", "{blocked}.wav"]),
+    (SYNTH, ["--out", "{blocked}"]),
+]
+
+
+@pytest.mark.parametrize(("name", "argv"), UNWRITABLE_OUTPUTS)
+def test_an_output_that_cannot_be_written_exits_1(name: str, argv: list[str], files: dict[str, str],
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    status, line, prog = run(name, [a.format(**files) for a in argv], capsys)
+    assert (status, line[:len(prog) + 9]) == (1, f"{prog}: error: ")
+    assert "a_file" in line  # the path is named
+
+
+INTERRUPTIBLE = [  # where the first long step starts: a Ctrl-C there
+    ("render", ["{missing_mid}", "-o", "{out}"], "batteur.render.render_score"),
+    ("demo", ["-o", "{out}"], "batteur.render.render_score"),
+    ("evaluate", ["{missing_mid}"], "batteur.evaluate.evaluate_scores"),
+    ("transcribe", ["{missing_wav}", "-o", "{out_mid}"], "services.recogniser.cli.load_model"),
+    (SOUND_DEMO, ["--midi", str(MIDI), "-o", "{out_wav}"], "services.sound.demo.read_score"),
+    (SYNTH, ["--out", "{out}"], "common.gesture.synth.make_unit"),
+]
+
+
+@pytest.mark.parametrize(("name", "argv", "target"), INTERRUPTIBLE)
+def test_ctrl_c_exits_130_with_one_line(name: str, argv: list[str], target: str, files: dict[str, str],
+                                        monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    def interrupted(*args: object, **kwargs: object) -> None:
+        raise KeyboardInterrupt
+
+    command(name)  # imported before it is patched
+    monkeypatch.setattr(target, interrupted)
+    status, line, prog = run(name, [a.format(**files) for a in argv], capsys)
+    assert status == 130
+    assert line.startswith(f"{prog}: interrupted")
+
+
+@pytest.mark.parametrize("name", NODES)
+def test_a_node_refuses_a_bad_setting_with_2_as_docs_runtime_says(name: str,
+                                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    status, line, prog = run(name, ["--rate-hz", "-5", "--no-discovery"], capsys)
+    assert status == 2 and line.startswith(f"{prog}: ")  # its line is run_node's (common/runtime.py)
+
+
+@pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs /dev/full")
+def test_a_write_that_fails_is_one_line_and_1(capsys: pytest.CaptureFixture[str]) -> None:
+    status, line, prog = run("docs", ["-o", "/dev/full"], capsys)  # was a traceback
+    assert (status, line) == (1, f"{prog}: error: -o /dev/full: cannot write it (No space left on device)")
+
+
+def test_a_command_missing_from_the_installation_is_1(monkeypatch: pytest.MonkeyPatch,
+                                                      capsys: pytest.CaptureFixture[str]) -> None:
+    def not_installed(name: str) -> Main:
+        raise ModuleNotFoundError("No module named 'soundfile'")
+
+    monkeypatch.setattr(cli, "load_command", not_installed)
+    assert cli.main(["transcribe", "x.wav"]) == 1  # the installation's fault: no command line would run
+    assert capsys.readouterr().err.startswith("batteur transcribe: error: not available in this installation")
