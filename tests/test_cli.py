@@ -98,8 +98,12 @@ def test_echo_prints_matching_messages_from_a_node(interaction_node: int) -> Non
     echo = subprocess.Popen([sys.executable, "-m", "batteur", "echo", "/batteur/hel*", "--node",
                              f"127.0.0.1:{interaction_node}", "--count", "1", "--duration", "20"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    time.sleep(2.0)
-    assert send.main(["/batteur/hello", "cli", "tester", "1", "9", "--to", f"127.0.0.1:{interaction_node}"]) == 0
+    # echo's subscription reaches the node some time after it starts (later on a loaded machine): say hello
+    # until echo has printed its one message
+    deadline = time.monotonic() + 25
+    while echo.poll() is None and time.monotonic() < deadline:
+        assert send.main(["/batteur/hello", "cli", "tester", "1", "9", "--to", f"127.0.0.1:{interaction_node}"]) == 0
+        time.sleep(0.5)
     out, err = echo.communicate(timeout=30)
     assert echo.returncode == 0, err
     assert out.startswith("/batteur/hello 'cli' 'tester' 1 9")
