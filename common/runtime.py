@@ -31,6 +31,7 @@ import inspect
 import json
 import logging
 import math
+import os
 import signal
 import struct
 import sys
@@ -40,8 +41,9 @@ from collections.abc import Awaitable, Callable, Coroutine, Sequence
 from typing import Any, Protocol, cast
 
 from common.clock import OffsetEstimator, RigClock, answer_ping
-from common.config import ENV_PREFIX, NodeSettings, SettingsError, flag_name, load_settings
+from common.config import ENV_PREFIX, NodeSettings, SettingsError, flag_name, load_settings, read_config_file
 from common.core import Core, Outgoing
+from common.exit_status import FAILED, USAGE, InputError, report_error
 from common.messages import (
     PROTOCOL_VERSION,
     ClockPing,
@@ -1056,24 +1058,30 @@ def run_node(
     Returns
     -------
     int
-        0 after a clean stop, 1 if the node failed, 2 for bad settings.
+        The exit status (common/exit_status.py): 0 after a clean stop; 2 for a setting or option refused; 1 for
+        a file it cannot use (the config file, or ``make_core`` raising OSError or InputError), a port it cannot
+        bind or a node that failed.
     """
     parser = build_parser(role, description, add_arguments, settings_cls)
     args = parser.parse_args(argv)
     fields = set(settings_cls.model_fields)
     given = {k: v for k, v in vars(args).items() if k in fields}
     extra = argparse.Namespace(**{k: v for k, v in vars(args).items() if k not in fields and k != "config"})
+    config = getattr(args, "config", None) or os.environ.get(f"{ENV_PREFIX}CONFIG") or None
+    if config is not None:
+        try:  # a file it cannot read (1), told apart from the values it holds, refused below (2)
+            read_config_file(config)
+        except SettingsError as exc:
+            return report_error(parser.prog, exc, FAILED)
     try:
-        settings = load_settings(given, getattr(args, "config", None), {"role": role}, settings_cls)
+        settings = load_settings(given, config, {"role": role}, settings_cls)
     except SettingsError as exc:
-        print(f"batteur {role}: {exc}", file=sys.stderr)
-        return 2
+        return report_error(parser.prog, str(exc), USAGE)
     if settings.discovery:
         problem = check_interfaces(settings.interfaces)
         if problem:
-            print(f"batteur {role}: invalid setting interfaces: {problem} [--interface / BATTEUR_INTERFACES]",
-                  file=sys.stderr)
-            return 2
+            return report_error(parser.prog, f"invalid setting interfaces: {problem} "
+                                "[--interface / BATTEUR_INTERFACES]", USAGE)
     if args.show_settings:
         print(json.dumps(settings.model_dump(mode="json"), indent=2))
         return 0
@@ -1083,7 +1091,7 @@ def run_node(
     signals = _StartSignals()
     try:
         signals.install()
-        return _make_and_run(role, make_core, settings, extra, signals, setup, discovery_factory)
+        return _make_and_run(parser.prog, make_core, settings, extra, signals, setup, discovery_factory)
     except StoppedWhileStarting as stop:  # before make_core began
         log.info("%s stopped while starting (%s)", role, stop)
         return 0
@@ -1091,34 +1099,34 @@ def run_node(
         signals.restore()
 
 
-def _make_and_run(role: str, make_core: MakeCore, settings: NodeSettings, extra: argparse.Namespace,
+def _make_and_run(prog: str, make_core: MakeCore, settings: NodeSettings, extra: argparse.Namespace,
                   signals: _StartSignals, setup: Setup | None, discovery_factory: DiscoveryFactory | None) -> int:
-    """:func:`run_node` once the settings are loaded: make the core, run it as a node; the exit code."""
+    """:func:`run_node` once the settings are loaded: make the core, run it as a node; the exit status. ``prog``
+    (``batteur ROLE``) starts the error lines."""
     core: Core | None = None
     try:
         try:
             core = make_core(settings, extra)
+        except (InputError, OSError) as exc:  # a file it cannot use: not the command line's fault
+            return report_error(prog, str(exc), FAILED)
         except (ValueError, SettingsError) as exc:
-            print(f"batteur {role}: {exc}", file=sys.stderr)
-            return 2
+            return report_error(prog, str(exc), USAGE)
         try:
             node = Node(core, settings, discovery_factory=discovery_factory)
         except ValueError as exc:  # the settings refused by the node: what the core started is closed
             _close_core(core)
-            print(f"batteur {role}: {exc}", file=sys.stderr)
-            return 2
+            return report_error(prog, str(exc), USAGE)
         signals.forward_to(node.request_stop)
     except StoppedWhileStarting as stop:
         if core is not None:  # made already: the node was not
             _close_core(core)
-        log.info("%s stopped while starting (%s)", role, stop)
+        log.info("%s stopped while starting (%s)", settings.role, stop)
         return 0
     try:
         asyncio.run(node.run(install_signal_handlers=True, setup=setup, freeze_gc=True))
     except OSError as exc:
         where = f"{settings.host}:{settings.port}" if settings.port else settings.host
-        print(f"batteur {role}: cannot run the node on {where}: {exc.strerror or exc}", file=sys.stderr)
-        return 1
+        return report_error(prog, f"cannot run the node on {where}: {exc.strerror or exc}", FAILED)
     except KeyboardInterrupt:
         return 0
     return 1 if node.failed else 0

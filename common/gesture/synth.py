@@ -12,15 +12,33 @@ Regenerate with ``python -m common.gesture.synth``.
 
 from __future__ import annotations
 
-import argparse
-import json
-import sys
-from pathlib import Path
+import os
+import signal
 
-import numpy as np
+PROG = "python -m common.gesture.synth"
+"""The command's name in its usage and error lines."""
 
-from common.gesture.bvh import Bvh, BvhJoint, write_bvh
-from common.gesture.plan import Grip, Nuance
+
+def _quit_unwritten(signum: int, frame: object) -> None:
+    """SIGINT while the modules below load (about half a second: NumPy, SciPy): nothing is written yet, so leave
+    at once. A KeyboardInterrupt raised there would print a traceback, or land in importlib's callbacks."""
+    os.write(2, f"{PROG}: interrupted: nothing written\n".encode())
+    os._exit(130)
+
+
+if __name__ == "__main__":  # the command: a Ctrl-C while its modules load must not print a traceback
+    signal.signal(signal.SIGINT, _quit_unwritten)
+
+# after the handler (E402)
+import argparse  # noqa: E402
+import json  # noqa: E402
+import sys  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from common.gesture.bvh import Bvh, BvhJoint, write_bvh  # noqa: E402
+from common.gesture.plan import Grip, Nuance  # noqa: E402
 
 UNITS_DIR = Path(__file__).parent / "units"
 RATE_HZ = 250.0
@@ -147,7 +165,9 @@ def build(out_dir: Path = UNITS_DIR) -> list[Path]:
 
 def main(argv: list[str] | None = None) -> int:
     """``python -m common.gesture.synth [--out DIR]``: (re)write the units; the shipped ones by default."""
-    parser = argparse.ArgumentParser(prog="python -m common.gesture.synth",
+    if signal.getsignal(signal.SIGINT) is _quit_unwritten:  # loaded: from here a Ctrl-C is a KeyboardInterrupt
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    parser = argparse.ArgumentParser(prog=PROG,
                                      description="Synthesise the gesture database's units (grip x nuance x tempo, "
                                      "BVH + JSON; docs/gestures.md) into DIR, the shipped folder by default.")
     parser.add_argument("--out", type=Path, default=UNITS_DIR, metavar="DIR",

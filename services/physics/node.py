@@ -39,7 +39,8 @@ from pydantic_settings import NoDecode
 
 from common.config import NodeSettings
 from common.core import Outgoing
-from common.kit import EventType
+from common.exit_status import InputError
+from common.kit import EventType, load_kit
 from common.messages import Hello, OscMessage
 from common.messages.graphics import ScorePosition
 from common.messages.physics import ControlModeName, GripName
@@ -158,7 +159,8 @@ class LivePhysicsCore(PhysicsCore):
 
 
 def make_core(settings: NodeSettings, extra: argparse.Namespace) -> PhysicsCore:
-    """Build the core (live mode); ValueError (printed, exit 2) for a bad kit or setting."""
+    """Build the core (live mode); ValueError (printed, exit 2) for a bad setting, InputError (exit 1) for a kit,
+    score, clip or BVH file it cannot use."""
     if not isinstance(settings, PhysicsNodeSettings):
         settings = PhysicsNodeSettings.model_validate(settings.model_dump())
     if settings.play_at is not None and not settings.score:
@@ -166,7 +168,11 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace) -> PhysicsCore:
     if settings.score and settings.scene != "drummer":
         raise ValueError("--score needs the drummer scene")
     if settings.score and not Path(settings.score).expanduser().is_file():
-        raise ValueError(f"score {settings.score!r}: no such file")
+        raise InputError(f"score {settings.score!r}: no such file")
+    try:  # a kit file it cannot use (missing or not a kit): 1, found before the core's slow start
+        load_kit(settings.kit)
+    except (FileNotFoundError, ValueError) as exc:
+        raise InputError(str(exc)) from None
     try:
         core_settings = PhysicsSettings(
             scene=settings.scene,
@@ -189,12 +195,12 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace) -> PhysicsCore:
         )
         core = LivePhysicsCore(core_settings)
     except FileNotFoundError as exc:  # a kit, clip or BVH file that is not there
-        raise ValueError(str(exc)) from None
+        raise InputError(str(exc)) from None
     try:
         _prepare(core, settings)
-    except ValueError as exc:
+    except ValueError as exc:  # the --score file: not a score it can read
         core.close()
-        raise ValueError(str(exc)) from None
+        raise InputError(str(exc)) from None
     except BaseException:  # a node stopped while starting (StoppedWhileStarting): its planning processes stop
         core.close()
         raise

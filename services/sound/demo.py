@@ -167,7 +167,7 @@ def _main(argv: Sequence[str] | None) -> int:
         print(f"{PROG}: error: {exc}", file=sys.stderr)
         return FAILED
     for warning in score.warnings:  # unknown notes, a key signature ignored, no drum channel ...
-        print(f"warning: {warning}", file=sys.stderr)
+        print(f"{PROG}: warning: {warning}", file=sys.stderr)
     impacts = impacts_from_score(score, kit, args.seconds)
     if not impacts:
         print(f"{PROG}: error: no drum notes in the first {args.seconds} s of {args.midi}", file=sys.stderr)

@@ -32,6 +32,7 @@ import numpy.typing as npt
 import soundfile as sf
 
 from common.config import NodeSettings
+from common.exit_status import InputError
 from common.kit import load_kit
 from common.output_paths import file_in_the_way, write_atomically
 from common.runtime import run_node
@@ -267,11 +268,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def make_core(settings: NodeSettings, extra: argparse.Namespace) -> SoundCore:
-    """Build the core and attach the sinks; ValueError for a bad option."""
+    """Build the core and attach the sinks; ValueError (exit 2) for a bad option, InputError (exit 1) for a kit
+    file or a --wav path it cannot use."""
     try:
         kit = load_kit(extra.kit)
-    except FileNotFoundError as exc:
-        raise ValueError(str(exc)) from None
+    except (FileNotFoundError, ValueError) as exc:  # missing, or not a kit
+        raise InputError(str(exc)) from None
     if not 0.0 <= extra.reverb <= 1.0:
         raise ValueError(f"--reverb {extra.reverb} is outside 0..1")
     if settings.latency_s > MAX_LATENCY_S:  # the other nodes take up to 5 s
@@ -288,7 +290,7 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace) -> SoundCore:
                           horizon=HORIZON_S, max_pending=MAX_PENDING, background_rebuilds=True)
     if extra.wav is not None:  # checked before the (slow) core is built
         if extra.wav.is_dir():
-            raise ValueError(f"--wav {extra.wav} is a directory: give a file, e.g. {extra.wav / 'take.wav'}")
+            raise InputError(f"--wav {extra.wav} is a directory: give a file, e.g. {extra.wav / 'take.wav'}")
         wav_format(extra.wav, "--wav")
         wav_name_has_start(extra.wav)
     core = SoundCore(sound, kit)
@@ -310,11 +312,11 @@ def _attach_sinks(core: SoundCore, extra: argparse.Namespace) -> None:
         path = expand_wav_path(extra.wav, datetime.now())  # {start}: when recording starts, i.e. now
         blocker = file_in_the_way(path)
         if blocker is not None:  # else mkdir's bare "[Errno 17] File exists"
-            raise ValueError(f"--wav {path}: {blocker} is a file, not a folder")
+            raise InputError(f"--wav {path}: {blocker} is a file, not a folder")
         try:
             wav = WavSink(path, core.sample_rate, core.channels, lambda: core.scheduler.origin)
         except (OSError, RuntimeError) as exc:  # soundfile: unwritable path
-            raise ValueError(f"--wav {path}: cannot write it ({exc})") from None
+            raise InputError(f"--wav {path}: cannot write it ({exc})") from None
         core.sinks.append(wav)
         log.info("recording to %s, renamed %s when the node stops", wav.part, path)
     if extra.device == "auto":

@@ -14,6 +14,7 @@ from pathlib import Path
 import pytest
 
 from batteur import cli
+from batteur.calibration import Calibration
 
 Main = Callable[[Sequence[str] | None], int]
 MIDI = Path(__file__).resolve().parents[1] / "data" / "groove_drummer6_s3_1_rock_90_beat_4-4.mid"
@@ -194,7 +195,7 @@ def test_ctrl_c_exits_130_with_one_line(name: str, argv: list[str], target: str,
 def test_a_node_refuses_a_bad_setting_with_2_as_docs_runtime_says(name: str,
                                                                   capsys: pytest.CaptureFixture[str]) -> None:
     status, line, prog = run(name, ["--rate-hz", "-5", "--no-discovery"], capsys)
-    assert status == 2 and line.startswith(f"{prog}: ")  # its line is run_node's (common/runtime.py)
+    assert status == 2 and line.startswith(f"{prog}: error: ")  # its line is run_node's (common/runtime.py)
 
 
 @pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs /dev/full")
@@ -211,3 +212,60 @@ def test_a_command_missing_from_the_installation_is_1(monkeypatch: pytest.Monkey
     monkeypatch.setattr(cli, "load_command", not_installed)
     assert cli.main(["transcribe", "x.wav"]) == 1  # the installation's fault: no command line would run
     assert capsys.readouterr().err.startswith("batteur transcribe: error: not available in this installation")
+
+
+@pytest.fixture
+def evaluated(monkeypatch: pytest.MonkeyPatch) -> Main:
+    """``batteur evaluate``'s main with one score's results made up (the renders are not what is tested)."""
+    from types import SimpleNamespace
+
+    from batteur import evaluate
+
+    result = SimpleNamespace(name="groove", missed=[], summary=lambda: {})
+    monkeypatch.setattr(evaluate, "evaluate_scores", lambda *args, **kwargs: [result])
+    monkeypatch.setattr(evaluate, "format_table", lambda rows: "THE TABLE")
+    monkeypatch.setattr(evaluate, "aggregate", lambda results: {})
+    return evaluate.main
+
+
+@pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs /dev/full")
+def test_evaluate_s_calibration_that_cannot_be_written_after_the_renders_is_1(
+        evaluated: Main, files: dict[str, str], monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    monkeypatch.setattr("batteur.calibration.fit_calibration", lambda *args, **kwargs: Calibration())
+    assert evaluated([files["missing_mid"], "--fit-calibration", "/dev/full"]) == 1  # was a traceback
+    out, err = capsys.readouterr()
+    assert out == "THE TABLE\n"  # the figures measured are shown all the same
+    assert err == "batteur evaluate: error: --fit-calibration /dev/full: cannot write it (No space left on device)\n"
+
+
+def test_evaluate_s_plots_that_cannot_be_written_after_the_renders_are_1(
+        evaluated: Main, files: dict[str, str], monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    plots = Path(files["out"])
+    png = plots / "groove_pianoroll.png"
+
+    def read_only(result: object, folder: Path) -> list[Path]:  # what matplotlib raises in a read-only folder
+        raise PermissionError(13, "Permission denied", str(png))
+
+    monkeypatch.setattr("batteur.evaluate.plot_result", read_only)
+    assert evaluated([files["missing_mid"], "--plots", str(plots)]) == 1  # was a traceback
+    out, err = capsys.readouterr()
+    assert out == "THE TABLE\n"
+    assert err == f"batteur evaluate: error: --plots {plots}: cannot write {png} (Permission denied)\n"
+
+
+def test_a_score_s_warning_names_the_command_that_renders_it(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                              capsys: pytest.CaptureFixture[str]) -> None:
+    from batteur import render
+    from tests.score.midi_files import drum_midi, with_key
+
+    score = tmp_path / "bad_key.mid"
+    score.write_bytes(with_key(drum_midi([(0, 4, 4)], [0, 480], key=True), b"\xff\x59\x02\xee\x01"))  # 18 flats
+
+    def interrupted(*args: object) -> float:  # stops the render once the score's warnings are printed
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(render, "rendered_seconds", interrupted)
+    assert render.main([str(score), "-o", str(tmp_path / "out"), "--quiet"], prog="batteur demo") == 130
+    assert f"batteur demo: warning: {score}: a key signature that cannot be read ignored" in capsys.readouterr().err

@@ -102,13 +102,15 @@ def test_a_file_saved_without_a_profile_has_no_adaptation_entries(tmp_path: Path
 
 def test_the_profile_command_refuses_bad_options_before_rendering(tmp_path: Path,
                                                                   capsys: pytest.CaptureFixture[str]) -> None:
-    from services.recogniser.training.profile import main
+    from services.recogniser.training.profile import PROG, main
 
-    for argv, why in ((["--match", "1.5"], "give a number from 0 to 1"),
-                      (["--out", str(tmp_path / "no" / "m.npz")], "is not a directory"),
+    with pytest.raises(SystemExit) as exc:  # a bad value: argparse's usage error, 2
+        main(["--match", "1.5", "--out", str(tmp_path / "m.npz")])
+    assert exc.value.code == 2 and "give a number from 0 to 1" in capsys.readouterr().err
+    for argv, why in ((["--out", str(tmp_path / "no" / "m.npz")], "is not a directory"),  # files: 1
                       (["--model", str(tmp_path / "none.npz")], "model file not found")):
         out = argv if "--out" in argv else [*argv, "--out", str(tmp_path / "m.npz")]
-        with pytest.raises(SystemExit) as exc:
-            main(out)
-        assert exc.value.code == 2 and why in capsys.readouterr().err
+        assert main(out) == 1
+        err = capsys.readouterr().err
+        assert err.startswith(f"{PROG}: error: {argv[0]} ") and why in err and len(err.splitlines()) == 1
     assert not (tmp_path / "m.npz").exists()

@@ -18,6 +18,8 @@ from services.recogniser.training import dataset, excerpts
 
 ROOT = Path(__file__).resolve().parents[2]
 GROOVE_MIDI = ROOT / "tests/data/groove_drummer6_s3_1_rock_90_beat_4-4.mid"
+PROG = "python -m services.recogniser.training.train_net"
+"""A trainer's name, as its error lines start."""
 
 
 def _must_not_start(*_: object) -> bool:
@@ -53,6 +55,9 @@ def _one_line_error(text: str) -> str:
     ("--minutes", "0"), ("--minutes", "-1"), ("--minutes", "nan"), ("--lr", "nan"), ("--lr", "-1"),
     ("--lr", "0"), ("--warmup", "1"), ("--warmup", "-0.1"), ("--threads", "0"), ("--hard", "nan"),
     ("--hard", "-1"), ("--seed", "-1"), ("--workers", "0"),
+    # ranges checked once parsed: were status 1, after the files were read
+    ("--weight", "snare=nan"), ("--onset-merge", "0.5"), ("--neighbour-target", "1.5"), ("--quiet-hihats", "2"),
+    ("--val-quiet-hihats", "-0.5"), ("--hop", "5"), ("--dilations", "0"), ("--width", "4"),
 ])
 def test_train_net_refuses_a_bad_number_before_rendering(monkeypatch: pytest.MonkeyPatch, tmp_path: Path,
                                                          capsys: pytest.CaptureFixture[str], option: str,
@@ -62,7 +67,7 @@ def test_train_net_refuses_a_bad_number_before_rendering(monkeypatch: pytest.Mon
         train_net.main([option, value, "--out", str(tmp_path / "m.npz"), "--cache", str(tmp_path / "c")])
     assert stop.value.code == 2  # a usage error
     line = _one_line_error(capsys.readouterr().err)
-    assert option in line and value in line
+    assert line.startswith(f"{train_net.PROG}: error: ") and option in line and value in line
     assert not (tmp_path / "m.npz").exists()
 
 
@@ -101,7 +106,7 @@ def test_train_net_refuses_an_output_it_cannot_write_before_rendering(
     for why, out in _outputs(tmp_path).items():
         assert train_net.main(["--out", str(out), "--cache", str(tmp_path / "c"), "--excerpts", "1"]) == 1
         line = _one_line_error(capsys.readouterr().err)
-        assert line.startswith(f"error: --out {out}") and why in line
+        assert line.startswith(f"{train_net.PROG}: error: --out {out}") and why in line
     assert sorted(p.name for p in (tmp_path / "a-dir").iterdir()) == []  # nothing left behind by the check
 
 
@@ -110,7 +115,7 @@ def test_train_refuses_an_output_it_cannot_write_before_rendering(
     train = _train(monkeypatch)
     out = tmp_path / "missing" / "m.npz"
     assert train.main(["--out", str(out), "--cache", str(tmp_path / "c")]) == 1
-    assert _one_line_error(capsys.readouterr().err).startswith(f"error: --out {out}")
+    assert _one_line_error(capsys.readouterr().err).startswith(f"{train.PROG}: error: --out {out}")
 
 
 def test_train_net_refuses_a_cache_it_cannot_make(monkeypatch: pytest.MonkeyPatch, tmp_path: Path,
@@ -119,7 +124,7 @@ def test_train_net_refuses_a_cache_it_cannot_make(monkeypatch: pytest.MonkeyPatc
     (tmp_path / "a-file").write_text("x")
     cache = tmp_path / "a-file" / "cache"
     assert train_net.main(["--out", str(tmp_path / "m.npz"), "--cache", str(cache)]) == 1
-    assert _one_line_error(capsys.readouterr().err).startswith(f"error: --cache {cache}")
+    assert _one_line_error(capsys.readouterr().err).startswith(f"{train_net.PROG}: error: --cache {cache}")
 
 
 @pytest.mark.parametrize("option", ["--live-from", "--retune", "--ensemble"])
@@ -131,7 +136,7 @@ def test_train_net_refuses_an_unreadable_model_file_before_rendering(
     assert train_net.main([option, str(garbage), "--out", str(tmp_path / "m.npz"),
                            "--cache", str(tmp_path / "c")]) == 1
     line = _one_line_error(capsys.readouterr().err)
-    assert line.startswith(f"error: {option}: {garbage}") and "not a Batteur recogniser model" in line
+    assert line.startswith(f"{train_net.PROG}: error: {option}: {garbage}") and "not a Batteur recogniser model" in line
 
 
 def test_train_refuses_an_unreadable_offline_model_before_rendering(
@@ -159,16 +164,17 @@ def test_a_missing_groove_dataset_is_refused_before_rendering(monkeypatch: pytes
                                                               capsys: pytest.CaptureFixture[str]) -> None:
     monkeypatch.setattr(excerpts, "require_kits", lambda names: None)  # the kits are not what is tested
     monkeypatch.setattr(dataset, "GROOVE_DIR", tmp_path / "nowhere")
-    assert not excerpts.kits_installed()
+    assert not excerpts.kits_installed(PROG)
     line = _one_line_error(capsys.readouterr().err)
+    assert line.startswith(f"{PROG}: error: ")  # the trainer's name, as every command's error line
     assert "Groove MIDI Dataset" in line and str(tmp_path / "nowhere" / "info.csv") in line
 
     monkeypatch.setattr(dataset, "GROOVE_DIR", _groove(tmp_path / "partly", {"a.mid": GROOVE_MIDI, "b.mid": None}))
-    assert not excerpts.kits_installed()
+    assert not excerpts.kits_installed(PROG)
     assert "1 of the 2 Groove MIDI files" in _one_line_error(capsys.readouterr().err)
 
     monkeypatch.setattr(dataset, "GROOVE_DIR", _groove(tmp_path / "whole", {"a.mid": GROOVE_MIDI}))
-    assert excerpts.kits_installed()
+    assert excerpts.kits_installed(PROG)
 
 
 def _run_without(module: str, trainer: str, *args: str) -> subprocess.CompletedProcess[str]:
@@ -201,6 +207,7 @@ def test_a_missing_training_dependency_says_what_to_install(module: str, trainer
     done = _run_without(module, trainer, "--help")
     assert done.returncode == 1
     line = _one_line_error(done.stderr)
+    assert line.startswith(f"python -m services.recogniser.training.{trainer}: error: ")
     assert len(done.stderr.strip().splitlines()) == 1
     assert all(n in line for n in names), line
 
@@ -245,7 +252,7 @@ def test_train_net_refuses_a_model_whose_weights_are_not_numbers(
     out = tmp_path / "m.npz"
     assert train_net.main([option, str(diverged), "--out", str(out), "--cache", str(tmp_path / "c")]) == 1
     line = _one_line_error(capsys.readouterr().err)
-    assert line.startswith(f"error: {option}: {diverged}") and "holds NaN or infinite values" in line
+    assert line.startswith(f"{train_net.PROG}: error: {option}: {diverged}") and "holds NaN or infinite values" in line
     assert not out.exists()
 
 
@@ -257,4 +264,5 @@ def test_a_part_of_the_trainers_run_as_a_program_says_which_commands_train(modul
                           capture_output=True, text=True, timeout=120)
     assert done.returncode == 2  # not 0 with no output, as if it had worked
     line = _one_line_error(done.stderr)
+    assert line.startswith(f"python -m services.recogniser.training.{module}: error: ")
     assert "services.recogniser.training.train_net" in line and "services.recogniser.training.train " in line

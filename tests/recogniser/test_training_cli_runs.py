@@ -40,7 +40,7 @@ def _frames(n_excerpts: int, seed: int) -> FrameSet:
 @pytest.fixture
 def offline(monkeypatch: pytest.MonkeyPatch) -> None:
     """``train_net`` on random spectra, as if the kits were installed and the excerpts rendered."""
-    monkeypatch.setattr(train_net, "kits_installed", lambda: True)
+    monkeypatch.setattr(train_net, "kits_installed", lambda prog: True)
     monkeypatch.setattr(train_net, "frames", lambda cache, name, n, seed, *a, **k: _frames(n, seed))
 
 
@@ -118,7 +118,7 @@ def test_ctrl_c_while_writing_keeps_the_earlier_model_file(offline: None, monkey
     assert _main([*TINY, "--out", str(out), "--cache", str(tmp_path / "c")]) == 130
     assert out.read_bytes() == b"the earlier model"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["c", "m.npz"]  # no partial file left beside it
-    assert f"interrupted: nothing written to {out}" in capsys.readouterr().err
+    assert f"{train_net.PROG}: interrupted: nothing written to {out}" in capsys.readouterr().err
 
 
 def test_a_loss_that_is_not_a_number_writes_no_model(offline: None, monkeypatch: pytest.MonkeyPatch,
@@ -128,7 +128,8 @@ def test_a_loss_that_is_not_a_number_writes_no_model(offline: None, monkeypatch:
     out = tmp_path / "m.npz"
     assert _main([*TINY, "--out", str(out), "--cache", str(tmp_path / "c")]) == 1
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith("error: the fitting diverged") and "nothing written" in err[0]
+    assert len(err) == 1 and err[0].startswith(f"{train_net.PROG}: error: the fitting diverged")
+    assert "nothing written" in err[0]
     assert not out.exists()
 
 
@@ -210,7 +211,7 @@ def test_the_trainer_reports_a_full_cache_in_one_line(offline: None, monkeypatch
     monkeypatch.setattr(train_net, "frames", full)
     assert _main([*TINY, "--out", str(tmp_path / "m.npz"), "--cache", str(tmp_path / "c")]) == 1
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith("error: the cache /c has 0.1 GiB free")
+    assert len(err) == 1 and err[0].startswith(f"{train_net.PROG}: error: the cache /c has 0.1 GiB free")
 
 
 @pytest.mark.parametrize("options", [["--bands", "narrow"], ["--hop", "220"]])
@@ -219,11 +220,11 @@ def test_retuning_a_model_that_reads_other_spectra_is_refused_before_rendering(
         monkeypatch: pytest.MonkeyPatch, tmp_path: Path, capsys: pytest.CaptureFixture[str], what: str,
         options: list[str]) -> None:
     shipped = Path(train_net.__file__).parents[1] / "models" / "recogniser.npz"  # read only
-    monkeypatch.setattr(train_net, "kits_installed", lambda: True)
+    monkeypatch.setattr(train_net, "kits_installed", lambda prog: True)
     monkeypatch.setattr(train_net, "frames", lambda *a, **k: pytest.fail("rendered for a model it cannot tune"))
     out = tmp_path / "m.npz"
     assert _main([*options, what, str(shipped), "--out", str(out), "--cache", str(tmp_path / "c")]) == 1
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith(f"error: {what} {shipped}: its network reads 56 bands")
+    assert len(err) == 1 and err[0].startswith(f"{train_net.PROG}: error: {what} {shipped}: its network reads 56 bands")
     assert "(give --bands wide --hop 441)" in err[0]
     assert not out.exists()

@@ -165,7 +165,7 @@ def test_a_midi_file_with_a_key_signature_mido_refuses_plays_with_a_warning(
     # was exit 2, "not a readable MIDI file (Could not decode key with 18 flats and mode 1)"
     assert main(["-o", str(out), "--midi", str(bad), "--mono", "--reverb", "0"]) == 0
     err = capsys.readouterr().err
-    assert f"warning: {bad}: a key signature that cannot be read ignored" in err
+    assert f"{PROG}: warning: {bad}: a key signature that cannot be read ignored" in err  # was "warning: ..."
     assert _played(impacts_from_midi(bad, load_kit("default"))) == EXPECTED_BEAT
     audio, rate = sf.read(out)
     assert rate == 48000 and audio.ndim == 1 and np.max(np.abs(audio)) > 0.05

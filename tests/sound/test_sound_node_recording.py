@@ -93,7 +93,7 @@ def test_a_latency_window_the_sound_cannot_take_is_one_clear_line(capsys: pytest
     # was: "1 validation error for SoundSettings" and a pydantic message over four lines (nodes take up to 5 s)
     assert main(["--no-discovery", "--no-oscquery", "--device", "none", "--latency-s", "3"]) == 2
     err = capsys.readouterr().err.strip()
-    assert err == "batteur sound: --latency-s 3: the sound service plays at most 2 s late (the range of " \
+    assert err == "batteur sound: error: --latency-s 3: the sound service plays at most 2 s late (the range of " \
                   "/batteur/sound/latency)"
 
 

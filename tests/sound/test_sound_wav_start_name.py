@@ -45,7 +45,7 @@ def test_a_bad_placeholder_is_one_line_before_start(tmp_path: Path, capsys: pyte
                                                      name: str, says: str) -> None:
     assert main(["--no-discovery", "--no-oscquery", "--device", "none", "--wav", str(tmp_path / name)]) == 2
     err = capsys.readouterr().err.strip()
-    assert err.startswith(f"batteur sound: --wav {tmp_path / name}: ") and says in err, err
+    assert err.startswith(f"batteur sound: error: --wav {tmp_path / name}: ") and says in err, err
     assert len(err.splitlines()) == 1
     assert list(tmp_path.iterdir()) == []
 

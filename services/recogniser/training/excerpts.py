@@ -7,7 +7,6 @@ network of :mod:`.train_net`). Deterministic for a job's seed.
 from __future__ import annotations
 
 import argparse
-import sys
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
@@ -15,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from common.arg_types import count, seed
+from common.exit_status import report_error
 from services.recogniser.errors import ModelError
 from services.recogniser.model import MODEL_PATH
 from services.recogniser.training.dataset import GrooveMissingError, groove_files, require_groove
@@ -220,9 +220,11 @@ def add_arguments(ap: argparse.ArgumentParser, excerpts: int, keeps: str) -> Non
                          "(its strike rules too with --rules, else MODEL keeps its own)")
 
 
-def check_files(args: argparse.Namespace, models: list[tuple[str, Path, Callable[[Path], object]]]) -> bool:
+def check_files(args: argparse.Namespace, models: list[tuple[str, Path, Callable[[Path], object]]],
+                prog: str) -> bool:
     """Whether ``args.out`` can be written, ``args.cache`` used and every model file of ``models`` (option, path,
-    the reader that must accept it) read; if not, says which and why. Checked before anything is rendered."""
+    the reader that must accept it) read; if not, says which and why (``PROG: error: ...`` lines, ``prog`` the
+    trainer's command). Checked before anything is rendered."""
     problems = [f"--out {args.out}: {why}" for why in [check_output(args.out)] if why]
     problems += [f"--cache {args.cache}: {why}" for why in [check_cache(args.cache)] if why]
     for option, path, read in models:
@@ -231,18 +233,18 @@ def check_files(args: argparse.Namespace, models: list[tuple[str, Path, Callable
         except ModelError as exc:
             problems.append(f"{option}: {exc}")
     for problem in problems:
-        print(f"error: {problem}", file=sys.stderr)
+        report_error(prog, problem)
     return not problems
 
 
-def kits_installed() -> bool:
+def kits_installed(prog: str) -> bool:
     """Whether the training and validation kits and the Groove MIDI Dataset are installed (if not, says how to
-    install them)."""
+    install them in a ``PROG: error: ...`` line, ``prog`` the trainer's command)."""
     try:
         require_kits(TRAIN_KITS + VALID_KITS)
         require_groove(("train",))
     except (KitsMissingError, GrooveMissingError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        report_error(prog, str(exc))
         return False
     return True
 

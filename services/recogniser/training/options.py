@@ -14,6 +14,7 @@ import tempfile
 from pathlib import Path
 
 from common.arg_types import number
+from common.exit_status import USAGE
 from services.recogniser.model import Model
 
 INSTALL = {
@@ -28,10 +29,17 @@ INSTALL = {
 """How to install each optional module a trainer imports (named by its top-level module)."""
 
 
-def missing_dependency(exc: ModuleNotFoundError) -> str:
-    """A one-line error for a trainer whose optional module is not installed, naming what to install."""
+def prog_of(module: str) -> str:
+    """The command that runs ``module`` (``python -m MODULE``): the name its usage and error lines start with."""
+    return f"python -m {module}"
+
+
+def missing_dependency(exc: ModuleNotFoundError, prog: str) -> str:
+    """The one-line error (``PROG: error: ...``) of the trainer ``prog`` whose optional module is not installed,
+    naming what to install; exit status 1 (README, "Exit status": the installation's fault, not the command
+    line's)."""
     top = (exc.name or "").split(".")[0]
-    return f"error: {INSTALL.get(top, f'the Python module {top!r} is not installed ({exc})')}"
+    return f"{prog}: error: {INSTALL.get(top, f'the Python module {top!r} is not installed ({exc})')}"
 
 
 def below_one(text: str) -> float:
@@ -83,7 +91,7 @@ COMMANDS = ("services.recogniser.training.train_net", "services.recogniser.train
 def not_a_command(module: str) -> None:
     """Exit 2 saying that ``module``, run as a program, is a part of the trainers (rather than do nothing and
     exit 0, as if it had worked)."""
-    print(f"error: {module} is a part of the trainers, not a command: run python -m {COMMANDS[0]} (the offline "
-          f"network) or python -m {COMMANDS[1]} (the live classifier); --help lists their options",
-          file=sys.stderr)
-    raise SystemExit(2)
+    print(f"{prog_of(module)}: error: {module} is a part of the trainers, not a command: run "
+          f"{prog_of(COMMANDS[0])} (the offline network) or {prog_of(COMMANDS[1])} (the live classifier); --help "
+          "lists their options", file=sys.stderr)
+    raise SystemExit(USAGE)

@@ -29,7 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
-from services.recogniser.training.options import missing_dependency, save_model
+from common.exit_status import FAILED, INTERRUPTED
+from services.recogniser.training.options import missing_dependency, prog_of, save_model
 
 try:  # scikit-learn and mir_eval are training-only: run as a program, their absence is a one-line error
     import mir_eval
@@ -38,7 +39,7 @@ try:  # scikit-learn and mir_eval are training-only: run as a program, their abs
 except ModuleNotFoundError as exc:
     if __name__ != "__main__":
         raise
-    raise SystemExit(missing_dependency(exc)) from None
+    raise SystemExit(missing_dependency(exc, prog_of("services.recogniser.training.train"))) from None
 
 from services.recogniser.audio import SAMPLE_RATE, resample
 from services.recogniser.classes import CLASS_NAMES, N_CLASSES
@@ -67,6 +68,8 @@ from services.recogniser.training.frames import ONSET_MERGE_S, Progress, onset_t
 from services.recogniser.training.kits import RENDER_RATE, TRAIN_KITS, VALID_KITS
 from services.recogniser.transcribe import SUPPRESS_S, DrumEvent, group_chords
 
+PROG = prog_of("services.recogniser.training.train")
+"""The command's name in its usage and error lines."""
 CACHE_TAG = "v8"
 """Changes when the rendering or features change, so stale cached examples are not reused."""
 HIDDEN_LIVE = (64, 32)
@@ -244,20 +247,22 @@ def retune(path: Path, val: Examples, out: Path) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    """Fit the live classifier; the exit status (README, "Exit status": 2 a bad option value, 1 a file it cannot
+    use or data not installed, 130 Ctrl-C)."""
+    ap = argparse.ArgumentParser(prog=PROG, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     add_arguments(ap, excerpts=1000, keeps="offline")
     ap.add_argument("--no-synth", dest="synth", action="store_false",
                     help="fit on the Hydrogen kits only (default: also Batteur's own modal and signal synthesis)")
     args = ap.parse_args(argv)
     models: list[tuple[str, Path, Callable[[Path], object]]] = [("--offline-from", args.offline_from, load_model)]
     models += [("--retune", args.retune, load_model)] if args.retune is not None else []
-    if not check_files(args, models) or not kits_installed():
-        return 1
+    if not check_files(args, models, PROG) or not kits_installed(PROG):
+        return FAILED
     try:
         return run(args)
     except KeyboardInterrupt:
-        print(f"interrupted: nothing written to {args.out}", file=sys.stderr)
-        return 130
+        print(f"{PROG}: interrupted: nothing written to {args.out}", file=sys.stderr)
+        return INTERRUPTED
 
 
 def run(args: argparse.Namespace) -> int:

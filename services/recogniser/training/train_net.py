@@ -36,7 +36,7 @@ from services.recogniser.classes import CLASS_NAMES
 from services.recogniser.errors import ModelError
 from services.recogniser.framenet import FrameNet
 from services.recogniser.model import Model, load_live, load_model
-from services.recogniser.training.options import missing_dependency
+from services.recogniser.training.options import missing_dependency, prog_of
 
 try:  # PyTorch and mir_eval are training-only: run as a program, their absence is a one-line error
     import torch
@@ -47,9 +47,10 @@ try:  # PyTorch and mir_eval are training-only: run as a program, their absence 
 except ModuleNotFoundError as exc:
     if __name__ != "__main__":
         raise
-    raise SystemExit(missing_dependency(exc)) from None
+    raise SystemExit(missing_dependency(exc, prog_of("services.recogniser.training.train_net"))) from None
 
 from common.arg_types import count, non_negative, positive
+from common.exit_status import FAILED, INTERRUPTED, report_error
 from services.recogniser.training.excerpts import (
     FIT_KITS,
     VALID_DRY_P,
@@ -74,6 +75,8 @@ from services.recogniser.training.more_kits import MORE_KITS, MoreKitsMissingErr
 from services.recogniser.training.options import below_one, save_model
 from services.recogniser.training.soundfont import SOUNDFONT_KITS, SoundfontsMissingError, require_soundfonts
 
+PROG = prog_of("services.recogniser.training.train_net")
+"""The command's name in its usage and error lines."""
 BANDS = {"narrow": F.NARROW, "wide": F.WIDE}
 """The band analyses ``--bands`` names."""
 CACHE_TAG = "f4"
@@ -195,7 +198,7 @@ def output_weights(items: list[str]) -> dict[int, float]:
 
 def build_parser() -> argparse.ArgumentParser:
     """The trainer's command line (numbers checked as they are parsed)."""
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(prog=PROG, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     add_arguments(ap, excerpts=3200, keeps="live")
     ap.add_argument("--epochs", type=positive, default=5.0, help="passes over the training frames (default 5)")
     ap.add_argument("--minutes", type=positive, default=None,
@@ -279,22 +282,50 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    """Train what the command line asks for; the exit status (README, "Exit status": 2 a bad option value, 1 a
+    file it cannot use, data not installed or a fitting that failed, 130 Ctrl-C)."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    problem = option_problem(args)
+    if problem:  # before any file is read: a command line that cannot run
+        parser.error(problem)
     models: list[tuple[str, Path, Callable[[Path], object]]] = [("--live-from", args.live_from, load_live)]
     models += [(option, path, load_model) for option, path in  # also refuses NaN weights
                [("--retune", args.retune), ("--init", args.init)] if path is not None]
     models += [("--ensemble", p, load_model) for p in args.ensemble or []]
-    if not check_files(args, models) or not kits_installed():
-        return 1
+    if not check_files(args, models, PROG) or not kits_installed(PROG):
+        return FAILED
     try:
         return run(args)
     except KeyboardInterrupt:
-        print(f"interrupted: nothing written to {args.out} (sets of excerpts rendered in full are kept in "
+        print(f"{PROG}: interrupted: nothing written to {args.out} (sets of excerpts rendered in full are kept in "
               f"{args.cache} for the next run)", file=sys.stderr)
-        return 130
+        return INTERRUPTED
     except (FitError, CacheFullError) as exc:
-        print(f"error: {exc}; nothing written to {args.out}", file=sys.stderr)
-        return 1
+        return report_error(PROG, f"{exc}; nothing written to {args.out}")
+
+
+def option_problem(args: argparse.Namespace) -> str | None:
+    """What is wrong with the values of the parsed options ``args`` that their types do not check (ranges that
+    depend on the option), or None."""
+    try:
+        output_weights(args.weight)
+    except ValueError as exc:
+        return f"--weight {exc}"
+    if args.onset_merge is not None and not 0.0 <= args.onset_merge <= 0.1:
+        return f"--onset-merge must be within 0..0.1 s, got {args.onset_merge}"
+    if not 0.0 <= args.neighbour_target <= 1.0:
+        return f"--neighbour-target must be within 0..1, got {args.neighbour_target}"
+    for flag, share in (("--quiet-hihats", args.quiet_hihats), ("--val-quiet-hihats", args.val_quiet_hihats)):
+        if not 0.0 <= share <= 1.0:
+            return f"{flag} must be within 0..1, got {share}"
+    if args.hop is not None and not F.HOP_RANGE[0] <= args.hop <= F.HOP_RANGE[1]:  # None: the bands' default
+        return f"--hop must be {F.HOP_RANGE[0]}..{F.HOP_RANGE[1]} samples, got {args.hop}"
+    if min(args.dilations) < 1:
+        return f"--dilations must be positive frame counts, got {args.dilations}"
+    if args.width < 8 or (args.front is not None and min(args.front) < 1):
+        return f"--width must be at least 8 and --front positive, got {args.width} and {args.front}"
+    return None
 
 
 def run(args: argparse.Namespace) -> int:
@@ -304,59 +335,31 @@ def run(args: argparse.Namespace) -> int:
         try:
             require_soundfonts(list(SOUNDFONT_KITS))
         except SoundfontsMissingError as exc:
-            print(f"error: {exc}", file=sys.stderr)
-            return 1
+            return report_error(PROG, str(exc))
         fit_kits = FIT_KITS + tuple(SOUNDFONT_KITS)
     if args.more_kits:
         try:
             require_more_kits()
         except (MoreKitsMissingError, SoundfontsMissingError) as exc:
-            print(f"error: {exc}", file=sys.stderr)
-            return 1
+            return report_error(PROG, str(exc))
         fit_kits = fit_kits + tuple(MORE_KITS)
     bands = BANDS[args.bands]
     windows = windows_for(bands, tuple(sorted(set(args.windows))))
     rendered = (SHORT_WINDOW, *WINDOWS) if SHORT_WINDOW in args.windows else WINDOWS  # windows in the frame sets
     args.hop = default_hop(bands) if args.hop is None else args.hop
-    try:
-        weights = output_weights(args.weight)
-    except ValueError as exc:
-        print(f"error: --weight {exc}", file=sys.stderr)
-        return 1
-    if args.onset_merge is not None and not 0.0 <= args.onset_merge <= 0.1:
-        print(f"error: --onset-merge must be within 0..0.1 s, got {args.onset_merge}", file=sys.stderr)
-        return 1
-    if not 0.0 <= args.neighbour_target <= 1.0:
-        print(f"error: --neighbour-target must be within 0..1, got {args.neighbour_target}", file=sys.stderr)
-        return 1
-    for flag, share in (("--quiet-hihats", args.quiet_hihats), ("--val-quiet-hihats", args.val_quiet_hihats)):
-        if not 0.0 <= share <= 1.0:
-            print(f"error: {flag} must be within 0..1, got {share}", file=sys.stderr)
-            return 1
-    if not F.HOP_RANGE[0] <= args.hop <= F.HOP_RANGE[1]:
-        print(f"error: --hop must be {F.HOP_RANGE[0]}..{F.HOP_RANGE[1]} samples, got {args.hop}", file=sys.stderr)
-        return 1
-    if min(args.dilations) < 1:
-        print(f"error: --dilations must be positive frame counts, got {args.dilations}", file=sys.stderr)
-        return 1
-    if args.width < 8 or (args.front is not None and min(args.front) < 1):
-        print(f"error: --width must be at least 8 and --front positive, got {args.width} and {args.front}",
-              file=sys.stderr)
-        return 1
+    weights = output_weights(args.weight)  # checked by option_problem
     for option, path in [("--retune", args.retune)] * (args.retune is not None) + [("--ensemble", p)
                                                                                   for p in args.ensemble or []]:
         why = analysis_mismatch(load_model(path).offline, bands, args.hop, windows_for(bands, rendered))
         if why:  # found now, not once the validation excerpts are rendered
-            print(f"error: {option} {path}: {why}", file=sys.stderr)
-            return 1
+            return report_error(PROG, f"{option} {path}: {why}")
     init = None
     if args.init is not None:
         try:
             init = init_net(args.init, windows, args.width, tuple(args.dilations), args.hop, bands,
                             None if args.front is None else (args.front[0], args.front[1]), args.seed)
         except (ModelError, ValueError) as exc:
-            print(f"error: --init {args.init}: {exc}", file=sys.stderr)
-            return 1
+            return report_error(PROG, f"--init {args.init}: {exc}")
     torch.set_num_threads(args.threads)
     t0 = time.time()
     val = frames(args.cache, "val", args.val_excerpts, args.seed + 1000, args.workers, VALID_KITS, VALID_DRY_P,
