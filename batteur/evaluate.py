@@ -641,16 +641,28 @@ def folder_name(path: Path) -> str:
 
 def reusable(render_dir: Path, score: Path, opts: Any) -> bool:
     """Whether ``render_dir`` is a render of this very score with these options (``--reuse``): a render of
-    another score of the same name, or with another kit or tempo, would be evaluated against the wrong notes."""
+    another score of the same name, or with another kit, tempo, grip, nuance or drummer, would be evaluated
+    against the wrong notes or be another performance. The grip and nuance compared are those a render would
+    play (the options', else the score's directives: ``RenderOptions.styled``)."""
+    from batteur.render import DEFAULT_MASS_KG, DEFAULT_NUANCE, file_style
+    from common.score.events import ScoreError
+    from common.score.limbs import STATURE_M
+
     try:
         report = read_report(render_dir)
         copy = render_dir / f"score{score.suffix}"
         same_score = copy.is_file() and copy.read_bytes() == score.read_bytes()
-    except (ValueError, OSError):
+        if not same_score:
+            return False
+        style = opts.with_style(*file_style(score))
+    except (ValueError, OSError, ScoreError):  # a score it cannot read: rendered, so that the error is told
         return False
-    wanted = {"kit": opts.kit, "grip": opts.grip, "nuance": opts.nuance.value, "tempo_scale": opts.tempo_scale,
-              "control": opts.control, "calibration": str(opts.calibration) if opts.calibration else None}
-    return same_score and all(report.get(key) == value for key, value in wanted.items())
+    wanted = {"kit": opts.kit, "grip": style.grip, "nuance": (style.nuance or DEFAULT_NUANCE).value,
+              "tempo_scale": opts.tempo_scale, "control": opts.control,
+              "calibration": str(opts.calibration) if opts.calibration else None}
+    body = {"height_m": (opts.height_m, STATURE_M), "mass_kg": (opts.mass_kg, DEFAULT_MASS_KG)}
+    return (all(report.get(key) == value for key, value in wanted.items())
+            and all(report.get(key, before) == value for key, (value, before) in body.items()))
 
 
 def check_render_names(paths: Sequence[Path], renders: Path) -> None:
@@ -671,8 +683,7 @@ PROG = "batteur evaluate"
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from batteur.render import CONTROL_MODES, GRIPS
-    from common.gesture.plan import Nuance
+    from batteur.render import CONTROL_MODES, add_body_options, add_style_options
 
     parser = argparse.ArgumentParser(
         prog=PROG,
@@ -688,9 +699,8 @@ def build_parser() -> argparse.ArgumentParser:
                         help="with --renders: reuse a render already there when it is of the same score with the "
                         "same options")
     parser.add_argument("--kit", default="default", help="kit name or YAML/JSON file (default: default)")
-    parser.add_argument("--grip", default="german", choices=GRIPS, help="stick grip (default: german)")
-    parser.add_argument("--nuance", default=Nuance.TENUTO.value, choices=[n.value for n in Nuance],
-                        help="global playing nuance (default: tenuto)")
+    add_style_options(parser)
+    add_body_options(parser)
     parser.add_argument("--tempo-scale", type=float, default=1.0, metavar="X",
                         help="play X times faster, 0.1 to 10 (default 1)")
     parser.add_argument("--control", default="cartesian", choices=list(CONTROL_MODES),
@@ -740,8 +750,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def _main(args: argparse.Namespace) -> int:
     from batteur.calibration import Calibration
-    from batteur.render import RenderError, RenderOptions, resolve_jobs
-    from common.gesture.plan import Nuance
+    from batteur.render import RenderError, RenderOptions, resolve_jobs, style_from
     from common.output_paths import check_output_dir, check_output_file
     from common.score.events import ScoreError
 
@@ -758,25 +767,14 @@ def _main(args: argparse.Namespace) -> int:
             fit_kit = load_kit(args.kit)  # read now, as the base of the fit: a bad file must not cost the renders
             if args.calibration is not None:
                 base_calibration = Calibration.load(args.calibration)
-        opts = RenderOptions(kit=args.kit, grip=args.grip, nuance=Nuance(args.nuance), tempo_scale=args.tempo_scale,
+        grip, nuance = style_from(args)
+        opts = RenderOptions(kit=args.kit, grip=grip, nuance=nuance, tempo_scale=args.tempo_scale,
                              control=args.control, calibration=args.calibration, jobs=resolve_jobs(args.jobs),
-                             segment_s=args.segment)
+                             segment_s=args.segment, height_m=args.height, mass_kg=args.mass)
         results = evaluate_scores(args.scores, opts, args.renders, quiet=args.quiet, reuse=args.reuse)
     except (ScoreError, RenderError, ValueError, OSError, KeyError) as exc:  # UsageError: 2, a file or a render: 1
         return report_error(PROG, exc)
     agg = aggregate(results)
-    if args.plots is not None:
-        for r in results:
-            for p in plot_result(r, args.plots):
-                print(f"wrote {p}", file=sys.stderr)
-    if args.fit_calibration is not None and fit_kit is not None:
-        from batteur.calibration import fit_calibration
-
-        cal = fit_calibration(results, fit_kit, base=base_calibration)
-        cal.save(args.fit_calibration)
-        objects = sum("/" not in key for key in cal.timing)  # an object's offset, and its events' own
-        print(f"wrote {args.fit_calibration} (timing offsets for {objects} kit objects and "
-              f"{len(cal.timing) - objects} of their sounds, velocity maps for {len(cal.velocity)})", file=sys.stderr)
     if args.json:
         print(json.dumps({"files": [r.summary() for r in results], "aggregate": agg,
                           "elapsed_s": round(time.perf_counter() - started, 3)}, indent=2))
@@ -791,4 +789,25 @@ def _main(args: argparse.Namespace) -> int:
             if args.list:
                 print(f"{r.name}: impacts")
                 print("\n".join(impact_listing(r)))
+    if args.plots is not None:
+        try:  # after the figures are shown (a failed write must not lose them): a full disk, a folder made
+            # read-only since the check, is one line, not a traceback
+            for r in results:
+                for p in plot_result(r, args.plots):
+                    print(f"wrote {p}", file=sys.stderr)
+        except OSError as exc:
+            return report_error(PROG, f"--plots {args.plots}: cannot write {exc.filename or 'a plot'} "
+                                      f"({exc.strerror or exc})")
+    if args.fit_calibration is not None and fit_kit is not None:
+        from batteur.calibration import fit_calibration
+
+        cal = fit_calibration(results, fit_kit, base=base_calibration)
+        try:
+            cal.save(args.fit_calibration)
+        except OSError as exc:  # e.g. a full disk
+            return report_error(PROG, f"--fit-calibration {args.fit_calibration}: cannot write it "
+                                      f"({exc.strerror or exc})")
+        objects = sum("/" not in key for key in cal.timing)  # an object's offset, and its events' own
+        print(f"wrote {args.fit_calibration} (timing offsets for {objects} kit objects and "
+              f"{len(cal.timing) - objects} of their sounds, velocity maps for {len(cal.velocity)})", file=sys.stderr)
     return 0

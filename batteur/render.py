@@ -57,7 +57,7 @@ from common.messages.physics import ControlModeName
 from common.output_paths import check_output_dir
 from common.score.events import Score, ScoreError
 from common.score.hands import HandAlgorithm
-from common.score.limbs import Assignment
+from common.score.limbs import STATURE_M, Assignment
 
 if TYPE_CHECKING:
     from batteur.calibration import Calibration
@@ -74,6 +74,21 @@ CONTROL_MODES: dict[str, str] = {
 
 GRIPS = ("german", "french", "american", "traditional")
 """Physics grips; the planner's gesture database has french and german (others plan as german)."""
+DEFAULT_GRIP = "german"
+"""The grip of a render whose options and score name none."""
+DEFAULT_NUANCE = Nuance.TENUTO
+"""The nuance of a render whose options and score name none."""
+DEFAULT_MASS_KG = 73.0
+"""The drummer's default mass, kilograms (physics' ``PhysicsSettings.mass_kg``)."""
+HEIGHT_RANGE_M = (1.2, 2.2)
+"""Accepted ``--height``, metres (physics' ``PhysicsSettings.height_m``: de Leva's table scaled that far)."""
+MASS_RANGE_KG = (35.0, 150.0)
+"""Accepted ``--mass``, kilograms (physics' ``PhysicsSettings.mass_kg``)."""
+BVH_RATE_RANGE = (1.0, 1000.0)
+"""Accepted ``--bvh-rate``, Hz."""
+MAX_PHYSICS_POSE_HZ = 240.0
+"""Physics publishes poses at most this often (``PhysicsSettings.pose_rate_hz``), Hz; a faster BVH is interpolated
+between them."""
 
 TEMPO_SCALE_RANGE = (0.1, 10.0)
 """Accepted ``--tempo-scale``: slower stretches the render (and its memory) without bound, faster piles every
@@ -91,8 +106,11 @@ class RenderOptions:
     """How to render a score (seconds, m/s)."""
 
     kit: str = "default"
-    grip: str = "german"
-    nuance: Nuance = Nuance.TENUTO
+    grip: str | None = None
+    """Physics grip (and the planner's, where the gesture database has it); None: the score's ``grip`` directive
+    (a text score), else :data:`DEFAULT_GRIP` (:meth:`styled`)."""
+    nuance: Nuance | None = None
+    """Global nuance of the gestures; None: the score's ``nuance`` directive, else :data:`DEFAULT_NUANCE`."""
     tempo_scale: float = 1.0
     """> 1 plays faster: every score time is divided by it."""
     control: str = "cartesian"
@@ -105,6 +123,8 @@ class RenderOptions:
     control_rate_hz: float | None = None
     """Drummer's full control updates per second, Hz (None: the physics default)."""
     pose_rate_hz: float = 60.0
+    """Frame rate of performance.bvh, Hz (``--bvh-rate``); physics sends poses at least at 60 Hz
+    (:func:`physics_pose_rate`)."""
     calibration: Path | None = None
     video: bool = False
     """Also write performance.mp4 (services.graphics.video.render_video); needs ffmpeg."""
@@ -120,6 +140,52 @@ class RenderOptions:
     DeepMimic clip)."""
     skeleton_bvh: Path | None = None
     """BVH file whose skeleton gives the drummer's proportions (None: de Leva's table)."""
+    height_m: float = STATURE_M
+    """The drummer's height, metres (1.2 to 2.2): physics' body (de Leva's segments scaled) and the planner's
+    reach."""
+    mass_kg: float = DEFAULT_MASS_KG
+    """The drummer's mass, kilograms (35 to 150): physics' segment masses and joint strength."""
+
+    def styled(self, score: Score | None = None) -> RenderOptions:
+        """These options with the grip and nuance a render of ``score`` plays: those given here, else those the
+        score asks for (a text score's ``grip`` and ``nuance`` directives; a MIDI file has none), else
+        :data:`DEFAULT_GRIP` and :data:`DEFAULT_NUANCE`."""
+        return self.with_style(*score_style(score))
+
+    def with_style(self, asked_grip: str | None, asked_nuance: Nuance | None) -> RenderOptions:
+        """:meth:`styled` for a score asking for ``asked_grip`` and ``asked_nuance`` (None: it does not)."""
+        grip = self.grip if self.grip is not None else (asked_grip or DEFAULT_GRIP)
+        nuance = self.nuance if self.nuance is not None else (asked_nuance or DEFAULT_NUANCE)
+        if (grip, nuance) == (self.grip, self.nuance):
+            return self
+        return dataclasses.replace(self, grip=grip, nuance=nuance)
+
+
+def score_style(score: Score | None) -> tuple[str | None, Nuance | None]:
+    """The grip and nuance ``score`` asks for (a text score's directives), None for those it does not."""
+    from common.score.text import TextScore
+
+    if not isinstance(score, TextScore):
+        return None, None
+    return (None if score.grip is None else score.grip.value), score.nuance
+
+
+def file_style(path: Path) -> tuple[str | None, Nuance | None]:
+    """The grip and nuance the score file ``path`` asks for (a MIDI file: none, and it is not read); raises
+    :class:`ScoreError` for a text score that cannot be read."""
+    from common.score.text import MIDI_SUFFIXES, read_score
+
+    if path.suffix.lower() in MIDI_SUFFIXES:
+        return None, None
+    return score_style(read_score(path))
+
+
+def physics_pose_rate(opts: RenderOptions) -> float:
+    """How often physics sends poses, Hz: the BVH's rate, but at least the default 60 Hz (the video draws from the
+    same poses: a 24 Hz BVH must not coarsen it) and at most :data:`MAX_PHYSICS_POSE_HZ`; 0: none."""
+    if opts.pose_rate_hz <= 0:
+        return opts.pose_rate_hz
+    return min(max(opts.pose_rate_hz, RenderOptions.pose_rate_hz), MAX_PHYSICS_POSE_HZ)
 
 
 @dataclass
@@ -152,13 +218,17 @@ def scale_tempo(score: Score, scale: float) -> Score:
         raise ValueError(f"tempo scale must be a positive finite number, got {scale}")
     if scale == 1.0:
         return score
-    return dataclasses.replace(
+    scaled = dataclasses.replace(
         score,
         events=[dataclasses.replace(e, time=e.time / scale) for e in score.events],
         beats=np.asarray(score.beats, dtype=float) / scale,
         unknown=[dataclasses.replace(u, time=u.time / scale) for u in score.unknown],
         duplicates=[dataclasses.replace(d, time=d.time / scale) for d in score.duplicates],
     )
+    for name in ("grip", "nuance"):  # a text score's directives are attributes, not fields: replace drops them
+        if hasattr(score, name):
+            setattr(scaled, name, getattr(score, name))
+    return scaled
 
 
 def prepare(path: Path | str, kit: Kit, opts: RenderOptions, calibration: Calibration | None = None,
@@ -167,7 +237,9 @@ def prepare(path: Path | str, kit: Kit, opts: RenderOptions, calibration: Calibr
 
     With a ``calibration`` the notes are shifted (lag anticipation) and their
     velocities remapped before planning; the returned ``score`` keeps the
-    written times (what the performance is judged against). ``progress``: called with (stage, done, total)
+    written times (what the performance is judged against). The grip and nuance are ``opts.styled(score)``'s (a
+    text score's directives unless ``opts`` names them), the reach that of a drummer ``opts.height_m`` tall.
+    ``progress``: called with (stage, done, total)
     while a MIDI file is read (stage ``"reading"``, in bytes: ``read_midi``'s progress), its notes are given
     limbs (``"limbs"``, in notes: ``distribute``'s) and planned (``"gestures"``, ``plan_gestures``'); what it
     raises stops the preparation.
@@ -183,10 +255,12 @@ def prepare(path: Path | str, kit: Kit, opts: RenderOptions, calibration: Calibr
                         if not w.endswith("no drum events"))
         raise ScoreError(f"{path}: no drum events to play" + (f" ({why})" if why else ""))
     assignment = distribute(score, kit, opts.algorithm,
-                            progress=None if progress is None else functools.partial(progress, "limbs"))
+                            progress=None if progress is None else functools.partial(progress, "limbs"),
+                            height_m=opts.height_m)
     planned = assignment if calibration is None else calibration.apply(assignment, kit)
-    grip = Grip(opts.grip) if opts.grip in (g.value for g in Grip) else Grip.GERMAN
-    plan = plan_gestures(planned, kit, score, PlannerConfig(grip=grip, nuance=opts.nuance),
+    style = opts.styled(score)
+    grip = next((g for g in Grip if g.value == style.grip), Grip.GERMAN)  # american, traditional: no units
+    plan = plan_gestures(planned, kit, score, PlannerConfig(grip=grip, nuance=style.nuance or DEFAULT_NUANCE),
                          progress=None if progress is None else functools.partial(progress, "gestures"))
     return score, assignment, plan
 
@@ -249,7 +323,8 @@ def run_score(score: Score, assignment: Assignment, plan: GesturePlan, kit: Kit,
 
     started = time.perf_counter()
     cpu_started = time.process_time()
-    physics = start_drummer(plan, kit, opts)
+    pulled: dict[str, int] = {}
+    physics = start_drummer(plan, kit, opts, pulled=pulled)
     offset = opts.settle_s - plan.start_time
     interaction = InteractionCore(kit=kit, config=offline_interaction_config())
     sound = SoundCore(SoundSettings(latency=opts.latency_s, origin=0.0, record=outputs is None), kit=kit)
@@ -267,7 +342,8 @@ def run_score(score: Score, assignment: Assignment, plan: GesturePlan, kit: Kit,
     poses, impacts, count = collect(recorder, outputs)
     stats = {"contacts_sent": physics.contacts_sent, "rejected": dict(physics.rejected), "diverged": physics.diverged,
              "control": physics.settings.control, "grip": physics.settings.grip, "rate_hz": physics.rate_hz,
-             "control_rate_hz": physics.settings.control_rate_hz,
+             "control_rate_hz": physics.settings.control_rate_hz, "height_m": physics.settings.height_m,
+             "mass_kg": physics.settings.mass_kg, "pulled_into_reach": pulled,
              "cpu_time_s": round(time.process_time() - cpu_started, 3)}
     return ScoreRender(score, assignment, plan, impacts, physics.contacts_sent, audio, sound.sample_rate, duration,
                        offset, time.perf_counter() - started, poses, stats, count)
@@ -288,26 +364,66 @@ def collect(recorder: RecorderCore, outputs: StreamedOutputs | None) -> tuple[An
     return poses, recorder.impacts.sorted(), count
 
 
-def start_drummer(plan: GesturePlan, kit: Kit, opts: RenderOptions, start_s: float = 0.0) -> PhysicsCore:
+def start_drummer(plan: GesturePlan, kit: Kit, opts: RenderOptions, start_s: float = 0.0,
+                  pulled: dict[str, int] | None = None) -> PhysicsCore:
     """The offline drummer of ``opts``, its clock at rig time ``start_s`` (seconds), tracking ``plan`` (whose
-    ``start_time`` is at rig time ``opts.settle_s``). Raises :class:`RenderError` when physics refuses the plan."""
+    ``start_time`` is at rig time ``opts.settle_s``), its hands holding ``opts.styled()``'s grip (resolve the
+    score's first: :meth:`RenderOptions.styled`). Knots beyond the body's reach (an instrument too far for a small
+    drummer) are brought within it (:func:`pull_into_reach`; counted per limb in ``pulled``): the notes there are
+    missed, not the whole render. Raises :class:`RenderError` when physics refuses the plan."""
     from services.physics.core import PhysicsCore, PhysicsSettings
     from services.physics.targets import TargetError
 
     control_rate_hz = opts.control_rate_hz
     if control_rate_hz is None:  # not `or`: 0 Hz is refused by the physics settings, not taken as the default
         control_rate_hz = PhysicsSettings.model_fields["control_rate_hz"].default
-    physics = PhysicsCore(scene="drummer", kit=kit, control=CONTROL_MODES[opts.control], grip=opts.grip,
-                          rate_hz=opts.rate_hz, pose_rate_hz=opts.pose_rate_hz, control_rate_hz=control_rate_hz,
-                          limits_from=opts.limits_from,
+    physics = PhysicsCore(scene="drummer", kit=kit, control=CONTROL_MODES[opts.control], grip=opts.styled().grip,
+                          rate_hz=opts.rate_hz, pose_rate_hz=physics_pose_rate(opts), control_rate_hz=control_rate_hz,
+                          height_m=opts.height_m, mass_kg=opts.mass_kg, limits_from=opts.limits_from,
                           skeleton_bvh=None if opts.skeleton_bvh is None else str(opts.skeleton_bvh))
     physics.time_offset = start_s
+    reach = getattr(physics.scene, "reach", None)
+    if reach is not None:
+        plan, counts = pull_into_reach(plan, reach)
+        if pulled is not None:
+            pulled.update(counts)
     try:
         physics.load_plan(plan, opts.settle_s)
     except TargetError as exc:
         physics.close()
         raise RenderError(f"physics refused the gesture plan: {exc}") from exc
     return physics
+
+
+REACH_MARGIN = 0.999
+"""A knot pulled into reach lands this share of the reach from the limb's root (physics refuses beyond it)."""
+
+
+def pull_into_reach(plan: GesturePlan, reach: dict[str, tuple[np.ndarray, float]]
+                    ) -> tuple[GesturePlan, dict[str, int]]:
+    """``plan`` with each limb's knots farther than its reach from its root (physics' ``DrummerScene.reach``:
+    limb name -> (root, metres)) moved toward the root to just within it, and the knots moved per limb. Physics
+    refuses a whole plan for one such knot; a drummer too small for the kit then misses those notes (the planner
+    flags them ``unreachable``) and plays the rest. A plan within reach is returned as it is (the same arrays)."""
+    trajectories = dict(plan.trajectories)
+    counts: dict[str, int] = {}
+    for limb, traj in plan.trajectories.items():
+        name = str(getattr(limb, "value", limb))
+        if name not in reach:
+            continue  # physics names the limb it does not know
+        root, length = reach[name]
+        offsets = np.asarray(traj.positions, dtype=float) - root
+        distances = np.linalg.norm(offsets, axis=1)
+        far = distances > length  # NaN: left to physics' own refusal
+        if not far.any():
+            continue
+        positions = np.array(traj.positions, dtype=float)
+        positions[far] = root + offsets[far] * (REACH_MARGIN * length / distances[far])[:, None]
+        trajectories[limb] = dataclasses.replace(traj, positions=positions)
+        counts[name] = int(far.sum())
+    if not counts:
+        return plan, counts
+    return dataclasses.replace(plan, trajectories=trajectories), counts
 
 
 def offline_interaction_config() -> InteractionConfig:
@@ -547,16 +663,21 @@ def issues_json(plan: GesturePlan, score: Score) -> list[dict[str, Any]]:
 
 
 def score_report(result: ScoreRender, source: str, opts: RenderOptions) -> dict[str, Any]:
+    """report.json of a score render; the grip and nuance those played (``opts.styled(result.score)``)."""
     wall = result.wall_time_s
     cpu = result.physics.get("cpu_time_s")
     music = result.plan.end_time - result.plan.start_time
+    style = opts.styled(result.score)
     return {
         "scene": "drummer",
         "score": source,
         "warnings": list(result.score.warnings),
         "kit": opts.kit,
-        "grip": opts.grip,
-        "nuance": opts.nuance.value,
+        "grip": style.grip,
+        "nuance": (style.nuance or DEFAULT_NUANCE).value,
+        "height_m": opts.height_m,
+        "mass_kg": opts.mass_kg,
+        "bvh_rate_hz": opts.pose_rate_hz,
         "tempo_scale": opts.tempo_scale,
         "control": opts.control,
         "limits_from": list(opts.limits_from),
@@ -643,8 +764,10 @@ def earlier_outputs(output: Path) -> set[str]:
     return names
 
 
-def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: bool = False) -> dict[str, Any]:
-    """Render a score into ``output`` (see the module docstring); returns the report.
+def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: bool = False,
+                 prog: str = "batteur render") -> dict[str, Any]:
+    """Render a score into ``output`` (see the module docstring); returns the report. ``prog`` names the command
+    in its warning lines (``batteur demo`` renders through this).
 
     Raises :class:`ScoreError` (bad score), :class:`RenderError` (physics refused) or ``ValueError``.
     """
@@ -663,8 +786,9 @@ def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: boo
         planning.close(finished=False)
         raise
     planning.close()
+    opts = opts.styled(score)  # physics' hands hold the grip the score asked for, as planned
     for warning in score.warnings:  # e.g. a MIDI file without a drum channel, read as drums
-        print(f"batteur render: warning: {warning}", file=sys.stderr)
+        print(f"{prog}: warning: {warning}", file=sys.stderr)
     progress = Progress(f"rendering {Path(path).name}", rendered_seconds(plan, opts), enabled=False if quiet else None)
     finished = False  # a render given up (Ctrl-C, an error) leaves its bar where it stood, not at 100 %
     with Staging(output) as staging:  # the WAV, impacts and motion are written as they are rendered
@@ -711,6 +835,11 @@ def check_options(opts: RenderOptions) -> None:
     low, high = TEMPO_SCALE_RANGE
     if not low <= opts.tempo_scale <= high:  # NaN fails too
         raise UsageError(f"--tempo-scale {opts.tempo_scale:g}: {low:g} to {high:g} (times faster)")
+    for option, value, (low, high), unit in (("--height", opts.height_m, HEIGHT_RANGE_M, "m"),
+                                             ("--mass", opts.mass_kg, MASS_RANGE_KG, "kg"),
+                                             ("--bvh-rate", opts.pose_rate_hz, BVH_RATE_RANGE, "Hz")):
+        if not low <= value <= high:  # NaN fails too
+            raise UsageError(f"{option} {value:g}: {low:g} to {high:g} {unit}")
     if not (math.isfinite(opts.segment_s) and opts.segment_s >= MIN_SEGMENT_S):
         raise UsageError(f"--segment {opts.segment_s:g}: a length of at least {MIN_SEGMENT_S:g} s (each segment "
                          f"also plays a lead-in, so shorter ones cost more than they share)")
@@ -807,9 +936,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("score", nargs="?", type=Path, help="a .mid file or a Batteur text score")
     parser.add_argument("-o", "--output", type=Path, required=True, help="output directory (created if missing)")
     parser.add_argument("--kit", default="default", help="kit name or YAML/JSON file (default: default)")
-    parser.add_argument("--grip", default="german", choices=GRIPS, help="stick grip (default: german)")
-    parser.add_argument("--nuance", default=Nuance.TENUTO.value, choices=[n.value for n in Nuance],
-                        help="global playing nuance (default: tenuto)")
+    add_style_options(parser)
     parser.add_argument("--tempo-scale", type=float, default=1.0,
                         help="play this many times faster, 0.1 to 10 (0.5: half tempo; default 1)")
     parser.add_argument("--control", default="cartesian", choices=list(CONTROL_MODES),
@@ -836,7 +963,11 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--skeleton-bvh", type=Path, default=None, metavar="FILE",
                         help="BVH file whose skeleton gives the drummer's proportions (arms, legs, neck, shoulder "
                         "height above the hips, shoulder and hip widths), so the simulated performer matches the "
-                        "captured one (default: de Leva's table for 1.75 m, 73 kg)")
+                        "captured one (default: de Leva's table for --height and --mass)")
+    add_body_options(parser)
+    parser.add_argument("--bvh-rate", type=float, default=RenderOptions.pose_rate_hz, metavar="HZ",
+                        help="frame rate of DIR/performance.bvh, 1 to 1000 Hz (e.g. 24, 30, 60, 120; default 60); "
+                        "the video keeps its own --video-fps")
     parser.add_argument("--video", action="store_true",
                         help="also write DIR/performance.mp4: the motion rendered headless (PyBullet TinyRenderer) "
                         "with the WAV muxed in sync (needs ffmpeg; score mode)")
@@ -852,6 +983,30 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def add_style_options(parser: argparse.ArgumentParser) -> None:
+    """``--grip`` and ``--nuance`` (render and evaluate): None when not given, so a score's own wins then."""
+    parser.add_argument("--grip", default=None, choices=GRIPS,
+                        help=f"stick grip (default: the score's `grip` directive, else {DEFAULT_GRIP})")
+    parser.add_argument("--nuance", default=None, choices=[n.value for n in Nuance],
+                        help=f"global playing nuance (default: the score's `nuance` directive, else "
+                        f"{DEFAULT_NUANCE.value})")
+
+
+def add_body_options(parser: argparse.ArgumentParser) -> None:
+    """``--height`` and ``--mass`` (render and evaluate)."""
+    parser.add_argument("--height", type=float, default=STATURE_M, metavar="METRES",
+                        help=f"the drummer's height, {HEIGHT_RANGE_M[0]:g} to {HEIGHT_RANGE_M[1]:g} m: its body "
+                        f"(de Leva's segments scaled) and the planner's reach (default {STATURE_M:g})")
+    parser.add_argument("--mass", type=float, default=DEFAULT_MASS_KG, metavar="KG",
+                        help=f"the drummer's mass, {MASS_RANGE_KG[0]:g} to {MASS_RANGE_KG[1]:g} kg (default "
+                        f"{DEFAULT_MASS_KG:g})")
+
+
+def style_from(args: argparse.Namespace) -> tuple[str | None, Nuance | None]:
+    """``--grip`` and ``--nuance`` as given (None: not given)."""
+    return args.grip, None if args.nuance is None else Nuance(args.nuance)
+
+
 def _size(text: str) -> tuple[int, int]:
     try:
         width, height = (int(v) for v in text.lower().split("x"))
@@ -861,12 +1016,14 @@ def _size(text: str) -> tuple[int, int]:
 
 
 def options_from(args: argparse.Namespace) -> RenderOptions:
-    return RenderOptions(kit=args.kit, grip=args.grip, nuance=Nuance(args.nuance), tempo_scale=args.tempo_scale,
+    grip, nuance = style_from(args)
+    return RenderOptions(kit=args.kit, grip=grip, nuance=nuance, tempo_scale=args.tempo_scale,
                          control=args.control, algorithm=HandAlgorithm(args.algorithm), latency_s=args.latency,
                          calibration=args.calibration, video=args.video, video_fps=_given(args.video_fps, 30.0),
                          video_size=_given(args.video_size, (640, 360)), control_rate_hz=args.control_rate,
                          jobs=resolve_jobs(args.jobs), segment_s=_given(args.segment, 30.0),
-                         limits_from=tuple(args.limits_from), skeleton_bvh=args.skeleton_bvh)
+                         limits_from=tuple(args.limits_from), skeleton_bvh=args.skeleton_bvh,
+                         height_m=args.height, mass_kg=args.mass, pose_rate_hz=args.bvh_rate)
 
 
 T = TypeVar("T")
@@ -921,7 +1078,7 @@ def main(argv: Sequence[str] | None = None, prog: str = "batteur render") -> int
 
 def _main_score(opts: argparse.Namespace, prog: str) -> int:
     try:
-        report = render_score(opts.score, opts.output, options_from(opts), quiet=opts.quiet)
+        report = render_score(opts.score, opts.output, options_from(opts), quiet=opts.quiet, prog=prog)
     except (ScoreError, RenderError, ValueError, OSError) as exc:  # UsageError: 2, a file or the render: 1
         return report_error(prog, exc)
     out = opts.output

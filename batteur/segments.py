@@ -173,6 +173,8 @@ class SegmentResult:
     cpu_time_s: float
     diverged: int = 0
     settings: dict[str, Any] = field(default_factory=dict)
+    pulled: dict[str, int] = field(default_factory=dict)
+    """Knots of its part of the plan brought within the body's reach, per limb (``render.pull_into_reach``)."""
 
 
 log = logging.getLogger("batteur.render")
@@ -199,7 +201,8 @@ def run_segment(plan: GesturePlan, kit: Kit, opts: RenderOptions, segment: Segme
     if stop is not None and stop.is_set():
         raise SegmentStopped(f"segment {segment.index} not started: the render was given up")
     offset = opts.settle_s - plan.start_time
-    physics = start_drummer(segment_plan(plan, segment, offset), kit, opts, segment.run_from_s)
+    pulled: dict[str, int] = {}
+    physics = start_drummer(segment_plan(plan, segment, offset), kit, opts, segment.run_from_s, pulled)
     kept: list[Sent] = []
     counted = _CountingPhysics(physics, segment)
     interaction = InteractionCore(kit=kit, config=offline_interaction_config())
@@ -224,7 +227,8 @@ def run_segment(plan: GesturePlan, kit: Kit, opts: RenderOptions, segment: Segme
     return SegmentResult(segment.index, kept, counted.contacts, dict(physics.rejected), time.process_time() - cpu,
                          physics.diverged,
                          {"control": physics.settings.control, "grip": physics.settings.grip,
-                          "rate_hz": physics.rate_hz, "control_rate_hz": physics.settings.control_rate_hz})
+                          "rate_hz": physics.rate_hz, "control_rate_hz": physics.settings.control_rate_hz,
+                          "height_m": physics.settings.height_m, "mass_kg": physics.settings.mass_kg}, pulled)
 
 
 class _CountingPhysics:
@@ -460,7 +464,7 @@ def run_segmented(score: Score, assignment: Assignment, plan: GesturePlan, kit: 
         sound.close()
     poses, impacts, count = collect(recorder, outputs)
     stats = {"contacts_sent": play.contacts, "rejected": play.rejected, "diverged": play.diverged,
-             **play.settings,
+             **play.settings, "pulled_into_reach": play.pulled,
              "cpu_time_s": round(time.process_time() - cpu_started + play.cpu_time_s, 3),
              "segments": {"count": len(segments), "segment_s": segment_s, "warmup_s": warmup_s,
                           "jobs": max(1, min(jobs, len(segments)))}}
@@ -483,6 +487,7 @@ class _Player:
         self.diverged = 0
         self.cpu_time_s = 0.0
         self.rejected: dict[str, int] = {}
+        self.pulled: dict[str, int] = {}
         self.settings: dict[str, Any] = {}
         self.check: Callable[[float], None] | None = None
         """Called at each step of the play (rig seconds): raises to stop it (a Ctrl-C)."""
@@ -498,6 +503,8 @@ class _Player:
             self.cpu_time_s += r.cpu_time_s
             for kind, n in r.rejected.items():
                 self.rejected[kind] = self.rejected.get(kind, 0) + n
+            for limb, n in r.pulled.items():  # a knot in two segments' parts of the plan counts in each
+                self.pulled[limb] = self.pulled.get(limb, 0) + n
             if r.index == 0:
                 self.settings = r.settings
             self._next += 1

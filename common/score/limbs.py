@@ -58,6 +58,13 @@ FOOT_REACH = 1.02
 (services/physics/character.py). Shorter than the physics' own check (thigh + shank + foot, 1.12 m,
 services/physics/drummer.py ``_reach``), so every pedal target it refuses for the default 1.75 m body is flagged
 here first."""
+STATURE_M = 1.75
+"""The drummer's height (metres) :data:`SHOULDERS`, :data:`REACH`, :data:`HIPS` and :data:`FOOT_REACH` are given for;
+another height scales them (:func:`shoulders`, :func:`hips`, :func:`hand_reach`, :func:`foot_reach`)."""
+ARM_M = 0.640
+"""Of :data:`REACH`, the arm of a 1.75 m drummer: upper arm + forearm + hand, 0.282 + 0.270 + 0.087 m (de Leva's
+table scaled, services/physics/anthropometry.py). It scales with the height; the stick and the lean of the trunk
+(the other 0.51 m) do not, as in physics' own reach (services/physics/drummer.py ``_reach``)."""
 PROGRESS_SHARES = (0.08, 0.86)
 """Shares of :func:`distribute`'s progress for its limb rules and its hand assignment (the feasibility check has
 the rest): their shares of its time on a 200,000-note Groove score (8 %, 86 %, 6 %)."""
@@ -122,6 +129,7 @@ def distribute(
     sticking: Sticking | str = Sticking.NONE,
     window: float = SIMULTANEITY,
     progress: ProgressCallback | None = None,
+    height_m: float = STATURE_M,
 ) -> Assignment:
     """Distribute a score's events over the limbs and check feasibility.
 
@@ -144,13 +152,15 @@ def distribute(
         (``PROGRESS_SHARES``), the hand assignment over its share (the ``viterbi`` search as it goes, the others
         at once when they end), the feasibility check over the rest. Whatever it raises (``KeyboardInterrupt``)
         stops the distribution. The assignment is the same with or without it.
+    height_m : float
+        The drummer's height, metres: its reach for the ``unreachable`` check (:func:`check_feasibility`).
     """
     with cyclic_gc_paused():  # many small objects, no cycles: collections only walked them (common/gcpause.py)
-        return _distribute(score, kit, algorithm, sticking, window, progress)
+        return _distribute(score, kit, algorithm, sticking, window, progress, height_m)
 
 
 def _distribute(score: Score, kit: Kit, algorithm: HandAlgorithm | str, sticking: Sticking | str, window: float,
-                progress: ProgressCallback | None) -> Assignment:
+                progress: ProgressCallback | None, height_m: float = STATURE_M) -> Assignment:
     """:func:`distribute`'s work."""
     algorithm = HandAlgorithm(algorithm)
     report = _Shares(progress, len(score.events))
@@ -281,7 +291,7 @@ def _distribute(score: Score, kit: Kit, algorithm: HandAlgorithm | str, sticking
     assignment = Assignment(notes=notes, issues=issues, algorithm=algorithm, kit_name=kit.name)
     checked_from = rules + hands_share
     check_feasibility(assignment, kit, window, None if progress is None else
-                      lambda k, n: report.at(checked_from + (1.0 - checked_from) * k / max(n, 1)))
+                      lambda k, n: report.at(checked_from + (1.0 - checked_from) * k / max(n, 1)), height_m)
     report.at(1.0)
     return assignment
 
@@ -352,15 +362,45 @@ def _merge_or_drop(left_out: list[Note], notes: list[Note], kit: Kit, issues: li
     return out
 
 
-def shoulders(kit: Kit) -> dict[Limb, Vec3]:
-    """The shoulders (metres) of the drummer seated on ``kit``'s throne: :data:`SHOULDERS` moved as far as the
-    throne is from :data:`common.kit.DEFAULT_SEAT_M` (the same numbers on the shipped kits, mirrored or not)."""
-    return _from_seat(SHOULDERS, kit)
+def shoulders(kit: Kit, height_m: float = STATURE_M) -> dict[Limb, Vec3]:
+    """The shoulders (metres) of a drummer ``height_m`` tall seated on ``kit``'s throne: :data:`SHOULDERS` moved as
+    far as the throne is from :data:`common.kit.DEFAULT_SEAT_M` (the same numbers on the shipped kits, mirrored or
+    not), their offsets from the seat scaled with the height (:func:`_scaled`)."""
+    return _from_seat(_scaled(SHOULDERS, height_m), kit)
 
 
-def hips(kit: Kit) -> dict[Limb, Vec3]:
-    """The hip joint centres (metres) of the drummer seated on ``kit``'s throne (:data:`HIPS` moved with it)."""
-    return _from_seat(HIPS, kit)
+def hips(kit: Kit, height_m: float = STATURE_M) -> dict[Limb, Vec3]:
+    """The hip joint centres (metres) of a drummer ``height_m`` tall seated on ``kit``'s throne (:data:`HIPS`
+    scaled and moved with it, as :func:`shoulders`)."""
+    return _from_seat(_scaled(HIPS, height_m), kit)
+
+
+def hand_reach(height_m: float = STATURE_M) -> float:
+    """Shoulder-to-stick-tip reach (metres) of a drummer ``height_m`` tall: :data:`REACH`, its arm
+    (:data:`ARM_M`) scaled with the height."""
+    if height_m == STATURE_M:  # exactly REACH: plans of the default drummer do not change
+        return REACH
+    return REACH + ARM_M * (height_m / STATURE_M - 1.0)
+
+
+def foot_reach(height_m: float = STATURE_M) -> float:
+    """Hip-to-ball-of-the-foot reach (metres) of a drummer ``height_m`` tall: :data:`FOOT_REACH` scaled (every
+    part of it is a body segment)."""
+    if height_m == STATURE_M:
+        return FOOT_REACH
+    return FOOT_REACH * height_m / STATURE_M
+
+
+def _scaled(at_stature: dict[Limb, Vec3], height_m: float) -> dict[Limb, Vec3]:
+    """Points of the body (metres) given for a :data:`STATURE_M` drummer on the default seat, for one ``height_m``
+    tall on the same seat: physics builds the body from segments scaled with the height and seats it on the
+    throne, so each point's offset from the seat point scales (the hips 0.09 m above it at 1.75 m are 0.072 m above
+    it at 1.40 m). The default height leaves them exactly as given."""
+    if height_m == STATURE_M:
+        return at_stature
+    k = height_m / STATURE_M
+    sx, sy, sz = DEFAULT_SEAT_M
+    return {limb: (sx + k * (x - sx), sy + k * (y - sy), sz + k * (z - sz)) for limb, (x, y, z) in at_stature.items()}
 
 
 def _from_seat(at_default: dict[Limb, Vec3], kit: Kit) -> dict[Limb, Vec3]:
@@ -372,7 +412,7 @@ def _from_seat(at_default: dict[Limb, Vec3], kit: Kit) -> dict[Limb, Vec3]:
 
 
 def check_feasibility(assignment: Assignment, kit: Kit, window: float = SIMULTANEITY,
-                      progress: ProgressCallback | None = None) -> None:
+                      progress: ProgressCallback | None = None, height_m: float = STATURE_M) -> None:
     """Flag notes beyond human limits; drop strokes a limb cannot repeat at all; mark rebound doubles.
 
     Adds to ``assignment.issues``: ``too_fast`` (same limb closer than the
@@ -380,15 +420,17 @@ def check_feasibility(assignment: Assignment, kit: Kit, window: float = SIMULTAN
     played anyway, or dropped below ``HARD_MIN_INTERVAL``), ``crossing`` (arms
     crossed for simultaneous stick events) and ``unreachable`` (hit point beyond
     :data:`REACH` of the hand's shoulder, or pedal beyond :data:`FOOT_REACH` of the foot's hip, both where the kit's
-    throne seats the drummer: :func:`shoulders`, :func:`hips`). A hand's note that is the bounce of a rebound double
+    throne seats the drummer: :func:`shoulders`, :func:`hips`; for a drummer ``height_m`` tall (metres) the points
+    and reaches scale: :func:`hand_reach`, :func:`foot_reach`). A hand's note that is the bounce of a rebound double
     gets ``Note.rebound = True`` and no issue. ``progress``: called with (notes checked, notes total) every
     ``PROGRESS_EVERY`` notes (not at the end); what it raises stops the check.
     """
     kept: list[Note] = []
     last: dict[Limb, Note] = {}
     points: dict[tuple[EventType, int | None], tuple[float, float, float]] = {}
-    shoulder_at = shoulders(kit)
-    hip_at = hips(kit)
+    shoulder_at = shoulders(kit, height_m)
+    hip_at = hips(kit, height_m)
+    arm_reach, leg_reach = hand_reach(height_m), foot_reach(height_m)
     foot_distances: dict[tuple[EventType, Limb], float] = {}
 
     def from_hip(event: EventType, foot: Limb) -> float:
@@ -448,13 +490,13 @@ def check_feasibility(assignment: Assignment, kit: Kit, window: float = SIMULTAN
                         f"{n.limb.value} {dt * 1000:.0f} ms after its last stroke (minTimeGap {gap * 1000:.0f} ms)",
                     )
                 )
-        if n.limb in FEET and from_hip(n.event, n.limb) > FOOT_REACH:
+        if n.limb in FEET and from_hip(n.event, n.limb) > leg_reach:
             assignment.issues.append(FeasibilityIssue(n.index, n.time, n.event, IssueReason.UNREACHABLE,
                                                       IssueAction.PLAYED_ANYWAY,
                                                       f"{from_hip(n.event, n.limb):.2f} m from the hip"))
         if n.limb in HANDS:
             dist = float(np.linalg.norm(np.array(point(n.event, n.pitch)) - np.array(shoulder_at[n.limb])))
-            if dist > REACH:
+            if dist > arm_reach:
                 assignment.issues.append(
                     FeasibilityIssue(
                         n.index,
@@ -495,7 +537,7 @@ STRUCK_KINDS = frozenset({"membrane", "cymbal", "hihat", "bell"})
 """Kit object kinds a stick strikes (a footboard is pressed; the throne and stands are no instruments)."""
 
 
-def unplayable_instruments(kit: Kit) -> list[str]:
+def unplayable_instruments(kit: Kit, height_m: float = STATURE_M) -> list[str]:
     """The kit's instruments the drummer cannot play, one line each naming the object and why (for a warning as
     the kit is loaded: a kit file may place an object anywhere).
 
@@ -504,7 +546,8 @@ def unplayable_instruments(kit: Kit) -> list[str]:
     :data:`REACH` from both shoulders, or when a pedal is beyond :data:`FOOT_REACH` from the hip of the foot that
     presses it (what :func:`check_feasibility` flags ``unreachable`` on every such note). Shoulders and hips are
     where the kit's throne seats the drummer (:func:`shoulders`, :func:`hips`); mirroring the kit for a left-hander
-    mirrors the throne and swaps the feet, so the same instruments are named. The physics' own reach
+    mirrors the throne and swaps the feet, so the same instruments are named. ``height_m``: the drummer's height,
+    metres (its reach scales: :func:`check_feasibility`). The physics' own reach
     (``services/physics/drummer.py``, from the body's measures) is longer, so every target it refuses is among
     these.
     """
@@ -523,13 +566,14 @@ def unplayable_instruments(kit: Kit) -> list[str]:
         struck.add(object_id)
         if kit.events[mapped].pedal is None:
             strokes.setdefault(object_id, []).append((f"{mapped.value} (pitch {pitch})", mapped, pitch))
-    shoulder_at = shoulders(kit)
-    pedals_far = _pedals_out_of_reach(kit)
+    shoulder_at = shoulders(kit, height_m)
+    arm_reach = hand_reach(height_m)
+    pedals_far = _pedals_out_of_reach(kit, height_m)
     lines: list[str] = []
     for obj in kit.objects:
         for foot, far_ones in pedals_far.get(obj.id, {}).items():
             lines.append(f"{obj.id}: out of the {foot.value.replace('_', ' ')}'s reach ({', '.join(far_ones)} from the "
-                         f"hip, a leg reaching {FOOT_REACH:g} m): the planner flags its notes unreachable")
+                         f"hip, a leg reaching {foot_reach(height_m):.3g} m): the planner flags its notes unreachable")
         if obj.id not in struck:
             if obj.kind in STRUCK_KINDS:
                 lines.append(f"{obj.id} ({obj.kind}): no event type or note_objects pitch strikes it")
@@ -543,20 +587,22 @@ def unplayable_instruments(kit: Kit) -> list[str]:
         for what, struck_event, struck_pitch in ways:
             point = np.array(kit.hit_point(struck_event, struck_pitch)[0])
             nearer = min(float(np.linalg.norm(point - np.array(s))) for s in shoulder_at.values())
-            if nearer > REACH:
+            if nearer > arm_reach:
                 far.append(f"{what} {nearer:.2f} m")
         if far:
             lines.append(f"{obj.id}: out of both hands' reach ({', '.join(far)} from the nearer shoulder, a hand "
-                         f"reaching {REACH:g} m): the planner flags its notes unreachable")
+                         f"reaching {arm_reach:.3g} m): the planner flags its notes unreachable")
     return lines
 
 
-def _pedals_out_of_reach(kit: Kit) -> dict[str, dict[Limb, list[str]]]:
-    """Pedal object id -> foot -> its foot events there beyond :data:`FOOT_REACH` from that foot's hip ("EVENT d m").
+def _pedals_out_of_reach(kit: Kit, height_m: float = STATURE_M) -> dict[str, dict[Limb, list[str]]]:
+    """Pedal object id -> foot -> its foot events there beyond :func:`foot_reach` from that foot's hip ("EVENT d m"),
+    for a drummer ``height_m`` tall.
 
     The feet are :func:`distribute`'s: each foot event's preferred foot, and with a double pedal the other foot on
     BASS, which presses the left bass pedal (as :meth:`common.kit.Kit.effector_target` aims it)."""
-    hip_at = hips(kit)
+    hip_at = hips(kit, height_m)
+    leg_reach = foot_reach(height_m)
     out: dict[str, dict[Limb, list[str]]] = {}
     for event, spec in kit.events.items():
         if spec.pedal is None:
@@ -571,6 +617,6 @@ def _pedals_out_of_reach(kit: Kit) -> dict[str, dict[Limb, list[str]]]:
             if event == EventType.BASS and kit.left_bass_pedal is not None and foot != spec.preferred:
                 pedal = kit.left_bass_pedal
             dist = math.dist(kit.effector_target(event, foot)[0], hip_at[foot])
-            if dist > FOOT_REACH:
+            if dist > leg_reach:
                 out.setdefault(pedal, {}).setdefault(foot, []).append(f"{event.value} {dist:.2f} m")
     return out

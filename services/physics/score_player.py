@@ -36,7 +36,10 @@ control messages (common/messages/score.py):
 
 The **planned grip** (:attr:`ScorePlayer.grip`) starts as the hands' grip
 (``PhysicsSettings.grip``) where the gesture database has it (french, german),
-else german, as ``batteur render`` plans; only ``GestureStyle`` changes it.
+else german, as ``batteur render`` plans; ``GestureStyle`` changes it, and so
+does loading a text score with a ``grip`` directive (its ``nuance`` directive
+sets the nuance): the hands take that grip too, as with a ``GestureStyle``,
+and a later ``GestureStyle`` wins.
 ``/batteur/physics/grip`` changes only how the hands hold the sticks (at once,
 the plan in the tracks is kept, nothing is re-planned). A plan made while the
 hands hold another grip than the planned one (american, traditional, or a
@@ -437,7 +440,23 @@ class ScorePlayer:
         self._stopping = None  # a stop ahead: the clock was the other score's
         log.info("score %s loaded: %d notes, %.2f s%s", path.name, len(score.events), score.duration,
                  f" ({'; '.join(score.warnings)})" if score.warnings else "")
+        self._take_score_style(score, path.name)
         return score
+
+    def _take_score_style(self, score: Score, name: str) -> None:
+        """A text score's ``grip`` and ``nuance`` directives become the planner's style, the grip the hands' too
+        (as a ``/batteur/score/style`` would; a later one wins); what the score does not name stays."""
+        grip, nuance = getattr(score, "grip", None), getattr(score, "nuance", None)
+        if grip is None and nuance is None:
+            return
+        self.grip = grip if grip is not None else self.grip
+        self.nuance = nuance if nuance is not None else self.nuance
+        scene = self._maybe_drummer()
+        if grip is not None and scene is not None:
+            scene.set_grip("both", self.grip.value)
+        log.info("score %s asks for %s: planning with the %s grip, %s", name,
+                 " and ".join(f"{what} {value.value}" for what, value in (("grip", grip), ("nuance", nuance))
+                              if value is not None), self.grip.value, self.nuance.value)
 
     def set_style(self, grip: str, nuance: str, algorithm: str, sticking: str) -> None:
         """Planner style (and the drummer's grip, at once)."""

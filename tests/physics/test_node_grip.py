@@ -28,7 +28,7 @@ SENDER = "127.0.0.1:9"
 def test_the_node_s_drummer_holds_and_plans_the_grip_batteur_render_does(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.delenv("BATTEUR_GRIP", raising=False)
     monkeypatch.delenv("BATTEUR_CONFIG", raising=False)
-    rendered = render.options_from(render.build_parser().parse_args([str(SCORE), "-o", "out"])).grip
+    rendered = render.options_from(render.build_parser().parse_args([str(SCORE), "-o", "out"])).styled().grip
     core = make_core(PhysicsNodeSettings(discovery=False), argparse.Namespace())
     try:
         assert isinstance(core.scene, DrummerScene)
