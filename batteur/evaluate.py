@@ -605,7 +605,7 @@ def evaluate_scores(paths: Sequence[Path], opts: Any, renders: Path | None, quie
                 continue
             out = base / path.stem
             if not (reuse and reusable(out, path, opts)):
-                render_score(path, out, opts, quiet=quiet)
+                render_score(path, out, opts, quiet=quiet, prog=PROG)  # its warnings name this command
             results.append(evaluate_render_dir(path, out))
     return results
 
@@ -643,7 +643,8 @@ def reusable(render_dir: Path, score: Path, opts: Any) -> bool:
     """Whether ``render_dir`` is a render of this very score with these options (``--reuse``): a render of
     another score of the same name, or with another kit, tempo, grip, nuance or drummer, would be evaluated
     against the wrong notes or be another performance. The grip and nuance compared are those a render would
-    play (the options', else the score's directives: ``RenderOptions.styled``)."""
+    play (the options', else the score's directives: ``RenderOptions.styled``); a render in segments is another
+    performance than one in one process (:func:`same_segments`)."""
     from batteur.render import DEFAULT_MASS_KG, DEFAULT_NUANCE, file_style
     from common.score.events import ScoreError
     from common.score.limbs import STATURE_M
@@ -662,7 +663,20 @@ def reusable(render_dir: Path, score: Path, opts: Any) -> bool:
               "calibration": str(opts.calibration) if opts.calibration else None}
     body = {"height_m": (opts.height_m, STATURE_M), "mass_kg": (opts.mass_kg, DEFAULT_MASS_KG)}
     return (all(report.get(key) == value for key, value in wanted.items())
-            and all(report.get(key, before) == value for key, (value, before) in body.items()))
+            and all(report.get(key, before) == value for key, (value, before) in body.items())
+            and same_segments(report, opts))
+
+
+def same_segments(report: dict[str, Any], opts: Any) -> bool:
+    """Whether the render of ``report`` (its report.json) was made as ``opts`` would make it: in one process
+    (``jobs`` 1), or in segments of ``opts.segment_s`` seconds (``jobs`` above 1: the same files for any number
+    of processes, batteur/segments.py, but not a one-process render's). A segmented render records its segments
+    in ``physics``; a report without them is a one-process render's."""
+    physics = report.get("physics")
+    segments = physics.get("segments") if isinstance(physics, dict) else None
+    if opts.jobs <= 1:
+        return segments is None
+    return isinstance(segments, dict) and segments.get("segment_s") == opts.segment_s
 
 
 def check_render_names(paths: Sequence[Path], renders: Path) -> None:

@@ -35,6 +35,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import mir_eval  # noqa: E402
 
 from common.arg_types import count, seconds  # noqa: E402
+from common.exit_status import report_error  # noqa: E402
 from common.messages.recogniser import DrumHit  # noqa: E402
 from services.recogniser.audio import SAMPLE_RATE, resample  # noqa: E402
 from services.recogniser.classes import CLASS_NAMES, class_of_note  # noqa: E402
@@ -111,15 +112,14 @@ def main(argv: list[str] | None = None) -> int:
     try:
         require_kits([args.kit])
     except KitsMissingError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 1
+        return report_error(ap.prog, exc)  # its line starts with the program's name, as argparse's errors
     try:
         models = [load_model(p) for p in args.model]
     except ModelError as exc:
         ap.error(f"--model {exc}")
     for path, model in zip(args.model, models, strict=True):
         if args.kit in set(model.meta.get("trained_on", TRAIN_KITS)):
-            print(f"warning: {args.kit} was used for training {path}", file=sys.stderr)
+            print(f"{ap.prog}: warning: {args.kit} was used for training {path}", file=sys.stderr)
     kit = load_kit(args.kit)
     rng = np.random.default_rng(args.seed)
     files = groove_files(args.split)

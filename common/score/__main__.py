@@ -12,15 +12,21 @@ import sys
 import time
 from collections import Counter
 
+from common.exit_status import FAILED, report_error
 from common.kit import load_kit
 from common.score.events import ScoreError
 from common.score.hands import HandAlgorithm, Sticking
 from common.score.limbs import distribute
 from common.score.text import read_score
 
+PROG = "python -m common.score"
+"""The command's name in its usage and error lines."""
+
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m common.score", description=__doc__)
+    """Print what the command line asks for; the exit status (README, "Exit status": 2 a bad option, 1 a score
+    or kit it cannot use)."""
+    parser = argparse.ArgumentParser(prog=PROG, description=__doc__)
     parser.add_argument("score", help="a .mid file or a Batteur text score")
     parser.add_argument("--kit", default="default", help="kit name or YAML/JSON path")
     parser.add_argument("--algorithm", default="viterbi", choices=[a.value for a in HandAlgorithm])
@@ -30,9 +36,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         score = read_score(args.score)
         kit = load_kit(args.kit)
-    except (ScoreError, FileNotFoundError, ValueError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
+    except (ScoreError, FileNotFoundError, ValueError) as exc:  # a score or kit it cannot use
+        return report_error(PROG, exc, FAILED)
     print(f"{score.source}: {len(score.events)} events over {score.duration:.2f} s, {len(score.beats)} beats")
     for event, count in sorted(Counter(e.event.value for e in score.events).items()):
         print(f"  {event:<12} {count}")

@@ -34,7 +34,8 @@ from typing import Any, Literal
 from pydantic import Field, ValidationError
 
 from common.config import NodeSettings
-from common.kit import Kit
+from common.exit_status import InputError
+from common.kit import Kit, load_kit
 from common.messages import Impact
 from common.messages.graphics import GraphicsMode
 from common.output_paths import check_output_dir
@@ -149,29 +150,37 @@ def _settings_error(exc: ValidationError) -> str:
 
 
 def make_core(settings: NodeSettings, args: argparse.Namespace) -> GraphicsCore:
-    """The graphics core, with the preview loaded; ``ValueError`` for a bad kit, sequence or score (exit 2)."""
+    """The graphics core, with the preview loaded; ``ValueError`` (exit 2) for a bad setting, ``InputError``
+    (exit 1) for a kit, pose sequence, score or poses file it cannot use or a --kit-dir it cannot write in."""
     s = settings if isinstance(settings, GraphicsNodeSettings) else GraphicsNodeSettings(**settings.model_dump())
     if s.preview and s.preview_score:
         raise ValueError("give --preview FILE.npz or --preview-score SCORE, not both")
     if s.kit_dir:
-        check_output_dir(Path(s.kit_dir), "--kit-dir")
+        try:
+            check_output_dir(Path(s.kit_dir), "--kit-dir")
+        except ValueError as exc:  # an output it cannot write: not the command line's fault
+            raise InputError(str(exc)) from None
     try:
         view = GraphicsSettings(rate_hz=s.rate_hz or 60.0, latency=s.latency_s, kit=s.kit, clock=s.view_clock)
     except ValidationError as exc:  # one line naming the flag, not pydantic's report
         raise ValueError(_settings_error(exc)) from None
     try:
-        core = GraphicsCore(view)
-    except FileNotFoundError as exc:
-        raise ValueError(f"--kit: {exc}") from None
+        kit = load_kit(s.kit)
+    except (FileNotFoundError, ValueError) as exc:  # missing, or not a kit
+        raise InputError(f"--kit: {exc}") from None
+    core = GraphicsCore(view, kit=kit)
     if s.preview:
         try:
             sequence = PoseSequence.load(Path(s.preview))
         except (ValueError, OSError, EOFError) as exc:  # missing, not an .npz, or an .npz of something else
             why = str(exc) if s.preview in str(exc) else f"{s.preview}: not a pose sequence file ({exc})"
-            raise ValueError(f"--preview: {why}") from None
+            raise InputError(f"--preview: {why}") from None
         core.load_preview(sequence)
     if s.preview_score:
-        preview = plan_score_preview(s, core.kit)
+        try:  # the planner and pose rate are settings, checked already: what is refused here is a file
+            preview = plan_score_preview(s, core.kit)
+        except ValueError as exc:  # the score (missing, unreadable, nothing the kit plays) or the poses file
+            raise InputError(str(exc)) from None
         core.load_preview(preview.sequence, preview.impacts)
         log.info("preview of %s", preview.summary())
     return core

@@ -22,6 +22,7 @@ from pathlib import Path
 from pydantic import Field
 
 from common.config import NodeSettings
+from common.exit_status import InputError
 from common.kit import load_kit
 from common.runtime import Node, run_node
 from services.interaction.config import FileConfigStore, InteractionConfig
@@ -53,13 +54,14 @@ def config_path(setting: str) -> Path | None:
 
 
 def make_core(settings: NodeSettings, extra: argparse.Namespace) -> InteractionCore:
-    """Build the core from the settings; ValueError (printed, exit 2) for a bad kit or configuration file."""
+    """Build the core from the settings; InputError (a ValueError; printed, exit 1) for a kit or configuration
+    file it cannot use (missing kit, unreadable, corrupt or not valid, a directory)."""
     if not isinstance(settings, InteractionSettings):
         settings = InteractionSettings.model_validate(settings.model_dump())
     try:
         kit = load_kit(settings.kit)
-    except FileNotFoundError as exc:
-        raise ValueError(str(exc)) from None
+    except (FileNotFoundError, ValueError) as exc:  # missing, or not a kit
+        raise InputError(str(exc)) from None
     path = config_path(settings.interaction_config)
     store: FileConfigStore | None = None
     if path is None:
@@ -69,7 +71,9 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace) -> InteractionC
         try:
             config = store.load_or_default()
         except OSError as exc:
-            raise ValueError(f"cannot read {path}: {exc}") from None
+            raise InputError(f"cannot read {path}: {exc}") from None
+        except ValueError as exc:  # not valid, or a directory: a file it cannot use, as a kit that is not one
+            raise InputError(str(exc)) from None
         log.info("interaction configuration: %s (%s)", path, "loaded" if path.is_file() else "defaults")
     seq_start = int(time.time() * 1000) % SEQ_LIMIT
     core = InteractionCore(kit=kit, config=config, seq_start=seq_start, store=store)

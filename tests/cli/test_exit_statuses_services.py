@@ -91,8 +91,9 @@ def test_a_value_refused_in_a_config_file_stays_2(tmp_path: Path, capsys: pytest
 
 
 # --------------------------------------------------------------------------- the recogniser's trainers
-# (train_net and train import PyTorch and scikit-learn first: tests/recogniser/test_training_cli_inputs.py covers
-# them where those are installed; profile and the checks both trainers share run without them)
+# (train_net and train need PyTorch and scikit-learn past their option checks: tests/recogniser/
+# test_training_cli_inputs.py and test_training_cli_outputs.py cover them; profile and the checks both trainers
+# share run without them)
 
 
 def test_the_trainers_file_checks_name_the_trainer_and_say_error(tmp_path: Path,
@@ -167,14 +168,29 @@ def test_profile_s_model_that_cannot_be_written_at_the_end_is_1(monkeypatch: pyt
 # --------------------------------------------------------------------------- python -m common.gesture.synth
 
 
-@pytest.mark.parametrize("delay_s", [0.1, 0.3])
-def test_synth_ctrl_c_while_it_starts_is_one_line_and_130(tmp_path: Path, delay_s: float) -> None:
+def _mapped(pid: int, library: str, timeout_s: float = 60.0) -> bool:
+    """Wait until process ``pid`` has ``library`` (a substring of a path) mapped; False if it ended first."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        try:
+            if library in Path(f"/proc/{pid}/maps").read_text():
+                return True
+        except OSError:  # it has ended
+            return False
+        time.sleep(0.001)
+    return False
+
+
+@pytest.mark.parametrize("library", ["_multiarray_umath", "pydantic_core"])
+def test_synth_ctrl_c_while_it_starts_is_one_line_and_130(tmp_path: Path, library: str) -> None:
     out = tmp_path / "units"
     # SIGINT at its default: a suite run in the background ignores it, and so would the child
     proc = subprocess.Popen([sys.executable, "-m", "common.gesture.synth", "--out", str(out)], cwd=ROOT,
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, start_new_session=True,
                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
-    time.sleep(delay_s)  # while NumPy and SciPy load (about half a second); the assertions hold wherever it lands
+    # while its imports load: NumPy (its first), pydantic (common.datafile's, a second later). Not after a fixed
+    # delay: a signal while Python itself starts, before any of the synth's code, is Python's to report
+    _mapped(proc.pid, library)
     os.killpg(proc.pid, signal.SIGINT)
     _, err = proc.communicate(timeout=120)
     assert "Traceback" not in err and "Exception ignored" not in err, err  # was a KeyboardInterrupt traceback
@@ -192,8 +208,12 @@ def node_files(tmp_path: Path) -> dict[str, str]:
     """A score that is not there, a kit file that is not a kit, a file where --wav's folder should be."""
     (tmp_path / "a_file").write_text("in the way\n", encoding="utf-8")
     (tmp_path / "bad_kit.yaml").write_text("objects: 3\n", encoding="utf-8")
+    (tmp_path / "bad_mapping.yaml").write_text("routes: 5\n", encoding="utf-8")  # not an interaction config
+    (tmp_path / "a_dir").mkdir()
     return {"missing_mid": str(tmp_path / "missing.mid"), "bad_kit": str(tmp_path / "bad_kit.yaml"),
-            "missing_kit": str(tmp_path / "missing_kit.yaml"), "blocked_wav": str(tmp_path / "a_file" / "x.wav")}
+            "missing_kit": str(tmp_path / "missing_kit.yaml"), "blocked_wav": str(tmp_path / "a_file" / "x.wav"),
+            "bad_mapping": str(tmp_path / "bad_mapping.yaml"), "a_dir": str(tmp_path / "a_dir"),
+            "blocked_dir": str(tmp_path / "a_file" / "kits")}
 
 
 NODE_FILES = [  # each refused before the core starts (no physics, no sound)
@@ -203,6 +223,16 @@ NODE_FILES = [  # each refused before the core starts (no physics, no sound)
     ("sound", ["--kit", "{missing_kit}", "--device", "none"], "missing_kit.yaml"),
     ("sound", ["--kit", "{bad_kit}", "--device", "none"], "bad_kit.yaml"),
     ("sound", ["--wav", "{blocked_wav}", "--device", "none"], "a_file"),
+    ("graphics", ["--kit", "{missing_kit}"], "missing_kit.yaml"),
+    ("graphics", ["--kit", "{bad_kit}"], "bad_kit.yaml"),
+    ("graphics", ["--preview", "{bad_kit}"], "not a pose sequence file"),
+    ("graphics", ["--preview-score", "{missing_mid}"], "missing.mid"),
+    ("graphics", ["--preview-score", "{bad_kit}"], "bad_kit.yaml"),  # not a score
+    ("graphics", ["--kit-dir", "{blocked_dir}"], "a_file is a file"),  # a folder it cannot write in
+    ("interaction", ["--kit", "{missing_kit}", "--interaction-config", "none"], "missing_kit.yaml"),
+    ("interaction", ["--kit", "{bad_kit}", "--interaction-config", "none"], "bad_kit.yaml"),
+    ("interaction", ["--interaction-config", "{bad_mapping}"], "bad_mapping.yaml"),
+    ("interaction", ["--interaction-config", "{a_dir}"], "is a directory"),
 ]
 
 

@@ -241,7 +241,7 @@ def test_node_command_line_refuses_a_bad_kit_or_configuration(tmp_path: Path, ca
     from services.interaction.node import main
 
     assert main(["--interaction-config", "none", "--show-settings"]) == 0
-    assert main(["--kit", "no-such-kit", "--no-discovery", "--interaction-config", "none"]) == 2
+    assert main(["--kit", "no-such-kit", "--no-discovery", "--interaction-config", "none"]) == 1
     bad = tmp_path / "bad.yaml"
     bad.write_text("redundancy: {copies: 0}\n")
-    assert main(["--no-discovery", "--interaction-config", str(bad)]) == 2
+    assert main(["--no-discovery", "--interaction-config", str(bad)]) == 1

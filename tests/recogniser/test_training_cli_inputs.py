@@ -26,17 +26,24 @@ def _must_not_start(*_: object) -> bool:
     raise AssertionError("the trainer went on to render before refusing its command line")
 
 
-def _train_net(monkeypatch: pytest.MonkeyPatch):  # noqa: ANN202 - the module, imported only with PyTorch
-    pytest.importorskip("torch")  # training-only dependency
+def _train_net(monkeypatch: pytest.MonkeyPatch, installed: bool = True):  # noqa: ANN202 - the module
+    """The offline network's trainer, stopped where it would render; ``installed``: skipped without PyTorch and
+    mir_eval (which the trainer needs past its option checks)."""
+    if installed:
+        pytest.importorskip("torch")  # training-only dependency
+        pytest.importorskip("mir_eval")
     from services.recogniser.training import train_net
 
     monkeypatch.setattr(train_net, "kits_installed", _must_not_start)
     return train_net
 
 
-def _train(monkeypatch: pytest.MonkeyPatch):  # noqa: ANN202 - the module, imported only with scikit-learn
-    pytest.importorskip("sklearn")  # training-only dependency
-    pytest.importorskip("mir_eval")
+def _train(monkeypatch: pytest.MonkeyPatch, installed: bool = True):  # noqa: ANN202 - the module
+    """The live classifier's trainer, stopped where it would render; ``installed``: skipped without
+    scikit-learn and mir_eval (which the trainer needs past its option checks)."""
+    if installed:
+        pytest.importorskip("sklearn")  # training-only dependency
+        pytest.importorskip("mir_eval")
     from services.recogniser.training import train
 
     monkeypatch.setattr(train, "kits_installed", _must_not_start)
@@ -62,7 +69,7 @@ def _one_line_error(text: str) -> str:
 def test_train_net_refuses_a_bad_number_before_rendering(monkeypatch: pytest.MonkeyPatch, tmp_path: Path,
                                                          capsys: pytest.CaptureFixture[str], option: str,
                                                          value: str) -> None:
-    train_net = _train_net(monkeypatch)
+    train_net = _train_net(monkeypatch, installed=False)  # the options are checked before PyTorch is imported
     with pytest.raises(SystemExit) as stop:
         train_net.main([option, value, "--out", str(tmp_path / "m.npz"), "--cache", str(tmp_path / "c")])
     assert stop.value.code == 2  # a usage error
@@ -73,7 +80,6 @@ def test_train_net_refuses_a_bad_number_before_rendering(monkeypatch: pytest.Mon
 
 @pytest.mark.parametrize("weight", ["snare=nan", "snare=-1", "onset=inf"])
 def test_train_net_refuses_a_loss_weight_that_is_not_a_finite_number(weight: str) -> None:
-    pytest.importorskip("torch")  # training-only dependency
     from services.recogniser.training.train_net import output_weights
 
     with pytest.raises(ValueError, match="finite number"):
@@ -85,7 +91,7 @@ def test_train_net_refuses_a_loss_weight_that_is_not_a_finite_number(weight: str
 def test_train_refuses_a_bad_number_before_rendering(monkeypatch: pytest.MonkeyPatch, tmp_path: Path,
                                                      capsys: pytest.CaptureFixture[str], option: str,
                                                      value: str) -> None:
-    train = _train(monkeypatch)
+    train = _train(monkeypatch, installed=False)  # the options are checked before scikit-learn is imported
     with pytest.raises(SystemExit) as stop:
         train.main([option, value, "--out", str(tmp_path / "m.npz"), "--cache", str(tmp_path / "c")])
     assert stop.value.code == 2
@@ -177,14 +183,15 @@ def test_a_missing_groove_dataset_is_refused_before_rendering(monkeypatch: pytes
     assert excerpts.kits_installed(PROG)
 
 
-def _run_without(module: str, trainer: str, *args: str) -> subprocess.CompletedProcess[str]:
-    """Run a trainer as a program in a Python where ``module`` cannot be imported."""
+def _run_without(modules: str | tuple[str, ...], trainer: str, *args: str) -> subprocess.CompletedProcess[str]:
+    """Run a trainer as a program in a Python where ``modules`` (top-level names) cannot be imported."""
+    names = (modules,) if isinstance(modules, str) else modules
     code = f"""
 import runpy, sys
 
-class Uninstalled:  # as if the module were not installed (None in sys.modules would confuse SciPy)
+class Uninstalled:  # as if the modules were not installed (None in sys.modules would confuse SciPy)
     def find_spec(self, name, path=None, target=None):
-        if name.split(".")[0] == {module!r}:
+        if name.split(".")[0] in {names!r}:
             raise ModuleNotFoundError(f"No module named {{name!r}}", name=name)
 
 sys.meta_path.insert(0, Uninstalled())
@@ -204,7 +211,7 @@ def test_a_missing_training_dependency_says_what_to_install(module: str, trainer
     needs = {"train_net": ("torch", "mir_eval"), "train": ("sklearn", "mir_eval")}[trainer]
     if not all(_importable(m) for m in needs if m != module):  # else the trainer names that one first
         pytest.skip(f"{trainer}'s other dependencies are not all installed")
-    done = _run_without(module, trainer, "--help")
+    done = _run_without(module, trainer, "--excerpts", "1")  # a command line it can run: its modules are needed
     assert done.returncode == 1
     line = _one_line_error(done.stderr)
     assert line.startswith(f"python -m services.recogniser.training.{trainer}: error: ")
@@ -212,15 +219,24 @@ def test_a_missing_training_dependency_says_what_to_install(module: str, trainer
     assert all(n in line for n in names), line
 
 
+TRAINING_ONLY = ("torch", "sklearn", "threadpoolctl", "mir_eval")
+"""The trainers' dependencies that neither the service nor CI installs."""
+
+
+@pytest.mark.parametrize("trainer", ["train_net", "train"])
+def test_a_trainer_s_help_and_option_checks_need_no_training_dependency(trainer: str) -> None:
+    done = _run_without(TRAINING_ONLY, trainer, "--help")  # was "PyTorch is needed ..." with status 1
+    assert done.returncode == 0 and done.stderr == "", done.stderr
+    assert "--seed SEED" in done.stdout and "--out OUT" in done.stdout
+    done = _run_without(TRAINING_ONLY, trainer, "--excerpts", "0")
+    assert done.returncode == 2  # the command line, refused before what it would need is looked for
+    line = _one_line_error(done.stderr)
+    assert line.startswith(f"python -m services.recogniser.training.{trainer}: error: ") and "--excerpts" in line
+
+
 def test_the_trainers_help_explains_the_seed_the_cache_and_the_output(monkeypatch: pytest.MonkeyPatch,
                                                                      capsys: pytest.CaptureFixture[str]) -> None:
-    mains = []
-    if all(_importable(m) for m in ("torch", "mir_eval")):
-        mains.append(_train_net(monkeypatch).main)
-    if all(_importable(m) for m in ("sklearn", "mir_eval")):
-        mains.append(_train(monkeypatch).main)
-    if not mains:
-        pytest.skip("neither trainer's dependencies are installed")
+    mains = [_train_net(monkeypatch, installed=False).main, _train(monkeypatch, installed=False).main]
     for main in mains:
         with pytest.raises(SystemExit) as stop:
             main(["--help"])

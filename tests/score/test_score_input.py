@@ -186,5 +186,5 @@ def test_inspect_cli(capsys: pytest.CaptureFixture[str]) -> None:
     assert main([str(DATA / "groove_drummer1_s1_220_rock-halftime_140_fill_4-4.mid"), "--algorithm", "simple"]) == 0
     out = capsys.readouterr().out
     assert "11 events" in out and "SNARE" in out and "limbs:" in out
-    assert main([str(DATA / "missing.mid")]) == 2
+    assert main([str(DATA / "missing.mid")]) == 1
     assert "no such file" in capsys.readouterr().err

@@ -19,8 +19,9 @@ from torch.nn import functional as TF
 
 from services.recogniser import features as F
 from services.recogniser.classes import N_CLASSES
+from services.recogniser.training.defaults import DILATIONS, HARD_WEIGHT  # shown by --help without PyTorch
 from services.recogniser.training.frames import NEIGHBOUR_TARGET, FrameSet, targets
-from services.recogniser.training.net import DILATIONS, Net, calibrate
+from services.recogniser.training.net import Net, calibrate
 
 CROP_S = 4.0
 """Length of a crop whose loss counts, seconds (400 frames of 10 ms)."""
@@ -36,8 +37,6 @@ EQ_DB = 6.0
 """Range of that gain and of each of the curve's three cosine terms, +- dB."""
 SHIFT_P = 0.2
 """Share of crops shifted up or down by one band (about two semitones)."""
-HARD_WEIGHT = 1.0
-"""Default extra weight of a class's negative frames where another class is struck (confusions; 0: none)."""
 
 
 def augment_spectrum(x: np.ndarray, rng: np.random.Generator) -> np.ndarray:

@@ -17,9 +17,7 @@ from torch.nn import functional as TF
 from services.recogniser import features as F
 from services.recogniser.classes import N_CLASSES
 from services.recogniser.framenet import N_OUT, FrameNet, Layer, Network
-
-DILATIONS = (2, 4, 8, 16)
-"""Dilations of the residual time convolutions (frames): kernel 3, so each side sees 3 + their sum frames."""
+from services.recogniser.training.defaults import DILATIONS  # the trainer's --help shows it without PyTorch
 
 
 class Net(nn.Module):

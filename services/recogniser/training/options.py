@@ -9,12 +9,14 @@ was).
 from __future__ import annotations
 
 import argparse
+import importlib
 import sys
 import tempfile
+from collections.abc import Sequence
 from pathlib import Path
 
 from common.arg_types import number
-from common.exit_status import USAGE
+from common.exit_status import USAGE, report_error
 from services.recogniser.model import Model
 
 INSTALL = {
@@ -40,6 +42,19 @@ def missing_dependency(exc: ModuleNotFoundError, prog: str) -> str:
     line's)."""
     top = (exc.name or "").split(".")[0]
     return f"{prog}: error: {INSTALL.get(top, f'the Python module {top!r} is not installed ({exc})')}"
+
+
+def import_or_say(modules: Sequence[str], prog: str) -> bool:
+    """Import ``modules`` (a trainer's training-only dependencies, or its modules that import them), once its
+    command line is checked: ``--help`` and a refused option do without them. False after saying what to install
+    (:func:`missing_dependency`) if one is not installed."""
+    try:
+        for module in modules:
+            importlib.import_module(module)
+    except ModuleNotFoundError as exc:
+        print(missing_dependency(exc, prog), file=sys.stderr)
+        return False
+    return True
 
 
 def below_one(text: str) -> float:
@@ -82,6 +97,17 @@ def save_model(model: Model, path: Path, half: bool = False) -> int:
     bytes."""
     model.save(path, half=half)
     return path.stat().st_size
+
+
+def save_or_say(model: Model, path: Path, prog: str, half: bool = False) -> int | None:
+    """:func:`save_model` at the end of a run, or None after saying it could not (``PROG: error: --out PATH:
+    cannot write it (REASON); nothing written``; exit status 1): ``--out`` was checked at the start, but a disk
+    may fill or a folder go away while the run renders and fits."""
+    try:
+        return save_model(model, path, half=half)
+    except OSError as exc:
+        report_error(prog, f"--out {path}: cannot write it ({exc.strerror or exc}); nothing written")
+        return None
 
 
 COMMANDS = ("services.recogniser.training.train_net", "services.recogniser.training.train")

@@ -30,17 +30,6 @@ from pathlib import Path
 import numpy as np
 
 from common.exit_status import FAILED, INTERRUPTED
-from services.recogniser.training.options import missing_dependency, prog_of, save_model
-
-try:  # scikit-learn and mir_eval are training-only: run as a program, their absence is a one-line error
-    import mir_eval
-    from sklearn.linear_model import Ridge
-    from sklearn.neural_network import MLPClassifier
-except ModuleNotFoundError as exc:
-    if __name__ != "__main__":
-        raise
-    raise SystemExit(missing_dependency(exc, prog_of("services.recogniser.training.train"))) from None
-
 from services.recogniser.audio import SAMPLE_RATE, resample
 from services.recogniser.classes import CLASS_NAMES, N_CLASSES
 from services.recogniser.model import Classifier, Model, load_model
@@ -66,10 +55,14 @@ from services.recogniser.training.excerpts import (
 )
 from services.recogniser.training.frames import ONSET_MERGE_S, Progress, onset_times
 from services.recogniser.training.kits import RENDER_RATE, TRAIN_KITS, VALID_KITS
+from services.recogniser.training.options import import_or_say, prog_of, save_or_say
 from services.recogniser.transcribe import SUPPRESS_S, DrumEvent, group_chords
 
 PROG = prog_of("services.recogniser.training.train")
 """The command's name in its usage and error lines."""
+NEEDS = ("mir_eval", "sklearn.linear_model", "sklearn.neural_network")
+"""Training-only dependencies, imported once the command line is checked: ``--help`` and the option checks do
+without them."""
 CACHE_TAG = "v8"
 """Changes when the rendering or features change, so stale cached examples are not reused."""
 HIDDEN_LIVE = (64, 32)
@@ -114,6 +107,9 @@ def fit_variant(x: np.ndarray, ex: Examples, x_val: np.ndarray, val: Examples, o
     ``negatives``: fraction of the no-hit candidates used for fitting. Thresholds are chosen
     on ``x_val``/``val``, candidates of excerpts rendered with the validation kits only.
     """
+    from sklearn.linear_model import Ridge
+    from sklearn.neural_network import MLPClassifier
+
     mean = x.mean(axis=0)
     scale = x.std(axis=0) + 1e-3
     z = ((x - mean) / scale).astype(np.float32)
@@ -167,6 +163,8 @@ def event_f(val: Examples, found: list[tuple[np.ndarray, np.ndarray]], classes: 
             window: float = 0.05) -> float:
     """F-measure pooled over the validation excerpts for strikes of ``classes`` (None: class-agnostic onsets,
     reference strikes closer than 20 ms being one onset), ``window`` seconds tolerance."""
+    import mir_eval
+
     matched = n_ref = n_est = 0
     for e, (times, cls) in enumerate(found):
         h = val.hits[val.hits[:, 0] == e]
@@ -241,7 +239,8 @@ def retune(path: Path, val: Examples, out: Path) -> int:
     model = load_model(path)
     model.live.thresholds = choose_thresholds(model.live.probabilities(val.x_live), val)
     model.meta["live_retuned"] = True
-    save_model(model, out)
+    if save_or_say(model, out, PROG) is None:
+        return FAILED
     print(f"wrote {out}")
     return 0
 
@@ -254,6 +253,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-synth", dest="synth", action="store_false",
                     help="fit on the Hydrogen kits only (default: also Batteur's own modal and signal synthesis)")
     args = ap.parse_args(argv)
+    if not import_or_say(NEEDS, PROG):  # scikit-learn or mir_eval not installed: said what to install
+        return FAILED
     models: list[tuple[str, Path, Callable[[Path], object]]] = [("--offline-from", args.offline_from, load_model)]
     models += [("--retune", args.retune, load_model)] if args.retune is not None else []
     if not check_files(args, models, PROG) or not kits_installed(PROG):
@@ -285,7 +286,9 @@ def run(args: argparse.Namespace) -> int:
     base = load_model(args.offline_from)
     meta = dict(base.meta, live_trained_on=list(kits), live_thresholds_from=list(VALID_KITS),
                 live_excerpts=args.excerpts, live_seed=args.seed)
-    size = save_model(Model(offline=base.offline, live=live, meta=meta), args.out)
+    size = save_or_say(Model(offline=base.offline, live=live, meta=meta), args.out, PROG)
+    if size is None:  # e.g. a disk full by the end of the run
+        return FAILED
     print(f"wrote {args.out} ({size / 1024:.0f} KiB) in {time.time() - t0:.0f} s")
     return 0
 

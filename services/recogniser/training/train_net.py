@@ -30,27 +30,16 @@ import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
+from common.arg_types import count, non_negative, positive
+from common.exit_status import FAILED, INTERRUPTED, report_error
 from services.recogniser import features as F
 from services.recogniser.classes import CLASS_NAMES
 from services.recogniser.errors import ModelError
 from services.recogniser.framenet import FrameNet
 from services.recogniser.model import Model, load_live, load_model
-from services.recogniser.training.options import missing_dependency, prog_of
-
-try:  # PyTorch and mir_eval are training-only: run as a program, their absence is a one-line error
-    import torch
-
-    from services.recogniser.training.fit_net import HARD_WEIGHT, FitError, fit
-    from services.recogniser.training.net import DILATIONS, Net, export, from_export, widen
-    from services.recogniser.training.tune import choose
-except ModuleNotFoundError as exc:
-    if __name__ != "__main__":
-        raise
-    raise SystemExit(missing_dependency(exc, prog_of("services.recogniser.training.train_net"))) from None
-
-from common.arg_types import count, non_negative, positive
-from common.exit_status import FAILED, INTERRUPTED, report_error
+from services.recogniser.training.defaults import DILATIONS, HARD_WEIGHT
 from services.recogniser.training.excerpts import (
     FIT_KITS,
     VALID_DRY_P,
@@ -72,11 +61,18 @@ from services.recogniser.training.frames import (
 )
 from services.recogniser.training.kits import VALID_KITS
 from services.recogniser.training.more_kits import MORE_KITS, MoreKitsMissingError, require_more_kits
-from services.recogniser.training.options import below_one, save_model
+from services.recogniser.training.options import below_one, import_or_say, prog_of, save_or_say
 from services.recogniser.training.soundfont import SOUNDFONT_KITS, SoundfontsMissingError, require_soundfonts
+
+if TYPE_CHECKING:  # PyTorch and mir_eval are imported once the command line is checked (main)
+    from services.recogniser.training.net import Net
 
 PROG = prog_of("services.recogniser.training.train_net")
 """The command's name in its usage and error lines."""
+NEEDS = ("torch", "services.recogniser.training.fit_net", "services.recogniser.training.net",
+         "services.recogniser.training.tune")
+"""The modules that fit and tune the network, imported once the command line is checked: they import PyTorch and
+mir_eval, training-only dependencies that ``--help`` and the option checks do without."""
 BANDS = {"narrow": F.NARROW, "wide": F.WIDE}
 """The band analyses ``--bands`` names."""
 CACHE_TAG = "f4"
@@ -114,6 +110,8 @@ def ensemble(paths: list[Path], val: FrameSet, rules: bool = False) -> Model:
     """One model whose offline network averages the offline networks of the model files ``paths``, with
     thresholds (and with ``rules`` the strike rules, :func:`.tune.choose`) chosen on ``val``; the live MLP and the
     metadata are the first file's."""
+    from services.recogniser.training.tune import choose
+
     models = [load_model(p) for p in paths]
     first = models[0].offline
     nets = [n for m in models for n in m.offline.networks]
@@ -138,6 +136,8 @@ def init_net(path: Path, windows: tuple[int, ...], width: int, dilations: tuple[
 
     Raises ModelError (unreadable file) or ValueError (an ensemble, other windows, dilations, hop or bands, or
     a smaller width or front)."""
+    from services.recogniser.training.net import from_export, widen
+
     offline = load_model(path).offline
     if offline.members:
         raise ValueError(f"an ensemble of {len(offline.networks)} networks; give one of its members' files")
@@ -289,6 +289,8 @@ def main(argv: list[str] | None = None) -> int:
     problem = option_problem(args)
     if problem:  # before any file is read: a command line that cannot run
         parser.error(problem)
+    if not import_or_say(NEEDS, PROG):  # PyTorch or mir_eval not installed: said what to install
+        return FAILED
     models: list[tuple[str, Path, Callable[[Path], object]]] = [("--live-from", args.live_from, load_live)]
     models += [(option, path, load_model) for option, path in  # also refuses NaN weights
                [("--retune", args.retune), ("--init", args.init)] if path is not None]
@@ -301,7 +303,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{PROG}: interrupted: nothing written to {args.out} (sets of excerpts rendered in full are kept in "
               f"{args.cache} for the next run)", file=sys.stderr)
         return INTERRUPTED
-    except (FitError, CacheFullError) as exc:
+    except CacheFullError as exc:
         return report_error(PROG, f"{exc}; nothing written to {args.out}")
 
 
@@ -330,6 +332,8 @@ def option_problem(args: argparse.Namespace) -> str | None:
 
 def run(args: argparse.Namespace) -> int:
     """Render, fit, tune and write what the checked command line ``args`` asks for."""
+    from services.recogniser.training.tune import choose
+
     fit_kits = FIT_KITS
     if args.soundfonts:
         try:
@@ -360,7 +364,6 @@ def run(args: argparse.Namespace) -> int:
                             None if args.front is None else (args.front[0], args.front[1]), args.seed)
         except (ModelError, ValueError) as exc:
             return report_error(PROG, f"--init {args.init}: {exc}")
-    torch.set_num_threads(args.threads)
     t0 = time.time()
     val = frames(args.cache, "val", args.val_excerpts, args.seed + 1000, args.workers, VALID_KITS, VALID_DRY_P,
                  plain=args.val_plain, hop=args.hop, by_duration=args.by_duration, quiet_hihat_p=args.val_quiet_hihats,
@@ -369,11 +372,14 @@ def run(args: argparse.Namespace) -> int:
         model = load_model(args.retune)
         choose(model.offline, val, rules=args.rules)
         model.meta.update(val_plain=args.val_plain, rules=args.rules, val_quiet_hihats=args.val_quiet_hihats)
-        save_model(model, args.out, half=args.half)
+        if save_or_say(model, args.out, PROG, half=args.half) is None:
+            return FAILED
         print(f"wrote {args.out}")
         return 0
     if args.ensemble:
-        size = save_model(ensemble(args.ensemble, val, args.rules), args.out, half=args.half)
+        size = save_or_say(ensemble(args.ensemble, val, args.rules), args.out, PROG, half=args.half)
+        if size is None:
+            return FAILED
         print(f"wrote {args.out} ({size / 1024:.0f} KiB)")
         return 0
     live, live_meta = load_live(args.live_from)
@@ -383,13 +389,23 @@ def run(args: argparse.Namespace) -> int:
                    quiet_hihat_p=args.quiet_hihats, bands=bands, windows_22k=rendered)
     if args.render_only:
         return 0
+    import torch  # here: retuning and ensembles do without it (the tests run them without PyTorch)
+
+    from services.recogniser.training.fit_net import FitError, fit
+    from services.recogniser.training.net import export
+
+    torch.set_num_threads(args.threads)
     print(f"training: {train.n_excerpts} excerpts, {len(train.spec)} frames, {len(train.hits)} strikes; "
           f"validation kit: {val.n_excerpts} excerpts; {time.time() - t0:.0f} s", flush=True)
     front = None if args.front is None else (args.front[0], args.front[1])
-    net = export(fit(train, val, args.epochs, args.seed, lr=args.lr, minutes=args.minutes, width=args.width,
+    try:
+        fitted = fit(train, val, args.epochs, args.seed, lr=args.lr, minutes=args.minutes, width=args.width,
                      front=front, windows=windows, hard=args.hard, init=init, warmup=args.warmup,
                      outputs=weights, neighbour=args.neighbour_target, dilations=tuple(args.dilations),
-                     onset_merge_s=args.onset_merge))
+                     onset_merge_s=args.onset_merge)
+    except FitError as exc:  # no state whose loss is a number
+        return report_error(PROG, f"{exc}; nothing written to {args.out}")
+    net = export(fitted)
     print("thresholds:", flush=True)
     choose(net, val, rules=args.rules)
     meta = {"trained_on": list(fit_kits), "thresholds_from": list(VALID_KITS), "excerpts": args.excerpts,
@@ -411,7 +427,9 @@ def run(args: argparse.Namespace) -> int:
                     "synthesis" + (" and General MIDI soundfonts' drum kits" if args.soundfonts else "")
                     + (", Sonic Pi's drum samples (CC0) and AVL's Red Zeppelin kit (CC-BY-SA-3.0)"
                        if args.more_kits else "")}
-    size = save_model(Model(offline=net, live=live, meta=meta), args.out, half=args.half)
+    size = save_or_say(Model(offline=net, live=live, meta=meta), args.out, PROG, half=args.half)
+    if size is None:  # e.g. a disk full by the end of the run
+        return FAILED
     print(f"wrote {args.out} ({size / 1024:.0f} KiB) in {time.time() - t0:.0f} s")
     return 0
 
