@@ -116,6 +116,31 @@ def foot_target_for_press(press: float) -> float:
     return heights[-1]
 
 
+MIRRORED_SUFFIX = "-mirrored"
+"""Added to a kit's name by :meth:`Kit.mirrored` (and taken off again by mirroring back)."""
+ANGLE_DECIMALS = 12
+"""Decimals up to which a hit-point angle a kit file holds comes back exactly when mirrored twice."""
+ANGLE_NOISE_RAD = 1e-14
+"""How far (radians) ``pi - theta`` may be from an ``ANGLE_DECIMALS`` value for it to be that value: beyond one
+float rounding of mirroring twice (< 2e-15 rad for angles within a few turns), short of the 2e-13 rad by which
+``pi - theta`` of such a value misses every such value (pi's digits past the 12th decimal)."""
+
+
+def mirrored_angle(theta: float) -> float:
+    """A hit-point angle mirrored in the object's x (radians): ``pi - theta``, an involution on the angles kit
+    files hold.
+
+    ``pi - (pi - theta)`` can miss ``theta`` by one rounding (-1.5708 -> -1.5708000000000002): a result within
+    :data:`ANGLE_NOISE_RAD` of a value with :data:`ANGLE_DECIMALS` decimals is that value. An angle written with
+    up to 12 decimals mirrors to the float nearest ``pi - theta`` (as ``pi - theta`` always did), and that mirrors
+    back to the written angle exactly. (No rule gives every float back: there are more floats near 0 than near pi.)
+    The page's kit editor mirrors with the same rule (services/graphics/web/src/app.js ``mirroredAngle``).
+    """
+    exact = math.pi - theta
+    written = round(exact, ANGLE_DECIMALS)
+    return written if abs(written - exact) <= ANGLE_NOISE_RAD else exact
+
+
 class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
@@ -345,7 +370,8 @@ class Kit(_Strict):
         return 0.0
 
     def mirrored(self) -> Kit:
-        """The left-handed setup: x mirrored, hands and feet swapped."""
+        """The left-handed setup: x mirrored, hands and feet swapped; mirroring it again gives this kit back (the
+        name's ``-mirrored`` suffix toggles as ``handedness`` does, hit-point angles by :func:`mirrored_angle`)."""
         swap = {
             Limb.LEFT_HAND: Limb.RIGHT_HAND,
             Limb.RIGHT_HAND: Limb.LEFT_HAND,
@@ -362,14 +388,15 @@ class Kit(_Strict):
             for o in self.objects
         ]
         events = {
-            e: s.model_copy(update={"preferred": swap[s.preferred], "theta": math.pi - s.theta,
+            e: s.model_copy(update={"preferred": swap[s.preferred], "theta": mirrored_angle(s.theta),
                                     "off_hand": None if s.off_hand is None else (s.off_hand[0],
-                                                                                 math.pi - s.off_hand[1])})
+                                                                                 mirrored_angle(s.off_hand[1]))})
             for e, s in self.events.items()
         }
         pairs = {k: -v for k, v in self.pair_preference.items()}
         return Kit(
-            name=f"{self.name}-mirrored",
+            name=self.name.removesuffix(MIRRORED_SUFFIX) if self.name.endswith(MIRRORED_SUFFIX)
+            else self.name + MIRRORED_SUFFIX,
             handedness="left" if self.handedness == "right" else "right",
             objects=objects,
             events=events,

@@ -439,11 +439,14 @@ class GraphicsCore:
 
     def frame_at(self, now: float) -> ViewFrame | None:
         """The frame to show at rig time ``now`` (None before any pose)."""
-        if self._edit is not None:
+        preview = self._preview_frame(now) if self.mode == "preview" and self.preview is not None else None
+        if self._edit is not None:  # the editor's still body; the kit keeps flashing and marking the strikes
+            if preview is not None:  # the previewed score's, as with the editor closed
+                return ViewFrame(preview.time, self._edit.copy(), preview.kit, preview.hits)
             shown = self.display_time(now)
-            return ViewFrame(shown, self._edit.copy(), self.animator.state(shown, None), [])
-        if self.mode == "preview" and self.preview is not None:
-            return self._preview_frame(now)
+            return ViewFrame(shown, self._edit.copy(), self.animator.state(shown, None), self.animator.hits(shown))
+        if preview is not None:
+            return preview
         if not self._times:
             return None
         t = self.display_time(now)

@@ -34,7 +34,7 @@ from typing import Any, Literal
 from pydantic import Field, ValidationError
 
 from common.config import NodeSettings
-from common.exit_status import InputError
+from common.exit_status import InputError, report_error
 from common.kit import Kit, load_kit
 from common.messages import Impact
 from common.messages.graphics import GraphicsMode
@@ -83,8 +83,7 @@ def build_assets(web_dir: Path = WEB_DIR) -> int:
     """Install the page's npm packages (three.js) and build it into ``services/graphics/static``."""
     npm = shutil.which("npm")
     if npm is None:
-        print("batteur graphics build: npm is not installed (Debian: apt-get install npm)", file=sys.stderr)
-        return 2
+        return report_error("batteur graphics build", "npm is not installed (Debian: apt-get install npm)")
     for command in ([npm, "ci", "--no-audit", "--no-fund"], [npm, "run", "build"]):
         result = subprocess.run(command, cwd=web_dir, check=False)
         if result.returncode != 0:

@@ -632,10 +632,20 @@ function buildKitSliders() {
 }
 kitSelect.addEventListener("change", buildKitSliders);
 // Kit.mirrored (common/kit.py), to the same numbers: the left-handed setup, x mirrored (pitch and yaw negated),
-// hands and feet swapped, hit points mirrored (theta -> pi - theta), pair preferences negated.
+// hands and feet swapped, hit points mirrored (theta -> pi - theta), pair preferences negated. Mirroring twice gives
+// the kit back: the name's suffix toggles, and an angle comes back to the digit (common.kit.mirrored_angle).
 const OTHER_LIMB = {
   left_hand: "right_hand", right_hand: "left_hand", left_foot: "right_foot", right_foot: "left_foot",
 };
+const MIRRORED_SUFFIX = "-mirrored", ANGLE_DECIMALS = 12, ANGLE_NOISE_RAD = 1e-14;
+// pi - theta (radians), except that a result within float noise of a 12-decimal value is that value: pi - (pi -
+// theta) can miss theta by one rounding (-1.5708 -> -1.5708000000000002). toFixed rounds the exact double, as
+// Python's round does (their tie rules differ only half a decimal away, far beyond the noise kept).
+function mirroredAngle(theta) {
+  const exact = Math.PI - theta;
+  const written = Number(exact.toFixed(ANGLE_DECIMALS));
+  return Math.abs(written - exact) <= ANGLE_NOISE_RAD ? written : exact;
+}
 function mirroredKit(kit) {
   const out = JSON.parse(JSON.stringify(kit));
   for (const o of out.objects) {
@@ -644,11 +654,12 @@ function mirroredKit(kit) {
   }
   for (const spec of Object.values(out.events)) {
     spec.preferred = OTHER_LIMB[spec.preferred];
-    spec.theta = Math.PI - spec.theta;
-    if (spec.off_hand) spec.off_hand = [spec.off_hand[0], Math.PI - spec.off_hand[1]];
+    spec.theta = mirroredAngle(spec.theta);
+    if (spec.off_hand) spec.off_hand = [spec.off_hand[0], mirroredAngle(spec.off_hand[1])];
   }
   for (const key of Object.keys(out.pair_preference)) out.pair_preference[key] = -out.pair_preference[key];
-  out.name = `${kit.name}-mirrored`;
+  out.name = kit.name.endsWith(MIRRORED_SUFFIX) ? kit.name.slice(0, -MIRRORED_SUFFIX.length)
+    : kit.name + MIRRORED_SUFFIX;
   out.handedness = kit.handedness === "right" ? "left" : "right";
   return out;
 }
