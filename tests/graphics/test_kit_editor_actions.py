@@ -95,7 +95,7 @@ def test_contact_markers_are_drawn_on_the_edited_kit(
     page, node, loaded = crash_in_editor
     _type(page, 0, "0.5")
     _type(page, 5, "60")  # yaw: the struck point turns with the cymbal
-    page.click("#edit-toggle")  # the open editor shows its still pose, without markers
+    page.click("#edit-toggle")  # the open editor shows its still pose
     edited = loaded.model_dump(mode="json")
     crash = next(o for o in edited["objects"] if o["id"] == "crash")
     crash["position"][0], crash["rotation_deg"][2] = 0.5, 60.0
