@@ -115,8 +115,8 @@ def main(argv: list[str] | None = None) -> int:
         return report_error(ap.prog, exc)  # its line starts with the program's name, as argparse's errors
     try:
         models = [load_model(p) for p in args.model]
-    except ModelError as exc:
-        ap.error(f"--model {exc}")
+    except ModelError as exc:  # a file it cannot use: 1, as every command (README, "Exit status")
+        return report_error(ap.prog, f"--model {exc}")
     for path, model in zip(args.model, models, strict=True):
         if args.kit in set(model.meta.get("trained_on", TRAIN_KITS)):
             print(f"{ap.prog}: warning: {args.kit} was used for training {path}", file=sys.stderr)
