@@ -1,5 +1,5 @@
-"""Commands the exit-status convention (README, "Exit status") had not reached: ``batteur evaluate``'s score
-warnings and ``--reuse``, ``python -m common.score`` and the recogniser benchmark's error lines.
+"""Commands the exit-status convention (README, "Exit status") had not reached: ``batteur evaluate``'s
+``--reuse``, ``python -m common.score`` and the recogniser benchmark's error lines.
 
 No case renders: a render is stopped once the score's warnings are printed, and ``--reuse`` is asked about render
 folders written by hand."""
@@ -57,23 +57,6 @@ def test_reuse_tells_a_segmented_render_from_a_one_process_render(tmp_path: Path
                                                  .items() if k != "physics"}), encoding="utf-8")
     assert evaluate.reusable(old, score, one_process)
     assert not evaluate.reusable(old, score, render.RenderOptions(jobs=2))
-
-
-def test_evaluate_s_score_warnings_name_evaluate(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
-                                                capsys: pytest.CaptureFixture[str]) -> None:
-    from tests.score.midi_files import drum_midi, with_key
-
-    score = tmp_path / "bad_key.mid"
-    score.write_bytes(with_key(drum_midi([(0, 4, 4)], [0, 480], key=True), b"\xff\x59\x02\xee\x01"))  # 18 flats
-
-    def interrupted(*args: object) -> float:  # stops the render once the score's warnings are printed
-        raise KeyboardInterrupt
-
-    monkeypatch.setattr(render, "rendered_seconds", interrupted)
-    assert evaluate.main([str(score), "--quiet"]) == 130
-    err = capsys.readouterr().err
-    assert f"batteur evaluate: warning: {score}: a key signature that cannot be read ignored" in err
-    assert "batteur render:" not in err  # was "batteur render: warning: ..."
 
 
 @pytest.mark.parametrize("argv, named", [(["{missing}"], "missing.txt"), (["{score}", "--kit", "nosuch"], "nosuch")])
