@@ -51,6 +51,7 @@ from batteur.strike import DEFAULT_STRIKES, parse_strikes, run_strikes
 from common.core import Outgoing
 from common.datafile import first_error
 from common.gesture.plan import GesturePlan, Grip, Nuance
+from common.gesture.reach import pull_into_reach
 from common.kit import EventType, Kit, load_kit
 from common.messages import OscMessage
 from common.messages.physics import ControlModeName
@@ -369,8 +370,8 @@ def start_drummer(plan: GesturePlan, kit: Kit, opts: RenderOptions, start_s: flo
     """The offline drummer of ``opts``, its clock at rig time ``start_s`` (seconds), tracking ``plan`` (whose
     ``start_time`` is at rig time ``opts.settle_s``), its hands holding ``opts.styled()``'s grip (resolve the
     score's first: :meth:`RenderOptions.styled`). Knots beyond the body's reach (an instrument too far for a small
-    drummer) are brought within it (:func:`pull_into_reach`; counted per limb in ``pulled``): the notes there are
-    missed, not the whole render. Raises :class:`RenderError` when physics refuses the plan."""
+    drummer) are brought within it (:func:`common.gesture.reach.pull_into_reach`; counted per limb in ``pulled``):
+    the notes there are missed, not the whole render. Raises :class:`RenderError` when physics refuses the plan."""
     from services.physics.core import PhysicsCore, PhysicsSettings
     from services.physics.targets import TargetError
 
@@ -393,37 +394,6 @@ def start_drummer(plan: GesturePlan, kit: Kit, opts: RenderOptions, start_s: flo
         physics.close()
         raise RenderError(f"physics refused the gesture plan: {exc}") from exc
     return physics
-
-
-REACH_MARGIN = 0.999
-"""A knot pulled into reach lands this share of the reach from the limb's root (physics refuses beyond it)."""
-
-
-def pull_into_reach(plan: GesturePlan, reach: dict[str, tuple[np.ndarray, float]]
-                    ) -> tuple[GesturePlan, dict[str, int]]:
-    """``plan`` with each limb's knots farther than its reach from its root (physics' ``DrummerScene.reach``:
-    limb name -> (root, metres)) moved toward the root to just within it, and the knots moved per limb. Physics
-    refuses a whole plan for one such knot; a drummer too small for the kit then misses those notes (the planner
-    flags them ``unreachable``) and plays the rest. A plan within reach is returned as it is (the same arrays)."""
-    trajectories = dict(plan.trajectories)
-    counts: dict[str, int] = {}
-    for limb, traj in plan.trajectories.items():
-        name = str(getattr(limb, "value", limb))
-        if name not in reach:
-            continue  # physics names the limb it does not know
-        root, length = reach[name]
-        offsets = np.asarray(traj.positions, dtype=float) - root
-        distances = np.linalg.norm(offsets, axis=1)
-        far = distances > length  # NaN: left to physics' own refusal
-        if not far.any():
-            continue
-        positions = np.array(traj.positions, dtype=float)
-        positions[far] = root + offsets[far] * (REACH_MARGIN * length / distances[far])[:, None]
-        trajectories[limb] = dataclasses.replace(traj, positions=positions)
-        counts[name] = int(far.sum())
-    if not counts:
-        return plan, counts
-    return dataclasses.replace(plan, trajectories=trajectories), counts
 
 
 def offline_interaction_config() -> InteractionConfig:
@@ -777,7 +747,7 @@ def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: boo
     check_options(opts)
     if opts.video:
         check_video(opts)  # before the long part: no ffmpeg, no render
-    kit = load_kit(opts.kit)
+    kit = load_kit(opts.kit, height_m=opts.height_m)  # its warnings name the drummer asked for
     calibration = Calibration.load(opts.calibration) if opts.calibration else None
     planning = PlanningProgress(Path(path).name, quiet)
     try:

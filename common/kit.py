@@ -409,13 +409,14 @@ class Kit(_Strict):
         )
 
 
-def load_kit(source: str | Path = "default") -> Kit:
+def load_kit(source: str | Path = "default", height_m: float | None = None) -> Kit:
     """Load a kit by shipped name (``default``) or from a YAML/JSON file path.
 
     Raises ``FileNotFoundError`` for an unknown name or path and ``ValueError`` naming the file for one that is
     not UTF-8 text, not valid YAML/JSON (line and column) or not a valid kit (the first problem, on one line).
     A valid kit holding instruments the drummer cannot play (out of reach, struck by no event) loads with one
-    logged warning per instrument (:func:`common.score.limbs.unplayable_instruments`).
+    logged warning per instrument (:func:`common.score.limbs.unplayable_instruments`), the reach that of a drummer
+    ``height_m`` tall (metres; None: the default 1.75 m drummer), whom a warning then names.
     """
     path = Path(source)
     shipped = sorted(p.stem for p in KITS_DIR.glob("*.yaml"))
@@ -437,7 +438,8 @@ def load_kit(source: str | Path = "default") -> Kit:
         raise ValueError(f"kit file {str(path)!r} is not a valid kit: {first_error(exc)}{more}") from None
     from common.score.limbs import unplayable_instruments  # here: the planner's reach, and limbs imports this module
 
-    for problem in unplayable_instruments(kit):  # a valid kit may still hold objects the drummer cannot play
+    problems = unplayable_instruments(kit) if height_m is None else unplayable_instruments(kit, height_m)
+    for problem in problems:  # a valid kit may still hold objects the drummer cannot play
         log.warning("kit file %r: %s", str(path), problem)
     return kit
 

@@ -547,7 +547,8 @@ def unplayable_instruments(kit: Kit, height_m: float = STATURE_M) -> list[str]:
     presses it (what :func:`check_feasibility` flags ``unreachable`` on every such note). Shoulders and hips are
     where the kit's throne seats the drummer (:func:`shoulders`, :func:`hips`); mirroring the kit for a left-hander
     mirrors the throne and swaps the feet, so the same instruments are named. ``height_m``: the drummer's height,
-    metres (its reach scales: :func:`check_feasibility`). The physics' own reach
+    metres (its reach scales: :func:`check_feasibility`; a line names a drummer of another height than
+    :data:`STATURE_M`: "a 1.4 m drummer's hand reaching 1.02 m"). The physics' own reach
     (``services/physics/drummer.py``, from the body's measures) is longer, so every target it refuses is among
     these.
     """
@@ -569,11 +570,13 @@ def unplayable_instruments(kit: Kit, height_m: float = STATURE_M) -> list[str]:
     shoulder_at = shoulders(kit, height_m)
     arm_reach = hand_reach(height_m)
     pedals_far = _pedals_out_of_reach(kit, height_m)
+    whose = "" if height_m == STATURE_M else f"{height_m:g} m drummer's "  # the default reads as it always did
     lines: list[str] = []
     for obj in kit.objects:
         for foot, far_ones in pedals_far.get(obj.id, {}).items():
             lines.append(f"{obj.id}: out of the {foot.value.replace('_', ' ')}'s reach ({', '.join(far_ones)} from the "
-                         f"hip, a leg reaching {foot_reach(height_m):.3g} m): the planner flags its notes unreachable")
+                         f"hip, a {whose}leg reaching {foot_reach(height_m):.3g} m): the planner flags its notes "
+                         "unreachable")
         if obj.id not in struck:
             if obj.kind in STRUCK_KINDS:
                 lines.append(f"{obj.id} ({obj.kind}): no event type or note_objects pitch strikes it")
@@ -590,8 +593,8 @@ def unplayable_instruments(kit: Kit, height_m: float = STATURE_M) -> list[str]:
             if nearer > arm_reach:
                 far.append(f"{what} {nearer:.2f} m")
         if far:
-            lines.append(f"{obj.id}: out of both hands' reach ({', '.join(far)} from the nearer shoulder, a hand "
-                         f"reaching {arm_reach:.3g} m): the planner flags its notes unreachable")
+            lines.append(f"{obj.id}: out of both hands' reach ({', '.join(far)} from the nearer shoulder, a "
+                         f"{whose}hand reaching {arm_reach:.3g} m): the planner flags its notes unreachable")
     return lines
 
 

@@ -24,6 +24,8 @@ from collections.abc import Callable, Iterator
 from concurrent.futures import BrokenExecutor, Executor, Future, ProcessPoolExecutor, ThreadPoolExecutor
 from typing import TYPE_CHECKING, Any, Literal, TypeVar
 
+from common.score.limbs import STATURE_M
+
 if TYPE_CHECKING:
     import numpy as np
 
@@ -50,17 +52,19 @@ class PlanError(ValueError):
 
 
 def plan_events(events: list[DrumEvent], beats: np.ndarray, lead_in: float, kit: Kit, algorithm: HandAlgorithm,
-                sticking: Sticking, grip: Grip, nuance: Nuance) -> GesturePlan:
+                sticking: Sticking, grip: Grip, nuance: Nuance, height_m: float = STATURE_M) -> GesturePlan:
     """Distribute and plan rig-timed events (the planner's times are rig seconds); raises :class:`PlanError`.
 
-    Here, not in the score player, so that a planning process imports the planner only (the score player's
-    module brings the physics kernels: 1.8 s more to start a process)."""
+    ``height_m``: the drummer's height, metres (the node's ``--height-m``): the reach its notes are checked
+    against (``distribute``'s ``unreachable`` flags). Here, not in the score player, so that a planning
+    process imports the planner only (the score player's module brings the physics kernels: 1.8 s more to start
+    a process)."""
     from common.gesture.planner import PlannerConfig, plan_gestures
     from common.score.events import Score
     from common.score.limbs import distribute
 
     score = Score(events=events, beats=beats, source="performance")
-    assignment = distribute(score, kit, algorithm, sticking)
+    assignment = distribute(score, kit, algorithm, sticking, height_m=height_m)
     if not assignment.notes:
         raise PlanError("nothing to play: the kit has none of these notes' instruments")
     config = PlannerConfig(grip=grip, nuance=nuance, lead_in=max(lead_in, 0.05))

@@ -55,7 +55,12 @@ are dropped so that the cubic Hermite segment blends into it; a plan that
 starts after ``t_s`` is joined from the track's state (braked to a stop first
 when there is room). Nothing is queued (no limb changes) if a knot is out of a
 limb's reach or a limb's track would pass its bound (``Track.max_knots``); a
-live note is refused past :data:`MAX_PERFORMANCE_NOTES` notes.
+live note is refused past :data:`MAX_PERFORMANCE_NOTES` notes. Before its
+splice every plan's knots beyond the body's reach (an instrument too far for
+the drummer: the planner, given the node's ``height_m``, flags its notes
+``unreachable``) are brought just within it (:meth:`ScorePlayer._reachable`):
+those notes are missed, the rest plays, and the knots are counted
+(``pulled_into_reach``) and logged once per plan.
 
 A live note during a performance re-plans a **window** around it, not the
 rest of the performance: the notes from :data:`CONTEXT_S` before the splice
@@ -110,6 +115,7 @@ from typing import TYPE_CHECKING, Literal
 import numpy as np
 
 from common.gesture.plan import GesturePlan, Grip, Nuance
+from common.gesture.reach import pull_into_reach
 from common.kit import EventType, Limb
 from common.messages import OscMessage
 from common.messages.physics import PhysicsReset
@@ -271,6 +277,8 @@ class _Job:
     """Splice the ready plan (or plan again) at rig time ``now``, s."""
     notes: tuple[DrumEvent, ...] = ()
     """Live notes: the note of each request, in the same order."""
+    pulled: dict[str, int] = dataclasses.field(default_factory=dict)
+    """Once ready: its plan's knots brought within the body's reach, per limb (:meth:`ScorePlayer._reachable`)."""
 
 
 class ScorePlayer:
@@ -322,6 +330,9 @@ class ScorePlayer:
         """Notes the planner flagged (dropped, moved or substituted; see the plan's issues)."""
         self.plans = 0
         """Plans spliced so far."""
+        self.pulled_into_reach: Counter[str] = Counter()
+        """Knots of the spliced plans brought within the body's reach, per limb (:meth:`_reachable`: an instrument
+        too far for the drummer; its notes missed, the rest played)."""
         self.last_plan: GesturePlan | None = None
         self._preparation_s: float | None = None
         self._worker: PlanWorkers | None = None
@@ -670,12 +681,13 @@ class ScorePlayer:
         whole = widen = False
         while True:  # the window, maybe widened, then the whole rest (whose commit always splices)
             prepared = self._prepare_live([event], t_s, whole, widen)
+            plan, pulled = self._reachable(self._planner(prepared.events, prepared.beats, prepared.lead_in)())
             try:
-                plan = prepared.commit(self._planner(prepared.events, prepared.beats, prepared.lead_in)(), t_s)
+                plan = prepared.commit(plan, t_s)
             except _WindowMissed as missed:
                 whole, widen = not missed.widen, missed.widen
                 continue
-            return self._account(plan)
+            return self._account(plan, pulled)
 
     def _accept(self, note: LiveNote, source: str = "", now: float = 0.0) -> DrumEvent | None:
         """A live note's drum event, or None (a note-off, a double, or an unknown pitch: counted, logged and
@@ -1044,7 +1056,7 @@ class ScorePlayer:
             log.info("a plan for %d message(s) was ready after a reset: dropped", len(job.requests))
             return
         try:
-            plan = job.future.result()
+            plan, job.pulled = self._reachable(job.future.result())
             if len(job.prepared.events) >= PLAN_MEASURED_NOTES:
                 self._plan_times.append((time.perf_counter() - job.started) / len(job.prepared.events))
             job.finish(job, plan, now)
@@ -1069,7 +1081,7 @@ class ScorePlayer:
             self._waiting.appendleft(dataclasses.replace(waiting, tries=waiting.tries + 1))
             return
         prepared.announce()
-        prepared.commit(self._account(plan), prepared.t_s)
+        prepared.commit(self._account(plan, job.pulled), prepared.t_s)
 
     def _finish_live(self, job: _Job, plan: GesturePlan, now: float) -> None:
         """Live notes: splice at the chosen time or, if that has passed, at the next step when every note still
@@ -1097,7 +1109,7 @@ class ScorePlayer:
             self._waiting.extendleft(reversed([dataclasses.replace(w, event=e, whole=not missed.widen,
                                                                    widen=missed.widen) for w, e in pairs]))
             return
-        self._account(plan)
+        self._account(plan, job.pulled)
 
     # ------------------------------------------------------------------ helpers
 
@@ -1119,14 +1131,14 @@ class ScorePlayer:
 
     def _plan(self, events: list[DrumEvent], beats: np.ndarray, lead_in: float) -> GesturePlan:
         """Distribute and plan rig-timed events (the planner's times are rig seconds), in this thread."""
-        return self._account(self._planner(events, beats, lead_in)())
+        return self._account(*self._reachable(self._planner(events, beats, lead_in)()))
 
     def _planner(self, events: list[DrumEvent], beats: np.ndarray, lead_in: float) -> Callable[[], GesturePlan]:
         """The planning of rig-timed events with the present style, as a call that reads nothing of the player's
         state (it may run in the worker while the loop changes it; picklable, for a worker process)."""
         self._check_grip()
         return functools.partial(plan_events, events, beats, lead_in, self.core.kit, self.algorithm, self.sticking,
-                                 self.grip, self.nuance)
+                                 self.grip, self.nuance, height_m=self.core.settings.height_m)
 
     def _check_grip(self) -> None:
         """Warn when the hands hold another grip than the one the gestures are planned with (american,
@@ -1149,12 +1161,28 @@ class ScorePlayer:
         log.warning("the drummer's hands hold %s; the gestures are planned with the %s grip%s "
                     "(/batteur/score/style sets the hands' grip and the planned one)", hands, self.grip.value, why)
 
-    def _account(self, plan: GesturePlan) -> GesturePlan:
-        """Count and log a plan about to be spliced (its flagged notes)."""
+    def _reachable(self, plan: GesturePlan) -> tuple[GesturePlan, dict[str, int]]:
+        """``plan`` with its knots beyond the body's reach brought just within it, and how many per limb
+        (:func:`common.gesture.reach.pull_into_reach`): physics refuses a whole plan for one such knot (an instrument
+        too far for a small drummer); its notes are missed instead (the planner flags them ``unreachable`` for the
+        same height) and the rest plays. Every plan goes through here before its splice."""
+        scene = self._maybe_drummer()
+        if scene is None:
+            return plan, {}
+        return pull_into_reach(plan, scene.reach)
+
+    def _account(self, plan: GesturePlan, pulled: dict[str, int] | None = None) -> GesturePlan:
+        """Count and log a plan about to be spliced (its flagged notes; ``pulled``: its knots brought within
+        reach per limb, :meth:`_reachable`)."""
         self.flagged += len(plan.issues)
         for issue in plan.issues:
             log.info("planner: note at %.3f s (%s): %s, %s (%s)", issue.time, issue.event.value if issue.event else "-",
                      issue.reason.value, issue.action.value, issue.detail)
+        if pulled:
+            self.pulled_into_reach.update(pulled)
+            log.info("plan: %s beyond the %g m drummer's reach brought within it: the notes there are missed",
+                     ", ".join(f"{count} {limb.replace('_', ' ')} knot{'s' if count > 1 else ''}"
+                               for limb, count in sorted(pulled.items())), self.core.settings.height_m)
         self.plans += 1
         self.last_plan = plan
         return plan
@@ -1194,4 +1222,4 @@ class ScorePlayer:
                 "late_notes": self.late_notes, "errors": dict(self.errors), "flagged": self.flagged,
                 "plans": self.plans, "unknown_live_pitches": self.unknown_pitches,
                 "live_duplicates": self.live.duplicates, "replanned_late": self.replanned_late,
-                "live_window_misses": self.window_misses}
+                "live_window_misses": self.window_misses, "pulled_into_reach": dict(self.pulled_into_reach)}

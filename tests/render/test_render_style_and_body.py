@@ -13,6 +13,7 @@ import pytest
 from batteur import evaluate, render
 from batteur.impact_log import COLUMNS
 from common.gesture.plan import GesturePlan, Grip, LimbTrajectory, Nuance
+from common.gesture.reach import pull_into_reach
 from common.kit import Limb, load_kit
 
 STYLED = "grip french\nnuance staccato\ntempo 120\nmeter 4/4\nSN |x.x.|\n"
@@ -129,12 +130,12 @@ def test_knots_out_of_the_body_reach_are_pulled_in_not_the_whole_plan_refused() 
     plan = GesturePlan(trajectories={Limb.RIGHT_HAND: traj}, strokes=[])
     root = np.array([0.1, 0.0, 1.1])
     reach = {"right_hand": (root, 1.2), "left_hand": (root, 1.2)}
-    pulled, counts = render.pull_into_reach(plan, reach)
+    pulled, counts = pull_into_reach(plan, reach)
     assert counts == {"right_hand": 1}
     moved = pulled.trajectories[Limb.RIGHT_HAND].positions
     assert np.linalg.norm(moved[1] - root) <= 1.2 and np.allclose(moved[[0, 2]], [near, near])
     assert np.allclose(np.cross(moved[1] - root, far - root), 0.0)  # toward the root, along the same line
-    same, none = render.pull_into_reach(plan, {"right_hand": (root, 3.0)})
+    same, none = pull_into_reach(plan, {"right_hand": (root, 3.0)})
     assert same is plan and none == {}
 
 

@@ -1,0 +1,63 @@
+"""The kit's load warning names the drummer the user asked for: ``batteur render --height 1.4`` warns of an
+instrument beyond a 1.40 m drummer's reach, with that drummer's reach, once; the default drummer's warning reads as
+before."""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from batteur import render
+from common.kit import EventType, Kit, Limb, load_kit, save_kit
+from common.score.limbs import SHOULDERS
+
+
+def _edge_kit(tmp_path: Path, distance_m: float = 1.10) -> Path:
+    """A kit file: the default kit with its china's hit point ``distance_m`` from the default (1.75 m) drummer's
+    right shoulder (within its 1.15 m reach, beyond a 1.40 m drummer's 1.02 m)."""
+    kit: Kit = load_kit("default")
+    shoulder = np.array(SHOULDERS[Limb.RIGHT_HAND])
+    direction = np.array([0.95, 0.3, 0.0]) / np.linalg.norm([0.95, 0.3, 0.0])
+    delta = shoulder + distance_m * direction - np.array(kit.hit_point(EventType.CHINA)[0])
+    objects = [o.model_copy(update={"position": tuple(float(p + d) for p, d in zip(o.position, delta, strict=True))})
+               if o.id == "china" else o for o in kit.objects]
+    path = tmp_path / "edge.yaml"
+    save_kit(kit.model_copy(update={"objects": objects}), path)
+    return path
+
+
+def _warnings(caplog: pytest.LogCaptureFixture) -> list[str]:
+    return [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING and r.name == "common.kit"]
+
+
+def test_the_load_warning_names_the_drummers_height_and_reach(tmp_path: Path,
+                                                              caplog: pytest.LogCaptureFixture) -> None:
+    path = _edge_kit(tmp_path)
+    with caplog.at_level(logging.WARNING, logger="common.kit"):
+        load_kit(path)
+        assert _warnings(caplog) == []  # the default drummer reaches it
+        load_kit(path, height_m=1.4)
+    said = _warnings(caplog)
+    assert len(said) == 1 and said[0].startswith(f"kit file {str(path)!r}: china: out of both hands' reach (")
+    assert "a 1.4 m drummer's hand reaching 1.02 m" in said[0]
+    far = _edge_kit(tmp_path, 1.25)  # beyond the default drummer too: its warning reads as it did
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="common.kit"):
+        load_kit(far)
+    assert len(_warnings(caplog)) == 1 and ", a hand reaching 1.15 m)" in _warnings(caplog)[0]
+
+
+def test_a_render_of_a_small_drummer_warns_of_its_own_reach_once(tmp_path: Path,
+                                                                 caplog: pytest.LogCaptureFixture) -> None:
+    score = tmp_path / "snare.txt"
+    score.write_text("tempo 120\nmeter 4/4\nSN |x...|\n")
+    kit = _edge_kit(tmp_path)
+    with caplog.at_level(logging.WARNING, logger="common.kit"):
+        assert render.main([str(score), "-o", str(tmp_path / "out"), "--quiet", "--kit", str(kit),
+                            "--height", "1.4"]) == 0
+    said = _warnings(caplog)  # the command line prints them on stderr (logging's last resort)
+    assert len(said) == 1 and "china: out of both hands' reach" in said[0]  # was: none (1.75 m reaches it)
+    assert "a 1.4 m drummer's hand reaching 1.02 m" in said[0]
