@@ -174,7 +174,8 @@ class SegmentResult:
     diverged: int = 0
     settings: dict[str, Any] = field(default_factory=dict)
     pulled: dict[str, int] = field(default_factory=dict)
-    """Knots of its part of the plan brought within the body's reach, per limb (``render.pull_into_reach``)."""
+    """Knots of its part of the plan brought within the body's reach, per limb
+    (``common.gesture.reach.pull_into_reach``)."""
 
 
 log = logging.getLogger("batteur.render")

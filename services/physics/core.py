@@ -157,7 +157,7 @@ class PhysicsCore:
         self.rate_hz = s.rate_hz
         self.world = World(WorldSettings(timestep_s=1.0 / s.rate_hz, solver_iterations=s.solver_iterations,
                                          substeps=s.substeps))
-        kit_model = kit if kit is not None else load_kit(s.kit)
+        kit_model = kit if kit is not None else load_kit(s.kit, height_m=s.height_m)
         if s.left_handed and kit_model.handedness == "right":
             kit_model = kit_model.mirrored()
         self.kit = kit_model

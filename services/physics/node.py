@@ -169,8 +169,9 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace) -> PhysicsCore:
         raise ValueError("--score needs the drummer scene")
     if settings.score and not Path(settings.score).expanduser().is_file():
         raise InputError(f"score {settings.score!r}: no such file")
-    try:  # a kit file it cannot use (missing or not a kit): 1, found before the core's slow start
-        load_kit(settings.kit)
+    try:  # a kit file it cannot use (missing or not a kit): 1, found before the core's slow start; loaded once,
+        # so its warnings are logged once and name this drummer's reach
+        kit = load_kit(settings.kit, height_m=settings.height_m)
     except (FileNotFoundError, ValueError) as exc:
         raise InputError(str(exc)) from None
     try:
@@ -193,7 +194,7 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace) -> PhysicsCore:
             limits_from=tuple(settings.limits_from),
             skeleton_bvh=settings.skeleton_bvh,
         )
-        core = LivePhysicsCore(core_settings)
+        core = LivePhysicsCore(core_settings, kit=kit)
     except FileNotFoundError as exc:  # a kit, clip or BVH file that is not there
         raise InputError(str(exc)) from None
     try:

@@ -61,3 +61,31 @@ def test_a_render_of_a_small_drummer_warns_of_its_own_reach_once(tmp_path: Path,
     said = _warnings(caplog)  # the command line prints them on stderr (logging's last resort)
     assert len(said) == 1 and "china: out of both hands' reach" in said[0]  # was: none (1.75 m reaches it)
     assert "a 1.4 m drummer's hand reaching 1.02 m" in said[0]
+
+
+def test_the_physics_node_warns_of_its_drummers_reach_once(tmp_path: Path, caplog: pytest.LogCaptureFixture,
+                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    import argparse
+
+    from services.physics.node import PhysicsNodeSettings, make_core
+
+    monkeypatch.delenv("BATTEUR_CONFIG", raising=False)
+    kit = _edge_kit(tmp_path)
+    with caplog.at_level(logging.WARNING, logger="common.kit"):
+        core = make_core(PhysicsNodeSettings(discovery=False, kit=str(kit), height_m=1.4), argparse.Namespace())
+        core.close()
+    said = _warnings(caplog)  # was: twice (the node's check, the core's load), with the 1.75 m drummer's reach
+    assert len(said) == 1 and "a 1.4 m drummer's hand reaching 1.02 m" in said[0]
+
+
+def test_evaluate_warns_of_the_kit_once_with_the_drummer_it_rendered(tmp_path: Path,
+                                                                     caplog: pytest.LogCaptureFixture) -> None:
+    from batteur import evaluate
+
+    score = tmp_path / "snare.txt"
+    score.write_text("tempo 120\nmeter 4/4\nSN |x...|\n")
+    kit = _edge_kit(tmp_path, 1.25)  # beyond any drummer's reach: every load of it warns
+    with caplog.at_level(logging.WARNING, logger="common.kit"):
+        assert evaluate.main([str(score), "--quiet", "--kit", str(kit), "--height", "1.4"]) == 0
+    said = _warnings(caplog)  # was also the evaluation's own load of the kit: a second line, a 1.75 m drummer's
+    assert len(said) == 1 and "a 1.4 m drummer's hand reaching 1.02 m" in said[0]
