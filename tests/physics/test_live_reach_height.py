@@ -10,11 +10,11 @@ from pathlib import Path
 import numpy as np
 
 from common.gesture.plan import GesturePlan, IssueReason
-from common.kit import EventType, Kit, Limb, load_kit
+from common.kit import EventType, Limb, load_kit
 from common.messages.score import LiveNote, ScoreLoad, ScoreTransport
-from common.score.limbs import SHOULDERS
 from services.physics.core import PhysicsCore
 from services.physics.node import LivePhysicsCore
+from tests.far_kits import china_at
 
 SCORE = "tempo 120\nmeter 4/4\nSN |x.x.x.x.|\nCH |....x...|\n"
 """A bar of four snare notes and a china note with the third."""
@@ -22,18 +22,7 @@ SENDER = "127.0.0.1:9"
 CHINA_PITCH = 52
 
 
-def _china_at(kit: Kit, distance_m: float) -> Kit:
-    """``kit`` with its china's hit point ``distance_m`` from the default (1.75 m) drummer's right shoulder, out to
-    its right and a little forward (as tests/score/test_reach_height.py)."""
-    shoulder = np.array(SHOULDERS[Limb.RIGHT_HAND])
-    direction = np.array([0.95, 0.3, 0.0]) / np.linalg.norm([0.95, 0.3, 0.0])
-    delta = shoulder + distance_m * direction - np.array(kit.hit_point(EventType.CHINA)[0])
-    objects = [o.model_copy(update={"position": tuple(p + d for p, d in zip(o.position, delta, strict=True))})
-               if o.id == "china" else o for o in kit.objects]
-    return kit.model_copy(update={"objects": objects})
-
-
-EDGE_KIT = _china_at(load_kit("default"), 1.10)
+EDGE_KIT = china_at(load_kit("default"), 1.10)
 """The china within the default drummer's reach (1.15 m), beyond a 1.40 m drummer's (planner 1.02 m; physics: 1.41 m
 from the right arm's root, reach 1.26 m)."""
 

@@ -7,25 +7,18 @@ from __future__ import annotations
 import logging
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from batteur import render
-from common.kit import EventType, Kit, Limb, load_kit, save_kit
-from common.score.limbs import SHOULDERS
+from common.kit import load_kit, save_kit
+from tests.far_kits import china_at
 
 
 def _edge_kit(tmp_path: Path, distance_m: float = 1.10) -> Path:
-    """A kit file: the default kit with its china's hit point ``distance_m`` from the default (1.75 m) drummer's
-    right shoulder (within its 1.15 m reach, beyond a 1.40 m drummer's 1.02 m)."""
-    kit: Kit = load_kit("default")
-    shoulder = np.array(SHOULDERS[Limb.RIGHT_HAND])
-    direction = np.array([0.95, 0.3, 0.0]) / np.linalg.norm([0.95, 0.3, 0.0])
-    delta = shoulder + distance_m * direction - np.array(kit.hit_point(EventType.CHINA)[0])
-    objects = [o.model_copy(update={"position": tuple(float(p + d) for p, d in zip(o.position, delta, strict=True))})
-               if o.id == "china" else o for o in kit.objects]
+    """A kit file: the default kit with its china ``distance_m`` from the default drummer's right shoulder
+    (:func:`tests.far_kits.china_at`)."""
     path = tmp_path / "edge.yaml"
-    save_kit(kit.model_copy(update={"objects": objects}), path)
+    save_kit(china_at(load_kit("default"), distance_m), path)
     return path
 
 

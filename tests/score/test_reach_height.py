@@ -20,17 +20,7 @@ from common.score.limbs import (
     shoulders,
     unplayable_instruments,
 )
-
-
-def _china_at(kit: Kit, distance_m: float) -> Kit:
-    """``kit`` with its china's hit point ``distance_m`` from the default drummer's right shoulder, out to its
-    right and a little forward."""
-    shoulder = np.array(SHOULDERS[Limb.RIGHT_HAND])
-    direction = np.array([0.95, 0.3, 0.0]) / np.linalg.norm([0.95, 0.3, 0.0])
-    delta = shoulder + distance_m * direction - np.array(kit.hit_point(EventType.CHINA)[0])
-    objects = [o.model_copy(update={"position": tuple(p + d for p, d in zip(o.position, delta, strict=True))})
-               if o.id == "china" else o for o in kit.objects]
-    return kit.model_copy(update={"objects": objects})
+from tests.far_kits import china_at
 
 
 def _unreachable(kit: Kit, height_m: float | None = None) -> list[EventType]:
@@ -40,7 +30,7 @@ def _unreachable(kit: Kit, height_m: float | None = None) -> list[EventType]:
 
 
 def test_a_note_at_the_edge_of_the_default_reach_is_flagged_for_a_small_drummer() -> None:
-    edge = _china_at(load_kit("default"), 1.10)  # within the default 1.15 m
+    edge = china_at(load_kit("default"), 1.10)  # within the default 1.15 m
     assert _unreachable(edge) == [] and _unreachable(edge, 1.75) == []
     assert _unreachable(edge, 1.40) == [EventType.CHINA]
     assert _unreachable(edge, 2.0) == []
@@ -48,7 +38,7 @@ def test_a_note_at_the_edge_of_the_default_reach_is_flagged_for_a_small_drummer(
     assert len(said) == 1 and said[0].startswith("china: out of both hands' reach") and "1.02 m" in said[0]
     assert unplayable_instruments(edge) == []
     # a tall drummer reaches further: a china 1.20 m away is flagged for the default one only
-    far = _china_at(load_kit("default"), 1.20)
+    far = china_at(load_kit("default"), 1.20)
     assert _unreachable(far) == [EventType.CHINA] and _unreachable(far, 2.0) == []
 
 
