@@ -1,23 +1,16 @@
 """Contact markers while the kit and pose editor is open: the node's frames carried none (the editor's still pose),
-so a user moving an instrument while the drummer played saw no strikes; they are now drawn, on the kit as edited."""
+so a user moving an instrument while the drummer played saw no strikes; they are now drawn (in the page, on the
+kit as edited: tests/graphics/test_kit_editor_actions.py)."""
 
 from __future__ import annotations
-
-from typing import Any
 
 import numpy as np
 import pytest
 
-from common.kit import Kit
 from common.messages import Impact, Pose, Skeleton
 from services.graphics.core import GraphicsCore, GraphicsSettings
-from services.graphics.figure import SyntheticDrummer, synthetic_performance
+from services.graphics.figure import synthetic_performance
 from services.graphics.scene import impact_point
-
-from .conftest import GraphicsNodeProcess, needs_browser
-from .test_kit_editor import _type, crash_in_editor  # noqa: F401 - the fixture
-from .test_kit_editor_actions import _markers_after_strike
-from .test_page import PoseSender
 
 NAMES = ["pelvis", "right_hand"]
 STILL = np.array([[0.0, 0.0, 0.6, 0.0, 0.0, 0.0, 1.0], [0.3, 0.3, 1.0, 0.0, 0.0, 0.0, 1.0]])
@@ -57,29 +50,3 @@ def test_the_editors_frames_mark_a_previewed_scores_strikes() -> None:
     assert struck.instrument in [h[4] for h in edited.hits]
     assert edited.hits == preview.hits and np.array_equal(edited.kit, preview.kit) and edited.time == preview.time
     assert edited.kit[:, 0].max() > 0.5  # an object flashes
-
-
-@needs_browser
-def test_a_strike_is_marked_on_the_edited_kit_with_the_editor_open(
-        crash_in_editor: tuple[Any, GraphicsNodeProcess, Kit]) -> None:  # noqa: F811 - the fixture
-    """The crash moved and turned in the open editor (not saved): a strike's marker shows, on the crash where the
-    editor has put it."""
-    page, node, loaded = crash_in_editor
-    _type(page, 0, "0.5")
-    _type(page, 5, "60")
-    edited = loaded.model_dump(mode="json")
-    crash = next(o for o in edited["objects"] if o["id"] == "crash")
-    crash["position"][0], crash["rotation_deg"][2] = 0.5, 60.0
-    r, theta = 0.8, 0.3
-    expected = impact_point(Kit.model_validate(edited).object("crash"), r, theta)
-    assert np.linalg.norm(expected - impact_point(loaded.object("crash"), r, theta)) > 0.2  # tells the two apart
-
-    sender = PoseSender(node, SyntheticDrummer(strokes={}, duration=0.0).pose(0.0))
-    try:
-        page.wait_for_function("window.batteur.frames > 5", timeout=15000)
-        markers = _markers_after_strike(page, node, sender, r, theta)
-    finally:
-        sender.stop()
-    assert page.is_visible("#editor")  # still editing
-    for marker in markers:  # the node rounds a marker to 1 mm
-        assert marker == pytest.approx(expected.tolist(), abs=2e-3), (marker, expected)

@@ -88,14 +88,17 @@ def _markers_after_strike(page: Any, node: GraphicsNodeProcess, sender: PoseSend
 
 
 @needs_browser
+@pytest.mark.parametrize("editor_open", [False, True])
 def test_contact_markers_are_drawn_on_the_edited_kit(
-        crash_in_editor: tuple[Any, GraphicsNodeProcess, Kit]) -> None:  # noqa: F811 - the fixture
+        crash_in_editor: tuple[Any, GraphicsNodeProcess, Kit], editor_open: bool) -> None:  # noqa: F811
     """With the crash moved and turned in the editor (not saved), a strike's marker floated where the crash stood
-    in the saved kit: it is now on the crash as drawn, at the struck point of its surface."""
+    in the saved kit: it is now on the crash as drawn, at the struck point of its surface, the editor closed or
+    open (its frames carried no markers)."""
     page, node, loaded = crash_in_editor
     _type(page, 0, "0.5")
     _type(page, 5, "60")  # yaw: the struck point turns with the cymbal
-    page.click("#edit-toggle")  # the open editor shows its still pose
+    if not editor_open:
+        page.click("#edit-toggle")
     edited = loaded.model_dump(mode="json")
     crash = next(o for o in edited["objects"] if o["id"] == "crash")
     crash["position"][0], crash["rotation_deg"][2] = 0.5, 60.0
@@ -110,6 +113,7 @@ def test_contact_markers_are_drawn_on_the_edited_kit(
         markers = _markers_after_strike(page, node, sender, r, theta)
     finally:
         sender.stop()
+    assert page.is_visible("#editor") == editor_open
     for marker in markers:  # the node rounds a marker to 1 mm
         assert marker == pytest.approx(expected.tolist(), abs=2e-3), (marker, expected, saved_kit)
 
