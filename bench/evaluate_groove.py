@@ -29,6 +29,7 @@ from pathlib import Path
 from batteur.evaluate import FileResult, aggregate, evaluate_scores, format_table
 from batteur.render import CONTROL_MODES, RenderOptions, check_options
 from common.arg_types import count, hertz, seconds
+from common.exit_status import report_error
 from common.output_paths import check_output_dir, check_output_file, write_atomically
 
 GROOVE = Path("/work/shared/data/groove")
@@ -139,8 +140,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parse_args(argv)
     files = validation_files(args.root, None if args.all else args.limit, None if args.all else args.max_duration)
     if not files:
-        print("no validation files found", file=sys.stderr)
-        return 2
+        return report_error("evaluate_groove", f"no validation files found in {args.root}")
     music = sum(d for _, d in files)
     print(f"Groove MIDI Dataset validation split: {len(files)} files, {music:.1f} s of music"
           f"{' (all)' if args.all else f' (subset: --limit {args.limit}, --max-duration {args.max_duration:g})'}")

@@ -31,6 +31,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from common.arg_types import count, seconds  # noqa: E402
+from common.exit_status import report_error  # noqa: E402
 from tests.deploy.twohosts import TwoHosts, impacts_from_echo, settle_echo, wait_line  # noqa: E402
 from tests.netns import NetnsLab, netns_unavailable_reason  # noqa: E402
 
@@ -179,8 +180,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parse_args(argv)
     reason = netns_unavailable_reason()
     if reason is not None:
-        print(f"two_hosts_bench: {reason}", file=sys.stderr)
-        return 2
+        return report_error("two_hosts_bench", reason)  # the machine cannot make the namespaces: 1
     import tempfile
 
     with NetnsLab() as lab, tempfile.TemporaryDirectory() as tmp:
