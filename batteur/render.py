@@ -800,7 +800,6 @@ def check_options(opts: RenderOptions) -> None:
     from pydantic import ValidationError
 
     from services.physics.core import PhysicsSettings
-    from services.sound.core import SoundSettings
 
     low, high = TEMPO_SCALE_RANGE
     if not low <= opts.tempo_scale <= high:  # NaN fails too
@@ -813,17 +812,26 @@ def check_options(opts: RenderOptions) -> None:
     if not (math.isfinite(opts.segment_s) and opts.segment_s >= MIN_SEGMENT_S):
         raise UsageError(f"--segment {opts.segment_s:g}: a length of at least {MIN_SEGMENT_S:g} s (each segment "
                          f"also plays a lead-in, so shorter ones cost more than they share)")
-    checks: list[tuple[str, Callable[[], object]]] = [
-        (f"--latency {opts.latency_s:g} s", lambda: SoundSettings(latency=opts.latency_s, origin=0.0))]
+    check_latency(opts.latency_s)
     _check_motion_capture(opts)
     if opts.control_rate_hz is not None:
-        checks.append((f"--control-rate {opts.control_rate_hz:g} Hz",
-                       lambda: PhysicsSettings(control_rate_hz=opts.control_rate_hz)))
-    for option, build in checks:
         try:
-            build()
+            PhysicsSettings(control_rate_hz=opts.control_rate_hz)
         except ValidationError as exc:
-            raise UsageError(f"{option}: {first_error(exc)}") from None
+            raise UsageError(f"--control-rate {opts.control_rate_hz:g} Hz: {first_error(exc)}") from None
+
+
+def check_latency(latency_s: float) -> None:
+    """Raise :class:`UsageError` for a ``--latency`` (seconds) the sound service refuses (a score render and the
+    strike scene alike)."""
+    from pydantic import ValidationError
+
+    from services.sound.core import SoundSettings
+
+    try:
+        SoundSettings(latency=latency_s, origin=0.0)
+    except ValidationError as exc:
+        raise UsageError(f"--latency {latency_s:g} s: {first_error(exc)}") from None
 
 
 def _check_motion_capture(opts: RenderOptions) -> None:
@@ -1012,6 +1020,13 @@ def options_in_vain(args: argparse.Namespace) -> list[str]:
     for name, value in (("--video-size", args.video_size), ("--video-fps", args.video_fps)):
         if value is not None and not args.video:
             warnings.append(f"{name} has no effect without --video")
+    if args.strikes is not None:  # one stick over one instrument: no drummer, no plan, no motion file
+        drummer = (("--height", args.height, STATURE_M), ("--mass", args.mass, DEFAULT_MASS_KG),
+                   ("--bvh-rate", args.bvh_rate, RenderOptions.pose_rate_hz), ("--grip", args.grip, None),
+                   ("--nuance", args.nuance, None))
+        for name, value, default in drummer:
+            if value != default:
+                warnings.append(f"{name} has no effect with --strikes (the strike scene has no drummer)")
     return warnings
 
 
@@ -1067,6 +1082,7 @@ def _main_score(opts: argparse.Namespace, prog: str) -> int:
 def _main_strikes(opts: argparse.Namespace, prog: str) -> int:
     try:
         strikes = parse_strikes(opts.strikes)
+        check_latency(opts.latency)
     except ValueError as exc:
         return report_error(prog, exc, USAGE)
     try:

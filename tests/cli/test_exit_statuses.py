@@ -80,6 +80,8 @@ BAD_VALUES = [  # an option's value out of range or of the wrong type, found bef
     ("render", ["{missing_mid}", "-o", "{out}", "--tempo-scale", "50"]),
     ("render", ["{missing_mid}", "-o", "{out}", "--jobs", "-1"]),
     ("render", ["--strikes", "1:x", "-o", "{out}"]),
+    ("render", ["--strikes", "0.5:2", "-o", "{out}", "--latency", "-1"]),  # was 1: refused by the strike scene
+    ("render", ["{missing_mid}", "-o", "{out}", "--height", "99"]),
     ("render", ["{missing_mid}", "-o", "{out}", "--video", "--video-size", "15x15"]),
     ("evaluate", ["{missing_mid}", "--jobs", "-1"]),
     ("evaluate", ["{missing_mid}", "--tempo-scale", "0"]),
@@ -267,3 +269,17 @@ def test_a_score_s_warning_names_the_command_that_renders_it(prog: str, tmp_path
     err = capsys.readouterr().err
     assert f"{prog}: warning: {score}: a key signature that cannot be read ignored" in err
     assert "batteur render:" not in err  # was "batteur render: warning: ..."
+
+
+def test_the_strike_scene_says_the_drummer_s_options_do_nothing(files: dict[str, str],
+                                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    """``--strikes`` plays one stick over one instrument: the drummer's size, motion file and style are ignored,
+    and said to be (they were taken in silence, out of range too)."""
+    from batteur import render
+
+    args = render.build_parser().parse_args(["--strikes", "0.5:2", "-o", files["out"], "--height", "99",
+                                             "--mass", "1", "--bvh-rate", "0", "--grip", "french"])
+    warned = render.options_in_vain(args)
+    assert [w.split()[0] for w in warned] == ["--height", "--mass", "--bvh-rate", "--grip"]
+    assert all(w.endswith("has no effect with --strikes (the strike scene has no drummer)") for w in warned)
+    assert render.options_in_vain(render.build_parser().parse_args(["--strikes", "0.5:2", "-o", files["out"]])) == []
