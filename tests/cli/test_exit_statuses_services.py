@@ -190,9 +190,14 @@ def test_synth_ctrl_c_while_it_starts_is_one_line_and_130(tmp_path: Path, librar
                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     # while its imports load: NumPy (its first), pydantic (common.datafile's, a second later). Not after a fixed
     # delay: a signal while Python itself starts, before any of the synth's code, is Python's to report
-    _mapped(proc.pid, library)
-    os.killpg(proc.pid, signal.SIGINT)
-    _, err = proc.communicate(timeout=120)
+    try:
+        assert _mapped(proc.pid, library), f"{library} never loaded"
+        os.killpg(proc.pid, signal.SIGINT)
+        _, err = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:  # nothing left running in its own session
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
     assert "Traceback" not in err and "Exception ignored" not in err, err  # was a KeyboardInterrupt traceback
     if proc.returncode != 0:  # 0: the machine was quick, the units were written before the signal
         assert proc.returncode == 130, err
