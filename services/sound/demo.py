@@ -19,12 +19,8 @@ from __future__ import annotations
 import os
 import signal
 
-INTERRUPTED = 130
-"""Exit status after Ctrl-C (128 + SIGINT), as a shell gives a command it interrupted."""
-USAGE = 2
-"""Exit status for an option's value refused (argparse's own for usage errors)."""
-FAILED = 1
-"""Exit status for a kit, score or output the demo cannot use (README, "Exit status")."""
+from common.exit_status import FAILED, INTERRUPTED, USAGE  # the convention (README, "Exit status"); loads only sys
+
 PROG = "python -m services.sound.demo"
 """The command's name in its usage and error lines."""
 
