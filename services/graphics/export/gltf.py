@@ -3,9 +3,12 @@
 One node per link, each with a small box mesh, animated by translation and
 rotation channels (linear interpolation, one key per pose), under a root node
 that turns the Batteur frame (z up) into glTF's (y up). The kit is added as
-static meshes (cylinders for drums, thin discs for cymbals, boxes for the
-rest) so the file shows the whole scene in Blender, three.js or any viewer.
-Units: metres.
+meshes (cylinders for drums, thin discs for cymbals, boxes for the rest) so
+the file shows the whole scene in Blender, three.js or any viewer: static,
+except the objects whose motion the sequence carries as physics' kit links
+(``kit.ride``: a cymbal's swing, ``kit.hihat.top``: the hi-hat opening,
+``kit.kick_pedal.footboard``: a pedal pressed), whose mesh is the child of that
+animated link node instead of its box. Units: metres.
 """
 
 from __future__ import annotations
@@ -32,12 +35,14 @@ COLOURS = {
 
 @dataclass(frozen=True)
 class GltfInfo:
-    """What :func:`write_gltf` wrote: animated link nodes, kit nodes, keyframes, duration (seconds)."""
+    """What :func:`write_gltf` wrote: animated link nodes, kit objects drawn, keyframes, duration (seconds), kit
+    objects moved by their links (of ``kit_objects``)."""
 
     links: int
     kit_objects: int
     keyframes: int
     duration: float
+    animated_kit_objects: int = 0
 
 
 def _box() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -127,42 +132,93 @@ class _Builder:
         return len(self.gltf.nodes) - 1
 
 
-def _kit_node(b: _Builder, obj: KitObject, meshes: dict[str, int]) -> int:
-    rot = Rotation.from_euler("xyz", obj.rotation_deg, degrees=True).as_quat()
+def _kit_shape(obj: KitObject, meshes: dict[str, int]) -> tuple[int, list[float]]:
+    """The mesh drawing ``obj`` and its scale (metres)."""
     if obj.kind in ("membrane", "throne"):
-        mesh, scale = meshes["membrane"], [obj.radius, obj.radius, max(obj.depth, 0.04)]
-    elif obj.kind in ("cymbal", "hihat"):
-        mesh, scale = meshes["cymbal"], [obj.radius, obj.radius, 0.01]
-    else:
-        mesh, scale = meshes["other"], [obj.radius * 2, obj.radius * 2, max(obj.depth, 0.02)]
+        return meshes["membrane"], [obj.radius, obj.radius, max(obj.depth, 0.04)]
+    if obj.kind in ("cymbal", "hihat"):
+        return meshes["cymbal"], [obj.radius, obj.radius, 0.01]
+    return meshes["other"], [obj.radius * 2, obj.radius * 2, max(obj.depth, 0.02)]
+
+
+def _kit_node(b: _Builder, obj: KitObject, meshes: dict[str, int]) -> int:
+    """A static node drawing ``obj`` where the kit places it."""
+    rot = Rotation.from_euler("xyz", obj.rotation_deg, degrees=True).as_quat()
+    mesh, scale = _kit_shape(obj, meshes)
     return b.node(name=f"kit_{obj.id}", mesh=mesh, translation=[float(v) for v in obj.position],
                   rotation=[float(v) for v in rot], scale=[float(v) for v in scale])
 
 
+def kit_links(obj: KitObject) -> dict[str, str]:
+    """Physics' kit links (``/batteur/skeleton`` names) that move ``obj``'s mesh -> the mesh node's name: a drum,
+    cymbal, bell or throne its own link, the hi-hat its two plates, a pedal its footboard."""
+    if obj.kind == "hihat":
+        return {f"kit.{obj.id}.top": f"kit_{obj.id}", f"kit.{obj.id}.bottom": f"kit_{obj.id}_bottom"}
+    if obj.kind == "pedal":
+        return {f"kit.{obj.id}.footboard": f"kit_{obj.id}"}
+    return {f"kit.{obj.id}": f"kit_{obj.id}"}
+
+
+def _relative_to(first: np.ndarray, obj: KitObject) -> tuple[list[float], list[float]]:
+    """Translation and rotation (x y z w) placing ``obj``'s static frame in the frame of a link whose first pose
+    is ``first`` (7,): a pedal's box hinged on its footboard starts where the static kit has it."""
+    link = Rotation.from_quat(normalize_quats(first[3:]))
+    rot = link.inv() * Rotation.from_euler("xyz", obj.rotation_deg, degrees=True)
+    pos = link.inv().apply(np.asarray(obj.position, dtype=float) - first[:3])
+    return [float(v) for v in pos], [float(v) for v in rot.as_quat()]
+
+
+def _animated_kit(b: _Builder, kit: Kit, sequence: PoseSequence, meshes: dict[str, int]) -> dict[str, int]:
+    """Mesh nodes for the kit objects the sequence moves: link name -> mesh node, to be the link's child."""
+    names = set(sequence.names)
+    out: dict[str, int] = {}
+    for obj in kit.objects:
+        mesh, scale = _kit_shape(obj, meshes)
+        for link, node_name in kit_links(obj).items():
+            if link not in names:
+                continue
+            placed: dict[str, object] = {}
+            if obj.kind == "pedal":  # the footboard's frame is its heel's hinge: keep the static box's place
+                translation, rotation = _relative_to(sequence.values[0, sequence.index(link)], obj)
+                placed = {"translation": translation, "rotation": rotation}
+            out[link] = b.node(name=node_name, mesh=mesh, scale=[float(v) for v in scale], **placed)
+    return out
+
+
 def write_gltf(sequence: PoseSequence, path: Path, kit: Kit | None = None, link_size: float = 0.05) -> GltfInfo:
-    """Write ``sequence`` (and ``kit``, static) as glTF 2.0: ``.glb`` binary, or ``.gltf`` with embedded data."""
+    """Write ``sequence`` (and ``kit``: static, or moved by its kit links in ``sequence``) as glTF 2.0: ``.glb``
+    binary, or ``.gltf`` with embedded data."""
     b = _Builder()
     box = _box()
     body_mat = b.material(COLOURS["body"])
     stick_mat = b.material(COLOURS["stick"])
     body_mesh = b.mesh(box, body_mat)
     stick_mesh = b.mesh(box, stick_mat)
-    link_nodes = []
-    first = sequence.values[0]
-    for i, name in enumerate(sequence.names):
-        is_stick = "stick" in name
-        size = link_size * (0.5 if is_stick else (2.5 if name.endswith("head") else 1.0))
-        mesh_node = b.node(name=f"{name}_mesh", mesh=stick_mesh if is_stick else body_mesh, scale=[size] * 3)
-        link_nodes.append(b.node(name=name, children=[mesh_node], translation=[float(v) for v in first[i, :3]],
-                                 rotation=[float(v) for v in normalize_quats(first[i, 3:])]))
-    kit_nodes = []
+    meshes: dict[str, int] = {}
+    animated: dict[str, int] = {}
     if kit is not None:
         meshes = {
             "membrane": b.mesh(_cylinder(), b.material(COLOURS["membrane"])),
             "cymbal": b.mesh(_cylinder(), b.material(COLOURS["cymbal"], metallic=0.8)),
             "other": b.mesh(box, b.material(COLOURS["other"], metallic=0.5)),
         }
-        kit_nodes = [_kit_node(b, obj, meshes) for obj in kit.objects]
+        animated = _animated_kit(b, kit, sequence, meshes)
+    link_nodes = []
+    first = sequence.values[0]
+    for i, name in enumerate(sequence.names):
+        if name in animated:  # a kit link: the kit object's mesh instead of a box
+            mesh_node = animated[name]
+        else:
+            is_stick = "stick" in name
+            size = link_size * (0.5 if is_stick else (2.5 if name.endswith("head") else 1.0))
+            mesh_node = b.node(name=f"{name}_mesh", mesh=stick_mesh if is_stick else body_mesh, scale=[size] * 3)
+        link_nodes.append(b.node(name=name, children=[mesh_node], translation=[float(v) for v in first[i, :3]],
+                                 rotation=[float(v) for v in normalize_quats(first[i, 3:])]))
+    kit_nodes = []
+    animated_ids = set()
+    if kit is not None:
+        animated_ids = {obj.id for obj in kit.objects if any(link in animated for link in kit_links(obj))}
+        kit_nodes = [_kit_node(b, obj, meshes) for obj in kit.objects if obj.id not in animated_ids]
     root = b.node(name="batteur", rotation=ROOT_ROTATION, children=link_nodes + kit_nodes)
     b.gltf.scenes.append(pygltflib.Scene(name="performance", nodes=[root]))
     b.gltf.scene = 0
@@ -190,4 +246,5 @@ def write_gltf(sequence: PoseSequence, path: Path, kit: Kit | None = None, link_
     else:
         b.gltf.convert_buffers(pygltflib.BufferFormat.DATAURI)
         b.gltf.save_json(str(path))
-    return GltfInfo(len(link_nodes), len(kit_nodes), len(times), float(times[-1]))
+    return GltfInfo(len(link_nodes), len(kit_nodes) + len(animated_ids), len(times), float(times[-1]),
+                    len(animated_ids))
