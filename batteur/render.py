@@ -51,7 +51,7 @@ from batteur.progress import Progress
 from batteur.strike import DEFAULT_STRIKES, parse_strikes, run_strikes
 from common.core import Outgoing
 from common.datafile import first_error
-from common.gesture.plan import GesturePlan, Grip, Nuance
+from common.gesture.plan import GesturePlan, Nuance, planned_grip
 from common.gesture.reach import pull_into_reach
 from common.kit import EventType, Kit, load_kit
 from common.messages import OscMessage
@@ -263,7 +263,7 @@ def prepare(path: Path | str, kit: Kit, opts: RenderOptions, calibration: Calibr
                             height_m=opts.height_m)
     planned = assignment if calibration is None else calibration.apply(assignment, kit)
     style = opts.styled(score)
-    grip = next((g for g in Grip if g.value == style.grip), Grip.GERMAN)  # american, traditional: no units
+    grip = planned_grip(style.grip or DEFAULT_GRIP)  # american, traditional: no units, planned german
     plan = plan_gestures(planned, kit, score, PlannerConfig(grip=grip, nuance=style.nuance or DEFAULT_NUANCE),
                          progress=None if progress is None else functools.partial(progress, "gestures"))
     return score, assignment, plan
@@ -453,9 +453,10 @@ def wav_container(frames: int, channels: int) -> str:
     return "RF64" if frames * channels * 3 > WAV_DATA_LIMIT_BYTES else "WAV"
 
 
-def say_rf64(path: Path, frames: int, sample_rate: int) -> None:
-    """One line on stderr: ``path`` is written as RF64 (see :func:`wav_container`)."""
-    print(f"batteur render: {path.name} will hold {frames / sample_rate / 3600:.1f} h of audio, more than a WAV "
+def say_rf64(path: Path, frames: int, sample_rate: int, prog: str = "batteur render") -> None:
+    """One warning line on stderr, naming the command ``prog``: ``path`` is written as RF64 (see
+    :func:`wav_container`)."""
+    print(f"{prog}: warning: {path.name} will hold {frames / sample_rate / 3600:.1f} h of audio, more than a WAV "
           "file can describe (4 GiB): written as RF64", file=sys.stderr)
 
 
@@ -528,14 +529,16 @@ class StreamedOutputs:
     ``bvh_rate_hz``: the BVH's frame rate (None: the poses' median interval, known only at the end: the poses
     are kept and :func:`write_rest` writes the BVH). ``keep``: also keep the impacts and poses in memory (the
     video draws them). ``planned_s``: the render's length, seconds (:func:`rendered_seconds`): a WAV that would
-    pass 4 GiB is written as RF64.
+    pass 4 GiB is written as RF64 (said by ``prog``, the command rendering).
     """
 
-    def __init__(self, folder: Path, bvh_rate_hz: float | None, keep: bool = False, planned_s: float = 0.0) -> None:
+    def __init__(self, folder: Path, bvh_rate_hz: float | None, keep: bool = False, planned_s: float = 0.0,
+                 prog: str = "batteur render") -> None:
         from services.graphics.export.bvh import BvhStream
 
         self.folder = folder
         self.planned_s = planned_s
+        self.prog = prog
         self.keep = keep or bvh_rate_hz is None
         self.bvh_rate_hz = bvh_rate_hz
         self.wav: WavStream | None = None
@@ -548,7 +551,7 @@ class StreamedOutputs:
         frames = math.ceil(self.planned_s * sound.sample_rate) + sound.block  # sound renders whole blocks
         self.wav = WavStream(self.folder / "performance.wav", sound.sample_rate, sound.channels, frames)
         if self.wav.format == "RF64":
-            say_rf64(self.wav.path, frames, sound.sample_rate)
+            say_rf64(self.wav.path, frames, sound.sample_rate, self.prog)
         sound.on_block = self.wav.write
 
     def recorder(self) -> RecorderCore:
@@ -770,7 +773,7 @@ def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: boo
     finished = False  # a render given up (Ctrl-C, an error) leaves its bar where it stood, not at 100 %
     with Staging(output) as staging:  # the WAV, impacts and motion are written as they are rendered
         outputs = StreamedOutputs(staging.path, opts.pose_rate_hz or None, keep=opts.video or opts.gltf,
-                                  planned_s=rendered_seconds(plan, opts))
+                                  planned_s=rendered_seconds(plan, opts), prog=prog)
         try:
             if opts.jobs > 1:
                 from batteur.segments import run_segmented

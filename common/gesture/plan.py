@@ -240,6 +240,13 @@ class Grip(enum.StrEnum):
     GERMAN = "german"
 
 
+def planned_grip(hands: str) -> Grip:
+    """The grip gestures are planned with for hands holding ``hands``: that grip where the gesture database has it
+    (french, german), else german (american, traditional: no captured units). ``batteur render`` and the physics
+    node's score player both plan by it."""
+    return Grip(hands) if hands in (g.value for g in Grip) else Grip.GERMAN
+
+
 class Nuance(enum.StrEnum):
     """Playing nuances of the 2009 gesture database."""
 

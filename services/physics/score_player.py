@@ -114,7 +114,7 @@ from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
-from common.gesture.plan import GesturePlan, Grip, Nuance
+from common.gesture.plan import GesturePlan, Grip, Nuance, planned_grip
 from common.gesture.reach import pull_into_reach
 from common.kit import EventType, Limb
 from common.messages import OscMessage
@@ -211,12 +211,6 @@ class _WindowMissed(Exception):
     def __init__(self, widen: bool) -> None:
         super().__init__("the window's plan does not re-join the queued plan")
         self.widen = widen
-
-
-def planned_grip(hands: str) -> Grip:
-    """The grip gestures are planned with for hands holding ``hands``: that grip where the gesture database has it
-    (french, german), else german (american, traditional), as ``batteur render`` plans."""
-    return Grip(hands) if hands in (g.value for g in Grip) else Grip.GERMAN
 
 
 def shortest_unit_period() -> float:

@@ -153,3 +153,19 @@ def test_an_instrument_out_of_the_body_reach_is_flagged_and_the_rest_rendered(tm
     physics = render.start_drummer(plan, far, render.RenderOptions(), pulled=pulled)  # refused the whole plan
     physics.close()
     assert set(pulled) == {"right_hand"}
+
+
+def test_the_render_s_body_ranges_are_physics_own() -> None:
+    """``--height``/``--mass`` are checked before the render (render.py keeps the bounds, not to load physics for
+    a command line's check): they must be those physics' settings refuse beyond, and its defaults."""
+    from annotated_types import Ge, Le
+
+    from services.physics.core import PhysicsSettings
+
+    def bounds(name: str) -> tuple[float, float]:
+        meta = PhysicsSettings.model_fields[name].metadata
+        return (next(m.ge for m in meta if isinstance(m, Ge)), next(m.le for m in meta if isinstance(m, Le)))
+
+    assert bounds("height_m") == render.HEIGHT_RANGE_M and bounds("mass_kg") == render.MASS_RANGE_KG
+    assert PhysicsSettings().height_m == render.RenderOptions().height_m
+    assert PhysicsSettings().mass_kg == render.DEFAULT_MASS_KG

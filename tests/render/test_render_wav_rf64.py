@@ -70,14 +70,14 @@ def _sound() -> SimpleNamespace:
 
 def test_a_long_render_says_its_wav_is_rf64(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     (tmp_path / "long").mkdir()
-    long = render.StreamedOutputs(tmp_path / "long", 60.0, planned_s=9 * 3600.0)
+    long = render.StreamedOutputs(tmp_path / "long", 60.0, planned_s=9 * 3600.0, prog="batteur evaluate")
     sound = _sound()
     long.attach(sound)
     sound.on_block(_audio(512))
     long.finish()
     err = capsys.readouterr().err
-    assert err == ("batteur render: performance.wav will hold 9.0 h of audio, more than a WAV file can describe "
-                   "(4 GiB): written as RF64\n")
+    assert err == ("batteur evaluate: warning: performance.wav will hold 9.0 h of audio, more than a WAV file can "
+                   "describe (4 GiB): written as RF64\n")  # the command rendering, as its other warnings
     assert sf.info(tmp_path / "long" / "performance.wav").format == "RF64"
     (tmp_path / "short").mkdir()
     short = render.StreamedOutputs(tmp_path / "short", 60.0, planned_s=10.75)  # the demo's length
