@@ -924,11 +924,11 @@ def gltf_writer(result: ScoreRender, kit: Kit, opts: RenderOptions, quiet: bool)
 
     def write(staging: Path) -> dict[str, Any]:
         started = time.perf_counter()
-        times = frame_times(result.poses.times, opts.pose_rate_hz)
+        times = result.poses.resample_times(opts.pose_rate_hz)  # the BVH's frames
         progress = Progress("glTF", len(times), unit="frames", decimals=0, enabled=False if quiet else None)
         finished = False
         try:
-            frames = resampled(result.poses, times, progress.update)
+            frames = result.poses.resample(opts.pose_rate_hz, on_progress=progress.update)
             info = write_gltf(frames, staging / "performance.glb", kit=kit)
             finished = True
         except (OSError, ValueError) as exc:  # a full disk: nothing is written (staging)
@@ -942,28 +942,6 @@ def gltf_writer(result: ScoreRender, kit: Kit, opts: RenderOptions, quiet: bool)
                 "wall_time_s": round(time.perf_counter() - started, 3)}
 
     return write
-
-
-def frame_times(pose_times: np.ndarray, rate_hz: float) -> np.ndarray:
-    """Rig times (seconds) of the BVH's frames over poses at ``pose_times``: the first pose's, then every
-    1 / ``rate_hz`` up to the last pose (``PoseSequence.resample``'s and ``BvhStream``'s)."""
-    t0, t1 = float(pose_times[0]), float(pose_times[-1])
-    count = max(1, int(np.floor((t1 - t0) * rate_hz + 1e-9)) + 1)
-    return t0 + np.arange(count) / rate_hz
-
-
-def resampled(poses: Any, times: np.ndarray, on_progress: Callable[[int], None]) -> Any:
-    """``poses`` (a PoseSequence) sampled at ``times`` (seconds) as ``PoseSequence.resample`` does, into one array
-    (no list of frames to stack: half the memory); ``on_progress(frames done)`` every 1,024 frames."""
-    from services.graphics.sequence import PoseSequence
-
-    values = np.empty((len(times), *poses.values.shape[1:]))
-    for k, t in enumerate(times):
-        values[k] = poses.sample(float(t))
-        if k % 1024 == 0:
-            on_progress(k)
-    on_progress(len(times))
-    return PoseSequence(list(poses.names), times, values)
 
 
 # ---------------------------------------------------------------------- command line

@@ -11,6 +11,7 @@ figure) hands the graphics service a ``PoseSequence``.
 from __future__ import annotations
 
 import zipfile
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -111,13 +112,29 @@ class PoseSequence:
         u = (t - times[i]) / (times[i + 1] - times[i])
         return interpolate_pose(self.values[i], self.values[i + 1], float(u))
 
-    def resample(self, rate_hz: float, start: float | None = None, end: float | None = None) -> PoseSequence:
-        """The sequence sampled at ``rate_hz`` from ``start`` to ``end`` (seconds, inclusive of start)."""
+    def resample_times(self, rate_hz: float, start: float | None = None, end: float | None = None) -> np.ndarray:
+        """The rig times (seconds) :meth:`resample` samples at: ``start`` (default the first pose's), then every
+        1 / ``rate_hz`` up to ``end`` (default the last pose's), as a BVH's frames."""
         t0 = self.times[0] if start is None else start
         t1 = self.times[-1] if end is None else end
         count = max(1, int(np.floor((t1 - t0) * rate_hz + 1e-9)) + 1)
-        times = t0 + np.arange(count) / rate_hz
-        return PoseSequence(list(self.names), times, np.stack([self.sample(float(t)) for t in times]))
+        return t0 + np.arange(count) / rate_hz
+
+    def resample(self, rate_hz: float, start: float | None = None, end: float | None = None,
+                 on_progress: Callable[[int], None] | None = None) -> PoseSequence:
+        """The sequence sampled at ``rate_hz`` from ``start`` to ``end`` (seconds, inclusive of start), into one
+        array (a list of frames to stack held twice the memory: a long piece's glTF export). ``on_progress``:
+        called with the frames done every 1,024 frames and at the end."""
+        times = self.resample_times(rate_hz, start, end)
+        count = len(times)
+        values = np.empty((count, *self.values.shape[1:]))
+        for k, t in enumerate(times):
+            values[k] = self.sample(float(t))
+            if on_progress is not None and k % 1024 == 0:
+                on_progress(k)
+        if on_progress is not None:
+            on_progress(count)
+        return PoseSequence(list(self.names), times, values)
 
     def skeleton_message(self, layout: int = 0) -> Skeleton:
         return Skeleton(layout=layout, names=tuple(self.names))
