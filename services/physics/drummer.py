@@ -74,6 +74,16 @@ FOOT_STROKE_SPEED = 0.3
 FOOT_TARGET_OFFSET_M = 0.035
 """A foot target is on the pedal's plate (the kit's pedal position: the footboard pressed flat); the ball of the
 foot is then this far above it, metres (board thickness and the shoe's tilt; measured)."""
+HIHAT_FOOT_AIM_M: tuple[tuple[float, float], ...] = (
+    (1.2, -0.0275), (1.4, -0.0191), (1.5, -0.0190), (1.6, -0.0149), (1.7, -0.0046), (1.75, 0.0), (1.8, 0.0044),
+    (1.9, 0.0126), (2.0, 0.0196), (2.2, 0.0301))
+"""(drummer height m, how far the hi-hat foot's aim is raised above ``FOOT_TARGET_OFFSET_M``, metres; negative:
+lowered). The shoe presses a footboard with its toe, ahead of the ball the planner aims (common/kit.py
+``FOOT_PRESS_TABLE``, measured with the 1.75 m drummer); only the ball is controlled, so a shorter foot, pitched
+flatter by a shorter leg on the same throne, leaves its toe higher and the board less pressed (1.4 m: 0.72
+instead of 0.93 at the chick target, short of the plates' closing point), a longer one presses it flat. Measured
+on the default kit (0.52 m throne, 73 kg): the shift that makes the foot held at the chick target press the
+board 0.93, as the 1.75 m drummer's (docs/physics.md, "A small drummer's hi-hat foot")."""
 CYMBAL_AIM_ABOVE_M = 0.30
 """A hand target up to this far over a cymbal's plate follows the plate's swing (see :meth:`cartesian_targets`);
 the share fades out over ``CYMBAL_AIM_REACH_M`` beyond it, beyond the rim and under the plate, metres."""
@@ -162,6 +172,13 @@ def grip_for(grip: str, side: str) -> GripSpec:
     if grip == "traditional" and side == "left":
         return TRADITIONAL_LEFT
     return GRIPS[grip]
+
+
+def hihat_foot_aim_m(height_m: float) -> float:
+    """How far the hi-hat foot's aim is raised for a drummer ``height_m`` tall, metres (``HIHAT_FOOT_AIM_M``
+    interpolated; 0 for the 1.75 m drummer the planner's foot heights were measured with)."""
+    heights, shifts = zip(*HIHAT_FOOT_AIM_M, strict=True)
+    return float(np.interp(height_m, heights, shifts))
 
 
 def footboard_point(position: tuple[float, float, float], along: float = FOOT_BALL_ALONG) -> np.ndarray:
@@ -289,6 +306,8 @@ class DrummerScene:
         bead = np.array([0.0, 0.0, self.spec.stick.tip_radius_m])
         sole = np.array([0.0, 0.0, FOOT_TARGET_OFFSET_M])
         self.target_offset = {limb: bead if limb.endswith("hand") else sole for limb in LIMBS}
+        hihat_foot = "right_foot" if kit.handedness == "left" else "left_foot"
+        self.target_offset[hihat_foot] = sole + np.array([0.0, 0.0, hihat_foot_aim_m(settings.height_m)])
         self.last_targets: dict[str, tuple[np.ndarray, np.ndarray]] = {}
         self.head: tuple[Any, float] | None = None
         """The plan's head trajectory (look-at point, nod) and its time offset, if any."""
