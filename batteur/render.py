@@ -12,10 +12,11 @@ Two scenes:
 
 Outputs in DIR: ``performance.wav`` (sample 0 = rig time 0), ``impacts.csv``
 (one row per impact, every feature of ``/batteur/impact``, rig times),
-``performance.bvh`` (the simulated motion, score mode), with ``--video``
+``performance.bvh`` (the simulated motion, score mode; frame 0 the first pose, or with ``--bvh-sync wav``
+the WAV's time 0), with ``--video``
 ``performance.mp4`` (the motion rendered headless, the WAV muxed in sync;
 score mode, needs ffmpeg), with ``--gltf`` ``performance.glb`` (the motion and the kit as one animated glTF 2.0
-file at the BVH's rate; score mode), ``report.json`` (what
+file at the BVH's rate, on the WAV's clock; score mode), ``report.json`` (what
 was rendered, the time offset between score and rig clocks, the planner's
 feasibility issues, real-time factor). Everything is staged in a temporary
 directory and moved in only when the whole run succeeded: a corrupted score
@@ -39,7 +40,7 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, ClassVar, TypeVar, get_args
+from typing import TYPE_CHECKING, Any, ClassVar, Literal, TypeVar, get_args
 
 import numpy as np
 import soundfile as sf
@@ -127,6 +128,9 @@ class RenderOptions:
     pose_rate_hz: float = 60.0
     """Frame rate of performance.bvh, Hz (``--bvh-rate``); physics sends poses at least at 60 Hz
     (:func:`physics_pose_rate`)."""
+    bvh_sync: Literal["pose", "wav"] = "pose"
+    """performance.bvh's frame 0 (``--bvh-sync``): the first pose (rig time 1 ms), or performance.wav's time 0
+    (:func:`wav_frame_start`), the first pose held until it comes."""
     calibration: Path | None = None
     video: bool = False
     """Also write performance.mp4 (services.graphics.video.render_video); needs ffmpeg."""
@@ -529,11 +533,12 @@ class StreamedOutputs:
     ``bvh_rate_hz``: the BVH's frame rate (None: the poses' median interval, known only at the end: the poses
     are kept and :func:`write_rest` writes the BVH). ``keep``: also keep the impacts and poses in memory (the
     video draws them). ``planned_s``: the render's length, seconds (:func:`rendered_seconds`): a WAV that would
-    pass 4 GiB is written as RF64 (said by ``prog``, the command rendering).
+    pass 4 GiB is written as RF64 (said by ``prog``, the command rendering). ``bvh_start_s``: rig time of the
+    BVH's frame 0, seconds (None: the first pose's).
     """
 
     def __init__(self, folder: Path, bvh_rate_hz: float | None, keep: bool = False, planned_s: float = 0.0,
-                 prog: str = "batteur render") -> None:
+                 prog: str = "batteur render", bvh_start_s: float | None = None) -> None:
         from services.graphics.export.bvh import BvhStream
 
         self.folder = folder
@@ -543,7 +548,10 @@ class StreamedOutputs:
         self.bvh_rate_hz = bvh_rate_hz
         self.wav: WavStream | None = None
         self.impacts = ImpactCsvStream(folder / "impacts.csv")
-        self.bvh = None if bvh_rate_hz is None else BvhStream(folder / "performance.bvh", bvh_rate_hz)
+        self.bvh = None if bvh_rate_hz is None else BvhStream(folder / "performance.bvh", bvh_rate_hz,
+                                                              start=bvh_start_s)
+        self.bvh_frames: int | None = None
+        """Frames of the streamed BVH once finished (None: no file)."""
         self._recorder: RecorderCore | None = None
 
     def attach(self, sound: Any) -> None:
@@ -566,7 +574,7 @@ class StreamedOutputs:
         self.wav.close()
         count = self.impacts.finish()
         if self.bvh is not None:
-            self.bvh.finish()
+            self.bvh_frames = self.bvh.finish()
         return count
 
     def close(self) -> None:
@@ -773,7 +781,8 @@ def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: boo
     finished = False  # a render given up (Ctrl-C, an error) leaves its bar where it stood, not at 100 %
     with Staging(output) as staging:  # the WAV, impacts and motion are written as they are rendered
         outputs = StreamedOutputs(staging.path, opts.pose_rate_hz or None, keep=opts.video or opts.gltf,
-                                  planned_s=rendered_seconds(plan, opts), prog=prog)
+                                  planned_s=rendered_seconds(plan, opts), prog=prog,
+                                  bvh_start_s=wav_frame_start(opts) if opts.bvh_sync == "wav" else None)
         try:
             if opts.jobs > 1:
                 from batteur.segments import run_segmented
@@ -793,6 +802,8 @@ def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: boo
             progress.close(finished)
             outputs.close()
         report = score_report(result, str(path), opts)
+        if outputs.bvh is not None and outputs.bvh_frames is not None:
+            report["bvh"] = bvh_entry(outputs.bvh, outputs.bvh_frames, opts)
         video = None
         if opts.video:
             if result.poses is None:
@@ -917,25 +928,44 @@ def video_writer(result: ScoreRender, kit: Kit, opts: RenderOptions, quiet: bool
     return write
 
 
+def bvh_entry(bvh: BvhStream, frames: int, opts: RenderOptions) -> dict[str, Any]:
+    """report.json's ``bvh``: the file's frames and where its frame 0 falls in performance.wav (seconds, and
+    frames at its rate: how far to shift it in an animation tool to line it up with the WAV)."""
+    start = bvh.start_time if bvh.start_time is not None else 0.0
+    wav_time = start + opts.latency_s
+    return {"file": "performance.bvh", "frames": frames, "rate_hz": opts.pose_rate_hz, "sync": opts.bvh_sync,
+            "start_s": round(start, 6), "wav_time_s": round(wav_time, 6),
+            "wav_offset_frames": round(wav_time * opts.pose_rate_hz, 3)}
+
+
+def wav_frame_start(opts: RenderOptions) -> float:
+    """Rig time (seconds) of a motion file's frame 0 on performance.wav's clock: the WAV's time 0, as each impact
+    is heard at its rig time + ``latency_s``; frames before the first pose hold it."""
+    return -opts.latency_s
+
+
 def gltf_writer(result: ScoreRender, kit: Kit, opts: RenderOptions, quiet: bool) -> Callable[[Path], dict[str, Any]]:
     """What writes DIR/performance.glb in the staging directory, with a progress bar: the kept poses resampled at
-    the BVH's rate (the BVH's frames) and the kit, moved by its kit links."""
+    the BVH's rate on performance.wav's clock (:func:`wav_frame_start`) and the kit, moved by its kit links."""
     from services.graphics.export.gltf import write_gltf
 
     def write(staging: Path) -> dict[str, Any]:
         started = time.perf_counter()
-        times = result.poses.resample_times(opts.pose_rate_hz)  # the BVH's frames
+        start = wav_frame_start(opts)
+        end = start + result.duration_s  # as long as the WAV: the poses' last 50 ms (the tail, at rest) are after it
+        times = result.poses.resample_times(opts.pose_rate_hz, start=start, end=end)
         progress = Progress("glTF", len(times), unit="frames", decimals=0, enabled=False if quiet else None)
         finished = False
         try:
-            frames = result.poses.resample(opts.pose_rate_hz, on_progress=progress.update)
-            info = write_gltf(frames, staging / "performance.glb", kit=kit)
+            frames = result.poses.resample(opts.pose_rate_hz, start=start, end=end, on_progress=progress.update)
+            info = write_gltf(frames, staging / "performance.glb", kit=kit, time_origin=start)
             finished = True
         except (OSError, ValueError) as exc:  # a full disk: nothing is written (staging)
             raise RenderError(f"--gltf: {exc}") from exc
         finally:
             progress.close(finished)
         return {"file": "performance.glb", "frames": info.keyframes, "rate_hz": opts.pose_rate_hz,
+                "time_0": "performance.wav's time 0: a pose at rig time t is keyed at t + latency_s",
                 "start_s": round(float(times[0]), 6), "duration_s": round(info.duration, 6),
                 "links": info.links, "kit_objects": info.kit_objects,
                 "animated_kit_objects": info.animated_kit_objects,
@@ -989,6 +1019,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--bvh-rate", type=float, default=RenderOptions.pose_rate_hz, metavar="HZ",
                         help="frame rate of DIR/performance.bvh, 1 to 1000 Hz (e.g. 24, 30, 60, 120; default 60); "
                         "the video keeps its own --video-fps")
+    parser.add_argument("--bvh-sync", choices=["pose", "wav"], default=None,
+                        help="frame 0 of DIR/performance.bvh: pose, the first pose (rig time 1 ms; the default), or "
+                        "wav, DIR/performance.wav's time 0, the first pose held until it comes, so the BVH and the "
+                        "WAV imported at frame 0 line up (each strike where it is heard)")
     parser.add_argument("--video", action="store_true",
                         help="also write DIR/performance.mp4: the motion rendered headless (PyBullet TinyRenderer) "
                         "with the WAV muxed in sync (needs ffmpeg; score mode)")
@@ -1051,7 +1085,8 @@ def options_from(args: argparse.Namespace) -> RenderOptions:
                          video_size=_given(args.video_size, (640, 360)), control_rate_hz=args.control_rate,
                          jobs=resolve_jobs(args.jobs), segment_s=_given(args.segment, 30.0),
                          limits_from=tuple(args.limits_from), skeleton_bvh=args.skeleton_bvh,
-                         height_m=args.height, mass_kg=args.mass, pose_rate_hz=args.bvh_rate)
+                         height_m=args.height, mass_kg=args.mass, pose_rate_hz=args.bvh_rate,
+                         bvh_sync=_given(args.bvh_sync, "pose"))
 
 
 T = TypeVar("T")
@@ -1073,6 +1108,7 @@ def options_in_vain(args: argparse.Namespace) -> list[str]:
     if args.strikes is not None:  # one stick over one instrument: no drummer, no plan, no motion file
         drummer = (("--height", args.height, STATURE_M), ("--mass", args.mass, DEFAULT_MASS_KG),
                    ("--bvh-rate", args.bvh_rate, RenderOptions.pose_rate_hz), ("--grip", args.grip, None),
+                   ("--bvh-sync", args.bvh_sync, None),
                    ("--nuance", args.nuance, None))
         for name, value, default in drummer:
             if value != default:

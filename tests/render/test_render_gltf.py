@@ -8,7 +8,9 @@ tests/graphics/test_export.py).
 
 from __future__ import annotations
 
+import csv
 import json
+import math
 import re
 import shutil
 import subprocess
@@ -18,10 +20,12 @@ from typing import Any
 import numpy as np
 import pygltflib
 import pytest
+from scipy.spatial.transform import Rotation
 
 from batteur import render
 from common.kit import load_kit
 from services.graphics.export import gltf as gltf_export
+from services.graphics.video import STICK_TIP
 
 ROOT = Path(__file__).resolve().parents[2]
 SCORE = ROOT / "tests" / "graphics" / "tiny_score.txt"
@@ -50,30 +54,143 @@ def load(path: Path) -> pygltflib.GLTF2:
     return gltf
 
 
-def channel_output(gltf: pygltflib.GLTF2, node: int, target: str) -> np.ndarray:
-    """The keyframe values of ``node``'s ``target`` channel (translation (N, 3) or rotation (N, 4))."""
-    animation = gltf.animations[0]
-    channel = next(c for c in animation.channels if c.target.node == node and c.target.path == target)
-    accessor = gltf.accessors[animation.samplers[channel.sampler].output]
+def accessor_data(gltf: pygltflib.GLTF2, index: int) -> np.ndarray:
+    """An accessor's float values, (count, components)."""
+    accessor = gltf.accessors[index]
     view = gltf.bufferViews[accessor.bufferView]
     data = gltf.binary_blob()[view.byteOffset:view.byteOffset + view.byteLength]
     return np.frombuffer(data, dtype=np.float32).reshape(accessor.count, -1)
 
 
-def test_gltf_has_one_animation_as_long_as_the_bvh_at_its_rate(rendered: Path) -> None:
+def channel_output(gltf: pygltflib.GLTF2, node: int, target: str) -> np.ndarray:
+    """The keyframe values of ``node``'s ``target`` channel (translation (N, 3) or rotation (N, 4))."""
+    animation = gltf.animations[0]
+    channel = next(c for c in animation.channels if c.target.node == node and c.target.path == target)
+    return accessor_data(gltf, animation.samplers[channel.sampler].output)
+
+
+def key_times(gltf: pygltflib.GLTF2) -> np.ndarray:
+    """The animation's key times, seconds (every sampler shares one input)."""
+    return accessor_data(gltf, gltf.animations[0].samplers[0].input)[:, 0]
+
+
+def trs(node: pygltflib.Node) -> np.ndarray:
+    """A node's rest transform (its translation, rotation and scale) as a 4x4 matrix."""
+    m = np.eye(4)
+    m[:3, :3] = Rotation.from_quat(node.rotation or [0, 0, 0, 1]).as_matrix() * np.asarray(node.scale or [1, 1, 1])
+    m[:3, 3] = node.translation or [0, 0, 0]
+    return m
+
+
+def link_key(gltf: pygltflib.GLTF2, link: int, k: int) -> np.ndarray:
+    """Link node ``link``'s transform (under the root: z up) at key ``k``."""
+    m = np.eye(4)
+    m[:3, :3] = Rotation.from_quat(channel_output(gltf, link, "rotation")[k]).as_matrix()
+    m[:3, 3] = channel_output(gltf, link, "translation")[k]
+    return m
+
+
+def mesh_bounds(gltf: pygltflib.GLTF2, node: int, parent: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(lowest, highest) corner (3,) of mesh node ``node``'s bounding box placed by ``parent`` @ its transform."""
+    position = gltf.accessors[gltf.meshes[gltf.nodes[node].mesh].primitives[0].attributes.POSITION]
+    lo, hi = np.asarray(position.min), np.asarray(position.max)
+    corners = np.array([[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    placed = (parent @ trs(gltf.nodes[node]) @ corners.T).T[:, :3]
+    return placed.min(axis=0), placed.max(axis=0)
+
+
+def impacts(out: Path) -> list[dict[str, str]]:
+    with (out / "impacts.csv").open(newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def test_gltf_has_one_animation_at_the_bvhs_rate_on_the_wavs_clock(rendered: Path) -> None:
+    """Key k is at WAV time k / rate (rig time k / rate - latency_s): the file and performance.wav imported at 0
+    line up, the first pose held until the motion starts."""
     report = json.loads((rendered / "report.json").read_text())
     entry = report["gltf"]
     assert entry["file"] == "performance.glb" and (rendered / "performance.glb").is_file()
-    frames, frame_time = bvh_frames(rendered / "performance.bvh")
+    _, frame_time = bvh_frames(rendered / "performance.bvh")
     gltf = load(rendered / "performance.glb")
     assert len(gltf.animations) == 1
-    animation = gltf.animations[0]
-    times = gltf.accessors[animation.samplers[0].input]
-    assert times.count == frames == entry["frames"]  # one key per BVH frame, the same poses at the same rate
+    times = key_times(gltf)
+    assert len(times) == entry["frames"]
     assert entry["rate_hz"] == pytest.approx(1 / frame_time, rel=1e-6) == 60.0
-    assert times.max[0] == pytest.approx((frames - 1) * frame_time, abs=1e-5)
-    # the poses span the render: from its first pose (1 ms, physics' first step) to its end, within a frame
-    assert entry["start_s"] + times.max[0] == pytest.approx(report["duration_s"], abs=frame_time)
+    assert times[0] == 0.0 and np.allclose(np.diff(times), frame_time, atol=1e-5)
+    assert entry["start_s"] == -report["latency_s"] == -0.05  # the rig time of key 0
+    # the motion lasts as the WAV does: to the render's end, within a frame
+    assert times[-1] == pytest.approx(report["duration_s"], abs=frame_time)
+    # the first pose (rig time 1 ms, WAV time 0.051 s) is held from key 0 until it
+    pelvis = channel_output(gltf, [n.name for n in gltf.nodes].index("pelvis"), "translation")
+    held = times <= 0.001 + report["latency_s"]
+    assert held.sum() == 4 and np.all(pelvis[held] == pelvis[0])
+
+
+def test_gltf_shows_each_strike_where_the_wav_has_it(rendered: Path) -> None:
+    """The right stick's tip is lowest on the hi-hat at the key of its impact's WAV time (rig time + latency_s),
+    within one frame; the file's clock before was the first pose's, 51 ms (3 frames) early."""
+    report = json.loads((rendered / "report.json").read_text())
+    gltf = load(rendered / "performance.glb")
+    times = key_times(gltf)
+    stick = [n.name for n in gltf.nodes].index("right_stick")
+    rotation = Rotation.from_quat(channel_output(gltf, stick, "rotation"))
+    tip_z = (channel_output(gltf, stick, "translation") + rotation.apply([0.0, STICK_TIP, 0.0]))[:, 2]
+    strikes = [float(i["time"]) for i in impacts(rendered) if i["part"] == "right_stick_tip"]
+    assert len(strikes) == 2
+    for t in strikes:
+        heard = t + report["latency_s"]  # performance.wav's time of the strike
+        near = np.flatnonzero(np.abs(times - heard) < 0.15)
+        lowest = near[np.argmin(tip_z[near])]
+        assert times[lowest] == pytest.approx(heard, abs=1 / 60 + 1e-3)
+
+
+def test_gltf_draws_nothing_at_the_origin(rendered: Path) -> None:
+    """Every mesh sits where its object is: none at the world origin (a stray box there before: the stands'
+    link, which is at the origin, drawn as a body box)."""
+    gltf = load(rendered / "performance.glb")
+    root = gltf.scenes[0].nodes[0]
+    placed: list[tuple[int, np.ndarray]] = [(c, trs(gltf.nodes[c])) for c in gltf.nodes[root].children]
+    seen = 0
+    while placed:
+        node, m = placed.pop()
+        if gltf.nodes[node].mesh is not None:
+            lo, hi = mesh_bounds(gltf, node, m @ np.linalg.inv(trs(gltf.nodes[node])))
+            seen += 1
+            assert np.linalg.norm((lo + hi) / 2) > 0.1, gltf.nodes[node].name  # metres
+        placed += [(c, m @ trs(gltf.nodes[c])) for c in gltf.nodes[node].children or []]
+    assert seen > 40
+
+
+def test_gltf_draws_the_kick_beater_reaching_the_head(rendered: Path) -> None:
+    """The beater's ball meets the kick's head between the keys about the kick's impact (it was a 5 cm box at its
+    axle, 12 cm short of the head), and does not sink into it deeper than physics presses it (q = 0: 1.1 cm)."""
+    report = json.loads((rendered / "report.json").read_text())
+    gltf = load(rendered / "performance.glb")
+    beater = [n.name for n in gltf.nodes].index("kit.kick_pedal.beater")
+    head_y = load_kit("default").object("kick").position[1]  # the head faces the drummer (-y)
+    heard = next(float(i["time"]) for i in impacts(rendered) if i["part"] == "kick_beater") + report["latency_s"]
+    times = key_times(gltf)
+
+    def gap(k: int) -> float:
+        """From the front of the beater's ball to the head at key ``k``, metres (< 0: pressed into it)."""
+        return head_y - max(mesh_bounds(gltf, c, link_key(gltf, beater, k))[1][1] for c in gltf.nodes[beater].children)
+
+    after = int(np.searchsorted(times, heard))
+    assert gap(after - 1) > 0.0 and gap(after) < 0.005
+    assert min(gap(k) for k in range(len(times))) > -0.025
+
+
+def test_gltf_hihat_plates_do_not_overlap(rendered: Path) -> None:
+    """The top plate is drawn above its link frame, as physics has it: closed, it rests on the bottom plate
+    instead of sinking into it."""
+    gltf = load(rendered / "performance.glb")
+    names = [n.name for n in gltf.nodes]
+    top, bottom = names.index("kit.hihat.top"), names.index("kit.hihat.bottom")
+    top_mesh, bottom_mesh = names.index("kit_hihat"), names.index("kit_hihat_bottom")
+    lowest_gap = min(mesh_bounds(gltf, top_mesh, link_key(gltf, top, k))[0][2]
+                     - mesh_bounds(gltf, bottom_mesh, link_key(gltf, bottom, k))[1][2]
+                     for k in range(len(key_times(gltf))))
+    assert 0.0 <= lowest_gap < 0.005  # metres: closed (the pedal is down in this score), not overlapping
 
 
 def test_gltf_holds_the_drummers_links_and_the_kit(rendered: Path) -> None:
@@ -125,9 +242,9 @@ def test_gltf_with_jobs(tmp_path: Path) -> None:
     """Segments on two processes: the parent keeps the merged poses, as for --video."""
     out = tmp_path / "out"
     assert render.main([str(SCORE), "-o", str(out), "--quiet", "--gltf", "--jobs", "2", "--segment", "2"]) == 0
-    frames, _ = bvh_frames(out / "performance.bvh")
-    gltf = load(out / "performance.glb")
-    assert gltf.accessors[gltf.animations[0].samplers[0].input].count == frames
+    report = json.loads((out / "report.json").read_text())
+    times = key_times(load(out / "performance.glb"))
+    assert times[0] == 0.0 and len(times) == report["gltf"]["frames"] == math.floor(report["duration_s"] * 60) + 1
 
 
 def test_gltf_refused_for_the_strike_scene(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -160,7 +160,7 @@ def _rows(motion: np.ndarray) -> list[str]:
 
 
 def write_bvh(sequence: PoseSequence, path: Path, rate_hz: float | None = None, scale: float = 1.0,
-              all_positions: bool = False) -> BvhInfo:
+              all_positions: bool = False, start: float | None = None) -> BvhInfo:
     """Write ``sequence`` as a BVH file at ``path``.
 
     Parameters
@@ -175,11 +175,13 @@ def write_bvh(sequence: PoseSequence, path: Path, rate_hz: float | None = None, 
         File units per metre (1: metres, 100: centimetres).
     all_positions : bool
         Give every joint position channels too.
+    start : float, optional
+        Time of frame 0, seconds (default: the first pose's); frames before the first pose hold it.
     """
     if rate_hz is None:
         dt = float(np.median(np.diff(sequence.times))) if len(sequence.times) > 1 else 1 / 60
         rate_hz = 1.0 / dt
-    seq = sequence.resample(rate_hz)
+    seq = sequence.resample(rate_hz, start=start)
     layout = _Layout.of(seq.names, seq.values[0], scale, all_positions)
     motion, pos, rots = layout.motion(seq.values)
     frame_time = 1.0 / rate_hz
@@ -208,15 +210,16 @@ def write_bvh(sequence: PoseSequence, path: Path, rate_hz: float | None = None, 
 class BvhStream:
     """Writes a BVH file as poses arrive, holding a few seconds of them, not the whole motion.
 
-    The same bytes as :func:`write_bvh` given the whole sequence at ``rate_hz``: frame ``k`` is the pose at
-    ``t0 + k / rate_hz`` (``t0``: the first pose's time), interpolated as :meth:`PoseSequence.sample` does, and
-    the frames up to the last pose's time. Motion rows go to ``path`` + ``.motion`` (next to ``path``) in chunks
+    The same bytes as :func:`write_bvh` given the whole sequence at ``rate_hz`` (and ``start``): frame ``k`` is
+    the pose at ``t0 + k / rate_hz`` (``t0``: ``start``, seconds, or by default the first pose's time),
+    interpolated as :meth:`PoseSequence.sample` does (frames before the first pose hold it), and the frames up to
+    the last pose's time. Motion rows go to ``path`` + ``.motion`` (next to ``path``) in chunks
     of ``chunk_frames``; :meth:`finish` writes the header, whose frame count is known only then, and appends
     them. Poses must come in strictly increasing time (seconds) with the link layout given to :meth:`restart`.
     """
 
     def __init__(self, path: Path, rate_hz: float, scale: float = 1.0, all_positions: bool = False,
-                 chunk_frames: int = 240) -> None:
+                 chunk_frames: int = 240, start: float | None = None) -> None:
         if not rate_hz > 0:
             raise ValueError(f"BVH frame rate must be > 0 Hz, got {rate_hz}")
         self.path = Path(path)
@@ -225,6 +228,7 @@ class BvhStream:
         self.scale = scale
         self.all_positions = all_positions
         self.chunk_frames = chunk_frames
+        self.start = start
         self.peak_held_frames = 0
         """Most resampled frames held in memory at once (at most ``chunk_frames``): what the stream keeps."""
         self._file: IO[str] | None = None
@@ -252,6 +256,11 @@ class BvhStream:
         """Frames produced so far."""
         return self._next
 
+    @property
+    def start_time(self) -> float | None:
+        """Time of frame 0, seconds (None until a pose came)."""
+        return None if self._last is None else self._t0
+
     def add(self, time: float, values: np.ndarray) -> None:
         """The pose (L, 7) at rig time ``time`` (seconds, after the previous pose's)."""
         if not self.valid:
@@ -260,8 +269,9 @@ class BvhStream:
             self.valid = False
             return
         if self._last is None:
-            self._t0 = time
-            self._frame(values.copy())  # frame 0 is the first pose itself
+            self._t0 = time if self.start is None else self.start
+            while self._t0 + self._next / self.rate_hz <= time:  # up to the first pose: itself (sample clamps)
+                self._frame(values.copy())
         else:
             t_prev, prev = self._last
             while (t := self._t0 + self._next / self.rate_hz) < time:

@@ -8,7 +8,9 @@ the file shows the whole scene in Blender, three.js or any viewer: static,
 except the objects whose motion the sequence carries as physics' kit links
 (``kit.ride``: a cymbal's swing, ``kit.hihat.top``: the hi-hat opening,
 ``kit.kick_pedal.footboard``: a pedal pressed), whose mesh is the child of that
-animated link node instead of its box. Units: metres.
+animated link node instead of its box; a bass-drum pedal's beater (``kit.kick_pedal.beater``) is drawn as a rod
+and a ball, the stands (``kit.stands``) as rods under the drums and cymbals. Units: metres. Key times are
+seconds from ``time_origin`` (a render's: performance.wav's time 0, so the two line up in an animation tool).
 """
 
 from __future__ import annotations
@@ -29,8 +31,22 @@ ROOT_ROTATION = [-math.sqrt(0.5), 0.0, 0.0, math.sqrt(0.5)]  # -90 degrees about
 
 COLOURS = {
     "body": [0.31, 0.53, 0.78, 1.0], "stick": [0.85, 0.7, 0.48, 1.0], "membrane": [0.55, 0.11, 0.14, 1.0],
-    "cymbal": [0.79, 0.64, 0.23, 1.0], "other": [0.6, 0.6, 0.63, 1.0],
+    "cymbal": [0.79, 0.64, 0.23, 1.0], "other": [0.6, 0.6, 0.63, 1.0], "felt": [0.88, 0.86, 0.8, 1.0],
 }
+CYMBAL_DRAWN_THICKNESS_M = 0.01
+"""A cymbal's or hi-hat plate's drawn thickness, metres (thicker than physics' 2 mm, to be seen)."""
+
+# The beater as physics builds it (services/physics/kitbodies.py, _pedal_robot; mirrored, as services do not
+# import each other: tests/graphics/test_export.py compares them): a rod from the axle along the link's +z to a
+# ball, which meets the kick's head this far up from its centre (fraction of its radius) when the footboard is
+# pressed BEATER_CONTACT_PRESS of its travel, the beater then BEATER_REST_RAD x (1 - that) from its rest angle.
+BEATER_BALL_RADIUS_M = 0.03
+BEATER_REST_RAD = 0.9
+BEATER_CONTACT_PRESS = 0.95
+BEATER_HIT_HEIGHT = 0.2
+BEATER_ROD_RADIUS_M = 0.004
+STAND_ROD_RADIUS_M = 0.012
+"""Radius of physics' visual-only stand rods (kitbodies.py, _stands), metres."""
 
 
 @dataclass(frozen=True)
@@ -86,6 +102,28 @@ def _cylinder(segments: int = 32) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return np.array(pos, np.float32), np.array(nor, np.float32), np.array(idx, np.uint16)
 
 
+def _sphere(rings: int = 10, segments: int = 16) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Sphere of radius 1 centred on the origin: positions, normals (the same), indices."""
+    pos = [[0.0, 0.0, 1.0]]
+    for i in range(1, rings):
+        polar = math.pi * i / rings
+        pos += [[math.sin(polar) * math.cos(a), math.sin(polar) * math.sin(a), math.cos(polar)]
+                for a in np.linspace(0, 2 * np.pi, segments, endpoint=False)]
+    pos.append([0.0, 0.0, -1.0])
+    bottom = len(pos) - 1
+    idx: list[int] = []
+    for k in range(segments):
+        k2 = (k + 1) % segments
+        idx += [0, 1 + k, 1 + k2]  # top cap
+        last = 1 + (rings - 2) * segments
+        idx += [bottom, last + k2, last + k]  # bottom cap
+        for i in range(rings - 2):
+            a, b = 1 + i * segments, 1 + (i + 1) * segments
+            idx += [a + k, b + k, b + k2, a + k, b + k2, a + k2]
+    array = np.array(pos, np.float32)
+    return array, array.copy(), np.array(idx, np.uint16)
+
+
 class _Builder:
     def __init__(self) -> None:
         self.gltf = pygltflib.GLTF2(asset=pygltflib.Asset(generator="batteur", version="2.0"))
@@ -137,7 +175,7 @@ def _kit_shape(obj: KitObject, meshes: dict[str, int]) -> tuple[int, list[float]
     if obj.kind in ("membrane", "throne"):
         return meshes["membrane"], [obj.radius, obj.radius, max(obj.depth, 0.04)]
     if obj.kind in ("cymbal", "hihat"):
-        return meshes["cymbal"], [obj.radius, obj.radius, 0.01]
+        return meshes["cymbal"], [obj.radius, obj.radius, CYMBAL_DRAWN_THICKNESS_M]
     return meshes["other"], [obj.radius * 2, obj.radius * 2, max(obj.depth, 0.02)]
 
 
@@ -181,13 +219,79 @@ def _animated_kit(b: _Builder, kit: Kit, sequence: PoseSequence, meshes: dict[st
             if obj.kind == "pedal":  # the footboard's frame is its heel's hinge: keep the static box's place
                 translation, rotation = _relative_to(sequence.values[0, sequence.index(link)], obj)
                 placed = {"translation": translation, "rotation": rotation}
+            elif obj.kind == "hihat" and link.endswith(".top"):  # physics' top plate lies above its frame
+                placed = {"translation": [0.0, 0.0, scale[2]]}
             out[link] = b.node(name=node_name, mesh=mesh, scale=[float(v) for v in scale], **placed)
     return out
 
 
-def write_gltf(sequence: PoseSequence, path: Path, kit: Kit | None = None, link_size: float = 0.05) -> GltfInfo:
+def beater_length(kick: KitObject, axle: np.ndarray) -> float:
+    """From a beater's axle (world metres, physics' link frame) to its ball's centre, metres: the ball meets the
+    kick's head (straight ahead along +y) at ``BEATER_HIT_HEIGHT`` of its radius above its centre, as physics
+    builds it."""
+    to_head = kick.position[1] - float(axle[1])
+    rise = kick.position[2] + BEATER_HIT_HEIGHT * kick.radius - float(axle[2])
+    press = (1.0 - BEATER_CONTACT_PRESS) * BEATER_REST_RAD * math.hypot(to_head, rise)  # the ball pressed in at 0
+    return math.hypot(to_head - BEATER_BALL_RADIUS_M + press, rise)
+
+
+def stand_rods(kit: Kit) -> list[tuple[np.ndarray, float]]:
+    """(top (3,), height) of each stand rod, world metres, as physics' stands: under each mounted drum and
+    cymbal, up to the underside of its centre."""
+    rods = []
+    for obj in kit.objects:
+        if obj.kind in ("pedal", "throne") or obj.id == "kick":
+            continue
+        n = np.asarray(obj.normal())
+        top = np.asarray(obj.position, dtype=float) - n * (max(obj.depth, 0.01) if obj.kind == "membrane" else 0.02)
+        if top[2] > 0.05:
+            rods.append((top, float(top[2])))
+    return rods
+
+
+class _KitParts:
+    """The meshes of the kit links no kit object draws: a beater's rod and ball, the stands' rods."""
+
+    def __init__(self, b: _Builder, kit: Kit) -> None:
+        self.b = b
+        self.kit = kit
+        self._meshes: dict[str, int] = {}
+
+    def _mesh(self, name: str) -> int:
+        if name not in self._meshes:  # built when first drawn: no unused mesh in the file
+            shape, colour = (_sphere(), "felt") if name == "ball" else (_cylinder(12), "other")
+            self._meshes[name] = self.b.mesh(shape, self.b.material(COLOURS[colour], metallic=0.5))
+        return self._meshes[name]
+
+    def _rod(self, name: str, radius: float, top: np.ndarray, length: float, rotation: Rotation) -> int:
+        """A rod of ``length`` (metres) down from ``top`` along ``rotation``'s -z, in its parent link's frame."""
+        return self.b.node(name=name, mesh=self._mesh("rod"), translation=[float(v) for v in top],
+                           rotation=[float(v) for v in rotation.as_quat()], scale=[radius, radius, length])
+
+    def nodes(self, link: str, first: np.ndarray) -> list[int]:
+        """Mesh nodes drawing kit link ``link`` (none for a link not known here), whose first pose is ``first``."""
+        frame = Rotation.from_quat(normalize_quats(first[3:]))
+        if link == "kit.stands":
+            return [self._rod(f"kit_stand_{k}", STAND_ROD_RADIUS_M, frame.inv().apply(top - first[:3]), height,
+                              frame.inv()) for k, (top, height) in enumerate(stand_rods(self.kit))]
+        if link.endswith(".beater") and "kick" in {obj.id for obj in self.kit.objects}:
+            length = beater_length(self.kit.object("kick"), first[:3])
+            name = link[len("kit."):].replace(".", "_")
+            ball = self.b.node(name=f"kit_{name}_ball", mesh=self._mesh("ball"), translation=[0.0, 0.0, length],
+                               scale=[BEATER_BALL_RADIUS_M] * 3)
+            return [self._rod(f"kit_{name}", BEATER_ROD_RADIUS_M, np.array([0.0, 0.0, length]), length,
+                              Rotation.identity()), ball]
+        return []
+
+
+def write_gltf(sequence: PoseSequence, path: Path, kit: Kit | None = None, link_size: float = 0.05,
+               time_origin: float | None = None) -> GltfInfo:
     """Write ``sequence`` (and ``kit``: static, or moved by its kit links in ``sequence``) as glTF 2.0: ``.glb``
-    binary, or ``.gltf`` with embedded data."""
+    binary, or ``.gltf`` with embedded data. ``time_origin``: the rig time (seconds) of the file's time 0 (None:
+    the first pose's); no pose may come before it."""
+    origin = float(sequence.times[0]) if time_origin is None else time_origin
+    if sequence.times[0] < origin:
+        raise ValueError(f"the first pose ({sequence.times[0]:g} s) comes before the file's time 0 ({origin:g} s)")
     b = _Builder()
     box = _box()
     body_mat = b.material(COLOURS["body"])
@@ -196,6 +300,7 @@ def write_gltf(sequence: PoseSequence, path: Path, kit: Kit | None = None, link_
     stick_mesh = b.mesh(box, stick_mat)
     meshes: dict[str, int] = {}
     animated: dict[str, int] = {}
+    parts = None if kit is None else _KitParts(b, kit)
     if kit is not None:
         meshes = {
             "membrane": b.mesh(_cylinder(), b.material(COLOURS["membrane"])),
@@ -207,12 +312,15 @@ def write_gltf(sequence: PoseSequence, path: Path, kit: Kit | None = None, link_
     first = sequence.values[0]
     for i, name in enumerate(sequence.names):
         if name in animated:  # a kit link: the kit object's mesh instead of a box
-            mesh_node = animated[name]
+            mesh_nodes = [animated[name]]
+        elif name.startswith("kit."):  # a beater, the stands: drawn as they are, else not at all (no body box)
+            mesh_nodes = [] if parts is None else parts.nodes(name, first[i])
         else:
             is_stick = "stick" in name
             size = link_size * (0.5 if is_stick else (2.5 if name.endswith("head") else 1.0))
-            mesh_node = b.node(name=f"{name}_mesh", mesh=stick_mesh if is_stick else body_mesh, scale=[size] * 3)
-        link_nodes.append(b.node(name=name, children=[mesh_node], translation=[float(v) for v in first[i, :3]],
+            mesh_nodes = [b.node(name=f"{name}_mesh", mesh=stick_mesh if is_stick else body_mesh, scale=[size] * 3)]
+        link_nodes.append(b.node(name=name, children=mesh_nodes or None,
+                                 translation=[float(v) for v in first[i, :3]],
                                  rotation=[float(v) for v in normalize_quats(first[i, 3:])]))
     kit_nodes = []
     animated_ids = set()
@@ -223,7 +331,7 @@ def write_gltf(sequence: PoseSequence, path: Path, kit: Kit | None = None, link_
     b.gltf.scenes.append(pygltflib.Scene(name="performance", nodes=[root]))
     b.gltf.scene = 0
 
-    times = (sequence.times - sequence.times[0]).astype(np.float32)
+    times = (sequence.times - origin).astype(np.float32)
     t_acc = b.accessor(times, pygltflib.SCALAR, bounds=True)
     samplers, channels = [], []
     for i, node in enumerate(link_nodes):
