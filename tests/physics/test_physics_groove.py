@@ -13,7 +13,7 @@ from common.messages import Contact
 from common.score.events import DrumEvent, Score
 from services.interaction.detect import DetectionConfig
 from services.physics.core import PhysicsCore
-from services.physics.drummer import DrummerScene
+from tests.physics.held_pedal import held_hihat_press
 
 BEAT_S = 0.6  # 100 bpm
 ONSET_GAP_S = 0.015
@@ -117,18 +117,8 @@ def test_the_kits_foot_press_table_is_what_the_simulated_foot_does() -> None:
     from common.kit import FOOT_PRESS_TABLE
 
     kit = load_kit("default")
-    flat = np.array(kit.object("hihat_pedal").position)
     for height, expected in (FOOT_PRESS_TABLE[2], FOOT_PRESS_TABLE[4], FOOT_PRESS_TABLE[6]):
-        core = PhysicsCore(scene="drummer", kit=kit, pose_rate_hz=0)
-        scene = core.scene
-        assert isinstance(scene, DrummerScene)
-        scene.add_cartesian("left_foot", 0.0, scene.current_targets()["left_foot"], np.zeros(3), 0.0)
-        scene.add_cartesian("left_foot", 0.4, flat + np.array([0.0, 0.0, height]), np.zeros(3), 0.0)
-        for k in range(1, 801):
-            core.step(k / 1000)
-        assert scene.kit_bodies.hihat is not None and scene.kit_bodies.hihat.pedal is not None
-        press = scene.kit_bodies.hihat.pedal.press(core.world)
-        core.close()
+        press = held_hihat_press(kit, height)
         assert abs(press - expected) < 0.02, f"foot {height * 1000:.0f} mm above flat pressed {press:.3f}"
 
 

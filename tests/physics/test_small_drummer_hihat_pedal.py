@@ -14,7 +14,7 @@ from common.score.events import DrumEvent, Score
 from common.score.limbs import distribute
 from services.interaction.detect import DetectionConfig
 from services.physics.core import PhysicsCore
-from services.physics.drummer import DrummerScene
+from tests.physics.held_pedal import held_hihat_press
 
 CHICK_GAP_S = 0.015
 """Contacts of the top plate closer than this belong to one chick."""
@@ -27,17 +27,7 @@ def test_the_foot_held_at_the_chick_target_presses_the_pedal_as_the_planner_aims
     1.4 m pressed 0.72, short of the plates' closing point 0.85; 2.0 m pressed the board flat)."""
     kit = load_kit("default", height_m=height_m)
     aimed = min(kit.hihat_closes_at() + CHICK_PRESS_MARGIN, 1.0)
-    flat = np.array(kit.object("hihat_pedal").position)
-    core = PhysicsCore(scene="drummer", kit=kit, pose_rate_hz=0, height_m=height_m)
-    scene = core.scene
-    assert isinstance(scene, DrummerScene)
-    scene.add_cartesian("left_foot", 0.0, scene.current_targets()["left_foot"], np.zeros(3), 0.0)
-    scene.add_cartesian("left_foot", 0.4, flat + np.array([0.0, 0.0, foot_target_for_press(aimed)]), np.zeros(3), 0.0)
-    for k in range(1, 801):
-        core.step(k / 1000)
-    assert scene.kit_bodies.hihat is not None and scene.kit_bodies.hihat.pedal is not None
-    press = scene.kit_bodies.hihat.pedal.press(core.world)
-    core.close()
+    press = held_hihat_press(kit, foot_target_for_press(aimed), height_m)
     assert abs(press - aimed) < 0.03, f"{height_m} m drummer pressed {press:.3f}, the planner aims {aimed:.3f}"
 
 
