@@ -30,7 +30,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
-import logging
 import math
 import sys
 import tempfile
@@ -451,18 +450,6 @@ def render_dir_score(render_dir: Path) -> Path:
     raise ValueError(f"{render_dir}: holds no score.* and its report.json names no score")
 
 
-def _kit_already_warned_of(source: str) -> Kit:
-    """The kit a render played (name or file), loaded without its load warnings: the render printed them (with its
-    drummer's reach) when it loaded the kit, and a folder of many scores would repeat them for every file."""
-    kit_log = logging.getLogger("common.kit")
-    was = kit_log.disabled
-    kit_log.disabled = True
-    try:
-        return load_kit(source)
-    finally:
-        kit_log.disabled = was
-
-
 def evaluate_render_dir(score_path: Path, render_dir: Path, kit: Kit | None = None) -> FileResult:
     """Evaluate an existing render directory (impacts.csv + report.json) against its score."""
     from batteur.impact_log import read_impacts_csv
@@ -485,7 +472,7 @@ def evaluate_render_dir(score_path: Path, render_dir: Path, kit: Kit | None = No
     flags = planner_flags(report.get("issues", []), where)
     timing = {key: report_number(report, key, where) for key in ("real_time_factor", "duration_s", "music_duration_s",
                                                                    "wall_time_s", "cpu_time_s")}
-    kit = kit if kit is not None else _kit_already_warned_of(kit_name)
+    kit = kit if kit is not None else load_kit(kit_name, warn=False)  # its render warned of it
     score = scale_tempo(read_score(score_path), 1.0 if tempo_scale is None else tempo_scale)
     if not (render_dir / "impacts.csv").is_file():
         raise ValueError(f"{render_dir}: no impacts.csv (not a whole render)")

@@ -348,13 +348,20 @@ class Kit(_Strict):
         spec = self.spec(event)
         if spec.pedal is None:
             return self._point_on(self.object_for(event, pitch), *self.struck_point(event, limb))
-        pedal = spec.pedal
-        if event == EventType.BASS and self.left_bass_pedal is not None and limb != spec.preferred:
-            pedal = self.left_bass_pedal
-        x, y, z = self.object(pedal).position
+        x, y, z = self.object(self.pedal_for(event, limb)).position
         if event == EventType.HIHATPEDAL:
             z += foot_target_for_press(min(self.hihat_closes_at() + CHICK_PRESS_MARGIN, 1.0))
         return (x, y, z), (0.0, 0.0, 1.0)
+
+    def pedal_for(self, event: EventType, limb: Limb) -> str:
+        """The footboard object ``limb`` presses for the foot event ``event``: the event's pedal, or the left bass
+        pedal when the other foot than BASS's preferred one plays it. Raises ``ValueError`` for a stick event."""
+        spec = self.spec(event)
+        if spec.pedal is None:
+            raise ValueError(f"{event.value} is struck with a stick, not a pedal")
+        if event == EventType.BASS and self.left_bass_pedal is not None and limb != spec.preferred:
+            return self.left_bass_pedal
+        return spec.pedal
 
     def hihat_closes_at(self) -> float:
         """The hi-hat's ``closes_at`` (its pedal travel at which the cymbals meet); the default without a hi-hat."""
@@ -409,14 +416,15 @@ class Kit(_Strict):
         )
 
 
-def load_kit(source: str | Path = "default", height_m: float | None = None) -> Kit:
+def load_kit(source: str | Path = "default", height_m: float | None = None, warn: bool = True) -> Kit:
     """Load a kit by shipped name (``default``) or from a YAML/JSON file path.
 
     Raises ``FileNotFoundError`` for an unknown name or path and ``ValueError`` naming the file for one that is
     not UTF-8 text, not valid YAML/JSON (line and column) or not a valid kit (the first problem, on one line).
     A valid kit holding instruments the drummer cannot play (out of reach, struck by no event) loads with one
     logged warning per instrument (:func:`common.score.limbs.unplayable_instruments`), the reach that of a drummer
-    ``height_m`` tall (metres; None: the default 1.75 m drummer), whom a warning then names.
+    ``height_m`` tall (metres; None: the default 1.75 m drummer), whom a warning then names. ``warn=False``: no
+    such warnings (a kit read again for a render that already warned of it).
     """
     path = Path(source)
     shipped = sorted(p.stem for p in KITS_DIR.glob("*.yaml"))
@@ -436,6 +444,8 @@ def load_kit(source: str | Path = "default", height_m: float | None = None) -> K
     except ValidationError as exc:
         more = f" (and {exc.error_count() - 1} more)" if exc.error_count() > 1 else ""
         raise ValueError(f"kit file {str(path)!r} is not a valid kit: {first_error(exc)}{more}") from None
+    if not warn:
+        return kit
     from common.score.limbs import unplayable_instruments  # here: the planner's reach, and limbs imports this module
 
     problems = unplayable_instruments(kit) if height_m is None else unplayable_instruments(kit, height_m)

@@ -603,7 +603,7 @@ def _pedals_out_of_reach(kit: Kit, height_m: float = STATURE_M) -> dict[str, dic
     for a drummer ``height_m`` tall.
 
     The feet are :func:`distribute`'s: each foot event's preferred foot, and with a double pedal the other foot on
-    BASS, which presses the left bass pedal (as :meth:`common.kit.Kit.effector_target` aims it)."""
+    BASS, which presses the left bass pedal (:meth:`common.kit.Kit.pedal_for`)."""
     hip_at = hips(kit, height_m)
     leg_reach = foot_reach(height_m)
     out: dict[str, dict[Limb, list[str]]] = {}
@@ -616,10 +616,8 @@ def _pedals_out_of_reach(kit: Kit, height_m: float = STATURE_M) -> dict[str, dic
         for foot in feet:
             if foot not in hip_at:  # a kit may give a foot event a hand: no leg to measure
                 continue
-            pedal = spec.pedal
-            if event == EventType.BASS and kit.left_bass_pedal is not None and foot != spec.preferred:
-                pedal = kit.left_bass_pedal
             dist = math.dist(kit.effector_target(event, foot)[0], hip_at[foot])
             if dist > leg_reach:
-                out.setdefault(pedal, {}).setdefault(foot, []).append(f"{event.value} {dist:.2f} m")
+                far = out.setdefault(kit.pedal_for(event, foot), {}).setdefault(foot, [])
+                far.append(f"{event.value} {dist:.2f} m")
     return out
