@@ -56,6 +56,11 @@ class SettingsError(ValueError):
     """Invalid configuration, with a message meant for the user (one line per problem)."""
 
 
+class ConfigFileError(SettingsError):
+    """A config file that cannot be used at all (missing, unreadable, not YAML/TOML, not a mapping), as opposed to
+    values in it that are refused: a file the command cannot use (exit status 1, common/exit_status.py)."""
+
+
 def default_node_id(role: str) -> str:
     """``role-hostname-pid``, restricted to the characters a node id may hold, at most 64."""
     host = re.sub(r"[^A-Za-z0-9_.-]+", "-", socket.gethostname().split(".")[0]) or "host"
@@ -201,18 +206,18 @@ class NodeSettings(BaseSettings):
 
 
 def read_config_file(path: str | Path) -> dict[str, Any]:
-    """Settings from a YAML (``.yaml``/``.yml``) or TOML (``.toml``) file; raise SettingsError."""
+    """Settings from a YAML (``.yaml``/``.yml``) or TOML (``.toml``) file; raise :class:`ConfigFileError`."""
     file = Path(path)
     try:
         data: Any = parse_file(file)
     except OSError as exc:
-        raise SettingsError(f"config file {file}: {exc.strerror or exc}") from None
+        raise ConfigFileError(f"config file {file}: {exc.strerror or exc}") from None
     except ValueError as exc:
-        raise SettingsError(f"config file {file}: {exc}") from None
+        raise ConfigFileError(f"config file {file}: {exc}") from None
     if data is None:
         return {}
     if not isinstance(data, dict):
-        raise SettingsError(f"config file {file}: expected a mapping of setting names to values")
+        raise ConfigFileError(f"config file {file}: expected a mapping of setting names to values")
     return {str(k).replace("-", "_"): v for k, v in data.items()}
 
 

@@ -31,7 +31,6 @@ import inspect
 import json
 import logging
 import math
-import os
 import signal
 import struct
 import sys
@@ -41,7 +40,7 @@ from collections.abc import Awaitable, Callable, Coroutine, Sequence
 from typing import Any, Protocol, cast
 
 from common.clock import OffsetEstimator, RigClock, answer_ping
-from common.config import ENV_PREFIX, NodeSettings, SettingsError, flag_name, load_settings, read_config_file
+from common.config import ENV_PREFIX, ConfigFileError, NodeSettings, SettingsError, flag_name, load_settings
 from common.core import Core, Outgoing
 from common.exit_status import FAILED, USAGE, InputError, report_error
 from common.messages import (
@@ -1067,14 +1066,10 @@ def run_node(
     fields = set(settings_cls.model_fields)
     given = {k: v for k, v in vars(args).items() if k in fields}
     extra = argparse.Namespace(**{k: v for k, v in vars(args).items() if k not in fields and k != "config"})
-    config = getattr(args, "config", None) or os.environ.get(f"{ENV_PREFIX}CONFIG") or None
-    if config is not None:
-        try:  # a file it cannot read (1), told apart from the values it holds, refused below (2)
-            read_config_file(config)
-        except SettingsError as exc:
-            return report_error(parser.prog, exc, FAILED)
     try:
-        settings = load_settings(given, config, {"role": role}, settings_cls)
+        settings = load_settings(given, getattr(args, "config", None), {"role": role}, settings_cls)
+    except ConfigFileError as exc:  # a file it cannot use (1), told apart from the values it holds (2)
+        return report_error(parser.prog, exc, FAILED)
     except SettingsError as exc:
         return report_error(parser.prog, str(exc), USAGE)
     if settings.discovery:
