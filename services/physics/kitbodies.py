@@ -27,7 +27,19 @@ from dataclasses import dataclass, field
 import numpy as np
 import pybullet as p
 
-from common.kit import FOOTBOARD_LENGTH_M, HIHAT_CLOSED_GAP_M, PEDAL_REST_ANGLE_RAD, Kit, KitObject
+from common.kit import (
+    BEATER_BALL_RADIUS_M,
+    BEATER_CONTACT_PRESS,
+    BEATER_HIT_HEIGHT,
+    BEATER_REST_RAD,
+    FOOTBOARD_LENGTH_M,
+    HIHAT_CLOSED_GAP_M,
+    PEDAL_REST_ANGLE_RAD,
+    STAND_ROD_RADIUS_M,
+    Kit,
+    KitObject,
+    stand_rods,
+)
 from services.physics.urdf import Inertial, Joint, Link, Robot, Shape, cylinder_inertia, load_robot
 from services.physics.world import World, quat_from_rpy_deg, rotation_matrix
 
@@ -42,18 +54,6 @@ PEDAL_REST_ANGLE = PEDAL_REST_ANGLE_RAD
 
 PEDAL_SPRING_NM_PER_RAD = 40.0
 """Return spring of a footboard, N m/rad."""
-
-BEATER_REST_RAD = 0.9
-"""A bass-drum beater's angle back from the head at rest (footboard up), radians; geared to the footboard."""
-
-BEATER_CONTACT_PRESS = 0.95
-"""How far the footboard is pressed (0 rest ... 1 flat) when the beater's ball meets the kick's head. Before it met
-the head only with the board flat, which a foot pressing it steadily never reaches (it holds the board at about
-0.986, ``FOOT_PRESS_TABLE``): soft kicks, which follow the board without overshooting the gear, stopped 3 mm short
-of the head and did not sound (341 of 28,247 notes on 76 Groove validation files)."""
-
-BEATER_BALL_RADIUS_M = 0.03
-"""Radius of a bass-drum beater's ball, metres."""
 
 BEATER_AXLE_TO_HEAD_M = 0.12
 """How far in front of the kick's head (toward the drummer) the beater's axle sits, metres."""
@@ -412,7 +412,7 @@ def _pedal_robot(obj: KitObject, kick: KitObject | None, beater_dx: float) -> Ro
         # beater axle in front of the footboard; its head reaches the kick head 0.2 radius above centre
         axle_y = kick.position[1] - obj.position[1] - BEATER_AXLE_TO_HEAD_M
         axle_z = 0.10
-        hit_z = kick.position[2] - obj.position[2] + 0.2 * kick.radius
+        hit_z = kick.position[2] - obj.position[2] + BEATER_HIT_HEIGHT * kick.radius
         # at q = 0 the ball is pressed this far into the head, so it meets the head at BEATER_CONTACT_PRESS (the
         # ball moves rod x q, about along the head's normal)
         depth = (1.0 - BEATER_CONTACT_PRESS) * BEATER_REST_RAD * math.hypot(BEATER_AXLE_TO_HEAD_M, hit_z - axle_z)
@@ -517,18 +517,8 @@ def _throne(world: World, kb: KitBodies, obj: KitObject) -> None:
 
 def _stands(world: World, kb: KitBodies, objects: list[KitObject]) -> None:
     """One static, visual-only body holding a rod under every mounted drum and cymbal."""
-    shapes: list[Shape] = []
-    for obj in objects:
-        if obj.kind in ("pedal", "throne") or obj.id == "kick":
-            continue
-        n = np.asarray(obj.normal())
-        # the stand reaches the underside of the object's centre
-        top = np.asarray(obj.position) - n * (max(obj.depth, 0.01) if obj.kind == "membrane" else 0.02)
-        height = float(top[2])
-        if height <= 0.05:
-            continue
-        shapes.append(Shape("cylinder", (0.012, height, 0.0), xyz=(float(top[0]), float(top[1]), height / 2),
-                            rgba=_SILVER, collision=False))
+    shapes = [Shape("cylinder", (STAND_ROD_RADIUS_M, height, 0.0), xyz=(float(top[0]), float(top[1]), height / 2),
+                    rgba=_SILVER, collision=False) for top, height in stand_rods(objects)]
     if not shapes:
         return
     robot = Robot("stands")

@@ -23,7 +23,16 @@ import numpy as np
 import pygltflib
 from scipy.spatial.transform import Rotation
 
-from common.kit import Kit, KitObject
+from common.kit import (
+    BEATER_BALL_RADIUS_M,
+    BEATER_CONTACT_PRESS,
+    BEATER_HIT_HEIGHT,
+    BEATER_REST_RAD,
+    STAND_ROD_RADIUS_M,
+    Kit,
+    KitObject,
+    stand_rods,
+)
 from services.graphics.sequence import PoseSequence, normalize_quats
 
 FLOAT, USHORT = pygltflib.FLOAT, pygltflib.UNSIGNED_SHORT
@@ -36,16 +45,10 @@ COLOURS = {
 CYMBAL_DRAWN_THICKNESS_M = 0.01
 """A cymbal's or hi-hat plate's drawn thickness, metres (thicker than physics' 2 mm, to be seen)."""
 
-# The beater as physics builds it (services/physics/kitbodies.py, _pedal_robot; mirrored, as services do not
-# import each other: tests/graphics/test_export.py compares them): a rod from the axle along the link's +z to a
-# ball, which meets the kick's head this far up from its centre (fraction of its radius) when the footboard is
-# pressed BEATER_CONTACT_PRESS of its travel, the beater then BEATER_REST_RAD x (1 - that) from its rest angle.
-BEATER_BALL_RADIUS_M = 0.03
-BEATER_REST_RAD = 0.9
-BEATER_CONTACT_PRESS = 0.95
-BEATER_HIT_HEIGHT = 0.2
 BEATER_ROD_RADIUS_M = 0.004
-STAND_ROD_RADIUS_M = 0.012
+"""The drawn beater rod's radius, metres (the beater as physics builds it, from common/kit.py's BEATER_*: a rod from
+the axle along the link's +z to a ball, meeting the kick's head BEATER_HIT_HEIGHT of its radius above its centre
+when the footboard is pressed BEATER_CONTACT_PRESS of its travel)."""
 """Radius of physics' visual-only stand rods (kitbodies.py, _stands), metres."""
 
 
@@ -235,20 +238,6 @@ def beater_length(kick: KitObject, axle: np.ndarray) -> float:
     return math.hypot(to_head - BEATER_BALL_RADIUS_M + press, rise)
 
 
-def stand_rods(kit: Kit) -> list[tuple[np.ndarray, float]]:
-    """(top (3,), height) of each stand rod, world metres, as physics' stands: under each mounted drum and
-    cymbal, up to the underside of its centre."""
-    rods = []
-    for obj in kit.objects:
-        if obj.kind in ("pedal", "throne") or obj.id == "kick":
-            continue
-        n = np.asarray(obj.normal())
-        top = np.asarray(obj.position, dtype=float) - n * (max(obj.depth, 0.01) if obj.kind == "membrane" else 0.02)
-        if top[2] > 0.05:
-            rods.append((top, float(top[2])))
-    return rods
-
-
 class _KitParts:
     """The meshes of the kit links no kit object draws: a beater's rod and ball, the stands' rods."""
 
@@ -273,7 +262,7 @@ class _KitParts:
         frame = Rotation.from_quat(normalize_quats(first[3:]))
         if link == "kit.stands":
             return [self._rod(f"kit_stand_{k}", STAND_ROD_RADIUS_M, frame.inv().apply(top - first[:3]), height,
-                              frame.inv()) for k, (top, height) in enumerate(stand_rods(self.kit))]
+                              frame.inv()) for k, (top, height) in enumerate(stand_rods(self.kit.objects))]
         if link.endswith(".beater") and "kick" in {obj.id for obj in self.kit.objects}:
             length = beater_length(self.kit.object("kick"), first[:3])
             name = link[len("kit."):].replace(".", "_")
