@@ -38,9 +38,10 @@ class Core(Protocol):
     rate_hz: float
     """How often :meth:`step` wants to be called, Hz (0: only on messages)."""
 
-    # Optional, read by the node's Health when a core has them: ``late`` (service-specific late events, total)
-    # and ``rejected_total`` (valid messages the core refused, e.g. an unreachable target, total; reported in
-    # Health's ``dropped`` and ``dropped_other``).
+    # Optional, read by the node's Health when a core has them: ``late`` (service-specific late events, total),
+    # ``rejected_total`` (valid messages the core refused, e.g. an unreachable target, total; reported in
+    # Health's ``dropped`` and ``dropped_other``) and ``replies_unanswered`` (refusals the core did not send
+    # because their sender was over its reply budget, total; Health's ``replies_unanswered``).
 
     def handle(self, message: OscMessage, now: float, source: str) -> list[Outgoing]:
         """React to one received message. ``now``: rig time, seconds; ``source``: sender."""

@@ -840,6 +840,8 @@ class Node:
             dropped_other=other,
             late=core_count(self.core, "late"),
             peers=len(self.peers),
+            decode_unanswered=self.endpoint.decode_unanswered,
+            replies_unanswered=core_count(self.core, "replies_unanswered"),
         )
 
     async def _health_task(self) -> None:

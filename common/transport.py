@@ -204,7 +204,8 @@ class UdpEndpoint:
         resolved or reached from this socket's address family.
     decode_unanswered : int
         Undecodable control messages not answered: their sender host was over
-        its reply budget (:data:`DECODE_REPLY_RATE_HZ`).
+        its reply budget (:data:`DECODE_REPLY_RATE_HZ`). A node reports it in
+        its Health.
     role : str or None
         The node's role: only controls its role owns are answered when
         undecodable (None: any service's, for an endpoint that is no node).

@@ -55,6 +55,13 @@ class Health(OscMessage):
                                    "refused by the service (e.g. an unreachable target)")
     late: Count = Field(description="service-specific late events (e.g. late strikes), total")
     peers: Count = Field(description="peers currently known")
+    # appended (readers taking arguments by position, such as Pd patches, find the ones above unmoved)
+    decode_unanswered: Count = Field(default=0, description="undecodable controls of this node's service not "
+                                     "answered with a refusal: their sender host was over its reply budget "
+                                     "(counted in dropped too), total")
+    replies_unanswered: Count = Field(default=0, description="refusals the service did not send: their "
+                                      "sender host was over its reply budget (physics: refused controls, live "
+                                      "score notes too late or of no drum; 0 for the others), total")
 
 
 @register

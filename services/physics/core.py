@@ -190,7 +190,7 @@ class PhysicsCore:
         self._reply_budgets = TokenBuckets(REPLY_RATE_HZ, REPLY_BURST, REPLY_SENDERS)
         """Sender host -> its reply budget."""
         self.replies_unanswered = 0
-        """Refusals not answered: their sender was over its reply budget."""
+        """Refusals not answered: their sender was over its reply budget (the node's Health reports it)."""
         self.diverged = 0
         """Steps whose simulation diverged (non-finite state); each reset the scene (see :meth:`_one_step`)."""
         self.contacts_sent = 0
