@@ -5,6 +5,7 @@ Ctrl-C. Nodes are fakes on loopback (no discovery); zeroconf runs only inside ne
 from __future__ import annotations
 
 import asyncio
+import json
 import logging
 import os
 import signal
@@ -31,7 +32,8 @@ REPO = Path(__file__).resolve().parents[1]
 def health(node_id: str = "fake-1", rate_hz: float = 250.0) -> Health:
     return Health(node_id=node_id, role="sound", protocol=1, time=1.5, rate_hz=rate_hz, target_rate_hz=250.0,
                   overruns=0, messages_in=1, messages_out=1, dropped=0, dropped_malformed=0, dropped_unknown=0,
-                  dropped_type=0, dropped_range=0, dropped_other=0, late=0, peers=0)
+                  dropped_type=0, dropped_range=0, dropped_other=0, late=0, peers=0, decode_unanswered=7,
+                  replies_unanswered=5)
 
 
 class FakeNode:
@@ -192,6 +194,14 @@ def test_ls_never_credits_one_node_with_another_nodes_answer(capsys: pytest.Capt
         assert "fake-1" in rows[1] and " ok " in rows[1]  # the garbage and the huge datagram before it were dropped
     finally:
         live.close()
+
+
+def test_ls_json_reports_the_refusals_a_node_left_unanswered(fake_node: FakeNode,
+                                                             capsys: pytest.CaptureFixture[str]) -> None:
+    """A flood of bad packets shows in ``batteur ls --json`` (the Health counts past the reply budget)."""
+    assert ls.main(["--node", f"127.0.0.1:{fake_node.port}", "--timeout", "3", "--json"]) == 0
+    row = json.loads(capsys.readouterr().out)[0]
+    assert (row["status"], row["decode_unanswered"], row["replies_unanswered"]) == ("ok", 7, 5)
 
 
 def test_ls_and_echo_reach_an_ipv6_node(capsys: pytest.CaptureFixture[str]) -> None:

@@ -83,7 +83,8 @@ def _row(target: Target, health: Health | None) -> dict[str, object]:
         role=health.role, node_id=health.node_id, status="ok", protocol=health.protocol,
         rate_hz=round(health.rate_hz, 1), target_rate_hz=health.target_rate_hz, overruns=health.overruns,
         messages_in=health.messages_in, messages_out=health.messages_out, dropped=health.dropped,
-        late=health.late, peers=health.peers,
+        late=health.late, peers=health.peers, decode_unanswered=health.decode_unanswered,
+        replies_unanswered=health.replies_unanswered,
     )
     return row
 
