@@ -20,7 +20,8 @@ from typing import Annotated, Literal
 
 import numpy as np
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic_core import PydanticCustomError
 
 from common.datafile import first_error, parse_file
 from common.output_paths import write_atomically
@@ -141,6 +142,33 @@ float rounding of mirroring twice (< 2e-15 rad for angles within a few turns), s
 ``pi - theta`` of such a value misses every such value (pi's digits past the 12th decimal)."""
 
 
+HIT_ANGLE_MIN_RAD = -math.pi
+"""Least hit-point angle a kit holds (radians): with :data:`HIT_ANGLE_MAX_RAD`, the range ``pi - theta`` maps onto
+itself (-pi <-> 2pi exactly in floats), holding an angle written -pi..pi or 0..2pi (mirroring turns one into the
+other), within which every angle written with up to 12 decimals mirrors back exactly (:func:`mirrored_angle`)."""
+HIT_ANGLE_MAX_RAD = 2 * math.pi
+"""Greatest hit-point angle a kit holds (radians); see :data:`HIT_ANGLE_MIN_RAD`."""
+
+
+def _within_hit_angles(theta: float) -> float:
+    """``theta`` (radians) if a kit may hold it as a hit-point angle, else a validation error saying the range."""
+    if not HIT_ANGLE_MIN_RAD <= theta <= HIT_ANGLE_MAX_RAD:  # NaN too
+        raise PydanticCustomError(
+            "hit_angle_range",
+            "must be within -pi..2pi rad (-3.141593..6.283185: angles written -pi..pi or 0..2pi fit, and "
+            "mirroring the kit keeps them within), got {theta}", {"theta": theta})
+    return theta
+
+
+HitAngle = Annotated[float, AfterValidator(_within_hit_angles)]
+"""A hit-point angle in an object's frame, radians, -pi..2pi."""
+
+
+def _zero_signless(value: float) -> float:
+    """``value`` with a zero written 0.0, never -0.0 (negating or rounding a zero gives -0.0)."""
+    return value + 0.0  # -0.0 + 0.0 is 0.0; any other value is unchanged
+
+
 def mirrored_angle(theta: float) -> float:
     """A hit-point angle mirrored in the object's x (radians): ``pi - theta``, an involution on the angles kit
     files hold.
@@ -149,11 +177,12 @@ def mirrored_angle(theta: float) -> float:
     :data:`ANGLE_NOISE_RAD` of a value with :data:`ANGLE_DECIMALS` decimals is that value. An angle written with
     up to 12 decimals mirrors to the float nearest ``pi - theta`` (as ``pi - theta`` always did), and that mirrors
     back to the written angle exactly. (No rule gives every float back: there are more floats near 0 than near pi.)
-    The page's kit editor mirrors with the same rule (services/graphics/web/src/app.js ``mirroredAngle``).
+    The page's kit editor mirrors with the same rule (services/graphics/web/src/app.js ``mirroredAngle``). A zero
+    is 0.0 (the page's JSON has no -0 either).
     """
     exact = math.pi - theta
     written = round(exact, ANGLE_DECIMALS)
-    return written if abs(written - exact) <= ANGLE_NOISE_RAD else exact
+    return _zero_signless(written) if abs(written - exact) <= ANGLE_NOISE_RAD else exact
 
 
 class _Strict(BaseModel):
@@ -222,7 +251,7 @@ class EventSpec(_Strict):
 
     object: str = Field(description="id of the kit object struck")
     r: Annotated[float, Field(ge=0, le=1.2)] = Field(description="hit point radius, r/a")
-    theta: float = Field(default=0.0, description="hit point angle in the object frame, radians")
+    theta: HitAngle = Field(default=0.0, description="hit point angle in the object frame, radians, -pi..2pi")
     zone: str = Field(default="centre", description="zone name: centre, edge, rim, bell, bow, ...")
     preferred: Limb = Field(description="limb that plays it by default")
     min_time_gap: float = Field(gt=0, le=2, description="shortest interval one limb can repeat it, seconds")
@@ -237,7 +266,7 @@ class EventSpec(_Strict):
         description="stick events: shortest interval of a rebound double (the second note a bounce played with the "
         "fingers), seconds; None: the kit's rebound_min_time_gap",
     )
-    off_hand: tuple[Annotated[float, Field(ge=0, le=1.2)], float] | None = Field(
+    off_hand: tuple[Annotated[float, Field(ge=0, le=1.2)], HitAngle] | None = Field(
         default=None,
         description="stick events: the hit point (r/a, theta radians) when the other hand than ``preferred`` plays "
         "it, where that hand's stick reaches the surface tip first; None: the same point for both hands",
@@ -393,7 +422,8 @@ class Kit(_Strict):
 
     def mirrored(self) -> Kit:
         """The left-handed setup: x mirrored, hands and feet swapped; mirroring it again gives this kit back (the
-        name's ``-mirrored`` suffix toggles as ``handedness`` does, hit-point angles by :func:`mirrored_angle`)."""
+        name's ``-mirrored`` suffix toggles as ``handedness`` does, hit-point angles by :func:`mirrored_angle`).
+        A zero it negates is 0.0, not -0.0 (a kit file shows no ``-0.0``)."""
         swap = {
             Limb.LEFT_HAND: Limb.RIGHT_HAND,
             Limb.RIGHT_HAND: Limb.LEFT_HAND,
@@ -403,8 +433,9 @@ class Kit(_Strict):
         objects = [
             o.model_copy(
                 update={
-                    "position": (-o.position[0], o.position[1], o.position[2]),
-                    "rotation_deg": (o.rotation_deg[0], -o.rotation_deg[1], -o.rotation_deg[2]),
+                    "position": (_zero_signless(-o.position[0]), o.position[1], o.position[2]),
+                    "rotation_deg": (o.rotation_deg[0], _zero_signless(-o.rotation_deg[1]),
+                                     _zero_signless(-o.rotation_deg[2])),
                 }
             )
             for o in self.objects
@@ -415,7 +446,7 @@ class Kit(_Strict):
                                                                                  mirrored_angle(s.off_hand[1]))})
             for e, s in self.events.items()
         }
-        pairs = {k: -v for k, v in self.pair_preference.items()}
+        pairs = {k: _zero_signless(-v) for k, v in self.pair_preference.items()}
         return Kit(
             name=self.name.removesuffix(MIRRORED_SUFFIX) if self.name.endswith(MIRRORED_SUFFIX)
             else self.name + MIRRORED_SUFFIX,
