@@ -60,7 +60,7 @@ from common.messages.physics import ControlModeName
 from common.output_paths import check_output_dir
 from common.score.events import Score, ScoreError
 from common.score.hands import HandAlgorithm
-from common.score.limbs import STATURE_M, Assignment
+from common.score.limbs import STATURE_M, Assignment, LimbLengths
 
 if TYPE_CHECKING:
     from batteur.calibration import Calibration
@@ -246,7 +246,8 @@ def prepare(path: Path | str, kit: Kit, opts: RenderOptions, calibration: Calibr
     With a ``calibration`` the notes are shifted (lag anticipation) and their
     velocities remapped before planning; the returned ``score`` keeps the
     written times (what the performance is judged against). The grip and nuance are ``opts.styled(score)``'s (a
-    text score's directives unless ``opts`` names them), the reach that of a drummer ``opts.height_m`` tall.
+    text score's directives unless ``opts`` names them), the reach that of a drummer ``opts.height_m`` tall (with
+    ``opts.skeleton_bvh``, its arms and legs: :func:`skeleton_limbs`).
     ``progress``: called with (stage, done, total)
     while a MIDI file is read (stage ``"reading"``, in bytes: ``read_midi``'s progress), its notes are given
     limbs (``"limbs"``, in notes: ``distribute``'s) and planned (``"gestures"``, ``plan_gestures``'); what it
@@ -264,7 +265,7 @@ def prepare(path: Path | str, kit: Kit, opts: RenderOptions, calibration: Calibr
         raise ScoreError(f"{path}: no drum events to play" + (f" ({why})" if why else ""))
     assignment = distribute(score, kit, opts.algorithm,
                             progress=None if progress is None else functools.partial(progress, "limbs"),
-                            height_m=opts.height_m)
+                            height_m=opts.height_m, lengths=skeleton_limbs(opts))
     planned = assignment if calibration is None else calibration.apply(assignment, kit)
     style = opts.styled(score)
     grip = planned_grip(style.grip or DEFAULT_GRIP)  # american, traditional: no units, planned german
@@ -884,6 +885,20 @@ def _check_motion_capture(opts: RenderOptions) -> None:
             anthropometry(lengths_m=lengths)
         except ValueError as exc:
             raise ValueError(f"--skeleton-bvh {opts.skeleton_bvh}: {exc}") from None
+
+
+def skeleton_limbs(opts: RenderOptions) -> LimbLengths | None:
+    """The arm (upper arm + forearm + hand) and leg (thigh + shank) of the body physics builds from
+    ``opts.skeleton_bvh``, metres, for the planner's reach (None without one: the height's). The segments the file
+    lacks are de Leva's for ``opts.height_m``, as physics takes them (``anthropometry(lengths_m=...)``)."""
+    if opts.skeleton_bvh is None:
+        return None
+    from services.physics.anthropometry import anthropometry
+    from services.physics.bvh_motion import bvh_segment_lengths
+
+    segments = anthropometry(opts.height_m, opts.mass_kg, lengths_m=bvh_segment_lengths(opts.skeleton_bvh)).segments
+    arm = sum(segments[name].length_m for name in ("upper_arm", "forearm", "hand"))
+    return LimbLengths(arm_m=arm, leg_m=segments["thigh"].length_m + segments["shank"].length_m)
 
 
 def check_video(opts: RenderOptions) -> None:

@@ -16,8 +16,9 @@ assignment; the third one proposed there and built here):
   as possible. The cost of playing an event with a hand adds a rebound double,
   the speed of full strokes, crossing the arms (pair preference violated, or the
   left stick right of the right stick when the kit says nothing), travel speed
-  between hit points, and leaving the preferred hand. A beam keeps the best
-  states at each step.
+  between hit points, leaving the preferred hand, and a hand beyond whose reach
+  the note is when the other hand reaches it (``HandNote.out_of_reach``). A beam
+  keeps the best states at each step.
 
 Groups of two simultaneous stick events always use both hands; which one goes
 where follows the pair preference (or the geometry).
@@ -74,6 +75,9 @@ class HandNote:
     pitch: int | None = None
     forced: Limb | None = None
     velocity: float = 0.7
+    out_of_reach: Limb | None = None
+    """The hand whose reach the hit point is beyond while the other hand reaches it (None: both or neither reach
+    it): ``viterbi`` gives it to that hand only at a cost (``Costs.out_of_reach``)."""
 
 
 @dataclass(frozen=True)
@@ -88,6 +92,10 @@ class Costs:
     crossing_decay: float = 0.4  # seconds
     travel: float = 0.12  # per m/s of hit-point travel speed
     not_preferred: float = 1.0
+    # a hand beyond whose reach the note is, when the other reaches it: far above the rest, so the other hand plays
+    # it whenever it can in time; below a drop, so a note only that hand is free for still goes to it and the
+    # feasibility check flags it unreachable (not "too fast", which it is not)
+    out_of_reach: float = 100.0
     beam: int = 16
 
 
@@ -315,6 +323,7 @@ def _viterbi(notes: list[HandNote], groups: list[list[int]], t: _Table, kit: Kit
     gaps = t.gap.tolist()
     pos = t.pos.tolist()
     strokes = [Stroke(n.time, n.event, n.pitch, n.velocity) for n in notes]
+    far = [n.out_of_reach for n in notes]
     interval_cache: dict[tuple[int, bool, int], Interval] = {}
 
     def interval(prev: int, prev_rebound: bool, i: int) -> Interval:
@@ -329,6 +338,8 @@ def _viterbi(notes: list[HandNote], groups: list[list[int]], t: _Table, kit: Kit
         prev, other = (state[0], state[1]) if h == L else (state[1], state[0])
         prev_rebound = state[2] if h == L else state[3]
         cost = c.not_preferred if h != t.preferred[i] else 0.0
+        if far[i] == h:
+            cost += c.out_of_reach
         bounce = False
         if prev >= 0:
             dt = times[i] - times[prev]

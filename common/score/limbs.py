@@ -65,12 +65,27 @@ ARM_M = 0.640
 """Of :data:`REACH`, the arm of a 1.75 m drummer: upper arm + forearm + hand, 0.282 + 0.270 + 0.087 m (de Leva's
 table scaled, services/physics/anthropometry.py). It scales with the height; the stick and the lean of the trunk
 (the other 0.51 m) do not, as in physics' own reach (services/physics/drummer.py ``_reach``)."""
+LEG_M = 0.860
+"""Of :data:`FOOT_REACH`, the thigh and shank of a 1.75 m drummer, 0.424 + 0.436 m (the rest, to the ball of the
+foot, scales with the height)."""
 PROGRESS_SHARES = (0.08, 0.86)
 """Shares of :func:`distribute`'s progress for its limb rules and its hand assignment (the feasibility check has
 the rest): their shares of its time on a 200,000-note Groove score (8 %, 86 %, 6 %)."""
 
 ProgressCallback = Callable[[int, int], None]
 """Told (notes done, notes total) while a long score is worked on."""
+
+
+@dataclass(frozen=True)
+class LimbLengths:
+    """A drummer's arm and leg (metres) where they are not de Leva's table scaled to its height: a skeleton's
+    (``batteur render --skeleton-bvh``: physics builds the body from its segments). The planner's reach follows
+    them (:func:`hand_reach`, :func:`foot_reach`); the shoulders and hips stay where the height puts them."""
+
+    arm_m: float
+    """Upper arm + forearm + hand."""
+    leg_m: float
+    """Thigh + shank."""
 
 
 @dataclass(frozen=True)
@@ -130,6 +145,7 @@ def distribute(
     window: float = SIMULTANEITY,
     progress: ProgressCallback | None = None,
     height_m: float = STATURE_M,
+    lengths: LimbLengths | None = None,
 ) -> Assignment:
     """Distribute a score's events over the limbs and check feasibility.
 
@@ -153,14 +169,18 @@ def distribute(
         at once when they end), the feasibility check over the rest. Whatever it raises (``KeyboardInterrupt``)
         stops the distribution. The assignment is the same with or without it.
     height_m : float
-        The drummer's height, metres: its reach for the ``unreachable`` check (:func:`check_feasibility`).
+        The drummer's height, metres: its reach for the ``unreachable`` check (:func:`check_feasibility`) and the
+        hand assignment (a hand is given a note beyond its reach only when the other hand cannot play it).
+    lengths : LimbLengths | None
+        The drummer's arm and leg when they are not the height's (a skeleton's), metres; None: the height's.
     """
     with cyclic_gc_paused():  # many small objects, no cycles: collections only walked them (common/gcpause.py)
-        return _distribute(score, kit, algorithm, sticking, window, progress, height_m)
+        return _distribute(score, kit, algorithm, sticking, window, progress, height_m, lengths)
 
 
 def _distribute(score: Score, kit: Kit, algorithm: HandAlgorithm | str, sticking: Sticking | str, window: float,
-                progress: ProgressCallback | None, height_m: float = STATURE_M) -> Assignment:
+                progress: ProgressCallback | None, height_m: float = STATURE_M,
+                lengths: LimbLengths | None = None) -> Assignment:
     """:func:`distribute`'s work."""
     algorithm = HandAlgorithm(algorithm)
     report = _Shares(progress, len(score.events))
@@ -198,6 +218,7 @@ def _distribute(score: Score, kit: Kit, algorithm: HandAlgorithm | str, sticking
         e = score.events[idx]
         issues.append(FeasibilityIssue(idx, e.time, e.event, reason, action, detail))
 
+    out_of_reach = _OutOfReach(kit, height_m, lengths)
     rules, hands_share = PROGRESS_SHARES
     next_report = PROGRESS_EVERY
     for g in _groups([e.time for e in events], window):
@@ -273,7 +294,8 @@ def _distribute(score: Score, kit: Kit, algorithm: HandAlgorithm | str, sticking
                 last_foot[hihat_foot] = e.time
             else:
                 forced = e.limb if e.limb in HANDS else None
-                hand_notes.append(HandNote(len(hand_notes), e.time, e.event, e.pitch, forced, e.velocity))
+                hand_notes.append(HandNote(len(hand_notes), e.time, e.event, e.pitch, forced, e.velocity,
+                                           out_of_reach(e.event, e.pitch)))
                 hand_meta.append((i, e.velocity, e.pitch, e.nuance, e.event))
     report.at(rules)
     hands = assign_hands(hand_notes, kit, algorithm, sticking, window, progress=None if progress is None else
@@ -291,9 +313,28 @@ def _distribute(score: Score, kit: Kit, algorithm: HandAlgorithm | str, sticking
     assignment = Assignment(notes=notes, issues=issues, algorithm=algorithm, kit_name=kit.name)
     checked_from = rules + hands_share
     check_feasibility(assignment, kit, window, None if progress is None else
-                      lambda k, n: report.at(checked_from + (1.0 - checked_from) * k / max(n, 1)), height_m)
+                      lambda k, n: report.at(checked_from + (1.0 - checked_from) * k / max(n, 1)), height_m, lengths)
     report.at(1.0)
     return assignment
+
+
+class _OutOfReach:
+    """The hand beyond whose reach a stick event's hit point is while the other hand reaches it (None: both or
+    neither reach it), for a drummer ``height_m`` tall (metres) on ``kit``'s throne: the hand assignment gives the
+    note to the other hand when it can (:class:`common.score.hands.HandNote`)."""
+
+    def __init__(self, kit: Kit, height_m: float, lengths: LimbLengths | None = None) -> None:
+        self.kit = kit
+        self.shoulders = shoulders(kit, height_m)
+        self.reach = hand_reach(height_m, lengths)
+        self.known: dict[tuple[EventType, int | None], Limb | None] = {}
+
+    def __call__(self, event: EventType, pitch: int | None) -> Limb | None:
+        if (event, pitch) not in self.known:
+            point = self.kit.hit_point(event, pitch)[0]
+            beyond = [h for h in (Limb.LEFT_HAND, Limb.RIGHT_HAND) if math.dist(point, self.shoulders[h]) > self.reach]
+            self.known[(event, pitch)] = beyond[0] if len(beyond) == 1 else None
+        return self.known[(event, pitch)]
 
 
 class _Shares:
@@ -375,17 +416,21 @@ def hips(kit: Kit, height_m: float = STATURE_M) -> dict[Limb, Vec3]:
     return _from_seat(_scaled(HIPS, height_m), kit)
 
 
-def hand_reach(height_m: float = STATURE_M) -> float:
+def hand_reach(height_m: float = STATURE_M, lengths: LimbLengths | None = None) -> float:
     """Shoulder-to-stick-tip reach (metres) of a drummer ``height_m`` tall: :data:`REACH`, its arm
-    (:data:`ARM_M`) scaled with the height."""
+    (:data:`ARM_M`) scaled with the height, or ``lengths.arm_m`` when given (the stick and the lean stay)."""
+    if lengths is not None:
+        return REACH - ARM_M + lengths.arm_m
     if height_m == STATURE_M:  # exactly REACH: plans of the default drummer do not change
         return REACH
     return REACH + ARM_M * (height_m / STATURE_M - 1.0)
 
 
-def foot_reach(height_m: float = STATURE_M) -> float:
+def foot_reach(height_m: float = STATURE_M, lengths: LimbLengths | None = None) -> float:
     """Hip-to-ball-of-the-foot reach (metres) of a drummer ``height_m`` tall: :data:`FOOT_REACH` scaled (every
-    part of it is a body segment)."""
+    part of it is a body segment), its thigh and shank (:data:`LEG_M`) ``lengths.leg_m`` when given."""
+    if lengths is not None:
+        return (FOOT_REACH - LEG_M) * height_m / STATURE_M + lengths.leg_m
     if height_m == STATURE_M:
         return FOOT_REACH
     return FOOT_REACH * height_m / STATURE_M
@@ -412,7 +457,8 @@ def _from_seat(at_default: dict[Limb, Vec3], kit: Kit) -> dict[Limb, Vec3]:
 
 
 def check_feasibility(assignment: Assignment, kit: Kit, window: float = SIMULTANEITY,
-                      progress: ProgressCallback | None = None, height_m: float = STATURE_M) -> None:
+                      progress: ProgressCallback | None = None, height_m: float = STATURE_M,
+                      lengths: LimbLengths | None = None) -> None:
     """Flag notes beyond human limits; drop strokes a limb cannot repeat at all; mark rebound doubles.
 
     Adds to ``assignment.issues``: ``too_fast`` (same limb closer than the
@@ -421,17 +467,26 @@ def check_feasibility(assignment: Assignment, kit: Kit, window: float = SIMULTAN
     crossed for simultaneous stick events) and ``unreachable`` (hit point beyond
     :data:`REACH` of the hand's shoulder, or pedal beyond :data:`FOOT_REACH` of the foot's hip, both where the kit's
     throne seats the drummer: :func:`shoulders`, :func:`hips`; for a drummer ``height_m`` tall (metres) the points
-    and reaches scale: :func:`hand_reach`, :func:`foot_reach`). A hand's note that is the bounce of a rebound double
-    gets ``Note.rebound = True`` and no issue. ``progress``: called with (notes checked, notes total) every
-    ``PROGRESS_EVERY`` notes (not at the end); what it raises stops the check.
+    and reaches scale: :func:`hand_reach`, :func:`foot_reach`; ``lengths``: a skeleton's arm and leg). A hand's
+    note beyond its hand's reach goes to the other hand when that one reaches it and is free then (:func:`_busy`;
+    ``moved_to_other_hand``), else it is dropped: its hand does not travel to it and plays its other notes as if
+    it were not written (a hand held at the edge of its reach spoiled them). A pedal beyond reach is played
+    anyway. A hand's note that is the bounce of a rebound double gets ``Note.rebound = True`` and no issue.
+    ``progress``: called with (notes checked, notes total) every ``PROGRESS_EVERY`` notes (not at the end); what
+    it raises stops the check. Run again on its own result it changes nothing and adds no issue twice.
     """
     kept: list[Note] = []
     last: dict[Limb, Note] = {}
     points: dict[tuple[EventType, int | None], tuple[float, float, float]] = {}
     shoulder_at = shoulders(kit, height_m)
     hip_at = hips(kit, height_m)
-    arm_reach, leg_reach = hand_reach(height_m), foot_reach(height_m)
+    arm_reach, leg_reach = hand_reach(height_m, lengths), foot_reach(height_m, lengths)
     foot_distances: dict[tuple[EventType, Limb], float] = {}
+    known = set(assignment.issues)  # issues of an earlier check of these notes: not added twice
+
+    def add(issue: FeasibilityIssue) -> None:
+        if issue not in known:
+            assignment.issues.append(issue)
 
     def from_hip(event: EventType, foot: Limb) -> float:
         """Metres from the foot's hip to where it presses the pedal (the planner's target)."""
@@ -444,10 +499,37 @@ def check_feasibility(assignment: Assignment, kit: Kit, window: float = SIMULTAN
             points[(event, pitch)] = kit.hit_point(event, pitch)[0]
         return points[(event, pitch)]
 
+    def from_shoulder(n: Note, hand: Limb) -> float:
+        """Metres from ``hand``'s shoulder to the note's hit point."""
+        return float(np.linalg.norm(np.array(point(n.event, n.pitch)) - np.array(shoulder_at[hand])))
+
+    later = _Later(assignment.notes)
+
+    def other_hand_for(k: int, n: Note) -> tuple[Limb | None, str]:
+        """The other hand when it reaches note ``k``, ``n``, beyond its own hand's reach, and is free then (None:
+        it is not), and what the issue says."""
+        other = _other_hand(n.limb)
+        where = (f"{from_shoulder(n, n.limb):.2f} m from the {n.limb.value.removesuffix('_hand')} shoulder, "
+                 f"{from_shoulder(n, other):.2f} m from the {other.value.removesuffix('_hand')} (reach "
+                 f"{arm_reach:.2f} m)")
+        if from_shoulder(n, other) > arm_reach:
+            return None, where
+        busy = _busy(kit, n, other, last.get(other), later.after(k, other), window)
+        return (None if busy else other), f"{where}; the {other.value.replace('_', ' ')} {busy or 'plays it'}"
+
     total = len(assignment.notes)
+    moved = False
     for k, n in enumerate(assignment.notes):
         if progress is not None and k % PROGRESS_EVERY == 0:
             progress(k, total)
+        if n.limb in HANDS and from_shoulder(n, n.limb) > arm_reach:
+            taker, why = other_hand_for(k, n)
+            action = IssueAction.DROPPED if taker is None else IssueAction.MOVED_TO_OTHER_HAND
+            add(FeasibilityIssue(n.index, n.time, n.event, IssueReason.UNREACHABLE, action, why))
+            if taker is None:  # no knots of its own: its hand goes on between its other notes
+                continue
+            n = replace(n, limb=taker)
+            moved = True
         prev = last.get(n.limb)
         if n.limb in HANDS:
             kind = Interval.FIRST
@@ -460,15 +542,14 @@ def check_feasibility(assignment: Assignment, kit: Kit, window: float = SIMULTAN
                 detail = f"{n.limb.value} " + why_too_fast(kit, _stroke(prev), prev.rebound, _stroke(n))
                 dt = n.time - prev.time
                 action = IssueAction.DROPPED if dt < HARD_MIN_INTERVAL else IssueAction.PLAYED_ANYWAY
-                assignment.issues.append(FeasibilityIssue(n.index, n.time, n.event, IssueReason.TOO_FAST, action,
-                                                          detail))
+                add(FeasibilityIssue(n.index, n.time, n.event, IssueReason.TOO_FAST, action, detail))
                 if action == IssueAction.DROPPED:
                     continue
         elif prev is not None:
             dt = n.time - prev.time
             gap = kit.spec(n.event).min_time_gap
             if dt < HARD_MIN_INTERVAL:
-                assignment.issues.append(
+                add(
                     FeasibilityIssue(
                         n.index,
                         n.time,
@@ -480,7 +561,7 @@ def check_feasibility(assignment: Assignment, kit: Kit, window: float = SIMULTAN
                 )
                 continue
             if dt < gap:
-                assignment.issues.append(
+                add(
                     FeasibilityIssue(
                         n.index,
                         n.time,
@@ -491,29 +572,16 @@ def check_feasibility(assignment: Assignment, kit: Kit, window: float = SIMULTAN
                     )
                 )
         if n.limb in FEET and from_hip(n.event, n.limb) > leg_reach:
-            assignment.issues.append(FeasibilityIssue(n.index, n.time, n.event, IssueReason.UNREACHABLE,
-                                                      IssueAction.PLAYED_ANYWAY,
-                                                      f"{from_hip(n.event, n.limb):.2f} m from the hip"))
+            add(FeasibilityIssue(n.index, n.time, n.event, IssueReason.UNREACHABLE, IssueAction.PLAYED_ANYWAY,
+                                 f"{from_hip(n.event, n.limb):.2f} m from the hip"))
         if n.limb in HANDS:
-            dist = float(np.linalg.norm(np.array(point(n.event, n.pitch)) - np.array(shoulder_at[n.limb])))
-            if dist > arm_reach:
-                assignment.issues.append(
-                    FeasibilityIssue(
-                        n.index,
-                        n.time,
-                        n.event,
-                        IssueReason.UNREACHABLE,
-                        IssueAction.PLAYED_ANYWAY,
-                        f"{dist:.2f} m from the shoulder",
-                    )
-                )
             other = last.get(Limb.LEFT_HAND if n.limb == Limb.RIGHT_HAND else Limb.RIGHT_HAND)
             if other is not None and n.time - other.time <= window:
                 left, right = (n, other) if n.limb == Limb.LEFT_HAND else (other, n)
                 xl = point(left.event, left.pitch)[0]
                 xr = point(right.event, right.pitch)[0]
                 if crossed(kit, left.event, right.event, xl, xr):
-                    assignment.issues.append(
+                    add(
                         FeasibilityIssue(
                             n.index,
                             n.time,
@@ -525,12 +593,59 @@ def check_feasibility(assignment: Assignment, kit: Kit, window: float = SIMULTAN
                     )
         last[n.limb] = n
         kept.append(n)
+    if moved:  # in distribute's order again (time, then limb), which a second check walks in
+        kept.sort(key=lambda n: (n.time, n.limb.value))
     assignment.notes = kept
     assignment.issues.sort(key=lambda i: (i.time, i.note_index))
 
 
 def _stroke(n: Note) -> Stroke:
     return Stroke(n.time, n.event, n.pitch, n.velocity)
+
+
+def _other_hand(hand: Limb) -> Limb:
+    return Limb.LEFT_HAND if hand == Limb.RIGHT_HAND else Limb.RIGHT_HAND
+
+
+class _Later:
+    """Each hand's next note after a position of a time-ordered note list, by the hands the list came with (a later
+    note the check then drops or moves is seen where it was: the hand may be judged busy when it would not be). The
+    index is built on the first question: only a note beyond its hand's reach asks."""
+
+    def __init__(self, notes: list[Note]) -> None:
+        self.notes = notes
+        self.at: dict[Limb, list[int]] | None = None
+
+    def after(self, k: int, hand: Limb) -> Note | None:
+        if self.at is None:
+            self.at = {h: [] for h in HANDS}
+            for j, n in enumerate(self.notes):
+                if n.limb in HANDS:
+                    self.at[n.limb].append(j)
+        where = self.at[hand]
+        i = bisect.bisect_right(where, k)
+        return self.notes[where[i]] if i < len(where) else None
+
+
+def _busy(kit: Kit, n: Note, hand: Limb, before: Note | None, after: Note | None, window: float) -> str:
+    """Why ``hand`` cannot take ``n`` from its own hand ("" when it is free): a note of its own within ``window``
+    seconds (two strokes at once), or an interval to its note ``before`` or ``after`` that
+    :func:`common.score.rebound.classify` calls too fast (the rules the hand assignment keeps)."""
+    bounce = False
+    if before is not None:
+        if n.time - before.time <= window:
+            return f"plays {before.event.value} at the same time"
+        kind = classify(kit, _stroke(before), before.rebound, _stroke(n))
+        if kind == Interval.TOO_FAST:
+            return "is busy: " + why_too_fast(kit, _stroke(before), before.rebound, _stroke(n))
+        bounce = kind == Interval.REBOUND
+    if after is not None:
+        if after.time - n.time <= window:
+            return f"plays {after.event.value} at the same time"
+        if classify(kit, _stroke(n), bounce, _stroke(after)) == Interval.TOO_FAST:
+            return (f"is busy: its {after.event.value} at {after.time:.3f} s would be "
+                    + why_too_fast(kit, _stroke(n), bounce, _stroke(after)))
+    return ""
 
 
 STRUCK_KINDS = frozenset({"membrane", "cymbal", "hihat", "bell"})

@@ -59,17 +59,15 @@ def test_a_plan_beyond_a_small_drummers_reach_plays_with_the_far_note_missed(tmp
         assert core.handle(ScoreTransport(action="play", time=1.0, position=0.0), 0.0, SENDER) == []
         assert core.rejected_total == 0 and player.state == "playing"  # was: physics refused the whole plan
         assert player.last_plan is not None and _unreachable(player.last_plan) == [EventType.CHINA]
-        pulled = player.status()["pulled_into_reach"]
-        assert isinstance(pulled, dict) and set(pulled) == {"right_hand"} and pulled["right_hand"] > 0
-        assert sum(1 for s in player.last_plan.strokes if s.event == EventType.SNARE) == 4  # the rest plays
+        assert player.status()["pulled_into_reach"] == {}  # the planner no longer sends the hand there
+        assert [s.event for s in player.last_plan.strokes] == [EventType.SNARE] * 4  # the rest plays
         root, reach = core.scene.reach["right_hand"]
         knots = player.last_plan.trajectories[Limb.RIGHT_HAND].positions  # the plan the tracks hold
         assert np.linalg.norm(knots - root, axis=1).max() <= reach and len(core.scene.limb_tracks["right_hand"])
-        # a live china note is spliced into the performance too, not refused
-        before = pulled["right_hand"]
+        # a live china note is spliced into the performance too, not refused: flagged, no knot beyond reach
         assert core.handle(LiveNote(time=3.25, pitch=CHINA_PITCH, velocity=100, channel=10), 1.5, SENDER) == []
         assert core.rejected_total == 0 and player.plans == 2
-        assert player.status()["pulled_into_reach"]["right_hand"] > before  # type: ignore[index]
+        assert EventType.CHINA in _unreachable(player.last_plan) and player.status()["pulled_into_reach"] == {}
     finally:
         core.close()
 
@@ -85,6 +83,7 @@ def test_the_live_node_plays_such_a_plan_planned_in_its_worker(tmp_path: Path) -
         core.step(core.time + 0.001)  # splices the plan that is ready
         assert core.rejected_total == 0 and player.plans == 1 and player.state == "playing"
         assert player.last_plan is not None and _unreachable(player.last_plan) == [EventType.CHINA]
-        assert player.status()["pulled_into_reach"] == {"right_hand": player.pulled_into_reach["right_hand"]} != {}
+        assert player.status()["pulled_into_reach"] == {}  # the planner no longer sends the hand there
+        assert [s.event for s in player.last_plan.strokes] == [EventType.SNARE] * 4
     finally:
         core.close()

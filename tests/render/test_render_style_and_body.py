@@ -15,6 +15,7 @@ from batteur.impact_log import COLUMNS
 from common.gesture.plan import GesturePlan, Grip, LimbTrajectory, Nuance
 from common.gesture.reach import pull_into_reach
 from common.kit import Limb, load_kit
+from tests.far_kits import china_at
 
 STYLED = "grip french\nnuance staccato\ntempo 120\nmeter 4/4\nSN |x.x.|\n"
 """One bar, two snare notes, asking for the french grip and staccato."""
@@ -149,9 +150,14 @@ def test_an_instrument_out_of_the_body_reach_is_flagged_and_the_rest_rendered(tm
     score = _score(tmp_path, "tempo 120\nSN |x.x.x.x.|\nCH |....x...|\n")
     _, _, plan = render.prepare(score, far, render.RenderOptions())
     assert [i.event.value for i in plan.issues if i.reason == IssueReason.UNREACHABLE] == ["CHINA"]
+    assert "CHINA" not in [s.event.value for s in plan.strokes]  # the hand does not go there
     pulled: dict[str, int] = {}
-    physics = render.start_drummer(plan, far, render.RenderOptions(), pulled=pulled)  # refused the whole plan
-    physics.close()
+    render.start_drummer(plan, far, render.RenderOptions(), pulled=pulled).close()
+    assert pulled == {}
+    # a plan made for a larger body than physics' (the default drummer's, played by a 1.40 m one) is pulled in
+    edge = china_at(kit, 1.10)
+    _, _, tall = render.prepare(score, edge, render.RenderOptions())
+    render.start_drummer(tall, edge, render.RenderOptions(height_m=1.4), pulled=pulled).close()  # pulled, not refused
     assert set(pulled) == {"right_hand"}
 
 
