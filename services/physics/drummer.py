@@ -77,13 +77,25 @@ foot is then this far above it, metres (board thickness and the shoe's tilt; mea
 HIHAT_FOOT_AIM_M: tuple[tuple[float, float], ...] = (
     (1.2, -0.0275), (1.4, -0.0191), (1.5, -0.0190), (1.6, -0.0149), (1.7, -0.0046), (1.75, 0.0), (1.8, 0.0044),
     (1.9, 0.0126), (2.0, 0.0196), (2.2, 0.0301))
-"""(drummer height m, how far the hi-hat foot's aim is raised above ``FOOT_TARGET_OFFSET_M``, metres; negative:
-lowered). The shoe presses a footboard with its toe, ahead of the ball the planner aims (common/kit.py
+"""(drummer height m, how far the hi-hat foot's aim (and its rest) is raised above ``FOOT_TARGET_OFFSET_M``, metres;
+negative: lowered). The shoe presses a footboard with its toe, ahead of the ball the planner aims (common/kit.py
 ``FOOT_PRESS_TABLE``, measured with the 1.75 m drummer); only the ball is controlled, so a shorter foot, pitched
 flatter by a shorter leg on the same throne, leaves its toe higher and the board less pressed (1.4 m: 0.72
 instead of 0.93 at the chick target, short of the plates' closing point), a longer one presses it flat. Measured
 on the default kit (0.52 m throne, 73 kg): the shift that makes the foot held at the chick target press the
 board 0.93, as the 1.75 m drummer's (docs/physics.md, "A small drummer's hi-hat foot")."""
+FOOT_AIM_HEIGHT_M = 1.75
+"""The drummer height the planner's foot heights were measured with (``common/kit.py`` ``FOOT_PRESS_TABLE``),
+metres: the feet's aims are shifted from there."""
+KICK_FOOT_AIM_PER_M = 0.0515
+"""How far the bass-drum foot's aim (and its rest) is raised per metre of the drummer's height above
+``FOOT_AIM_HEIGHT_M`` (negative below), metres per metre. As for the hi-hat foot (``HIHAT_FOOT_AIM_M``), the toe
+presses the footboard ahead of the ball that is aimed, a shorter foot pitched flatter less deeply: a 1.4 m
+drummer's soft kicks stopped the board short of the beater's contact (0.91 of its travel, 0.95 needed) and did not
+sound, a 2.0 m drummer's sounded 14-19 ms earlier than the 1.75 m drummer's. The shift that gives kicks at
+velocities 0.05-1.0 the 1.75 m drummer's timing (mean over seven kicks within 0.3 ms; default kit, 73 kg) was
+measured at 1.2 to 2.2 m: it grows linearly with the height, within 1.1 mm of this slope (-19 mm at 1.4 m, +12.8
+at 2.0 m; docs/physics.md, "A small or tall drummer's kick foot")."""
 CYMBAL_AIM_ABOVE_M = 0.30
 """A hand target up to this far over a cymbal's plate follows the plate's swing (see :meth:`cartesian_targets`);
 the share fades out over ``CYMBAL_AIM_REACH_M`` beyond it, beyond the rim and under the plate, metres."""
@@ -179,6 +191,12 @@ def hihat_foot_aim_m(height_m: float) -> float:
     interpolated; 0 for the 1.75 m drummer the planner's foot heights were measured with)."""
     heights, shifts = zip(*HIHAT_FOOT_AIM_M, strict=True)
     return float(np.interp(height_m, heights, shifts))
+
+
+def kick_foot_aim_m(height_m: float) -> float:
+    """How far the bass-drum foot's aim (and its rest) is raised for a drummer ``height_m`` tall, metres
+    (``KICK_FOOT_AIM_PER_M``; 0 for the 1.75 m drummer)."""
+    return KICK_FOOT_AIM_PER_M * (height_m - FOOT_AIM_HEIGHT_M)
 
 
 def footboard_point(position: tuple[float, float, float], along: float = FOOT_BALL_ALONG) -> np.ndarray:
@@ -306,8 +324,8 @@ class DrummerScene:
         bead = np.array([0.0, 0.0, self.spec.stick.tip_radius_m])
         sole = np.array([0.0, 0.0, FOOT_TARGET_OFFSET_M])
         self.target_offset = {limb: bead if limb.endswith("hand") else sole for limb in LIMBS}
-        hihat_foot = "right_foot" if kit.handedness == "left" else "left_foot"
-        self.target_offset[hihat_foot] = sole + np.array([0.0, 0.0, hihat_foot_aim_m(settings.height_m)])
+        for foot in ("left_foot", "right_foot"):
+            self.target_offset[foot] = sole + np.array([0.0, 0.0, self._foot_aim(foot)])
         self.last_targets: dict[str, tuple[np.ndarray, np.ndarray]] = {}
         self.head: tuple[Any, float] | None = None
         """The plan's head trajectory (look-at point, nod) and its time offset, if any."""
@@ -320,6 +338,14 @@ class DrummerScene:
         robot.add_link(Link("floor", Inertial(0.0), (Shape("box", (4.0, 4.0, 0.1), xyz=(0, 0, -0.05),
                                                              rgba=(0.3, 0.3, 0.3, 1.0)),)))
         self.floor = load_robot(world.client, robot, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0), fixed_base=True)
+
+    def _foot_aim(self, limb: str) -> float:
+        """How far ``limb``'s aim and rest are raised for this drummer's height, metres: a foot presses a footboard
+        with its toe, ahead of the ball it is placed by, so a smaller foot pitched flatter presses less at the same
+        ball height (0 for the 1.75 m drummer; ``HIHAT_FOOT_AIM_M``, ``KICK_FOOT_AIM_PER_M``)."""
+        hihat_foot = "right_foot" if self.kit.handedness == "left" else "left_foot"
+        height_m = self.settings.height_m
+        return hihat_foot_aim_m(height_m) if limb == hihat_foot else kick_foot_aim_m(height_m)
 
     def _rest_targets(self) -> dict[str, np.ndarray]:
         kit = self.kit
@@ -350,7 +376,7 @@ class DrummerScene:
                 pedal = kit.object(pedal_id)
             except KeyError:
                 continue
-            out[limb] = footboard_point(pedal.position) + np.array([0.0, 0.0, FOOT_HOVER_M])
+            out[limb] = footboard_point(pedal.position) + np.array([0.0, 0.0, FOOT_HOVER_M + self._foot_aim(limb)])
         return out
 
     def _stick_holds(self) -> dict[int, np.ndarray]:
