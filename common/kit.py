@@ -527,3 +527,77 @@ def stand_rods(objects: list[KitObject]) -> list[tuple[np.ndarray, float]]:
         if height > 0.05:
             rods.append((top, height))
     return rods
+
+
+BEATER_AXLE_TO_HEAD_M = 0.12
+"""How far in front of the kick's head (toward the drummer) a beater's axle sits, metres. Physics builds it there
+(services/physics/kitbodies.py holds the same number; tests/graphics/test_hardware.py keeps them equal)."""
+BEATER_AXLE_HEIGHT_M = 0.10
+"""A beater's axle above its pedal's origin, metres (as physics builds it)."""
+BEATER_ROD_RADIUS_M = 0.004
+"""A beater rod's radius, metres (as physics draws it)."""
+DOUBLE_PEDAL_BEATER_GAP_M = 0.07
+"""A double pedal's second beater sits this far beside the main one along x, metres (as physics builds it)."""
+
+
+class StandRod(_Strict):
+    """A stand rod: vertical, from the floor up to ``top``."""
+
+    top: Vec3 = Field(description="the rod's top, world metres (under the centre of the object it holds)")
+    height: float = Field(description="the rod's length from the floor, metres (the top's z)")
+    radius: float = Field(description="metres")
+
+
+class Beater(_Strict):
+    """A bass-drum beater as physics builds it: a rod from its axle to a ball, turning about the world x axis,
+    geared to its pedal's footboard."""
+
+    pedal: str = Field(description="id of the footboard that drives it")
+    axle: Vec3 = Field(description="the axle's centre, world metres")
+    lean_rad: float = Field(description="the rod's angle from vertical toward the kick (+y) at beater angle 0, "
+                                        "where its ball is pressed into the head, radians")
+    rest_rad: float = Field(description="the beater's angle back from there toward the drummer with the footboard "
+                                        "up, radians; with the footboard pressed p (0 rest ... 1 flat): "
+                                        "rest_rad x (1 - p)")
+    rod_length: float = Field(description="from the axle to the ball's centre, metres")
+    rod_radius: float = Field(description="metres")
+    ball_radius: float = Field(description="metres")
+
+
+class KitHardware(_Strict):
+    """The hardware physics builds around a kit's objects (drawn by the live view and the glTF export alike)."""
+
+    beaters: list[Beater]
+    stands: list[StandRod]
+
+
+def _beater(kit: Kit, pedal: KitObject, kick: KitObject) -> Beater:
+    """``pedal``'s beater, computed in the pedal's frame as physics builds it (``_pedal_robot``), then placed."""
+    dx = 0.0
+    if pedal.id != "kick_pedal":  # a double pedal's second beater sits beside the main one (a cardan shaft)
+        main_x = next((o.position[0] for o in kit.objects if o.id == "kick_pedal"), pedal.position[0])
+        side = 1.0 if pedal.position[0] < main_x else -1.0
+        dx = (main_x - side * DOUBLE_PEDAL_BEATER_GAP_M) - pedal.position[0]
+    axle_y = kick.position[1] - pedal.position[1] - BEATER_AXLE_TO_HEAD_M
+    hit_z = kick.position[2] - pedal.position[2] + BEATER_HIT_HEIGHT * kick.radius
+    rise = hit_z - BEATER_AXLE_HEIGHT_M
+    # at beater angle 0 the ball is pressed this far into the head, so that it meets it at BEATER_CONTACT_PRESS
+    depth = (1.0 - BEATER_CONTACT_PRESS) * BEATER_REST_RAD * math.hypot(BEATER_AXLE_TO_HEAD_M, rise)
+    reach = BEATER_AXLE_TO_HEAD_M - BEATER_BALL_RADIUS_M + depth  # axle to the ball's centre, along y
+    x, y, z = pedal.position
+    return Beater(pedal=pedal.id, axle=(x + dx, y + axle_y, z + BEATER_AXLE_HEIGHT_M),
+                  lean_rad=math.atan2(reach, rise), rest_rad=BEATER_REST_RAD, rod_length=math.hypot(reach, rise),
+                  rod_radius=BEATER_ROD_RADIUS_M, ball_radius=BEATER_BALL_RADIUS_M)
+
+
+def kit_hardware(kit: Kit) -> KitHardware:
+    """The beaters and stand rods physics builds for ``kit`` (world metres): a beater on the kick pedal, and on
+    the left bass pedal of a double pedal, when the kit has a kick; a stand rod under each mounted drum and
+    cymbal (:func:`stand_rods`)."""
+    kick = next((o for o in kit.objects if o.id == "kick"), None)
+    driving = {"kick_pedal"} | ({kit.left_bass_pedal} if kit.double_pedal and kit.left_bass_pedal else set())
+    beaters = [] if kick is None else [_beater(kit, o, kick) for o in kit.objects
+                                       if o.kind == "pedal" and o.id in driving]
+    stands = [StandRod(top=(float(top[0]), float(top[1]), float(top[2])), height=height, radius=STAND_ROD_RADIUS_M)
+              for top, height in stand_rods(kit.objects)]
+    return KitHardware(beaters=beaters, stands=stands)

@@ -43,7 +43,7 @@ from common.messages.graphics import (
 )
 from common.messages.physics import PhysicsPosture, PhysicsReset
 from services.graphics.camera import camera_for, default_camera, presets_json
-from services.graphics.scene import HISTORY, KitAnimator, kit_json
+from services.graphics.scene import HISTORY, KitAnimator, hardware_json, kit_json
 from services.graphics.sequence import FLOATS_PER_LINK, PoseSequence, interpolate_pose, normalize_quats
 from services.graphics.skeleton import guess_parents
 
@@ -473,7 +473,8 @@ class GraphicsCore:
         return {"type": "skeleton", "layout": self.layout, "names": self.names, "parents": self.parents}
 
     def kit_message(self) -> dict[str, Any]:
-        return {"type": "kit", "kit": kit_json(self.kit)}
+        """The kit the page draws and the hardware physics builds around it (beaters, stands)."""
+        return {"type": "kit", "kit": kit_json(self.kit), "hardware": hardware_json(self.kit)}
 
     def view_json(self) -> dict[str, Any]:
         return {"type": "view", "mode": self.mode, "latency": self.latency, **self.view.model_dump(),

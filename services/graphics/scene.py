@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from common.kit import EventType, Kit, KitObject
+from common.kit import EventType, Kit, KitObject, kit_hardware
 from common.messages import Impact
 from services.graphics.sequence import normalize_quats
 from services.graphics.skeleton import canonical, kit_link
@@ -221,6 +221,12 @@ class KitAnimator:
 def kit_json(kit: Kit) -> dict[str, object]:
     """The kit as the page draws it (plain JSON)."""
     return kit.model_dump(mode="json")
+
+
+def hardware_json(kit: Kit) -> dict[str, object]:
+    """The beaters and stand rods physics builds for ``kit`` (``common.kit.kit_hardware``, world metres), as the
+    page draws them (plain JSON)."""
+    return kit_hardware(kit).model_dump(mode="json")
 
 
 def objects_of(kit: Kit, kinds: Iterable[str]) -> list[KitObject]:

@@ -15,7 +15,9 @@ written only into the configured kit directory), ``poser_on``/``poser``/
 ``poser_off`` (the pose editor on physics' 57-DOF body: ``poser`` carries
 ``{joint: [x, y, z] degrees}`` and ``drive``; with ``drive`` the node sends the
 posture to physics, /batteur/physics/posture), ``save_pose`` (a key pose into
-``poses.yaml``, :mod:`common.gesture.keyposes`). Bad messages get an error
+``poses.yaml``, :mod:`common.gesture.keyposes`), ``hardware`` (a kit the page
+edits, not saved: the reply carries its beaters and stands, ``common.kit.kit_hardware``,
+so the page draws them as physics would build them). Bad messages get an error
 reply and are counted; they never stop the server.
 """
 
@@ -42,6 +44,7 @@ from common.gesture.keyposes import POSE_NAME, KeyPoses
 from common.kit import Kit, load_kit, save_kit
 from services.graphics.core import GraphicsCore
 from services.graphics.poser import CharacterPoser, is_character, rest_poser
+from services.graphics.scene import hardware_json
 
 log = logging.getLogger("batteur.graphics")
 
@@ -204,6 +207,8 @@ class ViewServer:
                 return None
             if kind == "save_pose":
                 return self._save_pose(msg)
+            if kind == "hardware":
+                return self._hardware(msg)
             raise ValueError(f"unknown message type {kind!r}")
         except RecursionError:  # e.g. "[[[[..." : the JSON parser gives up, the connection must not
             self.counters["page_errors"] += 1
@@ -265,6 +270,18 @@ class ViewServer:
         self.broadcast(self.core.take_page_messages())  # every page redraws the kit now
         log.info("kit saved to %s", path)
         return {"type": "saved", "ok": True, "path": str(path)}
+
+    def _hardware(self, msg: dict[str, Any]) -> dict[str, Any]:
+        """The beaters and stands of the kit the page edits (``kit``, not saved), computed here so the page draws
+        the numbers physics builds with; a kit that is not valid gets an error of the same type, counted."""
+        try:
+            kit = Kit.model_validate(msg.get("kit"))
+        except ValidationError as exc:
+            self.counters["page_errors"] += 1
+            error = f"invalid kit: {exc.errors()[0].get('msg')}"
+            log.warning("bad page message: %s", error)
+            return {"type": "hardware", "error": error[:500]}
+        return {"type": "hardware", "hardware": hardware_json(kit)}
 
     def _save_pose(self, msg: dict[str, Any]) -> dict[str, Any]:
         """Save the edited posture (``angles`` {joint: degrees} over the editor's current ones) as a key pose."""

@@ -1,6 +1,6 @@
 // Batteur live view: draws the drummer and the kit from the graphics node's WebSocket stream.
 // Frame: metres, z up, the drummer at the origin facing +y, +x to the drummer's right.
-// Messages from the node (JSON): kit, skeleton, view, frame, status, poser, saved.
+// Messages from the node (JSON): kit (with its hardware), hardware, skeleton, view, frame, status, poser, saved.
 import * as THREE from "three";
 import { OrbitControls } from "three/examples/jsm/controls/OrbitControls.js";
 
@@ -121,33 +121,86 @@ function buildKit(kit) {
       swing.add(board);
       swing.position.y = -0.02;
       part.extra = (press) => { swing.rotation.x = ((18 - 16 * press) * Math.PI) / 180; };
-      if (obj.id.includes("kick")) {
-        const beater = new THREE.Group();
-        const rod = cylinderZ(0.005, 0.005, 0.3, MAT.metal, 8);
-        rod.position.z = 0.15;
-        const ball = new THREE.Mesh(new THREE.SphereGeometry(0.025, 12, 8), MAT.dark);
-        ball.position.z = 0.3;
-        beater.add(rod, ball);
-        beater.position.set(0, 0.26, 0.0);
-        group.add(beater);
-        const pressExtra = part.extra;
-        part.extra = (press) => { pressExtra(press); beater.rotation.x = (-(10 + 45 * press) * Math.PI) / 180; };
-      }
     } else if (obj.kind === "throne") {
       const seat = cylinderZ(r, r, 0.08, MAT.dark);
       seat.position.z = -0.04;
       swing.add(seat);
-    }
-    if (obj.kind !== "pedal" && obj.kind !== "membrane" && obj.position[2] > 0.1) {
-      // a stand from the floor to just under the object (world vertical)
-      const h = obj.position[2] - 0.02;
-      const pole = cylinderZ(0.008, 0.008, h, MAT.metal, 8);
-      pole.position.set(obj.position[0], obj.position[1], h / 2);
-      layers.kit.add(pole);
+      if (obj.position[2] > 0.1) { // its post, from the floor to just under the seat (world vertical)
+        const h = obj.position[2] - 0.02;
+        const pole = cylinderZ(0.008, 0.008, h, MAT.metal, 8);
+        pole.position.set(obj.position[0], obj.position[1], h / 2);
+        layers.kit.add(pole);
+      }
     }
     layers.kit.add(group);
     kitParts.push(part);
   }
+  buildHardware(hardwareOf(kit));
+}
+
+// ---------------------------------------------------------------- hardware (beaters, stands)
+// The beaters and stand rods physics builds around the kit, as numbers the node computes (common/kit.py's
+// kit_hardware, world metres): sent with every kit, and asked for a kit this page edits, so the live view draws the
+// hardware physics and the glTF export have. Cached by the kit's JSON (the page's kit-equality test).
+const HARDWARE_CACHE = 32;
+const hardware = { numbers: null, group: null, beaters: [], stands: [], cache: new Map(), waiting: null };
+state.hardware = hardware; // for tests and the console: what is drawn
+function rememberHardware(key, numbers) {
+  hardware.cache.delete(key);
+  hardware.cache.set(key, numbers);
+  if (hardware.cache.size > HARDWARE_CACHE) hardware.cache.delete(hardware.cache.keys().next().value);
+}
+function hardwareOf(kit) { // an edited kit's are asked of the node: the last drawn stay until the answer
+  const key = JSON.stringify(kit);
+  const known = hardware.cache.get(key);
+  if (known) return known;
+  askHardware(kit, key);
+  return hardware.numbers;
+}
+function askHardware(kit, key) { // one request at a time: a slider drag asks again when the answer comes
+  if (hardware.waiting === null && send({ type: "hardware", kit })) hardware.waiting = key;
+}
+function onHardware(m) {
+  const key = hardware.waiting;
+  hardware.waiting = null;
+  if (key === null || !m.hardware) return; // an error (the node logs it): the hardware drawn stays
+  rememberHardware(key, m.hardware);
+  if (!state.kit) return;
+  const now = JSON.stringify(state.kit);
+  const current = hardware.cache.get(now);
+  buildHardware(current ?? m.hardware); // an older edit's are nearer than those drawn
+  if (!current) askHardware(state.kit, now);
+}
+function buildHardware(numbers) {
+  if (hardware.group?.parent) { // not freed with the kit (disposeKit): free it here
+    hardware.group.traverse((o) => { if (o.isMesh) o.geometry.dispose(); });
+    hardware.group.removeFromParent();
+  }
+  Object.assign(hardware, { numbers, group: new THREE.Group(), beaters: [], stands: [] });
+  layers.kit.add(hardware.group);
+  for (const s of numbers?.stands ?? []) { // vertical, from the floor to under the object's centre
+    const pole = cylinderZ(s.radius, s.radius, s.height, MAT.metal, 8);
+    pole.position.set(s.top[0], s.top[1], s.height / 2);
+    hardware.group.add(pole);
+    hardware.stands.push(pole);
+  }
+  for (const b of numbers?.beaters ?? []) { // a rod along +z from the axle to the ball, turning about world x
+    const group = new THREE.Group();
+    group.position.set(...b.axle);
+    const rod = cylinderZ(b.rod_radius, b.rod_radius, b.rod_length, MAT.metal, 8);
+    rod.position.z = b.rod_length / 2;
+    const ball = new THREE.Mesh(new THREE.SphereGeometry(b.ball_radius, 12, 8), MAT.dark);
+    ball.position.z = b.rod_length;
+    group.add(rod, ball);
+    const beater = { pedal: b.pedal, index: kitParts.findIndex((p) => p.obj.id === b.pedal), group, rod, ball,
+      rest: b.rest_rad, lean: b.lean_rad };
+    turnBeater(beater, 0);
+    hardware.group.add(group);
+    hardware.beaters.push(beater);
+  }
+}
+function turnBeater(b, press) { // geared to its footboard: rest_rad back from the head at rest, 0 pressed flat
+  b.group.rotation.x = b.rest * (1 - press) - b.lean;
 }
 
 function applyKitState(k) {
@@ -162,6 +215,7 @@ function applyKitState(k) {
     }
     if (p.extra) p.extra(extra);
   }
+  for (const b of hardware.beaters) if (b.index >= 0) turnBeater(b, k[b.index * 4 + 3]);
 }
 
 // ---------------------------------------------------------------- body
@@ -481,6 +535,7 @@ function connect() {
   ws.onmessage = (ev) => { try { onMessage(JSON.parse(ev.data)); } catch (e) { console.error(e); } };
   ws.onclose = () => {
     state.connected = false;
+    hardware.waiting = null; // its answer is lost with the connection
     state.retry += 1;
     renderStatus();
     setTimeout(connect, Math.min(3000, 250 * 2 ** Math.min(state.retry, 4)));
@@ -495,7 +550,8 @@ function send(msg) { // false when the node is not connected (the message is dro
 
 function onMessage(m) {
   switch (m.type) {
-    case "kit": onKit(m.kit); break;
+    case "kit": if (m.hardware) rememberHardware(JSON.stringify(m.kit), m.hardware); onKit(m.kit); break;
+    case "hardware": onHardware(m); break;
     case "skeleton": state.names = m.names; state.parents = m.parents; buildSkeleton(m.names, m.parents); break;
     case "view": applyView(m); break;
     case "frame":
@@ -590,6 +646,8 @@ function onKit(kit) {
   } else {
     loadKit(kit);
   }
+  const drawn = JSON.stringify(state.kit);
+  if (!hardware.cache.has(drawn)) askHardware(state.kit, drawn); // an edit's asked before a reconnect
   showKitNotice();
 }
 function loadKit(kit) { // show the node's kit, dropping the page's edits
