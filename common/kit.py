@@ -530,8 +530,7 @@ def stand_rods(objects: list[KitObject]) -> list[tuple[np.ndarray, float]]:
 
 
 BEATER_AXLE_TO_HEAD_M = 0.12
-"""How far in front of the kick's head (toward the drummer) a beater's axle sits, metres. Physics builds it there
-(services/physics/kitbodies.py holds the same number; tests/graphics/test_hardware.py keeps them equal)."""
+"""How far in front of the kick's head (toward the drummer) a beater's axle sits, metres."""
 BEATER_AXLE_HEIGHT_M = 0.10
 """A beater's axle above its pedal's origin, metres (as physics builds it)."""
 BEATER_ROD_RADIUS_M = 0.004
@@ -554,6 +553,8 @@ class Beater(_Strict):
 
     pedal: str = Field(description="id of the footboard that drives it")
     axle: Vec3 = Field(description="the axle's centre, world metres")
+    axle_from_pedal: Vec3 = Field(description="the axle's centre from its pedal's origin, metres (pedal frame, "
+                                              "axes as the world's: where physics joins it to the pedal)")
     lean_rad: float = Field(description="the rod's angle from vertical toward the kick (+y) at beater angle 0, "
                                         "where its ball is pressed into the head, radians")
     rest_rad: float = Field(description="the beater's angle back from there toward the drummer with the footboard "
@@ -572,7 +573,8 @@ class KitHardware(_Strict):
 
 
 def _beater(kit: Kit, pedal: KitObject, kick: KitObject) -> Beater:
-    """``pedal``'s beater, computed in the pedal's frame as physics builds it (``_pedal_robot``), then placed."""
+    """``pedal``'s beater, computed in the pedal's frame (physics joins it there: services/physics/kitbodies.py
+    ``_pedal_robot``), then placed."""
     dx = 0.0
     if pedal.id != "kick_pedal":  # a double pedal's second beater sits beside the main one (a cardan shaft)
         main_x = next((o.position[0] for o in kit.objects if o.id == "kick_pedal"), pedal.position[0])
@@ -586,7 +588,8 @@ def _beater(kit: Kit, pedal: KitObject, kick: KitObject) -> Beater:
     reach = BEATER_AXLE_TO_HEAD_M - BEATER_BALL_RADIUS_M + depth  # axle to the ball's centre, along y
     x, y, z = pedal.position
     return Beater(pedal=pedal.id, axle=(x + dx, y + axle_y, z + BEATER_AXLE_HEIGHT_M),
-                  lean_rad=math.atan2(reach, rise), rest_rad=BEATER_REST_RAD, rod_length=math.hypot(reach, rise),
+                  axle_from_pedal=(dx, axle_y, BEATER_AXLE_HEIGHT_M), lean_rad=math.atan2(reach, rise),
+                  rest_rad=BEATER_REST_RAD, rod_length=math.hypot(reach, rise),
                   rod_radius=BEATER_ROD_RADIUS_M, ball_radius=BEATER_BALL_RADIUS_M)
 
 

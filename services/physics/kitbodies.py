@@ -28,16 +28,15 @@ import numpy as np
 import pybullet as p
 
 from common.kit import (
-    BEATER_BALL_RADIUS_M,
-    BEATER_CONTACT_PRESS,
-    BEATER_HIT_HEIGHT,
     BEATER_REST_RAD,
     FOOTBOARD_LENGTH_M,
     HIHAT_CLOSED_GAP_M,
     PEDAL_REST_ANGLE_RAD,
     STAND_ROD_RADIUS_M,
+    Beater,
     Kit,
     KitObject,
+    kit_hardware,
     stand_rods,
 )
 from services.physics.urdf import Inertial, Joint, Link, Robot, Shape, cylinder_inertia, load_robot
@@ -54,9 +53,6 @@ PEDAL_REST_ANGLE = PEDAL_REST_ANGLE_RAD
 
 PEDAL_SPRING_NM_PER_RAD = 40.0
 """Return spring of a footboard, N m/rad."""
-
-BEATER_AXLE_TO_HEAD_M = 0.12
-"""How far in front of the kick's head (toward the drummer) the beater's axle sits, metres."""
 
 _SILVER = (0.75, 0.75, 0.78, 1.0)
 _BRASS = (0.85, 0.68, 0.25, 1.0)
@@ -398,58 +394,34 @@ def _footboard_robot(robot: Robot, prefix: str, parent: str, xyz: tuple[float, f
     return name
 
 
-def _pedal_robot(obj: KitObject, kick: KitObject | None, beater_dx: float) -> Robot:
-    """A pedal body: base plate, footboard and, for a bass-drum pedal, a beater geared to it.
-
-    ``beater_dx``: x offset of the beater from the plate (a double pedal's
-    second beater sits beside the main one, driven through a cardan shaft).
-    """
+def _pedal_robot(obj: KitObject, beater: Beater | None) -> Robot:
+    """A pedal body: base plate, footboard and, for a bass-drum pedal, its ``beater`` (``common.kit.kit_hardware``:
+    the numbers the live view and the glTF export draw) geared to it."""
     robot = Robot(obj.id)
     robot.add_link(Link("plate", Inertial(0.0), (Shape("box", (0.10, 0.32, 0.01), xyz=(0, 0, -0.015),
                                                        rgba=_DARK),)))
     _footboard_robot(robot, "", "plate", (0.0, -FOOTBOARD_LENGTH_M / 2, 0.0))
-    if kick is not None:
-        # beater axle in front of the footboard; its head reaches the kick head 0.2 radius above centre
-        axle_y = kick.position[1] - obj.position[1] - BEATER_AXLE_TO_HEAD_M
-        axle_z = 0.10
-        hit_z = kick.position[2] - obj.position[2] + BEATER_HIT_HEIGHT * kick.radius
-        # at q = 0 the ball is pressed this far into the head, so it meets the head at BEATER_CONTACT_PRESS (the
-        # ball moves rod x q, about along the head's normal)
-        depth = (1.0 - BEATER_CONTACT_PRESS) * BEATER_REST_RAD * math.hypot(BEATER_AXLE_TO_HEAD_M, hit_z - axle_z)
-        reach = BEATER_AXLE_TO_HEAD_M - BEATER_BALL_RADIUS_M + depth  # axle to the ball's centre, along y
-        rod = math.hypot(reach, hit_z - axle_z)
+    if beater is not None:
+        rod = beater.rod_length
         m_head, m_rod = 0.05, 0.03
         inertial = Inertial(m_head + m_rod, com=(0, 0, rod * 0.8), inertia=(2e-4, 2e-4, 1e-5, 0, 0, 0))
         robot.add_link(Link("beater", inertial,
-                            (Shape("cylinder", (0.004, rod, 0.0), xyz=(0, 0, rod / 2), rgba=_SILVER, collision=False),
-                             Shape("sphere", (BEATER_BALL_RADIUS_M, 0, 0), xyz=(0, 0, rod), rgba=_HEAD))))
+                            (Shape("cylinder", (beater.rod_radius, rod, 0.0), xyz=(0, 0, rod / 2), rgba=_SILVER,
+                                   collision=False),
+                             Shape("sphere", (beater.ball_radius, 0, 0), xyz=(0, 0, rod), rgba=_HEAD))))
         # q = 0: the rod points from the axle to the ball pressed into the head; positive q tilts it back toward the
         # drummer
-        lean = math.atan2(reach, hit_z - axle_z)
-        robot.add_joint(Joint("beater_axle", "revolute", "plate", "beater", xyz=(beater_dx, axle_y, axle_z),
-                              rpy=(-lean, 0, 0), axis=(1, 0, 0), lower=-0.02, upper=1.6, effort=200, velocity=80))
+        robot.add_joint(Joint("beater_axle", "revolute", "plate", "beater", xyz=beater.axle_from_pedal,
+                              rpy=(-beater.lean_rad, 0, 0), axis=(1, 0, 0), lower=-0.02, upper=1.6, effort=200,
+                              velocity=80))
     return robot
 
 
 def _pedal(world: World, kb: KitBodies, obj: KitObject) -> None:
     kit = kb.kit
-    kick = None
-    part = ""
-    beater_dx = 0.0
-    if obj.id == "kick_pedal" or (kit.double_pedal and obj.id == kit.left_bass_pedal):
-        try:
-            kick = kit.object("kick")
-        except KeyError:
-            kick = None
-        part = "kick_beater" if obj.id == "kick_pedal" else "kick_beater_left"
-        if obj.id != "kick_pedal":
-            try:
-                main_x = kit.object("kick_pedal").position[0]
-            except KeyError:
-                main_x = obj.position[0]
-            side = 1.0 if obj.position[0] < main_x else -1.0
-            beater_dx = (main_x - side * 0.07) - obj.position[0]
-    robot = _pedal_robot(obj, kick, beater_dx)
+    beater = next((b for b in kit_hardware(kit).beaters if b.pedal == obj.id), None)
+    part = "" if beater is None else "kick_beater" if obj.id == "kick_pedal" else "kick_beater_left"
+    robot = _pedal_robot(obj, beater)
     body = load_robot(world.client, robot, obj.position, (0.0, 0.0, 0.0, 1.0), fixed_base=True,
                       flags=p.URDF_USE_INERTIA_FROM_FILE)
     _free_joints(world, body)

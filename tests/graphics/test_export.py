@@ -11,8 +11,7 @@ import numpy as np
 import pygltflib
 import pytest
 
-from common.kit import BEATER_BALL_RADIUS_M, load_kit
-from services.graphics.export import gltf as gltf_export
+from common.kit import kit_hardware, load_kit
 from services.graphics.export import write_bvh, write_gltf
 from services.graphics.export.bvh import Z_UP_TO_Y_UP
 from services.graphics.figure import LINK_NAMES, synthetic_performance
@@ -103,17 +102,21 @@ def test_validator_rejects_a_broken_file(performance: PoseSequence, tmp_path: Pa
     assert report["returncode"] == 1
 
 
-def test_the_gltf_beater_is_physics_own() -> None:
-    """The exporter computes the beater's rod from the kick as physics builds it (both from common/kit.py's
-    BEATER_* numbers, each in its own frame): the same rod length from the axle physics puts in front of the kick.
-    (The stands: both draw common/kit.py's ``stand_rods``.)"""
-    from services.physics import kitbodies
-
-    kit = load_kit("default")
-    kick, pedal = kit.object("kick"), kit.object("kick_pedal")
-    robot = kitbodies._pedal_robot(pedal, kick, 0.0)
-    axle = next(j for j in robot.joints if j.child == "beater")
-    ball = next(s for s in next(link for link in robot.links if link.name == "beater").shapes if s.kind == "sphere")
-    assert ball.size[0] == BEATER_BALL_RADIUS_M
-    axle_world = np.asarray(pedal.position) + np.asarray(axle.xyz)
-    assert gltf_export.beater_length(kick, axle_world) == pytest.approx(ball.xyz[2], abs=1e-9)  # metres
+@pytest.mark.parametrize("name", ["default", "double_pedal"])
+def test_the_gltf_beaters_are_physics_own(name: str, performance: PoseSequence, tmp_path: Path) -> None:
+    """Each beater link of a render is drawn as the rod and ball physics builds (``kit_hardware``, which
+    tests/graphics/test_hardware.py checks against physics' bodies): the ball at the rod's end, the rod's radius."""
+    kit = load_kit(name)
+    beaters = kit_hardware(kit).beaters
+    links = [f"kit.{b.pedal}.beater" for b in beaters]
+    poses = np.repeat(performance.values[:, :1], len(links), axis=1)
+    seq = PoseSequence([*performance.names, *links], performance.times,
+                       np.concatenate([performance.values, poses], axis=1))
+    path = tmp_path / "beaters.glb"
+    write_gltf(seq, path, kit=kit)
+    nodes = {n.name: n for n in pygltflib.GLTF2().load(str(path)).nodes}
+    for beater in beaters:
+        stem = f"kit_{beater.pedal}_beater"
+        assert nodes[f"{stem}_ball"].translation == pytest.approx([0.0, 0.0, beater.rod_length], abs=1e-6)  # metres
+        assert nodes[f"{stem}_ball"].scale == pytest.approx([beater.ball_radius] * 3)
+        assert nodes[stem].scale == pytest.approx([beater.rod_radius, beater.rod_radius, beater.rod_length], abs=1e-6)

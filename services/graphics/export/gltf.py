@@ -24,13 +24,10 @@ import pygltflib
 from scipy.spatial.transform import Rotation
 
 from common.kit import (
-    BEATER_BALL_RADIUS_M,
-    BEATER_CONTACT_PRESS,
-    BEATER_HIT_HEIGHT,
-    BEATER_REST_RAD,
     STAND_ROD_RADIUS_M,
     Kit,
     KitObject,
+    kit_hardware,
     stand_rods,
 )
 from services.graphics.sequence import PoseSequence, normalize_quats
@@ -45,11 +42,6 @@ COLOURS = {
 CYMBAL_DRAWN_THICKNESS_M = 0.01
 """A cymbal's or hi-hat plate's drawn thickness, metres (thicker than physics' 2 mm, to be seen)."""
 
-BEATER_ROD_RADIUS_M = 0.004
-"""The drawn beater rod's radius, metres (the beater as physics builds it, from common/kit.py's BEATER_*: a rod from
-the axle along the link's +z to a ball, meeting the kick's head BEATER_HIT_HEIGHT of its radius above its centre
-when the footboard is pressed BEATER_CONTACT_PRESS of its travel)."""
-"""Radius of physics' visual-only stand rods (kitbodies.py, _stands), metres."""
 
 
 @dataclass(frozen=True)
@@ -228,22 +220,14 @@ def _animated_kit(b: _Builder, kit: Kit, sequence: PoseSequence, meshes: dict[st
     return out
 
 
-def beater_length(kick: KitObject, axle: np.ndarray) -> float:
-    """From a beater's axle (world metres, physics' link frame) to its ball's centre, metres: the ball meets the
-    kick's head (straight ahead along +y) at ``BEATER_HIT_HEIGHT`` of its radius above its centre, as physics
-    builds it."""
-    to_head = kick.position[1] - float(axle[1])
-    rise = kick.position[2] + BEATER_HIT_HEIGHT * kick.radius - float(axle[2])
-    press = (1.0 - BEATER_CONTACT_PRESS) * BEATER_REST_RAD * math.hypot(to_head, rise)  # the ball pressed in at 0
-    return math.hypot(to_head - BEATER_BALL_RADIUS_M + press, rise)
-
-
 class _KitParts:
     """The meshes of the kit links no kit object draws: a beater's rod and ball, the stands' rods."""
 
     def __init__(self, b: _Builder, kit: Kit) -> None:
         self.b = b
         self.kit = kit
+        self.beaters = {f"kit.{beater.pedal}.beater": beater for beater in kit_hardware(kit).beaters}
+        """Beater link name -> the beater physics builds (common/kit.py ``kit_hardware``)."""
         self._meshes: dict[str, int] = {}
 
     def _mesh(self, name: str) -> int:
@@ -263,12 +247,13 @@ class _KitParts:
         if link == "kit.stands":
             return [self._rod(f"kit_stand_{k}", STAND_ROD_RADIUS_M, frame.inv().apply(top - first[:3]), height,
                               frame.inv()) for k, (top, height) in enumerate(stand_rods(self.kit.objects))]
-        if link.endswith(".beater") and "kick" in {obj.id for obj in self.kit.objects}:
-            length = beater_length(self.kit.object("kick"), first[:3])
+        beater = self.beaters.get(link)
+        if beater is not None:  # a rod from the axle along the link's +z to its ball (physics' beater link)
+            length = beater.rod_length
             name = link[len("kit."):].replace(".", "_")
             ball = self.b.node(name=f"kit_{name}_ball", mesh=self._mesh("ball"), translation=[0.0, 0.0, length],
-                               scale=[BEATER_BALL_RADIUS_M] * 3)
-            return [self._rod(f"kit_{name}", BEATER_ROD_RADIUS_M, np.array([0.0, 0.0, length]), length,
+                               scale=[beater.ball_radius] * 3)
+            return [self._rod(f"kit_{name}", beater.rod_radius, np.array([0.0, 0.0, length]), length,
                               Rotation.identity()), ball]
         return []
 
