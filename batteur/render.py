@@ -766,7 +766,8 @@ def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: boo
     check_options(opts)
     if opts.video:
         check_video(opts)  # before the long part: no ffmpeg, no render
-    kit = load_kit(opts.kit, height_m=opts.height_m)  # its warnings name the drummer asked for
+    # its warnings name the drummer asked for, with the skeleton's reach when it has one (as the planner's)
+    kit = load_kit(opts.kit, height_m=opts.height_m, lengths=skeleton_limbs(opts))
     calibration = Calibration.load(opts.calibration) if opts.calibration else None
     planning = PlanningProgress(Path(path).name, quiet)
     try:

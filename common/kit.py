@@ -16,7 +16,7 @@ import json
 import logging
 import math
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import TYPE_CHECKING, Annotated, Literal
 
 import numpy as np
 import yaml
@@ -25,6 +25,9 @@ from pydantic_core import PydanticCustomError
 
 from common.datafile import first_error, parse_file
 from common.output_paths import write_atomically
+
+if TYPE_CHECKING:
+    from common.score.limbs import LimbLengths
 
 log = logging.getLogger(__name__)
 
@@ -462,14 +465,16 @@ class Kit(_Strict):
         )
 
 
-def load_kit(source: str | Path = "default", height_m: float | None = None, warn: bool = True) -> Kit:
+def load_kit(source: str | Path = "default", height_m: float | None = None, warn: bool = True,
+             lengths: LimbLengths | None = None) -> Kit:
     """Load a kit by shipped name (``default``) or from a YAML/JSON file path.
 
     Raises ``FileNotFoundError`` for an unknown name or path and ``ValueError`` naming the file for one that is
     not UTF-8 text, not valid YAML/JSON (line and column) or not a valid kit (the first problem, on one line).
     A valid kit holding instruments the drummer cannot play (out of reach, struck by no event) loads with one
     logged warning per instrument (:func:`common.score.limbs.unplayable_instruments`), the reach that of a drummer
-    ``height_m`` tall (metres; None: the default 1.75 m drummer), whom a warning then names. ``warn=False``: no
+    ``height_m`` tall (metres; None: the default 1.75 m drummer), whom a warning then names; with ``lengths``, a
+    skeleton's arms and legs (``--skeleton-bvh``), the reach is theirs and a warning says so. ``warn=False``: no
     such warnings (a kit read again for a render that already warned of it).
     """
     path = Path(source)
@@ -492,9 +497,9 @@ def load_kit(source: str | Path = "default", height_m: float | None = None, warn
         raise ValueError(f"kit file {str(path)!r} is not a valid kit: {first_error(exc)}{more}") from None
     if not warn:
         return kit
-    from common.score.limbs import unplayable_instruments  # here: the planner's reach, and limbs imports this module
+    from common.score.limbs import STATURE_M, unplayable_instruments  # here: limbs imports this module
 
-    problems = unplayable_instruments(kit) if height_m is None else unplayable_instruments(kit, height_m)
+    problems = unplayable_instruments(kit, STATURE_M if height_m is None else height_m, lengths)
     for problem in problems:  # a valid kit may still hold objects the drummer cannot play
         log.warning("kit file %r: %s", str(path), problem)
     return kit

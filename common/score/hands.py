@@ -138,19 +138,32 @@ def _other(h: Limb) -> Limb:
     return L if h == R else R
 
 
-def crossed(kit: Kit, left: EventType, right: EventType, x_left: float, x_right: float) -> bool:
+def crossed(kit: Kit, left: EventType, right: EventType, x_left: float, x_right: float,
+            left_pitch: int | None = None, right_pitch: int | None = None) -> bool:
     """True when the left stick on ``left`` and the right stick on ``right`` cross the arms.
 
     Uses the kit's pair preference pair(left, right) > 0 (``left`` wants the right
-    hand); without one, the geometry: the left hit point more than 10 cm right of
-    the right hit point on another object.
+    hand); without one, the geometry: the left hit point (``x_left``, metres) more
+    than 10 cm right of the right hit point on another object. The preference is
+    between event types on their own objects: a note whose pitch strikes another
+    one (``note_objects``: the double-pedal kit's second ride, out to the left) is
+    judged by the geometry.
     """
-    p = kit.pair(left, right)
-    if p != 0.0:
-        return p > 0
-    if kit.events[left].object == kit.events[right].object:
+    left_object, right_object = _struck_object(kit, left, left_pitch), _struck_object(kit, right, right_pitch)
+    if left_object == kit.events[left].object and right_object == kit.events[right].object:
+        p = kit.pair(left, right)
+        if p != 0.0:
+            return p > 0
+    if left_object == right_object:
         return False
     return x_left - x_right > 0.10
+
+
+def _struck_object(kit: Kit, event: EventType, pitch: int | None) -> str:
+    """Id of the object ``event`` of ``pitch`` strikes (:meth:`Kit.object_for`'s, without looking the object up)."""
+    if pitch is not None and pitch in kit.note_objects:
+        return kit.note_objects[pitch]
+    return kit.events[event].object
 
 
 def _pair_split(a: int, b: int, t: _Table, kit: Kit, notes: list[HandNote]) -> tuple[Limb, Limb]:

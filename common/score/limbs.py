@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import bisect
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -86,6 +86,13 @@ class LimbLengths:
     """Upper arm + forearm + hand."""
     leg_m: float
     """Thigh + shank."""
+
+    @classmethod
+    def of_segments(cls, lengths_m: Mapping[str, float]) -> LimbLengths:
+        """A body's arm and leg from its segment lengths (metres, by the names of
+        services/physics/anthropometry.py: ``upper_arm``, ``forearm``, ``hand``, ``thigh``, ``shank``)."""
+        return cls(arm_m=lengths_m["upper_arm"] + lengths_m["forearm"] + lengths_m["hand"],
+                   leg_m=lengths_m["thigh"] + lengths_m["shank"])
 
 
 @dataclass(frozen=True)
@@ -464,7 +471,8 @@ def check_feasibility(assignment: Assignment, kit: Kit, window: float = SIMULTAN
     Adds to ``assignment.issues``: ``too_fast`` (same limb closer than the
     event's minTimeGap and not a rebound double (:mod:`common.score.rebound`):
     played anyway, or dropped below ``HARD_MIN_INTERVAL``), ``crossing`` (arms
-    crossed for simultaneous stick events) and ``unreachable`` (hit point beyond
+    crossed for simultaneous stick events: :func:`common.score.hands.crossed`, by
+    the notes' objects) and ``unreachable`` (hit point beyond
     :data:`REACH` of the hand's shoulder, or pedal beyond :data:`FOOT_REACH` of the foot's hip, both where the kit's
     throne seats the drummer: :func:`shoulders`, :func:`hips`; for a drummer ``height_m`` tall (metres) the points
     and reaches scale: :func:`hand_reach`, :func:`foot_reach`; ``lengths``: a skeleton's arm and leg). A hand's
@@ -580,7 +588,7 @@ def check_feasibility(assignment: Assignment, kit: Kit, window: float = SIMULTAN
                 left, right = (n, other) if n.limb == Limb.LEFT_HAND else (other, n)
                 xl = point(left.event, left.pitch)[0]
                 xr = point(right.event, right.pitch)[0]
-                if crossed(kit, left.event, right.event, xl, xr):
+                if crossed(kit, left.event, right.event, xl, xr, left.pitch, right.pitch):
                     add(
                         FeasibilityIssue(
                             n.index,
@@ -652,7 +660,7 @@ STRUCK_KINDS = frozenset({"membrane", "cymbal", "hihat", "bell"})
 """Kit object kinds a stick strikes (a footboard is pressed; the throne and stands are no instruments)."""
 
 
-def unplayable_instruments(kit: Kit, height_m: float = STATURE_M) -> list[str]:
+def unplayable_instruments(kit: Kit, height_m: float = STATURE_M, lengths: LimbLengths | None = None) -> list[str]:
     """The kit's instruments the drummer cannot play, one line each naming the object and why (for a warning as
     the kit is loaded: a kit file may place an object anywhere).
 
@@ -663,7 +671,8 @@ def unplayable_instruments(kit: Kit, height_m: float = STATURE_M) -> list[str]:
     where the kit's throne seats the drummer (:func:`shoulders`, :func:`hips`); mirroring the kit for a left-hander
     mirrors the throne and swaps the feet, so the same instruments are named. ``height_m``: the drummer's height,
     metres (its reach scales: :func:`check_feasibility`; a line names a drummer of another height than
-    :data:`STATURE_M`: "a 1.4 m drummer's hand reaching 1.02 m"). The physics' own reach
+    :data:`STATURE_M`: "a 1.4 m drummer's hand reaching 1.02 m"). ``lengths``: a skeleton's arm and leg, metres
+    (its reach, :func:`hand_reach`; a line names it: "a skeleton's hand reaching 0.977 m"). The physics' own reach
     (``services/physics/drummer.py``, from the body's measures) is longer, so every target it refuses is among
     these.
     """
@@ -683,15 +692,15 @@ def unplayable_instruments(kit: Kit, height_m: float = STATURE_M) -> list[str]:
         if kit.events[mapped].pedal is None:
             strokes.setdefault(object_id, []).append((f"{mapped.value} (pitch {pitch})", mapped, pitch))
     shoulder_at = shoulders(kit, height_m)
-    arm_reach = hand_reach(height_m)
-    pedals_far = _pedals_out_of_reach(kit, height_m)
-    whose = "" if height_m == STATURE_M else f"{height_m:g} m drummer's "  # the default reads as it always did
+    arm_reach = hand_reach(height_m, lengths)
+    pedals_far = _pedals_out_of_reach(kit, height_m, lengths)
+    whose = _whose(height_m, lengths)
     lines: list[str] = []
     for obj in kit.objects:
         for foot, far_ones in pedals_far.get(obj.id, {}).items():
             lines.append(f"{obj.id}: out of the {foot.value.replace('_', ' ')}'s reach ({', '.join(far_ones)} from the "
-                         f"hip, a {whose}leg reaching {foot_reach(height_m):.3g} m): the planner flags its notes "
-                         "unreachable")
+                         f"hip, a {whose}leg reaching {foot_reach(height_m, lengths):.3g} m): the planner flags its "
+                         "notes unreachable")
         if obj.id not in struck:
             if obj.kind in STRUCK_KINDS:
                 lines.append(f"{obj.id} ({obj.kind}): no event type or note_objects pitch strikes it")
@@ -713,14 +722,23 @@ def unplayable_instruments(kit: Kit, height_m: float = STATURE_M) -> list[str]:
     return lines
 
 
-def _pedals_out_of_reach(kit: Kit, height_m: float = STATURE_M) -> dict[str, dict[Limb, list[str]]]:
+def _whose(height_m: float, lengths: LimbLengths | None) -> str:
+    """Whose reach a line of :func:`unplayable_instruments` gives: a skeleton's, a drummer's of another height than
+    :data:`STATURE_M` (metres), or "" (the default drummer's reads as it always did)."""
+    if lengths is not None:
+        return "skeleton's "
+    return "" if height_m == STATURE_M else f"{height_m:g} m drummer's "
+
+
+def _pedals_out_of_reach(kit: Kit, height_m: float = STATURE_M,
+                         lengths: LimbLengths | None = None) -> dict[str, dict[Limb, list[str]]]:
     """Pedal object id -> foot -> its foot events there beyond :func:`foot_reach` from that foot's hip ("EVENT d m"),
-    for a drummer ``height_m`` tall.
+    for a drummer ``height_m`` tall (``lengths``: a skeleton's legs).
 
     The feet are :func:`distribute`'s: each foot event's preferred foot, and with a double pedal the other foot on
     BASS, which presses the left bass pedal (:meth:`common.kit.Kit.pedal_for`)."""
     hip_at = hips(kit, height_m)
-    leg_reach = foot_reach(height_m)
+    leg_reach = foot_reach(height_m, lengths)
     out: dict[str, dict[Limb, list[str]]] = {}
     for event, spec in kit.events.items():
         if spec.pedal is None:

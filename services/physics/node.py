@@ -45,6 +45,7 @@ from common.messages import Hello, OscMessage
 from common.messages.graphics import ScorePosition
 from common.messages.physics import ControlModeName, GripName
 from common.runtime import Node, run_node
+from common.score.limbs import LimbLengths
 from services.physics.core import PhysicsCore, PhysicsSettings
 from services.physics.plan_worker import PlanWorker
 from services.physics.precompile import warm_up
@@ -170,8 +171,8 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace) -> PhysicsCore:
     if settings.score and not Path(settings.score).expanduser().is_file():
         raise InputError(f"score {settings.score!r}: no such file")
     try:  # a kit file it cannot use (missing or not a kit): 1, found before the core's slow start; loaded once,
-        # so its warnings are logged once and name this drummer's reach
-        kit = load_kit(settings.kit, height_m=settings.height_m)
+        # so its warnings are logged once and name this drummer's reach (a skeleton's, as the planner's)
+        kit = load_kit(settings.kit, height_m=settings.height_m, lengths=_skeleton_limbs(settings))
     except (FileNotFoundError, ValueError) as exc:
         raise InputError(str(exc)) from None
     try:
@@ -206,6 +207,22 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace) -> PhysicsCore:
         core.close()
         raise
     return core
+
+
+def _skeleton_limbs(settings: PhysicsNodeSettings) -> LimbLengths | None:
+    """The arms and legs (metres) of the body the core builds from ``--skeleton-bvh``, for the kit's reach warning;
+    None without one, or for a file the core refuses (its own error says why, as before)."""
+    if not settings.skeleton_bvh:
+        return None
+    from services.physics.anthropometry import anthropometry
+    from services.physics.bvh_motion import bvh_segment_lengths
+
+    try:
+        lengths = bvh_segment_lengths(settings.skeleton_bvh)
+        segments = anthropometry(settings.height_m, settings.mass_kg, lengths_m=lengths).segments
+    except (OSError, ValueError):
+        return None
+    return LimbLengths.of_segments({name: s.length_m for name, s in segments.items()})
 
 
 def _prepare(core: PhysicsCore, settings: PhysicsNodeSettings) -> None:

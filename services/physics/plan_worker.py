@@ -33,6 +33,7 @@ if TYPE_CHECKING:
     from common.kit import Kit
     from common.score.events import DrumEvent
     from common.score.hands import HandAlgorithm, Sticking
+    from common.score.limbs import LimbLengths
 
 log = logging.getLogger("batteur.physics.score")
 
@@ -52,11 +53,13 @@ class PlanError(ValueError):
 
 
 def plan_events(events: list[DrumEvent], beats: np.ndarray, lead_in: float, kit: Kit, algorithm: HandAlgorithm,
-                sticking: Sticking, grip: Grip, nuance: Nuance, height_m: float = STATURE_M) -> GesturePlan:
+                sticking: Sticking, grip: Grip, nuance: Nuance, height_m: float = STATURE_M,
+                lengths: LimbLengths | None = None) -> GesturePlan:
     """Distribute and plan rig-timed events (the planner's times are rig seconds); raises :class:`PlanError`.
 
     ``height_m``: the drummer's height, metres (the node's ``--height-m``): the reach its notes are checked
-    against (``distribute``'s ``unreachable`` flags). Here, not in the score player, so that a planning
+    against (``distribute``'s ``unreachable`` flags); ``lengths``: the arms and legs of a body built from a
+    skeleton (the node's ``--skeleton-bvh``), None: the height's. Here, not in the score player, so that a planning
     process imports the planner only (the score player's module brings the physics kernels: 1.8 s more to start
     a process)."""
     from common.gesture.planner import PlannerConfig, plan_gestures
@@ -64,7 +67,7 @@ def plan_events(events: list[DrumEvent], beats: np.ndarray, lead_in: float, kit:
     from common.score.limbs import distribute
 
     score = Score(events=events, beats=beats, source="performance")
-    assignment = distribute(score, kit, algorithm, sticking, height_m=height_m)
+    assignment = distribute(score, kit, algorithm, sticking, height_m=height_m, lengths=lengths)
     if not assignment.notes:
         raise PlanError("nothing to play: the kit has none of these notes' instruments")
     config = PlannerConfig(grip=grip, nuance=nuance, lead_in=max(lead_in, 0.05))

@@ -122,7 +122,7 @@ from common.messages.physics import PhysicsReset
 from common.messages.score import GestureStyle, KitSelect, LiveNote, ScoreLoad, ScoreTransport, TempoScale
 from common.score.events import MAX_SCORE_NOTES, DrumEvent, Score, ScoreError
 from common.score.hands import HandAlgorithm, Sticking
-from common.score.limbs import HANDS
+from common.score.limbs import HANDS, LimbLengths
 from common.score.live import LiveNotes
 from services.physics.plan_worker import PlanWorker, PlanWorkers, plan_events
 from services.physics.splice import (
@@ -1132,7 +1132,16 @@ class ScorePlayer:
         state (it may run in the worker while the loop changes it; picklable, for a worker process)."""
         self._check_grip()
         return functools.partial(plan_events, events, beats, lead_in, self.core.kit, self.algorithm, self.sticking,
-                                 self.grip, self.nuance, height_m=self.core.settings.height_m)
+                                 self.grip, self.nuance, height_m=self.core.settings.height_m,
+                                 lengths=self._limb_lengths())
+
+    def _limb_lengths(self) -> LimbLengths | None:
+        """The arms and legs of the body physics built from the node's skeleton (``skeleton_bvh``), metres, for the
+        planner's reach (as ``batteur render --skeleton-bvh``); None without one: the height's."""
+        scene = self._maybe_drummer()
+        if scene is None or not self.core.settings.skeleton_bvh:
+            return None
+        return LimbLengths.of_segments({name: s.length_m for name, s in scene.anthro.segments.items()})
 
     def _check_grip(self) -> None:
         """Warn when the hands hold another grip than the one the gestures are planned with (american,
