@@ -173,7 +173,9 @@ def _pair_split(a: int, b: int, t: _Table, kit: Kit, notes: list[HandNote]) -> t
         return fa, _other(fa)
     if fb is not None and fa is None:
         return _other(fb), fb
-    p = kit.pair(t.events[a], t.events[b])
+    own = all(_struck_object(kit, notes[i].event, notes[i].pitch) == kit.events[notes[i].event].object
+              for i in (a, b))
+    p = kit.pair(t.events[a], t.events[b]) if own else 0.0  # as crossed(): another object, the geometry
     if p > 0:
         return R, L
     if p < 0:
@@ -331,7 +333,10 @@ def _viterbi(notes: list[HandNote], groups: list[list[int]], t: _Table, kit: Kit
         return value
 
     xs = t.x.tolist()
-    objects = [kit.events[e].object for e in t.events]
+    objects = [_struck_object(kit, n.event, n.pitch) for n in notes]
+    # the pair preference is between event types on their own objects; a note struck on another (note_objects)
+    # is judged by the geometry, as crossed() judges it
+    own = [objects[i] == kit.events[e].object for i, e in enumerate(t.events)]
     times = t.time.tolist()
     gaps = t.gap.tolist()
     pos = t.pos.tolist()
@@ -372,7 +377,7 @@ def _viterbi(notes: list[HandNote], groups: list[list[int]], t: _Table, kit: Kit
             idle = times[i] - times[other]
             if idle < 5 * c.crossing_decay:
                 left, right = (i, other) if h == L else (other, i)
-                p = pair(t.events[left], t.events[right])
+                p = pair(t.events[left], t.events[right]) if own[left] and own[right] else 0.0
                 if p != 0.0:
                     crossing = p > 0
                 else:

@@ -123,5 +123,11 @@ def test_the_hand_assignment_gives_a_note_to_the_hand_that_reaches_it() -> None:
     assert {n.limb for n in small.notes if n.event == E.RIDE} == {Limb.LEFT_HAND}
     assert {n.limb for n in small.notes if n.event == E.SNARE} == {Limb.RIGHT_HAND}
     assert len(small.notes) == 10 and _unreachable(small.issues) == []  # was: 8 flagged, played anyway
-    # the default drummer reaches it with the right hand, as before
-    assert {n.limb for n in distribute(score, kit).notes if n.event == E.RIDE} == {Limb.RIGHT_HAND}
+    # the default drummer's right hand reaches it, but beside a snare the left hand takes it: out to the left, it
+    # is not the first ride the kit's RIDE,SNARE preference is about (the right hand over the left's snare crossed
+    # the arms, and was flagged so)
+    default = distribute(score, kit)
+    with_snare = {n.time for n in default.notes if n.event == E.SNARE}
+    assert {n.limb for n in default.notes if n.event == E.RIDE and n.time in with_snare} == {Limb.LEFT_HAND}
+    assert {n.limb for n in default.notes if n.event == E.RIDE and n.time not in with_snare} == {Limb.RIGHT_HAND}
+    assert [i for i in default.issues if i.reason == IssueReason.CROSSING] == []
