@@ -898,8 +898,7 @@ def skeleton_limbs(opts: RenderOptions) -> LimbLengths | None:
     from services.physics.bvh_motion import bvh_segment_lengths
 
     segments = anthropometry(opts.height_m, opts.mass_kg, lengths_m=bvh_segment_lengths(opts.skeleton_bvh)).segments
-    arm = sum(segments[name].length_m for name in ("upper_arm", "forearm", "hand"))
-    return LimbLengths(arm_m=arm, leg_m=segments["thigh"].length_m + segments["shank"].length_m)
+    return LimbLengths.of_segments({name: s.length_m for name, s in segments.items()})
 
 
 def check_video(opts: RenderOptions) -> None:
