@@ -1183,9 +1183,11 @@ class ScorePlayer:
                      issue.reason.value, issue.action.value, issue.detail)
         if pulled:
             self.pulled_into_reach.update(pulled)
-            log.info("plan: %s beyond the %g m drummer's reach brought within it: the notes there are missed",
+            settings = self.core.settings
+            body = "the skeleton's" if settings.skeleton_bvh else f"the {settings.height_m:g} m drummer's"
+            log.info("plan: %s beyond %s reach brought within it: the notes there are missed",
                      ", ".join(f"{count} {limb.replace('_', ' ')} knot{'s' if count > 1 else ''}"
-                               for limb, count in sorted(pulled.items())), self.core.settings.height_m)
+                               for limb, count in sorted(pulled.items())), body)
         self.plans += 1
         self.last_plan = plan
         return plan

@@ -65,3 +65,26 @@ def test_the_nodes_kit_warning_measures_the_skeletons_reach(tmp_path: Path, capl
     said = [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING and r.name == "common.kit"]
     assert any("china: out of both hands' reach" in line and "a skeleton's hand reaching 0.977 m" in line
                for line in said)  # was: none (the table's 1.75 m drummer reaches it)
+
+
+def test_knots_pulled_in_are_logged_against_the_skeletons_reach(tmp_path: Path,
+                                                               caplog: pytest.LogCaptureFixture) -> None:
+    """A plan's knots brought within a skeleton-built body's reach are logged as the skeleton's, not as the
+    height's drummer (whose reach the body does not have)."""
+    short = _skeleton(tmp_path / "short.bvh", 20, 18, 25, 25)
+    core = PhysicsCore(scene="drummer", kit=EDGE_KIT, height_m=1.75, grip="german", pose_rate_hz=0,
+                       skeleton_bvh=str(short))
+    try:
+        (tmp_path / "china.txt").write_text(SCORE)
+        player = core.score_player
+        player.library = [tmp_path]
+        assert core.handle(ScoreLoad(path="china.txt"), 0.0, "127.0.0.1:9") == []
+        assert player.score is not None
+        plan = player._planner(list(player.score.events), player.score.beats, 1.0)()
+        with caplog.at_level(logging.INFO, logger="batteur.physics.score"):
+            player._account(plan, pulled={"right_hand": 3})
+    finally:
+        core.close()
+    said = [r.getMessage() for r in caplog.records if "reach brought within" in r.getMessage()]
+    assert said == ["plan: 3 right hand knots beyond the skeleton's reach brought within it: the notes there are "
+                    "missed"]  # was: "the 1.75 m drummer's reach"
