@@ -303,7 +303,11 @@ class Segmenter:
                 return events
             track = _Track(instrument=c.instrument, part=c.part, obj=obj)
             self._tracks[key] = track
-        if track.active and c.time - track.last > self.config.retrigger_gap:
+        # physics' next step: a live node that fell behind skips rig time (20-70 ms), not steps, and a contact
+        # held over the skip (a stick resting on a cymbal) is the same contact, not a new strike at its first
+        # step's approach velocity (physics repeats it in every step)
+        next_step = track.last_step >= 0 and c.step == track.last_step + 1
+        if track.active and c.time - track.last > self.config.retrigger_gap and not next_step:
             self._end(track, events)
         if self._late(track, c):
             self.stats.out_of_order += 1  # a late (or repeated) step of a contact already ended: not a new one
@@ -313,10 +317,11 @@ class Segmenter:
             self.stats.duplicates += 1  # the same datagram again (UDP may repeat one), not another contact point
             return events
         track.recent.append(content)
-        if (not track.active and track.ended_by_clock and track.prev_end is not None
-                and 0.0 <= c.time - track.prev_end <= self.config.retrigger_gap):
-            # the receiver's clock ended this contact early (a live physics node catching up delivers its
-            # steps late); by physics time it never stopped: the same strike goes on, with no new onset
+        if not track.active and track.prev_end is not None and (next_step or (
+                track.ended_by_clock and 0.0 <= c.time - track.prev_end <= self.config.retrigger_gap)):
+            # the receiver's clock (or another contact's time) ended this contact early (a live physics node
+            # catching up delivers its steps late, or skipped time between two of its steps); by physics time or
+            # steps it never stopped: the same strike goes on, with no new onset
             track.active = True
             self.stats.reopened += 1
         if track.active:
@@ -474,7 +479,7 @@ class Segmenter:
                 self.stats.chatter += 1  # a gap shorter than retrigger_gap: same contact
             elif c.time > track.last:
                 dt = c.time - track.last
-                if 1e-5 <= dt <= 0.1:
+                if 1e-5 <= dt <= self.config.retrigger_gap:  # not the rig time a late live node skipped
                     self.step_dt = dt
             track.last = max(track.last, c.time)
             track.last_step = c.step
