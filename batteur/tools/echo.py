@@ -29,11 +29,16 @@ from batteur.tools.nodes import (
     write_line,
 )
 from common.arg_types import count, seconds
-from common.messages import ClockStatus, OscMessage, Subscribe, SubscribeRefused
+from common.dedupe import Deduplicator
+from common.messages import ClockStatus, Impact, OscMessage, Subscribe, SubscribeRefused
+from common.messages.interaction import Damping, ImpactEnd
 from common.subscribe import matches, pattern_regex
 from common.transport import UdpEndpoint
 
 RENEW_S = 5.0
+REDUNDANT = (Impact, ImpactEnd, Damping)
+"""What interaction sends several times with one ``seq`` (its redundancy): the copies of one are one message. A
+clock ping or pong's ``seq`` is its asker's: two nodes' pongs of one number are two messages."""
 PROBE_S = 2.0
 """How long to wait for each node's Health before saying it does not answer."""
 
@@ -42,8 +47,10 @@ Print the OSC messages whose address matches PATTERN, as the nodes send or recei
 Each node found by zeroconf (or given with --node) is asked to copy matching messages
 to this command (a Subscribe, renewed every 5 s). One line per message:
 the address, then the arguments (strings quoted); /batteur/clock/status is spelt out in words
-(--json gives its fields). A node that refuses the subscription (its table full, say) is
-named once on standard error, with its reason.
+(--json gives its fields). A message sent several times with one sequence number (interaction
+sends each impact, impact end and damping 5 times to each peer) is printed once; --copies
+prints every copy the node sends or receives. A node that refuses the subscription (its table
+full, say) is named once on standard error, with its reason.
 
 Patterns (OSC 1.0): ? one character, * any run of characters but '/', [abc] [a-z] [!abc]
 one character of (or not of) a set, {foo,bar} one of several strings, // any number of levels.
@@ -129,6 +136,7 @@ async def _run(opts: argparse.Namespace, subscribe: Subscribe) -> int:
     printed = 0
     outcome: list[int] = []  # set by what stopped us: Ctrl-C, or the reader of our output going away
     refusals = Refusals(subscribe.pattern, reachable)
+    first_copies = Deduplicator()  # the receivers' own rule: by sender, address and seq
 
     def on_message(message: OscMessage, source: str) -> None:
         nonlocal printed
@@ -137,6 +145,8 @@ async def _run(opts: argparse.Namespace, subscribe: Subscribe) -> int:
             print(refused, file=sys.stderr)
         if stop.is_set() or not matches(opts.pattern, message.ADDRESS):
             return
+        if not opts.copies and isinstance(message, REDUNDANT) and not first_copies.accept_message(source, message):
+            return  # a redundant copy: the node copies each of them, and each send to each peer, to us
         try:
             write_line(format_message(message, opts.json))
         except OutputClosed:  # `batteur echo ... | head`: head has what it wanted
@@ -189,6 +199,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--duration", type=seconds, default=None,
                         help="stop after this many seconds (default: until Ctrl-C)")
     parser.add_argument("--json", action="store_true", help="one JSON object per line")
+    parser.add_argument("--copies", action="store_true",
+                        help="print every copy of a message sent redundantly (same seq), not only the first")
     opts = parser.parse_args(argv)
 
     def run() -> int:

@@ -24,7 +24,17 @@ from batteur.errors import USAGE, report_error
 from batteur.tools.nodes import run_tool
 from common.arg_types import seconds
 from common.datafile import one_line
-from common.messages import REGISTRY, Arg, MessageError, WireKind, encode, encode_raw, parse_packet
+from common.messages import (
+    REGISTRY,
+    Arg,
+    DropReason,
+    MessageError,
+    OscMessage,
+    WireKind,
+    encode,
+    encode_raw,
+    parse_packet,
+)
 from common.transport import format_address, parse_address
 
 OSC_ADDRESS = re.compile(r"(?:/[!-.0-~]+)+")
@@ -49,6 +59,18 @@ def guess_arg(text: str) -> Arg:
         return float(text)
     except ValueError:
         return text
+
+
+def arguments(model: type[OscMessage]) -> str:
+    """The arguments a message takes, as a usage line names them: ``ACTION TIME_WHOLE_S TIME_FRACTION POSITION``
+    (a rig time is two), ``NAME...`` for a list at the end."""
+    names: list[str] = []
+    for f in model.wire_fields():
+        name = f.name.upper()
+        names += [f"{name}_WHOLE_S", f"{name}_FRACTION"] if f.kind is WireKind.TIME else [name]
+        if f.variadic:
+            names[-1] += "..."
+    return " ".join(names)
 
 
 def typed_args(address: str, texts: Sequence[str]) -> list[Arg]:
@@ -149,7 +171,8 @@ def _send(opts: argparse.Namespace) -> int:
             check_raw_address(opts.address)
         data = _encode(opts.address, typed_args(opts.address, opts.args))
     except MessageError as exc:
-        return report_error(PROG, str(exc), USAGE)
+        takes = f"; {opts.address} takes {arguments(model)}" if model and exc.reason is DropReason.WRONG_ARITY else ""
+        return report_error(PROG, f"{exc}{takes}", USAGE)
     try:
         targets = _resolve(opts.to, opts.timeout, opts.interface or None)
     except ValueError as exc:
