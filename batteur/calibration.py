@@ -40,7 +40,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from common.datafile import read_text
 from common.kit import Kit
+from common.output_paths import write_atomically
 from common.score.limbs import Assignment
 
 if TYPE_CHECKING:
@@ -95,13 +97,18 @@ class Calibration:
     def save(self, path: Path) -> None:
         data = {"timing_s": self.timing, "velocity": {k: list(v) for k, v in self.velocity.items()},
                 "reference": list(self.reference) if self.reference else None, "samples": self.samples}
-        path.write_text(json.dumps(data, indent=2, sort_keys=True), encoding="utf-8")
+        # whole or not at all: a fit is often written over the calibration it was made with (docs/evaluation.md)
+        write_atomically(Path(path), json.dumps(data, indent=2, sort_keys=True).encode("utf-8"))
 
     @classmethod
     def load(cls, path: Path) -> Calibration:
         """Read a calibration JSON; ``ValueError`` naming the file when it is not one."""
+        if not Path(path).exists():  # said as for every other input, not as Python's OSError
+            raise ValueError(f"{path}: no such file")
+        if Path(path).is_dir():
+            raise ValueError(f"{path}: is a folder, not a calibration file (JSON)")
         try:
-            data = json.loads(Path(path).read_text(encoding="utf-8"))
+            data = json.loads(read_text(Path(path)))
             unknown = sorted(set(data) - set(CALIBRATION_KEYS))
             if unknown:  # a misspelt key would otherwise calibrate nothing, silently
                 raise ValueError(f"unknown keys {unknown}; a calibration has {list(CALIBRATION_KEYS)}")

@@ -755,11 +755,36 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.reuse and args.renders is None:  # it reuses renders kept in --renders DIR; without one there are none
         parser.error("--reuse needs --renders DIR (the folder whose renders it reuses)")
+    warn_unused_options(args, parser)
     try:
         return _main(args)
     except KeyboardInterrupt:  # Ctrl-C: a render in progress is staged, so nothing of it was written
         print(f"{PROG}: interrupted", file=sys.stderr)
         return INTERRUPTED
+
+
+RENDER_OPTIONS = ("kit", "grip", "nuance", "height", "mass", "tempo_scale", "control", "calibration", "jobs",
+                  "segment")
+"""The options that change a render: a render directory given to evaluate was made with its own."""
+
+
+def warn_unused_options(args: argparse.Namespace, parser: argparse.ArgumentParser) -> None:
+    """Say which render options given do not apply to the render directories among the inputs (they were
+    ignored in silence); the fit's kit and base calibration apply to them."""
+    folders = [str(path) for path in args.scores if path.is_dir()]
+    used = ("kit", "calibration") if args.fit_calibration is not None else ()
+    given = [f"--{name.replace('_', '-')}" for name in RENDER_OPTIONS
+             if name not in used and getattr(args, name) != parser.get_default(name)]
+    if folders and given:
+        one = len(folders) == 1
+        print(f"{PROG}: warning: {_and(folders)} {'is a render' if one else 'are renders'}: {_and(given)} "
+              f"{'does' if len(given) == 1 else 'do'} not apply to {'it' if one else 'them'} "
+              f"({'it was' if one else 'each was'} rendered with the options in its report.json)", file=sys.stderr)
+
+
+def _and(words: Sequence[str]) -> str:
+    """'a, b and c'."""
+    return f"{', '.join(words[:-1])} and {words[-1]}" if len(words) > 1 else words[0]
 
 
 def _main(args: argparse.Namespace) -> int:

@@ -51,10 +51,31 @@ def read_text(path: Path) -> str:
 
 
 def first_error(exc: ValidationError) -> str:
-    """The first problem pydantic found, on one line: ``field.path: message``."""
-    first = exc.errors()[0]
+    """The first problem pydantic found, on one line: ``field.path: message``; a required key missing beside a
+    key the model does not take is said as the typo it likely is (:func:`misspelt_key`)."""
+    errors = exc.errors()
+    first = errors[0]
+    typo = misspelt_key(first, errors)
+    if typo is not None:
+        return typo
     where = ".".join(str(p) for p in first.get("loc", ()))
     return f"{where}: {error_message(first)}" if where else error_message(first)  # the whole input: no field
+
+
+def misspelt_key(first: ErrorDetails, errors: list[ErrorDetails]) -> str | None:
+    """``objects.1: 'positon' is not a key here ('position' is missing: misspelt?)`` when ``first`` is a missing
+    key and a key of the same mapping is not one the model takes; else None. pydantic lists the missing key
+    first, and "Field required" alone hid the typo that caused it."""
+    loc = tuple(first.get("loc", ()))
+    if first.get("type") != "missing" or not loc:
+        return None
+    for error in errors:
+        other = tuple(error.get("loc", ()))
+        if error.get("type") == "extra_forbidden" and other[:-1] == loc[:-1]:
+            where = ".".join(str(p) for p in loc[:-1])
+            said = f"{other[-1]!r} is not a key here ({loc[-1]!r} is missing: misspelt?)"
+            return f"{where}: {said}" if where else said
+    return None
 
 
 def error_message(error: ErrorDetails) -> str:

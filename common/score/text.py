@@ -176,6 +176,25 @@ def _finite(value: str, what: str, lineno: int) -> float:
 
 DIRECTIVES = frozenset({"tempo", "meter", "repeat", "grip", "nuance", "at", "note", "rest", "kit", "title"})
 """The directive words (docs/score-format.md)."""
+
+
+def _either(values: list[str]) -> str:
+    """'a, b or c'."""
+    return f"{', '.join(values[:-1])} or {values[-1]}" if len(values) > 1 else values[0]
+
+
+DIRECTIVE_FORMS: dict[str, str] = {
+    "tempo": "BPM: a number of beats per minute, 10 to 400",
+    "meter": "BEATS/UNIT, e.g. 4/4, 6/8 or 2.5/4",
+    "repeat": "N: a whole number of times, 1 or more",
+    "rest": "[BEATS]: a number of beats (without it, a bar)",
+    "grip": _either([g.value for g in Grip]),
+    "nuance": _either([n.value for n in Nuance]),
+    "at": "BEAT NAME [VELOCITY, 0 to 1] [L|R]",
+    "note": "BEAT NAME [VELOCITY, 0 to 1] [L|R]",
+}
+"""How each directive is written, said when one cannot be read (instead of Python's words about the value)."""
+
 DIGITS = "123456789"
 STICK_MARKS = "RL.-"
 NUANCE_MARKS = "ltavs.-"
@@ -350,7 +369,9 @@ def parse_text(text: str, source: str = "text") -> TextScore:
         except ScoreError:
             raise
         except (ValueError, IndexError, OverflowError) as exc:
-            raise ScoreError(f"line {lineno}: cannot read {line.strip()!r} ({exc})") from exc
+            form = DIRECTIVE_FORMS.get(word)
+            how = f": write {word} {form}" if form else f" ({exc})"
+            raise ScoreError(f"line {lineno}: cannot read {line.strip()!r}{how}") from exc
     flush()
     if events and (not bar_starts or last_note > position + 1e-9):
         # `at` notes after the last block or rest (or `at` lines only: the score had no bar and a single beat):
@@ -409,6 +430,8 @@ def read_score(path: str | Path, **kwargs: object) -> Score:
         check_not_audio(head, str(p))
         raise ScoreError(f"{p}: not a text score ({exc})") from None
     try:
-        return parse_text(text, source=str(p))
+        score = parse_text(text, source=str(p))
     except ScoreError as exc:
         raise ScoreError(f"{p}: {exc}") from exc
+    score.warnings = [f"{p}: {warning}" for warning in score.warnings]  # as its errors, and a MIDI file's warnings
+    return score

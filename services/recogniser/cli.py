@@ -48,6 +48,8 @@ examples:
 
 LONG_FILE_S = 60.0
 """Files longer than this show a progress line, seconds."""
+WARNING = "batteur transcribe: warning:"
+"""How a warning begins, as the other commands' do (its errors: ``batteur transcribe: error:``)."""
 
 
 def build_parser(prog: str = "batteur transcribe") -> argparse.ArgumentParser:
@@ -86,7 +88,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     say = (lambda *a: None) if args.quiet else (lambda *a: print(*a, file=sys.stderr))
 
     def warn(text: str) -> None:
-        say(f"warning: {text}")
+        say(f"{WARNING} {text}")
 
     if args.device is None and not args.audio:
         parser.error("give an AUDIO file (or --live --device)")
@@ -150,7 +152,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         say(f"{len(events)} notes ({_summary(events)}) from {duration:.1f} s of audio "
             f"in {elapsed:.2f} s ({duration / max(elapsed, 1e-9):.0f}x real time) -> {args.output}")
         if not events:
-            say("warning: no drum strike recognised; the MIDI file is empty")
+            say(f"{WARNING} no drum strike recognised; the MIDI file is empty")
         return 0
     except RecogniserError as exc:
         print(f"batteur transcribe: error: {exc}", file=sys.stderr)
@@ -212,7 +214,7 @@ def _live(args: argparse.Namespace, model: object, say: object) -> int:
         else:
             asyncio.run(play_file(args.audio, targets, model, speed=args.speed or 1.0,  # type: ignore[arg-type]
                                   max_duration_s=args.max_duration, on_hit=on_hit, report=report,
-                                  warn=lambda text: say(f"warning: {text}")))  # type: ignore[operator]
+                                  warn=lambda text: say(f"{WARNING} {text}")))  # type: ignore[operator]
     except KeyboardInterrupt:  # the way to stop listening to a device; a file stops early
         say("stopped (Ctrl-C)")  # type: ignore[operator]
     lat = np.asarray(report.latencies_s) * 1000

@@ -329,7 +329,9 @@ def _attach_sinks(core: SoundCore, extra: argparse.Namespace) -> None:
                                  "--device none records without it") from None
             log.info("playing on the sound card (%d portaudio devices)", devices)
         else:
-            log.info("no audio device found: not playing (use --wav to record)")
+            # `batteur rig --record` gives --wav: telling it to use --wav read as if it were not recording
+            log.info("no audio device found: not playing%s",
+                     "; recording only" if extra.wav is not None else " (use --wav to record)")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
