@@ -28,7 +28,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "echo": ("batteur.tools.echo", "print OSC messages whose address matches a pattern"),
     "send": ("batteur.tools.send", "send one OSC message"),
     "docs": ("batteur.tools.docs", "regenerate docs/osc.md from the message models"),
-    "wav-repair": ("batteur.tools.wav_repair", "give WAV or RF64 takes cut short (a 0-frame header) the length they hold"),
+    "wav-repair": ("batteur.tools.wav_repair", "give WAV or RF64 takes cut short the length they hold"),
 }
 
 

@@ -20,10 +20,13 @@ from common.kit import Kit, kit_hardware, load_kit
 from services.graphics.core import GraphicsCore, GraphicsSettings
 from services.graphics.server import ViewServer
 
+from . import test_kit_editor
 from .conftest import GraphicsNodeProcess, needs_browser, open_page
-from .test_kit_editor import _fine_kit, _type
+from .test_kit_editor import _type
 
 KITS = ["default", "double_pedal"]
+crash_in_editor = test_kit_editor.crash_in_editor
+"""The kit editor's fixture: a node drawing the fine kit, the page with the editor open on the crash."""
 
 
 def _numbers(kit: Kit) -> dict[str, Any]:
@@ -173,25 +176,15 @@ def test_the_page_draws_the_beaters_and_stands_physics_builds(double_pedal_node:
 
 
 @needs_browser
-def test_a_moved_crash_takes_its_stand_along(tmp_path: Path) -> None:
+def test_a_moved_crash_takes_its_stand_along(crash_in_editor: tuple[Any, GraphicsNodeProcess, Kit]) -> None:
     """Moving the crash in the kit editor (not saved) moves its stand rod as physics would build it: the page
     asks the node for the edited kit's hardware."""
-    kit = _fine_kit(tmp_path / "fine.yaml")
-    node = GraphicsNodeProcess(tmp_path, extra=["--clock-master", "self", "--kit", str(tmp_path / "fine.yaml")])
-    node.start()
-    try:
-        with open_page(node.url, -1) as (page, errors):
-            page.wait_for_function("window.batteur.kit && window.batteur.connected", timeout=10000)
-            _drawn_matches(page.evaluate(DRAWN), kit)
-            page.click("#edit-toggle")
-            page.select_option("#kit-object", "crash")
-            _type(page, 0, "0.4321")  # pos x
-            edited = Kit.model_validate(_moved_crash(kit, 0.4321))
-            before = {r.top for r in kit_hardware(kit).stands}
-            (moved,) = [r.top for r in kit_hardware(edited).stands if r.top not in before]  # the crash's
-            page.wait_for_function("x => window.batteur.hardware.stands.some(m => Math.abs(m.position.x - x) < 1e-9)",
-                                   arg=moved[0], timeout=10000)
-            _drawn_matches(page.evaluate(DRAWN), edited)
-            assert errors == []
-    finally:
-        node.close()
+    page, _, kit = crash_in_editor
+    _drawn_matches(page.evaluate(DRAWN), kit)
+    _type(page, 0, "0.4321")  # pos x
+    edited = Kit.model_validate(_moved_crash(kit, 0.4321))
+    before = {r.top for r in kit_hardware(kit).stands}
+    (moved,) = [r.top for r in kit_hardware(edited).stands if r.top not in before]  # the crash's
+    page.wait_for_function("x => window.batteur.hardware.stands.some(m => Math.abs(m.position.x - x) < 1e-9)",
+                           arg=moved[0], timeout=10000)
+    _drawn_matches(page.evaluate(DRAWN), edited)

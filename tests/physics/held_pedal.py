@@ -1,10 +1,15 @@
-"""The hi-hat pedal pressed by a left foot held still over it: what the tests of the foot's press heights read."""
+"""The pedals under a drummer of a given height: the hi-hat pedal pressed by a left foot held still over it, and
+single pedal notes played from the scene's start (what the tests of the feet by body size read)."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from common.kit import Kit
+from common.gesture.planner import plan_gestures
+from common.kit import EventType, Kit, load_kit
+from common.messages import Contact
+from common.score.events import DrumEvent, Score
+from common.score.limbs import distribute
 from services.physics.core import PhysicsCore
 from services.physics.drummer import DrummerScene
 
@@ -25,3 +30,27 @@ def held_hihat_press(kit: Kit, above_flat_m: float, height_m: float = 1.75) -> f
         return scene.kit_bodies.hihat.pedal.press(core.world)
     finally:
         core.close()
+
+
+def played_pedal_notes(height_m: float, event: EventType, pitch: int, velocities: tuple[float, ...],
+                       parts: tuple[str, ...], start_s: float, period_s: float = 0.6
+                       ) -> tuple[list[float], list[Contact]]:
+    """A ``height_m`` tall drummer on the default kit plays single ``event`` notes at ``velocities``, ``period_s``
+    apart, from the scene's start (rest posture) on, the plan starting at rig time ``start_s``; returns the notes'
+    rig times (seconds) and every contact of the striker ``parts`` until 0.2 s after the plan."""
+    kit = load_kit("default", height_m=height_m, warn=False)
+    t0 = 0.5
+    events = [DrumEvent(time=t0 + k * period_s, event=event, velocity=v, pitch=pitch) for k, v in enumerate(velocities)]
+    score = Score(events=events, beats=t0 + period_s * np.arange(len(events)))
+    plan = plan_gestures(distribute(score, kit, height_m=height_m), kit, score)
+    core = PhysicsCore(scene="drummer", kit=kit, pose_rate_hz=0, height_m=height_m)
+    offset = start_s - plan.start_time
+    core.load_plan(plan, start_at=start_s)
+    contacts: list[Contact] = []
+    try:
+        for k in range(1, round((plan.end_time + offset + 0.2) * 1000) + 1):
+            contacts += [o.message for o in core.step(k / 1000)
+                         if isinstance(o.message, Contact) and o.message.part in parts]
+    finally:
+        core.close()
+    return [s.time + offset for s in plan.strokes if s.event == event], contacts

@@ -6,9 +6,12 @@ node's kit load warning measures the skeleton's reach too."""
 from __future__ import annotations
 
 import argparse
+import contextlib
 import logging
 import pickle
+from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -26,8 +29,10 @@ EDGE_KIT = china_at(load_kit("default"), 1.10)
 1.40 m drummer's (1.02 m)."""
 
 
-def _flagged(tmp_path: Path, height_m: float, skeleton: Path | None) -> list[EventType | None]:
-    """The events the node's planner flags ``unreachable`` in :data:`SCORE`, planned as a planning process does."""
+@contextlib.contextmanager
+def _china_planner(tmp_path: Path, height_m: float, skeleton: Path | None) -> Iterator[tuple[Any, Callable[[], Any]]]:
+    """A drummer-scene core of that height (and skeleton) with :data:`SCORE` loaded: its score player and the
+    planner of the score's events, as a planning process gets it."""
     core = PhysicsCore(scene="drummer", kit=EDGE_KIT, height_m=height_m, grip="german", pose_rate_hz=0,
                        skeleton_bvh=None if skeleton is None else str(skeleton))
     try:
@@ -36,11 +41,16 @@ def _flagged(tmp_path: Path, height_m: float, skeleton: Path | None) -> list[Eve
         player.library = [tmp_path]
         assert core.handle(ScoreLoad(path="china.txt"), 0.0, "127.0.0.1:9") == []
         assert player.score is not None
-        planner = player._planner(list(player.score.events), player.score.beats, 1.0)
-        plan = pickle.loads(pickle.dumps(planner))()
-        return [i.event for i in plan.issues if i.reason == IssueReason.UNREACHABLE]
+        yield player, player._planner(list(player.score.events), player.score.beats, 1.0)
     finally:
         core.close()
+
+
+def _flagged(tmp_path: Path, height_m: float, skeleton: Path | None) -> list[EventType | None]:
+    """The events the node's planner flags ``unreachable`` in :data:`SCORE`, planned as a planning process does."""
+    with _china_planner(tmp_path, height_m, skeleton) as (_, planner):
+        plan = pickle.loads(pickle.dumps(planner))()
+    return [i.event for i in plan.issues if i.reason == IssueReason.UNREACHABLE]
 
 
 def test_the_live_planner_plans_with_the_skeletons_reach(tmp_path: Path) -> None:
@@ -72,19 +82,9 @@ def test_knots_pulled_in_are_logged_against_the_skeletons_reach(tmp_path: Path,
     """A plan's knots brought within a skeleton-built body's reach are logged as the skeleton's, not as the
     height's drummer (whose reach the body does not have)."""
     short = _skeleton(tmp_path / "short.bvh", 20, 18, 25, 25)
-    core = PhysicsCore(scene="drummer", kit=EDGE_KIT, height_m=1.75, grip="german", pose_rate_hz=0,
-                       skeleton_bvh=str(short))
-    try:
-        (tmp_path / "china.txt").write_text(SCORE)
-        player = core.score_player
-        player.library = [tmp_path]
-        assert core.handle(ScoreLoad(path="china.txt"), 0.0, "127.0.0.1:9") == []
-        assert player.score is not None
-        plan = player._planner(list(player.score.events), player.score.beats, 1.0)()
-        with caplog.at_level(logging.INFO, logger="batteur.physics.score"):
-            player._account(plan, pulled={"right_hand": 3})
-    finally:
-        core.close()
+    with _china_planner(tmp_path, 1.75, short) as (player, planner), \
+            caplog.at_level(logging.INFO, logger="batteur.physics.score"):
+        player._account(planner(), pulled={"right_hand": 3})
     said = [r.getMessage() for r in caplog.records if "reach brought within" in r.getMessage()]
     assert said == ["plan: 3 right hand knots beyond the skeleton's reach brought within it: the notes there are "
                     "missed"]  # was: "the 1.75 m drummer's reach"

@@ -4,17 +4,11 @@ pedal's travel is the one the planner aims at, and the plates close on the pedal
 
 from __future__ import annotations
 
-import numpy as np
 import pytest
 
-from common.gesture.planner import plan_gestures
 from common.kit import CHICK_PRESS_MARGIN, EventType, foot_target_for_press, load_kit
-from common.messages import Contact
-from common.score.events import DrumEvent, Score
-from common.score.limbs import distribute
 from services.interaction.detect import DetectionConfig
-from services.physics.core import PhysicsCore
-from tests.physics.held_pedal import held_hihat_press
+from tests.physics.held_pedal import held_hihat_press, played_pedal_notes
 
 CHICK_GAP_S = 0.015
 """Contacts of the top plate closer than this belong to one chick."""
@@ -34,23 +28,8 @@ def test_the_foot_held_at_the_chick_target_presses_the_pedal_as_the_planner_aims
 def test_a_small_drummers_soft_hihat_pedal_notes_close_the_hihat_on_time() -> None:
     """A 1.4 m drummer's hi-hat pedal notes, soft to medium as in a Groove beat: each closes the plates once,
     fast enough to be heard (interaction's slowest top plate), within 10 ms of its note."""
-    height_m = 1.4
-    kit = load_kit("default", height_m=height_m)
-    t0, period = 0.5, 0.6
     velocities = (0.15, 0.25, 0.4, 0.55)
-    events = [DrumEvent(time=t0 + k * period, event=EventType.HIHATPEDAL, velocity=v, pitch=44)
-              for k, v in enumerate(velocities)]
-    score = Score(events=events, beats=t0 + period * np.arange(len(events)))
-    plan = plan_gestures(distribute(score, kit, height_m=height_m), kit, score)
-    core = PhysicsCore(scene="drummer", kit=kit, pose_rate_hz=0, height_m=height_m)
-    start = 0.5
-    offset = start - plan.start_time
-    core.load_plan(plan, start_at=start)
-    contacts: list[Contact] = []
-    for k in range(1, round((plan.end_time + offset + 0.2) * 1000) + 1):
-        contacts += [o.message for o in core.step(k / 1000)
-                     if isinstance(o.message, Contact) and o.message.part == "hihat_top"]
-    core.close()
+    notes, contacts = played_pedal_notes(1.4, EventType.HIHATPEDAL, 44, velocities, ("hihat_top",), start_s=0.5)
     slowest = DetectionConfig().part_velocity_min["hihat_top"]
     chicks: list[float] = []
     last = -1.0
@@ -58,7 +37,6 @@ def test_a_small_drummers_soft_hihat_pedal_notes_close_the_hihat_on_time() -> No
         if c.time - last > CHICK_GAP_S and c.normal_velocity >= slowest:
             chicks.append(c.time)
         last = c.time
-    notes = [s.time + offset for s in plan.strokes if s.event == EventType.HIHATPEDAL]
     assert len(notes) == len(velocities) and len(chicks) == len(notes), (notes, chicks)
     for note, heard in zip(notes, chicks, strict=True):
         assert abs(heard - note) <= 0.010, f"pedal note at {note:.3f} s closed at {heard:.3f} s"

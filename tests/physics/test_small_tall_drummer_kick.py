@@ -5,48 +5,26 @@ and a tall drummer's feet do not knock their pedals down when the scene starts."
 
 from __future__ import annotations
 
-import numpy as np
 import pytest
 
-from common.gesture.planner import plan_gestures
-from common.kit import EventType, load_kit
-from common.messages import Contact
-from common.score.events import DrumEvent, Score
-from common.score.limbs import distribute
-from services.physics.core import PhysicsCore
+from common.kit import EventType
+from tests.physics.held_pedal import played_pedal_notes
 
 ONSET_GAP_S = 0.015
 """Contacts of one striker closer than this belong to one onset."""
 PEDAL_PARTS = ("kick_beater", "hihat_top")
 
 
-def _pedal_onsets(height_m: float, velocities: tuple[float, ...], period_s: float = 0.6
-                  ) -> tuple[list[float], dict[str, list[float]]]:
-    """A ``height_m`` tall drummer plays single kicks at ``velocities`` ``period_s`` apart, from the scene's start
-    (rest posture) on; returns the notes' rig times and the onsets of the beater and the hi-hat's top plate."""
-    kit = load_kit("default", height_m=height_m, warn=False)
-    t0 = 0.5
-    events = [DrumEvent(time=t0 + k * period_s, event=EventType.BASS, velocity=v, pitch=36)
-              for k, v in enumerate(velocities)]
-    score = Score(events=events, beats=t0 + period_s * np.arange(len(events)))
-    plan = plan_gestures(distribute(score, kit, height_m=height_m), kit, score)
-    core = PhysicsCore(scene="drummer", kit=kit, pose_rate_hz=0, height_m=height_m)
-    start = 1.0
-    offset = start - plan.start_time
-    core.load_plan(plan, start_at=start)
+def _pedal_onsets(height_m: float, velocities: tuple[float, ...]) -> tuple[list[float], dict[str, list[float]]]:
+    """A ``height_m`` tall drummer plays single kicks at ``velocities`` from the scene's start (rest posture) on;
+    returns the notes' rig times and the onsets of the beater and the hi-hat's top plate."""
+    notes, contacts = played_pedal_notes(height_m, EventType.BASS, 36, velocities, PEDAL_PARTS, start_s=1.0)
     onsets: dict[str, list[float]] = {part: [] for part in PEDAL_PARTS}
     last = dict.fromkeys(PEDAL_PARTS, -1.0)
-    try:
-        for k in range(1, round((plan.end_time + offset + 0.2) * 1000) + 1):
-            for out in core.step(k / 1000):
-                c = out.message
-                if isinstance(c, Contact) and c.part in PEDAL_PARTS:
-                    if c.time - last[c.part] > ONSET_GAP_S:
-                        onsets[c.part].append(c.time)
-                    last[c.part] = c.time
-    finally:
-        core.close()
-    notes = [s.time + offset for s in plan.strokes if s.event == EventType.BASS]
+    for c in contacts:
+        if c.time - last[c.part] > ONSET_GAP_S:
+            onsets[c.part].append(c.time)
+        last[c.part] = c.time
     return notes, onsets
 
 
