@@ -18,7 +18,10 @@ Time: ``step(now)`` advances the simulation to rig time ``now`` (seconds). In
 inputs give bit-identical contacts). In ``live`` mode a call that finds the
 simulation more than ``max_catchup_steps`` behind simulates that many and skips
 the rest of the gap, counting ``overruns`` and ``skipped_steps``: the
-simulation is never silently slowed.
+simulation is never silently slowed. The drummer's targets do not jump with a
+skip: they trail the rig clock by the time skipped (``target_lag``) and jump
+where no stroke is cut and no limb's target moves (``DrummerScene.can_jump``),
+or once they trail by ``MAX_TARGET_LAG_S``.
 
 Example (offline, one process)::
 
@@ -84,6 +87,17 @@ REPLY_BURST = 20.0
 """Refusals answered to one sender host at once before :data:`REPLY_RATE_HZ` applies."""
 REPLY_SENDERS = 1024
 """Sender hosts whose reply budget is remembered (the least recently refused is forgotten first)."""
+MAX_TARGET_LAG_S = 0.5
+"""Live mode: the drummer's targets trail the rig clock by up to this much after skipped steps, seconds, waiting for
+a moment the jump to it moves no limb's target (:meth:`PhysicsCore._catch_up_targets`); past it they jump where the
+jump cuts no stroke and moves each target by at most ``LATE_JUMP_MAX_M`` (the strokes of the time jumped over are
+dropped whole, not cut), ..."""
+MAX_TARGET_LAG_HARD_S = 1.0
+"""... and past this, seconds, wherever the limbs are (as every skip did until 6 Dec evening)."""
+LATE_JUMP_MAX_M = 0.10
+"""Past ``MAX_TARGET_LAG_S``: the most a limb's target may move at the jump, metres ..."""
+LATE_JUMP_MAX_SPEED_M_S = 2.0
+"""... and the most its velocity may change, m/s."""
 
 
 class PhysicsSettings(BaseModel):
@@ -135,6 +149,14 @@ class Scene(Protocol):
     def reset(self) -> None: ...
 
 
+class JumpTest(Protocol):
+    """A scene's test of whether its targets may jump from one rig time to another (s) unnoticed, with the most a
+    target may move (m) and change speed (m/s) (its defaults when not given): ``DrummerScene.can_jump``."""
+
+    def __call__(self, t_from: float, t_to: float, max_move_m: float = ..., max_speed_change_m_s: float = ...
+                 ) -> bool: ...
+
+
 class PhysicsCore:
     """The physics service core (see the module docstring)."""
 
@@ -179,6 +201,16 @@ class PhysicsCore:
         """rig time = simulation time + time_offset (live mode moves it forward when steps are skipped)."""
         self.overruns = 0
         self.skipped_steps = 0
+        self.target_lag = 0.0
+        """Live mode: how far the limbs' targets (the plan's clock) trail the rig clock after skipped steps, seconds
+        (0 offline)."""
+        self.target_jumps = 0
+        """Live mode: times the targets jumped to the rig clock (the time they trailed by dropped)."""
+        self.target_jumps_late = 0
+        """... of which past ``MAX_TARGET_LAG_S`` (the strokes jumped over dropped; logged)."""
+        self._can_jump: JumpTest | None = getattr(self.scene, "can_jump", None)
+        """The scene's test of whether its targets may jump between two rig times unnoticed (the drummer's); a
+        scene without one (the strike scene) jumps with every skip."""
         self.rejected: Counter[str] = Counter()
         self._reject_logged: dict[str, float] = {}
         """Message kind -> rig time (s) its last rejection was logged."""
@@ -196,6 +228,7 @@ class PhysicsCore:
         self.contacts_sent = 0
         self._last_skeleton = -math.inf
         self._last_skip_warning = -math.inf
+        self._last_jump_warning = -math.inf
         self._live_started = False
         """Live mode: the loop has called :meth:`step` (its first call sets where the simulation starts)."""
         self._poses_sent = 0
@@ -232,11 +265,15 @@ class PhysicsCore:
                 skip = behind - self.settings.max_catchup_steps
                 self.skipped_steps += skip
                 self.time_offset += skip * dt
+                if self._can_jump is not None:  # the targets trail the rig clock by it, not jump now
+                    self.target_lag += skip * dt
                 behind = self.settings.max_catchup_steps
                 if now - self._last_skip_warning >= 5.0:  # at most one warning per 5 s of rig time
                     log.warning("physics %d steps behind the rig clock: skipped %d (%d skipped in all)",
                                 behind + skip, skip, self.skipped_steps)
                     self._last_skip_warning = now
+            if self.target_lag > 0.0:
+                self._catch_up_targets(now)
         for _ in range(behind):
             out.extend(self._one_step())
         return out
@@ -299,6 +336,7 @@ class PhysicsCore:
         if isinstance(message, Hello):
             return [Outgoing(self.skeleton(), "reply")]
         if isinstance(message, PhysicsReset):
+            self.target_lag = 0.0  # the targets are cleared: nothing trails
             self.scene.reset()
             self.score_player.reset()
             return []
@@ -414,7 +452,10 @@ class PhysicsCore:
     def _advance(self) -> list[Outgoing]:
         world = self.world
         t_next = world.time + world.dt
-        self.scene.pre_step(t_next + self.time_offset)
+        if self.target_lag > 0.0:  # live, after skipped steps: the targets trail the rig clock
+            self.scene.pre_step(t_next + self.time_offset - self.target_lag)
+        else:
+            self.scene.pre_step(t_next + self.time_offset)
         self.scene.tracker.before_step()
         world.step()
         contacts: list[Contact] = self.scene.tracker.after_step(self.time, world.steps)
@@ -425,6 +466,33 @@ class PhysicsCore:
             self._poses_sent += 1
             out.append(Outgoing(self.pose(), "graphics"))
         return out
+
+    def _catch_up_targets(self, now: float) -> None:
+        """Live mode, once per call while the targets trail the rig clock (``target_lag`` s): jump them to it
+        (``target_lag`` 0) where that goes unnoticed (:data:`MAX_TARGET_LAG_S`); ``now``: rig time, seconds.
+
+        A node that falls behind skips rig time. Had the targets jumped with every skip (20-70 ms at once), a
+        limb mid-stroke or mid-move would chase a target far ahead and take a short cut: on the demo's last bar
+        the stick met the crash from under its edge and held the tilted plate up for seconds (the target above it
+        rises with the plate's swing), or the skip jumped a downstroke and the note was lost.
+        """
+        assert self._can_jump is not None  # only such a scene's targets trail
+        lag, rig = self.target_lag, self.time
+        if lag <= MAX_TARGET_LAG_S:
+            jump = self._can_jump(rig - lag, rig)
+        else:
+            jump = lag > MAX_TARGET_LAG_HARD_S or self._can_jump(rig - lag, rig, LATE_JUMP_MAX_M,
+                                                                 LATE_JUMP_MAX_SPEED_M_S)
+        if not jump:
+            return
+        self.target_jumps += 1
+        self.target_lag = 0.0
+        if lag > MAX_TARGET_LAG_S:
+            self.target_jumps_late += 1
+            if now - self._last_jump_warning >= 5.0:  # at most one warning per 5 s of rig time
+                log.warning("physics targets %.0f ms behind the rig clock: jumped to it, the strokes between dropped "
+                            "(%d such jumps in all)", lag * 1e3, self.target_jumps_late)
+                self._last_jump_warning = now
 
     def close(self) -> None:
         """Disconnect the PyBullet clients (the world and the scene's helpers)."""

@@ -25,6 +25,7 @@ docs/physics.md.
 
 from __future__ import annotations
 
+import bisect
 import dataclasses
 import logging
 import math
@@ -49,7 +50,7 @@ from services.physics.bvh_motion import bvh_segment_lengths
 from services.physics.character import DOF_NAMES, JOINTS, CharacterSpec, build_character
 from services.physics.contacts import ContactTracker, Striker
 from services.physics.control import Controller
-from services.physics.follow_through import LimbTrack
+from services.physics.follow_through import LimbTrack, Strike
 from services.physics.kernels import swing_displacement
 from services.physics.kitbodies import SLOW_SPRING_PERIOD_S, build_kit
 from services.physics.limits import JointLimits, default_limits, limits_from_clips, load_clip
@@ -107,6 +108,15 @@ its stick clears what lies between (going from the rest over the hi-hat to the s
 hi-hat's edge), metres."""
 LEAD_IN_ARC_MIN_S = 0.2
 """Shorter moves to a plan's first knot go straight (an arc would ask for a rise at several metres per second)."""
+JUMP_STROKE_BEFORE_S = 0.15
+"""A live core's targets trailing the rig clock (skipped steps) do not jump to it (:meth:`DrummerScene.can_jump`)
+from or to a time this long before a planned contact or less (the downstroke and the move to it), seconds, ..."""
+JUMP_STROKE_AFTER_S = 0.08
+"""... or this long after its planned bottom or less (the rebound), seconds, ..."""
+JUMP_MAX_M = 0.02
+"""... nor where a limb's target would move more than this at once, metres (by default), ..."""
+JUMP_MAX_SPEED_M_S = 0.5
+"""... or change its velocity more than this, m/s (by default)."""
 
 
 @dataclass(frozen=True)
@@ -635,6 +645,26 @@ class DrummerScene:
                 out[limb] = (pos + self.target_offset[limb], vel)
         return out
 
+    def can_jump(self, t_from: float, t_to: float, max_move_m: float = JUMP_MAX_M,
+                 max_speed_change_m_s: float = JUMP_MAX_SPEED_M_S) -> bool:
+        """Whether the targets may jump from rig time ``t_from`` to ``t_to`` (seconds) unnoticed: neither time is
+        within a planned stroke of a limb (``JUMP_STROKE_BEFORE_S`` before its contact to ``JUMP_STROKE_AFTER_S``
+        after its bottom), no limb's target moves more than ``JUMP_MAX_M`` or changes velocity more than
+        ``JUMP_MAX_SPEED_M_S``, and no joint target is queued (a live core trailing the rig clock after skipped
+        steps jumps to it then: services/physics/core.py)."""
+        if len(self.joint_track):
+            return False
+        for track in self.limb_tracks.values():
+            if not len(track):
+                continue
+            if _in_stroke(track.strikes, t_from) or _in_stroke(track.strikes, t_to):
+                return False
+            p0, v0 = track.sample(t_from)
+            p1, v1 = track.sample(t_to)
+            if float(np.linalg.norm(p1 - p0)) > max_move_m or float(np.linalg.norm(v1 - v0)) > max_speed_change_m_s:
+                return False
+        return True
+
     def joint_reference(self, t: float, targets: dict[str, tuple[np.ndarray, np.ndarray]]
                         ) -> tuple[np.ndarray, np.ndarray]:
         """Joint targets for joint-space modes: the joint track, else open-loop IK of the Cartesian targets."""
@@ -755,6 +785,13 @@ class DrummerScene:
 def _clip(x: float, low: float, high: float) -> float:
     """``x`` within [low, high] (``np.clip``'s value for one float, without its per-call cost)."""
     return min(max(x, low), high)
+
+
+def _in_stroke(strikes: list[Strike], t: float) -> bool:
+    """Whether rig time ``t`` (s) is within a planned stroke of ``strikes`` (sorted by time): from
+    ``JUMP_STROKE_BEFORE_S`` before its contact to ``JUMP_STROKE_AFTER_S`` after its bottom."""
+    k = bisect.bisect_left(strikes, t - JUMP_STROKE_AFTER_S, key=lambda s: s.bottom)
+    return k < len(strikes) and strikes[k].time - JUMP_STROKE_BEFORE_S <= t
 
 
 def _lead_in_apex(t0: float, p0: np.ndarray, t1: float, p1: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
