@@ -269,8 +269,10 @@ class PhysicsCore:
                     self.target_lag += skip * dt
                 behind = self.settings.max_catchup_steps
                 if now - self._last_skip_warning >= 5.0:  # at most one warning per 5 s of rig time
-                    log.warning("physics %d steps behind the rig clock: skipped %d (%d skipped in all)",
-                                behind + skip, skip, self.skipped_steps)
+                    trailing = (f"; the drummer plays {self.target_lag * 1e3:.0f} ms late until its hands are still"
+                                if self.target_lag > 0.0 else "")  # not silently slowed
+                    log.warning("physics %d steps behind the rig clock: skipped %d (%d skipped in all)%s",
+                                behind + skip, skip, self.skipped_steps, trailing)
                     self._last_skip_warning = now
             if self.target_lag > 0.0:
                 self._catch_up_targets(now)
