@@ -92,8 +92,12 @@ class LiveRecogniser:
             g = PEAK / self._peak if self._peak > 1e-4 else 1.0
         else:
             g = self.gain
-        self._buf = np.concatenate([self._buf, x * g])
-        self._n_samples += x.size
+        return self._push(x * g)
+
+    def _push(self, scaled: np.ndarray) -> list[Outgoing]:
+        """Append samples already scaled by the input gain; return the hits now recognised."""
+        self._buf = np.concatenate([self._buf, scaled])
+        self._n_samples += scaled.size
         out: list[Outgoing] = []
         # frame t needs absolute samples up to t * HOP + N_FFT / 2
         while self._next_frame * F.HOP + F.N_FFT // 2 <= self._n_samples:
@@ -107,8 +111,11 @@ class LiveRecogniser:
         return out
 
     def flush(self) -> list[Outgoing]:
-        """Finish the stream (pads with silence so the last onsets are classified)."""
-        return self.feed(np.zeros(F.N_FFT + self._lookahead * F.HOP, np.float32))
+        """Finish the stream: it stays at its level, the mean of its last ``N_FFT // 2`` samples, long enough for
+        the last onsets to be classified (zeros would step down from a tail resting away from zero, such as a
+        file's silence moved off zero by the removal of its mean, and a step is heard as a strike)."""
+        level = float(np.mean(self._buf[-(F.N_FFT // 2) :]))  # the buffer always holds that many
+        return self._push(np.full(F.N_FFT + self._lookahead * F.HOP, level, np.float32))
 
     def _frame(self, t: int) -> list[Outgoing]:
         lo = t * F.HOP - F.N_FFT // 2 - self._buf_start

@@ -133,7 +133,7 @@ def frame_times(n: int, hop: int = HOP) -> np.ndarray:
 
 def band_spectrogram(
     signal: np.ndarray, progress: Callable[[float], None] | None = None, chunk_frames: int = 4096,
-    n_fft: int = N_FFT, hop: int = HOP, bands: Bands = NARROW,
+    n_fft: int = N_FFT, hop: int = HOP, bands: Bands = NARROW, hold_edges: bool = False,
 ) -> np.ndarray:
     """Log-magnitude band spectrogram.
 
@@ -145,6 +145,10 @@ def band_spectrogram(
     n_fft : analysis window, samples (frame ``t`` is still centred on sample ``t * hop``)
     hop : samples between frames (default :data:`HOP`, 10 ms at :data:`SAMPLE_RATE`)
     bands : the band analysis (default :data:`NARROW`: 48 bands to 10.5 kHz)
+    hold_edges : the frames reaching past the signal's ends see it stay at its level there, the mean of its first
+        and last ``n_fft // 2`` samples (default: zeros; a signal resting away from zero at its ends, such as a
+        silent lead-in moved off zero by the removal of the mean, would then step there, and a step sounds like a
+        kick; the mean, not the edge sample, so that a tail cut while ringing adds no constant)
 
     Returns
     -------
@@ -152,7 +156,8 @@ def band_spectrogram(
     """
     x = np.asarray(signal, dtype=np.float32)
     pad = n_fft // 2
-    x = np.concatenate([np.zeros(pad, np.float32), x, np.zeros(pad + hop, np.float32)])
+    first, last = (float(np.mean(x[:pad])), float(np.mean(x[-pad:]))) if hold_edges and len(x) else (0.0, 0.0)
+    x = np.concatenate([np.full(pad, first, np.float32), x, np.full(pad + hop, last, np.float32)])
     total = n_frames(len(signal), hop)
     out = np.empty((total, bands.n), dtype=np.float32)
     frames = np.lib.stride_tricks.sliding_window_view(x, n_fft)[::hop]
@@ -168,9 +173,10 @@ def band_spectrogram(
 
 def multi_spectrogram(
     signal: np.ndarray, windows: Sequence[int], progress: Callable[[float], None] | None = None, hop: int = HOP,
-    bands: Bands = NARROW,
+    bands: Bands = NARROW, hold_edges: bool = False,
 ) -> np.ndarray:
-    """Band spectrograms of several analysis windows (:func:`band_spectrogram`), same frames of ``hop`` samples.
+    """Band spectrograms of several analysis windows (:func:`band_spectrogram`; ``hold_edges`` as there), same
+    frames of ``hop`` samples.
 
     Returns
     -------
@@ -178,7 +184,7 @@ def multi_spectrogram(
     """
     out = np.empty((n_frames(len(signal), hop), bands.n, len(windows)), np.float32)
     for i, n_fft in enumerate(windows):
-        out[:, :, i] = band_spectrogram(signal, n_fft=n_fft, hop=hop, bands=bands,
+        out[:, :, i] = band_spectrogram(signal, n_fft=n_fft, hop=hop, bands=bands, hold_edges=hold_edges,
                                         progress=part_progress(progress, i, len(windows)))
     return out
 

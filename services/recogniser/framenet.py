@@ -196,10 +196,12 @@ class FrameNet:
         """Frames of context the whole network needs on each side of an output frame."""
         return max(n.margin for n in self.networks)
 
-    def spectrogram(self, signal: np.ndarray, progress: Callable[[float], None] | None = None) -> np.ndarray:
+    def spectrogram(self, signal: np.ndarray, progress: Callable[[float], None] | None = None,
+                    hold_edges: bool = False) -> np.ndarray:
         """The input for mono audio at :attr:`sample_rate`: (t, bands.n, len(inputs)), frames ``hop`` samples
-        apart."""
-        return F.multi_spectrogram(signal, self.inputs, progress, self.hop, self.bands)
+        apart; ``hold_edges``: beyond its ends the audio stays at its level there, not zero
+        (:func:`~services.recogniser.features.band_spectrogram`)."""
+        return F.multi_spectrogram(signal, self.inputs, progress, self.hop, self.bands, hold_edges)
 
     def adapt(self, spec: np.ndarray) -> np.ndarray:
         """The network's input for a file's spectrograms (:meth:`spectrogram`): with ``level_match`` and a

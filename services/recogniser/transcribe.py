@@ -118,12 +118,15 @@ def network_outputs(
     """The offline network's framewise outputs for mono audio: (frames, N_OUT), frames ``net.hop`` samples apart
     at ``net.sample_rate`` (:meth:`FrameNet.forward`), the audio resampled to that rate and scaled to
     :data:`PEAK` first, its spectrograms adapted to the file (:meth:`FrameNet.adapt`). :func:`strikes` turns
-    them into events; ``progress`` is called up to 0.95."""
+    them into events; ``progress`` is called up to 0.95. Beyond its ends the audio stays at its level there: a
+    file resting away from zero at its edges (a silent lead-in or tail moved off zero by the removal of the mean,
+    as in Batteur's renders) would otherwise step there, heard as a strike at 0 s or at the end."""
     if sample_rate != net.sample_rate:
         audio = resample(audio, sample_rate, net.sample_rate)
     peak = float(np.max(np.abs(audio))) if len(audio) else 0.0
     x = audio * (PEAK / peak) if peak > 0 else audio
-    spec = net.adapt(net.spectrogram(x, progress=(lambda f: progress(0.5 * f)) if progress else None))
+    spec = net.adapt(net.spectrogram(x, progress=(lambda f: progress(0.5 * f)) if progress else None,
+                                     hold_edges=True))
     return net.forward(spec, progress=(lambda f: progress(0.5 + 0.45 * f)) if progress else None)
 
 
