@@ -33,6 +33,7 @@ import dataclasses
 import functools
 import json
 import math
+import re
 import shutil
 import sys
 import tempfile
@@ -992,6 +993,11 @@ def gltf_writer(result: ScoreRender, kit: Kit, opts: RenderOptions, quiet: bool)
 # ---------------------------------------------------------------------- command line
 
 
+NEGATIVE_VALUE = re.compile(r"^-(?:\.?\d|inf|nan)", re.IGNORECASE)
+"""A value that starts with '-' (``--strikes -1:3``, ``--tempo-scale -1e-3``): argparse took all but ``-1`` and
+``-1.5`` for options ("expected one argument"); the value's own check then says what is wrong with it."""
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="batteur render",
@@ -999,67 +1005,78 @@ def build_parser() -> argparse.ArgumentParser:
         "interaction -> sound). Writes DIR/performance.wav, DIR/impacts.csv, DIR/performance.bvh and "
         "DIR/report.json; nothing is written if the run fails. Without SCORE, --strikes renders the strike scene.",
     )
+    parser._negative_number_matcher = NEGATIVE_VALUE  # argparse has no public way to say which values these are
     parser.add_argument("score", nargs="?", type=Path, help="a .mid file or a Batteur text score")
-    parser.add_argument("-o", "--output", type=Path, required=True, help="output directory (created if missing)")
-    parser.add_argument("--kit", default="default", help="kit name or YAML/JSON file (default: default)")
-    add_style_options(parser)
-    parser.add_argument("--tempo-scale", type=float, default=1.0,
-                        help="play this many times faster, 0.1 to 10 (0.5: half tempo; default 1)")
-    parser.add_argument("--control", default="cartesian", choices=list(CONTROL_MODES),
-                        help="tracking: cartesian (DLS IK on the stick tips) or joint (PD on joint targets) "
-                        "(default: cartesian)")
-    parser.add_argument("--algorithm", default=HandAlgorithm.VITERBI.value, choices=[a.value for a in HandAlgorithm],
-                        help="hand assignment algorithm (default: viterbi)")
-    parser.add_argument("--calibration", type=Path, default=None,
-                        help="calibration JSON (from `batteur evaluate --fit-calibration`): lag anticipation and "
-                        "velocity map applied to the plan (default: none)")
-    parser.add_argument("--strikes", default=None,
-                        help="strike scene instead of a score: TIME:SPEED,... in seconds:m/s "
-                        f"(e.g. {','.join(f'{t:g}:{v:g}' for t, v in DEFAULT_STRIKES)})")
-    parser.add_argument("--event", default="SNARE", choices=[e.value for e in EventType if e != EventType.HIHATPEDAL],
-                        help="strike scene: which kit event the stick strikes (default SNARE)")
-    parser.add_argument("--latency", type=float, default=0.05, help="sound latency window, seconds (default 0.05)")
-    parser.add_argument("--control-rate", type=float, default=None, metavar="HZ",
-                        help="drummer's full control updates (IK, inverse dynamics) per second; the torques are "
-                        "corrected at every 1 ms physics step between (default: physics' default, 1000: every step)")
-    parser.add_argument("--limits-from", action="append", default=[], metavar="CLIP",
-                        help="motion clip the drummer's joint limits are estimated from (repeatable): a BVH file, a "
-                        "DeepMimic clip file or the name of one of pybullet's DeepMimic clips (default: all of "
-                        "those)")
-    parser.add_argument("--skeleton-bvh", type=Path, default=None, metavar="FILE",
-                        help="BVH file whose skeleton gives the drummer's proportions (arms, legs, neck, shoulder "
-                        "height above the hips, shoulder and hip widths), so the simulated performer matches the "
-                        "captured one (default: de Leva's table for --height and --mass)")
-    add_body_options(parser)
-    parser.add_argument("--bvh-rate", type=float, default=RenderOptions.pose_rate_hz, metavar="HZ",
-                        help="frame rate of DIR/performance.bvh, 1 to 1000 Hz (e.g. 24, 30, 60, 120; default 60); "
-                        "the video keeps its own --video-fps")
-    parser.add_argument("--bvh-sync", choices=["pose", "wav"], default=None,
-                        help="frame 0 of DIR/performance.bvh: pose, the first pose (rig time 1 ms; the default), or "
-                        "wav, DIR/performance.wav's time 0, the first pose held until it comes, so the BVH and the "
-                        "WAV imported at frame 0 line up (each strike where it is heard)")
-    parser.add_argument("--video", action="store_true",
-                        help="also write DIR/performance.mp4: the motion rendered headless (PyBullet TinyRenderer) "
-                        "with the WAV muxed in sync (needs ffmpeg; score mode)")
-    parser.add_argument("--video-size", type=_size, help="video WIDTHxHEIGHT (default 640x360)")
-    parser.add_argument("--gltf", action="store_true",
-                        help="also write DIR/performance.glb: the motion and the kit (cymbals swing, hi-hat and "
-                        "pedals move) as one animated glTF 2.0 file at --bvh-rate, for Blender and other "
-                        "animation tools (score mode). The poses are kept in memory for it: about 8 MB a minute of "
-                        "music at 60 Hz (0.5 GB an hour), and about 19 MB a minute more while the file is written; "
-                        "both grow with --bvh-rate")
-    parser.add_argument("--video-fps", type=float, help="video frame rate, Hz (default 30)")
-    parser.add_argument("--jobs", type=int, default=1, metavar="N",
-                        help="render on N processes (0: one per CPU): the piece is cut into segments of "
-                        "--segment seconds, each played by its own drummer from a 3 s lead-in; faster, and the "
-                        "same for any N > 1, but not identical to a one-process render (default 1)")
-    parser.add_argument("--segment", type=float, metavar="SECONDS",
-                        help="segment length with --jobs above 1, seconds (default 30)")
+    parser.add_argument("-o", "--output", type=Path, required=True, metavar="DIR",
+                        help="output directory (created if missing)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    playing = parser.add_argument_group("the performance")
+    playing.add_argument("--kit", default="default", metavar="NAME",
+                         help="kit name or YAML/JSON file (default: default)")
+    add_style_options(playing)
+    playing.add_argument("--tempo-scale", type=float, default=1.0, metavar="X",
+                         help="play this many times faster, 0.1 to 10 (0.5: half tempo; default 1)")
+    playing.add_argument("--control", default="cartesian", choices=list(CONTROL_MODES),
+                         help="tracking: cartesian (DLS IK on the stick tips) or joint (PD on joint targets) "
+                         "(default: cartesian)")
+    playing.add_argument("--algorithm", default=HandAlgorithm.VITERBI.value,
+                         choices=[a.value for a in HandAlgorithm], help="hand assignment algorithm (default: viterbi)")
+    playing.add_argument("--calibration", type=Path, default=None, metavar="FILE",
+                         help="calibration JSON (from `batteur evaluate --fit-calibration`): lag anticipation and "
+                         "velocity map applied to the plan (default: none)")
+    playing.add_argument("--latency", type=float, default=0.05, metavar="SECONDS",
+                         help="sound latency window, seconds (default 0.05)")
+    playing.add_argument("--control-rate", type=float, default=None, metavar="HZ",
+                         help="drummer's full control updates (IK, inverse dynamics) per second; the torques are "
+                         "corrected at every 1 ms physics step between (default: physics' default, 1000: every "
+                         "step)")
+    body = parser.add_argument_group("the drummer's body")
+    body.add_argument("--limits-from", action="append", default=[], metavar="CLIP",
+                      help="motion clip the drummer's joint limits are estimated from (repeatable): a BVH file, a "
+                      "DeepMimic clip file or the name of one of pybullet's DeepMimic clips (default: all of "
+                      "those)")
+    body.add_argument("--skeleton-bvh", type=Path, default=None, metavar="FILE",
+                      help="BVH file whose skeleton gives the drummer's proportions (arms, legs, neck, shoulder "
+                      "height above the hips, shoulder and hip widths), so the simulated performer matches the "
+                      "captured one (default: de Leva's table for --height and --mass)")
+    add_body_options(body)
+    outputs = parser.add_argument_group("motion, glTF and video outputs")
+    outputs.add_argument("--bvh-rate", type=float, default=RenderOptions.pose_rate_hz, metavar="HZ",
+                         help="frame rate of DIR/performance.bvh, 1 to 1000 Hz (e.g. 24, 30, 60, 120; default 60); "
+                         "the video keeps its own --video-fps")
+    outputs.add_argument("--bvh-sync", choices=["pose", "wav"], default=None,
+                         help="frame 0 of DIR/performance.bvh: pose, the first pose (rig time 1 ms; the default), "
+                         "or wav, DIR/performance.wav's time 0, the first pose held until it comes, so the BVH and "
+                         "the WAV imported at frame 0 line up (each strike where it is heard)")
+    outputs.add_argument("--gltf", action="store_true",
+                         help="also write DIR/performance.glb: the motion and the kit (cymbals swing, hi-hat and "
+                         "pedals move) as one animated glTF 2.0 file at --bvh-rate, for Blender and other "
+                         "animation tools (score mode). The poses are kept in memory for it: about 8 MB a minute "
+                         "of music at 60 Hz (0.5 GB an hour), and about 19 MB a minute more while the file is "
+                         "written; both grow with --bvh-rate")
+    outputs.add_argument("--video", action="store_true",
+                         help="also write DIR/performance.mp4: the motion rendered headless (PyBullet "
+                         "TinyRenderer) with the WAV muxed in sync (needs ffmpeg; score mode)")
+    outputs.add_argument("--video-size", type=_size, metavar="WxH", help="video WIDTHxHEIGHT (default 640x360)")
+    outputs.add_argument("--video-fps", type=float, metavar="FPS", help="video frame rate, Hz (default 30)")
+    strikes = parser.add_argument_group("the strike scene (instead of a SCORE)")
+    strikes.add_argument("--strikes", default=None, metavar="TIME:SPEED,...",
+                         help="strike scene instead of a score: TIME:SPEED,... in seconds:m/s "
+                         f"(e.g. {','.join(f'{t:g}:{v:g}' for t, v in DEFAULT_STRIKES)})")
+    strikes.add_argument("--event", default="SNARE",
+                         choices=[e.value for e in EventType if e != EventType.HIHATPEDAL],
+                         help="strike scene: which kit event the stick strikes (default SNARE)")
+    jobs = parser.add_argument_group("processes")
+    jobs.add_argument("--jobs", type=int, default=1, metavar="N",
+                      help="render on N processes (0: one per CPU): the piece is cut into segments of "
+                      "--segment seconds, each played by its own drummer from a 3 s lead-in; faster, and the "
+                      "same for any N > 1, but not identical to a one-process render (default 1)")
+    jobs.add_argument("--segment", type=float, metavar="SECONDS",
+                      help="segment length with --jobs above 1, seconds (default 30)")
     return parser
 
 
-def add_style_options(parser: argparse.ArgumentParser) -> None:
+def add_style_options(parser: argparse._ActionsContainer) -> None:
     """``--grip`` and ``--nuance`` (render and evaluate): None when not given, so a score's own wins then."""
     parser.add_argument("--grip", default=None, choices=GRIPS,
                         help=f"stick grip (default: the score's `grip` directive, else {DEFAULT_GRIP})")
@@ -1068,8 +1085,8 @@ def add_style_options(parser: argparse.ArgumentParser) -> None:
                         f"{DEFAULT_NUANCE.value})")
 
 
-def add_body_options(parser: argparse.ArgumentParser) -> None:
-    """``--height`` and ``--mass`` (render and evaluate)."""
+def add_body_options(parser: argparse._ActionsContainer) -> None:
+    """``--height`` and ``--mass`` (render and evaluate; a parser or one of its groups)."""
     parser.add_argument("--height", type=float, default=STATURE_M, metavar="METRES",
                         help=f"the drummer's height, {HEIGHT_RANGE_M[0]:g} to {HEIGHT_RANGE_M[1]:g} m: its body "
                         f"(de Leva's segments scaled) and the planner's reach (default {STATURE_M:g})")

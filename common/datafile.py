@@ -3,7 +3,7 @@
 YAML's own messages quote the lines around the problem over several lines, and a file that is not UTF-8
 text raises ``UnicodeDecodeError``; every reader of kits, settings, interaction configurations and poses
 reports these the same way through :func:`parse_file` (BVH files through :func:`read_text`), and pydantic's
-first complaint about what was read through :func:`first_error`.
+first complaint about what was read through :func:`first_error` (how many more: :func:`more_errors`).
 """
 
 from __future__ import annotations
@@ -62,19 +62,37 @@ def first_error(exc: ValidationError) -> str:
     return f"{where}: {error_message(first)}" if where else error_message(first)  # the whole input: no field
 
 
+def more_errors(exc: ValidationError) -> int:
+    """How many problems pydantic found besides the one :func:`first_error` says; a misspelt key's two (the key
+    missing, the key not taken) are that one, not "(and 1 more)"."""
+    errors = exc.errors()
+    said = 2 if _misspelling(errors[0], errors) is not None else 1
+    return max(len(errors) - said, 0)
+
+
 def misspelt_key(first: ErrorDetails, errors: list[ErrorDetails]) -> str | None:
     """``objects.1: 'positon' is not a key here ('position' is missing: misspelt?)`` when ``first`` is a missing
     key and a key of the same mapping is not one the model takes; else None. pydantic lists the missing key
     first, and "Field required" alone hid the typo that caused it."""
+    extra = _misspelling(first, errors)
+    if extra is None:
+        return None
+    loc = tuple(first.get("loc", ()))
+    where = ".".join(str(p) for p in loc[:-1])
+    said = f"{tuple(extra.get('loc', ()))[-1]!r} is not a key here ({loc[-1]!r} is missing: misspelt?)"
+    return f"{where}: {said}" if where else said
+
+
+def _misspelling(first: ErrorDetails, errors: list[ErrorDetails]) -> ErrorDetails | None:
+    """The error of a key the model does not take beside ``first`` when ``first`` is a missing key: the typo that
+    caused it; else None."""
     loc = tuple(first.get("loc", ()))
     if first.get("type") != "missing" or not loc:
         return None
     for error in errors:
         other = tuple(error.get("loc", ()))
         if error.get("type") == "extra_forbidden" and other[:-1] == loc[:-1]:
-            where = ".".join(str(p) for p in loc[:-1])
-            said = f"{other[-1]!r} is not a key here ({loc[-1]!r} is missing: misspelt?)"
-            return f"{where}: {said}" if where else said
+            return error
     return None
 
 

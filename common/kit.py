@@ -23,7 +23,7 @@ import yaml
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, model_validator
 from pydantic_core import PydanticCustomError
 
-from common.datafile import first_error, parse_file
+from common.datafile import first_error, more_errors, parse_file
 from common.output_paths import write_atomically
 
 if TYPE_CHECKING:
@@ -489,11 +489,16 @@ def load_kit(source: str | Path = "default", height_m: float | None = None, warn
     try:
         data = parse_file(path)
     except ValueError as exc:
+        binary = _binary_kind(path)
+        if binary is not None:  # a score or a recording given as the kit: "not UTF-8 text (...)" said nothing
+            raise ValueError(f"{str(path)!r} is {binary}, not a kit: give a kit file ending in .yaml or .json, or "
+                             f"a shipped kit ({', '.join(shipped)})") from None
         raise ValueError(f"kit file {str(path)!r} is {exc}") from None
     try:
         kit = Kit.model_validate(data)
     except ValidationError as exc:
-        more = f" (and {exc.error_count() - 1} more)" if exc.error_count() > 1 else ""
+        others = more_errors(exc)
+        more = f" (and {others} more)" if others else ""
         raise ValueError(f"kit file {str(path)!r} is not a valid kit: {first_error(exc)}{more}") from None
     if not warn:
         return kit
@@ -503,6 +508,22 @@ def load_kit(source: str | Path = "default", height_m: float | None = None, warn
     for problem in problems:  # a valid kit may still hold objects the drummer cannot play
         log.warning("kit file %r: %s", str(path), problem)
     return kit
+
+
+def _binary_kind(path: Path) -> str | None:
+    """``a MIDI file`` or ``an audio file (WAV)`` when the first bytes of ``path`` are one's, else None."""
+    from common.score.events import audio_kind, starts_as_midi  # here: events imports this module
+
+    try:
+        with path.open("rb") as f:
+            head = f.read(12)
+    except OSError:
+        return None
+    if starts_as_midi(head):
+        return "a MIDI file"
+    kind = audio_kind(head)
+    # an MPEG frame's sync bits alone are also how UTF-16 text starts (its byte-order mark): left "not UTF-8"
+    return None if kind is None or head[:1] == b"\xff" else f"an audio file ({kind})"
 
 
 def _kind(path: Path) -> str:

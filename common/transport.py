@@ -243,7 +243,10 @@ class UdpEndpoint:
         self._family = sock.family
         self._handler: Handler | None = None
         self.tap: Tap | None = None
-        """Called for every valid message received and every message sent (``batteur echo``, OSCQuery)."""
+        """Called for every valid message received and every message sent (``batteur echo``, OSCQuery); a message
+        sent to several destinations in one turn of the event loop (Health to each peer) is one call."""
+        self._tapped_out: set[bytes] = set()
+        """The packets given to the tap since the event loop's last turn (:meth:`_first_send`)."""
         self._raw_routes: list[tuple[str, RawHandler]] = []
         self._transport: asyncio.DatagramTransport | None = None
         self._buckets = TokenBuckets(self.max_rate or 0.0, max(self.max_burst, 1.0))
@@ -393,11 +396,25 @@ class UdpEndpoint:
 
     def _tap_out(self, address: str, data: bytes) -> None:
         tap = self.tap
-        if tap is not None:
+        if tap is not None and self._first_send(data):
             try:
                 tap(address, lambda: data, "out")
             except Exception as exc:  # a tap must never break sending
                 self._log_limited("tap", logging.WARNING, "tap failed: %s: %s", type(exc).__name__, exc)
+
+    def _first_send(self, data: bytes) -> bool:
+        """Whether ``data`` is not yet tapped in this turn of the event loop: the same packet again in one turn is
+        the same send to another destination (a node sends its Health to each peer in one go; ``batteur echo``
+        printed it once per peer). Without a loop, every packet is tapped."""
+        if data in self._tapped_out:
+            return False
+        loop = self._loop
+        if loop is None or loop.is_closed():
+            return True
+        if not self._tapped_out:  # forgotten once the sends of this turn are done
+            loop.call_soon(self._tapped_out.clear)
+        self._tapped_out.add(data)
+        return True
 
     def destinations(self, to: Target) -> list[tuple[str, int]]:
         """The socket addresses ``to`` means now (empty if none is known or reachable).

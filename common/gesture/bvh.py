@@ -131,6 +131,8 @@ def parse_bvh(text: str, name: str = "<bvh>") -> Bvh:
 
 def read_bvh(path: str | Path) -> Bvh:
     p = Path(path)
+    if p.is_dir():  # was "no such file": a folder given for the file (--skeleton-bvh /tmp)
+        raise BvhError(f"{p}: is a folder, not a BVH file")
     if not p.is_file():
         raise BvhError(f"{p}: no such file")
     try:

@@ -29,13 +29,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pybullet
 import soundfile
-from pybullet_utils.bullet_client import BulletClient
 from scipy.spatial.transform import Rotation
 
 from common.kit import Kit, KitObject, load_kit
 from common.messages import Impact
+from common.quiet_pybullet import BulletClient, pybullet
 from services.graphics.camera import camera_eye as orbit_eye
 from services.graphics.camera import default_camera
 from services.graphics.scene import KitAnimator, object_rotation

@@ -20,9 +20,9 @@ from operator import itemgetter
 from typing import Any, NamedTuple
 
 import numpy as np
-import pybullet as p
 
 from common.character import JOINT_LINKS, JOINTS
+from common.quiet_pybullet import pybullet as p
 from services.physics.character import CharacterModel
 from services.physics.kernels import forward_kinematics, jacobian
 from services.physics.urdf import Joint, load_robot

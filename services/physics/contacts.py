@@ -16,9 +16,9 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import pybullet as p
 
 from common.messages import Contact
+from common.quiet_pybullet import pybullet as p
 from services.physics.kitbodies import KitBodies, instrument_frame
 from services.physics.sticks import StickSpec
 from services.physics.world import World, rotation_matrix

@@ -36,8 +36,8 @@ from dataclasses import dataclass
 from itertools import chain
 
 import numpy as np
-import pybullet as p
 
+from common.quiet_pybullet import pybullet as p
 from services.physics.body import LIMBS, Body, consecutive_runs
 from services.physics.character import JOINT_GROUP, JOINTS, joint_kind
 from services.physics.kernels import (

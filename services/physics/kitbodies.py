@@ -25,7 +25,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-import pybullet as p
 
 from common.kit import (
     BEATER_REST_RAD,
@@ -39,6 +38,7 @@ from common.kit import (
     kit_hardware,
     stand_rods,
 )
+from common.quiet_pybullet import pybullet as p
 from services.physics.urdf import Inertial, Joint, Link, Robot, Shape, cylinder_inertia, load_robot
 from services.physics.world import World, quat_from_rpy_deg, rotation_matrix
 

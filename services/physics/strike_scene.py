@@ -16,9 +16,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import pybullet as p
 
 from common.kit import EventType, Kit
+from common.quiet_pybullet import pybullet as p
 from services.physics.contacts import ContactTracker, Striker
 from services.physics.kitbodies import KitBodies, build_kit, hihat_gap
 from services.physics.sticks import StickSpec

@@ -15,8 +15,9 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import pybullet as p
-from pybullet_utils import bullet_client
+
+from common.quiet_pybullet import BulletClient
+from common.quiet_pybullet import pybullet as p
 
 Quat = tuple[float, float, float, float]
 Vec3 = tuple[float, float, float]
@@ -39,7 +40,7 @@ class WorldSettings:
     gravity: float = 9.81
 
 
-class BoundClient(bullet_client.BulletClient):
+class BoundClient(BulletClient):
     """A :class:`BulletClient` that binds each pybullet function to its client once.
 
     The stock client builds a ``functools.partial`` on every attribute access (about 1 us); the physics

@@ -28,9 +28,8 @@ from tests.render.terminal import read_terminal
 ROOT = Path(__file__).resolve().parents[2]
 BAR = re.compile(r"rendering rock\.txt \[[# ]*\]\s+\d+% ([0-9.]+) s")
 """The render's progress bar on the terminal; its group: rig seconds simulated (all segments, scaled)."""
-BARS = ("reading ", "planning ", "rendering ", "pybullet build time")
-"""The starts of the lines on stderr that are not messages: the progress bars, and what PyBullet prints as it is
-loaded (in each process)."""
+BARS = ("reading ", "planning ", "rendering ")
+"""The starts of the lines on stderr that are not messages: the progress bars."""
 WAIT_S = 240.0
 """A bound on each wait (the bar, the exit), not a measured figure: the machine may be loaded."""
 
