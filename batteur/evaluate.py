@@ -45,6 +45,7 @@ from scipy.optimize import linear_sum_assignment
 from scipy.stats import spearmanr
 
 from batteur.errors import INTERRUPTED, UsageError, report_error
+from common.arg_types import take_negative_values
 from common.kit import EventType, Kit, load_kit
 from common.score.events import Score
 
@@ -703,6 +704,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog=PROG,
         description="Render scores (or read render directories) and measure the performance against the score: "
         "precision/recall/F at 10 and 25 ms, timing error, velocity Spearman, spurious and missed notes.")
+    take_negative_values(parser)
     parser.add_argument("scores", nargs="+", type=Path, help="scores (.mid or text), or render directories")
     parser.add_argument("--json", action="store_true", help="print the figures as JSON")
     parser.add_argument("--plots", type=Path, default=None, metavar="DIR",

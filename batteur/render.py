@@ -33,7 +33,6 @@ import dataclasses
 import functools
 import json
 import math
-import re
 import shutil
 import sys
 import tempfile
@@ -51,6 +50,7 @@ from batteur.impact_log import ImpactCsvStream, ImpactLog, write_impacts_csv
 from batteur.interrupts import DeferredCtrlC
 from batteur.progress import Progress
 from batteur.strike import DEFAULT_STRIKES, parse_strikes, run_strikes
+from common.arg_types import take_negative_values
 from common.core import Outgoing
 from common.datafile import first_error
 from common.gesture.plan import GesturePlan, Nuance, planned_grip
@@ -993,11 +993,6 @@ def gltf_writer(result: ScoreRender, kit: Kit, opts: RenderOptions, quiet: bool)
 # ---------------------------------------------------------------------- command line
 
 
-NEGATIVE_VALUE = re.compile(r"^-(?:\.?\d|inf|nan)", re.IGNORECASE)
-"""A value that starts with '-' (``--strikes -1:3``, ``--tempo-scale -1e-3``): argparse took all but ``-1`` and
-``-1.5`` for options ("expected one argument"); the value's own check then says what is wrong with it."""
-
-
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="batteur render",
@@ -1005,7 +1000,7 @@ def build_parser() -> argparse.ArgumentParser:
         "interaction -> sound). Writes DIR/performance.wav, DIR/impacts.csv, DIR/performance.bvh and "
         "DIR/report.json; nothing is written if the run fails. Without SCORE, --strikes renders the strike scene.",
     )
-    parser._negative_number_matcher = NEGATIVE_VALUE  # argparse has no public way to say which values these are
+    take_negative_values(parser)
     parser.add_argument("score", nargs="?", type=Path, help="a .mid file or a Batteur text score")
     parser.add_argument("-o", "--output", type=Path, required=True, metavar="DIR",
                         help="output directory (created if missing)")

@@ -5,6 +5,19 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
+
+NEGATIVE_VALUE = re.compile(r"^-(?:\.?\d|inf|nan)", re.IGNORECASE)
+"""A value that starts with '-' and is a number or begins as one (``-1e-3``, ``-.5``, ``-inf``, ``--strikes -1:3``),
+not an option: argparse takes all but ``-1`` and ``-1.5`` for options ("expected one argument", "unrecognized
+arguments"), where the value's own check should say what is wrong with it."""
+
+
+def take_negative_values(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
+    """``parser``, reading the arguments :data:`NEGATIVE_VALUE` matches as values (none of its options may look
+    like one)."""
+    parser._negative_number_matcher = NEGATIVE_VALUE  # argparse has no public way to say which values these are
+    return parser
 
 
 def number(text: str) -> float:

@@ -22,7 +22,7 @@ from pythonosc.osc_message_builder import BuildError
 
 from batteur.errors import USAGE, report_error
 from batteur.tools.nodes import run_tool
-from common.arg_types import seconds
+from common.arg_types import seconds, take_negative_values
 from common.datafile import one_line
 from common.messages import (
     REGISTRY,
@@ -47,11 +47,6 @@ EXAMPLE_ADDRESS = "/batteur/sound/master"
 """The help's examples: registered addresses (tests/test_send_help.py checks them)."""
 PROG = "batteur send"
 """The command's name in its usage and error lines."""
-NEGATIVE_VALUE = re.compile(r"^-(?:\.?\d|inf|nan)", re.IGNORECASE)
-"""An argument that starts with '-' and is a number (``-1e-3``, ``-.5``, ``-inf``), not an option: argparse took
-all but ``-1`` and ``-1.5`` for options ("unrecognized arguments")."""
-
-
 def guess_arg(text: str) -> Arg:
     """An untyped command-line argument as int, float or string."""
     try:
@@ -146,7 +141,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "nothing listening), 2 bad arguments.",
         epilog=f"example: {EXAMPLE}",
     )
-    parser._negative_number_matcher = NEGATIVE_VALUE  # argparse has no public way to say which values these are
+    take_negative_values(parser)
     parser.add_argument("address", help=f"OSC address, e.g. {EXAMPLE_ADDRESS}")
     parser.add_argument("args", nargs="*", help="the message's arguments, in order (a rig time is two: "
                         "whole seconds, then the fraction)")

@@ -140,6 +140,14 @@ def test_render_takes_a_strike_at_a_negative_time_as_a_value(tmp_path: Path,
     assert not (tmp_path / "out").exists()
 
 
+def test_evaluate_takes_a_negative_tempo_scale_to_its_own_check(capsys: pytest.CaptureFixture[str]) -> None:
+    from batteur import evaluate
+
+    assert evaluate.main([str(MIDI), "--tempo-scale", "-1e-3"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("batteur evaluate: error: --tempo-scale -0.001: "), err  # was "expected one argument"
+
+
 def test_send_takes_negative_numbers_as_arguments() -> None:
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
         sock.bind(("127.0.0.1", 0))
