@@ -24,7 +24,11 @@ rig itself dies, even by SIGKILL, so none is left running as an orphan.
 plans it once its clock runs, so no message can be lost at start-up; the
 file's directory becomes its score library, so the Pd panel can load it again
 by name). Rig time 0 is ``--start-delay`` seconds after launch; the score
-starts at rig time ``--play-at``.
+starts at rig time ``--play-at``, or, when physics is up only after it (a
+loaded machine), as soon as physics can play it from its first note. The rig
+sends each service a Hello until it answers with its Health, says what it is
+waiting for every few seconds and when all are up, and stops (exit 1) naming
+the services not up ``--ready-timeout`` seconds after launch.
 """
 
 from __future__ import annotations
@@ -44,9 +48,9 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TextIO
+from typing import Any, TextIO
 
-from batteur.errors import UsageError, report_error
+from batteur.errors import FAILED, UsageError, report_error
 from common.arg_types import non_negative, positive, seconds, whole
 from common.output_paths import check_output_dir, point_at_devnull
 
@@ -71,6 +75,10 @@ RECORDING = "performance.wav"
 RECORDING_PART = ".performance.part.wav"
 """What sound writes while it runs; renamed to RECORDING once sound has stopped cleanly, so a failed rig leaves
 no partial recording (nor replaces an earlier one)."""
+READY_POLL_S = 0.5
+"""Seconds between Hellos to a service that has not answered one yet (``--score``)."""
+READY_PROGRESS_S = 5.0
+"""Seconds between the rig's "waiting for ..." lines while its services start."""
 
 
 @dataclass
@@ -185,6 +193,51 @@ def stop_with_the_rig() -> Callable[[], None] | None:
     return arm
 
 
+@dataclass(frozen=True)
+class ReadyWait:
+    """``--score``: the rig asks every service it started for its Health until all have answered, says what it
+    waits for and when they are up, and stops (exit 1) when ``timeout_s`` from launch runs out first."""
+
+    timeout_s: float
+    """``--ready-timeout``, seconds from launch."""
+    host: str
+    """Where the rig sends to its services (:func:`peer_host`)."""
+    epoch: float
+    """The rig epoch, Unix seconds: rig time is wall time less it, as on the services' clocks (one machine)."""
+    play_at_s: float
+    """``--play-at``: the rig time the score starts at if physics is up by then, seconds."""
+
+
+class _Answers(asyncio.DatagramProtocol):
+    """The Health answers of the rig's services (only datagrams from their ports count)."""
+
+    def __init__(self, roles: dict[int, str], epoch: float) -> None:
+        self.roles = roles
+        """UDP port -> role of each service."""
+        self.epoch = epoch
+        """The rig epoch, Unix seconds."""
+        self.up: dict[str, float] = {}
+        """Role -> rig time it first answered, seconds."""
+        self.heard = asyncio.Event()
+        """Set on each new answer; the rig clears it before it waits."""
+
+    def datagram_received(self, data: bytes, addr: tuple[str | Any, int]) -> None:
+        from common.messages import Health, decode
+
+        role = self.roles.get(addr[1])
+        if role is None or role in self.up:
+            return
+        if any(isinstance(m, Health) and m.role == role for m in decode(data).messages):
+            self.up[role] = time.time() - self.epoch
+            self.heard.set()
+
+    async def wait(self, timeout_s: float) -> None:
+        """Until a service answers or ``timeout_s`` seconds have passed."""
+        self.heard.clear()
+        with contextlib.suppress(TimeoutError):
+            await asyncio.wait_for(self.heard.wait(), max(0.0, timeout_s))
+
+
 class Output:
     """The rig's lines to one stream. Once the stream is gone (``batteur rig | head``, a closed terminal) lines are
     dropped, so the rig still drains the services' output (a service blocked on a full pipe would not stop) and
@@ -212,8 +265,12 @@ class Rig:
     """Longest service output line read whole, bytes (a longer one is dropped, reading goes on)."""
 
     def __init__(self, plans: list[ServicePlan], stop_timeout_s: float,
-                 out: TextIO | None = None, err: TextIO | None = None) -> None:
+                 out: TextIO | None = None, err: TextIO | None = None, ready: ReadyWait | None = None) -> None:
         self.plans = plans
+        self.ready = ready
+        """``--score``: wait for the services to be up (None: the rig does not ask them)."""
+        self.gave_up = False
+        """The services were not all up within the ready timeout (or could not be asked): the rig stopped."""
         self.stop_timeout_s = stop_timeout_s
         self.out = Output(out or sys.stdout)
         self.err = Output(err or sys.stderr)
@@ -265,9 +322,11 @@ class Rig:
     async def run(self, duration_s: float | None) -> int:
         """Start the services, run until a stop signal, ``duration_s`` or a service ending; the exit code."""
         loop = asyncio.get_running_loop()
+        launched = time.monotonic()
         for sig in STOP_SIGNALS:
             loop.add_signal_handler(sig, self.stopping.set)
         tasks: list[asyncio.Task[None]] = []
+        waiting: asyncio.Task[None] | None = None
         try:  # whatever happens here, the services started are stopped: none is left running
             for plan in self.plans:
                 if self.stopping.is_set():  # stopped while starting: start no more
@@ -278,15 +337,74 @@ class Rig:
                 self.procs[plan.role] = proc
                 tasks.append(asyncio.create_task(self._pump(plan.role, proc.stdout)))
                 tasks.append(asyncio.create_task(self._watch(plan.role, proc)))
+            if self.ready is not None and len(self.procs) == len(self.plans) and not self.stopping.is_set():
+                waiting = asyncio.create_task(self._wait_ready(self.ready, launched))
             try:
                 await asyncio.wait_for(self.stopping.wait(), timeout=duration_s)
             except TimeoutError:
                 pass
         finally:
             self.stopping.set()
+            if waiting is not None:
+                waiting.cancel()
+                await asyncio.gather(waiting, return_exceptions=True)
             await self.stop()
             await self.drain(tasks)
         return self.exit_code()
+
+    async def _wait_ready(self, ready: ReadyWait, launched: float) -> None:
+        """Send each service a Hello every :data:`READY_POLL_S` until it answers with its Health, with a line every
+        :data:`READY_PROGRESS_S` naming those not up, and one when all are; past ``ready.timeout_s`` from launch
+        (``launched``: ``time.monotonic()`` then), stop the rig with an error naming them."""
+        from common.messages import PROTOCOL_VERSION, Hello, encode
+
+        loop = asyncio.get_running_loop()
+        roles = {plan.port: plan.role for plan in self.plans}
+        try:
+            transport, answers = await loop.create_datagram_endpoint(lambda: _Answers(roles, ready.epoch),
+                                                                     local_addr=(ready.host, 0))
+        except OSError as exc:
+            self._give_up(f"cannot ask the services whether they are up: {exc.strerror or exc}")
+            return
+        try:
+            hello = encode(Hello(role="cli", node_id="batteur-rig", protocol=PROTOCOL_VERSION,
+                                 osc_port=transport.get_extra_info("sockname")[1]))
+            next_line = launched + READY_PROGRESS_S
+            while waiting := [plan for plan in self.plans if plan.role not in answers.up]:
+                elapsed = time.monotonic() - launched
+                names = ", ".join(plan.role for plan in waiting)
+                if elapsed >= ready.timeout_s:
+                    self._give_up(f"{names} not up within --ready-timeout {ready.timeout_s:g} s of launch (no answer "
+                                  "to a Hello); stopping the rig")
+                    return
+                if time.monotonic() >= next_line:
+                    self.out.write(f"batteur rig: waiting for {names} to start ({elapsed:.0f} s since launch; "
+                                   f"--ready-timeout {ready.timeout_s:g} s)\n")
+                    next_line += READY_PROGRESS_S
+                for plan in waiting:
+                    transport.sendto(hello, (ready.host, plan.port))
+                await answers.wait(min(READY_POLL_S, ready.timeout_s - elapsed))
+        finally:
+            transport.close()
+        self.out.write(self._up_line(ready, answers.up, time.monotonic() - launched))
+
+    @staticmethod
+    def _up_line(ready: ReadyWait, up: dict[str, float], elapsed_s: float) -> str:
+        """What the rig says once every service is up (``up``: role -> rig time it answered, seconds)."""
+        line = f"batteur rig: services up {elapsed_s:.1f} s after launch (rig time {max(up.values()):.1f} s)"
+        late = [role for role, t in up.items() if t > ready.play_at_s]
+        if "physics" in late:
+            line += (f"; physics only after --play-at {ready.play_at_s:g} s: it starts the score as soon as it can, "
+                     "from its first note")
+        elif late:
+            line += f"; {', '.join(late)} only after --play-at {ready.play_at_s:g} s, when the score started"
+        return line + "\n"
+
+    def _give_up(self, reason: str) -> None:
+        """Stop the rig over ``reason`` (one error line; exit 1 unless a service failed first)."""
+        self.gave_up = True
+        self.err.write(f"batteur rig: error: {reason}\n")
+        self.stopping.set()
 
     async def drain(self, tasks: list[asyncio.Task[None]]) -> None:
         """Wait for the output readers, at most :data:`DRAIN_S` seconds (every service has exited), then drop
@@ -308,10 +426,12 @@ class Rig:
 
     def exit_code(self) -> int:
         """0 when every service stopped cleanly; else the code of the first that failed (2: it refused its
-        options), or 1 (it was killed)."""
+        options), or 1 (it was killed, or the services were not all up within the ready timeout)."""
         failed = [*self.failures.values(), *(c for r, c in self.exit_codes.items() if not self.stopped_cleanly(r)
                                              and r not in self.failures)]
-        return 0 if not failed else failed[0] if failed[0] > 0 else 1
+        if not failed:
+            return FAILED if self.gave_up else 0
+        return failed[0] if failed[0] > 0 else 1
 
     async def stop(self) -> None:
         """SIGTERM every child, wait up to the stop timeout, then SIGKILL the rest; then end what each left in its
@@ -422,7 +542,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--interfaces", default="",
                         help="comma-separated addresses or interface names for zeroconf (default: loopback)")
     parser.add_argument("--start-delay", type=non_negative, default=3.0,
-                        help="seconds between launch and rig time 0, so every service is up (default 3)")
+                        help="seconds between launch and rig time 0 (default 3)")
     parser.add_argument("--duration", type=seconds, default=None,
                         help="stop after this many seconds of wall time from launch (default: run until Ctrl-C)")
     parser.add_argument("--stop-timeout", type=seconds, default=4.0,
@@ -439,7 +559,11 @@ def build_parser() -> argparse.ArgumentParser:
                         help="the drummer plays this score live (.mid or text score; 'demo': the groove of "
                         "batteur demo; default: none, the drummer idles)")
     parser.add_argument("--play-at", type=non_negative, default=1.0,
-                        help="rig time at which --score starts, seconds after rig time 0 (default 1)")
+                        help="rig time at which --score starts, seconds after rig time 0 (default 1); physics up "
+                        "only after it starts the score as soon as it can, from its first note")
+    parser.add_argument("--ready-timeout", type=seconds, default=60.0,
+                        help="--score: seconds from launch the services get to be up (to answer a Hello); past it "
+                        "the rig stops with an error naming those that are not (default 60)")
     parser.add_argument("--log-level", type=str.upper, choices=("DEBUG", "INFO", "WARNING", "ERROR"), default=None,
                         help="log level for every service (default: theirs, INFO)")
     for role in ROLES:
@@ -545,9 +669,10 @@ def finish_recording(folder: Path, sound_stopped_cleanly: bool, out: Output, err
     out.write(f"batteur rig: recorded {folder / RECORDING}\n")
 
 
-async def run_rig(plans: list[ServicePlan], opts: argparse.Namespace) -> int:
-    """Run the rig, then name or discard the recording (still under the rig's signal handlers)."""
-    rig = Rig(plans, opts.stop_timeout)
+async def run_rig(plans: list[ServicePlan], opts: argparse.Namespace, ready: ReadyWait | None = None) -> int:
+    """Run the rig (``ready``: wait for the services to be up), then name or discard the recording (still under the
+    rig's signal handlers)."""
+    rig = Rig(plans, opts.stop_timeout, ready=ready)
     code = await rig.run(opts.duration)
     if opts.record is not None:  # the WAV is whole only when sound closed it itself
         finish_recording(Path(opts.record), rig.stopped_cleanly("sound") and rig.exit_codes["sound"] == 0,
@@ -574,7 +699,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             return report_error("batteur rig", exc)
         for warning in ignored_options(opts):
             print(f"batteur rig: warning: {warning}", file=sys.stderr, flush=True)
+        ready = None
         if opts.score:
+            ready = ReadyWait(opts.ready_timeout, peer_host(opts.host), epoch, opts.play_at)
             print(f"batteur rig: the drummer plays {opts.score} from rig time {opts.play_at:g} s "
-                  f"({opts.start_delay + opts.play_at:g} s after launch)", flush=True)
-        return asyncio.run(run_rig(plans, opts))
+                  f"({opts.start_delay + opts.play_at:g} s after launch; later if physics is not up by then)",
+                  flush=True)
+        return asyncio.run(run_rig(plans, opts, ready))

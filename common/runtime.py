@@ -69,6 +69,10 @@ tens of milliseconds, and the core would play that much early or late until bett
 FAST_PING_SAMPLES = 8
 """Clock samples gathered with fast pings (10 Hz) before pinging every ``ping_interval_s``."""
 """Roles a node looks for by default (it publishes Health to all of them)."""
+MASTER_SILENT_WARN_S = 30.0
+"""A clock master this node knows (a static peer, or one discovery found) that has not answered its pings this long
+after the node started is warned about, seconds; until then it is taken to be still starting (physics builds its
+scene for about 3 s, 7-15 s on a loaded machine, while a rig's other nodes wait for it)."""
 
 
 # --------------------------------------------------------------------------- fixed-rate loop
@@ -657,14 +661,30 @@ class Node:
 
     async def _core_start_timer(self) -> None:
         await asyncio.sleep(self.clock_wait_s)
-        if not self.core_started and self.clock.synced:
+        if self.core_started:
+            return
+        if self.clock.synced:
             log.warning("rig clock offset known to +/- %.6f s only after %g s (%d samples): starting on it",
                         self.estimator.uncertainty, self.clock_wait_s, len(self.estimator.samples))
             self.start_core("clock offset uncertain")
-        elif not self.core_started:
+            return
+        master = self.clock_master_peer()
+        if master is None:
             log.warning("no clock master (%s) within %g s: starting on this node's own clock; rig time will "
                         "jump when the master appears", self.settings.clock_master, self.clock_wait_s)
             self.start_core("clock master not found")
+            return
+        # a master to ping that does not answer yet: still starting, as physics is for seconds in a rig
+        where = format_address(*master.address)
+        log.info("clock master %s at %s has not answered within %g s (still starting?): starting on this node's "
+                 "own clock, which follows the master's once it answers", self.settings.clock_master, where,
+                 self.clock_wait_s)
+        self.start_core("clock master still starting")
+        await asyncio.sleep(max(0.0, MASTER_SILENT_WARN_S - self.clock_wait_s))
+        if not self.clock.synced:
+            log.warning("no answer from the clock master %s at %s within %g s (is it running?): rig time is this "
+                        "node's own clock until it answers", self.settings.clock_master, where,
+                        max(MASTER_SILENT_WARN_S, self.clock_wait_s))
 
     def _step(self) -> None:
         if not self.core_started:

@@ -152,7 +152,12 @@ SPLICE_MARGIN_S = 0.02
 TRANSITION_S = 0.2
 """Least time for the limbs to move from where they are to a new performance's first knot, seconds."""
 START_LEAD_S = 0.5
-"""A ``play`` for a rig time already past starts this long after the message (plus the planning margin), s."""
+"""A ``play`` "at once" (rig time 0, the Pd panel's) starts this long after the message (plus a planning margin), s."""
+LATE_START_S = 1.5
+"""A ``play`` for a rig time already past starts this long after the message (plus the planning margin), s: the
+transition and the whole 1 s lead-in before its first note, as on time, and room for a node's loop to start
+(``batteur physics --play-at`` plans before the first step, which came 0.6 s later on a loaded machine: with
+START_LEAD_S the first note was due before the simulation started, and lost)."""
 PLAN_MARGIN_PER_NOTE_S = 0.001
 """Extra start delay per note to plan for a ``play`` "at once" (planning runs about 0.4 ms per note), s."""
 CONTEXT_S = 2.0
@@ -484,15 +489,19 @@ class ScorePlayer:
 
     # ------------------------------------------------------------------ transport
 
-    def play(self, at: float, position: float, now: float) -> GesturePlan:
-        """Play the loaded score from ``position`` (score seconds as written) with that note at rig time ``at``."""
-        prepared = self._prepare_play(at, position, now, 0.0)
+    def play(self, at: float, position: float, now: float, whole: bool = False) -> GesturePlan:
+        """Play the loaded score from ``position`` (score seconds as written) with that note at rig time ``at``;
+        ``whole``: if that note can no longer be prepared by then, the whole score later rather than the notes too
+        close left out (a node's ``--play-at``)."""
+        prepared = self._prepare_play(at, position, now, 0.0, whole)
         prepared.announce()
         return prepared.commit(self._plan(prepared.events, prepared.beats, prepared.lead_in), prepared.t_s)
 
-    def _prepare_play(self, at: float, position: float, now: float, delay_s: float) -> _Prepared:
+    def _prepare_play(self, at: float, position: float, now: float, delay_s: float, whole: bool = False
+                      ) -> _Prepared:
         """``play``'s plan inputs; ``delay_s``: seconds the splice (and an "at once" start) moves later, the time a
-        background plan is expected to take."""
+        background plan is expected to take; ``whole``: a first note too close to prepare starts the whole score
+        as a time already past does, instead of the notes too close being left out."""
         scene = self._drummer()
         if self.score is None:
             raise ScorePlayerError("play: no score loaded (send /batteur/score/load first)")
@@ -504,16 +513,20 @@ class ScorePlayer:
             raise ScorePlayerError(f"play: nothing to play after {position:g} s (the score ends at "
                                    f"{score.duration:.3f} s)")
         asked = None
-        if at <= base:  # "at once"
-            asked = at
-            at = base + delay_s + START_LEAD_S + PLAN_MARGIN_PER_NOTE_S * len(remaining)
         t_s = base + SPLICE_MARGIN_S + delay_s
         earliest = t_s + TRANSITION_S + self.preparation_s - SPLICE_MARGIN_S
+        too_close = whole and at + (min(e.time for e in remaining) - position) / tempo < earliest
+        if at <= base or too_close:  # "at once"; a time that has passed: with its whole lead-in
+            asked = at
+            at = base + delay_s + (LATE_START_S if at > 0.0 else START_LEAD_S) + PLAN_MARGIN_PER_NOTE_S * len(remaining)
         events = [dataclasses.replace(e, time=at + (e.time - position) / tempo) for e in remaining]
         late = [e for e in events if e.time < earliest]
 
         def announce() -> None:
-            if asked is not None and asked > 0.0:  # a time that has passed (0 is the panel's "at once"): how late
+            if asked is not None and asked > base:  # ``whole``: the first note too close to prepare
+                log.warning("play at rig time %.3f s asked at %.3f s, too close to prepare its first note: the whole "
+                            "score starts at %.3f s instead (%.3f s late)", asked, base, at, at - asked)
+            elif asked is not None and asked > 0.0:  # a time that has passed (0 is the panel's "at once"): how late
                 log.warning("play at rig time %.3f s asked at %.3f s, already past: the score starts at %.3f s "
                             "instead (%.3f s late)", asked, base, at, at - asked)
             if late:
@@ -998,7 +1011,9 @@ class ScorePlayer:
     def _start_play(self, waiting: _Waiting, now: float) -> None:
         assert isinstance(waiting.message, ScoreTransport)
         notes = len(self.score.events) if self.score is not None else 0
-        prepared = self._prepare_play(waiting.message.time, waiting.message.position, now, self._estimate(notes))
+        # planned again (its plan was ready too late): the whole score later rather than its first notes left out
+        prepared = self._prepare_play(waiting.message.time, waiting.message.position, now, self._estimate(notes),
+                                      whole=waiting.tries > 0)
         self._submit([waiting], prepared, self._finish_whole)
 
     def _start_replan(self, waiting: _Waiting, now: float) -> None:

@@ -1,0 +1,76 @@
+"""A node whose clock master is a known peer that does not answer yet (physics still building its scene, as in
+``batteur rig`` on a loaded machine) says so at INFO and starts on its own clock; it warns only when the master
+stays silent for :data:`~common.runtime.MASTER_SILENT_WARN_S`. A node that knows no master at all warns at once,
+as before."""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import socket
+
+import pytest
+
+from common import runtime
+from common.config import load_settings
+from common.runtime import Node
+from tests.test_runtime import EchoCore
+from tests.waiting import wait_for
+
+pytestmark = pytest.mark.timeout(60)
+
+
+def silent_port() -> int:
+    """A loopback UDP port nobody listens on (just freed)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        probe.bind(("127.0.0.1", 0))
+        return int(probe.getsockname()[1])
+
+
+def run_waiting_node(peers: list[str], caplog: pytest.LogCaptureFixture, until_s: float) -> Node:
+    """A sound node whose master is physics (``peers``: where it is, if anywhere), run ``until_s`` seconds."""
+    async def main() -> Node:
+        node = Node(EchoCore(rate_hz=0.0), load_settings({"role": "sound", "discovery": False,
+                                                          "clock_master": "physics", "peers": peers}),
+                    clock_wait_s=0.2)
+        await node.start()
+        try:
+            await wait_for(lambda: node.core_started)
+            await asyncio.sleep(until_s)
+        finally:
+            await node.stop()
+        return node
+
+    with caplog.at_level(logging.INFO, logger="batteur.runtime"):
+        return asyncio.run(main())
+
+
+def runtime_records(caplog: pytest.LogCaptureFixture, level: int) -> list[str]:
+    return [r.getMessage() for r in caplog.records if r.name == "batteur.runtime" and r.levelno == level]
+
+
+def test_a_master_still_starting_is_not_warned_about(caplog: pytest.LogCaptureFixture) -> None:
+    # three "no clock master (physics) within 3 s ... rig time will jump" warnings while the rig waited for physics
+    port = silent_port()
+    node = run_waiting_node([f"physics=127.0.0.1:{port}"], caplog, until_s=0.3)
+    assert node.core_started and not node.clock.synced  # started on its own clock all the same
+    assert runtime_records(caplog, logging.WARNING) == []
+    said = [m for m in runtime_records(caplog, logging.INFO) if "has not answered" in m]
+    assert said == [f"clock master physics at 127.0.0.1:{port} has not answered within 0.2 s (still starting?): "
+                    "starting on this node's own clock, which follows the master's once it answers"]
+
+
+def test_a_master_silent_for_long_is_warned_about(caplog: pytest.LogCaptureFixture,
+                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(runtime, "MASTER_SILENT_WARN_S", 0.5)
+    port = silent_port()
+    run_waiting_node([f"physics=127.0.0.1:{port}"], caplog, until_s=1.0)
+    assert runtime_records(caplog, logging.WARNING) == [
+        f"no answer from the clock master physics at 127.0.0.1:{port} within 0.5 s (is it running?): rig time is "
+        "this node's own clock until it answers"]
+
+
+def test_no_master_at_all_is_warned_about_at_once(caplog: pytest.LogCaptureFixture) -> None:
+    run_waiting_node([], caplog, until_s=0.0)
+    warnings = runtime_records(caplog, logging.WARNING)
+    assert len(warnings) == 1 and warnings[0].startswith("no clock master (physics) within 0.2 s")
