@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import threading
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any
 
 import pytest
@@ -23,7 +24,7 @@ from common.messages.score import ScoreLoad, ScoreTransport
 from common.score.text import read_score
 from services.interaction.core import InteractionCore
 from services.physics.core import PhysicsCore
-from services.physics.node import LivePhysicsCore
+from services.physics.node import LivePhysicsCore, PhysicsNodeSettings, start_score
 
 SCORE = Path(__file__).parents[1] / "render" / "short_groove.txt"
 INSTRUMENT = {"HIHATCLOSED": "hihat", "SNARE": "snare", "BASS": "kick"}
@@ -40,20 +41,18 @@ def first_note_missed(recorder: RecorderCore, score_start: float) -> list[str]:
             if e.time == 0.0 and INSTRUMENT[e.event.value] not in heard]
 
 
-def set_up_play(at: float, now: float, whole: bool, caplog: pytest.LogCaptureFixture
-                ) -> tuple[PhysicsCore, RecorderCore, float]:
-    """A live drummer core played as the node's set-up plays ``--play-at``: ``at`` asked at rig time ``now``,
-    before any step; its simulation starts at :data:`FIRST_STEP_S` and runs past the score. (core, impacts, the
-    score's start)."""
+def set_up_play(at: float, now: float, caplog: pytest.LogCaptureFixture) -> tuple[PhysicsCore, RecorderCore, float]:
+    """A live drummer core played by the node's set-up (``start_score``) with ``--play-at`` ``at``, at rig time
+    ``now``, before any step; its simulation starts at :data:`FIRST_STEP_S` and runs past the score. (core,
+    impacts, the score's start)."""
     kit = load_kit("default")
     physics = PhysicsCore(scene="drummer", kit=kit, grip="german", pose_rate_hz=0, mode="live")
     player = physics.score_player
     player.load(SCORE, trusted=True)
+    node: Any = SimpleNamespace(settings=PhysicsNodeSettings(score=str(SCORE), play_at=at), core=physics,
+                                clock=SimpleNamespace(now=lambda: now))
     with caplog.at_level("WARNING", logger="batteur.physics.score"):
-        if whole:
-            player.play(at, 0.0, now, whole=True)
-        else:  # as services/physics/node.py start_score, before any step
-            player.play(at, 0.0, now)
+        start_score(node)
     assert player.mapping is not None
     start = player.mapping[0]
     recorder = RecorderCore()
@@ -64,7 +63,7 @@ def set_up_play(at: float, now: float, whole: bool, caplog: pytest.LogCaptureFix
 
 
 def test_a_play_already_past_in_the_set_up_plays_the_first_note(caplog: pytest.LogCaptureFixture) -> None:
-    physics, recorder, start = set_up_play(0.2, SET_UP_S, False, caplog)
+    physics, recorder, start = set_up_play(0.2, SET_UP_S, caplog)
     assert any("already past" in r.getMessage() for r in caplog.records)  # said, with how late
     assert physics.score_player.late_notes == 0
     assert first_note_missed(recorder, start) == []  # the kick was not heard at all
@@ -72,7 +71,7 @@ def test_a_play_already_past_in_the_set_up_plays_the_first_note(caplog: pytest.L
 
 def test_a_set_up_play_too_close_for_its_first_note_moves_the_whole_score(caplog: pytest.LogCaptureFixture) -> None:
     # a node up 0.3 s before its --play-at: the notes of the first 0.2 s were left out ("cannot be prepared in time")
-    physics, recorder, start = set_up_play(FIRST_STEP_S + 0.3, FIRST_STEP_S, True, caplog)
+    physics, recorder, start = set_up_play(FIRST_STEP_S + 0.3, FIRST_STEP_S, caplog)
     assert physics.score_player.late_notes == 0
     assert start > FIRST_STEP_S + 0.3  # later, as a whole
     assert any("too close to prepare its first note" in r.getMessage() for r in caplog.records)
