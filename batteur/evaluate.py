@@ -698,7 +698,7 @@ PROG = "batteur evaluate"
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from batteur.render import CONTROL_MODES, add_body_options, add_style_options
+    from batteur.render import add_body_options, add_performance_options
 
     parser = argparse.ArgumentParser(
         prog=PROG,
@@ -714,14 +714,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--reuse", action="store_true",
                         help="with --renders: reuse a render already there when it is of the same score with the "
                         "same options")
-    parser.add_argument("--kit", default="default", help="kit name or YAML/JSON file (default: default)")
-    add_style_options(parser)
+    add_performance_options(parser)
     add_body_options(parser)
-    parser.add_argument("--tempo-scale", type=float, default=1.0, metavar="X",
-                        help="play X times faster, 0.1 to 10 (default 1)")
-    parser.add_argument("--control", default="cartesian", choices=list(CONTROL_MODES),
-                        help="tracking: cartesian (DLS IK on the stick tips) or joint (PD on joint targets) "
-                        "(default: cartesian)")
     parser.add_argument("--calibration", type=Path, default=None, metavar="FILE",
                         help="calibration JSON applied to the plans (default: none)")
     parser.add_argument("--fit-calibration", type=Path, default=None, metavar="FILE",

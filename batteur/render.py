@@ -1006,14 +1006,7 @@ def build_parser() -> argparse.ArgumentParser:
                         help="output directory (created if missing)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     playing = parser.add_argument_group("the performance")
-    playing.add_argument("--kit", default="default", metavar="NAME",
-                         help="kit name or YAML/JSON file (default: default)")
-    add_style_options(playing)
-    playing.add_argument("--tempo-scale", type=float, default=1.0, metavar="X",
-                         help="play this many times faster, 0.1 to 10 (0.5: half tempo; default 1)")
-    playing.add_argument("--control", default="cartesian", choices=list(CONTROL_MODES),
-                         help="tracking: cartesian (DLS IK on the stick tips) or joint (PD on joint targets) "
-                         "(default: cartesian)")
+    add_performance_options(playing)
     playing.add_argument("--algorithm", default=HandAlgorithm.VITERBI.value,
                          choices=[a.value for a in HandAlgorithm], help="hand assignment algorithm (default: viterbi)")
     playing.add_argument("--calibration", type=Path, default=None, metavar="FILE",
@@ -1069,6 +1062,19 @@ def build_parser() -> argparse.ArgumentParser:
     jobs.add_argument("--segment", type=float, metavar="SECONDS",
                       help="segment length with --jobs above 1, seconds (default 30)")
     return parser
+
+
+def add_performance_options(parser: argparse._ActionsContainer) -> None:
+    """``--kit``, ``--grip``, ``--nuance``, ``--tempo-scale`` and ``--control`` (render and evaluate; a parser or
+    one of its groups)."""
+    parser.add_argument("--kit", default="default", metavar="NAME",
+                        help="kit name or YAML/JSON file (default: default)")
+    add_style_options(parser)
+    parser.add_argument("--tempo-scale", type=float, default=1.0, metavar="X",
+                        help="play this many times faster, 0.1 to 10 (0.5: half tempo; default 1)")
+    parser.add_argument("--control", default="cartesian", choices=list(CONTROL_MODES),
+                        help="tracking: cartesian (DLS IK on the stick tips) or joint (PD on joint targets) "
+                        "(default: cartesian)")
 
 
 def add_style_options(parser: argparse._ActionsContainer) -> None:
