@@ -223,3 +223,19 @@ def test_a_score_plays_from_its_first_note_when_physics_starts_late() -> None:
     assert notes == len(score.events), output
     # what is heard is not asserted: the live physics skips steps on a loaded machine (on one core, with the other
     # services, it played 3 of the 13 notes), and notes near a skip are lost, whatever the start
+
+
+def test_a_garbled_answer_is_ignored_and_the_health_after_it_counts() -> None:
+    """A datagram from a service's port that is no OSC (or a malformed one) is skipped without an error in the
+    rig's loop; the service's Health after it marks it up."""
+    from common.messages import Health, encode
+
+    answers = rig._Answers({9103: "sound"}, epoch=time.time())
+    answers.datagram_received(b"\x00garbage", ("127.0.0.1", 9103))
+    answers.datagram_received(b"/batteur/health\x00" + b"\xff" * 64, ("127.0.0.1", 9103))
+    assert answers.up == {}
+    health = Health(node_id="s", role="sound", protocol=1, time=0.0, rate_hz=1.0, target_rate_hz=1.0, overruns=0,
+                    messages_in=0, messages_out=0, dropped=0, dropped_malformed=0, dropped_unknown=0, dropped_type=0,
+                    dropped_range=0, dropped_other=0, late=0, peers=0)
+    answers.datagram_received(encode(health), ("127.0.0.1", 9103))
+    assert set(answers.up) == {"sound"}
