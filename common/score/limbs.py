@@ -325,6 +325,12 @@ def _distribute(score: Score, kit: Kit, algorithm: HandAlgorithm | str, sticking
     return assignment
 
 
+def _distance_m(a: Vec3, b: Vec3) -> float:
+    """Metres between two points: one rule for the hand assignment's reach (:class:`_OutOfReach`) and the
+    feasibility check's, so they never disagree on a note at the edge."""
+    return float(np.linalg.norm(np.array(a) - np.array(b)))
+
+
 class _OutOfReach:
     """The hand beyond whose reach a stick event's hit point is while the other hand reaches it (None: both or
     neither reach it), for a drummer ``height_m`` tall (metres) on ``kit``'s throne: the hand assignment gives the
@@ -339,7 +345,8 @@ class _OutOfReach:
     def __call__(self, event: EventType, pitch: int | None) -> Limb | None:
         if (event, pitch) not in self.known:
             point = self.kit.hit_point(event, pitch)[0]
-            beyond = [h for h in (Limb.LEFT_HAND, Limb.RIGHT_HAND) if math.dist(point, self.shoulders[h]) > self.reach]
+            beyond = [h for h in (Limb.LEFT_HAND, Limb.RIGHT_HAND)
+                      if _distance_m(point, self.shoulders[h]) > self.reach]
             self.known[(event, pitch)] = beyond[0] if len(beyond) == 1 else None
         return self.known[(event, pitch)]
 
@@ -507,9 +514,14 @@ def check_feasibility(assignment: Assignment, kit: Kit, window: float = SIMULTAN
             points[(event, pitch)] = kit.hit_point(event, pitch)[0]
         return points[(event, pitch)]
 
+    shoulder_distances: dict[tuple[EventType, int | None, Limb], float] = {}
+
     def from_shoulder(n: Note, hand: Limb) -> float:
-        """Metres from ``hand``'s shoulder to the note's hit point."""
-        return float(np.linalg.norm(np.array(point(n.event, n.pitch)) - np.array(shoulder_at[hand])))
+        """Metres from ``hand``'s shoulder to the note's hit point (asked for every hand note: kept by sound)."""
+        key = (n.event, n.pitch, hand)
+        if key not in shoulder_distances:
+            shoulder_distances[key] = _distance_m(point(n.event, n.pitch), shoulder_at[hand])
+        return shoulder_distances[key]
 
     later = _Later(assignment.notes)
 
@@ -712,8 +724,8 @@ def unplayable_instruments(kit: Kit, height_m: float = STATURE_M, lengths: LimbL
             continue
         far = []
         for what, struck_event, struck_pitch in ways:
-            point = np.array(kit.hit_point(struck_event, struck_pitch)[0])
-            nearer = min(float(np.linalg.norm(point - np.array(s))) for s in shoulder_at.values())
+            point = kit.hit_point(struck_event, struck_pitch)[0]
+            nearer = min(_distance_m(point, s) for s in shoulder_at.values())
             if nearer > arm_reach:
                 far.append(f"{what} {nearer:.2f} m")
         if far:
