@@ -890,16 +890,13 @@ def _check_motion_capture(opts: RenderOptions) -> None:
 
 
 def skeleton_limbs(opts: RenderOptions) -> LimbLengths | None:
-    """The arm (upper arm + forearm + hand) and leg (thigh + shank) of the body physics builds from
-    ``opts.skeleton_bvh``, metres, for the planner's reach (None without one: the height's). The segments the file
-    lacks are de Leva's for ``opts.height_m``, as physics takes them (``anthropometry(lengths_m=...)``)."""
+    """The arm and leg of the body physics builds from ``opts.skeleton_bvh``, metres, for the planner's reach
+    (None without one: the height's; ``services.physics.bvh_motion.skeleton_limb_lengths``)."""
     if opts.skeleton_bvh is None:
         return None
-    from services.physics.anthropometry import anthropometry
-    from services.physics.bvh_motion import bvh_segment_lengths
+    from services.physics.bvh_motion import skeleton_limb_lengths
 
-    segments = anthropometry(opts.height_m, opts.mass_kg, lengths_m=bvh_segment_lengths(opts.skeleton_bvh)).segments
-    return LimbLengths.of_segments({name: s.length_m for name, s in segments.items()})
+    return skeleton_limb_lengths(opts.skeleton_bvh, opts.height_m, opts.mass_kg)
 
 
 def check_video(opts: RenderOptions) -> None:

@@ -31,6 +31,7 @@ from scipy.spatial.transform import Rotation
 
 from common.character import BASE_LINK, HIP_MOUNTS, JOINT_LINKS, SIDES
 from common.gesture.bvh import Bvh, BvhError, read_bvh, rest_positions, world_frames
+from common.score.limbs import LimbLengths
 from services.physics.mocap import MotionClip
 
 _SIDE_WORDS = {"left": ("left", "l"), "right": ("right", "r")}
@@ -315,3 +316,14 @@ def bvh_segment_lengths(path: str | Path, units_to_m: float | None = None) -> di
             lengths[name] = distance(hip_centre, top) if up is None else float(np.dot(top - hip_centre, up))
     lengths["shoulder_width"] = distance(*(at(f"{s}_upper_arm") for s in SIDES))
     return {name: length for name, length in lengths.items() if length is not None}
+
+
+def skeleton_limb_lengths(path: str | Path, height_m: float, mass_kg: float) -> LimbLengths:
+    """The arms (upper arm + forearm + hand) and legs (thigh + shank) of the body physics builds from the skeleton
+    of the BVH file at ``path``, metres: the segments the file lacks are de Leva's for ``height_m`` (as
+    ``anthropometry(lengths_m=...)`` takes them). For the planner's reach (``batteur render --skeleton-bvh``, the
+    physics node's). Raises what reading the file raises (``OSError``, ``ValueError``)."""
+    from services.physics.anthropometry import anthropometry
+
+    segments = anthropometry(height_m, mass_kg, lengths_m=bvh_segment_lengths(path)).segments
+    return LimbLengths.of_segments({name: s.length_m for name, s in segments.items()})

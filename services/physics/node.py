@@ -214,15 +214,12 @@ def _skeleton_limbs(settings: PhysicsNodeSettings) -> LimbLengths | None:
     None without one, or for a file the core refuses (its own error says why, as before)."""
     if not settings.skeleton_bvh:
         return None
-    from services.physics.anthropometry import anthropometry
-    from services.physics.bvh_motion import bvh_segment_lengths
+    from services.physics.bvh_motion import skeleton_limb_lengths
 
     try:
-        lengths = bvh_segment_lengths(settings.skeleton_bvh)
-        segments = anthropometry(settings.height_m, settings.mass_kg, lengths_m=lengths).segments
+        return skeleton_limb_lengths(settings.skeleton_bvh, settings.height_m, settings.mass_kg)
     except (OSError, ValueError):
         return None
-    return LimbLengths.of_segments({name: s.length_m for name, s in segments.items()})
 
 
 def _prepare(core: PhysicsCore, settings: PhysicsNodeSettings) -> None:
