@@ -27,13 +27,13 @@ import pytest
 from batteur import render
 from batteur.tools import docs, send
 from common.config import load_settings
-from common.core import Outgoing
 from common.gesture.bvh import BvhError, read_bvh
 from common.kit import KITS_DIR, load_kit
 from common.messages import Health, OscMessage, Subscribe, decode
 from common.messages.sound import SoundMaster
 from common.runtime import Node
 from common.transport import UdpEndpoint
+from tests.null_core import NullCore
 from tests.waiting import wait_for
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -179,15 +179,10 @@ def test_a_message_sent_to_several_destinations_at_once_is_tapped_once() -> None
     asyncio.run(main())
 
 
-class QuietCore:
+class QuietCore(NullCore):
+    """The null core in a role of its own (``echo``), so a node of it may have sound and graphics peers."""
+
     ROLE: ClassVar[str] = "echo"
-    rate_hz = 0.0
-
-    def handle(self, message: OscMessage, now: float, source: str) -> list[Outgoing]:
-        return []
-
-    def step(self, now: float) -> list[Outgoing]:
-        return []
 
 
 def _into(inbox: list[OscMessage]) -> Callable[[OscMessage, str], None]:

@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 import soundfile as sf
 
+from batteur.demo import DEMO_GROOVE
 from common.kit import load_kit
 from common.score.text import read_score
 from services.recogniser.node import play_file
@@ -16,13 +17,7 @@ from services.recogniser.transcribe import DrumEvent, transcribe_file
 from services.sound.core import SoundSettings, render_offline
 from services.sound.demo import impacts_from_score
 
-GROOVE = """\
-tempo 100
-meter 4/4
-HH |x.x.x.x.x.x.x.x.|x.x.x.x.x.x.x.x.|
-SN |....X.......X...|....X.......X..g|
-BD |x.......x.x.....|x.......x.x.....|
-"""
+GROOVE = "\n".join(DEMO_GROOVE.splitlines()[1:6]) + "\n"  # its tempo, meter and first section
 """The demo groove's first two bars: 16 closed hi-hats, 5 snares (the last a ghost note), 6 kicks."""
 LEAD_IN_S = 1.5
 """Digital silence before the first strike, seconds: as long as `batteur render`'s, while the drummer settles."""
