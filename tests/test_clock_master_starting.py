@@ -7,24 +7,17 @@ from __future__ import annotations
 
 import asyncio
 import logging
-import socket
 
 import pytest
 
 from common import runtime
 from common.config import load_settings
 from common.runtime import Node
+from tests.ports import free_port
 from tests.test_runtime import EchoCore
 from tests.waiting import wait_for
 
 pytestmark = pytest.mark.timeout(60)
-
-
-def silent_port() -> int:
-    """A loopback UDP port nobody listens on (just freed)."""
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
-        probe.bind(("127.0.0.1", 0))
-        return int(probe.getsockname()[1])
 
 
 def run_waiting_node(peers: list[str], caplog: pytest.LogCaptureFixture, until_s: float) -> Node:
@@ -51,7 +44,7 @@ def runtime_records(caplog: pytest.LogCaptureFixture, level: int) -> list[str]:
 
 def test_a_master_still_starting_is_not_warned_about(caplog: pytest.LogCaptureFixture) -> None:
     # three "no clock master (physics) within 3 s ... rig time will jump" warnings while the rig waited for physics
-    port = silent_port()
+    port = free_port()
     node = run_waiting_node([f"physics=127.0.0.1:{port}"], caplog, until_s=0.3)
     assert node.core_started and not node.clock.synced  # started on its own clock all the same
     assert runtime_records(caplog, logging.WARNING) == []
@@ -63,7 +56,7 @@ def test_a_master_still_starting_is_not_warned_about(caplog: pytest.LogCaptureFi
 def test_a_master_silent_for_long_is_warned_about(caplog: pytest.LogCaptureFixture,
                                                   monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(runtime, "MASTER_SILENT_WARN_S", 0.5)
-    port = silent_port()
+    port = free_port()
     run_waiting_node([f"physics=127.0.0.1:{port}"], caplog, until_s=1.0)
     assert runtime_records(caplog, logging.WARNING) == [
         f"no answer from the clock master physics at 127.0.0.1:{port} within 0.5 s (is it running?): rig time is "

@@ -22,6 +22,7 @@ from pathlib import Path
 import pytest
 
 from batteur import rig
+from tests.ports import free_ports
 
 
 class NoRig:
@@ -53,12 +54,6 @@ LOADING = ("import sys, time\ntry:\n    time.sleep(60)\n"
            "except KeyboardInterrupt:\n    print('interrupted'); sys.exit(130)")
 """A service still loading its modules: no signal handler yet, and ``batteur``'s Ctrl-C handling (exit code 130)."""
 WRITE_PID = "import os, sys, time; open(sys.argv[1], 'w').write(str(os.getpid())); time.sleep(60)"
-
-
-def free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
-        probe.bind(("127.0.0.1", 0))
-        return int(probe.getsockname()[1])
 
 
 def refused(argv: list[str], capsys: pytest.CaptureFixture[str], status: int = 2) -> str:
@@ -126,7 +121,7 @@ def test_a_port_in_use_is_refused_before_any_service_starts(no_rig: None,
 def test_a_recording_folder_that_cannot_be_made_is_a_one_line_error(no_rig: None,
                                                                    capsys: pytest.CaptureFixture[str]) -> None:
     # /proc passes the writability check as root, and still no folder can be made in it
-    err = refused(["--no-discovery", "--services", "sound", "--base-port", str(free_port()),
+    err = refused(["--no-discovery", "--services", "sound", "--base-port", str(free_ports(4)[0]),
                    "--record", "/proc/batteur-rig-test/out"], capsys, 1)
     assert err.startswith("batteur rig: error: --record /proc/batteur-rig-test/out: cannot create a folder in /proc")
 
@@ -144,7 +139,7 @@ def test_a_folder_named_demo_does_not_hide_the_demo_groove(tmp_path: Path, monke
     monkeypatch.setattr(rig, "Rig", Recorder)
     monkeypatch.chdir(tmp_path)
     (tmp_path / "demo").mkdir()
-    assert rig.main(["--no-discovery", "--services", "physics", "--base-port", str(free_port()),
+    assert rig.main(["--no-discovery", "--services", "physics", "--base-port", str(free_ports(4)[0]),
                      "--score", "demo"]) == 0
     args = started[0].args
     assert Path(args[args.index("--score") + 1]).name == "demo-groove.txt"
@@ -259,7 +254,7 @@ def test_a_view_port_in_use_is_refused_before_any_service_starts(no_rig: None,
         held.bind(("127.0.0.1", 0))
         held.listen()
         port = held.getsockname()[1]
-        err = refused(["--no-discovery", "--services", "graphics", "--base-port", str(free_port()),
+        err = refused(["--no-discovery", "--services", "graphics", "--base-port", str(free_ports(4)[0]),
                        "--http-port", str(port)], capsys, 1)
     assert f"TCP port {port} (graphics view) on 127.0.0.1 is in use" in err and "--http-port" in err
 

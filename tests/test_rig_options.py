@@ -7,7 +7,8 @@ from pathlib import Path
 import pytest
 
 from batteur import rig
-from tests.test_rig_inputs import free_port, no_rig, refused  # noqa: F401 - no_rig is a fixture
+from tests.ports import free_ports
+from tests.test_rig_inputs import no_rig, refused  # noqa: F401 - no_rig is a fixture
 
 
 class Recorder:
@@ -27,7 +28,7 @@ def test_a_folder_given_as_the_score_is_called_a_folder(no_rig: None, tmp_path: 
     # it said "no such file" of a folder that is there
     folder = tmp_path / "adir.mid"
     folder.mkdir()
-    err = refused(["--no-discovery", "--score", str(folder), "--base-port", str(free_port())], capsys, 1)
+    err = refused(["--no-discovery", "--score", str(folder), "--base-port", str(free_ports(4)[0])], capsys, 1)
     assert f"--score {folder}: is a directory" in err and "no such file" not in err
 
 
@@ -37,7 +38,7 @@ def test_interfaces_without_discovery_are_said_to_be_ignored(interfaces: str, mo
     # a wildcard, an error wherever zeroconf runs, was accepted in silence
     monkeypatch.setattr(rig, "Rig", Recorder)
     assert rig.main(["--no-discovery", "--interfaces", interfaces, "--services", "sound",
-                     "--base-port", str(free_port())]) == 0
+                     "--base-port", str(free_ports(4)[0])]) == 0
     err = capsys.readouterr().err
     assert f"warning: --interfaces {interfaces} is ignored with --no-discovery" in err
     assert "--interface" not in Recorder.started[0].args
@@ -45,5 +46,5 @@ def test_interfaces_without_discovery_are_said_to_be_ignored(interfaces: str, mo
 
 def test_no_warning_without_interfaces(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
     monkeypatch.setattr(rig, "Rig", Recorder)
-    assert rig.main(["--no-discovery", "--services", "sound", "--base-port", str(free_port())]) == 0
+    assert rig.main(["--no-discovery", "--services", "sound", "--base-port", str(free_ports(4)[0])]) == 0
     assert "warning" not in capsys.readouterr().err

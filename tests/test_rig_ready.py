@@ -27,6 +27,7 @@ import pytest
 from batteur import rig
 from common.messages import PROTOCOL_VERSION, Health, Impact, decode, encode
 from common.score.text import read_score
+from tests.ports import free_ports
 
 REPO = Path(__file__).resolve().parents[1]
 SCORE = REPO / "tests" / "render" / "short_groove.txt"
@@ -54,26 +55,6 @@ def health(role: str) -> str:
                          target_rate_hz=0.0, overruns=0, messages_in=0, messages_out=0, dropped=0, dropped_malformed=0,
                          dropped_unknown=0, dropped_type=0, dropped_range=0, dropped_other=0, late=0,
                          peers=0)).hex()
-
-
-def free_udp_ports(n: int) -> list[int]:
-    """``n`` consecutive free UDP ports on loopback (a rig's services take base port + 0..3)."""
-    for _ in range(50):
-        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
-            probe.bind(("127.0.0.1", 0))
-            base = int(probe.getsockname()[1])
-        socks: list[socket.socket] = []
-        try:
-            for port in range(base, base + n):
-                socks.append(socket.socket(socket.AF_INET, socket.SOCK_DGRAM))
-                socks[-1].bind(("127.0.0.1", port))
-        except OSError:
-            continue
-        finally:
-            for sock in socks:
-                sock.close()
-        return list(range(base, base + n))
-    raise AssertionError("no free UDP ports")
 
 
 class StandIn(rig.ServicePlan):
@@ -108,7 +89,7 @@ def run_rig(plans: list[rig.ServicePlan], ready: rig.ReadyWait, until: str = "")
 
 
 def test_the_rig_says_when_its_services_are_up_and_that_a_late_physics_starts_the_score_late() -> None:
-    physics, sound = free_udp_ports(2)
+    physics, sound = free_ports(2)
     ready = rig.ReadyWait(timeout_s=60.0, host="127.0.0.1", epoch=time.time(), play_at_s=0.1)
     plans: list[rig.ServicePlan] = [StandIn("physics", physics, 1.0), StandIn("sound", sound, 0.0)]
     code, out, err = run_rig(plans, ready, until="services up")
@@ -120,7 +101,7 @@ def test_the_rig_says_when_its_services_are_up_and_that_a_late_physics_starts_th
 
 
 def test_services_up_in_time_are_said_to_be_and_nothing_more() -> None:
-    physics, sound = free_udp_ports(2)
+    physics, sound = free_ports(2)
     ready = rig.ReadyWait(timeout_s=60.0, host="127.0.0.1", epoch=time.time(), play_at_s=100.0)
     plans: list[rig.ServicePlan] = [StandIn("physics", physics, 0.0), StandIn("sound", sound, 0.5)]
     code, out, err = run_rig(plans, ready, until="services up")
@@ -131,7 +112,7 @@ def test_services_up_in_time_are_said_to_be_and_nothing_more() -> None:
 def test_a_service_that_never_starts_stops_the_rig_with_an_error(monkeypatch: pytest.MonkeyPatch) -> None:
     # the rig waited for ever, saying nothing, and the score never played
     monkeypatch.setattr(rig, "READY_PROGRESS_S", 0.5)
-    physics = free_udp_ports(1)[0]
+    physics = free_ports(1)[0]
     ready = rig.ReadyWait(timeout_s=2.0, host="127.0.0.1", epoch=time.time(), play_at_s=1.0)
     plans: list[rig.ServicePlan] = [StandIn("physics", physics, 0.0, "import time; time.sleep(120)")]
     code, out, err = run_rig(plans, ready)
@@ -173,7 +154,7 @@ def test_a_score_plays_from_its_first_note_when_physics_starts_late() -> None:
     # loaded machine with the defaults; the score started 0.5 s after physics's set-up, before its simulation ran, and
     # its first note was lost (tests/physics/test_late_play_first_note.py shows that without a machine's load)
     score = read_score(SCORE)
-    base = free_udp_ports(4)[0]
+    base = free_ports(4)[0]
     impacts: list[tuple[float, str]] = []
     stop = threading.Event()
     lines: list[str] = []

@@ -12,7 +12,6 @@ from __future__ import annotations
 import asyncio
 import os
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -24,6 +23,7 @@ import pytest
 from common.config import load_settings
 from common.runtime import Node, run_node
 from tests.null_core import NullCore
+from tests.ports import free_port
 from tests.waiting import until
 
 pytestmark = [pytest.mark.timeout(300),
@@ -32,12 +32,6 @@ pytestmark = [pytest.mark.timeout(300),
 ROOT = Path(__file__).parents[1]
 PLANNERS = 2
 """Planning processes the live physics core starts (the current one and a spare)."""
-
-
-def _free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
-        probe.bind(("127.0.0.1", 0))
-        return int(probe.getsockname()[1])
 
 
 def _stat(pid: int) -> list[str] | None:
@@ -87,7 +81,7 @@ def _semaphores(pid: int) -> set[str]:
 
 
 def test_a_physics_node_stopped_while_its_core_is_made_closes_it_and_exits_cleanly() -> None:
-    command = [sys.executable, "-m", "batteur", "physics", "--port", str(_free_port()), "--host", "127.0.0.1",
+    command = [sys.executable, "-m", "batteur", "physics", "--port", str(free_port()), "--host", "127.0.0.1",
                "--no-discovery", "--no-oscquery", "--pose-rate-hz", "0", "--node-id", "physics-stop-test"]
     node = subprocess.Popen(command, cwd=ROOT, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, start_new_session=True)  # as the rig starts it

@@ -25,6 +25,7 @@ from common.messages import Health, Hello, OscMessage, Subscribe, decode, encode
 from common.messages.base import MessageError
 from common.oscquery import OscQueryServer
 from tests.netns import Namespace, NetnsLab, require_netns
+from tests.ports import free_port
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -92,12 +93,6 @@ def fake_node() -> Iterator[FakeNode]:
     node = FakeNode(stream=[Hello(role="cli", node_id="seen", protocol=1, osc_port=9), health("other")])
     yield node
     node.close()
-
-
-def closed_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
-        probe.bind(("127.0.0.1", 0))
-        return int(probe.getsockname()[1])
 
 
 def child_takes_sigint() -> None:
@@ -239,7 +234,7 @@ def test_ls_shows_a_node_it_cannot_reach_instead_of_hiding_it(monkeypatch: pytes
 ])
 def test_echo_refuses_a_malformed_pattern_in_one_line(pattern: str, says: str,
                                                       capsys: pytest.CaptureFixture[str]) -> None:
-    assert echo.main([pattern, "--node", f"127.0.0.1:{closed_port()}", "--duration", "1"]) == 2
+    assert echo.main([pattern, "--node", f"127.0.0.1:{free_port()}", "--duration", "1"]) == 2
     err = capsys.readouterr().err
     assert says in err and len(err.strip().splitlines()) == 1
 
@@ -251,7 +246,7 @@ def test_echo_count_must_be_at_least_one(capsys: pytest.CaptureFixture[str]) -> 
 
 
 def test_echo_says_when_a_node_does_not_answer(capsys: pytest.CaptureFixture[str]) -> None:
-    port = closed_port()
+    port = free_port()
     assert echo.main(["/batteur/*", "--node", f"127.0.0.1:{port}", "--duration", "1"]) == 1  # was 0, in silence
     assert f"127.0.0.1:{port} did not answer" in capsys.readouterr().err
 
@@ -427,9 +422,7 @@ def test_send_replies_prints_the_answers_and_fails_on_a_refusal(capsys: pytest.C
 
 
 def test_send_replies_says_when_nothing_listens(capsys: pytest.CaptureFixture[str]) -> None:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:  # a port nobody listens on once closed
-        probe.bind(("127.0.0.1", 0))
-        port = probe.getsockname()[1]
+    port = free_port()  # a port nobody listens on
     assert send.main(["/batteur/interaction/map/list", "--to", f"127.0.0.1:{port}"]) == 0  # UDP: sent is all
     assert send.main(["/batteur/interaction/map/list", "--to", f"127.0.0.1:{port}", "--replies", "1"]) == 1
     assert f"nothing listens at 127.0.0.1:{port}" in capsys.readouterr().err

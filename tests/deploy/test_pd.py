@@ -29,6 +29,7 @@ from common.messages.score import GestureStyle, ScoreLoad, ScoreTransport, Tempo
 from common.messages.sound import SoundDamping, SoundLatency, SoundLevel, SoundModel, SoundModes, SoundTension
 from common.runtime import Node
 from tests.deploy.pdrun import PD_DIR, PdProcess, Recorder, physics_and_sound_nodes, require_pd, three_strikes
+from tests.ports import free_port
 from tests.waiting import wait_for
 
 pytestmark = pytest.mark.timeout(120)
@@ -159,14 +160,8 @@ def _impact(seq: int, t: float, instrument: str, velocity: float = 3.0) -> Impac
                   impulse=0.01, peak_force=100.0, duration=0.003, part="right_stick_tip")
 
 
-def _free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
 def test_sound_client_plays_each_impact_once_and_records_a_take(tmp_path: Path) -> None:
-    port = _free_udp_port()
+    port = free_port()
     pd = PdProcess(PD_DIR / "sound-client.pd", sends=[f"sc-dir symbol {tmp_path}", f"sc-port {port}"])
     try:
         pd.wait_for(lambda lines: any(f"listen {port}" in line for line in lines))
@@ -206,7 +201,7 @@ def test_sound_client_plays_each_impact_once_and_records_a_take(tmp_path: Path) 
 
 def test_sound_client_only_writes_takes_into_its_directory(tmp_path: Path) -> None:
     """A remote /pd/record gives a take number, never a path: nothing is written elsewhere."""
-    port = _free_udp_port()
+    port = free_port()
     pd = PdProcess(PD_DIR / "sound-client.pd", sends=[f"sc-dir symbol {tmp_path}", f"sc-port {port}"])
     try:
         pd.wait_for(lambda lines: any(f"listen {port}" in line for line in lines))
@@ -226,8 +221,8 @@ def test_sound_client_only_writes_takes_into_its_directory(tmp_path: Path) -> No
 def test_sound_client_receives_impacts_from_a_running_interaction_node(tmp_path: Path) -> None:
     """The rig's interaction node (a real process) turns contacts into impacts and sends them to the Pd client."""
 
-    port = _free_udp_port()
-    iport = _free_udp_port()
+    port = free_port()
+    iport = free_port()
     pd = PdProcess(PD_DIR / "sound-client.pd", sends=[f"sc-dir symbol {tmp_path}", f"sc-port {port}"])
     import subprocess
 

@@ -18,6 +18,7 @@ import soundfile as sf
 
 from common.messages import Impact, WireKind, encode, encode_raw
 from tests.deploy.pdrun import PD_DIR, PdProcess, physics_and_sound_nodes, require_pd
+from tests.ports import free_port
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -31,12 +32,6 @@ def _raw_impact(seconds: Any, fraction: Any, instrument: Any, velocity: Any) -> 
     """An impact with any values in the fields the Pd client reads (bypasses the model's validation)."""
     return encode_raw("/batteur/impact", [7, seconds, fraction, instrument, "centre", 0.2, 0.0, velocity, 0.0, 0.0,
                                           0.0, "right_stick_tip"])
-
-
-def _free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 class Client:
@@ -71,7 +66,7 @@ class Client:
 
 @contextmanager
 def sound_client(tmp_path: Path) -> Iterator[Client]:
-    port = _free_udp_port()
+    port = free_port()
     takes = tmp_path / "takes"
     takes.mkdir()
     pd = PdProcess(PD_DIR / "sound-client.pd", sends=[f"sc-dir symbol {takes}", f"sc-port {port}"])
@@ -178,7 +173,7 @@ def test_bad_port_messages_leave_the_client_listening(tmp_path: Path) -> None:
         assert client.strikes() == [("snare", 1.0)]
         assert len(client.bad()) == 6 and all("port" in " ".join(b) for b in client.bad()), client.bad()
         # a good one still moves it
-        new = _free_udp_port()
+        new = free_port()
         client.send(encode_raw("/pd/port", [new]))
         client.pd.wait_for(lambda lines: any(f"listen {new}" in line for line in lines))
         client.send(_impact(2.0, "kick"), new)

@@ -20,6 +20,7 @@ import soundfile as sf
 from batteur.tools.wav_repair import repair_wav
 from common.messages import Impact, encode, encode_raw
 from tests.deploy.pdrun import PD_DIR, PdProcess
+from tests.ports import free_port
 
 pytestmark = pytest.mark.timeout(120)
 ROOT = Path(__file__).resolve().parents[2]
@@ -30,19 +31,13 @@ def _repair(*files: Path) -> subprocess.CompletedProcess[str]:
                           capture_output=True, text=True, timeout=60, check=False)
 
 
-def _free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
 def _strike(seq: int, t: float) -> bytes:
     return encode(Impact(seq=seq, time=t, instrument="snare", zone="centre", r=0.2, theta=0.0, velocity=4.0,
                          impulse=0.01, peak_force=100.0, duration=0.003, part="right_stick_tip"))
 
 
 def test_a_take_cut_short_by_pd_exiting_is_repaired_with_its_strikes(tmp_path: Path) -> None:
-    port = _free_udp_port()
+    port = free_port()
     pd = PdProcess(PD_DIR / "sound-client.pd", sends=[f"sc-dir symbol {tmp_path}", f"sc-port {port}"])
     take = tmp_path / "take-4.wav"
     try:

@@ -6,7 +6,6 @@ import importlib
 import os
 import re
 import shutil
-import socket
 import subprocess
 import sys
 from pathlib import Path
@@ -15,15 +14,10 @@ from typing import Any
 import pytest
 
 from tests.deploy.pdrun import PD_DIR, PdProcess
+from tests.ports import free_port
 
 pytestmark = pytest.mark.timeout(120)
 ROOT = Path(__file__).resolve().parents[2]
-
-
-def _free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 def _own_network() -> list[str]:
@@ -40,7 +34,7 @@ def test_sound_client_started_on_another_port_listens_there_first() -> None:
     ``batteur rig``, another client): the client listens on N, never on 9103. It used to listen on 9103
     first (its loadbang ran before the -send messages), which printed ``netreceive: listen failed: Address
     already in use`` when 9103 was taken."""
-    port = _free_udp_port()
+    port = free_port()
     pd = PdProcess(PD_DIR / "sound-client.pd", sends=[f"sc-port {port}"])
     try:
         pd.wait_for(lambda lines: any(f"listen {port}" in line for line in lines))

@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 from common.messages import OscMessage, decode, encode
+from tests.ports import free_port
 
 ROOT = Path(__file__).resolve().parents[2]
 CHROMIUM = "/usr/bin/chromium"
@@ -32,17 +33,11 @@ CHROMIUM_FLAGS = [
 ]
 
 
-def free_port(kind: int = socket.SOCK_STREAM) -> int:
-    with socket.socket(socket.AF_INET, kind) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
 class GraphicsNodeProcess:
     """``python -m services.graphics.node`` on loopback, discovery off, fixed ports (restartable)."""
 
     def __init__(self, tmp: Path, latency: float = 0.05, extra: list[str] | None = None) -> None:
-        self.http_port = free_port()
+        self.http_port = free_port(socket.SOCK_STREAM)
         self.osc_port = free_port(socket.SOCK_DGRAM)
         self.tmp = tmp
         self.latency = latency

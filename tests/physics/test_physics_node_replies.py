@@ -15,6 +15,7 @@ import pytest
 from batteur.tools import send
 from common.messages import Health, Hello, decode, encode
 from common.messages.physics import CartesianTarget, PhysicsRejected
+from tests.ports import free_port
 
 pytestmark = pytest.mark.timeout(180)
 
@@ -32,16 +33,10 @@ def _target(args: list[str]) -> CartesianTarget:
     return CartesianTarget.from_args([limb, int(whole), float(fraction), *map(float, rest)])
 
 
-def _free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
-        probe.bind(("127.0.0.1", 0))
-        return int(probe.getsockname()[1])
-
-
 @pytest.fixture(scope="module")
 def physics_node() -> Iterator[str]:
     """A drummer physics node on 127.0.0.1 (no discovery, no OSCQuery), once it answers a Hello: its address."""
-    port = _free_port()
+    port = free_port()
     proc = subprocess.Popen([sys.executable, "-m", "batteur", "physics", "--host", "127.0.0.1", "--port", str(port),
                              "--no-discovery", "--no-oscquery", "--pose-rate-hz", "0"],
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
