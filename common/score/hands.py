@@ -21,11 +21,16 @@ assignment; the third one proposed there and built here):
   keeps the best states at each step.
 
 Groups of two simultaneous stick events always use both hands; which one goes
-where follows the pair preference (or the geometry).
+where follows the pair preference (or the geometry), except that ``simple`` and
+``pairwise`` swap the two when a hand would get a note beyond its reach that the
+other hand reaches (``HandNote.out_of_reach``) and the swap leaves neither note
+beyond its hand's reach.
 
 Sticking patterns (``single`` RLRL, ``double`` RRLL, ``paradiddle`` RLRR LRLL)
 apply to rolls: runs of four or more single stick events on one object faster
-than twice its minTimeGap. The lead hand is the event's preferred hand.
+than twice its minTimeGap. The lead hand is the event's preferred hand. A roll
+note beyond its pattern hand's reach goes to the other hand when that one
+reaches it and is free then (:func:`_roll_hands`).
 """
 
 from __future__ import annotations
@@ -77,7 +82,8 @@ class HandNote:
     velocity: float = 0.7
     out_of_reach: Limb | None = None
     """The hand whose reach the hit point is beyond while the other hand reaches it (None: both or neither reach
-    it): ``viterbi`` gives it to that hand only at a cost (``Costs.out_of_reach``)."""
+    it): ``viterbi`` gives it to that hand only at a cost (``Costs.out_of_reach``), ``simple`` and ``pairwise``
+    split a simultaneous pair by it (:func:`_within_reach`), a roll's sticking gives way (:func:`_roll_hands`)."""
 
 
 @dataclass(frozen=True)
@@ -167,12 +173,18 @@ def _struck_object(kit: Kit, event: EventType, pitch: int | None) -> str:
 
 
 def _pair_split(a: int, b: int, t: _Table, kit: Kit, notes: list[HandNote]) -> tuple[Limb, Limb]:
-    """Hands for two simultaneous notes a, b (forced hands first, then pair preference, then geometry)."""
+    """Hands for two simultaneous notes a, b (forced hands first, then reach, then pair preference, then
+    geometry)."""
     fa, fb = notes[a].forced, notes[b].forced
     if fa is not None and fb != fa:
         return fa, _other(fa)
     if fb is not None and fa is None:
         return _other(fb), fb
+    return _within_reach(a, b, *_preferred_split(a, b, t, kit, notes), notes)
+
+
+def _preferred_split(a: int, b: int, t: _Table, kit: Kit, notes: list[HandNote]) -> tuple[Limb, Limb]:
+    """Hands for two simultaneous notes a, b by pair preference, then preferred hands, then geometry."""
     own = all(_struck_object(kit, notes[i].event, notes[i].pitch) == kit.events[notes[i].event].object
               for i in (a, b))
     p = kit.pair(t.events[a], t.events[b]) if own else 0.0  # as crossed(): another object, the geometry
@@ -183,6 +195,17 @@ def _pair_split(a: int, b: int, t: _Table, kit: Kit, notes: list[HandNote]) -> t
     if t.preferred[a] != t.preferred[b]:
         return t.preferred[a], t.preferred[b]
     return (R, L) if t.x[a] >= t.x[b] else (L, R)
+
+
+def _within_reach(a: int, b: int, ha: Limb, hb: Limb, notes: list[HandNote]) -> tuple[Limb, Limb]:
+    """The split ``ha``, ``hb`` of notes a, b, swapped when a hand is given a note beyond its reach that the other
+    hand reaches (``HandNote.out_of_reach``) and the swap puts neither note beyond its hand's reach: the hand that
+    reaches plays it rather than the feasibility check dropping it (the other hand busy with the pair's other
+    note). Where both hands reach both notes, the split is kept."""
+    far_a, far_b = notes[a].out_of_reach, notes[b].out_of_reach
+    if (far_a == ha or far_b == hb) and far_a != hb and far_b != ha:
+        return hb, ha
+    return ha, hb
 
 
 def _groups(notes: list[HandNote], window: float) -> list[list[int]]:
@@ -196,7 +219,10 @@ def _groups(notes: list[HandNote], window: float) -> list[list[int]]:
 
 
 def apply_sticking(notes: list[HandNote], kit: Kit, sticking: Sticking, window: float = 0.015) -> list[HandNote]:
-    """Force hands on rolls (runs of >= 4 single notes on one object faster than 2 x minTimeGap)."""
+    """Force hands on rolls (runs of >= 4 single notes on one object faster than 2 x minTimeGap).
+
+    A roll note beyond its pattern hand's reach goes to the other hand when that one reaches it and is free
+    (:func:`_roll_hands`); a note the score forces keeps its hand."""
     if sticking == Sticking.NONE or not notes:
         return notes
     pattern = PATTERNS[sticking]
@@ -207,9 +233,9 @@ def apply_sticking(notes: list[HandNote], kit: Kit, sticking: Sticking, window: 
     def close_run() -> None:
         if len(run) >= 4:
             lead = _hand(kit.spec(notes[run[0]].event).preferred, kit)
-            for k, i in enumerate(run):
+            hands = _roll_hands([notes[i] for i in run], kit, lead, pattern)
+            for i, hand in zip(run, hands, strict=True):
                 if out[i].forced is None:
-                    hand = lead if pattern[k % len(pattern)] == "R" else _other(lead)
                     out[i] = replace(notes[i], forced=hand)
         run.clear()
 
@@ -227,6 +253,47 @@ def apply_sticking(notes: list[HandNote], kit: Kit, sticking: Sticking, window: 
         run.append(i)
     close_run()
     return out
+
+
+def _roll_hands(roll: list[HandNote], kit: Kit, lead: Limb, pattern: str) -> list[Limb]:
+    """Hands of a roll's notes (time order): the score's where it forces one, else the pattern's (``R``: ``lead``),
+    except that a note beyond its pattern hand's reach (``HandNote.out_of_reach``) goes to the other hand when that
+    one is free: its interval from the other hand's previous roll note and to its next one (as the pattern gives
+    them) are full strokes or rebound doubles (:func:`common.score.rebound.classify`, the rule the hand
+    assignment and the feasibility check keep). Otherwise it stays, and the feasibility check flags it
+    ``unreachable``. The notes around the roll are not assigned yet: the check judges those intervals."""
+    hands = [n.forced if n.forced is not None else lead if pattern[k % len(pattern)] == "R" else _other(lead)
+             for k, n in enumerate(roll)]
+    last: dict[Limb, tuple[Stroke, bool]] = {}  # each hand's previous roll stroke, whether it was a bounce
+    for k, n in enumerate(roll):
+        h = hands[k]
+        if n.forced is None and n.out_of_reach == h:
+            other = _other(h)
+            after = next((roll[j] for j in range(k + 1, len(roll)) if hands[j] == other), None)
+            if _free(kit, last.get(other), n, after):
+                h = hands[k] = other
+        last[h] = (_stroke(n), _interval(kit, last.get(h), n) == Interval.REBOUND)
+    return hands
+
+
+def _free(kit: Kit, before: tuple[Stroke, bool] | None, n: HandNote, after: HandNote | None) -> bool:
+    """Whether a hand whose previous stroke is ``before`` (and whether it was a bounce) and whose next note is
+    ``after`` can play ``n`` between them: neither interval too fast."""
+    kind = _interval(kit, before, n)
+    if kind == Interval.TOO_FAST:
+        return False
+    return after is None or classify(kit, _stroke(n), kind == Interval.REBOUND, _stroke(after)) != Interval.TOO_FAST
+
+
+def _interval(kit: Kit, before: tuple[Stroke, bool] | None, n: HandNote) -> Interval:
+    """How a hand whose previous stroke is ``before`` (and whether it was a bounce) plays ``n``."""
+    if before is None:
+        return Interval.FIRST
+    return classify(kit, before[0], before[1], _stroke(n))
+
+
+def _stroke(n: HandNote) -> Stroke:
+    return Stroke(n.time, n.event, n.pitch, n.velocity)
 
 
 def assign_hands(
