@@ -241,14 +241,16 @@ def scale_tempo(score: Score, scale: float) -> Score:
 
 
 def prepare(path: Path | str, kit: Kit, opts: RenderOptions, calibration: Calibration | None = None,
-            progress: Callable[[str, int, int], None] | None = None) -> tuple[Score, Assignment, GesturePlan]:
+            progress: Callable[[str, int, int], None] | None = None,
+            limbs: LimbLengths | None = None) -> tuple[Score, Assignment, GesturePlan]:
     """Read, distribute and plan a score; raises :class:`ScoreError` for a bad score.
 
     With a ``calibration`` the notes are shifted (lag anticipation) and their
     velocities remapped before planning; the returned ``score`` keeps the
     written times (what the performance is judged against). The grip and nuance are ``opts.styled(score)``'s (a
     text score's directives unless ``opts`` names them), the reach that of a drummer ``opts.height_m`` tall (with
-    ``opts.skeleton_bvh``, its arms and legs: :func:`skeleton_limbs`).
+    ``opts.skeleton_bvh``, its arms and legs: ``limbs`` if the caller read them already, else
+    :func:`skeleton_limbs`).
     ``progress``: called with (stage, done, total)
     while a MIDI file is read (stage ``"reading"``, in bytes: ``read_midi``'s progress), its notes are given
     limbs (``"limbs"``, in notes: ``distribute``'s) and planned (``"gestures"``, ``plan_gestures``'); what it
@@ -266,7 +268,7 @@ def prepare(path: Path | str, kit: Kit, opts: RenderOptions, calibration: Calibr
         raise ScoreError(f"{path}: no drum events to play" + (f" ({why})" if why else ""))
     assignment = distribute(score, kit, opts.algorithm,
                             progress=None if progress is None else functools.partial(progress, "limbs"),
-                            height_m=opts.height_m, lengths=skeleton_limbs(opts))
+                            height_m=opts.height_m, lengths=limbs if limbs is not None else skeleton_limbs(opts))
     planned = assignment if calibration is None else calibration.apply(assignment, kit)
     style = opts.styled(score)
     grip = planned_grip(style.grip or DEFAULT_GRIP)  # american, traditional: no units, planned german
@@ -767,12 +769,13 @@ def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: boo
     check_options(opts)
     if opts.video:
         check_video(opts)  # before the long part: no ffmpeg, no render
+    limbs = skeleton_limbs(opts)  # read once: the kit's warnings and the planner measure the same reach
     # its warnings name the drummer asked for, with the skeleton's reach when it has one (as the planner's)
-    kit = load_kit(opts.kit, height_m=opts.height_m, lengths=skeleton_limbs(opts))
+    kit = load_kit(opts.kit, height_m=opts.height_m, lengths=limbs)
     calibration = Calibration.load(opts.calibration) if opts.calibration else None
     planning = PlanningProgress(Path(path).name, quiet)
     try:
-        score, assignment, plan = prepare(path, kit, opts, calibration, planning)
+        score, assignment, plan = prepare(path, kit, opts, calibration, planning, limbs)
     except BaseException:  # a bad score or Ctrl-C: the line ends where it stood, not at 100 %
         planning.close(finished=False)
         raise

@@ -51,7 +51,7 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from batteur.errors import FAILED, UsageError, report_error
-from common.arg_types import non_negative, positive, seconds, whole
+from common.arg_types import non_negative, positive, seconds, take_negative_values, whole
 from common.output_paths import check_output_dir, point_at_devnull
 
 ROLES = ("physics", "interaction", "sound", "graphics")
@@ -367,6 +367,7 @@ class Rig:
             self._give_up(f"cannot ask the services whether they are up: {exc.strerror or exc}")
             return
         try:
+            # role cli: a tool asking, not a node (graphics' TOOL_ROLE: the view does not list it)
             hello = encode(Hello(role="cli", node_id="batteur-rig", protocol=PROTOCOL_VERSION,
                                  osc_port=transport.get_extra_info("sockname")[1]))
             next_line = launched + READY_PROGRESS_S
@@ -525,6 +526,7 @@ def build_parser() -> argparse.ArgumentParser:
         "Ctrl-C stops them all; so does a service that exits (exit code: 0 after a clean stop, else the failing "
         "service's code, or 1).",
     )
+    take_negative_values(parser)  # --play-at -1e-3: the value's own check says what is wrong with it
     parser.add_argument("--services", default=",".join(ROLES),
                         help=f"comma-separated roles to start, each at most once (default: {','.join(ROLES)})")
     parser.add_argument("--base-port", type=port_number, default=9101,

@@ -39,6 +39,7 @@ import time
 from collections.abc import Awaitable, Callable, Coroutine, Sequence
 from typing import Any, Protocol, cast
 
+from common.arg_types import take_negative_values
 from common.clock import OffsetEstimator, RigClock, answer_ping
 from common.config import ENV_PREFIX, ConfigFileError, NodeSettings, SettingsError, flag_name, load_settings
 from common.core import Core, Outgoing
@@ -1006,8 +1007,9 @@ def build_parser(
     add_arguments: AddArguments | None = None,
     settings_cls: type[NodeSettings] = NodeSettings,
 ) -> argparse.ArgumentParser:
-    """An argparse parser with a flag for every setting (plus ``--config``) and the service's own."""
-    parser = argparse.ArgumentParser(
+    """An argparse parser with a flag for every setting (plus ``--config``) and the service's own; a value that
+    starts with '-' and is a number (``--epoch -1e3``) is read as one, for the setting's own check to judge."""
+    parser = take_negative_values(argparse.ArgumentParser(
         prog=f"batteur {role}",
         description=description or f"Run the {role} service node.",
         epilog=(

@@ -51,6 +51,9 @@ CLOCK_JUMP = 0.5  # seconds: a pose clock this much behind the current offset ha
 SEEN_IMPACTS = 4096  # impacts remembered per sender to drop redundant copies
 MAX_SENDERS = 64  # impact senders remembered (least recently heard forgotten first)
 MAX_NODES = 256  # nodes in the status table (least recently heard forgotten first)
+TOOL_ROLE = "cli"
+"""The role command-line tools say Hello as (``batteur rig``'s readiness probe, ``batteur ls``): not nodes of the
+rig, so not in the status table (their Hello is still answered: by the runtime, not this core)."""
 NO_PREVIEW = ("no preview is loaded, the view stays live: start the graphics node with --preview-score SCORE or "
               "--preview FILE.npz")
 """Why ``/batteur/graphics/mode preview`` is refused on a node without a preview."""
@@ -192,6 +195,8 @@ class GraphicsCore:
             self._on_skeleton(message)
         elif isinstance(message, Impact):
             self._on_impact(message, source)
+        elif isinstance(message, (Health, Hello)) and message.role == TOOL_ROLE:
+            pass  # a tool asking, not a node: listing it would show the rig a node that is not there
         elif isinstance(message, Health):
             node = self._node_seen(message.node_id, message.role, now)
             node.role = message.role

@@ -12,7 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-from common.arg_types import positive, seconds
+from common.arg_types import positive, seconds, take_negative_values
+from common.exit_status import USAGE
 from common.output_paths import check_output_file
 from common.transport import parse_address
 from services.recogniser.audio import MAX_DURATION_S
@@ -55,6 +56,7 @@ WARNING = "batteur transcribe: warning:"
 def build_parser(prog: str = "batteur transcribe") -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog=prog, description=DESCRIPTION, epilog=EPILOG,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    take_negative_values(p)  # --tempo -1e2: the value's own check says what is wrong with it
     p.add_argument("audio", nargs="?", help="audio file to transcribe (WAV, FLAC, OGG, ...)")
     p.add_argument("-o", "--output", type=Path,
                    help="Standard MIDI File to write, named .mid or .midi (required unless --live)")
@@ -113,19 +115,19 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error(f"--tempo must be {TEMPO_RANGE_BPM[0]:g}..{TEMPO_RANGE_BPM[1]:g} BPM, got {args.tempo:g}")
     try:
         if args.output is not None:  # before the long part: nothing is lost to a typo
+            if args.audio and args.output.resolve() == Path(args.audio).resolve():  # a slip that loses the take
+                return _refuse_output(args.output, f"is the audio file to transcribe ({args.audio}); give the MIDI "
+                                      f"file another name, ending in {' or '.join(MIDI_SUFFIXES)}")
             try:
                 check_output_file(args.output, "-o")
             except ValueError as exc:
                 raise RecogniserError(str(exc)) from None
-            if args.audio and args.output.resolve() == Path(args.audio).resolve():  # a slip that loses the take
-                raise RecogniserError(f"-o {args.output}: is the audio file itself; give another name")
             if _holds_other_data(args.output):  # an earlier take or the model: a typo must not replace it
                 raise RecogniserError(f"-o {args.output}: exists and is not a MIDI file (it would be replaced by "
                                       "one); give another name, or remove it first")
-            if not _midi_name(args.output):  # an option's value refused: 2, as argparse's (README, "Exit status")
-                print(f"batteur transcribe: error: -o {args.output}: the transcription is a Standard MIDI File; give "
-                      f"a name ending in {' or '.join(MIDI_SUFFIXES)}", file=sys.stderr)
-                return 2
+            if not _midi_name(args.output):
+                return _refuse_output(args.output, "the transcription is a Standard MIDI File; give a name ending "
+                                      f"in {' or '.join(MIDI_SUFFIXES)}")
         model = load_model(args.model)
         if args.live:
             return _live(args, model, say)
@@ -163,6 +165,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:  # the live path handles its own: Ctrl-C is how it stops
         print("\nbatteur transcribe: interrupted; nothing written", file=sys.stderr)
         return 130
+
+
+def _refuse_output(output: Path, why: str) -> int:
+    """Refuse ``-o OUTPUT`` for ``why`` in argparse's error line: an option's value that cannot be run as given
+    (exit status 2, README "Exit status"), told apart from an output it cannot write (1)."""
+    print(f"batteur transcribe: error: -o {output}: {why}", file=sys.stderr)
+    return USAGE
 
 
 def _write(events: Sequence[DrumEvent], args: argparse.Namespace) -> None:

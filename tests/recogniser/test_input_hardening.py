@@ -194,8 +194,8 @@ def test_the_recording_is_never_overwritten_by_its_transcription(tmp_path: Path,
     audio = tmp_path / "take.wav"
     sf.write(audio, _clicks(1.0), 8000)
     before = audio.read_bytes()
-    assert main([str(audio), "-o", str(tmp_path / "." / "take.wav")]) == 1  # was: the WAV replaced by MIDI
-    assert "is the audio file itself" in capsys.readouterr().err and audio.read_bytes() == before
+    assert main([str(audio), "-o", str(tmp_path / "." / "take.wav")]) == 2  # was: the WAV replaced by MIDI
+    assert "is the audio file to transcribe" in capsys.readouterr().err and audio.read_bytes() == before
 
 
 def test_a_live_run_behind_real_time_still_stops_when_cancelled(pattern_wav: Path) -> None:

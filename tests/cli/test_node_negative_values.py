@@ -1,0 +1,52 @@
+"""The service nodes (``batteur physics|interaction|sound|graphics``) read a value that starts with '-' and is a
+number (``-1e3``, ``-.5``, ``-inf``) as the option's value, as ``batteur render`` does (common/arg_types.py): argparse
+took all but ``-1`` and ``-1.5`` for options and said "expected one argument", where the setting's own check should
+say what is wrong with the value."""
+
+from __future__ import annotations
+
+import argparse
+
+import pytest
+
+from common.config import NodeSettings
+from common.runtime import run_node
+from services.sound.node import add_arguments as sound_arguments
+from tests.cli.test_exit_statuses import NODES, run
+from tests.null_core import NullCore
+
+
+@pytest.mark.parametrize("name", NODES)
+@pytest.mark.parametrize("value", ["-1e3", "-inf"])
+def test_a_negative_epoch_reaches_the_settings_own_check(name: str, value: str,
+                                                         capsys: pytest.CaptureFixture[str]) -> None:
+    status, line, prog = run(name, ["--no-discovery", "--epoch", value, "--show-settings"], capsys)
+    assert status == 2
+    # was "argument --epoch: expected one argument"
+    assert line.startswith(f"{prog}: error: invalid setting epoch: "), line
+    assert f"(got '{value}') [--epoch / BATTEUR_EPOCH]" in line, line
+
+
+def test_a_services_own_option_takes_a_negative_number(capsys: pytest.CaptureFixture[str]) -> None:
+    seen: list[argparse.Namespace] = []
+
+    def make_core(settings: NodeSettings, extra: argparse.Namespace) -> NullCore:
+        seen.append(extra)
+        raise ValueError("--reverb: stop here")  # the value reached the core, which refuses it (exit 2)
+
+    argv = ["--no-discovery", "--no-oscquery", "--reverb", "-1e-3"]
+    assert run_node("sound", make_core, argv, sound_arguments) == 2  # was SystemExit: "expected one argument"
+    assert [extra.reverb for extra in seen] == [-1e-3]
+    assert capsys.readouterr().err.strip().endswith("batteur sound: error: --reverb: stop here")
+
+
+@pytest.mark.parametrize(("name", "argv", "said"), [
+    ("rig", ["--play-at", "-1e-3"], "argument --play-at: '-1e-3': give a finite number of at least 0"),
+    ("transcribe", ["x.wav", "-o", "x.mid", "--tempo", "-1e2"], "--tempo must be "),
+])
+def test_the_rig_and_transcribe_take_negative_numbers_to_their_own_checks(
+        name: str, argv: list[str], said: str, capsys: pytest.CaptureFixture[str]) -> None:
+    """The two other commands of this kind (the rig launches the nodes; transcribe is the recogniser's)."""
+    status, line, prog = run(name, argv, capsys)
+    assert status == 2
+    assert line.startswith(f"{prog}: error: ") and said in line, line  # was "expected one argument"
