@@ -4,10 +4,12 @@ Three algorithms (Kragtwijk, Nijholt and Zwiers 2001, section on limb
 assignment; the third one proposed there and built here):
 
 * ``simple``: the event type's preferred hand; when that hand played less than
-  the event's minTimeGap ago, the other hand (alternation).
+  the event's minTimeGap ago, the other hand (alternation). The other hand also
+  takes a note beyond the preferred hand's reach that it reaches
+  (``HandNote.out_of_reach``) when it is free then (:func:`_single_hand`).
 * ``pairwise``: a vote of the preferred hand against the pair-wise hand
   preferences with the neighbouring events, each weighted ``rho ** dt``
-  (dt in seconds), then the minTimeGap alternation.
+  (dt in seconds), then the minTimeGap alternation and reach as ``simple``.
 * ``viterbi``: a shortest-path search over the whole piece. The state is the
   last event of each hand (and whether it was the bounce of a rebound double);
   a hand never plays an interval below the event's minTimeGap unless it is a
@@ -83,7 +85,8 @@ class HandNote:
     out_of_reach: Limb | None = None
     """The hand whose reach the hit point is beyond while the other hand reaches it (None: both or neither reach
     it): ``viterbi`` gives it to that hand only at a cost (``Costs.out_of_reach``), ``simple`` and ``pairwise``
-    split a simultaneous pair by it (:func:`_within_reach`), a roll's sticking gives way (:func:`_roll_hands`)."""
+    split a simultaneous pair by it (:func:`_within_reach`) and give a single note to the other hand when it is
+    free (:func:`_single_hand`), a roll's sticking gives way (:func:`_roll_hands`)."""
 
 
 @dataclass(frozen=True)
@@ -370,12 +373,23 @@ def assign_hands(
                         if dt <= 1.0:
                             score += rho**dt * kit.pair(t.events[i], t.events[j])
                 h = R if score > 0 else L if score < 0 else h
-            if t.time[i] - last[h] < t.gap[i] and t.time[i] - last[_other(h)] >= t.gap[i]:
-                h = _other(h)
+            h = _single_hand(h, notes[i].out_of_reach, t.time[i] - last[h], t.time[i] - last[_other(h)], t.gap[i])
         assert h is not None
         hands[i] = h
         last[h] = t.time[i]
     return [h if h is not None else R for h in hands]
+
+
+def _single_hand(h: Limb, far: Limb | None, since_h_s: float, since_other_s: float, gap_s: float) -> Limb:
+    """``simple`` and ``pairwise``: the hand for a single note the method prefers for hand ``h``. The other hand
+    takes it when it is free (its last stroke ``since_other_s`` seconds ago, at least the note's minTimeGap
+    ``gap_s``) and ``h`` is not (the minTimeGap alternation) or ``h`` is beyond the note's reach while the other
+    reaches it (``far``: ``HandNote.out_of_reach``), rather than the feasibility check moving or dropping it. Where
+    ``h`` reaches the note, only the alternation."""
+    other = _other(h)
+    if since_other_s >= gap_s and (since_h_s < gap_s or far == h):
+        return other
+    return h
 
 
 def _viterbi(notes: list[HandNote], groups: list[list[int]], t: _Table, kit: Kit, c: Costs,
