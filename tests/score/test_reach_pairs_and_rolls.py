@@ -4,39 +4,15 @@ is free then), as ``viterbi`` does; where both hands reach, they assign as befor
 
 from __future__ import annotations
 
-import numpy as np
 import pytest
 
-from common.gesture.plan import FeasibilityIssue, IssueAction, IssueReason
-from common.kit import EventType, Kit, Limb, load_kit
+from common.gesture.plan import IssueAction, IssueReason
+from common.kit import EventType, Limb
 from common.score.events import DrumEvent, Score
 from common.score.limbs import _distance_m, distribute, hand_reach, shoulders
+from tests.far_kits import FAR_LEFT, SMALL_M, unreachable
 
 E = EventType
-SMALL_M = 1.4
-"""A small drummer's height (metres): hand reach 1.02 m."""
-
-
-def _china_left(kit: Kit, height_m: float, from_left_m: float) -> Kit:
-    """``kit`` with its china out to the left of a drummer ``height_m`` tall, ``from_left_m`` metres from its left
-    shoulder (the china stays the right hand's by the kit's preferences: preferred hand, CHINA,SNARE pair)."""
-    direction = np.array([-0.95, 0.3, 0.0]) / np.linalg.norm([-0.95, 0.3, 0.0])
-    wanted = np.array(shoulders(kit, height_m)[Limb.LEFT_HAND]) + from_left_m * direction
-    delta = wanted - np.array(kit.hit_point(E.CHINA)[0])
-    objects = [o.model_copy(update={"position": tuple(float(p + d) for p, d in zip(o.position, delta, strict=True))})
-               if o.id == "china" else o for o in kit.objects]
-    return kit.model_copy(update={"objects": objects})
-
-
-FAR_LEFT = _china_left(load_kit("default", warn=False), SMALL_M, 0.75)
-"""The china in reach of the small drummer's left hand only (1.04 m from its right shoulder), and of both hands of
-the default 1.75 m drummer (reach 1.15 m; 1.09 m from its right shoulder)."""
-
-
-def _unreachable(issues: list[FeasibilityIssue]) -> list[tuple[int, IssueAction]]:
-    return [(i.note_index, i.action) for i in issues if i.reason == IssueReason.UNREACHABLE]
-
-
 def test_the_far_kit_is_what_the_tests_need() -> None:
     china = FAR_LEFT.hit_point(E.CHINA)[0]
     at = shoulders(FAR_LEFT, SMALL_M)
@@ -53,7 +29,7 @@ def test_a_pair_gives_the_far_note_to_the_hand_that_reaches_it(algorithm: str) -
     score = Score([DrumEvent(0.0, E.SNARE, 0.7), DrumEvent(0.5, E.CHINA, 0.7), DrumEvent(0.5, E.SNARE, 0.7),
                    DrumEvent(1.0, E.SNARE, 0.7)])
     small = distribute(score, FAR_LEFT, algorithm, height_m=SMALL_M)
-    assert _unreachable(small.issues) == []
+    assert unreachable(small.issues) == []
     assert [(n.time, n.event, n.limb) for n in small.notes if n.time == 0.5] == [
         (0.5, E.CHINA, Limb.LEFT_HAND), (0.5, E.SNARE, Limb.RIGHT_HAND)]
     assert len(small.notes) == 4
@@ -66,7 +42,7 @@ def test_a_pair_both_hands_reach_splits_as_before(algorithm: str) -> None:
     score = Score([DrumEvent(0.5, E.CHINA, 0.7), DrumEvent(0.5, E.SNARE, 0.7)])
     default = distribute(score, FAR_LEFT, algorithm)
     assert {n.event: n.limb for n in default.notes} == {E.CHINA: Limb.RIGHT_HAND, E.SNARE: Limb.LEFT_HAND}
-    assert _unreachable(default.issues) == []
+    assert unreachable(default.issues) == []
 
 
 def _roll_then_snare() -> Score:
@@ -81,7 +57,7 @@ def test_a_roll_gives_a_far_note_to_the_other_hand_when_it_is_free(algorithm: st
     and the right hand, free, takes the snare (was: the last china forced on the right hand, the snare on the left
     50 ms after it, and the china dropped unreachable with no free hand)."""
     small = distribute(_roll_then_snare(), FAR_LEFT, algorithm, "single", height_m=SMALL_M)
-    assert _unreachable(small.issues) == []
+    assert unreachable(small.issues) == []
     assert [(n.event, n.limb) for n in small.notes] == [(E.CHINA, Limb.LEFT_HAND)] * 5 + [(E.SNARE, Limb.RIGHT_HAND)]
     assert [i for i in small.issues if i.reason == IssueReason.TOO_FAST] == []
 
@@ -95,7 +71,7 @@ def test_a_roll_note_the_other_hand_is_not_free_for_stays_and_is_flagged() -> No
     small = distribute(score, FAR_LEFT, "viterbi", "single", height_m=SMALL_M)
     assert [(round(n.time, 6), n.limb, n.rebound) for n in small.notes] == [
         (0.0, Limb.LEFT_HAND, False), (0.1, Limb.LEFT_HAND, True), (0.3, Limb.LEFT_HAND, False)]
-    assert _unreachable(small.issues) == [(2, IssueAction.DROPPED)]
+    assert unreachable(small.issues) == [(2, IssueAction.DROPPED)]
     assert "the left hand is busy" in next(i.detail for i in small.issues if i.reason == IssueReason.UNREACHABLE)
 
 

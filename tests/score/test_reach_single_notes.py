@@ -10,7 +10,7 @@ import pytest
 from common.kit import EventType, Limb
 from common.score.events import DrumEvent, Score
 from common.score.limbs import distribute
-from tests.score.test_reach_pairs_and_rolls import FAR_LEFT, SMALL_M, _unreachable
+from tests.far_kits import FAR_LEFT, SMALL_M, unreachable
 
 E = EventType
 
@@ -28,7 +28,7 @@ def test_a_single_far_note_goes_to_the_hand_that_reaches_it(algorithm: str) -> N
     both chinas and the right the snare 50 ms after the first (was: the chinas on the right hand, the first dropped
     unreachable, the left hand busy with that snare, the second moved to the left hand by the check)."""
     small = distribute(_china_between_snares(), FAR_LEFT, algorithm, height_m=SMALL_M)
-    assert _unreachable(small.issues) == []
+    assert unreachable(small.issues) == []
     assert [(n.time, n.event, n.limb) for n in small.notes] == [
         (0.0, E.SNARE, Limb.LEFT_HAND), (0.5, E.CHINA, Limb.LEFT_HAND), (0.55, E.SNARE, Limb.RIGHT_HAND),
         (1.0, E.CHINA, Limb.LEFT_HAND), (1.5, E.SNARE, Limb.LEFT_HAND)]
@@ -43,7 +43,7 @@ def test_a_single_note_both_hands_reach_keeps_its_hand(algorithm: str) -> None:
     assert [(n.event, n.limb) for n in default.notes] == [
         (E.SNARE, Limb.LEFT_HAND), (E.CHINA, Limb.RIGHT_HAND), (E.SNARE, Limb.LEFT_HAND),
         (E.CHINA, Limb.RIGHT_HAND), (E.SNARE, Limb.LEFT_HAND)]
-    assert _unreachable(default.issues) == []
+    assert unreachable(default.issues) == []
 
 
 @pytest.mark.parametrize("algorithm", ["simple", "pairwise"])
@@ -53,6 +53,6 @@ def test_a_single_far_note_the_other_hand_is_not_free_for_stays_and_is_flagged(a
     left hand is not handed a stroke too fast for it."""
     score = Score([DrumEvent(0.45, E.SNARE, 0.7), DrumEvent(0.5, E.CHINA, 0.7), DrumEvent(1.0, E.SNARE, 0.7)])
     small = distribute(score, FAR_LEFT, algorithm, height_m=SMALL_M)
-    assert _unreachable(small.issues) == [(1, "dropped")]
+    assert unreachable(small.issues) == [(1, "dropped")]
     assert [(n.event, n.limb) for n in small.notes] == [(E.SNARE, Limb.LEFT_HAND), (E.SNARE, Limb.LEFT_HAND)]
     assert [i for i in small.issues if i.reason.value == "too_fast"] == []
