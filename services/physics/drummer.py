@@ -33,6 +33,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numba import njit
 
 from common.kit import FOOT_BALL_ALONG, FOOTBOARD_LENGTH_M, PEDAL_REST_ANGLE_RAD, EventType, Kit
 from common.messages import OscMessage
@@ -102,6 +103,17 @@ CYMBAL_AIM_ABOVE_M = 0.30
 the share fades out over ``CYMBAL_AIM_REACH_M`` beyond it, beyond the rim and under the plate, metres."""
 CYMBAL_AIM_BELOW_M = 0.03
 CYMBAL_AIM_REACH_M = 0.08
+CYMBAL_UNDER_CLEAR_M = 0.04
+"""A stick under a cymbal's plate whose target would bring it this near the plate's underside (it would press the
+plate up and, the target following the swing, hold it there) first goes out from under it, this far below the
+plate and beyond its rim, then up beside the rim, and only then to its target (:meth:`DrummerScene._out_from_under`),
+metres."""
+CYMBAL_UNDER_STEP_M = 0.03
+"""... aiming at most this far from where its bead is at each update (it moves out steadily), metres."""
+CYMBAL_UNDER_MARGIN_M = 0.02
+"""A point of a stick up to this far beyond a plate's rim and below its plane is under it, metres."""
+_STICK_SAMPLES = (1.0, 0.7, 0.4)
+"""Points of a stick judged under a plate: fractions of the way from the wrist to the bead."""
 LEAD_IN_RISE_M = 0.05
 """A hand moving from where it is to a plan's first knot passes this far above the higher of the two halfway, so
 its stick clears what lies between (going from the rest over the hi-hat to the snare, a straight path met the
@@ -304,6 +316,11 @@ class DrummerScene:
         self._last_touch: dict[str, dict[str, float]] = {limb: {} for limb in LIMBS}
         """Limb -> instrument -> when its striker (stick, beater) last touched it, rig seconds (strokes follow
         through until it does)."""
+        self._around: dict[str, int] = {}
+        """Hand -> the cymbal (index in ``cymbal_hinges``) its stick is getting out from under
+        (:meth:`_out_from_under`)."""
+        self._plate_side: dict[str, np.ndarray] = {}
+        """Hand -> the side of each cymbal's plate its bead came to it from (:func:`stick_under_plate`)."""
         self.joint_track = Track(N_DOF)
         self.posture_track = Track(N_DOF)
         """Cartesian modes: a posture (57 angles, rad, and rates, rad/s) for the IK's null space instead of the
@@ -592,6 +609,8 @@ class DrummerScene:
     def reset(self) -> None:
         self._steps_to_update = 0
         self._last_touch = {limb: {} for limb in LIMBS}
+        self._around.clear()
+        self._plate_side.clear()
         for track in self.limb_tracks.values():
             track.clear()
         self.joint_track.clear()
@@ -627,7 +646,9 @@ class DrummerScene:
         gives hit points on the surface); the controlled aim point is the bead centre, one bead radius up.
         The planner aims at cymbals at rest; a hand target over a swinging cymbal is carried along with the
         plate (as a drummer follows the cymbal with the eye), else a knocked, tilted ride stays under the
-        stick's planned lift and the stick rests on it, pressing it, instead of striking it.
+        stick's planned lift and the stick rests on it, pressing it, instead of striking it. A stick under a
+        plate whose target is over it goes around the rim first (:meth:`_out_from_under`), else it would be
+        pulled up into the plate and, the target rising with the swing it causes, hold it up, pressed.
         """
         out: dict[str, tuple[np.ndarray, np.ndarray]] = {}
         hinges = self.kit_bodies.cymbal_hinges
@@ -642,8 +663,50 @@ class DrummerScene:
                     pos = pos + swing_displacement(pos.reshape(1, 3), hinges.centre, hinges.rotation,
                                                    hinges.radius, hinges.angles, CYMBAL_AIM_REACH_M,
                                                    CYMBAL_AIM_ABOVE_M, CYMBAL_AIM_BELOW_M)[0]
+                if hinges is not None and limb in _HANDS:
+                    detour = self._out_from_under(limb, pos + self.target_offset[limb])
+                    if detour is not None:
+                        out[limb] = (detour, np.zeros(3))
+                        continue
                 out[limb] = (pos + self.target_offset[limb], vel)
         return out
+
+    def _out_from_under(self, limb: str, aim: np.ndarray) -> np.ndarray | None:
+        """Where hand ``limb``'s bead goes instead of ``aim`` (3,) m while its stick gets out from under a cymbal's
+        plate (None: it aims at ``aim``), metres.
+
+        The stick as the last update saw it (``_STICK_SAMPLES`` of wrist to bead) is judged in each plate's frame
+        as it is turned now (:func:`stick_under_plate`). A stick with a point under a plate (within
+        ``CYMBAL_UNDER_MARGIN_M`` beyond the rim) that its target would bring within ``CYMBAL_UNDER_CLEAR_M`` of
+        the plate (the stick moving as its bead) goes around the rim instead (:func:`_detour`): out toward its
+        wrist, then up beside the rim to the target's height; it aims at its target again once its bead is up
+        there, or once the target is that far below the plate (the plan went elsewhere)."""
+        hinges = self.kit_bodies.cymbal_hinges
+        assert hinges is not None
+        bead = self.body.effector_pos[LIMBS.index(limb)]
+        wrist = self.body.frame_pos[_WRIST_ROW[limb]]
+        c = self._around.get(limb)
+        if c is None:
+            sides = self._plate_side.get(limb)
+            if sides is None:
+                sides = self._plate_side[limb] = np.zeros(len(hinges.radius), dtype=np.int64)
+            c = stick_under_plate(bead, wrist, aim, hinges.centre, hinges.rotation, hinges.radius, hinges.angles,
+                                  sides)
+            if c < 0:
+                return None
+            self._around[limb] = c
+        frame, centre = plate_frame(hinges.rotation[c], hinges.angles[c]), hinges.centre[c]
+        aim_z = (frame.T @ (aim - centre))[2]
+        top = max(aim_z, CYMBAL_UNDER_CLEAR_M)  # up beside the rim to the target's height
+        if (frame.T @ (bead - centre))[2] > top - CYMBAL_UNDER_CLEAR_M / 2 or aim_z < -CYMBAL_UNDER_CLEAR_M:
+            del self._around[limb]
+            return None
+        samples = wrist + np.array(_STICK_SAMPLES)[:, None] * (bead - wrist)
+        goal = centre + frame @ _detour((samples - centre) @ frame, frame.T @ (wrist - centre),
+                                        float(hinges.radius[c]), top)
+        step = goal - bead  # a step at a time: a far target would whip the stick into the rim
+        length = float(np.linalg.norm(step))
+        return bead + step * min(1.0, CYMBAL_UNDER_STEP_M / length) if length > 0.0 else goal
 
     def can_jump(self, t_from: float, t_to: float, max_move_m: float = JUMP_MAX_M,
                  max_speed_change_m_s: float = JUMP_MAX_SPEED_M_S) -> bool:
@@ -804,10 +867,93 @@ def _lead_in_apex(t0: float, p0: np.ndarray, t1: float, p1: np.ndarray) -> tuple
     return 0.5 * (t0 + t1), apex, across
 
 
+def plate_frame(rotation: np.ndarray, angles: np.ndarray) -> np.ndarray:
+    """A cymbal's plate frame as it swings now (3, 3): its rest frame ``rotation`` (3, 3) turned by
+    ``Rx(angles[0]) Ry(angles[1])`` (rad) in that frame (as :func:`kernels.swing_displacement`)."""
+    ca, sa, cb, sb = math.cos(angles[0]), math.sin(angles[0]), math.cos(angles[1]), math.sin(angles[1])
+    return rotation @ np.array([[1.0, 0.0, 0.0], [0.0, ca, -sa], [0.0, sa, ca]]) \
+        @ np.array([[cb, 0.0, sb], [0.0, 1.0, 0.0], [-sb, 0.0, cb]])
+
+
+@njit(cache=True)
+def stick_under_plate(bead: np.ndarray, wrist: np.ndarray, aim: np.ndarray, centre: np.ndarray,
+                      rotation: np.ndarray, radius: np.ndarray, angles: np.ndarray, side: np.ndarray) -> int:
+    """The first cymbal a stick is under and would press from below, or -1 (every argument in metres, radians).
+
+    The stick: points ``_STICK_SAMPLES`` of the way from ``wrist`` (3,) to ``bead`` (3,), moving as the bead would
+    to ``aim`` (3,). Cymbal ``c``'s plate: in the plane z = 0 of its frame, ``rotation[c]`` (3, 3) about
+    ``centre[c]`` (3,) turned by ``Rx(angles[c, 0]) Ry(angles[c, 1])`` in that frame, ``radius[c]`` wide. A point
+    is under it within ``CYMBAL_UNDER_MARGIN_M`` beyond its rim; it would be pressed when the move brings it within
+    ``CYMBAL_UNDER_CLEAR_M`` of the plate, the aim not that far or more below it.
+
+    ``side`` (C,) int, updated: the side of each plate the bead came to it from, set as it comes within
+    ``CYMBAL_UNDER_MARGIN_M`` of the rim (1 above the plane, -1 below), 0 again beyond ``CYMBAL_UNDER_CLEAR_M``. A
+    bead that came from above is never under: striking the plate, it passes below the plane the hinge's angles read
+    4 ms before give. Compiled: called for each hand at every control update.
+    """
+    margin, clear = CYMBAL_UNDER_MARGIN_M, CYMBAL_UNDER_CLEAR_M
+    found = -1
+    local = np.empty((3, 3))  # aim, bead, wrist in the plate's frame
+    for c in range(centre.shape[0]):
+        ca, sa = math.cos(angles[c, 0]), math.sin(angles[c, 0])
+        cb, sb = math.cos(angles[c, 1]), math.sin(angles[c, 1])
+        rot = rotation[c]
+        for i, point in enumerate((aim, bead, wrist)):
+            dx, dy, dz = point[0] - centre[c, 0], point[1] - centre[c, 1], point[2] - centre[c, 2]
+            x = rot[0, 0] * dx + rot[1, 0] * dy + rot[2, 0] * dz  # the rest frame's coordinates
+            y = rot[0, 1] * dx + rot[1, 1] * dy + rot[2, 1] * dz
+            z = rot[0, 2] * dx + rot[1, 2] * dy + rot[2, 2] * dz
+            y, z = ca * y + sa * z, -sa * y + ca * z  # Rx(a)^T then Ry(b)^T
+            x, z = cb * x - sb * z, sb * x + cb * z
+            local[i, 0], local[i, 1], local[i, 2] = x, y, z
+        rho = math.hypot(local[1, 0], local[1, 1])
+        if rho > radius[c] + clear:
+            side[c] = 0
+        elif side[c] == 0 and rho < radius[c] + margin:
+            side[c] = 1 if local[1, 2] >= 0.0 else -1
+        if found >= 0 or side[c] == 1 or local[0, 2] < -clear:
+            continue
+        rise = local[0, 2] - local[1, 2]
+        for f in _STICK_SAMPLES:
+            z = local[2, 2] + f * (local[1, 2] - local[2, 2])
+            if z < 0.0 and z + rise > -clear:
+                x = local[2, 0] + f * (local[1, 0] - local[2, 0])
+                y = local[2, 1] + f * (local[1, 1] - local[2, 1])
+                if math.hypot(x, y) < radius[c] + margin:
+                    found = c
+                    break
+    return found
+
+
+def _detour(stick: np.ndarray, wrist: np.ndarray, radius_m: float, top_m: float) -> np.ndarray:
+    """Where a stick's bead under a plate, or beside its rim, goes next, in the plate's frame (metres): ``stick``
+    (S, 3) its points, the bead first, ``wrist`` (3,) its wrist, the plate in z = 0 within ``radius_m``. Under the
+    plate: out toward the wrist until every point below the plate's plane is ``CYMBAL_UNDER_CLEAR_M`` beyond the
+    rim, that far below the plate; beside the rim: up, to ``top_m`` above its plane."""
+    out = np.array([wrist[0], wrist[1]])
+    norm = math.hypot(out[0], out[1])
+    out = out / norm if norm > 1e-6 else np.array([0.0, -1.0])
+    clear = radius_m + CYMBAL_UNDER_CLEAR_M
+    shift = 0.0
+    for p in stick:
+        if p[2] < 0.0 and math.hypot(p[0], p[1]) < clear:
+            along = p[0] * out[0] + p[1] * out[1]  # |p + t out| = clear
+            shift = max(shift, -along + math.sqrt(max(along**2 - p[0]**2 - p[1]**2 + clear**2, 0.0)))
+    bead = stick[0].copy()
+    if shift > 0.0:
+        bead[:2] += (shift + CYMBAL_UNDER_MARGIN_M) * out
+        bead[2] = min(bead[2], -CYMBAL_UNDER_CLEAR_M)
+    else:
+        bead[2] = top_m
+    return bead
+
+
 _HAND_STICKS = (("left_hand", "left_stick"), ("right_hand", "right_stick"))
 _HANDS = tuple(hand for hand, _ in _HAND_STICKS)
 _NECK_DOF, _HEAD_DOF = JOINTS.index("neck") * 3, JOINTS.index("head") * 3
 """The first (x) DOF of the neck and of the head in the 57."""
+_WRIST_ROW = {hand: JOINTS.index(f"{hand.split('_')[0]}_wrist") for hand in _HANDS}
+"""Each hand's wrist's row in :attr:`Body.frame_pos`."""
 
 
 def _box_clamp(body: Body) -> Any:
