@@ -299,6 +299,16 @@ def core_count(core: object, name: str) -> int:
         return 0
 
 
+def core_seconds(core: object, name: str) -> float:
+    """A core's optional duration ``name``, seconds (0 when it has none, or holds something that is not a finite
+    duration of at least 0)."""
+    try:
+        value = float(getattr(core, name, 0.0) or 0.0)
+    except (TypeError, ValueError):
+        return 0.0
+    return value if math.isfinite(value) and value > 0.0 else 0.0
+
+
 class Node:
     """Runs one core live: transport, peers, discovery, fixed-rate stepping, clock, health.
 
@@ -671,9 +681,7 @@ class Node:
             return
         master = self.clock_master_peer()
         if master is None:
-            log.warning("no clock master (%s) within %g s: starting on this node's own clock; rig time will "
-                        "jump when the master appears", self.settings.clock_master, self.clock_wait_s)
-            self.start_core("clock master not found")
+            await self._start_without_master()
             return
         # a master to ping that does not answer yet: still starting, as physics is for seconds in a rig
         where = format_address(*master.address)
@@ -686,6 +694,35 @@ class Node:
             log.warning("no answer from the clock master %s at %s within %g s (is it running?): rig time is this "
                         "node's own clock until it answers", self.settings.clock_master, where,
                         max(MASTER_SILENT_WARN_S, self.clock_wait_s))
+
+    async def _start_without_master(self) -> None:
+        """:meth:`_core_start_timer` when no clock master is known after ``clock_wait_s``: start on this node's own
+        clock. Discovery (no ``--peer`` for its role, as ``batteur rig --no-static-peers``) finds a master only once
+        it registers, seconds after its start for physics (it builds its scene first): said at INFO, warned about
+        only after :data:`MASTER_SILENT_WARN_S`. Without discovery the master is found only if it greets this node:
+        warned about at once, saying why."""
+        master = self.settings.clock_master
+        if self.discovery is None:
+            log.warning("no clock master (%s) within %g s, and no way to find one: discovery is off and no --peer "
+                        "names a %s node: starting on this node's own clock for good", master, self.clock_wait_s,
+                        master)
+            self.start_core("clock master not found")
+            return
+        log.info("clock master (%s) not found by discovery within %g s (still starting?): starting on this node's own "
+                 "clock, which follows the master's once it is found", master, self.clock_wait_s)
+        self.start_core("clock master not found yet")
+        await asyncio.sleep(max(0.0, MASTER_SILENT_WARN_S - self.clock_wait_s))
+        if self.clock.synced:
+            return
+        waited = max(MASTER_SILENT_WARN_S, self.clock_wait_s)
+        found = self.clock_master_peer()
+        if found is None:
+            log.warning("no clock master (%s) found by discovery within %g s (is it running, on an interface this "
+                        "node browses?): rig time is this node's own clock and will jump when the master appears",
+                        master, waited)
+        else:
+            log.warning("no answer from the clock master %s at %s within %g s (is it running?): rig time is this "
+                        "node's own clock until it answers", master, format_address(*found.address), waited)
 
     def _step(self) -> None:
         if not self.core_started:
@@ -863,6 +900,8 @@ class Node:
             peers=len(self.peers),
             decode_unanswered=self.endpoint.decode_unanswered,
             replies_unanswered=core_count(self.core, "replies_unanswered"),
+            target_lag=core_seconds(self.core, "target_lag"),  # physics only: a live drummer playing late
+            target_jumps=core_count(self.core, "target_jumps"),
         )
 
     async def _health_task(self) -> None:
@@ -1017,7 +1056,7 @@ def build_parser(
             "BATTEUR_PEERS=sound=10.0.0.5:9000,graphics=10.0.0.6:9100) or a YAML/TOML file (--config, "
             "or BATTEUR_CONFIG). Precedence: flags > environment > file > defaults. See docs/runtime.md."
         ),
-    )
+    ))
     group = parser.add_argument_group("node settings")
     group.add_argument("--config", metavar="FILE", default=argparse.SUPPRESS,
                        help="YAML or TOML file of settings (keys: the setting names below, with underscores)")

@@ -108,9 +108,10 @@ def test_health_carries_both_counts_last_on_the_wire() -> None:
     """Appended after ``peers``: a reader that takes Health's arguments by position (a Pd patch) finds the
     earlier ones where they were."""
     names = [f.name for f in Health.wire_fields()]
-    assert names[-3:] == ["peers", "decode_unanswered", "replies_unanswered"]
+    assert names[names.index("peers"):][:3] == ["peers", "decode_unanswered", "replies_unanswered"]
     health = Health(node_id="n-1", role="sound", protocol=1, time=1.5, rate_hz=0.0, target_rate_hz=0.0, overruns=0,
                     messages_in=0, messages_out=0, dropped=0, dropped_malformed=0, dropped_unknown=0, dropped_type=0,
                     dropped_range=0, dropped_other=0, late=0, peers=2, decode_unanswered=7, replies_unanswered=3)
-    assert health.to_args()[-3:] == [2, 7, 3]
+    at = names.index("peers") + 1  # ``time`` is two arguments
+    assert health.to_args()[at:at + 3] == [2, 7, 3]
     assert Health.from_args(health.to_args()) == health

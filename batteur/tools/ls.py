@@ -84,7 +84,8 @@ def _row(target: Target, health: Health | None) -> dict[str, object]:
         rate_hz=round(health.rate_hz, 1), target_rate_hz=health.target_rate_hz, overruns=health.overruns,
         messages_in=health.messages_in, messages_out=health.messages_out, dropped=health.dropped,
         late=health.late, peers=health.peers, decode_unanswered=health.decode_unanswered,
-        replies_unanswered=health.replies_unanswered,
+        replies_unanswered=health.replies_unanswered, target_lag=round(health.target_lag, 4),
+        target_jumps=health.target_jumps,
     )
     return row
 

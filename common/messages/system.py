@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+from collections.abc import Sequence
+from typing import Annotated, Any, ClassVar, Self
 
 from pydantic import Field
 
@@ -62,6 +63,30 @@ class Health(OscMessage):
     replies_unanswered: Count = Field(default=0, description="refusals the service did not send: their "
                                       "sender host was over its reply budget (physics: refused controls, live "
                                       "score notes too late or of no drum; 0 for the others), total")
+    target_lag: float = Field(default=0.0, ge=0, le=1e6, description="physics: how far the drummer's targets "
+                              "trail the rig clock after skipped steps, seconds (what was queued before plays that "
+                              "late until the hands are still; 0 for the others)")
+    target_jumps: Count = Field(default=0, description="physics: times the trailing targets jumped back toward the "
+                                "rig clock, total (0 for the others)")
+
+    APPENDED: ClassVar[tuple[str, ...]] = ("decode_unanswered", "replies_unanswered", "target_lag", "target_jumps")
+    """The fields appended after ``peers`` (one argument each), oldest first: a Health without the last of them (an
+    older node's) decodes with their defaults."""
+    NEWER_ARGS: ClassVar[int] = 16
+    """Arguments after the last known field that a newer node's Health may carry (fields appended since): ignored,
+    so ``batteur ls``, the rig and graphics still see such a node (a sound node on a second machine updated first)."""
+
+    @classmethod
+    def from_args(cls, args: Sequence[Any]) -> Self:
+        """As :meth:`OscMessage.from_args`; an older node's Health, without the last appended fields (``APPENDED``),
+        decodes with their defaults (0), and a newer node's, with up to ``NEWER_ARGS`` more, without them."""
+        known = len(cls.wire_fields()) + 1  # ``time`` takes two arguments
+        missing = known - len(args)
+        if 0 < missing <= len(cls.APPENDED):
+            args = [*args, *(cls.model_fields[name].default for name in cls.APPENDED[-missing:])]
+        elif 0 < -missing <= cls.NEWER_ARGS:
+            args = args[:known]
+        return super().from_args(args)
 
 
 @register

@@ -471,7 +471,9 @@ class PhysicsCore:
 
     def _catch_up_targets(self, now: float) -> None:
         """Live mode, once per call while the targets trail the rig clock (``target_lag`` s): jump them to it
-        (``target_lag`` 0) where that goes unnoticed (:data:`MAX_TARGET_LAG_S`); ``now``: rig time, seconds.
+        (``target_lag`` 0) where that goes unnoticed (:data:`MAX_TARGET_LAG_S`); ``now``: rig time, seconds. While
+        score plans placed with a lag play (the score player places them that much earlier on the targets' clock, so
+        they sound on the rig's), the targets jump back only to that lag (``ScorePlayer.lag_floor``).
 
         A node that falls behind skips rig time. Had the targets jumped with every skip (20-70 ms at once), a
         limb mid-stroke or mid-move would chase a target far ahead and take a short cut: on the demo's last bar
@@ -480,20 +482,26 @@ class PhysicsCore:
         """
         assert self._can_jump is not None  # only such a scene's targets trail
         lag, rig = self.target_lag, self.time
-        if lag <= MAX_TARGET_LAG_S:
-            jump = self._can_jump(rig - lag, rig)
+        # score plans placed while the targets trailed are that much early on their clock (to sound on the rig's):
+        # the targets keep that lag while they play (ScorePlayer.lag_floor)
+        floor = min(self.score_player.lag_floor(rig - lag), lag)
+        excess = lag - floor
+        if excess <= 0.0:
+            return
+        if excess <= MAX_TARGET_LAG_S:
+            jump = self._can_jump(rig - lag, rig - floor)
         else:
-            jump = lag > MAX_TARGET_LAG_HARD_S or self._can_jump(rig - lag, rig, LATE_JUMP_MAX_M,
-                                                                 LATE_JUMP_MAX_SPEED_M_S)
+            jump = excess > MAX_TARGET_LAG_HARD_S or self._can_jump(rig - lag, rig - floor, LATE_JUMP_MAX_M,
+                                                                    LATE_JUMP_MAX_SPEED_M_S)
         if not jump:
             return
         self.target_jumps += 1
-        self.target_lag = 0.0
-        if lag > MAX_TARGET_LAG_S:
+        self.target_lag = floor
+        if excess > MAX_TARGET_LAG_S:
             self.target_jumps_late += 1
             if now - self._last_jump_warning >= 5.0:  # at most one warning per 5 s of rig time
-                log.warning("physics targets %.0f ms behind the rig clock: jumped to it, the strokes between dropped "
-                            "(%d such jumps in all)", lag * 1e3, self.target_jumps_late)
+                log.warning("physics targets %.0f ms behind the rig clock: jumped %.0f ms toward it, the strokes "
+                            "between dropped (%d such jumps in all)", lag * 1e3, excess * 1e3, self.target_jumps_late)
                 self._last_jump_warning = now
 
     def close(self) -> None:

@@ -191,7 +191,7 @@ PLAN_PER_NOTE_S = 0.001
 have been timed (about 0.4 ms alone, more while the physics loop shares the core), seconds."""
 PLAN_MEASURED_NOTES = 20
 """Background plans: plans of at least this many notes give the per-note planning time (smaller ones are mostly
-overhead)."""
+overhead: their time is kept whole, see :meth:`ScorePlayer._estimate`)."""
 PLAN_SAFETY = 1.5
 """Background plans: the splice is put this many estimated planning times after the message."""
 PLAN_HISTORY = 8
@@ -343,11 +343,16 @@ class ScorePlayer:
         self._generation = 0
         self._plan_times: deque[float] = deque(maxlen=PLAN_HISTORY)
         """Seconds per note of the latest timed background plans (of at least PLAN_MEASURED_NOTES notes)."""
+        self._short_plan_times: deque[tuple[int, float]] = deque(maxlen=PLAN_HISTORY)
+        """(notes, seconds) of the latest timed background plans of fewer notes."""
         self.replanned_late = 0
         """Background plans ready after their splice time (spliced later, planned again or counted late)."""
         self.window_misses = 0
         """Live-note windows whose plan did not re-join the queued plan: the notes planned again, with the window
         widened to the hi-hat foot's next note (only the foot's open-hi-hat lifts changed) or the whole rest."""
+        self._held: tuple[float, float] | None = None
+        """(lag s, targets' clock s): a plan placed while the live core's targets trailed the rig clock by that lag
+        plays until then; the targets keep at least that lag until it ends (:meth:`lag_floor`)."""
 
     @property
     def preparation_s(self) -> float:
@@ -507,6 +512,8 @@ class ScorePlayer:
             raise ScorePlayerError("play: no score loaded (send /batteur/score/load first)")
         score = self.score
         base = self._base(now)
+        lag = self.core.target_lag
+        rig_at, at = at, (at - lag if at > 0.0 else at)  # on the targets' clock (0: the panel's "at once")
         tempo = self.tempo
         remaining = [e for e in score.events if e.time >= position - POSITION_TOLERANCE_S]
         if not remaining:
@@ -518,39 +525,43 @@ class ScorePlayer:
         too_close = whole and at + (min(e.time for e in remaining) - position) / tempo < earliest
         if at <= base or too_close:  # "at once"; a time that has passed: with its whole lead-in
             asked = at
-            at = base + delay_s + (LATE_START_S if at > 0.0 else START_LEAD_S) + PLAN_MARGIN_PER_NOTE_S * len(remaining)
+            at = (base + delay_s + (LATE_START_S if rig_at > 0.0 else START_LEAD_S)
+                  + PLAN_MARGIN_PER_NOTE_S * len(remaining))
         events = [dataclasses.replace(e, time=at + (e.time - position) / tempo) for e in remaining]
         late = [e for e in events if e.time < earliest]
 
-        def announce() -> None:
+        def announce() -> None:  # rig times (the targets' clock plus the lag)
             if asked is not None and asked > base:  # ``whole``: the first note too close to prepare
                 log.warning("play at rig time %.3f s asked at %.3f s, too close to prepare its first note: the whole "
-                            "score starts at %.3f s instead (%.3f s late)", asked, base, at, at - asked)
-            elif asked is not None and asked > 0.0:  # a time that has passed (0 is the panel's "at once"): how late
+                            "score starts at %.3f s instead (%.3f s late)", rig_at, base + lag, at + lag, at - asked)
+            elif asked is not None and rig_at > 0.0:  # a time that has passed (0 is the panel's "at once"): how late
                 log.warning("play at rig time %.3f s asked at %.3f s, already past: the score starts at %.3f s "
-                            "instead (%.3f s late)", asked, base, at, at - asked)
+                            "instead (%.3f s late)", rig_at, base + lag, at + lag, at + lag - rig_at)
             if late:
                 self.late_notes += len(late)
                 log.warning("play at %.3f s: %d notes before %.3f s cannot be prepared in time; not played",
-                            at, len(late), earliest)
+                            at + lag, len(late), earliest + lag)
 
         events = [e for e in events if e.time >= earliest]
         if not events:
             announce()
-            raise ScorePlayerError(f"play at {at:.3f} s: every note is too close to now ({base:.3f} s) to prepare")
+            raise ScorePlayerError(f"play at {at + lag:.3f} s: every note is too close to now ({base + lag:.3f} s) to "
+                                   "prepare")
         beats = np.asarray(score.beats, dtype=float)
         beats = at + (beats[beats >= position - POSITION_TOLERANCE_S] - position) / tempo
+        self._hold(lag, events[-1].time)
 
         def commit(plan: GesturePlan, t_s: float) -> GesturePlan:
             splice_plan(scene, plan, t_s)
+            self._hold(lag, plan.end_time)
             self.events = self._assigned(events, plan)
             self.mapping = (at, position, tempo)
             self._stopping = None
             self.state = "playing"
             self.end_time = plan.end_time
             log.info("playing %s from %.3f s at rig time %.3f s (tempo x%g): %d notes until %.3f s",
-                     self.score_path.name if self.score_path else "score", position, at, tempo, len(events),
-                     plan.end_time)
+                     self.score_path.name if self.score_path else "score", position, at + lag, tempo, len(events),
+                     plan.end_time + lag)
             return plan
 
         return _Prepared(t_s, events, beats, min(1.0, events[0].time - t_s - TRANSITION_S), commit, announce)
@@ -560,7 +571,8 @@ class ScorePlayer:
         (:class:`ScorePlayerError`) when nothing plays then, nothing is paused and no limb ever moved (no target
         since the start or the last reset: the drummer is at rest)."""
         scene = self._drummer()
-        t_s = max(at, self._base(now) + SPLICE_MARGIN_S)
+        lag = self.core.target_lag
+        t_s = max(at - lag, self._base(now) + SPLICE_MARGIN_S)  # on the targets' clock
         if self.state != "paused" and not any(len(track) for track in scene.limb_tracks.values()):
             self._check_playing("stop", t_s)  # a drummer that never moved (or was reset): nothing to bring to rest
         check_room(scene, t_s, 3)
@@ -574,17 +586,19 @@ class ScorePlayer:
             if limb in scene.rest_targets:
                 track.add(t_s + BRAKE_S + STOP_MOVE_S, scene.rest_targets[limb] - scene.target_offset[limb],
                           np.zeros(3))
+        self._hold(lag, t_s + BRAKE_S + STOP_MOVE_S)
         self._forget(t_s)
         self._stop_clock()
         self.state = "idle"
-        log.info("stop at %.3f s", t_s)
+        log.info("stop at %.3f s", t_s + lag)
 
     def pause(self, at: float, now: float) -> None:
         """From rig time ``at`` (or at once), brake every limb and hold it there; refused
         (:class:`ScorePlayerError`) when nothing plays then and no limb moves then (streamed targets move them
         too; the state is left as it was)."""
         scene = self._drummer()
-        t_s = max(at, self._base(now) + SPLICE_MARGIN_S)
+        lag = self.core.target_lag
+        t_s = max(at - lag, self._base(now) + SPLICE_MARGIN_S)  # on the targets' clock
         if not any(track.end_time > t_s for track in scene.limb_tracks.values() if len(track)):
             self._check_playing("pause", t_s)  # no limb moves then, not even by streamed targets
         check_room(scene, t_s, 2)
@@ -594,10 +608,11 @@ class ScorePlayer:
             p0, v0 = (np.array(a, dtype=float) for a in track.sample(t_s))
             track.add(t_s, p0, v0)
             track.add(t_s + BRAKE_S, brake_point(p0, v0, BRAKE_S, 0.0), np.zeros(3))
+        self._hold(lag, t_s + BRAKE_S)
         self._forget(t_s)
         self._stop_clock()
         self.state = "paused"
-        log.info("pause at %.3f s", t_s)
+        log.info("pause at %.3f s", t_s + lag)
 
     def _check_playing(self, action: str, t_s: float) -> None:
         """Refuse a stop or pause at rig time ``t_s`` (s) with nothing to act on: no performance (score or live
@@ -619,11 +634,15 @@ class ScorePlayer:
     def clock(self, now: float) -> tuple[float, float, float] | None:
         """The score's clock (as :attr:`mapping`) at rig time ``now`` (s) if a score plays then: a playing score
         until its plan ends, or one with a stop or pause ahead until that time; None otherwise."""
-        if self.state == "playing" and self.mapping is not None and now <= self.end_time:
-            return self.mapping
-        if self._stopping is not None and now <= self._stopping[1]:
-            return self._stopping[0]
-        return None
+        lag = self.core.target_lag
+        t = now - lag  # the targets' clock, which the mapping and the plan's end are on (:meth:`_base`)
+        if self.state == "playing" and self.mapping is not None and t <= self.end_time:
+            mapping = self.mapping
+        elif self._stopping is not None and t <= self._stopping[1]:
+            mapping = self._stopping[0]
+        else:
+            return None
+        return (mapping[0] + lag, mapping[1], mapping[2]) if lag > 0.0 else mapping
 
     def replan(self, now: float) -> GesturePlan | None:
         """A playing score follows a new tempo or style from ``preparation_s`` after ``now`` on.
@@ -662,9 +681,12 @@ class ScorePlayer:
         beats = t_a + (beats[beats >= p_a] - p_a) / tempo
         live = [e for e in self.events if e.time >= t_c and (e.time, e.event.value) in self._live_keys]
         events = sorted(kept + ahead + live, key=lambda e: e.time)
+        lag = self.core.target_lag
+        self._hold(lag, events[-1].time)
 
         def commit(plan: GesturePlan, t_s: float) -> GesturePlan:
             splice_plan(scene, plan, t_s, limbs={s.limb for s in plan.strokes if s.time > t_s})
+            self._hold(lag, plan.end_time)
             self.events = self._assigned(events, plan)
             self.mapping = (t_a, p_a, tempo)
             self.end_time = plan.end_time
@@ -697,10 +719,13 @@ class ScorePlayer:
             return self._account(plan, pulled)
 
     def _accept(self, note: LiveNote, source: str = "", now: float = 0.0) -> DrumEvent | None:
-        """A live note's drum event, or None (a note-off, a double, or an unknown pitch: counted, logged and
-        ``source`` told at rig time ``now``, s)."""
+        """A live note's drum event on the targets' clock (:meth:`_base`), or None (a note-off, a double, or an
+        unknown pitch: counted, logged and ``source`` told at rig time ``now``, s)."""
         unknown = len(self.live.unknown)
         event = self.live.accept(note)
+        lag = self.core.target_lag
+        if event is not None and lag > 0.0:  # a live core behind: the note sounds at its rig time all the same
+            event = dataclasses.replace(event, time=event.time - lag)
         if event is None and len(self.live.unknown) > unknown:
             self.errors["unknown_pitch"] += 1
             self.unknown_pitches += 1
@@ -714,7 +739,7 @@ class ScorePlayer:
         """Count a live note too late to prepare (not played), log it (the first ten, then every 100th) and tell
         ``source`` at rig time ``now`` (s): counted late (Health's ``late``), not as a rejection."""
         self.late_notes += 1
-        reason = (f"live note {event.event.value} at {event.time:.3f} s {why}: less than "
+        reason = (f"live note {event.event.value} at {event.time + self.core.target_lag:.3f} s {why}: less than "
                   f"{self.preparation_s * 1000:.0f} ms to prepare it; not played")
         if self.late_notes <= 10 or self.late_notes % 100 == 0:
             log.warning("%s (%d late so far)", reason, self.late_notes)
@@ -739,6 +764,8 @@ class ScorePlayer:
         events = sorted(self.events[start:stop] + new, key=lambda e: e.time)
         if not later:  # the window holds the whole rest of the performance
             end = math.inf
+        lag = self.core.target_lag
+        self._hold(lag, events[-1].time)
 
         def commit(plan: GesturePlan, t_s: float) -> GesturePlan:
             moving = {s.limb for s in plan.strokes if s.time > t_s}
@@ -769,6 +796,7 @@ class ScorePlayer:
                               "its window widened to the hi-hat foot's next note" if wider else "the whole rest")
                     raise _WindowMissed(widen=wider)
                 splice_window(scene, plan, t_s, joins, end - JOIN_GUARD_S)
+            self._hold(lag, plan.end_time)
             self.events = self._assigned(events, plan) + later
             self._live_keys = ({k for k in self._live_keys if k[0] >= t_s - CONTEXT_S}
                                | {(e.time, e.event.value) for e in new})
@@ -998,9 +1026,13 @@ class ScorePlayer:
             self.core.reject(waiting.message, waiting.source, error, now)
 
     def _estimate(self, notes: int) -> float:
-        """Seconds a background plan of ``notes`` notes is expected to take (from the latest timed plans)."""
+        """Seconds a background plan of ``notes`` notes is expected to take (from the latest timed plans): the
+        overhead plus the slowest per-note time of the plans of :data:`PLAN_MEASURED_NOTES` notes or more, and at
+        least as long as a plan of no more notes took (a short score under load: its own plan's time, mostly
+        overhead, which a per-note share would make too long for a long plan), times :data:`PLAN_SAFETY`."""
         per_note = max(self._plan_times, default=PLAN_PER_NOTE_S)
-        return PLAN_SAFETY * (PLAN_OVERHEAD_S + per_note * notes)
+        shorter = max((took for n, took in self._short_plan_times if n <= notes), default=0.0)
+        return PLAN_SAFETY * max(PLAN_OVERHEAD_S + per_note * notes, shorter)
 
     def _submit(self, requests: list[_Waiting], prepared: _Prepared,
                 finish: Callable[[_Job, GesturePlan, float], None], notes: tuple[DrumEvent, ...] = ()) -> None:
@@ -1066,8 +1098,11 @@ class ScorePlayer:
             return
         try:
             plan, job.pulled = self._reachable(job.future.result())
-            if len(job.prepared.events) >= PLAN_MEASURED_NOTES:
-                self._plan_times.append((time.perf_counter() - job.started) / len(job.prepared.events))
+            notes, took = len(job.prepared.events), time.perf_counter() - job.started
+            if notes >= PLAN_MEASURED_NOTES:
+                self._plan_times.append(took / notes)
+            else:
+                self._short_plan_times.append((notes, took))
             job.finish(job, plan, now)
         except (ValueError, OSError) as exc:  # the planner's and the splice's errors, as in the handler
             self._fail(job.requests, exc, now)
@@ -1135,8 +1170,31 @@ class ScorePlayer:
         return scene if isinstance(scene, DrummerScene) else None
 
     def _base(self, now: float) -> float:
-        """The later of the message's rig time and the simulation's (a splice is never in the simulated past)."""
-        return max(float(now), self.core.time)
+        """The later of the message's rig time and the simulation's (a splice is never in the simulated past), on
+        the clock of the drummer's targets: a live core that fell behind has them trail the rig clock by
+        ``PhysicsCore.target_lag`` seconds, so the player places its splices and notes (and keeps its notes, score
+        clock and plan end) that much earlier on their clock and they sound at their rig times; offline the two
+        clocks are one."""
+        return max(float(now), self.core.time) - self.core.target_lag
+
+    def _hold(self, lag: float, until: float) -> None:
+        """A plan placed ``lag`` seconds early on the targets' clock (:meth:`_base`) plays until ``until`` (s, their
+        clock): the targets must keep that lag until then, or its notes would sound early (:meth:`lag_floor`)."""
+        if lag <= 0.0:
+            return
+        if self._held is not None:
+            until = max(until, self._held[1])
+        self._held = (lag, until)
+
+    def lag_floor(self, t: float) -> float:
+        """The least lag (s) the live core's targets may jump back to at their clock's time ``t`` (s): the lag the
+        plans still playing were placed with (:meth:`_hold`; the latest one's), else 0."""
+        if self._held is None:
+            return 0.0
+        if t > self._held[1]:
+            self._held = None
+            return 0.0
+        return self._held[0]
 
     def _plan(self, events: list[DrumEvent], beats: np.ndarray, lead_in: float) -> GesturePlan:
         """Distribute and plan rig-timed events (the planner's times are rig seconds), in this thread."""
@@ -1229,6 +1287,7 @@ class ScorePlayer:
         if job is not None:
             log.info("reset: the plan in flight (%d message(s)) dropped", len(job.requests))
         self._generation += 1
+        self._held = None
         self.events = []
         self.state = "idle"
         self.mapping = None
@@ -1237,7 +1296,8 @@ class ScorePlayer:
 
     def status(self) -> dict[str, object]:
         """Counters and state, for logs and tests (a performance whose plan has ended is ``idle``)."""
-        state = "idle" if self.state == "playing" and self.core.time > self.end_time else self.state
+        ended = self.core.time - self.core.target_lag > self.end_time  # the targets' clock
+        state = "idle" if self.state == "playing" and ended else self.state
         return {"state": state, "score": str(self.score_path) if self.score_path else None,
                 "late_notes": self.late_notes, "errors": dict(self.errors), "flagged": self.flagged,
                 "plans": self.plans, "unknown_live_pitches": self.unknown_pitches,

@@ -1,0 +1,142 @@
+"""A physics node that falls behind has its drummer's targets trail the rig clock (``PhysicsCore.target_lag``,
+docs/physics.md "Time and determinism"); its Health reports that lag (seconds) and the jumps back
+(``target_jumps``), so ``batteur ls --json`` shows a late drummer, not only the skipped steps counted in ``late``.
+The fields are appended (a positional reader finds the earlier ones unmoved); other nodes send 0, and a Health from
+an older node, without them, still decodes.
+
+Nodes run in-process on loopback (no discovery, no OSCQuery).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import socket
+import threading
+from collections.abc import Iterator
+
+import pytest
+
+from batteur.tools import ls
+from common.config import load_settings
+from common.core import Core
+from common.messages import Health, Hello, OscMessage, decode
+from common.messages.base import MessageError
+from common.messages.codec import encode_raw
+from common.runtime import Node
+from common.transport import UdpEndpoint
+from services.physics.core import PhysicsCore
+from tests.null_core import NullCore
+from tests.waiting import wait_for
+
+pytestmark = pytest.mark.timeout(120)
+
+HEALTH = Health(node_id="fake-1", role="physics", protocol=1, time=1.5, rate_hz=990.0, target_rate_hz=1000.0,
+                overruns=4, messages_in=1, messages_out=1, dropped=0, dropped_malformed=0, dropped_unknown=0,
+                dropped_type=0, dropped_range=0, dropped_other=0, late=350, peers=3, decode_unanswered=0,
+                replies_unanswered=0, target_lag=0.125, target_jumps=2)
+
+
+async def _health_of(core: Core, role: str) -> Health:
+    """Run ``core`` as a ``role`` node and return the Health it answers a Hello with."""
+    node = Node(core, load_settings({"role": role, "discovery": False, "clock_master": "self",  # type: ignore[arg-type]
+                                     "oscquery": False}))
+    await node.start()
+    assert node.endpoint is not None
+    client = await UdpEndpoint.open("127.0.0.1")
+    got: list[OscMessage] = []
+    client.set_handler(lambda message, _: got.append(message))
+    try:
+        client.send(Hello(role="test", node_id="test-1", protocol=1, osc_port=client.port), node.endpoint.local_address)
+        await wait_for(lambda: any(isinstance(m, Health) for m in got), 20.0)
+        return next(m for m in got if isinstance(m, Health))
+    finally:
+        client.close()
+        await node.stop()
+
+
+def test_the_physics_node_reports_how_far_its_targets_trail_the_rig_clock() -> None:
+    core = PhysicsCore(scene="strike")
+    try:
+        core.target_lag, core.target_jumps = 0.25, 3  # as a live drummer core that fell behind leaves them
+        health = asyncio.run(_health_of(core, "physics"))
+    finally:
+        core.close()
+    assert (health.target_lag, health.target_jumps) == (0.25, 3)
+
+
+def test_other_nodes_report_no_target_lag() -> None:
+    health = asyncio.run(_health_of(NullCore(), "sound"))
+    assert (health.target_lag, health.target_jumps) == (0.0, 0)
+
+
+def test_the_fields_are_appended_and_an_older_nodes_health_still_decodes() -> None:
+    names = [f.name for f in Health.wire_fields()]
+    assert names[-5:] == ["peers", "decode_unanswered", "replies_unanswered", "target_lag", "target_jumps"]
+    args = HEALTH.to_args()
+    assert Health.from_args(args) == HEALTH
+    for appended in (2, 4):  # the previous session's Health (without the lag), and the one before it
+        older = decode(encode_raw(Health.ADDRESS, args[:-appended])).messages
+        assert older == [HEALTH.model_copy(update={"decode_unanswered": 0, "replies_unanswered": 0,
+                                                   "target_lag": 0.0, "target_jumps": 0}
+                                           if appended == 4 else {"target_lag": 0.0, "target_jumps": 0})]
+    with pytest.raises(MessageError):  # short of a field every version has: still refused
+        Health.from_args(args[:-5])
+
+
+class _HealthAnswerer:
+    """A UDP "node" in this process: answers a Hello with ``packet`` (an encoded Health)."""
+
+    def __init__(self, packet: bytes) -> None:
+        self.packet = packet
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.bind(("127.0.0.1", 0))
+        self.sock.settimeout(0.05)
+        self.port: int = self.sock.getsockname()[1]
+        self.stop = threading.Event()
+        self.thread = threading.Thread(target=self._serve, daemon=True)
+        self.thread.start()
+
+    def _serve(self) -> None:
+        while not self.stop.is_set():
+            try:
+                data, source = self.sock.recvfrom(65535)
+            except TimeoutError:
+                continue
+            except OSError:
+                return
+            if any(isinstance(m, Hello) for m in decode(data).messages):
+                self.sock.sendto(self.packet, source[:2])
+
+    def close(self) -> None:
+        self.stop.set()
+        self.thread.join(timeout=5)
+        self.sock.close()
+
+
+@pytest.fixture(params=["this", "older"])
+def answerer(request: pytest.FixtureRequest) -> Iterator[tuple[_HealthAnswerer, tuple[float, int]]]:
+    """A node answering with this version's Health (a lag of 125 ms, 2 jumps) or an older node's (no lag fields)."""
+    args = HEALTH.to_args()
+    older = request.param == "older"
+    node = _HealthAnswerer(encode_raw(Health.ADDRESS, args[:-2] if older else args))
+    yield node, ((0.0, 0) if older else (0.125, 2))
+    node.close()
+
+
+def test_ls_json_shows_the_physics_nodes_target_lag(answerer: tuple[_HealthAnswerer, tuple[float, int]],
+                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    node, (lag, jumps) = answerer
+    assert ls.main(["--node", f"127.0.0.1:{node.port}", "--timeout", "3", "--json"]) == 0
+    row = json.loads(capsys.readouterr().out)[0]
+    assert (row["status"], row["target_lag"], row["target_jumps"], row["late"]) == ("ok", lag, jumps, 350)
+
+
+def test_a_newer_nodes_longer_health_decodes_without_its_new_fields() -> None:
+    """Fields appended after these (a node updated before this reader) are ignored, not a wrong arity: an older
+    ``batteur ls`` had dropped the 22-argument Health of a node with ``target_lag`` and said "no answer"."""
+    args = HEALTH.to_args()
+    assert Health.from_args([*args, 0.5, 9]) == HEALTH
+    assert decode(encode_raw(Health.ADDRESS, [*args, 1, 2, 3])).messages == [HEALTH]
+    with pytest.raises(MessageError):  # far more than a few appended fields: not a Health
+        Health.from_args([*args, *range(Health.NEWER_ARGS + 1)])
