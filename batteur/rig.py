@@ -357,6 +357,7 @@ class Rig:
         :data:`READY_PROGRESS_S` naming those not up, and one when all are; past ``ready.timeout_s`` from launch
         (``launched``: ``time.monotonic()`` then), stop the rig with an error naming them."""
         from common.messages import PROTOCOL_VERSION, Hello, encode
+        from common.messages.system import TOOL_ROLE
 
         loop = asyncio.get_running_loop()
         roles = {plan.port: plan.role for plan in self.plans}
@@ -367,8 +368,8 @@ class Rig:
             self._give_up(f"cannot ask the services whether they are up: {exc.strerror or exc}")
             return
         try:
-            # role cli: a tool asking, not a node (graphics' TOOL_ROLE: the view does not list it)
-            hello = encode(Hello(role="cli", node_id="batteur-rig", protocol=PROTOCOL_VERSION,
+            # a tool asking, not a node: the graphics view does not list it
+            hello = encode(Hello(role=TOOL_ROLE, node_id="batteur-rig", protocol=PROTOCOL_VERSION,
                                  osc_port=transport.get_extra_info("sockname")[1]))
             next_line = launched + READY_PROGRESS_S
             while waiting := [plan for plan in self.plans if plan.role not in answers.up]:

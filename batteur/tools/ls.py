@@ -15,8 +15,9 @@ from collections.abc import Sequence
 
 from batteur.errors import report_error
 from batteur.tools.nodes import Target, bind_address, find_targets, run_tool, target_networks, write_line
-from common.arg_types import seconds
+from common.arg_types import seconds, take_negative_values
 from common.messages import PROTOCOL_VERSION, Health, Hello, OscMessage
+from common.messages.system import TOOL_ROLE
 from common.transport import UdpEndpoint
 
 DESCRIPTION = """\
@@ -45,7 +46,7 @@ async def query_health(targets: Sequence[Target], timeout_s: float) -> dict[str,
 
     endpoint.set_handler(on_message)
     try:
-        hello = Hello(role="cli", node_id="batteur-ls", protocol=PROTOCOL_VERSION, osc_port=endpoint.port)
+        hello = Hello(role=TOOL_ROLE, node_id="batteur-ls", protocol=PROTOCOL_VERSION, osc_port=endpoint.port)
         for target in reachable:
             endpoint.send(hello, target.socket_address)
         try:
@@ -112,8 +113,8 @@ async def _run(opts: argparse.Namespace) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="batteur ls", description=DESCRIPTION,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = take_negative_values(argparse.ArgumentParser(prog="batteur ls", description=DESCRIPTION,
+                                                          formatter_class=argparse.RawDescriptionHelpFormatter))
     parser.add_argument("--node", action="append", default=[], metavar="HOST:PORT",
                         help="ask this node instead of browsing (repeatable)")
     parser.add_argument("--interface", action="append", default=[],

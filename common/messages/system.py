@@ -16,6 +16,9 @@ PROTOCOL_VERSION = 1
 NodeId = Annotated[str, Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_.:-]+$")]
 Role = Annotated[str, Field(min_length=1, max_length=32, pattern=r"^[a-z][a-z0-9_-]*$")]
 Count = Annotated[int, Field(ge=0)]
+TOOL_ROLE = "cli"
+"""The role command-line tools say Hello as (``batteur ls``, ``batteur rig``'s readiness probe): answered like any
+Hello, but not a node of the rig (the graphics view does not list it)."""
 
 
 @register

@@ -42,6 +42,7 @@ from common.messages.graphics import (
     ScorePosition,
 )
 from common.messages.physics import PhysicsPosture, PhysicsReset
+from common.messages.system import TOOL_ROLE
 from services.graphics.camera import camera_for, default_camera, presets_json
 from services.graphics.scene import HISTORY, KitAnimator, hardware_json, kit_json
 from services.graphics.sequence import FLOATS_PER_LINK, PoseSequence, interpolate_pose, normalize_quats
@@ -51,9 +52,6 @@ CLOCK_JUMP = 0.5  # seconds: a pose clock this much behind the current offset ha
 SEEN_IMPACTS = 4096  # impacts remembered per sender to drop redundant copies
 MAX_SENDERS = 64  # impact senders remembered (least recently heard forgotten first)
 MAX_NODES = 256  # nodes in the status table (least recently heard forgotten first)
-TOOL_ROLE = "cli"
-"""The role command-line tools say Hello as (``batteur rig``'s readiness probe, ``batteur ls``): not nodes of the
-rig, so not in the status table (their Hello is still answered: by the runtime, not this core)."""
 NO_PREVIEW = ("no preview is loaded, the view stays live: start the graphics node with --preview-score SCORE or "
               "--preview FILE.npz")
 """Why ``/batteur/graphics/mode preview`` is refused on a node without a preview."""

@@ -43,10 +43,11 @@ def test_a_services_own_option_takes_a_negative_number(capsys: pytest.CaptureFix
 @pytest.mark.parametrize(("name", "argv", "said"), [
     ("rig", ["--play-at", "-1e-3"], "argument --play-at: '-1e-3': give a finite number of at least 0"),
     ("transcribe", ["x.wav", "-o", "x.mid", "--tempo", "-1e2"], "--tempo must be "),
+    ("ls", ["--node", "127.0.0.1:9", "--timeout", "-1e-3"], "argument --timeout: '-1e-3': give a positive finite"),
 ])
-def test_the_rig_and_transcribe_take_negative_numbers_to_their_own_checks(
+def test_the_rig_transcribe_and_ls_take_negative_numbers_to_their_own_checks(
         name: str, argv: list[str], said: str, capsys: pytest.CaptureFixture[str]) -> None:
-    """The two other commands of this kind (the rig launches the nodes; transcribe is the recogniser's)."""
+    """The other commands of this kind (the rig launches the nodes; transcribe is the recogniser's; ls asks them)."""
     status, line, prog = run(name, argv, capsys)
     assert status == 2
     assert line.startswith(f"{prog}: error: ") and said in line, line  # was "expected one argument"
