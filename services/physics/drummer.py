@@ -33,7 +33,6 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from numba import njit
 
 from common.kit import FOOT_BALL_ALONG, FOOTBOARD_LENGTH_M, PEDAL_REST_ANGLE_RAD, EventType, Kit
 from common.messages import OscMessage
@@ -52,7 +51,7 @@ from services.physics.character import DOF_NAMES, JOINTS, CharacterSpec, build_c
 from services.physics.contacts import ContactTracker, Striker
 from services.physics.control import Controller
 from services.physics.follow_through import LimbTrack, Strike
-from services.physics.kernels import swing_displacement
+from services.physics.kernels import stick_under_plate, swing_displacement
 from services.physics.kitbodies import SLOW_SPRING_PERIOD_S, build_kit
 from services.physics.limits import JointLimits, default_limits, limits_from_clips, load_clip
 from services.physics.mocap import MotionClip
@@ -112,7 +111,7 @@ CYMBAL_UNDER_STEP_M = 0.03
 """... aiming at most this far from where its bead is at each update (it moves out steadily), metres."""
 CYMBAL_UNDER_MARGIN_M = 0.02
 """A point of a stick up to this far beyond a plate's rim and below its plane is under it, metres."""
-_STICK_SAMPLES = (1.0, 0.7, 0.4)
+_STICK_SAMPLES = np.array([1.0, 0.7, 0.4])
 """Points of a stick judged under a plate: fractions of the way from the wrist to the bead."""
 LEAD_IN_RISE_M = 0.05
 """A hand moving from where it is to a plan's first knot passes this far above the higher of the two halfway, so
@@ -691,7 +690,7 @@ class DrummerScene:
             if sides is None:
                 sides = self._plate_side[limb] = np.zeros(len(hinges.radius), dtype=np.int64)
             c = stick_under_plate(bead, wrist, aim, hinges.centre, hinges.rotation, hinges.radius, hinges.angles,
-                                  sides)
+                                  sides, _STICK_SAMPLES, CYMBAL_UNDER_MARGIN_M, CYMBAL_UNDER_CLEAR_M)
             if c < 0:
                 return None
             self._around[limb] = c
@@ -701,7 +700,7 @@ class DrummerScene:
         if (frame.T @ (bead - centre))[2] > top - CYMBAL_UNDER_CLEAR_M / 2 or aim_z < -CYMBAL_UNDER_CLEAR_M:
             del self._around[limb]
             return None
-        samples = wrist + np.array(_STICK_SAMPLES)[:, None] * (bead - wrist)
+        samples = wrist + _STICK_SAMPLES[:, None] * (bead - wrist)
         goal = centre + frame @ _detour((samples - centre) @ frame, frame.T @ (wrist - centre),
                                         float(hinges.radius[c]), top)
         step = goal - bead  # a step at a time: a far target would whip the stick into the rim
@@ -873,56 +872,6 @@ def plate_frame(rotation: np.ndarray, angles: np.ndarray) -> np.ndarray:
     ca, sa, cb, sb = math.cos(angles[0]), math.sin(angles[0]), math.cos(angles[1]), math.sin(angles[1])
     return rotation @ np.array([[1.0, 0.0, 0.0], [0.0, ca, -sa], [0.0, sa, ca]]) \
         @ np.array([[cb, 0.0, sb], [0.0, 1.0, 0.0], [-sb, 0.0, cb]])
-
-
-@njit(cache=True)
-def stick_under_plate(bead: np.ndarray, wrist: np.ndarray, aim: np.ndarray, centre: np.ndarray,
-                      rotation: np.ndarray, radius: np.ndarray, angles: np.ndarray, side: np.ndarray) -> int:
-    """The first cymbal a stick is under and would press from below, or -1 (every argument in metres, radians).
-
-    The stick: points ``_STICK_SAMPLES`` of the way from ``wrist`` (3,) to ``bead`` (3,), moving as the bead would
-    to ``aim`` (3,). Cymbal ``c``'s plate: in the plane z = 0 of its frame, ``rotation[c]`` (3, 3) about
-    ``centre[c]`` (3,) turned by ``Rx(angles[c, 0]) Ry(angles[c, 1])`` in that frame, ``radius[c]`` wide. A point
-    is under it within ``CYMBAL_UNDER_MARGIN_M`` beyond its rim; it would be pressed when the move brings it within
-    ``CYMBAL_UNDER_CLEAR_M`` of the plate, the aim not that far or more below it.
-
-    ``side`` (C,) int, updated: the side of each plate the bead came to it from, set as it comes within
-    ``CYMBAL_UNDER_MARGIN_M`` of the rim (1 above the plane, -1 below), 0 again beyond ``CYMBAL_UNDER_CLEAR_M``. A
-    bead that came from above is never under: striking the plate, it passes below the plane the hinge's angles read
-    4 ms before give. Compiled: called for each hand at every control update.
-    """
-    margin, clear = CYMBAL_UNDER_MARGIN_M, CYMBAL_UNDER_CLEAR_M
-    found = -1
-    local = np.empty((3, 3))  # aim, bead, wrist in the plate's frame
-    for c in range(centre.shape[0]):
-        ca, sa = math.cos(angles[c, 0]), math.sin(angles[c, 0])
-        cb, sb = math.cos(angles[c, 1]), math.sin(angles[c, 1])
-        rot = rotation[c]
-        for i, point in enumerate((aim, bead, wrist)):
-            dx, dy, dz = point[0] - centre[c, 0], point[1] - centre[c, 1], point[2] - centre[c, 2]
-            x = rot[0, 0] * dx + rot[1, 0] * dy + rot[2, 0] * dz  # the rest frame's coordinates
-            y = rot[0, 1] * dx + rot[1, 1] * dy + rot[2, 1] * dz
-            z = rot[0, 2] * dx + rot[1, 2] * dy + rot[2, 2] * dz
-            y, z = ca * y + sa * z, -sa * y + ca * z  # Rx(a)^T then Ry(b)^T
-            x, z = cb * x - sb * z, sb * x + cb * z
-            local[i, 0], local[i, 1], local[i, 2] = x, y, z
-        rho = math.hypot(local[1, 0], local[1, 1])
-        if rho > radius[c] + clear:
-            side[c] = 0
-        elif side[c] == 0 and rho < radius[c] + margin:
-            side[c] = 1 if local[1, 2] >= 0.0 else -1
-        if found >= 0 or side[c] == 1 or local[0, 2] < -clear:
-            continue
-        rise = local[0, 2] - local[1, 2]
-        for f in _STICK_SAMPLES:
-            z = local[2, 2] + f * (local[1, 2] - local[2, 2])
-            if z < 0.0 and z + rise > -clear:
-                x = local[2, 0] + f * (local[1, 0] - local[2, 0])
-                y = local[2, 1] + f * (local[1, 1] - local[2, 1])
-                if math.hypot(x, y) < radius[c] + margin:
-                    found = c
-                    break
-    return found
 
 
 def _detour(stick: np.ndarray, wrist: np.ndarray, radius_m: float, top_m: float) -> np.ndarray:

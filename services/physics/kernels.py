@@ -537,3 +537,53 @@ def swing_displacement(points: np.ndarray, centre: np.ndarray, rotation: np.ndar
             for k in range(3):
                 out[i, k] += w * (rot[k, 0] * moved[0] + rot[k, 1] * moved[1] + rot[k, 2] * moved[2])
     return out
+
+
+@njit(cache=True)
+def stick_under_plate(bead: np.ndarray, wrist: np.ndarray, aim: np.ndarray, centre: np.ndarray,
+                      rotation: np.ndarray, radius: np.ndarray, angles: np.ndarray, side: np.ndarray,
+                      fractions: np.ndarray, margin: float, clear: float) -> int:
+    """The first cymbal a stick is under and would press from below, or -1 (every argument in metres, radians).
+
+    The stick: points ``fractions`` (S,) of the way from ``wrist`` (3,) to ``bead`` (3,), moving as the bead would
+    to ``aim`` (3,). Cymbal ``c``'s plate: in the plane z = 0 of its frame, ``rotation[c]`` (3, 3) about
+    ``centre[c]`` (3,) turned by ``Rx(angles[c, 0]) Ry(angles[c, 1])`` in that frame, ``radius[c]`` wide. A point
+    is under it within ``margin`` beyond its rim; it would be pressed when the move brings it within
+    ``clear`` of the plate, the aim not that far or more below it.
+
+    ``side`` (C,) int, updated: the side of each plate the bead came to it from, set as it comes within
+    ``margin`` of the rim (1 above the plane, -1 below), 0 again beyond ``clear``. A
+    bead that came from above is never under: striking the plate, it passes below the plane the hinge's angles read
+    4 ms before give. Compiled: called for each hand at every control update.
+    """
+    found = -1
+    local = np.empty((3, 3))  # aim, bead, wrist in the plate's frame
+    for c in range(centre.shape[0]):
+        ca, sa = math.cos(angles[c, 0]), math.sin(angles[c, 0])
+        cb, sb = math.cos(angles[c, 1]), math.sin(angles[c, 1])
+        rot = rotation[c]
+        for i, point in enumerate((aim, bead, wrist)):
+            dx, dy, dz = point[0] - centre[c, 0], point[1] - centre[c, 1], point[2] - centre[c, 2]
+            x = rot[0, 0] * dx + rot[1, 0] * dy + rot[2, 0] * dz  # the rest frame's coordinates
+            y = rot[0, 1] * dx + rot[1, 1] * dy + rot[2, 1] * dz
+            z = rot[0, 2] * dx + rot[1, 2] * dy + rot[2, 2] * dz
+            y, z = ca * y + sa * z, -sa * y + ca * z  # Rx(a)^T then Ry(b)^T
+            x, z = cb * x - sb * z, sb * x + cb * z
+            local[i, 0], local[i, 1], local[i, 2] = x, y, z
+        rho = math.hypot(local[1, 0], local[1, 1])
+        if rho > radius[c] + clear:
+            side[c] = 0
+        elif side[c] == 0 and rho < radius[c] + margin:
+            side[c] = 1 if local[1, 2] >= 0.0 else -1
+        if found >= 0 or side[c] == 1 or local[0, 2] < -clear:
+            continue
+        rise = local[0, 2] - local[1, 2]
+        for f in fractions:
+            z = local[2, 2] + f * (local[1, 2] - local[2, 2])
+            if z < 0.0 and z + rise > -clear:
+                x = local[2, 0] + f * (local[1, 0] - local[2, 0])
+                y = local[2, 1] + f * (local[1, 1] - local[2, 1])
+                if math.hypot(x, y) < radius[c] + margin:
+                    found = c
+                    break
+    return found

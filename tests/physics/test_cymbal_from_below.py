@@ -17,9 +17,11 @@ import numpy as np
 import pytest
 
 from common.messages import Contact
+from services.physics import drummer
 from services.physics.body import LIMBS
 from services.physics.core import PhysicsCore
-from services.physics.drummer import DrummerScene, stick_under_plate
+from services.physics.drummer import DrummerScene
+from services.physics.kernels import stick_under_plate
 
 HAND = "right_hand"
 PARK_BELOW_M = 0.06
@@ -102,10 +104,11 @@ def test_a_stick_striking_a_plate_from_above_is_not_taken_for_one_under_it() -> 
         wrist, aim = world(0.0, -r - 0.3, 0.15), world(0.0, -0.8 * r, 0.05)  # the rebound: up over the plate
         args = (hinges.centre, hinges.rotation, hinges.radius, np.zeros_like(hinges.angles))
         sides = np.zeros(len(hinges.radius), dtype=np.int64)
-        assert stick_under_plate(world(0.0, -0.8 * r, 0.03), wrist, aim, *args, sides) == -1  # coming down on it
-        assert stick_under_plate(world(0.0, -0.8 * r, -0.01), wrist, aim, *args, sides) == -1  # through, as read
+        rule = (drummer._STICK_SAMPLES, drummer.CYMBAL_UNDER_MARGIN_M, drummer.CYMBAL_UNDER_CLEAR_M)
+        assert stick_under_plate(world(0.0, -0.8 * r, 0.03), wrist, aim, *args, sides, *rule) == -1  # coming down on it
+        assert stick_under_plate(world(0.0, -0.8 * r, -0.01), wrist, aim, *args, sides, *rule) == -1  # through, as read
         sides[:] = 0
-        assert stick_under_plate(world(0.0, -r - 0.06, -0.03), wrist, aim, *args, sides) == -1  # beside, below
-        assert stick_under_plate(world(0.0, -0.8 * r, -0.01), wrist, aim, *args, sides) == k  # then under it
+        assert stick_under_plate(world(0.0, -r - 0.06, -0.03), wrist, aim, *args, sides, *rule) == -1  # beside, below
+        assert stick_under_plate(world(0.0, -0.8 * r, -0.01), wrist, aim, *args, sides, *rule) == k  # then under it
     finally:
         core.close()
