@@ -243,9 +243,9 @@ def load_clip(source: str | Path) -> MotionClip:
     from services.physics.bvh_motion import load_bvh_clip
 
     if Path(source).suffix.lower() == ".bvh":
-        if not Path(source).is_file():
+        if not Path(source).exists():
             raise FileNotFoundError(f"no BVH file {str(source)!r}")
-        return load_bvh_clip(source)
+        return load_bvh_clip(source)  # a folder, device or pipe: read_bvh says which
     return load_deepmimic(source)
 
 

@@ -23,6 +23,10 @@ import numpy as np
 import pybullet_data
 from scipy.spatial.transform import Rotation
 
+
+class ClipError(ValueError):
+    """A motion clip file that cannot be read as one (the message names it)."""
+
 MOTIONS_DIR = Path(pybullet_data.getDataPath()) / "data" / "motions"
 
 C_DM_TO_OURS = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
@@ -80,9 +84,12 @@ def deepmimic_clip_names() -> list[str]:
 def load_deepmimic(name_or_path: str | Path) -> MotionClip:
     """Read a DeepMimic humanoid clip (a shipped name such as ``"punch"`` or a path).
 
-    Raises ``FileNotFoundError`` naming the shipped clips, ``ValueError`` for a malformed file.
+    Raises ``FileNotFoundError`` naming the shipped clips, :class:`ClipError` (a ``ValueError``) for a malformed
+    file or a path that is not a regular file (a folder, a device, a pipe: never opened).
     """
     path = Path(name_or_path)
+    if path.exists() and not path.is_file():
+        raise ClipError(f"{name_or_path}: not a regular file; give a DeepMimic clip file or a shipped clip's name")
     if not path.suffix:
         path = MOTIONS_DIR / f"humanoid3d_{name_or_path}.txt"
     if not path.is_file():
@@ -90,17 +97,17 @@ def load_deepmimic(name_or_path: str | Path) -> MotionClip:
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
     except ValueError as exc:  # not UTF-8, not JSON
-        raise ValueError(f"{path.name}: not a DeepMimic clip (JSON with 'Frames'): {exc}") from None
+        raise ClipError(f"{path.name}: not a DeepMimic clip (JSON with 'Frames'): {exc}") from None
     if not isinstance(data, dict):
-        raise ValueError(f"{path.name}: not a DeepMimic clip (JSON with 'Frames')")
+        raise ClipError(f"{path.name}: not a DeepMimic clip (JSON with 'Frames')")
     try:
         frames = np.asarray(data.get("Frames", []), dtype=float)
     except (TypeError, ValueError) as exc:  # ragged rows, strings
-        raise ValueError(f"{path.name}: frames are not rows of numbers ({exc})") from None
+        raise ClipError(f"{path.name}: frames are not rows of numbers ({exc})") from None
     if frames.ndim != 2 or frames.shape[1] != FRAME_LENGTH or len(frames) < 2:
-        raise ValueError(f"{path.name}: expected frames of {FRAME_LENGTH} values, got shape {frames.shape}")
+        raise ClipError(f"{path.name}: expected frames of {FRAME_LENGTH} values, got shape {frames.shape}")
     if not np.all(np.isfinite(frames)):
-        raise ValueError(f"{path.name}: non-finite values")
+        raise ClipError(f"{path.name}: non-finite values")
     times = np.concatenate([[0.0], np.cumsum(frames[:-1, 0])])
     col = 8
     rotations: dict[str, Rotation] = {}

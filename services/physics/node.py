@@ -40,6 +40,7 @@ from pydantic_settings import NoDecode
 from common.config import NodeSettings
 from common.core import Outgoing
 from common.exit_status import InputError
+from common.gesture.bvh import BvhError
 from common.kit import EventType, load_kit
 from common.messages import Hello, OscMessage
 from common.messages.graphics import ScorePosition
@@ -47,6 +48,7 @@ from common.messages.physics import ControlModeName, GripName
 from common.runtime import Node, run_node
 from common.score.limbs import LimbLengths
 from services.physics.core import PhysicsCore, PhysicsSettings
+from services.physics.mocap import ClipError
 from services.physics.plan_worker import PlanWorker
 from services.physics.precompile import warm_up
 from services.physics.score_position import SCORE_POSITION_PERIOD_S, score_position
@@ -196,7 +198,7 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace) -> PhysicsCore:
             skeleton_bvh=settings.skeleton_bvh,
         )
         core = LivePhysicsCore(core_settings, kit=kit)
-    except FileNotFoundError as exc:  # a kit, clip or BVH file that is not there
+    except (FileNotFoundError, BvhError, ClipError) as exc:  # a kit, clip or BVH file not there or unreadable
         raise InputError(str(exc)) from None
     try:
         _prepare(core, settings)

@@ -60,6 +60,29 @@ def test_the_physics_node_reports_it_in_one_line(capsys: pytest.CaptureFixture[s
 
     status = main(["--no-discovery", "--no-oscquery", "--skeleton-bvh", "/dev/null"])
     lines = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
-    assert status == 2  # the node's status for any BVH file its core refuses (a corrupt one too)
+    assert status == 1  # an input it cannot use (README "Exit status"); until 6 Dec 2, as for a corrupt BVH
     assert lines[-1] == ("batteur physics: error: /dev/null: not a regular file but a character device; "
                          "give a BVH file"), lines
+
+
+@pytest.mark.parametrize(("argv", "said"), [
+    (["--skeleton-bvh", "{bad}"], "{bad}: expected ROOT, found 'broken'"),
+    (["--limits-from", "{fifo}"], "{fifo}: not a regular file but a pipe (FIFO); give a BVH file"),
+    (["--limits-from", "/dev/null"], "/dev/null: not a regular file; give a DeepMimic clip file or a shipped clip's "
+                                     "name"),
+    (["--limits-from", "{bad}"], "{bad}: expected ROOT, found 'broken'"),
+])
+def test_the_physics_node_refuses_a_motion_file_it_cannot_read_with_1(
+        argv: list[str], said: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A corrupt skeleton, and a pipe or device given for a clip to take joint limits from: one line, status 1 (was
+    2 for a corrupt file, and "no BVH file" for a pipe, "no clip '/dev/null'" for a device)."""
+    from services.physics.node import main
+
+    bad, fifo = tmp_path / "bad.bvh", tmp_path / "clip.bvh"
+    bad.write_text("HIERARCHY\nbroken\n")
+    os.mkfifo(fifo)
+    names = {"bad": str(bad), "fifo": str(fifo)}
+    status = main(["--no-discovery", "--no-oscquery", *(a.format(**names) for a in argv)])
+    lines = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
+    assert status == 1
+    assert lines[-1] == f"batteur physics: error: {said.format(**names)}", lines
