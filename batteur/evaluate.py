@@ -31,6 +31,7 @@ import argparse
 import contextlib
 import json
 import math
+import os
 import sys
 import tempfile
 import time
@@ -128,11 +129,15 @@ class FileResult:
     render: str | None = None
     """The render folder named on the command line, whose row this is (named ``FOLDER (SCORE)``); None for a
     score rendered by the evaluation."""
+    source: str = field(default="", repr=False)
+    """The score or render folder as given on the command line (:func:`name_results`; not in the JSON summary)."""
+    stem: str = field(default="", repr=False)
+    """The plots' file name stem, unique among one run's results (:func:`name_results`; not in the JSON summary)."""
 
     def summary(self) -> dict[str, Any]:
         out = {k: v for k, v in asdict(self).items()
                if k not in ("errors_s", "velocity_pairs", "note_refs", "hits", "pairs_25", "pairs_loose",
-                          "missed")}
+                          "missed", "source", "stem")}
         out["missed"] = [asdict(f) for f in self.missed]
         return out
 
@@ -496,9 +501,12 @@ def evaluate_render_dir(score_path: Path, render_dir: Path, kit: Kit | None = No
 
 
 def plot_stem(result: FileResult) -> str:
-    """The plots' file name stem: the render folder's name for a folder named on the command line (two renders
-    of one score must not overwrite each other's plots), else the score's stem."""
-    return Path(result.render).name if result.render else Path(result.name).stem
+    """The plots' file name stem: the one :func:`name_results` gave, unique in the run; else the render folder's
+    name for a folder named on the command line (two renders of one score must not overwrite each other's plots),
+    else the score's stem."""
+    if result.stem:
+        return result.stem
+    return folder_name(Path(result.render)) if result.render else Path(result.name).stem
 
 
 def plot_result(result: FileResult, directory: Path) -> list[Path]:
@@ -601,13 +609,14 @@ def evaluate_scores(paths: Sequence[Path], opts: Any, renders: Path | None, quie
             if path.is_dir():
                 result = evaluate_render_dir(render_dir_score(path), path)
                 result.render = str(path)
-                result.name = f"{folder_name(path)} ({result.name})"  # several renders of one score stay apart
-                results.append(result)
-                continue
-            out = base / path.stem
-            if not (reuse and reusable(out, path, opts)):
-                render_score(path, out, opts, quiet=quiet, prog=PROG)  # its warnings name this command
-            results.append(evaluate_render_dir(path, out))
+            else:
+                out = base / path.stem
+                if not (reuse and reusable(out, path, opts)):
+                    render_score(path, out, opts, quiet=quiet, prog=PROG)  # its warnings name this command
+                result = evaluate_render_dir(path, out)
+            result.source = str(path)
+            results.append(result)
+    name_results(results)
     return results
 
 
@@ -638,6 +647,131 @@ def remove_if_empty(folders: Sequence[Path]) -> Iterator[None]:
 def folder_name(path: Path) -> str:
     """A folder's name as its row shows it: its last part (of the folder it resolves to for ``.`` and ``..``)."""
     return path.name if path.name not in ("", "..") else (path.resolve().name or str(path))
+
+
+def distinguishing_tails(paths: Sequence[Path]) -> list[Path]:
+    """Each path's shortest end (its name, then with its parent, ...) that none of the others ends with, of the
+    absolute paths (``.`` and ``..`` folded): ``a/groove.txt`` and ``b/groove.txt`` for those two, ``x/r1`` and
+    ``y/r1`` for two folders ``r1``."""
+    full = [Path(os.path.abspath(path)).parts for path in paths]
+    tails = []
+    for k, parts in enumerate(full):
+        others = [other for m, other in enumerate(full) if m != k]
+        n = 1
+        while n < len(parts) and any(other[-n:] == parts[-n:] for other in others):
+            n += 1
+        tails.append(Path(*parts[-n:]))
+    return tails
+
+
+def _tails_where_shared(keys: Sequence[str], paths: Sequence[Path]) -> list[Path | None]:
+    """For the entries whose key another entry shares, their :func:`distinguishing_tails` among those; None for
+    an entry whose key is its own."""
+    groups: dict[str, list[int]] = defaultdict(list)
+    for k, key in enumerate(keys):
+        groups[key].append(k)
+    out: list[Path | None] = [None] * len(keys)
+    for members in groups.values():
+        if len(members) > 1:
+            for k, tail in zip(members, distinguishing_tails([paths[k] for k in members]), strict=True):
+                out[k] = tail
+    return out
+
+
+def _numbered(keys: Sequence[str], separator: str) -> list[str]:
+    """``keys`` with a second and later use of a key numbered (``groove``, ``groove-2``), never into another key."""
+    taken = set(keys)
+    seen: set[str] = set()
+    out = []
+    for key in keys:
+        unique, n = key, 1
+        while unique in seen or (unique != key and unique in taken):
+            n += 1
+            unique = f"{key}{separator}{n}"
+        seen.add(unique)
+        taken.add(unique)
+        out.append(unique)
+    return out
+
+
+def name_results(results: Sequence[FileResult]) -> None:
+    """Name each row (``name``) and its plots (``stem``), apart from every other of the run: a score by its file
+    name (plots: its stem), a render folder by its name and its score's, ``o10 (fill6.mid)`` (plots: the folder's
+    name). Rows that would share a name, and plots a stem, take the shortest end of their paths (``source``) that
+    tells them apart: ``a/groove.txt`` and ``b/groove.txt`` (plots ``a_groove``, ``b_groove``), ``x/r1 (groove.txt)``
+    (plots ``x_r1``); a stem still shared (``groove.txt`` and ``groove.mid``) is numbered, ``groove-2``: a plot
+    never replaces another of the same run."""
+    paths = [Path(r.source or r.render or r.name) for r in results]
+
+    def label(r: FileResult, where: str) -> str:  # a render folder's row names its score too
+        return f"{where} ({r.name})" if r.render is not None else where
+
+    names = [label(r, folder_name(path) if r.render is not None else path.name) for r, path in zip(results, paths,
+                                                                                                     strict=True)]
+    tails = _tails_where_shared(names, paths)
+    names = [name if tail is None else label(r, str(tail)) for r, name, tail in zip(results, names, tails,
+                                                                                     strict=True)]
+    stems = [folder_name(path) if r.render is not None else path.stem for r, path in zip(results, paths, strict=True)]
+    tails = _tails_where_shared(stems, paths)
+    stems = [stem if tail is None else _tail_stem(tail, r.render is None)
+             for r, stem, tail in zip(results, stems, tails, strict=True)]
+    for r, name, stem in zip(results, _numbered(names, " #"), _numbered(stems, "-"), strict=True):
+        r.name, r.stem = name, stem
+
+
+def _tail_stem(tail: Path, is_score: bool) -> str:
+    """A path's end as a file name stem: ``a/groove.txt`` -> ``a_groove`` (a score: without its suffix),
+    ``x/r1`` -> ``x_r1``."""
+    parts = [part for part in tail.parts if part != tail.anchor]
+    if is_score and parts:
+        parts[-1] = Path(parts[-1]).stem
+    return "_".join(parts) or "plots"
+
+
+def distinct_inputs(paths: Sequence[Path]) -> list[Path]:
+    """``paths`` without a second mention of one score or render folder (by any spelling: ``r1`` and ``./r1/``),
+    each dropped one named in a warning: evaluated twice, it counted twice in ALL (and in a fit)."""
+    kept: dict[Path, Path] = {}
+    for path in paths:
+        try:
+            key = path.resolve()
+        except (OSError, RuntimeError):  # a symbolic link loop: its spelling, then
+            key = Path(os.path.abspath(path))
+        if key in kept:
+            again = "twice" if str(kept[key]) == str(path) else f"again as {path}"
+            print(f"{PROG}: warning: {kept[key]} is given {again}: evaluated once", file=sys.stderr)
+            continue
+        kept[key] = path
+    return list(kept.values())
+
+
+RENDER_OUTPUTS = ("impacts.csv", "report.json", "performance.wav", "performance.bvh", "performance.mp4",
+                  "performance.glb")
+"""The files `batteur render` writes next to its report.json, none of them a score."""
+
+
+def check_not_render_output(path: Path) -> None:
+    """``ValueError`` when ``path`` is a render's output, not a score: one of :data:`RENDER_OUTPUTS` in a render
+    folder, or an impact log by its header line whatever its name (read as a text score, impacts.csv gave
+    ``line 1: unknown directive 'seq,time,instrument,...'``). Says to give the render folder instead."""
+    from batteur.impact_log import COLUMNS
+
+    if not path.is_file():
+        return  # a folder, or a file missing: told where it is read
+    in_render = (path.parent / "report.json").is_file()
+    if path.name in RENDER_OUTPUTS and in_render:
+        what = f"a render's {path.name}"
+    else:
+        try:
+            with path.open("rb") as handle:
+                head = handle.readline(4096)
+        except OSError:
+            return  # told where the score is read
+        if head.strip() != ",".join(COLUMNS).encode("ascii"):
+            return
+        what = "a render's impact log"
+    folder = f"its render folder: {PROG} {path.parent}" if in_render else "the render folder it came from"
+    raise ValueError(f"{path}: {what}, not a score; give {folder}")
 
 
 def reusable(render_dir: Path, score: Path, opts: Any) -> bool:
@@ -721,7 +855,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--fit-calibration", type=Path, default=None, metavar="FILE",
                         help="fit a calibration (timing offsets, velocity map) from these performances; write JSON")
     parser.add_argument("--list", action="store_true",
-                        help="list every impact: matched or spurious, striker part, velocity, nearest note")
+                        help="list every impact: matched or spurious, striker part, velocity, nearest note "
+                        "(with --json: each file's impact_list)")
     parser.add_argument("--jobs", type=int, default=1, metavar="N",
                         help="render each score on N processes in time segments, as `batteur render --jobs` "
                         "(0: one per CPU; default 1: in one piece)")
@@ -731,13 +866,34 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def nearest_note(result: FileResult, hit: Hit) -> NoteRef | None:
+    """The note nearest ``hit`` in time: on the same object when it has one, else on any; None without notes."""
+    same = [n for n in result.note_refs if n.instrument == hit.instrument] or result.note_refs
+    return min(same, key=lambda n: abs(n.time - hit.time), default=None)
+
+
+def impact_rows(result: FileResult) -> list[dict[str, Any]]:
+    """Every impact as ``--list`` shows it, for the JSON (``--json --list``: ``impact_list``): ``matched`` at 25 ms
+    (else spurious), score time (s), object, striker part, normal velocity (m/s), the :func:`nearest_note` (its
+    index in the score, event, object, time in s) and the impact's offset from it (ms)."""
+    matched = {j for _, j in result.pairs_25}
+    rows = []
+    for j, h in enumerate(result.hits):
+        near = nearest_note(result, h)
+        rows.append({"matched": j in matched, "time_s": round(h.time, 6), "instrument": h.instrument,
+                     "part": h.part, "velocity_m_s": round(h.velocity, 4),
+                     "nearest_note": None if near is None else {
+                         "index": near.index, "event": near.event, "instrument": near.instrument,
+                         "time_s": round(near.time, 6), "offset_ms": round((h.time - near.time) * 1000, 3)}})
+    return rows
+
+
 def impact_listing(result: FileResult) -> list[str]:
     """One line per impact: M(atched)/S(purious), score time, object, striker, velocity, nearest note and offset."""
     matched = {j for _, j in result.pairs_25}
     lines = []
     for j, h in enumerate(result.hits):
-        same = [n for n in result.note_refs if n.instrument == h.instrument] or result.note_refs
-        near = min(same, key=lambda n: abs(n.time - h.time), default=None)
+        near = nearest_note(result, h)
         where = "" if near is None else (f"nearest {near.event} on {near.instrument} at {near.time:.3f} s "
                                          f"({(h.time - near.time) * 1000:+.1f} ms)")
         lines.append(f"  {'M' if j in matched else 'S'} {h.time:+9.3f} s {h.instrument:<10} {h.part:<18} "
@@ -751,6 +907,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.reuse and args.renders is None:  # it reuses renders kept in --renders DIR; without one there are none
         parser.error("--reuse needs --renders DIR (the folder whose renders it reuses)")
+    args.scores = distinct_inputs(args.scores)
     warn_unused_options(args, parser)
     try:
         return _main(args)
@@ -792,6 +949,8 @@ def _main(args: argparse.Namespace) -> int:
     started = time.perf_counter()
     base_calibration, fit_kit = None, None
     try:
+        for path in args.scores:  # before the renders: one input read wrong must not cost them
+            check_not_render_output(path)
         for option, folder in (("--plots", args.plots), ("--renders", args.renders)):
             if folder is not None:  # before the renders: a typo must not cost them
                 check_output_dir(folder, option)
@@ -811,7 +970,9 @@ def _main(args: argparse.Namespace) -> int:
         return report_error(PROG, exc)
     agg = aggregate(results)
     if args.json:
-        print(json.dumps({"files": [r.summary() for r in results], "aggregate": agg,
+        # --list: every impact in each file's figures (a table's listing would not be JSON)
+        files = [{**r.summary(), "impact_list": impact_rows(r)} if args.list else r.summary() for r in results]
+        print(json.dumps({"files": files, "aggregate": agg,
                           "elapsed_s": round(time.perf_counter() - started, 3)}, indent=2))
     else:
         rows = [(r.name, r.summary()) for r in results] + ([("ALL", agg)] if len(results) > 1 else [])

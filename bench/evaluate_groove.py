@@ -37,15 +37,35 @@ GOALS = ("goals (cartesian): F@25 >= 0.99, median |e| <= 3 ms, p95 |e| <= 10 ms,
          "within each sound), RTF >= 2")
 
 
+def validation_rows(root: Path) -> list[dict[str, str]]:
+    """info.csv's rows of the validation split, sorted by file name."""
+    with (root / "info.csv").open(newline="", encoding="utf-8") as handle:
+        rows = [r for r in csv.DictReader(handle) if r["split"] == "validation"]
+    return sorted(rows, key=lambda r: r["midi_filename"])
+
+
+def why_no_files(root: Path, limit: int | None, max_duration: float | None) -> str:
+    """Why :func:`validation_files` found none: info.csv lists none, or the filter that removed those it lists
+    (``--max-duration 0.1`` said "no validation files found" of a folder holding 124)."""
+    rows = validation_rows(root)
+    if not rows:
+        return f"no validation files in {root} (info.csv has no row whose split is validation)"
+    shortest = min(float(r["duration"]) for r in rows)
+    if max_duration is not None and shortest > max_duration:
+        return (f"none of the {len(rows)} validation files in {root} is within --max-duration {max_duration:g} s "
+                f"(the shortest is {shortest:.1f} s; --all takes every one)")
+    return (f"--limit {limit} picks none of the {len(rows)} validation files in {root}"
+            f"{'' if max_duration is None else f' within --max-duration {max_duration:g} s'} (half beats, half "
+            "fills: no file of the kind it takes)")
+
+
 def validation_files(root: Path, limit: int | None, max_duration: float | None) -> list[tuple[Path, float]]:
     """(path, duration s) of the validation split; with ``limit``, a subset of beats and fills.
 
     The subset takes half beats, half fills (each evenly spread over the
     file-name order) among the files no longer than ``max_duration`` seconds.
     """
-    with (root / "info.csv").open(newline="", encoding="utf-8") as handle:
-        rows = [r for r in csv.DictReader(handle) if r["split"] == "validation"]
-    rows.sort(key=lambda r: r["midi_filename"])
+    rows = validation_rows(root)
     if max_duration is not None:
         rows = [r for r in rows if float(r["duration"]) <= max_duration]
     if limit is not None and limit < len(rows):
@@ -138,9 +158,10 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = parse_args(argv)
-    files = validation_files(args.root, None if args.all else args.limit, None if args.all else args.max_duration)
+    limit, max_duration = (None, None) if args.all else (args.limit, args.max_duration)
+    files = validation_files(args.root, limit, max_duration)
     if not files:
-        return report_error("evaluate_groove", f"no validation files found in {args.root}")
+        return report_error("evaluate_groove", why_no_files(args.root, limit, max_duration))
     music = sum(d for _, d in files)
     print(f"Groove MIDI Dataset validation split: {len(files)} files, {music:.1f} s of music"
           f"{' (all)' if args.all else f' (subset: --limit {args.limit}, --max-duration {args.max_duration:g})'}")
