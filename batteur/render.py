@@ -997,8 +997,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="batteur render",
         description="Render a score offline through the same cores as the rig (planner -> physics drummer -> "
-        "interaction -> sound). Writes DIR/performance.wav, DIR/impacts.csv, DIR/performance.bvh and "
-        "DIR/report.json; nothing is written if the run fails. Without SCORE, --strikes renders the strike scene.",
+        "interaction -> sound). Writes DIR/performance.wav, DIR/impacts.csv, DIR/performance.bvh, "
+        "DIR/report.json and a copy of the score as DIR/score.<ext> (its own extension: score.mid, score.txt; "
+        "what `batteur evaluate DIR` judges the render against); nothing is written if the run fails. Without "
+        "SCORE, --strikes renders the strike scene.",
     )
     take_negative_values(parser)
     parser.add_argument("score", nargs="?", type=Path, help="a .mid file or a Batteur text score")

@@ -359,6 +359,22 @@ class UdpEndpoint:
     def closed(self) -> bool:
         return self._transport is None
 
+    def connect(self, to: tuple[str, int]) -> None:
+        """Connect the socket to the one destination ``to`` (as this socket's family addresses it): sends to it
+        still work, and the kernel reports its ICMP errors (port unreachable: nothing listens there) to this socket
+        (:meth:`pending_error`), which it does not for an unconnected UDP socket. ``OSError`` if it cannot be."""
+        addresses = self.destinations(to)
+        if not addresses or self.closed:
+            raise OSError(f"cannot connect to {format_address(*to)}: no address of this socket's family")
+        self._sock.connect(addresses[0])
+
+    def pending_error(self) -> int:
+        """The socket's pending error number (``SO_ERROR``, 0 for none), cleared by reading it: on a connected
+        socket, ``errno.ECONNREFUSED`` once a datagram sent was refused."""
+        if self.closed:
+            return 0
+        return int(self._sock.getsockopt(socket.SOL_SOCKET, socket.SO_ERROR))
+
     # ---------------------------------------------------------------- sending
 
     def send(self, message: OscMessage, to: Target) -> None:

@@ -5,9 +5,11 @@ from __future__ import annotations
 import argparse
 import asyncio
 import collections
+import contextlib
+import logging
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -35,6 +37,12 @@ With --live the file is played in real time through the live recogniser
 (multi-band SuperFlux onsets, each classified from a short context) and each
 hit is sent as OSC /batteur/recogniser/hit to --to HOST:PORT (about 35 ms
 after its onset); --device listens to an audio input instead of a file.
+Something must listen at HOST:PORT: no Batteur service acts on the hits, and
+`batteur echo` subscribes at a node. To watch them, start any node and send
+the hits to it (a warning says when a destination refuses them):
+  batteur interaction --port 9900 --no-discovery --interaction-config none
+  batteur echo --node 127.0.0.1:9900 /batteur/recogniser/hit
+  batteur transcribe groove.wav --live --to 127.0.0.1:9900
 """
 
 EPILOG = """\
@@ -49,6 +57,8 @@ examples:
 
 LONG_FILE_S = 60.0
 """Files longer than this show a progress line, seconds."""
+MIN_DURATION_S = 0.01
+"""Shorter files are refused as too short: one analysis frame (the recognisers' frames are 10 ms), seconds."""
 WARNING = "batteur transcribe: warning:"
 """How a warning begins, as the other commands' do (its errors: ``batteur transcribe: error:``)."""
 
@@ -67,12 +77,15 @@ def build_parser(prog: str = "batteur transcribe") -> argparse.ArgumentParser:
     p.add_argument("--model", type=Path, default=MODEL_PATH, help="model file (default: the shipped one)")
     p.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
     live = p.add_argument_group("live mode")
-    live.add_argument("--live", action="store_true", help="play the file in real time and send hits over OSC")
+    live.add_argument("--live", action="store_true", help="play the file in real time and send hits over OSC to "
+                      "--to (a program must listen there: see above)")
     live.add_argument("--device", nargs="?", const="", default=None, metavar="NAME",
                       help="with --live: listen to an audio input device instead of a file (needs sounddevice)")
     live.add_argument("--seconds", type=seconds, default=None, help="with --device: stop after this long, seconds")
     live.add_argument("--to", action="append", default=[], metavar="HOST:PORT",
-                      help="send /batteur/recogniser/hit here (repeatable; default 127.0.0.1:9900)")
+                      help="send /batteur/recogniser/hit here (repeatable; default 127.0.0.1:9900): a UDP port "
+                      "something listens on, e.g. a node's --port, where `batteur echo --node HOST:PORT "
+                      "/batteur/recogniser/hit` prints them")
     live.add_argument("--speed", type=positive, default=None, help="with --live and a file: play this much faster "
                       "(default 1)")
     return p
@@ -81,6 +94,42 @@ def build_parser(prog: str = "batteur transcribe") -> argparse.ArgumentParser:
 def _summary(events: Sequence[DrumEvent]) -> str:
     counts = collections.Counter(e.cls for e in events)
     return ", ".join(f"{CLASSES[c].name} {counts[c]}" for c in range(len(CLASSES)) if counts[c]) or "none"
+
+
+def _count(n: int, noun: str) -> str:
+    """``1 note``, ``2 notes``, ``0 notes``."""
+    return f"{n} {noun}" if n == 1 else f"{n} {noun}s"
+
+
+def _duration(seconds: float) -> str:
+    """An audio length as the summary gives it: ``10.7 s``; below a second in milliseconds (``12.3 ms``)."""
+    if seconds >= 1.0:
+        return f"{seconds:.1f} s"
+    ms = seconds * 1000
+    return f"{ms:.0f} ms" if ms >= 100 else f"{ms:.3g} ms"  # .3g would write 999.6 as 1e+03
+
+
+def _speed(audio_s: float, elapsed_s: float) -> str:
+    """`` (21x real time)``; nothing for audio under a second, whose time is mostly the fixed start-up cost."""
+    if audio_s < 1.0:
+        return ""
+    factor = audio_s / max(elapsed_s, 1e-9)
+    return f" ({factor:.0f}x real time)" if factor >= 1.0 else f" ({factor:.2g}x real time)"
+
+
+def _check_length(audio: str) -> None:
+    """Refuse a readable audio file shorter than :data:`MIN_DURATION_S` (its one sample would otherwise be
+    called silent); anything else wrong with the file is left to ``load_audio`` to say."""
+    import soundfile as sf
+
+    try:  # a FIFO is not opened (it would wait for a writer)
+        info = sf.info(audio) if Path(audio).is_file() else None
+    except Exception:
+        return
+    if info is not None and info.frames > 0 and info.frames < MIN_DURATION_S * info.samplerate:
+        raise RecogniserError(f"{audio}: too short to transcribe: {_count(info.frames, 'sample')} "
+                              f"({_duration(info.frames / info.samplerate)}); the minimum is "
+                              f"{MIN_DURATION_S * 1000:g} ms, one analysis frame")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -128,6 +177,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             if not _midi_name(args.output):
                 return _refuse_output(args.output, "the transcription is a Standard MIDI File; give a name ending "
                                       f"in {' or '.join(MIDI_SUFFIXES)}")
+        if args.audio:
+            _check_length(args.audio)
         model = load_model(args.model)
         if args.live:
             return _live(args, model, say)
@@ -151,8 +202,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         if long:
             print(file=sys.stderr)
         _write(events, args)
-        say(f"{len(events)} notes ({_summary(events)}) from {duration:.1f} s of audio "
-            f"in {elapsed:.2f} s ({duration / max(elapsed, 1e-9):.0f}x real time) -> {args.output}")
+        say(f"{_count(len(events), 'note')} ({_summary(events)}) from {_duration(duration)} of audio "
+            f"in {elapsed:.2f} s{_speed(duration, elapsed)} -> {args.output}")
         if not events:
             say(f"{WARNING} no drum strike recognised; the MIDI file is empty")
         return 0
@@ -162,7 +213,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except OSError as exc:
         print(f"batteur transcribe: error: {exc}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt:  # the live path handles its own: Ctrl-C is how it stops
+    except KeyboardInterrupt:  # the live path handles its own: it writes what was heard
         print("\nbatteur transcribe: interrupted; nothing written", file=sys.stderr)
         return 130
 
@@ -205,35 +256,68 @@ def _holds_other_data(path: Path) -> bool:
         return False  # check_output_file and the write report what is wrong
 
 
-def _live(args: argparse.Namespace, model: object, say: object) -> int:
+def _live(args: argparse.Namespace, model: object, say: Callable[[str], None]) -> int:
     from services.recogniser.node import LiveReport, listen_device, play_file
 
     targets = args.to or ["127.0.0.1:9900"]
+
+    report = LiveReport()  # filled as hits go, so Ctrl-C keeps them
+    warned: set[str] = set()
+
+    def warn_unreachable() -> None:
+        for target, why in report.unreachable.items():
+            if target not in warned:  # once per destination, not per hit
+                warned.add(target)
+                say(f"{WARNING} --to {target}: the hits sent there are lost ({why}): is anything listening "
+                    "on that port? (`batteur transcribe --help` says how to watch them)")
 
     def on_hit(hit: object, latency: float) -> None:
         if not args.quiet:
             print(f"{hit.time:9.3f} s  {hit.event_type.value:12s} vel {hit.velocity:3d}  "  # type: ignore[attr-defined]
                   f"latency {latency * 1000:5.1f} ms", file=sys.stderr)
+        warn_unreachable()
 
-    report = LiveReport()  # filled as hits go, so Ctrl-C keeps them
-    try:
-        if args.device is not None:
-            asyncio.run(listen_device(targets, model, args.device or None, args.seconds,  # type: ignore[arg-type]
-                                      on_hit=on_hit, report=report))
-        else:
-            asyncio.run(play_file(args.audio, targets, model, speed=args.speed or 1.0,  # type: ignore[arg-type]
-                                  max_duration_s=args.max_duration, on_hit=on_hit, report=report,
-                                  warn=lambda text: say(f"{WARNING} {text}")))  # type: ignore[operator]
-    except KeyboardInterrupt:  # the way to stop listening to a device; a file stops early
-        say("stopped (Ctrl-C)")  # type: ignore[operator]
+    status = 0
+    with _quiet_refusals():
+        try:
+            if args.device is not None:
+                asyncio.run(listen_device(targets, model, args.device or None, args.seconds,  # type: ignore[arg-type]
+                                          on_hit=on_hit, report=report))
+            else:
+                asyncio.run(play_file(args.audio, targets, model, speed=args.speed or 1.0,  # type: ignore[arg-type]
+                                      max_duration_s=args.max_duration, on_hit=on_hit, report=report,
+                                      warn=lambda text: say(f"{WARNING} {text}")))
+        except KeyboardInterrupt:  # the way to stop listening to a device; a file stops early
+            say("stopped (Ctrl-C)")
+            status = 130  # as for any command (README "Exit status"); what was heard is still written
+    warn_unreachable()
     lat = np.asarray(report.latencies_s) * 1000
     if not args.quiet:
         stats = (f"latency median {np.median(lat):.1f} ms, 95th percentile {np.percentile(lat, 95):.1f} ms, "
                  f"max {lat.max():.1f} ms") if lat.size else "no hits"
-        print(f"{len(report.hits)} hits sent to {', '.join(targets)}; {stats}", file=sys.stderr)
+        print(f"{_count(len(report.hits), 'hit')} sent to {', '.join(targets)}; {stats}", file=sys.stderr)
     if args.output is not None:
-        _write(report.events(), args)
-    return 0
+        events = report.events()
+        _write(events, args)
+        say(f"{_count(len(events), 'note')} ({_summary(events)}) -> {args.output}")
+    return status
+
+
+@contextlib.contextmanager
+def _quiet_refusals() -> Iterator[None]:
+    """Keep the transport's "socket error: Connection refused" log lines (one every 5 s) off stderr while hits are
+    sent: the live run says it once itself, naming the destination (:func:`_live`)."""
+    transport_log = logging.getLogger("batteur.transport")
+
+    def keep(record: logging.LogRecord) -> bool:
+        return not (isinstance(record.args, tuple) and any(isinstance(a, ConnectionRefusedError)
+                                                           for a in record.args))
+
+    transport_log.addFilter(keep)
+    try:
+        yield
+    finally:
+        transport_log.removeFilter(keep)
 
 
 if __name__ == "__main__":

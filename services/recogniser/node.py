@@ -9,6 +9,7 @@ import asyncio
 import importlib.util
 import ipaddress
 import logging
+import os
 import socket
 import time
 from collections.abc import Callable, Sequence
@@ -19,7 +20,7 @@ import numpy as np
 
 from common.core import Outgoing
 from common.messages.recogniser import DrumHit
-from common.transport import UdpEndpoint, parse_address
+from common.transport import UdpEndpoint, format_address, parse_address
 from services.recogniser.audio import MAX_DURATION_S, SAMPLE_RATE, load_audio
 from services.recogniser.core import LiveRecogniser
 from services.recogniser.errors import RecogniserError
@@ -40,6 +41,9 @@ class LiveReport:
     latencies_s: list[float] = field(default_factory=list)
     sent: int = 0
     duration_s: float = 0.0
+    unreachable: dict[str, str] = field(default_factory=dict)
+    """Destination ``host:port`` (as given) -> why hits sent there were lost, as the kernel reported it for one of them
+    ("Connection refused": an ICMP port unreachable, nothing listens on that port); each destination once."""
 
     def events(self) -> list[DrumEvent]:
         """The hits as offline events (times from the start of the audio)."""
@@ -92,6 +96,53 @@ async def open_sender(dests: Sequence[tuple[str, int]], bind: str | None) -> Udp
         raise RecogniserError(f"cannot open a UDP socket on {host} to send hits: {exc.strerror or exc}") from exc
 
 
+@dataclass
+class Sender:
+    """A send-only endpoint for one destination, its socket connected to it: the kernel reports a destination's
+    ICMP errors (port unreachable: nothing listens there) only to a connected UDP socket."""
+
+    endpoint: UdpEndpoint
+    dest: tuple[str, int]
+    name: str
+    """The destination as the user gave it (``--to``)."""
+    connected: bool
+
+    def lost(self) -> str | None:
+        """Why datagrams sent to ``dest`` were lost, if the kernel said so since the last call (else None)."""
+        error = self.endpoint.pending_error() if self.connected else 0
+        if error:
+            return os.strerror(error)
+        if self.endpoint.send_errors:  # the event loop's reader took the error first (the endpoint logs it)
+            return "a socket error"
+        return None
+
+
+async def open_senders(targets: Sequence[str], dests: Sequence[tuple[str, int]], bind: str | None) -> list[Sender]:
+    """One :class:`Sender` per target ``host:port`` and its address ``dests`` (:func:`check_targets`), each
+    bound as :func:`open_sender` binds; a socket that cannot be connected still sends, unconnected."""
+    senders: list[Sender] = []
+    try:
+        for name, dest in zip(targets, dests, strict=True):
+            endpoint = await open_sender([dest], bind)
+            senders.append(Sender(endpoint, dest, name, _connect(endpoint, dest)))
+    except BaseException:
+        for sender in senders:
+            sender.endpoint.close()
+        raise
+    return senders
+
+
+def _connect(endpoint: UdpEndpoint, dest: tuple[str, int]) -> bool:
+    """Connect ``endpoint``'s socket to ``dest``; whether it could be. Sends still name ``dest`` (a connected UDP
+    socket accepts its own peer)."""
+    try:
+        endpoint.connect(dest)
+    except OSError as exc:
+        log.debug("hits to %s leave from an unconnected socket: %s", format_address(*dest), exc)
+        return False
+    return True
+
+
 async def play_file(
     path: str | Path,
     targets: Sequence[str],
@@ -116,7 +167,7 @@ async def play_file(
     audio = load_audio(path, max_duration_s=max_duration_s, warn=warn)
     peak = float(np.max(np.abs(audio)))
     core = LiveRecogniser(model or load_model(), gain=PEAK / peak, start_time=0.0)
-    endpoint = await open_sender(dests, bind)
+    senders = await open_senders(targets, dests, bind)
     report = report if report is not None else LiveReport()
     report.duration_s = len(audio) / SAMPLE_RATE
     t0 = time.perf_counter()
@@ -127,31 +178,50 @@ async def play_file(
             # always yield, even when behind: Ctrl-C (a task cancellation) is only delivered at an await
             await asyncio.sleep(max(0.0, t0 + end_s / speed - time.perf_counter()))
             out = core.feed(chunk) if len(chunk) else core.flush()
-            send_hits(out, endpoint, dests, report, t0, speed, on_hit)
+            send_hits(out, senders, report, t0, speed, on_hit)
             if not len(chunk):
                 break
     finally:
-        endpoint.close()
+        close_senders(senders, report)
     return report
 
 
 def send_hits(
-    out: Sequence[Outgoing], endpoint: UdpEndpoint, dests: Sequence[tuple[str, int]], report: LiveReport, t0: float,
+    out: Sequence[Outgoing], senders: Sequence[Sender], report: LiveReport, t0: float,
     speed: float, on_hit: Callable[[DrumHit, float], None] | None,
 ) -> None:
     """Send each detected hit to every target and record it with its latency (seconds since its onset
-    was played: ``t0`` is the perf_counter time of audio time 0, ``speed`` the playback speed)."""
+    was played: ``t0`` is the perf_counter time of audio time 0, ``speed`` the playback speed), and a
+    destination that refuses them in ``report.unreachable`` (before ``on_hit`` hears of the hit)."""
     now = time.perf_counter()
     for o in out:
         assert isinstance(o.message, DrumHit)
-        for d in dests:
-            endpoint.send(o.message, d)
+        for sender in senders:
+            sender.endpoint.send(o.message, sender.dest)
             report.sent += 1
+        note_unreachable(senders, report)
         latency = now - (t0 + o.message.time / speed)
         report.hits.append(o.message)
         report.latencies_s.append(latency)
         if on_hit:
             on_hit(o.message, latency)
+
+
+def note_unreachable(senders: Sequence[Sender], report: LiveReport) -> None:
+    """Record in ``report`` the destinations the kernel said lost hits, each once (on loopback an ICMP port
+    unreachable is pending as soon as the send returns)."""
+    for sender in senders:
+        if sender.name not in report.unreachable:
+            why = sender.lost()
+            if why:
+                report.unreachable[sender.name] = why
+
+
+def close_senders(senders: Sequence[Sender], report: LiveReport) -> None:
+    """Close the senders, after a last look for a destination that refused (the last hit's send)."""
+    note_unreachable(senders, report)
+    for sender in senders:
+        sender.endpoint.close()
 
 
 def input_device_available() -> str | None:
@@ -189,15 +259,15 @@ async def listen_device(
     def callback(indata: np.ndarray, frames: int, time_info: object, status: object) -> None:
         loop.call_soon_threadsafe(queue.put_nowait, indata.mean(axis=1).copy())
 
-    endpoint = await open_sender(dests, bind)
+    senders = await open_senders(targets, dests, bind)
     report = report if report is not None else LiveReport()
     t0 = time.perf_counter()
     try:
         with sounddevice.InputStream(samplerate=SAMPLE_RATE, blocksize=BLOCK, device=device, channels=1,
                                      dtype="float32", callback=callback):
             while seconds is None or time.perf_counter() - t0 < seconds:
-                send_hits(core.feed(await queue.get()), endpoint, dests, report, t0, 1.0, on_hit)
+                send_hits(core.feed(await queue.get()), senders, report, t0, 1.0, on_hit)
     finally:
-        endpoint.close()
+        close_senders(senders, report)
         report.duration_s = time.perf_counter() - t0
     return report

@@ -254,7 +254,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                        "temporary name and given this one when the node stops. {start} in the file name is the "
                        "take's start time, local YYYYmmdd-HHMMSS (take-{start}.wav: take-20260131-201500.wav, "
                        "then -2, -3 ... if that name is taken), so each run keeps its own file; the log says "
-                       "the name")
+                       "the name. Beside it, its name + .json (take.wav.json) gives origin_rig_time_s (the rig time of "
+                       "the first sample, seconds: lines the take up with the rig's impacts), sample_rate_hz, "
+                       "channels and frames")
     group.add_argument("--device", choices=("auto", "none"), default="auto",
                        help="auto: play on the sound card if portaudio finds one; none: never (default auto)")
     group.add_argument("--model", choices=("modal", "sample", "synth"), default="modal",
