@@ -25,6 +25,8 @@ own rate, :attr:`~services.recogniser.framenet.FrameNet.sample_rate`: 44,100 Hz 
 
 MAX_DURATION_S = 3600.0
 """Longest file accepted by default, seconds (one hour)."""
+MIN_DURATION_S = 0.01
+"""Shorter files are refused as too short: one analysis frame (the recognisers' frames are 10 ms), seconds."""
 
 SILENCE_PEAK = 10 ** (-70 / 20)
 """A file whose peak is below this (-70 dBFS) is called silent."""
@@ -178,6 +180,10 @@ def load_audio(path: str | Path, max_duration_s: float = MAX_DURATION_S, sample_
     if info.frames <= 0 or info.samplerate <= 0:
         raise AudioFileError(_unfinished(info.extra_info, p) or f"{p}: the file holds no audio (0 samples)")
     duration = info.frames / info.samplerate
+    if 0 < info.frames < MIN_DURATION_S * info.samplerate:  # its one sample would otherwise be called silent
+        samples = f"{info.frames} sample{'' if info.frames == 1 else 's'}"
+        raise AudioFileError(f"{p}: too short to transcribe: {samples} ({duration * 1000:.3g} ms); the minimum is "
+                             f"{MIN_DURATION_S * 1000:g} ms, one analysis frame")
     if duration > max_duration_s:
         raise AudioFileError(
             f"{p}: {duration:.4g} s long, over the limit of {max_duration_s:.4g} s "

@@ -57,8 +57,6 @@ examples:
 
 LONG_FILE_S = 60.0
 """Files longer than this show a progress line, seconds."""
-MIN_DURATION_S = 0.01
-"""Shorter files are refused as too short: one analysis frame (the recognisers' frames are 10 ms), seconds."""
 WARNING = "batteur transcribe: warning:"
 """How a warning begins, as the other commands' do (its errors: ``batteur transcribe: error:``)."""
 
@@ -117,21 +115,6 @@ def _speed(audio_s: float, elapsed_s: float) -> str:
     return f" ({factor:.0f}x real time)" if factor >= 1.0 else f" ({factor:.2g}x real time)"
 
 
-def _check_length(audio: str) -> None:
-    """Refuse a readable audio file shorter than :data:`MIN_DURATION_S` (its one sample would otherwise be
-    called silent); anything else wrong with the file is left to ``load_audio`` to say."""
-    import soundfile as sf
-
-    try:  # a FIFO is not opened (it would wait for a writer)
-        info = sf.info(audio) if Path(audio).is_file() else None
-    except Exception:
-        return
-    if info is not None and info.frames > 0 and info.frames < MIN_DURATION_S * info.samplerate:
-        raise RecogniserError(f"{audio}: too short to transcribe: {_count(info.frames, 'sample')} "
-                              f"({_duration(info.frames / info.samplerate)}); the minimum is "
-                              f"{MIN_DURATION_S * 1000:g} ms, one analysis frame")
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``transcribe``; returns the exit status (0 ok, 1 error, 2 usage)."""
     parser = build_parser()
@@ -177,8 +160,6 @@ def main(argv: Sequence[str] | None = None) -> int:
             if not _midi_name(args.output):
                 return _refuse_output(args.output, "the transcription is a Standard MIDI File; give a name ending "
                                       f"in {' or '.join(MIDI_SUFFIXES)}")
-        if args.audio:
-            _check_length(args.audio)
         model = load_model(args.model)
         if args.live:
             return _live(args, model, say)
