@@ -605,12 +605,12 @@ def evaluate_scores(paths: Sequence[Path], opts: Any, renders: Path | None, quie
     created = created_folders(renders) if renders is not None else []
     with tempfile.TemporaryDirectory(prefix="batteur-evaluate-") as tmp, remove_if_empty(created):
         base = renders if renders is not None else Path(tmp)
-        for path in paths:
+        for number, path in enumerate(paths):
             if path.is_dir():
                 result = evaluate_render_dir(render_dir_score(path), path)
                 result.render = str(path)
-            else:
-                out = base / path.stem
+            else:  # a temporary render each: two scores of one name must not share a folder
+                out = base / path.stem if renders is not None else base / f"{number}-{path.stem}"
                 if not (reuse and reusable(out, path, opts)):
                     render_score(path, out, opts, quiet=quiet, prog=PROG)  # its warnings name this command
                 result = evaluate_render_dir(path, out)

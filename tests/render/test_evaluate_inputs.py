@@ -79,6 +79,7 @@ def test_two_scores_of_one_name_get_rows_and_plots_of_their_own(tmp_path: Path, 
     _score(Path("b/groove.txt"))
     assert evaluate.main(["a/groove.txt", "b/groove.txt", "--plots", "P", "--quiet"]) == 0
     out, err = capsys.readouterr()
+    assert len(set(renders)) == 2  # each into a temporary folder of its own (was one ``groove`` for both)
     assert _rows(out) == ["a/groove.txt", "b/groove.txt", "ALL"]
     wrote = _wrote(err)
     assert len(set(wrote)) == len(wrote) == 4, err
