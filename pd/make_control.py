@@ -49,12 +49,37 @@ from common.messages.sound import (  # noqa: E402
 )
 from services.graphics.camera import default_camera  # noqa: E402
 
+
+def _master_defaults() -> tuple[float, float]:
+    """(master gain dB, reverb 0..1) of a sound service started by ``batteur sound`` or ``batteur rig``."""
+    from services.sound.core import SoundSettings
+    from services.sound.node import add_arguments
+
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    return float(SoundSettings.model_fields["master_db"].default), float(parser.get_default("reverb"))
+
+
+MASTER_DEFAULTS = _master_defaults()
+
+
+def _damping_defaults() -> dict[str, tuple[float, float]]:
+    """instrument: (sigma0 1/s, sigma1 s) a sound service starts with on the default kit."""
+    from common.kit import load_kit
+    from services.sound.instruments import default_params
+
+    params = {obj.id: default_params(obj) for obj in load_kit("default").objects}
+    return {name: (params[name].damping0, params[name].damping1) for name in INSTRUMENTS}
+
+
 OUT = Path(__file__).with_name("control.pd")
 PORTS = {"physics": 9101, "interaction": 9102, "sound": 9103, "graphics": 9104, "score": 9101}
-"""Default UDP port of each destination (compose.yaml's ports); score messages go to physics by default."""
+"""Default UDP port of each destination (compose.yaml's ports). Score messages go where the physics node's score
+player is: the score port follows the physics port until it is set on its own (``bp-port-score``)."""
 INSTRUMENTS = ("kick", "snare", "hightom", "midtom", "floortom", "hihat", "crash", "ride", "splash", "china",
                "cowbell")
 COLORS = "-262144 -1 -1"
+DAMPING_DEFAULTS = _damping_defaults()
 
 
 def esc(text: str) -> str:
@@ -188,11 +213,19 @@ def build() -> Patch:
     x = 20
     nets: list[tuple[int, int, int]] = []
     """each [netsend] (index, x, y): the services' refusals come back through it"""
+    boxes: dict[str, tuple[int, int]] = {}
+    """role: (its port box, the [t b f] that reconnects it)"""
     for role, port in PORTS.items():
-        p.text(x, 100, role)
+        p.text(x, 100, "score (= physics until set)" if role == "score" else role)
         nb = p.nbx(x, 122, 1, 65535, 6, f"bp-port-{role}")
+        # the box shows the port in use from the start ("set": nothing is sent, the loadbang connects)
+        shown = p.msg(x + 80, 122, f"set {port}")
+        p.connect(load, 0, shown, 0)
+        p.connect(shown, 0, nb, 0)
         tb = p.obj(x, 150, "t b f")
-        p.connect(nb, 0, tb, 0)
+        boxes[role] = (nb, tb)
+        if role != "score":
+            p.connect(nb, 0, tb, 0)
         host = p.obj(x + 60, 180, "symbol 127.0.0.1")
         rh = p.obj(x + 60, 150, "r bp-host")
         p.connect(rh, 0, host, 0)
@@ -214,6 +247,7 @@ def build() -> Patch:
         p.connect(con, 0, net, 0)
         nets.append((net, x, 345))
         x += 230
+    score_follows_physics(p, x - 215, 265, boxes["physics"][0], *boxes["score"])
     # ------------------------------------------------------------ gesture: grip, nuance, style, mode
     y = 390
     p.text(20, y, "GESTURE (score and physics)")
@@ -318,13 +352,19 @@ def build() -> Patch:
     n1 = p.nbx(x3 + 175, yy + 47, 0, 0.001)
     p.connect(s0, 0, n0, 0)
     p.connect(s1, 0, n1, 0)
-    dp = p.obj(x3 + 280, yy + 75, "pack f f")
-    t1 = p.obj(x3 + 280, yy + 47, "t b f")
-    p.connect(n0, 0, dp, 0)
-    p.connect(n1, 0, t1, 0)
-    p.connect(t1, 1, dp, 1)
-    p.connect(t1, 0, dp, 0)
+    # the message takes both values: each is kept (per instrument, see damping_memory) and both sent on a change
+    fire = p.obj(x3 + 280, yy + 75, "t b b")
+    keeps = (p.obj(x3 + 280, yy + 100, "f"), p.obj(x3 + 320, yy + 100, "f"))
+    dp = p.obj(x3 + 280, yy + 125, "pack f f")
+    for k, (number, keep) in enumerate(zip((n0, n1), keeps, strict=True)):
+        order = p.obj(x3 + 280, yy + 22 + 25 * k, "t b f")  # keep the value, then send both
+        p.connect(number, 0, order, 0)
+        p.connect(order, 1, keep, 1)
+        p.connect(order, 0, fire, 0)
+        p.connect(fire, k, keep, 0)  # right to left: sigma0, the pack's hot inlet, last
+        p.connect(keep, 0, dp, k)
     per_instrument(yy + 100, SoundDamping, dp, "ff")
+    damping_memory(p, 1420, 1400, dp, keeps, ((s0, n0), (s1, n1)))
     yy += 160
     p.text(x3, yy, "SOUND - whole rig")
     lat = slider(p, x3, yy + 25, "latency window s (0..0.5)", 0, 0.5, False, "bp-latency")
@@ -336,7 +376,13 @@ def build() -> Patch:
     rn = p.nbx(x3 + 175, yy + 147, 0, 1)
     p.connect(g, 0, gn, 0)
     p.connect(rv, 0, rn, 0)
-    mp = p.obj(x3 + 280, yy + 175, "pack f f")
+    # the pack starts as the sound service does, so moving one control first keeps the other as it is there
+    mp = p.obj(x3 + 280, yy + 175, f"pack {MASTER_DEFAULTS[0]:g} {MASTER_DEFAULTS[1]:g}")
+    for value, controls, row in ((MASTER_DEFAULTS[0], (g, gn), 122), (MASTER_DEFAULTS[1], (rv, rn), 147)):
+        shown = p.msg(x3 + 380, yy + row, f"set {value:g}")  # and the controls show it
+        p.connect(load, 0, shown, 0)
+        for control in controls:
+            p.connect(shown, 0, control, 0)
     t2 = p.obj(x3 + 280, yy + 147, "t b f")
     p.connect(gn, 0, mp, 0)
     p.connect(rn, 0, t2, 0)
@@ -346,6 +392,55 @@ def build() -> Patch:
     graphics_section(p, 20, y2 + 190, load)
     refusals(p, 995, 490, nets)
     return p
+
+
+def damping_memory(p: Patch, x: int, y: int, sent: int, keeps: tuple[int, int],
+                   shown: tuple[tuple[int, int], tuple[int, int]]) -> None:
+    """Remember the damping pair per instrument: it starts at the default kit's values of each instrument
+    (services/sound/instruments.py, what a sound service starts with), is updated by each pair ``sent`` for the
+    chosen instrument, and is recalled into ``keeps`` (the [f]s the message is made of) and ``shown`` (each
+    value's slider and number box) when an instrument is chosen, so moving one slider keeps the other value."""
+    p.text(x, y, "damping per instrument (starts at the default kit's values)")
+    store = p.obj(x, y + 25, "list prepend")
+    p.connect(sent, 0, store, 0)
+    p.connect(p.obj(x + 420, y, "r bp-instrument"), 0, store, 1)
+    trim = p.obj(x, y + 50, "list trim")  # "kick S0 S1": routed by its selector
+    p.connect(store, 0, trim, 0)
+    by_name = p.obj(x, y + 75, "route " + " ".join(DAMPING_DEFAULTS))
+    p.connect(trim, 0, by_name, 0)
+    chosen = p.obj(x, y + 150, "select " + " ".join(DAMPING_DEFAULTS))
+    p.connect(p.obj(x, y + 125, "r bp-instrument"), 0, chosen, 0)
+    split = p.obj(x, y + 285, "unpack f f")
+    for k, (sigma0, sigma1) in enumerate(DAMPING_DEFAULTS.values()):
+        memory = p.obj(x + 150 * (k % 4), y + 200 + 25 * (k // 4), f"list append {sigma0:g} {sigma1:g}")
+        p.connect(by_name, k, memory, 1)
+        p.connect(chosen, k, memory, 0)
+        p.connect(memory, 0, split, 0)
+    for k, (keep, boxes) in enumerate(zip(keeps, shown, strict=True)):
+        p.connect(split, k, keep, 1)
+        show = p.msg(x + 100 * k, y + 310, "set $1")
+        p.connect(split, k, show, 0)
+        for box in boxes:
+            p.connect(show, 0, box, 0)
+
+
+def score_follows_physics(p: Patch, x: int, y: int, physics_box: int, score_box: int, score_tb: int) -> None:
+    """Score messages go to the physics port (the score player is in the physics node) and the score box shows it,
+    until the score port is set on its own (its box or ``bp-port-score``): then it stays where it was set."""
+    follow = p.obj(x, y, "spigot 1")
+    p.connect(physics_box, 0, follow, 0)
+    both = p.obj(x, y + 25, "t f f")  # show first, then reconnect
+    p.connect(follow, 0, both, 0)
+    show = p.msg(x, y + 50, "set $1")
+    p.connect(both, 1, show, 0)
+    p.connect(show, 0, score_box, 0)
+    p.connect(both, 0, score_tb, 0)
+    own = p.obj(x + 50, y, "t f b")  # set on its own: stop following, then reconnect
+    p.connect(score_box, 0, own, 0)
+    stop = p.msg(x + 50, y + 25, "0")
+    p.connect(own, 1, stop, 0)
+    p.connect(stop, 0, follow, 1)
+    p.connect(own, 0, score_tb, 0)
 
 
 CAMERA_PRESETS = ("front", "side", "top", "drummer", "orbit", "free")
