@@ -433,8 +433,36 @@ class ScorePlayer:
             candidate = (base / name).resolve()
             if candidate != base and base in candidate.parents and candidate.is_file():
                 return candidate
+        if not Path(name).suffix:  # "groove" for groove.txt: the one file of that name, whatever its extension
+            found = self._by_stem(name)
+            if len(found) == 1:
+                return found[0]
+            if found:
+                names = ", ".join(sorted(p.name for p in found))
+                raise ScorePlayerError(f"score {name!r}: several files in the score library match ({names}): give "
+                                       "the extension")
         dirs = ", ".join(str(d) for d in self.library)
         raise ScorePlayerError(f"score {name!r}: no such file in the score library ({dirs})")
+
+    def _by_stem(self, name: str) -> list[Path]:
+        """The library's regular files named ``name`` plus any extension (listed, not globbed: a name may hold
+        glob characters), resolved and still inside the library."""
+        found: list[Path] = []
+        for root in self.library:
+            base = root.expanduser().resolve()
+            folder = (base / name).parent.resolve()
+            if folder != base and base not in folder.parents:
+                continue
+            try:
+                entries = list(folder.iterdir())
+            except OSError:  # no such folder in this library
+                continue
+            for entry in entries:
+                target = entry.resolve()
+                if (entry.stem == Path(name).name and entry.suffix and target.is_file() and base in target.parents
+                        and target not in found):
+                    found.append(target)
+        return found
 
     def load(self, name: str | Path, trusted: bool = False) -> Score:
         """Read a score (by library name; ``trusted``: any local path, for the command line) and keep it."""
