@@ -94,8 +94,9 @@ class PdProcess:
         return out
 
     def errors(self) -> list[str]:
-        """Lines that look like Pd errors (object creation failures, bad messages)."""
-        bad = ("couldn't create", "error", "no method", "bad arguments", "stack overflow")
+        """Lines that look like Pd errors (object creation failures, wires between outlets and inlets that do not
+        exist, bad messages)."""
+        bad = ("couldn't create", "error", "no method", "bad arguments", "stack overflow", "connection failed")
         return [line for line in self.lines if any(b in line for b in bad)]
 
     def stop(self) -> None:
