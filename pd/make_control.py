@@ -185,13 +185,25 @@ def choices(p: Patch, x: int, y: int, label: str, values: tuple[str, ...], recei
     return store
 
 
+def show_at_load(p: Patch, load: int, x: int, y: int, value: float, controls: tuple[int, ...]) -> None:
+    """Make ``controls`` (a slider and its number box) show ``value`` from load, the value the panel keeps for
+    them (in a pack): ``set`` changes what they show and sends nothing."""
+    shown = p.msg(x, y, f"set {value:g}")
+    p.connect(load, 0, shown, 0)
+    for control in controls:
+        p.connect(shown, 0, control, 0)
+
+
 def slider(p: Patch, x: int, y: int, label: str, lo: float, hi: float, log: bool, receive: str,
-           integer: bool = False) -> int:
-    """A slider and a number box; returns the object whose outlet gives the value."""
+           integer: bool = False, shows: tuple[int, float] | None = None) -> int:
+    """A slider and a number box; returns the object whose outlet gives the value. ``shows``: ([loadbang], value)
+    when the panel keeps a value for it (:func:`show_at_load`)."""
     p.text(x, y, label)
     s = p.hsl(x, y + 22, lo, hi, log, receive)
     n = p.nbx(x + 175, y + 22, lo, hi)
     p.connect(s, 0, n, 0)
+    if shows is not None:
+        show_at_load(p, shows[0], x + 215, y, shows[1], (s, n))
     if integer:
         i = p.obj(x + 270, y + 22, "i")
         p.connect(n, 0, i, 0)
@@ -379,10 +391,7 @@ def build() -> Patch:
     # the pack starts as the sound service does, so moving one control first keeps the other as it is there
     mp = p.obj(x3 + 280, yy + 175, f"pack {MASTER_DEFAULTS[0]:g} {MASTER_DEFAULTS[1]:g}")
     for value, controls, row in ((MASTER_DEFAULTS[0], (g, gn), 122), (MASTER_DEFAULTS[1], (rv, rn), 147)):
-        shown = p.msg(x3 + 380, yy + row, f"set {value:g}")  # and the controls show it
-        p.connect(load, 0, shown, 0)
-        for control in controls:
-            p.connect(shown, 0, control, 0)
+        show_at_load(p, load, x3 + 380, yy + row, value, controls)  # and the controls show it
     t2 = p.obj(x3 + 280, yy + 147, "t b f")
     p.connect(gn, 0, mp, 0)
     p.connect(rn, 0, t2, 0)
@@ -452,6 +461,18 @@ CAMERA_DEFAULTS = {"azimuth": _DEFAULT_CAMERA["azimuth_deg"], "elevation": _DEFA
 preset), so a slider moved first (sent as ``free`` with every value so far) keeps the framing the page had."""
 
 
+def _plot_defaults() -> dict[str, float]:
+    """The view's tip-height plot at start (services/graphics/core.py): window s, lowest and highest height m."""
+    from services.graphics.core import ViewSettings
+
+    plot = ViewSettings().plot
+    return {key: plot[key] for key in ("window", "z_min", "z_max")}
+
+
+PLOT_DEFAULTS = _plot_defaults()
+"""What the plot pack starts with, in its order (window, z_min, z_max), and its sliders show."""
+
+
 def graphics_section(p: Patch, x: int, y: int, load: int) -> None:
     """The 2009 paper's middle panel: camera, what is drawn, trails, tip-height plot, delay, mode (to graphics)."""
     p.text(x, y, "GRAPHICS - the 3D view (graphics node)")
@@ -466,7 +487,8 @@ def graphics_section(p: Patch, x: int, y: int, load: int) -> None:
             ("target y m (-2..2)", -2, 2, False), ("target z m (0..2)", 0, 2, False)]
     for k, ((label, lo, hi, log), name) in enumerate(zip(rows, CAMERA_DEFAULTS, strict=True)):
         col, row = k % 2, k // 2
-        value = slider(p, x + 300 * col, y + 120 + 60 * row, label, lo, hi, log, f"bp-{name}")
+        value = slider(p, x + 300 * col, y + 120 + 60 * row, label, lo, hi, log, f"bp-{name}",
+                       shows=(load, CAMERA_DEFAULTS[name]))
         order = p.obj(x + 300 * col + 270, y + 142 + 60 * row, "t b f")  # the value first, then send as free
         p.connect(value, 0, order, 0)
         p.connect(order, 1, cam, k + 1)
@@ -487,12 +509,13 @@ def graphics_section(p: Patch, x: int, y: int, load: int) -> None:
     # trails, tip-height plot, delay, mode
     trails = slider(p, x + 700, y + 250, "trails s (0..10; 0 hides)", 0, 10, False, "bp-trails")
     p.connect(trails, 0, sender(p, x + 1000, y + 272, GraphicsTrails, "graphics", "f"), 0)
-    plot = p.obj(x + 1060, y + 510, "pack 4 0.5 1.6")
-    window = slider(p, x + 700, y + 320, "plot window s (0.5..30)", 0.5, 30, True, "bp-plot-window")
+    plot = p.obj(x + 1060, y + 510, "pack " + " ".join(f"{v:g}" for v in PLOT_DEFAULTS.values()))
+    window = slider(p, x + 700, y + 320, "plot window s (0.5..30)", 0.5, 30, True, "bp-plot-window",
+                    shows=(load, PLOT_DEFAULTS["window"]))
     p.connect(window, 0, plot, 0)
-    for k, (label, receive) in enumerate((("plot lowest height m (-1..3)", "bp-plot-zmin"),
-                                          ("plot highest height m (-1..3)", "bp-plot-zmax"))):
-        value = slider(p, x + 700, y + 380 + 60 * k, label, -1, 3, False, receive)
+    for k, (label, receive, key) in enumerate((("plot lowest height m (-1..3)", "bp-plot-zmin", "z_min"),
+                                               ("plot highest height m (-1..3)", "bp-plot-zmax", "z_max"))):
+        value = slider(p, x + 700, y + 380 + 60 * k, label, -1, 3, False, receive, shows=(load, PLOT_DEFAULTS[key]))
         order = p.obj(x + 970, y + 402 + 60 * k, "t b f")
         p.connect(value, 0, order, 0)
         p.connect(order, 1, plot, k + 1)
