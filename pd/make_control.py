@@ -12,10 +12,11 @@ file on disk is what this script writes.
 from __future__ import annotations
 
 import argparse
+import functools
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import get_args
+from typing import Any, get_args
 
 ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
@@ -63,13 +64,56 @@ def _master_defaults() -> tuple[float, float]:
 MASTER_DEFAULTS = _master_defaults()
 
 
-def _damping_defaults() -> dict[str, tuple[float, float]]:
-    """instrument: (sigma0 1/s, sigma1 s) a sound service starts with on the default kit."""
+def _tempo_default() -> float:
+    """The tempo factor the physics node's score player starts with (services/physics/score_player.py)."""
+    from services.physics.score_player import START_TEMPO
+
+    return START_TEMPO
+
+
+def _latency_defaults() -> tuple[float, float]:
+    """(latency window s, picture delay s) of ``batteur sound`` and ``batteur graphics`` (and ``batteur rig``) at
+    start: each node's ``--latency-s``, which the sound core schedules strikes by and the view delays its picture by."""
+    from common.config import NodeSettings
+    from services.graphics.node import GraphicsNodeSettings
+
+    return (float(NodeSettings.model_fields["latency_s"].default),
+            float(GraphicsNodeSettings.model_fields["latency_s"].default))
+
+
+def _trails_default() -> float:
+    """The trails' length, seconds, the view starts with (services/graphics/core.py)."""
+    from services.graphics.core import ViewSettings
+
+    return float(ViewSettings().trails)
+
+
+PARAMS_FIELDS = {"level": ("level_db",), "damping": ("damping0", "damping1")}
+"""The instrument Params fields of a sound parameter not named after them (services/sound/instruments.py)."""
+
+
+@functools.cache
+def _kit_params() -> dict[str, tuple[str, Any]]:
+    """instrument: (kind, Params) a sound service started with ``--kit default`` builds it with."""
     from common.kit import load_kit
     from services.sound.instruments import default_params
 
-    params = {obj.id: default_params(obj) for obj in load_kit("default").objects}
-    return {name: (params[name].damping0, params[name].damping1) for name in INSTRUMENTS}
+    return {obj.id: (obj.kind, default_params(obj)) for obj in load_kit("default").objects}
+
+
+def instrument_starts(model: type[OscMessage]) -> dict[str, tuple[float, ...] | None]:
+    """instrument: the values of the parameter ``model`` sets (in the message's order) a sound service starts it
+    with on the default kit; None for an instrument without that parameter (tension of a cymbal: refused)."""
+    from services.sound.core import PARAM_MESSAGES
+    from services.sound.instruments import KIND_PARAMS
+
+    param = PARAM_MESSAGES[model][0]
+    starts: dict[str, tuple[float, ...] | None] = {}
+    for name in INSTRUMENTS:
+        kind, params = _kit_params()[name]
+        fields = PARAMS_FIELDS.get(param, (param,))
+        starts[name] = tuple(float(getattr(params, f)) for f in fields) if param in KIND_PARAMS[kind] else None
+    return starts
 
 
 OUT = Path(__file__).with_name("control.pd")
@@ -79,7 +123,9 @@ player is: the score port follows the physics port until it is set on its own (`
 INSTRUMENTS = ("kick", "snare", "hightom", "midtom", "floortom", "hihat", "crash", "ride", "splash", "china",
                "cowbell")
 COLORS = "-262144 -1 -1"
-DAMPING_DEFAULTS = _damping_defaults()
+TEMPO_DEFAULT = _tempo_default()
+LATENCY_DEFAULTS = _latency_defaults()
+TRAILS_DEFAULT = _trails_default()
 
 
 def esc(text: str) -> str:
@@ -186,18 +232,19 @@ def choices(p: Patch, x: int, y: int, label: str, values: tuple[str, ...], recei
 
 
 def show_at_load(p: Patch, load: int, x: int, y: int, value: float, controls: tuple[int, ...]) -> None:
-    """Make ``controls`` (a slider and its number box) show ``value`` from load, the value the panel keeps for
-    them (in a pack): ``set`` changes what they show and sends nothing."""
+    """Make ``controls`` (a slider and its number box) show ``value`` from load: the value the panel keeps for
+    them (in a pack), or the service's at start for a value sent alone. ``set`` changes what they show and sends
+    nothing."""
     shown = p.msg(x, y, f"set {value:g}")
     p.connect(load, 0, shown, 0)
     for control in controls:
         p.connect(shown, 0, control, 0)
 
 
-def slider(p: Patch, x: int, y: int, label: str, lo: float, hi: float, log: bool, receive: str,
-           integer: bool = False, shows: tuple[int, float] | None = None) -> int:
-    """A slider and a number box; returns the object whose outlet gives the value. ``shows``: ([loadbang], value)
-    when the panel keeps a value for it (:func:`show_at_load`)."""
+def slider_boxes(p: Patch, x: int, y: int, label: str, lo: float, hi: float, log: bool, receive: str,
+                 integer: bool = False, shows: tuple[int, float] | None = None) -> tuple[int, tuple[int, int]]:
+    """A slider and a number box: (the object whose outlet gives the value, (slider, number box)). ``shows``:
+    ([loadbang], value) the service starts with, or the panel keeps for it, shown from load (:func:`show_at_load`)."""
     p.text(x, y, label)
     s = p.hsl(x, y + 22, lo, hi, log, receive)
     n = p.nbx(x + 175, y + 22, lo, hi)
@@ -207,8 +254,14 @@ def slider(p: Patch, x: int, y: int, label: str, lo: float, hi: float, log: bool
     if integer:
         i = p.obj(x + 270, y + 22, "i")
         p.connect(n, 0, i, 0)
-        return i
-    return n
+        return i, (s, n)
+    return n, (s, n)
+
+
+def slider(p: Patch, x: int, y: int, label: str, lo: float, hi: float, log: bool, receive: str,
+           integer: bool = False, shows: tuple[int, float] | None = None) -> int:
+    """A slider and a number box (:func:`slider_boxes`); returns the object whose outlet gives the value."""
+    return slider_boxes(p, x, y, label, lo, hi, log, receive, integer, shows)[0]
 
 
 def build() -> Patch:
@@ -298,7 +351,8 @@ def build() -> Patch:
     # ------------------------------------------------------------ score: tempo, load, transport
     y2 = y + 500
     p.text(20, y2, "SCORE")
-    tempo = slider(p, 20, y2 + 25, "tempo factor (0.25..4)", 0.25, 4.0, True, "bp-tempo")
+    tempo = slider(p, 20, y2 + 25, "tempo factor (0.25..4)", 0.25, 4.0, True, "bp-tempo",
+                   shows=(load, TEMPO_DEFAULT))
     p.connect(tempo, 0, sender(p, 20, y2 + 70, TempoScale, "score", "f"), 0)
     p.text(330, y2 + 25, "score file (name in the score library \\, or path) - type and press Enter")
     path = p.symbolatom(330, y2 + 47, 30, "bp-score", "-")
@@ -352,9 +406,12 @@ def build() -> Patch:
         ("modes (1..20000)", SoundModes, 1, 20000, True, "bp-modes", True),
     ]
     yy = 250
-    for label, m_, lo, hi, log, receive, integer in rows:
-        src = slider(p, x3, yy, label, lo, hi, log, receive, integer)
+    for k, (label, m_, lo, hi, log, receive, integer) in enumerate(rows):
+        src, row_boxes = slider_boxes(p, x3, yy, label, lo, hi, log, receive, integer)
         per_instrument(yy + 22, m_, src, "i" if integer else "f")
+        # the boxes show the chosen instrument's value (the snare's at load), kept here beside the row
+        instrument_memory(p, 2080, 40 + 340 * k, f"{label.split(' (')[0]} per instrument (starts at the default "
+                          "kit's values)", src, instrument_starts(m_), (), (row_boxes,))
         yy += 80
     # damping: two values in one message
     p.text(x3, yy, "damping sigma0 1/s (0..500) and sigma1 s (0..0.001)")
@@ -376,10 +433,12 @@ def build() -> Patch:
         p.connect(fire, k, keep, 0)  # right to left: sigma0, the pack's hot inlet, last
         p.connect(keep, 0, dp, k)
     per_instrument(yy + 100, SoundDamping, dp, "ff")
-    damping_memory(p, 1420, 1400, dp, keeps, ((s0, n0), (s1, n1)))
+    instrument_memory(p, 1420, 1400, "damping per instrument (starts at the default kit's values)", dp,
+                      instrument_starts(SoundDamping), keeps, ((s0, n0), (s1, n1)))
     yy += 160
     p.text(x3, yy, "SOUND - whole rig")
-    lat = slider(p, x3, yy + 25, "latency window s (0..0.5)", 0, 0.5, False, "bp-latency")
+    lat = slider(p, x3, yy + 25, "latency window s (0..0.5)", 0, 0.5, False, "bp-latency",
+                 shows=(load, LATENCY_DEFAULTS[0]))
     p.connect(lat, 0, sender(p, x3 + 300, yy + 47, SoundLatency, "sound", "f"), 0)
     p.text(x3, yy + 100, "master gain dB (-80..12) and reverb (0..1)")
     g = p.hsl(x3, yy + 122, -80, 12, False, "bp-master")
@@ -403,30 +462,36 @@ def build() -> Patch:
     return p
 
 
-def damping_memory(p: Patch, x: int, y: int, sent: int, keeps: tuple[int, int],
-                   shown: tuple[tuple[int, int], tuple[int, int]]) -> None:
-    """Remember the damping pair per instrument: it starts at the default kit's values of each instrument
-    (services/sound/instruments.py, what a sound service starts with), is updated by each pair ``sent`` for the
-    chosen instrument, and is recalled into ``keeps`` (the [f]s the message is made of) and ``shown`` (each
-    value's slider and number box) when an instrument is chosen, so moving one slider keeps the other value."""
-    p.text(x, y, "damping per instrument (starts at the default kit's values)")
+def instrument_memory(p: Patch, x: int, y: int, label: str, sent: int, starts: dict[str, tuple[float, ...] | None],
+                      keeps: tuple[int, ...], shown: tuple[tuple[int, ...], ...]) -> None:
+    """Remember a sound parameter per instrument: it starts at what a sound service started on the default kit has
+    (``starts``, :func:`instrument_starts`), is updated by each value (or list of values) ``sent`` for the chosen
+    instrument, and is recalled into ``keeps`` (the [f]s a message of several values is made of, so moving one
+    slider keeps the others) and ``shown`` (each value's slider and number box) when an instrument is chosen.
+    An instrument without the parameter (None) shows 0 and keeps nothing: the service refuses what is sent."""
+    p.text(x, y, label)
     store = p.obj(x, y + 25, "list prepend")
     p.connect(sent, 0, store, 0)
     p.connect(p.obj(x + 420, y, "r bp-instrument"), 0, store, 1)
     trim = p.obj(x, y + 50, "list trim")  # "kick S0 S1": routed by its selector
     p.connect(store, 0, trim, 0)
-    by_name = p.obj(x, y + 75, "route " + " ".join(DAMPING_DEFAULTS))
+    takes = [name for name, values in starts.items() if values is not None]
+    by_name = p.obj(x, y + 75, "route " + " ".join(takes))
     p.connect(trim, 0, by_name, 0)
-    chosen = p.obj(x, y + 150, "select " + " ".join(DAMPING_DEFAULTS))
+    chosen = p.obj(x, y + 150, "select " + " ".join(starts))
     p.connect(p.obj(x, y + 125, "r bp-instrument"), 0, chosen, 0)
-    split = p.obj(x, y + 285, "unpack f f")
-    for k, (sigma0, sigma1) in enumerate(DAMPING_DEFAULTS.values()):
-        memory = p.obj(x + 150 * (k % 4), y + 200 + 25 * (k // 4), f"list append {sigma0:g} {sigma1:g}")
-        p.connect(by_name, k, memory, 1)
+    count = len(shown)
+    split = p.obj(x, y + 285, "unpack " + " ".join("f" * count))
+    for k, (name, values) in enumerate(starts.items()):
+        start = (0.0,) * count if values is None else values
+        memory = p.obj(x + 150 * (k % 4), y + 200 + 25 * (k // 4), "list append " + " ".join(f"{v:g}" for v in start))
+        if values is not None:
+            p.connect(by_name, takes.index(name), memory, 1)
         p.connect(chosen, k, memory, 0)
         p.connect(memory, 0, split, 0)
-    for k, (keep, boxes) in enumerate(zip(keeps, shown, strict=True)):
-        p.connect(split, k, keep, 1)
+    for k, boxes in enumerate(shown):
+        if keeps:
+            p.connect(split, k, keeps[k], 1)
         show = p.msg(x + 100 * k, y + 310, "set $1")
         p.connect(split, k, show, 0)
         for box in boxes:
@@ -507,7 +572,8 @@ def graphics_section(p: Patch, x: int, y: int, load: int) -> None:
         p.connect(t, 0, pre, 0)
         p.connect(pre, 0, show, 0)
     # trails, tip-height plot, delay, mode
-    trails = slider(p, x + 700, y + 250, "trails s (0..10; 0 hides)", 0, 10, False, "bp-trails")
+    trails = slider(p, x + 700, y + 250, "trails s (0..10; 0 hides)", 0, 10, False, "bp-trails",
+                    shows=(load, TRAILS_DEFAULT))
     p.connect(trails, 0, sender(p, x + 1000, y + 272, GraphicsTrails, "graphics", "f"), 0)
     plot = p.obj(x + 1060, y + 510, "pack " + " ".join(f"{v:g}" for v in PLOT_DEFAULTS.values()))
     window = slider(p, x + 700, y + 320, "plot window s (0.5..30)", 0.5, 30, True, "bp-plot-window",
@@ -522,7 +588,7 @@ def graphics_section(p: Patch, x: int, y: int, load: int) -> None:
         p.connect(order, 0, plot, 0)
     p.connect(plot, 0, sender(p, x + 1060, y + 540, GraphicsPlot, "graphics", "fff"), 0)
     latency = slider(p, x + 300, y + 320, "picture delay s (0..0.5; = the sound's latency)", 0, 0.5, False,
-                     "bp-view-latency")
+                     "bp-view-latency", shows=(load, LATENCY_DEFAULTS[1]))
     p.connect(latency, 0, sender(p, x + 300, y + 370, GraphicsLatency, "graphics", "f"), 0)
     mode = choices(p, x, y + 320, "view", ("live", "preview"), "bp-view-mode")
     p.connect(mode, 0, sender(p, x, y + 410, GraphicsMode, "graphics", "s"), 0)

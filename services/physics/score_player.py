@@ -189,6 +189,8 @@ PLAN_OVERHEAD_S = 0.01
 PLAN_PER_NOTE_S = 0.001
 """Background plans: planning time per note assumed until plans of at least :data:`PLAN_MEASURED_NOTES` notes
 have been timed (about 0.4 ms alone, more while the physics loop shares the core), seconds."""
+START_TEMPO = 1.0
+"""The tempo factor (``/batteur/score/tempo``) a score player starts with: the score as written."""
 PLAN_MEASURED_NOTES = 20
 """Background plans: plans of at least this many notes give the per-note planning time (smaller ones are mostly
 overhead: their time is kept whole, see :meth:`ScorePlayer._estimate`)."""
@@ -302,7 +304,7 @@ class ScorePlayer:
         self.nuance = Nuance.TENUTO
         self.algorithm = HandAlgorithm.VITERBI
         self.sticking = Sticking.NONE
-        self.tempo = 1.0
+        self.tempo = START_TEMPO
         self.score: Score | None = None
         self.score_path: Path | None = None
         self.state: Literal["idle", "playing", "paused"] = "idle"

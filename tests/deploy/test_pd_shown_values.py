@@ -1,9 +1,11 @@
-"""What the control panel's sliders and number boxes show at load: the value the panel keeps for them.
+"""What the control panel's sliders and number boxes show: the value the panel keeps (or last sent) for them.
 
 A control whose message carries several values (the camera, the tip-height plot, master gain and reverb, the
 damping pair, the transport's position, each destination's port) keeps every value in a pack and sends the others
 as they are when one is moved. Its slider and number box must show what the pack starts with: a camera slider
-showing 0 while the pack holds the view's 18 degrees tells the user something the panel does not send.
+showing 0 while the pack holds the view's 18 degrees tells the user something the panel does not send. A slider
+whose message carries its value alone (tempo, latency window, trails, picture delay) shows what the service starts
+with; the sound rows (level, radius, tension, density, modes, damping) show the chosen instrument's values.
 """
 
 from __future__ import annotations
@@ -11,46 +13,76 @@ from __future__ import annotations
 import argparse
 import math
 import re
+import socket
 from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
 
 import pytest
 
+from common.messages import parse_packet
 from services.graphics.camera import default_camera
 from tests.deploy.pdrun import PD_DIR, PdProcess, require_pd
+from tests.ports import free_port
 
 pytestmark = pytest.mark.timeout(120)
 
-SENT_ALONE = frozenset({"bp-tempo", "bp-level", "bp-radius", "bp-tension", "bp-density", "bp-modes", "bp-latency",
-                        "bp-trails", "bp-view-latency"})
-"""Sliders whose message carries their value alone: the panel keeps nothing for them, so nothing to show."""
-
 BOX = re.compile(r"^#X obj \d+ \d+ (hsl|nbx) ")
+
+PER_INSTRUMENT = {"bp-level": ("level", "level_db"), "bp-radius": ("radius", "radius"),
+                  "bp-tension": ("tension", "tension"), "bp-density": ("density", "density"),
+                  "bp-modes": ("n_modes", "n_modes"), "bp-sigma0": ("damping", "damping0"),
+                  "bp-sigma1": ("damping", "damping1")}
+"""The sound rows that act on the chosen instrument: control -> (the sound service's parameter, its Params field)."""
+
+
+def _instrument_values(name: str) -> dict[str, float]:
+    """What the sound service starts instrument ``name`` of the default kit with, by control; 0 for a parameter
+    the instrument does not have (tension and density of a cymbal), which the service refuses."""
+    from common.kit import load_kit
+    from services.sound.instruments import KIND_PARAMS, default_params
+
+    obj = next(obj for obj in load_kit("default").objects if obj.id == name)
+    params = default_params(obj)
+    return {control: float(getattr(params, field)) if param in KIND_PARAMS[obj.kind] else 0.0
+            for control, (param, field) in PER_INSTRUMENT.items()}
+
+
+def _tempo_at_start() -> float:
+    """The tempo factor the physics node's score player starts with (a stand-in core: it reads only settings)."""
+    from services.physics.core import PhysicsSettings
+    from services.physics.score_player import ScorePlayer
+
+    core: Any = SimpleNamespace(settings=PhysicsSettings())
+    return float(ScorePlayer(core).tempo)
 
 
 def _kept_values() -> dict[str, float]:
     """What the panel keeps at load for each control (by receive name), from the sources the services start with:
-    compose.yaml's ports, the view's default camera and plot, ``batteur sound``'s master, the default kit's damping
-    of the snare (the instrument chosen at load), position 0."""
-    from common.kit import load_kit
+    compose.yaml's ports, the score player's tempo, the view's default camera, plot, trails and delay (the node's
+    latency window), ``batteur sound``'s latency window and master, the default kit's snare (the instrument chosen
+    at load), position 0."""
+    from common.config import NodeSettings
     from services.graphics.core import ViewSettings
+    from services.graphics.node import GraphicsNodeSettings
     from services.sound.core import SoundSettings
-    from services.sound.instruments import default_params
     from services.sound.node import add_arguments
 
     camera = default_camera()
-    plot = ViewSettings().plot
+    view = ViewSettings()
     parser = argparse.ArgumentParser()
     add_arguments(parser)
-    snare = default_params(next(obj for obj in load_kit("default").objects if obj.id == "snare"))
     return {
         "bp-port-physics": 9101, "bp-port-interaction": 9102, "bp-port-sound": 9103, "bp-port-graphics": 9104,
-        "bp-port-score": 9101, "bp-position": 0.0,
-        "bp-sigma0": snare.damping0, "bp-sigma1": snare.damping1,
+        "bp-port-score": 9101, "bp-position": 0.0, "bp-tempo": _tempo_at_start(),
+        **_instrument_values("snare"),
+        "bp-latency": NodeSettings.model_fields["latency_s"].default,
         "bp-master": SoundSettings.model_fields["master_db"].default, "bp-reverb": parser.get_default("reverb"),
         "bp-azimuth": camera["azimuth_deg"], "bp-elevation": camera["elevation_deg"],
         "bp-distance": camera["distance"], "bp-target-x": camera["target"][0], "bp-target-y": camera["target"][1],
-        "bp-target-z": camera["target"][2],
-        "bp-plot-window": plot["window"], "bp-plot-zmin": plot["z_min"], "bp-plot-zmax": plot["z_max"],
+        "bp-target-z": camera["target"][2], "bp-trails": view.trails,
+        "bp-plot-window": view.plot["window"], "bp-plot-zmin": view.plot["z_min"], "bp-plot-zmax": view.plot["z_max"],
+        "bp-view-latency": GraphicsNodeSettings.model_fields["latency_s"].default,
     }
 
 
@@ -64,6 +96,11 @@ class Box:
         self.log = tokens[9] == "1"
         self.receive = tokens[12]
         self.name = self.receive  # a number box with no receive name is named after the slider that feeds it
+
+    @property
+    def control(self) -> str:
+        """The receive name of the control (the slider's, for its number box)."""
+        return self.name.removesuffix(" (number box)")
 
     def tolerance(self, value: float) -> float:
         """How far the value read back may be from ``value``: a slider holds its position in 1/100 pixel (of
@@ -110,29 +147,98 @@ def _probed(tmp_path: Path) -> tuple[Path, list[Box], list[str]]:
     return panel, list(boxes.values()), bangs
 
 
-def test_every_slider_and_number_box_shows_the_value_the_panel_keeps_for_it(tmp_path: Path) -> None:
-    """At load each slider and number box shows what the panel would send for it were another value of its message
-    moved: the ports, position, the snare's damping, master and reverb, the view's camera and plot. The camera and
-    plot sliders used to show 0 (the distance slider its 0.5 end) while their packs held 0, 18, 3 m ... and 4 s,
-    0.5 m, 1.6 m."""
+def _shown(tmp_path: Path, chosen: tuple[str, ...] = ()) -> tuple[list[Box], list[dict[int, float]]]:
+    """The panel's boxes and what each shows (by index): at load, then after choosing each instrument of
+    ``chosen`` in turn."""
     require_pd()
     panel, boxes, bangs = _probed(tmp_path)
-    pd = PdProcess(panel, sends=bangs, extra=["-open", str(tmp_path / "probe.pd")])
+    sends = [*bangs]
+    for name in chosen:
+        sends += [f"bp-instrument symbol {name}", *bangs]
+    rounds = 1 + len(chosen)
+    pd = PdProcess(panel, sends=sends, extra=["-open", str(tmp_path / "probe.pd")])
     try:
-        pd.wait_for(lambda _: all(pd.printed(f"shown-{box.index}") for box in boxes))
+        pd.wait_for(lambda _: all(len(pd.printed(f"shown-{box.index}")) >= rounds for box in boxes))
     finally:
         pd.stop()
     assert pd.errors() == [], "\n".join(pd.lines)
-    expected = _kept_values()
-    names = {box.name.removesuffix(" (number box)") for box in boxes}
-    assert names == set(expected) | SENT_ALONE, "a control the test does not know: what does the panel keep for it?"
+    shown = [{box.index: float(pd.printed(f"shown-{box.index}")[k][0]) for box in boxes} for k in range(rounds)]
+    return boxes, shown
+
+
+def _wrong(boxes: list[Box], shown: dict[int, float], expected: dict[str, float]) -> dict[str, tuple[float, float]]:
+    """(shown, expected) of each box of a control in ``expected`` that shows another value."""
     wrong = {}
     for box in boxes:
-        control = box.name.removesuffix(" (number box)")
-        if control in SENT_ALONE:
+        if box.control not in expected:
             continue
-        shown = float(pd.printed(f"shown-{box.index}")[0][0])
-        value = float(expected[control])
-        if abs(shown - value) > box.tolerance(value) + 1e-12:
-            wrong[box.name] = (shown, value)
+        value = float(expected[box.control])
+        if abs(shown[box.index] - value) > box.tolerance(value) + 1e-12:
+            wrong[box.name] = (shown[box.index], value)
+    return wrong
+
+
+def test_every_slider_and_number_box_shows_the_value_the_panel_keeps_for_it(tmp_path: Path) -> None:
+    """At load each slider and number box shows what the panel would send for it were another value of its message
+    moved, or what the service it drives starts with: the ports, position, the snare's sound (level, radius,
+    tension, density, modes, damping), master and reverb, the view's camera, plot, trails and picture delay, the
+    tempo, the latency window. The camera and plot sliders used to show 0 (the distance slider its 0.5 end) while
+    their packs held 0, 18, 3 m ... and 4 s, 0.5 m, 1.6 m; tempo, the snare's rows, the latency window, trails and
+    picture delay showed 0 or their left end (tempo 0.25) instead of 1, 0 dB, 0.178 m ..., 0.05 s, 1 s, 0.05 s."""
+    boxes, (shown,) = _shown(tmp_path)
+    expected = _kept_values()
+    assert {box.control for box in boxes} == set(expected), \
+        "a control the test does not know: what does the panel keep for it?"
+    wrong = _wrong(boxes, shown, expected)
     assert wrong == {}, f"(shown, kept) of each control that shows another value than the panel keeps: {wrong}"
+
+
+CHOSEN = ("kick", "crash", "cowbell", "hihat", "snare")
+"""A drum, a cymbal, the bell, the hi-hat, and back to the snare chosen at load."""
+
+
+def test_choosing_an_instrument_shows_its_values_in_the_sound_rows(tmp_path: Path) -> None:
+    """The sound rows act on the chosen instrument: choosing another shows its values (the kit's, as the sound
+    service starts it), a cymbal's tension and density 0 (it has none: the service refuses them). The level,
+    radius, tension, density and modes rows used to keep showing what they showed before (0 at load)."""
+    boxes, shown = _shown(tmp_path, CHOSEN)
+    for name, values in zip(CHOSEN, shown[1:], strict=True):
+        expected = _instrument_values(name)
+        assert {box.control for box in boxes} >= set(expected)
+        wrong = _wrong(boxes, values, expected)
+        assert wrong == {}, f"{name}: (shown, the instrument's) of each sound row that shows another value: {wrong}"
+
+
+def _sent_tension(sends: list[str], count: int) -> list[tuple[str, float]]:
+    """The (instrument, value) of the first ``count`` tension messages the panel sends to a stand-in sound service
+    on a loopback port, driven by ``sends`` (raw OSC: a value the models refuse is seen as sent)."""
+    require_pd()
+    port = free_port()
+    got: list[tuple[str, float]] = []
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        sock.bind(("127.0.0.1", port))
+        sock.settimeout(15)
+        pd = PdProcess(PD_DIR / "control.pd", sends=[f"bp-port-sound {port}", *sends])
+        try:
+            while len(got) < count:
+                try:
+                    data = sock.recv(65536)
+                except TimeoutError:
+                    raise AssertionError(f"got only {got}:\n" + "\n".join(pd.lines)) from None
+                got += [(str(m.args[0]), float(m.args[1])) for m in parse_packet(data)
+                        if m.address == "/batteur/sound/tension"]
+        finally:
+            pd.stop()
+    return got
+
+
+def test_a_value_sent_for_an_instrument_is_shown_again_when_it_is_chosen_again() -> None:
+    """The panel remembers what it sent for each instrument: the kick's tension set to 800 is back (and sent by
+    its slider) when the kick is chosen again after the snare, which shows the kit's; a tension sent for the crash
+    (refused: a cymbal has none) is not kept, the crash shows 0 again."""
+    sends = ["bp-instrument symbol kick", "bp-tension 800", "bp-instrument symbol crash", "bp-tension 500",
+             "bp-instrument symbol snare", "bp-tension bang", "bp-instrument symbol kick", "bp-tension bang",
+             "bp-instrument symbol crash", "bp-tension bang"]
+    snare = _instrument_values("snare")["bp-tension"]
+    assert _sent_tension(sends, 5) == [("kick", 800), ("crash", 500), ("snare", pytest.approx(snare, rel=1e-4)),
+                                       ("kick", 800), ("crash", 0)]
