@@ -3,14 +3,19 @@
 
 from __future__ import annotations
 
+import socket
+
 import pytest
 
 from batteur.tools import send
+from common.messages import decode
+from common.messages.score import ScoreTransport
 
 
 @pytest.mark.parametrize(("args", "takes"), [
     (["/batteur/sound/master", "0.5"], "GAIN_DB REVERB"),
-    (["/batteur/score/transport", "play", "0"], "ACTION TIME_WHOLE_S TIME_FRACTION POSITION"),  # a rig time is two
+    (["/batteur/score/transport", "play"],  # a rig time is two on the wire, or one number of seconds
+     "ACTION TIME_WHOLE_S TIME_FRACTION POSITION (or TIME_S for TIME_WHOLE_S TIME_FRACTION)"),
     (["/batteur/hello", "sound", "n1", "1", "9000", "extra"], "ROLE NODE_ID PROTOCOL OSC_PORT"),
 ])
 def test_a_wrong_number_of_arguments_names_those_the_message_takes(args: list[str], takes: str,
@@ -19,3 +24,15 @@ def test_a_wrong_number_of_arguments_names_those_the_message_takes(args: list[st
     err = capsys.readouterr().err.strip()
     assert err.startswith(f"batteur send: error: wrong_arity: {args[0]}: expected "), err
     assert err.endswith(f"; {args[0]} takes {takes}"), err
+
+
+@pytest.mark.parametrize("args", [["play", "12.25", "1.5"], ["play", "12", "0.25", "1.5"]])
+def test_a_rig_time_may_be_one_number_of_seconds(args: list[str]) -> None:
+    """As docs/physics.md writes it (``/batteur/score/transport play TIME POSITION``): was wrong_arity, "expected 4
+    arguments, got 3"; the wire's two numbers still work."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as node:
+        node.bind(("127.0.0.1", 0))
+        node.settimeout(5)
+        to = f"127.0.0.1:{node.getsockname()[1]}"
+        assert send.main(["/batteur/score/transport", *args, "--to", to]) == 0
+        assert decode(node.recv(65536)).messages == [ScoreTransport(action="play", time=12.25, position=1.5)]

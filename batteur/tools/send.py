@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import math
 import re
 import select
 import socket
@@ -61,14 +62,40 @@ def guess_arg(text: str) -> Arg:
 
 def arguments(model: type[OscMessage]) -> str:
     """The arguments a message takes, as a usage line names them: ``ACTION TIME_WHOLE_S TIME_FRACTION POSITION``
-    (a rig time is two), ``NAME...`` for a list at the end."""
+    (a rig time is two on the wire), ``NAME...`` for a list at the end; `` (or TIME_S for TIME_WHOLE_S
+    TIME_FRACTION)`` when a rig time may be given as one number of seconds (:func:`split_times`)."""
     names: list[str] = []
     for f in model.wire_fields():
         name = f.name.upper()
         names += [f"{name}_WHOLE_S", f"{name}_FRACTION"] if f.kind is WireKind.TIME else [name]
         if f.variadic:
             names[-1] += "..."
-    return " ".join(names)
+    times = [f.name.upper() for f in model.wire_fields() if f.kind is WireKind.TIME]
+    one = "" if not times or model.wire_fields()[-1].variadic else " (or " + ", ".join(
+        f"{t}_S for {t}_WHOLE_S {t}_FRACTION" for t in times) + ")"
+    return " ".join(names) + one
+
+
+def split_times(model: type[OscMessage], texts: Sequence[str]) -> list[str] | None:
+    """``texts`` with each rig time given as one number of seconds (``play 12.25 0``) split into the whole seconds
+    and fraction the wire carries (``play 12 0.25 0``); None unless ``texts`` has exactly one value per field, each
+    time a finite number (then they are taken as given, the wire's form)."""
+    fields = model.wire_fields()
+    if not fields or fields[-1].variadic or len(texts) != len(fields):
+        return None
+    if not any(f.kind is WireKind.TIME for f in fields):
+        return None
+    out: list[str] = []
+    for f, text in zip(fields, texts, strict=True):
+        if f.kind is not WireKind.TIME:
+            out.append(text)
+            continue
+        value = guess_arg(text)
+        if isinstance(value, str) or not math.isfinite(value):
+            return None
+        whole = math.floor(value)
+        out += [str(int(whole)), repr(float(value - whole))]
+    return out
 
 
 def typed_args(address: str, texts: Sequence[str]) -> list[Arg]:
@@ -76,6 +103,7 @@ def typed_args(address: str, texts: Sequence[str]) -> list[Arg]:
     model = REGISTRY.get(address)
     if model is None:
         return [guess_arg(t) for t in texts]
+    texts = split_times(model, texts) or texts
     kinds: list[WireKind] = []
     for f in model.wire_fields():
         if f.kind is WireKind.TIME:
