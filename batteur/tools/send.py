@@ -171,8 +171,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     take_negative_values(parser)
     parser.add_argument("address", help=f"OSC address, e.g. {EXAMPLE_ADDRESS}")
-    parser.add_argument("args", nargs="*", help="the message's arguments, in order (a rig time is two: "
-                        "whole seconds, then the fraction)")
+    parser.add_argument("args", nargs="*", help="the message's arguments, in order (a rig time is one number of "
+                        "seconds, or two as on the wire: whole seconds, then the fraction)")
     parser.add_argument("--to", required=True,
                         help="HOST:PORT ([::1]:9000 for IPv6), or a role (physics, sound, ...) found by discovery: "
                         "every node of that role")
