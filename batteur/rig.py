@@ -6,14 +6,15 @@ epoch (so all local nodes share one rig clock), static peers for the others
 (so the rig works where loopback has no multicast; ``--no-static-peers``
 leaves finding each other to zeroconf alone) and, unless ``--no-discovery``,
 zeroconf discovery on the given interfaces.
-Output lines are prefixed with the role. Ctrl-C (SIGINT), SIGTERM or SIGHUP
+Each service's output lines are prefixed with its role, its stdout on the rig's stdout and its stderr (its log)
+on the rig's stderr. Ctrl-C (SIGINT), SIGTERM or SIGHUP
 stops every child with SIGTERM, waits up to ``--stop-timeout`` seconds, then
 kills what is left; what a service leaves in its process group (planning
 processes, a resource tracker) is stopped once it has exited, and the rig reads
 output for at most ``DRAIN_S`` more seconds, so no grandchild holding the output
 pipe keeps it running. If one service exits, the others are stopped too.
-``--record DIR``: sound writes ``DIR/.performance.part.wav``, renamed to
-``DIR/performance.wav`` once sound has stopped cleanly (removed otherwise).
+``--record DIR``: sound records to ``DIR/performance.wav`` (under a hidden part name until it stops; it names the
+take only when it stops cleanly, so a take cut short never replaces an earlier one, and the rig removes the part).
 The graphics view listens on TCP ``--http-port`` (default 8080; a second rig on
 the same machine needs another). On Linux the services get SIGTERM when the
 rig itself dies, even by SIGKILL, so none is left running as an orphan.
@@ -72,9 +73,8 @@ DRAIN_S = 2.0
 """Seconds the rig still reads a service's output once every service has exited and its process group was
 killed: a grandchild that left the group (its own session) may hold the pipe open for good."""
 RECORDING = "performance.wav"
-RECORDING_PART = ".performance.part.wav"
-"""What sound writes while it runs; renamed to RECORDING once sound has stopped cleanly, so a failed rig leaves
-no partial recording (nor replaces an earlier one)."""
+"""What sound records to (``--wav DIR/performance.wav``): it writes a hidden part file beside it and gives it this
+name only once it has stopped cleanly, so a failed rig leaves no partial recording (nor replaces an earlier one)."""
 READY_POLL_S = 0.5
 """Seconds between Hellos to a service that has not answered one yet (``--score``)."""
 READY_PROGRESS_S = 5.0
@@ -155,7 +155,7 @@ def role_args(role: str, opts: argparse.Namespace) -> list[str]:
             args += ["--scene", "strike", "--strike-period", repr(opts.strike_period),
                      "--strike-velocity", repr(opts.strike_velocity)]
     if role == "sound" and opts.record:
-        args += ["--wav", str(Path(opts.record) / RECORDING_PART)]
+        args += ["--wav", str(Path(opts.record) / RECORDING)]
     if role == "graphics":
         args += ["--http-port", str(opts.http_port)]
     for item in getattr(opts, f"{role}_arg") or []:
@@ -281,7 +281,8 @@ class Rig:
         """Services that ended on their own with a non-zero code or could not start, in the order they did."""
         self.arm_child = stop_with_the_rig()
 
-    async def _pump(self, role: str, stream: asyncio.StreamReader | None) -> None:
+    async def _pump(self, role: str, stream: asyncio.StreamReader | None, to: Output) -> None:
+        """Copy a service's output to ``to``, line by line with its role in front (one write each: whole lines)."""
         if stream is None:
             return
         width = max(len(p.role) for p in self.plans)
@@ -292,7 +293,9 @@ class Rig:
                 continue
             if not line:
                 return
-            self.out.write(f"[{role:<{width}}] {line.decode(errors='replace')}")
+            text = line.decode(errors="replace")
+            # a last line cut short is ended here, else the next line written would be glued to it
+            to.write(f"[{role:<{width}}] {text}" + ("" if text.endswith("\n") else "\n"))
 
     async def _watch(self, role: str, proc: asyncio.subprocess.Process) -> None:
         code = await exited(proc)
@@ -307,7 +310,7 @@ class Rig:
     async def _start(self, plan: ServicePlan) -> asyncio.subprocess.Process | None:
         try:
             proc = await asyncio.create_subprocess_exec(
-                *plan.argv(), stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.STDOUT,
+                *plan.argv(), stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE,
                 start_new_session=True,  # Ctrl-C reaches the rig only; the rig stops the children in order
                 preexec_fn=self.arm_child,
                 limit=self.LINE_LIMIT,
@@ -335,7 +338,8 @@ class Rig:
                 if proc is None:
                     break
                 self.procs[plan.role] = proc
-                tasks.append(asyncio.create_task(self._pump(plan.role, proc.stdout)))
+                tasks.append(asyncio.create_task(self._pump(plan.role, proc.stdout, self.out)))
+                tasks.append(asyncio.create_task(self._pump(plan.role, proc.stderr, self.err)))
                 tasks.append(asyncio.create_task(self._watch(plan.role, proc)))
             if self.ready is not None and len(self.procs) == len(self.plans) and not self.stopping.is_set():
                 waiting = asyncio.create_task(self._wait_ready(self.ready, launched))
@@ -651,24 +655,35 @@ def make_record_dir(opts: argparse.Namespace) -> None:
         raise ValueError(f"--record {opts.record}: cannot create it ({exc.strerror or exc})") from None
 
 
-def finish_recording(folder: Path, sound_stopped_cleanly: bool, out: Output, err: Output) -> None:
-    """Give sound's recording its name once sound stopped cleanly (the file is whole); else remove it, since it may
-    be cut short, and leave an earlier recording in place."""
-    part = folder / RECORDING_PART
-    meta = part.with_name(part.name + ".json")
-    unfinished = list(folder.glob(f".{RECORDING_PART}.*.part"))  # what sound writes into until it closes the file
+RecordingState = tuple[int, int, int] | None
+"""(device, inode, modification time in ns) of ``DIR/performance.wav``; None: no such file."""
+
+
+def recording_state(folder: Path) -> RecordingState:
+    """What ``folder``'s recording is now: sound's clean stop names a new file there (a new inode)."""
+    try:
+        st = (folder / RECORDING).stat()
+    except OSError:
+        return None
+    return st.st_dev, st.st_ino, st.st_mtime_ns
+
+
+def finish_recording(folder: Path, sound_stopped_cleanly: bool, out: Output, err: Output,
+                     before: RecordingState = None) -> None:
+    """Say where sound's recording is (sound names it itself once it has stopped cleanly; ``before``: the
+    recording's :func:`recording_state` at launch). Else remove what sound was writing into, since it may be cut
+    short: an earlier recording stays in place."""
+    recorded = recording_state(folder) not in (None, before)
     if not sound_stopped_cleanly:
-        for leftover in (part, meta, *unfinished):
+        for leftover in folder.glob(f".{RECORDING}.*.part"):  # what sound writes into until it names the file
             leftover.unlink(missing_ok=True)
-        err.write(f"batteur rig: sound did not stop cleanly; its recording was discarded ({folder / RECORDING} "
-                  "not written)\n")
-        return
-    if not part.exists():
+        if not recorded:
+            err.write(f"batteur rig: sound did not stop cleanly; its recording was discarded ({folder / RECORDING} "
+                      "not written)\n")
+            return
+    if not recorded:
         err.write(f"batteur rig: nothing recorded in {folder} (sound did not start recording)\n")
         return
-    if meta.exists():
-        os.replace(meta, folder / f"{RECORDING}.json")
-    os.replace(part, folder / RECORDING)
     out.write(f"batteur rig: recorded {folder / RECORDING}\n")
 
 
@@ -676,10 +691,11 @@ async def run_rig(plans: list[ServicePlan], opts: argparse.Namespace, ready: Rea
     """Run the rig (``ready``: wait for the services to be up), then name or discard the recording (still under the
     rig's signal handlers)."""
     rig = Rig(plans, opts.stop_timeout, ready=ready)
+    before = recording_state(Path(opts.record)) if opts.record is not None else None
     code = await rig.run(opts.duration)
     if opts.record is not None:  # the WAV is whole only when sound closed it itself
-        finish_recording(Path(opts.record), rig.stopped_cleanly("sound") and rig.exit_codes["sound"] == 0,
-                         rig.out, rig.err)
+        finish_recording(Path(opts.record), rig.stopped_cleanly("sound") and rig.exit_codes.get("sound") == 0,
+                         rig.out, rig.err, before)
     return code
 
 

@@ -239,15 +239,15 @@ def _prepare(core: PhysicsCore, settings: PhysicsNodeSettings) -> None:
 
 def start_score(node: Node) -> None:
     """Once the node listens: play ``--score`` from rig time ``--play-at`` (a node up too late for its first note
-    starts the whole score later, with its lead-in, and says so; a score that cannot be played is logged, the node
-    keeps running)."""
+    starts the whole score later, with its lead-in, and says so at INFO: a scene ready after ``--play-at`` is the
+    normal start of a rig on a loaded machine; a score that cannot be played is logged, the node keeps running)."""
     settings, core = node.settings, node.core
     if not isinstance(settings, PhysicsNodeSettings) or not isinstance(core, PhysicsCore):
         return
     if not settings.score or settings.play_at is None:
         return
     try:
-        core.score_player.play(settings.play_at, 0.0, node.clock.now(), whole=True)
+        core.score_player.play(settings.play_at, 0.0, node.clock.now(), whole=True, start_up=True)
     except ValueError as exc:
         log.error("cannot play %s: %s", settings.score, exc)
 

@@ -524,16 +524,18 @@ class ScorePlayer:
 
     # ------------------------------------------------------------------ transport
 
-    def play(self, at: float, position: float, now: float, whole: bool = False) -> GesturePlan:
+    def play(self, at: float, position: float, now: float, whole: bool = False, start_up: bool = False
+             ) -> GesturePlan:
         """Play the loaded score from ``position`` (score seconds as written) with that note at rig time ``at``;
         ``whole``: if that note can no longer be prepared by then, the whole score later rather than the notes too
-        close left out (a node's ``--play-at``)."""
-        prepared = self._prepare_play(at, position, now, 0.0, whole)
+        close left out (a node's ``--play-at``); ``start_up``: the node's own ``--play-at``, whose time is often past
+        once its scene is ready (seconds to build): a later start is said at INFO, not as a warning."""
+        prepared = self._prepare_play(at, position, now, 0.0, whole, start_up)
         prepared.announce()
         return prepared.commit(self._plan(prepared.events, prepared.beats, prepared.lead_in), prepared.t_s)
 
-    def _prepare_play(self, at: float, position: float, now: float, delay_s: float, whole: bool = False
-                      ) -> _Prepared:
+    def _prepare_play(self, at: float, position: float, now: float, delay_s: float, whole: bool = False,
+                      start_up: bool = False) -> _Prepared:
         """``play``'s plan inputs; ``delay_s``: seconds the splice (and an "at once" start) moves later, the time a
         background plan is expected to take; ``whole``: a first note too close to prepare starts the whole score
         as a time already past does, instead of the notes too close being left out."""
@@ -560,13 +562,16 @@ class ScorePlayer:
         events = [dataclasses.replace(e, time=at + (e.time - position) / tempo) for e in remaining]
         late = [e for e in events if e.time < earliest]
 
+        start_level = logging.INFO if start_up else logging.WARNING  # how a later start than asked is said
+
         def announce() -> None:  # rig times (the targets' clock plus the lag)
             if asked is not None and asked > base:  # ``whole``: the first note too close to prepare
-                log.warning("play at rig time %.3f s asked at %.3f s, too close to prepare its first note: the whole "
-                            "score starts at %.3f s instead (%.3f s late)", rig_at, base + lag, at + lag, at - asked)
+                log.log(start_level, "play at rig time %.3f s asked at %.3f s, too close to prepare its first note: "
+                        "the whole score starts at %.3f s instead (%.3f s late)", rig_at, base + lag, at + lag,
+                        at - asked)
             elif asked is not None and rig_at > 0.0:  # a time that has passed (0 is the panel's "at once"): how late
-                log.warning("play at rig time %.3f s asked at %.3f s, already past: the score starts at %.3f s "
-                            "instead (%.3f s late)", rig_at, base + lag, at + lag, at + lag - rig_at)
+                log.log(start_level, "play at rig time %.3f s asked at %.3f s, already past: the score starts at "
+                        "%.3f s instead (%.3f s late)", rig_at, base + lag, at + lag, at + lag - rig_at)
             if late:
                 self.late_notes += len(late)
                 log.warning("play at %.3f s: %d notes before %.3f s cannot be prepared in time; not played",

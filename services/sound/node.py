@@ -35,7 +35,7 @@ from common.config import NodeSettings
 from common.exit_status import InputError
 from common.kit import load_kit
 from common.output_paths import file_in_the_way, write_atomically
-from common.runtime import run_node
+from common.runtime import Node, run_node
 from services.sound.core import MAX_LATENCY_S, WAV_LIMIT_BYTES, SoundCore, SoundSettings, wav_format
 from services.sound.pyo_stage import _quiet_stderr, audio_device_count, import_pyo
 
@@ -115,16 +115,20 @@ class WavSink:
 
     The blocks go to a hidden ``.NAME.XXXX.part`` file beside ``path``, renamed to ``path`` by :meth:`close`:
     a run killed before closing (SIGKILL, power loss) leaves the part file (a playable WAV up to the last block:
-    its header is kept up to date) and neither a cut file nor a damaged earlier take at ``path``. On close it also
+    its header is kept up to date) and neither a cut file nor a damaged earlier take at ``path``. So does a node
+    that failed (``keep`` False when it closes; an empty part file is removed). On close it also
     writes ``FILE.wav.json`` beside it: the rig time of the first sample (seconds), so what the WAV holds can
     be lined up with the rig's impacts.
     """
 
-    def __init__(self, path: Path, sample_rate: int, channels: int, origin: Callable[[], float]) -> None:
+    def __init__(self, path: Path, sample_rate: int, channels: int, origin: Callable[[], float],
+                 keep: Callable[[], bool] = lambda: True) -> None:
         fmt = wav_format(path, "--wav")
         path.parent.mkdir(parents=True, exist_ok=True)
         self.path = path
         self.origin = origin
+        self.keep = keep
+        """Asked on close: whether the take gets its name (False: the node failed, the take may be cut short)."""
         self.meta: dict[str, float] = {}  # what the .json says, taken when the file is closed
         self.finished = False  # closed, named, and its .json written
         # a symlink keeps naming the file it points to; a device or pipe is written in place
@@ -175,6 +179,9 @@ class WavSink:
             self.meta = {"origin_rig_time_s": self.origin(), "sample_rate_hz": self.file.samplerate,
                          "channels": self.file.channels, "frames": self.file.frames}
             self.file.close()
+            if not self.in_place and not self.keep():
+                self._leave_cut_short()
+                return
             if self.file.format == "RF64" and self.part.exists() and self.part.stat().st_size > WAV_LIMIT_BYTES:
                 log.info("%s is over 4 GiB: written as RF64 (a WAV header cannot hold its length); "
                          "players that read only WAV need it split or converted", self.path)
@@ -184,6 +191,16 @@ class WavSink:
         write_atomically(self.path.with_name(self.path.name + ".json"),
                          json.dumps(self.meta, indent=2).encode("utf-8"))
         self.finished = True
+
+
+    def _leave_cut_short(self) -> None:
+        """:meth:`close` of a node that failed: the part file stays (removed if empty), ``path`` is left as it
+        was."""
+        self.finished = True
+        if not self.meta.get("frames"):
+            self._discard()
+            return
+        log.warning("the node did not stop cleanly: %s not written; what was recorded is in %s", self.path, self.part)
 
 
 def _new_file_mode(path: Path) -> int:
@@ -251,8 +268,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument("--wav", type=Path, default=None,
                        help="also record the output to this file, 24-bit (.wav, .flac, .w64, .rf64; a .wav take "
                        "that passes 4 GiB, about 4 h, becomes RF64 instead of losing its end); written under a "
-                       "temporary name and given this one when the node stops. {start} in the file name is the "
-                       "take's start time, local YYYYmmdd-HHMMSS (take-{start}.wav: take-20260131-201500.wav, "
+                       "temporary name and given this one when the node stops (a node that fails leaves a file already "
+                       "there as it was, and what it recorded under the temporary name). {start} in the file name is "
+                       "the take's start time, local YYYYmmdd-HHMMSS (take-{start}.wav: take-20260131-201500.wav, "
                        "then -2, -3 ... if that name is taken), so each run keeps its own file; the log says "
                        "the name. Beside it, its name + .json (take.wav.json) gives origin_rig_time_s (the rig time of "
                        "the first sample, seconds: lines the take up with the rig's impacts), sample_rate_hz, "
@@ -269,9 +287,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                        help="sound impacts on footboards (for rigs without pedal physics; see docs/sound.md)")
 
 
-def make_core(settings: NodeSettings, extra: argparse.Namespace) -> SoundCore:
+def make_core(settings: NodeSettings, extra: argparse.Namespace,
+              keep_take: Callable[[], bool] = lambda: True) -> SoundCore:
     """Build the core and attach the sinks; ValueError (exit 2) for a bad option, InputError (exit 1) for a kit
-    file or a --wav path it cannot use."""
+    file or a --wav path it cannot use. ``keep_take``: asked when the WAV file closes, whether it gets its name."""
     try:
         kit = load_kit(extra.kit)
     except (FileNotFoundError, ValueError) as exc:  # missing, or not a kit
@@ -297,7 +316,7 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace) -> SoundCore:
         wav_name_has_start(extra.wav)
     core = SoundCore(sound, kit)
     try:
-        _attach_sinks(core, extra)
+        _attach_sinks(core, extra, keep_take)
     except BaseException:  # a failed start (or Ctrl-C) records nothing and leaves an earlier take alone
         for sink in core.sinks:
             if isinstance(sink, WavSink):
@@ -308,7 +327,7 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace) -> SoundCore:
     return core
 
 
-def _attach_sinks(core: SoundCore, extra: argparse.Namespace) -> None:
+def _attach_sinks(core: SoundCore, extra: argparse.Namespace, keep_take: Callable[[], bool]) -> None:
     """The WAV file and the sound card, as asked; ValueError naming the option that cannot be served."""
     if extra.wav is not None:
         path = expand_wav_path(extra.wav, datetime.now())  # {start}: when recording starts, i.e. now
@@ -316,11 +335,12 @@ def _attach_sinks(core: SoundCore, extra: argparse.Namespace) -> None:
         if blocker is not None:  # else mkdir's bare "[Errno 17] File exists"
             raise InputError(f"--wav {path}: {blocker} is a file, not a folder")
         try:
-            wav = WavSink(path, core.sample_rate, core.channels, lambda: core.scheduler.origin)
+            wav = WavSink(path, core.sample_rate, core.channels, lambda: core.scheduler.origin, keep_take)
         except (OSError, RuntimeError) as exc:  # soundfile: unwritable path
             raise InputError(f"--wav {path}: cannot write it ({exc})") from None
         core.sinks.append(wav)
-        log.info("recording to %s, renamed %s when the node stops", wav.part, path)
+        # the name the take ends up with (`batteur rig --record DIR`: DIR/performance.wav), then its part file
+        log.info("recording to %s (in %s until the node stops)", path, wav.part.name)
     if extra.device == "auto":
         devices = audio_device_count()
         if devices > 0:
@@ -339,15 +359,19 @@ def _attach_sinks(core: SoundCore, extra: argparse.Namespace) -> None:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the sound node until SIGINT/SIGTERM; returns the exit code."""
     made: list[SoundCore] = []
+    ran: list[Node] = []
 
     def build(settings: NodeSettings, extra: argparse.Namespace) -> SoundCore:
-        core = make_core(settings, extra)
+        core = make_core(settings, extra, keep_take=lambda: bool(ran) and not ran[0].failed)
         made.append(core)
         return core
 
     try:
+        # the take is named only if the node ran and did not fail (setup: once it listens); a node that failed,
+        # or never listened (its port taken), leaves an earlier take at --wav as it was
         return run_node("sound", build, argv, add_arguments,
-                        "Run the sound service: impacts in, modal drum sound out (sound card and/or WAV).")
+                        "Run the sound service: impacts in, modal drum sound out (sound card and/or WAV).",
+                        setup=ran.append)
     finally:
         for core in made:
             core.close()  # closes the WAV file and the sound card

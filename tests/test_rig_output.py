@@ -1,0 +1,112 @@
+"""What ``batteur rig`` tells its user: each service's stderr on the rig's stderr (``2>err.log`` catches the
+services' warnings), whole lines only; with ``--record``, the file the take ends up in.
+
+A new-user walkthrough found every service line on the rig's stdout, and the sound node saying it recorded to
+``out/..performance.part.wav.XXXX.part, renamed out/.performance.part.wav`` when the rig then named it
+``out/performance.wav``.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import io
+import socket
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import soundfile as sf
+
+from batteur import rig
+from tests.ports import free_port
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+class Plan(rig.ServicePlan):
+    """A stand-in service: ``python -c CODE``."""
+
+    def __init__(self, role: str, code: str) -> None:
+        super().__init__(role, 0, [])
+        self.code = code
+
+    def argv(self) -> list[str]:
+        return [sys.executable, "-c", self.code]
+
+
+CHATTY = ("import sys\n"
+          "print('played a note', flush=True)\n"
+          "print('WARNING batteur.sound: late strike', file=sys.stderr, flush=True)\n"
+          "sys.stderr.write('cut short')\n")
+"""A service that logs a warning to stderr, prints to stdout, and ends with a line cut short (no newline)."""
+
+
+def test_a_services_stderr_goes_to_the_rigs_stderr_in_whole_lines() -> None:
+    out, err = io.StringIO(), io.StringIO()
+    the_rig = rig.Rig([Plan("sound", CHATTY)], stop_timeout_s=20, out=out, err=err)
+    asyncio.run(the_rig.run(60))  # stops once its service has exited
+    # was: every line on stdout, and `batteur rig 2>err.log` caught none of the services' warnings
+    assert "[sound] WARNING batteur.sound: late strike\n" in err.getvalue()
+    assert "WARNING" not in out.getvalue()
+    assert "[sound] played a note\n" in out.getvalue()
+    # a last line without its newline is ended, so the next line is not glued to it
+    assert "[sound] cut short\n" in err.getvalue()
+    assert all(line.startswith(("[", "batteur rig: ")) for line in err.getvalue().splitlines()), err.getvalue()
+
+
+def test_the_sound_service_is_told_the_recordings_final_name(tmp_path: Path) -> None:
+    # the node says "recording to DIR/performance.wav": the name the take ends up with
+    opts = rig.build_parser().parse_args(["--record", str(tmp_path)])
+    sound_args = rig.role_args("sound", opts)
+    assert Path(sound_args[sound_args.index("--wav") + 1]) == tmp_path / rig.RECORDING
+
+
+def _outputs() -> tuple[rig.Output, rig.Output, io.StringIO, io.StringIO]:
+    out, err = io.StringIO(), io.StringIO()
+    return rig.Output(out), rig.Output(err), out, err
+
+
+def test_a_take_cut_short_never_replaces_an_earlier_recording(tmp_path: Path) -> None:
+    out, err, out_text, err_text = _outputs()
+    earlier = tmp_path / rig.RECORDING
+    earlier.write_bytes(b"an earlier take")
+    before = rig.recording_state(tmp_path)
+    # sound killed while it recorded: what it was writing into (its part file) goes, the earlier take stays
+    (tmp_path / f".{rig.RECORDING}.x1y2.part").write_bytes(b"cut short")
+    rig.finish_recording(tmp_path, False, out, err, before)
+    assert sorted(p.name for p in tmp_path.iterdir()) == [rig.RECORDING]
+    assert earlier.read_bytes() == b"an earlier take"
+    assert "sound did not stop cleanly; its recording was discarded" in err_text.getvalue()
+
+
+def test_the_rig_says_whether_sound_recorded(tmp_path: Path) -> None:
+    out, err, out_text, err_text = _outputs()
+    (tmp_path / rig.RECORDING).write_bytes(b"an earlier take")
+    before = rig.recording_state(tmp_path)
+    rig.finish_recording(tmp_path, True, out, err, before)  # sound stopped before it recorded anything
+    assert "nothing recorded" in err_text.getvalue() and "recorded" not in out_text.getvalue()
+    new = tmp_path / ".new"
+    new.write_bytes(b"this take")
+    new.replace(tmp_path / rig.RECORDING)  # what sound does as it stops cleanly
+    rig.finish_recording(tmp_path, True, out, err, before)
+    assert out_text.getvalue() == f"batteur rig: recorded {tmp_path / rig.RECORDING}\n"
+
+
+def test_a_sound_node_that_fails_leaves_an_earlier_take_alone(tmp_path: Path) -> None:
+    # the rig now gives sound the final name: a node that fails (here: its port is taken) must not name its take
+    # (was: the empty take renamed over the earlier one as the node closed)
+    wav = tmp_path / rig.RECORDING
+    earlier = np.linspace(-0.5, 0.5, 1000)
+    sf.write(wav, earlier, 48000, subtype="PCM_24")
+    port = free_port()
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as held:
+        held.bind(("127.0.0.1", port))
+        done = subprocess.run([sys.executable, "-m", "services.sound.node", "--no-discovery", "--no-oscquery",
+                               "--clock-master", "self", "--device", "none", "--host", "127.0.0.1", "--port",
+                               str(port), "--channels", "1", "--wav", str(wav)],
+                              cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 1, done.stderr
+    assert f"recording to {wav} (" in done.stderr  # the final name, as the user will find it
+    assert sorted(p.name for p in tmp_path.iterdir()) == [rig.RECORDING]  # no part file, no .json
+    assert np.allclose(sf.read(wav)[0], earlier, atol=1e-6)
