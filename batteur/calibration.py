@@ -59,6 +59,11 @@ CALIBRATION_KEYS = ("timing_s", "velocity", "reference", "samples")
 """The keys of a calibration JSON file (:meth:`Calibration.save`)."""
 
 
+WHAT_A_CALIBRATION_IS = ("a calibration file is the JSON `batteur evaluate --fit-calibration FILE` writes (timing "
+                         "offsets and velocity maps)")
+"""Said after a file's problem when it is not a calibration file: what one is and how one is made."""
+
+
 @dataclass
 class Calibration:
     """Per kit object: timing offset (s) to anticipate and velocity map (see the module docstring)."""
@@ -108,7 +113,17 @@ class Calibration:
         if Path(path).is_dir():
             raise ValueError(f"{path}: is a folder, not a calibration file (JSON)")
         try:
-            data = json.loads(read_text(Path(path)))
+            text = read_text(Path(path))
+        except (OSError, ValueError) as exc:  # not UTF-8 text: said as it is, a binary file is no JSON either
+            raise ValueError(f"{path}: not a calibration file ({exc})") from exc
+        try:
+            try:
+                data = json.loads(text)
+            except json.JSONDecodeError as exc:  # e.g. a kit's YAML: Python's "Expecting value: ... (char 0)"
+                raise ValueError(f"not JSON: {exc.msg[:1].lower()}{exc.msg[1:]} at line {exc.lineno}, column "
+                                 f"{exc.colno}".replace("expecting value", "expecting a value")) from None
+            if not isinstance(data, dict):
+                raise ValueError(f"a JSON {type(data).__name__}, not an object")
             unknown = sorted(set(data) - set(CALIBRATION_KEYS))
             if unknown:  # a misspelt key would otherwise calibrate nothing, silently
                 raise ValueError(f"unknown keys {unknown}; a calibration has {list(CALIBRATION_KEYS)}")
@@ -122,7 +137,7 @@ class Calibration:
                 raise ValueError("a timing offset or velocity fit is not a finite number")
             return cal
         except (OSError, ValueError, TypeError, KeyError, IndexError, AttributeError) as exc:
-            raise ValueError(f"{path}: not a calibration file ({exc})") from exc
+            raise ValueError(f"{path}: not a calibration file ({exc}); {WHAT_A_CALIBRATION_IS}") from exc
 
 
 def _affine(x: np.ndarray, y: np.ndarray) -> tuple[float, float] | None:

@@ -56,7 +56,7 @@ def point_report_at_copy(output: Path) -> None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog=PROG, description=DESCRIPTION)
-    parser.add_argument("-o", "--output", type=Path, default=Path("batteur-demo"),
+    parser.add_argument("-o", "--output", type=Path, default=Path("batteur-demo"), metavar="DIR",
                         help="output directory (default: batteur-demo)")
     parser.add_argument("--control", default="cartesian", choices=list(render.CONTROL_MODES),
                         help="tracking mode (default: cartesian)")

@@ -52,7 +52,6 @@ from batteur.progress import Progress
 from batteur.strike import DEFAULT_STRIKES, parse_strikes, run_strikes
 from common.arg_types import take_negative_values
 from common.core import Outgoing
-from common.datafile import first_error
 from common.gesture.plan import GesturePlan, Nuance, planned_grip
 from common.gesture.reach import pull_into_reach
 from common.kit import EventType, Kit, load_kit
@@ -76,6 +75,10 @@ CONTROL_MODES: dict[str, str] = {
 }
 """``--control`` choice -> PhysicsSettings.control."""
 
+DEFAULT_KIT = "default"
+"""The kit of a render whose options and score name none."""
+DEFAULT_STRIKE_EVENT = EventType.SNARE.value
+"""What the strike scene's stick strikes without ``--event``."""
 GRIPS = ("german", "french", "american", "traditional")
 """Physics grips; the planner's gesture database has french and german (others plan as german)."""
 DEFAULT_GRIP = "german"
@@ -109,7 +112,9 @@ class RenderError(RuntimeError):
 class RenderOptions:
     """How to render a score (seconds, m/s)."""
 
-    kit: str = "default"
+    kit: str | None = DEFAULT_KIT
+    """Kit name or file; None: the score's ``kit`` directive (a text score), else :data:`DEFAULT_KIT`
+    (:meth:`styled`; ``batteur render`` without ``--kit``)."""
     grip: str | None = None
     """Physics grip (and the planner's, where the gesture database has it); None: the score's ``grip`` directive
     (a text score), else :data:`DEFAULT_GRIP` (:meth:`styled`)."""
@@ -156,10 +161,17 @@ class RenderOptions:
     """The drummer's mass, kilograms (35 to 150): physics' segment masses and joint strength."""
 
     def styled(self, score: Score | None = None) -> RenderOptions:
-        """These options with the grip and nuance a render of ``score`` plays: those given here, else those the
-        score asks for (a text score's ``grip`` and ``nuance`` directives; a MIDI file has none), else
-        :data:`DEFAULT_GRIP` and :data:`DEFAULT_NUANCE`."""
-        return self.with_style(*score_style(score))
+        """These options with the kit, grip and nuance a render of ``score`` plays: those given here, else those
+        the score asks for (a text score's ``kit``, ``grip`` and ``nuance`` directives; a MIDI file has none), else
+        :data:`DEFAULT_KIT`, :data:`DEFAULT_GRIP` and :data:`DEFAULT_NUANCE`."""
+        return self.with_style(*score_style(score)).with_kit(score_kit(score))
+
+    def with_kit(self, asked_kit: str | None) -> RenderOptions:
+        """These options with the kit a score asking for ``asked_kit`` plays (None: it does not; see
+        :meth:`styled`)."""
+        if self.kit is not None:
+            return self
+        return dataclasses.replace(self, kit=asked_kit or DEFAULT_KIT)
 
     def with_style(self, asked_grip: str | None, asked_nuance: Nuance | None) -> RenderOptions:
         """:meth:`styled` for a score asking for ``asked_grip`` and ``asked_nuance`` (None: it does not)."""
@@ -179,6 +191,18 @@ def score_style(score: Score | None) -> tuple[str | None, Nuance | None]:
     return (None if score.grip is None else score.grip.value), score.nuance
 
 
+def score_kit(score: Score | None) -> str | None:
+    """The kit ``score`` asks for (a text score's ``kit`` line; None: none): a shipped kit's name, or a kit file's
+    path, taken from the score's folder when relative (where a score and its kit are kept together)."""
+    name = getattr(score, "kit", None)
+    if not isinstance(name, str):
+        return None
+    path = Path(name)
+    if not path.suffix or path.is_absolute() or score is None or not score.source:
+        return name  # a shipped kit's name (load_kit: a name has no suffix), or a path as written
+    return str(Path(score.source).parent / path)
+
+
 def file_style(path: Path) -> tuple[str | None, Nuance | None]:
     """The grip and nuance the score file ``path`` asks for (a MIDI file: none, and it is not read); raises
     :class:`ScoreError` for a text score that cannot be read."""
@@ -187,6 +211,16 @@ def file_style(path: Path) -> tuple[str | None, Nuance | None]:
     if path.suffix.lower() in MIDI_SUFFIXES:
         return None, None
     return score_style(read_score(path))
+
+
+def file_kit(path: Path) -> str | None:
+    """The kit the score file ``path`` asks for (:func:`score_kit`; a MIDI file: none, and it is not read); raises
+    :class:`ScoreError` for a text score that cannot be read."""
+    from common.score.text import MIDI_SUFFIXES, read_score
+
+    if path.suffix.lower() in MIDI_SUFFIXES:
+        return None
+    return score_kit(read_score(path))
 
 
 def physics_pose_rate(opts: RenderOptions) -> float:
@@ -234,7 +268,7 @@ def scale_tempo(score: Score, scale: float) -> Score:
         unknown=[dataclasses.replace(u, time=u.time / scale) for u in score.unknown],
         duplicates=[dataclasses.replace(d, time=d.time / scale) for d in score.duplicates],
     )
-    for name in ("grip", "nuance"):  # a text score's directives are attributes, not fields: replace drops them
+    for name in ("grip", "nuance", "kit", "kit_line"):  # a text score's directives are attributes, not fields
         if hasattr(score, name):
             setattr(scaled, name, getattr(score, name))
     return scaled
@@ -242,7 +276,7 @@ def scale_tempo(score: Score, scale: float) -> Score:
 
 def prepare(path: Path | str, kit: Kit, opts: RenderOptions, calibration: Calibration | None = None,
             progress: Callable[[str, int, int], None] | None = None,
-            limbs: LimbLengths | None = None) -> tuple[Score, Assignment, GesturePlan]:
+            limbs: LimbLengths | None = None, score: Score | None = None) -> tuple[Score, Assignment, GesturePlan]:
     """Read, distribute and plan a score; raises :class:`ScoreError` for a bad score.
 
     With a ``calibration`` the notes are shifted (lag anticipation) and their
@@ -254,14 +288,13 @@ def prepare(path: Path | str, kit: Kit, opts: RenderOptions, calibration: Calibr
     ``progress``: called with (stage, done, total)
     while a MIDI file is read (stage ``"reading"``, in bytes: ``read_midi``'s progress), its notes are given
     limbs (``"limbs"``, in notes: ``distribute``'s) and planned (``"gestures"``, ``plan_gestures``'); what it
-    raises stops the preparation.
+    raises stops the preparation. ``score``: the score of ``path`` read already (:func:`read_scaled`).
     """
     from common.gesture.planner import PlannerConfig, plan_gestures
     from common.score.limbs import distribute
-    from common.score.text import read_score
 
-    reading = None if progress is None else functools.partial(progress, "reading")  # MIDI only: text is quick
-    score = scale_tempo(read_score(path, progress=reading), opts.tempo_scale)
+    if score is None:
+        score = read_scaled(path, opts, progress)
     if not score.events:  # the reader's warnings say why (unknown pitches, no drum channel)
         why = "; ".join(w.removeprefix(f"{Path(path).name}: ") for w in score.warnings
                         if not w.endswith("no drum events"))
@@ -275,6 +308,30 @@ def prepare(path: Path | str, kit: Kit, opts: RenderOptions, calibration: Calibr
     plan = plan_gestures(planned, kit, score, PlannerConfig(grip=grip, nuance=style.nuance or DEFAULT_NUANCE),
                          progress=None if progress is None else functools.partial(progress, "gestures"))
     return score, assignment, plan
+
+
+def read_scaled(path: Path | str, opts: RenderOptions,
+                progress: Callable[[str, int, int], None] | None = None) -> Score:
+    """The score of ``path`` at ``opts.tempo_scale``; ``progress`` as :func:`prepare`'s (stage ``"reading"``)."""
+    from common.score.text import read_score
+
+    reading = None if progress is None else functools.partial(progress, "reading")  # MIDI only: text is quick
+    return scale_tempo(read_score(path, progress=reading), opts.tempo_scale)
+
+
+def load_render_kit(path: Path | str, opts: RenderOptions, score: Score | None,
+                    limbs: LimbLengths | None) -> Kit:
+    """The kit a render of ``score`` (at ``path``) plays (:meth:`RenderOptions.styled`), its load warnings naming
+    the drummer asked for; a kit the score's ``kit`` line names that cannot be loaded is a :class:`ScoreError`
+    naming the line."""
+    name = opts.with_kit(score_kit(score)).kit or DEFAULT_KIT
+    try:
+        return load_kit(name, height_m=opts.height_m, lengths=limbs)
+    except (FileNotFoundError, ValueError) as exc:
+        line = getattr(score, "kit_line", None)
+        if opts.kit is not None or line is None:
+            raise
+        raise ScoreError(f"{path}: line {line}: kit {getattr(score, 'kit', name)!r}: {exc}") from None
 
 
 class PlanningProgress:
@@ -771,11 +828,16 @@ def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: boo
         check_video(opts)  # before the long part: no ffmpeg, no render
     limbs = skeleton_limbs(opts)  # read once: the kit's warnings and the planner measure the same reach
     # its warnings name the drummer asked for, with the skeleton's reach when it has one (as the planner's)
-    kit = load_kit(opts.kit, height_m=opts.height_m, lengths=limbs)
+    kit = None if opts.kit is None else load_render_kit(path, opts, None, limbs)  # --kit: before the score
     calibration = Calibration.load(opts.calibration) if opts.calibration else None
     planning = PlanningProgress(Path(path).name, quiet)
     try:
-        score, assignment, plan = prepare(path, kit, opts, calibration, planning, limbs)
+        read = None
+        if kit is None:  # the score's `kit` line, else the default: read the score first
+            read = read_scaled(path, opts, planning)
+            planning.close()  # the reading's line ends before the kit's warnings
+            kit = load_render_kit(path, opts, read, limbs)
+        score, assignment, plan = prepare(path, kit, opts, calibration, planning, limbs, read)
     except BaseException:  # a bad score or Ctrl-C: the line ends where it stood, not at 100 %
         planning.close(finished=False)
         raise
@@ -830,8 +892,6 @@ def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: boo
 def check_options(opts: RenderOptions) -> None:
     """Raise ``ValueError`` naming the option for a value the render would refuse late: after the simulation
     (the sound's latency in a segmented render), in a worker process, or by running out of memory."""
-    from pydantic import ValidationError
-
     from services.physics.core import PhysicsSettings
 
     low, high = TEMPO_SCALE_RANGE
@@ -848,23 +908,36 @@ def check_options(opts: RenderOptions) -> None:
     check_latency(opts.latency_s)
     _check_motion_capture(opts)
     if opts.control_rate_hz is not None:
-        try:
-            PhysicsSettings(control_rate_hz=opts.control_rate_hz)
-        except ValidationError as exc:
-            raise UsageError(f"--control-rate {opts.control_rate_hz:g} Hz: {first_error(exc)}") from None
+        low, _ = field_bounds(PhysicsSettings, "control_rate_hz")
+        if not low <= opts.control_rate_hz <= opts.rate_hz:  # NaN fails too; faster than a step does nothing
+            raise UsageError(f"--control-rate {opts.control_rate_hz:g}: {_nan_words(opts.control_rate_hz)}{low:g} to "
+                             f"{opts.rate_hz:g} Hz (physics steps at {opts.rate_hz:g} Hz: the control is updated at "
+                             "most once a step)")
+
+
+def _nan_words(value: float) -> str:
+    """``must be a finite number, `` before a range a NaN was refused by (no range takes it), else ''."""
+    return "must be a finite number, " if math.isnan(value) else ""
+
+
+def field_bounds(model: Any, name: str) -> tuple[float, float]:
+    """The inclusive bounds (``ge``, ``le``) of the pydantic field ``name`` of ``model``: a range said as the
+    other options' are (``--height 1.1: 1.2 to 2.2 m``), from where it is enforced."""
+    low, high = -math.inf, math.inf
+    for bound in model.model_fields[name].metadata:
+        low = float(getattr(bound, "ge", low))
+        high = float(getattr(bound, "le", high))
+    return low, high
 
 
 def check_latency(latency_s: float) -> None:
     """Raise :class:`UsageError` for a ``--latency`` (seconds) the sound service refuses (a score render and the
     strike scene alike)."""
-    from pydantic import ValidationError
-
     from services.sound.core import SoundSettings
 
-    try:
-        SoundSettings(latency=latency_s, origin=0.0)
-    except ValidationError as exc:
-        raise UsageError(f"--latency {latency_s:g} s: {first_error(exc)}") from None
+    low, high = field_bounds(SoundSettings, "latency")
+    if not low <= latency_s <= high:  # NaN fails too
+        raise UsageError(f"--latency {latency_s:g}: {_nan_words(latency_s)}{low:g} to {high:g} s")
 
 
 def _check_motion_capture(opts: RenderOptions) -> None:
@@ -1003,12 +1076,14 @@ def build_parser() -> argparse.ArgumentParser:
         "SCORE, --strikes renders the strike scene.",
     )
     take_negative_values(parser)
-    parser.add_argument("score", nargs="?", type=Path, help="a .mid file or a Batteur text score")
+    parser.add_argument("score", nargs="?", type=Path,
+                        help="a Standard MIDI File (.mid, .midi, .smf, .rmi, or any file with a MIDI header) or a "
+                        "Batteur text score (docs/score-format.md)")
     parser.add_argument("-o", "--output", type=Path, required=True, metavar="DIR",
                         help="output directory (created if missing)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     playing = parser.add_argument_group("the performance")
-    add_performance_options(playing)
+    add_performance_options(playing, kit_default=None)
     playing.add_argument("--algorithm", default=HandAlgorithm.VITERBI.value,
                          choices=[a.value for a in HandAlgorithm], help="hand assignment algorithm (default: viterbi)")
     playing.add_argument("--calibration", type=Path, default=None, metavar="FILE",
@@ -1053,9 +1128,9 @@ def build_parser() -> argparse.ArgumentParser:
     strikes.add_argument("--strikes", default=None, metavar="TIME:SPEED,...",
                          help="strike scene instead of a score: TIME:SPEED,... in seconds:m/s "
                          f"(e.g. {','.join(f'{t:g}:{v:g}' for t, v in DEFAULT_STRIKES)})")
-    strikes.add_argument("--event", default="SNARE",
+    strikes.add_argument("--event", default=None,
                          choices=[e.value for e in EventType if e != EventType.HIHATPEDAL],
-                         help="strike scene: which kit event the stick strikes (default SNARE)")
+                         help=f"strike scene: which kit event the stick strikes (default {DEFAULT_STRIKE_EVENT})")
     jobs = parser.add_argument_group("processes")
     jobs.add_argument("--jobs", type=int, default=1, metavar="N",
                       help="render on N processes (0: one per CPU): the piece is cut into segments of "
@@ -1066,17 +1141,21 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def add_performance_options(parser: argparse._ActionsContainer) -> None:
+def add_performance_options(parser: argparse._ActionsContainer, kit_default: str | None = DEFAULT_KIT) -> None:
     """``--kit``, ``--grip``, ``--nuance``, ``--tempo-scale`` and ``--control`` (render and evaluate; a parser or
-    one of its groups)."""
-    parser.add_argument("--kit", default="default", metavar="NAME",
-                        help="kit name or YAML/JSON file (default: default)")
+    one of its groups). ``kit_default`` None: a score's ``kit`` line, else :data:`DEFAULT_KIT`."""
+    default = (f"the score's `kit` line, else {DEFAULT_KIT}" if kit_default is None else kit_default)
+    parser.add_argument("--kit", default=kit_default, metavar="NAME",
+                        help=f"kit name or YAML/JSON file (default: {default})")
     add_style_options(parser)
     parser.add_argument("--tempo-scale", type=float, default=1.0, metavar="X",
                         help="play this many times faster, 0.1 to 10 (0.5: half tempo; default 1)")
     parser.add_argument("--control", default="cartesian", choices=list(CONTROL_MODES),
-                        help="tracking: cartesian (DLS IK on the stick tips) or joint (PD on joint targets) "
-                        "(default: cartesian)")
+                        help="how the drummer tracks the plan: cartesian (damped least-squares IK on the stick "
+                        "tips every step, feeding the computed-torque PD; the default), joint (= joint_pd: explicit "
+                        "PD on joint targets from open-loop IK of the plan), or a physics controller by name: "
+                        "joint_spd (stable PD on joint targets), joint_ct (PD through inverse dynamics: computed "
+                        "torque), cartesian_pd (the same IK feeding the explicit PD)")
 
 
 def add_style_options(parser: argparse._ActionsContainer) -> None:
@@ -1133,8 +1212,15 @@ def _given(value: T | None, default: T) -> T:
 
 
 def options_in_vain(args: argparse.Namespace) -> list[str]:
-    """Warnings for options given that do nothing with the others given."""
+    """Warnings for options given that do nothing with the others given, or share what they decide with another
+    (``--height`` beside ``--skeleton-bvh``)."""
     warnings = []
+    if args.event is not None and args.strikes is None:
+        warnings.append("--event has no effect without --strikes (a score's notes say what is struck)")
+    if args.skeleton_bvh is not None and args.height != STATURE_M and args.strikes is None:
+        warnings.append(f"--height {args.height:g} with --skeleton-bvh: the skeleton gives the limbs (arms, legs, "
+                        "neck, the shoulders' height above the hips, their widths) and the planner's reach; "
+                        f"--height places the shoulders and hips over the throne and sizes the hands, feet and head")
     if args.segment is not None and args.jobs == 1:
         warnings.append("--segment has no effect without --jobs above 1")
     for name, value in (("--video-size", args.video_size), ("--video-fps", args.video_fps)):
@@ -1213,16 +1299,17 @@ def _main_strikes(opts: argparse.Namespace, prog: str) -> int:
     except ValueError as exc:
         return report_error(prog, exc, USAGE)
     try:
-        kit = load_kit(opts.kit)
+        kit = load_kit(opts.kit or DEFAULT_KIT)
         check_output_dir(opts.output, "-o")
     except (ValueError, OSError) as exc:
         return report_error(prog, exc)
+    event = opts.event or DEFAULT_STRIKE_EVENT
     started = time.monotonic()
     progress = Progress("rendering", max(t for t, _ in strikes) + opts.latency + 1.0,
                         enabled=False if opts.quiet else None)
     finished = False
     try:
-        result = run_strikes(strikes, EventType(opts.event), kit, opts.latency,
+        result = run_strikes(strikes, EventType(event), kit, opts.latency,
                              on_progress=lambda t, total: progress.update(t))
         finished = True
     except ValueError as exc:
@@ -1232,7 +1319,7 @@ def _main_strikes(opts: argparse.Namespace, prog: str) -> int:
     elapsed = time.monotonic() - started
     report = {
         "scene": "strike",
-        "event": opts.event,
+        "event": event,
         "strikes": [{"time_s": t, "speed_m_s": v} for t, v in strikes],
         "impacts": len(result.impacts),
         "contacts": result.contacts,

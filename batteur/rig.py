@@ -532,43 +532,44 @@ def build_parser() -> argparse.ArgumentParser:
         "service's code, or 1).",
     )
     take_negative_values(parser)  # --play-at -1e-3: the value's own check says what is wrong with it
-    parser.add_argument("--services", default=",".join(ROLES),
+    parser.add_argument("--services", default=",".join(ROLES), metavar="ROLES",
                         help=f"comma-separated roles to start, each at most once (default: {','.join(ROLES)})")
-    parser.add_argument("--base-port", type=port_number, default=9101,
+    parser.add_argument("--base-port", type=port_number, default=9101, metavar="PORT",
                         help="UDP port of physics; interaction, sound, graphics take the next three "
                         "(default 9101, so 9101-9104)")
-    parser.add_argument("--http-port", type=port_or_any, default=8080,
+    parser.add_argument("--http-port", type=port_or_any, default=8080, metavar="PORT",
                         help="TCP port of the graphics view in the browser (default 8080; 0: any free port, "
                         "printed by graphics; a second rig on this machine needs another)")
-    parser.add_argument("--host", default="127.0.0.1", help="address the services listen on (default 127.0.0.1)")
+    parser.add_argument("--host", default="127.0.0.1", metavar="ADDRESS",
+                        help="address the services listen on (default 127.0.0.1)")
     parser.add_argument("--no-discovery", action="store_true",
                         help="static peers only, no zeroconf (default: zeroconf on --interfaces too)")
     parser.add_argument("--no-static-peers", action="store_true",
                         help="find each other by zeroconf only (needs multicast on the interfaces; default: each "
                         "service also gets the others' ports)")
-    parser.add_argument("--interfaces", default="",
+    parser.add_argument("--interfaces", default="", metavar="ADDRESSES",
                         help="comma-separated addresses or interface names for zeroconf (default: loopback)")
-    parser.add_argument("--start-delay", type=non_negative, default=3.0,
+    parser.add_argument("--start-delay", type=non_negative, default=3.0, metavar="SECONDS",
                         help="seconds between launch and rig time 0 (default 3)")
-    parser.add_argument("--duration", type=seconds, default=None,
+    parser.add_argument("--duration", type=seconds, default=None, metavar="SECONDS",
                         help="stop after this many seconds of wall time from launch (default: run until Ctrl-C)")
-    parser.add_argument("--stop-timeout", type=seconds, default=4.0,
+    parser.add_argument("--stop-timeout", type=seconds, default=4.0, metavar="SECONDS",
                         help="seconds to wait for services to stop before killing them (default 4)")
     parser.add_argument("--record", type=Path, default=None, metavar="DIR",
                         help=f"sound writes what it plays to DIR/{RECORDING} (+ .json: rig time of its first "
                         "sample), kept only if sound stops cleanly; DIR is created (default: no recording)")
-    parser.add_argument("--strike-period", type=non_negative, default=0.0,
+    parser.add_argument("--strike-period", type=non_negative, default=0.0, metavar="SECONDS",
                         help="strike scene instead of a score: a strike every this many seconds of rig time "
                         "(default 0: off)")
-    parser.add_argument("--strike-velocity", type=positive, default=3.0,
+    parser.add_argument("--strike-velocity", type=positive, default=3.0, metavar="M/S",
                         help="strike scene: tip speed, m/s (default 3)")
     parser.add_argument("--score", default=None, metavar="FILE",
                         help="the drummer plays this score live (.mid or text score; 'demo': the groove of "
                         "batteur demo; default: none, the drummer idles)")
-    parser.add_argument("--play-at", type=non_negative, default=1.0,
+    parser.add_argument("--play-at", type=non_negative, default=1.0, metavar="SECONDS",
                         help="rig time at which --score starts, seconds after rig time 0 (default 1); physics up "
                         "only after it starts the score as soon as it can, from its first note")
-    parser.add_argument("--ready-timeout", type=seconds, default=60.0,
+    parser.add_argument("--ready-timeout", type=seconds, default=60.0, metavar="SECONDS",
                         help="--score: seconds from launch the services get to be up (to answer a Hello); past it "
                         "the rig stops with an error naming those that are not (default 60)")
     parser.add_argument("--log-level", type=str.upper, choices=("DEBUG", "INFO", "WARNING", "ERROR"), default=None,

@@ -12,18 +12,19 @@ Drum event types (Kragtwijk et al. 2001) map to an object, a hit point on it
 from __future__ import annotations
 
 import enum
+import functools
 import json
 import logging
 import math
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Literal
+from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 import numpy as np
 import yaml
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, model_validator
 from pydantic_core import PydanticCustomError
 
-from common.datafile import first_error, more_errors, parse_file
+from common.datafile import BOUND_ERRORS, first_error, more_errors, parse_file
 from common.output_paths import write_atomically
 
 if TYPE_CHECKING:
@@ -499,7 +500,7 @@ def load_kit(source: str | Path = "default", height_m: float | None = None, warn
     except ValidationError as exc:
         others = more_errors(exc)
         more = f" (and {others} more)" if others else ""
-        raise ValueError(f"kit file {str(path)!r} is not a valid kit: {first_error(exc)}{more}") from None
+        raise ValueError(f"kit file {str(path)!r} is not a valid kit: {kit_problem(exc)}{more}") from None
     if not warn:
         return kit
     from common.score.limbs import STATURE_M, unplayable_instruments  # here: limbs imports this module
@@ -508,6 +509,77 @@ def load_kit(source: str | Path = "default", height_m: float | None = None, warn
     for problem in problems:  # a valid kit may still hold objects the drummer cannot play
         log.warning("kit file %r: %s", str(path), problem)
     return kit
+
+
+VALUE_ERROR_PREFIX = "Value error, "
+"""What pydantic puts before the message of a ``ValueError`` raised by a validator (a kit's own checks)."""
+
+
+def kit_problem(exc: ValidationError) -> str:
+    """The first problem of a kit file, in plain words: a kit check's own message without pydantic's
+    ``Value error, ``, a number out of bounds as its field, its value and the range the field takes
+    (``events.SNARE.min_time_gap: 5 is out of range: more than 0, at most 2``), else :func:`first_error`'s."""
+    first = exc.errors()[0]
+    said = first_error(exc)
+    if first.get("type") == "value_error":
+        return said.replace(VALUE_ERROR_PREFIX, "", 1)
+    value = first.get("input")
+    if first.get("type") not in BOUND_ERRORS or isinstance(value, bool) or not isinstance(value, (int, float)) \
+            or math.isnan(value):  # a NaN: first_error's "must be a finite number"
+        return said
+    loc = tuple(first.get("loc", ()))
+    bounds = _bounds_in_words(_kit_schema_at(loc))
+    if not bounds:
+        return said
+    return f"{'.'.join(str(p) for p in loc)}: {value:g} is out of range: {bounds}"
+
+
+@functools.cache
+def _kit_schema() -> dict[str, Any]:
+    """The kit's JSON schema: where each field's bounds are written once, whatever the nesting."""
+    return Kit.model_json_schema()
+
+
+def _kit_schema_at(loc: tuple[int | str, ...]) -> dict[str, Any]:
+    """The schema of the value at ``loc`` (pydantic's error location) in a kit; {} when it cannot be followed."""
+    schema = _kit_schema()
+    node = _resolved(schema, schema)
+    for key in loc:
+        if isinstance(key, int) and "prefixItems" in node and key < len(node["prefixItems"]):
+            node = node["prefixItems"][key]
+        elif isinstance(key, int) and isinstance(node.get("items"), dict):
+            node = node["items"]
+        elif isinstance(key, str) and key in node.get("properties", {}):
+            node = node["properties"][key]
+        elif isinstance(node.get("additionalProperties"), dict):  # a mapping's value (events.SNARE)
+            node = node["additionalProperties"]
+        else:
+            return {}
+        node = _resolved(node, schema)
+    return node
+
+
+def _resolved(node: dict[str, Any], schema: dict[str, Any]) -> dict[str, Any]:
+    """``node`` with its ``$ref`` followed and an optional value's non-null choice taken."""
+    for _ in range(8):  # references chain at most a few deep
+        if "$ref" in node:
+            node = schema.get("$defs", {}).get(node["$ref"].rsplit("/", 1)[-1], {})
+        elif "anyOf" in node:
+            choices = [c for c in node["anyOf"] if c.get("type") != "null"]
+            node = choices[0] if len(choices) == 1 else node
+            if len(choices) != 1:
+                break
+        else:
+            break
+    return node
+
+
+def _bounds_in_words(node: dict[str, Any]) -> str:
+    """``more than 0, at most 2`` from a schema's bounds ('' without any)."""
+    words = [f"{word} {node[key]:g}" for key, word in (("exclusiveMinimum", "more than"), ("minimum", "at least"),
+                                                       ("exclusiveMaximum", "less than"), ("maximum", "at most"))
+             if isinstance(node.get(key), (int, float))]
+    return ", ".join(words)
 
 
 def _binary_kind(path: Path) -> str | None:

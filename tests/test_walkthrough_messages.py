@@ -52,7 +52,7 @@ def test_a_node_setting_given_nan_says_finite() -> None:
 def test_render_latency_nan_is_a_usage_error_saying_finite(tmp_path: Path) -> None:
     run = subprocess.run([sys.executable, "-m", "batteur", "render", "--latency", "nan", str(MIDI), "-o",
                           str(tmp_path / "out")], cwd=ROOT, capture_output=True, text=True, timeout=120, check=False)
-    assert run.returncode == 2 and "--latency nan s: latency: must be a finite number" in run.stderr
+    assert run.returncode == 2 and "--latency nan: must be a finite number, 0 to 2 s" in run.stderr
     assert not (tmp_path / "out").exists()
 
 

@@ -91,10 +91,14 @@ def event_type(name: str) -> EventType | None:
 
 
 class TextScore(Score):
-    """A :class:`Score` read from text, with the global grip and nuance it asked for."""
+    """A :class:`Score` read from text, with the global grip, nuance and kit it asked for."""
 
     grip: Grip | None = None
     nuance: Nuance | None = None
+    kit: str | None = None
+    """The ``kit NAME`` line's name: a shipped kit or a kit file (None: the score names none)."""
+    kit_line: int | None = None
+    """The line of the ``kit`` directive, for a message about its kit."""
 
 
 class _Tempo:
@@ -141,7 +145,8 @@ def _note_cells(cells: list[str], lineno: int) -> int:
         if ch in ".-":
             continue
         if ch not in CELL_VELOCITY and ch not in DIGITS:  # not str.isdigit: '²' is a digit to it, not to int()
-            raise ScoreError(f"line {lineno}: cell {k + 1}: unknown character {ch!r}")
+            raise ScoreError(f"line {lineno}: cell {k + 1}: unknown character {ch!r} (use "
+                             f"{', '.join(CELL_VELOCITY)}, a digit 1-9, or '.' or '-' for a rest)")
         notes += 1
     return notes
 
@@ -190,6 +195,7 @@ DIRECTIVE_FORMS: dict[str, str] = {
     "rest": "[BEATS]: a number of beats (without it, a bar)",
     "grip": _either([g.value for g in Grip]),
     "nuance": _either([n.value for n in Nuance]),
+    "kit": "NAME: a shipped kit's name (default, double_pedal, ...) or a kit file's path",
     "at": "BEAT NAME [VELOCITY, 0 to 1] [L|R]",
     "note": "BEAT NAME [VELOCITY, 0 to 1] [L|R]",
 }
@@ -217,6 +223,7 @@ def parse_text(text: str, source: str = "text") -> TextScore:
     warnings: list[str] = []
     grip: Grip | None = None
     nuance: Nuance | None = None
+    kit: tuple[str, int] | None = None  # name, line
 
     def check_until(beat: float, notes: int, lineno: int) -> None:
         """Refuse a score that would last longer or hold more notes than a score may, before making it."""
@@ -362,7 +369,11 @@ def parse_text(text: str, source: str = "text") -> TextScore:
                 check_until(position + length, len(events), lineno)
                 add_bars(position, length)
                 position += length
-            elif word in ("kit", "title"):
+            elif word == "kit":
+                if not rest:
+                    raise ValueError("no kit name")
+                kit = (rest, lineno)
+            elif word == "title":
                 pass
             else:
                 raise ScoreError(f"line {lineno}: unknown directive {head!r}")
@@ -398,6 +409,7 @@ def parse_text(text: str, source: str = "text") -> TextScore:
                       source=source)
     score.grip = grip
     score.nuance = nuance
+    score.kit, score.kit_line = kit if kit is not None else (None, None)
     score.warnings = warnings
     return score
 

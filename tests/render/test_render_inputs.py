@@ -74,9 +74,9 @@ def test_options_are_checked_before_simulating(tmp_path: Path, monkeypatch: pyte
     monkeypatch.setattr(render, "run_score", simulated)
     monkeypatch.setattr("batteur.segments.run_segmented", simulated)
     out = tmp_path / "out"
-    for args, says in ((["--latency", "5", "--jobs", "2"], "--latency 5 s: latency: Input should be less than"),
-                       (["--latency", "-1"], "--latency -1 s"),
-                       (["--control-rate", "nan"], "--control-rate nan Hz: control_rate_hz"),
+    for args, says in ((["--latency", "5", "--jobs", "2"], "--latency 5: 0 to 2 s"),
+                       (["--latency", "-1"], "--latency -1: 0 to 2 s"),
+                       (["--control-rate", "nan"], "--control-rate nan: must be a finite number, 50 to 1000 Hz"),
                        (["--tempo-scale", "1e-9"], "--tempo-scale 1e-09: 0.1 to 10"),  # 373 GiB of head samples
                        (["--tempo-scale", "nan"], "--tempo-scale nan"),
                        (["--jobs", "2", "--segment", "inf"], "--segment inf: a length of at least 1 s"),  # was silent
