@@ -19,7 +19,7 @@ the beats.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -66,6 +66,19 @@ FOOT_RISE_SPEED = 0.6
 previous stroke, m/s. Without it a kick double 90 ms apart was planned as a 9 cm lift and fall (4.5 m/s) and
 played at 10 m/s whatever its velocity; with it (10 Groove validation files, one run) the kick's velocity
 ranking went from Spearman 0.29 to 0.36 and the pooled one from 0.83 to 0.86, F@25 unchanged (0.91)."""
+KICK_SOFTER_RISE = 0.5
+"""A bass-drum stroke softer than the one before it rises at most this share of ``FOOT_RISE_SPEED`` (when it is
+half as fast or less; sliding to the full speed as it nears the previous one's): a ghost kick soon after a loud
+one is a small stroke from where the footboard is (heel-toe), not the board let up almost to its rest. At the full
+0.6 m/s a ghost 80-120 ms after a loud kick was a 5-6 cm rise at up to 3.4 m/s and a fall at 2 m/s braked to the
+ghost's 0.44 m/s: the board stopped short of the beater's contact (the ghost sounded 18-21 ms late by following
+through, or not at all), or, at 60-80 ms, met the head at 3.1-4.1 m/s, as loud as the loud kick. A louder stroke
+after a softer one keeps the full rise (at half for all kicks, such doubles lost their loudness: kick Spearman
+0.95 -> 0.85 on six Groove validation files; docs/gestures.md)."""
+KICK_DOUBLE_DEPTH = 0.008
+"""Such a softer bass-drum stroke aims this much deeper (metres) times the share of its lift it loses: after a
+hard kick the same foot height presses the board less (0.91 against 0.93 of its travel at the planned bottom; the
+beater meets the head at 0.95)."""
 HOLD_FALL = 0.12
 """Seconds before a stroke over which the foot's rest height blends into the stroke."""
 HOLD_FALL_SHARE = 0.5
@@ -272,6 +285,12 @@ def _segment(
     return t0 + tau, pos, vel
 
 
+def _softer(speed: float, previous: float) -> float:
+    """How much softer a stroke at ``speed`` m/s is than the previous one at ``previous`` m/s: 0 (as loud or
+    louder) ... 1 (half as fast or less)."""
+    return float(np.clip(2.0 * (1.0 - speed / max(previous, 1e-6)), 0.0, 1.0))
+
+
 def _limb_knots(
     strokes: list[_Stroke],
     rest0: tuple[np.ndarray, np.ndarray],
@@ -283,9 +302,11 @@ def _limb_knots(
     cycle: float | None = None,
     hold: float = 0.0,
     on_laid: Callable[[int], None] | None = None,
+    aims: list[np.ndarray] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Knots (times, positions, velocities) of one limb through its strokes; ``on_laid`` is told how many
-    strokes are laid every ``PROGRESS_EVERY`` strokes."""
+    strokes are laid every ``PROGRESS_EVERY`` strokes; ``aims`` gets where each stroke meets its surface (its
+    target, or deeper: ``KICK_DOUBLE_DEPTH``)."""
     times: list[np.ndarray] = []
     pos: list[np.ndarray] = []
     vel: list[np.ndarray] = []
@@ -300,6 +321,7 @@ def _limb_knots(
             on_laid(i)
         strike_v = -st.speed * st.normal
         lift = st.lift
+        target = st.target
         if cycle is None and i > 0 and not st.bounce:
             # clear the surface after a contact: the rebound carries the stick up and a move to another
             # target must not drag it over the head (a soft stroke after a loud one has a tiny lift)
@@ -310,11 +332,18 @@ def _limb_knots(
         if cycle is not None and lift + rest_rise > 0:
             # a foot lifts only as high as it can rise and fall in the time it has (fast doubles are heel-toe
             # strokes from the footboard, not full lifts at several metres per second)
-            scale = min(1.0, FOOT_RISE_SPEED * (st.time - t) / (lift + rest_rise))
+            # a bass-drum stroke softer than the previous one: a smaller stroke from where the board is, and deeper
+            softer = _softer(st.speed, strokes[i - 1].speed) if hold > 0.0 and i > 0 else 0.0
+            rise_speed = FOOT_RISE_SPEED * (1.0 - (1.0 - KICK_SOFTER_RISE) * softer)
+            scale = min(1.0, rise_speed * (st.time - t) / (lift + rest_rise))
             lift, rest_rise = lift * scale, rest_rise * scale
+            if softer > 0.0 and scale < 1.0:
+                target = st.target - KICK_DOUBLE_DEPTH * (1.0 - scale) * softer * st.normal
+        if aims is not None:
+            aims.append(target)
         # rebound not yet finished: the lift also has to account for where we start
         tt, pp, vv = _segment(
-            t, p, v, n, st.time, st.target, strike_v, st.normal, lift, unit, cfg.knots_per_second, cycle,
+            t, p, v, n, st.time, target, strike_v, st.normal, lift, unit, cfg.knots_per_second, cycle,
             rest_rise, hold_from_start=held,
         )
         times.append(tt[:-1])
@@ -335,10 +364,10 @@ def _limb_knots(
         c = st.contact
         depth = st.speed * c / 4
         times.append(np.array([st.time, st.time + c / 2]))
-        pos.append(np.array([st.target, st.target - depth * st.normal]))
+        pos.append(np.array([target, target - depth * st.normal]))
         vel.append(np.array([strike_v, zero]))
         t = st.time + c
-        p = st.target - (st.speed - st.rebound) * c / 4 * st.normal
+        p = target - (st.speed - st.rebound) * c / 4 * st.normal
         v = st.rebound * st.normal
         n = st.normal
     if strokes:
@@ -565,9 +594,14 @@ def plan_gestures(
             rest_target, rest_normal = (np.array(v) for v in kit.effector_target(ev, limb))
             rest0 = (rest_target + rest_h * rest_normal, rest_normal)
         on_laid = None if progress is None else lambda k, before=laid: progress(before + k, len(notes))
+        aims: list[np.ndarray] = []
         times, pos, vel = _limb_knots(strokes, rest0, rest_h, start, end, units, cfg, None if hand else cfg.foot_cycle,
                                       0.0 if hand else rest_h,  # a foot rests at its rest height between strokes
-                                      on_laid)
+                                      on_laid, aims)
+        first = len(planned) - len(strokes)  # this limb's strokes, in order
+        for k, (st, aim) in enumerate(zip(strokes, aims, strict=True)):
+            if aim is not st.target:  # a bass-drum stroke aimed deeper: the plan meets the surface there
+                planned[first + k] = replace(planned[first + k], target=aim)
         laid += len(strokes)
         if progress is not None:
             progress(laid, len(notes))
