@@ -7,11 +7,14 @@ shown in the view's status panel.
 
 from __future__ import annotations
 
-from typing import Literal
+import math
+from collections.abc import Sequence
+from typing import Any, ClassVar, Literal, Self
 
-from pydantic import Field
+from pydantic import Field, model_validator
+from pydantic_core import PydanticCustomError
 
-from common.messages.base import Family, OscMessage, RigTime
+from common.messages.base import DropReason, Family, MessageError, OscMessage, RigTime
 from common.messages.registry import register
 
 CameraPreset = Literal["free", "front", "side", "top", "drummer", "orbit"]
@@ -24,10 +27,19 @@ class GraphicsCamera(OscMessage):
 
     Angles in degrees: azimuth 0 looks from the front of the kit (+y) towards
     the drummer, 90 from the drummer's right (+x); elevation above the horizon.
+    A preset may be sent alone (``/batteur/graphics/camera top``): its own
+    numbers apply, and numbers sent with it are not checked. ``free`` needs
+    all six.
     """
 
     ADDRESS = "/batteur/graphics/camera"
     FAMILY = Family.CONTROL
+
+    PRESET_NUMBERS: ClassVar[dict[str, float]] = {
+        "azimuth_deg": 0.0, "elevation_deg": 18.0, "distance": 3.0, "target_x": 0.0, "target_y": 0.35,
+        "target_z": 0.75}
+    """What a preset's message carries for a number left out or out of range (the front preset's numbers; a
+    preset uses its own whatever it carries), so it still fits the seven-argument wire form."""
 
     preset: CameraPreset = Field(description="front, side, top, drummer (over the shoulder), orbit (turning), free")
     azimuth_deg: float = Field(ge=-360, le=360, description="orbit azimuth (free), degrees")
@@ -36,6 +48,33 @@ class GraphicsCamera(OscMessage):
     target_x: float = Field(ge=-10, le=10, description="look-at point x (free), metres")
     target_y: float = Field(ge=-10, le=10, description="look-at point y (free), metres")
     target_z: float = Field(ge=-10, le=10, description="look-at point z (free), metres")
+
+    @classmethod
+    def from_args(cls, args: Sequence[Any]) -> Self:
+        """As :meth:`OscMessage.from_args`; a preset alone (one argument) takes :data:`PRESET_NUMBERS`, ``free``
+        alone or any other count than 1 or 7 is ``wrong_arity`` saying what is needed."""
+        numbers = " ".join(name.upper() for name in cls.PRESET_NUMBERS)
+        if args and args[0] == "free" and len(args) != 7:
+            raise MessageError(DropReason.WRONG_ARITY, f"free needs the 6 numbers after it: {numbers} (got "
+                               f"{len(args) - 1})", cls.ADDRESS)
+        if len(args) == 1:
+            args = [args[0], *cls.PRESET_NUMBERS.values()]
+        elif len(args) != 7:
+            raise MessageError(DropReason.WRONG_ARITY, f"expected 7 arguments (PRESET {numbers}) or the preset "
+                               f"alone (not free), got {len(args)}", cls.ADDRESS)
+        return super().from_args(args)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _preset_ignores_numbers(cls, data: Any) -> Any:
+        """A named preset's numbers are unused: one missing or out of range is replaced, not refused."""
+        if not isinstance(data, dict) or data.get("preset") == "free":
+            return data
+        filled = dict(data)
+        for name, default in cls.PRESET_NUMBERS.items():
+            if not _within(cls, name, filled.get(name)):
+                filled[name] = default
+        return filled
 
 
 @register
@@ -69,6 +108,14 @@ class GraphicsPlot(OscMessage):
     window: float = Field(ge=0.5, le=30, description="time span shown, seconds")
     z_min: float = Field(ge=-1, le=3, description="lowest height shown, metres")
     z_max: float = Field(ge=-1, le=3, description="highest height shown, metres (above z_min)")
+
+    @model_validator(mode="after")
+    def _heights_in_order(self) -> Self:
+        """An empty or upside-down height range would draw no plot at all."""
+        if self.z_max <= self.z_min:
+            raise PydanticCustomError("z_order", "z_max {z_max} must be above z_min {z_min} (metres)",
+                                      {"z_max": f"{self.z_max:g}", "z_min": f"{self.z_min:g}"})
+        return self
 
 
 @register
@@ -113,3 +160,11 @@ class ScorePosition(OscMessage):
     bar: int = Field(ge=0, description="bar number, from 0")
     beat: float = Field(ge=0, le=64, description="beat within the bar, from 0")
     tempo_bpm: float = Field(ge=0, le=1000, description="tempo, beats per minute")
+
+
+def _within(model: type[OscMessage], name: str, value: Any) -> bool:
+    """Whether ``value`` is a finite number inside the declared range of ``model``'s field ``name``."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        return False
+    field = next(f for f in model.wire_fields() if f.name == name)
+    return (field.minimum is None or value >= field.minimum) and (field.maximum is None or value <= field.maximum)

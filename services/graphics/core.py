@@ -388,8 +388,8 @@ class GraphicsCore:
         elif isinstance(message, GraphicsTrails):
             self.view.trails = message.seconds
         elif isinstance(message, GraphicsPlot):
-            z_max = max(message.z_max, message.z_min + 0.05)
-            self.view.plot = {"window": message.window, "z_min": message.z_min, "z_max": z_max}
+            # the model refuses z_max <= z_min (with a reply), so the range is shown as sent
+            self.view.plot = {"window": message.window, "z_min": message.z_min, "z_max": message.z_max}
         elif isinstance(message, GraphicsLatency):
             self.latency = message.seconds
         elif isinstance(message, GraphicsMode):

@@ -104,6 +104,7 @@ import dataclasses
 import functools
 import logging
 import math
+import os
 import time
 from collections import Counter, deque
 from collections.abc import Callable
@@ -430,6 +431,10 @@ class ScorePlayer:
         """
         if not self.library:
             raise ScorePlayerError(f"score {name!r}: no score library on this node (start it with --score-dir DIR)")
+        dirs = ", ".join(str(d) for d in self.library)
+        if self._outside(name):  # said before looking: the refusal must not tell whether a file outside exists
+            raise ScorePlayerError(f"score {name!r}: outside the score library ({dirs}): only files inside it are "
+                                   "read")
         for root in self.library:
             base = root.expanduser().resolve()
             candidate = (base / name).resolve()
@@ -443,8 +448,20 @@ class ScorePlayer:
                 names = ", ".join(sorted(p.name for p in found))
                 raise ScorePlayerError(f"score {name!r}: several files in the score library match ({names}): give "
                                        "the extension")
-        dirs = ", ".join(str(d) for d in self.library)
         raise ScorePlayerError(f"score {name!r}: no such file in the score library ({dirs})")
+
+    def _outside(self, name: str) -> bool:
+        """True when ``name`` (absolute, or relative to a library directory) is outside every library directory,
+        as written (``../x``) or once resolved (a link in the library to elsewhere); whether it exists plays no
+        part."""
+        for root in self.library:
+            base = root.expanduser().resolve()
+            for path in (Path(os.path.normpath(base / name)), (base / name).resolve()):
+                if path != base and base not in path.parents:
+                    break
+            else:
+                return False
+        return True
 
     def _by_stem(self, name: str) -> list[Path]:
         """The library's regular files named ``name`` plus any extension (listed, not globbed: a name may hold

@@ -45,5 +45,5 @@ def test_a_link_out_of_the_library_is_never_matched(player: ScorePlayer, tmp_pat
     (tmp_path / "lib" / "sub").mkdir()
     with pytest.raises(ScorePlayerError, match="no such file in the score library"):
         player.resolve("outside")
-    with pytest.raises(ScorePlayerError, match="no such file in the score library"):
+    with pytest.raises(ScorePlayerError, match="outside the score library"):
         player.resolve("../outside")

@@ -467,18 +467,24 @@ function showLayers() {
   plotCanvas.classList.toggle("hidden", shown.plot === false);
   document.getElementById("status").classList.toggle("hidden", shown.status === false);
   syncPresetSelect();
-  const box = document.getElementById("layers");
-  box.innerHTML = "";
-  for (const name of Object.keys(shown)) {
-    const label = document.createElement("label");
-    const cb = document.createElement("input");
-    cb.type = "checkbox";
-    cb.checked = shown[name];
-    cb.addEventListener("change", () => { state.view.layers[name] = cb.checked; showLayers(); });
-    label.append(cb, name);
-    box.append(label);
-  }
+  for (const name of Object.keys(shown)) layerTick(name).checked = shown[name];
   placePanels();
+}
+// The toolbar's tick of each layer, made once and then only updated: rebuilding the ticks on every change sent the
+// keyboard focus to <body> (Space on a tick, or any view message from the node, lost the user's place).
+const layerTicks = new Map();
+function layerTick(name) {
+  let cb = layerTicks.get(name);
+  if (cb) return cb;
+  const label = document.createElement("label");
+  cb = document.createElement("input");
+  cb.type = "checkbox";
+  const tick = cb;
+  tick.addEventListener("change", () => { state.view.layers[name] = tick.checked; showLayers(); });
+  label.append(tick, name);
+  document.getElementById("layers").append(label);
+  layerTicks.set(name, tick);
+  return tick;
 }
 
 // The toolbar (and the editor under it) sits right of the status panel, or below it when the window is too
