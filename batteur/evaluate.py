@@ -780,7 +780,7 @@ def reusable(render_dir: Path, score: Path, opts: Any) -> bool:
     against the wrong notes or be another performance. The grip and nuance compared are those a render would
     play (the options', else the score's directives: ``RenderOptions.styled``); a render in segments is another
     performance than one in one process (:func:`same_segments`)."""
-    from batteur.render import DEFAULT_MASS_KG, DEFAULT_NUANCE, file_style
+    from batteur.render import DEFAULT_MASS_KG, DEFAULT_NUANCE, file_kit, file_style
     from common.score.events import ScoreError
     from common.score.limbs import STATURE_M
 
@@ -790,10 +790,10 @@ def reusable(render_dir: Path, score: Path, opts: Any) -> bool:
         same_score = copy.is_file() and copy.read_bytes() == score.read_bytes()
         if not same_score:
             return False
-        style = opts.with_style(*file_style(score))
+        style = opts.with_style(*file_style(score)).with_kit(file_kit(score))
     except (ValueError, OSError, ScoreError):  # a score it cannot read: rendered, so that the error is told
         return False
-    wanted = {"kit": opts.kit, "grip": style.grip, "nuance": (style.nuance or DEFAULT_NUANCE).value,
+    wanted = {"kit": style.kit, "grip": style.grip, "nuance": (style.nuance or DEFAULT_NUANCE).value,
               "tempo_scale": opts.tempo_scale, "control": opts.control,
               "calibration": str(opts.calibration) if opts.calibration else None}
     body = {"height_m": (opts.height_m, STATURE_M), "mass_kg": (opts.mass_kg, DEFAULT_MASS_KG)}
@@ -848,7 +848,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--reuse", action="store_true",
                         help="with --renders: reuse a render already there when it is of the same score with the "
                         "same options")
-    add_performance_options(parser)
+    add_performance_options(parser, kit_default=None)  # a score's kit line, as render
     add_body_options(parser)
     parser.add_argument("--calibration", type=Path, default=None, metavar="FILE",
                         help="calibration JSON applied to the plans (default: none)")
@@ -942,7 +942,7 @@ def _and(words: Sequence[str]) -> str:
 
 def _main(args: argparse.Namespace) -> int:
     from batteur.calibration import Calibration
-    from batteur.render import RenderError, RenderOptions, resolve_jobs, style_from
+    from batteur.render import DEFAULT_KIT, RenderError, RenderOptions, resolve_jobs, style_from
     from common.output_paths import check_output_dir, check_output_file
     from common.score.events import ScoreError
 
@@ -958,7 +958,8 @@ def _main(args: argparse.Namespace) -> int:
             check_render_names(args.scores, args.renders)
         if args.fit_calibration is not None:
             check_output_file(args.fit_calibration, "--fit-calibration")
-            fit_kit = load_kit(args.kit)  # read now, as the base of the fit: a bad file must not cost the renders
+            # read now, as the base of the fit: a bad file must not cost the renders
+            fit_kit = load_kit(args.kit or DEFAULT_KIT)
             if args.calibration is not None:
                 base_calibration = Calibration.load(args.calibration)
         grip, nuance = style_from(args)

@@ -191,3 +191,19 @@ def test_the_current_folders_plots_are_named_after_it(tmp_path: Path, monkeypatc
     monkeypatch.chdir(_write_render(tmp_path / "r1", _score(tmp_path / "groove.txt")))
     assert evaluate.main([".", "--plots", str(tmp_path / "P")]) == 0
     assert sorted(p.name for p in (tmp_path / "P").iterdir()) == ["r1_pianoroll.png", "r1_timing.png"]
+
+
+def test_evaluate_plays_a_scores_kit_line_as_render_does(tmp_path: Path, renders: list[Path],
+                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    """A text score's ``kit`` line (render honours it unless --kit is given): ``--reuse`` takes a render on that kit
+    and re-renders one on another; the kit given with --kit still wins (evaluate passed ``--kit default`` always)."""
+    monkeypatch.chdir(tmp_path)
+    score = Path("k.txt")
+    score.write_text("kit double_pedal\n" + TINY)
+    folder = _write_render(Path("R") / "k", score)
+    report = json.loads((folder / "report.json").read_text())
+    (folder / "report.json").write_text(json.dumps({**report, "kit": "double_pedal"}))
+    assert evaluate.main(["k.txt", "--renders", "R", "--reuse", "--quiet"]) == 0
+    assert renders == []  # reused: the render's kit is the score's
+    assert evaluate.main(["k.txt", "--renders", "R", "--reuse", "--quiet", "--kit", "default"]) == 0
+    assert renders == [folder]  # another kit asked: rendered again
