@@ -29,9 +29,12 @@ from common.messages.base import MessageError
 from common.messages.codec import _build as build_with_python_osc
 from common.messages.state import Pose
 
+CROSS_FIELD_EXAMPLES: dict[str, dict[str, Any]] = {"/batteur/graphics/plot": {"z_min": 0.0, "z_max": 1.5}}
+"""Values for fields whose rule involves another field (z_max above z_min): a valid pair, not each one's midpoint."""
+
 
 def example_args(model: type[OscMessage]) -> dict[str, Any]:
-    """A valid value for every field, inside its declared range."""
+    """A valid value for every field, inside its declared range (and valid together: ``CROSS_FIELD_EXAMPLES``)."""
     values: dict[str, Any] = {}
     for f in model.wire_fields():
         if f.choices:
@@ -52,7 +55,7 @@ def example_args(model: type[OscMessage]) -> dict[str, Any]:
         if f.variadic:
             value = (value, value, value)
         values[f.name] = value
-    return values
+    return {**values, **CROSS_FIELD_EXAMPLES.get(model.ADDRESS, {})}
 
 
 @pytest.mark.parametrize("model", list(REGISTRY), ids=lambda m: m.ADDRESS)

@@ -123,7 +123,7 @@ from common.messages.physics import PhysicsReset
 from common.messages.score import GestureStyle, KitSelect, LiveNote, ScoreLoad, ScoreTransport, TempoScale
 from common.score.events import MAX_SCORE_NOTES, DrumEvent, Score, ScoreError
 from common.score.hands import HandAlgorithm, Sticking
-from common.score.limbs import HANDS, LimbLengths
+from common.score.limbs import FEET, HANDS, LimbLengths
 from common.score.live import LiveNotes
 from services.physics.plan_worker import PlanWorker, PlanWorkers, plan_events
 from services.physics.splice import (
@@ -169,6 +169,10 @@ note, and each limb's first note after the splice and after the new notes, s."""
 WINDOW_MAX_S = 8.0
 """A limb's next note is looked for at most this long after the new note (a limb idle for longer keeps its
 track), seconds."""
+FOOT_NOTES_AFTER = 3
+"""A live note's window holds this many of the bass-drum foot's notes after the new ones (other limbs': one): its
+stroke after a new one is planned from the new one's speed, so it and the way to the next differ from the queued
+plan's; the foot re-joins after the second (:meth:`ScorePlayer._window_end`)."""
 JOIN_GUARD_S = 0.5
 """Notes past a live note's window can change a limb's plan up to this long before them (an open hi-hat lifts the
 pedal 0.18 s early, a foot's cycle, a merged opening): the window's plan re-joins the queued one no later than this
@@ -838,7 +842,7 @@ class ScorePlayer:
                                        end - JOIN_GUARD_S)
                     if lifts:
                         moving.add(pedal)
-                joins = self._joins(scene, plan, t_s, moving, new, end - JOIN_GUARD_S)
+                joins = self._joins(scene, plan, t_s, moving, new, end - JOIN_GUARD_S, self._kick_feet())
                 if joins is None:
                     self.window_misses += 1
                     # only the pedal's lifts changed: a window past the foot's next note re-joins after it
@@ -874,16 +878,30 @@ class ScorePlayer:
         pedal = self._pedal_foot()
         if pedal is not None and (widen or any(e.event == EventType.HIHATOPEN for e in new)):
             after_new.add(pedal)  # the pedal lifts for it
+        # a foot's stroke is planned from the speed of its stroke before (a kick softer than the one before is a
+        # smaller, deeper stroke: common/gesture/planner.py), so the foot's next note after the new ones may meet
+        # the pedal elsewhere, and the way to the note after it differs too: the foot re-joins its queued plan
+        # after that second note (:meth:`_joins`), so the window holds a third
+        notes_after = {limb: FOOT_NOTES_AFTER if limb in self._kick_feet() else 1 for limb in after_new}
         for e in self.events[split:]:
-            if e.time > last + WINDOW_MAX_S or (e.time > end and not first and not after_new):
+            if e.time > last + WINDOW_MAX_S or (e.time > end and not first and not notes_after):
                 break
             limbs = self._limbs_of(e)
-            if limbs & first or (e.time > last and limbs & after_new):
+            if limbs & first or (e.time > last and limbs & notes_after.keys()):
                 end = max(end, e.time)
                 first -= limbs
                 if e.time > last:
-                    after_new -= limbs
+                    for limb in limbs & notes_after.keys():
+                        notes_after[limb] -= 1
+                        if not notes_after[limb]:
+                            del notes_after[limb]
         return end + JOIN_GUARD_S
+
+    def _kick_feet(self) -> set[Limb]:
+        """The feet that play a drum by pedal, not the hi-hat's (the planner plays a kick softer than the one before
+        as a smaller, deeper stroke: :data:`FOOT_NOTES_AFTER`)."""
+        kit = self.core.kit
+        return {kit.spec(e).preferred for e in kit.events if e != EventType.HIHATPEDAL} & FEET
 
     def _pedal_foot(self) -> Limb | None:
         """The foot that plays the kit's hi-hat pedal (and lifts it for open hi-hats), or None."""
@@ -911,7 +929,7 @@ class ScorePlayer:
 
     @staticmethod
     def _joins(scene: DrummerScene, plan: GesturePlan, t_s: float, moving: set[Limb], new: list[DrumEvent],
-               trusted: float) -> dict[Limb, float] | None:
+               trusted: float, kick_feet: set[Limb]) -> dict[Limb, float] | None:
         """Each moving limb's join time (s): where the window's plan re-joins its queued track (:func:`join_time`)
         after the splice's blend and the new notes it plays, and no later than ``trusted`` (s; after that the
         window's plan may differ from a plan of the whole performance) nor than its last stroke in the window
@@ -926,6 +944,8 @@ class ScorePlayer:
             if not strokes:  # the window's plan rests it: it cannot re-join
                 return None
             played = [t for t in strokes if t in new_times]
+            if played and limb in kick_feet:  # the two strokes after a new one may differ (_window_end)
+                played += [t for t in strokes if t > max(played)][:FOOT_NOTES_AFTER - 1]
             after = max([splice.cut, *played])  # past any blend at the splice and the new strokes
             # after its last stroke the window's plan brings the limb to rest: join before that
             until = trusted if strokes[-1] > trusted else strokes[-1]

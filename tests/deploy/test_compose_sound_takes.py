@@ -63,5 +63,5 @@ def test_two_runs_of_the_compose_sound_service_keep_two_recordings(tmp_path: Pat
     for take in takes:
         assert sf.info(out / take).frames > 10_000
     # each run's log names its own file
-    named = [re.findall(r"renamed (\S+) when the node stops", text) for text in logs]
+    named = [re.findall(r"recording to (\S+) \(in \S+ until the node stops\)", text) for text in logs]
     assert sorted(Path(n[0]).name for n in named if len(n) == 1) == takes, logs
