@@ -1,7 +1,10 @@
 """A node whose clock master is a known peer that does not answer yet (physics still building its scene, as in
 ``batteur rig`` on a loaded machine) says so at INFO and starts on its own clock; it warns only when the master
 stays silent for :data:`~common.runtime.MASTER_SILENT_WARN_S`. A node that knows no master at all warns at once,
-as before."""
+as before. A node that finds its master by discovery alone (no ``--peer`` for its role: ``batteur rig
+--no-static-peers``; physics registers only once its scene is built) says so at INFO too and warns after
+:data:`~common.runtime.MASTER_SILENT_WARN_S`; one with neither discovery nor a ``--peer`` for the master's role has
+no way to find one, and its warning says why, at once. Discovery is a stand-in that finds nothing (no zeroconf)."""
 
 from __future__ import annotations
 
@@ -14,18 +17,21 @@ from common import runtime
 from common.config import load_settings
 from common.runtime import Node
 from tests.ports import free_port
-from tests.test_runtime import EchoCore
+from tests.test_runtime import EchoCore, FakeDiscovery
 from tests.waiting import wait_for
 
 pytestmark = pytest.mark.timeout(60)
 
 
-def run_waiting_node(peers: list[str], caplog: pytest.LogCaptureFixture, until_s: float) -> Node:
-    """A sound node whose master is physics (``peers``: where it is, if anywhere), run ``until_s`` seconds."""
+def run_waiting_node(peers: list[str], caplog: pytest.LogCaptureFixture, until_s: float,
+                     discovery: bool = False) -> Node:
+    """A sound node whose master is physics (``peers``: where it is, if anywhere; ``discovery``: browsing with a
+    discovery that finds nothing), run ``until_s`` seconds after its core started."""
     async def main() -> Node:
-        node = Node(EchoCore(rate_hz=0.0), load_settings({"role": "sound", "discovery": False,
-                                                          "clock_master": "physics", "peers": peers}),
-                    clock_wait_s=0.2)
+        node = Node(EchoCore(rate_hz=0.0), load_settings({"role": "sound", "discovery": discovery,
+                                                          "clock_master": "physics", "peers": peers,
+                                                          "oscquery": False}),
+                    clock_wait_s=0.2, discovery_factory=lambda **kwargs: FakeDiscovery([], **kwargs))
         await node.start()
         try:
             await wait_for(lambda: node.core_started)
@@ -67,3 +73,32 @@ def test_no_master_at_all_is_warned_about_at_once(caplog: pytest.LogCaptureFixtu
     run_waiting_node([], caplog, until_s=0.0)
     warnings = runtime_records(caplog, logging.WARNING)
     assert len(warnings) == 1 and warnings[0].startswith("no clock master (physics) within 0.2 s")
+
+
+def test_a_master_not_yet_found_by_discovery_is_not_warned_about(caplog: pytest.LogCaptureFixture) -> None:
+    node = run_waiting_node([], caplog, until_s=0.3, discovery=True)
+    assert node.core_started and not node.clock.synced  # started on its own clock all the same
+    assert runtime_records(caplog, logging.WARNING) == []
+    assert [m for m in runtime_records(caplog, logging.INFO) if "by discovery" in m] == [
+        "clock master (physics) not found by discovery within 0.2 s (still starting?): starting on this node's own "
+        "clock, which follows the master's once it is found"]
+
+
+def test_a_master_discovery_never_finds_is_warned_about_later(caplog: pytest.LogCaptureFixture,
+                                                              monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(runtime, "MASTER_SILENT_WARN_S", 0.5)
+    run_waiting_node([], caplog, until_s=1.0, discovery=True)
+    assert runtime_records(caplog, logging.WARNING) == [
+        "no clock master (physics) found by discovery within 0.5 s (is it running, on an interface this node "
+        "browses?): rig time is this node's own clock and will jump when the master appears"]
+
+
+def test_a_node_with_no_way_to_find_its_master_says_why(caplog: pytest.LogCaptureFixture,
+                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(runtime, "MASTER_SILENT_WARN_S", 0.5)
+    run_waiting_node([], caplog, until_s=1.0)
+    assert runtime_records(caplog, logging.WARNING) == [
+        "no clock master (physics) within 0.2 s, and no way to find one: discovery is off and no --peer names a "
+        "physics node: starting on this node's own clock for good"]  # once: nothing more to wait for
+
+

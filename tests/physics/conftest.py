@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
 
 import pytest
 
 import common.gesture.planner as planner_module
-from services.physics.core import PhysicsCore
+from services.physics.core import PhysicsCore, PhysicsSettings
+from services.physics.score_player import ScorePlayer
 
 
 @pytest.fixture(scope="module")
@@ -39,3 +41,15 @@ def gate(monkeypatch: pytest.MonkeyPatch) -> Iterator[threading.Event]:
     finally:
         release.set()
         safety.cancel()
+
+
+@pytest.fixture
+def library_player(tmp_path: Path) -> Iterator[ScorePlayer]:
+    """A live strike-scene core's score player whose score library is the empty folder ``tmp_path / "lib"``."""
+    core = PhysicsCore(PhysicsSettings(scene="strike", mode="live"))
+    core.score_player.library = [tmp_path / "lib"]
+    (tmp_path / "lib").mkdir()
+    try:
+        yield core.score_player
+    finally:
+        core.close()

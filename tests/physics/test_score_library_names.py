@@ -4,46 +4,33 @@ matched."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
-from services.physics.core import PhysicsCore, PhysicsSettings
 from services.physics.score_player import ScorePlayer, ScorePlayerError
 
 
-@pytest.fixture
-def player(tmp_path: Path) -> Iterator[ScorePlayer]:
-    core = PhysicsCore(PhysicsSettings(scene="strike", mode="live"))
-    core.score_player.library = [tmp_path / "lib"]
-    (tmp_path / "lib").mkdir()
-    try:
-        yield core.score_player
-    finally:
-        core.close()
-
-
-def test_a_name_without_its_extension_is_the_one_file_of_that_name(player: ScorePlayer, tmp_path: Path) -> None:
+def test_a_name_without_its_extension_is_the_one_file_of_that_name(library_player: ScorePlayer, tmp_path: Path) -> None:
     (tmp_path / "lib" / "groove.txt").write_text("tempo 100\nSD |x...|\n")
     (tmp_path / "lib" / "groovy.txt").write_text("tempo 100\nSD |x...|\n")
-    assert player.resolve("groove") == (tmp_path / "lib" / "groove.txt").resolve()  # was "no such file"
-    assert player.resolve("groove.txt") == (tmp_path / "lib" / "groove.txt").resolve()
+    assert library_player.resolve("groove") == (tmp_path / "lib" / "groove.txt").resolve()  # was "no such file"
+    assert library_player.resolve("groove.txt") == (tmp_path / "lib" / "groove.txt").resolve()
 
 
-def test_several_files_of_that_name_are_named(player: ScorePlayer, tmp_path: Path) -> None:
+def test_several_files_of_that_name_are_named(library_player: ScorePlayer, tmp_path: Path) -> None:
     (tmp_path / "lib" / "a.txt").write_text("tempo 100\nSD |x...|\n")
     (tmp_path / "lib" / "a.mid").write_bytes(b"MThd")
     with pytest.raises(ScorePlayerError, match=r"several files in the score library match \(a.mid, a.txt\): give "
                                                "the extension"):
-        player.resolve("a")
+        library_player.resolve("a")
 
 
-def test_a_link_out_of_the_library_is_never_matched(player: ScorePlayer, tmp_path: Path) -> None:
+def test_a_link_out_of_the_library_is_never_matched(library_player: ScorePlayer, tmp_path: Path) -> None:
     (tmp_path / "outside.txt").write_text("tempo 100\nSD |x...|\n")
     (tmp_path / "lib" / "outside.txt").symlink_to(tmp_path / "outside.txt")
     (tmp_path / "lib" / "sub").mkdir()
     with pytest.raises(ScorePlayerError, match="no such file in the score library"):
-        player.resolve("outside")
+        library_player.resolve("outside")
     with pytest.raises(ScorePlayerError, match="outside the score library"):
-        player.resolve("../outside")
+        library_player.resolve("../outside")
