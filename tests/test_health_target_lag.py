@@ -18,16 +18,12 @@ from collections.abc import Iterator
 import pytest
 
 from batteur.tools import ls
-from common.config import load_settings
-from common.core import Core
-from common.messages import Health, Hello, OscMessage, decode
+from common.messages import Health, Hello, decode
 from common.messages.base import MessageError
 from common.messages.codec import encode_raw
-from common.runtime import Node
-from common.transport import UdpEndpoint
 from services.physics.core import PhysicsCore
 from tests.null_core import NullCore
-from tests.waiting import wait_for
+from tests.test_health_unanswered import health_after
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -37,36 +33,18 @@ HEALTH = Health(node_id="fake-1", role="physics", protocol=1, time=1.5, rate_hz=
                 replies_unanswered=0, target_lag=0.125, target_jumps=2)
 
 
-async def _health_of(core: Core, role: str) -> Health:
-    """Run ``core`` as a ``role`` node and return the Health it answers a Hello with."""
-    node = Node(core, load_settings({"role": role, "discovery": False, "clock_master": "self",  # type: ignore[arg-type]
-                                     "oscquery": False}))
-    await node.start()
-    assert node.endpoint is not None
-    client = await UdpEndpoint.open("127.0.0.1")
-    got: list[OscMessage] = []
-    client.set_handler(lambda message, _: got.append(message))
-    try:
-        client.send(Hello(role="test", node_id="test-1", protocol=1, osc_port=client.port), node.endpoint.local_address)
-        await wait_for(lambda: any(isinstance(m, Health) for m in got), 20.0)
-        return next(m for m in got if isinstance(m, Health))
-    finally:
-        client.close()
-        await node.stop()
-
-
 def test_the_physics_node_reports_how_far_its_targets_trail_the_rig_clock() -> None:
     core = PhysicsCore(scene="strike")
     try:
         core.target_lag, core.target_jumps = 0.25, 3  # as a live drummer core that fell behind leaves them
-        health = asyncio.run(_health_of(core, "physics"))
+        health, _ = asyncio.run(health_after(core, "physics", []))
     finally:
         core.close()
     assert (health.target_lag, health.target_jumps) == (0.25, 3)
 
 
 def test_other_nodes_report_no_target_lag() -> None:
-    health = asyncio.run(_health_of(NullCore(), "sound"))
+    health, _ = asyncio.run(health_after(NullCore(), "sound", []))
     assert (health.target_lag, health.target_jumps) == (0.0, 0)
 
 

@@ -56,7 +56,7 @@ def strike_core() -> Iterator[PhysicsCore]:
         core.close()
 
 
-async def _health_after(core: Core, role: str,
+async def health_after(core: Core, role: str,
                         flood: Sequence[RawSend | OscMessage]) -> tuple[Health, list[OscMessage]]:
     """Run ``core`` as a ``role`` node, send it ``flood`` from one loopback socket, then a Hello: the Health it
     answers and every message that came back before it (the node handles one sender's datagrams in order)."""
@@ -86,7 +86,7 @@ async def _health_after(core: Core, role: str,
 @pytest.mark.usefixtures("budgets_never_refill")
 def test_a_node_reports_the_undecodable_controls_it_did_not_answer() -> None:
     misdirected = 10  # physics controls sent to a sound node: never answered there, so none was held back
-    health, before = asyncio.run(_health_after(NullCore(), "sound", [BAD_TARGET] * misdirected + [BAD_LEVEL] * FLOOD))
+    health, before = asyncio.run(health_after(NullCore(), "sound", [BAD_TARGET] * misdirected + [BAD_LEVEL] * FLOOD))
     answered = sum(isinstance(m, SoundRejected) for m in before)
     assert answered == DECODE_REPLY_BURST and len(before) == answered  # the burst is answered ...
     assert health.decode_unanswered == FLOOD - DECODE_REPLY_BURST  # ... the rest counted, and reported
@@ -96,7 +96,7 @@ def test_a_node_reports_the_undecodable_controls_it_did_not_answer() -> None:
 
 @pytest.mark.usefixtures("budgets_never_refill")
 def test_the_physics_node_reports_the_refusals_it_did_not_answer(strike_core: PhysicsCore) -> None:
-    health, before = asyncio.run(_health_after(strike_core, "physics", [UNREACHABLE] * FLOOD))
+    health, before = asyncio.run(health_after(strike_core, "physics", [UNREACHABLE] * FLOOD))
     answered = [m for m in before if isinstance(m, PhysicsRejected)]
     assert len(answered) == REPLY_BURST and all("drummer scene" in m.reason for m in answered)
     assert health.replies_unanswered == FLOOD - REPLY_BURST

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import queue
 import shutil
 import subprocess
@@ -180,3 +181,12 @@ async def physics_and_sound_nodes() -> AsyncIterator[PanelTargets]:
     finally:
         for node in nodes:
             await node.stop()
+
+
+def own_network() -> list[str]:
+    """A command prefix running Pd in a network namespace of its own (root and unshare), so a client that
+    listens on 9103 does not take this machine's port from a running rig; none without root."""
+    unshare = shutil.which("unshare")
+    if os.geteuid() != 0 or unshare is None:
+        return []
+    return [unshare, "--net", "sh", "-c", 'ip link set lo up 2>/dev/null; exec "$@"', "sh"]

@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import os
-import shutil
 import socket
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -16,7 +14,7 @@ from common.messages import OscMessage, decode, encode_raw
 from common.messages.physics import PhysicsControlMode
 from common.messages.score import ScoreLoad
 from common.messages.sound import SoundDamping, SoundMaster
-from tests.deploy.pdrun import PD_DIR, PdProcess, require_pd
+from tests.deploy.pdrun import PD_DIR, PdProcess, own_network, require_pd
 from tests.ports import free_port, free_ports
 
 pytestmark = pytest.mark.timeout(120)
@@ -209,15 +207,6 @@ def test_damping_keeps_each_instruments_other_value() -> None:
 # ---------------------------------------------------------------- the sound client given a host and a port
 
 
-def _own_network() -> list[str]:
-    """A command prefix running Pd in a network namespace of its own (root and unshare), so a client that
-    listens on 9103 does not take this machine's port from a running rig; none without root."""
-    unshare = shutil.which("unshare")
-    if os.geteuid() != 0 or unshare is None:
-        return []
-    return [unshare, "--net", "sh", "-c", 'ip link set lo up 2>/dev/null; exec "$@"', "sh"]
-
-
 @pytest.mark.parametrize("order", ["host-first", "port-first"])
 def test_sound_client_given_host_and_port_listens_once_there(order: str) -> None:
     """``-send "sc-host ..." -send "sc-port N"`` (either order): the client listens once, on N at that host. Given
@@ -225,7 +214,7 @@ def test_sound_client_given_host_and_port_listens_once_there(order: str) -> None
     port = free_port()
     sends = ["sc-host symbol 127.0.0.2", f"sc-port {port}"]
     pd = PdProcess(PD_DIR / "sound-client.pd", sends=sends if order == "host-first" else sends[::-1],
-                   prefix=_own_network())
+                   prefix=own_network())
     try:
         pd.wait_for(lambda _: any(f"listen {port} 127.0.0.2" in line for line in pd.lines))
     finally:

@@ -3,9 +3,7 @@
 from __future__ import annotations
 
 import importlib
-import os
 import re
-import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -13,20 +11,11 @@ from typing import Any
 
 import pytest
 
-from tests.deploy.pdrun import PD_DIR, PdProcess
+from tests.deploy.pdrun import PD_DIR, PdProcess, own_network
 from tests.ports import free_port
 
 pytestmark = pytest.mark.timeout(120)
 ROOT = Path(__file__).resolve().parents[2]
-
-
-def _own_network() -> list[str]:
-    """A command prefix running Pd in a network namespace of its own (root and unshare), so a client that
-    listens on 9103 does not take this machine's port from a running rig; none without root."""
-    unshare = shutil.which("unshare")
-    if os.geteuid() != 0 or unshare is None:
-        return []
-    return [unshare, "--net", "sh", "-c", 'ip link set lo up 2>/dev/null; exec "$@"', "sh"]
 
 
 def test_sound_client_started_on_another_port_listens_there_first() -> None:
@@ -47,7 +36,7 @@ def test_sound_client_started_on_another_port_listens_there_first() -> None:
 def test_sound_client_started_on_the_lan_does_not_listen_on_loopback_first() -> None:
     """compose's pd-sound (``-send "sc-host symbol 0.0.0.0"``): its first listen is on that address.
     127.0.0.2 stands for the LAN address."""
-    pd = PdProcess(PD_DIR / "sound-client.pd", sends=["sc-host symbol 127.0.0.2"], prefix=_own_network())
+    pd = PdProcess(PD_DIR / "sound-client.pd", sends=["sc-host symbol 127.0.0.2"], prefix=own_network())
     try:
         pd.wait_for(lambda lines: bool(pd.printed("batteur-listen")))
         assert pd.printed("batteur-listen")[0] == ["listen", "9103", "127.0.0.2"], pd.lines
@@ -57,7 +46,7 @@ def test_sound_client_started_on_the_lan_does_not_listen_on_loopback_first() -> 
 
 def test_a_refused_port_at_start_leaves_the_client_on_the_default_port() -> None:
     """A bad ``sc-port`` at start is refused (batteur-bad) and the client still listens, on 9103."""
-    pd = PdProcess(PD_DIR / "sound-client.pd", sends=["sc-port 99999"], prefix=_own_network())
+    pd = PdProcess(PD_DIR / "sound-client.pd", sends=["sc-port 99999"], prefix=own_network())
     try:
         pd.wait_for(lambda lines: bool(pd.printed("batteur-listen")))
         assert pd.printed("batteur-listen") == [["listen", "9103", "127.0.0.1"]], pd.lines
