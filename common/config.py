@@ -272,7 +272,7 @@ def format_validation_error(exc: ValidationError) -> str:
     lines = []
     for error in exc.errors():
         where = ".".join(str(p) for p in error.get("loc", ())) or "settings"
-        message = error_message(error).removeprefix("Value error, ")
+        message = error_message(error)
         value = error.get("input")
         got = f" (got {value!r})" if where != "settings" and not isinstance(value, dict) else ""
         name = where.split(".")[0]

@@ -96,12 +96,18 @@ def _misspelling(first: ErrorDetails, errors: list[ErrorDetails]) -> ErrorDetail
     return None
 
 
+VALUE_ERROR_PREFIX = "Value error, "
+"""What pydantic puts before the message of a ``ValueError`` raised by a validator (a model's own check)."""
+
+
 def error_message(error: ErrorDetails) -> str:
-    """pydantic's message for one problem, but "must be a finite number" for a NaN refused by a bound, which
-    pydantic describes as out of range ("less than or equal to 2") though no range would take it."""
+    """pydantic's message for one problem: a validator's own message without pydantic's ``Value error, ``, and
+    "must be a finite number" for a NaN refused by a bound, which pydantic describes as out of range ("less than
+    or equal to 2") though no range would take it."""
     if error.get("type") in BOUND_ERRORS and _is_nan(error.get("input")):
         return "must be a finite number"
-    return str(error.get("msg", "invalid"))
+    message = str(error.get("msg", "invalid"))
+    return message.removeprefix(VALUE_ERROR_PREFIX) if error.get("type") == "value_error" else message
 
 
 def _is_nan(value: object) -> bool:

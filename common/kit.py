@@ -511,18 +511,12 @@ def load_kit(source: str | Path = "default", height_m: float | None = None, warn
     return kit
 
 
-VALUE_ERROR_PREFIX = "Value error, "
-"""What pydantic puts before the message of a ``ValueError`` raised by a validator (a kit's own checks)."""
-
-
 def kit_problem(exc: ValidationError) -> str:
     """The first problem of a kit file, in plain words: a kit check's own message without pydantic's
     ``Value error, ``, a number out of bounds as its field, its value and the range the field takes
     (``events.SNARE.min_time_gap: 5 is out of range: more than 0, at most 2``), else :func:`first_error`'s."""
     first = exc.errors()[0]
-    said = first_error(exc)
-    if first.get("type") == "value_error":
-        return said.replace(VALUE_ERROR_PREFIX, "", 1)
+    said = first_error(exc)  # a kit check's own message as it is (datafile.error_message)
     value = first.get("input")
     if first.get("type") not in BOUND_ERRORS or isinstance(value, bool) or not isinstance(value, (int, float)) \
             or math.isnan(value):  # a NaN: first_error's "must be a finite number"
