@@ -287,6 +287,11 @@ class _Job:
     """Once ready: its plan's knots brought within the body's reach, per limb (:meth:`ScorePlayer._reachable`)."""
 
 
+def _under(base: Path, path: Path) -> bool:
+    """Whether resolved ``path`` is the library directory ``base`` or inside it."""
+    return path == base or base in path.parents
+
+
 class ScorePlayer:
     """Plays scores and live notes on a :class:`PhysicsCore`'s drummer scene (see the module docstring).
 
@@ -439,10 +444,9 @@ class ScorePlayer:
         if self._outside(name):  # said before looking: the refusal must not tell whether a file outside exists
             raise ScorePlayerError(f"score {name!r}: outside the score library ({dirs}): only files inside it are "
                                    "read")
-        for root in self.library:
-            base = root.expanduser().resolve()
+        for base in self._bases():
             candidate = (base / name).resolve()
-            if candidate != base and base in candidate.parents and candidate.is_file():
+            if _under(base, candidate) and candidate.is_file():
                 return candidate
         if not Path(name).suffix:  # "groove" for groove.txt: the one file of that name, whatever its extension
             found = self._by_stem(name)
@@ -458,23 +462,20 @@ class ScorePlayer:
         """True when ``name`` (absolute, or relative to a library directory) is outside every library directory,
         as written (``../x``) or once resolved (a link in the library to elsewhere); whether it exists plays no
         part."""
-        for root in self.library:
-            base = root.expanduser().resolve()
-            for path in (Path(os.path.normpath(base / name)), (base / name).resolve()):
-                if path != base and base not in path.parents:
-                    break
-            else:
-                return False
-        return True
+        return not any(_under(base, Path(os.path.normpath(base / name))) and _under(base, (base / name).resolve())
+                       for base in self._bases())
+
+    def _bases(self) -> list[Path]:
+        """The library directories, links followed (what every name is judged inside)."""
+        return [root.expanduser().resolve() for root in self.library]
 
     def _by_stem(self, name: str) -> list[Path]:
         """The library's regular files named ``name`` plus any extension (listed, not globbed: a name may hold
         glob characters), resolved and still inside the library."""
         found: list[Path] = []
-        for root in self.library:
-            base = root.expanduser().resolve()
+        for base in self._bases():
             folder = (base / name).parent.resolve()
-            if folder != base and base not in folder.parents:
+            if not _under(base, folder):
                 continue
             try:
                 entries = list(folder.iterdir())
@@ -482,7 +483,7 @@ class ScorePlayer:
                 continue
             for entry in entries:
                 target = entry.resolve()
-                if (entry.stem == Path(name).name and entry.suffix and target.is_file() and base in target.parents
+                if (entry.stem == Path(name).name and entry.suffix and target.is_file() and _under(base, target)
                         and target not in found):
                     found.append(target)
         return found
