@@ -71,6 +71,17 @@ def _tempo_default() -> float:
     return START_TEMPO
 
 
+def _style_defaults() -> tuple[str, str, str, str]:
+    """(grip, nuance, hand assignment, sticking) the physics node's score player plans with at start: the node's
+    ``--grip`` as planned (``planned_grip``) and the score player's own start style."""
+    from common.gesture.plan import planned_grip
+    from services.physics.node import PhysicsNodeSettings
+    from services.physics.score_player import START_ALGORITHM, START_NUANCE, START_STICKING
+
+    grip = planned_grip(PhysicsNodeSettings.model_fields["grip"].default)
+    return grip.value, START_NUANCE.value, START_ALGORITHM.value, START_STICKING.value
+
+
 def _latency_defaults() -> tuple[float, float]:
     """(latency window s, picture delay s) of ``batteur sound`` and ``batteur graphics`` (and ``batteur rig``) at
     start: each node's ``--latency-s``, which the sound core schedules strikes by and the view delays its picture by."""
@@ -322,10 +333,10 @@ def build() -> Patch:
     algo = choices(p, 20, y + 205, "hand assignment", ("simple", "pairwise", "viterbi"), "bp-algorithm")
     stick = choices(p, 20, y + 295, "sticking", ("none", "single", "double", "paradiddle"), "bp-sticking")
     # the style message takes all four: keep them in [symbol]s, send all on any change; they start as the physics
-    # node's score player does (german, tenuto, viterbi, none), so a first change of one leaves the other three
+    # node's score player does (_style_defaults), so a first change of one leaves the other three as they were
     stores = []
     fire = p.obj(420, y + 360, "t b b b b")
-    for k, (src, default) in enumerate(((grip, "german"), (nuance, "tenuto"), (algo, "viterbi"), (stick, "none"))):
+    for k, (src, default) in enumerate(zip((grip, nuance, algo, stick), _style_defaults(), strict=True)):
         keep = p.obj(420 + 70 * k, y + 390, f"symbol {default}")
         order = p.obj(300, y + 85 + 90 * k, "t b s")  # store first, then send all four
         p.connect(src, 0, order, 0)

@@ -196,6 +196,11 @@ PLAN_PER_NOTE_S = 0.001
 have been timed (about 0.4 ms alone, more while the physics loop shares the core), seconds."""
 START_TEMPO = 1.0
 """The tempo factor (``/batteur/score/tempo``) a score player starts with: the score as written."""
+START_NUANCE = Nuance.TENUTO
+START_ALGORITHM = HandAlgorithm.VITERBI
+START_STICKING = Sticking.NONE
+"""The nuance, hand assignment and sticking a score player plans with until ``/batteur/score/style`` (or a score's
+own nuance) changes them; its grip starts from the node's (``planned_grip``)."""
 PLAN_MEASURED_NOTES = 20
 """Background plans: plans of at least this many notes give the per-note planning time (smaller ones are mostly
 overhead: their time is kept whole, see :meth:`ScorePlayer._estimate`)."""
@@ -311,9 +316,9 @@ class ScorePlayer:
         """The grip the gestures are planned with (see the module docstring)."""
         self._grip_warned: tuple[str, str, Grip] | None = None
         """(left hand's grip, right hand's grip, planned grip) last warned about (:meth:`_check_grip`)."""
-        self.nuance = Nuance.TENUTO
-        self.algorithm = HandAlgorithm.VITERBI
-        self.sticking = Sticking.NONE
+        self.nuance = START_NUANCE
+        self.algorithm = START_ALGORITHM
+        self.sticking = START_STICKING
         self.tempo = START_TEMPO
         self.score: Score | None = None
         self.score_path: Path | None = None

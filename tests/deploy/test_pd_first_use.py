@@ -81,6 +81,30 @@ def test_score_messages_go_to_the_physics_port_a_user_set() -> None:
     assert pd.errors() == [], "\n".join(pd.lines)
 
 
+@pytest.mark.parametrize(("moved", "field"), [("bp-nuance symbol staccato", "nuance"),
+                                              ("bp-sticking symbol paradiddle", "sticking")])
+def test_one_style_choice_keeps_the_score_players_start_for_the_other_three(moved: str, field: str) -> None:
+    """The style message carries all four choices: one changed first sends the other three as a physics node's
+    score player starts with them (its ``--grip`` default as planned, and its own start style), not the panel's."""
+    from common.gesture.plan import planned_grip
+    from common.messages.score import GestureStyle
+    from services.physics.node import PhysicsNodeSettings
+    from services.physics.score_player import START_ALGORITHM, START_NUANCE, START_STICKING
+
+    require_pd()
+    with services(1) as (physics,):
+        pd = PdProcess(PD_DIR / "control.pd", sends=[f"bp-port-physics {physics.port}", moved])
+        try:
+            got = physics.until(of(GestureStyle), pd)
+        finally:
+            pd.stop()
+    style = next(m for m in got if isinstance(m, GestureStyle))
+    start = {"grip": planned_grip(PhysicsNodeSettings.model_fields["grip"].default).value,
+             "nuance": START_NUANCE.value, "algorithm": START_ALGORITHM.value, "sticking": START_STICKING.value}
+    expected = {**start, field: moved.split()[-1]}
+    assert style.model_dump() == expected
+
+
 @pytest.mark.parametrize("order", ["score-first", "physics-first"])
 def test_a_score_port_set_on_its_own_keeps_the_score_there(order: str) -> None:
     """``bp-port-score M`` overrides: the score goes to M, whichever of the two ports is given first."""
