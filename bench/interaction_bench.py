@@ -39,6 +39,7 @@ from common.messages import Contact, Impact, decode, encode  # noqa: E402
 from common.messages.interaction import InteractionStats, StatsGet  # noqa: E402
 from services.interaction.config import InteractionConfig, RedundancyConfig, save_config  # noqa: E402
 from services.interaction.core import InteractionCore  # noqa: E402
+from tests.ports import free_port  # noqa: E402  (below the ephemeral range: no port-0 bind takes it meanwhile)
 
 INSTRUMENTS = ("snare", "hightom", "midtom", "floortom", "ride", "crash", "hihat", "splash", "china", "cowbell")
 SLOT = 0.01
@@ -73,12 +74,6 @@ def bench_core(samples: int) -> float:
     print(f"core only       handle(contact) -> impact: {percentiles_us(times)}")
     print(f"core only       {rate:9.0f} impacts/s (handle + step, 2 routes x {core.config.redundancy.copies} copies)")
     return rate
-
-
-def free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 def start_node(copies: int, sound_port: int, config_dir: Path, epoch: float) -> tuple[subprocess.Popen[bytes], int]:

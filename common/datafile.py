@@ -14,12 +14,19 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import yaml
 from pydantic import ValidationError
 from pydantic_core import ErrorDetails
 
-BOUND_ERRORS = frozenset({"greater_than", "greater_than_equal", "less_than", "less_than_equal"})
+BOUND_WORDS = {"greater_than": ("gt", "more than"), "greater_than_equal": ("ge", "at least"),
+               "less_than": ("lt", "less than"), "less_than_equal": ("le", "at most")}
+"""pydantic's complaints about a number outside its bounds -> (the bound's key in the error's context, the words
+:func:`error_message` says it with)."""
+BOUND_ERRORS = frozenset(BOUND_WORDS)
 """pydantic's complaints about a number outside its bounds: a NaN fails every comparison and gets one of them."""
+SAYS_THE_INPUT = BOUND_ERRORS | {"literal_error"}
+"""Complaints :func:`first_error` follows with the value given (``, got 5``): pydantic's own words omit it."""
 
 
 def parse_file(path: Path) -> Any:
@@ -59,7 +66,10 @@ def first_error(exc: ValidationError) -> str:
     if typo is not None:
         return typo
     where = ".".join(str(p) for p in first.get("loc", ()))
-    return f"{where}: {error_message(first)}" if where else error_message(first)  # the whole input: no field
+    said = error_message(first)
+    if first.get("type") in SAYS_THE_INPUT and said != NOT_FINITE:
+        said += f", got {_shown(first.get('input'))}"
+    return f"{where}: {said}" if where else said  # the whole input: no field
 
 
 def more_errors(exc: ValidationError) -> int:
@@ -100,14 +110,44 @@ VALUE_ERROR_PREFIX = "Value error, "
 """What pydantic puts before the message of a ``ValueError`` raised by a validator (a model's own check)."""
 
 
+NOT_FINITE = "must be a finite number"
+
+
 def error_message(error: ErrorDetails) -> str:
-    """pydantic's message for one problem: a validator's own message without pydantic's ``Value error, ``, and
-    "must be a finite number" for a NaN refused by a bound, which pydantic describes as out of range ("less than
-    or equal to 2") though no range would take it."""
-    if error.get("type") in BOUND_ERRORS and _is_nan(error.get("input")):
-        return "must be a finite number"
+    """pydantic's message for one problem in plain words, the one place every caller (OSC refusals, settings,
+    kits, impact logs) takes them from: a validator's own message without pydantic's ``Value error, ``; a bound
+    as ``must be at most 2`` (``more than``, ``at least``, ``less than``), not "Input should be less than or equal
+    to 2"; a choice as ``must be 'play', 'stop' or 'pause'``; and "must be a finite number" for a NaN refused by a
+    bound, which pydantic describes as out of range though no range would take it. Without the value given
+    (:func:`first_error` adds it; the settings say it their own way)."""
+    kind = error.get("type")
+    context = error.get("ctx") or {}
+    if kind in BOUND_WORDS:
+        if _is_nan(error.get("input")):
+            return NOT_FINITE
+        key, words = BOUND_WORDS[kind]
+        if key in context:
+            return f"must be {words} {_shown(context[key])}"
+    if kind == "literal_error" and "expected" in context:
+        return f"must be {context['expected']}"
     message = str(error.get("msg", "invalid"))
-    return message.removeprefix(VALUE_ERROR_PREFIX) if error.get("type") == "value_error" else message
+    return message.removeprefix(VALUE_ERROR_PREFIX) if kind == "value_error" else message
+
+
+def _shown(value: object) -> str:
+    """A value as a message quotes it: a number as written (``5``, not ``5.0``; a float32 off the wire to its 7
+    digits, ``0.1``, not ``0.10000000149011612``), anything else as its repr, cut short past 40 characters (a
+    whole datagram's string stays out of a one-line refusal)."""
+    if isinstance(value, int) and not isinstance(value, bool):
+        return str(value)
+    if isinstance(value, float) and math.isfinite(value):
+        if value.is_integer() and abs(value) < 1e16:  # 1000, not 1e+03
+            return str(int(value))
+        with np.errstate(over="ignore"):
+            single = np.float32(value)
+        return str(single) if float(single) == value else repr(value)  # numpy's shortest float32 digits
+    text = repr(value)
+    return text if len(text) <= 40 else text[:37] + "..."
 
 
 def _is_nan(value: object) -> bool:

@@ -36,3 +36,13 @@ def test_a_rig_time_may_be_one_number_of_seconds(args: list[str]) -> None:
         to = f"127.0.0.1:{node.getsockname()[1]}"
         assert send.main(["/batteur/score/transport", *args, "--to", to]) == 0
         assert decode(node.recv(65536)).messages == [ScoreTransport(action="play", time=12.25, position=1.5)]
+
+
+@pytest.mark.parametrize("args", [["top", "1", "2"], ["free", "1", "2"], []])
+def test_the_camera_s_usage_says_a_preset_may_be_sent_alone(args: list[str],
+                                                           capsys: pytest.CaptureFixture[str]) -> None:
+    """The refusal said "or the preset alone (not free)", the usage after it only the seven arguments."""
+    assert send.main(["/batteur/graphics/camera", *args, "--to", "127.0.0.1:9"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.endswith("; /batteur/graphics/camera takes PRESET AZIMUTH_DEG ELEVATION_DEG DISTANCE TARGET_X "
+                        "TARGET_Y TARGET_Z, or PRESET alone (any preset but free)"), err

@@ -6,6 +6,7 @@ from __future__ import annotations
 import subprocess
 import sys
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 import pytest
@@ -15,6 +16,8 @@ from pydantic import BaseModel, Field, ValidationError
 from common.config import SettingsError, load_settings
 from common.datafile import first_error
 from common.kit import load_kit
+from common.messages import MessageError, OscMessage
+from common.messages.score import LiveNote, ScoreTransport, TempoScale
 from common.output_paths import check_output_dir, file_in_the_way
 from common.score.events import ScoreError
 from common.score.midi import read_midi
@@ -35,10 +38,53 @@ def test_a_nan_is_not_called_out_of_range(value: object) -> None:
     assert first_error(err.value) == "latency: must be a finite number"  # was "less than or equal to 2"
 
 
-def test_a_number_out_of_range_still_says_its_range() -> None:
+def test_a_number_out_of_range_says_its_range_and_value_plainly() -> None:
+    """Was pydantic's "latency: Input should be less than or equal to 2", without the value given."""
     with pytest.raises(ValidationError) as err:
         _Window(latency=3.0)
-    assert first_error(err.value) == "latency: Input should be less than or equal to 2"
+    assert first_error(err.value) == "latency: must be at most 2, got 3"
+
+
+class _Bounds(BaseModel):
+    above: float = Field(gt=0.5)
+    from_: int = Field(ge=-3)
+    below: float = Field(lt=1e3)
+    action: Literal["play", "stop"] = "play"
+
+
+@pytest.mark.parametrize(("values", "said"), [
+    ({"above": 0.5, "from_": 0, "below": 0}, "above: must be more than 0.5, got 0.5"),
+    ({"above": 1, "from_": -4, "below": 0}, "from_: must be at least -3, got -4"),
+    ({"above": 1, "from_": 0, "below": 1e3}, "below: must be less than 1000, got 1000"),
+    ({"above": 1, "from_": 0, "below": 0, "action": "jump"}, "action: must be 'play' or 'stop', got 'jump'"),
+])
+def test_every_bound_and_choice_is_said_plainly(values: dict[str, object], said: str) -> None:
+    with pytest.raises(ValidationError) as err:
+        _Bounds(**values)  # type: ignore[arg-type]
+    assert first_error(err.value) == said
+
+
+@pytest.mark.parametrize(("message", "args", "said"), [
+    (TempoScale, [5.0], "factor: must be at most 4, got 5"),
+    (TempoScale, [0.125], "factor: must be at least 0.25, got 0.125"),
+    (LiveNote, [1, 0.0, 200, 100, 10], "pitch: must be at most 127, got 200"),
+    (ScoreTransport, ["jump", 1, 0.0, 0.0], "action: must be 'play', 'stop' or 'pause', got 'jump'"),
+])
+def test_an_osc_refusal_says_the_bound_and_the_value(message: type[OscMessage], args: list[object],
+                                                     said: str) -> None:
+    """What a node answers (PhysicsRejected, the sound's rejected ...) and ``batteur send`` prints: the decoder's
+    words, from :func:`first_error` as for files and settings."""
+    with pytest.raises(MessageError) as err:
+        message.from_args(args)  # type: ignore[arg-type]
+    assert str(err.value) == f"out_of_range: {message.ADDRESS}: {said}"
+
+
+def test_a_setting_out_of_range_is_said_plainly_once() -> None:
+    """The settings add the value themselves ("(got ...)"): the bound's words, no second "got"."""
+    with pytest.raises(SettingsError) as err:
+        load_settings({"latency_s": "9"})
+    message = str(err.value)
+    assert "latency_s: must be at most " in message and "Input should" not in message and message.count("got") == 1
 
 
 def test_a_node_setting_given_nan_says_finite() -> None:

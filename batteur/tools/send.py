@@ -63,7 +63,8 @@ def guess_arg(text: str) -> Arg:
 def arguments(model: type[OscMessage]) -> str:
     """The arguments a message takes, as a usage line names them: ``ACTION TIME_WHOLE_S TIME_FRACTION POSITION``
     (a rig time is two on the wire), ``NAME...`` for a list at the end; `` (or TIME_S for TIME_WHOLE_S
-    TIME_FRACTION)`` when a rig time may be given as one number of seconds (:func:`split_times`)."""
+    TIME_FRACTION)`` when a rig time may be given as one number of seconds (:func:`split_times`); ``, or ...``
+    the model's shorter form (``OscMessage.SHORT_FORM``: the camera's preset alone)."""
     names: list[str] = []
     for f in model.wire_fields():
         name = f.name.upper()
@@ -73,7 +74,8 @@ def arguments(model: type[OscMessage]) -> str:
     times = [f.name.upper() for f in model.wire_fields() if f.kind is WireKind.TIME]
     one = "" if not times or model.wire_fields()[-1].variadic else " (or " + ", ".join(
         f"{t}_S for {t}_WHOLE_S {t}_FRACTION" for t in times) + ")"
-    return " ".join(names) + one
+    short = f", or {model.SHORT_FORM}" if model.SHORT_FORM else ""
+    return " ".join(names) + one + short
 
 
 def split_times(model: type[OscMessage], texts: Sequence[str]) -> list[str] | None:

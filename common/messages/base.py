@@ -160,6 +160,9 @@ class OscMessage(BaseModel):
 
     ADDRESS: ClassVar[str] = ""
     FAMILY: ClassVar[Family] = Family.CONTROL
+    SHORT_FORM: ClassVar[str] = ""
+    """Another argument list :meth:`from_args` takes besides every field in order, as a usage line says it
+    (``batteur send``'s; ``PRESET alone ...``); "" for none."""
 
     @classmethod
     def wire_fields(cls) -> tuple[WireField, ...]:

@@ -41,6 +41,8 @@ class GraphicsCamera(OscMessage):
     """What a preset's message carries for a number left out or out of range (the front preset's numbers; a
     preset uses its own whatever it carries), so it still fits the seven-argument wire form."""
 
+    SHORT_FORM: ClassVar[str] = "PRESET alone (any preset but free)"
+
     preset: CameraPreset = Field(description="front, side, top, drummer (over the shoulder), orbit (turning), free")
     azimuth_deg: float = Field(ge=-360, le=360, description="orbit azimuth (free), degrees")
     elevation_deg: float = Field(ge=-89, le=89, description="orbit elevation (free), degrees")
