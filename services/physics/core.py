@@ -20,8 +20,8 @@ simulation more than ``max_catchup_steps`` behind simulates that many and skips
 the rest of the gap, counting ``overruns`` and ``skipped_steps``: the
 simulation is never silently slowed. The drummer's targets do not jump with a
 skip: they trail the rig clock by the time skipped (``target_lag``) and jump
-where no stroke is cut and no limb's target moves (``DrummerScene.can_jump``),
-or once they trail by ``MAX_TARGET_LAG_S``.
+where no stroke is cut or jumped over and no limb's target moves, there or
+between (``DrummerScene.can_jump``), or once they trail by ``MAX_TARGET_LAG_S``.
 
 Example (offline, one process)::
 
@@ -150,11 +150,12 @@ class Scene(Protocol):
 
 
 class JumpTest(Protocol):
-    """A scene's test of whether its targets may jump from one rig time to another (s) unnoticed, with the most a
-    target may move (m) and change speed (m/s) (its defaults when not given): ``DrummerScene.can_jump``."""
+    """A scene's test of whether its targets may jump from one rig time to a later one (s) unnoticed, with the most
+    a target may move (m) and change speed (m/s) (its defaults when not given) and whether the strokes between may
+    be dropped whole (only the two ends checked): ``DrummerScene.can_jump``."""
 
-    def __call__(self, t_from: float, t_to: float, max_move_m: float = ..., max_speed_change_m_s: float = ...
-                 ) -> bool: ...
+    def __call__(self, t_from: float, t_to: float, max_move_m: float = ..., max_speed_change_m_s: float = ...,
+                 drop_strokes: bool = ...) -> bool: ...
 
 
 class PhysicsCore:
@@ -208,6 +209,10 @@ class PhysicsCore:
         """Live mode: times the targets jumped to the rig clock (the time they trailed by dropped)."""
         self.target_jumps_late = 0
         """... of which past ``MAX_TARGET_LAG_S`` (the strokes jumped over dropped; logged)."""
+        self._streamed_held: tuple[float, float] | None = None
+        """(lag s, targets' clock s): streamed targets queued while the targets trailed the rig clock by that lag
+        (that much earlier on their clock, to be reached at their rig times: :meth:`_handle`) play until then; the
+        targets keep at least that lag until it (:meth:`_lag_floor`, as ``ScorePlayer.lag_floor`` for plans)."""
         self._can_jump: JumpTest | None = getattr(self.scene, "can_jump", None)
         """The scene's test of whether its targets may jump between two rig times unnoticed (the drummer's); a
         scene without one (the strike scene) jumps with every skip."""
@@ -339,6 +344,7 @@ class PhysicsCore:
             return [Outgoing(self.skeleton(), "reply")]
         if isinstance(message, PhysicsReset):
             self.target_lag = 0.0  # the targets are cleared: nothing trails
+            self._streamed_held = None
             self.scene.reset()
             self.score_player.reset()
             return []
@@ -360,6 +366,16 @@ class PhysicsCore:
             if isinstance(message, DRUMMER_MESSAGES):
                 raise TargetError(f"{message.ADDRESS} needs the drummer scene (this is the {self.settings.scene} "
                                   "scene)")
+            return []
+        if isinstance(message, (CartesianTarget, JointTarget)) and self.target_lag > 0.0:
+            # the targets trail the rig clock (live, after skipped steps): queued that much earlier on their clock, a
+            # streamed target is reached at its rig time, as the score player's plans and notes are, and the
+            # targets keep that lag until it is (_lag_floor)
+            lag = self.target_lag
+            handler(message, self.time, lag)
+            until = message.time - lag
+            held = self._streamed_held
+            self._streamed_held = (lag, until if held is None else max(until, held[1]))
             return []
         handler(message, self.time)
         if isinstance(message, PhysicsControlMode):  # after the scene accepted it
@@ -447,6 +463,7 @@ class PhysicsCore:
                   self.time, self.diverged)
         self.scene.reset()
         self.score_player.reset()
+        self._streamed_held = None
         if not self.world.finite_state():
             raise RuntimeError("physics diverged and a reset did not bring the state back to finite numbers")
         return []
@@ -482,9 +499,9 @@ class PhysicsCore:
         """
         assert self._can_jump is not None  # only such a scene's targets trail
         lag, rig = self.target_lag, self.time
-        # score plans placed while the targets trailed are that much early on their clock (to sound on the rig's):
-        # the targets keep that lag while they play (ScorePlayer.lag_floor)
-        floor = min(self.score_player.lag_floor(rig - lag), lag)
+        # score plans and streamed targets placed while the targets trailed are that much early on their clock (to
+        # sound on the rig's): the targets keep that lag while they play (ScorePlayer.lag_floor, _lag_floor)
+        floor = min(self._lag_floor(rig - lag), lag)
         excess = lag - floor
         if excess <= 0.0:
             return
@@ -492,7 +509,7 @@ class PhysicsCore:
             jump = self._can_jump(rig - lag, rig - floor)
         else:
             jump = excess > MAX_TARGET_LAG_HARD_S or self._can_jump(rig - lag, rig - floor, LATE_JUMP_MAX_M,
-                                                                    LATE_JUMP_MAX_SPEED_M_S)
+                                                                    LATE_JUMP_MAX_SPEED_M_S, drop_strokes=True)
         if not jump:
             return
         self.target_jumps += 1
@@ -503,6 +520,15 @@ class PhysicsCore:
                 log.warning("physics targets %.0f ms behind the rig clock: jumped %.0f ms toward it, the strokes "
                             "between dropped (%d such jumps in all)", lag * 1e3, excess * 1e3, self.target_jumps_late)
                 self._last_jump_warning = now
+
+    def _lag_floor(self, t: float) -> float:
+        """The least lag (s) the live core's targets may jump back to at their clock's time ``t`` (s): the lag the
+        score plans (``ScorePlayer.lag_floor``) or streamed targets (:attr:`_streamed_held`) still to play were
+        placed with, the larger; else 0."""
+        held = self._streamed_held
+        if held is not None and t > held[1]:
+            self._streamed_held = held = None
+        return max(self.score_player.lag_floor(t), held[0] if held is not None else 0.0)
 
     def close(self) -> None:
         """Disconnect the PyBullet clients (the world and the scene's helpers)."""

@@ -489,6 +489,36 @@ def hermite(t: float, t0: float, t1: float, p0: np.ndarray, p1: np.ndarray, v0: 
     return pos, vel
 
 
+@njit(cache=True)
+def hermite_stray(times: np.ndarray, values: np.ndarray, velocities: np.ndarray, t_from: float, t_to: float,
+                  step: float, p0: np.ndarray) -> float:
+    """Farthest (m) the cubic Hermite through knots at ``times`` (n,) s (n >= 2) with values (n, d) and rates
+    (n, d) per second comes from ``p0`` (d,) strictly between ``t_from`` and ``t_to`` (s): sampled every ``step``
+    seconds from ``t_from`` and at every knot between (outside the knots the end knot is held, as
+    ``targets.Track.sample`` does)."""
+    n, d = values.shape
+    far = 0.0
+    for i in range(n):  # the knots between: their own values
+        if t_from < times[i] < t_to:
+            far = max(far, math.sqrt(np.sum((values[i] - p0) ** 2)))
+    k = 0
+    t = t_from + step
+    while t < t_to:
+        while k < n - 2 and times[k + 1] <= t:
+            k += 1
+        h = times[k + 1] - times[k]
+        s = min(max((t - times[k]) / h, 0.0), 1.0)
+        s2, s3 = s * s, s * s * s
+        a, b, c, e = 2 * s3 - 3 * s2 + 1, (s3 - 2 * s2 + s) * h, 3 * s2 - 2 * s3, (s3 - s2) * h
+        dist = 0.0
+        for j in range(d):
+            x = a * values[k, j] + b * velocities[k, j] + c * values[k + 1, j] + e * velocities[k + 1, j] - p0[j]
+            dist += x * x
+        far = max(far, math.sqrt(dist))
+        t += step
+    return far
+
+
 # ---------------------------------------------------------------------- swinging cymbals
 
 
