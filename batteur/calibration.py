@@ -41,6 +41,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from common.datafile import read_text
+from common.input_file import file_problem
 from common.kit import Kit
 from common.output_paths import write_atomically
 from common.score.limbs import Assignment
@@ -107,11 +108,11 @@ class Calibration:
 
     @classmethod
     def load(cls, path: Path) -> Calibration:
-        """Read a calibration JSON; ``ValueError`` naming the file when it is not one."""
-        if not Path(path).exists():  # said as for every other input, not as Python's OSError
-            raise ValueError(f"{path}: no such file")
-        if Path(path).is_dir():
-            raise ValueError(f"{path}: is a folder, not a calibration file (JSON)")
+        """Read a calibration JSON; ``ValueError`` naming the file when it is not one (a pipe or a device: never
+        opened, as a pipe without a writer would wait for one for ever)."""
+        problem = file_problem(Path(path), "a calibration file (JSON)")  # said as for every other input
+        if problem is not None:
+            raise ValueError(f"{path}: {problem}")
         try:
             text = read_text(Path(path))
         except (OSError, ValueError) as exc:  # not UTF-8 text: said as it is, a binary file is no JSON either

@@ -14,7 +14,8 @@ processes, a resource tracker) is stopped once it has exited, and the rig reads
 output for at most ``DRAIN_S`` more seconds, so no grandchild holding the output
 pipe keeps it running. If one service exits, the others are stopped too.
 ``--record DIR``: sound records to ``DIR/performance.wav`` (under a hidden part name until it stops; it names the
-take only when it stops cleanly, so a take cut short never replaces an earlier one, and the rig removes the part).
+take only when it stops cleanly, so a take cut short never replaces an earlier one, and stays in its part file,
+which the rig names).
 The graphics view listens on TCP ``--http-port`` (default 8080; a second rig on
 the same machine needs another). On Linux the services get SIGTERM when the
 rig itself dies, even by SIGKILL, so none is left running as an orphan.
@@ -74,7 +75,8 @@ DRAIN_S = 2.0
 killed: a grandchild that left the group (its own session) may hold the pipe open for good."""
 RECORDING = "performance.wav"
 """What sound records to (``--wav DIR/performance.wav``): it writes a hidden part file beside it and gives it this
-name only once it has stopped cleanly, so a failed rig leaves no partial recording (nor replaces an earlier one)."""
+name only once it has stopped cleanly, so a take cut short never replaces an earlier one; it stays in its part file
+(a playable WAV up to its last block), which the rig and the node name."""
 READY_POLL_S = 0.5
 """Seconds between Hellos to a service that has not answered one yet (``--score``)."""
 READY_PROGRESS_S = 5.0
@@ -557,7 +559,8 @@ def build_parser() -> argparse.ArgumentParser:
                         help="seconds to wait for services to stop before killing them (default 4)")
     parser.add_argument("--record", type=Path, default=None, metavar="DIR",
                         help=f"sound writes what it plays to DIR/{RECORDING} (+ .json: rig time of its first "
-                        "sample), kept only if sound stops cleanly; DIR is created (default: no recording)")
+                        "sample), named so only if sound stops cleanly (else it stays in a hidden part file, "
+                        "named); DIR is created (default: no recording)")
     parser.add_argument("--strike-period", type=non_negative, default=0.0, metavar="SECONDS",
                         help="strike scene instead of a score: a strike every this many seconds of rig time "
                         "(default 0: off)")
@@ -669,18 +672,50 @@ def recording_state(folder: Path) -> RecordingState:
     return st.st_dev, st.st_ino, st.st_mtime_ns
 
 
+def recording_parts(folder: Path) -> frozenset[Path]:
+    """The part files sound records into (``.performance.wav.XXXX.part``) now in ``folder``: its take until it has
+    stopped cleanly and named it; one left by a sound node that did not."""
+    return frozenset(folder.glob(f".{RECORDING}.*.part"))
+
+
+def _holds_audio(part: Path) -> bool:
+    """Whether a part file holds a frame (sound keeps its header up to date); True when that cannot be told, so
+    nothing recorded is removed."""
+    import soundfile as sf  # only here: the rig starts no sound itself
+
+    try:
+        return part.stat().st_size > 0 and sf.info(str(part)).frames > 0
+    except FileNotFoundError:
+        return False
+    except (OSError, RuntimeError):  # soundfile's LibsndfileError is a RuntimeError
+        return True
+
+
 def finish_recording(folder: Path, sound_stopped_cleanly: bool, out: Output, err: Output,
-                     before: RecordingState = None) -> None:
+                     before: RecordingState = None, parts_before: frozenset[Path] = frozenset()) -> None:
     """Say where sound's recording is (sound names it itself once it has stopped cleanly; ``before``: the
-    recording's :func:`recording_state` at launch). Else remove what sound was writing into, since it may be cut
-    short: an earlier recording stays in place."""
+    recording's :func:`recording_state` at launch). Else an earlier recording stays in place, and what sound
+    recorded stays in its part file (``parts_before``: those there at launch, already told about), which the sound
+    node names too: said where it is, removed only if it holds no audio."""
     recorded = recording_state(folder) not in (None, before)
     if not sound_stopped_cleanly:
-        for leftover in folder.glob(f".{RECORDING}.*.part"):  # what sound writes into until it names the file
-            leftover.unlink(missing_ok=True)
+        kept = []
+        for part in sorted(recording_parts(folder) - parts_before):
+            if _holds_audio(part):
+                kept.append(part)
+            else:  # killed before its first block: nothing to keep
+                part.unlink(missing_ok=True)
+        where = ", ".join(map(str, kept)) + (" (a WAV file)" if len(kept) == 1 else " (WAV files)")
+        if recorded and kept:  # named, and then a part file as well: not sound's way, said all the same
+            err.write(f"batteur rig: sound did not stop cleanly; it also left, maybe cut short, {where}\n")
+        elif kept:
+            earlier = " (the earlier one stays)" if recording_state(folder) is not None else ""
+            err.write(f"batteur rig: sound did not stop cleanly: {folder / RECORDING} not written{earlier}; what it "
+                      f"recorded, maybe cut short, is in {where}\n")
+        elif not recorded:
+            err.write(f"batteur rig: sound did not stop cleanly and recorded nothing ({folder / RECORDING} not "
+                      "written)\n")
         if not recorded:
-            err.write(f"batteur rig: sound did not stop cleanly; its recording was discarded ({folder / RECORDING} "
-                      "not written)\n")
             return
     if not recorded:
         err.write(f"batteur rig: nothing recorded in {folder} (sound did not start recording)\n")
@@ -689,14 +724,15 @@ def finish_recording(folder: Path, sound_stopped_cleanly: bool, out: Output, err
 
 
 async def run_rig(plans: list[ServicePlan], opts: argparse.Namespace, ready: ReadyWait | None = None) -> int:
-    """Run the rig (``ready``: wait for the services to be up), then name or discard the recording (still under the
+    """Run the rig (``ready``: wait for the services to be up), then say where the recording is (still under the
     rig's signal handlers)."""
     rig = Rig(plans, opts.stop_timeout, ready=ready)
     before = recording_state(Path(opts.record)) if opts.record is not None else None
+    parts = recording_parts(Path(opts.record)) if opts.record is not None else frozenset()
     code = await rig.run(opts.duration)
     if opts.record is not None:  # the WAV is whole only when sound closed it itself
         finish_recording(Path(opts.record), rig.stopped_cleanly("sound") and rig.exit_codes.get("sound") == 0,
-                         rig.out, rig.err, before)
+                         rig.out, rig.err, before, parts)
     return code
 
 

@@ -689,18 +689,14 @@ class Node:
                  "own clock, which follows the master's once it answers", self.settings.clock_master, where,
                  self.clock_wait_s)
         self.start_core("clock master still starting")
-        await asyncio.sleep(max(0.0, MASTER_SILENT_WARN_S - self.clock_wait_s))
-        if not self.clock.synced:
-            log.warning("no answer from the clock master %s at %s within %g s (is it running?): rig time is this "
-                        "node's own clock until it answers", self.settings.clock_master, where,
-                        max(MASTER_SILENT_WARN_S, self.clock_wait_s))
+        await self._warn_if_still_unsynced(master)
 
     async def _start_without_master(self) -> None:
         """:meth:`_core_start_timer` when no clock master is known after ``clock_wait_s``: start on this node's own
         clock. Discovery (no ``--peer`` for its role, as ``batteur rig --no-static-peers``) finds a master only once
         it registers, seconds after its start for physics (it builds its scene first): said at INFO, warned about
-        only after :data:`MASTER_SILENT_WARN_S`. Without discovery the master is found only if it greets this node:
-        warned about at once, saying why."""
+        only after :data:`MASTER_SILENT_WARN_S`. Without discovery, and no ``--peer`` for the master's role, it is
+        never found (a Hello from it makes no peer): warned about at once, saying why."""
         master = self.settings.clock_master
         if self.discovery is None:
             log.warning("no clock master (%s) within %g s, and no way to find one: discovery is off and no --peer "
@@ -711,18 +707,25 @@ class Node:
         log.info("clock master (%s) not found by discovery within %g s (still starting?): starting on this node's own "
                  "clock, which follows the master's once it is found", master, self.clock_wait_s)
         self.start_core("clock master not found yet")
+        await self._warn_if_still_unsynced(None)
+
+    async def _warn_if_still_unsynced(self, master: Peer | None) -> None:
+        """Once :data:`MASTER_SILENT_WARN_S` have passed since the start (the core already runs on this node's own
+        clock), warn if the clock is still not synced: the master silent (``master``: the one pinged when the core
+        started; None: the one discovery has found by then) or, by discovery, not found at all."""
         await asyncio.sleep(max(0.0, MASTER_SILENT_WARN_S - self.clock_wait_s))
         if self.clock.synced:
             return
+        role = self.settings.clock_master
         waited = max(MASTER_SILENT_WARN_S, self.clock_wait_s)
-        found = self.clock_master_peer()
+        found = master if master is not None else self.clock_master_peer()
         if found is None:
             log.warning("no clock master (%s) found by discovery within %g s (is it running, on an interface this "
                         "node browses?): rig time is this node's own clock and will jump when the master appears",
-                        master, waited)
+                        role, waited)
         else:
             log.warning("no answer from the clock master %s at %s within %g s (is it running?): rig time is this "
-                        "node's own clock until it answers", master, format_address(*found.address), waited)
+                        "node's own clock until it answers", role, format_address(*found.address), waited)
 
     def _step(self) -> None:
         if not self.core_started:

@@ -15,6 +15,7 @@ import pytest
 
 from common import runtime
 from common.config import load_settings
+from common.peers import Peer
 from common.runtime import Node
 from tests.ports import free_port
 from tests.test_runtime import EchoCore, FakeDiscovery
@@ -102,3 +103,57 @@ def test_a_node_with_no_way_to_find_its_master_says_why(caplog: pytest.LogCaptur
         "physics node: starting on this node's own clock for good"]  # once: nothing more to wait for
 
 
+
+
+def test_a_master_greeting_a_node_with_no_way_to_find_it_does_not_become_its_master() -> None:
+    """What makes that warning's "for good" true: a Hello from the master (it has a ``--peer`` for this node) is
+    answered, but makes no peer, so nothing is pinged and the clock stays this node's own (the docstring of
+    ``_start_without_master`` said until 7 Dec that the master is found if it greets this node)."""
+    async def main() -> tuple[bool, bool, bool]:
+        sound = Node(EchoCore(rate_hz=0.0), load_settings({"role": "sound", "discovery": False, "clock_master":
+                                                           "physics", "peers": [], "oscquery": False,
+                                                           "host": "127.0.0.1", "port": free_port()}),
+                     clock_wait_s=0.2)
+        await sound.start()
+        assert sound.endpoint is not None
+        physics = Node(EchoCore(rate_hz=0.0), load_settings({
+            "role": "physics", "discovery": False, "clock_master": "physics", "oscquery": False,
+            "host": "127.0.0.1", "port": free_port(), "peers": [f"sound=127.0.0.1:{sound.endpoint.port}"]}))
+        try:
+            await wait_for(lambda: sound.core_started)  # the warning is out
+            await physics.start()  # greets its static peer, the sound node
+            await wait_for(lambda: sound.node_id in physics.peer_health)  # the Hello was answered
+            return sound.clock_master_peer() is None, sound.clock.synced, physics.is_clock_master
+        finally:
+            await physics.stop()
+            await sound.stop()
+
+    no_master, synced, physics_is_master = asyncio.run(main())
+    assert physics_is_master and no_master and not synced
+
+
+def test_a_master_discovery_finds_late_but_silent_is_warned_about_by_address(
+        caplog: pytest.LogCaptureFixture, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Discovery finds the master after the core started on this node's own clock, and it never answers: the
+    warning names it and where it is, as for a ``--peer`` master that stays silent."""
+    monkeypatch.setattr(runtime, "MASTER_SILENT_WARN_S", 0.5)
+    port = free_port()
+
+    async def main() -> None:
+        node = Node(EchoCore(rate_hz=0.0), load_settings({"role": "sound", "discovery": True,
+                                                          "clock_master": "physics", "peers": [],
+                                                          "oscquery": False}),
+                    clock_wait_s=0.2, discovery_factory=lambda **kwargs: FakeDiscovery([], **kwargs))
+        await node.start()
+        try:
+            await wait_for(lambda: node.core_started)
+            node.peers.add(Peer("physics", "127.0.0.1", port, node_id="physics-late"))  # as discovery would
+            await wait_for(lambda: bool(runtime_records(caplog, logging.WARNING)))
+        finally:
+            await node.stop()
+
+    with caplog.at_level(logging.INFO, logger="batteur.runtime"):
+        asyncio.run(main())
+    assert runtime_records(caplog, logging.WARNING) == [
+        f"no answer from the clock master physics at 127.0.0.1:{port} within 0.5 s (is it running?): rig time is "
+        "this node's own clock until it answers"]

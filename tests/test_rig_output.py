@@ -10,12 +10,14 @@ from __future__ import annotations
 
 import asyncio
 import io
+import logging
 import socket
 import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 import soundfile as sf
 
 from batteur import rig
@@ -67,17 +69,60 @@ def _outputs() -> tuple[rig.Output, rig.Output, io.StringIO, io.StringIO]:
     return rig.Output(out), rig.Output(err), out, err
 
 
+def _part_with_audio(folder: Path, name: str, frames: int = 256) -> Path:
+    """A part file as sound leaves it: a playable WAV holding ``frames`` frames."""
+    part = folder / f".{rig.RECORDING}.{name}.part"
+    sf.write(part, np.full(frames, 0.25), 48000, subtype="PCM_24", format="WAV")
+    return part
+
+
 def test_a_take_cut_short_never_replaces_an_earlier_recording(tmp_path: Path) -> None:
     out, err, out_text, err_text = _outputs()
     earlier = tmp_path / rig.RECORDING
     earlier.write_bytes(b"an earlier take")
-    before = rig.recording_state(tmp_path)
-    # sound killed while it recorded: what it was writing into (its part file) goes, the earlier take stays
-    (tmp_path / f".{rig.RECORDING}.x1y2.part").write_bytes(b"cut short")
-    rig.finish_recording(tmp_path, False, out, err, before)
-    assert sorted(p.name for p in tmp_path.iterdir()) == [rig.RECORDING]
+    older = _part_with_audio(tmp_path, "old1")  # an earlier failed run's, already told about then
+    before, parts = rig.recording_state(tmp_path), rig.recording_parts(tmp_path)
+    # sound killed while it recorded: the earlier take stays, and so does what it was writing into (its part
+    # file, a playable WAV up to the last block), named (was: removed, where the node had just named it)
+    part = _part_with_audio(tmp_path, "x1y2")
+    rig.finish_recording(tmp_path, False, out, err, before, parts)
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([rig.RECORDING, older.name, part.name])
     assert earlier.read_bytes() == b"an earlier take"
-    assert "sound did not stop cleanly; its recording was discarded" in err_text.getvalue()
+    assert err_text.getvalue() == (
+        f"batteur rig: sound did not stop cleanly: {earlier} not written (the earlier one stays); what it "
+        f"recorded, maybe cut short, is in {part} (a WAV file)\n")
+    assert out_text.getvalue() == ""
+
+
+def test_a_part_file_without_audio_goes(tmp_path: Path) -> None:
+    # sound killed before its first block: nothing to keep, nothing to point at
+    out, err, out_text, err_text = _outputs()
+    before, parts = rig.recording_state(tmp_path), rig.recording_parts(tmp_path)
+    (tmp_path / f".{rig.RECORDING}.e1e2.part").write_bytes(b"")  # as mkstemp makes it
+    _part_with_audio(tmp_path, "h1h2", frames=0)  # a header, no frames
+    rig.finish_recording(tmp_path, False, out, err, before, parts)
+    assert list(tmp_path.iterdir()) == []
+    assert err_text.getvalue() == (f"batteur rig: sound did not stop cleanly and recorded nothing "
+                                   f"({tmp_path / rig.RECORDING} not written)\n")
+
+
+def test_the_part_file_a_failed_sound_node_names_is_still_there(tmp_path: Path,
+                                                                caplog: pytest.LogCaptureFixture) -> None:
+    # the node says "what was recorded is in PART" as it closes; the rig, seeing sound did not stop cleanly, then
+    # removed every part file: the user was pointed at a file that was gone
+    from services.sound.node import WavSink
+
+    out, err, out_text, err_text = _outputs()
+    before = rig.recording_state(tmp_path)
+    sink = WavSink(tmp_path / rig.RECORDING, 48000, 1, lambda: 0.0, keep=lambda: False)  # a node that failed
+    sink(np.full((256, 1), 0.25, dtype=np.float32))
+    with caplog.at_level(logging.WARNING, logger="batteur.sound"):
+        sink.close()
+    (said,) = [m for r in caplog.records if r.name == "batteur.sound" and "recorded is in" in (m := r.getMessage())]
+    named = Path(said.rsplit("what was recorded is in ", 1)[1])
+    rig.finish_recording(tmp_path, False, out, err, before)
+    assert named.exists() and sf.info(named).frames == 256
+    assert f"is in {named} (a WAV file)" in err_text.getvalue()
 
 
 def test_the_rig_says_whether_sound_recorded(tmp_path: Path) -> None:

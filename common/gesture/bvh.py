@@ -8,8 +8,6 @@ site per frame, in the file's units and axes (BVH is usually y-up).
 
 from __future__ import annotations
 
-import stat
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -17,6 +15,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from common.datafile import read_text
+from common.input_file import file_problem
 
 
 class BvhError(ValueError):
@@ -131,34 +130,14 @@ def parse_bvh(text: str, name: str = "<bvh>") -> Bvh:
     return Bvh(joints, frame_time, motion)
 
 
-_NOT_FILES: tuple[tuple[Callable[[int], bool], str], ...] = (
-    (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"), (stat.S_ISFIFO, "a pipe (FIFO)"),
-    (stat.S_ISSOCK, "a socket"),
-)
-"""What a path that is neither a file nor a folder may be, by its mode, as :func:`read_bvh` names it."""
-
-
-def _not_a_file(mode: int) -> str:
-    """What a path of this ``st_mode`` is when it is neither a regular file nor a folder (``"something else"`` for
-    a kind not named in :data:`_NOT_FILES`)."""
-    return next((name for test, name in _NOT_FILES if test(mode)), "something else")
-
-
 def read_bvh(path: str | Path) -> Bvh:
     """The BVH file at ``path``; :class:`BvhError` (a ``ValueError``) naming the file for one that cannot be read,
     and for a path that is not a regular file (a folder, ``/dev/null``, a pipe: never opened, as a pipe without a
     writer would block)."""
     p = Path(path)
-    try:
-        mode = p.stat().st_mode
-    except FileNotFoundError:
-        raise BvhError(f"{p}: no such file") from None
-    except OSError as exc:  # a folder on the way that cannot be searched, a loop of links
-        raise BvhError(f"{p}: cannot read it ({exc.strerror or exc})") from None
-    if stat.S_ISDIR(mode):  # was "no such file": a folder given for the file (--skeleton-bvh /tmp)
-        raise BvhError(f"{p}: is a folder, not a BVH file")
-    if not stat.S_ISREG(mode):  # was "no such file" of a path that is there
-        raise BvhError(f"{p}: not a regular file but {_not_a_file(mode)}; give a BVH file")
+    problem = file_problem(p, "a BVH file")  # a folder or a device was "no such file" until 6 Dec
+    if problem is not None:
+        raise BvhError(f"{p}: {problem}")
     try:
         text = read_text(p)
     except ValueError as exc:  # a binary file: a BVH is text

@@ -23,6 +23,8 @@ import numpy as np
 import pybullet_data
 from scipy.spatial.transform import Rotation
 
+from common.input_file import NO_SUCH_FILE, file_problem
+
 
 class ClipError(ValueError):
     """A motion clip file that cannot be read as one (the message names it)."""
@@ -82,18 +84,20 @@ def deepmimic_clip_names() -> list[str]:
 
 
 def load_deepmimic(name_or_path: str | Path) -> MotionClip:
-    """Read a DeepMimic humanoid clip (a shipped name such as ``"punch"`` or a path).
+    """Read a DeepMimic humanoid clip: a shipped clip's name such as ``"punch"`` (whatever the current folder holds
+    of that name), else a path.
 
     Raises ``FileNotFoundError`` naming the shipped clips, :class:`ClipError` (a ``ValueError``) for a malformed
     file or a path that is not a regular file (a folder, a device, a pipe: never opened).
     """
     path = Path(name_or_path)
-    if path.exists() and not path.is_file():
-        raise ClipError(f"{name_or_path}: not a regular file; give a DeepMimic clip file or a shipped clip's name")
-    if not path.suffix:
+    if not path.suffix and str(name_or_path) in deepmimic_clip_names():
         path = MOTIONS_DIR / f"humanoid3d_{name_or_path}.txt"
-    if not path.is_file():
+    problem = file_problem(path, "a DeepMimic clip file", give="a DeepMimic clip file or a shipped clip's name")
+    if problem == NO_SUCH_FILE:
         raise FileNotFoundError(f"no clip {str(name_or_path)!r} (shipped: {', '.join(deepmimic_clip_names())})")
+    if problem is not None:
+        raise ClipError(f"{name_or_path}: {problem}")
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
     except ValueError as exc:  # not UTF-8, not JSON

@@ -68,8 +68,8 @@ def test_the_physics_node_reports_it_in_one_line(capsys: pytest.CaptureFixture[s
 @pytest.mark.parametrize(("argv", "said"), [
     (["--skeleton-bvh", "{bad}"], "{bad}: expected ROOT, found 'broken'"),
     (["--limits-from", "{fifo}"], "{fifo}: not a regular file but a pipe (FIFO); give a BVH file"),
-    (["--limits-from", "/dev/null"], "/dev/null: not a regular file; give a DeepMimic clip file or a shipped clip's "
-                                     "name"),
+    (["--limits-from", "/dev/null"], "/dev/null: not a regular file but a character device; give a DeepMimic clip "
+                                     "file or a shipped clip's name"),
     (["--limits-from", "{bad}"], "{bad}: expected ROOT, found 'broken'"),
 ])
 def test_the_physics_node_refuses_a_motion_file_it_cannot_read_with_1(

@@ -1,10 +1,11 @@
 """A calibration file it cannot use is named with what is wrong, as the other inputs are: a missing file was
 `not a calibration file ([Errno 2] No such file or directory: 'cal.json')`, a folder `([Errno 21] Is a
-directory ...)`, a binary file Python's codec message; and a fit written over the calibration it was made with
-is written whole or not at all."""
+directory ...)`, a binary file Python's codec message, and a pipe was waited on for ever; and a fit written over
+the calibration it was made with is written whole or not at all."""
 
 from __future__ import annotations
 
+import os
 import resource
 import signal
 import subprocess
@@ -31,6 +32,19 @@ def test_a_missing_calibration_file_is_named_as_missing(tmp_path: Path) -> None:
 
 def test_a_folder_given_as_the_calibration_is_named_as_a_folder(tmp_path: Path) -> None:
     assert _refusal(tmp_path) == f"{tmp_path}: is a folder, not a calibration file (JSON)"
+
+
+@pytest.mark.timeout(60)  # opened for reading, a pipe waits for a writer: fail, do not hang
+def test_a_pipe_given_as_the_calibration_is_refused_unopened(tmp_path: Path) -> None:
+    # was: `--calibration cal.json` on a FIFO waited for ever, where a BVH or clip file's pipe is refused at once
+    fifo = tmp_path / "cal.json"
+    os.mkfifo(fifo)
+    assert _refusal(fifo) == f"{fifo}: not a regular file but a pipe (FIFO); give a calibration file (JSON)"
+
+
+def test_a_character_device_given_as_the_calibration_is_named_as_such() -> None:
+    assert _refusal(Path("/dev/null")) == ("/dev/null: not a regular file but a character device; give a "
+                                           "calibration file (JSON)")
 
 
 def test_a_binary_file_is_not_utf8_text(tmp_path: Path) -> None:
