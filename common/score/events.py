@@ -10,6 +10,7 @@ plain-text format (:mod:`common.score.text`) or live OSC notes
 
 from __future__ import annotations
 
+import codecs
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -65,6 +66,45 @@ def audio_kind(head: bytes) -> str | None:
             len(head) >= 2 and head[0] == 0xFF and head[1] & 0xE6 in (0xE2, 0xE4, 0xE6)):
         return "MP3"  # an ID3 tag, or an MPEG audio layer III/II/I frame's sync bits without one
     return None
+
+
+UNICODE_BOMS: tuple[tuple[bytes, str, str], ...] = (
+    (codecs.BOM_UTF32_LE, "utf-32", "UTF-32"),  # before UTF-16's: FF FE 00 00 starts as UTF-16 LE's FF FE
+    (codecs.BOM_UTF32_BE, "utf-32", "UTF-32"),
+    (codecs.BOM_UTF16_LE, "utf-16", "UTF-16"),
+    (codecs.BOM_UTF16_BE, "utf-16", "UTF-16"),
+)
+"""Byte order marks of UTF-16 and UTF-32 text (what Windows Notepad saves as "Unicode"), the Python codec that
+reads such text (it takes the order from the mark and drops it) and the encoding's name for a message."""
+
+
+def unicode_bom(head: bytes) -> tuple[str, str] | None:
+    """(codec, name) of the UTF-16 or UTF-32 text whose byte order mark ``head`` (a file's first bytes) starts with,
+    else None. Checked before :func:`audio_kind`: UTF-16 LE's mark FF FE is also an MPEG audio frame's sync."""
+    for mark, codec, name in UNICODE_BOMS:
+        if head.startswith(mark):
+            return codec, name
+    return None
+
+
+TEXT_CONTROLS = frozenset(b"\t\n\r\f\v")
+"""The control characters text holds (a MIDI file's header holds NULs and other control bytes)."""
+
+
+def looks_like_text(data: bytes) -> bool:
+    """Whether ``data`` (a file's bytes, or its first few thousand) reads as text: UTF-16/32 after its byte order
+    mark, else UTF-8 (a character cut at the end of a sample is allowed), with no control characters but
+    white space. A text score named ``.mid`` is one; a MIDI, audio or other binary file is not."""
+    bom = unicode_bom(data)
+    try:
+        if bom is not None:
+            text = codecs.getincrementaldecoder(bom[0])().decode(data)
+        else:
+            text = codecs.getincrementaldecoder("utf-8")().decode(data)
+    except UnicodeDecodeError:
+        return False
+    return bool(text.strip()) and not any(ord(c) < 32 and ord(c) not in TEXT_CONTROLS or ord(c) == 127
+                                          for c in text)
 
 
 def starts_as_midi(head: bytes) -> bool:

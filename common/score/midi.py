@@ -40,6 +40,7 @@ from common.score.events import (
     check_file,
     check_not_audio,
     hours,
+    looks_like_text,
     score_from_notes,
 )
 from common.score.gm import DRUM_MAP
@@ -55,6 +56,11 @@ MAX_DENOMINATOR = 256
 byte makes a bar of 2^-255 beats); a larger one is ignored."""
 REPORT_EVERY_MESSAGES = 4096
 """Messages mido parses between two progress reports: some 20 ms of parsing, a hundred reports for 2 MB."""
+
+DEFAULT_TEMPO = 500_000
+"""Microseconds per beat (a quarter note) until a file sets its tempo: 120 bpm, as the MIDI specification says."""
+TEXT_SAMPLE_BYTES = 4096
+"""How much of a file named as MIDI is looked at to tell a text score given that name."""
 
 ReadProgress = Callable[[int, int], None]
 """Told (bytes parsed, bytes in the file) while a MIDI file is read."""
@@ -136,6 +142,9 @@ def _open(source: str | Path | bytes,
                          f"{MAX_SCORE_BYTES // 2**20} MB)")
     if not data:  # mido's EOFError would read "truncated MIDI file"
         raise ScoreError(f"{name}: the file is empty (0 bytes), not a MIDI file")
+    if data[:4] not in (b"MThd", b"RIFF") and looks_like_text(data[:TEXT_SAMPLE_BYTES]):  # was "MThd not found"
+        raise ScoreError(f"{name}: this looks like a text score, not a MIDI file; rename it .txt "
+                         f"(a .mid name is read as MIDI whatever it holds)")
     check_not_audio(data[:12], name)
     data = _without_alien_chunks(_unwrapped_riff(data, name))
     if progress is not None:
@@ -148,7 +157,8 @@ def _open(source: str | Path | bytes,
         raise ScoreError(f"{name}: truncated MIDI file ({str(exc) or 'the data ends early'})") from exc
     except (OSError, ValueError, KeyError, IndexError, TypeError, KeySignatureError) as exc:
         # KeySignatureError (no ValueError) only if another module replaced the tolerant key signature spec
-        raise ScoreError(f"{name}: not a valid Standard MIDI File ({type(exc).__name__}: {exc})") from exc
+        # mido's words without Python's class name ("OSError: MThd not found ..." said nothing to a user)
+        raise ScoreError(f"{name}: not a valid Standard MIDI File ({str(exc) or type(exc).__name__})") from exc
     warnings = []
     if bad_keys:
         count = f"{len(bad_keys)} key signatures" if len(bad_keys) > 1 else "a key signature"
@@ -216,12 +226,19 @@ def _timeline(mid: mido.MidiFile) -> tuple[list[tuple[int, mido.Message | mido.M
     Types 0 and 1: every track's messages sorted by tick (ties in track order) without their end-of-track
     markers, as ``mido.merge_tracks`` gives them, but without its two copies of every message (a million
     notes took 80 s and a gigabyte more).
+
+    Type 2: each track is a sequence of its own, starting where the one before ended, at 120 bpm and in 4/4 (a
+    tempo and a time signature put where it starts) unless it sets its own, as a file's start is: a track
+    without a tempo played at the one the track before it left.
     """
     out: list[tuple[int, mido.Message | mido.MetaMessage]] = []
     if mid.type == 2:
         offset = 0
-        for track in mid.tracks:
+        for k, track in enumerate(mid.tracks):
             tick = offset
+            if k:  # tick 0 already starts at them; its own at its tick 0 come after these, and win
+                out.append((tick, mido.MetaMessage("set_tempo", tempo=DEFAULT_TEMPO)))
+                out.append((tick, mido.MetaMessage("time_signature", numerator=4, denominator=4)))
             for msg in track:
                 tick += msg.time
                 out.append((tick, msg))
@@ -286,7 +303,7 @@ def _read(source: str | Path | bytes, drum_channels: Collection[int] | None, dru
     if mid.ticks_per_beat == 0:
         raise ScoreError(f"{name}: 0 ticks per beat in the header (a corrupt file?)")
     timeline, end_tick = _timeline(mid)
-    tempo = 500000  # microseconds per beat (120 bpm) until told otherwise
+    tempo = DEFAULT_TEMPO  # until told otherwise
     seconds = 0.0
     last_tick = 0
     per_tick = tempo / 1e6 / mid.ticks_per_beat

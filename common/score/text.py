@@ -11,21 +11,25 @@ Example::
     repeat 2
 
 Rows of one block (consecutive grid lines) share a grid; a blank line or a
-directive ends a block, and the next block starts where it ended. Errors raise
+directive ends a block, and the next block starts where it ended. Beats are quarter
+notes, as in a MIDI file: ``tempo`` counts them a minute, a bar of ``meter N/D``
+lasts N x 4/D of them, and ``at`` and ``rest`` count them. Errors raise
 :class:`ScoreError` with the line number.
 """
 
 from __future__ import annotations
 
 import bisect
+import difflib
 import math
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
 from common.datafile import read_text
 from common.gesture.plan import Grip, Nuance
-from common.kit import EventType, Limb
+from common.kit import EventType, Kit, Limb, load_kit
 from common.score.events import (
     MAX_SCORE_BARS,
     MAX_SCORE_NOTES,
@@ -38,6 +42,7 @@ from common.score.events import (
     hours,
     remove_duplicates,
     starts_as_midi,
+    unicode_bom,
 )
 
 ALIASES: dict[str, EventType] = {
@@ -101,11 +106,15 @@ class TextScore(Score):
     """The line of the ``kit`` directive, for a message about its kit."""
 
 
+DEFAULT_BPM = 120.0
+"""The tempo until a ``tempo`` line, beats (quarter notes) per minute: a MIDI file's default."""
+
+
 class _Tempo:
     """Beats -> seconds with tempo changes (bpm) at beat positions."""
 
     def __init__(self) -> None:
-        self.points: list[tuple[float, float, float]] = [(0.0, 0.0, 120.0)]  # beat, seconds, bpm
+        self.points: list[tuple[float, float, float]] = [(0.0, 0.0, DEFAULT_BPM)]  # beat, seconds, bpm
         self.starts: list[float] = [0.0]  # the points' beats, increasing (a tempo is set where the score is)
 
     def set(self, beat: float, bpm: float) -> None:
@@ -127,14 +136,35 @@ class _Tempo:
         return s0 + (beat - b0) * 60.0 / bpm
 
 
+ROW_NAMES_DOC = "docs/score-format.md, 'Row names'"
+"""Where the instrument names are listed, for a message about one it does not know."""
+
+
+def unknown_instrument(name: str, lineno: int) -> ScoreError:
+    """The error for an instrument name that is neither an event type nor an alias: the nearest names (those it
+    starts, then the closest by spelling) and where the list is (it said "use an event type or an alias", with
+    neither)."""
+    names = [*EventType.__members__, *ALIASES]
+    key = name.upper()
+    stripped = key.strip(":;,.")  # 'HH:'
+    near = [stripped] if stripped != key and event_type(stripped) is not None else []
+    near += [n for n in names if len(key) >= 3 and n.startswith(key)]  # 'HIHAT': the three hi-hats
+    near += difflib.get_close_matches(key, names, n=3, cutoff=0.6)
+    near = list(dict.fromkeys(near))[:4]
+    hint = f": did you mean {_either(near)}?" if near else ""
+    return ScoreError(f"line {lineno}: unknown instrument {name!r}{hint} (the names are the event types and their "
+                      f"aliases: {ROW_NAMES_DOC})")
+
+
 def _split_cells(row: str, lineno: int) -> tuple[list[str], int]:
     """Cells of a grid row and its bar count ('|' separates bars)."""
     bars = [b for b in row.strip().strip("|").split("|")]
     if any(not b for b in bars):
         raise ScoreError(f"line {lineno}: empty bar in grid row")
-    widths = {len(b) for b in bars}
-    if len(widths) != 1:
-        raise ScoreError(f"line {lineno}: bars of one row must have the same number of cells (got {sorted(widths)})")
+    odd = next((k for k, b in enumerate(bars) if len(b) != len(bars[0])), None)
+    if odd is not None:  # named, against the first (was "(got [6, 8])", sorted, of no bar)
+        raise ScoreError(f"line {lineno}: bar {odd + 1} has {len(bars[odd])} cells, bar 1 has {len(bars[0])} (the "
+                         f"bars of one row have the same number of cells)")
     return [c for b in bars for c in b], len(bars)
 
 
@@ -166,6 +196,41 @@ def _marks(name: str, rows: list[tuple[list[str], int, int]], allowed: str) -> l
     return cells
 
 
+def _warn_foot_sticking(sticking: list[str], grid: dict[str, list[tuple[list[str], int, int]]], lineno: int,
+                        warnings: list[str]) -> None:
+    """Warn of ST marks whose column holds foot notes (BD, a hi-hat pedal) and no stick note: a foot plays them and
+    the hand is ignored, as an ``at ... R`` line on a foot note says (they were ignored without a word)."""
+    stick = set()
+    feet: dict[int, list[str]] = {}
+    for name, rows in grid.items():
+        foot = event_type(name) in FOOT_EVENTS
+        for cells, _, _ in rows:
+            for k, ch in enumerate(cells):
+                if ch in ".-":
+                    continue
+                if foot:
+                    feet.setdefault(k, []).append(name)
+                else:
+                    stick.add(k)
+    ignored = [k for k, ch in enumerate(sticking) if ch in STICKING and k in feet and k not in stick]
+    if ignored:
+        names = _either(sorted({n for k in ignored for n in feet[k]}))
+        warnings.append(f"line {lineno}: ST {_cell_list(ignored)}: {names} is played by a foot; the "
+                        f"hand{'s' * (len(ignored) > 1)} there {'are' if len(ignored) > 1 else 'is'} ignored")
+
+
+def _cell_list(cells: list[int]) -> str:
+    """'cell 3', 'cells 1-8', 'cells 1, 3, 5-6' for 0-based cell indices (increasing)."""
+    runs: list[list[int]] = []
+    for k in cells:
+        if runs and k == runs[-1][-1] + 1:
+            runs[-1].append(k)
+        else:
+            runs.append([k])
+    parts = [f"{r[0] + 1}" if len(r) == 1 else f"{r[0] + 1}-{r[-1] + 1}" for r in runs]
+    return f"cell{'s' * (len(cells) > 1)} {', '.join(parts)}"
+
+
 def _size(cells: int, bars: int) -> str:
     """'8 cells in 2 bars' (a grid row's size, for a message)."""
     return f"{cells} cell{'s' * (cells != 1)} in {bars} bar{'s' * (bars != 1)}"
@@ -189,10 +254,10 @@ def _either(values: list[str]) -> str:
 
 
 DIRECTIVE_FORMS: dict[str, str] = {
-    "tempo": "BPM: a number of beats per minute, 10 to 400",
-    "meter": "BEATS/UNIT, e.g. 4/4, 6/8 or 2.5/4",
+    "tempo": "BPM: a number of beats (quarter notes) per minute, 10 to 400",
+    "meter": "N/D: N notes of 1/D a bar, e.g. 4/4, 6/8 or 2.5/4",
     "repeat": "N: a whole number of times, 1 or more",
-    "rest": "[BEATS]: a number of beats (without it, a bar)",
+    "rest": "[BEATS]: a number of beats, quarter notes (without it, a bar)",
     "grip": _either([g.value for g in Grip]),
     "nuance": _either([n.value for n in Nuance]),
     "kit": "NAME: a shipped kit's name (default, double_pedal, ...) or a kit file's path",
@@ -201,9 +266,25 @@ DIRECTIVE_FORMS: dict[str, str] = {
 }
 """How each directive is written, said when one cannot be read (instead of Python's words about the value)."""
 
+MARK_ROWS = ("ST", "NU")
+"""The rows marking the notes of a block's instrument rows: sticking and nuance."""
 DIGITS = "123456789"
 STICK_MARKS = "RL.-"
 NUANCE_MARKS = "ltavs.-"
+
+
+def _row_without_bar_lines(head: str, rest: str) -> bool:
+    """Whether the line ``head rest`` (no '|' in it) is a grid row written without its bar lines: an instrument
+    (or ST, NU) name, then cells only (``HH x.x.x.x.``; not ``kick snare``, words, which stay an unknown
+    directive)."""
+    name = head.upper()
+    if name in MARK_ROWS:
+        allowed = STICK_MARKS if name == "ST" else NUANCE_MARKS
+    elif event_type(head) is not None:
+        allowed = "".join(CELL_VELOCITY) + DIGITS + ".-"
+    else:
+        return False
+    return all(ch in allowed for ch in rest.replace(" ", ""))
 
 
 def parse_text(text: str, source: str = "text") -> TextScore:
@@ -224,6 +305,7 @@ def parse_text(text: str, source: str = "text") -> TextScore:
     grip: Grip | None = None
     nuance: Nuance | None = None
     kit: tuple[str, int] | None = None  # name, line
+    tempo_given = False
 
     def check_until(beat: float, notes: int, lineno: int) -> None:
         """Refuse a score that would last longer or hold more notes than a score may, before making it."""
@@ -262,13 +344,20 @@ def parse_text(text: str, source: str = "text") -> TextScore:
                                  f"{_size(n_cells, n_bars)}")
             grid.setdefault(name, []).append((cells, bars, lineno))
         cell_beats = beats_per_bar * n_bars / n_cells
-        sticking = _marks("ST", grid.pop("ST", []), STICK_MARKS)
-        nuances = _marks("NU", grid.pop("NU", []), NUANCE_MARKS)
+        marks = {name: grid.pop(name) for name in ("ST", "NU") if name in grid}
+        if not grid:  # it added a silent bar: its notes are the rows above, without a blank line between
+            name, rows = next(iter(marks.items()))
+            raise ScoreError(f"line {rows[0][2]}: the {name} row has no instrument rows in its block: it marks the "
+                             f"notes of the rows it follows, with no blank line or directive between")
+        sticking = _marks("ST", marks.get("ST", []), STICK_MARKS)
+        nuances = _marks("NU", marks.get("NU", []), NUANCE_MARKS)
         notes = len(events)
         for name, rows in grid.items():
             if event_type(name) is None:
-                raise ScoreError(f"line {rows[0][2]}: unknown instrument {name!r} (use an event type or an alias)")
+                raise unknown_instrument(name, rows[0][2])
             notes += sum(_note_cells(cells, lineno) for cells, _, lineno in rows)
+        if sticking is not None:
+            _warn_foot_sticking(sticking, grid, marks["ST"][0][2], warnings)
         check_until(position + n_bars * beats_per_bar, notes, block[0][0])
         block_events: list[DrumEvent] = []
         for name, rows in grid.items():
@@ -305,8 +394,10 @@ def parse_text(text: str, source: str = "text") -> TextScore:
         beat = _finite(parts[0], "the beat", lineno)
         ev = event_type(parts[1])
         if ev is None:
-            raise ScoreError(f"line {lineno}: unknown instrument {parts[1]!r} (use an event type or an alias)")
-        vel = float(parts[2]) if len(parts) > 2 else 0.7
+            raise unknown_instrument(parts[1], lineno)
+        if len(parts) == 3 and parts[2].upper() in STICKING:  # `at 0 SN L`: the velocity left out (was refused)
+            parts.insert(2, "")
+        vel = float(parts[2]) if len(parts) > 2 and parts[2] else 0.7
         if not 0 <= vel <= 1:
             raise ScoreError(f"line {lineno}: velocity {vel} outside [0, 1]")
         if len(parts) > 3 and parts[3].upper() not in STICKING:
@@ -342,11 +433,15 @@ def parse_text(text: str, source: str = "text") -> TextScore:
                 if not 10 <= bpm <= 400:
                     raise ScoreError(f"line {lineno}: tempo {bpm} outside 10..400 bpm")
                 tempo.set(position, bpm)
+                tempo_given = True
             elif word == "meter":
                 num, _, den = rest.partition("/")
-                beats_per_bar = float(num)
-                if not 0 < beats_per_bar < math.inf or not den.strip().isdigit() or not int(den) > 0:
+                count, unit = float(num), den.strip()
+                if not 0 < count < math.inf or not unit.isdigit() or not int(unit) > 0:
                     raise ValueError(rest)
+                # N notes of 1/D: N x 4/D beats (quarter notes), as a MIDI file's time signature; D was ignored,
+                # 6/8 bars were 6 beats, their eighths as long as quarters
+                beats_per_bar = count * 4 / int(unit)
             elif word == "repeat":
                 count = int(rest)
                 if count < 1 or not last_block_beats:
@@ -375,6 +470,9 @@ def parse_text(text: str, source: str = "text") -> TextScore:
                 kit = (rest, lineno)
             elif word == "title":
                 pass
+            elif _row_without_bar_lines(head, rest):  # 'HH x.x.x.x.'
+                raise ScoreError(f"line {lineno}: a grid row needs its bars between '|': write "
+                                 f"{head} |{rest.replace(' ', '') or 'x.x.x.x.'}|")
             else:
                 raise ScoreError(f"line {lineno}: unknown directive {head!r}")
         except ScoreError:
@@ -403,6 +501,10 @@ def parse_text(text: str, source: str = "text") -> TextScore:
         # which would cut the bar short; a start where it ends gives it and the bars past the end their length
         # (common.score.position counts on from the last two, as past a MIDI file's end)
         add_bars(position, last_bar, last_bar)
+    if not events:  # as a MIDI file's (the score plays nothing; a blank file said "0 events" only)
+        warnings.append("no drum events")
+    elif not tempo_given:
+        warnings.insert(0, f"no tempo line: played at {DEFAULT_BPM:g} beats (quarter notes) per minute")
     kept, removed = remove_duplicates(events)
     beats = np.array([tempo.seconds(b) for b in np.arange(0.0, position + 1e-9, 1.0)])
     score = TextScore(events=kept, beats=beats, bar_beats=np.array(bar_starts, dtype=float), duplicates=removed,
@@ -433,17 +535,69 @@ def read_score(path: str | Path, **kwargs: object) -> Score:
     try:
         with p.open("rb") as f:
             head = f.read(12)
-            if starts_as_midi(head):  # a MIDI file by another name (.kar, none): it was "not UTF-8 text"
-                return read_midi(p, **kwargs)  # type: ignore[arg-type]
-        text = read_text(p)
     except OSError as exc:
         raise ScoreError(f"{p}: cannot read the file ({exc.strerror or exc})") from None
-    except ValueError as exc:  # not UTF-8: a binary file (an audio file given as the score?)
-        check_not_audio(head, str(p))
-        raise ScoreError(f"{p}: not a text score ({exc})") from None
+    if starts_as_midi(head):  # a MIDI file by another name (.kar, none): it was "not UTF-8 text"
+        return read_midi(p, **kwargs)  # type: ignore[arg-type]
+    if not head:  # as an empty MIDI file's (it read as a score of no notes)
+        raise ScoreError(f"{p}: the file is empty (0 bytes)")
+    text = _score_text(p, head)
     try:
         score = parse_text(text, source=str(p))
     except ScoreError as exc:
         raise ScoreError(f"{p}: {exc}") from exc
     score.warnings = [f"{p}: {warning}" for warning in score.warnings]  # as its errors, and a MIDI file's warnings
     return score
+
+
+def _score_text(path: Path, head: bytes) -> str:
+    """The text of a score file whose first bytes are ``head``: UTF-8, or UTF-16 or UTF-32 after a byte order mark
+    (Windows Notepad's "Unicode"), read before the audio formats are looked for (UTF-16's mark FF FE made it "an
+    audio file (MP3)"). :class:`ScoreError` if it cannot be read or is not text."""
+    bom = unicode_bom(head)
+    try:
+        return read_text(path) if bom is None else path.read_bytes().decode(bom[0])
+    except OSError as exc:
+        raise ScoreError(f"{path}: cannot read the file ({exc.strerror or exc})") from None
+    except UnicodeDecodeError as exc:  # a byte order mark, then no such text
+        name = bom[1] if bom is not None else "UTF-8"
+        raise ScoreError(f"{path}: not a text score (it starts as {name} text but is not: {exc.reason} at byte "
+                         f"{exc.start}); save it as UTF-8") from None
+    except ValueError as exc:  # not UTF-8: a binary file (an audio file given as the score?)
+        check_not_audio(head, str(path))
+        raise ScoreError(f"{path}: not a text score ({exc})") from None
+
+
+DEFAULT_KIT = "default"
+"""The kit a score plays when neither the command line nor the score names one."""
+
+
+def score_kit(score: Score | None) -> str | None:
+    """The kit ``score`` asks for (a text score's ``kit`` line; None: none): a shipped kit's name, or a kit file's
+    path, taken from the score's folder when relative (where a score and its kit are kept together)."""
+    name = getattr(score, "kit", None)
+    if not isinstance(name, str):
+        return None
+    path = Path(name)
+    if not path.suffix or path.is_absolute() or score is None or not score.source:
+        return name  # a shipped kit's name (load_kit: a name has no suffix), or a path as written
+    return str(Path(score.source).parent / path)
+
+
+def load_score_kit(score: Score | None, given: str | None, where: str | Path | None = None,
+                   load: Callable[[str], Kit] = load_kit) -> Kit:
+    """The kit ``score`` plays, loaded with ``load`` (:func:`common.kit.load_kit`, or one given a drummer's height
+    and limbs): ``given`` (a ``--kit`` option) unless None, else the score's ``kit`` line (:func:`score_kit`),
+    else :data:`DEFAULT_KIT`; one place for every command that reads scores (render, evaluate, ``python -m
+    common.score``). A kit the score's line names that cannot be loaded is a :class:`ScoreError` naming the line
+    (``WHERE: line 2: kit 'x': why``; ``where``: the score's file unless given); ``given``'s raises what
+    ``load_kit`` raises (``FileNotFoundError``, ``ValueError``)."""
+    name = given or score_kit(score) or DEFAULT_KIT
+    try:
+        return load(name)
+    except (FileNotFoundError, ValueError) as exc:
+        line = getattr(score, "kit_line", None)
+        if given is not None or score is None or line is None:
+            raise
+        raise ScoreError(f"{where if where is not None else score.source}: line {line}: kit "
+                         f"{getattr(score, 'kit', name)!r}: {exc}") from None

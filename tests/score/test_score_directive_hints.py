@@ -15,11 +15,11 @@ PYTHON_WORDS = ("convert", "literal", "int()", "float", "valid Grip", "valid Nua
 
 
 @pytest.mark.parametrize(("line", "hint"), [
-    ("tempo 100 bpm", "write tempo BPM: a number of beats per minute, 10 to 400"),
-    ("meter 3", "write meter BEATS/UNIT, e.g. 4/4, 6/8 or 2.5/4"),
-    ("meter 0/4", "write meter BEATS/UNIT, e.g. 4/4, 6/8 or 2.5/4"),
+    ("tempo 100 bpm", "write tempo BPM: a number of beats (quarter notes) per minute, 10 to 400"),
+    ("meter 3", "write meter N/D: N notes of 1/D a bar, e.g. 4/4, 6/8 or 2.5/4"),
+    ("meter 0/4", "write meter N/D: N notes of 1/D a bar, e.g. 4/4, 6/8 or 2.5/4"),
     ("repeat 1.5", "write repeat N: a whole number of times, 1 or more"),
-    ("rest abc", "write rest [BEATS]: a number of beats (without it, a bar)"),
+    ("rest abc", "write rest [BEATS]: a number of beats, quarter notes (without it, a bar)"),
     ("grip frnch", "write grip french or german"),
     ("nuance loud", "write nuance legato, tenuto, accent, vertical_accent or staccato"),
     ("at 1 SN loud", "write at BEAT NAME [VELOCITY, 0 to 1] [L|R]"),
