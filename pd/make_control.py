@@ -54,11 +54,10 @@ from services.graphics.camera import default_camera  # noqa: E402
 def _master_defaults() -> tuple[float, float]:
     """(master gain dB, reverb 0..1) of a sound service started by ``batteur sound`` or ``batteur rig``."""
     from services.sound.core import SoundSettings
-    from services.sound.node import add_arguments
+    from services.sound.node import SoundNodeSettings
 
-    parser = argparse.ArgumentParser()
-    add_arguments(parser)
-    return float(SoundSettings.model_fields["master_db"].default), float(parser.get_default("reverb"))
+    return (float(SoundSettings.model_fields["master_db"].default),
+            float(SoundNodeSettings.model_fields["reverb"].default))
 
 
 MASTER_DEFAULTS = _master_defaults()

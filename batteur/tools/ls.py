@@ -22,7 +22,10 @@ from common.transport import UdpEndpoint
 
 DESCRIPTION = """\
 List the Batteur nodes found by zeroconf (or given with --node), each with the Health it
-answers to a Hello: role, node id, address, loop rate, dropped messages, peers.
+answers to a Hello: role, node id, address, loop rate, dropped messages, peers. --json adds
+the rest of the Health: the drops by reason (dropped_malformed, dropped_unknown, dropped_type,
+dropped_range, dropped_other) and rig_time_s, the node's rig time when it answered (seconds:
+what a timed message such as /batteur/impact is stamped with).
 
 Exit status: 0 when every node listed answered, 1 when one did not (or none was found),
 2 on bad arguments; so `batteur ls --node 127.0.0.1:9103` is a healthcheck."""
@@ -82,8 +85,11 @@ def _row(target: Target, health: Health | None) -> dict[str, object]:
         return row
     row.update(
         role=health.role, node_id=health.node_id, status="ok", protocol=health.protocol,
+        rig_time_s=round(health.time, 3),  # when it answered: a timed message (an impact, a score's start) needs it
         rate_hz=round(health.rate_hz, 1), target_rate_hz=health.target_rate_hz, overruns=health.overruns,
         messages_in=health.messages_in, messages_out=health.messages_out, dropped=health.dropped,
+        dropped_malformed=health.dropped_malformed, dropped_unknown=health.dropped_unknown,
+        dropped_type=health.dropped_type, dropped_range=health.dropped_range, dropped_other=health.dropped_other,
         late=health.late, peers=health.peers, decode_unanswered=health.decode_unanswered,
         replies_unanswered=health.replies_unanswered, target_lag=round(health.target_lag, 4),
         target_jumps=health.target_jumps,

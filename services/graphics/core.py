@@ -19,8 +19,9 @@ on physics' clock) and ``/batteur/physics/reset`` when the editor lets go.
 from __future__ import annotations
 
 import bisect
+import logging
 import math
-from collections import deque
+from collections import Counter, deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, ClassVar, Literal
@@ -56,6 +57,11 @@ NO_PREVIEW = ("no preview is loaded, the view stays live: start the graphics nod
               "--preview FILE.npz")
 """Why ``/batteur/graphics/mode preview`` is refused on a node without a preview."""
 SCORE_POSITION_KEPT_S = 1.0  # seconds a score position is shown after it arrived (the player sends 10 a second)
+REFUSAL_LOG_INTERVAL_S = 1.0
+"""Refusals of one kind are logged at most once per this many seconds of rig time (the others are counted and
+summed into the next line), so a broken pose stream cannot flood the log."""
+
+log = logging.getLogger("batteur.graphics")
 
 
 class GraphicsSettings(BaseModel):
@@ -172,8 +178,12 @@ class GraphicsCore:
         self._lags: deque[tuple[float, float]] = deque()
         self.counters: dict[str, int] = {
             "poses": 0, "impacts": 0, "frames": 0, "bad_layout": 0, "no_skeleton": 0, "duplicate_impacts": 0,
-            "starved": 0, "clock_jumps": 0, "postures_sent": 0, "pose_resets": 0,
+            "starved": 0, "clock_jumps": 0, "postures_sent": 0, "pose_resets": 0, "mode_refused": 0,
         }
+        self._refusal_logged: dict[str, float] = {}
+        """Refusal kind -> rig time it was last logged, seconds."""
+        self._refusal_quiet: Counter[str] = Counter()
+        """Refusal kind -> refusals not logged since (see ``REFUSAL_LOG_INTERVAL_S``)."""
         self._outbox: list[dict[str, Any]] = []
         self._last_status = -math.inf
         self.last_frame: ViewFrame | None = None
@@ -188,7 +198,7 @@ class GraphicsCore:
     # --- the Core protocol --------------------------------------------------------------------
     def handle(self, message: OscMessage, now: float, source: str) -> list[Outgoing]:
         if isinstance(message, Pose):
-            self._on_pose(message, now)
+            self._on_pose(message, now, source)
         elif isinstance(message, Skeleton):
             self._on_skeleton(message)
         elif isinstance(message, Impact):
@@ -206,10 +216,30 @@ class GraphicsCore:
             self.score, self._score_seen = message, now
         elif isinstance(message, GraphicsMode) and message.mode == "preview" and self.preview is None:
             self.apply_control(message)  # the view stays live, and the pages are told so
+            self.counters["mode_refused"] += 1
+            self._log_refusal("mode", now, f"graphics refused /batteur/graphics/mode preview from {source}: "
+                              f"{NO_PREVIEW}")
             return [Outgoing(GraphicsRejected(address=message.ADDRESS, reason=NO_PREVIEW), "reply")]
         else:
             self.apply_control(message)
         return []
+
+    @property
+    def rejected_total(self) -> int:
+        """Messages this core refused, total: poses of the wrong length or another layout, and the preview mode
+        with no preview loaded. The node's Health counts them in ``dropped`` and ``dropped_other``; poses before
+        any skeleton (a node starting before physics' layout reached it) are only counted (``no_skeleton``)."""
+        return self.counters["bad_layout"] + self.counters["mode_refused"]
+
+    def _log_refusal(self, kind: str, now: float, detail: str) -> None:
+        """Warn about a refusal, at most once per :data:`REFUSAL_LOG_INTERVAL_S` of rig time for each kind."""
+        last = self._refusal_logged.get(kind)
+        if last is not None and 0.0 <= now - last < REFUSAL_LOG_INTERVAL_S:
+            self._refusal_quiet[kind] += 1
+            return
+        self._refusal_logged[kind] = now
+        quiet = self._refusal_quiet.pop(kind, 0)
+        log.warning("%s%s", detail, f" (+{quiet} more since the last report)" if quiet else "")
 
     def step(self, now: float) -> list[Outgoing]:
         frame = self.frame_at(now)
@@ -303,12 +333,21 @@ class GraphicsCore:
             self.parents = guess_parents(self.names)
             self._outbox.append(self.skeleton_json())
 
-    def _on_pose(self, message: Pose, now: float) -> None:
-        if self.layout < 0:
-            self.counters["no_skeleton"] += 1
+    def _on_pose(self, message: Pose, now: float, source: str) -> None:
+        count = len(message.values)
+        if count % FLOATS_PER_LINK:  # no layout has it: a broken sender, with or without a skeleton
+            self._refuse_pose(now, f"{count} values, not {FLOATS_PER_LINK} per link (x y z qx qy qz qw)", source)
             return
-        if message.layout != self.layout or len(message.values) != FLOATS_PER_LINK * len(self.live_names):
-            self.counters["bad_layout"] += 1
+        if self.layout < 0:
+            self.counters["no_skeleton"] += 1  # waiting for physics' layout (it answers this node's Hello with it)
+            return
+        if message.layout != self.layout:
+            self._refuse_pose(now, f"layout {message.layout}, not the skeleton's {self.layout} (a pose of another "
+                              "physics node, or sent before its /batteur/skeleton)", source)
+            return
+        if count != FLOATS_PER_LINK * len(self.live_names):
+            self._refuse_pose(now, f"{count // FLOATS_PER_LINK} links, the skeleton of layout {self.layout} has "
+                              f"{len(self.live_names)}", source)
             return
         if self.settings.clock == "auto":
             self._follow_clock(message.time - now, now)
@@ -334,6 +373,10 @@ class GraphicsCore:
         while self._times and self._times[0] < horizon:
             self._times.popleft()
             self._poses.popleft()
+
+    def _refuse_pose(self, now: float, why: str, source: str) -> None:
+        self.counters["bad_layout"] += 1
+        self._log_refusal("pose", now, f"graphics dropped /batteur/pose from {source}: {why}")
 
     def _follow_clock(self, lag: float, now: float) -> None:
         """Auto clock: offset = the largest ``pose time - local time`` seen over the last 2 s.

@@ -22,7 +22,7 @@ What an impact carries when (docs/interaction.md):
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Collection, Mapping
 from typing import ClassVar, Literal, Protocol
 
 import numpy as np
@@ -120,6 +120,10 @@ class InteractionCore:
         self.impacts_sent = 0
         self.latencies: deque[float] = deque(maxlen=10_000)
         self.on_config_error: Callable[[str], None] | None = None
+        self.reachable_roles: Callable[[], Collection[str]] | None = None
+        """Set by the node: the roles it can ever send to (those discovery looks for, and its peers'). A route or
+        registered message added over OSC to another role is refused (no node of it would get a message); None
+        (offline, tests): any role is taken."""
         self.rate_hz = self._rate_for(self.config)
         self._controls: dict[type[OscMessage], Callable[[OscMessage, float], list[Outgoing]]] = {
             RouteSet: self._route_set,
@@ -329,6 +333,18 @@ class InteractionCore:
                 lines.append(f"{owner}: no instrument {', '.join(map(repr, unknown))} in kit {self.kit.name!r}")
         return lines
 
+    def _check_role(self, to: str) -> None:
+        """ValueError when ``to`` is a role this node can never send to (see :attr:`reachable_roles`): it would
+        be taken and saved, and its messages silently go nowhere."""
+        if self.reachable_roles is None or ":" in to or to.startswith("["):  # a HOST:PORT is always reachable
+            return
+        roles = sorted(set(self.reachable_roles()))
+        if to in roles:
+            return
+        known = f"the roles it can reach are {', '.join(roles)}" if roles else "it reaches no role"
+        raise ValueError(f"no {to!r} node can be reached: {known} (found by discovery or given with --peer); "
+                         f"give your tool's HOST:PORT, or start interaction with --peer {to}=HOST:PORT")
+
     def _route_set(self, message: OscMessage, now: float) -> list[Outgoing]:
         assert isinstance(message, RouteSet)
         routes = [r.model_dump() for r in self.config.routes]
@@ -338,7 +354,9 @@ class InteractionCore:
                 route["instruments"] = instruments
                 break
         else:
-            routes.append(Route(to=message.to, instruments=instruments).model_dump())
+            added = Route(to=message.to, instruments=instruments)  # a target no route may have is refused first
+            self._check_role(added.to)
+            routes.append(added.model_dump())
         self._changed(routes=routes)
         return []
 
@@ -361,7 +379,9 @@ class InteractionCore:
                 route["fields"][message.field] = spec.model_dump()
                 break
         else:
-            routes.append(Route(to=message.to, fields={message.field: spec}).model_dump())
+            added = Route(to=message.to, fields={message.field: spec})
+            self._check_role(added.to)
+            routes.append(added.model_dump())
         self._changed(routes=routes)
         return []
 
@@ -401,6 +421,7 @@ class InteractionCore:
             when=message.when,
             args=[ArgSpec.parse(text) for text in message.specs],
         )
+        self._check_role(registered.to)
         messages = [m.model_dump() for m in self.config.messages if m.name != message.name]
         messages.append(registered.model_dump())
         self._changed(messages=messages)

@@ -232,11 +232,11 @@ class ArgSpec(_Model):
         type_: OscType = osc_type if osc_type in ("i", "f", "s") else "auto"  # type: ignore[assignment]
         try:
             if body.startswith("="):
-                return cls(value=_constant(body[1:]), type=type_)
+                return cls(value=_constant(text, body[1:], type_), type=type_)
             name, *rest = body.split(":")
             curve: LinearCurve | ExpCurve | TableCurve | None = None
             if rest:
-                kind, numbers = rest[0], [float(v) for v in rest[1:]]
+                kind, numbers = rest[0], _curve_numbers(text, body, rest)
                 if kind == "linear":
                     if len(numbers) != 4:
                         raise MappingError(f"{text!r}: linear takes IN_MIN:IN_MAX:OUT_MIN:OUT_MAX")
@@ -266,16 +266,39 @@ def _spec_number(value: float) -> str:
     return text[:-2] if text.endswith(".0") else text
 
 
-def _constant(text: str) -> int | float | str:
+def _curve_numbers(text: str, body: str, fields: list[str]) -> list[float]:
+    """The numbers of a curve (``fields``: its kind then its numbers, from ``body``, the spec before any ``@``);
+    MappingError naming the one that is not a number, and the ``@`` form of an OSC type written as a field
+    (``velocity:linear:0:10:0:127:i`` for ``...:127@i``)."""
+    last = fields[-1]
+    if last in ("i", "f", "s"):  # the type where a number (or the curve) belongs
+        fixed = body.rpartition(":")[0] + "@" + last
+        raise MappingError(f"{text!r}: the OSC type is written after @, not as a field: {fixed!r}")
+    numbers = []
+    for i, field in enumerate(fields[1:], 1):
+        try:
+            numbers.append(float(field))
+        except ValueError:
+            raise MappingError(f"{text!r}: {fields[0]}'s value {i}, {field!r}, is not a number") from None
+    return numbers
+
+
+def _constant(text: str, body: str, osc_type: str) -> int | float | str:
+    """The value of the constant ``=body`` (spec ``text``): an int, else a float, else a string. A number no OSC
+    float carries (``=1e400``, ``=nan``, ``=inf``) raises MappingError, unless sent as a string (``@s``): it was
+    taken as the string '1e400'."""
     for convert in (int, float):
         try:
-            value = convert(text)
+            value = convert(body)
         except ValueError:
             continue
         if isinstance(value, float) and not math.isfinite(value):
-            break
+            if osc_type == "s":
+                return body
+            raise MappingError(f"{text!r}: constant {body!r} is not a finite number, which an OSC float must be "
+                               f"(within ±{FLOAT32_MAX:.4g}; a string is sent with @s: '={body}@s')")
         return value
-    return text
+    return body
 
 
 def _first_line(exc: Exception) -> str:

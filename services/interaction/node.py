@@ -118,7 +118,18 @@ async def report_stats(node: Node, interval_s: float = 30.0) -> None:
         )  # fmt: skip
 
 
+def reachable_roles(node: Node) -> set[str]:
+    """The roles ``node`` can send to: its peers' (static ones included) and, with discovery running, the roles
+    it looks for; no other role is ever added to its peer table."""
+    roles = {peer.role for peer in node.peers.all()}
+    if node.discovery is not None:
+        roles.update(node.browse_roles)
+    return roles
+
+
 def _setup(node: Node) -> None:
+    if isinstance(node.core, InteractionCore):
+        node.core.reachable_roles = lambda: reachable_roles(node)
     node.spawn(report_stats(node), "interaction stats")
 
 

@@ -25,11 +25,12 @@ import threading
 from collections.abc import Callable, Sequence
 from datetime import datetime
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import numpy.typing as npt
 import soundfile as sf
+from pydantic import Field, field_validator
 
 from common.config import NodeSettings
 from common.exit_status import InputError
@@ -262,61 +263,91 @@ class DeviceSink:
         self.server.shutdown()
 
 
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    group = parser.add_argument_group("sound")
-    group.add_argument("--kit", default="default", help="kit name or kit file (default: default)")
-    group.add_argument("--wav", type=Path, default=None,
-                       help="also record the output to this file, 24-bit (.wav, .flac, .w64, .rf64; a .wav take "
-                       "that passes 4 GiB, about 4 h, becomes RF64 instead of losing its end); written under a "
-                       "temporary name and given this one when the node stops (a node that fails leaves a file already "
-                       "there as it was, and what it recorded under the temporary name). {start} in the file name is "
-                       "the take's start time, local YYYYmmdd-HHMMSS (take-{start}.wav: take-20260131-201500.wav, "
-                       "then -2, -3 ... if that name is taken), so each run keeps its own file; the log says "
-                       "the name. Beside it, its name + .json (take.wav.json) gives origin_rig_time_s (the rig time of "
-                       "the first sample, seconds: lines the take up with the rig's impacts), sample_rate_hz, "
-                       "channels and frames")
-    group.add_argument("--device", choices=("auto", "none"), default="auto",
-                       help="auto: play on the sound card if portaudio finds one; none: never (default auto)")
-    group.add_argument("--model", choices=("modal", "sample", "synth"), default="modal",
-                       help="initial synthesis model of every instrument (default: modal)")
-    group.add_argument("--block-size", type=int, choices=(64, 128, 256, 512), default=256,
-                       help="samples per block (default 256)")
-    group.add_argument("--channels", type=int, choices=(1, 2), default=2, help="1 mono, 2 stereo (default 2)")
-    group.add_argument("--reverb", type=float, default=0.1, help="room reverb wet/dry 0..1 (default 0.1)")
-    group.add_argument("--pedal-impacts", action="store_true",
-                       help="sound impacts on footboards (for rigs without pedal physics; see docs/sound.md)")
+WAV_HELP = (
+    "also record the output to this file, 24-bit (.wav, .flac, .w64, .rf64; a .wav take that passes 4 GiB, about 4 h, "
+    "becomes RF64 instead of losing its end); written under a temporary name and given this one when the node stops "
+    "(a node that fails leaves a file already there as it was, and what it recorded under the temporary name). "
+    "{start} in the file name is the take's start time, local YYYYmmdd-HHMMSS (take-{start}.wav: "
+    "take-20260131-201500.wav, then -2, -3 ... if that name is taken), so each run keeps its own file; the log says "
+    "the name. Beside it, its name + .json (take.wav.json) gives origin_rig_time_s (the rig time of the first sample, "
+    "seconds: lines the take up with the rig's impacts), sample_rate_hz, channels and frames"
+)
 
 
-def make_core(settings: NodeSettings, extra: argparse.Namespace,
+class SoundNodeSettings(NodeSettings):
+    """Node settings plus the sound service's own: each a flag, a BATTEUR_* variable and a settings file key, as
+    every node setting (docs/deployment.md; they were flags only, and a file's ``wav:`` was refused)."""
+
+    kit: str = Field(default="default", min_length=1, description="kit name or kit file (YAML or JSON)")
+    wav: Path | None = Field(default=None, description=WAV_HELP)
+    device: Literal["auto", "none"] = Field(
+        default="auto", description="auto: play on the sound card if portaudio finds one; none: never")
+    model: Literal["modal", "sample", "synth"] = Field(
+        default="modal", description="initial synthesis model of every instrument: modal, sample or synth")
+    block_size: Literal[64, 128, 256, 512] = Field(default=256, description="samples per block: 64, 128, 256 or 512")
+    channels: Literal[1, 2] = Field(default=2, description="1 mono, 2 stereo")
+    reverb: float = Field(default=0.1, ge=0, le=1, description="room reverb wet/dry, 0..1")
+    pedal_impacts: bool = Field(default=False, description="sound impacts on footboards (for rigs without pedal "
+                                "physics; see docs/sound.md)")
+
+    @field_validator("wav", mode="before")
+    @classmethod
+    def _no_file(cls, value: Any) -> Any:
+        """An empty value (``BATTEUR_WAV=``, ``wav: ''``) records nothing, as no ``--wav`` (not the folder '.')."""
+        return None if isinstance(value, str) and not value.strip() else value
+
+    @field_validator("block_size", "channels", mode="before")
+    @classmethod
+    def _whole(cls, value: Any) -> Any:
+        """A flag's or variable's text ('256') is the number it spells (a Literal of ints takes no text)."""
+        if isinstance(value, str) and value.strip().lstrip("+").isdigit():
+            return int(value)
+        return value
+
+
+SOUND_OPTIONS = tuple(name for name in SoundNodeSettings.model_fields if name not in NodeSettings.model_fields)
+"""The sound node's own settings (``kit``, ``wav``, ``device`` ...)."""
+
+
+def sound_settings(settings: NodeSettings, extra: argparse.Namespace | None = None) -> SoundNodeSettings:
+    """``settings`` as the sound node's: as they are if they are, else with the sound options found in ``extra``
+    (a caller that builds the node's settings and options itself); ValueError for a value they refuse."""
+    if isinstance(settings, SoundNodeSettings):
+        return settings
+    own = {k: v for k, v in vars(extra or argparse.Namespace()).items() if k in SOUND_OPTIONS}
+    return SoundNodeSettings.model_validate({**settings.model_dump(), **own})
+
+
+def make_core(settings: NodeSettings, extra: argparse.Namespace | None = None,
               keep_take: Callable[[], bool] = lambda: True) -> SoundCore:
     """Build the core and attach the sinks; ValueError (exit 2) for a bad option, InputError (exit 1) for a kit
-    file or a --wav path it cannot use. ``keep_take``: asked when the WAV file closes, whether it gets its name."""
+    file or a --wav path it cannot use. ``keep_take``: asked when the WAV file closes, whether it gets its name.
+    ``settings``: :class:`SoundNodeSettings`, or node settings with the sound options in ``extra``."""
+    settings = sound_settings(settings, extra)
     try:
-        kit = load_kit(extra.kit)
+        kit = load_kit(settings.kit)
     except (FileNotFoundError, ValueError) as exc:  # missing, or not a kit
         raise InputError(str(exc)) from None
-    if not 0.0 <= extra.reverb <= 1.0:
-        raise ValueError(f"--reverb {extra.reverb} is outside 0..1")
     if settings.latency_s > MAX_LATENCY_S:  # the other nodes take up to 5 s
         raise ValueError(f"--latency-s {settings.latency_s:g}: the sound service plays at most "
                          f"{MAX_LATENCY_S:g} s late (the range of /batteur/sound/latency)")
-    block_s = extra.block_size / 48000
+    block_s = settings.block_size / 48000
     if settings.latency_s < 3 * block_s:
         log.warning("latency %.1f ms is under three blocks (%.1f ms): most strikes will be late",
                     settings.latency_s * 1e3, 3 * block_s * 1e3)
-    sound = SoundSettings(latency=settings.latency_s, origin=None, block_size=extra.block_size,
+    sound = SoundSettings(latency=settings.latency_s, origin=None, block_size=settings.block_size,
                           render_ahead=2 * block_s + 0.002,
-                          channels=extra.channels, record=False, model=extra.model, reverb=extra.reverb,
-                          pedal_impacts=bool(getattr(extra, "pedal_impacts", False)),
+                          channels=settings.channels, record=False, model=settings.model, reverb=settings.reverb,
+                          pedal_impacts=settings.pedal_impacts,
                           horizon=HORIZON_S, max_pending=MAX_PENDING, background_rebuilds=True)
-    if extra.wav is not None:  # checked before the (slow) core is built
-        if extra.wav.is_dir():
-            raise InputError(f"--wav {extra.wav} is a directory: give a file, e.g. {extra.wav / 'take.wav'}")
-        wav_format(extra.wav, "--wav")
-        wav_name_has_start(extra.wav)
+    if settings.wav is not None:  # checked before the (slow) core is built
+        if settings.wav.is_dir():
+            raise InputError(f"--wav {settings.wav} is a directory: give a file, e.g. {settings.wav / 'take.wav'}")
+        wav_format(settings.wav, "--wav")
+        wav_name_has_start(settings.wav)
     core = SoundCore(sound, kit)
     try:
-        _attach_sinks(core, extra, keep_take)
+        _attach_sinks(core, settings, keep_take)
     except BaseException:  # a failed start (or Ctrl-C) records nothing and leaves an earlier take alone
         for sink in core.sinks:
             if isinstance(sink, WavSink):
@@ -327,10 +358,10 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace,
     return core
 
 
-def _attach_sinks(core: SoundCore, extra: argparse.Namespace, keep_take: Callable[[], bool]) -> None:
+def _attach_sinks(core: SoundCore, settings: SoundNodeSettings, keep_take: Callable[[], bool]) -> None:
     """The WAV file and the sound card, as asked; ValueError naming the option that cannot be served."""
-    if extra.wav is not None:
-        path = expand_wav_path(extra.wav, datetime.now())  # {start}: when recording starts, i.e. now
+    if settings.wav is not None:
+        path = expand_wav_path(settings.wav, datetime.now())  # {start}: when recording starts, i.e. now
         blocker = file_in_the_way(path)
         if blocker is not None:  # else mkdir's bare "[Errno 17] File exists"
             raise InputError(f"--wav {path}: {blocker} is a file, not a folder")
@@ -341,7 +372,7 @@ def _attach_sinks(core: SoundCore, extra: argparse.Namespace, keep_take: Callabl
         core.sinks.append(wav)
         # the name the take ends up with (`batteur rig --record DIR`: DIR/performance.wav), then its part file
         log.info("recording to %s (in %s until the node stops)", path, wav.part.name)
-    if extra.device == "auto":
+    if settings.device == "auto":
         devices = audio_device_count()
         if devices > 0:
             try:
@@ -353,7 +384,7 @@ def _attach_sinks(core: SoundCore, extra: argparse.Namespace, keep_take: Callabl
         else:
             # `batteur rig --record` gives --wav: telling it to use --wav read as if it were not recording
             log.info("no audio device found: not playing%s",
-                     "; recording only" if extra.wav is not None else " (use --wav to record)")
+                     "; recording only" if settings.wav is not None else " (use --wav to record)")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -369,9 +400,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         # the take is named only if the node ran and did not fail (setup: once it listens); a node that failed,
         # or never listened (its port taken), leaves an earlier take at --wav as it was
-        return run_node("sound", build, argv, add_arguments,
+        return run_node("sound", build, argv, None,
                         "Run the sound service: impacts in, modal drum sound out (sound card and/or WAV).",
-                        setup=ran.append)
+                        settings_cls=SoundNodeSettings, setup=ran.append)
     finally:
         for core in made:
             core.close()  # closes the WAV file and the sound card

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import argparse
 import socket
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -176,11 +175,9 @@ def test_the_score_box_shows_the_physics_port_it_follows(tmp_path: Path) -> None
 def _sound_defaults() -> tuple[float, float]:
     """(master gain dB, reverb) a sound service started by ``batteur sound`` or ``batteur rig`` has."""
     from services.sound.core import SoundSettings
-    from services.sound.node import add_arguments
+    from services.sound.node import SoundNodeSettings
 
-    parser = argparse.ArgumentParser()
-    add_arguments(parser)
-    return SoundSettings.model_fields["master_db"].default, parser.get_default("reverb")
+    return SoundSettings.model_fields["master_db"].default, SoundNodeSettings.model_fields["reverb"].default
 
 
 @pytest.mark.parametrize(("moved", "value", "kept"), [("bp-master", -6.0, "reverb"), ("bp-reverb", 0.3, "gain_db")])

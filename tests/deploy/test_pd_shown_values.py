@@ -10,7 +10,6 @@ with; the sound rows (level, radius, tension, density, modes, damping) show the 
 
 from __future__ import annotations
 
-import argparse
 import math
 import re
 import socket
@@ -66,18 +65,17 @@ def _kept_values() -> dict[str, float]:
     from services.graphics.core import ViewSettings
     from services.graphics.node import GraphicsNodeSettings
     from services.sound.core import SoundSettings
-    from services.sound.node import add_arguments
+    from services.sound.node import SoundNodeSettings
 
     camera = default_camera()
     view = ViewSettings()
-    parser = argparse.ArgumentParser()
-    add_arguments(parser)
     return {
         "bp-port-physics": 9101, "bp-port-interaction": 9102, "bp-port-sound": 9103, "bp-port-graphics": 9104,
         "bp-port-score": 9101, "bp-position": 0.0, "bp-tempo": _tempo_at_start(),
         **_instrument_values("snare"),
         "bp-latency": NodeSettings.model_fields["latency_s"].default,
-        "bp-master": SoundSettings.model_fields["master_db"].default, "bp-reverb": parser.get_default("reverb"),
+        "bp-master": SoundSettings.model_fields["master_db"].default,
+        "bp-reverb": SoundNodeSettings.model_fields["reverb"].default,
         "bp-azimuth": camera["azimuth_deg"], "bp-elevation": camera["elevation_deg"],
         "bp-distance": camera["distance"], "bp-target-x": camera["target"][0], "bp-target-y": camera["target"][1],
         "bp-target-z": camera["target"][2], "bp-trails": view.trails,

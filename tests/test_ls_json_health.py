@@ -1,0 +1,68 @@
+"""``batteur ls --json`` shows the whole of a node's Health that a user needs: the drops by reason (an OSC
+walkthrough saw only the total ``dropped``) and the node's rig time (it could not learn what to stamp a timed
+message with)."""
+
+from __future__ import annotations
+
+import json
+import socket
+import threading
+from collections.abc import Iterator
+
+import pytest
+
+from batteur.tools import ls
+from common.messages import Health, Hello, MessageError, decode, encode
+
+pytestmark = pytest.mark.timeout(60)
+
+HEALTH = Health(node_id="sound-1", role="sound", protocol=1, time=1234.5678, rate_hz=187.5, target_rate_hz=187.5,
+                overruns=0, messages_in=40, messages_out=3, dropped=15, dropped_malformed=1, dropped_unknown=2,
+                dropped_type=3, dropped_range=4, dropped_other=5, late=0, peers=1)
+
+
+@pytest.fixture
+def node_port() -> Iterator[int]:
+    """A UDP "node" on loopback that answers every Hello with :data:`HEALTH`."""
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sock.bind(("127.0.0.1", 0))
+    sock.settimeout(0.05)
+    stop = threading.Event()
+
+    def serve() -> None:
+        while not stop.is_set():
+            try:
+                data, source = sock.recvfrom(65535)
+                messages = decode(data).messages
+            except (TimeoutError, MessageError):
+                continue
+            except OSError:
+                return
+            if any(isinstance(m, Hello) for m in messages):
+                sock.sendto(encode(HEALTH), source)
+
+    thread = threading.Thread(target=serve, daemon=True)
+    thread.start()
+    yield sock.getsockname()[1]
+    stop.set()
+    thread.join(timeout=5)
+    sock.close()
+
+
+def test_ls_json_gives_the_drops_by_reason_and_the_rig_time(node_port: int,
+                                                           capsys: pytest.CaptureFixture[str]) -> None:
+    assert ls.main(["--node", f"127.0.0.1:{node_port}", "--timeout", "3", "--json"]) == 0
+    row = json.loads(capsys.readouterr().out)[0]
+    assert row["status"] == "ok" and row["dropped"] == 15
+    by_reason = {k: row[k] for k in ("dropped_malformed", "dropped_unknown", "dropped_type", "dropped_range",
+                                     "dropped_other")}
+    assert by_reason == {"dropped_malformed": 1, "dropped_unknown": 2, "dropped_type": 3, "dropped_range": 4,
+                         "dropped_other": 5}
+    assert row["rig_time_s"] == pytest.approx(1234.568, abs=1e-3)  # a rig time's fraction is sent as float32
+
+
+def test_ls_help_says_what_the_json_adds(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit):
+        ls.main(["--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "dropped_range" in text and "rig_time_s" in text
