@@ -942,7 +942,7 @@ def _and(words: Sequence[str]) -> str:
 
 def _main(args: argparse.Namespace) -> int:
     from batteur.calibration import Calibration
-    from batteur.render import DEFAULT_KIT, RenderError, RenderOptions, resolve_jobs, style_from
+    from batteur.render import DEFAULT_KIT, RenderError, RenderOptions, height_of, resolve_jobs, style_from
     from common.output_paths import check_output_dir, check_output_file
     from common.score.events import ScoreError
 
@@ -965,7 +965,7 @@ def _main(args: argparse.Namespace) -> int:
         grip, nuance = style_from(args)
         opts = RenderOptions(kit=args.kit, grip=grip, nuance=nuance, tempo_scale=args.tempo_scale,
                              control=args.control, calibration=args.calibration, jobs=resolve_jobs(args.jobs),
-                             segment_s=args.segment, height_m=args.height, mass_kg=args.mass)
+                             segment_s=args.segment, height_m=height_of(args), mass_kg=args.mass)
         results = evaluate_scores(args.scores, opts, args.renders, quiet=args.quiet, reuse=args.reuse)
     except (ScoreError, RenderError, ValueError, OSError, KeyError) as exc:  # UsageError: 2, a file or a render: 1
         return report_error(PROG, exc)

@@ -61,6 +61,7 @@ from common.output_paths import check_output_dir
 from common.score.events import Score, ScoreError
 from common.score.hands import HandAlgorithm
 from common.score.limbs import STATURE_M, Assignment, LimbLengths
+from common.score.text import DEFAULT_KIT, load_score_kit, score_kit
 
 if TYPE_CHECKING:
     from batteur.calibration import Calibration
@@ -75,8 +76,6 @@ CONTROL_MODES: dict[str, str] = {
 }
 """``--control`` choice -> PhysicsSettings.control."""
 
-DEFAULT_KIT = "default"
-"""The kit of a render whose options and score name none."""
 DEFAULT_STRIKE_EVENT = EventType.SNARE.value
 """What the strike scene's stick strikes without ``--event``."""
 GRIPS = ("german", "french", "american", "traditional")
@@ -191,18 +190,6 @@ def score_style(score: Score | None) -> tuple[str | None, Nuance | None]:
     return (None if score.grip is None else score.grip.value), score.nuance
 
 
-def score_kit(score: Score | None) -> str | None:
-    """The kit ``score`` asks for (a text score's ``kit`` line; None: none): a shipped kit's name, or a kit file's
-    path, taken from the score's folder when relative (where a score and its kit are kept together)."""
-    name = getattr(score, "kit", None)
-    if not isinstance(name, str):
-        return None
-    path = Path(name)
-    if not path.suffix or path.is_absolute() or score is None or not score.source:
-        return name  # a shipped kit's name (load_kit: a name has no suffix), or a path as written
-    return str(Path(score.source).parent / path)
-
-
 def file_style(path: Path) -> tuple[str | None, Nuance | None]:
     """The grip and nuance the score file ``path`` asks for (a MIDI file: none, and it is not read); raises
     :class:`ScoreError` for a text score that cannot be read."""
@@ -243,6 +230,8 @@ class ScoreRender:
     audio: np.ndarray
     sample_rate: int
     duration_s: float
+    """performance.wav's length (:func:`wav_seconds`): the timeline simulated (:func:`rendered_seconds`) to its
+    sound's last whole block."""
     score_offset_s: float
     wall_time_s: float
     poses: Any = None
@@ -323,15 +312,9 @@ def load_render_kit(path: Path | str, opts: RenderOptions, score: Score | None,
                     limbs: LimbLengths | None) -> Kit:
     """The kit a render of ``score`` (at ``path``) plays (:meth:`RenderOptions.styled`), its load warnings naming
     the drummer asked for; a kit the score's ``kit`` line names that cannot be loaded is a :class:`ScoreError`
-    naming the line."""
-    name = opts.with_kit(score_kit(score)).kit or DEFAULT_KIT
-    try:
-        return load_kit(name, height_m=opts.height_m, lengths=limbs)
-    except (FileNotFoundError, ValueError) as exc:
-        line = getattr(score, "kit_line", None)
-        if opts.kit is not None or line is None:
-            raise
-        raise ScoreError(f"{path}: line {line}: kit {getattr(score, 'kit', name)!r}: {exc}") from None
+    naming the line (:func:`common.score.text.load_score_kit`)."""
+    return load_score_kit(score, opts.kit, path,
+                          lambda name: load_kit(name, height_m=opts.height_m, lengths=limbs))
 
 
 class PlanningProgress:
@@ -377,6 +360,14 @@ def rendered_seconds(plan: GesturePlan, opts: RenderOptions) -> float:
     return plan.end_time + (opts.settle_s - plan.start_time) + opts.latency_s + opts.tail_s  # summed as before
 
 
+def wav_seconds(sound: Any) -> float:
+    """The length of the audio ``sound`` (a SoundCore, its sample 0 at rig time 0) rendered, seconds: whole blocks
+    (256 samples), so up to a block (5.3 ms) short of the timeline run (:func:`rendered_seconds`). report.json's
+    ``duration_s`` and the glTF's and ``--bvh-sync wav`` BVH's last frame follow it (until 7 Dec they followed the
+    timeline, up to 5.3 ms past the WAV's end)."""
+    return sound.next_sample / sound.sample_rate
+
+
 def run_score(score: Score, assignment: Assignment, plan: GesturePlan, kit: Kit, opts: RenderOptions,
               on_progress: Callable[[float, float], None] | None = None,
               outputs: StreamedOutputs | None = None) -> ScoreRender:
@@ -414,8 +405,8 @@ def run_score(score: Score, assignment: Assignment, plan: GesturePlan, kit: Kit,
              "control_rate_hz": physics.settings.control_rate_hz, "height_m": physics.settings.height_m,
              "mass_kg": physics.settings.mass_kg, "pulled_into_reach": pulled,
              "cpu_time_s": round(time.process_time() - cpu_started, 3)}
-    return ScoreRender(score, assignment, plan, impacts, physics.contacts_sent, audio, sound.sample_rate, duration,
-                       offset, time.perf_counter() - started, poses, stats, count)
+    return ScoreRender(score, assignment, plan, impacts, physics.contacts_sent, audio, sound.sample_rate,
+                       wav_seconds(sound), offset, time.perf_counter() - started, poses, stats, count)
 
 
 def collect(recorder: RecorderCore, outputs: StreamedOutputs | None) -> tuple[Any, list[Any], int | None]:
@@ -538,6 +529,8 @@ class WavStream:
 
     def __init__(self, path: Path, sample_rate: int, channels: int, planned_frames: int = 0) -> None:
         self.path = path
+        self.sample_rate = sample_rate
+        """Samples per second, Hz."""
         self.frames = 0
         """Samples taken (per channel)."""
         self.written = 0
@@ -595,7 +588,9 @@ class StreamedOutputs:
     are kept and :func:`write_rest` writes the BVH). ``keep``: also keep the impacts and poses in memory (the
     video draws them). ``planned_s``: the render's length, seconds (:func:`rendered_seconds`): a WAV that would
     pass 4 GiB is written as RF64 (said by ``prog``, the command rendering). ``bvh_start_s``: rig time of the
-    BVH's frame 0, seconds (None: the first pose's).
+    BVH's frame 0, seconds (None: the first pose's), and its last frame's then: at ``bvh_start_s`` + the WAV's
+    length (``--bvh-sync wav``: the BVH on the WAV's clock ends where the WAV does, as the glTF; until 7 Dec it went
+    on to the last pose, 50 ms, the latency, past it); None: the last pose's.
     """
 
     def __init__(self, folder: Path, bvh_rate_hz: float | None, keep: bool = False, planned_s: float = 0.0,
@@ -603,6 +598,7 @@ class StreamedOutputs:
         from services.graphics.export.bvh import BvhStream
 
         self.folder = folder
+        self.bvh_start_s = bvh_start_s
         self.planned_s = planned_s
         self.prog = prog
         self.keep = keep or bvh_rate_hz is None
@@ -635,7 +631,8 @@ class StreamedOutputs:
         self.wav.close()
         count = self.impacts.finish()
         if self.bvh is not None:
-            self.bvh_frames = self.bvh.finish()
+            end = None if self.bvh_start_s is None else self.bvh_start_s + self.wav.frames / self.wav.sample_rate
+            self.bvh_frames = self.bvh.finish(end=end)
         return count
 
     def close(self) -> None:
@@ -736,7 +733,7 @@ def score_report(result: ScoreRender, source: str, opts: RenderOptions) -> dict[
         "contacts": result.contacts,
         "score_offset_s": result.score_offset_s,
         "latency_s": opts.latency_s,
-        "duration_s": result.duration_s,
+        "duration_s": round(result.duration_s, 6),  # performance.wav's length
         "music_duration_s": music,
         "sample_rate_hz": result.sample_rate,
         "wall_time_s": round(wall, 3),
@@ -1041,7 +1038,7 @@ def gltf_writer(result: ScoreRender, kit: Kit, opts: RenderOptions, quiet: bool)
     def write(staging: Path) -> dict[str, Any]:
         started = time.perf_counter()
         start = wav_frame_start(opts)
-        end = start + result.duration_s  # as long as the WAV: the poses' last 50 ms (the tail, at rest) are after it
+        end = start + result.duration_s  # the WAV's end; the poses' last 50 ms (at rest) are after it
         times = result.poses.resample_times(opts.pose_rate_hz, start=start, end=end)
         progress = Progress("glTF", len(times), unit="frames", decimals=0, enabled=False if quiet else None)
         finished = False
@@ -1169,12 +1166,19 @@ def add_style_options(parser: argparse._ActionsContainer) -> None:
 
 def add_body_options(parser: argparse._ActionsContainer) -> None:
     """``--height`` and ``--mass`` (render and evaluate; a parser or one of its groups)."""
-    parser.add_argument("--height", type=float, default=STATURE_M, metavar="METRES",
+    parser.add_argument("--height", type=float, default=None, metavar="METRES",  # None: an explicit 1.75 is told
                         help=f"the drummer's height, {HEIGHT_RANGE_M[0]:g} to {HEIGHT_RANGE_M[1]:g} m: its body "
-                        f"(de Leva's segments scaled) and the planner's reach (default {STATURE_M:g})")
+                        f"(de Leva's segments scaled) and the planner's reach (default {STATURE_M:g}; with "
+                        "--skeleton-bvh the skeleton gives the limbs and the reach, the height the rest)")
     parser.add_argument("--mass", type=float, default=DEFAULT_MASS_KG, metavar="KG",
                         help=f"the drummer's mass, {MASS_RANGE_KG[0]:g} to {MASS_RANGE_KG[1]:g} kg (default "
                         f"{DEFAULT_MASS_KG:g})")
+
+
+def height_of(args: argparse.Namespace) -> float:
+    """``--height`` in metres, :data:`STATURE_M` when not given (None: so that one given beside ``--skeleton-bvh``
+    or ``--strikes`` can be told, the default's value too)."""
+    return _given(args.height, STATURE_M)
 
 
 def style_from(args: argparse.Namespace) -> tuple[str | None, Nuance | None]:
@@ -1199,7 +1203,7 @@ def options_from(args: argparse.Namespace) -> RenderOptions:
                          video_size=_given(args.video_size, (640, 360)), control_rate_hz=args.control_rate,
                          jobs=resolve_jobs(args.jobs), segment_s=_given(args.segment, 30.0),
                          limits_from=tuple(args.limits_from), skeleton_bvh=args.skeleton_bvh,
-                         height_m=args.height, mass_kg=args.mass, pose_rate_hz=args.bvh_rate,
+                         height_m=height_of(args), mass_kg=args.mass, pose_rate_hz=args.bvh_rate,
                          bvh_sync=_given(args.bvh_sync, "pose"))
 
 
@@ -1217,7 +1221,7 @@ def options_in_vain(args: argparse.Namespace) -> list[str]:
     warnings = []
     if args.event is not None and args.strikes is None:
         warnings.append("--event has no effect without --strikes (a score's notes say what is struck)")
-    if args.skeleton_bvh is not None and args.height != STATURE_M and args.strikes is None:
+    if args.skeleton_bvh is not None and args.height is not None and args.strikes is None:
         warnings.append(f"--height {args.height:g} with --skeleton-bvh: the skeleton gives the limbs (arms, legs, "
                         "neck, the shoulders' height above the hips, their widths) and the planner's reach; "
                         f"--height places the shoulders and hips over the throne and sizes the hands, feet and head")
@@ -1227,7 +1231,7 @@ def options_in_vain(args: argparse.Namespace) -> list[str]:
         if value is not None and not args.video:
             warnings.append(f"{name} has no effect without --video")
     if args.strikes is not None:  # one stick over one instrument: no drummer, no plan, no motion file
-        drummer = (("--height", args.height, STATURE_M), ("--mass", args.mass, DEFAULT_MASS_KG),
+        drummer = (("--height", args.height, None), ("--mass", args.mass, DEFAULT_MASS_KG),
                    ("--bvh-rate", args.bvh_rate, RenderOptions.pose_rate_hz), ("--grip", args.grip, None),
                    ("--bvh-sync", args.bvh_sync, None),
                    ("--nuance", args.nuance, None))
@@ -1248,19 +1252,28 @@ def resolve_jobs(jobs: int) -> int:
     return jobs
 
 
+def excluded_options(args: argparse.Namespace) -> str | None:
+    """Why the scene asked for cannot be run (no scene, or options the scene has nothing for), None if it can: one
+    line with exit status 2, as a value out of range (until 7 Dec argparse's whole usage came before it)."""
+    if args.score is None and args.strikes is None:
+        return "give a SCORE, or --strikes for the strike scene"
+    if args.score is not None and args.strikes is not None:
+        return "give either a SCORE or --strikes, not both"
+    if args.strikes is not None and args.video:
+        return "--video renders a SCORE (the strike scene has no body to draw)"
+    if args.strikes is not None and args.gltf:
+        return "--gltf exports a SCORE's performance (the strike scene has no body to export)"
+    return None
+
+
 def main(argv: Sequence[str] | None = None, prog: str = "batteur render") -> int:
     """Run ``batteur render``; the exit status (batteur/errors.py). ``prog`` names the command in its error lines
     (``batteur demo`` renders through this)."""
     parser = build_parser()
     opts = parser.parse_args(argv)
-    if opts.score is None and opts.strikes is None:
-        parser.error("give a SCORE, or --strikes for the strike scene")
-    if opts.score is not None and opts.strikes is not None:
-        parser.error("give either a SCORE or --strikes, not both")
-    if opts.strikes is not None and opts.video:
-        parser.error("--video renders a SCORE (the strike scene has no body to draw)")
-    if opts.strikes is not None and opts.gltf:
-        parser.error("--gltf exports a SCORE's performance (the strike scene has no body to export)")
+    refused = excluded_options(opts)
+    if refused is not None:  # one line, as an option's value refused (not argparse's usage before it)
+        return report_error(prog, refused, USAGE)
     for warning in options_in_vain(opts):
         print(f"{prog}: warning: {warning}", file=sys.stderr)
     try:
@@ -1323,7 +1336,7 @@ def _main_strikes(opts: argparse.Namespace, prog: str) -> int:
         "strikes": [{"time_s": t, "speed_m_s": v} for t, v in strikes],
         "impacts": len(result.impacts),
         "contacts": result.contacts,
-        "duration_s": result.duration_s,
+        "duration_s": round(result.duration_s, 6),  # performance.wav's length
         "sample_rate_hz": result.sample_rate,
         "latency_s": opts.latency,
         "wall_time_s": round(elapsed, 3),

@@ -405,7 +405,7 @@ def run_segmented(score: Score, assignment: Assignment, plan: GesturePlan, kit: 
     The parent plays each segment's messages into sound and the recorder as soon as the segments before it are
     in, so it holds a few segments' messages, not the piece's; ``outputs``: as for ``run_score``.
     """
-    from batteur.render import RecorderCore, ScoreRender, collect, rendered_seconds
+    from batteur.render import RecorderCore, ScoreRender, collect, rendered_seconds, wav_seconds
     from common.bus import OfflineRunner
     from services.sound.core import SoundCore, SoundSettings
 
@@ -469,8 +469,8 @@ def run_segmented(score: Score, assignment: Assignment, plan: GesturePlan, kit: 
              "cpu_time_s": round(time.process_time() - cpu_started + play.cpu_time_s, 3),
              "segments": {"count": len(segments), "segment_s": segment_s, "warmup_s": warmup_s,
                           "jobs": max(1, min(jobs, len(segments)))}}
-    return ScoreRender(score, assignment, plan, impacts, play.contacts, audio, sound.sample_rate, duration, offset,
-                       time.perf_counter() - started, poses, stats, count)
+    return ScoreRender(score, assignment, plan, impacts, play.contacts, audio, sound.sample_rate, wav_seconds(sound),
+                       offset, time.perf_counter() - started, poses, stats, count)
 
 
 class _Player:

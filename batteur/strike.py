@@ -62,6 +62,7 @@ class StrikeResult:
     audio: np.ndarray
     sample_rate: int
     duration_s: float
+    """The audio's length, seconds: whole blocks of the sound, up to one (5.3 ms) short of the run."""
 
 
 def run_strikes(
@@ -99,5 +100,5 @@ def run_strikes(
         audio = sound.recording()
     finally:
         sound.close()
-    impacts = sorted(seen.values(), key=lambda i: i.time)
-    return StrikeResult(impacts, contacts, audio, sound.sample_rate, duration)
+    impacts = sorted(seen.values(), key=lambda i: i.time)  # the WAV's length: its whole blocks, not the run's
+    return StrikeResult(impacts, contacts, audio, sound.sample_rate, len(audio) / sound.sample_rate)

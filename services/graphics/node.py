@@ -180,6 +180,8 @@ def make_core(settings: NodeSettings, args: argparse.Namespace) -> GraphicsCore:
             preview = plan_score_preview(s, core.kit)
         except ValueError as exc:  # the score (missing, unreadable, nothing the kit plays) or the poses file
             raise InputError(str(exc)) from None
+        for warning in preview.score.warnings:  # the reader's, as `batteur render` prints them; not at each re-plan
+            log.warning("preview: %s", warning)
         core.load_preview(preview.sequence, preview.impacts)
         log.info("preview of %s", preview.summary())
     return core

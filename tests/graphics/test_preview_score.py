@@ -111,6 +111,17 @@ def test_saved_up_down_poses_change_the_keyframe_motion(bar: Path, tmp_path: Pat
         score_preview(bar, KIT, "keyframe", poses=tmp_path / "poses.yaml")
 
 
+def test_the_node_logs_the_score_readers_warnings(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    """What the reader warns of (a hand given to a foot's note) is logged once, as `batteur render` prints it
+    (until 7 Dec the preview said nothing of it)."""
+    path = tmp_path / "feet.txt"
+    path.write_text("tempo 120\nmeter 4/4\nSN |x.x.|\nat 1.5 BD 0.8 R\n", encoding="utf-8")
+    with caplog.at_level("WARNING", logger="batteur.graphics"):
+        make_core(GraphicsNodeSettings(preview_score=str(path)), SimpleNamespace())  # type: ignore[arg-type]
+    said = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
+    assert said == [f"preview: {path}: line 4: BD is played by a foot; the hand R is ignored"]
+
+
 def test_bad_scores_are_clear_errors(tmp_path: Path) -> None:
     (tmp_path / "broken.mid").write_bytes(b"MThd\x00\x00\x00\x06\x00")
     (tmp_path / "rests.txt").write_text("tempo 120\nSN |....|\n")

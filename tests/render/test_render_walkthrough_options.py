@@ -120,3 +120,25 @@ def test_height_with_a_skeleton_is_said_once(tmp_path: Path) -> None:
     assert len(said) == 1 and "--skeleton-bvh" in said[0] and "shoulders" in said[0] and "limbs" in said[0]
     alone = render.build_parser().parse_args(["s.txt", "-o", "out", "--skeleton-bvh", "x.bvh"])
     assert not any("--height" in w for w in render.options_in_vain(alone))
+
+
+def test_the_default_height_given_with_a_skeleton_is_said_too() -> None:
+    """``--height 1.75`` is the default's value: it was taken for no --height at all, and not said."""
+    args = render.build_parser().parse_args(["s.txt", "-o", "out", "--height", "1.75", "--skeleton-bvh", "x.bvh"])
+    said = [w for w in render.options_in_vain(args) if "--height" in w]
+    assert len(said) == 1 and said[0].startswith("--height 1.75 with --skeleton-bvh: "), said
+    strikes = render.build_parser().parse_args(["--strikes", "0.5:2", "-o", "out", "--height", "1.75"])
+    assert "--height has no effect with --strikes (the strike scene has no drummer)" in \
+        render.options_in_vain(strikes)
+
+
+def test_no_height_is_the_default_drummer_s() -> None:
+    from batteur import evaluate
+
+    for argv in (["s.txt", "-o", "out"], ["s.txt", "-o", "out", "--skeleton-bvh", "x.bvh"]):
+        assert render.options_from(render.build_parser().parse_args(argv)).height_m == render.STATURE_M == 1.75
+    assert render.height_of(evaluate.build_parser().parse_args(["s.txt"])) == 1.75
+    assert render.height_of(evaluate.build_parser().parse_args(["s.txt", "--height", "1.4"])) == 1.4
+    help_text = " ".join(render.build_parser().format_help().split())
+    assert ("the planner's reach (default 1.75; with --skeleton-bvh the skeleton gives the limbs and the reach, "
+            "the height the rest)") in help_text

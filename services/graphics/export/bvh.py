@@ -13,6 +13,7 @@ Rotation channels ZXY mean ``R = Rz Rx Ry``, as Blender and three.js read them.
 
 from __future__ import annotations
 
+import itertools
 import shutil
 import warnings
 from dataclasses import dataclass
@@ -160,7 +161,7 @@ def _rows(motion: np.ndarray) -> list[str]:
 
 
 def write_bvh(sequence: PoseSequence, path: Path, rate_hz: float | None = None, scale: float = 1.0,
-              all_positions: bool = False, start: float | None = None) -> BvhInfo:
+              all_positions: bool = False, start: float | None = None, end: float | None = None) -> BvhInfo:
     """Write ``sequence`` as a BVH file at ``path``.
 
     Parameters
@@ -177,11 +178,13 @@ def write_bvh(sequence: PoseSequence, path: Path, rate_hz: float | None = None, 
         Give every joint position channels too.
     start : float, optional
         Time of frame 0, seconds (default: the first pose's); frames before the first pose hold it.
+    end : float, optional
+        Time the frames go up to, inclusive, seconds (default: the last pose's); frames past the last pose hold it.
     """
     if rate_hz is None:
         dt = float(np.median(np.diff(sequence.times))) if len(sequence.times) > 1 else 1 / 60
         rate_hz = 1.0 / dt
-    seq = sequence.resample(rate_hz, start=start)
+    seq = sequence.resample(rate_hz, start=start, end=end)
     layout = _Layout.of(seq.names, seq.values[0], scale, all_positions)
     motion, pos, rots = layout.motion(seq.values)
     frame_time = 1.0 / rate_hz
@@ -213,9 +216,10 @@ class BvhStream:
     The same bytes as :func:`write_bvh` given the whole sequence at ``rate_hz`` (and ``start``): frame ``k`` is
     the pose at ``t0 + k / rate_hz`` (``t0``: ``start``, seconds, or by default the first pose's time),
     interpolated as :meth:`PoseSequence.sample` does (frames before the first pose hold it), and the frames up to
-    the last pose's time. Motion rows go to ``path`` + ``.motion`` (next to ``path``) in chunks
-    of ``chunk_frames``; :meth:`finish` writes the header, whose frame count is known only then, and appends
-    them. Poses must come in strictly increasing time (seconds) with the link layout given to :meth:`restart`.
+    the last pose's time (or :meth:`finish`'s ``end``, as :func:`write_bvh`'s). Motion rows go to ``path`` +
+    ``.motion`` (next to ``path``) in chunks of ``chunk_frames``; :meth:`finish` writes the header, whose frame count
+    is known only then, and appends them. Poses must come in strictly increasing time (seconds) with the link
+    layout given to :meth:`restart`.
     """
 
     def __init__(self, path: Path, rate_hz: float, scale: float = 1.0, all_positions: bool = False,
@@ -299,14 +303,17 @@ class BvhStream:
         self._written += len(self._frames)
         self._frames = []
 
-    def finish(self) -> int | None:
-        """Write the file; returns its frame count (None, and no file, when no valid pose came)."""
+    def finish(self, end: float | None = None) -> int | None:
+        """Write the file; returns its frame count (None, and no file, when no valid pose came).
+
+        ``end``: the time (seconds) the frames go up to, inclusive, as :meth:`PoseSequence.resample_times`'
+        (frames made past it are left out, the last pose is held up to it); None: the last pose's time."""
         try:
             if self._last is None or not self.valid:
                 return None
             t_end, last = self._last
-            count = max(1, int(np.floor((t_end - self._t0) * self.rate_hz + 1e-9)) + 1)
-            if count < self._next:
+            count = max(1, int(np.floor(((t_end if end is None else end) - self._t0) * self.rate_hz + 1e-9)) + 1)
+            if count < self._next and end is None:
                 raise RuntimeError(f"BVH stream produced {self._next} frames, more than the {count} of its span")
             while self._next < count:  # at or past the last pose: the last pose (PoseSequence.sample clamps)
                 self._frame(last.copy())
@@ -315,7 +322,10 @@ class BvhStream:
             with self.path.open("w", encoding="utf-8", newline="\n") as out:
                 out.write("\n".join(self._layout.header(count, 1.0 / self.rate_hz)) + "\n")
                 self._file.seek(0)
-                shutil.copyfileobj(self._file, out)
+                if count == self._written:
+                    shutil.copyfileobj(self._file, out)
+                else:  # frames past ``end``: one row each
+                    out.writelines(itertools.islice(self._file, count))
             return count
         finally:
             self.close()
