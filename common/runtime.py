@@ -52,7 +52,9 @@ from common.messages import (
     DropReason,
     Health,
     Hello,
+    MessageError,
     OscMessage,
+    RawMessage,
     Subscribe,
     SubscribeRefused,
 )
@@ -74,6 +76,9 @@ MASTER_SILENT_WARN_S = 30.0
 """A clock master this node knows (a static peer, or one discovery found) that has not answered its pings this long
 after the node started is warned about, seconds; until then it is taken to be still starting (physics builds its
 scene for about 3 s, 7-15 s on a loaded machine, while a rig's other nodes wait for it)."""
+REFUSAL_LOG_INTERVAL_S = 5.0
+"""A refused Subscribe (table full, bad pattern) is logged at most once per this long, seconds; the rest are counted
+(Health's ``dropped_other``) and said as "+N more" in the next warning."""
 
 
 # --------------------------------------------------------------------------- fixed-rate loop
@@ -403,6 +408,9 @@ class Node:
         self._started_at = time.monotonic()
         self.subscriptions = Subscriptions(self._send_copy, time.monotonic)
         """Who asked for copies of which messages (:class:`~common.messages.Subscribe`)."""
+        self._last_refusal_log = -math.inf
+        self._refusals_unlogged = 0
+        """Refused Subscribes not logged since the last warning (one per :data:`REFUSAL_LOG_INTERVAL_S`)."""
         self.oscquery: Any = None
         """The OSCQuery server (``common.oscquery.OscQueryServer``) once started, or None."""
         if self.is_clock_master:
@@ -433,6 +441,7 @@ class Node:
         )
         self.endpoint.set_handler(self._on_message)
         self.endpoint.tap = self._tap
+        self.endpoint.on_undecodable = self._on_undecodable
         if s.oscquery:
             await self._start_oscquery()
         self.peers.listeners.append(self._on_peer_change)
@@ -803,9 +812,32 @@ class Node:
         if not refusal:
             log.info("forwarding %s to %s for %g s", message.pattern, source, message.duration_s)
             return
-        self._log_error("subscription of %s to %s refused: %s", source, message.pattern, refusal)
+        # the client's mistake, not this node's (counted in Health's dropped_other): a warning, a few at most
+        now = self.subscriptions.clock()
+        if now - self._last_refusal_log >= REFUSAL_LOG_INTERVAL_S:
+            more = f" (+{self._refusals_unlogged} more since last report)" if self._refusals_unlogged else ""
+            log.warning("subscription of %s to %s refused: %s%s", source, message.pattern, refusal, more)
+            self._last_refusal_log, self._refusals_unlogged = now, 0
+        else:
+            self._refusals_unlogged += 1
+        self._answer_subscriber(to, source, message.pattern, refusal)
+
+    def _on_undecodable(self, raw: RawMessage, error: MessageError, source: str) -> None:
+        """A Subscribe its model refused (a duration out of range, a wrong type: counted and logged by the
+        endpoint) is answered like any refused Subscribe: ``batteur echo`` says why it gets nothing."""
+        if raw.address != Subscribe.ADDRESS:
+            return
+        try:
+            to = parse_address(source)
+        except ValueError:
+            return
+        first = raw.args[0] if raw.args else ""
+        pattern = first[:256] if isinstance(first, str) and first.startswith("/") else "/"  # a reply needs a pattern
+        self._answer_subscriber(to, source, pattern, error.detail)
+
+    def _answer_subscriber(self, to: tuple[str, int], source: str, pattern: str, reason: str) -> None:
         if self.subscriptions.may_reply(to) and self.endpoint is not None:  # the subscriber learns why it gets nothing
-            reply = SubscribeRefused(node_id=self.node_id, pattern=message.pattern, reason=_clip(refusal, 512))
+            reply = SubscribeRefused(node_id=self.node_id, pattern=pattern, reason=_clip(reason, 512))
             self.endpoint.send(reply, source)
 
     def _on_pong(self, pong: ClockPong, source: str) -> None:
@@ -878,7 +910,8 @@ class Node:
         assert self.endpoint is not None
         stats = self.endpoint.stats
         d = stats.dropped
-        refused = core_count(self.core, "rejected_total")  # valid messages its core refused: dropped all the same
+        # valid messages its core, or its subscription table, refused: dropped all the same
+        refused = core_count(self.core, "rejected_total") + self.subscriptions.refused
         other = refused + sum(
             d[r]
             for r in (DropReason.OVERSIZE, DropReason.NOT_ALLOWED, DropReason.RATE_LIMITED, DropReason.HANDLER_ERROR)

@@ -2,8 +2,8 @@
 
 :class:`UdpEndpoint` has the interface of :class:`common.bus.MemoryEndpoint`
 (``send(message, to)``, ``set_handler(fn(message, source))``, ``.stats``), so a
-node can run on either. python-osc only builds and parses packets (through
-:mod:`common.messages.codec`); the socket and the receive loop are ours, because
+node can run on either. python-osc only builds packets, and
+:mod:`common.messages.codec` parses them; the socket and the receive loop are ours, because
 python-osc's own servers block on bundles timetagged in the future and drop
 datagrams over 8 KiB. Bundle timetags are ignored (timed messages carry their
 rig time as an argument).
@@ -33,14 +33,21 @@ import functools
 import ipaddress
 import logging
 import socket
-import struct
 import sys
 import time
 from collections.abc import Callable, Iterable, Sequence
 from typing import Any
 
 from common.messages import REGISTRY, Arg, DropReason, Family, MessageError, MessageRegistry, OscMessage
-from common.messages.codec import RawMessage, encode, encode_bundle, encode_raw, parse_packet, to_model
+from common.messages.codec import (
+    RawMessage,
+    encode,
+    encode_bundle,
+    encode_raw,
+    parse_packet,
+    to_model,
+    walk_packet,
+)
 from common.messages.graphics import GraphicsRejected
 from common.messages.interaction import InteractionError
 from common.messages.physics import PhysicsRejected
@@ -255,6 +262,10 @@ class UdpEndpoint:
         """Sender host -> its budget of answers to undecodable control messages."""
         self.decode_unanswered = 0
         self.role = role
+        self.on_undecodable: Callable[[RawMessage, MessageError, str], None] | None = None
+        """Called with (raw message, error, source) for each message of a known address its model refused (arity,
+        type, range), once counted and answered (:func:`decode_refusal`): a node answers what this endpoint cannot
+        (a refused Subscribe, with its node id)."""
         self._names: dict[str, _Name] = {}
         self._loop: asyncio.AbstractEventLoop | None = None
         self._allowed_cache: dict[str, bool] = {}
@@ -600,6 +611,12 @@ class UdpEndpoint:
                 stats.record_drop(exc.reason, str(exc), source)
                 if exc.reason in DECODE_REPLY_REASONS:
                     self._answer_undecodable(raw.address, exc, host, source)
+                    if self.on_undecodable is not None:
+                        try:
+                            self.on_undecodable(raw, exc, source)
+                        except Exception as hook_exc:  # a hook bug must not stop the endpoint
+                            self._log_limited("undecodable-hook", logging.WARNING, "undecodable hook failed: %s: %s",
+                                              type(hook_exc).__name__, hook_exc)
                 continue
             stats.messages_in += 1
             if self.tap is not None:
@@ -680,32 +697,11 @@ class UdpEndpoint:
             log.log(level, text, *args)
 
 
-_BUNDLE = b"#bundle\0"
-
-
 def _message_count(data: bytes) -> int:
-    """How many messages a packet holds, from the bundle element sizes alone (parsing costs ~12 us each).
-
-    A malformed packet counts what could be walked (at least 1); the parser rejects it later.
-    """
-    if not data.startswith(_BUNDLE):
-        return 1
-    count = 0
-    stack = [(16, len(data))]  # (next element, end) of each bundle being walked
-    while stack:
-        pos, end = stack.pop()
-        while pos + 4 <= end:
-            (size,) = struct.unpack_from(">i", data, pos)
-            pos += 4
-            if size <= 0 or pos + size > end:
-                break
-            if data.startswith(_BUNDLE, pos, pos + size):
-                stack.append((pos + size, end))
-                pos, end = pos + 16, pos + size
-                continue
-            count += 1
-            pos += size
-    return max(count, 1)
+    """How many messages a packet holds, from the bundle element sizes alone (parsing costs ~12 us each): the
+    codec's own walk (:func:`~common.messages.codec.walk_packet`). A malformed packet counts what could be walked
+    (at least 1); the parser rejects it later."""
+    return max(len(walk_packet(data)[0]), 1)
 
 
 @functools.lru_cache(maxsize=1024)

@@ -2,8 +2,13 @@
 
 from pathlib import Path
 
-from common.messages import REGISTRY
+import pytest
+from pydantic import Field
+
+from common.messages import REGISTRY, OscMessage
+from common.messages.base import MessageError
 from common.messages.docs import render_markdown
+from common.messages.registry import MessageRegistry
 
 DOC = Path(__file__).resolve().parent.parent / "docs" / "osc.md"
 
@@ -18,3 +23,26 @@ def test_every_registered_address_is_documented() -> None:
     text = DOC.read_text(encoding="utf-8")
     for model in REGISTRY:
         assert f"### `{model.ADDRESS}`" in text
+
+
+def test_a_bound_the_model_refuses_is_marked_so() -> None:
+    """docs/osc.md gave /batteur/subscribe's duration_s as ``0 .. 3600``; the model (``gt=0``) refuses 0."""
+    class Bounded(OscMessage):
+        ADDRESS = "/test/bounded"
+        open_both: float = Field(gt=0, lt=1, description="open")
+        closed_both: float = Field(ge=0, le=1, description="closed")
+        open_low: int = Field(gt=-3, description="low only")
+        open_high: float = Field(ge=2, lt=5, description="half open")
+
+    registry = MessageRegistry()
+    registry.add(Bounded)
+    text = render_markdown(registry)
+    assert "| open_both | f | > 0 .. < 1 |" in text
+    assert "| closed_both | f | 0 .. 1 |" in text
+    assert "| open_low | i | > -3 ..  |" in text
+    assert "| open_high | f | 2 .. < 5 |" in text
+    assert "`> 0 .. 3600` is" in text  # the notation is explained once, above the tables
+    for bad in (0.0, 1.0):  # what is marked excluded is refused
+        with pytest.raises(MessageError, match="out_of_range"):
+            Bounded.from_args([bad, 0.5, 0, 3.0])
+    assert "| duration_s | f | > 0 .. 3600 |" in render_markdown()

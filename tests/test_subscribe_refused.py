@@ -4,6 +4,7 @@ per source, and ``batteur echo`` says so once per node instead of printing nothi
 from __future__ import annotations
 
 import asyncio
+import logging
 import threading
 from collections.abc import Iterator
 
@@ -163,3 +164,68 @@ def test_echo_reports_each_nodes_refusal_of_its_own_pattern_once() -> None:
     # a copy of someone else's refusal (another pattern) is not ours
     assert notes.line(full.model_copy(update={"pattern": "/x"}), "127.0.0.1:9001") is None
     assert notes.line(Hello(role="cli", node_id="x", protocol=1, osc_port=1), "127.0.0.1:9000") is None
+
+
+# --------------------------------------------------------------------------- refusals the model makes, logs, counts
+
+
+def test_a_subscribe_the_model_refuses_is_answered_too() -> None:
+    """A duration of 0 (the model takes more than 0) was counted as out of range but never answered, unlike a full
+    table or a bad pattern: ``batteur echo`` waited for copies that would never come."""
+    async def main() -> None:
+        node = quiet_node()
+        task = asyncio.ensure_future(node.run())
+        await wait_for(lambda: node.endpoint is not None)
+        assert node.endpoint is not None
+        target = node.endpoint.local_address
+        answers: list[OscMessage] = []
+        clients = []
+        for args in (["/batteur/*", 0.0], [7, 10.0]):  # out of range; a number for the pattern
+            client = await UdpEndpoint.open()
+            clients.append(client)
+            client.set_handler(lambda m, s: answers.append(m))
+            client.send_raw(Subscribe.ADDRESS, args, target)
+            await wait_for(lambda: len(answers) == len(clients))
+        zero, number = answers
+        assert isinstance(zero, SubscribeRefused) and zero.node_id == "sound-1" and zero.pattern == "/batteur/*"
+        assert "duration_s" in zero.reason and "0" in zero.reason
+        assert isinstance(number, SubscribeRefused) and number.pattern == "/" and "pattern" in number.reason
+        assert not node.subscriptions.active
+        health = node.health()
+        assert (health.dropped_range, health.dropped_type, health.dropped) == (1, 1, 2)
+        node.request_stop()
+        await asyncio.wait_for(task, 3.0)
+        for client in clients:
+            client.close()
+
+    asyncio.run(main())
+
+
+def test_refused_subscriptions_are_warnings_a_few_at_most_and_counted_in_health(
+        caplog: pytest.LogCaptureFixture) -> None:
+    """A bad pattern or a full table is the client's mistake: it was logged at ERROR and not counted."""
+    async def main() -> None:
+        node = quiet_node()
+        node.subscriptions.max_subscribers = 1
+        node.subscriptions.clock = lambda: 100.0  # one log interval, however slow this machine
+        task = asyncio.ensure_future(node.run())
+        await wait_for(lambda: node.endpoint is not None)
+        assert node.endpoint is not None
+        target = node.endpoint.local_address
+        client = await UdpEndpoint.open()
+        client.send(Subscribe(pattern="/batteur/impact", duration_s=60.0), target)
+        await wait_for(lambda: bool(node.subscriptions.active))
+        for k in range(30):
+            pattern = "/batteur/[" if k % 2 else f"/batteur/x{k}"  # a bad pattern, or a full table
+            client.send(Subscribe(pattern=pattern, duration_s=10.0), target)
+        await wait_for(lambda: node.subscriptions.refused == 30)
+        health = node.health()
+        assert (health.dropped_other, health.dropped) == (30, 30)
+        node.request_stop()
+        await asyncio.wait_for(task, 3.0)
+        client.close()
+
+    with caplog.at_level(logging.INFO, logger="batteur.runtime"):
+        asyncio.run(main())
+    refusals = [r for r in caplog.records if r.name == "batteur.runtime" and "refused" in r.getMessage()]
+    assert [r.levelno for r in refusals] == [logging.WARNING]

@@ -100,6 +100,10 @@ class WireField:
     minimum: float | None
     maximum: float | None
     choices: tuple[str, ...] | None
+    exclusive_minimum: bool = False
+    """True when ``minimum`` itself is refused (pydantic ``gt``), False when it is taken (``ge``)."""
+    exclusive_maximum: bool = False
+    """True when ``maximum`` itself is refused (``lt``), False when it is taken (``le``)."""
 
 
 def _scalar_kind(annotation: Any) -> WireKind:
@@ -133,19 +137,21 @@ def _choices(annotation: Any) -> tuple[str, ...] | None:
     return None
 
 
-def _bounds(metadata: list[Any]) -> tuple[float | None, float | None]:
+def _bounds(metadata: list[Any]) -> tuple[float | None, float | None, bool, bool]:
+    """(minimum, maximum, minimum exclusive, maximum exclusive) of a field's ``ge``/``gt``/``le``/``lt``."""
     low: float | None = None
     high: float | None = None
+    low_exclusive = high_exclusive = False
     for item in metadata:
         for attr in ("ge", "gt"):
             value = getattr(item, attr, None)
             if value is not None:
-                low = float(value)
+                low, low_exclusive = float(value), attr == "gt"
         for attr in ("le", "lt"):
             value = getattr(item, attr, None)
             if value is not None:
-                high = float(value)
-    return low, high
+                high, high_exclusive = float(value), attr == "lt"
+    return low, high, low_exclusive, high_exclusive
 
 
 class OscMessage(BaseModel):
@@ -193,7 +199,7 @@ class OscMessage(BaseModel):
                 raise TypeError(f"{cls.__name__}.{name}: optional or union fields cannot go on the wire")
             else:
                 kind = _scalar_kind(base)
-            low, high = _bounds(list(info.metadata))
+            low, high, low_exclusive, high_exclusive = _bounds(list(info.metadata))
             fields.append(
                 WireField(
                     name=name,
@@ -203,6 +209,8 @@ class OscMessage(BaseModel):
                     minimum=low,
                     maximum=high,
                     choices=_choices(base),
+                    exclusive_minimum=low_exclusive,
+                    exclusive_maximum=high_exclusive,
                 )
             )
         result = tuple(fields)

@@ -1,8 +1,13 @@
-"""Encode typed messages to OSC packets and decode packets back, with python-osc.
+"""Encode typed messages to OSC packets (with python-osc) and decode packets back.
 
-python-osc builds and parses the bytes; this module adds the registry lookup,
-validation and one :class:`~common.messages.base.DropReason` per failure.
-Bundles are accepted (nested too); their timetags are ignored, because timed
+python-osc builds the bytes; parsing is this module's own, because python-osc
+1.10.2's parser hangs on a bundle element of negative size, reads ``T``/``F``
+as numbers, skips type tags it does not know (and the arguments after them
+then misalign) and logs each bad element to the root logger, unrated. This
+module also does the registry lookup, validation and one
+:class:`~common.messages.base.DropReason` per failure. Bundles are accepted
+(nested up to :data:`MAX_BUNDLE_DEPTH`, checked whole by :func:`walk_packet`
+before any message is parsed); their timetags are ignored, because timed
 messages carry their time as an explicit argument (ARCHITECTURE.md, Messages).
 
 Batteur's own messages (one message of ``i``, ``f`` and ``s`` arguments) take
@@ -14,7 +19,7 @@ way, a fifth of an offline render. A message's variadic float tail (a
 pose's values) is also typed and checked as one run, not value by value (the
 drummer's pose of 700 floats: 89 -> 38 us to encode, 141 -> 52 us to decode
 with its validation). Anything else (bundles, other argument types, a packet
-that is not canonical, every error) goes through python-osc.
+that is not canonical, every error) goes through :func:`_parse_message`.
 """
 
 from __future__ import annotations
@@ -26,7 +31,6 @@ from dataclasses import dataclass, field
 from pythonosc.osc_bundle_builder import IMMEDIATELY, OscBundleBuilder
 from pythonosc.osc_message import OscMessage as PyOscMessage
 from pythonosc.osc_message_builder import OscMessageBuilder
-from pythonosc.osc_packet import OscPacket, ParseError
 
 from common.messages.base import Arg, DropReason, MessageError, OscMessage
 from common.messages.registry import REGISTRY, MessageRegistry
@@ -140,7 +144,8 @@ def _padded(end: int) -> int:
 
 def _unpack(data: bytes) -> RawMessage | None:
     """The fast path of :func:`parse_packet`: a canonical message of ``i``, ``f`` and ``s`` arguments in as few
-    ``struct`` calls as it has strings; None for anything else (python-osc parses it, or says what is wrong)."""
+    ``struct`` calls as it has strings; None for anything else (:func:`_parse_message` parses it, or says what is
+    wrong)."""
     if not data.startswith(b"/"):
         return None
     try:
@@ -173,38 +178,179 @@ def _unpack(data: bytes) -> RawMessage | None:
     return RawMessage(address=address, args=args) if index == len(data) else None
 
 
+BUNDLE_HEADER = b"#bundle\0"
+"""How an OSC bundle starts; its 8-byte timetag follows."""
+MAX_BUNDLE_DEPTH = 8
+"""Bundles nested deeper than this are refused (``malformed``): Batteur sends one level; a few more are tolerated."""
+NUMBER_TAGS = frozenset("ifhd")
+"""OSC type tags taken as numbers: ``i``, ``f``, and ``h`` (int64) and ``d`` (float64), which some senders use for
+the same numbers (an ``h`` must still fit its field's int32; a ``d``, a float32)."""
+
+
+def walk_packet(data: bytes) -> tuple[list[tuple[int, int]], str]:
+    """Where the messages of a packet are, from the bundle element sizes alone: (start, end) of each, in order,
+    and "" or why the bundle structure is malformed (the messages found before the fault are still listed,
+    for the rate limit's count). A packet that is no bundle is one message, checked when parsed.
+
+    Every element size must be positive, a multiple of 4 and within its bundle; an element must be a message
+    (``/...``) or a bundle, nested at most :data:`MAX_BUNDLE_DEPTH` deep. A bundle without elements is valid
+    OSC ("zero or more elements"): it holds no message. Walked without recursion, every step moving forward,
+    so any input ends (python-osc 1.10.2 looped forever on a negative size)."""
+    if not data.startswith(BUNDLE_HEADER):
+        return [(0, len(data))], ""
+    if len(data) < 16:
+        return [], f"bundle of {len(data)} bytes: shorter than its header and timetag (16 bytes)"
+    spans: list[tuple[int, int]] = []
+    stack = [(16, len(data))]  # (next element, end) of each bundle being walked, innermost last
+    while stack:
+        pos, end = stack[-1]
+        if pos == end:
+            stack.pop()
+            continue
+        if end - pos < 4:
+            return spans, f"{end - pos} stray bytes at the end of a bundle (byte {pos})"
+        (size,) = struct.unpack_from(">i", data, pos)
+        pos += 4
+        if size <= 0 or size % 4:
+            return spans, f"bundle element size {size} at byte {pos - 4}: not a positive multiple of 4"
+        if size > end - pos:
+            return spans, f"bundle element of {size} bytes at byte {pos - 4}: only {end - pos} follow in its bundle"
+        stack[-1] = (pos + size, end)
+        if data.startswith(BUNDLE_HEADER, pos, pos + size):
+            if size < 16:
+                return spans, f"nested bundle of {size} bytes at byte {pos}: shorter than its header and timetag"
+            if len(stack) >= MAX_BUNDLE_DEPTH:
+                return spans, f"bundles nested deeper than {MAX_BUNDLE_DEPTH}"
+            stack.append((pos + 16, pos + size))
+        elif data.startswith(b"/", pos, pos + size):
+            spans.append((pos, pos + size))
+        else:
+            return spans, f"bundle element at byte {pos} is neither a message nor a bundle: {data[pos:pos + 8]!r}"
+    return spans, ""
+
+
 def parse_packet(data: bytes) -> list[RawMessage]:
-    """Parse an OSC packet (message or bundle) into raw messages; raise MessageError if malformed."""
+    """Parse an OSC packet (message or bundle) into raw messages; raise MessageError if malformed (the whole
+    packet: a bundle whose structure or any message is malformed holds nothing to trust)."""
     fast = _unpack(data)
     if fast is not None:
         return [fast]
-    try:
-        packet = OscPacket(data)
-    except ParseError as exc:
-        raise MessageError(DropReason.MALFORMED, str(exc) or "unparseable OSC packet") from None
-    except Exception as exc:  # python-osc raises assorted errors on truncated data
-        raise MessageError(DropReason.MALFORMED, f"{type(exc).__name__}: {exc}") from None
+    spans, fault = walk_packet(data)
+    if fault:
+        raise MessageError(DropReason.MALFORMED, fault)
+    if spans == [(0, len(data))]:
+        return [_parse_message(data)]
     out: list[RawMessage] = []
-    for timed in packet.messages:
-        msg = timed.message
-        args: list[Arg] = []
-        for p in msg.params:
-            if isinstance(p, (bool, int, float, str)):
-                args.append(int(p) if isinstance(p, bool) else p)
-            else:  # blobs, MIDI, nil...: the model check reports a wrong type
-                args.append(_Unsupported(p))  # type: ignore[arg-type]
-        out.append(RawMessage(address=msg.address, args=args))
+    for start, end in spans:
+        element = data[start:end]
+        out.append(_unpack(element) or _parse_message(element))
     return out
 
 
-class _Unsupported:
-    """An OSC argument of a type Batteur never uses (blob, MIDI, nil, ...)."""
+_FIXED_SIZE = {"i": 4, "f": 4, "h": 8, "d": 8, "t": 8, "r": 4, "m": 4, "c": 4}
+"""Bytes of each fixed-size OSC argument type."""
+_NO_DATA_TAGS = frozenset("TFNI")
+"""True, False, Nil, Impulse: a type tag without argument bytes."""
 
-    def __init__(self, value: object) -> None:
+
+def _string_at(data: bytes, index: int, what: str) -> tuple[str, int]:
+    """The OSC string at ``index`` and the index after its padding; MessageError if unterminated or cut short."""
+    end = data.find(0, index)
+    if end < 0:
+        raise MessageError(DropReason.MALFORMED, f"{what} at byte {index} has no terminating null")
+    after = _padded(end)
+    if after > len(data):
+        raise MessageError(DropReason.MALFORMED, f"{what} at byte {index} is cut short (no padding to 4 bytes)")
+    try:
+        return data[index:end].decode("utf-8"), after
+    except UnicodeDecodeError:
+        raise MessageError(DropReason.MALFORMED, f"{what} at byte {index} is not UTF-8") from None
+
+
+def _parse_message(data: bytes) -> RawMessage:
+    """One OSC message, any type tags (Batteur's own parser: python-osc skipped tags it did not know, logging
+    each to the root logger, and read ``T``/``F`` as numbers). Numbers (:data:`NUMBER_TAGS`) and strings are
+    arguments; every other argument is parsed past and kept as :class:`_Unsupported`, which the model refuses
+    as a wrong type (or arity). A tag of unknown size, or bytes left after the last argument, is malformed."""
+    if not data.startswith(b"/"):
+        shown = data[:16]
+        raise MessageError(DropReason.MALFORMED, f"not an OSC message or bundle: starts with {shown!r}"
+                           if data else "empty packet")
+    address, index = _string_at(data, 0, "address")
+    if index == len(data):  # no type tag string: no arguments (OSC 1.0 lets old senders omit it)
+        return RawMessage(address=address, args=[])
+    tags, index = _string_at(data, index, "type tag string")
+    if not tags.startswith(","):
+        raise MessageError(DropReason.MALFORMED, f"type tag string {tags[:32]!r} does not start with ','", address)
+    args: list[Arg] = []
+    depth = 0  # inside an OSC array ([...]): its items are parsed past, the array is one unsupported argument
+    for tag in tags[1:]:
+        value: object
+        if tag in _FIXED_SIZE:
+            size = _FIXED_SIZE[tag]
+            if index + size > len(data):
+                if tag != "f" or index >= len(data):
+                    raise MessageError(DropReason.MALFORMED, f"argument '{tag}' at byte {index} is cut short", address)
+                # some senders (Reaktor) drop a last float's trailing nulls: read as padded, as python-osc does
+                value = struct.unpack(">f", data[index:].ljust(4, b"\0"))[0]
+            elif tag == "i":
+                value = struct.unpack_from(">i", data, index)[0]
+            elif tag == "f":
+                value = struct.unpack_from(">f", data, index)[0]
+            elif tag == "h":
+                value = struct.unpack_from(">q", data, index)[0]
+            elif tag == "d":
+                value = struct.unpack_from(">d", data, index)[0]
+            else:
+                value = _Unsupported(tag, data[index:index + size])
+            index += size
+        elif tag in "sS":
+            text, index = _string_at(data, index, f"argument '{tag}'")
+            value = text if tag == "s" else _Unsupported(tag, text)
+        elif tag == "b":
+            if index + 4 > len(data):
+                raise MessageError(DropReason.MALFORMED, f"blob size at byte {index} is cut short", address)
+            (size,) = struct.unpack_from(">i", data, index)
+            after = index + 4 + size + (-size % 4)
+            if size < 0 or after > len(data):
+                raise MessageError(DropReason.MALFORMED, f"blob of {size} bytes at byte {index}: "
+                                   f"{len(data) - index - 4} follow", address)
+            value = _Unsupported(tag, data[index + 4:index + 4 + size])
+            index = after
+        elif tag in _NO_DATA_TAGS:
+            value = _Unsupported(tag, {"T": True, "F": False, "N": None, "I": "impulse"}[tag])
+        elif tag == "[":
+            if depth == 0:
+                args.append(_Unsupported("[", "array"))  # type: ignore[arg-type]
+            depth += 1
+            continue
+        elif tag == "]":
+            if depth == 0:
+                raise MessageError(DropReason.MALFORMED, f"']' without '[' in type tags {tags[:32]!r}", address)
+            depth -= 1
+            continue
+        else:
+            raise MessageError(DropReason.MALFORMED, f"unknown OSC type tag {tag!r}: its size is unknown", address)
+        if depth == 0:
+            args.append(value)  # type: ignore[arg-type]
+    if depth:
+        raise MessageError(DropReason.MALFORMED, f"'[' without ']' in type tags {tags[:32]!r}", address)
+    if index < len(data):
+        raise MessageError(DropReason.MALFORMED, f"{len(data) - index} bytes after the last argument "
+                           f"(type tags {tags[:32]!r})", address)
+    return RawMessage(address=address, args=args)
+
+
+class _Unsupported:
+    """An OSC argument of a type Batteur does not take (``T``, ``F``, ``N``, ``I``, blob, timetag, MIDI, ...):
+    the model check reports it as a wrong type, naming the tag."""
+
+    def __init__(self, tag: str, value: object) -> None:
+        self.tag = tag
         self.value = value
 
     def __repr__(self) -> str:
-        return f"<unsupported OSC argument {self.value!r}>"
+        return f"OSC type '{self.tag}' ({self.value!r}; arguments are i, f or s)"
 
 
 def to_model(raw: RawMessage, registry: MessageRegistry = REGISTRY) -> OscMessage:

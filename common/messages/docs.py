@@ -9,20 +9,22 @@ from __future__ import annotations
 import inspect
 import sys
 
-from common.messages.base import OscMessage, WireKind
+from common.messages.base import OscMessage, WireField, WireKind
+from common.messages.codec import MAX_BUNDLE_DEPTH
 from common.messages.registry import REGISTRY, MessageRegistry
 from common.messages.system import PROTOCOL_VERSION
 
 _TYPE_NAMES = {WireKind.INT: "i", WireKind.FLOAT: "f", WireKind.STR: "s", WireKind.TIME: "i f"}
 
 
-def _range(minimum: float | None, maximum: float | None, choices: tuple[str, ...] | None) -> str:
-    if choices:
-        return " \\| ".join(choices)
-    if minimum is None and maximum is None:
+def _range(f: WireField) -> str:
+    """``low .. high``, both taken; a bound the value must not reach is marked ``> low`` or ``< high``."""
+    if f.choices:
+        return " \\| ".join(f.choices)
+    if f.minimum is None and f.maximum is None:
         return ""
-    low = "" if minimum is None else f"{minimum:g}"
-    high = "" if maximum is None else f"{maximum:g}"
+    low = "" if f.minimum is None else f"{'> ' if f.exclusive_minimum else ''}{f.minimum:g}"
+    high = "" if f.maximum is None else f"{'< ' if f.exclusive_maximum else ''}{f.maximum:g}"
     return f"{low} .. {high}"
 
 
@@ -44,7 +46,7 @@ def _model_section(model: type[OscMessage]) -> list[str]:
                 index = f"{position}{'..' if f.variadic else ''}"
                 position += 1
                 meaning = f.description + (" (repeated to the end)" if f.variadic else "")
-            rng = _range(f.minimum, f.maximum, f.choices)
+            rng = _range(f)
             lines.append(f"| {index} | {f.name} | {_TYPE_NAMES[f.kind]} | {rng} | {meaning} |")
         lines.append("")
     else:
@@ -62,13 +64,22 @@ def render_markdown(registry: MessageRegistry = REGISTRY) -> str:
         "",
         f"Protocol version: {PROTOCOL_VERSION}. Arguments are OSC `i` (int32), `f` (float32) and `s` (string),",
         "so Pure Data vanilla's [oscformat]/[oscparse] can build and parse every message. Pd sends every",
-        "number as a float: integral floats are accepted for `i` arguments. A rig time takes two arguments,",
-        "whole seconds (`i`) then the fraction (`f`). Bundles are accepted; their timetags are ignored.",
+        "number as a float: integral floats are accepted for `i` arguments; `h` (int64) and `d` (float64)",
+        "are taken as numbers too (an `h` must still fit an `i` argument). Any other type (`T`, `F`, `N`, `I`,",
+        "blobs, timetags, ...) is refused as a wrong type. A rig time takes two arguments, whole seconds (`i`)",
+        "then the fraction (`f`). Bundles are accepted, nested up to "
+        f"{MAX_BUNDLE_DEPTH} deep; their timetags are ignored,",
+        "and an empty one (no elements, valid OSC) holds nothing. A bundle whose structure or any message is",
+        "malformed (an element size that is not a positive multiple of 4 within its bundle, an element that is",
+        "neither a message nor a bundle) is dropped whole, as malformed.",
         "A message that does not match its model is dropped, counted by reason and reported in",
         "`/batteur/health`; a physics, score, sound, interaction or graphics control that does not is also",
         "answered to its sender with that service's refusal (`/batteur/physics/rejected`,",
         "`/batteur/sound/rejected`, `/batteur/interaction/error`, `/batteur/graphics/rejected`), by a node of",
         "that service only, a few a second per sender host at most.",
+        "",
+        "Ranges include both ends (`0 .. 2`: from 0 to 2) unless an end is marked `>` or `<`: `> 0 .. 3600` is",
+        "more than 0 and at most 3600. An empty end is unbounded.",
         "",
     ]
     families: dict[str, list[type[OscMessage]]] = {}

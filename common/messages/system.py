@@ -56,7 +56,8 @@ class Health(OscMessage):
     dropped_type: Count = Field(description="dropped: wrong argument count or type")
     dropped_range: Count = Field(description="dropped: value out of range")
     dropped_other: Count = Field(description="dropped: oversize, not allowed, rate limited, handler error, "
-                                   "refused by the service (e.g. an unreachable target)")
+                                   "refused by the service (e.g. an unreachable target, a Subscribe to a full "
+                                   "table or of a bad pattern)")
     late: Count = Field(description="service-specific late events (e.g. late strikes), total")
     peers: Count = Field(description="peers currently known")
     # appended (readers taking arguments by position, such as Pd patches, find the ones above unmoved)
@@ -138,8 +139,10 @@ class Subscribe(OscMessage):
 class SubscribeRefused(OscMessage):
     """A node did not take a Subscribe, and why (sent back to the subscriber, at most once a second each).
 
-    A node refuses when its subscription table is full or the pattern is not a valid OSC
-    address pattern; ``batteur echo`` prints the reason once per node.
+    A node refuses when its subscription table is full, the pattern is not a valid OSC
+    address pattern, or the Subscribe's arguments are not what it takes (e.g. a duration of 0;
+    ``pattern`` is then ``/`` if the one sent was no pattern); ``batteur echo`` prints the reason
+    once per node.
     """
 
     ADDRESS = "/batteur/subscribe/refused"
