@@ -46,3 +46,15 @@ def test_the_camera_s_usage_says_a_preset_may_be_sent_alone(args: list[str],
     err = capsys.readouterr().err.strip()
     assert err.endswith("; /batteur/graphics/camera takes PRESET AZIMUTH_DEG ELEVATION_DEG DISTANCE TARGET_X "
                         "TARGET_Y TARGET_Z, or PRESET alone (any preset but free)"), err
+
+
+@pytest.mark.parametrize(("time", "reason"), [("nan", "out_of_range"), ("inf", "out_of_range"),
+                                              ("-inf", "out_of_range"), ("soon", "wrong_type")])
+def test_a_one_number_time_that_is_not_a_finite_number_is_named(time: str, reason: str,
+                                                                capsys: pytest.CaptureFixture[str]) -> None:
+    """``play nan 0`` has the one-number form's count: it said "wrong_arity: ... expected 4 arguments, got 3".
+    Refused before anything is sent (nothing listens at the address given)."""
+    assert send.main(["/batteur/score/transport", "play", time, "0", "--to", "127.0.0.1:9"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == (f"batteur send: error: {reason}: /batteur/score/transport: TIME: must be a finite number of "
+                   f"seconds, got {time!r}"), err

@@ -80,8 +80,10 @@ def arguments(model: type[OscMessage]) -> str:
 
 def split_times(model: type[OscMessage], texts: Sequence[str]) -> list[str] | None:
     """``texts`` with each rig time given as one number of seconds (``play 12.25 0``) split into the whole seconds
-    and fraction the wire carries (``play 12 0.25 0``); None unless ``texts`` has exactly one value per field, each
-    time a finite number (then they are taken as given, the wire's form)."""
+    and fraction the wire carries (``play 12 0.25 0``); None unless ``texts`` has exactly one value per field (then
+    they are taken as given, the wire's form). A time there that is not a finite number raises
+    :class:`MessageError` naming the field (``TIME: must be a finite number of seconds``): the count is the
+    one-number form's, so "expected 4 arguments" would be wrong."""
     fields = model.wire_fields()
     if not fields or fields[-1].variadic or len(texts) != len(fields):
         return None
@@ -94,7 +96,8 @@ def split_times(model: type[OscMessage], texts: Sequence[str]) -> list[str] | No
             continue
         value = guess_arg(text)
         if isinstance(value, str) or not math.isfinite(value):
-            return None
+            raise MessageError(DropReason.OUT_OF_RANGE if not isinstance(value, str) else DropReason.WRONG_TYPE,
+                               f"{f.name.upper()}: must be a finite number of seconds, got {text!r}", model.ADDRESS)
         whole = math.floor(value)
         out += [str(int(whole)), repr(float(value - whole))]
     return out

@@ -18,7 +18,7 @@ the beats.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -37,7 +37,7 @@ from common.gesture.plan import (
 from common.kit import EventType, Kit, KitObject, Limb
 from common.score.events import Score
 from common.score.hands import HandAlgorithm, Sticking
-from common.score.limbs import HANDS, PROGRESS_EVERY, Assignment, Note, ProgressCallback, distribute
+from common.score.limbs import FEET, HANDS, PROGRESS_EVERY, Assignment, Note, ProgressCallback, distribute
 
 VERTICAL_SHARE = 0.6
 """Share of a segment over which a height change between targets is made (early when rising, late when falling)."""
@@ -285,6 +285,15 @@ def _segment(
     return t0 + tau, pos, vel
 
 
+def kick_feet(notes: Iterable[Note | PlannedStroke]) -> set[Limb]:
+    """The feet planned as bass-drum feet: each foot given a BASS note (assigned notes, or a plan's strokes: one
+    per note). Such a foot rests on the raised footboard (``kick_rest_height``) and plays a stroke softer than the
+    one before as a smaller, deeper stroke (``KICK_SOFTER_RISE``, ``KICK_DOUBLE_DEPTH``), so its stroke after a
+    changed one differs too (the score player's live windows: ``FOOT_NOTES_AFTER``). With a double pedal either
+    foot may be one."""
+    return {n.limb for n in notes if n.event == EventType.BASS and n.limb in FEET}
+
+
 def _softer(speed: float, previous: float) -> float:
     """How much softer a stroke at ``speed`` m/s is than the previous one at ``previous`` m/s: 0 (as loud or
     louder) ... 1 (half as fast or less)."""
@@ -520,6 +529,7 @@ def plan_gestures(
     laid = 0  # notes of the limbs done so far
     if progress is not None:
         progress(0, len(notes))
+    kicking = kick_feet(notes)
     for limb in Limb:
         mine = [n for n in notes if n.limb == limb]
         hand = limb in HANDS
@@ -582,7 +592,7 @@ def plan_gestures(
             )
             prev_time = n.time
         kick_foot = not hand and (
-            any(n.event == EventType.BASS for n in mine) or (not mine and _rest_event(kit, limb) == EventType.BASS)
+            limb in kicking or (not mine and _rest_event(kit, limb) == EventType.BASS)
         )
         rest_h = cfg.rest_height if hand else (cfg.kick_rest_height if kick_foot else cfg.foot_rest_height)
         if strokes:

@@ -1,8 +1,9 @@
 """Inspect a score: ``python -m common.score FILE [--kit NAME] [--algorithm viterbi] [--sticking none] [--plan]``.
 
-Prints the events per type, unknown notes, removed doubles, the limb
-assignment and every feasibility issue (and, with ``--plan``, the gesture plan's
-size and planning time).
+Prints the events per type, the kit (``--kit``, else a text score's ``kit``
+line, as ``batteur render`` plays it, else the default), unknown notes, removed
+doubles, the limb assignment and every feasibility issue (and, with ``--plan``,
+the gesture plan's size and planning time).
 """
 
 from __future__ import annotations
@@ -13,11 +14,11 @@ import time
 from collections import Counter
 
 from common.exit_status import FAILED, report_error
-from common.kit import load_kit
+from common.output_paths import point_at_devnull
 from common.score.events import ScoreError
 from common.score.hands import HandAlgorithm, Sticking
 from common.score.limbs import distribute
-from common.score.text import read_score
+from common.score.text import DEFAULT_KIT, load_score_kit, read_score, score_kit
 
 PROG = "python -m common.score"
 """The command's name in its usage and error lines."""
@@ -25,20 +26,36 @@ PROG = "python -m common.score"
 
 def main(argv: list[str] | None = None) -> int:
     """Print what the command line asks for; the exit status (README, "Exit status": 2 a bad option, 1 a score
-    or kit it cannot use)."""
+    or kit it cannot use). A reader that goes away (``| head -1``) is a quiet stop, exit 0, as for the batteur
+    tools (``batteur.tools.nodes.run_tool``), not a BrokenPipeError traceback."""
+    try:
+        status = _inspect(argv)
+        sys.stdout.flush()  # here, not at exit: a reader gone by the last flush is a quiet stop too
+        return status
+    except BrokenPipeError:
+        point_at_devnull(sys.stdout)  # the interpreter's own flush at exit stays quiet
+        return 0
+
+
+def _inspect(argv: list[str] | None) -> int:
+    """:func:`main`'s work."""
     parser = argparse.ArgumentParser(prog=PROG, description=__doc__)
     parser.add_argument("score", help="a .mid file or a Batteur text score")
-    parser.add_argument("--kit", default="default", help="kit name or YAML/JSON path")
+    parser.add_argument("--kit", default=None, help="kit name or YAML/JSON path (default: a text score's `kit` "
+                        f"line, as batteur render plays it, else {DEFAULT_KIT})")
     parser.add_argument("--algorithm", default="viterbi", choices=[a.value for a in HandAlgorithm])
     parser.add_argument("--sticking", default="none", choices=[s.value for s in Sticking])
     parser.add_argument("--plan", action="store_true", help="also plan the gestures")
     args = parser.parse_args(argv)
     try:
         score = read_score(args.score)
-        kit = load_kit(args.kit)
+        kit = load_score_kit(score, args.kit)  # a kit line's kit it cannot load: an error naming the line
     except (ScoreError, FileNotFoundError, ValueError) as exc:  # a score or kit it cannot use
         return report_error(PROG, exc, FAILED)
     print(f"{score.source}: {len(score.events)} events over {score.duration:.2f} s, {len(score.beats)} beats")
+    asked = score_kit(score)
+    print(f"kit: {args.kit or asked or DEFAULT_KIT}" + (" (the score's kit line)" if args.kit is None and asked
+                                                         else ""))
     for event, count in sorted(Counter(e.event.value for e in score.events).items()):
         print(f"  {event:<12} {count}")
     for warning in score.warnings:

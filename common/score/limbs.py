@@ -144,6 +144,16 @@ def _keep_rank(e: DrumEvent, pedal_sounding: bool) -> tuple[bool, bool, float]:
     return (e.limb is not None, not (pedal_sounding and e.event in STICK_HIHAT), e.velocity)
 
 
+def bass_feet(kit: Kit) -> set[Limb]:
+    """The feet :func:`distribute` may give a BASS note: the kit's bass-drum foot and, with a double pedal, the other
+    foot too (a kick too soon after the first foot's last one)."""
+    if EventType.BASS not in kit.events:
+        return set()
+    foot = kit.spec(EventType.BASS).preferred
+    other = Limb.LEFT_FOOT if foot == Limb.RIGHT_FOOT else Limb.RIGHT_FOOT
+    return {foot, other} & FEET if kit.double_pedal else {foot} & FEET
+
+
 def distribute(
     score: Score,
     kit: Kit,

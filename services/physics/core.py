@@ -349,7 +349,8 @@ class PhysicsCore:
             self.score_player.reset()
             return []
         if isinstance(message, PhysicsPosture):  # graphics' pose editor: a separate handler (posture.py)
-            apply_posture(self, message)
+            lag = self.target_lag  # placed on the targets' clock as streamed targets are (below)
+            self._hold_streamed(lag, apply_posture(self, message, lag) - lag)
             return []
         if isinstance(message, PhysicsStrike):
             if not isinstance(self.scene, StrikeScene):
@@ -373,9 +374,7 @@ class PhysicsCore:
             # targets keep that lag until it is (_lag_floor)
             lag = self.target_lag
             handler(message, self.time, lag)
-            until = message.time - lag
-            held = self._streamed_held
-            self._streamed_held = (lag, until if held is None else max(until, held[1]))
+            self._hold_streamed(lag, message.time - lag)
             return []
         handler(message, self.time)
         if isinstance(message, PhysicsControlMode):  # after the scene accepted it
@@ -520,6 +519,14 @@ class PhysicsCore:
                 log.warning("physics targets %.0f ms behind the rig clock: jumped %.0f ms toward it, the strokes "
                             "between dropped (%d such jumps in all)", lag * 1e3, excess * 1e3, self.target_jumps_late)
                 self._last_jump_warning = now
+
+    def _hold_streamed(self, lag: float, until: float) -> None:
+        """Targets queued ``lag`` s early on the targets' clock (to be reached at their rig times) play until
+        ``until`` (s, the targets' clock): keep that lag until then (:meth:`_lag_floor`); nothing with no lag."""
+        if lag <= 0.0:
+            return
+        held = self._streamed_held
+        self._streamed_held = (lag, until if held is None else max(until, held[1]))
 
     def _lag_floor(self, t: float) -> float:
         """The least lag (s) the live core's targets may jump back to at their clock's time ``t`` (s): the lag the

@@ -5,7 +5,10 @@ are clamped into the Euler boxes and quaternion ellipsoids the controller
 enforces, then queued as two joint-track knots (where the joint target is now,
 and the posture ``duration`` seconds later, both with zero velocity), so the body
 glides there and holds it. A joint track overrides Cartesian targets until
-/batteur/physics/reset clears it (see services/physics/drummer.py).
+/batteur/physics/reset clears it (see services/physics/drummer.py). While a live
+core's targets trail the rig clock (``PhysicsCore.target_lag``) the knots are
+queued that much earlier on the targets' clock, as streamed targets are, so the
+glide starts at its rig time (the core keeps the lag until it ends).
 """
 
 from __future__ import annotations
@@ -22,8 +25,10 @@ if TYPE_CHECKING:
     from services.physics.core import PhysicsCore
 
 
-def apply_posture(core: PhysicsCore, message: PhysicsPosture) -> None:
-    """Queue ``message``'s posture on the drummer's joint track; raises :class:`TargetError`."""
+def apply_posture(core: PhysicsCore, message: PhysicsPosture, lag: float = 0.0) -> float:
+    """Queue ``message``'s posture on the drummer's joint track ``lag`` seconds earlier on the targets' clock (a
+    live core's targets trailing the rig clock by that much: the glide starts at its rig time); returns the rig
+    time (s) the posture is reached; raises :class:`TargetError`."""
     from services.physics.drummer import DrummerScene
 
     scene = core.scene
@@ -35,17 +40,16 @@ def apply_posture(core: PhysicsCore, message: PhysicsPosture) -> None:
     if not np.all(np.isfinite(q)):
         raise TargetError("a posture's joint angles must be finite")
     now = core.time
-    start = max(float(message.time), now)
+    start = max(float(message.time), now)  # rig time
     clamp = scene.controller.clamp_targets
     if len(scene.joint_track):
-        here = scene.joint_track.sample(start)[0]
+        here = scene.joint_track.sample(start - lag)[0]  # the track runs on the targets' clock
     else:
         here = scene.body.state()[0]
     zeros = np.zeros(N_DOF)
     # both knots or neither: a glide cut in half at a full queue would hold the body where it is
-    scene.joint_track.check_room(start, 2 if message.duration > 0 else 1)
-    scene.add_joints(start, np.concatenate([clamp(np.asarray(here, dtype=float)), zeros]), now)
-    if message.duration > 0:
-        scene.add_joints(start + message.duration, np.concatenate([clamp(q), zeros]), now)
-    else:
-        scene.add_joints(start, np.concatenate([clamp(q), zeros]), now)
+    scene.joint_track.check_room(start - lag, 2 if message.duration > 0 else 1)
+    scene.add_joints(start, np.concatenate([clamp(np.asarray(here, dtype=float)), zeros]), now, lag)
+    end = start + max(float(message.duration), 0.0)
+    scene.add_joints(end, np.concatenate([clamp(q), zeros]), now, lag)
+    return end

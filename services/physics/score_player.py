@@ -32,7 +32,10 @@ control messages (common/messages/score.py):
 * :class:`~common.messages.score.KitSelect` is accepted only for the kit the
   physics scene was built with: a kit change rebuilds the kit bodies and must
   reach interaction and sound too, so it is rejected with a clear error
-  (restart the rig with ``--kit``).
+  (restart the rig with ``--kit``). For the same reason a loaded text score's
+  ``kit`` line naming another kit is not applied: the score plays on the
+  node's kit, and a warning in the log says so (:meth:`ScorePlayer._check_score_kit`;
+  an accepted ``ScoreLoad`` gets no answer to carry it).
 
 The **planned grip** (:attr:`ScorePlayer.grip`) starts as the hands' grip
 (``PhysicsSettings.grip``) where the gesture database has it (french, german),
@@ -116,14 +119,15 @@ from typing import TYPE_CHECKING, Literal
 import numpy as np
 
 from common.gesture.plan import GesturePlan, Grip, Nuance, planned_grip
+from common.gesture.planner import kick_feet
 from common.gesture.reach import pull_into_reach
-from common.kit import EventType, Limb
+from common.kit import KITS_DIR, EventType, Limb
 from common.messages import OscMessage
 from common.messages.physics import PhysicsReset
 from common.messages.score import GestureStyle, KitSelect, LiveNote, ScoreLoad, ScoreTransport, TempoScale
 from common.score.events import MAX_SCORE_NOTES, DrumEvent, Score, ScoreError
 from common.score.hands import HandAlgorithm, Sticking
-from common.score.limbs import FEET, HANDS, LimbLengths
+from common.score.limbs import FEET, HANDS, LimbLengths, bass_feet
 from common.score.live import LiveNotes
 from services.physics.plan_worker import PlanWorker, PlanWorkers, plan_events
 from services.physics.splice import (
@@ -270,6 +274,10 @@ class _Prepared:
     """Splice the plan at the given rig time (s) and update the performance."""
     announce: Callable[[], None] = lambda: None
     """Count and log what the plan leaves out (run once, before ``commit``)."""
+    hold: tuple[float, float] | None = None
+    """(lag s, targets' clock s): placed while the live core's targets trailed the rig clock by that lag, its notes
+    play until then; while its plan is in flight the targets keep that lag (:meth:`ScorePlayer.lag_floor`; dropped
+    with the plan if it fails or is replaced)."""
 
 
 @dataclasses.dataclass
@@ -290,6 +298,13 @@ class _Job:
     """Live notes: the note of each request, in the same order."""
     pulled: dict[str, int] = dataclasses.field(default_factory=dict)
     """Once ready: its plan's knots brought within the body's reach, per limb (:meth:`ScorePlayer._reachable`)."""
+
+
+def _kit_file(kit: str) -> Path:
+    """The file a kit name or path stands for (``load_kit``'s rule: a name without a suffix is a shipped kit),
+    resolved, for comparing two kits as given."""
+    path = Path(kit).expanduser()
+    return (KITS_DIR / f"{kit}.yaml" if not path.suffix else path).resolve()
 
 
 def _under(base: Path, path: Path) -> bool:
@@ -332,6 +347,10 @@ class ScorePlayer:
         self._stopping: tuple[tuple[float, float, float], float] | None = None
         """A stop or pause sent ahead of its time: the score's clock before it and the rig time (s) it plays
         until (the score plays on until then, and its position is shown: :meth:`clock`)."""
+        self._bass_feet: dict[float, Limb] = {}
+        """A double pedal's kicks: the foot each queued BASS note is planned on (its time on the targets' clock, s,
+        from :attr:`CONTEXT_S` before the last splice on), for a live window's count of each foot's notes
+        (:meth:`_limbs_of`; ``DrumEvent.limb`` keeps hands only)."""
         self._live_keys: set[tuple[float, str]] = set()
         """(rig time, event) of the live notes in ``events`` (a score re-timing leaves them where they are)."""
         self.live = LiveNotes()
@@ -368,8 +387,9 @@ class ScorePlayer:
         """Live-note windows whose plan did not re-join the queued plan: the notes planned again, with the window
         widened to the hi-hat foot's next note (only the foot's open-hi-hat lifts changed) or the whole rest."""
         self._held: tuple[float, float] | None = None
-        """(lag s, targets' clock s): a plan placed while the live core's targets trailed the rig clock by that lag
-        plays until then; the targets keep at least that lag until it ends (:meth:`lag_floor`)."""
+        """(lag s, targets' clock s): a plan spliced while the live core's targets trailed the rig clock by that lag
+        plays until then; the targets keep at least that lag until it ends (:meth:`lag_floor`; a stop, pause or
+        ``play`` brings the end to what still plays: :meth:`_hold`)."""
 
     @property
     def preparation_s(self) -> float:
@@ -453,44 +473,51 @@ class ScorePlayer:
             candidate = (base / name).resolve()
             if _under(base, candidate) and candidate.is_file():
                 return candidate
-        if not Path(name).suffix:  # "groove" for groove.txt: the one file of that name, whatever its extension
-            found = self._by_stem(name)
-            if len(found) == 1:
-                return found[0]
-            if found:
-                names = ", ".join(sorted(p.name for p in found))
-                raise ScorePlayerError(f"score {name!r}: several files in the score library match ({names}): give "
-                                       "the extension")
+        if not Path(name).suffix:  # "groove" for groove.txt: the file of that name, whatever its extension
+            for base in self._bases():  # in library order, as a name with its extension (the first folder wins)
+                found = self._by_stem(base, name)
+                if len(found) == 1:
+                    return found[0]
+                if found:
+                    names = ", ".join(sorted(p.name for p in found))
+                    raise ScorePlayerError(f"score {name!r}: several files in the score library match ({names}): "
+                                           "give the extension")
         raise ScorePlayerError(f"score {name!r}: no such file in the score library ({dirs})")
 
     def _outside(self, name: str) -> bool:
         """True when ``name`` (absolute, or relative to a library directory) is outside every library directory,
-        as written (``../x``) or once resolved (a link in the library to elsewhere); whether it exists plays no
-        part."""
-        return not any(_under(base, Path(os.path.normpath(base / name))) and _under(base, (base / name).resolve())
-                       for base in self._bases())
+        as written (``../x``: against the directory as written, or as its links lead, so ``--score-dir`` may be a
+        link and an absolute name may spell either) or once resolved (a link in the library to elsewhere: against
+        the directory its links lead to); whether it exists plays no part."""
+        for root in self.library:
+            written, base = Path(os.path.abspath(root.expanduser())), root.expanduser().resolve()
+            as_written = (_under(written, Path(os.path.normpath(written / name)))
+                          or _under(base, Path(os.path.normpath(base / name))))
+            if as_written and _under(base, (base / name).resolve()):
+                return False
+        return True
 
     def _bases(self) -> list[Path]:
         """The library directories, links followed (what every name is judged inside)."""
         return [root.expanduser().resolve() for root in self.library]
 
-    def _by_stem(self, name: str) -> list[Path]:
-        """The library's regular files named ``name`` plus any extension (listed, not globbed: a name may hold
-        glob characters), resolved and still inside the library."""
+    @staticmethod
+    def _by_stem(base: Path, name: str) -> list[Path]:
+        """The regular files of library directory ``base`` (resolved) named ``name`` plus any extension (listed,
+        not globbed: a name may hold glob characters), resolved and still inside it."""
+        folder = (base / name).parent.resolve()
+        if not _under(base, folder):
+            return []
+        try:
+            entries = list(folder.iterdir())
+        except OSError:  # no such folder in this library
+            return []
         found: list[Path] = []
-        for base in self._bases():
-            folder = (base / name).parent.resolve()
-            if not _under(base, folder):
-                continue
-            try:
-                entries = list(folder.iterdir())
-            except OSError:  # no such folder in this library
-                continue
-            for entry in entries:
-                target = entry.resolve()
-                if (entry.stem == Path(name).name and entry.suffix and target.is_file() and _under(base, target)
-                        and target not in found):
-                    found.append(target)
+        for entry in entries:
+            target = entry.resolve()
+            if (entry.stem == Path(name).name and entry.suffix and target.is_file() and _under(base, target)
+                    and target not in found):
+                found.append(target)
         return found
 
     def load(self, name: str | Path, trusted: bool = False) -> Score:
@@ -513,6 +540,7 @@ class ScorePlayer:
         log.info("score %s loaded: %d notes, %.2f s%s", path.name, len(score.events), score.duration,
                  f" ({'; '.join(score.warnings)})" if score.warnings else "")
         self._take_score_style(score, path.name)
+        self._check_score_kit(score, path.name)
         return score
 
     def _take_score_style(self, score: Score, name: str) -> None:
@@ -539,6 +567,23 @@ class ScorePlayer:
             scene.set_grip("both", self.grip.value)
         log.info("gesture style: %s grip, %s, %s hands, sticking %s", grip, nuance, algorithm,
                  sticking)
+
+    def _check_score_kit(self, score: Score, name: str) -> None:
+        """Warn when a text score's ``kit`` line names another kit than the node's: the node's kit is fixed at
+        start (a kit change rebuilds the kit bodies and must reach interaction and sound too, as for
+        :meth:`select_kit`), so the score plays on the node's kit, which the log says. Kits are compared as the
+        files they stand for (a shipped kit's name is its file in common/kits; a relative path in the score is
+        taken from the score's folder, as ``batteur render`` reads it, the node's from its working directory)."""
+        from common.score.text import score_kit
+
+        asked = score_kit(score)
+        if asked is None or asked == self.core.settings.kit or _kit_file(asked) == _kit_file(self.core.settings.kit):
+            return
+        line = getattr(score, "kit_line", None)
+        log.warning("score %s: %sasks for kit %r: played on this node's kit %r (the kit is fixed when the node "
+                    "starts: a kit change rebuilds the kit bodies and must reach interaction and sound too); restart "
+                    "the rig with --kit %s to play it on its own", name, f"line {line} " if line else "", asked,
+                    self.core.settings.kit, asked)
 
     def select_kit(self, kit: str) -> None:
         """Accept the scene's own kit; reject any other (see the module docstring)."""
@@ -611,11 +656,12 @@ class ScorePlayer:
                                    "prepare")
         beats = np.asarray(score.beats, dtype=float)
         beats = at + (beats[beats >= position - POSITION_TOLERANCE_S] - position) / tempo
-        self._hold(lag, events[-1].time)
 
         def commit(plan: GesturePlan, t_s: float) -> GesturePlan:
             splice_plan(scene, plan, t_s)
-            self._hold(lag, plan.end_time)
+            self._hold(lag, plan.end_time, replace=True)  # every limb's track from t_s on is this plan's
+            self._bass_feet.clear()
+            self._keep_bass_feet(plan, t_s)
             self.events = self._assigned(events, plan)
             self.mapping = (at, position, tempo)
             self._stopping = None
@@ -626,7 +672,8 @@ class ScorePlayer:
                      plan.end_time + lag)
             return plan
 
-        return _Prepared(t_s, events, beats, min(1.0, events[0].time - t_s - TRANSITION_S), commit, announce)
+        return _Prepared(t_s, events, beats, min(1.0, events[0].time - t_s - TRANSITION_S), commit, announce,
+                         self._pending(lag, events[-1].time))
 
     def stop(self, at: float, now: float) -> None:
         """From rig time ``at`` (or at once), brake every limb and bring it to its rest posture; refused
@@ -648,7 +695,7 @@ class ScorePlayer:
             if limb in scene.rest_targets:
                 track.add(t_s + BRAKE_S + STOP_MOVE_S, scene.rest_targets[limb] - scene.target_offset[limb],
                           np.zeros(3))
-        self._hold(lag, t_s + BRAKE_S + STOP_MOVE_S)
+        self._hold(lag, t_s + BRAKE_S + STOP_MOVE_S, replace=True)  # nothing of the plans plays after it
         self._forget(t_s)
         self._stop_clock()
         self.state = "idle"
@@ -670,19 +717,22 @@ class ScorePlayer:
             p0, v0 = (np.array(a, dtype=float) for a in track.sample(t_s))
             track.add(t_s, p0, v0)
             track.add(t_s + BRAKE_S, brake_point(p0, v0, BRAKE_S, 0.0), np.zeros(3))
-        self._hold(lag, t_s + BRAKE_S)
+        self._hold(lag, t_s + BRAKE_S, replace=True)  # nothing of the plans plays after it
         self._forget(t_s)
         self._stop_clock()
         self.state = "paused"
         log.info("pause at %.3f s", t_s + lag)
 
     def _check_playing(self, action: str, t_s: float) -> None:
-        """Refuse a stop or pause at rig time ``t_s`` (s) with nothing to act on: no performance (score or live
-        notes) whose plan lasts past ``t_s`` (it ended, was never started, was reset, or stops or pauses before)."""
+        """Refuse a stop or pause at ``t_s`` (s, the targets' clock: :meth:`_base`) with nothing to act on: no
+        performance (score or live notes) whose plan lasts past ``t_s`` (it ended, was never started, was reset, or
+        stops or pauses before). The refusal says rig times, as the stop and pause log lines do."""
         if t_s < self.end_time:
             return
-        was = {"paused": " (paused)", "idle": ""}.get(self.state, f" (the performance ended at {self.end_time:.3f} s)")
-        raise ScorePlayerError(f"{action} at {t_s:.3f} s: nothing is playing then{was}")
+        lag = self.core.target_lag
+        was = {"paused": " (paused)", "idle": ""}.get(self.state,
+                                                      f" (the performance ended at {self.end_time + lag:.3f} s)")
+        raise ScorePlayerError(f"{action} at {t_s + lag:.3f} s: nothing is playing then{was}")
 
     def _stop_clock(self) -> None:
         """A stop or pause (after :meth:`_forget`): keep the playing score's clock until the plan's new end (a
@@ -744,11 +794,11 @@ class ScorePlayer:
         live = [e for e in self.events if e.time >= t_c and (e.time, e.event.value) in self._live_keys]
         events = sorted(kept + ahead + live, key=lambda e: e.time)
         lag = self.core.target_lag
-        self._hold(lag, events[-1].time)
 
         def commit(plan: GesturePlan, t_s: float) -> GesturePlan:
             splice_plan(scene, plan, t_s, limbs={s.limb for s in plan.strokes if s.time > t_s})
             self._hold(lag, plan.end_time)
+            self._keep_bass_feet(plan, t_s)
             self.events = self._assigned(events, plan)
             self.mapping = (t_a, p_a, tempo)
             self.end_time = plan.end_time
@@ -756,7 +806,7 @@ class ScorePlayer:
                      self.grip.value, self.nuance.value)
             return plan
 
-        return _Prepared(t_s, events, beats, 1.0, commit)
+        return _Prepared(t_s, events, beats, 1.0, commit, hold=self._pending(lag, events[-1].time))
 
     def live_note(self, note: LiveNote, now: float, source: str = "") -> GesturePlan | None:
         """Plan one live note with the notes around it and splice it in; a late note is counted, not played (and
@@ -816,10 +866,11 @@ class ScorePlayer:
         scene = self._drummer()
         start = bisect.bisect_left(self.events, t_s - CONTEXT_S, key=lambda e: e.time)
         if len(self.events) - start + len(new) > MAX_PERFORMANCE_NOTES:
-            event = new[-1]
-            raise ScorePlayerError(f"live note {event.event.value} at {event.time:.3f} s: the performance already "
-                                   f"holds {len(self.events) - start} notes, the limit of {MAX_PERFORMANCE_NOTES} "
-                                   "(MAX_PERFORMANCE_NOTES); refused, the queued notes are kept")
+            event = new[-1]  # its time on the targets' clock: said as its rig time
+            raise ScorePlayerError(f"live note {event.event.value} at {event.time + self.core.target_lag:.3f} s: the "
+                                   f"performance already holds {len(self.events) - start} notes, the limit of "
+                                   f"{MAX_PERFORMANCE_NOTES} (MAX_PERFORMANCE_NOTES); refused, the queued notes are "
+                                   "kept")
         end = math.inf if whole else self._window_end(new, t_s, widen)
         stop = bisect.bisect_right(self.events, end, key=lambda e: e.time)
         later = self.events[stop:]
@@ -827,7 +878,6 @@ class ScorePlayer:
         if not later:  # the window holds the whole rest of the performance
             end = math.inf
         lag = self.core.target_lag
-        self._hold(lag, events[-1].time)
 
         def commit(plan: GesturePlan, t_s: float) -> GesturePlan:
             moving = {s.limb for s in plan.strokes if s.time > t_s}
@@ -848,7 +898,7 @@ class ScorePlayer:
                                        end - JOIN_GUARD_S)
                     if lifts:
                         moving.add(pedal)
-                joins = self._joins(scene, plan, t_s, moving, new, end - JOIN_GUARD_S, self._kick_feet())
+                joins = self._joins(scene, plan, t_s, moving, new, end - JOIN_GUARD_S, kick_feet(plan.strokes))
                 if joins is None:
                     self.window_misses += 1
                     # only the pedal's lifts changed: a window past the foot's next note re-joins after it
@@ -859,6 +909,7 @@ class ScorePlayer:
                     raise _WindowMissed(widen=wider)
                 splice_window(scene, plan, t_s, joins, end - JOIN_GUARD_S)
             self._hold(lag, plan.end_time)
+            self._keep_bass_feet(plan, t_s, end)
             self.events = self._assigned(events, plan) + later
             self._live_keys = ({k for k in self._live_keys if k[0] >= t_s - CONTEXT_S}
                                | {(e.time, e.event.value) for e in new})
@@ -866,7 +917,7 @@ class ScorePlayer:
             self.end_time = max(self.end_time, plan.end_time)
             return plan
 
-        return _Prepared(t_s, events, np.zeros(0), 1.0, commit)
+        return _Prepared(t_s, events, np.zeros(0), 1.0, commit, hold=self._pending(lag, events[-1].time))
 
     def _window_end(self, new: list[DrumEvent], t_s: float, widen: bool = False) -> float:
         """Rig time (s) up to which a live note's plan takes the performance's notes: :data:`WINDOW_AFTER_S` after
@@ -884,11 +935,13 @@ class ScorePlayer:
         pedal = self._pedal_foot()
         if pedal is not None and (widen or any(e.event == EventType.HIHATOPEN for e in new)):
             after_new.add(pedal)  # the pedal lifts for it
-        # a foot's stroke is planned from the speed of its stroke before (a kick softer than the one before is a
-        # smaller, deeper stroke: common/gesture/planner.py), so the foot's next note after the new ones may meet
-        # the pedal elsewhere, and the way to the note after it differs too: the foot re-joins its queued plan
-        # after that second note (:meth:`_joins`), so the window holds a third
-        notes_after = {limb: FOOT_NOTES_AFTER if limb in self._kick_feet() else 1 for limb in after_new}
+        # a kick foot's stroke is planned from the speed of its stroke before (a kick softer than the one before is
+        # a smaller, deeper stroke: common/gesture/planner.py kick_feet), so the foot's next note after the new ones
+        # may meet the pedal elsewhere, and the way to the note after it differs too: the foot re-joins its queued
+        # plan after that second note (:meth:`_joins`), so the window holds a third. Before the plan the feet the
+        # planner will take as kick feet are those that may get a BASS note (a double pedal's: either foot)
+        kicking = bass_feet(self.core.kit)
+        notes_after = {limb: FOOT_NOTES_AFTER if limb in kicking else 1 for limb in after_new}
         for e in self.events[split:]:
             if e.time > last + WINDOW_MAX_S or (e.time > end and not first and not notes_after):
                 break
@@ -902,12 +955,6 @@ class ScorePlayer:
                         if not notes_after[limb]:
                             del notes_after[limb]
         return end + JOIN_GUARD_S
-
-    def _kick_feet(self) -> set[Limb]:
-        """The feet that play a drum by pedal, not the hi-hat's (the planner plays a kick softer than the one before
-        as a smaller, deeper stroke: :data:`FOOT_NOTES_AFTER`)."""
-        kit = self.core.kit
-        return {kit.spec(e).preferred for e in kit.events if e != EventType.HIHATPEDAL} & FEET
 
     def _pedal_foot(self) -> Limb | None:
         """The foot that plays the kit's hi-hat pedal (and lifts it for open hi-hats), or None."""
@@ -926,12 +973,28 @@ class ScorePlayer:
         return False
 
     def _limbs_of(self, event: DrumEvent) -> set[Limb]:
-        """The limb a note is played with: its hand once assigned, a pedal's foot, else either hand."""
+        """The limb a note is played with: its hand once assigned, a pedal's foot (a double pedal's kick: either
+        foot, :func:`bass_feet`), else either hand."""
         if event.limb in HANDS:
             return {event.limb}
-        if event.event in (EventType.BASS, EventType.HIHATPEDAL) and event.event in self.core.kit.events:
-            return {self.core.kit.spec(event.event).preferred}
+        kit = self.core.kit
+        if event.event == EventType.BASS and kit.double_pedal:  # as planned, else (a new note) either foot
+            foot = self._bass_feet.get(event.time)
+            return {foot} if foot is not None else bass_feet(kit)
+        if event.event in (EventType.BASS, EventType.HIHATPEDAL) and event.event in kit.events:
+            return {kit.spec(event.event).preferred}
         return set(HANDS)
+
+    def _keep_bass_feet(self, plan: GesturePlan, t_s: float, until: float = math.inf) -> None:
+        """Record the foot of each of ``plan``'s BASS strokes from the splice at ``t_s`` (s) on, in place of the
+        record up to ``until`` (s: a window's end; the notes after it keep theirs); the record from before the
+        re-planning context is dropped (:attr:`_bass_feet`)."""
+        if not self.core.kit.double_pedal:  # a single pedal's kicks are all its foot's
+            return
+        self._bass_feet = {t: foot for t, foot in self._bass_feet.items()
+                           if t_s - CONTEXT_S <= t < t_s or t > until}
+        self._bass_feet.update((s.time, s.limb) for s in plan.strokes
+                               if s.event == EventType.BASS and s.limb in FEET and t_s <= s.time <= until)
 
     @staticmethod
     def _joins(scene: DrummerScene, plan: GesturePlan, t_s: float, moving: set[Limb], new: list[DrumEvent],
@@ -939,7 +1002,8 @@ class ScorePlayer:
         """Each moving limb's join time (s): where the window's plan re-joins its queued track (:func:`join_time`)
         after the splice's blend and the new notes it plays, and no later than ``trusted`` (s; after that the
         window's plan may differ from a plan of the whole performance) nor than its last stroke in the window
-        (after which the window's plan brings it to rest); None if a limb has none."""
+        (after which the window's plan brings it to rest); None if a limb has none. ``kick_feet``: the window plan's
+        own (common.gesture.planner.kick_feet)."""
         new_times = {e.time for e in new}
         joins: dict[Limb, float] = {}
         chosen = [(limb, plan.trajectories[limb]) for limb in moving if limb in plan.trajectories]
@@ -1255,24 +1319,39 @@ class ScorePlayer:
         clocks are one."""
         return max(float(now), self.core.time) - self.core.target_lag
 
-    def _hold(self, lag: float, until: float) -> None:
-        """A plan placed ``lag`` seconds early on the targets' clock (:meth:`_base`) plays until ``until`` (s, their
-        clock): the targets must keep that lag until then, or its notes would sound early (:meth:`lag_floor`)."""
+    def _hold(self, lag: float, until: float, replace: bool = False) -> None:
+        """A plan, stop or pause placed ``lag`` seconds early on the targets' clock (:meth:`_base`) plays until
+        ``until`` (s, their clock): the targets must keep that lag until then, or its notes would sound early
+        (:meth:`lag_floor`). ``replace``: what was placed before plays no longer after it (a stop or pause brakes
+        every limb, a ``play`` replaces every limb's track): the hold ends with it, not with the plan it cut."""
+        if replace:
+            self._held = None
         if lag <= 0.0:
             return
         if self._held is not None:
             until = max(until, self._held[1])
         self._held = (lag, until)
 
+    @staticmethod
+    def _pending(lag: float, until: float) -> tuple[float, float] | None:
+        """A plan's hold while it is in flight (:attr:`_Prepared.hold`): its notes placed ``lag`` s early until
+        ``until`` (s, the targets' clock); None when the targets do not trail."""
+        return (lag, until) if lag > 0.0 else None
+
     def lag_floor(self, t: float) -> float:
         """The least lag (s) the live core's targets may jump back to at their clock's time ``t`` (s): the lag the
-        plans still playing were placed with (:meth:`_hold`; the latest one's), else 0."""
-        if self._held is None:
-            return 0.0
-        if t > self._held[1]:
-            self._held = None
-            return 0.0
-        return self._held[0]
+        plans still playing were placed with (:meth:`_hold`; the latest one's) or, while a background plan is in
+        flight, its own (:attr:`_Prepared.hold`: a plan that fails or is replaced holds nothing), else 0."""
+        floor = 0.0
+        if self._held is not None:
+            if t > self._held[1]:
+                self._held = None
+            else:
+                floor = self._held[0]
+        pending = self._job.prepared.hold if self._job is not None else None
+        if pending is not None and t <= pending[1]:
+            floor = max(floor, pending[0])
+        return floor
 
     def _plan(self, events: list[DrumEvent], beats: np.ndarray, lead_in: float) -> GesturePlan:
         """Distribute and plan rig-timed events (the planner's times are rig seconds), in this thread."""
@@ -1355,6 +1434,7 @@ class ScorePlayer:
     def _forget(self, t_s: float) -> None:
         """Drop the performance's notes from ``t_s`` on (they are no longer in the tracks)."""
         self.events = [e for e in self.events if e.time < t_s]
+        self._bass_feet = {t: foot for t, foot in self._bass_feet.items() if t < t_s}
         self.end_time = min(self.end_time, t_s)
 
     def reset(self) -> None:
@@ -1367,6 +1447,7 @@ class ScorePlayer:
         self._generation += 1
         self._held = None
         self.events = []
+        self._bass_feet.clear()
         self.state = "idle"
         self.mapping = None
         self._stopping = None

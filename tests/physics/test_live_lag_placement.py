@@ -12,19 +12,25 @@ that comes back late now and then for half a second, as the node's loop does on 
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 
+import common.gesture.planner as planner_module
 from common.character import N_DOF
 from common.kit import EventType, Kit, load_kit
 from common.messages import Contact, OscMessage
-from common.messages.physics import CartesianTarget, JointTarget, PhysicsReset
+from common.messages.physics import CartesianTarget, JointTarget, PhysicsPosture, PhysicsReset
 from common.messages.score import LiveNote, ScoreLoad, ScoreTransport
 from services.physics.core import PhysicsCore
 from services.physics.drummer import DrummerScene
+from services.physics.node import LivePhysicsCore
+from services.physics.score_player import STOP_MOVE_S
+from services.physics.splice import BRAKE_S
 
 SCORES = Path(__file__).parents[1] / "render"
 LATE_STEPS = (70, 95, 120, 80, 110, 75, 105, 90)
@@ -161,3 +167,95 @@ def test_streamed_targets_are_queued_on_the_trailing_clock_and_hold_its_lag(drum
     finally:
         core.handle(PhysicsReset(time=0.2), 0.2, "")
     assert core.target_lag == 0.0 and core._lag_floor(0.0) == 0.0
+
+
+def test_a_posture_is_queued_on_the_trailing_clock_and_holds_its_lag(drummer: PhysicsCore) -> None:
+    """/batteur/physics/posture (the pose editor's glide) was queued on the rig clock: it started ``target_lag``
+    late. Now as streamed targets: both knots that much earlier, the lag kept until the posture is reached; a
+    time already past starts at once (now, on the rig clock)."""
+    core, scene = drummer, drummer.scene
+    assert isinstance(scene, DrummerScene)
+    lag = 0.2
+    now = core.time
+    core.target_lag = lag
+    try:
+        assert not core.handle(PhysicsPosture(time=now + 1.5, duration=0.5, values=tuple(scene.rest)), now, "")
+        assert scene.joint_track.times == pytest.approx([now + 1.5 - lag, now + 2.0 - lag])  # was now + 1.5, + 2.0
+        assert core._lag_floor(now + 2.0 - lag) == lag
+        assert core._lag_floor(now + 2.0 - lag + 0.001) == 0.0
+        assert not core.handle(PhysicsPosture(time=0.0, duration=0.0, values=tuple(scene.rest)), now, "")
+        assert scene.joint_track.times[-1] == pytest.approx(now - lag)
+    finally:
+        core.handle(PhysicsReset(time=core.time), core.time, "")
+    assert core.target_lag == 0.0 and core._lag_floor(0.0) == 0.0
+
+
+@pytest.mark.slow  # 5 s of drummer simulation: 5-20 s
+def test_the_targets_come_back_to_the_rig_clock_after_a_stop_not_after_the_stopped_score() -> None:
+    """A ``play`` placed while the targets trail, stopped at 3.8 s: the targets jump back to the rig clock once the
+    limbs rest (the stop's brake and move to the rest posture), not when the stopped groove would have ended
+    (6.4 s on the targets' clock: 135 ms late until then)."""
+    core, _, lag = play_late([ScoreTransport(action="play", time=3.4, position=0.0),
+                              ScoreTransport(action="stop", time=3.8, position=0.0)], 5.0)
+    assert lag >= 0.1
+    assert core.target_lag == 0.0 and core.target_jumps >= 1  # was still the lag
+
+
+def _trailing(core: PhysicsCore, lag: float) -> float:
+    """``core`` with the groove loaded and its targets trailing the rig clock by ``lag`` s (as a live core whose loop
+    came back late leaves them); its rig time now, s."""
+    core.score_player.library = [SCORES]
+    core.handle(ScoreLoad(path="short_groove.txt"), core.time, "")
+    core.target_lag = lag
+    return core.time
+
+
+@pytest.mark.parametrize("action", ["stop", "pause", "play"])
+def test_a_stop_pause_or_new_play_ends_the_lag_hold_with_what_still_plays(drummer: PhysicsCore, action: str) -> None:
+    """The groove placed 0.2 s early on the targets' clock holds that lag until its end; a stop or pause cuts it
+    (the hold then ends with the stop's move to the rest posture, the pause's brake), and so does a ``play`` of the
+    groove's last beat (its own end): each held the lag until the cut groove's end."""
+    core, lag = drummer, 0.2
+    now = _trailing(core, lag)
+    try:
+        assert not core.handle(ScoreTransport(action="play", time=now + 1.0, position=0.0), now, "")
+        groove_end = core.score_player.end_time  # on the targets' clock
+        assert core._lag_floor(now) == lag
+        at = now + 1.5  # rig time
+        assert not core.handle(ScoreTransport(action=action, time=at, position=1.8), now, "")
+        end = {"stop": at - lag + BRAKE_S + STOP_MOVE_S, "pause": at - lag + BRAKE_S,
+               "play": core.score_player.end_time}[action]
+        assert end < groove_end - 0.5
+        assert core._lag_floor(end) == lag  # what still plays keeps it
+        assert core._lag_floor(end + 0.001) == 0.0  # was the lag until groove_end
+    finally:
+        core.handle(PhysicsReset(time=core.time), core.time, "")
+
+
+def test_a_background_play_whose_plan_fails_holds_no_lag(monkeypatch: pytest.MonkeyPatch) -> None:
+    """While a ``play``'s plan is computed in the background the targets keep the lag it was placed with; once the
+    plan fails (or is dropped) nothing of it plays: the hold goes with it (it stayed until the score's end)."""
+    release = threading.Event()
+
+    def failing(*args: Any, **kwargs: Any) -> Any:
+        release.wait(60.0)
+        raise ValueError("planner refuses")
+
+    monkeypatch.setattr(planner_module, "plan_gestures", failing)
+    core = LivePhysicsCore(planner="thread", scene="drummer", kit=load_kit("default"), grip="german",
+                           pose_rate_hz=0, mode="live")
+    try:
+        lag = 0.2
+        now = _trailing(core, lag)
+        player = core.score_player
+        assert not core.handle(ScoreTransport(action="play", time=now + 1.0, position=0.0), now, "")
+        assert player.busy
+        assert core._lag_floor(now + 1.0) == lag  # in flight: held
+        release.set()
+        assert player.wait(60.0)
+        player.pump(now)
+        assert core.rejected == {"ScoreTransport": 1} and not player.busy
+        assert core._lag_floor(now + 1.0) == 0.0  # was the lag until the score's last note
+    finally:
+        release.set()
+        core.close()
