@@ -21,7 +21,7 @@ from pythonosc.osc_message_builder import OscMessageBuilder
 
 from common.messages import DropReason, decode, encode
 from common.messages.base import MessageError
-from common.messages.codec import MAX_BUNDLE_DEPTH, _Unsupported, parse_packet
+from common.messages.codec import MAX_BUNDLE_DEPTH, _parse_message, _unpack, _Unsupported, parse_packet
 from common.messages.sound import SoundLatency
 from common.stats import TrafficStats
 from common.transport import UdpEndpoint
@@ -266,3 +266,32 @@ def test_the_parser_reads_what_python_osc_reads(args: list[object]) -> None:
             assert mine.value == theirs and type(mine.value) is type(theirs)
         else:
             assert not isinstance(theirs, bool) and mine == theirs and type(mine) is type(theirs)
+
+
+def test_a_type_tag_the_fast_path_does_not_know_is_malformed_on_both_paths() -> None:
+    """The fast path flushed its last run of numbers on a '|' it appended to the tags, and so took a real '|' tag
+    (or any tag equal to its sentinel) as nothing: ``/x ,i|i 1 2`` was two ints there, malformed on the slow path."""
+    data = b"/x\0\0,i|i\0\0\0\0" + struct.pack(">ii", 1, 2)
+    assert _unpack(data) is None
+    with pytest.raises(MessageError) as caught:
+        parse_packet(data)
+    assert caught.value.reason is DropReason.MALFORMED and "'|'" in str(caught.value)
+
+
+_NUMBERS_AND_STRINGS = st.lists(st.one_of(
+    st.integers(-(2**31), 2**31 - 1), st.floats(width=32, allow_nan=False),
+    st.text(st.characters(blacklist_categories=("Cs",), blacklist_characters="\0"), max_size=12)), max_size=12)
+
+
+@settings(max_examples=300, deadline=None)
+@given(args=_NUMBERS_AND_STRINGS, tail=st.binary(max_size=6))
+def test_the_fast_path_and_the_slow_path_read_alike(args: list[object], tail: bytes) -> None:
+    """Messages of i, f and s arguments (the ones the fast path reads), whole or with bytes after them: whatever
+    the fast path reads, the slow path reads the same; what it leaves, the slow path reads or refuses."""
+    builder = OscMessageBuilder(address="/batteur/x")
+    for arg in args:
+        builder.add_arg(arg)  # type: ignore[arg-type]
+    for data in (builder.build().dgram, builder.build().dgram + tail):
+        fast = _unpack(data)
+        if fast is not None:
+            assert _parse_message(data) == fast

@@ -159,7 +159,7 @@ def _unpack(data: bytes) -> RawMessage | None:
             return None
         args: list[Arg] = []
         run = ""
-        for tag in tags[1:] + "|":
+        for tag in tags[1:] + "\0":  # a sentinel no tag can be (the tags end at their null) flushes the last run
             if tag in "if":
                 run += tag
                 continue
@@ -171,7 +171,7 @@ def _unpack(data: bytes) -> RawMessage | None:
                 end = data.index(0, index)
                 args.append(data[index:end].decode("utf-8"))
                 index = _padded(end)
-            elif tag != "|":
+            elif tag != "\0":
                 return None
     except (ValueError, struct.error):
         return None
