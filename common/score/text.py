@@ -253,9 +253,12 @@ def _either(values: list[str]) -> str:
     return f"{', '.join(values[:-1])} or {values[-1]}" if len(values) > 1 else values[0]
 
 
+MAX_METER_UNIT = 64
+"""The largest D of ``meter N/D`` (64th notes), and the shortest bar it takes (a 64th note, 1/16 beat)."""
+
 DIRECTIVE_FORMS: dict[str, str] = {
     "tempo": "BPM: a number of beats (quarter notes) per minute, 10 to 400",
-    "meter": "N/D: N notes of 1/D a bar, e.g. 4/4, 6/8 or 2.5/4",
+    "meter": "N/D: N notes of 1/D a bar (D 1 to 64, a bar at least a 64th note), e.g. 4/4, 6/8 or 2.5/4",
     "repeat": "N: a whole number of times, 1 or more",
     "rest": "[BEATS]: a number of beats, quarter notes (without it, a bar)",
     "grip": _either([g.value for g in Grip]),
@@ -437,7 +440,9 @@ def parse_text(text: str, source: str = "text") -> TextScore:
             elif word == "meter":
                 num, _, den = rest.partition("/")
                 count, unit = float(num), den.strip()
-                if not 0 < count < math.inf or not unit.isdigit() or not int(unit) > 0:
+                if not 0 < count < math.inf or not unit.isdigit() or not 0 < int(unit) <= MAX_METER_UNIT:
+                    raise ValueError(rest)
+                if count * 4 / int(unit) < 4 / MAX_METER_UNIT:  # bars of a few 1e-12 beats: the grid's tolerances
                     raise ValueError(rest)
                 # N notes of 1/D: N x 4/D beats (quarter notes), as a MIDI file's time signature; D was ignored,
                 # 6/8 bars were 6 beats, their eighths as long as quarters
@@ -506,7 +511,8 @@ def parse_text(text: str, source: str = "text") -> TextScore:
     elif not tempo_given:
         warnings.insert(0, f"no tempo line: played at {DEFAULT_BPM:g} beats (quarter notes) per minute")
     kept, removed = remove_duplicates(events)
-    beats = np.array([tempo.seconds(b) for b in np.arange(0.0, position + 1e-9, 1.0)])
+    # at least beats 0 and 1: a score shorter than a beat (one bar of 1/8) has a beat's length to count bars by
+    beats = np.array([tempo.seconds(b) for b in np.arange(0.0, max(position, 1.0) + 1e-9, 1.0)])
     score = TextScore(events=kept, beats=beats, bar_beats=np.array(bar_starts, dtype=float), duplicates=removed,
                       source=source)
     score.grip = grip

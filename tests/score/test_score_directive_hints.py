@@ -14,10 +14,13 @@ from common.score.text import parse_text, read_score
 PYTHON_WORDS = ("convert", "literal", "int()", "float", "valid Grip", "valid Nuance")
 
 
+METER_HINT = "write meter N/D: N notes of 1/D a bar (D 1 to 64, a bar at least a 64th note), e.g. 4/4, 6/8 or 2.5/4"
+
+
 @pytest.mark.parametrize(("line", "hint"), [
     ("tempo 100 bpm", "write tempo BPM: a number of beats (quarter notes) per minute, 10 to 400"),
-    ("meter 3", "write meter N/D: N notes of 1/D a bar, e.g. 4/4, 6/8 or 2.5/4"),
-    ("meter 0/4", "write meter N/D: N notes of 1/D a bar, e.g. 4/4, 6/8 or 2.5/4"),
+    ("meter 3", METER_HINT),
+    ("meter 0/4", METER_HINT),
     ("repeat 1.5", "write repeat N: a whole number of times, 1 or more"),
     ("rest abc", "write rest [BEATS]: a number of beats, quarter notes (without it, a bar)"),
     ("grip frnch", "write grip french or german"),

@@ -181,3 +181,19 @@ def test_each_track_of_a_type_2_file_starts_at_120_bpm_unless_it_sets_its_own() 
     score = read_midi(data.getvalue())
     # two beats a track: 2 s at 60 bpm; then 1 s at 120 (was 2 s, at the first track's 60); then 0.5 s at 240
     assert [e.time for e in score.events] == pytest.approx([0.0, 1.0, 2.0, 2.5, 3.0, 3.25])
+
+
+@pytest.mark.parametrize("meter", ["1/8", "3/16"])
+def test_a_score_shorter_than_a_beat_still_has_bar_positions(meter: str) -> None:
+    """With D counted, one bar of 1/8 is half a beat: the beats stopped at beat 0 and no note had a bar position
+    (the view showed none, the head nodded once)."""
+    score = parse_text(f"tempo 60\nmeter {meter}\nSN |{'x' * int(meter.split('/')[0])}|\n")
+    assert list(score.beats) == [0.0, 1.0]
+    assert all(bar_beat(score, e.time) is not None and bar_beat(score, e.time).bar == 0 for e in score.events)
+
+
+@pytest.mark.parametrize("meter", ["3/128", "0.001/64", "1/1000000"])
+def test_a_meter_of_bars_shorter_than_a_64th_note_is_refused(meter: str) -> None:
+    """Bars of a few 1e-12 beats passed (80,004 bar starts for 5 beats), below the grid's own tolerances."""
+    with pytest.raises(ScoreError, match="D 1 to 64"):
+        parse_text(f"meter {meter}\nSN |x|\n")
