@@ -45,7 +45,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 from scipy.stats import spearmanr
 
-from batteur.errors import INTERRUPTED, UsageError, report_error
+from batteur.errors import INTERRUPTED, USAGE, UsageError, report_error
 from common.arg_types import take_negative_values
 from common.kit import EventType, Kit, load_kit
 from common.score.events import Score
@@ -906,7 +906,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     if args.reuse and args.renders is None:  # it reuses renders kept in --renders DIR; without one there are none
-        parser.error("--reuse needs --renders DIR (the folder whose renders it reuses)")
+        # one line, exit 2, as render's options that exclude each other (not argparse's usage before it)
+        return report_error(PROG, "--reuse needs --renders DIR (the folder whose renders it reuses)", USAGE)
     args.scores = distinct_inputs(args.scores)
     warn_unused_options(args, parser)
     try:

@@ -22,6 +22,7 @@ from typing import IO
 from pydantic import ValidationError
 
 from common.datafile import first_error, read_text
+from common.input_file import file_problem
 from common.messages import Impact, OscMessage
 from common.messages.interaction import ImpactEnd
 
@@ -272,7 +273,11 @@ def _row_text(row: Impact | list[str]) -> str:
 
 def read_impacts_csv(path: Path) -> list[Impact]:
     """Read a CSV written by :func:`write_impacts_csv`; raises ValueError naming the file on a bad row, or on a
-    file that is not UTF-8 text or not CSV."""
+    file that is not UTF-8 text or not CSV, or not a regular file (a pipe is never opened: it would wait for a
+    writer)."""
+    problem = file_problem(Path(path), "an impact log (CSV)")
+    if problem is not None:
+        raise ValueError(f"{path}: {problem}")
     try:
         reader = csv.DictReader(io.StringIO(read_text(path)))
     except ValueError as exc:  # not UTF-8 text

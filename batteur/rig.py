@@ -54,6 +54,7 @@ from typing import Any, TextIO
 
 from batteur.errors import FAILED, UsageError, report_error
 from common.arg_types import non_negative, positive, seconds, take_negative_values, whole
+from common.input_file import file_problem
 from common.output_paths import check_output_dir, point_at_devnull
 
 ROLES = ("physics", "interaction", "sound", "graphics")
@@ -594,12 +595,12 @@ def check_score(opts: argparse.Namespace) -> None:
     roles = [r.strip() for r in opts.services.split(",")]
     if "physics" not in roles:
         raise UsageError("--score needs the physics service (--services)")
-    if Path(opts.score).is_dir():
-        raise ValueError(f"--score {opts.score}: is a directory, not a score file")
-    if not Path(opts.score).is_file():
-        raise ValueError(f"--score {opts.score}: no such file")
+    from common.score.events import SCORE_FILE
     from common.score.text import read_score
 
+    problem = file_problem(Path(opts.score), SCORE_FILE)  # a folder, a device, a pipe: said, never opened
+    if problem is not None:
+        raise ValueError(f"--score {opts.score}: {problem}")
     if not read_score(opts.score).events:  # ScoreError (a ValueError) for a broken file, before any service starts
         raise ValueError(f"--score {opts.score}: no drum events to play")
 

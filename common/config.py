@@ -34,6 +34,7 @@ from pydantic_settings import (
 )
 
 from common.datafile import error_message, parse_file
+from common.input_file import file_problem
 from common.peers import Peer, parse_static_peer
 from common.transport import MAX_UDP_PAYLOAD
 
@@ -208,6 +209,9 @@ class NodeSettings(BaseSettings):
 def read_config_file(path: str | Path) -> dict[str, Any]:
     """Settings from a YAML (``.yaml``/``.yml``) or TOML (``.toml``) file; raise :class:`ConfigFileError`."""
     file = Path(path)
+    problem = file_problem(file, "a config file (.yaml or .toml)")
+    if problem is not None:  # a pipe is never opened: without a writer it would hold the node for ever
+        raise ConfigFileError(f"config file {file}: {problem}")
     try:
         data: Any = parse_file(file)
     except OSError as exc:

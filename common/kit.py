@@ -25,6 +25,7 @@ from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationErr
 from pydantic_core import PydanticCustomError
 
 from common.datafile import BOUND_ERRORS, first_error, more_errors, parse_file
+from common.input_file import NO_SUCH_FILE, file_problem
 from common.output_paths import write_atomically
 
 if TYPE_CHECKING:
@@ -33,6 +34,8 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 KITS_DIR = Path(__file__).parent / "kits"
+KIT_FILE = "a kit file (.yaml or .json)"
+"""What :func:`load_kit` asks for when a path is not a regular file (``is a folder, not a kit file (...)``)."""
 
 
 class EventType(enum.StrEnum):
@@ -470,7 +473,8 @@ def load_kit(source: str | Path = "default", height_m: float | None = None, warn
              lengths: LimbLengths | None = None) -> Kit:
     """Load a kit by shipped name (``default``) or from a YAML/JSON file path.
 
-    Raises ``FileNotFoundError`` for an unknown name or path and ``ValueError`` naming the file for one that is
+    Raises ``FileNotFoundError`` for an unknown name or path, or a path that is not a regular file (a folder, a
+    device, a pipe: :func:`common.input_file.file_problem`'s words), and ``ValueError`` naming the file for one that is
     not UTF-8 text, not valid YAML/JSON (line and column) or not a valid kit (the first problem, on one line).
     A valid kit holding instruments the drummer cannot play (out of reach, struck by no event) loads with one
     logged warning per instrument (:func:`common.score.limbs.unplayable_instruments`), the reach that of a drummer
@@ -485,8 +489,11 @@ def load_kit(source: str | Path = "default", height_m: float | None = None, warn
             raise FileNotFoundError(f"{str(source)!r} is a {_kind(path)}, not a kit: give a kit file ending in .yaml "
                                     f"or .json, or a shipped kit ({', '.join(shipped)})")
         path = KITS_DIR / f"{source}.yaml"
-    if not path.is_file():
+    problem = file_problem(path, KIT_FILE)
+    if problem == NO_SUCH_FILE:
         raise FileNotFoundError(f"no kit file {str(source)!r} (shipped kits: {', '.join(shipped)})")
+    if problem is not None:  # a folder, a device, a pipe: never opened (a pipe would wait for a writer for ever)
+        raise FileNotFoundError(f"{path}: {problem}")
     try:
         data = parse_file(path)
     except ValueError as exc:
@@ -587,9 +594,8 @@ def _binary_kind(path: Path) -> str | None:
         return None
     if starts_as_midi(head):
         return "a MIDI file"
-    kind = audio_kind(head)
-    # an MPEG frame's sync bits alone are also how UTF-16 text starts (its byte-order mark): left "not UTF-8"
-    return None if kind is None or head[:1] == b"\xff" else f"an audio file ({kind})"
+    kind = audio_kind(head)  # never for UTF-16/32 text, whose mark FF FE is also an MPEG frame's sync
+    return None if kind is None else f"an audio file ({kind})"
 
 
 def _kind(path: Path) -> str:

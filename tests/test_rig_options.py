@@ -29,7 +29,7 @@ def test_a_folder_given_as_the_score_is_called_a_folder(no_rig: None, tmp_path: 
     folder = tmp_path / "adir.mid"
     folder.mkdir()
     err = refused(["--no-discovery", "--score", str(folder), "--base-port", str(free_ports(4)[0])], capsys, 1)
-    assert f"--score {folder}: is a directory" in err and "no such file" not in err
+    assert f"--score {folder}: is a folder, not a score file" in err and "no such file" not in err
 
 
 @pytest.mark.parametrize("interfaces", ["0.0.0.0", "eth0"])

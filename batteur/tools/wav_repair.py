@@ -27,6 +27,7 @@ from typing import BinaryIO
 from pydantic import BaseModel
 
 from batteur.errors import FAILED, report_error
+from common.input_file import file_problem
 
 PROG = "batteur wav-repair"
 """The command's name in its usage and error lines."""
@@ -113,7 +114,11 @@ def write_sizes(f: BinaryIO, layout: WavLayout, data_size: int) -> None:
 
 def repair_wav(path: Path) -> RepairResult:
     """Rewrite the sizes of a take whose header says 0 frames, or more than the file holds (see the module);
-    ValueError if it cannot."""
+    ValueError if it cannot, without the path (as for a folder or a pipe: never opened, a pipe opened to rewrite
+    waits for ever for the data it was to be read from)."""
+    problem = file_problem(Path(path), "a WAV file")
+    if problem is not None:
+        raise ValueError(problem)
     with path.open("r+b") as f:
         layout = read_layout(f)
         rf64 = layout.ds64_offset is not None

@@ -30,6 +30,7 @@ from common.datafile import parse_file
 from common.gesture.bvh import Bvh, BvhError, forward_kinematics, read_bvh
 from common.gesture.plan import Grip, Nuance
 from common.gesture.synth import UNITS_DIR
+from common.input_file import NO_SUCH_FILE, file_problem
 
 
 @dataclass(frozen=True)
@@ -113,7 +114,10 @@ def load_unit(
     path = Path(bvh_path)
     meta: dict[str, object] = {}
     meta_path = path.with_suffix(".json")
-    if meta_path.is_file():
+    problem = file_problem(meta_path, "a metadata file (JSON)")
+    if problem not in (None, NO_SUCH_FILE):  # a folder or a pipe of that name: said, never opened (a pipe blocks)
+        raise BvhError(f"{meta_path}: {problem}")
+    if problem is None:
         try:
             meta = parse_file(meta_path)
         except ValueError as exc:  # not UTF-8, not JSON

@@ -28,6 +28,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 
 from common.character import JOINTS
 from common.datafile import parse_file
+from common.input_file import NO_SUCH_FILE, file_problem
 from common.kit import EventType, Limb
 from common.output_paths import write_atomically
 
@@ -82,9 +83,13 @@ class KeyPoses(BaseModel):
 
     @classmethod
     def load(cls, path: Path | str | None) -> KeyPoses:
-        """Read a poses file; no path or no file: the defaults. ``ValueError`` naming the file when invalid."""
-        if path is None or not Path(path).is_file():
+        """Read a poses file; no path or no file: the defaults. ``ValueError`` naming the file when invalid, or when
+        it is not a regular file (a folder, a device, a pipe: never opened, a pipe would wait for a writer)."""
+        problem = None if path is None else file_problem(Path(path), "a poses file (YAML)")
+        if path is None or problem == NO_SUCH_FILE:
             return cls()
+        if problem is not None:
+            raise ValueError(f"{path}: {problem}")
         try:
             data = parse_file(Path(path)) or {}
             return cls.model_validate({"poses": data})

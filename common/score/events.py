@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from common.gesture.plan import Nuance
+from common.input_file import file_problem
 from common.kit import EventType, Limb
 from common.score.gm import DRUM_MAP, note_name
 
@@ -37,13 +38,18 @@ MAX_SCORE_BYTES = 8 * 1024 * 1024
 3-byte MIDI message in memory."""
 
 
+SCORE_FILE = "a score file (MIDI or text)"
+""":func:`check_file`'s words for what a score path must be (``is a folder, not a score file (MIDI or text)``)."""
+
+
 def check_file(path: Path, name: str) -> None:
-    """Raise :class:`ScoreError` (one line, naming ``name``) unless ``path`` is a score-sized regular file."""
+    """Raise :class:`ScoreError` (one line, naming ``name``) unless ``path`` is a score-sized regular file: a
+    folder, a device or a pipe is said as every loader says it (:func:`common.input_file.file_problem`), and
+    never opened (a pipe without a writer would wait for one for ever)."""
+    problem = file_problem(path, SCORE_FILE)
+    if problem is not None:
+        raise ScoreError(f"{name}: {problem}")
     try:
-        if not path.exists():
-            raise ScoreError(f"{name}: no such file")
-        if not path.is_file():
-            raise ScoreError(f"{name}: not a file")
         size = path.stat().st_size
     except OSError as exc:
         raise ScoreError(f"{name}: cannot read the file ({exc.strerror or exc})") from None
@@ -53,7 +59,12 @@ def check_file(path: Path, name: str) -> None:
 
 
 def audio_kind(head: bytes) -> str | None:
-    """The audio format a file's first 12 bytes start, or None: a recording given where a score is expected."""
+    """The audio format a file's first 12 bytes start, or None: a recording given where a score is expected.
+
+    UTF-16 or UTF-32 text (its byte order mark, :func:`unicode_bom`) is None, whoever asks (a score, a kit): UTF-16
+    LE's mark FF FE is also an MPEG layer I frame's sync bits, and such text was "an audio file (MP3)"."""
+    if unicode_bom(head) is not None:
+        return None
     if head[:4] in (b"RIFF", b"RF64") and head[8:12] == b"WAVE":
         return "WAV"
     if head[:4] == b"FORM" and head[8:12] in (b"AIFF", b"AIFC"):
@@ -80,7 +91,7 @@ reads such text (it takes the order from the mark and drops it) and the encoding
 
 def unicode_bom(head: bytes) -> tuple[str, str] | None:
     """(codec, name) of the UTF-16 or UTF-32 text whose byte order mark ``head`` (a file's first bytes) starts with,
-    else None. Checked before :func:`audio_kind`: UTF-16 LE's mark FF FE is also an MPEG audio frame's sync."""
+    else None. :func:`audio_kind` asks it first: UTF-16 LE's mark FF FE is also an MPEG audio frame's sync."""
     for mark, codec, name in UNICODE_BOMS:
         if head.startswith(mark):
             return codec, name

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from common.input_file import file_problem
 from common.messages import Pose, Skeleton
 
 FLOATS_PER_LINK = 7
@@ -152,9 +153,11 @@ class PoseSequence:
 
     @classmethod
     def load(cls, path: Path) -> PoseSequence:
-        """Read a sequence written by :meth:`save`; ``ValueError`` if it is not one."""
-        if not Path(path).is_file():
-            raise ValueError(f"{path}: no such file")
+        """Read a sequence written by :meth:`save`; ``ValueError`` if it is not one, or not a regular file (a
+        folder, a device, a pipe: never opened, a pipe would wait for a writer)."""
+        problem = file_problem(Path(path), "a pose sequence file (.npz)")
+        if problem is not None:
+            raise ValueError(f"{path}: {problem}")
         if not zipfile.is_zipfile(path):  # NumPy would speak of pickled data it refuses to load
             raise ValueError(f"{path}: not a pose sequence file (not an .npz archive)")
         try:

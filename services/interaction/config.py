@@ -15,6 +15,7 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from common.datafile import one_line, parse_file
+from common.input_file import NO_SUCH_FILE, file_problem
 from common.output_paths import write_atomically
 from services.interaction.detect import DetectionConfig
 from services.interaction.mapping import MAX_MESSAGES, MAX_ROUTES, RegisteredMessage, Route, default_routes
@@ -65,13 +66,24 @@ class InteractionConfig(BaseModel):
         return value
 
 
+CONFIG_FILE = "a configuration file (.yaml or .json)"
+"""What :func:`load_config` asks for in place of a folder, a device or a pipe."""
+
+
 def load_config(path: str | Path) -> InteractionConfig:
     """Read a configuration file (YAML, or JSON by extension).
 
     Raises ``FileNotFoundError`` when it does not exist and ``ValueError``
-    with the reason, on one line, when it is not a valid configuration.
+    with the reason, on one line, when it is not a valid configuration or not a
+    regular file (a folder, a device, a pipe: never opened, as a pipe would hold
+    the node for ever waiting for a writer).
     """
     path = Path(path)
+    problem = file_problem(path, CONFIG_FILE)
+    if problem == NO_SUCH_FILE:
+        raise FileNotFoundError(f"{path}: {problem}")
+    if problem is not None:
+        raise ValueError(f"{path}: {problem}")
     try:
         data = parse_file(path)
     except ValueError as exc:
@@ -123,8 +135,6 @@ class FileConfigStore:
     def load_or_default(self) -> InteractionConfig:
         """This store's file if it exists, else the default configuration.
 
-        Raises ``ValueError`` when the path is a directory: nothing could ever be saved there.
+        Raises ``ValueError`` when the path is a folder, a device or a pipe: nothing could ever be saved there.
         """
-        if self.path.is_dir():
-            raise ValueError(f"{self.path} is a directory; give a configuration file (.yaml or .json)")
-        return load_config(self.path) if self.path.is_file() else InteractionConfig()
+        return InteractionConfig() if file_problem(self.path, CONFIG_FILE) == NO_SUCH_FILE else load_config(self.path)

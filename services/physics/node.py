@@ -41,11 +41,13 @@ from common.config import NodeSettings
 from common.core import Outgoing
 from common.exit_status import InputError
 from common.gesture.bvh import BvhError
+from common.input_file import file_problem
 from common.kit import EventType, load_kit
 from common.messages import Hello, OscMessage
 from common.messages.graphics import ScorePosition
 from common.messages.physics import ControlModeName, GripName
 from common.runtime import Node, run_node
+from common.score.events import SCORE_FILE
 from common.score.limbs import LimbLengths
 from services.physics.core import PhysicsCore, PhysicsSettings
 from services.physics.mocap import ClipError
@@ -170,8 +172,9 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace) -> PhysicsCore:
         raise ValueError("--play-at needs --score")
     if settings.score and settings.scene != "drummer":
         raise ValueError("--score needs the drummer scene")
-    if settings.score and not Path(settings.score).expanduser().is_file():
-        raise InputError(f"score {settings.score!r}: no such file")
+    problem = file_problem(Path(settings.score).expanduser(), SCORE_FILE) if settings.score else None
+    if problem is not None:  # a folder, a device, a pipe: said, never opened (a pipe would hold the node for ever)
+        raise InputError(f"score {settings.score}: {problem}")
     try:  # a kit file it cannot use (missing or not a kit): 1, found before the core's slow start; loaded once,
         # so its warnings are logged once and name this drummer's reach (a skeleton's, as the planner's)
         kit = load_kit(settings.kit, height_m=settings.height_m, lengths=_skeleton_limbs(settings))

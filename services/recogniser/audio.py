@@ -16,6 +16,7 @@ import numpy as np
 import soundfile as sf
 from scipy.signal import resample_poly
 
+from common.input_file import file_problem
 from common.score.events import starts_as_midi
 from services.recogniser.errors import AudioFileError
 
@@ -160,12 +161,10 @@ def load_audio(path: str | Path, max_duration_s: float = MAX_DURATION_S, sample_
         ``max_duration_s``.
     """
     p = Path(path)
-    if not p.exists():
-        raise AudioFileError(f"{p}: no such file")
-    if p.is_dir():
-        raise AudioFileError(f"{p}: is a directory, not an audio file")
-    if not p.is_file():  # a FIFO or a device: opening it waits for a writer, and the file is opened twice
-        raise AudioFileError(f"{p}: not a regular file (a pipe or a device?); save the audio to a file first")
+    # a FIFO or a device: opening it waits for a writer (or reads for ever), and the file is opened twice
+    problem = file_problem(p, "an audio file", give="an audio file saved to disk (WAV, FLAC, OGG...)")
+    if problem is not None:
+        raise AudioFileError(f"{p}: {problem}")
     try:  # libsndfile says only "System error" when it may not read the file
         p.open("rb").close()
     except OSError as exc:

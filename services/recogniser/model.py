@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from common.input_file import NO_SUCH_FILE, file_problem
 from common.output_paths import write_atomically
 from services.recogniser.classes import CLASS_NAMES, N_CLASSES
 from services.recogniser.errors import ModelError
@@ -163,8 +164,11 @@ LIVE_FORMATS = ("batteur-recogniser/1", FORMAT)
 
 def _read(path: str | Path, formats: tuple[str, ...]) -> tuple[Path, dict[str, np.ndarray], dict]:
     p = Path(path)
-    if not p.exists():
+    problem = file_problem(p, "a recogniser model file (.npz)")
+    if problem == NO_SUCH_FILE:
         raise ModelError(f"{p}: model file not found (train one with services/recogniser/training/train_net.py)")
+    if problem is not None:  # a pipe is never opened: is_zipfile would wait for a writer for ever
+        raise ModelError(f"{p}: {problem}")
     if not zipfile.is_zipfile(p):  # else NumPy would report it as pickled data it refuses to load
         raise ModelError(f"{p}: not a Batteur recogniser model: not an .npz archive")
     try:

@@ -2,12 +2,17 @@
 
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 
 import numpy as np
 import numpy.typing as npt
 import soundfile as sf
 from scipy.signal import resample_poly
+
+from common.input_file import NO_SUCH_FILE, file_problem
+
+log = logging.getLogger(__name__)
 
 SAMPLES_DIR = Path(__file__).parent / "samples"
 
@@ -32,10 +37,14 @@ class SampleBank:
         return sorted(p.stem for p in self.directory.glob("*.wav"))
 
     def get(self, name: str) -> npt.NDArray[np.float64] | None:
-        """Samples of ``name`` (float64, shape (n,)), or None when there is no such file."""
+        """Samples of ``name`` (float64, shape (n,)), or None when there is no such regular file (a folder, a
+        device or a pipe of that name is logged as :func:`common.input_file.file_problem` says it)."""
         if name not in self._cache:
             path = self.directory / f"{name}.wav"
-            if not path.is_file():
+            problem = file_problem(path, "a WAV sample")
+            if problem is not None:  # the strike is synthesised; a pipe is never opened (it would block the node)
+                if problem != NO_SUCH_FILE:
+                    log.warning("%s: %s", path, problem)  # once: the refusal is cached
                 self._cache[name] = None
             else:
                 data, rate = sf.read(path, dtype="float64", always_2d=True)

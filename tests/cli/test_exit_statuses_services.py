@@ -237,7 +237,7 @@ NODE_FILES = [  # each refused before the core starts (no physics, no sound)
     ("interaction", ["--kit", "{missing_kit}", "--interaction-config", "none"], "missing_kit.yaml"),
     ("interaction", ["--kit", "{bad_kit}", "--interaction-config", "none"], "bad_kit.yaml"),
     ("interaction", ["--interaction-config", "{bad_mapping}"], "bad_mapping.yaml"),
-    ("interaction", ["--interaction-config", "{a_dir}"], "is a directory"),
+    ("interaction", ["--interaction-config", "{a_dir}"], "is a folder, not a configuration file"),
 ]
 
 

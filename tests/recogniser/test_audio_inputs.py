@@ -64,7 +64,8 @@ def test_the_cli_refuses_a_fifo_with_one_line(tmp_path: Path) -> None:
                           cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert done.returncode == 1
     assert done.stderr.strip().splitlines() == [
-        f"batteur transcribe: error: {fifo}: not a regular file (a pipe or a device?); save the audio to a file first"]
+        f"batteur transcribe: error: {fifo}: not a regular file but a pipe (FIFO); give an audio file saved to disk "
+        "(WAV, FLAC, OGG...)"]  # as every loader says it (common/input_file.py)
     assert not (tmp_path / "x.mid").exists()
 
 

@@ -27,7 +27,7 @@ def _bad_files(tmp: Path) -> dict[str, tuple[Path, str]]:
     truncated.write_bytes(truncated.read_bytes()[:30])
     return {
         "missing": (tmp / "nope.wav", "no such file"),
-        "directory": (tmp, "is a directory"),
+        "directory": (tmp, "is a folder, not an audio file"),  # as every loader says it (common/input_file.py)
         "text": (text, "not a readable audio file"),
         "empty": (empty, "no audio"),
         "silent": (silent, "silent"),

@@ -49,7 +49,8 @@ def _score_files(folder: Path) -> list[tuple[Path, str]]:
     assert name == b"MTrk"
     past_end = folder / "past_end.mid"
     past_end.write_bytes(data[:18] + struct.pack(">L", length + 1000) + data[22:])
-    return [(directory, "not a file"), (fifo, "not a file"), (huge, "too large for a score"),
+    return [(directory, "is a folder, not a score file"), (fifo, "not a regular file but a pipe (FIFO); give a score "
+            "file"), (huge, "too large for a score"),
             (past_end, "truncated MIDI file")]
 
 
