@@ -28,7 +28,8 @@ from services.graphics.server import ViewServer
 
 
 async def measure(names: list[str], values: np.ndarray, seconds: float, rate: float) -> tuple[float, float, int]:
-    """(websocket bytes/s per page, frames/s received, OSC pose bytes per datagram)."""
+    """(websocket bytes/s per page, frames/s received, OSC pose bytes per datagram), per second of poses sent (one
+    period, ``1/rate`` s, each: a short ``seconds`` still sends the first pose)."""
     core = GraphicsCore(GraphicsSettings(latency=0.0, clock="rig", rate_hz=rate))
     server = ViewServer(core)
     port = await server.start("127.0.0.1", 0)
@@ -58,7 +59,8 @@ async def measure(names: list[str], values: np.ndarray, seconds: float, rate: fl
     await asyncio.sleep(0.2)
     task.cancel()
     await server.close()
-    return received[0] / seconds, received[1] / seconds, osc_bytes
+    sent_s = k / rate  # not ``seconds``: 1 ms sent one pose, its frame counted as "1000 frames/s"
+    return received[0] / sent_s, received[1] / sent_s, osc_bytes
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -10,6 +10,8 @@ drummer and the kit; the video part only, from report.json).
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
 import json
 import tempfile
 import time
@@ -51,8 +53,15 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
         parser.error(f"--fps {args.fps:g}: {VIDEO_FPS[0]:g} to {VIDEO_FPS[1]:g} frames per second")
     if int(args.seconds * args.fps) < 1:
         parser.error(f"--seconds {args.seconds:g} at --fps {args.fps:g}: not one frame")
-    if args.score is not None and not args.score.is_file():
-        parser.error(f"--score {args.score}: no such file")
+    if args.score is not None:
+        from common.score.text import read_score
+
+        if not args.score.is_file():
+            parser.error(f"--score {args.score}: no such file")
+        try:  # a score render refuses, refused before the frames are timed rather than after
+            read_score(args.score)
+        except (ValueError, OSError) as exc:  # ScoreError is a ValueError
+            parser.error(f"--score {exc}")
     return args
 
 
@@ -78,8 +87,9 @@ def main(argv: Sequence[str] | None = None) -> None:
     if args.score is not None:
         from batteur import render
 
-        with tempfile.TemporaryDirectory() as tmp:
-            code = render.main([str(args.score), "-o", tmp, "--quiet", "--video", "--video-size",
+        with tempfile.TemporaryDirectory() as tmp, contextlib.redirect_stdout(io.StringIO()):
+            # its "wrote <tmp>/..." lines would name files deleted below; its errors and progress go to stderr
+            code = render.main([str(args.score), "-o", tmp, "--video", "--video-size",
                                 f"{args.width}x{args.height}", "--video-fps", f"{args.fps:g}"])
             if code != 0:
                 raise SystemExit(code)

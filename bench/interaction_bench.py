@@ -59,8 +59,10 @@ def percentiles_us(values: list[float]) -> str:
     return f"p50 {np.percentile(a, 50):7.1f} us  p99 {np.percentile(a, 99):7.1f} us  max {a.max():8.1f} us"
 
 
-def bench_core(samples: int) -> float:
-    core = InteractionCore(kit=load_kit("default"))
+def bench_core(samples: int, copies: int = 5) -> float:
+    # the default routes, ``copies`` each: --copies used to reach the node only
+    config = InteractionConfig(redundancy=RedundancyConfig(copies=copies))
+    core = InteractionCore(kit=load_kit("default"), config=config)
     contacts = [contact(i) for i in range(samples)]
     times: list[float] = []
     start = time.perf_counter()
@@ -197,7 +199,7 @@ def bench_loopback(samples: int, seconds: float, copies: int) -> None:
             elapsed = time.perf_counter() - begin
             print(
                 f"loopback UDP    sustained: {received / elapsed:9.0f} impacts/s de-duplicated "
-                f"({received} in {elapsed:.1f} s, {window} in flight, {copies} copies each)"
+                f"({received} in {elapsed:.2f} s, {window} in flight, {copies} copies each)"
             )
         finally:
             proc.terminate()
@@ -238,7 +240,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     print(f"interaction bench on {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.1f}")
-    bench_core(args.samples)
+    bench_core(args.samples, args.copies)
     bench_loopback(args.samples, args.seconds, args.copies)
     return 0
 

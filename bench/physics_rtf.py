@@ -98,7 +98,7 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
 def main(argv: Sequence[str] | None = None) -> None:
     args = parse_args(argv)
 
-    print(f"physics real-time factor at 1 kHz, {args.seconds:.1f} simulated s per case (goal >= 5x)")
+    print(f"physics real-time factor at 1 kHz, {args.seconds:g} simulated s per case (goal >= 5x)")
     t0 = time.perf_counter()
     rtf, contacts = best_of(args.repeat, lambda: PhysicsCore(
         scene="strike", strikes=[(0.1 + 0.25 * k, 3.0) for k in range(int(args.seconds * 4))]), args.seconds)

@@ -43,7 +43,7 @@ from services.recogniser.core import LiveRecogniser  # noqa: E402
 from services.recogniser.errors import ModelError  # noqa: E402
 from services.recogniser.framenet import FrameNet  # noqa: E402
 from services.recogniser.model import MODEL_PATH, Model, load_model  # noqa: E402
-from services.recogniser.training.dataset import groove_files  # noqa: E402
+from services.recogniser.training.dataset import GrooveMissingError, groove_files, require_groove  # noqa: E402
 from services.recogniser.training.frames import ONSET_MERGE_S, onset_times  # noqa: E402
 from services.recogniser.training.kits import (  # noqa: E402
     DRUMKITS_DIR,
@@ -113,6 +113,10 @@ def main(argv: list[str] | None = None) -> int:
         require_kits([args.kit])
     except KitsMissingError as exc:
         return report_error(ap.prog, exc)  # its line starts with the program's name, as argparse's errors
+    try:  # no dataset was a traceback; a split with no file an empty run (this machine's copy has no test split)
+        require_groove((args.split,))
+    except GrooveMissingError as exc:
+        return report_error(ap.prog, exc)
     try:
         models = [load_model(p) for p in args.model]
     except ModelError as exc:  # a file it cannot use: 1, as every command (README, "Exit status")
@@ -157,6 +161,10 @@ def main(argv: list[str] | None = None) -> int:
                 runs[i]["live"].append((hits, live_hits(model, live_audio, latencies[i])))
 
     print(file=sys.stderr)
+    if not audio_s:  # every file drawn starts after --seconds: nothing rendered, nothing to score
+        drawn = f"the {len(picks)} {args.split} file{'s' if len(picks) > 1 else ''} drawn (nothing to score)"
+        return report_error(ap.prog, f"no notes in {drawn}" if args.seconds is None
+                            else f"--seconds {args.seconds:g}: no note that early in {drawn}")
     print(f"kit: {args.kit}; {len(picks)} Groove {args.split} files, "
           f"{audio_s:.0f} s of audio; {'augmented' if args.augment else 'dry'} render")
     for i, (path, model) in enumerate(zip(args.model, models, strict=True)):
@@ -271,7 +279,9 @@ def table(files_run: list[tuple[list[Hit], list[tuple[float, int]]]], merge_s: f
             prec = m / ne if ne else 0.0
             rec = m / nr if nr else 0.0
             f = 2 * prec * rec / (prec + rec) if prec + rec else 0.0
-            row += f" {f:7.3f} {prec:6.3f} {rec:6.3f} |"
+            # undefined (nothing found: no precision; nothing played: no recall) is "-", not a 0.000 like a miss
+            row += (f" {'-' if not nr and not ne else f'{f:.3f}':>7} {f'{prec:.3f}' if ne else '-':>6} "
+                    f"{f'{rec:.3f}' if nr else '-':>6} |")
         print(row)
 
 

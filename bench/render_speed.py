@@ -125,15 +125,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     except ValueError as exc:
         parser.error(str(exc))
     factors = {n: run_once(args, n) for n in jobs}
-    if len(factors) > 1:
-        base = factors[jobs[0]]
+    if len(factors) > 1:  # named by the processes each render used: a piece too short to cut runs on one
+        base = factors[jobs[0]][0]
         print("wall-clock real-time factors, same run: " + ", ".join(
-            f"{n} process{'es' if n > 1 else ''} {f:.2f}x ({f / base:.2f} of {jobs[0]})" for n, f in factors.items()))
+            f"--jobs {n}: {used} process{'es' if used > 1 else ''} {f:.2f}x ({f / base:.2f} of --jobs {jobs[0]})"
+            for n, (f, used) in factors.items()))
     return 0
 
 
-def run_once(args: argparse.Namespace, jobs: int) -> float:
-    """Render the piece on ``jobs`` processes, print its figures; returns the whole command's wall-clock factor."""
+def run_once(args: argparse.Namespace, jobs: int) -> tuple[float, int]:
+    """Render the piece on ``jobs`` processes, print its figures; returns the whole command's wall-clock factor and
+    the processes the render used (one for a piece too short to cut in segments)."""
     timings: dict[str, float] = defaultdict(float)
     restore = (lambda: None) if args.no_breakdown or jobs > 1 else instrument(timings)
     with tempfile.TemporaryDirectory(prefix="render-speed-") as tmp:
@@ -142,15 +144,17 @@ def run_once(args: argparse.Namespace, jobs: int) -> float:
         t0 = time.perf_counter()
         try:
             opts = RenderOptions(control=args.control, control_rate_hz=args.control_rate, jobs=jobs)
-            report = render_score(score, Path(tmp) / "out", opts, quiet=True)
+            report = render_score(score, Path(tmp) / "out", opts, quiet=False)  # a bar on a terminal: minutes long
         finally:
             restore()
         wall = time.perf_counter() - t0
     rendered = report["duration_s"]
     cpu = report["cpu_time_s"]
     segments = report["physics"].get("segments")
-    how = "one process" if segments is None else (f"{segments['jobs']} processes, {segments['count']} segments "
-                                                  f"of {segments['segment_s']:g} s")
+    used = 1 if segments is None else int(segments["jobs"])
+    how = "one process" if segments is None else (
+        f"{used} process{'es' if used > 1 else ''}, {segments['count']} segment{'s' if segments['count'] > 1 else ''} "
+        f"of {segments['segment_s']:g} s")
     print(f"piece: {report['notes']} notes, {report['music_duration_s']:.1f} s planned, {rendered:.1f} s rendered "
           f"({args.control} control, {report['physics']['rate_hz']:g} Hz physics, {how})")
     print(f"  whole command: wall {wall:.1f} s -> real-time factor {rendered / wall:.2f}x (goal >= 2x); "
@@ -164,7 +168,7 @@ def run_once(args: argparse.Namespace, jobs: int) -> float:
         for label, seconds in sorted(parts.items(), key=lambda kv: -kv[1]):
             print(f"    {label:<32} {seconds:7.2f} s  {100 * seconds / total:5.1f} %  "
                   f"({seconds / rendered * 1000:.2f} ms per rendered second)")
-    return rendered / wall
+    return rendered / wall, used
 
 
 if __name__ == "__main__":

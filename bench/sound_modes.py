@@ -203,8 +203,16 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.blocks == 0 and args.change_modes == 0 and args.strike_modes == 0:  # was a silent run, exit 0
+        parser.error("--blocks 0 --change-modes 0 --strike-modes 0: nothing to time (each 0 skips its part)")
+    return args
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    args = parse_args(argv)
     sr = 48000
     if args.blocks > 0:
         _bank_vs_pyo(args, sr)

@@ -160,7 +160,8 @@ def lost_strikes(rig: TwoHosts, tmp: Path, strikes: int, gap: float, copies: int
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--pings", type=count, default=2000,
-                        help="one-way latency samples (default 2000; a quarter of them through the relay)")
+                        help="one-way latency samples, at least 4 (default 2000; a quarter of them through the "
+                             "relay)")
     parser.add_argument("--strikes", type=count, default=400, help="strikes per redundancy setting (default 400)")
     parser.add_argument("--gap", type=seconds, default=0.03, help="seconds between strikes (default 0.03)")
     parser.add_argument("--loss", type=int, default=5, help="percent of datagrams dropped on B, 0 to 100 (default 5)")
@@ -173,6 +174,8 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     args = parser.parse_args(argv)
     if not 0 <= args.loss <= 100:
         parser.error(f"--loss {args.loss}: a percentage, 0 to 100")
+    if args.pings < 4:  # a quarter go through the relay: fewer sent none there ("no samples")
+        parser.error(f"--pings {args.pings}: at least 4 (a quarter of them go through the relay)")
     return args
 
 
