@@ -574,11 +574,13 @@ def fit_label(label: str, width: int) -> str:
 
 
 def format_table(rows: Sequence[tuple[str, dict[str, Any]]]) -> str:
-    """A plain-text table of aggregate (or per-file) figures, one row per label; the label column as wide as the
+    """A plain-text table of aggregate (or per-file) figures, one row per label (timing columns in milliseconds,
+    ``rho``: Spearman pooled, ``rho_s``: within each sound, ``RTF``: real-time factor); the label column as wide as the
     longest label, from :data:`LABEL_WIDTH` to :data:`MAX_LABEL_WIDTH` characters (longer ones :func:`fit_label`)."""
     width = min(MAX_LABEL_WIDTH, max([LABEL_WIDTH, *(len(label) for label, _ in rows)]))
-    head = (f"{'':<{width}} {'notes':>6} {'F@10':>6} {'F@25':>6} {'P@25':>6} {'R@25':>6} {'med|e|':>7} {'p95|e|':>7} "
-            f"{'bias':>7} {'rho':>6} {'rho_s':>6} {'spur':>5} {'miss':>5} {'flag':>5} {'RTF':>5}")
+    head = (f"{'':<{width}} {'notes':>6} {'F@10':>6} {'F@25':>6} {'P@25':>6} {'R@25':>6} "
+            f"{'med|e| ms':>10} {'p95|e| ms':>10} {'bias ms':>7} "
+            f"{'rho':>6} {'rho_s':>6} {'spur':>5} {'miss':>5} {'flag':>5} {'RTF':>5}")
     lines = [head]
     for label, a in rows:
         t = a["timing_ms"]
@@ -590,7 +592,7 @@ def format_table(rows: Sequence[tuple[str, dict[str, Any]]]) -> str:
         lines.append(
             f"{fit_label(label, width):<{width}} {a['notes']:>6} {a['f_measure']['10ms']:>6.3f} "
             f"{a['f_measure']['25ms']:>6.3f} {a['precision']['25ms']:>6.3f} {a['recall']['25ms']:>6.3f} "
-            f"{num(t['median_abs'], '7.2f')} {num(t['p95_abs'], '7.2f')} {num(t['median_signed'], '+7.2f')} "
+            f"{num(t['median_abs'], '10.2f')} {num(t['p95_abs'], '10.2f')} {num(t['median_signed'], '+7.2f')} "
             f"{num(a['spearman'], '6.3f')} {num(a.get('spearman_within_sound'), '6.3f')} {a['spurious']:>5} "
             f"{missed:>5} {a['planner_flags']:>5} {num(a['real_time_factor'], '5.2f')}")
     return "\n".join(lines)

@@ -46,3 +46,11 @@ def test_the_rows_stay_aligned_whatever_the_labels() -> None:
 def test_short_labels_keep_the_28_character_column() -> None:
     header = evaluate.format_table([("groove.mid", figures())]).splitlines()[0]
     assert header.index("notes") == 28 + 1 + len(" notes") - len("notes")
+
+
+def test_the_timing_columns_say_their_unit_and_line_up_with_their_figures() -> None:
+    """The timing columns named no unit (only the summary line below the table said ms)."""
+    head, row = evaluate.format_table([("groove.mid", figures())]).splitlines()
+    for name, value in (("med|e| ms", "3.00"), ("p95|e| ms", "9.00"), ("bias ms", "-1.00")):
+        end = head.index(name) + len(name)  # right-aligned: a figure ends where its column's name does
+        assert row[:end].endswith(value), (name, head, row)

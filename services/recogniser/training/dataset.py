@@ -48,11 +48,16 @@ def require_groove(splits: tuple[str, ...] = ("train",), root: Path | None = Non
             f"https://magenta.tensorflow.org/datasets/groove) so that {root / 'info.csv'} exists")
     try:
         with open(root / "info.csv", newline="") as f:
-            rows = [r for r in csv.DictReader(f) if r.get("split") in splits]
+            listed = list(csv.DictReader(f))
+        rows = [r for r in listed if r.get("split") in splits]
         missing = [r["midi_filename"] for r in rows if not (root / r["midi_filename"]).is_file()]
     except (OSError, KeyError, csv.Error, UnicodeDecodeError) as exc:
         raise GrooveMissingError(f"cannot read the Groove MIDI Dataset in {root} ({exc}): {hint}") from exc
     if not rows:
+        held = sorted({str(r.get("split")) for r in listed if r.get("split")})
+        if held:  # the dataset is there: a split it does not have (a copy of some splits only)
+            raise GrooveMissingError(f"{root / 'info.csv'} lists no performance of the {'/'.join(splits)} split "
+                                     f"(it lists the {', '.join(held)} split{'s' if len(held) > 1 else ''})")
         raise GrooveMissingError(f"{root / 'info.csv'} lists no performance of the {'/'.join(splits)} split: {hint}")
     if missing:
         raise GrooveMissingError(f"{len(missing)} of the {len(rows)} Groove MIDI files of the {'/'.join(splits)} "
