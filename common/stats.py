@@ -13,6 +13,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from common.messages import DropReason
+from common.rated_log import RatedWarnings
 
 log = logging.getLogger("batteur.traffic")
 
@@ -26,21 +27,15 @@ class TrafficStats:
     messages_in: int = 0
     messages_out: int = 0
     dropped: Counter[DropReason] = field(default_factory=Counter)
-    _last_logged: dict[DropReason, float] = field(default_factory=dict)
-    _suppressed: Counter[DropReason] = field(default_factory=Counter)
+    _warnings: RatedWarnings = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        self._warnings = RatedWarnings(log, self.log_interval_s)
 
     def record_drop(self, reason: DropReason, detail: str, source: str = "") -> None:
-        """Count one dropped message and log it unless this reason was logged recently."""
+        """Count one dropped message and log it unless this reason was logged within ``log_interval_s``."""
         self.dropped[reason] += 1
-        now = self.clock()
-        last = self._last_logged.get(reason)
-        if last is None or now - last >= self.log_interval_s:
-            extra = f" (+{self._suppressed[reason]} more since last report)" if self._suppressed[reason] else ""
-            log.warning("dropped %s from %s: %s%s", reason.value, source or "?", detail, extra)
-            self._last_logged[reason] = now
-            self._suppressed[reason] = 0
-        else:
-            self._suppressed[reason] += 1
+        self._warnings.warn(reason, self.clock(), "dropped %s from %s: %s", reason.value, source or "?", detail)
 
     @property
     def dropped_total(self) -> int:

@@ -21,7 +21,7 @@ from __future__ import annotations
 import bisect
 import logging
 import math
-from collections import Counter, deque
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, ClassVar, Literal
@@ -44,6 +44,7 @@ from common.messages.graphics import (
 )
 from common.messages.physics import PhysicsPosture, PhysicsReset
 from common.messages.system import TOOL_ROLE
+from common.rated_log import RatedWarnings
 from services.graphics.camera import camera_for, default_camera, presets_json
 from services.graphics.scene import HISTORY, KitAnimator, hardware_json, kit_json
 from services.graphics.sequence import FLOATS_PER_LINK, PoseSequence, interpolate_pose, normalize_quats
@@ -180,10 +181,8 @@ class GraphicsCore:
             "poses": 0, "impacts": 0, "frames": 0, "bad_layout": 0, "no_skeleton": 0, "duplicate_impacts": 0,
             "starved": 0, "clock_jumps": 0, "postures_sent": 0, "pose_resets": 0, "mode_refused": 0,
         }
-        self._refusal_logged: dict[str, float] = {}
-        """Refusal kind -> rig time it was last logged, seconds."""
-        self._refusal_quiet: Counter[str] = Counter()
-        """Refusal kind -> refusals not logged since (see ``REFUSAL_LOG_INTERVAL_S``)."""
+        self._refusal_warnings = RatedWarnings(log, REFUSAL_LOG_INTERVAL_S)
+        """Refusals logged at most once per :data:`REFUSAL_LOG_INTERVAL_S` of rig time for each kind."""
         self._outbox: list[dict[str, Any]] = []
         self._last_status = -math.inf
         self.last_frame: ViewFrame | None = None
@@ -233,13 +232,7 @@ class GraphicsCore:
 
     def _log_refusal(self, kind: str, now: float, detail: str) -> None:
         """Warn about a refusal, at most once per :data:`REFUSAL_LOG_INTERVAL_S` of rig time for each kind."""
-        last = self._refusal_logged.get(kind)
-        if last is not None and 0.0 <= now - last < REFUSAL_LOG_INTERVAL_S:
-            self._refusal_quiet[kind] += 1
-            return
-        self._refusal_logged[kind] = now
-        quiet = self._refusal_quiet.pop(kind, 0)
-        log.warning("%s%s", detail, f" (+{quiet} more since the last report)" if quiet else "")
+        self._refusal_warnings.warn(kind, now, detail)
 
     def step(self, now: float) -> list[Outgoing]:
         frame = self.frame_at(now)

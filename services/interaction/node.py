@@ -24,6 +24,7 @@ from pydantic import Field
 from common.config import NodeSettings
 from common.exit_status import InputError
 from common.kit import load_kit
+from common.rated_log import RatedWarnings
 from common.runtime import Node, run_node
 from services.interaction.config import FileConfigStore, InteractionConfig
 from services.interaction.core import InteractionCore
@@ -85,17 +86,10 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace) -> InteractionC
 
 def _rate_limited_warning(interval_s: float) -> Callable[[str], None]:
     """A logger of mapping errors that writes at most one line per ``interval_s`` seconds."""
-    last = [-interval_s]
-    suppressed = [0]
+    warnings = RatedWarnings(log, interval_s)
 
     def warn(text: str) -> None:
-        now = time.monotonic()
-        if now - last[0] >= interval_s:
-            more = f" (+{suppressed[0]} more)" if suppressed[0] else ""
-            log.warning("mapping: %s%s", text, more)
-            last[0], suppressed[0] = now, 0
-        else:
-            suppressed[0] += 1
+        warnings.warn("mapping", time.monotonic(), "mapping: %s", text)
 
     return warn
 

@@ -57,6 +57,7 @@ from common.messages.physics import (
     PhysicsReset,
     PhysicsStrike,
 )
+from common.rated_log import RatedWarnings
 from common.score.events import MAX_SCORE_NOTES
 from common.token_bucket import TokenBuckets
 from services.physics.contacts import ContactTracker
@@ -217,10 +218,8 @@ class PhysicsCore:
         """The scene's test of whether its targets may jump between two rig times unnoticed (the drummer's); a
         scene without one (the strike scene) jumps with every skip."""
         self.rejected: Counter[str] = Counter()
-        self._reject_logged: dict[str, float] = {}
-        """Message kind -> rig time (s) its last rejection was logged."""
-        self._reject_quiet: Counter[str] = Counter()
-        """Message kind -> rejections not logged since (see ``REJECT_LOG_INTERVAL_S``)."""
+        self._reject_warnings = RatedWarnings(log, REJECT_LOG_INTERVAL_S)
+        """Rejections logged at most once per ``REJECT_LOG_INTERVAL_S`` of rig time for each message kind."""
         self._replies: list[Outgoing] = []
         """Refusals to send back (:class:`PhysicsRejected`), handed out by the next :meth:`handle` or :meth:`step`
         (a plan refused in the background is answered from a step)."""
@@ -312,14 +311,7 @@ class PhysicsCore:
         kind = type(message).__name__
         self.rejected[kind] += 1
         self.queue_refusal(message.ADDRESS, str(exc), source, now)
-        last = self._reject_logged.get(kind)
-        if last is not None and 0.0 <= now - last < REJECT_LOG_INTERVAL_S:
-            self._reject_quiet[kind] += 1
-            return
-        quiet = self._reject_quiet.pop(kind, 0)
-        extra = f" (+{quiet} more since the last report)" if quiet else ""
-        log.warning("physics rejected %s from %s: %s%s", kind, source, exc, extra)
-        self._reject_logged[kind] = now
+        self._reject_warnings.warn(kind, now, "physics rejected %s from %s: %s", kind, source, exc)
 
     def queue_refusal(self, address: str, reason: str, source: str, now: float) -> None:
         """Queue a :class:`PhysicsRejected` (``address`` refused for ``reason``) for ``source`` ("host:port", or a

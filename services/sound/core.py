@@ -52,6 +52,7 @@ from common.messages.sound import (
     SoundThickness,
 )
 from common.output_paths import write_atomically
+from common.rated_log import RatedWarnings
 from services.sound.excitation import warm_up as excitation_warm_up
 from services.sound.instruments import (
     INSTRUMENT_CLASSES,
@@ -296,8 +297,7 @@ class SoundCore:
         """Output time of each strike's first sample minus its impact time, seconds (most recent last)."""
         self._bus: dict[str, F32] = {}
         self._pedal_ids = {o.id for o in self.kit.objects if o.kind == "pedal"}
-        self._drop_logged: dict[str, float] = {}  # kind -> rig time of its last warning, seconds
-        self._drop_quiet: Counter[str] = Counter()  # kind -> drops since that warning
+        self._drop_warnings = RatedWarnings(log, DROP_LOG_INTERVAL_S)  # by kind, on rig time
         self._pans = {i.id: self._pan(i.obj.position[0]) for i in self.instruments.instruments.values()}
         self._worker = RebuildWorker() if s.background_rebuilds else None
         self._rebuilds: dict[str, _Rebuild] = {}  # instrument id -> changes in the worker
@@ -522,15 +522,7 @@ class SoundCore:
 
     def _log_drop(self, kind: str, detail: str) -> None:
         """Warn about input not played, at most once per DROP_LOG_INTERVAL_S of rig time for each kind."""
-        now = self.now
-        last = self._drop_logged.get(kind)
-        if last is not None and 0.0 <= now - last < DROP_LOG_INTERVAL_S:
-            self._drop_quiet[kind] += 1
-            return
-        self._drop_logged[kind] = now
-        quiet = self._drop_quiet.pop(kind, 0)
-        more = f" (+{quiet} more since the last report)" if quiet else ""
-        log.warning("%s%s", detail, more)
+        self._drop_warnings.warn(kind, self.now, detail)
 
     def _within_budget(self, due: list[tuple[int, tuple[str, Impact]]]) -> list[tuple[int, tuple[str, Impact]]]:
         """The strikes of one block, at most ``max_strikes_per_block``: the loudest, in time order."""
