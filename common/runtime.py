@@ -57,6 +57,7 @@ from common.messages import (
     RawMessage,
     Subscribe,
     SubscribeRefused,
+    encode,
 )
 from common.peers import Peer, PeerTable
 from common.subscribe import Subscriptions
@@ -798,8 +799,8 @@ class Node:
 
     def _tap(self, address: str, packet: Callable[[], bytes], direction: str) -> None:
         """Every message sent or received: copies to subscribers, values and listeners of OSCQuery."""
-        if self.subscriptions.active:
-            self.subscriptions.offer(address, packet)
+        if self.subscriptions.active and not (direction == "in" and address == Subscribe.ADDRESS):
+            self.subscriptions.offer(address, packet)  # a Subscribe received: offered by _on_subscribe, which knows
         if self.oscquery is not None:
             self.oscquery.observe(address, packet)
 
@@ -808,9 +809,14 @@ class Node:
             to = parse_address(source)
         except ValueError:
             return
+        # copied to the other subscribers only: its sender knows what it sent (echo '/batteur/*' printed its renewals)
+        self.subscriptions.offer(Subscribe.ADDRESS, lambda: encode(message), sender=to)
+        renewal = self.subscriptions.is_renewal(to, message.pattern, message.duration_s)
         refusal = self.subscriptions.request(to, message.pattern, message.duration_s)
         if not refusal:
-            log.info("forwarding %s to %s for %g s", message.pattern, source, message.duration_s)
+            # echo renews every 5 s: the first subscription (or a changed duration) is news, its renewals are not
+            log.log(logging.DEBUG if renewal else logging.INFO, "forwarding %s to %s for %g s", message.pattern,
+                    source, message.duration_s)
             return
         # the client's mistake, not this node's (counted in Health's dropped_other): a warning, a few at most
         now = self.subscriptions.clock()

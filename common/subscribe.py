@@ -104,6 +104,8 @@ class Subscription:
     to: tuple[str, int]
     pattern: str
     expires: float
+    duration_s: float = 0.0
+    """As last asked for: a renewal asking the same is routine (logged quietly), another duration a change."""
     bucket: TokenBucket = field(default_factory=lambda: TokenBucket(MAX_COPY_RATE, MAX_COPY_RATE, 0.0))
     """Copies per second it may receive (:data:`MAX_COPY_RATE`, or the table's ``max_rate``)."""
     sent: int = 0
@@ -177,12 +179,20 @@ class Subscriptions:
         known = self.active.get(key)
         if known is not None:
             known.expires = now + duration_s
+            known.duration_s = duration_s
             return ""
         if len(self.active) >= self.max_subscribers:
             self.refused += 1
             return f"table full ({self.max_subscribers} subscriptions)"
-        self.active[key] = Subscription(to, pattern, now + duration_s, TokenBucket(self.max_rate, self.max_rate, now))
+        self.active[key] = Subscription(to, pattern, now + duration_s, duration_s,
+                                        TokenBucket(self.max_rate, self.max_rate, now))
         return ""
+
+    def is_renewal(self, to: tuple[str, int], pattern: str, duration_s: float) -> bool:
+        """Whether a Subscribe of ``pattern`` for ``duration_s`` from ``to`` only renews a live subscription asking
+        the same (``batteur echo`` renews every 5 s: not news worth a log line)."""
+        known = self.active.get((to, pattern))
+        return known is not None and known.expires > self.clock() and known.duration_s == duration_s
 
     def may_reply(self, to: tuple[str, int]) -> bool:
         """Whether a refusal may be answered to ``to`` now (counted either way): once a second per source, and
@@ -208,8 +218,9 @@ class Subscriptions:
     def __bool__(self) -> bool:
         return bool(self.active)
 
-    def offer(self, address: str, packet: Callable[[], bytes]) -> None:
-        """Forward one message (its packet built only if someone wants it) to every matching subscriber."""
+    def offer(self, address: str, packet: Callable[[], bytes], sender: tuple[str, int] | None = None) -> None:
+        """Forward one message (its packet built only if someone wants it) to every matching subscriber but its
+        ``sender`` (a subscriber knows what it sent: ``batteur echo '/batteur/*'`` got its own renewals back)."""
         if not self.active:
             return
         now = self.clock()
@@ -219,7 +230,7 @@ class Subscriptions:
             if sub.expires <= now:
                 expired = True
                 continue
-            if not sub.wants(address):
+            if sub.to == sender or not sub.wants(address):
                 continue
             if not sub.bucket.take(now):
                 sub.dropped += 1

@@ -22,7 +22,8 @@ from collections.abc import Sequence
 from pythonosc.osc_message_builder import BuildError
 
 from batteur.errors import USAGE, report_error
-from batteur.tools.nodes import run_tool
+from batteur.tools.ls import match_answers, query_health
+from batteur.tools.nodes import Target, resolve_host, run_tool
 from common.arg_types import seconds, take_negative_values
 from common.datafile import one_line
 from common.messages import (
@@ -103,6 +104,47 @@ def split_times(model: type[OscMessage], texts: Sequence[str]) -> list[str] | No
     return out
 
 
+def relative_times(model: type[OscMessage] | None, texts: Sequence[str]) -> dict[int, float]:
+    """The rig times written ``+SECONDS`` (``play +2 0``: two seconds after the node's rig time when send runs),
+    by their index in ``texts``, as those seconds. Only where a time is one number (:func:`split_times`'s form).
+    A ``+`` that is not a finite number of seconds, 0 or more, raises :class:`MessageError` naming the field."""
+    if model is None:
+        return {}
+    fields = model.wire_fields()
+    if not fields or fields[-1].variadic or len(texts) != len(fields):
+        return {}
+    out: dict[int, float] = {}
+    for i, (f, text) in enumerate(zip(fields, texts, strict=True)):
+        if f.kind is not WireKind.TIME or not text.startswith("+"):
+            continue
+        value = guess_arg(text[1:])
+        if isinstance(value, str) or not math.isfinite(value) or value < 0 or text[1:2] in "+-":
+            raise MessageError(DropReason.WRONG_TYPE if isinstance(value, str) else DropReason.OUT_OF_RANGE,
+                               f"{f.name.upper()}: +SECONDS must be a finite number of seconds, 0 or more, got "
+                               f"{text!r}", model.ADDRESS)
+        out[i] = float(value)
+    return out
+
+
+def at_rig_time(texts: Sequence[str], relative: dict[int, float], rig_time_s: float) -> list[str]:
+    """``texts`` with each ``+SECONDS`` time (:func:`relative_times`) made the rig time ``rig_time_s`` + SECONDS."""
+    return [repr(rig_time_s + relative[i]) if i in relative else t for i, t in enumerate(texts)]
+
+
+def rig_times(targets: Sequence[tuple[str, int]], timeout_s: float) -> dict[tuple[str, int], float]:
+    """Each target's rig time, from the Health it answers to a Hello (``batteur ls``'s request) within
+    ``timeout_s``; a target that does not answer (or whose host does not resolve) is left out."""
+    asked: list[Target] = []
+    for host, port in targets:
+        try:
+            asked.append(Target(host, port, ip=resolve_host(host)))
+        except ValueError:
+            asked.append(Target(host, port))  # no ip: not asked, so no answer
+    answers = asyncio.run(query_health(asked, timeout_s))
+    return {(t.host, t.port): h.time for t, h in zip(asked, match_answers(asked, answers), strict=True)
+            if h is not None}
+
+
 def typed_args(address: str, texts: Sequence[str]) -> list[Arg]:
     """Command-line strings typed by the model at ``address``; raise MessageError on a mismatch."""
     model = REGISTRY.get(address)
@@ -177,7 +219,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     take_negative_values(parser)
     parser.add_argument("address", help=f"OSC address, e.g. {EXAMPLE_ADDRESS}")
     parser.add_argument("args", nargs="*", help="the message's arguments, in order (a rig time is one number of "
-                        "seconds, or two as on the wire: whole seconds, then the fraction)")
+                        "seconds, or two as on the wire: whole seconds, then the fraction; +SECONDS is that long "
+                        "after the node's rig time when send runs, asked of the node first: "
+                        "/batteur/score/transport play +2 0 --to physics starts the score in 2 s)")
     parser.add_argument("--to", required=True,
                         help="HOST:PORT ([::1]:9000 for IPv6), or a role (physics, sound, ...) found by discovery: "
                         "every node of that role")
@@ -186,7 +230,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="then listen this long for answers and print them, one line each (a control's error, "
                         "a list...); exit 1 if a node refused the message or nothing listened; a node that stays "
                         "silent (an accepted control) is said on stderr (default 0: do not wait)")
-    parser.add_argument("--timeout", type=seconds, default=2.0, help="seconds to look for a role (default 2)")
+    parser.add_argument("--timeout", type=seconds, default=2.0,
+                        help="seconds to look for a role, and to wait for a node's rig time (+SECONDS) (default 2)")
     parser.add_argument("--interface", action="append", default=[],
                         help="interface to look for a role on: address, name or 'all' (repeatable; default loopback)")
     opts = parser.parse_args(argv)
@@ -201,7 +246,9 @@ def _send(opts: argparse.Namespace) -> int:
     try:
         if model is None:
             check_raw_address(opts.address)
-        data = _encode(opts.address, typed_args(opts.address, opts.args))
+        relative = relative_times(model, opts.args)
+        # checked before any node is asked (the rig time 0 in place of +SECONDS: a time the model takes)
+        data = _encode(opts.address, typed_args(opts.address, at_rig_time(opts.args, relative, 0.0)))
     except MessageError as exc:
         takes = f"; {opts.address} takes {arguments(model)}" if model and exc.reason is DropReason.WRONG_ARITY else ""
         return report_error(PROG, f"{exc}{takes}", USAGE)
@@ -212,9 +259,26 @@ def _send(opts: argparse.Namespace) -> int:
     if not targets:
         return 1
     failed = 0
+    packets = {target: data for target in targets}
+    if relative:
+        now = rig_times(targets, opts.timeout)
+        for host, port in targets:
+            if (host, port) not in now:
+                failed += 1
+                del packets[(host, port)]
+                report_error(PROG, f"no rig time from {format_address(host, port)} within {opts.timeout:g} s (its "
+                             "Health did not come: is a Batteur node running there?); +SECONDS needs it, not sent")
+                continue
+            try:
+                packets[(host, port)] = _encode(opts.address, typed_args(
+                    opts.address, at_rig_time(opts.args, relative, now[(host, port)])))
+            except MessageError as exc:  # a time beyond what the wire carries, say
+                failed += 1
+                del packets[(host, port)]
+                report_error(PROG, f"{format_address(host, port)}: {exc}")
     sent: list[tuple[socket.socket, str]] = []  # kept open to hear the answers (--replies)
     try:
-        for host, port in targets:
+        for (host, port), data in packets.items():
             family = socket.AF_INET6 if ":" in host else socket.AF_INET
             sock = socket.socket(family, socket.SOCK_DGRAM)
             try:  # connected, so the kernel reports a port nobody listens on (ICMP) to --replies

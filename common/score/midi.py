@@ -44,6 +44,7 @@ from common.score.events import (
     score_from_notes,
 )
 from common.score.gm import DRUM_MAP
+from common.score.gm_programs import GM_PROGRAM_NAMES
 
 GM_DRUM_CHANNEL = 10
 """General MIDI's percussion channel (1-based)."""
@@ -309,6 +310,7 @@ def _read(source: str | Path | bytes, drum_channels: Collection[int] | None, dru
     per_tick = tempo / 1e6 / mid.ticks_per_beat
     drums = {GM_DRUM_CHANNEL - 1} | {c - 1 for c in (drum_channels or ())}
     raw: list[tuple[float, int, int, int, int]] = []  # seconds, pitch, velocity, channel index, tick
+    programs: dict[int, list[int]] = {}  # channel index -> its General MIDI programs, as first set
     tempo_points: list[tuple[int, float, float]] = [(0, 0.0, per_tick)]  # tick, seconds, seconds/tick
     meters: list[tuple[int, int, int]] = [(0, 4, 4)]  # tick, numerator, denominator (4/4 until told otherwise)
     for tick, msg in timeline:
@@ -326,11 +328,14 @@ def _read(source: str | Path | bytes, drum_channels: Collection[int] | None, dru
             drums.add(msg.channel)
         elif msg.type == "note_on" and msg.velocity > 0:
             raw.append((seconds, msg.note, msg.velocity, msg.channel, tick))
+        elif msg.type == "program_change" and msg.program not in programs.setdefault(msg.channel, []):
+            programs[msg.channel].append(msg.program)
     warnings = open_warnings
     chosen = [r for r in raw if r[3] in drums]
     if not chosen and raw and not drum_channels:
-        channels = sorted({r[3] + 1 for r in raw})
-        warnings.append(f"{name}: no notes on a drum channel; reading channels {channels} as drums")
+        channels = sorted({r[3] for r in raw})
+        warnings.append(f"{name}: no notes on a drum channel; reading channels {[c + 1 for c in channels]}"
+                        f"{_instruments(channels, programs)} as drums")
         chosen = raw
     _check_size(chosen, name)
     notes = [DrumNote(time=s, pitch=p, velocity=v / 127.0, channel=c + 1) for s, p, v, c, _ in chosen]
@@ -341,6 +346,18 @@ def _read(source: str | Path | bytes, drum_channels: Collection[int] | None, dru
     if not score.events:
         score.warnings.append(f"{name}: no drum events")
     return score, size
+
+
+def _instruments(channels: list[int], programs: dict[int, list[int]]) -> str:
+    """`` (Violin)`` for one channel (0-based) read as drums that set a General MIDI program, `` (3: Violin;
+    5: Flute, Piccolo)`` for several (each channel's programs in the order it set them): a melody file read as
+    drums says what it is; "" when none set one."""
+    named = {c: ", ".join(GM_PROGRAM_NAMES[p] for p in programs[c]) for c in channels if programs.get(c)}
+    if not named:
+        return ""
+    if len(channels) == 1:
+        return f" ({named[channels[0]]})"
+    return " (" + "; ".join(f"{c + 1}: {names}" for c, names in named.items()) + ")"
 
 
 def _check_size(notes: list[tuple[float, int, int, int, int]], name: str) -> None:
