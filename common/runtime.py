@@ -60,6 +60,7 @@ from common.messages import (
     encode,
 )
 from common.peers import Peer, PeerTable
+from common.rated_log import RatedWarnings
 from common.subscribe import Subscriptions
 from common.transport import UdpEndpoint, format_address, parse_address, same_ip
 
@@ -409,9 +410,8 @@ class Node:
         self._started_at = time.monotonic()
         self.subscriptions = Subscriptions(self._send_copy, time.monotonic)
         """Who asked for copies of which messages (:class:`~common.messages.Subscribe`)."""
-        self._last_refusal_log = -math.inf
-        self._refusals_unlogged = 0
-        """Refused Subscribes not logged since the last warning (one per :data:`REFUSAL_LOG_INTERVAL_S`)."""
+        self._refusal_warnings = RatedWarnings(log, REFUSAL_LOG_INTERVAL_S)
+        """Refused Subscribes: one warning per :data:`REFUSAL_LOG_INTERVAL_S`, the others counted in it."""
         self.oscquery: Any = None
         """The OSCQuery server (``common.oscquery.OscQueryServer``) once started, or None."""
         if self.is_clock_master:
@@ -819,13 +819,8 @@ class Node:
                     source, message.duration_s)
             return
         # the client's mistake, not this node's (counted in Health's dropped_other): a warning, a few at most
-        now = self.subscriptions.clock()
-        if now - self._last_refusal_log >= REFUSAL_LOG_INTERVAL_S:
-            more = f" (+{self._refusals_unlogged} more since last report)" if self._refusals_unlogged else ""
-            log.warning("subscription of %s to %s refused: %s%s", source, message.pattern, refusal, more)
-            self._last_refusal_log, self._refusals_unlogged = now, 0
-        else:
-            self._refusals_unlogged += 1
+        self._refusal_warnings.warn("subscribe", self.subscriptions.clock(), "subscription of %s to %s refused: %s",
+                                    source, message.pattern, refusal)
         self._answer_subscriber(to, source, message.pattern, refusal)
 
     def _on_undecodable(self, raw: RawMessage, error: MessageError, source: str) -> None:
