@@ -133,6 +133,7 @@ from services.physics.plan_worker import PlanWorker, PlanWorkers, plan_events
 from services.physics.splice import (
     BLEND_S,
     BRAKE_S,
+    KNOT_TIME_S,
     agrees,
     brake_point,
     check_room,
@@ -469,19 +470,19 @@ class ScorePlayer:
         if self._outside(name):  # said before looking: the refusal must not tell whether a file outside exists
             raise ScorePlayerError(f"score {name!r}: outside the score library ({dirs}): only files inside it are "
                                    "read")
-        for base in self._bases():
+        for base in self._bases():  # in library order: the first folder holding the name wins
             candidate = (base / name).resolve()
             if _under(base, candidate) and candidate.is_file():
                 return candidate
-        if not Path(name).suffix:  # "groove" for groove.txt: the file of that name, whatever its extension
-            for base in self._bases():  # in library order, as a name with its extension (the first folder wins)
-                found = self._by_stem(base, name)
-                if len(found) == 1:
-                    return found[0]
-                if found:
-                    names = ", ".join(sorted(p.name for p in found))
-                    raise ScorePlayerError(f"score {name!r}: several files in the score library match ({names}): "
-                                           "give the extension")
+            if Path(name).suffix:
+                continue
+            found = self._by_stem(base, name)  # "groove" for groove.txt: the file of that name, whatever its extension
+            if len(found) == 1:
+                return found[0]
+            if found:
+                names = ", ".join(sorted(p.name for p in found))
+                raise ScorePlayerError(f"score {name!r}: several files in the score library match ({names}): "
+                                       "give the extension")
         raise ScorePlayerError(f"score {name!r}: no such file in the score library ({dirs})")
 
     def _outside(self, name: str) -> bool:
@@ -1020,8 +1021,8 @@ class ScorePlayer:
             # after its last stroke the window's plan brings the limb to rest: join before that
             until = trusted if strokes[-1] > trusted else strokes[-1]
             t_j = join_time(scene.limb_tracks[limb.value], plan.trajectories[limb], after, until)
-            if t_j is None:
-                return None
+            if t_j is None or t_j >= until - KNOT_TIME_S:  # agreeing at the trusted span's last knot only: past it
+                return None  # the queued track may be what a whole re-plan would change (a double pedal's feet)
             joins[limb] = t_j
         return joins
 

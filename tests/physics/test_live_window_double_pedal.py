@@ -36,10 +36,10 @@ Knots = tuple[list[Any], list[Any], list[Any]]
 """A track's knots: times (s), positions (m), velocities (m/s)."""
 
 
-def _play(library: Path, pitch: int, note_s: float) -> tuple[dict[str, object], dict[str, Knots]]:
-    """The score from rig time 1 s on the double-pedal kit, a live note at ``note_s`` sent at SENT_S: the player's
+def _play(library: Path, pitch: int, note_s: float, score: str = SCORE) -> tuple[dict[str, object], dict[str, Knots]]:
+    """``score`` from rig time 1 s on the double-pedal kit, a live note at ``note_s`` sent at SENT_S: the player's
     status and every limb's track (times, positions, velocities) right after."""
-    (library / "doubles.txt").write_text(SCORE)
+    (library / "doubles.txt").write_text(score)
     core = PhysicsCore(scene="drummer", kit=load_kit("double_pedal"), grip="german", pose_rate_hz=0)
     try:
         core.score_player.library = [library]
@@ -72,6 +72,25 @@ def test_a_live_note_on_a_double_pedal_re_joins_as_a_whole_re_plan(tmp_path: Pat
         times = np.arange(SENT_S, max(knots[0][-1], window[name][0][-1]) + 0.1, 0.001)
         gap = np.abs(_positions(window[name], times) - _positions(knots, times)).max()
         assert gap <= 1e-6, f"{name}: {gap:.1e} m off the whole re-plan"  # the left foot: 4.8e-4 m
+
+
+SPARSE_KICKS = "|x" + "." * 23 + "xx" + "." * 22 + "x..x" + "." * 12
+SPARSE_SCORE = (f"tempo 80\nmeter 4/4\nBD {SPARSE_KICKS * BARS}|\nHP {('|' + ('.' * 8 + 'x' + '.' * 7) * 4) * BARS}|\n"
+                f"HH {('|' + 'x.x.x.x.' * 8) * BARS}|\n")
+"""Sparse kicks, a few doubles, the hi-hat foot and the hands: a live kick's window whose left foot agreed with its
+queued track only at the last knot it could trust re-joined there, and the left foot then played the queued track,
+up to 68 mm off the whole re-plan's for the rest of the score."""
+
+
+def test_a_window_that_agrees_only_at_its_last_trusted_knot_does_not_re_join_there(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    _, window = _play(tmp_path, 36, 3.2, SPARSE_SCORE)
+    monkeypatch.setattr(ScorePlayer, "_window_end", lambda self, new, t_s, widen=False: math.inf)
+    _, whole = _play(tmp_path, 36, 3.2, SPARSE_SCORE)
+    for name, knots in whole.items():
+        times = np.arange(SENT_S, max(knots[0][-1], window[name][0][-1]) + 0.1, 0.001)
+        gap = np.abs(_positions(window[name], times) - _positions(knots, times)).max()
+        assert gap <= 1e-6, f"{name}: {gap:.1e} m off the whole re-plan"
 
 
 def test_the_kick_feet_are_the_feet_the_planner_gives_a_bass_note(tmp_path: Path) -> None:

@@ -55,6 +55,18 @@ def test_a_name_without_its_extension_is_looked_for_in_library_order(library_pla
         library_player.resolve("groove")
 
 
+def test_a_file_of_the_bare_name_in_a_later_folder_does_not_beat_the_first_folders_match(
+        library_player: ScorePlayer, tmp_path: Path) -> None:
+    """Every folder was searched for the exact name before any for the stem: a file named ``groove`` in the second
+    folder beat ``groove.txt`` in the first."""
+    first, second = tmp_path / "lib", tmp_path / "lib2"
+    second.mkdir()
+    library_player.library = [first, second]
+    (first / "groove.txt").write_text("tempo 100\nSD |x...|\n")
+    (second / "groove").write_text("tempo 100\nSD |x...|\n")
+    assert library_player.resolve("groove") == (first / "groove.txt").resolve()
+
+
 def test_a_library_folder_given_as_a_link_reads_its_files_by_either_path(library_player: ScorePlayer,
                                                                         tmp_path: Path) -> None:
     """``--score-dir liblink`` (a link to lib): ``liblink/solo.txt`` was refused as outside the library (the name as
