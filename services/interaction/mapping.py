@@ -284,17 +284,17 @@ def _curve_numbers(text: str, body: str, fields: list[str]) -> list[float]:
 
 
 def _constant(text: str, body: str, osc_type: str) -> int | float | str:
-    """The value of the constant ``=body`` (spec ``text``): an int, else a float, else a string. A number no OSC
-    float carries (``=1e400``, ``=nan``, ``=inf``) raises MappingError, unless sent as a string (``@s``): it was
-    taken as the string '1e400'."""
+    """The value of the constant ``=body`` (spec ``text``): an int, else a float, else a string; always the string
+    when sent as one (``@s``: ``=1e39@s`` had been the float 1e39). A number no OSC float carries (``=1e400``,
+    ``=nan``, ``=inf``) raises MappingError (it was taken as the string '1e400')."""
+    if osc_type == "s":
+        return body
     for convert in (int, float):
         try:
             value = convert(body)
         except ValueError:
             continue
         if isinstance(value, float) and not math.isfinite(value):
-            if osc_type == "s":
-                return body
             raise MappingError(f"{text!r}: constant {body!r} is not a finite number, which an OSC float must be "
                                f"(within ±{FLOAT32_MAX:.4g}; a string is sent with @s: '={body}@s')")
         return value

@@ -49,6 +49,12 @@ def test_such_a_constant_is_still_a_string_when_asked_for_one() -> None:
     assert [a.to_spec() for a in core.config.messages[0].args] == ["=nan@s", "=1e400@s"]  # listed as re-addable
 
 
+def test_a_number_sent_as_a_string_stays_the_text_written() -> None:
+    """``=1e39@s`` became the float 1e39 (``=1e400@s`` stayed text): ``@s`` sends the text as written."""
+    assert [ArgSpec.parse(spec).value for spec in ("=1e39@s", "=5@s", "=0.25@s")] == ["1e39", "5", "0.25"]
+    assert ArgSpec.parse("=5@i").value == 5
+
+
 def test_a_type_written_as_a_curve_field_is_told_its_at_form() -> None:
     core = InteractionCore(kit=KIT)
     (detail,) = _errors(core.handle(_add("instrument", "velocity:linear:0:10:0:127:i"), 0.0, "127.0.0.1:5"))

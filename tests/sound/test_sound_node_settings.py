@@ -51,6 +51,17 @@ def test_a_refused_value_names_its_flag_and_its_variable(monkeypatch: pytest.Mon
     assert "invalid setting device:" in err and "[--device / BATTEUR_DEVICE]" in err
 
 
+@pytest.mark.parametrize("line", ["channels: true", "reverb: true", "block-size: false"])
+def test_true_or_false_in_a_config_file_is_no_number(tmp_path: Path, line: str,
+                                                      capsys: pytest.CaptureFixture[str]) -> None:
+    """pydantic took ``channels: true`` as 1 (mono) and ``reverb: true`` as 1.0, silently; the flags never did."""
+    config = tmp_path / "sound.yaml"
+    config.write_text(line + "\n")
+    assert main([*BASE, "--config", str(config), "--show-settings"]) == 2
+    err = capsys.readouterr().err
+    assert f"invalid setting {line.split(':')[0].replace('-', '_')}:" in err and "a number, not" in err
+
+
 def test_a_wav_from_the_environment_is_recorded_to(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     take = tmp_path / "env.wav"
     monkeypatch.setenv("BATTEUR_WAV", str(take))
