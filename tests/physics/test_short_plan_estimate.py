@@ -10,6 +10,7 @@ and the rig clock moves on as much before the plan is looked at, so nothing depe
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -49,12 +50,29 @@ def plan_clock(monkeypatch: pytest.MonkeyPatch) -> Iterator[_PlanClock]:
 
 
 @pytest.fixture
-def core(tmp_path: Path) -> Iterator[LivePhysicsCore]:
+def core(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[LivePhysicsCore]:
     (tmp_path / "short.txt").write_text(SHORT_SCORE, encoding="utf-8")
     settings: dict[str, Any] = {"scene": "drummer", "grip": "german", "pose_rate_hz": 0, "mode": "live"}
     physics = LivePhysicsCore(planner="thread", **settings)
     physics.score_player.library = [tmp_path]
+    # each plan waits until the test looks for it: a plan of four notes in a thread could finish before the message
+    # that started it returned, and be spliced then, at the made-up clock's start (no time taken, never late)
+    released = threading.Event()
+    plan = physics.score_player._planner
+
+    def held(*args: Any, **kwargs: Any) -> Any:
+        planning = plan(*args, **kwargs)
+
+        def when_released() -> Any:
+            released.wait(60.0)
+            return planning()
+
+        return when_released
+
+    monkeypatch.setattr(physics.score_player, "_planner", held)
+    physics.score_player.release = released  # type: ignore[attr-defined]
     yield physics
+    released.set()
     physics.close()
 
 
@@ -65,6 +83,8 @@ def test_a_short_score_late_under_load_is_planned_again_with_its_measured_time_a
     core.handle(ScoreLoad(path="short.txt"), now, "")
     assert player.score is not None and len(player.score.events) < PLAN_MEASURED_NOTES
     assert core.handle(ScoreTransport(action="play", time=0.0, position=0.0), now, "") == []  # "at once"
+    assert player.busy  # the play's plan is in flight (held)
+    player.release.set()  # type: ignore[attr-defined]
     for _ in range(1 + MAX_PLAN_RETRIES):  # the first plan, then each retry
         assert player.wait(60.0)
         plan_clock.now += PLAN_TOOK_S  # the plan took that long, and so much rig time went by
