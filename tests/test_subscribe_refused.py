@@ -70,18 +70,26 @@ def quiet_node(node_id: str = "sound-1") -> Node:
                                             "clock_master": "self"}))
 
 
+async def started_with_a_full_table() -> tuple[Node, asyncio.Task[None], str, UdpEndpoint]:
+    """A running quiet node whose subscription table (one place) a first client has filled, its refusal clock
+    stopped at 100 s (every refusal within one interval, however slow this machine): (node, its task, its address,
+    the first client)."""
+    node = quiet_node()
+    node.subscriptions.max_subscribers = 1
+    node.subscriptions.clock = lambda: 100.0
+    task = asyncio.ensure_future(node.run())
+    await wait_for(lambda: node.endpoint is not None)
+    assert node.endpoint is not None
+    target = node.endpoint.local_address
+    first = await UdpEndpoint.open()
+    first.send(Subscribe(pattern="/batteur/impact", duration_s=60.0), target)
+    await wait_for(lambda: bool(node.subscriptions.active))
+    return node, task, target, first
+
+
 def test_a_node_answers_a_refused_subscribe_once_a_second_however_many_it_gets() -> None:
     async def main() -> None:
-        node = quiet_node()
-        node.subscriptions.max_subscribers = 1
-        node.subscriptions.clock = lambda: 100.0  # the flood arrives within one second, however slow this machine
-        task = asyncio.ensure_future(node.run())
-        await wait_for(lambda: node.endpoint is not None)
-        assert node.endpoint is not None
-        target = node.endpoint.local_address
-        first = await UdpEndpoint.open()
-        first.send(Subscribe(pattern="/batteur/impact", duration_s=60.0), target)
-        await wait_for(lambda: bool(node.subscriptions.active))
+        node, task, target, first = await started_with_a_full_table()  # the flood arrives within one second
         me = await UdpEndpoint.open()
         got: list[tuple[OscMessage, str]] = []
         me.set_handler(lambda m, s: got.append((m, s)))
@@ -205,16 +213,7 @@ def test_refused_subscriptions_are_warnings_a_few_at_most_and_counted_in_health(
         caplog: pytest.LogCaptureFixture) -> None:
     """A bad pattern or a full table is the client's mistake: it was logged at ERROR and not counted."""
     async def main() -> None:
-        node = quiet_node()
-        node.subscriptions.max_subscribers = 1
-        node.subscriptions.clock = lambda: 100.0  # one log interval, however slow this machine
-        task = asyncio.ensure_future(node.run())
-        await wait_for(lambda: node.endpoint is not None)
-        assert node.endpoint is not None
-        target = node.endpoint.local_address
-        client = await UdpEndpoint.open()
-        client.send(Subscribe(pattern="/batteur/impact", duration_s=60.0), target)
-        await wait_for(lambda: bool(node.subscriptions.active))
+        node, task, target, client = await started_with_a_full_table()  # one log interval
         for k in range(30):
             pattern = "/batteur/[" if k % 2 else f"/batteur/x{k}"  # a bad pattern, or a full table
             client.send(Subscribe(pattern=pattern, duration_s=10.0), target)
