@@ -22,9 +22,10 @@ import time
 from collections.abc import Mapping
 from contextvars import ContextVar
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from types import UnionType
+from typing import Annotated, Any, Literal, Union, get_args, get_origin
 
-from pydantic import Field, ValidationError, field_validator, model_validator
+from pydantic import Field, ValidationError, ValidationInfo, field_validator, model_validator
 from pydantic_settings import (
     BaseSettings,
     InitSettingsSource,
@@ -84,6 +85,19 @@ def is_loopback(host: str) -> bool:
         return False
 
 
+def _numeric(annotation: Any) -> bool:
+    """Whether a setting's type takes numbers only: int, float, a Literal of numbers, or one of them or None."""
+    if annotation in (int, float):
+        return True
+    args = get_args(annotation)
+    if get_origin(annotation) is Literal:
+        return all(isinstance(a, int | float) and not isinstance(a, bool) for a in args)
+    if get_origin(annotation) in (Union, UnionType):
+        kinds = [a for a in args if a is not type(None)]
+        return bool(kinds) and all(_numeric(a) for a in kinds)
+    return False
+
+
 class NodeSettings(BaseSettings):
     """Settings of one service node (all services share these; a service may add flags of its own)."""
 
@@ -137,6 +151,16 @@ class NodeSettings(BaseSettings):
     ) -> tuple[PydanticBaseSettingsSource, ...]:
         file_data = _config_file_data.get() or {}
         return (init_settings, env_settings, InitSettingsSource(settings_cls, init_kwargs=file_data))
+
+    @field_validator("*", mode="before")
+    @classmethod
+    def _no_true_or_false_for_a_number(cls, value: Any, info: ValidationInfo) -> Any:
+        """A settings file's ``channels: true`` or ``height_m: yes`` is no number, in every node's settings
+        (pydantic takes true as 1: a sound node went mono, silently)."""
+        if isinstance(value, bool) and info.field_name is not None and _numeric(
+                cls.model_fields[info.field_name].annotation):
+            raise ValueError(f"a number, not {str(value).lower()}")
+        return value
 
     @field_validator("peers", "interfaces", mode="before")
     @classmethod

@@ -461,6 +461,17 @@ def test_bad_settings_give_a_clear_message(values: dict[str, Any], needle: str) 
     assert "Traceback" not in str(info.value)
 
 
+@pytest.mark.parametrize("line", ["port: true", "latency_s: false", "max_rate: yes"])
+def test_true_or_false_in_a_config_file_is_no_number_for_any_node(tmp_path: Path, line: str) -> None:
+    """pydantic took ``port: true`` as port 1 and ``latency_s: false`` as 0 s; a switch stays a switch."""
+    config = tmp_path / "node.yaml"
+    config.write_text(line + "\n")
+    with pytest.raises(SettingsError, match="a number, not (true|false)"):
+        load_settings({}, config)
+    config.write_text("discovery: false\n")
+    assert load_settings({}, config).discovery is False
+
+
 def test_bad_config_files(tmp_path: Path) -> None:
     with pytest.raises(SettingsError, match="missing.yaml: no such file$"):  # as every input file (input_file.py)
         load_settings({}, tmp_path / "missing.yaml")

@@ -296,14 +296,6 @@ class SoundNodeSettings(NodeSettings):
         """An empty value (``BATTEUR_WAV=``, ``wav: ''``) records nothing, as no ``--wav`` (not the folder '.')."""
         return None if isinstance(value, str) and not value.strip() else value
 
-    @field_validator("block_size", "channels", "reverb", mode="before")
-    @classmethod
-    def _not_true_or_false(cls, value: Any) -> Any:
-        """A settings file's ``channels: true`` is no number (pydantic took it as 1: mono, silently)."""
-        if isinstance(value, bool):
-            raise ValueError(f"a number, not {str(value).lower()}")
-        return value
-
     @field_validator("block_size", "channels", mode="before")
     @classmethod
     def _whole(cls, value: Any) -> Any:
