@@ -938,6 +938,37 @@ def warn_unused_options(args: argparse.Namespace, parser: argparse.ArgumentParse
               f"({'it was' if one else 'each was'} rendered with the options in its report.json)", file=sys.stderr)
 
 
+def fit_kit_name(inputs: Sequence[Path], kit: str | None) -> str:
+    """The kit a calibration fitted from ``inputs`` is for: ``kit`` (``--kit``: every score is rendered on it) when
+    given, else the one kit they all play: a score's ``kit`` line (else the default kit, as ``batteur render``), a
+    render directory's (its report.json). :class:`UsageError` when they play several: a calibration's offsets and
+    velocity maps are per kit object, and one fit cannot serve kits whose objects differ."""
+    from batteur.render import DEFAULT_KIT
+    from common.score.text import MIDI_SUFFIXES, load_score_kit, read_score, score_kit
+
+    if kit is not None:
+        return kit
+    played: dict[str, tuple[str, list[str]]] = {}  # the kit's file -> its name as written, the inputs playing it
+    for path in inputs:
+        if path.is_dir():
+            name = read_report(path).get("kit", DEFAULT_KIT)
+            if not isinstance(name, str):  # said by the evaluation of that render
+                continue
+        else:  # a MIDI file names no kit (and is not read here)
+            score = None if path.suffix.lower() in MIDI_SUFFIXES else read_score(path)
+            name = score_kit(score) or DEFAULT_KIT
+            if name != DEFAULT_KIT:  # one it cannot load: a ScoreError naming the line, before the renders
+                load_score_kit(score, None, path, lambda kit: load_kit(kit, warn=False))
+        same = name if not Path(name).suffix else str(Path(name).expanduser().resolve())  # a name: a shipped kit
+        played.setdefault(same, (name, []))[1].append(path.name)
+    if len(played) > 1:
+        kits = "; ".join(f"{name} ({_and(paths)})" for name, paths in played.values())
+        raise UsageError(f"--fit-calibration: these inputs play {len(played)} kits, {kits}; a calibration is for one "
+                         "kit (its offsets and velocity maps are per kit object): fit each kit's apart, or give --kit "
+                         "to render every score on one")
+    return next(iter(played.values()))[0] if played else DEFAULT_KIT
+
+
 def _and(words: Sequence[str]) -> str:
     """'a, b and c'."""
     return f"{', '.join(words[:-1])} and {words[-1]}" if len(words) > 1 else words[0]
@@ -945,7 +976,7 @@ def _and(words: Sequence[str]) -> str:
 
 def _main(args: argparse.Namespace) -> int:
     from batteur.calibration import Calibration
-    from batteur.render import DEFAULT_KIT, RenderError, RenderOptions, height_of, resolve_jobs, style_from
+    from batteur.render import RenderError, RenderOptions, height_of, resolve_jobs, style_from
     from common.output_paths import check_output_dir, check_output_file
     from common.score.events import ScoreError
 
@@ -962,7 +993,7 @@ def _main(args: argparse.Namespace) -> int:
         if args.fit_calibration is not None:
             check_output_file(args.fit_calibration, "--fit-calibration")
             # read now, as the base of the fit: a bad file must not cost the renders
-            fit_kit = load_kit(args.kit or DEFAULT_KIT)
+            fit_kit = load_kit(fit_kit_name(args.scores, args.kit))
             if args.calibration is not None:
                 base_calibration = Calibration.load(args.calibration)
         grip, nuance = style_from(args)

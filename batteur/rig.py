@@ -25,8 +25,9 @@ rig itself dies, even by SIGKILL, so none is left running as an orphan.
 ``--score FILE --play-at SECONDS`` (it loads the score before it listens and
 plans it once its clock runs, so no message can be lost at start-up; the
 file's directory becomes its score library, so the Pd panel can load it again
-by name). Rig time 0 is ``--start-delay`` seconds after launch; the score
-starts at rig time ``--play-at``, or, when physics is up only after it (a
+by name). Every service gets the kit of the score's ``kit`` line, or ``--kit`` when given (which wins, as
+for ``batteur render``; physics' log then says the score's line is not played). Rig time 0 is ``--start-delay``
+seconds after launch; the score starts at rig time ``--play-at``, or, when physics is up only after it (a
 loaded machine), as soon as physics can play it from its first note. The rig
 sends each service a Hello until it answers with its Health, says what it is
 waiting for every few seconds and when all are up, and stops (exit 1) naming
@@ -50,12 +51,15 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
 from batteur.errors import FAILED, UsageError, report_error
 from common.arg_types import non_negative, positive, seconds, take_negative_values, whole
 from common.input_file import file_problem
 from common.output_paths import check_output_dir, point_at_devnull
+
+if TYPE_CHECKING:
+    from common.score.events import Score
 
 ROLES = ("physics", "interaction", "sound", "graphics")
 PORT_OFFSET = {role: i for i, role in enumerate(ROLES)}
@@ -143,6 +147,8 @@ def plan_rig(opts: argparse.Namespace, epoch: float) -> list[ServicePlan]:
                 args += ["--interface", interface]
         if opts.log_level:
             args += ["--log-level", opts.log_level]
+        if getattr(opts, "kit", None):  # every service: physics builds it, interaction maps it, sound voices it
+            args += ["--kit", opts.kit]
         args += role_args(role, opts)
         plans.append(ServicePlan(role, ports[role], args))
     return plans
@@ -570,6 +576,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--score", default=None, metavar="FILE",
                         help="the drummer plays this score live (.mid or text score; 'demo': the groove of "
                         "batteur demo; default: none, the drummer idles)")
+    parser.add_argument("--kit", default=None, metavar="NAME",
+                        help="kit name or YAML/JSON file for every service (default: --score's `kit` line, as "
+                        "batteur render reads it, else the default kit)")
     parser.add_argument("--play-at", type=non_negative, default=1.0, metavar="SECONDS",
                         help="rig time at which --score starts, seconds after rig time 0 (default 1); physics up "
                         "only after it starts the score as soon as it can, from its first note")
@@ -585,11 +594,11 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def check_score(opts: argparse.Namespace) -> None:
+def check_score(opts: argparse.Namespace) -> Score | None:
     """Raise ValueError for a --score the rig cannot play (missing, broken or empty file, strike scene, no
-    physics)."""
+    physics); the score read (None: no --score)."""
     if opts.score is None:
-        return
+        return None
     if opts.strike_period:
         raise UsageError("--score and --strike-period exclude each other (the drummer or the strike scene)")
     roles = [r.strip() for r in opts.services.split(",")]
@@ -601,8 +610,41 @@ def check_score(opts: argparse.Namespace) -> None:
     problem = file_problem(Path(opts.score), SCORE_FILE)  # a folder, a device, a pipe: said, never opened
     if problem is not None:
         raise ValueError(f"--score {opts.score}: {problem}")
-    if not read_score(opts.score).events:  # ScoreError (a ValueError) for a broken file, before any service starts
+    score = read_score(opts.score)  # ScoreError (a ValueError) for a broken file, before any service starts
+    if not score.events:
         raise ValueError(f"--score {opts.score}: no drum events to play")
+    return score
+
+
+def rig_kit(opts: argparse.Namespace, score: Score | None) -> str | None:
+    """The kit every service starts with, as ``batteur render`` chooses it: ``--kit`` when given (the score's
+    ``kit`` line is then not played; physics' log says so), else the ``kit`` line of ``score`` (a kit file's path
+    taken from the score's folder, resolved), else None: the services' own default, the default kit. Raises
+    ValueError for a kit that cannot be loaded (a ScoreError naming the line for the score's), before any service
+    starts (each would stop on it)."""
+    from common.kit import load_kit
+    from common.score.events import ScoreError
+    from common.score.text import load_score_kit, score_kit
+
+    kit = opts.kit or score_kit(score)
+    if kit is None:
+        return None
+    try:
+        load_score_kit(score, opts.kit, opts.score, lambda name: load_kit(name, warn=False))
+    except (FileNotFoundError, ValueError) as exc:  # --kit's: said as the option's
+        if isinstance(exc, ScoreError):
+            raise
+        raise ValueError(f"--kit {opts.kit}: {exc}") from None
+    if opts.kit is None and Path(kit).suffix:  # the score's kit file: the services' working folder may differ
+        return str(Path(kit).resolve())
+    return str(kit)
+
+
+def plan_services(opts: argparse.Namespace, epoch: float) -> list[ServicePlan]:
+    """:func:`plan_rig` once ``--score`` is checked (:func:`check_score`) and the kit chosen (:func:`rig_kit`,
+    into ``opts.kit``)."""
+    opts.kit = rig_kit(opts, check_score(opts))
+    return plan_rig(opts, epoch)
 
 
 def ignored_options(opts: argparse.Namespace) -> list[str]:
@@ -747,8 +789,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             Path(opts.score).write_text(DEMO_GROOVE, encoding="utf-8")
         epoch = time.time() + opts.start_delay
         try:
-            check_score(opts)
-            plans = plan_rig(opts, epoch)
+            plans = plan_services(opts, epoch)
             check_record(opts)
             check_ports(plans, opts.host, opts.http_port)
             make_record_dir(opts)  # last: a refused option leaves no folder behind

@@ -1,6 +1,8 @@
 """Offline video speed: frames rendered per second at 640x360 (TinyRenderer, CPU), with and without encoding.
 
-Prints figures; asserts nothing. Short by default (``--seconds 2``). With
+Prints figures; asserts nothing. Short by default (``--seconds 2``). The real-time factor is seconds of video
+per second of wall time, as every bench's: above 1 is faster than real time (until 7 Dec it printed the inverse,
+"x real time" lower is faster). With
 ``--score FILE`` it also times ``batteur render FILE --video`` (physics' 57-DOF
 drummer and the kit; the video part only, from report.json).
 
@@ -83,7 +85,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     print(f"  render only (TinyRenderer):  {frames / render_s:7.1f} frames/s  "
           f"({1000 * render_s / frames:.1f} ms/frame)")
     print(f"  render + H.264/AAC encode:   {info.frames / video_s:7.1f} frames/s  "
-          f"({video_s / args.seconds:.2f} x real time, {size / 1024:.0f} KiB)")
+          f"(real-time factor {args.seconds / video_s:.2f}x, {size / 1024:.0f} KiB)")
     if args.score is not None:
         from batteur import render
 
@@ -96,7 +98,7 @@ def main(argv: Sequence[str] | None = None) -> None:
             video = json.loads((Path(tmp) / "report.json").read_text())["video"]
         print(f"batteur render {args.score.name} --video (physics' drummer): {video['frames']} frames in "
               f"{video['wall_time_s']:.2f} s = {video['frames'] / video['wall_time_s']:.1f} frames/s "
-              f"(render + encode, {video['wall_time_s'] / video['duration_s']:.2f} x real time)")
+              f"(render + encode, real-time factor {video['duration_s'] / video['wall_time_s']:.2f}x)")
 
 
 if __name__ == "__main__":

@@ -236,6 +236,31 @@ def _size(cells: int, bars: int) -> str:
     return f"{cells} cell{'s' * (cells != 1)} in {bars} bar{'s' * (bars != 1)}"
 
 
+CELLS_A_BAR_DOC = "docs/score-format.md, 'Cells a bar'"
+"""Where the rule of :func:`odd_cells_a_bar` is written, for its warning."""
+
+
+def odd_cells_a_bar(cells: int, notes: float) -> bool:
+    """Whether ``cells`` cells a bar are an unlikely split of a bar of ``notes`` notes of the meter (``meter N/D``:
+    N), likely a typo (9 cells in 4/4), though played as written. A count is likely when every note of the meter
+    gets the same whole number of cells or every cell the same whole number of notes (a multiple or a divisor of
+    N: 8, 16, 12 or 20 in 4/4), or 2, 3 or 4 times such a count (duplets, triplets, quadruplets over the bar or a
+    part of it: 3 or 6 in 4/4, 2 or 4 in 3/4), or, in a compound meter (N a multiple of 3 above 3: 6/8, 9/8,
+    12/8), when every beat of three notes gets the same number of cells (10 in 6/8). A fractional N counts the
+    notes of half (a quarter, ...) its D (2.5/4: 5 eighths); one that stays fractional is never odd.
+    docs/score-format.md, 'Cells a bar'."""
+    for _ in range(6):
+        if notes == int(notes):
+            break
+        notes *= 2
+    else:
+        return False
+    n = int(notes)
+    if any(cells % k == 0 and (cells // k % n == 0 or n % (cells // k) == 0) for k in (1, 2, 3, 4)):
+        return False
+    return not (n % 3 == 0 and n > 3 and cells % (n // 3) == 0)
+
+
 def _finite(value: str, what: str, lineno: int) -> float:
     """A number of a directive: finite (float() reads 'nan' and 'inf')."""
     number = float(value)
@@ -294,6 +319,7 @@ def parse_text(text: str, source: str = "text") -> TextScore:
     """Parse the plain-text score format into a score (seconds, velocities in [0, 1])."""
     tempo = _Tempo()
     beats_per_bar = 4.0
+    meter = (4.0, "4/4")  # N, and the meter as written, for a warning about the cells of a bar
     position = 0.0  # beats
     last_note = 0.0  # the latest beat an `at` line placed a note on
     last_note_line = 0  # and its line
@@ -362,6 +388,10 @@ def parse_text(text: str, source: str = "text") -> TextScore:
         if sticking is not None:
             _warn_foot_sticking(sticking, grid, marks["ST"][0][2], warnings)
         check_until(position + n_bars * beats_per_bar, notes, block[0][0])
+        cells_a_bar = n_cells // n_bars
+        if odd_cells_a_bar(cells_a_bar, meter[0]):  # played as written: tuplets are legitimate, typos likelier
+            warnings.append(f"line {block[0][0]}: {cells_a_bar} cells a bar in {meter[1]}: not an even split of its "
+                            f"{meter[0]:g} notes, played as {cells_a_bar} equal cells; a typo? ({CELLS_A_BAR_DOC})")
         block_events: list[DrumEvent] = []
         for name, rows in grid.items():
             ev = event_type(name)
@@ -447,6 +477,7 @@ def parse_text(text: str, source: str = "text") -> TextScore:
                 # N notes of 1/D: N x 4/D beats (quarter notes), as a MIDI file's time signature; D was ignored,
                 # 6/8 bars were 6 beats, their eighths as long as quarters
                 beats_per_bar = count * 4 / int(unit)
+                meter = (count, f"{num.strip()}/{unit}")
             elif word == "repeat":
                 count = int(rest)
                 if count < 1 or not last_block_beats:
