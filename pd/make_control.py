@@ -48,7 +48,7 @@ from common.messages.sound import (  # noqa: E402
     SoundRejected,
     SoundTension,
 )
-from services.graphics.camera import default_camera  # noqa: E402
+from services.graphics.camera import PRESETS, camera_for, default_camera  # noqa: E402
 
 
 def _master_defaults() -> tuple[float, float]:
@@ -536,6 +536,21 @@ CAMERA_DEFAULTS = {"azimuth": _DEFAULT_CAMERA["azimuth_deg"], "elevation": _DEFA
 preset), so a slider moved first (sent as ``free`` with every value so far) keeps the framing the page had."""
 
 
+def _preset_numbers() -> dict[str, tuple[float, ...]]:
+    """Each named preset's numbers in the camera pack's order (azimuth, elevation, distance, target x y z), as the
+    view applies them (services/graphics/camera.py; the orbit preset's start): choosing a preset puts them in the
+    pack and the sliders, so a slider moved next starts from the view the preset shows, not from the last free one."""
+    numbers: dict[str, tuple[float, ...]] = {}
+    for name in PRESETS:
+        cam = camera_for(name, 0.0, 0.0, 1.0, (0.0, 0.0, 0.0))
+        numbers[name] = (round(cam["azimuth_deg"], 2), round(cam["elevation_deg"], 2), round(cam["distance"], 3),
+                         *(round(v, 3) for v in cam["target"]))
+    return numbers
+
+
+PRESET_NUMBERS = _preset_numbers()
+
+
 def _plot_defaults() -> dict[str, float]:
     """The view's tip-height plot at start (services/graphics/core.py): window s, lowest and highest height m."""
     from services.graphics.core import ViewSettings
@@ -554,7 +569,17 @@ def graphics_section(p: Patch, x: int, y: int, load: int) -> None:
     # camera: a preset, or free with the orbit angles, distance and target
     preset = choices(p, x, y + 25, "camera preset", CAMERA_PRESETS, "bp-camera")
     cam = p.obj(x + 300, y + 470, "pack s " + " ".join(f"{v:g}" for v in CAMERA_DEFAULTS.values()))
-    p.connect(preset, 0, cam, 0)
+    # a named preset first puts its own numbers in the pack and shows them (set: nothing sent), then is sent
+    chosen = p.obj(x + 150, y + 440, "t s s")
+    p.connect(preset, 0, chosen, 0)
+    p.connect(chosen, 0, cam, 0)
+    pick = p.obj(x, y + 500, "sel " + " ".join(PRESET_NUMBERS))
+    p.connect(chosen, 1, pick, 0)
+    numbers = p.obj(x, y + 660, "unpack f f f f f f")
+    for k, values in enumerate(PRESET_NUMBERS.values()):
+        m = p.msg(x + 40 * k, y + 530 + 25 * k, " ".join(f"{v:g}" for v in values))
+        p.connect(pick, k, m, 0)
+        p.connect(m, 0, numbers, 0)
     free = p.msg(x + 300, y + 440, "symbol free")
     p.connect(free, 0, cam, 0)
     rows = [("azimuth deg (-180..180)", -180, 180, False), ("elevation deg (-10..89)", -10, 89, False),
@@ -562,12 +587,17 @@ def graphics_section(p: Patch, x: int, y: int, load: int) -> None:
             ("target y m (-2..2)", -2, 2, False), ("target z m (0..2)", 0, 2, False)]
     for k, ((label, lo, hi, log), name) in enumerate(zip(rows, CAMERA_DEFAULTS, strict=True)):
         col, row = k % 2, k // 2
-        value = slider(p, x + 300 * col, y + 120 + 60 * row, label, lo, hi, log, f"bp-{name}",
-                       shows=(load, CAMERA_DEFAULTS[name]))
+        value, shown = slider_boxes(p, x + 300 * col, y + 120 + 60 * row, label, lo, hi, log, f"bp-{name}",
+                                    shows=(load, CAMERA_DEFAULTS[name]))
         order = p.obj(x + 300 * col + 270, y + 142 + 60 * row, "t b f")  # the value first, then send as free
         p.connect(value, 0, order, 0)
         p.connect(order, 1, cam, k + 1)
         p.connect(order, 0, free, 0)
+        show = p.msg(x + 300 * col + 215, y + 160 + 60 * row, "set $1")  # a preset's number, shown
+        p.connect(numbers, k, cam, k + 1)
+        p.connect(numbers, k, show, 0)
+        for box in shown:
+            p.connect(show, 0, box, 0)
     p.connect(cam, 0, sender(p, x + 300, y + 500, GraphicsCamera, "graphics", "sffffff"), 0)
     # layers: one toggle each, shown at load (the view starts with everything drawn)
     layers: tuple[str, ...] = get_args(Layer)

@@ -134,10 +134,11 @@ def test_control_panel_drives_the_graphics_view() -> None:
         assert pd.errors() == [], "\n".join(pd.lines)
         assert stats.dropped_total == 0, stats.drops_by_reason()  # every message decoded and validated
         cams = graphics.of(GraphicsCamera)
-        # the preset, then each slider moved sends the camera as "free" with every value so far
-        assert cams[0].preset == "side"
+        # the preset with its own numbers, then each slider moved sends the camera as "free" with every value so
+        # far, starting from the preset's (side: elevation 12, not the front's 18)
+        assert (cams[0].preset, cams[0].azimuth_deg, cams[0].elevation_deg) == ("side", 90, pytest.approx(12))
         assert cams[-1].preset == "free" and cams[-1].azimuth_deg == pytest.approx(45, abs=1e-4)
-        assert cams[-1].distance == pytest.approx(5, rel=1e-4) and cams[-1].elevation_deg == pytest.approx(18)
+        assert cams[-1].distance == pytest.approx(5, rel=1e-4) and cams[-1].elevation_deg == pytest.approx(12)
         assert (cams[-1].target_x, cams[-1].target_y, cams[-1].target_z) == pytest.approx((0, 0.35, 0.75))
         view = graphics.core.view
         assert view.camera["preset"] == "free" and view.camera["distance"] == pytest.approx(5, rel=1e-4)

@@ -162,6 +162,47 @@ def test_malformed_impacts_are_refused_counted_and_the_client_keeps_playing(tmp_
     assert np.all(np.isfinite(audio)) and np.max(np.abs(audio)) < 0.99  # nothing wild played at full level
 
 
+def _bundle(*messages: bytes) -> bytes:
+    """An OSC bundle (timetag 1: at once) holding ``messages``."""
+    return b"#bundle\0" + b"\0" * 7 + b"\1" + b"".join(len(m).to_bytes(4, "big") + m for m in messages)
+
+
+NOT_OSC: list[tuple[bytes, str]] = [
+    (b"snare 1 2;\n", "datagram of 11 bytes is not OSC: its first byte 115 is not a slash"),
+    (b"\n", "datagram of 1 bytes is not OSC: its first byte 10 is not a slash"),
+    (b"\xff" * 3000, "datagram of 3000 bytes is not OSC: its first byte 255 is not a slash"),
+    (b"/batteur/impact\0,f\0\0", "datagram of 20 bytes is not an OSC message Pd can read"),  # cut short
+    (b"/", "datagram of 1 bytes is not an OSC message Pd can read"),
+    (b"#bundle\0\0", "datagram of 9 bytes is not an OSC message Pd can read"),
+    (b"#bundleX" + b"\0" * 8, "datagram of 16 bytes is not an OSC message Pd can read"),  # Pd says nothing
+]
+
+
+def test_datagrams_that_are_not_osc_are_refused_counted_and_the_client_keeps_playing(tmp_path: Path) -> None:
+    """Packet-level garbage (text, binary, an OSC message cut short, a broken bundle) reaches no voice: Pd's
+    [oscparse] prints its own error and gives nothing; the client counts each as ``batteur-bad`` with its size
+    and why, in the same running count as a malformed impact, and plays on. A valid bundle plays what it holds;
+    an empty bundle is valid OSC with nothing in it, not counted."""
+    require_pd()
+    with sound_client(tmp_path) as client:
+        client.send(encode_raw("/batteur/impact", [7]))  # a malformed impact first: the counts run on from it
+        for k, (data, _) in enumerate(NOT_OSC):
+            client.send(data)
+            client.send(_impact(1.0 + k, "snare"))
+        client.send(_bundle())
+        client.send(_bundle(_impact(10.0, "kick"), _impact(11.0, "ride")))
+        client.sync()
+        assert client.strikes() == [("snare", 1.0 + k) for k in range(len(NOT_OSC))] + [("kick", 10.0),
+                                                                                         ("ride", 11.0)]
+        bad = client.bad()
+        assert [int(b[0]) for b in bad] == list(range(1, len(NOT_OSC) + 2)), bad
+        assert bad[0][1] == "/batteur/impact"
+        for (_, reason), printed in zip(NOT_OSC, bad[1:], strict=True):
+            assert " ".join(printed[1:]).startswith(reason), printed
+        # Pd's own errors, and no other
+        assert client.pd.errors() and all("oscparse" in e for e in client.pd.errors()), client.pd.errors()
+
+
 def test_bad_port_messages_leave_the_client_listening(tmp_path: Path) -> None:
     """/pd/port with no number, 0, 70000, 9103.5 or a word must not move (or close) the client's socket."""
     require_pd()

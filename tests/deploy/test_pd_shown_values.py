@@ -145,14 +145,18 @@ def _probed(tmp_path: Path) -> tuple[Path, list[Box], list[str]]:
     return panel, list(boxes.values()), bangs
 
 
-def _shown(tmp_path: Path, chosen: tuple[str, ...] = ()) -> tuple[list[Box], list[dict[int, float]]]:
-    """The panel's boxes and what each shows (by index): at load, then after choosing each instrument of
-    ``chosen`` in turn."""
+Shown = tuple[list[Box], list[dict[int, float]]]
+"""The panel's boxes, and what each shows (by index) after each round."""
+
+
+def _shown(tmp_path: Path, chosen: tuple[str, ...] = (), receive: str = "bp-instrument") -> Shown:
+    """The panel's boxes and what each shows (by index): at load, then after choosing each of ``chosen`` in turn
+    (an instrument, or with ``receive="bp-camera"`` a camera preset)."""
     require_pd()
     panel, boxes, bangs = _probed(tmp_path)
     sends = [*bangs]
     for name in chosen:
-        sends += [f"bp-instrument symbol {name}", *bangs]
+        sends += [f"{receive} symbol {name}", *bangs]
     rounds = 1 + len(chosen)
     pd = PdProcess(panel, sends=sends, extra=["-open", str(tmp_path / "probe.pd")])
     try:
@@ -240,3 +244,24 @@ def test_a_value_sent_for_an_instrument_is_shown_again_when_it_is_chosen_again()
     snare = _instrument_values("snare")["bp-tension"]
     assert _sent_tension(sends, 5) == [("kick", 800), ("crash", 500), ("snare", pytest.approx(snare, rel=1e-4)),
                                        ("kick", 800), ("crash", 0)]
+
+
+PRESETS_CHOSEN = ("side", "drummer", "top", "orbit", "front")
+
+
+def test_choosing_a_camera_preset_shows_its_numbers_in_the_camera_sliders(tmp_path: Path) -> None:
+    """A preset puts its own numbers (services/graphics/camera.py, as the view applies them) in the camera sliders
+    and the pack, so a slider moved next starts from the view the preset shows. The sliders used to keep the last
+    free camera's numbers: after ``side`` (azimuth 90, elevation 12) moving the distance turned the view to the
+    front at 18 degrees."""
+    from services.graphics.camera import camera_for
+
+    boxes, shown = _shown(tmp_path, PRESETS_CHOSEN, receive="bp-camera")
+    for name, values in zip(PRESETS_CHOSEN, shown[1:], strict=True):
+        cam = camera_for(name, 0.0, 0.0, 1.0, (0.0, 0.0, 0.0))  # type: ignore[arg-type]
+        expected = {"bp-azimuth": cam["azimuth_deg"], "bp-elevation": cam["elevation_deg"],
+                    "bp-distance": cam["distance"], "bp-target-x": cam["target"][0],
+                    "bp-target-y": cam["target"][1], "bp-target-z": cam["target"][2]}
+        wrong = _wrong(boxes, values, {k: round(v, 2 if k in ("bp-azimuth", "bp-elevation") else 3)
+                                       for k, v in expected.items()})
+        assert wrong == {}, f"{name}: (shown, the preset's) of each camera slider that shows another value: {wrong}"

@@ -89,3 +89,69 @@ def test_render_patch_check_says_whether_a_picture_is_stale(tmp_path: Path) -> N
     stale = subprocess.run([sys.executable, script, "--check", str(patch), str(picture)], capture_output=True,
                            text=True, check=False)
     assert stale.returncode == 1 and "stale" in stale.stderr, stale.stdout + stale.stderr
+
+
+VOICE_PATCH = """#N canvas 0 0 600 400 12;
+#X obj 10 10 loadbang;
+#X obj 10 40 t b b b;
+#X msg 300 70 bang;
+#X msg 100 100 5 0 3 1 \\, 5 0 3 1 \\, 6 0 3 2;
+#X obj 100 130 batteur-voice snare 190 120 0.8 180 1500 1.5;
+#X obj 300 160 catch~ batteur-out;
+#X obj 300 200 tabwrite~ voicebuf;
+#X obj 10 160 del 500;
+#X obj 10 250 array max voicebuf;
+#X obj 10 280 print peak;
+#X msg 10 310 \\; pd quit;
+#X msg 400 70 \\; pd dsp 1;
+#X obj 300 250 table voicebuf 22050;
+#X obj 10 190 t b b;
+#X connect 0 0 1 0;
+#X connect 1 2 11 0;
+#X connect 1 1 2 0;
+#X connect 2 0 6 0;
+#X connect 1 0 3 0;
+#X connect 1 0 7 0;
+#X connect 3 0 4 0;
+#X connect 5 0 6 0;
+#X connect 7 0 13 0;
+#X connect 13 1 8 0;
+#X connect 8 0 9 0;
+#X connect 13 0 10 0;
+"""
+
+
+def test_a_voice_in_a_patch_of_ones_own_plays_into_catch_batteur_out(tmp_path: Path) -> None:
+    """docs/pd.md: ``[batteur-voice NAME ...]`` (pd/ on Pd's path) takes ``SECONDS FRACTION VELOCITY SEQ`` and plays
+    into ``[throw~ batteur-out]``: a patch with one ``[catch~ batteur-out]`` hears the strike; the same list again
+    is a copy, not played. Run with ``-batch`` (no real time); the sound goes to a table, whose peak is printed
+    (a [writesf~] take is written by a thread that Pd's quit in -batch can cut short)."""
+    patch = tmp_path / "mine.pd"
+    patch.write_text(VOICE_PATCH, encoding="utf-8")
+    pd = PdProcess(patch, extra=["-batch", "-path", str(PD_DIR)])
+    try:
+        pd.popen.wait(timeout=60)
+        pd.wait_for(lambda lines: True, timeout=1)
+    finally:
+        pd.stop()
+    assert pd.errors() == [], "\n".join(pd.lines)
+    assert pd.printed("batteur-impact") == [["snare", "5", "0", "3"], ["snare", "6", "0", "3"]], pd.lines
+    peak = pd.printed("peak")
+    assert len(peak) == 1 and 0.1 < float(peak[0][0]) < 1.0, pd.lines
+
+
+def test_a_client_that_cannot_listen_says_so_only_through_pds_error() -> None:
+    """docs/pd.md: ``batteur-listen`` says where the client asked to listen, not that it could; on a port already
+    taken Pd's ``listen failed`` error comes just before it (the client then hears nothing)."""
+    import socket
+
+    port = free_port()
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as taken:
+        taken.bind(("127.0.0.1", port))
+        pd = PdProcess(PD_DIR / "sound-client.pd", sends=[f"sc-port {port}"])
+        try:
+            pd.wait_for(lambda lines: bool(pd.printed("batteur-listen")))
+        finally:
+            pd.stop()
+    listen = next(k for k, line in enumerate(pd.lines) if line.startswith("batteur-listen"))
+    assert listen > 0 and "listen failed: Address already in use" in pd.lines[listen - 1], pd.lines
