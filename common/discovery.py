@@ -25,6 +25,7 @@ import hashlib
 import ipaddress
 import json
 import logging
+import math
 import os
 import re
 import signal
@@ -43,6 +44,7 @@ from zeroconf import (
     Zeroconf,
 )
 from zeroconf.asyncio import AsyncServiceBrowser, AsyncServiceInfo, AsyncZeroconf
+from zeroconf.const import _CLASS_IN, _TYPE_SRV
 
 from common.arg_types import count, non_negative, seconds, whole
 from common.datafile import one_line
@@ -485,6 +487,7 @@ class Discovery:
         self._networks: list[Network] = []
         self._known: set[str] = set()  # instance names the browser reports present
         self._by_name: dict[str, str] = {}  # instance name -> node id we put in the table
+        self._received_ms: dict[str, float] = {}  # node id in the table -> when its SRV record was last received
         self._silent: dict[str, float] = {}  # name of a peer dropped for not answering -> next retry (loop time)
         self._tasks: dict[str, asyncio.Task[None]] = {}
         self._warned: set[tuple[str, str, str]] = set()
@@ -685,7 +688,7 @@ class Discovery:
         info = AsyncServiceInfo(SERVICE_TYPE, name)
         zc = self.zeroconf
         if info.load_from_cache(zc):
-            self._apply(name, info)
+            self._apply(name, info, self._srv_received_ms(name))
             return
         if from_cache_only and name not in self._by_name:
             # Not a peer right now. A peer that stopped answering (stalled, unplugged) may come back
@@ -696,14 +699,25 @@ class Discovery:
             self._silent[name] = now + self.retry_interval_s
         if await info.async_request(zc, self.resolve_timeout_s * 1000, question_type=QUESTION_TYPE):
             self._silent.pop(name, None)
-            self._apply(name, info)
+            self._apply(name, info, self._srv_received_ms(name))
         elif name in self._by_name:
             self._forget(name, f"no answer within {self.resolve_timeout_s:g} s after its records expired")
             self._silent[name] = asyncio.get_running_loop().time() + self.retry_interval_s
         else:
             log.debug("discovery: %s did not resolve", name)
 
-    def _apply(self, name: str, info: AsyncServiceInfo) -> None:
+    def _srv_received_ms(self, name: str) -> float:
+        """When the SRV record of ``name`` in the cache was last received (zeroconf's clock, ms); infinity if
+        it is not there (taken as fresh)."""
+        if self._aiozc is None:
+            return math.inf
+        record = self.zeroconf.cache.get_by_details(name, _TYPE_SRV, _CLASS_IN)
+        return float(record.created) if record is not None else math.inf
+
+    def _apply(self, name: str, info: AsyncServiceInfo, received_ms: float = math.inf) -> None:
+        """Put the node ``info`` describes in the peer table (or reject it). ``received_ms``: when its records
+        were last received, to tell a live node from a crashed one whose records linger in the cache on the
+        same host:port (the fresher wins)."""
         result = peer_from_service(
             name,
             info.port,
@@ -723,11 +737,19 @@ class Discovery:
         peer = result
         if peer.node_id == self.node_id or peer.role not in self.browse_roles:
             return
+        rivals = [other for other in self.peers.all()
+                  if not other.static and other.node_id != peer.node_id and other.address == peer.address]
+        if any(self._received_ms.get(other.node_id, -math.inf) > received_ms for other in rivals):
+            # Records older than those of the node now at this address: a node that crashed there, its records
+            # still in the cache (up to ttl_s). Re-read at every sweep, they must not swap it back in.
+            log.debug("discovery: %s %s at %s:%d is stale: a node with fresher records holds that address",
+                      peer.role, peer.node_id, peer.host, peer.port)
+            return
         previous_id = self._by_name.get(name)
         if previous_id is not None and previous_id != peer.node_id:
             self._forget(name, f"replaced by node {peer.node_id}", count=False)
-        for other in self.peers.all():
-            if not other.static and other.node_id != peer.node_id and other.address == peer.address:
+        for other in rivals:
+            if other.node_id in {p.node_id for p in self.peers.all()}:
                 log.info("discovery: %s %s at %s:%d replaced by %s", other.role, other.node_id, *other.address,
                          peer.node_id)
                 self._drop_node(other.node_id)
@@ -739,6 +761,7 @@ class Discovery:
             self.stats.updated += 1
             log.info("discovery: %s %s moved to %s:%d", peer.role, peer.node_id, peer.host, peer.port)
         self._by_name[name] = peer.node_id
+        self._received_ms[peer.node_id] = received_ms
         self.peers.add(peer)
 
     def _reject(self, rejection: Rejection) -> None:
@@ -762,6 +785,7 @@ class Discovery:
         for name, known in list(self._by_name.items()):
             if known == node_id:
                 del self._by_name[name]
+        self._received_ms.pop(node_id, None)
         self.peers.remove(node_id)
 
     def _forget(self, name: str, why: str, count: bool = True) -> None:
@@ -773,6 +797,7 @@ class Discovery:
         if count:
             self.stats.lost += 1
             log.info("discovery: lost %s (%s)", node_id, why)
+        self._received_ms.pop(node_id, None)
         self.peers.remove(node_id)
 
     async def _sweep_forever(self) -> None:

@@ -168,6 +168,27 @@ def test_resolved_services_update_the_peer_table_without_network() -> None:
     assert ("added", "s1") in events and ("removed", "s1") in events and ("added", "s2") in events
 
 
+def test_a_crashed_node_in_the_cache_does_not_swap_back_its_successor_on_the_same_address() -> None:
+    """s1 crashes, s2 starts on the same host:port. Each sweep re-reads s1's unexpired records from the cache
+    (up to ttl_s after the crash): s2, whose records came later, stays. Until 7 Dec the two swapped at every
+    sweep until s1's records expired, each swap a 'found' log line and a Hello (a clock master's: an estimator
+    reset). A node whose records are the fresher again (a fixed node id started anew there) wins it back."""
+    table = PeerTable()
+    disc = Discovery("interaction", "me", 9500, None, table, ["sound"], allow_loopback=True)
+    old, new = _info("s1", 9000, ["127.0.0.1"]), _info("s2", 9000, ["127.0.0.1"])
+    disc._apply(old.name, old, received_ms=1_000.0)
+    disc._apply(new.name, new, received_ms=9_000.0)  # s2 announces itself: it replaces s1
+    events: list[tuple[str, str]] = []
+    table.listeners.append(lambda kind, peer: events.append((kind, peer.node_id)))
+    for _ in range(3):  # sweeps, from the cache, in either order
+        disc._apply(new.name, new, received_ms=9_000.0)
+        disc._apply(old.name, old, received_ms=1_000.0)
+    assert [p.node_id for p in table.for_role("sound")] == ["s2"] and events == []
+    # s1's id comes back on that address with fresh records (a node started with --node-id s1): it is the live one
+    disc._apply(old.name, old, received_ms=20_000.0)
+    assert [p.node_id for p in table.for_role("sound")] == ["s1"]
+
+
 def test_node_on_loopback_only_accepts_loopback_peers() -> None:
     table = PeerTable()
     disc = Discovery("interaction", "me", 9500, None, table, ["sound"])
@@ -282,6 +303,24 @@ def test_register_find_lose_and_find_again(netns_lab: NetnsLab) -> None:
     stats = events[-1]["stats"]
     assert stats["rejected_protocol"] == 1 and stats["lost"] == 3 and stats["found"] == 4
     print(f"crashed node dropped {lost_after_s:.1f} s after the kill (TTL 2 s, resolve timeout 1 s)")
+
+
+@pytest.mark.netns
+def test_a_node_started_on_the_address_of_a_crashed_one_stays_its_peer(netns_lab: NetnsLab) -> None:
+    """A sound node crashes and a new one (new node id) takes its port, as a container restarted by compose
+    does. The dead node's records stay in the observer's cache for their 30 s TTL, and the observer re-reads
+    them at every check (0.5 s here): the dead node must not come back. Until 7 Dec the two swapped at each
+    check until those records expired."""
+    ns = netns_lab.namespace("swap")
+    b = run_node(ns, "interaction", "inter-w", 9100, "--browse", "sound")
+    dead = run_node(ns, "sound", "snd-dead", 9000)  # the default 30 s TTL
+    b.expect(is_event("added", node_id="snd-dead"), START_TIMEOUT_S)
+    dead.kill()
+    run_node(ns, "sound", "snd-live", 9000)
+    b.expect(is_event("added", node_id="snd-live"), START_TIMEOUT_S)
+    time.sleep(5.0)  # ten checks of the cache, the dead node's records still in it
+    added = [e["peer"]["node_id"] for e in b.events() if e.get("event") == "added"]
+    assert added == ["snd-dead", "snd-live"], b.describe("the dead node came back")
 
 
 @pytest.mark.netns

@@ -66,3 +66,29 @@ def test_ls_help_says_what_the_json_adds(capsys: pytest.CaptureFixture[str]) -> 
         ls.main(["--help"])
     text = " ".join(capsys.readouterr().out.split())
     assert "dropped_range" in text and "rig_time_s" in text
+
+
+def _browsed_interfaces(monkeypatch: pytest.MonkeyPatch, argv: list[str]) -> list[str] | None:
+    """The interfaces ``batteur ls ARGV`` browses on (no network: the browse is replaced, and finds nothing)."""
+    seen: list[list[str] | None] = []
+
+    async def find_targets(nodes: object, timeout_s: float, interfaces: list[str] | None) -> list[object]:
+        seen.append(list(interfaces) if interfaces else None)
+        return []
+
+    monkeypatch.setattr(ls, "find_targets", find_targets)
+    assert ls.main(argv) == 1  # no nodes found
+    return seen[0]
+
+
+def test_ls_in_a_container_browses_where_its_nodes_announce(monkeypatch: pytest.MonkeyPatch,
+                                                           capsys: pytest.CaptureFixture[str]) -> None:
+    """`docker compose exec graphics batteur ls`: the container's BATTEUR_INTERFACES (eth0, compose.yaml) is where
+    the rig's nodes announce; until 7 Dec ls browsed loopback there and listed the one node of that container
+    (on its eth0 address, heard through the shared mDNS socket), as if the other three were down."""
+    monkeypatch.setenv("BATTEUR_INTERFACES", "eth0, 10.0.0.7")
+    assert _browsed_interfaces(monkeypatch, []) == ["eth0", "10.0.0.7"]
+    assert _browsed_interfaces(monkeypatch, ["--interface", "lo"]) == ["lo"]  # the flag wins
+    assert "BATTEUR_INTERFACES" in capsys.readouterr().err  # the error names where it looked
+    monkeypatch.delenv("BATTEUR_INTERFACES")
+    assert _browsed_interfaces(monkeypatch, []) is None  # loopback, as before

@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import json
+import os
 from collections.abc import Sequence
 
 from batteur.errors import report_error
@@ -27,8 +28,26 @@ the rest of the Health: the drops by reason (dropped_malformed, dropped_unknown,
 dropped_range, dropped_other) and rig_time_s, the node's rig time when it answered (seconds:
 what a timed message such as /batteur/impact is stamped with).
 
+Browses on --interface, else on the interfaces in BATTEUR_INTERFACES (where the nodes of a
+compose container announce: `docker compose exec graphics batteur ls` lists the rig), else on
+loopback.
+
 Exit status: 0 when every node listed answered, 1 when one did not (or none was found),
 2 on bad arguments; so `batteur ls --node 127.0.0.1:9103` is a healthcheck."""
+
+INTERFACES_ENV = "BATTEUR_INTERFACES"
+"""The nodes' own setting (docs/runtime.md): where this machine's (or container's) nodes run mDNS."""
+
+
+def browse_interfaces(given: Sequence[str]) -> tuple[list[str], str]:
+    """The interfaces to browse on and where they come from (for messages): ``--interface``, else
+    BATTEUR_INTERFACES (comma-separated), else none (loopback)."""
+    if given:
+        return list(given), "--interface"
+    from_env = [part.strip() for part in os.environ.get(INTERFACES_ENV, "").split(",") if part.strip()]
+    if from_env:
+        return from_env, INTERFACES_ENV
+    return [], ""
 
 
 async def query_health(targets: Sequence[Target], timeout_s: float) -> dict[str, Health]:
@@ -107,10 +126,13 @@ def table(rows: Sequence[dict[str, object]]) -> list[str]:
 
 
 async def _run(opts: argparse.Namespace) -> int:
-    targets = await find_targets(opts.node, opts.browse, opts.interface)
+    interfaces, source = browse_interfaces(opts.interface)
+    targets = await find_targets(opts.node, opts.browse, interfaces)
     if not targets:
-        return report_error("batteur ls", f"no nodes found within {opts.browse:g} s (start one, or give --node "
-                            "HOST:PORT)")
+        where = (f"on {', '.join(interfaces)} ({source})" if interfaces
+                 else "on loopback (--interface eth0, say, for the nodes of a LAN or a compose network)")
+        return report_error("batteur ls", f"no nodes found {where} within {opts.browse:g} s (start one, or give "
+                            "--node HOST:PORT)")
     answers = await query_health(targets, opts.timeout)
     rows = [_row(t, h) for t, h in zip(targets, match_answers(targets, answers), strict=True)]
     for line in [json.dumps(rows, indent=2)] if opts.json else table(rows):
@@ -124,7 +146,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--node", action="append", default=[], metavar="HOST:PORT",
                         help="ask this node instead of browsing (repeatable)")
     parser.add_argument("--interface", action="append", default=[],
-                        help="interface to browse on: address, name or 'all' (repeatable; default loopback)")
+                        help="interface to browse on: address, name or 'all' (repeatable; default: "
+                        "BATTEUR_INTERFACES if set, else loopback)")
     parser.add_argument("--browse", type=seconds, default=3.0,
                         help="seconds to browse for nodes (default 3; less than 2 can miss nodes)")
     parser.add_argument("--timeout", type=seconds, default=2.0, help="seconds to wait for health answers (default 2)")

@@ -94,6 +94,17 @@ def test_compose_services_and_their_settings() -> None:
     assert custom["sound"]["command"][-1] == "auto"
 
 
+def test_the_mdns_interface_can_be_set_like_the_other_variables() -> None:
+    """With host networking (docs/deployment.md, a second machine) the nodes must run mDNS on the host's LAN
+    interface: BATTEUR_INTERFACES in .env or the shell reaches every node (until 7 Dec compose.yaml fixed eth0,
+    and the variable the docs named did nothing: every node exited, eth0 being no interface of the host)."""
+    services = compose_config({"BATTEUR_INTERFACES": "eno1"})["services"]
+    assert {services[name]["environment"]["BATTEUR_INTERFACES"]
+            for name in ("physics", "interaction", "sound", "graphics")} == {"eno1"}
+    default = compose_config()["services"]
+    assert default["sound"]["environment"]["BATTEUR_INTERFACES"] == "eth0"
+
+
 @pytest.mark.parametrize("dockerfile", DOCKERFILES, ids=lambda p: p.name)
 def test_dockerfiles_pass_hadolint(dockerfile: Path) -> None:
     exe = shutil.which("hadolint")
