@@ -33,7 +33,7 @@ from common.messages.graphics import (  # noqa: E402
     GraphicsTrails,
     Layer,
 )
-from common.messages.interaction import InteractionError  # noqa: E402
+from common.messages.interaction import InteractionError, RouteRemove, RouteSet  # noqa: E402
 from common.messages.physics import PhysicsControlMode, PhysicsGrip, PhysicsRejected, PhysicsReset  # noqa: E402
 from common.messages.score import GestureStyle, ScoreLoad, ScoreTransport, TempoScale  # noqa: E402
 from common.messages.sound import (  # noqa: E402
@@ -127,6 +127,23 @@ def instrument_starts(model: type[OscMessage]) -> dict[str, tuple[float, ...] | 
 
 
 OUT = Path(__file__).with_name("control.pd")
+SOUND_CLIENT = Path(__file__).with_name("sound-client.pd")
+
+
+def _client_port() -> int:
+    """The UDP port the Pd sound client (pd/sound-client.pd) listens on when not told otherwise: its ``[f PORT]``."""
+    import re
+
+    found = re.findall(r"^#X obj \d+ \d+ f (\d+);$", SOUND_CLIENT.read_text(encoding="utf-8"), re.MULTILINE)
+    if len(found) != 1:
+        raise SystemExit(f"{SOUND_CLIENT}: expected one [f PORT] (the port it listens on), found {found}")
+    return int(found[0])
+
+
+CLIENT_HOST = "127.0.0.1"
+"""Where the INTERACTION section's route sends impacts by default, as the interaction node sees it: this machine
+(the Pd sound client listens on loopback unless told ``sc-host``)."""
+CLIENT_PORT = _client_port()
 PORTS = {"physics": 9101, "interaction": 9102, "sound": 9103, "graphics": 9104, "score": 9101}
 """Default UDP port of each destination (compose.yaml's ports). Score messages go where the physics node's score
 player is: the score port follows the physics port until it is set on its own (``bp-port-score``)."""
@@ -468,6 +485,7 @@ def build() -> Patch:
     p.connect(t2, 0, mp, 0)
     p.connect(mp, 0, sender(p, x3 + 280, yy + 200, SoundMaster, "sound", "ff"), 0)
     graphics_section(p, 20, y2 + 190, load)
+    interaction_section(p, 900, 618, load)
     refusals(p, 995, 490, nets)
     return p
 
@@ -632,6 +650,63 @@ def graphics_section(p: Patch, x: int, y: int, load: int) -> None:
     p.connect(latency, 0, sender(p, x + 300, y + 370, GraphicsLatency, "graphics", "f"), 0)
     mode = choices(p, x, y + 320, "view", ("live", "preview"), "bp-view-mode")
     p.connect(mode, 0, sender(p, x, y + 410, GraphicsMode, "graphics", "s"), 0)
+
+
+def interaction_section(p: Patch, x: int, y: int, load: int) -> None:
+    """Route the rig's impacts to the Pd sound client (or remove that route): ``route/set HOST:PORT *`` and
+    ``route/remove HOST:PORT`` to interaction, HOST:PORT from the client boxes (defaults: this machine and the
+    port the client listens on). The boxes only choose: nothing is sent until a button is pressed. The controls
+    sit at (x, y); their wiring below and to the left, between the control mode and the transport."""
+    p.text(x, y, "INTERACTION - to the Pd sound client")
+    p.text(x, y + 25, "client host")
+    # the box shows what bp-client-host holds (typing in it sends there); "set": no output, so no loop
+    p.symbolatom(x + 95, y + 25, 14, "bp-client-host-show", "bp-client-host")
+    p.text(x, y + 50, "client port")
+    port_box = p.nbx(x + 95, y + 50, 1, 65535, 6, "bp-client-port")
+    show_at_load(p, load, x + 165, y + 50, CLIENT_PORT, (port_box,))
+    route = p.bng(x, y + 77, "bp-client-route")
+    p.text(x + 22, y + 77, "route impacts")
+    remove = p.bng(x + 135, y + 77, "bp-client-remove")
+    p.text(x + 157, y + 77, "remove route")
+    wx, wy = x - 190, y + 102  # the wiring
+    r_host = p.obj(wx, wy, "r bp-client-host")
+    show_host = p.msg(wx + 130, wy, "set $1")
+    host_shown = p.obj(wx + 190, wy, "s bp-client-host-show")
+    p.connect(r_host, 0, show_host, 0)
+    p.connect(show_host, 0, host_shown, 0)
+    at_load = p.msg(wx + 350, wy, f"set {CLIENT_HOST}")
+    p.connect(load, 0, at_load, 0)
+    p.connect(at_load, 0, host_shown, 0)
+    # HOST:PORT: the host goes into the format ("set HOST:%d"), then the port through it
+    host = p.obj(wx, wy + 25, f"symbol {CLIENT_HOST}")
+    p.connect(r_host, 0, host, 1)
+    build = p.obj(wx + 140, wy + 25, "t b b")  # the host's format first, then the port through it
+    port = p.obj(wx + 200, wy + 25, f"f {CLIENT_PORT}")
+    p.connect(port_box, 0, port, 1)
+    fmt = p.msg(wx, wy + 50, "set $1:%d")
+    p.connect(host, 0, fmt, 0)
+    target = p.obj(wx, wy + 75, f"makefilename {CLIENT_HOST}:%d")
+    p.connect(fmt, 0, target, 0)
+    p.connect(port, 0, target, 0)
+    p.connect(build, 1, host, 0)
+    p.connect(build, 0, port, 0)
+    places = ((wx + 180, wy + 100), (wx, wy + 150))
+    controls: tuple[tuple[int, type[OscMessage], str], ...] = ((route, RouteSet, "ss"), (remove, RouteRemove, "s"))
+    for k, (button, model, sends) in enumerate(controls):
+        cx = wx + 290 + 100 * k
+        order = p.obj(cx, wy + 25, "t b b")  # make HOST:PORT, then send it
+        p.connect(button, 0, order, 0)
+        p.connect(order, 1, build, 0)
+        keep = p.obj(cx, wy + 50, "symbol")
+        p.connect(target, 0, keep, 1)
+        p.connect(order, 0, keep, 0)
+        out = sender(p, *places[k], model, "interaction", sends)
+        if model is RouteSet:
+            every = p.obj(cx, wy + 75, "list append *")  # every instrument
+            p.connect(keep, 0, every, 0)
+            p.connect(every, 0, out, 0)
+        else:
+            p.connect(keep, 0, out, 0)
 
 
 REFUSALS: tuple[type[OscMessage], ...] = (PhysicsRejected, SoundRejected, InteractionError, GraphicsRejected)

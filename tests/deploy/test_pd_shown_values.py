@@ -56,11 +56,20 @@ def _tempo_at_start() -> float:
     return float(ScorePlayer(core).tempo)
 
 
+def _client_port() -> int:
+    """The port the Pd sound client listens on when not told otherwise: the [f PORT] its listen message is made from
+    (pd/sound-client.pd)."""
+    found = re.findall(r"^#X obj \d+ \d+ f (\d+);$", (PD_DIR / "sound-client.pd").read_text(encoding="utf-8"),
+                       re.MULTILINE)
+    assert len(found) == 1, found
+    return int(found[0])
+
+
 def _kept_values() -> dict[str, float]:
     """What the panel keeps at load for each control (by receive name), from the sources the services start with:
     compose.yaml's ports, the score player's tempo, the view's default camera, plot, trails and delay (the node's
     latency window), ``batteur sound``'s latency window and master, the default kit's snare (the instrument chosen
-    at load), position 0."""
+    at load), position 0, and the port the Pd sound client listens on (the INTERACTION section routes there)."""
     from common.config import NodeSettings
     from services.graphics.core import ViewSettings
     from services.graphics.node import GraphicsNodeSettings
@@ -81,6 +90,7 @@ def _kept_values() -> dict[str, float]:
         "bp-target-z": camera["target"][2], "bp-trails": view.trails,
         "bp-plot-window": view.plot["window"], "bp-plot-zmin": view.plot["z_min"], "bp-plot-zmax": view.plot["z_max"],
         "bp-view-latency": GraphicsNodeSettings.model_fields["latency_s"].default,
+        "bp-client-port": _client_port(),
     }
 
 
