@@ -21,7 +21,9 @@ the rest of the gap, counting ``overruns`` and ``skipped_steps``: the
 simulation is never silently slowed. The drummer's targets do not jump with a
 skip: they trail the rig clock by the time skipped (``target_lag``) and jump
 where no stroke is cut or jumped over and no limb's target moves, there or
-between (``DrummerScene.can_jump``), or once they trail by ``MAX_TARGET_LAG_S``.
+between (``DrummerScene.can_jump``), or once they trail by ``MAX_TARGET_LAG_S``;
+past ``MAX_TARGET_LAG_HARD_S`` even when what was placed while they trailed
+holds the lag (:meth:`PhysicsCore._jump_past_bound`).
 
 Example (offline, one process)::
 
@@ -32,13 +34,16 @@ Example (offline, one process)::
 
 from __future__ import annotations
 
+import bisect
 import logging
 import math
 import zlib
 from collections import Counter
 from collections.abc import Iterable, Sequence
+from operator import itemgetter
 from typing import TYPE_CHECKING, ClassVar, Literal, Protocol
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from common.core import Outgoing
@@ -64,7 +69,7 @@ from services.physics.contacts import ContactTracker
 from services.physics.posture import apply_posture
 from services.physics.score_player import SCORE_MESSAGES, ScorePlayer
 from services.physics.strike_scene import Strike, StrikeScene
-from services.physics.targets import TargetError
+from services.physics.targets import TargetError, Track
 from services.physics.world import World, WorldSettings
 
 if TYPE_CHECKING:
@@ -94,11 +99,18 @@ a moment the jump to it moves no limb's target (:meth:`PhysicsCore._catch_up_tar
 jump cuts no stroke and moves each target by at most ``LATE_JUMP_MAX_M`` (the strokes of the time jumped over are
 dropped whole, not cut), ..."""
 MAX_TARGET_LAG_HARD_S = 1.0
-"""... and past this, seconds, wherever the limbs are (as every skip did until 6 Dec evening)."""
+"""... and past this, seconds, wherever the limbs are (as every skip did until 6 Dec evening); a lag held by what
+was placed while the targets trailed (streamed targets, score plans) is no exception: past it the targets jump back
+to the lag of the score plans playing (at most this, since the bound held when they were placed) or to the rig
+clock, the streamed knots still queued re-timed onto the new clock (:meth:`PhysicsCore._jump_past_bound`)."""
 LATE_JUMP_MAX_M = 0.10
 """Past ``MAX_TARGET_LAG_S``: the most a limb's target may move at the jump, metres ..."""
 LATE_JUMP_MAX_SPEED_M_S = 2.0
 """... and the most its velocity may change, m/s."""
+STREAM_KEEP_SPACING = 0.5
+"""Live mode: a streamed knot placed after the lag grew is placed with the lag as it is only if that keeps at least
+this fraction of its rig-time interval to the streamed knot before it (at most twice the speed its sender asked);
+else it keeps that interval and the lag the knot before it was placed with (:meth:`PhysicsCore._stream_lag`)."""
 
 
 class PhysicsSettings(BaseModel):
@@ -214,6 +226,15 @@ class PhysicsCore:
         """(lag s, targets' clock s): streamed targets queued while the targets trailed the rig clock by that lag
         (that much earlier on their clock, to be reached at their rig times: :meth:`_handle`) play until then; the
         targets keep at least that lag until it (:meth:`_lag_floor`, as ``ScorePlayer.lag_floor`` for plans)."""
+        self._streamed: dict[str, list[tuple[float, float]]] = {}
+        """Track ("left_hand" ... or "joints") -> its streamed knots still queued, (rig time s, targets' clock s), in
+        order on both clocks: where a knot streamed after the lag grew goes (:meth:`_stream_lag`), and what a jump
+        past ``MAX_TARGET_LAG_HARD_S`` re-times (:meth:`_retime_streamed`)."""
+        self.streamed_retimed = 0
+        """Live mode: streamed knots moved onto the targets' new clock at a jump past ``MAX_TARGET_LAG_HARD_S``, to
+        be reached at their rig times still (logged) ..."""
+        self.streamed_passed = 0
+        """... and those of them whose rig time had come: behind the targets' new time, passed (logged)."""
         self._can_jump: JumpTest | None = getattr(self.scene, "can_jump", None)
         """The scene's test of whether its targets may jump between two rig times unnoticed (the drummer's); a
         scene without one (the strike scene) jumps with every skip."""
@@ -233,6 +254,7 @@ class PhysicsCore:
         self._last_skeleton = -math.inf
         self._last_skip_warning = -math.inf
         self._last_jump_warning = -math.inf
+        self._last_bound_warning = -math.inf
         self._live_started = False
         """Live mode: the loop has called :meth:`step` (its first call sets where the simulation starts)."""
         self._poses_sent = 0
@@ -273,8 +295,7 @@ class PhysicsCore:
                     self.target_lag += skip * dt
                 behind = self.settings.max_catchup_steps
                 if now - self._last_skip_warning >= 5.0:  # at most one warning per 5 s of rig time
-                    trailing = (f"; the drummer plays {self.target_lag * 1e3:.0f} ms late until its hands are still"
-                                if self.target_lag > 0.0 else "")  # not silently slowed
+                    trailing = self._trailing() if self.target_lag > 0.0 else ""  # not silently slowed
                     log.warning("physics %d steps behind the rig clock: skipped %d (%d skipped in all)%s",
                                 behind + skip, skip, self.skipped_steps, trailing)
                     self._last_skip_warning = now
@@ -337,12 +358,18 @@ class PhysicsCore:
         if isinstance(message, PhysicsReset):
             self.target_lag = 0.0  # the targets are cleared: nothing trails
             self._streamed_held = None
+            self._streamed.clear()
             self.scene.reset()
             self.score_player.reset()
             return []
         if isinstance(message, PhysicsPosture):  # graphics' pose editor: a separate handler (posture.py)
             lag = self.target_lag  # placed on the targets' clock as streamed targets are (below)
-            self._hold_streamed(lag, apply_posture(self, message, lag) - lag)
+            self._streamed_knots("joints")
+            start = max(float(message.time), self.time)  # its two knots' rig times, as apply_posture places them
+            end = apply_posture(self, message, lag)
+            self._record_streamed("joints", start - lag, start)
+            self._record_streamed("joints", end - lag, end)
+            self._hold_streamed(lag, end - lag)
             return []
         if isinstance(message, PhysicsStrike):
             if not isinstance(self.scene, StrikeScene):
@@ -360,12 +387,18 @@ class PhysicsCore:
                 raise TargetError(f"{message.ADDRESS} needs the drummer scene (this is the {self.settings.scene} "
                                   "scene)")
             return []
-        if isinstance(message, (CartesianTarget, JointTarget)) and self.target_lag > 0.0:
+        if isinstance(message, (CartesianTarget, JointTarget)):
             # the targets trail the rig clock (live, after skipped steps): queued that much earlier on their clock, a
             # streamed target is reached at its rig time, as the score player's plans and notes are, and the
-            # targets keep that lag until it is (_lag_floor)
-            lag = self.target_lag
-            handler(message, self.time, lag)
+            # targets keep that lag until it is (_lag_floor); after the lag grew, not before the knots sent for
+            # earlier rig times (_stream_lag)
+            key = message.limb if isinstance(message, CartesianTarget) else "joints"
+            lag = self._stream_lag(key, message.time)
+            if lag > 0.0:
+                handler(message, self.time, lag)
+            else:
+                handler(message, self.time)
+            self._record_streamed(key, message.time - lag, message.time)
             self._hold_streamed(lag, message.time - lag)
             return []
         handler(message, self.time)
@@ -455,6 +488,7 @@ class PhysicsCore:
         self.scene.reset()
         self.score_player.reset()
         self._streamed_held = None
+        self._streamed.clear()
         if not self.world.finite_state():
             raise RuntimeError("physics diverged and a reset did not bring the state back to finite numbers")
         return []
@@ -481,13 +515,21 @@ class PhysicsCore:
         """Live mode, once per call while the targets trail the rig clock (``target_lag`` s): jump them to it
         (``target_lag`` 0) where that goes unnoticed (:data:`MAX_TARGET_LAG_S`); ``now``: rig time, seconds. While
         score plans placed with a lag play (the score player places them that much earlier on the targets' clock, so
-        they sound on the rig's), the targets jump back only to that lag (``ScorePlayer.lag_floor``).
+        they sound on the rig's), the targets jump back only to that lag (``ScorePlayer.lag_floor``), and so for
+        streamed targets (:meth:`_lag_floor`); past :data:`MAX_TARGET_LAG_HARD_S` all the same
+        (:meth:`_jump_past_bound`).
 
         A node that falls behind skips rig time. Had the targets jumped with every skip (20-70 ms at once), a
         limb mid-stroke or mid-move would chase a target far ahead and take a short cut: on the demo's last bar
         the stick met the crash from under its edge and held the tilted plate up for seconds (the target above it
         rises with the plate's swing), or the skip jumped a downstroke and the note was lost.
         """
+        self._jump_to_floor(now)
+        if self.target_lag > MAX_TARGET_LAG_HARD_S:
+            self._jump_past_bound(now)
+
+    def _jump_to_floor(self, now: float) -> None:
+        """:meth:`_catch_up_targets` within the lag held by what was placed while the targets trailed."""
         assert self._can_jump is not None  # only such a scene's targets trail
         lag, rig = self.target_lag, self.time
         # score plans and streamed targets placed while the targets trailed are that much early on their clock (to
@@ -512,13 +554,154 @@ class PhysicsCore:
                             "between dropped (%d such jumps in all)", lag * 1e3, excess * 1e3, self.target_jumps_late)
                 self._last_jump_warning = now
 
+    def _jump_past_bound(self, now: float) -> None:
+        """The targets trail the rig clock by more than :data:`MAX_TARGET_LAG_HARD_S`, held there by what was placed
+        while they trailed (a stream of targets or of live notes holds the lag it arrived at, so it would hold it
+        for ever: each new one at the lag grown since): jump, wherever the limbs are, to the lag of the score plans
+        still playing (they keep their rig times: placed between calls, within the bound, it is at most the bound)
+        or else to the rig clock. The streamed knots still queued are re-timed onto the new clock, each to its rig
+        time (:meth:`_retime_streamed`), not jumped over nor played early; the strokes of plans placed with less
+        lag, between the two times, are dropped (as at any jump past ``MAX_TARGET_LAG_S``). Counted and logged."""
+        lag, rig = self.target_lag, self.time
+        to = min(self.score_player.lag_floor(rig - lag), lag)
+        if to >= lag:  # a score plan placed beyond the bound (only a lag set by hand): it keeps its rig times
+            return
+        ahead, passed = self._retime_streamed(rig - lag, to)
+        self.target_lag = to
+        self.target_jumps += 1
+        self.target_jumps_late += 1
+        if now - self._last_bound_warning >= 5.0:  # at most one warning per 5 s of rig time
+            log.warning("physics targets %.0f ms behind the rig clock, past the %.0f ms bound, held by targets placed "
+                        "while they trailed: jumped %.0f ms toward it (%.0f ms behind now: %s); %d streamed knots "
+                        "re-timed to their rig times, %d more passed (due already); %d such jumps in all",
+                        lag * 1e3, MAX_TARGET_LAG_HARD_S * 1e3, (lag - to) * 1e3, to * 1e3,
+                        "the lag the score plan playing was placed with" if to > 0.0 else "on it", ahead, passed,
+                        self.target_jumps_late)
+            self._last_bound_warning = now
+
+    def _trailing(self) -> str:
+        """What the skip warning says of the targets trailing the rig clock (``target_lag`` > 0): what plays late,
+        by how much, and until when (true of what is queued: what was placed while they trailed plays at its rig
+        time, less the lag grown since)."""
+        lag = self.target_lag
+        if lag > MAX_TARGET_LAG_HARD_S:
+            return (f"; the drummer's targets trail it by {lag * 1e3:.0f} ms, past the "
+                    f"{MAX_TARGET_LAG_HARD_S * 1e3:.0f} ms bound: they jump toward it now, wherever the hands are")
+        new = ("what arrives now is placed for its rig time, a streamed knot no closer than half its interval to the "
+               "one before")
+        floor = min(self._lag_floor(self.time - lag), lag)
+        if floor <= 0.0:
+            return f"; the drummer plays {lag * 1e3:.0f} ms late until its hands are still (what is queued; {new})"
+        return (f"; the drummer's targets trail it by {lag * 1e3:.0f} ms and keep {floor * 1e3:.0f} ms of it while "
+                f"what was placed with that lag plays, {(lag - floor) * 1e3:.0f} ms late (what was queued before, "
+                f"up to {lag * 1e3:.0f} ms late; {new})")
+
+    def _stream_track(self, key: str) -> Track | None:
+        """The drummer's track of streamed knots ``key`` (a limb, or "joints"), or None."""
+        if key == "joints":
+            return getattr(self.scene, "joint_track", None)
+        tracks: dict[str, Track] = getattr(self.scene, "limb_tracks", {})
+        return tracks.get(key)
+
+    def _streamed_knots(self, key: str) -> list[tuple[float, float]]:
+        """Track ``key``'s streamed knots still queued, (rig time s, targets' clock s) (:attr:`_streamed`; the one
+        in use and those after it): none once the track no longer ends with the last of them (cleared, or a plan
+        queued over them: they are no longer the stream's)."""
+        knots = self._streamed.get(key)
+        if not knots:
+            return []
+        track = self._stream_track(key)
+        if track is None or track.end_time != knots[-1][1]:
+            del self._streamed[key]
+            return []
+        used = bisect.bisect_right(knots, self.time - self.target_lag, key=itemgetter(1)) - 1
+        if used > 0:
+            del knots[:used]
+        return knots
+
+    def _record_streamed(self, key: str, time: float, rig_time: float) -> None:
+        """A knot for rig time ``rig_time`` (s) was queued at ``time`` (s, the targets' clock) on track ``key``: it
+        replaced the knots at and after that time (``Track.add``), and those for its rig time and after."""
+        knots = self._streamed.setdefault(key, [])
+        del knots[bisect.bisect_left(knots, time, key=itemgetter(1)):]
+        while knots and knots[-1][0] >= rig_time:
+            knots.pop()
+        knots.append((rig_time, time))
+
+    def _stream_lag(self, key: str, rig_time: float) -> float:
+        """The lag (s) a knot streamed for rig time ``rig_time`` (s) onto track ``key`` is queued with: the lag as it
+        is (``target_lag``), unless that puts it at or just after the knots streamed before it for earlier rig times.
+
+        A streamed knot at or before the last one queued replaces the tail from there (``Track.add``: a sender
+        re-plans so). After the lag grew by more than the interval between two knots sent, the later one landed
+        before the earlier on the targets' clock and replaced it: the stream took a short cut over the knots sent
+        for earlier rig times. A knot now replaces only the queued knots for its rig time and after, and follows
+        those before it by at least ``STREAM_KEEP_SPACING`` of their interval on the rig clock; closer, it keeps the
+        interval itself (the speeds its sender asked: a narrower one would ask them faster, a short cut in time)
+        and with it the lag of the knot before it, and the stream plays on late by the lag grown since, as a queued
+        plan does, until the targets can jump back to that lag (it holds it: :meth:`_hold_streamed`). A knot that
+        re-plans from an earlier rig time takes the place of the first knot it replaces if that is earlier."""
+        lag = self.target_lag
+        knots = self._streamed_knots(key)
+        if not knots:
+            return lag
+        k = bisect.bisect_left(knots, rig_time, key=itemgetter(0))  # knots[:k]: for earlier rig times, kept
+        time = rig_time - lag
+        if k:
+            rig_before, before = knots[k - 1]
+            if time < before + STREAM_KEEP_SPACING * (rig_time - rig_before):
+                time = before + (rig_time - rig_before)
+        if k < len(knots):
+            time = min(time, knots[k][1])
+        return rig_time - time
+
+    def _retime_streamed(self, t_from: float, lag: float) -> tuple[int, int]:
+        """Move the streamed knots queued after ``t_from`` (s, the targets' clock) to their rig times less ``lag``
+        (s, the targets' new lag), as if placed with it; returns how many were still ahead on the rig clock and how
+        many were due already (behind the targets' new time: passed). A track whose knots from there on are not all
+        the stream's (a plan queued among them) is left as it is. What was moved holds the new lag until it has
+        played (:meth:`_hold_streamed`)."""
+        ahead = passed = 0
+        until = -math.inf
+        rig = self.time
+        for key in list(self._streamed):
+            knots = self._streamed_knots(key)
+            first = bisect.bisect_right(knots, t_from, key=itemgetter(1))
+            if first == len(knots):
+                continue
+            track = self._stream_track(key)
+            assert track is not None  # _streamed_knots found it
+            times, values, velocities = track.knots(knots[first][1], track.end_time)
+            if not np.array_equal(times, [time for _, time in knots[first:]]):
+                del self._streamed[key]
+                continue
+            track.cut(knots[first][1])
+            kept = knots[:first]
+            for (rig_time, _), value, velocity in zip(knots[first:], values, velocities, strict=True):
+                time = rig_time - lag
+                if time <= track.end_time:  # placed with less lag than the new: behind the knots before, passed
+                    passed += 1
+                    continue
+                track.add(time, value, velocity)
+                kept.append((rig_time, time))
+                until = max(until, time)
+                if rig_time > rig:
+                    ahead += 1
+                else:
+                    passed += 1
+            self._streamed[key] = kept
+        self.streamed_retimed += ahead
+        self.streamed_passed += passed
+        self._streamed_held = (lag, until) if lag > 0.0 and until > -math.inf else None
+        return ahead, passed
+
     def _hold_streamed(self, lag: float, until: float) -> None:
         """Targets queued ``lag`` s early on the targets' clock (to be reached at their rig times) play until
         ``until`` (s, the targets' clock): keep that lag until then (:meth:`_lag_floor`); nothing with no lag."""
         if lag <= 0.0:
             return
-        held = self._streamed_held
-        self._streamed_held = (lag, until if held is None else max(until, held[1]))
+        held = self._streamed_held  # the most lag: targets placed with less play late by the difference, not early
+        self._streamed_held = (lag, until) if held is None else (max(lag, held[0]), max(until, held[1]))
 
     def _lag_floor(self, t: float) -> float:
         """The least lag (s) the live core's targets may jump back to at their clock's time ``t`` (s): the lag the

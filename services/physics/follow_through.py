@@ -94,6 +94,12 @@ class LimbTrack(Track):
         if self._times and self._times[-1] >= time:
             self._drop_from(bisect.bisect_left(self._times, time))
 
+    def cut(self, time: float) -> None:
+        """As :meth:`Track.cut`; the strikes at or after ``time`` seconds go with the knots."""
+        super().cut(time)
+        if self._times and self._times[-1] >= time:
+            self._drop_from(bisect.bisect_left(self._times, time))
+
     def replace_span(self, times: np.ndarray, values: np.ndarray, velocities: np.ndarray, until: float,
                      strikes: Sequence[Strike] = ()) -> None:
         """As :meth:`Track.replace_span`; the strikes from ``times[0]`` up to ``until`` seconds go with the knots

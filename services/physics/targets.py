@@ -191,6 +191,11 @@ class Track:
         self._knot_values.append(v)
         self._knot_velocities.append(d)
 
+    def cut(self, time: float) -> None:
+        """Drop the knots at and after ``time`` seconds (those a knot there would replace), keeping those before
+        (the live core moves a stream's queued knots this way: ``PhysicsCore._retime_streamed``)."""
+        self._cut(time)
+
     def check_room(self, time: float, count: int) -> None:
         """Raise :class:`TargetError` if ``count`` knots from ``time`` seconds on (replacing the knots at and after
         it, as :meth:`add` does) would queue more than ``max_knots``."""

@@ -1,0 +1,225 @@
+"""A live core whose loop falls behind has its drummer's targets trail the rig clock (``PhysicsCore.target_lag``,
+tests/physics/test_live_catch_up.py); streamed targets arriving then are placed that much earlier on the targets'
+clock and hold that lag until they have played (tests/physics/test_live_lag_placement.py). Until 7 Dec:
+
+* a stream that kept coming held the lag wherever it had grown: each target was held at the lag of its arrival, so
+  the targets never jumped back, not even past ``MAX_TARGET_LAG_HARD_S`` (1 s): a node that kept skipping trailed
+  further and further, and its warning said "the drummer plays N ms late until its hands are still" of a stream
+  that played at its rig times and hands that were never still;
+* a knot streamed after the lag grew landed earlier on the targets' clock than the knots sent before it, for
+  earlier rig times, and replaced them (``Track.add`` cuts the tail from a knot at or before the last): the stream
+  took a short cut over them.
+
+The reproduction is deterministic: a live core stepped by a clock that comes back late at every call (the core
+simulates 50 steps and skips the rest, as the node's loop does on a loaded machine), the left hand streamed at rest.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Iterator
+
+import numpy as np
+import pytest
+
+from common.kit import load_kit
+from common.messages.physics import CartesianTarget, PhysicsReset
+from common.messages.score import ScoreTransport
+from services.physics.core import MAX_TARGET_LAG_HARD_S, PhysicsCore
+from services.physics.drummer import DrummerScene
+from services.physics.follow_through import LimbTrack, Strike
+from tests.physics.test_live_lag_placement import LATE_STEPS, _trailing
+
+SWAY_M, SWAY_HZ = 0.1, 2.0
+"""The streamed hand's sway: metres either side of its rest, and how often."""
+
+
+def rest_target(scene: DrummerScene, t: float) -> CartesianTarget:
+    """The left hand's target at rest, for rig time ``t`` s."""
+    x, y, z = (float(v) for v in scene.rest_targets["left_hand"])
+    return CartesianTarget(limb="left_hand", time=t, x=x, y=y, z=z, vx=0, vy=0, vz=0)
+
+
+def swaying_target(scene: DrummerScene, t: float) -> CartesianTarget:
+    """The left hand's target at rig time ``t`` s swaying ``SWAY_M`` either side of its rest at ``SWAY_HZ`` (it
+    moves too fast for the targets to jump unnoticed: they trail from the first skip on)."""
+    x, y, z = (float(v) for v in scene.rest_targets["left_hand"])
+    w = 2 * math.pi * SWAY_HZ
+    return CartesianTarget(limb="left_hand", time=t, x=x + SWAY_M * math.sin(w * t), y=y, z=z,
+                           vx=SWAY_M * w * math.cos(w * t), vy=0, vz=0)
+
+
+@pytest.fixture
+def live() -> Iterator[PhysicsCore]:
+    """A live drummer core (no poses), its first 0.2 s of rig time simulated in step."""
+    core = PhysicsCore(scene="drummer", kit=load_kit("default"), pose_rate_hz=0, mode="live")
+    for k in range(1, 201):
+        core.step(k / 1000)
+    yield core
+    core.close()
+
+
+def stream_while_late(core: PhysicsCore, spacing_s: float, ahead_s: float, end_s: float) -> tuple[list[float],
+                                                                                                     list[int]]:
+    """Step ``core`` to rig time ``end_s``, every call ``LATE_STEPS`` late, streaming the left hand before each
+    call (:func:`swaying_target`): a knot every ``spacing_s`` of rig time up to ``ahead_s`` ahead. Returns the lag
+    after each call (s) and, for each knot sent, how many knots queued before it the track lost (0: it was
+    appended)."""
+    scene = core.scene
+    assert isinstance(scene, DrummerScene)
+    track = scene.limb_tracks["left_hand"]
+    lags: list[float] = []
+    lost: list[int] = []
+    now_ms, k = round(core.time * 1000), 0
+    sent = core.time
+    while now_ms < end_s * 1000:
+        sent = max(sent, now_ms / 1000)
+        while sent + spacing_s <= now_ms / 1000 + ahead_s:
+            sent += spacing_s
+            before = len(track)
+            assert not core.handle(swaying_target(scene, sent), now_ms / 1000, "")  # accepted
+            lost.append(before + 1 - len(track))
+        now_ms += LATE_STEPS[k % len(LATE_STEPS)]
+        k += 1
+        core.step(now_ms / 1000)
+        lags.append(core.target_lag)
+    return lags, lost
+
+
+@pytest.mark.slow  # 1.6 s of drummer simulation: 2-6 s
+def test_a_stream_of_targets_cannot_hold_the_lag_past_the_hard_bound(live: PhysicsCore,
+                                                                      caplog: pytest.LogCaptureFixture) -> None:
+    """A knot every 250 ms sent 300 ms ahead, each held at the lag of its arrival (the 20-70 ms each call skips
+    grow it by less than half the interval: each takes it as it is): the lag grew to 1.27 s and on; it now stays
+    within the bound, the queued knots re-timed onto the new clock, and the jump is said."""
+    with caplog.at_level(logging.WARNING, logger="batteur.physics"):
+        lags, lost = stream_while_late(live, 0.25, 0.3, 3.2)
+    assert live.skipped_steps > 1300  # the clock skipped more than the bound, and more
+    assert max(lags) <= MAX_TARGET_LAG_HARD_S  # was 1.27 s and growing
+    assert live.target_jumps_late >= 1 and live.streamed_retimed >= 1
+    said = [r.getMessage() for r in caplog.records]
+    assert any("past the 1000 ms bound, held by targets placed while they trailed" in m and "re-timed" in m
+               for m in said), said
+    assert not any(lost)  # nothing streamed was cut
+
+
+def test_the_skip_warning_says_what_plays_late(live: PhysicsCore, caplog: pytest.LogCaptureFixture) -> None:
+    """A knot streamed while the targets trailed by 0.2 s plays at its rig time, less the lag grown since: the next
+    skip's warning said "the drummer plays 250 ms late until its hands are still" of it; it now says the lag kept
+    and what plays how late. Past the bound it says the targets jump, and they do."""
+    scene = live.scene
+    assert isinstance(scene, DrummerScene)
+    now = live.time
+    live.target_lag = 0.2  # as a live core whose loop came back late leaves it
+    assert not live.handle(swaying_target(scene, now + 0.5), now, "")
+    with caplog.at_level(logging.WARNING, logger="batteur.physics"):
+        live.step(now + 0.1)  # 100 steps behind: 50 simulated, 50 skipped
+    said = [r.getMessage() for r in caplog.records if "steps behind the rig clock" in r.getMessage()]
+    assert len(said) == 1 and "until its hands are still" not in said[0], said
+    assert "trail it by 250 ms and keep 200 ms of it" in said[0] and "50 ms late" in said[0], said
+
+    caplog.clear()
+    live._last_skip_warning = -math.inf  # the next skip is said too (one warning per 5 s)
+    now = live.time
+    assert not live.handle(PhysicsReset(time=now), now, "")  # a new stream (this one would keep its 0.2 s)
+    live.target_lag = 1.02  # and a stream holding it (as before this bound)
+    assert not live.handle(swaying_target(scene, now + 0.5), now, "")
+    with caplog.at_level(logging.WARNING, logger="batteur.physics"):
+        live.step(now + 0.1)
+    said = [r.getMessage() for r in caplog.records]
+    assert "1070 ms, past the 1000 ms bound: they jump toward it now" in said[0], said
+    assert live.target_lag == 0.0 and live.streamed_retimed == 1  # was 1.02 s, held
+    assert scene.limb_tracks["left_hand"].end_time == pytest.approx(now + 0.5)  # at its rig time
+
+
+@pytest.mark.slow  # 1 s of drummer simulation: 1-4 s
+def test_knots_streamed_after_the_lag_grew_do_not_replace_the_knots_sent_before_them(live: PhysicsCore) -> None:
+    """A knot every 10 ms sent 200 ms ahead: after a call that skipped 20-70 ms the next knot landed that much
+    earlier on the targets' clock, before the last few sent, and cut them."""
+    _, lost = stream_while_late(live, 0.01, 0.2, 1.2)
+    assert live.skipped_steps > 400
+    assert not any(lost), lost  # was 2-6 knots lost after most skips
+
+
+@pytest.fixture
+def drummer_scene(drummer: PhysicsCore) -> Iterator[DrummerScene]:
+    """The module's drummer scene, its targets cleared and its lag back to 0 after the test."""
+    assert isinstance(drummer.scene, DrummerScene)
+    yield drummer.scene
+    drummer.handle(PhysicsReset(time=drummer.time), drummer.time, "")
+
+
+def test_a_knot_streamed_after_the_lag_grew_keeps_its_interval_or_replaces_from_its_rig_time(
+        drummer: PhysicsCore, drummer_scene: DrummerScene) -> None:
+    """Rig times 1.00, 1.02, 1.04 placed with a lag of 0.1 s; the lag grows to 0.2 s. A knot for 1.06 had landed at
+    0.86 on the targets' clock and cut the three: it now follows them, its 20 ms interval kept (the stream plays on
+    with the lag it was placed with, held until then). A knot for 1.02 (a re-plan from there) replaces the knots
+    from 1.02 on, not the one for 1.00, and takes the place of the first it replaces."""
+    core, scene = drummer, drummer_scene
+    track = scene.limb_tracks["left_hand"]
+    core.target_lag = 0.1
+    for t in (1.0, 1.02, 1.04):
+        assert not core.handle(rest_target(scene, t), core.time, "")
+    core.target_lag = 0.2
+    assert not core.handle(rest_target(scene, 1.06), core.time, "")
+    assert track.times == pytest.approx([0.9, 0.92, 0.94, 0.96])  # was [0.86]
+    assert core._lag_floor(0.96) == pytest.approx(0.1) and core._lag_floor(0.961) == 0.0
+    assert not core.handle(rest_target(scene, 1.02), core.time, "")
+    assert track.times == pytest.approx([0.9, 0.92])  # was [0.82]
+    core.target_lag = 0.3  # a knot far enough after the last takes the lag as it is now (as before)
+    assert not core.handle(rest_target(scene, 1.5), core.time, "")
+    assert track.times == pytest.approx([0.9, 0.92, 1.2])
+
+
+def test_past_the_bound_held_streamed_targets_are_re_timed_onto_the_rig_clock(
+        drummer: PhysicsCore, drummer_scene: DrummerScene, caplog: pytest.LogCaptureFixture) -> None:
+    """Knots streamed while the targets trailed by 1.05 s hold that lag (the floor is the lag: they never jumped).
+    Past ``MAX_TARGET_LAG_HARD_S`` the targets now jump to the rig clock and the knots still ahead move with them,
+    each to its rig time; none is lost."""
+    core, scene = drummer, drummer_scene
+    now = core.time
+    core.target_lag = 1.05
+    sent = [now + 0.1 * k for k in range(1, 6)]
+    for t in sent:
+        assert not core.handle(rest_target(scene, t), now, "")
+    assert core._lag_floor(now - 1.05) == 1.05  # the targets may not jump back at all: the lag held for ever
+    with caplog.at_level(logging.WARNING, logger="batteur.physics"):
+        core._catch_up_targets(now)
+    assert core.target_lag == 0.0 and core.target_jumps_late >= 1
+    times = scene.limb_tracks["left_hand"].times
+    assert times[-5:] == pytest.approx(sent)  # at their rig times, on the targets' clock that is now the rig's
+    assert core.streamed_retimed == 5 and core._lag_floor(now) == 0.0
+    assert any("5 streamed knots re-timed" in r.getMessage() for r in caplog.records)
+
+
+def test_past_the_bound_the_targets_jump_back_to_a_score_plans_lag_not_past_it(
+        drummer: PhysicsCore, drummer_scene: DrummerScene) -> None:
+    """A ``play`` placed while the targets trailed by 0.4 s holds that lag while it plays; a stream placed later, at
+    1.05 s, held all of it. Past the bound the targets jump back to the plan's lag (its notes keep their rig times)
+    and the stream's knots are re-timed onto that clock."""
+    core, scene = drummer, drummer_scene
+    now = _trailing(core, 0.4)
+    assert not core.handle(ScoreTransport(action="play", time=now + 0.5, position=0.0), now, "")
+    plan_knots = {limb: list(track.times) for limb, track in scene.limb_tracks.items() if limb != "left_hand"}
+    core.target_lag = 1.05
+    sent = [now + 0.3, now + 0.35]
+    for t in sent:
+        assert not core.handle(rest_target(scene, t), now, "")
+    core._catch_up_targets(now)
+    assert core.target_lag == pytest.approx(0.4) and core.score_player.lag_floor(now - 0.4) == pytest.approx(0.4)
+    assert scene.limb_tracks["left_hand"].times[-2:] == pytest.approx([t - 0.4 for t in sent])
+    for limb, times in plan_knots.items():  # the plan's own knots untouched
+        assert np.array_equal(scene.limb_tracks[limb].times, times)
+
+
+def test_a_limb_track_cut_drops_its_knots_and_strikes_from_there_on() -> None:
+    """``Track.cut`` (what the re-timing moves a stream's queued knots with) keeps the knots before the time; a limb's
+    track drops the planned strikes from there on with them, as ``add`` does."""
+    track = LimbTrack()
+    for t in (0.0, 0.5, 1.0, 1.5):
+        track.add(t, np.full(3, t), np.zeros(3))
+    track.add_strike(Strike(0.5, 0.502, np.array([0.0, 0.0, -1.0]), 2.0, "snare"))
+    track.add_strike(Strike(1.2, 1.202, np.array([0.0, 0.0, -1.0]), 2.0, "snare"))
+    track.cut(1.0)
+    assert track.times == [0.0, 0.5] and [s.time for s in track.strikes] == [0.5]
