@@ -110,6 +110,14 @@ def band_matrix(n_fft: int = N_FFT, bands: Bands = NARROW) -> np.ndarray:
     return fb
 
 
+def full_rate_hz(bands: Bands) -> float:
+    """The lowest sample rate whose audio reaches into every band of ``bands``, Hz: twice the lower edge of its top
+    band (the edges of :func:`band_matrix`). Audio sampled below it leaves the top bands empty: for :data:`WIDE`,
+    about 29 kHz, so a 22,050 Hz file lacks the bands above 11 kHz where hi-hats are told from snares."""
+    edges = np.geomspace(F_MIN_HZ, bands.f_max_hz, bands.n + 2)
+    return 2.0 * float(edges[bands.n - 1])
+
+
 @cache
 def window(n_fft: int = N_FFT) -> np.ndarray:
     """Hann window of ``n_fft`` samples, scaled by ``N_FFT / n_fft`` so that a steady tone has the same band

@@ -16,6 +16,7 @@ import numpy as np
 
 from services.recogniser.audio import MAX_DURATION_S, SAMPLE_RATE, load_audio, resample
 from services.recogniser.classes import CLASSES
+from services.recogniser.features import full_rate_hz
 from services.recogniser.framenet import FrameNet
 from services.recogniser.model import Model, load_model
 
@@ -140,9 +141,11 @@ def transcribe_file(
     """Read and transcribe an audio file; returns the events and the duration in seconds.
 
     Raises :class:`~services.recogniser.errors.AudioFileError` for unusable files; ``warn`` hears of suspect
-    ones (:func:`~services.recogniser.audio.load_audio`).
+    ones (:func:`~services.recogniser.audio.load_audio`), and of a file sampled too slowly to fill the network's
+    top bands (a 22,050 Hz file for the shipped network: :func:`~services.recogniser.features.full_rate_hz`).
     """
     model = model or load_model()
     rate = model.offline.sample_rate
-    audio = load_audio(path, max_duration_s=max_duration_s, sample_rate=rate, warn=warn)
+    audio = load_audio(path, max_duration_s=max_duration_s, sample_rate=rate, warn=warn,
+                       full_rate_hz=full_rate_hz(model.offline.bands))
     return transcribe(audio, model, progress, rate), len(audio) / rate
