@@ -48,7 +48,7 @@ import socket
 import sys
 import tempfile
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
@@ -647,6 +647,23 @@ def plan_services(opts: argparse.Namespace, epoch: float) -> list[ServicePlan]:
     return plan_rig(opts, epoch)
 
 
+def check_allow(plans: Sequence[ServicePlan], host: str, environ: Mapping[str, str] | None = None) -> None:
+    """Raise UsageError, as each service would refuse to start (exit 2) after the others had started, when ``--host``
+    is off loopback and no allow-list reaches a service: not BATTEUR_ALLOW (which every service reads), nor its own
+    ``--allow`` (``--ROLE-arg``). A config file (BATTEUR_CONFIG, ``--config``) may give one: that service checks it."""
+    from common.config import ENV_PREFIX, off_loopback_problem
+
+    env = os.environ if environ is None else environ
+    if env.get(f"{ENV_PREFIX}ALLOW", "").strip(" ,") or env.get(f"{ENV_PREFIX}CONFIG"):
+        return
+    for plan in plans:
+        given = any(arg.split("=", 1)[0] in ("--allow", "--config") for arg in plan.args)
+        problem = "" if given else off_loopback_problem(host, [])
+        if problem:
+            raise UsageError(f"{problem} (every service of the rig reads BATTEUR_ALLOW: "
+                             f"BATTEUR_ALLOW=192.168.1.0/24 batteur rig --host {host} ...)")
+
+
 def ignored_options(opts: argparse.Namespace) -> list[str]:
     """Warnings for options the rig was given but cannot use: ``--interfaces`` names zeroconf's interfaces
     (docs/discovery.md), so with ``--no-discovery`` it is ignored, wildcard or not."""
@@ -790,6 +807,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         epoch = time.time() + opts.start_delay
         try:
             plans = plan_services(opts, epoch)
+            check_allow(plans, opts.host)
             check_record(opts)
             check_ports(plans, opts.host, opts.http_port)
             make_record_dir(opts)  # last: a refused option leaves no folder behind

@@ -19,7 +19,7 @@ import os
 import re
 import socket
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from contextvars import ContextVar
 from pathlib import Path
 from types import UnionType
@@ -83,6 +83,15 @@ def is_loopback(host: str) -> bool:
         return ipaddress.ip_address(host).is_loopback
     except ValueError:
         return False
+
+
+def off_loopback_problem(host: str, allow: Sequence[object]) -> str:
+    """Why a node may not listen on ``host`` with the allow-list ``allow`` ("" if it may): off loopback it needs the
+    networks allowed to send to it. The node's own check, and ``batteur rig``'s before it starts any service."""
+    if is_loopback(host) or allow:
+        return ""
+    return (f"host {host} listens off loopback: give the networks allowed to send to this node "
+            "with --allow NETWORK (or BATTEUR_ALLOW), e.g. --allow 192.168.1.0/24; --allow 0.0.0.0/0 accepts anyone")
 
 
 def _numeric(annotation: Any) -> bool:
@@ -210,11 +219,9 @@ class NodeSettings(BaseSettings):
     def _complete(self) -> NodeSettings:
         if not self.node_id:
             self.node_id = default_node_id(self.role)
-        if not is_loopback(self.host) and not self.allow:
-            raise ValueError(
-                f"host {self.host} listens off loopback: give the networks allowed to send to this node "
-                "with --allow NETWORK (or BATTEUR_ALLOW), e.g. --allow 192.168.1.0/24; --allow 0.0.0.0/0 accepts anyone"
-            )
+        problem = off_loopback_problem(self.host, self.allow)
+        if problem:
+            raise ValueError(problem)
         return self
 
     @property

@@ -327,7 +327,8 @@ class Node:
         Where to listen, peers, discovery, rate, clock master...
     discovery_factory : callable or None
         Builds the discovery service (keywords: role, node_id, port, interfaces,
-        peers, browse_roles, protocol). Default: ``common.discovery.Discovery``.
+        peers, browse_roles, protocol, allowed: the transport's allow-list as strings,
+        None on loopback). Default: ``common.discovery.Discovery``.
         Ignored when ``settings.discovery`` is off.
     browse_roles : sequence of str
         Roles to look for with discovery.
@@ -464,6 +465,8 @@ class Node:
                 peers=self.peers,
                 browse_roles=list(self.browse_roles),
                 protocol=PROTOCOL_VERSION,
+                # the transport's allow-list: a peer it would drop (not_allowed) is not added, and said why once
+                allowed=None if s.allow_networks is None else [str(n) for n in s.allow_networks],
             )
             if self.discovery is not None:
                 register_extra = getattr(self.discovery, "register_extra", None)
@@ -939,6 +942,7 @@ class Node:
             replies_unanswered=core_count(self.core, "replies_unanswered"),
             target_lag=core_seconds(self.core, "target_lag"),  # physics only: a live drummer playing late
             target_jumps=core_count(self.core, "target_jumps"),
+            unroutable=self.endpoint.unroutable,
         )
 
     async def _health_task(self) -> None:

@@ -53,6 +53,7 @@ from common.messages.interaction import InteractionError
 from common.messages.physics import PhysicsRejected
 from common.messages.sound import SoundRejected
 from common.peers import PeerTable
+from common.rated_log import RatedWarnings
 from common.stats import TrafficStats
 from common.token_bucket import TokenBuckets
 
@@ -89,6 +90,12 @@ DECODE_REPLY_BURST = 10.0
 """Undecodable control messages answered to one sender host at once before :data:`DECODE_REPLY_RATE_HZ`."""
 DECODE_REPLY_REASONS = frozenset({DropReason.WRONG_ARITY, DropReason.WRONG_TYPE, DropReason.OUT_OF_RANGE})
 """Decoding failures answered: the address is known, its arguments are not what its model takes."""
+NO_PEER_LOG_INTERVAL_S = 60.0
+"""Sends to a role with no known peer are warned about at most once per this long per role, seconds (the first
+time with what to do; the others counted in the next line and in Health's ``unroutable``)."""
+NO_PEER_GRACE_S = 10.0
+"""Sends to a role with no known peer in the first this long after the endpoint opened are only counted, seconds:
+discovery finds the other nodes of a rig started together within a few seconds (no warning at every start)."""
 REFUSAL_ENDINGS = ("/error", "/rejected", "/refused")
 """Addresses of refusals (as ``batteur send --replies`` knows them): a malformed one is never answered, so two
 peers cannot answer each other's refusals without end."""
@@ -207,8 +214,9 @@ class UdpEndpoint:
         Valid messages in, messages out (one per message per destination
         datagram), drops per reason.
     unroutable : int
-        Sends to a role with no known peer, or to an address that cannot be
-        resolved or reached from this socket's address family.
+        Sends to a role with no known peer (warned about, :meth:`_warn_no_peer`), or
+        to an address that cannot be resolved or reached from this socket's address
+        family. A node reports it in its Health.
     decode_unanswered : int
         Undecodable control messages not answered: their sender host was over
         its reply budget (:data:`DECODE_REPLY_RATE_HZ`). A node reports it in
@@ -270,6 +278,11 @@ class UdpEndpoint:
         self._loop: asyncio.AbstractEventLoop | None = None
         self._allowed_cache: dict[str, bool] = {}
         self._last_log: dict[str, float] = {}
+        self._no_peer_warnings = RatedWarnings(log, NO_PEER_LOG_INTERVAL_S)
+        """Sends to a role with no known peer: by role, on ``clock`` (:meth:`_warn_no_peer`)."""
+        self._no_peer_told: set[str] = set()
+        """Roles whose missing peer was explained in full once."""
+        self._opened_at = clock()
         host, port = sock.getsockname()[:2]
         self.local_address = format_address(host, port)
         """This endpoint's ``host:port``."""
@@ -481,7 +494,7 @@ class UdpEndpoint:
             return
         if not targets:
             self.unroutable += count
-            self._log_limited(f"unroutable:{to}", logging.DEBUG, "not sent: no peer for %s", to)
+            self._warn_no_peer(str(to))
             return
         for host, port in targets:
             ip = self._resolve(host)
@@ -492,6 +505,26 @@ class UdpEndpoint:
                 self._wait_for_name(host, data, port, count)
             else:
                 self.unroutable += count
+
+    def _warn_no_peer(self, role: str) -> None:
+        """Say that messages to ``role`` are not sent, as no peer of it is known: the first time in full (what to do),
+        then at most once per :data:`NO_PEER_LOG_INTERVAL_S` with the count held back, so a role left out of the rig
+        on purpose (graphics not started, 60 poses a second) costs a line a minute, not a flood. Nothing is said in
+        the first :data:`NO_PEER_GRACE_S` (the peers of a rig starting together are still being found)."""
+        now = self._clock()
+        if now - self._opened_at < NO_PEER_GRACE_S:
+            return  # the rig's other nodes may not be found yet: counted only
+        if role in self._no_peer_told:
+            text = "still no %s peer: messages to it are not sent (see the first warning; Health: unroutable)"
+            args: tuple[object, ...] = (role,)
+        else:
+            text = ("no %s peer known: messages to %s are not sent (counted in Health as unroutable). Start a %s "
+                    "node, or give its address with --peer %s=HOST:PORT, or check that discovery browses the "
+                    "interfaces it announces on (--interface); if this rig runs without %s on purpose, ignore this "
+                    "(said again at most every %g s)")
+            args = (role, role, role, role, role, NO_PEER_LOG_INTERVAL_S)
+        if self._no_peer_warnings.warn(role, now, text, *args):
+            self._no_peer_told.add(role)
 
     def _resolve(self, host: str) -> str | None:
         """Numeric address of ``host`` for the socket's family: "" if unreachable, None while a name is looked up.

@@ -19,13 +19,16 @@ from collections.abc import Sequence
 from batteur.errors import report_error
 from batteur.tools.ls import query_health
 from batteur.tools.nodes import (
+    INTERFACE_HELP,
     INTERRUPTED,
     OutputClosed,
     Target,
     bind_address,
+    browse_interfaces,
     find_targets,
     run_tool,
     target_networks,
+    where_browsed,
     write_line,
 )
 from common.arg_types import count, seconds
@@ -44,8 +47,9 @@ PROBE_S = 2.0
 
 DESCRIPTION = """\
 Print the OSC messages whose address matches PATTERN, as the nodes send or receive them.
-Each node found by zeroconf (or given with --node) is asked to copy matching messages
-to this command (a Subscribe, renewed every 5 s). One line per message:
+Each node found by zeroconf (on --interface, else on the interfaces in BATTEUR_INTERFACES,
+else on loopback), or given with --node, is asked to copy matching messages to this command
+(a Subscribe, renewed every 5 s). One line per message:
 the address, then the arguments (strings quoted); /batteur/clock/status is spelt out in words
 (--json gives its fields). A message sent several times with one sequence number (interaction
 sends each impact, impact end and damping 5 times to each peer) is printed once; --copies
@@ -123,10 +127,11 @@ async def _probe(targets: Sequence[Target]) -> list[Target]:
 
 
 async def _run(opts: argparse.Namespace, subscribe: Subscribe) -> int:
-    targets = await find_targets(opts.node, opts.browse, opts.interface)
+    interfaces, source = browse_interfaces(opts.interface)
+    targets = await find_targets(opts.node, opts.browse, interfaces)
     if not targets:
-        return report_error("batteur echo", f"no nodes found within {opts.browse:g} s (start one, or give --node "
-                            "HOST:PORT)")
+        return report_error("batteur echo", f"no nodes found {where_browsed(interfaces, source)} within "
+                            f"{opts.browse:g} s (start one, or give --node HOST:PORT)")
     answered = await _probe(targets)
     reachable = [t for t in targets if t.ip]
     if not reachable:
@@ -192,8 +197,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("pattern", help="OSC address pattern, e.g. '/batteur/impact' or '/batteur/*' (quote it)")
     parser.add_argument("--node", action="append", default=[], metavar="HOST:PORT",
                         help="subscribe at this node instead of browsing (repeatable)")
-    parser.add_argument("--interface", action="append", default=[],
-                        help="interface to browse on: address, name or 'all' (repeatable; default loopback)")
+    parser.add_argument("--interface", action="append", default=[], help=f"interface to browse on: {INTERFACE_HELP}")
     parser.add_argument("--browse", type=seconds, default=3.0, help="seconds to browse for nodes (default 3)")
     parser.add_argument("--count", type=count, default=0, help="stop after this many messages (default: no limit)")
     parser.add_argument("--duration", type=seconds, default=None,

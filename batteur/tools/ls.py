@@ -11,11 +11,20 @@ from __future__ import annotations
 import argparse
 import asyncio
 import json
-import os
 from collections.abc import Sequence
 
 from batteur.errors import report_error
-from batteur.tools.nodes import Target, bind_address, find_targets, run_tool, target_networks, write_line
+from batteur.tools.nodes import (
+    INTERFACE_HELP,
+    Target,
+    bind_address,
+    browse_interfaces,
+    find_targets,
+    run_tool,
+    target_networks,
+    where_browsed,
+    write_line,
+)
 from common.arg_types import seconds, take_negative_values
 from common.messages import PROTOCOL_VERSION, Health, Hello, OscMessage
 from common.messages.system import TOOL_ROLE
@@ -25,8 +34,9 @@ DESCRIPTION = """\
 List the Batteur nodes found by zeroconf (or given with --node), each with the Health it
 answers to a Hello: role, node id, address, loop rate, dropped messages, peers. --json adds
 the rest of the Health: the drops by reason (dropped_malformed, dropped_unknown, dropped_type,
-dropped_range, dropped_other) and rig_time_s, the node's rig time when it answered (seconds:
-what a timed message such as /batteur/impact is stamped with).
+dropped_range, dropped_other), unroutable (messages the node could not send: to a role no node
+of which it knows, say sound when no sound node runs) and rig_time_s, the node's rig time when
+it answered (seconds: what a timed message such as /batteur/impact is stamped with).
 
 Browses on --interface, else on the interfaces in BATTEUR_INTERFACES (where the nodes of a
 compose container announce: `docker compose exec graphics batteur ls` lists the rig), else on
@@ -34,21 +44,6 @@ loopback.
 
 Exit status: 0 when every node listed answered, 1 when one did not (or none was found),
 2 on bad arguments; so `batteur ls --node 127.0.0.1:9103` is a healthcheck."""
-
-INTERFACES_ENV = "BATTEUR_INTERFACES"
-"""The nodes' own setting (docs/runtime.md): where this machine's (or container's) nodes run mDNS."""
-
-
-def browse_interfaces(given: Sequence[str]) -> tuple[list[str], str]:
-    """The interfaces to browse on and where they come from (for messages): ``--interface``, else
-    BATTEUR_INTERFACES (comma-separated), else none (loopback)."""
-    if given:
-        return list(given), "--interface"
-    from_env = [part.strip() for part in os.environ.get(INTERFACES_ENV, "").split(",") if part.strip()]
-    if from_env:
-        return from_env, INTERFACES_ENV
-    return [], ""
-
 
 async def query_health(targets: Sequence[Target], timeout_s: float) -> dict[str, Health]:
     """Send a Hello to each reachable target; collect the Health answers by source address within
@@ -111,7 +106,7 @@ def _row(target: Target, health: Health | None) -> dict[str, object]:
         dropped_type=health.dropped_type, dropped_range=health.dropped_range, dropped_other=health.dropped_other,
         late=health.late, peers=health.peers, decode_unanswered=health.decode_unanswered,
         replies_unanswered=health.replies_unanswered, target_lag=round(health.target_lag, 4),
-        target_jumps=health.target_jumps,
+        target_jumps=health.target_jumps, unroutable=health.unroutable,
     )
     return row
 
@@ -129,10 +124,8 @@ async def _run(opts: argparse.Namespace) -> int:
     interfaces, source = browse_interfaces(opts.interface)
     targets = await find_targets(opts.node, opts.browse, interfaces)
     if not targets:
-        where = (f"on {', '.join(interfaces)} ({source})" if interfaces
-                 else "on loopback (--interface eth0, say, for the nodes of a LAN or a compose network)")
-        return report_error("batteur ls", f"no nodes found {where} within {opts.browse:g} s (start one, or give "
-                            "--node HOST:PORT)")
+        return report_error("batteur ls", f"no nodes found {where_browsed(interfaces, source)} within "
+                            f"{opts.browse:g} s (start one, or give --node HOST:PORT)")
     answers = await query_health(targets, opts.timeout)
     rows = [_row(t, h) for t, h in zip(targets, match_answers(targets, answers), strict=True)]
     for line in [json.dumps(rows, indent=2)] if opts.json else table(rows):
@@ -145,9 +138,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                                                           formatter_class=argparse.RawDescriptionHelpFormatter))
     parser.add_argument("--node", action="append", default=[], metavar="HOST:PORT",
                         help="ask this node instead of browsing (repeatable)")
-    parser.add_argument("--interface", action="append", default=[],
-                        help="interface to browse on: address, name or 'all' (repeatable; default: "
-                        "BATTEUR_INTERFACES if set, else loopback)")
+    parser.add_argument("--interface", action="append", default=[], help=f"interface to browse on: {INTERFACE_HELP}")
     parser.add_argument("--browse", type=seconds, default=3.0,
                         help="seconds to browse for nodes (default 3; less than 2 can miss nodes)")
     parser.add_argument("--timeout", type=seconds, default=2.0, help="seconds to wait for health answers (default 2)")

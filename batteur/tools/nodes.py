@@ -4,6 +4,7 @@ does the same way: one-line errors with their exit codes, output into a pipe tha
 from __future__ import annotations
 
 import ipaddress
+import os
 import socket
 import sys
 from collections.abc import Callable, Sequence
@@ -13,6 +14,30 @@ from typing import TextIO
 from batteur.errors import FAILED, INTERRUPTED, USAGE, report_error
 from common.output_paths import point_at_devnull
 from common.transport import format_address, parse_address
+
+INTERFACES_ENV = "BATTEUR_INTERFACES"
+"""The nodes' own setting (docs/runtime.md): where this machine's (or container's) nodes run mDNS."""
+INTERFACE_HELP = ("address, name or 'all' (repeatable; default: the interfaces in BATTEUR_INTERFACES, where this "
+                  "machine's or container's nodes announce, if set, else loopback)")
+"""What ``--interface`` says in the help of every tool that browses (``batteur ls``, ``echo``, ``send``)."""
+
+
+def browse_interfaces(given: Sequence[str]) -> tuple[list[str], str]:
+    """The interfaces a tool browses on and where they come from (for messages): ``--interface``, else
+    BATTEUR_INTERFACES (comma-separated), else none (loopback)."""
+    if given:
+        return list(given), "--interface"
+    from_env = [part.strip() for part in os.environ.get(INTERFACES_ENV, "").split(",") if part.strip()]
+    if from_env:
+        return from_env, INTERFACES_ENV
+    return [], ""
+
+
+def where_browsed(interfaces: Sequence[str], source: str) -> str:
+    """Where a tool browsed, for its "nothing found" message."""
+    if interfaces:
+        return f"on {', '.join(interfaces)} ({source})"
+    return "on loopback (--interface eth0, say, for the nodes of a LAN or a compose network)"
 
 
 @dataclass(frozen=True)

@@ -23,7 +23,7 @@ from pythonosc.osc_message_builder import BuildError
 
 from batteur.errors import USAGE, report_error
 from batteur.tools.ls import match_answers, query_health
-from batteur.tools.nodes import Target, resolve_host, run_tool
+from batteur.tools.nodes import INTERFACE_HELP, Target, browse_interfaces, resolve_host, run_tool, where_browsed
 from common.arg_types import seconds, take_negative_values
 from common.datafile import one_line
 from common.messages import (
@@ -181,20 +181,22 @@ def check_raw_address(address: str) -> None:
         raise ValueError(f"{address!r} is not an OSC address: '/'-separated parts of printable ASCII{why}")
 
 
-def _resolve(target: str, timeout_s: float, interfaces: Sequence[str] | None) -> list[tuple[str, int]]:
-    """``host:port`` as given, or the discovered nodes of a role; ValueError when ``target`` is neither."""
+def _resolve(target: str, timeout_s: float, interfaces: Sequence[str]) -> list[tuple[str, int]]:
+    """``host:port`` as given, or the discovered nodes of a role, browsed on ``interfaces`` (``--interface``; none:
+    :func:`~batteur.tools.nodes.browse_interfaces`'s default); ValueError when ``target`` is neither."""
     if ":" in target or target.startswith("["):
         return [parse_address(target)]  # ValueError: a bad host form or a port outside 1-65535
     if not ROLE.fullmatch(target):
         raise ValueError(f"{target!r} is neither HOST:PORT nor a role (physics, sound, ...)")
     from common.discovery import browse_nodes  # only when a role must be found
 
-    nodes = asyncio.run(browse_nodes(timeout_s, interfaces))
+    browse_on, source = browse_interfaces(interfaces)
+    nodes = asyncio.run(browse_nodes(timeout_s, browse_on or None))
     found = [(n.host, n.port) for n in nodes if n.role == target and n.host]
     if not found:
         roles = ", ".join(sorted({n.role for n in nodes})) or "none"
-        report_error(PROG, f"no {target} node found within {timeout_s:g} s (roles found: {roles}; HOST:PORT needs "
-                     "the port)")
+        report_error(PROG, f"no {target} node found {where_browsed(browse_on, source)} within {timeout_s:g} s "
+                     f"(roles found: {roles}; HOST:PORT needs the port)")
     return found
 
 
@@ -233,7 +235,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--timeout", type=seconds, default=2.0,
                         help="seconds to look for a role, and to wait for a node's rig time (+SECONDS) (default 2)")
     parser.add_argument("--interface", action="append", default=[],
-                        help="interface to look for a role on: address, name or 'all' (repeatable; default loopback)")
+                        help=f"interface to look for a role on: {INTERFACE_HELP}")
     opts = parser.parse_args(argv)
     return run_tool(PROG, lambda: _send(opts))
 
@@ -253,7 +255,7 @@ def _send(opts: argparse.Namespace) -> int:
         takes = f"; {opts.address} takes {arguments(model)}" if model and exc.reason is DropReason.WRONG_ARITY else ""
         return report_error(PROG, f"{exc}{takes}", USAGE)
     try:
-        targets = _resolve(opts.to, opts.timeout, opts.interface or None)
+        targets = _resolve(opts.to, opts.timeout, opts.interface)
     except ValueError as exc:
         return report_error(PROG, f"--to {one_line(exc)}", USAGE)
     if not targets:

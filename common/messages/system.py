@@ -73,7 +73,12 @@ class Health(OscMessage):
     target_jumps: Count = Field(default=0, description="physics: times the trailing targets jumped back toward the "
                                 "rig clock, total (0 for the others)")
 
-    APPENDED: ClassVar[tuple[str, ...]] = ("decode_unanswered", "replies_unanswered", "target_lag", "target_jumps")
+    unroutable: Count = Field(default=0, description="messages not sent for want of a destination: to a role no "
+                              "peer of which is known (its node not started, or not found: --peer ROLE=HOST:PORT, or "
+                              "discovery's interfaces), or to an address that cannot be resolved or reached, total")
+
+    APPENDED: ClassVar[tuple[str, ...]] = ("decode_unanswered", "replies_unanswered", "target_lag", "target_jumps",
+                                           "unroutable")
     """The fields appended after ``peers`` (one argument each), oldest first: a Health without the last of them (an
     older node's) decodes with their defaults."""
     NEWER_ARGS: ClassVar[int] = 16

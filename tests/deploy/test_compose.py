@@ -5,7 +5,7 @@
   them) runs as a process in its own network namespace, the namespaces joined by a bridge like
   the compose network: each has an ``eth0`` and resolves the other services by name (through
   ``/etc/netns/<ns>/hosts``, which ``ip netns exec`` mounts over /etc/hosts). The only
-  translation is the container's volume paths (``/out``, ``/config``) to temporary directories.
+  translation is the container's volume paths (``/out``, ``/config``, ``/scores``) to temporary directories.
   Then: each service's healthcheck command passes inside its namespace, discovery on eth0 finds
   every node, and the published graphics port serves the view.
 """
@@ -204,7 +204,7 @@ def test_each_container_command_runs_and_the_rig_forms(netns_lab: NetnsLab, tmp_
     if pd_binary() is None:
         names.remove("pd-sound")
     namespaces, addresses = _compose_network(netns_lab, names)
-    volumes = {"/out": tmp_path / "out", "/config": tmp_path / "config"}
+    volumes = {"/out": tmp_path / "out", "/config": tmp_path / "config", "/scores": tmp_path / "scores"}
     for folder in volumes.values():
         folder.mkdir()
     try:
