@@ -21,10 +21,17 @@ window and intersects those intervals: the estimate is the intersection's
 midpoint and the uncertainty its half-width. A sample whose interval misses the
 estimate's (beyond drift) is an outlier and rejected, unless several in a row
 agree: then the master's clock really moved and the estimate follows it.
+
+A new offset further than :data:`STEP_S` from the one in use (a new master, the
+same master restarted, a node that ran on its own clock meeting its master) is
+a *step* of rig time: :meth:`RigClock.set_offset` logs it once, counts it in
+:attr:`RigClock.generation` and returns it, so the node can tell its core
+(``clock_stepped``) instead of the core guessing from time going backward.
 """
 
 from __future__ import annotations
 
+import logging
 import math
 import time
 from collections import deque
@@ -32,6 +39,13 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from common.messages import ClockPing, ClockPong
+
+log = logging.getLogger("batteur.clock")
+
+STEP_S = 0.1
+"""A change of the offset larger than this (seconds) is a step of rig time, not the estimate's tracking (which
+moves it by milliseconds: jitter, drift). Above the latency windows, so a core that re-anchors on it does not
+re-anchor on noise."""
 
 
 class RigClock:
@@ -63,6 +77,31 @@ class RigClock:
         """Seconds to add to the local rig time to get the master's rig time."""
         self.synced: bool = False
         """True once the offset comes from an estimate (or the clock is the master)."""
+        self.generation: int = 0
+        """Steps of rig time so far (see :meth:`set_offset`): a loop can compare it with the one it last saw."""
+        self.last_step_s: float = 0.0
+        """The latest step, seconds (new rig time minus old, at the same instant); 0 before any."""
+
+    def set_offset(self, offset: float, master: str = "the clock master") -> float:
+        """Take a new offset estimate (seconds, master minus local); returns the step of rig time it makes
+        (seconds, negative: back) when larger than :data:`STEP_S`, else 0.0.
+
+        A step of a synced clock (its master restarted or was replaced) is logged once, as a WARNING; the first
+        sync is not (the node logs it, and a node that ran on its own clock until then was told it would jump).
+        Either is counted in :attr:`generation`.
+        """
+        step = offset - self.offset
+        was_synced = self.synced
+        self.offset = offset
+        self.synced = True
+        if abs(step) <= STEP_S:
+            return 0.0
+        self.generation += 1
+        self.last_step_s = step
+        if was_synced:
+            log.warning("rig clock stepped %s %.1f s: the clock master (%s) restarted? (rig time now %.1f s)",
+                        "back" if step < 0 else "forward", abs(step), master, self.now())
+        return step
 
     def local_now(self) -> float:
         """Rig time by this node's own clock, without the offset, seconds."""

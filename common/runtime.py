@@ -857,8 +857,9 @@ class Node:
         sample = self.estimator.add_pong(pong, self.clock.local_now())
         if sample is not None:
             first = not self.clock.synced
-            self.clock.offset = self.estimator.offset
-            self.clock.synced = True
+            step = self.clock.set_offset(self.estimator.offset, self._master_id or self.settings.clock_master)
+            if step and self.core_started:
+                self._clock_stepped(step)
             if first:
                 log.info(
                     "rig clock synced to %s: offset %+.6f s (+/- %.6f s)",
@@ -871,6 +872,19 @@ class Node:
                     log.info("rig clock offset %+.6f s (+/- %.6f s) after %d samples", self.clock.offset,
                              self.estimator.uncertainty, len(self.estimator.samples))
                 self.start_core()
+
+    def _clock_stepped(self, step_s: float) -> None:
+        """Rig time just stepped by ``step_s`` seconds (logged by the clock): tell a core that has
+        ``clock_stepped(step_s, now)`` (the sound core re-anchors its sample clock), so it need not guess from
+        time going backward."""
+        hook = getattr(self.core, "clock_stepped", None)
+        if hook is None:
+            return
+        try:
+            self.route(hook(step_s, self.clock.now()))
+        except Exception as exc:
+            self.step_errors += 1
+            self._log_error("core clock_stepped failed: %s: %s", type(exc).__name__, exc)
 
     def _clock_good_enough(self) -> bool:
         """Whether the offset is known well enough to start the core (:data:`START_UNCERTAINTY_S`), or as well as

@@ -230,6 +230,24 @@ class GraphicsCore:
         any skeleton (a node starting before physics' layout reached it) are only counted (``no_skeleton``)."""
         return self.counters["bad_layout"] + self.counters["mode_refused"]
 
+    def clock_stepped(self, step_s: float, now: float) -> list[Outgoing]:
+        """The node's rig time just stepped by ``step_s`` seconds (the clock master restarted): move the times this
+        core stamped by its own clock with it, so the page's status (once per ``status_period``), the editor's
+        postures (one per ``posture_period``), node ages and the score position go on as before the step, not
+        only once rig time is back where it was. Poses and impacts are on physics' clock: untouched."""
+        del now
+        self._last_status += step_s
+        self._posture_sent += step_s
+        self._score_seen += step_s
+        self._preview_start += step_s
+        for node in self.nodes.values():
+            node.last_seen += step_s
+        # auto clock: the lags (pose time - local time) seen so far, as the new local clock would have seen them
+        self._lags = deque((t + step_s, lag - step_s) for t, lag in self._lags)
+        if self._lags:
+            self.clock_offset = max(lag for _, lag in self._lags)
+        return []
+
     def _log_refusal(self, kind: str, now: float, detail: str) -> None:
         """Warn about a refusal, at most once per :data:`REFUSAL_LOG_INTERVAL_S` of rig time for each kind."""
         self._refusal_warnings.warn(kind, now, detail)

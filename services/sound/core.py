@@ -210,6 +210,7 @@ class SoundStats:
     implicit_lifts: int = 0  # parts lifted by their own next strike (their state 0 lost, or not sent yet)
     rejected: Counter[str] = field(default_factory=Counter)  # by control address
     blocks: int = 0
+    clock_steps: int = 0  # steps of rig time the output was re-anchored on (SoundCore.clock_stepped)
 
     @property
     def rejected_total(self) -> int:
@@ -293,6 +294,9 @@ class SoundCore:
         self.sinks: list[Sink] = []
         """Outputs fed every rendered block (the node's WAV file, sound card); closed by :meth:`close`."""
         self._origin_set = s.origin is not None
+        self.clock_steps: list[tuple[int, float]] = []
+        """(output sample, its rig time) at each step of rig time (:meth:`clock_stepped`), in order."""
+        self._first_origin = self.scheduler.origin  # sample 0's rig time, kept once a step moves the origin
         self.strike_latencies: collections.deque[float] = collections.deque(maxlen=10000)
         """Output time of each strike's first sample minus its impact time, seconds (most recent last)."""
         self._bus: dict[str, F32] = {}
@@ -547,6 +551,38 @@ class SoundCore:
             self.scheduler.origin = float(now)
             self.press_scheduler.origin = float(now)
             self._origin_set = True
+
+    def clock_stepped(self, step_s: float, now: float) -> list[Outgoing]:
+        """Rig time just stepped by ``step_s`` seconds (the clock master restarted: back to its new launch's time;
+        ``now``: the new rig time). The node calls this once per step (:meth:`common.clock.RigClock.set_offset`).
+
+        The output goes on without a gap or a burst: the next sample to render is re-anchored to the new rig
+        time (the origin moves by the step), so strikes of the new timeline play within the latency instead of
+        waiting (late, mostly unheard) until rig time reaches what was already rendered, and a step forward
+        does not render the skipped stretch at once. Ringing voices ring on; strikes and presses already queued
+        stay on the output sample they were due at (sent for that moment, they play then). The step is kept
+        in :meth:`timeline`, which a recording's sidecar gives. Before the first step or message (no origin
+        yet) there is nothing to re-anchor.
+        """
+        del now  # the step alone moves the origin exactly; ``now`` is the Core hook's common argument
+        if not self._origin_set or step_s == 0.0:
+            return []
+        if not self.clock_steps:
+            self._first_origin = self.scheduler.origin
+        self.scheduler.origin += step_s
+        self.press_scheduler.origin = self.scheduler.origin
+        self.clock_steps.append((self.next_sample, self.now))
+        self.stats.clock_steps += 1
+        log.info("sound re-anchored on the rig clock's step of %+.1f s: output sample %d is rig time %.3f s",
+                 step_s, self.next_sample, self.now)
+        return []
+
+    def timeline(self) -> list[tuple[int, float]]:
+        """(output sample, rig time) anchors, in order: sample ``n`` plays rig time ``t + (n - s) / sample_rate``
+        for the last anchor ``(s, t)`` with ``s <= n``. One anchor (sample 0 at the origin) unless rig time
+        stepped (:meth:`clock_stepped`)."""
+        first = self._first_origin if self.clock_steps else self.scheduler.origin
+        return [(0, first), *self.clock_steps]
 
     # ------------------------------------------------------------- render
     def samples_until(self, rig_time: float) -> int:

@@ -119,18 +119,25 @@ class WavSink:
     its header is kept up to date) and neither a cut file nor a damaged earlier take at ``path``. So does a node
     that failed (``keep`` False when it closes; an empty part file is removed). On close it also
     writes ``FILE.wav.json`` beside it: the rig time of the first sample (seconds), so what the WAV holds can
-    be lined up with the rig's impacts.
+    be lined up with the rig's impacts, and its ``segments``: ``{"frame", "rig_time_s"}`` anchors (the first at
+    frame 0), a new one where rig time stepped (the clock master restarted) while the take went on, so no frame
+    is given a wrong rig time and none is lost.
+
+    ``timeline``: the core's (output sample, rig time) anchors (:meth:`SoundCore.timeline`), read on close;
+    without it, one segment at ``origin()``.
     """
 
     def __init__(self, path: Path, sample_rate: int, channels: int, origin: Callable[[], float],
-                 keep: Callable[[], bool] = lambda: True) -> None:
+                 keep: Callable[[], bool] = lambda: True,
+                 timeline: Callable[[], list[tuple[int, float]]] | None = None) -> None:
         fmt = wav_format(path, "--wav")
         path.parent.mkdir(parents=True, exist_ok=True)
         self.path = path
         self.origin = origin
+        self.timeline = timeline
         self.keep = keep
         """Asked on close: whether the take gets its name (False: the node failed, the take may be cut short)."""
-        self.meta: dict[str, float] = {}  # what the .json says, taken when the file is closed
+        self.meta: dict[str, Any] = {}  # what the .json says, taken when the file is closed
         self.finished = False  # closed, named, and its .json written
         # a symlink keeps naming the file it points to; a device or pipe is written in place
         self.in_place = path.exists() and not path.is_file()
@@ -177,8 +184,11 @@ class WavSink:
         if self.finished:
             return
         if not self.file.closed:
-            self.meta = {"origin_rig_time_s": self.origin(), "sample_rate_hz": self.file.samplerate,
-                         "channels": self.file.channels, "frames": self.file.frames}
+            frames = self.file.frames
+            anchors = self.timeline() if self.timeline is not None else [(0, self.origin())]
+            self.meta = {"origin_rig_time_s": anchors[0][1], "sample_rate_hz": self.file.samplerate,
+                         "channels": self.file.channels, "frames": frames,
+                         "segments": [{"frame": n, "rig_time_s": t} for n, t in anchors if n < frames or n == 0]}
             self.file.close()
             if not self.in_place and not self.keep():
                 self._leave_cut_short()
@@ -270,7 +280,8 @@ WAV_HELP = (
     "{start} in the file name is the take's start time, local YYYYmmdd-HHMMSS (take-{start}.wav: "
     "take-20260131-201500.wav, then -2, -3 ... if that name is taken), so each run keeps its own file; the log says "
     "the name. Beside it, its name + .json (take.wav.json) gives origin_rig_time_s (the rig time of the first sample, "
-    "seconds: lines the take up with the rig's impacts), sample_rate_hz, channels and frames"
+    "seconds: lines the take up with the rig's impacts), sample_rate_hz, channels, frames and segments (frame and "
+    "rig time of each stretch: a new one where rig time stepped, the clock master restarted)"
 )
 
 
@@ -366,7 +377,8 @@ def _attach_sinks(core: SoundCore, settings: SoundNodeSettings, keep_take: Calla
         if blocker is not None:  # else mkdir's bare "[Errno 17] File exists"
             raise InputError(f"--wav {path}: {blocker} is a file, not a folder")
         try:
-            wav = WavSink(path, core.sample_rate, core.channels, lambda: core.scheduler.origin, keep_take)
+            wav = WavSink(path, core.sample_rate, core.channels, lambda: core.scheduler.origin, keep_take,
+                          timeline=core.timeline)
         except (OSError, RuntimeError) as exc:  # soundfile: unwritable path
             raise InputError(f"--wav {path}: cannot write it ({exc})") from None
         core.sinks.append(wav)
