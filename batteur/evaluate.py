@@ -944,6 +944,7 @@ def fit_kit_name(inputs: Sequence[Path], kit: str | None) -> str:
     render directory's (its report.json). :class:`UsageError` when they play several: a calibration's offsets and
     velocity maps are per kit object, and one fit cannot serve kits whose objects differ."""
     from batteur.render import DEFAULT_KIT
+    from common.kit import kit_file
     from common.score.text import MIDI_SUFFIXES, load_score_kit, read_score, score_kit
 
     if kit is not None:
@@ -959,7 +960,7 @@ def fit_kit_name(inputs: Sequence[Path], kit: str | None) -> str:
             name = score_kit(score) or DEFAULT_KIT
             if name != DEFAULT_KIT:  # one it cannot load: a ScoreError naming the line, before the renders
                 load_score_kit(score, None, path, lambda kit: load_kit(kit, warn=False))
-        same = name if not Path(name).suffix else str(Path(name).expanduser().resolve())  # a name: a shipped kit
+        same = str(kit_file(name))  # a name and its file's path are one kit
         played.setdefault(same, (name, []))[1].append(path.name)
     if len(played) > 1:
         kits = "; ".join(f"{name} ({_and(paths)})" for name, paths in played.values())

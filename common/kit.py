@@ -38,6 +38,13 @@ KIT_FILE = "a kit file (.yaml or .json)"
 """What :func:`load_kit` asks for when a path is not a regular file (``is a folder, not a kit file (...)``)."""
 
 
+def kit_file(kit: str) -> Path:
+    """The file a kit name or path stands for (:func:`load_kit`'s rule: a name without a suffix is a shipped kit in
+    :data:`KITS_DIR`), resolved: a kit given as a name and as that file's path compare equal."""
+    path = Path(kit).expanduser()
+    return (KITS_DIR / f"{kit}.yaml" if not path.suffix else path).resolve()
+
+
 class EventType(enum.StrEnum):
     """The 15 drum event types of Kragtwijk, Nijholt and Zwiers (2001)."""
 

@@ -121,7 +121,7 @@ import numpy as np
 from common.gesture.plan import GesturePlan, Grip, Nuance, planned_grip
 from common.gesture.planner import kick_feet
 from common.gesture.reach import pull_into_reach
-from common.kit import KITS_DIR, EventType, Limb
+from common.kit import EventType, Limb, kit_file
 from common.messages import OscMessage
 from common.messages.physics import PhysicsReset
 from common.messages.score import GestureStyle, KitSelect, LiveNote, ScoreLoad, ScoreTransport, TempoScale
@@ -299,13 +299,6 @@ class _Job:
     """Live notes: the note of each request, in the same order."""
     pulled: dict[str, int] = dataclasses.field(default_factory=dict)
     """Once ready: its plan's knots brought within the body's reach, per limb (:meth:`ScorePlayer._reachable`)."""
-
-
-def _kit_file(kit: str) -> Path:
-    """The file a kit name or path stands for (``load_kit``'s rule: a name without a suffix is a shipped kit),
-    resolved, for comparing two kits as given."""
-    path = Path(kit).expanduser()
-    return (KITS_DIR / f"{kit}.yaml" if not path.suffix else path).resolve()
 
 
 def _under(base: Path, path: Path) -> bool:
@@ -578,7 +571,7 @@ class ScorePlayer:
         from common.score.text import score_kit
 
         asked = score_kit(score)
-        if asked is None or asked == self.core.settings.kit or _kit_file(asked) == _kit_file(self.core.settings.kit):
+        if asked is None or asked == self.core.settings.kit or kit_file(asked) == kit_file(self.core.settings.kit):
             return
         line = getattr(score, "kit_line", None)
         log.warning("score %s: %sasks for kit %r: played on this node's kit %r (the kit is fixed when the node "

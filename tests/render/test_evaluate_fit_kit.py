@@ -96,3 +96,12 @@ def test_a_kit_line_naming_no_kit_is_said_with_its_line(tmp_path: Path, fitted_k
     a = _score(tmp_path / "a.txt", "nokit")
     assert evaluate.main([str(a), "--fit-calibration", str(tmp_path / "fit.json"), "--quiet"]) == 1
     assert "a.txt: line 1: kit 'nokit'" in _error(capsys)
+
+
+def test_a_kit_named_and_the_same_kit_by_its_file_are_one_kit(tmp_path: Path, fitted_kits: list[str]) -> None:
+    from common.kit import KITS_DIR
+
+    scores = [_score(tmp_path / "a.txt", "double_pedal"),
+              _score(tmp_path / "b.txt", str(KITS_DIR / "double_pedal.yaml"))]
+    assert evaluate.main([*map(str, scores), "--fit-calibration", str(tmp_path / "fit.json"), "--quiet"]) == 0
+    assert len(fitted_kits) == 1
