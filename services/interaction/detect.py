@@ -364,7 +364,9 @@ class Segmenter:
 
     def _note_offset(self, offset: float, now: float) -> None:
         current, previous = self._offset_min
-        if now - self._offset_window_start >= 1.0:  # two one-second windows: follows clock corrections
+        # two one-second windows: follows clock corrections; rig time stepped back (the clock master restarted):
+        # new windows at once, not only once it is back past the last window's start
+        if not 0.0 <= now - self._offset_window_start < 1.0:
             previous, current = current, math.inf
             self._offset_window_start = now
         self._offset_min = (min(current, offset), previous)
