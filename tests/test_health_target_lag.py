@@ -11,17 +11,16 @@ from __future__ import annotations
 
 import asyncio
 import json
-import socket
-import threading
 from collections.abc import Iterator
 
 import pytest
 
 from batteur.tools import ls
-from common.messages import Health, Hello, decode
+from common.messages import Health, decode
 from common.messages.base import MessageError
 from common.messages.codec import encode_raw
 from services.physics.core import PhysicsCore
+from tests.health_answerer import HealthAnswerer
 from tests.null_core import NullCore
 from tests.test_health_unanswered import health_after
 
@@ -64,48 +63,18 @@ def test_the_fields_are_appended_and_an_older_nodes_health_still_decodes() -> No
         Health.from_args(args[:-5])
 
 
-class _HealthAnswerer:
-    """A UDP "node" in this process: answers a Hello with ``packet`` (an encoded Health)."""
-
-    def __init__(self, packet: bytes) -> None:
-        self.packet = packet
-        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self.sock.bind(("127.0.0.1", 0))
-        self.sock.settimeout(0.05)
-        self.port: int = self.sock.getsockname()[1]
-        self.stop = threading.Event()
-        self.thread = threading.Thread(target=self._serve, daemon=True)
-        self.thread.start()
-
-    def _serve(self) -> None:
-        while not self.stop.is_set():
-            try:
-                data, source = self.sock.recvfrom(65535)
-            except TimeoutError:
-                continue
-            except OSError:
-                return
-            if any(isinstance(m, Hello) for m in decode(data).messages):
-                self.sock.sendto(self.packet, source[:2])
-
-    def close(self) -> None:
-        self.stop.set()
-        self.thread.join(timeout=5)
-        self.sock.close()
-
-
 @pytest.fixture(params=["this", "older"])
-def answerer(request: pytest.FixtureRequest) -> Iterator[tuple[_HealthAnswerer, tuple[float, int]]]:
+def answerer(request: pytest.FixtureRequest) -> Iterator[tuple[HealthAnswerer, tuple[float, int]]]:
     """A node answering with this version's Health (a lag of 125 ms, 2 jumps) or an older node's (no lag fields)."""
     args = HEALTH.to_args()
     older = request.param == "older"
     since_lag = len(Health.wire_fields()) - [f.name for f in Health.wire_fields()].index("target_lag")
-    node = _HealthAnswerer(encode_raw(Health.ADDRESS, args[:-since_lag] if older else args))
+    node = HealthAnswerer(encode_raw(Health.ADDRESS, args[:-since_lag] if older else args))
     yield node, ((0.0, 0) if older else (0.125, 2))
     node.close()
 
 
-def test_ls_json_shows_the_physics_nodes_target_lag(answerer: tuple[_HealthAnswerer, tuple[float, int]],
+def test_ls_json_shows_the_physics_nodes_target_lag(answerer: tuple[HealthAnswerer, tuple[float, int]],
                                                      capsys: pytest.CaptureFixture[str]) -> None:
     node, (lag, jumps) = answerer
     assert ls.main(["--node", f"127.0.0.1:{node.port}", "--timeout", "3", "--json"]) == 0

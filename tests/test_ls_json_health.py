@@ -5,14 +5,13 @@ message with)."""
 from __future__ import annotations
 
 import json
-import socket
-import threading
 from collections.abc import Iterator
 
 import pytest
 
 from batteur.tools import ls
-from common.messages import Health, Hello, MessageError, decode, encode
+from common.messages import Health, encode
+from tests.health_answerer import HealthAnswerer
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -24,29 +23,9 @@ HEALTH = Health(node_id="sound-1", role="sound", protocol=1, time=1234.5678, rat
 @pytest.fixture
 def node_port() -> Iterator[int]:
     """A UDP "node" on loopback that answers every Hello with :data:`HEALTH`."""
-    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    sock.bind(("127.0.0.1", 0))
-    sock.settimeout(0.05)
-    stop = threading.Event()
-
-    def serve() -> None:
-        while not stop.is_set():
-            try:
-                data, source = sock.recvfrom(65535)
-                messages = decode(data).messages
-            except (TimeoutError, MessageError):
-                continue
-            except OSError:
-                return
-            if any(isinstance(m, Hello) for m in messages):
-                sock.sendto(encode(HEALTH), source)
-
-    thread = threading.Thread(target=serve, daemon=True)
-    thread.start()
-    yield sock.getsockname()[1]
-    stop.set()
-    thread.join(timeout=5)
-    sock.close()
+    node = HealthAnswerer(encode(HEALTH))
+    yield node.port
+    node.close()
 
 
 def test_ls_json_gives_the_drops_by_reason_and_the_rig_time(node_port: int,

@@ -12,17 +12,16 @@ from __future__ import annotations
 import asyncio
 import json
 import logging
-import socket
-import threading
 from collections.abc import Iterator
 
 import pytest
 
 from batteur.tools import ls
 from common.core import Outgoing
-from common.messages import Health, Hello, Impact, OscMessage, decode, encode
+from common.messages import Health, Hello, Impact, OscMessage, encode
 from common.peers import Peer, PeerTable
 from common.transport import NO_PEER_GRACE_S, NO_PEER_LOG_INTERVAL_S, UdpEndpoint
+from tests.health_answerer import HealthAnswerer
 from tests.null_core import NullCore
 from tests.test_health_unanswered import health_after
 
@@ -112,28 +111,9 @@ def node_port() -> Iterator[int]:
                     target_rate_hz=0.0, overruns=0, messages_in=1, messages_out=2, dropped=0, dropped_malformed=0,
                     dropped_unknown=0, dropped_type=0, dropped_range=0, dropped_other=0, late=0, peers=1,
                     unroutable=7)
-    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    sock.bind(("127.0.0.1", 0))
-    sock.settimeout(0.05)
-    stop = threading.Event()
-
-    def serve() -> None:
-        while not stop.is_set():
-            try:
-                data, source = sock.recvfrom(65535)
-            except TimeoutError:
-                continue
-            except OSError:
-                return
-            if any(isinstance(m, Hello) for m in decode(data).messages):
-                sock.sendto(encode(health), source)
-
-    thread = threading.Thread(target=serve, daemon=True)
-    thread.start()
-    yield sock.getsockname()[1]
-    stop.set()
-    thread.join(timeout=5)
-    sock.close()
+    node = HealthAnswerer(encode(health))
+    yield node.port
+    node.close()
 
 
 def test_ls_json_shows_the_unroutable_count(node_port: int, capsys: pytest.CaptureFixture[str]) -> None:
