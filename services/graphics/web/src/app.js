@@ -329,8 +329,9 @@ function applyPose(p, t) {
     tr.line.geometry.attributes.position.needsUpdate = true;
   }
   const tips = [...state.trails.entries()].filter(([i]) => links[i].kind !== "body");
-  const last = state.plot.length ? state.plot[state.plot.length - 1][0] : -Infinity;
-  if (t < last) state.plot = [];
+  // time went back: the points after it go (all of them when a preview loops or physics restarts). The view
+  // clock also steps back a little on a loaded rig: emptying the plot then left a second or so of its window.
+  while (state.plot.length && state.plot[state.plot.length - 1][0] > t) state.plot.pop();
   state.plot.push([t, tips.map(([, tr]) => tr.points[tr.points.length - 1][3]), tips.map(([i]) => links[i].name)]);
   const window_ = state.view?.plot?.window ?? 4;
   while (state.plot.length && state.plot[0][0] < t - window_) state.plot.shift();
@@ -371,6 +372,7 @@ function applyHits(hits) {
 const plotCanvas = document.getElementById("plot");
 const pctx = plotCanvas.getContext("2d");
 const PLOT_COLOURS = ["#ffb347", "#7ec8ff", "#b0ff8a", "#ff7eb6"];
+const PLOT_LEGEND_TOP = 22, PLOT_LINE = 11; // the legend's first baseline and line height (canvas px, 10 px font)
 function plotNotice(text) { // what the plot says it lacks ("" with data), also for screen readers and tests
   if (state.plotNotice === text) return;
   state.plotNotice = text;
@@ -393,22 +395,29 @@ function drawPlot() {
     return;
   }
   const tEnd = state.plot[state.plot.length - 1][0];
+  const nTips = state.plot[0][1].length;
+  // the traces keep under the title and the legend (a stick tip near z_max was drawn through the names)
+  const top = PLOT_LEGEND_TOP + PLOT_LINE * nTips;
   const x = (t) => ((t - (tEnd - pl.window)) / pl.window) * (w - 30) + 26;
-  const y = (z) => h - 14 - ((z - pl.z_min) / (pl.z_max - pl.z_min)) * (h - 24);
+  const y = (z) => h - 14 - ((z - pl.z_min) / (pl.z_max - pl.z_min)) * (h - 14 - top);
   pctx.strokeStyle = "#444"; pctx.fillStyle = "#999"; pctx.font = "10px sans-serif";
   for (let z = Math.ceil(pl.z_min * 5) / 5; z <= pl.z_max; z += 0.2) {
     pctx.beginPath(); pctx.moveTo(26, y(z)); pctx.lineTo(w, y(z)); pctx.stroke();
     pctx.fillText(z.toFixed(1), 2, y(z) + 3);
   }
   pctx.fillText("stick tip height (m) over the last " + pl.window + " s", 30, 10);
-  const nTips = state.plot[0][1].length;
   for (let k = 0; k < nTips; k++) {
     pctx.strokeStyle = PLOT_COLOURS[k % PLOT_COLOURS.length];
+    pctx.save();
+    pctx.beginPath(); // a tip outside z_min..z_max is cut at the edge, not drawn over the legend or the labels
+    pctx.rect(26, top, w - 26, h - 14 - top);
+    pctx.clip();
     pctx.beginPath();
     state.plot.forEach(([t, zs], j) => { if (j) pctx.lineTo(x(t), y(zs[k])); else pctx.moveTo(x(t), y(zs[k])); });
     pctx.stroke();
+    pctx.restore();
     pctx.fillStyle = pctx.strokeStyle;
-    pctx.fillText(state.plot[0][2][k], w - 90, 22 + 11 * k);
+    pctx.fillText(state.plot[0][2][k], w - 90, PLOT_LEGEND_TOP + PLOT_LINE * k);
   }
 }
 
@@ -489,8 +498,19 @@ function layerTick(name) {
 
 // The toolbar (and the editor under it) sits right of the status panel, or below it when the window is too
 // narrow for both side by side; the editor ends above the plot (scrolling), or, in a window too short to leave it
-// EDITOR_MIN_PX there, the plot moves left of the editor: a panel never covers another.
-const EDITOR_MIN_PX = 160;
+// EDITOR_MIN_PX there, the plot moves left of the editor: a panel never covers another. The plot shrinks (never
+// grows) to fit under the panels above it and beside the editor: in a phone held sideways it lay over the toolbar,
+// and, moved left of the editor, ran off the window.
+const EDITOR_MIN_PX = 160, PLOT_MIN_SCALE = 0.3;
+function fitPlot(right, room, panels) { // the plot's CSS size at ``right`` px from the window's right edge
+  const w = plotCanvas.width, h = plotCanvas.height, border = plotCanvas.offsetWidth - plotCanvas.clientWidth;
+  let scale = Math.min(1, (room - border) / w);
+  const left = window.innerWidth - right - w * scale - border;
+  const above = panels.filter((r) => r.left < window.innerWidth - right && left < r.right) // in its columns
+    .reduce((low, r) => Math.max(low, r.bottom + 8), 0);
+  scale = Math.max(PLOT_MIN_SCALE, Math.min(scale, (window.innerHeight - 8 - above - border) / h));
+  Object.assign(plotCanvas.style, { right: `${right}px`, width: `${w * scale}px`, height: `${h * scale}px` });
+}
 function placePanels() {
   const status = document.getElementById("status"), toolbar = document.getElementById("toolbar");
   const editor = document.getElementById("editor");
@@ -500,12 +520,17 @@ function placePanels() {
   if (!besideStatus) toolbar.style.top = `${s.bottom + 8}px`;
   const top = toolbar.getBoundingClientRect().bottom + 8;
   editor.style.top = `${top}px`;
-  plotCanvas.style.right = ""; // the stylesheet's place, bottom right
+  const above = [toolbar.getBoundingClientRect()]; // the panels the plot must stay under
+  if (!status.classList.contains("hidden")) above.push(status.getBoundingClientRect());
+  fitPlot(8, window.innerWidth - 16, above); // its corner, bottom right
   let bottom = window.innerHeight - 8; // the editor's lowest edge (CSS pixels; its box is border-box)
   if (!editor.classList.contains("hidden") && !plotCanvas.classList.contains("hidden")) {
     const aboveplot = plotCanvas.getBoundingClientRect().top - 8;
     if (aboveplot - top >= EDITOR_MIN_PX) bottom = aboveplot;
-    else plotCanvas.style.right = `${window.innerWidth - editor.getBoundingClientRect().left + 8}px`;
+    else {
+      const edge = editor.getBoundingClientRect().left;
+      fitPlot(window.innerWidth - edge + 8, edge - 16, above);
+    }
   }
   editor.style.maxHeight = `${Math.max(EDITOR_MIN_PX, bottom - top)}px`;
 }
@@ -528,7 +553,21 @@ function renderStatus() {
     `late strikes ${s.late} · poses ${s.counters.poses} · impacts ${s.counters.impacts}` +
     (s.pose_lag === null ? "" : ` · pose age ${(s.pose_lag * 1000).toFixed(0)} ms`) +
     `<table>${rows || "<tr><td>no other nodes seen</td></tr>"}</table>`;
+  showStalePoses(s);
   placePanels(); // the panel grows with the nodes seen
+}
+
+// The node holds the newest pose when poses stop (physics stopped or cannot reach it), so frames keep coming and
+// the drummer just stands still: say so once the live poses are older than STALE_POSES_S.
+const STALE_POSES_S = 2;
+function showStalePoses(s) {
+  const el = document.getElementById("stale-poses");
+  const stale = state.connected && s.mode === "live" && s.pose_lag !== null && s.pose_lag > STALE_POSES_S;
+  el.classList.toggle("hidden", !stale);
+  if (stale) {
+    el.textContent = `no poses from physics for ${s.pose_lag.toFixed(0)} s: the drummer is held at the last pose ` +
+      "(physics stopped, or cannot reach this node)";
+  }
 }
 
 // ---------------------------------------------------------------- WebSocket with auto-reconnect
