@@ -79,6 +79,14 @@ KICK_DOUBLE_DEPTH = 0.008
 """Such a softer bass-drum stroke aims this much deeper (metres) times the share of its lift it loses: after a
 hard kick the same foot height presses the board less (0.91 against 0.93 of its travel at the planned bottom; the
 beater meets the head at 0.95)."""
+KICK_REST_GAP_S = 1.5
+"""A bass-drum foot's stroke this long or more (s) after its previous one, or its first, is made from rest: it
+passes the height where the beater meets the head at the note time (:func:`kick_contact_rise`). After a shorter
+gap the same foot height presses the board less (docs/physics.md, "Kicks"). Below ``CONTEXT_S`` of the score
+player (2 s), so a live window's plan and the whole score's agree on every kick they splice."""
+KICK_RAISE_ROOM_S = 0.1
+"""... and only when the foot's next stroke is at least this long (s) after the raised one's press-on and contact:
+a later bottom must not squeeze the approach to the next kick (at the closest kicks, 30 ms, it left none)."""
 HOLD_FALL = 0.12
 """Seconds before a stroke over which the foot's rest height blends into the stroke."""
 HOLD_FALL_SHARE = 0.5
@@ -355,7 +363,8 @@ def _limb_knots(
             lift, rest_rise = lift * scale, rest_rise * scale
             if softer > 0.0 and scale < 1.0:
                 target = st.target - KICK_DOUBLE_DEPTH * (1.0 - scale) * softer * st.normal
-        # a bass-drum foot's first stroke, from its rest, passes the height where the beater meets the head
+        # a bass-drum foot's stroke from its rest (its first, or KICK_REST_GAP_S after the one before, with room
+        # before the next: KICK_RAISE_ROOM_S) passes the height where the beater meets the head
         # (``kick_contact_rise``) at the note time and presses on to the flat board at its speed: aimed at the flat
         # board, it sounded early by the time the foot takes over the last 8 mm (a lone kick at velocity 0.5 11 ms,
         # 0.2 21 ms; now 4 and 9). Not the strokes after: for a second or more after a stroke the same foot height
@@ -363,10 +372,13 @@ def _limb_knots(
         # board (raised, kicks 0.1-0.4 s after another sounded 8-22 ms late; docs/physics.md, "Kicks")
         through = 0.0
         bottom = target
-        if cycle is not None and hold > 0.0 and i == 0:
-            through = kick_contact_rise()
-            target = target + through * st.normal
-            rest_rise = max(rest_rise - through, 0.0)  # from the raised aim: the same rest height
+        if cycle is not None and hold > 0.0 and (i == 0 or st.time - strokes[i - 1].time >= KICK_REST_GAP_S):
+            rise = kick_contact_rise()
+            pressed = st.time + rise / max(st.speed, 1e-3) + st.contact  # the contact's end, raised
+            if i + 1 == len(strokes) or strokes[i + 1].time - pressed >= KICK_RAISE_ROOM_S:
+                through = rise
+                target = target + through * st.normal
+                rest_rise = max(rest_rise - through, 0.0)  # from the raised aim: the same rest height
         if aims is not None:
             aims.append(target)
         # rebound not yet finished: the lift also has to account for where we start

@@ -50,6 +50,38 @@ def test_a_kick_foots_first_stroke_passes_the_beaters_contact_height_at_the_note
         assert height_speed(stroke.time) == pytest.approx((0.0, stroke.velocity), abs=1e-6)
 
 
+def _kicks(events: list[tuple[float, float]]) -> tuple[Score, list[float]]:
+    """A score of bass-drum notes (time s, velocity) and, planned, the height above the flat footboard (m) of the
+    kick foot at each note time."""
+    kit = load_kit("default", warn=False)
+    score = Score(events=[DrumEvent(time=t, event=EventType.BASS, velocity=v, pitch=36) for t, v in events],
+                  beats=np.array([events[0][0]]))
+    plan = plan_gestures(distribute(score, kit), kit, score)
+    foot = plan.trajectories[Limb.RIGHT_FOOT]
+    flat = kit.object("kick_pedal").position[2]
+    pos, _ = hermite(foot.times, foot.positions, foot.velocities, np.array([t for t, _ in events]))
+    return score, [float(z - flat) for z in pos[:, 2]]
+
+
+@pytest.mark.parametrize("gap_s", [0.03, 0.0305, 0.05, 0.1])
+def test_a_soft_first_kick_just_before_another_plans_and_is_not_raised(gap_s: float) -> None:
+    """The raised first stroke bottoms out later (at velocity 0.05 about 20 ms): followed by a kick 30 ms later
+    (the closest the limb distribution keeps) its knots overran the next stroke's and the whole plan failed
+    ("times must be strictly increasing"); just over it, the foot was to reach the next kick at 10 m/s. Raised only
+    with room before the next stroke (``KICK_RAISE_ROOM_S``)."""
+    _, heights = _kicks([(1.0, 0.05), (1.0 + gap_s, 0.8)])
+    assert heights == pytest.approx([0.0, 0.0], abs=1e-6)
+
+
+def test_a_kick_after_a_long_rest_is_raised_as_a_first_one() -> None:
+    """A kick ``KICK_REST_GAP_S`` or more after the foot's previous one is made from rest, as a first one: raised
+    (the whole score's plan and a live window planned from 2 s before it then agree); one 0.6 s after another is
+    not."""
+    _, heights = _kicks([(0.5, 0.6), (1.1, 0.6), (3.5, 0.6), (4.1, 0.6)])
+    rise = kick_contact_rise()
+    assert heights == pytest.approx([rise, 0.0, rise, 0.0], abs=1e-6)
+
+
 @pytest.mark.slow  # two scenes and about 2.5 s of simulation each: 10-20 s on a loaded machine
 @pytest.mark.parametrize("velocity", [0.7, 1.0])
 def test_a_lone_kick_sounds_at_its_note_time(velocity: float) -> None:
