@@ -51,6 +51,9 @@ from services.graphics.sequence import FLOATS_PER_LINK, PoseSequence, interpolat
 from services.graphics.skeleton import guess_parents
 
 CLOCK_JUMP = 0.5  # seconds: a pose clock this much behind the current offset has been restarted
+CLOCK_SLEW = 0.1
+"""Auto clock: how fast the offset may come down, seconds per second. When the largest recent lag ages out, the
+display time advances 10 % slower until the offset matches, never steps back (trails and contacts would jump)."""
 SEEN_IMPACTS = 4096  # impacts remembered per sender to drop redundant copies
 MAX_SENDERS = 64  # impact senders remembered (least recently heard forgotten first)
 MAX_NODES = 256  # nodes in the status table (least recently heard forgotten first)
@@ -176,6 +179,10 @@ class GraphicsCore:
         self._preview_start = 0.0
         self._preview_animator = KitAnimator(self.kit)
         self.clock_offset = 0.0
+        """Auto clock: the offset at ``_offset_since`` (local time); :meth:`offset_at` slews it down from there."""
+        self._offset_since = 0.0
+        self._offset_target = 0.0
+        """Auto clock: the largest lag of the window, where the offset slews to."""
         self._lags: deque[tuple[float, float]] = deque()
         self.counters: dict[str, int] = {
             "poses": 0, "impacts": 0, "frames": 0, "bad_layout": 0, "no_skeleton": 0, "duplicate_impacts": 0,
@@ -245,7 +252,9 @@ class GraphicsCore:
         # auto clock: the lags (pose time - local time) seen so far, as the new local clock would have seen them
         self._lags = deque((t + step_s, lag - step_s) for t, lag in self._lags)
         if self._lags:
-            self.clock_offset = max(lag for _, lag in self._lags)
+            self._offset_since += step_s
+            self.clock_offset -= step_s
+            self._offset_target -= step_s
         return []
 
     def _log_refusal(self, kind: str, now: float, detail: str) -> None:
@@ -288,7 +297,7 @@ class GraphicsCore:
         self._posture = np.asarray(angles, dtype=float).copy()
 
     def _postures(self, now: float) -> list[Outgoing]:
-        physics_now = now + self.clock_offset  # physics' rig time as its poses tell (auto clock)
+        physics_now = now + self.offset_at(now)  # physics' rig time as its poses tell (auto clock)
         if self._release:
             self._release = False
             self.counters["postures_sent"] = 0
@@ -393,17 +402,33 @@ class GraphicsCore:
         """Auto clock: offset = the largest ``pose time - local time`` seen over the last 2 s.
 
         Transport delays only make the lag smaller, so the largest recent lag is
-        the pose clock's offset plus the smallest delay. A jump back (a restarted
-        physics clock) resets the window.
+        the pose clock's offset plus the smallest delay. A larger lag moves the
+        offset up at once (display time steps forward); a smaller one, when the
+        largest ages out of the window, is slewed to at :data:`CLOCK_SLEW` so the
+        display time never goes back. A drop of more than :data:`CLOCK_JUMP` (a
+        restarted physics clock) resets the window and steps the offset.
         """
         lags = self._lags
-        if lags and lag < self.clock_offset - CLOCK_JUMP:
+        current = self.offset_at(now) if lags else lag  # the first pose sets the clock
+        if lags and lag < self._offset_target - CLOCK_JUMP:
             lags.clear()
             self.counters["clock_jumps"] += 1
+            current = lag
         lags.append((now, lag))
         while lags and lags[0][0] < now - 2.0:
             lags.popleft()
-        self.clock_offset = max(value for _, value in lags)
+        self._offset_target = max(value for _, value in lags)
+        if current - self._offset_target > CLOCK_JUMP:
+            # lags dropping window after window: the slew never trails by more than a restart would step
+            current = self._offset_target
+            self.counters["clock_jumps"] += 1
+        self.clock_offset = max(current, self._offset_target)
+        self._offset_since = now
+
+    def offset_at(self, now: float) -> float:
+        """The clock offset at local time ``now``: the last one, slewed down toward the window's largest lag."""
+        slewed = self.clock_offset - CLOCK_SLEW * max(0.0, now - self._offset_since)
+        return max(self._offset_target, slewed) if self.settings.clock == "auto" else self.clock_offset
 
     def _on_impact(self, message: Impact, source: str) -> None:
         """Animate the kit with a strike; a redundant copy (same sender, ``seq`` and time) is counted, dropped.
@@ -492,7 +517,7 @@ class GraphicsCore:
     # --- outputs ------------------------------------------------------------------------------
     def display_time(self, now: float) -> float:
         """Rig time of the pose shown at local time ``now``: ``now + clock offset - latency``."""
-        return now + self.clock_offset - self.latency
+        return now + self.offset_at(now) - self.latency
 
     def frame_at(self, now: float) -> ViewFrame | None:
         """The frame to show at rig time ``now`` (None before any pose)."""
@@ -566,5 +591,5 @@ class GraphicsCore:
         return {
             "type": "status", "time": round(now, 3), "mode": self.mode, "latency": self.latency,
             "nodes": nodes, "late": late, "score": score, "counters": dict(self.counters),
-            "pose_lag": None if newest is None else round(now + self.clock_offset - newest, 3),
+            "pose_lag": None if newest is None else round(now + self.offset_at(now) - newest, 3),
         }

@@ -54,6 +54,9 @@ MAX_PAGE_MESSAGE = 256 * 1024  # bytes
 CLOSE_TIMEOUT_S = 1.0
 """How long closing waits for a page to answer (a frozen tab would hold Ctrl-C up 10 s by default)."""
 MAX_BACKLOG = 64 * 1024
+SAVING_OFF = ("saving is disabled: start the graphics node with --kit-dir DIR "
+              "(under batteur rig: --graphics-arg='--kit-dir DIR')")
+"""Why a save is refused without a kit directory, and what to do: also the page's tooltip on its save buttons."""
 """Bytes waiting to be sent to a page above which it skips frames (about half a second of frames)."""
 
 
@@ -82,7 +85,7 @@ class ViewServer:
         self.poser_body = "rest"
         """Which body the editor poses: "live" (physics' newest pose) or "rest" (the shipped snapshot)."""
         self.counters = {"http": 0, "not_found": 0, "ws_connects": 0, "page_errors": 0, "sent": 0, "foreign_origin": 0,
-                         "skipped_frames": 0}
+                         "skipped_frames": 0, "saves_refused": 0}
         core.page_sink = self.broadcast
 
     # --- lifecycle ----------------------------------------------------------------------------
@@ -149,7 +152,7 @@ class ViewServer:
         self.counters["ws_connects"] += 1
         self.clients.add(connection)
         try:
-            for message in self.core.welcome():
+            for message in [*self.core.welcome(), self.saving_json()]:
                 await connection.send(json.dumps(message))
             async for raw in connection:
                 reply = self.handle_page_message(raw, connection)
@@ -180,6 +183,11 @@ class ViewServer:
             broadcast(targets, json.dumps(message, separators=(",", ":")))
             self.counters["sent"] += 1
 
+    def saving_json(self) -> dict[str, Any]:
+        """Whether the page's save buttons can work (sent at connect; a page that does not know it ignores it)."""
+        return {"type": "saving", "enabled": self.kit_dir is not None,
+                "reason": None if self.kit_dir is not None else SAVING_OFF}
+
     def handle_page_message(self, raw: str | bytes, page: object = None) -> dict[str, Any] | None:
         """One message from ``page`` (its connection); returns the reply (or None). Never raises."""
         try:
@@ -187,6 +195,11 @@ class ViewServer:
             if not isinstance(msg, dict) or not isinstance(msg.get("type"), str):
                 raise ValueError("a message is a JSON object with a 'type'")
             kind = msg["type"]
+            if kind in ("save_kit", "save_pose") and self.kit_dir is None:
+                # the node's setup, not a malformed message (the page disables its buttons when told at connect)
+                self.counters["saves_refused"] += 1
+                log.info("save refused from a page: %s", SAVING_OFF)
+                return {"type": "saved", "ok": False, "error": SAVING_OFF}
             if kind == "save_kit":
                 return self._save_kit(msg)
             if kind == "poser_on":
@@ -247,7 +260,7 @@ class ViewServer:
 
     def _target(self, file: object) -> Path:
         if self.kit_dir is None:
-            raise ValueError("saving is disabled: start the graphics node with --kit-dir DIR")
+            raise ValueError(SAVING_OFF)
         if not isinstance(file, str) or not FILE_NAME.fullmatch(file):  # match's "$" lets "kit.yaml\n" through
             raise ValueError("file name: letters, digits, '_', '-', '.', ending in .yaml, .yml or .json")
         path = (self.kit_dir / file).resolve()

@@ -1,6 +1,7 @@
 // Batteur live view: draws the drummer and the kit from the graphics node's WebSocket stream.
 // Frame: metres, z up, the drummer at the origin facing +y, +x to the drummer's right.
-// Messages from the node (JSON): kit (with its hardware), hardware, skeleton, view, frame, status, poser, saved.
+// Messages from the node (JSON): kit (with its hardware), hardware, skeleton, view, frame, status, poser, saved,
+// saving (at connect: whether the node can save; a node that does not send it is taken to save).
 import * as THREE from "three";
 import { OrbitControls } from "three/examples/jsm/controls/OrbitControls.js";
 
@@ -8,6 +9,8 @@ const state = {
   kit: null, names: [], parents: [], view: null, status: null, frames: 0, fps: 0, lastFpsT: performance.now(),
   connected: false, ws: null, retry: 0, lastFrame: null, trails: new Map(), plot: [], hits: [],
   poser: null, editing: false, nodeKit: null, pendingKit: null,
+  drawn: 0, // frames drawn (a received frame shown by the render loop): "view N fps" counts these
+  saving: { enabled: true, reason: null },
 };
 window.batteur = state; // for tests and the console
 
@@ -548,10 +551,13 @@ function renderStatus() {
     `<td>late ${n.late}</td><td>${n.age}s</td></tr>`).join("");
   const score = s.score ? `bar ${s.score.bar + 1} beat ${(s.score.beat + 1).toFixed(2)} @ ${s.score.tempo_bpm} bpm`
     : "–";
-  body.innerHTML = `mode ${s.mode} · delay ${(s.latency * 1000).toFixed(0)} ms · view ${state.fps.toFixed(0)} fps<br>` +
-    `rig time ${s.time.toFixed(2)} s · score ${score}<br>` +
-    `late strikes ${s.late} · poses ${s.counters.poses} · impacts ${s.counters.impacts}` +
-    (s.pose_lag === null ? "" : ` · pose age ${(s.pose_lag * 1000).toFixed(0)} ms`) +
+  // a figure and its unit never wrap apart in the narrow panel ("465" at the end of a line, "ms" on the next)
+  const nw = (text) => `<span class="nw">${text}</span>`;
+  body.innerHTML = `mode ${s.mode} · ${nw(`delay ${(s.latency * 1000).toFixed(0)} ms`)} · ` +
+    `${nw(`view ${state.fps.toFixed(0)} fps`)}<br>` +
+    `${nw(`rig time ${s.time.toFixed(2)} s`)} · score ${nw(score)}<br>` +
+    `${nw(`late strikes ${s.late}`)} · ${nw(`poses ${s.counters.poses}`)} · ${nw(`impacts ${s.counters.impacts}`)}` +
+    (s.pose_lag === null ? "" : ` · ${nw(`pose age ${(s.pose_lag * 1000).toFixed(0)} ms`)}`) +
     `<table>${rows || "<tr><td>no other nodes seen</td></tr>"}</table>`;
   showStalePoses(s);
   placePanels(); // the panel grows with the nodes seen
@@ -575,7 +581,7 @@ function connect() {
   const proto = location.protocol === "https:" ? "wss" : "ws";
   const ws = new WebSocket(`${proto}://${location.host}/ws`);
   state.ws = ws;
-  ws.onopen = () => { state.connected = true; state.retry = 0; state.connects = (state.connects ?? 0) + 1;
+  ws.onopen = () => { state.connected = true; state.retry = 0; applySaving({ enabled: true, reason: null }); state.connects = (state.connects ?? 0) + 1;
     state.connectedAt = performance.now(); renderStatus(); };
   ws.onmessage = (ev) => { try { onMessage(JSON.parse(ev.data)); } catch (e) { console.error(e); } };
   ws.onclose = () => {
@@ -608,6 +614,7 @@ function onMessage(m) {
     case "status": state.status = m; renderStatus(); break;
     case "poser": state.poser = m; buildEditorPose(); break; // the 57-DOF editor (buildEditorPose)
     case "saved": editorMsg(m.ok ? `saved ${m.path}` : `not saved: ${m.error}`, m.ok); break;
+    case "saving": applySaving(m); break;
     default: break;
   }
 }
@@ -772,7 +779,24 @@ document.getElementById("kit-mirror").addEventListener("click", () => {
   buildKit(state.kit);
   buildEditorKit();
 });
+// A node without a kit directory (as `batteur rig` starts it) cannot save: its save buttons are off and say why.
+function applySaving(m) {
+  state.saving = { enabled: m.enabled !== false, reason: m.reason ?? null };
+  const why = state.saving.enabled ? "" : `saving is off: ${state.saving.reason ?? "the node has no kit directory"}`;
+  for (const id of ["kit-save", "pose-save"]) {
+    const button = document.getElementById(id);
+    button.disabled = !state.saving.enabled;
+    button.title = why;
+    button.parentElement.title = why; // a disabled button shows no tooltip in every browser: its row does
+  }
+}
+function savingOff() { // true (and the editor says why) when the node cannot save
+  if (state.saving.enabled) return false;
+  editorMsg(`not saved: ${state.saving.reason ?? "saving is off"}`, false);
+  return true;
+}
 function saveKit() {
+  if (savingOff()) return;
   const file = document.getElementById("kit-file").value;
   if (send({ type: "save_kit", file, kit: state.kit })) editorMsg(`saving ${file}...`, true);
   else editorMsg("not saved: the node is not connected (reconnecting)", false);
@@ -857,7 +881,7 @@ function buildPoseSliders() {
 }
 jointSelect.addEventListener("change", buildPoseSliders);
 function savePose() {
-  if (!state.poser) return;
+  if (!state.poser || savingOff()) return;
   const name = document.getElementById("pose-name").value;
   if (send({ type: "save_pose", name, angles: state.poser.angles })) editorMsg(`saving ${name}...`, true);
   else editorMsg("not saved: the node is not connected (reconnecting)", false);
@@ -892,9 +916,11 @@ function animate(now) {
   if (state.view?.layers?.plot !== false) drawPlot();
   renderer.render(scene, camera);
   state.rendered = (state.rendered ?? 0) + 1;
+  // frames drawn, not received: a stalled tab catching up receives a burst of frames and draws only the last
+  if (state.lastFrame !== state.drawnFrame) { state.drawnFrame = state.lastFrame; state.drawn += 1; }
   if (now - state.lastFpsT > 1000) {
-    state.fps = (state.frames - (state.framesAtFps ?? 0)) * 1000 / (now - state.lastFpsT);
-    state.framesAtFps = state.frames; state.lastFpsT = now;
+    state.fps = (state.drawn - (state.drawnAtFps ?? 0)) * 1000 / (now - state.lastFpsT);
+    state.drawnAtFps = state.drawn; state.lastFpsT = now;
   }
   requestAnimationFrame(animate);
 }
