@@ -54,10 +54,10 @@ MAX_PAGE_MESSAGE = 256 * 1024  # bytes
 CLOSE_TIMEOUT_S = 1.0
 """How long closing waits for a page to answer (a frozen tab would hold Ctrl-C up 10 s by default)."""
 MAX_BACKLOG = 64 * 1024
+"""Bytes waiting to be sent to a page above which it skips frames (about half a second of frames)."""
 SAVING_OFF = ("saving is disabled: start the graphics node with --kit-dir DIR "
               "(under batteur rig: --graphics-arg='--kit-dir DIR')")
 """Why a save is refused without a kit directory, and what to do: also the page's tooltip on its save buttons."""
-"""Bytes waiting to be sent to a page above which it skips frames (about half a second of frames)."""
 
 
 def assets_missing(static_dir: Path = STATIC_DIR) -> list[str]:
