@@ -114,7 +114,7 @@ def test_the_part_file_a_failed_sound_node_names_is_still_there(tmp_path: Path,
 
     out, err, out_text, err_text = _outputs()
     before = rig.recording_state(tmp_path)
-    sink = WavSink(tmp_path / rig.RECORDING, 48000, 1, lambda: 0.0, keep=lambda: False)  # a node that failed
+    sink = WavSink(tmp_path / rig.RECORDING, 48000, 1, lambda: [(0, 0.0)], keep=lambda: False)  # a node that failed
     sink(np.full((256, 1), 0.25, dtype=np.float32))
     with caplog.at_level(logging.WARNING, logger="batteur.sound"):
         sink.close()

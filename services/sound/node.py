@@ -123,17 +123,15 @@ class WavSink:
     frame 0), a new one where rig time stepped (the clock master restarted) while the take went on, so no frame
     is given a wrong rig time and none is lost.
 
-    ``timeline``: the core's (output sample, rig time) anchors (:meth:`SoundCore.timeline`), read on close;
-    without it, one segment at ``origin()``.
+    ``timeline``: the core's (output sample, rig time) anchors (:meth:`SoundCore.timeline`: the first is sample 0
+    at the origin), read on close.
     """
 
-    def __init__(self, path: Path, sample_rate: int, channels: int, origin: Callable[[], float],
-                 keep: Callable[[], bool] = lambda: True,
-                 timeline: Callable[[], list[tuple[int, float]]] | None = None) -> None:
+    def __init__(self, path: Path, sample_rate: int, channels: int, timeline: Callable[[], list[tuple[int, float]]],
+                 keep: Callable[[], bool] = lambda: True) -> None:
         fmt = wav_format(path, "--wav")
         path.parent.mkdir(parents=True, exist_ok=True)
         self.path = path
-        self.origin = origin
         self.timeline = timeline
         self.keep = keep
         """Asked on close: whether the take gets its name (False: the node failed, the take may be cut short)."""
@@ -185,7 +183,7 @@ class WavSink:
             return
         if not self.file.closed:
             frames = self.file.frames
-            anchors = self.timeline() if self.timeline is not None else [(0, self.origin())]
+            anchors = self.timeline()
             self.meta = {"origin_rig_time_s": anchors[0][1], "sample_rate_hz": self.file.samplerate,
                          "channels": self.file.channels, "frames": frames,
                          "segments": [{"frame": n, "rig_time_s": t} for n, t in anchors if n < frames or n == 0]}
@@ -377,8 +375,7 @@ def _attach_sinks(core: SoundCore, settings: SoundNodeSettings, keep_take: Calla
         if blocker is not None:  # else mkdir's bare "[Errno 17] File exists"
             raise InputError(f"--wav {path}: {blocker} is a file, not a folder")
         try:
-            wav = WavSink(path, core.sample_rate, core.channels, lambda: core.scheduler.origin, keep_take,
-                          timeline=core.timeline)
+            wav = WavSink(path, core.sample_rate, core.channels, core.timeline, keep_take)
         except (OSError, RuntimeError) as exc:  # soundfile: unwritable path
             raise InputError(f"--wav {path}: cannot write it ({exc})") from None
         core.sinks.append(wav)

@@ -16,7 +16,7 @@ def test_a_failed_nodes_take_keeps_its_part_name_and_the_earlier_take(tmp_path: 
     wav = tmp_path / "performance.wav"
     earlier = np.linspace(-0.5, 0.5, 1000)
     sf.write(wav, earlier, 48000, subtype="PCM_24")
-    sink = WavSink(wav, 48000, 1, lambda: 0.0, keep=lambda: False)
+    sink = WavSink(wav, 48000, 1, lambda: [(0, 0.0)], keep=lambda: False)
     sink(np.full((256, 1), 0.25, dtype=np.float32))
     sink.close()
     (part,) = tmp_path.glob(".performance.wav.*.part")

@@ -18,7 +18,7 @@ BLOCK = np.full((256, 2), 0.25, dtype=np.float32)
 
 def test_a_wav_take_past_4_gib_keeps_all_it_holds(tmp_path: Path) -> None:
     wav = tmp_path / "take.wav"
-    sink = WavSink(wav, 48000, 2, lambda: 0.0)
+    sink = WavSink(wav, 48000, 2, lambda: [(0, 0.0)])
     sink(BLOCK)
     os.truncate(sink.part, WAV_LIMIT_BYTES + 2**20)  # as if 4 h had been recorded (sparse: nothing written)
     sink(BLOCK)
@@ -32,7 +32,7 @@ def test_a_wav_take_past_4_gib_keeps_all_it_holds(tmp_path: Path) -> None:
 
 def test_a_short_wav_take_is_an_ordinary_wav(tmp_path: Path) -> None:
     wav = tmp_path / "take.wav"
-    sink = WavSink(wav, 48000, 2, lambda: 0.0)
+    sink = WavSink(wav, 48000, 2, lambda: [(0, 0.0)])
     for _ in range(10):
         sink(BLOCK)
     sink.close()
