@@ -45,6 +45,7 @@ loopback.
 Exit status: 0 when every node listed answered, 1 when one did not (or none was found),
 2 on bad arguments; so `batteur ls --node 127.0.0.1:9103` is a healthcheck."""
 
+
 async def query_health(targets: Sequence[Target], timeout_s: float) -> dict[str, Health]:
     """Send a Hello to each reachable target; collect the Health answers by source address within
     ``timeout_s`` (only the targets may answer)."""
