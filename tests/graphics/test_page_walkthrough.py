@@ -102,6 +102,9 @@ def test_a_high_stick_tip_is_not_drawn_through_the_plot_legend(graphics_node: Gr
     try:
         with open_page(graphics_node.url, 10, 1000, 600, wait_for_status=True) as (page, errors):
             page.wait_for_function("window.batteur.plot.length > 30", timeout=20000)
+            # The traces grow leftwards from the plot's right edge; wait until they span the legend's band (a slow
+            # machine draws fewer frames, so a sample count alone left them short of it).
+            page.wait_for_function(f"({PLOT_ROWS})(90).some((share) => share > 0.8)", timeout=20000)
             page.screenshot(path=str(graphics_node.tmp / "plot-legend.png"))
             rows = page.evaluate(PLOT_ROWS, 90)
             traces = [y for y, share in enumerate(rows) if share > 0.8]  # a flat trace: a whole row of the band
