@@ -17,8 +17,10 @@ pipe keeps it running. If one service exits, the others are stopped too.
 take only when it stops cleanly, so a take cut short never replaces an earlier one, and stays in its part file,
 which the rig names).
 The graphics view listens on TCP ``--http-port`` (default 8080; a second rig on
-the same machine needs another). On Linux the services get SIGTERM when the
-rig itself dies, even by SIGKILL, so none is left running as an orphan.
+the same machine needs another); its page saves kits and poses into ``--kit-dir`` (off without it).
+A ``--ROLE-arg`` may give a service its own ``--host`` (the last wins, as argparse keeps it: the rig's checks,
+peers and Hellos take it), never its own ``--kit`` (refused: every service plays the rig's one kit).
+On Linux the services get SIGTERM when the rig itself dies, even by SIGKILL, so none is left running as an orphan.
 
 ``--score FILE`` (a .mid or text score, or ``demo`` for the demo groove of
 ``batteur demo``) makes the drummer play it live: the physics node gets
@@ -62,6 +64,8 @@ if TYPE_CHECKING:
     from common.score.events import Score
 
 ROLES = ("physics", "interaction", "sound", "graphics")
+DEFAULT_HOST = "127.0.0.1"
+"""Where a node listens without ``--host`` (common/config.py), and the rig's default ``--host``."""
 PORT_OFFSET = {role: i for i, role in enumerate(ROLES)}
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 """Signals that stop the rig: Ctrl-C, kill, and the terminal closing (the services, in their own sessions, would
@@ -99,6 +103,26 @@ class ServicePlan:
     def argv(self) -> list[str]:
         return [sys.executable, "-m", "batteur", self.role, "--port", str(self.port), *self.args]
 
+    @property
+    def host(self) -> str:
+        """The address the service listens on: its last ``--host`` (argparse keeps the last: a ``--ROLE-arg
+        '--host ADDRESS'`` after the rig's own), else a node's default, loopback."""
+        given = option_values(self.args, "--host")
+        return given[-1] if given else DEFAULT_HOST
+
+
+def option_values(args: Sequence[str], flag: str) -> list[str]:
+    """The values ``args`` (a service's command line) gives the long option ``flag``, in order: ``flag VALUE`` or
+    ``flag=VALUE``. Only the full name counts: which abbreviation a service's parser takes depends on its other
+    options, which the rig does not know."""
+    values = []
+    for i, arg in enumerate(args):
+        if arg == flag and i + 1 < len(args):
+            values.append(args[i + 1])
+        elif arg.startswith(flag + "="):
+            values.append(arg[len(flag) + 1:])
+    return values
+
 
 def peer_host(host: str) -> str:
     """The address the rig's services send each other, given the one they listen on (``--host``).
@@ -132,14 +156,17 @@ def plan_rig(opts: argparse.Namespace, epoch: float) -> list[ServicePlan]:
     if max(ports.values()) > 65535:
         raise UsageError(f"--base-port {opts.base_port}: {', '.join(roles)} would need UDP ports up to "
                          f"{max(ports.values())}, above 65535")
+    own = {role: role_args(role, opts) for role in roles}
+    # where each listens: the rig's --host, or the last one its --ROLE-arg gives (as argparse keeps it)
+    hosts = {role: ServicePlan(role, ports[role], ["--host", opts.host, *own[role]]).host for role in roles}
+    check_families(hosts, opts.host)
     plans: list[ServicePlan] = []
-    peer_at = peer_host(opts.host)
     for role in roles:
         args = ["--host", opts.host, "--epoch", repr(epoch), "--node-id", f"{role}-rig{opts.base_port}"]
         if not opts.no_static_peers:
             for other in roles:
                 if other != role:
-                    args += ["--peer", f"{other}={peer_at}:{ports[other]}"]
+                    args += ["--peer", f"{other}={peer_host(hosts[other])}:{ports[other]}"]
         if opts.no_discovery:
             args += ["--no-discovery"]
         else:
@@ -149,9 +176,22 @@ def plan_rig(opts: argparse.Namespace, epoch: float) -> list[ServicePlan]:
             args += ["--log-level", opts.log_level]
         if getattr(opts, "kit", None):  # every service: physics builds it, interaction maps it, sound voices it
             args += ["--kit", opts.kit]
-        args += role_args(role, opts)
+        args += own[role]
         plans.append(ServicePlan(role, ports[role], args))
     return plans
+
+
+def check_families(hosts: Mapping[str, str], rig_host: str) -> None:
+    """Raise UsageError when ``hosts`` (role -> the address it listens on) mix IPv4 and IPv6 addresses: a service
+    on one could not send to one on the other (a host name is left to the services to resolve)."""
+    versions = {}
+    for role, host in hosts.items():
+        with contextlib.suppress(ValueError):
+            versions[role] = ipaddress.ip_address(host).version
+    if len(set(versions.values())) > 1:
+        named = ", ".join(f"{role} on {hosts[role]}" for role in versions)
+        raise UsageError(f"--host {rig_host} and a --ROLE-arg --host mix IPv4 and IPv6 ({named}): the services could "
+                         "not send to each other; give them addresses of one kind")
 
 
 def role_args(role: str, opts: argparse.Namespace) -> list[str]:
@@ -167,9 +207,17 @@ def role_args(role: str, opts: argparse.Namespace) -> list[str]:
         args += ["--wav", str(Path(opts.record) / RECORDING)]
     if role == "graphics":
         args += ["--http-port", str(opts.http_port)]
-    for item in getattr(opts, f"{role}_arg") or []:
-        args += item.split()
-    return args
+    if role == "graphics" and getattr(opts, "kit_dir", None):
+        args += ["--kit-dir", str(Path(opts.kit_dir).resolve())]
+    extra = [arg for item in getattr(opts, f"{role}_arg") or [] for arg in item.split()]
+    kits = option_values(extra, "--kit")
+    if kits:
+        # refused, not warned: every service plays the rig's one kit (physics strikes it, sound voices it, graphics
+        # draws it, interaction maps it); one given its own would hit drums the others do not have or place, in
+        # silence but for a warning lost among four services' start-up lines. --kit gives it to all.
+        raise UsageError(f"--{role}-arg: --kit {kits[-1]} would give {role} a kit of its own, another than the other "
+                         f"services'; give every service that kit with the rig's --kit {kits[-1]}")
+    return args + extra
 
 
 def describe_exit(code: int) -> str:
@@ -210,7 +258,8 @@ class ReadyWait:
     timeout_s: float
     """``--ready-timeout``, seconds from launch."""
     host: str
-    """Where the rig sends to its services (:func:`peer_host`)."""
+    """Where the rig's asking socket listens: :func:`peer_host` of its ``--host`` (each service is asked at
+    :func:`peer_host` of its own :attr:`ServicePlan.host`)."""
     epoch: float
     """The rig epoch, Unix seconds: rig time is wall time less it, as on the services' clocks (one machine)."""
     play_at_s: float
@@ -396,8 +445,8 @@ class Rig:
                     self.out.write(f"batteur rig: waiting for {names} to start ({elapsed:.0f} s since launch; "
                                    f"--ready-timeout {ready.timeout_s:g} s)\n")
                     next_line += READY_PROGRESS_S
-                for plan in waiting:
-                    transport.sendto(hello, (ready.host, plan.port))
+                for plan in waiting:  # where it listens: a service with its own --host (--ROLE-arg) there
+                    transport.sendto(hello, (peer_host(plan.host), plan.port))
                 await answers.wait(min(READY_POLL_S, ready.timeout_s - elapsed))
         finally:
             transport.close()
@@ -578,7 +627,11 @@ def build_parser() -> argparse.ArgumentParser:
                         "batteur demo; default: none, the drummer idles)")
     parser.add_argument("--kit", default=None, metavar="NAME",
                         help="kit name or YAML/JSON file for every service (default: --score's `kit` line, as "
-                        "batteur render reads it, else the default kit)")
+                        "batteur render reads it, else the default kit); a --ROLE-arg may not give one its own")
+    parser.add_argument("--kit-dir", type=Path, default=None, metavar="DIR",
+                        help="the graphics page's kit and pose editor saves its kits and poses (poses.yaml, which "
+                        "graphics' keyframe preview reads) into DIR, created when it first saves; a kit saved there "
+                        "plays with --kit DIR/NAME.yaml (default: saving off; the page says so on its save buttons)")
     parser.add_argument("--play-at", type=non_negative, default=1.0, metavar="SECONDS",
                         help="rig time at which --score starts, seconds after rig time 0 (default 1); physics up "
                         "only after it starts the score as soon as it can, from its first note")
@@ -648,20 +701,25 @@ def plan_services(opts: argparse.Namespace, epoch: float) -> list[ServicePlan]:
 
 
 def check_allow(plans: Sequence[ServicePlan], host: str, environ: Mapping[str, str] | None = None) -> None:
-    """Raise UsageError, as each service would refuse to start (exit 2) after the others had started, when ``--host``
-    is off loopback and no allow-list reaches a service: not BATTEUR_ALLOW (which every service reads), nor its own
-    ``--allow`` (``--ROLE-arg``). A config file (BATTEUR_CONFIG, ``--config``) may give one: that service checks it."""
+    """Raise UsageError, as a service would refuse to start (exit 2) after the others had started, when it listens
+    off loopback (:attr:`ServicePlan.host`: the rig's ``--host``, or its own in ``--ROLE-arg``, which wins) and no
+    allow-list reaches it: not BATTEUR_ALLOW (which every service reads), nor its own ``--allow`` (``--ROLE-arg``).
+    A config file (BATTEUR_CONFIG, ``--config``) may give one: that service checks it."""
     from common.config import ENV_PREFIX, off_loopback_problem
 
     env = os.environ if environ is None else environ
     if env.get(f"{ENV_PREFIX}ALLOW", "").strip(" ,") or env.get(f"{ENV_PREFIX}CONFIG"):
         return
     for plan in plans:
-        given = any(arg.split("=", 1)[0] in ("--allow", "--config") for arg in plan.args)
-        problem = "" if given else off_loopback_problem(host, [])
-        if problem:
-            raise UsageError(f"{problem} (every service of the rig reads BATTEUR_ALLOW: "
-                             f"BATTEUR_ALLOW=192.168.1.0/24 batteur rig --host {host} ...)")
+        given = any(option_values(plan.args, flag) for flag in ("--allow", "--config"))
+        problem = "" if given else off_loopback_problem(plan.host, [])
+        if not problem:
+            continue
+        if plan.host != host:  # its own --host: said as the option that gave it
+            raise UsageError(f"--{plan.role}-arg --host {plan.host}: {problem} (with it in --{plan.role}-arg, or "
+                             "BATTEUR_ALLOW for every service of the rig)")
+        raise UsageError(f"{problem} (every service of the rig reads BATTEUR_ALLOW: "
+                         f"BATTEUR_ALLOW=192.168.1.0/24 batteur rig --host {host} ...)")
 
 
 def ignored_options(opts: argparse.Namespace) -> list[str]:
@@ -673,14 +731,15 @@ def ignored_options(opts: argparse.Namespace) -> list[str]:
     return []
 
 
-def check_ports(plans: list[ServicePlan], host: str, http_port: int = 0) -> None:
-    """Raise ValueError when a service could not listen on its UDP port, or graphics on TCP ``http_port`` (0: any,
-    nothing to check), before any service starts (else the others start, and the one that cannot bind stops
-    them)."""
+def check_ports(plans: list[ServicePlan], http_port: int = 0) -> None:
+    """Raise ValueError when a service could not listen on its UDP port (on its :attr:`ServicePlan.host`), or
+    graphics on TCP ``http_port`` (0: any, nothing to check), before any service starts (else the others start, and
+    the one that cannot bind stops them)."""
     for plan in plans:
-        probe_port(host, plan.port, socket.SOCK_DGRAM, f"UDP port {plan.port} ({plan.role})", "--base-port")
+        probe_port(plan.host, plan.port, socket.SOCK_DGRAM, f"UDP port {plan.port} ({plan.role})", "--base-port")
         if plan.role == "graphics" and http_port:
-            probe_port(host, http_port, socket.SOCK_STREAM, f"TCP port {http_port} (graphics view)", "--http-port")
+            probe_port(plan.host, http_port, socket.SOCK_STREAM, f"TCP port {http_port} (graphics view)",
+                       "--http-port")
 
 
 def probe_port(host: str, port: int, kind: socket.SocketKind, what: str, option: str) -> None:
@@ -698,6 +757,16 @@ def probe_port(host: str, port: int, kind: socket.SocketKind, what: str, option:
         if exc.errno == errno.EADDRINUSE:
             raise ValueError(f"{what} on {host} is in use (another rig?); choose another {option}") from None
         raise ValueError(f"--host {host}: cannot listen there ({exc.strerror or exc})") from None
+
+
+def check_kit_dir(opts: argparse.Namespace) -> None:
+    """Raise ValueError for a ``--kit-dir`` graphics could not save in (as graphics would refuse it, exit 1, once
+    the others had started), or when no graphics service would save there."""
+    if opts.kit_dir is None:
+        return
+    if "graphics" not in [r.strip() for r in opts.services.split(",")]:
+        raise UsageError("--kit-dir needs the graphics service (--services)")
+    check_output_dir(Path(opts.kit_dir), "--kit-dir")
 
 
 def check_record(opts: argparse.Namespace) -> None:
@@ -809,7 +878,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             plans = plan_services(opts, epoch)
             check_allow(plans, opts.host)
             check_record(opts)
-            check_ports(plans, opts.host, opts.http_port)
+            check_kit_dir(opts)
+            check_ports(plans, opts.http_port)
             make_record_dir(opts)  # last: a refused option leaves no folder behind
         except ValueError as exc:  # UsageError: 2; a score, a folder or a port it cannot use: 1
             return report_error("batteur rig", exc)

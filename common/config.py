@@ -9,6 +9,7 @@ optional YAML or TOML config file, and merges them with the environment::
 
 List settings (``peers``, ``interfaces``, ``allow``) are comma-separated in
 environment variables, repeated flags on the command line and lists in files.
+An empty environment variable (``BATTEUR_PLAY_AT=``) is taken as not set.
 A bad value raises :class:`SettingsError` with one readable line per problem.
 """
 
@@ -110,7 +111,10 @@ def _numeric(annotation: Any) -> bool:
 class NodeSettings(BaseSettings):
     """Settings of one service node (all services share these; a service may add flags of its own)."""
 
-    model_config = SettingsConfigDict(env_prefix=ENV_PREFIX, extra="forbid", validate_default=True)
+    # env_ignore_empty: an empty BATTEUR_<NAME> means not set, as most tools take it, so compose.yaml can pass
+    # ${BATTEUR_PLAY_AT:-} (the default, or the file's value, applies); it was parsed and refused ('' is no number)
+    model_config = SettingsConfigDict(env_prefix=ENV_PREFIX, extra="forbid", validate_default=True,
+                                      env_ignore_empty=True)
 
     role: str = Field(default="node", pattern=r"^[a-z][a-z0-9_-]*$", max_length=32,
                       description="service role (physics, interaction, sound, graphics, ...)")

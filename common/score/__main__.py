@@ -24,6 +24,11 @@ PROG = "python -m common.score"
 """The command's name in its usage and error lines."""
 
 
+def counted(count: int, noun: str) -> str:
+    """``count`` and ``noun``, plural unless the count is 1 ("1 event", "3 events")."""
+    return f"{count} {noun}{'' if count == 1 else 's'}"
+
+
 def main(argv: list[str] | None = None) -> int:
     """Print what the command line asks for; the exit status (README, "Exit status": 2 a bad option, 1 a score
     or kit it cannot use). A reader that goes away (``| head -1``) is a quiet stop, exit 0, as for the batteur
@@ -52,7 +57,8 @@ def _inspect(argv: list[str] | None) -> int:
         kit = load_score_kit(score, args.kit)  # a kit line's kit it cannot load: an error naming the line
     except (ScoreError, FileNotFoundError, ValueError) as exc:  # a score or kit it cannot use
         return report_error(PROG, exc, FAILED)
-    print(f"{score.source}: {len(score.events)} events over {score.duration:.2f} s, {len(score.beats)} beats")
+    print(f"{score.source}: {counted(len(score.events), 'event')} over {score.duration:.2f} s, "
+          f"{counted(len(score.beats), 'beat')}")
     asked = score_kit(score)
     print(f"kit: {args.kit or asked or DEFAULT_KIT}" + (" (the score's kit line)" if args.kit is None and asked
                                                          else ""))
@@ -64,7 +70,7 @@ def _inspect(argv: list[str] | None) -> int:
         print(f"double events removed: {len(score.duplicates)}")
     assignment = distribute(score, kit, args.algorithm, args.sticking)
     limbs = Counter(n.limb.value for n in assignment.notes)
-    print("limbs: " + ", ".join(f"{k} {v}" for k, v in sorted(limbs.items())))
+    print("limbs: " + (", ".join(f"{k} {v}" for k, v in sorted(limbs.items())) or "none"))  # none: no note
     bounces = sum(n.rebound for n in assignment.notes)
     if bounces:
         print(f"rebound doubles (second note a bounce, below minTimeGap): {bounces}")
@@ -82,7 +88,8 @@ def _inspect(argv: list[str] | None) -> int:
         elapsed = time.perf_counter() - t0
         knots = sum(len(t.times) for t in plan.trajectories.values())
         print(
-            f"plan: {len(plan.strokes)} strokes, {knots} knots, {plan.start_time:.2f}..{plan.end_time:.2f} s, "
+            f"plan: {counted(len(plan.strokes), 'stroke')}, {counted(knots, 'knot')}, "
+            f"{plan.start_time:.2f}..{plan.end_time:.2f} s, "
             f"planned in {elapsed:.3f} s"
         )
     return 0
