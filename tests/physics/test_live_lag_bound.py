@@ -24,7 +24,7 @@ import numpy as np
 import pytest
 
 from common.kit import load_kit
-from common.messages.physics import CartesianTarget, PhysicsReset
+from common.messages.physics import CartesianTarget, PhysicsPosture, PhysicsReset
 from common.messages.score import ScoreTransport
 from services.physics.core import MAX_TARGET_LAG_HARD_S, STREAM_SHORT_CUT_S, PhysicsCore
 from services.physics.drummer import DrummerScene
@@ -133,11 +133,12 @@ def test_the_skip_warning_says_what_plays_late(live: PhysicsCore, caplog: pytest
     assert scene.limb_tracks["left_hand"].end_time == pytest.approx(now + 0.5)  # at its rig time
 
 
-def follow_dense_stream(core: PhysicsCore, spacing_s: float, ahead_s: float, end_s: float) -> tuple[
-        list[float], list[float], list[float]]:
+def follow_dense_stream(core: PhysicsCore, spacing_s: float, ahead_s: float, end_s: float,
+                        long_skip: tuple[float, float] | None = None) -> tuple[list[float], list[float], list[float]]:
     """:func:`stream_while_late`, measured: after each call, how late the streamed knot in use plays (s: the lag
     grown since it was placed) and how far the hand's target is from what was asked for the rig time (m); for each
-    knot sent that cut knots sent for earlier rig times still to come, the rig time it cut over (s)."""
+    knot sent that cut knots sent for earlier rig times still to come, the rig time it cut over (s). ``long_skip``
+    (rig time s, seconds): the first call from that rig time on comes back that much later still."""
     scene = core.scene
     assert isinstance(scene, DrummerScene)
     track = scene.limb_tracks["left_hand"]
@@ -157,6 +158,9 @@ def follow_dense_stream(core: PhysicsCore, spacing_s: float, ahead_s: float, end
             if cut:
                 cut_over.append(sent - min(cut))
         now_ms += LATE_STEPS[k % len(LATE_STEPS)]
+        if long_skip is not None and now_ms >= long_skip[0] * 1000:
+            now_ms += round(long_skip[1] * 1000)
+            long_skip = None
         k += 1
         core.step(now_ms / 1000)
         rig, lag = core.time, core.target_lag
@@ -183,6 +187,19 @@ def test_a_dense_stream_streamed_after_the_lag_grew_plays_close_to_what_was_aske
     assert late and float(np.mean(late)) < 0.12 and max(late) < 0.25, (np.mean(late), max(late))  # was 0.25, 0.48
     assert float(np.mean(far)) < 0.07, np.mean(far)  # metres; was 0.082
     assert cut_over and max(cut_over) <= STREAM_SHORT_CUT_S + 1e-9, cut_over  # short cuts only
+
+
+@pytest.mark.slow  # 1.5 s of drummer simulation: 2-6 s
+def test_a_dense_stream_catches_up_after_the_lag_grew_by_more_than_the_short_cut_at_once(live: PhysicsCore) -> None:
+    """A knot every 10 ms sent 200 ms ahead, every call 20-70 ms late, and one call 300 ms later still (at rig time
+    1 s). Each knot sent after it would cut over more than ``STREAM_SHORT_CUT_S`` (the lag grew by 0.3 s since the
+    knots before were placed), so each kept their lag and the stream played late by all of it (and by what the lag
+    grew since) until the targets jumped back past the bound. A dense stream's knots are no waypoints: the first knot
+    sent after the skip cuts over them, and the stream is back on time (late only by the lag grown while a knot was
+    queued) but for the knots queued before the skip, in use for the next call or two."""
+    late, _, _ = follow_dense_stream(live, 0.01, 0.2, 1.7, long_skip=(1.0, 0.3))
+    assert max(late) > 0.3  # the skip happened: what was queued before it played late by it
+    assert max(late[-4:]) < 0.15, late  # was 0.40-0.47 s: the lag kept from before the skip, and grown since
 
 
 @pytest.fixture
@@ -224,6 +241,52 @@ def test_a_knot_streamed_after_the_lag_grew_cuts_only_a_short_cut_or_keeps_its_i
     assert not core.handle(rest_target(scene, 1.06), core.time, "")
     assert track.times == pytest.approx([0.86])  # a short cut: on time (7 Dec morning: [0.9, 0.92, 0.94, 0.96])
     assert core._lag_floor(0.86) == pytest.approx(0.2)
+
+
+def test_a_knot_streamed_after_a_long_skip_cuts_over_a_dense_streams_knots_not_over_a_waypoint(
+        drummer: PhysicsCore, drummer_scene: DrummerScene) -> None:
+    """Knots every 10 ms for rig times 1.00-1.20 placed with a lag of 0.1 s; the lag grows by 0.3 s at once and the
+    sender's next knot is for 1.35 (it sent none for the rig time skipped). Placed with the lag as it is (at 0.95) it
+    cuts the knots for 1.05-1.20, 0.3 s of rig time: it kept their interval and lag instead (at 1.25), and so did
+    every knot after it, the stream 0.3 s late until the targets jumped back. They are a dense stream's (each within
+    ``STREAM_DENSE_S`` of the next): it now cuts over them, on time. A lone waypoint among the knots it would cut
+    (1.00-1.10, then 1.20) is kept as before."""
+    core, scene = drummer, drummer_scene
+    track = scene.limb_tracks["left_hand"]
+    core.target_lag = 0.1
+    for k in range(21):
+        assert not core.handle(rest_target(scene, 1.0 + k / 100), core.time, "")
+    core.target_lag = 0.4
+    assert not core.handle(rest_target(scene, 1.35), core.time, "")
+    assert track.times == pytest.approx([0.9, 0.91, 0.92, 0.93, 0.94, 0.95])  # was [0.9, 0.91, ..., 1.1, 1.25]
+    assert core._streamed["left_hand"][-1] == pytest.approx((1.35, 0.95))
+
+    assert not core.handle(PhysicsReset(time=core.time), core.time, "")  # a dense stream, then a waypoint
+    core.target_lag = 0.1
+    for t in (*(1.0 + k / 100 for k in range(11)), 1.2):
+        assert not core.handle(rest_target(scene, t), core.time, "")
+    core.target_lag = 0.4
+    assert not core.handle(rest_target(scene, 1.35), core.time, "")
+    assert track.times[-3:] == pytest.approx([1.0, 1.1, 1.25])  # after the waypoint, at its interval and lag
+
+
+def test_a_posture_placed_after_the_lag_grew_does_not_cut_the_posture_before_it(
+        drummer: PhysicsCore, drummer_scene: DrummerScene) -> None:
+    """A posture gliding over rig times 1.0-1.2 placed with a lag of 0.1 s; the lag grows to 0.5 s and the next posture
+    starts at rig time 1.4. Placed with the lag as it is, its glide started at 0.9 on the targets' clock, before the
+    first posture's, and cut it: the body never went there (its glide started from before the first). A posture's
+    end is a waypoint: the second glide now starts after it, its 0.2 s interval kept, with the first's lag (as a
+    streamed knot, ``PhysicsCore._stream_lag``), and from the first posture."""
+    core, scene = drummer, drummer_scene
+    track = scene.joint_track
+    core.target_lag = 0.1
+    first = scene.controller.clamp_targets(np.asarray(scene.rest) + 0.05)
+    assert not core.handle(PhysicsPosture(time=1.0, duration=0.2, values=tuple(first)), core.time, "")
+    core.target_lag = 0.5
+    assert not core.handle(PhysicsPosture(time=1.4, duration=0.3, values=tuple(scene.rest)), core.time, "")
+    assert track.times == pytest.approx([0.9, 1.1, 1.3, 1.6])  # was [0.9, 1.2]
+    assert np.allclose(track.sample(1.3)[0], first)  # the second glide starts from the first posture
+    assert core._lag_floor(1.59) == pytest.approx(0.1)  # held until it has played
 
 
 def test_past_the_bound_held_streamed_targets_are_re_timed_onto_the_rig_clock(
