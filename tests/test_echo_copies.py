@@ -1,7 +1,8 @@
 """``batteur echo`` prints a message once, not once per copy: interaction sends each impact (impact end,
 damping) several times with one ``seq``, to each of its peers, and a node copies every send to the subscriber
-(20 lines per impact on the rig: 5 copies x 4 routes). Other messages with a sequence number (clock pings and
-pongs, one per node asking) are not copies of one another. Nodes are fakes on loopback (no discovery)."""
+(20 lines per impact on the rig: 5 copies x 4 routes), and every node that receives it copies it too. Other messages
+with a sequence number (clock pings and pongs, one per node asking) are not copies of one another. Nodes are fakes on
+loopback (no discovery)."""
 
 from __future__ import annotations
 
@@ -9,7 +10,9 @@ from collections.abc import Iterator
 
 import pytest
 
+from batteur.tools.echo import FirstCopies
 from common.messages import ClockPong, Impact
+from tests.ports import free_port
 from tests.test_tools_qa import FakeNode, batteur
 
 
@@ -60,3 +63,43 @@ def pong_node() -> Iterator[FakeNode]:
                             for role in ("sound", "interaction")])
     yield node
     node.close()
+
+
+def test_echo_prints_an_impact_once_though_every_node_it_crosses_copies_it() -> None:
+    # on the rig interaction copies each impact it sends to echo, and sound and graphics each impact they receive:
+    # was printed once per node (three identical lines per stroke), as if the drummer had struck three times
+    nodes = [FakeNode(port=free_port(), stream=[impact(1), impact(2)], node_id=role)
+             for role in ("interaction", "sound")]
+    try:
+        # --count 3: reached only if a copy is printed twice; else the two impacts, until --duration
+        proc = batteur("echo", "/batteur/impact", *(a for n in nodes for a in ("--node", f"127.0.0.1:{n.port}")),
+                       "--count", "3", "--duration", "4")
+        try:
+            out, err = proc.communicate(timeout=60)
+        finally:
+            proc.kill()
+            proc.wait()
+    finally:
+        for node in nodes:
+            node.close()
+    assert proc.returncode == 0, err
+    assert sorted(line.split()[1] for line in out.splitlines()) == ["1", "2"], out
+
+
+def test_copies_are_told_by_content_whichever_node_sent_them() -> None:
+    printed = FirstCopies()
+    assert printed.first(impact(1))
+    assert not printed.first(impact(1))  # the same impact, copied by another node (or a redundant copy)
+    assert printed.first(impact(2))
+    mapped = impact(1).model_copy(update={"velocity": 9.0})  # a route with a mapped field: another message
+    assert printed.first(mapped)
+    pong = ClockPong(node_id="a", seq=1, t_send=1.0, t_receive=2.0, t_reply=2.0)
+    assert printed.first(pong) and printed.first(pong)  # not sent redundantly: every one printed
+
+
+def test_first_copies_memory_is_bounded() -> None:
+    printed = FirstCopies(size=2)
+    for seq in (1, 2, 3):
+        assert printed.first(impact(seq))
+    assert len(printed) == 2
+    assert printed.first(impact(1))  # forgotten: long gone on a rig (its copies come within 20 ms)

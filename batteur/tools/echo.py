@@ -14,6 +14,7 @@ import asyncio
 import json
 import signal
 import sys
+from collections import OrderedDict
 from collections.abc import Sequence
 
 from batteur.errors import report_error
@@ -32,8 +33,7 @@ from batteur.tools.nodes import (
     write_line,
 )
 from common.arg_types import count, seconds
-from common.dedupe import Deduplicator
-from common.messages import ClockStatus, Impact, OscMessage, Subscribe, SubscribeRefused
+from common.messages import ClockStatus, Impact, OscMessage, RawMessage, Subscribe, SubscribeRefused
 from common.messages.interaction import Damping, ImpactEnd
 from common.subscribe import matches, pattern_regex
 from common.transport import UdpEndpoint
@@ -51,10 +51,13 @@ Each node found by zeroconf (on --interface, else on the interfaces in BATTEUR_I
 else on loopback), or given with --node, is asked to copy matching messages to this command
 (a Subscribe, renewed every 5 s). One line per message:
 the address, then the arguments (strings quoted); /batteur/clock/status is spelt out in words
-(--json gives its fields). A message sent several times with one sequence number (interaction
-sends each impact, impact end and damping 5 times to each peer) is printed once; --copies
-prints every copy the node sends or receives. A node that refuses the subscription (its table
-full, say) is named once on standard error, with its reason.
+(--json gives its fields). Messages without a model, such as those interaction sends for a
+client's /batteur/interaction/message/add ('/synth/*'), are printed as they come. A message
+sent several times with one sequence number (interaction sends each impact, impact end and
+damping 5 times to each peer, and the node that sends it and every node that receives it copy
+it here) is printed once; --copies prints every copy each node sends or receives. A node that
+refuses the subscription (its table full, say) is named once on standard error, with its
+reason.
 
 Patterns (OSC 1.0): ? one character, * any run of characters but '/', [abc] [a-z] [!abc]
 one character of (or not of) a set, {foo,bar} one of several strings, // any number of levels.
@@ -69,8 +72,22 @@ def format_message(message: OscMessage, as_json: bool) -> str:
         return json.dumps({"address": message.ADDRESS, **message.model_dump(mode="json")})
     if isinstance(message, ClockStatus):
         return format_clock_status(message)
-    return " ".join([message.ADDRESS, *(repr(a) if isinstance(a, str) else f"{a:g}" if isinstance(a, float)
-                                         else str(a) for a in message.to_args())])
+    return format_args(message.ADDRESS, message.to_args())
+
+
+def format_args(address: str, args: Sequence[object]) -> str:
+    """The address, then the arguments: strings quoted, floats as short as they print."""
+    return " ".join([address, *(repr(a) if isinstance(a, str) else f"{a:g}" if isinstance(a, float) else str(a)
+                                for a in args)])
+
+
+def format_raw(raw: RawMessage, as_json: bool) -> str:
+    """A message without a model (one a client registered with interaction, ``message/add``, sends to its synth):
+    its address and arguments as they came."""
+    if as_json:
+        return json.dumps({"address": raw.address,
+                           "args": [a if isinstance(a, (int, float, str)) else repr(a) for a in raw.args]})
+    return format_args(raw.address, raw.args)
 
 
 def format_clock_status(status: ClockStatus) -> str:
@@ -90,6 +107,35 @@ def check_pattern(pattern: str) -> Subscribe:
     """The Subscribe for ``pattern``; ValueError saying what is wrong with it (a node would refuse it silently)."""
     pattern_regex(pattern)  # PatternError (a ValueError): unbalanced [ or {, no leading /
     return Subscribe(pattern=pattern, duration_s=RENEW_S * 2)  # ValidationError: too long
+
+
+class FirstCopies:
+    """Tells the first copy of a redundantly sent message (:data:`REDUNDANT`) from its repeats, by its content.
+
+    Not by (sender, seq), the receivers' rule: echo hears one impact from every node it crosses (interaction copies
+    the impact it sends, sound and graphics the one they receive), each its own sender. Its copies are alike to the
+    last bit; two impacts never are (their ``seq`` differs), nor one sent mapped to one route and plain to another.
+    The ``size`` latest are remembered: a rig's copies all come within tens of milliseconds."""
+
+    def __init__(self, size: int = 4096) -> None:
+        self.size = size
+        self._seen: OrderedDict[tuple[object, ...], None] = OrderedDict()
+
+    def first(self, message: OscMessage) -> bool:
+        """True unless ``message`` is a redundant message already seen (every other message is a first)."""
+        if not isinstance(message, REDUNDANT):
+            return True
+        key = (message.ADDRESS, *message.to_args())
+        if key in self._seen:
+            self._seen.move_to_end(key)
+            return False
+        self._seen[key] = None
+        if len(self._seen) > self.size:
+            self._seen.popitem(last=False)
+        return True
+
+    def __len__(self) -> int:
+        return len(self._seen)
 
 
 class Refusals:
@@ -141,19 +187,27 @@ async def _run(opts: argparse.Namespace, subscribe: Subscribe) -> int:
     printed = 0
     outcome: list[int] = []  # set by what stopped us: Ctrl-C, or the reader of our output going away
     refusals = Refusals(subscribe.pattern, reachable)
-    first_copies = Deduplicator()  # the receivers' own rule: by sender, address and seq
+    first_copies = FirstCopies()
 
     def on_message(message: OscMessage, source: str) -> None:
-        nonlocal printed
         refused = refusals.line(message, source)
         if refused is not None:
             print(refused, file=sys.stderr)
         if stop.is_set() or not matches(opts.pattern, message.ADDRESS):
             return
-        if not opts.copies and isinstance(message, REDUNDANT) and not first_copies.accept_message(source, message):
-            return  # a redundant copy: the node copies each of them, and each send to each peer, to us
+        if not opts.copies and not first_copies.first(message):
+            return  # a redundant copy: each node copies each of them, and each send to each peer, to us
+        show(format_message(message, opts.json))
+
+    def on_raw(raw: RawMessage, source: str) -> None:
+        # no model: what interaction sends for a client's message/add (else dropped as an unknown address)
+        if not stop.is_set() and matches(opts.pattern, raw.address):
+            show(format_raw(raw, opts.json))
+
+    def show(line: str) -> None:
+        nonlocal printed
         try:
-            write_line(format_message(message, opts.json))
+            write_line(line)
         except OutputClosed:  # `batteur echo ... | head`: head has what it wanted
             outcome.append(0)
             stop.set()
@@ -167,6 +221,7 @@ async def _run(opts: argparse.Namespace, subscribe: Subscribe) -> int:
         stop.set()
 
     endpoint.set_handler(on_message)
+    endpoint.add_raw_route("/", on_raw)
     loop = asyncio.get_running_loop()
     loop.add_signal_handler(signal.SIGINT, on_signal, INTERRUPTED)
     loop.add_signal_handler(signal.SIGTERM, on_signal, 0)

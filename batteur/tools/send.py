@@ -30,6 +30,7 @@ from common.messages import (
     REGISTRY,
     Arg,
     DropReason,
+    Family,
     MessageError,
     OscMessage,
     WireKind,
@@ -37,7 +38,7 @@ from common.messages import (
     encode_raw,
     parse_packet,
 )
-from common.transport import format_address, parse_address
+from common.transport import format_address, owner_role, parse_address
 
 OSC_ADDRESS = re.compile(r"(?:/[!-.0-~]+)+")
 """An OSC address: '/'-separated parts of printable ASCII..."""
@@ -49,6 +50,11 @@ EXAMPLE_ADDRESS = "/batteur/sound/master"
 """The help's examples: registered addresses (tests/test_send_help.py checks them)."""
 PROG = "batteur send"
 """The command's name in its usage and error lines."""
+SERVICE_ROLES = ("physics", "interaction", "sound", "graphics")
+"""The services' roles (common.runtime.DEFAULT_BROWSE_ROLES, not imported: it would slow every send). A node of one
+takes only its own service's controls (/batteur/score/... the physics node's)."""
+
+
 def guess_arg(text: str) -> Arg:
     """An untyped command-line argument as int, float or string."""
     try:
@@ -173,6 +179,18 @@ def typed_args(address: str, texts: Sequence[str]) -> list[Arg]:
     return args
 
 
+def wrong_role(model: type[OscMessage] | None, target: str) -> str | None:
+    """Why ``--to ROLE`` would lose the control ``model`` (a service's node takes only its own service's controls,
+    and ignores the others' without a drop or an answer: a live note sent to interaction), or None. Only for a
+    service's role and a service's control; a refusal (an answer, sent by its service) is not checked."""
+    if model is None or model.FAMILY is not Family.CONTROL or target not in SERVICE_ROLES:
+        return None
+    owner = owner_role(model.ADDRESS)
+    if owner not in SERVICE_ROLES or owner == target or model.ADDRESS.endswith(REFUSALS):
+        return None
+    return f"--to {target}: {model.ADDRESS} is a control of {owner}; {target} nodes ignore it (--to {owner})"
+
+
 def check_raw_address(address: str) -> None:
     """ValueError unless ``address`` is one OSC address (not a pattern)."""
     bad = sorted(OSC_RESERVED.intersection(address))
@@ -226,7 +244,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                         "/batteur/score/transport play +2 0 --to physics starts the score in 2 s)")
     parser.add_argument("--to", required=True,
                         help="HOST:PORT ([::1]:9000 for IPv6), or a role (physics, sound, ...) found by discovery: "
-                        "every node of that role")
+                        "every node of that role; a service's node takes only its own service's controls "
+                        "(score messages go to physics), so another's is refused")
     parser.add_argument("--raw", action="store_true", help="allow an address without a model (sent as typed)")
     parser.add_argument("--replies", type=seconds, default=0.0, metavar="SECONDS",
                         help="then listen this long for answers and print them, one line each (a control's error, "
@@ -254,6 +273,9 @@ def _send(opts: argparse.Namespace) -> int:
     except MessageError as exc:
         takes = f"; {opts.address} takes {arguments(model)}" if model and exc.reason is DropReason.WRONG_ARITY else ""
         return report_error(PROG, f"{exc}{takes}", USAGE)
+    lost = wrong_role(model, opts.to)
+    if lost is not None:
+        return report_error(PROG, lost, USAGE)
     try:
         targets = _resolve(opts.to, opts.timeout, opts.interface)
     except ValueError as exc:
