@@ -20,19 +20,26 @@ estimator keeps the samples with the smallest round trips in a sliding
 window and intersects those intervals: the estimate is the intersection's
 midpoint and the uncertainty its half-width. A sample whose interval misses the
 estimate's (beyond drift) is an outlier and rejected, unless several in a row
-agree: then the master's clock really moved and the estimate follows it.
+agree: then the master's clock really moved and the estimate follows it. A master
+says which launch of it answers (:attr:`RigClock.launch`, in every pong): a pong
+of another launch than the samples' is a new master at the same address (a
+restart), and the window restarts from it at once.
 
 A new offset further than :data:`STEP_S` from the one in use (a new master, the
 same master restarted, a node that ran on its own clock meeting its master) is
-a *step* of rig time: :meth:`RigClock.set_offset` logs it once, counts it in
+a *step* of rig time: :meth:`RigClock.set_offset` counts it in
 :attr:`RigClock.generation` and returns it, so the node can tell its core
-(``clock_stepped``) instead of the core guessing from time going backward.
+(``clock_stepped``) instead of the core guessing from time going backward, and
+logs it once per restart of the estimate (a new master's first pongs may have
+long round trips: the quicker ones after move the estimate again, within its
+uncertainty, and are no second restart).
 """
 
 from __future__ import annotations
 
 import logging
 import math
+import secrets
 import time
 from collections import deque
 from collections.abc import Callable
@@ -81,26 +88,46 @@ class RigClock:
         """Steps of rig time so far (see :meth:`set_offset`): a loop can compare it with the one it last saw."""
         self.last_step_s: float = 0.0
         """The latest step, seconds (new rig time minus old, at the same instant); 0 before any."""
+        self.steps: int = 0
+        """Steps of rig time of a synced clock logged as a WARNING (its master restarted, was replaced or its clock
+        moved), one per restart of the estimate: what ``ClockStatus.steps`` reports."""
+        self.launch: int = secrets.randbelow(2**31 - 1) + 1
+        """This clock's launch, 1 to 2**31 - 1, drawn at random: a master puts it in its pongs
+        (:func:`answer_ping`), so its followers tell a restart at the same address from its first pong."""
+        self._series: int | None = None
+        self._series_synced = False
+        self._series_stepped = False
 
-    def set_offset(self, offset: float, master: str = "the clock master") -> float:
+    def set_offset(self, offset: float, master: str = "the clock master", series: int | None = None) -> float:
         """Take a new offset estimate (seconds, master minus local); returns the step of rig time it makes
-        (seconds, negative: back) when larger than :data:`STEP_S`, else 0.0.
+        (seconds, negative: back) when larger than :data:`STEP_S`, else 0.0. Every step is counted in
+        :attr:`generation` (the core must follow it).
 
-        A step of a synced clock (its master restarted or was replaced) is logged once, as a WARNING; the first
-        sync is not (the node logs it, and a node that ran on its own clock until then was told it would jump).
-        Either is counted in :attr:`generation`.
+        ``series`` says which run of the estimate the offset comes from (:attr:`OffsetEstimator.restarts`: a new
+        master, a new launch of it, agreeing outliers); None: each call a run of its own. The first step of a run
+        that began on a synced clock (its master restarted or was replaced) is logged once, as a WARNING, and
+        counted in :attr:`steps`; later ones of the same run are its estimate narrowing (a new master's first pong
+        took long: the quicker ones after move the estimate within its uncertainty), logged at INFO. The steps of
+        the first sync are not logged (the node logs it, and a node that ran on its own clock until then was told
+        it would jump).
         """
         step = offset - self.offset
         was_synced = self.synced
         self.offset = offset
         self.synced = True
+        if series is None or series != self._series:
+            self._series, self._series_synced, self._series_stepped = series, was_synced, False
         if abs(step) <= STEP_S:
             return 0.0
         self.generation += 1
         self.last_step_s = step
-        if was_synced:
+        if self._series_synced and not self._series_stepped:
+            self.steps += 1
             log.warning("rig clock stepped %s %.1f s: the clock master (%s) restarted? (rig time now %.1f s)",
                         "back" if step < 0 else "forward", abs(step), master, self.now())
+        elif was_synced:
+            log.info("rig clock moved %+.3f s: its new offset estimate to %s narrowed", step, master)
+        self._series_stepped = True
         return step
 
     def local_now(self) -> float:
@@ -116,7 +143,7 @@ class RigClock:
         return rig_time - self.offset + self.epoch
 
 
-def answer_ping(ping: ClockPing, t_receive: float, t_reply: float) -> ClockPong:
+def answer_ping(ping: ClockPing, t_receive: float, t_reply: float, launch: int = 0) -> ClockPong:
     """The clock master's answer to a ping.
 
     Parameters
@@ -127,8 +154,11 @@ def answer_ping(ping: ClockPing, t_receive: float, t_reply: float) -> ClockPong:
         Rig time when the ping arrived, seconds.
     t_reply : float
         Rig time when the pong leaves, seconds.
+    launch : int
+        The master's :attr:`RigClock.launch` (0: not given).
     """
-    return ClockPong(node_id=ping.node_id, seq=ping.seq, t_send=ping.t_send, t_receive=t_receive, t_reply=t_reply)
+    return ClockPong(node_id=ping.node_id, seq=ping.seq, t_send=ping.t_send, t_receive=t_receive, t_reply=t_reply,
+                     launch=launch)
 
 
 @dataclass(frozen=True)
@@ -167,7 +197,11 @@ class OffsetEstimator:
     more than clock drift since explains) is an *outlier*: rejected and counted, so one
     forged or stray pong cannot move rig time. ``step_after`` consecutive outliers
     that agree with each other mean the master's clock really moved (a restart under
-    the same address, a suspended laptop): the window restarts from them.
+    the same address by a master that does not say its launch, a suspended laptop):
+    the window restarts from them. A pong of another launch than the samples' (its
+    ``launch``, when given) is a restart of the master at the same address: the
+    window restarts from it at once (an answer to a ping older than that launch's
+    first answer is rejected: a late pong of the previous run).
 
     Parameters
     ----------
@@ -218,7 +252,13 @@ class OffsetEstimator:
         self.outliers = 0
         """of ``rejected``: samples that disagreed with the estimate"""
         self.steps = 0
-        """times agreeing outliers replaced the estimate (the master's clock moved)"""
+        """times agreeing outliers replaced the estimate (the master's clock moved); ``ClockStatus.steps`` is
+        :attr:`RigClock.steps`, the steps of rig time the node logged, whatever restarted the estimate"""
+        self.launch = 0
+        """launch of the master the samples come from (its pongs' ``launch``; 0: not said, or no sample yet)"""
+        self.restarts = 0
+        """times the estimate started over: :meth:`reset` (a new master), a new launch or agreeing outliers"""
+        self._launch_seq = -1
         self._seq = 0
         self._pending: dict[int, float] = {}
         self._candidates: list[ClockSample] = []
@@ -228,6 +268,8 @@ class OffsetEstimator:
         self.samples.clear()
         self._pending.clear()
         self._candidates.clear()
+        self.launch, self._launch_seq = 0, -1
+        self.restarts += 1
 
     def make_ping(self, t_local: float) -> ClockPing:
         """A new ping sent at local time ``t_local`` (seconds)."""
@@ -244,6 +286,14 @@ class OffsetEstimator:
         if sample is None:
             self.rejected += 1
             return None
+        if pong.launch and pong.launch != self.launch:
+            if self.samples and pong.seq < self._launch_seq:  # asked before the launch in use first answered:
+                self.rejected += 1                            # a late pong of a previous run
+                return None
+            self.launch, self._launch_seq = pong.launch, pong.seq
+            if self.samples:  # the master restarted at the same address: follow it now, not after agreeing outliers
+                self._restart([sample])
+                return sample
         if self._agrees(sample):
             self._candidates.clear()
             self.samples.append(sample)
@@ -283,11 +333,16 @@ class OffsetEstimator:
             self.rejected += 1
             self.outliers += 1
             return None
-        self.samples.clear()
-        self.samples.extend(self._candidates)
-        self._candidates.clear()
+        self._restart(self._candidates)
         self.steps += 1
         return sample
+
+    def _restart(self, samples: list[ClockSample]) -> None:
+        """Start the window over from ``samples`` (the master's clock moved)."""
+        self.samples.clear()
+        self.samples.extend(samples)
+        self._candidates.clear()
+        self.restarts += 1
 
     def _best_samples(self) -> list[ClockSample]:
         return sorted(self.samples, key=lambda s: s.round_trip)[: self.best]

@@ -776,7 +776,7 @@ class Node:
                                            source)
                 return
             t = self.clock.now()
-            endpoint.send(answer_ping(message, t, self.clock.now()), source)
+            endpoint.send(answer_ping(message, t, self.clock.now(), self.clock.launch), source)
             return
         if isinstance(message, ClockPong):
             self._on_pong(message, source)
@@ -857,7 +857,8 @@ class Node:
         sample = self.estimator.add_pong(pong, self.clock.local_now())
         if sample is not None:
             first = not self.clock.synced
-            step = self.clock.set_offset(self.estimator.offset, self._master_id or self.settings.clock_master)
+            step = self.clock.set_offset(self.estimator.offset, self._master_id or self.settings.clock_master,
+                                         series=self.estimator.restarts)
             if step and self.core_started:
                 self._clock_stepped(step)
             if first:
@@ -976,7 +977,8 @@ class Node:
                         self.endpoint.send(status, peer.address)
 
     def clock_status(self) -> ClockStatus:
-        """How this node's clock follows its master now: the estimator's figures and counters."""
+        """How this node's clock follows its master now: the estimator's figures and counters, and the steps of rig
+        time the clock logged (master restarts)."""
         est = self.estimator
         return ClockStatus(
             node_id=self.node_id,
@@ -987,7 +989,7 @@ class Node:
             samples=len(est.samples),
             rejected=est.rejected,
             outliers=est.outliers,
-            steps=est.steps,
+            steps=self.clock.steps,
             foreign_pongs=self.foreign_pongs,
             master=self._master_id,
         )

@@ -122,6 +122,28 @@ class ClockPong(OscMessage):
     t_send: RigTime = Field(description="asker's local clock at ping send (echoed), seconds")
     t_receive: RigTime = Field(description="rig time when the ping was received, seconds")
     t_reply: RigTime = Field(description="rig time when this pong was sent, seconds")
+    # appended (7 Dec): a master restarted at the same address is told from its first pong
+    launch: int = Field(default=0, ge=0, le=2**31 - 1, description="the master's launch: a random number it draws at "
+                        "start and puts in all its pongs, so a new one (a restart at the same address) is followed "
+                        "at its first pong; 0: not given (a master from before 7 Dec)")
+
+    APPENDED: ClassVar[tuple[str, ...]] = ("launch",)
+    """The fields appended after ``t_reply``, oldest first: an older master's pong, without them, decodes with their
+    defaults."""
+    NEWER_ARGS: ClassVar[int] = 8
+    """Arguments after the last known field that a newer master's pong may carry (fields appended since): ignored."""
+
+    @classmethod
+    def from_args(cls, args: Sequence[Any]) -> Self:
+        """As :meth:`OscMessage.from_args`; an older master's pong, without the last appended fields (``APPENDED``),
+        decodes with their defaults, and a newer one's, with up to ``NEWER_ARGS`` more, without them."""
+        known = len(cls.wire_fields()) + 3  # the three rig times take two arguments each
+        missing = known - len(args)
+        if 0 < missing <= len(cls.APPENDED):
+            args = [*args, *(cls.model_fields[name].default for name in cls.APPENDED[-missing:])]
+        elif 0 < -missing <= cls.NEWER_ARGS:
+            args = args[:known]
+        return super().from_args(args)
 
 
 @register
@@ -181,7 +203,9 @@ class ClockStatus(OscMessage):
     rejected: Count = Field(description="pongs from the master the estimator refused (stray, stale, implausible "
                             "or outliers), total")
     outliers: Count = Field(description="of rejected: samples that disagreed with the estimate, total")
-    steps: Count = Field(description="times agreeing outliers replaced the estimate (the master's clock moved), total")
+    steps: Count = Field(description="steps of rig time (over 0.1 s) since the node synced, one per restart of the "
+                         "estimate, each logged once as a WARNING ('rig clock stepped back ...'): the clock master "
+                         "restarted or was replaced, or its clock moved, total")
     foreign_pongs: Count = Field(description="pongs dropped because they did not come from the master's address, "
                                  "total")
     master: str = Field(max_length=64, pattern=r"^[A-Za-z0-9_.:-]*$",
