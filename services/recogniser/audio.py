@@ -13,6 +13,7 @@ from fractions import Fraction
 from pathlib import Path
 
 import numpy as np
+import scipy.fft
 import soundfile as sf
 from scipy.signal import resample_poly
 
@@ -159,6 +160,20 @@ def _is_midi(path: Path) -> bool:
     return starts_as_midi(head)
 
 
+INTEGER_BITS = {"PCM_S8": 8, "PCM_U8": 8, "PCM_16": 16, "PCM_24": 24, "PCM_32": 32}
+"""Bits per sample of the soundfile subtypes that store linear integers (WAV, AIFF, FLAC...)."""
+
+
+def quantum(path: str | Path) -> float | None:
+    """The quantisation step of the audio file ``path``, full scale 1 (a 16-bit file: 2**-15), or None for a file
+    stored otherwise (floats, MP3, Ogg Vorbis, A-law ...; one soundfile cannot read)."""
+    try:
+        bits = INTEGER_BITS.get(sf.info(str(path)).subtype)
+    except Exception:  # soundfile raises several types; load_audio has said what is wrong with the file
+        return None
+    return None if bits is None else 2.0 ** (1 - bits)
+
+
 COMMON_RATES_HZ = (32000, 44100, 48000, 88200, 96000, 192000)
 """Sample rates recorders offer, Hz: the warning for a file sampled too slowly names the lowest that is enough."""
 
@@ -176,6 +191,68 @@ def low_rate(path: Path, rate_hz: int, full_rate_hz: float) -> str | None:
             f"tells hi-hats and cymbals from snares: expect hi-hats missed or heard as other drums{advice}")
 
 
+CONTENT_FRAME = 2048
+"""Samples per frame of :func:`top_band_level`."""
+CONTENT_HOP = 4096
+"""Samples between the starts of :func:`top_band_level`'s frames: every other frame's length, half the file read
+(a strike rings over several frames; 0.5 s for 10 minutes at 48 kHz, against 2.7 s for every sample in float64)."""
+CONTENT_REF_HZ = (4000.0, 10000.0)
+"""The band :func:`top_band_level` compares the top bands with, Hz: below any rate's edge a recorder uses, and
+where snares, hi-hats and cymbals all sound."""
+CONTENT_TOP_HZ = 18000.0
+"""The highest frequency :func:`top_band_level` looks at, Hz (the shipped analysis's top band edge)."""
+CONTENT_LOUD = 0.1
+"""The fraction of frames, the loudest, that :func:`top_band_level` averages (a quiet tail's noise is not music)."""
+BAND_LIMITED_DB = -45.0
+"""A file whose top bands are this far below its :data:`CONTENT_REF_HZ` band (:func:`top_band_level`), dB, is
+warned of as holding nothing there: measured on Batteur's renders and the held-out kit's samples (5 s, 44.1 and
+48 kHz), resampled to 22,050 Hz and back with scipy's resampler: -52 to -85 dB; the same full-band: -18 to +7 dB
+with hi-hats or snares, -23 and -33 dB for a kick alone (docs/recogniser.md, "What it does")."""
+
+
+def top_band_level(mono: np.ndarray, rate_hz: int, low_hz: float, block: int = 512) -> float | None:
+    """The power density from ``low_hz`` to :data:`CONTENT_TOP_HZ` (or near half of ``rate_hz``) relative to that
+    of :data:`CONTENT_REF_HZ`, over the :data:`CONTENT_LOUD` loudest frames of :data:`CONTENT_FRAME` samples
+    (:data:`CONTENT_HOP` apart), dB;
+    None when it cannot be told (too short a file, too low a rate, nothing in the reference band). A recording
+    resampled up from 22,050 Hz keeps its low rate's empty top, which the declared rate hides (``block``: frames
+    transformed at a time, bounding memory)."""
+    top_hz = min(CONTENT_TOP_HZ, 0.49 * rate_hz)
+    if len(mono) < CONTENT_FRAME or top_hz <= low_hz:
+        return None
+    f = np.fft.rfftfreq(CONTENT_FRAME, 1.0 / rate_hz)
+    ref, top = (f >= CONTENT_REF_HZ[0]) & (f < CONTENT_REF_HZ[1]), (f >= low_hz) & (f < top_hz)
+    frames = np.lib.stride_tricks.sliding_window_view(mono, CONTENT_FRAME)[::CONTENT_HOP]
+    win = np.hanning(CONTENT_FRAME).astype(np.float32)
+    sums = np.empty((len(frames), 3), np.float64)  # per frame: all bins, reference band, top band
+    for a in range(0, len(frames), block):
+        power = np.abs(scipy.fft.rfft(frames[a : a + block] * win, axis=1)) ** 2  # float32, unlike numpy's
+        sums[a : a + block] = np.stack([power.sum(1), power[:, ref].sum(1), power[:, top].sum(1)], axis=1)
+    loud = sums[np.argsort(sums[:, 0])[-max(1, int(np.ceil(CONTENT_LOUD * len(sums)))) :]]
+    ref_density, top_density = loud[:, 1].sum() / ref.sum(), loud[:, 2].sum() / top.sum()
+    if ref_density <= 0.0:
+        return None
+    return 10.0 * float(np.log10(max(top_density / ref_density, 1e-30)))
+
+
+def band_limited(path: Path, mono: np.ndarray, rate_hz: int, full_rate_hz: float) -> str | None:
+    """The warning for a file sampled fast enough (``rate_hz`` at least ``full_rate_hz``) whose audio yet holds next
+    to nothing above half of ``full_rate_hz`` (:func:`top_band_level` below :data:`BAND_LIMITED_DB`): a recording
+    made at a lower rate and resampled up transcribes as one at its own rate does (the held-out kit's test
+    pattern through 22,050 Hz and back to 44,100 Hz: the same notes as at 22,050 Hz), or None."""
+    if rate_hz < full_rate_hz:
+        return None  # low_rate's warning
+    level = top_band_level(mono, rate_hz, full_rate_hz / 2)
+    if level is None or level >= BAND_LIMITED_DB:
+        return None
+    enough = next((r for r in COMMON_RATES_HZ if r >= full_rate_hz), None)
+    advice = f" (record at {enough:,} Hz or more if you can)" if enough else ""
+    return (f"{path}: it holds next to nothing above {full_rate_hz / 2000:.1f} kHz ({-level:.0f} dB below its "
+            f"{CONTENT_REF_HZ[0] / 1000:g}-{CONTENT_REF_HZ[1] / 1000:g} kHz content), where the recogniser tells "
+            f"hi-hats and cymbals from snares: recorded at a lower rate and resampled up to {rate_hz:,} Hz? expect "
+            f"hi-hats missed or heard as other drums{advice}")
+
+
 def load_audio(path: str | Path, max_duration_s: float = MAX_DURATION_S, sample_rate: int = SAMPLE_RATE,
                warn: Callable[[str], None] | None = None, full_rate_hz: float | None = None) -> np.ndarray:
     """Read an audio file as mono float32 at ``sample_rate`` Hz (default :data:`SAMPLE_RATE`).
@@ -188,7 +265,7 @@ def load_audio(path: str | Path, max_duration_s: float = MAX_DURATION_S, sample_
     path : audio file (WAV, FLAC, OGG, ...)
     max_duration_s : longer files are refused, seconds
     warn : called with a message naming the file when it is usable but suspect (truncated; sampled below
-        ``full_rate_hz``)
+        ``full_rate_hz``, or holding next to nothing above half of it: :func:`band_limited`)
     full_rate_hz : the lowest sample rate that fills every band of the caller's analysis, Hz (None: not checked)
 
     Returns
@@ -250,7 +327,8 @@ def load_audio(path: str | Path, max_duration_s: float = MAX_DURATION_S, sample_
     short = truncation(info.extra_info) or unread_tail(info.extra_info)
     if short and warn:
         warn(f"{p}: {short}; transcribing the {len(mono) / sr:.4g} s it holds")
-    slow = low_rate(p, int(sr), full_rate_hz) if full_rate_hz is not None else None
-    if slow and warn:
-        warn(slow)
+    if full_rate_hz is not None and warn:
+        slow = low_rate(p, int(sr), full_rate_hz) or band_limited(p, mono, int(sr), full_rate_hz)
+        if slow:
+            warn(slow)
     return resample(mono, int(sr), sample_rate)
