@@ -18,7 +18,7 @@ the beats.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -80,13 +80,26 @@ KICK_DOUBLE_DEPTH = 0.008
 hard kick the same foot height presses the board less (0.91 against 0.93 of its travel at the planned bottom; the
 beater meets the head at 0.95)."""
 KICK_REST_GAP_S = 1.5
-"""A bass-drum foot's stroke this long or more (s) after its previous one, or its first, is made from rest: it
+"""A bass-drum foot's stroke this long or more (s) after its previous one, or its first (a live plan's: this long
+after the foot's last stroke played before it, ``plan_gestures``' ``last_strokes``), is made from rest: it
 passes the height where the beater meets the head at the note time (:func:`kick_contact_rise`). After a shorter
 gap the same foot height presses the board less (docs/physics.md, "Kicks"). Below ``CONTEXT_S`` of the score
 player (2 s), so a live window's plan and the whole score's agree on every kick they splice."""
 KICK_RAISE_ROOM_S = 0.1
 """... and only when the foot's next stroke is at least this long (s) after the raised one's press-on and contact:
 a later bottom must not squeeze the approach to the next kick (at the closest kicks, 30 ms, it left none)."""
+KICK_REST_FALL = 3.0
+"""A bass-drum stroke from rest (:data:`KICK_REST_GAP_S`) whose foot would brake into the pedal falls from its apex
+(rest height plus lift) to the pedal over this many times that height over the stroke's speed: the curve
+``1 - s^3`` of :func:`foot_profile`, the foot speeding up all the way into the pedal (:func:`rest_fall_profile`).
+The rest height let down on its own over ``HOLD_FALL`` under the lift's fall made a soft stroke's foot fall at
+0.9-1.0 m/s and brake to its 0.4-0.9 m/s: the footboard ran ahead of the foot and the beater met the head early
+(lone kicks at velocity 0.1 14 ms, 0.2 9 ms). Falling at an even speed into the pedal (1.5 times, the shortest
+cubic that never brakes) still left them 11 and 7 ms early, speeding up into the pedal 7 and 4 (docs/evaluation.md,
+"Kicks from rest"). Louder strokes, whose lift's fall outruns the rest let down, keep their shape
+(:data:`KICK_BRAKE_TOLERANCE`)."""
+KICK_BRAKE_TOLERANCE = 1e-6
+"""A planned foot fall whose speed drops by more than this (m/s) between its apex and the pedal brakes."""
 HOLD_FALL = 0.12
 """Seconds before a stroke over which the foot's rest height blends into the stroke."""
 HOLD_FALL_SHARE = 0.5
@@ -189,6 +202,31 @@ def foot_profile(phi: np.ndarray, lift: float, speed: float, cycle: float) -> tu
     return np.where(falling, h_fall, up), np.where(falling, dh_fall, dup)
 
 
+def rest_fall_profile(phi: np.ndarray, lift: float, hold: float, speed: float, cycle: float, fall_s: float
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """A bass-drum foot's stroke from its rest, ``hold`` metres above the pedal line: height (metres) above that
+    rest and its rate per unit phase over ``cycle`` s.
+
+    The foot lifts ``lift`` (minimum jerk, as :func:`foot_profile`), then falls the whole ``lift + hold`` on one
+    cubic that leaves the apex at rest and meets the pedal at ``speed`` m/s over ``fall_s`` (at most
+    ``FOOT_FALL_SHARE`` of the cycle): over 1.5 to 3 times the height over the speed it speeds up all the way into
+    the pedal (3, ``KICK_REST_FALL``: the curve ``1 - s^3``). Not the rest let down on its own (``HOLD_FALL``, to
+    rest at the pedal) under the lift's fall: that fall braked into a soft stroke (at velocity 0.1 the foot came
+    down at 0.93 m/s and met the pedal at 0.50) and the footboard ran ahead of the foot into the head."""
+    height = lift + hold
+    fall = min(fall_s, FOOT_FALL_SHARE * cycle) / cycle  # phase units
+    apex = 1.0 - fall
+    up, dup = _min_jerk(np.clip(phi / max(apex, 1e-9), 0.0, 1.0))
+    dup = np.where(phi < apex, dup / max(apex, 1e-9), 0.0)
+    s = np.clip((phi - apex) / fall, 0.0, 1.0)
+    slope = speed * fall * cycle / max(height, 1e-9)  # the end speed in these units (heights per fall)
+    h_fall = 2 * s**3 - 3 * s**2 + 1 - slope * (s**3 - s**2)
+    dh_fall = (6 * s**2 - 6 * s - slope * (3 * s**2 - 2 * s)) / fall
+    falling = phi > apex
+    return (np.where(falling, height * h_fall - hold, lift * up),
+            np.where(falling, height * dh_fall, lift * dup))
+
+
 def _segment(
     t0: float,
     p0: np.ndarray,
@@ -204,6 +242,7 @@ def _segment(
     cycle: float | None = None,
     hold: float = 0.0,
     hold_from_start: bool = False,
+    rest_fall: float = 0.0,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Knots (times (K,), positions (K, 3), velocities (K, 3)) from t0 to t1 inclusive.
 
@@ -211,7 +250,9 @@ def _segment(
     the effector rests on the target line before (the foot stays on the pedal), raised by
     ``hold`` metres along the normal (a bass-drum foot lets the footboard up between strokes; the hi-hat foot,
     negative, holds its pedal past the closing point); ``hold_from_start``: the segment starts already held
-    (a foot's first stroke, from its rest), else the hold rises in after the previous stroke.
+    (a foot's first stroke, from its rest), else the hold rises in after the previous stroke; ``rest_fall`` (a
+    bass-drum stroke from rest, seconds): the hold falls with the lift, over this long (:func:`rest_fall_profile`;
+    the cycle widens to fit it), not on its own.
     """
     d = t1 - t0
     k = int(np.clip(d * knots_per_second, 4, 80))
@@ -235,11 +276,12 @@ def _segment(
         dmz = np.where(s > 1 - share, dmz / share, 0.0)
     base = start + np.outer(m, horizontal) + np.outer(mz, vertical)
     dbase = np.outer(dm / d, horizontal) + np.outer(dmz / d, vertical)
+    merged = rest_fall > 0.0 and cycle is not None and unit is not None and lift > 0 and hold > 0.0
     if unit is not None and lift > 0:
         period = unit.period
         apex = unit.apex_phase
         if cycle is not None:
-            c = min(cycle, d)
+            c = min(max(cycle, rest_fall / FOOT_FALL_SHARE), d)
             phi = np.clip((tau - (d - c)) / c, 0.0, 1.0)
             dphi = np.where(tau > d - c, 1.0 / c, 0.0)
         elif d > period:
@@ -248,22 +290,29 @@ def _segment(
             dphi = np.where((tau < rise) | (tau > d - fall), 1.0 / period, 0.0)
         else:
             phi, dphi = s, np.full_like(s, 1.0 / d)
-        if cycle is not None:  # a foot: its own lift and fall into the pedal at the stroke's speed
-            h, dh = foot_profile(phi, lift, max(float(-(v1 @ n1)), 0.0), min(cycle, d))
-            dh = dh * dphi
+        if merged:  # from rest: the lift, then the hold and the lift fall together (metres)
+            lifted, dlifted = rest_fall_profile(phi, lift, hold, max(float(-(v1 @ n1)), 0.0), c, rest_fall)
+            dlifted = dlifted * dphi
         else:
-            h = unit.profile(phi)
-            dh = unit.profile(phi, 1) * dphi
+            if cycle is not None:  # a foot: its own lift and fall into the pedal at the stroke's speed
+                h, dh = foot_profile(phi, lift, max(float(-(v1 @ n1)), 0.0), min(cycle, d))
+                dh = dh * dphi
+            else:
+                h = unit.profile(phi)
+                dh = unit.profile(phi, 1) * dphi
+            lifted, dlifted = lift * h, lift * dh
         normal = np.outer(1 - m, n0) + np.outer(m, n1)
         normal /= np.linalg.norm(normal, axis=1, keepdims=True)
-        base = base + normal * (lift * h)[:, None]
-        dbase = dbase + normal * (lift * dh)[:, None]
+        base = base + normal * lifted[:, None]
+        dbase = dbase + normal * dlifted[:, None]
     if hold != 0.0:
         rise, fall = min(HOLD_RISE, d / 3), min(HOLD_FALL, (HOLD_FALL_SHARE if hold > 0 else 1 / 3) * d)
         up, dup = _min_jerk(np.clip(tau / rise, 0.0, 1.0))
         if hold_from_start:
             up, dup = np.ones_like(tau), np.zeros_like(tau)
         down, ddown = _min_jerk(np.clip((d - tau) / fall, 0.0, 1.0))
+        if merged:  # the hold falls with the lift (rest_fall_profile)
+            down, ddown = np.ones_like(tau), np.zeros_like(tau)
         r = up * down
         dr = np.where(tau < rise, dup / rise, 0.0) * down - np.where(tau > d - fall, ddown / fall, 0.0) * up
         nrm = np.outer(1 - m, n0) + np.outer(m, n1)
@@ -315,6 +364,13 @@ def _softer(speed: float, previous: float) -> float:
     return float(np.clip(2.0 * (1.0 - speed / max(previous, 1e-6)), 0.0, 1.0))
 
 
+def _brakes(pos: np.ndarray, vel: np.ndarray, normal: np.ndarray) -> bool:
+    """Whether a stroke's knots (positions, velocities (K, 3) up to its contact) fall slower somewhere after their
+    apex (the highest along ``normal``) than before: the foot brakes into the pedal (``KICK_BRAKE_TOLERANCE``)."""
+    down = -(vel @ normal)[int(np.argmax(pos @ normal)):]
+    return bool(np.any(np.maximum.accumulate(down) - down > KICK_BRAKE_TOLERANCE))
+
+
 def _limb_knots(
     strokes: list[_Stroke],
     rest0: tuple[np.ndarray, np.ndarray],
@@ -327,10 +383,12 @@ def _limb_knots(
     hold: float = 0.0,
     on_laid: Callable[[int], None] | None = None,
     aims: list[np.ndarray] | None = None,
+    previous: float | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Knots (times, positions, velocities) of one limb through its strokes; ``on_laid`` is told how many
     strokes are laid every ``PROGRESS_EVERY`` strokes; ``aims`` gets where each stroke meets its surface (its
-    target, or deeper: ``KICK_DOUBLE_DEPTH``; a kick foot's first stroke higher: ``kick_contact_rise``)."""
+    target, or deeper: ``KICK_DOUBLE_DEPTH``; a kick foot's stroke from rest higher: ``kick_contact_rise``);
+    ``previous``: the limb's last stroke before these (s; None: none, its first is made from rest)."""
     times: list[np.ndarray] = []
     pos: list[np.ndarray] = []
     vel: list[np.ndarray] = []
@@ -363,22 +421,28 @@ def _limb_knots(
             lift, rest_rise = lift * scale, rest_rise * scale
             if softer > 0.0 and scale < 1.0:
                 target = st.target - KICK_DOUBLE_DEPTH * (1.0 - scale) * softer * st.normal
-        # a bass-drum foot's stroke from its rest (its first, or KICK_REST_GAP_S after the one before, with room
-        # before the next: KICK_RAISE_ROOM_S) passes the height where the beater meets the head
+        # a bass-drum foot's stroke from its rest (its first, or KICK_REST_GAP_S after the one before, a live plan's
+        # first also after the foot's last stroke played before it: ``previous``; with room before the next:
+        # KICK_RAISE_ROOM_S) passes the height where the beater meets the head
         # (``kick_contact_rise``) at the note time and presses on to the flat board at its speed: aimed at the flat
         # board, it sounded early by the time the foot takes over the last 8 mm (a lone kick at velocity 0.5 11 ms,
         # 0.2 21 ms; now 4 and 9). Not the strokes after: for a second or more after a stroke the same foot height
         # presses the board less (only the ball of the foot is placed), so they meet the head about at the flat
         # board (raised, kicks 0.1-0.4 s after another sounded 8-22 ms late; docs/physics.md, "Kicks")
         through = 0.0
+        rest_fall = 0.0
         bottom = target
-        if cycle is not None and hold > 0.0 and (i == 0 or st.time - strokes[i - 1].time >= KICK_REST_GAP_S):
+        before = strokes[i - 1].time if i else previous  # the foot's stroke before (a live plan's: played before it)
+        if cycle is not None and hold > 0.0 and (before is None or st.time - before >= KICK_REST_GAP_S):
             rise = kick_contact_rise()
             pressed = st.time + rise / max(st.speed, 1e-3) + st.contact  # the contact's end, raised
             if i + 1 == len(strokes) or strokes[i + 1].time - pressed >= KICK_RAISE_ROOM_S:
                 through = rise
                 target = target + through * st.normal
                 rest_rise = max(rest_rise - through, 0.0)  # from the raised aim: the same rest height
+            # raised or not (a kick just before the next): if its foot would brake into the pedal, the rest height
+            # and the lift fall together, speeding up into the stroke (rest_fall_profile)
+            rest_fall = KICK_REST_FALL * (lift + rest_rise) / max(st.speed, 1e-3)
         if aims is not None:
             aims.append(target)
         # rebound not yet finished: the lift also has to account for where we start
@@ -386,6 +450,11 @@ def _limb_knots(
             t, p, v, n, st.time, target, strike_v, st.normal, lift, unit, cfg.knots_per_second, cycle,
             rest_rise, hold_from_start=held,
         )
+        if rest_fall > 0.0 and _brakes(pp, vv, st.normal):
+            tt, pp, vv = _segment(
+                t, p, v, n, st.time, target, strike_v, st.normal, lift, unit, cfg.knots_per_second, cycle,
+                rest_rise, hold_from_start=held, rest_fall=rest_fall,
+            )
         times.append(tt[:-1])
         pos.append(pp[:-1])
         vel.append(vv[:-1])
@@ -529,6 +598,7 @@ def plan_gestures(
     config: PlannerConfig | None = None,
     database: GestureDatabase | None = None,
     progress: ProgressCallback | None = None,
+    last_strokes: Mapping[Limb, float] | None = None,
 ) -> GesturePlan:
     """Plan Cartesian effector trajectories for an assignment.
 
@@ -549,6 +619,10 @@ def plan_gestures(
         trajectory is laid (limb after limb, the bulk of the work): ``(0, total)`` first, ``(total, total)``
         last, and between at least once every ``PROGRESS_EVERY`` notes laid and at the end of each limb.
         Whatever it raises (``KeyboardInterrupt``) stops the planning. The plan is the same with or without it.
+    last_strokes : Mapping[Limb, float] | None
+        Each limb's last stroke before the assignment's notes (seconds, the notes' clock): a live plan spliced
+        into a performance (services/physics/score_player.py). A bass-drum foot's first stroke here is made from
+        rest (``KICK_REST_GAP_S``) only that long after it; a limb not in it (or None) has played nothing before.
 
     Returns
     -------
@@ -645,7 +719,7 @@ def plan_gestures(
         aims: list[np.ndarray] = []
         times, pos, vel = _limb_knots(strokes, rest0, rest_h, start, end, units, cfg, None if hand else cfg.foot_cycle,
                                       0.0 if hand else rest_h,  # a foot rests at its rest height between strokes
-                                      on_laid, aims)
+                                      on_laid, aims, (last_strokes or {}).get(limb))
         first = len(planned) - len(strokes)  # this limb's strokes, in order
         for k, (st, aim) in enumerate(zip(strokes, aims, strict=True)):
             if aim is not st.target:  # a bass-drum stroke aimed deeper: the plan meets the surface there

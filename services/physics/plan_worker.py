@@ -20,7 +20,7 @@ import os
 import signal
 import sys
 import threading
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from concurrent.futures import BrokenExecutor, Executor, Future, ProcessPoolExecutor, ThreadPoolExecutor
 from typing import TYPE_CHECKING, Any, Literal, TypeVar
 
@@ -30,7 +30,7 @@ if TYPE_CHECKING:
     import numpy as np
 
     from common.gesture.plan import GesturePlan, Grip, Nuance
-    from common.kit import Kit
+    from common.kit import Kit, Limb
     from common.score.events import DrumEvent
     from common.score.hands import HandAlgorithm, Sticking
     from common.score.limbs import LimbLengths
@@ -54,14 +54,16 @@ class PlanError(ValueError):
 
 def plan_events(events: list[DrumEvent], beats: np.ndarray, lead_in: float, kit: Kit, algorithm: HandAlgorithm,
                 sticking: Sticking, grip: Grip, nuance: Nuance, height_m: float = STATURE_M,
-                lengths: LimbLengths | None = None) -> GesturePlan:
+                lengths: LimbLengths | None = None, last_strokes: Mapping[Limb, float] | None = None
+                ) -> GesturePlan:
     """Distribute and plan rig-timed events (the planner's times are rig seconds); raises :class:`PlanError`.
 
     ``height_m``: the drummer's height, metres (the node's ``--height-m``): the reach its notes are checked
     against (``distribute``'s ``unreachable`` flags); ``lengths``: the arms and legs of a body built from a
-    skeleton (the node's ``--skeleton-bvh``), None: the height's. Here, not in the score player, so that a planning
-    process imports the planner only (the score player's module brings the physics kernels: 1.8 s more to start
-    a process)."""
+    skeleton (the node's ``--skeleton-bvh``), None: the height's; ``last_strokes``: each foot's last note played
+    before these, rig seconds (a kick foot's first stroke is made from rest only long enough after it:
+    ``plan_gestures``). Here, not in the score player, so that a planning process imports the planner only (the
+    score player's module brings the physics kernels: 1.8 s more to start a process)."""
     from common.gesture.planner import PlannerConfig, plan_gestures
     from common.score.events import Score
     from common.score.limbs import distribute
@@ -72,7 +74,7 @@ def plan_events(events: list[DrumEvent], beats: np.ndarray, lead_in: float, kit:
         raise PlanError("nothing to play: the kit has none of these notes' instruments")
     config = PlannerConfig(grip=grip, nuance=nuance, lead_in=max(lead_in, 0.05))
     try:
-        return plan_gestures(assignment, kit, score, config)
+        return plan_gestures(assignment, kit, score, config, last_strokes=last_strokes)
     except Exception as exc:  # a planner failure rejects this message; it never stops the service
         log.exception("the gesture planner failed")
         raise PlanError(f"the gesture planner failed: {type(exc).__name__}: {exc}") from None

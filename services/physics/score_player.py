@@ -279,6 +279,8 @@ class _Prepared:
     """(lag s, targets' clock s): placed while the live core's targets trailed the rig clock by that lag, its notes
     play until then; while its plan is in flight the targets keep that lag (:meth:`ScorePlayer.lag_floor`; dropped
     with the plan if it fails or is replaced)."""
+    last_strokes: dict[Limb, float] = dataclasses.field(default_factory=dict)
+    """Each foot's last note played before the plan (targets' clock, s; :meth:`ScorePlayer._last_strokes`)."""
 
 
 @dataclasses.dataclass
@@ -598,7 +600,8 @@ class ScorePlayer:
         once its scene is ready (seconds to build): a later start is said at INFO, not as a warning."""
         prepared = self._prepare_play(at, position, now, 0.0, whole, start_up)
         prepared.announce()
-        return prepared.commit(self._plan(prepared.events, prepared.beats, prepared.lead_in), prepared.t_s)
+        return prepared.commit(self._plan(prepared.events, prepared.beats, prepared.lead_in, prepared.last_strokes),
+                               prepared.t_s)
 
     def _prepare_play(self, at: float, position: float, now: float, delay_s: float, whole: bool = False,
                       start_up: bool = False) -> _Prepared:
@@ -667,7 +670,7 @@ class ScorePlayer:
             return plan
 
         return _Prepared(t_s, events, beats, min(1.0, events[0].time - t_s - TRANSITION_S), commit, announce,
-                         self._pending(lag, events[-1].time))
+                         self._pending(lag, events[-1].time), self._last_strokes(t_s))
 
     def stop(self, at: float, now: float) -> None:
         """From rig time ``at`` (or at once), brake every limb and bring it to its rest posture; refused
@@ -760,7 +763,8 @@ class ScorePlayer:
         prepared = self._prepare_replan(now, 0.0)
         if prepared is None:
             return None
-        return prepared.commit(self._plan(prepared.events, prepared.beats, prepared.lead_in), prepared.t_s)
+        return prepared.commit(self._plan(prepared.events, prepared.beats, prepared.lead_in, prepared.last_strokes),
+                               prepared.t_s)
 
     def _prepare_replan(self, now: float, delay_s: float) -> _Prepared | None:
         """``replan``'s plan inputs (None: nothing to re-plan); ``delay_s``: seconds the splice moves later."""
@@ -816,7 +820,8 @@ class ScorePlayer:
         whole = widen = False
         while True:  # the window, maybe widened, then the whole rest (whose commit always splices)
             prepared = self._prepare_live([event], t_s, whole, widen)
-            plan, pulled = self._reachable(self._planner(prepared.events, prepared.beats, prepared.lead_in)())
+            plan, pulled = self._reachable(self._planner(prepared.events, prepared.beats, prepared.lead_in,
+                                                         prepared.last_strokes)())
             try:
                 plan = prepared.commit(plan, t_s)
             except _WindowMissed as missed:
@@ -1173,7 +1178,8 @@ class ScorePlayer:
     def _submit(self, requests: list[_Waiting], prepared: _Prepared,
                 finish: Callable[[_Job, GesturePlan, float], None], notes: tuple[DrumEvent, ...] = ()) -> None:
         assert self._worker is not None
-        future = self._worker.submit(self._planner(prepared.events, prepared.beats, prepared.lead_in))
+        future = self._worker.submit(self._planner(prepared.events, prepared.beats, prepared.lead_in,
+                                                   prepared.last_strokes))
         self._job = _Job(requests, prepared, future, time.perf_counter(), self._generation, finish, notes)
 
     def _start_play(self, waiting: _Waiting, now: float) -> None:
@@ -1347,17 +1353,36 @@ class ScorePlayer:
             floor = max(floor, pending[0])
         return floor
 
-    def _plan(self, events: list[DrumEvent], beats: np.ndarray, lead_in: float) -> GesturePlan:
+    def _plan(self, events: list[DrumEvent], beats: np.ndarray, lead_in: float,
+              last_strokes: dict[Limb, float] | None = None) -> GesturePlan:
         """Distribute and plan rig-timed events (the planner's times are rig seconds), in this thread."""
-        return self._account(*self._reachable(self._planner(events, beats, lead_in)()))
+        return self._account(*self._reachable(self._planner(events, beats, lead_in, last_strokes)()))
 
-    def _planner(self, events: list[DrumEvent], beats: np.ndarray, lead_in: float) -> Callable[[], GesturePlan]:
+    def _planner(self, events: list[DrumEvent], beats: np.ndarray, lead_in: float,
+                 last_strokes: dict[Limb, float] | None = None) -> Callable[[], GesturePlan]:
         """The planning of rig-timed events with the present style, as a call that reads nothing of the player's
-        state (it may run in the worker while the loop changes it; picklable, for a worker process)."""
+        state (it may run in the worker while the loop changes it; picklable, for a worker process);
+        ``last_strokes``: each foot's last note played before them (:meth:`_last_strokes`)."""
         self._check_grip()
         return functools.partial(plan_events, events, beats, lead_in, self.core.kit, self.algorithm, self.sticking,
                                  self.grip, self.nuance, height_m=self.core.settings.height_m,
-                                 lengths=self._limb_lengths())
+                                 lengths=self._limb_lengths(), last_strokes=dict(last_strokes or {}))
+
+    def _last_strokes(self, before: float) -> dict[Limb, float]:
+        """Each foot's last note of the performance before ``before`` (s, the targets' clock), looked for
+        :data:`CONTEXT_S` back: a ``play`` spliced in then is planned without the notes before it, and its first
+        kick is made from rest (raised to the beater's contact height, common/gesture/planner.py) only if that
+        foot has not kicked for ``KICK_REST_GAP_S`` (1.5 s). A double pedal's kick whose foot is not on record
+        counts for both feet."""
+        last: dict[Limb, float] = {}
+        for k in range(bisect.bisect_left(self.events, before, key=lambda e: e.time) - 1, -1, -1):
+            e = self.events[k]
+            if e.time < before - CONTEXT_S or len(last) == len(FEET):
+                break
+            if e.event in (EventType.BASS, EventType.HIHATPEDAL):
+                for limb in self._limbs_of(e) & FEET:
+                    last.setdefault(limb, e.time)
+        return last
 
     def _limb_lengths(self) -> LimbLengths | None:
         """The arms and legs of the body physics built from the node's skeleton (``skeleton_bvh``), metres, for the
