@@ -19,7 +19,9 @@ which the rig names).
 The graphics view listens on TCP ``--http-port`` (default 8080; a second rig on
 the same machine needs another); its page saves kits and poses into ``--kit-dir`` (off without it).
 A ``--ROLE-arg`` may give a service its own ``--host`` (the last wins, as argparse keeps it: the rig's checks,
-peers and Hellos take it), never its own ``--kit`` (refused: every service plays the rig's one kit).
+peers and Hellos take it), never its own ``--kit`` (refused: every service plays the rig's one kit); the rig reads
+these, ``--allow`` and ``--config`` there abbreviated too, as a service's argparse takes them (``--ho``, ``--ki``:
+:data:`ABBREVIATIONS`).
 On Linux the services get SIGTERM when the rig itself dies, even by SIGKILL, so none is left running as an orphan.
 
 ``--score FILE`` (a .mid or text score, or ``demo`` for the demo groove of
@@ -106,22 +108,43 @@ class ServicePlan:
     @property
     def host(self) -> str:
         """The address the service listens on: its last ``--host`` (argparse keeps the last: a ``--ROLE-arg
-        '--host ADDRESS'`` after the rig's own), else a node's default, loopback."""
+        '--host ADDRESS'`` after the rig's own; abbreviated too, ``--ho``), else a node's default, loopback."""
         given = option_values(self.args, "--host")
         return given[-1] if given else DEFAULT_HOST
 
 
-def option_values(args: Sequence[str], flag: str) -> list[str]:
-    """The values ``args`` (a service's command line) gives the long option ``flag``, in order: ``flag VALUE`` or
-    ``flag=VALUE``. Only the full name counts: which abbreviation a service's parser takes depends on its other
-    options, which the rig does not know."""
-    values = []
+ABBREVIATIONS = {"--host": "--ho", "--kit": "--k", "--allow": "--a", "--config": "--co"}
+"""The shortest abbreviation of each service option the rig reads in a ``--ROLE-arg`` (:func:`option_uses`). A
+service's parser (argparse, allow_abbrev) takes any prefix of a long option that no other of its options shares
+(``--ho`` for ``--host``), an exact name first, and refuses an ambiguous one (exit 2). So ``--h`` is no ``--host``
+(it is ``--help`` too, in every service); ``--k`` and ``--ki`` are ``--kit`` in physics, interaction and sound and
+ambiguous in graphics (``--kit-dir``); ``--co`` and ``--con`` are ``--config`` but in physics (``--control``). Each is
+the shortest prefix some service takes: a token the rig reads as the option where a service finds it ambiguous
+changes nothing, that service refuses it anyway (tests/cli/test_rig_service_options.py checks this table against the
+services' parsers)."""
+
+
+def option_uses(args: Sequence[str], flag: str) -> list[tuple[str, str]]:
+    """(name as written, value) of each time ``args`` (a service's command line) gives the long option ``flag``, in
+    order: ``NAME VALUE`` or ``NAME=VALUE``, NAME being ``flag`` or, for a flag in :data:`ABBREVIATIONS`, an
+    abbreviation a service's parser would take for it (``--ho`` for ``--host``)."""
+    shortest = ABBREVIATIONS.get(flag, flag)
+    uses = []
     for i, arg in enumerate(args):
-        if arg == flag and i + 1 < len(args):
-            values.append(args[i + 1])
-        elif arg.startswith(flag + "="):
-            values.append(arg[len(flag) + 1:])
-    return values
+        name, equals, value = arg.partition("=")
+        if len(name) < len(shortest) or not flag.startswith(name):
+            continue
+        if equals:
+            uses.append((name, value))
+        elif i + 1 < len(args):
+            uses.append((name, args[i + 1]))
+    return uses
+
+
+def option_values(args: Sequence[str], flag: str) -> list[str]:
+    """The values ``args`` gives the long option ``flag`` (or an abbreviation of it), in order
+    (:func:`option_uses`)."""
+    return [value for _, value in option_uses(args, flag)]
 
 
 def peer_host(host: str) -> str:
@@ -194,6 +217,19 @@ def check_families(hosts: Mapping[str, str], rig_host: str) -> None:
                          "not send to each other; give them addresses of one kind")
 
 
+def asking_host(plans: Sequence[ServicePlan]) -> str:
+    """Where the rig's asking socket (:class:`ReadyWait`) listens: :func:`peer_host` of the first service's address,
+    preferring one given as an IP address. A socket of one family cannot send to the other, and its Hellos were lost
+    without a word (``--host 127.0.0.1 --physics-arg '--host ::1'``: physics never up); :func:`check_families`
+    leaves the services one family. Without a ``--ROLE-arg --host``: :func:`peer_host` of the rig's ``--host``."""
+    hosts = [peer_host(plan.host) for plan in plans]
+    for host in hosts:
+        with contextlib.suppress(ValueError):
+            ipaddress.ip_address(host)
+            return host
+    return hosts[0]
+
+
 def role_args(role: str, opts: argparse.Namespace) -> list[str]:
     """Arguments specific to one role: what to play, where to record, plus pass-through."""
     args: list[str] = []
@@ -210,13 +246,15 @@ def role_args(role: str, opts: argparse.Namespace) -> list[str]:
     if role == "graphics" and getattr(opts, "kit_dir", None):
         args += ["--kit-dir", str(Path(opts.kit_dir).resolve())]
     extra = [arg for item in getattr(opts, f"{role}_arg") or [] for arg in item.split()]
-    kits = option_values(extra, "--kit")
+    kits = option_uses(extra, "--kit")
     if kits:
         # refused, not warned: every service plays the rig's one kit (physics strikes it, sound voices it, graphics
         # draws it, interaction maps it); one given its own would hit drums the others do not have or place, in
         # silence but for a warning lost among four services' start-up lines. --kit gives it to all.
-        raise UsageError(f"--{role}-arg: --kit {kits[-1]} would give {role} a kit of its own, another than the other "
-                         f"services'; give every service that kit with the rig's --kit {kits[-1]}")
+        name, kit = kits[-1]
+        given = "--kit" if name == "--kit" else f"{name} (--kit, as argparse takes it abbreviated)"
+        raise UsageError(f"--{role}-arg: {given} {kit} would give {role} a kit of its own, another than the other "
+                         f"services'; give every service that kit with the rig's --kit {kit}")
     return args + extra
 
 
@@ -258,8 +296,8 @@ class ReadyWait:
     timeout_s: float
     """``--ready-timeout``, seconds from launch."""
     host: str
-    """Where the rig's asking socket listens: :func:`peer_host` of its ``--host`` (each service is asked at
-    :func:`peer_host` of its own :attr:`ServicePlan.host`)."""
+    """Where the rig's asking socket listens (:func:`asking_host`: in its services' address family); each service is
+    asked at :func:`peer_host` of its own :attr:`ServicePlan.host`."""
     epoch: float
     """The rig epoch, Unix seconds: rig time is wall time less it, as on the services' clocks (one machine)."""
     play_at_s: float
@@ -643,7 +681,8 @@ def build_parser() -> argparse.ArgumentParser:
     for role in ROLES:
         parser.add_argument(f"--{role}-arg", action="append", metavar="ARGS",
                             help=f"extra arguments for {role}, e.g. --{role}-arg='--log-level DEBUG' (repeatable; "
-                            f"split on spaces; see batteur {role} --help)")
+                            f"split on spaces; see batteur {role} --help); a --host (or --ho) there is where {role} "
+                            "listens; a --kit (or --k, --ki) is refused")
     return parser
 
 
@@ -704,22 +743,27 @@ def check_allow(plans: Sequence[ServicePlan], host: str, environ: Mapping[str, s
     """Raise UsageError, as a service would refuse to start (exit 2) after the others had started, when it listens
     off loopback (:attr:`ServicePlan.host`: the rig's ``--host``, or its own in ``--ROLE-arg``, which wins) and no
     allow-list reaches it: not BATTEUR_ALLOW (which every service reads), nor its own ``--allow`` (``--ROLE-arg``).
-    A config file (BATTEUR_CONFIG, ``--config``) may give one: that service checks it."""
+    A config file (BATTEUR_CONFIG, ``--config``) may give one: that service checks it. The message names the
+    services without one (``--physics-arg '--allow ...'`` leaves the others on ``--host 0.0.0.0`` without)."""
     from common.config import ENV_PREFIX, off_loopback_problem
 
     env = os.environ if environ is None else environ
     if env.get(f"{ENV_PREFIX}ALLOW", "").strip(" ,") or env.get(f"{ENV_PREFIX}CONFIG"):
         return
-    for plan in plans:
-        given = any(option_values(plan.args, flag) for flag in ("--allow", "--config"))
-        problem = "" if given else off_loopback_problem(plan.host, [])
-        if not problem:
-            continue
-        if plan.host != host:  # its own --host: said as the option that gave it
-            raise UsageError(f"--{plan.role}-arg --host {plan.host}: {problem} (with it in --{plan.role}-arg, or "
-                             "BATTEUR_ALLOW for every service of the rig)")
-        raise UsageError(f"{problem} (every service of the rig reads BATTEUR_ALLOW: "
-                         f"BATTEUR_ALLOW=192.168.1.0/24 batteur rig --host {host} ...)")
+    lacking = [plan for plan in plans if off_loopback_problem(plan.host, [])
+               and not any(option_values(plan.args, flag) for flag in ("--allow", "--config"))]
+    if not lacking:
+        return
+    plan = lacking[0]
+    problem = off_loopback_problem(plan.host, [])
+    if plan.host != host:  # its own --host: said as the option that gave it
+        raise UsageError(f"--{plan.role}-arg --host {plan.host}: {problem} (with it in --{plan.role}-arg, or "
+                         "BATTEUR_ALLOW for every service of the rig)")
+    on_rig_host = [p.role for p in lacking if p.host == host]
+    named = ", ".join(on_rig_host)
+    each = " and ".join(f"--{role}-arg" for role in on_rig_host)
+    raise UsageError(f"{named} without an allow-list: {problem} (--allow in {each}, or for every service of the rig "
+                     f"BATTEUR_ALLOW: BATTEUR_ALLOW=192.168.1.0/24 batteur rig --host {host} ...)")
 
 
 def ignored_options(opts: argparse.Namespace) -> list[str]:
@@ -887,7 +931,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"batteur rig: warning: {warning}", file=sys.stderr, flush=True)
         ready = None
         if opts.score:
-            ready = ReadyWait(opts.ready_timeout, peer_host(opts.host), epoch, opts.play_at)
+            ready = ReadyWait(opts.ready_timeout, asking_host(plans), epoch, opts.play_at)
             print(f"batteur rig: the drummer plays {opts.score} from rig time {opts.play_at:g} s "
                   f"({opts.start_delay + opts.play_at:g} s after launch; later if physics is not up by then)",
                   flush=True)

@@ -11,12 +11,13 @@ from common.messages import Hello, MessageError, decode
 
 
 class HealthAnswerer:
-    """Answers a Hello with ``packet`` (an encoded Health) from 127.0.0.1:``port``; :meth:`close` stops it."""
+    """Answers a Hello with ``packet`` (an encoded Health) from ``host``:``port`` (default 127.0.0.1, any free port;
+    ``host`` may be ::1); :meth:`close` stops it."""
 
-    def __init__(self, packet: bytes) -> None:
+    def __init__(self, packet: bytes, host: str = "127.0.0.1", port: int = 0) -> None:
         self.packet = packet
-        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self.sock.bind(("127.0.0.1", 0))
+        self.sock = socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.bind((host, port))
         self.sock.settimeout(0.05)
         self.port: int = self.sock.getsockname()[1]
         self.stop = threading.Event()

@@ -302,7 +302,9 @@ class SoundNodeSettings(NodeSettings):
     @field_validator("wav", mode="before")
     @classmethod
     def _no_file(cls, value: Any) -> Any:
-        """An empty value (``BATTEUR_WAV=``, ``wav: ''``) records nothing, as no ``--wav`` (not the folder '.')."""
+        """An empty value (``--wav ''``, ``wav: ''`` in a config file) records nothing, as no ``--wav`` (not the
+        folder '.'). An empty ``BATTEUR_WAV=`` is no setting at all (common/config.py): a config file's ``wav``
+        still applies."""
         return None if isinstance(value, str) and not value.strip() else value
 
     @field_validator("block_size", "channels", mode="before")

@@ -8,21 +8,41 @@
   and graphics voiced and drew another): refused, pointing to the rig's ``--kit``.
 * ``--kit-dir DIR`` gives graphics the folder its page saves kits and poses into: under the rig saving was off, short
   of ``--graphics-arg='--kit-dir DIR'``.
+* Services all on ::1 (``--physics-arg '--host ::1'``) under a rig on 127.0.0.1 were never up: the rig asked them
+  from an IPv4 socket, its Hellos lost without a word, until ``--ready-timeout``.
+* Abbreviations (``--ki X``, ``--ho 0.0.0.0``), which the services' argparse takes, escaped the ``--kit`` refusal and
+  the allow-list check.
+* A refusal for want of an allow-list did not say which services lacked one: docs/deployment.md's example, with
+  only physics given one, was refused.
 
 Tested on the command lines the rig builds (:func:`batteur.rig.plan_services`) or with its process runner replaced:
-no service starts, no port is bound.
+no service starts; the rig's asking is tested against a Health answerer in the test's process.
 """
 
 from __future__ import annotations
 
+import argparse
+import asyncio
+import importlib
+import io
 import os
+import re
+import shlex
+import time
 from pathlib import Path
 
 import pytest
 
 from batteur import rig
 from common.peers import parse_static_peer
+from tests.health_answerer import HealthAnswerer
+from tests.ports import free_ports
 from tests.test_rig_inputs import no_rig, refused  # noqa: F401 - no_rig is a fixture
+from tests.test_rig_ready import health
+
+REPO = Path(__file__).resolve().parents[2]
+REAL_RIG = rig.Rig
+"""The rig's runner itself (the recorder replaces it in :mod:`batteur.rig`): its asking is what is tested."""
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -31,9 +51,12 @@ class _Recorder:
     """Stands in for :class:`rig.Rig`: records the plans, starts nothing."""
 
     started: list[rig.ServicePlan] = []
+    ready: rig.ReadyWait | None = None
 
-    def __init__(self, plans: list[rig.ServicePlan], *args: object, **kwargs: object) -> None:
+    def __init__(self, plans: list[rig.ServicePlan], *args: object, ready: rig.ReadyWait | None = None,
+                 **kwargs: object) -> None:
         _Recorder.started = list(plans)
+        _Recorder.ready = ready
 
     async def run(self, duration_s: float | None) -> int:
         return 0
@@ -41,7 +64,7 @@ class _Recorder:
 
 @pytest.fixture
 def recorder(monkeypatch: pytest.MonkeyPatch) -> type[_Recorder]:
-    _Recorder.started = []
+    _Recorder.started, _Recorder.ready = [], None
     monkeypatch.setattr(rig, "Rig", _Recorder)
     monkeypatch.setattr(rig, "check_ports", lambda *args, **kwargs: None)  # would bind the wildcard address
     for name in list(os.environ):
@@ -141,3 +164,121 @@ def test_a_kit_dir_graphics_could_not_save_in_is_refused_up_front(no_rig: None, 
     a_file.write_text("")
     err = refused(["--no-discovery", "--kit-dir", str(a_file / "kits")], capsys, 1)
     assert f"--kit-dir {a_file / 'kits'}: {a_file} is a file, not a directory" in err, err
+
+
+# --------------------------------------------------------------------------- asked in the services' address family
+
+
+def test_services_on_ipv6_are_asked_from_ipv6_under_a_rig_on_ipv4(recorder: type[_Recorder]) -> None:
+    # was: the asking socket on 127.0.0.1 sent its Hellos to ::1, lost without a word: "physics not up within
+    # --ready-timeout" (a physics answering at once stands in here)
+    base = free_ports(4, host="::1")[0]
+    argv = ["--host", "127.0.0.1", "--no-discovery", "--services", "physics", "--base-port", str(base),
+            "--physics-arg", "--host ::1", "--score", "demo", "--ready-timeout", "20"]
+    answerer = HealthAnswerer(bytes.fromhex(health("physics")), host="::1", port=base)
+    try:
+        assert rig.main(argv) == 0
+        assert recorder.ready is not None and [p.host for p in recorder.started] == ["::1"]
+        out, err = io.StringIO(), io.StringIO()
+        asker = REAL_RIG(recorder.started, 1.0, out=out, err=err)
+        asyncio.run(asker._wait_ready(recorder.ready, time.monotonic()))
+    finally:
+        answerer.close()
+    assert not asker.gave_up, err.getvalue()
+    assert "batteur rig: services up" in out.getvalue(), out.getvalue() + err.getvalue()
+
+
+def test_the_asking_address_is_the_rigs_own_without_a_host_of_their_own() -> None:
+    assert rig.asking_host(list(_plans("--host", "0.0.0.0").values())) == "127.0.0.1"
+    assert rig.asking_host(list(_plans("--host", "::").values())) == "::1"
+    assert rig.asking_host(list(_plans("--host", "localhost").values())) == "localhost"
+    assert rig.asking_host(list(_plans("--host", "localhost", "--services", "physics",
+                                       "--physics-arg", "--host ::1").values())) == "::1"
+
+
+# --------------------------------------------------------------------------- abbreviations, as the services take them
+
+
+@pytest.mark.parametrize(("role", "given", "name"), [
+    ("physics", ["--physics-arg=--ki double_pedal"], "--ki"),
+    ("sound", ["--sound-arg=--k=double_pedal"], "--k"),
+    ("interaction", ["--interaction-arg=--log-level INFO --ki=double_pedal"], "--ki"),
+])
+def test_an_abbreviated_kit_for_one_service_is_refused(
+        role: str, given: list[str], name: str, no_rig: None,  # noqa: F811
+        capsys: pytest.CaptureFixture[str]) -> None:
+    err = refused(["--no-discovery", "--kit", "default", *given], capsys, 2)  # was started, on double_pedal
+    assert err.startswith(f"batteur rig: error: --{role}-arg: {name} (--kit, as argparse takes it abbreviated) "
+                          "double_pedal "), err
+    assert "rig's --kit double_pedal" in err, err
+
+
+@pytest.mark.parametrize("own", [["--sound-arg=--ho 0.0.0.0"], ["--sound-arg=--hos=0.0.0.0"]])
+def test_an_abbreviated_host_off_loopback_needs_an_allow_list(
+        own: list[str], no_rig: None, monkeypatch: pytest.MonkeyPatch,  # noqa: F811
+        capsys: pytest.CaptureFixture[str]) -> None:
+    monkeypatch.delenv("BATTEUR_ALLOW", raising=False)
+    monkeypatch.delenv("BATTEUR_CONFIG", raising=False)
+    err = refused(["--no-discovery", "--services", "physics,sound", *own], capsys, 2)  # was started, to exit 2
+    assert "--sound-arg --host 0.0.0.0: host 0.0.0.0 listens off loopback" in err, err
+
+
+def test_an_abbreviated_host_and_allow_list_are_read() -> None:
+    plans = _plans("--services", "physics,sound", "--sound-arg", "--ho 127.0.0.2 --al 10.0.0.0/8")
+    assert plans["sound"].host == "127.0.0.2"
+    assert _peers(plans["physics"])["sound"] == ("127.0.0.2", plans["sound"].port)
+    plans = _plans("--services", "physics,sound", "--sound-arg", "--ho 0.0.0.0 --al 10.0.0.0/8")
+    rig.check_allow(list(plans.values()), "127.0.0.1", environ={})  # its own allow-list, abbreviated: accepted
+
+
+def _service_parser(role: str) -> argparse.ArgumentParser:
+    """The command-line parser ``batteur ROLE`` reads (common.runtime.build_parser with the service's settings)."""
+    from common.runtime import build_parser
+
+    settings = {"physics": "PhysicsNodeSettings", "interaction": "InteractionSettings",
+                "sound": "SoundNodeSettings", "graphics": "GraphicsNodeSettings"}[role]
+    return build_parser(role, settings_cls=getattr(importlib.import_module(f"services.{role}.node"), settings))
+
+
+@pytest.mark.parametrize("role", rig.ROLES)
+def test_the_rig_reads_every_abbreviation_a_service_takes(role: str, capsys: pytest.CaptureFixture[str]) -> None:
+    # each prefix of each option the rig reads, as the service's own parser takes it: one the service takes as the
+    # option the rig must read as it (--ho, --ki escaped it); one the rig reads as it, the service takes or refuses
+    parser = _service_parser(role)
+    for flag in rig.ABBREVIATIONS:
+        dest = parser._option_string_actions[flag].dest
+        for end in range(3, len(flag) + 1):
+            for argv in ([flag[:end], "VALUE"], [f"{flag[:end]}=VALUE"]):
+                try:
+                    known, _ = parser.parse_known_args(argv)
+                    verdict = "taken" if getattr(known, dest, None) in ("VALUE", ["VALUE"]) else "not taken"
+                except SystemExit:  # ambiguous: refused
+                    verdict = "refused"
+                read = rig.option_values(argv, flag) == ["VALUE"]
+                assert verdict == "refused" or read == (verdict == "taken"), (role, argv, verdict, read)
+    capsys.readouterr()
+
+
+# --------------------------------------------------------------------------- the services an allow-list is missing for
+
+
+def test_the_refusal_names_the_services_without_an_allow_list(
+        no_rig: None, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:  # noqa: F811
+    monkeypatch.delenv("BATTEUR_ALLOW", raising=False)
+    monkeypatch.delenv("BATTEUR_CONFIG", raising=False)
+    err = refused(["--host", "0.0.0.0", "--no-discovery", "--physics-arg", "--allow 192.168.1.0/24",
+                   "--sound-arg", "--host 127.0.0.1"], capsys, 2)
+    assert err.startswith("batteur rig: error: interaction, graphics without an allow-list: host 0.0.0.0 listens "
+                          "off loopback"), err
+    assert "--allow in --interaction-arg and --graphics-arg" in err, err
+
+
+def test_the_deployment_docs_example_is_accepted(recorder: type[_Recorder]) -> None:
+    # docs/deployment.md gave one the rig refused (interaction and graphics on 0.0.0.0 without an allow-list)
+    text = " ".join((REPO / "docs" / "deployment.md").read_text(encoding="utf-8").split())
+    example = re.search(r"`batteur rig --host 0\.0\.0\.0 [^`]*--sound-arg '--host 127\.0\.0\.1'`", text)
+    assert example is not None
+    argv = shlex.split(example.group(0).strip("`"))[2:]
+    assert rig.main([*argv, "--no-discovery"]) == 0
+    plans = {p.role: p for p in recorder.started}
+    assert plans["sound"].host == "127.0.0.1" and plans["physics"].host == "0.0.0.0"
