@@ -259,6 +259,9 @@ class OffsetEstimator:
         self.restarts = 0
         """times the estimate started over: :meth:`reset` (a new master), a new launch or agreeing outliers"""
         self._launch_seq = -1
+        self._left: set[int] = set()
+        """launches the estimate has left (a restart's old run): a late pong of one is refused, never taken up again
+        (a pong of the old run answering a ping reordered past the new run's first answer would step back to it)"""
         self._seq = 0
         self._pending: dict[int, float] = {}
         self._candidates: list[ClockSample] = []
@@ -269,6 +272,7 @@ class OffsetEstimator:
         self._pending.clear()
         self._candidates.clear()
         self.launch, self._launch_seq = 0, -1
+        self._left.clear()
         self.restarts += 1
 
     def make_ping(self, t_local: float) -> ClockPing:
@@ -287,9 +291,11 @@ class OffsetEstimator:
             self.rejected += 1
             return None
         if pong.launch and pong.launch != self.launch:
-            if self.samples and pong.seq < self._launch_seq:  # asked before the launch in use first answered:
-                self.rejected += 1                            # a late pong of a previous run
+            if self.samples and (pong.seq < self._launch_seq or pong.launch in self._left):  # a late pong of a
+                self.rejected += 1                                                          # previous run
                 return None
+            if self.launch:
+                self._left.add(self.launch)
             self.launch, self._launch_seq = pong.launch, pong.seq
             if self.samples:  # the master restarted at the same address: follow it now, not after agreeing outliers
                 self._restart([sample])

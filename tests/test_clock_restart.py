@@ -83,6 +83,23 @@ def test_a_late_pong_of_the_previous_launch_does_not_step_back() -> None:
     assert est.offset == pytest.approx(3.0, abs=0.003) and est.launch == NEW
 
 
+def test_a_late_pong_of_the_previous_launch_asked_after_the_new_ones_first_is_refused() -> None:
+    """Pings reordered around the restart: the new master answers an earlier ping, the old one a later ping whose
+    pong arrives after. Taken, it stepped rig time back to the old run and forward again (three steps, three
+    warnings for one restart); a launch the estimate has left is never taken up again."""
+    est, local = synced(offset=1000.0)
+    restarts = est.restarts
+    first, second, third = (est.make_ping(local + 0.1 * i) for i in range(3))
+    t = local + 0.0005 + 3.0
+    assert est.add_pong(wire(answer_ping(first, t, t, NEW)), local + 0.101) is not None
+    old_t = local + 0.1005 + 1000.0
+    assert est.add_pong(wire(answer_ping(second, old_t, old_t, OLD)), local + 0.102) is None
+    t = local + 0.2005 + 3.0
+    assert est.add_pong(wire(answer_ping(third, t, t, NEW)), local + 0.201) is not None
+    assert est.offset == pytest.approx(3.0, abs=0.003)
+    assert (est.launch, est.restarts) == (NEW, restarts + 1)
+
+
 def test_pongs_of_older_and_newer_masters_decode() -> None:
     """``launch`` is appended: an older master's pong (without it) decodes with 0, the restart then followed
     after agreeing outliers as before; a newer master's, with arguments appended since, without them."""
