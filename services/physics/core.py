@@ -42,7 +42,7 @@ import zlib
 from collections import Counter
 from collections.abc import Iterable, Sequence
 from operator import itemgetter
-from typing import TYPE_CHECKING, ClassVar, Literal, Protocol
+from typing import TYPE_CHECKING, ClassVar, Literal, NamedTuple, Protocol
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
@@ -116,7 +116,22 @@ interval after them and their lag (:meth:`PhysicsCore._stream_lag`) ..."""
 STREAM_DENSE_S = 0.05
 """... unless the stream is dense over what it would cut: those knots and the one kept before them are each within this
 many seconds of rig time of the next (at least two knots per ``STREAM_SHORT_CUT_S``: no knot there is a lone
-waypoint), so the knot cuts over all the lag grown since (a dense stream catches up after a long skip)."""
+waypoint), ..."""
+STREAM_DENSE_MIN_KNOTS = 3
+"""... at least this many of them (a rate takes two intervals to show: a pair of knots close together is as likely two
+waypoints a sender meant, a quick lift and strike), none a posture's (its start and end are waypoints, however short
+its glide), so the knot cuts over all the lag grown since (a dense stream catches up after a long skip)."""
+
+
+class StreamedKnot(NamedTuple):
+    """A streamed knot still queued on a drummer track (:attr:`PhysicsCore._streamed`)."""
+
+    rig_time: float
+    """When it is to be reached, s (rig clock)."""
+    time: float
+    """Where it is queued, s (the targets' clock: ``rig_time`` less the lag it was placed with)."""
+    posture: bool = False
+    """One of a /batteur/physics/posture glide's two knots: a waypoint, never part of a dense stream."""
 
 
 class PhysicsSettings(BaseModel):
@@ -232,10 +247,10 @@ class PhysicsCore:
         """(lag s, targets' clock s): streamed targets queued while the targets trailed the rig clock by that lag
         (that much earlier on their clock, to be reached at their rig times: :meth:`_handle`) play until then; the
         targets keep at least that lag until it (:meth:`_lag_floor`, as ``ScorePlayer.lag_floor`` for plans)."""
-        self._streamed: dict[str, list[tuple[float, float]]] = {}
-        """Track ("left_hand" ... or "joints") -> its streamed knots still queued, (rig time s, targets' clock s), in
-        order on both clocks: where a knot streamed after the lag grew goes (:meth:`_stream_lag`), and what a jump
-        past ``MAX_TARGET_LAG_HARD_S`` re-times (:meth:`_retime_streamed`)."""
+        self._streamed: dict[str, list[StreamedKnot]] = {}
+        """Track ("left_hand" ... or "joints") -> its streamed knots still queued, in order on both clocks: where a
+        knot streamed after the lag grew goes (:meth:`_stream_lag`), and what a jump past ``MAX_TARGET_LAG_HARD_S``
+        re-times (:meth:`_retime_streamed`)."""
         self.streamed_retimed = 0
         """Live mode: streamed knots moved onto the targets' new clock at a jump past ``MAX_TARGET_LAG_HARD_S``, to
         be reached at their rig times still (logged) ..."""
@@ -374,8 +389,8 @@ class PhysicsCore:
             # the knots sent for earlier rig times, a posture before it never reached
             lag = self._stream_lag("joints", start)
             end = apply_posture(self, message, lag)
-            self._record_streamed("joints", start - lag, start)
-            self._record_streamed("joints", end - lag, end)
+            self._record_streamed("joints", start - lag, start, posture=True)
+            self._record_streamed("joints", end - lag, end, posture=True)
             self._hold_streamed(lag, end - lag)
             return []
         if isinstance(message, PhysicsStrike):
@@ -610,15 +625,15 @@ class PhysicsCore:
         tracks: dict[str, Track] = getattr(self.scene, "limb_tracks", {})
         return tracks.get(key)
 
-    def _streamed_knots(self, key: str) -> list[tuple[float, float]]:
-        """Track ``key``'s streamed knots still queued, (rig time s, targets' clock s) (:attr:`_streamed`; the one
-        in use and those after it): none once the track no longer ends with the last of them (cleared, or a plan
-        queued over them: they are no longer the stream's)."""
+    def _streamed_knots(self, key: str) -> list[StreamedKnot]:
+        """Track ``key``'s streamed knots still queued (:attr:`_streamed`; the one in use and those after it): none
+        once the track no longer ends with the last of them (cleared, or a plan queued over them: they are no longer
+        the stream's)."""
         knots = self._streamed.get(key)
         if not knots:
             return []
         track = self._stream_track(key)
-        if track is None or track.end_time != knots[-1][1]:
+        if track is None or track.end_time != knots[-1].time:
             del self._streamed[key]
             return []
         used = bisect.bisect_right(knots, self.time - self.target_lag, key=itemgetter(1)) - 1
@@ -626,14 +641,15 @@ class PhysicsCore:
             del knots[:used]
         return knots
 
-    def _record_streamed(self, key: str, time: float, rig_time: float) -> None:
-        """A knot for rig time ``rig_time`` (s) was queued at ``time`` (s, the targets' clock) on track ``key``: it
-        replaced the knots at and after that time (``Track.add``), and those for its rig time and after."""
+    def _record_streamed(self, key: str, time: float, rig_time: float, posture: bool = False) -> None:
+        """A knot for rig time ``rig_time`` (s) was queued at ``time`` (s, the targets' clock) on track ``key`` (one
+        of a posture's if ``posture``): it replaced the knots at and after that time (``Track.add``), and those for
+        its rig time and after."""
         knots = self._streamed.setdefault(key, [])
         del knots[bisect.bisect_left(knots, time, key=itemgetter(1)):]
         while knots and knots[-1][0] >= rig_time:
             knots.pop()
-        knots.append((rig_time, time))
+        knots.append(StreamedKnot(rig_time, time, posture))
 
     def _stream_lag(self, key: str, rig_time: float) -> float:
         """The lag (s) a knot streamed for rig time ``rig_time`` (s) onto track ``key`` is queued with: the lag as it
@@ -671,14 +687,12 @@ class PhysicsCore:
         The lag growing by more than 0.1 s at once (a longer skip) made every later knot of a dense stream cut more
         than 0.1 s: it kept the lag of the knots before the skip, and the stream played late by all of it until the
         targets jumped back. A knot may now cut further when the knots it cuts, and the one kept before them, are a
-        dense stream's (each within ``STREAM_DENSE_S`` of the next, :meth:`_dense`: no lone waypoint): the first
-        knot sent after the skip re-anchors the stream at the lag as it is. The gap a sender leaves over the rig
-        time skipped is after the knots cut, not among them. Measured as above plus one skip of 0.2 / 0.3 / 0.5 s
-        at rig time 1 s, 0.2-2 s (lateness mean / max over the run, before -> now): 10 ms knots 167 / 485 -> 82 /
-        245 ms, 130 / 445 -> 94 / 345, 74 / 145 unchanged (past 0.5 s the targets jump back); 50 ms knots 170 /
-        485 -> 101 / 375, 133 / 475 -> 99 / 405, 223 / 705 -> 148 / 675 (the maxima: the knots queued before the
-        skip, which play late by it); 250 ms knots unchanged (a waypoint each). The cost: the target moves up to
-        18 cm at the cut (7-8 cm within 0.1 s), the hand's short cut over the motion skipped."""
+        dense stream's (:meth:`_dense`: at least ``STREAM_DENSE_MIN_KNOTS``, each within ``STREAM_DENSE_S`` of the
+        next, none a posture's; no lone waypoint): the first knot sent after the skip re-anchors the stream at the
+        lag as it is. The gap a sender leaves over the rig time skipped is after the knots cut, not among them. How
+        late the knot in use plays, with and without one such skip: bench/live_stream_lag.py (the table in
+        docs/physics.md): a dense stream catches up, the knots queued before the skip still play late by it; a
+        sparse one (250 ms) is as before."""
         lag = self.target_lag
         knots = self._streamed_knots(key)
         if not knots:
@@ -688,18 +702,20 @@ class PhysicsCore:
         if k:
             cut = bisect.bisect_left(knots, time, key=itemgetter(1))  # the first knot Track.add would replace
             if cut < k and rig_time - knots[cut][0] > STREAM_SHORT_CUT_S and not self._dense(knots[max(cut - 1, 0):k]):
-                rig_before, before = knots[k - 1]  # a waypoint, not a short cut
+                rig_before, before = knots[k - 1].rig_time, knots[k - 1].time  # a waypoint, not a short cut
                 time = before + (rig_time - rig_before)
         if k < len(knots):
             time = min(time, knots[k][1])
         return rig_time - time
 
     @staticmethod
-    def _dense(knots: Sequence[tuple[float, float]]) -> bool:
-        """Whether streamed knots (rig time s, targets' clock s), in order, are each within ``STREAM_DENSE_S`` of rig
-        time of the next: a dense stream's, whose knots a later one may cut over all the lag grown since
-        (:meth:`_stream_lag`); a lone knot is not."""
-        return len(knots) > 1 and all(b[0] - a[0] <= STREAM_DENSE_S + 1e-9 for a, b in itertools.pairwise(knots))
+    def _dense(knots: Sequence[StreamedKnot]) -> bool:
+        """Whether streamed knots, in order, are a dense stream's, whose knots a later one may cut over all the lag
+        grown since (:meth:`_stream_lag`): at least ``STREAM_DENSE_MIN_KNOTS``, each within ``STREAM_DENSE_S`` of rig
+        time of the next, none a posture's. A pair is not (two waypoints a sender meant, or a short posture's glide:
+        cut, the body never went there)."""
+        return (len(knots) >= STREAM_DENSE_MIN_KNOTS and not any(knot.posture for knot in knots)
+                and all(b.rig_time - a.rig_time <= STREAM_DENSE_S + 1e-9 for a, b in itertools.pairwise(knots)))
 
     def _retime_streamed(self, t_from: float, lag: float) -> tuple[int, int]:
         """Move the streamed knots queued after ``t_from`` (s, the targets' clock) to their rig times less ``lag``
@@ -717,19 +733,20 @@ class PhysicsCore:
                 continue
             track = self._stream_track(key)
             assert track is not None  # _streamed_knots found it
-            times, values, velocities = track.knots(knots[first][1], track.end_time)
-            if not np.array_equal(times, [time for _, time in knots[first:]]):
+            times, values, velocities = track.knots(knots[first].time, track.end_time)
+            if not np.array_equal(times, [knot.time for knot in knots[first:]]):
                 del self._streamed[key]
                 continue
             track.cut(knots[first][1])
             kept = knots[:first]
-            for (rig_time, _), value, velocity in zip(knots[first:], values, velocities, strict=True):
+            for knot, value, velocity in zip(knots[first:], values, velocities, strict=True):
+                rig_time = knot.rig_time
                 time = rig_time - lag
                 if time <= track.end_time:  # placed with less lag than the new: behind the knots before, passed
                     passed += 1
                     continue
                 track.add(time, value, velocity)
-                kept.append((rig_time, time))
+                kept.append(knot._replace(time=time))
                 until = max(until, time)
                 if rig_time > rig:
                     ahead += 1

@@ -7,8 +7,13 @@ and the posture ``duration`` seconds later, both with zero velocity), so the bod
 glides there and holds it. A joint track overrides Cartesian targets until
 /batteur/physics/reset clears it (see services/physics/drummer.py). While a live
 core's targets trail the rig clock (``PhysicsCore.target_lag``) the knots are
-queued that much earlier on the targets' clock, as streamed targets are, so the
-glide starts at its rig time (the core keeps the lag until it ends).
+queued earlier on the targets' clock by the lag the core gives them, as a
+streamed knot's (``PhysicsCore._stream_lag``): ``target_lag``, so the glide
+starts at its rig time, unless that would cut knots streamed for rig times more
+than 0.1 s before its start that are no dense stream's (an earlier posture's, a
+sparse stream's waypoints): then the glide follows the last of them, at their
+rig-time interval and with their lag, and plays late by the lag grown since (the
+core keeps the lag it was placed with until it ends).
 """
 
 from __future__ import annotations
@@ -27,8 +32,10 @@ if TYPE_CHECKING:
 
 def apply_posture(core: PhysicsCore, message: PhysicsPosture, lag: float = 0.0) -> float:
     """Queue ``message``'s posture on the drummer's joint track ``lag`` seconds earlier on the targets' clock (a
-    live core's targets trailing the rig clock by that much: the glide starts at its rig time); returns the rig
-    time (s) the posture is reached; raises :class:`TargetError`."""
+    live core's streamed-knot lag, ``PhysicsCore._stream_lag``: ``target_lag``, the glide starting at its rig time,
+    or the lag of an earlier posture or sparse waypoints it would otherwise cut, the glide following them at their
+    rig-time interval, late by the lag grown since); returns the rig time (s) the posture is asked for (``max(time,
+    now) + duration``: queued ``lag`` earlier on the targets' clock); raises :class:`TargetError`."""
     from services.physics.drummer import DrummerScene
 
     scene = core.scene

@@ -23,16 +23,13 @@ from collections.abc import Iterator
 import numpy as np
 import pytest
 
-from common.kit import load_kit
-from common.messages.physics import CartesianTarget, PhysicsPosture, PhysicsReset
+from common.messages.physics import CartesianTarget, JointTarget, PhysicsPosture, PhysicsReset
 from common.messages.score import ScoreTransport
 from services.physics.core import MAX_TARGET_LAG_HARD_S, STREAM_SHORT_CUT_S, PhysicsCore
 from services.physics.drummer import DrummerScene
 from services.physics.follow_through import LimbTrack, Strike
+from tests.physics.live_stream import follow_dense_stream, live_core, swaying_target
 from tests.physics.test_live_lag_placement import LATE_STEPS, _trailing
-
-SWAY_M, SWAY_HZ = 0.1, 2.0
-"""The streamed hand's sway: metres either side of its rest, and how often."""
 
 
 def rest_target(scene: DrummerScene, t: float) -> CartesianTarget:
@@ -41,21 +38,10 @@ def rest_target(scene: DrummerScene, t: float) -> CartesianTarget:
     return CartesianTarget(limb="left_hand", time=t, x=x, y=y, z=z, vx=0, vy=0, vz=0)
 
 
-def swaying_target(scene: DrummerScene, t: float) -> CartesianTarget:
-    """The left hand's target at rig time ``t`` s swaying ``SWAY_M`` either side of its rest at ``SWAY_HZ`` (it
-    moves too fast for the targets to jump unnoticed: they trail from the first skip on)."""
-    x, y, z = (float(v) for v in scene.rest_targets["left_hand"])
-    w = 2 * math.pi * SWAY_HZ
-    return CartesianTarget(limb="left_hand", time=t, x=x + SWAY_M * math.sin(w * t), y=y, z=z,
-                           vx=SWAY_M * w * math.cos(w * t), vy=0, vz=0)
-
-
 @pytest.fixture
 def live() -> Iterator[PhysicsCore]:
     """A live drummer core (no poses), its first 0.2 s of rig time simulated in step."""
-    core = PhysicsCore(scene="drummer", kit=load_kit("default"), pose_rate_hz=0, mode="live")
-    for k in range(1, 201):
-        core.step(k / 1000)
+    core = live_core()
     yield core
     core.close()
 
@@ -133,46 +119,6 @@ def test_the_skip_warning_says_what_plays_late(live: PhysicsCore, caplog: pytest
     assert scene.limb_tracks["left_hand"].end_time == pytest.approx(now + 0.5)  # at its rig time
 
 
-def follow_dense_stream(core: PhysicsCore, spacing_s: float, ahead_s: float, end_s: float,
-                        long_skip: tuple[float, float] | None = None) -> tuple[list[float], list[float], list[float]]:
-    """:func:`stream_while_late`, measured: after each call, how late the streamed knot in use plays (s: the lag
-    grown since it was placed) and how far the hand's target is from what was asked for the rig time (m); for each
-    knot sent that cut knots sent for earlier rig times still to come, the rig time it cut over (s). ``long_skip``
-    (rig time s, seconds): the first call from that rig time on comes back that much later still."""
-    scene = core.scene
-    assert isinstance(scene, DrummerScene)
-    track = scene.limb_tracks["left_hand"]
-    late: list[float] = []
-    far: list[float] = []
-    cut_over: list[float] = []
-    now_ms, k = round(core.time * 1000), 0
-    sent = core.time
-    while now_ms < end_s * 1000:
-        sent = max(sent, now_ms / 1000)
-        while sent + spacing_s <= now_ms / 1000 + ahead_s:
-            sent += spacing_s
-            queued = list(core._streamed_knots("left_hand"))
-            assert not core.handle(swaying_target(scene, sent), now_ms / 1000, "")  # accepted
-            kept = set(core._streamed.get("left_hand", []))
-            cut = [rig for rig, time in queued if (rig, time) not in kept and core.time < rig < sent]
-            if cut:
-                cut_over.append(sent - min(cut))
-        now_ms += LATE_STEPS[k % len(LATE_STEPS)]
-        if long_skip is not None and now_ms >= long_skip[0] * 1000:
-            now_ms += round(long_skip[1] * 1000)
-            long_skip = None
-        k += 1
-        core.step(now_ms / 1000)
-        rig, lag = core.time, core.target_lag
-        knots = core._streamed_knots("left_hand")
-        if knots:
-            in_use_rig, in_use_time = knots[0]
-            late.append(lag - (in_use_rig - in_use_time))
-        asked = swaying_target(scene, rig)
-        far.append(float(np.linalg.norm(track.sample(rig - lag)[0] - [asked.x, asked.y, asked.z])))
-    return late, far, cut_over
-
-
 @pytest.mark.slow  # 1 s of drummer simulation: 1-4 s
 def test_a_dense_stream_streamed_after_the_lag_grew_plays_close_to_what_was_asked(live: PhysicsCore) -> None:
     """A knot every 10 ms sent 200 ms ahead, every call 20-70 ms late. Placed with the lag as it is, a knot after a
@@ -182,7 +128,8 @@ def test_a_dense_stream_streamed_after_the_lag_grew_plays_close_to_what_was_aske
     targets jumped back (catching up at twice the sender's speed: 147 ms, 92 mm). Short cuts within
     ``STREAM_SHORT_CUT_S`` are taken again: a knot plays late only by the lag grown while it was queued (sent 200 ms
     ahead, a call at most 120 ms later, 70 ms of it skipped: measured 81 ms on average, 145 at most; 54 mm)."""
-    late, far, cut_over = follow_dense_stream(live, 0.01, 0.2, 1.2)
+    run = follow_dense_stream(live, 0.01, 0.2, 1.2)
+    late, far, cut_over = run.lateness(), run.far, run.cut_over
     assert live.skipped_steps > 400
     assert late and float(np.mean(late)) < 0.12 and max(late) < 0.25, (np.mean(late), max(late))  # was 0.25, 0.48
     assert float(np.mean(far)) < 0.07, np.mean(far)  # metres; was 0.082
@@ -197,7 +144,7 @@ def test_a_dense_stream_catches_up_after_the_lag_grew_by_more_than_the_short_cut
     grew since) until the targets jumped back past the bound. A dense stream's knots are no waypoints: the first knot
     sent after the skip cuts over them, and the stream is back on time (late only by the lag grown while a knot was
     queued) but for the knots queued before the skip, in use for the next call or two."""
-    late, _, _ = follow_dense_stream(live, 0.01, 0.2, 1.7, long_skip=(1.0, 0.3))
+    late = follow_dense_stream(live, 0.01, 0.2, 1.7, long_skip=(1.0, 0.3)).lateness()
     assert max(late) > 0.3  # the skip happened: what was queued before it played late by it
     assert max(late[-4:]) < 0.15, late  # was 0.40-0.47 s: the lag kept from before the skip, and grown since
 
@@ -259,7 +206,7 @@ def test_a_knot_streamed_after_a_long_skip_cuts_over_a_dense_streams_knots_not_o
     core.target_lag = 0.4
     assert not core.handle(rest_target(scene, 1.35), core.time, "")
     assert track.times == pytest.approx([0.9, 0.91, 0.92, 0.93, 0.94, 0.95])  # was [0.9, 0.91, ..., 1.1, 1.25]
-    assert core._streamed["left_hand"][-1] == pytest.approx((1.35, 0.95))
+    assert core._streamed["left_hand"][-1][:2] == pytest.approx((1.35, 0.95))
 
     assert not core.handle(PhysicsReset(time=core.time), core.time, "")  # a dense stream, then a waypoint
     core.target_lag = 0.1
@@ -287,6 +234,56 @@ def test_a_posture_placed_after_the_lag_grew_does_not_cut_the_posture_before_it(
     assert track.times == pytest.approx([0.9, 1.1, 1.3, 1.6])  # was [0.9, 1.2]
     assert np.allclose(track.sample(1.3)[0], first)  # the second glide starts from the first posture
     assert core._lag_floor(1.59) == pytest.approx(0.1)  # held until it has played
+
+
+def test_a_short_posture_placed_before_the_lag_grew_is_not_cut_whole(
+        drummer: PhysicsCore, drummer_scene: DrummerScene) -> None:
+    """As above with a first glide of 0.05 s (rig times 1.00-1.05): its two knots, within ``STREAM_DENSE_S`` of each
+    other, counted as a dense stream's, and the second posture cut over both: the track was [0.9, 1.2], the body
+    never went to the first posture. A posture's knots are waypoints however close: the second glide follows it."""
+    core, scene = drummer, drummer_scene
+    track = scene.joint_track
+    core.target_lag = 0.1
+    first = scene.controller.clamp_targets(np.asarray(scene.rest) + 0.05)
+    assert not core.handle(PhysicsPosture(time=1.0, duration=0.05, values=tuple(first)), core.time, "")
+    core.target_lag = 0.5
+    assert not core.handle(PhysicsPosture(time=1.4, duration=0.3, values=tuple(scene.rest)), core.time, "")
+    assert track.times == pytest.approx([0.9, 0.95, 1.3, 1.6])  # was [0.9, 1.2]
+    assert np.allclose(track.sample(1.3)[0], first)  # the first posture is reached, then left
+
+
+def joint_target(scene: DrummerScene, t: float) -> JointTarget:
+    """The drummer's joints at rest, still, for rig time ``t`` s."""
+    return JointTarget(time=t, values=(*(float(q) for q in scene.rest), *(0.0 for _ in scene.rest)))
+
+
+def test_a_pair_of_close_waypoints_or_a_short_posture_after_a_dense_stream_is_not_a_dense_stream(
+        drummer: PhysicsCore, drummer_scene: DrummerScene) -> None:
+    """Two waypoints 50 ms apart (rig times 1.00, 1.05) placed with a lag of 0.1 s, the lag grown to 0.5 s, a knot for
+    1.4: a pair within ``STREAM_DENSE_S`` counted as a dense stream and the knot cut over both (the track was [0.9]);
+    a dense stream takes at least three knots, and the knot follows the pair. A short posture's glide (1.12-1.15)
+    right after a dense joint stream (1.00-1.10, every 10 ms) counted as part of it, and a joint knot streamed after
+    a long skip cut it whole; a posture's knots are none of a dense stream's: the knot follows the glide."""
+    core, scene = drummer, drummer_scene
+    track = scene.limb_tracks["left_hand"]
+    core.target_lag = 0.1
+    for t in (1.0, 1.05):
+        assert not core.handle(rest_target(scene, t), core.time, "")
+    core.target_lag = 0.5
+    assert not core.handle(rest_target(scene, 1.4), core.time, "")
+    assert track.times == pytest.approx([0.9, 0.95, 1.3])  # was [0.9]
+
+    assert not core.handle(PhysicsReset(time=core.time), core.time, "")
+    joints = scene.joint_track
+    core.target_lag = 0.1
+    for k in range(11):
+        assert not core.handle(joint_target(scene, 1.0 + k / 100), core.time, "")
+    posture = scene.controller.clamp_targets(np.asarray(scene.rest) + 0.05)
+    assert not core.handle(PhysicsPosture(time=1.12, duration=0.03, values=tuple(posture)), core.time, "")
+    core.target_lag = 0.4
+    assert not core.handle(joint_target(scene, 1.35), core.time, "")
+    assert joints.times[-3:] == pytest.approx([1.02, 1.05, 1.25])  # was [..., 0.93, 0.94, 0.95]
+    assert np.allclose(joints.sample(1.05)[0], posture)  # reached
 
 
 def test_past_the_bound_held_streamed_targets_are_re_timed_onto_the_rig_clock(
