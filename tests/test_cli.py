@@ -14,6 +14,7 @@ import pytest
 from batteur import cli
 from batteur.tools import send
 from common.messages import Hello, decode
+from tests.waiting import until
 
 
 def test_top_level_help_lists_every_command(capsys: pytest.CaptureFixture[str]) -> None:
@@ -66,17 +67,23 @@ def test_send_names_a_bad_target_and_a_failed_send(capsys: pytest.CaptureFixture
     assert "cannot send to 127.0.0.1:9" in capsys.readouterr().err
 
 
-@pytest.fixture
-def interaction_node() -> Iterator[int]:
-    """An interaction node on loopback (no discovery), yielding its UDP port."""
+@pytest.fixture(scope="module")
+def interaction_node(tmp_path_factory: pytest.TempPathFactory) -> Iterator[int]:
+    """An interaction node on loopback (no discovery), yielding its UDP port once it says it listens; one per
+    module: ls only asks it and echo's subscription ends with echo."""
     sock, port = _udp_listener()
     sock.close()
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "batteur", "interaction", "--port", str(port), "--no-discovery", "--no-oscquery"],
-        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-    )
-    time.sleep(1.5)
+    log_path = tmp_path_factory.mktemp("interaction") / "node.log"
+    with open(log_path, "wb") as log:
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "batteur", "interaction", "--port", str(port), "--no-discovery", "--no-oscquery"],
+            stdout=subprocess.DEVNULL, stderr=log,
+        )
     try:
+        said = f"listening on 127.0.0.1:{port} (rate"  # the runtime's line: its handlers are in place
+        assert until(lambda: proc.poll() is not None or said in log_path.read_text(errors="replace"),
+                     timeout_s=30), "the interaction node never said it listens"
+        assert proc.poll() is None, log_path.read_text(errors="replace")
         yield port
     finally:
         proc.terminate()

@@ -10,6 +10,7 @@ note must sound. ``Track.replace_span`` is the track operation behind it.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -68,6 +69,23 @@ def _whole(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(ScorePlayer, "_window_end", lambda self, new, t_s, widen=False: math.inf)
 
 
+@pytest.fixture(scope="module")
+def whole_replans() -> Callable[[int], dict[str, Any]]:
+    """``_play(pitch)`` with every live note re-planned with the whole rest (``_whole``): the reference tracks,
+    computed once per pitch in the module. The crash's is the reference of two tests, which only read it."""
+    done: dict[int, dict[str, Any]] = {}
+
+    def whole(pitch: int) -> dict[str, Any]:
+        if pitch not in done:
+            with pytest.MonkeyPatch.context() as patch:
+                _whole(patch)
+                core, _, _, done[pitch] = _play(pitch)
+                core.close()
+        return done[pitch]
+
+    return whole
+
+
 def _scene(physics: Any) -> DrummerScene:
     assert isinstance(physics.scene, DrummerScene)
     return physics.scene
@@ -113,7 +131,7 @@ def _assert_same_tracks(window: dict[str, Any], whole: dict[str, Any]) -> None:
 
 @pytest.mark.parametrize("pitch", [49, 36, 46])
 def test_a_live_note_mid_score_re_plans_a_window_and_the_tracks_are_the_whole_re_plans(
-        pitch: int, monkeypatch: pytest.MonkeyPatch) -> None:
+        pitch: int, whole_replans: Callable[[int], dict[str, Any]]) -> None:
     """A crash (a hand), a kick (the bass foot) and an open hi-hat (a hand, and the pedal lifts)."""
     physics, _, recorder, window = _play(pitch, until=NOTE_AT_S + LEAD_S + 0.3)
     physics.close()
@@ -124,15 +142,13 @@ def test_a_live_note_mid_score_re_plans_a_window_and_the_tracks_are_the_whole_re
     near = [i for i in recorder.impacts.sorted()
             if i.instrument == INSTRUMENT[pitch] and abs(i.time - t) <= TOLERANCE_S[pitch]]
     assert near, f"no {INSTRUMENT[pitch]} impact within {TOLERANCE_S[pitch]} s of {t:.3f} s"
-    _whole(monkeypatch)
-    whole_core, _, _, whole = _play(pitch)
-    whole_core.close()
+    whole = whole_replans(pitch)
     assert whole["plan_notes"] >= len(whole["events"]) - 1  # the reference re-planned everything
     _assert_same_tracks(window, whole)
 
 
 def test_a_window_that_cannot_re_join_falls_back_to_the_whole_re_plan_and_plays(
-        monkeypatch: pytest.MonkeyPatch) -> None:
+        monkeypatch: pytest.MonkeyPatch, whole_replans: Callable[[int], dict[str, Any]]) -> None:
     """No knot of the window's plan re-joins the queued plan: the note is planned with the whole rest."""
     monkeypatch.setattr(score_player_module, "join_time", lambda *args: None)
     physics, _, recorder, fallback = _play(49, until=NOTE_AT_S + LEAD_S + 0.3)
@@ -142,10 +158,7 @@ def test_a_window_that_cannot_re_join_falls_back_to_the_whole_re_plan_and_plays(
     t = NOTE_AT_S + LEAD_S
     assert [i for i in recorder.impacts.sorted() if i.instrument == "crash" and abs(i.time - t) <= 0.005]
     monkeypatch.undo()
-    _whole(monkeypatch)
-    whole_core, _, _, whole = _play(49)
-    whole_core.close()
-    _assert_same_tracks(fallback, whole)
+    _assert_same_tracks(fallback, whole_replans(49))
 
 
 @pytest.mark.parametrize("joins", [True, False])
