@@ -8,7 +8,10 @@ the drummer then faces -z in the file. Units are metres by default
 parent-to-child offsets; the root has position and rotation channels, the
 other joints rotations only (``Zrotation Xrotation Yrotation``, degrees), or
 positions too with ``all_positions=True`` (exact even for non-rigid input).
-Rotation channels ZXY mean ``R = Rz Rx Ry``, as Blender and three.js read them.
+Rotation channels ZXY mean ``R = Rz Rx Ry``, as Blender and three.js read them. Each joint's angles are kept
+continuous from frame to frame: of the angle sets that give its rotation (any angle plus whole turns, and
+``(z + 180, 180 - x, y + 180)``), the one nearest the previous frame's, so a channel never jumps by a turn (a
+forearm turning past 180 degrees read -179 after 179: a tool interpolating the channels spun it all the way round).
 """
 
 from __future__ import annotations
@@ -77,8 +80,9 @@ def _tree(names: list[str]) -> tuple[int, list[int], dict[int, list[int]]]:
 
 
 class _Layout:
-    """The BVH hierarchy of a sequence's links, fixed by its first frame, and the motion channels it gives any
-    frames (each frame's channels depend on that frame alone, so frames can be converted in chunks)."""
+    """The BVH hierarchy of a sequence's links, fixed by its first frame, and the motion channels it gives frames
+    converted in order (a frame's angles continue from the previous frame's, so frames can be converted in chunks,
+    one after the other)."""
 
     def __init__(self, names: list[str], first_frame: np.ndarray, scale: float, all_positions: bool) -> None:
         self.names = names
@@ -92,6 +96,8 @@ class _Layout:
         for i in self.order:
             self.offsets[i] = (np.zeros(3) if i == self.root
                                else self.first[self.parents[i]].inv().apply(pos[0, i] - pos[0, self.parents[i]]))
+        self._previous: dict[int, np.ndarray] = {}
+        """Each joint's angles (degrees) in the last frame converted: the next frames continue from them."""
         self.hierarchy: list[str] = ["HIERARCHY"]
         self.channel_order: list[int] = []
         """Links in the order their channels appear in a motion row."""
@@ -152,8 +158,32 @@ class _Layout:
             local = rots[i] if i == root else rots[parents[i]].inv() * rots[i]
             with warnings.catch_warnings():  # at gimbal lock scipy picks one of the equivalent angle sets: still exact
                 warnings.simplefilter("ignore", UserWarning)
-                cols.append(local.as_euler("ZXY", degrees=True))
+                angles = _continuous(local.as_euler("ZXY", degrees=True), self._previous.get(i))
+            self._previous[i] = angles[-1]
+            cols.append(angles)
         return np.concatenate(cols, axis=1), pos, rots
+
+
+def _continuous(angles: np.ndarray, previous: np.ndarray | None) -> np.ndarray:
+    """ZXY angles (N, 3), degrees, of one joint made continuous: per frame, of the sets giving the same rotation
+    (whole turns added to any angle; ``(z + 180, 180 - x, y + 180)``), the nearest the previous frame's. The first
+    frame is kept as it is when no ``previous`` (the last frame of the chunk before) is given."""
+    out = angles.copy()
+    prev = None if previous is None else [float(v) for v in previous]
+    for k in range(len(out)):
+        z, x, y = (float(v) for v in out[k])
+        if prev is None:
+            prev = [z, x, y]
+            continue
+        best, best_cost = prev, float("inf")
+        for cand in ((z, x, y), (z + 180.0, 180.0 - x, y + 180.0)):
+            near = [c + 360.0 * round((p - c) / 360.0) for c, p in zip(cand, prev, strict=True)]
+            cost = sum(abs(c - p) for c, p in zip(near, prev, strict=True))
+            if cost < best_cost:
+                best, best_cost = near, cost
+        out[k] = best
+        prev = best
+    return out
 
 
 def _rows(motion: np.ndarray) -> list[str]:
