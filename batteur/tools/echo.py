@@ -20,6 +20,8 @@ from collections.abc import Sequence
 from batteur.errors import report_error
 from batteur.tools.ls import query_health
 from batteur.tools.nodes import (
+    BROWSE_HELP,
+    BROWSE_S,
     INTERFACE_HELP,
     INTERRUPTED,
     OutputClosed,
@@ -253,7 +255,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--node", action="append", default=[], metavar="HOST:PORT",
                         help="subscribe at this node instead of browsing (repeatable)")
     parser.add_argument("--interface", action="append", default=[], help=f"interface to browse on: {INTERFACE_HELP}")
-    parser.add_argument("--browse", type=seconds, default=3.0, help="seconds to browse for nodes (default 3)")
+    parser.add_argument("--browse", type=seconds, default=BROWSE_S, help=BROWSE_HELP)
     parser.add_argument("--count", type=count, default=0, help="stop after this many messages (default: no limit)")
     parser.add_argument("--duration", type=seconds, default=None,
                         help="stop after this many seconds (default: until Ctrl-C)")

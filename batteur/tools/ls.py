@@ -15,6 +15,8 @@ from collections.abc import Sequence
 
 from batteur.errors import report_error
 from batteur.tools.nodes import (
+    BROWSE_HELP,
+    BROWSE_S,
     INTERFACE_HELP,
     Target,
     bind_address,
@@ -34,7 +36,8 @@ DESCRIPTION = """\
 List the Batteur nodes found by zeroconf (or given with --node), each with the Health it
 answers to a Hello: role, node id, address, loop rate, dropped messages, peers. --json adds
 the rest of the Health: the drops by reason (dropped_malformed, dropped_unknown, dropped_type,
-dropped_range, dropped_other), unroutable (messages the node could not send: to a role no node
+dropped_range, dropped_other, dropped_wrong_node: a control of another service sent to this
+node, a note sent to interaction), unroutable (messages the node could not send: to a role no node
 of which it knows, say sound when no sound node runs) and rig_time_s, the node's rig time when
 it answered (seconds: what a timed message such as /batteur/impact is stamped with).
 
@@ -107,7 +110,7 @@ def _row(target: Target, health: Health | None) -> dict[str, object]:
         dropped_type=health.dropped_type, dropped_range=health.dropped_range, dropped_other=health.dropped_other,
         late=health.late, peers=health.peers, decode_unanswered=health.decode_unanswered,
         replies_unanswered=health.replies_unanswered, target_lag=round(health.target_lag, 4),
-        target_jumps=health.target_jumps, unroutable=health.unroutable,
+        target_jumps=health.target_jumps, unroutable=health.unroutable, dropped_wrong_node=health.dropped_wrong_node,
     )
     return row
 
@@ -140,8 +143,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--node", action="append", default=[], metavar="HOST:PORT",
                         help="ask this node instead of browsing (repeatable)")
     parser.add_argument("--interface", action="append", default=[], help=f"interface to browse on: {INTERFACE_HELP}")
-    parser.add_argument("--browse", type=seconds, default=3.0,
-                        help="seconds to browse for nodes (default 3; less than 2 can miss nodes)")
+    parser.add_argument("--browse", type=seconds, default=BROWSE_S, help=BROWSE_HELP)
     parser.add_argument("--timeout", type=seconds, default=2.0, help="seconds to wait for health answers (default 2)")
     parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
     opts = parser.parse_args(argv)

@@ -20,6 +20,11 @@ INTERFACES_ENV = "BATTEUR_INTERFACES"
 INTERFACE_HELP = ("address, name or 'all' (repeatable; default: the interfaces in BATTEUR_INTERFACES, where this "
                   "machine's or container's nodes announce, if set, else loopback)")
 """What ``--interface`` says in the help of every tool that browses (``batteur ls``, ``echo``, ``send``)."""
+BROWSE_S = 3.0
+"""How long every tool that browses (``batteur ls``, ``echo``, ``send --to ROLE``) looks for nodes by default,
+seconds (``--browse``): less than 2 can miss nodes, more so on a loaded machine."""
+BROWSE_HELP = f"seconds to browse for nodes (default {BROWSE_S:g}; less than 2 can miss nodes)"
+"""What ``--browse`` says in the help of every tool that browses."""
 
 
 def browse_interfaces(given: Sequence[str]) -> tuple[list[str], str]:
@@ -164,13 +169,19 @@ def unique(targets: Sequence[Target]) -> list[Target]:
     return out
 
 
-async def find_targets(nodes: Sequence[str], timeout_s: float, interfaces: Sequence[str] | None) -> list[Target]:
-    """The explicit ``--node`` targets if any, else the nodes zeroconf finds within ``timeout_s`` (a node
-    without a usable address is kept, with ``ip`` empty, so the tools can say so)."""
-    if nodes:
-        return unique([parse_node(n) for n in nodes])
+async def browse_targets(timeout_s: float, interfaces: Sequence[str] | None) -> list[Target]:
+    """The nodes zeroconf finds within ``timeout_s`` seconds on ``interfaces`` (none: loopback), each record as a
+    target (a node without a usable address kept, with ``ip`` empty, so the tools can say so; repeats kept)."""
     from common.discovery import browse_nodes  # zeroconf only when asked to browse
 
     found = await browse_nodes(timeout_s, list(interfaces) if interfaces else None)
     targets = [Target(n.host, n.port, n.role, n.node_id, announced=n.addresses) for n in found]
-    return unique([replace(t, ip=t.host) if t.host else t for t in targets])
+    return [replace(t, ip=t.host) if t.host else t for t in targets]
+
+
+async def find_targets(nodes: Sequence[str], timeout_s: float, interfaces: Sequence[str] | None) -> list[Target]:
+    """The explicit ``--node`` targets if any, else the nodes zeroconf finds within ``timeout_s``
+    (:func:`browse_targets`), without repeats."""
+    if nodes:
+        return unique([parse_node(n) for n in nodes])
+    return unique(await browse_targets(timeout_s, interfaces))

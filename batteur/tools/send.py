@@ -23,7 +23,18 @@ from pythonosc.osc_message_builder import BuildError
 
 from batteur.errors import USAGE, report_error
 from batteur.tools.ls import match_answers, query_health
-from batteur.tools.nodes import INTERFACE_HELP, Target, browse_interfaces, resolve_host, run_tool, where_browsed
+from batteur.tools.nodes import (
+    BROWSE_HELP,
+    BROWSE_S,
+    INTERFACE_HELP,
+    Target,
+    browse_interfaces,
+    browse_targets,
+    resolve_host,
+    run_tool,
+    unique,
+    where_browsed,
+)
 from common.arg_types import seconds, take_negative_values
 from common.datafile import one_line
 from common.messages import (
@@ -181,7 +192,7 @@ def typed_args(address: str, texts: Sequence[str]) -> list[Arg]:
 
 def wrong_role(model: type[OscMessage] | None, target: str) -> str | None:
     """Why ``--to ROLE`` would lose the control ``model`` (a service's node takes only its own service's controls,
-    and ignores the others' without a drop or an answer: a live note sent to interaction), or None. Only for a
+    and drops the others' unanswered, counted as ``wrong_node``: a live note sent to interaction), or None. Only for a
     service's role and a service's control; a refusal (an answer, sent by its service) is not checked."""
     if model is None or model.FAMILY is not Family.CONTROL or target not in SERVICE_ROLES:
         return None
@@ -199,22 +210,21 @@ def check_raw_address(address: str) -> None:
         raise ValueError(f"{address!r} is not an OSC address: '/'-separated parts of printable ASCII{why}")
 
 
-def _resolve(target: str, timeout_s: float, interfaces: Sequence[str]) -> list[tuple[str, int]]:
-    """``host:port`` as given, or the discovered nodes of a role, browsed on ``interfaces`` (``--interface``; none:
+def _resolve(target: str, browse_s: float, interfaces: Sequence[str]) -> list[tuple[str, int]]:
+    """``host:port`` as given, or the nodes of a role discovery finds within ``browse_s`` seconds (as ``batteur ls``
+    and ``echo`` browse: :func:`~batteur.tools.nodes.browse_targets`) on ``interfaces`` (``--interface``; none:
     :func:`~batteur.tools.nodes.browse_interfaces`'s default); ValueError when ``target`` is neither."""
     if ":" in target or target.startswith("["):
         return [parse_address(target)]  # ValueError: a bad host form or a port outside 1-65535
     if not ROLE.fullmatch(target):
         raise ValueError(f"{target!r} is neither HOST:PORT nor a role (physics, sound, ...)")
-    from common.discovery import browse_nodes  # only when a role must be found
-
     browse_on, source = browse_interfaces(interfaces)
-    nodes = asyncio.run(browse_nodes(timeout_s, browse_on or None))
-    found = [(n.host, n.port) for n in nodes if n.role == target and n.host]
+    every = asyncio.run(browse_targets(browse_s, browse_on))
+    found = [(t.host, t.port) for t in unique([t for t in every if t.role == target]) if t.host]
     if not found:
-        roles = ", ".join(sorted({n.role for n in nodes})) or "none"
-        report_error(PROG, f"no {target} node found {where_browsed(browse_on, source)} within {timeout_s:g} s "
-                     f"(roles found: {roles}; HOST:PORT needs the port)")
+        roles = ", ".join(sorted({t.role for t in every})) or "none"
+        report_error(PROG, f"no {target} node found {where_browsed(browse_on, source)} within {browse_s:g} s "
+                     f"(roles found: {roles}; --browse to look longer; HOST:PORT needs the port)")
     return found
 
 
@@ -251,8 +261,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="then listen this long for answers and print them, one line each (a control's error, "
                         "a list...); exit 1 if a node refused the message or nothing listened; a node that stays "
                         "silent (an accepted control) is said on stderr (default 0: do not wait)")
+    parser.add_argument("--browse", type=seconds, default=BROWSE_S, help=f"with --to ROLE: {BROWSE_HELP}")
     parser.add_argument("--timeout", type=seconds, default=2.0,
-                        help="seconds to look for a role, and to wait for a node's rig time (+SECONDS) (default 2)")
+                        help="seconds to wait for a node's rig time (+SECONDS) (default 2)")
     parser.add_argument("--interface", action="append", default=[],
                         help=f"interface to look for a role on: {INTERFACE_HELP}")
     opts = parser.parse_args(argv)
@@ -277,7 +288,7 @@ def _send(opts: argparse.Namespace) -> int:
     if lost is not None:
         return report_error(PROG, lost, USAGE)
     try:
-        targets = _resolve(opts.to, opts.timeout, opts.interface)
+        targets = _resolve(opts.to, opts.browse, opts.interface)
     except ValueError as exc:
         return report_error(PROG, f"--to {one_line(exc)}", USAGE)
     if not targets:

@@ -51,6 +51,7 @@ class DropReason(enum.StrEnum):
     NOT_ALLOWED = "not_allowed"  # sender outside the allow-list
     RATE_LIMITED = "rate_limited"  # sender over its message rate
     HANDLER_ERROR = "handler_error"  # the receiving handler raised
+    WRONG_NODE = "wrong_node"  # a valid control of another service, sent to a node that does not take it
 
 
 class Family(enum.StrEnum):

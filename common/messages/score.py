@@ -14,10 +14,17 @@ Text = Annotated[str, Field(min_length=1, max_length=512)]
 
 @register
 class LiveNote(OscMessage):
-    """A drum note played live (e.g. from a MIDI controller bridged to OSC).
+    """A drum note played live (e.g. from a MIDI controller bridged to OSC), sent to the physics node.
 
     The pitch maps to a drum event type with the General MIDI drum map (plus the
     Roland TD-11's 22 and 26); unknown pitches are counted and reported.
+
+    Send it at least ``ScorePlayer.preparation_s`` before its rig time (services/physics/score_player.py: the
+    shortest stroke of the gesture database plus ``SPLICE_MARGIN_S``, the least time a stroke can be prepared
+    in; its value is in the refusal): a note with less lead is not played, only counted late and answered with
+    `/batteur/physics/rejected`. Its ``time``, as every rig time, is two OSC arguments: whole seconds (`i`) then
+    the fraction (`f`) (a float32 alone loses milliseconds after a few hours), so the message has five
+    arguments, `i f i i i`.
     """
 
     ADDRESS = "/batteur/score/note"

@@ -77,8 +77,12 @@ class Health(OscMessage):
                               "peer of which is known (its node not started, or not found: --peer ROLE=HOST:PORT, or "
                               "discovery's interfaces), or to an address that cannot be resolved or reached, total")
 
+    dropped_wrong_node: Count = Field(default=0, description="dropped: a valid control of another service, which "
+                                      "this node does not take (a live note sent to interaction or sound: physics "
+                                      "takes it; a sound control sent to interaction), total")
+
     APPENDED: ClassVar[tuple[str, ...]] = ("decode_unanswered", "replies_unanswered", "target_lag", "target_jumps",
-                                           "unroutable")
+                                           "unroutable", "dropped_wrong_node")
     """The fields appended after ``peers`` (one argument each), oldest first: a Health without the last of them (an
     older node's) decodes with their defaults."""
     NEWER_ARGS: ClassVar[int] = 16

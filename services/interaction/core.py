@@ -21,6 +21,7 @@ What an impact carries when (docs/interaction.md):
 
 from __future__ import annotations
 
+import re
 from collections import deque
 from collections.abc import Callable, Collection, Mapping
 from typing import ClassVar, Literal, Protocol
@@ -77,6 +78,9 @@ from services.interaction.routing import RedundantScheduler, registered_message
 
 MAX_STEP_HZ = 1000.0
 """Fastest step rate the core asks for (redundant copies and contact ends need no more)."""
+ROLE_NAME = re.compile(r"[a-z][a-z0-9_-]*")
+"""What a role name can be (a Hello's role, ``common.messages.system.Role``): a target without a port that is not
+one (``127.0.0.1``, ``synth.local``), or is ``localhost``, is a host whose port is missing."""
 
 
 class ConfigStore(Protocol):
@@ -335,8 +339,14 @@ class InteractionCore:
 
     def _check_role(self, to: str) -> None:
         """ValueError when ``to`` is a role this node can never send to (see :attr:`reachable_roles`): it would
-        be taken and saved, and its messages silently go nowhere."""
-        if self.reachable_roles is None or ":" in to or to.startswith("["):  # a HOST:PORT is always reachable
+        be taken and saved, and its messages silently go nowhere; or when it is a host without its port (no role
+        is named so: told as a missing port, not as a role to add with --peer)."""
+        if ":" in to or to.startswith("["):  # a HOST:PORT is always reachable
+            return
+        if not ROLE_NAME.fullmatch(to) or to == "localhost":
+            raise ValueError(f"{to!r} has no port: give {to}:PORT, the port your program listens on (or a role "
+                             "name: sound, graphics, ...)")
+        if self.reachable_roles is None:
             return
         roles = sorted(set(self.reachable_roles()))
         if to in roles:
