@@ -56,7 +56,7 @@ CLOSE_TIMEOUT_S = 1.0
 MAX_BACKLOG = 64 * 1024
 """Bytes waiting to be sent to a page above which it skips frames (about half a second of frames)."""
 SAVING_OFF = ("saving is disabled: start the graphics node with --kit-dir DIR "
-              "(under batteur rig: --graphics-arg='--kit-dir DIR')")
+              "(under batteur rig: its --kit-dir DIR)")
 """Why a save is refused without a kit directory, and what to do: also the page's tooltip on its save buttons."""
 
 

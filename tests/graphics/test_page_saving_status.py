@@ -57,9 +57,9 @@ def test_save_buttons_are_off_and_say_why_when_the_node_cannot_save(no_kit_dir_n
         for button in page.evaluate(SAVE_STATE):
             assert button["disabled"] is True, button
             for title in (button["title"], button["rowTitle"]):
-                assert "--kit-dir DIR" in title and "--graphics-arg='--kit-dir DIR'" in title, button
+                assert "--kit-dir DIR" in title and "batteur rig: its --kit-dir DIR" in title, button
         page.press("#kit-file", "Enter")  # Enter saves as the button does: told why not, here too
-        assert "--graphics-arg" in page.inner_text("#editor-msg")
+        assert "batteur rig: its --kit-dir DIR" in page.inner_text("#editor-msg")
         page.screenshot(path=str(no_kit_dir_node.tmp / "saving-off.png"))
         assert errors == []
 

@@ -31,7 +31,7 @@ def test_a_save_without_a_kit_directory_is_refused_not_a_page_error(caplog: pyte
     for msg in saves:
         reply = server.handle_page_message(json.dumps(msg))
         assert reply is not None and reply["type"] == "saved" and reply["ok"] is False
-        assert "--kit-dir DIR" in reply["error"] and "--graphics-arg='--kit-dir DIR'" in reply["error"], reply
+        assert "--kit-dir DIR" in reply["error"] and "batteur rig: its --kit-dir DIR" in reply["error"], reply
     assert server.counters["page_errors"] == 0
     assert server.counters["saves_refused"] == 2
     assert not [r for r in caplog.records if r.levelno >= logging.WARNING], caplog.text
@@ -59,4 +59,4 @@ def test_the_page_is_told_at_connect_whether_saving_works(tmp_path: Path, with_d
     if with_dir:
         assert saving["reason"] is None
     else:
-        assert "--graphics-arg='--kit-dir DIR'" in saving["reason"]
+        assert "batteur rig: its --kit-dir DIR" in saving["reason"]

@@ -505,9 +505,41 @@ function layerTick(name) {
 // grows) to fit under the panels above it and beside the editor: in a phone held sideways it lay over the toolbar,
 // and, moved left of the editor, ran off the window.
 const EDITOR_MIN_PX = 160, PLOT_MIN_SCALE = 0.3;
+// A phone held upright: the status panel and the toolbar's layer ticks above the drummer and the plot below took
+// nearly half the window, over the head and the feet. There the status panel starts folded to its first line, the
+// ticks fold behind a button and the plot is at most PLOT_COMPACT_SHARE of the window's height. A fold the user
+// taps holds (null: as the window suggests); a laptop's window starts with everything open, as before.
+const COMPACT = window.matchMedia("(orientation: portrait) and (max-width: 540px)");
+const PLOT_COMPACT_SHARE = 0.2;
+const folds = { status: null, layers: null }; // true: open
+state.folds = folds; // for tests and the console
+function applyFolds() {
+  const compact = COMPACT.matches;
+  document.body.classList.toggle("compact", compact);
+  const statusOpen = folds.status ?? !compact, layersOpen = folds.layers ?? !compact;
+  const status = document.getElementById("status"), statusToggle = document.getElementById("status-toggle");
+  status.classList.toggle("folded", !statusOpen);
+  statusToggle.textContent = statusOpen ? "\u25BE" : "\u25B8"; // down or right-pointing triangle
+  statusToggle.setAttribute("aria-expanded", String(statusOpen));
+  statusToggle.title = statusOpen ? "fold the details" : "show the details";
+  document.getElementById("toolbar").classList.toggle("folded", !layersOpen);
+  const layersToggle = document.getElementById("layers-toggle");
+  layersToggle.setAttribute("aria-expanded", String(layersOpen));
+  layersToggle.title = layersOpen ? "hide the layer ticks" : "show the layer ticks";
+  placePanels();
+}
+document.getElementById("status-toggle").addEventListener("click", () => {
+  folds.status = document.getElementById("status").classList.contains("folded");
+  applyFolds();
+});
+document.getElementById("layers-toggle").addEventListener("click", () => {
+  folds.layers = document.getElementById("toolbar").classList.contains("folded");
+  applyFolds();
+});
+COMPACT.addEventListener("change", applyFolds);
 function fitPlot(right, room, panels) { // the plot's CSS size at ``right`` px from the window's right edge
   const w = plotCanvas.width, h = plotCanvas.height, border = plotCanvas.offsetWidth - plotCanvas.clientWidth;
-  let scale = Math.min(1, (room - border) / w);
+  let scale = Math.min(1, (room - border) / w, COMPACT.matches ? (window.innerHeight * PLOT_COMPACT_SHARE) / h : 1);
   const left = window.innerWidth - right - w * scale - border;
   const above = panels.filter((r) => r.left < window.innerWidth - right && left < r.right) // in its columns
     .reduce((low, r) => Math.max(low, r.bottom + 8), 0);
@@ -547,7 +579,10 @@ function renderStatus() {
   const body = document.getElementById("status-body");
   body.classList.toggle("stale", !state.connected); // what the node last said, not what the rig does now
   if (!s) { body.textContent = ""; return; }
-  const rows = s.nodes.map((n) => `<tr><td>${n.role}</td><td>${n.rate_hz}/${n.target_hz} Hz</td>` +
+  // a node stays listed 10 s after its last report (core.py): past NODE_QUIET_S its last rate is not shown as live
+  const rows = s.nodes.map((n) => (n.age > NODE_QUIET_S
+    ? `<tr class="quiet"><td>${n.role}</td><td class="bad" title="no report for ${n.age} s">quiet</td>`
+    : `<tr><td>${n.role}</td><td>${n.rate_hz}/${n.target_hz} Hz</td>`) +
     `<td>late ${n.late}</td><td>${n.age}s</td></tr>`).join("");
   const score = s.score ? `bar ${s.score.bar + 1} beat ${(s.score.beat + 1).toFixed(2)} @ ${s.score.tempo_bpm} bpm`
     : "–";
@@ -562,6 +597,9 @@ function renderStatus() {
   showStalePoses(s);
   placePanels(); // the panel grows with the nodes seen
 }
+
+// Nodes report their Health once a second (common/messages/system.py): three missed, the node is quiet.
+const NODE_QUIET_S = 3;
 
 // The node holds the newest pose when poses stop (physics stopped or cannot reach it), so frames keep coming and
 // the drummer just stands still: say so once the live poses are older than STALE_POSES_S.
@@ -924,5 +962,6 @@ function animate(now) {
   }
   requestAnimationFrame(animate);
 }
+applyFolds();
 connect();
 requestAnimationFrame(animate);
