@@ -433,7 +433,8 @@ class PhysicsCore:
     @property
     def late(self) -> int:
         """Health.late: steps skipped in live mode (the simulation fell behind the rig clock) plus score notes
-        that arrived too late to be prepared (``score_player.late_notes``)."""
+        that arrived too late to be prepared or whose strokes a jump of the lagging targets dropped
+        (``score_player.late_notes``; the latter also in ``score_player.skipped_notes``)."""
         return self.skipped_steps + self.score_player.late_notes
 
     @property
@@ -571,9 +572,12 @@ class PhysicsCore:
         self.target_lag = floor
         if excess > MAX_TARGET_LAG_S:
             self.target_jumps_late += 1
+            # the notes of the strokes jumped over: counted late, each live note refused to its sender
+            dropped = self.score_player.drop_skipped(rig - lag, rig - floor, now)
             if now - self._last_jump_warning >= 5.0:  # at most one warning per 5 s of rig time
                 log.warning("physics targets %.0f ms behind the rig clock: jumped %.0f ms toward it, the strokes "
-                            "between dropped (%d such jumps in all)", lag * 1e3, excess * 1e3, self.target_jumps_late)
+                            "between dropped with %s (%d such jumps in all; %s)", lag * 1e3, excess * 1e3,
+                            *self._notes_dropped(*dropped, self.target_jumps_late))
                 self._last_jump_warning = now
 
     def _jump_past_bound(self, now: float) -> None:
@@ -589,17 +593,26 @@ class PhysicsCore:
         if to >= lag:  # a score plan placed beyond the bound (only a lag set by hand): it keeps its rig times
             return
         ahead, passed = self._retime_streamed(rig - lag, to)
+        dropped = self.score_player.drop_skipped(rig - lag, rig - to, now)  # as in _jump_to_floor
         self.target_lag = to
         self.target_jumps += 1
         self.target_jumps_late += 1
         if now - self._last_bound_warning >= 5.0:  # at most one warning per 5 s of rig time
             log.warning("physics targets %.0f ms behind the rig clock, past the %.0f ms bound, held by targets placed "
                         "while they trailed: jumped %.0f ms toward it (%.0f ms behind now: %s); %d streamed knots "
-                        "re-timed to their rig times, %d more passed (due already); %d such jumps in all",
+                        "re-timed to their rig times, %d more passed (due already); the strokes between dropped "
+                        "with %s; %d such jumps in all (%s)",
                         lag * 1e3, MAX_TARGET_LAG_HARD_S * 1e3, (lag - to) * 1e3, to * 1e3,
                         "the lag the score plan playing was placed with" if to > 0.0 else "on it", ahead, passed,
-                        self.target_jumps_late)
+                        *self._notes_dropped(*dropped, self.target_jumps_late))
             self._last_bound_warning = now
+
+    def _notes_dropped(self, live: int, score: int, jumps: int) -> tuple[str, int, str]:
+        """What a jump's warning says of the notes whose strokes it dropped (``live`` and ``score`` notes), of the
+        ``jumps`` so far and of the notes they dropped (``ScorePlayer.skipped_notes``)."""
+        total = self.score_player.skipped_notes
+        return (f"{live} live notes (each refused to its sender) and {score} score notes", jumps,
+                f"{total['live']} live and {total['score']} score notes dropped so far")
 
     def _trailing(self) -> str:
         """What the skip warning says of the targets trailing the rig clock (``target_lag`` > 0): what plays late,

@@ -110,11 +110,11 @@ import math
 import os
 import time
 from collections import Counter, deque
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from concurrent.futures import Future
 from concurrent.futures import wait as wait_futures
 from pathlib import Path
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING, Literal, NamedTuple
 
 import numpy as np
 
@@ -223,6 +223,15 @@ MAX_WAITING_MESSAGES = 10_000
 
 class ScorePlayerError(ValueError):
     """A score control message the player cannot act on (the message says why)."""
+
+
+class _LiveOrigin(NamedTuple):
+    """Where a live note of the performance came from (:attr:`ScorePlayer._live_keys`)."""
+
+    source: str
+    """Its sender, "host:port" (told if the note is dropped: :meth:`ScorePlayer.drop_skipped`)."""
+    rig_time: float
+    """The rig time it was sent for, seconds."""
 
 
 class _WindowMissed(Exception):
@@ -347,14 +356,19 @@ class ScorePlayer:
         """A double pedal's kicks: the foot each queued BASS note is planned on (its time on the targets' clock, s,
         from :attr:`CONTEXT_S` before the last splice on), for a live window's count of each foot's notes
         (:meth:`_limbs_of`; ``DrumEvent.limb`` keeps hands only)."""
-        self._live_keys: set[tuple[float, str]] = set()
-        """(rig time, event) of the live notes in ``events`` (a score re-timing leaves them where they are)."""
+        self._live_keys: dict[tuple[float, str], _LiveOrigin] = {}
+        """(time on the targets' clock s, event) of the live notes in ``events`` (a score re-timing leaves them where
+        they are) -> their sender and rig time (a note the live core's targets jump over is refused to it)."""
         self.live = LiveNotes()
         self.unknown_pitches = 0
         """Live notes whose pitch has no drum event type (not played), counted; ``live.unknown`` keeps the latest
         :data:`UNKNOWN_PITCHES_KEPT`."""
         self.late_notes = 0
-        """Notes (score or live) that arrived too late to be prepared: counted and not played."""
+        """Notes (score or live) not played for being late: they arrived too late to be prepared, or the live core's
+        targets jumped over them (``skipped_notes``); counted (Health's ``late``)."""
+        self.skipped_notes: Counter[str] = Counter()
+        """Notes ("live", "score") of the performance the live core's targets jumped over when they trailed the rig
+        clock too far (:meth:`drop_skipped`): not played; also in ``late_notes``."""
         self.errors: Counter[str] = Counter()
         """Rejected messages per kind of problem (also logged and in ``PhysicsCore.rejected``)."""
         self.flagged = 0
@@ -819,7 +833,7 @@ class ScorePlayer:
             return None
         whole = widen = False
         while True:  # the window, maybe widened, then the whole rest (whose commit always splices)
-            prepared = self._prepare_live([event], t_s, whole, widen)
+            prepared = self._prepare_live([event], t_s, whole, widen, (source,))
             plan, pulled = self._reachable(self._planner(prepared.events, prepared.beats, prepared.lead_in,
                                                          prepared.last_strokes)())
             try:
@@ -856,13 +870,38 @@ class ScorePlayer:
             log.warning("%s (%d late so far)", reason, self.late_notes)
         self.core.queue_refusal(LiveNote.ADDRESS, reason, source, now)
 
-    def _prepare_live(self, new: list[DrumEvent], t_s: float, whole: bool = False, widen: bool = False
-                      ) -> _Prepared:
+    def drop_skipped(self, t_from: float, t_to: float, now: float) -> tuple[int, int]:
+        """The live core's targets jumped from ``t_from`` to ``t_to`` (s, their clock) over the strokes between
+        (``PhysicsCore._catch_up_targets``, past ``MAX_TARGET_LAG_S``): the performance's notes there are not
+        played. Each is counted late (``late_notes``: Health's ``late``; ``skipped_notes`` by kind) and each live
+        note's sender told why at rig time ``now`` (s), as for a note too late to prepare (a score's notes have no
+        sender). Returns how many live and score notes were dropped."""
+        half_step = 0.5 * self.core.world.dt  # a note at ``t_from`` was struck by the step before the jump
+        first = bisect.bisect_right(self.events, t_from + half_step, key=lambda e: e.time)
+        last = bisect.bisect_right(self.events, t_to + half_step, key=lambda e: e.time)
+        live = score = 0
+        for event in self.events[first:last]:
+            origin = self._live_keys.pop((event.time, event.event.value), None)
+            if origin is None:
+                score += 1
+                continue
+            live += 1
+            self.core.queue_refusal(
+                LiveNote.ADDRESS, f"live note {event.event.value} at {origin.rig_time:.3f} s skipped: physics fell "
+                f"behind the rig clock and its targets jumped {(t_to - t_from) * 1e3:.0f} ms toward it, over the "
+                "note's stroke; not played", origin.source, now)
+        self.late_notes += live + score
+        self.skipped_notes += Counter(live=live, score=score)  # (zeros left out)
+        return live, score
+
+    def _prepare_live(self, new: list[DrumEvent], t_s: float, whole: bool = False, widen: bool = False,
+                      sources: Sequence[str] = ()) -> _Prepared:
         """The plan inputs of live notes ``new`` (in time to be prepared) spliced at rig time ``t_s``: the notes of
         their window (:meth:`_window_end`; ``widen``: to the hi-hat foot's next note too), or with ``whole`` every
         note from the context on. The commit raises :class:`_WindowMissed` (nothing changed) when the window's plan
-        does not re-join the queued one."""
+        does not re-join the queued one. ``sources``: each new note's sender (none: "")."""
         scene = self._drummer()
+        senders = [*sources, *[""] * (len(new) - len(sources))][:len(new)]
         start = bisect.bisect_left(self.events, t_s - CONTEXT_S, key=lambda e: e.time)
         if len(self.events) - start + len(new) > MAX_PERFORMANCE_NOTES:
             event = new[-1]  # its time on the targets' clock: said as its rig time
@@ -910,8 +949,9 @@ class ScorePlayer:
             self._hold(lag, plan.end_time)
             self._keep_bass_feet(plan, t_s, end)
             self.events = self._assigned(events, plan) + later
-            self._live_keys = ({k for k in self._live_keys if k[0] >= t_s - CONTEXT_S}
-                               | {(e.time, e.event.value) for e in new})
+            self._live_keys = {k: v for k, v in self._live_keys.items() if k[0] >= t_s - CONTEXT_S}
+            self._live_keys.update(((e.time, e.event.value), _LiveOrigin(source, e.time + lag))
+                                   for e, source in zip(new, senders, strict=True))
             self.state = "playing"
             self.end_time = max(self.end_time, plan.end_time)
             return plan
@@ -1227,7 +1267,7 @@ class ScorePlayer:
         context = sum(1 for e in self.events if t0 - CONTEXT_S <= e.time <= end)
         t_s = max(t0, min(t0 + self._estimate(context + len(new)), latest))
         try:
-            prepared = self._prepare_live(new, t_s, whole, widen)
+            prepared = self._prepare_live(new, t_s, whole, widen, [item.source for item in requests])
         except ValueError as exc:
             self._fail(requests, exc, now)
             return
@@ -1466,6 +1506,7 @@ class ScorePlayer:
         self._generation += 1
         self._held = None
         self.events = []
+        self._live_keys.clear()
         self._bass_feet.clear()
         self.state = "idle"
         self.mapping = None
@@ -1477,7 +1518,8 @@ class ScorePlayer:
         ended = self.core.time - self.core.target_lag > self.end_time  # the targets' clock
         state = "idle" if self.state == "playing" and ended else self.state
         return {"state": state, "score": str(self.score_path) if self.score_path else None,
-                "late_notes": self.late_notes, "errors": dict(self.errors), "flagged": self.flagged,
+                "late_notes": self.late_notes, "skipped_notes": dict(self.skipped_notes), "errors": dict(self.errors),
+                "flagged": self.flagged,
                 "plans": self.plans, "unknown_live_pitches": self.unknown_pitches,
                 "live_duplicates": self.live.duplicates, "replanned_late": self.replanned_late,
                 "live_window_misses": self.window_misses, "pulled_into_reach": dict(self.pulled_into_reach)}
