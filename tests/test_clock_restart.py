@@ -7,17 +7,14 @@ from __future__ import annotations
 
 import asyncio
 import logging
-import time
 
 import pytest
 
 from common.clock import STEP_S, OffsetEstimator, RigClock, answer_ping
-from common.config import load_settings
 from common.messages import ClockPong, decode
 from common.messages.codec import encode_raw
-from common.runtime import Node
 from tests.test_clock_qa import wire
-from tests.test_clock_steps import StepCore
+from tests.test_clock_steps import restart_master, synced_follower
 from tests.waiting import wait_for
 
 pytestmark = pytest.mark.timeout(60)
@@ -150,21 +147,11 @@ def test_a_master_restarted_at_the_same_address_is_followed_at_its_first_pong() 
     before it), once, and its ClockStatus counts that step."""
 
     async def main() -> None:
-        epoch = time.time() - 1000.0
-        master = Node(StepCore(), load_settings({"role": "physics", "discovery": False, "epoch": epoch}))
-        await master.start()
+        master, remote, core, epoch = await synced_follower()
         assert master.endpoint is not None
         port = master.endpoint.port
-        core = StepCore()
-        remote = Node(core, load_settings({"role": "sound", "discovery": False, "epoch": epoch,
-                                           "peers": [f"physics=127.0.0.1:{port}"]}), ping_interval_s=0.05)
-        await remote.start()
-        await wait_for(lambda: remote.core_started and len(remote.estimator.samples) >= 8)
         assert remote.clock_status().steps == 0 and remote.estimator.launch == master.clock.launch
-        await master.stop()
-        restarted = Node(StepCore(), load_settings({"role": "physics", "discovery": False, "epoch": epoch + 35.0,
-                                                    "port": port}))
-        await restarted.start()
+        restarted = await restart_master(master, epoch)
         try:
             await wait_for(lambda: bool(core.stepped), timeout=10.0)
             assert remote.estimator.outliers == 0  # followed at its first pong, not after agreeing outliers

@@ -55,25 +55,39 @@ class StepCore:
         return []
 
 
+async def synced_follower() -> tuple[Node, Node, StepCore, float]:
+    """A physics node (the clock master) on loopback and a sound node following it by a static --peer, started and
+    synced (8 samples): (master, follower, the follower's core, the rig epoch)."""
+    epoch = time.time() - 1000.0
+    master = Node(StepCore(), load_settings({"role": "physics", "discovery": False, "epoch": epoch}))
+    await master.start()
+    assert master.endpoint is not None
+    core = StepCore()
+    remote = Node(core, load_settings({"role": "sound", "discovery": False, "epoch": epoch,
+                                       "peers": [f"physics=127.0.0.1:{master.endpoint.port}"]}), ping_interval_s=0.05)
+    await remote.start()
+    await wait_for(lambda: remote.core_started and len(remote.estimator.samples) >= 8)
+    return master, remote, core, epoch
+
+
+async def restart_master(master: Node, epoch: float) -> Node:
+    """Stop ``master`` and start another physics node on its port whose rig time starts 35 s earlier."""
+    assert master.endpoint is not None
+    port = master.endpoint.port
+    await master.stop()
+    restarted = Node(StepCore(), load_settings({"role": "physics", "discovery": False, "epoch": epoch + 35.0,
+                                                "port": port}))
+    await restarted.start()
+    return restarted
+
+
 def test_a_restarted_master_steps_the_followers_core_once(caplog: pytest.LogCaptureFixture) -> None:
     """Physics restarted on the same address (a static --peer, compose): its rig time starts 35 s earlier."""
 
     async def main() -> None:
-        epoch = time.time() - 1000.0
-        master = Node(StepCore(), load_settings({"role": "physics", "discovery": False, "epoch": epoch}))
-        await master.start()
-        assert master.endpoint is not None
-        port = master.endpoint.port
-        core = StepCore()
-        remote = Node(core, load_settings({"role": "sound", "discovery": False, "epoch": epoch,
-                                           "peers": [f"physics=127.0.0.1:{port}"]}), ping_interval_s=0.05)
-        await remote.start()
-        await wait_for(lambda: remote.core_started and len(remote.estimator.samples) >= 8)
+        master, remote, core, epoch = await synced_follower()
         assert core.stepped == []  # syncing before the core started is no step of its time
-        await master.stop()
-        restarted = Node(StepCore(), load_settings({"role": "physics", "discovery": False, "epoch": epoch + 35.0,
-                                                    "port": port}))
-        await restarted.start()
+        restarted = await restart_master(master, epoch)
         await wait_for(lambda: bool(core.stepped), timeout=10.0)
         await asyncio.sleep(0.3)  # more pongs of the restarted master: no further step
         assert len(core.stepped) == 1

@@ -17,13 +17,11 @@ from __future__ import annotations
 import asyncio
 import json
 import logging
-from typing import ClassVar
 
 import pytest
 
 from batteur.tools import ls
 from common.config import load_settings
-from common.core import Outgoing
 from common.messages import ClockStatus, Health, Hello, Impact, OscMessage, Pose, Skeleton, decode, encode
 from common.messages.graphics import GraphicsLatency, ScorePosition
 from common.messages.interaction import Damping, InteractionError, ListEnd, MapInfo, RouteSet
@@ -35,6 +33,7 @@ from common.runtime import Node
 from common.transport import UdpEndpoint
 from services.interaction.core import InteractionCore
 from tests.health_answerer import HealthAnswerer
+from tests.recording_core import RecordingCore
 from tests.test_health_unanswered import health_after
 from tests.waiting import wait_for
 
@@ -52,27 +51,6 @@ HEALTH = Health(node_id="sound-1", role="sound", protocol=1, time=1.5, rate_hz=0
                 dropped_range=0, dropped_other=0, late=0, peers=2)
 STATUS = ClockStatus(node_id="sound-1", synced=1, offset_s=0.001, uncertainty_s=0.0001, round_trip_s=0.0002,
                      samples=8, rejected=0, outliers=0, steps=0, foreign_pongs=0, master="physics-1")
-
-
-class Recorder:
-    """A core of ``role`` that keeps every message handed to it and answers none."""
-
-    ROLE: ClassVar[str] = ""
-    rate_hz = 0.0
-
-    def __init__(self) -> None:
-        self.handled: list[OscMessage] = []
-
-    def handle(self, message: OscMessage, now: float, source: str) -> list[Outgoing]:
-        self.handled.append(message)
-        return []
-
-    def step(self, now: float) -> list[Outgoing]:
-        return []
-
-
-def recorder(role: str) -> Recorder:
-    return type(f"{role.title()}Recorder", (Recorder,), {"ROLE": role})()
 
 
 def wire(message: OscMessage) -> OscMessage:
@@ -97,7 +75,7 @@ def run(core: object, role: str, messages: list[OscMessage]) -> Health:
 ])
 def test_a_control_of_another_service_is_a_counted_drop_naming_its_role(
         role: str, message: OscMessage, owner: str, caplog: pytest.LogCaptureFixture) -> None:
-    core = recorder(role)
+    core = RecordingCore(role)
     with caplog.at_level(logging.WARNING, logger="batteur.traffic"):
         health = run(core, role, [message, message])
     assert health.dropped_wrong_node == 2 and health.dropped == 2
@@ -132,7 +110,7 @@ def test_a_control_of_another_service_is_a_counted_drop_naming_its_role(
     ("physics", DrumHit(seq=1, time=1.0, note=38, event_type="SNARE", velocity=100, confidence=0.9)),
 ])
 def test_what_a_node_takes_or_ignores_on_purpose_is_no_drop(role: str, message: OscMessage) -> None:
-    core = recorder(role)
+    core = RecordingCore(role)
     health = run(core, role, [message])
     assert health.dropped_wrong_node == 0 and health.dropped == 0
     assert wire(message) in core.handled  # its core decides what to do with it
@@ -140,7 +118,7 @@ def test_what_a_node_takes_or_ignores_on_purpose_is_no_drop(role: str, message: 
 
 @pytest.mark.parametrize("message", [NOTE, MASTER, ROUTE])
 def test_a_core_of_no_service_role_is_handed_every_control(message: OscMessage) -> None:
-    core = recorder("echo")  # a test's or a wrapper's core: what it takes is its own business
+    core = RecordingCore("echo")  # a test's or a wrapper's core: what it takes is its own business
     health = run(core, "echo", [message])
     assert health.dropped == 0 and wire(message) in core.handled
 
@@ -155,8 +133,8 @@ def test_the_interaction_node_drops_a_live_note_and_takes_its_own_route() -> Non
 
 def test_a_wrong_node_control_is_dropped_while_the_core_waits_for_the_clock() -> None:
     """A node waiting for its clock master holds messages for its core: a wrong node's control is not held."""
-    async def main() -> tuple[Health, Recorder]:
-        core = recorder("sound")
+    async def main() -> tuple[Health, RecordingCore]:
+        core = RecordingCore("sound")
         node = Node(core, load_settings({"role": "sound", "discovery": False, "clock_master": "physics",  # type: ignore[arg-type]
                                          "oscquery": False}), clock_wait_s=30.0)
         await node.start()

@@ -7,38 +7,21 @@ import ipaddress
 import json
 import urllib.error
 import urllib.request
-from typing import Any, ClassVar
+from typing import Any
 
 import pytest
 from websockets.asyncio.client import connect
 
 from common.config import load_settings
-from common.core import Outgoing
-from common.messages import REGISTRY, OscMessage, decode, encode
+from common.messages import REGISTRY, decode, encode
 from common.messages.sound import SoundLevel, SoundResonances
 from common.oscquery import ACCESS_READ, ACCESS_READ_WRITE, OscQueryServer, build_tree, find, namespace_models
 from common.runtime import Node
 from common.transport import UdpEndpoint
+from tests.recording_core import RecordingCore
 from tests.waiting import wait_for
 
 pytestmark = pytest.mark.timeout(60)
-
-
-class RecordingCore:
-    ROLE: ClassVar[str] = "sound"
-    rate_hz = 0.0
-
-    def __init__(self) -> None:
-        self.handled: list[OscMessage] = []
-
-    def handle(self, message: OscMessage, now: float, source: str) -> list[Outgoing]:
-        self.handled.append(message)
-        return []
-
-    def step(self, now: float) -> list[Outgoing]:
-        return []
-
-
 
 
 def http_get(url: str) -> tuple[int, Any]:
