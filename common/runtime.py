@@ -5,7 +5,7 @@ A node opens a :class:`~common.transport.UdpEndpoint`, fills its
 steps its core at the core's rate on a fixed-rate loop (absolute deadlines, so
 it does not drift; overruns are counted, never hidden), hands every received
 message to ``core.handle`` (but another service's controls, which its core would
-ignore: dropped as ``wrong_node``, see :func:`taken_elsewhere`) and routes what
+ignore: dropped as ``wrong_node``, see :func:`common.transport.taken_elsewhere`) and routes what
 the core returns. It also keeps the
 rig clock (answering pings; estimating its offset to the clock master when the
 master is another node), greets newly found peers with a Hello, answers a Hello
@@ -52,7 +52,6 @@ from common.messages import (
     ClockPong,
     ClockStatus,
     DropReason,
-    Family,
     Health,
     Hello,
     MessageError,
@@ -62,15 +61,21 @@ from common.messages import (
     SubscribeRefused,
     encode,
 )
-from common.messages.interaction import ListEnd, MapInfo, MessageInfo
 from common.peers import Peer, PeerTable
 from common.rated_log import RatedWarnings
 from common.subscribe import Subscriptions
-from common.transport import REFUSAL_ENDINGS, UdpEndpoint, format_address, owner_role, parse_address, same_ip
+from common.transport import (
+    SERVICE_ROLES,
+    UdpEndpoint,
+    format_address,
+    parse_address,
+    same_ip,
+    taken_elsewhere,
+)
 
 log = logging.getLogger("batteur.runtime")
 
-DEFAULT_BROWSE_ROLES = ("physics", "interaction", "sound", "graphics")
+DEFAULT_BROWSE_ROLES = SERVICE_ROLES
 START_UNCERTAINTY_S = 0.005
 """A node whose clock master is another node starts its core once its offset is known to this, seconds (or after
 :data:`FAST_PING_SAMPLES` samples, the best it will get soon): the first sample of a loaded machine can be off by
@@ -82,9 +87,6 @@ MASTER_SILENT_WARN_S = 30.0
 """A clock master this node knows (a static peer, or one discovery found) that has not answered its pings this long
 after the node started is warned about, seconds; until then it is taken to be still starting (physics builds its
 scene for about 3 s, 7-15 s on a loaded machine, while a rig's other nodes wait for it)."""
-ANSWERS: tuple[type[OscMessage], ...] = (ListEnd, MapInfo, MessageInfo)
-"""Controls a service sends back to whoever asked (interaction's listings), as its refusals (addresses ending as
-``REFUSAL_ENDINGS``): answers to a request, never a control for the node they reach to take."""
 REFUSAL_LOG_INTERVAL_S = 5.0
 """A refused Subscribe (table full, bad pattern) is logged at most once per this long, seconds; the rest are counted
 (Health's ``dropped_other``) and said as "+N more" in the next warning."""
@@ -321,26 +323,6 @@ def core_seconds(core: object, name: str) -> float:
     except (TypeError, ValueError):
         return 0.0
     return value if math.isfinite(value) and value > 0.0 else 0.0
-
-
-def taken_elsewhere(message: OscMessage, role: str) -> str:
-    """The service role whose node takes ``message``, when a node whose core plays the service ``role`` does not
-    ("" when it does, or ignores it on purpose).
-
-    A service's node takes only its own service's controls (``/batteur/score/...``: physics); each core ignores the
-    others' (a live note sent to interaction). Not one of them: the streams and system messages (impacts, dampings,
-    poses, contacts, Health, Hello, clock: broadcast to every peer, forwarded to graphics, copied by routes; each
-    core takes what it needs of them), the answers a service sends back (refusals, interaction's listings: what
-    this node asked for), a control of no service node (the recogniser's hits), and any message to a core of no
-    service's role (a test's, a wrapper's: its handlers are its own)."""
-    if role not in DEFAULT_BROWSE_ROLES or message.FAMILY is not Family.CONTROL:
-        return ""
-    owner = owner_role(message.ADDRESS)
-    if owner == role or owner not in DEFAULT_BROWSE_ROLES:
-        return ""
-    if message.ADDRESS.endswith(REFUSAL_ENDINGS) or isinstance(message, ANSWERS):
-        return ""
-    return owner
 
 
 class Node:
@@ -817,7 +799,7 @@ class Node:
             endpoint.send(self.health(), source)
         elif isinstance(message, Health):
             self.peer_health[message.node_id] = (message, source, time.monotonic())
-        owner = taken_elsewhere(message, self._service)
+        owner = taken_elsewhere(type(message), self._service)
         if owner:  # its core would ignore it: counted and said (rated, per reason), so the sender can find out
             endpoint.stats.record_drop(DropReason.WRONG_NODE, f"{message.ADDRESS} is a control of {owner}: this "
                                        f"{self._service} node does not take it (send it to a {owner} node)", source)

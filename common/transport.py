@@ -49,7 +49,7 @@ from common.messages.codec import (
     walk_packet,
 )
 from common.messages.graphics import GraphicsRejected
-from common.messages.interaction import InteractionError
+from common.messages.interaction import InteractionError, ListEnd, MapInfo, MessageInfo
 from common.messages.physics import PhysicsRejected
 from common.messages.sound import SoundRejected
 from common.peers import PeerTable
@@ -110,6 +110,34 @@ def owner_role(address: str) -> str:
     """The role of the node that owns ``address`` (``/batteur/score/tempo``: physics); "" outside /batteur/."""
     family = address.split("/")[2] if address.startswith("/batteur/") else ""
     return SERVICE_OF.get(family, family)
+
+
+SERVICE_ROLES = ("physics", "interaction", "sound", "graphics")
+"""The services' roles: a node of one takes only its own service's controls (:func:`taken_elsewhere`)."""
+ANSWERS: tuple[type[OscMessage], ...] = (ListEnd, MapInfo, MessageInfo)
+"""Controls a service sends back to whoever asked (interaction's listings), as its refusals (addresses ending as
+``REFUSAL_ENDINGS``): answers to a request, never a control for the node they reach to take."""
+
+
+def taken_elsewhere(model: type[OscMessage], role: str) -> str:
+    """The service role whose node takes messages of ``model``, when a node whose core plays the service ``role``
+    does not ("" when it does, or ignores them on purpose): what the runtime drops as ``wrong_node`` and
+    ``batteur send --to ROLE`` refuses.
+
+    A service's node takes only its own service's controls (``/batteur/score/...``: physics); each core ignores the
+    others' (a live note sent to interaction). Not one of them: the streams and system messages (impacts, dampings,
+    poses, contacts, Health, Hello, clock: broadcast to every peer, forwarded to graphics, copied by routes; each
+    core takes what it needs of them), the answers a service sends back (refusals, interaction's listings: what
+    the node asked for), a control of no service node (the recogniser's hits), and any message to a core of no
+    service's role (a test's, a wrapper's: its handlers are its own)."""
+    if role not in SERVICE_ROLES or model.FAMILY is not Family.CONTROL:
+        return ""
+    owner = owner_role(model.ADDRESS)
+    if owner == role or owner not in SERVICE_ROLES:
+        return ""
+    if model.ADDRESS.endswith(REFUSAL_ENDINGS) or issubclass(model, ANSWERS):
+        return ""
+    return owner
 
 
 def decode_refusal(address: str, reason: str, registry: MessageRegistry = REGISTRY,

@@ -70,6 +70,3 @@ def test_a_message_to_a_role_that_takes_it_is_sent(node: tuple[socket.socket, li
     assert send.main([*args, "--to", to]) == 0
     assert decode(receiver.recv(65535)).messages[0].ADDRESS == args[0]
 
-
-def test_the_roles_are_the_services() -> None:
-    assert set(send.SERVICE_ROLES) == set(DEFAULT_BROWSE_ROLES)

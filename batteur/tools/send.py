@@ -41,7 +41,6 @@ from common.messages import (
     REGISTRY,
     Arg,
     DropReason,
-    Family,
     MessageError,
     OscMessage,
     WireKind,
@@ -49,7 +48,7 @@ from common.messages import (
     encode_raw,
     parse_packet,
 )
-from common.transport import format_address, owner_role, parse_address
+from common.transport import REFUSAL_ENDINGS, format_address, parse_address, taken_elsewhere
 
 OSC_ADDRESS = re.compile(r"(?:/[!-.0-~]+)+")
 """An OSC address: '/'-separated parts of printable ASCII..."""
@@ -61,9 +60,6 @@ EXAMPLE_ADDRESS = "/batteur/sound/master"
 """The help's examples: registered addresses (tests/test_send_help.py checks them)."""
 PROG = "batteur send"
 """The command's name in its usage and error lines."""
-SERVICE_ROLES = ("physics", "interaction", "sound", "graphics")
-"""The services' roles (common.runtime.DEFAULT_BROWSE_ROLES, not imported: it would slow every send). A node of one
-takes only its own service's controls (/batteur/score/... the physics node's)."""
 
 
 def guess_arg(text: str) -> Arg:
@@ -192,12 +188,10 @@ def typed_args(address: str, texts: Sequence[str]) -> list[Arg]:
 
 def wrong_role(model: type[OscMessage] | None, target: str) -> str | None:
     """Why ``--to ROLE`` would lose the control ``model`` (a service's node takes only its own service's controls,
-    and drops the others' unanswered, counted as ``wrong_node``: a live note sent to interaction), or None. Only for a
-    service's role and a service's control; a refusal (an answer, sent by its service) is not checked."""
-    if model is None or model.FAMILY is not Family.CONTROL or target not in SERVICE_ROLES:
-        return None
-    owner = owner_role(model.ADDRESS)
-    if owner not in SERVICE_ROLES or owner == target or model.ADDRESS.endswith(REFUSALS):
+    and drops the others' unanswered, counted as ``wrong_node``: a live note sent to interaction), or None: the
+    nodes' own rule (:func:`common.transport.taken_elsewhere`)."""
+    owner = taken_elsewhere(model, target) if model is not None else ""
+    if model is None or not owner:
         return None
     return f"--to {target}: {model.ADDRESS} is a control of {owner}; {target} nodes ignore it (--to {owner})"
 
@@ -334,9 +328,9 @@ def _send(opts: argparse.Namespace) -> int:
     return 1 if failed else 0
 
 
-REFUSALS = ("/error", "/rejected", "/refused")
+REFUSALS = REFUSAL_ENDINGS
 """How the addresses of the answers that refuse a message end (``/batteur/interaction/error``,
-``/batteur/sound/rejected``, ``/batteur/subscribe/refused``)."""
+``/batteur/sound/rejected``, ``/batteur/subscribe/refused``): the nodes' own list."""
 
 
 def _print_replies(sent: Sequence[tuple[socket.socket, str]], wait_s: float) -> int:
