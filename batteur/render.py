@@ -1101,7 +1101,7 @@ def build_parser() -> argparse.ArgumentParser:
                       help="BVH file whose skeleton gives the drummer's proportions (arms, legs, neck, shoulder "
                       "height above the hips, shoulder and hip widths), so the simulated performer matches the "
                       "captured one (default: de Leva's table for --height and --mass)")
-    add_body_options(body)
+    add_body_options(body, skeleton=True)
     outputs = parser.add_argument_group("motion, glTF and video outputs")
     outputs.add_argument("--bvh-rate", type=float, default=RenderOptions.pose_rate_hz, metavar="HZ",
                          help="frame rate of DIR/performance.bvh, 1 to 1000 Hz (e.g. 24, 30, 60, 120; default 60); "
@@ -1164,12 +1164,14 @@ def add_style_options(parser: argparse._ActionsContainer) -> None:
                         f"{DEFAULT_NUANCE.value})")
 
 
-def add_body_options(parser: argparse._ActionsContainer) -> None:
-    """``--height`` and ``--mass`` (render and evaluate; a parser or one of its groups)."""
+def add_body_options(parser: argparse._ActionsContainer, skeleton: bool = False) -> None:
+    """``--height`` and ``--mass`` (render and evaluate; a parser or one of its groups); ``skeleton``: the parser
+    has ``--skeleton-bvh`` (render), which the help then says how it goes with (evaluate's named it, without it)."""
+    with_skeleton = "; with --skeleton-bvh the skeleton gives the limbs and the reach, the height the rest"
     parser.add_argument("--height", type=float, default=None, metavar="METRES",  # None: an explicit 1.75 is told
                         help=f"the drummer's height, {HEIGHT_RANGE_M[0]:g} to {HEIGHT_RANGE_M[1]:g} m: its body "
-                        f"(de Leva's segments scaled) and the planner's reach (default {STATURE_M:g}; with "
-                        "--skeleton-bvh the skeleton gives the limbs and the reach, the height the rest)")
+                        f"(de Leva's segments scaled) and the planner's reach (default {STATURE_M:g}"
+                        f"{with_skeleton if skeleton else ''})")
     parser.add_argument("--mass", type=float, default=DEFAULT_MASS_KG, metavar="KG",
                         help=f"the drummer's mass, {MASS_RANGE_KG[0]:g} to {MASS_RANGE_KG[1]:g} kg (default "
                         f"{DEFAULT_MASS_KG:g})")

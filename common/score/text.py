@@ -271,6 +271,8 @@ def _finite(value: str, what: str, lineno: int) -> float:
 
 DIRECTIVES = frozenset({"tempo", "meter", "repeat", "grip", "nuance", "at", "note", "rest", "kit", "title"})
 """The directive words (docs/score-format.md)."""
+DIRECTIVE_NAMES = ["tempo", "meter", "repeat", "rest", "at (or note)", "grip", "nuance", "kit", "title"]
+"""The directives as an unknown one lists them."""
 
 
 def _either(values: list[str]) -> str:
@@ -293,6 +295,25 @@ DIRECTIVE_FORMS: dict[str, str] = {
     "note": "BEAT NAME [VELOCITY, 0 to 1] [L|R]",
 }
 """How each directive is written, said when one cannot be read (instead of Python's words about the value)."""
+
+FIGURE_HINTS: dict[str, str] = {
+    **dict.fromkeys(("swing", "shuffle"), "swing is written in triplet cells, 12 a bar of 4/4: HH |x.xx.xx.xx.x|"),
+    **dict.fromkeys(("crescendo", "cresc", "decrescendo", "diminuendo", "dim", "dynamics", "dynamic", "volume",
+                     "velocity", "accent"),
+                    "dynamics are the cells' own: the digits 1-9 (n/9 of full), g ghost, x normal, X accent, "
+                    "e.g. a crescendo SN |12345678|"),
+    **dict.fromkeys(("accelerando", "accel", "ritardando", "rit", "rall", "rallentando"),
+                    "a gradual tempo change is one tempo line a bar (or a beat), a block after each"),
+    **dict.fromkeys(("bpm", "speed"), "the tempo is written tempo BPM, e.g. tempo 96"),
+    **dict.fromkeys(("time", "signature", "timesig"), "the time signature is written meter N/D, e.g. meter 3/4"),
+}
+"""What an unknown directive a teacher might write is written as instead (its first word, lower case)."""
+
+FIGURES_DOC = "docs/score-format.md, 'Writing common figures'"
+
+RENDER_ONLY_GRIPS = ("american", "traditional")
+"""Grips ``batteur render --grip`` takes but a score's ``grip`` line does not (the planner plans french or german;
+the hands take these)."""
 
 MARK_ROWS = ("ST", "NU")
 """The rows marking the notes of a block's instrument rows: sticking and nuance."""
@@ -328,6 +349,8 @@ def parse_text(text: str, source: str = "text") -> TextScore:
     last_block: list[DrumEvent] = []  # events of the last block, in beats (time field holds beats)
     last_block_beats = 0.0
     last_block_bar = 4.0  # the last block's beats per bar: a repeat plays its bars, whatever the meter is now
+    last_block_line = 0  # the last block's first line
+    since_block: tuple[str, int] | None = None  # the first rest or `at` line after it (a repeat does not play it)
     bar_starts: list[float] = []  # where bars start, beats
     last_bar = 4.0  # the length of the last bar started, as written (a rest may cut it short), beats
     warnings: list[str] = []
@@ -356,7 +379,7 @@ def parse_text(text: str, source: str = "text") -> TextScore:
             last_bar = bar
 
     def flush() -> None:
-        nonlocal position, block, last_block, last_block_beats, last_block_bar
+        nonlocal position, block, last_block, last_block_beats, last_block_bar, last_block_line, since_block
         if not block:
             return
         # rows by name, in the order names first appear: a name given twice plays both rows (the second one
@@ -410,6 +433,7 @@ def parse_text(text: str, source: str = "text") -> TextScore:
                     block_events.append(DrumEvent(k * cell_beats, ev, vel, None, limb, note_nuance))
         _place(block_events, position)
         last_block, last_block_beats, last_block_bar = block_events, n_bars * beats_per_bar, beats_per_bar
+        last_block_line, since_block = block[0][0], None
         add_bars(position, last_block_beats)
         position += last_block_beats
         block = []
@@ -432,7 +456,9 @@ def parse_text(text: str, source: str = "text") -> TextScore:
             parts.insert(2, "")
         vel = float(parts[2]) if len(parts) > 2 and parts[2] else 0.7
         if not 0 <= vel <= 1:
-            raise ScoreError(f"line {lineno}: velocity {vel} outside [0, 1]")
+            midi = f" (MIDI's {vel:g} is {vel / 127:.2f})" if vel.is_integer() and 1 < vel <= 127 else ""
+            raise ScoreError(f"line {lineno}: velocity {parts[2]} outside 0 to 1: velocities here are 0 to 1 (a grid's "
+                             f"x is 0.7), not MIDI's 0-127{midi}")
         if len(parts) > 3 and parts[3].upper() not in STICKING:
             raise ScoreError(f"line {lineno}: the hand must be L or R, got {parts[3]!r}")
         limb = STICKING.get(parts[3].upper()) if len(parts) > 3 else None
@@ -480,20 +506,35 @@ def parse_text(text: str, source: str = "text") -> TextScore:
                 meter = (count, f"{num.strip()}/{unit}")
             elif word == "repeat":
                 count = int(rest)
-                if count < 1 or not last_block_beats:
-                    raise ScoreError(f"line {lineno}: repeat needs a count >= 1 after a grid block")
+                if count < 1:
+                    raise ScoreError(f"line {lineno}: repeat needs a count of 1 or more, got {count}")
+                if not last_block_beats:  # was "needs a count >= 1 after a grid block", whatever the count
+                    raise ScoreError(f"line {lineno}: repeat {count} plays the last grid block again, and there is "
+                                     f"none before it: write it after a grid block (rests and at lines are not "
+                                     f"repeated)")
+                if since_block is not None:  # a rest or `at` notes between: they are not played again
+                    warnings.append(f"line {lineno}: repeat plays the grid block of line {last_block_line} again, "
+                                    f"not the {since_block[0]} line {since_block[1]} after it (a block's own '.' "
+                                    f"cells repeat with it; {FIGURES_DOC})")
+                    since_block = None
                 check_until(position + count * last_block_beats, len(events) + count * len(last_block), lineno)
                 for _ in range(count):
                     _place(last_block, position)
                     add_bars(position, last_block_beats, last_block_bar)
                     position += last_block_beats
             elif word == "grip":
+                if rest.lower() in RENDER_ONLY_GRIPS:  # the renderer's --grip takes them: say so, not just "french"
+                    raise ScoreError(f"line {lineno}: cannot read {line.strip()!r}: write grip "
+                                     f"{DIRECTIVE_FORMS[word]}; the {rest.lower()} grip is given to the renderer: "
+                                     f"batteur render --grip {rest.lower()} (or batteur evaluate --grip)")
                 grip = Grip(rest.lower())
             elif word == "nuance":
                 nuance = Nuance(rest.lower().replace(" ", "_"))
             elif word in ("at", "note"):
                 note(lineno, rest)
+                since_block = since_block or (word, lineno)
             elif word == "rest":
+                since_block = since_block or (word, lineno)
                 length = _finite(rest, "a rest", lineno) if rest else beats_per_bar
                 if length < 0:
                     raise ScoreError(f"line {lineno}: a rest cannot be negative, got {rest}")
@@ -509,8 +550,11 @@ def parse_text(text: str, source: str = "text") -> TextScore:
             elif _row_without_bar_lines(head, rest):  # 'HH x.x.x.x.'
                 raise ScoreError(f"line {lineno}: a grid row needs its bars between '|': write "
                                  f"{head} |{rest.replace(' ', '') or 'x.x.x.x.'}|")
-            else:
-                raise ScoreError(f"line {lineno}: unknown directive {head!r}")
+            else:  # the directives, and how the figure meant is written when it is a known one (swing, ...)
+                hint = FIGURE_HINTS.get(word, "")
+                raise ScoreError(f"line {lineno}: unknown directive {head!r}: {hint + '; ' if hint else ''}the "
+                                 f"directives are {_either(DIRECTIVE_NAMES)}, and a grid row is NAME |cells| "
+                                 f"({FIGURES_DOC})")
         except ScoreError:
             raise
         except (ValueError, IndexError, OverflowError) as exc:
