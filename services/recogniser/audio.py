@@ -174,11 +174,29 @@ def quantum(path: str | Path) -> float | None:
     return None if bits is None else 2.0 ** (1 - bits)
 
 
+GRID_BITS = (8, 16)
+"""Integer sizes :func:`grid_step` recognises, bits (24-bit samples are not told from floats: float32 holds
+them all on a finer grid, and a 24-bit take is never quiet for its bits)."""
+
+
+def grid_step(samples: np.ndarray, step: float | None = None) -> float | None:
+    """The quantisation step of float samples that are all integers of :data:`GRID_BITS` bits scaled to full
+    scale 1 (multiples of 2**-7 or 2**-15: what PortAudio gives for an integer device), the coarsest that fits,
+    or None (off every grid, or all zero: nothing to tell); ``step``: only that grid is tried."""
+    x = np.asarray(samples, np.float64)
+    if not np.any(x):
+        return None
+    for q in (step,) if step else (2.0 ** (1 - bits) for bits in GRID_BITS):
+        if np.array_equal(x / q, np.round(x / q)):
+            return q
+    return None
+
+
 COMMON_RATES_HZ = (32000, 44100, 48000, 88200, 96000, 192000)
 """Sample rates recorders offer, Hz: the warning for a file sampled too slowly names the lowest that is enough."""
 
 
-def low_rate(path: Path, rate_hz: int, full_rate_hz: float) -> str | None:
+def low_rate(path: Path | str, rate_hz: int, full_rate_hz: float) -> str | None:
     """The warning for a file sampled at ``rate_hz``, below ``full_rate_hz`` (the lowest rate that fills every band
     the recogniser reads: :func:`~services.recogniser.features.full_rate_hz`), or None. Such a file holds nothing
     in the top bands, where hi-hats and cymbals are heard over snares: on a Batteur render of a rock groove
@@ -235,11 +253,12 @@ def top_band_level(mono: np.ndarray, rate_hz: int, low_hz: float, block: int = 5
     return 10.0 * float(np.log10(max(top_density / ref_density, 1e-30)))
 
 
-def band_limited(path: Path, mono: np.ndarray, rate_hz: int, full_rate_hz: float) -> str | None:
+def band_limited(path: Path | str, mono: np.ndarray, rate_hz: int, full_rate_hz: float) -> str | None:
     """The warning for a file sampled fast enough (``rate_hz`` at least ``full_rate_hz``) whose audio yet holds next
     to nothing above half of ``full_rate_hz`` (:func:`top_band_level` below :data:`BAND_LIMITED_DB`): a recording
     made at a lower rate and resampled up transcribes as one at its own rate does (the held-out kit's test
-    pattern through 22,050 Hz and back to 44,100 Hz: the same notes as at 22,050 Hz), or None."""
+    pattern through 22,050 Hz and back to 44,100 Hz: the same notes as at 22,050 Hz), or None. ``path``: the file,
+    or the name of the live input (:class:`~services.recogniser.node.InputWatch`)."""
     if rate_hz < full_rate_hz:
         return None  # low_rate's warning
     level = top_band_level(mono, rate_hz, full_rate_hz / 2)

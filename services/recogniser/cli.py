@@ -264,7 +264,7 @@ def _live(args: argparse.Namespace, model: object, say: Callable[[str], None]) -
         try:
             if args.device is not None:
                 asyncio.run(listen_device(targets, model, args.device or None, args.seconds,  # type: ignore[arg-type]
-                                          on_hit=on_hit, report=report))
+                                          on_hit=on_hit, report=report, warn=lambda text: say(f"{WARNING} {text}")))
             else:
                 asyncio.run(play_file(args.audio, targets, model, speed=args.speed or 1.0,  # type: ignore[arg-type]
                                       max_duration_s=args.max_duration, on_hit=on_hit, report=report,

@@ -150,6 +150,12 @@ class LiveRecogniser:
         return out
 
     @property
+    def peak(self) -> float:
+        """The running peak the input gain follows (``gain`` None), full scale 1: 0.0 before any input, and with a
+        fixed gain."""
+        return self._peak
+
+    @property
     def latency_s(self) -> float:
         """Audio needed after an onset before its hit is emitted, seconds (excluding block size and compute)."""
         return (self._lookahead * F.HOP + F.N_FFT // 2) / SAMPLE_RATE

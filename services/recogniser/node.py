@@ -21,16 +21,76 @@ import numpy as np
 from common.core import Outgoing
 from common.messages.recogniser import DrumHit
 from common.transport import UdpEndpoint, format_address, parse_address
-from services.recogniser.audio import MAX_DURATION_S, SAMPLE_RATE, load_audio
+from services.recogniser.audio import MAX_DURATION_S, SAMPLE_RATE, band_limited, grid_step, load_audio, quantum
 from services.recogniser.core import LiveRecogniser
 from services.recogniser.errors import RecogniserError
+from services.recogniser.features import NARROW, full_rate_hz
 from services.recogniser.model import Model, load_model
-from services.recogniser.transcribe import PEAK, DrumEvent
+from services.recogniser.transcribe import PEAK, DrumEvent, fill_noise, fill_rms
 
 log = logging.getLogger("batteur.recogniser")
 
 BLOCK = 128
 """Samples per block fed to the core (5.8 ms at 22,050 Hz)."""
+
+LIVE_FULL_RATE_HZ = full_rate_hz(NARROW)
+"""The lowest sample rate that fills every band the live path reads (22,050 Hz audio, 48 bands to 10.5 kHz:
+:data:`~services.recogniser.features.NARROW`), Hz: about 16.7 kHz. The offline network's 29 kHz is not the live
+path's: it reads 22,050 Hz, so a 22,050 Hz take, or one resampled up from it, loses it nothing (the test pattern
+played live: the same hits but one), while one sampled at 16 kHz lost most hi-hats (docs/recogniser.md,
+"Live mode")."""
+INPUT_CHECK_S = 3.0
+"""Seconds of a device's input :class:`InputWatch` gathers before its band check and its look at the samples'
+grid."""
+
+
+class InputWatch:
+    """What live input arriving block by block (a device) is: its first :data:`INPUT_CHECK_S`, at ``rate_hz``, are
+    gathered, then given once to :func:`~services.recogniser.audio.band_limited` against :data:`LIVE_FULL_RATE_HZ`
+    (``warn`` hears its warning, if any, once; ``name`` stands for the file in it) and to
+    :func:`~services.recogniser.audio.grid_step`: input on a 16- or 8-bit grid (a device giving integers, not
+    resampled nor scaled on the way) has that :attr:`step` until a block leaves the grid."""
+
+    def __init__(self, name: str, warn: Callable[[str], None] | None, rate_hz: int = SAMPLE_RATE,
+                 seconds: float = INPUT_CHECK_S) -> None:
+        self.name, self.warn, self.rate_hz = name, warn, rate_hz
+        self._need = int(seconds * rate_hz)
+        self._blocks: list[np.ndarray] = []
+        self._have = 0
+        self.done = False
+        """Whether the checks have been made (once)."""
+        self.step: float | None = None
+        """The input's quantisation step, full scale 1, once :attr:`done` (None: floats, or not known yet)."""
+
+    def feed(self, block: np.ndarray) -> None:
+        """Add mono samples; the checks run on the block that completes :data:`INPUT_CHECK_S`."""
+        x = np.nan_to_num(np.asarray(block, np.float32).reshape(-1), nan=0.0, posinf=0.0, neginf=0.0)
+        if self.done:
+            if self.step and grid_step(x, self.step) is None and np.any(x):
+                self.step = None  # not integers after all: from now on as floats
+            return
+        self._blocks.append(x)
+        self._have += x.size
+        if self._have < self._need:
+            return
+        self.done = True
+        heard = np.concatenate(self._blocks)
+        self._blocks = []
+        self.step = grid_step(heard)
+        text = band_limited(self.name, heard - np.float32(np.mean(heard)), self.rate_hz, LIVE_FULL_RATE_HZ)
+        if text and self.warn:
+            self.warn(text)
+
+
+def feed_device(core: LiveRecogniser, watch: InputWatch, block: np.ndarray,
+                rng: np.random.Generator) -> list[Outgoing]:
+    """Give a device's block to ``watch`` and to ``core`` (its input gain following the running peak); a quiet
+    input on an integer grid (:attr:`InputWatch.step`) gets the file path's noise fill first
+    (:func:`~services.recogniser.transcribe.fill_rms` of the core's running peak: the level the gain raises)."""
+    watch.feed(block)
+    if watch.step and (rms := fill_rms(core.peak, watch.step)):
+        block = block + np.float32(rms) * rng.standard_normal(len(block), dtype=np.float32)
+    return core.feed(block)
 
 
 @dataclass
@@ -162,10 +222,15 @@ async def play_file(
     the file's peak, as a level meter set before a take would be. ``bind``: the
     local address to send from (default: :func:`bind_address`). Hits are added to
     ``report`` as they are sent, so a caller stopped by Ctrl-C still has them.
+    ``warn`` hears of a suspect file as offline, its rate judged against the live path's bands
+    (:data:`LIVE_FULL_RATE_HZ`); a quiet file stored as integers gets the offline path's noise fill
+    (:func:`~services.recogniser.transcribe.fill_rms`) before it is played.
     """
     dests = check_targets(targets)
-    audio = load_audio(path, max_duration_s=max_duration_s, warn=warn)
+    audio = load_audio(path, max_duration_s=max_duration_s, warn=warn, full_rate_hz=LIVE_FULL_RATE_HZ)
     peak = float(np.max(np.abs(audio)))
+    if rms := fill_rms(peak, quantum(path)):  # the gain stays the peak's, as offline
+        fill_noise(audio, rms)
     core = LiveRecogniser(model or load_model(), gain=PEAK / peak, start_time=0.0)
     senders = await open_senders(targets, dests, bind)
     report = report if report is not None else LiveReport()
@@ -242,10 +307,12 @@ def input_device_available() -> str | None:
 async def listen_device(
     targets: Sequence[str], model: Model | None = None, device: str | None = None, seconds: float | None = None,
     bind: str | None = None, on_hit: Callable[[DrumHit, float], None] | None = None,
-    report: LiveReport | None = None,
+    report: LiveReport | None = None, warn: Callable[[str], None] | None = None,
 ) -> LiveReport:
     """Listen to an input device (mono mix, resampled by PortAudio to 22,050 Hz) and send hits (into ``report``
-    as they go: Ctrl-C is how an endless listen stops)."""
+    as they go: Ctrl-C is how an endless listen stops). ``warn`` hears once if its first :data:`INPUT_CHECK_S`
+    hold next to nothing in the live path's top bands (:class:`InputWatch`: a device sampling at 11,025 Hz); quiet
+    input on an integer grid gets the noise fill (:func:`feed_device`)."""
     problem = input_device_available()
     if problem:
         raise RecogniserError(problem)
@@ -253,6 +320,8 @@ async def listen_device(
 
     dests = check_targets(targets)
     core = LiveRecogniser(model or load_model(), gain=None)
+    watch = InputWatch(f"input device {device!r}" if device else "the default input device", warn)
+    rng = np.random.default_rng(0)  # the noise fill's, seeded as the file path's
     loop = asyncio.get_running_loop()
     queue: asyncio.Queue[np.ndarray] = asyncio.Queue()
 
@@ -266,7 +335,7 @@ async def listen_device(
         with sounddevice.InputStream(samplerate=SAMPLE_RATE, blocksize=BLOCK, device=device, channels=1,
                                      dtype="float32", callback=callback):
             while seconds is None or time.perf_counter() - t0 < seconds:
-                send_hits(core.feed(await queue.get()), senders, report, t0, 1.0, on_hit)
+                send_hits(feed_device(core, watch, await queue.get(), rng), senders, report, t0, 1.0, on_hit)
     finally:
         close_senders(senders, report)
         report.duration_s = time.perf_counter() - t0

@@ -144,11 +144,19 @@ def network_outputs(
         audio = resample(audio, sample_rate, net.sample_rate)
     peak = float(np.max(np.abs(audio))) if len(audio) else 0.0
     x = audio * (PEAK / peak) if peak > 0 else audio
-    if step and 0 < peak < FILL_BELOW_STEPS * step:
-        fill_noise(x, NOISE_FILL * step * PEAK / peak)
+    if rms := fill_rms(peak, step):
+        fill_noise(x, rms * PEAK / peak)
     spec = net.adapt(net.spectrogram(x, progress=(lambda f: progress(0.5 * f)) if progress else None,
                                      hold_edges=True))
     return net.forward(spec, progress=(lambda f: progress(0.5 + 0.45 * f)) if progress else None)
+
+
+def fill_rms(peak: float, step: float | None) -> float:
+    """The RMS of :data:`NOISE_FILL` for audio of ``peak`` (full scale 1, before it is scaled) read from integers
+    of quantisation ``step`` (None: floats), in the audio's units; 0.0 for none (floats, or a peak of
+    :data:`FILL_BELOW_STEPS` steps or more). The one rule of the file path and of the live one
+    (:func:`~services.recogniser.node.play_file`)."""
+    return NOISE_FILL * step if step and 0 < peak < FILL_BELOW_STEPS * step else 0.0
 
 
 def fill_noise(x: np.ndarray, rms: float) -> None:
