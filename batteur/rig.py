@@ -19,9 +19,10 @@ which the rig names).
 The graphics view listens on TCP ``--http-port`` (default 8080; a second rig on
 the same machine needs another); its page saves kits and poses into ``--kit-dir`` (off without it).
 A ``--ROLE-arg`` may give a service its own ``--host`` (the last wins, as argparse keeps it: the rig's checks,
-peers and Hellos take it), never its own ``--kit`` (refused: every service plays the rig's one kit); the rig reads
-these, ``--allow`` and ``--config`` there abbreviated too, as a service's argparse takes them (``--ho``, ``--ki``:
-:data:`ABBREVIATIONS`).
+peers and Hellos take it), never its own ``--kit`` (refused: every service plays the rig's one kit), nor what the rig
+gives it (``--port``, ``--epoch``, ``--score``, ...: refused naming the rig's own option, :data:`RIG_GIVES`); the rig
+reads these, ``--allow`` and ``--config`` there abbreviated too, as a service's argparse takes them (``--ho``,
+``--ki``: :data:`ABBREVIATIONS`).
 On Linux the services get SIGTERM when the rig itself dies, even by SIGKILL, so none is left running as an orphan.
 
 ``--score FILE`` (a .mid or text score, or ``demo`` for the demo groove of
@@ -113,15 +114,54 @@ class ServicePlan:
         return given[-1] if given else DEFAULT_HOST
 
 
-ABBREVIATIONS = {"--host": "--ho", "--kit": "--k", "--allow": "--a", "--config": "--co"}
+ABBREVIATIONS = {"--host": "--ho", "--kit": "--k", "--allow": "--a", "--config": "--co", "--port": "--po",
+                 "--epoch": "--e", "--role": "--ro", "--score": "--score", "--play-at": "--pl", "--wav": "--w",
+                 "--http-port": "--ht", "--kit-dir": "--kit-", "--scene": "--sce", "--strike-period": "--strike-p",
+                 "--strike-velocity": "--strike-v"}
 """The shortest abbreviation of each service option the rig reads in a ``--ROLE-arg`` (:func:`option_uses`). A
 service's parser (argparse, allow_abbrev) takes any prefix of a long option that no other of its options shares
 (``--ho`` for ``--host``), an exact name first, and refuses an ambiguous one (exit 2). So ``--h`` is no ``--host``
 (it is ``--help`` too, in every service); ``--k`` and ``--ki`` are ``--kit`` in physics, interaction and sound and
-ambiguous in graphics (``--kit-dir``); ``--co`` and ``--con`` are ``--config`` but in physics (``--control``). Each is
-the shortest prefix some service takes: a token the rig reads as the option where a service finds it ambiguous
-changes nothing, that service refuses it anyway (tests/cli/test_rig_service_options.py checks this table against the
+ambiguous in graphics (``--kit-dir``); ``--co`` and ``--con`` are ``--config`` but in physics (``--control``);
+``--po`` is ``--port`` but in physics (``--pose-rate-hz``); ``--score`` has none (``--score-dir``). Each is the
+shortest prefix some service takes: a token the rig reads as the option where a service finds it ambiguous changes
+nothing, that service refuses it anyway (tests/cli/test_rig_service_options.py checks this table against the
 services' parsers)."""
+
+RIG_GIVES = {
+    "--port": ("override the UDP port the rig gives {role} (the other services' peers and the rig's Hellos send there)",
+               "use batteur rig --base-port (physics on it, interaction, sound and graphics on the next three)"),
+    "--epoch": ("override the rig epoch every service shares (their rig clocks would disagree)",
+                "use batteur rig --start-delay (rig time 0 that many seconds after launch)"),
+    "--role": ("override the role the rig starts {role} in (the other services and the rig's Hellos take it for "
+               "{role})", "use batteur rig --services to choose the roles"),
+    "--score": ("give {role} a score of its own, which the rig neither checks before anything starts nor waits for "
+                "the services to play, nor gives every service the kit of", "use batteur rig --score {value}"),
+    "--play-at": ("override the rig time the rig's --score starts at (and that the rig says it starts at)",
+                  "use batteur rig --play-at {value}"),
+    "--wav": ("override where batteur rig --record has sound record (the rig names the take, or its part file, "
+              "there)", "use batteur rig --record DIR alone, or --sound-arg '--wav FILE' without --record"),
+    "--http-port": ("override the view's TCP port, which the rig checks is free before anything starts",
+                    "use batteur rig --http-port {value}"),
+    "--kit-dir": ("override the folder batteur rig --kit-dir gives graphics", "give batteur rig --kit-dir alone"),
+    "--scene": ("override the strike scene batteur rig --strike-period gives physics",
+                "use batteur rig --strike-period alone"),
+    "--strike-period": ("override the strike period batteur rig --strike-period gives physics",
+                        "use batteur rig --strike-period {value}"),
+    "--strike-velocity": ("override the strike velocity the rig gives physics (its --strike-velocity, default 3)",
+                          "use batteur rig --strike-velocity {value}"),
+}
+"""The service options a ``--ROLE-arg`` may not give (:func:`refuse_rig_options`), each with what it would do
+(``{role}``: the service) and the rig's own option to use instead (``{value}``: the one given). ``--port``,
+``--epoch``, ``--role``, ``--score`` (and ``--kit``, with a message of its own) are refused whenever given: the rig
+gives each service the first two, starts it in its role, and plays a score only through its own ``--score`` (checked
+first, its kit line for every service, the services waited for). The others only where the rig gives that service
+the option itself (``--wav`` with ``--record``, a strike option with ``--strike-period``, ...): without the rig's, a
+service's own is the user's to give. Not here, so allowed: ``--host`` (where that service listens: the rig's checks,
+peers and Hellos take it), ``--peer``, ``--allow`` and ``--interface`` (they add to the rig's, repeatable),
+``--log-level``, ``--node-id``, ``--discovery``, and every option the rig does not give."""
+ALWAYS_REFUSED = ("--port", "--epoch", "--role", "--score")
+"""The options of :data:`RIG_GIVES` refused whether or not the rig gave that service one."""
 
 
 def option_uses(args: Sequence[str], flag: str) -> list[tuple[str, str]]:
@@ -246,16 +286,34 @@ def role_args(role: str, opts: argparse.Namespace) -> list[str]:
     if role == "graphics" and getattr(opts, "kit_dir", None):
         args += ["--kit-dir", str(Path(opts.kit_dir).resolve())]
     extra = [arg for item in getattr(opts, f"{role}_arg") or [] for arg in item.split()]
+    refuse_rig_options(role, args, extra)
+    return args + extra
+
+
+def refuse_rig_options(role: str, given: Sequence[str], extra: Sequence[str]) -> None:
+    """Raise UsageError when ``extra`` (``--ROLE-arg`` of ``role``) gives an option the rig gives that service
+    (``given``: its role's own; :data:`RIG_GIVES`), abbreviated too, as its argparse reads it: the last wins, so the
+    service's would silently override the rig's, and its peers, the rig's checks and Hellos and the other services
+    would talk to another port or play another score than the rig's."""
     kits = option_uses(extra, "--kit")
     if kits:
         # refused, not warned: every service plays the rig's one kit (physics strikes it, sound voices it, graphics
         # draws it, interaction maps it); one given its own would hit drums the others do not have or place, in
         # silence but for a warning lost among four services' start-up lines. --kit gives it to all.
         name, kit = kits[-1]
-        given = "--kit" if name == "--kit" else f"{name} (--kit, as argparse takes it abbreviated)"
-        raise UsageError(f"--{role}-arg: {given} {kit} would give {role} a kit of its own, another than the other "
-                         f"services'; give every service that kit with the rig's --kit {kit}")
-    return args + extra
+        raise UsageError(f"--{role}-arg: {_as_written(name, '--kit')} {kit} would give {role} a kit of its own, "
+                         f"another than the other services'; give every service that kit with the rig's --kit {kit}")
+    for flag, (what, instead) in RIG_GIVES.items():
+        uses = option_uses(extra, flag)
+        if uses and (flag in ALWAYS_REFUSED or option_uses(given, flag)):
+            name, value = uses[-1]
+            raise UsageError(f"--{role}-arg: {_as_written(name, flag)} {value} would {what.format(role=role)}; "
+                             f"{instead.format(value=value)}")
+
+
+def _as_written(name: str, flag: str) -> str:
+    """An option as a ``--ROLE-arg`` gave it: ``flag``, or ``name`` said to be its abbreviation."""
+    return flag if name == flag else f"{name} ({flag}, as argparse takes it abbreviated)"
 
 
 def describe_exit(code: int) -> str:
@@ -316,6 +374,29 @@ class _Answers(asyncio.DatagramProtocol):
         """Role -> rig time it first answered, seconds."""
         self.heard = asyncio.Event()
         """Set on each new answer; the rig clears it before it waits."""
+        self.error: OSError | None = None
+        """The socket's last error (:meth:`error_received`); the rig clears it before each Hello it sends."""
+        self.unsent: dict[str, tuple[str, str, int]] = {}
+        """Role -> (address, why, how many) of the Hellos to it that could not be sent (:meth:`send`)."""
+
+    def error_received(self, exc: Exception) -> None:
+        # a send that failed at once (asyncio's sendto calls this within it), or a receive's
+        if isinstance(exc, OSError):
+            self.error = exc
+
+    def send(self, transport: asyncio.DatagramTransport, data: bytes, role: str, address: tuple[str, int]) -> str:
+        """Send ``data`` to ``role`` at ``address``; what the socket said when it could not (a wrong-family or
+        unreachable address: EAFNOSUPPORT, ENETUNREACH, EADDRNOTAVAIL, ...), counted in :attr:`unsent`, else ""."""
+        from common.transport import format_address
+
+        self.error = None
+        transport.sendto(data, address)
+        if self.error is None:
+            return ""
+        why = socket_error(self.error)
+        _, _, count = self.unsent.get(role, ("", "", 0))
+        self.unsent[role] = (format_address(*address), why, count + 1)
+        return why
 
     def datagram_received(self, data: bytes, addr: tuple[str | Any, int]) -> None:
         from common.messages import Health, decode
@@ -332,6 +413,21 @@ class _Answers(asyncio.DatagramProtocol):
         self.heard.clear()
         with contextlib.suppress(TimeoutError):
             await asyncio.wait_for(self.heard.wait(), max(0.0, timeout_s))
+
+
+def socket_error(exc: OSError) -> str:
+    """What a socket error says, with its errno's name (``Network is unreachable (ENETUNREACH)``; an address of the
+    other family, a getaddrinfo error: ``(EAI_ADDRFAMILY)``)."""
+    names = errno.errorcode if not isinstance(exc, socket.gaierror) else {
+        getattr(socket, name): name for name in dir(socket) if name.startswith("EAI_")}
+    name = names.get(exc.errno) if exc.errno is not None else None
+    text = exc.strerror or str(exc)
+    return f"{text} ({name})" if name else text
+
+
+def counted(count: int, noun: str) -> str:
+    """``count`` and ``noun``, plural unless the count is 1 ("1 Hello", "3 Hellos")."""
+    return f"{count} {noun}{'' if count == 1 else 's'}"
 
 
 class Output:
@@ -476,15 +572,24 @@ class Rig:
                 elapsed = time.monotonic() - launched
                 names = ", ".join(plan.role for plan in waiting)
                 if elapsed >= ready.timeout_s:
+                    unsent = "".join(f"; the {counted(count, 'Hello')} to {role} at {address} could not be sent: {why}"
+                                     for role, (address, why, count) in answers.unsent.items()
+                                     if role not in answers.up)
                     self._give_up(f"{names} not up within --ready-timeout {ready.timeout_s:g} s of launch (no answer "
-                                  "to a Hello); stopping the rig")
+                                  f"to a Hello{unsent}); stopping the rig")
                     return
                 if time.monotonic() >= next_line:
                     self.out.write(f"batteur rig: waiting for {names} to start ({elapsed:.0f} s since launch; "
                                    f"--ready-timeout {ready.timeout_s:g} s)\n")
                     next_line += READY_PROGRESS_S
                 for plan in waiting:  # where it listens: a service with its own --host (--ROLE-arg) there
-                    transport.sendto(hello, (peer_host(plan.host), plan.port))
+                    address = (peer_host(plan.host), plan.port)
+                    told = plan.role in answers.unsent
+                    why = answers.send(transport, hello, plan.role, address)
+                    if why and not told:  # at once, and once a service: it was only "no answer" at the timeout
+                        self.err.write(f"batteur rig: warning: cannot send {plan.role} a Hello at "
+                                       f"{answers.unsent[plan.role][0]}: {why}; trying until --ready-timeout "
+                                       f"{ready.timeout_s:g} s\n")
                 await answers.wait(min(READY_POLL_S, ready.timeout_s - elapsed))
         finally:
             transport.close()
@@ -682,7 +787,8 @@ def build_parser() -> argparse.ArgumentParser:
         parser.add_argument(f"--{role}-arg", action="append", metavar="ARGS",
                             help=f"extra arguments for {role}, e.g. --{role}-arg='--log-level DEBUG' (repeatable; "
                             f"split on spaces; see batteur {role} --help); a --host (or --ho) there is where {role} "
-                            "listens; a --kit (or --k, --ki) is refused")
+                            "listens; what the rig gives every service (--port, --epoch, --kit, --role) or its "
+                            "--score is refused, abbreviated too, naming the rig's own option to use")
     return parser
 
 

@@ -13,9 +13,11 @@ import sys
 import time
 from collections import Counter
 
+import numpy as np
+
 from common.exit_status import FAILED, report_error
 from common.output_paths import point_at_devnull
-from common.score.events import ScoreError
+from common.score.events import Score, ScoreError
 from common.score.hands import HandAlgorithm, Sticking
 from common.score.limbs import distribute
 from common.score.text import DEFAULT_KIT, load_score_kit, read_score, score_kit
@@ -27,6 +29,18 @@ PROG = "python -m common.score"
 def counted(count: int, noun: str) -> str:
     """``count`` and ``noun``, plural unless the count is 1 ("1 event", "3 events")."""
     return f"{count} {noun}{'' if count == 1 else 's'}"
+
+
+def length(score: Score) -> str:
+    """How long ``score`` is, as a musician counts it: beats (quarter notes, to a hundredth: 3.5 for a bar of 7/8)
+    and bars up to its end (:attr:`Score.end_beat`), "4 beats, 1 bar" for a bar of 4/4. Not the number of
+    ``score.beats``: that holds the beat at the end as well (a one-note bar of 1/4 was "2 beats")."""
+    if score.end_beat is None:  # a reader that does not know its end: the beats before the last
+        return counted(max(len(score.beats) - 1, 0), "beat")
+    end = round(score.end_beat, 2)
+    bars = int(np.count_nonzero(score.bar_beats < end - 1e-9))
+    beats = f"{end:g} beat{'' if end == 1 else 's'}"
+    return f"{beats}, {counted(bars, 'bar')}"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -57,8 +71,7 @@ def _inspect(argv: list[str] | None) -> int:
         kit = load_score_kit(score, args.kit)  # a kit line's kit it cannot load: an error naming the line
     except (ScoreError, FileNotFoundError, ValueError) as exc:  # a score or kit it cannot use
         return report_error(PROG, exc, FAILED)
-    print(f"{score.source}: {counted(len(score.events), 'event')} over {score.duration:.2f} s, "
-          f"{counted(len(score.beats), 'beat')}")
+    print(f"{score.source}: {counted(len(score.events), 'event')} over {score.duration:.2f} s, {length(score)}")
     asked = score_kit(score)
     print(f"kit: {args.kit or asked or DEFAULT_KIT}" + (" (the score's kit line)" if args.kit is None and asked
                                                          else ""))

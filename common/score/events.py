@@ -215,6 +215,10 @@ class Score:
         bars of 4 beats). A MIDI file's last start lies past its last beat: where the bar holding its end ends
         (bars after it are as long); so does a text score's ending in a rest shorter than a bar (a whole bar after
         the one starting where it ends).
+    end_beat : float or None
+        Where the score ends, in beats (quarter notes) from the first: a text score's last bar (or rest), a MIDI
+        file's end of track; its length, which ``python -m common.score`` reports. ``beats`` holds the beat at the
+        end too (the head nod's last), so it counts one beat more. None: not known (a live or performed score).
     """
 
     events: list[DrumEvent]
@@ -224,6 +228,7 @@ class Score:
     warnings: list[str] = field(default_factory=list)
     source: str = ""
     bar_beats: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    end_beat: float | None = None
 
     @property
     def duration(self) -> float:

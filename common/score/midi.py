@@ -342,6 +342,7 @@ def _read(source: str | Path | bytes, drum_channels: Collection[int] | None, dru
     beats = _beats(tempo_points, end_tick, mid.ticks_per_beat)
     score = score_from_notes(notes, drum_map=drum_map, beats=beats, source=name,
                              bar_beats=_bar_beats(meters, end_tick, mid.ticks_per_beat))
+    score.end_beat = end_tick / mid.ticks_per_beat
     score.warnings = warnings + score.warnings
     if not score.events:
         score.warnings.append(f"{name}: no drum events")

@@ -589,7 +589,7 @@ def parse_text(text: str, source: str = "text") -> TextScore:
     # at least beats 0 and 1: a score shorter than a beat (one bar of 1/8) has a beat's length to count bars by
     beats = np.array([tempo.seconds(b) for b in np.arange(0.0, max(position, 1.0) + 1e-9, 1.0)])
     score = TextScore(events=kept, beats=beats, bar_beats=np.array(bar_starts, dtype=float), duplicates=removed,
-                      source=source)
+                      source=source, end_beat=position)
     score.grip = grip
     score.nuance = nuance
     score.kit, score.kit_line = kit if kit is not None else (None, None)

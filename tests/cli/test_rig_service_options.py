@@ -14,6 +14,14 @@
   the allow-list check.
 * A refusal for want of an allow-list did not say which services lacked one: docs/deployment.md's example, with
   only physics given one, was refused.
+* A Hello the rig's asking socket could not send (an address of the other family, an unreachable one) was lost
+  without a word: the rig said only "no answer to a Hello" at ``--ready-timeout``. It now says why at once, once a
+  service, and at the timeout how many could not be sent.
+* A ``--ROLE-arg`` giving what the rig gives that service (``--physics-arg '--port N'``, ``'--score X'``,
+  ``--sound-arg '--po N'``, ...) silently overrode it (argparse keeps the last): the rig's peers, readiness checks
+  and the other services then talked to a port nobody listened on, or physics played a score the rig never checked
+  nor gave the others the kit of. Refused, naming the rig's own option; what the rig does not give, or adds to
+  (``--peer``, ``--log-level``), stays allowed.
 
 Tested on the command lines the rig builds (:func:`batteur.rig.plan_services`) or with its process runner replaced:
 no service starts; the rig's asking is tested against a Health answerer in the test's process.
@@ -196,6 +204,37 @@ def test_the_asking_address_is_the_rigs_own_without_a_host_of_their_own() -> Non
                                        "--physics-arg", "--host ::1").values())) == "::1"
 
 
+@pytest.mark.parametrize(("asking", "address", "why"), [
+    # each fails in the kernel before any packet leaves, the address being loopback all the same: an IPv6 address
+    # from an IPv4 socket (getaddrinfo refuses it), an IPv4-mapped one from a socket bound to ::1 (no route)
+    ("127.0.0.1", "::1", "(EAI_ADDRFAMILY)"),
+    ("::1", "::ffff:127.0.0.1", "Network is unreachable (ENETUNREACH)"),
+])
+def test_a_hello_the_rig_cannot_send_is_said_at_once_and_once(
+        asking: str, address: str, why: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(rig, "READY_POLL_S", 0.05)  # many Hellos, one line
+    sound = HealthAnswerer(bytes.fromhex(health("sound")), host=asking)
+    physics = free_ports(1)[0]
+    plans = [rig.ServicePlan("physics", physics, ["--host", address]),
+             rig.ServicePlan("sound", sound.port, ["--host", asking])]
+    out, err = io.StringIO(), io.StringIO()
+    asker = REAL_RIG(plans, 1.0, out=out, err=err)
+    try:
+        asyncio.run(asker._wait_ready(rig.ReadyWait(2.0, asking, time.time(), 1.0), time.monotonic()))
+    finally:
+        sound.close()
+    lines = err.getvalue().splitlines()
+    where = f"[{address}]:{physics}"
+    warned = [line for line in lines if "warning" in line]
+    assert len(warned) == 1 and why in warned[0], lines  # was: nothing until the timeout
+    assert warned[0].startswith(f"batteur rig: warning: cannot send physics a Hello at {where}: "), lines
+    assert asker.gave_up, lines
+    assert lines[-1].startswith("batteur rig: error: physics not up within --ready-timeout 2 s"), lines
+    sent = re.search(rf"the (\d+) Hellos to physics at {re.escape(where)} could not be sent: [^;]*{re.escape(why)}",
+                     lines[-1])
+    assert sent is not None and int(sent.group(1)) >= 2, lines  # sound's answer made the rig send again at least
+
+
 # --------------------------------------------------------------------------- abbreviations, as the services take them
 
 
@@ -246,6 +285,9 @@ def test_the_rig_reads_every_abbreviation_a_service_takes(role: str, capsys: pyt
     # option the rig must read as it (--ho, --ki escaped it); one the rig reads as it, the service takes or refuses
     parser = _service_parser(role)
     for flag in rig.ABBREVIATIONS:
+        if flag not in parser._option_string_actions:  # another service's (--score: physics'), refused by this one
+            assert flag not in ("--host", "--kit", "--allow", "--config", "--port", "--epoch", "--role"), flag
+            continue
         dest = parser._option_string_actions[flag].dest
         for end in range(3, len(flag) + 1):
             for argv in ([flag[:end], "VALUE"], [f"{flag[:end]}=VALUE"]):
@@ -257,6 +299,68 @@ def test_the_rig_reads_every_abbreviation_a_service_takes(role: str, capsys: pyt
                 read = rig.option_values(argv, flag) == ["VALUE"]
                 assert verdict == "refused" or read == (verdict == "taken"), (role, argv, verdict, read)
     capsys.readouterr()
+
+
+def test_every_option_the_rig_refuses_is_read_abbreviated() -> None:
+    # an option the rig refuses that it did not read abbreviated would escape the refusal as --ki X did
+    assert set(rig.RIG_GIVES) <= set(rig.ABBREVIATIONS)
+
+
+# --------------------------------------------------------------------------- what the rig gives a service itself
+
+SCORE = REPO / "tests" / "render" / "short_groove.txt"
+
+
+@pytest.mark.parametrize(("role", "given", "written", "instead"), [
+    ("physics", ["--physics-arg", "--port 9999"], "--port 9999", "use batteur rig --base-port"),
+    ("sound", ["--sound-arg=--po=9999"], "--po (--port, as argparse takes it abbreviated) 9999",
+     "use batteur rig --base-port"),
+    ("interaction", ["--interaction-arg", "--log-level INFO --epoch 5"], "--epoch 5", "use batteur rig --start-delay"),
+    ("graphics", ["--graphics-arg=--e=5"], "--e (--epoch, as argparse takes it abbreviated) 5",
+     "use batteur rig --start-delay"),
+    ("physics", ["--physics-arg", "--ro sound"], "--ro (--role, as argparse takes it abbreviated) sound",
+     "use batteur rig --services"),
+    ("physics", ["--physics-arg", f"--score {SCORE}"], f"--score {SCORE}", f"use batteur rig --score {SCORE}"),
+    ("physics", ["--score", str(SCORE), "--physics-arg", "--score demo"], "--score demo",
+     "use batteur rig --score demo"),
+    ("physics", ["--score", str(SCORE), "--physics-arg=--pl=3"],
+     "--pl (--play-at, as argparse takes it abbreviated) 3", "use batteur rig --play-at 3"),
+    ("graphics", ["--graphics-arg", "--ht 9000"], "--ht (--http-port, as argparse takes it abbreviated) 9000",
+     "use batteur rig --http-port 9000"),
+    ("sound", ["--record", "take", "--sound-arg", "--wav other.wav"], "--wav other.wav",
+     "use batteur rig --record DIR alone"),
+    ("graphics", ["--kit-dir", "kits", "--graphics-arg", "--kit-d other"],
+     "--kit-d (--kit-dir, as argparse takes it abbreviated) other", "give batteur rig --kit-dir alone"),
+    ("physics", ["--strike-period", "1", "--physics-arg", "--strike-velocity 5"], "--strike-velocity 5",
+     "use batteur rig --strike-velocity 5"),
+    ("physics", ["--strike-period", "1", "--physics-arg", "--scene drummer"], "--scene drummer",
+     "use batteur rig --strike-period alone"),
+])
+def test_what_the_rig_gives_a_service_is_refused_in_its_role_arg(
+        role: str, given: list[str], written: str, instead: str, no_rig: None, tmp_path: Path,  # noqa: F811
+        monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    monkeypatch.chdir(tmp_path)  # --record take, --kit-dir kits: nothing is created, the refusal comes first
+    err = refused(["--no-discovery", *given], capsys, 2)  # was started, the service's own winning (the last)
+    assert err.startswith(f"batteur rig: error: --{role}-arg: {written} would "), err
+    assert instead in err, err
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(("given", "role", "flag", "value"), [
+    (["--interaction-arg", "--peer sound=127.0.0.1:9203"], "interaction", "--peer", "sound=127.0.0.1:9203"),
+    (["--sound-arg", "--log-level DEBUG"], "sound", "--log-level", "DEBUG"),
+    (["--graphics-arg", "--node-id view"], "graphics", "--node-id", "view"),
+    (["--physics-arg", "--score-dir scores"], "physics", "--score-dir", "scores"),
+    (["--physics-arg", "--play-at 3"], "physics", "--play-at", "3"),  # no --score: the rig gives none
+    (["--sound-arg", "--wav take.wav"], "sound", "--wav", "take.wav"),  # no --record
+    (["--graphics-arg", "--kit-dir kits"], "graphics", "--kit-dir", "kits"),  # no --kit-dir
+    (["--physics-arg", "--scene strike --strike-period 0.5"], "physics", "--strike-period", "0.5"),
+])
+def test_what_the_rig_does_not_give_a_service_stays_allowed(given: list[str], role: str, flag: str,
+                                                            value: str) -> None:
+    plans = _plans(*given)
+    assert rig.option_values(plans[role].args, flag)[-1] == value
+    assert all(value not in plan.args for other, plan in plans.items() if other != role)
 
 
 # --------------------------------------------------------------------------- the services an allow-list is missing for

@@ -22,7 +22,7 @@ def _output(tmp_path: Path, text: str, capsys: pytest.CaptureFixture[str], *argv
 
 def _agree(line: str) -> None:
     """Every "N noun" of ``line`` has the noun singular for 1, plural otherwise."""
-    for count, noun in re.findall(r"\b(\d+) (events?|beats?|strokes?|knots?)\b", line):
+    for count, noun in re.findall(r"\b(\d+) (events?|beats?|bars?|strokes?|knots?)\b", line):
         assert noun.endswith("s") == (int(count) != 1), line
 
 

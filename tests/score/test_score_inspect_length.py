@@ -1,0 +1,59 @@
+"""``python -m common.score FILE`` says how long a score is as a musician counts it: a one-note bar of ``meter 1/4``
+was "2 beats", a bar of four quarter notes in 4/4 "5 beats": it counted :attr:`Score.beats`, which holds the beat
+at the end as well (the head nod's last). Now the beats (quarter notes) and bars up to the score's end
+(:attr:`Score.end_beat`)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import mido
+import pytest
+
+from common.score.__main__ import main
+from common.score.text import read_score
+
+
+def _first_line(path: Path, capsys: pytest.CaptureFixture[str]) -> str:
+    assert main([str(path)]) == 0
+    return capsys.readouterr().out.splitlines()[0]
+
+
+@pytest.mark.parametrize(("text", "length"), [
+    ("meter 1/4\nSN |x|\n", "1 event over 0.00 s, 1 beat, 1 bar"),  # was "2 beats"
+    ("meter 4/4\nSN |xxxx|\n", "4 events over 1.50 s, 4 beats, 1 bar"),  # was "5 beats"
+    ("meter 3/4\nSN |xxx|xxx|\n", "6 events over 2.50 s, 6 beats, 2 bars"),
+    ("meter 6/8\nSN |xxxxxx|\n", "6 events over 1.25 s, 3 beats, 1 bar"),  # six eighths: three quarter notes
+    ("meter 7/8\nSN |xxxxxxx|\n", "7 events over 1.50 s, 3.5 beats, 1 bar"),
+    ("meter 1/8\nSN |x|\n", "1 event over 0.00 s, 0.5 beats, 1 bar"),
+    ("SN |xxxx|\nrepeat 1\nrest 2\n", "8 events over 3.50 s, 10 beats, 3 bars"),  # a closing half-bar rest
+    ("at 0 SN\n", "1 event over 0.00 s, 4 beats, 1 bar"),  # `at` lines only: the bar holding the note
+])
+def test_a_text_score_reports_its_beats_and_bars(text: str, length: str, tmp_path: Path,
+                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    path = tmp_path / "score.txt"
+    path.write_text("tempo 120\n" + text)
+    assert _first_line(path, capsys) == f"{path}: {length}"
+
+
+@pytest.mark.parametrize(("end_beats", "length"), [(4.0, "4 beats, 1 bar"), (3.5, "3.5 beats, 1 bar"),
+                                                   (8.0, "8 beats, 2 bars")])
+def test_a_midi_file_reports_its_beats_and_bars_to_its_end(end_beats: float, length: str, tmp_path: Path,
+                                                           capsys: pytest.CaptureFixture[str]) -> None:
+    mid = mido.MidiFile(type=0, ticks_per_beat=480)
+    track = mido.MidiTrack()
+    mid.tracks.append(track)
+    for i in range(4):  # four quarter-note snares in 4/4, 120 bpm (a MIDI file's defaults)
+        track.append(mido.Message("note_on", channel=9, note=38, velocity=100, time=480 if i else 0))
+    track.append(mido.MetaMessage("end_of_track", time=round((end_beats - 3) * 480)))
+    path = tmp_path / "score.mid"
+    mid.save(str(path))
+    assert _first_line(path, capsys) == f"{path}: 4 events over 1.50 s, {length}"  # was one beat more when whole
+
+
+def test_the_beats_still_hold_the_one_at_the_end(tmp_path: Path) -> None:
+    # the head nod's and the position's beats are not what changed: a bar of 4/4 has its 5 beat times, 0 to 4
+    path = tmp_path / "score.txt"
+    path.write_text("tempo 120\nmeter 4/4\nSN |xxxx|\n")
+    score = read_score(path)
+    assert list(score.beats) == [0.0, 0.5, 1.0, 1.5, 2.0] and score.end_beat == 4.0
