@@ -6,12 +6,26 @@ Batteur frame (z up, drummer facing +y) is turned: ``(x, y, z) -> (x, z, -y)``;
 the drummer then faces -z in the file. Units are metres by default
 (``scale=100`` writes centimetres). Joint offsets are the first frame's
 parent-to-child offsets; the root has position and rotation channels, the
-other joints rotations only (``Zrotation Xrotation Yrotation``, degrees), or
-positions too with ``all_positions=True`` (exact even for non-rigid input).
-Rotation channels ZXY mean ``R = Rz Rx Ry``, as Blender and three.js read them. Each joint's angles are kept
-continuous from frame to frame: of the angle sets that give its rotation (any angle plus whole turns, and
-``(z + 180, 180 - x, y + 180)``), the one nearest the previous frame's, so a channel never jumps by a turn (a
-forearm turning past 180 degrees read -179 after 179: a tool interpolating the channels spun it all the way round).
+other joints rotations only (degrees), or positions too with ``all_positions=True`` (exact even for non-rigid
+input). A joint's rotation channels ``A B C`` mean ``R = Ra Rb Rc`` (intrinsic, as Blender and three.js read them).
+
+Each joint has its own channel order (:func:`rotation_orders`), chosen from the joint's range of motion so that its
+middle angle stays far from +-90 degrees, where two channels turn about the same axis (gimbal lock: the forearm,
+flexed past 90 degrees in ZXY, made steps of 80-100 degrees between frames in two channels that cancelled). For
+physics' character that is mostly ``Xrotation Zrotation Yrotation``: its joints turn their child by
+``Rx Ry Rz`` in z up, which is ``Rx Rz Ry`` in the file's y up, so each channel is one of the joint's angles (the
+Z channel its y angle negated). Other skeletons keep ``Zrotation Xrotation Yrotation``.
+
+Each joint's angles are kept continuous from frame to frame: of the angle sets that give its rotation (any angle plus
+whole turns, and ``(a + 180, 180 - b, c + 180)``), the one nearest the previous frame's, so a channel never jumps by
+a turn (a forearm turning past 180 degrees read -179 after 179: a tool interpolating the channels spun it all the
+way round).
+
+End Sites (where Blender and Maya put the tail of a last bone): for physics' character, a stick's is its tip (the
+bead's centre, physics' ``<side>_stick_tip`` link), so the stick bone runs along the stick; a foot's is the ball of
+the foot (physics' ``<side>_foot_ball``), so the foot bone points along the foot to the toes; both from the
+character snapshot (:func:`services.graphics.poser.load_character`), the foot's scaled with the body's shank. Other
+leaves continue their bone by a quarter.
 """
 
 from __future__ import annotations
@@ -26,11 +40,111 @@ from typing import IO
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from common.character import DOF_NAMES, HELD_LINKS, JOINT_LINKS
+from services.graphics.poser import CharacterInfo, is_character, load_character
 from services.graphics.sequence import PoseSequence, interpolate_pose
 from services.graphics.skeleton import body_links, guess_parents
 
 Z_UP_TO_Y_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 """Maps Batteur world vectors (z up) to BVH/glTF world vectors (y up): (x, y, z) -> (x, z, -y)."""
+
+DEFAULT_ORDER = "ZXY"
+"""Rotation channel order of a joint that is not one of physics' character (and of every joint until 7 Dec)."""
+ROTATION_ORDERS = ("XZY", "ZXY", "XYZ", "YXZ", "YZX", "ZYX")
+"""Channel orders a joint may get, preferred first: XZY, the character's own (its channels are the joint's angles),
+then ZXY, the order of other skeletons."""
+GIMBAL_MARGIN_DEG = 25.0
+"""A joint's order keeps its middle angle at least this far from +-90 degrees over the joint's range of motion
+(near +-90 the first and last channels turn about nearly the same axis: small turns of the joint need large,
+opposite steps of the two)."""
+ROM_SAMPLES = 9
+"""Angles sampled per degree of freedom across its limits (9^3 rotations per joint)."""
+STICK_PLAY_DEG = 45.0
+"""How far a stick turns in the fingers about each of its two fulcrum axes (x, then z), degrees: physics' fulcrum
+limits (+-0.8 rad); the snapshot has the stick's rest orientation in the hand, not these limits."""
+
+_JOINT_OF_LINK = {child: joint for joint, (_, child) in JOINT_LINKS.items()}
+"""Link -> the joint of physics' character that turns it relative to its parent (the pelvis: ``seat``)."""
+
+
+def _y_up(rotations: Rotation) -> Rotation:
+    """Batteur-frame rotations (z up) as the file's (y up)."""
+    return Rotation.from_matrix(Z_UP_TO_Y_UP @ rotations.as_matrix() @ Z_UP_TO_Y_UP.T)
+
+
+def range_of_motion(link: str, info: CharacterInfo | None = None) -> Rotation | None:
+    """Rotations (y up) that ``link`` of physics' character takes relative to its parent in the BVH tree, sampled
+    across its joint's limits (``ROM_SAMPLES`` per DOF); None for a link the character does not move.
+
+    A joint turns its child by ``Rx(x) Ry(y) Rz(z)`` from the parent's frame (common/character.py), so the samples
+    are those rotations over the limit box of ``info`` (default: the shipped snapshot, physics' default limits).
+    The pelvis turns on the seat and a thigh on its hip mount, both the throne's frame, which the BVH has as the
+    world's and the pelvis' (the pelvis rocks on the seat by at most 30 degrees); they are taken as the same. A
+    stick (held by its hand, no actuated DOF) takes its rest orientation in the hand (the grip's tilt, from the
+    snapshot's rest pose) turned by up to ``STICK_PLAY_DEG`` about its fulcrum's x and z axes.
+    """
+    info = info or load_character()
+    if link in _JOINT_OF_LINK:
+        joint = _JOINT_OF_LINK[link]
+        grids = []
+        for axis in "xyz":
+            k = DOF_NAMES.index(f"{joint}_{axis}")
+            grids.append(np.linspace(np.degrees(info.lower[k]), np.degrees(info.upper[k]), ROM_SAMPLES))
+        return _y_up(Rotation.from_euler("XYZ", np.array(list(itertools.product(*grids))), degrees=True))
+    if link in HELD_LINKS and link in info.names and HELD_LINKS[link] in info.names:
+        rest = info.rest
+        held, carrier = info.names.index(link), info.names.index(HELD_LINKS[link])
+        in_hand = Rotation.from_quat(rest[carrier, 3:]).inv() * Rotation.from_quat(rest[held, 3:])
+        play = np.linspace(-STICK_PLAY_DEG, STICK_PLAY_DEG, ROM_SAMPLES)
+        turns = Rotation.from_euler("XZ", np.array(list(itertools.product(play, play))), degrees=True)
+        return _y_up(in_hand * turns)
+    return None
+
+
+def choose_rotation_order(motion: list[Rotation]) -> str:
+    """The channel order for a joint whose range of motion is sampled by ``motion`` (rotations, y up; e.g. both
+    sides' of a mirrored pair, so both get the same order).
+
+    The first of ``ROTATION_ORDERS`` whose middle angle stays within 90 - ``GIMBAL_MARGIN_DEG`` degrees of 0 over
+    every sample; if none does, the one with the fewest samples beyond that (then the smallest largest middle
+    angle, then the preferred)."""
+    limit = 90.0 - GIMBAL_MARGIN_DEG
+    scored: list[tuple[float, float, int, str]] = []
+    for rank, order in enumerate(ROTATION_ORDERS):
+        with warnings.catch_warnings():  # gimbal lock: scipy warns, the middle angle is still right
+            warnings.simplefilter("ignore", UserWarning)
+            middle = np.concatenate([np.abs(r.as_euler(order, degrees=True)[:, 1]) for r in motion])
+        worst = float(middle.max())
+        if worst <= limit:
+            return order
+        scored.append((float(np.mean(middle > limit)), worst, rank, order))
+    return min(scored)[3]
+
+
+def _mirror(name: str) -> str | None:
+    for a, b in (("left_", "right_"), ("right_", "left_")):
+        if name.startswith(a):
+            return b + name[len(a):]
+    return None
+
+
+def rotation_orders(names: list[str], info: CharacterInfo | None = None) -> dict[str, str]:
+    """Rotation channel order of each body link among ``names`` (link -> e.g. ``"XZY"``, file axes, y up).
+
+    For physics' character (:func:`services.graphics.poser.is_character`) each joint's order is chosen from its
+    range of motion (:func:`range_of_motion`, :func:`choose_rotation_order`; a left and a right joint together),
+    which depends on the joints' limits and rest orientations only, never on a performance: every file of the
+    character has the same header. Other skeletons: ``DEFAULT_ORDER`` for every joint."""
+    body = [names[i] for i in body_links(names)]
+    if not is_character(names):
+        return {name: DEFAULT_ORDER for name in body}
+    info = info or load_character()
+    orders: dict[str, str] = {}
+    for name in body:
+        pair = [n for n in (name, _mirror(name)) if n is not None]
+        motion = [m for m in (range_of_motion(n, info) for n in pair) if m is not None]
+        orders[name] = choose_rotation_order(motion) if motion else DEFAULT_ORDER
+    return orders
 
 
 @dataclass(frozen=True)
@@ -48,8 +162,9 @@ class BvhInfo:
     skipped : list of str
         Links left out (not part of the body tree).
     max_error : float
-        Largest distance between a joint placed by the file's forward kinematics and its input position,
-        in the file's units (0 up to float rounding for a rigid body).
+        Largest distance between a joint placed by the file's forward kinematics (its channels before they are
+        rounded to 6 decimals) and its input position, in the file's units (0 up to float rounding for a rigid
+        body).
     """
 
     joints: list[str]
@@ -98,6 +213,11 @@ class _Layout:
                                else self.first[self.parents[i]].inv().apply(pos[0, i] - pos[0, self.parents[i]]))
         self._previous: dict[int, np.ndarray] = {}
         """Each joint's angles (degrees) in the last frame converted: the next frames continue from them."""
+        self.character = load_character() if is_character(names) else None
+        """Physics' character snapshot when the skeleton is that character's (its End Sites and orders)."""
+        by_name = rotation_orders(names, self.character)
+        self.orders: dict[int, str] = {i: by_name.get(names[i], DEFAULT_ORDER) for i in self.order}
+        """Each joint's rotation channel order (intrinsic, file axes), e.g. ``"XZY"``."""
         self.hierarchy: list[str] = ["HIERARCHY"]
         self.channel_order: list[int] = []
         """Links in the order their channels appear in a motion row."""
@@ -117,14 +237,14 @@ class _Layout:
         return pos, rots
 
     def _emit(self, i: int, depth: int) -> None:
-        lines, scale = self.hierarchy, self.scale
+        lines = self.hierarchy
         pad = "  " * depth
         kind = "ROOT" if i == self.root else "JOINT"
         lines.append(f"{pad}{kind} {self.names[i]}")
         lines.append(f"{pad}{{")
         ox, oy, oz = self.offsets[i]
         lines.append(f"{pad}  OFFSET {ox:.6f} {oy:.6f} {oz:.6f}")
-        rot = "Zrotation Xrotation Yrotation"
+        rot = " ".join(f"{axis}rotation" for axis in self.orders[i])
         if i == self.root or self.all_positions:
             lines.append(f"{pad}  CHANNELS 6 Xposition Yposition Zposition {rot}")
         else:
@@ -134,18 +254,56 @@ class _Layout:
             for child in self.children[i]:
                 self._emit(child, depth + 1)
         else:
-            offset = self.offsets[i]
-            tip = offset * 0.25 if np.linalg.norm(offset) > 1e-6 else np.array([0.0, 0.05 * scale, 0.0])
-            tip = self.first[i].inv().apply(self.first[self.parents[i]].apply(tip)) if i != self.root else tip
+            tip = self.end_site(i)
             lines.append(f"{pad}  End Site")
             lines.append(f"{pad}  {{")
             lines.append(f"{pad}    OFFSET {tip[0]:.6f} {tip[1]:.6f} {tip[2]:.6f}")
             lines.append(f"{pad}  }}")
         lines.append(f"{pad}}}")
 
+    def end_site(self, i: int) -> np.ndarray:
+        """The End Site of leaf joint ``i`` in its own frame, file units (see the module docstring)."""
+        name, scale = self.names[i], self.scale
+        info = self.character
+        effector = None if info is None else next((offset for link, offset in info.effectors.values()
+                                                   if link == name), None)
+        if info is not None and effector is not None:
+            size = 1.0
+            if name not in HELD_LINKS and i != self.root:  # a body segment: as the body's size (a stick: as it is)
+                parent = self.names[self.parents[i]]
+                if parent in info.names:
+                    rest = info.rest
+                    shipped = float(np.linalg.norm(rest[info.names.index(name), :3]
+                                                   - rest[info.names.index(parent), :3]))
+                    size = float(np.linalg.norm(self.offsets[i])) / scale / shipped if shipped > 1e-6 else 1.0
+            return np.asarray(Z_UP_TO_Y_UP @ effector * size * scale, dtype=float)
+        offset = self.offsets[i]
+        tip = offset * 0.25 if np.linalg.norm(offset) > 1e-6 else np.array([0.0, 0.05 * scale, 0.0])
+        return self.first[i].inv().apply(self.first[self.parents[i]].apply(tip)) if i != self.root else tip
+
     def header(self, frames: int, frame_time: float) -> list[str]:
         """The file's lines before its motion rows (``frame_time``: seconds)."""
         return [*self.hierarchy, "MOTION", f"Frames: {frames}", f"Frame Time: {frame_time:.8f}"]
+
+    def forward_kinematics(self, motion: np.ndarray) -> dict[int, np.ndarray]:
+        """Each joint's position (N, 3), file units, placed by motion rows ``motion`` (N, channels) as a BVH
+        reader places it: offsets (or position channels) turned by the parents' rotation channels."""
+        world_r: dict[int, Rotation] = {}
+        world_p: dict[int, np.ndarray] = {}
+        column = 0
+        for i in self.channel_order:  # parents before children
+            if i == self.root or self.all_positions:
+                position, column = motion[:, column:column + 3], column + 3
+            else:
+                position = np.tile(self.offsets[i], (len(motion), 1))
+            local = Rotation.from_euler(self.orders[i], motion[:, column:column + 3], degrees=True)
+            column += 3
+            if i == self.root:
+                world_r[i], world_p[i] = local, np.array(position)
+            else:
+                p = self.parents[i]
+                world_r[i], world_p[i] = world_r[p] * local, world_p[p] + world_r[p].apply(position)
+        return world_p
 
     def motion(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict[int, Rotation]]:
         """Motion rows (N, channels) of frames ``values`` (N, L, 7), with their positions and orientations."""
@@ -158,16 +316,17 @@ class _Layout:
             local = rots[i] if i == root else rots[parents[i]].inv() * rots[i]
             with warnings.catch_warnings():  # at gimbal lock scipy picks one of the equivalent angle sets: still exact
                 warnings.simplefilter("ignore", UserWarning)
-                angles = _continuous(local.as_euler("ZXY", degrees=True), self._previous.get(i))
+                angles = _continuous(local.as_euler(self.orders[i], degrees=True), self._previous.get(i))
             self._previous[i] = angles[-1]
             cols.append(angles)
         return np.concatenate(cols, axis=1), pos, rots
 
 
 def _continuous(angles: np.ndarray, previous: np.ndarray | None) -> np.ndarray:
-    """ZXY angles (N, 3), degrees, of one joint made continuous: per frame, of the sets giving the same rotation
-    (whole turns added to any angle; ``(z + 180, 180 - x, y + 180)``), the nearest the previous frame's. The first
-    frame is kept as it is when no ``previous`` (the last frame of the chunk before) is given."""
+    """Euler angles (N, 3) of one joint, degrees, in any order of three different axes, made continuous: per frame,
+    of the sets giving the same rotation (whole turns added to any angle; ``(a + 180, 180 - b, c + 180)``), the
+    nearest the previous frame's. The first frame is kept as it is when no ``previous`` (the last frame of the chunk
+    before) is given."""
     out = angles.copy()
     prev = None if previous is None else [float(v) for v in previous]
     for k in range(len(out)):
@@ -216,26 +375,16 @@ def write_bvh(sequence: PoseSequence, path: Path, rate_hz: float | None = None, 
         rate_hz = 1.0 / dt
     seq = sequence.resample(rate_hz, start=start, end=end)
     layout = _Layout.of(seq.names, seq.values[0], scale, all_positions)
-    motion, pos, rots = layout.motion(seq.values)
+    motion, pos, _ = layout.motion(seq.values)
     frame_time = 1.0 / rate_hz
     lines = layout.header(len(seq.times), frame_time)
     lines += _rows(motion)
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
-    root, order, parents, offsets = layout.root, layout.order, layout.parents, layout.offsets
-
-    # forward kinematics of what was written, against the input (reports non-rigid input)
-    error = 0.0
-    world_r: dict[int, Rotation] = {}
-    world_p: dict[int, np.ndarray] = {}
-    for i in order:
-        if i == root:
-            world_r[i], world_p[i] = rots[i], pos[:, i]
-        else:
-            p = parents[i]
-            world_r[i] = world_r[p] * (rots[p].inv() * rots[i])
-            offset = np.tile(offsets[i], (len(seq.times), 1))
-            world_p[i] = pos[:, i] if all_positions else world_p[p] + world_r[p].apply(offset)
-        error = max(error, float(np.abs(world_p[i] - pos[:, i]).max()))
+    # forward kinematics of what was written (its angles, before rounding), against the input (reports non-rigid
+    # input, and a channel order the angles were not taken in)
+    placed = layout.forward_kinematics(motion)
+    error = max(float(np.abs(placed[i] - pos[:, i]).max()) for i in layout.order)
+    order = layout.order
     skipped = [n for k, n in enumerate(seq.names) if k not in set(order)]
     return BvhInfo([seq.names[i] for i in order], len(seq.times), frame_time, skipped, error)
 
