@@ -16,6 +16,18 @@ physics' character that is mostly ``Xrotation Zrotation Yrotation``: its joints 
 ``Rx Ry Rz`` in z up, which is ``Rx Rz Ry`` in the file's y up, so each channel is one of the joint's angles (the
 Z channel its y angle negated). Other skeletons keep ``Zrotation Xrotation Yrotation``.
 
+The legs of physics' character hang from the throne, not from the pelvis: each thigh turns on its hip mount, a base
+fixed on the throne where the hip joint centre is at rest, and the pelvis rocks on the seat point without swinging
+them (common/character.py ``HIP_MOUNTS``). So for that character the file has one joint more than the links,
+``seat`` (``THRONE_JOINT``): the pelvis' child at the seat point (the pelvis' origin: the seat joint has no offset),
+turned back by the pelvis' rotation so that its frame is the throne's (the world's: physics loads every base
+unrotated), and the thighs are its children, their offsets the hip mounts' from the seat point. Hung from the
+pelvis with the first frame's offsets, the hips swung with the pelvis: when it rocked (the demo's fill) the file
+put the legs up to 9.4 cm from physics'. The thighs' rotations are then the hip joints' own (relative to the
+throne), and the thighs stay the pelvis' descendants (readers that look for the legs under the hips find them).
+(With physics' ``--floating-base`` the trunk's base, pinned to the throne, gives a little and the legs' bases do
+not: the thighs are then off by that give.)
+
 Each joint's angles are kept continuous from frame to frame: of the angle sets that give its rotation (any angle plus
 whole turns, and ``(a + 180, 180 - b, c + 180)``), the one nearest the previous frame's, so a channel never jumps by
 a turn (a forearm turning past 180 degrees read -179 after 179: a tool interpolating the channels spun it all the
@@ -40,7 +52,7 @@ from typing import IO
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from common.character import DOF_NAMES, HELD_LINKS, JOINT_LINKS
+from common.character import BASE_LINK, DOF_NAMES, HELD_LINKS, HIP_MOUNTS, JOINT_LINKS
 from services.graphics.poser import CharacterInfo, is_character, load_character
 from services.graphics.sequence import PoseSequence, interpolate_pose
 from services.graphics.skeleton import body_links, guess_parents
@@ -65,6 +77,14 @@ limits (+-0.8 rad); the snapshot has the stick's rest orientation in the hand, n
 
 _JOINT_OF_LINK = {child: joint for joint, (_, child) in JOINT_LINKS.items()}
 """Link -> the joint of physics' character that turns it relative to its parent (the pelvis: ``seat``)."""
+THRONE_JOINT = BASE_LINK
+"""The joint the file adds for physics' character: the throne's frame at the seat point, the pelvis' child and the
+thighs' parent (see the module docstring); named as physics' trunk base, which no pose carries."""
+_PELVIS = next(child for parent, child in JOINT_LINKS.values() if parent == BASE_LINK)
+"""The link that turns on the seat point (the pelvis): the throne joint's parent, at its origin."""
+ON_THRONE = tuple(child for parent, child in JOINT_LINKS.values() if parent in HIP_MOUNTS.values())
+"""Links of physics' character whose joint's parent is fixed on the throne (the thighs): the throne joint's
+children."""
 
 
 def _y_up(rotations: Rotation) -> Rotation:
@@ -78,12 +98,15 @@ def range_of_motion(link: str, info: CharacterInfo | None = None) -> Rotation | 
 
     A joint turns its child by ``Rx(x) Ry(y) Rz(z)`` from the parent's frame (common/character.py), so the samples
     are those rotations over the limit box of ``info`` (default: the shipped snapshot, physics' default limits).
-    The pelvis turns on the seat and a thigh on its hip mount, both the throne's frame, which the BVH has as the
-    world's and the pelvis' (the pelvis rocks on the seat by at most 30 degrees); they are taken as the same. A
-    stick (held by its hand, no actuated DOF) takes its rest orientation in the hand (the grip's tilt, from the
-    snapshot's rest pose) turned by up to ``STICK_PLAY_DEG`` about its fulcrum's x and z axes.
+    The pelvis turns on the seat and a thigh on its hip mount, both the throne's frame, which the file has as the
+    world's and as its throne joint's (``THRONE_JOINT``, whose rotation is the pelvis' undone: the pelvis' range
+    inverted). A stick (held by its hand, no actuated DOF) takes its rest orientation in the hand (the grip's tilt,
+    from the snapshot's rest pose) turned by up to ``STICK_PLAY_DEG`` about its fulcrum's x and z axes.
     """
     info = info or load_character()
+    if link == THRONE_JOINT:
+        pelvis = range_of_motion(_PELVIS, info)
+        return None if pelvis is None else pelvis.inv()
     if link in _JOINT_OF_LINK:
         joint = _JOINT_OF_LINK[link]
         grids = []
@@ -134,10 +157,12 @@ def rotation_orders(names: list[str], info: CharacterInfo | None = None) -> dict
     For physics' character (:func:`services.graphics.poser.is_character`) each joint's order is chosen from its
     range of motion (:func:`range_of_motion`, :func:`choose_rotation_order`; a left and a right joint together),
     which depends on the joints' limits and rest orientations only, never on a performance: every file of the
-    character has the same header. Other skeletons: ``DEFAULT_ORDER`` for every joint."""
+    character has the same header; its throne joint (``THRONE_JOINT``) too. Other skeletons: ``DEFAULT_ORDER``
+    for every joint."""
     body = [names[i] for i in body_links(names)]
     if not is_character(names):
         return {name: DEFAULT_ORDER for name in body}
+    body.append(THRONE_JOINT)
     info = info or load_character()
     orders: dict[str, str] = {}
     for name in body:
@@ -154,7 +179,7 @@ class BvhInfo:
     Attributes
     ----------
     joints : list of str
-        Joint names in file order (the root first).
+        Joint names in file order (the root first); for physics' character also ``THRONE_JOINT``, which is no link.
     frames : int
         Motion frames.
     frame_time : float
@@ -174,9 +199,8 @@ class BvhInfo:
     max_error: float
 
 
-def _tree(names: list[str]) -> tuple[int, list[int], dict[int, list[int]]]:
-    parents = guess_parents(names)
-    body = set(body_links(names))
+def _tree(names: list[str], parents: list[int], body_list: list[int]) -> tuple[int, list[int], dict[int, list[int]]]:
+    body = set(body_list)
     roots = [i for i in body if parents[i] < 0]
     if not roots:
         raise ValueError("no body root link (pelvis/root/hips) among the link names")
@@ -200,11 +224,24 @@ class _Layout:
     one after the other)."""
 
     def __init__(self, names: list[str], first_frame: np.ndarray, scale: float, all_positions: bool) -> None:
+        self.parents = guess_parents(names)
+        body = body_links(names)
+        self.character = load_character() if is_character(names) else None
+        """Physics' character snapshot when the skeleton is that character's (its End Sites and orders)."""
+        self.throne: int | None = None
+        """Index of the throne joint (``THRONE_JOINT``, after the links) for physics' character, else None."""
+        self.pelvis = -1
+        if self.character is not None and THRONE_JOINT not in names:
+            self.throne, self.pelvis = len(names), names.index(_PELVIS)
+            names = [*names, THRONE_JOINT]
+            self.parents.append(self.pelvis)
+            for link in ON_THRONE:
+                self.parents[names.index(link)] = self.throne
+            body = [*body, self.throne]
         self.names = names
         self.scale = scale
         self.all_positions = all_positions
-        self.root, self.order, self.children = _tree(names)
-        self.parents = guess_parents(names)
+        self.root, self.order, self.children = _tree(names, self.parents, body)
         pos, rots = self._world(first_frame[None])
         self.first = {i: Rotation.from_quat(rots[i].as_quat()[0]) for i in self.order}
         self.offsets: dict[int, np.ndarray] = {}
@@ -213,8 +250,6 @@ class _Layout:
                                else self.first[self.parents[i]].inv().apply(pos[0, i] - pos[0, self.parents[i]]))
         self._previous: dict[int, np.ndarray] = {}
         """Each joint's angles (degrees) in the last frame converted: the next frames continue from them."""
-        self.character = load_character() if is_character(names) else None
-        """Physics' character snapshot when the skeleton is that character's (its End Sites and orders)."""
         by_name = rotation_orders(names, self.character)
         self.orders: dict[int, str] = {i: by_name.get(names[i], DEFAULT_ORDER) for i in self.order}
         """Each joint's rotation channel order (intrinsic, file axes), e.g. ``"XZY"``."""
@@ -229,7 +264,13 @@ class _Layout:
         return cls(list(names), np.asarray(first_frame, dtype=float), scale, all_positions)
 
     def _world(self, values: np.ndarray) -> tuple[np.ndarray, dict[int, Rotation]]:
-        """Positions (N, L, 3) in file units and orientations of the body links, y up."""
+        """Positions (N, J, 3) in file units and orientations of the body's joints, y up, of frames ``values``
+        (N, L, 7): the links', then the throne joint's (if any: at the pelvis' origin, the world's orientation)."""
+        if self.throne is not None:
+            throne = np.zeros((len(values), 1, 7))
+            throne[:, 0, :3] = values[:, self.pelvis, :3]
+            throne[:, 0, 6] = 1.0
+            values = np.concatenate([values, throne], axis=1)
         c = Z_UP_TO_Y_UP
         pos = values[:, :, :3] @ c.T * self.scale  # (N, L, 3)
         rots = {i: Rotation.from_matrix(c @ Rotation.from_quat(values[:, i, 3:]).as_matrix() @ c.T)
@@ -386,7 +427,7 @@ def write_bvh(sequence: PoseSequence, path: Path, rate_hz: float | None = None, 
     error = max(float(np.abs(placed[i] - pos[:, i]).max()) for i in layout.order)
     order = layout.order
     skipped = [n for k, n in enumerate(seq.names) if k not in set(order)]
-    return BvhInfo([seq.names[i] for i in order], len(seq.times), frame_time, skipped, error)
+    return BvhInfo([layout.names[i] for i in order], len(seq.times), frame_time, skipped, error)
 
 
 class BvhStream:
