@@ -19,6 +19,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "rig": ("batteur.rig", "start all services as local processes; Ctrl-C stops them together"),
     "render": ("batteur.render", "render a score offline through the same cores as the rig"),
     "evaluate": ("batteur.evaluate", "render scores (or read renders) and measure them against the score"),
+    "compare": ("batteur.compare", "a student's take (MIDI or audio) against the exercise: missed, extra, timing"),
     "physics": ("services.physics.node", "run the physics service alone"),
     "interaction": ("services.interaction.node", "run the interaction service alone"),
     "sound": ("services.sound.node", "run the sound service alone (e.g. on a second machine)"),

@@ -1,0 +1,670 @@
+"""``batteur compare EXERCISE TAKE``: a student's take (MIDI from an e-kit, or a recording) against the exercise.
+
+``batteur evaluate`` judges Batteur's own renders against their score; this command judges a performance it did
+not make. The take is read (a MIDI file), or transcribed in-process with the recogniser ``batteur transcribe``
+uses (an audio file); its notes are lined up with the exercise's (the student starts whenever they like) and
+matched one to one with evaluate's matching (:func:`batteur.evaluate.match`: same kit object, within the
+tolerance, the most pairs and then the least total error). The report says, per drum, what was played, missed
+and added, how early or late and how steadily, where each miss and extra is (bar and beat), and whether the
+written dynamics came through (docs/evaluation.md, "A student's take against the exercise").
+
+Alignment (:func:`align`): every pair of notes of one drum, one written and one played, proposes an offset (take
+time - exercise time); the offsets most pairs agree on (within the tolerance) are tried with the full matching,
+and the one matching most notes wins, set so that the median matched note is on time. Early and late are thus
+measured against the student's own pulse, not against an absolute start nobody can know; ``--offset`` forces the
+alignment (and then the means are against that start).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from collections import Counter, defaultdict
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from batteur.errors import report_error
+from common.arg_types import take_negative_values
+from common.kit import EventType, Kit
+from common.score.events import Score
+
+if TYPE_CHECKING:
+    from batteur.evaluate import NoteRef
+
+PROG = "batteur compare"
+"""The command's name in its usage and error lines."""
+DEFAULT_TOLERANCE_S = 0.050
+"""A played note within this of the written one counts, seconds: a person's take is not a render's (evaluate's
+10/25 ms are for the simulated drummer); 50 ms is the onset-detection convention (MIREX) and what musicians hear
+as "on the beat" for a student, about the width of a loose flam, and under half a sixteenth note up to 150 bpm
+(100 ms), so a note cannot match its neighbour on the grid. The transcriber's 10 ms frames also need the slack."""
+TOLERANCE_RANGE_S = (0.001, 0.5)
+"""Accepted ``--tolerance``, seconds."""
+TEMPO_SCALE_RANGE = (0.1, 10.0)
+"""Accepted ``--tempo-scale`` (as ``batteur render``'s)."""
+LOOSE_S = 0.150
+"""A missed note with an unmatched note of its drum this near is told as played early or late, seconds."""
+CANDIDATES = 12
+"""Offsets tried with the full matching (:func:`align`)."""
+MAX_PAIRS = 2_000_000
+"""Offset proposals per drum at most (:func:`candidate_offsets`): the written notes are thinned evenly beyond it."""
+TEMPO_GRID = (0.5, 2.0, 0.02)
+"""Tempo ratios tried when most notes do not match (lowest, highest, relative step), refined by a tenth of it."""
+TEMPO_NOTES = 200
+"""Written notes (the first) the tempo grid is tried on (:func:`find_tempo`)."""
+TEMPO_CHECK_BELOW = 0.8
+"""The tempo is looked for when fewer than this share of the written notes are played."""
+FEW_LEVELS = 4
+"""Written velocity levels of one drum up to which its loudest is taken for accents (:func:`dynamics`)."""
+MAX_LISTED = 60
+"""Misses and extras the text report lists at most (a take at the wrong tempo misses nearly everything)."""
+DEMO = "demo"
+"""EXERCISE ``demo`` (with no file of that name): the shipped demo groove, as ``batteur rig --score demo``."""
+
+
+class CompareError(ValueError):
+    """An input the command cannot use; the message names it (exit status 1)."""
+
+
+@dataclass(frozen=True)
+class Played:
+    """A note of the take: time (s, the take's clock), kit object, velocity [0, 1], event name."""
+
+    time: float
+    drum: str
+    velocity: float
+    event: str
+
+
+@dataclass
+class Take:
+    """The take's notes and what it is: ``kind`` ``MIDI`` or ``audio (WAV)``; ``heard``: the kit objects the
+    transcriber can name (None: a MIDI take names every drum)."""
+
+    notes: list[Played]
+    kind: str
+    heard: frozenset[str] | None = None
+    warnings: list[str] = field(default_factory=list)
+
+
+# ---------------------------------------------------------------------- reading
+
+
+def read_exercise(given: str) -> Score:
+    """The exercise's :class:`~common.score.events.Score` (any score Batteur reads, or ``demo``);
+    :class:`CompareError` when it cannot be used."""
+    from common.score.events import ScoreError, audio_kind
+    from common.score.text import read_score
+
+    path = Path(given)
+    if given == DEMO and not path.exists():
+        from batteur.demo import DEMO_GROOVE
+        from common.score.text import parse_text
+
+        return parse_text(DEMO_GROOVE, source="demo")
+    head = _head(path)
+    if head is not None and audio_kind(head) is not None:
+        raise CompareError(f"EXERCISE {path} is a recording ({audio_kind(head)}), not a score: give the score "
+                           f"first and the take second ({PROG} EXERCISE TAKE)")
+    try:
+        score = read_score(path)
+    except ScoreError as exc:
+        raise CompareError(f"EXERCISE {exc}") from None
+    if not score.events:
+        raise CompareError(f"EXERCISE {path}: the score holds no drum notes")
+    return score
+
+
+def _head(path: Path) -> bytes | None:
+    """A regular file's first bytes, else None (the reader says what is wrong with it)."""
+    try:
+        if not path.is_file():
+            return None
+        with path.open("rb") as handle:
+            return handle.read(4096)
+    except OSError:
+        return None
+
+
+def read_take(path: Path, kit: Kit, warn: Callable[[str], None]) -> Take:
+    """The take's notes with their kit objects: a MIDI file's, or an audio file's as the recogniser hears them;
+    :class:`CompareError` for a file it cannot use (a score, an unreadable file, no notes)."""
+    from common.input_file import file_problem
+    from common.score.events import ScoreError, audio_kind, looks_like_text, starts_as_midi
+    from common.score.text import MIDI_SUFFIXES
+
+    problem = file_problem(path, "a take (MIDI or audio file)")
+    if problem is not None:
+        raise CompareError(f"TAKE {path}: {problem}")
+    head = _head(path)
+    if head is None:
+        raise CompareError(f"TAKE {path}: cannot read the file")
+    if not head:
+        raise CompareError(f"TAKE {path}: the file is empty (0 bytes)")
+    if not starts_as_midi(head) and looks_like_text(head):  # also a text score named .mid
+        raise CompareError(f"TAKE {path} {_text_take(path)}: give a MIDI file of the take (an e-kit's) or its audio "
+                           "(WAV, FLAC...)")
+    if starts_as_midi(head) or path.suffix.lower() in MIDI_SUFFIXES:  # a .mid that is not MIDI: the reader says
+        from common.score.midi import read_midi
+
+        try:
+            score = read_midi(path)
+        except ScoreError as exc:
+            raise CompareError(f"TAKE {exc}") from None
+        notes = [Played(e.time, drum_of(kit, e.event, e.pitch), e.velocity, e.event.value) for e in score.events]
+        if not notes:
+            raise CompareError(f"TAKE {path}: the MIDI file holds no drum notes (nothing was played)")
+        return Take(notes, "MIDI", warnings=list(score.warnings))
+    kind = audio_kind(head)
+    if kind is not None:
+        return transcribed(path, kit, kind, warn)
+    raise CompareError(f"TAKE {path}: neither a MIDI file nor an audio file (WAV, FLAC, OGG, AIFF, MP3)")
+
+
+def _text_take(path: Path) -> str:
+    """What a text file given as the take is: a score (it reads as one), or other text."""
+    from common.score.text import parse_text
+
+    try:
+        parse_text(path.read_text(encoding="utf-8"))
+    except (ValueError, OSError):  # not a score either (or not UTF-8 text after its first bytes)
+        return "is a text file, not a recording"
+    return "is a score, not a recording (to compare two scores, render one first: batteur render)"
+
+
+def transcribed(path: Path, kit: Kit, kind: str, warn: Callable[[str], None]) -> Take:
+    """An audio take's notes as ``batteur transcribe`` hears them (its model, in-process)."""
+    from services.recogniser.classes import CLASSES
+    from services.recogniser.errors import RecogniserError
+    from services.recogniser.transcribe import transcribe_file
+
+    try:
+        events, _ = transcribe_file(path, warn=lambda text: warn(f"TAKE {text}"))
+    except RecogniserError as exc:
+        raise CompareError(f"TAKE {exc}") from None
+    if not events:
+        raise CompareError(f"TAKE {path}: no drum strike recognised in the recording (nothing to compare)")
+
+    def drum(event: EventType) -> str:
+        return drum_of(kit, event, None)
+
+    notes = [Played(e.time, drum(CLASSES[e.cls].event_type), e.velocity / 127, CLASSES[e.cls].event_type.value)
+             for e in events]
+    return Take(notes, f"audio ({kind})", heard=frozenset(drum(c.event_type) for c in CLASSES))
+
+
+def drum_of(kit: Kit, event: EventType, pitch: int | None) -> str:
+    """The kit object a note sounds on, as evaluate matches (pedal events on the instrument the pedal drives);
+    an event the kit has no object for keeps its own name (it matches only its like)."""
+    from batteur.evaluate import expected_instrument
+
+    if event not in kit.events:
+        return event.value.lower()
+    return expected_instrument(kit, event, pitch)
+
+
+# ---------------------------------------------------------------------- alignment and matching
+
+
+def candidate_offsets(written: Sequence[NoteRef], played: Sequence[Played], tolerance: float,
+                      limit: int = CANDIDATES) -> list[float]:
+    """Offsets (take time - exercise time, s) that line most pairs of notes of one drum up within ``tolerance``,
+    the best first, at least ``tolerance`` apart: every (written, played) pair of one drum proposes one, and an
+    offset's support is the proposals within ``tolerance`` above it (their median is the candidate)."""
+    by_drum: dict[str, list[float]] = defaultdict(list)
+    for p in played:
+        by_drum[p.drum].append(p.time)
+    proposals = []
+    for drum, times in _times_by_drum(written).items():
+        if drum not in by_drum:
+            continue
+        a, b = np.asarray(times), np.asarray(by_drum[drum])
+        if len(a) * len(b) > MAX_PAIRS:  # a long piece: written notes thinned evenly (a repeated figure stays)
+            a = a[np.linspace(0, len(a) - 1, max(1, MAX_PAIRS // len(b))).astype(int)]
+        proposals.append((b[None, :] - a[:, None]).ravel())
+    if not proposals:
+        return []
+    d = np.sort(np.concatenate(proposals))
+    ends = np.searchsorted(d, d + tolerance, side="right")
+    support = ends - np.arange(len(d))
+    chosen: list[float] = []
+    for i in np.argsort(-support, kind="stable"):
+        centre = float(np.median(d[i:ends[i]]))
+        if all(abs(centre - c) > tolerance for c in chosen):
+            chosen.append(centre)
+            if len(chosen) >= limit:
+                break
+    return chosen
+
+
+def _times_by_drum(written: Sequence[NoteRef]) -> dict[str, list[float]]:
+    out: dict[str, list[float]] = defaultdict(list)
+    for n in written:
+        out[n.instrument].append(n.time)
+    return out
+
+
+def matched(written: Sequence[NoteRef], played: Sequence[Played], offset: float, tolerance: float
+            ) -> list[tuple[int, int]]:
+    """Evaluate's one-to-one pairs (written position, played position) with the take moved back by ``offset``."""
+    from batteur.evaluate import Hit, match
+
+    return match(written, [Hit(p.time - offset, p.drum, p.velocity) for p in played], tolerance)
+
+
+def align(written: Sequence[NoteRef], played: Sequence[Played], tolerance: float, limit: int = CANDIDATES
+          ) -> tuple[float, list[tuple[int, int]]]:
+    """The offset (s) lining the take up with the exercise, and the pairs it gives: of the
+    :func:`candidate_offsets`, the one matching most notes (then: least total error; then: the take starting
+    earliest in the exercise), moved so that the median matched note is on time. (0.0, []) when nothing
+    matches."""
+    best: tuple[tuple[int, float, float], float, list[tuple[int, int]]] | None = None
+    for start in candidate_offsets(written, played, tolerance, limit):
+        offset, pairs = start, matched(written, played, start, tolerance)
+        for _ in range(3):  # the median moves the pairs a little; settles in one or two rounds
+            if not pairs:
+                break
+            moved = offset + float(np.median([played[j].time - offset - written[i].time for i, j in pairs]))
+            if abs(moved - offset) < 1e-9:
+                break
+            again = matched(written, played, moved, tolerance)
+            if len(again) < len(pairs):
+                break
+            offset, pairs = moved, again
+        if not pairs:
+            continue
+        error = sum(abs(played[j].time - offset - written[i].time) for i, j in pairs)
+        key = (len(pairs), -round(error, 9), -min(written[i].time for i, _ in pairs))
+        if best is None or key > best[0]:
+            best = (key, offset, pairs)
+    return (0.0, []) if best is None else (best[1], best[2])
+
+
+def scaled(written: Sequence[NoteRef], scale: float) -> list[NoteRef]:
+    """The written notes played ``scale`` times faster (times divided by it)."""
+    return [replace(n, time=n.time / scale) for n in written]
+
+
+def find_tempo(written: Sequence[NoteRef], played: Sequence[Played], tolerance: float, offset: float | None
+               ) -> tuple[float, int]:
+    """The tempo ratio (take / exercise) matching most notes, and how many it matches: over :data:`TEMPO_GRID`
+    (a coarse geometric grid, then a finer one around its best) on the exercise's first :data:`TEMPO_NOTES`
+    notes (quick on a long piece), then fitted to the played times of the pairs found (a line through them: a
+    long piece drifts out of the tolerance at a grid step's error). ``offset`` forced, else aligned at each
+    ratio."""
+
+    def pairs_at(scale: float, notes: Sequence[NoteRef], limit: int = 3) -> list[tuple[int, int]]:
+        moved = scaled(notes, scale)
+        if offset is not None:
+            return matched(moved, played, offset, tolerance)
+        return align(moved, played, tolerance, limit=limit)[1]
+
+    head = written[:TEMPO_NOTES]
+    low, high, step = TEMPO_GRID
+    grid = np.exp(np.arange(math.log(low), math.log(high) + 1e-9, math.log1p(step)))
+    best = float(max(grid, key=lambda s: (len(pairs_at(float(s), head)), -abs(math.log(s)))))
+    fine = best * np.exp(np.linspace(-math.log1p(step), math.log1p(step), 21))
+    scale = float(max(fine, key=lambda s: (len(pairs_at(float(s), head)), -abs(math.log(s / best)))))
+    found = pairs_at(scale, written, CANDIDATES)
+    for _ in range(3):  # the line through the pairs: take time = exercise time / scale + offset
+        if len(found) < 2 or offset is not None:
+            break
+        x = np.array([written[i].time for i, _ in found])
+        y = np.array([played[j].time for _, j in found])
+        if np.ptp(x) <= 0:
+            break
+        slope = float(np.polyfit(x, y, 1)[0])
+        if not slope > 0:
+            break
+        if abs(slope * scale - 1.0) < 1e-6:
+            break
+        again = pairs_at(1.0 / slope, written, CANDIDATES)
+        if len(again) < len(found):  # as many: the line's, the least-squares ratio
+            break
+        scale, found = 1.0 / slope, again
+    return scale, len(found)
+
+
+# ---------------------------------------------------------------------- the report
+
+
+def position(score: Score, written_time: float) -> dict[str, Any]:
+    """Bar and beat (both from 1, the beat fractional) of a time on the exercise's written clock; before its first
+    beat, none."""
+    from common.score.position import bar_beat
+
+    where = bar_beat(score, written_time)
+    if where is None:
+        return {"bar": None, "beat": None}
+    return {"bar": where.bar + 1, "beat": round(where.beat + 1, 3)}
+
+
+def where_text(entry: dict[str, Any]) -> str:
+    """``bar 3, beat 2.5`` (``before bar 1`` ahead of the first beat)."""
+    if entry["bar"] is None:
+        return "before bar 1"
+    return f"bar {entry['bar']}, beat {entry['beat']:g}"
+
+
+def timing(errors_s: Sequence[float]) -> dict[str, float | int | None]:
+    """Mean and standard deviation of played - written times, ms (positive: late), and how many."""
+    if not errors_s:
+        return {"mean_ms": None, "sd_ms": None, "n": 0}
+    e = np.asarray(errors_s) * 1000.0
+    # + 0.0: no "-0.0 ms" for a mean rounded to zero
+    return {"mean_ms": round(float(e.mean()), 1) + 0.0, "sd_ms": round(float(e.std()), 1) + 0.0, "n": int(e.size)}
+
+
+def dynamics(pairs: Sequence[tuple[float, float]]) -> dict[str, Any] | None:
+    """Written against played velocities of one drum's matched notes, MIDI 0-127 (``pairs``: (written, played)
+    in [0, 1]): the played mean and spread, the rank agreement of written and played (evaluate's Spearman; None
+    when either side is flat), and for a score of a few written levels (a text score's ghost, plain and accent:
+    at most :data:`FEW_LEVELS`) the played mean per level and whether the loudest (the accents) was played louder
+    on average than the rest. None without pairs."""
+    from batteur.evaluate import spearman
+
+    if not pairs:
+        return None
+    played = [p * 127 for _, p in pairs]
+    out: dict[str, Any] = {"played_mean": round(float(np.mean(played)), 1),
+                           "played_sd": round(float(np.std(played)), 1),
+                           "spearman": spearman([(w, p, "") for w, p in pairs])}
+    levels: dict[int, list[float]] = defaultdict(list)
+    for w, p in pairs:
+        levels[round(w * 127)].append(p * 127)
+    if 1 < len(levels) <= FEW_LEVELS:
+        out["levels"] = {str(k): {"n": len(v), "played_mean": round(float(np.mean(v)), 1)}
+                         for k, v in sorted(levels.items())}
+        top = max(levels)
+        accents = float(np.mean(levels[top]))
+        rest = float(np.mean([p for k, v in levels.items() if k != top for p in v]))
+        out["accents_louder"] = accents > rest
+        out["accent_mean"], out["others_mean"] = round(accents, 1), round(rest, 1)
+    return out
+
+
+def tempo_bpm(score: Score) -> float | None:
+    """The exercise's written tempo (median beat), beats per minute; None without beats."""
+    beats = np.asarray(score.beats, dtype=float)
+    if len(beats) < 2:
+        return None
+    spacing = float(np.median(np.diff(beats)))
+    return 60.0 / spacing if spacing > 0 else None
+
+
+def exercise_end(score: Score) -> float:
+    """Where the exercise ends on its written clock, s: its last beat (a text score's end) or last note."""
+    last = score.events[-1].time if score.events else 0.0
+    return max(last, float(score.beats[-1])) if len(score.beats) and score.end_beat is not None else last
+
+
+def compare(score: Score, take: Take, kit: Kit, tolerance: float, scale: float = 1.0,
+            offset: float | None = None) -> dict[str, Any]:
+    """The whole comparison as a JSON-ready dict (see the module docstring; times on the exercise's clock)."""
+    from batteur.evaluate import note_refs
+
+    refs = note_refs(score, kit)
+    written_all = [replace(n, time=n.time / scale) for n in refs]
+    not_heard: Counter[str] = Counter()
+    written = []
+    for n in written_all:
+        if take.heard is not None and n.instrument not in take.heard:
+            not_heard[n.instrument] += 1
+        else:
+            written.append(n)
+    if not written:
+        raise CompareError("the exercise has no note on a drum the transcriber can hear (it knows kick, snare, "
+                           "hi-hat, toms, crash and ride)")
+    played = take.notes
+    forced = offset is not None
+    if offset is None:
+        offset, pairs = align(written, played, tolerance)
+    else:
+        pairs = matched(written, played, offset, tolerance)
+    # the take's notes before the exercise starts or after it ends (a count-in, a last crash held on): not extras
+    start, end = -tolerance, exercise_end(score) / scale + tolerance
+    inside = [j for j, p in enumerate(played) if start <= p.time - offset <= end]
+    outside = len(played) - len(inside)
+    done_written = {i for i, _ in pairs}
+    done_played = {j for _, j in pairs}
+    extras_j = [j for j in inside if j not in done_played]
+    missed_i = [i for i in range(len(written)) if i not in done_written]
+
+    def written_clock(seconds: float) -> float:
+        return seconds * scale
+
+    misses = []
+    for i in missed_i:
+        n = written[i]
+        entry = {**position(score, written_clock(n.time)), "time_s": round(written_clock(n.time), 4),
+                 "drum": n.instrument, "event": n.event, "velocity": round(n.velocity * 127)}
+        near = [j for j in extras_j if played[j].drum == n.instrument
+                and abs(played[j].time - offset - n.time) <= max(LOOSE_S, 2 * tolerance)]
+        if near:
+            j = min(near, key=lambda j: abs(played[j].time - offset - n.time))
+            entry["played_off_by_ms"] = round((played[j].time - offset - n.time) * 1000, 1)
+        misses.append(entry)
+    extras = []
+    for j in extras_j:
+        p = played[j]
+        extras.append({**position(score, written_clock(p.time - offset)),
+                       "time_s": round(written_clock(p.time - offset), 4), "take_time_s": round(p.time, 4),
+                       "drum": p.drum, "event": p.event, "velocity": round(p.velocity * 127)})
+    drums: dict[str, Any] = {}
+    names = sorted({n.instrument for n in written} | {played[j].drum for j in inside})
+    for drum in names:
+        its_pairs = [(i, j) for i, j in pairs if written[i].instrument == drum]
+        drums[drum] = {
+            "written": sum(n.instrument == drum for n in written), "played": len(its_pairs),
+            "missed": sum(written[i].instrument == drum for i in missed_i),
+            "extra": sum(played[j].drum == drum for j in extras_j),
+            "timing": timing([played[j].time - offset - written[i].time for i, j in its_pairs]),
+            "dynamics": dynamics([(written[i].velocity, played[j].velocity) for i, j in its_pairs]),
+        }
+    report: dict[str, Any] = {
+        "take_kind": take.kind, "tolerance_ms": round(tolerance * 1000, 3), "tempo_scale": scale,
+        "offset_s": round(offset, 4), "offset_forced": forced,
+        "written": len(written), "played": len(pairs), "missed": len(missed_i), "extra": len(extras_j),
+        "outside": outside,
+        "timing": timing([played[j].time - offset - written[i].time for i, j in pairs]),
+        "drums": drums, "misses": misses, "extras": extras,
+        "not_heard": dict(sorted(not_heard.items())), "tempo": None, "warnings": list(take.warnings),
+    }
+    last = max(played[j].time for j in inside) - offset if inside else None
+    if last is not None:  # a take stopped before the end: its missed notes after the take are told as one
+        for entry in misses:
+            entry["after_take"] = entry["time_s"] > written_clock(last + tolerance)
+        after = sum(entry["after_take"] for entry in misses)
+        if after:
+            report["take_stops"] = {**position(score, written_clock(last)), "missed_after": after}
+    if len(pairs) < TEMPO_CHECK_BELOW * len(written):
+        ratio, count = find_tempo(written, played, tolerance, offset if forced else None)
+        if count >= max(1.5 * len(pairs), len(pairs) + 0.2 * len(written)) and abs(math.log(ratio)) > 0.005:
+            bpm = tempo_bpm(score)
+            report["tempo"] = {"ratio": round(ratio * scale, 3), "played": count,
+                               "exercise_bpm": None if bpm is None else round(bpm * scale, 1),
+                               "take_bpm": None if bpm is None else round(bpm * scale * ratio, 1)}
+    return report
+
+
+def summary_lines(report: dict[str, Any], exercise: str, take: str) -> list[str]:
+    """The report as a teacher reads it."""
+    lines = [f"{take} ({report['take_kind']}) against {exercise}"]
+    how = "forced (--offset)" if report["offset_forced"] else "found by lining up the notes"
+    lines.append(f"the exercise starts {report['offset_s']:.3f} s into the take ({how}); tolerance "
+                 f"{report['tolerance_ms']:g} ms" + (f"; tempo scale {report['tempo_scale']:g}"
+                                                       if report["tempo_scale"] != 1 else ""))
+    t = report["timing"]
+    lines.append(f"{report['played']} of {report['written']} written notes played, {report['missed']} missed, "
+                 f"{report['extra']} extra" + (f" ({report['outside']} before or after the exercise not counted)"
+                                              if report["outside"] else ""))
+    if t["n"]:
+        lines.append(f"timing: {_ms(t['mean_ms'])} on average (+ late, - early), spread {t['sd_ms']:.1f} ms "
+                     "(standard deviation), against the take's own pulse" if not report["offset_forced"] else
+                     f"timing: {_ms(t['mean_ms'])} on average (+ late, - early), spread {t['sd_ms']:.1f} ms "
+                     "(standard deviation)")
+    stops = report.get("take_stops")
+    if stops:
+        lines.append(f"the take stops at {where_text(stops)} (its last note): {stops['missed_after']} written notes "
+                     "after it are missed (not listed below)")
+    tempo = report.get("tempo")
+    if tempo:
+        bpm = (f" (the exercise at {tempo['exercise_bpm']:g} bpm, the take at about {tempo['take_bpm']:g})"
+               if tempo["exercise_bpm"] else "")
+        lines.append(f"TEMPO: most notes do not match at the exercise's tempo; the take is played at about "
+                     f"{tempo['ratio']:.3g} times it{bpm}: --tempo-scale {tempo['ratio']:.3g} compares at the "
+                     f"take's tempo ({tempo['played']} notes then match)")
+    lines.append("")
+    lines.append(f"{'drum':<10} {'written':>7} {'played':>6} {'missed':>6} {'extra':>5} {'mean ms':>8} "
+                 f"{'spread ms':>9}  dynamics (MIDI velocity)")
+    for drum, d in report["drums"].items():
+        dt = d["timing"]
+        lines.append(f"{drum:<10} {d['written']:>7} {d['played']:>6} {d['missed']:>6} {d['extra']:>5} "
+                     f"{_ms(dt['mean_ms']) if dt['n'] else '-':>8} "
+                     f"{_spread(dt):>9}  {_dynamics_text(d['dynamics'])}")
+    if report["not_heard"]:
+        drums = ", ".join(f"{k} {v}" for k, v in report["not_heard"].items())
+        lines.append(f"not compared (the transcriber has no class for them): {drums}")
+    listed = sorted([*(m for m in report["misses"] if not m.get("after_take")), *report["extras"]],
+                    key=lambda e: e["time_s"])
+    if listed:
+        lines.append("")
+    for entry in listed[:MAX_LISTED]:
+        what = "missed" if "take_time_s" not in entry else "extra"
+        off = entry.get("played_off_by_ms")
+        note = (f" (played {abs(off):.0f} ms {'late' if off > 0 else 'early'}, beyond the tolerance)"
+                if off is not None else "")
+        lines.append(f"{where_text(entry)}: {entry['drum']} {what}{note}")
+    if len(listed) > MAX_LISTED:
+        lines.append(f"... {len(listed) - MAX_LISTED} more misses and extras (--json lists them all)")
+    return lines
+
+
+def _spread(t: dict[str, Any]) -> str:
+    return f"{t['sd_ms']:.1f}" if t["n"] else "-"
+
+
+def _ms(value: float | None) -> str:
+    return "-" if value is None else f"{value:+.1f} ms"
+
+
+def _dynamics_text(d: dict[str, Any] | None) -> str:
+    if d is None:
+        return "-"
+    text = f"{d['played_mean']:.0f} +- {d['played_sd']:.0f}"
+    if "accents_louder" in d:
+        verdict = "accents louder" if d["accents_louder"] else "ACCENTS NOT LOUDER"
+        text += f"; {verdict}: {d['accent_mean']:.0f} against {d['others_mean']:.0f}"
+    elif d["spearman"] is not None:
+        text += f"; written and played ranks agree {d['spearman']:+.2f} (Spearman)"
+    return text
+
+
+# ---------------------------------------------------------------------- the command
+
+
+DESCRIPTION = """\
+Compare a student's take with the exercise: which written notes were played,
+missed or added, per drum, how early or late and how steady, where each miss
+and extra is (bar and beat), and whether accents were played as accents.
+
+EXERCISE: any score Batteur reads (a text score, a MIDI file; `demo`: the
+shipped demo groove). TAKE: a MIDI file (an e-kit's recording) or an audio
+file (WAV, FLAC, OGG, AIFF, MP3), transcribed as `batteur transcribe` does.
+
+The student may start whenever they like: the take is lined up with the
+exercise by the offset that matches most notes (every pair of notes of one
+drum proposes one), set so that the median note is on time: early and late
+are against the student's own pulse (--offset forces the start instead). Notes
+before the exercise starts or after it ends (a count-in) are not extras.
+A written note counts as played when the take has one on the same drum (kit
+object: open and closed hi-hat, and the hi-hat pedal, are the hi-hat) within
+--tolerance. An audio take is compared on the drums the transcriber knows
+(kick, snare, hi-hat, three toms, crash, ride); the others are listed apart.
+When most notes do not match, the tempo the take is played at is looked for
+and reported (--tempo-scale then compares at it). Timing is played minus
+written, in ms: + late, - early; the spread is the standard deviation.
+Velocities are MIDI's 0-127 (a transcription's are the recogniser's own).
+"""
+
+EPILOG = """\
+examples:
+  batteur compare exercise.txt take.mid
+  batteur compare exercise.txt take.wav --json
+  batteur compare demo take.flac --tempo-scale 0.8 --tolerance 0.03
+
+exit status: 0 when the comparison ran, whatever it found; 1 for a file it
+cannot use (missing, unreadable, a score given as the take, no notes); 2 for
+a command line that cannot be run (an option's value out of range).
+"""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog=PROG, description=DESCRIPTION, epilog=EPILOG,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    take_negative_values(parser)  # --offset -0.5: the start of a take cut after the exercise began
+    parser.add_argument("exercise", metavar="EXERCISE", help="the score (text or MIDI; demo: the demo groove)")
+    parser.add_argument("take", metavar="TAKE", type=Path, help="the take: a MIDI file or an audio file")
+    parser.add_argument("--tolerance", type=float, default=DEFAULT_TOLERANCE_S, metavar="SECONDS",
+                        help=f"a played note within this of the written one counts, seconds (default "
+                        f"{DEFAULT_TOLERANCE_S:g}: 50 ms, what a listener hears as on the beat; lower it for "
+                        f"fast sixteenths)")
+    parser.add_argument("--offset", type=float, default=None, metavar="SECONDS",
+                        help="the exercise starts this far into the take, seconds (default: found by lining up "
+                        "the notes)")
+    parser.add_argument("--tempo-scale", type=float, default=1.0, metavar="X",
+                        help="the take is played X times faster than written, 0.1 to 10 (0.8: at 80 %% of the "
+                        "tempo; default 1), as render's")
+    parser.add_argument("--kit", default=None, metavar="NAME",
+                        help="the kit whose objects the drums are (default: the exercise's kit line, else "
+                        "default); it groups the notes, as evaluate does")
+    parser.add_argument("--json", action="store_true", help="print the comparison as JSON")
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run ``batteur compare``; the exit status (README, "Exit status")."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    low, high = TOLERANCE_RANGE_S
+    if not low <= args.tolerance <= high:  # NaN fails too
+        parser.error(f"--tolerance {args.tolerance:g}: {low:g} to {high:g} seconds")
+    if not TEMPO_SCALE_RANGE[0] <= args.tempo_scale <= TEMPO_SCALE_RANGE[1]:
+        parser.error(f"--tempo-scale {args.tempo_scale:g}: {TEMPO_SCALE_RANGE[0]:g} to {TEMPO_SCALE_RANGE[1]:g} "
+                     "(times faster)")
+    if args.offset is not None and not math.isfinite(args.offset):
+        parser.error(f"--offset {args.offset:g}: a number of seconds")
+
+    def warn(text: str) -> None:
+        print(f"{PROG}: warning: {text}", file=sys.stderr)
+
+    from common.score.events import ScoreError
+    from common.score.text import load_score_kit
+
+    try:
+        score = read_exercise(args.exercise)
+        for text in score.warnings:
+            warn(text)
+        try:
+            kit = load_score_kit(score, args.kit)
+        except (FileNotFoundError, ValueError) as exc:
+            if isinstance(exc, ScoreError):
+                raise CompareError(str(exc)) from None
+            raise CompareError(f"--kit {args.kit}: {exc}") from None
+        take = read_take(args.take, kit, warn)
+        for text in take.warnings:
+            warn(f"TAKE {text}")
+        report = compare(score, take, kit, args.tolerance, args.tempo_scale, args.offset)
+    except (CompareError, OSError) as exc:
+        return report_error(PROG, exc)
+    if args.json:
+        print(json.dumps({"exercise": args.exercise, "take": str(args.take), **report}, indent=2))
+    else:
+        print("\n".join(summary_lines(report, args.exercise, str(args.take))))
+    return 0

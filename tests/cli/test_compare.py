@@ -1,0 +1,255 @@
+"""``batteur compare EXERCISE TAKE``: a take made from the exercise itself, with known changes, comes back as exactly
+those misses, extras and timing means wherever it starts; a take at another tempo is said to be; an audio take (the
+exercise rendered by the sound core) is transcribed and mostly found; bad inputs are one error line."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import mido
+import numpy as np
+import pytest
+import soundfile as sf
+
+from batteur import cli
+from batteur.compare import main
+from common.kit import load_kit
+from common.score.text import read_score
+
+EXERCISE = """\
+tempo 120
+meter 4/4
+HH |X.x.X.x.X.x.X.x.|X.x.X.x.X.x.X.x.|X.x.X.x.X.x.X.x.|X.x.X.x.X.x.X.x.|
+SN |....x.......x...|....x.......x...|....x.......x...|....x.......x...|
+BD |x.......x.x.....|x.......x.x.....|x.......x.x.....|x.......x.x.....|
+"""
+"""Four bars of rock at 120 bpm (a beat 0.5 s, a bar 2 s): 32 hi-hats accented on the beats, 8 snares, 12 kicks."""
+AUDIO_EXERCISE = """\
+tempo 120
+meter 4/4
+HH |X.x.X.x.X.x.X.x.|X.x.X.x.X.x.X.x.|
+SN |....x.......x...|....x.......x...|
+BD |x.......x.x.....|x.......x.x.....|
+CB |................|..x.............|
+"""
+"""The exercise's first two bars, and a cowbell."""
+PITCH = {"HIHATCLOSED": 42, "SNARE": 38, "BASS": 36, "HIGHTOM": 48}
+TICKS_PER_BEAT = 1000
+"""At 120 bpm a tick is 0.5 ms: every time below lies on a tick."""
+
+Note = tuple[float, int, int]  # time s, pitch, MIDI velocity
+
+
+@pytest.fixture
+def exercise(tmp_path: Path) -> Path:
+    path = tmp_path / "exercise.txt"
+    path.write_text(EXERCISE, encoding="utf-8")
+    return path
+
+
+def written(exercise: Path) -> list[Note]:
+    return [(e.time, PITCH[e.event.value], round(e.velocity * 127)) for e in read_score(exercise).events]
+
+
+def write_take(path: Path, notes: list[Note]) -> Path:
+    """A type-0 MIDI file on channel 10 at 120 bpm holding ``notes``."""
+    mid = mido.MidiFile(type=0, ticks_per_beat=TICKS_PER_BEAT)
+    track = mido.MidiTrack()
+    mid.tracks.append(track)
+    track.append(mido.MetaMessage("set_tempo", tempo=500_000))
+    timeline = sorted([(t, 1, p, v) for t, p, v in notes] + [(t + 0.04, 0, p, 0) for t, p, v in notes])
+    last = 0
+    for t, on, p, v in timeline:
+        tick = round(t * 2 * TICKS_PER_BEAT)
+        track.append(mido.Message("note_on" if on else "note_off", note=p, velocity=v, channel=9, time=tick - last))
+        last = tick
+    mid.save(path)
+    return path
+
+
+def run(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
+    capsys.readouterr()
+    try:
+        status = main(argv)
+    except SystemExit as exc:
+        status = exc.code if isinstance(exc.code, int) else 1
+    out = capsys.readouterr()
+    return status, out.out, out.err
+
+
+def report(argv: list[str], capsys: pytest.CaptureFixture[str]) -> dict:
+    status, out, err = run([*argv, "--json"], capsys)
+    assert status == 0, err
+    return json.loads(out)
+
+
+START = 2.3
+"""The take's exercise starts this far in (after a count-in)."""
+
+
+def test_a_take_with_known_changes_gives_exactly_those_misses_extras_and_means(
+        exercise: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    notes = written(exercise)
+    removed = [(2.5, 38), (4.0, 36)]  # the snare on bar 2's beat 2, the kick on bar 3's 1
+    take: list[Note] = []
+    errors: dict[int, list[float]] = {42: [], 38: [], 36: []}
+    for t, p, v in notes:
+        if (t, p) in removed:
+            continue
+        shift = 0.020 if p == 38 else -0.010 if p == 42 and t >= 6.0 else 0.0  # snares late, bar 4's hi-hats early
+        take.append((START + t + shift, p, v))
+        errors[p].append(shift * 1000)
+    take += [(START + 4.75, 48, 90), (START + 7.75, 38, 90)]  # extras: a tom on bar 3's 2.5, a snare on bar 4's 4.5
+    take += [(START - 2.0 + k * 0.5, 42, 60) for k in range(4)]  # a count-in on the hi-hat: not extras
+    path = write_take(tmp_path / "take.mid", take)
+
+    got = report([str(exercise), str(path)], capsys)
+
+    assert got["offset_s"] == pytest.approx(START, abs=1e-3)
+    assert (got["written"], got["played"], got["missed"], got["extra"], got["outside"]) == (52, 50, 2, 2, 4)
+    assert [(m["bar"], m["beat"], m["drum"]) for m in got["misses"]] == [(2, 2, "snare"), (3, 1, "kick")]
+    assert [(x["bar"], x["beat"], x["drum"]) for x in got["extras"]] == [(3, 2.5, "hightom"), (4, 4.5, "snare")]
+    for pitch, drum in ((42, "hihat"), (38, "snare"), (36, "kick")):
+        timing = got["drums"][drum]["timing"]
+        assert timing["n"] == len(errors[pitch])
+        assert timing["mean_ms"] == pytest.approx(np.mean(errors[pitch]), abs=0.06)
+        assert timing["sd_ms"] == pytest.approx(np.std(errors[pitch]), abs=0.06)
+    everything = [e for v in errors.values() for e in v]
+    assert got["timing"]["mean_ms"] == pytest.approx(np.mean(everything), abs=0.06)
+    assert got["drums"]["hightom"] == {**got["drums"]["hightom"], "written": 0, "played": 0, "extra": 1}
+    assert got["drums"]["hihat"]["dynamics"]["accents_louder"] is True  # played with the written velocities
+    assert got["tempo"] is None
+
+    status, out, _ = run([str(exercise), str(path)], capsys)
+    assert status == 0
+    assert "bar 2, beat 2: snare missed" in out and "bar 3, beat 2.5: hightom extra" in out
+    assert "50 of 52 written notes played, 2 missed, 2 extra" in out
+
+
+def test_the_median_note_is_on_time(exercise: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A take whose every note is off by up to 35 ms (70 ms from end to end, more than the tolerance): lined up so
+    that its median note is on time (the student's own pulse), the means and spreads measured from there."""
+    jitter = np.random.default_rng(5).uniform(-0.035, 0.035, 52)
+    path = write_take(tmp_path / "jitter.mid", [(START + t + round(dt * 2000) / 2000, p, v)
+                                                for (t, p, v), dt in zip(written(exercise), jitter, strict=True)])
+    errors = np.round(jitter * 2000) / 2000  # on the MIDI file's ticks
+    got = report([str(exercise), str(path)], capsys)
+    assert got["played"] == 52
+    assert got["offset_s"] == pytest.approx(START + np.median(errors), abs=2e-4)
+    assert got["timing"]["mean_ms"] == pytest.approx((np.mean(errors) - np.median(errors)) * 1000, abs=0.06)
+    assert got["timing"]["sd_ms"] == pytest.approx(np.std(errors) * 1000, abs=0.06)
+
+
+def test_accents_played_flat_are_told(exercise: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = write_take(tmp_path / "flat.mid", [(START + t, p, 80) for t, p, _ in written(exercise)])
+    got = report([str(exercise), str(path)], capsys)
+    assert got["played"] == got["written"] == 52
+    assert got["drums"]["hihat"]["dynamics"]["accents_louder"] is False
+    status, out, _ = run([str(exercise), str(path)], capsys)
+    assert "ACCENTS NOT LOUDER" in out
+
+
+def test_a_forced_offset_is_the_start_the_means_are_against(exercise: Path, tmp_path: Path,
+                                                            capsys: pytest.CaptureFixture[str]) -> None:
+    path = write_take(tmp_path / "take.mid", [(START + t, p, v) for t, p, v in written(exercise)])
+    got = report([str(exercise), str(path), "--offset", str(START + 0.015)], capsys)
+    assert got["offset_forced"] and got["played"] == 52
+    assert got["timing"]["mean_ms"] == pytest.approx(-15.0, abs=0.06)  # the take 15 ms before the start given
+
+
+def test_a_take_at_another_tempo_is_reported_as_such(exercise: Path, tmp_path: Path,
+                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    path = write_take(tmp_path / "slow.mid", [(1.0 + t / 0.8, p, v) for t, p, v in written(exercise)])
+    got = report([str(exercise), str(path)], capsys)
+    assert got["played"] < got["written"] / 2
+    assert got["tempo"]["ratio"] == pytest.approx(0.8, abs=0.002)
+    assert got["tempo"]["exercise_bpm"] == pytest.approx(120) and got["tempo"]["take_bpm"] == pytest.approx(96, abs=1)
+    status, out, _ = run([str(exercise), str(path)], capsys)
+    assert "TEMPO: most notes do not match" in out and "--tempo-scale 0.8" in out
+
+    at_its_tempo = report([str(exercise), str(path), "--tempo-scale", "0.8"], capsys)
+    assert (at_its_tempo["played"], at_its_tempo["extra"], at_its_tempo["tempo"]) == (52, 0, None)
+    assert at_its_tempo["misses"] == []
+
+
+def test_an_audio_take_is_transcribed_and_mostly_found(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The exercise's first two bars played by the sound core (as `batteur render` writes its WAV) after 1.7 s of
+    silence, then the transcriber's notes compared: most found, the start found (the sound is heard 50 ms after
+    each impact: the sound settings' latency); the cowbell, which the transcriber cannot name, is set apart."""
+    from services.sound.core import SoundSettings, render_offline
+    from services.sound.demo import impacts_from_score
+
+    exercise = tmp_path / "exercise.txt"
+    exercise.write_text(AUDIO_EXERCISE, encoding="utf-8")
+    kit = load_kit("default")
+    impacts = impacts_from_score(read_score(exercise), kit, start=1.7)
+    settings = SoundSettings(latency=0.05, origin=0.0)
+    audio = render_offline(impacts, impacts[-1].time + 1.5, kit, settings)
+    wav = tmp_path / "take.wav"
+    sf.write(wav, audio, 48000, subtype="PCM_24")
+
+    got = report([str(exercise), str(wav)], capsys)
+    assert got["take_kind"] == "audio (WAV)" and got["written"] == 26
+    assert got["not_heard"] == {"cowbell": 1}  # the transcriber has no class for it: not counted missed
+    assert got["played"] >= 0.9 * got["written"] and got["extra"] <= 3
+    assert got["offset_s"] == pytest.approx(1.75, abs=0.02)
+
+
+BAD_INPUTS = [  # argv (formatted with the files below), exit status, what the error line says
+    (["{exercise}", "{exercise}"], 1, "TAKE {exercise} is a score, not a recording"),
+    (["{exercise}", "{score_mid}"], 1, "TAKE {score_mid} is a score, not a recording"),  # a score named .mid
+    (["{exercise}", "{hello_mid}"], 1, "TAKE {hello_mid} is a text file, not a recording"),
+    (["{exercise}", "{cut_mid}"], 1, "TAKE {cut_mid}: truncated MIDI file"),
+    (["{exercise}", "{missing}"], 1, "TAKE {missing}: "),
+    (["{exercise}", "{empty_mid}"], 1, "holds no drum notes"),
+    (["{exercise}", "{empty}"], 1, "the file is empty"),
+    (["{exercise}", "{silent}"], 1, "silent"),
+    (["{silent}", "{take}"], 1, "EXERCISE {silent} is a recording (WAV), not a score"),
+    (["{missing}", "{take}"], 1, "{missing}"),
+    (["{exercise}", "{take}", "--tolerance", "0"], 2, "--tolerance 0: "),
+    (["{exercise}", "{take}", "--tempo-scale", "50"], 2, "--tempo-scale 50: "),
+    (["{exercise}", "{take}", "--kit", "{missing}"], 1, "--kit"),
+]
+
+
+@pytest.mark.parametrize(("argv", "status", "says"), BAD_INPUTS)
+def test_bad_inputs_are_one_error_line(argv: list[str], status: int, says: str, exercise: Path, tmp_path: Path,
+                                       capsys: pytest.CaptureFixture[str]) -> None:
+    files = {"exercise": str(exercise), "missing": str(tmp_path / "missing.mid"),
+             "empty_mid": str(write_take(tmp_path / "empty.mid", [])), "take": str(tmp_path / "take.mid"),
+             "empty": str(tmp_path / "empty.wav"), "silent": str(tmp_path / "silent.wav"),
+             "score_mid": str(tmp_path / "score.mid"), "hello_mid": str(tmp_path / "hello.mid"),
+             "cut_mid": str(tmp_path / "cut.mid")}
+    (tmp_path / "score.mid").write_text(EXERCISE, encoding="utf-8")
+    (tmp_path / "hello.mid").write_text("hello\n", encoding="utf-8")
+    (tmp_path / "cut.mid").write_bytes(b"MThd\x00\x00")
+    write_take(tmp_path / "take.mid", [(START + t, p, v) for t, p, v in written(exercise)])
+    (tmp_path / "empty.wav").write_bytes(b"")
+    sf.write(tmp_path / "silent.wav", np.zeros(48000, np.float32), 48000)
+    got, out, err = run([a.format(**files) for a in argv], capsys)
+    lines = err.strip().splitlines()
+    assert got == status and out == ""
+    assert lines[-1].startswith("batteur compare: error: ") and says.format(**files) in lines[-1]
+
+
+def test_help_explains_with_an_example_and_the_command_is_registered(capsys: pytest.CaptureFixture[str]) -> None:
+    assert "compare" in cli.COMMANDS
+    with pytest.raises(SystemExit) as done:
+        cli.main(["compare", "--help"])
+    assert done.value.code == 0
+    out = capsys.readouterr().out
+    assert "batteur compare exercise.txt take.mid" in out and "--tolerance" in out and "--offset" in out
+
+
+def test_the_demo_is_an_exercise(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    from batteur.demo import DEMO_GROOVE
+
+    monkeypatch.chdir(tmp_path)  # no file named demo here
+    (tmp_path / "groove.txt").write_text(DEMO_GROOVE, encoding="utf-8")
+    score = read_score(tmp_path / "groove.txt")
+    pitch = {"HIHATCLOSED": 42, "SNARE": 38, "BASS": 36, "HIGHTOM": 48, "FLOORTOM": 43, "CRASH": 49}
+    path = write_take(tmp_path / "take.mid", [(1.0 + e.time, pitch[e.event.value], 100) for e in score.events])
+    got = report(["demo", str(path)], capsys)
+    assert got["played"] == got["written"] == len(score.events)
