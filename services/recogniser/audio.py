@@ -8,6 +8,7 @@ to mono and resampled to the rate asked for (default :data:`SAMPLE_RATE`) with a
 from __future__ import annotations
 
 import re
+import shlex
 from collections.abc import Callable
 from fractions import Fraction
 from pathlib import Path
@@ -18,7 +19,8 @@ import soundfile as sf
 from scipy.signal import resample_poly
 
 from common.input_file import file_problem
-from common.score.events import starts_as_midi
+from common.score.events import MAX_SCORE_BYTES, looks_like_text, starts_as_midi, unicode_bom
+from common.score.text import parse_text
 from services.recogniser.errors import AudioFileError
 
 SAMPLE_RATE = 22050
@@ -150,14 +152,43 @@ def _decodable_start(path: Path, failure: Exception) -> tuple[np.ndarray, int]:
     return np.concatenate(blocks), rate
 
 
-def _is_midi(path: Path) -> bool:
-    """Whether ``path`` starts as a Standard MIDI File (``MThd``) or a RIFF MIDI file (``RIFF`` ... ``RMID``)."""
+TEXT_SAMPLE_BYTES = 4096
+"""Bytes of a file soundfile cannot open looked at to tell text (:func:`~common.score.events.looks_like_text`)."""
+
+
+def _is_text_score(path: Path, head: bytes) -> bool:
+    """Whether ``path``, text starting with ``head``, is a score in the text format: the score reader parses it and
+    finds notes in it (a score with an error, or without notes, is not told from other text)."""
+    bom = unicode_bom(head)
+    try:
+        if path.stat().st_size > MAX_SCORE_BYTES:
+            return False
+        text = path.read_bytes().decode(bom[0] if bom else "utf-8-sig")
+        return bool(parse_text(text, source=str(path)).events)
+    except (OSError, ValueError):  # ScoreError and UnicodeDecodeError are ValueErrors
+        return False
+
+
+def _not_audio(path: Path) -> str | None:
+    """What ``path``, which soundfile cannot open, is instead, with what to do, said after the path; None when
+    nothing is known of it. A score (MIDI or the text format: given to transcribe in place of a take of it) is
+    said to be one, and how to hear it; libsndfile said only "Format not recognised"."""
     try:
         with path.open("rb") as f:
-            head = f.read(12)
+            head = f.read(TEXT_SAMPLE_BYTES)
     except OSError:
-        return False
-    return starts_as_midi(head)
+        return None
+    arg = shlex.quote(str(path))  # the commands said can be pasted whatever the file's name
+    if starts_as_midi(head):
+        return f"this is a MIDI file (a score), not audio: `batteur render {arg} -o DIR` plays it"
+    if not head:
+        return "the file is empty (0 bytes)"
+    if not looks_like_text(head):
+        return None
+    if _is_text_score(path, head):
+        return (f"this is a score in Batteur's text format, not audio: to hear it, `batteur render {arg} -o DIR`; "
+                f"to compare a student's take with it, `batteur compare {arg} TAKE`")
+    return "not a readable audio file (WAV, FLAC, OGG...): it is a text file"
 
 
 INTEGER_BITS = {"PCM_S8": 8, "PCM_U8": 8, "PCM_16": 16, "PCM_24": 24, "PCM_32": 32}
@@ -192,8 +223,9 @@ def grid_step(samples: np.ndarray, step: float | None = None) -> float | None:
     return None
 
 
-COMMON_RATES_HZ = (32000, 44100, 48000, 88200, 96000, 192000)
-"""Sample rates recorders offer, Hz: the warning for a file sampled too slowly names the lowest that is enough."""
+COMMON_RATES_HZ = (22050, 24000, 32000, 44100, 48000, 88200, 96000, 192000)
+"""Sample rates recorders offer, Hz: the warning for a file sampled too slowly names the lowest that is enough for
+the path that warns (offline, about 29 kHz: 32,000 Hz; live, about 16.7 kHz: 22,050 Hz, the rate it reads)."""
 
 
 def low_rate(path: Path | str, rate_hz: int, full_rate_hz: float) -> str | None:
@@ -309,9 +341,9 @@ def load_audio(path: str | Path, max_duration_s: float = MAX_DURATION_S, sample_
     try:
         info = sf.info(str(p))
     except Exception as exc:  # soundfile raises several types (LibsndfileError, RuntimeError, TypeError)
-        if _is_midi(p):  # libsndfile's "Format not recognised" says nothing of what to do
-            raise AudioFileError(f"{p}: this is a MIDI file (a score), not audio: `batteur render {p} -o DIR` "
-                                 "plays it") from None
+        said = _not_audio(p)  # libsndfile's "Format not recognised" says nothing of what to do
+        if said is not None:
+            raise AudioFileError(f"{p}: {said}") from None
         raise AudioFileError(f"{p}: not a readable audio file (WAV, FLAC, OGG...): {exc}") from exc
     if info.frames <= 0 or info.samplerate <= 0:
         raise AudioFileError(_unfinished(info.extra_info, p) or f"{p}: the file holds no audio (0 samples)")

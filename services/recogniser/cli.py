@@ -29,10 +29,11 @@ DESCRIPTION = """\
 Transcribe a drum recording into a General MIDI drum file (channel 10).
 
 Reads WAV, FLAC, OGG, AIFF, MP3 (any channels, mixed to mono; any sample rate,
-but below 32 kHz the hi-hats are heard worse: a warning says so), finds every
-strike of kick, snare, closed or open hi-hat, high/mid/floor tom, crash or ride
-with a small convolutional network scoring each 10 ms frame, gives each a
-velocity, and writes a Standard MIDI File that `batteur render` can play.
+but below 32 kHz the hi-hats are heard worse, with --live below 22,050 Hz: a
+warning says so), finds every strike of kick, snare, closed or open hi-hat,
+high/mid/floor tom, crash or ride with a small convolutional network scoring
+each 10 ms frame, gives each a velocity, and writes a Standard MIDI File that
+`batteur render` can play.
 
 With --live the file is played in real time through the live recogniser
 (multi-band SuperFlux onsets, each classified from a short context) and each

@@ -61,6 +61,7 @@ def test_the_help_names_the_formats_read_and_the_rates_heard_whole() -> None:
     text = " ".join(build_parser().format_help().split())
     assert "MP3" in text and "AIFF" in text  # was "WAV, FLAC, OGG (... mono or stereo)": MP3 and AIFF are read too
     assert "below 32 kHz the hi-hats are heard worse" in text
+    assert "with --live below 22,050 Hz" in text  # the live path reads 22,050 Hz and needs only 16.7 kHz
 
 
 def _kick_and_snare(seconds: float = 4.0) -> np.ndarray:
