@@ -8,10 +8,12 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import select
 import sys
 from collections.abc import Callable, Sequence
 
 from batteur.errors import INTERRUPTED, report_error
+from common.output_paths import point_at_devnull
 
 # subcommand -> (module with main(argv) -> int, one-line help)
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -48,6 +50,17 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _stdout_gone() -> bool:
+    """Whether standard output is a pipe whose reader went away (``batteur compare ... | head``): its write end
+    polls as an error. A reader that goes away is a quiet stop, exit 0, not a BrokenPipeError traceback."""
+    try:
+        poller = select.poll()
+        poller.register(sys.stdout.fileno(), select.POLLOUT)
+        return any(events & select.POLLERR for _, events in poller.poll(0))
+    except (OSError, ValueError, AttributeError):  # no descriptor (a test's capture), or already closed
+        return False
+
+
 def load_command(name: str) -> Callable[[Sequence[str] | None], int]:
     """The ``main`` function of a subcommand's module."""
     module_name, _ = COMMANDS[name]
@@ -63,7 +76,14 @@ def main(argv: Sequence[str] | None = None) -> int:
             command = load_command(args.command)
         except ModuleNotFoundError as exc:  # the installation's fault, not the command line's: 1
             return report_error(f"batteur {args.command}", f"not available in this installation ({exc})")
-        return int(command(args.args) or 0)
+        status = int(command(args.args) or 0)
+        sys.stdout.flush()  # here, not at exit: a reader gone by the last flush is a quiet stop too
+        return status
+    except BrokenPipeError:
+        if not _stdout_gone():  # another pipe (a socket, a child's stdin) broke: the command's own failure
+            raise
+        point_at_devnull(sys.stdout)  # the interpreter's own flush at exit stays quiet
+        return 0
     except KeyboardInterrupt:  # Ctrl-C in a command that does not handle it (or while its modules load)
         print(f"\nbatteur {args.command}: interrupted", file=sys.stderr)
         return INTERRUPTED
