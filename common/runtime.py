@@ -61,6 +61,7 @@ from common.messages import (
     SubscribeRefused,
     encode,
 )
+from common.messages.system import TOOL_ROLE
 from common.peers import Peer, PeerTable
 from common.rated_log import RatedWarnings
 from common.subscribe import Subscriptions
@@ -797,6 +798,8 @@ class Node:
             return
         if isinstance(message, Hello):
             endpoint.send(self.health(), source)
+            if message.role == TOOL_ROLE:  # batteur ls: how its clock follows the master (peers: 1 Hz)
+                endpoint.send(self.clock_answer(), source)
         elif isinstance(message, Health):
             self.peer_health[message.node_id] = (message, source, time.monotonic())
         owner = taken_elsewhere(type(message), self._service)
@@ -1010,6 +1013,14 @@ class Node:
             foreign_pongs=self.foreign_pongs,
             master=self._master_id,
         )
+
+    def clock_answer(self) -> ClockStatus:
+        """The ClockStatus a tool's Hello is answered with beside the Health: :meth:`clock_status`, or for the clock
+        master its own node id as ``master`` (its clock is the rig clock: synced, offset and uncertainty 0)."""
+        if not self.is_clock_master:
+            return self.clock_status()
+        return ClockStatus(node_id=self.node_id, synced=1, offset_s=0.0, uncertainty_s=0.0, round_trip_s=-1.0,
+                           samples=0, rejected=0, outliers=0, steps=0, foreign_pongs=0, master=self.node_id)
 
     def clock_master_peer(self) -> Peer | None:
         """The clock master to ping: the one in use while it is known, else the lowest node id of the master role

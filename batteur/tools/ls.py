@@ -1,9 +1,9 @@
 """``batteur ls``: list the nodes of a rig with their health.
 
 Nodes are found by zeroconf (or given with ``--node HOST:PORT``); each is sent
-a Hello and answers with its Health. Exit code 0 when every listed node
-answered, 1 otherwise (so ``batteur ls --node 127.0.0.1:9103`` is a
-healthcheck).
+a Hello and answers with its Health, then (nodes since 7 Dec) its ClockStatus.
+Exit code 0 when every listed node answered, 1 otherwise (so
+``batteur ls --node 127.0.0.1:9103`` is a healthcheck).
 """
 
 from __future__ import annotations
@@ -11,7 +11,9 @@ from __future__ import annotations
 import argparse
 import asyncio
 import json
+import math
 from collections.abc import Sequence
+from contextlib import suppress
 
 from batteur.errors import report_error
 from batteur.tools.nodes import (
@@ -28,13 +30,27 @@ from batteur.tools.nodes import (
     write_line,
 )
 from common.arg_types import seconds, take_negative_values
-from common.messages import PROTOCOL_VERSION, Health, Hello, OscMessage
+from common.messages import PROTOCOL_VERSION, ClockStatus, Health, Hello, OscMessage
 from common.messages.system import TOOL_ROLE
 from common.transport import UdpEndpoint
 
 DESCRIPTION = """\
 List the Batteur nodes found by zeroconf (or given with --node), each with the Health it
-answers to a Hello: role, node id, address, loop rate, dropped messages, peers. --json adds
+answers to a Hello: role, node id, address, loop rate, dropped messages, peers, and how its
+clock follows the rig clock (the clock master's, physics' unless --clock-master says
+otherwise), from the ClockStatus it sends after its Health (column clock):
+  master
+      this node's clock is the rig clock
+  synced +/- 0.05 ms, rtt 0.12 ms
+      following it: the half-width of the interval its offset lies in and the best ping
+      round trip (", 2 steps": rig time stepped since it synced: the master restarted, or
+      its clock moved)
+  not synced (no pong from ID)
+      the master ID (its node id, static:ROLE:HOST:PORT for a --peer) has not answered its
+      pings yet; "not synced (no clock master found)": it knows of none
+  ?
+      no ClockStatus came (a node from before 7 Dec answers with its Health only)
+--json gives the ClockStatus's fields as clock_status (null for "?"). --json adds
 the rest of the Health: the drops by reason (dropped_malformed, dropped_unknown, dropped_type,
 dropped_range, dropped_other, dropped_wrong_node: a control of another service sent to this
 node, a note sent to interaction), unroutable (messages the node could not send: to a role no node
@@ -49,34 +65,73 @@ Exit status: 0 when every node listed answered, 1 when one did not (or none was 
 2 on bad arguments; so `batteur ls --node 127.0.0.1:9103` is a healthcheck."""
 
 
-async def query_health(targets: Sequence[Target], timeout_s: float) -> dict[str, Health]:
+CLOCK_GRACE_S = 0.25
+"""How long ls waits, once every node has answered with its Health, for the ClockStatus each sends right after it
+(seconds): a node from before 7 Dec sends none ("?") and must not cost the whole ``--timeout``."""
+
+
+async def query_health(targets: Sequence[Target], timeout_s: float,
+                       clocks: dict[str, ClockStatus] | None = None) -> dict[str, Health]:
     """Send a Hello to each reachable target; collect the Health answers by source address within
-    ``timeout_s`` (only the targets may answer)."""
+    ``timeout_s`` (only the targets may answer). ``clocks``: also collect into it, by node id, the ClockStatus
+    each node sends after its Health (waiting at most :data:`CLOCK_GRACE_S` more for them once every Health
+    is in)."""
     reachable = [t for t in targets if t.ip]
     answers: dict[str, Health] = {}
     if not reachable:
         return answers
     endpoint = await UdpEndpoint.open(bind_address(reachable), allow=target_networks(reachable))
-    done = asyncio.Event()
+    healths_in = asyncio.Event()
+    all_in = asyncio.Event()
 
     def on_message(message: OscMessage, source: str) -> None:
         if isinstance(message, Health):
             answers[source] = message
-            if len(answers) >= len(reachable):
-                done.set()
+        elif isinstance(message, ClockStatus) and clocks is not None:
+            clocks[message.node_id] = message
+        else:
+            return
+        if len(answers) >= len(reachable):
+            healths_in.set()
+            if clocks is None or all(h.node_id in clocks for h in answers.values()):
+                all_in.set()
 
     endpoint.set_handler(on_message)
+    loop = asyncio.get_running_loop()
+    deadline = loop.time() + timeout_s
     try:
         hello = Hello(role=TOOL_ROLE, node_id="batteur-ls", protocol=PROTOCOL_VERSION, osc_port=endpoint.port)
         for target in reachable:
             endpoint.send(hello, target.socket_address)
-        try:
-            await asyncio.wait_for(done.wait(), timeout_s)
-        except TimeoutError:
-            pass
+        with suppress(TimeoutError):
+            await asyncio.wait_for(healths_in.wait(), timeout_s)
+        if healths_in.is_set():
+            with suppress(TimeoutError):
+                await asyncio.wait_for(all_in.wait(), max(0.0, min(CLOCK_GRACE_S, deadline - loop.time())))
     finally:
         endpoint.close()
     return answers
+
+
+def _ms(seconds: float) -> str:
+    return f"{seconds * 1e3:.2f} ms"
+
+
+def clock_text(status: ClockStatus | None) -> str:
+    """How a node's clock follows the rig clock, in a few words (the ``clock`` column)."""
+    if status is None:
+        return "?"  # a node from before 7 Dec, or its ClockStatus lost
+    if status.master == status.node_id:
+        return "master"
+    if not status.synced:
+        if not status.master:
+            return "not synced (no clock master found)"
+        refused = f", {status.rejected} pongs refused" if status.rejected else ""
+        return f"not synced (no pong from {status.master}{refused})"
+    steps = f", {status.steps} step{'s' if status.steps != 1 else ''}" if status.steps else ""
+    if status.uncertainty_s < 0 or not math.isfinite(status.uncertainty_s):  # a new master: estimating again
+        return f"synced, no estimate yet from {status.master or 'a new master'}{steps}"
+    return f"synced +/- {_ms(status.uncertainty_s)}, rtt {_ms(status.round_trip_s)}{steps}"
 
 
 def match_answers(targets: Sequence[Target], answers: dict[str, Health]) -> list[Health | None]:
@@ -92,7 +147,7 @@ def match_answers(targets: Sequence[Target], answers: dict[str, Health]) -> list
     return matched
 
 
-def _row(target: Target, health: Health | None) -> dict[str, object]:
+def _row(target: Target, health: Health | None, clock: ClockStatus | None = None) -> dict[str, object]:
     row: dict[str, object] = {"role": target.role, "node_id": target.node_id, "address": target.address}
     if not target.ip:
         row["status"] = "no address"
@@ -111,16 +166,19 @@ def _row(target: Target, health: Health | None) -> dict[str, object]:
         late=health.late, peers=health.peers, decode_unanswered=health.decode_unanswered,
         replies_unanswered=health.replies_unanswered, target_lag=round(health.target_lag, 4),
         target_jumps=health.target_jumps, unroutable=health.unroutable, dropped_wrong_node=health.dropped_wrong_node,
+        clock=clock_text(clock), clock_status=clock.model_dump(mode="json") if clock is not None else None,
     )
     return row
 
 
 def table(rows: Sequence[dict[str, object]]) -> list[str]:
     """The rows as aligned text lines, a header first."""
-    lines = [f"{'role':<12} {'node id':<28} {'address':<22} {'status':<10} {'rate Hz':>8} {'dropped':>8} {'peers':>5}"]
+    lines = [f"{'role':<12} {'node id':<28} {'address':<22} {'status':<10} {'rate Hz':>8} {'dropped':>8} "
+             f"{'peers':>5} clock"]
     for r in rows:
         lines.append(f"{r['role']!s:<12} {r['node_id']!s:<28} {r['address']!s:<22} {r['status']!s:<10} "
-                     f"{r.get('rate_hz', '')!s:>8} {r.get('dropped', '')!s:>8} {r.get('peers', '')!s:>5}")
+                     f"{r.get('rate_hz', '')!s:>8} {r.get('dropped', '')!s:>8} {r.get('peers', '')!s:>5} "
+                     f"{r.get('clock', '')!s}".rstrip())
     return lines
 
 
@@ -130,8 +188,10 @@ async def _run(opts: argparse.Namespace) -> int:
     if not targets:
         return report_error("batteur ls", f"no nodes found {where_browsed(interfaces, source)} within "
                             f"{opts.browse:g} s (start one, or give --node HOST:PORT)")
-    answers = await query_health(targets, opts.timeout)
-    rows = [_row(t, h) for t, h in zip(targets, match_answers(targets, answers), strict=True)]
+    clocks: dict[str, ClockStatus] = {}
+    answers = await query_health(targets, opts.timeout, clocks)
+    rows = [_row(t, h, clocks.get(h.node_id) if h is not None else None)
+            for t, h in zip(targets, match_answers(targets, answers), strict=True)]
     for line in [json.dumps(rows, indent=2)] if opts.json else table(rows):
         write_line(line)
     return 0 if all(r["status"] == "ok" for r in rows) else 1

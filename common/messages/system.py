@@ -189,7 +189,8 @@ class ClockStatus(OscMessage):
     """How well a node's rig clock follows the clock master, published at 1 Hz beside its Health.
 
     Sent by every node whose clock master is another node, to the same peers as its Health.
-    ``uncertainty_s`` and ``round_trip_s`` are -1 until the first sample.
+    ``uncertainty_s`` and ``round_trip_s`` are -1 until the first sample. Every node also sends one after the
+    Health it answers a tool's Hello with (``batteur ls``); the clock master's names itself as ``master``.
     """
 
     ADDRESS = "/batteur/clock/status"
