@@ -27,7 +27,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "sound": ("services.sound.node", "run the sound service alone (e.g. on a second machine)"),
     "graphics": ("services.graphics.node", "run the graphics service alone"),
     "transcribe": ("services.recogniser.cli", "audio recording -> General MIDI drum file (--live: OSC hits)"),
-    "ls": ("batteur.tools.ls", "list nodes discovered on the network (role, address, health)"),
+    "ls": ("batteur.tools.ls", "list nodes discovered on the network (role, address, health, clock)"),
     "echo": ("batteur.tools.echo", "print OSC messages whose address matches a pattern"),
     "send": ("batteur.tools.send", "send one OSC message"),
     "docs": ("batteur.tools.docs", "regenerate docs/osc.md from the message models"),
