@@ -45,11 +45,12 @@ grid."""
 
 
 class InputWatch:
-    """What live input arriving block by block (a device) is: its first :data:`INPUT_CHECK_S`, at ``rate_hz``, are
-    gathered, then given once to :func:`~services.recogniser.audio.band_limited` against :data:`LIVE_FULL_RATE_HZ`
-    (``warn`` hears its warning, if any, once; ``name`` stands for the file in it) and to
-    :func:`~services.recogniser.audio.grid_step`: input on a 16- or 8-bit grid (a device giving integers, not
-    resampled nor scaled on the way) has that :attr:`step` until a block leaves the grid."""
+    """What live input arriving block by block (a device) is: its first :data:`INPUT_CHECK_S` not all zeros (digital
+    silence is waited out), at ``rate_hz``, are gathered, then given once to
+    :func:`~services.recogniser.audio.band_limited` against :data:`LIVE_FULL_RATE_HZ` (``warn`` hears its warning,
+    if any, once; ``name`` stands for the file in it) and to :func:`~services.recogniser.audio.grid_step`: input on a
+    16- or 8-bit grid (a device giving integers, not resampled nor scaled on the way) has that :attr:`step` until a
+    block leaves the grid."""
 
     def __init__(self, name: str, warn: Callable[[str], None] | None, rate_hz: int = SAMPLE_RATE,
                  seconds: float = INPUT_CHECK_S) -> None:
@@ -73,9 +74,11 @@ class InputWatch:
         self._have += x.size
         if self._have < self._need:
             return
-        self.done = True
         heard = np.concatenate(self._blocks)
-        self._blocks = []
+        self._blocks, self._have = [], 0
+        if not np.any(heard):  # digital silence (a muted or gated input before the drummer plays) passes every
+            return  # check: look again at the next INPUT_CHECK_S, or it would pass them for good
+        self.done = True
         self.step = grid_step(heard)
         text = band_limited(self.name, heard - np.float32(np.mean(heard)), self.rate_hz, LIVE_FULL_RATE_HZ)
         if text and self.warn:

@@ -253,3 +253,17 @@ def test_a_quiet_16_bit_device_gets_the_noise_fill(pattern: Pattern) -> None:
 def test_a_device_giving_floats_gets_no_noise(pattern: Pattern) -> None:
     audio = _at_live_rate(pattern) * np.float32(10 ** (-60 / 20))
     assert _device_hits(audio) == _device_hits(audio, watched=False)
+
+
+def test_the_input_watch_starts_at_the_first_sound_after_digital_silence(pattern: Pattern) -> None:
+    # a muted or gated input gives exact zeros until the drummer plays: the checks were made on them and passed
+    silence = [np.zeros(128, np.float32)] * int(4 * SAMPLE_RATE / 128)
+    warnings: list[str] = []
+    band_limited = InputWatch("the default input device", warnings.append)
+    for block in silence + _blocks(_at_live_rate(pattern, 11025)):
+        band_limited.feed(block)
+    assert band_limited.done and len(warnings) == 1, warnings
+    quiet = InputWatch("the default input device", None)
+    for block in silence + _blocks(_quantised(_at_live_rate(pattern) * np.float32(0.01))):
+        quiet.feed(block)
+    assert quiet.done and quiet.step == 2.0**-15
