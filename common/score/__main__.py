@@ -17,7 +17,7 @@ import numpy as np
 
 from common.exit_status import FAILED, report_error
 from common.output_paths import point_at_devnull
-from common.score.events import Score, ScoreError
+from common.score.events import MAX_SCORE_BARS, Score, ScoreError
 from common.score.hands import HandAlgorithm, Sticking
 from common.score.limbs import distribute
 from common.score.text import DEFAULT_KIT, load_score_kit, read_score, score_kit
@@ -39,8 +39,9 @@ def length(score: Score) -> str:
         return counted(max(len(score.beats) - 1, 0), "beat")
     end = round(score.end_beat, 2)
     bars = int(np.count_nonzero(score.bar_beats < end - 1e-9))
-    beats = f"{end:g} beat{'' if end == 1 else 's'}"
-    return f"{beats}, {counted(bars, 'bar')}"
+    beats = f"{end:.2f}".rstrip("0").rstrip(".")  # not :g, whose 6 digits drop the hundredths past 10,000 beats
+    at_least = "at least " if len(score.bar_beats) >= MAX_SCORE_BARS else ""  # the readers stop counting there
+    return f"{beats} beat{'' if end == 1 else 's'}, {at_least}{counted(bars, 'bar')}"
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -11,6 +11,7 @@ import mido
 import pytest
 
 from common.score.__main__ import main
+from common.score.events import MAX_SCORE_BARS
 from common.score.text import read_score
 
 
@@ -28,6 +29,8 @@ def _first_line(path: Path, capsys: pytest.CaptureFixture[str]) -> str:
     ("meter 1/8\nSN |x|\n", "1 event over 0.00 s, 0.5 beats, 1 bar"),
     ("SN |xxxx|\nrepeat 1\nrest 2\n", "8 events over 3.50 s, 10 beats, 3 bars"),  # a closing half-bar rest
     ("at 0 SN\n", "1 event over 0.00 s, 4 beats, 1 bar"),  # `at` lines only: the bar holding the note
+    # was "10001.2 beats": six significant digits
+    ("meter 7/16\nSN |x.x.x.x|\nrepeat 5714\n", "22860 events over 5000.50 s, 10001.25 beats, 5715 bars"),
 ])
 def test_a_text_score_reports_its_beats_and_bars(text: str, length: str, tmp_path: Path,
                                                  capsys: pytest.CaptureFixture[str]) -> None:
@@ -49,6 +52,20 @@ def test_a_midi_file_reports_its_beats_and_bars_to_its_end(end_beats: float, len
     path = tmp_path / "score.mid"
     mid.save(str(path))
     assert _first_line(path, capsys) == f"{path}: 4 events over 1.50 s, {length}"  # was one beat more when whole
+
+
+def test_a_midi_file_longer_than_the_bars_counted_says_at_least(tmp_path: Path,
+                                                               capsys: pytest.CaptureFixture[str]) -> None:
+    # a note, then 2**28 ticks of silence at 96 per beat: the reader stops counting bars at MAX_SCORE_BARS
+    mid = mido.MidiFile(type=0, ticks_per_beat=96)
+    track = mido.MidiTrack()
+    mid.tracks.append(track)
+    track.append(mido.Message("note_on", channel=9, note=38, velocity=100, time=0))
+    track.append(mido.MetaMessage("end_of_track", time=2**28))
+    path = tmp_path / "score.mid"
+    mid.save(str(path))
+    line = _first_line(path, capsys)
+    assert line.endswith(f"2796202.67 beats, at least {MAX_SCORE_BARS} bars"), line  # was "2.7962e+06 beats"
 
 
 def test_the_beats_still_hold_the_one_at_the_end(tmp_path: Path) -> None:
