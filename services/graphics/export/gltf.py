@@ -1,9 +1,10 @@
 """glTF 2.0 export (binary .glb or .gltf with embedded data) with ``pygltflib``.
 
-One node per link, each with a small box mesh, animated by translation and
-rotation channels (linear interpolation, one key per pose), under a root node
-that turns the Batteur frame (z up) into glTF's (y up). The kit is added as
-meshes (cylinders for drums, thin discs for cymbals, boxes for the rest) so
+The body is a skeleton and a skin (:mod:`services.graphics.export.gltf_skin`): a joint node per body link in the
+BVH's tree, animated by its local rotation (linear interpolation, one key per pose), and the links' small boxes as
+one mesh skinned to them, weight 1 to their link's joint; other links (the kit's) are nodes animated by their pose's
+translation and rotation. All hang from a root node that turns the Batteur frame (z up) into glTF's (y up). The kit
+is added as meshes (cylinders for drums, thin discs for cymbals, boxes for the rest) so
 the file shows the whole scene in Blender, three.js or any viewer: static,
 except the objects whose motion the sequence carries as physics' kit links
 (``kit.ride``: a cymbal's swing, ``kit.hihat.top``: the hi-hat opening,
@@ -30,9 +31,10 @@ from common.kit import (
     kit_hardware,
     stand_rods,
 )
+from services.graphics.export.gltf_skin import Skeleton, continuous_quats
 from services.graphics.sequence import PoseSequence, normalize_quats
 
-FLOAT, USHORT = pygltflib.FLOAT, pygltflib.UNSIGNED_SHORT
+FLOAT, USHORT, UBYTE = pygltflib.FLOAT, pygltflib.UNSIGNED_SHORT, pygltflib.UNSIGNED_BYTE
 ROOT_ROTATION = [-math.sqrt(0.5), 0.0, 0.0, math.sqrt(0.5)]  # -90 degrees about x: z up -> y up
 
 COLOURS = {
@@ -46,14 +48,16 @@ CYMBAL_DRAWN_THICKNESS_M = 0.01
 
 @dataclass(frozen=True)
 class GltfInfo:
-    """What :func:`write_gltf` wrote: animated link nodes, kit objects drawn, keyframes, duration (seconds), kit
-    objects moved by their links (of ``kit_objects``)."""
+    """What :func:`write_gltf` wrote: links (body links as joints, kit links as nodes), kit objects drawn, keyframes,
+    duration (seconds), kit objects moved by their links (of ``kit_objects``), the skin's joints."""
 
     links: int
     kit_objects: int
     keyframes: int
     duration: float
     animated_kit_objects: int = 0
+    joints: int = 0
+    """Joint nodes of the skin (the body links in the BVH's tree, and its ``seat`` joint for physics' character)."""
 
 
 def _box() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -133,8 +137,8 @@ class _Builder:
         return len(self.gltf.bufferViews) - 1
 
     def accessor(self, array: np.ndarray, kind: str, target: int | None = None, bounds: bool = False) -> int:
-        component = USHORT if array.dtype == np.uint16 else FLOAT
-        array = np.ascontiguousarray(array, dtype=np.uint16 if component == USHORT else np.float32)
+        component = {np.dtype(np.uint8): UBYTE, np.dtype(np.uint16): USHORT}.get(array.dtype, FLOAT)
+        array = np.ascontiguousarray(array, dtype={UBYTE: np.uint8, USHORT: np.uint16}.get(component, np.float32))
         view = self.view(array.tobytes(), target)
         flat = array.reshape(len(array), -1)
         acc = pygltflib.Accessor(bufferView=view, componentType=component, count=len(array), type=kind)
@@ -258,6 +262,52 @@ class _KitParts:
         return []
 
 
+def _link_size(name: str, link_size: float) -> float:
+    """The edge (metres) of body link ``name``'s box: a stick's half ``link_size``, a head's 2.5 times."""
+    return link_size * (0.5 if "stick" in name else (2.5 if name.endswith("head") else 1.0))
+
+
+def _skin(b: _Builder, skeleton: Skeleton, sequence: PoseSequence, joint_nodes: list[int], link_size: float,
+          materials: tuple[int, int]) -> int:
+    """The skinned mesh node (a scene root, no transform of its own, as the spec asks) drawing the body links'
+    boxes, each vertex weight 1 to its link's joint: one primitive per material (body, stick)."""
+    root = np.eye(4)
+    root[:3, :3] = Rotation.from_quat(ROOT_ROTATION).as_matrix()
+    bind = skeleton.bind_matrices(root)
+    box_pos, box_nor, box_idx = _box()
+    parts: list[list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = [[], []]
+    for link, k in sorted(skeleton.links.items()):
+        name = sequence.names[link]
+        m = bind[k]
+        pos = (box_pos.astype(float) * _link_size(name, link_size)) @ m[:3, :3].T + m[:3, 3]
+        parts[1 if "stick" in name else 0].append((pos, box_nor.astype(float) @ m[:3, :3].T,
+                                                     np.full(len(pos), k)))
+    joint_type = np.uint8 if len(joint_nodes) < 256 else np.uint16
+    primitives = []
+    for material, boxes in zip(materials, parts, strict=True):
+        if not boxes:
+            continue
+        pos = np.concatenate([p for p, _, _ in boxes])
+        joints = np.zeros((len(pos), 4), joint_type)
+        joints[:, 0] = np.concatenate([j for _, _, j in boxes])
+        weights = np.zeros((len(pos), 4), np.float32)
+        weights[:, 0] = 1.0
+        indices = np.concatenate([box_idx + len(box_pos) * n for n in range(len(boxes))]).astype(np.uint16)
+        attributes = pygltflib.Attributes(
+            POSITION=b.accessor(pos, pygltflib.VEC3, pygltflib.ARRAY_BUFFER, bounds=True),
+            NORMAL=b.accessor(np.concatenate([n for _, n, _ in boxes]), pygltflib.VEC3, pygltflib.ARRAY_BUFFER),
+            JOINTS_0=b.accessor(joints, pygltflib.VEC4, pygltflib.ARRAY_BUFFER),
+            WEIGHTS_0=b.accessor(weights, pygltflib.VEC4, pygltflib.ARRAY_BUFFER))
+        primitives.append(pygltflib.Primitive(attributes=attributes, material=material,
+                                              indices=b.accessor(indices, pygltflib.SCALAR,
+                                                                 pygltflib.ELEMENT_ARRAY_BUFFER)))
+    b.gltf.meshes.append(pygltflib.Mesh(name="body", primitives=primitives))
+    inverse = np.linalg.inv(bind).transpose(0, 2, 1).reshape(len(bind), 16)  # column-major, as glTF stores them
+    b.gltf.skins.append(pygltflib.Skin(name="drummer", joints=joint_nodes, skeleton=joint_nodes[0],
+                                       inverseBindMatrices=b.accessor(inverse, pygltflib.MAT4)))
+    return b.node(name="body", mesh=len(b.gltf.meshes) - 1, skin=len(b.gltf.skins) - 1)
+
+
 def write_gltf(sequence: PoseSequence, path: Path, kit: Kit | None = None, link_size: float = 0.05,
                time_origin: float | None = None) -> GltfInfo:
     """Write ``sequence`` (and ``kit``: static, or moved by its kit links in ``sequence``) as glTF 2.0: ``.glb``
@@ -270,8 +320,7 @@ def write_gltf(sequence: PoseSequence, path: Path, kit: Kit | None = None, link_
     box = _box()
     body_mat = b.material(COLOURS["body"])
     stick_mat = b.material(COLOURS["stick"])
-    body_mesh = b.mesh(box, body_mat)
-    stick_mesh = b.mesh(box, stick_mat)
+    box_meshes: dict[int, int] = {}  # material -> a box of it, for a body link off the skeleton (built when used)
     meshes: dict[str, int] = {}
     animated: dict[str, int] = {}
     parts = None if kit is None else _KitParts(b, kit)
@@ -282,44 +331,66 @@ def write_gltf(sequence: PoseSequence, path: Path, kit: Kit | None = None, link_
             "other": b.mesh(box, b.material(COLOURS["other"], metallic=0.5)),
         }
         animated = _animated_kit(b, kit, sequence, meshes)
-    link_nodes = []
+    skeleton = Skeleton.of(sequence)
+    joint_of = {} if skeleton is None else skeleton.links  # body link -> its joint: drawn by the skin
+    link_nodes: list[int] = []
+    rigid: list[int] = []  # the links that stay nodes animated by their pose (the kit's, a body link off the tree)
     first = sequence.values[0]
     for i, name in enumerate(sequence.names):
+        if i in joint_of:
+            continue
         if name in animated:  # a kit link: the kit object's mesh instead of a box
             mesh_nodes = [animated[name]]
         elif name.startswith("kit."):  # a beater, the stands: drawn as they are, else not at all (no body box)
             mesh_nodes = [] if parts is None else parts.nodes(name, first[i])
         else:
-            is_stick = "stick" in name
-            size = link_size * (0.5 if is_stick else (2.5 if name.endswith("head") else 1.0))
-            mesh_nodes = [b.node(name=f"{name}_mesh", mesh=stick_mesh if is_stick else body_mesh, scale=[size] * 3)]
+            material = stick_mat if "stick" in name else body_mat
+            if material not in box_meshes:
+                box_meshes[material] = b.mesh(box, material)
+            mesh_nodes = [b.node(name=f"{name}_mesh", mesh=box_meshes[material],
+                                 scale=[_link_size(name, link_size)] * 3)]
+        rigid.append(i)
         link_nodes.append(b.node(name=name, children=mesh_nodes or None,
                                  translation=[float(v) for v in first[i, :3]],
                                  rotation=[float(v) for v in normalize_quats(first[i, 3:])]))
+    joint_nodes: list[int] = []
+    if skeleton is not None:
+        for joint in skeleton.joints:
+            joint_nodes.append(b.node(name=joint.name, translation=[float(v) for v in joint.translation[0]],
+                                      rotation=[float(v) for v in joint.rotation[0]]))
+            if joint.parent >= 0:
+                parent = b.gltf.nodes[joint_nodes[joint.parent]]
+                parent.children = [*(parent.children or []), joint_nodes[-1]]
     kit_nodes = []
     animated_ids = set()
     if kit is not None:
         animated_ids = {obj.id for obj in kit.objects if any(link in animated for link in kit_links(obj))}
         kit_nodes = [_kit_node(b, obj, meshes) for obj in kit.objects if obj.id not in animated_ids]
-    root = b.node(name="batteur", rotation=ROOT_ROTATION, children=link_nodes + kit_nodes)
-    b.gltf.scenes.append(pygltflib.Scene(name="performance", nodes=[root]))
+    root = b.node(name="batteur", rotation=ROOT_ROTATION, children=joint_nodes[:1] + link_nodes + kit_nodes)
+    scene_nodes = [root]
+    if skeleton is not None and joint_of:
+        scene_nodes.append(_skin(b, skeleton, sequence, joint_nodes, link_size, (body_mat, stick_mat)))
+    b.gltf.scenes.append(pygltflib.Scene(name="performance", nodes=scene_nodes))
     b.gltf.scene = 0
 
     times = (sequence.times - origin).astype(np.float32)
     t_acc = b.accessor(times, pygltflib.SCALAR, bounds=True)
     samplers, channels = [], []
-    for i, node in enumerate(link_nodes):
-        translation = sequence.values[:, i, :3]
-        quats = normalize_quats(sequence.values[:, i, 3:])
-        quats = quats * np.where(np.cumprod(np.sign(np.r_[1.0, np.sum(quats[1:] * quats[:-1], axis=1)]))[:, None]
-                                 < 0, -1.0, 1.0)  # consistent hemisphere: no long-way slerps
-        for values, target, kind in ((translation, "translation", pygltflib.VEC3),
-                                     (quats, "rotation", pygltflib.VEC4)):
-            samplers.append(pygltflib.AnimationSampler(input=t_acc, output=b.accessor(values, kind),
-                                                       interpolation="LINEAR"))
-            channels.append(pygltflib.AnimationChannel(sampler=len(samplers) - 1,
-                                                       target=pygltflib.AnimationChannelTarget(node=node,
-                                                                                               path=target)))
+    tracks: list[tuple[int, np.ndarray, str]] = []  # (node, key values, path)
+    for i, node in zip(rigid, link_nodes, strict=True):
+        tracks += [(node, sequence.values[:, i, :3], "translation"),
+                   (node, continuous_quats(sequence.values[:, i, 3:]), "rotation")]
+    if skeleton is not None:
+        for joint, node in zip(skeleton.joints, joint_nodes, strict=True):
+            if joint.moves:
+                tracks.append((node, joint.translation, "translation"))
+            tracks.append((node, joint.rotation, "rotation"))
+    for node, values, target in tracks:
+        kind = pygltflib.VEC3 if target == "translation" else pygltflib.VEC4
+        samplers.append(pygltflib.AnimationSampler(input=t_acc, output=b.accessor(values, kind),
+                                                   interpolation="LINEAR"))
+        channels.append(pygltflib.AnimationChannel(sampler=len(samplers) - 1,
+                                                   target=pygltflib.AnimationChannelTarget(node=node, path=target)))
     b.gltf.animations.append(pygltflib.Animation(name="performance", samplers=samplers, channels=channels))
     b.gltf.buffers.append(pygltflib.Buffer(byteLength=len(b.blob)))
     b.gltf.set_binary_blob(bytes(b.blob))
@@ -328,5 +399,5 @@ def write_gltf(sequence: PoseSequence, path: Path, kit: Kit | None = None, link_
     else:
         b.gltf.convert_buffers(pygltflib.BufferFormat.DATAURI)
         b.gltf.save_json(str(path))
-    return GltfInfo(len(link_nodes), len(kit_nodes) + len(animated_ids), len(times), float(times[-1]),
-                    len(animated_ids))
+    return GltfInfo(len(link_nodes) + len(joint_of), len(kit_nodes) + len(animated_ids), len(times),
+                    float(times[-1]), len(animated_ids), len(joint_nodes))
