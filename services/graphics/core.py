@@ -45,7 +45,10 @@ from common.messages.graphics import (
 from common.messages.physics import PhysicsPosture, PhysicsReset
 from common.messages.system import TOOL_ROLE
 from common.rated_log import RatedWarnings
+from common.score.events import Score
+from common.score.position import bar_beat
 from services.graphics.camera import camera_for, default_camera, presets_json
+from services.graphics.preview import PREVIEW_RATES, PreviewClock
 from services.graphics.scene import HISTORY, KitAnimator, hardware_json, kit_json
 from services.graphics.sequence import FLOATS_PER_LINK, PoseSequence, interpolate_pose, normalize_quats
 from services.graphics.skeleton import guess_parents
@@ -61,6 +64,9 @@ NO_PREVIEW = ("no preview is loaded, the view stays live: start the graphics nod
               "--preview FILE.npz")
 """Why ``/batteur/graphics/mode preview`` is refused on a node without a preview."""
 SCORE_POSITION_KEPT_S = 1.0  # seconds a score position is shown after it arrived (the player sends 10 a second)
+_MAX_BEAT, _MAX_BPM = 64.0, 1000.0  # ScorePosition's bounds (a longer bar or a faster tempo is shown at the bound)
+NO_PREVIEW_RATE = "no preview is loaded: there is no preview to slow down or speed up"
+"""Why a preview rate is refused on a node without a preview."""
 REFUSAL_LOG_INTERVAL_S = 1.0
 """Refusals of one kind are logged at most once per this many seconds of rig time (the others are counted and
 summed into the next line), so a broken pose stream cannot flood the log."""
@@ -176,7 +182,12 @@ class GraphicsCore:
         self.mode: Literal["live", "preview"] = "live"
         self.preview: PoseSequence | None = None
         self.preview_impacts: list[Impact] = []
-        self._preview_start = 0.0
+        self.preview_score: Score | None = None
+        """The score the preview plays (None: a pose sequence file): its bar and beat fill the status."""
+        self.preview_clock = PreviewClock(0.0, 1.0)
+        """Where the preview is at a rig time, at its playback rate (``--preview-rate``, the page's select)."""
+        self._preview_rate = 1.0
+        """The playback rate a preview loaded next starts with (a re-planned preview keeps the one chosen)."""
         self._preview_animator = KitAnimator(self.kit)
         self.clock_offset = 0.0
         """Auto clock: the offset at ``_offset_since`` (local time); :meth:`offset_at` slews it down from there."""
@@ -246,7 +257,7 @@ class GraphicsCore:
         self._last_status += step_s
         self._posture_sent += step_s
         self._score_seen += step_s
-        self._preview_start += step_s
+        self.preview_clock.shift(step_s)
         for node in self.nodes.values():
             node.last_seen += step_s
         # auto clock: the lags (pose time - local time) seen so far, as the new local clock would have seen them
@@ -480,20 +491,65 @@ class GraphicsCore:
         return True
 
     # --- preview (kinematic keyframe animation, no physics) ----------------------------------
-    def load_preview(self, sequence: PoseSequence, impacts: list[Impact] | None = None, now: float = 0.0) -> None:
+    def load_preview(self, sequence: PoseSequence, impacts: list[Impact] | None = None, now: float = 0.0,
+                     score: Score | None = None, rate: float | None = None,
+                     loop: tuple[float, float] | None = None) -> None:
         """Show ``sequence`` (e.g. the keyframe animation of a score) instead of the live stream.
 
-        It plays from its first pose at rig time ``now`` and loops. ``impacts``
-        (times on the sequence's clock) flash and swing the kit as live ones do.
+        It plays from its first pose at rig time ``now`` and loops, at ``rate`` (motion seconds per second; None:
+        the rate of the preview shown before, else 1). ``impacts`` (times on the sequence's clock) flash and swing
+        the kit as live ones do. ``score`` (the sequence's clock being the score's, as ``score_preview`` makes it)
+        gives the status panel the preview's bar and beat. ``loop`` (start, end), seconds on the sequence's clock:
+        play only that span, with no pause between laps (a bar range).
         """
         self.preview = sequence
         self.preview_impacts = sorted(impacts or [], key=lambda i: i.time)
-        self._preview_start = now
+        self.preview_score = score
+        if rate is not None:
+            self._preview_rate = rate
+        if loop is None:
+            self.preview_clock = PreviewClock(sequence.times[0], sequence.duration, now, self._preview_rate)
+        else:
+            self.preview_clock = PreviewClock(loop[0], loop[1] - loop[0], now, self._preview_rate, pause=0.0)
         self._preview_animator = KitAnimator(self.kit)
         self._preview_animator.bind(sequence.names)
         self.mode = "preview"
         self._show()
         self._outbox.append(self.view_json())
+
+    def set_preview_rate(self, rate: float, now: float) -> None:
+        """Play the preview at ``rate`` from rig time ``now`` (from where it is); every page is told. ``ValueError``
+        for a rate out of range or no preview loaded."""
+        if self.preview is None:
+            raise ValueError(NO_PREVIEW_RATE)
+        self.preview_clock.set_rate(rate, now)
+        self._preview_rate = self.preview_clock.rate
+        self._outbox.append({**self.view_json(), "control": "preview_rate"})
+
+    def preview_position(self, now: float) -> ScorePosition | None:
+        """Where the previewed score is at rig time ``now``: the bar and beat of the motion shown, from the score's
+        beats as physics' score player computes them (``common.score.position.bar_beat``), the tempo as played
+        (written x rate). None without a score, before its first beat, or with the live view shown."""
+        if self.mode != "preview" or self.preview is None or self.preview_score is None:
+            return None
+        where = bar_beat(self.preview_score, self.preview_clock.position(now))
+        if where is None:
+            return None
+        return ScorePosition(time=now, bar=where.bar, beat=min(where.beat, _MAX_BEAT),
+                             tempo_bpm=min(where.tempo_bpm * self.preview_clock.rate, _MAX_BPM))
+
+    def preview_counts(self, now: float) -> dict[str, Any] | None:
+        """The preview's own numbers for the status (None with none loaded): its ``rate``, its ``poses`` and
+        ``strokes`` (of the span it loops), the strokes ``played`` in this lap and the ``laps`` completed."""
+        if self.preview is None:
+            return None
+        clock = self.preview_clock
+        times = [i.time for i in self.preview_impacts]
+        first = bisect.bisect_left(times, clock.start)
+        strokes = bisect.bisect_left(times, clock.start + clock.span) - first
+        played = min(bisect.bisect_right(times, clock.position(now)) - first, strokes)
+        return {"rate": clock.rate, "poses": len(self.preview.times), "strokes": strokes,
+                "played": played, "laps": clock.lap(now)}
 
     def show_pose(self, names: list[str] | None, pose: np.ndarray | None) -> None:
         """Show one still pose (L, 7) of links ``names`` (the pose editor); ``None`` goes back to the stream."""
@@ -507,8 +563,7 @@ class GraphicsCore:
         seq = self.preview
         if seq is None:
             return None
-        span = max(seq.duration, 1e-6)
-        local = seq.times[0] + ((now - self._preview_start) % (span + 0.5))
+        local = self.preview_clock.position(now)
         animator = self._preview_animator
         animator.impacts = [i for i in self.preview_impacts if local - HISTORY <= i.time <= local]
         pose = seq.sample(float(local))
@@ -560,7 +615,9 @@ class GraphicsCore:
 
     def view_json(self) -> dict[str, Any]:
         return {"type": "view", "mode": self.mode, "latency": self.latency, **self.view.model_dump(),
-                "presets": presets_json()}
+                "presets": presets_json(),
+                "preview_rate": self.preview_clock.rate if self.preview is not None else None,
+                "preview_rates": list(PREVIEW_RATES)}
 
     def set_kit(self, kit: Kit) -> None:
         """Adopt an edited kit (already validated) and tell every page."""
@@ -585,11 +642,14 @@ class GraphicsCore:
         ]
         late = sum(int(n["late"]) for n in nodes if n["role"] == "sound")
         score = None
-        if self.score is not None and now - self._score_seen <= SCORE_POSITION_KEPT_S:
-            score = {"bar": self.score.bar, "beat": round(self.score.beat, 2), "tempo_bpm": self.score.tempo_bpm}
+        position = self.preview_position(now) if self.mode == "preview" and self.preview is not None else (
+            self.score if self.score is not None and now - self._score_seen <= SCORE_POSITION_KEPT_S else None)
+        if position is not None:  # the preview's own position while it is shown, else the score player's
+            score = {"bar": position.bar, "beat": round(position.beat, 2), "tempo_bpm": round(position.tempo_bpm, 1)}
         newest = self._times[-1] if self._times else None
         return {
             "type": "status", "time": round(now, 3), "mode": self.mode, "latency": self.latency,
             "nodes": nodes, "late": late, "score": score, "counters": dict(self.counters),
+            "preview": self.preview_counts(now) if self.mode == "preview" else None,
             "pose_lag": None if newest is None else round(now + self.offset_at(now) - newest, 3),
         }

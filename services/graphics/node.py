@@ -12,8 +12,10 @@ live stream), ``--preview-score SCORE`` with ``--preview-planner
 keyframe|gestures`` (plan a MIDI or text score with the view's kit and show
 its kinematic preview, looping; the keyframe strokes follow the editor's
 UP/DOWN poses in ``--kit-dir/poses.yaml`` and are re-planned when that file
-or the kit changes), ``--synthetic`` (feed the synthetic drummer as if physics
-were running: a demo without physics).
+or the kit changes), ``--preview-rate R`` (play either preview at R times
+the planned motion's speed, 0.25 to 2; the page changes it while it plays),
+``--synthetic`` (feed the synthetic drummer as if physics were running: a demo
+without physics).
 """
 
 from __future__ import annotations
@@ -41,7 +43,7 @@ from common.messages.graphics import GraphicsMode
 from common.output_paths import check_output_dir
 from common.runtime import Node, run_node
 from services.graphics.core import GraphicsCore, GraphicsSettings
-from services.graphics.preview import ScorePreview, score_preview
+from services.graphics.preview import MAX_RATE, MIN_RATE, ScorePreview, bar_span, parse_bars, score_preview
 from services.graphics.sequence import PoseSequence
 from services.graphics.server import ViewServer
 
@@ -69,6 +71,13 @@ class GraphicsNodeSettings(NodeSettings):
     preview_planner: Literal["keyframe", "gestures"] = Field(
         default="keyframe", description="planner of --preview-score: keyframe (the 2001 paper's strokes, shaped "
         "by --kit-dir/poses.yaml if present) or gestures (the gesture planner)")
+    preview_rate: float = Field(
+        default=1.0, ge=MIN_RATE, le=MAX_RATE, description="playback rate of the preview (--preview-score or "
+        "--preview) over its planned motion: 0.5 plays it at half speed (0.25 to 2; the page's rate select changes "
+        "it while it plays)")
+    preview_bars: str = Field(
+        default="", description="loop only these bars of --preview-score, from 1 as the status counts them: "
+        "3 or 3-4 ('': the whole score, with a pause between laps)")
     synthetic: bool = Field(default=False, description="feed the synthetic drummer (demo without physics)")
     view_clock: Literal["auto", "rig"] = Field(
         default="auto", description="auto: follow the clock of the poses; rig: trust the rig clock")
@@ -128,6 +137,19 @@ def plan_score_preview(settings: GraphicsNodeSettings, kit: Kit, clock: Callable
                          rate_hz=settings.rate_hz or 60.0, on_progress=progress)
 
 
+def preview_loop(settings: GraphicsNodeSettings, preview: ScorePreview) -> tuple[float, float] | None:
+    """The span (s, on the preview's clock) of ``--preview-bars`` (None: the whole preview); ``ValueError`` for
+    bars the score does not have."""
+    if not settings.preview_bars:
+        return None
+    first, last = parse_bars(settings.preview_bars)
+    start, end = bar_span(preview.score, first, last)
+    if start > max(i.time for i in preview.impacts):  # a score has one stroke at least (score_preview)
+        raise ValueError(f"--preview-bars {settings.preview_bars}: the score's last note is before bar {first} "
+                         f"({preview.score.source or 'score'})")
+    return start, min(end, float(preview.sequence.times[-1]))
+
+
 _FLAGS = {"rate_hz": "--rate-hz", "latency": "--latency-s", "kit": "--kit", "clock": "--view-clock"}
 """The command-line flag of each graphics core setting the node sets."""
 
@@ -154,6 +176,10 @@ def make_core(settings: NodeSettings, args: argparse.Namespace) -> GraphicsCore:
     s = settings if isinstance(settings, GraphicsNodeSettings) else GraphicsNodeSettings(**settings.model_dump())
     if s.preview and s.preview_score:
         raise ValueError("give --preview FILE.npz or --preview-score SCORE, not both")
+    if s.preview_bars:
+        parse_bars(s.preview_bars)  # its syntax, before a long plan
+        if not s.preview_score:
+            raise ValueError("--preview-bars loops bars of a score: give --preview-score SCORE with it")
     if s.kit_dir:
         try:
             check_output_dir(Path(s.kit_dir), "--kit-dir")
@@ -174,7 +200,7 @@ def make_core(settings: NodeSettings, args: argparse.Namespace) -> GraphicsCore:
         except (ValueError, OSError, EOFError) as exc:  # missing, not an .npz, or an .npz of something else
             why = str(exc) if s.preview in str(exc) else f"{s.preview}: not a pose sequence file ({exc})"
             raise InputError(f"--preview: {why}") from None
-        core.load_preview(sequence)
+        core.load_preview(sequence, rate=s.preview_rate)
     if s.preview_score:
         try:  # the planner and pose rate are settings, checked already: what is refused here is a file
             preview = plan_score_preview(s, core.kit)
@@ -182,7 +208,8 @@ def make_core(settings: NodeSettings, args: argparse.Namespace) -> GraphicsCore:
             raise InputError(str(exc)) from None
         for warning in preview.score.warnings:  # the reader's, as `batteur render` prints them; not at each re-plan
             log.warning("preview: %s", warning)
-        core.load_preview(preview.sequence, preview.impacts)
+        core.load_preview(preview.sequence, preview.impacts, score=preview.score, rate=s.preview_rate,
+                          loop=preview_loop(s, preview))
         log.info("preview of %s", preview.summary())
     return core
 
@@ -232,7 +259,13 @@ async def _watch_preview(node: Node, core: GraphicsCore, settings: GraphicsNodeS
             log.error("preview not re-planned, keeping the previous one: %s", exc)
             continue
         mode = core.mode
-        core.load_preview(preview.sequence, preview.impacts, now=node.clock.now())
+        # at the rate the page chose (not --preview-rate again), with the score's bar and beat
+        try:
+            loop = preview_loop(settings, preview)
+        except ValueError as exc:  # the edit moved nothing in time; kept safe all the same
+            log.error("preview not re-planned, keeping the previous one: %s", exc)
+            continue
+        core.load_preview(preview.sequence, preview.impacts, now=node.clock.now(), score=preview.score, loop=loop)
         if mode == "live":
             core.apply_control(GraphicsMode(mode="live"))
         core.counters["preview_replans"] = core.counters.get("preview_replans", 0) + 1

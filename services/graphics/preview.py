@@ -15,6 +15,9 @@ a score before, or without, the physics run.
 ``common.score``), distribute over the limbs, plan (``keyframe``: the 2001
 paper's strokes shaped by the pose editor's saved UP/DOWN poses when given;
 ``gestures``: the gesture planner) and pose the figure.
+
+:class:`PreviewClock` is where the looping preview is at a wall (rig) time, at a playback rate over the planned
+motion (``--preview-rate``, the page's rate select) that may change while it plays.
 """
 
 from __future__ import annotations
@@ -35,6 +38,70 @@ from services.graphics.figure import LINK_NAMES, LimbGoal, figure_pose
 from services.graphics.sequence import PoseSequence
 
 UP = np.array([0.0, 0.0, 1.0])
+
+PREVIEW_RATES: tuple[float, ...] = (0.25, 0.5, 0.75, 1.0, 1.25, 1.5, 2.0)
+"""The playback rates the page offers (motion seconds per wall second)."""
+MIN_RATE, MAX_RATE = 0.25, 2.0
+"""The playback rates a preview accepts (``--preview-rate``, the page): slower than a quarter the strokes barely
+move, faster than twice the figure's 60 Hz poses skip most of a stroke."""
+LOOP_PAUSE_S = 0.5
+"""Motion seconds between the end of a preview and its start again (scaled by the rate like the motion)."""
+
+
+def check_rate(rate: object) -> float:
+    """``rate`` as a float, or ``ValueError`` saying what a preview rate is."""
+    if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not math.isfinite(rate) \
+            or not MIN_RATE <= rate <= MAX_RATE:
+        raise ValueError(f"preview rate {rate!r}: a number from {MIN_RATE:g} to {MAX_RATE:g} "
+                         "(1: as planned, 0.5: half speed)")
+    return float(rate)
+
+
+class PreviewClock:
+    """Where a looping preview is at wall (rig) time ``now``: its motion plays ``rate`` seconds per wall second.
+
+    The preview runs from motion time ``start`` for ``span`` seconds, then :data:`LOOP_PAUSE_S`, then again. A rate
+    changed while it plays takes effect from that instant: the motion goes on from where it is (no jump), faster or
+    slower. Wall times are the node's rig clock, seconds.
+    """
+
+    def __init__(self, start: float, span: float, now: float = 0.0, rate: float = 1.0,
+                 pause: float = LOOP_PAUSE_S) -> None:
+        self.start = float(start)
+        self.span = max(float(span), 1e-6)
+        self.pause = max(float(pause), 0.0)
+        """Motion seconds between a lap's end and the next lap's start (0: a bar loop, seamless)."""
+        self.rate = check_rate(rate)
+        self._anchor = float(now)
+        """Wall time at which the motion had played :attr:`_played` seconds (from its first start)."""
+        self._played = 0.0
+
+    @property
+    def period(self) -> float:
+        """Motion seconds of one lap (the preview and the pause after it)."""
+        return self.span + self.pause
+
+    def played(self, now: float) -> float:
+        """Motion seconds played since the first start, laps included."""
+        return self._played + (now - self._anchor) * self.rate
+
+    def position(self, now: float) -> float:
+        """The motion time shown at wall time ``now`` (on the sequence's clock: ``start`` at each lap's start)."""
+        return self.start + self.played(now) % self.period
+
+    def lap(self, now: float) -> int:
+        """Laps completed at wall time ``now`` (0 during the first)."""
+        return int(self.played(now) // self.period)
+
+    def set_rate(self, rate: float, now: float) -> None:
+        """Play at ``rate`` from wall time ``now`` on, from the motion time shown then; ``ValueError`` out of range."""
+        rate = check_rate(rate)
+        self._played, self._anchor = self.played(now), float(now)
+        self.rate = rate
+
+    def shift(self, step_s: float) -> None:
+        """The wall clock stepped by ``step_s`` seconds: the motion shown stays where it was."""
+        self._anchor += step_s
 
 
 def _nearest(strokes: list[PlannedStroke], times: np.ndarray, t: float) -> PlannedStroke | None:
@@ -96,6 +163,49 @@ def plan_preview(plan: GesturePlan, rate_hz: float = 60.0,
         for i, s in enumerate(sorted(plan.strokes, key=lambda s: s.time))
     ]
     return PoseSequence(list(LINK_NAMES), times, np.stack(frames)), impacts
+
+
+def parse_bars(text: str) -> tuple[int, int]:
+    """``"3"`` or ``"3-4"`` (bars from 1, as the status panel counts them) as (first, last); ``ValueError``."""
+    first, sep, last = text.strip().partition("-")
+    try:
+        bars = (int(first), int(last) if sep else int(first))
+    except ValueError:
+        raise ValueError(f"--preview-bars {text!r}: a bar or a range of bars from 1, e.g. 3 or 3-4") from None
+    if bars[0] < 1 or bars[1] < bars[0]:
+        raise ValueError(f"--preview-bars {text!r}: bars count from 1 and the range must not end before it starts "
+                         "(e.g. 3-4)")
+    return bars
+
+
+def _beat_seconds(beats: np.ndarray, position: float) -> float:
+    """Score time (s) of ``position`` beats from the first beat (past the last, the last spacing goes on)."""
+    k = min(max(int(math.floor(position)), 0), len(beats) - 2)
+    return float(beats[k] + (position - k) * (beats[k + 1] - beats[k]))
+
+
+def bar_span(score: Score, first: int, last: int) -> tuple[float, float]:
+    """Score times (s) of the start of bar ``first`` and the end of bar ``last`` (bars from 1), the inverse of
+    ``common.score.position.bar_beat`` (its bars: the score's ``bar_beats``, bars as long as the last past them,
+    bars of 4 beats in a score without them); ``ValueError`` for a score without beats."""
+    from common.score.position import DEFAULT_BEATS_PER_BAR
+
+    beats = np.asarray(score.beats, float)
+    if len(beats) < 2:
+        raise ValueError("--preview-bars: the score has no beats to count bars by")
+    starts = [float(b) for b in score.bar_beats]
+
+    def bar_start(bar: int) -> float:  # beats from the first beat, bar from 0
+        if not starts:
+            return float(bar * DEFAULT_BEATS_PER_BAR)
+        if bar < len(starts):
+            return starts[bar]
+        length = len(beats) - 1 - starts[-1]
+        if length <= 0:
+            length = starts[-1] - starts[-2] if len(starts) > 1 else float(DEFAULT_BEATS_PER_BAR)
+        return starts[-1] + (bar - len(starts) + 1) * length
+
+    return _beat_seconds(beats, bar_start(first - 1)), _beat_seconds(beats, bar_start(last))
 
 
 Planner = Literal["keyframe", "gestures"]

@@ -222,6 +222,9 @@ class ViewServer:
                 return self._save_pose(msg)
             if kind == "hardware":
                 return self._hardware(msg)
+            if kind == "preview_rate":  # the page's rate select; every page is told by the view message
+                self.core.set_preview_rate(msg.get("rate"), self.clock())  # type: ignore[arg-type]
+                return None
             raise ValueError(f"unknown message type {kind!r}")
         except RecursionError:  # e.g. "[[[[..." : the JSON parser gives up, the connection must not
             self.counters["page_errors"] += 1

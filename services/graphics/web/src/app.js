@@ -471,8 +471,23 @@ function applyView(view) {
   const newCamera = fromNode("camera", view.camera, before?.camera);
   state.view = { ...view, camera: newCamera ? { ...view.camera } : shown.camera, layers: layersShown };
   if (newCamera) pickCamera(view.camera);
+  showPreviewRate(view);
   showLayers();
 }
+// The preview's speed (motion seconds per second), shown while a preview plays: the node's rate, changed for every
+// page from any page (the view message names it); a rate given on the command line that the list lacks is added.
+const rateSelect = document.getElementById("preview-rate");
+function showPreviewRate(view) {
+  const rate = view.preview_rate ?? null, shown = rate !== null && view.mode === "preview";
+  document.getElementById("preview-rate-box").classList.toggle("hidden", !shown);
+  if (rate === null) return;
+  const rates = [...new Set([...(view.preview_rates ?? []), rate])].sort((a, b) => a - b);
+  if (rateSelect.options.length !== rates.length) {
+    rateSelect.replaceChildren(...rates.map((r) => new Option(`\u00D7${r}`, String(r))));
+  }
+  rateSelect.value = String(rate);
+}
+rateSelect.addEventListener("change", () => { send({ type: "preview_rate", rate: Number(rateSelect.value) }); });
 function showLayers() {
   const shown = state.view.layers;
   for (const [name, group] of Object.entries(layers)) group.visible = shown[name] !== false;
@@ -588,10 +603,15 @@ function renderStatus() {
     : "–";
   // a figure and its unit never wrap apart in the narrow panel ("465" at the end of a line, "ms" on the next)
   const nw = (text) => `<span class="nw">${text}</span>`;
+  // a preview receives no poses or impacts: its own numbers (strokes played of this lap's, its poses, its speed)
+  const p = s.preview;
+  const counts = p ? `${nw(`preview \u00D7${p.rate}`)} · ${nw(`strokes ${p.played}/${p.strokes}`)} · ` +
+    `${nw(`lap ${p.laps + 1}`)} · ${nw(`${p.poses} poses`)}`
+    : `${nw(`late strikes ${s.late}`)} · ${nw(`poses ${s.counters.poses}`)} · ${nw(`impacts ${s.counters.impacts}`)}`;
   body.innerHTML = `mode ${s.mode} · ${nw(`delay ${(s.latency * 1000).toFixed(0)} ms`)} · ` +
     `${nw(`view ${state.fps.toFixed(0)} fps`)}<br>` +
     `${nw(`rig time ${s.time.toFixed(2)} s`)} · score ${nw(score)}<br>` +
-    `${nw(`late strikes ${s.late}`)} · ${nw(`poses ${s.counters.poses}`)} · ${nw(`impacts ${s.counters.impacts}`)}` +
+    counts +
     (s.pose_lag === null ? "" : ` · ${nw(`pose age ${(s.pose_lag * 1000).toFixed(0)} ms`)}`) +
     `<table>${rows || "<tr><td>no other nodes seen</td></tr>"}</table>`;
   showStalePoses(s);
