@@ -590,11 +590,13 @@ class StreamedOutputs:
     pass 4 GiB is written as RF64 (said by ``prog``, the command rendering). ``bvh_start_s``: rig time of the
     BVH's frame 0, seconds (None: the first pose's), and its last frame's then: at ``bvh_start_s`` + the WAV's
     length (``--bvh-sync wav``: the BVH on the WAV's clock ends where the WAV does, as the glTF; until 7 Dec it went
-    on to the last pose, 50 ms, the latency, past it); None: the last pose's.
+    on to the last pose, 50 ms, the latency, past it); None: the last pose's. ``end_sites``: the BVH's End Sites,
+    those of the body physics builds (:func:`body_end_sites`; None: the writer's guess from its snapshot).
     """
 
     def __init__(self, folder: Path, bvh_rate_hz: float | None, keep: bool = False, planned_s: float = 0.0,
-                 prog: str = "batteur render", bvh_start_s: float | None = None) -> None:
+                 prog: str = "batteur render", bvh_start_s: float | None = None,
+                 end_sites: dict[str, tuple[float, float, float]] | None = None) -> None:
         from services.graphics.export.bvh import BvhStream
 
         self.folder = folder
@@ -605,8 +607,9 @@ class StreamedOutputs:
         self.bvh_rate_hz = bvh_rate_hz
         self.wav: WavStream | None = None
         self.impacts = ImpactCsvStream(folder / "impacts.csv")
+        self.end_sites = end_sites
         self.bvh = None if bvh_rate_hz is None else BvhStream(folder / "performance.bvh", bvh_rate_hz,
-                                                              start=bvh_start_s)
+                                                              start=bvh_start_s, end_sites=end_sites)
         self.bvh_frames: int | None = None
         """Frames of the streamed BVH once finished (None: no file)."""
         self._recorder: RecorderCore | None = None
@@ -769,14 +772,15 @@ def write_outputs(output: Path, audio: np.ndarray, sample_rate: int, impacts: li
 
 def write_rest(staging: Staging, report: dict[str, Any], poses: Any = None, score: Path | None = None,
                video: Callable[[Path], dict[str, Any]] | None = None, bvh_rate_hz: float | None = None,
-               gltf: Callable[[Path], dict[str, Any]] | None = None) -> None:
+               gltf: Callable[[Path], dict[str, Any]] | None = None,
+               end_sites: dict[str, tuple[float, float, float]] | None = None) -> None:
     """The outputs after the WAV and impacts.csv (see :func:`write_outputs`): the BVH of ``poses`` (kept in
-    memory), the video, the glTF (``gltf``: as ``video``, listed as ``report["gltf"]``), the score's copy and
-    report.json."""
+    memory; its End Sites ``end_sites``, as :class:`StreamedOutputs`'), the video, the glTF (``gltf``: as
+    ``video``, listed as ``report["gltf"]``), the score's copy and report.json."""
     if poses is not None:
         from services.graphics.export.bvh import write_bvh
 
-        write_bvh(poses, staging.path / "performance.bvh", rate_hz=bvh_rate_hz)
+        write_bvh(poses, staging.path / "performance.bvh", rate_hz=bvh_rate_hz, end_sites=end_sites)
     if video is not None:
         report["video"] = video(staging.path)
     if gltf is not None:
@@ -847,7 +851,8 @@ def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: boo
     with Staging(output) as staging:  # the WAV, impacts and motion are written as they are rendered
         outputs = StreamedOutputs(staging.path, opts.pose_rate_hz or None, keep=opts.video or opts.gltf,
                                   planned_s=rendered_seconds(plan, opts), prog=prog,
-                                  bvh_start_s=wav_frame_start(opts) if opts.bvh_sync == "wav" else None)
+                                  bvh_start_s=wav_frame_start(opts) if opts.bvh_sync == "wav" else None,
+                                  end_sites=body_end_sites(opts))
         try:
             if opts.jobs > 1:
                 from batteur.segments import run_segmented
@@ -881,7 +886,7 @@ def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: boo
             gltf = gltf_writer(result, kit, opts, quiet)
         kept_poses = result.poses if outputs.bvh is None else None  # else the BVH is written already
         write_rest(staging, report, kept_poses, Path(path), video, bvh_rate_hz=opts.pose_rate_hz or None,
-                   gltf=gltf)
+                   gltf=gltf, end_sites=outputs.end_sites)
         staging.commit()
     return report
 
@@ -970,6 +975,26 @@ def skeleton_limbs(opts: RenderOptions) -> LimbLengths | None:
     from services.physics.bvh_motion import skeleton_limb_lengths
 
     return skeleton_limb_lengths(opts.skeleton_bvh, opts.height_m, opts.mass_kg)
+
+
+def body_end_sites(opts: RenderOptions) -> dict[str, tuple[float, float, float]]:
+    """The End Sites of performance.bvh: where physics puts the tips of the body it builds for ``opts`` (its
+    ``--height``, ``--mass`` and ``--skeleton-bvh``), link -> offset in the link's frame (metres, z up): a stick's
+    bead centre (``<side>_stick_tip``) and a foot's ball (``<side>_foot_ball``, which follows the height, not a
+    skeleton's shank: the BVH writer's guess from the snapshot scaled it with the shank, 3 cm off for 0.52 m
+    shanks). The body is generated as the drummer scene generates it, without a simulation."""
+    from services.physics.anthropometry import anthropometry
+    from services.physics.bvh_motion import bvh_segment_lengths
+    from services.physics.character import CharacterSpec, build_character
+
+    lengths = None if opts.skeleton_bvh is None else bvh_segment_lengths(opts.skeleton_bvh)
+    model = build_character(CharacterSpec(anthropometry(opts.height_m, opts.mass_kg, lengths_m=lengths)))
+    fixed = {joint.child: joint for part in model.parts for joint in part.robot.joints if joint.kind == "fixed"}
+    sites: dict[str, tuple[float, float, float]] = {}
+    for tip in model.tips.values():  # the tips hang on fixed joints from their link (stick, foot)
+        x, y, z = fixed[tip].xyz
+        sites[fixed[tip].parent] = (float(x), float(y), float(z))
+    return sites
 
 
 def check_video(opts: RenderOptions) -> None:

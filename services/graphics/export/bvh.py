@@ -35,9 +35,13 @@ way round).
 
 End Sites (where Blender and Maya put the tail of a last bone): for physics' character, a stick's is its tip (the
 bead's centre, physics' ``<side>_stick_tip`` link), so the stick bone runs along the stick; a foot's is the ball of
-the foot (physics' ``<side>_foot_ball``), so the foot bone points along the foot to the toes; both from the
-character snapshot (:func:`services.graphics.poser.load_character`), the foot's scaled with the body's shank. Other
-leaves continue their bone by a quarter.
+the foot (physics' ``<side>_foot_ball``), so the foot bone points along the foot to the toes. They are the body's
+own when the writer is given them (``end_sites``: ``batteur render`` passes those of the body physics built, whose
+ball of the foot follows ``--height``, not the shank a ``--skeleton-bvh`` gives). Without them (an export that
+does not know the body's geometry, e.g. the viewer's) they are guessed from the character snapshot
+(:func:`services.graphics.poser.load_character`), the foot's scaled with the body's shank: exact for a body of the
+table's proportions (any ``--height``), off for a skeleton's shank (3.1 cm for 0.52 m shanks on a 1.75 m body).
+Other leaves continue their bone by a quarter.
 """
 
 from __future__ import annotations
@@ -45,6 +49,7 @@ from __future__ import annotations
 import itertools
 import shutil
 import warnings
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO
@@ -85,6 +90,8 @@ _PELVIS = next(child for parent, child in JOINT_LINKS.values() if parent == BASE
 ON_THRONE = tuple(child for parent, child in JOINT_LINKS.values() if parent in HIP_MOUNTS.values())
 """Links of physics' character whose joint's parent is fixed on the throne (the thighs): the throne joint's
 children."""
+EndSites = Mapping[str, Sequence[float]]
+"""Leaf link -> its End Site: the offset (3,) of its tip, metres, in the link's frame (Batteur's axes, z up)."""
 
 
 def _y_up(rotations: Rotation) -> Rotation:
@@ -223,7 +230,11 @@ class _Layout:
     converted in order (a frame's angles continue from the previous frame's, so frames can be converted in chunks,
     one after the other)."""
 
-    def __init__(self, names: list[str], first_frame: np.ndarray, scale: float, all_positions: bool) -> None:
+    def __init__(self, names: list[str], first_frame: np.ndarray, scale: float, all_positions: bool,
+                 end_sites: EndSites | None = None) -> None:
+        self.end_sites = {} if end_sites is None else {link: np.asarray(offset, dtype=float)
+                                                       for link, offset in end_sites.items()}
+        """Leaf link -> its End Site given by the caller (metres, the link's frame, z up)."""
         self.parents = guess_parents(names)
         body = body_links(names)
         self.character = load_character() if is_character(names) else None
@@ -259,9 +270,9 @@ class _Layout:
         self._emit(self.root, 0)
 
     @classmethod
-    def of(cls, names: list[str], first_frame: np.ndarray, scale: float = 1.0, all_positions: bool = False
-           ) -> _Layout:
-        return cls(list(names), np.asarray(first_frame, dtype=float), scale, all_positions)
+    def of(cls, names: list[str], first_frame: np.ndarray, scale: float = 1.0, all_positions: bool = False,
+           end_sites: EndSites | None = None) -> _Layout:
+        return cls(list(names), np.asarray(first_frame, dtype=float), scale, all_positions, end_sites)
 
     def _world(self, values: np.ndarray) -> tuple[np.ndarray, dict[int, Rotation]]:
         """Positions (N, J, 3) in file units and orientations of the body's joints, y up, of frames ``values``
@@ -303,8 +314,12 @@ class _Layout:
         lines.append(f"{pad}}}")
 
     def end_site(self, i: int) -> np.ndarray:
-        """The End Site of leaf joint ``i`` in its own frame, file units (see the module docstring)."""
+        """The End Site of leaf joint ``i`` in its own frame, file units (see the module docstring): the one given
+        (``end_sites``), else for physics' character its snapshot's effector, a body segment's scaled as its bone
+        (a guess: the body's real geometry is not known here), else the bone continued by a quarter."""
         name, scale = self.names[i], self.scale
+        if name in self.end_sites:
+            return np.asarray(Z_UP_TO_Y_UP @ self.end_sites[name] * scale, dtype=float)
         info = self.character
         effector = None if info is None else next((offset for link, offset in info.effectors.values()
                                                    if link == name), None)
@@ -391,7 +406,8 @@ def _rows(motion: np.ndarray) -> list[str]:
 
 
 def write_bvh(sequence: PoseSequence, path: Path, rate_hz: float | None = None, scale: float = 1.0,
-              all_positions: bool = False, start: float | None = None, end: float | None = None) -> BvhInfo:
+              all_positions: bool = False, start: float | None = None, end: float | None = None,
+              end_sites: EndSites | None = None) -> BvhInfo:
     """Write ``sequence`` as a BVH file at ``path``.
 
     Parameters
@@ -410,12 +426,15 @@ def write_bvh(sequence: PoseSequence, path: Path, rate_hz: float | None = None, 
         Time of frame 0, seconds (default: the first pose's); frames before the first pose hold it.
     end : float, optional
         Time the frames go up to, inclusive, seconds (default: the last pose's); frames past the last pose hold it.
+    end_sites : mapping, optional
+        Leaf link -> its End Site, metres in the link's frame (z up), e.g. a stick's tip and a foot's ball as
+        physics built the body; leaves not given: from the character snapshot, scaled (see the module docstring).
     """
     if rate_hz is None:
         dt = float(np.median(np.diff(sequence.times))) if len(sequence.times) > 1 else 1 / 60
         rate_hz = 1.0 / dt
     seq = sequence.resample(rate_hz, start=start, end=end)
-    layout = _Layout.of(seq.names, seq.values[0], scale, all_positions)
+    layout = _Layout.of(seq.names, seq.values[0], scale, all_positions, end_sites)
     motion, pos, _ = layout.motion(seq.values)
     frame_time = 1.0 / rate_hz
     lines = layout.header(len(seq.times), frame_time)
@@ -439,11 +458,11 @@ class BvhStream:
     the last pose's time (or :meth:`finish`'s ``end``, as :func:`write_bvh`'s). Motion rows go to ``path`` +
     ``.motion`` (next to ``path``) in chunks of ``chunk_frames``; :meth:`finish` writes the header, whose frame count
     is known only then, and appends them. Poses must come in strictly increasing time (seconds) with the link
-    layout given to :meth:`restart`.
+    layout given to :meth:`restart`. ``end_sites``: as :func:`write_bvh`'s.
     """
 
     def __init__(self, path: Path, rate_hz: float, scale: float = 1.0, all_positions: bool = False,
-                 chunk_frames: int = 240, start: float | None = None) -> None:
+                 chunk_frames: int = 240, start: float | None = None, end_sites: EndSites | None = None) -> None:
         if not rate_hz > 0:
             raise ValueError(f"BVH frame rate must be > 0 Hz, got {rate_hz}")
         self.path = Path(path)
@@ -453,6 +472,7 @@ class BvhStream:
         self.all_positions = all_positions
         self.chunk_frames = chunk_frames
         self.start = start
+        self.end_sites = end_sites
         self.peak_held_frames = 0
         """Most resampled frames held in memory at once (at most ``chunk_frames``): what the stream keeps."""
         self._file: IO[str] | None = None
@@ -515,7 +535,7 @@ class BvhStream:
             return
         values = np.stack(self._frames)
         if self._layout is None:
-            self._layout = _Layout.of(self.names, values[0], self.scale, self.all_positions)
+            self._layout = _Layout.of(self.names, values[0], self.scale, self.all_positions, self.end_sites)
         if self._file is None:
             self._file = self.motion_path.open("w+", encoding="utf-8", newline="\n")
         motion, _, _ = self._layout.motion(values)
