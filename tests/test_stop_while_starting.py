@@ -30,8 +30,9 @@ pytestmark = [pytest.mark.timeout(300),
               pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc as on Linux")]
 
 ROOT = Path(__file__).parents[1]
-PLANNERS = 2
-"""Planning processes the live physics core starts (the current one and a spare)."""
+PLANNERS = 1
+"""Planning processes the live physics core starts while it is made (the first; the spare starts after the first
+plan: services/physics/plan_worker.py)."""
 
 
 def _stat(pid: int) -> list[str] | None:

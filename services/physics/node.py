@@ -21,8 +21,9 @@ re-plans, live notes) are computed in a worker process and spliced in at the
 first step after they are ready, so the 1 kHz loop never waits for the planner;
 messages take effect in arrival order, but a reset drops the plan in flight (its process is
 terminated, a spare one plans the next) and acts at once (services/physics/score_player.py,
-services/physics/plan_worker.py, docs/physics.md "Background plans"). A refused message is answered to
-its sender with ``/batteur/physics/rejected`` (docs/physics.md "Replies").
+services/physics/plan_worker.py, docs/physics.md "Background plans"). The first planning process starts before the
+scene is built and the node listens (says it is up, answers Hellos) only once it has loaded the planner. A refused
+message is answered to its sender with ``/batteur/physics/rejected`` (docs/physics.md "Replies").
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ from __future__ import annotations
 import argparse
 import logging
 import math
+import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Annotated, Any, Literal, get_args
@@ -51,7 +53,7 @@ from common.score.events import SCORE_FILE
 from common.score.limbs import LimbLengths
 from services.physics.core import PhysicsCore, PhysicsSettings
 from services.physics.mocap import ClipError
-from services.physics.plan_worker import PlanWorker
+from services.physics.plan_worker import PlanWorker, PlanWorkers
 from services.physics.precompile import warm_up
 from services.physics.score_position import SCORE_POSITION_PERIOD_S, score_position
 from services.physics.targets import TargetError
@@ -119,13 +121,22 @@ class LivePhysicsCore(PhysicsCore):
 
     def __init__(self, settings: PhysicsSettings | None = None, *, planner: PlanWorker = "process",
                  **kwargs: Any) -> None:
-        super().__init__(settings, **kwargs)
-        if self.settings.scene == "drummer":  # the strike scene plays no scores: no worker
-            try:
-                self.score_player.start_background(self.handle_counted, planner)
-            except BaseException:  # a node stopped while starting (StoppedWhileStarting): its processes stop
+        scene = kwargs.get("scene", (settings or PhysicsSettings()).scene)
+        # the strike scene plays no scores: no worker; the drummer's first one starts (and loads) while the scene
+        # is built, not after: :meth:`wait_loaded`
+        workers = PlanWorkers(planner) if scene == "drummer" else None
+        built = False
+        try:
+            super().__init__(settings, **kwargs)
+            built = True
+            if workers is not None:
+                self.score_player.start_background(self.handle_counted, workers)
+        except BaseException:  # a bad setting, a node stopped while starting (StoppedWhileStarting): processes stop
+            if workers is not None:
+                workers.close()
+            if built:
                 self.close()
-                raise
+            raise
         self._position_sent = -math.inf
         """Rig time the score's position was last looked at (and sent, if one plays), seconds."""
 
@@ -157,6 +168,11 @@ class LivePhysicsCore(PhysicsCore):
         if player.score is None or clock is None:
             return None
         return score_position(player.score, clock, now)
+
+    def wait_loaded(self, timeout_s: float | None = None) -> bool:
+        """Block until the planning worker has loaded the planner (True; or a strike scene: none), False after
+        ``timeout_s`` seconds."""
+        return self.score_player.wait_loaded(timeout_s)
 
     def close(self) -> None:
         self.score_player.close()
@@ -205,6 +221,7 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace) -> PhysicsCore:
         raise InputError(str(exc)) from None
     try:
         _prepare(core, settings)
+        _wait_for_planner(core)
     except ValueError as exc:  # the --score file: not a score it can read
         core.close()
         raise InputError(str(exc)) from None
@@ -212,6 +229,26 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace) -> PhysicsCore:
         core.close()
         raise
     return core
+
+
+PLANNER_LOAD_WAIT_S = 30.0
+"""Longest the node waits, once its scene is ready, for its planning process to load the planner before it listens
+(says it is up and answers Hellos), seconds: 2-5 s of CPU, 15-36 s measured under a load of 20 while the process was
+niced. Past it the node starts anyway, says so, and refuses live notes with the reason until the load is done (a
+node that never came up would be worse; the rig gives up at its ``--ready-timeout``, 60 s)."""
+
+
+def _wait_for_planner(core: LivePhysicsCore) -> None:
+    """Hold the node's start until its planning process can plan (see :data:`PLANNER_LOAD_WAIT_S`): a node that
+    said it was up while its processes still loaded refused every note sent meanwhile as late."""
+    if not core.score_player.loading:
+        return
+    started = time.monotonic()
+    if core.wait_loaded(PLANNER_LOAD_WAIT_S):
+        log.info("planning process ready (waited %.1f s for it)", time.monotonic() - started)
+    else:
+        log.warning("the planning process has not loaded the planner after %.0f s: starting without it; live "
+                    "notes are refused until it has (their senders are told why)", PLANNER_LOAD_WAIT_S)
 
 
 def _skeleton_limbs(settings: PhysicsNodeSettings) -> LimbLengths | None:

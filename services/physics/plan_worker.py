@@ -8,6 +8,13 @@ A plan dropped while it is computed (a reset) is abandoned (:meth:`PlanWorkers.a
 terminated and a spare process, started and loaded beforehand, plans the next one at once (a new process takes
 2-5 s to import the planner and load the gesture database, several times a 439-note plan); a thread cannot be
 stopped, so it finishes the dropped plan alone while a new thread plans the next.
+
+Start: the node starts its first process before it builds its scene (the load overlaps the node's own start) and
+says it is up only once that process has loaded (:meth:`PlanWorkers.wait_loaded`): a node that said it was up
+while both its processes still loaded kept its first plans waiting 15-36 s under load, and the notes sent meanwhile
+were refused as late. The spare starts only once a plan has been computed (:meth:`PlanWorkers.idle`), so the two do
+not share the CPU at start. While the current worker still loads (:attr:`PlanWorkers.loading`: a process started
+after an abandon with no spare left), the score player refuses live notes at once rather than plan them late.
 """
 
 from __future__ import annotations
@@ -20,8 +27,10 @@ import os
 import signal
 import sys
 import threading
+import time
 from collections.abc import Callable, Iterator, Mapping
 from concurrent.futures import BrokenExecutor, Executor, Future, ProcessPoolExecutor, ThreadPoolExecutor
+from concurrent.futures import wait as wait_futures
 from typing import TYPE_CHECKING, Any, Literal, TypeVar
 
 from common.score.limbs import STATURE_M
@@ -98,16 +107,28 @@ def _die_with(parent: int) -> None:
         os._exit(0)
 
 
-def _start_planner_process(parent: int) -> None:
-    """A planning process's start: it dies with the node (``parent``, its pid), at lower priority than the loop,
-    Ctrl-C left to the node (which stops it), the planner imported and the gesture database loaded now (niced
-    already: 2-5 s of CPU)."""
-    _die_with(parent)
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+def _lower_priority() -> None:
+    """This process at :data:`PLANNER_NICE` below the loop's priority (where the system allows it)."""
     try:
         os.nice(PLANNER_NICE)
     except (AttributeError, OSError):  # not on this system: plans at the loop's priority
         pass
+
+
+def _start_planner_process(parent: int, niced: bool) -> None:
+    """A planning process's start: it dies with the node (``parent``, its pid), Ctrl-C left to the node (which
+    stops it); ``niced``: at lower priority than the loop from now on (else after its load:
+    :func:`_load_planner_process`)."""
+    _die_with(parent)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if niced:
+        _lower_priority()
+
+
+def load_planner() -> None:
+    """Import the planner and load the gesture database: in a new process 2-5 s of CPU (the first task of each
+    worker; in the node, where they are loaded already, nothing). A test may replace it for a thread worker (a
+    load that takes as long as the test wants)."""
     import common.gesture.planner  # noqa: F401 - imported now, not with the first plan
     import common.score.limbs  # noqa: F401
     from common.gesture.database import default_database
@@ -115,23 +136,37 @@ def _start_planner_process(parent: int) -> None:
     default_database()
 
 
-def plan_executor(worker: PlanWorker) -> Executor:
-    """A one-worker executor of the kind ``worker``; a process is started (and its database loaded) at once."""
+def _load_planner_process(nice_after: bool) -> None:
+    """A planning process's first task: :func:`load_planner`, then (``nice_after``) its lower priority."""
+    load_planner()
+    if nice_after:
+        _lower_priority()
+
+
+def plan_executor(worker: PlanWorker, first: bool = False) -> tuple[Executor, Future[None]]:
+    """A one-worker executor of the kind ``worker``, its load (:func:`load_planner`) submitted now as its first
+    task, and that task's future: done once the worker can plan at once (a cheap round-trip after the load).
+
+    A process is started now; ``first``: the node's first, started before its loop runs, loads at the node's
+    priority and only then lowers its own (niced from its start, it loaded in 15-36 s instead of 2-5 s while the
+    node built its scene on the same core under load); any later one (a spare, a replacement, while the loop runs)
+    is niced before it loads."""
     if worker == "thread":
-        return ThreadPoolExecutor(1, thread_name_prefix="physics-plan")
+        thread_pool = ThreadPoolExecutor(1, thread_name_prefix="physics-plan")
+        return thread_pool, thread_pool.submit(load_planner)
     # started by the calling thread, whose end the child takes for its parent's (PR_SET_PDEATHSIG): the node's
     # loop thread (or the main thread), which lasts as long as the node
     pool: ProcessPoolExecutor | None = None
     try:
         with _stop_signals_held():
             pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"),
-                                       initializer=_start_planner_process, initargs=(os.getpid(),))
-            pool.submit(int)  # starts the process (and loads the database) now, not with the first plan
+                                       initializer=_start_planner_process, initargs=(os.getpid(), not first))
+            loaded = pool.submit(_load_planner_process, first)  # starts the process and its load now
     except BaseException:  # a node stopped while starting (common.runtime.StoppedWhileStarting): none left behind
         if pool is not None:
             stop_executor(pool)
         raise
-    return pool
+    return pool, loaded
 
 
 @contextlib.contextmanager
@@ -166,21 +201,39 @@ def stop_executor(pool: Executor) -> None:
 
 
 class PlanWorkers:
-    """The node's planning worker, one plan at a time, and for a process a started spare (see the module
-    docstring). ``worker``: a process (the node) or a thread (tests, benchmarks)."""
+    """The node's planning worker, one plan at a time, and for a process a spare started once a plan has been
+    computed (see the module docstring). ``worker``: a process (the node) or a thread (tests, benchmarks). The first
+    worker starts (and begins its load) at once: :meth:`wait_loaded` waits for it."""
 
     def __init__(self, worker: PlanWorker = "process") -> None:
         self.kind: PlanWorker = worker
-        self._current = plan_executor(worker)
-        try:
-            self._spare: Executor | None = plan_executor(worker) if worker == "process" else None
-            """A process started (database loaded) beforehand, for the plan after an abandoned one."""
-        except BaseException:  # a node stopped while starting: the first worker stops too
-            stop_executor(self._current)
-            raise
+        self._current, self._loaded = plan_executor(worker, first=True)
+        self._loading_since = time.monotonic()
+        """When the current worker started its load (``time.monotonic()``, s)."""
+        self._spare: Executor | None = None
+        """A process started (database loaded) beforehand, for the plan after an abandoned one; started by
+        :meth:`idle` once a plan has been computed, not with the first (they shared the CPU at start)."""
+        self._spare_loaded: Future[None] | None = None
+        self._spare_since = 0.0
         self._closed = False
         self._last: Future[Any] | None = None
         """The latest plan submitted since the last :meth:`abandon` (None: none yet)."""
+
+    @property
+    def loading(self) -> bool:
+        """The current worker still loads the planner: a plan submitted now would wait for that (seconds)."""
+        return not self._loaded.done()
+
+    @property
+    def loading_s(self) -> float:
+        """Seconds the current worker has been loading (or took to load) since it started."""
+        return time.monotonic() - self._loading_since
+
+    def wait_loaded(self, timeout_s: float | None = None) -> bool:
+        """Block until the current worker has loaded the planner (the node, before it says it is up); True if it
+        has (or its load failed: :meth:`submit` then plans in a thread), False after ``timeout_s`` seconds."""
+        done, _ = wait_futures([self._loaded], timeout=timeout_s)
+        return bool(done)
 
     def submit(self, plan: Callable[[], T]) -> Future[T]:
         """Compute ``plan()`` in the worker, after the plans submitted before it. A planning process that died
@@ -190,7 +243,9 @@ class PlanWorkers:
         except BrokenExecutor as exc:
             log.error("the planning process stopped (%s): planning in a thread of the node from now on", exc)
             self._stop()
-            self.kind, self._current = "thread", plan_executor("thread")
+            self.kind = "thread"
+            self._current, self._loaded = plan_executor("thread")
+            self._loading_since = time.monotonic()
             future = self._current.submit(plan)
         self._last = future
         return future
@@ -198,21 +253,26 @@ class PlanWorkers:
     def abandon(self) -> None:
         """Stop computing the plans submitted so far, without waiting (their futures are never to be read):
         a process is terminated and the spare takes its place (a new spare starts at the next :meth:`idle`; with
-        none left, a new process starts now); a thread is left to finish alone and a new one plans from now on."""
+        none left, a new process starts now: :attr:`loading` until it has loaded); a thread is left to finish
+        alone and a new one plans from now on."""
         old, self._last = self._current, None
-        if self._spare is not None:
-            self._current, self._spare = self._spare, None
+        if self._spare is not None and self._spare_loaded is not None:
+            self._current, self._loaded, self._loading_since = self._spare, self._spare_loaded, self._spare_since
+            self._spare, self._spare_loaded = None, None
         else:
-            self._current = plan_executor(self.kind)
+            self._current, self._loaded = plan_executor(self.kind)
+            self._loading_since = time.monotonic()
         stop_executor(old)
 
     def idle(self) -> None:
-        """No plan in flight: start the spare a process worker lacks (after :meth:`abandon`) once a plan has been
-        computed since. Not earlier: on a shared core its start (2-5 s of CPU) took turns with the plan after the
-        abandoned one (0.04 s alone, 0.2-0.3 s with it)."""
+        """No plan in flight: start the spare a process worker lacks (at start, or after :meth:`abandon`) once a
+        plan has been computed since. Not earlier: on a shared core its start (2-5 s of CPU) took turns with the
+        plan after the abandoned one (0.04 s alone, 0.2-0.3 s with it), and at the node's start with the first
+        process's load."""
         last = self._last
         if self._spare is None and last is not None and last.done() and self.kind == "process" and not self._closed:
-            self._spare = plan_executor("process")
+            self._spare, self._spare_loaded = plan_executor("process")
+            self._spare_since = time.monotonic()
 
     def close(self) -> None:
         """Stop every worker without waiting for the plan in flight (processes terminated); for good."""
@@ -223,4 +283,4 @@ class PlanWorkers:
         for pool in (self._current, self._spare):
             if pool is not None:
                 stop_executor(pool)
-        self._spare = None
+        self._spare, self._spare_loaded = None, None

@@ -860,12 +860,16 @@ class ScorePlayer:
                                     "played", source, now)
         return event
 
-    def _count_late(self, event: DrumEvent, why: str, source: str = "", now: float = 0.0) -> None:
+    def _count_late(self, event: DrumEvent, why: str, source: str = "", now: float = 0.0,
+                    cause: str | None = None) -> None:
         """Count a live note too late to prepare (not played), log it (the first ten, then every 100th) and tell
-        ``source`` at rig time ``now`` (s): counted late (Health's ``late``), not as a rejection."""
+        ``source`` at rig time ``now`` (s): counted late (Health's ``late``), not as a rejection. ``cause``: why it
+        cannot be prepared, if not for too short a lead."""
         self.late_notes += 1
-        reason = (f"live note {event.event.value} at {event.time + self.core.target_lag:.3f} s {why}: less than "
-                  f"{self.preparation_s * 1000:.0f} ms to prepare it; not played")
+        if cause is None:
+            cause = f"less than {self.preparation_s * 1000:.0f} ms to prepare it"
+        at = event.time + self.core.target_lag  # its rig time
+        reason = f"live note {event.event.value} at {at:.3f} s {why}: {cause}; not played"
         if self.late_notes <= 10 or self.late_notes % 100 == 0:
             log.warning("%s (%d late so far)", reason, self.late_notes)
         self.core.queue_refusal(LiveNote.ADDRESS, reason, source, now)
@@ -1067,12 +1071,25 @@ class ScorePlayer:
     # ------------------------------------------------------------------ background plans
 
     def start_background(self, direct: Callable[[OscMessage, float, str], list[Outgoing]],
-                         worker: PlanWorker = "process") -> None:
+                         worker: PlanWorker | PlanWorkers = "process") -> None:
         """Plan in a worker from now on (the live node). ``direct(message, now, source)``: the core's own handler,
-        which every other message goes to, in its turn (see :meth:`submit`)."""
+        which every other message goes to, in its turn (see :meth:`submit`); ``worker``: its kind, or workers
+        started already (the node starts its first process before it builds its scene)."""
         if self._worker is None:
-            self._worker = PlanWorkers(worker)
+            self._worker = worker if isinstance(worker, PlanWorkers) else PlanWorkers(worker)
+        elif isinstance(worker, PlanWorkers) and worker is not self._worker:
+            worker.close()  # workers of their own already: none left running unused
         self._direct = direct
+
+    @property
+    def loading(self) -> bool:
+        """Background plans: the planning worker still loads the planner (live notes are refused meanwhile)."""
+        return self._worker is not None and self._worker.loading
+
+    def wait_loaded(self, timeout_s: float | None = None) -> bool:
+        """Block until the planning worker has loaded the planner (the node, before it says it is up); True if it
+        has (or there is none), False after ``timeout_s`` seconds."""
+        return self._worker is None or self._worker.wait_loaded(timeout_s)
 
     @property
     def background(self) -> bool:
@@ -1095,6 +1112,9 @@ class ScorePlayer:
         """
         if self._direct is None:
             raise RuntimeError("background plans are off (start_background)")
+        if isinstance(message, LiveNote) and self.loading:  # planned after the load: late (seconds); said now
+            self._refuse_loading(_Waiting(message, now, source), now)
+            return []
         if not self.busy and not isinstance(message, SCORE_MESSAGES):
             return self._direct(message, now, source)
         if isinstance(message, PhysicsReset):  # at once: what waits for the planner is stale
@@ -1235,11 +1255,32 @@ class ScorePlayer:
         if prepared is not None:
             self._submit([waiting], prepared, self._finish_whole)
 
+    def _refuse_loading(self, waiting: _Waiting, now: float) -> None:
+        """A live note while the planning worker still loads: not played, counted late (Health's ``late``) and its
+        sender told why at once (planned after the load, seconds later, it would be late anyway); a note-off, a
+        double or an unknown pitch is handled as always (:meth:`_accept`)."""
+        assert isinstance(waiting.message, LiveNote) and self._worker is not None
+        try:
+            self._drummer()
+            event = waiting.event if waiting.event is not None else self._accept(waiting.message, waiting.source, now)
+        except ValueError as exc:
+            self._fail([waiting], exc, now)
+            return
+        if event is not None:
+            self._count_late(event, f"arrived at {waiting.now:.3f} s", waiting.source, now,
+                             cause=f"the planning process is still loading the planner ({self._worker.loading_s:.1f} "
+                             "s so far)")
+
     def _start_live(self, waiting: _Waiting, now: float) -> None:
-        """Plan this live note and the live notes waiting right after it together."""
+        """Plan this live note and the live notes waiting right after it together (refused while the planning
+        worker loads: :meth:`_refuse_loading`)."""
         batch = [waiting]
         while self._waiting and isinstance(self._waiting[0].message, LiveNote):
             batch.append(self._waiting.popleft())
+        if self.loading:
+            for item in batch:
+                self._refuse_loading(item, now)
+            return
         t0 = self._base(now) + SPLICE_MARGIN_S
         accepted: list[tuple[_Waiting, DrumEvent]] = []
         for item in batch:

@@ -24,6 +24,7 @@ from common.messages.score import LiveNote, ScoreLoad, ScoreTransport, TempoScal
 from services.interaction.core import InteractionCore
 from services.physics.core import PhysicsCore
 from services.physics.node import LivePhysicsCore
+from tests.waiting import until
 
 SCORES = Path(__file__).parents[1] / "render"
 SCORE = SCORES / "short_groove.txt"  # two bars of hi-hat, snare and kick: no toms
@@ -181,6 +182,7 @@ def test_closing_the_core_does_not_wait_for_the_plan_in_flight(gate: threading.E
     control.send(LiveNote(time=0.8, pitch=SNARE, velocity=100, channel=10), "physics")
     job = player._job
     assert job is not None
+    assert until(job.future.running, 60.0)  # being computed (its worker idle until now: it takes it up at once)
     physics.close()  # the planner is still held: close must return without it
     assert not gate.is_set() and not job.future.done() and not player.busy
 
