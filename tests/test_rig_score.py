@@ -78,7 +78,10 @@ def test_rig_plays_a_score_live(tmp_path: Path) -> None:
     assert started, output
     position, start = float(started[0].group(1)), float(started[0].group(2))
     assert position == 0.0 and start >= PLAY_AT_S - 1e-3, started[0].group(0)
-    assert start == pytest.approx(PLAY_AT_S, abs=1e-3) or any("already past" in line for line in logged), output
+    # a later start is said: the play time already past, or too close to prepare the first note (physics up late:
+    # since 7 Dec it says it is up only once its planning process has loaded, seconds on a loaded core)
+    assert start == pytest.approx(PLAY_AT_S, abs=1e-3) or any(
+        "already past" in line or "too close to prepare its first note" in line for line in logged), output
     notes = [(start + e.time, INSTRUMENT[e.event.value]) for e in score.events]
     played = [(float(i["time"]), str(i["instrument"])) for i in impacts]  # type: ignore[arg-type]
     errors = []
