@@ -79,12 +79,25 @@ KICK_DOUBLE_DEPTH = 0.008
 """Such a softer bass-drum stroke aims this much deeper (metres) times the share of its lift it loses: after a
 hard kick the same foot height presses the board less (0.91 against 0.93 of its travel at the planned bottom; the
 beater meets the head at 0.95)."""
-KICK_REST_GAP_S = 1.5
+KICK_REST_GAP_S = 0.75
 """A bass-drum foot's stroke this long or more (s) after its previous one, or its first (a live plan's: this long
 after the foot's last stroke played before it, ``plan_gestures``' ``last_strokes``), is made from rest: it
-passes the height where the beater meets the head at the note time (:func:`kick_contact_rise`). After a shorter
-gap the same foot height presses the board less (docs/physics.md, "Kicks"). Below ``CONTEXT_S`` of the score
-player (2 s), so a live window's plan and the whole score's agree on every kick they splice."""
+passes the height where the beater meets the head at the note time (:func:`kick_contact_rise`). By then the
+footboard under the foot held at its rest height has settled (pressed 0.10 of its travel 0.1 s after a kick at
+velocity 0.4, 0.18 from 0.7 s on) and kicks aimed at the flat board sounded as early as lone kicks from rest, by
+the foot's time over that rise: at velocity 0.4 0.75 s after another 7 ms (7.3 ms), 1 s after another at 0.3, 0.7
+and 1.0 9, 5 and 3 ms (120 bpm, 1.75 m; the rise takes 9.0, 4.8 and 3.5 ms). 1.5 s until 7 Dec, which left kicks
+0.3-1.5 s after another 5-8 ms early on the Groove subset. Below ``CONTEXT_S`` of the score player (2 s), so a live
+window's plan and the whole score's agree on every kick they splice."""
+KICK_RAISE_FROM_S = 0.35
+"""A stroke more than this long (s) after the foot's previous one, the board still settling, is raised by
+``kick_contact_rise`` times its gap's share of the way from this to ``KICK_REST_GAP_S`` (none here, all of it
+there), and falls as one from rest when its foot would brake (``KICK_REST_FALL``). Aimed at the flat board, kicks at
+velocity 0.4 0.4 s after another sounded 1-2 ms early, 0.6 s after 4-5 ms (a share of 0.2 and 0.6 of the 7.3 ms
+the rise takes); 0.25 s after another within 3 ms (left aimed at the flat board). docs/physics.md, "Kicks"."""
+KICK_RAISE_MIN_S = 1e-5
+"""A raise (``KICK_RAISE_FROM_S``) the foot passes in less than this (s, a hundredth of the physics step) is left
+out: the press-on knot would all but fall on the note's."""
 KICK_RAISE_ROOM_S = 0.1
 """... and only when the foot's next stroke is at least this long (s) after the raised one's press-on and contact:
 a later bottom must not squeeze the approach to the next kick (at the closest kicks, 30 ms, it left none)."""
@@ -426,17 +439,24 @@ def _limb_knots(
         # KICK_RAISE_ROOM_S) passes the height where the beater meets the head
         # (``kick_contact_rise``) at the note time and presses on to the flat board at its speed: aimed at the flat
         # board, it sounded early by the time the foot takes over the last 8 mm (a lone kick at velocity 0.5 11 ms,
-        # 0.2 21 ms; now 4 and 9). Not the strokes after: for a second or more after a stroke the same foot height
-        # presses the board less (only the ball of the foot is placed), so they meet the head about at the flat
-        # board (raised, kicks 0.1-0.4 s after another sounded 8-22 ms late; docs/physics.md, "Kicks")
+        # 0.2 21 ms; now 4 and 9). Not the strokes soon after another: the footboard under the held foot settles
+        # for about 0.7 s after a stroke, and until it has the same foot height presses the board less, so they meet
+        # the head about at the flat board (raised, kicks 0.1-0.4 s after another sounded 8-22 ms late;
+        # docs/physics.md, "Kicks")
         through = 0.0
         rest_fall = 0.0
         bottom = target
         before = strokes[i - 1].time if i else previous  # the foot's stroke before (a live plan's: played before it)
-        if cycle is not None and hold > 0.0 and (before is None or st.time - before >= KICK_REST_GAP_S):
-            rise = kick_contact_rise()
+        # ... and part of the way after a shorter gap, the footboard under the held foot still settling
+        # (KICK_RAISE_FROM_S)
+        gap = np.inf if before is None else st.time - before
+        if cycle is not None and hold > 0.0 and gap > KICK_RAISE_FROM_S:
+            rise = kick_contact_rise() * min((gap - KICK_RAISE_FROM_S) / (KICK_REST_GAP_S - KICK_RAISE_FROM_S), 1.0)
             pressed = st.time + rise / max(st.speed, 1e-3) + st.contact  # the contact's end, raised
-            if i + 1 == len(strokes) or strokes[i + 1].time - pressed >= KICK_RAISE_ROOM_S:
+            # a raise the foot passes within KICK_RAISE_MIN_S (a gap a hair over KICK_RAISE_FROM_S) is none: its
+            # press-on knot would fall on the note's and the plan fail ("times must be strictly increasing")
+            if rise / max(st.speed, 1e-3) >= KICK_RAISE_MIN_S and (
+                    i + 1 == len(strokes) or strokes[i + 1].time - pressed >= KICK_RAISE_ROOM_S):
                 through = rise
                 target = target + through * st.normal
                 rest_rise = max(rest_rise - through, 0.0)  # from the raised aim: the same rest height

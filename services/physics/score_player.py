@@ -1453,7 +1453,8 @@ class ScorePlayer:
         """Each foot's last note of the performance before ``before`` (s, the targets' clock), looked for
         :data:`CONTEXT_S` back: a ``play`` spliced in then is planned without the notes before it, and its first
         kick is made from rest (raised to the beater's contact height, common/gesture/planner.py) only if that
-        foot has not kicked for ``KICK_REST_GAP_S`` (1.5 s). A double pedal's kick whose foot is not on record
+        foot has not kicked for ``KICK_REST_GAP_S`` (0.75 s), part of the way after ``KICK_RAISE_FROM_S`` (0.35 s),
+        not at all before. A double pedal's kick whose foot is not on record
         counts for both feet."""
         last: dict[Limb, float] = {}
         for k in range(bisect.bisect_left(self.events, before, key=lambda e: e.time) - 1, -1, -1):
