@@ -51,12 +51,14 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def _stdout_gone() -> bool:
-    """Whether standard output is a pipe whose reader went away (``batteur compare ... | head``): its write end
-    polls as an error. A reader that goes away is a quiet stop, exit 0, not a BrokenPipeError traceback."""
+    """Whether standard output is a pipe or socket whose reader went away (``batteur compare ... | head``): its
+    write end polls as an error or a hang-up. A reader that goes away is a quiet stop, exit 0, not a BrokenPipeError
+    traceback."""
     try:
         poller = select.poll()
         poller.register(sys.stdout.fileno(), select.POLLOUT)
-        return any(events & select.POLLERR for _, events in poller.poll(0))
+        # a pipe's write end polls POLLERR, a socket's POLLHUP once its reader has gone
+        return any(events & (select.POLLERR | select.POLLHUP) for _, events in poller.poll(0))
     except (OSError, ValueError, AttributeError):  # no descriptor (a test's capture), or already closed
         return False
 

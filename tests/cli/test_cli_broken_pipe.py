@@ -3,6 +3,7 @@ gone: for every batteur command a reader that goes away is a quiet stop, exit 0 
 
 from __future__ import annotations
 
+import socket
 import subprocess
 import sys
 from pathlib import Path
@@ -27,3 +28,27 @@ def test_a_command_writing_to_a_reader_still_there_keeps_its_status() -> None:
     done = subprocess.run([sys.executable, "-m", "batteur", "compare", "demo", str(ROOT / "no-such-take.mid")],
                           cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert done.returncode == 1 and "no-such-take.mid" in done.stderr
+
+
+def test_a_socket_reader_that_went_away_is_a_quiet_stop_too() -> None:
+    # stdout a socket (a service manager's, inetd's) whose reader closed: it polls POLLHUP, not POLLERR
+    ours, theirs = socket.socketpair()
+    ours.close()
+    with theirs:
+        done = subprocess.run([sys.executable, "-m", "batteur", "compare", "demo", str(TAKE)], cwd=ROOT,
+                              stdout=theirs, stderr=subprocess.PIPE, timeout=120)
+    assert done.returncode == 0, done.stderr.decode()
+    assert done.stderr.decode() == ""
+
+
+def test_another_broken_pipe_with_stdout_still_read_is_the_command_s_failure() -> None:
+    # a command whose own pipe or socket breaks (not stdout): its failure, not a quiet stop
+    code = ("import batteur.cli as cli\n"
+            "def broken(argv):\n"
+            "    print('some output')\n"
+            "    raise BrokenPipeError(32, 'Broken pipe')\n"
+            "cli.load_command = lambda name: broken\n"
+            "raise SystemExit(cli.main(['ls']))\n")
+    done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 1 and "BrokenPipeError" in done.stderr, done.stderr
+    assert done.stdout == "some output\n"
