@@ -9,8 +9,8 @@ ignore: dropped as ``wrong_node``, see :func:`common.transport.taken_elsewhere`)
 the core returns. It also keeps the
 rig clock (answering pings; estimating its offset to the clock master when the
 master is another node), greets newly found peers with a Hello, answers a Hello
-with its Health, publishes Health to every peer at 1 Hz, and stops cleanly on
-SIGINT/SIGTERM.
+with its Health (within a budget per sender host), publishes Health to every peer
+at 1 Hz, and stops cleanly on SIGINT/SIGTERM.
 
 A service's ``node.py`` is a few lines (see docs/runtime.md)::
 
@@ -65,7 +65,10 @@ from common.messages.system import TOOL_ROLE
 from common.peers import Peer, PeerTable
 from common.rated_log import RatedWarnings
 from common.subscribe import Subscriptions
+from common.token_bucket import TokenBuckets
 from common.transport import (
+    DECODE_REPLY_BURST,
+    DECODE_REPLY_RATE_HZ,
     SERVICE_ROLES,
     UdpEndpoint,
     format_address,
@@ -91,6 +94,15 @@ scene for about 3 s, 7-15 s on a loaded machine, while a rig's other nodes wait 
 REFUSAL_LOG_INTERVAL_S = 5.0
 """A refused Subscribe (table full, bad pattern) is logged at most once per this long, seconds; the rest are counted
 (Health's ``dropped_other``) and said as "+N more" in the next warning."""
+HELLO_ANSWER_RATE_HZ = DECODE_REPLY_RATE_HZ
+"""Hellos answered per second to one sender host (Health; a tool's also ClockStatus; physics' core also its
+Skeleton), past :data:`HELLO_ANSWER_BURST`: the rest are dropped unanswered, counted as ``rate_limited`` (Health's
+``dropped_other``). A Hello is ~60 bytes and its answers several times that, and one datagram can bundle a thousand:
+unbudgeted, a forged source made a node a reflector (one 60 kB bundle of Hellos drew 376 kB). The undecodable
+controls' figures, in a budget of its own, so a flood of bad controls does not silence the Hello of a ``batteur ls``
+that would show them counted. The rig asks every 0.5 s until answered, ``batteur ls`` once, peers once when found."""
+HELLO_ANSWER_BURST = DECODE_REPLY_BURST
+"""Hellos answered to one sender host at once before :data:`HELLO_ANSWER_RATE_HZ`."""
 
 
 # --------------------------------------------------------------------------- fixed-rate loop
@@ -425,6 +437,8 @@ class Node:
         """Who asked for copies of which messages (:class:`~common.messages.Subscribe`)."""
         self._refusal_warnings = RatedWarnings(log, REFUSAL_LOG_INTERVAL_S)
         """Refused Subscribes: one warning per :data:`REFUSAL_LOG_INTERVAL_S`, the others counted in it."""
+        self._hello_budgets = TokenBuckets(HELLO_ANSWER_RATE_HZ, HELLO_ANSWER_BURST)
+        """Sender host -> its budget of Hellos answered (:data:`HELLO_ANSWER_RATE_HZ`), on ``time.monotonic``."""
         self.oscquery: Any = None
         """The OSCQuery server (``common.oscquery.OscQueryServer``) once started, or None."""
         if self.is_clock_master:
@@ -797,6 +811,8 @@ class Node:
             self._on_subscribe(message, source)
             return
         if isinstance(message, Hello):
+            if not self._hello_within_budget(source):  # not handed to the core either: physics answers its Skeleton
+                return
             endpoint.send(self.health(), source)
             if message.role == TOOL_ROLE:  # batteur ls: how its clock follows the master (peers: 1 Hz)
                 endpoint.send(self.clock_answer(), source)
@@ -814,6 +830,21 @@ class Node:
             self.route(self.core.handle(message, self.clock.now(), source), reply_to=source)
         finally:
             self.follow_core_rate()
+
+    def _hello_within_budget(self, source: str) -> bool:
+        """Whether a Hello from ``source`` (``host:port``) is answered: its host within its budget
+        (:data:`HELLO_ANSWER_RATE_HZ`, charged); else the Hello is counted as dropped (``rate_limited``)."""
+        try:
+            host = parse_address(source)[0]
+        except ValueError:
+            host = source
+        if self._hello_budgets.take(host, time.monotonic()):
+            return True
+        assert self.endpoint is not None
+        self.endpoint.stats.record_drop(DropReason.RATE_LIMITED, "Hello not answered: its host is over its budget of "
+                                        f"{HELLO_ANSWER_BURST:g} at once, then {HELLO_ANSWER_RATE_HZ:g} a second",
+                                        source)
+        return False
 
     def _send_copy(self, data: bytes, to: tuple[str, int]) -> None:
         if self.endpoint is not None and not self.endpoint.closed:

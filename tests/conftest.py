@@ -1,9 +1,10 @@
 """Shared pytest setup: the network-namespace lab fixture for tests that need real networking, a per-run user
-configuration folder, and the programs tests start ending with the run (a run stopped by SIGTERM or SIGKILL left
-its node processes running: nine graphics nodes loaded a machine after one)."""
+configuration folder, and the programs and multiprocessing children tests start ending with the run (a run stopped
+by SIGTERM or SIGKILL left its node processes running: nine graphics nodes loaded a machine after one)."""
 
 import contextlib
 import ctypes
+import multiprocessing.util
 import os
 import shutil
 import signal
@@ -11,7 +12,7 @@ import subprocess
 import sys
 import tempfile
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from types import FrameType
 from typing import Any
 
@@ -25,6 +26,13 @@ PR_SET_PDEATHSIG = 1
 """Linux prctl option: the signal a process gets when the thread that started it ends."""
 _POPEN_INIT = subprocess.Popen.__init__
 """``subprocess.Popen.__init__`` as the standard library has it (restored at the end of the run)."""
+_SPAWNV_PASSFDS = multiprocessing.util.spawnv_passfds
+"""``multiprocessing.util.spawnv_passfds`` as the standard library has it (restored at the end of the run)."""
+_FORK_EXEC_PREEXEC_FN = 21
+"""Position of ``preexec_fn`` in ``_posixsubprocess.fork_exec``'s arguments (CPython 3.11 to 3.13)."""
+FORK_EXEC_KNOWN = {(3, 11), (3, 12), (3, 13)}
+"""The CPython versions whose ``fork_exec`` has ``preexec_fn`` at :data:`_FORK_EXEC_PREEXEC_FN` (a private
+function: on others multiprocessing's children are not armed)."""
 
 
 def _prctl() -> Callable[..., int] | None:
@@ -67,6 +75,39 @@ def _popen_init_ending_with_the_run(prctl: Callable[..., int]) -> Callable[..., 
     return init
 
 
+def _spawnv_passfds_ending_with_the_run(prctl: Callable[..., int]) -> Callable[..., int]:
+    """``multiprocessing.util.spawnv_passfds`` that arms its child as :func:`_popen_init_ending_with_the_run` does a
+    Popen's (main thread only). multiprocessing's ``spawn`` children (a ``Process``, a ``ProcessPoolExecutor``
+    worker: physics' plan workers) and ``forkserver``'s server start through it, not through Popen: they outlived
+    a killed run. It calls ``_posixsubprocess.fork_exec`` with no ``preexec_fn``: for that one call, the arming
+    one is put in its place. (A ``fork`` child, or one the forkserver forks, is not armed; the resource tracker,
+    started this way too, ignores SIGTERM and cleans up once the run's end closes its pipe, as before.)"""
+
+    def spawnv_passfds(path: Any, args: Any, passfds: Sequence[int]) -> int:  # path: str here, bytes in typeshed
+        if threading.current_thread() is not threading.main_thread():
+            return _SPAWNV_PASSFDS(path, args, passfds)
+        import _posixsubprocess  # POSIX only, as in multiprocessing.util
+
+        fork_exec = _posixsubprocess.fork_exec
+        caller = threading.get_ident()
+        arm = _arm_child(prctl, os.getpid(), None)
+
+        def fork_exec_armed(*fork_args: Any) -> int:
+            if threading.get_ident() == caller and len(fork_args) > _FORK_EXEC_PREEXEC_FN \
+                    and fork_args[_FORK_EXEC_PREEXEC_FN] is None:
+                fork_args = (*fork_args[:_FORK_EXEC_PREEXEC_FN], arm, *fork_args[_FORK_EXEC_PREEXEC_FN + 1:])
+            result: int = fork_exec(*fork_args)
+            return result
+
+        _posixsubprocess.fork_exec = fork_exec_armed  # looked up at each call by spawnv_passfds (not by Popen)
+        try:
+            return _SPAWNV_PASSFDS(path, args, passfds)
+        finally:
+            _posixsubprocess.fork_exec = fork_exec
+
+    return spawnv_passfds
+
+
 def _raise_interrupt(signum: int, frame: FrameType | None) -> None:
     """SIGTERM (a CI timeout, `timeout`, a user's kill): stop the run as Ctrl-C does, so fixtures' finalizers and
     tests' ``finally`` blocks stop what they started. A second SIGTERM ends the process at once."""
@@ -94,8 +135,9 @@ def pytest_configure(config: pytest.Config) -> None:
     user's own file (a route a test added there reached every later default rig on the machine).
 
     Make the programs tests start end with the run: SIGTERM interrupts it as Ctrl-C does (finalizers run), and on
-    Linux every child started from the main thread gets SIGTERM from the kernel when this process ends, however it
-    ends (PR_SET_PDEATHSIG)."""
+    Linux every child started from the main thread, by subprocess or by multiprocessing's ``spawn`` (and the
+    ``forkserver``'s server), gets SIGTERM from the kernel when this process ends, however it ends
+    (PR_SET_PDEATHSIG)."""
     global _CONFIG_HOME
     _CONFIG_HOME = tempfile.mkdtemp(prefix="batteur-tests-config-")
     os.environ["XDG_CONFIG_HOME"] = _CONFIG_HOME
@@ -103,10 +145,13 @@ def pytest_configure(config: pytest.Config) -> None:
     prctl = _prctl()
     if prctl is not None:
         subprocess.Popen.__init__ = _popen_init_ending_with_the_run(prctl)  # type: ignore[method-assign]
+        if sys.version_info[:2] in FORK_EXEC_KNOWN:  # another CPython may have moved preexec_fn: leave it be
+            multiprocessing.util.spawnv_passfds = _spawnv_passfds_ending_with_the_run(prctl)
 
 
 def pytest_unconfigure(config: pytest.Config) -> None:
     subprocess.Popen.__init__ = _POPEN_INIT  # type: ignore[method-assign]
+    multiprocessing.util.spawnv_passfds = _SPAWNV_PASSFDS
     if signal.getsignal(signal.SIGTERM) is _raise_interrupt:
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
     if _CONFIG_HOME is not None:

@@ -1,10 +1,12 @@
 """A test run stopped by SIGTERM (a CI timeout, `timeout`, a user's kill) or SIGKILL takes down the node processes
-its tests started (tests/conftest.py): one run left nine graphics nodes loading the machine. Each test runs a
-pytest of its own (with tests/conftest.py as its plugin) whose test starts nodes and sleeps, kills that pytest,
-and looks for the nodes."""
+and the multiprocessing ``spawn`` children (a Process, a ProcessPoolExecutor's worker, as physics' plan workers and
+render's segment workers are) its tests started (tests/conftest.py): one run left nine graphics nodes loading the
+machine. Each test runs a pytest of its own (with tests/conftest.py as its plugin) whose test starts nodes and
+spawn children and sleeps, kills that pytest, and looks for them."""
 
 from __future__ import annotations
 
+import multiprocessing
 import os
 import signal
 import subprocess
@@ -16,6 +18,7 @@ from pathlib import Path
 
 import pytest
 
+from tests.conftest import FORK_EXEC_KNOWN
 from tests.test_runtime import NODE_SCRIPT
 from tests.waiting import until
 
@@ -26,10 +29,12 @@ ROOT = Path(__file__).resolve().parents[1]
 
 INNER_TEST = textwrap.dedent(
     """
+    import multiprocessing
     import os
     import subprocess
     import sys
     import time
+    from concurrent.futures import ProcessPoolExecutor
     from pathlib import Path
 
     import pytest
@@ -44,6 +49,23 @@ INNER_TEST = textwrap.dedent(
                                 stderr=subprocess.DEVNULL)
         (OUT / f"{name}.pid").write_text(str(proc.pid))
         return proc
+
+
+    def start_time(pid):
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[19]
+
+
+    def start_spawn_children():
+        # started as multiprocessing starts them (not by Popen): a daemon Process (the run's exit stops it on
+        # SIGTERM) and a pool's idle worker, which waits for work on a pipe it holds both ends of
+        ctx = multiprocessing.get_context("spawn")
+        process = ctx.Process(target=time.sleep, args=(600,), daemon=True)
+        process.start()
+        pool = ProcessPoolExecutor(1, mp_context=ctx)
+        worker = pool.submit(os.getpid).result(timeout=60)
+        for name, pid in (("spawn-process", process.pid), ("pool-worker", worker)):
+            (OUT / f"{name}.mppid").write_text(f"{pid} {start_time(pid)}")
+        return process, pool
 
 
     def test_a_node_run_in_the_test_process_resets_sigterm():
@@ -70,6 +92,7 @@ INNER_TEST = textwrap.dedent(
 
     def test_starts_nodes_then_sleeps(node):
         start_node("bare-node")  # never stopped by the test: only the kernel stops it
+        children = start_spawn_children()  # noqa: F841 (kept alive while the test sleeps)
         (OUT / "sleeping").write_text("yes")
         time.sleep(600)
     """
@@ -84,6 +107,30 @@ def _alive(pid: int, script: Path) -> bool:
     except (OSError, IndexError):
         return False
     return str(script).encode() in cmdline and state not in ("Z", "X")
+
+
+def _spawn_child_alive(pid: int, start: str) -> bool:
+    """True while ``pid`` is the multiprocessing child that started at ``start`` (/proc's clock ticks since boot),
+    not a zombie."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except (OSError, IndexError):
+        return False
+    return fields[19] == start and fields[0] not in ("Z", "X")
+
+
+def _spawn_children(out: Path) -> dict[str, tuple[int, str]]:
+    """The inner test's multiprocessing children: name -> (pid, start time)."""
+    children: dict[str, tuple[int, str]] = {}
+    for f in out.glob("*.mppid"):
+        pid, start = f.read_text().split()
+        children[f.stem] = (int(pid), start)
+    return children
+
+
+def _left_running(out: Path, nodes: dict[str, int], children: dict[str, tuple[int, str]]) -> list[str]:
+    return [name for name, pid in nodes.items() if _alive(pid, out / "node.py")] + \
+        [name for name, (pid, start) in children.items() if _spawn_child_alive(pid, start)]
 
 
 @pytest.fixture
@@ -112,6 +159,9 @@ def killed_run(tmp_path: Path) -> Iterator[tuple[subprocess.Popen[bytes], Path]]
             pid = int(pid_file.read_text())
             if _alive(pid, out / "node.py"):
                 os.kill(pid, signal.SIGKILL)
+        for pid, start in _spawn_children(out).values():
+            if _spawn_child_alive(pid, start):
+                os.kill(pid, signal.SIGKILL)
 
 
 def _nodes(out: Path) -> dict[str, int]:
@@ -121,25 +171,28 @@ def _nodes(out: Path) -> dict[str, int]:
 def test_a_run_stopped_by_sigterm_runs_its_finalizers_and_leaves_no_node(
         killed_run: tuple[subprocess.Popen[bytes], Path]) -> None:
     run, out = killed_run
-    nodes = _nodes(out)
+    nodes, children = _nodes(out), _spawn_children(out)
     assert set(nodes) == {"fixture-node", "bare-node"}
-    assert all(_alive(pid, out / "node.py") for pid in nodes.values())
+    assert set(children) == {"spawn-process", "pool-worker"}
+    assert len(_left_running(out, nodes, children)) == 4
     run.send_signal(signal.SIGTERM)
     assert run.wait(timeout=60) != 0
     log = (out / "pytest.log").read_text()
     assert (out / "finalized").exists(), log  # the fixture stopped its node, as on Ctrl-C
     assert "KeyboardInterrupt" in log and "SIGTERM" in log, log
-    assert until(lambda: not any(_alive(pid, out / "node.py") for pid in nodes.values()), timeout_s=30), \
-        f"left running: {[name for name, pid in nodes.items() if _alive(pid, out / 'node.py')]}"
+    assert until(lambda: not _left_running(out, nodes, children), timeout_s=30), \
+        f"left running: {_left_running(out, nodes, children)}"
 
 
 def test_a_run_killed_by_sigkill_leaves_no_node(killed_run: tuple[subprocess.Popen[bytes], Path]) -> None:
     run, out = killed_run
-    nodes = _nodes(out)
+    nodes, children = _nodes(out), _spawn_children(out)
+    assert set(children) == {"spawn-process", "pool-worker"}
+    assert len(_left_running(out, nodes, children)) == 4
     run.kill()  # no handler, no finalizer: the kernel's signal to the children alone
     run.wait()
-    assert until(lambda: not any(_alive(pid, out / "node.py") for pid in nodes.values()), timeout_s=30), \
-        f"left running: {[name for name, pid in nodes.items() if _alive(pid, out / 'node.py')]}"
+    assert until(lambda: not _left_running(out, nodes, children), timeout_s=30), \
+        f"left running: {_left_running(out, nodes, children)}"
     assert not (out / "finalized").exists()
 
 
@@ -158,6 +211,19 @@ def test_children_of_the_main_thread_are_armed_and_keep_their_own_preexec_fn(tmp
     assert _child_pdeathsig(preexec_fn=lambda: os.close(os.open(marker, os.O_CREAT | os.O_WRONLY))) == \
         signal.SIGTERM
     assert marker.exists()
+
+
+@pytest.mark.skipif(sys.version_info[:2] not in FORK_EXEC_KNOWN, reason="fork_exec's preexec_fn not where known")
+def test_spawn_children_of_the_main_thread_are_armed(tmp_path: Path) -> None:
+    """multiprocessing starts them with ``_posixsubprocess.fork_exec``, not Popen."""
+    got = tmp_path / "pdeathsig"
+    code = (f"import ctypes, pathlib; v = ctypes.c_int(-1); ctypes.CDLL(None).prctl(2, ctypes.byref(v), 0, 0, 0); "
+            f"pathlib.Path({str(got)!r}).write_text(str(v.value))")  # PR_GET_PDEATHSIG
+    process = multiprocessing.get_context("spawn").Process(target=exec, args=(code,))
+    process.start()
+    process.join(60)
+    assert process.exitcode == 0
+    assert int(got.read_text()) == signal.SIGTERM
 
 
 def test_children_of_another_thread_are_not_armed() -> None:
