@@ -140,8 +140,10 @@ def test_a_live_note_whose_turn_comes_while_a_new_worker_loads_is_refused_with_t
         monkeypatch: pytest.MonkeyPatch) -> None:
     """A divergence during the first plan (no spare yet) starts a new worker, which loads; a live note that waited
     behind the dropped plan is refused at its turn, not planned late."""
-    loads = [threading.Event(), threading.Event()]
-    loads[0].set()  # the first worker loads at once, the one after the divergence is held
+    held = [threading.Event(), threading.Event()]
+    held[0].set()  # the first worker loads at once, the one after the divergence is held
+    loads = list(held)  # each load takes its event from here; `held` keeps them all to release at the end (a load
+    # left waiting held the interpreter's exit 5 minutes: concurrent.futures joins its threads)
     planning, release = threading.Event(), threading.Event()
 
     def load() -> None:
@@ -170,6 +172,6 @@ def test_a_live_note_whose_turn_comes_while_a_new_worker_loads_is_refused_with_t
         assert len(replies) == 1 and "still loading the planner" in replies[0], replies
         assert player.late_notes == 1 and not player.busy
     finally:
-        for event in [*loads, release]:
+        for event in [*held, release]:
             event.set()
         core.close()
