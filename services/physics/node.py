@@ -244,11 +244,14 @@ def _wait_for_planner(core: LivePhysicsCore) -> None:
     if not core.score_player.loading:
         return
     started = time.monotonic()
-    if core.wait_loaded(PLANNER_LOAD_WAIT_S):
-        log.info("planning process ready (waited %.1f s for it)", time.monotonic() - started)
-    else:
+    if not core.wait_loaded(PLANNER_LOAD_WAIT_S):
         log.warning("the planning process has not loaded the planner after %.0f s: starting without it; live "
                     "notes are refused until it has (their senders are told why)", PLANNER_LOAD_WAIT_S)
+    elif (error := core.score_player.planner_load_error) is not None:
+        log.warning("the planning process could not load the planner (%s: %s): plans go to a thread of the node",
+                    type(error).__name__, error)
+    else:
+        log.info("planning process ready (waited %.1f s for it)", time.monotonic() - started)
 
 
 def _skeleton_limbs(settings: PhysicsNodeSettings) -> LimbLengths | None:

@@ -28,6 +28,7 @@ import signal
 import sys
 import threading
 import time
+import traceback
 from collections.abc import Callable, Iterator, Mapping
 from concurrent.futures import BrokenExecutor, Executor, Future, ProcessPoolExecutor, ThreadPoolExecutor
 from concurrent.futures import wait as wait_futures
@@ -137,8 +138,16 @@ def load_planner() -> None:
 
 
 def _load_planner_process(nice_after: bool) -> None:
-    """A planning process's first task: :func:`load_planner`, then (``nice_after``) its lower priority."""
-    load_planner()
+    """A planning process's first task: :func:`load_planner`, then (``nice_after``) its lower priority. A load that
+    fails (an import error, a broken database) ends the process: its pool is then broken, and the node plans in a
+    thread of its own (:meth:`PlanWorkers.submit`), as when a process dies; a process left standing would fail every
+    plan with the same error."""
+    try:
+        load_planner()
+    except BaseException:
+        traceback.print_exc()  # on the node's stderr: why its planning process stopped
+        sys.stderr.flush()
+        os._exit(1)
     if nice_after:
         _lower_priority()
 
@@ -231,9 +240,18 @@ class PlanWorkers:
 
     def wait_loaded(self, timeout_s: float | None = None) -> bool:
         """Block until the current worker has loaded the planner (the node, before it says it is up); True if it
-        has (or its load failed: :meth:`submit` then plans in a thread), False after ``timeout_s`` seconds."""
+        has (or its load failed: :attr:`load_error`; :meth:`submit` then plans in a thread), False after
+        ``timeout_s`` seconds."""
         done, _ = wait_futures([self._loaded], timeout=timeout_s)
         return bool(done)
+
+    @property
+    def load_error(self) -> BaseException | None:
+        """Why the current worker's load failed (its process stopped: a broken pool), None while it loads or once
+        it has loaded."""
+        if not self._loaded.done() or self._loaded.cancelled():
+            return None
+        return self._loaded.exception()
 
     def submit(self, plan: Callable[[], T]) -> Future[T]:
         """Compute ``plan()`` in the worker, after the plans submitted before it. A planning process that died

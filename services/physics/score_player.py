@@ -1086,6 +1086,12 @@ class ScorePlayer:
         """Background plans: the planning worker still loads the planner (live notes are refused meanwhile)."""
         return self._worker is not None and self._worker.loading
 
+    @property
+    def planner_load_error(self) -> BaseException | None:
+        """Why the planning worker's load failed (None: it loads, has loaded, or there is none); the plans then go
+        to a thread of the node (:meth:`PlanWorkers.submit`)."""
+        return None if self._worker is None else self._worker.load_error
+
     def wait_loaded(self, timeout_s: float | None = None) -> bool:
         """Block until the planning worker has loaded the planner (the node, before it says it is up); True if it
         has (or there is none), False after ``timeout_s`` seconds."""

@@ -175,3 +175,26 @@ def test_a_live_note_whose_turn_comes_while_a_new_worker_loads_is_refused_with_t
         for event in [*held, release]:
             event.set()
         core.close()
+
+
+BREAK_DATABASE = """import os, sys
+if os.environ.get("BATTEUR_TEST_BREAK_PLANNER"):
+    sys.modules["common.gesture.database"] = None  # its import fails: a broken installation, in the child only
+"""
+
+
+def test_a_planning_process_whose_load_fails_gives_way_to_a_thread(tmp_path: Any,
+                                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    """A process whose load raised stayed up and failed every plan with the same error (its pool not broken, so no
+    fallback), while the node said 'planning process ready'; it now stops, and the plans go to a thread."""
+    (tmp_path / "sitecustomize.py").write_text(BREAK_DATABASE)  # run at the spawned child's start
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join([str(tmp_path), os.environ.get("PYTHONPATH", "")]))
+    monkeypatch.setenv("BATTEUR_TEST_BREAK_PLANNER", "1")
+    workers = PlanWorkers("process")
+    try:
+        assert workers.wait_loaded(120.0)
+        assert workers.load_error is not None  # the process stopped: its pool broken
+        assert workers.submit(os.getpid).result(60.0) == os.getpid()  # planned in a thread of this process
+        assert workers.kind == "thread"
+    finally:
+        workers.close()
