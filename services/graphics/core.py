@@ -491,16 +491,16 @@ class GraphicsCore:
         return True
 
     # --- preview (kinematic keyframe animation, no physics) ----------------------------------
-    def load_preview(self, sequence: PoseSequence, impacts: list[Impact] | None = None, now: float = 0.0,
+    def load_preview(self, sequence: PoseSequence, impacts: list[Impact] | None = None, now: float | None = None,
                      score: Score | None = None, rate: float | None = None,
                      loop: tuple[float, float] | None = None) -> None:
         """Show ``sequence`` (e.g. the keyframe animation of a score) instead of the live stream.
 
-        It plays from its first pose at rig time ``now`` and loops, at ``rate`` (motion seconds per second; None:
-        the rate of the preview shown before, else 1). ``impacts`` (times on the sequence's clock) flash and swing
-        the kit as live ones do. ``score`` (the sequence's clock being the score's, as ``score_preview`` makes it)
-        gives the status panel the preview's bar and beat. ``loop`` (start, end), seconds on the sequence's clock:
-        play only that span, with no pause between laps (a bar range).
+        It plays from its first pose at rig time ``now`` (None: when it is first shown) and loops, at ``rate``
+        (motion seconds per second; None: the rate of the preview shown before, else 1). ``impacts`` (times on the
+        sequence's clock) flash and swing the kit as live ones do. ``score`` (the sequence's clock being the
+        score's, as ``score_preview`` makes it) gives the status panel the preview's bar and beat. ``loop`` (start,
+        end), seconds on the sequence's clock: play only that span, with no pause between laps (a bar range).
         """
         self.preview = sequence
         self.preview_impacts = sorted(impacts or [], key=lambda i: i.time)

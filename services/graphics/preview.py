@@ -65,15 +65,17 @@ class PreviewClock:
     slower. Wall times are the node's rig clock, seconds.
     """
 
-    def __init__(self, start: float, span: float, now: float = 0.0, rate: float = 1.0,
+    def __init__(self, start: float, span: float, now: float | None = None, rate: float = 1.0,
                  pause: float = LOOP_PAUSE_S) -> None:
         self.start = float(start)
         self.span = max(float(span), 1e-6)
         self.pause = max(float(pause), 0.0)
         """Motion seconds between a lap's end and the next lap's start (0: a bar loop, seamless)."""
         self.rate = check_rate(rate)
-        self._anchor = float(now)
-        """Wall time at which the motion had played :attr:`_played` seconds (from its first start)."""
+        self._anchor = None if now is None else float(now)
+        """Wall time at which the motion had played :attr:`_played` seconds (from its first start); None: the first
+        wall time asked about (a preview loaded before the node's clock runs starts when it is first shown, not at
+        rig time 0: a viewer started an hour into a rig began mid-bar at lap 424)."""
         self._played = 0.0
 
     @property
@@ -83,6 +85,8 @@ class PreviewClock:
 
     def played(self, now: float) -> float:
         """Motion seconds played since the first start, laps included."""
+        if self._anchor is None:
+            self._anchor = float(now)
         return self._played + (now - self._anchor) * self.rate
 
     def position(self, now: float) -> float:
@@ -101,7 +105,8 @@ class PreviewClock:
 
     def shift(self, step_s: float) -> None:
         """The wall clock stepped by ``step_s`` seconds: the motion shown stays where it was."""
-        self._anchor += step_s
+        if self._anchor is not None:
+            self._anchor += step_s
 
 
 def _nearest(strokes: list[PlannedStroke], times: np.ndarray, t: float) -> PlannedStroke | None:

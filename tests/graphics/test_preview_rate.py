@@ -203,3 +203,13 @@ def test_bad_bar_ranges_exit_2(bars: Path, tmp_path: Path) -> None:
         last = result.stderr.splitlines()[-1]  # bars past the score: known once it is read (after posing's log)
         assert last.startswith("batteur graphics: error: ") and message in last, result.stderr
         assert "Traceback" not in result.stderr
+
+
+def test_a_preview_loaded_without_a_time_starts_when_first_shown() -> None:
+    # the node loads the preview before its clock runs: anchored at rig time 0, a viewer started an hour into a rig
+    # showed lap 424, mid-bar
+    clock = PreviewClock(start=-1.0, span=5.0)
+    assert clock.position(3600.0) == -1.0 and clock.lap(3600.0) == 0
+    assert clock.position(3601.5) == pytest.approx(0.5)
+    clock.shift(2.0)  # a rig-clock step after the start: the motion shown stays where it was
+    assert clock.position(3603.5) == pytest.approx(0.5)
