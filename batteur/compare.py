@@ -60,6 +60,10 @@ TEMPO_NOTES = 200
 """Written notes (the first) the tempo grid is tried on (:func:`find_tempo`)."""
 TEMPO_CHECK_BELOW = 0.8
 """The tempo is looked for when fewer than this share of the written notes are played."""
+COUNT_IN_NOTES = 3
+"""Notes a steady pulse apart before the exercise's start that make a count-in (:func:`count_in_entry`)."""
+COUNT_IN_REACH = 8
+"""Count-in beats from its next beat beyond which an entry is not told against it (two bars of 4/4)."""
 FEW_LEVELS = 4
 """Written velocity levels of one drum up to which its loudest is taken for accents (:func:`dynamics`)."""
 MAX_LISTED = 60
@@ -255,7 +259,15 @@ def matched(written: Sequence[NoteRef], played: Sequence[Played], offset: float,
     """Evaluate's one-to-one pairs (written position, played position) with the take moved back by ``offset``."""
     from batteur.evaluate import Hit, match
 
-    return match(written, [Hit(p.time - offset, p.drum, p.velocity) for p in played], tolerance)
+    if not written:
+        return []
+    # only the played notes the written span can reach (the tempo search matches a head of a long take many times)
+    low = min(n.time for n in written) + offset - tolerance
+    high = max(n.time for n in written) + offset + tolerance
+    near = [j for j, p in enumerate(played) if low <= p.time <= high]
+    pairs = match(written, [Hit(played[j].time - offset, played[j].drum, played[j].velocity) for j in near],
+                  tolerance)
+    return [(i, near[k]) for i, k in pairs]
 
 
 def align(written: Sequence[NoteRef], played: Sequence[Played], tolerance: float, limit: int = CANDIDATES
@@ -293,42 +305,98 @@ def scaled(written: Sequence[NoteRef], scale: float) -> list[NoteRef]:
 
 def find_tempo(written: Sequence[NoteRef], played: Sequence[Played], tolerance: float, offset: float | None
                ) -> tuple[float, int]:
-    """The tempo ratio (take / exercise) matching most notes, and how many it matches: over :data:`TEMPO_GRID`
-    (a coarse geometric grid, then a finer one around its best) on the exercise's first :data:`TEMPO_NOTES`
-    notes (quick on a long piece), then fitted to the played times of the pairs found (a line through them: a
-    long piece drifts out of the tolerance at a grid step's error). ``offset`` forced, else aligned at each
-    ratio."""
+    """The tempo ratio (take / exercise) matching most notes, and how many it matches.
 
-    def pairs_at(scale: float, notes: Sequence[NoteRef], limit: int = 3) -> list[tuple[int, int]]:
+    Over :data:`TEMPO_GRID` (a coarse geometric grid, then a finer one around its best, the least total error
+    among equals) on the exercise's first :data:`TEMPO_NOTES` notes (quick on a long piece); then refined
+    (:func:`refine_tempo`) over windows doubling from the first matched note, since a ratio off by a grid step
+    drifts out of the tolerance over a long piece (0.1 % is 0.1 s over 100 s). ``offset`` forced, else aligned at
+    each grid ratio."""
+
+    def pairs_at(scale: float, notes: Sequence[NoteRef], limit: int = 3) -> tuple[float, list[tuple[int, int]]]:
         moved = scaled(notes, scale)
         if offset is not None:
-            return matched(moved, played, offset, tolerance)
-        return align(moved, played, tolerance, limit=limit)[1]
+            return offset, matched(moved, played, offset, tolerance)
+        return align(moved, played, tolerance, limit=limit)
 
-    head = written[:TEMPO_NOTES]
+    def error(scale: float, at: tuple[float, list[tuple[int, int]]]) -> float:
+        return sum(abs(played[j].time - at[0] - head[i].time / scale) for i, j in at[1])
+
+    head = sorted(written, key=lambda n: n.time)[:TEMPO_NOTES]
     low, high, step = TEMPO_GRID
     grid = np.exp(np.arange(math.log(low), math.log(high) + 1e-9, math.log1p(step)))
-    best = float(max(grid, key=lambda s: (len(pairs_at(float(s), head)), -abs(math.log(s)))))
+    best = float(max(grid, key=lambda s: (len(pairs_at(float(s), head)[1]), -abs(math.log(s)))))
     fine = best * np.exp(np.linspace(-math.log1p(step), math.log1p(step), 21))
-    scale = float(max(fine, key=lambda s: (len(pairs_at(float(s), head)), -abs(math.log(s / best)))))
-    found = pairs_at(scale, written, CANDIDATES)
-    for _ in range(3):  # the line through the pairs: take time = exercise time / scale + offset
-        if len(found) < 2 or offset is not None:
+    tried = {float(s): pairs_at(float(s), head) for s in fine}
+    scale = max(tried, key=lambda s: (len(tried[s][1]), -error(s, tried[s])))
+    start, pairs = tried[scale]
+    if not pairs:
+        return scale, 0
+    first = min(head[i].time for i, _ in pairs)
+    return refine_tempo(written, played, tolerance, scale, start, offset is not None, first,
+                        span=tolerance / (math.log1p(step) / 10))
+
+
+def refine_tempo(written: Sequence[NoteRef], played: Sequence[Played], tolerance: float, scale: float,
+                 offset: float, forced: bool, first: float, span: float) -> tuple[float, int]:
+    """The ratio ``scale`` (and ``offset``, unless ``forced``) refined as the line take time = exercise time /
+    scale + offset through the pairs of the written notes from ``first`` to ``first + span`` s, the span doubled
+    each round until it holds the whole exercise. Each round matches at the line so far and fits the line through
+    the pairs within half the tolerance of a first fit (a note paired with its neighbour an eighth off does not
+    pull the line), kept when it matches at least as many notes. ``span``: where the grid's ratio is good to
+    the tolerance. The ratio and how many notes it matches over the whole exercise (aligned there again, as
+    ``batteur compare --tempo-scale`` with that ratio does, unless ``forced``)."""
+    notes = sorted(written, key=lambda n: n.time)
+    times = np.array([n.time for n in notes])
+    while True:
+        window = notes[:int(np.searchsorted(times, first + span, side="right"))]
+        pairs = matched(scaled(window, scale), played, offset, tolerance)
+        line = _fit_line(window, played, pairs, tolerance, offset if forced else None)
+        if line is not None:
+            again = matched(scaled(window, line[0]), played, line[1], tolerance)
+            if len(again) >= len(pairs):
+                scale, offset = line
+        if len(window) == len(notes):
             break
-        x = np.array([written[i].time for i, _ in found])
-        y = np.array([played[j].time for _, j in found])
-        if np.ptp(x) <= 0:
+        span *= 2
+    if forced:
+        return scale, len(matched(scaled(notes, scale), played, offset, tolerance))
+    # aligned again over the whole exercise: a repeated groove lines its first notes up as well a bar or two on,
+    # which the head cannot tell but the last notes can (they have nothing to pair with)
+    return scale, len(align(scaled(notes, scale), played, tolerance)[1])
+
+
+def _fit_line(written: Sequence[NoteRef], played: Sequence[Played], pairs: Sequence[tuple[int, int]],
+              tolerance: float, offset: float | None) -> tuple[float, float] | None:
+    """(scale, offset) of the least-squares line take time = exercise time / scale + offset through ``pairs``,
+    refitted on the pairs within half the tolerance of it; through ``offset`` when given. None when it cannot be
+    fitted (fewer than two pairs, one time, a slope not positive)."""
+    x = np.array([written[i].time for i, _ in pairs])
+    y = np.array([played[j].time for _, j in pairs])
+    keep = np.ones(len(x), dtype=bool)
+    fit: tuple[float, float] | None = None
+    for _ in range(2):
+        if keep.sum() < 2 or np.ptp(x[keep]) <= 0:
             break
-        slope = float(np.polyfit(x, y, 1)[0])
+        if offset is None:
+            slope, intercept = (float(v) for v in np.polyfit(x[keep], y[keep], 1))
+        else:
+            slope, intercept = float(np.dot(x[keep], y[keep] - offset) / np.dot(x[keep], x[keep])), offset
         if not slope > 0:
             break
-        if abs(slope * scale - 1.0) < 1e-6:
+        fit = (1.0 / slope, intercept)
+        keep = np.abs(y - (slope * x + intercept)) <= tolerance / 2
+    return fit
+
+
+def ratio_digits(ratio: float, duration: float, tolerance: float) -> float:
+    """``ratio`` rounded to the fewest decimals (3 to 6) that drift less than a quarter of the tolerance over
+    ``duration`` s: the --tempo-scale said for a long take must match as the ratio found does."""
+    for decimals in range(3, 7):
+        rounded = round(ratio, decimals)
+        if abs(math.log(rounded / ratio)) * duration <= tolerance / 4:
             break
-        again = pairs_at(1.0 / slope, written, CANDIDATES)
-        if len(again) < len(found):  # as many: the line's, the least-squares ratio
-            break
-        scale, found = 1.0 / slope, again
-    return scale, len(found)
+    return rounded
 
 
 # ---------------------------------------------------------------------- the report
@@ -336,13 +404,30 @@ def find_tempo(written: Sequence[NoteRef], played: Sequence[Played], tolerance: 
 
 def position(score: Score, written_time: float) -> dict[str, Any]:
     """Bar and beat (both from 1, the beat fractional) of a time on the exercise's written clock; before its first
-    beat, none."""
+    beat, none. After a pick-up (:func:`pickup`) the first full bar is bar 1, as printed music numbers it, and the
+    pick-up bar 0, its beats counted as the end of a full bar (a one-beat pick-up before 4/4 is beat 4)."""
     from common.score.position import bar_beat
 
     where = bar_beat(score, written_time)
     if where is None:
         return {"bar": None, "beat": None}
-    return {"bar": where.bar + 1, "beat": round(where.beat + 1, 3)}
+    short = pickup(score)
+    if short is None:
+        return {"bar": where.bar + 1, "beat": round(where.beat + 1, 3)}
+    beat = where.beat + (short[1] - short[0] if where.bar == 0 else 0.0)
+    return {"bar": where.bar, "beat": round(beat + 1, 3)}
+
+
+def pickup(score: Score) -> tuple[float, float] | None:
+    """(beats of the pick-up, beats of the bar after it) when the exercise's first bar is shorter than its second
+    (a text score's ``meter 1/4`` then ``meter 4/4``, a MIDI file's first time signature), else None."""
+    bars = np.asarray(score.bar_beats, dtype=float)
+    if len(bars) < 2 or bars[0] > 1e-9:
+        return None
+    # the second bar's length: to the third start, else (the last bar) to the score's last beat
+    second = float(bars[2] - bars[1]) if len(bars) > 2 else float(len(score.beats) - 1 - bars[1])
+    first = float(bars[1] - bars[0])
+    return (first, second) if 0 < first < second - 1e-9 else None
 
 
 def where_text(entry: dict[str, Any]) -> str:
@@ -439,16 +524,20 @@ def compare(score: Score, take: Take, kit: Kit, tolerance: float, scale: float =
     def written_clock(seconds: float) -> float:
         return seconds * scale
 
+    # a miss with an unmatched note of its drum near is told early or late; that note may lie just before the
+    # exercise's start or after its end (a first note early, a last one late): it is still the written note's
+    loose: dict[str, np.ndarray] = {}
+    for drum in {n.instrument for n in written}:
+        loose[drum] = np.sort([p.time - offset for j, p in enumerate(played)
+                               if p.drum == drum and j not in done_played])
     misses = []
     for i in missed_i:
         n = written[i]
         entry = {**position(score, written_clock(n.time)), "time_s": round(written_clock(n.time), 4),
                  "drum": n.instrument, "event": n.event, "velocity": round(n.velocity * 127)}
-        near = [j for j in extras_j if played[j].drum == n.instrument
-                and abs(played[j].time - offset - n.time) <= max(LOOSE_S, 2 * tolerance)]
-        if near:
-            j = min(near, key=lambda j: abs(played[j].time - offset - n.time))
-            entry["played_off_by_ms"] = round((played[j].time - offset - n.time) * 1000, 1)
+        off = _nearest(loose[n.instrument], n.time)
+        if off is not None and abs(off) <= max(LOOSE_S, 2 * tolerance):
+            entry["played_off_by_ms"] = round(off * 1000, 1)
         misses.append(entry)
     extras = []
     for j in extras_j:
@@ -467,6 +556,7 @@ def compare(score: Score, take: Take, kit: Kit, tolerance: float, scale: float =
             "timing": timing([played[j].time - offset - written[i].time for i, j in its_pairs]),
             "dynamics": dynamics([(written[i].velocity, played[j].velocity) for i, j in its_pairs]),
         }
+    short = pickup(score)
     report: dict[str, Any] = {
         "take_kind": take.kind, "tolerance_ms": round(tolerance * 1000, 3), "tempo_scale": scale,
         "offset_s": round(offset, 4), "offset_forced": forced,
@@ -474,23 +564,79 @@ def compare(score: Score, take: Take, kit: Kit, tolerance: float, scale: float =
         "outside": outside,
         "timing": timing([played[j].time - offset - written[i].time for i, j in pairs]),
         "drums": drums, "misses": misses, "extras": extras,
-        "not_heard": dict(sorted(not_heard.items())), "tempo": None, "warnings": list(take.warnings),
+        "not_heard": dict(sorted(not_heard.items())), "tempo": None, "take_stops": None,
+        # the count-in: notes before the start, but for a first note early (told as such above)
+        "entry": None if forced else count_in_entry(
+            [p.time for p in played if p.time - offset < -max(LOOSE_S, 2 * tolerance)], offset, tolerance),
+        "pickup_beats": None if short is None else short[0],
+        "warnings": list(take.warnings),
     }
-    last = max(played[j].time for j in inside) - offset if inside else None
-    if last is not None:  # a take stopped before the end: its missed notes after the take are told as one
-        for entry in misses:
-            entry["after_take"] = entry["time_s"] > written_clock(last + tolerance)
-        after = sum(entry["after_take"] for entry in misses)
-        if after:
-            report["take_stops"] = {**position(score, written_clock(last)), "missed_after": after}
+    # the take's last note from the start on (one just after the end too: a last note late is no early stop)
+    later = [p.time - offset for p in played if p.time - offset >= start]
+    last = max(later) if later else None
+    for entry in misses:  # a take stopped before the end: its missed notes after the take are told as one
+        entry["after_take"] = None if last is None else entry["time_s"] > written_clock(last + tolerance)
+    after = sum(bool(entry["after_take"]) for entry in misses)
+    if last is not None and after:
+        report["take_stops"] = {**position(score, written_clock(last)), "missed_after": after}
     if len(pairs) < TEMPO_CHECK_BELOW * len(written):
         ratio, count = find_tempo(written, played, tolerance, offset if forced else None)
-        if count >= max(1.5 * len(pairs), len(pairs) + 0.2 * len(written)) and abs(math.log(ratio)) > 0.005:
+        length = exercise_end(score) / scale  # s, as the take plays it: a small ratio still drifts over a long take
+        if (count >= max(1.5 * len(pairs), len(pairs) + 0.2 * len(written))
+                and abs(math.log(ratio)) * length > tolerance / 2):
             bpm = tempo_bpm(score)
-            report["tempo"] = {"ratio": round(ratio * scale, 3), "played": count,
+            report["tempo"] = {"ratio": ratio_digits(ratio * scale, length / ratio, tolerance), "played": count,
                                "exercise_bpm": None if bpm is None else round(bpm * scale, 1),
                                "take_bpm": None if bpm is None else round(bpm * scale * ratio, 1)}
     return report
+
+
+def _nearest(times: np.ndarray, t: float) -> float | None:
+    """The difference (s) from ``t`` to the nearest of the sorted ``times``; None when there are none."""
+    k = int(np.searchsorted(times, t))
+    near = [float(times[m]) - t for m in (k - 1, k) if 0 <= m < len(times)]
+    return min(near, key=abs) if near else None
+
+
+def count_in_entry(before: Sequence[float], offset: float, tolerance: float) -> dict[str, Any] | None:
+    """Where the take entered against its count-in, given the take's times (s) of its notes before the exercise's
+    start (``offset``; a first note early left out): the last :data:`COUNT_IN_NOTES` or more of them (notes
+    within the tolerance one onset) a steady pulse apart (each gap within the tolerance, or a tenth of the
+    pulse, of their median), the exercise is due one pulse after the last; ``late_beats`` is how far after that
+    it started, in the count-in's beats (- early). None when there is no such count-in, or the entry is more
+    than :data:`COUNT_IN_REACH` beats from it (those notes were not counting the exercise in)."""
+    onsets: list[float] = []
+    for t in sorted(before):
+        if not onsets or t - onsets[-1] > tolerance:
+            onsets.append(t)
+    run = 1  # onsets in the steady run ending at the last
+    while run < len(onsets):
+        gaps = np.diff(onsets[-run - 1:])
+        pulse = float(np.median(gaps))
+        if not pulse > 0 or np.max(np.abs(gaps - pulse)) > max(tolerance, 0.1 * pulse):
+            break
+        run += 1
+    if run < COUNT_IN_NOTES:
+        return None
+    pulse = float(np.median(np.diff(onsets[-run:])))
+    due = onsets[-1] + pulse
+    late = offset - due
+    if abs(late) > COUNT_IN_REACH * pulse:
+        return None
+    return {"count_in_notes": run, "count_in_beat_s": round(pulse, 4), "due_s": round(due, 4),
+            "late_s": round(late, 4), "late_beats": round(late / pulse, 2), "on_time": abs(late) <= tolerance}
+
+
+def entry_text(entry: dict[str, Any]) -> str:
+    """``entered 1 beat late after the count-in (...)``."""
+    how = (f"{entry['count_in_notes']} notes {entry['count_in_beat_s']:.3g} s apart; the exercise due at "
+           f"{entry['due_s']:.3f} s")
+    if entry["on_time"]:
+        return f"entered on the beat after the count-in ({how})"
+    beats = abs(entry["late_beats"])
+    count = f"{round(beats)}" if abs(beats - round(beats)) < 0.05 else f"{beats:.1f}"
+    return (f"entered {count} beat{'' if float(count) <= 1 else 's'} {'late' if entry['late_s'] > 0 else 'early'} "
+            f"after the count-in ({how})")
 
 
 def summary_lines(report: dict[str, Any], exercise: str, take: str) -> list[str]:
@@ -500,6 +646,11 @@ def summary_lines(report: dict[str, Any], exercise: str, take: str) -> list[str]
     lines.append(f"the exercise starts {report['offset_s']:.3f} s into the take ({how}); tolerance "
                  f"{report['tolerance_ms']:g} ms" + (f"; tempo scale {report['tempo_scale']:g}"
                                                        if report["tempo_scale"] != 1 else ""))
+    if report.get("entry"):
+        lines.append(entry_text(report["entry"]))
+    if report.get("pickup_beats"):
+        lines.append(f"bar 0 is the pick-up ({report['pickup_beats']:g} beat{'s' if report['pickup_beats'] > 1 else ''}"
+                     "), bar 1 the first full bar")
     t = report["timing"]
     lines.append(f"{report['played']} of {report['written']} written notes played, {report['missed']} missed, "
                  f"{report['extra']} extra" + (f" ({report['outside']} before or after the exercise not counted)"
@@ -518,7 +669,7 @@ def summary_lines(report: dict[str, Any], exercise: str, take: str) -> list[str]
         bpm = (f" (the exercise at {tempo['exercise_bpm']:g} bpm, the take at about {tempo['take_bpm']:g})"
                if tempo["exercise_bpm"] else "")
         lines.append(f"TEMPO: most notes do not match at the exercise's tempo; the take is played at about "
-                     f"{tempo['ratio']:.3g} times it{bpm}: --tempo-scale {tempo['ratio']:.3g} compares at the "
+                     f"{tempo['ratio']} times it{bpm}: --tempo-scale {tempo['ratio']} compares at the "
                      f"take's tempo ({tempo['played']} notes then match)")
     lines.append("")
     lines.append(f"{'drum':<10} {'written':>7} {'played':>6} {'missed':>6} {'extra':>5} {'mean ms':>8} "
@@ -582,7 +733,10 @@ The student may start whenever they like: the take is lined up with the
 exercise by the offset that matches most notes (every pair of notes of one
 drum proposes one), set so that the median note is on time: early and late
 are against the student's own pulse (--offset forces the start instead). Notes
-before the exercise starts or after it ends (a count-in) are not extras.
+before the exercise starts or after it ends (a count-in) are not extras; a
+steady count-in says where the take entered against it ("entered 1 beat late
+after the count-in"). After a pick-up bar (a first bar shorter than the
+next), bar 1 is the first full bar and the pick-up bar 0, as printed.
 A written note counts as played when the take has one on the same drum (kit
 object: open and closed hi-hat, and the hi-hat pedal, are the hi-hat) within
 --tolerance. An audio take is compared on the drums the transcriber knows
