@@ -1,4 +1,5 @@
-"""Shared pytest setup: the network-namespace lab fixture for tests that need real networking, a per-run user
+"""Shared pytest setup: the network-namespace lab fixture for tests that need real networking, physics' strike
+scene core (``strike_core``), a per-run user
 configuration folder, and the programs and multiprocessing children tests start ending with the run (a run stopped
 by SIGTERM or SIGKILL left its node processes running: nine graphics nodes loaded a machine after one)."""
 
@@ -12,7 +13,7 @@ import subprocess
 import sys
 import tempfile
 import threading
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from types import FrameType
 from typing import Any
 
@@ -121,6 +122,18 @@ def _catch_sigterm() -> None:
         with contextlib.suppress(ValueError, OSError):
             if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
                 signal.signal(signal.SIGTERM, _raise_interrupt)
+
+
+@pytest.fixture
+def strike_core() -> Iterator[Any]:
+    """Physics' core in its strike scene (a stick striking a pad; quick to build), closed after the test."""
+    from services.physics.core import PhysicsCore
+
+    core = PhysicsCore(scene="strike")
+    try:
+        yield core
+    finally:
+        core.close()
 
 
 def pytest_runtest_setup(item: pytest.Item) -> None:

@@ -10,7 +10,7 @@ counts are exact whatever the machine's speed.
 from __future__ import annotations
 
 import asyncio
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 
 import pytest
 
@@ -47,13 +47,6 @@ def budgets_never_refill(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(services.physics.core, "REPLY_RATE_HZ", 0.0)
 
 
-@pytest.fixture
-def strike_core() -> Iterator[PhysicsCore]:
-    core = PhysicsCore(scene="strike")
-    try:
-        yield core
-    finally:
-        core.close()
 
 
 async def health_after(core: Core, role: str,

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import asyncio
 import socket
-from collections.abc import Iterator
 from typing import NamedTuple
 
 import pytest
@@ -41,15 +40,6 @@ def answers_never_refill(monkeypatch: pytest.MonkeyPatch) -> None:
     """The burst only, so how many are answered does not depend on how fast the node goes (read when a node is
     made)."""
     monkeypatch.setattr(common.runtime, "HELLO_ANSWER_RATE_HZ", 0.0)
-
-
-@pytest.fixture
-def strike_core() -> Iterator[PhysicsCore]:
-    core = PhysicsCore(scene="strike")
-    try:
-        yield core
-    finally:
-        core.close()
 
 
 def _socket(host: str) -> socket.socket:

@@ -13,12 +13,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from common.character import JOINTS
 from common.gesture.bvh import forward_kinematics, read_bvh
 from services.graphics.export import write_bvh
 from services.graphics.export.bvh import Z_UP_TO_Y_UP, BvhStream
 from services.graphics.sequence import PoseSequence
 from services.physics.bvh_motion import bvh_segment_lengths, map_segments
+from tests.graphics.physics_poses import posed_frames
 
 ROCKS = ((0.0, 0.0, 0.0), (10.0, 10.0, 10.0), (-10.0, 10.0, -10.0), (10.0, -10.0, 10.0))
 """The pelvis' seat angles (x, y, z degrees) of the frames: at rest first (the file's offsets), then rocked."""
@@ -28,30 +28,9 @@ ROCKS = ((0.0, 0.0, 0.0), (10.0, 10.0, 10.0), (-10.0, 10.0, -10.0), (10.0, -10.0
 def physics_poses() -> PoseSequence:
     """Physics' own link frames (its Pose message) with the pelvis rocked as ``ROCKS`` and the legs and an arm bent
     (the same in every frame: only the pelvis moves)."""
-    from services.physics.core import PhysicsCore
-    from services.physics.drummer import DrummerScene
-
-    core = PhysicsCore(scene="drummer", pose_rate_hz=50.0)
-    try:
-        scene = core.scene
-        assert isinstance(scene, DrummerScene)
-        body = scene.body
-        q = body.state()[0].copy()
-        for joint, angles in (("left_hip", (70.0, -8.0, 5.0)), ("right_hip", (85.0, 6.0, -10.0)),
-                              ("left_knee", (-80.0, 0.0, 0.0)), ("right_ankle", (15.0, 0.0, 5.0)),
-                              ("right_elbow", (60.0, 0.0, 20.0))):
-            k = 3 * JOINTS.index(joint)
-            q[k:k + 3] = np.radians(angles)
-        frames = []
-        seat = 3 * JOINTS.index("seat")
-        for rock in ROCKS:
-            q[seat:seat + 3] = np.radians(rock)
-            body.set_state(q)
-            frames.append(np.array(core.pose().values).reshape(-1, 7))
-        names = list(core.names)
-    finally:
-        core.close()
-    return PoseSequence(names, np.arange(len(ROCKS)) / 60.0, np.stack(frames))
+    bent = {"left_hip": (70.0, -8.0, 5.0), "right_hip": (85.0, 6.0, -10.0), "left_knee": (-80.0, 0.0, 0.0),
+            "right_ankle": (15.0, 0.0, 5.0), "right_elbow": (60.0, 0.0, 20.0)}
+    return posed_frames([{**bent, "seat": rock} for rock in ROCKS])
 
 
 def test_a_rocked_pelvis_leaves_the_legs_where_physics_has_them(physics_poses: PoseSequence, tmp_path: Path) -> None:

@@ -19,7 +19,6 @@ import pygltflib
 import pytest
 from scipy.spatial.transform import Rotation
 
-from common.character import JOINTS
 from common.gesture.bvh import read_bvh
 from common.kit import load_kit
 from services.graphics.export import write_bvh, write_gltf
@@ -27,6 +26,7 @@ from services.graphics.export.bvh import THRONE_JOINT
 from services.graphics.export.gltf import ROOT_ROTATION, _box
 from services.graphics.figure import synthetic_performance
 from services.graphics.sequence import PoseSequence, normalize_quats
+from tests.graphics.physics_poses import posed_frames
 
 WEB = Path(__file__).resolve().parents[2] / "services" / "graphics" / "web"
 LINK_SIZE_M = 0.05
@@ -38,28 +38,10 @@ FRAMES = (0, 2, 3)
 def physics_poses() -> PoseSequence:
     """Physics' own frames (links and kit links) with the pelvis rocked on the seat and limbs bent differently in
     each frame (as tests/graphics/test_bvh_throne.py; the seat joint only physics' character has)."""
-    from services.physics.core import PhysicsCore
-    from services.physics.drummer import DrummerScene
-
-    core = PhysicsCore(scene="drummer", pose_rate_hz=50.0)
-    try:
-        scene = core.scene
-        assert isinstance(scene, DrummerScene)
-        body = scene.body
-        q = body.state()[0].copy()
-        frames = []
-        for k, rock in enumerate(((0.0, 0.0, 0.0), (5.0, 0.0, 0.0), (10.0, 10.0, 10.0), (-10.0, 10.0, -10.0))):
-            for joint, angles in (("seat", rock), ("left_hip", (70.0 + 5 * k, -8.0, 5.0)),
-                                  ("right_knee", (-80.0 + 10 * k, 0.0, 0.0)), ("right_elbow", (60.0, 0.0, 5 * k)),
-                                  ("left_wrist", (10.0 * k, 0.0, 0.0))):
-                i = 3 * JOINTS.index(joint)
-                q[i:i + 3] = np.radians(angles)
-            body.set_state(q)
-            frames.append(np.array(core.pose().values).reshape(-1, 7))
-        names = list(core.names)
-    finally:
-        core.close()
-    return PoseSequence(names, np.arange(len(frames)) / 60.0, np.stack(frames))
+    rocks = ((0.0, 0.0, 0.0), (5.0, 0.0, 0.0), (10.0, 10.0, 10.0), (-10.0, 10.0, -10.0))
+    return posed_frames([{"seat": rock, "left_hip": (70.0 + 5 * k, -8.0, 5.0), "right_knee": (-80.0 + 10 * k, 0.0, 0.0),
+                          "right_elbow": (60.0, 0.0, 5 * k), "left_wrist": (10.0 * k, 0.0, 0.0)}
+                         for k, rock in enumerate(rocks)])
 
 
 def load(path: Path) -> pygltflib.GLTF2:
