@@ -85,7 +85,7 @@ _JOINT_OF_LINK = {child: joint for joint, (_, child) in JOINT_LINKS.items()}
 THRONE_JOINT = BASE_LINK
 """The joint the file adds for physics' character: the throne's frame at the seat point, the pelvis' child and the
 thighs' parent (see the module docstring); named as physics' trunk base, which no pose carries."""
-_PELVIS = next(child for parent, child in JOINT_LINKS.values() if parent == BASE_LINK)
+PELVIS_LINK = next(child for parent, child in JOINT_LINKS.values() if parent == BASE_LINK)
 """The link that turns on the seat point (the pelvis): the throne joint's parent, at its origin."""
 ON_THRONE = tuple(child for parent, child in JOINT_LINKS.values() if parent in HIP_MOUNTS.values())
 """Links of physics' character whose joint's parent is fixed on the throne (the thighs): the throne joint's
@@ -112,7 +112,7 @@ def range_of_motion(link: str, info: CharacterInfo | None = None) -> Rotation | 
     """
     info = info or load_character()
     if link == THRONE_JOINT:
-        pelvis = range_of_motion(_PELVIS, info)
+        pelvis = range_of_motion(PELVIS_LINK, info)
         return None if pelvis is None else pelvis.inv()
     if link in _JOINT_OF_LINK:
         joint = _JOINT_OF_LINK[link]
@@ -206,7 +206,11 @@ class BvhInfo:
     max_error: float
 
 
-def _tree(names: list[str], parents: list[int], body_list: list[int]) -> tuple[int, list[int], dict[int, list[int]]]:
+def joint_tree(names: list[str], parents: list[int],
+               body_list: list[int]) -> tuple[int, list[int], dict[int, list[int]]]:
+    """The joint tree of the body links ``body_list`` (indices into ``names``; ``parents[i]`` the parent's index,
+    -1 for none): its root (a pelvis, root or hips link first), the joints in depth-first order (a BVH's) and each
+    joint's children. The BVH and the glTF skin share it, so their joints agree."""
     body = set(body_list)
     roots = [i for i in body if parents[i] < 0]
     if not roots:
@@ -243,7 +247,7 @@ class _Layout:
         """Index of the throne joint (``THRONE_JOINT``, after the links) for physics' character, else None."""
         self.pelvis = -1
         if self.character is not None and THRONE_JOINT not in names:
-            self.throne, self.pelvis = len(names), names.index(_PELVIS)
+            self.throne, self.pelvis = len(names), names.index(PELVIS_LINK)
             names = [*names, THRONE_JOINT]
             self.parents.append(self.pelvis)
             for link in ON_THRONE:
@@ -252,7 +256,7 @@ class _Layout:
         self.names = names
         self.scale = scale
         self.all_positions = all_positions
-        self.root, self.order, self.children = _tree(names, self.parents, body)
+        self.root, self.order, self.children = joint_tree(names, self.parents, body)
         pos, rots = self._world(first_frame[None])
         self.first = {i: Rotation.from_quat(rots[i].as_quat()[0]) for i in self.order}
         self.offsets: dict[int, np.ndarray] = {}

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from services.graphics.export.bvh import _PELVIS, ON_THRONE, THRONE_JOINT, _tree
+from services.graphics.export.bvh import ON_THRONE, PELVIS_LINK, THRONE_JOINT, joint_tree
 from services.graphics.poser import is_character
 from services.graphics.sequence import PoseSequence, normalize_quats
 from services.graphics.skeleton import body_links, guess_parents
@@ -60,7 +60,7 @@ class Skeleton:
         pos = values[:, :, :3]
         rot = [Rotation.from_quat(normalize_quats(values[:, i, 3:])) for i in range(count)]
         if is_character(names) and THRONE_JOINT not in names:  # the seat joint, as bvh.py's _Layout adds it
-            pelvis = names.index(_PELVIS)
+            pelvis = names.index(PELVIS_LINK)
             names.append(THRONE_JOINT)
             parents.append(pelvis)
             for thigh in ON_THRONE:
@@ -69,7 +69,7 @@ class Skeleton:
             # the seat: at the pelvis' origin, the world's orientation (the throne's)
             pos = np.concatenate([pos, pos[:, pelvis:pelvis + 1]], axis=1)
             rot.append(Rotation.from_quat(np.tile([0.0, 0.0, 0.0, 1.0], (len(values), 1))))
-        root, order, _ = _tree(names, parents, body)
+        root, order, _ = joint_tree(names, parents, body)
         index = {link: k for k, link in enumerate(order)}
         self.joints: list[Joint] = []
         for link in order:
