@@ -1069,7 +1069,8 @@ def gltf_writer(result: ScoreRender, kit: Kit, opts: RenderOptions, quiet: bool)
         finished = False
         try:
             frames = result.poses.resample(opts.pose_rate_hz, start=start, end=end, on_progress=progress.update)
-            info = write_gltf(frames, staging / "performance.glb", kit=kit, time_origin=start)
+            info = write_gltf(frames, staging / "performance.glb", kit=kit, time_origin=start,
+                              impacts=[(impact.time, impact.instrument) for impact in result.impacts])
             finished = True
         except (OSError, ValueError) as exc:  # a full disk: nothing is written (staging)
             raise RenderError(f"--gltf: {exc}") from exc

@@ -12,11 +12,14 @@ except the objects whose motion the sequence carries as physics' kit links
 animated link node instead of its box; a bass-drum pedal's beater (``kit.kick_pedal.beater``) is drawn as a rod
 and a ball, the stands (``kit.stands``) as rods under the drums and cymbals. Units: metres. Key times are
 seconds from ``time_origin`` (a render's: performance.wav's time 0, so the two line up in an animation tool).
+Given the impacts, each struck drum head, cymbal or hi-hat top plate gets a thin emissive disc shown at its impacts
+(:mod:`services.graphics.export.gltf_flash`).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -31,6 +34,7 @@ from common.kit import (
     kit_hardware,
     stand_rods,
 )
+from services.graphics.export import gltf_flash
 from services.graphics.export.gltf_skin import Skeleton, continuous_quats
 from services.graphics.sequence import PoseSequence, normalize_quats
 
@@ -58,6 +62,8 @@ class GltfInfo:
     animated_kit_objects: int = 0
     joints: int = 0
     """Joint nodes of the skin (the body links in the BVH's tree, and its ``seat`` joint for physics' character)."""
+    flashes: int = 0
+    """Struck kit objects drawn with a flash (:mod:`services.graphics.export.gltf_flash`)."""
 
 
 def _box() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -308,11 +314,42 @@ def _skin(b: _Builder, skeleton: Skeleton, sequence: PoseSequence, joint_nodes: 
     return b.node(name="body", mesh=len(b.gltf.meshes) - 1, skin=len(b.gltf.skins) - 1)
 
 
+def _flashes(b: _Builder, kit: Kit, impacts: Iterable[tuple[float, str]], origin: float, root: int,
+             link_node: dict[str, int], membrane_mesh: int) -> list[tuple[int, np.ndarray, np.ndarray]]:
+    """A flash disc node per kit object struck in ``impacts`` ((rig time in seconds, kit object id)): a child of
+    its moving link's node (the ride, the hi-hat's top plate) or of ``root``. Returns (node, key times, scales)."""
+    times = gltf_flash.flash_times(impacts, origin)
+    struck = gltf_flash.struck_objects(kit.objects, times)
+    if not struck:
+        return []
+    material = b.material(gltf_flash.FLASH_COLOUR + [1.0])
+    b.gltf.materials[material].emissiveFactor = list(gltf_flash.FLASH_COLOUR)
+    disc = b.gltf.meshes[membrane_mesh].primitives[0]  # the unit cylinder's accessors, shared
+    b.gltf.meshes.append(pygltflib.Mesh(name="flash", primitives=[pygltflib.Primitive(
+        attributes=disc.attributes, indices=disc.indices, material=material)]))
+    mesh = len(b.gltf.meshes) - 1
+    out = []
+    for obj in struck:
+        link = f"kit.{obj.id}.top" if obj.kind == "hihat" else f"kit.{obj.id}"
+        offset = gltf_flash.head_offset(obj, CYMBAL_DRAWN_THICKNESS_M)
+        if link in link_node:  # it moves: ride its link, whose frame is the object's (the plate's frame for the top)
+            parent, placed = link_node[link], {"translation": [0.0, 0.0, offset]}
+        else:
+            translation, rotation = gltf_flash.static_place(obj, CYMBAL_DRAWN_THICKNESS_M)
+            parent, placed = root, {"translation": translation, "rotation": rotation}
+        node = b.node(name=f"flash_{obj.id}", mesh=mesh, scale=[gltf_flash.HIDDEN_SCALE] * 3, **placed)
+        b.gltf.nodes[parent].children = [*(b.gltf.nodes[parent].children or []), node]
+        key_times, scales = gltf_flash.scale_keys(times[obj.id], gltf_flash.full_scale(obj))
+        out.append((node, key_times, scales))
+    return out
+
+
 def write_gltf(sequence: PoseSequence, path: Path, kit: Kit | None = None, link_size: float = 0.05,
-               time_origin: float | None = None) -> GltfInfo:
+               time_origin: float | None = None, impacts: Iterable[tuple[float, str]] | None = None) -> GltfInfo:
     """Write ``sequence`` (and ``kit``: static, or moved by its kit links in ``sequence``) as glTF 2.0: ``.glb``
     binary, or ``.gltf`` with embedded data. ``time_origin``: the rig time (seconds) of the file's time 0 (None:
-    the first pose's); no pose may come before it."""
+    the first pose's); no pose may come before it. ``impacts`` ((rig time in seconds, kit object id), with
+    ``kit``): each struck object's head flashes at its impacts (:mod:`services.graphics.export.gltf_flash`)."""
     origin = float(sequence.times[0]) if time_origin is None else time_origin
     if sequence.times[0] < origin:
         raise ValueError(f"the first pose ({sequence.times[0]:g} s) comes before the file's time 0 ({origin:g} s)")
@@ -370,6 +407,10 @@ def write_gltf(sequence: PoseSequence, path: Path, kit: Kit | None = None, link_
     scene_nodes = [root]
     if skeleton is not None and joint_of:
         scene_nodes.append(_skin(b, skeleton, sequence, joint_nodes, link_size, (body_mat, stick_mat)))
+    flashes = []
+    if kit is not None and impacts is not None:
+        link_node = {sequence.names[i]: node for i, node in zip(rigid, link_nodes, strict=True)}
+        flashes = _flashes(b, kit, impacts, origin, root, link_node, meshes["membrane"])
     b.gltf.scenes.append(pygltflib.Scene(name="performance", nodes=scene_nodes))
     b.gltf.scene = 0
 
@@ -391,6 +432,11 @@ def write_gltf(sequence: PoseSequence, path: Path, kit: Kit | None = None, link_
                                                    interpolation="LINEAR"))
         channels.append(pygltflib.AnimationChannel(sampler=len(samplers) - 1,
                                                    target=pygltflib.AnimationChannelTarget(node=node, path=target)))
+    for node, key_times, scales in flashes:  # on and off at once: STEP
+        samplers.append(pygltflib.AnimationSampler(input=b.accessor(key_times, pygltflib.SCALAR, bounds=True),
+                                                   output=b.accessor(scales, pygltflib.VEC3), interpolation="STEP"))
+        channels.append(pygltflib.AnimationChannel(sampler=len(samplers) - 1,
+                                                   target=pygltflib.AnimationChannelTarget(node=node, path="scale")))
     b.gltf.animations.append(pygltflib.Animation(name="performance", samplers=samplers, channels=channels))
     b.gltf.buffers.append(pygltflib.Buffer(byteLength=len(b.blob)))
     b.gltf.set_binary_blob(bytes(b.blob))
@@ -400,4 +446,4 @@ def write_gltf(sequence: PoseSequence, path: Path, kit: Kit | None = None, link_
         b.gltf.convert_buffers(pygltflib.BufferFormat.DATAURI)
         b.gltf.save_json(str(path))
     return GltfInfo(len(link_nodes) + len(joint_of), len(kit_nodes) + len(animated_ids), len(times),
-                    float(times[-1]), len(animated_ids), len(joint_nodes))
+                    float(times[-1]), len(animated_ids), len(joint_nodes), len(flashes))
