@@ -5,8 +5,9 @@ not make. The take is read (a MIDI file), or transcribed in-process with the rec
 uses (an audio file); its notes are lined up with the exercise's (the student starts whenever they like) and
 matched one to one with evaluate's matching (:func:`batteur.evaluate.match`: same kit object, within the
 tolerance, the most pairs and then the least total error). The report says, per drum, what was played, missed
-and added, how early or late and how steadily, where each miss and extra is (bar and beat), and whether the
-written dynamics came through (docs/evaluation.md, "A student's take against the exercise").
+and added (a note beyond the tolerance: played too early or late), how early or late and how steadily, where
+each miss and extra is (bar and beat), and whether the written dynamics came through (docs/evaluation.md, "A
+student's take against the exercise").
 
 Alignment (:func:`align`): every pair of notes of one drum, one written and one played, proposes an offset (take
 time - exercise time); the offsets most pairs agree on (within the tolerance) are tried with the full matching,
@@ -64,6 +65,15 @@ COUNT_IN_NOTES = 3
 """Notes a steady pulse apart before the exercise's start that make a count-in (:func:`count_in_entry`)."""
 COUNT_IN_REACH = 8
 """Count-in beats from its next beat beyond which an entry is not told against it (two bars of 4/4)."""
+COUNT_IN_PULSE_MATCH = 0.10
+"""A count-in's pulse is the exercise's beat (or twice or half it) within this share: a count-in is counted at
+the tempo to come; a tenth allows a student's count a little off (97 bpm into 105 bpm) but not a pulse of some
+other subdivision (a dotted beat is 1.5, a triplet 0.67 or 1.33)."""
+ACCENT_MARGIN = 10.0
+"""Accents are told louder when their played mean is at least this above the rest's, MIDI velocity: a tenth of
+velocity's range under 100; on an e-kit's usual velocity curve (some 40 dB over 1-127) about 3 dB, a step a
+listener hears as an accent, where 1 or 2 (about 1 dB, the just-noticeable difference) is not one. Between 0 and
+this: barely louder."""
 FEW_LEVELS = 4
 """Written velocity levels of one drum up to which its loudest is taken for accents (:func:`dynamics`)."""
 MAX_LISTED = 60
@@ -88,7 +98,7 @@ class Played:
 
 @dataclass
 class Take:
-    """The take's notes and what it is: ``kind`` ``MIDI`` or ``audio (WAV)``; ``heard``: the kit objects the
+    """The take's notes and what it is: ``kind`` ``MIDI`` or ``WAV audio`` (FLAC...); ``heard``: the kit objects the
     transcriber can name (None: a MIDI take names every drum)."""
 
     notes: list[Played]
@@ -200,7 +210,7 @@ def transcribed(path: Path, kit: Kit, kind: str, warn: Callable[[str], None]) ->
 
     notes = [Played(e.time, drum(CLASSES[e.cls].event_type), e.velocity / 127, CLASSES[e.cls].event_type.value)
              for e in events]
-    return Take(notes, f"audio ({kind})", heard=frozenset(drum(c.event_type) for c in CLASSES))
+    return Take(notes, f"{kind} audio", heard=frozenset(drum(c.event_type) for c in CLASSES))
 
 
 def drum_of(kit: Kit, event: EventType, pitch: int | None) -> str:
@@ -469,7 +479,9 @@ def dynamics(pairs: Sequence[tuple[float, float]]) -> dict[str, Any] | None:
         top = max(levels)
         accents = float(np.mean(levels[top]))
         rest = float(np.mean([p for k, v in levels.items() if k != top for p in v]))
-        out["accents_louder"] = accents > rest
+        out["accents_louder"] = accents - rest >= ACCENT_MARGIN
+        out["accents_barely_louder"] = 0 < accents - rest < ACCENT_MARGIN
+        out["accent_margin"] = round(accents - rest, 1) + 0.0
         out["accent_mean"], out["others_mean"] = round(accents, 1), round(rest, 1)
     return out
 
@@ -489,9 +501,28 @@ def exercise_end(score: Score) -> float:
     return max(last, float(score.beats[-1])) if len(score.beats) and score.end_beat is not None else last
 
 
-def compare(score: Score, take: Take, kit: Kit, tolerance: float, scale: float = 1.0,
+def compare(score: Score, take: Take, kit: Kit, tolerance: float, scale: float | None = None,
             offset: float | None = None) -> dict[str, Any]:
-    """The whole comparison as a JSON-ready dict (see the module docstring; times on the exercise's clock)."""
+    """The whole comparison as a JSON-ready dict (see the module docstring; times on the exercise's clock).
+
+    ``scale`` None (no ``--tempo-scale``): compared at the exercise's tempo, and when the tempo check finds a ratio
+    matching clearly more notes (``tempo`` set), compared again at that ratio (a take 2 % slow is not half
+    missed); ``tempo_scale_found`` says so. A ``scale`` given is kept as given (no search)."""
+    report = _compare_at(score, take, kit, tolerance, 1.0 if scale is None else scale, offset)
+    report["tempo_scale_found"] = False
+    tempo = report["tempo"]
+    if scale is None and tempo is not None:
+        again = _compare_at(score, take, kit, tolerance, tempo["ratio"], offset)
+        if again["played"] > report["played"]:
+            # the exercise's own tempo kept in "tempo" (the second run's would be the take's)
+            tempo["played_at_exercise_tempo"] = report["played"]
+            report = {**again, "tempo": tempo, "tempo_scale_found": True}
+    return report
+
+
+def _compare_at(score: Score, take: Take, kit: Kit, tolerance: float, scale: float,
+                offset: float | None) -> dict[str, Any]:
+    """The comparison at the tempo ratio ``scale`` (take / exercise)."""
     from batteur.evaluate import note_refs
 
     refs = note_refs(score, kit)
@@ -526,24 +557,32 @@ def compare(score: Score, take: Take, kit: Kit, tolerance: float, scale: float =
 
     # a miss with an unmatched note of its drum near is told early or late; that note may lie just before the
     # exercise's start or after its end (a first note early, a last one late): it is still the written note's
-    loose: dict[str, np.ndarray] = {}
-    for drum in {n.instrument for n in written}:
-        loose[drum] = np.sort([p.time - offset for j, p in enumerate(played)
-                               if p.drum == drum and j not in done_played])
+    # that note is the written one played too early or late, not also an extra: each is claimed by one miss
+    loose: dict[str, list[int]] = defaultdict(list)
+    for j, p in enumerate(played):
+        if j not in done_played:
+            loose[p.drum].append(j)
+    claimed: set[int] = set()
     misses = []
     for i in missed_i:
         n = written[i]
-        entry = {**position(score, written_clock(n.time)), "time_s": round(written_clock(n.time), 4),
+        entry = {**position(score, written_clock(n.time)), "time_s": _r(written_clock(n.time), 4),
                  "drum": n.instrument, "event": n.event, "velocity": round(n.velocity * 127)}
-        off = _nearest(loose[n.instrument], n.time)
-        if off is not None and abs(off) <= max(LOOSE_S, 2 * tolerance):
-            entry["played_off_by_ms"] = round(off * 1000, 1)
+        near = [j for j in loose.get(n.instrument, []) if j not in claimed
+                and abs(played[j].time - offset - n.time) <= max(LOOSE_S, 2 * tolerance)]
+        if near:
+            j = min(near, key=lambda k: abs(played[k].time - offset - n.time))
+            claimed.add(j)
+            entry["played_off_by_ms"] = round((played[j].time - offset - n.time) * 1000, 1) + 0.0
+            entry["played_take_time_s"] = _r(played[j].time, 4)
         misses.append(entry)
+    extras_j = [j for j in extras_j if j not in claimed]
+    off_i = {i for i, entry in zip(missed_i, misses, strict=True) if "played_off_by_ms" in entry}
     extras = []
     for j in extras_j:
         p = played[j]
         extras.append({**position(score, written_clock(p.time - offset)),
-                       "time_s": round(written_clock(p.time - offset), 4), "take_time_s": round(p.time, 4),
+                       "time_s": _r(written_clock(p.time - offset), 4), "take_time_s": _r(p.time, 4),
                        "drum": p.drum, "event": p.event, "velocity": round(p.velocity * 127)})
     drums: dict[str, Any] = {}
     names = sorted({n.instrument for n in written} | {played[j].drum for j in inside})
@@ -551,31 +590,38 @@ def compare(score: Score, take: Take, kit: Kit, tolerance: float, scale: float =
         its_pairs = [(i, j) for i, j in pairs if written[i].instrument == drum]
         drums[drum] = {
             "written": sum(n.instrument == drum for n in written), "played": len(its_pairs),
-            "missed": sum(written[i].instrument == drum for i in missed_i),
+            "missed": sum(written[i].instrument == drum for i in missed_i if i not in off_i),
+            "off_tolerance": sum(written[i].instrument == drum for i in off_i),
             "extra": sum(played[j].drum == drum for j in extras_j),
             "timing": timing([played[j].time - offset - written[i].time for i, j in its_pairs]),
             "dynamics": dynamics([(written[i].velocity, played[j].velocity) for i, j in its_pairs]),
         }
     short = pickup(score)
+    bpm = tempo_bpm(score)
     report: dict[str, Any] = {
         "take_kind": take.kind, "tolerance_ms": round(tolerance * 1000, 3), "tempo_scale": scale,
-        "offset_s": round(offset, 4), "offset_forced": forced,
-        "written": len(written), "played": len(pairs), "missed": len(missed_i), "extra": len(extras_j),
+        "offset_s": _r(offset, 4), "offset_forced": forced,
+        "written": len(written), "played": len(pairs), "missed": len(missed_i) - len(off_i),
+        "off_tolerance": len(off_i), "extra": len(extras_j),
         "outside": outside,
         "timing": timing([played[j].time - offset - written[i].time for i, j in pairs]),
         "drums": drums, "misses": misses, "extras": extras,
         "not_heard": dict(sorted(not_heard.items())), "tempo": None, "take_stops": None,
         # the count-in: notes before the start, but for a first note early (told as such above)
         "entry": None if forced else count_in_entry(
-            [p.time for p in played if p.time - offset < -max(LOOSE_S, 2 * tolerance)], offset, tolerance),
+            [p.time for p in played if p.time - offset < -max(LOOSE_S, 2 * tolerance)], offset, tolerance,
+            None if bpm is None else 60.0 / bpm / scale),
         "pickup_beats": None if short is None else short[0],
         "warnings": list(take.warnings),
     }
     # the take's last note from the start on (one just after the end too: a last note late is no early stop)
     later = [p.time - offset for p in played if p.time - offset >= start]
     last = max(later) if later else None
+    if (last is not None and bpm is not None
+            and exercise_end(score) - written_clock(last) <= 60.0 / bpm + written_clock(tolerance)):
+        last = None  # the take's last note within a beat of the end: it played to the end, its misses are listed
     for entry in misses:  # a take stopped before the end: its missed notes after the take are told as one
-        entry["after_take"] = None if last is None else entry["time_s"] > written_clock(last + tolerance)
+        entry["after_take"] = last is not None and entry["time_s"] > written_clock(last + tolerance)
     after = sum(bool(entry["after_take"]) for entry in misses)
     if last is not None and after:
         report["take_stops"] = {**position(score, written_clock(last)), "missed_after": after}
@@ -584,27 +630,27 @@ def compare(score: Score, take: Take, kit: Kit, tolerance: float, scale: float =
         length = exercise_end(score) / scale  # s, as the take plays it: a small ratio still drifts over a long take
         if (count >= max(1.5 * len(pairs), len(pairs) + 0.2 * len(written))
                 and abs(math.log(ratio)) * length > tolerance / 2):
-            bpm = tempo_bpm(score)
             report["tempo"] = {"ratio": ratio_digits(ratio * scale, length / ratio, tolerance), "played": count,
                                "exercise_bpm": None if bpm is None else round(bpm * scale, 1),
                                "take_bpm": None if bpm is None else round(bpm * scale * ratio, 1)}
     return report
 
 
-def _nearest(times: np.ndarray, t: float) -> float | None:
-    """The difference (s) from ``t`` to the nearest of the sorted ``times``; None when there are none."""
-    k = int(np.searchsorted(times, t))
-    near = [float(times[m]) - t for m in (k - 1, k) if 0 <= m < len(times)]
-    return min(near, key=abs) if near else None
+def _r(value: float, digits: int) -> float:
+    """``value`` rounded, a negative zero made positive (no ``-0.0`` in the JSON, no ``-0.000 s`` said)."""
+    return round(value, digits) + 0.0
 
 
-def count_in_entry(before: Sequence[float], offset: float, tolerance: float) -> dict[str, Any] | None:
+def count_in_entry(before: Sequence[float], offset: float, tolerance: float, beat_s: float | None = None
+                   ) -> dict[str, Any] | None:
     """Where the take entered against its count-in, given the take's times (s) of its notes before the exercise's
     start (``offset``; a first note early left out): the last :data:`COUNT_IN_NOTES` or more of them (notes
     within the tolerance one onset) a steady pulse apart (each gap within the tolerance, or a tenth of the
     pulse, of their median), the exercise is due one pulse after the last; ``late_beats`` is how far after that
     it started, in the count-in's beats (- early). None when there is no such count-in, or the entry is more
-    than :data:`COUNT_IN_REACH` beats from it (those notes were not counting the exercise in)."""
+    than :data:`COUNT_IN_REACH` beats from it (those notes were not counting the exercise in), or (``beat_s``: the
+    exercise's beat on the take's clock, s) the pulse is not that beat, twice it or half it within
+    :data:`COUNT_IN_PULSE_MATCH` (a transcriber's ghost notes a steady 0.26 s apart are no count-in at 100 bpm)."""
     onsets: list[float] = []
     for t in sorted(before):
         if not onsets or t - onsets[-1] > tolerance:
@@ -619,12 +665,14 @@ def count_in_entry(before: Sequence[float], offset: float, tolerance: float) -> 
     if run < COUNT_IN_NOTES:
         return None
     pulse = float(np.median(np.diff(onsets[-run:])))
+    if beat_s is not None and not any(abs(pulse / (beat_s * k) - 1) <= COUNT_IN_PULSE_MATCH for k in (0.5, 1, 2)):
+        return None
     due = onsets[-1] + pulse
     late = offset - due
     if abs(late) > COUNT_IN_REACH * pulse:
         return None
-    return {"count_in_notes": run, "count_in_beat_s": round(pulse, 4), "due_s": round(due, 4),
-            "late_s": round(late, 4), "late_beats": round(late / pulse, 2), "on_time": abs(late) <= tolerance}
+    return {"count_in_notes": run, "count_in_beat_s": _r(pulse, 4), "due_s": _r(due, 4),
+            "late_s": _r(late, 4), "late_beats": _r(late / pulse, 2), "on_time": abs(late) <= tolerance}
 
 
 def entry_text(entry: dict[str, Any]) -> str:
@@ -643,7 +691,7 @@ def summary_lines(report: dict[str, Any], exercise: str, take: str) -> list[str]
     """The report as a teacher reads it."""
     lines = [f"{take} ({report['take_kind']}) against {exercise}"]
     how = "forced (--offset)" if report["offset_forced"] else "found by lining up the notes"
-    lines.append(f"the exercise starts {report['offset_s']:.3f} s into the take ({how}); tolerance "
+    lines.append(f"the exercise starts {_r(report['offset_s'], 3):.3f} s into the take ({how}); tolerance "
                  f"{report['tolerance_ms']:g} ms" + (f"; tempo scale {report['tempo_scale']:g}"
                                                        if report["tempo_scale"] != 1 else ""))
     if report.get("entry"):
@@ -652,7 +700,9 @@ def summary_lines(report: dict[str, Any], exercise: str, take: str) -> list[str]
         lines.append(f"bar 0 is the pick-up ({report['pickup_beats']:g} beat{'s' if report['pickup_beats'] > 1 else ''}"
                      "), bar 1 the first full bar")
     t = report["timing"]
-    lines.append(f"{report['played']} of {report['written']} written notes played, {report['missed']} missed, "
+    off = (f"{report['off_tolerance']} played too early or late (beyond the tolerance), "
+           if report["off_tolerance"] else "")
+    lines.append(f"{report['played']} of {report['written']} written notes played, {off}{report['missed']} missed, "
                  f"{report['extra']} extra" + (f" ({report['outside']} before or after the exercise not counted)"
                                               if report["outside"] else ""))
     if t["n"]:
@@ -662,21 +712,29 @@ def summary_lines(report: dict[str, Any], exercise: str, take: str) -> list[str]
                      "(standard deviation)")
     stops = report.get("take_stops")
     if stops:
-        lines.append(f"the take stops at {where_text(stops)} (its last note): {stops['missed_after']} written notes "
-                     "after it are missed (not listed below)")
+        n = stops["missed_after"]
+        lines.append(f"the take stops at {where_text(stops)} (its last note): {n} written note{'' if n == 1 else 's'} "
+                     f"after it {'is' if n == 1 else 'are'} missed (not listed below)")
     tempo = report.get("tempo")
-    if tempo:
+    if tempo and report.get("tempo_scale_found"):
+        bpm = (f"played at about {tempo['take_bpm']:g} bpm, the exercise is at {tempo['exercise_bpm']:g}"
+               if tempo["exercise_bpm"] else f"played at about {tempo['ratio']} times the exercise's tempo")
+        lines.insert(1, f"{bpm}: compared at the take's tempo (--tempo-scale {tempo['ratio']}); "
+                     f"{report['played']} of {report['written']} played (at the exercise's tempo "
+                     f"{tempo['played_at_exercise_tempo']})")
+    elif tempo:
         bpm = (f" (the exercise at {tempo['exercise_bpm']:g} bpm, the take at about {tempo['take_bpm']:g})"
                if tempo["exercise_bpm"] else "")
         lines.append(f"TEMPO: most notes do not match at the exercise's tempo; the take is played at about "
                      f"{tempo['ratio']} times it{bpm}: --tempo-scale {tempo['ratio']} compares at the "
                      f"take's tempo ({tempo['played']} notes then match)")
     lines.append("")
-    lines.append(f"{'drum':<10} {'written':>7} {'played':>6} {'missed':>6} {'extra':>5} {'mean ms':>8} "
-                 f"{'spread ms':>9}  dynamics (MIDI velocity)")
+    lines.append(f"{'drum':<10} {'written':>7} {'played':>6} {'too early/late':>14} {'missed':>6} {'extra':>5} "
+                 f"{'mean ms':>8} {'spread ms':>9}  dynamics (MIDI velocity)")
     for drum, d in report["drums"].items():
         dt = d["timing"]
-        lines.append(f"{drum:<10} {d['written']:>7} {d['played']:>6} {d['missed']:>6} {d['extra']:>5} "
+        lines.append(f"{drum:<10} {d['written']:>7} {d['played']:>6} {d['off_tolerance']:>14} {d['missed']:>6} "
+                     f"{d['extra']:>5} "
                      f"{_ms(dt['mean_ms']) if dt['n'] else '-':>8} "
                      f"{_spread(dt):>9}  {_dynamics_text(d['dynamics'])}")
     if report["not_heard"]:
@@ -687,11 +745,10 @@ def summary_lines(report: dict[str, Any], exercise: str, take: str) -> list[str]
     if listed:
         lines.append("")
     for entry in listed[:MAX_LISTED]:
-        what = "missed" if "take_time_s" not in entry else "extra"
         off = entry.get("played_off_by_ms")
-        note = (f" (played {abs(off):.0f} ms {'late' if off > 0 else 'early'}, beyond the tolerance)"
-                if off is not None else "")
-        lines.append(f"{where_text(entry)}: {entry['drum']} {what}{note}")
+        what = ("extra" if "take_time_s" in entry else "missed" if off is None else
+                f"played {abs(off):.0f} ms {'late' if off > 0 else 'early'} (beyond the tolerance)")
+        lines.append(f"{where_text(entry)}: {entry['drum']} {what}")
     if len(listed) > MAX_LISTED:
         lines.append(f"... {len(listed) - MAX_LISTED} more misses and extras (--json lists them all)")
     return lines
@@ -710,7 +767,9 @@ def _dynamics_text(d: dict[str, Any] | None) -> str:
         return "-"
     text = f"{d['played_mean']:.0f} +- {d['played_sd']:.0f}"
     if "accents_louder" in d:
-        verdict = "accents louder" if d["accents_louder"] else "ACCENTS NOT LOUDER"
+        verdict = ("accents louder" if d["accents_louder"] else
+                   f"accents barely louder (+{d['accent_margin']:.0f})" if d.get("accents_barely_louder") else
+                   "ACCENTS NOT LOUDER")
         text += f"; {verdict}: {d['accent_mean']:.0f} against {d['others_mean']:.0f}"
     elif d["spearman"] is not None:
         text += f"; written and played ranks agree {d['spearman']:+.2f} (Spearman)"
@@ -741,8 +800,9 @@ A written note counts as played when the take has one on the same drum (kit
 object: open and closed hi-hat, and the hi-hat pedal, are the hi-hat) within
 --tolerance. An audio take is compared on the drums the transcriber knows
 (kick, snare, hi-hat, three toms, crash, ride); the others are listed apart.
-When most notes do not match, the tempo the take is played at is looked for
-and reported (--tempo-scale then compares at it). Timing is played minus
+When most notes do not match, the tempo the take is played at is looked for;
+when it matches clearly more, the take is compared at it (said first) unless
+--tempo-scale is given (then it is only reported). Timing is played minus
 written, in ms: + late, - early; the spread is the standard deviation.
 Velocities are MIDI's 0-127 (a transcription's are the recogniser's own).
 """
@@ -772,9 +832,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--offset", type=float, default=None, metavar="SECONDS",
                         help="the exercise starts this far into the take, seconds (default: found by lining up "
                         "the notes)")
-    parser.add_argument("--tempo-scale", type=float, default=1.0, metavar="X",
+    parser.add_argument("--tempo-scale", type=float, default=None, metavar="X",
                         help="the take is played X times faster than written, 0.1 to 10 (0.8: at 80 %% of the "
-                        "tempo; default 1), as render's")
+                        "tempo), as render's; default: the exercise's tempo, or the take's when most notes "
+                        "match only at it (then said first)")
     parser.add_argument("--kit", default=None, metavar="NAME",
                         help="the kit whose objects the drums are (default: the exercise's kit line, else "
                         "default); it groups the notes, as evaluate does")
@@ -788,10 +849,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     low, high = TOLERANCE_RANGE_S
     if not low <= args.tolerance <= high:  # NaN fails too
-        parser.error(f"--tolerance {args.tolerance:g}: {low:g} to {high:g} seconds")
-    if not TEMPO_SCALE_RANGE[0] <= args.tempo_scale <= TEMPO_SCALE_RANGE[1]:
+        hint = (f" ({args.tolerance:g} ms is --tolerance {args.tolerance / 1000:g})"
+                if 1 <= args.tolerance <= 500 else "")
+        parser.error(f"--tolerance {args.tolerance:g}: {low:g} to {high:g} seconds{hint}")
+    if args.tempo_scale is not None and not TEMPO_SCALE_RANGE[0] <= args.tempo_scale <= TEMPO_SCALE_RANGE[1]:
+        hint = f" ({args.tempo_scale:g} % is {args.tempo_scale / 100:g})" if 10 <= args.tempo_scale <= 1000 else ""
         parser.error(f"--tempo-scale {args.tempo_scale:g}: {TEMPO_SCALE_RANGE[0]:g} to {TEMPO_SCALE_RANGE[1]:g} "
-                     "(times faster)")
+                     f"(times faster){hint}")
     if args.offset is not None and not math.isfinite(args.offset):
         parser.error(f"--offset {args.offset:g}: a number of seconds")
 

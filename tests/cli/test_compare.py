@@ -156,6 +156,21 @@ def test_accents_played_flat_are_told(exercise: Path, tmp_path: Path, capsys: py
     assert "ACCENTS NOT LOUDER" in out
 
 
+@pytest.mark.parametrize(("accent", "louder", "says"), [
+    (91, False, "accents barely louder (+1)"), (99, False, "accents barely louder (+9)"),
+    (100, True, "accents louder: 100 against 90"), (90, False, "ACCENTS NOT LOUDER")])
+def test_accents_must_be_clearly_louder(accent: int, louder: bool, says: str, exercise: Path, tmp_path: Path,
+                                        capsys: pytest.CaptureFixture[str]) -> None:
+    """Hi-hat accents at 91 against 90 are not "louder": 10 velocity (about 3 dB) is; between, barely."""
+    path = write_take(tmp_path / "acc.mid",
+                      [(START + t, p, accent if v == 127 else 90) for t, p, v in written(exercise)])
+    got = report([str(exercise), str(path)], capsys)
+    hihat = got["drums"]["hihat"]["dynamics"]
+    assert hihat["accents_louder"] is louder and hihat["accent_margin"] == accent - 90
+    _, out, _ = run([str(exercise), str(path)], capsys)
+    assert says in next(line for line in out.splitlines() if line.startswith("hihat"))
+
+
 def test_a_forced_offset_is_the_start_the_means_are_against(exercise: Path, tmp_path: Path,
                                                             capsys: pytest.CaptureFixture[str]) -> None:
     path = write_take(tmp_path / "take.mid", [(START + t, p, v) for t, p, v in written(exercise)])
@@ -166,17 +181,38 @@ def test_a_forced_offset_is_the_start_the_means_are_against(exercise: Path, tmp_
 
 def test_a_take_at_another_tempo_is_reported_as_such(exercise: Path, tmp_path: Path,
                                                      capsys: pytest.CaptureFixture[str]) -> None:
+    """Given --tempo-scale 1 (kept as given, no search): most notes missed and the TEMPO line says the ratio;
+    given none: compared at the ratio found, said first."""
     path = write_take(tmp_path / "slow.mid", [(1.0 + t / 0.8, p, v) for t, p, v in written(exercise)])
-    got = report([str(exercise), str(path)], capsys)
-    assert got["played"] < got["written"] / 2
+    got = report([str(exercise), str(path), "--tempo-scale", "1"], capsys)
+    assert got["played"] < got["written"] / 2 and (got["tempo_scale"], got["tempo_scale_found"]) == (1.0, False)
     assert got["tempo"]["ratio"] == pytest.approx(0.8, abs=0.002)
     assert got["tempo"]["exercise_bpm"] == pytest.approx(120) and got["tempo"]["take_bpm"] == pytest.approx(96, abs=1)
-    status, out, _ = run([str(exercise), str(path)], capsys)
+    status, out, _ = run([str(exercise), str(path), "--tempo-scale", "1"], capsys)
     assert "TEMPO: most notes do not match" in out and "--tempo-scale 0.8" in out
 
     at_its_tempo = report([str(exercise), str(path), "--tempo-scale", "0.8"], capsys)
     assert (at_its_tempo["played"], at_its_tempo["extra"], at_its_tempo["tempo"]) == (52, 0, None)
-    assert at_its_tempo["misses"] == []
+    assert at_its_tempo["misses"] == [] and at_its_tempo["tempo_scale_found"] is False
+
+    found = report([str(exercise), str(path)], capsys)
+    assert (found["played"], found["extra"], found["misses"]) == (52, 0, [])
+    assert found["tempo_scale"] == pytest.approx(0.8, abs=0.002) and found["tempo_scale_found"] is True
+    assert found["tempo"]["played_at_exercise_tempo"] == got["played"]
+    _, out, _ = run([str(exercise), str(path)], capsys)
+    assert out.splitlines()[1] == ("played at about 96 bpm, the exercise is at 120: compared at the take's tempo "
+                                   f"(--tempo-scale 0.8); 52 of 52 played (at the exercise's tempo {got['played']})")
+    assert "TEMPO" not in out
+
+
+def test_a_take_two_percent_slow_is_compared_at_its_tempo(exercise: Path, tmp_path: Path,
+                                                          capsys: pytest.CaptureFixture[str]) -> None:
+    """Every note 2 % slow: about half the notes drift beyond the tolerance at the exercise's tempo; compared at
+    the take's, all are played."""
+    path = write_take(tmp_path / "slow98.mid", [(1.0 + t / 0.98, p, v) for t, p, v in written(exercise)])
+    got = report([str(exercise), str(path)], capsys)
+    assert (got["played"], got["missed"], got["off_tolerance"], got["extra"]) == (52, 0, 0, 0)
+    assert got["tempo_scale"] == pytest.approx(0.98, abs=1e-3) and got["tempo_scale_found"] is True
 
 
 def groove(bars: int) -> str:
@@ -195,11 +231,13 @@ def test_a_slightly_off_tempo_over_a_long_take_is_found(bars: int, ratio: float,
     exercise = tmp_path / "long.txt"
     exercise.write_text(groove(bars), encoding="utf-8")
     path = write_take(tmp_path / "take.mid", [(1.0 + t / ratio, p, v) for t, p, v in written(exercise)])
-    got = report([str(exercise), str(path)], capsys)
+    got = report([str(exercise), str(path), "--tempo-scale", "1"], capsys)
     assert got["played"] < 0.8 * got["written"]
     assert got["tempo"] is not None and got["tempo"]["played"] == got["written"] == 13 * bars
     assert got["tempo"]["ratio"] == pytest.approx(ratio, abs=1e-4)
-    _, out, _ = run([str(exercise), str(path)], capsys)
+    found = report([str(exercise), str(path)], capsys)  # no --tempo-scale: compared at the ratio found
+    assert (found["played"], found["extra"], found["tempo_scale_found"]) == (13 * bars, 0, True)
+    _, out, _ = run([str(exercise), str(path), "--tempo-scale", "1"], capsys)
     said = next(line for line in out.splitlines() if line.startswith("TEMPO"))
     scale = said.split("--tempo-scale ")[1].split()[0]
     at_its_tempo = report([str(exercise), str(path), "--tempo-scale", scale], capsys)
@@ -234,8 +272,28 @@ def test_a_first_or_last_note_just_outside_is_told_early_or_late(tmp_path: Path,
             (1, 1, "kick", -70.0), (4, 4.5, "hihat", 70.0)]
         assert got["played"] == 50
         status, out, _ = run([str(exercise), str(path)], capsys)
-        assert "bar 1, beat 1: kick missed (played 70 ms early, beyond the tolerance)" in out
-        assert "bar 4, beat 4.5: hihat missed (played 70 ms late, beyond the tolerance)" in out
+        assert "bar 1, beat 1: kick played 70 ms early (beyond the tolerance)" in out
+        assert "bar 4, beat 4.5: hihat played 70 ms late (beyond the tolerance)" in out
+
+
+def test_a_note_beyond_the_tolerance_is_played_too_late_not_missed_and_extra(
+        exercise: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A kick 80 ms late (bar 3, beat 3) is one note played too late: not a miss and an extra; the miss links
+    it (its take time), it is no extra, and the summary and the kick's row count it apart."""
+    notes = written(exercise)
+    path = write_take(tmp_path / "late.mid", [(START + t + (0.08 if (t, p) == (5.0, 36) else 0.0), p, v)
+                                              for t, p, v in notes])
+    got = report([str(exercise), str(path)], capsys)
+    assert (got["played"], got["off_tolerance"], got["missed"], got["extra"]) == (51, 1, 0, 0)
+    assert got["extras"] == []
+    [miss] = got["misses"]
+    assert (miss["bar"], miss["beat"], miss["played_off_by_ms"]) == (3, 3, 80.0)
+    assert miss["played_take_time_s"] == pytest.approx(START + 5.08, abs=1e-3)
+    assert (got["drums"]["kick"]["off_tolerance"], got["drums"]["kick"]["missed"], got["drums"]["kick"]["extra"]) \
+        == (1, 0, 0)
+    _, out, _ = run([str(exercise), str(path)], capsys)
+    assert "51 of 52 written notes played, 1 played too early or late (beyond the tolerance), 0 missed, 0 extra" in out
+    assert "bar 3, beat 3: kick played 80 ms late (beyond the tolerance)" in out and "kick extra" not in out
 
 
 PICKUP = """\
@@ -298,6 +356,19 @@ def test_a_late_entry_after_a_count_in_is_told(late_s: float, says: str, beats: 
         assert "entered" not in out
 
 
+@pytest.mark.parametrize(("gap_s", "counted"), [(0.37, False), (0.29, False), (0.5, True), (0.25, True),
+                                                (1.0, True), (0.54, True)])
+def test_a_count_in_is_at_the_exercise_s_beat(gap_s: float, counted: bool, exercise: Path, tmp_path: Path,
+                                            capsys: pytest.CaptureFixture[str]) -> None:
+    """Steady notes before the start are a count-in only at the exercise's beat (0.5 s at 120 bpm), twice or half
+    it, within a tenth: 0.37 s or 0.29 s apart (a transcriber's ghost notes) are not."""
+    count_in = [(5.0 - gap_s * k, 37, 100) for k in range(4, 0, -1)]
+    path = write_take(tmp_path / "take.mid", count_in + [(5.0 + t, p, v) for t, p, v in written(exercise)])
+    got = report([str(exercise), str(path)], capsys)
+    assert got["played"] == 52
+    assert (got["entry"] is not None) is counted
+
+
 def test_take_stops_and_after_take_are_always_in_the_json(exercise: Path, tmp_path: Path,
                                                           capsys: pytest.CaptureFixture[str]) -> None:
     notes = written(exercise)
@@ -308,6 +379,42 @@ def test_take_stops_and_after_take_are_always_in_the_json(exercise: Path, tmp_pa
     got = report([str(exercise), str(stops)], capsys)
     assert got["take_stops"]["bar"] == 3 and got["take_stops"]["missed_after"] == 13
     assert all(m["after_take"] for m in got["misses"])
+
+
+SHORT = """\
+tempo 120
+meter 4/4
+SN |x...x...x...x...|x...............|x...............|
+"""
+"""Four snares, then one on bar 2's and bar 3's first beat; the exercise ends with bar 3 (6 s)."""
+
+
+def test_the_take_stops_is_said_with_its_number_and_not_near_the_end(exercise: Path, tmp_path: Path,
+                                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    """A take stopping two bars before the end with one note after it: "1 written note after it is missed"; a
+    take missing only the last hi-hat (its last note a beat before the end) played to the end: that miss is
+    listed, no "the take stops"; the start's "-0.000 s" is said "0.000 s"."""
+    short = tmp_path / "short.txt"
+    short.write_text(SHORT, encoding="utf-8")
+    path = write_take(tmp_path / "stops.mid", [(START + t, p, v) for t, p, v in written(short) if t < 4.0])
+    _, out, _ = run([str(short), str(path)], capsys)
+    assert "the take stops at bar 2, beat 1 (its last note): 1 written note after it is missed" in out
+
+    path = write_take(tmp_path / "last.mid", [(START + t, p, v) for t, p, v in written(exercise) if t < 7.75])
+    got = report([str(exercise), str(path)], capsys)
+    assert got["take_stops"] is None and [m["after_take"] for m in got["misses"]] == [False]
+    _, out, _ = run([str(exercise), str(path)], capsys)
+    assert "the take stops" not in out and "bar 4, beat 4.5: hihat missed" in out
+
+
+def test_no_negative_zero_is_said() -> None:
+    from batteur.compare import _r, summary_lines
+
+    assert str(_r(-0.00001, 4)) == "0.0"
+    report = {"take_kind": "MIDI", "offset_s": -0.0001, "offset_forced": False, "tolerance_ms": 50,
+              "tempo_scale": 1.0, "played": 0, "written": 1, "missed": 1, "off_tolerance": 0, "extra": 0,
+              "outside": 0, "timing": {"n": 0}, "drums": {}, "not_heard": {}, "misses": [], "extras": []}
+    assert "the exercise starts 0.000 s into the take" in summary_lines(report, "e", "t")[1]
 
 
 def test_an_audio_take_is_transcribed_and_mostly_found(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -327,7 +434,7 @@ def test_an_audio_take_is_transcribed_and_mostly_found(tmp_path: Path, capsys: p
     sf.write(wav, audio, 48000, subtype="PCM_24")
 
     got = report([str(exercise), str(wav)], capsys)
-    assert got["take_kind"] == "audio (WAV)" and got["written"] == 26
+    assert got["take_kind"] == "WAV audio" and got["written"] == 26
     assert got["not_heard"] == {"cowbell": 1}  # the transcriber has no class for it: not counted missed
     assert got["played"] >= 0.9 * got["written"] and got["extra"] <= 3
     assert got["offset_s"] == pytest.approx(1.75, abs=0.02)
@@ -345,7 +452,10 @@ BAD_INPUTS = [  # argv (formatted with the files below), exit status, what the e
     (["{silent}", "{take}"], 1, "EXERCISE {silent} is a recording (WAV), not a score"),
     (["{missing}", "{take}"], 1, "{missing}"),
     (["{exercise}", "{take}", "--tolerance", "0"], 2, "--tolerance 0: "),
-    (["{exercise}", "{take}", "--tempo-scale", "50"], 2, "--tempo-scale 50: "),
+    (["{exercise}", "{take}", "--tempo-scale", "50"], 2, "--tempo-scale 50: 0.1 to 10 (times faster) (50 % is 0.5)"),
+    (["{exercise}", "{take}", "--tempo-scale", "0.01"], 2, "--tempo-scale 0.01: 0.1 to 10 (times faster)"),
+    (["{exercise}", "{take}", "--tolerance", "50"], 2,
+     "--tolerance 50: 0.001 to 0.5 seconds (50 ms is --tolerance 0.05)"),
     (["{exercise}", "{take}", "--kit", "{missing}"], 1, "--kit"),
 ]
 
