@@ -20,6 +20,7 @@ from common.kit import load_kit
 from services.graphics.export import write_gltf
 from services.graphics.export.gltf_flash import FLASH_S, HIDDEN_SCALE, MIN_GAP_S
 from services.graphics.figure import synthetic_performance
+from tests.graphics.gltf_reading import accessor, load
 from tests.graphics.physics_poses import posed_frames
 from tests.graphics.test_gltf_skin import validate
 
@@ -32,14 +33,6 @@ def rendered(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("flash") / "out"
     assert render.main([str(SCORE), "-o", str(out), "--quiet", "--gltf"]) == 0
     return out
-
-
-def floats(gltf: pygltflib.GLTF2, index: int) -> np.ndarray:
-    """An accessor's float values, (count, components)."""
-    accessor = gltf.accessors[index]
-    view = gltf.bufferViews[accessor.bufferView]
-    data = gltf.binary_blob()[view.byteOffset:view.byteOffset + view.byteLength]
-    return np.frombuffer(data, dtype=np.float32).reshape(accessor.count, -1)
 
 
 def strikes(out: Path) -> dict[str, list[float]]:
@@ -58,7 +51,7 @@ def scale_keys(gltf: pygltflib.GLTF2, node: int) -> tuple[np.ndarray, np.ndarray
     channels = [c for c in animation.channels if c.target.node == node and c.target.path == "scale"]
     assert len(channels) == 1
     sampler = animation.samplers[channels[0].sampler]
-    return floats(gltf, sampler.input)[:, 0], floats(gltf, sampler.output), sampler.interpolation
+    return accessor(gltf, sampler.input)[:, 0], accessor(gltf, sampler.output), sampler.interpolation
 
 
 def lit(scale: np.ndarray) -> bool:
@@ -77,7 +70,7 @@ def scale_at(times: np.ndarray, scales: np.ndarray, t: float) -> np.ndarray:
 
 
 def test_one_flash_per_struck_object_lit_at_each_of_its_impacts(rendered: Path) -> None:
-    gltf = pygltflib.GLTF2().load(str(rendered / "performance.glb"))
+    gltf = load(rendered / "performance.glb")
     assert gltf is not None
     report = json.loads((rendered / "report.json").read_text())
     frame = 1.0 / report["bvh_rate_hz"]
@@ -119,7 +112,7 @@ def test_close_strikes_keep_the_keys_increasing_and_moving_objects_carry_their_f
                (7.7, "kick"), (7.8500001, "kick")]  # a hair over FLASH_S apart: as float32 the same key
     info = write_gltf(sequence, path, kit=load_kit("default"), impacts=impacts)
     assert info.flashes == 4
-    gltf = pygltflib.GLTF2().load(str(path))
+    gltf = load(path)
     assert gltf is not None
     flashes = {n.name: k for k, n in enumerate(gltf.nodes) if (n.name or "").startswith("flash_")}
     assert sorted(flashes) == ["flash_hihat", "flash_kick", "flash_ride", "flash_snare"]
@@ -135,7 +128,7 @@ def test_close_strikes_keep_the_keys_increasing_and_moving_objects_carry_their_f
     times, scales, _ = scale_keys(gltf, flashes["flash_hihat"])
     assert times[0] == 0 and lit(scales[0])
     for sampler in gltf.animations[0].samplers:
-        assert np.all(np.diff(floats(gltf, sampler.input)[:, 0]) > 0)
+        assert np.all(np.diff(accessor(gltf, sampler.input)[:, 0]) > 0)
     report = validate(path)
     assert (report["numErrors"], report["numWarnings"]) == (0, 0), report["messages"]
 
@@ -146,7 +139,7 @@ def test_a_static_kits_flash_lies_on_its_head(tmp_path: Path) -> None:
     kit = load_kit("default")
     path = tmp_path / "static.glb"
     write_gltf(synthetic_performance(duration=0.5)[0], path, kit=kit, impacts=[(0.2, "snare")])
-    gltf = pygltflib.GLTF2().load(str(path))
+    gltf = load(path)
     assert gltf is not None
     names = {n.name: k for k, n in enumerate(gltf.nodes)}
     flash, drum = gltf.nodes[names["flash_snare"]], gltf.nodes[names["kit_snare"]]

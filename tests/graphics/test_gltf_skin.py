@@ -26,6 +26,7 @@ from services.graphics.export.bvh import THRONE_JOINT
 from services.graphics.export.gltf import ROOT_ROTATION, _box
 from services.graphics.figure import synthetic_performance
 from services.graphics.sequence import PoseSequence, normalize_quats
+from tests.graphics.gltf_reading import accessor, load
 from tests.graphics.physics_poses import posed_frames
 
 WEB = Path(__file__).resolve().parents[2] / "services" / "graphics" / "web"
@@ -42,23 +43,6 @@ def physics_poses() -> PoseSequence:
     return posed_frames([{"seat": rock, "left_hip": (70.0 + 5 * k, -8.0, 5.0), "right_knee": (-80.0 + 10 * k, 0.0, 0.0),
                           "right_elbow": (60.0, 0.0, 5 * k), "left_wrist": (10.0 * k, 0.0, 0.0)}
                          for k, rock in enumerate(rocks)])
-
-
-def load(path: Path) -> pygltflib.GLTF2:
-    gltf = pygltflib.GLTF2().load(str(path))
-    assert gltf is not None
-    return gltf
-
-
-def accessor(gltf: pygltflib.GLTF2, index: int) -> np.ndarray:
-    """An accessor's values, (count, components), in its component type."""
-    acc = gltf.accessors[index]
-    view = gltf.bufferViews[acc.bufferView]
-    dtype = {pygltflib.FLOAT: np.float32, pygltflib.UNSIGNED_SHORT: np.uint16,
-             pygltflib.UNSIGNED_BYTE: np.uint8}[acc.componentType]
-    width = {"SCALAR": 1, "VEC3": 3, "VEC4": 4, "MAT4": 16}[acc.type]
-    data = gltf.binary_blob()[view.byteOffset + (acc.byteOffset or 0):view.byteOffset + view.byteLength]
-    return np.frombuffer(data, dtype=dtype, count=acc.count * width).reshape(acc.count, width)
 
 
 def global_transforms(gltf: pygltflib.GLTF2, key: int) -> dict[int, np.ndarray]:

@@ -27,6 +27,7 @@ from common.kit import load_kit
 from services.graphics.export import gltf as gltf_export
 from services.graphics.export.bvh import THRONE_JOINT
 from services.graphics.video import STICK_TIP
+from tests.graphics.gltf_reading import accessor, load
 
 ROOT = Path(__file__).resolve().parents[2]
 SCORE = ROOT / "tests" / "graphics" / "tiny_score.txt"
@@ -49,30 +50,16 @@ def bvh_frames(path: Path) -> tuple[int, float]:
     return int(count.group(1)), float(step.group(1))
 
 
-def load(path: Path) -> pygltflib.GLTF2:
-    gltf = pygltflib.GLTF2().load(str(path))
-    assert gltf is not None
-    return gltf
-
-
-def accessor_data(gltf: pygltflib.GLTF2, index: int) -> np.ndarray:
-    """An accessor's float values, (count, components)."""
-    accessor = gltf.accessors[index]
-    view = gltf.bufferViews[accessor.bufferView]
-    data = gltf.binary_blob()[view.byteOffset:view.byteOffset + view.byteLength]
-    return np.frombuffer(data, dtype=np.float32).reshape(accessor.count, -1)
-
-
 def channel_output(gltf: pygltflib.GLTF2, node: int, target: str) -> np.ndarray:
     """The keyframe values of ``node``'s ``target`` channel (translation (N, 3) or rotation (N, 4))."""
     animation = gltf.animations[0]
     channel = next(c for c in animation.channels if c.target.node == node and c.target.path == target)
-    return accessor_data(gltf, animation.samplers[channel.sampler].output)
+    return accessor(gltf, animation.samplers[channel.sampler].output)
 
 
 def key_times(gltf: pygltflib.GLTF2) -> np.ndarray:
     """The animation's key times, seconds (every sampler shares one input)."""
-    return accessor_data(gltf, gltf.animations[0].samplers[0].input)[:, 0]
+    return accessor(gltf, gltf.animations[0].samplers[0].input)[:, 0]
 
 
 def trs(node: pygltflib.Node) -> np.ndarray:
