@@ -78,6 +78,14 @@ FEW_LEVELS = 4
 """Written velocity levels of one drum up to which its loudest is taken for accents (:func:`dynamics`)."""
 MAX_LISTED = 60
 """Misses and extras the text report lists at most (a take at the wrong tempo misses nearly everything)."""
+BARS_SHOWN = 16
+"""Bars the text's per-bar table shows all of; a longer take shows only the bars with something to say."""
+BAR_TEMPO_NOTES = 3
+"""Matched notes (at two times at least) a bar's local tempo is measured from."""
+DRIFT_MIN = 0.02
+"""Local tempi rising (or falling) from bar to bar by at least this share in all make a drift (2 % is 2 bpm at
+100: a bar's tempo from a few notes 10 ms off is good to about 1 %)."""
+"""Misses and extras the text report lists at most (a take at the wrong tempo misses nearly everything)."""
 DEMO = "demo"
 """EXERCISE ``demo`` (with no file of that name): the shipped demo groove, as ``batteur rig --score demo``."""
 
@@ -486,6 +494,98 @@ def dynamics(pairs: Sequence[tuple[float, float]]) -> dict[str, Any] | None:
     return out
 
 
+def bar_rows(score: Score, written: Sequence[tuple[float, float]], pairs: Sequence[tuple[int, float, float]],
+             missed: Sequence[int], off: Sequence[int], extra_bars: Sequence[int | None], tolerance: float,
+             bpm: float | None) -> list[dict[str, Any]]:
+    """One row per bar of the exercise (its first bar to the bar of its last written note, as :func:`position`
+    numbers them): written, played, missed, too early/late and extra notes, the matched notes' mean timing (ms, +
+    late) and ``feel`` (``rushed``/``dragging`` when that mean is beyond half the tolerance, else None), and the
+    bar's local tempo (bpm; None under :data:`BAR_TEMPO_NOTES` matched notes): the exercise's tempo over the slope
+    of the take's times against the written ones (least squares).
+
+    ``written``: each written note's (exercise clock, compared clock) time, s; ``pairs``: (written index, take
+    time s, played - written s); ``missed``/``off``: written indices; ``extra_bars``: each extra's bar."""
+    labels = [position(score, t)["bar"] for t, _ in written]
+    known = [b for b in labels if b is not None]
+    if not known:
+        return []
+    first = 0 if pickup(score) is not None else 1
+    rows: dict[int, dict[str, Any]] = {
+        b: {"bar": b, "written": 0, "played": 0, "missed": 0, "off_tolerance": 0, "extra": 0, "mean_ms": None,
+            "feel": None, "bpm": None} for b in range(min(first, min(known)), max(known) + 1)}
+    for b in known:
+        rows[b]["written"] += 1
+    for key, indices in (("missed", missed), ("off_tolerance", off)):
+        for i in indices:
+            if labels[i] is not None:
+                rows[labels[i]][key] += 1
+    for b in extra_bars:
+        if b in rows:
+            rows[b]["extra"] += 1
+    by_bar: dict[int, list[tuple[float, float, float]]] = defaultdict(list)  # (written s, take s, error s)
+    for i, take_time, error in pairs:
+        if labels[i] is not None:
+            by_bar[labels[i]].append((written[i][0], take_time, error))
+    for b, notes in by_bar.items():
+        row = rows[b]
+        row["played"] = len(notes)
+        mean = float(np.mean([e for _, _, e in notes])) * 1000
+        row["mean_ms"] = _r(mean, 1)
+        if abs(mean) > tolerance * 1000 / 2:
+            row["feel"] = "rushed" if mean < 0 else "dragging"
+        x = np.array([w for w, _, _ in notes])
+        y = np.array([t for _, t, _ in notes])
+        if bpm is not None and len(notes) >= BAR_TEMPO_NOTES and np.ptp(x) > 0:
+            slope = float(np.polyfit(x, y, 1)[0])  # take seconds per written second
+            if slope > 0:
+                row["bpm"] = round(bpm / slope, 1)
+    return list(rows.values())
+
+
+def drift(bars: Sequence[dict[str, Any]]) -> dict[str, Any] | None:
+    """``{"direction": "speeding up" | "slowing down", "from_bpm", "to_bpm"}`` when the bars' local tempi (three
+    bars at least) rise, or fall, from each bar to the next and by :data:`DRIFT_MIN` in all; else None."""
+    tempi = [b["bpm"] for b in bars if b["bpm"] is not None]
+    if len(tempi) < 3:
+        return None
+    steps = np.diff(tempi)
+    if abs(math.log(tempi[-1] / tempi[0])) < math.log1p(DRIFT_MIN):
+        return None
+    if not (np.all(steps > 0) or np.all(steps < 0)):
+        return None
+    return {"direction": "speeding up" if tempi[-1] > tempi[0] else "slowing down",
+            "from_bpm": tempi[0], "to_bpm": tempi[-1]}
+
+
+def bar_lines(report: dict[str, Any]) -> list[str]:
+    """The per-bar table (all bars up to :data:`BARS_SHOWN`, else the bars with something to say), the bars
+    rushed or dragging, and the drift."""
+    bars = report.get("bars") or []
+    if not bars:
+        return []
+
+    def notable(b: dict[str, Any]) -> bool:
+        return bool(b["missed"] or b["off_tolerance"] or b["extra"] or b["feel"])
+
+    shown = bars if len(bars) <= BARS_SHOWN else [b for b in bars if notable(b)]
+    lines = ["", f"{'bar':>4} {'written':>7} {'played':>6} {'missed':>6} {'too early/late':>14} {'extra':>5} "
+             f"{'mean ms':>8} {'tempo bpm':>9}"]
+    for b in shown:
+        lines.append(f"{b['bar']:>4} {b['written']:>7} {b['played']:>6} {b['missed']:>6} {b['off_tolerance']:>14} "
+                     f"{b['extra']:>5} {_ms(b['mean_ms']):>8} "
+                     f"{'-' if b['bpm'] is None else format(b['bpm'], '.1f'):>9}")
+    if len(shown) < len(bars):
+        fine = len(bars) - len(shown)
+        lines.append(f"... {fine} other bar{'' if fine == 1 else 's'} fine (--json lists every bar)")
+    for b in bars:
+        if b["feel"]:
+            lines.append(f"bar {b['bar']}: {b['feel']}, {b['mean_ms']:+.0f} ms on average")
+    d = report.get("drift")
+    if d:
+        lines.append(f"{d['direction']}: {d['from_bpm']:.0f} -> {d['to_bpm']:.0f} bpm")
+    return lines
+
+
 def tempo_bpm(score: Score) -> float | None:
     """The exercise's written tempo (median beat), beats per minute; None without beats."""
     beats = np.asarray(score.beats, dtype=float)
@@ -598,6 +698,10 @@ def _compare_at(score: Score, take: Take, kit: Kit, tolerance: float, scale: flo
         }
     short = pickup(score)
     bpm = tempo_bpm(score)
+    bars = bar_rows(score, [(written_clock(n.time), n.time) for n in written],
+                    [(i, played[j].time, played[j].time - offset - written[i].time) for i, j in pairs],
+                    [i for i in missed_i if i not in off_i], sorted(off_i), [e["bar"] for e in extras],
+                    tolerance, bpm)
     report: dict[str, Any] = {
         "take_kind": take.kind, "tolerance_ms": round(tolerance * 1000, 3), "tempo_scale": scale,
         "offset_s": _r(offset, 4), "offset_forced": forced,
@@ -612,6 +716,7 @@ def _compare_at(score: Score, take: Take, kit: Kit, tolerance: float, scale: flo
             [p.time for p in played if p.time - offset < -max(LOOSE_S, 2 * tolerance)], offset, tolerance,
             None if bpm is None else 60.0 / bpm / scale),
         "pickup_beats": None if short is None else short[0],
+        "bars": bars, "drift": drift(bars),
         "warnings": list(take.warnings),
     }
     # the take's last note from the start on (one just after the end too: a last note late is no early stop)
@@ -740,6 +845,7 @@ def summary_lines(report: dict[str, Any], exercise: str, take: str) -> list[str]
     if report["not_heard"]:
         drums = ", ".join(f"{k} {v}" for k, v in report["not_heard"].items())
         lines.append(f"not compared (the transcriber has no class for them): {drums}")
+    lines.extend(bar_lines(report))
     listed = sorted([*(m for m in report["misses"] if not m.get("after_take")), *report["extras"]],
                     key=lambda e: e["time_s"])
     if listed:
@@ -782,7 +888,9 @@ def _dynamics_text(d: dict[str, Any] | None) -> str:
 DESCRIPTION = """\
 Compare a student's take with the exercise: which written notes were played,
 missed or added, per drum, how early or late and how steady, where each miss
-and extra is (bar and beat), and whether accents were played as accents.
+and extra is (bar and beat), and whether accents were played as accents; then
+bar by bar: the counts, the mean timing and the bar's tempo, the bars rushed or
+dragged, and whether the take sped up or slowed down.
 
 EXERCISE: any score Batteur reads (a text score, a MIDI file; `demo`: the
 shipped demo groove). TAKE: a MIDI file (an e-kit's recording) or an audio

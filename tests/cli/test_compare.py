@@ -500,3 +500,80 @@ def test_the_demo_is_an_exercise(tmp_path: Path, capsys: pytest.CaptureFixture[s
     path = write_take(tmp_path / "take.mid", [(1.0 + e.time, pitch[e.event.value], 100) for e in score.events])
     got = report(["demo", str(path)], capsys)
     assert got["played"] == got["written"] == len(score.events)
+
+
+def test_a_bar_played_early_is_told_rushed_and_the_others_not(exercise: Path, tmp_path: Path,
+                                                               capsys: pytest.CaptureFixture[str]) -> None:
+    """Bar 3 (4 to 6 s) played 40 ms early, inside the tolerance: the whole take's mean hides it (-10 ms), the
+    per-bar table does not; no bar is dragging and the steady tempo is no drift."""
+    path = write_take(tmp_path / "rushed.mid", [(START + t - (0.040 if 4.0 <= t < 6.0 else 0.0), p, v)
+                                                for t, p, v in written(exercise)])
+    got = report([str(exercise), str(path)], capsys)
+    assert got["played"] == 52
+    assert [(b["bar"], b["feel"]) for b in got["bars"]] == [(1, None), (2, None), (3, "rushed"), (4, None)]
+    assert got["bars"][2]["mean_ms"] == pytest.approx(-40, abs=0.6)
+    assert [b["bpm"] for b in got["bars"]] == pytest.approx([120] * 4, abs=0.5)
+    assert got["drift"] is None
+    _, out, _ = run([str(exercise), str(path)], capsys)
+    assert "bar 3: rushed, -40 ms on average" in out
+    assert "bar 1: " not in out and "bar 2: " not in out and "bar 4: " not in out
+    assert "dragging" not in out and "speeding up" not in out and "slowing down" not in out
+
+
+@pytest.mark.parametrize(("start_bpm", "end_bpm", "says"), [(112, 128, "speeding up"), (128, 112, "slowing down")])
+def test_an_accelerando_is_told_as_a_drift(start_bpm: float, end_bpm: float, says: str, exercise: Path,
+                                           tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The tempo moving steadily from beat to beat over the four bars: each bar's local tempo is its own, rising
+    (falling), and the drift line says from where to where."""
+    beats = 16
+    spacing = [60.0 / (start_bpm + (end_bpm - start_bpm) * k / (beats - 1)) for k in range(beats)]
+    onsets = np.concatenate([[0.0], np.cumsum(spacing)])
+
+    def at(t: float) -> float:  # written time (0.5 s a beat) to take time, the beat's own spacing within it
+        k = min(int(t / 0.5), beats - 1)
+        return START + float(onsets[k]) + (t / 0.5 - k) * spacing[k]
+
+    path = write_take(tmp_path / "drift.mid", [(round(at(t) * 2000) / 2000, p, v) for t, p, v in written(exercise)])
+    got = report([str(exercise), str(path), "--tempo-scale", "1"], capsys)
+    tempi = [b["bpm"] for b in got["bars"]]
+    assert len(tempi) == 4 and all(t is not None for t in tempi)
+    assert (np.all(np.diff(tempi) > 0) if end_bpm > start_bpm else np.all(np.diff(tempi) < 0))
+    assert got["drift"]["direction"] == says
+    assert (got["drift"]["from_bpm"], got["drift"]["to_bpm"]) == (tempi[0], tempi[-1])
+    low, high = sorted((start_bpm, end_bpm))
+    assert all(low - 1 <= t <= high + 1 for t in tempi)
+    _, out, _ = run([str(exercise), str(path), "--tempo-scale", "1"], capsys)
+    assert f"{says}: {tempi[0]:.0f} -> {tempi[-1]:.0f} bpm" in out
+
+
+def test_bars_in_the_json_count_each_bar(exercise: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """One entry per bar: a snare missed in bar 2, a kick in bar 3, a tom added in bar 3, a hi-hat 70 ms late
+    in bar 4 (too late, not missed)."""
+    removed = {(2.5, 38), (4.0, 36)}
+    late = (7.0, 42)
+    take = [(START + t + (0.070 if (t, p) == late else 0.0), p, v) for t, p, v in written(exercise)
+            if (t, p) not in removed]
+    path = write_take(tmp_path / "take.mid", [*take, (START + 4.75, 48, 90)])
+    got = report([str(exercise), str(path)], capsys)
+    rows = [(b["bar"], b["written"], b["played"], b["missed"], b["off_tolerance"], b["extra"]) for b in got["bars"]]
+    assert rows == [(1, 13, 13, 0, 0, 0), (2, 13, 12, 1, 0, 0), (3, 13, 12, 1, 0, 1), (4, 13, 12, 0, 1, 0)]
+    assert all(b["mean_ms"] == 0 and b["feel"] is None for b in got["bars"])
+    _, out, _ = run([str(exercise), str(path)], capsys)
+    table = out.split(" bar written played")[1].splitlines()[1:5]
+    assert [line.split()[:6] for line in table] == [[str(v) for v in row] for row in rows]
+
+
+def test_a_long_take_shows_only_the_bars_with_something_to_say(tmp_path: Path,
+                                                               capsys: pytest.CaptureFixture[str]) -> None:
+    """20 bars, a kick missed in bar 7: the text shows bar 7 and says 19 were fine; the JSON has all 20."""
+    exercise = tmp_path / "long.txt"
+    exercise.write_text(groove(20), encoding="utf-8")
+    path = write_take(tmp_path / "take.mid", [(START + t, p, v) for t, p, v in written(exercise)
+                                              if (t, p) != (12.0, 36)])
+    got = report([str(exercise), str(path)], capsys)
+    assert [b["bar"] for b in got["bars"]] == list(range(1, 21))
+    assert [b["bar"] for b in got["bars"] if b["missed"]] == [7]
+    _, out, _ = run([str(exercise), str(path)], capsys)
+    table = out.split(" bar written played")[1].splitlines()
+    assert table[1].split()[:4] == ["7", "13", "12", "1"]
+    assert table[2] == "... 19 other bars fine (--json lists every bar)"
