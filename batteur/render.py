@@ -982,13 +982,13 @@ def body_end_sites(opts: RenderOptions) -> dict[str, tuple[float, float, float]]
     ``--height``, ``--mass`` and ``--skeleton-bvh``), link -> offset in the link's frame (metres, z up): a stick's
     bead centre (``<side>_stick_tip``) and a foot's ball (``<side>_foot_ball``, which follows the height, not a
     skeleton's shank: the BVH writer's guess from the snapshot scaled it with the shank, 3 cm off for 0.52 m
-    shanks). The body is generated as the drummer scene generates it, without a simulation."""
-    from services.physics.anthropometry import anthropometry
-    from services.physics.bvh_motion import bvh_segment_lengths
+    shanks). The body is generated as the drummer scene generates it (:func:`performer_anthropometry`), without a
+    simulation."""
+    from services.physics.anthropometry import performer_anthropometry
     from services.physics.character import CharacterSpec, build_character
 
-    lengths = None if opts.skeleton_bvh is None else bvh_segment_lengths(opts.skeleton_bvh)
-    model = build_character(CharacterSpec(anthropometry(opts.height_m, opts.mass_kg, lengths_m=lengths)))
+    skeleton = None if opts.skeleton_bvh is None else str(opts.skeleton_bvh)
+    model = build_character(CharacterSpec(performer_anthropometry(opts.height_m, opts.mass_kg, skeleton)))
     fixed = {joint.child: joint for part in model.parts for joint in part.robot.joints if joint.kind == "fixed"}
     sites: dict[str, tuple[float, float, float]] = {}
     for tip in model.tips.values():  # the tips hang on fixed joints from their link (stick, foot)

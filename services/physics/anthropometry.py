@@ -250,3 +250,17 @@ def body_mass_of(a: Anthropometry) -> float:
     """Mass of the whole body (both sides), kg."""
     paired = ("clavicle", "upper_arm", "forearm", "hand", "thigh", "shank", "foot")
     return sum(s.mass_kg * (2 if s.name in paired else 1) for s in a.segments.values())
+
+
+def performer_anthropometry(height_m: float, mass_kg: float, skeleton_bvh: str | None = None) -> Anthropometry:
+    """The simulated drummer's body (the drummer scene's, and the End Sites ``batteur render`` gives performance.bvh):
+    :func:`anthropometry` for ``height_m`` (metres) and ``mass_kg``, its limbs from a motion-capture skeleton's
+    segment lengths when ``skeleton_bvh`` (a BVH path) is given. ``ValueError`` naming the file for proportions the
+    table cannot take."""
+    from services.physics.bvh_motion import bvh_segment_lengths  # scipy and the BVH reader: only with a skeleton
+
+    lengths = bvh_segment_lengths(skeleton_bvh) if skeleton_bvh else None
+    try:
+        return anthropometry(height_m, mass_kg, lengths_m=lengths)
+    except ValueError as exc:  # the skeleton's proportions: name the file they come from
+        raise ValueError(f"skeleton_bvh {skeleton_bvh}: {exc}" if lengths else str(exc)) from None

@@ -44,9 +44,8 @@ from common.messages.physics import (
     PhysicsGrip,
     PhysicsIk,
 )
-from services.physics.anthropometry import anthropometry
+from services.physics.anthropometry import performer_anthropometry
 from services.physics.body import LIMBS, Body
-from services.physics.bvh_motion import bvh_segment_lengths
 from services.physics.character import DOF_NAMES, JOINTS, CharacterSpec, build_character
 from services.physics.contacts import ContactTracker, Striker
 from services.physics.control import Controller
@@ -276,11 +275,7 @@ class DrummerScene:
         self.kit_bodies = build_kit(world, kit)
         self.seat_position = tuple(kit.seat_position())  # the planner's reach (common/score/limbs.py) starts here too
         self._floor(world)
-        lengths = bvh_segment_lengths(settings.skeleton_bvh) if settings.skeleton_bvh else None
-        try:
-            self.anthro = anthropometry(settings.height_m, settings.mass_kg, lengths_m=lengths)
-        except ValueError as exc:  # the skeleton's proportions: name the file they come from
-            raise ValueError(f"skeleton_bvh {settings.skeleton_bvh}: {exc}" if lengths else str(exc)) from None
+        self.anthro = performer_anthropometry(settings.height_m, settings.mass_kg, settings.skeleton_bvh)
         self.spec = CharacterSpec(self.anthro, limits=self.limits.dof_limits())
         self.model = build_character(self.spec)
         self.body = Body(world, self.model, self.seat_position,  # type: ignore[arg-type]
