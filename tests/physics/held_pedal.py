@@ -38,10 +38,19 @@ def played_pedal_notes(height_m: float, event: EventType, pitch: int, velocities
     """A ``height_m`` tall drummer on the default kit plays single ``event`` notes at ``velocities``, ``period_s``
     apart, from the scene's start (rest posture) on, the plan starting at rig time ``start_s``; returns the notes'
     rig times (seconds) and every contact of the striker ``parts`` until 0.2 s after the plan."""
-    kit = load_kit("default", height_m=height_m, warn=False)
     t0 = 0.5
     events = [DrumEvent(time=t0 + k * period_s, event=event, velocity=v, pitch=pitch) for k, v in enumerate(velocities)]
     score = Score(events=events, beats=t0 + period_s * np.arange(len(events)))
+    times, contacts = played_score(score, parts, start_s, height_m)
+    return [t for t, e in times if e == event], contacts
+
+
+def played_score(score: Score, parts: tuple[str, ...], start_s: float, height_m: float = 1.75
+                 ) -> tuple[list[tuple[float, EventType]], list[Contact]]:
+    """A ``height_m`` tall drummer on the default kit plays ``score``'s plan from the scene's start (rest posture)
+    on, the plan starting at rig time ``start_s``; returns each stroke's rig time (seconds) and event, and every
+    contact of the striker ``parts`` until 0.2 s after the plan."""
+    kit = load_kit("default", height_m=height_m, warn=False)
     plan = plan_gestures(distribute(score, kit, height_m=height_m), kit, score)
     core = PhysicsCore(scene="drummer", kit=kit, pose_rate_hz=0, height_m=height_m)
     offset = start_s - plan.start_time
@@ -53,4 +62,15 @@ def played_pedal_notes(height_m: float, event: EventType, pitch: int, velocities
                          if isinstance(o.message, Contact) and o.message.part in parts]
     finally:
         core.close()
-    return [s.time + offset for s in plan.strokes if s.event == event], contacts
+    return [(s.time + offset, s.event) for s in plan.strokes], contacts
+
+
+def onsets(contacts: list[Contact], gap_s: float = 0.015) -> list[float]:
+    """The onsets (rig times, s) of a striker's contacts: contacts closer than ``gap_s`` belong to one."""
+    found: list[float] = []
+    last = -1.0
+    for c in contacts:
+        if c.time - last > gap_s:
+            found.append(c.time)
+        last = c.time
+    return found

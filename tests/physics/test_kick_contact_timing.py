@@ -20,7 +20,7 @@ from common.kit import EventType, Limb, load_kit
 from common.score.events import DrumEvent, Score
 from common.score.limbs import distribute
 from services.physics.core import PhysicsCore
-from tests.physics.held_pedal import played_pedal_notes
+from tests.physics.held_pedal import onsets, played_pedal_notes
 
 ONSET_GAP_S = 0.015
 """Contacts of the beater closer than this belong to one onset."""
@@ -168,12 +168,7 @@ def test_a_lone_kick_sounds_at_its_note_time(velocity: float) -> None:
     5 ms early; raised, the soft ones still 14, 9 and 6 ms early with the foot braking into the stroke, now 7, 4
     and 4: ``KICK_REST_FALL``)."""
     notes, contacts = played_pedal_notes(1.75, EventType.BASS, 36, (velocity,), ("kick_beater",), start_s=1.0)
-    onsets: list[float] = []
-    last = -1.0
-    for c in contacts:
-        if c.time - last > ONSET_GAP_S:
-            onsets.append(c.time)
-        last = c.time
-    assert len(onsets) == len(notes) == 1, f"kick at {notes}, beater onsets at {onsets}"
+    found = onsets(contacts, ONSET_GAP_S)
+    assert len(found) == len(notes) == 1, f"kick at {notes}, beater onsets at {found}"
     bound = 0.5 * kick_contact_rise() / foot_speed(velocity) + STEP_S
-    assert abs(onsets[0] - notes[0]) <= bound, f"kick at {notes[0]:.3f} s sounded at {onsets[0]:.3f} s"
+    assert abs(found[0] - notes[0]) <= bound, f"kick at {notes[0]:.3f} s sounded at {found[0]:.3f} s"

@@ -15,10 +15,9 @@ from common.gesture.heights import foot_speed
 from common.gesture.plan import hermite
 from common.gesture.planner import KICK_RAISE_FROM_S, KICK_REST_GAP_S, kick_contact_rise, plan_gestures
 from common.kit import EventType, Limb, load_kit
-from common.messages import Contact
 from common.score.events import DrumEvent, Score
 from common.score.limbs import distribute
-from services.physics.core import PhysicsCore
+from tests.physics.held_pedal import onsets, played_score
 
 ONSET_GAP_S = 0.015
 """Contacts of the beater closer than this belong to one onset."""
@@ -68,30 +67,11 @@ def test_kicks_a_sixteenth_an_eighth_and_a_quarter_after_another_sound_at_their_
     tests/physics/test_kick_contact_timing.py) plus two steps (the onset's and the note's place between steps).
     Before, the kicks 1 s after another sounded 9 (velocity 0.3) and 5 ms (0.7) early: the foot's whole time over
     the contact rise."""
-    kit = load_kit("default", warn=False)
     notes = _pattern()
-    score = _score(notes)
-    plan = plan_gestures(distribute(score, kit), kit, score)
-    core = PhysicsCore(scene="drummer", kit=kit, pose_rate_hz=0)
-    start_s = 1.0
-    offset = start_s - plan.start_time
-    core.load_plan(plan, start_at=start_s)
-    contacts: list[Contact] = []
-    try:
-        for k in range(1, round((plan.end_time + offset + 0.2) * 1000) + 1):
-            contacts += [o.message for o in core.step(k / 1000)
-                         if isinstance(o.message, Contact) and o.message.part == "kick_beater"]
-    finally:
-        core.close()
-    onsets: list[float] = []
-    last = -1.0
-    for c in contacts:
-        if c.time - last > ONSET_GAP_S:
-            onsets.append(c.time)
-        last = c.time
-    times = [s.time + offset for s in plan.strokes]
-    assert len(onsets) == len(times) == len(notes), f"kicks at {times}, beater onsets at {onsets}"
-    late = [(round(t - offset, 3), v, round(1000 * (o - t), 1))
-            for (_, v), t, o in zip(notes, times, onsets, strict=True)
+    strokes, contacts = played_score(_score(notes), ("kick_beater",), start_s=1.0)
+    found, times = onsets(contacts, ONSET_GAP_S), [t for t, _ in strokes]
+    assert len(found) == len(times) == len(notes), f"kicks at {times}, beater onsets at {found}"
+    late = [(round(n, 3), v, round(1000 * (o - t), 1))
+            for (n, v), t, o in zip(notes, times, found, strict=True)
             if abs(o - t) > 0.5 * kick_contact_rise() / foot_speed(v) + 2 * STEP_S]
     assert not late, f"kicks (note time s, velocity, onset - note ms) off their note times: {late}"
