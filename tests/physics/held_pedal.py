@@ -65,12 +65,18 @@ def played_score(score: Score, parts: tuple[str, ...], start_s: float, height_m:
     return [(s.time + offset, s.event) for s in plan.strokes], contacts
 
 
-def onsets(contacts: list[Contact], gap_s: float = 0.015) -> list[float]:
-    """The onsets (rig times, s) of a striker's contacts: contacts closer than ``gap_s`` belong to one."""
-    found: list[float] = []
+def onset_contacts(contacts: list[Contact], gap_s: float = 0.015) -> list[Contact]:
+    """The first contact of each onset of one striker's ``contacts``: contacts closer than ``gap_s`` (seconds)
+    belong to one onset."""
+    found: list[Contact] = []
     last = -1.0
     for c in contacts:
         if c.time - last > gap_s:
-            found.append(c.time)
+            found.append(c)
         last = c.time
     return found
+
+
+def onsets(contacts: list[Contact], gap_s: float = 0.015) -> list[float]:
+    """The onsets (rig times, s) of a striker's contacts: contacts closer than ``gap_s`` belong to one."""
+    return [c.time for c in onset_contacts(contacts, gap_s)]

@@ -7,15 +7,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from common.gesture.planner import plan_gestures
-from common.kit import EventType, load_kit
-from common.messages import Contact
+from common.kit import EventType
 from common.score.events import DrumEvent, Score
-from common.score.limbs import distribute
-from services.physics.core import PhysicsCore
+from tests.physics.held_pedal import onset_contacts, played_score
 
-ONSET_GAP_S = 0.015
-"""Contacts of the beater closer than this belong to one onset."""
 LOUD, GHOST = 0.85, 0.07
 """Score velocities of the pair (the rock_90 Groove beat's ghost kicks are 0.07-0.12 after 0.76-0.89)."""
 
@@ -23,28 +18,11 @@ LOUD, GHOST = 0.85, 0.07
 def _beater_onsets(gap_s: float) -> tuple[list[float], list[tuple[float, float]]]:
     """The 1.75 m drummer plays a loud kick and a ghost ``gap_s`` later; returns the notes' rig times and the
     beater's onsets (rig time, approach speed m/s)."""
-    kit = load_kit("default", warn=False)
     t0 = 0.5
     events = [DrumEvent(time=t0, event=EventType.BASS, velocity=LOUD, pitch=36),
               DrumEvent(time=t0 + gap_s, event=EventType.BASS, velocity=GHOST, pitch=36)]
-    score = Score(events=events, beats=np.array([t0]))
-    plan = plan_gestures(distribute(score, kit), kit, score)
-    core = PhysicsCore(scene="drummer", kit=kit, pose_rate_hz=0)
-    offset = 1.0 - plan.start_time
-    core.load_plan(plan, start_at=1.0)
-    onsets: list[tuple[float, float]] = []
-    last = -1.0
-    try:
-        for k in range(1, round((plan.end_time + offset) * 1000) + 1):
-            for out in core.step(k / 1000):
-                c = out.message
-                if isinstance(c, Contact) and c.part == "kick_beater":
-                    if c.time - last > ONSET_GAP_S:
-                        onsets.append((c.time, c.normal_velocity))
-                    last = c.time
-    finally:
-        core.close()
-    return [s.time + offset for s in plan.strokes], onsets
+    notes, contacts = played_score(Score(events=events, beats=np.array([t0])), ("kick_beater",), start_s=1.0)
+    return [t for t, _ in notes], [(c.time, c.normal_velocity) for c in onset_contacts(contacts)]
 
 
 @pytest.mark.slow  # one scene and about 3 s of simulation per gap: 10-15 s each on a loaded machine

@@ -8,10 +8,8 @@ from __future__ import annotations
 import pytest
 
 from common.kit import EventType
-from tests.physics.held_pedal import played_pedal_notes
+from tests.physics.held_pedal import onsets, played_pedal_notes
 
-ONSET_GAP_S = 0.015
-"""Contacts of one striker closer than this belong to one onset."""
 PEDAL_PARTS = ("kick_beater", "hihat_top")
 
 
@@ -19,13 +17,7 @@ def _pedal_onsets(height_m: float, velocities: tuple[float, ...]) -> tuple[list[
     """A ``height_m`` tall drummer plays single kicks at ``velocities`` from the scene's start (rest posture) on;
     returns the notes' rig times and the onsets of the beater and the hi-hat's top plate."""
     notes, contacts = played_pedal_notes(height_m, EventType.BASS, 36, velocities, PEDAL_PARTS, start_s=1.0)
-    onsets: dict[str, list[float]] = {part: [] for part in PEDAL_PARTS}
-    last = dict.fromkeys(PEDAL_PARTS, -1.0)
-    for c in contacts:
-        if c.time - last[c.part] > ONSET_GAP_S:
-            onsets[c.part].append(c.time)
-        last[c.part] = c.time
-    return notes, onsets
+    return notes, {part: onsets([c for c in contacts if c.part == part]) for part in PEDAL_PARTS}
 
 
 @pytest.mark.slow  # two scenes and about 3 s of simulation each: 30-35 s on a loaded machine
