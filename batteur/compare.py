@@ -4,10 +4,11 @@
 not make. The take is read (a MIDI file), or transcribed in-process with the recogniser ``batteur transcribe``
 uses (an audio file); its notes are lined up with the exercise's (the student starts whenever they like) and
 matched one to one with evaluate's matching (:func:`batteur.evaluate.match`: same kit object, within the
-tolerance, the most pairs and then the least total error). The report says, per drum, what was played, missed
-and added (a note beyond the tolerance: played too early or late), how early or late and how steadily, where
-each miss and extra is (bar and beat), and whether the written dynamics came through (docs/evaluation.md, "A
-student's take against the exercise").
+tolerance, the most pairs and then the least total error). The report says, per drum, what was played, missed,
+played on another drum (:func:`wrong_drum_pairs`) and added (a note beyond the tolerance: played too early or
+late), how early or late and how steadily, where each miss and extra is (bar and beat, as counted:
+:func:`grid_label`), the bars and beats rushed or dragging (:func:`beat_feels`), and whether the written dynamics
+came through (docs/evaluation.md, "A student's take against the exercise").
 
 Alignment (:func:`align`): every pair of notes of one drum, one written and one played, proposes an offset (take
 time - exercise time); the offsets most pairs agree on (within the tolerance) are tried with the full matching,
@@ -25,6 +26,7 @@ import sys
 from collections import Counter, defaultdict
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
+from fractions import Fraction
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -85,7 +87,19 @@ BAR_TEMPO_NOTES = 3
 DRIFT_MIN = 0.02
 """Local tempi rising (or falling) from bar to bar by at least this share in all make a drift (2 % is 2 bpm at
 100: a bar's tempo from a few notes 10 ms off is good to about 1 %)."""
-"""Misses and extras the text report lists at most (a take at the wrong tempo misses nearly everything)."""
+BEAT_ONSETS = 2
+"""Onsets (written times played) a beat needs before it can be told rushed or dragging (:func:`beat_feels`): one
+note early is a noisy note, not a rushed beat."""
+ON_GRID_BEATS = 1e-3
+"""A position within this of a grid point, beats, is on it (:func:`grid_label`): a MIDI file's ticks, the take's
+0.5 ms; half a millisecond at 120 bpm."""
+SYLLABLES = {Fraction(0): "", Fraction(1, 4): "e", Fraction(1, 2): "&", Fraction(3, 4): "a",
+             Fraction(1, 3): " trip", Fraction(2, 3): " let"}
+"""How a teacher counts a beat's sixteenths (1 e & a) and eighth-note triplets (1 trip let): ``beat 3&``,
+``beat 2 trip``; a position off this grid is told from its nearest point (:func:`grid_label`)."""
+FINE_GRIDS = (6, 8, 12, 16)
+"""Finer subdivisions of the beat a written position is told exactly on, as a fraction (``beat 3 + 1/8``, a
+thirty-second; sextuplets, sixteenth triplets, sixty-fourths)."""
 DEMO = "demo"
 """EXERCISE ``demo`` (with no file of that name): the shipped demo groove, as ``batteur rig --score demo``."""
 
@@ -316,6 +330,51 @@ def align(written: Sequence[NoteRef], played: Sequence[Played], tolerance: float
     return (0.0, []) if best is None else (best[1], best[2])
 
 
+def wrong_drum_pairs(written: Sequence[tuple[float, str]], played: Sequence[tuple[float, str]], tolerance: float,
+                     family: Callable[[str], str]) -> list[tuple[int, int]]:
+    """One-to-one pairs (written position, played position) of notes on different drums within ``tolerance`` of
+    each other: the most pairs, then the fewest pairing a cymbal with a drum (:func:`drum_family`: a ride played
+    for the hi-hat rather than for the snare written with it), then the least total error; as evaluate's
+    matching, solved per cluster of times within reach (:func:`scipy.optimize.linear_sum_assignment`).
+    ``written``/``played``: (time s on one clock, kit object)."""
+    from scipy.optimize import linear_sum_assignment
+
+    events = sorted([(t, 0, i) for i, (t, _) in enumerate(written)] + [(t, 1, j) for j, (t, _) in enumerate(played)])
+    clusters: list[tuple[list[int], list[int]]] = []
+    last = -math.inf
+    for t, side, k in events:
+        if not clusters or t - last > tolerance:
+            clusters.append(([], []))
+        clusters[-1][side].append(k)
+        last = t
+    pairs: list[tuple[int, int]] = []
+    for ia, jb in clusters:
+        if not ia or not jb:
+            continue
+        d = np.abs(np.array([written[i][0] for i in ia])[:, None] - np.array([played[j][0] for j in jb])[None, :])
+        other = np.array([[written[i][1] != played[j][1] for j in jb] for i in ia])
+        ok = (d <= tolerance + 1e-12) & other
+        if not ok.any():
+            continue
+        apart = np.array([[family(written[i][1]) != family(played[j][1]) for j in jb] for i in ia])
+        # a pair is worth more than any sum of errors and family penalties (each under 2 tolerances)
+        big = 1.0 + 2 * tolerance * (len(ia) + len(jb))
+        cost = np.where(ok, d + tolerance * apart - big, 0.0)
+        rows, cols = linear_sum_assignment(cost)
+        pairs += [(ia[r], jb[c]) for r, c in zip(rows, cols, strict=True) if ok[r, c]]
+    return sorted(pairs)
+
+
+def drum_family(kit: Kit, drum: str) -> str:
+    """``cymbal`` (cymbals and the hi-hat), ``drum`` (membranes), else the object's kind, or the name of an object
+    the kit does not have: what may stand for what in :func:`wrong_drum_pairs`."""
+    try:
+        kind = kit.object(drum).kind
+    except KeyError:
+        return drum
+    return "cymbal" if kind in ("cymbal", "hihat") else "drum" if kind == "membrane" else kind
+
+
 def scaled(written: Sequence[NoteRef], scale: float) -> list[NoteRef]:
     """The written notes played ``scale`` times faster (times divided by it)."""
     return [replace(n, time=n.time / scale) for n in written]
@@ -420,20 +479,67 @@ def ratio_digits(ratio: float, duration: float, tolerance: float) -> float:
 # ---------------------------------------------------------------------- the report
 
 
-def position(score: Score, written_time: float) -> dict[str, Any]:
-    """Bar and beat (both from 1, the beat fractional) of a time on the exercise's written clock; before its first
-    beat, none. After a pick-up (:func:`pickup`) the first full bar is bar 1, as printed music numbers it, and the
-    pick-up bar 0, its beats counted as the end of a full bar (a one-beat pick-up before 4/4 is beat 4)."""
+def position(score: Score, written_time: float, scale: float = 1.0) -> dict[str, Any]:
+    """Bar and beat (both from 1, the beat fractional) of a time on the exercise's written clock, and ``where``,
+    the position as a teacher says it (:func:`grid_label`; ``scale``: the tempo ratio compared at, for its ms on
+    the take's clock); before its first beat, none. After a pick-up (:func:`pickup`) the first full bar is bar 1,
+    as printed music numbers it, and the pick-up bar 0, its beats counted as the end of a full bar (a one-beat
+    pick-up before 4/4 is beat 4)."""
+    at = bar_and_beat(score, written_time)
+    if at is None:
+        return {"bar": None, "beat": None, "where": "before bar 1"}
+    bar, beat, _ = at
+    return {"bar": bar, "beat": round(beat, 3), "where": grid_label(score, written_time, scale)}
+
+
+def bar_and_beat(score: Score, written_time: float) -> tuple[int, float, float] | None:
+    """(bar, beat from 1 (fractional), the beat's length s) of a time on the written clock, numbered as
+    :func:`position` says; None before the first beat."""
     from common.score.position import bar_beat
 
     where = bar_beat(score, written_time)
     if where is None:
-        return {"bar": None, "beat": None}
+        return None
+    spacing = 60.0 / where.tempo_bpm
     short = pickup(score)
     if short is None:
-        return {"bar": where.bar + 1, "beat": round(where.beat + 1, 3)}
-    beat = where.beat + (short[1] - short[0] if where.bar == 0 else 0.0)
-    return {"bar": where.bar, "beat": round(beat + 1, 3)}
+        return where.bar + 1, where.beat + 1, spacing
+    return where.bar, where.beat + 1 + (short[1] - short[0] if where.bar == 0 else 0.0), spacing
+
+
+def grid_label(score: Score, written_time: float, scale: float = 1.0) -> str:
+    """``bar 3, beat 2&``: a position on the beat's grid, counted as :data:`SYLLABLES` (``beat 2``, ``2e``,
+    ``2&``, ``2a``, ``2 trip``, ``2 let``) or, on a :data:`FINE_GRIDS` subdivision, as a fraction (``beat 2 +
+    1/8``); off those (a strike, a humanised MIDI exercise), the nearest sixteenth or triplet point and how far
+    from it on the take's clock (``beat 2& (12 ms late)``; ``scale``: the tempo ratio, take / exercise), the next
+    beat's (or bar's) first point included (``bar 4, beat 1 (20 ms early)``)."""
+    at = bar_and_beat(score, written_time)
+    if at is None:
+        return "before bar 1"
+    bar, beat, spacing = at
+    whole = math.floor(beat + 1e-6)
+    frac = beat - whole
+    grid: Fraction | None = None
+    for n in (1, 2, 3, 4, *FINE_GRIDS):  # the coarsest subdivision it lies on
+        k = round(frac * n)
+        if abs(frac - k / n) <= ON_GRID_BEATS:
+            grid = Fraction(k, n)
+            break
+    exact = grid is not None
+    if grid is None:
+        grid = min((*SYLLABLES, Fraction(1)), key=lambda g: (abs(frac - float(g)), g))
+    point = written_time + (float(grid) - frac) * spacing  # s, the grid point on the written clock
+    late_ms = (written_time - point) * 1000 / scale
+    if grid == 1:  # the next beat's first point: maybe the next bar's (looked up just after it, float-safe)
+        again = bar_and_beat(score, point + 1e-6)
+        if again is None:
+            return f"bar {bar}, beat {beat:.3g}"
+        bar, whole, grid = again[0], math.floor(again[1] + 1e-6), Fraction(0)
+    name = SYLLABLES.get(grid, f" + {grid}")
+    text = f"bar {bar}, beat {whole}{name}"
+    if not exact and round(abs(late_ms)) >= 1:
+        text += f" ({abs(late_ms):.0f} ms {'late' if late_ms > 0 else 'early'})"
+    return text
 
 
 def pickup(score: Score) -> tuple[float, float] | None:
@@ -449,7 +555,9 @@ def pickup(score: Score) -> tuple[float, float] | None:
 
 
 def where_text(entry: dict[str, Any]) -> str:
-    """``bar 3, beat 2.5`` (``before bar 1`` ahead of the first beat)."""
+    """``bar 3, beat 2&`` (:func:`grid_label`; ``before bar 1`` ahead of the first beat)."""
+    if "where" in entry:
+        return str(entry["where"])
     if entry["bar"] is None:
         return "before bar 1"
     return f"bar {entry['bar']}, beat {entry['beat']:g}"
@@ -495,27 +603,29 @@ def dynamics(pairs: Sequence[tuple[float, float]]) -> dict[str, Any] | None:
 
 
 def bar_rows(score: Score, written: Sequence[tuple[float, float]], pairs: Sequence[tuple[int, float, float]],
-             missed: Sequence[int], off: Sequence[int], extra_bars: Sequence[int | None], tolerance: float,
-             bpm: float | None) -> list[dict[str, Any]]:
+             missed: Sequence[int], off: Sequence[int], wrong: Sequence[int], extra_bars: Sequence[int | None],
+             tolerance: float, bpm: float | None) -> list[dict[str, Any]]:
     """One row per bar of the exercise (its first bar to the bar of its last written note, as :func:`position`
-    numbers them): written, played, missed, too early/late and extra notes, the matched notes' mean timing (ms, +
-    late) and ``feel`` (``rushed``/``dragging`` when that mean is beyond half the tolerance, else None), and the
-    bar's local tempo (bpm; None under :data:`BAR_TEMPO_NOTES` matched notes): the exercise's tempo over the slope
-    of the take's times against the written ones (least squares).
+    numbers them): written, played, missed, too early/late, played on another drum (``wrong_drum``) and extra
+    notes, the matched notes' mean timing (ms, + late) and ``feel`` (``rushed``/``dragging`` when that mean is
+    beyond half the tolerance, else None), and the bar's local tempo (bpm; None under :data:`BAR_TEMPO_NOTES`
+    matched notes): the exercise's tempo over the slope of the take's times against the written ones (least
+    squares).
 
     ``written``: each written note's (exercise clock, compared clock) time, s; ``pairs``: (written index, take
-    time s, played - written s); ``missed``/``off``: written indices; ``extra_bars``: each extra's bar."""
-    labels = [position(score, t)["bar"] for t, _ in written]
+    time s, played - written s); ``missed``/``off``/``wrong``: written indices; ``extra_bars``: each extra's
+    bar."""
+    labels: list[Any] = [None if (at := bar_and_beat(score, t)) is None else at[0] for t, _ in written]  # bar
     known = [b for b in labels if b is not None]
     if not known:
         return []
     first = 0 if pickup(score) is not None else 1
     rows: dict[int, dict[str, Any]] = {
-        b: {"bar": b, "written": 0, "played": 0, "missed": 0, "off_tolerance": 0, "extra": 0, "mean_ms": None,
-            "feel": None, "bpm": None} for b in range(min(first, min(known)), max(known) + 1)}
+        b: {"bar": b, "written": 0, "played": 0, "missed": 0, "off_tolerance": 0, "wrong_drum": 0, "extra": 0,
+            "mean_ms": None, "feel": None, "bpm": None} for b in range(min(first, min(known)), max(known) + 1)}
     for b in known:
         rows[b]["written"] += 1
-    for key, indices in (("missed", missed), ("off_tolerance", off)):
+    for key, indices in (("missed", missed), ("off_tolerance", off), ("wrong_drum", wrong)):
         for i in indices:
             if labels[i] is not None:
                 rows[labels[i]][key] += 1
@@ -557,29 +667,63 @@ def drift(bars: Sequence[dict[str, Any]]) -> dict[str, Any] | None:
             "from_bpm": tempi[0], "to_bpm": tempi[-1]}
 
 
+def beat_feels(score: Score, notes: Sequence[tuple[float, float]], tolerance: float) -> list[dict[str, Any]]:
+    """The beats rushed or dragging, in order: a bar's mean hides a one-beat fill (4 notes 40 ms early among a
+    bar's 14 are -11 ms). A beat's onsets are its written times played (notes at one time are one onset, their
+    timings averaged); a beat of :data:`BEAT_ONSETS` onsets or more is ``rushed`` (``dragging``) when its median
+    onset is more than half the tolerance early (late), the bar's mark, and more than half its onsets are more
+    than a quarter of the tolerance early (late): one note far off among steady ones (a median of two is their
+    mean) is no rushed beat. ``mean_ms`` is the onsets' mean.
+
+    ``notes``: (written time on the exercise's clock s, played - written s) of every written note played."""
+    beats: dict[tuple[int, int], dict[float, list[float]]] = defaultdict(lambda: defaultdict(list))
+    for t, error in notes:
+        at = bar_and_beat(score, t)
+        if at is not None:
+            beats[(at[0], math.floor(at[1] + 1e-6))][round(t, 6)].append(error)
+    out = []
+    for (bar, beat), onsets in sorted(beats.items()):
+        errors = np.array([np.mean(v) for v in onsets.values()])
+        median = float(np.median(errors))
+        if len(errors) < BEAT_ONSETS or abs(median) <= tolerance / 2:
+            continue
+        if 2 * np.sum(errors * np.sign(median) > tolerance / 4) <= len(errors):
+            continue
+        out.append({"bar": bar, "beat": beat, "onsets": len(errors), "notes": sum(len(v) for v in onsets.values()),
+                    "mean_ms": _r(float(np.mean(errors)) * 1000, 1), "median_ms": _r(median * 1000, 1),
+                    "feel": "rushed" if median < 0 else "dragging"})
+    return out
+
+
 def bar_lines(report: dict[str, Any]) -> list[str]:
     """The per-bar table (all bars up to :data:`BARS_SHOWN`, else the bars with something to say), the bars
-    rushed or dragging, and the drift."""
+    rushed or dragging, the beats rushed or dragging in a bar not told so as a whole, and the drift."""
     bars = report.get("bars") or []
     if not bars:
         return []
+    feel = {b["bar"]: b["feel"] for b in bars}
+    beats = [b for b in report.get("beats_rushed_dragging") or [] if feel.get(b["bar"]) != b["feel"]]
+    beat_bars = {b["bar"] for b in beats}
 
     def notable(b: dict[str, Any]) -> bool:
-        return bool(b["missed"] or b["off_tolerance"] or b["extra"] or b["feel"])
+        return bool(b["missed"] or b["off_tolerance"] or b.get("wrong_drum") or b["extra"] or b["feel"]
+                    or b["bar"] in beat_bars)
 
     shown = bars if len(bars) <= BARS_SHOWN else [b for b in bars if notable(b)]
     lines = ["", f"{'bar':>4} {'written':>7} {'played':>6} {'missed':>6} {'too early/late':>14} {'extra':>5} "
-             f"{'mean ms':>8} {'tempo bpm':>9}"]
+             f"{'other drum':>10} {'mean ms':>8} {'tempo bpm':>9}"]
     for b in shown:
         lines.append(f"{b['bar']:>4} {b['written']:>7} {b['played']:>6} {b['missed']:>6} {b['off_tolerance']:>14} "
-                     f"{b['extra']:>5} {_ms(b['mean_ms']):>8} "
+                     f"{b['extra']:>5} {b.get('wrong_drum', 0):>10} {_ms(b['mean_ms']):>8} "
                      f"{'-' if b['bpm'] is None else format(b['bpm'], '.1f'):>9}")
     if len(shown) < len(bars):
         fine = len(bars) - len(shown)
         lines.append(f"... {fine} other bar{'' if fine == 1 else 's'} fine (--json lists every bar)")
-    for b in bars:
-        if b["feel"]:
-            lines.append(f"bar {b['bar']}: {b['feel']}, {b['mean_ms']:+.0f} ms on average")
+    told = sorted([(b["bar"], 0, f"bar {b['bar']}: {b['feel']}, {b['mean_ms']:+.0f} ms on average")
+                   for b in bars if b["feel"]]
+                  + [(b["bar"], b["beat"], f"bar {b['bar']}, beat {b['beat']}: {b['feel']}, {b['mean_ms']:+.0f} ms "
+                      f"on average ({b['notes']} notes)") for b in beats])
+    lines.extend(text for _, _, text in told)
     d = report.get("drift")
     if d:
         lines.append(f"{d['direction']}: {d['from_bpm']:.0f} -> {d['to_bpm']:.0f} bpm")
@@ -662,26 +806,50 @@ def _compare_at(score: Score, take: Take, kit: Kit, tolerance: float, scale: flo
     for j, p in enumerate(played):
         if j not in done_played:
             loose[p.drum].append(j)
-    claimed: set[int] = set()
-    misses = []
+    claimed: dict[int, int] = {}  # written index: the note of its drum played too early or late for it
+    taken: set[int] = set()
     for i in missed_i:
         n = written[i]
-        entry = {**position(score, written_clock(n.time)), "time_s": _r(written_clock(n.time), 4),
-                 "drum": n.instrument, "event": n.event, "velocity": round(n.velocity * 127)}
-        near = [j for j in loose.get(n.instrument, []) if j not in claimed
+        near = [j for j in loose.get(n.instrument, []) if j not in taken
                 and abs(played[j].time - offset - n.time) <= max(LOOSE_S, 2 * tolerance)]
         if near:
-            j = min(near, key=lambda k: abs(played[k].time - offset - n.time))
-            claimed.add(j)
+            claimed[i] = min(near, key=lambda k: abs(played[k].time - offset - n.time))
+            taken.add(claimed[i])
+    extras_j = [j for j in extras_j if j not in taken]
+    # a miss with an extra on another drum within the tolerance (no note of its own drum near: claimed above) was
+    # played on that drum: a wrong drum, not a miss and an extra
+    lost = [i for i in missed_i if i not in claimed]
+    swaps = [(lost[a], extras_j[b]) for a, b in wrong_drum_pairs(
+        [(written[i].time, written[i].instrument) for i in lost],
+        [(played[j].time - offset, played[j].drum) for j in extras_j], tolerance, lambda d: drum_family(kit, d))]
+    wrong_of = dict(swaps)
+    stood_in = set(wrong_of.values())
+    extras_j = [j for j in extras_j if j not in stood_in]
+    off_i = set(claimed)
+    lost_i = [i for i in lost if i not in wrong_of]
+    misses = []
+    for i in missed_i:
+        if i in wrong_of:
+            continue
+        n = written[i]
+        entry = {**position(score, written_clock(n.time), scale), "time_s": _r(written_clock(n.time), 4),
+                 "drum": n.instrument, "event": n.event, "velocity": round(n.velocity * 127)}
+        if i in claimed:
+            j = claimed[i]
             entry["played_off_by_ms"] = round((played[j].time - offset - n.time) * 1000, 1) + 0.0
             entry["played_take_time_s"] = _r(played[j].time, 4)
         misses.append(entry)
-    extras_j = [j for j in extras_j if j not in claimed]
-    off_i = {i for i, entry in zip(missed_i, misses, strict=True) if "played_off_by_ms" in entry}
+    wrong = []
+    for i, j in sorted(swaps, key=lambda s: written[s[0]].time):
+        n, p = written[i], played[j]
+        wrong.append({**position(score, written_clock(n.time), scale), "time_s": _r(written_clock(n.time), 4),
+                      "drum": n.instrument, "event": n.event, "velocity": round(n.velocity * 127),
+                      "played_drum": p.drum, "played_event": p.event, "played_velocity": round(p.velocity * 127),
+                      "played_take_time_s": _r(p.time, 4), "timing_ms": _r((p.time - offset - n.time) * 1000, 1)})
     extras = []
     for j in extras_j:
         p = played[j]
-        extras.append({**position(score, written_clock(p.time - offset)),
+        extras.append({**position(score, written_clock(p.time - offset), scale),
                        "time_s": _r(written_clock(p.time - offset), 4), "take_time_s": _r(p.time, 4),
                        "drum": p.drum, "event": p.event, "velocity": round(p.velocity * 127)})
     drums: dict[str, Any] = {}
@@ -690,8 +858,12 @@ def _compare_at(score: Score, take: Take, kit: Kit, tolerance: float, scale: flo
         its_pairs = [(i, j) for i, j in pairs if written[i].instrument == drum]
         drums[drum] = {
             "written": sum(n.instrument == drum for n in written), "played": len(its_pairs),
-            "missed": sum(written[i].instrument == drum for i in missed_i if i not in off_i),
+            "missed": sum(written[i].instrument == drum for i in lost_i),
             "off_tolerance": sum(written[i].instrument == drum for i in off_i),
+            "wrong_drum": sum(written[i].instrument == drum for i in wrong_of),
+            "played_instead": dict(sorted(Counter(played[j].drum for i, j in swaps
+                                                  if written[i].instrument == drum).items())),
+            "played_for_other": sum(played[j].drum == drum for _, j in swaps),
             "extra": sum(played[j].drum == drum for j in extras_j),
             "timing": timing([played[j].time - offset - written[i].time for i, j in its_pairs]),
             "dynamics": dynamics([(written[i].velocity, played[j].velocity) for i, j in its_pairs]),
@@ -700,16 +872,17 @@ def _compare_at(score: Score, take: Take, kit: Kit, tolerance: float, scale: flo
     bpm = tempo_bpm(score)
     bars = bar_rows(score, [(written_clock(n.time), n.time) for n in written],
                     [(i, played[j].time, played[j].time - offset - written[i].time) for i, j in pairs],
-                    [i for i in missed_i if i not in off_i], sorted(off_i), [e["bar"] for e in extras],
-                    tolerance, bpm)
+                    lost_i, sorted(off_i), sorted(wrong_of), [e["bar"] for e in extras], tolerance, bpm)
+    # every written note the take played, on its drum (within the tolerance or beyond it) or on another one
+    struck = [*pairs, *claimed.items(), *swaps]
     report: dict[str, Any] = {
         "take_kind": take.kind, "tolerance_ms": round(tolerance * 1000, 3), "tempo_scale": scale,
         "offset_s": _r(offset, 4), "offset_forced": forced,
-        "written": len(written), "played": len(pairs), "missed": len(missed_i) - len(off_i),
-        "off_tolerance": len(off_i), "extra": len(extras_j),
+        "written": len(written), "played": len(pairs), "missed": len(lost_i),
+        "off_tolerance": len(off_i), "wrong_drum": len(swaps), "extra": len(extras_j),
         "outside": outside,
         "timing": timing([played[j].time - offset - written[i].time for i, j in pairs]),
-        "drums": drums, "misses": misses, "extras": extras,
+        "drums": drums, "misses": misses, "wrong_drums": wrong, "extras": extras,
         "not_heard": dict(sorted(not_heard.items())), "tempo": None, "take_stops": None,
         # the count-in: notes before the start, but for a first note early (told as such above)
         "entry": None if forced else count_in_entry(
@@ -717,6 +890,9 @@ def _compare_at(score: Score, take: Take, kit: Kit, tolerance: float, scale: flo
             None if bpm is None else 60.0 / bpm / scale),
         "pickup_beats": None if short is None else short[0],
         "bars": bars, "drift": drift(bars),
+        "beats_rushed_dragging": beat_feels(
+            score, [(written_clock(written[i].time), played[j].time - offset - written[i].time) for i, j in struck],
+            tolerance),
         "warnings": list(take.warnings),
     }
     # the take's last note from the start on (one just after the end too: a last note late is no early stop)
@@ -729,7 +905,7 @@ def _compare_at(score: Score, take: Take, kit: Kit, tolerance: float, scale: flo
         entry["after_take"] = last is not None and entry["time_s"] > written_clock(last + tolerance)
     after = sum(bool(entry["after_take"]) for entry in misses)
     if last is not None and after:
-        report["take_stops"] = {**position(score, written_clock(last)), "missed_after": after}
+        report["take_stops"] = {**position(score, written_clock(last), scale), "missed_after": after}
     if len(pairs) < TEMPO_CHECK_BELOW * len(written):
         ratio, count = find_tempo(written, played, tolerance, offset if forced else None)
         length = exercise_end(score) / scale  # s, as the take plays it: a small ratio still drifts over a long take
@@ -807,9 +983,10 @@ def summary_lines(report: dict[str, Any], exercise: str, take: str) -> list[str]
     t = report["timing"]
     off = (f"{report['off_tolerance']} played too early or late (beyond the tolerance), "
            if report["off_tolerance"] else "")
-    lines.append(f"{report['played']} of {report['written']} written notes played, {off}{report['missed']} missed, "
-                 f"{report['extra']} extra" + (f" ({report['outside']} before or after the exercise not counted)"
-                                              if report["outside"] else ""))
+    wrong = (f"{report['wrong_drum']} played on another drum, " if report.get("wrong_drum") else "")
+    lines.append(f"{report['played']} of {report['written']} written notes played, {off}{wrong}{report['missed']} "
+                 f"missed, {report['extra']} extra" + (f" ({report['outside']} before or after the exercise not "
+                                                       "counted)" if report["outside"] else ""))
     if t["n"]:
         lines.append(f"timing: {_ms(t['mean_ms'])} on average (+ late, - early), spread {t['sd_ms']:.1f} ms "
                      "(standard deviation), against the take's own pulse" if not report["offset_forced"] else
@@ -835,28 +1012,34 @@ def summary_lines(report: dict[str, Any], exercise: str, take: str) -> list[str]
                      f"take's tempo ({tempo['played']} notes then match)")
     lines.append("")
     lines.append(f"{'drum':<10} {'written':>7} {'played':>6} {'too early/late':>14} {'missed':>6} {'extra':>5} "
-                 f"{'mean ms':>8} {'spread ms':>9}  dynamics (MIDI velocity)")
+                 f"{'other drum':>10} {'mean ms':>8} {'spread ms':>9}  dynamics (MIDI velocity)")
     for drum, d in report["drums"].items():
         dt = d["timing"]
         lines.append(f"{drum:<10} {d['written']:>7} {d['played']:>6} {d['off_tolerance']:>14} {d['missed']:>6} "
-                     f"{d['extra']:>5} "
+                     f"{d['extra']:>5} {d.get('wrong_drum', 0):>10} "
                      f"{_ms(dt['mean_ms']) if dt['n'] else '-':>8} "
                      f"{_spread(dt):>9}  {_dynamics_text(d['dynamics'])}")
+    for drum, d in report["drums"].items():  # the other drum column said: which drum, how often
+        for other, n in d.get("played_instead", {}).items():
+            lines.append(f"played {other} instead of {drum}: {n} note{'' if n == 1 else 's'}")
     if report["not_heard"]:
         drums = ", ".join(f"{k} {v}" for k, v in report["not_heard"].items())
         lines.append(f"not compared (the transcriber has no class for them): {drums}")
     lines.extend(bar_lines(report))
-    listed = sorted([*(m for m in report["misses"] if not m.get("after_take")), *report["extras"]],
-                    key=lambda e: e["time_s"])
+    listed = sorted([*(m for m in report["misses"] if not m.get("after_take")), *report.get("wrong_drums", []),
+                     *report["extras"]], key=lambda e: e["time_s"])
     if listed:
         lines.append("")
     for entry in listed[:MAX_LISTED]:
+        if "played_drum" in entry:
+            lines.append(f"{where_text(entry)}: played {entry['played_drum']} instead of {entry['drum']}")
+            continue
         off = entry.get("played_off_by_ms")
         what = ("extra" if "take_time_s" in entry else "missed" if off is None else
                 f"played {abs(off):.0f} ms {'late' if off > 0 else 'early'} (beyond the tolerance)")
         lines.append(f"{where_text(entry)}: {entry['drum']} {what}")
     if len(listed) > MAX_LISTED:
-        lines.append(f"... {len(listed) - MAX_LISTED} more misses and extras (--json lists them all)")
+        lines.append(f"... {len(listed) - MAX_LISTED} more misses, extras and wrong drums (--json lists them all)")
     return lines
 
 
@@ -887,10 +1070,11 @@ def _dynamics_text(d: dict[str, Any] | None) -> str:
 
 DESCRIPTION = """\
 Compare a student's take with the exercise: which written notes were played,
-missed or added, per drum, how early or late and how steady, where each miss
-and extra is (bar and beat), and whether accents were played as accents; then
-bar by bar: the counts, the mean timing and the bar's tempo, the bars rushed or
-dragged, and whether the take sped up or slowed down.
+missed, played on another drum or added, per drum, how early or late and how
+steady, where each is (bar and beat), and whether accents were played as
+accents; then bar by bar: the counts, the mean timing and the bar's tempo, the
+bars rushed or dragged, the beats rushed or dragged (a short fill), and
+whether the take sped up or slowed down.
 
 EXERCISE: any score Batteur reads (a text score, a MIDI file; `demo`: the
 shipped demo groove). TAKE: a MIDI file (an e-kit's recording) or an audio
@@ -906,12 +1090,23 @@ after the count-in"). After a pick-up bar (a first bar shorter than the
 next), bar 1 is the first full bar and the pick-up bar 0, as printed.
 A written note counts as played when the take has one on the same drum (kit
 object: open and closed hi-hat, and the hi-hat pedal, are the hi-hat) within
---tolerance. An audio take is compared on the drums the transcriber knows
-(kick, snare, hi-hat, three toms, crash, ride); the others are listed apart.
-When most notes do not match, the tempo the take is played at is looked for;
-when it matches clearly more, the take is compared at it (said first) unless
---tempo-scale is given (then it is only reported). Timing is played minus
-written, in ms: + late, - early; the spread is the standard deviation.
+--tolerance; else as played too early or late when one of its drum is within
+150 ms (2 tolerances if more); else as played on another drum ("played ride
+instead of hihat": not a miss and an extra) when a strike on another drum is
+left within --tolerance (a cymbal for a cymbal, a drum for a drum, first);
+else missed. Extras are the strikes left over. A beat is told rushed
+(dragging) when its notes are: two onsets at least, more than half of them
+over a quarter of --tolerance early (late) and their median over half of it;
+one note off among steady ones is not. Positions are counted as a teacher
+does: beat 3, 3e, 3&, 3a (sixteenths), 3 trip, 3 let (triplets), 3 + 1/8 (a
+finer written note); off that grid, the nearest point and how far from it on
+the take's clock ("beat 3& (12 ms late)"). An audio take is compared on the
+drums the transcriber knows (kick, snare, hi-hat, three toms, crash, ride);
+the others are listed apart. When most notes do not match, the tempo the take
+is played at is looked for; when it matches clearly more, the take is
+compared at it (said first) unless --tempo-scale is given (then it is only
+reported). Timing is played minus written, in ms: + late, - early; the spread
+is the standard deviation.
 Velocities are MIDI's 0-127 (a transcription's are the recogniser's own).
 """
 
