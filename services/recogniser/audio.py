@@ -10,6 +10,7 @@ from __future__ import annotations
 import re
 import shlex
 from collections.abc import Callable
+from dataclasses import dataclass
 from fractions import Fraction
 from pathlib import Path
 
@@ -260,18 +261,18 @@ warned of as holding nothing there: measured on Batteur's renders and the held-o
 with hi-hats or snares, -23 and -33 dB for a kick alone (docs/recogniser.md, "What it does")."""
 
 
-def top_band_level(mono: np.ndarray, rate_hz: int, low_hz: float, block: int = 512) -> float | None:
-    """The power density from ``low_hz`` to :data:`CONTENT_TOP_HZ` (or near half of ``rate_hz``) relative to that
-    of :data:`CONTENT_REF_HZ`, over the :data:`CONTENT_LOUD` loudest frames of :data:`CONTENT_FRAME` samples
-    (:data:`CONTENT_HOP` apart), dB;
+def top_band_level(mono: np.ndarray, rate_hz: int, low_hz: float, block: int = 512, high_hz: float = CONTENT_TOP_HZ,
+                   ref_hz: tuple[float, float] = CONTENT_REF_HZ) -> float | None:
+    """The power density from ``low_hz`` to ``high_hz`` (or near half of ``rate_hz``) relative to that of ``ref_hz``,
+    over the :data:`CONTENT_LOUD` loudest frames of :data:`CONTENT_FRAME` samples (:data:`CONTENT_HOP` apart), dB;
     None when it cannot be told (too short a file, too low a rate, nothing in the reference band). A recording
     resampled up from 22,050 Hz keeps its low rate's empty top, which the declared rate hides (``block``: frames
     transformed at a time, bounding memory)."""
-    top_hz = min(CONTENT_TOP_HZ, 0.49 * rate_hz)
+    top_hz = min(high_hz, 0.49 * rate_hz)
     if len(mono) < CONTENT_FRAME or top_hz <= low_hz:
         return None
     f = np.fft.rfftfreq(CONTENT_FRAME, 1.0 / rate_hz)
-    ref, top = (f >= CONTENT_REF_HZ[0]) & (f < CONTENT_REF_HZ[1]), (f >= low_hz) & (f < top_hz)
+    ref, top = (f >= ref_hz[0]) & (f < ref_hz[1]), (f >= low_hz) & (f < top_hz)
     frames = np.lib.stride_tricks.sliding_window_view(mono, CONTENT_FRAME)[::CONTENT_HOP]
     win = np.hanning(CONTENT_FRAME).astype(np.float32)
     sums = np.empty((len(frames), 3), np.float64)  # per frame: all bins, reference band, top band
@@ -285,27 +286,46 @@ def top_band_level(mono: np.ndarray, rate_hz: int, low_hz: float, block: int = 5
     return 10.0 * float(np.log10(max(top_density / ref_density, 1e-30)))
 
 
-def band_limited(path: Path | str, mono: np.ndarray, rate_hz: int, full_rate_hz: float) -> str | None:
+@dataclass(frozen=True)
+class BandCheck:
+    """How :func:`band_limited` measures a path's top bands when the path's own are not the offline ones: the power
+    density of ``top_hz`` against that of ``ref_hz`` (:func:`top_band_level`), warned of below ``limit_db``."""
+
+    top_hz: tuple[float, float]
+    """The band that must not be empty, Hz: a band the path reads, above the edge of the rates it warns of."""
+    ref_hz: tuple[float, float]
+    """The band it is compared with, Hz: below that edge, where snares, hi-hats and cymbals sound."""
+    limit_db: float
+    """Audio whose ``top_hz`` is this far below its ``ref_hz``, or further, is warned of, dB."""
+
+
+def band_limited(path: Path | str, mono: np.ndarray, rate_hz: int, full_rate_hz: float,
+                 check: BandCheck | None = None) -> str | None:
     """The warning for a file sampled fast enough (``rate_hz`` at least ``full_rate_hz``) whose audio yet holds next
     to nothing above half of ``full_rate_hz`` (:func:`top_band_level` below :data:`BAND_LIMITED_DB`): a recording
     made at a lower rate and resampled up transcribes as one at its own rate does (the held-out kit's test
     pattern through 22,050 Hz and back to 44,100 Hz: the same notes as at 22,050 Hz), or None. ``path``: the file,
-    or the name of the live input (:class:`~services.recogniser.node.InputWatch`)."""
+    or the name of the live input (:class:`~services.recogniser.node.InputWatch`). ``check``: measure that way
+    instead (the live path's, :data:`~services.recogniser.node.LIVE_BAND_CHECK`; None: from half of
+    ``full_rate_hz`` up, against :data:`CONTENT_REF_HZ`, below :data:`BAND_LIMITED_DB`, as offline)."""
     if rate_hz < full_rate_hz:
         return None  # low_rate's warning
-    level = top_band_level(mono, rate_hz, full_rate_hz / 2)
-    if level is None or level >= BAND_LIMITED_DB:
+    if check is None:
+        check = BandCheck((full_rate_hz / 2, CONTENT_TOP_HZ), CONTENT_REF_HZ, BAND_LIMITED_DB)
+    level = top_band_level(mono, rate_hz, check.top_hz[0], high_hz=check.top_hz[1], ref_hz=check.ref_hz)
+    if level is None or level >= check.limit_db:
         return None
     enough = next((r for r in COMMON_RATES_HZ if r >= full_rate_hz), None)
     advice = f" (record at {enough:,} Hz or more if you can)" if enough else ""
     return (f"{path}: it holds next to nothing above {full_rate_hz / 2000:.1f} kHz ({-level:.0f} dB below its "
-            f"{CONTENT_REF_HZ[0] / 1000:g}-{CONTENT_REF_HZ[1] / 1000:g} kHz content), where the recogniser tells "
+            f"{check.ref_hz[0] / 1000:g}-{check.ref_hz[1] / 1000:g} kHz content), where the recogniser tells "
             f"hi-hats and cymbals from snares: recorded at a lower rate and resampled up to {rate_hz:,} Hz? expect "
             f"hi-hats missed or heard as other drums{advice}")
 
 
 def load_audio(path: str | Path, max_duration_s: float = MAX_DURATION_S, sample_rate: int = SAMPLE_RATE,
-               warn: Callable[[str], None] | None = None, full_rate_hz: float | None = None) -> np.ndarray:
+               warn: Callable[[str], None] | None = None, full_rate_hz: float | None = None,
+               band_check: BandCheck | None = None) -> np.ndarray:
     """Read an audio file as mono float32 at ``sample_rate`` Hz (default :data:`SAMPLE_RATE`).
 
     The mean (a DC offset) is removed: it is inaudible, yet it would count in the silence test and the
@@ -318,6 +338,7 @@ def load_audio(path: str | Path, max_duration_s: float = MAX_DURATION_S, sample_
     warn : called with a message naming the file when it is usable but suspect (truncated; sampled below
         ``full_rate_hz``, or holding next to nothing above half of it: :func:`band_limited`)
     full_rate_hz : the lowest sample rate that fills every band of the caller's analysis, Hz (None: not checked)
+    band_check : how :func:`band_limited` measures the top bands (None: the offline way)
 
     Returns
     -------
@@ -379,7 +400,7 @@ def load_audio(path: str | Path, max_duration_s: float = MAX_DURATION_S, sample_
     if short and warn:
         warn(f"{p}: {short}; transcribing the {len(mono) / sr:.4g} s it holds")
     if full_rate_hz is not None and warn:
-        slow = low_rate(p, int(sr), full_rate_hz) or band_limited(p, mono, int(sr), full_rate_hz)
+        slow = low_rate(p, int(sr), full_rate_hz) or band_limited(p, mono, int(sr), full_rate_hz, band_check)
         if slow:
             warn(slow)
     return resample(mono, int(sr), sample_rate)

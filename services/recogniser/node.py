@@ -21,7 +21,15 @@ import numpy as np
 from common.core import Outgoing
 from common.messages.recogniser import DrumHit
 from common.transport import UdpEndpoint, format_address, parse_address
-from services.recogniser.audio import MAX_DURATION_S, SAMPLE_RATE, band_limited, grid_step, load_audio, quantum
+from services.recogniser.audio import (
+    MAX_DURATION_S,
+    SAMPLE_RATE,
+    BandCheck,
+    band_limited,
+    grid_step,
+    load_audio,
+    quantum,
+)
 from services.recogniser.core import LiveRecogniser
 from services.recogniser.errors import RecogniserError
 from services.recogniser.features import NARROW, full_rate_hz
@@ -39,6 +47,16 @@ LIVE_FULL_RATE_HZ = full_rate_hz(NARROW)
 path's: it reads 22,050 Hz, so a 22,050 Hz take, or one resampled up from it, loses it nothing (the test pattern
 played live: the same hits but one), while one sampled at 16 kHz lost most hi-hats (docs/recogniser.md,
 "Live mode")."""
+LIVE_BAND_CHECK = BandCheck(top_hz=(9000.0, NARROW.f_max_hz), ref_hz=(4000.0, 7500.0), limit_db=-30.0)
+"""How the live path tells input holding next to nothing in its top bands, a device's and a file's
+(:func:`~services.recogniser.audio.band_limited`): 9 kHz to its top band edge (10.5 kHz) against 4-7.5 kHz, warned
+of 30 dB down. The two bands lie either side of the 8 kHz edge of a 16 kHz headset or USB microphone, clear of its
+filter's rolloff and skirt: measured the offline way (from 8.4 kHz against 4-10 kHz, which hold them) such input
+gave -18 to -40 dB and passed the -45 dB line, though played live it lost most hi-hats. Measured (19 takes: Groove
+files and single drums on Batteur's kit, the held-out kit's pattern and samples; as files and as a device's first
+3 s): through 16,000 Hz -41 to -58 dB, through 11,025 Hz -34 to -71 dB, all warned; full-band, through 22,050 Hz,
+an 11 kHz low-pass (nothing lost live), quiet 16-bit takes: -16.7 dB or above, none (docs/recogniser.md, "Live
+mode")."""
 INPUT_CHECK_S = 3.0
 """Seconds of a device's input :class:`InputWatch` gathers before its band check and its look at the samples'
 grid."""
@@ -50,7 +68,7 @@ class InputWatch:
     :func:`~services.recogniser.audio.band_limited` against :data:`LIVE_FULL_RATE_HZ` (``warn`` hears its warning,
     if any, once; ``name`` stands for the file in it) and to :func:`~services.recogniser.audio.grid_step`: input on a
     16- or 8-bit grid (a device giving integers, not resampled nor scaled on the way) has that :attr:`step` until a
-    block leaves the grid."""
+    block leaves the grid. The band check is :data:`LIVE_BAND_CHECK`'s: a 16 kHz microphone is warned of."""
 
     def __init__(self, name: str, warn: Callable[[str], None] | None, rate_hz: int = SAMPLE_RATE,
                  seconds: float = INPUT_CHECK_S) -> None:
@@ -80,7 +98,8 @@ class InputWatch:
             return  # check: look again at the next INPUT_CHECK_S, or it would pass them for good
         self.done = True
         self.step = grid_step(heard)
-        text = band_limited(self.name, heard - np.float32(np.mean(heard)), self.rate_hz, LIVE_FULL_RATE_HZ)
+        text = band_limited(self.name, heard - np.float32(np.mean(heard)), self.rate_hz, LIVE_FULL_RATE_HZ,
+                            LIVE_BAND_CHECK)
         if text and self.warn:
             self.warn(text)
 
@@ -225,12 +244,13 @@ async def play_file(
     the file's peak, as a level meter set before a take would be. ``bind``: the
     local address to send from (default: :func:`bind_address`). Hits are added to
     ``report`` as they are sent, so a caller stopped by Ctrl-C still has them.
-    ``warn`` hears of a suspect file as offline, its rate judged against the live path's bands
-    (:data:`LIVE_FULL_RATE_HZ`); a quiet file stored as integers gets the offline path's noise fill
-    (:func:`~services.recogniser.transcribe.fill_rms`) before it is played.
+    ``warn`` hears of a suspect file as offline, its rate and content judged against the live path's bands
+    (:data:`LIVE_FULL_RATE_HZ`, :data:`LIVE_BAND_CHECK`); a quiet file stored as integers gets the offline path's
+    noise fill (:func:`~services.recogniser.transcribe.fill_rms`) before it is played.
     """
     dests = check_targets(targets)
-    audio = load_audio(path, max_duration_s=max_duration_s, warn=warn, full_rate_hz=LIVE_FULL_RATE_HZ)
+    audio = load_audio(path, max_duration_s=max_duration_s, warn=warn, full_rate_hz=LIVE_FULL_RATE_HZ,
+                       band_check=LIVE_BAND_CHECK)
     peak = float(np.max(np.abs(audio)))
     if rms := fill_rms(peak, quantum(path)):  # the gain stays the peak's, as offline
         fill_noise(audio, rms)
@@ -314,7 +334,7 @@ async def listen_device(
 ) -> LiveReport:
     """Listen to an input device (mono mix, resampled by PortAudio to 22,050 Hz) and send hits (into ``report``
     as they go: Ctrl-C is how an endless listen stops). ``warn`` hears once if its first :data:`INPUT_CHECK_S`
-    hold next to nothing in the live path's top bands (:class:`InputWatch`: a device sampling at 11,025 Hz); quiet
+    hold next to nothing in the live path's top bands (:class:`InputWatch`: a device sampling at 16,000 Hz); quiet
     input on an integer grid gets the noise fill (:func:`feed_device`)."""
     problem = input_device_available()
     if problem:
