@@ -7,7 +7,7 @@ it does not drift; overruns are counted, never hidden), hands every received
 message to ``core.handle`` (but another service's controls, which its core would
 ignore: dropped as ``wrong_node``, see :func:`common.transport.taken_elsewhere`) and routes what
 the core returns. It also keeps the
-rig clock (answering pings; estimating its offset to the clock master when the
+rig clock (answering pings, within a budget per sender; estimating its offset to the clock master when the
 master is another node), greets newly found peers with a Hello, answers a Hello
 with its Health (within a budget per sender host), publishes Health to every peer
 at 1 Hz, and stops cleanly on SIGINT/SIGTERM.
@@ -103,6 +103,40 @@ controls' figures, in a budget of its own, so a flood of bad controls does not s
 that would show them counted. The rig asks every 0.5 s until answered, ``batteur ls`` once, peers once when found."""
 HELLO_ANSWER_BURST = DECODE_REPLY_BURST
 """Hellos answered to one sender host at once before :data:`HELLO_ANSWER_RATE_HZ`."""
+PONG_ADDRESS_RATE_HZ = 25.0
+"""Clock pings answered per second to one sender address (``host:port``: a node pings from its one socket), past
+:data:`PONG_ADDRESS_BURST`; the rest are dropped unanswered, counted as ``rate_limited`` (Health's ``dropped_other``).
+A pong is 1.5 times its ping (three rig times where the ping has one) and one datagram bundles over a thousand
+pings: unbudgeted, a 65 kB bundle drew 1259 pongs, 91 kB (1.9x on the wire), and single pings were answered as fast
+as they came. A node pings at 10 Hz until it has 8 samples (again after a new master), then at 1 Hz (tests: 20 Hz); a
+script as in docs/live-control.md sends 8 in a row: 2.5 times a node's fastest, so a real client never loses a pong."""
+PONG_ADDRESS_BURST = 25.0
+"""Clock pings answered to one sender address at once before :data:`PONG_ADDRESS_RATE_HZ`."""
+PONG_HOST_RATE_HZ = 100.0
+"""Clock pings answered per second to one sender host, all its addresses together, past :data:`PONG_HOST_BURST`:
+four clients at their fastest (a rig's interaction, sound and graphics nodes and a client program on one machine,
+fast pings all at once after a master restart) within it, and a flood of forged ports of one host cut to it (at
+most 100 pongs a second, 10 kB on the wire, whatever is sent). The address budget is charged first: one address over
+its own budget takes nothing of its host's, so the other clients of a host flooding from one socket keep their
+pongs."""
+PONG_HOST_BURST = 100.0
+"""Clock pings answered to one sender host at once before :data:`PONG_HOST_RATE_HZ`."""
+
+
+class PongBudget:
+    """Clock pings answered per sender: each address (``host:port``) within its own budget
+    (:data:`PONG_ADDRESS_RATE_HZ`), its host, all addresses together, within a larger one (:data:`PONG_HOST_RATE_HZ`).
+    Read when made (tests change the constants)."""
+
+    def __init__(self) -> None:
+        self._addresses = TokenBuckets(PONG_ADDRESS_RATE_HZ, PONG_ADDRESS_BURST)
+        self._hosts = TokenBuckets(PONG_HOST_RATE_HZ, PONG_HOST_BURST)
+
+    def take(self, host: str, address: str, now: float) -> bool:
+        """Charge one pong to ``address`` and its ``host`` at time ``now`` (seconds); False if either is over its
+        budget. The address first: a ping over its address's budget charges nothing to the host's, so a flood from
+        one socket leaves the host's other clients their pongs."""
+        return self._addresses.take(address, now) and self._hosts.take(host, now)
 
 
 # --------------------------------------------------------------------------- fixed-rate loop
@@ -439,6 +473,8 @@ class Node:
         """Refused Subscribes: one warning per :data:`REFUSAL_LOG_INTERVAL_S`, the others counted in it."""
         self._hello_budgets = TokenBuckets(HELLO_ANSWER_RATE_HZ, HELLO_ANSWER_BURST)
         """Sender host -> its budget of Hellos answered (:data:`HELLO_ANSWER_RATE_HZ`), on ``time.monotonic``."""
+        self._pong_budget = PongBudget()
+        """Clock pings answered per sender address and host (:data:`PONG_ADDRESS_RATE_HZ`), on ``time.monotonic``."""
         self.oscquery: Any = None
         """The OSCQuery server (``common.oscquery.OscQueryServer``) once started, or None."""
         if self.is_clock_master:
@@ -802,6 +838,8 @@ class Node:
                                            source)
                 return
             t = self.clock.now()
+            if not self._pong_within_budget(source):
+                return
             endpoint.send(answer_ping(message, t, self.clock.now(), self.clock.launch), source)
             return
         if isinstance(message, ClockPong):
@@ -843,6 +881,23 @@ class Node:
         assert self.endpoint is not None
         self.endpoint.stats.record_drop(DropReason.RATE_LIMITED, "Hello not answered: its host is over its budget of "
                                         f"{HELLO_ANSWER_BURST:g} at once, then {HELLO_ANSWER_RATE_HZ:g} a second",
+                                        source)
+        return False
+
+    def _pong_within_budget(self, source: str) -> bool:
+        """Whether a clock ping from ``source`` (``host:port``) is answered: its address and its host within their
+        budgets (:data:`PONG_ADDRESS_RATE_HZ`, :data:`PONG_HOST_RATE_HZ`, charged); else the ping is counted as
+        dropped (``rate_limited``)."""
+        try:
+            host = parse_address(source)[0]
+        except ValueError:
+            host = source
+        if self._pong_budget.take(host, source, time.monotonic()):
+            return True
+        assert self.endpoint is not None
+        self.endpoint.stats.record_drop(DropReason.RATE_LIMITED, "clock ping not answered: its sender is over its "
+                                        f"budget of {PONG_ADDRESS_BURST:g} at once, then {PONG_ADDRESS_RATE_HZ:g} a "
+                                        f"second (its host: {PONG_HOST_BURST:g}, then {PONG_HOST_RATE_HZ:g} a second)",
                                         source)
         return False
 

@@ -234,8 +234,9 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace) -> PhysicsCore:
 PLANNER_LOAD_WAIT_S = 30.0
 """Longest the node waits, once its scene is ready, for its planning process to load the planner before it listens
 (says it is up and answers Hellos), seconds: 2-5 s of CPU, 15-36 s measured under a load of 20 while the process was
-niced. Past it the node starts anyway, says so, and refuses live notes with the reason until the load is done (a
-node that never came up would be worse; the rig gives up at its ``--ready-timeout``, 60 s)."""
+niced. Past it the node starts anyway, says so, and refuses live notes and ``play`` (a playing score's style and
+tempo changes too) with the reason until the load is done (a node that never came up would be worse; the rig gives up
+at its ``--ready-timeout``, 60 s)."""
 
 
 def _wait_for_planner(core: LivePhysicsCore) -> None:
@@ -246,7 +247,7 @@ def _wait_for_planner(core: LivePhysicsCore) -> None:
     started = time.monotonic()
     if not core.wait_loaded(PLANNER_LOAD_WAIT_S):
         log.warning("the planning process has not loaded the planner after %.0f s: starting without it; live "
-                    "notes are refused until it has (their senders are told why)", PLANNER_LOAD_WAIT_S)
+                    "notes and play are refused until it has (their senders are told why)", PLANNER_LOAD_WAIT_S)
     elif (error := core.score_player.planner_load_error) is not None:
         log.warning("the planning process could not load the planner (%s: %s): plans go to a thread of the node",
                     type(error).__name__, error)

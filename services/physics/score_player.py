@@ -1083,7 +1083,8 @@ class ScorePlayer:
 
     @property
     def loading(self) -> bool:
-        """Background plans: the planning worker still loads the planner (live notes are refused meanwhile)."""
+        """Background plans: the planning worker still loads the planner (live notes, ``play`` and a style or tempo
+        change while a score plays are refused meanwhile, at their turn: their plans would wait for the load)."""
         return self._worker is not None and self._worker.loading
 
     @property
@@ -1113,8 +1114,9 @@ class ScorePlayer:
         With nothing in flight or waiting, a message that plans (``play``, style, tempo, live note) starts its
         plan in the worker and any other is applied at once (``direct``); otherwise it waits its turn, so a stop
         or a target after a live note acts after that note's plan, except a reset, which drops the plan in flight
-        and acts at once (:meth:`_drop_for_reset`). Raises :class:`ScorePlayerError` past
-        :data:`MAX_WAITING_MESSAGES` waiting (the core rejects the message).
+        and acts at once (:meth:`_drop_for_reset`). While the worker loads (:attr:`loading`) a message whose plan
+        would wait for the load is refused at its turn instead, its sender told why. Raises
+        :class:`ScorePlayerError` past :data:`MAX_WAITING_MESSAGES` waiting (the core rejects the message).
         """
         if self._direct is None:
             raise RuntimeError("background plans are off (start_background)")
@@ -1213,7 +1215,11 @@ class ScorePlayer:
                 self._start_play(waiting, now)
             elif isinstance(message, (GestureStyle, TempoScale)):
                 if waiting.tries == 0:  # a retry only plans again
-                    self._apply_settings(message)
+                    if self.loading and self._prepare_replan(now, 0.0) is not None:
+                        # its re-plan would wait for the load, and every message after it (a stop) behind that
+                        raise self._still_loading("a score plays and its re-plan would start seconds late; not "
+                                                  "applied")
+                    self._apply_settings(message)  # nothing playing: applied at once, no plan to wait for
                 self._start_replan(waiting, now)
             elif isinstance(message, SCORE_MESSAGES):
                 self._dispatch(message, now)
@@ -1248,8 +1254,18 @@ class ScorePlayer:
                                                    prepared.last_strokes))
         self._job = _Job(requests, prepared, future, time.perf_counter(), self._generation, finish, notes)
 
+    def _still_loading(self, what: str) -> ScorePlayerError:
+        """The refusal of a message whose plan would wait for the planning worker's load (``what``: what becomes
+        of it): planned after the load, seconds later, it would start late, and the messages after it would wait
+        behind it (a live note meanwhile: :meth:`_refuse_loading`)."""
+        assert self._worker is not None
+        return ScorePlayerError(f"the planning process is still loading the planner ({self._worker.loading_s:.1f} s "
+                                f"so far): {what}; send it again once it has loaded (seconds)")
+
     def _start_play(self, waiting: _Waiting, now: float) -> None:
         assert isinstance(waiting.message, ScoreTransport)
+        if self.loading:  # the score would start seconds after its time: refused now, its sender told why
+            raise self._still_loading("not played")
         notes = len(self.score.events) if self.score is not None else 0
         # planned again (its plan was ready too late): the whole score later rather than its first notes left out
         prepared = self._prepare_play(waiting.message.time, waiting.message.position, now, self._estimate(notes),

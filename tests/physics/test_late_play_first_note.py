@@ -88,6 +88,7 @@ def test_a_play_planned_too_late_for_its_first_note_moves_the_whole_score(
     # to prepare (its first three) were left out
     kit = load_kit("default")
     physics = LivePhysicsCore(planner="thread", scene="drummer", kit=kit, grip="german", pose_rate_hz=0, mode="live")
+    assert physics.score_player.wait_loaded(120.0)  # as the node before it listens (play: refused meanwhile)
     physics.score_player.library = [SCORE.parent]
     recorder = RecorderCore()
     runner = OfflineRunner([physics, InteractionCore(kit=kit), recorder])

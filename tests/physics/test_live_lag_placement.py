@@ -245,6 +245,7 @@ def test_a_background_play_whose_plan_fails_holds_no_lag(monkeypatch: pytest.Mon
     core = LivePhysicsCore(planner="thread", scene="drummer", kit=load_kit("default"), grip="german",
                            pose_rate_hz=0, mode="live")
     try:
+        assert core.score_player.wait_loaded(120.0)  # as the node before it listens (play: refused meanwhile)
         lag = 0.2
         now = _trailing(core, lag)
         player = core.score_player

@@ -76,6 +76,7 @@ def test_the_live_node_plays_such_a_plan_planned_in_its_worker(tmp_path: Path) -
     core = LivePhysicsCore(scene="drummer", kit=EDGE_KIT, height_m=1.4, grip="german", pose_rate_hz=0, mode="live",
                            planner="process")
     try:
+        assert core.score_player.wait_loaded(120.0)  # as the node before it listens (play: refused meanwhile)
         _loaded(core, tmp_path)
         player = core.score_player
         assert core.handle(ScoreTransport(action="play", time=2.0, position=0.0), 0.0, SENDER) == []

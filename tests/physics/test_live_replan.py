@@ -37,6 +37,7 @@ def _rig(planner: str = "thread") -> tuple[PhysicsCore, OfflineRunner, RecorderC
     kit = load_kit("default")
     settings: dict[str, Any] = {"scene": "drummer", "kit": kit, "grip": "german", "pose_rate_hz": 0, "mode": "live"}
     physics = PhysicsCore(**settings) if planner == "offline" else LivePhysicsCore(planner=planner, **settings)
+    assert physics.score_player.wait_loaded(120.0)  # as the node before it listens (play: refused meanwhile)
     physics.score_player.library = [SCORES]
     recorder = RecorderCore()
     runner = OfflineRunner([physics, InteractionCore(kit=kit), recorder])

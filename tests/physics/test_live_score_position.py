@@ -31,6 +31,7 @@ def playing_with_view(library: Path) -> tuple[LivePhysicsCore, GraphicsCore, Off
     kit = load_kit("default")
     physics = LivePhysicsCore(planner="thread", scene="drummer", kit=kit, grip="german", pose_rate_hz=0,
                               mode="live")
+    assert physics.score_player.wait_loaded(120.0)  # as the node before it listens (play: refused meanwhile)
     physics.score_player.library = [library]
     graphics = GraphicsCore(GraphicsSettings(clock="rig"), kit=kit)
     runner = OfflineRunner([physics, graphics])

@@ -79,6 +79,7 @@ def live(tmp_path: Path) -> Iterator[Any]:
 
     (tmp_path / "four_bars.txt").write_text(FOUR_BARS)
     physics = LivePhysicsCore(planner="thread", scene="drummer", grip="german", pose_rate_hz=0, mode="live")
+    assert physics.score_player.wait_loaded(120.0)  # as the node before it listens (play: refused meanwhile)
     physics.score_player.library = [tmp_path]
     physics.step(0.1)
     assert physics.handle(ScoreLoad(path="four_bars.txt"), 0.1, SENDER) == []

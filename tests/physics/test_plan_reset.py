@@ -87,6 +87,7 @@ def release(tmp_path: Path) -> Iterator[Path]:
 def _live(planner: str, pose_rate_hz: float = 0.0) -> LivePhysicsCore:
     core = LivePhysicsCore(scene="drummer", grip="german", pose_rate_hz=pose_rate_hz, mode="live",
                            planner=planner)  # type: ignore[arg-type]
+    assert core.score_player.wait_loaded(120.0)  # as the node before it listens (play: refused meanwhile)
     core.score_player.library = [SCORES]
     core.handle(ScoreLoad(path=SCORE), 0.0, SENDER)
     return core
@@ -100,6 +101,7 @@ def _play_held_then_reset_then_play(core: LivePhysicsCore, release: Path) -> boo
     assert core.handle(ScoreTransport(action="play", time=0.0, position=0.0), 0.1, SENDER) == []
     assert until(release.with_name("started").exists, 60.0) and player.busy
     assert core.handle(PhysicsReset(time=0.1), 0.1, SENDER) == []
+    assert until(lambda: not player.loading, 60.0)  # the spare, started after the first plan, may still load
     assert core.handle(ScoreTransport(action="play", time=0.0, position=0.0), 0.1, SENDER) == []
     ready = player.wait(READY_S)
     assert not release.exists()
@@ -150,6 +152,7 @@ def test_a_divergence_drops_the_plan_in_flight_and_the_next_plan_does_not_wait_f
                 break
             core.step(core.time + 0.001)
         assert core.diverged == 1 and not player.busy and player.state == "idle"
+        assert until(lambda: not player.loading, 60.0)  # the spare, started after the first plan, may still load
         assert core.handle(ScoreTransport(action="play", time=0.0, position=0.0), core.time, SENDER) == []
         assert player.wait(READY_S), "the plan after the divergence waited for the dropped one"
         assert not release.exists()

@@ -18,13 +18,14 @@ import multiprocessing
 import os
 import threading
 from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
 
 import pytest
 
 import common.gesture.planner as planner_module
 from common.messages.physics import PhysicsRejected
-from common.messages.score import LiveNote
+from common.messages.score import LiveNote, ScoreTransport, TempoScale
 from services.physics import node as node_module
 from services.physics import plan_worker
 from services.physics.node import LivePhysicsCore, PhysicsNodeSettings, make_core
@@ -32,6 +33,7 @@ from services.physics.plan_worker import PLANNER_NICE, PlanWorkers
 
 SENDER = "127.0.0.1:9"
 SNARE = 38
+SCORE = Path(__file__).parents[1] / "render" / "short_groove.txt"
 
 
 @pytest.fixture
@@ -132,6 +134,60 @@ def test_a_live_note_while_the_planner_loads_is_refused_at_once_with_the_reason(
         assert not [o for o in out if isinstance(o.message, PhysicsRejected)]
         assert player.busy and player.late_notes == 1  # planned
         assert player.wait(60.0)
+    finally:
+        core.close()
+
+
+def _refusals(out: list[Any]) -> list[tuple[str, str, str]]:
+    """The refusals among a core's output: (to, address, reason)."""
+    return [(o.to, o.message.address, o.message.reason) for o in out if isinstance(o.message, PhysicsRejected)]
+
+
+def test_a_play_while_the_planner_loads_is_refused_at_once_with_the_reason(held_load: threading.Event) -> None:
+    """It waited for the load (seconds), the score then starting that late and every message after it (a stop)
+    waiting behind it, its sender told nothing. Refused at once, counted; a play after the load is planned."""
+    core = LivePhysicsCore(planner="thread", scene="drummer", grip="german", pose_rate_hz=0, mode="live")
+    player = core.score_player
+    try:
+        player.load(SCORE, trusted=True)
+        assert player.loading
+        core.step(1.0)
+        out = core.handle(ScoreTransport(action="play", time=2.0, position=0.0), 1.0, SENDER)
+        ((to, address, reason),) = _refusals(out)
+        assert (to, address) == (SENDER, ScoreTransport.ADDRESS)
+        assert "still loading the planner" in reason and "not played" in reason, reason
+        assert not player.busy and core.rejected == {"ScoreTransport": 1}  # Health's dropped_other
+        assert player.state != "playing"
+        held_load.set()
+        assert player.wait_loaded(60.0) and not player.loading
+        out = core.handle(ScoreTransport(action="play", time=2.5, position=0.0), 1.1, SENDER)
+        assert _refusals(out) == []
+        assert player.busy  # planned
+        assert player.wait(60.0)
+    finally:
+        core.close()
+
+
+def test_a_tempo_change_while_the_planner_loads_applies_at_once_or_is_refused_if_a_score_plays(
+        held_load: threading.Event) -> None:
+    """Nothing playing, a tempo (or style) change has nothing to plan: applied at once, as always. A score playing
+    (``--play-at`` plans in the node, the worker may still load), its re-plan would wait for the load and every
+    message after it behind that: refused at once with the reason, the tempo unchanged."""
+    core = LivePhysicsCore(planner="thread", scene="drummer", grip="german", pose_rate_hz=0, mode="live")
+    player = core.score_player
+    try:
+        player.load(SCORE, trusted=True)
+        assert player.loading
+        core.step(1.0)
+        assert _refusals(core.handle(TempoScale(factor=1.5), 1.0, SENDER)) == []
+        assert player.tempo == 1.5 and not player.busy
+        player.play(2.0, 0.0, 1.0)  # what the node's --play-at does, in its set-up: planned here
+        assert player.state == "playing"
+        out = core.handle(TempoScale(factor=0.5), 1.1, SENDER)
+        ((to, address, reason),) = _refusals(out)
+        assert (to, address) == (SENDER, TempoScale.ADDRESS)
+        assert "still loading the planner" in reason and "not applied" in reason, reason
+        assert player.tempo == 1.5 and not player.busy and core.rejected == {"TempoScale": 1}
     finally:
         core.close()
 

@@ -54,6 +54,7 @@ def core(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[LivePhysic
     (tmp_path / "short.txt").write_text(SHORT_SCORE, encoding="utf-8")
     settings: dict[str, Any] = {"scene": "drummer", "grip": "german", "pose_rate_hz": 0, "mode": "live"}
     physics = LivePhysicsCore(planner="thread", **settings)
+    assert physics.score_player.wait_loaded(120.0)  # as the node before it listens (play: refused meanwhile)
     physics.score_player.library = [tmp_path]
     # each plan waits until the test looks for it: a plan of four notes in a thread could finish before the message
     # that started it returned, and be spliced then, at the made-up clock's start (no time taken, never late)
