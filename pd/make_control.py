@@ -28,6 +28,8 @@ from common.messages.graphics import (  # noqa: E402
     GraphicsLatency,
     GraphicsMode,
     GraphicsPlot,
+    GraphicsPreviewBars,
+    GraphicsPreviewRate,
     GraphicsRejected,
     GraphicsShow,
     GraphicsTrails,
@@ -89,6 +91,13 @@ def _latency_defaults() -> tuple[float, float]:
 
     return (float(NodeSettings.model_fields["latency_s"].default),
             float(GraphicsNodeSettings.model_fields["latency_s"].default))
+
+
+def _preview_rate_default() -> float:
+    """The score preview's playback rate ``batteur graphics`` starts with (``--preview-rate``)."""
+    from services.graphics.node import GraphicsNodeSettings
+
+    return float(GraphicsNodeSettings.model_fields["preview_rate"].default)
 
 
 def _trails_default() -> float:
@@ -582,7 +591,8 @@ PLOT_DEFAULTS = _plot_defaults()
 
 
 def graphics_section(p: Patch, x: int, y: int, load: int) -> None:
-    """The 2009 paper's middle panel: camera, what is drawn, trails, tip-height plot, delay, mode (to graphics)."""
+    """The 2009 paper's middle panel: camera, what is drawn, trails, tip-height plot, delay, mode, the score
+    preview's speed and bars (to graphics)."""
     p.text(x, y, "GRAPHICS - the 3D view (graphics node)")
     # camera: a preset, or free with the orbit angles, distance and target
     preset = choices(p, x, y + 25, "camera preset", CAMERA_PRESETS, "bp-camera")
@@ -650,6 +660,38 @@ def graphics_section(p: Patch, x: int, y: int, load: int) -> None:
     p.connect(latency, 0, sender(p, x + 300, y + 370, GraphicsLatency, "graphics", "f"), 0)
     mode = choices(p, x, y + 320, "view", ("live", "preview"), "bp-view-mode")
     p.connect(mode, 0, sender(p, x, y + 410, GraphicsMode, "graphics", "s"), 0)
+    # the score preview's speed and bar range, live (a node with no score preview refuses them: REFUSALS)
+    rate = slider(p, x + 700, y + 560, "preview speed (0.25..2, 1: as planned)", 0.25, 2, False, "bp-preview-rate",
+                  shows=(load, _preview_rate_default()))
+    p.connect(rate, 0, sender(p, x + 1000, y + 582, GraphicsPreviewRate, "graphics", "f"), 0)
+    p.text(x + 700, y + 620, "preview bars: first, last (from 1)")
+    bars = p.obj(x + 700, y + 670, "pack 1 1")
+    for k, receive in enumerate(("bp-preview-first", "bp-preview-last")):
+        box = p.nbx(x + 700 + 90 * k, y + 642, 1, 9999, 5, receive)
+        show_at_load(p, load, x + 1030 + 50 * k, y + 700, 1, (box,))  # bar 1, not the box's 0
+        whole = p.obj(x + 760 + 90 * k, y + 642, "i")  # the bars are whole numbers
+        p.connect(box, 0, whole, 0)
+        if k == 0:  # the first bar: the last one moved up to it if below (a range ending first is refused), shown
+            first, at_least = p.obj(x + 700, y + 700, "t f f"), p.obj(x + 740, y + 730, "max 1")
+            p.connect(whole, 0, first, 0)
+            p.connect(first, 1, at_least, 0)
+            p.connect(at_least, 0, bars, 1)
+            p.connect(first, 0, bars, 0)
+            shown = p.msg(x + 790, y + 730, "set $1")
+            p.connect(at_least, 0, shown, 0)
+        else:  # the last bar: stored, then the pair sent
+            order = p.obj(x + 880, y + 670, "t b f")
+            p.connect(whole, 0, order, 0)
+            p.connect(order, 1, bars, 1)
+            p.connect(order, 1, at_least, 1)
+            p.connect(order, 0, bars, 0)
+            p.connect(shown, 0, box, 0)
+    all_bars = p.msg(x + 880, y + 642, "0 0")  # the whole score again
+    p.text(x + 920, y + 642, "whole score")
+    p.connect(p.obj(x + 880, y + 700, "r bp-preview-all"), 0, all_bars, 0)
+    send_bars = sender(p, x + 700, y + 760, GraphicsPreviewBars, "graphics", "ii")
+    p.connect(bars, 0, send_bars, 0)
+    p.connect(all_bars, 0, send_bars, 0)
 
 
 def interaction_section(p: Patch, x: int, y: int, load: int) -> None:

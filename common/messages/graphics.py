@@ -140,6 +140,55 @@ class GraphicsMode(OscMessage):
     mode: Literal["live", "preview"] = Field(description="live: poses from physics; preview: loaded pose sequence")
 
 
+PREVIEW_MIN_RATE, PREVIEW_MAX_RATE = 0.25, 2.0
+"""The playback rates a preview accepts (``--preview-rate``, the page, :class:`GraphicsPreviewRate`): slower than a
+quarter the strokes barely move, faster than twice the figure's 60 Hz poses skip most of a stroke."""
+
+
+@register
+class GraphicsPreviewRate(OscMessage):
+    """Play the kinematic preview at this rate over its planned motion, from where it is (no jump).
+
+    The page's *speed* select does the same. A node with no preview loaded refuses it
+    (``/batteur/graphics/rejected``)."""
+
+    ADDRESS = "/batteur/graphics/preview_rate"
+    FAMILY = Family.CONTROL
+
+    rate: float = Field(ge=PREVIEW_MIN_RATE, le=PREVIEW_MAX_RATE,
+                        description="motion seconds per second: 1 as planned, 0.5 half speed (0.25 to 2)")
+
+
+@register
+class GraphicsPreviewBars(OscMessage):
+    """Loop only bars FIRST to LAST of the previewed score (bars from 1, as the status panel counts them); ``0 0``:
+    the whole score again.
+
+    The motion goes on from where it is when that is inside the new range, else from the range's first bar. A node
+    whose preview has no score (``--preview FILE.npz``) or no preview, or bars past the score's last note, refuse it
+    (``/batteur/graphics/rejected``)."""
+
+    ADDRESS = "/batteur/graphics/preview_bars"
+    FAMILY = Family.CONTROL
+
+    first: int = Field(ge=0, le=100_000, description="first bar looped, from 1 (0 with last 0: the whole score)")
+    last: int = Field(ge=0, le=100_000, description="last bar looped, from first on (0 with first 0: the whole score)")
+
+    @model_validator(mode="after")
+    def _a_range(self) -> Self:
+        """A range that ends before it starts, or half of the whole-score ``0 0``, loops nothing."""
+        if (self.first, self.last) != (0, 0) and not 1 <= self.first <= self.last:
+            raise PydanticCustomError(
+                "bar_range", "bars {first} to {last}: bars count from 1 and the range must not end before it starts "
+                "(e.g. 3 4; 0 0: the whole score)", {"first": self.first, "last": self.last})
+        return self
+
+    @property
+    def bars(self) -> tuple[int, int] | None:
+        """(first, last), or None for the whole score."""
+        return None if (self.first, self.last) == (0, 0) else (self.first, self.last)
+
+
 @register
 class GraphicsRejected(OscMessage):
     """Reply to a graphics control message that could not be applied (or decoded), and why."""

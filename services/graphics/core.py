@@ -37,6 +37,8 @@ from common.messages.graphics import (
     GraphicsLatency,
     GraphicsMode,
     GraphicsPlot,
+    GraphicsPreviewBars,
+    GraphicsPreviewRate,
     GraphicsRejected,
     GraphicsShow,
     GraphicsTrails,
@@ -48,7 +50,7 @@ from common.rated_log import RatedWarnings
 from common.score.events import Score
 from common.score.position import bar_beat
 from services.graphics.camera import camera_for, default_camera, presets_json
-from services.graphics.preview import PREVIEW_RATES, PreviewClock
+from services.graphics.preview import LOOP_PAUSE_S, PREVIEW_RATES, PreviewClock, bar_loop
 from services.graphics.scene import HISTORY, KitAnimator, hardware_json, kit_json
 from services.graphics.sequence import FLOATS_PER_LINK, PoseSequence, interpolate_pose, normalize_quats
 from services.graphics.skeleton import guess_parents
@@ -67,6 +69,9 @@ SCORE_POSITION_KEPT_S = 1.0  # seconds a score position is shown after it arrive
 _MAX_BEAT, _MAX_BPM = 64.0, 1000.0  # ScorePosition's bounds (a longer bar or a faster tempo is shown at the bound)
 NO_PREVIEW_RATE = "no preview is loaded: there is no preview to slow down or speed up"
 """Why a preview rate is refused on a node without a preview."""
+NO_PREVIEW_BARS = ("no score preview is loaded: there are no bars to loop (start the graphics node with "
+                   "--preview-score SCORE)")
+"""Why a bar range is refused on a node without a preview, or with a pose sequence file's (no score, no bars)."""
 REFUSAL_LOG_INTERVAL_S = 1.0
 """Refusals of one kind are logged at most once per this many seconds of rig time (the others are counted and
 summed into the next line), so a broken pose stream cannot flood the log."""
@@ -188,6 +193,8 @@ class GraphicsCore:
         """Where the preview is at a rig time, at its playback rate (``--preview-rate``, the page's select)."""
         self._preview_rate = 1.0
         """The playback rate a preview loaded next starts with (a re-planned preview keeps the one chosen)."""
+        self.preview_bars: tuple[int, int] | None = None
+        """The bars (first, last, from 1) the score preview loops (None: the whole preview, with a pause)."""
         self._preview_animator = KitAnimator(self.kit)
         self.clock_offset = 0.0
         """Auto clock: the offset at ``_offset_since`` (local time); :meth:`offset_at` slews it down from there."""
@@ -198,6 +205,7 @@ class GraphicsCore:
         self.counters: dict[str, int] = {
             "poses": 0, "impacts": 0, "frames": 0, "bad_layout": 0, "no_skeleton": 0, "duplicate_impacts": 0,
             "starved": 0, "clock_jumps": 0, "postures_sent": 0, "pose_resets": 0, "mode_refused": 0,
+            "preview_refused": 0,
         }
         self._refusal_warnings = RatedWarnings(log, REFUSAL_LOG_INTERVAL_S)
         """Refusals logged at most once per :data:`REFUSAL_LOG_INTERVAL_S` of rig time for each kind."""
@@ -237,16 +245,28 @@ class GraphicsCore:
             self._log_refusal("mode", now, f"graphics refused /batteur/graphics/mode preview from {source}: "
                               f"{NO_PREVIEW}")
             return [Outgoing(GraphicsRejected(address=message.ADDRESS, reason=NO_PREVIEW), "reply")]
+        elif isinstance(message, (GraphicsPreviewRate, GraphicsPreviewBars)):
+            try:
+                if isinstance(message, GraphicsPreviewRate):
+                    # OSC carries a float32: 0.6 arrives as 0.6000000238, which the page and status would show
+                    self.set_preview_rate(round(message.rate, 4), now)
+                else:
+                    self.set_preview_bars(message.bars, now)
+            except ValueError as exc:  # no preview, no score, bars past it: the sender is told, the preview plays on
+                self.counters["preview_refused"] += 1
+                self._log_refusal("preview", now, f"graphics refused {message.ADDRESS} from {source}: {exc}")
+                return [Outgoing(GraphicsRejected(address=message.ADDRESS, reason=str(exc)[:512]), "reply")]
         else:
             self.apply_control(message)
         return []
 
     @property
     def rejected_total(self) -> int:
-        """Messages this core refused, total: poses of the wrong length or another layout, and the preview mode
-        with no preview loaded. The node's Health counts them in ``dropped`` and ``dropped_other``; poses before
-        any skeleton (a node starting before physics' layout reached it) are only counted (``no_skeleton``)."""
-        return self.counters["bad_layout"] + self.counters["mode_refused"]
+        """Messages this core refused, total: poses of the wrong length or another layout, the preview mode with
+        no preview loaded, and a preview rate or bar range it cannot apply (``preview_refused``). The node's Health
+        counts them in ``dropped`` and ``dropped_other``; poses before any skeleton (a node starting before physics'
+        layout reached it) are only counted (``no_skeleton``)."""
+        return self.counters["bad_layout"] + self.counters["mode_refused"] + self.counters["preview_refused"]
 
     def clock_stepped(self, step_s: float, now: float) -> list[Outgoing]:
         """The node's rig time just stepped by ``step_s`` seconds (the clock master restarted): move the times this
@@ -493,15 +513,22 @@ class GraphicsCore:
     # --- preview (kinematic keyframe animation, no physics) ----------------------------------
     def load_preview(self, sequence: PoseSequence, impacts: list[Impact] | None = None, now: float | None = None,
                      score: Score | None = None, rate: float | None = None,
-                     loop: tuple[float, float] | None = None) -> None:
+                     loop: tuple[float, float] | None = None, bars: tuple[int, int] | None = None) -> None:
         """Show ``sequence`` (e.g. the keyframe animation of a score) instead of the live stream.
 
         It plays from its first pose at rig time ``now`` (None: when it is first shown) and loops, at ``rate``
         (motion seconds per second; None: the rate of the preview shown before, else 1). ``impacts`` (times on the
         sequence's clock) flash and swing the kit as live ones do. ``score`` (the sequence's clock being the
         score's, as ``score_preview`` makes it) gives the status panel the preview's bar and beat. ``loop`` (start,
-        end), seconds on the sequence's clock: play only that span, with no pause between laps (a bar range).
+        end), seconds on the sequence's clock: play only that span, with no pause between laps (a bar range);
+        ``bars`` (first, last, from 1) of ``score``: the span of those bars (``ValueError``, nothing changed, for
+        bars past the score's last note or without a score).
         """
+        if bars is not None:
+            if score is None:
+                raise ValueError(NO_PREVIEW_BARS)
+            loop = bar_loop(score, list(impacts or []), float(sequence.times[-1]), *bars)
+        self.preview_bars = bars
         self.preview = sequence
         self.preview_impacts = sorted(impacts or [], key=lambda i: i.time)
         self.preview_score = score
@@ -525,6 +552,27 @@ class GraphicsCore:
         self.preview_clock.set_rate(rate, now)
         self._preview_rate = self.preview_clock.rate
         self._outbox.append({**self.view_json(), "control": "preview_rate"})
+
+    def set_preview_bars(self, bars: tuple[int, int] | None, now: float) -> None:
+        """Loop bars (first, last) of the previewed score (from 1; None: the whole preview, with its pause) from rig
+        time ``now``; the motion goes on from where it is when that is inside the new range, else from the range's
+        start. Every page is told. ``ValueError`` (nothing changed) with no score preview loaded or bars past the
+        score's last note."""
+        if self.preview is None or self.preview_score is None:
+            raise ValueError(NO_PREVIEW_BARS)
+        times = self.preview.times
+        if bars is None:
+            start, end, pause = float(times[0]), float(times[-1]), LOOP_PAUSE_S
+        else:
+            try:
+                start, end = bar_loop(self.preview_score, self.preview_impacts, float(times[-1]), *bars)
+            except ValueError as exc:
+                raise ValueError(f"bars {bars[0]} to {bars[1]}: {exc}") from None
+            pause = 0.0
+        # the whole preview's span is its duration, as load_preview gives it
+        self.preview_clock.set_span(start, end - start, pause, now)
+        self.preview_bars = bars
+        self._outbox.append({**self.view_json(), "control": "preview_bars"})
 
     def preview_position(self, now: float) -> ScorePosition | None:
         """Where the previewed score is at rig time ``now``: the bar and beat of the motion shown, from the score's
@@ -617,7 +665,10 @@ class GraphicsCore:
         return {"type": "view", "mode": self.mode, "latency": self.latency, **self.view.model_dump(),
                 "presets": presets_json(),
                 "preview_rate": self.preview_clock.rate if self.preview is not None else None,
-                "preview_rates": list(PREVIEW_RATES)}
+                "preview_rates": list(PREVIEW_RATES),
+                # a score preview loops bars; a pose sequence file has none to loop (null)
+                "preview_bars": (list(self.preview_bars) if self.preview_bars is not None else "all")
+                if self.preview is not None and self.preview_score is not None else None}
 
     def set_kit(self, kit: Kit) -> None:
         """Adopt an edited kit (already validated) and tell every page."""

@@ -13,7 +13,9 @@ keyframe|gestures`` (plan a MIDI or text score with the view's kit and show
 its kinematic preview, looping; the keyframe strokes follow the editor's
 UP/DOWN poses in ``--kit-dir/poses.yaml`` and are re-planned when that file
 or the kit changes), ``--preview-rate R`` (play either preview at R times
-the planned motion's speed, 0.25 to 2; the page changes it while it plays),
+the planned motion's speed, 0.25 to 2; the page or ``/batteur/graphics/preview_rate`` changes it while it
+plays), ``--preview-bars FIRST[-LAST]`` (loop only those bars of the score; the page or
+``/batteur/graphics/preview_bars`` changes them while it plays),
 ``--synthetic`` (feed the synthetic drummer as if physics were running: a demo
 without physics).
 """
@@ -43,7 +45,7 @@ from common.messages.graphics import GraphicsMode
 from common.output_paths import check_output_dir
 from common.runtime import Node, run_node
 from services.graphics.core import GraphicsCore, GraphicsSettings
-from services.graphics.preview import MAX_RATE, MIN_RATE, ScorePreview, bar_span, parse_bars, score_preview
+from services.graphics.preview import MAX_RATE, MIN_RATE, ScorePreview, parse_bars, score_preview
 from services.graphics.sequence import PoseSequence
 from services.graphics.server import ViewServer
 
@@ -73,11 +75,12 @@ class GraphicsNodeSettings(NodeSettings):
         "by --kit-dir/poses.yaml if present) or gestures (the gesture planner)")
     preview_rate: float = Field(
         default=1.0, ge=MIN_RATE, le=MAX_RATE, description="playback rate of the preview (--preview-score or "
-        "--preview) over its planned motion: 0.5 plays it at half speed (0.25 to 2; the page's rate select changes "
-        "it while it plays)")
+        "--preview) over its planned motion: 0.5 plays it at half speed (0.25 to 2; the page's rate select and "
+        "/batteur/graphics/preview_rate change it while it plays)")
     preview_bars: str = Field(
         default="", description="loop only these bars of --preview-score, from 1 as the status counts them: "
-        "3 or 3-4 ('': the whole score, with a pause between laps)")
+        "3 or 3-4 ('': the whole score, with a pause between laps; the page and /batteur/graphics/preview_bars "
+        "change it while it plays)")
     synthetic: bool = Field(default=False, description="feed the synthetic drummer (demo without physics)")
     view_clock: Literal["auto", "rig"] = Field(
         default="auto", description="auto: follow the clock of the poses; rig: trust the rig clock")
@@ -135,19 +138,6 @@ def plan_score_preview(settings: GraphicsNodeSettings, kit: Kit, clock: Callable
 
     return score_preview(name, kit, settings.preview_planner, poses=poses_path(settings),
                          rate_hz=settings.rate_hz or 60.0, on_progress=progress)
-
-
-def preview_loop(settings: GraphicsNodeSettings, preview: ScorePreview) -> tuple[float, float] | None:
-    """The span (s, on the preview's clock) of ``--preview-bars`` (None: the whole preview); ``ValueError`` for
-    bars the score does not have."""
-    if not settings.preview_bars:
-        return None
-    first, last = parse_bars(settings.preview_bars)
-    start, end = bar_span(preview.score, first, last)
-    if start > max(i.time for i in preview.impacts):  # a score has one stroke at least (score_preview)
-        raise ValueError(f"--preview-bars {settings.preview_bars}: the score's last note is before bar {first} "
-                         f"({preview.score.source or 'score'})")
-    return start, min(end, float(preview.sequence.times[-1]))
 
 
 _FLAGS = {"rate_hz": "--rate-hz", "latency": "--latency-s", "kit": "--kit", "clock": "--view-clock"}
@@ -208,8 +198,11 @@ def make_core(settings: NodeSettings, args: argparse.Namespace) -> GraphicsCore:
             raise InputError(str(exc)) from None
         for warning in preview.score.warnings:  # the reader's, as `batteur render` prints them; not at each re-plan
             log.warning("preview: %s", warning)
-        core.load_preview(preview.sequence, preview.impacts, score=preview.score, rate=s.preview_rate,
-                          loop=preview_loop(s, preview))
+        try:
+            core.load_preview(preview.sequence, preview.impacts, score=preview.score, rate=s.preview_rate,
+                              bars=parse_bars(s.preview_bars) if s.preview_bars else None)
+        except ValueError as exc:  # bars the score does not have: named by the option
+            raise ValueError(f"--preview-bars {s.preview_bars}: {exc}") from None
         log.info("preview of %s", preview.summary())
     return core
 
@@ -259,13 +252,14 @@ async def _watch_preview(node: Node, core: GraphicsCore, settings: GraphicsNodeS
             log.error("preview not re-planned, keeping the previous one: %s", exc)
             continue
         mode = core.mode
-        # at the rate the page chose (not --preview-rate again), with the score's bar and beat
+        # at the rate and on the bars chosen last (the page, OSC; not --preview-rate again), with the score's bar
+        # and beat
         try:
-            loop = preview_loop(settings, preview)
+            core.load_preview(preview.sequence, preview.impacts, now=node.clock.now(), score=preview.score,
+                              bars=core.preview_bars)
         except ValueError as exc:  # the edit moved nothing in time; kept safe all the same
             log.error("preview not re-planned, keeping the previous one: %s", exc)
             continue
-        core.load_preview(preview.sequence, preview.impacts, now=node.clock.now(), score=preview.score, loop=loop)
         if mode == "live":
             core.apply_control(GraphicsMode(mode="live"))
         core.counters["preview_replans"] = core.counters.get("preview_replans", 0) + 1

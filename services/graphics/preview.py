@@ -33,6 +33,7 @@ import numpy as np
 from common.gesture.plan import GesturePlan, PlannedStroke
 from common.kit import Kit, Limb
 from common.messages import Impact
+from common.messages.graphics import PREVIEW_MAX_RATE, PREVIEW_MIN_RATE
 from common.score.events import Score, ScoreError
 from services.graphics.figure import LINK_NAMES, LimbGoal, figure_pose
 from services.graphics.sequence import PoseSequence
@@ -41,9 +42,8 @@ UP = np.array([0.0, 0.0, 1.0])
 
 PREVIEW_RATES: tuple[float, ...] = (0.25, 0.5, 0.75, 1.0, 1.25, 1.5, 2.0)
 """The playback rates the page offers (motion seconds per wall second)."""
-MIN_RATE, MAX_RATE = 0.25, 2.0
-"""The playback rates a preview accepts (``--preview-rate``, the page): slower than a quarter the strokes barely
-move, faster than twice the figure's 60 Hz poses skip most of a stroke."""
+MIN_RATE, MAX_RATE = PREVIEW_MIN_RATE, PREVIEW_MAX_RATE
+"""The playback rates a preview accepts (``--preview-rate``, the page, ``/batteur/graphics/preview_rate``)."""
 LOOP_PAUSE_S = 0.5
 """Motion seconds between the end of a preview and its start again (scaled by the rate like the motion)."""
 
@@ -102,6 +102,16 @@ class PreviewClock:
         rate = check_rate(rate)
         self._played, self._anchor = self.played(now), float(now)
         self.rate = rate
+
+    def set_span(self, start: float, span: float, pause: float, now: float) -> None:
+        """Loop ``span`` motion seconds from ``start`` (then ``pause``) from wall time ``now`` on, at the same rate.
+
+        The motion goes on from where it is when that is inside the new span (no jump), else from ``start``; the
+        laps count from 0 again."""
+        shown = self.position(now)
+        self.start, self.span, self.pause = float(start), max(float(span), 1e-6), max(float(pause), 0.0)
+        inside = self.start <= shown < self.start + self.span
+        self._played, self._anchor = (shown - self.start if inside else 0.0), float(now)
 
     def shift(self, step_s: float) -> None:
         """The wall clock stepped by ``step_s`` seconds: the motion shown stays where it was."""
@@ -211,6 +221,16 @@ def bar_span(score: Score, first: int, last: int) -> tuple[float, float]:
         return starts[-1] + (bar - len(starts) + 1) * length
 
     return _beat_seconds(beats, bar_start(first - 1)), _beat_seconds(beats, bar_start(last))
+
+
+def bar_loop(score: Score, impacts: list[Impact], end: float, first: int, last: int) -> tuple[float, float]:
+    """The span (start, end), seconds on the score's clock, that looping bars ``first`` to ``last`` (from 1) of
+    ``score`` plays: :func:`bar_span` cut at ``end`` (the preview's last pose). ``ValueError`` for bars past the
+    score's last note (``impacts``: the preview's strokes) or a score without beats."""
+    start, stop = bar_span(score, first, last)
+    if not impacts or start > max(i.time for i in impacts):
+        raise ValueError(f"the score's last note is before bar {first} ({score.source or 'score'})")
+    return start, min(stop, float(end))
 
 
 Planner = Literal["keyframe", "gestures"]

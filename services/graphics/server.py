@@ -17,7 +17,9 @@ written only into the configured kit directory), ``poser_on``/``poser``/
 posture to physics, /batteur/physics/posture), ``save_pose`` (a key pose into
 ``poses.yaml``, :mod:`common.gesture.keyposes`), ``hardware`` (a kit the page
 edits, not saved: the reply carries its beaters and stands, ``common.kit.kit_hardware``,
-so the page draws them as physics would build them). Bad messages get an error
+so the page draws them as physics would build them), ``preview_rate`` (``rate``) and
+``preview_bars`` (``first``, ``last``; 0 0: the whole score): the score preview's speed and bar range, as
+``/batteur/graphics/preview_rate`` and ``/batteur/graphics/preview_bars`` set them. Bad messages get an error
 reply and are counted; they never stop the server.
 """
 
@@ -42,6 +44,7 @@ from websockets.http11 import Request, Response
 
 from common.gesture.keyposes import POSE_NAME, KeyPoses
 from common.kit import Kit, load_kit, save_kit
+from common.messages.graphics import GraphicsPreviewBars
 from services.graphics.core import GraphicsCore
 from services.graphics.poser import CharacterPoser, is_character, rest_poser
 from services.graphics.scene import hardware_json
@@ -224,6 +227,10 @@ class ViewServer:
                 return self._hardware(msg)
             if kind == "preview_rate":  # the page's rate select; every page is told by the view message
                 self.core.set_preview_rate(msg.get("rate"), self.clock())  # type: ignore[arg-type]
+                return None
+            if kind == "preview_bars":  # the page's bar range, checked as /batteur/graphics/preview_bars is
+                bars = GraphicsPreviewBars.from_args([msg.get("first"), msg.get("last")])  # MessageError: one line
+                self.core.set_preview_bars(bars.bars, self.clock())
                 return None
             raise ValueError(f"unknown message type {kind!r}")
         except RecursionError:  # e.g. "[[[[..." : the JSON parser gives up, the connection must not

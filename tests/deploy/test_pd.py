@@ -21,6 +21,8 @@ from common.messages.graphics import (
     GraphicsLatency,
     GraphicsMode,
     GraphicsPlot,
+    GraphicsPreviewBars,
+    GraphicsPreviewRate,
     GraphicsShow,
     GraphicsTrails,
 )
@@ -106,13 +108,21 @@ def test_control_panel_drives_physics_and_sound_cores() -> None:
     asyncio.run(main())
 
 
-def test_control_panel_drives_the_graphics_view() -> None:
-    """The GRAPHICS section: camera, layers, trails, tip-height plot, delay and mode arrive typed and are applied."""
+def test_control_panel_drives_the_graphics_view(tmp_path: Path) -> None:
+    """The GRAPHICS section: camera, layers, trails, tip-height plot, delay, mode and the score preview's speed and
+    bars arrive typed and are applied."""
     require_pd()
     from services.graphics.core import GraphicsCore
+    from services.graphics.preview import score_preview
+
+    score = tmp_path / "three_bars.txt"
+    score.write_text("tempo 120\nmeter 2/4\nSN |x.x.|x.x.|x.x.|\n", encoding="utf-8")
+    core = GraphicsCore()
+    preview = score_preview(score, core.kit)
+    core.load_preview(preview.sequence, preview.impacts, score=preview.score)
 
     async def main() -> None:
-        graphics = Recorder(GraphicsCore())
+        graphics = Recorder(core)
         node = Node(graphics, load_settings({"role": "graphics", "discovery": False,  # type: ignore[arg-type]
                                              "clock_master": "self", "oscquery": False}))
         await node.start()
@@ -122,7 +132,10 @@ def test_control_panel_drives_the_graphics_view() -> None:
             "bp-camera symbol side", "bp-azimuth 45", "bp-distance 5",
             "bp-show-kit 0", "bp-show-plot 0", "bp-show-plot 1", "bp-show-trails 0",
             "bp-trails 2.5", "bp-plot-window 6", "bp-plot-zmin 0.2", "bp-plot-zmax 1.8",
-            "bp-view-latency 0.12", "bp-view-mode symbol live",
+            "bp-view-latency 0.12", "bp-preview-rate 0.5",
+            # a first bar past the last moves the last up to it (2 2), then the last bar (2 3), the whole score
+            "bp-preview-first 2", "bp-preview-last 3", "bp-preview-all bang", "bp-preview-last 2",
+            "bp-view-mode symbol live",
         ]
         pd = PdProcess(PD_DIR / "control.pd", sends=sends)
         try:
@@ -152,6 +165,9 @@ def test_control_panel_drives_the_graphics_view() -> None:
         assert graphics.of(GraphicsLatency)[-1].seconds == pytest.approx(0.12) and graphics.core.latency == \
             pytest.approx(0.12)
         assert graphics.of(GraphicsMode)[-1].mode == "live"
+        assert graphics.of(GraphicsPreviewRate)[-1].rate == 0.5 and graphics.core.preview_clock.rate == 0.5
+        assert [(m.first, m.last) for m in graphics.of(GraphicsPreviewBars)] == [(2, 2), (2, 3), (0, 0), (2, 2)]
+        assert graphics.core.preview_bars == (2, 2) and graphics.core.rejected_total == 0
 
     asyncio.run(main())
 

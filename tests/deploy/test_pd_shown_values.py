@@ -90,6 +90,8 @@ def _kept_values() -> dict[str, float]:
         "bp-target-z": camera["target"][2], "bp-trails": view.trails,
         "bp-plot-window": view.plot["window"], "bp-plot-zmin": view.plot["z_min"], "bp-plot-zmax": view.plot["z_max"],
         "bp-view-latency": GraphicsNodeSettings.model_fields["latency_s"].default,
+        "bp-preview-rate": GraphicsNodeSettings.model_fields["preview_rate"].default,
+        "bp-preview-first": 1, "bp-preview-last": 1,  # the bars the pack starts with: bar 1 (the score's first)
         "bp-client-port": _client_port(),
     }
 
@@ -194,7 +196,8 @@ def test_every_slider_and_number_box_shows_the_value_the_panel_keeps_for_it(tmp_
     """At load each slider and number box shows what the panel would send for it were another value of its message
     moved, or what the service it drives starts with: the ports, position, the snare's sound (level, radius,
     tension, density, modes, damping), master and reverb, the view's camera, plot, trails and picture delay, the
-    tempo, the latency window. The camera and plot sliders used to show 0 (the distance slider its 0.5 end) while
+    tempo, the latency window, the score preview's speed and bars. The camera and plot sliders used to show 0 (the
+    distance slider its 0.5 end) while
     their packs held 0, 18, 3 m ... and 4 s, 0.5 m, 1.6 m; tempo, the snare's rows, the latency window, trails and
     picture delay showed 0 or their left end (tempo 0.25) instead of 1, 0 dB, 0.178 m ..., 0.05 s, 1 s, 0.05 s."""
     boxes, (shown,) = _shown(tmp_path)

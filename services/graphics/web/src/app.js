@@ -472,6 +472,7 @@ function applyView(view) {
   state.view = { ...view, camera: newCamera ? { ...view.camera } : shown.camera, layers: layersShown };
   if (newCamera) pickCamera(view.camera);
   showPreviewRate(view);
+  showPreviewBars(view);
   showLayers();
 }
 // The preview's speed (motion seconds per second), shown while a preview plays: the node's rate, changed for every
@@ -482,12 +483,36 @@ function showPreviewRate(view) {
   document.getElementById("preview-rate-box").classList.toggle("hidden", !shown);
   if (rate === null) return;
   const rates = [...new Set([...(view.preview_rates ?? []), rate])].sort((a, b) => a - b);
-  if (rateSelect.options.length !== rates.length) {
+  // by value, not count: a rate sent over OSC replaces another one the list lacked (0.6 then 0.7)
+  if ([...rateSelect.options].map((o) => o.value).join() !== rates.map(String).join()) {
     rateSelect.replaceChildren(...rates.map((r) => new Option(`\u00D7${r}`, String(r))));
   }
   rateSelect.value = String(rate);
 }
 rateSelect.addEventListener("change", () => { send({ type: "preview_rate", rate: Number(rateSelect.value) }); });
+// The bars a score preview loops (view.preview_bars: [first, last], "all", or null with no score to count bars by),
+// changed for every page from any page or over OSC (/batteur/graphics/preview_bars).
+const firstBar = document.getElementById("preview-first"), lastBar = document.getElementById("preview-last");
+function showPreviewBars(view) {
+  const bars = view.preview_bars ?? null;
+  document.getElementById("preview-bars-box").classList.toggle("hidden", bars === null || view.mode !== "preview");
+  if (bars === null) return;
+  [firstBar.value, lastBar.value] = bars === "all" ? ["", ""] : bars.map(String);
+}
+function sendBars(changed) { // an empty last bar: the first one alone
+  let first = Math.max(1, Math.floor(Number(firstBar.value) || 1));
+  let last = Math.max(1, Math.floor(Number(lastBar.value) || first));
+  if (last < first) { // a range ending before it starts: the other end follows the one changed
+    if (changed === firstBar) last = first; else first = last;
+  }
+  send({ type: "preview_bars", first, last });
+}
+firstBar.addEventListener("change", () => sendBars(firstBar));
+lastBar.addEventListener("change", () => sendBars(lastBar));
+document.getElementById("preview-all").addEventListener("click", (e) => {
+  e.preventDefault(); // inside the label: a click must not also focus an input
+  send({ type: "preview_bars", first: 0, last: 0 });
+});
 function showLayers() {
   const shown = state.view.layers;
   for (const [name, group] of Object.entries(layers)) group.visible = shown[name] !== false;
