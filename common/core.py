@@ -41,7 +41,9 @@ class Core(Protocol):
     # Optional, read by the node's Health when a core has them: ``late`` (service-specific late events, total),
     # ``rejected_total`` (valid messages the core refused, e.g. an unreachable target, total; reported in
     # Health's ``dropped`` and ``dropped_other``) and ``replies_unanswered`` (refusals the core did not send
-    # because their sender was over its reply budget, total; Health's ``replies_unanswered``).
+    # because their sender was over its reply budget, total; Health's ``replies_unanswered``), ``core_errors``
+    # (failures the core caught itself, e.g. a strike that raised, total; added to Health's ``errors``) and
+    # ``duplicates`` (redundant copies of messages dropped, total; Health's ``duplicates``).
 
     def handle(self, message: OscMessage, now: float, source: str) -> list[Outgoing]:
         """React to one received message. ``now``: rig time, seconds; ``source``: sender."""

@@ -462,6 +462,7 @@ class Node:
         self._aio_loop: asyncio.AbstractEventLoop | None = None
         self._loop_thread = 0
         self._last_error_log = 0.0
+        self._failures_logged: set[tuple[str, str]] = set()  # (where, exception type) logged with a traceback
         self.clock_wait_s = clock_wait_s
         self.core_started = self.is_clock_master
         """False while a non-master node waits for its clock offset (see ``clock_wait_s``)."""
@@ -809,7 +810,7 @@ class Node:
             outgoing = self.core.step(self.clock.now())
         except Exception as exc:
             self.step_errors += 1
-            self._log_error("core step failed: %s: %s", type(exc).__name__, exc)
+            self._log_failure("core step", exc)
             outgoing = []
         self.route(outgoing)
         self.follow_core_rate()
@@ -990,7 +991,7 @@ class Node:
             self.route(hook(step_s, self.clock.now()))
         except Exception as exc:
             self.step_errors += 1
-            self._log_error("core clock_stepped failed: %s: %s", type(exc).__name__, exc)
+            self._log_failure("core clock_stepped", exc)
 
     def _clock_good_enough(self) -> bool:
         """Whether the offset is known well enough to start the core (:data:`START_UNCERTAINTY_S`), or as well as
@@ -1064,6 +1065,8 @@ class Node:
             target_jumps=core_count(self.core, "target_jumps"),
             unroutable=self.endpoint.unroutable,
             dropped_wrong_node=d[DropReason.WRONG_NODE],
+            errors=self.step_errors + core_count(self.core, "core_errors"),
+            duplicates=core_count(self.core, "duplicates"),
         )
 
     async def _health_task(self) -> None:
@@ -1130,6 +1133,18 @@ class Node:
                 self.endpoint.send(ping, master.address)
             fast = len(self.estimator.samples) < FAST_PING_SAMPLES
             await asyncio.sleep(min(0.1, self.ping_interval_s) if fast else self.ping_interval_s)
+
+    def _log_failure(self, what: str, exc: Exception) -> None:
+        """Log a failure of the core (counted in Health's ``errors``): the first of each kind (where, exception
+        type) with its traceback, at once; the rest at most once per 5 s, without."""
+        kind = (what, type(exc).__name__)
+        if kind not in self._failures_logged and len(self._failures_logged) < 64:
+            self._failures_logged.add(kind)
+            self._last_error_log = time.monotonic()  # the next ones rate-limited from this one
+            log.error("%s failed: %s: %s (counted in Health's errors; later ones logged at most every 5 s)",
+                      what, type(exc).__name__, exc, exc_info=exc)
+            return
+        self._log_error("%s failed: %s: %s (%d errors so far)", what, type(exc).__name__, exc, self.step_errors)
 
     def _log_error(self, text: str, *args: object) -> None:
         now = time.monotonic()

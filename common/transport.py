@@ -38,6 +38,8 @@ import time
 from collections.abc import Callable, Iterable, Sequence
 from typing import Any
 
+from pydantic import ValidationError
+
 from common.messages import REGISTRY, Arg, DropReason, Family, MessageError, MessageRegistry, OscMessage
 from common.messages.codec import (
     RawMessage,
@@ -141,11 +143,13 @@ def taken_elsewhere(model: type[OscMessage], role: str) -> str:
 
 
 def decode_refusal(address: str, reason: str, registry: MessageRegistry = REGISTRY,
-                   role: str | None = None) -> OscMessage | None:
+                   role: str | None = None, args: Sequence[Arg] = ()) -> OscMessage | None:
     """The refusal of the service that owns ``address`` for a control message there that could not be decoded
     (``reason``, clipped to 512 characters): /batteur/physics/... and /batteur/score/... (the physics node plays
-    scores) :class:`PhysicsRejected`, /batteur/sound/... :class:`SoundRejected` (no instrument named),
-    /batteur/interaction/... :class:`InteractionError`, /batteur/graphics/... :class:`GraphicsRejected`. None for a
+    scores) :class:`PhysicsRejected`, /batteur/sound/... :class:`SoundRejected`,
+    /batteur/interaction/... :class:`InteractionError`, /batteur/graphics/... :class:`GraphicsRejected`. A sound
+    refusal names the instrument when the message's first field is one and its first argument (of ``args``, the
+    message's) is a valid one (``tension snare 5``: ``snare``), else ''. None for a
     stream (any family but control), a refusal itself, an unknown address, a service without a refusal message
     (the recogniser), or, given the answering node's ``role``, an address another role owns (:func:`owner_role`):
     a refusal speaks for its service, so only that service's node sends it."""
@@ -159,12 +163,24 @@ def decode_refusal(address: str, reason: str, registry: MessageRegistry = REGIST
     if service == "physics":
         return PhysicsRejected(address=address, reason=reason)
     if service == "sound":
-        return SoundRejected(address=address, instrument="", reason=reason)
+        return SoundRejected(address=address, instrument=_first_instrument(model, args), reason=reason)
     if service == "interaction":
         return InteractionError(request=address, detail=reason)
     if service == "graphics":
         return GraphicsRejected(address=address, reason=reason)
     return None
+
+
+def _first_instrument(model: type[OscMessage], args: Sequence[Arg]) -> str:
+    """``args[0]`` when ``model``'s first field is ``instrument`` and it is a valid one, else ''."""
+    fields = list(model.model_fields)
+    if not args or not fields or fields[0] != "instrument" or not isinstance(args[0], str):
+        return ""
+    try:
+        model.__pydantic_validator__.validate_assignment(model.model_construct(), "instrument", args[0])
+    except ValidationError:
+        return ""
+    return args[0]
 
 
 def format_address(host: str, port: int) -> str:
@@ -671,7 +687,7 @@ class UdpEndpoint:
                     continue
                 stats.record_drop(exc.reason, str(exc), source)
                 if exc.reason in DECODE_REPLY_REASONS:
-                    self._answer_undecodable(raw.address, exc, host, source)
+                    self._answer_undecodable(raw.address, exc, host, source, raw.args)
                     if self.on_undecodable is not None:
                         try:
                             self.on_undecodable(raw, exc, source)
@@ -689,10 +705,11 @@ class UdpEndpoint:
                     stats.record_drop(DropReason.HANDLER_ERROR, f"{raw.address}: {type(exc).__name__}: {exc}", source)
                     log.debug("handler error on %s", raw.address, exc_info=True)
 
-    def _answer_undecodable(self, address: str, error: MessageError, host: str, source: str) -> None:
+    def _answer_undecodable(self, address: str, error: MessageError, host: str, source: str,
+                            args: Sequence[Arg] = ()) -> None:
         """Tell the sender why its control message was dropped (:func:`decode_refusal`; only for this node's
         ``role``), within its host's reply budget; over it, count it in ``decode_unanswered``."""
-        reply = decode_refusal(address, str(error), self.registry, self.role)
+        reply = decode_refusal(address, str(error), self.registry, self.role, args)
         if reply is None:
             return
         if not self._reply_budgets.take(host, self._clock()):

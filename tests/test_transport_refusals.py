@@ -55,25 +55,28 @@ def test_an_undecodable_control_message_is_answered_with_its_services_refusal() 
             client.send("/batteur/recogniser/hit", ["soon"])  # the recogniser has no refusal message
             client.send(*BAD_TARGET)
             client.send("/batteur/score/tempo", [-1.0])
-            client.send("/batteur/sound/level", ["snare", "loud"])
+            client.send("/batteur/sound/level", ["snare", "loud"])  # the instrument decoded: named
+            client.send("/batteur/sound/level", ["sn@re", 3.0])  # not an instrument: none named
             client.send("/batteur/interaction/redundancy", [])
             client.send("/batteur/graphics/latency", ["soon"])
-            got = await client.answered(5)
+            got = await client.answered(6)
             await asyncio.sleep(0)
-            assert node.stats.dropped_total == 8 and node.stats.messages_in == 0
-            target, tempo, level, redundancy, latency = got
+            assert node.stats.dropped_total == 9 and node.stats.messages_in == 0
+            target, tempo, level, bad_name, redundancy, latency = got
             assert isinstance(target, PhysicsRejected) and target.address == "/batteur/physics/target"
             assert "wrong_arity" in target.reason and "expected 9 arguments, got 6" in target.reason
             assert isinstance(tempo, PhysicsRejected) and tempo.address == "/batteur/score/tempo"
             assert "out_of_range" in tempo.reason
             assert isinstance(level, SoundRejected) and level.address == "/batteur/sound/level"
-            assert level.instrument == "" and "wrong_type" in level.reason
+            assert level.instrument == "snare" and "wrong_type" in level.reason
+            assert isinstance(bad_name, SoundRejected) and bad_name.instrument == ""
+            assert "out_of_range" in bad_name.reason or "wrong_type" in bad_name.reason
             assert isinstance(redundancy, InteractionError)
             assert redundancy.request == "/batteur/interaction/redundancy" and "wrong_arity" in redundancy.detail
             assert isinstance(latency, GraphicsRejected) and latency.address == "/batteur/graphics/latency"
             assert "wrong_type" in latency.reason
             client.send(*BAD_TARGET)  # the sentinel: once it is answered, nothing else came before it
-            assert len(await client.answered(6)) == 6
+            assert len(await client.answered(7)) == 7
         finally:
             client.endpoint.close()
             node.close()

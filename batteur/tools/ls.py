@@ -36,9 +36,10 @@ from common.transport import UdpEndpoint
 
 DESCRIPTION = """\
 List the Batteur nodes found by zeroconf (or given with --node), each with the Health it
-answers to a Hello: role, node id, address, loop rate, dropped messages, peers, and how its
-clock follows the rig clock (the clock master's, physics' unless --clock-master says
-otherwise), from the ClockStatus it sends after its Health (column clock):
+answers to a Hello: role, node id, address, loop rate, dropped messages, errors (failures inside
+the service, such as a drum whose strikes fail: its log has the first with its traceback),
+peers, and how its clock follows the rig clock (the clock master's, physics' unless
+--clock-master says otherwise), from the ClockStatus it sends after its Health (column clock):
   master
       this node's clock is the rig clock
   synced +/- 0.05 ms, rtt 0.12 ms
@@ -54,7 +55,8 @@ otherwise), from the ClockStatus it sends after its Health (column clock):
 the rest of the Health: the drops by reason (dropped_malformed, dropped_unknown, dropped_type,
 dropped_range, dropped_other, dropped_wrong_node: a control of another service sent to this
 node, a note sent to interaction), unroutable (messages the node could not send: to a role no node
-of which it knows, say sound when no sound node runs) and rig_time_s, the node's rig time when
+of which it knows, say sound when no sound node runs), duplicates (redundant copies of impacts
+the sound node dropped: same sender, seq and time) and rig_time_s, the node's rig time when
 it answered (seconds: what a timed message such as /batteur/impact is stamped with).
 
 Browses on --interface, else on the interfaces in BATTEUR_INTERFACES (where the nodes of a
@@ -166,6 +168,7 @@ def _row(target: Target, health: Health | None, clock: ClockStatus | None = None
         late=health.late, peers=health.peers, decode_unanswered=health.decode_unanswered,
         replies_unanswered=health.replies_unanswered, target_lag=round(health.target_lag, 4),
         target_jumps=health.target_jumps, unroutable=health.unroutable, dropped_wrong_node=health.dropped_wrong_node,
+        errors=health.errors, duplicates=health.duplicates,
         clock=clock_text(clock), clock_status=clock.model_dump(mode="json") if clock is not None else None,
     )
     return row
@@ -174,11 +177,11 @@ def _row(target: Target, health: Health | None, clock: ClockStatus | None = None
 def table(rows: Sequence[dict[str, object]]) -> list[str]:
     """The rows as aligned text lines, a header first."""
     lines = [f"{'role':<12} {'node id':<28} {'address':<22} {'status':<10} {'rate Hz':>8} {'dropped':>8} "
-             f"{'peers':>5} clock"]
+             f"{'errors':>6} {'peers':>5} clock"]
     for r in rows:
         lines.append(f"{r['role']!s:<12} {r['node_id']!s:<28} {r['address']!s:<22} {r['status']!s:<10} "
-                     f"{r.get('rate_hz', '')!s:>8} {r.get('dropped', '')!s:>8} {r.get('peers', '')!s:>5} "
-                     f"{r.get('clock', '')!s}".rstrip())
+                     f"{r.get('rate_hz', '')!s:>8} {r.get('dropped', '')!s:>8} {r.get('errors', '')!s:>6} "
+                     f"{r.get('peers', '')!s:>5} {r.get('clock', '')!s}".rstrip())
     return lines
 
 

@@ -49,7 +49,11 @@ class Impact(OscMessage):
     ``duration`` are 0 ("not known yet"); the final figures follow in
     ``/batteur/impact/end`` with the same ``seq`` (interaction can be set to
     send the impact only at the contact's end instead). Sent redundantly with
-    the same ``seq``; receivers de-duplicate on (sender, seq).
+    the same ``seq`` and ``time``; the sound service and the Pd sound client
+    (pd/batteur-voice.pd) de-duplicate on (sender, seq, time), so a sender
+    that reuses a ``seq`` for another strike (a Pd patch sending every strike
+    as seq 0) has each played. The sound service counts the copies it drops
+    (its Health's ``duplicates``).
     """
 
     ADDRESS = "/batteur/impact"

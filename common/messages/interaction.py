@@ -71,7 +71,8 @@ class Damping(OscMessage):
     """A striker or hand resting on an instrument (state 1), or lifted off it again (state 0).
 
     A dead stroke is an impact followed by damping; a stick laid gently on a
-    head is damping only. Sent redundantly with its own ``seq``.
+    head is damping only. Sent redundantly with its own ``seq`` (copies share
+    it and ``time``: receivers de-duplicate on (sender, seq, time)).
     """
 
     ADDRESS = "/batteur/damping"

@@ -81,8 +81,14 @@ class Health(OscMessage):
                                       "this node does not take (a live note sent to interaction or sound: physics "
                                       "takes it; a sound control sent to interaction), total")
 
+    errors: Count = Field(default=0, description="failures inside the node's service: loop steps that raised, and "
+                          "the service's own (sound: strikes that raised, not played, also counted in dropped), "
+                          "total; the first of each is logged with its traceback")
+    duplicates: Count = Field(default=0, description="redundant copies of impacts and presses dropped (sound: same "
+                              "sender, seq and time; 0 for the others), total")
+
     APPENDED: ClassVar[tuple[str, ...]] = ("decode_unanswered", "replies_unanswered", "target_lag", "target_jumps",
-                                           "unroutable", "dropped_wrong_node")
+                                           "unroutable", "dropped_wrong_node", "errors", "duplicates")
     """The fields appended after ``peers`` (one argument each), oldest first: a Health without the last of them (an
     older node's) decodes with their defaults."""
     NEWER_ARGS: ClassVar[int] = 16

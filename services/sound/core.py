@@ -56,12 +56,15 @@ from common.rated_log import RatedWarnings
 from services.sound.excitation import warm_up as excitation_warm_up
 from services.sound.instruments import (
     INSTRUMENT_CLASSES,
+    KIND_PARAMS,
+    ZONES,
     Instrument,
     InstrumentSet,
     ParamError,
     Press,
     Strike,
     default_params,
+    drum_role,
 )
 from services.sound.modal_bank import MAX_T60_S
 from services.sound.pyo_stage import PyoStage
@@ -90,8 +93,19 @@ PARAM_MESSAGES: dict[type[OscMessage], tuple[str, tuple[str, ...]]] = {
     SoundAirLoading: ("air_loading", ("value",)),
     SoundSecondHead: ("second_head", ("gain", "ratio")),
 }
+PARAM_ADDRESSES: dict[str, str] = {name: cls.ADDRESS for cls, (name, _) in PARAM_MESSAGES.items()}
+"""An instrument's parameter name (``air_loading``) -> the address of the control that sets it."""
+
+
+def not_taken(kind: str, instrument: str, address: str) -> str:
+    """Why the control at ``address`` does not apply to a ``kind`` instrument, naming the addresses it takes."""
+    taken = sorted(PARAM_ADDRESSES[name] for name in KIND_PARAMS[kind])
+    return f"{kind} instrument {instrument!r} takes no {address} (it takes: {', '.join(taken)})"
+
+
 CHEAP_PARAMS = frozenset({"model", "level"})
-"""Parameters that rebuild nothing: applied at once even with ``background_rebuilds`` (unless queued behind one)."""
+"""Parameters that rebuild nothing: applied at once even with ``background_rebuilds`` (queued behind a rebuild of
+their instrument: applied as soon as it is swapped in)."""
 
 
 WAV_LIMIT_BYTES = 0xFFFFFFFF
@@ -196,6 +210,7 @@ class SoundStats:
     late: int = 0
     duplicates: int = 0
     unknown_instrument: int = 0
+    unknown_zone: int = 0  # impacts whose zone no instrument knows (instruments.ZONES): dropped
     pedal_impacts: int = 0  # impacts on footboards, not sounded (unless settings.pedal_impacts)
     too_early: int = 0  # impacts beyond the horizon (a sender's clock far ahead)
     overload: int = 0  # strikes dropped by a burst: over max_strikes_per_block or max_pending
@@ -211,12 +226,13 @@ class SoundStats:
     rejected: Counter[str] = field(default_factory=Counter)  # by control address
     blocks: int = 0
     clock_steps: int = 0  # steps of rig time the output was re-anchored on (SoundCore.clock_stepped)
+    strike_errors: Counter[str] = field(default_factory=Counter)  # strikes that raised, not played, by instrument
 
     @property
     def rejected_total(self) -> int:
         """Valid messages refused: controls, and impacts not played (the node's Health counts them as dropped)."""
-        return (sum(self.rejected.values()) + self.unknown_instrument + self.too_early + self.overload
-                + self.press_unknown + self.press_malformed)
+        return (sum(self.rejected.values()) + self.unknown_instrument + self.unknown_zone + self.too_early
+                + self.overload + self.press_unknown + self.press_malformed + sum(self.strike_errors.values()))
 
 
 @dataclass(frozen=True)
@@ -239,13 +255,18 @@ class _Rebuild:
 
 
 def _apply_changes(twin: Instrument, changes: list[_Change]) -> tuple[Instrument, list[tuple[_Change, str]]]:
-    """In the worker: apply ``changes`` in order to ``twin``; returns it with the refused ones and why."""
+    """In the worker: apply ``changes`` in order to ``twin`` (from :meth:`Instrument.detached`, whose bank is empty
+    until a change rebuilds it); returns it with the refused ones and why. A twin no change rebuilt (only cheap
+    ones, or every one refused before rebuilding) is rebuilt here: adopting an empty bank would leave the
+    instrument's strikes failing for good."""
     refused = []
     for change in changes:
         try:
             twin.set_param(change.name, **change.values)
         except ParamError as exc:
             refused.append((change, str(exc)))
+    if not twin.bank.size:
+        twin.rebuild()
     return twin, refused
 
 
@@ -314,11 +335,13 @@ class SoundCore:
             cls = INSTRUMENT_CLASSES.get(obj.kind)
             if cls is None:
                 continue
-            inst: Instrument = cls(obj, default_params(obj), self.sample_rate, self.block, self.samples)
+            role = drum_role(kit, obj)  # the kit's events say what it is (a kick named bd), else its id
+            inst: Instrument = cls(obj, default_params(obj, role), self.sample_rate, self.block, self.samples, role)
             inst.model = self.settings.model
             out.instruments[obj.id] = inst
         hihats = [i.id for i in out.instruments.values() if i.KIND == "hihat"]
-        kicks = [i.id for i in out.instruments.values() if i.KIND == "membrane" and ("kick" in i.id or "bass" in i.id)]
+        kicks = [i.id for i in out.instruments.values()
+                 if i.KIND == "membrane" and ("kick" in i.role or "bass" in i.role)]
         for obj in kit.objects:
             if obj.kind != "pedal" or not self.settings.pedal_impacts:
                 continue
@@ -367,9 +390,10 @@ class SoundCore:
         if inst is None:
             return self._reject(message, instrument_id, f"no instrument {instrument_id!r} "
                                 f"(known: {', '.join(sorted(self.instruments.instruments))})")
+        if name not in inst.accepted:  # named by address: a panel's user never sees our parameter names
+            return self._reject(message, instrument_id, not_taken(inst.KIND, instrument_id, message.ADDRESS))
         values = {f: getattr(message, f) for f in fields}
-        if self._worker is not None and name in inst.accepted and (
-                instrument_id in self._rebuilds or name not in CHEAP_PARAMS):
+        if self._worker is not None and (instrument_id in self._rebuilds or name not in CHEAP_PARAMS):
             change = _Change(message, source, name, values)
             if instrument_id in self._rebuilds:  # after the change in flight, in message order
                 self._queued.setdefault(instrument_id, []).append(change)
@@ -398,7 +422,7 @@ class SoundCore:
     # ------------------------------------------------------ background rebuilds
     def _start_rebuild(self, inst: Instrument, changes: list[_Change]) -> None:
         assert self._worker is not None
-        future = self._worker.submit(_apply_changes, inst.detached(), changes)
+        future = self._worker.submit(_apply_changes, inst.detached(), changes, lane=inst.id)  # not behind others'
         self._rebuilds[inst.id] = _Rebuild(inst.p, changes, future)
 
     def _finish_rebuilds(self) -> list[Outgoing]:
@@ -417,16 +441,32 @@ class SoundCore:
                 twin, refused = job.future.result()
             except Exception as exc:  # noqa: BLE001 - a bug in a rebuild must not stop the sound
                 twin, refused = inst, [(c, f"{type(exc).__name__}: {exc}") for c in job.changes]
-                log.error("%s: rebuilding its modes failed (%s): parameters unchanged", inst_id, exc)
+                log.error("%s: rebuilding its modes failed (%s): parameters unchanged", inst_id, exc, exc_info=exc)
+            if twin is not inst and not twin.bank.size and inst.bank.size:
+                twin, refused = inst, [(c, "rebuilding its modes left none: parameters unchanged") for c in job.changes]
+                log.error("%s: rebuilding its modes left none: parameters unchanged", inst_id)
             if twin is not inst:
                 inst.adopt(twin)
             for change, reason in refused:
                 out += self._reject(change.message, inst_id, reason, change.source or "reply")
             if any(c.name == "damping" for c in job.changes):
                 self._note_ring_limit(inst, "damping")
-            queued = self._queued.pop(inst_id, None)
-            if queued:
-                self._start_rebuild(inst, queued)
+            out += self._start_queued(inst, self._queued.pop(inst_id, []))
+        return out
+
+    def _start_queued(self, inst: Instrument, queued: list[_Change]) -> list[Outgoing]:
+        """The changes that waited behind a rebuild of ``inst``, in order, on top of what it adopted: the cheap
+        ones before the first that rebuilds are applied at once (a job of only those would have nothing to
+        build), the rest go to the worker together. Returns the rejections of the cheap ones."""
+        out: list[Outgoing] = []
+        while queued and queued[0].name in CHEAP_PARAMS:
+            change = queued.pop(0)
+            try:
+                inst.set_param(change.name, **change.values)
+            except ParamError as exc:
+                out += self._reject(change.message, inst.id, str(exc), change.source or "reply")
+        if queued:
+            self._start_rebuild(inst, queued)
         return out
 
     @property
@@ -435,7 +475,7 @@ class SoundCore:
         return bool(self._rebuilds)
 
     def _schedule(self, impact: Impact, source: str) -> None:
-        if self.scheduler.is_duplicate(source, impact.seq):
+        if self.scheduler.is_duplicate(source, impact.seq, impact.time):
             self.stats.duplicates += 1
             return
         if self.instruments.resolve(impact.instrument, impact.zone) is None:
@@ -447,6 +487,11 @@ class SoundCore:
                 self._log_drop("unknown_instrument", f"dropped an impact from {source} on {impact.instrument!r}, "
                                f"which the kit does not have (known: {known})")
             return
+        if impact.zone not in ZONES:
+            self.stats.unknown_zone += 1
+            self._log_drop("unknown_zone", f"dropped an impact from {source} on {impact.instrument}: no zone "
+                           f"{impact.zone!r} (zones: {', '.join(sorted(ZONES))})")
+            return
         if not self._admitted("an impact", source, impact.time, len(self.scheduler)):
             return
         payload = (impact.instrument, impact)
@@ -455,7 +500,7 @@ class SoundCore:
 
     def _schedule_press(self, damping: Damping, source: str) -> None:
         """Queue a press or lift for the sample of its time + latency (as impacts are)."""
-        if self.press_scheduler.is_duplicate(source, damping.seq):
+        if self.press_scheduler.is_duplicate(source, damping.seq, damping.time):
             self.stats.duplicates += 1
             return
         if damping.instrument in self._pedal_ids or damping.part in PASSIVE_PRESS_PARTS:
@@ -618,7 +663,10 @@ class SoundCore:
         n = self.block
         start = self.next_sample
         for sample, payload in self._within_budget(self.scheduler.pop_until(start + n)):
-            self._strike(sample - start, payload)
+            try:
+                self._strike(sample - start, payload)
+            except Exception as exc:  # noqa: BLE001 - one strike failing must not take the block's others with it
+                self._strike_failed(payload, exc)
         if len(self.press_scheduler):
             for sample, damping in self.press_scheduler.pop_until(start + n):
                 self._press(sample - start, damping)
@@ -697,6 +745,18 @@ class SoundCore:
         self._log_drop("silenced", f"{instrument} produced non-finite samples with its current parameters: "
                        "its ringing was stopped")
 
+    def _strike_failed(self, payload: tuple[str, Impact], exc: Exception) -> None:
+        """Count a strike that raised (not played; the block's other strikes play): the first failure of each
+        instrument is logged with its traceback, later ones rate-limited."""
+        name = payload[0]
+        self.stats.strike_errors[name] += 1
+        if self.stats.strike_errors[name] == 1:
+            log.error("%s: a strike failed, not played (%s: %s); its other strikes may fail too (counted in "
+                      "Health's errors and dropped)", name, type(exc).__name__, exc, exc_info=exc)
+        else:
+            self._log_drop("strike_error", f"{name}: a strike failed, not played ({type(exc).__name__}: {exc}); "
+                           f"{self.stats.strike_errors[name]} so far")
+
     def _strike(self, offset: int, payload: tuple[str, Impact]) -> None:
         name, impact = payload
         resolved = self.instruments.resolve(name, impact.zone, impact.r)
@@ -753,6 +813,17 @@ class SoundCore:
         Health counts them as dropped."""
         return self.stats.rejected_total
 
+    @property
+    def core_errors(self) -> int:
+        """Failures of the core's own (strikes that raised, not played), total: the node's Health adds them to
+        its ``errors``, so ``batteur ls`` shows a drum gone silent."""
+        return sum(self.stats.strike_errors.values())
+
+    @property
+    def duplicates(self) -> int:
+        """Redundant copies of impacts and presses dropped, total (Health's ``duplicates``)."""
+        return self.stats.duplicates
+
     def sounding_modes(self) -> int:
         """Modes of instruments currently ringing."""
         return sum(i.bank.size for i in self.instruments.instruments.values() if i.sounding)
@@ -789,15 +860,19 @@ def render_offline(
     kit: Kit | None = None,
     settings: SoundSettings | None = None,
     wav: str | Path | None = None,
+    prepare: Callable[[SoundCore], None] | None = None,
 ) -> F32:
     """Render impacts (rig times in seconds) for ``duration`` seconds in one call.
 
     The impacts are handed to a fresh core all at once (as if they had
     arrived early enough), so none is late. Returns float32 audio, shape (n,)
-    or (n, 2); also writes ``wav`` when given.
+    or (n, 2); also writes ``wav`` when given. ``prepare``: called with the core before the impacts (a sound
+    parameters file applied).
     """
     core = SoundCore(settings, kit)
     try:
+        if prepare is not None:
+            prepare(core)
         for impact in sorted(impacts, key=lambda i: i.time):
             core.handle(impact, core.now, "offline")
         core.render(duration + core.scheduler.origin + core.scheduler.latency)

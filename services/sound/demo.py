@@ -37,6 +37,7 @@ if __name__ == "__main__":  # the command: the modules below take about 1 s to l
 
 # after the handler (E402): a Ctrl-C while they load must not print a traceback
 import argparse  # noqa: E402
+import functools  # noqa: E402
 import math  # noqa: E402
 import re  # noqa: E402
 import sys  # noqa: E402
@@ -52,6 +53,7 @@ from common.output_paths import check_output_file  # noqa: E402
 from common.score.events import Score, ScoreError  # noqa: E402
 from common.score.text import read_score  # noqa: E402
 from services.sound.core import SoundSettings, render_offline, wav_format  # noqa: E402
+from services.sound.params_file import apply_sound_params, check_against_kit, load_sound_params  # noqa: E402
 
 DEFAULT_MIDI = Path(__file__).resolve().parents[2] / "tests" / "data" / "groove_drummer6_s3_1_rock_90_beat_4-4.mid"
 
@@ -145,10 +147,16 @@ def _main(argv: Sequence[str] | None) -> int:
     parser.add_argument("--kit", default="default", help="kit name or file (default: the default kit)")
     parser.add_argument("--mono", action="store_true", help="mono instead of stereo")
     parser.add_argument("--reverb", type=unit, default=0.12, help="room reverb wet/dry 0..1 (default 0.12)")
+    parser.add_argument("--sound-params", type=Path, default=None, metavar="FILE",
+                        help="start from this sound parameters file (what `batteur sound --sound-params-out` "
+                             "writes; docs/sound.md)")
     args = parser.parse_args(argv)
     try:
         kit = load_kit(args.kit)
         check_output_file(args.output, "-o")
+        params = load_sound_params(args.sound_params) if args.sound_params is not None else []
+        if args.sound_params is not None:
+            check_against_kit(params, kit, args.sound_params)
     except (FileNotFoundError, ValueError) as exc:
         print(f"{PROG}: error: {exc}", file=sys.stderr)
         return FAILED
@@ -178,7 +186,12 @@ def _main(argv: Sequence[str] | None) -> int:
     try:  # the line too: a Ctrl-C may land as it is written
         print(f"rendering {len(impacts)} strikes ({duration:.1f} s) to {args.output} ...", file=sys.stderr,
               flush=True)
-        audio = render_offline(impacts, duration, kit, settings, wav=args.output)
+        audio = render_offline(impacts, duration, kit, settings, wav=args.output,
+                               prepare=None if args.sound_params is None else
+                               functools.partial(apply_sound_params, messages=params, source=args.sound_params))
+    except ValueError as exc:  # a value an instrument refuses (every mode above Nyquist)
+        print(f"{PROG}: error: {exc}", file=sys.stderr)
+        return FAILED
     except OSError as exc:  # a full disk: the file is written whole or not at all
         print(f"{PROG}: error: -o {args.output}: cannot write it ({exc.strerror or exc})", file=sys.stderr)
         return FAILED

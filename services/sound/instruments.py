@@ -28,7 +28,8 @@ import numpy as np
 import numpy.typing as npt
 from scipy.special import jv
 
-from common.kit import KitObject
+from common.kit import EventType, Kit, KitObject
+from common.score.gm import GM_TO_EVENT
 from services.sound.excitation import ContactPulse, Striker, hunt_crossley, mode_response, mode_response_chunks
 from services.sound.membrane import membrane_modes
 from services.sound.modal_bank import MIN_DECAY_PER_S, ModeSet
@@ -101,6 +102,13 @@ def mix_level(instrument_id: str, kind: str) -> float:
         if key in instrument_id:
             return level
     return {"membrane": 1.0, "hihat": 0.6, "bell": 0.7, "cymbal": 0.9}.get(kind, 1.0)
+
+
+ZONES = frozenset({"centre", "edge", "bow", "rim", "rimshot", "bell", "open", "half", "closed", "pedal"})
+"""Strike zones the instruments know: the interaction service's (centre, edge, rim on a drum; bow, edge, bell on
+a cymbal), the shipped kits' events' (open, closed, pedal on the hi-hat) and the demo's (rimshot, half). Any zone
+but rim/rimshot strikes a drum's head, any but bell a cymbal's bow; an impact with another zone (a typo) is
+dropped and counted (the sound core's unknown_zone), not played as a centre stroke."""
 
 
 class ParamError(ValueError):
@@ -202,12 +210,18 @@ class Instrument:
         Block length, samples.
     samples : SampleBank
         Recorded samples for the ``sample`` model.
+    role : str
+        What it is in the kit (:func:`drum_role`); '': its id.
     """
 
     KIND = "membrane"
 
-    def __init__(self, obj: KitObject, params: Params, sample_rate: float, block: int, samples: SampleBank) -> None:
+    def __init__(self, obj: KitObject, params: Params, sample_rate: float, block: int, samples: SampleBank,
+                 role: str = "") -> None:
         self.id = obj.id
+        self.role = role or obj.id
+        """What the instrument is in the kit (kick, snare, ride, ...: :func:`drum_role`), for the choices made by
+        name (mix level, samples, snare click, synthesis recipe); its id when the kit does not say."""
         self.obj = obj
         self.p = params
         self.sr = float(sample_rate)
@@ -417,7 +431,7 @@ class Instrument:
             self.bank.process(out)
             peak = max(peak, float(np.max(np.abs(out))))
         self.bank.clear()
-        target = REFERENCE_PEAK * mix_level(self.id, self.KIND)
+        target = REFERENCE_PEAK * mix_level(self.role, self.KIND)
         return target / peak if peak > 0 else 1.0
 
     # -------------------------------------------------------------- strikes
@@ -465,9 +479,9 @@ class Instrument:
         pool.add(SampleVoice(self.id, data, gain, rate, cutoff, self.sr, strike.offset))
 
     def strike_synth(self, strike: Strike, pool: VoicePool) -> None:
-        recipe = recipe_for(self.KIND, self.id, strike.zone, self.p.radius, self.p.openness)
+        recipe = recipe_for(self.KIND, self.role, strike.zone, self.p.radius, self.p.openness)
         v = strike.velocity / REFERENCE_VELOCITY
-        gain = 0.22 * mix_level(self.id, self.KIND) * min(v, 4.0) ** 1.1
+        gain = 0.22 * mix_level(self.role, self.KIND) * min(v, 4.0) ** 1.1
         pool.add(SynthVoice(self.id, recipe, gain, min(v, 2.0) / 2.0, strike.seq, self.sr, strike.offset))
 
     # --------------------------------------------------------------- render
@@ -509,10 +523,11 @@ class Membrane(Instrument):
 
     KIND = "membrane"
 
-    def __init__(self, obj: KitObject, params: Params, sample_rate: float, block: int, samples: SampleBank) -> None:
+    def __init__(self, obj: KitObject, params: Params, sample_rate: float, block: int, samples: SampleBank,
+                 role: str = "") -> None:
         self._wires: list[NoiseVoice] = []  # snare-wire voices that may still ring (they follow the head's damping)
         self._wire_reference = 0.0  # head decay rate the wires' WIRE_DECAY_S goes with, 1/s (0: not built yet)
-        super().__init__(obj, params, sample_rate, block, samples)
+        super().__init__(obj, params, sample_rate, block, samples, role)
         self._wire_reference = self.head_decay_rate()
 
     def head_decay_rate(self) -> float:
@@ -625,7 +640,7 @@ class Membrane(Instrument):
 
     def extras(self, strike: Strike, pulse: ContactPulse, pool: VoicePool, weights: F64) -> None:
         v = strike.velocity / REFERENCE_VELOCITY
-        kick = "kick" in self.id or "bass" in self.id
+        kick = "kick" in self.role or "bass" in self.role
         # the striker's own click (beater felt on the head, stick tip): a very short high burst
         band, decay, level = ((1200.0, 6000.0), 0.004, 0.05) if kick else ((2500.0, 12000.0), 0.0015, 0.03)
         pool.add(NoiseVoice(self.id, band, level * min(v, 4.0) ** 1.5, 0.0003, decay, strike.seq * 7907 + 11,
@@ -642,10 +657,10 @@ class Membrane(Instrument):
         self._wires.append(wire)
 
     def sample_name(self, strike: Strike) -> tuple[str, float]:
-        if strike.zone in ("rim", "rimshot") and "snare" in self.id:
+        if strike.zone in ("rim", "rimshot") and "snare" in self.role:
             return "rim", 1.0
         for name in ("kick", "snare", "hightom", "midtom", "floortom"):
-            if name in self.id:
+            if name in self.role:
                 return name, 1.0
         return "midtom", float(np.clip(0.152 / self.p.radius, 0.5, 2.0))
 
@@ -713,11 +728,11 @@ class Cymbal(Instrument):
 
     def sample_name(self, strike: Strike) -> tuple[str, float]:
         bell_r = self.obj.bell_radius / self.obj.radius if self.obj.radius > 0 else 0.0
-        if "ride" in self.id:
+        if "ride" in self.role:
             return ("ridebell" if strike.zone == "bell" or strike.r < bell_r else "ride"), 1.0
-        if "china" in self.id:
+        if "china" in self.role:
             return "china", 1.0
-        if "splash" in self.id:
+        if "splash" in self.role:
             return "crash", 1.4
         return "crash", float(np.clip(0.203 / self.p.radius, 0.6, 1.6))
 
@@ -785,14 +800,15 @@ class Bell(Instrument):
         return "cowbell", 1.0
 
 
-def default_params(obj: KitObject) -> Params:
-    """Physical defaults for a kit object, from its id, kind and geometry."""
+def default_params(obj: KitObject, role: str = "") -> Params:
+    """Physical defaults for a kit object, from its role (:func:`drum_role`; '': its id), kind and geometry."""
+    name = role or obj.id
     a = obj.radius
     if obj.kind == "membrane":
         density = 0.35
-        if "kick" in obj.id or "bass" in obj.id:
+        if "kick" in name or "bass" in name:
             f01, d0, d1, mass, stiff, snares, second, ratio = 55.0, 22.0, 4e-5, 0.1, 2e5, 0.0, 0.5, 1.12
-        elif "snare" in obj.id:
+        elif "snare" in name:
             f01, d0, d1, mass, stiff, snares, second, ratio = 220.0, 14.0, 1.2e-5, 0.03, 6e6, 1.0, 0.3, 1.45
         else:
             f01 = 2.405 / (2 * np.pi * a) * 60.0  # toms: wave speed about 60 m/s
@@ -803,13 +819,13 @@ def default_params(obj: KitObject) -> Params:
                       second_head=second, reso_ratio=ratio)
     if obj.kind in ("cymbal", "hihat"):
         thickness = obj.thickness
-        shimmer = 0.0 if "ride" in obj.id else 0.5
-        irregularity, curvature = (0.08, 110.0) if "china" in obj.id else (0.03, 150.0)
-        d0 = 0.35 if "ride" in obj.id else (1.2 if "splash" in obj.id else 0.6)
-        if "china" in obj.id:
+        shimmer = 0.0 if "ride" in name else 0.5
+        irregularity, curvature = (0.08, 110.0) if "china" in name else (0.03, 150.0)
+        d0 = 0.35 if "ride" in name else (1.2 if "splash" in name else 0.6)
+        if "china" in name:
             d0 = 1.0
         bell_hz = 0.0
-        if obj.bell_radius > 0 and "ride" in obj.id:
+        if obj.bell_radius > 0 and "ride" in name:
             bell_hz = 42.0 / obj.bell_radius  # about 600 Hz for a 7 cm bell
         return Params(radius=a, thickness=thickness, damping0=d0, damping1=4e-8, n_modes=1500, stick_mass=0.03,
                       stick_stiffness=1e9, restitution=obj.elasticity, openness=obj.opening, splitting=0.0,
@@ -817,6 +833,26 @@ def default_params(obj: KitObject) -> Params:
                       shimmer=shimmer if obj.kind == "cymbal" else 0.0, bell_hz=bell_hz)
     return Params(radius=a, damping0=9.0, damping1=2e-6, n_modes=16, stick_mass=0.03, stick_stiffness=5e8,
                   restitution=obj.elasticity)
+
+
+EVENT_ROLES: dict[EventType, str] = {
+    EventType.BASS: "kick", EventType.SNARE: "snare", EventType.RIM: "snare", EventType.HIGHTOM: "hightom",
+    EventType.MIDTOM: "midtom", EventType.FLOORTOM: "floortom", EventType.CRASH: "crash", EventType.RIDE: "ride",
+    EventType.RIDEBELL: "ride", EventType.SPLASH: "splash", EventType.CHINA: "china", EventType.HIHATOPEN: "hihat",
+    EventType.HIHATCLOSED: "hihat", EventType.HIHATPEDAL: "hihat", EventType.COWBELL: "cowbell",
+}
+"""The instrument a drum event type is played on (the names the sound's choices by name look for)."""
+
+
+def drum_role(kit: Kit, obj: KitObject) -> str:
+    """What ``obj`` is in ``kit``: the instrument of the events the kit plays on it (``events``, and the General
+    MIDI pitches of ``note_objects``), so a kick named ``bd`` sounds as a kick; its id when the kit plays no
+    event on it, or events of different instruments (the id's words then decide: ``kick``, ``snare``, ``ride``
+    ...)."""
+    events = [e for e, spec in kit.events.items() if spec.object == obj.id]
+    events += [GM_TO_EVENT[p] for p, o in kit.note_objects.items() if o == obj.id and p in GM_TO_EVENT]
+    roles = {EVENT_ROLES[e] for e in events}
+    return roles.pop() if len(roles) == 1 else obj.id
 
 
 INSTRUMENT_CLASSES: dict[str, Callable[..., Instrument]] = {

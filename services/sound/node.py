@@ -34,10 +34,18 @@ from pydantic import Field, field_validator
 
 from common.config import NodeSettings
 from common.exit_status import InputError
-from common.kit import load_kit
-from common.output_paths import file_in_the_way, write_atomically
+from common.kit import Kit, load_kit
+from common.messages import OscMessage
+from common.output_paths import check_output_file, file_in_the_way, write_atomically
 from common.runtime import Node, run_node
 from services.sound.core import MAX_LATENCY_S, WAV_LIMIT_BYTES, SoundCore, SoundSettings, wav_format
+from services.sound.params_file import (
+    apply_sound_params,
+    check_against_kit,
+    load_sound_params,
+    settle_rebuilds,
+    write_sound_params,
+)
 from services.sound.pyo_stage import _quiet_stderr, audio_device_count, import_pyo
 
 log = logging.getLogger("batteur.sound")
@@ -298,6 +306,18 @@ class SoundNodeSettings(NodeSettings):
     reverb: float = Field(default=0.1, ge=0, le=1, description="room reverb wet/dry, 0..1")
     pedal_impacts: bool = Field(default=False, description="sound impacts on footboards (for rigs without pedal "
                                 "physics; see docs/sound.md)")
+    sound_params: Path | None = Field(default=None, description="start from this sound parameters file (YAML or "
+                                      "JSON: per instrument, what the /batteur/sound/... controls set; "
+                                      "docs/sound.md)")
+    sound_params_out: Path | None = Field(default=None, description="when the node stops, write what the "
+                                          "instruments hold (what differs from the kit's defaults) to this file, "
+                                          "for --sound-params (may be the same file)")
+
+    @field_validator("sound_params", "sound_params_out", mode="before")
+    @classmethod
+    def _no_params_file(cls, value: Any) -> Any:
+        """An empty value is no file, as ``--wav ''``."""
+        return None if isinstance(value, str) and not value.strip() else value
 
     @field_validator("wav", mode="before")
     @classmethod
@@ -356,8 +376,20 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace | None = None,
             raise InputError(f"--wav {settings.wav} is a directory: give a file, e.g. {settings.wav / 'take.wav'}")
         wav_format(settings.wav, "--wav")
         wav_name_has_start(settings.wav)
+    params = _read_params(settings, kit)  # before the (slow) core is built
+    if settings.sound_params_out is not None:
+        try:
+            check_output_file(settings.sound_params_out, "--sound-params-out")
+        except ValueError as exc:
+            raise InputError(str(exc)) from None
     core = SoundCore(sound, kit)
     try:
+        if settings.sound_params is not None:
+            try:
+                apply_sound_params(core, params, settings.sound_params)
+            except ValueError as exc:  # a value an instrument refuses (every mode above Nyquist)
+                raise InputError(str(exc)) from None
+            log.info("sound parameters from %s (%d)", settings.sound_params, len(params))
         _attach_sinks(core, settings, keep_take)
     except BaseException:  # a failed start (or Ctrl-C) records nothing and leaves an earlier take alone
         for sink in core.sinks:
@@ -367,6 +399,31 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace | None = None,
         core.close()
         raise
     return core
+
+
+def _read_params(settings: SoundNodeSettings, kit: Kit) -> list[OscMessage]:
+    """The controls ``--sound-params`` holds, checked against the kit; InputError naming the file and the entry."""
+    if settings.sound_params is None:
+        return []
+    try:
+        params = load_sound_params(settings.sound_params)
+        check_against_kit(params, kit, settings.sound_params)
+    except (FileNotFoundError, ValueError) as exc:
+        raise InputError(str(exc)) from None
+    return params
+
+
+def save_params(core: SoundCore, path: Path) -> None:
+    """``--sound-params-out``: what the instruments hold, once changes still computing are in; logged, never
+    raised (the node is stopping)."""
+    if not settle_rebuilds(core):
+        log.warning("--sound-params-out %s: a parameter change was still being computed: it is not saved", path)
+    try:
+        changed = write_sound_params(core, path)
+    except OSError as exc:
+        log.error("--sound-params-out %s: cannot write it (%s)", path, exc)
+        return
+    log.info("sound parameters written to %s (%d instruments changed)", path, len(changed))
 
 
 def _attach_sinks(core: SoundCore, settings: SoundNodeSettings, keep_take: Callable[[], bool]) -> None:
@@ -402,10 +459,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run the sound node until SIGINT/SIGTERM; returns the exit code."""
     made: list[SoundCore] = []
     ran: list[Node] = []
+    params_out: list[Path] = []
 
     def build(settings: NodeSettings, extra: argparse.Namespace) -> SoundCore:
         core = make_core(settings, extra, keep_take=lambda: bool(ran) and not ran[0].failed)
         made.append(core)
+        out = sound_settings(settings, extra).sound_params_out
+        if out is not None:
+            params_out.append(out)
         return core
 
     try:
@@ -416,6 +477,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                         settings_cls=SoundNodeSettings, setup=ran.append)
     finally:
         for core in made:
+            if ran and params_out:  # a node that never listened changed nothing
+                save_params(core, params_out[0])
             core.close()  # closes the WAV file and the sound card
 
 

@@ -1,5 +1,6 @@
-"""The live node's rebuild worker: one daemon thread that computes parameter changes in order, and can be
-abandoned at once.
+"""The live node's rebuild worker: daemon threads, one per lane (an instrument), that compute parameter changes
+in order within a lane and side by side across lanes (a 20,000-mode snare no longer holds up the kick's radius
+change for seconds), and can be abandoned at once.
 
 A ``ThreadPoolExecutor`` cannot be abandoned: the interpreter joins its threads at exit, so stopping the node
 waited for a rebuild in flight (a 20,000-mode change: seconds, and its child interpreter ran on). This worker's
@@ -83,32 +84,34 @@ def abandoned() -> bool:
 
 
 class RebuildWorker:
-    """Runs submitted calls one after another in a daemon thread (started at the first call)."""
+    """Runs submitted calls in daemon threads, one per lane (started at the lane's first call): the calls of one
+    lane one after another, in submission order; those of different lanes at the same time."""
 
     def __init__(self, name: str = "sound-rebuild") -> None:
         self.name = name
         self.children = ChildProcesses()
-        self._jobs: queue.SimpleQueue[tuple[Future[Any], Callable[..., Any], tuple[Any, ...]] | None] = (
-            queue.SimpleQueue())
-        self._thread: threading.Thread | None = None
+        self._lanes: dict[str, queue.SimpleQueue[tuple[Future[Any], Callable[..., Any], tuple[Any, ...]] | None]] = {}
         self._lock = threading.Lock()
 
-    def submit(self, fn: Callable[..., T], *args: Any) -> Future[T]:
-        """Queue ``fn(*args)``; its Future completes in the worker thread. RuntimeError once closed."""
+    def submit(self, fn: Callable[..., T], *args: Any, lane: str = "") -> Future[T]:
+        """Queue ``fn(*args)`` on ``lane`` (after that lane's earlier calls); its Future completes in the lane's
+        thread. RuntimeError once closed."""
         future: Future[T] = Future()
         with self._lock:
             if self.children.closed:
                 raise RuntimeError("the rebuild worker is closed")
-            if self._thread is None:
-                self._thread = threading.Thread(target=self._run, name=self.name, daemon=True)
-                self._thread.start()
-            self._jobs.put((future, fn, args))
+            jobs = self._lanes.get(lane)
+            if jobs is None:
+                jobs = self._lanes[lane] = queue.SimpleQueue()
+                thread_name = f"{self.name}-{lane}" if lane else self.name
+                threading.Thread(target=self._run, args=(jobs,), name=thread_name, daemon=True).start()
+            jobs.put((future, fn, args))
         return future
 
-    def _run(self) -> None:
+    def _run(self, jobs: queue.SimpleQueue[tuple[Future[Any], Callable[..., Any], tuple[Any, ...]] | None]) -> None:
         _current.children = self.children
         while True:
-            job = self._jobs.get()
+            job = jobs.get()
             if job is None or self.children.closed:
                 return
             future, fn, args = job
@@ -122,15 +125,16 @@ class RebuildWorker:
                 future.set_result(result)
 
     def close(self) -> None:
-        """Abandon every job: those waiting are cancelled, the running one's children killed and its result
+        """Abandon every job: those waiting are cancelled, the running ones' children killed and their results
         dropped. Returns at once (nothing is joined). Idempotent."""
         with self._lock:
             self.children.close()
-            while True:
-                try:
-                    job = self._jobs.get_nowait()
-                except queue.Empty:
-                    break
-                if job is not None:
-                    job[0].cancel()
-            self._jobs.put(None)  # wakes an idle thread so it ends
+            for jobs in self._lanes.values():
+                while True:
+                    try:
+                        job = jobs.get_nowait()
+                    except queue.Empty:
+                        break
+                    if job is not None:
+                        job[0].cancel()
+                jobs.put(None)  # wakes an idle thread so it ends

@@ -4,7 +4,9 @@ A strike at rig time ``t`` plays at output sample ``round((t + latency - origin)
 (the latency window hides network jitter, as SuperCollider's server latency
 does). A strike whose sample has already been rendered is late: it plays at
 the start of the next block and is counted. Impacts are sent redundantly with
-the same ``seq``; duplicates are dropped and counted.
+the same ``seq`` and time; such copies are dropped and counted. A sender reusing a
+``seq`` for another time (a Pd patch sending every strike as seq 0) sends new
+impacts, each played, as the Pd sound client (pd/batteur-voice.pd) plays them.
 """
 
 from __future__ import annotations
@@ -32,7 +34,7 @@ class Scheduler(Generic[T]):
     late : int
         Strikes that arrived after their sample was rendered (played at once).
     duplicates : int
-        Redundant copies dropped.
+        Redundant copies dropped (same sender, ``seq`` and rig time).
     """
 
     sample_rate: float = 48000.0
@@ -43,16 +45,17 @@ class Scheduler(Generic[T]):
     lateness: list[int] = field(default_factory=list)  # samples late, most recent last (bounded)
     _heap: list[tuple[int, int, T]] = field(default_factory=list)
     _counter: int = 0
-    _seen: OrderedDict[tuple[str, int], None] = field(default_factory=OrderedDict)
+    _seen: OrderedDict[tuple[str, int, float], None] = field(default_factory=OrderedDict)
     dedupe_window: int = 8192
 
     def sample_of(self, rig_time: float) -> int:
         """Output sample index at which an event of rig time ``rig_time`` (seconds) plays."""
         return int(round((rig_time + self.latency - self.origin) * self.sample_rate))
 
-    def is_duplicate(self, source: str, seq: int) -> bool:
-        """True (and counted) when (source, seq) was already scheduled."""
-        key = (source, seq)
+    def is_duplicate(self, source: str, seq: int, rig_time: float) -> bool:
+        """True (and counted) when (source, seq, rig_time) was already scheduled: a copy of one message. The time
+        is part of the key because a sender that numbers nothing (every strike seq 0) sends distinct events."""
+        key = (source, seq, float(rig_time))
         if key in self._seen:
             self.duplicates += 1
             return True

@@ -108,6 +108,6 @@ def test_a_pause_with_nothing_playing_and_a_tension_on_a_cymbal_are_refused_on_t
         assert sound.of(SoundTension)[-1].instrument == "crash"
         got = dict(refusals(pd))
         assert "nothing is playing" in got["/batteur/score/transport"]
-        assert "'crash' has no parameter 'tension'" in got["/batteur/sound/tension"]
+        assert "'crash' takes no /batteur/sound/tension" in got["/batteur/sound/tension"]
 
     asyncio.run(main())

@@ -69,7 +69,8 @@ def test_values_an_instrument_cannot_take_are_rejected_with_a_reply() -> None:
     assert [r.address for r in replies] == [
         "/batteur/sound/tension", "/batteur/sound/radius", "/batteur/sound/openness", "/batteur/sound/radius",
     ]
-    assert "no parameter 'tension'" in replies[0].reason
+    assert "cymbal instrument 'ride' takes no /batteur/sound/tension (it takes: " in replies[0].reason
+    assert "/batteur/sound/thickness" in replies[0].reason and "n_modes" not in replies[0].reason
     assert "no instrument 'gong'" in replies[1].reason
     assert "Nyquist" in replies[3].reason
     assert core.stats.rejected_total == 4
