@@ -24,7 +24,7 @@ import json
 import math
 import sys
 from collections import Counter, defaultdict
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from fractions import Fraction
 from pathlib import Path
@@ -36,6 +36,7 @@ from batteur.errors import report_error
 from common.arg_types import take_negative_values
 from common.kit import EventType, Kit
 from common.score.events import Score
+from common.score.midi_options import add_midi_arguments, drum_map, midi_read_kwargs
 
 if TYPE_CHECKING:
     from batteur.evaluate import NoteRef
@@ -87,6 +88,10 @@ BAR_TEMPO_NOTES = 3
 DRIFT_MIN = 0.02
 """Local tempi rising (or falling) from bar to bar by at least this share in all make a drift (2 % is 2 bpm at
 100: a bar's tempo from a few notes 10 ms off is good to about 1 %)."""
+WRITTEN_TEMPO_SAME = 0.005
+"""Written tempi within this share of each other are one (a MIDI tempo's whole microseconds, a DAW's 0.01 bpm):
+past it the exercise's tempo changes (a tempo map) and a take's tempo is said against the written one (2 % slower
+than written) rather than in bpm."""
 BEAT_ONSETS = 2
 """Onsets (written times played) a beat needs before it can be told rushed or dragging (:func:`beat_feels`): one
 note early is a noisy note, not a rushed beat."""
@@ -96,7 +101,8 @@ ON_GRID_BEATS = 1e-3
 SYLLABLES = {Fraction(0): "", Fraction(1, 4): "e", Fraction(1, 2): "&", Fraction(3, 4): "a",
              Fraction(1, 3): " trip", Fraction(2, 3): " let"}
 """How a teacher counts a beat's sixteenths (1 e & a) and eighth-note triplets (1 trip let): ``beat 3&``,
-``beat 2 trip``; a position off this grid is told from its nearest point (:func:`grid_label`)."""
+``beat 2 trip``; a position off this grid is told from its nearest point (:func:`grid_label`). The beat is the
+meter's 1/D note (:func:`bar_unit`): in x/8 an eighth, its halves ``&`` (sixteenths), its thirds ``trip let``."""
 FINE_GRIDS = (6, 8, 12, 16)
 """Finer subdivisions of the beat a written position is told exactly on, as a fraction (``beat 3 + 1/8``, a
 thirty-second; sextuplets, sixteenth triplets, sixty-fourths)."""
@@ -132,9 +138,10 @@ class Take:
 # ---------------------------------------------------------------------- reading
 
 
-def read_exercise(given: str) -> Score:
+def read_exercise(given: str, midi: Mapping[str, Any] | None = None) -> Score:
     """The exercise's :class:`~common.score.events.Score` (any score Batteur reads, or ``demo``);
-    :class:`CompareError` when it cannot be used."""
+    :class:`CompareError` when it cannot be used. ``midi``: keyword arguments reading a MIDI file
+    (``--drum-channels``: :func:`common.score.midi_options.midi_read_kwargs`)."""
     from common.score.events import ScoreError, audio_kind
     from common.score.text import read_score
 
@@ -149,7 +156,7 @@ def read_exercise(given: str) -> Score:
         raise CompareError(f"EXERCISE {path} is a recording ({audio_kind(head)}), not a score: give the score "
                            f"first and the take second ({PROG} EXERCISE TAKE)")
     try:
-        score = read_score(path)
+        score = read_score(path, **(midi or {}))
     except ScoreError as exc:
         raise CompareError(f"EXERCISE {exc}") from None
     if not score.events:
@@ -168,9 +175,10 @@ def _head(path: Path) -> bytes | None:
         return None
 
 
-def read_take(path: Path, kit: Kit, warn: Callable[[str], None]) -> Take:
-    """The take's notes with their kit objects: a MIDI file's, or an audio file's as the recogniser hears them;
-    :class:`CompareError` for a file it cannot use (a score, an unreadable file, no notes)."""
+def read_take(path: Path, kit: Kit, warn: Callable[[str], None], midi: Mapping[str, Any] | None = None) -> Take:
+    """The take's notes with their kit objects: a MIDI file's (read with the keyword arguments ``midi``, as
+    :func:`read_exercise`), or an audio file's as the recogniser hears them; :class:`CompareError` for a file it
+    cannot use (a score, an unreadable file, no notes)."""
     from common.input_file import file_problem
     from common.score.events import ScoreError, audio_kind, looks_like_text, starts_as_midi
     from common.score.text import MIDI_SUFFIXES
@@ -190,7 +198,7 @@ def read_take(path: Path, kit: Kit, warn: Callable[[str], None]) -> Take:
         from common.score.midi import read_midi
 
         try:
-            score = read_midi(path)
+            score = read_midi(path, **(midi or {}))
         except ScoreError as exc:
             raise CompareError(f"TAKE {exc}") from None
         notes = [Played(e.time, drum_of(kit, e.event, e.pitch), e.velocity, e.event.value) for e in score.events]
@@ -494,17 +502,31 @@ def position(score: Score, written_time: float, scale: float = 1.0) -> dict[str,
 
 def bar_and_beat(score: Score, written_time: float) -> tuple[int, float, float] | None:
     """(bar, beat from 1 (fractional), the beat's length s) of a time on the written clock, numbered as
-    :func:`position` says; None before the first beat."""
+    :func:`position` says; None before the first beat. Beats are the meter's 1/D notes (:func:`bar_unit`): eighths
+    in 6/8 and 7/8, as a DAW counts; the written tempo at the time (its map) gives their length."""
     from common.score.position import bar_beat
 
     where = bar_beat(score, written_time)
     if where is None:
         return None
-    spacing = 60.0 / where.tempo_bpm
     short = pickup(score)
+    # a pick-up's beats are counted as the end of the full bar after it (its unit too: 1/4 before 6/8)
+    unit = bar_unit(score, 1 if short is not None and where.bar == 0 else where.bar)
+    spacing = 60.0 / where.tempo_bpm * unit
+    beat = where.beat / unit + 1
     if short is None:
-        return where.bar + 1, where.beat + 1, spacing
-    return where.bar, where.beat + 1 + (short[1] - short[0] if where.bar == 0 else 0.0), spacing
+        return where.bar + 1, beat, spacing
+    return where.bar, beat + ((short[1] - short[0]) / unit if where.bar == 0 else 0.0), spacing
+
+
+def bar_unit(score: Score, bar: int) -> float:
+    """The beat bar ``bar`` (from 0, as :func:`common.score.position.bar_beat` numbers them) is counted in,
+    quarter notes: its meter's 1/D note (``Score.bar_units``: 0.5 in x/8, 1 in x/4); bars past the last start as
+    the last; quarter notes for a score that gives none."""
+    units = score.bar_units
+    if not len(units) or len(units) != len(score.bar_beats):
+        return 1.0
+    return float(units[min(max(bar, 0), len(units) - 1)])
 
 
 def grid_label(score: Score, written_time: float, scale: float = 1.0) -> str:
@@ -604,13 +626,15 @@ def dynamics(pairs: Sequence[tuple[float, float]]) -> dict[str, Any] | None:
 
 def bar_rows(score: Score, written: Sequence[tuple[float, float]], pairs: Sequence[tuple[int, float, float]],
              missed: Sequence[int], off: Sequence[int], wrong: Sequence[int], extra_bars: Sequence[int | None],
-             tolerance: float, bpm: float | None) -> list[dict[str, Any]]:
+             tolerance: float) -> list[dict[str, Any]]:
     """One row per bar of the exercise (its first bar to the bar of its last written note, as :func:`position`
     numbers them): written, played, missed, too early/late, played on another drum (``wrong_drum``) and extra
     notes, the matched notes' mean timing (ms, + late) and ``feel`` (``rushed``/``dragging`` when that mean is
-    beyond half the tolerance, else None), and the bar's local tempo (bpm; None under :data:`BAR_TEMPO_NOTES`
-    matched notes): the exercise's tempo over the slope of the take's times against the written ones (least
-    squares).
+    beyond half the tolerance, else None), and the bar's local tempo (``bpm``, quarter notes a minute as the
+    exercise's tempo; None under :data:`BAR_TEMPO_NOTES` matched notes): the slope of the take's times against
+    the notes' written positions in quarter notes (least squares, :func:`quarters`), beside ``written_bpm``, the
+    same slope of their written times: the bar's own written tempo (its tempo map's), which the played one is
+    measured against.
 
     ``written``: each written note's (exercise clock, compared clock) time, s; ``pairs``: (written index, take
     time s, played - written s); ``missed``/``off``/``wrong``: written indices; ``extra_bars``: each extra's
@@ -622,7 +646,8 @@ def bar_rows(score: Score, written: Sequence[tuple[float, float]], pairs: Sequen
     first = 0 if pickup(score) is not None else 1
     rows: dict[int, dict[str, Any]] = {
         b: {"bar": b, "written": 0, "played": 0, "missed": 0, "off_tolerance": 0, "wrong_drum": 0, "extra": 0,
-            "mean_ms": None, "feel": None, "bpm": None} for b in range(min(first, min(known)), max(known) + 1)}
+            "mean_ms": None, "feel": None, "bpm": None, "written_bpm": None}
+        for b in range(min(first, min(known)), max(known) + 1)}
     for b in known:
         rows[b]["written"] += 1
     for key, indices in (("missed", missed), ("off_tolerance", off), ("wrong_drum", wrong)):
@@ -645,26 +670,70 @@ def bar_rows(score: Score, written: Sequence[tuple[float, float]], pairs: Sequen
             row["feel"] = "rushed" if mean < 0 else "dragging"
         x = np.array([w for w, _, _ in notes])
         y = np.array([t for _, t, _ in notes])
-        if bpm is not None and len(notes) >= BAR_TEMPO_NOTES and np.ptp(x) > 0:
-            slope = float(np.polyfit(x, y, 1)[0])  # take seconds per written second
-            if slope > 0:
-                row["bpm"] = round(bpm / slope, 1)
+        if len(score.beats) >= 2 and len(notes) >= BAR_TEMPO_NOTES and np.ptp(x) > 0:
+            q = quarters(score, x)
+            played_s = float(np.polyfit(q, y, 1)[0])  # take seconds per written quarter note
+            written_s = float(np.polyfit(q, x, 1)[0])  # written seconds per quarter note: the bar's tempo map
+            if played_s > 0 and written_s > 0:
+                row["bpm"], row["written_bpm"] = round(60.0 / played_s, 1), round(60.0 / written_s, 1)
     return list(rows.values())
 
 
-def drift(bars: Sequence[dict[str, Any]]) -> dict[str, Any] | None:
-    """``{"direction": "speeding up" | "slowing down", "from_bpm", "to_bpm"}`` when the bars' local tempi (three
-    bars at least) rise, or fall, from each bar to the next and by :data:`DRIFT_MIN` in all; else None."""
-    tempi = [b["bpm"] for b in bars if b["bpm"] is not None]
-    if len(tempi) < 3:
+def quarters(score: Score, times: np.ndarray) -> np.ndarray:
+    """Written times (s, the exercise's clock) as quarter notes from its first beat through its tempo map (the
+    score's beats; the first and last spacings go on beyond them). The score has two beats at least."""
+    beats = np.asarray(score.beats, dtype=float)
+    t = np.asarray(times, dtype=float)
+    out = np.interp(t, beats, np.arange(len(beats), dtype=float))
+    before, after = t < beats[0], t > beats[-1]
+    out[before] = (t[before] - beats[0]) / (beats[1] - beats[0])
+    out[after] = len(beats) - 1 + (t[after] - beats[-1]) / (beats[-1] - beats[-2])
+    return out
+
+
+def same_tempo(low: float, high: float) -> bool:
+    """Whether two written tempi (bpm) are one (within :data:`WRITTEN_TEMPO_SAME`)."""
+    return high <= low * (1 + WRITTEN_TEMPO_SAME)
+
+
+def written_tempi(score: Score) -> tuple[float, float] | None:
+    """The slowest and fastest written tempo (bpm) of the exercise's beats up to its end (its tempo map); None
+    without two beats."""
+    beats = np.asarray(score.beats, dtype=float)
+    if len(beats) < 2:
         return None
-    steps = np.diff(tempi)
-    if abs(math.log(tempi[-1] / tempi[0])) < math.log1p(DRIFT_MIN):
+    gaps = np.diff(beats)[beats[:-1] < exercise_end(score) - 1e-9]
+    gaps = gaps[gaps > 0]
+    return None if not len(gaps) else (60.0 / float(gaps.max()), 60.0 / float(gaps.min()))
+
+
+def against_written(percent: float) -> str:
+    """``2 % slower than written`` (``percent``: played over written tempo, - 1, in %)."""
+    if round(abs(percent)) < 1:
+        return "as written"
+    return f"{abs(percent):.0f} % {'faster' if percent > 0 else 'slower'} than written"
+
+
+def drift(bars: Sequence[dict[str, Any]]) -> dict[str, Any] | None:
+    """``{"direction": "speeding up" | "slowing down", "from_bpm", "to_bpm", ...}`` when the bars' local tempi
+    (three bars at least), each against its written tempo (a tempo map's 120 then 140 bpm played as written is no
+    drift), rise, or fall, from each bar to the next and by :data:`DRIFT_MIN` in all; else None. ``from_percent``
+    and ``to_percent``: the first and last bar's tempo against the written one (+ faster), ``from_bar``/``to_bar``
+    and their written tempi."""
+    rows = [b for b in bars if b["bpm"] is not None and b.get("written_bpm")]
+    if len(rows) < 3:
+        return None
+    ratios = [b["bpm"] / b["written_bpm"] for b in rows]
+    steps = np.diff(ratios)
+    if abs(math.log(ratios[-1] / ratios[0])) < math.log1p(DRIFT_MIN):
         return None
     if not (np.all(steps > 0) or np.all(steps < 0)):
         return None
-    return {"direction": "speeding up" if tempi[-1] > tempi[0] else "slowing down",
-            "from_bpm": tempi[0], "to_bpm": tempi[-1]}
+    return {"direction": "speeding up" if ratios[-1] > ratios[0] else "slowing down",
+            "from_bpm": rows[0]["bpm"], "to_bpm": rows[-1]["bpm"],
+            "from_percent": _r((ratios[0] - 1) * 100, 1), "to_percent": _r((ratios[-1] - 1) * 100, 1),
+            "from_bar": rows[0]["bar"], "to_bar": rows[-1]["bar"],
+            "written_from_bpm": rows[0]["written_bpm"], "written_to_bpm": rows[-1]["written_bpm"]}
 
 
 def beat_feels(score: Score, notes: Sequence[tuple[float, float]], tolerance: float) -> list[dict[str, Any]]:
@@ -710,12 +779,17 @@ def bar_lines(report: dict[str, Any]) -> list[str]:
                     or b["bar"] in beat_bars)
 
     shown = bars if len(bars) <= BARS_SHOWN else [b for b in bars if notable(b)]
+    # a tempo map: each bar's written tempo beside the played one (a steady exercise's is the table's one tempo)
+    written = [b["written_bpm"] for b in bars if b.get("written_bpm")]
+    mapped = bool(written) and not same_tempo(min(written), max(written))
     lines = ["", f"{'bar':>4} {'written':>7} {'played':>6} {'missed':>6} {'too early/late':>14} {'extra':>5} "
-             f"{'other drum':>10} {'mean ms':>8} {'tempo bpm':>9}"]
+             f"{'other drum':>10} {'mean ms':>8} {'tempo bpm':>9}" + (f" {'written bpm':>11}" if mapped else "")]
     for b in shown:
         lines.append(f"{b['bar']:>4} {b['written']:>7} {b['played']:>6} {b['missed']:>6} {b['off_tolerance']:>14} "
                      f"{b['extra']:>5} {b.get('wrong_drum', 0):>10} {_ms(b['mean_ms']):>8} "
-                     f"{'-' if b['bpm'] is None else format(b['bpm'], '.1f'):>9}")
+                     f"{'-' if b['bpm'] is None else format(b['bpm'], '.1f'):>9}"
+                     + (f" {'-' if not b.get('written_bpm') else format(b['written_bpm'], '.1f'):>11}"
+                        if mapped else ""))
     if len(shown) < len(bars):
         fine = len(bars) - len(shown)
         lines.append(f"... {fine} other bar{'' if fine == 1 else 's'} fine (--json lists every bar)")
@@ -725,8 +799,13 @@ def bar_lines(report: dict[str, Any]) -> list[str]:
                       f"on average ({b['notes']} notes)") for b in beats])
     lines.extend(text for _, _, text in told)
     d = report.get("drift")
-    if d:
+    if d and same_tempo(*sorted((d.get("written_from_bpm") or 1.0, d.get("written_to_bpm") or 1.0))):
         lines.append(f"{d['direction']}: {d['from_bpm']:.0f} -> {d['to_bpm']:.0f} bpm")
+    elif d:  # the written tempo changes between them: the drift is against it
+        lines.append(f"{d['direction']} against the written tempo: bar {d['from_bar']} "
+                     f"{against_written(d['from_percent'])} ({d['from_bpm']:.0f} bpm, written "
+                     f"{d['written_from_bpm']:.0f}), bar {d['to_bar']} {against_written(d['to_percent'])} "
+                     f"({d['to_bpm']:.0f} bpm, written {d['written_to_bpm']:.0f})")
     return lines
 
 
@@ -737,6 +816,15 @@ def tempo_bpm(score: Score) -> float | None:
         return None
     spacing = float(np.median(np.diff(beats)))
     return 60.0 / spacing if spacing > 0 else None
+
+
+def start_beat_s(score: Score, scale: float) -> float | None:
+    """The exercise's beat where it starts (its first note), s on the take's clock: what a count-in counts (a
+    tempo map's first tempo, not its median); None without beats."""
+    from common.score.position import bar_beat
+
+    where = bar_beat(score, score.events[0].time if score.events else 0.0)
+    return None if where is None else 60.0 / where.tempo_bpm / scale
 
 
 def exercise_end(score: Score) -> float:
@@ -872,7 +960,7 @@ def _compare_at(score: Score, take: Take, kit: Kit, tolerance: float, scale: flo
     bpm = tempo_bpm(score)
     bars = bar_rows(score, [(written_clock(n.time), n.time) for n in written],
                     [(i, played[j].time, played[j].time - offset - written[i].time) for i, j in pairs],
-                    lost_i, sorted(off_i), sorted(wrong_of), [e["bar"] for e in extras], tolerance, bpm)
+                    lost_i, sorted(off_i), sorted(wrong_of), [e["bar"] for e in extras], tolerance)
     # every written note the take played, on its drum (within the tolerance or beyond it) or on another one
     struck = [*pairs, *claimed.items(), *swaps]
     report: dict[str, Any] = {
@@ -887,8 +975,8 @@ def _compare_at(score: Score, take: Take, kit: Kit, tolerance: float, scale: flo
         # the count-in: notes before the start, but for a first note early (told as such above)
         "entry": None if forced else count_in_entry(
             [p.time for p in played if p.time - offset < -max(LOOSE_S, 2 * tolerance)], offset, tolerance,
-            None if bpm is None else 60.0 / bpm / scale),
-        "pickup_beats": None if short is None else short[0],
+            start_beat_s(score, scale)),
+        "pickup_beats": None if short is None else _r(short[0] / bar_unit(score, 1), 3),  # counted as bar 1's
         "bars": bars, "drift": drift(bars),
         "beats_rushed_dragging": beat_feels(
             score, [(written_clock(written[i].time), played[j].time - offset - written[i].time) for i, j in struck],
@@ -911,9 +999,16 @@ def _compare_at(score: Score, take: Take, kit: Kit, tolerance: float, scale: flo
         length = exercise_end(score) / scale  # s, as the take plays it: a small ratio still drifts over a long take
         if (count >= max(1.5 * len(pairs), len(pairs) + 0.2 * len(written))
                 and abs(math.log(ratio)) * length > tolerance / 2):
-            report["tempo"] = {"ratio": ratio_digits(ratio * scale, length / ratio, tolerance), "played": count,
+            said = ratio_digits(ratio * scale, length / ratio, tolerance)
+            tempi = written_tempi(score)
+            # a tempo map: no one tempo to say the take's in bpm against; said as a share of the written tempo
+            mapped = tempi is not None and not same_tempo(*tempi)
+            report["tempo"] = {"ratio": said, "played": count,
                                "exercise_bpm": None if bpm is None else round(bpm * scale, 1),
-                               "take_bpm": None if bpm is None else round(bpm * scale * ratio, 1)}
+                               "take_bpm": None if bpm is None else round(bpm * scale * ratio, 1),
+                               "percent": _r((said - 1) * 100, 1),
+                               "written_bpm_range": None if not mapped or tempi is None else
+                               [round(tempi[0], 1), round(tempi[1], 1)]}
     return report
 
 
@@ -998,14 +1093,19 @@ def summary_lines(report: dict[str, Any], exercise: str, take: str) -> list[str]
         lines.append(f"the take stops at {where_text(stops)} (its last note): {n} written note{'' if n == 1 else 's'} "
                      f"after it {'is' if n == 1 else 'are'} missed (not listed below)")
     tempo = report.get("tempo")
+    changes = tempo.get("written_bpm_range") if tempo else None
+    if changes:  # a tempo map has no one tempo to say the take's against
+        changes = (f"the written tempo changes, {changes[0]:g} to {changes[1]:g} bpm")
     if tempo and report.get("tempo_scale_found"):
-        bpm = (f"played at about {tempo['take_bpm']:g} bpm, the exercise is at {tempo['exercise_bpm']:g}"
+        bpm = (f"played {against_written(tempo['percent'])} ({changes})" if changes else
+               f"played at about {tempo['take_bpm']:g} bpm, the exercise is at {tempo['exercise_bpm']:g}"
                if tempo["exercise_bpm"] else f"played at about {tempo['ratio']} times the exercise's tempo")
         lines.insert(1, f"{bpm}: compared at the take's tempo (--tempo-scale {tempo['ratio']}); "
                      f"{report['played']} of {report['written']} played (at the exercise's tempo "
                      f"{tempo['played_at_exercise_tempo']})")
     elif tempo:
-        bpm = (f" (the exercise at {tempo['exercise_bpm']:g} bpm, the take at about {tempo['take_bpm']:g})"
+        bpm = (f" ({against_written(tempo['percent'])}; {changes})" if changes else
+               f" (the exercise at {tempo['exercise_bpm']:g} bpm, the take at about {tempo['take_bpm']:g})"
                if tempo["exercise_bpm"] else "")
         lines.append(f"TEMPO: most notes do not match at the exercise's tempo; the take is played at about "
                      f"{tempo['ratio']} times it{bpm}: --tempo-scale {tempo['ratio']} compares at the "
@@ -1100,9 +1200,14 @@ over a quarter of --tolerance early (late) and their median over half of it;
 one note off among steady ones is not. Positions are counted as a teacher
 does: beat 3, 3e, 3&, 3a (sixteenths), 3 trip, 3 let (triplets), 3 + 1/8 (a
 finer written note); off that grid, the nearest point and how far from it on
-the take's clock ("beat 3& (12 ms late)"). An audio take is compared on the
-drums the transcriber knows (kick, snare, hi-hat, three toms, crash, ride);
-the others are listed apart. When most notes do not match, the tempo the take
+the take's clock ("beat 3& (12 ms late)"). The beat is the meter's note value,
+as a DAW counts: eighths in x/8, 6/8 and 12/8 too (1 to 6, 1 to 12; beat 4&
+is a sixteenth after the fourth eighth), quarters in x/4. Each bar's tempo
+(quarter notes a minute) is measured against its own written tempo (a tempo
+map's); a drift is a tempo rising or falling against it, and a take at
+another tempo than a tempo map is said in % of the written one. An audio
+take is compared on the drums the transcriber knows (kick, snare, hi-hat,
+three toms, crash, ride); the others are listed apart. When most notes do not match, the tempo the take
 is played at is looked for; when it matches clearly more, the take is
 compared at it (said first) unless --tempo-scale is given (then it is only
 reported). Timing is played minus written, in ms: + late, - early; the spread
@@ -1143,6 +1248,10 @@ def build_parser() -> argparse.ArgumentParser:
                         help="the kit whose objects the drums are (default: the exercise's kit line, else "
                         "default); it groups the notes, as evaluate does")
     parser.add_argument("--json", action="store_true", help="print the comparison as JSON")
+    add_midi_arguments(parser)  # one --drum-channels for the exercise and a MIDI take
+    parser.add_argument("--take-drum-map", type=drum_map, default=None, metavar="NAME|FILE",
+                        help="the MIDI take's note layout when it is not the exercise's (an e-kit's: roland-td), "
+                        "as --drum-map (default: --drum-map's)")
     return parser
 
 
@@ -1169,7 +1278,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     from common.score.text import load_score_kit
 
     try:
-        score = read_exercise(args.exercise)
+        score = read_exercise(args.exercise, midi_read_kwargs(args))
         for text in score.warnings:
             warn(text)
         try:
@@ -1178,7 +1287,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             if isinstance(exc, ScoreError):
                 raise CompareError(str(exc)) from None
             raise CompareError(f"--kit {args.kit}: {exc}") from None
-        take = read_take(args.take, kit, warn)
+        take = read_take(args.take, kit, warn, {**midi_read_kwargs(args), **(
+            {} if args.take_drum_map is None else {"note_map": args.take_drum_map})})
         for text in take.warnings:
             warn(f"TAKE {text}")
         report = compare(score, take, kit, args.tolerance, args.tempo_scale, args.offset)

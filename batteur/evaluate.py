@@ -19,7 +19,9 @@ Reported per file and in aggregate (micro-averaged over all notes):
 * every missed note with a reason: the planner's feasibility issue (dropped,
   too fast, ...), or what the performance did instead (``timing``: an impact
   on the right object outside 25 ms, ``wrong_instrument``, ``no_contact``):
-  no note is silently lost;
+  no note is silently lost; the file's notes with no drum for their pitch
+  (``no_drum_for_pitch``) are listed and counted (``no_drum_notes``) but, as
+  ``not_in_kit`` notes, left out of the figures (docs/evaluation.md);
 * real-time factor of the render.
 
 Renders with :mod:`batteur.render` unless given an existing render directory.
@@ -49,6 +51,8 @@ from batteur.errors import INTERRUPTED, USAGE, UsageError, report_error
 from common.arg_types import take_negative_values
 from common.kit import EventType, Kit, load_kit
 from common.score.events import Score
+from common.score.midi_notes import note_map_from_json, note_map_json
+from common.score.midi_options import add_midi_arguments, midi_read_kwargs
 
 WINDOWS_S: tuple[float, float] = (0.010, 0.025)
 """Tolerance windows, seconds."""
@@ -81,9 +85,10 @@ class Hit:
 
 @dataclass(frozen=True)
 class Flag:
-    """Why a note was not played (``source``: ``planner`` or ``performance``)."""
+    """Why a note was not played (``source``: ``planner`` or ``performance``; ``score``: a note of the file with
+    no drum for its pitch, ``index`` None, as it is none of ``Score.events``)."""
 
-    index: int
+    index: int | None
     time: float
     event: str
     reason: str
@@ -112,6 +117,10 @@ class FileResult:
     missed_by_reason: dict[str, int]
     planner_flags: int
     real_time_factor: float | None = None
+    no_drum_notes: int = 0
+    """Notes of the file read with no drum for their pitch (``Score.unknown``; reason ``no_drum_for_pitch``): never
+    played, listed in ``missed`` but not in ``notes``, recall or F (the drummer was not given them, as
+    ``not_in_kit``); the table's ``nodrum`` column and a line under it say them."""
     music_duration_s: float = 0.0
     """The score's planned length, seconds (report.json's ``music_duration_s``)."""
     duration_s: float = 0.0
@@ -350,6 +359,7 @@ def aggregate(results: Sequence[FileResult], windows: Sequence[float] = WINDOWS_
         reasons.update(r.missed_by_reason)
     out["missed_by_reason"] = dict(sorted(reasons.items()))
     out["planner_flags"] = sum(r.planner_flags for r in results)
+    out["no_drum_notes"] = sum(r.no_drum_notes for r in results)
     # the real-time factors as report.json's: seconds simulated (lead-in and tail included) per wall/CPU second
     simulated = sum(r.duration_s for r in results)
     wall = sum(r.wall_time_s for r in results)
@@ -385,6 +395,13 @@ def note_refs(score: Score, kit: Kit) -> list[NoteRef]:
             continue
         out.append(NoteRef(i, e.time, expected_instrument(kit, e.event, e.pitch), e.velocity, e.event.value))
     return out
+
+
+def no_drum_flags(score: Score) -> list[Flag]:
+    """The file's notes with no drum for their pitch (``Score.unknown``): read, never played (flagged, never
+    silently lost)."""
+    return [Flag(None, u.time, f"pitch {u.pitch}", "no_drum_for_pitch", "score",
+                 f"channel {u.channel}: no drum event type for this pitch") for u in score.unknown]
 
 
 def unplayable_flags(score: Score, kit: Kit) -> list[Flag]:
@@ -456,6 +473,21 @@ def render_dir_score(render_dir: Path) -> Path:
     raise ValueError(f"{render_dir}: holds no score.* and its report.json names no score")
 
 
+def report_midi_kwargs(report: dict[str, Any], where: Path) -> dict[str, Any]:
+    """How the render of ``report`` read its MIDI score (``--drum-channels``: its ``drum_channels``), as keyword
+    arguments of ``read_score``: the score is judged as it was played. A report without them: the reader's
+    defaults (a render made before they were recorded, or without the option). ``--drum-map``: its ``drum_map``."""
+    mapped = note_map_from_json(report.get("drum_map"), str(where))  # a DrumMapError is a ValueError
+    kwargs: dict[str, Any] = {} if mapped is None else {"note_map": mapped}
+    channels = report.get("drum_channels")
+    if channels is None:
+        return kwargs
+    if not (isinstance(channels, list) and channels
+            and all(isinstance(c, int) and not isinstance(c, bool) and 1 <= c <= 16 for c in channels)):
+        raise ValueError(f"{where}: drum_channels must be a list of MIDI channels 1 to 16, got {channels!r}")
+    return {**kwargs, "drum_channels": tuple(channels)}
+
+
 def evaluate_render_dir(score_path: Path, render_dir: Path, kit: Kit | None = None) -> FileResult:
     """Evaluate an existing render directory (impacts.csv + report.json) against its score."""
     from batteur.impact_log import read_impacts_csv
@@ -479,7 +511,8 @@ def evaluate_render_dir(score_path: Path, render_dir: Path, kit: Kit | None = No
     timing = {key: report_number(report, key, where) for key in ("real_time_factor", "duration_s", "music_duration_s",
                                                                    "wall_time_s", "cpu_time_s")}
     kit = kit if kit is not None else load_kit(kit_name, warn=False)  # its render warned of it
-    score = scale_tempo(read_score(score_path), 1.0 if tempo_scale is None else tempo_scale)
+    score = scale_tempo(read_score(score_path, **report_midi_kwargs(report, where)),
+                        1.0 if tempo_scale is None else tempo_scale)
     if not (render_dir / "impacts.csv").is_file():
         raise ValueError(f"{render_dir}: no impacts.csv (not a whole render)")
     impacts = read_impacts_csv(render_dir / "impacts.csv")
@@ -488,6 +521,9 @@ def evaluate_render_dir(score_path: Path, render_dir: Path, kit: Kit | None = No
     name = Path(source if isinstance(source, str) and source else score_path).name
     result = evaluate_performance(name, note_refs(score, kit), hits, flags)
     result.missed += unplayable_flags(score, kit)
+    unknown = no_drum_flags(score)
+    result.missed += unknown
+    result.no_drum_notes = len(unknown)
     result.missed_by_reason = dict(sorted(Counter(f.reason for f in result.missed).items()))
     result.real_time_factor = timing["real_time_factor"]
     result.music_duration_s = timing["music_duration_s"] or 0.0
@@ -580,7 +616,7 @@ def format_table(rows: Sequence[tuple[str, dict[str, Any]]]) -> str:
     width = min(MAX_LABEL_WIDTH, max([LABEL_WIDTH, *(len(label) for label, _ in rows)]))
     head = (f"{'':<{width}} {'notes':>6} {'F@10':>6} {'F@25':>6} {'P@25':>6} {'R@25':>6} "
             f"{'med|e| ms':>10} {'p95|e| ms':>10} {'bias ms':>7} "
-            f"{'rho':>6} {'rho_s':>6} {'spur':>5} {'miss':>5} {'flag':>5} {'RTF':>5}")
+            f"{'rho':>6} {'rho_s':>6} {'spur':>5} {'miss':>5} {'nodrum':>6} {'flag':>5} {'RTF':>5}")
     lines = [head]
     for label, a in rows:
         t = a["timing_ms"]
@@ -594,7 +630,8 @@ def format_table(rows: Sequence[tuple[str, dict[str, Any]]]) -> str:
             f"{a['f_measure']['25ms']:>6.3f} {a['precision']['25ms']:>6.3f} {a['recall']['25ms']:>6.3f} "
             f"{num(t['median_abs'], '10.2f')} {num(t['p95_abs'], '10.2f')} {num(t['median_signed'], '+7.2f')} "
             f"{num(a['spearman'], '6.3f')} {num(a.get('spearman_within_sound'), '6.3f')} {a['spurious']:>5} "
-            f"{missed:>5} {a['planner_flags']:>5} {num(a['real_time_factor'], '5.2f')}")
+            f"{missed:>5} {a.get('no_drum_notes', 0):>6} {a['planner_flags']:>5} "
+            f"{num(a['real_time_factor'], '5.2f')}")
     return "\n".join(lines)
 
 
@@ -797,6 +834,9 @@ def reusable(render_dir: Path, score: Path, opts: Any) -> bool:
         return False
     wanted = {"kit": style.kit, "grip": style.grip, "nuance": (style.nuance or DEFAULT_NUANCE).value,
               "tempo_scale": opts.tempo_scale, "control": opts.control,
+              "drum_channels": (None if opts.midi.get("drum_channels") is None
+                                else list(opts.midi["drum_channels"])),
+              "drum_map": note_map_json(opts.midi.get("note_map")),
               "calibration": str(opts.calibration) if opts.calibration else None}
     body = {"height_m": (opts.height_m, STATURE_M), "mass_kg": (opts.mass_kg, DEFAULT_MASS_KG)}
     return (all(report.get(key) == value for key, value in wanted.items())
@@ -851,6 +891,7 @@ def build_parser() -> argparse.ArgumentParser:
                         help="with --renders: reuse a render already there when it is of the same score with the "
                         "same options")
     add_performance_options(parser, kit_default=None)  # a score's kit line, as render
+    add_midi_arguments(parser)
     add_body_options(parser)
     parser.add_argument("--calibration", type=Path, default=None, metavar="FILE",
                         help="calibration JSON applied to the plans (default: none)")
@@ -920,7 +961,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 RENDER_OPTIONS = ("kit", "grip", "nuance", "height", "mass", "tempo_scale", "control", "calibration", "jobs",
-                  "segment")
+                  "segment", "drum_channels", "drum_map")
 """The options that change a render: a render directory given to evaluate was made with its own."""
 
 
@@ -1000,7 +1041,8 @@ def _main(args: argparse.Namespace) -> int:
         grip, nuance = style_from(args)
         opts = RenderOptions(kit=args.kit, grip=grip, nuance=nuance, tempo_scale=args.tempo_scale,
                              control=args.control, calibration=args.calibration, jobs=resolve_jobs(args.jobs),
-                             segment_s=args.segment, height_m=height_of(args), mass_kg=args.mass)
+                             segment_s=args.segment, height_m=height_of(args), mass_kg=args.mass,
+                             midi=midi_read_kwargs(args))
         results = evaluate_scores(args.scores, opts, args.renders, quiet=args.quiet, reuse=args.reuse)
     except (ScoreError, RenderError, ValueError, OSError, KeyError) as exc:  # UsageError: 2, a file or a render: 1
         return report_error(PROG, exc)
@@ -1014,8 +1056,13 @@ def _main(args: argparse.Namespace) -> int:
         rows = [(r.name, r.summary()) for r in results] + ([("ALL", agg)] if len(results) > 1 else [])
         print(format_table(rows))
         for r in results:
+            if r.no_drum_notes:  # the figures are over the notes given to the drummer: these must not go unseen
+                print(f"  {r.name}: {r.no_drum_notes} note{'s' * (r.no_drum_notes > 1)} of the file not played: no "
+                      f"drum for {'their' if r.no_drum_notes > 1 else 'its'} pitch (nodrum; F, P and R count the "
+                      f"{r.notes} the drummer was given)")
             for f in r.missed[:20]:
-                print(f"  {r.name}: note {f.index} {f.event} at {f.time:.3f} s missed: {f.reason} ({f.detail})")
+                note = f"note {f.index} {f.event}" if f.index is not None else f"a note of {f.event}"
+                print(f"  {r.name}: {note} at {f.time:.3f} s missed: {f.reason} ({f.detail})")
             if len(r.missed) > 20:
                 print(f"  {r.name}: ... {len(r.missed) - 20} more missed notes (see --json)")
             if args.list:

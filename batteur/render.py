@@ -10,7 +10,8 @@ Two scenes:
 * the strike scene (``batteur render --strikes 0.25:3,0.75:1.5 -o DIR``): a
   stick thrown onto one instrument on a schedule (integration smoke test).
 
-Outputs in DIR: ``performance.wav`` (sample 0 = rig time 0), ``impacts.csv``
+Outputs in DIR: ``performance.wav`` (sample 0 = rig time 0; ``--wav-from score``: score time 0, bar 1, as heard,
+:func:`shift_wav`), ``impacts.csv``
 (one row per impact, every feature of ``/batteur/impact``, rig times),
 ``performance.bvh`` (the simulated motion, score mode; frame 0 the first pose, or with ``--bvh-sync wav``
 the WAV's time 0), with ``--video``
@@ -61,6 +62,9 @@ from common.output_paths import check_output_dir
 from common.score.events import Score, ScoreError
 from common.score.hands import HandAlgorithm
 from common.score.limbs import STATURE_M, Assignment, LimbLengths
+from common.score.midi_notes import note_map_json
+from common.score.midi_options import add_midi_arguments, midi_read_kwargs
+from common.score.summary import score_length
 from common.score.text import DEFAULT_KIT, load_score_kit, score_kit
 
 if TYPE_CHECKING:
@@ -137,6 +141,12 @@ class RenderOptions:
     """performance.bvh's frame 0 (``--bvh-sync``): the first pose (rig time 1 ms), or performance.wav's time 0
     (:func:`wav_frame_start`), the first pose held until it comes."""
     calibration: Path | None = None
+    sound_params: Path | None = None
+    """A sound parameters file (``--sound-params``: services/sound/params_file.py) the instruments start from."""
+    wav_from: Literal["render", "score"] = "render"
+    """performance.wav's sample 0 (``--wav-from``): the render's start (rig time 0, the drummer settling before the
+    lead-in; report.json's ``score_time_0_wav_s`` says where bar 1 falls), or score time 0 (bar 1, beat 1) as heard:
+    the render's WAV trimmed or padded with silence before (:func:`shift_wav`), for a DAW's bar 1."""
     video: bool = False
     """Also write performance.mp4 (services.graphics.video.render_video); needs ffmpeg."""
     video_fps: float = 30.0
@@ -158,6 +168,9 @@ class RenderOptions:
     reach."""
     mass_kg: float = DEFAULT_MASS_KG
     """The drummer's mass, kilograms (35 to 150): physics' segment masses and joint strength."""
+    midi: dict[str, Any] = field(default_factory=dict)
+    """Keyword arguments reading a MIDI score (``--drum-channels``...:
+    :func:`common.score.midi_options.midi_read_kwargs`); a text score ignores them."""
 
     def styled(self, score: Score | None = None) -> RenderOptions:
         """These options with the kit, grip and nuance a render of ``score`` plays: those given here, else those
@@ -285,7 +298,7 @@ def prepare(path: Path | str, kit: Kit, opts: RenderOptions, calibration: Calibr
     if score is None:
         score = read_scaled(path, opts, progress)
     if not score.events:  # the reader's warnings say why (unknown pitches, no drum channel)
-        why = "; ".join(w.removeprefix(f"{Path(path).name}: ") for w in score.warnings
+        why = "; ".join(w.removeprefix(f"{path}: ").removeprefix(f"{Path(path).name}: ") for w in score.warnings
                         if not w.endswith("no drum events"))
         raise ScoreError(f"{path}: no drum events to play" + (f" ({why})" if why else ""))
     assignment = distribute(score, kit, opts.algorithm,
@@ -305,7 +318,7 @@ def read_scaled(path: Path | str, opts: RenderOptions,
     from common.score.text import read_score
 
     reading = None if progress is None else functools.partial(progress, "reading")  # MIDI only: text is quick
-    return scale_tempo(read_score(path, progress=reading), opts.tempo_scale)
+    return scale_tempo(read_score(path, progress=reading, **opts.midi), opts.tempo_scale)
 
 
 def load_render_kit(path: Path | str, opts: RenderOptions, score: Score | None,
@@ -368,6 +381,28 @@ def wav_seconds(sound: Any) -> float:
     return sound.next_sample / sound.sample_rate
 
 
+def read_render_sound_params(path: Path | None, kit: Kit) -> None:
+    """``--sound-params``: ValueError naming the file and the entry for one that cannot be read or names what
+    ``kit`` does not have (before the long part of a render)."""
+    if path is None:
+        return
+    from services.sound.params_file import check_against_kit, load_sound_params
+
+    try:
+        check_against_kit(load_sound_params(path), kit, path)
+    except FileNotFoundError as exc:
+        raise ValueError(str(exc)) from None
+
+
+def apply_render_sound_params(sound: Any, path: Path | None) -> None:
+    """``--sound-params`` on a render's sound core (a SoundCore), read again here (a segment's worker too)."""
+    if path is None:
+        return
+    from services.sound.params_file import apply_sound_params, load_sound_params
+
+    apply_sound_params(sound, load_sound_params(path), path)
+
+
 def run_score(score: Score, assignment: Assignment, plan: GesturePlan, kit: Kit, opts: RenderOptions,
               on_progress: Callable[[float, float], None] | None = None,
               outputs: StreamedOutputs | None = None) -> ScoreRender:
@@ -388,6 +423,7 @@ def run_score(score: Score, assignment: Assignment, plan: GesturePlan, kit: Kit,
     offset = opts.settle_s - plan.start_time
     interaction = InteractionCore(kit=kit, config=offline_interaction_config())
     sound = SoundCore(SoundSettings(latency=opts.latency_s, origin=0.0, record=outputs is None), kit=kit)
+    apply_render_sound_params(sound, opts.sound_params)
     recorder = RecorderCore() if outputs is None else outputs.recorder()
     runner = OfflineRunner([physics, interaction, sound, recorder])
     duration = rendered_seconds(plan, opts)
@@ -592,15 +628,18 @@ class StreamedOutputs:
     length (``--bvh-sync wav``: the BVH on the WAV's clock ends where the WAV does, as the glTF; until 7 Dec it went
     on to the last pose, 50 ms, the latency, past it); None: the last pose's. ``end_sites``: the BVH's End Sites,
     those of the body physics builds (:func:`body_end_sites`; None: the writer's guess from its snapshot).
+    ``wav_cut_s``: the seconds ``--wav-from score`` cuts from the WAV's start once it is written (negative: silence
+    it adds), so that the BVH on the WAV's clock still ends where the WAV does.
     """
 
     def __init__(self, folder: Path, bvh_rate_hz: float | None, keep: bool = False, planned_s: float = 0.0,
                  prog: str = "batteur render", bvh_start_s: float | None = None,
-                 end_sites: dict[str, tuple[float, float, float]] | None = None) -> None:
+                 end_sites: dict[str, tuple[float, float, float]] | None = None, wav_cut_s: float = 0.0) -> None:
         from services.graphics.export.bvh import BvhStream
 
         self.folder = folder
         self.bvh_start_s = bvh_start_s
+        self.wav_cut_s = wav_cut_s
         self.planned_s = planned_s
         self.prog = prog
         self.keep = keep or bvh_rate_hz is None
@@ -634,7 +673,8 @@ class StreamedOutputs:
         self.wav.close()
         count = self.impacts.finish()
         if self.bvh is not None:
-            end = None if self.bvh_start_s is None else self.bvh_start_s + self.wav.frames / self.wav.sample_rate
+            end = (None if self.bvh_start_s is None
+                   else self.bvh_start_s + (self.wav.frames / self.wav.sample_rate - self.wav_cut_s))
             self.bvh_frames = self.bvh.finish(end=end)
         return count
 
@@ -708,11 +748,15 @@ def issues_json(plan: GesturePlan, score: Score) -> list[dict[str, Any]]:
 
 
 def score_report(result: ScoreRender, source: str, opts: RenderOptions) -> dict[str, Any]:
-    """report.json of a score render; the grip and nuance those played (``opts.styled(result.score)``)."""
+    """report.json of a score render; the grip and nuance those played (``opts.styled(result.score)``).
+    ``issues`` lists the planner's feasibility issues and, with ``note_index`` null, the notes the score reader
+    did not keep (``unknown_note``: no drum for the pitch; ``duplicate``: a double merged), each counted apart:
+    ``planner_issues``, ``unknown_notes``, ``duplicates``."""
     wall = result.wall_time_s
     cpu = result.physics.get("cpu_time_s")
     music = result.plan.end_time - result.plan.start_time
     style = opts.styled(result.score)
+    length = score_length(result.score)
     return {
         "scene": "drummer",
         "score": source,
@@ -724,18 +768,28 @@ def score_report(result: ScoreRender, source: str, opts: RenderOptions) -> dict[
         "mass_kg": opts.mass_kg,
         "bvh_rate_hz": opts.pose_rate_hz,
         "tempo_scale": opts.tempo_scale,
+        "drum_channels": _drum_channels_json(opts),
+        "drum_map": note_map_json(opts.midi.get("note_map")),  # --drum-map's pitches, None: General MIDI
         "control": opts.control,
         "limits_from": list(opts.limits_from),
         "skeleton_bvh": None if opts.skeleton_bvh is None else str(opts.skeleton_bvh),
         "physics": result.physics,
         "calibration": str(opts.calibration) if opts.calibration else None,
+        "sound_params": str(opts.sound_params) if opts.sound_params else None,
         "notes": len(result.score.events),
         "planned_strokes": len(result.plan.strokes),
         "issues": issues_json(result.plan, result.score),
+        "planner_issues": len(result.plan.issues),
+        "unknown_notes": len(result.score.unknown),
+        "duplicates": len(result.score.duplicates),
         "impacts": result.impacts_total,
         "contacts": result.contacts,
         "score_offset_s": result.score_offset_s,
         "latency_s": opts.latency_s,
+        "wav_from": opts.wav_from,
+        "score_time_0_wav_s": score_time_0_wav_s(result.score_offset_s, opts.latency_s),
+        "score_beats": None if length is None else length[0],
+        "score_bars": None if length is None else length[1],
         "duration_s": round(result.duration_s, 6),  # performance.wav's length
         "music_duration_s": music,
         "sample_rate_hz": result.sample_rate,
@@ -744,6 +798,13 @@ def score_report(result: ScoreRender, source: str, opts: RenderOptions) -> dict[
         "cpu_time_s": result.physics.get("cpu_time_s"),
         "real_time_factor_cpu": round(result.duration_s / cpu, 3) if cpu else None,
     }
+
+
+def _drum_channels_json(opts: RenderOptions) -> list[int] | None:
+    """report.json's ``drum_channels``: the MIDI channels read as drums (``--drum-channels``), None: the reader's
+    choice; ``batteur evaluate`` reads the score of a render directory with them."""
+    channels = opts.midi.get("drum_channels")
+    return None if channels is None else [int(c) for c in channels]
 
 
 def write_outputs(output: Path, audio: np.ndarray, sample_rate: int, impacts: list[Any], report: dict[str, Any],
@@ -843,16 +904,19 @@ def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: boo
         planning.close(finished=False)
         raise
     planning.close()
+    read_render_sound_params(opts.sound_params, kit)  # the score's kit known, before the long part
     opts = opts.styled(score)  # physics' hands hold the grip the score asked for, as planned
     for warning in score.warnings:  # e.g. a MIDI file without a drum channel, read as drums
         print(f"{prog}: warning: {warning}", file=sys.stderr)
     progress = Progress(f"rendering {Path(path).name}", rendered_seconds(plan, opts), enabled=False if quiet else None)
     finished = False  # a render given up (Ctrl-C, an error) leaves its bar where it stood, not at 100 %
+    offset = opts.settle_s - plan.start_time  # rig time of score time 0, as run_score's
+    wav_cut_s = score_time_0_wav_s(offset, opts.latency_s) if opts.wav_from == "score" else 0.0
     with Staging(output) as staging:  # the WAV, impacts and motion are written as they are rendered
         outputs = StreamedOutputs(staging.path, opts.pose_rate_hz or None, keep=opts.video or opts.gltf,
                                   planned_s=rendered_seconds(plan, opts), prog=prog,
-                                  bvh_start_s=wav_frame_start(opts) if opts.bvh_sync == "wav" else None,
-                                  end_sites=body_end_sites(opts))
+                                  bvh_start_s=wav_frame_start(opts, offset) if opts.bvh_sync == "wav" else None,
+                                  end_sites=body_end_sites(opts), wav_cut_s=wav_cut_s)
         try:
             if opts.jobs > 1:
                 from batteur.segments import run_segmented
@@ -872,8 +936,19 @@ def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: boo
             progress.close(finished)
             outputs.close()
         report = score_report(result, str(path), opts)
+        wav_cut = 0
+        if opts.wav_from == "score":  # checked before the video and glTF are made: a refusal wastes no more
+            wav_cut = round(wav_cut_s * result.sample_rate)
+            wav = staging.path / "performance.wav"
+            impacts = result.impacts if result.impact_count is None else read_staged_impacts(staging.path)
+            cut_warning = check_wav_from_score(impacts, result.score_offset_s, wav_cut, result.sample_rate,
+                                               first_sound(wav, wav_cut))
+            if cut_warning is not None:
+                print(f"{prog}: warning: {cut_warning}", file=sys.stderr)
+            report.update(score_time_0_wav_s=0.0, wav_cut_s=round(wav_cut / result.sample_rate, 6),
+                          wav_duration_s=round(result.duration_s - wav_cut / result.sample_rate, 6))
         if outputs.bvh is not None and outputs.bvh_frames is not None:
-            report["bvh"] = bvh_entry(outputs.bvh, outputs.bvh_frames, opts)
+            report["bvh"] = bvh_entry(outputs.bvh, outputs.bvh_frames, opts, wav_cut_s)
         video = None
         if opts.video:
             if result.poses is None:
@@ -887,8 +962,17 @@ def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: boo
         kept_poses = result.poses if outputs.bvh is None else None  # else the BVH is written already
         write_rest(staging, report, kept_poses, Path(path), video, bvh_rate_hz=opts.pose_rate_hz or None,
                    gltf=gltf, end_sites=outputs.end_sites)
+        if wav_cut:  # after the video, which muxes the render's WAV with the poses on its own clock
+            shift_wav(staging.path / "performance.wav", wav_cut, prog)
         staging.commit()
     return report
+
+
+def read_staged_impacts(folder: Path) -> list[Any]:
+    """The impacts streamed into ``folder``'s impacts.csv (rig times), for :func:`check_wav_from_score`."""
+    from batteur.impact_log import read_impacts_csv
+
+    return list(read_impacts_csv(folder / "impacts.csv"))
 
 
 def check_options(opts: RenderOptions) -> None:
@@ -1039,20 +1123,118 @@ def video_writer(result: ScoreRender, kit: Kit, opts: RenderOptions, quiet: bool
     return write
 
 
-def bvh_entry(bvh: BvhStream, frames: int, opts: RenderOptions) -> dict[str, Any]:
+def bvh_entry(bvh: BvhStream, frames: int, opts: RenderOptions, wav_cut_s: float = 0.0) -> dict[str, Any]:
     """report.json's ``bvh``: the file's frames and where its frame 0 falls in performance.wav (seconds, and
-    frames at its rate: how far to shift it in an animation tool to line it up with the WAV)."""
+    frames at its rate: how far to shift it in an animation tool to line it up with the WAV); ``wav_cut_s``: the
+    seconds ``--wav-from score`` cut from the WAV's start (negative: silence added)."""
     start = bvh.start_time if bvh.start_time is not None else 0.0
-    wav_time = start + opts.latency_s
+    wav_time = start + opts.latency_s - wav_cut_s
     return {"file": "performance.bvh", "frames": frames, "rate_hz": opts.pose_rate_hz, "sync": opts.bvh_sync,
             "start_s": round(start, 6), "wav_time_s": round(wav_time, 6),
             "wav_offset_frames": round(wav_time * opts.pose_rate_hz, 3)}
 
 
-def wav_frame_start(opts: RenderOptions) -> float:
+def wav_frame_start(opts: RenderOptions, score_offset_s: float) -> float:
     """Rig time (seconds) of a motion file's frame 0 on performance.wav's clock: the WAV's time 0, as each impact
-    is heard at its rig time + ``latency_s``; frames before the first pose hold it."""
-    return -opts.latency_s
+    is heard at its rig time + ``latency_s`` (``--wav-from score``: the rig time of score time 0,
+    ``score_offset_s``, heard at the WAV's time 0); frames before the first pose hold it."""
+    return score_offset_s if opts.wav_from == "score" else -opts.latency_s
+
+
+EARLY_IMPACT_S = 0.025
+"""How long before score time 0 (seconds) an impact may be heard for ``--wav-from score`` to trim the WAV there
+anyway (evaluate's wider window): a note on bar 1's first beat played that little early (the drummer's first impact
+is typically 1 ms early), the first milliseconds of its sound cut, said in a warning. An earlier impact would be
+lost from the WAV: the render is refused."""
+
+
+def score_time_0_wav_s(score_offset_s: float, latency_s: float) -> float:
+    """Where score time 0 (bar 1, beat 1) is heard in the render's performance.wav, seconds (negative: before its
+    start, a score opening with empty bars): its rig time ``score_offset_s`` plus the sound's ``latency_s``."""
+    return round(score_offset_s + latency_s, 6)
+
+
+def bar_one_line(wav_s: float, wav: str = "performance.wav") -> str:
+    """Where score time 0 falls in ``wav`` (``wav_s``, seconds; negative: before its start), for a DAW user."""
+    if wav_s < 0:
+        return f"score time 0 (bar 1, beat 1) is {-wav_s:.3f} s before the start of {wav}"
+    return f"score time 0 (bar 1, beat 1) is at {wav_s:.3f} s in {wav}"
+
+
+def early_impacts(impacts: Sequence[Any], score_offset_s: float) -> list[Any]:
+    """The impacts (rig ``time``, seconds) struck before score time 0 (rig time ``score_offset_s``), earliest
+    first: what ``--wav-from score`` trims (a little early, :data:`EARLY_IMPACT_S`) or would lose."""
+    return sorted((i for i in impacts if i.time < score_offset_s), key=lambda i: i.time)
+
+
+def check_wav_from_score(impacts: Sequence[Any], score_offset_s: float, wav_frames_cut: int, sample_rate: int,
+                         first_sound_frame: int | None) -> str | None:
+    """``--wav-from score``'s check of a finished render: raise :class:`RenderError` when an impact struck more than
+    :data:`EARLY_IMPACT_S` before score time 0 (a pick-up, a stroke before bar 1) would be cut from the WAV; else a
+    warning when the WAV's sound starts before the cut (``first_sound_frame``, the first non-silent sample of the
+    render's WAV, ``wav_frames_cut`` the samples cut), None when only silence is cut."""
+    early = early_impacts(impacts, score_offset_s)
+    lost = [i for i in early if score_offset_s - i.time > EARLY_IMPACT_S]
+    if lost:
+        first = lost[0]
+        raise RenderError(f"--wav-from score: {len(lost)} impact{'s' if len(lost) > 1 else ''} struck before score "
+                          f"time 0 (bar 1, beat 1) would be cut from performance.wav (the first on {first.instrument}"
+                          f" {score_offset_s - first.time:.3f} s before it); render without --wav-from score: "
+                          "report.json's score_time_0_wav_s says where bar 1 is in the WAV")
+    if first_sound_frame is None or first_sound_frame >= wav_frames_cut:
+        return None
+    cut_ms = (wav_frames_cut - first_sound_frame) / sample_rate * 1000
+    if early:
+        return (f"--wav-from score: the first impact ({early[0].instrument}) is struck "
+                f"{(score_offset_s - early[0].time) * 1000:.1f} ms before score time 0; the first {cut_ms:.1f} ms of "
+                "its sound are cut from performance.wav")
+    return f"--wav-from score: {cut_ms:.1f} ms of sound before score time 0 are cut from performance.wav"
+
+
+def first_sound(path: Path, frames: int) -> int | None:
+    """The first sample (per channel) of the audio file ``path`` that is not silent among its first ``frames``,
+    None if they all are."""
+    with sf.SoundFile(path) as wav:
+        read = 0
+        while read < frames:
+            block = wav.read(min(frames - read, 1 << 16), dtype="int32", always_2d=True)
+            if not len(block):
+                return None
+            loud = np.flatnonzero(np.any(block != 0, axis=1))
+            if len(loud):
+                return read + int(loud[0])
+            read += len(block)
+    return None
+
+
+def shift_wav(path: Path, frames: int, prog: str = "batteur render") -> int:
+    """Rewrite the WAV ``path`` so that its sample 0 is its sample ``frames`` (negative: ``-frames`` samples of
+    silence added before it), the samples themselves unchanged (24-bit PCM read and written as integers; RF64
+    when the result needs it, :func:`wav_container`); copied in blocks, so an hour's WAV is not held in memory.
+    Returns the new length in samples."""
+    block = 1 << 16
+    shifted = path.with_name(f".{path.name}.shifted")
+    with sf.SoundFile(path) as source:
+        total = max(source.frames - frames, 0)
+        fmt = wav_container(total, source.channels)
+        if fmt == "RF64":
+            say_rf64(path, total, source.samplerate, prog)
+        with sf.SoundFile(shifted, "w", source.samplerate, source.channels, subtype=source.subtype,
+                          format=fmt) as target:
+            silence = max(-frames, 0)
+            while silence > 0:
+                n = min(silence, block)
+                target.write(np.zeros((n, source.channels), dtype=np.int32))
+                silence -= n
+            if frames < source.frames:
+                source.seek(max(frames, 0))
+                while True:
+                    data = source.read(block, dtype="int32", always_2d=True)
+                    if not len(data):
+                        break
+                    target.write(data)
+    shifted.replace(path)
+    return total
 
 
 def gltf_writer(result: ScoreRender, kit: Kit, opts: RenderOptions, quiet: bool) -> Callable[[Path], dict[str, Any]]:
@@ -1062,8 +1244,9 @@ def gltf_writer(result: ScoreRender, kit: Kit, opts: RenderOptions, quiet: bool)
 
     def write(staging: Path) -> dict[str, Any]:
         started = time.perf_counter()
-        start = wav_frame_start(opts)
-        end = start + result.duration_s  # the WAV's end; the poses' last 50 ms (at rest) are after it
+        start = wav_frame_start(opts, result.score_offset_s)
+        cut_s = score_time_0_wav_s(result.score_offset_s, opts.latency_s) if opts.wav_from == "score" else 0.0
+        end = start + (result.duration_s - cut_s)  # the WAV's end; the poses' last 50 ms (at rest) are after it
         times = result.poses.resample_times(opts.pose_rate_hz, start=start, end=end)
         progress = Progress("glTF", len(times), unit="frames", decimals=0, enabled=False if quiet else None)
         finished = False
@@ -1077,7 +1260,10 @@ def gltf_writer(result: ScoreRender, kit: Kit, opts: RenderOptions, quiet: bool)
         finally:
             progress.close(finished)
         return {"file": "performance.glb", "frames": info.keyframes, "rate_hz": opts.pose_rate_hz,
-                "time_0": "performance.wav's time 0: a pose at rig time t is keyed at t + latency_s",
+                "time_0": ("performance.wav's time 0: a pose at rig time t is keyed at t + latency_s"
+                           if opts.wav_from == "render" else
+                           "performance.wav's time 0 (--wav-from score: score time 0): a pose at rig time t is "
+                           "keyed at t - score_offset_s"),
                 "start_s": round(float(times[0]), 6), "duration_s": round(info.duration, 6),
                 "links": info.links, "kit_objects": info.kit_objects,
                 "animated_kit_objects": info.animated_kit_objects,
@@ -1107,6 +1293,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     playing = parser.add_argument_group("the performance")
     add_performance_options(playing, kit_default=None)
+    add_midi_arguments(playing)
     playing.add_argument("--algorithm", default=HandAlgorithm.VITERBI.value,
                          choices=[a.value for a in HandAlgorithm], help="hand assignment algorithm (default: viterbi)")
     playing.add_argument("--calibration", type=Path, default=None, metavar="FILE",
@@ -1114,6 +1301,9 @@ def build_parser() -> argparse.ArgumentParser:
                          "velocity map applied to the plan (default: none)")
     playing.add_argument("--latency", type=float, default=0.05, metavar="SECONDS",
                          help="sound latency window, seconds (default 0.05)")
+    playing.add_argument("--sound-params", type=Path, default=None, metavar="FILE",
+                         help="the instruments' sound parameters (what `batteur sound --sound-params-out` writes: "
+                         "per instrument, what the /batteur/sound/... controls set; docs/sound.md)")
     playing.add_argument("--control-rate", type=float, default=None, metavar="HZ",
                          help="drummer's full control updates (IK, inverse dynamics) per second; the torques are "
                          "corrected at every 1 ms physics step between (default: physics' default, 1000: every "
@@ -1136,6 +1326,13 @@ def build_parser() -> argparse.ArgumentParser:
                          help="frame 0 of DIR/performance.bvh: pose, the first pose (rig time 1 ms; the default), "
                          "or wav, DIR/performance.wav's time 0, the first pose held until it comes, so the BVH and "
                          "the WAV imported at frame 0 line up (each strike where it is heard)")
+    outputs.add_argument("--wav-from", choices=["render", "score"], default=None,
+                         help="sample 0 of DIR/performance.wav: render, the render's start (the drummer settles "
+                         "before its lead-in; the default: where score time 0, bar 1, falls in it is printed and "
+                         "in report.json's score_time_0_wav_s), or score, score time 0 (bar 1, beat 1) as heard, "
+                         "the silence before trimmed (or added, for a score opening with empty bars), so the WAV "
+                         "imported at a DAW's bar 1 lines up with the MIDI file; refused when a stroke before "
+                         "bar 1 would be cut. impacts.csv keeps rig times")
     outputs.add_argument("--gltf", action="store_true",
                          help="also write DIR/performance.glb: the motion and the kit (cymbals swing, hi-hat and "
                          "pedals move) as one animated glTF 2.0 file at --bvh-rate, for Blender and other "
@@ -1226,13 +1423,15 @@ def options_from(args: argparse.Namespace) -> RenderOptions:
     grip, nuance = style_from(args)
     return RenderOptions(kit=args.kit, grip=grip, nuance=nuance, tempo_scale=args.tempo_scale,
                          control=args.control, algorithm=HandAlgorithm(args.algorithm), latency_s=args.latency,
-                         calibration=args.calibration, video=args.video, video_fps=_given(args.video_fps, 30.0),
+                         calibration=args.calibration, sound_params=args.sound_params, video=args.video,
+                         video_fps=_given(args.video_fps, 30.0),
                          gltf=args.gltf,
                          video_size=_given(args.video_size, (640, 360)), control_rate_hz=args.control_rate,
                          jobs=resolve_jobs(args.jobs), segment_s=_given(args.segment, 30.0),
                          limits_from=tuple(args.limits_from), skeleton_bvh=args.skeleton_bvh,
                          height_m=height_of(args), mass_kg=args.mass, pose_rate_hz=args.bvh_rate,
-                         bvh_sync=_given(args.bvh_sync, "pose"))
+                         bvh_sync=_given(args.bvh_sync, "pose"), midi=midi_read_kwargs(args),
+                         wav_from=_given(args.wav_from, "render"))
 
 
 T = TypeVar("T")
@@ -1261,7 +1460,7 @@ def options_in_vain(args: argparse.Namespace) -> list[str]:
     if args.strikes is not None:  # one stick over one instrument: no drummer, no plan, no motion file
         drummer = (("--height", args.height, None), ("--mass", args.mass, DEFAULT_MASS_KG),
                    ("--bvh-rate", args.bvh_rate, RenderOptions.pose_rate_hz), ("--grip", args.grip, None),
-                   ("--bvh-sync", args.bvh_sync, None),
+                   ("--bvh-sync", args.bvh_sync, None), ("--wav-from", args.wav_from, None),
                    ("--nuance", args.nuance, None))
         for name, value, default in drummer:
             if value != default:
@@ -1317,9 +1516,13 @@ def _main_score(opts: argparse.Namespace, prog: str) -> int:
     except (ScoreError, RenderError, ValueError, OSError) as exc:  # UsageError: 2, a file or the render: 1
         return report_error(prog, exc)
     out = opts.output
-    print(f"wrote {out / 'performance.wav'} ({report['duration_s']:.1f} s)")
+    print(f"wrote {out / 'performance.wav'} ({report.get('wav_duration_s', report['duration_s']):.1f} s"
+          f"{bars_words(report)})")
+    print(bar_one_line(report["score_time_0_wav_s"])
+          + (" (--wav-from score)" if report["wav_from"] == "score" else
+             "; --wav-from score starts the WAV there, for a DAW's bar 1"))
     print(f"wrote {out / 'impacts.csv'} ({report['impacts']} impacts for {report['notes']} notes, "
-          f"{len(report['issues'])} flagged by the planner)")
+          f"{report['planner_issues']} flagged by the planner{unplayed_words(report)})")
     if (out / "performance.bvh").exists():
         print(f"wrote {out / 'performance.bvh'}")
     if "video" in report:
@@ -1333,6 +1536,27 @@ def _main_score(opts: argparse.Namespace, prog: str) -> int:
     return 0
 
 
+def bars_words(report: dict[str, Any]) -> str:
+    """``; the score: 8 bars (32 beats)`` for the WAV's line, "" when the score's end is not known."""
+    beats, bars = report.get("score_beats"), report.get("score_bars")
+    if beats is None or bars is None:
+        return ""
+    return f"; the score: {bars} bar{'' if bars == 1 else 's'} ({beats:g} beat{'' if beats == 1 else 's'})"
+
+
+def unplayed_words(report: dict[str, Any]) -> str:
+    """``; 13 notes not played: no drum for their pitch`` (and doubles merged) for impacts.csv's line, counted
+    apart from the planner's flags ("" when there are none)."""
+    words = ""
+    unknown, doubles = report.get("unknown_notes", 0), report.get("duplicates", 0)
+    if unknown:
+        many = unknown > 1
+        words += f"; {unknown} note{'s' * many} not played: no drum for {'their' if many else 'its'} pitch"
+    if doubles:
+        words += f"; {doubles} double note{'s' * (doubles > 1)} merged (within 10 ms of another of its drum)"
+    return words
+
+
 def _main_strikes(opts: argparse.Namespace, prog: str) -> int:
     try:
         strikes = parse_strikes(opts.strikes)
@@ -1342,6 +1566,7 @@ def _main_strikes(opts: argparse.Namespace, prog: str) -> int:
     try:
         kit = load_kit(opts.kit or DEFAULT_KIT)
         check_output_dir(opts.output, "-o")
+        read_render_sound_params(opts.sound_params, kit)
     except (ValueError, OSError) as exc:
         return report_error(prog, exc)
     event = opts.event or DEFAULT_STRIKE_EVENT
@@ -1351,7 +1576,8 @@ def _main_strikes(opts: argparse.Namespace, prog: str) -> int:
     finished = False
     try:
         result = run_strikes(strikes, EventType(event), kit, opts.latency,
-                             on_progress=lambda t, total: progress.update(t))
+                             on_progress=lambda t, total: progress.update(t),
+                             prepare=functools.partial(apply_render_sound_params, path=opts.sound_params))
         finished = True
     except ValueError as exc:
         return report_error(prog, exc)

@@ -405,7 +405,14 @@ def run_segmented(score: Score, assignment: Assignment, plan: GesturePlan, kit: 
     The parent plays each segment's messages into sound and the recorder as soon as the segments before it are
     in, so it holds a few segments' messages, not the piece's; ``outputs``: as for ``run_score``.
     """
-    from batteur.render import RecorderCore, ScoreRender, collect, rendered_seconds, wav_seconds
+    from batteur.render import (
+        RecorderCore,
+        ScoreRender,
+        apply_render_sound_params,
+        collect,
+        rendered_seconds,
+        wav_seconds,
+    )
     from common.bus import OfflineRunner
     from services.sound.core import SoundCore, SoundSettings
 
@@ -416,6 +423,7 @@ def run_segmented(score: Score, assignment: Assignment, plan: GesturePlan, kit: 
     segments = plan_segments(duration, segment_s, warmup_s)
     total = sum(s.run_to_s - s.run_from_s for s in segments)
     sound = SoundCore(SoundSettings(latency=opts.latency_s, origin=0.0, record=outputs is None), kit=kit)
+    apply_render_sound_params(sound, opts.sound_params)
     recorder = RecorderCore() if outputs is None else outputs.recorder()
     replays = [_PhysicsReplay([], opts.rate_hz), _InteractionReplay([], opts.rate_hz)]
     runner = OfflineRunner([*replays, sound, recorder])

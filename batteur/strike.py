@@ -72,6 +72,7 @@ def run_strikes(
     latency_s: float = 0.05,
     tail_s: float = 1.0,
     on_progress: Callable[[float, float], None] | None = None,
+    prepare: Callable[[SoundCore], None] | None = None,
 ) -> StrikeResult:
     """Run the strike scene offline and render its sound.
 
@@ -82,6 +83,8 @@ def run_strikes(
     physics = PhysicsCore(scene="strike", strikes=strikes, kit=kit, strike_event=event, pose_rate_hz=0.0)
     interaction = InteractionCore(kit=kit)
     sound = SoundCore(SoundSettings(latency=latency_s, origin=0.0), kit=kit)
+    if prepare is not None:  # a sound parameters file applied
+        prepare(sound)
     runner = OfflineRunner([physics, interaction, sound])
     seen: dict[int, Impact] = {}
     contacts = 0

@@ -13,13 +13,13 @@ import sys
 import time
 from collections import Counter
 
-import numpy as np
-
 from common.exit_status import FAILED, report_error
 from common.output_paths import point_at_devnull
 from common.score.events import MAX_SCORE_BARS, Score, ScoreError
 from common.score.hands import HandAlgorithm, Sticking
 from common.score.limbs import distribute
+from common.score.midi_options import add_midi_arguments, midi_read_kwargs
+from common.score.summary import beat_seconds, last_bar_end, meter_line, score_length, tempo_line
 from common.score.text import DEFAULT_KIT, load_score_kit, read_score, score_kit
 
 PROG = "python -m common.score"
@@ -35,13 +35,21 @@ def length(score: Score) -> str:
     """How long ``score`` is, as a musician counts it: beats (quarter notes, to a hundredth: 3.5 for a bar of 7/8)
     and bars up to its end (:attr:`Score.end_beat`), "4 beats, 1 bar" for a bar of 4/4. Not the number of
     ``score.beats``: that holds the beat at the end as well (a one-note bar of 1/4 was "2 beats")."""
-    if score.end_beat is None:  # a reader that does not know its end: the beats before the last
+    known = score_length(score)
+    if known is None:  # a reader that does not know its end: the beats before the last
         return counted(max(len(score.beats) - 1, 0), "beat")
-    end = round(score.end_beat, 2)
-    bars = int(np.count_nonzero(score.bar_beats < end - 1e-9))
+    end, bars = known
     beats = f"{end:.2f}".rstrip("0").rstrip(".")  # not :g, whose 6 digits drop the hundredths past 10,000 beats
     at_least = "at least " if len(score.bar_beats) >= MAX_SCORE_BARS else ""  # the readers stop counting there
     return f"{beats} beat{'' if end == 1 else 's'}, {at_least}{counted(bars, 'bar')}"
+
+
+def bar_end_words(score: Score) -> str:
+    """``; 2.000 s to the end of the last bar`` (:func:`common.score.summary.last_bar_end`: a MIDI file's end of
+    track inside a bar counts to that bar's end), "" when the score's end or tempo is not known."""
+    end = last_bar_end(score)
+    seconds = None if end is None else beat_seconds(score, end)
+    return "" if seconds is None else f"; {seconds:.3f} s to the end of the last bar"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -66,13 +74,18 @@ def _inspect(argv: list[str] | None) -> int:
     parser.add_argument("--algorithm", default="viterbi", choices=[a.value for a in HandAlgorithm])
     parser.add_argument("--sticking", default="none", choices=[s.value for s in Sticking])
     parser.add_argument("--plan", action="store_true", help="also plan the gestures")
+    add_midi_arguments(parser)
     args = parser.parse_args(argv)
     try:
-        score = read_score(args.score)
+        score = read_score(args.score, **midi_read_kwargs(args))
         kit = load_score_kit(score, args.kit)  # a kit line's kit it cannot load: an error naming the line
     except (ScoreError, FileNotFoundError, ValueError) as exc:  # a score or kit it cannot use
         return report_error(PROG, exc, FAILED)
-    print(f"{score.source}: {counted(len(score.events), 'event')} over {score.duration:.2f} s, {length(score)}")
+    print(f"{score.source}: {counted(len(score.events), 'event')} (the last at {score.duration:.2f} s), "
+          f"{length(score)}{bar_end_words(score)}")
+    for line in (tempo_line(score), meter_line(score)):
+        if line is not None:
+            print(line)
     asked = score_kit(score)
     print(f"kit: {args.kit or asked or DEFAULT_KIT}" + (" (the score's kit line)" if args.kit is None and asked
                                                          else ""))

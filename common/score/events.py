@@ -11,6 +11,7 @@ plain-text format (:mod:`common.score.text`) or live OSC notes
 from __future__ import annotations
 
 import codecs
+from collections import Counter
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -20,7 +21,7 @@ import numpy as np
 from common.gesture.plan import Nuance
 from common.input_file import file_problem
 from common.kit import EventType, Limb
-from common.score.gm import DRUM_MAP, note_name
+from common.score.gm import DRUM_MAP, EVENT_WORDS, GM_STAND_INS, GM_TO_EVENT, note_name, pitch_label
 
 DUPLICATE_WINDOW = 0.010
 """Two events of the same type closer than this (seconds) are one double event."""
@@ -219,6 +220,10 @@ class Score:
         Where the score ends, in beats (quarter notes) from the first: a text score's last bar (or rest), a MIDI
         file's end of track; its length, which ``python -m common.score`` reports. ``beats`` holds the beat at the
         end too (the head nod's last), so it counts one beat more. None: not known (a live or performed score).
+    bar_units : np.ndarray, shape (M,)
+        Each bar's counted beat, the 1/D note of its meter N/D, in quarter notes (0.5 in 6/8 or 7/8, 1 in x/4),
+        parallel to ``bar_beats`` (bars past the last start count as it); empty: quarter notes. How ``batteur
+        compare`` counts beats as a DAW does (``bar 2, beat 5`` in 7/8); ``beats`` stay quarter notes.
     """
 
     events: list[DrumEvent]
@@ -229,6 +234,7 @@ class Score:
     source: str = ""
     bar_beats: np.ndarray = field(default_factory=lambda: np.zeros(0))
     end_beat: float | None = None
+    bar_units: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def duration(self) -> float:
@@ -286,10 +292,22 @@ def score_from_notes(
         else:
             events.append(DrumEvent(time=n.time, event=ev, velocity=vel, pitch=n.pitch))
     kept, removed = remove_duplicates(events, duplicate_window)
+    named = f"{source}: " if source else ""
     warnings = []
     if unknown:
-        pitches = ", ".join(f"{note_name(p)} x{c}" for p, c in sorted(_count(unknown).items()))
-        warnings.append(f"{len(unknown)} notes have no drum event type and are not played: {pitches}")
+        counts = sorted(_count(unknown).items(), key=lambda pc: (-pc[1], pc[0]))  # the most played first
+        pitches = [f"{pitch_label(p)} x{c}" for p, c in counts]
+        said = f"{len(unknown)} notes have no drum event type and are" if len(unknown) != 1 else \
+            "1 note has no drum event type and is"
+        warnings.append(f"{named}{said} not played: "
+                        f"{capped(pitches)} (note names with middle C = C3); {MAP_HINT}")
+    stand_ins = Counter(e.pitch for e in events
+                        if e.pitch in GM_STAND_INS and GM_TO_EVENT.get(e.pitch) is e.event)
+    if stand_ins:
+        played = [f"{pitch_label(p)} played as {EVENT_WORDS[GM_TO_EVENT[p]]} x{c}"
+                  for p, c in sorted(stand_ins.items(), key=lambda pc: (-pc[1], pc[0]))]
+        warnings.append(f"{named}General MIDI percussion a drum kit does not have is played on the kit piece struck "
+                        f"alike: {capped(played)}; if the file means other drums by these notes, {MAP_HINT}")
     return Score(
         events=kept,
         beats=np.zeros(0) if beats is None else beats,
@@ -299,6 +317,20 @@ def score_from_notes(
         warnings=warnings,
         source=source,
     )
+
+
+MAP_HINT = "give --drum-map a note map (a .json or .toml file, or roland-td; docs/score-format.md, \"Note maps\")"
+"""How a note that is not General MIDI's is given its drum (the MIDI reading option of the command lines)."""
+LISTED_PITCHES = 8
+"""The most pitches a warning lists (the most played): a keyboard-mapped sample kit has dozens."""
+
+
+def capped(items: list[str], most: int = LISTED_PITCHES) -> str:
+    """``items`` joined with commas, the first ``most`` of them and ``... and 61 more pitches`` for the rest."""
+    if len(items) <= most:
+        return ", ".join(items)
+    rest = len(items) - most
+    return ", ".join(items[:most]) + f", ... and {rest} more pitch{'es' * (rest != 1)}"
 
 
 def _count(unknown: list[UnknownNote]) -> dict[int, int]:

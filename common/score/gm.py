@@ -128,3 +128,42 @@ DRUM_MAP: dict[int, EventType] = {**GM_TO_EVENT, 22: E.HIHATCLOSED, 26: E.HIHATO
 def note_name(pitch: int) -> str:
     """Human-readable name of a drum pitch ("pitch 27" when it is not a known drum sound)."""
     return GM_DRUM_NAMES.get(pitch) or TD11_EXTRA_NAMES.get(pitch) or f"pitch {pitch}"
+
+
+GM_STAND_INS: frozenset[int] = frozenset({39, 54, 58, *range(60, 82)})
+"""GM percussion a drum kit does not have (hand clap, tambourine, vibraslap, the Latin and auxiliary percussion
+60-81): :data:`GM_TO_EVENT` plays each on the kit piece struck the same way, and the reader says so once a pitch
+(another layout may use these pitches for kit pieces: Roland's tom 3 rim is 58)."""
+
+EVENT_WORDS: dict[EventType, str] = {
+    E.BASS: "bass drum", E.SNARE: "snare", E.RIM: "rim (side stick)", E.HIGHTOM: "high tom", E.MIDTOM: "mid tom",
+    E.FLOORTOM: "floor tom", E.CRASH: "crash", E.RIDE: "ride", E.RIDEBELL: "ride bell", E.SPLASH: "splash",
+    E.CHINA: "china", E.HIHATOPEN: "open hi-hat", E.HIHATCLOSED: "closed hi-hat", E.HIHATPEDAL: "hi-hat pedal",
+    E.COWBELL: "cowbell",
+}
+"""Each drum event type in words, for messages ("played as high tom")."""
+
+EVENT_PITCHES: dict[EventType, int] = {
+    E.BASS: 36, E.SNARE: 38, E.RIM: 37, E.HIGHTOM: 48, E.MIDTOM: 45, E.FLOORTOM: 43, E.CRASH: 49, E.RIDE: 51,
+    E.RIDEBELL: 53, E.SPLASH: 55, E.CHINA: 52, E.HIHATOPEN: 46, E.HIHATCLOSED: 42, E.HIHATPEDAL: 44,
+    E.COWBELL: 56,
+}
+"""The General MIDI pitch that stands for each event type where a note map names the type instead of a pitch:
+the kit's first piece of that type (the toms as a Roland module and most kits lay them out: 48, 45, 43), so a
+kit's ``note_objects`` for a second piece (41, 57, 59) are not chosen by a name."""
+
+NOTE_NAMES = ("C", "C#", "D", "D#", "E", "F", "F#", "G", "G#", "A", "A#", "B")
+MIDDLE_C_OCTAVE = 3
+"""The octave number of middle C (pitch 60) in :func:`midi_note_name`: C3, as Ableton Live, Cubase, Logic and
+Pro Tools show it (Yamaha's convention; Reaper's and the MIDI Manufacturers Association's C4 is an octave up)."""
+
+
+def midi_note_name(pitch: int) -> str:
+    """The note name a DAW's piano roll shows for ``pitch`` with middle C = C3: 60 ``C3``, 25 ``C#0``, 0 ``C-2``."""
+    return f"{NOTE_NAMES[pitch % 12]}{pitch // 12 - 5 + MIDDLE_C_OCTAVE}"
+
+
+def pitch_label(pitch: int) -> str:
+    """A pitch for a message: ``pitch 25 (C#0)``, or with its drum sound ``pitch 60 (Hi Bongo, C3)``."""
+    sound = GM_DRUM_NAMES.get(pitch) or TD11_EXTRA_NAMES.get(pitch)
+    return f"pitch {pitch} ({sound + ', ' if sound else ''}{midi_note_name(pitch)})"

@@ -2,9 +2,9 @@
 
 Tempo changes anywhere in the file are honoured (a type 1 file's conductor
 track or inline), running status is handled by mido's parser, and notes are
-taken from the drum channels: channel 10 (index 9), any channel whose bank
-select MSB is 120 (GM2 rhythm) or 127 (XG drums), and any channel the caller
-names. A RIFF MIDI file (``.rmi``: a Standard MIDI File in a RIFF ``RMID`` form's ``data`` chunk) is read as the
+taken from the drum channels: channel 10 (index 9) and any channel whose bank
+select MSB is 120 (GM2 rhythm) or 127 (XG drums), or the channels the caller
+names instead. A RIFF MIDI file (``.rmi``: a Standard MIDI File in a RIFF ``RMID`` form's ``data`` chunk) is read as the
 file it wraps. A key signature mido cannot decode is ignored with a warning (a drum score has no key). A file that
 is not a MIDI file, is truncated or is corrupt raises :class:`ScoreError` naming the file and the problem.
 
@@ -18,6 +18,7 @@ import io
 import math
 import struct
 import threading
+from collections import Counter
 from collections.abc import Callable, Collection, Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
@@ -45,6 +46,7 @@ from common.score.events import (
 )
 from common.score.gm import DRUM_MAP
 from common.score.gm_programs import GM_PROGRAM_NAMES
+from common.score.midi_notes import HiHatPedal
 
 GM_DRUM_CHANNEL = 10
 """General MIDI's percussion channel (1-based)."""
@@ -262,6 +264,7 @@ def read_midi(
     drum_channels: Collection[int] | None = None,
     drum_map: Mapping[int, EventType] = DRUM_MAP,
     progress: ReadProgress | None = None,
+    note_map: Mapping[int, int] | None = None,
 ) -> Score:
     """Read a Standard MIDI File into a :class:`Score`.
 
@@ -270,9 +273,10 @@ def read_midi(
     source : str | Path | bytes
         File path or the file's bytes.
     drum_channels : Collection[int] | None
-        1-based MIDI channels holding drums, in addition to channel 10 and
-        channels switched to a drum bank. When no note is found on any drum
-        channel and none were named, every channel is read (with a warning).
+        1-based MIDI channels holding drums (``--drum-channels``): those and no
+        other. None: channel 10 and channels switched to a drum bank, notes
+        elsewhere skipped with a warning; when none is on them, every channel
+        but melodic ones beside others (with a warning: :func:`_chosen_notes`).
     drum_map : Mapping[int, EventType]
         MIDI pitch -> drum event type (default: GM plus the TD-11's 22 and 26).
     progress : Callable[[int, int], None] | None
@@ -280,6 +284,11 @@ def read_midi(
         ``REPORT_EVERY_MESSAGES`` messages mido parses, and ``(size, size)`` when the score is complete (the notes
         are turned into events after the parse: a fifth to a quarter of the time). Whatever it raises
         (``KeyboardInterrupt``) stops the reading. The score is the same with or without it.
+    note_map : Mapping[int, int] | None
+        The file's pitch -> the General MIDI drum pitch it plays, for a file laid out otherwise
+        (:func:`common.score.midi_notes.load_drum_map`, ``--drum-map``); pitches it does not hold are read as they
+        are. Applied before the hi-hat pedal (CC4, :class:`common.score.midi_notes.HiHatPedal`) and ``drum_map``;
+        events and unknown notes carry the pitch it gives.
 
     Returns
     -------
@@ -288,14 +297,14 @@ def read_midi(
         ticks-per-beat and tempo map, unknown notes and removed doubles listed.
     """
     with cyclic_gc_paused():
-        score, size = _read(source, drum_channels, drum_map, progress)
+        score, size = _read(source, drum_channels, drum_map, progress, note_map)
     if progress is not None:
         progress(size, size)
     return score
 
 
 def _read(source: str | Path | bytes, drum_channels: Collection[int] | None, drum_map: Mapping[int, EventType],
-          progress: ReadProgress | None) -> tuple[Score, int]:
+          progress: ReadProgress | None, note_map: Mapping[int, int] | None = None) -> tuple[Score, int]:
     """:func:`read_midi`'s work; also returns the file's size in bytes."""
     mid, name, size, open_warnings = _open(source, progress)
     if mid.ticks_per_beat < 0:  # the division's top bit: frames a second and ticks a frame
@@ -308,11 +317,13 @@ def _read(source: str | Path | bytes, drum_channels: Collection[int] | None, dru
     seconds = 0.0
     last_tick = 0
     per_tick = tempo / 1e6 / mid.ticks_per_beat
-    drums = {GM_DRUM_CHANNEL - 1} | {c - 1 for c in (drum_channels or ())}
+    drums = {GM_DRUM_CHANNEL - 1}  # and those set to a drum bank; drum_channels, when given, instead
     raw: list[tuple[float, int, int, int, int]] = []  # seconds, pitch, velocity, channel index, tick
     programs: dict[int, list[int]] = {}  # channel index -> its General MIDI programs, as first set
     tempo_points: list[tuple[int, float, float]] = [(0, 0.0, per_tick)]  # tick, seconds, seconds/tick
     meters: list[tuple[int, int, int]] = [(0, 4, 4)]  # tick, numerator, denominator (4/4 until told otherwise)
+    pitches = note_map or {}
+    pedal = HiHatPedal()  # CC4 per channel
     for tick, msg in timeline:
         seconds += (tick - last_tick) * per_tick
         last_tick = tick
@@ -326,23 +337,27 @@ def _read(source: str | Path | bytes, drum_channels: Collection[int] | None, dru
             meters.append((tick, msg.numerator, msg.denominator))
         elif msg.type == "control_change" and msg.control == 0 and msg.value in _DRUM_BANKS:
             drums.add(msg.channel)
+        elif msg.type == "control_change" and msg.control == 4:  # the foot controller: a hi-hat's pedal
+            pedal.control(msg.channel, msg.value)
         elif msg.type == "note_on" and msg.velocity > 0:
-            raw.append((seconds, msg.note, msg.velocity, msg.channel, tick))
+            pitch = pedal.pitch(seconds, msg.channel, pitches.get(msg.note, msg.note))
+            raw.append((seconds, pitch, msg.velocity, msg.channel, tick))
         elif msg.type == "program_change" and msg.program not in programs.setdefault(msg.channel, []):
             programs[msg.channel].append(msg.program)
     warnings = open_warnings
-    chosen = [r for r in raw if r[3] in drums]
-    if not chosen and raw and not drum_channels:
-        channels = sorted({r[3] for r in raw})
-        warnings.append(f"{name}: no notes on a drum channel; reading channels {[c + 1 for c in channels]}"
-                        f"{_instruments(channels, programs)} as drums")
-        chosen = raw
+    chosen, told = _chosen_notes(raw, drums, drum_channels, programs, mid, name)
+    warnings += told
     _check_size(chosen, name)
+    warnings += _shared_pitches(chosen, mid, drum_map, name)
+    pedalled = pedal.notice([(s, c, p) for s, p, _, c, _ in chosen], name) if pedal.changed else None
+    if pedalled:
+        warnings.append(pedalled)
     notes = [DrumNote(time=s, pitch=p, velocity=v / 127.0, channel=c + 1) for s, p, v, c, _ in chosen]
     beats = _beats(tempo_points, end_tick, mid.ticks_per_beat)
     score = score_from_notes(notes, drum_map=drum_map, beats=beats, source=name,
                              bar_beats=_bar_beats(meters, end_tick, mid.ticks_per_beat))
     score.end_beat = end_tick / mid.ticks_per_beat
+    score.bar_units = _bar_units(meters, score.bar_beats, mid.ticks_per_beat)
     score.warnings = warnings + score.warnings
     if not score.events:
         score.warnings.append(f"{name}: no drum events")
@@ -359,6 +374,147 @@ def _instruments(channels: list[int], programs: dict[int, list[int]]) -> str:
     if len(channels) == 1:
         return f" ({named[channels[0]]})"
     return " (" + "; ".join(f"{c + 1}: {names}" for c, names in named.items()) + ")"
+
+
+PERCUSSIVE_PROGRAMS = range(112, 120)
+"""General MIDI's Percussive family (Tinkle Bell, Agogo, Steel Drums, Woodblock, Taiko Drum, Melodic Tom, Synth
+Drum, Reverse Cymbal), 0-based: a channel set to one may hold drums; any other program names a melodic
+instrument."""
+CHOOSE_CHANNELS = "choose with --drum-channels N,N (1 to 16, as a DAW shows them)"
+"""How a warning about the channels read says to choose them."""
+
+_RawNote = tuple[float, int, int, int, int]  # seconds, pitch, velocity, channel index, tick
+
+
+def _chosen_notes(raw: list[_RawNote], drums: set[int], named: Collection[int] | None,
+                  programs: dict[int, list[int]], mid: mido.MidiFile, name: str) -> tuple[list[_RawNote], list[str]]:
+    """The notes read as drums and the warnings saying which channels were left out or guessed.
+
+    ``named`` (1-based, ``--drum-channels``): those channels and no other. Else the drum channels ``drums``
+    (0-based: 10 and those set to a drum bank); notes elsewhere are skipped with a warning naming each channel
+    (a Drum Rack sends on channel 1, a tambourine sits on 10: the groove was dropped without a word). With no note
+    on them, every channel is read, but for the channels whose programs are all melodic (a bass, a piano) when
+    another channel (without a program, or with a percussive one) has notes; said either way."""
+    counts = Counter(r[3] for r in raw)
+    if named:
+        wanted = {c - 1 for c in named}
+        silent = sorted(wanted - counts.keys())
+        warnings = []
+        if silent and counts:
+            others = sorted(counts.keys() - wanted)
+            warnings.append(f"{name}: no notes on channel{'s' * (len(silent) > 1)} {_channel_list(silent)} "
+                            f"(--drum-channels)"
+                            + (f"; notes are on {_channels(others, counts, programs, mid)}" if others else ""))
+        return [r for r in raw if r[3] in wanted], warnings
+    chosen = [r for r in raw if r[3] in drums]
+    if chosen:
+        skipped = sorted(counts.keys() - drums)
+        if not skipped:
+            return chosen, []
+        read = sorted(counts.keys() & drums)
+        them = "them" if len(skipped) > 1 else "it"
+        why = ": a melodic program" if all(_melodic(c, programs) for c in skipped) else ""  # a song's bass, piano
+        return chosen, [f"{name}: only channel{'s' * (len(read) > 1)} {_channel_list(read)} read as drums; "
+                        f"skipped {_channels(skipped, counts, programs, mid)}{why}; to read {them} too: "
+                        f"--drum-channels {_channel_list(sorted(read + skipped), ',')} (every channel read, 1 to "
+                        f"16 as a DAW shows them)"]
+    if not raw:
+        return [], []
+    channels = sorted(counts)
+    melodic = [c for c in channels if _melodic(c, programs)]
+    kept = [c for c in channels if c not in melodic]
+    if melodic and kept:
+        return [r for r in raw if r[3] in kept], [
+            f"{name}: no notes on a drum channel; reading {_reading(kept, counts, programs, mid)}; skipped "
+            f"{_channels(melodic, counts, programs, mid)}: a melodic program; {CHOOSE_CHANNELS}"]
+    why = "; every channel with notes set a melodic program" if melodic else ""
+    return raw, [f"{name}: no notes on a drum channel; reading {_reading(channels, counts, programs, mid)}{why}; "
+                 f"{CHOOSE_CHANNELS}"]
+
+
+def _melodic(channel: int, programs: dict[int, list[int]]) -> bool:
+    """Whether the channel (0-based) set programs, all of them melodic instruments (not General MIDI's Percussive
+    family): not drums, unless named."""
+    return bool(programs.get(channel)) and not any(p in PERCUSSIVE_PROGRAMS for p in programs[channel])
+
+
+def _reading(channels: list[int], counts: Counter[int], programs: dict[int, list[int]], mid: mido.MidiFile) -> str:
+    """"channels [3] (Violin) as drums" for one channel (0-based) read as drums; for several, each with its notes,
+    programs and tracks (:func:`_channels`): the user picks among them."""
+    if len(channels) == 1:
+        return f"channels {[channels[0] + 1]}{_instruments(channels, programs)} as drums"
+    return f"channels {[c + 1 for c in channels]} as drums: {_channels(channels, counts, programs, mid)}"
+
+
+def _channel_list(channels: list[int], sep: str = ", ") -> str:
+    """0-based channel indices as a DAW shows them: "1, 10" (``sep`` "," for an option's value: "1,10")."""
+    return sep.join(str(c + 1) for c in channels)
+
+
+def _channels(channels: list[int], counts: Counter[int], programs: dict[int, list[int]], mid: mido.MidiFile) -> str:
+    """"channel 1 (24 notes, track Drums); channel 2 (8 notes, Electric Bass (finger), track Bass)": each channel
+    (0-based), its notes, its General MIDI programs and the tracks its notes are in, for the user to choose."""
+    tracks = _channel_tracks(mid)
+    out = []
+    for c in channels:
+        parts = [f"{counts[c]} note{'s' * (counts[c] != 1)}"]
+        parts += [GM_PROGRAM_NAMES[p] for p in programs.get(c, [])]
+        names = tracks.get(c, [])
+        if names:
+            parts.append(f"track{'s' * (len(names) > 1)} {', '.join(names)}")
+        out.append(f"channel {c + 1} ({', '.join(parts)})")
+    return "; ".join(out)
+
+
+def _channel_tracks(mid: mido.MidiFile) -> dict[int, list[str]]:
+    """The names of the tracks holding each channel's (0-based) notes, in file order; unnamed tracks left out."""
+    out: dict[int, list[str]] = {}
+    for track in mid.tracks:
+        title = track.name.strip()
+        if not title:
+            continue
+        for channel in sorted({m.channel for m in track if m.type == "note_on" and m.velocity > 0}):
+            if title not in out.setdefault(channel, []):
+                out[channel].append(title)
+    return out
+
+
+def _shared_pitches(chosen: list[_RawNote], mid: mido.MidiFile, drum_map: Mapping[int, EventType],
+                    name: str) -> list[str]:
+    """A warning for each pitch that several tracks or channels play at the same ticks: one drum per track, each
+    on the same pitch (a DAW's default note, 60), is one drum here, read by pitch, and their notes at once one
+    note. Tracks are not mapped by their names (a name says little of what a note is, and a wrong guess plays
+    the wrong drum): the warning names the tracks so the user can give each drum its pitch."""
+    seen = Counter((r[4], r[1]) for r in chosen)
+    doubled = {key for key, n in seen.items() if n > 1}
+    if not doubled:  # the usual file: no pass over the tracks
+        return []
+    wanted = {r[3] for r in chosen}
+    players: dict[tuple[int, int], set[tuple[int, int]]] = {}  # (tick, pitch) -> {(track, channel)}
+    offset = 0
+    for k, track in enumerate(mid.tracks):
+        tick = offset
+        for msg in track:
+            tick += msg.time
+            if (msg.type == "note_on" and msg.velocity > 0 and msg.channel in wanted
+                    and (tick, msg.note) in doubled):
+                players.setdefault((tick, msg.note), set()).add((k, msg.channel))
+        offset = tick if mid.type == 2 else 0  # type 2: tracks one after another, as _timeline reads them
+    shared: dict[int, tuple[set[tuple[int, int]], int]] = {}  # pitch -> its players, times played together
+    for (_, pitch), who in players.items():
+        if len(who) > 1:
+            group, times = shared.get(pitch, (set(), 0))
+            shared[pitch] = (group | who, times + 1)
+    warnings = []
+    for pitch, (who, times) in sorted(shared.items()):
+        names = [f"{mid.tracks[k].name.strip() or f'track {k + 1}'} (channel {c + 1})" for k, c in sorted(who)]
+        event = drum_map.get(pitch)
+        drum = f"one drum here ({event.value})" if event is not None else "one pitch (unknown: not played)"
+        warnings.append(f"{name}: pitch {pitch} is played by {len(who)} tracks, {', '.join(names)}, {times} "
+                        f"time{'s' * (times != 1)} at the same tick: drums are read by pitch, not by track, so "
+                        f"they are {drum} and notes played together one note; give each drum its own pitch in "
+                        f"the DAW (General MIDI: kick 36, snare 38, closed hi-hat 42)")
+    return warnings
 
 
 def _check_size(notes: list[tuple[float, int, int, int, int]], name: str) -> None:
@@ -390,6 +546,14 @@ def _bar_beats(meters: list[tuple[int, int, int]], end_tick: int, ticks_per_beat
         starts.append(tick + bar_ticks * np.arange(max(n, 0)))
         count += max(n, 0)
     return np.concatenate(starts) / ticks_per_beat if starts else np.zeros(0)
+
+
+def _bar_units(meters: list[tuple[int, int, int]], bar_beats: np.ndarray, ticks_per_beat: int) -> np.ndarray:
+    """Each bar's counted beat in quarter notes (4 / the denominator of the time signature in force where it
+    starts; the last of several at one tick), parallel to ``bar_beats`` (:func:`_bar_beats`)."""
+    ticks = np.array([tick for tick, _, _ in meters], dtype=float)
+    which = np.searchsorted(ticks, np.asarray(bar_beats, dtype=float) * ticks_per_beat + 1e-6, side="right") - 1
+    return np.array([4.0 / meters[max(k, 0)][2] for k in which], dtype=float)
 
 
 def _beats(tempo_points: list[tuple[int, float, float]], end_tick: int, ticks_per_beat: int) -> np.ndarray:

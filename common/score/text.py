@@ -340,6 +340,7 @@ def parse_text(text: str, source: str = "text") -> TextScore:
     """Parse the plain-text score format into a score (seconds, velocities in [0, 1])."""
     tempo = _Tempo()
     beats_per_bar = 4.0
+    count_unit = 1.0  # the meter's 1/D note, quarter notes: the beat a bar is counted in (Score.bar_units)
     meter = (4.0, "4/4")  # N, and the meter as written, for a warning about the cells of a bar
     position = 0.0  # beats
     last_note = 0.0  # the latest beat an `at` line placed a note on
@@ -349,9 +350,11 @@ def parse_text(text: str, source: str = "text") -> TextScore:
     last_block: list[DrumEvent] = []  # events of the last block, in beats (time field holds beats)
     last_block_beats = 0.0
     last_block_bar = 4.0  # the last block's beats per bar: a repeat plays its bars, whatever the meter is now
+    last_block_unit = 1.0  # and its counted beat
     last_block_line = 0  # the last block's first line
     since_block: tuple[str, int] | None = None  # the first rest or `at` line after it (a repeat does not play it)
     bar_starts: list[float] = []  # where bars start, beats
+    bar_units: list[float] = []  # each bar's counted beat, quarter notes
     last_bar = 4.0  # the length of the last bar started, as written (a rest may cut it short), beats
     warnings: list[str] = []
     grip: Grip | None = None
@@ -368,18 +371,21 @@ def parse_text(text: str, source: str = "text") -> TextScore:
             raise ScoreError(f"line {lineno}: the score would last {hours(tempo.seconds(beat))}, longer than the "
                              f"{hours(MAX_SCORE_SECONDS)} a score may last")
 
-    def add_bars(start: float, length: float, bar: float | None = None) -> None:
-        """Bars of ``bar`` beats (default ``beats_per_bar``) from ``start`` over ``length`` beats (a last bar may be
-        cut short); past :data:`MAX_SCORE_BARS` they are not kept."""
+    def add_bars(start: float, length: float, bar: float | None = None, unit: float | None = None) -> None:
+        """Bars of ``bar`` beats (default ``beats_per_bar``) counted in ``unit`` (default the meter's) from
+        ``start`` over ``length`` beats (a last bar may be cut short); past :data:`MAX_SCORE_BARS` they are not
+        kept."""
         nonlocal last_bar
         bar = beats_per_bar if bar is None else bar
         count = min(math.ceil(length / bar - 1e-9), MAX_SCORE_BARS - len(bar_starts))
         bar_starts.extend(start + k * bar for k in range(max(count, 0)))
+        bar_units.extend([count_unit if unit is None else unit] * max(count, 0))
         if count > 0:
             last_bar = bar
 
     def flush() -> None:
         nonlocal position, block, last_block, last_block_beats, last_block_bar, last_block_line, since_block
+        nonlocal last_block_unit
         if not block:
             return
         # rows by name, in the order names first appear: a name given twice plays both rows (the second one
@@ -433,6 +439,7 @@ def parse_text(text: str, source: str = "text") -> TextScore:
                     block_events.append(DrumEvent(k * cell_beats, ev, vel, None, limb, note_nuance))
         _place(block_events, position)
         last_block, last_block_beats, last_block_bar = block_events, n_bars * beats_per_bar, beats_per_bar
+        last_block_unit = count_unit
         last_block_line, since_block = block[0][0], None
         add_bars(position, last_block_beats)
         position += last_block_beats
@@ -503,6 +510,7 @@ def parse_text(text: str, source: str = "text") -> TextScore:
                 # N notes of 1/D: N x 4/D beats (quarter notes), as a MIDI file's time signature; D was ignored,
                 # 6/8 bars were 6 beats, their eighths as long as quarters
                 beats_per_bar = count * 4 / int(unit)
+                count_unit = 4 / int(unit)
                 meter = (count, f"{num.strip()}/{unit}")
             elif word == "repeat":
                 count = int(rest)
@@ -520,7 +528,7 @@ def parse_text(text: str, source: str = "text") -> TextScore:
                 check_until(position + count * last_block_beats, len(events) + count * len(last_block), lineno)
                 for _ in range(count):
                     _place(last_block, position)
-                    add_bars(position, last_block_beats, last_block_bar)
+                    add_bars(position, last_block_beats, last_block_bar, last_block_unit)
                     position += last_block_beats
             elif word == "grip":
                 if rest.lower() in RENDER_ONLY_GRIPS:  # the renderer's --grip takes them: say so, not just "french"
@@ -580,7 +588,7 @@ def parse_text(text: str, source: str = "text") -> TextScore:
         # a whole last bar ending between two beats (a fractional meter): the beats stop at the last whole one,
         # which would cut the bar short; a start where it ends gives it and the bars past the end their length
         # (common.score.position counts on from the last two, as past a MIDI file's end)
-        add_bars(position, last_bar, last_bar)
+        add_bars(position, last_bar, last_bar, bar_units[-1])
     if not events:  # as a MIDI file's (the score plays nothing; a blank file said "0 events" only)
         warnings.append("no drum events")
     elif not tempo_given:
@@ -589,7 +597,7 @@ def parse_text(text: str, source: str = "text") -> TextScore:
     # at least beats 0 and 1: a score shorter than a beat (one bar of 1/8) has a beat's length to count bars by
     beats = np.array([tempo.seconds(b) for b in np.arange(0.0, max(position, 1.0) + 1e-9, 1.0)])
     score = TextScore(events=kept, beats=beats, bar_beats=np.array(bar_starts, dtype=float), duplicates=removed,
-                      source=source, end_beat=position)
+                      source=source, end_beat=position, bar_units=np.array(bar_units, dtype=float))
     score.grip = grip
     score.nuance = nuance
     score.kit, score.kit_line = kit if kit is not None else (None, None)

@@ -718,3 +718,179 @@ def test_an_off_grid_position_is_timed_on_the_take_s_clock(exercise: Path) -> No
     score = read_score(exercise)
     assert grid_label(score, 5.05, 0.5) == "bar 3, beat 3 (100 ms late)"
     assert position(score, -0.1)["where"] == "before bar 1"
+
+
+def write_exercise(path: Path, notes: list[tuple[float, int, int]], tempi: list[tuple[float, float]],
+                   meters: list[tuple[float, int, int]]) -> Path:
+    """A type-0 MIDI exercise on channel 10 as a DAW writes one: ``notes`` (beat in quarter notes, pitch, MIDI
+    velocity), a tempo map ``tempi`` (beat, bpm) and time signatures ``meters`` (beat, numerator, denominator)."""
+    mid = mido.MidiFile(type=0, ticks_per_beat=TICKS_PER_BEAT)
+    track = mido.MidiTrack()
+    mid.tracks.append(track)
+    timeline = sorted([(b, 0, mido.MetaMessage("time_signature", numerator=n, denominator=d)) for b, n, d in meters]
+                      + [(b, 1, mido.MetaMessage("set_tempo", tempo=round(60e6 / bpm))) for b, bpm in tempi]
+                      + [(b, 3, mido.Message("note_on", note=p, velocity=v, channel=9)) for b, p, v in notes]
+                      + [(b + 0.1, 2, mido.Message("note_off", note=p, velocity=0, channel=9)) for b, p, _ in notes],
+                      key=lambda e: (e[0], e[1]))
+    last = 0
+    for beat, _, msg in timeline:
+        tick = round(beat * TICKS_PER_BEAT)
+        track.append(msg.copy(time=tick - last))
+        last = tick
+    mid.save(path)
+    return path
+
+
+def rock_bars(tempi: list[float]) -> tuple[list[tuple[float, int, int]], list[tuple[float, float]]]:
+    """The rock bar of 4/4 (eighths on the hi-hat, snare on 2 and 4, kick on 1 and 3) once per tempo in ``tempi``
+    (bpm), each bar at its own: (notes, tempo map) for :func:`write_exercise`."""
+    notes = [(4 * k + e / 2, 42, 100) for k in range(len(tempi)) for e in range(8)]
+    notes += [(4 * k + b, 38, 100) for k in range(len(tempi)) for b in (1, 3)]
+    notes += [(4 * k + b, 36, 100) for k in range(len(tempi)) for b in (0, 2)]
+    return notes, [(4.0 * k, bpm) for k, bpm in enumerate(tempi)]
+
+
+def test_each_bar_s_tempo_is_measured_against_its_written_tempo(tmp_path: Path,
+                                                                capsys: pytest.CaptureFixture[str]) -> None:
+    """A tempo map of 120, 90 and 140 bpm played exactly: each bar at its own written tempo (the file's median was
+    every bar's), the written tempo beside it, and no drift; steady 120 to 135 in steps played exactly is none
+    either (the played tempo rises, not against the written one)."""
+    notes, tempi = rock_bars([120, 90, 140])
+    exercise = write_exercise(tmp_path / "map.mid", notes, tempi, [(0, 4, 4)])
+    take = write_take(tmp_path / "take.mid", [(START + e.time, PITCH[e.event.value], 100)
+                                              for e in read_score(exercise).events])
+    got = report([str(exercise), str(take)], capsys)
+    assert got["played"] == got["written"] == 36
+    assert [(b["bpm"], b["written_bpm"]) for b in got["bars"]] == [(120, 120), (90, 90), (140, 140)]
+    assert got["drift"] is None and got["tempo"] is None
+    _, out, _ = run([str(exercise), str(take)], capsys)
+    table = out.split(" bar written played")[1].splitlines()
+    assert table[0].split()[-3:] == ["bpm", "written", "bpm"]
+    assert [line.split()[-2:] for line in table[1:4]] == [["120.0", "120.0"], ["90.0", "90.0"], ["140.0", "140.0"]]
+
+    notes, tempi = rock_bars([120, 125, 130, 135])
+    exercise = write_exercise(tmp_path / "steps.mid", notes, tempi, [(0, 4, 4)])
+    take = write_take(tmp_path / "take2.mid", [(START + e.time, PITCH[e.event.value], 100)
+                                               for e in read_score(exercise).events])
+    got = report([str(exercise), str(take)], capsys)
+    assert [b["bpm"] for b in got["bars"]] == [120, 125, 130, 135] and got["drift"] is None
+    _, out, _ = run([str(exercise), str(take)], capsys)
+    assert "speeding up" not in out
+
+
+def test_a_drift_against_a_tempo_map_is_told_against_the_written_tempo(tmp_path: Path,
+                                                                       capsys: pytest.CaptureFixture[str]) -> None:
+    """Written 118, 120, 122 and 124 bpm, played at a steady 120: each bar's tempo falls against its written one
+    (from 2 % faster to 3 % slower): slowing down, said against the written tempo."""
+    notes, tempi = rock_bars([118, 120, 122, 124])
+    exercise = write_exercise(tmp_path / "map.mid", notes, tempi, [(0, 4, 4)])
+    take = write_take(tmp_path / "take.mid", [(START + b * 0.5, p, v) for b, p, v in notes])
+    got = report([str(exercise), str(take), "--tolerance", "0.12", "--tempo-scale", "1"], capsys)
+    assert got["played"] == got["written"] == 48
+    assert [b["bpm"] for b in got["bars"]] == [120] * 4
+    assert [b["written_bpm"] for b in got["bars"]] == [118, 120, 122, 124]
+    d = got["drift"]
+    assert (d["direction"], d["from_bar"], d["to_bar"]) == ("slowing down", 1, 4)
+    assert (d["from_percent"], d["to_percent"]) == (pytest.approx(1.7, abs=0.05), pytest.approx(-3.2, abs=0.05))
+    _, out, _ = run([str(exercise), str(take), "--tolerance", "0.12", "--tempo-scale", "1"], capsys)
+    assert ("slowing down against the written tempo: bar 1 2 % faster than written (120 bpm, written 118), "
+            "bar 4 3 % slower than written (120 bpm, written 124)") in out
+
+
+def test_a_take_slower_than_a_tempo_map_is_said_against_the_written_tempo(tmp_path: Path,
+                                                                          capsys: pytest.CaptureFixture[str]) -> None:
+    """The map 120, 90, 140 bpm twice, every note 2 % slow: there is no one tempo to say the take's in bpm
+    against: "played 2 % slower than written"; compared at that tempo each bar is 2 % under its own."""
+    notes, tempi = rock_bars([120, 120, 90, 90, 140, 140])
+    exercise = write_exercise(tmp_path / "map.mid", notes, tempi, [(0, 4, 4)])
+    take = write_take(tmp_path / "take.mid", [(1.0 + round(e.time / 0.98 * 2000) / 2000, PITCH[e.event.value], 100)
+                                              for e in read_score(exercise).events])
+    got = report([str(exercise), str(take), "--tempo-scale", "1"], capsys)
+    assert got["tempo"]["ratio"] == pytest.approx(0.98, abs=1e-3)
+    assert got["tempo"]["percent"] == pytest.approx(-2, abs=0.1) and got["tempo"]["written_bpm_range"] == [90, 140]
+    _, out, _ = run([str(exercise), str(take), "--tempo-scale", "1"], capsys)
+    assert "the take is played at about 0.98 times it (2 % slower than written; the written tempo changes, 90 to " \
+           "140 bpm)" in out
+    found = report([str(exercise), str(take)], capsys)
+    assert found["tempo_scale_found"] and found["played"] == found["written"] == 72
+    assert [b["bpm"] for b in found["bars"]] == pytest.approx([117.6, 117.6, 88.2, 88.2, 137.2, 137.2], abs=0.15)
+    assert [b["written_bpm"] for b in found["bars"]] == [120, 120, 90, 90, 140, 140]
+    assert found["drift"] is None
+    _, out, _ = run([str(exercise), str(take)], capsys)
+    assert out.splitlines()[1].startswith("played 2 % slower than written (the written tempo changes, 90 to 140 "
+                                          "bpm): compared at the take's tempo (--tempo-scale 0.98)")
+    assert "played at about" not in out
+
+
+def test_beats_are_counted_in_the_meter_s_note_value(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """4/4, 7/8, 6/8 and 5/4 bars (a DAW's file): in x/8 the beats are eighths, as the DAW shows them (bar 2, beat 5
+    is the fifth eighth; in 6/8, 1 to 6, not dotted quarters), their halves &: the fifth eighth of 7/8 was "beat 3",
+    the fourth of 6/8 "beat 2&"; x/4 bars are counted in quarters as before."""
+    meters = [(0, 4, 4), (4, 7, 8), (7.5, 6, 8), (10.5, 5, 4)]
+    notes = [(b / 2, 42, 100) for b in range(31)] + [(0.0, 36, 100), (4.0, 36, 100), (7.5, 36, 100), (10.5, 36, 100)]
+    exercise = write_exercise(tmp_path / "meters.mid", notes, [(0, 120)], meters)
+    score = read_score(exercise)
+    assert list(score.bar_units[:4]) == [1, 0.5, 0.5, 1]
+    dropped = {(6.0, 42), (9.0, 42), (13.5, 42)}  # bar 2's 5th eighth, bar 3's 4th, bar 4's beat 4
+    take = [(START + e.time, PITCH[e.event.value], 100) for e in score.events
+            if (round(e.time * 2, 6), PITCH[e.event.value]) not in dropped]
+    take += [(START + 4.75 / 2, 48, 90), (START + 8.25 / 2, 48, 90)]  # toms on bar 2's 2& and bar 3's 2&
+    path = write_take(tmp_path / "take.mid", take)
+    got = report([str(exercise), str(path)], capsys)
+    assert [(m["where"], m["beat"]) for m in got["misses"]] == [("bar 2, beat 5", 5), ("bar 3, beat 4", 4),
+                                                                ("bar 4, beat 4", 4)]
+    assert [x["where"] for x in got["extras"]] == ["bar 2, beat 2&", "bar 3, beat 2&"]
+    _, out, _ = run([str(exercise), str(path)], capsys)
+    assert "bar 2, beat 5: hihat missed" in out and "bar 3, beat 4: hihat missed" in out
+    assert "bar 2, beat 2&: hightom extra" in out and "bar 4, beat 4: hihat missed" in out
+
+
+SIX_EIGHT = """\
+tempo 90
+meter 1/8
+SN |x|
+meter 6/8
+HH |x.x.x.x.x.x.|x.x.x.x.x.x.|
+SN |......x.....|......x.....|
+BD |x...........|x.....x.....|
+"""
+"""A one-eighth pick-up (a snare) and two bars of 6/8 at 90 quarter notes a minute (an eighth 1/3 s): eighths on
+the hi-hat, the snare on 4."""
+
+
+@pytest.mark.parametrize(("beats", "says"), [
+    (1.0, "bar 1, beat 1"), (3.5, "bar 1, beat 3&"), (3.25, "bar 1, beat 3e"), (7 + 1 / 3, "bar 2, beat 1 trip"),
+    (2.125, "bar 1, beat 2 + 1/8"), (5.06, "bar 1, beat 5 (20 ms late)"), (6.9, "bar 2, beat 1 (33 ms early)")])
+def test_a_text_score_in_six_eight_counts_its_eighths(beats: float, says: str, tmp_path: Path,
+                                                      capsys: pytest.CaptureFixture[str]) -> None:
+    """``meter 6/8`` is counted 1 to 6 in eighths, with its sixteenths &, thirty-seconds e and a, sixteenth
+    triplets trip and let; the pick-up is bar 0, its eighth the 6 of a bar of 6/8, and 1 beat long. ``beats``:
+    the extra's position, eighths from the pick-up (at 1/3 s each)."""
+    exercise = tmp_path / "six.txt"
+    exercise.write_text(SIX_EIGHT, encoding="utf-8")
+    score = read_score(exercise)
+    assert list(score.bar_units[:3]) == [0.5, 0.5, 0.5]
+    take = [(START + t, p, v) for t, p, v in written(exercise) if (round(t, 6), p) not in {(0.0, 38), (3.333333, 38)}]
+    take.append((START + round(beats / 3 * 2000) / 2000, 48, 90))
+    got = report([str(exercise), str(write_take(tmp_path / "take.mid", take))], capsys)
+    assert got["pickup_beats"] == 1
+    assert [m["where"] for m in got["misses"]] == ["bar 0, beat 6", "bar 2, beat 4"]
+    [extra] = got["extras"]
+    assert extra["where"] == says
+
+
+def test_a_count_in_is_at_a_tempo_map_s_first_tempo(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Two bars at 90 bpm then three at 140 (the median beat's): a count-in at 90, the tempo it counts in, is one
+    (it was measured against 140 and not told)."""
+    notes, tempi = rock_bars([90, 90, 140, 140, 140])
+    exercise = write_exercise(tmp_path / "map.mid", notes, tempi, [(0, 4, 4)])
+    beat = 60 / 90
+    count_in = [(round(beat * k * 2000) / 2000, 37, 100) for k in range(4)]
+    take = write_take(tmp_path / "take.mid", count_in + [(round((4 * beat + e.time) * 2000) / 2000,
+                                                          PITCH[e.event.value], 100)
+                                                         for e in read_score(exercise).events])
+    got = report([str(exercise), str(take)], capsys)
+    assert got["played"] == got["written"] == 60
+    assert got["entry"]["count_in_beat_s"] == pytest.approx(beat, abs=1e-3) and got["entry"]["on_time"]
+    _, out, _ = run([str(exercise), str(take)], capsys)
+    assert "entered on the beat after the count-in" in out

@@ -9,7 +9,7 @@ import mido
 import pytest
 
 from common.score.gm_programs import GM_PROGRAM_NAMES
-from common.score.midi import read_midi
+from common.score.midi import CHOOSE_CHANNELS, read_midi
 
 
 def _file(messages: list[mido.Message]) -> bytes:
@@ -37,16 +37,24 @@ def program(channel: int, number: int) -> mido.Message:
 def fallback_warning(data: bytes) -> str:
     score = read_midi(data)
     [warning] = [w for w in score.warnings if "no notes on a drum channel" in w]
-    return warning.split("; ", 1)[1]
+    said, choose = warning.split("; ", 1)[1].rsplit("; ", 1)
+    assert choose == CHOOSE_CHANNELS  # every such warning says how to choose
+    return said
 
 
 @pytest.mark.parametrize(("messages", "says"), [
-    ([program(2, 40), note(2)], "reading channels [3] (Violin) as drums"),
+    ([program(2, 40), note(2)],
+     "reading channels [3] (Violin) as drums; every channel with notes set a melodic program"),
     ([note(0)], "reading channels [1] as drums"),  # no program change: nothing to name
     ([program(2, 40), note(2), program(2, 73), note(2), program(2, 40)],
-     "reading channels [3] (Violin, Flute) as drums"),
+     "reading channels [3] (Violin, Flute) as drums; every channel with notes set a melodic program"),
+    # until 7 Dec every channel was read, the piano's and the flute's notes played as drums
     ([program(0, 0), note(0), note(2), program(4, 73), note(4)],
-     "reading channels [1, 3, 5] (1: Acoustic Grand Piano; 5: Flute) as drums"),
+     "reading channels [3] as drums; skipped channel 1 (1 note, Acoustic Grand Piano); channel 5 (1 note, "
+     "Flute): a melodic program"),
+    ([program(2, 40), note(2), program(4, 118), note(4), note(5)],  # Synth Drum: percussive, read
+     "reading channels [5, 6] as drums: channel 5 (1 note, Synth Drum); channel 6 (1 note); skipped channel 3 "
+     "(1 note, Violin): a melodic program"),
     ([program(3, 56), note(2)], "reading channels [3] as drums"),  # a program on a channel without notes
 ])
 def test_the_warning_names_each_channels_program(messages: list[mido.Message], says: str) -> None:

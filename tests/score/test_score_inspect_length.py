@@ -1,7 +1,8 @@
 """``python -m common.score FILE`` says how long a score is as a musician counts it: a one-note bar of ``meter 1/4``
 was "2 beats", a bar of four quarter notes in 4/4 "5 beats": it counted :attr:`Score.beats`, which holds the beat
 at the end as well (the head nod's last). Now the beats (quarter notes) and bars up to the score's end
-(:attr:`Score.end_beat`)."""
+(:attr:`Score.end_beat`), and the seconds to the end of the last bar (the last note's time is said as such: "over
+1.50 s" read as the score's length, a bar short of it)."""
 
 from __future__ import annotations
 
@@ -21,26 +22,30 @@ def _first_line(path: Path, capsys: pytest.CaptureFixture[str]) -> str:
 
 
 @pytest.mark.parametrize(("text", "length"), [
-    ("meter 1/4\nSN |x|\n", "1 event over 0.00 s, 1 beat, 1 bar"),  # was "2 beats"
-    ("meter 4/4\nSN |xxxx|\n", "4 events over 1.50 s, 4 beats, 1 bar"),  # was "5 beats"
-    ("meter 3/4\nSN |xxx|xxx|\n", "6 events over 2.50 s, 6 beats, 2 bars"),
-    ("meter 6/8\nSN |xxxxxx|\n", "6 events over 1.25 s, 3 beats, 1 bar"),  # six eighths: three quarter notes
-    ("meter 7/8\nSN |xxxxxxx|\n", "7 events over 1.50 s, 3.5 beats, 1 bar"),
-    ("meter 1/8\nSN |x|\n", "1 event over 0.00 s, 0.5 beats, 1 bar"),
-    ("SN |xxxx|\nrepeat 1\nrest 2\n", "8 events over 3.50 s, 10 beats, 3 bars"),  # a closing half-bar rest
-    ("at 0 SN\n", "1 event over 0.00 s, 4 beats, 1 bar"),  # `at` lines only: the bar holding the note
+    ("meter 1/4\nSN |x|\n", "1 event (the last at 0.00 s), 1 beat, 1 bar; 0.500 s"),  # was "2 beats"
+    ("meter 4/4\nSN |xxxx|\n", "4 events (the last at 1.50 s), 4 beats, 1 bar; 2.000 s"),  # was "5 beats"
+    ("meter 3/4\nSN |xxx|xxx|\n", "6 events (the last at 2.50 s), 6 beats, 2 bars; 3.000 s"),
+    # six eighths: three quarter notes
+    ("meter 6/8\nSN |xxxxxx|\n", "6 events (the last at 1.25 s), 3 beats, 1 bar; 1.500 s"),
+    ("meter 7/8\nSN |xxxxxxx|\n", "7 events (the last at 1.50 s), 3.5 beats, 1 bar; 1.750 s"),
+    ("meter 1/8\nSN |x|\n", "1 event (the last at 0.00 s), 0.5 beats, 1 bar; 0.250 s"),
+    # a closing half-bar rest: the score ends inside bar 3, which ends 2 beats later
+    ("SN |xxxx|\nrepeat 1\nrest 2\n", "8 events (the last at 3.50 s), 10 beats, 3 bars; 6.000 s"),
+    ("at 0 SN\n", "1 event (the last at 0.00 s), 4 beats, 1 bar; 2.000 s"),  # `at` lines only: the note's bar
     # was "10001.2 beats": six significant digits
-    ("meter 7/16\nSN |x.x.x.x|\nrepeat 5714\n", "22860 events over 5000.50 s, 10001.25 beats, 5715 bars"),
+    ("meter 7/16\nSN |x.x.x.x|\nrepeat 5714\n",
+     "22860 events (the last at 5000.50 s), 10001.25 beats, 5715 bars; 5000.625 s"),
 ])
 def test_a_text_score_reports_its_beats_and_bars(text: str, length: str, tmp_path: Path,
                                                  capsys: pytest.CaptureFixture[str]) -> None:
     path = tmp_path / "score.txt"
     path.write_text("tempo 120\n" + text)
-    assert _first_line(path, capsys) == f"{path}: {length}"
+    assert _first_line(path, capsys) == f"{path}: {length} to the end of the last bar"
 
 
-@pytest.mark.parametrize(("end_beats", "length"), [(4.0, "4 beats, 1 bar"), (3.5, "3.5 beats, 1 bar"),
-                                                   (8.0, "8 beats, 2 bars")])
+@pytest.mark.parametrize(("end_beats", "length"), [(4.0, "4 beats, 1 bar; 2.000 s"),
+                                                   (3.5, "3.5 beats, 1 bar; 2.000 s"),  # bar 1 ends at beat 4
+                                                   (8.0, "8 beats, 2 bars; 4.000 s")])
 def test_a_midi_file_reports_its_beats_and_bars_to_its_end(end_beats: float, length: str, tmp_path: Path,
                                                            capsys: pytest.CaptureFixture[str]) -> None:
     mid = mido.MidiFile(type=0, ticks_per_beat=480)
@@ -51,7 +56,8 @@ def test_a_midi_file_reports_its_beats_and_bars_to_its_end(end_beats: float, len
     track.append(mido.MetaMessage("end_of_track", time=round((end_beats - 3) * 480)))
     path = tmp_path / "score.mid"
     mid.save(str(path))
-    assert _first_line(path, capsys) == f"{path}: 4 events over 1.50 s, {length}"  # was one beat more when whole
+    # was one beat more when whole; "over 1.50 s", the last note's time
+    assert _first_line(path, capsys) == f"{path}: 4 events (the last at 1.50 s), {length} to the end of the last bar"
 
 
 def test_a_midi_file_longer_than_the_bars_counted_says_at_least(tmp_path: Path,
@@ -65,7 +71,7 @@ def test_a_midi_file_longer_than_the_bars_counted_says_at_least(tmp_path: Path,
     path = tmp_path / "score.mid"
     mid.save(str(path))
     line = _first_line(path, capsys)
-    assert line.endswith(f"2796202.67 beats, at least {MAX_SCORE_BARS} bars"), line  # was "2.7962e+06 beats"
+    assert f"2796202.67 beats, at least {MAX_SCORE_BARS} bars; " in line, line  # was "2.7962e+06 beats"
 
 
 def test_the_beats_still_hold_the_one_at_the_end(tmp_path: Path) -> None:

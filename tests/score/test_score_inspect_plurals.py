@@ -28,7 +28,7 @@ def _agree(line: str) -> None:
 
 def test_one_event_is_one_event(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     lines = _output(tmp_path, ONE_NOTE, capsys, "--plan")
-    assert lines[0].split(": ", 1)[1].startswith("1 event over "), lines[0]
+    assert lines[0].split(": ", 1)[1].startswith("1 event (the last at "), lines[0]
     plan = next(line for line in lines if line.startswith("plan: "))
     assert plan.startswith("plan: 1 stroke, "), plan
     for line in lines:
@@ -37,12 +37,12 @@ def test_one_event_is_one_event(tmp_path: Path, capsys: pytest.CaptureFixture[st
 
 def test_several_events_are_events(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     lines = _output(tmp_path, "tempo 120\nmeter 4/4\nSN |x.x.|\nBD |x...|\n", capsys)
-    assert lines[0].split(": ", 1)[1].startswith("3 events over "), lines[0]
+    assert lines[0].split(": ", 1)[1].startswith("3 events (the last at "), lines[0]
     for line in lines:
         _agree(line)
 
 
 def test_a_score_without_notes_says_no_limb_plays(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     lines = _output(tmp_path, "tempo 120\nmeter 4/4\nSN |....|\n", capsys)  # said "limbs: " with nothing after
-    assert lines[0].split(": ", 1)[1].startswith("0 events over "), lines[0]
+    assert lines[0].split(": ", 1)[1].startswith("0 events (the last at "), lines[0]
     assert "limbs: none" in lines, lines

@@ -1,0 +1,152 @@
+"""Which MIDI channels are read as drums: notes left out are said (channels, notes, programs, tracks, and the
+option that reads them); without a note on channel 10 a bass or a piano beside the drums is skipped, said why;
+``--drum-channels 1,10`` chooses (those channels only) on every command that reads a score; several tracks
+playing one pitch at the same time (one drum per track, all on the DAW's note 60) are named."""
+
+from __future__ import annotations
+
+import argparse
+import io
+from pathlib import Path
+
+import mido
+import pytest
+
+from common.kit import EventType as E
+from common.score.__main__ import main as inspect_main
+from common.score.midi import read_midi
+from common.score.midi_options import add_midi_arguments, drum_channels, midi_read_kwargs
+
+GROOVE = [(0, 36), (0, 42), (240, 42), (480, 38), (480, 42), (720, 42)]
+"""A beat of drums: (tick, pitch) at 480 ticks a beat."""
+
+
+def smf(tracks: list[tuple[str, int, list[tuple[int, int]], int | None]]) -> bytes:
+    """A type 1 file at 120 bpm: each track (name, channel index, (tick, pitch) notes, GM program or None)."""
+    mid = mido.MidiFile(type=1, ticks_per_beat=480)
+    for title, channel, notes, program in tracks:
+        track = mido.MidiTrack()
+        track.append(mido.MetaMessage("track_name", name=title))
+        if program is not None:
+            track.append(mido.Message("program_change", channel=channel, program=program))
+        events = [(tick, 1, mido.Message("note_on", channel=channel, note=pitch, velocity=100))
+                  for tick, pitch in notes]
+        events += [(tick + 10, 0, mido.Message("note_off", channel=channel, note=pitch)) for tick, pitch in notes]
+        last = 0
+        for tick, _, msg in sorted(events, key=lambda e: e[:2]):
+            track.append(msg.copy(time=tick - last))
+            last = tick
+        mid.tracks.append(track)
+    buf = io.BytesIO()
+    mid.save(file=buf)
+    return buf.getvalue()
+
+
+DRUM_RACK_AND_TAMBOURINE = smf([("Drums", 0, GROOVE, None), ("Tambourine", 9, [(0, 54), (480, 54)], None)])
+"""Ableton's Drum Rack on channel 1, a tambourine on channel 10."""
+
+
+def test_notes_left_out_beside_channel_10_are_said_with_the_option_that_reads_them() -> None:
+    score = read_midi(DRUM_RACK_AND_TAMBOURINE)
+    assert [e.event for e in score.events] == [E.HIHATOPEN, E.HIHATOPEN]  # channel 10 alone, as before
+    [said] = [w for w in score.warnings if "skipped" in w]
+    assert "skipped channel 1 (6 notes, track Drums)" in said
+    assert "--drum-channels 1,10" in said
+
+
+def test_a_melodic_channel_beside_channel_10_is_said_to_be_one() -> None:
+    song = smf([("Drums", 9, GROOVE, None), ("Bass", 0, [(0, 40), (480, 47)], 33)])
+    score = read_midi(song)
+    assert len(score.events) == 6
+    [said] = score.warnings
+    assert "skipped channel 1 (2 notes, Electric Bass (finger), track Bass): a melodic program; to read it too: " \
+           "--drum-channels 1,10" in said
+
+
+def test_drum_channels_reads_those_channels_only() -> None:
+    only_rack = read_midi(DRUM_RACK_AND_TAMBOURINE, drum_channels=[1])  # until 7 Dec: channel 10 as well
+    assert sorted(e.event.value for e in only_rack.events) == ["BASS", "HIHATCLOSED", "HIHATCLOSED",
+                                                               "HIHATCLOSED", "HIHATCLOSED", "SNARE"]
+    assert not only_rack.warnings
+    both = read_midi(DRUM_RACK_AND_TAMBOURINE, drum_channels=[1, 10])
+    assert len(both.events) == 8 and not any("skipped" in w for w in both.warnings)
+    nothing = read_midi(DRUM_RACK_AND_TAMBOURINE, drum_channels=[2])
+    assert not nothing.events
+    assert any("no notes on channel 2 (--drum-channels); notes are on channel 1 (6 notes, track Drums); "
+               "channel 10 (2 notes, track Tambourine)" in w for w in nothing.warnings)
+
+
+def test_without_channel_10_a_melodic_channel_beside_the_drums_is_skipped_and_said() -> None:
+    bass = smf([("Drums", 0, GROOVE, None), ("Bass", 1, [(0, 40), (480, 47)], 33)])
+    score = read_midi(bass)
+    assert len(score.events) == 6 and {e.pitch for e in score.events} == {36, 38, 42}  # no bass note as a tom
+    [said] = [w for w in score.warnings if "no notes on a drum channel" in w]
+    assert "reading channels [1] as drums" in said
+    assert "skipped channel 2 (2 notes, Electric Bass (finger), track Bass): a melodic program" in said
+    assert "--drum-channels" in said
+
+
+def test_a_file_of_melodic_channels_only_is_read_and_said_never_skipped_in_silence() -> None:
+    piano = smf([("Drums", 0, [], None), ("Piano", 0, [(0, 60), (480, 62)], 0)])
+    score = read_midi(piano)
+    assert len(score.events) == 2
+    [said] = [w for w in score.warnings if "no notes on a drum channel" in w]
+    assert "(Acoustic Grand Piano)" in said and "every channel with notes set a melodic program" in said
+    assert "--drum-channels" in said
+
+
+def test_a_click_track_is_named_among_the_channels_read() -> None:
+    take = smf([("Drums", 0, GROOVE, None), ("Click", 15, [(0, 76), (480, 77)], None)])
+    [said] = [w for w in read_midi(take).warnings if "no notes on a drum channel" in w]
+    assert "channel 1 (6 notes, track Drums); channel 16 (2 notes, track Click)" in said
+    assert sorted(e.pitch for e in read_midi(take, drum_channels=[1]).events) == [36, 38, 42, 42, 42, 42]
+
+
+def test_tracks_playing_one_pitch_at_the_same_time_are_named() -> None:
+    split = smf([("Kick", 0, [(0, 60), (960, 60)], None), ("Snare", 1, [(480, 60), (1440, 60)], None),
+                 ("Hats", 2, [(t, 60) for t in range(0, 1920, 240)], None)])
+    [said] = [w for w in read_midi(split).warnings if "played by" in w]
+    assert "pitch 60 is played by 3 tracks, Kick (channel 1), Snare (channel 2), Hats (channel 3), 4 times at " \
+           "the same tick" in said
+    assert "own pitch" in said
+
+
+def test_tracks_on_their_own_pitches_or_at_other_times_are_not_named() -> None:
+    split = smf([("Kick", 9, [(0, 36), (960, 36)], None), ("Hats", 9, [(0, 42), (480, 42), (960, 42)], None),
+                 ("Kick 2", 9, [(480, 36)], None)])
+    assert not any("played by" in w for w in read_midi(split).warnings)
+
+
+@pytest.mark.parametrize(("given", "channels"), [("1,10", (1, 10)), ("10", (10,)), (" 16 , 1,1", (16, 1))])
+def test_drum_channels_are_read_as_a_daw_shows_them(given: str, channels: tuple[int, ...]) -> None:
+    assert drum_channels(given) == channels
+
+
+@pytest.mark.parametrize(("given", "says"), [
+    ("0", "channel 0 is not a MIDI channel, 1 to 16 (channels count from 1"),
+    ("17", "channel 17 is not a MIDI channel, 1 to 16"),
+    ("1,x", "'x' is not a channel number"),
+    ("", "expected MIDI channels 1 to 16 separated by commas"),
+])
+def test_a_channel_out_of_range_is_a_clear_error(given: str, says: str) -> None:
+    with pytest.raises(argparse.ArgumentTypeError, match=says.replace("(", r"\(")):
+        drum_channels(given)
+
+
+def test_the_options_become_read_midi_arguments() -> None:
+    parser = argparse.ArgumentParser()
+    add_midi_arguments(parser)
+    assert midi_read_kwargs(parser.parse_args([])) == {}  # the reader's own choice
+    assert midi_read_kwargs(parser.parse_args(["--drum-channels", "1,10"]))["drum_channels"] == (1, 10)
+
+
+def test_python_m_common_score_takes_drum_channels(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = tmp_path / "rack.mid"
+    path.write_bytes(DRUM_RACK_AND_TAMBOURINE)
+    assert inspect_main([str(path), "--drum-channels", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "6 events" in out and "HIHATOPEN" not in out
+    with pytest.raises(SystemExit) as refused:
+        inspect_main([str(path), "--drum-channels", "17"])
+    assert refused.value.code == 2
+    assert "--drum-channels: '17': channel 17 is not a MIDI channel, 1 to 16" in capsys.readouterr().err
