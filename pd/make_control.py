@@ -39,6 +39,7 @@ from common.messages.interaction import InteractionError, RouteRemove, RouteSet 
 from common.messages.physics import PhysicsControlMode, PhysicsGrip, PhysicsRejected, PhysicsReset  # noqa: E402
 from common.messages.score import GestureStyle, ScoreLoad, ScoreTransport, TempoScale  # noqa: E402
 from common.messages.sound import (  # noqa: E402
+    SoundAirLoading,
     SoundDamping,
     SoundDensity,
     SoundLatency,
@@ -46,9 +47,13 @@ from common.messages.sound import (  # noqa: E402
     SoundMaster,
     SoundModel,
     SoundModes,
+    SoundOpenness,
+    SoundPosition,
     SoundRadius,
     SoundRejected,
+    SoundSnares,
     SoundTension,
+    SoundThickness,
 )
 from services.graphics.camera import PRESETS, camera_for, default_camera  # noqa: E402
 
@@ -414,10 +419,10 @@ def build() -> Patch:
     # displays what bp-instrument says ("set": no output), so choosing never loops back through it.
     p.symbolatom(x3 + 160, 10, 10, "bp-instrument-show", "bp-instrument")
     sink = p.obj(x3 + 300, 10, "s bp-instrument")
-    shown = p.obj(x3 + 540, 900, "r bp-instrument")
-    show = p.msg(x3 + 540, 925, "set $1")
+    shown = p.obj(x3 + 540, 1800, "r bp-instrument")  # out of the way, below the SOUND section
+    show = p.msg(x3 + 540, 1825, "set $1")
     p.connect(shown, 0, show, 0)
-    p.connect(show, 0, p.obj(x3 + 540, 950, "s bp-instrument-show"), 0)
+    p.connect(show, 0, p.obj(x3 + 540, 1850, "s bp-instrument-show"), 0)
     for k, name in enumerate(INSTRUMENTS):
         m = p.msg(x3 + 100 * (k % 6), 40 + 25 * (k // 6), f"symbol {name}")
         p.connect(m, 0, sink, 0)
@@ -440,6 +445,11 @@ def build() -> Patch:
         ("tension N/m (10..100000)", SoundTension, 10, 100000, True, "bp-tension", False),
         ("density kg/m2 (0.01..20)", SoundDensity, 0.01, 20, True, "bp-density", False),
         ("modes (1..20000)", SoundModes, 1, 20000, True, "bp-modes", True),
+        ("thickness m (0.0003..0.006)", SoundThickness, 0.0003, 0.006, False, "bp-thickness", False),
+        ("position sensitivity (0..1)", SoundPosition, 0, 1, False, "bp-position-sensitivity", False),
+        ("snares (0..2)", SoundSnares, 0, 2, False, "bp-snares", False),
+        ("openness (0..1)", SoundOpenness, 0, 1, False, "bp-openness", False),
+        ("air loading (0..2)", SoundAirLoading, 0, 2, False, "bp-air", False),
     ]
     yy = 250
     for k, (label, m_, lo, hi, log, receive, integer) in enumerate(rows):
@@ -469,7 +479,7 @@ def build() -> Patch:
         p.connect(fire, k, keep, 0)  # right to left: sigma0, the pack's hot inlet, last
         p.connect(keep, 0, dp, k)
     per_instrument(yy + 100, SoundDamping, dp, "ff")
-    instrument_memory(p, 1420, 1400, "damping per instrument (starts at the default kit's values)", dp,
+    instrument_memory(p, 2080, 40 + 340 * len(rows), "damping per instrument (starts at the default kit's values)", dp,
                       instrument_starts(SoundDamping), keeps, ((s0, n0), (s1, n1)))
     yy += 160
     p.text(x3, yy, "SOUND - whole rig")
@@ -783,7 +793,7 @@ def refusals(p: Patch, x: int, y: int, nets: list[tuple[int, int, int]]) -> None
     for net, nx, ny in nets:
         p.connect(net, 1, p.obj(nx + 110, ny, "s bp-replies"), 0)
     # the parsing sits out of the way, below the SOUND section
-    px, py = 1420, 1080
+    px, py = 1420, 1480
     parse = p.obj(px, py + 25, "oscparse")
     p.connect(p.obj(px, py, "r bp-replies"), 0, parse, 0)
     trim = p.obj(px, py + 50, "list trim")  # "batteur physics rejected ...": routed by its selector

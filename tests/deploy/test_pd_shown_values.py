@@ -5,7 +5,8 @@ damping pair, the transport's position, each destination's port) keeps every val
 as they are when one is moved. Its slider and number box must show what the pack starts with: a camera slider
 showing 0 while the pack holds the view's 18 degrees tells the user something the panel does not send. A slider
 whose message carries its value alone (tempo, latency window, trails, picture delay) shows what the service starts
-with; the sound rows (level, radius, tension, density, modes, damping) show the chosen instrument's values.
+with; the sound rows (level, radius, tension, density, modes, thickness, position sensitivity, snares, openness,
+air loading, damping) show the chosen instrument's values.
 """
 
 from __future__ import annotations
@@ -31,7 +32,9 @@ BOX = re.compile(r"^#X obj \d+ \d+ (hsl|nbx) ")
 PER_INSTRUMENT = {"bp-level": ("level", "level_db"), "bp-radius": ("radius", "radius"),
                   "bp-tension": ("tension", "tension"), "bp-density": ("density", "density"),
                   "bp-modes": ("n_modes", "n_modes"), "bp-sigma0": ("damping", "damping0"),
-                  "bp-sigma1": ("damping", "damping1")}
+                  "bp-sigma1": ("damping", "damping1"), "bp-thickness": ("thickness", "thickness"),
+                  "bp-position-sensitivity": ("position", "position"), "bp-snares": ("snares", "snares"),
+                  "bp-openness": ("openness", "openness"), "bp-air": ("air_loading", "air_loading")}
 """The sound rows that act on the chosen instrument: control -> (the sound service's parameter, its Params field)."""
 
 
@@ -278,3 +281,43 @@ def test_choosing_a_camera_preset_shows_its_numbers_in_the_camera_sliders(tmp_pa
         wrong = _wrong(boxes, values, {k: round(v, 2 if k in ("bp-azimuth", "bp-elevation") else 3)
                                        for k, v in expected.items()})
         assert wrong == {}, f"{name}: (shown, the preset's) of each camera slider that shows another value: {wrong}"
+
+
+def test_the_sound_rows_added_for_every_parameter_reach_a_sound_core() -> None:
+    """Thickness, position sensitivity, snares, openness and air loading (the panel covered 9 of the 17 sound
+    addresses: a cymbal's refusal named /batteur/sound/thickness, which it could not send) arrive at a real sound
+    core, for the chosen instrument, and the instruments take them."""
+    import asyncio
+
+    from common.messages.sound import SoundAirLoading, SoundOpenness, SoundPosition, SoundSnares, SoundThickness
+    from tests.deploy.pdrun import physics_and_sound_nodes
+    from tests.waiting import wait_for
+
+    require_pd()
+
+    async def main() -> None:
+        async with physics_and_sound_nodes() as rig:
+            sound = rig.sound
+            sends = [f"bp-port-sound {rig.sound_port}",
+                     "bp-instrument symbol crash", "bp-thickness 0.002", "bp-position-sensitivity 0.4",
+                     "bp-instrument symbol hihat", "bp-openness 0.8",
+                     "bp-instrument symbol snare", "bp-snares 1.5", "bp-air 0.5"]
+            pd = PdProcess(PD_DIR / "control.pd", sends=sends)
+            try:
+                await wait_for(lambda: len(sound.of(SoundAirLoading)) >= 1, timeout=15)
+            finally:
+                pd.stop()
+            assert pd.errors() == [], "\n".join(pd.lines)
+            got = [(type(m).__name__, m.instrument, round(m.value, 6)) for m in sound.handled
+                   if isinstance(m, (SoundThickness, SoundPosition, SoundSnares, SoundOpenness, SoundAirLoading))]
+            assert got == [("SoundThickness", "crash", 0.002), ("SoundPosition", "crash", 0.4),
+                           ("SoundOpenness", "hihat", 0.8), ("SoundSnares", "snare", 1.5),
+                           ("SoundAirLoading", "snare", 0.5)]
+            assert not sound.core.stats.rejected  # each sent to an instrument that has the parameter
+            insts = sound.core.instruments.instruments
+            assert insts["crash"].p.thickness == pytest.approx(0.002)
+            assert insts["crash"].p.position == pytest.approx(0.4)
+            assert insts["hihat"].p.openness == pytest.approx(0.8)
+            assert insts["snare"].p.snares == pytest.approx(1.5) and insts["snare"].p.air_loading == pytest.approx(0.5)
+
+    asyncio.run(main())
