@@ -260,13 +260,22 @@ class KitObject(_Strict):
         return (self.position[0] + x, self.position[1] + y, self.position[2] + z)
 
 
+ZONES = frozenset({"centre", "edge", "bow", "rim", "rimshot", "bell", "open", "half", "closed", "pedal"})
+"""Strike zones the sound service plays (an impact's ``zone``, a kit event's ``zone``): the interaction service's
+(centre, edge, rim on a drum; bow, edge, bell on a cymbal), the shipped kits' events' (open, closed, pedal on the
+hi-hat) and the demo's (rimshot, half). Any zone but rim/rimshot strikes a drum's head, any but bell a cymbal's
+bow; an impact with another zone (a typo) is dropped and counted (the sound core's unknown_zone), not played as a
+centre stroke, so a kit event with one is refused when the kit loads. Here, in common, so that the kit and the
+sound service check against the same list."""
+
+
 class EventSpec(_Strict):
     """How one drum event type is played on this kit."""
 
     object: str = Field(description="id of the kit object struck")
     r: Annotated[float, Field(ge=0, le=1.2)] = Field(description="hit point radius, r/a")
     theta: HitAngle = Field(default=0.0, description="hit point angle in the object frame, radians, -pi..2pi")
-    zone: str = Field(default="centre", description="zone name: centre, edge, rim, bell, bow, ...")
+    zone: str = Field(default="centre", description="zone name, one of ZONES: centre, edge, rim, bell, bow, ...")
     preferred: Limb = Field(description="limb that plays it by default")
     min_time_gap: float = Field(gt=0, le=2, description="shortest interval one limb can repeat it, seconds")
     pedal: str | None = Field(
@@ -331,6 +340,8 @@ class Kit(_Strict):
                 raise ValueError(f"event {event.value} refers to unknown object {spec.object!r}")
             if spec.pedal is not None and spec.pedal not in ids:
                 raise ValueError(f"event {event.value} refers to unknown pedal {spec.pedal!r}")
+            if spec.zone not in ZONES:  # else every stroke of it is dropped by the sound service, silently
+                raise ValueError(f"event {event.value}: no zone {spec.zone!r} (zones: {', '.join(sorted(ZONES))})")
         for pitch, obj in self.note_objects.items():
             if obj not in ids:
                 raise ValueError(f"note_objects[{pitch}] refers to unknown object {obj!r}")

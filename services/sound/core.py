@@ -28,7 +28,7 @@ import soundfile as sf
 from pydantic import BaseModel, ConfigDict, Field
 
 from common.core import Outgoing
-from common.kit import EventType, Kit, load_kit
+from common.kit import ZONES, EventType, Kit, load_kit
 from common.messages import Impact, OscMessage
 from common.messages.interaction import Damping
 from common.messages.sound import (
@@ -57,7 +57,6 @@ from services.sound.excitation import warm_up as excitation_warm_up
 from services.sound.instruments import (
     INSTRUMENT_CLASSES,
     KIND_PARAMS,
-    ZONES,
     Instrument,
     InstrumentSet,
     ParamError,
@@ -210,7 +209,7 @@ class SoundStats:
     late: int = 0
     duplicates: int = 0
     unknown_instrument: int = 0
-    unknown_zone: int = 0  # impacts whose zone no instrument knows (instruments.ZONES): dropped
+    unknown_zone: int = 0  # impacts whose zone no instrument knows (common.kit.ZONES): dropped
     pedal_impacts: int = 0  # impacts on footboards, not sounded (unless settings.pedal_impacts)
     too_early: int = 0  # impacts beyond the horizon (a sender's clock far ahead)
     overload: int = 0  # strikes dropped by a burst: over max_strikes_per_block or max_pending
@@ -314,6 +313,9 @@ class SoundCore:
         """Called with every rendered block."""
         self.sinks: list[Sink] = []
         """Outputs fed every rendered block (the node's WAV file, sound card); closed by :meth:`close`."""
+        self.before_close: Callable[[], None] | None = None
+        """Called once by :meth:`close`, after the sinks are closed and before the rebuild worker is: changes still
+        being computed can be waited for and taken in there (the node's ``--sound-params-out``)."""
         self._origin_set = s.origin is not None
         self.clock_steps: list[tuple[int, float]] = []
         """(output sample, its rig time) at each step of rig time (:meth:`clock_stepped`), in order."""
@@ -829,7 +831,8 @@ class SoundCore:
         return sum(i.bank.size for i in self.instruments.instruments.values() if i.sounding)
 
     def close(self) -> None:
-        """Close the sinks and free the pyo server (idempotent)."""
+        """Close the sinks, free the pyo server, call :attr:`before_close`, then abandon the rebuilds still running
+        (idempotent)."""
         while self.sinks:  # each leaves the list once closed: a close cut short (Ctrl-C) is retried next call
             sink = self.sinks[0]
             try:
@@ -840,6 +843,12 @@ class SoundCore:
         if self._stage is not None:
             self._stage.close()
             self._stage = None
+        hook, self.before_close = getattr(self, "before_close", None), None
+        if hook is not None:
+            try:  # the WAV file is closed already: a wait here (or a second Ctrl-C) cannot lose the take
+                hook()
+            except Exception as exc:  # noqa: BLE001 - the worker is closed all the same
+                log.error("closing the sound core: %s", exc, exc_info=exc)
         worker = getattr(self, "_worker", None)
         if worker is not None:  # a rebuild in flight is abandoned (its child interpreter killed), not waited for
             worker.close()

@@ -104,13 +104,6 @@ def mix_level(instrument_id: str, kind: str) -> float:
     return {"membrane": 1.0, "hihat": 0.6, "bell": 0.7, "cymbal": 0.9}.get(kind, 1.0)
 
 
-ZONES = frozenset({"centre", "edge", "bow", "rim", "rimshot", "bell", "open", "half", "closed", "pedal"})
-"""Strike zones the instruments know: the interaction service's (centre, edge, rim on a drum; bow, edge, bell on
-a cymbal), the shipped kits' events' (open, closed, pedal on the hi-hat) and the demo's (rimshot, half). Any zone
-but rim/rimshot strikes a drum's head, any but bell a cymbal's bow; an impact with another zone (a typo) is
-dropped and counted (the sound core's unknown_zone), not played as a centre stroke."""
-
-
 class ParamError(ValueError):
     """A parameter change this instrument cannot take (the message says why)."""
 

@@ -42,6 +42,7 @@ from services.sound.core import MAX_LATENCY_S, WAV_LIMIT_BYTES, SoundCore, Sound
 from services.sound.params_file import (
     apply_sound_params,
     check_against_kit,
+    check_params_out,
     load_sound_params,
     settle_rebuilds,
     write_sound_params,
@@ -311,7 +312,8 @@ class SoundNodeSettings(NodeSettings):
                                       "docs/sound.md)")
     sound_params_out: Path | None = Field(default=None, description="when the node stops, write what the "
                                           "instruments hold (what differs from the kit's defaults) to this file, "
-                                          "for --sound-params (may be the same file)")
+                                          "for --sound-params (may be the same file): .yaml, .yml or .json, not "
+                                          "--wav's take or its .json")
 
     @field_validator("sound_params", "sound_params_out", mode="before")
     @classmethod
@@ -350,9 +352,11 @@ def sound_settings(settings: NodeSettings, extra: argparse.Namespace | None = No
 
 
 def make_core(settings: NodeSettings, extra: argparse.Namespace | None = None,
-              keep_take: Callable[[], bool] = lambda: True) -> SoundCore:
+              keep_take: Callable[[], bool] = lambda: True,
+              keep_params: Callable[[], bool] = lambda: True) -> SoundCore:
     """Build the core and attach the sinks; ValueError (exit 2) for a bad option, InputError (exit 1) for a kit
-    file or a --wav path it cannot use. ``keep_take``: asked when the WAV file closes, whether it gets its name.
+    file or a --wav path it cannot use. ``keep_take``: asked when the WAV file closes, whether it gets its name;
+    ``keep_params``: asked when the core closes, whether ``--sound-params-out`` is written (:func:`save_params`).
     ``settings``: :class:`SoundNodeSettings`, or node settings with the sound options in ``extra``."""
     settings = sound_settings(settings, extra)
     try:
@@ -380,6 +384,7 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace | None = None,
     if settings.sound_params_out is not None:
         try:
             check_output_file(settings.sound_params_out, "--sound-params-out")
+            check_params_out(settings.sound_params_out, settings.wav)
         except ValueError as exc:
             raise InputError(str(exc)) from None
     core = SoundCore(sound, kit)
@@ -398,6 +403,9 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace | None = None,
         core.sinks = [s for s in core.sinks if not isinstance(s, WavSink)]
         core.close()
         raise
+    out = settings.sound_params_out
+    if out is not None:  # written as the core closes: before its rebuilds in flight are abandoned, so they are in
+        core.before_close = lambda: save_params(core, out) if keep_params() else None
     return core
 
 
@@ -413,14 +421,23 @@ def _read_params(settings: SoundNodeSettings, kit: Kit) -> list[OscMessage]:
     return params
 
 
-def save_params(core: SoundCore, path: Path) -> None:
-    """``--sound-params-out``: what the instruments hold, once changes still computing are in; logged, never
-    raised (the node is stopping)."""
-    if not settle_rebuilds(core):
-        log.warning("--sound-params-out %s: a parameter change was still being computed: it is not saved", path)
+SAVE_WAIT_S = 2.5
+"""At its stop, the node waits up to this long for parameter changes still being computed before it writes
+``--sound-params-out`` (a 20,000-mode change takes seconds): within ``batteur rig``'s stop timeout (4 s), which
+kills a node that takes longer."""
+
+
+def save_params(core: SoundCore, path: Path, wait_s: float | None = None) -> None:
+    """``--sound-params-out``: what the instruments hold, once changes still computing are in (waited for up to
+    ``wait_s`` seconds, :data:`SAVE_WAIT_S` if None, else warned about); logged, never raised (the node is
+    stopping). Called as the core closes (:attr:`SoundCore.before_close`): its rebuild worker still runs."""
+    wait_s = SAVE_WAIT_S if wait_s is None else wait_s
+    if not settle_rebuilds(core, wait_s):
+        log.warning("--sound-params-out %s: a parameter change was still being computed after %g s: it is not "
+                    "saved", path, wait_s)
     try:
         changed = write_sound_params(core, path)
-    except OSError as exc:
+    except (OSError, ValueError) as exc:
         log.error("--sound-params-out %s: cannot write it (%s)", path, exc)
         return
     log.info("sound parameters written to %s (%d instruments changed)", path, len(changed))
@@ -455,31 +472,48 @@ def _attach_sinks(core: SoundCore, settings: SoundNodeSettings, keep_take: Calla
                      "; recording only" if settings.wav is not None else " (use --wav to record)")
 
 
+PD_SOUND_PORT = 9103
+"""Where Pd expects the sound service: the control panel's SOUND section (pd/control.pd) and the examples of
+pd/batteur-clock-help.pd (compose.yaml's sound port; ``batteur rig`` gives every node its port)."""
+
+
+def say_port_for_pd(node: Node) -> None:
+    """Given no ``--port``, the node listens on any free port: say which, and the command that runs the sound
+    service alone where Pd looks for it (on its own clock, without waiting for a physics node). Logged once it
+    listens (``setup``)."""
+    if node.settings.port != 0 or node.endpoint is None:
+        return
+    log.info("sound listens on port %d, a free port taken because no --port was given; Pd (pd/control.pd, "
+             "pd/batteur-clock) looks for the sound service on %d: to play it alone from Pd, run "
+             "`batteur sound --port %d --clock-master self`", node.endpoint.port, PD_SOUND_PORT, PD_SOUND_PORT)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the sound node until SIGINT/SIGTERM; returns the exit code."""
     made: list[SoundCore] = []
     ran: list[Node] = []
-    params_out: list[Path] = []
 
     def build(settings: NodeSettings, extra: argparse.Namespace) -> SoundCore:
-        core = make_core(settings, extra, keep_take=lambda: bool(ran) and not ran[0].failed)
+        # --sound-params-out: written as the core closes (Node.stop), if the node listened (one that never did
+        # changed nothing)
+        core = make_core(settings, extra, keep_take=lambda: bool(ran) and not ran[0].failed,
+                         keep_params=lambda: bool(ran))
         made.append(core)
-        out = sound_settings(settings, extra).sound_params_out
-        if out is not None:
-            params_out.append(out)
         return core
+
+    def listening(node: Node) -> None:
+        ran.append(node)
+        say_port_for_pd(node)
 
     try:
         # the take is named only if the node ran and did not fail (setup: once it listens); a node that failed,
         # or never listened (its port taken), leaves an earlier take at --wav as it was
         return run_node("sound", build, argv, None,
                         "Run the sound service: impacts in, modal drum sound out (sound card and/or WAV).",
-                        settings_cls=SoundNodeSettings, setup=ran.append)
+                        settings_cls=SoundNodeSettings, setup=listening)
     finally:
         for core in made:
-            if ran and params_out:  # a node that never listened changed nothing
-                save_params(core, params_out[0])
-            core.close()  # closes the WAV file and the sound card
+            core.close()  # closes the WAV file and the sound card (done already if the node ran)
 
 
 if __name__ == "__main__":

@@ -186,7 +186,7 @@ def changed_params(core: SoundCore) -> dict[str, dict[str, Any]]:
     return out
 
 
-def settle_rebuilds(core: SoundCore, timeout_s: float = 30.0) -> bool:
+def settle_rebuilds(core: SoundCore, timeout_s: float) -> bool:
     """Wait (up to ``timeout_s`` seconds) for changes still being computed in the background and take them in,
     so what is written is what was last asked for; False if some were still running."""
     deadline = time.monotonic() + timeout_s
@@ -196,12 +196,43 @@ def settle_rebuilds(core: SoundCore, timeout_s: float = 30.0) -> bool:
     return not core.rebuilding
 
 
+WRITTEN_FORMATS = {".yaml": "YAML", ".yml": "YAML", ".json": "JSON"}
+"""``--sound-params-out``'s extensions -> the format written, the one ``--sound-params`` reads such a file as."""
+
+
+def check_params_out(path: Path, wav: Path | None = None) -> None:
+    """ValueError naming ``--sound-params-out`` for a file it must not write: the take ``wav`` (``--wav``) or its
+    .json (replaced by the parameters when the node stops), or a name whose extension says a format it does not
+    write (a .toml file written as YAML was refused at the next start)."""
+    if wav is not None:
+        for taken, what in ((wav, "--wav's take"), (wav.with_name(wav.name + ".json"), "--wav's take's .json")):
+            if _same_file(path, taken):
+                raise ValueError(f"--sound-params-out {path} is {what} ({taken}): the parameters would replace it; "
+                                 "give another file (e.g. sound.yaml)")
+    if path.suffix.lower() not in WRITTEN_FORMATS:
+        raise ValueError(f"--sound-params-out {path}: give a file ending in .yaml, .yml or .json (the format it is "
+                         f"written in, and read back by --sound-params), not {path.suffix or 'no extension'}")
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    """``a`` and ``b`` name the same file (symlinks and relative paths followed), existing or not."""
+    try:
+        if a.exists() and b.exists():
+            return a.samefile(b)
+        return a.resolve() == b.resolve()
+    except (OSError, RuntimeError):  # a symlink loop: compared as written
+        return a.absolute() == b.absolute()
+
+
 def write_sound_params(core: SoundCore, path: Path) -> dict[str, dict[str, Any]]:
-    """Write what differs from the defaults (:func:`changed_params`) to ``path`` (YAML, or JSON for .json),
-    whole or not at all; returns it."""
+    """Write what differs from the defaults (:func:`changed_params`) to ``path`` (YAML for .yaml/.yml, JSON for
+    .json: :data:`WRITTEN_FORMATS`; ValueError for another extension), whole or not at all; returns it."""
+    kind = WRITTEN_FORMATS.get(path.suffix.lower())
+    if kind is None:
+        raise ValueError(f"{path}: a sound parameters file ends in .yaml, .yml or .json")
     changed = changed_params(core)
     data = {"instruments": changed}
-    if path.suffix.lower() == ".json":
+    if kind == "JSON":
         text = json.dumps(data, indent=2) + "\n"
     else:
         text = ("# batteur sound parameters: what differed from the kit's defaults (docs/sound.md)\n"

@@ -7,8 +7,10 @@ import asyncio
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -29,6 +31,8 @@ from common.messages.sound import (
     SoundTension,
 )
 from common.transport import UdpEndpoint
+from services.sound import core as sound_core
+from services.sound import node as sound_node
 from services.sound.core import SoundCore, SoundSettings
 from services.sound.node import SoundNodeSettings, make_core, save_params
 from services.sound.params_file import (
@@ -214,3 +218,99 @@ def test_a_running_node_writes_what_its_controls_set_when_it_stops(tmp_path: Pat
             proc.kill()
     assert "cymbal instrument 'ride' takes no /batteur/sound/tension" in got[0].reason
     assert yaml.safe_load(start.read_text())["instruments"] == {"kick": {"level": -6.0}, "snare": {"tension": 2500.0}}
+
+
+class _ClosingSink:
+    """A sink that says when the core closes it (the WAV file's place)."""
+
+    def __init__(self) -> None:
+        self.closed = threading.Event()
+
+    def __call__(self, block: np.ndarray) -> None:
+        pass
+
+    def close(self) -> None:
+        self.closed.set()
+
+
+def _change_in_flight_until(monkeypatch: pytest.MonkeyPatch, event: threading.Event) -> None:
+    """Rebuilds in the worker wait for ``event`` first: a change still being computed when the core closes."""
+    real = sound_core._apply_changes  # noqa: SLF001
+
+    def slow(*args: Any) -> Any:
+        event.wait(60)
+        return real(*args)
+
+    monkeypatch.setattr(sound_core, "_apply_changes", slow)
+
+
+def test_a_change_still_being_computed_at_the_stop_is_written(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The file was written after the core closed, its rebuilds abandoned: the change was lost without a word."""
+    out = tmp_path / "out.yaml"
+    monkeypatch.setattr(sound_node, "SAVE_WAIT_S", 60.0)  # no race: the change ends once the take is closed
+    core = make_core(SoundNodeSettings(device="none", sound_params_out=out))
+    take = _ClosingSink()
+    core.sinks.append(take)
+    _change_in_flight_until(monkeypatch, take.closed)
+    core.handle(SoundModes(instrument="snare", value=40), core.now, "panel")
+    assert core.rebuilding
+    core.close()  # as the node's stop does: the take closed first, then the change waited for, then written
+    assert take.closed.is_set() and not core.rebuilding
+    assert yaml.safe_load(out.read_text())["instruments"] == {"snare": {"modes": 40}}
+
+
+def test_a_change_not_computed_in_time_is_warned_of(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                    caplog: pytest.LogCaptureFixture) -> None:
+    out = tmp_path / "out.yaml"
+    monkeypatch.setattr(sound_node, "SAVE_WAIT_S", 0.0)
+    core = make_core(SoundNodeSettings(device="none", sound_params_out=out))
+    never = threading.Event()
+    _change_in_flight_until(monkeypatch, never)
+    try:
+        core.handle(SoundLevel(instrument="kick", gain_db=-6.0), core.now, "panel")  # computed at once
+        core.handle(SoundModes(instrument="snare", value=40), core.now, "panel")
+        core.close()
+    finally:
+        never.set()
+    assert f"--sound-params-out {out}: a parameter change was still being computed after 0 s: it is not saved" \
+        in caplog.text
+    assert yaml.safe_load(out.read_text())["instruments"] == {"kick": {"level": -6.0}}  # the rest is kept
+
+
+def test_a_core_that_failed_to_start_writes_nothing(tmp_path: Path) -> None:
+    out = tmp_path / "out.yaml"
+    core = make_core(SoundNodeSettings(device="none", sound_params_out=out), keep_params=lambda: False)
+    core.handle(SoundLevel(instrument="kick", gain_db=-6.0), core.now, "panel")
+    core.close()
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("name", ["take.wav", "take.wav.json"])
+def test_the_file_may_not_be_the_take(tmp_path: Path, name: str) -> None:
+    """Given --wav's take (or its .json) the node stopped by replacing the recording with YAML."""
+    wav = tmp_path / "take.wav"
+    (tmp_path / "sub").mkdir()  # the same file by another path
+    with pytest.raises(InputError, match=rf"--sound-params-out .*{name} is --wav's take.*: the parameters would "
+                       "replace it"):
+        make_core(SoundNodeSettings(device="none", wav=wav, sound_params_out=tmp_path / "sub" / ".." / name))
+    assert not wav.exists()
+
+
+@pytest.mark.parametrize("name", ["p.toml", "p.txt", "params"])
+def test_a_file_name_whose_format_it_does_not_write_is_refused(tmp_path: Path, name: str) -> None:
+    """A p.toml was written as YAML, then refused by --sound-params at the next start (read as TOML)."""
+    with pytest.raises(InputError, match=r"--sound-params-out .*: give a file ending in .yaml, .yml or .json"):
+        make_core(SoundNodeSettings(device="none", sound_params_out=tmp_path / name))
+    with pytest.raises(ValueError, match="ends in .yaml, .yml or .json"):
+        write_sound_params(_core(), tmp_path / name)
+
+
+@pytest.mark.parametrize("name", ["p.yaml", "p.yml", "p.json", "P.JSON"])
+def test_what_is_written_is_read_back(tmp_path: Path, name: str) -> None:
+    live = _core()
+    try:
+        live.handle(SoundLevel(instrument="kick", gain_db=-4.5), live.now, "t")
+        write_sound_params(live, tmp_path / name)
+    finally:
+        live.close()
+    assert load_sound_params(tmp_path / name) == [SoundLevel(instrument="kick", gain_db=-4.5)]

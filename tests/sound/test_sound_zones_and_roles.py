@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 from sound_helpers import impact
 
-from common.kit import EventSpec, EventType, Kit, KitObject, Limb
+from common.kit import ZONES, EventSpec, EventType, Kit, KitObject, Limb, load_kit
 from services.sound.core import SoundCore, SoundSettings
-from services.sound.instruments import ZONES, drum_role
+from services.sound.instruments import drum_role
 
 
 def test_an_impact_with_an_unknown_zone_is_dropped_and_counted() -> None:
@@ -72,3 +72,19 @@ def test_an_object_played_as_two_instruments_falls_back_to_its_id() -> None:
     assert drum_role(kit, drum) == "bd"
     snare_and_rim = Kit(name="s", objects=[drum], events={EventType.SNARE: spec, EventType.RIM: spec})
     assert drum_role(snare_and_rim, drum) == "snare"  # one instrument, two events
+
+
+def test_a_kit_event_with_a_zone_the_sound_does_not_play_is_refused_at_load() -> None:
+    """Every stroke of it would be dropped by the sound service (counted, but the kit loaded without a word)."""
+    drum = KitObject(id="sn", kind="membrane", position=(0.0, 0.6, 0.3), radius=0.18)
+    with pytest.raises(ValueError) as caught:
+        Kit(name="typo", objects=[drum], events={EventType.SNARE: EventSpec(
+            object="sn", r=0.2, zone="rimm", preferred=Limb.RIGHT_HAND, min_time_gap=0.05)})
+    said = str(caught.value)
+    assert "event SNARE: no zone 'rimm' (zones: bell, bow, centre, closed, edge, half, open, pedal, rim, " in said
+
+
+@pytest.mark.parametrize("name", ["default", "double_pedal", "left_handed"])
+def test_the_shipped_kits_events_use_zones_the_sound_plays(name: str) -> None:
+    kit = load_kit(name)
+    assert kit.events and all(spec.zone in ZONES for spec in kit.events.values())
