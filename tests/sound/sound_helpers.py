@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 
+from common.core import Outgoing
 from common.kit import Kit, KitObject
 from common.messages import Impact
+from services.sound.core import SoundCore
 
 SR = 48000
 
@@ -36,3 +40,14 @@ def peak_near(freqs: np.ndarray, mag: np.ndarray, f: float, rel: float = 0.02) -
     a, b, c = np.log(mag[i - 1] + 1e-30), np.log(mag[i] + 1e-30), np.log(mag[i + 1] + 1e-30)
     delta = 0.5 * (a - c) / (a - 2 * b + c) if (a - 2 * b + c) != 0 else 0.0
     return float(freqs[i] + delta * (freqs[1] - freqs[0])), float(mag[i])
+
+
+def settle(core: SoundCore) -> list[Outgoing]:
+    """Step the core (as the node does) until its background changes are in; the replies it sent meanwhile."""
+    out: list[Outgoing] = []
+    deadline = time.monotonic() + 120.0
+    while core.rebuilding:
+        assert time.monotonic() < deadline, "a background change never finished"
+        out += core.step(core.now + 0.001)
+        time.sleep(0.002)
+    return out + core.step(core.now + 0.001)

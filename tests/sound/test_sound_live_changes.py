@@ -4,15 +4,13 @@ from __future__ import annotations
 
 import argparse
 import threading
-import time
 from collections.abc import Iterator
 
 import numpy as np
 import pytest
-from sound_helpers import impact, one_drum_kit
+from sound_helpers import impact, one_drum_kit, settle
 
 from common.config import load_settings
-from common.core import Outgoing
 from common.kit import load_kit
 from common.messages.sound import SoundDensity, SoundLevel, SoundModes, SoundRadius, SoundRejected, SoundTension
 from services.sound import membrane
@@ -41,17 +39,6 @@ def offline() -> Iterator[SoundCore]:
     core.close()
 
 
-def _settle(core: SoundCore) -> list[Outgoing]:
-    """Step the core (as the node does) until its background changes are in; the replies it sent meanwhile."""
-    out: list[Outgoing] = []
-    deadline = time.monotonic() + 120.0
-    while core.rebuilding:
-        assert time.monotonic() < deadline, "a background change never finished"
-        out += core.step(core.now + 0.001)
-        time.sleep(0.002)
-    return out + core.step(core.now + 0.001)
-
-
 def _same_modes(a: SoundCore, b: SoundCore) -> None:
     x, y = a.instruments.instruments["drum"], b.instruments.instruments["drum"]
     assert x.p == y.p
@@ -71,7 +58,7 @@ def test_a_modes_change_is_not_computed_in_the_loop_and_lands_as_if_applied_at_o
     assert drum.bank.size == before and drum.p.n_modes == 160  # the old modes play on meanwhile
     assert drum.sounding
     offline.handle(SoundModes(instrument="drum", value=3000), offline.now, PANEL)
-    assert _settle(live) == []
+    assert settle(live) == []
     _same_modes(live, offline)
     assert drum.bank.size > 3000 and drum.sounding  # the ringing went on through the swap
     assert np.any(drum.bank.z[:before] != 0)
@@ -83,7 +70,7 @@ def test_changes_behind_a_background_one_keep_their_order(live: SoundCore, offli
     for core in (live, offline):
         for message in changes:
             assert core.handle(message, core.now, PANEL) == []
-    _settle(live)
+    settle(live)
     _same_modes(live, offline)
     assert live.instruments.instruments["drum"].p.level_db == -6.0
 
@@ -97,7 +84,7 @@ def test_a_background_change_that_cannot_be_taken_is_refused_to_its_sender(live:
     assert [r.message.address for r in replies] == ["/batteur/sound/radius"]
     for message in changes:
         assert live.handle(message, live.now, PANEL) == []
-    replies = _settle(live)
+    replies = settle(live)
     assert len(replies) == 1 and replies[0].to == PANEL and isinstance(replies[0].message, SoundRejected)
     assert replies[0].message.address == "/batteur/sound/radius" and "Nyquist" in replies[0].message.reason
     assert live.stats.rejected["/batteur/sound/radius"] == 1
@@ -112,7 +99,7 @@ def test_a_hihat_opened_by_a_strike_during_a_change_stays_open() -> None:
         core.handle(SoundModes(instrument="hihat", value=1400), core.now, PANEL)
         core.handle(impact(1, core.now, "hihat", zone="open"), core.now, "t")
         core.step(core.now + 0.02)  # the strike opens the hat (a rebuild of its own) while the change runs
-        _settle(core)
+        settle(core)
         assert hat.p.openness == 1.0 and hat.p.n_modes == 1400
     finally:
         core.close()

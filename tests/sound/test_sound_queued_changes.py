@@ -10,10 +10,9 @@ from collections.abc import Iterator
 
 import numpy as np
 import pytest
-from sound_helpers import impact, one_drum_kit
+from sound_helpers import impact, one_drum_kit, settle
 
 import services.sound.core as core_module
-from common.core import Outgoing
 from common.kit import Kit, KitObject
 from common.messages import OscMessage
 from common.messages.sound import SoundLevel, SoundModel, SoundRadius, SoundTension
@@ -35,17 +34,6 @@ def live() -> Iterator[SoundCore]:
     core.close()
 
 
-def _settle(core: SoundCore) -> list[Outgoing]:
-    """Step the core (as the node does) until its background changes are in; the replies it sent meanwhile."""
-    out: list[Outgoing] = []
-    deadline = time.monotonic() + 120.0
-    while core.rebuilding:
-        assert time.monotonic() < deadline, "a background change never finished"
-        out += core.step(core.now + 0.001)
-        time.sleep(0.002)
-    return out + core.step(core.now + 0.001)
-
-
 CHEAP_BEHIND = {
     "tension+level": [SoundTension(instrument="drum", value=800.0), SoundLevel(instrument="drum", gain_db=-6.0)],
     "radius+level": [SoundRadius(instrument="drum", value=0.3), SoundLevel(instrument="drum", gain_db=-6.0)],
@@ -62,7 +50,7 @@ def test_a_cheap_change_queued_behind_a_rebuild_lands_on_the_rebuilt_drum(live: 
         for message in CHEAP_BEHIND[name]:
             assert live.handle(message, live.now, PANEL) == []
             assert offline.handle(message, offline.now, PANEL) == []
-        assert _settle(live) == []
+        assert settle(live) == []
         drum, ref = live.instruments.instruments["drum"], offline.instruments.instruments["drum"]
         # was: the level went to the worker alone, on a detached copy whose (empty) bank nothing rebuilt, and the
         # drum adopted it: no modes, every later strike failing with a broadcast error
@@ -154,7 +142,7 @@ def test_a_slow_change_to_one_drum_does_not_hold_up_anothers(monkeypatch: pytest
             time.sleep(0.002)
         assert core.rebuilding and snare.p.tension != 5000.0 and snare.p.level_db != -3.0  # still held
         release.set()
-        assert _settle(core) == []
+        assert settle(core) == []
         assert (snare.p.tension, snare.p.level_db, kick.p.radius) == (5000.0, -3.0, 0.3)  # in order, each
     finally:
         release.set()
