@@ -12,6 +12,11 @@ ROOT = Path(__file__).parents[2]
 TAKE = ROOT / "tests" / "data" / "groove_drummer6_s3_1_rock_90_beat_4-4.mid"
 
 
+def _only_warnings(err: str) -> list[str]:
+    """The lines of ``err`` that are not compare's warnings (reading the take: its pitch 58 played as china)."""
+    return [line for line in err.splitlines() if not line.startswith("batteur compare: warning: ")]
+
+
 def test_a_reader_that_went_away_is_a_quiet_stop() -> None:
     # the pipe's read end is closed before the command writes anything: every write of it fails (EPIPE)
     proc = subprocess.Popen([sys.executable, "-m", "batteur", "compare", "demo", str(TAKE)], cwd=ROOT,
@@ -21,7 +26,7 @@ def test_a_reader_that_went_away_is_a_quiet_stop() -> None:
     proc.stdout.close()
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 0, err.decode()
-    assert err.decode() == ""  # was a BrokenPipeError traceback
+    assert _only_warnings(err.decode()) == []  # was a BrokenPipeError traceback
 
 
 def test_a_command_writing_to_a_reader_still_there_keeps_its_status() -> None:
@@ -38,7 +43,7 @@ def test_a_socket_reader_that_went_away_is_a_quiet_stop_too() -> None:
         done = subprocess.run([sys.executable, "-m", "batteur", "compare", "demo", str(TAKE)], cwd=ROOT,
                               stdout=theirs, stderr=subprocess.PIPE, timeout=120)
     assert done.returncode == 0, done.stderr.decode()
-    assert done.stderr.decode() == ""
+    assert _only_warnings(done.stderr.decode()) == []
 
 
 def test_another_broken_pipe_with_stdout_still_read_is_the_command_s_failure() -> None:
