@@ -347,16 +347,10 @@ def wrong_drum_pairs(written: Sequence[tuple[float, str]], played: Sequence[tupl
     ``written``/``played``: (time s on one clock, kit object)."""
     from scipy.optimize import linear_sum_assignment
 
-    events = sorted([(t, 0, i) for i, (t, _) in enumerate(written)] + [(t, 1, j) for j, (t, _) in enumerate(played)])
-    clusters: list[tuple[list[int], list[int]]] = []
-    last = -math.inf
-    for t, side, k in events:
-        if not clusters or t - last > tolerance:
-            clusters.append(([], []))
-        clusters[-1][side].append(k)
-        last = t
+    from batteur.evaluate import reach_clusters
+
     pairs: list[tuple[int, int]] = []
-    for ia, jb in clusters:
+    for ia, jb in reach_clusters([t for t, _ in written], [t for t, _ in played], tolerance):
         if not ia or not jb:
             continue
         d = np.abs(np.array([written[i][0] for i in ia])[:, None] - np.array([played[j][0] for j in jb])[None, :])
@@ -888,21 +882,22 @@ def _compare_at(score: Score, take: Take, kit: Kit, tolerance: float, scale: flo
         return seconds * scale
 
     # a miss with an unmatched note of its drum near is told early or late; that note may lie just before the
-    # exercise's start or after its end (a first note early, a last one late): it is still the written note's
-    # that note is the written one played too early or late, not also an extra: each is claimed by one miss
+    # exercise's start or after its end (a first note early, a last one late): it is still the written note's.
+    # That note is the written one played too early or late, not also an extra: each is claimed by one miss
     loose: dict[str, list[int]] = defaultdict(list)
     for j, p in enumerate(played):
         if j not in done_played:
             loose[p.drum].append(j)
     claimed: dict[int, int] = {}  # written index: the note of its drum played too early or late for it
     taken: set[int] = set()
-    for i in missed_i:
-        n = written[i]
-        near = [j for j in loose.get(n.instrument, []) if j not in taken
-                and abs(played[j].time - offset - n.time) <= max(LOOSE_S, 2 * tolerance)]
-        if near:
-            claimed[i] = min(near, key=lambda k: abs(played[k].time - offset - n.time))
-            taken.add(claimed[i])
+    reach = max(LOOSE_S, 2 * tolerance)
+    candidates = sorted((abs(played[j].time - offset - written[i].time), i, j) for i in missed_i
+                        for j in loose.get(written[i].instrument, [])
+                        if abs(played[j].time - offset - written[i].time) <= reach)
+    for _, i, j in candidates:  # the closest pairs first: a note early for the next beat is that beat's
+        if i not in claimed and j not in taken:
+            claimed[i] = j
+            taken.add(j)
     extras_j = [j for j in extras_j if j not in taken]
     # a miss with an extra on another drum within the tolerance (no note of its own drum near: claimed above) was
     # played on that drum: a wrong drum, not a miss and an extra

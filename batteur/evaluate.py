@@ -154,15 +154,11 @@ class FileResult:
 # ---------------------------------------------------------------------- matching
 
 
-def _match_times(a: np.ndarray, b: np.ndarray, window: float) -> list[tuple[int, int]]:
-    """Optimal one-to-one pairs (i, j) with ``|a[i] - b[j]| <= window``: the most pairs, then least total error.
-
-    ``a`` and ``b`` sorted (seconds). Solved per cluster of mutually reachable
-    times with :func:`scipy.optimize.linear_sum_assignment`.
-    """
-    if len(a) == 0 or len(b) == 0:
-        return []
-    # clusters: break where no a and b can be within the window across the gap
+def reach_clusters(a: Sequence[float] | np.ndarray, b: Sequence[float] | np.ndarray,
+                   window: float) -> list[tuple[list[int], list[int]]]:
+    """The positions in ``a`` and in ``b`` (times, seconds) of each cluster of mutually reachable times: the
+    merged times break wherever a gap exceeds ``window``, so no ``a`` and ``b`` within ``window`` of each other
+    lie in two clusters (what one-to-one matching can solve cluster by cluster)."""
     events = sorted([(t, 0, i) for i, t in enumerate(a)] + [(t, 1, j) for j, t in enumerate(b)])
     clusters: list[tuple[list[int], list[int]]] = []
     last = -math.inf
@@ -171,8 +167,19 @@ def _match_times(a: np.ndarray, b: np.ndarray, window: float) -> list[tuple[int,
             clusters.append(([], []))
         clusters[-1][side].append(k)
         last = t
+    return clusters
+
+
+def _match_times(a: np.ndarray, b: np.ndarray, window: float) -> list[tuple[int, int]]:
+    """Optimal one-to-one pairs (i, j) with ``|a[i] - b[j]| <= window``: the most pairs, then least total error.
+
+    ``a`` and ``b`` sorted (seconds). Solved per cluster of mutually reachable
+    times with :func:`scipy.optimize.linear_sum_assignment`.
+    """
+    if len(a) == 0 or len(b) == 0:
+        return []
     pairs: list[tuple[int, int]] = []
-    for ia, jb in clusters:
+    for ia, jb in reach_clusters(a, b, window):
         if not ia or not jb:
             continue
         d = np.abs(a[ia][:, None] - b[jb][None, :])
@@ -476,9 +483,15 @@ def render_dir_score(render_dir: Path) -> Path:
 def report_midi_kwargs(report: dict[str, Any], where: Path) -> dict[str, Any]:
     """How the render of ``report`` read its MIDI score (``--drum-channels``: its ``drum_channels``), as keyword
     arguments of ``read_score``: the score is judged as it was played. A report without them: the reader's
-    defaults (a render made before they were recorded, or without the option). ``--drum-map``: its ``drum_map``."""
+    defaults (a render made before they were recorded, or without the option). ``--drum-map``: its ``drum_map``;
+    ``--hihat-cc4``: its ``hihat_cc4``."""
     mapped = note_map_from_json(report.get("drum_map"), str(where))  # a DrumMapError is a ValueError
     kwargs: dict[str, Any] = {} if mapped is None else {"note_map": mapped}
+    pedal = report.get("hihat_cc4", False)
+    if not isinstance(pedal, bool):
+        raise ValueError(f"{where}: hihat_cc4 must be true or false, got {pedal!r}")
+    if pedal:
+        kwargs["hihat_cc4"] = True
     channels = report.get("drum_channels")
     if channels is None:
         return kwargs
@@ -838,7 +851,8 @@ def reusable(render_dir: Path, score: Path, opts: Any) -> bool:
                                 else list(opts.midi["drum_channels"])),
               "drum_map": note_map_json(opts.midi.get("note_map")),
               "calibration": str(opts.calibration) if opts.calibration else None}
-    body = {"height_m": (opts.height_m, STATURE_M), "mass_kg": (opts.mass_kg, DEFAULT_MASS_KG)}
+    body = {"height_m": (opts.height_m, STATURE_M), "mass_kg": (opts.mass_kg, DEFAULT_MASS_KG),
+            "hihat_cc4": (bool(opts.midi.get("hihat_cc4", False)), False)}  # before 7 Dec: CC4 read as written
     return (all(report.get(key) == value for key, value in wanted.items())
             and all(report.get(key, before) == value for key, (value, before) in body.items())
             and same_segments(report, opts))
@@ -961,7 +975,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 RENDER_OPTIONS = ("kit", "grip", "nuance", "height", "mass", "tempo_scale", "control", "calibration", "jobs",
-                  "segment", "drum_channels", "drum_map")
+                  "segment", "drum_channels", "drum_map", "hihat_cc4")
 """The options that change a render: a render directory given to evaluate was made with its own."""
 
 

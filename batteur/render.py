@@ -770,12 +770,14 @@ def score_report(result: ScoreRender, source: str, opts: RenderOptions) -> dict[
         "tempo_scale": opts.tempo_scale,
         "drum_channels": _drum_channels_json(opts),
         "drum_map": note_map_json(opts.midi.get("note_map")),  # --drum-map's pitches, None: General MIDI
+        "hihat_cc4": bool(opts.midi.get("hihat_cc4", False)),  # --hihat-cc4: the pedal applied to the hats
         "control": opts.control,
         "limits_from": list(opts.limits_from),
         "skeleton_bvh": None if opts.skeleton_bvh is None else str(opts.skeleton_bvh),
         "physics": result.physics,
         "calibration": str(opts.calibration) if opts.calibration else None,
-        "sound_params": str(opts.sound_params) if opts.sound_params else None,
+        # absolute: the report is read from elsewhere than the shell the render ran in
+        "sound_params": str(Path(opts.sound_params).resolve()) if opts.sound_params else None,
         "notes": len(result.score.events),
         "planned_strokes": len(result.plan.strokes),
         "issues": issues_json(result.plan, result.score),
@@ -945,8 +947,11 @@ def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: boo
                                                first_sound(wav, wav_cut))
             if cut_warning is not None:
                 print(f"{prog}: warning: {cut_warning}", file=sys.stderr)
+            written = round(result.duration_s - wav_cut / result.sample_rate, 6)  # the WAV as shifted below
+            # duration_s is performance.wav's length (docs/render.md), not the render's timeline: until 7 Dec it
+            # was the uncut WAV's here; wav_duration_s, the same number, kept for readers of earlier reports
             report.update(score_time_0_wav_s=0.0, wav_cut_s=round(wav_cut / result.sample_rate, 6),
-                          wav_duration_s=round(result.duration_s - wav_cut / result.sample_rate, 6))
+                          duration_s=written, wav_duration_s=written)
         if outputs.bvh is not None and outputs.bvh_frames is not None:
             report["bvh"] = bvh_entry(outputs.bvh, outputs.bvh_frames, opts, wav_cut_s)
         video = None
@@ -1510,18 +1515,24 @@ def main(argv: Sequence[str] | None = None, prog: str = "batteur render") -> int
         return INTERRUPTED
 
 
+def _count(n: int, noun: str) -> str:
+    """``3 impacts``, ``1 impact`` (until 7 Dec: "1 impacts for 1 notes")."""
+    return f"{n} {noun}{'' if n == 1 else 's'}"
+
+
 def _main_score(opts: argparse.Namespace, prog: str) -> int:
     try:
         report = render_score(opts.score, opts.output, options_from(opts), quiet=opts.quiet, prog=prog)
     except (ScoreError, RenderError, ValueError, OSError) as exc:  # UsageError: 2, a file or the render: 1
         return report_error(prog, exc)
     out = opts.output
-    print(f"wrote {out / 'performance.wav'} ({report.get('wav_duration_s', report['duration_s']):.1f} s"
+    print(f"wrote {out / 'performance.wav'} ({report['duration_s']:.1f} s"
           f"{bars_words(report)})")
     print(bar_one_line(report["score_time_0_wav_s"])
           + (" (--wav-from score)" if report["wav_from"] == "score" else
              "; --wav-from score starts the WAV there, for a DAW's bar 1"))
-    print(f"wrote {out / 'impacts.csv'} ({report['impacts']} impacts for {report['notes']} notes, "
+    print(f"wrote {out / 'impacts.csv'} ({_count(report['impacts'], 'impact')} for "
+          f"{_count(report['notes'], 'note')}, "
           f"{report['planner_issues']} flagged by the planner{unplayed_words(report)})")
     if (out / "performance.bvh").exists():
         print(f"wrote {out / 'performance.bvh'}")

@@ -48,6 +48,7 @@ import ctypes
 import errno
 import ipaddress
 import os
+import shlex
 import signal
 import socket
 import sys
@@ -62,6 +63,7 @@ from batteur.errors import FAILED, UsageError, report_error
 from common.arg_types import non_negative, positive, seconds, take_negative_values, whole
 from common.input_file import file_problem
 from common.output_paths import check_output_dir, point_at_devnull
+from common.score.midi_options import add_midi_arguments, midi_read_kwargs, midi_service_args
 
 if TYPE_CHECKING:
     from common.score.events import Score
@@ -117,7 +119,8 @@ class ServicePlan:
 ABBREVIATIONS = {"--host": "--ho", "--kit": "--k", "--allow": "--a", "--config": "--co", "--port": "--po",
                  "--epoch": "--e", "--role": "--ro", "--score": "--score", "--play-at": "--pl", "--wav": "--w",
                  "--http-port": "--ht", "--kit-dir": "--kit-", "--scene": "--sce", "--strike-period": "--strike-p",
-                 "--strike-velocity": "--strike-v"}
+                 "--strike-velocity": "--strike-v", "--drum-channels": "--drum-c", "--drum-map": "--drum-m",
+                 "--no-hihat-cc4": "--no-h"}
 """The shortest abbreviation of each service option the rig reads in a ``--ROLE-arg`` (:func:`option_uses`). A
 service's parser (argparse, allow_abbrev) takes any prefix of a long option that no other of its options shares
 (``--ho`` for ``--host``), an exact name first, and refuses an ambiguous one (exit 2). So ``--h`` is no ``--host``
@@ -150,6 +153,12 @@ RIG_GIVES = {
                         "use batteur rig --strike-period {value}"),
     "--strike-velocity": ("override the strike velocity the rig gives physics (its --strike-velocity, default 3)",
                           "use batteur rig --strike-velocity {value}"),
+    "--drum-channels": ("override the MIDI channels batteur rig --drum-channels gives {role} (a score read otherwise "
+                        "than the rig read it)", "use batteur rig --drum-channels {value}"),
+    "--drum-map": ("override the note map batteur rig --drum-map gives {role} (a score read otherwise than the rig "
+                   "read it)", "use batteur rig --drum-map {value}"),
+    "--no-hihat-cc4": ("turn off the hi-hat pedal batteur rig --hihat-cc4 gives {role} (a score read otherwise than "
+                       "the rig read it)", "drop batteur rig --hihat-cc4 to read hi-hat notes as written"),
 }
 """The service options a ``--ROLE-arg`` may not give (:func:`refuse_rig_options`), each with what it would do
 (``{role}``: the service) and the rig's own option to use instead (``{value}``: the one given). ``--port``,
@@ -162,19 +171,26 @@ peers and Hellos take it), ``--peer``, ``--allow`` and ``--interface`` (they add
 ``--log-level``, ``--node-id``, ``--discovery``, and every option the rig does not give."""
 ALWAYS_REFUSED = ("--port", "--epoch", "--role", "--score")
 """The options of :data:`RIG_GIVES` refused whether or not the rig gave that service one."""
+GIVEN_AS = {"--no-hihat-cc4": "--hihat-cc4"}
+"""An option of :data:`RIG_GIVES` refused where the rig gives that service this other one: a flag's negation."""
+FLAGS = ("--hihat-cc4", "--no-hihat-cc4")
+"""The options :func:`option_uses` reads that take no value."""
 
 
 def option_uses(args: Sequence[str], flag: str) -> list[tuple[str, str]]:
     """(name as written, value) of each time ``args`` (a service's command line) gives the long option ``flag``, in
     order: ``NAME VALUE`` or ``NAME=VALUE``, NAME being ``flag`` or, for a flag in :data:`ABBREVIATIONS`, an
-    abbreviation a service's parser would take for it (``--ho`` for ``--host``)."""
+    abbreviation a service's parser would take for it (``--ho`` for ``--host``); a flag of :data:`FLAGS` has the
+    value "" (the next argument is not its)."""
     shortest = ABBREVIATIONS.get(flag, flag)
     uses = []
     for i, arg in enumerate(args):
         name, equals, value = arg.partition("=")
         if len(name) < len(shortest) or not flag.startswith(name):
             continue
-        if equals:
+        if flag in FLAGS:
+            uses.append((name, ""))
+        elif equals:
             uses.append((name, value))
         elif i + 1 < len(args):
             uses.append((name, args[i + 1]))
@@ -279,15 +295,26 @@ def role_args(role: str, opts: argparse.Namespace) -> list[str]:
         if opts.strike_period:
             args += ["--scene", "strike", "--strike-period", repr(opts.strike_period),
                      "--strike-velocity", repr(opts.strike_velocity)]
+    if role in ("physics", "graphics"):  # they read scores: --score and the library, --preview-score
+        args += midi_service_args(opts)
     if role == "sound" and opts.record:
         args += ["--wav", str(Path(opts.record) / RECORDING)]
     if role == "graphics":
         args += ["--http-port", str(opts.http_port)]
     if role == "graphics" and getattr(opts, "kit_dir", None):
         args += ["--kit-dir", str(Path(opts.kit_dir).resolve())]
-    extra = [arg for item in getattr(opts, f"{role}_arg") or [] for arg in item.split()]
+    extra = [arg for item in getattr(opts, f"{role}_arg") or [] for arg in _split_role_arg(role, item)]
     refuse_rig_options(role, args, extra)
     return args + extra
+
+
+def _split_role_arg(role: str, item: str) -> list[str]:
+    """One ``--ROLE-arg`` value split as a shell would (``--sound-params '/tmp/a b/p.yaml'``: one path; until 7 Dec
+    split on spaces, so a path with one could not be given); UsageError for an unclosed quote."""
+    try:
+        return shlex.split(item)
+    except ValueError as exc:
+        raise UsageError(f"--{role}-arg {item!r}: {exc.args[0].lower()} (it is split as a shell would)") from None
 
 
 def refuse_rig_options(role: str, given: Sequence[str], extra: Sequence[str]) -> None:
@@ -305,9 +332,10 @@ def refuse_rig_options(role: str, given: Sequence[str], extra: Sequence[str]) ->
                          f"another than the other services'; give every service that kit with the rig's --kit {kit}")
     for flag, (what, instead) in RIG_GIVES.items():
         uses = option_uses(extra, flag)
-        if uses and (flag in ALWAYS_REFUSED or option_uses(given, flag)):
+        if uses and (flag in ALWAYS_REFUSED or option_uses(given, GIVEN_AS.get(flag, flag))):
             name, value = uses[-1]
-            raise UsageError(f"--{role}-arg: {_as_written(name, flag)} {value} would {what.format(role=role)}; "
+            written = " ".join(filter(None, (_as_written(name, flag), value)))
+            raise UsageError(f"--{role}-arg: {written} would {what.format(role=role)}; "
                              f"{instead.format(value=value)}")
 
 
@@ -768,6 +796,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--score", default=None, metavar="FILE",
                         help="the drummer plays this score live (.mid or text score; 'demo': the groove of "
                         "batteur demo; default: none, the drummer idles)")
+    add_midi_arguments(parser.add_argument_group(
+        "MIDI scores", "how physics reads --score's and its library's MIDI files, and graphics its --preview-score "
+        "(--graphics-arg): given to both"))
     parser.add_argument("--kit", default=None, metavar="NAME",
                         help="kit name or YAML/JSON file for every service (default: --score's `kit` line, as "
                         "batteur render reads it, else the default kit); a --ROLE-arg may not give one its own")
@@ -786,7 +817,8 @@ def build_parser() -> argparse.ArgumentParser:
     for role in ROLES:
         parser.add_argument(f"--{role}-arg", action="append", metavar="ARGS",
                             help=f"extra arguments for {role}, e.g. --{role}-arg='--log-level DEBUG' (repeatable; "
-                            f"split on spaces; see batteur {role} --help); a --host (or --ho) there is where {role} "
+                            f"split as a shell would: quote a value with spaces, --{role}-arg=\"--wav 'a b.wav'\"; "
+                            f"see batteur {role} --help); a --host (or --ho) there is where {role} "
                             "listens; what the rig gives every service (--port, --epoch, --kit, --role) or its "
                             "--score is refused, abbreviated too, naming the rig's own option to use")
     return parser
@@ -808,7 +840,8 @@ def check_score(opts: argparse.Namespace) -> Score | None:
     problem = file_problem(Path(opts.score), SCORE_FILE)  # a folder, a device, a pipe: said, never opened
     if problem is not None:
         raise ValueError(f"--score {opts.score}: {problem}")
-    score = read_score(opts.score)  # ScoreError (a ValueError) for a broken file, before any service starts
+    # ScoreError (a ValueError) for a broken file, before any service starts; read as physics reads it
+    score = read_score(opts.score, **midi_read_kwargs(opts))
     if not score.events:
         raise ValueError(f"--score {opts.score}: no drum events to play")
     return score

@@ -683,18 +683,29 @@ def graphics_section(p: Patch, x: int, y: int, load: int) -> None:
         p.connect(box, 0, whole, 0)
         if k == 0:  # the first bar: the last one moved up to it if below (a range ending first is refused), shown
             first, at_least = p.obj(x + 700, y + 700, "t f f"), p.obj(x + 740, y + 730, "max 1")
+            at_most = p.obj(x + 1140, y + 642, "min 1")  # the last bar's side: the first bar so far, kept here
             p.connect(whole, 0, first, 0)
             p.connect(first, 1, at_least, 0)
+            p.connect(first, 1, at_most, 1)
             p.connect(at_least, 0, bars, 1)
             p.connect(first, 0, bars, 0)
             shown = p.msg(x + 790, y + 730, "set $1")
             p.connect(at_least, 0, shown, 0)
-        else:  # the last bar: stored, then the pair sent
-            order = p.obj(x + 880, y + 670, "t b f")
+            first_box = box
+        else:  # the last bar: stored, then the pair sent with the first bar moved down to it if above, shown (as
+            # the page's boxes do; until 7 Dec the pair was sent as it was, 2 1, and refused)
+            order = p.obj(x + 880, y + 670, "t f f")
             p.connect(whole, 0, order, 0)
             p.connect(order, 1, bars, 1)
             p.connect(order, 1, at_least, 1)
-            p.connect(order, 0, bars, 0)
+            p.connect(order, 0, at_most, 0)
+            moved = p.obj(x + 1140, y + 680, "t f f")
+            p.connect(at_most, 0, moved, 0)
+            p.connect(moved, 1, at_most, 1)  # the first bar as moved, kept (a cold inlet: no loop)
+            p.connect(moved, 0, bars, 0)
+            shown_first = p.msg(x + 1190, y + 710, "set $1")
+            p.connect(moved, 1, shown_first, 0)
+            p.connect(shown_first, 0, first_box, 0)
             p.connect(shown, 0, box, 0)
     all_bars = p.msg(x + 880, y + 642, "0 0")  # the whole score again
     p.text(x + 920, y + 642, "whole score")

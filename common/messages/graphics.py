@@ -165,8 +165,8 @@ class GraphicsPreviewBars(OscMessage):
     the whole score again.
 
     The motion goes on from where it is when that is inside the new range, else from the range's first bar. A node
-    whose preview has no score (``--preview FILE.npz``) or no preview, or bars past the score's last note, refuse it
-    (``/batteur/graphics/rejected``)."""
+    whose preview has no score (``--preview FILE.npz``) or no preview, or a range ending past the bar of the score's
+    last note ("the score has 3 bars"), refuse it (``/batteur/graphics/rejected``)."""
 
     ADDRESS = "/batteur/graphics/preview_bars"
     FAMILY = Family.CONTROL

@@ -81,8 +81,8 @@ def _inspect(argv: list[str] | None) -> int:
         kit = load_score_kit(score, args.kit)  # a kit line's kit it cannot load: an error naming the line
     except (ScoreError, FileNotFoundError, ValueError) as exc:  # a score or kit it cannot use
         return report_error(PROG, exc, FAILED)
-    print(f"{score.source}: {counted(len(score.events), 'event')} (the last at {score.duration:.2f} s), "
-          f"{length(score)}{bar_end_words(score)}")
+    last = f" (the last at {score.duration:.2f} s)" if score.events else ""  # none: "(the last at 0.00 s)"
+    print(f"{score.source}: {counted(len(score.events), 'event')}{last}, {length(score)}{bar_end_words(score)}")
     for line in (tempo_line(score), meter_line(score)):
         if line is not None:
             print(line)

@@ -265,6 +265,7 @@ def read_midi(
     drum_map: Mapping[int, EventType] = DRUM_MAP,
     progress: ReadProgress | None = None,
     note_map: Mapping[int, int] | None = None,
+    hihat_cc4: bool = False,
 ) -> Score:
     """Read a Standard MIDI File into a :class:`Score`.
 
@@ -289,6 +290,10 @@ def read_midi(
         (:func:`common.score.midi_notes.load_drum_map`, ``--drum-map``); pitches it does not hold are read as they
         are. Applied before the hi-hat pedal (CC4, :class:`common.score.midi_notes.HiHatPedal`) and ``drum_map``;
         events and unknown notes carry the pitch it gives.
+    hihat_cc4 : bool
+        Apply the hi-hat pedal the file sends as CC4 to its hi-hat notes (``--hihat-cc4``,
+        :class:`common.score.midi_notes.HiHatPedal`). Off: the notes play as written, and a file whose hi-hat notes,
+        all closed (or all open), the pedal would change is told of the option once.
 
     Returns
     -------
@@ -297,14 +302,15 @@ def read_midi(
         ticks-per-beat and tempo map, unknown notes and removed doubles listed.
     """
     with cyclic_gc_paused():
-        score, size = _read(source, drum_channels, drum_map, progress, note_map)
+        score, size = _read(source, drum_channels, drum_map, progress, note_map, hihat_cc4)
     if progress is not None:
         progress(size, size)
     return score
 
 
 def _read(source: str | Path | bytes, drum_channels: Collection[int] | None, drum_map: Mapping[int, EventType],
-          progress: ReadProgress | None, note_map: Mapping[int, int] | None = None) -> tuple[Score, int]:
+          progress: ReadProgress | None, note_map: Mapping[int, int] | None = None,
+          hihat_cc4: bool = False) -> tuple[Score, int]:
     """:func:`read_midi`'s work; also returns the file's size in bytes."""
     mid, name, size, open_warnings = _open(source, progress)
     if mid.ticks_per_beat < 0:  # the division's top bit: frames a second and ticks a frame
@@ -323,7 +329,7 @@ def _read(source: str | Path | bytes, drum_channels: Collection[int] | None, dru
     tempo_points: list[tuple[int, float, float]] = [(0, 0.0, per_tick)]  # tick, seconds, seconds/tick
     meters: list[tuple[int, int, int]] = [(0, 4, 4)]  # tick, numerator, denominator (4/4 until told otherwise)
     pitches = note_map or {}
-    pedal = HiHatPedal()  # CC4 per channel
+    pedal = HiHatPedal()  # CC4 per channel: applied with hihat_cc4, else only told of
     for tick, msg in timeline:
         seconds += (tick - last_tick) * per_tick
         last_tick = tick
@@ -340,7 +346,7 @@ def _read(source: str | Path | bytes, drum_channels: Collection[int] | None, dru
         elif msg.type == "control_change" and msg.control == 4:  # the foot controller: a hi-hat's pedal
             pedal.control(msg.channel, msg.value)
         elif msg.type == "note_on" and msg.velocity > 0:
-            pitch = pedal.pitch(seconds, msg.channel, pitches.get(msg.note, msg.note))
+            pitch = pedal.pitch(seconds, msg.channel, pitches.get(msg.note, msg.note), apply=hihat_cc4)
             raw.append((seconds, pitch, msg.velocity, msg.channel, tick))
         elif msg.type == "program_change" and msg.program not in programs.setdefault(msg.channel, []):
             programs[msg.channel].append(msg.program)
@@ -349,7 +355,11 @@ def _read(source: str | Path | bytes, drum_channels: Collection[int] | None, dru
     warnings += told
     _check_size(chosen, name)
     warnings += _shared_pitches(chosen, mid, drum_map, name)
-    pedalled = pedal.notice([(s, c, p) for s, p, _, c, _ in chosen], name) if pedal.changed else None
+    read = [(s, c, p) for s, p, _, c, _ in chosen]
+    if hihat_cc4:
+        pedalled = pedal.notice(read, name) if pedal.changed else None
+    else:
+        pedalled = pedal.unused_notice(read, name) if pedal.would_move else None
     if pedalled:
         warnings.append(pedalled)
     notes = [DrumNote(time=s, pitch=p, velocity=v / 127.0, channel=c + 1) for s, p, v, c, _ in chosen]

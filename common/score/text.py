@@ -636,7 +636,15 @@ def read_score(path: str | Path, **kwargs: object) -> Score:
     except ScoreError as exc:
         raise ScoreError(f"{p}: {exc}") from exc
     score.warnings = [f"{p}: {warning}" for warning in score.warnings]  # as its errors, and a MIDI file's warnings
+    unused = [option for key, option in MIDI_ONLY.items() if kwargs.get(key) not in (None, False)]
+    if unused:  # given for this file, they did nothing: said once (until 7 Dec not a word)
+        score.warnings.append(f"{p}: {' and '.join(unused)} not used: a text score names its drums (they read "
+                              "MIDI files)")
     return score
+
+
+MIDI_ONLY = {"drum_channels": "--drum-channels", "note_map": "--drum-map", "hihat_cc4": "--hihat-cc4"}
+""":func:`read_score`'s keyword arguments a text score has no use for, and their options."""
 
 
 def _score_text(path: Path, head: bytes) -> str:

@@ -522,7 +522,7 @@ class GraphicsCore:
         score's, as ``score_preview`` makes it) gives the status panel the preview's bar and beat. ``loop`` (start,
         end), seconds on the sequence's clock: play only that span, with no pause between laps (a bar range);
         ``bars`` (first, last, from 1) of ``score``: the span of those bars (``ValueError``, nothing changed, for
-        bars past the score's last note or without a score).
+        a range ending past the bar of the score's last note or without a score).
         """
         if bars is not None:
             if score is None:
@@ -556,8 +556,8 @@ class GraphicsCore:
     def set_preview_bars(self, bars: tuple[int, int] | None, now: float) -> None:
         """Loop bars (first, last) of the previewed score (from 1; None: the whole preview, with its pause) from rig
         time ``now``; the motion goes on from where it is when that is inside the new range, else from the range's
-        start. Every page is told. ``ValueError`` (nothing changed) with no score preview loaded or bars past the
-        score's last note."""
+        start. Every page is told. ``ValueError`` (nothing changed) with no score preview loaded or a range ending
+        past the bar of the score's last note."""
         if self.preview is None or self.preview_score is None:
             raise ValueError(NO_PREVIEW_BARS)
         times = self.preview.times

@@ -44,6 +44,8 @@ from common.messages import Impact
 from common.messages.graphics import GraphicsMode
 from common.output_paths import check_output_dir
 from common.runtime import Node, run_node
+from common.score.midi_notes import DrumMapError
+from common.score.midi_options import DRUM_CHANNELS_HELP, DRUM_MAP_HELP, HIHAT_CC4_HELP, midi_setting_kwargs
 from services.graphics.core import GraphicsCore, GraphicsSettings
 from services.graphics.preview import MAX_RATE, MIN_RATE, ScorePreview, parse_bars, score_preview
 from services.graphics.sequence import PoseSequence
@@ -81,6 +83,9 @@ class GraphicsNodeSettings(NodeSettings):
         default="", description="loop only these bars of --preview-score, from 1 as the status counts them: "
         "3 or 3-4 ('': the whole score, with a pause between laps; the page and /batteur/graphics/preview_bars "
         "change it while it plays)")
+    drum_channels: str = Field(default="", description=f"--preview-score's MIDI file: {DRUM_CHANNELS_HELP}")
+    drum_map: str = Field(default="", description=f"--preview-score's MIDI file: {DRUM_MAP_HELP}")
+    hihat_cc4: bool = Field(default=False, description=f"--preview-score's MIDI file: {HIHAT_CC4_HELP}")
     synthetic: bool = Field(default=False, description="feed the synthetic drummer (demo without physics)")
     view_clock: Literal["auto", "rig"] = Field(
         default="auto", description="auto: follow the clock of the poses; rig: trust the rig clock")
@@ -136,8 +141,9 @@ def plan_score_preview(settings: GraphicsNodeSettings, kit: Kit, clock: Callable
             last = now
             log.info("preview: posing %s: %d%% (%d/%d poses)", name, 100 * done // total, done, total)
 
+    midi = midi_setting_kwargs(settings.drum_channels, settings.drum_map, settings.hihat_cc4)
     return score_preview(name, kit, settings.preview_planner, poses=poses_path(settings),
-                         rate_hz=settings.rate_hz or 60.0, on_progress=progress)
+                         rate_hz=settings.rate_hz or 60.0, on_progress=progress, midi=midi)
 
 
 _FLAGS = {"rate_hz": "--rate-hz", "latency": "--latency-s", "kit": "--kit", "clock": "--view-clock"}
@@ -170,6 +176,10 @@ def make_core(settings: NodeSettings, args: argparse.Namespace) -> GraphicsCore:
         parse_bars(s.preview_bars)  # its syntax, before a long plan
         if not s.preview_score:
             raise ValueError("--preview-bars loops bars of a score: give --preview-score SCORE with it")
+    try:  # before a long plan: bad channels ValueError (exit 2); a map it cannot use: 1, as a kit
+        midi_setting_kwargs(s.drum_channels, s.drum_map, s.hihat_cc4)
+    except DrumMapError as exc:
+        raise InputError(str(exc)) from None
     if s.kit_dir:
         try:
             check_output_dir(Path(s.kit_dir), "--kit-dir")

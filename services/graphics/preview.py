@@ -23,10 +23,10 @@ motion (``--preview-rate``, the page's rate select) that may change while it pla
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
@@ -225,11 +225,23 @@ def bar_span(score: Score, first: int, last: int) -> tuple[float, float]:
 
 def bar_loop(score: Score, impacts: list[Impact], end: float, first: int, last: int) -> tuple[float, float]:
     """The span (start, end), seconds on the score's clock, that looping bars ``first`` to ``last`` (from 1) of
-    ``score`` plays: :func:`bar_span` cut at ``end`` (the preview's last pose). ``ValueError`` for bars past the
-    score's last note (``impacts``: the preview's strokes) or a score without beats."""
+    ``score`` plays: :func:`bar_span` cut at ``end`` (the preview's last pose). ``ValueError`` for a range that
+    ends past the bar of the score's last note (``impacts``: the preview's strokes; "the score has 3 bars": cutting
+    the range silently at the end would loop bars other than the ones asked for) or a score without beats."""
+    from common.score.position import bar_beat
+
     start, stop = bar_span(score, first, last)
-    if not impacts or start > max(i.time for i in impacts):
-        raise ValueError(f"the score's last note is before bar {first} ({score.source or 'score'})")
+    name = Path(score.source).name if score.source else "score"
+    if not impacts:
+        raise ValueError(f"the score has no notes ({name})")
+    last_note = max(i.time for i in impacts)
+    where = bar_beat(score, last_note)
+    if where is None:  # the last note before the first beat: no bar holds a note
+        if start > last_note:
+            raise ValueError(f"the score's last note is before bar {first} ({name})")
+    elif last > where.bar + 1:
+        bars = where.bar + 1
+        raise ValueError(f"the score has {bars} bar{'' if bars == 1 else 's'} ({name})")
     return start, min(stop, float(end))
 
 
@@ -258,7 +270,8 @@ class ScorePreview:
 
 
 def score_preview(path: str | Path, kit: Kit, planner: Planner = "keyframe", poses: str | Path | None = None,
-                  rate_hz: float = 60.0, on_progress: Progress | None = None) -> ScorePreview:
+                  rate_hz: float = 60.0, on_progress: Progress | None = None,
+                  midi: Mapping[str, Any] | None = None) -> ScorePreview:
     """Read, distribute, plan and pose a score file for the kinematic preview (no physics).
 
     Parameters
@@ -277,6 +290,9 @@ def score_preview(path: str | Path, kit: Kit, planner: Planner = "keyframe", pos
         Pose rate of the sequence, Hz.
     on_progress : callable(done, total), optional
         Called after every pose of the sequence (posing a long score takes seconds).
+    midi : mapping, optional
+        How a MIDI file is read: :func:`common.score.midi.read_midi`'s keyword arguments (the node's
+        ``--drum-channels``, ``--drum-map``, ``--hihat-cc4``); a text score ignores them.
 
     Returns
     -------
@@ -300,7 +316,7 @@ def score_preview(path: str | Path, kit: Kit, planner: Planner = "keyframe", pos
         raise ScoreError(f"unknown preview planner {planner!r} (one of: {', '.join(PLANNERS)})")
     if not math.isfinite(rate_hz) or rate_hz <= 0:
         raise ScoreError(f"preview pose rate must be positive, got {rate_hz}")
-    score = read_score(path)
+    score = read_score(path, **(midi or {}))
     if not score.events:
         why = "; ".join(score.warnings[-2:]) if score.warnings else "empty"
         raise ScoreError(f"{path}: no drum events to preview ({why})")

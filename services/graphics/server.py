@@ -19,8 +19,9 @@ posture to physics, /batteur/physics/posture), ``save_pose`` (a key pose into
 edits, not saved: the reply carries its beaters and stands, ``common.kit.kit_hardware``,
 so the page draws them as physics would build them), ``preview_rate`` (``rate``) and
 ``preview_bars`` (``first``, ``last``; 0 0: the whole score): the score preview's speed and bar range, as
-``/batteur/graphics/preview_rate`` and ``/batteur/graphics/preview_bars`` set them. Bad messages get an error
-reply and are counted; they never stop the server.
+``/batteur/graphics/preview_rate`` and ``/batteur/graphics/preview_bars`` set them (refused: a ``refused``
+reply naming the control and why, with the node's view). Bad messages get an error reply and are counted; they
+never stop the server.
 """
 
 from __future__ import annotations
@@ -225,13 +226,8 @@ class ViewServer:
                 return self._save_pose(msg)
             if kind == "hardware":
                 return self._hardware(msg)
-            if kind == "preview_rate":  # the page's rate select; every page is told by the view message
-                self.core.set_preview_rate(msg.get("rate"), self.clock())  # type: ignore[arg-type]
-                return None
-            if kind == "preview_bars":  # the page's bar range, checked as /batteur/graphics/preview_bars is
-                bars = GraphicsPreviewBars.from_args([msg.get("first"), msg.get("last")])  # MessageError: one line
-                self.core.set_preview_bars(bars.bars, self.clock())
-                return None
+            if kind in ("preview_rate", "preview_bars"):
+                return self._preview_control(kind, msg)
             raise ValueError(f"unknown message type {kind!r}")
         except RecursionError:  # e.g. "[[[[..." : the JSON parser gives up, the connection must not
             self.counters["page_errors"] += 1
@@ -245,6 +241,22 @@ class ViewServer:
             self.counters["page_errors"] += 1
             log.warning("cannot save: %s", exc)
             return {"type": "saved", "ok": False, "error": f"cannot save: {exc}"[:500]}
+
+    def _preview_control(self, kind: str, msg: dict[str, Any]) -> dict[str, Any] | None:
+        """The page's rate select or bar boxes; every page is told by the view message. A refusal gets a reply of
+        its own (``refused``, shown beside the toolbar's controls, not in the editor's save line), with the node's
+        view so the page's boxes show the range (rate) that plays again; counted in ``page_errors``."""
+        try:
+            if kind == "preview_rate":
+                self.core.set_preview_rate(msg.get("rate"), self.clock())  # type: ignore[arg-type]
+            else:  # checked as /batteur/graphics/preview_bars is (MessageError: one line)
+                bars = GraphicsPreviewBars.from_args([msg.get("first"), msg.get("last")])
+                self.core.set_preview_bars(bars.bars, self.clock())
+        except (ValueError, TypeError) as exc:
+            self.counters["page_errors"] += 1
+            log.warning("page %s refused: %s", kind, exc)
+            return {"type": "refused", "control": kind, "error": str(exc)[:500], "view": self.core.view_json()}
+        return None
 
     def _start_poser(self) -> CharacterPoser:
         """The editor's body: the newest live pose of physics' drummer, else the shipped rest snapshot."""

@@ -51,6 +51,8 @@ from common.messages.physics import ControlModeName, GripName
 from common.runtime import Node, run_node
 from common.score.events import SCORE_FILE
 from common.score.limbs import LimbLengths
+from common.score.midi_notes import DrumMapError
+from common.score.midi_options import DRUM_CHANNELS_HELP, DRUM_MAP_HELP, HIHAT_CC4_HELP, midi_setting_kwargs
 from services.physics.core import PhysicsCore, PhysicsSettings
 from services.physics.mocap import ClipError
 from services.physics.plan_worker import PlanWorker, PlanWorkers
@@ -91,6 +93,9 @@ class PhysicsNodeSettings(NodeSettings):
                        "directory joins the score library")
     play_at: float | None = Field(default=None, ge=0, le=1e6, description="rig time at which --score starts "
                                   "playing (its beginning), seconds (unset: load only)")
+    drum_channels: str = Field(default="", description=f"--score and the library's MIDI files: {DRUM_CHANNELS_HELP}")
+    drum_map: str = Field(default="", description=f"--score and the library's MIDI files: {DRUM_MAP_HELP}")
+    hihat_cc4: bool = Field(default=False, description=f"--score and the library's MIDI files: {HIHAT_CC4_HELP}")
     score_dir: Annotated[list[str], NoDecode] = Field(
         default_factory=list, description="score library directory: /batteur/score/load names are looked up here")
     limits_from: Annotated[list[str], NoDecode] = Field(
@@ -188,6 +193,10 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace) -> PhysicsCore:
         raise ValueError("--play-at needs --score")
     if settings.score and settings.scene != "drummer":
         raise ValueError("--score needs the drummer scene")
+    try:  # bad channels: ValueError (exit 2); a map it cannot use: 1, as a kit
+        midi = midi_setting_kwargs(settings.drum_channels, settings.drum_map, settings.hihat_cc4)
+    except DrumMapError as exc:
+        raise InputError(str(exc)) from None
     problem = file_problem(Path(settings.score).expanduser(), SCORE_FILE) if settings.score else None
     if problem is not None:  # a folder, a device, a pipe: said, never opened (a pipe would hold the node for ever)
         raise InputError(f"score {settings.score}: {problem}")
@@ -220,6 +229,7 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace) -> PhysicsCore:
     except (FileNotFoundError, BvhError, ClipError) as exc:  # a kit, clip or BVH file not there or unreadable
         raise InputError(str(exc)) from None
     try:
+        core.score_player.midi = midi
         _prepare(core, settings)
         _wait_for_planner(core)
     except ValueError as exc:  # the --score file: not a score it can read

@@ -114,7 +114,7 @@ from collections.abc import Callable, Sequence
 from concurrent.futures import Future
 from concurrent.futures import wait as wait_futures
 from pathlib import Path
-from typing import TYPE_CHECKING, Literal, NamedTuple
+from typing import TYPE_CHECKING, Any, Literal, NamedTuple
 
 import numpy as np
 
@@ -332,6 +332,10 @@ class ScorePlayer:
     def __init__(self, core: PhysicsCore, library: tuple[str | Path, ...] = ()) -> None:
         self.core = core
         self.library: list[Path] = [Path(d) for d in library]
+        self.midi: dict[str, Any] = {}
+        """How MIDI scores are read: :func:`common.score.midi.read_midi`'s keyword arguments (the node's
+        ``--drum-channels``, ``--drum-map``, ``--hihat-cc4``: :func:`common.score.midi_options.midi_setting_kwargs`);
+        a text score ignores them."""
         self.grip = planned_grip(core.settings.grip)
         """The grip the gestures are planned with (see the module docstring)."""
         self._grip_warned: tuple[str, str, Grip] | None = None
@@ -538,7 +542,7 @@ class ScorePlayer:
         if trusted and not path.is_file():
             raise ScorePlayerError(f"score {str(name)!r}: no such file")
         try:
-            score = read_score(path)
+            score = read_score(path, **self.midi)
         except ScoreError:
             raise
         except (OSError, ValueError, EOFError, IndexError, KeyError) as exc:  # a reader's own failure

@@ -440,7 +440,8 @@ def save_params(core: SoundCore, path: Path, wait_s: float | None = None) -> Non
     except (OSError, ValueError) as exc:
         log.error("--sound-params-out %s: cannot write it (%s)", path, exc)
         return
-    log.info("sound parameters written to %s (%d instruments changed)", path, len(changed))
+    log.info("sound parameters written to %s (%d instrument%s changed)", path, len(changed),
+             "" if len(changed) == 1 else "s")
 
 
 def _attach_sinks(core: SoundCore, settings: SoundNodeSettings, keep_take: Callable[[], bool]) -> None:

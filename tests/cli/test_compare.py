@@ -630,6 +630,30 @@ def test_a_note_played_on_another_drum_is_a_wrong_drum_not_a_miss_and_an_extra(
     assert [line.split()[6] for line in bar_table[1:5]] == ["1", "8", "1", "1"]
 
 
+def test_a_wrong_drum_beside_an_early_note_of_its_drum_is_a_wrong_drum_and_an_early_note(
+        exercise: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Bar 2's hi-hat on 2 played on the ride, the one on 2& 110 ms early (140 ms after the first): the early note
+    is 2&'s, the nearer, and the ride stands for 2. The misses taken in time order gave the early hi-hat to 2 as
+    140 ms late, then 2& was missed and the ride extra."""
+    take: list[Note] = []
+    for t, p, v in written(exercise):
+        if (t, p) == (2.5, 42):
+            take.append((START + t, 51, v))
+        else:
+            take.append((START + t - (0.110 if (t, p) == (2.75, 42) else 0.0), p, v))
+    path = write_take(tmp_path / "take.mid", take)
+
+    got = report([str(exercise), str(path)], capsys)
+
+    assert (got["wrong_drum"], got["missed"], got["off_tolerance"], got["extra"]) == (1, 0, 1, 0)
+    assert [(w["bar"], w["beat"], w["drum"], w["played_drum"]) for w in got["wrong_drums"]] == [(2, 2, "hihat", "ride")]
+    assert [(m["bar"], m["beat"], m["played_off_by_ms"]) for m in got["misses"]] == [(2, 2.5, -110.0)]
+    _, out, _ = run([str(exercise), str(path)], capsys)
+    assert "bar 2, beat 2: played ride instead of hihat" in out
+    assert "bar 2, beat 2&: hihat played 110 ms early (beyond the tolerance)" in out
+    assert "ms late" not in out and "ride extra" not in out and "hihat missed" not in out
+
+
 def test_a_wrong_drum_is_a_cymbal_for_a_cymbal_a_drum_for_a_drum() -> None:
     """A ride 10 ms after a written hi-hat and on a written snare, both missed: the ride stands for the hi-hat,
     the nearer snare is the drum it is not; with a tom as well, each takes its own family."""

@@ -363,6 +363,19 @@ def test_what_the_rig_does_not_give_a_service_stays_allowed(given: list[str], ro
     assert all(value not in plan.args for other, plan in plans.items() if other != role)
 
 
+def test_a_role_arg_value_with_a_space_is_given_whole_when_quoted() -> None:
+    # until 7 Dec split on spaces: the path came to sound as "'/tmp/a" and "b/p.yaml'"
+    plans = _plans("--sound-arg", "--sound-params '/tmp/a b/p.yaml' --log-level DEBUG")
+    assert rig.option_values(plans["sound"].args, "--sound-params") == ["/tmp/a b/p.yaml"]
+    assert rig.option_values(plans["sound"].args, "--log-level")[-1] == "DEBUG"
+
+
+def test_a_role_arg_with_an_unclosed_quote_is_refused(
+        no_rig: None, capsys: pytest.CaptureFixture[str]) -> None:  # noqa: F811
+    err = refused(["--no-discovery", "--sound-arg", "--wav 'a b.wav"], capsys, 2)
+    assert err.startswith("batteur rig: error: --sound-arg \"--wav 'a b.wav\": no closing quotation"), err
+
+
 # --------------------------------------------------------------------------- the services an allow-list is missing for
 
 

@@ -133,8 +133,11 @@ def test_control_panel_drives_the_graphics_view(tmp_path: Path) -> None:
             "bp-show-kit 0", "bp-show-plot 0", "bp-show-plot 1", "bp-show-trails 0",
             "bp-trails 2.5", "bp-plot-window 6", "bp-plot-zmin 0.2", "bp-plot-zmax 1.8",
             "bp-view-latency 0.12", "bp-preview-rate 0.5",
-            # a first bar past the last moves the last up to it (2 2), then the last bar (2 3), the whole score
+            # a first bar past the last moves the last up to it (2 2), then the last bar (2 3), the whole score;
+            # a last bar below the first moves the first down to it (1 1: until 7 Dec 2 1 was sent, and refused),
+            # and the first so far is the moved one (1 3, not 2 3)
             "bp-preview-first 2", "bp-preview-last 3", "bp-preview-all bang", "bp-preview-last 2",
+            "bp-preview-last 1", "bp-preview-last 3",
             "bp-view-mode symbol live",
         ]
         pd = PdProcess(PD_DIR / "control.pd", sends=sends)
@@ -166,8 +169,9 @@ def test_control_panel_drives_the_graphics_view(tmp_path: Path) -> None:
             pytest.approx(0.12)
         assert graphics.of(GraphicsMode)[-1].mode == "live"
         assert graphics.of(GraphicsPreviewRate)[-1].rate == 0.5 and graphics.core.preview_clock.rate == 0.5
-        assert [(m.first, m.last) for m in graphics.of(GraphicsPreviewBars)] == [(2, 2), (2, 3), (0, 0), (2, 2)]
-        assert graphics.core.preview_bars == (2, 2) and graphics.core.rejected_total == 0
+        assert [(m.first, m.last) for m in graphics.of(GraphicsPreviewBars)] == [
+            (2, 2), (2, 3), (0, 0), (2, 2), (1, 1), (1, 3)]
+        assert graphics.core.preview_bars == (1, 3) and graphics.core.rejected_total == 0
 
     asyncio.run(main())
 

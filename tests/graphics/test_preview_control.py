@@ -118,9 +118,19 @@ def test_bars_the_score_lacks_or_no_score_are_refused_to_the_sender_and_counted(
     clock = core.preview_clock
     reason = _refusal(core.handle(GraphicsPreviewBars(first=5, last=6), 12.0, SOURCE),
                       "/batteur/graphics/preview_bars")
-    assert reason.startswith("bars 5 to 6: the score's last note is before bar 5")
+    assert reason == "bars 5 to 6: the score has 3 bars (three.txt)"
     assert core.preview_bars is None and clock.position(12.0) == pytest.approx(1.0)  # the preview plays on
     assert core.counters["preview_refused"] == 1 and core.rejected_total == 1
+    # a range starting inside the score but ending past it is refused too (until 7 Dec only its first bar was
+    # checked and the loop was cut at the end without a word)
+    reason = _refusal(core.handle(GraphicsPreviewBars(first=2, last=5), 12.0, SOURCE),
+                      "/batteur/graphics/preview_bars")
+    assert reason == "bars 2 to 5: the score has 3 bars (three.txt)"
+    assert core.preview_bars is None and clock.position(12.0) == pytest.approx(1.0)
+    assert core.handle(GraphicsPreviewBars(first=2, last=3), 12.0, SOURCE) == []  # its last bar: played
+    assert core.preview_bars == (2, 3)
+    core.handle(GraphicsPreviewBars(first=0, last=0), 12.0, SOURCE)
+    assert core.rejected_total == 2
     # a pose sequence file has no score: no bars, but a rate
     sequence, impacts = synthetic_performance(duration=1.0, rate_hz=30.0)
     core.load_preview(sequence, impacts, now=20.0)
@@ -128,7 +138,7 @@ def test_bars_the_score_lacks_or_no_score_are_refused_to_the_sender_and_counted(
         core.handle(GraphicsPreviewBars(first=1, last=1), 20.0, SOURCE), "/batteur/graphics/preview_bars")
     assert core.view_json()["preview_bars"] is None  # the page offers no bars
     assert core.handle(GraphicsPreviewRate(rate=2.0), 20.0, SOURCE) == []
-    assert core.rejected_total == 2
+    assert core.rejected_total == 3
 
 
 def test_without_a_preview_rate_and_bars_are_refused_and_counted() -> None:
@@ -173,10 +183,16 @@ def test_the_page_sets_a_bar_range_and_a_bad_one_is_refused(core: GraphicsCore) 
     assert core.preview_bars == (2, 3) and core.preview_clock.position(12.0) == pytest.approx(2.0)
     for raw, why in (('{"type": "preview_bars", "first": 3, "last": 2}', "bars 3 to 2"),
                      ('{"type": "preview_bars", "first": "x", "last": 2}', "first: expected a number"),
-                     ('{"type": "preview_bars", "first": 9, "last": 9}', "the score's last note is before bar 9")):
+                     ('{"type": "preview_bars", "first": 9, "last": 9}', "the score has 3 bars"),
+                     ('{"type": "preview_bars", "first": 2, "last": 5}', "bars 2 to 5: the score has 3 bars")):
         reply = server.handle_page_message(raw)
-        assert reply is not None and reply["ok"] is False and why in reply["error"], reply
-    assert server.counters["page_errors"] == 3 and core.preview_bars == (2, 3)
+        # a reply of its own (not the editor's "saved"), with the node's view: the page's boxes show 2 to 3 again
+        assert reply is not None and reply["type"] == "refused" and reply["control"] == "preview_bars", reply
+        assert why in reply["error"] and reply["view"]["preview_bars"] == [2, 3], reply
+    reply = server.handle_page_message('{"type": "preview_rate", "rate": 5}')
+    assert reply is not None and reply["type"] == "refused" and reply["control"] == "preview_rate"
+    assert "rate" in reply["error"] and reply["view"]["preview_rate"] == 1.0
+    assert server.counters["page_errors"] == 5 and core.preview_bars == (2, 3)
     assert server.handle_page_message('{"type": "preview_bars", "first": 0, "last": 0}') is None
     assert core.preview_bars is None
 
@@ -227,8 +243,21 @@ def test_the_page_loops_bars_and_follows_the_rate_and_bars_sent_over_osc(score: 
             node.send(GraphicsPreviewBars(first=1, last=2))
             page.wait_for_function("document.getElementById('preview-first').value === '1' && "
                                    "document.getElementById('preview-last').value === '2'", timeout=30000)
+            # a range past the score's end: refused beside the boxes, which show the node's range again
+            page.fill("#preview-last", "5")
+            page.press("#preview-last", "Tab")
+            page.wait_for_function("!document.getElementById('preview-msg').classList.contains('hidden')",
+                                   timeout=30000)
+            assert page.inner_text("#preview-msg") == "bars refused: bars 1 to 5: the score has 3 bars (three.txt)"
+            assert (page.input_value("#preview-first"), page.input_value("#preview-last")) == ("1", "2")
+            assert page.inner_text("#editor-msg") == ""  # not in the hidden editor's save line
+            msg, toolbar = (page.evaluate("id => { const r = document.getElementById(id).getBoundingClientRect();"
+                                          " return [r.left, r.top, r.right, r.bottom]; }", i)
+                            for i in ("preview-msg", "toolbar"))
+            assert toolbar[0] <= msg[0] and msg[2] <= toolbar[2] and msg[3] <= toolbar[3] and msg[2] > msg[0]
             page.click("#preview-all")
             page.wait_for_function("document.getElementById('preview-last').value === ''", timeout=30000)
+            assert page.is_hidden("#preview-msg")  # the next range sent clears it
             boxes = page.evaluate("ids => ids.map(id => { const r = document.getElementById(id)"
                                   ".getBoundingClientRect(); return [r.left, r.top, r.right, r.bottom]; })",
                                   ["toolbar", "preview-bars-box"])

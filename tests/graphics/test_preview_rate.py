@@ -95,7 +95,8 @@ def test_without_a_preview_a_rate_is_refused_and_counted() -> None:
     core = GraphicsCore(GraphicsSettings(latency=0.0), kit=KIT)
     server = ViewServer(core)
     reply = server.handle_page_message('{"type": "preview_rate", "rate": 0.5}')
-    assert reply is not None and reply["ok"] is False and "no preview is loaded" in reply["error"]
+    assert reply is not None and reply["type"] == "refused" and reply["control"] == "preview_rate"
+    assert "no preview is loaded" in reply["error"]
     assert server.counters["page_errors"] == 1
     assert core.view_json()["preview_rate"] is None
 
@@ -193,7 +194,8 @@ def test_bad_bar_ranges_exit_2(bars: Path, tmp_path: Path) -> None:
     base = [sys.executable, "-m", "services.graphics.node", "--no-discovery", "--no-oscquery", "--host", "127.0.0.1",
             "--port", "0", "--http-port", "0"]
     cases = [
-        (["--preview-score", str(bars), "--preview-bars", "5"], "the score's last note is before bar 5"),
+        (["--preview-score", str(bars), "--preview-bars", "5"], "--preview-bars 5: the score has 2 bars"),
+        (["--preview-score", str(bars), "--preview-bars", "2-3"], "--preview-bars 2-3: the score has 2 bars"),
         (["--preview-score", str(bars), "--preview-bars", "2-x"], "a bar or a range of bars from 1"),
         (["--preview", str(tmp_path / "p.npz"), "--preview-bars", "1"], "give --preview-score SCORE with it"),
     ]

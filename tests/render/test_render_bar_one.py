@@ -7,6 +7,7 @@ Its impacts.csv line counts the notes with no drum for their pitch apart from th
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
@@ -101,6 +102,12 @@ def test_notes_with_no_drum_are_counted_apart_from_the_planners_flags(
                              "their pitch)"), lines
 
 
+def test_one_impact_for_one_note_is_said_in_the_singular(monkeypatch: pytest.MonkeyPatch,
+                                                         capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    lines = _cli(monkeypatch, capsys, tmp_path, impacts=1, notes=1)  # until 7 Dec "1 impacts for 1 notes"
+    assert lines[2].endswith("(1 impact for 1 note, 0 flagged by the planner)"), lines
+
+
 TEXT = "tempo 120\nmeter 4/4\nrest 4\nHH |x.x.|\nSN |..x.|\nBD |x...|\n"
 """A bar of rest, then a bar with three notes: the first note 2 s in, after the WAV's 1.5 s of settle and lead-in,
 so bar 1 is 0.45 s before the start of the render's WAV."""
@@ -110,10 +117,22 @@ so bar 1 is 0.45 s before the start of the render's WAV."""
 def from_score(tmp_path_factory: pytest.TempPathFactory) -> Path:
     folder = tmp_path_factory.mktemp("bar1")
     (folder / "score.txt").write_text(TEXT)
+    (folder / "sp.yaml").write_text("instruments: {snare: {level: 0}}\n")
     out = folder / "out"
-    assert render.main([str(folder / "score.txt"), "-o", str(out), "--quiet", "--wav-from", "score",
-                        "--bvh-sync", "wav"]) == 0
+    here = Path.cwd()
+    os.chdir(folder)  # --sound-params given relative to it
+    try:
+        assert render.main([str(folder / "score.txt"), "-o", str(out), "--quiet", "--wav-from", "score",
+                            "--bvh-sync", "wav", "--sound-params", "sp.yaml"]) == 0
+    finally:
+        os.chdir(here)
     return out
+
+
+def test_the_report_records_the_sound_params_file_absolute(from_score: Path) -> None:
+    # until 7 Dec as typed ("sp.yaml"), which means nothing read from another folder
+    report = json.loads((from_score / "report.json").read_text())
+    assert report["sound_params"] == str((from_score.parent / "sp.yaml").resolve())
 
 
 def test_wav_from_score_starts_the_wav_at_bar_1(from_score: Path) -> None:
@@ -122,7 +141,8 @@ def test_wav_from_score_starts_the_wav_at_bar_1(from_score: Path) -> None:
     assert cut == pytest.approx(-0.45)  # bar 1 before the render's start: silence added
     assert (report["wav_from"], report["score_time_0_wav_s"], report["wav_cut_s"]) == ("score", 0.0, cut)
     wav = _ints(from_score / "performance.wav")
-    assert len(wav) == round(report["wav_duration_s"] * SR) == round((report["duration_s"] - cut) * SR)
+    # duration_s is the written WAV's length, as without --wav-from (until 7 Dec: the uncut render's, 0.45 s less)
+    assert len(wav) == round(report["duration_s"] * SR) == round(report["wav_duration_s"] * SR)
     first = int(np.flatnonzero(wav)[0]) / SR
     assert 2.0 - 0.01 < first < 2.0 + 0.01  # the first note, 2 s after bar 1 (its sound from ~3 ms before)
     assert report["bvh"]["wav_time_s"] == 0.0  # --bvh-sync wav: frame 0 at the WAV's time 0, bar 1

@@ -44,5 +44,15 @@ def test_several_events_are_events(tmp_path: Path, capsys: pytest.CaptureFixture
 
 def test_a_score_without_notes_says_no_limb_plays(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     lines = _output(tmp_path, "tempo 120\nmeter 4/4\nSN |....|\n", capsys)  # said "limbs: " with nothing after
-    assert lines[0].split(": ", 1)[1].startswith("0 events (the last at "), lines[0]
+    # no last event to be at: until 7 Dec "0 events (the last at 0.00 s)"
+    assert lines[0].split(": ", 1)[1].startswith("0 events, "), lines[0]
     assert "limbs: none" in lines, lines
+
+
+def test_midi_options_on_a_text_score_are_said_unused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    (tmp_path / "map.json").write_text('{"notes": {"25": 42}}')
+    lines = _output(tmp_path, ONE_NOTE, capsys, "--drum-channels", "1", "--drum-map", str(tmp_path / "map.json"))
+    said = [line for line in lines if "not used" in line]  # until 7 Dec ignored without a word
+    assert said == [f"warning: {tmp_path / 'score.txt'}: --drum-channels and --drum-map not used: a text score "
+                    "names its drums (they read MIDI files)"], lines
+    assert not any("not used" in line for line in _output(tmp_path, ONE_NOTE, capsys))  # none given: none said

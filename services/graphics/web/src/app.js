@@ -473,6 +473,7 @@ function applyView(view) {
   if (newCamera) pickCamera(view.camera);
   showPreviewRate(view);
   showPreviewBars(view);
+  if (view.control === "preview_bars" || view.control === "preview_rate" || view.mode !== "preview") showPreviewMsg("");
   showLayers();
 }
 // The preview's speed (motion seconds per second), shown while a preview plays: the node's rate, changed for every
@@ -489,7 +490,20 @@ function showPreviewRate(view) {
   }
   rateSelect.value = String(rate);
 }
-rateSelect.addEventListener("change", () => { send({ type: "preview_rate", rate: Number(rateSelect.value) }); });
+rateSelect.addEventListener("change", () => sendPreview({ type: "preview_rate", rate: Number(rateSelect.value) }));
+// A rate or range the node refuses (bars past the score's end): why, beside the boxes (the editor's line is hidden
+// while it is closed), and the node's view with it, so the boxes show what plays again. It stays until the next
+// range or rate is sent or the node changes them.
+const previewMsg = document.getElementById("preview-msg");
+function showPreviewMsg(text) {
+  previewMsg.textContent = text;
+  previewMsg.classList.toggle("hidden", !text);
+}
+function sendPreview(msg) { showPreviewMsg(""); send(msg); }
+function onRefused(m) {
+  if (m.view) applyView(m.view);
+  showPreviewMsg(`${m.control === "preview_rate" ? "speed" : "bars"} refused: ${m.error}`);
+}
 // The bars a score preview loops (view.preview_bars: [first, last], "all", or null with no score to count bars by),
 // changed for every page from any page or over OSC (/batteur/graphics/preview_bars).
 const firstBar = document.getElementById("preview-first"), lastBar = document.getElementById("preview-last");
@@ -505,13 +519,13 @@ function sendBars(changed) { // an empty last bar: the first one alone
   if (last < first) { // a range ending before it starts: the other end follows the one changed
     if (changed === firstBar) last = first; else first = last;
   }
-  send({ type: "preview_bars", first, last });
+  sendPreview({ type: "preview_bars", first, last });
 }
 firstBar.addEventListener("change", () => sendBars(firstBar));
 lastBar.addEventListener("change", () => sendBars(lastBar));
 document.getElementById("preview-all").addEventListener("click", (e) => {
   e.preventDefault(); // inside the label: a click must not also focus an input
-  send({ type: "preview_bars", first: 0, last: 0 });
+  sendPreview({ type: "preview_bars", first: 0, last: 0 });
 });
 function showLayers() {
   const shown = state.view.layers;
@@ -698,6 +712,7 @@ function onMessage(m) {
     case "poser": state.poser = m; buildEditorPose(); break; // the 57-DOF editor (buildEditorPose)
     case "saved": editorMsg(m.ok ? `saved ${m.path}` : `not saved: ${m.error}`, m.ok); break;
     case "saving": applySaving(m); break;
+    case "refused": onRefused(m); break;
     default: break;
   }
 }

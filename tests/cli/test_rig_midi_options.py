@@ -1,0 +1,130 @@
+"""``--drum-channels``, ``--drum-map`` and ``--hihat-cc4`` beyond ``batteur render``: ``batteur rig`` takes them,
+reads its ``--score`` with them and gives them to physics (its ``--score`` and score library) and graphics (its
+``--preview-score``), which take them as settings of the same names. Until 7 Dec those three read every MIDI file
+with the reader's defaults while the reader's warnings advised the options.
+
+Tested on the command lines the rig builds (:func:`batteur.rig.plan_services`: no service starts), a strike-scene
+core's score player and the graphics node's core."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from types import SimpleNamespace
+
+import mido
+import pytest
+
+from batteur import rig
+from common.exit_status import InputError
+from common.runtime import build_parser
+from services.graphics.node import GraphicsNodeSettings
+from services.graphics.node import make_core as make_graphics
+from services.physics.core import PhysicsCore, PhysicsSettings
+from services.physics.node import PhysicsNodeSettings
+from services.physics.node import make_core as make_physics
+from tests.test_rig_inputs import no_rig, refused  # noqa: F401 - no_rig is a fixture
+
+TICKS = 480
+
+
+def drums_and_click(path: Path) -> Path:
+    """A DAW's take: kick and snare on channel 1 (8 notes, 120 bpm), a click on channel 16 (wood block 76, 4 notes),
+    nothing on channel 10: read as it is, both channels are drums."""
+    mid = mido.MidiFile(type=1, ticks_per_beat=TICKS)
+    for channel, notes in ((0, [(k * TICKS, 36 if k % 2 == 0 else 38) for k in range(8)]),
+                           (15, [(k * 2 * TICKS, 76) for k in range(4)])):
+        track = mido.MidiTrack()
+        last = 0
+        for tick, pitch in notes:
+            track.append(mido.Message("note_on", channel=channel, note=pitch, velocity=100, time=tick - last))
+            track.append(mido.Message("note_on", channel=channel, note=pitch, velocity=0, time=60))
+            last = tick + 60
+        mid.tracks.append(track)
+    mid.save(path)
+    return path
+
+
+def _plans(*argv: str) -> dict[str, rig.ServicePlan]:
+    opts = rig.build_parser().parse_args(["--no-discovery", *argv])
+    return {plan.role: plan for plan in rig.plan_services(opts, epoch=0.0)}
+
+
+def test_the_rig_reads_its_score_as_physics_will_and_gives_both_readers_the_options(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    path = drums_and_click(tmp_path / "take.mid")
+    opts = rig.build_parser().parse_args(["--score", str(path), "--drum-channels", "1"])
+    assert {e.pitch for e in rig.check_score(opts).events} == {36, 38}  # no click: as physics plays it
+    notes = tmp_path / "map.json"
+    notes.write_text(json.dumps({"notes": {"76": 38}}))
+    monkeypatch.chdir(tmp_path)  # the map by a relative name: given to the services as an absolute path
+    plans = _plans("--score", str(path), "--drum-channels", "1,16", "--drum-map", "map.json", "--hihat-cc4")
+    given = ["--drum-channels", "1,16", "--drum-map", str(notes.resolve()), "--hihat-cc4"]
+    for role in ("physics", "graphics"):
+        args = plans[role].args
+        start = args.index("--drum-channels")
+        assert args[start:start + 5] == given, (role, args)
+    assert all("--drum-channels" not in plans[role].args for role in ("interaction", "sound"))
+    assert "--drum-map" not in _plans("--score", str(path))["physics"].args  # none given: the readers' defaults
+    assert rig.option_values(_plans("--drum-map", "roland-td")["graphics"].args, "--drum-map") == ["roland-td"]
+
+
+def test_the_services_take_the_options_the_rig_gives_them() -> None:
+    for role, settings in (("physics", PhysicsNodeSettings), ("graphics", GraphicsNodeSettings)):
+        args = build_parser(role, settings_cls=settings).parse_args(
+            ["--drum-channels", "1,16", "--drum-map", "roland-td", "--hihat-cc4"])
+        assert (args.drum_channels, args.drum_map, args.hihat_cc4) == ("1,16", "roland-td", True), role
+
+
+@pytest.mark.parametrize(("given", "written", "instead"), [
+    (["--drum-channels", "1", "--physics-arg", "--drum-channels 2"], "--physics-arg: --drum-channels 2 would",
+     "use batteur rig --drum-channels 2"),
+    (["--drum-map", "roland-td", "--graphics-arg=--drum-m=x.json"],
+     "--graphics-arg: --drum-m (--drum-map, as argparse takes it abbreviated) x.json would",
+     "use batteur rig --drum-map x.json"),
+    (["--hihat-cc4", "--physics-arg=--no-hihat-cc4"], "--physics-arg: --no-hihat-cc4 would turn off the hi-hat",
+     "drop batteur rig --hihat-cc4"),
+])
+def test_a_role_arg_overriding_the_rigs_options_is_refused(given: list[str], written: str, instead: str,
+                                                           no_rig: None,  # noqa: F811
+                                                           capsys: pytest.CaptureFixture[str]) -> None:
+    err = refused(["--no-discovery", *given], capsys, 2)
+    assert err.startswith(f"batteur rig: error: {written} "), err
+    assert instead in err, err
+
+
+def test_without_the_rigs_own_a_services_own_stays_allowed() -> None:
+    plans = _plans("--physics-arg", "--drum-channels 2 --no-hihat-cc4")
+    assert plans["physics"].args[-3:] == ["--drum-channels", "2", "--no-hihat-cc4"]
+    assert rig.option_values(["--no-hihat-cc4", "x"], "--no-hihat-cc4") == [""]  # a flag takes no value
+
+
+def test_physics_reads_its_scores_with_its_options(tmp_path: Path) -> None:
+    path = drums_and_click(tmp_path / "take.mid")
+    core = PhysicsCore(PhysicsSettings(scene="strike", mode="live"))
+    try:
+        player = core.score_player
+        assert {e.pitch for e in player.load(path, trusted=True).events} == {36, 38, 76}
+        player.midi = {"drum_channels": (1,)}  # as make_core sets it from --drum-channels 1
+        assert {e.pitch for e in player.load(path, trusted=True).events} == {36, 38}
+    finally:
+        core.close()
+
+
+@pytest.mark.parametrize(("setting", "error", "says"), [
+    ({"drum_channels": "0"}, ValueError, "--drum-channels: '0': channel 0 is not a MIDI channel"),
+    ({"drum_map": "missing.json"}, InputError, "--drum-map: missing.json: does not exist"),
+])
+def test_a_bad_option_stops_a_service_before_it_builds_anything(setting: dict[str, str], error: type[Exception],
+                                                                says: str) -> None:
+    with pytest.raises(error, match=says):
+        make_physics(PhysicsNodeSettings(**setting), SimpleNamespace())  # type: ignore[arg-type]
+    with pytest.raises(error, match=says):
+        make_graphics(GraphicsNodeSettings(**setting), SimpleNamespace())  # type: ignore[arg-type]
+
+
+def test_graphics_previews_the_score_as_read_with_its_options(tmp_path: Path) -> None:
+    path = drums_and_click(tmp_path / "take.mid")
+    core = make_graphics(GraphicsNodeSettings(preview_score=str(path), drum_channels="1"),
+                         SimpleNamespace())  # type: ignore[arg-type]
+    assert core.preview_score is not None and {e.pitch for e in core.preview_score.events} == {36, 38}
