@@ -1307,7 +1307,7 @@ def build_parser() -> argparse.ArgumentParser:
     playing.add_argument("--latency", type=float, default=0.05, metavar="SECONDS",
                          help="sound latency window, seconds (default 0.05)")
     playing.add_argument("--sound-params", type=Path, default=None, metavar="FILE",
-                         help="the instruments' sound parameters (what `batteur sound --sound-params-out` writes: "
+                         help="the instruments' sound parameters (what batteur sound --sound-params-out writes: "
                          "per instrument, what the /batteur/sound/... controls set; docs/sound.md)")
     playing.add_argument("--control-rate", type=float, default=None, metavar="HZ",
                          help="drummer's full control updates (IK, inverse dynamics) per second; the torques are "

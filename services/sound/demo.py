@@ -148,7 +148,7 @@ def _main(argv: Sequence[str] | None) -> int:
     parser.add_argument("--mono", action="store_true", help="mono instead of stereo")
     parser.add_argument("--reverb", type=unit, default=0.12, help="room reverb wet/dry 0..1 (default 0.12)")
     parser.add_argument("--sound-params", type=Path, default=None, metavar="FILE",
-                        help="start from this sound parameters file (what `batteur sound --sound-params-out` "
+                        help="start from this sound parameters file (what batteur sound --sound-params-out "
                              "writes; docs/sound.md)")
     args = parser.parse_args(argv)
     try:
