@@ -12,7 +12,6 @@ import json
 from pathlib import Path
 from types import SimpleNamespace
 
-import mido
 import pytest
 
 from batteur import rig
@@ -23,26 +22,8 @@ from services.graphics.node import make_core as make_graphics
 from services.physics.core import PhysicsCore, PhysicsSettings
 from services.physics.node import PhysicsNodeSettings
 from services.physics.node import make_core as make_physics
+from tests.cli.test_drum_channels_cli import drums_and_click
 from tests.test_rig_inputs import no_rig, refused  # noqa: F401 - no_rig is a fixture
-
-TICKS = 480
-
-
-def drums_and_click(path: Path) -> Path:
-    """A DAW's take: kick and snare on channel 1 (8 notes, 120 bpm), a click on channel 16 (wood block 76, 4 notes),
-    nothing on channel 10: read as it is, both channels are drums."""
-    mid = mido.MidiFile(type=1, ticks_per_beat=TICKS)
-    for channel, notes in ((0, [(k * TICKS, 36 if k % 2 == 0 else 38) for k in range(8)]),
-                           (15, [(k * 2 * TICKS, 76) for k in range(4)])):
-        track = mido.MidiTrack()
-        last = 0
-        for tick, pitch in notes:
-            track.append(mido.Message("note_on", channel=channel, note=pitch, velocity=100, time=tick - last))
-            track.append(mido.Message("note_on", channel=channel, note=pitch, velocity=0, time=60))
-            last = tick + 60
-        mid.tracks.append(track)
-    mid.save(path)
-    return path
 
 
 def _plans(*argv: str) -> dict[str, rig.ServicePlan]:

@@ -48,8 +48,10 @@ def test_control_panel_file_is_the_generated_one() -> None:
         "pd/control.pd is stale: run python pd/make_control.py")
 
 
-@pytest.mark.parametrize("patch", ["control.pd", "sound-client.pd"])
+@pytest.mark.parametrize("patch", ["control.pd", "sound-client.pd", "batteur-clock.pd", "batteur-strike.pd",
+                                   "batteur-clock-help.pd", "batteur-strike-help.pd"])
 def test_patches_load_without_errors(patch: str) -> None:
+    """Opened as a Pd user opens them (the help patches hold the abstractions, unconnected: nothing is sent)."""
     pd = PdProcess(PD_DIR / patch, extra=["-send", "pd quit"])
     try:
         pd.popen.wait(timeout=20)

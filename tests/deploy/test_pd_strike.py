@@ -131,16 +131,3 @@ def test_strikes_through_the_abstraction_play_on_schedule(tmp_path: Path, latenc
     if rig_age_s:
         # finer than one 32-bit float: at 2 days one resolves 1/64 s, and every stamp would be a float32
         assert any(float(np.float32(i.time)) != i.time for i in impacts), [i.time for i in impacts]
-
-
-@pytest.mark.parametrize("patch", ["batteur-clock-help.pd", "batteur-strike-help.pd", "batteur-clock.pd",
-                                   "batteur-strike.pd"])
-def test_the_abstractions_and_their_help_patches_open_without_errors(patch: str) -> None:
-    """Opened as a Pd user opens them (the help patches hold the abstractions, unconnected: nothing is sent)."""
-    pd = PdProcess(PD_DIR / patch, extra=["-send", "pd quit"])
-    try:
-        pd.popen.wait(timeout=20)
-        pd.wait_for(lambda lines: True, timeout=1)
-    finally:
-        pd.stop()
-    assert pd.errors() == [], "\n".join(pd.lines)
