@@ -120,7 +120,7 @@ ABBREVIATIONS = {"--host": "--ho", "--kit": "--k", "--allow": "--a", "--config":
                  "--epoch": "--e", "--role": "--ro", "--score": "--score", "--play-at": "--pl", "--wav": "--w",
                  "--http-port": "--ht", "--kit-dir": "--kit-", "--scene": "--sce", "--strike-period": "--strike-p",
                  "--strike-velocity": "--strike-v", "--drum-channels": "--drum-c", "--drum-map": "--drum-m",
-                 "--no-hihat-cc4": "--no-h"}
+                 "--no-hihat-cc4": "--no-h", "--score-dir": "--score-", "--preview-score": "--preview-s"}
 """The shortest abbreviation of each service option the rig reads in a ``--ROLE-arg`` (:func:`option_uses`). A
 service's parser (argparse, allow_abbrev) takes any prefix of a long option that no other of its options shares
 (``--ho`` for ``--host``), an exact name first, and refuses an ambiguous one (exit 2). So ``--h`` is no ``--host``
@@ -797,8 +797,10 @@ def build_parser() -> argparse.ArgumentParser:
                         help="the drummer plays this score live (.mid or text score; 'demo': the groove of "
                         "batteur demo; default: none, the drummer idles)")
     add_midi_arguments(parser.add_argument_group(
-        "MIDI scores", "how physics reads --score's and its library's MIDI files, and graphics its --preview-score "
-        "(--graphics-arg): given to both"))
+        "MIDI scores", "how physics reads MIDI files (--score's, and those /batteur/score/load loads from its score "
+        "library: --score's folder, --physics-arg '--score-dir DIR') and graphics its --preview-score "
+        "(--graphics-arg): given to both; with none of these they act on nothing (said at start), and live notes "
+        "(/batteur/score/note) are read as General MIDI pitches without them"))
     parser.add_argument("--kit", default=None, metavar="NAME",
                         help="kit name or YAML/JSON file for every service (default: --score's `kit` line, as "
                         "batteur render reads it, else the default kit); a --ROLE-arg may not give one its own")
@@ -912,6 +914,38 @@ def ignored_options(opts: argparse.Namespace) -> list[str]:
         return [f"--interfaces {opts.interfaces} is ignored with --no-discovery (it names the interfaces zeroconf "
                 "uses; the services find each other by their static peers)"]
     return []
+
+
+MIDI_READERS = {"physics": "--score-dir", "graphics": "--preview-score"}
+"""What makes a service read MIDI files with the rig's MIDI options besides the rig's ``--score``: physics' score
+library (``/batteur/score/load``), graphics' preview."""
+
+
+def unread_midi_options(opts: argparse.Namespace, plans: Sequence[ServicePlan],
+                        environ: Mapping[str, str] | None = None) -> str | None:
+    """A warning when ``--drum-channels``, ``--drum-map`` or ``--hihat-cc4`` was given and nothing will read a MIDI
+    file with them: no ``--score``, no physics score library (``--physics-arg '--score-dir DIR'``, read by
+    ``/batteur/score/load``), no graphics ``--preview-score``; live notes (``/batteur/score/note``) are General MIDI
+    pitches, read without them. Until 7 Dec they were given to physics and graphics in silence. None when a
+    config file (BATTEUR_CONFIG, ``--config``) or the environment may give a library or a preview: those services
+    read it, the rig does not."""
+    from common.config import ENV_PREFIX
+
+    given = [f"--drum-channels {','.join(str(c) for c in opts.drum_channels)}"] if opts.drum_channels else []
+    given += [f"--drum-map {opts.drum_map_spec}"] if getattr(opts, "drum_map_spec", None) else []
+    given += ["--hihat-cc4"] if opts.hihat_cc4 else []
+    env = os.environ if environ is None else environ
+    if not given or opts.score or env.get(f"{ENV_PREFIX}CONFIG"):
+        return None
+    for plan in plans:
+        flag = MIDI_READERS.get(plan.role)
+        setting = f"{ENV_PREFIX}{flag[2:].replace('-', '_').upper()}" if flag else ""
+        if flag and (any(option_values(plan.args, f) for f in (flag, "--config")) or env.get(setting, "").strip()):
+            return None
+    return (f"{', '.join(given)} act{'s' * (len(given) == 1)} on no score: they say how MIDI files are read, and "
+            "this rig reads none (give --score FILE, physics a score library for /batteur/score/load with "
+            "--physics-arg '--score-dir DIR', or graphics a --preview-score with --graphics-arg); live notes "
+            "(/batteur/score/note) are read as General MIDI pitches without them")
 
 
 def check_ports(plans: list[ServicePlan], http_port: int = 0) -> None:
@@ -1066,7 +1100,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             make_record_dir(opts)  # last: a refused option leaves no folder behind
         except ValueError as exc:  # UsageError: 2; a score, a folder or a port it cannot use: 1
             return report_error("batteur rig", exc)
-        for warning in ignored_options(opts):
+        unread = unread_midi_options(opts, plans)
+        for warning in ignored_options(opts) + ([unread] if unread else []):
             print(f"batteur rig: warning: {warning}", file=sys.stderr, flush=True)
         ready = None
         if opts.score:

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import io
 import math
+import re
 import struct
 import threading
 from collections import Counter
@@ -64,6 +65,10 @@ DEFAULT_TEMPO = 500_000
 """Microseconds per beat (a quarter note) until a file sets its tempo: 120 bpm, as the MIDI specification says."""
 TEXT_SAMPLE_BYTES = 4096
 """How much of a file named as MIDI is looked at to tell a text score given that name."""
+
+_RawNote = tuple[float, int, int, int, int, int]
+"""A note read: seconds, the General MIDI pitch it plays (note map and hi-hat pedal applied), velocity, channel
+index (0-based), tick, and its pitch as the file writes it."""
 
 ReadProgress = Callable[[int, int], None]
 """Told (bytes parsed, bytes in the file) while a MIDI file is read."""
@@ -324,7 +329,7 @@ def _read(source: str | Path | bytes, drum_channels: Collection[int] | None, dru
     last_tick = 0
     per_tick = tempo / 1e6 / mid.ticks_per_beat
     drums = {GM_DRUM_CHANNEL - 1}  # and those set to a drum bank; drum_channels, when given, instead
-    raw: list[tuple[float, int, int, int, int]] = []  # seconds, pitch, velocity, channel index, tick
+    raw: list[_RawNote] = []
     programs: dict[int, list[int]] = {}  # channel index -> its General MIDI programs, as first set
     tempo_points: list[tuple[int, float, float]] = [(0, 0.0, per_tick)]  # tick, seconds, seconds/tick
     meters: list[tuple[int, int, int]] = [(0, 4, 4)]  # tick, numerator, denominator (4/4 until told otherwise)
@@ -347,22 +352,22 @@ def _read(source: str | Path | bytes, drum_channels: Collection[int] | None, dru
             pedal.control(msg.channel, msg.value)
         elif msg.type == "note_on" and msg.velocity > 0:
             pitch = pedal.pitch(seconds, msg.channel, pitches.get(msg.note, msg.note), apply=hihat_cc4)
-            raw.append((seconds, pitch, msg.velocity, msg.channel, tick))
+            raw.append((seconds, pitch, msg.velocity, msg.channel, tick, msg.note))
         elif msg.type == "program_change" and msg.program not in programs.setdefault(msg.channel, []):
             programs[msg.channel].append(msg.program)
     warnings = open_warnings
     chosen, told = _chosen_notes(raw, drums, drum_channels, programs, mid, name)
     warnings += told
     _check_size(chosen, name)
-    warnings += _shared_pitches(chosen, mid, drum_map, name)
-    read = [(s, c, p) for s, p, _, c, _ in chosen]
+    warnings += _shared_pitches(chosen, mid, drum_map, pitches, name)
+    read = [(s, c, p) for s, p, _, c, _, _ in chosen]
     if hihat_cc4:
         pedalled = pedal.notice(read, name) if pedal.changed else None
     else:
         pedalled = pedal.unused_notice(read, name) if pedal.would_move else None
     if pedalled:
         warnings.append(pedalled)
-    notes = [DrumNote(time=s, pitch=p, velocity=v / 127.0, channel=c + 1) for s, p, v, c, _ in chosen]
+    notes = [DrumNote(time=s, pitch=p, velocity=v / 127.0, channel=c + 1) for s, p, v, c, _, _ in chosen]
     beats = _beats(tempo_points, end_tick, mid.ticks_per_beat)
     score = score_from_notes(notes, drum_map=drum_map, beats=beats, source=name,
                              bar_beats=_bar_beats(meters, end_tick, mid.ticks_per_beat))
@@ -390,10 +395,17 @@ PERCUSSIVE_PROGRAMS = range(112, 120)
 """General MIDI's Percussive family (Tinkle Bell, Agogo, Steel Drums, Woodblock, Taiko Drum, Melodic Tom, Synth
 Drum, Reverse Cymbal), 0-based: a channel set to one may hold drums; any other program names a melodic
 instrument."""
+CLICK_NAME = re.compile(r"(?<![a-z])(clicks?|klick|metronome|count[ _-]?(in|off)|guide)(?!(?-i:[a-z]))",
+                        re.IGNORECASE)
+"""A track name saying it holds a click (Logic's German "Klick"), a metronome, a count-in or a guide (the notes
+a player follows, not what is played), as a word ("ClickTrack" too; not "Clicker"): :func:`_click_channels`."""
+DRUM_NAME = re.compile(r"drum|kit|perc|kick|snare|hat|tom|cymbal|ride|crash", re.IGNORECASE)
+"""A track name that says drums ("Guide Drums"): never left out as a click."""
+CLICK_MAX_PITCHES = 2
+"""The most pitches a click plays (an accented first beat and the others; General MIDI's metronome click and
+bell, 33 and 34); a channel playing more is a part, whatever its track's name."""
 CHOOSE_CHANNELS = "choose with --drum-channels N,N (1 to 16, as a DAW shows them)"
 """How a warning about the channels read says to choose them."""
-
-_RawNote = tuple[float, int, int, int, int]  # seconds, pitch, velocity, channel index, tick
 
 
 def _chosen_notes(raw: list[_RawNote], drums: set[int], named: Collection[int] | None,
@@ -403,8 +415,9 @@ def _chosen_notes(raw: list[_RawNote], drums: set[int], named: Collection[int] |
     ``named`` (1-based, ``--drum-channels``): those channels and no other. Else the drum channels ``drums``
     (0-based: 10 and those set to a drum bank); notes elsewhere are skipped with a warning naming each channel
     (a Drum Rack sends on channel 1, a tambourine sits on 10: the groove was dropped without a word). With no note
-    on them, every channel is read, but for the channels whose programs are all melodic (a bass, a piano) when
-    another channel (without a program, or with a percussive one) has notes; said either way."""
+    on them, every channel is read, but for the channels whose programs are all melodic (a bass, a piano) and the
+    click tracks (:func:`_click_channels`) when another channel (without a program, or with a percussive one) has
+    notes; said either way."""
     counts = Counter(r[3] for r in raw)
     if named:
         wanted = {c - 1 for c in named}
@@ -432,7 +445,18 @@ def _chosen_notes(raw: list[_RawNote], drums: set[int], named: Collection[int] |
         return [], []
     channels = sorted(counts)
     melodic = [c for c in channels if _melodic(c, programs)]
-    kept = [c for c in channels if c not in melodic]
+    others = [c for c in channels if c not in melodic]
+    clicks = _click_channels(others, raw, mid)
+    kept = [c for c in others if c not in clicks] or others  # a click alone is read, as any channel
+    if kept != others:
+        pitches = len({r[5] for r in raw if r[3] in clicks})
+        them = "them" if len(clicks) > 1 else "it"
+        songs = f"skipped {_channels(melodic, counts, programs, mid)}: a melodic program; " if melodic else ""
+        return [r for r in raw if r[3] in kept], [
+            f"{name}: no notes on a drum channel; reading {_reading(kept, counts, programs, mid)}; {songs}skipped "
+            f"{_channels(clicks, counts, programs, mid)}: a click (so named, on {pitches} "
+            f"pitch{'es' * (pitches != 1)}); to read {them} too: --drum-channels "
+            f"{_channel_list(sorted(kept + clicks), ',')} (every channel read, 1 to 16 as a DAW shows them)"]
     if melodic and kept:
         return [r for r in raw if r[3] in kept], [
             f"{name}: no notes on a drum channel; reading {_reading(kept, counts, programs, mid)}; skipped "
@@ -440,6 +464,29 @@ def _chosen_notes(raw: list[_RawNote], drums: set[int], named: Collection[int] |
     why = "; every channel with notes set a melodic program" if melodic else ""
     return raw, [f"{name}: no notes on a drum channel; reading {_reading(channels, counts, programs, mid)}{why}; "
                  f"{CHOOSE_CHANNELS}"]
+
+
+def _click_channels(channels: list[int], raw: list[_RawNote], mid: mido.MidiFile) -> list[int]:
+    """Those of ``channels`` (0-based) that hold a click, not drums: every track with notes on the channel is named
+    so (:data:`CLICK_NAME`: Click, Metronome, Count-in, Guide; a name saying drums too, "Guide Drums", is not), and
+    its notes are on at most :data:`CLICK_MAX_PITCHES` pitches as the file writes them. A DAW's click or count-in
+    has no program change, so it looked like drums; until 7 Dec it played as cowbells beside the groove. A name
+    alone leaves nothing out (a "Click" track playing a beat is read), nor does a pitch count alone (a drum
+    machine's kick and snare on a channel of their own)."""
+    pitches: dict[int, set[int]] = {}
+    wanted = set(channels)
+    for r in raw:
+        if r[3] in wanted:
+            pitches.setdefault(r[3], set()).add(r[5])
+    few = {c for c in channels if len(pitches.get(c, ())) <= CLICK_MAX_PITCHES}
+    if not few:  # the usual file: no pass over the tracks
+        return []
+    titles: dict[int, set[str]] = {}
+    for track in mid.tracks:
+        for channel in {m.channel for m in track if m.type == "note_on" and m.velocity > 0} & few:
+            titles.setdefault(channel, set()).add(track.name.strip())
+    return [c for c in channels if c in titles
+            and all(CLICK_NAME.search(t) and not DRUM_NAME.search(t) for t in titles[c])]
 
 
 def _melodic(channel: int, programs: dict[int, list[int]]) -> bool:
@@ -490,12 +537,17 @@ def _channel_tracks(mid: mido.MidiFile) -> dict[int, list[str]]:
 
 
 def _shared_pitches(chosen: list[_RawNote], mid: mido.MidiFile, drum_map: Mapping[int, EventType],
-                    name: str) -> list[str]:
+                    note_map: Mapping[int, int], name: str) -> list[str]:
     """A warning for each pitch that several tracks or channels play at the same ticks: one drum per track, each
     on the same pitch (a DAW's default note, 60), is one drum here, read by pitch, and their notes at once one
     note. Tracks are not mapped by their names (a name says little of what a note is, and a wrong guess plays
-    the wrong drum): the warning names the tracks so the user can give each drum its pitch."""
-    seen = Counter((r[4], r[1]) for r in chosen)
+    the wrong drum): the warning names the tracks so the user can give each drum its pitch.
+
+    Pitches as the file writes them (the user's DAW shows those), the drum named the one ``note_map`` plays: until
+    7 Dec the notes were compared after the map but looked up in the tracks before it, so a map moving the shared
+    pitch (60 -> 38) hid the warning and one swapping two pitches named the wrong drum. Two pitches a map plays on
+    one drum (a tom's head and rim) are not one pitch shared."""
+    seen = Counter((r[4], r[5]) for r in chosen)
     doubled = {key for key, n in seen.items() if n > 1}
     if not doubled:  # the usual file: no pass over the tracks
         return []
@@ -518,7 +570,7 @@ def _shared_pitches(chosen: list[_RawNote], mid: mido.MidiFile, drum_map: Mappin
     warnings = []
     for pitch, (who, times) in sorted(shared.items()):
         names = [f"{mid.tracks[k].name.strip() or f'track {k + 1}'} (channel {c + 1})" for k, c in sorted(who)]
-        event = drum_map.get(pitch)
+        event = drum_map.get(note_map.get(pitch, pitch))
         drum = f"one drum here ({event.value})" if event is not None else "one pitch (unknown: not played)"
         warnings.append(f"{name}: pitch {pitch} is played by {len(who)} tracks, {', '.join(names)}, {times} "
                         f"time{'s' * (times != 1)} at the same tick: drums are read by pitch, not by track, so "
@@ -527,7 +579,7 @@ def _shared_pitches(chosen: list[_RawNote], mid: mido.MidiFile, drum_map: Mappin
     return warnings
 
 
-def _check_size(notes: list[tuple[float, int, int, int, int]], name: str) -> None:
+def _check_size(notes: list[_RawNote], name: str) -> None:
     """Refuse more notes than a score may hold, or a note later than a score may last (a corrupt delta time)."""
     if len(notes) > MAX_SCORE_NOTES:
         raise ScoreError(f"{name}: {len(notes)} notes, more than the {MAX_SCORE_NOTES} a score may hold")

@@ -55,8 +55,8 @@ def drum_map(text: str) -> NoteMap:
 
 
 DRUM_CHANNELS_HELP = ("read a MIDI file's drums from these channels only, 1 to 16 as a DAW shows them (e.g. 1,10; "
-                      "default: channel 10 and channels set to a drum bank, else every channel without a melodic "
-                      "program)")
+                      "default: channel 10 and channels set to a drum bank, else every channel but those with a "
+                      "melodic program and click tracks)")
 DRUM_MAP_HELP = ("a MIDI file's note layout when it is not General MIDI: a note map file (.json or .toml: pitch -> GM "
                  f"drum pitch or event type, docs/score-format.md) or a shipped map ({', '.join(SHIPPED_MAPS)})")
 HIHAT_CC4_HELP = ("open and close a MIDI file's hi-hat notes with the hi-hat pedal it sends as CC4 (a closed note "

@@ -22,8 +22,10 @@ from services.graphics.node import make_core as make_graphics
 from services.physics.core import PhysicsCore, PhysicsSettings
 from services.physics.node import PhysicsNodeSettings
 from services.physics.node import make_core as make_physics
-from tests.cli.test_drum_channels_cli import drums_and_click
+from tests.cli.test_drum_channels_cli import drums_and_wood_block
+from tests.ports import free_ports
 from tests.test_rig_inputs import no_rig, refused  # noqa: F401 - no_rig is a fixture
+from tests.test_rig_options import Recorder
 
 
 def _plans(*argv: str) -> dict[str, rig.ServicePlan]:
@@ -33,9 +35,9 @@ def _plans(*argv: str) -> dict[str, rig.ServicePlan]:
 
 def test_the_rig_reads_its_score_as_physics_will_and_gives_both_readers_the_options(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    path = drums_and_click(tmp_path / "take.mid")
+    path = drums_and_wood_block(tmp_path / "take.mid")
     opts = rig.build_parser().parse_args(["--score", str(path), "--drum-channels", "1"])
-    assert {e.pitch for e in rig.check_score(opts).events} == {36, 38}  # no click: as physics plays it
+    assert {e.pitch for e in rig.check_score(opts).events} == {36, 38}  # no wood block: as physics plays it
     notes = tmp_path / "map.json"
     notes.write_text(json.dumps({"notes": {"76": 38}}))
     monkeypatch.chdir(tmp_path)  # the map by a relative name: given to the services as an absolute path
@@ -81,7 +83,7 @@ def test_without_the_rigs_own_a_services_own_stays_allowed() -> None:
 
 
 def test_physics_reads_its_scores_with_its_options(tmp_path: Path) -> None:
-    path = drums_and_click(tmp_path / "take.mid")
+    path = drums_and_wood_block(tmp_path / "take.mid")
     core = PhysicsCore(PhysicsSettings(scene="strike", mode="live"))
     try:
         player = core.score_player
@@ -105,7 +107,58 @@ def test_a_bad_option_stops_a_service_before_it_builds_anything(setting: dict[st
 
 
 def test_graphics_previews_the_score_as_read_with_its_options(tmp_path: Path) -> None:
-    path = drums_and_click(tmp_path / "take.mid")
+    path = drums_and_wood_block(tmp_path / "take.mid")
     core = make_graphics(GraphicsNodeSettings(preview_score=str(path), drum_channels="1"),
                          SimpleNamespace())  # type: ignore[arg-type]
     assert core.preview_score is not None and {e.pitch for e in core.preview_score.events} == {36, 38}
+
+
+# --------------------------------------------------------------------------- options no score is read with
+
+def _unread(*argv: str, environ: dict[str, str] | None = None) -> str | None:
+    opts = rig.build_parser().parse_args(["--no-discovery", *argv])
+    return rig.unread_midi_options(opts, rig.plan_services(opts, epoch=0.0), environ or {})
+
+
+def test_options_without_a_score_to_read_are_said_once_at_start(monkeypatch: pytest.MonkeyPatch,
+                                                                capsys: pytest.CaptureFixture[str]) -> None:
+    # until 7 Dec given to physics and graphics in silence: a user expected them to act (on live notes, say)
+    monkeypatch.setattr(rig, "Rig", Recorder)
+    assert rig.main(["--no-discovery", "--drum-channels", "1", "--drum-map", "roland-td",
+                     "--base-port", str(free_ports(4)[0])]) == 0
+    err = capsys.readouterr().err
+    assert err.count("warning:") == 1, err
+    assert "batteur rig: warning: --drum-channels 1, --drum-map roland-td act on no score: they say how MIDI " \
+           "files are read, and this rig reads none" in err
+    assert "--physics-arg '--score-dir DIR'" in err and "/batteur/score/note" in err
+    assert "--drum-channels" in Recorder.started[0].args  # still given: a config file may give a library
+
+
+@pytest.mark.parametrize("argv", [
+    ["--hihat-cc4", "--services", "sound,interaction"],  # no reader at all
+    ["--drum-map", "roland-td", "--graphics-arg", "--preview out.npz"],  # a pose sequence, not a score
+])
+def test_options_are_said_unused_wherever_no_score_is_read(argv: list[str]) -> None:
+    said = _unread(*argv)
+    assert said is not None and said.startswith(f"{argv[0]} {'acts' if argv[0] == '--hihat-cc4' else 'roland-td'}")
+
+
+@pytest.mark.parametrize(("argv", "environ"), [
+    ([], {}),  # none given
+    (["--score", "SCORE"], {}),
+    (["--physics-arg", "--score-dir /tmp/scores"], {}),  # /batteur/score/load reads with them
+    (["--physics-arg=--score-d=/tmp/scores"], {}),  # as physics' parser takes it abbreviated
+    (["--graphics-arg", "--preview-score take.mid"], {}),
+    (["--physics-arg", "--config rig.yaml"], {}),  # a config file may give either: the services read it
+    ([], {"BATTEUR_SCORE_DIR": "/tmp/scores"}),
+    ([], {"BATTEUR_PREVIEW_SCORE": "take.mid"}),
+    ([], {"BATTEUR_CONFIG": "rig.yaml"}),
+])
+def test_options_a_score_is_read_with_are_not_said_unused(argv: list[str], environ: dict[str, str],
+                                                          tmp_path: Path) -> None:
+    take = drums_and_wood_block(tmp_path / "take.mid")
+    given = [] if not argv and not environ else ["--drum-channels", "1"]
+    argv = [str(take) if arg == "SCORE" else arg for arg in argv]
+    assert _unread(*given, *argv, environ=environ) is None
+    if given:  # the same rig without what reads a score says so
+        assert _unread(*given) is not None
