@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import functools
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, get_args
@@ -51,7 +52,10 @@ from common.messages.sound import (  # noqa: E402
     SoundPosition,
     SoundRadius,
     SoundRejected,
+    SoundResonances,
+    SoundSecondHead,
     SoundSnares,
+    SoundStick,
     SoundTension,
     SoundThickness,
 )
@@ -112,7 +116,9 @@ def _trails_default() -> float:
     return float(ViewSettings().trails)
 
 
-PARAMS_FIELDS = {"level": ("level_db",), "damping": ("damping0", "damping1")}
+PARAMS_FIELDS = {"level": ("level_db",), "damping": ("damping0", "damping1"),
+                 "stick": ("stick_mass", "stick_stiffness", "stick_exponent"),
+                 "second_head": ("second_head", "reso_ratio")}
 """The instrument Params fields of a sound parameter not named after them (services/sound/instruments.py)."""
 
 
@@ -136,7 +142,13 @@ def instrument_starts(model: type[OscMessage]) -> dict[str, tuple[float, ...] | 
     for name in INSTRUMENTS:
         kind, params = _kit_params()[name]
         fields = PARAMS_FIELDS.get(param, (param,))
-        starts[name] = tuple(float(getattr(params, f)) for f in fields) if param in KIND_PARAMS[kind] else None
+        if param not in KIND_PARAMS[kind]:
+            starts[name] = None
+        elif param == "resonances":  # the first modes' gains: 1 for a mode the kit's list does not reach
+            gains = tuple(float(g) for g in params.resonances[:RESONANCE_MODES])
+            starts[name] = gains + (1.0,) * (RESONANCE_MODES - len(gains))
+        else:
+            starts[name] = tuple(float(getattr(params, f)) for f in fields)
     return starts
 
 
@@ -215,6 +227,12 @@ class Patch:
     def symbolatom(self, x: int, y: int, width: int, receive: str = "-", send: str = "-") -> int:
         return self._add(f"#X symbolatom {x} {y} {width} 0 0 0 - {receive} {send};")
 
+    def subpatch(self, x: int, y: int, name: str, inner: Patch, window: tuple[int, int]) -> int:
+        """A [pd NAME] box holding ``inner`` (closed at load; its window ``window`` pixels): one object here, its
+        own objects numbered and wired inside. It talks to this patch by send and receive names only."""
+        canvas = f"#N canvas 40 40 {window[0]} {window[1]} {name} 0;"
+        return self._add("\n".join([canvas, *inner.lines, *inner.connects, f"#X restore {x} {y} pd {name};"]))
+
     def connect(self, a: int, outlet: int, b: int, inlet: int) -> None:
         self.connects.append(f"#X connect {a} {outlet} {b} {inlet};")
 
@@ -229,8 +247,10 @@ every number as a float; the rig takes a float with an integral value where an i
 
 
 def wire_signature(model: type[OscMessage]) -> str:
-    """The model's wire kinds, one letter per OSC argument (a rig time is two: whole seconds ``i``, fraction ``f``)."""
-    return "".join("if" if f.kind is WireKind.TIME else str(f.kind) for f in model.wire_fields())
+    """The model's wire kinds, one letter per OSC argument (a rig time is two: whole seconds ``i``, fraction ``f``);
+    a variadic last field is its kind then ``*`` (any number of them, none included)."""
+    return "".join(("if" if f.kind is WireKind.TIME else str(f.kind)) + ("*" if f.variadic else "")
+                   for f in model.wire_fields())
 
 
 def check_sends(model: type[OscMessage], sends: str) -> None:
@@ -238,11 +258,15 @@ def check_sends(model: type[OscMessage], sends: str) -> None:
     if REGISTRY.get(model.ADDRESS) is not model:
         raise SystemExit(f"{model.__name__}: {model.ADDRESS} is not the registered address of this model")
     expected = wire_signature(model)
-    fits = len(sends) == len(expected) and all(
-        sent in ACCEPTS.get(WireKind(kind), kind) for sent, kind in zip(sends, expected, strict=True))
+    fixed, tail = (expected[:-2], expected[-2]) if expected.endswith("*") else (expected, "")
+    count = len(sends) if tail else len(fixed)  # a variadic tail takes what follows the fixed arguments
+    kinds = fixed + tail * (count - len(fixed))
+    fits = len(sends) == len(kinds) and len(sends) >= len(fixed) and all(
+        sent in ACCEPTS.get(WireKind(kind), kind) for sent, kind in zip(sends, kinds, strict=True))
     if not fits:
+        takes = f"{fixed!r} then any number of {tail!r}" if tail else f"{fixed!r} ({len(fixed)})"
         raise SystemExit(f"{model.__name__} ({model.ADDRESS}): the panel sends {sends!r} "
-                         f"({len(sends)} arguments), the model takes {expected!r} ({len(expected)}): "
+                         f"({len(sends)} arguments), the model takes {takes}: "
                          "s symbol, f number, i whole number")
 
 
@@ -412,110 +436,222 @@ def build() -> Patch:
     p.connect(act, 0, tp, 0)
     p.connect(pos, 0, tp, 3)
     p.connect(tp, 0, sender(p, 790, y2 + 125, ScoreTransport, "score", "siif"), 0)
-    # ------------------------------------------------------------ sound: per instrument
-    x3 = 1200
-    p.text(x3, 10, "SOUND - instrument:")
-    # shows the instrument the controls below act on; typing one in (and Enter) chooses it. The box only
-    # displays what bp-instrument says ("set": no output), so choosing never loops back through it.
-    p.symbolatom(x3 + 160, 10, 10, "bp-instrument-show", "bp-instrument")
-    sink = p.obj(x3 + 300, 10, "s bp-instrument")
-    shown = p.obj(x3 + 540, 1800, "r bp-instrument")  # out of the way, below the SOUND section
-    show = p.msg(x3 + 540, 1825, "set $1")
-    p.connect(shown, 0, show, 0)
-    p.connect(show, 0, p.obj(x3 + 540, 1850, "s bp-instrument-show"), 0)
-    for k, name in enumerate(INSTRUMENTS):
-        m = p.msg(x3 + 100 * (k % 6), 40 + 25 * (k // 6), f"symbol {name}")
-        p.connect(m, 0, sink, 0)
-    init_inst = p.msg(x3 + 400, 10, "symbol snare")
-    p.connect(load, 0, init_inst, 0)
-    p.connect(init_inst, 0, sink, 0)
-
-    def per_instrument(y: int, model: type[OscMessage], source: int, values: str) -> None:
-        pre = p.obj(x3 + 380, y, "list prepend")
-        r = p.obj(x3 + 480, y - 25, "r bp-instrument")
-        p.connect(r, 0, pre, 1)
-        p.connect(source, 0, pre, 0)
-        p.connect(pre, 0, sender(p, x3 + 380, y + 25, model, "sound", "s" + values), 0)
-
-    model = choices(p, x3, 100, "synthesis model", ("modal", "sample", "synth"), "bp-model")
-    per_instrument(185, SoundModel, model, "s")
-    rows: list[tuple[str, type[OscMessage], float, float, bool, str, bool]] = [
-        ("level dB (-80..12)", SoundLevel, -80, 12, False, "bp-level", False),
-        ("radius m (0.02..0.6)", SoundRadius, 0.02, 0.6, False, "bp-radius", False),
-        ("tension N/m (10..100000)", SoundTension, 10, 100000, True, "bp-tension", False),
-        ("density kg/m2 (0.01..20)", SoundDensity, 0.01, 20, True, "bp-density", False),
-        ("modes (1..20000)", SoundModes, 1, 20000, True, "bp-modes", True),
-        ("thickness m (0.0003..0.006)", SoundThickness, 0.0003, 0.006, False, "bp-thickness", False),
-        ("position sensitivity (0..1)", SoundPosition, 0, 1, False, "bp-position-sensitivity", False),
-        ("snares (0..2)", SoundSnares, 0, 2, False, "bp-snares", False),
-        ("openness (0..1)", SoundOpenness, 0, 1, False, "bp-openness", False),
-        ("air loading (0..2)", SoundAirLoading, 0, 2, False, "bp-air", False),
-    ]
-    yy = 250
-    for k, (label, m_, lo, hi, log, receive, integer) in enumerate(rows):
-        src, row_boxes = slider_boxes(p, x3, yy, label, lo, hi, log, receive, integer)
-        per_instrument(yy + 22, m_, src, "i" if integer else "f")
-        # the boxes show the chosen instrument's value (the snare's at load), kept here beside the row
-        instrument_memory(p, 2080, 40 + 340 * k, f"{label.split(' (')[0]} per instrument (starts at the default "
-                          "kit's values)", src, instrument_starts(m_), (), (row_boxes,))
-        yy += 80
-    # damping: two values in one message
-    p.text(x3, yy, "damping sigma0 1/s (0..500) and sigma1 s (0..0.001)")
-    s0 = p.hsl(x3, yy + 22, 0, 500, False, "bp-sigma0")
-    n0 = p.nbx(x3 + 175, yy + 22, 0, 500)
-    s1 = p.hsl(x3, yy + 47, 0, 0.001, False, "bp-sigma1")
-    n1 = p.nbx(x3 + 175, yy + 47, 0, 0.001)
-    p.connect(s0, 0, n0, 0)
-    p.connect(s1, 0, n1, 0)
-    # the message takes both values: each is kept (per instrument, see damping_memory) and both sent on a change
-    fire = p.obj(x3 + 280, yy + 75, "t b b")
-    keeps = (p.obj(x3 + 280, yy + 100, "f"), p.obj(x3 + 320, yy + 100, "f"))
-    dp = p.obj(x3 + 280, yy + 125, "pack f f")
-    for k, (number, keep) in enumerate(zip((n0, n1), keeps, strict=True)):
-        order = p.obj(x3 + 280, yy + 22 + 25 * k, "t b f")  # keep the value, then send both
-        p.connect(number, 0, order, 0)
-        p.connect(order, 1, keep, 1)
-        p.connect(order, 0, fire, 0)
-        p.connect(fire, k, keep, 0)  # right to left: sigma0, the pack's hot inlet, last
-        p.connect(keep, 0, dp, k)
-    per_instrument(yy + 100, SoundDamping, dp, "ff")
-    instrument_memory(p, 2080, 40 + 340 * len(rows), "damping per instrument (starts at the default kit's values)", dp,
-                      instrument_starts(SoundDamping), keeps, ((s0, n0), (s1, n1)))
-    yy += 160
-    p.text(x3, yy, "SOUND - whole rig")
-    lat = slider(p, x3, yy + 25, "latency window s (0..0.5)", 0, 0.5, False, "bp-latency",
-                 shows=(load, LATENCY_DEFAULTS[0]))
-    p.connect(lat, 0, sender(p, x3 + 300, yy + 47, SoundLatency, "sound", "f"), 0)
-    p.text(x3, yy + 100, "master gain dB (-80..12) and reverb (0..1)")
-    g = p.hsl(x3, yy + 122, -80, 12, False, "bp-master")
-    gn = p.nbx(x3 + 175, yy + 122, -80, 12)
-    rv = p.hsl(x3, yy + 147, 0, 1, False, "bp-reverb")
-    rn = p.nbx(x3 + 175, yy + 147, 0, 1)
-    p.connect(g, 0, gn, 0)
-    p.connect(rv, 0, rn, 0)
-    # the pack starts as the sound service does, so moving one control first keeps the other as it is there
-    mp = p.obj(x3 + 280, yy + 175, f"pack {MASTER_DEFAULTS[0]:g} {MASTER_DEFAULTS[1]:g}")
-    for value, controls, row in ((MASTER_DEFAULTS[0], (g, gn), 122), (MASTER_DEFAULTS[1], (rv, rn), 147)):
-        show_at_load(p, load, x3 + 380, yy + row, value, controls)  # and the controls show it
-    t2 = p.obj(x3 + 280, yy + 147, "t b f")
-    p.connect(gn, 0, mp, 0)
-    p.connect(rn, 0, t2, 0)
-    p.connect(t2, 1, mp, 1)
-    p.connect(t2, 0, mp, 0)
-    p.connect(mp, 0, sender(p, x3 + 280, yy + 200, SoundMaster, "sound", "ff"), 0)
+    # ------------------------------------------------------------ sound: a sub-patch of its own
+    # (its 28 sliders and their wiring do not fit a laptop screen beside the others: click [pd sound] to open it)
+    p.text(1200, 10, "SOUND - each instrument's synthesis, and the whole rig's latency, master gain and reverb: "
+                     "click the box below (out of edit mode) to open them", 45)
+    p.subpatch(1200, 80, "sound", sound_section(), SOUND_WINDOW)
     graphics_section(p, 20, y2 + 190, load)
     interaction_section(p, 900, 618, load)
     refusals(p, 995, 490, nets)
     return p
 
 
+SOUND_WINDOW = (1900, 1000)
+"""The [pd sound] window's size, pixels: its controls fit in it (a 1920x1080 laptop screen less its bars)."""
+RESONANCE_MODES = 8
+"""How many modes' resonance gains the panel sets (modes 1..8 in frequency order; the message may carry more, and
+modes beyond those sent keep gain 1)."""
+COLUMNS = (20, 650, 1280)
+"""x of the [pd sound] window's three columns: a row's wiring reaches 610 px right of its slider."""
+
+
+def field_range(model: type[OscMessage], name: str) -> tuple[float, float]:
+    """(lowest, highest) value the model takes for field ``name`` (for a variadic field: each of its items), so a
+    slider over it cannot send a value the rig refuses. SystemExit if the model declares no closed range."""
+    import typing
+
+    from pydantic.fields import FieldInfo
+
+    metadata = list(model.model_fields[name].metadata)
+    base = typing.get_type_hints(model, include_extras=True)[name]
+    if typing.get_origin(base) is typing.Annotated:
+        base = get_args(base)[0]
+    if typing.get_origin(base) in (tuple, list):  # a variadic tail: the range is its items' (Annotated[float, ...])
+        metadata = [c for extra in get_args(get_args(base)[0])[1:]
+                    for c in (extra.metadata if isinstance(extra, FieldInfo) else [extra])]
+    low = next((float(m.ge) for m in metadata if getattr(m, "ge", None) is not None), None)
+    high = next((float(m.le) for m in metadata if getattr(m, "le", None) is not None), None)
+    if low is None or high is None:
+        raise SystemExit(f"{model.__name__}.{name}: no closed range (ge, le) for a slider to cover")
+    return low, high
+
+
+@dataclass(frozen=True)
+class Row:
+    """One slider of a sound group: its label, the model field it sets (its range is the model's) and receive name."""
+
+    label: str
+    field: str
+    receive: str
+    log: bool = False
+
+
+def _span(model: type[OscMessage], row: Row) -> str:
+    """A one-value row's label: what it sets and the model's range (``level dB (-80..12)``)."""
+    low, high = field_range(model, row.field)
+    return f"{row.label} ({low:g}..{high:g})"
+
+
+def sound_section() -> Patch:
+    """The SOUND section, in a sub-patch of its own ([pd sound]): the instrument choice, then every per-instrument
+    control (each showing the chosen instrument's values), then the whole rig's latency, master gain and reverb.
+    Three columns, each row's wiring to its right, the per-instrument memories beyond the window (x 2000)."""
+    p = Patch()
+    load = p.obj(560, 10, "loadbang")
+    xa, xb, xc = COLUMNS
+    p.text(xa, 10, "SOUND - instrument:")
+    # shows the instrument the controls below act on; typing one in (and Enter) chooses it. The box only
+    # displays what bp-instrument says ("set": no output), so choosing never loops back through it.
+    p.symbolatom(xa + 160, 10, 10, "bp-instrument-show", "bp-instrument")
+    sink = p.obj(xa + 300, 10, "s bp-instrument")
+    shown = p.obj(2000, 10, "r bp-instrument")  # out of the way, right of the window
+    show = p.msg(2000, 35, "set $1")
+    p.connect(shown, 0, show, 0)
+    p.connect(show, 0, p.obj(2000, 60, "s bp-instrument-show"), 0)
+    for k, name in enumerate(INSTRUMENTS):
+        m = p.msg(xa + 100 * (k % 6), 40 + 25 * (k // 6), f"symbol {name}")
+        p.connect(m, 0, sink, 0)
+    init_inst = p.msg(xa + 400, 10, "symbol snare")
+    p.connect(load, 0, init_inst, 0)
+    p.connect(init_inst, 0, sink, 0)
+    memories = iter(range(100))
+
+    def memory(label: str, sent: int, model: type[OscMessage], keeps: tuple[int, ...],
+               shown: tuple[tuple[int, ...], ...]) -> tuple[int, int]:
+        return instrument_memory(p, 2000, 100 + 340 * next(memories), f"{label} per instrument (starts at the "
+                                 "default kit's values)", sent, instrument_starts(model), keeps, shown)
+
+    def per_instrument(x: int, y: int, model: type[OscMessage], source: int, values: str) -> int:
+        """[list prepend] with the chosen instrument (from bp-instrument), to the model's sender; returns it."""
+        pre = p.obj(x + 360, y, "list prepend")
+        r = p.obj(x + 460, y - 25, "r bp-instrument")
+        p.connect(r, 0, pre, 1)
+        p.connect(source, 0, pre, 0)
+        p.connect(pre, 0, sender(p, x + 360, y + 25, model, "sound", "s" + values), 0)
+        return pre
+
+    model = choices(p, xa, 100, "synthesis model", ("modal", "sample", "synth"), "bp-model")
+    per_instrument(xa, 185, SoundModel, model, "s")
+    # one value each: five rows in the first column, five in the second
+    rows: list[tuple[type[OscMessage], Row, bool]] = [
+        (SoundLevel, Row("level dB", "gain_db", "bp-level"), False),
+        (SoundRadius, Row("radius m", "value", "bp-radius"), False),
+        (SoundTension, Row("tension N/m", "value", "bp-tension", log=True), False),
+        (SoundDensity, Row("density kg/m2", "value", "bp-density", log=True), False),
+        (SoundModes, Row("modes", "value", "bp-modes", log=True), True),
+        (SoundThickness, Row("thickness m", "value", "bp-thickness"), False),
+        (SoundPosition, Row("position sensitivity", "value", "bp-position-sensitivity"), False),
+        (SoundSnares, Row("snares", "value", "bp-snares"), False),
+        (SoundOpenness, Row("openness", "value", "bp-openness"), False),
+        (SoundAirLoading, Row("air loading", "value", "bp-air"), False),
+    ]
+    for k, (m_, row, integer) in enumerate(rows):
+        x, y = (xa, 250 + 80 * k) if k < 5 else (xb, 100 + 80 * (k - 5))
+        lo, hi = field_range(m_, row.field)
+        src, row_boxes = slider_boxes(p, x, y, _span(m_, row), lo, hi, row.log, row.receive, integer)
+        per_instrument(x, y + 22, m_, src, "i" if integer else "f")
+        # the boxes show the chosen instrument's value (the snare's at load), kept in the memories
+        memory(row.label, src, m_, (), (row_boxes,))
+    # several values in one message: each kept per instrument, all sent when one moves
+    groups: list[tuple[int, int, str, str, type[OscMessage], tuple[Row, ...]]] = [
+        (xa, 650, "damping", "damping: sigma0 1/s, sigma1 s", SoundDamping,
+         (Row("sigma0", "sigma0", "bp-sigma0"), Row("sigma1", "sigma1", "bp-sigma1"))),
+        (xb, 500, "second head", "second head (drums): gain, tuning ratio", SoundSecondHead,
+         (Row("gain", "gain", "bp-second-head-gain"), Row("ratio", "ratio", "bp-second-head-ratio"))),
+        (xb, 700, "stick", "stick: mass kg, stiffness N/m^alpha, alpha", SoundStick,
+         (Row("kg", "mass", "bp-stick-mass", log=True), Row("N/m^a", "stiffness", "bp-stick-stiffness", log=True),
+          Row("alpha", "exponent", "bp-stick-exponent"))),
+        (xc, 100, "resonances", f"resonance gain of modes 1..{RESONANCE_MODES} (0..16)", SoundResonances,
+         tuple(Row(f"{k + 1}", "gains", f"bp-resonance-{k + 1}") for k in range(RESONANCE_MODES))),
+    ]
+    for x, y, name, header, m_, group in groups:
+        sent, keeps, boxes, pre = slider_group(p, x, y, header, m_, group, per_instrument)
+        store, split = memory(name, sent, m_, keeps, boxes)
+        if m_ is SoundResonances:  # reset: every mode back to gain 1 (an empty list), shown and kept as ones
+            reset = p.bng(x + 400, y, "bp-resonances-reset")
+            p.text(x + 422, y, "reset (all 1)")
+            check_sends(m_, "s")
+            order = p.obj(x + 520, y, "t b b")
+            ones = p.msg(x + 470, y + 72 + 25 * len(group), " ".join(["1"] * len(group)))
+            p.connect(reset, 0, order, 0)
+            p.connect(order, 1, ones, 0)
+            p.connect(ones, 0, store, 0)
+            p.connect(ones, 0, split, 0)
+            p.connect(order, 0, pre, 0)  # a bang: the instrument alone
+    # ------------------------------------------------------------ the whole rig
+    x, yy = xc, 470
+    p.text(x, yy, "SOUND - whole rig")
+    lat = slider(p, x, yy + 25, "latency window s (0..0.5)", 0, 0.5, False, "bp-latency",
+                 shows=(load, LATENCY_DEFAULTS[0]))
+    p.connect(lat, 0, sender(p, x + 300, yy + 47, SoundLatency, "sound", "f"), 0)
+    p.text(x, yy + 100, "master gain dB (-80..12) and reverb (0..1)")
+    g = p.hsl(x, yy + 122, -80, 12, False, "bp-master")
+    gn = p.nbx(x + 175, yy + 122, -80, 12)
+    rv = p.hsl(x, yy + 147, 0, 1, False, "bp-reverb")
+    rn = p.nbx(x + 175, yy + 147, 0, 1)
+    p.connect(g, 0, gn, 0)
+    p.connect(rv, 0, rn, 0)
+    # the pack starts as the sound service does, so moving one control first keeps the other as it is there
+    mp = p.obj(x + 280, yy + 175, f"pack {MASTER_DEFAULTS[0]:g} {MASTER_DEFAULTS[1]:g}")
+    for value, controls, row_y in ((MASTER_DEFAULTS[0], (g, gn), 122), (MASTER_DEFAULTS[1], (rv, rn), 147)):
+        show_at_load(p, load, x + 380, yy + row_y, value, controls)  # and the controls show it
+    t2 = p.obj(x + 280, yy + 147, "t b f")
+    p.connect(gn, 0, mp, 0)
+    p.connect(rn, 0, t2, 0)
+    p.connect(t2, 1, mp, 1)
+    p.connect(t2, 0, mp, 0)
+    p.connect(mp, 0, sender(p, x + 280, yy + 200, SoundMaster, "sound", "ff"), 0)
+    return p
+
+
+def slider_group(p: Patch, x: int, y: int, header: str, model: type[OscMessage], rows: tuple[Row, ...],
+                 per_instrument: Callable[[int, int, type[OscMessage], int, str], int],
+                 ) -> tuple[int, tuple[int, ...], tuple[tuple[int, int], ...], int]:
+    """The sliders of one message carrying several values (second head, stick, resonances), one under the other,
+    each labelled on its right (with its range when the rows set different fields): each value is kept in an [f]
+    (per instrument: see :func:`instrument_memory`) and a move of one sends them all, each clipped to its field's
+    range in the model (which the sliders cover): a value past a slider's end sent to its receive name, or the 0 an
+    instrument without the parameter shows, goes out in range (the service then answers what it refuses, instead
+    of the message being dropped unanswered). Returns (the [pack] of the values, the [f]s, each row's (slider,
+    number box), the [list prepend] that adds the instrument)."""
+    p.text(x, y, header)
+    count = len(rows)
+    same = len({row.field for row in rows}) == 1  # the resonances: one range, said in the header
+    boxes: list[tuple[int, int]] = []
+    keeps: list[int] = []
+    fire = p.obj(x + 400, y + 22 + 25 * count, "t " + " ".join(["b"] * count))
+    pack = p.obj(x + 280, y + 47 + 25 * count, "pack " + " ".join(["f"] * count))
+    for k, row in enumerate(rows):
+        lo, hi = field_range(model, row.field)
+        row_y = y + 22 + 25 * k
+        s = p.hsl(x, row_y, lo, hi, row.log, row.receive)
+        n = p.nbx(x + 175, row_y, lo, hi)
+        p.connect(s, 0, n, 0)
+        boxes.append((s, n))
+        p.text(x + 250, row_y, row.label if same else f"{row.label} {lo:g}..{hi:g}")
+        order = p.obj(x + 400, row_y, "t b f")  # keep it, then send all
+        keep = p.obj(x + 450, row_y, "f")
+        clip = p.obj(x + 480, row_y, f"clip {lo:g} {hi:g}")
+        p.connect(n, 0, order, 0)
+        p.connect(order, 1, keep, 1)
+        p.connect(order, 0, fire, 0)
+        p.connect(fire, k, keep, 0)  # right to left: the first value, the pack's hot inlet, last
+        p.connect(keep, 0, clip, 0)
+        p.connect(clip, 0, pack, k)
+        keeps.append(keep)
+    pre = per_instrument(x, y + 72 + 25 * count, model, pack, "f" * count)
+    return pack, tuple(keeps), tuple(boxes), pre
+
+
 def instrument_memory(p: Patch, x: int, y: int, label: str, sent: int, starts: dict[str, tuple[float, ...] | None],
-                      keeps: tuple[int, ...], shown: tuple[tuple[int, ...], ...]) -> None:
+                      keeps: tuple[int, ...], shown: tuple[tuple[int, ...], ...]) -> tuple[int, int]:
     """Remember a sound parameter per instrument: it starts at what a sound service started on the default kit has
     (``starts``, :func:`instrument_starts`), is updated by each value (or list of values) ``sent`` for the chosen
     instrument, and is recalled into ``keeps`` (the [f]s a message of several values is made of, so moving one
     slider keeps the others) and ``shown`` (each value's slider and number box) when an instrument is chosen.
-    An instrument without the parameter (None) shows 0 and keeps nothing: the service refuses what is sent."""
+    An instrument without the parameter (None) shows 0 and keeps nothing: the service refuses what is sent.
+    Returns (the [list prepend] that stores a sent list for the chosen instrument, the [unpack] that shows one)."""
     p.text(x, y, label)
     store = p.obj(x, y + 25, "list prepend")
     p.connect(sent, 0, store, 0)
@@ -529,9 +665,11 @@ def instrument_memory(p: Patch, x: int, y: int, label: str, sent: int, starts: d
     p.connect(p.obj(x, y + 125, "r bp-instrument"), 0, chosen, 0)
     count = len(shown)
     split = p.obj(x, y + 285, "unpack " + " ".join("f" * count))
-    for k, (name, values) in enumerate(starts.items()):
-        start = (0.0,) * count if values is None else values
-        memory = p.obj(x + 150 * (k % 4), y + 200 + 25 * (k // 4), "list append " + " ".join(f"{v:g}" for v in start))
+    texts = ["list append " + " ".join(f"{v:g}" for v in ((0.0,) * count if values is None else values))
+             for values in starts.values()]
+    pitch = max(150, 7 * max(map(len, texts)) + 20)  # side by side, four a row
+    for k, ((name, values), text) in enumerate(zip(starts.items(), texts, strict=True)):
+        memory = p.obj(x + pitch * (k % 4), y + 200 + 25 * (k // 4), text)
         if values is not None:
             p.connect(by_name, takes.index(name), memory, 1)
         p.connect(chosen, k, memory, 0)
@@ -543,6 +681,7 @@ def instrument_memory(p: Patch, x: int, y: int, label: str, sent: int, starts: d
         p.connect(split, k, show, 0)
         for box in boxes:
             p.connect(show, 0, box, 0)
+    return store, split
 
 
 def score_follows_physics(p: Patch, x: int, y: int, physics_box: int, score_box: int, score_tb: int) -> None:
@@ -803,7 +942,7 @@ def refusals(p: Patch, x: int, y: int, nets: list[tuple[int, int, int]]) -> None
     p.connect(set_text, 0, p.msg(x, y + 80, "none yet", 27), 0)
     for net, nx, ny in nets:
         p.connect(net, 1, p.obj(nx + 110, ny, "s bp-replies"), 0)
-    # the parsing sits out of the way, below the SOUND section
+    # the parsing sits out of the way, below and right of the other sections
     px, py = 1420, 1480
     parse = p.obj(px, py + 25, "oscparse")
     p.connect(p.obj(px, py, "r bp-replies"), 0, parse, 0)
@@ -870,8 +1009,9 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as exc:
         parser.error(f"cannot write {output}: {exc.strerror or exc}")
     print(f"wrote {output}")
-    if output.resolve() == OUT.resolve():  # docs/pd.md shows it: a test fails until the picture is redrawn
-        print("redraw its picture in docs/pd.md: python pd/render_patch.py pd/control.pd docs/img/pd-control.png")
+    if output.resolve() == OUT.resolve():  # docs/pd.md shows it: a test fails until the pictures are redrawn
+        print("redraw its pictures in docs/pd.md: python pd/render_patch.py pd/control.pd docs/img/pd-control.png; "
+              "python pd/render_patch.py --canvas sound pd/control.pd docs/img/pd-control-sound.png")
     return 0
 
 

@@ -1,6 +1,7 @@
 """Draw a Pure Data patch file as a PNG, the way Pd's editor lays it out (for docs/pd.md).
 
     python pd/render_patch.py pd/control.pd docs/img/pd-control.png
+    python pd/render_patch.py --canvas sound pd/control.pd docs/img/pd-control-sound.png   # its [pd sound]
 
 No Pd GUI or X server needed: the .pd file gives every box's position and text, and every
 connection. Boxes are sized from their text (Pd's 12-point font is about 7 pixels a character),
@@ -47,7 +48,9 @@ class PatchError(ValueError):
     """The file is not a Pure Data patch this script can read."""
 
 
-def parse(path: Path) -> tuple[list[Box], list[tuple[int, int, int, int]], tuple[int, int]]:
+def parse(path: Path, canvas: str = "") -> tuple[list[Box], list[tuple[int, int, int, int]], tuple[int, int]]:
+    """The boxes, connections and window size of the patch's main canvas, or of its first sub-patch
+    ``[pd CANVAS]`` (a sub-patch of the main canvas); PatchError when there is no such sub-patch."""
     content = path.read_text(encoding="utf-8")
     if not content.startswith("#N canvas"):
         raise PatchError(f"{path} is not a Pure Data patch (a .pd file starts with '#N canvas')")
@@ -56,20 +59,25 @@ def parse(path: Path) -> tuple[list[Box], list[tuple[int, int, int, int]], tuple
     connects: list[tuple[int, int, int, int]] = []
     size = (800, 600)
     depth = 0
+    drawn = 0 if canvas else 1  # the depth of the canvas drawn (0: not found yet)
     for rec in records:
         parts = rec.split(None, 4)
         if rec.startswith("#N canvas"):
             depth += 1
-            if depth == 1:
-                size = (int(parts[4].split()[0]), int(parts[4].split()[1]))
+            fields = parts[4].split() if len(parts) > 4 else []
+            if depth == 1 and not canvas or depth == 2 and not drawn and fields[2:3] == [canvas]:
+                drawn = depth
+                size = (int(fields[0]), int(fields[1]))
             continue
         if rec.startswith("#X restore"):
             depth -= 1
-            if depth == 1:  # a subpatch is one box of its parent, [pd NAME]: it counts in the connections
+            if depth == drawn:  # a subpatch is one box of its parent, [pd NAME]: it counts in the connections
                 boxes.append(Box("obj", int(parts[2]), int(parts[3]), _unescape(parts[4].rstrip(";"))
                                  if len(parts) > 4 else "pd"))
+            elif depth + 1 == drawn:  # the sub-patch drawn is closed: the rest is its parent's
+                break
             continue
-        if depth != 1 or not rec.startswith("#X "):
+        if depth != drawn or not rec.startswith("#X "):
             continue
         kind = parts[1]
         if kind == "connect":
@@ -93,6 +101,8 @@ def parse(path: Path) -> tuple[list[Box], list[tuple[int, int, int, int]], tuple
                 boxes.append(Box("atom", x, y, receive if receive != "-" else "", width * CHAR_W + 4, LINE_H + 2))
             else:
                 boxes.append(Box(kind, x, y, text, chars=chars))
+    if not drawn:
+        raise PatchError(f"{path} has no sub-patch [pd {canvas}] in its main canvas")
     return boxes, connects, size
 
 
@@ -122,8 +132,9 @@ def _wrap(text: str, width: int) -> list[str]:
     return lines or [""]
 
 
-def render(src: Path, dst: Path) -> None:
-    boxes, connects, (width, height) = parse(src)
+def render(src: Path, dst: Path, canvas: str = "") -> None:
+    """Draw ``src``'s main canvas (or its sub-patch ``[pd CANVAS]``) into ``dst``, keeping ``src``'s digest."""
+    boxes, connects, (width, height) = parse(src, canvas)
     font = ImageFont.load_default()
     for box in boxes:
         if box.kind in ("obj", "msg"):
@@ -220,6 +231,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("patch", type=Path, metavar="PATCH.pd", help="the patch file to draw")
     parser.add_argument("out", type=Path, metavar="OUT.png",
                         help="the picture to write (its extension chooses the format: .png, .jpg, ...)")
+    parser.add_argument("--canvas", default="", metavar="NAME",
+                        help="draw the sub-patch [pd NAME] of the main canvas instead (e.g. sound, the control "
+                             "panel's SOUND window)")
     parser.add_argument("--check", action="store_true",
                         help="write nothing: exit 1 if OUT.png was not drawn from PATCH.pd as it is now")
     args = parser.parse_args(argv)
@@ -230,7 +244,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"{args.out}: unknown picture format {args.out.suffix or '(no extension)'!r}; "
                      "use .png (or another extension Pillow knows, e.g. .jpg)")
     try:
-        render(args.patch, args.out)
+        render(args.patch, args.out, args.canvas)
     except PatchError as exc:
         parser.error(str(exc))
     except UnicodeDecodeError:

@@ -6,7 +6,8 @@ as they are when one is moved. Its slider and number box must show what the pack
 showing 0 while the pack holds the view's 18 degrees tells the user something the panel does not send. A slider
 whose message carries its value alone (tempo, latency window, trails, picture delay) shows what the service starts
 with; the sound rows (level, radius, tension, density, modes, thickness, position sensitivity, snares, openness,
-air loading, damping) show the chosen instrument's values.
+air loading, damping, second head, stick, resonances: in the panel's [pd sound] sub-patch) show the chosen
+instrument's values.
 """
 
 from __future__ import annotations
@@ -34,8 +35,14 @@ PER_INSTRUMENT = {"bp-level": ("level", "level_db"), "bp-radius": ("radius", "ra
                   "bp-modes": ("n_modes", "n_modes"), "bp-sigma0": ("damping", "damping0"),
                   "bp-sigma1": ("damping", "damping1"), "bp-thickness": ("thickness", "thickness"),
                   "bp-position-sensitivity": ("position", "position"), "bp-snares": ("snares", "snares"),
-                  "bp-openness": ("openness", "openness"), "bp-air": ("air_loading", "air_loading")}
-"""The sound rows that act on the chosen instrument: control -> (the sound service's parameter, its Params field)."""
+                  "bp-openness": ("openness", "openness"), "bp-air": ("air_loading", "air_loading"),
+                  "bp-second-head-gain": ("second_head", "second_head"),
+                  "bp-second-head-ratio": ("second_head", "reso_ratio"), "bp-stick-mass": ("stick", "stick_mass"),
+                  "bp-stick-stiffness": ("stick", "stick_stiffness"),
+                  "bp-stick-exponent": ("stick", "stick_exponent"),
+                  **{f"bp-resonance-{k}": ("resonances", f"resonances {k}") for k in range(1, 9)}}
+"""The sound rows that act on the chosen instrument: control -> (the sound service's parameter, its Params field;
+``resonances K``: the gain of mode K, 1 beyond the instrument's list)."""
 
 
 def _instrument_values(name: str) -> dict[str, float]:
@@ -46,7 +53,14 @@ def _instrument_values(name: str) -> dict[str, float]:
 
     obj = next(obj for obj in load_kit("default").objects if obj.id == name)
     params = default_params(obj)
-    return {control: float(getattr(params, field)) if param in KIND_PARAMS[obj.kind] else 0.0
+
+    def value(field: str) -> float:
+        if field.startswith("resonances "):
+            mode = int(field.split()[1])
+            return float(params.resonances[mode - 1]) if mode <= len(params.resonances) else 1.0
+        return float(getattr(params, field))
+
+    return {control: value(field) if param in KIND_PARAMS[obj.kind] else 0.0
             for control, (param, field) in PER_INSTRUMENT.items()}
 
 
@@ -100,9 +114,10 @@ def _kept_values() -> dict[str, float]:
 
 
 class Box:
-    """One slider (``hsl``) or number box (``nbx``) of the panel: its object index, range and receive name."""
+    """One slider (``hsl``) or number box (``nbx``) of the panel: its key (``CANVAS-INDEX``: the canvas it is in,
+    0 the panel's own, 1.. its sub-patches in file order, and its object index there), range and receive name."""
 
-    def __init__(self, index: int, tokens: list[str]) -> None:
+    def __init__(self, index: str, tokens: list[str]) -> None:
         self.index = index
         self.kind = tokens[4]
         self.lo, self.hi = float(tokens[7]), float(tokens[8])
@@ -126,28 +141,51 @@ class Box:
         return (self.hi - self.lo) / steps
 
 
+OBJECT = re.compile(r"^#X (obj|msg|text|floatatom|symbolatom|restore) ")
+"""A line that makes an object of its canvas (numbered in order for its canvas's connections; ``restore`` closes a
+sub-patch, which is one object of its parent)."""
+
+
 def _probed(tmp_path: Path) -> tuple[Path, list[Box], list[str]]:
-    """A copy of the panel in which every slider and number box sends what it outputs to ``probe-INDEX`` (printed
-    as ``shown-INDEX`` by a probe patch) and to nothing else (its wires are cut: a bang sends no OSC and a slider
-    does not overwrite its number box); a box with no receive name gets ``poke-INDEX``. Returns the copy, its
-    boxes and the -send messages that bang each one (number boxes first)."""
+    """A copy of the panel in which every slider and number box (in its sub-patches too) sends what it outputs to
+    ``probe-KEY`` (printed as ``shown-KEY`` by a probe patch) and to nothing else (its wires are cut: a bang sends
+    no OSC and a slider does not overwrite its number box); a box with no receive name gets ``poke-KEY``. Returns
+    the copy, its boxes and the -send messages that bang each one (number boxes first)."""
     lines = (PD_DIR / "control.pd").read_text(encoding="utf-8").splitlines()
-    boxes: dict[int, Box] = {}
-    for index, line in enumerate(lines[1:]):
+    boxes: dict[str, Box] = {}
+    wires: list[tuple[int, str, str]] = []  # (line, from, to) of each connection, as box keys
+    canvases, counts = [0], [0]  # the canvases open at this line (innermost last), each one's objects so far
+    for number, line in enumerate(lines):
+        if line.startswith("#N canvas"):
+            if number:
+                canvases.append(len(counts))
+                counts.append(0)
+            continue
+        canvas = canvases[-1]
+        if line.startswith("#X restore"):
+            canvases.pop()
+            canvas = canvases[-1]
+        if wire := re.match(r"^#X connect (\d+) (\d+) (\d+) ", line):
+            wires.append((number, f"{canvas}-{wire[1]}", f"{canvas}-{wire[3]}" if wire[2] == "0" else ""))
+            continue
+        if not OBJECT.match(line):
+            continue
+        key = f"{canvas}-{counts[canvas]}"
+        counts[canvas] += 1
         if BOX.match(line):
             tokens = line.split(" ")
-            boxes[index] = Box(index, tokens)
-            tokens[11] = f"probe-{index}"
+            boxes[key] = Box(key, tokens)
+            tokens[11] = f"probe-{key}"
             if tokens[12] == "empty":
-                tokens[12] = f"poke-{index}"
-            lines[index + 1] = " ".join(tokens)
-    for line in lines:
-        wire = re.match(r"^#X connect (\d+) 0 (\d+) 0;$", line)
-        if wire and int(wire[1]) in boxes and int(wire[2]) in boxes:
-            feeder, fed = boxes[int(wire[1])], boxes[int(wire[2])]
+                tokens[12] = f"poke-{key}"
+            lines[number] = " ".join(tokens)
+    for number, source, target in wires:
+        if source in boxes and target in boxes and re.match(r"^#X connect \d+ 0 \d+ 0;$", lines[number]):
+            feeder, fed = boxes[source], boxes[target]
             if fed.receive == "empty":
                 fed.name = f"{feeder.receive} (number box)"
-    kept = [line for line in lines if not ((m := re.match(r"^#X connect (\d+) ", line)) and int(m[1]) in boxes)]
+    cut = {number for number, source, _ in wires if source in boxes}
+    kept = [line for number, line in enumerate(lines) if number not in cut]
     panel = tmp_path / "control.pd"
     panel.write_text("\n".join(kept) + "\n", encoding="utf-8")
     probe = ["#N canvas 0 0 400 300 12;"]
@@ -160,7 +198,7 @@ def _probed(tmp_path: Path) -> tuple[Path, list[Box], list[str]]:
     return panel, list(boxes.values()), bangs
 
 
-Shown = tuple[list[Box], list[dict[int, float]]]
+Shown = tuple[list[Box], list[dict[str, float]]]
 """The panel's boxes, and what each shows (by index) after each round."""
 
 
@@ -183,7 +221,7 @@ def _shown(tmp_path: Path, chosen: tuple[str, ...] = (), receive: str = "bp-inst
     return boxes, shown
 
 
-def _wrong(boxes: list[Box], shown: dict[int, float], expected: dict[str, float]) -> dict[str, tuple[float, float]]:
+def _wrong(boxes: list[Box], shown: dict[str, float], expected: dict[str, float]) -> dict[str, tuple[float, float]]:
     """(shown, expected) of each box of a control in ``expected`` that shows another value."""
     wrong = {}
     for box in boxes:

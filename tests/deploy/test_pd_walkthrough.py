@@ -65,13 +65,17 @@ def _pd_module(name: str) -> Any:
 
 def test_the_pictures_in_docs_pd_are_drawn_from_the_patches_as_they_are() -> None:
     """Each ``img/pd-NAME.png`` of docs/pd.md was drawn from ``pd/NAME.pd`` as it is now (render_patch.py keeps
-    the patch's digest in the picture). pd-control.png used to show the panel's old default camera (20 deg,
-    3.2 m) after make_control.py changed it."""
+    the patch's digest in the picture); ``img/pd-NAME-CANVAS.png``, the sub-patch ``[pd CANVAS]`` of
+    ``pd/NAME.pd`` (``--canvas``: the panel's SOUND window). pd-control.png used to show the panel's old default
+    camera (20 deg, 3.2 m) after make_control.py changed it."""
     render_patch = _pd_module("render_patch")
     pictures = re.findall(r"\]\((img/pd-[\w-]+\.png)\)", (ROOT / "docs" / "pd.md").read_text(encoding="utf-8"))
-    assert len(pictures) == 3, pictures
+    assert len(pictures) == 4, pictures
     for picture in pictures:
-        patch = PD_DIR / (Path(picture).stem.removeprefix("pd-") + ".pd")
+        name = Path(picture).stem.removeprefix("pd-")
+        patch = PD_DIR / (name + ".pd")
+        if not patch.exists():  # a sub-patch's picture
+            patch = PD_DIR / (name.rsplit("-", 1)[0] + ".pd")
         assert render_patch.drawn_from(ROOT / "docs" / picture) == render_patch.patch_digest(patch), (
             f"docs/{picture} is stale: run python pd/render_patch.py {patch.relative_to(ROOT)} docs/{picture}")
 
@@ -89,6 +93,31 @@ def test_render_patch_check_says_whether_a_picture_is_stale(tmp_path: Path) -> N
     stale = subprocess.run([sys.executable, script, "--check", str(patch), str(picture)], capture_output=True,
                            text=True, check=False)
     assert stale.returncode == 1 and "stale" in stale.stderr, stale.stdout + stale.stderr
+
+
+def test_render_patch_draws_a_sub_patch_alone(tmp_path: Path) -> None:
+    """``--canvas NAME`` draws the sub-patch ``[pd NAME]`` in its own window's size (its boxes only, not the
+    main canvas's), keeping the patch file's digest; a name the patch has no sub-patch for is refused."""
+    from PIL import Image
+
+    patch = tmp_path / "p.pd"
+    patch.write_text("#N canvas 0 0 300 200 12;\n#X obj 10 10 loadbang;\n#N canvas 40 40 700 500 inner 0;\n"
+                     "#X obj 600 480 print inner;\n#X restore 10 40 pd inner;\n#X connect 0 0 1 0;\n",
+                     encoding="utf-8")
+    script = str(PD_DIR / "render_patch.py")
+    main, inner = tmp_path / "main.png", tmp_path / "inner.png"
+    assert subprocess.run([sys.executable, script, str(patch), str(main)], check=False).returncode == 0
+    assert subprocess.run([sys.executable, script, "--canvas", "inner", str(patch), str(inner)],
+                          check=False).returncode == 0
+    with Image.open(main) as picture:
+        assert picture.size == (300, 200)  # the main canvas: its window, its two boxes inside
+    with Image.open(inner) as picture:
+        assert picture.size[0] >= 700 and picture.size[1] > 500  # the sub-patch's window, and its box at 600 480
+    render_patch = _pd_module("render_patch")
+    assert render_patch.drawn_from(inner) == render_patch.patch_digest(patch)
+    missing = subprocess.run([sys.executable, script, "--canvas", "other", str(patch), str(tmp_path / "x.png")],
+                             capture_output=True, text=True, check=False)
+    assert missing.returncode == 2 and "no sub-patch [pd other]" in missing.stderr, missing.stderr
 
 
 VOICE_PATCH = """#N canvas 0 0 600 400 12;
