@@ -484,14 +484,15 @@ def ratio_digits(ratio: float, duration: float, tolerance: float) -> float:
 def position(score: Score, written_time: float, scale: float = 1.0) -> dict[str, Any]:
     """Bar and beat (both from 1, the beat fractional) of a time on the exercise's written clock, and ``where``,
     the position as a teacher says it (:func:`grid_label`; ``scale``: the tempo ratio compared at, for its ms on
-    the take's clock); before its first beat, none. After a pick-up (:func:`pickup`) the first full bar is bar 1,
-    as printed music numbers it, and the pick-up bar 0, its beats counted as the end of a full bar (a one-beat
-    pick-up before 4/4 is beat 4)."""
-    at = bar_and_beat(score, written_time)
-    if at is None:
+    the take's clock); before its first beat (but for a strike just before it, :func:`grid_point`), none. The bar
+    is that of the nearest grid point, as ``where`` says it: a strike 20 ms before bar 3 is bar 3's, its beat just
+    under 1 (0.96). After a pick-up (:func:`pickup`) the first full bar is bar 1, as printed music numbers it, and
+    the pick-up bar 0, its beats counted as the end of a full bar (a one-beat pick-up before 4/4 is beat 4)."""
+    point = grid_point(score, written_time)
+    if point is None:
         return {"bar": None, "beat": None, "where": "before bar 1"}
-    bar, beat, _ = at
-    return {"bar": bar, "beat": round(beat, 3), "where": grid_label(score, written_time, scale)}
+    beat = point.beat + float(point.grid) + (written_time - point.time) / point.spacing
+    return {"bar": point.bar, "beat": _r(beat, 3), "where": grid_label(score, written_time, scale)}
 
 
 def bar_and_beat(score: Score, written_time: float) -> tuple[int, float, float] | None:
@@ -523,15 +524,35 @@ def bar_unit(score: Score, bar: int) -> float:
     return float(units[min(max(bar, 0), len(units) - 1)])
 
 
-def grid_label(score: Score, written_time: float, scale: float = 1.0) -> str:
-    """``bar 3, beat 2&``: a position on the beat's grid, counted as :data:`SYLLABLES` (``beat 2``, ``2e``,
-    ``2&``, ``2a``, ``2 trip``, ``2 let``) or, on a :data:`FINE_GRIDS` subdivision, as a fraction (``beat 2 +
-    1/8``); off those (a strike, a humanised MIDI exercise), the nearest sixteenth or triplet point and how far
-    from it on the take's clock (``beat 2& (12 ms late)``; ``scale``: the tempo ratio, take / exercise), the next
-    beat's (or bar's) first point included (``bar 4, beat 1 (20 ms early)``)."""
+@dataclass(frozen=True)
+class GridPoint:
+    """The counting grid's point nearest a time (:func:`grid_point`): its ``bar`` and counted ``beat`` (from 1,
+    numbered as :func:`position` says), ``grid`` where in that beat (0 on it, 1/2 its &), ``exact`` when the time
+    is on it (within :data:`ON_GRID_BEATS`, or on a :data:`FINE_GRIDS` subdivision: then ``grid`` is that), ``time``
+    the point on the written clock (s) and ``spacing`` the counted beat's length at the time asked about (s)."""
+
+    bar: int
+    beat: int
+    grid: Fraction
+    exact: bool
+    time: float
+    spacing: float
+
+
+def grid_point(score: Score, written_time: float) -> GridPoint | None:
+    """The grid point a time is counted at: the coarsest subdivision it lies on, else the nearest sixteenth or
+    triplet point (:data:`SYLLABLES`), the next beat's (or bar's) first point included, so a strike just before a
+    downbeat is that bar's, in its label and its bar alike. Before the first beat, the first beat when the time is
+    nearer it than the grid point before it (an eighth of a beat: a strike just ahead of bar 1, a sixteenth of a
+    count-in being the point before); else None."""
     at = bar_and_beat(score, written_time)
     if at is None:
-        return "before bar 1"
+        first = float(score.beats[0]) if len(score.beats) >= 2 else None
+        start = None if first is None else bar_and_beat(score, first)
+        if first is None or start is None or first - written_time > start[2] / 8:
+            return None
+        return GridPoint(start[0], math.floor(start[1] + 1e-6), Fraction(0),
+                         first - written_time <= ON_GRID_BEATS * start[2], first, start[2])
     bar, beat, spacing = at
     whole = math.floor(beat + 1e-6)
     frac = beat - whole
@@ -545,15 +566,25 @@ def grid_label(score: Score, written_time: float, scale: float = 1.0) -> str:
     if grid is None:
         grid = min((*SYLLABLES, Fraction(1)), key=lambda g: (abs(frac - float(g)), g))
     point = written_time + (float(grid) - frac) * spacing  # s, the grid point on the written clock
-    late_ms = (written_time - point) * 1000 / scale
     if grid == 1:  # the next beat's first point: maybe the next bar's (looked up just after it, float-safe)
         again = bar_and_beat(score, point + 1e-6)
-        if again is None:
-            return f"bar {bar}, beat {beat:.3g}"
-        bar, whole, grid = again[0], math.floor(again[1] + 1e-6), Fraction(0)
-    name = SYLLABLES.get(grid, f" + {grid}")
-    text = f"bar {bar}, beat {whole}{name}"
-    if not exact and round(abs(late_ms)) >= 1:
+        bar, whole, grid = (bar, whole + 1, Fraction(0)) if again is None else (
+            again[0], math.floor(again[1] + 1e-6), Fraction(0))
+    return GridPoint(bar, whole, grid, exact, point, spacing)
+
+
+def grid_label(score: Score, written_time: float, scale: float = 1.0) -> str:
+    """``bar 3, beat 2&``: a position on the beat's grid (:func:`grid_point`), counted as :data:`SYLLABLES`
+    (``beat 2``, ``2e``, ``2&``, ``2a``, ``2 trip``, ``2 let``) or, on a :data:`FINE_GRIDS` subdivision, as a
+    fraction (``beat 2 + 1/8``); off those (a strike, a humanised MIDI exercise), the nearest sixteenth or triplet
+    point and how far from it on the take's clock (``beat 2& (12 ms late)``; ``scale``: the tempo ratio, take /
+    exercise), the next beat's (or bar's) first point included (``bar 4, beat 1 (20 ms early)``)."""
+    point = grid_point(score, written_time)
+    if point is None:
+        return "before bar 1"
+    late_ms = (written_time - point.time) * 1000 / scale
+    text = f"bar {point.bar}, beat {point.beat}{SYLLABLES.get(point.grid, f' + {point.grid}')}"
+    if not point.exact and round(abs(late_ms)) >= 1:
         text += f" ({abs(late_ms):.0f} ms {'late' if late_ms > 0 else 'early'})"
     return text
 
@@ -632,16 +663,19 @@ def bar_rows(score: Score, written: Sequence[tuple[float, float]], pairs: Sequen
 
     ``written``: each written note's (exercise clock, compared clock) time, s; ``pairs``: (written index, take
     time s, played - written s); ``missed``/``off``/``wrong``: written indices; ``extra_bars``: each extra's
-    bar."""
-    labels: list[Any] = [None if (at := bar_and_beat(score, t)) is None else at[0] for t, _ in written]  # bar
+    bar (its nearest grid point's, as :func:`position` says it)."""
+    # each note's bar as its position says it (grid_point: a humanised note just before a downbeat is that bar's)
+    labels: list[Any] = [None if (at := grid_point(score, t)) is None else at.bar for t, _ in written]
     known = [b for b in labels if b is not None]
     if not known:
         return []
     first = 0 if pickup(score) is not None else 1
+    # an extra's bar too (a strike just before the bar after the last written note: a row of its own)
+    last = max(known + [b for b in extra_bars if b is not None])
     rows: dict[int, dict[str, Any]] = {
         b: {"bar": b, "written": 0, "played": 0, "missed": 0, "off_tolerance": 0, "wrong_drum": 0, "extra": 0,
             "mean_ms": None, "feel": None, "bpm": None, "written_bpm": None}
-        for b in range(min(first, min(known)), max(known) + 1)}
+        for b in range(min(first, min(known)), last + 1)}
     for b in known:
         rows[b]["written"] += 1
     for key, indices in (("missed", missed), ("off_tolerance", off), ("wrong_drum", wrong)):
@@ -738,12 +772,19 @@ def beat_feels(score: Score, notes: Sequence[tuple[float, float]], tolerance: fl
     than a quarter of the tolerance early (late): one note far off among steady ones (a median of two is their
     mean) is no rushed beat. ``mean_ms`` is the onsets' mean.
 
+    The beat judged is the felt one (:func:`felt_beat`): in 6/8, 9/8 and 12/8 a dotted quarter, three counted
+    eighths (an eighth of 6/8 seldom has two onsets: a beat per eighth was never judged); ``beat`` and
+    ``last_beat`` are its first and last counted beats (4 and 6: the second dotted quarter of 6/8; one beat:
+    equal).
+
     ``notes``: (written time on the exercise's clock s, played - written s) of every written note played."""
     beats: dict[tuple[int, int], dict[float, list[float]]] = defaultdict(lambda: defaultdict(list))
+    groups: dict[int, int] = {}  # bar: counted beats per felt beat
     for t, error in notes:
-        at = bar_and_beat(score, t)
+        at = grid_point(score, t)
         if at is not None:
-            beats[(at[0], math.floor(at[1] + 1e-6))][round(t, 6)].append(error)
+            group = groups.setdefault(at.bar, felt_beat(score, at.bar))
+            beats[(at.bar, (at.beat - 1) // group * group + 1)][round(t, 6)].append(error)
     out = []
     for (bar, beat), onsets in sorted(beats.items()):
         errors = np.array([np.mean(v) for v in onsets.values()])
@@ -752,10 +793,31 @@ def beat_feels(score: Score, notes: Sequence[tuple[float, float]], tolerance: fl
             continue
         if 2 * np.sum(errors * np.sign(median) > tolerance / 4) <= len(errors):
             continue
-        out.append({"bar": bar, "beat": beat, "onsets": len(errors), "notes": sum(len(v) for v in onsets.values()),
+        out.append({"bar": bar, "beat": beat, "last_beat": beat + groups[bar] - 1, "onsets": len(errors),
+                    "notes": sum(len(v) for v in onsets.values()),
                     "mean_ms": _r(float(np.mean(errors)) * 1000, 1), "median_ms": _r(median * 1000, 1),
                     "feel": "rushed" if median < 0 else "dragging"})
     return out
+
+
+def felt_beat(score: Score, bar: int) -> int:
+    """Counted beats (:func:`bar_unit`) per felt beat in bar ``bar`` (numbered as :func:`position` says; a pick-up
+    as the bar after it): 3 in a compound meter (6, 9 or 12 eighths or sixteenths: the dotted quarter a player
+    feels and a teacher points at), else 1: x/4 and x/2, and 3/8, 5/8 and 7/8, whose grouping (2+3 or 3+2, 2+2+3
+    or 3+2+2) the score does not give. For rushed and dragging beats only: positions keep counting eighths."""
+    # Score.bar_beats' bar: bar 1 is its first bar, or its second after a pick-up (bar 0 counted as bar 1)
+    index = max(bar, 1) if pickup(score) is not None else max(bar - 1, 0)
+    unit = bar_unit(score, index)
+    starts = np.asarray(score.bar_beats, dtype=float)
+    if unit > 0.5 or not len(starts):
+        return 1
+    k = min(index, len(starts) - 1)
+    # the bar's length in quarter notes, as common.score.position.bar_beat measures it (the last: to the last beat)
+    length = float(starts[k + 1] - starts[k]) if k + 1 < len(starts) else len(score.beats) - 1 - float(starts[k])
+    if length <= 0 and k > 0:
+        length = float(starts[k] - starts[k - 1])
+    count = round(length / unit)
+    return 3 if count >= 6 and count % 3 == 0 and abs(count * unit - length) < 1e-6 else 1
 
 
 def bar_lines(report: dict[str, Any]) -> list[str]:
@@ -789,7 +851,7 @@ def bar_lines(report: dict[str, Any]) -> list[str]:
         lines.append(f"... {fine} other bar{'' if fine == 1 else 's'} fine (--json lists every bar)")
     told = sorted([(b["bar"], 0, f"bar {b['bar']}: {b['feel']}, {b['mean_ms']:+.0f} ms on average")
                    for b in bars if b["feel"]]
-                  + [(b["bar"], b["beat"], f"bar {b['bar']}, beat {b['beat']}: {b['feel']}, {b['mean_ms']:+.0f} ms "
+                  + [(b["bar"], b["beat"], f"bar {b['bar']}, {_beats_text(b)}: {b['feel']}, {b['mean_ms']:+.0f} ms "
                       f"on average ({b['notes']} notes)") for b in beats])
     lines.extend(text for _, _, text in told)
     d = report.get("drift")
@@ -801,6 +863,12 @@ def bar_lines(report: dict[str, Any]) -> list[str]:
                      f"{d['written_from_bpm']:.0f}), bar {d['to_bar']} {against_written(d['to_percent'])} "
                      f"({d['to_bpm']:.0f} bpm, written {d['written_to_bpm']:.0f})")
     return lines
+
+
+def _beats_text(beat: dict[str, Any]) -> str:
+    """``beat 4``, or a felt beat of several counted ones ``beats 4-6`` (:func:`felt_beat`)."""
+    last = beat.get("last_beat", beat["beat"])
+    return f"beat {beat['beat']}" if last == beat["beat"] else f"beats {beat['beat']}-{last}"
 
 
 def tempo_bpm(score: Score) -> float | None:
@@ -979,16 +1047,23 @@ def _compare_at(score: Score, take: Take, kit: Kit, tolerance: float, scale: flo
         "warnings": list(take.warnings),
     }
     # the take's last note from the start on (one just after the end too: a last note late is no early stop)
-    later = [p.time - offset for p in played if p.time - offset >= start]
-    last = max(later) if later else None
-    if (last is not None and bpm is not None
-            and exercise_end(score) - written_clock(last) <= 60.0 / bpm + written_clock(tolerance)):
-        last = None  # the take's last note within a beat of the end: it played to the end, its misses are listed
+    later = [(p.time - offset, j) for j, p in enumerate(played) if p.time - offset >= start]
+    last, last_j = max(later) if later else (None, None)
+    if last is not None and bpm is not None:
+        # within a beat (a quarter note where the exercise ends, through its tempo map) of the end: it played to the
+        # end, its misses are listed. The median tempo judged it before: 90 bpm's beat read a take stopping a beat
+        # and a half before the end of a last bar at 140 as played to the end
+        end_q, last_q = quarters(score, np.array([exercise_end(score), written_clock(last + tolerance)]))
+        if end_q - last_q <= 1 + 1e-9:
+            last = None
     for entry in misses:  # a take stopped before the end: its missed notes after the take are told as one
         entry["after_take"] = last is not None and entry["time_s"] > written_clock(last + tolerance)
     after = sum(bool(entry["after_take"]) for entry in misses)
     if last is not None and after:
-        report["take_stops"] = {**position(score, written_clock(last), scale), "missed_after": after}
+        # where the written note it was played for is (its bar, as the table counts it), else the strike's own
+        i_of = {j: i for i, j in struck}
+        at = written_clock(last if last_j not in i_of else written[i_of[last_j]].time)
+        report["take_stops"] = {**position(score, at, scale), "missed_after": after}
     if len(pairs) < TEMPO_CHECK_BELOW * len(written):
         ratio, count = find_tempo(written, played, tolerance, offset if forced else None)
         length = exercise_end(score) / scale  # s, as the take plays it: a small ratio still drifts over a long take
@@ -1192,14 +1267,18 @@ left within --tolerance (a cymbal for a cymbal, a drum for a drum, first);
 else missed. Extras are the strikes left over. A beat is told rushed
 (dragging) when its notes are: two onsets at least, more than half of them
 over a quarter of --tolerance early (late) and their median over half of it;
-one note off among steady ones is not. Positions are counted as a teacher
-does: beat 3, 3e, 3&, 3a (sixteenths), 3 trip, 3 let (triplets), 3 + 1/8 (a
-finer written note); off that grid, the nearest point and how far from it on
-the take's clock ("beat 3& (12 ms late)"). The beat is the meter's note value,
-as a DAW counts: eighths in x/8, 6/8 and 12/8 too (1 to 6, 1 to 12; beat 4&
-is a sixteenth after the fourth eighth), quarters in x/4. Each bar's tempo
-(quarter notes a minute) is measured against its own written tempo (a tempo
-map's); a drift is a tempo rising or falling against it, and a take at
+one note off among steady ones is not. The beat judged so is the felt one:
+in 6/8, 9/8 and 12/8 the dotted quarter ("bar 2, beats 4-6: rushed"), else
+the counted beat (5/8 and 7/8 in eighths: their grouping is not written).
+Positions are counted as a teacher does: beat 3, 3e, 3&, 3a (sixteenths),
+3 trip, 3 let (triplets), 3 + 1/8 (a finer written note); off that grid, the
+nearest point and how far from it on the take's clock ("beat 3& (12 ms
+late)"), in that point's bar (a strike 20 ms before bar 4 is bar 4's, "bar 4,
+beat 1 (20 ms early)", in the bar table too). The beat is the meter's note
+value, as a DAW counts: eighths in x/8, 6/8 and 12/8 too (1 to 6, 1 to 12;
+beat 4& is a sixteenth after the fourth eighth), quarters in x/4. Each bar's
+tempo (quarter notes a minute) is measured against its own written tempo (a
+tempo map's); a drift is a tempo rising or falling against it, and a take at
 another tempo than a tempo map is said in % of the written one. An audio
 take is compared on the drums the transcriber knows (kick, snare, hi-hat,
 three toms, crash, ride); the others are listed apart. When most notes do not match, the tempo the take

@@ -586,6 +586,16 @@ class GraphicsCore:
         return ScorePosition(time=now, bar=where.bar, beat=min(where.beat, _MAX_BEAT),
                              tempo_bpm=min(where.tempo_bpm * self.preview_clock.rate, _MAX_BPM))
 
+    def _beat_unit(self, bar: int) -> float:
+        """The beat the page counts bar ``bar`` (from 0, as ``bar_beat``) in, quarter notes: the previewed score's
+        meter's 1/D note (``Score.bar_units``: 0.5 in 6/8, counted 1 to 6 as a DAW and ``batteur compare`` count;
+        bars past the last start as the last), quarter notes for a score that gives none and for the score
+        player's position (its message carries no meter)."""
+        score = self.preview_score if self.mode == "preview" and self.preview is not None else None
+        if score is None or not len(score.bar_units) or len(score.bar_units) != len(score.bar_beats):
+            return 1.0
+        return float(score.bar_units[min(max(bar, 0), len(score.bar_units) - 1)])
+
     def preview_counts(self, now: float) -> dict[str, Any] | None:
         """The preview's own numbers for the status (None with none loaded): its ``rate``, its ``poses`` and
         ``strokes`` (of the span it loops), the strokes ``played`` in this lap and the ``laps`` completed."""
@@ -696,7 +706,8 @@ class GraphicsCore:
         position = self.preview_position(now) if self.mode == "preview" and self.preview is not None else (
             self.score if self.score is not None and now - self._score_seen <= SCORE_POSITION_KEPT_S else None)
         if position is not None:  # the preview's own position while it is shown, else the score player's
-            score = {"bar": position.bar, "beat": round(position.beat, 2), "tempo_bpm": round(position.tempo_bpm, 1)}
+            score = {"bar": position.bar, "beat": round(position.beat, 2), "tempo_bpm": round(position.tempo_bpm, 1),
+                     "beat_unit": self._beat_unit(position.bar)}
         newest = self._times[-1] if self._times else None
         return {
             "type": "status", "time": round(now, 3), "mode": self.mode, "latency": self.latency,

@@ -699,8 +699,8 @@ def test_a_one_beat_fill_rushed_is_told_at_the_beat(sign: int, feel: str, tmp_pa
     assert got["played"] == 52 and got["off_tolerance"] == 1
     assert [b["feel"] for b in got["bars"]] == [None] * 4
     assert got["bars"][3]["mean_ms"] == pytest.approx(sign * 12, abs=0.6)
-    assert got["beats_rushed_dragging"] == [{"bar": 4, "beat": 4, "onsets": 4, "notes": 4, "mean_ms": sign * 42.0,
-                                             "median_ms": sign * 42.5, "feel": feel}]
+    assert got["beats_rushed_dragging"] == [{"bar": 4, "beat": 4, "last_beat": 4, "onsets": 4, "notes": 4,
+                                             "mean_ms": sign * 42.0, "median_ms": sign * 42.5, "feel": feel}]
     _, out, _ = run([str(exercise), str(path)], capsys)
     assert f"bar 4, beat 4: {feel}, {sign * 42:+d} ms on average (4 notes)" in out
     assert "bar 4: " not in out and "bar 2, beat 2:" not in out
@@ -725,12 +725,13 @@ def test_beats_of_a_bar_rushed_as_a_whole_are_in_the_json_not_said_again(
 def test_positions_are_said_on_the_counting_grid(time_s: float, says: str, exercise: Path, tmp_path: Path,
                                                  capsys: pytest.CaptureFixture[str]) -> None:
     """An extra tom in bar 3 (4 to 6 s): sixteenths counted 1 e & a, triplets 1 trip let, a thirty-second as a
-    fraction; off that grid, its nearest point and how far from it (the next bar's first beat included)."""
+    fraction; off that grid, its nearest point and how far from it (the next bar's first beat included: then the
+    strike is bar 4's, as said)."""
     take = [(START + t, p, v) for t, p, v in written(exercise)] + [(START + round(time_s * 2000) / 2000, 48, 90)]
     path = write_take(tmp_path / "take.mid", take)
     got = report([str(exercise), str(path)], capsys)
     [extra] = got["extras"]
-    assert extra["where"] == says and extra["bar"] == 3
+    assert extra["where"] == says and extra["bar"] == (4 if says.startswith("bar 4") else 3)
     _, out, _ = run([str(exercise), str(path)], capsys)
     assert f"{says}: hightom extra" in out
 
@@ -918,3 +919,88 @@ def test_a_count_in_is_at_a_tempo_map_s_first_tempo(tmp_path: Path, capsys: pyte
     assert got["entry"]["count_in_beat_s"] == pytest.approx(beat, abs=1e-3) and got["entry"]["on_time"]
     _, out, _ = run([str(exercise), str(take)], capsys)
     assert "entered on the beat after the count-in" in out
+
+
+def test_a_strike_just_before_a_downbeat_is_that_bar_s_in_its_label_and_the_table(
+        exercise: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A tom 20 ms before bar 3's first beat (an extra) and one 20 ms before bar 1's: each is told and counted in
+    the bar of its nearest grid point (the label said bar 3 while the table counted it in bar 2, where it falls;
+    the first was "before bar 1" and in no bar); its beat, 0.96, is just before that bar's 1. A take whose last
+    note is bar 4's kick played 20 ms early stops in bar 4, the bar of the written note it is paired with. A tom 20
+    ms before the exercise's end (bar 5's first beat) is bar 5's, a row of its own, so that the table's extras add
+    up to the summary's."""
+    take = [(START + t, p, v) for t, p, v in written(exercise)] + [(START + 3.98, 48, 90), (START - 0.02, 48, 90),
+                                                                   (START + 7.98, 48, 90)]
+    got = report([str(exercise), str(write_take(tmp_path / "take.mid", take))], capsys)
+    assert [(x["where"], x["bar"], x["beat"]) for x in got["extras"]] == [
+        ("bar 1, beat 1 (20 ms early)", 1, 0.96), ("bar 3, beat 1 (20 ms early)", 3, 0.96),
+        ("bar 5, beat 1 (20 ms early)", 5, 0.96)]
+    assert [b["extra"] for b in got["bars"]] == [1, 0, 1, 0, 1]
+    _, out, _ = run([str(exercise), str(write_take(tmp_path / "take.mid", take))], capsys)
+    table = out.split(" bar written played")[1].splitlines()[1:6]
+    assert [line.split()[5] for line in table] == ["1", "0", "1", "0", "1"]
+    assert "bar 3, beat 1 (20 ms early): hightom extra" in out
+
+    stops = [(START + t - (0.020 if t == 6.0 else 0.0), p, v) for t, p, v in written(exercise) if t <= 6.0 and p != 42]
+    got = report([str(exercise), str(write_take(tmp_path / "stops.mid", stops))], capsys)
+    assert (got["take_stops"]["bar"], got["take_stops"]["where"]) == (4, "bar 4, beat 1")
+
+
+def test_the_take_stops_is_judged_on_the_tempo_map(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A map of 120, 90 (three bars) and 140 bpm, a take stopping on the 140 bar's beat 3 (0.64 s, a beat and a
+    half there, before the last hi-hat): the take stops there, its four notes after it missed as one. The median
+    beat (90 bpm, 0.67 s) read it as within a beat of the end, played to the end."""
+    notes, tempi = rock_bars([120, 90, 90, 90, 140])
+    exercise = write_exercise(tmp_path / "map.mid", notes, tempi, [(0, 4, 4)])
+    score = read_score(exercise)
+    stop = float(score.beats[18])  # the last bar's beat 3
+    take = write_take(tmp_path / "take.mid", [(START + round(e.time * 2000) / 2000, PITCH[e.event.value], 100)
+                                              for e in score.events if e.time <= stop + 1e-6])
+    got = report([str(exercise), str(take)], capsys)
+    assert got["take_stops"] == {"bar": 5, "beat": 3, "where": "bar 5, beat 3", "missed_after": 4}
+    _, out, _ = run([str(exercise), str(take)], capsys)
+    assert "the take stops at bar 5, beat 3 (its last note): 4 written notes after it are missed" in out
+
+
+def test_a_rushed_beat_in_six_eight_is_its_dotted_quarter(tmp_path: Path, capsys: pytest.CaptureFixture[str]
+                                                          ) -> None:
+    """6/8: the second dotted quarter of bar 1 (eighths 4 to 6, one onset each) 40 ms early is a rushed beat,
+    told by its eighths (``beats 4-6``); counted per eighth it was three beats of one onset, never judged. Bar 1's
+    mean (-20 ms) is under the bar's mark."""
+    exercise = tmp_path / "six.txt"
+    exercise.write_text(SIX_EIGHT, encoding="utf-8")
+    early = {round((1 + k) / 3, 6) for k in (3, 4, 5)}  # bar 1's eighths 4, 5 and 6 (after the pick-up's eighth)
+    take = [(START + t - (0.040 if round(t, 6) in early else 0.0), p, v) for t, p, v in written(exercise)]
+    got = report([str(exercise), str(write_take(tmp_path / "take.mid", take))], capsys)
+    assert got["played"] == got["written"] and got["bars"][1]["feel"] is None
+    assert [(b["bar"], b["beat"], b["last_beat"], b["onsets"], b["feel"]) for b in got["beats_rushed_dragging"]] == [
+        (1, 4, 6, 3, "rushed")]
+    _, out, _ = run([str(exercise), str(write_take(tmp_path / "take.mid", take))], capsys)
+    assert "bar 1, beats 4-6: rushed, -40 ms on average (4 notes)" in out
+
+
+def test_a_beat_in_seven_eight_is_its_eighth() -> None:
+    """7/8 (2+2+3 or 3+2+2: not known) and 3/8 are judged per eighth, 6/8 9/8 12/8 (and 6/16) per three."""
+    from batteur.compare import felt_beat
+    from common.score.text import parse_text
+
+    for meter, group in (((7, 8), 1), ((5, 8), 1), ((3, 8), 1), ((6, 8), 3), ((9, 8), 3), ((12, 8), 3),
+                         ((6, 16), 3), ((4, 4), 1), ((6, 4), 1)):
+        n, d = meter
+        score = parse_text(f"tempo 120\nmeter {n}/{d}\nSN |{'x' * n}|{'x' * n}|\n")
+        assert felt_beat(score, 1) == group and felt_beat(score, 2) == group, meter
+
+
+def test_a_written_note_just_before_a_downbeat_is_counted_in_the_bar_it_is_said_in(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A humanised MIDI exercise whose bar 3 kick is written 20 ms early (3.98 s), missed: said and counted as bar
+    3's (it was said "bar 3, beat 1 (20 ms early)" and counted in bar 2)."""
+    notes, tempi = rock_bars([120] * 4)
+    notes = [(7.96 if (b, p) == (8, 36) else b, p, v) for b, p, v in notes]
+    exercise = write_exercise(tmp_path / "humanised.mid", notes, tempi, [(0, 4, 4)])
+    take = [(START + round(e.time * 2000) / 2000, PITCH[e.event.value], 100) for e in read_score(exercise).events
+            if round(e.time, 3) != 3.98]
+    got = report([str(exercise), str(write_take(tmp_path / "take.mid", take))], capsys)
+    assert [(m["where"], m["bar"]) for m in got["misses"]] == [("bar 3, beat 1 (20 ms early)", 3)]
+    assert [(b["bar"], b["written"], b["missed"]) for b in got["bars"]] == [(1, 12, 0), (2, 12, 0), (3, 12, 1),
+                                                                            (4, 12, 0)]

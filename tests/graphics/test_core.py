@@ -158,14 +158,14 @@ def test_status_lists_nodes_late_strikes_and_score_position() -> None:
     status = [m for m in core.take_page_messages() if m["type"] == "status"][-1]
     assert status["late"] == 3
     assert status["nodes"][0]["role"] == "sound"
-    assert status["score"] == {"bar": 2, "beat": 1.5, "tempo_bpm": 120.0}
+    assert status["score"] == {"bar": 2, "beat": 1.5, "tempo_bpm": 120.0, "beat_unit": 1.0}  # no meter: quarters
 
 
 def test_a_score_position_no_longer_sent_leaves_the_panel() -> None:
     """The player sends ten a second while the score plays; one older than a second is a stopped score."""
     core = _core()
     core.handle(ScorePosition(time=5.0, bar=2, beat=1.5, tempo_bpm=120.0), 1.0, "physics")  # another clock
-    assert core.status(1.9)["score"] == {"bar": 2, "beat": 1.5, "tempo_bpm": 120.0}
+    assert core.status(1.9)["score"] == {"bar": 2, "beat": 1.5, "tempo_bpm": 120.0, "beat_unit": 1.0}
     assert core.status(2.1)["score"] is None
 
 

@@ -76,14 +76,14 @@ def test_the_status_shows_the_previews_bar_beat_and_counts(bars: Path) -> None:
     status = core.status(15.2)
     where = bar_beat(preview.score, start + 2.6)
     assert where is not None and (where.bar, where.beat) == (0, pytest.approx(3.2))
-    assert status["score"] == {"bar": 0, "beat": 3.2, "tempo_bpm": 60.0}
+    assert status["score"] == {"bar": 0, "beat": 3.2, "tempo_bpm": 60.0, "beat_unit": 1.0}
     # by 1.6 s: hi-hat eighths 0 to 1.5 s (7), snare 0.5 and 1.5 s, kick 0 and 1 s
     assert status["preview"] == {"rate": 0.5, "poses": len(preview.sequence.times), "strokes": 24,
                                  "played": 11, "laps": 0}
     assert core.status(11.0)["score"] is None  # before the first beat: nothing to show yet
     # faster from then on: at rate 2, a second later the motion is at 3.6 s, bar 1 beat 3.2, 240 bpm as played
     core.set_preview_rate(2.0, 15.2)
-    assert core.status(16.2)["score"] == {"bar": 1, "beat": 3.2, "tempo_bpm": 240.0}
+    assert core.status(16.2)["score"] == {"bar": 1, "beat": 3.2, "tempo_bpm": 240.0, "beat_unit": 1.0}
     view = core.take_page_messages()[-1]
     assert view["type"] == "view" and view["control"] == "preview_rate" and view["preview_rate"] == 2.0
     # the live view shows what physics' score player sends, not the preview's

@@ -638,7 +638,10 @@ function renderStatus() {
     ? `<tr class="quiet"><td>${n.role}</td><td class="bad" title="no report for ${n.age} s">quiet</td>`
     : `<tr><td>${n.role}</td><td>${n.rate_hz}/${n.target_hz} Hz</td>`) +
     `<td>late ${n.late}</td><td>${n.age}s</td></tr>`).join("");
-  const score = s.score ? `bar ${s.score.bar + 1} beat ${(s.score.beat + 1).toFixed(2)} @ ${s.score.tempo_bpm} bpm`
+  // beats counted in the meter's note value (beat_unit, quarter notes: 0.5 in 6/8, eighths 1 to 6 as a DAW and
+  // batteur compare count them); the node's beat is in quarter notes, the tempo stays quarter notes a minute
+  const score = s.score
+    ? `bar ${s.score.bar + 1} beat ${(s.score.beat / (s.score.beat_unit ?? 1) + 1).toFixed(2)} @ ${s.score.tempo_bpm} bpm`
     : "–";
   // a figure and its unit never wrap apart in the narrow panel ("465" at the end of a line, "ms" on the next)
   const nw = (text) => `<span class="nw">${text}</span>`;
