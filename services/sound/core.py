@@ -145,6 +145,8 @@ openness (closed), set by the chick. Counted (press_ignored), not applied."""
 
 KNEE = 0.7
 """Master soft limiter: linear below this level, a tanh knee above, never beyond 1."""
+MASTER_RAMP_S = 0.02
+"""A master gain change glides over this long, seconds (no zipper noise, no click)."""
 
 
 def soft_limit(x: F32) -> None:
@@ -226,6 +228,7 @@ class SoundStats:
     blocks: int = 0
     clock_steps: int = 0  # steps of rig time the output was re-anchored on (SoundCore.clock_stepped)
     strike_errors: Counter[str] = field(default_factory=Counter)  # strikes that raised, not played, by instrument
+    render_errors: Counter[str] = field(default_factory=Counter)  # blocks whose render raised (silenced), by instrument
 
     @property
     def rejected_total(self) -> int:
@@ -304,10 +307,13 @@ class SoundCore:
         self.stats = SoundStats()
         self.next_sample = 0  # first output sample not rendered yet
         self.master_db = s.master_db
+        self._master_gain = 10.0 ** (s.master_db / 20.0)  # linear, as applied to the last sample rendered
+        self._master_glide = (self._master_gain, 0.0)  # (linear gain gliding to, change per sample)
         self.reverb = s.reverb
         self._stage: PyoStage | None = None
         if s.use_pyo:
-            self._stage = PyoStage(self.sample_rate, self.block, self.channels, s.reverb, s.master_db)
+            # its own master gain stays at 0 dB: the core applies the master before the limiter
+            self._stage = PyoStage(self.sample_rate, self.block, self.channels, s.reverb, 0.0)
         self._record: list[F32] = []
         self.on_block: Callable[[F32], None] | None = None
         """Called with every rendered block."""
@@ -381,7 +387,7 @@ class SoundCore:
         if isinstance(message, SoundMaster):
             self.master_db, self.reverb = float(message.gain_db), float(message.reverb)
             if self._stage is not None:
-                self._stage.set_master(self.master_db, self.reverb)
+                self._stage.set_master(0.0, self.reverb)
             return []
         spec = PARAM_MESSAGES.get(type(message))
         if spec is None:
@@ -676,12 +682,15 @@ class SoundCore:
             buf[:] = 0.0
         for inst in self.instruments.instruments.values():
             if inst.sounding:
-                buf = self._bus_for(inst.id)
-                inst.process(buf)
+                try:
+                    inst.process(self._bus_for(inst.id))
+                except Exception as exc:  # noqa: BLE001 - one instrument failing must not take the others' block
+                    self._render_failed(inst.id, exc)
         if self._touched:
             self._follow_presses(self._touched)
             self._touched = set()
-        self.pool.render(self._bus_for)
+        for inst_id, voice_exc in self.pool.render(self._bus_for).items():  # voices that raised, by instrument
+            self._render_failed(inst_id, voice_exc)
         for inst_id, buf in self._bus.items():
             if not np.isfinite(buf).all():
                 self._silence(inst_id, buf)
@@ -695,11 +704,11 @@ class SoundCore:
                 left, right = self._pans[inst_id]
                 mix[:, 0] += g * left * buf
                 mix[:, 1] += g * right * buf
+        self._apply_master(mix)
         soft_limit(mix)
         if self._stage is not None:
             mix = self._stage.process(mix)
         else:
-            mix *= 10.0 ** (self.master_db / 20.0)
             np.clip(mix, -1.0, 1.0, out=mix)
         self.next_sample += n
         self.stats.blocks += 1
@@ -715,12 +724,32 @@ class SoundCore:
                 self._drop_sink(sink, exc)
         return out
 
+    def _apply_master(self, mix: F32) -> None:
+        """In place: the master gain, before the limiter, so that a boost is limited softly (after it, the final
+        clip cut every peak the boost pushed past full scale); a change glides linearly over MASTER_RAMP_S."""
+        target = 10.0 ** (self.master_db / 20.0)
+        g = self._master_gain
+        if g == target:
+            if g != 1.0:
+                mix *= np.float32(g)
+            return
+        if target != self._master_glide[0]:  # a new value: glide to it from where the gain is, at a fixed rate
+            self._master_glide = (target, (target - g) / (MASTER_RAMP_S * self.sample_rate))
+        step = self._master_glide[1]
+        ramp = g + step * np.arange(1, mix.shape[0] + 1)
+        ramp = np.minimum(ramp, target) if step > 0 else np.maximum(ramp, target)
+        mix *= ramp.astype(np.float32)[:, None]
+        self._master_gain = float(ramp[-1])
+
     def _follow_presses(self, instruments: set[str]) -> None:
         """Presses on silent instruments (not processed) apply now; voices (samples, synthesis, noise) of
         ``instruments`` decay by their presses' mean rate from this block."""
         for inst_id in instruments:
             inst = self.instruments.instruments[inst_id]
-            inst.apply_presses()  # nothing left to apply if it was processed
+            try:
+                inst.apply_presses()  # nothing left to apply if it was processed
+            except Exception as exc:  # noqa: BLE001 - as a failing process(): this instrument only
+                self._render_failed(inst_id, exc)
             rate = inst.press_rate_total
             if rate > 0.0:
                 self.pool.press_rates[inst_id] = rate
@@ -746,6 +775,27 @@ class SoundCore:
         self.stats.silenced += 1
         self._log_drop("silenced", f"{instrument} produced non-finite samples with its current parameters: "
                        "its ringing was stopped")
+
+    def _render_failed(self, instrument: str, exc: Exception) -> None:
+        """An instrument's render (its modes, presses or voices) raised this block: it alone is lost. Its bus is
+        zeroed for the block, its ringing, voices and half-done changes dropped (:meth:`Instrument.reset`) so its
+        next strike starts clean; counted (``render_errors``, in Health's errors), the first failure of each
+        instrument logged with its traceback, later ones rate-limited."""
+        self._bus_for(instrument)[:] = 0.0
+        self.pool.voices = [v for v in self.pool.voices if v.instrument != instrument]
+        try:
+            self.instruments.instruments[instrument].reset()
+        except Exception as reset_exc:  # noqa: BLE001 - still silenced; its next render may fail and be counted
+            log.error("%s: could not be reset after its render failed (%s: %s)", instrument,
+                      type(reset_exc).__name__, reset_exc)
+        self.stats.render_errors[instrument] += 1
+        if self.stats.render_errors[instrument] == 1:
+            log.error("%s: its render failed (%s: %s): silenced for this block, the other instruments play; its "
+                      "next strike starts afresh (counted in Health's errors)", instrument, type(exc).__name__, exc,
+                      exc_info=exc)
+        else:
+            self._log_drop("render_error", f"{instrument}: its render failed ({type(exc).__name__}: {exc}), "
+                           f"silenced; {self.stats.render_errors[instrument]} so far")
 
     def _strike_failed(self, payload: tuple[str, Impact], exc: Exception) -> None:
         """Count a strike that raised (not played; the block's other strikes play): the first failure of each
@@ -817,9 +867,10 @@ class SoundCore:
 
     @property
     def core_errors(self) -> int:
-        """Failures of the core's own (strikes that raised, not played), total: the node's Health adds them to
-        its ``errors``, so ``batteur ls`` shows a drum gone silent."""
-        return sum(self.stats.strike_errors.values())
+        """Failures of the core's own (strikes that raised, not played; instruments whose render raised, silenced
+        for the block), total: the node's Health adds them to its ``errors``, so ``batteur ls`` shows a drum gone
+        silent."""
+        return sum(self.stats.strike_errors.values()) + sum(self.stats.render_errors.values())
 
     @property
     def duplicates(self) -> int:

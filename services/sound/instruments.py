@@ -42,7 +42,7 @@ from services.sound.plates import (
     plate_modes,
     ring_modes,
 )
-from services.sound.samples import SampleBank
+from services.sound.samples import SampleBank, sample_trim
 from services.sound.synth import SynthVoice, recipe_for
 from services.sound.voices import NoiseVoice, SampleVoice, VoicePool
 
@@ -467,14 +467,14 @@ class Instrument:
             self.strike_synth(strike, pool)
             return
         v = strike.velocity / REFERENCE_VELOCITY
-        gain = 0.5 * REFERENCE_PEAK / 0.25 * min(v, 4.0) ** 1.1
+        gain = 0.5 * REFERENCE_PEAK / 0.25 * sample_trim(name, strike.zone) * min(v, 4.0) ** 1.1
         cutoff = 1500.0 + 5000.0 * v**1.5
         pool.add(SampleVoice(self.id, data, gain, rate, cutoff, self.sr, strike.offset))
 
     def strike_synth(self, strike: Strike, pool: VoicePool) -> None:
         recipe = recipe_for(self.KIND, self.role, strike.zone, self.p.radius, self.p.openness)
         v = strike.velocity / REFERENCE_VELOCITY
-        gain = 0.22 * mix_level(self.role, self.KIND) * min(v, 4.0) ** 1.1
+        gain = 0.22 * mix_level(self.role, self.KIND) * recipe.trim * min(v, 4.0) ** recipe.velocity_exponent
         pool.add(SynthVoice(self.id, recipe, gain, min(v, 2.0) / 2.0, strike.seq, self.sr, strike.offset))
 
     # --------------------------------------------------------------- render
@@ -504,6 +504,17 @@ class Instrument:
         """Stop ringing at once: modes and strikes still to come (their injections) alike."""
         self.bank.clear()
         self._delayed.clear()
+
+    def reset(self) -> None:
+        """After its render raised (a bug, a bad bank): silent, the bank's state rebuilt to fit its modes and its
+        half-done changes dropped, so the next strike starts clean. Presses and lifts still due are applied now
+        (on the silent bank their sample makes no difference), then dropped even if that raises again."""
+        self.silence()
+        self.bank.reset()
+        try:
+            self.apply_presses()
+        finally:
+            self._press_events.clear()
 
 
 class Membrane(Instrument):

@@ -305,6 +305,18 @@ class ModeSet:
         self._live = False
         self.n_live = 0
 
+    def reset(self) -> None:
+        """Silent, with a fresh state fitted to the tables (a render that raised may have left it half-updated):
+        pending strikes dropped, the last pending decay change taken at once."""
+        if self._retunes:
+            self.tables = self._retunes[-1][1]
+        self._retunes.clear()
+        self._pending.clear()
+        self.z = np.zeros(self.size, dtype=np.complex128)
+        self._scaled = np.empty((self.A, self.size), dtype=np.complex64)
+        self._live = False
+        self.n_live = 0
+
     # ---------------------------------------------------------------- render
     def _block_of(self, z: ComplexArray, n: int | None = None, rows: int | None = None) -> npt.NDArray[np.float32]:
         """Im(sum_k z_k p_k^i) for i in [0, rows * Bn) (default: the block) over the first ``n`` modes, float32."""

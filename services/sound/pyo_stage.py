@@ -74,7 +74,8 @@ class PyoStage:
     reverb : float
         Wet/dry balance of the room, 0 (dry) to 1.
     master_db : float
-        Master gain, dB.
+        Master gain, dB (SoundCore leaves it at 0 and applies its master before its soft limiter, so that a boost
+        is limited rather than clipped here).
     """
 
     def __init__(

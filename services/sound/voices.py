@@ -149,16 +149,23 @@ class VoicePool:
             self.stolen += 1
         self.voices.append(voice)
 
-    def render(self, bus: Callable[[str], F32]) -> None:
-        """Render every voice into ``bus(instrument_id)`` and drop finished ones."""
-        if self.press_rates:
-            per_sample = {inst: rate / self.sample_rate for inst, rate in self.press_rates.items()}
-            for v in self.voices:
-                v.render(bus(v.instrument), 0.0 if v.press_exempt else per_sample.get(v.instrument, 0.0))
-        else:
-            for v in self.voices:
-                v.render(bus(v.instrument))
+    def render(self, bus: Callable[[str], F32]) -> dict[str, Exception]:
+        """Render every voice into ``bus(instrument_id)`` and drop finished ones. A voice that raises is dropped
+        and the others play: returns the instruments whose voices raised, with the first exception of each (the
+        caller silences them)."""
+        failed: dict[str, Exception] = {}
+        per_sample = {inst: rate / self.sample_rate for inst, rate in self.press_rates.items()}
+        for v in self.voices:
+            try:
+                if per_sample:
+                    v.render(bus(v.instrument), 0.0 if v.press_exempt else per_sample.get(v.instrument, 0.0))
+                else:
+                    v.render(bus(v.instrument))
+            except Exception as exc:  # noqa: BLE001 - a bug in one voice must not take every drum's block
+                v.done = True
+                failed.setdefault(v.instrument, exc)
         self.voices = [v for v in self.voices if not v.done]
+        return failed
 
     @property
     def active(self) -> int:
