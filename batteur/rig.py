@@ -246,6 +246,9 @@ def plan_rig(opts: argparse.Namespace, epoch: float) -> list[ServicePlan]:
             for other in roles:
                 if other != role:
                     args += ["--peer", f"{other}={peer_host(hosts[other])}:{ports[other]}"]
+        for left_out in ROLES:  # not started on purpose: no "no graphics peer known" every minute for it
+            if left_out not in roles:
+                args += ["--absent", left_out]
         if opts.no_discovery:
             args += ["--no-discovery"]
         else:

@@ -126,6 +126,9 @@ class NodeSettings(BaseSettings):
     port: int = Field(default=0, ge=0, le=65535, description="UDP port to receive OSC on (0: any free port)")
     peers: Annotated[list[str], NoDecode] = Field(
         default_factory=list, description="static peers ROLE=HOST:PORT; override discovery for their role")
+    absent: Annotated[list[str], NoDecode] = Field(
+        default_factory=list, description="a role left out on purpose (batteur rig gives each role it does not "
+        "start): messages to it are counted in Health as unroutable but not warned about")
     discovery: bool = Field(default=True, description="register and browse with zeroconf")
     interfaces: Annotated[list[str], NoDecode] = Field(
         default_factory=lambda: ["127.0.0.1"],
@@ -175,7 +178,7 @@ class NodeSettings(BaseSettings):
             raise ValueError(f"a number, not {str(value).lower()}")
         return value
 
-    @field_validator("peers", "interfaces", mode="before")
+    @field_validator("peers", "interfaces", "absent", mode="before")
     @classmethod
     def _lists(cls, value: Any) -> Any:
         return _split_list(value)
@@ -204,6 +207,14 @@ class NodeSettings(BaseSettings):
     def _check_peers(cls, value: list[str]) -> list[str]:
         for spec in value:
             parse_static_peer(spec)  # ValueError -> a validation error naming the bad peer
+        return value
+
+    @field_validator("absent")
+    @classmethod
+    def _check_roles(cls, value: list[str]) -> list[str]:
+        for role in value:
+            if not re.fullmatch(r"[a-z][a-z0-9_-]{0,31}", role):
+                raise ValueError(f"{role!r} is no role name (lower case: physics, interaction, sound, graphics, ...)")
         return value
 
     @field_validator("interfaces")

@@ -505,6 +505,7 @@ class Node:
             role=self.role,
         )
         self.endpoint.set_handler(self._on_message)
+        self.endpoint.absent_roles = set(s.absent)
         self.endpoint.tap = self._tap
         self.endpoint.on_undecodable = self._on_undecodable
         if s.oscquery:
@@ -1223,7 +1224,7 @@ def _close_core(core: Core) -> None:
 
 MakeCore = Callable[[NodeSettings, argparse.Namespace], Core]
 AddArguments = Callable[[argparse.ArgumentParser], object]
-_METAVARS = {"peers": "ROLE=HOST:PORT", "interfaces": "ADDRESS", "allow": "NETWORK"}
+_METAVARS = {"peers": "ROLE=HOST:PORT", "interfaces": "ADDRESS", "allow": "NETWORK", "absent": "ROLE"}
 
 
 def build_parser(

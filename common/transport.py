@@ -326,6 +326,9 @@ class UdpEndpoint:
         """Sends to a role with no known peer: by role, on ``clock`` (:meth:`_warn_no_peer`)."""
         self._no_peer_told: set[str] = set()
         """Roles whose missing peer was explained in full once."""
+        self.absent_roles: set[str] = set()
+        """Roles left out on purpose (a node's ``--absent``: a rig started without them): sends to one with no peer
+        are counted in ``unroutable``, not warned about (a peer of it found later is still sent to)."""
         self._opened_at = clock()
         host, port = sock.getsockname()[:2]
         self.local_address = format_address(host, port)
@@ -553,8 +556,11 @@ class UdpEndpoint:
     def _warn_no_peer(self, role: str) -> None:
         """Say that messages to ``role`` are not sent, as no peer of it is known: the first time in full (what to do),
         then at most once per :data:`NO_PEER_LOG_INTERVAL_S` with the count held back, so a role left out of the rig
-        on purpose (graphics not started, 60 poses a second) costs a line a minute, not a flood. Nothing is said in
-        the first :data:`NO_PEER_GRACE_S` (the peers of a rig starting together are still being found)."""
+        on purpose (graphics not started, 60 poses a second) costs a line a minute, not a flood; nothing at all for a
+        role in :attr:`absent_roles` (left out on purpose, as the rig says). Nothing is said in the first
+        :data:`NO_PEER_GRACE_S` (the peers of a rig starting together are still being found)."""
+        if role in self.absent_roles:
+            return  # not started on purpose: counted only
         now = self._clock()
         if now - self._opened_at < NO_PEER_GRACE_S:
             return  # the rig's other nodes may not be found yet: counted only
@@ -564,9 +570,9 @@ class UdpEndpoint:
         else:
             text = ("no %s peer known: messages to %s are not sent (counted in Health as unroutable). Start a %s "
                     "node, or give its address with --peer %s=HOST:PORT, or check that discovery browses the "
-                    "interfaces it announces on (--interface); if this rig runs without %s on purpose, ignore this "
-                    "(said again at most every %g s)")
-            args = (role, role, role, role, role, NO_PEER_LOG_INTERVAL_S)
+                    "interfaces it announces on (--interface); if this rig runs without %s on purpose, say so with "
+                    "--absent %s (batteur rig does) or ignore this (said again at most every %g s)")
+            args = (role, role, role, role, role, role, NO_PEER_LOG_INTERVAL_S)
         if self._no_peer_warnings.warn(role, now, text, *args):
             self._no_peer_told.add(role)
 

@@ -16,14 +16,18 @@ from collections.abc import Iterator
 
 import pytest
 
+import common.transport
 from batteur.tools import ls
+from common.config import load_settings
 from common.core import Outgoing
 from common.messages import Health, Hello, Impact, OscMessage, encode
 from common.peers import Peer, PeerTable
+from common.runtime import Node
 from common.transport import NO_PEER_GRACE_S, NO_PEER_LOG_INTERVAL_S, UdpEndpoint
 from tests.health_answerer import HealthAnswerer
 from tests.null_core import NullCore
 from tests.test_health_unanswered import health_after
+from tests.waiting import wait_for
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -97,6 +101,44 @@ class _SendsToGraphics(NullCore):
 
     def handle(self, message: OscMessage, now: float, source: str) -> list[Outgoing]:
         return [] if isinstance(message, Hello) else [Outgoing(HELLO, "graphics")]
+
+
+class _SendsToGraphicsAndSound(NullCore):
+    """Answers every message but a Hello with a message to graphics and one to sound (no peer is either)."""
+
+    def handle(self, message: OscMessage, now: float, source: str) -> list[Outgoing]:
+        return [] if isinstance(message, Hello) else [Outgoing(HELLO, "graphics"), Outgoing(IMPACT, "sound")]
+
+
+@pytest.mark.parametrize("absent", [[], ["graphics"]], ids=["alone", "absent-graphics"])
+def test_a_role_left_out_on_purpose_is_counted_not_warned_about(absent: list[str], caplog: pytest.LogCaptureFixture,
+                                                                monkeypatch: pytest.MonkeyPatch) -> None:
+    """``--absent graphics`` (what ``batteur rig --services physics,interaction,sound`` gives its services): no
+    "no graphics peer known" once and then once a minute for a role the rig did not start; the messages are still
+    counted, and a role missing otherwise is still warned about. A node started alone warns about graphics too."""
+    monkeypatch.setattr(common.transport, "NO_PEER_GRACE_S", 0.0)  # not the 10 s a rig's nodes get to be found
+
+    async def main() -> None:
+        node = Node(_SendsToGraphicsAndSound(), load_settings(  # type: ignore[arg-type]
+            {"role": "physics", "discovery": False, "clock_master": "self", "oscquery": False, "absent": absent}))
+        await node.start()
+        assert node.endpoint is not None
+        client = await UdpEndpoint.open("127.0.0.1")
+        try:
+            for _ in range(3):
+                client.send(IMPACT, node.endpoint.local_address)
+            await wait_for(lambda: node.endpoint is not None and node.endpoint.unroutable == 6, 20.0)
+        finally:
+            client.close()
+            await node.stop()
+
+    with caplog.at_level(logging.INFO, logger="batteur.transport"):
+        asyncio.run(main())
+    lines = _no_peer_lines(caplog)
+    said = [line for line in lines if "no graphics peer" in line]
+    assert len(said) == (0 if absent else 1), lines
+    sound = [line for line in lines if "no sound peer" in line]
+    assert len(sound) == 1 and "--absent sound" in sound[0], lines  # how to say it is meant
 
 
 def test_a_nodes_health_counts_what_it_could_not_send() -> None:

@@ -46,3 +46,20 @@ def test_a_bound_the_model_refuses_is_marked_so() -> None:
         with pytest.raises(MessageError, match="out_of_range"):
             Bounded.from_args([bad, 0.5, 0, 3.0])
     assert "| duration_s | f | > 0 .. 3600 |" in render_markdown()
+
+
+def test_the_generator_prints_the_reference_without_arguments_and_explains_on_help(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """``python -m common.messages.docs > docs/osc.md`` (the checks' ``| diff -q - docs/osc.md``) still prints the
+    reference; ``--help`` printed it too until 7 Dec, as any argument: now it explains, and a typo is refused."""
+    from common.messages import docs
+
+    assert docs.main([]) == 0
+    assert capsys.readouterr().out == render_markdown()
+    with pytest.raises(SystemExit) as done:
+        docs.main(["--help"])
+    out = capsys.readouterr().out
+    assert done.value.code == 0 and "usage:" in out and "### `" not in out
+    with pytest.raises(SystemExit) as done:
+        docs.main(["--ouput", "x.md"])
+    assert done.value.code == 2 and capsys.readouterr().out == ""

@@ -6,8 +6,10 @@ a test fails when the committed file is stale.
 
 from __future__ import annotations
 
+import argparse
 import inspect
 import sys
+from collections.abc import Sequence
 
 from common.messages.base import OscMessage, WireField, WireKind
 from common.messages.codec import MAX_BUNDLE_DEPTH
@@ -92,7 +94,12 @@ def render_markdown(registry: MessageRegistry = REGISTRY) -> str:
     return "\n".join(lines).rstrip() + "\n"
 
 
-def main() -> int:
+def main(argv: Sequence[str] | None = None) -> int:
+    argparse.ArgumentParser(
+        prog="python -m common.messages.docs",
+        description="Print docs/osc.md, the OSC namespace reference, generated from the message models "
+                    "(python -m common.messages.docs > docs/osc.md; batteur docs writes the file itself). "
+                    "Takes no options.").parse_args(argv)
     sys.stdout.write(render_markdown())
     return 0
 

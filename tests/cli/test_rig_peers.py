@@ -9,6 +9,9 @@ its clock. The peers must be the address the replies come from.
 
 from __future__ import annotations
 
+import importlib
+import json
+
 import pytest
 
 from batteur.rig import build_parser, plan_rig
@@ -44,3 +47,26 @@ def test_no_static_peers_and_no_discovery_is_refused_for_several_services() -> N
         plan_rig(opts, epoch=0.0)
     alone = build_parser().parse_args(["--no-discovery", "--no-static-peers", "--services", "sound"])
     assert [p.role for p in plan_rig(alone, epoch=0.0)] == ["sound"]  # one service has no one to find
+
+
+def test_the_roles_the_rig_does_not_start_are_given_as_absent(capsys: pytest.CaptureFixture[str]) -> None:
+    """``batteur rig --services physics,interaction,sound`` (docs/live-control.md): physics and interaction logged
+    "no graphics peer known" once, then once a minute, for a role the rig left out. Each service is told
+    (``--absent graphics``, which its parser takes: the settings it would run with have it); the full rig tells
+    none, a rig of one service tells it the other three. (A service started by itself, ``batteur physics``, is told
+    nothing and warns as before: tests/test_no_peer_warning.py.)"""
+    from batteur import cli
+
+    opts = build_parser().parse_args(["--services", "physics,interaction,sound", "--no-discovery"])
+    plans = plan_rig(opts, epoch=0.0)
+    for plan in plans:
+        assert [plan.args[i + 1] for i, a in enumerate(plan.args) if a == "--absent"] == ["graphics"], plan.args
+    interaction = next(p for p in plans if p.role == "interaction")
+    module = importlib.import_module(cli.COMMANDS["interaction"][0])
+    assert module.main([*interaction.args, "--show-settings"]) == 0
+    assert json.loads(capsys.readouterr().out)["absent"] == ["graphics"]
+    full = plan_rig(build_parser().parse_args(["--no-discovery"]), epoch=0.0)
+    assert not [p for p in full if "--absent" in p.args]
+    alone = plan_rig(build_parser().parse_args(["--no-discovery", "--services", "sound"]), epoch=0.0)
+    assert [a for i, a in enumerate(alone[0].args) if alone[0].args[i - 1] == "--absent"] == [
+        "physics", "interaction", "graphics"]

@@ -3,13 +3,18 @@
 Graphics may not import services/physics, so the editor's fallback body (link
 names, rest pose, joint limits, effector offsets of the default 1.75 m drummer)
 is a snapshot of what physics builds; ``test_poser.py`` checks it still matches.
-Regenerate with ``python -m tests.graphics.character_snapshot``.
+Regenerate with ``python -m tests.graphics.character_snapshot``; ``--check`` only says how far the shipped file
+is from what physics builds now (the last decimal of a few values differs between machines: no reason to rewrite).
 """
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
+import sys
+from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -64,6 +69,65 @@ def dumps(snapshot: dict[str, Any]) -> str:
     return "{\n " + ",\n ".join(lines) + "\n}\n"
 
 
+LAST_DECIMAL = {"rest": 1e-6, "limits_deg": 1e-4, "effectors": 1e-6}
+"""One unit of the last decimal :func:`build_snapshot` writes: a difference this small is rounding (the same body,
+computed on another machine), not a change."""
+
+
+def differences(shipped: dict[str, Any], fresh: dict[str, Any]) -> tuple[list[str], bool]:
+    """What differs between two snapshots, one line per key (names and links exactly, numbers by their largest
+    difference: metres or quaternion units, degrees for limits), and whether any of it is more than rounding."""
+    out: list[str] = []
+    changed = False
+    for key in sorted(set(shipped) | set(fresh)):
+        if key == "about":
+            continue
+        a, b = shipped.get(key), fresh.get(key)
+        if key == "effectors" and isinstance(a, dict) and isinstance(b, dict) and a.keys() == b.keys():
+            if any(a[k]["link"] != b[k]["link"] for k in a):
+                out.append("effectors: another link")
+                changed = True
+                continue
+            a, b = [a[k]["offset"] for k in sorted(a)], [b[k]["offset"] for k in sorted(b)]
+        if isinstance(a, list) and isinstance(b, list) and a and isinstance(a[0], list):
+            try:
+                gap = float(np.abs(np.asarray(a, float) - np.asarray(b, float)).max())
+            except ValueError:  # another shape
+                out.append(f"{key}: another shape")
+                changed = True
+                continue
+            if gap:
+                rounding = gap <= 1.5 * LAST_DECIMAL.get(key, 0.0)
+                out.append(f"{key}: largest difference {gap:.3g}" + (" (rounding)" if rounding else ""))
+                changed = changed or not rounding
+        elif a != b:
+            out.append(f"{key}: differs" if isinstance(a, dict | list) else f"{key}: {a!r} -> {b!r}")
+            changed = True
+    return out, changed
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="python -m tests.graphics.character_snapshot",
+        description="Rebuild services/graphics/character.json (the pose editor's body when physics is not running) "
+                    "from the physics drummer (PhysicsCore scene=drummer, default settings). tests/graphics/"
+                    "test_poser.py checks the shipped file against physics, with tolerances: rebuild it when that "
+                    "test fails after a change to the body.")
+    parser.add_argument("--check", action="store_true",
+                        help="write nothing: print how the shipped file (or --output) differs from what physics "
+                             "builds now; exit 1 if by more than rounding (a unit of the last decimal written)")
+    parser.add_argument("-o", "--output", type=Path, default=SNAPSHOT, metavar="FILE",
+                        help="where to write (default: services/graphics/character.json)")
+    opts = parser.parse_args(argv)
+    fresh = build_snapshot()
+    if opts.check:
+        found, changed = differences(json.loads(opts.output.read_text(encoding="utf-8")), fresh)
+        print("\n".join(found) if found else f"{opts.output} is what physics builds")
+        return 1 if changed else 0
+    opts.output.write_text(dumps(fresh), encoding="utf-8")
+    print(f"wrote {opts.output}")
+    return 0
+
+
 if __name__ == "__main__":
-    SNAPSHOT.write_text(dumps(build_snapshot()), encoding="utf-8")
-    print(f"wrote {SNAPSHOT}")
+    sys.exit(main())
