@@ -487,12 +487,39 @@ def position(score: Score, written_time: float, scale: float = 1.0) -> dict[str,
     the take's clock); before its first beat (but for a strike just before it, :func:`grid_point`), none. The bar
     is that of the nearest grid point, as ``where`` says it: a strike 20 ms before bar 3 is bar 3's, its beat just
     under 1 (0.96). After a pick-up (:func:`pickup`) the first full bar is bar 1, as printed music numbers it, and
-    the pick-up bar 0, its beats counted as the end of a full bar (a one-beat pick-up before 4/4 is beat 4)."""
+    the pick-up bar 0, its beats counted as the end of a full bar (a one-beat pick-up before 4/4 is beat 4). A time
+    whose nearest point is the exercise's end (:func:`last_bar`) is the last bar's: ``end of bar 4 (20 ms early)``,
+    beat 4.96."""
     point = grid_point(score, written_time)
     if point is None:
         return {"bar": None, "beat": None, "where": "before bar 1"}
+    last = last_bar(score)
+    if last is not None and point.bar > last[0] and point.time >= last[3] - 1e-6:
+        # the exercise's end is its nearest point (a strike within the tolerance of it, which compare keeps): no bar
+        # after the last, told in the last bar as its end (until the day after 7 Dec "bar 5, beat 1 (20 ms early)"
+        # and a row of its own in the bar table, 0 written, after a 4-bar exercise)
+        bar, beat_at, spacing, end = last
+        late_ms = (written_time - end) * 1000 / scale
+        where = f"end of bar {bar}" + (f" ({abs(late_ms):.0f} ms {'late' if late_ms > 0 else 'early'})"
+                                       if round(abs(late_ms)) >= 1 else "")
+        return {"bar": bar, "beat": _r(beat_at + (written_time - end) / spacing, 3), "where": where}
     beat = point.beat + float(point.grid) + (written_time - point.time) / point.spacing
     return {"bar": point.bar, "beat": _r(beat, 3), "where": grid_label(score, written_time, scale)}
+
+
+def last_bar(score: Score) -> tuple[int, float, float, float] | None:
+    """(the exercise's last bar, numbered as :func:`position` says, the counted beat its end falls on (5 in 4/4,
+    7 in 6/8), that bar's beat length s, the end on the written clock s: :func:`exercise_end`) when the exercise
+    ends on a bar line after its last note (a text score's last bar, a MIDI file's); None when a note lies at the
+    end (its bar is the last) or the score has no beats."""
+    end = exercise_end(score)
+    if not score.events or score.events[-1].time >= end - 1e-6:
+        return None
+    at = bar_and_beat(score, end - 1e-6)  # just before the end: in the last bar (float-safe)
+    if at is None:
+        return None
+    bar, beat, spacing = at
+    return bar, beat + 1e-6 / spacing, spacing, end
 
 
 def bar_and_beat(score: Score, written_time: float) -> tuple[int, float, float] | None:
@@ -529,7 +556,9 @@ class GridPoint:
     """The counting grid's point nearest a time (:func:`grid_point`): its ``bar`` and counted ``beat`` (from 1,
     numbered as :func:`position` says), ``grid`` where in that beat (0 on it, 1/2 its &), ``exact`` when the time
     is on it (within :data:`ON_GRID_BEATS`, or on a :data:`FINE_GRIDS` subdivision: then ``grid`` is that), ``time``
-    the point on the written clock (s) and ``spacing`` the counted beat's length at the time asked about (s)."""
+    the point on the written clock (s) and ``spacing`` the length (s) of the counted beat the point is in: for a
+    time just before the next beat, that beat's (until the day after 7 Dec this one's: 20 ms before a 6/8 bar
+    after a 4/4 one at 120 bpm was beat 0.96 there, 0.92 before the next 6/8 bar)."""
 
     bar: int
     beat: int
@@ -568,8 +597,9 @@ def grid_point(score: Score, written_time: float) -> GridPoint | None:
     point = written_time + (float(grid) - frac) * spacing  # s, the grid point on the written clock
     if grid == 1:  # the next beat's first point: maybe the next bar's (looked up just after it, float-safe)
         again = bar_and_beat(score, point + 1e-6)
-        bar, whole, grid = (bar, whole + 1, Fraction(0)) if again is None else (
-            again[0], math.floor(again[1] + 1e-6), Fraction(0))
+        # measured in that beat's length: at a meter change (4/4 -> 6/8) the next bar's eighth, not this quarter
+        bar, whole, grid, spacing = (bar, whole + 1, Fraction(0), spacing) if again is None else (
+            again[0], math.floor(again[1] + 1e-6), Fraction(0), again[2])
     return GridPoint(bar, whole, grid, exact, point, spacing)
 
 
@@ -775,7 +805,7 @@ def beat_feels(score: Score, notes: Sequence[tuple[float, float]], tolerance: fl
     The beat judged is the felt one (:func:`felt_beat`): in 6/8, 9/8 and 12/8 a dotted quarter, three counted
     eighths (an eighth of 6/8 seldom has two onsets: a beat per eighth was never judged); ``beat`` and
     ``last_beat`` are its first and last counted beats (4 and 6: the second dotted quarter of 6/8; one beat:
-    equal).
+    equal; in a pick-up, from its first counted beat: 5 and 6 for a 2/8 pick-up before 6/8).
 
     ``notes``: (written time on the exercise's clock s, played - written s) of every written note played."""
     beats: dict[tuple[int, int], dict[float, list[float]]] = defaultdict(lambda: defaultdict(list))
@@ -785,6 +815,9 @@ def beat_feels(score: Score, notes: Sequence[tuple[float, float]], tolerance: fl
         if at is not None:
             group = groups.setdefault(at.bar, felt_beat(score, at.bar))
             beats[(at.bar, (at.beat - 1) // group * group + 1)][round(t, 6)].append(error)
+    short = pickup(score)
+    # the pick-up's first counted beat (5 for a 2/8 pick-up before 6/8): its felt beat starts there, not before
+    first = None if short is None else math.floor(1 + (short[1] - short[0]) / bar_unit(score, 1) + 1e-6)
     out = []
     for (bar, beat), onsets in sorted(beats.items()):
         errors = np.array([np.mean(v) for v in onsets.values()])
@@ -793,7 +826,10 @@ def beat_feels(score: Score, notes: Sequence[tuple[float, float]], tolerance: fl
             continue
         if 2 * np.sum(errors * np.sign(median) > tolerance / 4) <= len(errors):
             continue
-        out.append({"bar": bar, "beat": beat, "last_beat": beat + groups[bar] - 1, "onsets": len(errors),
+        last = beat + groups[bar] - 1
+        if bar == 0 and first is not None:  # until the day after 7 Dec "beats 4-6" for a pick-up of 5 and 6
+            beat = min(max(beat, first), last)
+        out.append({"bar": bar, "beat": beat, "last_beat": last, "onsets": len(errors),
                     "notes": sum(len(v) for v in onsets.values()),
                     "mean_ms": _r(float(np.mean(errors)) * 1000, 1), "median_ms": _r(median * 1000, 1),
                     "feel": "rushed" if median < 0 else "dragging"})

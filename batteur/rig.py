@@ -927,28 +927,52 @@ library (``/batteur/score/load``), graphics' preview."""
 def unread_midi_options(opts: argparse.Namespace, plans: Sequence[ServicePlan],
                         environ: Mapping[str, str] | None = None) -> str | None:
     """A warning when ``--drum-channels``, ``--drum-map`` or ``--hihat-cc4`` was given and nothing will read a MIDI
-    file with them: no ``--score``, no physics score library (``--physics-arg '--score-dir DIR'``, read by
+    file with them: no MIDI ``--score``, no physics score library (``--physics-arg '--score-dir DIR'``, read by
     ``/batteur/score/load``), no graphics ``--preview-score``; live notes (``/batteur/score/note``) are General MIDI
-    pitches, read without them. Until 7 Dec they were given to physics and graphics in silence. None when a
-    config file (BATTEUR_CONFIG, ``--config``) or the environment may give a library or a preview: those services
-    read it, the rig does not."""
+    pitches, read without them. Until 7 Dec they were given to physics and graphics in silence. A text ``--score``
+    (``demo`` too) is read without them: then they act only on the MIDI files ``/batteur/score/load`` may load
+    from its folder, said so (until the day after 7 Dec nothing was). A library or a preview given a blank value
+    (``--physics-arg=--score-dir=``: none) is none. None when a config file (BATTEUR_CONFIG, ``--config``) or the
+    environment may give a library or a preview: those services read it, the rig does not."""
     from common.config import ENV_PREFIX
 
     given = [f"--drum-channels {','.join(str(c) for c in opts.drum_channels)}"] if opts.drum_channels else []
     given += [f"--drum-map {opts.drum_map_spec}"] if getattr(opts, "drum_map_spec", None) else []
     given += ["--hihat-cc4"] if opts.hihat_cc4 else []
     env = os.environ if environ is None else environ
-    if not given or opts.score or env.get(f"{ENV_PREFIX}CONFIG"):
+    if not given or (opts.score and _midi_score(opts.score)) or env.get(f"{ENV_PREFIX}CONFIG", "").strip():
         return None
     for plan in plans:
         flag = MIDI_READERS.get(plan.role)
         setting = f"{ENV_PREFIX}{flag[2:].replace('-', '_').upper()}" if flag else ""
-        if flag and (any(option_values(plan.args, f) for f in (flag, "--config")) or env.get(setting, "").strip()):
+        values = [v for f in (flag, "--config") if f for v in option_values(plan.args, f)]
+        if flag and (any(v.strip(" ,") for v in values) or env.get(setting, "").strip(" ,")):
             return None
-    return (f"{', '.join(given)} act{'s' * (len(given) == 1)} on no score: they say how MIDI files are read, and "
-            "this rig reads none (give --score FILE, physics a score library for /batteur/score/load with "
-            "--physics-arg '--score-dir DIR', or graphics a --preview-score with --graphics-arg); live notes "
-            "(/batteur/score/note) are read as General MIDI pitches without them")
+    one = len(given) == 1
+    options, it = f"{', '.join(given)} act{'s' * one}", "it" if one else "them"
+    readers = ("physics a score library with --physics-arg '--score-dir DIR', or graphics a --preview-score with "
+               f"--graphics-arg); live notes (/batteur/score/note) are read as General MIDI pitches without {it}")
+    if opts.score:
+        return (f"{options} only on MIDI files, and --score {opts.score} is a text score, read without {it}: of "
+                f"this rig's scores only MIDI files /batteur/score/load may load from its folder would be read with "
+                f"{it} (to read others, give {readers}")
+    return (f"{options} on no score: {'it says' if one else 'they say'} how MIDI files are read, and this rig "
+            f"reads none (give --score FILE, {readers.replace('library', 'library for /batteur/score/load', 1)}")
+
+
+def _midi_score(path: str) -> bool:
+    """Whether the rig's ``--score`` is read as MIDI, as :func:`common.score.text.read_score` tells (its name, else
+    its first bytes); one that cannot be read counts as MIDI (:func:`check_score` has said what is wrong)."""
+    from common.score.events import starts_as_midi
+    from common.score.text import MIDI_SUFFIXES
+
+    if Path(path).suffix.lower() in MIDI_SUFFIXES:
+        return True
+    try:
+        with open(path, "rb") as f:
+            return starts_as_midi(f.read(12))
+    except OSError:
+        return True
 
 
 def check_ports(plans: list[ServicePlan], http_port: int = 0) -> None:

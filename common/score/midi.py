@@ -399,11 +399,20 @@ CLICK_NAME = re.compile(r"(?<![a-z])(clicks?|klick|metronome|count[ _-]?(in|off)
                         re.IGNORECASE)
 """A track name saying it holds a click (Logic's German "Klick"), a metronome, a count-in or a guide (the notes
 a player follows, not what is played), as a word ("ClickTrack" too; not "Clicker"): :func:`_click_channels`."""
-DRUM_NAME = re.compile(r"drum|kit|perc|kick|snare|hat|tom|cymbal|ride|crash", re.IGNORECASE)
-"""A track name that says drums ("Guide Drums"): never left out as a click."""
+_WORD_START = r"(?:(?<![a-z])|(?-i:(?<=[a-z])(?=[A-Z])))"
+"""Where a word starts in a track name (any case): after no letter, or a capital after a small letter ("KickDrum")."""
+DRUM_NAME = re.compile(_WORD_START + r"(?:drum|perc"  # Drums, Drummer, DrumKit, Percussion
+                       r"|(?:kits?|kicks?|snares?|(?:hi[ _-]?)?hats?|toms?|cymbals?|rides?|crash(?:es)?)"
+                       r"(?!(?-i:[a-z])))", re.IGNORECASE)
+"""A track name that says drums ("Guide Drums", "HiHat guide", "KickDrum click"): never left out as a click. As
+words: until 7 Dec "tom" in "Custom" or "Bottom" and "ride" in "Override" read as drums, and those clicks were
+played."""
 CLICK_MAX_PITCHES = 2
 """The most pitches a click plays (an accented first beat and the others; General MIDI's metronome click and
 bell, 33 and 34); a channel playing more is a part, whatever its track's name."""
+KICK_SNARE_PITCHES = frozenset({35, 36, 38, 40})
+"""General MIDI's kicks and snares (acoustic and electric): a channel playing one of them (after ``--drum-map``'s
+note map) is a part, not a click, whatever its track's name (a "Guide" kick and snare)."""
 CHOOSE_CHANNELS = "choose with --drum-channels N,N (1 to 16, as a DAW shows them)"
 """How a warning about the channels read says to choose them."""
 
@@ -449,14 +458,13 @@ def _chosen_notes(raw: list[_RawNote], drums: set[int], named: Collection[int] |
     clicks = _click_channels(others, raw, mid)
     kept = [c for c in others if c not in clicks] or others  # a click alone is read, as any channel
     if kept != others:
-        pitches = len({r[5] for r in raw if r[3] in clicks})
         them = "them" if len(clicks) > 1 else "it"
         songs = f"skipped {_channels(melodic, counts, programs, mid)}: a melodic program; " if melodic else ""
         return [r for r in raw if r[3] in kept], [
             f"{name}: no notes on a drum channel; reading {_reading(kept, counts, programs, mid)}; {songs}skipped "
-            f"{_channels(clicks, counts, programs, mid)}: a click (so named, on {pitches} "
-            f"pitch{'es' * (pitches != 1)}); to read {them} too: --drum-channels "
-            f"{_channel_list(sorted(kept + clicks), ',')} (every channel read, 1 to 16 as a DAW shows them)"]
+            f"{_channels(clicks, counts, programs, mid)}: {_clicks_said(clicks, raw)}; to read {them} too: "
+            f"--drum-channels {_channel_list(sorted(kept + clicks), ',')} (every channel read, 1 to 16 as a DAW "
+            "shows them)"]
     if melodic and kept:
         return [r for r in raw if r[3] in kept], [
             f"{name}: no notes on a drum channel; reading {_reading(kept, counts, programs, mid)}; skipped "
@@ -468,25 +476,44 @@ def _chosen_notes(raw: list[_RawNote], drums: set[int], named: Collection[int] |
 
 def _click_channels(channels: list[int], raw: list[_RawNote], mid: mido.MidiFile) -> list[int]:
     """Those of ``channels`` (0-based) that hold a click, not drums: every track with notes on the channel is named
-    so (:data:`CLICK_NAME`: Click, Metronome, Count-in, Guide; a name saying drums too, "Guide Drums", is not), and
-    its notes are on at most :data:`CLICK_MAX_PITCHES` pitches as the file writes them. A DAW's click or count-in
-    has no program change, so it looked like drums; until 7 Dec it played as cowbells beside the groove. A name
-    alone leaves nothing out (a "Click" track playing a beat is read), nor does a pitch count alone (a drum
-    machine's kick and snare on a channel of their own)."""
+    so (:data:`CLICK_NAME`: Click, Metronome, Count-in, Guide; a name saying drums too, "Guide Drums", is not) and
+    holds notes on that channel only, and its notes are on at most :data:`CLICK_MAX_PITCHES` pitches as the file
+    writes them, none a kick or a snare (:data:`KICK_SNARE_PITCHES`, as ``--drum-map`` maps them). A DAW's click
+    or count-in has no program change, so it looked like drums; until 7 Dec it played as cowbells beside the
+    groove. A name alone leaves nothing out (a "Click" track playing a beat is read), nor does a pitch count alone
+    (a drum machine's kick and snare on a channel of their own). A track on several channels is a part whatever
+    its name: a type 0 file's one track, named "Guide", holds every channel (until 7 Dec its kick and snare
+    channel was dropped as a click); so is a "Click" or "Guide" track playing a kick and a snare."""
     pitches: dict[int, set[int]] = {}
     wanted = set(channels)
     for r in raw:
         if r[3] in wanted:
             pitches.setdefault(r[3], set()).add(r[5])
-    few = {c for c in channels if len(pitches.get(c, ())) <= CLICK_MAX_PITCHES}
+    drums = {r[3] for r in raw if r[3] in wanted and r[1] in KICK_SNARE_PITCHES}
+    few = {c for c in channels if len(pitches.get(c, ())) <= CLICK_MAX_PITCHES and c not in drums}
     if not few:  # the usual file: no pass over the tracks
         return []
-    titles: dict[int, set[str]] = {}
+    titles: dict[int, list[tuple[str, bool]]] = {}  # channel -> (name, the track's only channel) of its tracks
     for track in mid.tracks:
-        for channel in {m.channel for m in track if m.type == "note_on" and m.velocity > 0} & few:
-            titles.setdefault(channel, set()).add(track.name.strip())
+        played = {m.channel for m in track if m.type == "note_on" and m.velocity > 0}
+        for channel in played & few:
+            titles.setdefault(channel, []).append((track.name.strip(), len(played) == 1))
     return [c for c in channels if c in titles
-            and all(CLICK_NAME.search(t) and not DRUM_NAME.search(t) for t in titles[c])]
+            and all(alone and CLICK_NAME.search(t) and not DRUM_NAME.search(t) for t, alone in titles[c])]
+
+
+def _clicks_said(clicks: list[int], raw: list[_RawNote]) -> str:
+    """"a click (so named, on 2 pitches)"; for several channels (0-based) each one's pitches as the file writes
+    them: "clicks (so named, on 2 pitches each)", "clicks (so named; channel 15 on 2 pitches, channel 16 on 1
+    pitch)" (until 7 Dec the pitches of all were counted together: a Click on 76 and 77 and a Count-in on 33 and
+    34 were "on 4 pitches")."""
+    counts = {c: len({r[5] for r in raw if r[3] == c}) for c in clicks}
+    if len(set(counts.values())) == 1:
+        n = counts[clicks[0]]
+        each = " each" * (len(clicks) > 1)
+        return f"{'clicks' if each else 'a click'} (so named, on {n} pitch{'es' * (n != 1)}{each})"
+    return "clicks (so named; " + ", ".join(f"channel {c + 1} on {n} pitch{'es' * (n != 1)}"
+                                            for c, n in counts.items()) + ")"
 
 
 def _melodic(channel: int, programs: dict[int, list[int]]) -> bool:

@@ -927,19 +927,21 @@ def test_a_strike_just_before_a_downbeat_is_that_bar_s_in_its_label_and_the_tabl
     the bar of its nearest grid point (the label said bar 3 while the table counted it in bar 2, where it falls;
     the first was "before bar 1" and in no bar); its beat, 0.96, is just before that bar's 1. A take whose last
     note is bar 4's kick played 20 ms early stops in bar 4, the bar of the written note it is paired with. A tom 20
-    ms before the exercise's end (bar 5's first beat) is bar 5's, a row of its own, so that the table's extras add
-    up to the summary's."""
+    ms before the exercise's end and one 20 ms after it (within the tolerance: extras) are the last bar's, at its
+    end, so that the table's extras add up to the summary's (until the day after 7 Dec "bar 5, beat 1", a row of
+    its own with 0 written)."""
     take = [(START + t, p, v) for t, p, v in written(exercise)] + [(START + 3.98, 48, 90), (START - 0.02, 48, 90),
-                                                                   (START + 7.98, 48, 90)]
+                                                                   (START + 7.98, 48, 90), (START + 8.02, 43, 90)]
     got = report([str(exercise), str(write_take(tmp_path / "take.mid", take))], capsys)
     assert [(x["where"], x["bar"], x["beat"]) for x in got["extras"]] == [
         ("bar 1, beat 1 (20 ms early)", 1, 0.96), ("bar 3, beat 1 (20 ms early)", 3, 0.96),
-        ("bar 5, beat 1 (20 ms early)", 5, 0.96)]
-    assert [b["extra"] for b in got["bars"]] == [1, 0, 1, 0, 1]
+        ("end of bar 4 (20 ms early)", 4, 4.96), ("end of bar 4 (20 ms late)", 4, 5.04)]
+    assert [(b["bar"], b["extra"]) for b in got["bars"]] == [(1, 1), (2, 0), (3, 1), (4, 2)]
     _, out, _ = run([str(exercise), str(write_take(tmp_path / "take.mid", take))], capsys)
     table = out.split(" bar written played")[1].splitlines()[1:6]
-    assert [line.split()[5] for line in table] == ["1", "0", "1", "0", "1"]
+    assert [line.split()[5] for line in table[:4]] == ["1", "0", "1", "2"] and not table[4].strip().startswith("5")
     assert "bar 3, beat 1 (20 ms early): hightom extra" in out
+    assert "end of bar 4 (20 ms early): hightom extra" in out
 
     stops = [(START + t - (0.020 if t == 6.0 else 0.0), p, v) for t, p, v in written(exercise) if t <= 6.0 and p != 42]
     got = report([str(exercise), str(write_take(tmp_path / "stops.mid", stops))], capsys)
@@ -1004,3 +1006,30 @@ def test_a_written_note_just_before_a_downbeat_is_counted_in_the_bar_it_is_said_
     assert [(m["where"], m["bar"]) for m in got["misses"]] == [("bar 3, beat 1 (20 ms early)", 3)]
     assert [(b["bar"], b["written"], b["missed"]) for b in got["bars"]] == [(1, 12, 0), (2, 12, 0), (3, 12, 1),
                                                                             (4, 12, 0)]
+
+
+def test_a_strike_just_before_a_bar_in_a_new_meter_is_measured_in_its_beats() -> None:
+    """4/4 then 6/8 at 120 bpm: 20 ms before the first 6/8 bar is beat 0.92 of it (20 ms of a 0.25 s eighth), as 20
+    ms before the next 6/8 bar is; it was 0.96, measured in the 4/4 bar's quarter notes."""
+    from batteur.compare import position
+    from common.score.text import parse_text
+
+    score = parse_text("tempo 120\nmeter 4/4\nSN |x...x...x...x...|\nmeter 6/8\nSN |x.x.x.x.x.x.|x.x.x.x.x.x.|\n")
+    assert position(score, 1.98) == {"bar": 2, "beat": 0.92, "where": "bar 2, beat 1 (20 ms early)"}
+    assert position(score, 3.48)["beat"] == 0.92
+    assert position(score, 2.02)["beat"] == 1.08  # just after: its own beat, as before
+
+
+def test_a_rushed_pick_up_is_told_from_its_first_beat(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A 2/8 pick-up before 6/8 is counted as beats 5 and 6; played 40 ms early it is ``beats 5-6`` (the felt
+    beat's first eighth, 4, is not in it: until the day after 7 Dec it was told ``beats 4-6``)."""
+    exercise = tmp_path / "pickup.txt"
+    exercise.write_text("tempo 90\nmeter 2/8\nSN |xx|\nmeter 6/8\nHH |x.x.x.x.x.x.|x.x.x.x.x.x.|\n",
+                        encoding="utf-8")
+    notes = written(exercise)
+    take = [(START + t - (0.040 if t < 0.6 else 0.0), p, v) for t, p, v in notes]
+    path = write_take(tmp_path / "take.mid", take)
+    got = report([str(exercise), str(path), "--tempo-scale", "1"], capsys)
+    # the text says the beat only when its bar is not told rushed as a whole (here it is: "bar 0: rushed")
+    assert [(b["bar"], b["beat"], b["last_beat"], b["onsets"]) for b in got["beats_rushed_dragging"]] == [
+        (0, 5, 6, 2)]

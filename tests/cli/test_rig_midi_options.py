@@ -134,13 +134,44 @@ def test_options_without_a_score_to_read_are_said_once_at_start(monkeypatch: pyt
     assert "--drum-channels" in Recorder.started[0].args  # still given: a config file may give a library
 
 
-@pytest.mark.parametrize("argv", [
-    ["--hihat-cc4", "--services", "sound,interaction"],  # no reader at all
-    ["--drum-map", "roland-td", "--graphics-arg", "--preview out.npz"],  # a pose sequence, not a score
+@pytest.mark.parametrize(("argv", "environ"), [
+    (["--hihat-cc4", "--services", "sound,interaction"], {}),  # no reader at all
+    (["--drum-map", "roland-td", "--graphics-arg", "--preview out.npz"], {}),  # a pose sequence, not a score
+    # blank values give no library, preview or config (until the day after 7 Dec they silenced the warning)
+    (["--drum-map", "roland-td", "--physics-arg=--score-dir="], {}),
+    (["--drum-map", "roland-td", "--physics-arg", "--score-dir ' , '"], {}),
+    (["--drum-map", "roland-td", "--graphics-arg=--preview-score="], {}),
+    (["--drum-map", "roland-td", "--physics-arg=--config="], {}),
+    (["--drum-map", "roland-td"], {"BATTEUR_SCORE_DIR": " , ", "BATTEUR_CONFIG": " "}),
 ])
-def test_options_are_said_unused_wherever_no_score_is_read(argv: list[str]) -> None:
-    said = _unread(*argv)
+def test_options_are_said_unused_wherever_no_score_is_read(argv: list[str], environ: dict[str, str]) -> None:
+    said = _unread(*argv, environ=environ)
     assert said is not None and said.startswith(f"{argv[0]} {'acts' if argv[0] == '--hihat-cc4' else 'roland-td'}")
+    # one option: "it says" (until the day after 7 Dec "they say" for one as for several)
+    assert ("acts on no score: it says how MIDI files are read" if argv[0] == "--hihat-cc4" else
+            "roland-td acts on no score: it says how") in said
+
+
+def test_options_beside_a_text_score_are_said_to_act_only_on_midi_files(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    # a text score is read without them: until the day after 7 Dec nothing was said, as for a MIDI --score
+    text = tmp_path / "groove.txt"
+    text.write_text("tempo 120\nmeter 4/4\nSN |....x.......x...|\n", encoding="utf-8")
+    said = _unread("--score", str(text), "--drum-channels", "1", "--hihat-cc4")
+    assert said is not None
+    assert said.startswith(f"--drum-channels 1, --hihat-cc4 act only on MIDI files, and --score {text} is a text "
+                           "score, read without them: of this rig's scores only MIDI files /batteur/score/load may "
+                           "load from its folder would be read with them")
+    assert _unread("--score", str(text), "--drum-channels", "1", "--physics-arg", "--score-dir /tmp/s") is None
+    named = tmp_path / "take.txt"  # a MIDI file by a text name is read as MIDI: nothing to say
+    named.write_bytes(drums_and_wood_block(tmp_path / "take.mid").read_bytes())
+    assert _unread("--score", str(named), "--drum-channels", "1") is None
+    monkeypatch.setattr(rig, "Rig", Recorder)
+    monkeypatch.chdir(tmp_path)  # no file named demo here: the demo groove, a text score
+    capsys.readouterr()
+    assert rig.main(["--no-discovery", "--score", "demo", "--hihat-cc4", "--base-port", str(free_ports(4)[0])]) == 0
+    err = capsys.readouterr().err
+    assert err.count("warning:") == 1 and "--hihat-cc4 acts only on MIDI files" in err, err
 
 
 @pytest.mark.parametrize(("argv", "environ"), [

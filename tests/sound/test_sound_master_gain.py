@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from sound_helpers import impact
 
 from common.kit import EventType, load_kit
@@ -31,10 +32,13 @@ def test_a_boosted_master_limits_a_hard_strike_instead_of_clipping_it() -> None:
     np.testing.assert_allclose(quiet, _snare(2.0, 0.0) * 10 ** (6 / 20), rtol=1e-4, atol=1e-6)
 
 
-def test_a_master_change_glides_over_the_ramp() -> None:
+@pytest.mark.parametrize("use_pyo", [False, True])
+def test_a_master_change_glides_over_the_ramp(use_pyo: bool) -> None:
+    """With pyo's graph (its SigTo glides) and without it (the numpy master: it stepped until 7 Dec; with pyo
+    alone this test passed before the glide was written)."""
     renders, start = [], 0
     for change in (False, True):
-        core = SoundCore(SoundSettings(latency=0.0))
+        core = SoundCore(SoundSettings(latency=0.0, use_pyo=use_pyo))
         try:
             core.handle(impact(1, 0.0, "floortom", velocity=2.0), 0.0, "t")
             core.render(0.1)
