@@ -148,6 +148,8 @@ class FileResult:
                if k not in ("errors_s", "velocity_pairs", "note_refs", "hits", "pairs_25", "pairs_loose",
                           "missed", "source", "stem")}
         out["missed"] = [asdict(f) for f in self.missed]
+        # each spurious impact as missed notes are listed (until 7 Dec only counted)
+        out["spurious_impacts"] = [row for row in impact_rows(self) if not row["matched"]]
         return out
 
 
@@ -480,6 +482,50 @@ def render_dir_score(render_dir: Path) -> Path:
     raise ValueError(f"{render_dir}: holds no score.* and its report.json names no score")
 
 
+def render_dir_kit(render_dir: Path, report: dict[str, Any]) -> str:
+    """The kit a render directory's performance is judged on: the copy of its kit file the render made
+    (report.json's ``kit_copy``, as the score's: the kit it played, wherever evaluate runs from), else the kit as
+    report.json names it (a shipped kit's name; the file's absolute path ``kit_file``, or as typed: a render made
+    before 7 Dec). A warning on stderr when the kit file has been edited since the render: the copy is judged on.
+    ``ValueError`` naming report.json for a kit entry that is not a name."""
+    where = render_dir / "report.json"
+    name = report.get("kit", "default")
+    if not isinstance(name, str):
+        raise ValueError(f"{where}: kit must be a kit name or file, got {name!r}")
+    source, copy = report.get("kit_file"), report.get("kit_copy")
+    if source is not None and not isinstance(source, str):
+        raise ValueError(f"{where}: kit_file must be a kit file's path, got {source!r}")
+    if isinstance(copy, str) and Path(copy).name == copy and (render_dir / copy).is_file():
+        kept = render_dir / copy
+        if source is not None and Path(source).resolve() != kept.resolve() and edited(Path(source), kept):
+            print(f"{PROG}: warning: {source} has changed since {render_dir} was rendered; judged on the kit it "
+                  f"played, its copy {kept}", file=sys.stderr)
+        return str(kept)
+    return source if source is not None else name
+
+
+def load_render_dir_kit(kit: str, where: Path) -> Kit:
+    """:func:`render_dir_kit`'s kit loaded (no load warnings: its render gave them); a relative kit file that is not
+    there: ``FileNotFoundError`` saying why (a render before 7 Dec kept no copy and named it as typed)."""
+    try:
+        return load_kit(kit, warn=False)
+    except FileNotFoundError:
+        if not Path(kit).suffix or Path(kit).is_absolute() or Path(kit).exists():
+            raise
+        raise FileNotFoundError(f"{where}: no kit file {kit!r} from here: a render made before 7 Dec kept no copy "
+                                "of its kit and names the file as it was given, relative to where the render ran; "
+                                "run batteur evaluate from there (or render again)") from None
+
+
+def edited(kit: Path, copy: Path) -> bool:
+    """Whether the kit file ``kit`` differs from a render's ``copy`` of it (a file gone or unreadable: not edited,
+    nothing to compare)."""
+    try:
+        return kit.read_bytes() != copy.read_bytes()
+    except OSError:
+        return False
+
+
 def report_midi_kwargs(report: dict[str, Any], where: Path) -> dict[str, Any]:
     """How the render of ``report`` read its MIDI score (``--drum-channels``: its ``drum_channels``), as keyword
     arguments of ``read_score``: the score is judged as it was played. A report without them: the reader's
@@ -514,16 +560,15 @@ def evaluate_render_dir(score_path: Path, render_dir: Path, kit: Kit | None = No
     offset = report_number(report, "score_offset_s", where)
     if offset is None:
         raise ValueError(f"{where}: not a render report (no score_offset_s)")
-    kit_name = report.get("kit", "default")
-    if not isinstance(kit_name, str):
-        raise ValueError(f"{where}: kit must be a kit name or file, got {kit_name!r}")
+    kit_name = render_dir_kit(render_dir, report) if kit is None else ""  # the copy the render made, if any
     tempo_scale = report_number(report, "tempo_scale", where)
     if tempo_scale is not None and tempo_scale <= 0:
         raise ValueError(f"{where}: tempo_scale must be positive, got {tempo_scale:g}")
     flags = planner_flags(report.get("issues", []), where)
     timing = {key: report_number(report, key, where) for key in ("real_time_factor", "duration_s", "music_duration_s",
                                                                    "wall_time_s", "cpu_time_s")}
-    kit = kit if kit is not None else load_kit(kit_name, warn=False)  # its render warned of it
+    if kit is None:
+        kit = load_render_dir_kit(kit_name, where)
     score = scale_tempo(read_score(score_path, **report_midi_kwargs(report, where)),
                         1.0 if tempo_scale is None else tempo_scale)
     if not (render_dir / "impacts.csv").is_file():
@@ -855,7 +900,26 @@ def reusable(render_dir: Path, score: Path, opts: Any) -> bool:
             "hihat_cc4": (bool(opts.midi.get("hihat_cc4", False)), False)}  # before 7 Dec: CC4 read as written
     return (all(report.get(key) == value for key, value in wanted.items())
             and all(report.get(key, before) == value for key, (value, before) in body.items())
-            and same_segments(report, opts))
+            and same_segments(report, opts) and same_kit_file(render_dir, report, style.kit))
+
+
+def same_kit_file(render_dir: Path, report: dict[str, Any], kit: str | None) -> bool:
+    """Whether the kit file ``kit`` is the one the render of ``report`` played, as it was: the same file
+    (``kit_file``: a relative path given from another folder is another file) and the same contents as the render's
+    copy (``kit_copy``: a kit edited since is another kit). True for a shipped kit's name, and for a render made
+    before 7 Dec (no copy: nothing to compare)."""
+    from common.kit import kit_file
+
+    source, copy = report.get("kit_file"), report.get("kit_copy")
+    if kit is None or not Path(kit).suffix or not isinstance(source, str) or not isinstance(copy, str):
+        return True
+    path = kit_file(kit)
+    if str(path) != source:
+        return False
+    try:
+        return path.read_bytes() == (render_dir / Path(copy).name).read_bytes()
+    except OSError:
+        return False
 
 
 def same_segments(report: dict[str, Any], opts: Any) -> bool:
@@ -945,6 +1009,37 @@ def impact_rows(result: FileResult) -> list[dict[str, Any]]:
     return rows
 
 
+MAX_DETAIL_LINES = 20
+"""Missed notes, and spurious impacts, listed per file under the table; the rest is counted (all: ``--json``)."""
+
+
+def spurious_lines(result: FileResult) -> list[str]:
+    """One line per spurious impact (not matched at 25 ms), as a missed note's: score time, object, striker,
+    velocity, the :func:`nearest_note` and, when on another object, the note nearest in time (``impact at 2.922 s
+    on crash2 spurious: right_stick_tip 1.70 m/s, nearest note 8 CRASH on crash2 at 2.400 s (+522.0 ms); nearest
+    in time: note 9 RIDE on ride at 2.950 s (-28.0 ms)``)."""
+    matched = {j for _, j in result.pairs_25}
+    lines = []
+    for j, h in enumerate(result.hits):
+        if j in matched:
+            continue
+        near = nearest_note(result, h)
+        where = "no note" if near is None else f"nearest note {_note_words(near, h)}"
+        # the note played nearest in time, on another object: what the stick was on its way to, or came from
+        when = min(result.note_refs, key=lambda n: abs(n.time - h.time), default=None)
+        if when is not None and near is not None and when.instrument != near.instrument:
+            where += f"; nearest in time: note {_note_words(when, h)}"
+        lines.append(f"impact at {h.time:.3f} s on {h.instrument} spurious: {h.part or 'striker unknown'} "
+                     f"{h.velocity:.2f} m/s, {where}")
+    return lines
+
+
+def _note_words(note: NoteRef, hit: Hit) -> str:
+    """``12 RIDE on ride at 4.400 s (+20.0 ms)``: a note and ``hit``'s offset from it."""
+    return (f"{note.index} {note.event} on {note.instrument} at {note.time:.3f} s "
+            f"({(hit.time - note.time) * 1000:+.1f} ms)")
+
+
 def impact_listing(result: FileResult) -> list[str]:
     """One line per impact: M(atched)/S(purious), score time, object, striker, velocity, nearest note and offset."""
     matched = {j for _, j in result.pairs_25}
@@ -1007,7 +1102,8 @@ def fit_kit_name(inputs: Sequence[Path], kit: str | None) -> str:
     played: dict[str, tuple[str, list[str]]] = {}  # the kit's file -> its name as written, the inputs playing it
     for path in inputs:
         if path.is_dir():
-            name = read_report(path).get("kit", DEFAULT_KIT)
+            report = read_report(path)
+            name = report.get("kit_file") or report.get("kit", DEFAULT_KIT)  # the file wherever this runs from
             if not isinstance(name, str):  # said by the evaluation of that render
                 continue
         else:  # a MIDI file names no kit (and is not read here)
@@ -1074,11 +1170,17 @@ def _main(args: argparse.Namespace) -> int:
                 print(f"  {r.name}: {r.no_drum_notes} note{'s' * (r.no_drum_notes > 1)} of the file not played: no "
                       f"drum for {'their' if r.no_drum_notes > 1 else 'its'} pitch (nodrum; F, P and R count the "
                       f"{r.notes} the drummer was given)")
-            for f in r.missed[:20]:
+            for f in r.missed[:MAX_DETAIL_LINES]:
                 note = f"note {f.index} {f.event}" if f.index is not None else f"a note of {f.event}"
                 print(f"  {r.name}: {note} at {f.time:.3f} s missed: {f.reason} ({f.detail})")
-            if len(r.missed) > 20:
-                print(f"  {r.name}: ... {len(r.missed) - 20} more missed notes (see --json)")
+            if len(r.missed) > MAX_DETAIL_LINES:
+                print(f"  {r.name}: ... {len(r.missed) - MAX_DETAIL_LINES} more missed notes (see --json)")
+            spurious = spurious_lines(r)
+            for line in spurious[:MAX_DETAIL_LINES]:
+                print(f"  {r.name}: {line}")
+            if len(spurious) > MAX_DETAIL_LINES:
+                print(f"  {r.name}: ... {len(spurious) - MAX_DETAIL_LINES} more spurious impacts (see --json, "
+                      "--list)")
             if args.list:
                 print(f"{r.name}: impacts")
                 print("\n".join(impact_listing(r)))

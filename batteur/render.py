@@ -30,15 +30,17 @@ Clocks: rig time = score time + ``score_offset_s`` (report.json); sound adds
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import functools
 import json
+import logging
 import math
 import shutil
 import sys
 import tempfile
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar, Literal, TypeVar, get_args
@@ -53,9 +55,9 @@ from batteur.progress import Progress
 from batteur.strike import DEFAULT_STRIKES, parse_strikes, run_strikes
 from common.arg_types import take_negative_values
 from common.core import Outgoing
-from common.gesture.plan import GesturePlan, Nuance, planned_grip
+from common.gesture.plan import GesturePlan, Grip, Nuance, planned_grip
 from common.gesture.reach import pull_into_reach
-from common.kit import EventType, Kit, load_kit
+from common.kit import EventType, Kit, kit_file, load_kit
 from common.messages import OscMessage
 from common.messages.physics import ControlModeName
 from common.output_paths import check_output_dir
@@ -84,6 +86,8 @@ DEFAULT_STRIKE_EVENT = EventType.SNARE.value
 """What the strike scene's stick strikes without ``--event``."""
 GRIPS = ("german", "french", "american", "traditional")
 """Physics grips; the planner's gesture database has french and german (others plan as german)."""
+GESTURE_GRIPS = tuple(g.value for g in Grip)
+"""The grips the planner's gesture database has units for (:func:`grip_warning`)."""
 DEFAULT_GRIP = "german"
 """The grip of a render whose options and score name none."""
 DEFAULT_NUANCE = Nuance.TENUTO
@@ -330,6 +334,77 @@ def load_render_kit(path: Path | str, opts: RenderOptions, score: Score | None,
                           lambda name: load_kit(name, height_m=opts.height_m, lengths=limbs))
 
 
+@dataclass(frozen=True)
+class KitCopy:
+    """A kit file as a render read it, copied into its folder as ``kit<suffix>`` (as the score is) so that
+    ``batteur evaluate DIR`` judges the render on the kit it played, wherever it runs from and however the file
+    is edited since (until 7 Dec only the path as typed was kept: relative to where the render ran)."""
+
+    source: Path
+    """The kit file, absolute (report.json's ``kit_file``)."""
+    data: bytes
+    """Its contents when the render loaded it."""
+
+    @property
+    def name(self) -> str:
+        """The copy's name in the render folder (report.json's ``kit_copy``)."""
+        return f"kit{self.source.suffix}"
+
+    @classmethod
+    def of(cls, kit: str | None) -> KitCopy | None:
+        """The copy of ``kit`` (a kit name or file, as ``--kit`` or a score's ``kit`` line give it), read now; None
+        for a shipped kit's name (no file of the user's) or a file gone since it was loaded."""
+        if kit is None or not Path(kit).suffix:
+            return None
+        source = kit_file(kit)
+        try:
+            return cls(source, source.read_bytes())
+        except OSError:
+            return None
+
+
+class _KeptWarnings(logging.Handler):
+    """Keeps the text of each warning logged (:func:`kept_warnings`); ``show``: also prints it on stderr as logging's
+    last resort would have (nothing else handles it)."""
+
+    def __init__(self, kept: list[str], show: bool) -> None:
+        super().__init__(logging.WARNING)
+        self.kept = kept
+        self.show = show
+
+    def emit(self, record: logging.LogRecord) -> None:
+        message = record.getMessage()
+        self.kept.append(message)
+        if self.show:
+            print(message, file=sys.stderr)
+
+
+@contextlib.contextmanager
+def kept_warnings(kept: list[str]) -> Iterator[None]:
+    """Append to ``kept`` every warning common/'s loggers log meanwhile: the kit's load warnings (an instrument out
+    of reach, struck by no event, ...) a render prints at its start, for report.json's ``warnings`` (until 7 Dec on
+    the console only). They are shown as before: by the handlers logging has, else on stderr."""
+    logger = logging.getLogger("common")
+    handler = _KeptWarnings(kept, show=not logger.hasHandlers())
+    logger.addHandler(handler)
+    try:
+        yield
+    finally:
+        logger.removeHandler(handler)
+
+
+def grip_warning(grip: str | None) -> str | None:
+    """The warning for hands holding ``grip`` that the gestures are not planned with (american, traditional: the
+    gesture database has no units for them, :func:`common.gesture.plan.planned_grip`), as the rig's physics node
+    logs it; None when they are planned with the hands' grip."""
+    hands = grip or DEFAULT_GRIP
+    planned = planned_grip(hands).value
+    if planned == hands:
+        return None
+    return (f"the drummer's hands hold the {hands} grip; the gestures are planned with the {planned} grip (the "
+            f"gesture database has {' and '.join(GESTURE_GRIPS)} units only)")
+
+
 class PlanningProgress:
     """The bars of a score render before its simulation, one per stage of :func:`prepare`: ``reading SCORE`` (a MIDI
     file, counted in its bytes, shown in kB or MB), then ``planning SCORE (limbs)`` and ``(gestures)``, counted in
@@ -440,9 +515,28 @@ def run_score(score: Score, assignment: Assignment, plan: GesturePlan, kit: Kit,
              "control": physics.settings.control, "grip": physics.settings.grip, "rate_hz": physics.rate_hz,
              "control_rate_hz": physics.settings.control_rate_hz, "height_m": physics.settings.height_m,
              "mass_kg": physics.settings.mass_kg, "pulled_into_reach": pulled,
+             "joint_limits": joint_limits_json(physics), **controller_counts(physics),
              "cpu_time_s": round(time.process_time() - cpu_started, 3)}
     return ScoreRender(score, assignment, plan, impacts, physics.contacts_sent, audio, sound.sample_rate,
                        wav_seconds(sound), offset, time.perf_counter() - started, poses, stats, count)
+
+
+def controller_counts(physics: PhysicsCore) -> dict[str, int]:
+    """report.json's ``physics.limit_violations`` (joints outside their quaternion ellipsoid, summed over the
+    control updates) and ``physics.torque_saturated`` (DOF whose torque was clipped to its limit, summed over the
+    physics steps): :class:`services.physics.control.Controller`'s counters; none for a scene without a drummer."""
+    controller = getattr(physics.scene, "controller", None)
+    if controller is None:
+        return {}
+    return {"limit_violations": controller.limit_violations, "torque_saturated": controller.torque_saturated}
+
+
+def joint_limits_json(physics: PhysicsCore) -> dict[str, Any] | None:
+    """report.json's ``physics.joint_limits``: joint -> the formulation its limits have (``euler+quaternion``,
+    ``euler``: the box alone, e.g. an ellipsoid dropped for the playing posture), their source and each DOF's
+    (:meth:`services.physics.limits.JointLimits.formulations`); None for a scene without a drummer."""
+    limits = getattr(physics.scene, "limits", None)
+    return None if limits is None else limits.formulations()
 
 
 def collect(recorder: RecorderCore, outputs: StreamedOutputs | None) -> tuple[Any, list[Any], int | None]:
@@ -747,8 +841,12 @@ def issues_json(plan: GesturePlan, score: Score) -> list[dict[str, Any]]:
     return out
 
 
-def score_report(result: ScoreRender, source: str, opts: RenderOptions) -> dict[str, Any]:
+def score_report(result: ScoreRender, source: str, opts: RenderOptions, warnings: Sequence[str] | None = None,
+                 kit_copy: KitCopy | None = None) -> dict[str, Any]:
     """report.json of a score render; the grip and nuance those played (``opts.styled(result.score)``).
+    ``warnings``: every warning the render printed, in order (the kit's load warnings, the score reader's, the
+    grip's, ...: :func:`render_score`); None: the score reader's alone. ``kit_copy``: the kit file it played, copied
+    into the render folder (``kit_file``, absolute, and ``kit_copy``, the copy's name; null for a shipped kit).
     ``issues`` lists the planner's feasibility issues and, with ``note_index`` null, the notes the score reader
     did not keep (``unknown_note``: no drum for the pitch; ``duplicate``: a double merged), each counted apart:
     ``planner_issues``, ``unknown_notes``, ``duplicates``."""
@@ -760,8 +858,10 @@ def score_report(result: ScoreRender, source: str, opts: RenderOptions) -> dict[
     return {
         "scene": "drummer",
         "score": source,
-        "warnings": list(result.score.warnings),
+        "warnings": list(result.score.warnings) if warnings is None else list(warnings),
         "kit": opts.kit,
+        "kit_file": None if kit_copy is None else str(kit_copy.source),
+        "kit_copy": None if kit_copy is None else kit_copy.name,
         "grip": style.grip,
         "nuance": (style.nuance or DEFAULT_NUANCE).value,
         "height_m": opts.height_m,
@@ -836,10 +936,11 @@ def write_outputs(output: Path, audio: np.ndarray, sample_rate: int, impacts: li
 def write_rest(staging: Staging, report: dict[str, Any], poses: Any = None, score: Path | None = None,
                video: Callable[[Path], dict[str, Any]] | None = None, bvh_rate_hz: float | None = None,
                gltf: Callable[[Path], dict[str, Any]] | None = None,
-               end_sites: dict[str, tuple[float, float, float]] | None = None) -> None:
+               end_sites: dict[str, tuple[float, float, float]] | None = None,
+               kit_copy: KitCopy | None = None) -> None:
     """The outputs after the WAV and impacts.csv (see :func:`write_outputs`): the BVH of ``poses`` (kept in
     memory; its End Sites ``end_sites``, as :class:`StreamedOutputs`'), the video, the glTF (``gltf``: as
-    ``video``, listed as ``report["gltf"]``), the score's copy and report.json."""
+    ``video``, listed as ``report["gltf"]``), the score's copy, the kit file's (``kit_copy``) and report.json."""
     if poses is not None:
         from services.graphics.export.bvh import write_bvh
 
@@ -850,6 +951,8 @@ def write_rest(staging: Staging, report: dict[str, Any], poses: Any = None, scor
         report["gltf"] = gltf(staging.path)
     if score is not None:
         shutil.copyfile(score, staging.path / f"score{score.suffix}")
+    if kit_copy is not None:  # as it was read: the file may have been edited during the render
+        (staging.path / kit_copy.name).write_bytes(kit_copy.data)
     (staging.path / "report.json").write_text(json.dumps(report, indent=2), encoding="utf-8")
 
 
@@ -874,6 +977,10 @@ def earlier_outputs(output: Path) -> set[str]:
             names.add(Path(entry["file"]).name)
     if isinstance(report.get("score"), str):
         names.add(f"score{Path(report['score']).suffix}")
+    copy, source = report.get("kit_copy"), report.get("kit_file")
+    if isinstance(copy, str) and Path(copy).name == copy:  # never the kit file itself, rendered beside
+        if not (isinstance(source, str) and (output / copy).resolve() == Path(source).resolve()):
+            names.add(copy)
     return names
 
 
@@ -891,8 +998,11 @@ def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: boo
     if opts.video:
         check_video(opts)  # before the long part: no ffmpeg, no render
     limbs = skeleton_limbs(opts)  # read once: the kit's warnings and the planner measure the same reach
+    warned: list[str] = []  # every warning said at the start, kept for report.json's warnings
     # its warnings name the drummer asked for, with the skeleton's reach when it has one (as the planner's)
-    kit = None if opts.kit is None else load_render_kit(path, opts, None, limbs)  # --kit: before the score
+    with kept_warnings(warned):
+        kit = None if opts.kit is None else load_render_kit(path, opts, None, limbs)  # --kit: before the score
+    kit_copy = KitCopy.of(opts.kit)  # the file as loaded: a designer may edit it during the render
     calibration = Calibration.load(opts.calibration) if opts.calibration else None
     planning = PlanningProgress(Path(path).name, quiet)
     try:
@@ -900,15 +1010,20 @@ def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: boo
         if kit is None:  # the score's `kit` line, else the default: read the score first
             read = read_scaled(path, opts, planning)
             planning.close()  # the reading's line ends before the kit's warnings
-            kit = load_render_kit(path, opts, read, limbs)
-        score, assignment, plan = prepare(path, kit, opts, calibration, planning, limbs, read)
+            with kept_warnings(warned):
+                kit = load_render_kit(path, opts, read, limbs)
+            kit_copy = KitCopy.of(opts.with_kit(score_kit(read)).kit)
+        with kept_warnings(warned):
+            score, assignment, plan = prepare(path, kit, opts, calibration, planning, limbs, read)
     except BaseException:  # a bad score or Ctrl-C: the line ends where it stood, not at 100 %
         planning.close(finished=False)
         raise
     planning.close()
     read_render_sound_params(opts.sound_params, kit)  # the score's kit known, before the long part
     opts = opts.styled(score)  # physics' hands hold the grip the score asked for, as planned
-    for warning in score.warnings:  # e.g. a MIDI file without a drum channel, read as drums
+    # the reader's (e.g. a MIDI file without a drum channel, read as drums), then hands the plan has no units for
+    for warning in [*score.warnings, *filter(None, [grip_warning(opts.grip)])]:
+        warned.append(warning)
         print(f"{prog}: warning: {warning}", file=sys.stderr)
     progress = Progress(f"rendering {Path(path).name}", rendered_seconds(plan, opts), enabled=False if quiet else None)
     finished = False  # a render given up (Ctrl-C, an error) leaves its bar where it stood, not at 100 %
@@ -937,7 +1052,7 @@ def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: boo
         finally:
             progress.close(finished)
             outputs.close()
-        report = score_report(result, str(path), opts)
+        report = score_report(result, str(path), opts, warned, kit_copy)
         wav_cut = 0
         if opts.wav_from == "score":  # checked before the video and glTF are made: a refusal wastes no more
             wav_cut = round(wav_cut_s * result.sample_rate)
@@ -947,6 +1062,7 @@ def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: boo
                                                first_sound(wav, wav_cut))
             if cut_warning is not None:
                 print(f"{prog}: warning: {cut_warning}", file=sys.stderr)
+                report["warnings"].append(cut_warning)
             written = round(result.duration_s - wav_cut / result.sample_rate, 6)  # the WAV as shifted below
             # duration_s is performance.wav's length (docs/render.md), not the render's timeline: until 7 Dec it
             # was the uncut WAV's here; wav_duration_s, the same number, kept for readers of earlier reports
@@ -966,7 +1082,7 @@ def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: boo
             gltf = gltf_writer(result, kit, opts, quiet)
         kept_poses = result.poses if outputs.bvh is None else None  # else the BVH is written already
         write_rest(staging, report, kept_poses, Path(path), video, bvh_rate_hz=opts.pose_rate_hz or None,
-                   gltf=gltf, end_sites=outputs.end_sites)
+                   gltf=gltf, end_sites=outputs.end_sites, kit_copy=kit_copy)
         if wav_cut:  # after the video, which muxes the render's WAV with the poses on its own clock
             shift_wav(staging.path / "performance.wav", wav_cut, prog)
         staging.commit()
@@ -1034,8 +1150,7 @@ def check_latency(latency_s: float) -> None:
 def _check_motion_capture(opts: RenderOptions) -> None:
     """Read the clips and skeleton the drummer is built from now (``ValueError`` naming the option): a bad file
     must not wait for the score's planning, and the limits are cached for the render."""
-    from services.physics.anthropometry import anthropometry
-    from services.physics.bvh_motion import bvh_segment_lengths
+    from services.physics.bvh_motion import usable_segment_lengths
     from services.physics.drummer import cached_clips
 
     try:
@@ -1043,17 +1158,10 @@ def _check_motion_capture(opts: RenderOptions) -> None:
     except (ValueError, FileNotFoundError) as exc:
         raise ValueError(f"--limits-from: {exc}") from None
     if opts.skeleton_bvh is not None:
-        try:
-            lengths = bvh_segment_lengths(opts.skeleton_bvh)
-        except (ValueError, FileNotFoundError) as exc:
+        try:  # no joint found by name, proportions no body can have: the physics node refuses them alike
+            usable_segment_lengths(opts.skeleton_bvh)
+        except (ValueError, OSError) as exc:
             raise ValueError(f"--skeleton-bvh: {exc}") from None
-        if not lengths:
-            raise ValueError(f"--skeleton-bvh {opts.skeleton_bvh}: no arm, leg or trunk joints found by their usual "
-                             "BVH names (e.g. LeftArm, LeftForeArm, LeftUpLeg, LeftLeg, Neck)")
-        try:  # proportions no body can have (a skeleton lying down, in unexpected units) are refused now too
-            anthropometry(lengths_m=lengths)
-        except ValueError as exc:
-            raise ValueError(f"--skeleton-bvh {opts.skeleton_bvh}: {exc}") from None
 
 
 def skeleton_limbs(opts: RenderOptions) -> LimbLengths | None:
@@ -1369,9 +1477,10 @@ def build_parser() -> argparse.ArgumentParser:
 def add_performance_options(parser: argparse._ActionsContainer, kit_default: str | None = DEFAULT_KIT) -> None:
     """``--kit``, ``--grip``, ``--nuance``, ``--tempo-scale`` and ``--control`` (render and evaluate; a parser or
     one of its groups). ``kit_default`` None: a score's ``kit`` line, else :data:`DEFAULT_KIT`."""
+    from common.kit_help import kit_help
+
     default = (f"the score's `kit` line, else {DEFAULT_KIT}" if kit_default is None else kit_default)
-    parser.add_argument("--kit", default=kit_default, metavar="NAME",
-                        help=f"kit name or YAML/JSON file (default: {default})")
+    parser.add_argument("--kit", default=kit_default, metavar="NAME", help=kit_help(default))
     add_style_options(parser)
     parser.add_argument("--tempo-scale", type=float, default=1.0, metavar="X",
                         help="play this many times faster, 0.1 to 10 (0.5: half tempo; default 1)")

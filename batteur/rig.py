@@ -120,7 +120,8 @@ ABBREVIATIONS = {"--host": "--ho", "--kit": "--k", "--allow": "--a", "--config":
                  "--epoch": "--e", "--role": "--ro", "--score": "--score", "--play-at": "--pl", "--wav": "--w",
                  "--http-port": "--ht", "--kit-dir": "--kit-", "--scene": "--sce", "--strike-period": "--strike-p",
                  "--strike-velocity": "--strike-v", "--drum-channels": "--drum-c", "--drum-map": "--drum-m",
-                 "--no-hihat-cc4": "--no-h", "--score-dir": "--score-", "--preview-score": "--preview-s"}
+                 "--no-hihat-cc4": "--no-h", "--score-dir": "--score-", "--preview-score": "--preview-s",
+                 "--left-handed": "--le"}
 """The shortest abbreviation of each service option the rig reads in a ``--ROLE-arg`` (:func:`option_uses`). A
 service's parser (argparse, allow_abbrev) takes any prefix of a long option that no other of its options shares
 (``--ho`` for ``--host``), an exact name first, and refuses an ambiguous one (exit 2). So ``--h`` is no ``--host``
@@ -173,7 +174,7 @@ ALWAYS_REFUSED = ("--port", "--epoch", "--role", "--score")
 """The options of :data:`RIG_GIVES` refused whether or not the rig gave that service one."""
 GIVEN_AS = {"--no-hihat-cc4": "--hihat-cc4"}
 """An option of :data:`RIG_GIVES` refused where the rig gives that service this other one: a flag's negation."""
-FLAGS = ("--hihat-cc4", "--no-hihat-cc4")
+FLAGS = ("--hihat-cc4", "--no-hihat-cc4", "--left-handed")
 """The options :func:`option_uses` reads that take no value."""
 
 
@@ -333,6 +334,14 @@ def refuse_rig_options(role: str, given: Sequence[str], extra: Sequence[str]) ->
         name, kit = kits[-1]
         raise UsageError(f"--{role}-arg: {_as_written(name, '--kit')} {kit} would give {role} a kit of its own, "
                          f"another than the other services'; give every service that kit with the rig's --kit {kit}")
+    mirrored = option_uses(extra, "--left-handed") if role == "physics" else []  # only physics has it
+    if mirrored:
+        # refused as --kit is: physics would strike the kit mirrored while graphics draws it, interaction maps it
+        # and sound voices it unmirrored (until 7 Dec accepted)
+        raise UsageError(f"--{role}-arg: {_as_written(mirrored[-1][0], '--left-handed')} would mirror the kit "
+                         f"{role} plays but not the one the other services draw, map and voice; give every service "
+                         "a mirrored kit with the rig's --kit left_handed (the default kit mirrored; a kit file of "
+                         "your own: its mirrored copy, Kit.mirrored(), docs/score-format.md \"Kits\")")
     for flag, (what, instead) in RIG_GIVES.items():
         uses = option_uses(extra, flag)
         if uses and (flag in ALWAYS_REFUSED or option_uses(given, GIVEN_AS.get(flag, flag))):
@@ -757,6 +766,8 @@ def port_or_any(text: str) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from common.kit_help import kit_help
+
     parser = argparse.ArgumentParser(
         prog="batteur rig",
         description="Start the Batteur services as local processes (the embedded default rig). "
@@ -805,8 +816,10 @@ def build_parser() -> argparse.ArgumentParser:
         "(--graphics-arg): given to both; with none of these they act on nothing (said at start), and live notes "
         "(/batteur/score/note) are read as General MIDI pitches without them"))
     parser.add_argument("--kit", default=None, metavar="NAME",
-                        help="kit name or YAML/JSON file for every service (default: --score's `kit` line, as "
-                        "batteur render reads it, else the default kit); a --ROLE-arg may not give one its own")
+                        help=kit_help("--score's `kit` line, as batteur render reads it, else the default kit",
+                                      "kit name or YAML/JSON file for every service")
+                        + "; a --ROLE-arg may not give one its own, nor physics --left-handed (give --kit "
+                        "left_handed, or a mirrored kit file)")
     parser.add_argument("--kit-dir", type=Path, default=None, metavar="DIR",
                         help="the graphics page's kit and pose editor saves its kits and poses (poses.yaml, which "
                         "graphics' keyframe preview reads) into DIR, created when it first saves; a kit saved there "

@@ -194,7 +194,7 @@ def run_segment(plan: GesturePlan, kit: Kit, opts: RenderOptions, segment: Segme
     that, once set, ends the segment with :class:`SegmentStopped` (checked as often as progress is sent, and
     before it starts): the pool cannot cancel a segment already running or queued to a worker.
     """
-    from batteur.render import offline_interaction_config, start_drummer
+    from batteur.render import joint_limits_json, offline_interaction_config, start_drummer
     from common.bus import OfflineRunner
     from services.interaction.core import InteractionCore
 
@@ -229,7 +229,8 @@ def run_segment(plan: GesturePlan, kit: Kit, opts: RenderOptions, segment: Segme
                          physics.diverged,
                          {"control": physics.settings.control, "grip": physics.settings.grip,
                           "rate_hz": physics.rate_hz, "control_rate_hz": physics.settings.control_rate_hz,
-                          "height_m": physics.settings.height_m, "mass_kg": physics.settings.mass_kg}, pulled)
+                          "height_m": physics.settings.height_m, "mass_kg": physics.settings.mass_kg,
+                          "joint_limits": joint_limits_json(physics)}, pulled)
 
 
 class _CountingPhysics:

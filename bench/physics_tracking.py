@@ -22,8 +22,11 @@ Controllers: joint_pd and cartesian_pd use the explicit diagonal PD
 through inverse dynamics (computed torque).
 
 Printed per case and controller: stick-tip RMS error (mm, the actual tip after
-the fingers' fulcrum) and joint-angle RMS error (degrees, over the DOF the case
-drives). Goal: Cartesian tip error under 5 mm RMS and below joint space.
+the fingers' fulcrum), joint-angle RMS error (degrees, over the DOF the case
+drives) and contact steps (the contact messages physics sent: one per 1 ms step
+a stick touches an instrument, not strokes). Goal: Cartesian tip error under
+5 mm RMS and below joint space; a case measured for less than
+``MIN_JUDGED_S`` (or, for the strokes, with no contact) is too short to judge.
 A PNG like the paper's figure is written to ``--out``.
 """
 
@@ -253,20 +256,27 @@ def plot(results: list[Result], path: Path) -> None:
 
 SETTLE_S = 0.25
 """The first 250 steps settle on the rest targets and are not measured."""
+MIN_JUDGED_S = 1.0
+"""A case measured for less than this (``--seconds`` less the settling), seconds, gets no verdict: the strokes'
+first two fall at 0.5 and 0.65 s, their last at 1.85 s."""
+STEP_HZ = 1000.0
+"""The physics step rate of every case, Hz (``run_case``: 1 ms steps)."""
 
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--clips", nargs="*", default=["punch", "dance_a"],
-                        help="DeepMimic clips (upper body; default: punch dance_a; none: strokes only)")
+                        help="DeepMimic clips (upper body; default: punch dance_a; 'none' or no name: strokes "
+                             "only)")
     parser.add_argument("--seconds", type=seconds, default=2.5,
                         help=f"longest simulated time per case, seconds, above {SETTLE_S:g} (the settling; "
                              "default 2.5)")
     parser.add_argument("--out", type=Path, default=Path("physics_tracking.png"),
                         help="PNG to write (default physics_tracking.png)")
     parser.add_argument("--control-rate", type=hertz, default=1000.0,
-                        help="control updates per second, Hz (IK and inverse dynamics; the PD corrects the held "
-                             "torques at every 1 ms step between; default 1000: every step)")
+                        help="control updates per second, Hz, at most 1000 (IK and inverse dynamics; the PD "
+                             "corrects the held torques at every 1 ms step between; updates are a whole number of "
+                             "steps apart: 300 runs at 333.3 Hz, said; default 1000: every step)")
     return parser
 
 
@@ -282,6 +292,8 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     if args.seconds <= SETTLE_S:
         parser.error(f"--seconds {args.seconds:g}: more than {SETTLE_S:g} (the first {SETTLE_S:g} s settle and are "
                      "not measured)")
+    if [clip.lower() for clip in args.clips] == ["none"]:
+        args.clips = []
     for clip in args.clips:
         try:
             load_deepmimic(clip)
@@ -291,6 +303,8 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
         PhysicsSettings(control_rate_hz=args.control_rate)
     except ValidationError as exc:
         parser.error(f"--control-rate {args.control_rate:g}: {first_error(exc)}")
+    if args.control_rate > STEP_HZ:
+        parser.error(f"--control-rate {args.control_rate:g}: at most the physics step rate, {STEP_HZ:g} Hz")
     if args.out.suffix.lower() != ".png":
         parser.error(f"--out {args.out}: a .png file")
     try:
@@ -304,23 +318,44 @@ def main(argv: Sequence[str] | None = None) -> None:
     args = parse_args(argv)
     cases: list[tuple[str, str | None]] = [("strokes", None)] + [(f"deepmimic {c}", c) for c in args.clips]
     results = []
-    print(f"control updates at {args.control_rate:g} Hz, physics step 1 kHz")
-    print(f"{'case':<20}{'control':<12}{'tip RMS mm':>12}{'joint RMS deg':>15}{'contacts':>10}{'RTF':>7}")
+    every = control_every(args.control_rate)
+    asked = "" if STEP_HZ / every == args.control_rate else f"; {args.control_rate:g} Hz asked"
+    print(f"control updates at {STEP_HZ / every:.4g} Hz (every {every} physics steps{asked}), physics step 1 kHz")
+    print("contact steps: contact messages sent, one per 1 ms step a stick touches an instrument (not strokes)")
+    print(f"{'case':<20}{'control':<12}{'tip RMS mm':>12}{'joint RMS deg':>15}{'contact steps':>15}{'RTF':>7}")
     for case, clip in cases:
         for control in CONTROLLERS:
             r = run_case(case, control, clip, args.seconds, args.control_rate)
             results.append(r)
             rtf = (r.times[-1] if len(r.times) else 0.0) / max(r.wall_s, 1e-9)
-            print(f"{case:<20}{control:<12}{r.tip_rms:12.2f}{r.joint_rms:15.2f}{r.contacts:10d}{rtf:7.2f}")
+            print(f"{case:<20}{control:<12}{r.tip_rms:12.2f}{r.joint_rms:15.2f}{r.contacts:15d}{rtf:7.2f}")
     plot(results, args.out)
     print(f"plot: {args.out}")
     for case, _ in cases:
         joint = min((r for r in results if r.case == case and r.control.startswith("joint")), key=lambda r: r.tip_rms)
         cart = next(r for r in results if r.case == case and r.control == "cartesian")
-        verdict = "meets" if cart.tip_rms < 5.0 and cart.tip_rms < joint.tip_rms else "misses"
+        short = too_short(case, cart)
+        verdict = f"too short to judge ({short})" if short else \
+            ("meets" if cart.tip_rms < 5.0 and cart.tip_rms < joint.tip_rms else "misses") + \
+            " the goal (< 5 mm and below joint space)"
         print(f"{case}: Cartesian tip RMS {cart.tip_rms:.2f} mm vs best joint-space ({joint.control}) "
-              f"{joint.tip_rms:.2f} mm ({joint.tip_rms / max(cart.tip_rms, 1e-9):.1f}x) -> {verdict} the goal "
-              "(< 5 mm and below joint space)")
+              f"{joint.tip_rms:.2f} mm ({joint.tip_rms / max(cart.tip_rms, 1e-9):.1f}x) -> {verdict}")
+
+
+def control_every(rate_hz: float) -> int:
+    """Physics steps between two full control updates at ``rate_hz`` (as ``DrummerScene.control_every``)."""
+    return max(1, round(STEP_HZ / rate_hz))
+
+
+def too_short(case: str, result: Result) -> str:
+    """Why ``result`` (a case's Cartesian run) is too short to judge, or "" when it is not: measured for less than
+    ``MIN_JUDGED_S``, or the strokes with no contact."""
+    measured = float(result.times[-1] - result.times[0]) + 1 / STEP_HZ if len(result.times) else 0.0
+    if measured < MIN_JUDGED_S - 1e-9:
+        return f"{measured:.2f} s measured, at least {MIN_JUDGED_S:g} s needed: --seconds {SETTLE_S + MIN_JUDGED_S:g}"
+    if case == "strokes" and result.contacts == 0:
+        return "no contact"
+    return ""
 
 
 if __name__ == "__main__":

@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 import numpy as np
 import yaml
-from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, PrivateAttr, ValidationError, model_validator
 from pydantic_core import PydanticCustomError
 
 from common.datafile import BOUND_ERRORS, first_error, more_errors, parse_file
@@ -269,6 +269,11 @@ centre stroke, so a kit event with one is refused when the kit loads. Here, in c
 sound service check against the same list."""
 
 
+FOOT_EVENTS = frozenset({EventType.BASS, EventType.HIHATPEDAL})
+"""Event types played by a foot on a footboard: a kit gives each a ``pedal`` (warned of without one:
+:func:`layout_problems`; a kit for the sound service alone needs none)."""
+
+
 class EventSpec(_Strict):
     """How one drum event type is played on this kit."""
 
@@ -296,6 +301,32 @@ class EventSpec(_Strict):
     )
 
 
+class _Memo:
+    """Work a frozen model keeps for itself: no part of its value (any two are equal, so kits compare by their
+    fields as before; a pickled one comes back empty)."""
+
+    def __init__(self) -> None:
+        self.value: Any = None
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, _Memo)
+
+    __hash__ = None  # type: ignore[assignment]
+
+    def __reduce__(self) -> tuple[type[_Memo], tuple[()]]:
+        return (_Memo, ())
+
+
+PAIR_CROSS_LIMIT_M = 0.38
+"""How far (x, metres, between the two hit points) a written pair preference may cross the arms before the geometry
+overrides it (:meth:`Kit.stale_pairs`): the shoulders' width (common/score/limbs.py ``SHOULDERS``), beyond the
+crossings the shipped kits' conventions ask for (a crossed hi-hat 0.21-0.23 m, the crash over the backbeat 0.27 m)."""
+PAIR_GEOMETRY_SPAN_M = 0.30
+"""A geometric pair preference is the hit points' x distance over this, metres, at most 1 (docs/gestures.md)."""
+PAIR_GEOMETRY_MIN_DX_M = 0.10
+"""Hit points closer than this in x (metres) give no geometric pair preference."""
+
+
 class Kit(_Strict):
     """A whole kit: objects, how each event type is played, pair-wise hand preferences."""
 
@@ -310,7 +341,8 @@ class Kit(_Strict):
     double_pedal: bool = False
     left_bass_pedal: str | None = Field(
         default=None,
-        description="double pedal: id of the left footboard that drives the kick (BASS by the left foot)",
+        description="double pedal: id of the second footboard that drives the kick (BASS by the other foot than "
+                    "BASS's preferred one: the left foot on a right-handed kit, the right on a mirrored one)",
     )
     note_objects: dict[int, str] = Field(
         default_factory=dict,
@@ -329,17 +361,25 @@ class Kit(_Strict):
         le=1,
         description="a rebound double's second note may be at most this much louder than the first (velocity, 0..1)",
     )
+    _pairs: _Memo = PrivateAttr(default_factory=lambda: _Memo())
+    """:meth:`_pair_table`'s work and what it was worked out from."""
 
     @model_validator(mode="after")
     def _check_refs(self) -> Kit:
         ids = [o.id for o in self.objects]
-        if len(ids) != len(set(ids)):
-            raise ValueError("kit object ids must be unique")
+        twice = sorted({i for i in ids if ids.count(i) > 1})
+        if twice:  # named, with where: the designer's copied entry may be anywhere in a long list
+            said = "; ".join(f"{i!r} is the id of " + " and ".join(f"objects.{k}" for k, o in enumerate(ids) if o == i)
+                             for i in twice)
+            raise ValueError(f"kit object ids must be unique: {said}")
+        kinds = {o.id: o.kind for o in self.objects}
         for event, spec in self.events.items():
             if spec.object not in ids:
                 raise ValueError(f"event {event.value} refers to unknown object {spec.object!r}")
             if spec.pedal is not None and spec.pedal not in ids:
                 raise ValueError(f"event {event.value} refers to unknown pedal {spec.pedal!r}")
+            if spec.pedal is not None and kinds[spec.pedal] != "pedal":  # physics builds a footboard only there
+                raise ValueError(f"event {event.value}'s pedal {spec.pedal!r} is a {kinds[spec.pedal]}, not a pedal")
             if spec.zone not in ZONES:  # else every stroke of it is dropped by the sound service, silently
                 raise ValueError(f"event {event.value}: no zone {spec.zone!r} (zones: {', '.join(sorted(ZONES))})")
         for pitch, obj in self.note_objects.items():
@@ -349,6 +389,9 @@ class Kit(_Strict):
                 raise ValueError(f"note_objects key {pitch} is not a MIDI pitch (0..127)")
         if self.left_bass_pedal is not None and self.left_bass_pedal not in ids:
             raise ValueError(f"left_bass_pedal refers to unknown object {self.left_bass_pedal!r}")
+        if self.left_bass_pedal is not None and kinds[self.left_bass_pedal] != "pedal":
+            raise ValueError(f"left_bass_pedal {self.left_bass_pedal!r} is a {kinds[self.left_bass_pedal]}, "
+                             "not a pedal")
         if self.double_pedal and self.left_bass_pedal is None:
             raise ValueError("double_pedal needs left_bass_pedal (the left footboard object id)")
         for key in self.pair_preference:
@@ -362,6 +405,19 @@ class Kit(_Strict):
             if o.id == object_id:
                 return o
         raise KeyError(f"kit {self.name!r} has no object {object_id!r}")
+
+    def kick(self) -> KitObject | None:
+        """The bass drum: the object BASS strikes, whatever its id (None: the kit plays no BASS)."""
+        return self.object(self.events[EventType.BASS].object) if EventType.BASS in self.events else None
+
+    def kick_pedal(self) -> str | None:
+        """Id of the footboard whose beater strikes the kick: BASS's ``pedal`` (None: the kit plays no BASS). A
+        double pedal's second footboard is ``left_bass_pedal``."""
+        return self.events[EventType.BASS].pedal if EventType.BASS in self.events else None
+
+    def hihat_pedal(self) -> str | None:
+        """Id of the footboard that closes the hi-hat: HIHATPEDAL's ``pedal`` (None: the kit plays no HIHATPEDAL)."""
+        return self.events[EventType.HIHATPEDAL].pedal if EventType.HIHATPEDAL in self.events else None
 
     def spec(self, event: EventType) -> EventSpec:
         """How ``event`` is played; ``KeyError`` naming the kit when it has no such event."""
@@ -438,12 +494,55 @@ class Kit(_Strict):
         return hihat.closes_at if hihat is not None else float(KitObject.model_fields["closes_at"].default)
 
     def pair(self, a: EventType, b: EventType) -> float:
-        """pair(a, b) in [-1, 1]; antisymmetric, 0 when unspecified."""
-        if f"{a.value},{b.value}" in self.pair_preference:
-            return self.pair_preference[f"{a.value},{b.value}"]
-        if f"{b.value},{a.value}" in self.pair_preference:
-            return -self.pair_preference[f"{b.value},{a.value}"]
+        """pair(a, b) in [-1, 1]; antisymmetric, 0 when unspecified. A written preference that would cross the arms
+        further than :data:`PAIR_CROSS_LIMIT_M` as the objects stand gives way to the geometry's
+        (:meth:`stale_pairs`)."""
+        table = self._pair_table()
+        if (a, b) in table:
+            return table[(a, b)]
+        if (b, a) in table:
+            return -table[(b, a)]
         return 0.0
+
+    def geometry_pair(self, a: EventType, b: EventType) -> float:
+        """The preference the geometry gives (docs/gestures.md, the shipped kits' generated entries): the event
+        whose hit point is further to the drummer's right to the right hand, min(1, dx / 0.30 m) rounded to 0.01,
+        when the hit points are more than 10 cm apart in x on different objects; else 0."""
+        if self.spec(a).object == self.spec(b).object:
+            return 0.0
+        dx = self.hit_point(a)[0][0] - self.hit_point(b)[0][0]
+        if abs(dx) <= PAIR_GEOMETRY_MIN_DX_M:
+            return 0.0
+        return _zero_signless(round(max(-1.0, min(1.0, dx / PAIR_GEOMETRY_SPAN_M)), 2))
+
+    def stale_pairs(self) -> dict[str, tuple[float, float]]:
+        """Written ``pair_preference`` entries the geometry overrides: key -> (written, used). An entry is stale
+        when, as the objects stand, the hand it gives each event would cross the arms further (x, metres, between
+        the hit points) than :data:`PAIR_CROSS_LIMIT_M`: the conventions the shipped kits write (a crossed hi-hat,
+        the right hand on the crash over the backbeat) cross up to 0.27 m; a ride moved far to the left with
+        ``RIDE,SNARE: 1`` kept would put the right hand 0.5 m across the left."""
+        return {f"{a.value},{b.value}": (written, used) for (a, b), (written, used) in self._pair_table(True).items()
+                if used != written}
+
+    def _pair_table(self, both: bool = False) -> dict[tuple[EventType, EventType], Any]:
+        """(a, b) -> the pair preference used (``both``: (written, used)), worked out once per kit: the kit is frozen,
+        and a copy with other objects or events (``model_copy(update=...)``) holds other containers, so it is
+        worked out again for it."""
+        basis = (self.objects, self.events, self.pair_preference)
+        cached = self._pairs.value
+        if cached is None or any(x is not y for x, y in zip(cached[0], basis, strict=True)):
+            table: dict[tuple[EventType, EventType], tuple[float, float]] = {}
+            for key, written in self.pair_preference.items():
+                a, b = (EventType(part) for part in key.split(","))
+                used = written
+                if written != 0.0 and a in self.events and b in self.events:
+                    right, left = (a, b) if written > 0 else (b, a)  # the hands the entry gives them
+                    if self.hit_point(left)[0][0] - self.hit_point(right)[0][0] > PAIR_CROSS_LIMIT_M:
+                        used = self.geometry_pair(a, b)
+                table[(a, b)] = (written, used)
+            cached = self._pairs.value = (basis, table)
+        table = cached[1]
+        return dict(table) if both else {k: used for k, (_, used) in table.items()}
 
     def mirrored(self) -> Kit:
         """The left-handed setup: x mirrored, hands and feet swapped; mirroring it again gives this kit back (the
@@ -525,32 +624,153 @@ def load_kit(source: str | Path = "default", height_m: float | None = None, warn
     except ValidationError as exc:
         others = more_errors(exc)
         more = f" (and {others} more)" if others else ""
-        raise ValueError(f"kit file {str(path)!r} is not a valid kit: {kit_problem(exc)}{more}") from None
+        raise ValueError(f"kit file {str(path)!r} is not a valid kit: {kit_problem(exc, data)}{more}") from None
     if not warn:
         return kit
     from common.score.limbs import STATURE_M, unplayable_instruments  # here: limbs imports this module
 
-    problems = unplayable_instruments(kit, STATURE_M if height_m is None else height_m, lengths)
+    problems = layout_problems(kit) + unplayable_instruments(kit, STATURE_M if height_m is None else height_m,
+                                                               lengths)
     for problem in problems:  # a valid kit may still hold objects the drummer cannot play
         log.warning("kit file %r: %s", str(path), problem)
     return kit
 
 
-def kit_problem(exc: ValidationError) -> str:
+SOLID_KINDS = frozenset({"membrane", "cymbal", "hihat", "bell"})
+"""Object kinds :func:`layout_problems` takes as solids (drums as cylinders, cymbals as plates)."""
+SEATED_HEAD_M = 0.9
+"""How far above the seat a seated 1.75 m drummer's head reaches, metres (about half the stature, less the legs'
+share under the seat): an object's centre over the seat, up to here, is inside the drummer."""
+PLATE_HALF_M = 0.01
+"""Half the slab a cymbal or hi-hat is taken as for the overlap check, metres (its plate with the clearance a swing
+needs)."""
+OVERLAP_MARGIN_M = 0.01
+"""How far inside another object (metres, from its surface) a point must be to be an overlap: objects that only
+touch (rack toms rim to rim) are not warned of."""
+
+
+def layout_problems(kit: Kit) -> list[str]:
+    """Where the kit's objects stand as no kit can, one line each naming the objects and what is wrong (for a
+    warning as the kit loads, with :func:`common.score.limbs.unplayable_instruments`): an object whose centre is
+    in the throne or the drummer seated on it (over the seat, up to :data:`SEATED_HEAD_M` above it), a drum or
+    cymbal inside another (a point of one's (:func:`_solid_points`) deeper than :data:`OVERLAP_MARGIN_M` in the
+    other: drums as cylinders from their head down their depth, cymbals and the hi-hat as plates), a stick-struck
+    object whose playing surface faces the floor (rolled upside down), an object below the floor, and
+    ``pair_preference`` entries the geometry overrides (:meth:`Kit.stale_pairs`); and a foot event (BASS,
+    HIHATPEDAL) without a ``pedal``. The shipped kits give none."""
+    lines: list[str] = []
+    seat = np.asarray(kit.seat_position())
+    throne = next((o for o in kit.objects if o.kind == "throne"), None)
+    seat_radius = throne.radius if throne is not None else 0.18
+    kick = kit.kick()
+    for event in sorted(FOOT_EVENTS & set(kit.events)):
+        spec = kit.events[event]
+        if spec.pedal is None:  # physics builds no beater (no rod) for it: its notes would never sound
+            lines.append(f"events.{event.value} has no pedal: nothing a foot presses "
+                         f"{'drives a beater into' if event == EventType.BASS else 'closes'} {spec.object!r}, so "
+                         "its notes do not sound when played (pedal: the id of a footboard object, kind pedal)")
+    for obj in kit.objects:
+        centre = np.asarray(obj.position)
+        if obj.kind != "throne" and math.hypot(*(centre[:2] - seat[:2])) < seat_radius \
+                and centre[2] < seat[2] + SEATED_HEAD_M:
+            lines.append(f"{obj.id}: its centre {_shown_point(obj.position)} is in the throne, where the drummer "
+                         f"sits (within {seat_radius:g} m of the seat at {_shown_point(tuple(seat))} and below the "
+                         "seated drummer's head)")
+        if centre[2] < 0.0:
+            lines.append(f"{obj.id}: its centre {_shown_point(obj.position)} is {-centre[2]:.3g} m below the floor "
+                         "(z is height above the floor, metres)")
+        normal = obj.normal()
+        if obj.kind in SOLID_KINDS and obj is not kick and normal[2] < -1e-9:
+            lines.append(f"{obj.id}: its playing surface faces the floor (rotation_deg {_shown_point(obj.rotation_deg)}"
+                         f", surface normal {_shown_point(normal, 2)}): a stick strikes it from above; a roll or "
+                         "pitch beyond 90 degrees turns it upside down")
+    stale = kit.stale_pairs()
+    if stale:  # the file's table was written for another layout (a kit copied and its objects moved)
+        shown = ", ".join(f"{key} {written:g} -> {used:g}" for key, (written, used) in list(stale.items())[:6])
+        lines.append(f"pair_preference: {len(stale)} entr{'y' if len(stale) == 1 else 'ies'} would cross the arms "
+                     f"more than {PAIR_CROSS_LIMIT_M:g} m as the objects stand, so the geometry's preference is used "
+                     f"({shown}{', ...' if len(stale) > 6 else ''}): moved objects leave the table stale; write it "
+                     "again from this layout (docs/gestures.md, 'Pair table')")
+    solids = [o for o in kit.objects if o.kind in SOLID_KINDS]
+    for k, a in enumerate(solids):
+        for b in solids[k + 1:]:
+            if _inside(_solid_points(a), b) or _inside(_solid_points(b), a):
+                lines.append(f"{a.id} and {b.id} overlap: one stands inside the other ({a.id} at "
+                             f"{_shown_point(a.position)}, radius {a.radius:g} m; {b.id} at "
+                             f"{_shown_point(b.position)}, radius {b.radius:g} m)")
+    return lines
+
+
+def _shown_point(point: tuple[float, ...], decimals: int = 3) -> str:
+    """``(0, 0, 0.55)``: a point or vector for a message, without float noise."""
+    return "(" + ", ".join(f"{round(v, decimals) + 0.0:g}" for v in point) + ")"
+
+
+def _solid_points(obj: KitObject) -> np.ndarray:
+    """Points that stand for ``obj``'s solid (world metres, (n, 3)): a drum's axis from its head's centre down to its
+    depth (its rim may overhang another's, as a rack tom's over the snare), a plate's centre and a ring at 0.9 of its
+    radius (two cymbals' plates crossing would clash)."""
+    centre = np.asarray(obj.position)
+    n = np.asarray(obj.normal())
+    if obj.kind in ("membrane", "bell"):
+        return np.array([centre - d * obj.depth * n for d in (0.0, 0.25, 0.5, 0.75, 1.0)])
+    rows = np.asarray(obj.rotation_matrix())
+    ex, ey = rows[:, 0], rows[:, 1]
+    ring = [0.9 * obj.radius * (math.cos(a) * ex + math.sin(a) * ey) for a in np.linspace(0, 2 * math.pi, 12,
+                                                                                          endpoint=False)]
+    return np.array([centre, *(centre + r for r in ring)])
+
+
+def _inside(points: np.ndarray, obj: KitObject) -> bool:
+    """Whether any of ``points`` (world metres, (n, 3)) is more than :data:`OVERLAP_MARGIN_M` inside ``obj``'s solid:
+    a drum's cylinder from its head down its depth, a plate's slab :data:`PLATE_HALF_M` each side."""
+    n = np.asarray(obj.normal())
+    rel = points - np.asarray(obj.position)
+    along = rel @ n
+    radial = np.linalg.norm(rel - np.outer(along, n), axis=1)
+    if obj.kind in ("membrane", "bell"):
+        low, high = -obj.depth + OVERLAP_MARGIN_M, -OVERLAP_MARGIN_M
+    else:
+        low, high = -PLATE_HALF_M, PLATE_HALF_M
+    return bool(np.any((along > low) & (along < high) & (radial < obj.radius - OVERLAP_MARGIN_M)))
+
+
+def kit_problem(exc: ValidationError, data: Any = None) -> str:
     """The first problem of a kit file, in plain words: a kit check's own message without pydantic's
     ``Value error, ``, a number out of bounds as its field, its value and the range the field takes
-    (``events.SNARE.min_time_gap: 5 is out of range: more than 0, at most 2``), else :func:`first_error`'s."""
+    (``events.SNARE.min_time_gap: 5 is out of range: more than 0, at most 2``), an event type the kit may not
+    name with the ones it may, else :func:`first_error`'s. With the file's ``data``, an object's entry is named by
+    its id too (``objects.8 (ride).radius: ...``: an index alone left the designer counting)."""
     first = exc.errors()[0]
-    said = first_error(exc)  # a kit check's own message as it is (datafile.error_message)
+    loc = tuple(first.get("loc", ()))
+    said = _named_object(first_error(exc), loc, data)  # a kit check's own message as it is (datafile.error_message)
+    if first.get("type") == "enum" and len(loc) == 3 and loc[0] == "events" and loc[2] == "[key]":
+        return (f"events.{loc[1]}: {str(loc[1])!r} is not an event type (the event types are "
+                f"{', '.join(e.value for e in EventType)})")
     value = first.get("input")
     if first.get("type") not in BOUND_ERRORS or isinstance(value, bool) or not isinstance(value, (int, float)) \
             or math.isnan(value):  # a NaN: first_error's "must be a finite number"
         return said
-    loc = tuple(first.get("loc", ()))
     bounds = _bounds_in_words(_kit_schema_at(loc))
     if not bounds:
         return said
-    return f"{'.'.join(str(p) for p in loc)}: {value:g} is out of range: {bounds}"
+    return _named_object(f"{'.'.join(str(p) for p in loc)}: {value:g} is out of range: {bounds}", loc, data)
+
+
+def _named_object(said: str, loc: tuple[int | str, ...], data: Any) -> str:
+    """``said`` with its leading ``objects.N`` followed by the object's id in ``data`` (``objects.8 (ride)``) when
+    the problem is in that object and the file gives it an id; else as it is."""
+    if len(loc) < 2 or loc[0] != "objects" or not isinstance(loc[1], int) or not isinstance(data, dict):
+        return said
+    objects = data.get("objects")
+    if not isinstance(objects, list) or not 0 <= loc[1] < len(objects) or not isinstance(objects[loc[1]], dict):
+        return said
+    object_id = objects[loc[1]].get("id")
+    where = f"objects.{loc[1]}"
+    if not isinstance(object_id, str) or not object_id or not said.startswith(where) \
+            or said[len(where):len(where) + 1] not in (".", ":"):
+        return said
+    return f"{where} ({object_id}){said[len(where):]}"
 
 
 @functools.cache
@@ -631,10 +851,11 @@ def save_kit(kit: Kit, path: Path) -> None:
 
 def stand_rods(objects: list[KitObject]) -> list[tuple[np.ndarray, float]]:
     """(top (3,), height) of each stand rod, world metres: under each mounted drum and cymbal of ``objects``, up to
-    the underside of its centre (physics' stand bodies and the glTF export's rods)."""
+    the underside of its centre (physics' stand bodies and the glTF export's rods). A drum whose head faces sideways
+    (the kick, whatever its id) stands on its shell: no rod."""
     rods = []
     for obj in objects:
-        if obj.kind in ("pedal", "throne") or obj.id == "kick":
+        if obj.kind in ("pedal", "throne") or (obj.kind == "membrane" and abs(obj.normal()[2]) < SIDEWAYS_NZ):
             continue
         n = np.asarray(obj.normal())
         # the stand reaches the underside of the object's centre
@@ -645,6 +866,9 @@ def stand_rods(objects: list[KitObject]) -> list[tuple[np.ndarray, float]]:
     return rods
 
 
+SIDEWAYS_NZ = 0.5
+"""A drum whose head's normal has less than this upward component (tilted more than 60 degrees from level) stands
+on its shell, as a kick does (:func:`stand_rods`)."""
 BEATER_AXLE_TO_HEAD_M = 0.12
 """How far in front of the kick's head (toward the drummer) a beater's axle sits, metres."""
 BEATER_AXLE_HEIGHT_M = 0.10
@@ -692,8 +916,9 @@ def _beater(kit: Kit, pedal: KitObject, kick: KitObject) -> Beater:
     """``pedal``'s beater, computed in the pedal's frame (physics joins it there: services/physics/kitbodies.py
     ``_pedal_robot``), then placed."""
     dx = 0.0
-    if pedal.id != "kick_pedal":  # a double pedal's second beater sits beside the main one (a cardan shaft)
-        main_x = next((o.position[0] for o in kit.objects if o.id == "kick_pedal"), pedal.position[0])
+    main = kit.kick_pedal()
+    if pedal.id != main:  # a double pedal's second beater sits beside the main one (a cardan shaft)
+        main_x = next((o.position[0] for o in kit.objects if o.id == main), pedal.position[0])
         side = 1.0 if pedal.position[0] < main_x else -1.0
         dx = (main_x - side * DOUBLE_PEDAL_BEATER_GAP_M) - pedal.position[0]
     axle_y = kick.position[1] - pedal.position[1] - BEATER_AXLE_TO_HEAD_M
@@ -710,11 +935,11 @@ def _beater(kit: Kit, pedal: KitObject, kick: KitObject) -> Beater:
 
 
 def kit_hardware(kit: Kit) -> KitHardware:
-    """The beaters and stand rods physics builds for ``kit`` (world metres): a beater on the kick pedal, and on
-    the left bass pedal of a double pedal, when the kit has a kick; a stand rod under each mounted drum and
-    cymbal (:func:`stand_rods`)."""
-    kick = next((o for o in kit.objects if o.id == "kick"), None)
-    driving = {"kick_pedal"} | ({kit.left_bass_pedal} if kit.double_pedal and kit.left_bass_pedal else set())
+    """The beaters and stand rods physics builds for ``kit`` (world metres): a beater on the kick pedal (BASS's
+    ``pedal``), and on the left bass pedal of a double pedal, when the kit plays BASS (its object the kick, whatever
+    the ids: :meth:`Kit.kick`); a stand rod under each mounted drum and cymbal (:func:`stand_rods`)."""
+    kick = kit.kick()
+    driving = {kit.kick_pedal()} | ({kit.left_bass_pedal} if kit.double_pedal and kit.left_bass_pedal else set())
     beaters = [] if kick is None else [_beater(kit, o, kick) for o in kit.objects
                                        if o.kind == "pedal" and o.id in driving]
     stands = [StandRod(top=(float(top[0]), float(top[1]), float(top[2])), height=height, radius=STAND_ROD_RADIUS_M)

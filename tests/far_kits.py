@@ -31,9 +31,12 @@ def china_at(kit: Kit, distance_m: float) -> Kit:
 
 def china_left(kit: Kit, height_m: float, from_left_m: float) -> Kit:
     """``kit`` with its china out to the left of a drummer ``height_m`` tall, ``from_left_m`` metres from its left
-    shoulder (the china stays the right hand's by the kit's preferences: preferred hand, CHINA,SNARE pair)."""
+    shoulder (the china stays the right hand's by its preferred hand; its pair preferences, written for a china on
+    the right, are dropped: crossing the arms 0.8 m they would give way to the geometry's, ``Kit.stale_pairs``)."""
     direction = np.array([-0.95, 0.3, 0.0]) / np.linalg.norm([-0.95, 0.3, 0.0])
-    return china_moved(kit, np.array(shoulders(kit, height_m)[Limb.LEFT_HAND]) + from_left_m * direction)
+    moved = china_moved(kit, np.array(shoulders(kit, height_m)[Limb.LEFT_HAND]) + from_left_m * direction)
+    pairs = {key: p for key, p in moved.pair_preference.items() if EventType.CHINA.value not in key.split(",")}
+    return moved.model_copy(update={"pair_preference": pairs})
 
 
 FAR_LEFT = china_left(load_kit("default", warn=False), SMALL_M, 0.75)

@@ -93,6 +93,39 @@ def test_physics_tracking_checks_its_options_before_the_first_case(tmp_path: Pat
     assert parse(["--out", str(tmp_path / "x.png"), "--clips", "punch"]).clips == ["punch"]
 
 
+def test_physics_tracking_says_what_it_runs_and_judges_only_long_enough_runs(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    """``--clips none`` is the strokes alone, as its help says (was "no clip 'none'"); a control rate above the
+    step rate is refused (ran at 1 kHz), one that is not a whole number of steps is said at its real rate (300 ran
+    at 333.3 Hz, printed as 300); a run too short to measure gets no verdict (0.3-0.5 s got one from 0-3 contact
+    steps); the contacts column says it counts steps in contact. The cases are stand-ins (nothing simulated): a
+    Cartesian tip error of 1 mm and a joint-space one of 3 mm over the measured steps."""
+    import numpy as np
+
+    module = bench("physics_tracking")
+    parse = module.parse_args
+    out_png = ["--out", str(tmp_path / "x.png")]
+    assert parse([*out_png, "--clips", "none"]).clips == []
+    assert "--control-rate 3000" in refused(capsys, parse, [*out_png, "--control-rate", "3000"])
+
+    def run_case(case: str, control: str, clip: str | None, seconds: float, rate: float) -> Any:
+        times = np.arange(round(module.SETTLE_S * 1000), round(seconds * 1000)) / 1000 + 0.001
+        error = np.full(len(times), 1.0 if control == "cartesian" else 3.0)
+        return module.Result(case, control, times, error, np.zeros(len(times)), contacts=len(times) // 100)
+
+    monkeypatch.setattr(module, "run_case", run_case)
+    monkeypatch.setattr(module, "plot", lambda results, path: None)
+    module.main([*out_png, "--clips", "none", "--seconds", "0.5", "--control-rate", "300"])
+    printed = capsys.readouterr().out
+    assert "control updates at 333.3 Hz (every 3 physics steps; 300 Hz asked)" in printed
+    assert "contact steps" in printed
+    assert "strokes: " in printed and "too short to judge (0.25 s measured" in printed and "the goal" not in printed
+    module.main([*out_png, "--clips", "none", "--seconds", "2"])
+    printed = capsys.readouterr().out
+    assert "control updates at 1000 Hz (every 1 physics steps)" in printed
+    assert "-> meets the goal" in printed and "too short" not in printed
+
+
 def test_evaluate_groove_checks_its_options_before_rendering(tmp_path: Path,
                                                              capsys: pytest.CaptureFixture[str]) -> None:
     parse = bench("evaluate_groove").parse_args

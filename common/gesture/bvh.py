@@ -8,6 +8,7 @@ site per frame, in the file's units and axes (BVH is usually y-up).
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -51,10 +52,29 @@ class Bvh:
         raise KeyError(f"BVH has no joint {name!r} (joints: {', '.join(j.name for j in self.joints)})")
 
 
+CHANNEL_NAMES = frozenset(f"{axis}{kind}" for axis in "xyz" for kind in ("position", "rotation"))
+"""The channel names a BVH may list (compared lower-case): Xposition ... Zrotation."""
+
+
+def _line_of(text: str, index: int) -> int:
+    """1-based line of token ``index`` of ``text.split()`` (``len`` of it: the line after the last token); scanned
+    only for an error's message, so reading a good file costs nothing."""
+    last = 0
+    for k, token in enumerate(re.finditer(r"\S+", text)):
+        if k == index:
+            return text.count("\n", 0, token.start()) + 1
+        last = token.end()
+    return text.count("\n", 0, last) + 1
+
+
 def parse_bvh(text: str, name: str = "<bvh>") -> Bvh:
-    """Parse BVH text. Raises :class:`BvhError` naming the problem."""
+    """Parse BVH text. Raises :class:`BvhError` naming the problem and where it is: ``line N`` (1-based, the
+    file's lines), ``frame N`` (1-based, the first motion line is frame 1)."""
     tokens = text.split()
     pos = 0
+
+    def at(index: int) -> str:
+        return f"{name}: line {_line_of(text, index)}"
 
     def take() -> str:
         nonlocal pos
@@ -66,68 +86,133 @@ def parse_bvh(text: str, name: str = "<bvh>") -> Bvh:
     def expect(word: str) -> None:
         got = take()
         if got.upper() != word.upper():
-            raise BvhError(f"{name}: expected {word!r}, found {got!r}")
+            note = closed_note() if word == "MOTION" else ""
+            raise BvhError(f"{at(pos - 1)}: expected {word!r}, found {got!r}{note}")
+
+    def number(kind: type[float] | type[int] = float) -> float:
+        word = take()
+        try:
+            return kind(word)
+        except ValueError:
+            raise BvhError(f"{at(pos - 1)}: expected {'a number' if kind is float else 'a whole number'}, "
+                           f"found {word!r}") from None
 
     joints: list[BvhJoint] = []
-    try:
-        expect("HIERARCHY")
-        stack: list[int] = []
+    opened: list[int] = []  # token index of each joint's name, for messages
+    root_closed: list[int] = []  # token index of the '}' that closed the root
+
+    def closed_note() -> str:  # what MOTION missing after the hierarchy most likely means
+        if root_closed:
+            return f" (the root's block closed at line {_line_of(text, root_closed[0])}: an extra '}}' above?)"
+        return ""
+
+    expect("HIERARCHY")
+    stack: list[int] = []
+    word = take()
+    if word.upper() != "ROOT":
+        raise BvhError(f"{at(pos - 1)}: expected ROOT, found {word!r}")
+    while True:
+        if word.upper() in ("ROOT", "JOINT"):
+            jname = take()
+            opened.append(pos - 1)
+            expect("{")
+            expect("OFFSET")
+            offset = np.array([number() for _ in range(3)])
+            expect("CHANNELS")
+            count_at = pos
+            n = int(number(int))
+            if not 0 <= n <= 6:
+                raise BvhError(f"{at(count_at)}: joint {jname} has CHANNELS {n}: 0 to 6 expected")
+            channels = []
+            for k in range(n):
+                channel = take()
+                if channel.lower() not in CHANNEL_NAMES:
+                    raise BvhError(f"{at(pos - 1)}: joint {jname}: {channel!r} is not a channel name (Xposition ... "
+                                   f"Zrotation): its CHANNELS {n} (line {_line_of(text, count_at)}) names {k}")
+                channels.append(channel)
+            parent = stack[-1] if stack else -1
+            joints.append(BvhJoint(jname, offset, channels, parent))
+            if parent >= 0:
+                joints[parent].children.append(len(joints) - 1)
+            stack.append(len(joints) - 1)
+        elif word.upper() == "END":
+            expect("Site")
+            expect("{")
+            expect("OFFSET")
+            joints[stack[-1]].end_site = np.array([number() for _ in range(3)])
+            expect("}")
+        elif word == "}":
+            stack.pop()
+            if not stack:
+                root_closed.append(pos - 1)
+                break
+        elif word.upper() == "MOTION":
+            still = ", ".join(f"{joints[i].name} (line {_line_of(text, opened[i])})" for i in stack)
+            raise BvhError(f"{at(pos - 1)}: MOTION before the hierarchy is closed: a '}}' is missing; still open: "
+                           f"{still}")
+        else:
+            raise BvhError(f"{at(pos - 1)}: unexpected {word!r} in hierarchy (in joint {joints[stack[-1]].name}, "
+                           f"line {_line_of(text, opened[stack[-1]])})")
         word = take()
-        if word.upper() != "ROOT":
-            raise BvhError(f"{name}: expected ROOT, found {word!r}")
-        while True:
-            if word.upper() in ("ROOT", "JOINT"):
-                jname = take()
-                expect("{")
-                expect("OFFSET")
-                offset = np.array([float(take()) for _ in range(3)])
-                expect("CHANNELS")
-                n = int(take())
-                channels = [take() for _ in range(n)]
-                parent = stack[-1] if stack else -1
-                joints.append(BvhJoint(jname, offset, channels, parent))
-                if parent >= 0:
-                    joints[parent].children.append(len(joints) - 1)
-                stack.append(len(joints) - 1)
-            elif word.upper() == "END":
-                expect("Site")
-                expect("{")
-                expect("OFFSET")
-                joints[stack[-1]].end_site = np.array([float(take()) for _ in range(3)])
-                expect("}")
-            elif word == "}":
-                stack.pop()
-                if not stack:
-                    break
-            else:
-                raise BvhError(f"{name}: unexpected {word!r} in hierarchy")
-            word = take()
-        expect("MOTION")
-        expect("Frames:")
-        frames = int(take())
-        expect("Frame")
-        expect("Time:")
-        frame_time = float(take())
-        width = sum(len(j.channels) for j in joints)
-        values = tokens[pos:]
-        if len(values) < frames * width:
-            raise BvhError(
-                f"{name}: truncated motion: {frames} frames x {width} channels announced, {len(values)} values found"
-            )
+    expect("MOTION")
+    expect("Frames:")
+    frames_at = pos
+    frames = int(number(int))
+    expect("Frame")
+    expect("Time:")
+    frame_time = float(number())
+    if frames < 0:
+        raise BvhError(f"{at(frames_at)}: Frames: {frames} is negative")
+    width = sum(len(j.channels) for j in joints)
+    values = tokens[pos:]
+    if len(values) < frames * width:
+        raise BvhError(f"{name}: truncated motion: {frames} frames x {width} channels announced, {len(values)} "
+                       f"values found{_short_line(text, pos, width)}")
+    try:
         motion = np.array(values[: frames * width], dtype=float).reshape(frames, width)
-    except (ValueError, IndexError) as exc:
-        if isinstance(exc, BvhError):
-            raise
-        raise BvhError(f"{name}: malformed BVH ({exc})") from exc
+    except ValueError:
+        k = next(i for i, v in enumerate(values[: frames * width]) if not _is_number(v))
+        raise BvhError(f"{at(pos + k)}: motion frame {k // width + 1} of {frames}, channel {k % width + 1} "
+                       f"({_channel(joints, k % width)}): {values[k]!r} is not a number") from None
     if not (frame_time > 0 and np.isfinite(frame_time)):  # "nan" and "inf" parse as floats
         raise BvhError(f"{name}: frame time must be a positive number of seconds, got {frame_time}")
     bad = [j.name for j in joints if not np.all(np.isfinite(j.offset))]
     if bad:
         raise BvhError(f"{name}: offset of joint {bad[0]} is not finite")
     if not np.all(np.isfinite(motion)):
-        frame = int(np.argwhere(~np.isfinite(motion))[0, 0])
-        raise BvhError(f"{name}: motion frame {frame} holds a value that is not finite")
+        frame, column = (int(v) for v in np.argwhere(~np.isfinite(motion))[0])
+        raise BvhError(f"{at(pos + frame * width + column)}: motion frame {frame + 1} of {frames} (frames counted "
+                       f"from 1), channel {column + 1} ({_channel(joints, column)}) holds a value that is not finite "
+                       f"({values[frame * width + column]!r})")
     return Bvh(joints, frame_time, motion)
+
+
+def _is_number(word: str) -> bool:
+    try:
+        float(word)
+    except ValueError:
+        return False
+    return True
+
+
+def _channel(joints: list[BvhJoint], column: int) -> str:
+    """``joint channel`` of motion column ``column`` (0-based)."""
+    for j in joints:
+        if column < len(j.channels):
+            return f"{j.name} {j.channels[column]}"
+        column -= len(j.channels)
+    return "?"
+
+
+def _short_line(text: str, first: int, width: int) -> str:
+    """Where a truncated motion lost its values: the first motion line (from token ``first``) that does not hold
+    ``width`` values, for the message ("" when every line does: the file just ends early)."""
+    line = _line_of(text, first)
+    for k, row in enumerate(text.split("\n")[line - 1:]):
+        count = len(row.split())
+        if count not in (0, width):
+            return f"; line {line + k} holds {count} values, not {width}"
+    return ""
 
 
 def read_bvh(path: str | Path) -> Bvh:

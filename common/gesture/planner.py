@@ -733,6 +733,9 @@ def plan_gestures(
             ev = _rest_event(kit, limb)
             if ev is None:
                 continue
+            if (not hand and kit.spec(ev).pedal is not None
+                    and (limb, kit.pedal_for(ev, limb)) in assignment.pedals_out_of_reach):
+                continue  # no trajectory: the foot stays as the body rests it (stretched, it pulled the hands along)
             rest_target, rest_normal = (np.array(v) for v in kit.effector_target(ev, limb))
             rest0 = (rest_target + rest_h * rest_normal, rest_normal)
         on_laid = None if progress is None else lambda k, before=laid: progress(before + k, len(notes))

@@ -24,7 +24,9 @@ dynamics (computed torque); cartesian: damped least squares IK feeding the compu
 the same IK feeding the explicit PD (the paper's Algorithm 2 as written)."""
 
 GripName = Literal["french", "german", "american", "traditional"]
-"""french: palms facing, thumbs up; german: palms down; american: matched, in between; traditional: left underhand."""
+"""french: palms facing, thumbs up; german: palms down; american: matched, in between; traditional: the snare hand
+underhand (the hand that does not lead: the left on a right-handed kit, the right on a left-handed one), the other as
+american."""
 
 LimbName = Literal["left_hand", "right_hand", "left_foot", "right_foot"]
 JointGroup = Literal["all", "trunk", "head", "arms", "legs"]
@@ -61,7 +63,9 @@ class PhysicsGrip(OscMessage):
     FAMILY = Family.CONTROL
 
     hand: Literal["left", "right", "both"] = Field(description="which hand")
-    grip: GripName = Field(description="french, german, american (matched) or traditional")
+    grip: GripName = Field(description="french, german, american or traditional (american: a matched grip, the "
+                           "palms between french and german; traditional: the snare hand underhand, the left on a "
+                           "right-handed kit, the right on a left-handed one)")
 
 
 @register

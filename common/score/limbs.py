@@ -123,6 +123,10 @@ class Assignment:
     issues: list[FeasibilityIssue] = field(default_factory=list)
     algorithm: HandAlgorithm = HandAlgorithm.VITERBI
     kit_name: str = ""
+    pedals_out_of_reach: frozenset[tuple[Limb, str]] = frozenset()
+    """(foot, pedal object id) of each pedal beyond that foot's reach for the drummer distributed for: its notes
+    are dropped, and the planner does not rest the foot there (stretched for it, the leg pulled the body and the
+    hands off their notes)."""
 
     def of(self, limb: Limb) -> list[Note]:
         return [n for n in self.notes if n.limb == limb]
@@ -327,7 +331,10 @@ def _distribute(score: Score, kit: Kit, algorithm: HandAlgorithm | str, sticking
             notes.append(Note(i, hn.time, ev, vel, h, pitch, nuance))
     notes = _merge_or_drop(left_out, notes, kit, issues)
     notes.sort(key=lambda n: (n.time, n.limb.value))
-    assignment = Assignment(notes=notes, issues=issues, algorithm=algorithm, kit_name=kit.name)
+    far = frozenset((foot, pedal) for pedal, feet in _pedals_out_of_reach(kit, height_m, lengths).items()
+                    for foot in feet)
+    assignment = Assignment(notes=notes, issues=issues, algorithm=algorithm, kit_name=kit.name,
+                            pedals_out_of_reach=far)
     checked_from = rules + hands_share
     check_feasibility(assignment, kit, window, None if progress is None else
                       lambda k, n: report.at(checked_from + (1.0 - checked_from) * k / max(n, 1)), height_m, lengths)
@@ -495,8 +502,9 @@ def check_feasibility(assignment: Assignment, kit: Kit, window: float = SIMULTAN
     and reaches scale: :func:`hand_reach`, :func:`foot_reach`; ``lengths``: a skeleton's arm and leg). A hand's
     note beyond its hand's reach goes to the other hand when that one reaches it and is free then (:func:`_busy`;
     ``moved_to_other_hand``), else it is dropped: its hand does not travel to it and plays its other notes as if
-    it were not written (a hand held at the edge of its reach spoiled them). A pedal beyond reach is played
-    anyway. A hand's note that is the bounce of a rebound double gets ``Note.rebound = True`` and no issue.
+    it were not written (a hand held at the edge of its reach spoiled them). A foot's note on a pedal beyond its
+    reach is dropped too (until 7 Dec played anyway: the foot pulled the body, and with it the hands, off their
+    notes). A hand's note that is the bounce of a rebound double gets ``Note.rebound = True`` and no issue.
     ``progress``: called with (notes checked, notes total) every ``PROGRESS_EVERY`` notes (not at the end); what
     it raises stops the check. Run again on its own result it changes nothing and adds no issue twice.
     """
@@ -560,6 +568,13 @@ def check_feasibility(assignment: Assignment, kit: Kit, window: float = SIMULTAN
                 continue
             n = replace(n, limb=taker)
             moved = True
+        if n.limb in FEET and from_hip(n.event, n.limb) > leg_reach:
+            # dropped as a hand's is: played anyway, the foot stretched for it pulled the whole body off its seat and
+            # every stick stopped above its heads (a kit with its kick pedal out of reach played no note at all)
+            add(FeasibilityIssue(n.index, n.time, n.event, IssueReason.UNREACHABLE, IssueAction.DROPPED,
+                                 f"{from_hip(n.event, n.limb):.2f} m from the {n.limb.value.replace('_', ' ')}'s hip "
+                                 f"(reach {leg_reach:.2f} m)"))
+            continue
         prev = last.get(n.limb)
         if n.limb in HANDS:
             kind = Interval.FIRST
@@ -601,9 +616,6 @@ def check_feasibility(assignment: Assignment, kit: Kit, window: float = SIMULTAN
                         f"{n.limb.value} {dt * 1000:.0f} ms after its last stroke (minTimeGap {gap * 1000:.0f} ms)",
                     )
                 )
-        if n.limb in FEET and from_hip(n.event, n.limb) > leg_reach:
-            add(FeasibilityIssue(n.index, n.time, n.event, IssueReason.UNREACHABLE, IssueAction.PLAYED_ANYWAY,
-                                 f"{from_hip(n.event, n.limb):.2f} m from the hip"))
         if n.limb in HANDS:
             other = last.get(Limb.LEFT_HAND if n.limb == Limb.RIGHT_HAND else Limb.RIGHT_HAND)
             if other is not None and n.time - other.time <= window:

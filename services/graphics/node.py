@@ -40,6 +40,7 @@ from pydantic import Field, ValidationError
 from common.config import NodeSettings
 from common.exit_status import InputError, report_error
 from common.kit import Kit, load_kit
+from common.kit_help import kit_help
 from common.messages import Impact
 from common.messages.graphics import GraphicsMode
 from common.output_paths import check_output_dir
@@ -67,7 +68,7 @@ class GraphicsNodeSettings(NodeSettings):
     """Node settings plus the graphics service's own."""
 
     http_port: int = Field(default=8080, ge=0, le=65535, description="HTTP/WebSocket port of the view (0: any)")
-    kit: str = Field(default="default", description="kit name or file to draw")
+    kit: str = Field(default="default", description=kit_help(what="kit name or file to draw"))
     kit_dir: str = Field(default="", description="directory the editor may save kits and poses into ('': no saving)")
     preview: str = Field(default="", description="pose sequence (.npz) to show instead of the live stream")
     preview_score: str = Field(

@@ -318,6 +318,24 @@ def bvh_segment_lengths(path: str | Path, units_to_m: float | None = None) -> di
     return {name: length for name, length in lengths.items() if length is not None}
 
 
+def usable_segment_lengths(path: str | Path) -> dict[str, float]:
+    """:func:`bvh_segment_lengths` of a skeleton a body can be built from (``--skeleton-bvh`` of ``batteur render``
+    and of the physics node, checked at their start). :class:`BvhError` naming the file when none of its joints is
+    found by name (without it the body would silently be de Leva's) or for proportions no body has; what reading
+    the file raises."""
+    from services.physics.anthropometry import anthropometry
+
+    lengths = bvh_segment_lengths(path)
+    if not lengths:
+        raise BvhError(f"{path}: no arm, leg or trunk joints found by their usual BVH names (e.g. LeftArm, "
+                       "LeftForeArm, LeftUpLeg, LeftLeg, Neck)")
+    try:  # a skeleton lying down, in unexpected units
+        anthropometry(lengths_m=lengths)
+    except ValueError as exc:
+        raise BvhError(f"{path}: {exc}") from None
+    return lengths
+
+
 def skeleton_limb_lengths(path: str | Path, height_m: float, mass_kg: float) -> LimbLengths:
     """The arms (upper arm + forearm + hand) and legs (thigh + shank) of the body physics builds from the skeleton
     of the BVH file at ``path``, metres: the segments the file lacks are de Leva's for ``height_m`` (as

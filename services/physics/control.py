@@ -166,6 +166,12 @@ class Controller:
             self.q_axes = np.array([limits.quaternion[j].axes for j in self.q_joints])
             self.q_extents = np.array([limits.quaternion[j].extents for j in self.q_joints])
         self.limit_violations = 0
+        """Quaternion-limited joints whose state was outside their ellipsoid (so got a restoring torque), summed
+        over the full control updates: one joint outside for 10 updates counts 10 (``--control-rate-hz`` 1000:
+        one update per physics step)."""
+        self.torque_saturated = 0
+        """DOF whose torque was clipped to its limit (``Body.torque_limit``), summed over the physics steps (full
+        updates and the steps between): one DOF at its limit for 10 steps counts 10."""
         self.last_tau = np.zeros(n)
         self.theta_ref: np.ndarray | None = None
         self._id: tuple[World, list[tuple[int, np.ndarray]]] | None = None
@@ -455,6 +461,7 @@ class Controller:
             self._held = _HeldTorques(tau, theta.copy(), theta_dot.copy(), theta_dot_t.copy(), k_between,
                                       d_between, mass)
         self.last_tau = clip_torques(tau, body.torque_limit)
+        self.torque_saturated += int(np.count_nonzero(np.abs(self.last_tau) >= body.torque_limit))
         body.send_torques(self.last_tau, passive_tau)
 
     @property
@@ -483,6 +490,7 @@ class Controller:
                           self._no_mass if held.mass is None else held.mass, elapsed_s, theta, theta_dot,
                           body.torque_limit)
         self.last_tau = tau
+        self.torque_saturated += int(np.count_nonzero(np.abs(tau) >= body.torque_limit))
         body.send_torques(tau, passive_tau)
 
 

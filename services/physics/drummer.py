@@ -46,13 +46,20 @@ from common.messages.physics import (
 )
 from services.physics.anthropometry import performer_anthropometry
 from services.physics.body import LIMBS, Body
-from services.physics.character import DOF_NAMES, JOINTS, CharacterSpec, build_character
+from services.physics.character import (
+    DOF_NAMES,
+    JOINT_GROUP,
+    JOINTS,
+    CharacterSpec,
+    build_character,
+    joint_kind,
+)
 from services.physics.contacts import ContactTracker, Striker
 from services.physics.control import Controller
 from services.physics.follow_through import LimbTrack, Strike
 from services.physics.kernels import hermite_stray, stick_under_plate, swing_displacement
 from services.physics.kitbodies import SLOW_SPRING_PERIOD_S, build_kit
-from services.physics.limits import JointLimits, default_limits, limits_from_clips, load_clip
+from services.physics.limits import JointLimits, default_limits, limits_from_clips, load_clip, symmetric_limits
 from services.physics.mocap import MotionClip
 from services.physics.targets import TargetError, Track
 from services.physics.urdf import Inertial, Link, Robot, Shape, load_robot
@@ -147,23 +154,35 @@ GRIPS: dict[str, GripSpec] = {
     "french": GripSpec(0.0, 15.0, 60.0),  # palms facing, thumbs up: the stick pivots about the hand's x
     "german": GripSpec(math.radians(80.0), 60.0, 15.0),  # palms down: it pivots about the stick frame's z
     "american": GripSpec(math.radians(45.0), 20.0, 20.0),  # matched, in between
-    "traditional": GripSpec(math.radians(45.0), 20.0, 20.0),  # right hand as american; the left is underhand
+    "traditional": GripSpec(math.radians(45.0), 20.0, 20.0),  # the leading hand as american; the other underhand
 }
 """Soft fingers in the stroke direction (15-20 N m/rad): the stick rebounds in the hand while the hand follows
 through (stiffer fingers press the stick into the head for 20-30 ms at 3 m/s)."""
-TRADITIONAL_LEFT = GripSpec(math.radians(-60.0), 15.0, 60.0)
+TRADITIONAL_UNDERHAND = GripSpec(math.radians(-60.0), 15.0, 60.0)
+"""The traditional grip's underhand hand: the snare hand, the one that does not lead (the left on a right-handed
+kit, the right on a left-handed one: :func:`underhand_side`); its pronation on that side's sign, so it mirrors."""
 FINGER_INERTIA_KGM2 = 1.2e-3
 """The stick's moment of inertia about the fulcrum that the finger springs' damping is scaled by, kg m^2."""
 FINGER_DAMPING_RATIO = 0.3
+
+SWITCH_LOG_INTERVAL_S = 1.0
+"""Live switches (control mode, gains, IK parameters, grip) are logged, each kind at most once per this many
+seconds of rig time (a stream of them counted and said with the next line)."""
+LOW_KS_SCALE = 0.15
+"""A live gains message scaling a group's stiffness below this (of the defaults) is warned: the quaternion limits'
+restoring torque is proportional to ks, and below it they no longer hold. Measured on tests/render/short_groove.txt
+(cartesian, arms scaled): limit violations 185 at x1, 149 at x0.25, 256 at x0.15, 1408 at x0.1 (sticks at up to
+18 m/s), 6506 at x0.05 (45 m/s); joint_pd held down to x0.05 and broke at 0 (docs/physics.md, "Live gains")."""
 
 _LIMIT_CACHE: dict[str, JointLimits] = {}
 _CLIP_CACHE: dict[tuple[str, ...], list[MotionClip]] = {}
 
 
 def cached_default_limits() -> JointLimits:
-    """DeepMimic limits are the same for every drummer; compute them once per process."""
+    """DeepMimic limits are the same for every drummer; compute them once per process. Mirror-symmetric
+    (:func:`limits.symmetric_limits`): a body's two sides have the same range, whichever side the clips favour."""
     if "default" not in _LIMIT_CACHE:
-        _LIMIT_CACHE["default"] = default_limits()
+        _LIMIT_CACHE["default"] = symmetric_limits(default_limits())
     return _LIMIT_CACHE["default"]
 
 
@@ -182,8 +201,8 @@ def posture_limits(clips: list[MotionClip], posture: np.ndarray) -> JointLimits:
     return limits_from_clips(clips, must_contain=need)
 
 
-def initial_guess(grip: str) -> np.ndarray:
-    """A seated playing posture to start the rest-posture IK from (57,) radians."""
+def initial_guess(grip: str, handedness: str = "right") -> np.ndarray:
+    """A seated playing posture to start the rest-posture IK from (57,) radians, for a kit of ``handedness``."""
     q = np.zeros(N_DOF)
 
     def put(joint: str, x: float = 0.0, y: float = 0.0, z: float = 0.0) -> None:
@@ -193,7 +212,7 @@ def initial_guess(grip: str) -> np.ndarray:
     put("lumbar", -0.08)
     put("thoracic", -0.05)
     for side, sx in (("left", -1.0), ("right", 1.0)):
-        g = grip_for(grip, side)
+        g = grip_for(grip, side, handedness)
         put(f"{side}_shoulder", 0.45, -sx * 0.3, 0.0)
         put(f"{side}_elbow", 1.2, 0.0, sx * g.pronation)
         put(f"{side}_wrist", -0.2, 0.0, 0.0)
@@ -203,11 +222,19 @@ def initial_guess(grip: str) -> np.ndarray:
     return q
 
 
-def grip_for(grip: str, side: str) -> GripSpec:
+def underhand_side(handedness: str) -> str:
+    """The hand a traditional grip holds underhand on a kit of ``handedness`` (``Kit.handedness``): the one that
+    does not lead, the snare hand (until 7 Dec the left whatever the kit: a left-handed drummer's leading hand)."""
+    return "right" if handedness == "left" else "left"
+
+
+def grip_for(grip: str, side: str, handedness: str = "right") -> GripSpec:
+    """The ``side`` hand's grip spec holding ``grip`` on a kit of ``handedness`` (traditional: the hand of
+    :func:`underhand_side` underhand, the other as american)."""
     if grip not in GRIPS:
         raise TargetError(f"unknown grip {grip!r} (known: {', '.join(GRIPS)})")
-    if grip == "traditional" and side == "left":
-        return TRADITIONAL_LEFT
+    if grip == "traditional" and side == underhand_side(handedness):
+        return TRADITIONAL_UNDERHAND
     return GRIPS[grip]
 
 
@@ -285,7 +312,7 @@ class DrummerScene:
         """Fulcrum spring stiffness and damping for the grips (N m/rad, N m s/rad), set from ``grip``."""
         # rest posture by IK, then the controller
         self.rest_targets = self._rest_targets()
-        guess = initial_guess(settings.grip)
+        guess = initial_guess(settings.grip, kit.handedness)
         frozen = np.zeros(N_DOF, dtype=bool)
         for side in ("left", "right"):
             frozen[JOINTS.index(f"{side}_elbow") * 3 + 2] = True
@@ -298,6 +325,8 @@ class DrummerScene:
         if limits is None and settings.limits_from:
             self.limits = posture_limits(cached_clips(settings.limits_from), self.rest)
             self.body.set_limits(self.limits.dof_limits())
+            if (dropped := self.limits.dropped_summary()) is not None:  # said: the limits are not what was asked
+                log.warning("joint limits from %s: %s", ", ".join(settings.limits_from), dropped)
         self.controller = Controller(world, self.body, self.limits, self.rest)
         self.rest = self.controller.clamp_targets(self.rest)
         self.controller.rest = self.rest.copy()
@@ -332,7 +361,7 @@ class DrummerScene:
         bass_foot, other_foot = ("left_foot", "right_foot") if kit.handedness == "left" else ("right_foot",
                                                                                               "left_foot")
         self._striker_limbs = {stick: hand for hand, stick in _HAND_STICKS} | {
-            part: bass_foot if pedal.object_id == "kick_pedal" else other_foot
+            part: bass_foot if pedal.object_id == kit.kick_pedal() else other_foot
             for pedal in self._beater_pedals for part in pedal.beater_parts}
         """Striker part -> the limb that plays it (the second bass pedal's beater: the hi-hat foot's)."""
         self._feet = [(f"{side}_foot", self.body.link_ref[self.body.link_index[f"{side}_foot"]])
@@ -356,6 +385,10 @@ class DrummerScene:
         self.head: tuple[Any, float] | None = None
         """The plan's head trajectory (look-at point, nod) and its time offset, if any."""
         self.last_joint_target: tuple[np.ndarray, np.ndarray] = (self.rest.copy(), np.zeros(N_DOF))
+        self._switch_logged: dict[str, float] = {}
+        """Kind of live switch (control, gains, ik, grip, low_gains) -> rig time its last line was logged, s."""
+        self._switch_held: dict[str, int] = {}
+        """Kind -> switches not logged since (:meth:`_said_switch`)."""
 
     # ------------------------------------------------------------------ construction helpers
 
@@ -395,14 +428,18 @@ class DrummerScene:
             out[lead_hand] = hihat
         if snare is not None:
             out[other_hand] = snare
-        for limb, pedal_id in (("right_foot", "kick_pedal"), ("left_foot", "hihat_pedal")):
+        reach = self._reach()
+        for limb, pedal_id in (("right_foot", kit.kick_pedal()), ("left_foot", kit.hihat_pedal())):
             if kit.handedness == "left":
                 limb = "left_foot" if limb == "right_foot" else "right_foot"
-            try:
-                pedal = kit.object(pedal_id)
-            except KeyError:
+            if pedal_id is None:  # the kit plays no BASS (HIHATPEDAL): that foot rests where it stands
                 continue
-            out[limb] = footboard_point(pedal.position) + np.array([0.0, 0.0, FOOT_HOVER_M + self._foot_aim(limb)])
+            pedal = kit.object(pedal_id)  # the kit checks its events' pedals exist
+            target = footboard_point(pedal.position) + np.array([0.0, 0.0, FOOT_HOVER_M + self._foot_aim(limb)])
+            hip, leg = reach[limb]
+            if np.linalg.norm(target - hip) > leg:  # stretched for it, the leg pulled the body (and the hands) along
+                continue  # the foot rests where it stands; the planner drops its notes (common/score/limbs.py)
+            out[limb] = target
         return out
 
     def _stick_holds(self) -> dict[int, np.ndarray]:
@@ -589,15 +626,53 @@ class DrummerScene:
         elif isinstance(message, JointTarget):
             self.add_joints(message.time, message.values, now, lag)
         elif isinstance(message, PhysicsControlMode):
+            before = self.controller.mode
             self.controller.mode = message.mode
             self.controller.reset_reference()
+            self._said_switch("control", now, "control mode %s -> %s", before, message.mode)
         elif isinstance(message, PhysicsGains):
-            self.controller.set_gains(message.group, message.ks_scale, message.kd_scale)
+            self._set_gains(message, now)
         elif isinstance(message, PhysicsIk):
-            self.controller.set_params(dataclasses.replace(self.controller.params, ik_damping=message.damping,
+            params = self.controller.params
+            self.controller.set_params(dataclasses.replace(params, ik_damping=message.damping,
                                                            posture_gain=message.posture_gain))
+            self._said_switch("ik", now, "IK damping %g -> %g m, posture gain %g -> %g 1/s", params.ik_damping,
+                              message.damping, params.posture_gain, message.posture_gain)
         elif isinstance(message, PhysicsGrip):
+            before = ", ".join(f"{side} {self.grip[side]}" for side in ("left", "right"))
             self.set_grip(message.hand, message.grip)
+            self._said_switch("grip", now, "grip %s -> %s (hand %s)", before,
+                              ", ".join(f"{side} {self.grip[side]}" for side in ("left", "right")), message.hand)
+
+    def _set_gains(self, message: PhysicsGains, now: float) -> None:
+        """Scale a group's gains (:meth:`Controller.set_gains`); said (what from what), and warned when the
+        stiffness is so low that the joint limits no longer hold (``LOW_KS_SCALE``)."""
+        controller = self.controller
+        mask = np.ones(len(controller.ks), dtype=bool) if message.group == "all" else \
+            controller.group_of == message.group
+        before = (_scales(controller.scale_ks[mask]), _scales(controller.scale_kd[mask]))
+        controller.set_gains(message.group, message.ks_scale, message.kd_scale)
+        self._said_switch("gains", now, "gains %s: ks x%s -> x%g, kd x%s -> x%g (of the defaults)", message.group,
+                          before[0], message.ks_scale, before[1], message.kd_scale)
+        limited = {JOINT_GROUP[joint_kind(joint)] for joint in controller.q_joints}
+        if message.ks_scale < LOW_KS_SCALE and (message.group == "all" or message.group in limited):
+            self._said_switch("low_gains", now, "gains %s: ks x%g is below x%g: the joint limits' restoring torque "
+                              "scales with ks, and below it the limits no longer hold (joints leave their ellipsoids, "
+                              "sticks strike at 10-45 m/s; docs/physics.md, \"Live gains\")", message.group,
+                              message.ks_scale, LOW_KS_SCALE, warning=True)
+
+    def _said_switch(self, kind: str, now: float, text: str, *args: object, warning: bool = False) -> None:
+        """Log an accepted switch once (INFO; ``warning``: WARNING), each ``kind`` at most once per
+        ``SWITCH_LOG_INTERVAL_S`` of rig time ``now`` (s): a stream of them is counted and the count said with the
+        next line logged."""
+        last = self._switch_logged.get(kind)
+        if last is not None and 0.0 <= now - last < SWITCH_LOG_INTERVAL_S:
+            self._switch_held[kind] = self._switch_held.get(kind, 0) + 1
+            return
+        self._switch_logged[kind] = now
+        held = self._switch_held.pop(kind, 0)
+        log.log(logging.WARNING if warning else logging.INFO, "%s%s", text % args,
+                f" (+{held} more since the last report)" if held else "")
 
     def set_grip(self, hand: str, grip: str) -> None:
         """Change the grip live: the forearm pronation of the rest posture and the fulcrum springs."""
@@ -605,7 +680,7 @@ class DrummerScene:
         for side in sides:
             if side not in self.grip:
                 raise TargetError(f"unknown hand {side!r}")
-            spec = grip_for(grip, side)
+            spec = grip_for(grip, side, self.kit.handedness)
             self.grip[side] = grip
             sx = 1.0 if side == "right" else -1.0
             self.rest[JOINTS.index(f"{side}_elbow") * 3 + 2] = sx * spec.pronation
@@ -793,7 +868,7 @@ class DrummerScene:
         if self._finger_gains is None:
             k = []
             for side in ("left", "right"):
-                g = grip_for(self.grip[side], side)
+                g = grip_for(self.grip[side], side, self.kit.handedness)
                 k += [g.k_pitch, g.k_yaw]
             ks = np.array(k)
             self._finger_gains = (ks, 2 * FINGER_DAMPING_RATIO * np.sqrt(ks * FINGER_INERTIA_KGM2))
@@ -927,6 +1002,12 @@ def _detour(stick: np.ndarray, wrist: np.ndarray, radius_m: float, top_m: float)
     else:
         bead[2] = top_m
     return bead
+
+
+def _scales(values: np.ndarray) -> str:
+    """A group's gain scales for a log line: the one value, or their range if the group's DOF differ."""
+    low, high = float(values.min()), float(values.max())
+    return f"{low:g}" if low == high else f"{low:g}-{high:g}"
 
 
 _HAND_STICKS = (("left_hand", "left_stick"), ("right_hand", "right_stick"))

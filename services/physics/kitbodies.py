@@ -420,7 +420,7 @@ def _pedal_robot(obj: KitObject, beater: Beater | None) -> Robot:
 def _pedal(world: World, kb: KitBodies, obj: KitObject) -> None:
     kit = kb.kit
     beater = next((b for b in kit_hardware(kit).beaters if b.pedal == obj.id), None)
-    part = "" if beater is None else "kick_beater" if obj.id == "kick_pedal" else "kick_beater_left"
+    part = "" if beater is None else "kick_beater" if obj.id == kit.kick_pedal() else "kick_beater_left"
     robot = _pedal_robot(obj, beater)
     body = load_robot(world.client, robot, obj.position, (0.0, 0.0, 0.0, 1.0), fixed_base=True,
                       flags=p.URDF_USE_INERTIA_FROM_FILE)
@@ -513,8 +513,9 @@ def build_kit(world: World, kit: Kit, only: set[str] | None = None) -> KitBodies
         elif obj.kind == "throne":
             _throne(world, kb, obj)
     _cymbals(world, kb, [obj for obj in objects if obj.kind == "cymbal"])
-    if kb.hihat is not None and "hihat_pedal" in kb.pedals:
-        kb.hihat.pedal = kb.pedals["hihat_pedal"]
+    hihat_pedal = kit.hihat_pedal()  # HIHATPEDAL's footboard, whatever its id
+    if kb.hihat is not None and hihat_pedal in kb.pedals:
+        kb.hihat.pedal = kb.pedals[hihat_pedal]
     if only is None:
         _stands(world, kb, objects)
     return kb

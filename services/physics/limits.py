@@ -16,10 +16,12 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -151,14 +153,45 @@ def quaternion_limits(quats: np.ndarray, coverage: float = 0.999, min_extent_rad
     return QuaternionLimit(mean, axes, extents)
 
 
+DOF_SOURCES = ("mocap", "still", "wraps", "anatomical")
+"""Where a DOF's range comes from (:attr:`JointLimits.dof_sources`): the clips' range plus the margin; the
+anatomical range because the clips hardly move it (``still``) or because its Euler angle wraps around
+(``wraps``); the anatomical range of a joint the clips lack."""
+
+
 @dataclass(frozen=True)
 class JointLimits:
     """Limits of every joint: the Euler box (enforced as revolute limits) and, where mocap had the joint,
-    the quaternion ellipsoid (enforced by the controller)."""
+    the quaternion ellipsoid (enforced by the controller).
+
+    ``sources``: joint -> ``mocap``, ``mocap+anatomical`` (some DOF anatomical) or ``anatomical``, with
+    ``+posture`` where the box was grown to the playing posture (and the ellipsoid dropped)."""
 
     euler: dict[str, EulerLimit]
     quaternion: dict[str, QuaternionLimit]
     sources: dict[str, str]
+    dof_sources: dict[str, tuple[str, str, str]] = field(default_factory=dict)
+    """Joint -> the source of its x, y and z ranges, each one of :data:`DOF_SOURCES`."""
+    dropped: tuple[str, ...] = ()
+    """Joints whose quaternion limit was dropped because the playing posture lies outside the clips' motion
+    (``must_contain``): their grown Euler box limits them alone."""
+
+    def formulations(self) -> dict[str, dict[str, Any]]:
+        """Joint -> ``formulation`` (``euler+quaternion``: the box and Algorithm 1's ellipsoid; ``euler``: the box
+        alone), ``source`` (:attr:`sources`) and ``dofs`` (:attr:`dof_sources`, x y z), for reports."""
+        return {joint: {"formulation": "euler+quaternion" if joint in self.quaternion else "euler",
+                        "source": self.sources[joint],
+                        "dofs": list(self.dof_sources.get(joint, ("anatomical",) * 3))}
+                for joint in self.euler}
+
+    def dropped_summary(self) -> str | None:
+        """One line naming the joints that lost their quaternion limit to the playing posture (None: none did)."""
+        if not self.dropped:
+            return None
+        kept = ", ".join(self.quaternion) or "none"
+        return (f"the playing posture lies outside the clips' motion at {', '.join(self.dropped)}: their quaternion "
+                "limits (Algorithm 1) are dropped and their Euler boxes, grown to hold the posture, limit them alone "
+                f"(quaternion limits kept: {kept})")
 
     def dof_limits(self) -> dict[str, tuple[float, float]]:
         """DOF name -> (lower, upper) radians, for the URDF."""
@@ -186,10 +219,12 @@ def limits_from_clips(clips: Iterable[MotionClip], margin_rad: float = math.radi
     For a joint the clips drive, the Euler box is the range seen (plus
     ``margin_rad``) and the quaternion ellipsoid comes from Algorithm 1 on all
     the clips' samples; a DOF the clips hardly move (range under 10 degrees,
-    like a DeepMimic knee's y and z) keeps its anatomical range.
+    like a DeepMimic knee's y and z: ``still``) or whose angle wraps around (range over 300 degrees: ``wraps``)
+    keeps its anatomical range (``dof_sources``), and a joint with a still DOF (a 1-DOF elbow or knee, a spine
+    a clip holds still) gets no ellipsoid.
     ``must_contain``: joint -> Euler angles (3,) that must lie inside (the
     playing posture); the box grows to include them, and a joint whose box or ellipsoid did not hold them
-    keeps the box only (recorded in ``sources`` as ``+posture``).
+    keeps the box only (recorded in ``sources`` as ``+posture``; ``dropped`` names those that had an ellipsoid).
     """
     samples_e: dict[str, list[np.ndarray]] = {}
     samples_q: dict[str, list[np.ndarray]] = {}
@@ -200,6 +235,8 @@ def limits_from_clips(clips: Iterable[MotionClip], margin_rad: float = math.radi
     euler: dict[str, EulerLimit] = {}
     quaternion: dict[str, QuaternionLimit] = {}
     sources: dict[str, str] = {}
+    dof_sources: dict[str, tuple[str, str, str]] = {}
+    dropped: list[str] = []
     for joint in JOINTS:
         anat = anatomical_limit(joint)
         if joint in samples_e:
@@ -215,9 +252,12 @@ def limits_from_clips(clips: Iterable[MotionClip], margin_rad: float = math.radi
             if not np.any(tiny):
                 quaternion[joint] = quaternion_limits(np.concatenate(samples_q[joint]), coverage)
             sources[joint] = "mocap" if not np.any(tiny | wraps) else "mocap+anatomical"
+            kinds = ["still" if t else "wraps" if w else "mocap" for t, w in zip(tiny, wraps, strict=True)]
+            dof_sources[joint] = (kinds[0], kinds[1], kinds[2])
         else:
             euler[joint] = anat
             sources[joint] = "anatomical"
+            dof_sources[joint] = ("anatomical",) * 3
         if must_contain and joint in must_contain:
             need = np.asarray(must_contain[joint], dtype=float)
             lim = euler[joint]
@@ -230,8 +270,48 @@ def limits_from_clips(clips: Iterable[MotionClip], margin_rad: float = math.radi
                 outside |= not bool(ellipsoid.contains(Rotation.from_euler("XYZ", need).as_quat()[None])[0])
             if outside:  # the grown box only: an ellipsoid of the clips' motion does not reach the posture
                 sources[joint] += "+posture"
-                quaternion.pop(joint, None)
-    return JointLimits(euler, quaternion, sources)
+                if quaternion.pop(joint, None) is not None:
+                    dropped.append(joint)
+    return JointLimits(euler, quaternion, sources, dof_sources, tuple(dropped))
+
+
+MIRROR_SIGNS = np.array([1.0, -1.0, -1.0])
+"""A joint's x y z angles mirrored onto the other side (through the sagittal plane): x kept, y and z negated."""
+
+
+def mirrored_limit(lim: EulerLimit) -> EulerLimit:
+    """The Euler box of ``lim``'s joint mirrored onto the other side (``MIRROR_SIGNS``, as ``anatomical_limit``)."""
+    keep = MIRROR_SIGNS > 0
+    return EulerLimit(np.where(keep, lim.lower, -lim.upper), np.where(keep, lim.upper, -lim.lower),
+                      lim.mean * MIRROR_SIGNS, lim.std.copy())
+
+
+def symmetric_limits(limits: JointLimits) -> JointLimits:
+    """``limits`` with each left/right pair's Euler boxes the same on both sides, mirrored: per DOF the range both
+    sides' estimates agree on (the right box cut to the mirrored left one; where they share no range, their union).
+
+    Clips favour a side (a kick, a punch): the 15 DeepMimic clips let the right ankle flex 66.8 degrees up (+x) and
+    the left 59.0; under 16th-note kicks at 140 bpm the IK's posture drifts stroke by stroke toward that bound
+    (ankle up, knee opened, hip lowered), and at 66.8 the toe no longer presses the footboard: 5 kicks sounded of 32,
+    the mirrored left foot played all (docs/physics.md, "Symmetric limits"). The union of both sides (66.8 on
+    both) made the left foot fail as well. The quaternion ellipsoids stay each side's own (not implicated). A joint
+    whose box this changes has ``+symmetric`` added to its ``sources``."""
+    euler, sources = dict(limits.euler), dict(limits.sources)
+    for joint in JOINTS:
+        if not joint.startswith("right_") or f"left_{joint[6:]}" not in euler:
+            continue
+        right, left = euler[joint], mirrored_limit(euler[f"left_{joint[6:]}"])
+        lower, upper = np.maximum(right.lower, left.lower), np.minimum(right.upper, left.upper)
+        apart = lower > upper  # no common range: the union (never seen with the shipped clips)
+        lower = np.where(apart, np.minimum(right.lower, left.lower), lower)
+        upper = np.where(apart, np.maximum(right.upper, left.upper), upper)
+        euler[joint] = EulerLimit(lower, upper, (right.mean + left.mean) / 2, np.maximum(right.std, left.std))
+        euler[f"left_{joint[6:]}"] = mirrored_limit(euler[joint])
+        for side in (joint, f"left_{joint[6:]}"):
+            was, now = limits.euler[side], euler[side]
+            if not (np.allclose(was.lower, now.lower) and np.allclose(was.upper, now.upper)):
+                sources[side] += "+symmetric"
+    return dataclasses.replace(limits, euler=euler, sources=sources)
 
 
 def load_clip(source: str | Path) -> MotionClip:

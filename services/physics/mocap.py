@@ -78,6 +78,15 @@ def _half(rot: Rotation) -> Rotation:
     return Rotation.from_rotvec(rot.as_rotvec() / 2.0)
 
 
+def frame_column(column: int) -> str:
+    """What column ``column`` (0-based) of a DeepMimic frame holds, e.g. ``"right_hip w"``."""
+    names = ["duration", "root x", "root y", "root z", "root rotation w", "root rotation x", "root rotation y",
+             "root rotation z"]
+    for joint, n in _LAYOUT:
+        names += [f"{joint} {c}" for c in "wxyz"] if n == 4 else [f"{joint} angle"]
+    return names[column] if 0 <= column < len(names) else f"column {column + 1}"
+
+
 def deepmimic_clip_names() -> list[str]:
     """Names of the humanoid clips shipped with pybullet_data (e.g. 'punch', 'dance_a')."""
     return sorted(p.stem.removeprefix("humanoid3d_") for p in MOTIONS_DIR.glob("humanoid3d_*.txt"))
@@ -111,7 +120,9 @@ def load_deepmimic(name_or_path: str | Path) -> MotionClip:
     if frames.ndim != 2 or frames.shape[1] != FRAME_LENGTH or len(frames) < 2:
         raise ClipError(f"{path.name}: expected frames of {FRAME_LENGTH} values, got shape {frames.shape}")
     if not np.all(np.isfinite(frames)):
-        raise ClipError(f"{path.name}: non-finite values")
+        frame, column = (int(v) for v in np.argwhere(~np.isfinite(frames))[0])
+        raise ClipError(f"{path.name}: frame {frame + 1} of {len(frames)}, value {column + 1} ({frame_column(column)}; "
+                        f"both counted from 1) is not finite ({frames[frame, column]})")
     times = np.concatenate([[0.0], np.cumsum(frames[:-1, 0])])
     col = 8
     rotations: dict[str, Rotation] = {}

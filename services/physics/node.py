@@ -29,6 +29,7 @@ message is answered to its sender with ``/batteur/physics/rejected`` (docs/physi
 from __future__ import annotations
 
 import argparse
+import json
 import logging
 import math
 import time
@@ -36,7 +37,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Annotated, Any, Literal, get_args
 
-from pydantic import Field, field_validator
+from pydantic import Field, field_validator, model_validator
 from pydantic_settings import NoDecode
 
 from common.config import NodeSettings
@@ -53,6 +54,7 @@ from common.score.events import SCORE_FILE
 from common.score.limbs import LimbLengths
 from common.score.midi_notes import DrumMapError
 from common.score.midi_options import DRUM_CHANNELS_HELP, DRUM_MAP_HELP, HIHAT_CC4_HELP, midi_setting_kwargs
+from services.physics.body_table import body_json, body_summary, body_text
 from services.physics.core import PhysicsCore, PhysicsSettings
 from services.physics.mocap import ClipError
 from services.physics.plan_worker import PlanWorker, PlanWorkers
@@ -61,6 +63,10 @@ from services.physics.score_position import SCORE_POSITION_PERIOD_S, score_posit
 from services.physics.targets import TargetError
 
 log = logging.getLogger("batteur.physics")
+
+
+HEIGHT_RANGE_M = (1.2, 2.2)
+"""Heights de Leva's table is scaled to, metres (``PhysicsSettings.height_m``'s bounds)."""
 
 
 class PhysicsNodeSettings(NodeSettings):
@@ -78,12 +84,15 @@ class PhysicsNodeSettings(NodeSettings):
                            "database has it (french, german), else with german, as batteur render "
                            "(/batteur/physics/grip changes the hands live, /batteur/score/style hands and plan)")
     floating_base: bool = Field(default=False, description=PhysicsSettings.model_fields["floating_base"].description)
-    height_m: float = Field(default=1.75, ge=1.2, le=2.2, description="drummer's height, metres")
+    height_m: float = Field(default=1.75, ge=HEIGHT_RANGE_M[0], le=HEIGHT_RANGE_M[1],
+                            description="drummer's height, metres")
     mass_kg: float = Field(default=73.0, ge=35, le=150, description="drummer's mass, kilograms")
     pose_rate_hz: float = Field(default=60.0, ge=0, le=240, description="pose publishing rate, Hz (0: off)")
     control_rate_hz: float = Field(default=PhysicsSettings.model_fields["control_rate_hz"].default, ge=50,
                                    le=10000, description="drummer: full control updates (IK, inverse dynamics) "
-                                   "per second, Hz; torques are corrected at every physics step between")
+                                   "per second, Hz, at most the step rate (--rate-hz), a whole number of steps apart "
+                                   "(300 at 1 kHz runs at 333.3, said at start); torques are corrected at every "
+                                   "physics step between")
     strike_event: EventType = Field(default=EventType.SNARE, description="strike scene: the event whose hit point "
                                     f"the stick strikes: {', '.join(e.value for e in EventType)}")
     strike_period: float = Field(default=0.0, ge=0, le=60,
@@ -101,6 +110,31 @@ class PhysicsNodeSettings(NodeSettings):
     limits_from: Annotated[list[str], NoDecode] = Field(
         default_factory=list, description=PhysicsSettings.model_fields["limits_from"].description)
     skeleton_bvh: str | None = Field(default=None, description=PhysicsSettings.model_fields["skeleton_bvh"].description)
+
+    @field_validator("height_m", mode="before")
+    @classmethod
+    def _height_in_metres(cls, value: Any) -> Any:
+        """A height out of range says its unit, and a height in centimetres what it meant (the bounds' own message
+        said "must be at most 2.2 (got '182')")."""
+        try:
+            height = float(value)
+        except (TypeError, ValueError):
+            return value  # the field's own message
+        low, high = HEIGHT_RANGE_M
+        if not low <= height <= high:
+            hint = f"; did you mean {height / 100:g} m?" if low * 100 <= height <= high * 100 else ""
+            raise ValueError(f"must be {low:g} to {high:g} metres{hint}")
+        return value
+
+    @model_validator(mode="after")
+    def _control_rate_within_steps(self) -> PhysicsNodeSettings:
+        """Control updates are whole numbers of physics steps: a rate above the step rate ran at the step rate while
+        the settings said otherwise."""
+        steps_hz = self.rate_hz or PhysicsSettings.model_fields["rate_hz"].default
+        if self.control_rate_hz > steps_hz * (1 + 1e-9):
+            raise ValueError(f"--control-rate-hz {self.control_rate_hz:g} is above the physics step rate, "
+                             f"{steps_hz:g} Hz (--rate-hz): control updates come every whole number of steps")
+        return self
 
     @field_validator("score_dir", "limits_from", mode="before")
     @classmethod
@@ -144,6 +178,9 @@ class LivePhysicsCore(PhysicsCore):
             raise
         self._position_sent = -math.inf
         """Rig time the score's position was last looked at (and sent, if one plays), seconds."""
+        self._counts_said: tuple[float, int, int] | None = None
+        """(rig time s, limit violations, torque-saturated DOF-steps) when the controller's counters were last
+        logged (:meth:`_say_counts`)."""
 
     def handle(self, message: OscMessage, now: float, source: str) -> list[Outgoing]:
         if isinstance(message, Hello) or not self.score_player.background:  # Hello changes nothing: at once
@@ -163,7 +200,27 @@ class LivePhysicsCore(PhysicsCore):
             position = self._score_position(now)
             if position is not None:
                 out.append(Outgoing(position, "graphics"))
+            self._say_counts(now)
         return out
+
+    def _say_counts(self, now: float) -> None:
+        """Log the controller's counters (not in Health) every ``COUNTS_LOG_PERIOD_S`` of rig time ``now`` (s) in
+        which they grew: joint limits left and torques at their limit (docs/physics.md, "Counters")."""
+        controller = getattr(self.scene, "controller", None)
+        if controller is None:
+            return
+        counts = (controller.limit_violations, controller.torque_saturated)
+        if self._counts_said is None:
+            self._counts_said = (now, *counts)
+            return
+        since, violations, saturated = self._counts_said
+        if now - since < COUNTS_LOG_PERIOD_S:
+            return
+        self._counts_said = (now, *counts)
+        if counts != (violations, saturated):
+            log.info("physics controller over the last %.0f s: %d limit violations (joint-updates outside their "
+                     "ellipsoid), %d torque-saturated DOF-steps (%d and %d since the start)", now - since,
+                     counts[0] - violations, counts[1] - saturated, *counts)
 
     def _score_position(self, now: float) -> ScorePosition | None:
         """Where the playing score is at rig time ``now`` (s); None while no score plays (or past its plan, or
@@ -200,6 +257,13 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace) -> PhysicsCore:
     problem = file_problem(Path(settings.score).expanduser(), SCORE_FILE) if settings.score else None
     if problem is not None:  # a folder, a device, a pipe: said, never opened (a pipe would hold the node for ever)
         raise InputError(f"score {settings.score}: {problem}")
+    if settings.skeleton_bvh:  # a skeleton without a joint found by name was de Leva's body, silently
+        from services.physics.bvh_motion import usable_segment_lengths
+
+        try:
+            usable_segment_lengths(settings.skeleton_bvh)
+        except (OSError, ValueError) as exc:  # batteur render's --skeleton-bvh message (the node's name no option)
+            raise InputError(str(exc)) from None
     try:  # a kit file it cannot use (missing or not a kit): 1, found before the core's slow start; loaded once,
         # so its warnings are logged once and name this drummer's reach (a skeleton's, as the planner's)
         kit = load_kit(settings.kit, height_m=settings.height_m, lengths=_skeleton_limbs(settings))
@@ -225,9 +289,15 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace) -> PhysicsCore:
             limits_from=tuple(settings.limits_from),
             skeleton_bvh=settings.skeleton_bvh,
         )
+        if getattr(extra, "show_body", None):  # offline: no planning process
+            _show_body(PhysicsCore(core_settings.model_copy(update={"mode": "offline"}), kit=kit), extra.show_body)
         core = LivePhysicsCore(core_settings, kit=kit)
     except (FileNotFoundError, BvhError, ClipError) as exc:  # a kit, clip or BVH file not there or unreadable
         raise InputError(str(exc)) from None
+    from services.physics.drummer import DrummerScene  # loaded by the drummer's core already
+
+    if isinstance(core.scene, DrummerScene):
+        log.info("%s", body_summary(core.scene))
     try:
         core.score_player.midi = midi
         _prepare(core, settings)
@@ -240,6 +310,10 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace) -> PhysicsCore:
         raise
     return core
 
+
+COUNTS_LOG_PERIOD_S = 60.0
+"""The live node logs the controller's counters (limit violations, torque-saturated DOF-steps) at most this often,
+seconds of rig time, and only when they grew."""
 
 PLANNER_LOAD_WAIT_S = 30.0
 """Longest the node waits, once its scene is ready, for its planning process to load the planner before it listens
@@ -263,6 +337,26 @@ def _wait_for_planner(core: LivePhysicsCore) -> None:
                     type(error).__name__, error)
     else:
         log.info("planning process ready (waited %.1f s for it)", time.monotonic() - started)
+
+
+def _show_body(core: PhysicsCore, form: str) -> None:
+    """``--show-body``: print the body ``core`` built (a table, or JSON) and exit (0)."""
+    from services.physics.drummer import DrummerScene
+
+    try:
+        if not isinstance(core.scene, DrummerScene):
+            raise ValueError("--show-body needs the drummer scene")
+        print(json.dumps(body_json(core.scene), indent=2) if form == "json" else body_text(core.scene))
+    finally:
+        core.close()
+    raise SystemExit(0)
+
+
+def _add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--show-body", nargs="?", const="text", choices=("text", "json"), default=None,
+                        help="print the drummer's body as these settings build it and exit: segment lengths (m) and "
+                        "masses (kg), DOF, per joint torque limit (N m), PD gains and joint limits with their "
+                        "source; 'json': as JSON")
 
 
 def _skeleton_limbs(settings: PhysicsNodeSettings) -> LimbLengths | None:
@@ -314,6 +408,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         description="Batteur physics: the simulated percussionist and kit (PyBullet), contacts and poses.",
         settings_cls=PhysicsNodeSettings,
         setup=start_score,
+        add_arguments=_add_arguments,
     )
 
 

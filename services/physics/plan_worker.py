@@ -173,7 +173,7 @@ def plan_executor(worker: PlanWorker, first: bool = False) -> tuple[Executor, Fu
             loaded = pool.submit(_load_planner_process, first)  # starts the process and its load now
     except BaseException:  # a node stopped while starting (common.runtime.StoppedWhileStarting): none left behind
         if pool is not None:
-            stop_executor(pool)
+            stop_executor(pool, STOP_WAIT_S)
         raise
     return pool, loaded
 
@@ -199,14 +199,24 @@ def _stop_signals_held() -> Iterator[None]:
             signal.raise_signal(held[0])
 
 
-def stop_executor(pool: Executor) -> None:
+STOP_WAIT_S = 5.0
+"""Longest :meth:`PlanWorkers.close` waits for a process pool's own thread to end once its process is terminated,
+seconds (it ends within milliseconds of the process)."""
+
+
+def stop_executor(pool: Executor, wait_s: float = 0.0) -> None:
     """Stop a planning worker without waiting for the plan in flight (a process is terminated; the executor's
-    own thread reaps it)."""
+    own thread reaps it). ``wait_s`` > 0: then wait up to that many seconds for that thread to end (a node closing
+    for good: Python 3.11's exit hook wakes a pool thread still running, and one closing its pipe at that moment
+    printed "Exception ignored ... OSError: [Errno 9] Bad file descriptor" after a start error, 1 run in 2-6)."""
     # no public way to stop them before Python 3.14; taken before shutdown, which forgets them
     processes = list((getattr(pool, "_processes", None) or {}).values())
+    manager: threading.Thread | None = getattr(pool, "_executor_manager_thread", None)
     pool.shutdown(wait=False, cancel_futures=True)
     for process in processes:
         process.terminate()
+    if wait_s > 0 and manager is not None:
+        manager.join(wait_s)
 
 
 class PlanWorkers:
@@ -293,12 +303,13 @@ class PlanWorkers:
             self._spare_since = time.monotonic()
 
     def close(self) -> None:
-        """Stop every worker without waiting for the plan in flight (processes terminated); for good."""
+        """Stop every worker without waiting for the plan in flight (processes terminated, their pools' threads
+        waited for: :data:`STOP_WAIT_S`); for good."""
         self._closed = True
-        self._stop()
+        self._stop(STOP_WAIT_S)
 
-    def _stop(self) -> None:
+    def _stop(self, wait_s: float = 0.0) -> None:
         for pool in (self._current, self._spare):
             if pool is not None:
-                stop_executor(pool)
+                stop_executor(pool, wait_s)
         self._spare, self._spare_loaded = None, None

@@ -66,11 +66,11 @@ def test_the_physics_node_reports_it_in_one_line(capsys: pytest.CaptureFixture[s
 
 
 @pytest.mark.parametrize(("argv", "said"), [
-    (["--skeleton-bvh", "{bad}"], "{bad}: expected ROOT, found 'broken'"),
+    (["--skeleton-bvh", "{bad}"], "{bad}: line 2: expected ROOT, found 'broken'"),
     (["--limits-from", "{fifo}"], "{fifo}: not a regular file but a pipe (FIFO); give a BVH file"),
     (["--limits-from", "/dev/null"], "/dev/null: not a regular file but a character device; give a DeepMimic clip "
                                      "file or a shipped clip's name"),
-    (["--limits-from", "{bad}"], "{bad}: expected ROOT, found 'broken'"),
+    (["--limits-from", "{bad}"], "{bad}: line 2: expected ROOT, found 'broken'"),
 ])
 def test_the_physics_node_refuses_a_motion_file_it_cannot_read_with_1(
         argv: list[str], said: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

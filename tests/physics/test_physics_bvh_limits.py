@@ -164,7 +164,8 @@ def test_limits_from_a_bvh_contain_at_least_99_percent_of_its_frames(tmp_path: P
      "  OFFSET 0 1 0\n  CHANNELS 3 Zrotation Xrotation Yrotation\n  End Site\n  {\n   OFFSET 0 1 0\n  }\n }\n}\n"
      "MOTION\nFrames: 2\nFrame Time: 0.03\n0 0 0 0 0 0\n0 0 0 5 0 0\n", "cannot tell which way is up"),
     ("HIERARCHY\nROOT Hips\n{\n OFFSET 0 0 0\n CHANNELS 3 Zrotation Xrotation Yrotation\n}\n"
-     "MOTION\nFrames: 2\nFrame Time: 0.03\n0 0 0\nnan 0 0\n", "frame 1 holds a value that is not finite"),
+     "MOTION\nFrames: 2\nFrame Time: 0.03\n0 0 0\nnan 0 0\n",
+     "line 11: motion frame 2 of 2 .frames counted from 1., channel 1 .Hips Zrotation. holds a value that is not"),
     ("HIERARCHY\nROOT Hips\n{\n OFFSET 0 0 0\n CHANNELS 3 Zrotation Xrotation Yrotation\n}\n"
      "MOTION\nFrames: 1\nFrame Time: 0.03\n0 0 0\n", "at least two"),
 ])

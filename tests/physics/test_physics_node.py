@@ -56,3 +56,26 @@ def test_a_live_core_starts_at_the_rig_time_of_its_first_step_without_counting_i
     core.step(13.0)  # then falling 10 s behind is counted as before
     assert core.skipped_steps == 10_000 - core.settings.max_catchup_steps and core.late == core.skipped_steps
     core.close()
+
+
+def test_a_skeleton_without_joints_found_by_name_is_refused_at_start(tmp_path: Path,
+                                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    """--skeleton-bvh with every joint renamed (none found by its usual BVH name): the node started with de Leva's
+    body, silently; it is refused as batteur render refuses it, exit 1 as a file the node cannot use."""
+    import signal
+
+    from common.exit_status import InputError
+
+    anon = tmp_path / "anon.bvh"
+    anon.write_text("HIERARCHY\nROOT J1\n{\n OFFSET 0 0 0\n CHANNELS 3 Zrotation Xrotation Yrotation\n JOINT J2\n {\n"
+                    "  OFFSET 0 50 0\n  CHANNELS 3 Zrotation Xrotation Yrotation\n  End Site\n  {\n   OFFSET 0 10 0\n"
+                    "  }\n }\n}\nMOTION\nFrames: 2\nFrame Time: 0.03\n0 0 0 0 0 0\n0 0 0 5 0 0\n", encoding="utf-8")
+    says = f"{anon}: no arm, leg or trunk joints found by their usual BVH names"  # render's, after "--skeleton-bvh: "
+    with pytest.raises(InputError, match=says):
+        make_core(PhysicsNodeSettings(skeleton_bvh=str(anon), discovery=False), argparse.Namespace())
+    handler = signal.getsignal(signal.SIGINT)
+    try:
+        assert main(["--skeleton-bvh", str(anon), "--no-discovery", "--no-oscquery"]) == 1
+    finally:
+        signal.signal(signal.SIGINT, handler)
+    assert says in capsys.readouterr().err

@@ -37,7 +37,11 @@ def test_each_unplayable_instrument_is_named_once_with_why(tmp_path: Path, caplo
     with caplog.at_level(logging.WARNING, logger="common.kit"):
         kit = load_kit(path)  # still loads: the rest of the kit plays
     said = _warnings(caplog)
-    assert len(said) == 3 and all(line.startswith(f"kit file {str(path)!r}: ") for line in said)  # was: no word
+    assert all(line.startswith(f"kit file {str(path)!r}: ") for line in said)  # was: no word
+    # the crash moved 2.9 m right: its pair_preference entries are stale (tests/score/test_kit_designer_files.py)
+    assert len([line for line in said if ": pair_preference: " in line]) == 1
+    said = [line for line in said if ": pair_preference: " not in line]
+    assert len(said) == 3
     crash, china2, stand = said
     assert "crash: out of both hands' reach (CRASH 2." in crash and "a hand reaching 1.15 m" in crash
     assert "china2 (cymbal): no event type or note_objects pitch strikes it" in china2

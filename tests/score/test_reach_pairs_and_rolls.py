@@ -18,7 +18,7 @@ def test_the_far_kit_is_what_the_tests_need() -> None:
     at = shoulders(FAR_LEFT, SMALL_M)
     assert _distance_m(china, at[Limb.LEFT_HAND]) < hand_reach(SMALL_M) < _distance_m(china, at[Limb.RIGHT_HAND])
     assert max(_distance_m(china, s) for s in shoulders(FAR_LEFT).values()) < hand_reach()
-    assert FAR_LEFT.spec(E.CHINA).preferred == Limb.RIGHT_HAND and FAR_LEFT.pair(E.CHINA, E.SNARE) > 0
+    assert FAR_LEFT.spec(E.CHINA).preferred == Limb.RIGHT_HAND and FAR_LEFT.stale_pairs() == {}
 
 
 @pytest.mark.parametrize("algorithm", ["simple", "pairwise", "viterbi"])
