@@ -386,13 +386,15 @@ def aggregate(results: Sequence[FileResult], windows: Sequence[float] = WINDOWS_
 
 
 def expected_instrument(kit: Kit, event: EventType, pitch: int | None = None) -> str:
-    """The kit object a note of ``event`` must sound on (pedal events: the instrument the pedal drives)."""
+    """The kit object a note of ``event`` must sound on (pedal events: the instrument the pedal drives; a BASS note
+    routed to a footboard: the kick, BASS's object whatever its id, which physics reports the beater striking)."""
     obj = kit.object_for(event, pitch)
     if obj.kind == "pedal":
         if event == EventType.HIHATPEDAL and EventType.HIHATCLOSED in kit.events:
             return kit.object_for(EventType.HIHATCLOSED).id
-        if event == EventType.BASS:
-            return "kick"
+        kick = kit.kick()
+        if event == EventType.BASS and kick is not None and kick.kind != "pedal":
+            return kick.id
     return obj.id
 
 

@@ -181,7 +181,7 @@ class SyntheticDrummer:
         beat = 60.0 / self.tempo_bpm
         phase = 2 * math.pi * t / beat
         goals = {f"{side}_hand": self._hand_goal(side, t) for side in SIDES}
-        goals.update({f"{side}_foot": self._foot_goal(side, t) for side in SIDES})
+        goals.update({f"{side}_foot": goal for side in SIDES if (goal := self._foot_goal(side, t)) is not None})
         nod = 8.0 * (0.5 + 0.5 * math.cos(phase)) ** 4  # a nod on every beat
         return figure_pose(goals, nod_deg=nod, sway_deg=3.0 * math.sin(phase / 4))
 
@@ -198,13 +198,17 @@ class SyntheticDrummer:
         pb, nb = hit_point(self.kit, strokes[j].event)
         return LimbGoal(pa + (pb - pa) * u, _unit(na + (nb - na) * u), height)
 
-    def _foot_goal(self, side: str, t: float) -> LimbGoal:
+    def _foot_goal(self, side: str, t: float) -> LimbGoal | None:
+        """The right foot on the kick's pedal, the left on the hi-hat's (found by the kit's events, whatever their
+        ids: BASS's and HIHATPEDAL's ``pedal``); None (the foot rests) when the kit has no such pedal."""
+        pedal_id = self.kit.kick_pedal() if side == "right" else self.kit.hihat_pedal()
+        if pedal_id is None:
+            return None
+        pedal = np.asarray(self.kit.object(pedal_id).position)  # the kit checks its events' pedals exist
         if side == "right":
-            pedal = np.asarray(self.kit.object("kick_pedal").position)
             strokes = self.strokes.get("right_foot", [])
             lift = _stroke_profile(strokes, t, h_up=0.07, h_rest=0.02)[2] if strokes else 0.02
         else:
-            pedal = np.asarray(self.kit.object("hihat_pedal").position)
             beat = 60.0 / self.tempo_bpm
             bar_pos = (t - 0.5) % (4 * beat)
             open_from = 3.5 * beat - 0.08  # lift the foot for the open hat on the last eighth

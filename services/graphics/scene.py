@@ -122,10 +122,16 @@ class KitAnimator:
                 self._pedals[obj.id] = PedalBinding(feet[side])
 
     def _pedal_side(self, obj: KitObject) -> str:
-        if "hihat" in obj.id and EventType.HIHATPEDAL in self.kit.events:
-            return self.kit.events[EventType.HIHATPEDAL].preferred.value.split("_")[0]
-        if EventType.BASS in self.kit.events and ("kick" in obj.id or "bass" in obj.id):
-            return self.kit.events[EventType.BASS].preferred.value.split("_")[0]
+        """The foot (``left``/``right``) that plays pedal ``obj``, from the kit's events whatever the ids: the
+        hi-hat's (HIHATPEDAL's ``pedal``) and the kick's (BASS's) by their events' preferred feet, a double pedal's
+        second footboard by the other foot (as physics plays it); any other by the side it stands on."""
+        kit = self.kit
+        if obj.id == kit.hihat_pedal():
+            return kit.events[EventType.HIHATPEDAL].preferred.value.split("_")[0]
+        if obj.id == kit.kick_pedal() or (kit.double_pedal and obj.id == kit.left_bass_pedal
+                                          and EventType.BASS in kit.events):
+            side = kit.events[EventType.BASS].preferred.value.split("_")[0]
+            return side if obj.id == kit.kick_pedal() else ("left" if side == "right" else "right")
         return "left" if obj.position[0] < 0 else "right"
 
     def state(self, t: float, pose: np.ndarray | None) -> np.ndarray:
@@ -159,8 +165,8 @@ class KitAnimator:
                     out[k, 3] = float(np.clip(1.0 - angle / FOOTBOARD_REST_DEG, 0.0, 1.0))
         for k, obj in enumerate(objects):
             if obj.kind == "hihat":
-                pedal = next((o for o in objects if o.kind == "pedal" and "hihat" in o.id), None)
-                p = out[index[pedal.id], 3] if pedal is not None else 0.0
+                pedal = self.kit.hihat_pedal()  # HIHATPEDAL's footboard, whatever its id
+                p = out[index[pedal], 3] if pedal is not None else 0.0
                 out[k, 3] = obj.opening * HIHAT_MAX_GAP * (1.0 - p)
         if pose is not None and self._kit_links:
             self._from_kit_links(out, pose)
@@ -195,8 +201,11 @@ class KitAnimator:
         return out
 
     def _impact_press(self, obj: KitObject, t: float) -> float:
-        """Pedal press from impacts alone (no foot link): down around each strike of its drum."""
-        target = "kick" if "kick" in obj.id else obj.id
+        """Pedal press from impacts alone (no foot link): down around each strike of its drum (a bass pedal's: the
+        kick, whatever its id; another pedal's: its own)."""
+        kick = self.kit.kick()
+        bass = obj.id == self.kit.kick_pedal() or (self.kit.double_pedal and obj.id == self.kit.left_bass_pedal)
+        target = kick.id if bass and kick is not None else obj.id
         press = 0.0
         for imp in self.impacts:
             if imp.instrument in (target, obj.id):

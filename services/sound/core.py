@@ -348,12 +348,17 @@ class SoundCore:
             inst.model = self.settings.model
             out.instruments[obj.id] = inst
         hihats = [i.id for i in out.instruments.values() if i.KIND == "hihat"]
-        kicks = [i.id for i in out.instruments.values()
-                 if i.KIND == "membrane" and ("kick" in i.role or "bass" in i.role)]
+        kick = kit.kick()  # the drum BASS strikes, whatever its id
+        kicks = [kick.id] if kick is not None and kick.id in out.instruments else [
+            i.id for i in out.instruments.values() if i.KIND == "membrane" and ("kick" in i.role or "bass" in i.role)]
+        # HIHATPEDAL's footboard (or the pedal object it is played on, a kit for sound alone giving no ``pedal``):
+        # the foot chick, whatever its id
+        chick = {kit.hihat_pedal(), kit.events[EventType.HIHATPEDAL].object} \
+            if EventType.HIHATPEDAL in kit.events else set()
         for obj in kit.objects:
             if obj.kind != "pedal" or not self.settings.pedal_impacts:
                 continue
-            if "hihat" in obj.id and hihats:
+            if obj.id in chick and hihats:
                 out.aliases[obj.id] = (hihats[0], "pedal", 0.9)
             elif kicks:
                 bass = kit.events.get(EventType.BASS)

@@ -11,6 +11,7 @@ const state = {
   poser: null, editing: false, nodeKit: null, pendingKit: null,
   drawn: 0, // frames drawn (a received frame shown by the render loop): "view N fps" counts these
   saving: { enabled: true, reason: null },
+  shells: {}, // kit object id -> its drum shell's colour (0xRRGGBB) as last drawn
 };
 window.batteur = state; // for tests and the console
 
@@ -62,6 +63,14 @@ const MAT = {
   dark: new THREE.MeshStandardMaterial({ color: 0x2a2a30, roughness: 0.9 }),
 };
 const SHELL_COLOURS = { kick: 0x8c1c24, snare: 0x9aa0aa, hightom: 0x8c1c24, midtom: 0x8c1c24, floortom: 0x8c1c24 };
+const EVENT_DRUMS = { BASS: "kick", SNARE: "snare", RIM: "snare", HIGHTOM: "hightom", MIDTOM: "midtom",
+  FLOORTOM: "floortom" };
+function shellColour(kit, obj) { // by what the kit plays on the drum (a designer's "bd" is the kick), as the sound
+  // service's drum_role: its id when the kit plays nothing on it or events of different drums
+  const drums = new Set(Object.entries(kit.events ?? {}).filter(([, spec]) => spec.object === obj.id)
+    .map(([event]) => EVENT_DRUMS[event] ?? event));
+  return SHELL_COLOURS[drums.size === 1 ? [...drums][0] : obj.id] ?? 0x7a1f2b;
+}
 let kitParts = []; // per kit object: {obj, group, swing, flashMats, extra}
 
 function eulerOf(deg) { // kit rotation: roll pitch yaw, extrinsic x-y-z == intrinsic Z-Y-X
@@ -86,6 +95,7 @@ function disposeKit() { // the kit is redrawn on every slider step: free the old
 function buildKit(kit) {
   disposeKit();
   kitParts = [];
+  state.shells = {};
   for (const obj of kit.objects) {
     const group = new THREE.Group();
     group.position.set(...obj.position);
@@ -96,7 +106,8 @@ function buildKit(kit) {
     const r = obj.radius;
     if (obj.kind === "membrane") {
       const depth = Math.max(obj.depth, 0.05);
-      const shell = cylinderZ(r, r, depth, MAT.shell(SHELL_COLOURS[obj.id] ?? 0x7a1f2b));
+      state.shells[obj.id] = shellColour(kit, obj);
+      const shell = cylinderZ(r, r, depth, MAT.shell(state.shells[obj.id]));
       shell.position.z = -depth / 2 - 0.002;
       const headMat = MAT.head();
       const head = cylinderZ(r * 0.995, r * 0.995, 0.004, headMat);
