@@ -129,7 +129,8 @@ class SoundPosition(OscMessage):
 
 @register
 class SoundStick(OscMessage):
-    """The striker of an instrument, for the Hunt-Crossley contact F = k x^alpha (1 + lambda dx/dt)."""
+    """The striker of an instrument, for the Hunt-Crossley contact F = k x^alpha + lambda x^alpha dx/dt
+    (lambda set from the kit's restitution so that the contact gives it)."""
 
     ADDRESS = "/batteur/sound/stick"
     FAMILY = Family.CONTROL
@@ -164,8 +165,10 @@ class SoundOpenness(OscMessage):
 
 @register
 class SoundAirLoading(OscMessage):
-    """Air loading of a drum head (membranes): 0 is the ideal membrane; 1 adds the air's mass estimate,
-    which lowers the low modes most and makes the drum less inharmonic."""
+    """Air loading of a drum head (membranes): 0 is the ideal membrane; 1 adds the air's mass estimate
+    rho_air / k, which lowers the low modes most, (0,1) most of all: the partials spread further from the
+    fundamental (snare (1,1)/(0,1) 1.593 -> 1.657), the drum gets more inharmonic, not less (a kettle's or
+    shell's enclosed air, which raises (0,1), is not modelled)."""
 
     ADDRESS = "/batteur/sound/air"
     FAMILY = Family.CONTROL

@@ -5,8 +5,9 @@ the striker of mass ``m`` compresses the contact by ``x`` and feels
 
 ``F = k x^alpha + lam x^alpha dx/dt``  (F >= 0, only while x > 0)
 
-with ``lam = 1.5 k (1 - e) / v0`` giving a coefficient of restitution close to
-``e`` (Hunt and Crossley 1975). The contact is integrated with RK4 at an
+with ``lam = c(e) k / v0``. The factor ``c`` is solved (:func:`damping_factor`) so that the
+contact's coefficient of restitution is exactly the target ``e``: Hunt and Crossley's
+``c = 1.5 (1 - e)`` holds only near e = 1 (a target of 0.3 gave 0.58). The contact is integrated with RK4 at an
 oversampled rate from ``x = 0, dx/dt = v0`` until the striker leaves. For
 ``alpha > 1`` a faster strike is shorter and its force peak grows faster than
 the velocity, so harder strikes are both louder and brighter.
@@ -17,7 +18,9 @@ why the force pulse is computed here and not sent by the physics service.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 import numpy.typing as npt
@@ -68,6 +71,38 @@ class ContactPulse:
     impulse: float
 
 
+MIN_RESTITUTION = 0.05
+"""Lowest restitution the contact takes (lower targets are raised to it): as e goes to 0 the damping
+factor c grows without bound (about 1 / e) and the striker would stay on the head."""
+MAX_RESTITUTION = 0.99
+
+
+@lru_cache(maxsize=256)
+def damping_factor(restitution: float) -> float:
+    """The ``c`` in ``lam = c k / v0`` that makes the Hunt-Crossley contact's restitution ``restitution``.
+
+    With ``u = v / v0`` and ``s = x^(alpha+1) k / ((alpha+1) m v0^2)`` the contact's equation becomes
+    ``u du/ds = -(1 + c u)``, the same for every mass, stiffness, exponent and velocity; integrating it from
+    ``u = 1`` (entry) to ``u = -e`` (exit, back at ``s = 0``) gives ``c (1 + e) = ln((1 + c) / (1 - c e))``,
+    solved here by bisection on ``0 < c < 1 / e`` (one root). Near e = 1 it gives Hunt and Crossley's
+    ``1.5 (1 - e)``; at e 0.3 it gives 3.09 where theirs gives 1.05 (restitution 0.58). ``restitution`` is
+    clipped to [MIN_RESTITUTION, MAX_RESTITUTION].
+    """
+    e = min(max(float(restitution), MIN_RESTITUTION), MAX_RESTITUTION)
+    lo, hi = 0.0, 1.0 / e
+    for _ in range(200):
+        c = 0.5 * (lo + hi)
+        if c <= lo or c >= hi:
+            break
+        rest = 1.0 - c * e
+        # g(c) = ln(1 + c) - ln(1 - c e) - c (1 + e): negative below the root, growing without bound at 1 / e
+        if rest > 0.0 and math.log1p(c) - math.log(rest) - c * (1.0 + e) < 0.0:
+            lo = c
+        else:
+            hi = c
+    return 0.5 * (lo + hi)
+
+
 def hunt_crossley(
     velocity: float,
     striker: Striker,
@@ -85,7 +120,8 @@ def hunt_crossley(
     striker : Striker
         Mass, stiffness and exponent of the contact.
     restitution : float
-        Target coefficient of restitution e in [0, 1).
+        Coefficient of restitution e the contact gives (exit speed / entry speed), clipped to
+        [MIN_RESTITUTION, MAX_RESTITUTION].
     sample_rate : float
         Output sample rate, Hz.
     oversample : int
@@ -102,8 +138,7 @@ def hunt_crossley(
     if not np.isfinite(v0) or v0 <= 0:
         return ContactPulse(np.zeros(1), sample_rate, 0.0, 0.0, 0.0)
     m, k, alpha = striker.mass, striker.stiffness, striker.exponent
-    e = min(max(float(restitution), 0.0), 0.99)
-    lam = 1.5 * k * (1.0 - e) / v0
+    lam = damping_factor(restitution) * k / v0
     # Hertz estimate of the contact time picks the step so that short contacts stay accurate.
     t_est = 3.2 * (m / k) ** (1.0 / (alpha + 1.0)) * v0 ** ((1.0 - alpha) / (alpha + 1.0))
     dt = 1.0 / (sample_rate * oversample)

@@ -398,7 +398,7 @@ class Instrument:
     def pulse(self, strike: Strike, striker: Striker | None = None) -> ContactPulse:
         st = striker or self.striker()
         if strike.impulse > 0 and strike.velocity > 0:
-            # the impulse tells the effective striker mass: J = m v (1 + e)
+            # the impulse tells the effective striker mass: J = m v (1 + e), the contact giving exactly e
             m_eff = strike.impulse / (strike.velocity * (1.0 + self.p.restitution))
             st = replace(st, mass=float(np.clip(m_eff, 0.25 * st.mass, 4.0 * st.mass)))
         return hunt_crossley(strike.velocity, st, self.p.restitution, self.sr, oversample=8)

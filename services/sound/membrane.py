@@ -12,8 +12,12 @@ Optional corrections (both tunable, both 0 gives the ideal membrane):
 
 * air loading: the air moving with the head adds a mass of about
   ``rho_air / k`` per unit area for a mode of wavenumber ``k = j_mn / a``,
-  which lowers the low modes most (this is what makes real drums less
-  inharmonic than the ideal membrane);
+  which lowers the low modes most, (0,1) most of all: relative to f01 the
+  partials spread (snare (1,1)/(0,1) 1.593 -> 1.657), so this makes the
+  head more inharmonic, not less. Relative to (1,1) the (m,1) series moves
+  only slightly toward the near-harmonic 1 : 1.5 : 2 : 2.5 of timpani (snare
+  (2,1)/(1,1) 1.341 -> 1.364); a kettle's enclosed air, which raises (0,1)
+  and the other axisymmetric modes, is not modelled;
 * orientation splitting: a real head is not perfectly uniform, so the two
   orientations of an m > 0 mode differ slightly and beat.
 """

@@ -60,14 +60,15 @@ class Recipe:
 
 
 SYNTH_TRIM_DB: dict[str, float] = {
-    "kick": -11.5, "snare": -10.8, "snare_rim": -17.0, "snare_rimshot": 2.6, "tom": -12.5, "crash": -7.4,
-    "splash": -5.6, "china": -6.4, "ride": -3.7, "cymbal": -5.8, "cowbell": -9.8,
+    "kick": -12.9, "snare": -10.8, "snare_rim": -17.0, "snare_rimshot": 2.6, "tom": -12.5, "crash": -7.4,
+    "splash": -5.6, "china": -7.0, "ride": -4.1, "cymbal": -5.8, "cymbal_bell": -0.7, "cowbell": -9.8,
 }
 """Level of each recipe relative to its design, dB, so that a strike sounds as loud as the same strike of the modal
 model (the default, whose level is calibrated): the mean difference of their RMS over the first 200 ms, measured on
-the default kit at its strike points, 0.5-6 m/s (tests/sound/test_sound_model_levels.py checks 1.5 dB). The
-ride bell's is within 1.5 dB untrimmed; the hi-hat's follow another velocity law (left: docs/sound.md, "Sample
-playback and signal-based synthesis")."""
+the default kit at its strike points, 0.5-6 m/s (tests/sound/test_sound_model_levels.py checks 1.5 dB). Kick,
+china, ride and ride bell moved with the modal model when its contact came to give the kit's restitution (-1.4,
+-0.6, -0.4, -0.7 dB); the hi-hat's follow another velocity law (left: docs/sound.md, "Sample playback and
+signal-based synthesis")."""
 
 SYNTH_VELOCITY_EXPONENT: dict[str, float] = {"crash": 0.95, "splash": 0.95, "china": 0.95, "ride": 0.95, "cymbal": 0.95}
 """Velocity exponents other than 1.1: a metal recipe opens its band with velocity, so its level grows faster than

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 from sound_helpers import impact, peak_near, spectrum
 
@@ -40,6 +42,28 @@ def test_plate_modes_are_dense_and_uniform_in_frequency() -> None:
     assert 500 < f.shape[0] < 2000  # a 16" crash: hundreds of modes below 20 kHz
     counts, _ = np.histogram(f, bins=[2000, 6000, 10000, 14000, 18000])
     assert counts.min() > 0.6 * counts.max()  # constant modal density, as plate theory predicts
+
+
+def test_the_docs_give_the_mode_counts_the_code_builds() -> None:
+    """docs/sound.md's plate mode counts per default cymbal (they said 700 to 830, the splash has under 400)
+    and its largest mode set of the default kit, as the code builds them."""
+    text = " ".join((Path(__file__).resolve().parents[2] / "docs" / "sound.md").read_text().split())
+    core = SoundCore(SoundSettings(latency=0.0, use_pyo=False))
+    try:
+        instruments = dict(core.instruments.instruments)
+    finally:
+        core.close()
+    cymbals = {name: inst for name, inst in instruments.items() if isinstance(inst, Cymbal)}
+    assert {"splash", "hihat", "ride", "crash", "china"} <= set(cymbals)
+    counts = ", ".join(f"{name.replace('hihat', 'hi-hat')} {cymbals[name].n_plate:,}"
+                       + (f" (plus {cymbals[name].bank.size - cymbals[name].n_plate} bell partials)"
+                          if cymbals[name].bank.size > cymbals[name].n_plate else "")
+                       for name in sorted(cymbals, key=lambda n: cymbals[n].n_plate))
+    assert f"plates have {counts} modes" in text
+    largest = max(instruments.values(), key=lambda inst: inst.bank.size)
+    assert isinstance(largest, Cymbal)
+    assert f"the default kit has at most {largest.bank.size:,}, a cymbal" in text
+    assert f"on a default cymbal ({largest.bank.size:,})" in text
 
 
 def test_cowbell_partials_are_where_the_model_puts_them() -> None:
