@@ -892,7 +892,7 @@ def reusable(render_dir: Path, score: Path, opts: Any) -> bool:
         style = opts.with_style(*file_style(score)).with_kit(file_kit(score))
     except (ValueError, OSError, ScoreError):  # a score it cannot read: rendered, so that the error is told
         return False
-    wanted = {"kit": style.kit, "grip": style.grip, "nuance": (style.nuance or DEFAULT_NUANCE).value,
+    wanted = {"grip": style.grip, "nuance": (style.nuance or DEFAULT_NUANCE).value,
               "tempo_scale": opts.tempo_scale, "control": opts.control,
               "drum_channels": (None if opts.midi.get("drum_channels") is None
                                 else list(opts.midi["drum_channels"])),
@@ -902,7 +902,20 @@ def reusable(render_dir: Path, score: Path, opts: Any) -> bool:
             "hihat_cc4": (bool(opts.midi.get("hihat_cc4", False)), False)}  # before 7 Dec: CC4 read as written
     return (all(report.get(key) == value for key, value in wanted.items())
             and all(report.get(key, before) == value for key, (value, before) in body.items())
-            and same_segments(report, opts) and same_kit_file(render_dir, report, style.kit))
+            and same_segments(report, opts) and same_kit(report, style.kit)
+            and same_kit_file(render_dir, report, style.kit))
+
+
+def same_kit(report: dict[str, Any], kit: str | None) -> bool:
+    """Whether ``kit`` (a name or a file, as typed) names the kit of the render of ``report``: the same file
+    (``kit_file``: ``./kits/my.yaml`` and ``kits/my.yaml`` are one kit), else the same name as report.json's
+    ``kit`` (a shipped kit, the default, a render made before 7 Dec)."""
+    from common.kit import kit_file
+
+    source = report.get("kit_file")
+    if isinstance(source, str) and kit is not None and Path(kit).suffix:
+        return str(kit_file(kit)) == source
+    return bool(report.get("kit") == kit)
 
 
 def same_kit_file(render_dir: Path, report: dict[str, Any], kit: str | None) -> bool:
@@ -1107,6 +1120,11 @@ def fit_kit_name(inputs: Sequence[Path], kit: str | None) -> str:
             report = read_report(path)
             name = report.get("kit_file") or report.get("kit", DEFAULT_KIT)  # the file wherever this runs from
             if not isinstance(name, str):  # said by the evaluation of that render
+                continue
+            copy = report.get("kit_copy")
+            if isinstance(copy, str) and Path(copy).name == copy and (path / copy).is_file():
+                # one kit with the file it was copied from; fitted on the copy: the kit the render played
+                played.setdefault(str(kit_file(name)), (str(path / copy), []))[1].append(path.name)
                 continue
         else:  # a MIDI file names no kit (and is not read here)
             score = None if path.suffix.lower() in MIDI_SUFFIXES else read_score(path)

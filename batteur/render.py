@@ -336,9 +336,10 @@ def load_render_kit(path: Path | str, opts: RenderOptions, score: Score | None,
 
 @dataclass(frozen=True)
 class KitCopy:
-    """A kit file as a render read it, copied into its folder as ``kit<suffix>`` (as the score is) so that
-    ``batteur evaluate DIR`` judges the render on the kit it played, wherever it runs from and however the file
-    is edited since (until 7 Dec only the path as typed was kept: relative to where the render ran)."""
+    """A kit file as a render read it, copied into its folder as ``played-kit<suffix>`` so that ``batteur evaluate
+    DIR`` judges the render on the kit it played, wherever it runs from and however the file is edited since (until
+    7 Dec only the path as typed was kept: relative to where the render ran). Not ``kit<suffix>`` (renders of 7 Dec):
+    a song folder's own hand-edited ``kit.yaml`` was replaced by the copy of another kit rendered into it."""
 
     source: Path
     """The kit file, absolute (report.json's ``kit_file``)."""
@@ -348,7 +349,7 @@ class KitCopy:
     @property
     def name(self) -> str:
         """The copy's name in the render folder (report.json's ``kit_copy``)."""
-        return f"kit{self.source.suffix}"
+        return f"played-kit{self.source.suffix}"
 
     @classmethod
     def of(cls, kit: str | None) -> KitCopy | None:
@@ -956,6 +957,27 @@ def write_rest(staging: Staging, report: dict[str, Any], poses: Any = None, scor
     (staging.path / "report.json").write_text(json.dumps(report, indent=2), encoding="utf-8")
 
 
+def check_copies(output: Path, score: Path, kit_copy: KitCopy | None) -> None:
+    """Raise :class:`RenderError` when the render would replace, with its copy of the score or the kit file, a file
+    in ``output`` that no earlier render of it wrote (:func:`earlier_outputs`) and that holds something else: a
+    user's own file is never overwritten (the copy of the kit file the render itself reads is the file again)."""
+    earlier = earlier_outputs(output)
+    copies = [(f"score{score.suffix}", score, "score")]
+    if kit_copy is not None:
+        copies.append((kit_copy.name, kit_copy.source, "kit file"))
+    for name, source, what in copies:
+        there = output / name
+        if name in earlier or not there.is_file():
+            continue
+        try:
+            if there.resolve() == source.resolve() or there.read_bytes() == source.read_bytes():
+                continue
+        except OSError:
+            pass
+        raise RenderError(f"-o: {there} is not a file an earlier render wrote there, and the render would replace it "
+                          f"with its copy of the {what} {source}: move it, or render into another folder")
+
+
 def earlier_outputs(output: Path) -> set[str]:
     """The files an earlier render wrote in ``output``, from its report.json (none without one).
 
@@ -1019,6 +1041,7 @@ def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: boo
         planning.close(finished=False)
         raise
     planning.close()
+    check_copies(output, Path(path), kit_copy)  # the score's kit known, before the long part
     read_render_sound_params(opts.sound_params, kit)  # the score's kit known, before the long part
     opts = opts.styled(score)  # physics' hands hold the grip the score asked for, as planned
     # the reader's (e.g. a MIDI file without a drum channel, read as drums), then hands the plan has no units for

@@ -892,8 +892,24 @@ def rig_kit(opts: argparse.Namespace, score: Score | None) -> str | None:
 def plan_services(opts: argparse.Namespace, epoch: float) -> list[ServicePlan]:
     """:func:`plan_rig` once ``--score`` is checked (:func:`check_score`) and the kit chosen (:func:`rig_kit`,
     into ``opts.kit``)."""
+    check_left_handed_env()
     opts.kit = rig_kit(opts, check_score(opts))
     return plan_rig(opts, epoch)
+
+
+def check_left_handed_env(environ: Mapping[str, str] | None = None) -> None:
+    """Raise :class:`UsageError` when the rig's environment sets BATTEUR_LEFT_HANDED: every service inherits it and
+    physics alone reads it, so it would mirror the kit physics plays but not the one the others draw, map and voice
+    (refused as ``--physics-arg --left-handed`` is: :func:`refuse_rig_options`; until 7 Dec it went through)."""
+    from common.config import ENV_PREFIX
+
+    env = os.environ if environ is None else environ
+    value = env.get(f"{ENV_PREFIX}LEFT_HANDED", "").strip().lower()
+    if value in ("1", "true", "t", "yes", "y", "on"):
+        raise UsageError(f"{ENV_PREFIX}LEFT_HANDED={env[f'{ENV_PREFIX}LEFT_HANDED']} in the rig's environment would "
+                         "mirror the kit physics plays but not the one the other services draw, map and voice; unset "
+                         "it and give every service a mirrored kit with the rig's --kit left_handed (a kit file of "
+                         "your own: its mirrored copy, Kit.mirrored(), docs/score-format.md \"Kits\")")
 
 
 def check_allow(plans: Sequence[ServicePlan], host: str, environ: Mapping[str, str] | None = None) -> None:

@@ -317,10 +317,12 @@ class _Memo:
         return (_Memo, ())
 
 
-PAIR_CROSS_LIMIT_M = 0.38
+PAIR_CROSS_LIMIT_M = 0.55
 """How far (x, metres, between the two hit points) a written pair preference may cross the arms before the geometry
-overrides it (:meth:`Kit.stale_pairs`): the shoulders' width (common/score/limbs.py ``SHOULDERS``), beyond the
-crossings the shipped kits' conventions ask for (a crossed hi-hat 0.21-0.23 m, the crash over the backbeat 0.27 m)."""
+overrides it (:meth:`Kit.stale_pairs`): beyond the crossings real conventions ask for (the shipped kits' crossed
+hi-hat 0.21-0.23 m and crash over the backbeat 0.27 m; a crash moved left of the hi-hat 0.42 m, a hi-hat at x -0.58
+0.39 m, both still played right-handed over the snare), short of a ride moved across the kit with ``RIDE,SNARE: 1``
+kept (0.69-0.77 m). Until 7 Dec 0.38 m (the shoulders' width) overrode those conventions, a table the user wrote."""
 PAIR_GEOMETRY_SPAN_M = 0.30
 """A geometric pair preference is the hit points' x distance over this, metres, at most 1 (docs/gestures.md)."""
 PAIR_GEOMETRY_MIN_DX_M = 0.10
@@ -518,9 +520,9 @@ class Kit(_Strict):
     def stale_pairs(self) -> dict[str, tuple[float, float]]:
         """Written ``pair_preference`` entries the geometry overrides: key -> (written, used). An entry is stale
         when, as the objects stand, the hand it gives each event would cross the arms further (x, metres, between
-        the hit points) than :data:`PAIR_CROSS_LIMIT_M`: the conventions the shipped kits write (a crossed hi-hat,
-        the right hand on the crash over the backbeat) cross up to 0.27 m; a ride moved far to the left with
-        ``RIDE,SNARE: 1`` kept would put the right hand 0.5 m across the left."""
+        the hit points) than :data:`PAIR_CROSS_LIMIT_M`: the conventions kits write (a crossed hi-hat, the right
+        hand on the crash over the backbeat, even with the crash left of the hi-hat) cross up to 0.42 m; a ride
+        moved far to the left with ``RIDE,SNARE: 1`` kept would put the right hand 0.7 m across the left."""
         return {f"{a.value},{b.value}": (written, used) for (a, b), (written, used) in self._pair_table(True).items()
                 if used != written}
 
@@ -649,6 +651,11 @@ OVERLAP_MARGIN_M = 0.01
 touch (rack toms rim to rim) are not warned of."""
 
 
+FACES_FLOOR_NZ = -0.5
+"""A stick-struck object whose surface normal points further down than this (tilted more than 120 degrees from
+level) faces the floor (:func:`layout_problems`); a gong hung nearly upright (95 degrees, -0.09) does not."""
+
+
 def layout_problems(kit: Kit) -> list[str]:
     """Where the kit's objects stand as no kit can, one line each naming the objects and what is wrong (for a
     warning as the kit loads, with :func:`common.score.limbs.unplayable_instruments`): an object whose centre is
@@ -680,10 +687,10 @@ def layout_problems(kit: Kit) -> list[str]:
             lines.append(f"{obj.id}: its centre {_shown_point(obj.position)} is {-centre[2]:.3g} m below the floor "
                          "(z is height above the floor, metres)")
         normal = obj.normal()
-        if obj.kind in SOLID_KINDS and obj is not kick and normal[2] < -1e-9:
+        if obj.kind in SOLID_KINDS and obj is not kick and normal[2] < FACES_FLOOR_NZ:
             lines.append(f"{obj.id}: its playing surface faces the floor (rotation_deg {_shown_point(obj.rotation_deg)}"
-                         f", surface normal {_shown_point(normal, 2)}): a stick strikes it from above; a roll or "
-                         "pitch beyond 90 degrees turns it upside down")
+                         f", surface normal {_shown_point(normal, 2)}): a stick strikes it from above or the side; a "
+                         "roll or pitch beyond 120 degrees turns it toward the floor")
     stale = kit.stale_pairs()
     if stale:  # the file's table was written for another layout (a kit copied and its objects moved)
         shown = ", ".join(f"{key} {written:g} -> {used:g}" for key, (written, used) in list(stale.items())[:6])
@@ -849,13 +856,14 @@ def save_kit(kit: Kit, path: Path) -> None:
     write_atomically(path, text.encode("utf-8"))
 
 
-def stand_rods(objects: list[KitObject]) -> list[tuple[np.ndarray, float]]:
+def stand_rods(objects: list[KitObject], kick: str | None = None) -> list[tuple[np.ndarray, float]]:
     """(top (3,), height) of each stand rod, world metres: under each mounted drum and cymbal of ``objects``, up to
-    the underside of its centre (physics' stand bodies and the glTF export's rods). A drum whose head faces sideways
-    (the kick, whatever its id) stands on its shell: no rod."""
+    the underside of its centre (physics' stand bodies and the glTF export's rods). The kick (``kick``: its id,
+    :meth:`Kit.kick`) and a drum whose shell reaches the floor (:func:`shell_on_floor`) stand on their shells: no
+    rod. Until 7 Dec every drum tilted past 60 degrees lost its rod: toms tilted steeply floated in the air."""
     rods = []
     for obj in objects:
-        if obj.kind in ("pedal", "throne") or (obj.kind == "membrane" and abs(obj.normal()[2]) < SIDEWAYS_NZ):
+        if obj.kind in ("pedal", "throne") or (obj.kind == "membrane" and (obj.id == kick or shell_on_floor(obj))):
             continue
         n = np.asarray(obj.normal())
         # the stand reaches the underside of the object's centre
@@ -866,9 +874,19 @@ def stand_rods(objects: list[KitObject]) -> list[tuple[np.ndarray, float]]:
     return rods
 
 
-SIDEWAYS_NZ = 0.5
-"""A drum whose head's normal has less than this upward component (tilted more than 60 degrees from level) stands
-on its shell, as a kick does (:func:`stand_rods`)."""
+SHELL_ON_FLOOR_M = 0.05
+"""A drum whose shell comes this close to the floor (metres) stands on it, as a kick does (:func:`stand_rods`)."""
+
+
+def shell_on_floor(obj: KitObject) -> bool:
+    """Whether the drum ``obj``'s shell (a cylinder of its radius from the head's centre down its depth) comes
+    within :data:`SHELL_ON_FLOOR_M` of the floor: its lowest point is a rim's, the head's or the shell's far end."""
+    nz = float(obj.normal()[2])
+    centre_z = float(obj.position[2])
+    lowest = min(centre_z, centre_z - obj.depth * nz) - obj.radius * math.sqrt(max(0.0, 1.0 - nz * nz))
+    return lowest <= SHELL_ON_FLOOR_M
+
+
 BEATER_AXLE_TO_HEAD_M = 0.12
 """How far in front of the kick's head (toward the drummer) a beater's axle sits, metres."""
 BEATER_AXLE_HEIGHT_M = 0.10
@@ -943,5 +961,5 @@ def kit_hardware(kit: Kit) -> KitHardware:
     beaters = [] if kick is None else [_beater(kit, o, kick) for o in kit.objects
                                        if o.kind == "pedal" and o.id in driving]
     stands = [StandRod(top=(float(top[0]), float(top[1]), float(top[2])), height=height, radius=STAND_ROD_RADIUS_M)
-              for top, height in stand_rods(kit.objects)]
+              for top, height in stand_rods(kit.objects, None if kick is None else kick.id)]
     return KitHardware(beaters=beaters, stands=stands)

@@ -52,12 +52,14 @@ HIPS: dict[Limb, Vec3] = {Limb.LEFT_FOOT: (-0.09, 0.05, 0.61), Limb.RIGHT_FOOT: 
 """Hip joint centres (metres) of a 1.75 m drummer seated at :data:`common.kit.DEFAULT_SEAT_M`, where physics bases
 the legs (services/physics/character.py: half the hip width, 0.105 x stature, to each side, 0.05 m forward and
 0.09 m above the seat point); on another kit they move with its throne (:func:`hips`)."""
-FOOT_REACH = 1.02
+FOOT_REACH = 1.036
 """Hip-to-ball-of-the-foot reach (metres) of a 1.75 m drummer, leg straight and toes pointed: thigh 0.424 m + shank
 0.436 m (de Leva's table scaled, services/physics/anthropometry.py) + ankle to the ball of the foot 0.163 m
-(services/physics/character.py). Shorter than the physics' own check (thigh + shank + foot, 1.12 m,
-services/physics/drummer.py ``_reach``), so every pedal target it refuses for the default 1.75 m body is flagged
-here first."""
+(services/physics/character.py), 1.023 m, + 0.013 m the body gives on its seat. Measured on renders of a bar of
+kicks and snares with the default kit's kick and pedal moved forward (7 Dec): every kick sounds with the pedal
+1.0355 m from the hip, one of two at 1.040 m, none from 1.044 m (nor at 1.05-1.12 m). Physics rests the foot on the
+pedal by the same reach (:func:`pedals_out_of_reach`); until 7 Dec it used thigh + shank + foot, 1.12 m, and the
+planner 1.02 m, dropping notes physics played."""
 STATURE_M = 1.75
 """The drummer's height (metres) :data:`SHOULDERS`, :data:`REACH`, :data:`HIPS` and :data:`FOOT_REACH` are given for;
 another height scales them (:func:`shoulders`, :func:`hips`, :func:`hand_reach`, :func:`foot_reach`)."""
@@ -331,7 +333,7 @@ def _distribute(score: Score, kit: Kit, algorithm: HandAlgorithm | str, sticking
             notes.append(Note(i, hn.time, ev, vel, h, pitch, nuance))
     notes = _merge_or_drop(left_out, notes, kit, issues)
     notes.sort(key=lambda n: (n.time, n.limb.value))
-    far = frozenset((foot, pedal) for pedal, feet in _pedals_out_of_reach(kit, height_m, lengths).items()
+    far = frozenset((foot, pedal) for pedal, feet in pedals_out_of_reach(kit, height_m, lengths).items()
                     for foot in feet)
     assignment = Assignment(notes=notes, issues=issues, algorithm=algorithm, kit_name=kit.name,
                             pedals_out_of_reach=far)
@@ -727,14 +729,14 @@ def unplayable_instruments(kit: Kit, height_m: float = STATURE_M, lengths: LimbL
             strokes.setdefault(object_id, []).append((f"{mapped.value} (pitch {pitch})", mapped, pitch))
     shoulder_at = shoulders(kit, height_m)
     arm_reach = hand_reach(height_m, lengths)
-    pedals_far = _pedals_out_of_reach(kit, height_m, lengths)
+    pedals_far = pedals_out_of_reach(kit, height_m, lengths)
     whose = _whose(height_m, lengths)
     lines: list[str] = []
     for obj in kit.objects:
         for foot, far_ones in pedals_far.get(obj.id, {}).items():
             lines.append(f"{obj.id}: out of the {foot.value.replace('_', ' ')}'s reach ({', '.join(far_ones)} from the "
-                         f"hip, a {whose}leg reaching {foot_reach(height_m, lengths):.3g} m): the planner flags its "
-                         "notes unreachable")
+                         f"hip, a {whose}leg reaching {foot_reach(height_m, lengths):.4g} m): the planner drops its "
+                         "notes (unreachable)")
         if obj.id not in struck:
             if obj.kind in STRUCK_KINDS:
                 lines.append(f"{obj.id} ({obj.kind}): no event type or note_objects pitch strikes it")
@@ -764,8 +766,8 @@ def _whose(height_m: float, lengths: LimbLengths | None) -> str:
     return "" if height_m == STATURE_M else f"{height_m:g} m drummer's "
 
 
-def _pedals_out_of_reach(kit: Kit, height_m: float = STATURE_M,
-                         lengths: LimbLengths | None = None) -> dict[str, dict[Limb, list[str]]]:
+def pedals_out_of_reach(kit: Kit, height_m: float = STATURE_M,
+                        lengths: LimbLengths | None = None) -> dict[str, dict[Limb, list[str]]]:
     """Pedal object id -> foot -> its foot events there beyond :func:`foot_reach` from that foot's hip ("EVENT d m"),
     for a drummer ``height_m`` tall (``lengths``: a skeleton's legs).
 

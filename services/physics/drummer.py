@@ -34,7 +34,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from common.kit import FOOT_BALL_ALONG, FOOTBOARD_LENGTH_M, PEDAL_REST_ANGLE_RAD, EventType, Kit
+from common.kit import FOOT_BALL_ALONG, FOOTBOARD_LENGTH_M, PEDAL_REST_ANGLE_RAD, EventType, Kit, Limb
 from common.messages import OscMessage
 from common.messages.physics import (
     CartesianTarget,
@@ -44,6 +44,7 @@ from common.messages.physics import (
     PhysicsGrip,
     PhysicsIk,
 )
+from common.score.limbs import LimbLengths, pedals_out_of_reach
 from services.physics.anthropometry import performer_anthropometry
 from services.physics.body import LIMBS, Body
 from services.physics.character import (
@@ -166,13 +167,17 @@ FINGER_INERTIA_KGM2 = 1.2e-3
 FINGER_DAMPING_RATIO = 0.3
 
 SWITCH_LOG_INTERVAL_S = 1.0
-"""Live switches (control mode, gains, IK parameters, grip) are logged, each kind at most once per this many
-seconds of rig time (a stream of them counted and said with the next line)."""
+"""Live switches (control mode, gains, IK parameters, grip) are logged, each kind and group (or hand) at most once per
+this many seconds of rig time: a stream of them is held, and its latest said with their count once the interval has
+passed (:meth:`DrummerScene.flush_switches`, from the node's step loop, or with the next switch)."""
 LOW_KS_SCALE = 0.15
 """A live gains message scaling a group's stiffness below this (of the defaults) is warned: the quaternion limits'
 restoring torque is proportional to ks, and below it they no longer hold. Measured on tests/render/short_groove.txt
 (cartesian, arms scaled): limit violations 185 at x1, 149 at x0.25, 256 at x0.15, 1408 at x0.1 (sticks at up to
-18 m/s), 6506 at x0.05 (45 m/s); joint_pd held down to x0.05 and broke at 0 (docs/physics.md, "Live gains")."""
+18 m/s), 6506 at x0.05 (45 m/s); joint_pd held down to x0.05 and broke at 0 (docs/physics.md, "Live gains"), so
+its own threshold is :data:`LOW_KS_SCALE_BY_MODE`'s."""
+LOW_KS_SCALE_BY_MODE: dict[str, float] = {"joint_pd": 0.05}
+"""Control modes measured to hold the limits lower than :data:`LOW_KS_SCALE` -> the scale below which they break."""
 
 _LIMIT_CACHE: dict[str, JointLimits] = {}
 _CLIP_CACHE: dict[tuple[str, ...], list[MotionClip]] = {}
@@ -385,10 +390,11 @@ class DrummerScene:
         self.head: tuple[Any, float] | None = None
         """The plan's head trajectory (look-at point, nod) and its time offset, if any."""
         self.last_joint_target: tuple[np.ndarray, np.ndarray] = (self.rest.copy(), np.zeros(N_DOF))
-        self._switch_logged: dict[str, float] = {}
-        """Kind of live switch (control, gains, ik, grip, low_gains) -> rig time its last line was logged, s."""
-        self._switch_held: dict[str, int] = {}
-        """Kind -> switches not logged since (:meth:`_said_switch`)."""
+        self._switch_logged: dict[tuple[str, str], float] = {}
+        """(kind of live switch: control, gains, ik, grip, low_gains; its group or hand, '' for none) -> rig time its
+        last line was logged, s."""
+        self._switch_held: dict[tuple[str, str], tuple[int, int, str]] = {}
+        """(kind, group) -> (switches not logged since, the latest's level, its line) (:meth:`_said_switch`)."""
 
     # ------------------------------------------------------------------ construction helpers
 
@@ -428,7 +434,11 @@ class DrummerScene:
             out[lead_hand] = hihat
         if snare is not None:
             out[other_hand] = snare
-        reach = self._reach()
+        # the planner's reach, measured (common/score/limbs.py FOOT_REACH): until 7 Dec thigh + shank + foot, 1.12 m,
+        # rested a foot on a pedal 1.04-1.12 m away that it could not play from
+        legs = None if self.settings.skeleton_bvh is None else \
+            LimbLengths.of_segments({name: s.length_m for name, s in self.anthro.segments.items()})  # as a render's
+        far = pedals_out_of_reach(kit, self.settings.height_m, legs)
         for limb, pedal_id in (("right_foot", kit.kick_pedal()), ("left_foot", kit.hihat_pedal())):
             if kit.handedness == "left":
                 limb = "left_foot" if limb == "right_foot" else "right_foot"
@@ -436,8 +446,7 @@ class DrummerScene:
                 continue
             pedal = kit.object(pedal_id)  # the kit checks its events' pedals exist
             target = footboard_point(pedal.position) + np.array([0.0, 0.0, FOOT_HOVER_M + self._foot_aim(limb)])
-            hip, leg = reach[limb]
-            if np.linalg.norm(target - hip) > leg:  # stretched for it, the leg pulled the body (and the hands) along
+            if Limb(limb) in far.get(pedal_id, {}):  # stretched for it, the leg pulled the body (and hands) along
                 continue  # the foot rests where it stands; the planner drops its notes (common/score/limbs.py)
             out[limb] = target
         return out
@@ -641,7 +650,7 @@ class DrummerScene:
         elif isinstance(message, PhysicsGrip):
             before = ", ".join(f"{side} {self.grip[side]}" for side in ("left", "right"))
             self.set_grip(message.hand, message.grip)
-            self._said_switch("grip", now, "grip %s -> %s (hand %s)", before,
+            self._said_switch(("grip", message.hand), now, "grip %s -> %s (hand %s)", before,
                               ", ".join(f"{side} {self.grip[side]}" for side in ("left", "right")), message.hand)
 
     def _set_gains(self, message: PhysicsGains, now: float) -> None:
@@ -652,27 +661,44 @@ class DrummerScene:
             controller.group_of == message.group
         before = (_scales(controller.scale_ks[mask]), _scales(controller.scale_kd[mask]))
         controller.set_gains(message.group, message.ks_scale, message.kd_scale)
-        self._said_switch("gains", now, "gains %s: ks x%s -> x%g, kd x%s -> x%g (of the defaults)", message.group,
+        self._said_switch(("gains", message.group), now, "gains %s: ks x%s -> x%g, kd x%s -> x%g (of the defaults)",
+                          message.group,
                           before[0], message.ks_scale, before[1], message.kd_scale)
         limited = {JOINT_GROUP[joint_kind(joint)] for joint in controller.q_joints}
-        if message.ks_scale < LOW_KS_SCALE and (message.group == "all" or message.group in limited):
-            self._said_switch("low_gains", now, "gains %s: ks x%g is below x%g: the joint limits' restoring torque "
-                              "scales with ks, and below it the limits no longer hold (joints leave their ellipsoids, "
-                              "sticks strike at 10-45 m/s; docs/physics.md, \"Live gains\")", message.group,
-                              message.ks_scale, LOW_KS_SCALE, warning=True)
+        mode = controller.mode
+        low = LOW_KS_SCALE_BY_MODE.get(mode, LOW_KS_SCALE)  # joint_pd measured to hold the limits lower
+        if message.ks_scale < low and (message.group == "all" or message.group in limited):
+            self._said_switch(("low_gains", message.group), now, "gains %s: ks x%g is below x%g in %s control: the "
+                              "joint limits' restoring torque scales with ks, and below it the limits no longer hold "
+                              "(joints leave their ellipsoids, sticks strike at 10-45 m/s; docs/physics.md, \"Live "
+                              "gains\")", message.group, message.ks_scale, low, mode, warning=True)
 
-    def _said_switch(self, kind: str, now: float, text: str, *args: object, warning: bool = False) -> None:
-        """Log an accepted switch once (INFO; ``warning``: WARNING), each ``kind`` at most once per
-        ``SWITCH_LOG_INTERVAL_S`` of rig time ``now`` (s): a stream of them is counted and the count said with the
-        next line logged."""
-        last = self._switch_logged.get(kind)
+    def _said_switch(self, kind: str | tuple[str, str], now: float, text: str, *args: object,
+                     warning: bool = False) -> None:
+        """Log an accepted switch (INFO; ``warning``: WARNING), each ``kind`` (with its group or hand: a burst
+        setting trunk, head, arms and legs says all four) at most once per ``SWITCH_LOG_INTERVAL_S`` of rig time
+        ``now`` (s): a stream of them is held, the latest said with their count once the interval has passed
+        (:meth:`flush_switches`; until 7 Dec a slider's last value was never said)."""
+        key = (kind, "") if isinstance(kind, str) else kind
+        self.flush_switches(now, but=key)
+        level = logging.WARNING if warning else logging.INFO
+        last = self._switch_logged.get(key)
         if last is not None and 0.0 <= now - last < SWITCH_LOG_INTERVAL_S:
-            self._switch_held[kind] = self._switch_held.get(kind, 0) + 1
+            count = self._switch_held[key][0] if key in self._switch_held else 0
+            self._switch_held[key] = (count + 1, level, text % args)
             return
-        self._switch_logged[kind] = now
-        held = self._switch_held.pop(kind, 0)
-        log.log(logging.WARNING if warning else logging.INFO, "%s%s", text % args,
-                f" (+{held} more since the last report)" if held else "")
+        self._switch_logged[key] = now
+        held = self._switch_held.pop(key, None)  # this line says where they led
+        log.log(level, "%s%s", text % args, f" (+{held[0]} more since the last report)" if held else "")
+
+    def flush_switches(self, now: float, but: tuple[str, str] | None = None) -> None:
+        """Log each held switch (:meth:`_said_switch`) whose interval has passed at rig time ``now`` (s), but ``but``
+        (said by the switch logging now): its latest line, with how many it stands for."""
+        for key, (count, level, line) in list(self._switch_held.items()):
+            if key != but and not 0.0 <= now - self._switch_logged[key] < SWITCH_LOG_INTERVAL_S:
+                del self._switch_held[key]
+                self._switch_logged[key] = now
+                log.log(level, "%s (the latest of %d since the last report)", line, count)
 
     def set_grip(self, hand: str, grip: str) -> None:
         """Change the grip live: the forearm pronation of the rest posture and the fulcrum springs."""

@@ -487,10 +487,11 @@ def _throne(world: World, kb: KitBodies, obj: KitObject) -> None:
     kb.pose_links.append((f"kit.{obj.id}", body, -1))
 
 
-def _stands(world: World, kb: KitBodies, objects: list[KitObject]) -> None:
-    """One static, visual-only body holding a rod under every mounted drum and cymbal."""
+def _stands(world: World, kb: KitBodies, objects: list[KitObject], kick: str | None) -> None:
+    """One static, visual-only body holding a rod under every mounted drum and cymbal (none under the kick, ``kick``
+    its id)."""
     shapes = [Shape("cylinder", (STAND_ROD_RADIUS_M, height, 0.0), xyz=(float(top[0]), float(top[1]), height / 2),
-                    rgba=_SILVER, collision=False) for top, height in stand_rods(objects)]
+                    rgba=_SILVER, collision=False) for top, height in stand_rods(objects, kick)]
     if not shapes:
         return
     robot = Robot("stands")
@@ -517,7 +518,8 @@ def build_kit(world: World, kit: Kit, only: set[str] | None = None) -> KitBodies
     if kb.hihat is not None and hihat_pedal in kb.pedals:
         kb.hihat.pedal = kb.pedals[hihat_pedal]
     if only is None:
-        _stands(world, kb, objects)
+        kick = kit.kick()
+        _stands(world, kb, objects, None if kick is None else kick.id)
     return kb
 
 

@@ -129,9 +129,12 @@ class PhysicsNodeSettings(NodeSettings):
     @model_validator(mode="after")
     def _control_rate_within_steps(self) -> PhysicsNodeSettings:
         """Control updates are whole numbers of physics steps: a rate above the step rate ran at the step rate while
-        the settings said otherwise."""
+        the settings said otherwise. Refused only when given: the default (1000 Hz) above a step rate asked for
+        (``--rate-hz 500``) is the step rate, as ``--show-settings`` says (until 7 Dec that node did not start)."""
         steps_hz = self.rate_hz or PhysicsSettings.model_fields["rate_hz"].default
-        if self.control_rate_hz > steps_hz * (1 + 1e-9):
+        if self.control_rate_hz > steps_hz * (1 + 1e-9) and "control_rate_hz" not in self.model_fields_set:
+            self.__dict__["control_rate_hz"] = float(steps_hz)  # not setattr: no validation again, not "given"
+        elif self.control_rate_hz > steps_hz * (1 + 1e-9):
             raise ValueError(f"--control-rate-hz {self.control_rate_hz:g} is above the physics step rate, "
                              f"{steps_hz:g} Hz (--rate-hz): control updates come every whole number of steps")
         return self
@@ -201,6 +204,9 @@ class LivePhysicsCore(PhysicsCore):
             if position is not None:
                 out.append(Outgoing(position, "graphics"))
             self._say_counts(now)
+            flush = getattr(self.scene, "flush_switches", None)  # a stream of live switches: its latest said
+            if flush is not None:
+                flush(now)
         return out
 
     def _say_counts(self, now: float) -> None:

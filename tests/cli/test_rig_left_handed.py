@@ -31,6 +31,17 @@ def test_a_left_handed_physics_alone_is_refused(given: list[str]) -> None:
     assert "--kit left_handed" in said, said
 
 
+@pytest.mark.parametrize("value", ["1", "true", "Yes"])
+def test_a_left_handed_physics_from_the_environment_is_refused(value: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """BATTEUR_LEFT_HANDED in the rig's environment reached physics alone (every service inherits it; only physics
+    reads it): refused as the --physics-arg is, and by ``batteur rig`` before any service starts."""
+    monkeypatch.setenv("BATTEUR_LEFT_HANDED", value)
+    with pytest.raises(rig.UsageError, match=f"BATTEUR_LEFT_HANDED={value} in the rig's environment would mirror"):
+        _plans()
+    monkeypatch.setenv("BATTEUR_LEFT_HANDED", "0")
+    assert "physics" in _plans()
+
+
 def test_not_mirroring_and_the_mirrored_kit_for_every_service_are_accepted() -> None:
     plans = _plans("--physics-arg=--no-left-handed")
     assert "--no-left-handed" in plans["physics"].args

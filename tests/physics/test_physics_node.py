@@ -31,6 +31,22 @@ def test_show_settings(capsys: pytest.CaptureFixture[str]) -> None:
     assert '"scene": "strike"' in capsys.readouterr().out
 
 
+def test_a_step_rate_below_the_default_control_rate_starts(capsys: pytest.CaptureFixture[str],
+                                                            monkeypatch: pytest.MonkeyPatch) -> None:
+    """``--rate-hz 500`` (or BATTEUR_RATE_HZ=500, as a rig passes it) was refused for the default control rate,
+    1000 Hz, that no one gave: the control rate is the step rate then, as --show-settings says; a control rate
+    given above the step rate is still refused."""
+    assert main(["--show-settings", "--rate-hz", "500", "--no-discovery"]) == 0
+    assert '"control_rate_hz": 500.0' in capsys.readouterr().out
+    monkeypatch.setenv("BATTEUR_RATE_HZ", "500")
+    assert main(["--show-settings", "--no-discovery"]) == 0
+    assert '"control_rate_hz": 500.0' in capsys.readouterr().out
+    assert main(["--show-settings", "--control-rate-hz", "1000", "--no-discovery"]) == 2
+    assert "--control-rate-hz 1000 is above the physics step rate, 500 Hz" in capsys.readouterr().err
+    monkeypatch.delenv("BATTEUR_RATE_HZ")
+    assert PhysicsNodeSettings(rate_hz=2000, discovery=False).control_rate_hz == 1000  # below: the default kept
+
+
 def test_motion_capture_files_of_the_node_are_clear_errors(tmp_path: Path) -> None:
     """--limits-from and --skeleton-bvh (or BATTEUR_LIMITS_FROM, comma-separated): a file that is not there is a
     clear error at start, not a traceback."""

@@ -62,10 +62,11 @@ def test_live_switches_are_said_once_from_what_to_what(core: PhysicsCore, caplog
         "grip left american, right american -> left french, right french (hand both)",
         "IK damping 0.02 -> 0.05 m, posture gain 2 -> 1 1/s"]
     caplog.clear()
-    for k in range(5):  # a stream: at most one line a second of rig time, the rest counted
+    for k in range(5):  # a stream: at most one line a second of rig time (per group), the rest counted
         scene.handle(PhysicsGains(group="all", ks_scale=1.0 + k / 10, kd_scale=1.0), 0.5 + k / 10)
     scene.handle(PhysicsGains(group="all", ks_scale=1.0, kd_scale=1.0), 1.6)
-    assert said(caplog) == ["gains all: ks x1.4 -> x1, kd x1 -> x1 (of the defaults) (+5 more since the last report)"]
+    assert said(caplog) == ["gains all: ks x1-2 -> x1, kd x1-1.5 -> x1 (of the defaults)",
+                            "gains all: ks x1.4 -> x1, kd x1 -> x1 (of the defaults) (+4 more since the last report)"]
     caplog.clear()
     scene.handle(PhysicsGains(group="arms", ks_scale=2.0, kd_scale=1.5), 3.0)
     scene.handle(PhysicsGains(group="all", ks_scale=1.0, kd_scale=1.0), 5.0)  # the DOF differed: their range
@@ -77,12 +78,76 @@ def test_gains_too_low_for_the_limits_to_hold_are_warned(core: PhysicsCore,
                                                          caplog: pytest.LogCaptureFixture) -> None:
     caplog.set_level(logging.INFO, logger="batteur.physics")
     scene = scene_of(core)
+    scene.handle(PhysicsControlMode(mode="cartesian"), 5.0)  # the mode measured (the module's core is shared)
     scene.handle(PhysicsGains(group="arms", ks_scale=LOW_KS_SCALE, kd_scale=1.0), 10.0)
     assert said(caplog, logging.WARNING) == []
     scene.handle(PhysicsGains(group="arms", ks_scale=0.0, kd_scale=0.0), 20.0)
     warned = said(caplog, logging.WARNING)
-    assert len(warned) == 1 and warned[0].startswith("gains arms: ks x0 is below x0.15: the joint limits'")
+    assert len(warned) == 1 and warned[0].startswith("gains arms: ks x0 is below x0.15 in cartesian control: the "
+                                                     "joint limits'")
     scene.handle(PhysicsGains(group="all", ks_scale=1.0, kd_scale=1.0), 30.0)
+
+
+def test_switches_of_other_groups_are_said_and_a_streams_latest_too(core: PhysicsCore,
+                                                                    caplog: pytest.LogCaptureFixture) -> None:
+    """One rate limit per kind hid switches: a setup burst (trunk, head, arms, legs 1 ms apart) logged only trunk,
+    low arms then legs 0.2 s later warned only arms, and a slider's last value (x0.3) was never said. Now per group
+    (or hand), and a held stream's latest is said once the interval has passed (the node's step loop flushes it)."""
+    caplog.set_level(logging.INFO, logger="batteur.physics")
+    scene = scene_of(core)
+    scene.handle(PhysicsControlMode(mode="cartesian"), 95.0)  # the mode measured (the module's core is shared)
+    caplog.clear()
+    for k, group in enumerate(("trunk", "head", "arms", "legs")):
+        scene.handle(PhysicsGains(group=group, ks_scale=0.5, kd_scale=0.5), 110.0 + k * 0.001)
+    assert [line.split(":")[0] for line in said(caplog)] == ["gains trunk", "gains head", "gains arms", "gains legs"]
+    caplog.clear()
+    scene.handle(PhysicsGains(group="arms", ks_scale=0.1, kd_scale=1.0), 120.0)
+    scene.handle(PhysicsGains(group="legs", ks_scale=0.05, kd_scale=1.0), 120.2)
+    assert [line.split(":")[0] for line in said(caplog, logging.WARNING)] == ["gains arms", "gains legs"]
+    caplog.clear()
+    for k in range(30):  # a slider 1.0 -> 0.3 over 0.5 s, then nothing
+        scene.handle(PhysicsGains(group="all", ks_scale=1.0 - 0.7 * k / 29, kd_scale=1.0), 130.0 + k / 60)
+    scene.flush_switches(130.9)  # not yet: within the interval of the first line
+    assert len(said(caplog)) == 1
+    scene.flush_switches(131.1)
+    assert said(caplog)[1].startswith("gains all: ks x0.324138 -> x0.3, kd x1 -> x1 (of the defaults) (the latest "
+                                      "of 29 since the last report)")
+    scene.flush_switches(140.0)  # said once
+    assert len(said(caplog)) == 2
+
+
+def test_the_live_node_says_a_held_switch_from_its_step_loop(caplog: pytest.LogCaptureFixture) -> None:
+    """With no message after a slider's stream its last value was never said: the node's steps say it."""
+    caplog.set_level(logging.INFO, logger="batteur.physics")
+    live = LivePhysicsCore(planner="thread", scene="drummer", pose_rate_hz=0, mode="live")
+    try:
+        live.step(1.0)  # the switches are said at the core's time
+        for k in range(3):
+            live.handle(PhysicsGains(group="all", ks_scale=1.0 - 0.1 * k, kd_scale=1.0), 1.0 + k / 60, SENDER)
+        live.step(1.5)  # within the interval
+        assert [line for line in said(caplog) if line.startswith("gains all")] == [
+            "gains all: ks x1 -> x1, kd x1 -> x1 (of the defaults)"]
+        live.step(2.2)  # live: behind, it skips to now
+        assert said(caplog)[-1] == ("gains all: ks x0.9 -> x0.8, kd x1 -> x1 (of the defaults) (the latest of 2 "
+                                    "since the last report)")
+    finally:
+        live.close()
+
+
+def test_joint_pd_is_warned_only_below_what_it_was_measured_to_hold(core: PhysicsCore,
+                                                                   caplog: pytest.LogCaptureFixture) -> None:
+    """joint_pd held the limits down to x0.05 (docs/physics.md, "Live gains"): x0.1 was warned as in cartesian."""
+    caplog.set_level(logging.INFO, logger="batteur.physics")
+    scene = scene_of(core)
+    scene.handle(PhysicsControlMode(mode="joint_pd"), 240.0)
+    scene.handle(PhysicsGains(group="arms", ks_scale=0.1, kd_scale=1.0), 241.5)
+    scene.handle(PhysicsGains(group="arms", ks_scale=0.05, kd_scale=1.0), 243.0)
+    assert said(caplog, logging.WARNING) == []
+    scene.handle(PhysicsGains(group="arms", ks_scale=0.0, kd_scale=1.0), 245.0)
+    warned = said(caplog, logging.WARNING)
+    assert len(warned) == 1 and warned[0].startswith("gains arms: ks x0 is below x0.05 in joint_pd control")
+    scene.handle(PhysicsControlMode(mode="cartesian"), 246.0)
+    scene.handle(PhysicsGains(group="all", ks_scale=1.0, kd_scale=1.0), 247.0)
 
 
 def test_the_torque_saturation_counter_counts_dof_at_their_limit_every_step(core: PhysicsCore) -> None:

@@ -2,8 +2,9 @@
 
 * ``batteur evaluate DIR`` could not find a kit file given by a relative path (report.json kept it as typed,
   relative to where the render ran), and read the file as it is now, edited since: the render copies the kit file
-  into DIR as ``kit.yaml`` (as it copies the score), report.json says the copy (``kit_copy``) and the file's
-  absolute path (``kit_file``), and evaluate judges on the copy, saying so when the file has changed since.
+  into DIR as ``played-kit.yaml`` (``kit.yaml`` until 7 Dec replaced a song folder's own kit file), report.json
+  says the copy (``kit_copy``) and the file's absolute path (``kit_file``), and evaluate judges on the copy,
+  saying so when the file has changed since.
 * The kit's load warnings (an instrument out of reach) were printed and not kept: report.json's ``warnings`` has
   them, and the warning for hands in a grip the gestures are not planned with (american, traditional), which the
   rig's physics node logged and a render did not say at all.
@@ -23,6 +24,7 @@ from common.kit import load_kit, save_kit
 from tests.far_kits import china_at
 
 SCORE = "tempo 120\nmeter 4/4\nSN |x.x.|\n"
+MINE = "# my own kit, edited by hand\n"
 
 
 @pytest.fixture(scope="module")
@@ -33,6 +35,8 @@ def rendered(tmp_path_factory: pytest.TempPathFactory) -> Path:
     (folder / "kits").mkdir()
     save_kit(china_at(load_kit("default", warn=False), 1.3), folder / "kits" / "far.yaml")
     (folder / "snare.txt").write_text(SCORE)
+    (folder / "out").mkdir()
+    (folder / "out" / "kit.yaml").write_text(MINE)  # the folder's own kit, hand-edited, no render's
     here = Path.cwd()
     os.chdir(folder)  # --kit given relative to it
     try:
@@ -47,8 +51,27 @@ def test_the_kit_file_is_copied_and_its_absolute_path_kept(rendered: Path) -> No
     report = json.loads((rendered / "report.json").read_text())
     kit = rendered.parent / "kits" / "far.yaml"
     assert report["kit"] == "kits/far.yaml"  # as given, as before
-    assert report["kit_file"] == str(kit.resolve()) and report["kit_copy"] == "kit.yaml"
-    assert (rendered / "kit.yaml").read_bytes() == kit.read_bytes()
+    assert report["kit_file"] == str(kit.resolve()) and report["kit_copy"] == "played-kit.yaml"
+    assert (rendered / "played-kit.yaml").read_bytes() == kit.read_bytes()
+
+
+def test_a_file_no_render_wrote_is_never_replaced(rendered: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Until 7 Dec the copy was ``kit.yaml``: a render into a song folder replaced the folder's own kit file; and a
+    score copy replaced a ``score.txt`` of the user's: refused now, before the render, the file left as it was."""
+    assert (rendered / "kit.yaml").read_text() == MINE
+    folder = rendered.parent / "song"
+    folder.mkdir()
+    (folder / "score.txt").write_text("tempo 90\nSN |x...|\n")  # the user's own, another score
+    capsys.readouterr()
+    assert render.main([str(rendered.parent / "snare.txt"), "-o", str(folder), "--quiet"]) == 1
+    err = capsys.readouterr().err
+    assert f"{folder / 'score.txt'} is not a file an earlier render wrote there" in err, err
+    assert (folder / "score.txt").read_text() == "tempo 90\nSN |x...|\n" and not (folder / "report.json").exists()
+    (folder / "report.json").write_text(json.dumps({"scene": "drummer", "score": "x/score.txt"}))
+    render.check_copies(folder, rendered.parent / "snare.txt", None)  # an earlier render's copy: replaced
+    (folder / "report.json").unlink()
+    (folder / "score.txt").write_text(SCORE)
+    render.check_copies(folder, rendered.parent / "snare.txt", None)  # the same score: nothing lost
 
 
 def test_the_start_warnings_are_in_the_report(rendered: Path) -> None:
@@ -143,5 +166,19 @@ def test_a_fit_from_the_render_finds_its_kit_file_from_elsewhere(
         rendered: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.chdir(tmp_path)  # until 7 Dec "kits/far.yaml", which --fit-calibration then could not load here
     name = evaluate.fit_kit_name([rendered], None)
-    assert name == str((rendered.parent / "kits" / "far.yaml").resolve())
+    assert name == str(rendered / "played-kit.yaml")  # the kit it played: the file may be edited since
     assert load_kit(name, warn=False).events
+    # the render and a score playing the same file are one kit (the copy's file is not another kit)
+    (tmp_path / "s.txt").write_text(f"kit {(rendered.parent / 'kits' / 'far.yaml').resolve()}\n{SCORE}")
+    assert evaluate.fit_kit_name([rendered, tmp_path / "s.txt"], None) == name
+
+
+def test_reuse_takes_the_kit_file_however_typed(rendered: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``--reuse`` compared report.json's ``kit`` as typed: ``./kits/far.yaml`` rendered again what
+    ``kits/far.yaml`` had rendered; the file is compared now (``kit_file``)."""
+    monkeypatch.chdir(rendered.parent)
+    score = rendered.parent / "snare.txt"
+    assert evaluate.reusable(rendered, score, render.RenderOptions(kit="./kits/far.yaml", grip="traditional"))
+    assert not evaluate.reusable(rendered, score, render.RenderOptions(kit="default", grip="traditional"))
+    report = json.loads((rendered / "report.json").read_text())
+    assert evaluate.same_kit(report, "kits/../kits/far.yaml") and not evaluate.same_kit(report, "kits/other.yaml")

@@ -144,6 +144,25 @@ def test_impossible_geometry_is_warned_naming_the_objects(kit: Kit, said: str) -
     assert len(problems) == 1 and problems[0].startswith(said)
 
 
+def test_an_upright_plate_does_not_face_the_floor() -> None:
+    """A gong hung nearly upright (pitched 95 degrees: normal z -0.09) was said to face the floor (any downward
+    normal); past 120 degrees it still is."""
+    assert layout_problems(_moved(crash={"rotation_deg": [95, 0, 0]})) == []
+    assert layout_problems(_moved(crash={"rotation_deg": [125, 0, 0]}))[0].startswith(
+        "crash: its playing surface faces the floor")
+
+
+def test_steep_toms_keep_their_stand_rods() -> None:
+    """Toms tilted 65 degrees lost their rods (every drum past 60 degrees was taken for a kick) and floated; the
+    kick (whatever its id) and a drum whose shell reaches the floor stand without one."""
+    shipped = kit_hardware(load_kit("default", warn=False)).stands
+    steep = kit_hardware(_moved(hightom={"rotation_deg": [65, 0, 0]}, midtom={"rotation_deg": [65, 0, 0]})).stands
+    assert len(steep) == len(shipped)
+    lying = _moved(floortom={"rotation_deg": [90, 0, 0], "position": [0.48, 0.32, 0.2]})  # on its side, on the floor
+    assert len(kit_hardware(lying).stands) == len(shipped) - 1
+    assert len(kit_hardware(_renamed()).stands) == len(shipped)  # the renamed kick: no rod either
+
+
 def test_a_geometry_warning_is_logged_as_the_kit_loads(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
     data = _default()
     _object(data, "crash")["rotation_deg"] = [180, 0, 0]
@@ -179,6 +198,21 @@ def test_a_moved_ride_gets_the_geometrys_preference_and_no_crossing() -> None:
     assert [i for i in assignment.issues if i.reason == IssueReason.CROSSING] == []
     assert {n.limb for n in assignment.notes if n.event == EventType.RIDE} == {Limb.LEFT_HAND}
     assert any("pair_preference: " in line and "RIDE,SNARE 1 -> -1" in line for line in layout_problems(kit))
+
+
+@pytest.mark.parametrize(("moved", "key"), [({"crash": {"position": [-0.50, 0.66, 1.20]}}, "CRASH,SNARE"),
+                                            ({"hihat": {"position": [-0.58, 0.40, 0.92]}}, "HIHATCLOSED,SNARE")])
+def test_a_users_crossing_convention_stands(moved: dict[str, dict[str, Any]], key: str) -> None:
+    """A crash moved left of the hi-hat (crossing 0.42 m) or a hi-hat far left (0.39 m), the right hand on it over
+    the snare as written: the 0.38 m limit of 7 Dec flipped the entry to -1 and warned "write it again" of a table
+    the user wrote. A ride moved across the kit (0.69 m) is still caught."""
+    kit = _moved(**moved)
+    a, b = (EventType(part) for part in key.split(","))
+    assert kit.pair(a, b) == 1.0 and kit.stale_pairs() == {}
+    assert not any("pair_preference" in line for line in layout_problems(kit))
+    ride = _moved(ride={"position": [-0.62, 0.58, 1.02]})  # the review's ride moved left
+    assert 0.6 < ride.hit_point(EventType.SNARE)[0][0] - ride.hit_point(EventType.RIDE)[0][0] < 0.7
+    assert ride.stale_pairs()["RIDE,SNARE"] == (1.0, -1.0)
 
 
 def test_the_shipped_kits_conventions_stand() -> None:

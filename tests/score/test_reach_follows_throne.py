@@ -71,7 +71,7 @@ def test_a_pedal_beyond_a_legs_reach_is_warned_of_and_its_notes_flagged() -> Non
     far = _moved(kit, {"hihat_pedal"}, (-1.3, 1.3, 0.0))  # 2.3 m from the throne, to the front left
     said = unplayable_instruments(far)
     assert said == ["hihat_pedal: out of the left foot's reach (HIHATPEDAL 2.28 m from the hip, a leg reaching "
-                    "1.02 m): the planner flags its notes unreachable"]
+                    "1.036 m): the planner drops its notes (unreachable)"]
     score = Score([DrumEvent(0.0, EventType.HIHATPEDAL, 0.7), DrumEvent(0.5, EventType.BASS, 0.7)])
     flagged = [(i.event, i.note_index) for i in distribute(score, far).issues if i.reason == IssueReason.UNREACHABLE]
     assert flagged == [(EventType.HIHATPEDAL, 0)]

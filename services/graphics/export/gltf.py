@@ -254,9 +254,11 @@ class _KitParts:
     def nodes(self, link: str, first: np.ndarray) -> list[int]:
         """Mesh nodes drawing kit link ``link`` (none for a link not known here), whose first pose is ``first``."""
         frame = Rotation.from_quat(normalize_quats(first[3:]))
-        if link == "kit.stands":
+        if link == "kit.stands":  # as physics builds them: none under the kick
+            kick = self.kit.kick()
+            rods = stand_rods(self.kit.objects, None if kick is None else kick.id)
             return [self._rod(f"kit_stand_{k}", STAND_ROD_RADIUS_M, frame.inv().apply(top - first[:3]), height,
-                              frame.inv()) for k, (top, height) in enumerate(stand_rods(self.kit.objects))]
+                              frame.inv()) for k, (top, height) in enumerate(rods)]
         beater = self.beaters.get(link)
         if beater is not None:  # a rod from the axle along the link's +z to its ball (physics' beater link)
             length = beater.rod_length
