@@ -247,9 +247,18 @@ def plan_rig(opts: argparse.Namespace, epoch: float) -> list[ServicePlan]:
             for other in roles:
                 if other != role:
                     args += ["--peer", f"{other}={peer_host(hosts[other])}:{ports[other]}"]
-        for left_out in ROLES:  # not started on purpose: no "no graphics peer known" every minute for it
-            if left_out not in roles:
-                args += ["--absent", left_out]
+        # A role not started is absent (no "no graphics peer known" every minute) only where no node of it can be
+        # expected: with no discovery, or with this service on loopback (a node of it would be one started apart on
+        # this machine, still found and sent to), and no static peer of it in --ROLE-arg. Discovery on a LAN may
+        # find it on another machine (docs/deployment.md's sound on laptop B): if it fails, the warning says so.
+        own_peers = {spec.split("=", 1)[0].strip() for spec in option_values(own[role], "--peer")}
+        try:
+            on_loopback = hosts[role] == "localhost" or ipaddress.ip_address(hosts[role]).is_loopback
+        except ValueError:  # a host name
+            on_loopback = False
+        if opts.no_discovery or on_loopback:
+            args += [arg for left_out in ROLES if left_out not in roles and left_out not in own_peers
+                     for arg in ("--absent", left_out)]
         if opts.no_discovery:
             args += ["--no-discovery"]
         else:

@@ -97,14 +97,15 @@ class Stroke:
     velocity: float
 
 
-def default_groove(duration: float, tempo_bpm: float = 120.0) -> dict[str, list[Stroke]]:
-    """A rock groove: hi-hat eighths (right hand), snare on 2 and 4 (left hand), kick on 1 and 3.
+def default_groove(duration: float, tempo_bpm: float = 120.0, bass_foot: str = "right_foot") -> dict[str, list[Stroke]]:
+    """A rock groove: hi-hat eighths (right hand), snare on 2 and 4 (left hand), kick on 1 and 3 (``bass_foot``:
+    the kit's BASS ``preferred``, see :func:`pedal_feet`).
 
     The hi-hat foot stays down except on the last eighth of every bar (an open hat).
-    Returns per-limb strokes ``{"right_hand": [...], "left_hand": [...], "right_foot": [...]}``.
+    Returns per-limb strokes ``{"right_hand": [...], "left_hand": [...], bass_foot: [...]}``.
     """
     beat = 60.0 / tempo_bpm
-    strokes: dict[str, list[Stroke]] = {"right_hand": [], "left_hand": [], "right_foot": []}
+    strokes: dict[str, list[Stroke]] = {"right_hand": [], "left_hand": [], bass_foot: []}
     t0 = 0.5
     eighth = 0
     while t0 + eighth * beat / 2 <= duration - 0.25:
@@ -117,9 +118,24 @@ def default_groove(duration: float, tempo_bpm: float = 120.0) -> dict[str, list[
         if pos in (2, 6):
             strokes["left_hand"].append(Stroke(t, EventType.SNARE, 4.0))
         if pos in (0, 4, 5):
-            strokes["right_foot"].append(Stroke(t, EventType.BASS, 2.5))
+            strokes[bass_foot].append(Stroke(t, EventType.BASS, 2.5))
         eighth += 1
     return strokes
+
+
+def pedal_feet(kit: Kit) -> tuple[str, str]:
+    """(the foot on the kick's pedal, the foot on the hi-hat's): BASS's and HIHATPEDAL's ``preferred`` (a
+    left-handed kit's left foot kicks, as physics plays it), by default right and left; the hi-hat's is the other
+    foot when both name the same."""
+    def foot(event: EventType, default: str) -> str:
+        spec = kit.events.get(event)
+        return spec.preferred.value if spec is not None and spec.preferred.value.endswith("_foot") else default
+
+    bass = foot(EventType.BASS, "right_foot")
+    hihat = foot(EventType.HIHATPEDAL, "left_foot" if bass == "right_foot" else "right_foot")
+    if hihat == bass:
+        hihat = "left_foot" if bass == "right_foot" else "right_foot"
+    return bass, hihat
 
 
 def _stroke_profile(strokes: list[Stroke], t: float, h_up: float, h_rest: float) -> tuple[int, int, float]:
@@ -147,7 +163,8 @@ class SyntheticDrummer:
         self.kit = kit or load_kit("default")
         self.duration = duration
         self.tempo_bpm = tempo_bpm
-        self.strokes = strokes if strokes is not None else default_groove(duration, tempo_bpm)
+        self.bass_foot, self.hihat_foot = pedal_feet(self.kit)
+        self.strokes = strokes if strokes is not None else default_groove(duration, tempo_bpm, self.bass_foot)
         for limb in self.strokes.values():
             limb.sort(key=lambda s: s.time)
 
@@ -199,14 +216,17 @@ class SyntheticDrummer:
         return LimbGoal(pa + (pb - pa) * u, _unit(na + (nb - na) * u), height)
 
     def _foot_goal(self, side: str, t: float) -> LimbGoal | None:
-        """The right foot on the kick's pedal, the left on the hi-hat's (found by the kit's events, whatever their
-        ids: BASS's and HIHATPEDAL's ``pedal``); None (the foot rests) when the kit has no such pedal."""
-        pedal_id = self.kit.kick_pedal() if side == "right" else self.kit.hihat_pedal()
+        """BASS's foot on the kick's pedal, HIHATPEDAL's on the hi-hat's (:func:`pedal_feet`; the pedals found by
+        the kit's events, whatever their ids: BASS's and HIHATPEDAL's ``pedal``); None (the foot rests) when the
+        kit has no such pedal. Until 7 Dec the right foot kicked on every kit, a left-handed one's too."""
+        limb = f"{side}_foot"
+        kicks = limb == self.bass_foot
+        pedal_id = self.kit.kick_pedal() if kicks else self.kit.hihat_pedal() if limb == self.hihat_foot else None
         if pedal_id is None:
             return None
         pedal = np.asarray(self.kit.object(pedal_id).position)  # the kit checks its events' pedals exist
-        if side == "right":
-            strokes = self.strokes.get("right_foot", [])
+        if kicks:
+            strokes = self.strokes.get(limb, [])
             lift = _stroke_profile(strokes, t, h_up=0.07, h_rest=0.02)[2] if strokes else 0.02
         else:
             beat = 60.0 / self.tempo_bpm

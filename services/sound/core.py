@@ -351,17 +351,28 @@ class SoundCore:
         kick = kit.kick()  # the drum BASS strikes, whatever its id
         kicks = [kick.id] if kick is not None and kick.id in out.instruments else [
             i.id for i in out.instruments.values() if i.KIND == "membrane" and ("kick" in i.role or "bass" in i.role)]
-        # HIHATPEDAL's footboard (or the pedal object it is played on, a kit for sound alone giving no ``pedal``):
-        # the foot chick, whatever its id
-        chick = {kit.hihat_pedal(), kit.events[EventType.HIHATPEDAL].object} \
-            if EventType.HIHATPEDAL in kit.events else set()
+        # Footboards by the events (and left_bass_pedal) that press them, whatever their ids: HIHATPEDAL's (or the
+        # pedal object it is played on, a kit for sound alone giving no ``pedal``) is the foot chick, BASS's (both of
+        # a double pedal's) the kick. A pedal no event names keeps the id rule: "hihat" in its id is a chick,
+        # "kick"/"bass" a kick, any other is silent (it was the kick: a hi-hat footboard HIHATPEDAL did not name
+        # thumped as one).
+        hh_event, bass = kit.events.get(EventType.HIHATPEDAL), kit.events.get(EventType.BASS)
+        chick = {hh_event.pedal, hh_event.object} if hh_event is not None else set()
+        kick_pedals = {kit.kick_pedal(), kit.left_bass_pedal, bass.object if bass is not None else None}
+        named = kick_pedals.union(*({e.pedal, e.object} for e in kit.events.values()))
+        # the hi-hat HIHATPEDAL closes, else the kit's first
+        chick_hat = hh_event.object if hh_event is not None and hh_event.object in hihats else \
+            (hihats[0] if hihats else None)
         for obj in kit.objects:
             if obj.kind != "pedal" or not self.settings.pedal_impacts:
                 continue
-            if obj.id in chick and hihats:
-                out.aliases[obj.id] = (hihats[0], "pedal", 0.9)
-            elif kicks:
-                bass = kit.events.get(EventType.BASS)
+            if obj.id in named:
+                is_chick, is_kick = obj.id in chick, obj.id in kick_pedals
+            else:
+                is_chick, is_kick = "hihat" in obj.id, "kick" in obj.id or "bass" in obj.id
+            if is_chick and chick_hat is not None:
+                out.aliases[obj.id] = (chick_hat, "pedal", 0.9)
+            elif is_kick and kicks:
                 out.aliases[obj.id] = (kicks[0], "centre", bass.r if bass is not None else 0.2)
         return out
 

@@ -77,6 +77,13 @@ factor c grows without bound (about 1 / e) and the striker would stay on the hea
 MAX_RESTITUTION = 0.99
 
 
+def clip_restitution(restitution: float) -> float:
+    """The restitution the contact gives for target ``restitution``: clipped to [MIN_RESTITUTION,
+    MAX_RESTITUTION]. Whatever derives a quantity from the contact's e (the striker's effective mass from an
+    impulse) takes it from here, so the contact gives back the impulse asked."""
+    return min(max(float(restitution), MIN_RESTITUTION), MAX_RESTITUTION)
+
+
 @lru_cache(maxsize=256)
 def damping_factor(restitution: float) -> float:
     """The ``c`` in ``lam = c k / v0`` that makes the Hunt-Crossley contact's restitution ``restitution``.
@@ -88,7 +95,7 @@ def damping_factor(restitution: float) -> float:
     ``1.5 (1 - e)``; at e 0.3 it gives 3.09 where theirs gives 1.05 (restitution 0.58). ``restitution`` is
     clipped to [MIN_RESTITUTION, MAX_RESTITUTION].
     """
-    e = min(max(float(restitution), MIN_RESTITUTION), MAX_RESTITUTION)
+    e = clip_restitution(restitution)
     lo, hi = 0.0, 1.0 / e
     for _ in range(200):
         c = 0.5 * (lo + hi)

@@ -30,7 +30,14 @@ from scipy.special import jv
 
 from common.kit import EventType, Kit, KitObject
 from common.score.gm import GM_TO_EVENT
-from services.sound.excitation import ContactPulse, Striker, hunt_crossley, mode_response, mode_response_chunks
+from services.sound.excitation import (
+    ContactPulse,
+    Striker,
+    clip_restitution,
+    hunt_crossley,
+    mode_response,
+    mode_response_chunks,
+)
 from services.sound.membrane import membrane_modes
 from services.sound.modal_bank import MIN_DECAY_PER_S, ModeSet
 from services.sound.plates import (
@@ -398,8 +405,8 @@ class Instrument:
     def pulse(self, strike: Strike, striker: Striker | None = None) -> ContactPulse:
         st = striker or self.striker()
         if strike.impulse > 0 and strike.velocity > 0:
-            # the impulse tells the effective striker mass: J = m v (1 + e), the contact giving exactly e
-            m_eff = strike.impulse / (strike.velocity * (1.0 + self.p.restitution))
+            # the impulse tells the effective striker mass: J = m v (1 + e), e the one the contact gives (clipped)
+            m_eff = strike.impulse / (strike.velocity * (1.0 + clip_restitution(self.p.restitution)))
             st = replace(st, mass=float(np.clip(m_eff, 0.25 * st.mass, 4.0 * st.mass)))
         return hunt_crossley(strike.velocity, st, self.p.restitution, self.sr, oversample=8)
 

@@ -16,7 +16,7 @@ Optional corrections (both tunable, both 0 gives the ideal membrane):
   partials spread (snare (1,1)/(0,1) 1.593 -> 1.657), so this makes the
   head more inharmonic, not less. Relative to (1,1) the (m,1) series moves
   only slightly toward the near-harmonic 1 : 1.5 : 2 : 2.5 of timpani (snare
-  (2,1)/(1,1) 1.341 -> 1.364); a kettle's enclosed air, which raises (0,1)
+  (2,1)/(1,1) 1.340 -> 1.364); a kettle's enclosed air, which raises (0,1)
   and the other axisymmetric modes, is not modelled;
 * orientation splitting: a real head is not perfectly uniform, so the two
   orientations of an m > 0 mode differ slightly and beat.

@@ -70,3 +70,24 @@ def test_the_roles_the_rig_does_not_start_are_given_as_absent(capsys: pytest.Cap
     alone = plan_rig(build_parser().parse_args(["--no-discovery", "--services", "sound"]), epoch=0.0)
     assert [a for i, a in enumerate(alone[0].args) if alone[0].args[i - 1] == "--absent"] == [
         "physics", "interaction", "graphics"]
+
+
+def _absent(*argv: str) -> dict[str, list[str]]:
+    plans = plan_rig(build_parser().parse_args(list(argv)), epoch=0.0)
+    return {p.role: [p.args[i + 1] for i, a in enumerate(p.args) if a == "--absent"] for p in plans}
+
+
+def test_a_role_the_rig_may_find_on_another_machine_is_not_absent() -> None:
+    """docs/deployment.md's two laptops: ``batteur rig --services physics,interaction,graphics --host 0.0.0.0
+    --interfaces 192.168.1.10`` with sound on laptop B, found by discovery. The rig gave each service ``--absent
+    sound``, silencing the one line that says discovery did not find it. A role is absent only where no node of it
+    can be expected: discovery off, or the service on loopback (a node of it would be on this machine), and no
+    static peer of it given."""
+    lan = ("--services", "physics,interaction,graphics", "--host", "0.0.0.0")
+    assert _absent(*lan, "--interfaces", "192.168.1.10") == {"physics": [], "interaction": [], "graphics": []}
+    assert _absent(*lan, "--no-discovery") == {"physics": ["sound"], "interaction": ["sound"], "graphics": ["sound"]}
+    here = _absent("--services", "physics,interaction,sound")  # discovery on loopback: this machine's rig
+    assert here == {"physics": ["graphics"], "interaction": ["graphics"], "sound": ["graphics"]}
+    peered = _absent("--services", "physics,interaction,graphics", "--no-discovery",
+                     "--interaction-arg=--peer sound=192.168.1.20:9103")
+    assert peered == {"physics": ["sound"], "interaction": [], "graphics": ["sound"]}

@@ -52,7 +52,8 @@ def test_the_synthetic_drummer_plays_the_renamed_kit(name: str) -> None:
     impacts = drummer.impacts()
     assert {i.instrument for i in impacts} >= {"bassdrum", "sd", "hats"}
     pose = drummer.pose(1.0)  # mid-bar, hi-hat foot down
-    for foot, pedal in (("right", kit.kick_pedal()), ("left", kit.hihat_pedal())):
+    kick_foot, hihat_foot = ("left", "right") if kit.handedness == "left" else ("right", "left")  # as physics
+    for foot, pedal in ((kick_foot, kit.kick_pedal()), (hihat_foot, kit.hihat_pedal())):
         assert pedal is not None
         toe = pose[LINK_NAMES.index(f"{foot}_toe"), :3]
         on_board = np.asarray(kit.object(pedal).position) + FOOTBOARD
@@ -61,9 +62,11 @@ def test_the_synthetic_drummer_plays_the_renamed_kit(name: str) -> None:
     assert {i.instrument for i in grooved} == {i.instrument for i in impacts} and len(sequence.times) > 1
 
 
-def test_the_renamed_hihat_opens_when_its_foot_lifts_and_the_kick_pedal_follows_the_foot() -> None:
-    """As tests/graphics/test_core.py's test on the default kit, on the renamed one."""
-    kit = renamed_kit()
+@pytest.mark.parametrize("name", ["default", "left_handed"])
+def test_the_renamed_hihat_opens_when_its_foot_lifts_and_the_kick_pedal_follows_the_foot(name: str) -> None:
+    """As tests/graphics/test_core.py's test on the default kit, on the renamed one and the left-handed one (whose
+    kick pedal stayed pressed between kicks, the synthetic right foot on it without kicking)."""
+    kit = renamed_kit(name)
     sequence = SyntheticDrummer(kit, duration=4.0).sequence(60.0)
     core = GraphicsCore(GraphicsSettings(latency=0.0, clock="rig"), kit)
     core.handle(sequence.skeleton_message(), 0.0, "physics")

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from sound_helpers import impact
 
-from common.kit import EventType, load_kit
+from common.kit import EventType, Kit, load_kit
 from services.sound.core import SoundCore, SoundSettings
 from tests.renamed_kits import renamed_kit
 
@@ -49,3 +49,31 @@ def test_a_strike_on_the_renamed_hihat_pedal_is_the_hihats_foot_chick() -> None:
     assert np.max(np.abs(chick)) > 0.005
     np.testing.assert_array_equal(chick, _render("default", "hats", "pedal", 0.9))
     assert not np.array_equal(chick, _render("default", "bassdrum", "centre", 0.2))
+
+
+def _hihat_played_on_its_cymbal(pedal_id: str, kit_name: str = "default") -> dict[str, tuple[str, str, float]]:
+    """Aliases of a kit whose HIHATPEDAL names no ``pedal`` (played on the hi-hat itself) and whose hi-hat footboard
+    is ``pedal_id``."""
+    data = load_kit(kit_name, warn=False).model_dump(mode="json")
+    data["events"]["HIHATPEDAL"].update(pedal=None, object="hihat")
+    for obj in data["objects"]:
+        if obj["id"] == "hihat_pedal":
+            obj["id"] = pedal_id
+    data["name"] = f"{kit_name}_no_hihat_pedal"
+    core = SoundCore(SoundSettings(latency=0.0, use_pyo=False, pedal_impacts=True), Kit.model_validate(data))
+    try:
+        return dict(core.instruments.aliases)
+    finally:
+        core.close()
+
+
+@pytest.mark.parametrize("kit_name", ["default", "double_pedal"])
+def test_a_footboard_no_event_names_is_never_the_kick(kit_name: str) -> None:
+    """Only the pedals BASS plays sound the kick: a hi-hat footboard HIHATPEDAL does not name keeps the id rule (a
+    chick when its id says hihat) or stays silent; it was the kick (980f8db)."""
+    bass_r = load_kit(kit_name).events[EventType.BASS].r
+    kicks = {"kick_pedal": ("kick", "centre", bass_r)}
+    if kit_name == "double_pedal":
+        kicks["kick_pedal_left"] = ("kick", "centre", bass_r)
+    assert _hihat_played_on_its_cymbal("hihat_pedal", kit_name) == {**kicks, "hihat_pedal": ("hihat", "pedal", 0.9)}
+    assert _hihat_played_on_its_cymbal("left_board", kit_name) == kicks

@@ -61,6 +61,20 @@ def test_a_strike_with_an_impulse_gives_that_impulse(instrument: str) -> None:
     assert pulse.impulse == pytest.approx(j, rel=0.02)
 
 
+@pytest.mark.parametrize("elasticity", [0.0, 0.02, 1.0])
+@pytest.mark.parametrize("instrument", ["kick", "ride"])
+def test_an_impulse_is_given_back_when_the_kits_restitution_is_clipped(instrument: str, elasticity: float) -> None:
+    """A kit restitution outside the contact's [0.05, 0.99] (physics took 0: J = m v): the effective mass is
+    inverted with the e the contact gives, not the kit's (e 0 gave 5 % more impulse than physics')."""
+    kit = load_kit("default")
+    obj = next(o for o in kit.objects if o.id == instrument).model_copy(update={"elasticity": elasticity})
+    role = drum_role(kit, obj)
+    inst = INSTRUMENT_CLASSES[obj.kind](obj, default_params(obj, role), SR, 256, SampleBank(SR), role)
+    v = 3.0
+    j = 1.2 * inst.p.stick_mass * v * (1.0 + elasticity)  # physics' impulse with the kit's e
+    assert inst.pulse(Strike(0, v, j, 0.35, 0.3, "centre", 1)).impulse == pytest.approx(j, rel=1e-3)
+
+
 @pytest.mark.parametrize("instrument", ["snare", "ride", "hightom"])
 def test_centroid_and_peak_rise_with_velocity(instrument: str) -> None:
     centroids, peaks = [], []
