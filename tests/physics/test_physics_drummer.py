@@ -89,6 +89,57 @@ def test_a_stroke_onto_the_snare_gives_one_short_contact_with_rebound() -> None:
     core.close()
 
 
+def test_a_loud_stroke_onto_the_snare_leaves_the_head_within_10_ms() -> None:
+    """At 5 m/s the shoulder is at its torque limit through the contact: clipped joint by joint, the elbow's and
+    wrist's torques (computed for an upper-arm deceleration that does not happen) spun the forearm and hand, which
+    stopped late and held the stick on the head for 20 steps (docs/physics.md, "Contact durations in the drummer
+    scene")."""
+    contacts = _stroke_contacts("cartesian", [0.3], [5.0], 0.45)
+    steps = [c.step for c in contacts]
+    assert contacts and contacts[0].normal_velocity > 4.0, [c.normal_velocity for c in contacts[:1]]
+    assert steps == list(range(steps[0], steps[0] + len(steps))), f"more than one contact: {steps}"
+    assert len(steps) <= 10, steps  # at most 10 ms at 1 kHz
+
+
+def test_torques_over_their_limits_keep_the_other_joints_accelerations() -> None:
+    """Controller.fit_torque_limits: torques within the limits are left as they are; an arm's DOF over its limit is
+    held at it and every other DOF keeps the acceleration the computed-torque PD asked of it (joint-by-joint clipping
+    does not: the others' torques were computed for the clipped DOF's acceleration)."""
+    core = PhysicsCore(scene="drummer", control="cartesian")
+    body, controller = _scene(core).body, _scene(core).controller
+    theta, theta_dot = body.state()
+    passive = body.passive_state()
+    limit = body.torque_limit
+    zero = np.zeros_like(theta)
+
+    def commanded(target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        tau = controller.computed_torque(theta, theta_dot, target, zero, zero, passive)
+        assert controller._ct_state is not None
+        return tau, controller._ct_state.copy()
+
+    small, state = commanded(theta + 0.001)
+    assert np.all(np.abs(small) < limit)
+    assert controller.fit_torque_limits(small, state) is small  # within the limits: unchanged
+    target = theta.copy()
+    target[DOF_NAMES.index("left_shoulder_x")] += 0.6  # an arm swung hard: the shoulder far over its limit
+    tau, state = commanded(target)
+    arms = controller.fit_dof  # clavicles to wrists
+    over = (np.abs(tau) > limit) & arms
+    assert over[DOF_NAMES.index("left_shoulder_x")] and over.sum() < arms.sum() // 2  # others left to fit
+    fitted = controller.fit_torque_limits(tau, state)
+    assert np.all(np.abs(fitted[arms]) <= limit[arms])
+    assert np.all(fitted[over] == np.copysign(limit, tau)[over])
+    # the accelerations the fitted torques give: M qdd = tau - (C + g)
+    mass = controller._mass_matrix(np.concatenate([theta, passive[0]]), len(theta))
+    bias = controller._bias_torque(theta, theta_dot, passive)
+    free = ~(arms & (np.abs(fitted) >= limit))  # all but the arms' DOF held at their limits
+    accel = np.linalg.solve(mass, fitted - bias)
+    np.testing.assert_allclose(accel[free], state[2, :len(theta)][free], rtol=1e-6, atol=1e-6 * np.abs(state[2]).max())
+    clipped = np.linalg.solve(mass, np.clip(tau, -limit, limit) - bias)
+    assert not np.allclose(clipped[free], state[2, :len(theta)][free], rtol=1e-3, atol=1e-3)
+    core.close()
+
+
 def test_same_inputs_same_contacts_bit_for_bit() -> None:
     a = _stroke_contacts("cartesian", [0.25], [3.0], 0.35)
     b = _stroke_contacts("cartesian", [0.25], [3.0], 0.35)
