@@ -1,0 +1,66 @@
+"""Runs of fast kicks. Under bass-drum strokes 0.1-0.15 s apart the IK's posture drifts stroke by stroke (the ankle
+flexes toe up from about 27 to 46 degrees) and the same foot height presses the footboard less (0.64 of its travel
+at the note against 0.87-1.0 for the first strokes): 16ths at 140 bpm sounded 18-20 ms late from the fifth on. A
+stroke in such a run now aims ``KICK_RUN_DEPTH`` below the flat board, built up over ``KICK_RUN_STROKES`` strokes
+(common/gesture/planner.py; docs/physics.md, "Kicks")."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from common.gesture.plan import hermite
+from common.gesture.planner import KICK_RUN_DEPTH, KICK_RUN_NONE_S, KICK_RUN_STROKES, plan_gestures
+from common.kit import EventType, Limb, load_kit
+from common.score.events import DrumEvent, Score
+from common.score.limbs import distribute
+from tests.physics.held_pedal import onsets, played_score
+
+SIXTEENTH_140_S = 60.0 / 140.0 / 4.0
+"""16th notes at 140 bpm, seconds apart."""
+
+
+def _kicks(gap_s: float, count: int, velocity: float = 0.7) -> Score:
+    times = 0.5 + gap_s * np.arange(count)
+    return Score(events=[DrumEvent(time=float(t), event=EventType.BASS, velocity=velocity, pitch=36) for t in times],
+                 beats=np.arange(0.5, float(times[-1]) + 0.5, 4 * gap_s))
+
+
+def _heights_at_notes(score: Score) -> np.ndarray:
+    """The planned kick foot's height over its pedal's flat target at each note time, metres."""
+    kit = load_kit("default", warn=False)
+    plan = plan_gestures(distribute(score, kit), kit, score)
+    foot = plan.trajectories[Limb.RIGHT_FOOT]
+    pos, _ = hermite(foot.times, foot.positions, foot.velocities, np.array([e.time for e in score.events]))
+    return np.asarray(pos[:, 2] - kit.object("kick_pedal").position[2])
+
+
+def test_a_run_of_fast_kicks_aims_deeper_stroke_by_stroke_and_eighths_do_not() -> None:
+    """16ths at 140 bpm: the first two kicks at the flat board, then ever deeper up to the ``KICK_RUN_STROKES``th,
+    then all ``KICK_RUN_DEPTH`` below it (from ``KICK_RUN_FULL_S`` up); eighths at 140 bpm at the flat board after the
+    first (from rest: raised)."""
+    heights = _heights_at_notes(_kicks(SIXTEENTH_140_S, 8))
+    ramp = [-KICK_RUN_DEPTH * min(1.0, max(k - 1, 0) / (KICK_RUN_STROKES - 1)) for k in range(8)]
+    assert heights == pytest.approx(ramp, abs=1e-6)
+    assert heights[-1] < -0.005  # aimed well below the flat board (before: at it)
+    assert _heights_at_notes(_kicks(2 * SIXTEENTH_140_S, 8))[1:] == pytest.approx(np.zeros(7), abs=1e-6)
+
+
+def test_kicks_closer_than_the_run_aims_reach_keep_their_aim() -> None:
+    """16ths at 180 bpm (83 ms apart, under ``KICK_RUN_NONE_S``) stay aimed at the flat board: aimed deeper, the
+    drifted foot stopped the board short of the beater's contact and kicks were lost."""
+    gap = 60.0 / 180.0 / 4.0
+    assert gap < KICK_RUN_NONE_S
+    assert _heights_at_notes(_kicks(gap, 8)) == pytest.approx(np.zeros(8), abs=1e-6)
+
+
+@pytest.mark.slow  # about 3 s of simulation: 10-30 s on one core
+def test_sixteen_kicks_at_140_bpm_sound_at_their_note_times() -> None:
+    """The 1.75 m drummer plays 16 kicks at 140 bpm (velocity 0.7): one beater onset each, within 8 ms of its note
+    (median; before: 18.4 ms late, from the fifth kick on 18-20)."""
+    score = _kicks(SIXTEENTH_140_S, 16)
+    strokes, contacts = played_score(score, ("kick_beater",), start_s=1.0)
+    found, times = onsets(contacts), [t for t, _ in strokes]
+    assert len(found) == len(times) == 16, f"kicks at {times}, beater onsets at {found}"
+    errors_ms = 1000 * (np.array(found) - np.array(times))
+    assert abs(float(np.median(errors_ms))) < 8.0, f"onset - note, ms: {np.round(errors_ms, 1)}"
