@@ -14,8 +14,7 @@ from common.kit import load_kit
 from common.messages import Health, Impact, OscMessage, Pose, Skeleton
 from common.messages.graphics import GraphicsCamera, GraphicsLatency, GraphicsMode, GraphicsShow, ScorePosition
 from services.graphics.core import GraphicsCore, GraphicsSettings
-from services.graphics.figure import LINK_NAMES, SyntheticDrummer, synthetic_performance
-from services.graphics.scene import HIHAT_MAX_GAP
+from services.graphics.figure import LINK_NAMES, synthetic_performance
 from services.graphics.sequence import PoseSequence
 
 NAMES = ["pelvis", "right_hand"]
@@ -105,29 +104,6 @@ def test_cymbal_swings_away_from_the_struck_edge_and_decays() -> None:
     assert first.kit[ride, 1] == pytest.approx(0.0, abs=1e-12)
     assert first.kit[ride, 2] > 0.05
     assert abs(late.kit[ride, 2]) < 0.2 * abs(first.kit[ride, 2])
-
-
-def test_hihat_opens_when_the_left_foot_lifts_and_the_kick_pedal_follows_the_foot() -> None:
-    drummer = SyntheticDrummer(duration=4.0)
-    sequence = drummer.sequence(60.0)
-    core = GraphicsCore(GraphicsSettings(latency=0.0, clock="rig"))
-    core.handle(sequence.skeleton_message(), 0.0, "physics")
-    for pose in sequence.pose_messages():
-        core.handle(pose, pose.time, "physics")
-        core.frame_at(pose.time)  # the pedal binding learns the lowest (pressed) foot height as it goes
-    ids = [o.id for o in core.kit.objects]
-    beat = 0.5
-    closed = core.frame_at(0.5 + 2 * beat)  # mid-bar: hi-hat foot down
-    opened = core.frame_at(0.5 + 3.5 * beat + 0.05)  # last eighth of the bar: foot up
-    assert closed is not None and opened is not None
-    assert closed.kit[ids.index("hihat"), 3] == pytest.approx(0.0, abs=1e-3)
-    rest_gap = core.kit.object("hihat").opening * HIHAT_MAX_GAP
-    assert opened.kit[ids.index("hihat"), 3] == pytest.approx(rest_gap, rel=0.05)
-    kick_hit = core.frame_at(0.5)  # bass drum stroke: pedal pressed
-    between = core.frame_at(0.5 + 0.5 * beat * 1.5)
-    assert kick_hit is not None and between is not None
-    assert kick_hit.kit[ids.index("kick_pedal"), 3] > 0.95
-    assert between.kit[ids.index("kick_pedal"), 3] < 0.5
 
 
 def test_controls_change_the_view_and_reach_the_page() -> None:

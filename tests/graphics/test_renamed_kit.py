@@ -62,11 +62,13 @@ def test_the_synthetic_drummer_plays_the_renamed_kit(name: str) -> None:
     assert {i.instrument for i in grooved} == {i.instrument for i in impacts} and len(sequence.times) > 1
 
 
-@pytest.mark.parametrize("name", ["default", "left_handed"])
-def test_the_renamed_hihat_opens_when_its_foot_lifts_and_the_kick_pedal_follows_the_foot(name: str) -> None:
-    """As tests/graphics/test_core.py's test on the default kit, on the renamed one and the left-handed one (whose
-    kick pedal stayed pressed between kicks, the synthetic right foot on it without kicking)."""
-    kit = renamed_kit(name)
+@pytest.mark.parametrize("kit", [load_kit("default"), renamed_kit("default"), renamed_kit("left_handed")],
+                         ids=["shipped", "renamed", "renamed_left_handed"])
+def test_the_hihat_opens_when_its_foot_lifts_and_the_kick_pedal_follows_the_foot(kit: Kit) -> None:
+    """On the shipped kit, the renamed one and the left-handed one (whose kick pedal stayed pressed between kicks,
+    the synthetic right foot on it without kicking): the hi-hat and the kick pedal found by the kit's events."""
+    hihat, kick_pedal = kit.events[EventType.HIHATCLOSED].object, kit.kick_pedal()
+    assert kick_pedal is not None
     sequence = SyntheticDrummer(kit, duration=4.0).sequence(60.0)
     core = GraphicsCore(GraphicsSettings(latency=0.0, clock="rig"), kit)
     core.handle(sequence.skeleton_message(), 0.0, "physics")
@@ -78,12 +80,12 @@ def test_the_renamed_hihat_opens_when_its_foot_lifts_and_the_kick_pedal_follows_
     closed = core.frame_at(0.5 + 2 * beat)  # mid-bar: hi-hat foot down
     opened = core.frame_at(0.5 + 3.5 * beat + 0.05)  # last eighth of the bar: foot up
     assert closed is not None and opened is not None
-    assert closed.kit[ids.index("hats"), 3] == pytest.approx(0.0, abs=1e-3)
-    assert opened.kit[ids.index("hats"), 3] == pytest.approx(kit.object("hats").opening * HIHAT_MAX_GAP, rel=0.05)
-    kick_hit, between = core.frame_at(0.5), core.frame_at(0.5 + 0.5 * beat * 1.5)
+    assert closed.kit[ids.index(hihat), 3] == pytest.approx(0.0, abs=1e-3)
+    assert opened.kit[ids.index(hihat), 3] == pytest.approx(kit.object(hihat).opening * HIHAT_MAX_GAP, rel=0.05)
+    kick_hit, between = core.frame_at(0.5), core.frame_at(0.5 + 0.5 * beat * 1.5)  # a bass drum stroke, then none
     assert kick_hit is not None and between is not None
-    assert kick_hit.kit[ids.index("bd_pedal"), 3] > 0.95
-    assert between.kit[ids.index("bd_pedal"), 3] < 0.5
+    assert kick_hit.kit[ids.index(kick_pedal), 3] > 0.95
+    assert between.kit[ids.index(kick_pedal), 3] < 0.5
 
 
 @pytest.mark.parametrize("double", [False, True])
