@@ -983,7 +983,7 @@ def earlier_outputs(output: Path) -> set[str]:
 
     A new render removes those it does not write again: a stale score copy would be evaluated against the new
     impacts (``batteur evaluate DIR``), a stale video taken for this performance's. Only what that report
-    names is touched, never other files in the folder.
+    names is touched, never other files in the folder, nor a 7 Dec render's kit copy ``kit.yaml`` (left in place).
     """
     try:
         report = json.loads((output / "report.json").read_text(encoding="utf-8"))
@@ -1000,9 +1000,11 @@ def earlier_outputs(output: Path) -> set[str]:
     if isinstance(report.get("score"), str):
         names.add(f"score{Path(report['score']).suffix}")
     copy, source = report.get("kit_copy"), report.get("kit_file")
-    if isinstance(copy, str) and Path(copy).name == copy:  # never the kit file itself, rendered beside
+    # the copy's name now (KitCopy.name), never kit<suffix> (renders of 7 Dec): what that render wrote is not known
+    # (no digest kept), and a user's own kit file, or that copy edited since, has that name
+    if isinstance(copy, str) and Path(copy).name == copy and Path(copy).stem == "played-kit":
         if not (isinstance(source, str) and (output / copy).resolve() == Path(source).resolve()):
-            names.add(copy)
+            names.add(copy)  # never the kit file itself, rendered beside
     return names
 
 

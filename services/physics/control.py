@@ -424,10 +424,11 @@ class Controller:
         are linear in the accelerations, ``tau = M qdd + h``: with ``S`` the fitted DOF over their limits,
         ``M_SS d_S = +-limit_S - tau_S`` and ``tau + M[:, S] d_S``, the columns ``M[:, S]`` from one inverse
         dynamics each. A DOF that correction takes over its limit joins ``S`` (``SATURATION_ROUNDS``); whatever is
-        over after them the caller clips."""
+        over after them the caller clips. ``tau`` itself, for the caller to clip, when a torque over its limit is not
+        finite or ``M_SS`` is singular."""
         limit = self.body.torque_limit
         over = (np.abs(tau) > limit) & self.fit_dof
-        if not over.any():
+        if not over.any() or not np.isfinite(tau[over]).all():  # inf - inf: every fitted torque NaN; caller clips
             return tau
         n = len(tau)
         gravity = self.world.settings.gravity
@@ -445,7 +446,10 @@ class Controller:
                 added[:, k] = inverse_dynamics(probe, *self._id_tree, gravity)[:n] - base  # type: ignore[call-arg]
                 probe[2, j] = state[2, j]
             columns = np.concatenate([columns, added], axis=1)
-            change = np.linalg.solve(columns[sat], bound[sat] - tau[sat])
+            try:
+                change = np.linalg.solve(columns[sat], bound[sat] - tau[sat])
+            except np.linalg.LinAlgError:  # no fit: the torques as they came, clipped joint by joint as before it
+                return tau
             out = tau + columns @ change
             out[sat] = bound[sat]
             more = (np.abs(out) > limit) & self.fit_dof

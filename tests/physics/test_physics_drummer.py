@@ -26,6 +26,7 @@ from services.physics.body import LIMBS
 from services.physics.character import DOF_NAMES, JOINTS
 from services.physics.core import PhysicsCore
 from services.physics.drummer import DrummerScene
+from services.physics.kernels import clip_torques
 from services.physics.strokes import strokes_knots
 from services.physics.targets import TargetError
 
@@ -137,6 +138,36 @@ def test_torques_over_their_limits_keep_the_other_joints_accelerations() -> None
     np.testing.assert_allclose(accel[free], state[2, :len(theta)][free], rtol=1e-6, atol=1e-6 * np.abs(state[2]).max())
     clipped = np.linalg.solve(mass, np.clip(tau, -limit, limit) - bias)
     assert not np.allclose(clipped[free], state[2, :len(theta)][free], rtol=1e-3, atol=1e-3)
+    core.close()
+
+
+def test_a_torque_the_fit_cannot_solve_for_is_left_for_the_caller_to_clip(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Controller.fit_torque_limits: an infinite torque over its limit (its correction is inf - inf) made every arm
+    DOF's torque NaN; it, and a solve that fails (LinAlgError), leave the torques as they were: the caller clips them
+    joint by joint, as before the fit."""
+    core = PhysicsCore(scene="drummer", control="cartesian")
+    body, controller = _scene(core).body, _scene(core).controller
+    theta, theta_dot = body.state()
+    zero = np.zeros_like(theta)
+    target = theta.copy()
+    target[DOF_NAMES.index("left_shoulder_x")] += 0.6  # the shoulder over its limit, as in the test above
+    tau = controller.computed_torque(theta, theta_dot, target, zero, zero, body.passive_state())
+    assert controller._ct_state is not None
+    state = controller._ct_state.copy()
+    limit, arms = body.torque_limit, controller.fit_dof
+    assert np.all(np.isfinite(controller.fit_torque_limits(tau, state)))  # fitted
+    infinite = tau.copy()
+    infinite[DOF_NAMES.index("right_elbow_x")] = np.inf  # another arm's DOF: the fitted torques were NaN
+    left = controller.fit_torque_limits(infinite, state)
+    assert left is infinite
+    sent = clip_torques(left, limit)  # as Controller.apply sends them
+    assert np.all(np.isfinite(sent[arms])) and np.all(np.abs(sent) <= limit)
+
+    def singular(*_: object) -> np.ndarray:
+        raise np.linalg.LinAlgError("Singular matrix")
+
+    monkeypatch.setattr(np.linalg, "solve", singular)
+    assert controller.fit_torque_limits(tau, state) is tau
     core.close()
 
 

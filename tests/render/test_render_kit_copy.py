@@ -117,13 +117,34 @@ def test_a_render_without_the_kit_kept_says_where_the_path_is_from(
 
 
 def test_a_later_render_removes_the_copy_never_the_kit_itself(tmp_path: Path) -> None:
-    (tmp_path / "kit.yaml").write_text("x")
-    (tmp_path / "report.json").write_text(json.dumps({"scene": "drummer", "kit_copy": "kit.yaml",
+    (tmp_path / "played-kit.yaml").write_text("x")
+    (tmp_path / "report.json").write_text(json.dumps({"scene": "drummer", "kit_copy": "played-kit.yaml",
                                                       "kit_file": str(tmp_path / "elsewhere.yaml")}))
-    assert "kit.yaml" in render.earlier_outputs(tmp_path)  # a copy: another render's kit
-    (tmp_path / "report.json").write_text(json.dumps({"scene": "drummer", "kit_copy": "kit.yaml",
-                                                      "kit_file": str(tmp_path / "kit.yaml")}))
-    assert "kit.yaml" not in render.earlier_outputs(tmp_path)  # the kit rendered beside its own file
+    assert "played-kit.yaml" in render.earlier_outputs(tmp_path)  # a copy: another render's kit
+    (tmp_path / "report.json").write_text(json.dumps({"scene": "drummer", "kit_copy": "played-kit.yaml",
+                                                      "kit_file": str(tmp_path / "played-kit.yaml")}))
+    assert "played-kit.yaml" not in render.earlier_outputs(tmp_path)  # the kit rendered beside its own file
+
+
+def test_a_later_render_leaves_a_7_dec_renders_kit_yaml_in_place(tmp_path: Path) -> None:
+    """A render of 7 Dec copied the kit file it played into DIR as ``kit.yaml`` (report.json's ``kit_copy``); the
+    user may have edited it since, or put their own kit there: a later render removed it. What that render wrote
+    is not known (no digest of it is kept), so a ``kit.yaml`` is never removed; its other files are."""
+    save_kit(load_kit("default", warn=False), tmp_path / "kit.yaml")  # as the render copied a kit file
+    edited = (tmp_path / "kit.yaml").read_text() + "# user edit\n"
+    (tmp_path / "kit.yaml").write_text(edited)
+    (tmp_path / "score.txt").write_text(SCORE)
+    report = {"scene": "drummer", "score": "snare.txt", "kit_copy": "kit.yaml", "kit_file": "/elsewhere/a.yaml"}
+    (tmp_path / "report.json").write_text(json.dumps(report))
+    with render.Staging(tmp_path) as staging:  # a render of a MIDI file on another kit file
+        for name in ("performance.wav", "impacts.csv", "performance.bvh", "score.mid", "played-kit.yaml",
+                     "report.json"):
+            (staging.path / name).write_text("new")
+        staging.commit()
+    assert (tmp_path / "kit.yaml").read_text() == edited
+    assert not (tmp_path / "score.txt").exists()  # the earlier render's score copy: removed, as before
+    (tmp_path / "report.json").write_text(json.dumps({**report, "kit_copy": "kit.json", "kit_file": "/x/a.json"}))
+    assert "kit.json" not in render.earlier_outputs(tmp_path)  # the old name with any suffix
 
 
 def test_reuse_needs_the_kit_file_as_it_was(rendered: Path) -> None:
