@@ -220,7 +220,7 @@ def evaluated(monkeypatch: pytest.MonkeyPatch) -> Main:
 
     from batteur import evaluate
 
-    result = SimpleNamespace(name="groove", missed=[], no_drum_notes=0, summary=lambda: {})
+    result = SimpleNamespace(name="groove", missed=[], no_drum_notes=0, pairs_25=[], hits=[], summary=lambda: {})
     monkeypatch.setattr(evaluate, "evaluate_scores", lambda *args, **kwargs: [result])
     monkeypatch.setattr(evaluate, "format_table", lambda rows: "THE TABLE")
     monkeypatch.setattr(evaluate, "aggregate", lambda results: {})
