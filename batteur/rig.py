@@ -220,8 +220,40 @@ def peer_host(host: str) -> str:
     return host
 
 
-def plan_rig(opts: argparse.Namespace, epoch: float) -> list[ServicePlan]:
-    """The services to start, each with its port, peers, epoch and own arguments."""
+def node_peer_roles(cli_peers: Sequence[str], own: Sequence[str], role: str,
+                    environ: Mapping[str, str] | None = None) -> set[str]:
+    """The roles of the static peers the ``role`` node started with ``--peer`` values ``cli_peers`` (the rig's and
+    its ``--ROLE-arg``'s) and its own arguments ``own`` will hold, resolved as its settings resolve them
+    (:func:`common.config.load_settings`): the command line's, else ``BATTEUR_PEERS`` (empty: not set), else its
+    config file's (``--config``, else ``BATTEUR_CONFIG``; the role's table over the top level). A list replaces,
+    never extends, the one below it. A peer or file the node will refuse counts as none: the node says why."""
+    from common.config import ENV_PREFIX, SettingsError, read_config_file
+    from common.peers import parse_static_peer
+
+    env = os.environ if environ is None else environ
+    specs: Any = list(cli_peers)
+    if not specs:
+        specs = env.get(f"{ENV_PREFIX}PEERS") or None
+    if specs is None:
+        config = (option_values(own, "--config") or [env.get(f"{ENV_PREFIX}CONFIG") or ""])[-1]
+        try:
+            data = read_config_file(config) if config else {}
+        except SettingsError:
+            data = {}
+        section = data.get(env.get(f"{ENV_PREFIX}ROLE") or data.get("role") or role)  # as load_settings finds it
+        specs = section.get("peers", data.get("peers")) if isinstance(section, dict) else data.get("peers")
+    if isinstance(specs, str):
+        specs = specs.split(",")
+    roles = set()
+    for spec in specs if isinstance(specs, list) else []:
+        with contextlib.suppress(ValueError):
+            roles.add(parse_static_peer(str(spec).strip()).role)
+    return roles
+
+
+def plan_rig(opts: argparse.Namespace, epoch: float, environ: Mapping[str, str] | None = None) -> list[ServicePlan]:
+    """The services to start, each with its port, peers, epoch and own arguments; ``environ``: the environment the
+    services inherit (None: the rig's), where a node's ``BATTEUR_PEERS`` or config file may give it peers."""
     roles = [r.strip() for r in opts.services.split(",") if r.strip()]
     unknown = [r for r in roles if r not in ROLES]
     if unknown or not roles:
@@ -249,9 +281,12 @@ def plan_rig(opts: argparse.Namespace, epoch: float) -> list[ServicePlan]:
                     args += ["--peer", f"{other}={peer_host(hosts[other])}:{ports[other]}"]
         # A role not started is absent (no "no graphics peer known" every minute) only where no node of it can be
         # expected: with no discovery, or with this service on loopback (a node of it would be one started apart on
-        # this machine, still found and sent to), and no static peer of it in --ROLE-arg. Discovery on a LAN may
-        # find it on another machine (docs/deployment.md's sound on laptop B): if it fails, the warning says so.
-        own_peers = {spec.split("=", 1)[0].strip() for spec in option_values(own[role], "--peer")}
+        # this machine, still found and sent to), and no static peer of it among those the node will hold: its
+        # settings' (node_peer_roles), --peer's, else BATTEUR_PEERS's or its config file's (until the day after
+        # 7 Dec only --ROLE-arg's --peer counted: a graphics peer in BATTEUR_PEERS was told absent). Discovery on a
+        # LAN may find it on another machine (docs/deployment.md's sound on laptop B): if it fails, the warning says so.
+        rig_peers = [args[i + 1] for i, arg in enumerate(args) if arg == "--peer"]
+        own_peers = node_peer_roles([*rig_peers, *option_values(own[role], "--peer")], own[role], role, environ)
         try:
             on_loopback = hosts[role] == "localhost" or ipaddress.ip_address(hosts[role]).is_loopback
         except ValueError:  # a host name

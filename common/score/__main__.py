@@ -77,8 +77,9 @@ def _inspect(argv: list[str] | None) -> int:
     add_midi_arguments(parser)
     args = parser.parse_args(argv)
     try:
-        score = read_score(args.score, **midi_read_kwargs(args))
-        kit = load_score_kit(score, args.kit)  # a kit line's kit it cannot load: an error naming the line
+        given = load_score_kit(None, args.kit) if args.kit else None  # a text score's object ids are its objects
+        score = read_score(args.score, kit=given, **midi_read_kwargs(args))
+        kit = given or load_score_kit(score, None)  # a kit line's kit it cannot load: an error naming the line
     except (ScoreError, FileNotFoundError, ValueError) as exc:  # a score or kit it cannot use
         return report_error(PROG, exc, FAILED)
     last = f" (the last at {score.duration:.2f} s)" if score.events else ""  # none: "(the last at 0.00 s)"

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import codecs
 from collections import Counter
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Hashable, Iterable, Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -250,25 +250,28 @@ class Score:
 
 
 def remove_duplicates(
-    events: Iterable[DrumEvent], window: float = DUPLICATE_WINDOW
+    events: Iterable[DrumEvent], window: float = DUPLICATE_WINDOW,
+    key: Callable[[DrumEvent], Hashable] | None = None,
 ) -> tuple[list[DrumEvent], list[DrumEvent]]:
-    """Merge double events: same event type within ``window`` seconds keeps the loudest.
+    """Merge double events: same event type (``key``: same key, e.g. event type and pitch where a pitch names
+    another drum) within ``window`` seconds keeps the loudest.
 
     Returns (kept, removed), both sorted by time.
     """
     ordered = sorted(events, key=lambda e: (e.time, e.event.value))
     kept: list[DrumEvent] = []
     removed: list[DrumEvent] = []
-    last: dict[EventType, int] = {}
+    last: dict[Hashable, int] = {}
     for ev in ordered:
-        i = last.get(ev.event)
+        drum = ev.event if key is None else key(ev)
+        i = last.get(drum)
         if i is not None and ev.time - kept[i].time < window:
             prev = kept[i]
             if ev.velocity > prev.velocity:
                 kept[i] = replace(prev, velocity=ev.velocity)
             removed.append(ev)
             continue
-        last[ev.event] = len(kept)
+        last[drum] = len(kept)
         kept.append(ev)
     return kept, removed
 

@@ -16,11 +16,18 @@ class LiveNotes:
     ``velocity`` 0 notes are note-offs and are ignored. Events come out in
     arrival order; a note of the same type within ``duplicate_window`` seconds of
     the previous one is a double event and is dropped (counted).
-    """
 
-    def __init__(self, drum_map: Mapping[int, EventType] = DRUM_MAP, duplicate_window: float = 0.010) -> None:
+    ``note_map``: the sender's pitch -> the General MIDI drum pitch it plays (``--drum-map``'s map,
+    :func:`common.score.midi_notes.load_drum_map`), applied first, as the MIDI reader applies it to a file: the
+    event carries the General MIDI pitch (a kit's ``note_objects`` choose by it), an unknown note the pitch sent.
+    None or empty: the pitches are General MIDI's (until the day after 7 Dec live notes always were, whatever the
+    node's ``--drum-map``)."""
+
+    def __init__(self, drum_map: Mapping[int, EventType] = DRUM_MAP, duplicate_window: float = 0.010,
+                 note_map: Mapping[int, int] | None = None) -> None:
         self.drum_map = drum_map
         self.duplicate_window = duplicate_window
+        self.note_map: Mapping[int, int] = dict(note_map or {})
         self.unknown: list[UnknownNote] = []
         self.duplicates = 0
         self._last: dict[EventType, float] = {}
@@ -29,7 +36,8 @@ class LiveNotes:
         """The drum event of a live note, or None (note-off, unknown pitch or double event)."""
         if note.velocity == 0:
             return None
-        event = self.drum_map.get(note.pitch)
+        pitch = self.note_map.get(note.pitch, note.pitch)
+        event = self.drum_map.get(pitch)
         velocity = note.velocity / 127.0
         if event is None:
             self.unknown.append(UnknownNote(note.time, note.pitch, velocity, note.channel))
@@ -39,4 +47,4 @@ class LiveNotes:
             self.duplicates += 1
             return None
         self._last[event] = note.time
-        return DrumEvent(time=note.time, event=event, velocity=velocity, pitch=note.pitch)
+        return DrumEvent(time=note.time, event=event, velocity=velocity, pitch=pitch)

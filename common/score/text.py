@@ -44,6 +44,7 @@ from common.score.events import (
     starts_as_midi,
     unicode_bom,
 )
+from common.score.gm import DRUM_MAP
 
 ALIASES: dict[str, EventType] = {
     "BD": EventType.BASS,
@@ -140,20 +141,94 @@ ROW_NAMES_DOC = "docs/score-format.md, 'Row names'"
 """Where the instrument names are listed, for a message about one it does not know."""
 
 
-def unknown_instrument(name: str, lineno: int) -> ScoreError:
-    """The error for an instrument name that is neither an event type nor an alias: the nearest names (those it
-    starts, then the closest by spelling) and where the list is (it said "use an event type or an alias", with
-    neither)."""
+def object_strokes(kit: Kit, object_id: str) -> dict[EventType, int | None]:
+    """The strokes a score naming ``kit``'s object ``object_id`` may mean: each event type that strikes it, with the
+    pitch that sends the event there (None: the event's own object; a pitch of the kit's ``note_objects``, General
+    MIDI's, for a second piece: ``crash2`` 57), the event whose pedal it is for a footboard (``kick_pedal``: BASS).
+    Empty for an object no note plays (the throne, a double pedal's second footboard, an object no event or
+    ``note_objects`` pitch strikes)."""
+    strokes: dict[EventType, int | None] = {}
+    for event, spec in kit.events.items():
+        if spec.object == object_id or (spec.pedal == object_id and event in FOOT_EVENTS):
+            strokes[event] = None
+    for pitch, target in sorted(kit.note_objects.items()):
+        second = DRUM_MAP.get(pitch)
+        if target == object_id and second is not None and second in kit.events and second not in strokes:
+            strokes[second] = pitch
+    return strokes
+
+
+def object_stroke(kit: Kit, object_id: str) -> tuple[EventType, int | None] | None:
+    """The event type and pitch a score's row or note naming ``kit``'s object ``object_id`` plays
+    (:func:`object_strokes`), None unless it names one stroke (an unknown id, an object no note plays, or one
+    struck by several strokes, the hi-hat open and closed: the stroke's name says which)."""
+    strokes = object_strokes(kit, object_id)
+    return next(iter(strokes.items())) if len(strokes) == 1 else None
+
+
+def shipped_kit_with(object_id: str, besides: str) -> str | None:
+    """The first shipped kit other than ``besides`` a note naming ``object_id`` plays (:func:`object_stroke`), for
+    an unknown instrument's message: a score naming ``crash2`` without its ``kit double_pedal`` line."""
+    from common.kit import KITS_DIR
+
+    for path in sorted(KITS_DIR.glob("*.yaml")):
+        if path.stem == besides or not object_id.isidentifier():
+            continue
+        try:
+            shipped = load_kit(path.stem, warn=False)
+        except (FileNotFoundError, ValueError):
+            continue
+        if object_stroke(shipped, object_id) is not None:
+            return shipped.name
+    return None
+
+
+def unknown_instrument(name: str, lineno: int, kit: Kit | None = None) -> ScoreError:
+    """The error for an instrument name that is neither an event type, an alias nor (with ``kit``, the kit the
+    score's object ids are looked up in) an object of the kit one stroke plays: the nearest names (those it starts,
+    then the closest by spelling) and where the list is (it said "use an event type or an alias", with neither),
+    then the kit's objects a note may name, which of them need a stroke's name (the hi-hat: HH or HO), and what to
+    do for an object of the kit no note plays, or one of another shipped kit."""
+    ids: list[str] = []  # the ids a note may name (an event type's name among them: snare, ride)
+    listed = ""
+    if kit is not None:
+        ids = [o.id for o in kit.objects if event_type(o.id) is not None or object_stroke(kit, o.id) is not None]
+        listed = f", and the objects of kit {kit.name!r}: {', '.join(ids)}"
+        several = [(o.id, object_strokes(kit, o.id)) for o in kit.objects if event_type(o.id) is None]
+        several = [(i, strokes) for i, strokes in several if len(strokes) > 1]
+        if several:
+            listed += " (" + "; ".join(f"{i} is struck by {_either([e.value for e in strokes])}"
+                                       for i, strokes in several) + ": name the stroke)"
+        named = next((o for o in kit.objects if o.id == name.lower()), None)
+        if named is not None and not object_strokes(kit, named.id):
+            if named.kind in STRUCK_KINDS:  # a kit designer's new object: a pitch of its own makes it playable
+                listed += (f"; {named.id} is an object of kit {kit.name!r} no event type or note_objects pitch "
+                           f"strikes: give it a General MIDI pitch in the kit's note_objects (a tom's 41 to 50, a "
+                           f"cymbal's 49 to 59; {DRUM_MAP_DOC})")
+            else:
+                listed += f"; {named.id} is the kit's {named.kind}, which no note plays alone"
+        elif named is None:
+            elsewhere = shipped_kit_with(name.lower(), kit.name)
+            if elsewhere is not None:  # the score's kit line left out, or another kit given
+                listed += (f"; {name.lower()} is an object of kit {elsewhere!r}: play the score on it (a 'kit "
+                           f"{elsewhere}' line)")
     names = [*EventType.__members__, *ALIASES]
     key = name.upper()
     stripped = key.strip(":;,.")  # 'HH:'
     near = [stripped] if stripped != key and event_type(stripped) is not None else []
     near += [n for n in names if len(key) >= 3 and n.startswith(key)]  # 'HIHAT': the three hi-hats
     near += difflib.get_close_matches(key, names, n=3, cutoff=0.6)
+    near += difflib.get_close_matches(name.lower(), [i for i in ids if event_type(i) is None], n=3,
+                                      cutoff=0.6)  # 'crash3': crash2 (crash is CRASH, said already)
     near = list(dict.fromkeys(near))[:4]
     hint = f": did you mean {_either(near)}?" if near else ""
     return ScoreError(f"line {lineno}: unknown instrument {name!r}{hint} (the names are the event types and their "
-                      f"aliases: {ROW_NAMES_DOC})")
+                      f"aliases: {ROW_NAMES_DOC}{listed})")
+
+
+STRUCK_KINDS = ("membrane", "cymbal", "hihat", "bell")
+"""Kit object kinds a stick or a beater strikes (the others: pedals, stands, the throne)."""
+DRUM_MAP_DOC = "docs/score-format.md, 'Drum map'"
 
 
 def _split_cells(row: str, lineno: int) -> tuple[list[str], int]:
@@ -197,13 +272,14 @@ def _marks(name: str, rows: list[tuple[list[str], int, int]], allowed: str) -> l
 
 
 def _warn_foot_sticking(sticking: list[str], grid: dict[str, list[tuple[list[str], int, int]]], lineno: int,
-                        warnings: list[str]) -> None:
+                        warnings: list[str], events: dict[str, EventType]) -> None:
     """Warn of ST marks whose column holds foot notes (BD, a hi-hat pedal) and no stick note: a foot plays them and
-    the hand is ignored, as an ``at ... R`` line on a foot note says (they were ignored without a word)."""
+    the hand is ignored, as an ``at ... R`` line on a foot note says (they were ignored without a word).
+    ``events``: each row name's event type."""
     stick = set()
     feet: dict[int, list[str]] = {}
     for name, rows in grid.items():
-        foot = event_type(name) in FOOT_EVENTS
+        foot = events[name] in FOOT_EVENTS
         for cells, _, _ in rows:
             for k, ch in enumerate(cells):
                 if ch in ".-":
@@ -336,8 +412,24 @@ def _row_without_bar_lines(head: str, rest: str) -> bool:
     return all(ch in allowed for ch in rest.replace(" ", ""))
 
 
-def parse_text(text: str, source: str = "text") -> TextScore:
-    """Parse the plain-text score format into a score (seconds, velocities in [0, 1])."""
+def _kit_line(text: str) -> tuple[str, int] | None:
+    """The kit the score's last ``kit`` line names and its line (as :func:`parse_text` keeps it; None: none), read
+    before the score: a row may name the kit's objects above the line."""
+    found = None
+    for lineno, raw_line in enumerate(text.removeprefix("\ufeff").splitlines(), start=1):
+        head, *more = raw_line.split("#", 1)[0].split(None, 1) or [""]
+        if head.lower() == "kit" and more and more[0].strip():
+            found = (more[0].strip(), lineno)
+    return found
+
+
+def parse_text(text: str, source: str = "text", kit: Kit | None = None) -> TextScore:
+    """Parse the plain-text score format into a score (seconds, velocities in [0, 1]).
+
+    A row or note may name an object of the kit by its id (``crash2``, ``floortom2``: :func:`object_stroke`), looked
+    up in ``kit`` when given (the kit the score is played on), else in the kit of the score's ``kit`` line (from the
+    folder of ``source``), else :data:`DEFAULT_KIT`; the kit is loaded only for a name that is no event type or
+    alias. Its notes carry the event type and the pitch that strikes that object (:meth:`Kit.object_for`)."""
     tempo = _Tempo()
     beats_per_bar = 4.0
     count_unit = 1.0  # the meter's 1/D note, quarter notes: the beat a bar is counted in (Score.bar_units)
@@ -359,8 +451,41 @@ def parse_text(text: str, source: str = "text") -> TextScore:
     warnings: list[str] = []
     grip: Grip | None = None
     nuance: Nuance | None = None
-    kit: tuple[str, int] | None = None  # name, line
+    kit_named: tuple[str, int] | None = None  # the kit line's name, line
     tempo_given = False
+    ids_kit: list[Kit | None] = []  # the kit object ids are looked up in, once loaded (None: it cannot be)
+    strokes: dict[str, tuple[EventType, int | None]] = {}  # an object id named -> its event type and pitch
+
+    def objects_kit() -> Kit | None:
+        """The kit the score's object ids name objects of: ``kit``, else its ``kit`` line's, else the default (one
+        it cannot load: None; the line's error is the kit loader's to say, :func:`load_score_kit`)."""
+        if not ids_kit:
+            if kit is not None:
+                ids_kit.append(kit)
+            else:
+                line = _kit_line(text)
+                named = TextScore(events=[], source=source)
+                named.kit, named.kit_line = line if line is not None else (None, None)
+                try:
+                    ids_kit.append(load_score_kit(named, None, load=lambda name: load_kit(name, warn=False)))
+                except (FileNotFoundError, ValueError):
+                    ids_kit.append(None)
+        return ids_kit[0]
+
+    def instrument(name: str, lineno: int) -> tuple[EventType, int | None]:
+        """The event type and pitch (None: the event's own object) of a row or note's instrument: an event type,
+        an alias or an object id of :func:`objects_kit`; :func:`unknown_instrument`'s error otherwise."""
+        ev = event_type(name)
+        if ev is not None:
+            return ev, None
+        key = name.lower()
+        if key not in strokes:
+            found = objects_kit()
+            stroke = None if found is None else object_stroke(found, key)
+            if stroke is None:
+                raise unknown_instrument(name, lineno, found)
+            strokes[key] = stroke
+        return strokes[key]
 
     def check_until(beat: float, notes: int, lineno: int) -> None:
         """Refuse a score that would last longer or hold more notes than a score may, before making it."""
@@ -390,6 +515,7 @@ def parse_text(text: str, source: str = "text") -> TextScore:
             return
         # rows by name, in the order names first appear: a name given twice plays both rows (the second one
         # replaced the first, whose notes were lost without a word)
+        spelled: dict[str, str] = {}
         grid: dict[str, list[tuple[list[str], int, int]]] = {}
         n_cells = n_bars = 0
         for lineno, name, row in block:
@@ -400,7 +526,8 @@ def parse_text(text: str, source: str = "text") -> TextScore:
                 raise ScoreError(f"line {lineno}: rows of one block must have the same bars and cells: this row has "
                                  f"{_size(len(cells), bars)}, the block's first row (line {block[0][0]}) "
                                  f"{_size(n_cells, n_bars)}")
-            grid.setdefault(name, []).append((cells, bars, lineno))
+            grid.setdefault(name.upper(), []).append((cells, bars, lineno))
+            spelled.setdefault(name.upper(), name)  # an object id as written, for a message (crash2, not CRASH2)
         cell_beats = beats_per_bar * n_bars / n_cells
         marks = {name: grid.pop(name) for name in ("ST", "NU") if name in grid}
         if not grid:  # it added a silent bar: its notes are the rows above, without a blank line between
@@ -410,12 +537,13 @@ def parse_text(text: str, source: str = "text") -> TextScore:
         sticking = _marks("ST", marks.get("ST", []), STICK_MARKS)
         nuances = _marks("NU", marks.get("NU", []), NUANCE_MARKS)
         notes = len(events)
+        played: dict[str, tuple[EventType, int | None]] = {}
         for name, rows in grid.items():
-            if event_type(name) is None:
-                raise unknown_instrument(name, rows[0][2])
+            played[name] = instrument(spelled[name], rows[0][2])
             notes += sum(_note_cells(cells, lineno) for cells, _, lineno in rows)
         if sticking is not None:
-            _warn_foot_sticking(sticking, grid, marks["ST"][0][2], warnings)
+            _warn_foot_sticking(sticking, grid, marks["ST"][0][2], warnings,
+                                {name: ev for name, (ev, _) in played.items()})
         check_until(position + n_bars * beats_per_bar, notes, block[0][0])
         cells_a_bar = n_cells // n_bars
         if odd_cells_a_bar(cells_a_bar, meter[0]):  # played as written: tuplets are legitimate, typos likelier
@@ -423,8 +551,7 @@ def parse_text(text: str, source: str = "text") -> TextScore:
                             f"{meter[0]:g} notes, played as {cells_a_bar} equal cells; a typo? ({CELLS_A_BAR_DOC})")
         block_events: list[DrumEvent] = []
         for name, rows in grid.items():
-            ev = event_type(name)
-            assert ev is not None
+            ev, pitch = played[name]
             for cells, _, _ in rows:
                 for k, ch in enumerate(cells):
                     if ch in ".-":
@@ -436,7 +563,7 @@ def parse_text(text: str, source: str = "text") -> TextScore:
                     note_nuance = None
                     if nuances is not None and nuances[k] in NUANCE_LETTERS:
                         note_nuance = NUANCE_LETTERS[nuances[k]]
-                    block_events.append(DrumEvent(k * cell_beats, ev, vel, None, limb, note_nuance))
+                    block_events.append(DrumEvent(k * cell_beats, ev, vel, pitch, limb, note_nuance))
         _place(block_events, position)
         last_block, last_block_beats, last_block_bar = block_events, n_bars * beats_per_bar, beats_per_bar
         last_block_unit = count_unit
@@ -456,9 +583,7 @@ def parse_text(text: str, source: str = "text") -> TextScore:
         if not 2 <= len(parts) <= 4:
             raise ScoreError(f"line {lineno}: note needs '<beat> <instrument> [velocity] [L|R]'")
         beat = _finite(parts[0], "the beat", lineno)
-        ev = event_type(parts[1])
-        if ev is None:
-            raise unknown_instrument(parts[1], lineno)
+        ev, pitch = instrument(parts[1], lineno)
         if len(parts) == 3 and parts[2].upper() in STICKING:  # `at 0 SN L`: the velocity left out (was refused)
             parts.insert(2, "")
         vel = float(parts[2]) if len(parts) > 2 and parts[2] else 0.7
@@ -476,7 +601,7 @@ def parse_text(text: str, source: str = "text") -> TextScore:
             raise ScoreError(f"line {lineno}: beat {parts[0]} is before the start of the score "
                              f"({position:g} beats so far)")
         check_until(position + beat, len(events) + 1, lineno)
-        events.append(DrumEvent(tempo.seconds(position + beat), ev, vel, None, limb, None))
+        events.append(DrumEvent(tempo.seconds(position + beat), ev, vel, pitch, limb, None))
         if position + beat >= last_note:
             last_note, last_note_line = position + beat, lineno
 
@@ -489,7 +614,7 @@ def parse_text(text: str, source: str = "text") -> TextScore:
         head, *more = line.split(None, 1)  # any white space after the name: editors indent with tabs
         rest = more[0].strip() if more else ""
         if "|" in rest and head.lower() not in DIRECTIVES:  # no row is named like a directive: 'title A | B'
-            block.append((lineno, head.upper(), rest))
+            block.append((lineno, head, rest))
             continue
         flush()
         word = head.lower()
@@ -552,7 +677,7 @@ def parse_text(text: str, source: str = "text") -> TextScore:
             elif word == "kit":
                 if not rest:
                     raise ValueError("no kit name")
-                kit = (rest, lineno)
+                kit_named = (rest, lineno)
             elif word == "title":
                 pass
             elif _row_without_bar_lines(head, rest):  # 'HH x.x.x.x.'
@@ -593,14 +718,15 @@ def parse_text(text: str, source: str = "text") -> TextScore:
         warnings.append("no drum events")
     elif not tempo_given:
         warnings.insert(0, f"no tempo line: played at {DEFAULT_BPM:g} beats (quarter notes) per minute")
-    kept, removed = remove_duplicates(events)
+    # an object named by its id is another drum than its event's own (crash2 and CR at once are two crashes)
+    kept, removed = remove_duplicates(events, key=lambda e: (e.event, e.pitch))
     # at least beats 0 and 1: a score shorter than a beat (one bar of 1/8) has a beat's length to count bars by
     beats = np.array([tempo.seconds(b) for b in np.arange(0.0, max(position, 1.0) + 1e-9, 1.0)])
     score = TextScore(events=kept, beats=beats, bar_beats=np.array(bar_starts, dtype=float), duplicates=removed,
                       source=source, end_beat=position, bar_units=np.array(bar_units, dtype=float))
     score.grip = grip
     score.nuance = nuance
-    score.kit, score.kit_line = kit if kit is not None else (None, None)
+    score.kit, score.kit_line = kit_named if kit_named is not None else (None, None)
     score.warnings = warnings
     return score
 
@@ -609,12 +735,14 @@ MIDI_SUFFIXES = (".mid", ".midi", ".smf", ".rmi")
 """File names read as MIDI whatever they hold (``.rmi``: RIFF MIDI)."""
 
 
-def read_score(path: str | Path, **kwargs: object) -> Score:
+def read_score(path: str | Path, kit: Kit | None = None, **kwargs: object) -> Score:
     """Read a score file: ``.mid``/``.midi``/``.smf``/``.rmi`` or a file starting as a Standard MIDI File or a RIFF
     MIDI file does as MIDI, anything else as the text format.
 
     Keyword arguments (``drum_channels``, ``progress``, ...) go to :func:`common.score.midi.read_midi`; a text score
-    ignores them (it has no channels, and reads quickly: 208,000 notes in about 1 s, without progress reports)."""
+    ignores them (it has no channels, and reads quickly: 208,000 notes in about 1 s, without progress reports).
+    ``kit``: the kit a text score's object ids name objects of (:func:`parse_text`; None: its ``kit`` line's, else
+    the default); a MIDI file's pitches choose a kit's objects by its ``note_objects`` when played."""
     from common.score.midi import read_midi
 
     p = Path(path)
@@ -632,7 +760,7 @@ def read_score(path: str | Path, **kwargs: object) -> Score:
         raise ScoreError(f"{p}: the file is empty (0 bytes)")
     text = _score_text(p, head)
     try:
-        score = parse_text(text, source=str(p))
+        score = parse_text(text, source=str(p), kit=kit)
     except ScoreError as exc:
         raise ScoreError(f"{p}: {exc}") from exc
     score.warnings = [f"{p}: {warning}" for warning in score.warnings]  # as its errors, and a MIDI file's warnings

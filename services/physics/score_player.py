@@ -332,10 +332,8 @@ class ScorePlayer:
     def __init__(self, core: PhysicsCore, library: tuple[str | Path, ...] = ()) -> None:
         self.core = core
         self.library: list[Path] = [Path(d) for d in library]
-        self.midi: dict[str, Any] = {}
-        """How MIDI scores are read: :func:`common.score.midi.read_midi`'s keyword arguments (the node's
-        ``--drum-channels``, ``--drum-map``, ``--hihat-cc4``: :func:`common.score.midi_options.midi_setting_kwargs`);
-        a text score ignores them."""
+        self.live = LiveNotes()
+        self._midi: dict[str, Any] = {}
         self.grip = planned_grip(core.settings.grip)
         """The grip the gestures are planned with (see the module docstring)."""
         self._grip_warned: tuple[str, str, Grip] | None = None
@@ -363,7 +361,6 @@ class ScorePlayer:
         self._live_keys: dict[tuple[float, str], _LiveOrigin] = {}
         """(time on the targets' clock s, event) of the live notes in ``events`` (a score re-timing leaves them where
         they are) -> their sender and rig time (a note the live core's targets jump over is refused to it)."""
-        self.live = LiveNotes()
         self.unknown_pitches = 0
         """Live notes whose pitch has no drum event type (not played), counted; ``live.unknown`` keeps the latest
         :data:`UNKNOWN_PITCHES_KEPT`."""
@@ -533,6 +530,20 @@ class ScorePlayer:
                     and target not in found):
                 found.append(target)
         return found
+
+    @property
+    def midi(self) -> dict[str, Any]:
+        """How MIDI scores are read: :func:`common.score.midi.read_midi`'s keyword arguments (the node's
+        ``--drum-channels``, ``--drum-map``, ``--hihat-cc4``: :func:`common.score.midi_options.midi_setting_kwargs`);
+        a text score ignores them. Setting them gives live notes the note map too (``/batteur/score/note``'s pitches
+        are read as a MIDI file's, :class:`common.score.live.LiveNotes`: until the day after 7 Dec as General MIDI's
+        whatever ``--drum-map`` said); the other two are a file's (its channels, its CC4)."""
+        return self._midi
+
+    @midi.setter
+    def midi(self, kwargs: dict[str, Any]) -> None:
+        self._midi = dict(kwargs)
+        self.live.note_map = dict(self._midi.get("note_map") or {})
 
     def load(self, name: str | Path, trusted: bool = False) -> Score:
         """Read a score (by library name; ``trusted``: any local path, for the command line) and keep it."""

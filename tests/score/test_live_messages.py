@@ -40,3 +40,27 @@ def test_live_notes_map_count_unknown_and_doubles() -> None:
     assert live.accept(LiveNote(time=1.2, pitch=100, velocity=64, channel=10)) is None
     assert [n.pitch for n in live.unknown] == [100]
     assert live.accept(LiveNote(time=1.3, pitch=36, velocity=0, channel=10)) is None  # note-off
+
+
+def test_live_notes_take_the_note_map_as_a_midi_file_does(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """``--drum-map``: a live note's pitch is the sender's layout, mapped to the General MIDI pitch it plays before
+    the drum map, as the MIDI reader maps a file's (live notes were read as General MIDI whatever the map). The event
+    carries the mapped pitch (a kit's ``note_objects`` choose by it); an unknown note keeps the pitch sent."""
+    from common.score.midi_notes import ROLAND_TD, load_drum_map
+
+    plain, roland = LiveNotes(), LiveNotes(note_map=ROLAND_TD)
+    tom3_rim = LiveNote(time=1.0, pitch=58, velocity=100, channel=10)  # General MIDI's vibraslap
+    assert plain.accept(tom3_rim).event == EventType.CHINA  # type: ignore[union-attr]
+    played = roland.accept(tom3_rim)
+    assert played is not None and (played.event, played.pitch) == (EventType.FLOORTOM, 43)
+    crash2_edge = roland.accept(LiveNote(time=1.1, pitch=52, velocity=100, channel=10))
+    assert crash2_edge is not None and (crash2_edge.event, crash2_edge.pitch) == (EventType.CRASH, 57)
+    path = tmp_path / "hats.json"
+    path.write_text('{"notes": {"25": "HIHATOPEN", "100": 38}}', encoding="utf-8")
+    mine = LiveNotes(note_map=load_drum_map(str(path)))
+    hat = mine.accept(LiveNote(time=2.0, pitch=25, velocity=64, channel=10))
+    assert hat is not None and (hat.event, hat.pitch) == (EventType.HIHATOPEN, 46)
+    assert mine.accept(LiveNote(time=2.1, pitch=100, velocity=64, channel=10)).event == EventType.SNARE  # type: ignore[union-attr]
+    assert mine.accept(LiveNote(time=2.2, pitch=101, velocity=64, channel=10)) is None
+    assert [n.pitch for n in mine.unknown] == [101]
+    assert plain.accept(LiveNote(time=2.3, pitch=100, velocity=64, channel=10)) is None  # unmapped: unknown

@@ -1,0 +1,101 @@
+"""``batteur rig``'s ``--absent ROLE`` and the peers a node holds from its environment or config file.
+
+The rig tells a service a role it did not start is absent (no "no graphics peer known" every minute) only where no
+node of it can be expected, and no static peer of it is given. Until the day after 7 Dec only a ``--peer`` in the
+service's ``--ROLE-arg`` counted: a graphics peer given by ``BATTEUR_PEERS`` or the node's config file, which the node
+sends to, was told absent all the same (its messages counted as unroutable, unsaid). The rig now resolves the peers
+as the node's settings do (flags, else ``BATTEUR_PEERS``, else the config file; a list replaces the one below it),
+and each case is checked against the settings the interaction node itself would run with (``--show-settings``)."""
+
+from __future__ import annotations
+
+import importlib
+import json
+from pathlib import Path
+
+import pytest
+
+from batteur.rig import build_parser, node_peer_roles, plan_rig
+from common.peers import parse_static_peer
+
+GRAPHICS = "graphics=127.0.0.1:9104"
+
+
+def _absent(argv: list[str], environ: dict[str, str]) -> dict[str, list[str]]:
+    plans = plan_rig(build_parser().parse_args(argv), epoch=0.0, environ=environ)
+    return {p.role: [p.args[i + 1] for i, a in enumerate(p.args) if a == "--absent"] for p in plans}
+
+
+def _node_settings(argv: list[str], environ: dict[str, str], monkeypatch: pytest.MonkeyPatch,
+                   capsys: pytest.CaptureFixture[str]) -> dict[str, object]:
+    """The settings the rig's interaction service would run with, in ``environ``."""
+    from batteur import cli
+
+    plans = plan_rig(build_parser().parse_args(argv), epoch=0.0, environ=environ)
+    plan = next(p for p in plans if p.role == "interaction")
+    for name, value in environ.items():
+        monkeypatch.setenv(name, value)
+    module = importlib.import_module(cli.COMMANDS["interaction"][0])
+    capsys.readouterr()
+    assert module.main([*plan.args, "--show-settings"]) == 0
+    settings: dict[str, object] = json.loads(capsys.readouterr().out)
+    return settings
+
+
+def _config(tmp_path: Path, text: str) -> str:
+    path = tmp_path / "rig.yaml"
+    path.write_text(text, encoding="utf-8")
+    return str(path)
+
+
+def test_a_peer_in_batteur_peers_is_not_told_absent(monkeypatch: pytest.MonkeyPatch,
+                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    monkeypatch.delenv("BATTEUR_PEERS", raising=False)
+    monkeypatch.delenv("BATTEUR_CONFIG", raising=False)
+    argv = ["--services", "interaction", "--no-discovery"]
+    assert _absent(argv, {}) == {"interaction": ["physics", "sound", "graphics"]}
+    env = {"BATTEUR_PEERS": GRAPHICS}
+    assert _absent(argv, env) == {"interaction": ["physics", "sound"]}  # was told graphics too
+    settings = _node_settings(argv, env, monkeypatch, capsys)
+    assert settings["peers"] == [GRAPHICS] and settings["absent"] == ["physics", "sound"]
+
+
+def test_a_peer_in_the_node_config_file_is_not_told_absent(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                           capsys: pytest.CaptureFixture[str]) -> None:
+    monkeypatch.delenv("BATTEUR_PEERS", raising=False)
+    monkeypatch.delenv("BATTEUR_CONFIG", raising=False)
+    role_table = _config(tmp_path, f"interaction:\n  peers: [\"{GRAPHICS}\"]\n")
+    argv = ["--services", "interaction", "--no-discovery", f"--interaction-arg=--config {role_table}"]
+    assert _absent(argv, {}) == {"interaction": ["physics", "sound"]}
+    settings = _node_settings(argv, {}, monkeypatch, capsys)
+    assert settings["peers"] == [GRAPHICS] and settings["absent"] == ["physics", "sound"]
+    # BATTEUR_CONFIG, a top-level list (a comma-separated string is one too), for the rig's every service
+    shared = _config(tmp_path, f"peers: \"{GRAPHICS},sound=127.0.0.1:9103\"\n")
+    argv = ["--services", "interaction", "--no-discovery"]
+    assert _absent(argv, {"BATTEUR_CONFIG": shared}) == {"interaction": ["physics"]}
+    # the environment's list wins over the file's, and replaces it (pydantic-settings' precedence)
+    assert _absent(argv, {"BATTEUR_CONFIG": shared, "BATTEUR_PEERS": "sound=127.0.0.1:9103"}) == {
+        "interaction": ["physics", "graphics"]}
+
+
+def test_the_rig_peers_replace_the_environment_s_as_in_the_node(monkeypatch: pytest.MonkeyPatch,
+                                                               capsys: pytest.CaptureFixture[str]) -> None:
+    """A node given ``--peer`` (the rig's static peers) ignores ``BATTEUR_PEERS``: graphics stays absent, as the node
+    holds no graphics peer; with ``--no-static-peers`` (discovery on loopback) it holds the environment's."""
+    monkeypatch.delenv("BATTEUR_CONFIG", raising=False)
+    env = {"BATTEUR_PEERS": GRAPHICS}
+    static = ["--services", "physics,interaction,sound", "--no-discovery"]
+    assert _absent(static, env) == {"physics": ["graphics"], "interaction": ["graphics"], "sound": ["graphics"]}
+    settings = _node_settings(static, env, monkeypatch, capsys)
+    assert "graphics" not in {parse_static_peer(str(p)).role for p in settings["peers"]}  # type: ignore[attr-defined]
+    found = ["--services", "physics,interaction,sound", "--no-static-peers"]
+    assert _absent(found, env) == {"physics": [], "interaction": [], "sound": []}
+
+
+def test_peers_the_node_would_refuse_count_as_none(tmp_path: Path) -> None:
+    """A file that is no config file or a peer that is no ROLE=HOST:PORT: the node refuses them and says so; the rig
+    counts no peer from them (it never fails on them itself)."""
+    assert node_peer_roles([], ["--config", str(tmp_path / "missing.yaml")], "interaction", {}) == set()
+    assert node_peer_roles([], [], "interaction", {"BATTEUR_PEERS": "graphics"}) == set()
+    assert node_peer_roles([], [], "interaction", {"BATTEUR_PEERS": ""}) == set()  # empty: not set
+    assert node_peer_roles([GRAPHICS], [], "interaction", {"BATTEUR_PEERS": "sound=127.0.0.1:9103"}) == {"graphics"}
