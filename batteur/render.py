@@ -165,6 +165,9 @@ class RenderOptions:
     limits_from: tuple[str, ...] = ()
     """Motion clips the drummer's joint limits come from (BVH files, DeepMimic files or clip names; none: every
     DeepMimic clip)."""
+    asymmetric_limits: bool = False
+    """With ``limits_from``: each side's own limits as the clips give them, not made mirror-symmetric
+    (``PhysicsSettings.asymmetric_limits``)."""
     skeleton_bvh: Path | None = None
     """BVH file whose skeleton gives the drummer's proportions (None: de Leva's table)."""
     height_m: float = STATURE_M
@@ -516,7 +519,8 @@ def run_score(score: Score, assignment: Assignment, plan: GesturePlan, kit: Kit,
              "control": physics.settings.control, "grip": physics.settings.grip, "rate_hz": physics.rate_hz,
              "control_rate_hz": physics.settings.control_rate_hz, "height_m": physics.settings.height_m,
              "mass_kg": physics.settings.mass_kg, "pulled_into_reach": pulled,
-             "joint_limits": joint_limits_json(physics), **controller_counts(physics),
+             "joint_limits": joint_limits_json(physics), "joint_limits_symmetric": limits_symmetric(physics),
+             **controller_counts(physics),
              "cpu_time_s": round(time.process_time() - cpu_started, 3)}
     return ScoreRender(score, assignment, plan, impacts, physics.contacts_sent, audio, sound.sample_rate,
                        wav_seconds(sound), offset, time.perf_counter() - started, poses, stats, count)
@@ -538,6 +542,14 @@ def joint_limits_json(physics: PhysicsCore) -> dict[str, Any] | None:
     (:meth:`services.physics.limits.JointLimits.formulations`); None for a scene without a drummer."""
     limits = getattr(physics.scene, "limits", None)
     return None if limits is None else limits.formulations()
+
+
+def limits_symmetric(physics: PhysicsCore) -> bool | None:
+    """report.json's ``physics.joint_limits_symmetric``: whether each left/right pair's joint limits were made
+    mirror-symmetric (the default limits always; ``--limits-from`` clips unless ``--asymmetric-limits``); None for
+    a scene without a drummer."""
+    limits = getattr(physics.scene, "limits", None)
+    return None if limits is None else bool(limits.symmetric)
 
 
 def collect(recorder: RecorderCore, outputs: StreamedOutputs | None) -> tuple[Any, list[Any], int | None]:
@@ -571,6 +583,7 @@ def start_drummer(plan: GesturePlan, kit: Kit, opts: RenderOptions, start_s: flo
     physics = PhysicsCore(scene="drummer", kit=kit, control=CONTROL_MODES[opts.control], grip=opts.styled().grip,
                           rate_hz=opts.rate_hz, pose_rate_hz=physics_pose_rate(opts), control_rate_hz=control_rate_hz,
                           height_m=opts.height_m, mass_kg=opts.mass_kg, limits_from=opts.limits_from,
+                          asymmetric_limits=opts.asymmetric_limits,
                           skeleton_bvh=None if opts.skeleton_bvh is None else str(opts.skeleton_bvh))
     physics.time_offset = start_s
     reach = getattr(physics.scene, "reach", None)
@@ -1442,7 +1455,8 @@ def build_parser() -> argparse.ArgumentParser:
     playing.add_argument("--sound-params", type=Path, default=None, metavar="FILE",
                          help="the instruments' sound parameters (what batteur sound --sound-params-out writes: "
                          "per instrument, what the /batteur/sound/... controls set; docs/sound.md)")
-    playing.add_argument("--control-rate", type=float, default=None, metavar="HZ",
+    playing.add_argument("--control-rate", "--control-rate-hz", dest="control_rate", type=float, default=None,
+                         metavar="HZ",  # the second spelling: batteur physics's, so a flag copied from it works
                          help="drummer's full control updates (IK, inverse dynamics) per second; the torques are "
                          "corrected at every 1 ms physics step between (default: physics' default, 1000: every "
                          "step)")
@@ -1450,7 +1464,14 @@ def build_parser() -> argparse.ArgumentParser:
     body.add_argument("--limits-from", action="append", default=[], metavar="CLIP",
                       help="motion clip the drummer's joint limits are estimated from (repeatable): a BVH file, a "
                       "DeepMimic clip file or the name of one of pybullet's DeepMimic clips (default: all of "
-                      "those)")
+                      "those); each left/right pair's limits are made mirror-symmetric, their common range, as the "
+                      "default ones (--asymmetric-limits keeps each side's own)")
+    body.add_argument("--asymmetric-limits", action="store_true",
+                      help="with --limits-from: keep each side's own joint limits as the clips give them, for a "
+                      "performer with a real asymmetry (one side that truly reaches further); by default a side "
+                      "the clips happen to let reach further is cut to the other's range, since the drummer's "
+                      "posture drifts toward a wider bound under fast strokes (docs/physics.md, \"Symmetric "
+                      "limits\"); report.json's physics.joint_limits_symmetric says which was used")
     body.add_argument("--skeleton-bvh", type=Path, default=None, metavar="FILE",
                       help="BVH file whose skeleton gives the drummer's proportions (arms, legs, neck, shoulder "
                       "height above the hips, shoulder and hip widths), so the simulated performer matches the "
@@ -1486,7 +1507,7 @@ def build_parser() -> argparse.ArgumentParser:
     strikes.add_argument("--strikes", default=None, metavar="TIME:SPEED,...",
                          help="strike scene instead of a score: TIME:SPEED,... in seconds:m/s "
                          f"(e.g. {','.join(f'{t:g}:{v:g}' for t, v in DEFAULT_STRIKES)})")
-    strikes.add_argument("--event", default=None,
+    strikes.add_argument("--event", "--strike-event", dest="event", default=None,
                          choices=[e.value for e in EventType if e != EventType.HIHATPEDAL],
                          help=f"strike scene: which kit event the stick strikes (default {DEFAULT_STRIKE_EVENT})")
     jobs = parser.add_argument_group("processes")
@@ -1530,11 +1551,13 @@ def add_body_options(parser: argparse._ActionsContainer, skeleton: bool = False)
     """``--height`` and ``--mass`` (render and evaluate; a parser or one of its groups); ``skeleton``: the parser
     has ``--skeleton-bvh`` (render), which the help then says how it goes with (evaluate's named it, without it)."""
     with_skeleton = "; with --skeleton-bvh the skeleton gives the limbs and the reach, the height the rest"
-    parser.add_argument("--height", type=float, default=None, metavar="METRES",  # None: an explicit 1.75 is told
+    # the second spellings are batteur physics's (--height-m, --mass-kg): a flag copied from it works here too;
+    # --height's default None: an explicit 1.75 is told
+    parser.add_argument("--height", "--height-m", dest="height", type=float, default=None, metavar="METRES",
                         help=f"the drummer's height, {HEIGHT_RANGE_M[0]:g} to {HEIGHT_RANGE_M[1]:g} m: its body "
                         f"(de Leva's segments scaled) and the planner's reach (default {STATURE_M:g}"
                         f"{with_skeleton if skeleton else ''})")
-    parser.add_argument("--mass", type=float, default=DEFAULT_MASS_KG, metavar="KG",
+    parser.add_argument("--mass", "--mass-kg", dest="mass", type=float, default=DEFAULT_MASS_KG, metavar="KG",
                         help=f"the drummer's mass, {MASS_RANGE_KG[0]:g} to {MASS_RANGE_KG[1]:g} kg (default "
                         f"{DEFAULT_MASS_KG:g})")
 
@@ -1567,7 +1590,8 @@ def options_from(args: argparse.Namespace) -> RenderOptions:
                          gltf=args.gltf,
                          video_size=_given(args.video_size, (640, 360)), control_rate_hz=args.control_rate,
                          jobs=resolve_jobs(args.jobs), segment_s=_given(args.segment, 30.0),
-                         limits_from=tuple(args.limits_from), skeleton_bvh=args.skeleton_bvh,
+                         limits_from=tuple(args.limits_from), asymmetric_limits=args.asymmetric_limits,
+                         skeleton_bvh=args.skeleton_bvh,
                          height_m=height_of(args), mass_kg=args.mass, pose_rate_hz=args.bvh_rate,
                          bvh_sync=_given(args.bvh_sync, "pose"), midi=midi_read_kwargs(args),
                          wav_from=_given(args.wav_from, "render"))
@@ -1581,16 +1605,46 @@ def _given(value: T | None, default: T) -> T:
     return default if value is None else value
 
 
+def skeleton_warnings(skeleton: Path, height_m: float | None) -> list[str]:
+    """What ``--skeleton-bvh`` with (or without: None) ``--height`` leaves to the height, said at the render's
+    start, with the unit the skeleton is read in and the height of a performer of its proportions
+    (``services.physics.bvh_motion.read_skeleton``). Nothing for a file that cannot be read: its error follows."""
+    from services.physics.bvh_motion import read_skeleton
+
+    try:
+        reading = read_skeleton(skeleton)
+    except (ValueError, OSError):
+        return []
+    if not reading.lengths_m:
+        return []
+    stature = reading.stature_m
+    tall = "" if stature is None else f", a {stature:g} m performer's"
+    read = f"the skeleton is read in {reading.unit_words}{tall}"
+    limbs = ("the skeleton gives the limbs (arms, legs, neck, the shoulders' height above the hips, their widths) "
+             "and the planner's reach")
+    if height_m is not None:
+        return [f"--height {height_m:g} with --skeleton-bvh: {limbs}; --height places the shoulders and hips over "
+                f"the throne and sizes the hands, feet and head ({read})"]
+    low, high = HEIGHT_RANGE_M
+    if stature is not None and low <= stature <= high:
+        hint = f"give --height {stature:g} to size them as the skeleton's"
+    else:
+        hint = f"give --height (the performer's, {low:g} to {high:g} m) to size them"
+    return [f"--skeleton-bvh without --height: {limbs}; the hands, feet and head and the body's place over the "
+            f"throne are the default {STATURE_M:g} m drummer's: {hint} ({read})"]
+
+
 def options_in_vain(args: argparse.Namespace) -> list[str]:
     """Warnings for options given that do nothing with the others given, or share what they decide with another
     (``--height`` beside ``--skeleton-bvh``)."""
     warnings = []
     if args.event is not None and args.strikes is None:
         warnings.append("--event has no effect without --strikes (a score's notes say what is struck)")
-    if args.skeleton_bvh is not None and args.height is not None and args.strikes is None:
-        warnings.append(f"--height {args.height:g} with --skeleton-bvh: the skeleton gives the limbs (arms, legs, "
-                        "neck, the shoulders' height above the hips, their widths) and the planner's reach; "
-                        f"--height places the shoulders and hips over the throne and sizes the hands, feet and head")
+    if args.skeleton_bvh is not None and args.strikes is None:
+        warnings.extend(skeleton_warnings(args.skeleton_bvh, args.height))
+    if args.asymmetric_limits and not args.limits_from:
+        warnings.append("--asymmetric-limits has no effect without --limits-from (the default limits are always "
+                        "mirror-symmetric)")
     if args.segment is not None and args.jobs == 1:
         warnings.append("--segment has no effect without --jobs above 1")
     for name, value in (("--video-size", args.video_size), ("--video-fps", args.video_fps)):

@@ -176,6 +176,10 @@ class SegmentResult:
     pulled: dict[str, int] = field(default_factory=dict)
     """Knots of its part of the plan brought within the body's reach, per limb
     (``common.gesture.reach.pull_into_reach``)."""
+    counters: dict[str, int] = field(default_factory=dict)
+    """The drummer controller's counters (``batteur.render.controller_counts``: limit violations, torque-saturated
+    DOF-steps) grown by the steps in its own window, [start_s, end_s): not its lead-in or overhang, which the
+    segments before and after own (empty: no drummer)."""
 
 
 log = logging.getLogger("batteur.render")
@@ -194,7 +198,7 @@ def run_segment(plan: GesturePlan, kit: Kit, opts: RenderOptions, segment: Segme
     that, once set, ends the segment with :class:`SegmentStopped` (checked as often as progress is sent, and
     before it starts): the pool cannot cancel a segment already running or queued to a worker.
     """
-    from batteur.render import joint_limits_json, offline_interaction_config, start_drummer
+    from batteur.render import joint_limits_json, limits_symmetric, offline_interaction_config, start_drummer
     from common.bus import OfflineRunner
     from services.interaction.core import InteractionCore
 
@@ -230,26 +234,39 @@ def run_segment(plan: GesturePlan, kit: Kit, opts: RenderOptions, segment: Segme
                          {"control": physics.settings.control, "grip": physics.settings.grip,
                           "rate_hz": physics.rate_hz, "control_rate_hz": physics.settings.control_rate_hz,
                           "height_m": physics.settings.height_m, "mass_kg": physics.settings.mass_kg,
-                          "joint_limits": joint_limits_json(physics)}, pulled)
+                          "joint_limits": joint_limits_json(physics),
+                          "joint_limits_symmetric": limits_symmetric(physics)}, pulled, counted.counters)
 
 
 class _CountingPhysics:
-    """The physics core, counting the contacts it sends in its segment's window."""
+    """The physics core, counting the contacts it sends in its segment's window and what its steps there add to
+    the controller's counters (:attr:`counters`)."""
 
     ROLE: ClassVar[str] = "physics"
 
     def __init__(self, physics: Any, segment: Segment) -> None:
+        from batteur.render import controller_counts
+
         self.physics = physics
         self.segment = segment
         self.rate_hz = physics.rate_hz
         self.contacts = 0
+        self._counts: Callable[[Any], dict[str, int]] = controller_counts
+        self.counters = {name: 0 for name in controller_counts(physics)}
+        """Counter -> its growth over the steps at rig times in the window (a sum over the segments is the
+        piece's: each step is one segment's)."""
 
     def handle(self, message: OscMessage, now: float, source: str) -> list[Outgoing]:
         out: list[Outgoing] = self.physics.handle(message, now, source)
         return out
 
     def step(self, now: float) -> list[Outgoing]:
+        owned = self.segment.start_s <= now < self.segment.end_s
+        before = self._counts(self.physics) if owned and self.counters else None
         out: list[Outgoing] = self.physics.step(now)
+        if before is not None:
+            for name, count in self._counts(self.physics).items():
+                self.counters[name] += count - before[name]
         for o in out:
             if o.to == "interaction" and self.segment.start_s <= about_time(o.message, now) < self.segment.end_s:
                 self.contacts += 1
@@ -474,7 +491,7 @@ def run_segmented(score: Score, assignment: Assignment, plan: GesturePlan, kit: 
         sound.close()
     poses, impacts, count = collect(recorder, outputs)
     stats = {"contacts_sent": play.contacts, "rejected": play.rejected, "diverged": play.diverged,
-             **play.settings, "pulled_into_reach": play.pulled,
+             **play.settings, "pulled_into_reach": play.pulled, **play.counters,
              "cpu_time_s": round(time.process_time() - cpu_started + play.cpu_time_s, 3),
              "segments": {"count": len(segments), "segment_s": segment_s, "warmup_s": warmup_s,
                           "jobs": max(1, min(jobs, len(segments)))}}
@@ -498,6 +515,8 @@ class _Player:
         self.cpu_time_s = 0.0
         self.rejected: dict[str, int] = {}
         self.pulled: dict[str, int] = {}
+        self.counters: dict[str, int] = {}
+        """The controller's counters (``limit_violations``, ``torque_saturated``), summed over the segments' windows."""
         self.settings: dict[str, Any] = {}
         self.check: Callable[[float], None] | None = None
         """Called at each step of the play (rig seconds): raises to stop it (a Ctrl-C)."""
@@ -515,6 +534,8 @@ class _Player:
                 self.rejected[kind] = self.rejected.get(kind, 0) + n
             for limb, n in r.pulled.items():  # a knot in two segments' parts of the plan counts in each
                 self.pulled[limb] = self.pulled.get(limb, 0) + n
+            for name, n in r.counters.items():  # each segment's own window: the sum is the piece's
+                self.counters[name] = self.counters.get(name, 0) + n
             if r.index == 0:
                 self.settings = r.settings
             self._next += 1

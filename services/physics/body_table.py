@@ -47,6 +47,7 @@ def body_json(scene: DrummerScene) -> dict[str, Any]:
             "segments_mass_kg": round(body_mass_of(anthro), 2), "dof": len(scene.model.dof_names),
             "control_rate_hz": scene.settings.rate_hz / scene.control_every,
             "skeleton_bvh": scene.settings.skeleton_bvh, "limits_from": list(scene.settings.limits_from) or "default",
+            "limits_symmetric": limits.symmetric,
             "segments": segments, "joints": joints,
             "gains": f"explicit PD at {controller.params.frequency_hz:g} Hz (per DOF, scaled by its inertia); the "
                      f"computed-torque modes (cartesian, joint_ct) use {controller.params.ct_frequency_hz:g} Hz "
@@ -58,7 +59,8 @@ def body_text(scene: DrummerScene) -> str:
     data = body_json(scene)
     lines = [f"drummer {data['height_m']:g} m, {data['mass_kg']:g} kg asked; segments {data['segments_mass_kg']:g} kg "
              f"in all; {data['dof']} DOF (19 joints x 3); skeleton: {data['skeleton_bvh'] or 'de Leva table'}; "
-             f"limits from: {', '.join(data['limits_from']) if isinstance(data['limits_from'], list) else 'default'}",
+             f"limits from: {', '.join(data['limits_from']) if isinstance(data['limits_from'], list) else 'default'}"
+             f" ({'mirror-symmetric' if data['limits_symmetric'] else 'each side its own: --asymmetric-limits'})",
              control_rate_text(scene), "",
              f"{'segment':<10} {'count':>5} {'length m':>9} {'mass kg':>8}"]
     for name, seg in data["segments"].items():

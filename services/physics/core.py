@@ -166,6 +166,11 @@ class PhysicsSettings(BaseModel):
     limits_from: tuple[str, ...] = Field(
         default=(), description="drummer: motion clips the joint limits are estimated from: BVH files, DeepMimic "
         "clip files or names of pybullet's DeepMimic clips (empty: every DeepMimic humanoid clip)")
+    asymmetric_limits: bool = Field(
+        default=False, description="drummer: with limits_from, keep each side's own joint limits as the clips "
+        "give them (for a performer with a real asymmetry) instead of making each left/right pair mirror-symmetric "
+        "(their common range, as the default limits: a side the clips let reach further drifts there under fast "
+        "strokes); the default limits are always symmetric")
     skeleton_bvh: str | None = Field(
         default=None, description="drummer: BVH file whose skeleton gives the body's proportions (arms, legs, neck, "
         "shoulder height above the hips, shoulder and hip widths; hands, feet and head from de Leva's table for the "

@@ -4,8 +4,8 @@ Build order: kit bodies (common/kit.py), joint limits (pybullet's DeepMimic clip
 limits.py), the generated body (segment lengths from ``skeleton_bvh`` if given) pinned
 to the throne, the rest posture (solved by IK: right stick over the hi-hat, left over
 the snare, feet on their pedals for a right-handed kit; mirrored for a left-handed
-one), the limits of the ``limits_from`` clips if given (grown where they do not hold
-the rest posture), the controller.
+one), the limits of the ``limits_from`` clips if given (mirror-symmetric unless ``asymmetric_limits``, grown where
+they do not hold the rest posture), the controller.
 
 Inputs, all timed in rig seconds and streamed ahead of time:
 
@@ -199,11 +199,14 @@ def cached_clips(sources: tuple[str, ...]) -> list[MotionClip]:
     return _CLIP_CACHE[sources]
 
 
-def posture_limits(clips: list[MotionClip], posture: np.ndarray) -> JointLimits:
+def posture_limits(clips: list[MotionClip], posture: np.ndarray, symmetric: bool = True) -> JointLimits:
     """Limits from ``clips`` that hold the playing ``posture`` (57,) radians: a joint the clips never bring
-    there keeps a box grown to it (:func:`limits.limits_from_clips`, ``+posture`` in its sources)."""
+    there keeps a box grown to it (:func:`limits.limits_from_clips`, ``+posture`` in its sources). ``symmetric``:
+    the clips' boxes mirror-symmetric first (:func:`limits.symmetric_limits`, as the default limits: a side the
+    clips let reach further drifted there and lost fast kicks); False keeps each side's own estimate (a performer
+    with a real asymmetry: ``asymmetric_limits``)."""
     need = {joint: posture[3 * k:3 * k + 3] for k, joint in enumerate(JOINTS)}
-    return limits_from_clips(clips, must_contain=need)
+    return limits_from_clips(clips, must_contain=need, symmetric=symmetric)
 
 
 def initial_guess(grip: str, handedness: str = "right") -> np.ndarray:
@@ -328,7 +331,8 @@ class DrummerScene:
         self.rest, self.rest_error = solve_posture(self.body, self.rest_targets, guess, clamp, iterations=300,
                                                    frozen=frozen, rest=guess, posture_gain=0.05, extra=extra)
         if limits is None and settings.limits_from:
-            self.limits = posture_limits(cached_clips(settings.limits_from), self.rest)
+            self.limits = posture_limits(cached_clips(settings.limits_from), self.rest,
+                                         symmetric=not settings.asymmetric_limits)
             self.body.set_limits(self.limits.dof_limits())
             if (dropped := self.limits.dropped_summary()) is not None:  # said: the limits are not what was asked
                 log.warning("joint limits from %s: %s", ", ".join(settings.limits_from), dropped)

@@ -175,6 +175,9 @@ class JointLimits:
     dropped: tuple[str, ...] = ()
     """Joints whose quaternion limit was dropped because the playing posture lies outside the clips' motion
     (``must_contain``): their grown Euler box limits them alone."""
+    symmetric: bool = False
+    """Each left/right pair's Euler boxes were made mirror images (:func:`symmetric_limits`; a box grown to the
+    playing posture afterwards, ``+posture``, may reach further on its own side); False: each side's own estimate."""
 
     def formulations(self) -> dict[str, dict[str, Any]]:
         """Joint -> ``formulation`` (``euler+quaternion``: the box and Algorithm 1's ellipsoid; ``euler``: the box
@@ -213,7 +216,8 @@ def anatomical_limit(joint: str) -> EulerLimit:
 
 
 def limits_from_clips(clips: Iterable[MotionClip], margin_rad: float = math.radians(5.0),
-                      coverage: float = 0.999, must_contain: dict[str, np.ndarray] | None = None) -> JointLimits:
+                      coverage: float = 0.999, must_contain: dict[str, np.ndarray] | None = None,
+                      symmetric: bool = False) -> JointLimits:
     """Joint limits of the 19 joints from motion clips, anatomical ranges where the clips have no data.
 
     For a joint the clips drive, the Euler box is the range seen (plus
@@ -225,6 +229,8 @@ def limits_from_clips(clips: Iterable[MotionClip], margin_rad: float = math.radi
     ``must_contain``: joint -> Euler angles (3,) that must lie inside (the
     playing posture); the box grows to include them, and a joint whose box or ellipsoid did not hold them
     keeps the box only (recorded in ``sources`` as ``+posture``; ``dropped`` names those that had an ellipsoid).
+    ``symmetric``: the clips' boxes are made mirror-symmetric (:func:`symmetric_limits`) before they grow to
+    ``must_contain``: the posture is a requirement, not an estimate of one side's range, so it is held as it is.
     """
     samples_e: dict[str, list[np.ndarray]] = {}
     samples_q: dict[str, list[np.ndarray]] = {}
@@ -236,7 +242,6 @@ def limits_from_clips(clips: Iterable[MotionClip], margin_rad: float = math.radi
     quaternion: dict[str, QuaternionLimit] = {}
     sources: dict[str, str] = {}
     dof_sources: dict[str, tuple[str, str, str]] = {}
-    dropped: list[str] = []
     for joint in JOINTS:
         anat = anatomical_limit(joint)
         if joint in samples_e:
@@ -258,21 +263,35 @@ def limits_from_clips(clips: Iterable[MotionClip], margin_rad: float = math.radi
             euler[joint] = anat
             sources[joint] = "anatomical"
             dof_sources[joint] = ("anatomical",) * 3
-        if must_contain and joint in must_contain:
-            need = np.asarray(must_contain[joint], dtype=float)
-            lim = euler[joint]
-            outside = not bool(lim.contains(need)[0])
-            if outside:
-                euler[joint] = EulerLimit(np.minimum(lim.lower, need - margin_rad),
-                                          np.maximum(lim.upper, need + margin_rad), lim.mean, lim.std)
-            ellipsoid = quaternion.get(joint)
-            if ellipsoid is not None:
-                outside |= not bool(ellipsoid.contains(Rotation.from_euler("XYZ", need).as_quat()[None])[0])
-            if outside:  # the grown box only: an ellipsoid of the clips' motion does not reach the posture
-                sources[joint] += "+posture"
-                if quaternion.pop(joint, None) is not None:
-                    dropped.append(joint)
-    return JointLimits(euler, quaternion, sources, dof_sources, tuple(dropped))
+    limits = JointLimits(euler, quaternion, sources, dof_sources)
+    if symmetric:
+        limits = symmetric_limits(limits)
+    return hold_posture(limits, must_contain, margin_rad) if must_contain else limits
+
+
+def hold_posture(limits: JointLimits, must_contain: dict[str, np.ndarray], margin_rad: float) -> JointLimits:
+    """``limits`` grown to hold ``must_contain`` (joint -> Euler angles (3,), radians: the playing posture): a box
+    that does not hold them grows to them plus ``margin_rad``, and a joint whose box or ellipsoid did not hold them
+    keeps the box only (``+posture`` in its sources; ``dropped`` names those that had an ellipsoid)."""
+    euler, quaternion, sources = dict(limits.euler), dict(limits.quaternion), dict(limits.sources)
+    dropped = list(limits.dropped)
+    for joint in JOINTS:
+        if joint not in must_contain or joint not in euler:
+            continue
+        need = np.asarray(must_contain[joint], dtype=float)
+        lim = euler[joint]
+        outside = not bool(lim.contains(need)[0])
+        if outside:
+            euler[joint] = EulerLimit(np.minimum(lim.lower, need - margin_rad),
+                                      np.maximum(lim.upper, need + margin_rad), lim.mean, lim.std)
+        ellipsoid = quaternion.get(joint)
+        if ellipsoid is not None:
+            outside |= not bool(ellipsoid.contains(Rotation.from_euler("XYZ", need).as_quat()[None])[0])
+        if outside:  # the grown box only: an ellipsoid of the clips' motion does not reach the posture
+            sources[joint] += "+posture"
+            if quaternion.pop(joint, None) is not None:
+                dropped.append(joint)
+    return dataclasses.replace(limits, euler=euler, quaternion=quaternion, sources=sources, dropped=tuple(dropped))
 
 
 MIRROR_SIGNS = np.array([1.0, -1.0, -1.0])
@@ -311,7 +330,7 @@ def symmetric_limits(limits: JointLimits) -> JointLimits:
             was, now = limits.euler[side], euler[side]
             if not (np.allclose(was.lower, now.lower) and np.allclose(was.upper, now.upper)):
                 sources[side] += "+symmetric"
-    return dataclasses.replace(limits, euler=euler, sources=sources)
+    return dataclasses.replace(limits, euler=euler, sources=sources, symmetric=True)
 
 
 def load_clip(source: str | Path) -> MotionClip:

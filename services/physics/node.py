@@ -68,6 +68,12 @@ log = logging.getLogger("batteur.physics")
 HEIGHT_RANGE_M = (1.2, 2.2)
 """Heights de Leva's table is scaled to, metres (``PhysicsSettings.height_m``'s bounds)."""
 
+RENDER_SPELLINGS = {"height_m": "--height", "mass_kg": "--mass", "control_rate_hz": "--control-rate",
+                    "strike_event": "--event"}
+"""Setting -> ``batteur render``'s flag for it, which the node takes too (its help names only its own flag, saying
+this one): a flag copied from a render's command line was refused (argparse took ``--height`` only as an
+abbreviation of ``--height-m``, and ``--event`` not at all)."""
+
 
 class PhysicsNodeSettings(NodeSettings):
     """Node settings plus the physics service's own (flags, BATTEUR_* variables, settings file keys)."""
@@ -78,23 +84,26 @@ class PhysicsNodeSettings(NodeSettings):
     left_handed: bool = Field(default=False, description="mirror the kit for a left-handed drummer")
     control: ControlModeName = Field(default="cartesian",
                                      description=f"controller at start: {', '.join(get_args(ControlModeName))} "
-                                     "(docs/physics.md; /batteur/physics/control switches it live)")
+                                     "(joint: joint_pd, as batteur render; docs/physics.md; /batteur/physics/control "
+                                     "switches it live)")
     grip: GripName = Field(default="german", description=f"grip of both hands at start: "
                            f"{', '.join(get_args(GripName))}; scores are planned with it where the gesture "
                            "database has it (french, german), else with german, as batteur render "
                            "(/batteur/physics/grip changes the hands live, /batteur/score/style hands and plan)")
     floating_base: bool = Field(default=False, description=PhysicsSettings.model_fields["floating_base"].description)
     height_m: float = Field(default=1.75, ge=HEIGHT_RANGE_M[0], le=HEIGHT_RANGE_M[1],
-                            description="drummer's height, metres")
-    mass_kg: float = Field(default=73.0, ge=35, le=150, description="drummer's mass, kilograms")
+                            description="drummer's height, metres (--height too, as batteur render)")
+    mass_kg: float = Field(default=73.0, ge=35, le=150,
+                           description="drummer's mass, kilograms (--mass too, as batteur render)")
     pose_rate_hz: float = Field(default=60.0, ge=0, le=240, description="pose publishing rate, Hz (0: off)")
     control_rate_hz: float = Field(default=PhysicsSettings.model_fields["control_rate_hz"].default, ge=50,
                                    le=10000, description="drummer: full control updates (IK, inverse dynamics) "
                                    "per second, Hz, at most the step rate (--rate-hz), a whole number of steps apart "
                                    "(300 at 1 kHz runs at 333.3, said at start); torques are corrected at every "
-                                   "physics step between")
+                                   "physics step between (--control-rate too, as batteur render)")
     strike_event: EventType = Field(default=EventType.SNARE, description="strike scene: the event whose hit point "
-                                    f"the stick strikes: {', '.join(e.value for e in EventType)}")
+                                    f"the stick strikes: {', '.join(e.value for e in EventType)} (--event too, "
+                                    "as batteur render)")
     strike_period: float = Field(default=0.0, ge=0, le=60,
                                  description="strike scene: strike every this many seconds (0: only on request)")
     strike_velocity: float = Field(default=3.0, gt=0, le=30, description="strike scene: tip speed, m/s")
@@ -103,13 +112,26 @@ class PhysicsNodeSettings(NodeSettings):
     play_at: float | None = Field(default=None, ge=0, le=1e6, description="rig time at which --score starts "
                                   "playing (its beginning), seconds (unset: load only)")
     drum_channels: str = Field(default="", description=f"--score and the library's MIDI files: {DRUM_CHANNELS_HELP}")
-    drum_map: str = Field(default="", description=f"--score and the library's MIDI files: {DRUM_MAP_HELP}")
+    drum_map: str = Field(default="", description=f"--score and the library's MIDI files, and live notes "
+                          f"(/batteur/score/note): {DRUM_MAP_HELP}")
     hihat_cc4: bool = Field(default=False, description=f"--score and the library's MIDI files: {HIHAT_CC4_HELP}")
     score_dir: Annotated[list[str], NoDecode] = Field(
         default_factory=list, description="score library directory: /batteur/score/load names are looked up here")
     limits_from: Annotated[list[str], NoDecode] = Field(
         default_factory=list, description=PhysicsSettings.model_fields["limits_from"].description)
+    asymmetric_limits: bool = Field(
+        default=False, description="with --limits-from: keep each side's own joint limits as the clips give them, "
+        "for a performer with a real asymmetry (one side that truly reaches further); by default each left/right "
+        "pair is made mirror-symmetric, their common range, as the default limits, since the drummer's posture "
+        "drifts toward a wider bound under fast strokes (docs/physics.md, \"Symmetric limits\"); --show-body says "
+        "which was used")
     skeleton_bvh: str | None = Field(default=None, description=PhysicsSettings.model_fields["skeleton_bvh"].description)
+
+    @field_validator("control", mode="before")
+    @classmethod
+    def _render_control_name(cls, value: Any) -> Any:
+        """``batteur render --control joint`` names joint_pd: a value copied from a render's command line works."""
+        return "joint_pd" if value == "joint" else value
 
     @field_validator("height_m", mode="before")
     @classmethod
@@ -293,8 +315,12 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace) -> PhysicsCore:
             strike_period_s=settings.strike_period,
             strike_velocity=settings.strike_velocity,
             limits_from=tuple(settings.limits_from),
+            asymmetric_limits=settings.asymmetric_limits,
             skeleton_bvh=settings.skeleton_bvh,
         )
+        if settings.asymmetric_limits and not settings.limits_from:
+            log.warning("--asymmetric-limits has no effect without --limits-from (the default limits are always "
+                        "mirror-symmetric)")
         if getattr(extra, "show_body", None):  # offline: no planning process
             _show_body(PhysicsCore(core_settings.model_copy(update={"mode": "offline"}), kit=kit), extra.show_body)
         core = LivePhysicsCore(core_settings, kit=kit)
@@ -359,6 +385,9 @@ def _show_body(core: PhysicsCore, form: str) -> None:
 
 
 def _add_arguments(parser: argparse.ArgumentParser) -> None:
+    for setting, flag in RENDER_SPELLINGS.items():  # the same setting as the node's own flag; its help says so
+        parser.add_argument(flag, dest=setting, metavar=setting.upper(), default=argparse.SUPPRESS,
+                            help=argparse.SUPPRESS)
     parser.add_argument("--show-body", nargs="?", const="text", choices=("text", "json"), default=None,
                         help="print the drummer's body as these settings build it and exit: segment lengths (m) and "
                         "masses (kg), DOF, per joint torque limit (N m), PD gains and joint limits with their "

@@ -15,18 +15,25 @@ from batteur import render
 SCORE = "tempo 120\nmeter 4/4\nSN |x...|\n"
 
 
-def test_report_json_says_each_joints_limit_formulation(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+@pytest.mark.parametrize("asymmetric", [False, True])
+def test_report_json_says_each_joints_limit_formulation(tmp_path: Path, caplog: pytest.LogCaptureFixture,
+                                                        asymmetric: bool) -> None:
+    """The clips' limits are mirror-symmetric (``+symmetric`` where a box changed) unless ``--asymmetric-limits``;
+    ``physics.joint_limits_symmetric`` says which."""
     caplog.set_level(logging.WARNING, logger="batteur.physics")
     score = tmp_path / "snare.txt"
     score.write_text(SCORE, encoding="utf-8")
     out = tmp_path / "out"
-    assert render.main([str(score), "-o", str(out), "--quiet", "--limits-from", "punch"]) == 0
+    extra = ["--asymmetric-limits"] if asymmetric else []
+    assert render.main([str(score), "-o", str(out), "--quiet", "--limits-from", "punch", *extra]) == 0
     report = json.loads((out / "report.json").read_text(encoding="utf-8"))
+    assert report["physics"]["joint_limits_symmetric"] is not asymmetric
     limits = report["physics"]["joint_limits"]
     assert len(limits) == 19
     assert limits["right_shoulder"]["formulation"] == "euler"  # the seated posture is outside the punch's
     assert limits["right_shoulder"]["source"].endswith("+posture")
-    assert limits["right_ankle"] == {"formulation": "euler+quaternion", "source": "mocap", "dofs": ["mocap"] * 3}
+    assert limits["right_ankle"] == {"formulation": "euler+quaternion",
+                                     "source": "mocap" if asymmetric else "mocap+symmetric", "dofs": ["mocap"] * 3}
     assert limits["seat"] == {"formulation": "euler", "source": "anatomical", "dofs": ["anatomical"] * 3}
     said = [r.getMessage() for r in caplog.records if r.getMessage().startswith("joint limits from punch: ")]
     assert len(said) == 1 and "right_shoulder" in said[0]
@@ -41,4 +48,5 @@ def test_a_segmented_render_reports_them_too(tmp_path: Path) -> None:
     report = json.loads((out / "report.json").read_text(encoding="utf-8"))
     assert "segments" in report["physics"]
     limits = report["physics"]["joint_limits"]
-    assert limits["right_shoulder"]["formulation"] == "euler" and limits["right_ankle"]["source"] == "mocap"
+    assert limits["right_shoulder"]["formulation"] == "euler" and limits["right_ankle"]["source"] == "mocap+symmetric"
+    assert report["physics"]["joint_limits_symmetric"] is True
