@@ -1125,8 +1125,8 @@ def recording_parts(folder: Path) -> frozenset[Path]:
 
 
 def _holds_audio(part: Path) -> bool:
-    """Whether a part file holds a frame (sound keeps its header up to date); True when that cannot be told, so
-    nothing recorded is removed."""
+    """Whether a part file, or the take sound named, holds a frame (sound keeps its header up to date); True when
+    that cannot be told, so nothing recorded is removed or called empty."""
     import soundfile as sf  # only here: the rig starts no sound itself
 
     try:
@@ -1165,6 +1165,10 @@ def finish_recording(folder: Path, sound_stopped_cleanly: bool, out: Output, err
             return
     if not recorded:
         err.write(f"batteur rig: nothing recorded in {folder} (sound did not start recording)\n")
+        return
+    if not _holds_audio(folder / RECORDING):  # named, but a header only: "recorded" misled (a 112-byte take)
+        err.write(f"batteur rig: the take is empty: {folder / RECORDING} holds no audio (0 frames: sound played "
+                  "nothing, stopped before its audio started)\n")
         return
     out.write(f"batteur rig: recorded {folder / RECORDING}\n")
 

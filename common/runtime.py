@@ -5,7 +5,8 @@ A node opens a :class:`~common.transport.UdpEndpoint`, fills its
 steps its core at the core's rate on a fixed-rate loop (absolute deadlines, so
 it does not drift; overruns are counted, never hidden), hands every received
 message to ``core.handle`` (but another service's controls, which its core would
-ignore: dropped as ``wrong_node``, see :func:`common.transport.taken_elsewhere`) and routes what
+ignore: dropped as ``wrong_node``, see :func:`common.transport.taken_elsewhere`, and answered with the node's
+refusal) and routes what
 the core returns. It also keeps the
 rig clock (answering pings, within a budget per sender; estimating its offset to the clock master when the
 master is another node), greets newly found peers with a Hello, answers a Hello
@@ -61,6 +62,10 @@ from common.messages import (
     SubscribeRefused,
     encode,
 )
+from common.messages.graphics import GraphicsRejected
+from common.messages.interaction import InteractionError
+from common.messages.physics import PhysicsRejected
+from common.messages.sound import SoundRejected
 from common.messages.system import TOOL_ROLE
 from common.peers import Peer, PeerTable
 from common.rated_log import RatedWarnings
@@ -103,6 +108,12 @@ controls' figures, in a budget of its own, so a flood of bad controls does not s
 that would show them counted. The rig asks every 0.5 s until answered, ``batteur ls`` once, peers once when found."""
 HELLO_ANSWER_BURST = DECODE_REPLY_BURST
 """Hellos answered to one sender host at once before :data:`HELLO_ANSWER_RATE_HZ`."""
+WRONG_NODE_REPLY_RATE_HZ = DECODE_REPLY_RATE_HZ
+"""Controls of another service (``wrong_node``) answered with this node's refusal per second to one sender host, past
+:data:`WRONG_NODE_REPLY_BURST`; the rest are dropped as before, unanswered (``wrong_node_unanswered``): the undecodable
+controls' figures, in a budget of its own, so a forged source cannot make a node a reflector."""
+WRONG_NODE_REPLY_BURST = DECODE_REPLY_BURST
+"""Controls of another service answered to one sender host at once before :data:`WRONG_NODE_REPLY_RATE_HZ`."""
 PONG_ADDRESS_RATE_HZ = 25.0
 """Clock pings answered per second to one sender address (``host:port``: a node pings from its one socket), past
 :data:`PONG_ADDRESS_BURST`; the rest are dropped unanswered, counted as ``rate_limited`` (Health's ``dropped_other``).
@@ -334,6 +345,23 @@ Setup = Callable[["Node"], Awaitable[None] | None]
 """Called with the node once it listens (may be async)."""
 
 
+def wrong_node_refusal(role: str, address: str, reason: str) -> OscMessage | None:
+    """The refusal a node of the service ``role`` answers a control of another service at ``address`` with: its own
+    service's (/batteur/physics/rejected, /batteur/sound/rejected, /batteur/interaction/error,
+    /batteur/graphics/rejected), naming ``address`` and ``reason`` (clipped to 512 characters); None for a role
+    with no refusal message."""
+    reason = _clip(reason, 512)
+    if role == "physics":
+        return PhysicsRejected(address=address, reason=reason)
+    if role == "sound":
+        return SoundRejected(address=address, instrument="", reason=reason)
+    if role == "interaction":
+        return InteractionError(request=address, detail=reason)
+    if role == "graphics":
+        return GraphicsRejected(address=address, reason=reason)
+    return None
+
+
 def _clip(text: str, length: int) -> str:
     """``text`` cut to ``length`` characters (an ellipsis at the end when cut)."""
     return text if len(text) <= length else text[: length - 3] + "..."
@@ -476,6 +504,10 @@ class Node:
         """Sender host -> its budget of Hellos answered (:data:`HELLO_ANSWER_RATE_HZ`), on ``time.monotonic``."""
         self._pong_budget = PongBudget()
         """Clock pings answered per sender address and host (:data:`PONG_ADDRESS_RATE_HZ`), on ``time.monotonic``."""
+        self._wrong_node_budgets = TokenBuckets(WRONG_NODE_REPLY_RATE_HZ, WRONG_NODE_REPLY_BURST)
+        """Sender host -> its budget of refusals of another service's controls (:meth:`_refuse_wrong_node`)."""
+        self.wrong_node_unanswered = 0
+        """Controls of another service dropped without the refusal: their sender host was over its budget."""
         self.oscquery: Any = None
         """The OSCQuery server (``common.oscquery.OscQueryServer``) once started, or None."""
         if self.is_clock_master:
@@ -859,9 +891,11 @@ class Node:
         elif isinstance(message, Health):
             self.peer_health[message.node_id] = (message, source, time.monotonic())
         owner = taken_elsewhere(type(message), self._service)
-        if owner:  # its core would ignore it: counted and said (rated, per reason), so the sender can find out
-            endpoint.stats.record_drop(DropReason.WRONG_NODE, f"{message.ADDRESS} is a control of {owner}: this "
-                                       f"{self._service} node does not take it (send it to a {owner} node)", source)
+        if owner:  # its core would ignore it: counted, said (rated, per reason) and answered, so the sender finds out
+            why = (f"{message.ADDRESS} is a control of {owner}: this {self._service} node does not take it (send it "
+                   f"to a {owner} node)")
+            endpoint.stats.record_drop(DropReason.WRONG_NODE, why, source)
+            self._refuse_wrong_node(message, why, source)
             return
         if not self.core_started:
             self._held.append((message, source))
@@ -870,6 +904,24 @@ class Node:
             self.route(self.core.handle(message, self.clock.now(), source), reply_to=source)
         finally:
             self.follow_core_rate()
+
+    def _refuse_wrong_node(self, message: OscMessage, why: str, source: str) -> None:
+        """Answer a control of another service with this node's own refusal (:func:`wrong_node_refusal`: physics'
+        /batteur/physics/rejected naming /batteur/sound/level), within its sender host's budget
+        (:data:`WRONG_NODE_REPLY_RATE_HZ`; past it only counted, ``wrong_node_unanswered``): ``batteur send --to
+        HOST:PORT`` of the wrong node said "no reply" and exited 0. Never a loop: a refusal, or any answer, is no
+        control taken elsewhere (:func:`~common.transport.taken_elsewhere`), so no node answers this one."""
+        reply = wrong_node_refusal(self._service, message.ADDRESS, why)
+        if reply is None or self.endpoint is None:
+            return
+        try:
+            host = parse_address(source)[0]
+        except ValueError:
+            return  # no address to answer
+        if not self._wrong_node_budgets.take(host, time.monotonic()):
+            self.wrong_node_unanswered += 1
+            return
+        self.endpoint.send(reply, source)
 
     def _hello_within_budget(self, source: str) -> bool:
         """Whether a Hello from ``source`` (``host:port``) is answered: its host within its budget
@@ -1156,6 +1208,15 @@ class Node:
 
 # --------------------------------------------------------------------------- command line
 
+def stopped_while_starting(role: str, signal_name: str) -> str:
+    """What a node logs when a stop came while it was starting (:class:`StoppedWhileStarting`, ``signal_name``: the
+    signal's): it was asked to stop and did, cleanly; "physics stopped while starting (SIGTERM)" read like a crash
+    after the user's Ctrl-C on ``batteur rig``, which stops its services with SIGTERM (a node cannot tell who sent
+    it: the rig on Ctrl-C, its --duration's end or another service's exit, or a service manager)."""
+    why = "Ctrl-C" if signal_name == "SIGINT" else "how batteur rig stops its services, on Ctrl-C say"
+    return f"{role} was asked to stop while starting ({signal_name}: {why}): stopped cleanly before it listened"
+
+
 class StoppedWhileStarting(BaseException):
     """Raised in the main thread by SIGINT or SIGTERM while :func:`run_node`'s ``make_core`` runs: it unwinds the
     core's making, whose code closes what it had started (``except BaseException``, as for Ctrl-C), and the node
@@ -1338,7 +1399,7 @@ def run_node(
         signals.install()
         return _make_and_run(parser.prog, make_core, settings, extra, signals, setup, discovery_factory)
     except StoppedWhileStarting as stop:  # before make_core began
-        log.info("%s stopped while starting (%s)", role, stop)
+        log.info("%s", stopped_while_starting(role, str(stop)))
         return 0
     finally:
         signals.restore()
@@ -1365,7 +1426,7 @@ def _make_and_run(prog: str, make_core: MakeCore, settings: NodeSettings, extra:
     except StoppedWhileStarting as stop:
         if core is not None:  # made already: the node was not
             _close_core(core)
-        log.info("%s stopped while starting (%s)", settings.role, stop)
+        log.info("%s", stopped_while_starting(settings.role, str(stop)))
         return 0
     try:
         asyncio.run(node.run(install_signal_handlers=True, setup=setup, freeze_gc=True))

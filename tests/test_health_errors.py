@@ -85,6 +85,7 @@ def test_ls_shows_the_errors(capsys: pytest.CaptureFixture[str]) -> None:
         assert (row["errors"], row["duplicates"]) == (5, 24)
         assert ls.main(["--node", f"127.0.0.1:{node.port}", "--timeout", "3"]) == 0
         header, line = capsys.readouterr().out.splitlines()[:2]
-        assert header.split()[8] == "errors" and line.split()[6] == "5"
+        # after the status: rate/target Hz, late, dropped (the header's "node id" and "rate/target Hz" two words)
+        assert header.split()[9] == "errors" and line.split()[7] == "5"
     finally:
         node.close()

@@ -138,6 +138,25 @@ def test_the_rig_says_whether_sound_recorded(tmp_path: Path) -> None:
     assert out_text.getvalue() == f"batteur rig: recorded {tmp_path / rig.RECORDING}\n"
 
 
+def test_the_rig_says_a_take_without_audio_is_empty(tmp_path: Path) -> None:
+    """A rig stopped while its nodes started: sound named a 0-frame take (112 bytes, a header) and the rig said
+    "recorded" as for a performance."""
+    out, err, out_text, err_text = _outputs()
+    before = rig.recording_state(tmp_path)
+    take = tmp_path / rig.RECORDING
+    sf.write(tmp_path / ".new", np.zeros((0, 2)), 48000, subtype="PCM_24", format="WAV")  # as sound closes it
+    (tmp_path / ".new").replace(take)
+    assert take.stat().st_size > 0 and sf.info(take).frames == 0
+    rig.finish_recording(tmp_path, True, out, err, before)
+    assert out_text.getvalue() == ""
+    assert err_text.getvalue() == (f"batteur rig: the take is empty: {take} holds no audio (0 frames: sound played "
+                                   "nothing, stopped before its audio started)\n")
+    sf.write(tmp_path / ".new", np.full((256, 2), 0.25), 48000, subtype="PCM_24", format="WAV")  # the next take
+    (tmp_path / ".new").replace(take)
+    rig.finish_recording(tmp_path, True, out, err)  # before None: any take there is new
+    assert out_text.getvalue() == f"batteur rig: recorded {take}\n"
+
+
 def test_a_sound_node_that_fails_leaves_an_earlier_take_alone(tmp_path: Path) -> None:
     # the rig now gives sound the final name: a node that fails (here: its port is taken) must not name its take
     # (was: the empty take renamed over the earlier one as the node closed)

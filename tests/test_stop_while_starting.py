@@ -21,7 +21,7 @@ from pathlib import Path
 import pytest
 
 from common.config import load_settings
-from common.runtime import Node, run_node
+from common.runtime import Node, run_node, stopped_while_starting
 from tests.null_core import NullCore
 from tests.ports import free_port
 from tests.waiting import until
@@ -140,12 +140,26 @@ def test_any_node_stopped_while_its_core_is_made_stops_at_once_and_cleans_up() -
     helper = int(node.stdout.split()[0])
     try:
         assert node.returncode == 0, node.stderr[-3000:]
-        assert "sound stopped while starting (SIGTERM)" in node.stderr
+        # asked to stop, not a crash: the rig stops its services with SIGTERM on the user's Ctrl-C
+        assert ("sound was asked to stop while starting (SIGTERM: how batteur rig stops its services, on Ctrl-C "
+                "say): stopped cleanly before it listened") in node.stderr, node.stderr[-3000:]
+        assert "sound stopped while starting" not in node.stderr
         assert "listening on" not in node.stderr
         assert not _alive(_stat(helper))
     finally:
         if _alive(_stat(helper)):
             os.kill(helper, signal.SIGKILL)
+
+
+@pytest.mark.parametrize(("signal_name", "said"), [
+    ("SIGTERM", "(SIGTERM: how batteur rig stops its services, on Ctrl-C say)"),
+    ("SIGINT", "(SIGINT: Ctrl-C)"),
+])
+def test_a_stop_while_starting_says_the_node_was_asked_to_stop(signal_name: str, said: str) -> None:
+    """"physics stopped while starting (SIGTERM)" after a Ctrl-C on the rig read like a crash."""
+    line = stopped_while_starting("physics", signal_name)
+    assert line.startswith("physics was asked to stop while starting ") and said in line
+    assert line.endswith("stopped cleanly before it listened")
 
 
 class ClosingCore(NullCore):

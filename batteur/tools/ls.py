@@ -36,10 +36,25 @@ from common.transport import UdpEndpoint
 
 DESCRIPTION = """\
 List the Batteur nodes found by zeroconf (or given with --node), each with the Health it
-answers to a Hello: role, node id, address, loop rate, dropped messages, errors (failures inside
-the service, such as a drum whose strikes fail: its log has the first with its traceback),
-peers, and how its clock follows the rig clock (the clock master's, physics' unless
---clock-master says otherwise), from the ClockStatus it sends after its Health (column clock):
+answers to a Hello: role, node id, address, status, loop rate against its target, late events,
+dropped messages, errors (failures inside the service, such as a drum whose strikes fail: its log
+has the first with its traceback), peers, and how its clock follows the rig clock (the clock
+master's, physics' unless --clock-master says otherwise), from the ClockStatus it sends after its
+Health (column clock).
+
+Column status:
+  ok
+      the node answered, its loop keeping at least half its target rate
+  behind
+      it answered, but its loop ran under half its target rate over the last second (column
+      rate/target Hz, e.g. 5.5/1000): the node skips steps to keep up with the rig clock, its
+      service falls behind it (physics: the drummer plays late, its late events, column late,
+      grow). A loop a little under its target is a busy machine's usual (sound at 186.7/187.5)
+      and stays ok; a rate of 0 is not judged: the node has not stepped yet (its first second,
+      or its core waiting for its clock master); "-" as the target: an event-driven node
+  no answer, no address
+      no Health came back; the node announced no usable address
+Column clock:
   master
       this node's clock is the rig clock
   synced +/- 0.05 ms, rtt 0.12 ms
@@ -63,8 +78,35 @@ Browses on --interface, else on the interfaces in BATTEUR_INTERFACES (where the 
 compose container announce: `docker compose exec graphics batteur ls` lists the rig), else on
 loopback.
 
-Exit status: 0 when every node listed answered, 1 when one did not (or none was found),
-2 on bad arguments; so `batteur ls --node 127.0.0.1:9103` is a healthcheck."""
+Exit status: 0 when every node listed answered (behind too: it runs), 1 when one did not (or
+none was found), 2 on bad arguments; so `batteur ls --node 127.0.0.1:9103` is a healthcheck."""
+
+
+BEHIND_FRACTION = 0.5
+"""A node whose loop ran under this fraction of its target rate over the last Health interval is ``behind``. Under
+its target at all, a loop has skipped deadlines (docs/runtime.md, "Fixed-rate loop": it never quietly runs slower),
+but a few percent is a busy machine's usual (sound at 186.7 Hz of 187.5 on a rig that kept time); under half, it
+misses more steps than it takes: a walkthrough's physics at 5.5 Hz of 1000 had counted 16513 late events; one at
+13.5 Hz logged 136 steps behind the rig clock, its drummer playing 86 ms late. Health's docs give no threshold:
+half is this tool's."""
+ANSWERED = ("ok", "behind")
+"""The statuses of a node that answered (exit status 0)."""
+
+
+def status_of(health: Health) -> str:
+    """``behind`` when the node's loop rate is under :data:`BEHIND_FRACTION` of its target (a rate of 0: not stepped
+    yet, not judged; a target of 0: event-driven, no loop), else ``ok``."""
+    target, rate = health.target_rate_hz, health.rate_hz
+    return "behind" if target > 0 and 0 < rate < BEHIND_FRACTION * target else "ok"
+
+
+def rate_text(row: dict[str, object]) -> str:
+    """The ``rate/target Hz`` column: ``5.5/1000``; ``0.0/-`` for an event-driven node (target 0); "" without a
+    Health."""
+    if "rate_hz" not in row:
+        return ""
+    target = row.get("target_rate_hz")
+    return f"{row['rate_hz']}/{f'{target:g}' if isinstance(target, float | int) and target > 0 else '-'}"
 
 
 CLOCK_GRACE_S = 0.25
@@ -159,7 +201,7 @@ def _row(target: Target, health: Health | None, clock: ClockStatus | None = None
         row["status"] = "no answer"
         return row
     row.update(
-        role=health.role, node_id=health.node_id, status="ok", protocol=health.protocol,
+        role=health.role, node_id=health.node_id, status=status_of(health), protocol=health.protocol,
         rig_time_s=round(health.time, 3),  # when it answered: a timed message (an impact, a score's start) needs it
         rate_hz=round(health.rate_hz, 1), target_rate_hz=health.target_rate_hz, overruns=health.overruns,
         messages_in=health.messages_in, messages_out=health.messages_out, dropped=health.dropped,
@@ -176,12 +218,12 @@ def _row(target: Target, health: Health | None, clock: ClockStatus | None = None
 
 def table(rows: Sequence[dict[str, object]]) -> list[str]:
     """The rows as aligned text lines, a header first."""
-    lines = [f"{'role':<12} {'node id':<28} {'address':<22} {'status':<10} {'rate Hz':>8} {'dropped':>8} "
-             f"{'errors':>6} {'peers':>5} clock"]
+    lines = [f"{'role':<12} {'node id':<28} {'address':<22} {'status':<10} {'rate/target Hz':>14} {'late':>6} "
+             f"{'dropped':>8} {'errors':>6} {'peers':>5} clock"]
     for r in rows:
         lines.append(f"{r['role']!s:<12} {r['node_id']!s:<28} {r['address']!s:<22} {r['status']!s:<10} "
-                     f"{r.get('rate_hz', '')!s:>8} {r.get('dropped', '')!s:>8} {r.get('errors', '')!s:>6} "
-                     f"{r.get('peers', '')!s:>5} {r.get('clock', '')!s}".rstrip())
+                     f"{rate_text(r):>14} {r.get('late', '')!s:>6} {r.get('dropped', '')!s:>8} "
+                     f"{r.get('errors', '')!s:>6} {r.get('peers', '')!s:>5} {r.get('clock', '')!s}".rstrip())
     return lines
 
 
@@ -197,7 +239,7 @@ async def _run(opts: argparse.Namespace) -> int:
             for t, h in zip(targets, match_answers(targets, answers), strict=True)]
     for line in [json.dumps(rows, indent=2)] if opts.json else table(rows):
         write_line(line)
-    return 0 if all(r["status"] == "ok" for r in rows) else 1
+    return 0 if all(r["status"] in ANSWERED for r in rows) else 1
 
 
 def main(argv: Sequence[str] | None = None) -> int:

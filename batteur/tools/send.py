@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import difflib
 import math
 import re
 import select
@@ -188,12 +189,26 @@ def typed_args(address: str, texts: Sequence[str]) -> list[Arg]:
 
 def wrong_role(model: type[OscMessage] | None, target: str) -> str | None:
     """Why ``--to ROLE`` would lose the control ``model`` (a service's node takes only its own service's controls,
-    and drops the others' unanswered, counted as ``wrong_node``: a live note sent to interaction), or None: the
-    nodes' own rule (:func:`common.transport.taken_elsewhere`)."""
+    and drops the others, counted as ``wrong_node`` and answered with its refusal: a live note sent to interaction),
+    or None: the nodes' own rule (:func:`common.transport.taken_elsewhere`). Refused here before any is sent; sent
+    ``--to HOST:PORT`` of such a node, the node's refusal is what ``--replies`` shows."""
     owner = taken_elsewhere(model, target) if model is not None else ""
     if model is None or not owner:
         return None
     return f"--to {target}: {model.ADDRESS} is a control of {owner}; {target} nodes ignore it (--to {owner})"
+
+
+SIMILAR = 0.8
+"""How alike a registered address must be to be suggested for an unregistered one (difflib's ratio: 0.8 takes a
+letter or two more, less or swapped in a /batteur/FAMILY/NAME address, and leaves /my/synth/freq without one). A
+suggestion only: registered addresses can be as alike (/batteur/sound/model and /batteur/sound/modes)."""
+
+
+def did_you_mean(address: str) -> str:
+    """`` (did you mean /batteur/score/tempo?)`` for an address close to a registered one (``/batteur/score/tempoo``:
+    a typo), else ""."""
+    close = difflib.get_close_matches(address, sorted(m.ADDRESS for m in REGISTRY), n=1, cutoff=SIMILAR)
+    return f" (did you mean {close[0]}?)" if close else ""
 
 
 def check_raw_address(address: str) -> None:
@@ -267,8 +282,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 def _send(opts: argparse.Namespace) -> int:
     model = REGISTRY.get(opts.address)
     if model is None and not opts.raw:
-        return report_error(PROG, f"no message is registered at {opts.address} (see docs/osc.md; --raw sends it "
-                            "anyway)", USAGE)
+        return report_error(PROG, f"no message is registered at {opts.address}{did_you_mean(opts.address)} (see "
+                            "docs/osc.md; --raw sends it anyway)", USAGE)
     try:
         if model is None:
             check_raw_address(opts.address)
