@@ -54,6 +54,8 @@ class Bvh:
 
 CHANNEL_NAMES = frozenset(f"{axis}{kind}" for axis in "xyz" for kind in ("position", "rotation"))
 """The channel names a BVH may list (compared lower-case): Xposition ... Zrotation."""
+_CHANNEL_SPELLINGS = tuple(f"{axis}{kind}" for kind in ("position", "rotation") for axis in "XYZ")
+""":data:`CHANNEL_NAMES` as files spell them, for messages."""
 
 
 def _line_of(text: str, index: int) -> int:
@@ -65,6 +67,27 @@ def _line_of(text: str, index: int) -> int:
             return text.count("\n", 0, token.start()) + 1
         last = token.end()
     return text.count("\n", 0, last) + 1
+
+
+_STRUCTURE = frozenset(("ROOT", "JOINT", "END", "OFFSET", "CHANNELS", "MOTION", "{", "}"))
+"""Words of a BVH's hierarchy: one among a joint's channel names means its CHANNELS count is too high."""
+
+
+def _channel_problem(tokens: list[str], count_at: int, n: int, k: int, where: str, count_line: int) -> str:
+    """What is wrong with the channel names of a ``CHANNELS n`` (token ``count_at``, line ``count_line``) whose
+    ``k``-th name (0-based) is not one: the names it lists and the valid ones."""
+    listed: list[str] = []
+    for token in tokens[count_at + 1:count_at + 1 + n]:
+        if token.upper() in _STRUCTURE:
+            break
+        listed.append(token)
+    valid = f"valid names: {' '.join(_CHANNEL_SPELLINGS)}"
+    if len(listed) == k:  # the hierarchy goes on after k names: the count is too high
+        return (f"{where}: {tokens[count_at + 1 + k]!r} is not a channel name: its CHANNELS {n} (line {count_line}) "
+                f"names {k}{' (' + ' '.join(listed) + ')' if listed else ''}; {valid}")
+    bad = [repr(t) for t in listed if t.lower() not in CHANNEL_NAMES]
+    return (f"{where}: its CHANNELS {n} (line {count_line}) names {' '.join(listed)}: {', '.join(bad)} "
+            f"{'is not a channel name' if len(bad) == 1 else 'are not channel names'}; {valid}")
 
 
 def parse_bvh(text: str, name: str = "<bvh>") -> Bvh:
@@ -79,6 +102,8 @@ def parse_bvh(text: str, name: str = "<bvh>") -> Bvh:
     def take() -> str:
         nonlocal pos
         if pos >= len(tokens):
+            if not tokens:  # nothing at all: not a truncated file
+                raise BvhError(f"{name}: empty file (a BVH starts with HIERARCHY)")
             raise BvhError(f"{name}: file ended early (truncated hierarchy or motion)")
         pos += 1
         return tokens[pos - 1]
@@ -127,8 +152,8 @@ def parse_bvh(text: str, name: str = "<bvh>") -> Bvh:
             for k in range(n):
                 channel = take()
                 if channel.lower() not in CHANNEL_NAMES:
-                    raise BvhError(f"{at(pos - 1)}: joint {jname}: {channel!r} is not a channel name (Xposition ... "
-                                   f"Zrotation): its CHANNELS {n} (line {_line_of(text, count_at)}) names {k}")
+                    raise BvhError(_channel_problem(tokens, count_at, n, k, f"{at(pos - 1)}: joint {jname}",
+                                                    _line_of(text, count_at)))
                 channels.append(channel)
             parent = stack[-1] if stack else -1
             joints.append(BvhJoint(jname, offset, channels, parent))

@@ -207,8 +207,8 @@ def anthropometry(height_m: float = 1.75, mass_kg: float = 73.0, sex: Sex = "mal
     widths.update({k: v for k, v in given.items() if k in widths})
     clav_len = widths["shoulder_width"] / 2 - CLAVICLE_MIDLINE_OFFSET * scale  # as the character places it
     if clav_len < 0.01:
-        raise ValueError(f"shoulder_width {widths['shoulder_width']} m is implausible for a performer of "
-                         f"{height_m} m (no room for the clavicles)")
+        raise ValueError(f"shoulder_width {_rounded(widths['shoulder_width'])} m is implausible for a performer of "
+                         f"{_rounded(height_m)} m (no room for the clavicles)")
     seg["clavicle"] = Segment("clavicle", clav_len, girdle_mass, clav_len / 2,
                               (0.2 * clav_len, 0.3 * clav_len, 0.3 * clav_len))
     if "shoulder_height" in given:
@@ -233,10 +233,16 @@ def _checked_lengths(lengths_m: dict[str, float]) -> dict[str, float]:
             raise ValueError(f"unknown segment {name!r} (known: {', '.join(known)})")
         low, high = WHOLE_LENGTHS.get(name, (0.01, 1.5))
         if not low <= length <= high:
-            raise ValueError(f"segment {name} length {length} m is implausible (expected {low:g} ... {high:g} m)")
+            raise ValueError(f"segment {name} length {_rounded(length)} m is implausible (expected {low:g} ... "
+                             f"{high:g} m)")
     if "trunk" in lengths_m and "shoulder_height" in lengths_m:
         raise ValueError("give the trunk or the shoulder_height, not both (one sets the other)")
     return dict(lengths_m)
+
+
+def _rounded(length_m: float) -> float:
+    """A length to 3 significant digits, for messages (a skeleton's 2.8000000000000007 m is 2.8 m)."""
+    return float(f"{length_m:.3g}")
 
 
 def _resized(old: Segment, length_m: float) -> Segment:

@@ -5,7 +5,9 @@ its motion onto our 19 joints (docs/physics.md, "Joint limits"):
 
 1. **Segments.** Each of our links (pelvis, abdomen, thorax, neck, head, and per side clavicle, upper arm,
    forearm, hand, thigh, shank, foot) is the frame of one BVH joint, found by name (:data:`SEGMENT_NAMES`: our
-   own export, CMU, Mixamo, Biovision, Poser/DAZ spellings) among the descendants of the link's parent's joint.
+   own export, CMU, Mixamo, Biovision, Poser/DAZ, Blender metarig and Unreal mannequin spellings, a side given
+   as a prefix or a suffix) among the descendants of the link's parent's joint; two joints for one link are an
+   error, not a guess.
    BVH joints between two of them (CMU's Spine between LowerBack and Spine1) are folded into the rotation.
 2. **Axes.** Up is from the hips to the head in the rest pose, right from the left shoulder (or hip) to the
    right one: ``C`` maps the file's vectors to ours (x right, y forward, z up).
@@ -22,8 +24,10 @@ clavicle gives the shoulder the whole rotation. Joints the file lacks keep their
 
 from __future__ import annotations
 
+import logging
 import math
 import re
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -34,27 +38,51 @@ from common.gesture.bvh import Bvh, BvhError, read_bvh, rest_positions, world_fr
 from common.score.limbs import LimbLengths
 from services.physics.mocap import MotionClip
 
+log = logging.getLogger("batteur.physics.limits")
+
 _SIDE_WORDS = {"left": ("left", "l"), "right": ("right", "r")}
 
 _LIMB_NAMES: dict[str, tuple[str, ...]] = {
-    # {side}: left/right, {s}: l/r; names compared lower-case without separators or a "namespace:" prefix.
+    # {side}: left/right, {s}: l/r; names compared lower-case without separators or a "namespace:" prefix, a side
+    # suffix (Blender's upper_arm.L, Unreal's upperarm_l) turned into a prefix (:func:`_normalise`).
     # Order matters where conventions disagree: Biovision's LeftShoulder is the upper arm (beside its
-    # LeftCollar), CMU's and Mixamo's the clavicle (beside their LeftArm); the upper arm is matched first.
+    # LeftCollar), CMU's and Mixamo's the clavicle (beside their LeftArm), Blender's shoulder.L too (beside its
+    # upper_arm.L); the upper arm is matched first.
     "upper_arm": ("{side}upperarm", "{side}arm", "{side}uparm", "{s}shldr", "{s}upperarm", "{side}shoulder"),
     "clavicle": ("{side}clavicle", "{side}collar", "{s}collar", "{s}clavicle", "{side}shoulder"),
     "forearm": ("{side}forearm", "{side}lowerarm", "{side}lowarm", "{s}forearm", "{side}elbow"),
     "hand": ("{side}hand", "{s}hand", "{side}wrist"),
     "thigh": ("{side}thigh", "{side}upleg", "{side}upperleg", "{s}thigh", "{side}hip"),
-    "shank": ("{side}shank", "{side}leg", "{side}lowerleg", "{side}lowleg", "{side}shin", "{s}shin", "{side}knee"),
+    "shank": ("{side}shank", "{side}leg", "{side}lowerleg", "{side}lowleg", "{side}shin", "{s}shin", "{side}calf",
+              "{side}knee"),
     "foot": ("{side}foot", "{s}foot", "{side}ankle"),
 }
 _CENTRAL_NAMES: dict[str, tuple[str, ...]] = {
+    # Blender's metarig numbers its spine bones with three digits (spine: the hips, spine.001 ... spine.003 the
+    # chest, spine.004 the neck, spine.006 the head), Unreal's mannequin with two (spine_01 ... spine_03 in UE4,
+    # ... spine_05 in UE5, the chest the last; neck_01): neither is mistaken for the other or for Mixamo's Spine1.
     "pelvis": ("pelvis", "hips", "hip", "root"),
-    "abdomen": ("abdomen", "lowerback", "spine", "spine0"),
-    "thorax": ("thorax", "upperchest", "chest", "spine3", "spine2", "spine1"),
-    "neck": ("neck", "neck1"),
-    "head": ("head",),
+    "abdomen": ("abdomen", "lowerback", "spine", "spine0", "spine001", "spine01"),
+    "thorax": ("thorax", "upperchest", "chest", "spine3", "spine2", "spine1", "spine003", "spine002", "spine05",
+               "spine04", "spine03", "spine02"),
+    "neck": ("neck", "neck1", "neck01", "spine004"),
+    "head": ("head", "spine006", "spine005"),
 }
+
+NAME_FAMILIES: tuple[tuple[str, str], ...] = (
+    ("Mixamo / CMU", "Hips, Spine, Spine1, Neck, Head, LeftShoulder, LeftArm, LeftForeArm, LeftHand, LeftUpLeg, "
+                     "LeftLeg, LeftFoot"),
+    ("Blender metarig / Rigify", "spine, spine.001 ... spine.006, shoulder.L, upper_arm.L, forearm.L, hand.L, "
+                                 "thigh.L, shin.L, foot.L (DEF- bones too)"),
+    ("Unreal mannequin", "pelvis, spine_01 ... spine_05, neck_01, head, clavicle_l, upperarm_l, lowerarm_l, hand_l, "
+                         "thigh_l, calf_l, foot_l"),
+    ("Biovision / Poser / DAZ", "LeftCollar, LeftShoulder, LeftElbow, LeftWrist, LeftHip, LeftKnee, LeftAnkle; "
+                                "lCollar, lShldr, lForeArm, lHand, lThigh, lShin, lFoot"),
+    ("Batteur's own", "pelvis, abdomen, thorax, neck, head, left_clavicle, left_upper_arm, left_forearm, left_hand, "
+                      "left_thigh, left_shank, left_foot"),
+)
+"""The joint-name conventions :data:`SEGMENT_NAMES` knows, with examples (left side; the right alike), for
+messages."""
 
 
 def _segment_names() -> dict[str, tuple[str, ...]]:
@@ -109,14 +137,30 @@ SHARED: dict[str, tuple[str, str]] = {"abdomen": ("lumbar", "thoracic"), "neck":
 """A central link the BVH lacks -> our two joints that share the rotation across it equally."""
 
 
+_SIDE_SUFFIX = re.compile(r"^(?P<base>.+?)[\s_\-.](?P<side>l|r|left|right)$", re.IGNORECASE)
+"""A side given after the name (Blender's ``upper_arm.L``, Unreal's ``upperarm_l``, ``thigh-R``)."""
+
+
 def _normalise(name: str) -> str:
-    return re.sub(r"[\s_\-.]", "", name.rsplit(":", 1)[-1]).lower()
+    """A joint's name as :data:`SEGMENT_NAMES` spells it: without a ``namespace:`` prefix (Mixamo's) or a Blender
+    ``DEF-`` one, a side suffix made a prefix (``upper_arm.L``: ``leftupperarm``), lower case without separators."""
+    bare = name.rsplit(":", 1)[-1]
+    bare = re.sub(r"^def[\-_.]", "", bare, flags=re.IGNORECASE)
+    match = _SIDE_SUFFIX.match(bare)
+    if match is not None:
+        side = match["side"].lower()
+        bare = ("left" if side in ("l", "left") else "right") + match["base"]
+    return re.sub(r"[\s_\-.]", "", bare).lower()
 
 
-def map_segments(bvh: Bvh) -> dict[str, int]:
+def map_segments(bvh: Bvh, name: str = "<bvh>") -> dict[str, int]:
     """Our link -> the index of the BVH joint standing for it (only the links found; the pelvis always, the BVH
     root if no joint is named for it). A link's joint must descend from its parent link's (or the nearest
-    mapped ancestor's), and no BVH joint stands for two links."""
+    mapped ancestor's), and no BVH joint stands for two links.
+
+    Raises :class:`BvhError` (``name``: the file) when two joints could stand for one link by the same name
+    (``upper_arm.L`` beside ``DEF-upper_arm.L``, ``LeftHand`` beside ``hand.L``): which one is meant is not
+    guessed."""
     normal = [_normalise(j.name) for j in bvh.joints]
     ancestors: list[set[int]] = []
     for j in bvh.joints:
@@ -125,9 +169,13 @@ def map_segments(bvh: Bvh) -> dict[str, int]:
     used: set[int] = set()
     for link in MATCH_ORDER:
         above = _mapped_ancestor(link, found)
-        for name in SEGMENT_NAMES[link]:
-            hits = [i for i, n in enumerate(normal) if n == name and i not in used
+        for candidate in SEGMENT_NAMES[link]:
+            hits = [i for i, n in enumerate(normal) if n == candidate and i not in used
                     and (above is None or found[above] in ancestors[i])]
+            if len(hits) > 1:
+                joints = " and ".join(repr(bvh.joints[i].name) for i in hits[:3])
+                raise BvhError(f"{name}: joints {joints} could each be the {link.replace('_', ' ')}: rename or "
+                               "remove all but one (which one is meant is not guessed)")
             if hits:
                 found[link] = hits[0]
                 used.add(hits[0])
@@ -136,6 +184,15 @@ def map_segments(bvh: Bvh) -> dict[str, int]:
             found["pelvis"] = 0
             used.add(0)
     return found
+
+
+def unmatched_words(bvh: Bvh) -> str:
+    """What a file none of whose joints is found by name is told: the names it has (the first few) and the
+    conventions known (:data:`NAME_FAMILIES`)."""
+    names = [j.name for j in bvh.joints]
+    seen = ", ".join(names[:8]) + (f", ... ({len(names)} joints)" if len(names) > 8 else "")
+    known = "; ".join(f"{family}: {examples}" for family, examples in NAME_FAMILIES)
+    return f"its joints are {seen}; the names known are those of {known}"
 
 
 def _mapped_ancestor(link: str, found: dict[str, int]) -> str | None:
@@ -219,7 +276,7 @@ def bvh_clip(bvh: Bvh, name: str = "<bvh>", where: str | None = None) -> MotionC
     pose does not tell up and right).
     """
     where = where or name
-    segments = map_segments(bvh)
+    segments = map_segments(bvh, where)
     rest = rest_positions(bvh)
     c = body_axes(rest, segments, where)
     to_ours = Rotation.from_matrix(c)
@@ -248,48 +305,66 @@ def bvh_clip(bvh: Bvh, name: str = "<bvh>", where: str | None = None) -> MotionC
         if f"{side}_clavicle" not in frames and arm in frames and "thorax" in frames:
             rotations[f"{side}_shoulder"] = frames["thorax"].inv() * frames[arm]
     if not rotations:
-        raise BvhError(f"{where}: none of its joints ({', '.join(j.name for j in bvh.joints[:8])}, ...) could be "
-                       "matched to the body's (hips, spine, neck, head, arms, legs by their usual BVH names)")
+        raise BvhError(f"{where}: none of its joints could be matched to the body's (hips, spine, neck, head, arms, "
+                       f"legs by their usual BVH names): {unmatched_words(bvh)}")
     times = np.arange(len(bvh.motion)) * bvh.frame_time
     return MotionClip(name, times, rotations)
 
 
 def load_bvh_clip(path: str | Path) -> MotionClip:
     """:func:`bvh_clip` of a BVH file, named by its stem; :class:`BvhError` (a ``ValueError``) naming the file
-    for one that cannot be read or has fewer than two frames."""
+    for one that cannot be read or has fewer than two frames. A clip whose frames all hold one pose (a T-pose
+    exported on its own) is logged once: it tells no range of motion."""
     p = Path(path)
     bvh = read_bvh(p)
     if len(bvh.motion) < 2:
         raise BvhError(f"{p}: {len(bvh.motion)} motion frame(s): a range of motion needs at least two")
-    return bvh_clip(bvh, p.stem, str(p))
+    clip = bvh_clip(bvh, p.stem, str(p))
+    if bool(np.all(bvh.motion == bvh.motion[0])):
+        log.warning("clip %s has no motion (its %d frames hold one pose): it tells no range, so its joints keep "
+                    "their anatomical limits (beside other clips it only adds that pose)", p, len(bvh.motion))
+    return clip
 
 
 LENGTH_SEGMENTS: tuple[str, ...] = ("upper_arm", "forearm", "thigh", "shank")
 """The limb segments whose length a skeleton tells without doubt: from one joint centre to the next (a hand's or
 a foot's end is placed differently from one convention to another, so they keep the table's)."""
 
+SKELETON_UNITS: dict[str, float] = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}
+"""A skeleton file's length unit -> metres per unit (a BVH does not say its unit)."""
+UNIT_WORDS: dict[str, str] = {"m": "metres", "cm": "centimetres", "mm": "millimetres", "in": "inches"}
+CENTIMETRES_ABOVE = 3.0
+"""The first guess of a skeleton's unit: centimetres when an offset is longer than this, else metres (no joint
+of a performer is 3 m from its parent)."""
 
-def bvh_segment_lengths(path: str | Path, units_to_m: float | None = None) -> dict[str, float]:
-    """Lengths (metres) from a BVH skeleton's rest pose, for :func:`anthropometry`'s ``lengths_m``, each measured
-    between joint centres found by :func:`map_segments` (what the file lacks is left out):
 
-    - :data:`LENGTH_SEGMENTS`, the mean of both sides where both are;
-    - ``neck``: the neck joint to the head joint;
-    - ``shoulder_height``: the shoulder joints' height above the hip joints (midpoints; what places the arms at
-      the kit), or where the file has no shoulders, ``trunk``: the neck joint's;
-    - ``shoulder_width`` and ``hip_width``: between the two shoulder joints, the two hip joints.
+@dataclass(frozen=True)
+class SkeletonReading:
+    """A BVH skeleton's lengths (:func:`bvh_segment_lengths`) and the unit they were read in."""
 
-    ``units_to_m``: factor from the file's units to metres; by default guessed (a skeleton whose longest
-    offset exceeds 3 is taken to be in centimetres).
-    """
-    bvh = read_bvh(path)
+    lengths_m: dict[str, float]
+    """Lengths, metres (what the file lacks is left out)."""
+    unit: str
+    """Key of :data:`SKELETON_UNITS`."""
+    why: str
+    """Why that unit, for messages ("its longest offset, 100, is over 3", "given")."""
+
+    @property
+    def unit_words(self) -> str:
+        return f"{UNIT_WORDS[self.unit]}: {self.why}"
+
+    @property
+    def stature_m(self) -> float | None:
+        """The height of a performer of de Leva's proportions with these lengths (:func:`skeleton_stature`)."""
+        return skeleton_stature(self.lengths_m)
+
+
+def _raw_lengths(bvh: Bvh, segments: dict[str, int], where: str) -> dict[str, float]:
+    """:func:`bvh_segment_lengths`' lengths in the file's own units."""
     rest = rest_positions(bvh)
-    segments = map_segments(bvh)
-    if units_to_m is None:
-        units_to_m = 0.01 if max((float(np.linalg.norm(j.offset)) for j in bvh.joints), default=0.0) > 3.0 else 1.0
 
-    def at(link: str) -> np.ndarray | None:  # the centre of the joint that starts ``link``, metres
-        return rest[segments[link]] * units_to_m if link in segments else None
+    def at(link: str) -> np.ndarray | None:  # the centre of the joint that starts ``link``
+        return rest[segments[link]] if link in segments else None
 
     def distance(a: np.ndarray | None, b: np.ndarray | None) -> float | None:
         return None if a is None or b is None else float(np.linalg.norm(b - a))
@@ -305,7 +380,7 @@ def bvh_segment_lengths(path: str | Path, units_to_m: float | None = None) -> di
         lengths["hip_width"] = distance(hips[0], hips[1])
         hip_centre = (hips[0] + hips[1]) / 2
         try:  # heights above the hips: the hip joints may sit forward of the spine
-            up = body_axes(rest, segments, str(path))[2]
+            up = body_axes(rest, segments, where)[2]
         except BvhError:  # no pelvis to tell up from
             up = None
         if shoulders[0] is not None and shoulders[1] is not None:  # what places the arms: the trunk follows it
@@ -318,22 +393,99 @@ def bvh_segment_lengths(path: str | Path, units_to_m: float | None = None) -> di
     return {name: length for name, length in lengths.items() if length is not None}
 
 
-def usable_segment_lengths(path: str | Path) -> dict[str, float]:
-    """:func:`bvh_segment_lengths` of a skeleton a body can be built from (``--skeleton-bvh`` of ``batteur render``
-    and of the physics node, checked at their start). :class:`BvhError` naming the file when none of its joints is
-    found by name (without it the body would silently be de Leva's) or for proportions no body has; what reading
-    the file raises."""
+def _problem(lengths_m: dict[str, float]) -> str | None:
+    """Why no body can have these lengths (:func:`anthropometry`'s ``ValueError``), None when one can."""
     from services.physics.anthropometry import anthropometry
 
-    lengths = bvh_segment_lengths(path)
-    if not lengths:
-        raise BvhError(f"{path}: no arm, leg or trunk joints found by their usual BVH names (e.g. LeftArm, "
-                       "LeftForeArm, LeftUpLeg, LeftLeg, Neck)")
-    try:  # a skeleton lying down, in unexpected units
-        anthropometry(lengths_m=lengths)
+    try:
+        anthropometry(lengths_m=lengths_m)
     except ValueError as exc:
-        raise BvhError(f"{path}: {exc}") from None
-    return lengths
+        return str(exc)
+    return None
+
+
+def _scaled(raw: dict[str, float], unit: str) -> dict[str, float]:
+    return {name: length * SKELETON_UNITS[unit] for name, length in raw.items()}
+
+
+def read_skeleton(path: str | Path, units: str = "auto") -> SkeletonReading:
+    """A BVH skeleton's lengths in metres (see :func:`bvh_segment_lengths`) and the unit they were read in.
+
+    ``units``: a key of :data:`SKELETON_UNITS`, or ``auto``: centimetres when an offset is longer than
+    :data:`CENTIMETRES_ABOVE`, else metres; when no performer has the lengths in that unit but one has them in
+    another (a skeleton in millimetres or inches), that one, said in :attr:`SkeletonReading.why` (several: the one
+    whose performer's height is nearest de Leva's 1.75 m). Raises what reading the file raises."""
+    if units != "auto" and units not in SKELETON_UNITS:
+        raise ValueError(f"skeleton units {units!r}: auto, {', '.join(SKELETON_UNITS)} expected")
+    bvh = read_bvh(path)
+    raw = _raw_lengths(bvh, map_segments(bvh, str(path)), str(path))
+    if units != "auto":
+        return SkeletonReading(_scaled(raw, units), units, "as given")
+    longest = max((float(np.linalg.norm(j.offset)) for j in bvh.joints), default=0.0)
+    first = "cm" if longest > CENTIMETRES_ABOVE else "m"
+    why = f"its longest offset, {longest:.4g}, is {'over' if first == 'cm' else 'at most'} {CENTIMETRES_ABOVE:g}"
+    problem = _problem(_scaled(raw, first)) if raw else None
+    if problem is None:
+        return SkeletonReading(_scaled(raw, first), first, why)
+    fits = [u for u in SKELETON_UNITS if u != first and _problem(_scaled(raw, u)) is None]
+    if not fits:
+        others = ", ".join(u for u in SKELETON_UNITS if u != first)
+        return SkeletonReading(_scaled(raw, first), first, f"{why}; no other unit ({others}) fits a performer either")
+    unit = min(fits, key=lambda u: abs(math.log((skeleton_stature(_scaled(raw, u)) or 1.75) / 1.75)))
+    return SkeletonReading(_scaled(raw, unit), unit, f"no performer has its lengths in {UNIT_WORDS[first]}, the "
+                           f"first guess ({why}): {problem}")
+
+
+def skeleton_stature(lengths_m: dict[str, float]) -> float | None:
+    """The height (metres, 3 significant digits) of a performer of de Leva's proportions whose arms, legs, neck,
+    trunk and widths (:func:`bvh_segment_lengths`' names) add up to the same as ``lengths_m``'s; None without any of
+    them. An estimate for a skeleton's hands, feet and head, which it does not give."""
+    from services.physics.anthropometry import SHOULDER_BELOW_NECK, TRUNK_SEGMENTS, anthropometry
+
+    table = anthropometry(1.75)
+    trunk = sum(table.segments[name].length_m for name in TRUNK_SEGMENTS)
+    reference = {**{name: table.segments[name].length_m for name in (*LENGTH_SEGMENTS, "neck")},
+                 "trunk": trunk, "shoulder_height": trunk - SHOULDER_BELOW_NECK * table.scale,
+                 "shoulder_width": table.shoulder_width_m, "hip_width": table.hip_width_m}
+    given = [name for name in reference if name in lengths_m]
+    if not given:
+        return None
+    ratio = sum(lengths_m[name] for name in given) / sum(reference[name] for name in given)
+    return float(f"{1.75 * ratio:.3g}")
+
+
+def bvh_segment_lengths(path: str | Path, units_to_m: float | None = None) -> dict[str, float]:
+    """Lengths (metres) from a BVH skeleton's rest pose, for :func:`anthropometry`'s ``lengths_m``, each measured
+    between joint centres found by :func:`map_segments` (what the file lacks is left out):
+
+    - :data:`LENGTH_SEGMENTS`, the mean of both sides where both are;
+    - ``neck``: the neck joint to the head joint;
+    - ``shoulder_height``: the shoulder joints' height above the hip joints (midpoints; what places the arms at
+      the kit), or where the file has no shoulders, ``trunk``: the neck joint's;
+    - ``shoulder_width`` and ``hip_width``: between the two shoulder joints, the two hip joints.
+
+    ``units_to_m``: factor from the file's units to metres; by default guessed (:func:`read_skeleton`'s ``auto``).
+    """
+    if units_to_m is None:
+        return read_skeleton(path).lengths_m
+    bvh = read_bvh(path)
+    return {name: length * units_to_m for name, length in _raw_lengths(bvh, map_segments(bvh, str(path)),
+                                                                         str(path)).items()}
+
+
+def usable_segment_lengths(path: str | Path, units: str = "auto") -> dict[str, float]:
+    """:func:`bvh_segment_lengths` of a skeleton a body can be built from (``--skeleton-bvh`` of ``batteur render``
+    and of the physics node, checked at their start). :class:`BvhError` naming the file when none of its joints is
+    found by name (without it the body would silently be de Leva's; the names it has and those known are said) or
+    for proportions no body has (the unit it was read in is said); what reading the file raises."""
+    reading = read_skeleton(path, units)
+    if not reading.lengths_m:
+        raise BvhError(f"{path}: no arm, leg or trunk joints found by their usual BVH names: "
+                       f"{unmatched_words(read_bvh(path))}")
+    problem = _problem(reading.lengths_m)
+    if problem is not None:  # a skeleton lying down, in a unit no guess finds
+        raise BvhError(f"{path}: {problem}, read in {reading.unit_words}")
+    return reading.lengths_m
 
 
 def skeleton_limb_lengths(path: str | Path, height_m: float, mass_kg: float) -> LimbLengths:

@@ -16,6 +16,8 @@ has no clavicles or wrists.
 from __future__ import annotations
 
 import json
+import logging
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -40,6 +42,10 @@ _LAYOUT: list[tuple[str, int]] = [
 ]
 FRAME_LENGTH = 1 + 3 + 4 + sum(n for _, n in _LAYOUT)
 
+log = logging.getLogger("batteur.physics.limits")
+_GIMBAL_SAID: set[tuple[str, str]] = set()
+"""(clip, joint) pairs whose gimbal lock was logged (:meth:`MotionClip.euler`): said once per process."""
+
 UPPER_BODY = ("lumbar", "thoracic", "neck", "head", "left_shoulder", "left_elbow", "right_shoulder", "right_elbow")
 """Our joints driven by a DeepMimic clip's upper body."""
 
@@ -61,8 +67,28 @@ class MotionClip:
         return float(1.0 / np.median(np.diff(self.times))) if len(self.times) > 1 else 0.0
 
     def euler(self, joint: str) -> np.ndarray:
-        """(F, 3) intrinsic x-y-z Euler angles (radians) of a joint, as our three revolute DOF see them."""
-        return np.asarray(self.rotations[joint].as_euler("XYZ"))
+        """(F, 3) intrinsic x-y-z Euler angles (radians) of a joint, as our three revolute DOF see them.
+
+        Frames at gimbal lock (y at +-90 degrees: x and z turn about one axis) get the whole turn in x, z 0, as
+        scipy does; that is logged once per clip and joint in plain words instead of scipy's warning."""
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            angles = np.asarray(self.rotations[joint].as_euler("XYZ"))
+        locked = False
+        for w in caught:
+            if "gimbal lock" in str(w.message).lower():
+                locked = True
+            else:  # another warning: as it would have been
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+        if locked and (self.name, joint) not in _GIMBAL_SAID:
+            _GIMBAL_SAID.add((self.name, joint))
+            at_lock = int(np.count_nonzero(np.abs(np.abs(angles[:, 1]) - np.pi / 2) < 1e-6)) if angles.ndim == 2 \
+                else 1
+            frames = len(angles) if angles.ndim == 2 else 1
+            log.warning("clip %s: joint %s is at gimbal lock (its y angle at 90 degrees) in %d of %d frames: its x "
+                        "and z angles cannot be told apart there; the whole turn was given to x (z 0) for its "
+                        "limits", self.name, joint, max(at_lock, 1), frames)
+        return angles
 
     def quaternions(self, joint: str) -> np.ndarray:
         """(F, 4) unit quaternions (x, y, z, w) of a joint."""

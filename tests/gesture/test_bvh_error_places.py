@@ -49,7 +49,8 @@ def _edit(line: int, new: str | None) -> str:
     (_edit(13, "    }\n    }"), "line 16: expected 'MOTION', found '}' (the root's block closed at line 15: an extra "
                               "'}' above?)"),
     (_edit(9, "    CHANNELS 4 Zrotation Xrotation Yrotation"),
-     "line 10: joint Spine: 'End' is not a channel name (Xposition ... Zrotation): its CHANNELS 4 (line 9) names 3"),
+     "line 10: joint Spine: 'End' is not a channel name: its CHANNELS 4 (line 9) names 3 (Zrotation Xrotation "
+     "Yrotation); valid names: Xposition Yposition Zposition Xrotation Yrotation Zrotation"),
     (_edit(8, "    OFFSET 0 abc 0"), "line 8: expected a number, found 'abc'"),
     (_edit(21, "0 0 0 0 0 0 4 nan 6"),
      "line 21: motion frame 3 of 3 (frames counted from 1), channel 8 (Spine Xrotation) holds a value that is not "
@@ -63,3 +64,24 @@ def test_a_broken_bvh_says_where(text: str, says: str) -> None:
     assert parse_bvh(GOOD, "ok.bvh").motion.shape == (3, 9)
     with pytest.raises(BvhError, match=f"^bad\\.bvh: {re.escape(says)}$"):
         parse_bvh(text, "bad.bvh")
+
+
+@pytest.mark.parametrize("text", ["", "  \n\n"])
+def test_an_empty_file_is_said_to_be_empty(text: str) -> None:
+    """An empty file was "file ended early (truncated hierarchy or motion)", as if part of it had been read."""
+    with pytest.raises(BvhError, match=r"^empty\.bvh: empty file \(a BVH starts with HIERARCHY\)$"):
+        parse_bvh(text, "empty.bvh")
+    with pytest.raises(BvhError, match="file ended early"):  # a truncated one still says so
+        parse_bvh("HIERARCHY\nROOT Hips\n{\n", "cut.bvh")
+
+
+def test_bad_channel_names_are_listed_with_the_valid_ones() -> None:
+    """``CHANNELS 3 Zrot Xrot Yrot`` said "its CHANNELS 3 (line 9) names 0": neither the names found nor the
+    valid ones."""
+    with pytest.raises(BvhError) as caught:
+        parse_bvh(_edit(9, "    CHANNELS 3 Zrot Xrotation Yrot"), "bad.bvh")
+    assert str(caught.value) == (
+        "bad.bvh: line 9: joint Spine: its CHANNELS 3 (line 9) names Zrot Xrotation Yrot: 'Zrot', 'Yrot' are not "
+        "channel names; valid names: Xposition Yposition Zposition Xrotation Yrotation Zrotation")
+    with pytest.raises(BvhError, match=r": 'Zrot' is not a channel name; valid names: Xposition "):
+        parse_bvh(_edit(9, "    CHANNELS 3 Zrot Xrotation Yrotation"), "bad.bvh")
