@@ -38,7 +38,7 @@ from common.messages.graphics import (  # noqa: E402
 )
 from common.messages.interaction import InteractionError, RouteRemove, RouteSet  # noqa: E402
 from common.messages.physics import PhysicsControlMode, PhysicsGrip, PhysicsRejected, PhysicsReset  # noqa: E402
-from common.messages.score import GestureStyle, ScoreLoad, ScoreTransport, TempoScale  # noqa: E402
+from common.messages.score import GestureStyle, ScoreDynamics, ScoreLoad, ScoreTransport, TempoScale  # noqa: E402
 from common.messages.sound import (  # noqa: E402
     SoundAirLoading,
     SoundDamping,
@@ -79,6 +79,13 @@ def _tempo_default() -> float:
     from services.physics.score_player import START_TEMPO
 
     return START_TEMPO
+
+
+def _dynamics_default() -> float:
+    """The velocity factor the physics node's score player starts with (services/physics/score_player.py)."""
+    from services.physics.score_player import START_DYNAMICS
+
+    return START_DYNAMICS
 
 
 def _style_defaults() -> tuple[str, str, str, str]:
@@ -177,6 +184,7 @@ INSTRUMENTS = ("kick", "snare", "hightom", "midtom", "floortom", "hihat", "crash
                "cowbell")
 COLORS = "-262144 -1 -1"
 TEMPO_DEFAULT = _tempo_default()
+DYNAMICS_DEFAULT = _dynamics_default()
 LATENCY_DEFAULTS = _latency_defaults()
 TRAILS_DEFAULT = _trails_default()
 
@@ -419,6 +427,11 @@ def build() -> Patch:
     tempo = slider(p, 20, y2 + 25, "tempo factor (0.25..4)", 0.25, 4.0, True, "bp-tempo",
                    shows=(load, TEMPO_DEFAULT))
     p.connect(tempo, 0, sender(p, 20, y2 + 70, TempoScale, "score", "f"), 0)
+    lo, hi = field_range(ScoreDynamics, "factor")
+    dynamics = slider(p, 20, y2 + 118, f"dynamics factor ({lo:g}..{hi:g})", lo, hi,
+                      True, "bp-dynamics", shows=(load, DYNAMICS_DEFAULT))
+    # its sender beside it: the GRAPHICS section starts just below
+    p.connect(dynamics, 0, sender(p, 280, y2 + 140, ScoreDynamics, "score", "f"), 0)
     p.text(330, y2 + 25, "score file (name in the score library \\, or path) - type and press Enter")
     path = p.symbolatom(330, y2 + 47, 30, "bp-score", "-")
     p.connect(path, 0, sender(p, 330, y2 + 75, ScoreLoad, "score", "s"), 0)

@@ -85,6 +85,19 @@ class TempoScale(OscMessage):
 
 
 @register
+class ScoreDynamics(OscMessage):
+    """Play the score louder or softer: every score note's velocity times ``factor`` before planning (1 = as
+    written), clipped to the loudest (velocity 1, MIDI 127); the strokes are planned faster or slower from it, as
+    for a louder or softer written note. Live notes keep the velocity they are sent with."""
+
+    ADDRESS = "/batteur/score/dynamics"
+    FAMILY = Family.CONTROL
+
+    factor: float = Field(ge=0.25, le=4.0, description="velocity factor, 0.25..4 (0.5 = half the written "
+                                                       "velocity: softer; 2 = twice, up to the loudest: louder)")
+
+
+@register
 class KitSelect(OscMessage):
     """Select the kit by shipped name or file path."""
 

@@ -57,3 +57,45 @@ def bar_beat(score: Score, seconds: float) -> BarBeat | None:
         more = int((beat + 1e-9) // length)
         j, beat = j + more, beat - more * length
     return BarBeat(j, max(beat, 0.0), 60.0 / spacing)
+
+
+def bar_unit(score: Score, bar: int) -> float:
+    """The beat bar ``bar`` (from 0, as :func:`bar_beat` numbers them) is counted in, quarter notes: its meter's
+    1/D note (``Score.bar_units``: 0.5 in x/8, 1 in x/4); bars past the last start as the last; quarter notes for a
+    score that gives none."""
+    units = score.bar_units
+    if not len(units) or len(units) != len(score.bar_beats):
+        return 1.0
+    return float(units[min(max(bar, 0), len(units) - 1)])
+
+
+def pickup(score: Score) -> tuple[float, float] | None:
+    """(beats of the pick-up, beats of the bar after it) when the score's first bar is shorter than its second (a
+    text score's ``meter 1/4`` then ``meter 4/4``, a MIDI file's first time signature), else None."""
+    bars = np.asarray(score.bar_beats, dtype=float)
+    if len(bars) < 2 or bars[0] > 1e-9:
+        return None
+    # the second bar's length: to the third start, else (the last bar) to the score's last beat
+    second = float(bars[2] - bars[1]) if len(bars) > 2 else float(len(score.beats) - 1 - bars[1])
+    first = float(bars[1] - bars[0])
+    return (first, second) if 0 < first < second - 1e-9 else None
+
+
+def counted_bar_beat(score: Score, seconds: float) -> tuple[int, float, float] | None:
+    """(bar, beat from 1 (fractional), the beat's length s) at score time ``seconds`` (as written), counted as a
+    musician counts: bars from 1 (after a pick-up, :func:`pickup`, the first full bar is bar 1 and the pick-up bar
+    0, its beats counted as the end of a full bar), beats in the meter's 1/D note (:func:`bar_unit`: eighths in 6/8
+    and 7/8, as a DAW counts), their length from the written tempo there; None before the first beat (as
+    :func:`bar_beat`). ``batteur compare`` numbers its bars so, and the physics score player's logs say where a
+    stop, pause, re-plan or end falls so."""
+    where = bar_beat(score, seconds)
+    if where is None:
+        return None
+    short = pickup(score)
+    # a pick-up's beats are counted as the end of the full bar after it (its unit too: 1/4 before 6/8)
+    unit = bar_unit(score, 1 if short is not None and where.bar == 0 else where.bar)
+    spacing = 60.0 / where.tempo_bpm * unit
+    beat = where.beat / unit + 1
+    if short is None:
+        return where.bar + 1, beat, spacing
+    return where.bar, beat + ((short[1] - short[0]) / unit if where.bar == 0 else 0.0), spacing

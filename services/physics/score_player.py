@@ -25,9 +25,11 @@ control messages (common/messages/score.py):
   one is counted in ``late_notes`` and not played (never played late or wrong).
 * :class:`~common.messages.score.GestureStyle` (grip, nuance, hand algorithm,
   sticking) and :class:`~common.messages.score.TempoScale` apply to live notes
-  and to the next ``play``; while a score plays, its rest is re-timed and
-  re-planned from ``preparation_s`` after the message (the notes before keep
-  their times). The grip is also applied to the drummer's hands at once (as
+  and to the next ``play``, :class:`~common.messages.score.ScoreDynamics` (every
+  score note's velocity times a factor, clipped to 1: louder or softer strokes;
+  live notes keep theirs) to the next ``play``; while a score plays, its rest is
+  re-timed and re-planned from ``preparation_s`` after the message (the notes
+  before keep their times and velocities). The grip is also applied to the drummer's hands at once (as
   ``/batteur/physics/grip both``).
 * :class:`~common.messages.score.KitSelect` is accepted only for the kit the
   physics scene was built with: a kit change rebuilds the kit bodies and must
@@ -95,6 +97,13 @@ does not wait: it drops the plan in flight (:meth:`ScorePlayer._drop_for_reset`)
 stops computing it, so the next plan starts at once (a spare planning process:
 services/physics/plan_worker.py ``PlanWorkers``).
 
+The log says where the score is (its seconds as written, and bar and beat
+counted in its own meter: :func:`common.score.position.counted_bar_beat`, as
+``batteur compare`` counts) at a stop, pause or re-plan, and once a play ends
+(its plan's end passed, or a stop, pause, new ``play`` or reset) how much of it
+played: the notes played of those from its position on, those not played by
+reason, and where it ended (:meth:`ScorePlayer.say_ended`).
+
 A ``pause`` when nothing plays and no limb moves then, or a ``stop`` of a
 drummer that never moved, is refused (a :class:`ScorePlayerError`, answered to
 its sender by the core); tempo and style are kept for the next ``play``.
@@ -118,17 +127,26 @@ from typing import TYPE_CHECKING, Any, Literal, NamedTuple
 
 import numpy as np
 
-from common.gesture.plan import GesturePlan, Grip, Nuance, planned_grip
+from common.gesture.plan import GesturePlan, Grip, IssueAction, IssueReason, Nuance, planned_grip
 from common.gesture.planner import kick_feet
 from common.gesture.reach import pull_into_reach
 from common.kit import EventType, Limb, kit_file
 from common.messages import OscMessage
 from common.messages.physics import PhysicsReset
-from common.messages.score import GestureStyle, KitSelect, LiveNote, ScoreLoad, ScoreTransport, TempoScale
+from common.messages.score import (
+    GestureStyle,
+    KitSelect,
+    LiveNote,
+    ScoreDynamics,
+    ScoreLoad,
+    ScoreTransport,
+    TempoScale,
+)
 from common.score.events import MAX_SCORE_NOTES, DrumEvent, Score, ScoreError
 from common.score.hands import HandAlgorithm, Sticking
 from common.score.limbs import FEET, HANDS, LimbLengths, bass_feet
 from common.score.live import LiveNotes
+from common.score.position import counted_bar_beat
 from services.physics.plan_worker import PlanWorker, PlanWorkers, plan_events
 from services.physics.splice import (
     BLEND_S,
@@ -150,8 +168,10 @@ if TYPE_CHECKING:
 
 log = logging.getLogger("batteur.physics.score")
 
-SCORE_MESSAGES = (ScoreLoad, ScoreTransport, LiveNote, GestureStyle, TempoScale, KitSelect)
+SCORE_MESSAGES = (ScoreLoad, ScoreTransport, LiveNote, GestureStyle, TempoScale, ScoreDynamics, KitSelect)
 """The messages :meth:`ScorePlayer.handle` takes."""
+SETTINGS_MESSAGES = (GestureStyle, TempoScale, ScoreDynamics)
+"""The messages that change how the score is planned (a playing score is re-planned from shortly after them)."""
 
 SPLICE_MARGIN_S = 0.02
 """A splice happens at least this long after the rig time of the message, seconds (the step in flight)."""
@@ -201,6 +221,8 @@ PLAN_PER_NOTE_S = 0.001
 have been timed (about 0.4 ms alone, more while the physics loop shares the core), seconds."""
 START_TEMPO = 1.0
 """The tempo factor (``/batteur/score/tempo``) a score player starts with: the score as written."""
+START_DYNAMICS = 1.0
+"""The velocity factor (``/batteur/score/dynamics``) a score player starts with: the score as written."""
 START_NUANCE = Nuance.TENUTO
 START_ALGORITHM = HandAlgorithm.VITERBI
 START_STICKING = Sticking.NONE
@@ -232,6 +254,47 @@ class _LiveOrigin(NamedTuple):
     """Its sender, "host:port" (told if the note is dropped: :meth:`ScorePlayer.drop_skipped`)."""
     rig_time: float
     """The rig time it was sent for, seconds."""
+
+
+@dataclasses.dataclass
+class _Run:
+    """A score's play, from its ``play`` until it ends (:meth:`ScorePlayer.say_ended`), for its summary."""
+
+    name: str
+    score: Score
+    notes: int
+    """Score notes from the play's position on (the planned ones and the ``late`` ones)."""
+    late: int
+    """... of which too close to prepare when it started (not planned)."""
+    skipped: int = 0
+    """Score notes the live core's targets jumped over (:meth:`ScorePlayer.drop_skipped`)."""
+    cut: int = 0
+    """Score notes after a stop, pause, new ``play`` or reset."""
+    live: set[tuple[float, str]] = dataclasses.field(default_factory=set)
+    """Keys (time on the targets' clock s, event) of the live notes played with it (not the score's)."""
+    ending: str = ""
+    """How it ended, when a stop, pause, new play or reset ended it (``stopped at rig 97.115 s: score ...``)."""
+    cause: str = ""
+    """... which of them."""
+    ended_at: float = math.inf
+    """... at this time on the targets' clock, s."""
+
+
+def _floor1(value: float) -> str:
+    """One decimal, rounded down (beat 4.96 of a 4/4 bar is ``4.9``, not the next bar's ``5.0``)."""
+    return f"{math.floor(value * 10 + 1e-6) / 10:.1f}"
+
+
+def score_words(score: Score, seconds: float) -> str:
+    """``score 2.893 s, bar 2 beat 1.8``: score time ``seconds`` (as written, what ``/batteur/score/transport play``
+    takes as its position) and its bar and beat from 1, counted in the score's own meter
+    (:func:`common.score.position.counted_bar_beat`, as ``batteur compare`` counts: eighths in 6/8; beat to a tenth,
+    rounded down); the seconds alone before the first beat."""
+    where = counted_bar_beat(score, seconds)
+    text = f"score {seconds:.3f} s"
+    if where is None:
+        return text
+    return f"{text}, bar {where[0]} beat {_floor1(where[1])}"
 
 
 class _WindowMissed(Exception):
@@ -342,6 +405,8 @@ class ScorePlayer:
         self.algorithm = START_ALGORITHM
         self.sticking = START_STICKING
         self.tempo = START_TEMPO
+        self.dynamics = START_DYNAMICS
+        """Every score note's velocity is this many times its written one when planned (clipped to 1)."""
         self.score: Score | None = None
         self.score_path: Path | None = None
         self.state: Literal["idle", "playing", "paused"] = "idle"
@@ -397,6 +462,11 @@ class ScorePlayer:
         self.window_misses = 0
         """Live-note windows whose plan did not re-join the queued plan: the notes planned again, with the window
         widened to the hi-hat foot's next note (only the foot's open-hi-hat lifts changed) or the whole rest."""
+        self._run: _Run | None = None
+        """The score's play in progress, for its summary when it ends (:meth:`say_ended`)."""
+        self._dropped: dict[tuple[float, str], str] = {}
+        """(time on the targets' clock s, event) -> reason, of the performance's notes the plans in the tracks do
+        not play (the planner dropped or merged them, or they are out of reach), for the play's summary."""
         self._held: tuple[float, float] | None = None
         """(lag s, targets' clock s): a plan spliced while the live core's targets trailed the rig clock by that lag
         plays until then; the targets keep at least that lag until it ends (:meth:`lag_floor`; a stop, pause or
@@ -452,19 +522,28 @@ class ScorePlayer:
                 self.pause(message.time, now)
         elif isinstance(message, LiveNote):
             self.live_note(message, now, source)
-        elif isinstance(message, (GestureStyle, TempoScale)):
+        elif isinstance(message, SETTINGS_MESSAGES):
             self._apply_settings(message)
             self.replan(now)
         elif isinstance(message, KitSelect):
             self.select_kit(message.kit)
 
-    def _apply_settings(self, message: GestureStyle | TempoScale) -> None:
-        """A style or tempo message's settings (the re-plan of a playing score follows)."""
+    def _apply_settings(self, message: GestureStyle | TempoScale | ScoreDynamics) -> None:
+        """A style, tempo or dynamics message's settings (the re-plan of a playing score follows)."""
         if isinstance(message, GestureStyle):
             self.set_style(message.grip, message.nuance, message.algorithm, message.sticking)
+        elif isinstance(message, ScoreDynamics):
+            self.dynamics = float(message.factor)
+            log.info("dynamics: velocity factor %g (%s)", self.dynamics,
+                     "as written" if self.dynamics == 1.0 else "louder" if self.dynamics > 1.0 else "softer")
         else:
             self.tempo = float(message.factor)
             log.info("tempo factor %g", self.tempo)
+
+    @staticmethod
+    def _loudness(velocity: float, factor: float) -> float:
+        """A score note's velocity (0..1) played at velocity factor ``factor``: scaled, clipped to 1."""
+        return velocity if factor == 1.0 else min(1.0, velocity * factor)
 
     # ------------------------------------------------------------------ score and settings
 
@@ -644,7 +723,7 @@ class ScorePlayer:
         base = self._base(now)
         lag = self.core.target_lag
         rig_at, at = at, (at - lag if at > 0.0 else at)  # on the targets' clock (0: the panel's "at once")
-        tempo = self.tempo
+        tempo, dynamics = self.tempo, self.dynamics
         remaining = [e for e in score.events if e.time >= position - POSITION_TOLERANCE_S]
         if not remaining:
             raise ScorePlayerError(f"play: nothing to play after {position:g} s (the score ends at "
@@ -657,7 +736,8 @@ class ScorePlayer:
             asked = at
             at = (base + delay_s + (LATE_START_S if rig_at > 0.0 else START_LEAD_S)
                   + PLAN_MARGIN_PER_NOTE_S * len(remaining))
-        events = [dataclasses.replace(e, time=at + (e.time - position) / tempo) for e in remaining]
+        events = [dataclasses.replace(e, time=at + (e.time - position) / tempo,
+                                      velocity=self._loudness(e.velocity, dynamics)) for e in remaining]
         late = [e for e in events if e.time < earliest]
 
         start_level = logging.INFO if start_up else logging.WARNING  # how a later start than asked is said
@@ -685,17 +765,22 @@ class ScorePlayer:
 
         def commit(plan: GesturePlan, t_s: float) -> GesturePlan:
             splice_plan(scene, plan, t_s)
+            self._end_run(t_s, "new play", self._said_at("replaced by a new play", t_s), at_once=True)
             self._hold(lag, plan.end_time, replace=True)  # every limb's track from t_s on is this plan's
             self._bass_feet.clear()
             self._keep_bass_feet(plan, t_s)
             self.events = self._assigned(events, plan)
+            self._dropped = {}
+            self._note_dropped(plan, t_s)
             self.mapping = (at, position, tempo)
             self._stopping = None
             self.state = "playing"
             self.end_time = plan.end_time
-            log.info("playing %s from %.3f s at rig time %.3f s (tempo x%g): %d notes until %.3f s",
-                     self.score_path.name if self.score_path else "score", position, at + lag, tempo, len(events),
-                     plan.end_time + lag)
+            name = self.score_path.name if self.score_path else "score"
+            self._run = _Run(name, score, len(events) + len(late), len(late))
+            louder = f", dynamics x{dynamics:g}" if dynamics != 1.0 else ""
+            log.info("playing %s from %.3f s at rig time %.3f s (tempo x%g%s): %d notes until %.3f s", name, position,
+                     at + lag, tempo, louder, len(events), plan.end_time + lag)
             return plan
 
         return _Prepared(t_s, events, beats, min(1.0, events[0].time - t_s - TRANSITION_S), commit, announce,
@@ -722,10 +807,12 @@ class ScorePlayer:
                 track.add(t_s + BRAKE_S + STOP_MOVE_S, scene.rest_targets[limb] - scene.target_offset[limb],
                           np.zeros(3))
         self._hold(lag, t_s + BRAKE_S + STOP_MOVE_S, replace=True)  # nothing of the plans plays after it
+        said = self._said_at("stop", t_s)
+        self._end_run(t_s, "stop", said.replace("stop at", "stopped at", 1))
         self._forget(t_s)
         self._stop_clock()
         self.state = "idle"
-        log.info("stop at %.3f s", t_s + lag)
+        log.info("%s", said)
 
     def pause(self, at: float, now: float) -> None:
         """From rig time ``at`` (or at once), brake every limb and hold it there; refused
@@ -744,10 +831,31 @@ class ScorePlayer:
             track.add(t_s, p0, v0)
             track.add(t_s + BRAKE_S, brake_point(p0, v0, BRAKE_S, 0.0), np.zeros(3))
         self._hold(lag, t_s + BRAKE_S, replace=True)  # nothing of the plans plays after it
+        said = self._said_at("pause", t_s)
+        self._end_run(t_s, "pause", said.replace("pause at", "paused at", 1))
         self._forget(t_s)
         self._stop_clock()
         self.state = "paused"
-        log.info("pause at %.3f s", t_s + lag)
+        log.info("%s", said)
+
+    def _said_at(self, action: str, t_s: float) -> str:
+        """``pause at rig 74.814 s: score 2.893 s, bar 2 beat 1.8``: an action at ``t_s`` (s, the targets' clock)
+        in rig time and, while a score plays then (or has a stop or pause ahead), where in the score
+        (:func:`score_words`: what a ``play`` from there takes, and its bar and beat)."""
+        text = f"{action} at rig {t_s + self.core.target_lag:.3f} s"
+        if self.state == "playing" and self.mapping is not None and t_s <= self.end_time:
+            mapping = self.mapping
+        elif self._stopping is not None and t_s <= self._stopping[1]:
+            mapping = self._stopping[0]
+        else:
+            return text
+        score = self._run.score if self._run is not None else self.score
+        if score is None:
+            return text
+        at, position, tempo = mapping
+        if t_s < at:  # before the play's first note: it was to start there
+            return f"{text}, before the score started (from {score_words(score, position)})"
+        return f"{text}: {score_words(score, position + (t_s - at) * tempo)}"
 
     def _check_playing(self, action: str, t_s: float) -> None:
         """Refuse a stop or pause at ``t_s`` (s, the targets' clock: :meth:`_base`) with nothing to act on: no
@@ -800,6 +908,7 @@ class ScorePlayer:
         scene = self._maybe_drummer()
         if scene is None or self.mapping is None or self.score is None or self.state != "playing":
             return None
+        score = self.score
         t_s = self._base(now) + SPLICE_MARGIN_S + delay_s
         if t_s >= self.end_time:
             return None
@@ -809,10 +918,11 @@ class ScorePlayer:
         # then (extrapolated back, the start would move: the asked position must still sound at the asked time)
         t_a = max(t_c, at)
         p_a = position + (t_a - at) * old_tempo
-        tempo = self.tempo
+        tempo, dynamics = self.tempo, self.dynamics
         kept = [e for e in self.events if t_s - CONTEXT_S <= e.time < t_c]
         # split the score where the old clock reaches t_c (the same formula that timed ``events``: no note in both)
-        ahead = [dataclasses.replace(e, time=t_a + (e.time - p_a) / tempo) for e in self.score.events
+        ahead = [dataclasses.replace(e, time=t_a + (e.time - p_a) / tempo,
+                                     velocity=self._loudness(e.velocity, dynamics)) for e in self.score.events
                  if at + (e.time - position) / old_tempo >= t_c and e.time >= position - POSITION_TOLERANCE_S]
         if not ahead:
             return None
@@ -827,10 +937,11 @@ class ScorePlayer:
             self._hold(lag, plan.end_time)
             self._keep_bass_feet(plan, t_s)
             self.events = self._assigned(events, plan)
+            self._note_dropped(plan, t_s)
             self.mapping = (t_a, p_a, tempo)
             self.end_time = plan.end_time
-            log.info("re-planned from %.3f s (score %.3f s): tempo x%g, %s grip, %s", t_a, p_a, tempo,
-                     self.grip.value, self.nuance.value)
+            log.info("re-planned from rig %.3f s (%s): tempo x%g, dynamics x%g, %s grip, %s", t_a + lag,
+                     score_words(score, p_a), tempo, dynamics, self.grip.value, self.nuance.value)
             return plan
 
         return _Prepared(t_s, events, beats, 1.0, commit, hold=self._pending(lag, events[-1].time))
@@ -900,7 +1011,9 @@ class ScorePlayer:
         last = bisect.bisect_right(self.events, t_to + half_step, key=lambda e: e.time)
         live = score = 0
         for event in self.events[first:last]:
-            origin = self._live_keys.pop((event.time, event.event.value), None)
+            key = (event.time, event.event.value)
+            self._dropped.pop(key, None)  # said as skipped, once
+            origin = self._live_keys.pop(key, None)
             if origin is None:
                 score += 1
                 continue
@@ -911,6 +1024,8 @@ class ScorePlayer:
                 "note's stroke; not played", origin.source, now)
         self.late_notes += live + score
         self.skipped_notes += Counter(live=live, score=score)  # (zeros left out)
+        if self._run is not None:
+            self._run.skipped += score
         return live, score
 
     def _prepare_live(self, new: list[DrumEvent], t_s: float, whole: bool = False, widen: bool = False,
@@ -968,6 +1083,9 @@ class ScorePlayer:
             self._hold(lag, plan.end_time)
             self._keep_bass_feet(plan, t_s, end)
             self.events = self._assigned(events, plan) + later
+            self._note_dropped(plan, t_s, end)
+            if self._run is not None:
+                self._run.live.update((e.time, e.event.value) for e in new)
             self._live_keys = {k: v for k, v in self._live_keys.items() if k[0] >= t_s - CONTEXT_S}
             self._live_keys.update(((e.time, e.event.value), _LiveOrigin(source, e.time + lag))
                                    for e, source in zip(new, senders, strict=True))
@@ -1163,7 +1281,7 @@ class ScorePlayer:
             message = item.message
             if isinstance(message, (ScoreTransport, LiveNote)):
                 dropped += 1
-            elif isinstance(message, (GestureStyle, TempoScale)):
+            elif isinstance(message, SETTINGS_MESSAGES):
                 if item.tries == 0:  # a retry's settings were applied when it first started
                     self._apply_settings(message)
             else:
@@ -1186,7 +1304,9 @@ class ScorePlayer:
     def pump(self, now: float) -> None:
         """Background plans, at every step and message (rig time ``now``, s): splice the plan that is ready, then
         act on the messages waiting, in order, until one starts a plan. Never raises: failures are counted and
-        logged as the handler's are (``errors``, ``PhysicsCore.rejected``)."""
+        logged as the handler's are (``errors``, ``PhysicsCore.rejected``); says a play that has ended
+        (:meth:`say_ended`)."""
+        self.say_ended(now)
         while True:
             job = self._job
             if job is not None:
@@ -1228,7 +1348,7 @@ class ScorePlayer:
                 self._start_live(waiting, now)
             elif isinstance(message, ScoreTransport) and message.action == "play":
                 self._start_play(waiting, now)
-            elif isinstance(message, (GestureStyle, TempoScale)):
+            elif isinstance(message, SETTINGS_MESSAGES):
                 if waiting.tries == 0:  # a retry only plans again
                     if self.loading and self._prepare_replan(now, 0.0) is not None:
                         # its re-plan would wait for the load, and every message after it (a stop) behind that
@@ -1569,6 +1689,57 @@ class ScorePlayer:
                 out[stroke.note_index] = dataclasses.replace(out[stroke.note_index], limb=stroke.limb)
         return out
 
+    def _note_dropped(self, plan: GesturePlan, t_s: float, until: float = math.inf) -> None:
+        """Keep the notes ``plan`` (spliced at ``t_s``, s, the targets' clock; a live window's up to ``until``)
+        does not play, by reason (the planner dropped or merged them, or they are out of reach), in place of those
+        the plans before it left out from ``t_s`` on (for the play's summary: :meth:`say_ended`)."""
+        self._dropped = {k: v for k, v in self._dropped.items() if not t_s <= k[0] < until}
+        for issue in plan.issues:
+            missed = (issue.action in (IssueAction.DROPPED, IssueAction.MERGED)
+                      or issue.reason == IssueReason.UNREACHABLE)
+            if missed and issue.event is not None and t_s <= issue.time < until:
+                self._dropped[(issue.time, issue.event.value)] = issue.reason.value
+
+    def _end_run(self, t_s: float, cause: str, ending: str, at_once: bool = False) -> None:
+        """The play in progress ends at ``t_s`` (s, the targets' clock) by ``cause`` (a stop, pause, new play or
+        reset; ``ending`` says where): its score notes from then on are not played. Its summary follows once its
+        plan's end passes (:meth:`say_ended`), or ``at_once`` (a new play, a reset: nothing of it plays after)."""
+        run = self._run
+        if run is None:
+            return
+        if not run.ending or t_s < run.ended_at:  # the earliest of a stop and a pause sent ahead ends it
+            run.ending, run.cause, run.ended_at = ending, cause, t_s
+        # the notes the plans still hold from then on (a second one ahead: those the first one left)
+        run.cut += sum(1 for e in self.events if e.time >= t_s and (e.time, e.event.value) not in run.live)
+        self._dropped = {k: v for k, v in self._dropped.items() if k[0] < t_s}  # said as cut, once
+        if at_once:
+            self._say_run(run)
+
+    def say_ended(self, now: float) -> None:
+        """Log the summary of a play whose plan has ended by rig time ``now`` (s) (:meth:`_say_run`); the live
+        node calls it at every step (:meth:`pump`)."""
+        run = self._run
+        if run is not None and self._base(now) > self.end_time:
+            self._say_run(run)
+
+    def _say_run(self, run: _Run) -> None:
+        """``rock.txt: 60 of 68 notes played; not played: 5 skipped (...), 3 too_fast (planner); ended after its
+        last note at score 16.000 s, bar 9 beat 1.0``."""
+        self._run = None
+        score_drops = Counter(reason for key, reason in self._dropped.items() if key not in run.live)
+        why = Counter({"too close to prepare when it started": run.late,
+                       "skipped: physics fell behind the rig clock": run.skipped})
+        why.update({f"{reason} (planner)": n for reason, n in score_drops.items()})
+        why[f"cut by the {run.cause}"] += run.cut
+        missed = sum(why.values())
+        played = run.notes - missed
+        lost = "; not played: " + ", ".join(f"{n} {reason}" for reason, n in why.most_common() if n) if missed else ""
+        if run.ending:
+            where = run.ending
+        else:
+            where = f"ended after its last note at {score_words(run.score, run.score.events[-1].time)}"
+        log.info("%s: %d of %d notes played%s; %s", run.name, played, run.notes, lost, where)
+
     def _forget(self, t_s: float) -> None:
         """Drop the performance's notes from ``t_s`` on (they are no longer in the tracks)."""
         self.events = [e for e in self.events if e.time < t_s]
@@ -1582,6 +1753,8 @@ class ScorePlayer:
         job = self._abandon_job()
         if job is not None:
             log.info("reset: the plan in flight (%d message(s)) dropped", len(job.requests))
+        t = self.core.time - self.core.target_lag
+        self._end_run(t, "reset", self._said_at("reset", t), at_once=True)
         self._generation += 1
         self._held = None
         self.events = []

@@ -27,7 +27,7 @@ from common.messages.graphics import (
     GraphicsTrails,
 )
 from common.messages.physics import PhysicsControlMode, PhysicsGrip
-from common.messages.score import GestureStyle, ScoreLoad, ScoreTransport, TempoScale
+from common.messages.score import GestureStyle, ScoreDynamics, ScoreLoad, ScoreTransport, TempoScale
 from common.messages.sound import SoundDamping, SoundLatency, SoundLevel, SoundModel, SoundModes, SoundTension
 from common.runtime import Node
 from tests.deploy.pdrun import PD_DIR, PdProcess, Recorder, physics_and_sound_nodes, require_pd, three_strikes
@@ -70,7 +70,7 @@ def test_control_panel_drives_physics_and_sound_cores() -> None:
             sends = [
                 f"bp-port-physics {pport}", f"bp-port-score {pport}", f"bp-port-sound {sport}",
                 "bp-grip symbol german", "bp-nuance symbol staccato", "bp-algorithm symbol viterbi",
-                "bp-mode symbol joint_ct", "bp-tempo 1.5", "bp-score symbol groove-1",
+                "bp-mode symbol joint_ct", "bp-tempo 1.5", "bp-dynamics 0.5", "bp-score symbol groove-1",
                 "bp-position 2", "bp-transport symbol play",
                 "bp-instrument symbol kick", "bp-model symbol synth", "bp-model symbol modal", "bp-tension 800",
                 "bp-level -6", "bp-modes 120", "bp-sigma1 0.0001", "bp-sigma0 20", "bp-latency 0.08",
@@ -91,6 +91,7 @@ def test_control_panel_drives_physics_and_sound_cores() -> None:
         assert physics.of(GestureStyle)[-1] == GestureStyle(grip="german", nuance="staccato", algorithm="viterbi",
                                                             sticking="none")
         assert physics.of(TempoScale)[-1].factor == pytest.approx(1.5)
+        assert physics.of(ScoreDynamics)[-1].factor == pytest.approx(0.5)
         assert physics.of(ScoreLoad)[-1].path == "groove-1"
         transport = physics.of(ScoreTransport)[-1]
         assert transport.action == "play" and transport.position == pytest.approx(2.0) and transport.time == 0.0

@@ -73,6 +73,15 @@ def _tempo_at_start() -> float:
     return float(ScorePlayer(core).tempo)
 
 
+def _dynamics_at_start() -> float:
+    """The velocity factor the physics node's score player starts with (a stand-in core, as for the tempo)."""
+    from services.physics.core import PhysicsSettings
+    from services.physics.score_player import ScorePlayer
+
+    core: Any = SimpleNamespace(settings=PhysicsSettings())
+    return float(ScorePlayer(core).dynamics)
+
+
 def _client_port() -> int:
     """The port the Pd sound client listens on when not told otherwise: the [f PORT] its listen message is made from
     (pd/sound-client.pd)."""
@@ -98,6 +107,7 @@ def _kept_values() -> dict[str, float]:
     return {
         "bp-port-physics": 9101, "bp-port-interaction": 9102, "bp-port-sound": 9103, "bp-port-graphics": 9104,
         "bp-port-score": 9101, "bp-position": 0.0, "bp-tempo": _tempo_at_start(),
+        "bp-dynamics": _dynamics_at_start(),
         **_instrument_values("snare"),
         "bp-latency": NodeSettings.model_fields["latency_s"].default,
         "bp-master": SoundSettings.model_fields["master_db"].default,
