@@ -191,7 +191,8 @@ class GraphicsPreviewBars(OscMessage):
 
 @register
 class GraphicsRejected(OscMessage):
-    """Reply to a graphics control message that could not be applied (or decoded), and why."""
+    """Reply to a graphics control message that could not be applied (or decoded), and why; also to another
+    service's control sent to a graphics node, naming the service that takes it."""
 
     ADDRESS = "/batteur/graphics/rejected"
     FAMILY = Family.CONTROL

@@ -325,7 +325,8 @@ class InstrumentStats(OscMessage):
 
 @register
 class InteractionError(OscMessage):
-    """A control message interaction could not apply, and why (sent back to its sender)."""
+    """A control message interaction could not apply, and why (sent back to its sender); also another service's
+    control sent to an interaction node, naming the service that takes it."""
 
     ADDRESS = "/batteur/interaction/error"
     FAMILY = Family.CONTROL

@@ -152,7 +152,8 @@ class PhysicsRejected(OscMessage):
     """Reply to a physics or score control message (/batteur/physics/..., /batteur/score/...) that was refused, and
     why, sent back to its sender: a target out of reach, a strike outside the strike scene, a score that cannot be
     read or played, a pause with nothing playing, a live note too late to prepare ...; also a message the node
-    could not decode (a wrong argument count or type, a value out of range). Accepted messages get no answer.
+    could not decode (a wrong argument count or type, a value out of range), or another service's control sent to a
+    physics node (naming the service that takes it). Accepted messages get no answer.
     Budgeted per sender host (physics: 20 at once, then 10 a second; past it, counted and not answered)."""
 
     ADDRESS = "/batteur/physics/rejected"

@@ -225,7 +225,8 @@ class SoundMaster(OscMessage):
 
 @register
 class SoundRejected(OscMessage):
-    """Reply to a sound control message that was well formed but could not be applied."""
+    """Reply to a sound control message that was well formed but could not be applied; also to another service's
+    control sent to a sound node, naming the service that takes it."""
 
     ADDRESS = "/batteur/sound/rejected"
     FAMILY = Family.CONTROL
