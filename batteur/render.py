@@ -13,9 +13,9 @@ Two scenes:
 Outputs in DIR: ``performance.wav`` (sample 0 = rig time 0; ``--wav-from score``: score time 0, bar 1, as heard,
 :func:`shift_wav`), ``impacts.csv``
 (one row per impact, every feature of ``/batteur/impact``, rig times),
-``performance.bvh`` (the simulated motion, score mode; frame 0 the first pose, or with ``--bvh-sync wav``
-the WAV's time 0), with ``--video``
-``performance.mp4`` (the motion rendered headless, the WAV muxed in sync;
+``performance.bvh`` (the simulated motion, score mode; frame 0 the WAV's time 0, or with ``--bvh-sync pose``
+the first pose), with ``--video``
+``performance.mp4`` (the motion rendered headless, the WAV muxed in sync, on its clock;
 score mode, needs ffmpeg), with ``--gltf`` ``performance.glb`` (the motion and the kit as one animated glTF 2.0
 file at the BVH's rate, on the WAV's clock; score mode), ``report.json`` (what
 was rendered, the time offset between score and rig clocks, the planner's
@@ -100,6 +100,8 @@ MASS_RANGE_KG = (35.0, 150.0)
 """Accepted ``--mass``, kilograms (physics' ``PhysicsSettings.mass_kg``)."""
 BVH_RATE_RANGE = (1.0, 1000.0)
 """Accepted ``--bvh-rate``, Hz."""
+BVH_UNITS = {"m": 1.0, "cm": 100.0}
+"""``--bvh-units`` -> performance.bvh's file units per metre."""
 MAX_PHYSICS_POSE_HZ = 240.0
 """Physics publishes poses at most this often (``PhysicsSettings.pose_rate_hz``), Hz; a faster BVH is interpolated
 between them."""
@@ -141,9 +143,13 @@ class RenderOptions:
     pose_rate_hz: float = 60.0
     """Frame rate of performance.bvh, Hz (``--bvh-rate``); physics sends poses at least at 60 Hz
     (:func:`physics_pose_rate`)."""
-    bvh_sync: Literal["pose", "wav"] = "pose"
-    """performance.bvh's frame 0 (``--bvh-sync``): the first pose (rig time 1 ms), or performance.wav's time 0
-    (:func:`wav_frame_start`), the first pose held until it comes."""
+    bvh_sync: Literal["pose", "wav"] = "wav"
+    """performance.bvh's frame 0 (``--bvh-sync``): performance.wav's time 0 (:func:`wav_frame_start`), the first
+    pose held until it comes, so every output imported at frame 0 lines up (the default since 7 Dec), or the first
+    pose (rig time 1 ms: 3 frames before its sound at 60 Hz, the file before 7 Dec)."""
+    bvh_units: Literal["m", "cm"] = "m"
+    """performance.bvh's length unit (``--bvh-units``): metres, or centimetres (Maya and MotionBuilder work in
+    cm: a metre file comes in 100 times too small there)."""
     calibration: Path | None = None
     sound_params: Path | None = None
     """A sound parameters file (``--sound-params``: services/sound/params_file.py) the instruments start from."""
@@ -302,8 +308,8 @@ def prepare(path: Path | str, kit: Kit, opts: RenderOptions, calibration: Calibr
     from common.gesture.planner import PlannerConfig, plan_gestures
     from common.score.limbs import distribute
 
-    if score is None:
-        score = read_scaled(path, opts, progress)
+    if score is None:  # a text score's kit object ids name the kit played (--kit's), not its kit line's
+        score = read_scaled(path, opts, progress, kit)
     if not score.events:  # the reader's warnings say why (unknown pitches, no drum channel)
         why = "; ".join(w.removeprefix(f"{path}: ").removeprefix(f"{Path(path).name}: ") for w in score.warnings
                         if not w.endswith("no drum events"))
@@ -320,12 +326,14 @@ def prepare(path: Path | str, kit: Kit, opts: RenderOptions, calibration: Calibr
 
 
 def read_scaled(path: Path | str, opts: RenderOptions,
-                progress: Callable[[str, int, int], None] | None = None) -> Score:
-    """The score of ``path`` at ``opts.tempo_scale``; ``progress`` as :func:`prepare`'s (stage ``"reading"``)."""
+                progress: Callable[[str, int, int], None] | None = None, kit: Kit | None = None) -> Score:
+    """The score of ``path`` at ``opts.tempo_scale``; ``progress`` as :func:`prepare`'s (stage ``"reading"``).
+    ``kit``: the kit a text score's object ids (``crash2``) are looked up in (None: its ``kit`` line's, else the
+    default; until 7 Dec ``--kit``'s was not passed, and an id only ``--kit``'s kit has was refused)."""
     from common.score.text import read_score
 
     reading = None if progress is None else functools.partial(progress, "reading")  # MIDI only: text is quick
-    return scale_tempo(read_score(path, progress=reading, **opts.midi), opts.tempo_scale)
+    return scale_tempo(read_score(path, kit=kit, progress=reading, **opts.midi), opts.tempo_scale)
 
 
 def load_render_kit(path: Path | str, opts: RenderOptions, score: Score | None,
@@ -742,7 +750,8 @@ class StreamedOutputs:
 
     def __init__(self, folder: Path, bvh_rate_hz: float | None, keep: bool = False, planned_s: float = 0.0,
                  prog: str = "batteur render", bvh_start_s: float | None = None,
-                 end_sites: dict[str, tuple[float, float, float]] | None = None, wav_cut_s: float = 0.0) -> None:
+                 end_sites: dict[str, tuple[float, float, float]] | None = None, wav_cut_s: float = 0.0,
+                 bvh_scale: float = 1.0) -> None:
         from services.graphics.export.bvh import BvhStream
 
         self.folder = folder
@@ -756,7 +765,8 @@ class StreamedOutputs:
         self.impacts = ImpactCsvStream(folder / "impacts.csv")
         self.end_sites = end_sites
         self.bvh = None if bvh_rate_hz is None else BvhStream(folder / "performance.bvh", bvh_rate_hz,
-                                                              start=bvh_start_s, end_sites=end_sites)
+                                                              start=bvh_start_s, end_sites=end_sites,
+                                                              scale=bvh_scale)  # file units per metre
         self.bvh_frames: int | None = None
         """Frames of the streamed BVH once finished (None: no file)."""
         self._recorder: RecorderCore | None = None
@@ -988,7 +998,39 @@ def check_copies(output: Path, score: Path, kit_copy: KitCopy | None) -> None:
         except OSError:
             pass
         raise RenderError(f"-o: {there} is not a file an earlier render wrote there, and the render would replace it "
-                          f"with its copy of the {what} {source}: move it, or render into another folder")
+                          f"with its copy of the {what} {source}: move it, render into another folder, or give "
+                          "--overwrite")
+
+
+SCORE_OUTPUTS = ("performance.wav", "impacts.csv", "performance.bvh", "report.json")
+"""The files every score render writes into its folder (besides the score's and kit file's copies)."""
+STRIKE_OUTPUTS = ("performance.wav", "impacts.csv", "report.json")
+"""The files a strike-scene render writes into its folder."""
+
+
+def score_outputs(opts: RenderOptions) -> list[str]:
+    """The files a score render of ``opts`` writes into its folder, the copies of the score and kit file aside
+    (:func:`check_copies`)."""
+    return [*SCORE_OUTPUTS, *(["performance.mp4"] if opts.video else []), *(["performance.glb"] if opts.gltf else [])]
+
+
+def check_outputs(output: Path, names: Sequence[str], overwrite: bool = False) -> None:
+    """Raise :class:`RenderError` naming the files among ``names`` that exist in ``output`` and that no earlier
+    render of it wrote (:func:`earlier_outputs`: a file of the user's, a cleaned-up performance.bvh), before anything
+    is simulated: a render never replaces them (until 7 Dec only the score's and kit file's copies were checked, and
+    a user's performance.bvh was replaced without a word). ``overwrite`` (``--overwrite``): replace them."""
+    if overwrite:
+        return
+    earlier = earlier_outputs(output)
+    theirs = [output / name for name in names
+              if name not in earlier and ((output / name).exists() or (output / name).is_symlink())]
+    if not theirs:
+        return
+    many = len(theirs) > 1
+    them = "them" if many else "it"
+    raise RenderError(f"-o: {', '.join(str(p) for p in theirs)} {'are not files' if many else 'is not a file'} an "
+                      f"earlier render wrote there (no render's report.json there lists {them}), and the render would "
+                      f"replace {them}: move {them}, render into another folder, or give --overwrite")
 
 
 def earlier_outputs(output: Path) -> set[str]:
@@ -1002,8 +1044,8 @@ def earlier_outputs(output: Path) -> set[str]:
         report = json.loads((output / "report.json").read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return set()
-    if not isinstance(report, dict):
-        return set()
+    if not isinstance(report, dict) or report.get("scene") not in ("drummer", "strike"):
+        return set()  # a report.json of the user's, not a render's: it lists nothing a render wrote
     names = {"performance.wav", "impacts.csv", "report.json"}
     if report.get("scene") == "drummer":
         names.add("performance.bvh")
@@ -1022,9 +1064,11 @@ def earlier_outputs(output: Path) -> set[str]:
 
 
 def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: bool = False,
-                 prog: str = "batteur render") -> dict[str, Any]:
+                 prog: str = "batteur render", overwrite: bool = False) -> dict[str, Any]:
     """Render a score into ``output`` (see the module docstring); returns the report. ``prog`` names the command
-    in its warning lines (``batteur demo`` renders through this).
+    in its warning lines (``batteur demo`` renders through this). A file in ``output`` the render would replace and
+    no earlier render of it wrote is refused before the simulation (:func:`check_outputs`, :func:`check_copies`),
+    unless ``overwrite`` (``--overwrite``).
 
     Raises :class:`ScoreError` (bad score), :class:`RenderError` (physics refused) or ``ValueError``.
     """
@@ -1032,6 +1076,7 @@ def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: boo
 
     check_output_dir(output, "-o")  # before the long part, as the video's checks
     check_options(opts)
+    check_outputs(output, score_outputs(opts), overwrite)  # before the planning too: a long score's takes minutes
     if opts.video:
         check_video(opts)  # before the long part: no ffmpeg, no render
     limbs = skeleton_limbs(opts)  # read once: the kit's warnings and the planner measure the same reach
@@ -1056,7 +1101,8 @@ def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: boo
         planning.close(finished=False)
         raise
     planning.close()
-    check_copies(output, Path(path), kit_copy)  # the score's kit known, before the long part
+    if not overwrite:
+        check_copies(output, Path(path), kit_copy)  # the score's kit known, before the long part
     read_render_sound_params(opts.sound_params, kit)  # the score's kit known, before the long part
     opts = opts.styled(score)  # physics' hands hold the grip the score asked for, as planned
     # the reader's (e.g. a MIDI file without a drum channel, read as drums), then hands the plan has no units for
@@ -1071,7 +1117,8 @@ def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: boo
         outputs = StreamedOutputs(staging.path, opts.pose_rate_hz or None, keep=opts.video or opts.gltf,
                                   planned_s=rendered_seconds(plan, opts), prog=prog,
                                   bvh_start_s=wav_frame_start(opts, offset) if opts.bvh_sync == "wav" else None,
-                                  end_sites=body_end_sites(opts), wav_cut_s=wav_cut_s)
+                                  end_sites=body_end_sites(opts), wav_cut_s=wav_cut_s,
+                                  bvh_scale=BVH_UNITS[opts.bvh_units])
         try:
             if opts.jobs > 1:
                 from batteur.segments import run_segmented
@@ -1118,11 +1165,12 @@ def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: boo
             if result.poses is None:
                 raise RenderError("--gltf: physics sent no poses to export")
             gltf = gltf_writer(result, kit, opts, quiet)
-        kept_poses = result.poses if outputs.bvh is None else None  # else the BVH is written already
+        if wav_cut:  # before the video, which muxes the WAV written (until 7 Dec the uncut one, 1.5 s longer)
+            shift_wav(staging.path / "performance.wav", wav_cut, prog)
+        kept_poses = result.poses if outputs.bvh is None else None  # else the BVH is written already (in metres:
+        # without a rate, physics' default, only the library call gets here; --bvh-units needs --bvh-rate's stream)
         write_rest(staging, report, kept_poses, Path(path), video, bvh_rate_hz=opts.pose_rate_hz or None,
                    gltf=gltf, end_sites=outputs.end_sites, kit_copy=kit_copy)
-        if wav_cut:  # after the video, which muxes the render's WAV with the poses on its own clock
-            shift_wav(staging.path / "performance.wav", wav_cut, prog)
         staging.commit()
     return report
 
@@ -1245,12 +1293,17 @@ def check_video(opts: RenderOptions) -> None:
 
 
 def video_writer(result: ScoreRender, kit: Kit, opts: RenderOptions, quiet: bool) -> Callable[[Path], dict[str, Any]]:
-    """What writes DIR/performance.mp4 in the staging directory (the WAV already there), with a progress bar."""
+    """What writes DIR/performance.mp4 in the staging directory (the WAV already there, as written: with
+    ``--wav-from score`` cut at score time 0), with a progress bar: on performance.wav's clock, its frame 0 at the
+    WAV's time 0 (:func:`wav_frame_start`), the WAV muxed in."""
     from services.graphics import video
 
     def write(staging: Path) -> dict[str, Any]:
         started = time.perf_counter()
         width, height = opts.video_size
+        # render_video's audio_start is the WAV's sample 0 as heard (a strike at rig time t is heard at t + latency):
+        # rig time 0 for the render's WAV, score time 0 heard (score_offset_s + latency) for --wav-from score's
+        audio_start = wav_frame_start(opts, result.score_offset_s) + opts.latency_s
         progress = Progress("video", 1.0, unit="frames", decimals=0, enabled=False if quiet else None)
 
         def on_progress(done: int, total: int) -> None:
@@ -1260,7 +1313,7 @@ def video_writer(result: ScoreRender, kit: Kit, opts: RenderOptions, quiet: bool
         finished = False
         try:
             info = video.render_video(result.poses, result.impacts, staging / "performance.wav", staging, kit=kit,
-                                      fps=opts.video_fps, width=width, height=height, audio_start=0.0,
+                                      fps=opts.video_fps, width=width, height=height, audio_start=audio_start,
                                       latency=opts.latency_s, on_progress=on_progress)
             finished = True
         except (RuntimeError, OSError) as exc:  # ffmpeg failed or died: nothing is written (staging)
@@ -1269,6 +1322,7 @@ def video_writer(result: ScoreRender, kit: Kit, opts: RenderOptions, quiet: bool
             progress.close(finished)
         return {"file": info.path.name, "frames": info.frames, "fps": info.fps, "duration_s": info.duration,
                 "width": info.width, "height": info.height, "audio": "performance.wav (AAC)",
+                "start_s": round(audio_start - opts.latency_s, 6),  # rig time frame 0 shows
                 "wall_time_s": round(time.perf_counter() - started, 3)}
 
     return write
@@ -1281,6 +1335,7 @@ def bvh_entry(bvh: BvhStream, frames: int, opts: RenderOptions, wav_cut_s: float
     start = bvh.start_time if bvh.start_time is not None else 0.0
     wav_time = start + opts.latency_s - wav_cut_s
     return {"file": "performance.bvh", "frames": frames, "rate_hz": opts.pose_rate_hz, "sync": opts.bvh_sync,
+            "units": opts.bvh_units,
             "start_s": round(start, 6), "wav_time_s": round(wav_time, 6),
             "wav_offset_frames": round(wav_time * opts.pose_rate_hz, 3)}
 
@@ -1404,7 +1459,8 @@ def gltf_writer(result: ScoreRender, kit: Kit, opts: RenderOptions, quiet: bool)
         try:
             frames = result.poses.resample(opts.pose_rate_hz, start=start, end=end, on_progress=progress.update)
             info = write_gltf(frames, staging / "performance.glb", kit=kit, time_origin=start,
-                              impacts=[(impact.time, impact.instrument) for impact in result.impacts])
+                              impacts=[(impact.time, impact.instrument) for impact in result.impacts],
+                              end_sites=body_end_sites(opts))  # the BVH's: the sticks' tip joints, the feet's boxes
             finished = True
         except (OSError, ValueError) as exc:  # a full disk: nothing is written (staging)
             raise RenderError(f"--gltf: {exc}") from exc
@@ -1441,6 +1497,10 @@ def build_parser() -> argparse.ArgumentParser:
                         "Batteur text score (docs/score-format.md)")
     parser.add_argument("-o", "--output", type=Path, required=True, metavar="DIR",
                         help="output directory (created if missing)")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace files in DIR that no earlier render wrote there (a performance.bvh, "
+                        "report.json, score.txt ... of your own); without it the render refuses before simulating, "
+                        "naming them (a folder an earlier render made is re-rendered into without it)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     playing = parser.add_argument_group("the performance")
     add_performance_options(playing, kit_default=None)
@@ -1481,10 +1541,14 @@ def build_parser() -> argparse.ArgumentParser:
     outputs.add_argument("--bvh-rate", type=float, default=RenderOptions.pose_rate_hz, metavar="HZ",
                          help="frame rate of DIR/performance.bvh, 1 to 1000 Hz (e.g. 24, 30, 60, 120; default 60); "
                          "the video keeps its own --video-fps")
+    outputs.add_argument("--bvh-units", choices=list(BVH_UNITS), default="m",
+                         help="length unit of DIR/performance.bvh: m (default; Blender) or cm (Maya, MotionBuilder)")
     outputs.add_argument("--bvh-sync", choices=["pose", "wav"], default=None,
-                         help="frame 0 of DIR/performance.bvh: pose, the first pose (rig time 1 ms; the default), "
-                         "or wav, DIR/performance.wav's time 0, the first pose held until it comes, so the BVH and "
-                         "the WAV imported at frame 0 line up (each strike where it is heard)")
+                         help="frame 0 of DIR/performance.bvh: wav (the default), DIR/performance.wav's time 0 "
+                         "(with --wav-from score, score time 0), the first pose held until it comes, so the BVH, the "
+                         "WAV, the glTF and the video imported at frame 0 line up (each strike where it is heard); "
+                         "or pose, the first pose (rig time 1 ms, 0.051 s into the WAV: 3 frames early at 60 Hz; "
+                         "the file before 7 Dec)")
     outputs.add_argument("--wav-from", choices=["render", "score"], default=None,
                          help="sample 0 of DIR/performance.wav: render, the render's start (the drummer settles "
                          "before its lead-in; the default: where score time 0, bar 1, falls in it is printed and "
@@ -1593,7 +1657,8 @@ def options_from(args: argparse.Namespace) -> RenderOptions:
                          limits_from=tuple(args.limits_from), asymmetric_limits=args.asymmetric_limits,
                          skeleton_bvh=args.skeleton_bvh,
                          height_m=height_of(args), mass_kg=args.mass, pose_rate_hz=args.bvh_rate,
-                         bvh_sync=_given(args.bvh_sync, "pose"), midi=midi_read_kwargs(args),
+                         bvh_units=args.bvh_units,
+                         bvh_sync=_given(args.bvh_sync, RenderOptions.bvh_sync), midi=midi_read_kwargs(args),
                          wav_from=_given(args.wav_from, "render"))
 
 
@@ -1608,30 +1673,32 @@ def _given(value: T | None, default: T) -> T:
 def skeleton_warnings(skeleton: Path, height_m: float | None) -> list[str]:
     """What ``--skeleton-bvh`` with (or without: None) ``--height`` leaves to the height, said at the render's
     start, with the unit the skeleton is read in and the height of a performer of its proportions
-    (``services.physics.bvh_motion.read_skeleton``). Nothing for a file that cannot be read: its error follows."""
-    from services.physics.bvh_motion import read_skeleton
+    (``services.physics.bvh_motion.read_skeleton``); for a file no body is built from (its error follows), only what
+    ``--height`` does."""
+    from services.physics.bvh_motion import read_skeleton, usable_segment_lengths
 
-    try:
+    try:  # a skeleton no body can be built from is refused after the warnings
+        usable_segment_lengths(skeleton)
         reading = read_skeleton(skeleton)
     except (ValueError, OSError):
-        return []
-    if not reading.lengths_m:
-        return []
-    stature = reading.stature_m
-    tall = "" if stature is None else f", a {stature:g} m performer's"
-    read = f"the skeleton is read in {reading.unit_words}{tall}"
+        reading = None
     limbs = ("the skeleton gives the limbs (arms, legs, neck, the shoulders' height above the hips, their widths) "
              "and the planner's reach")
+    stature = None if reading is None else reading.stature_m
+    tall = "" if stature is None else f", a {stature:g} m performer's,"
+    read = "" if reading is None else f"; the skeleton{tall} is read in {reading.unit_words}"
     if height_m is not None:
         return [f"--height {height_m:g} with --skeleton-bvh: {limbs}; --height places the shoulders and hips over "
-                f"the throne and sizes the hands, feet and head ({read})"]
+                f"the throne and sizes the hands, feet and head{read}"]
+    if reading is None:
+        return []
     low, high = HEIGHT_RANGE_M
     if stature is not None and low <= stature <= high:
         hint = f"give --height {stature:g} to size them as the skeleton's"
     else:
         hint = f"give --height (the performer's, {low:g} to {high:g} m) to size them"
     return [f"--skeleton-bvh without --height: {limbs}; the hands, feet and head and the body's place over the "
-            f"throne are the default {STATURE_M:g} m drummer's: {hint} ({read})"]
+            f"throne are the default {STATURE_M:g} m drummer's: {hint}{read}"]
 
 
 def options_in_vain(args: argparse.Namespace) -> list[str]:
@@ -1654,7 +1721,7 @@ def options_in_vain(args: argparse.Namespace) -> list[str]:
         drummer = (("--height", args.height, None), ("--mass", args.mass, DEFAULT_MASS_KG),
                    ("--bvh-rate", args.bvh_rate, RenderOptions.pose_rate_hz), ("--grip", args.grip, None),
                    ("--bvh-sync", args.bvh_sync, None), ("--wav-from", args.wav_from, None),
-                   ("--nuance", args.nuance, None))
+                   ("--nuance", args.nuance, None), ("--bvh-units", args.bvh_units, "m"))
         for name, value, default in drummer:
             if value != default:
                 warnings.append(f"{name} has no effect with --strikes (the strike scene has no drummer)")
@@ -1710,7 +1777,8 @@ def _count(n: int, noun: str) -> str:
 
 def _main_score(opts: argparse.Namespace, prog: str) -> int:
     try:
-        report = render_score(opts.score, opts.output, options_from(opts), quiet=opts.quiet, prog=prog)
+        report = render_score(opts.score, opts.output, options_from(opts), quiet=opts.quiet, prog=prog,
+                              overwrite=opts.overwrite)
     except (ScoreError, RenderError, ValueError, OSError) as exc:  # UsageError: 2, a file or the render: 1
         return report_error(prog, exc)
     out = opts.output
@@ -1722,7 +1790,12 @@ def _main_score(opts: argparse.Namespace, prog: str) -> int:
     print(f"wrote {out / 'impacts.csv'} ({_count(report['impacts'], 'impact')} for "
           f"{_count(report['notes'], 'note')}, "
           f"{report['planner_issues']} flagged by the planner{unplayed_words(report)})")
-    if (out / "performance.bvh").exists():
+    flags = planner_flags_line(report)
+    if flags is not None:
+        print(flags)
+    if "bvh" in report:
+        print(f"wrote {out / 'performance.bvh'} ({bvh_words(report)})")
+    elif (out / "performance.bvh").exists():
         print(f"wrote {out / 'performance.bvh'}")
     if "video" in report:
         v = report["video"]
@@ -1756,6 +1829,42 @@ def unplayed_words(report: dict[str, Any]) -> str:
     return words
 
 
+def planner_flags_line(report: dict[str, Any]) -> str | None:
+    """The planner's flags by reason, and what it did with the notes of each, for the line after impacts.csv's
+    (``the planner's flags: too_fast 8 (4 merged, 2 dropped, 2 played anyway); each in report.json's issues``;
+    until 7 Dec only report.json said why); None when it flagged nothing. The reader's unknown notes and doubles
+    (``note_index`` null) are counted on impacts.csv's line instead."""
+    actions: dict[str, dict[str, int]] = {}
+    for issue in report.get("issues", []):
+        if issue.get("note_index") is None:
+            continue
+        per_reason = actions.setdefault(str(issue["reason"]), {})
+        action = str(issue["action"]).replace("_", " ")
+        per_reason[action] = per_reason.get(action, 0) + 1
+    if not actions:
+        return None
+    reasons = []
+    for reason, done in actions.items():  # in the order first flagged
+        what = ", ".join(f"{n} {action}" for action, n in sorted(done.items(), key=lambda kv: (-kv[1], kv[0])))
+        reasons.append(f"{reason} {sum(done.values())} ({what})")
+    return f"the planner's flags: {'; '.join(reasons)}; each in report.json's issues"
+
+
+def bvh_words(report: dict[str, Any]) -> str:
+    """performance.bvh's frames, rate and what its frame 0 is (report.json's ``bvh`` entry), for its line (until 7
+    Dec the line named the file alone, and the default BVH was 3 frames early against the WAV, unsaid)."""
+    entry = report["bvh"]
+    head = f"{entry['frames']} frames at {entry['rate_hz']:g} Hz; frame 0 is "
+    if entry["sync"] == "wav":
+        score = " (score time 0)" if report.get("wav_from") == "score" else ""
+        return head + f"performance.wav's time 0{score}: imported at frame 0 the two line up"
+    wav_s, shift = entry["wav_time_s"], entry["wav_offset_frames"]
+    where = (f"{wav_s:.3f} s into performance.wav" if wav_s >= 0 else
+             f"{-wav_s:.3f} s before the start of performance.wav")
+    return (head + f"the first pose (--bvh-sync pose), {where}: shift it {shift:g} frames to line it up, or render "
+            "with --bvh-sync wav")
+
+
 def _main_strikes(opts: argparse.Namespace, prog: str) -> int:
     try:
         strikes = parse_strikes(opts.strikes)
@@ -1765,8 +1874,9 @@ def _main_strikes(opts: argparse.Namespace, prog: str) -> int:
     try:
         kit = load_kit(opts.kit or DEFAULT_KIT)
         check_output_dir(opts.output, "-o")
+        check_outputs(opts.output, STRIKE_OUTPUTS, opts.overwrite)
         read_render_sound_params(opts.sound_params, kit)
-    except (ValueError, OSError) as exc:
+    except (ValueError, OSError, RenderError) as exc:
         return report_error(prog, exc)
     event = opts.event or DEFAULT_STRIKE_EVENT
     started = time.monotonic()

@@ -66,6 +66,7 @@ from common.output_paths import check_output_dir, point_at_devnull
 from common.score.midi_options import add_midi_arguments, midi_read_kwargs, midi_service_args
 
 if TYPE_CHECKING:
+    from common.kit import Kit
     from common.score.events import Score
 
 ROLES = ("physics", "interaction", "sound", "graphics")
@@ -857,8 +858,8 @@ def build_parser() -> argparse.ArgumentParser:
     add_midi_arguments(parser.add_argument_group(
         "MIDI scores", "how physics reads MIDI files (--score's, and those /batteur/score/load loads from its score "
         "library: --score's folder, --physics-arg '--score-dir DIR') and graphics its --preview-score "
-        "(--graphics-arg): given to both; with none of these they act on nothing (said at start), and live notes "
-        "(/batteur/score/note) are read as General MIDI pitches without them"))
+        "(--graphics-arg): given to both; --drum-map also maps live notes' pitches (/batteur/score/note, General MIDI "
+        "without it); with none of these files --drum-channels and --hihat-cc4 act on nothing (said at start)"))
     parser.add_argument("--kit", default=None, metavar="NAME",
                         help=kit_help("--score's `kit` line, as batteur render reads it, else the default kit",
                                       "kit name or YAML/JSON file for every service")
@@ -902,11 +903,24 @@ def check_score(opts: argparse.Namespace) -> Score | None:
     problem = file_problem(Path(opts.score), SCORE_FILE)  # a folder, a device, a pipe: said, never opened
     if problem is not None:
         raise ValueError(f"--score {opts.score}: {problem}")
-    # ScoreError (a ValueError) for a broken file, before any service starts; read as physics reads it
-    score = read_score(opts.score, **midi_read_kwargs(opts))
+    # ScoreError (a ValueError) for a broken file, before any service starts; read as physics reads it: a text
+    # score's kit object ids (crash2) in --kit's kit when given (until 7 Dec its kit line's, else the default)
+    score = read_score(opts.score, kit=_option_kit(opts.kit), **midi_read_kwargs(opts))
     if not score.events:
         raise ValueError(f"--score {opts.score}: no drum events to play")
     return score
+
+
+def _option_kit(kit: str | None) -> Kit | None:
+    """``--kit``'s kit, loaded (None without one); ValueError naming the option for one that cannot be loaded."""
+    if kit is None:
+        return None
+    from common.kit import load_kit
+
+    try:
+        return load_kit(kit, warn=False)
+    except (FileNotFoundError, ValueError) as exc:
+        raise ValueError(f"--kit {kit}: {exc}") from None
 
 
 def rig_kit(opts: argparse.Namespace, score: Score | None) -> str | None:
@@ -999,10 +1013,11 @@ library (``/batteur/score/load``), graphics' preview."""
 
 def unread_midi_options(opts: argparse.Namespace, plans: Sequence[ServicePlan],
                         environ: Mapping[str, str] | None = None) -> str | None:
-    """A warning when ``--drum-channels``, ``--drum-map`` or ``--hihat-cc4`` was given and nothing will read a MIDI
-    file with them: no MIDI ``--score``, no physics score library (``--physics-arg '--score-dir DIR'``, read by
-    ``/batteur/score/load``), no graphics ``--preview-score``; live notes (``/batteur/score/note``) are General MIDI
-    pitches, read without them. Until 7 Dec they were given to physics and graphics in silence. A text ``--score``
+    """A warning when ``--drum-channels`` or ``--hihat-cc4`` was given and nothing will read a MIDI file with them:
+    no MIDI ``--score``, no physics score library (``--physics-arg '--score-dir DIR'``, read by
+    ``/batteur/score/load``), no graphics ``--preview-score``; live notes (``/batteur/score/note``) are read without
+    them. Until 7 Dec they were given to physics and graphics in silence. Not ``--drum-map``: live notes follow it
+    (since c6f810b; until the day after 7 Dec this warned that it acted on nothing). A text ``--score``
     (``demo`` too) is read without them: then they act only on the MIDI files ``/batteur/score/load`` may load
     from its folder, said so (until the day after 7 Dec nothing was). A library or a preview given a blank value
     (``--physics-arg=--score-dir=``: none) is none. None when a config file (BATTEUR_CONFIG, ``--config``) or the
@@ -1010,8 +1025,7 @@ def unread_midi_options(opts: argparse.Namespace, plans: Sequence[ServicePlan],
     from common.config import ENV_PREFIX
 
     given = [f"--drum-channels {','.join(str(c) for c in opts.drum_channels)}"] if opts.drum_channels else []
-    given += [f"--drum-map {opts.drum_map_spec}"] if getattr(opts, "drum_map_spec", None) else []
-    given += ["--hihat-cc4"] if opts.hihat_cc4 else []
+    given += ["--hihat-cc4"] if opts.hihat_cc4 else []  # --drum-map acts on live notes too: never in vain
     env = os.environ if environ is None else environ
     if not given or (opts.score and _midi_score(opts.score)) or env.get(f"{ENV_PREFIX}CONFIG", "").strip():
         return None
@@ -1024,7 +1038,7 @@ def unread_midi_options(opts: argparse.Namespace, plans: Sequence[ServicePlan],
     one = len(given) == 1
     options, it = f"{', '.join(given)} act{'s' * one}", "it" if one else "them"
     readers = ("physics a score library with --physics-arg '--score-dir DIR', or graphics a --preview-score with "
-               f"--graphics-arg); live notes (/batteur/score/note) are read as General MIDI pitches without {it}")
+               f"--graphics-arg); live notes (/batteur/score/note) are read without {it}")
     if opts.score:
         return (f"{options} only on MIDI files, and --score {opts.score} is a text score, read without {it}: of "
                 f"this rig's scores only MIDI files /batteur/score/load may load from its folder would be read with "

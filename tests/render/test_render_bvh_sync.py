@@ -1,6 +1,7 @@
-"""``batteur render --bvh-sync wav``: performance.bvh's frame 0 at performance.wav's time 0, the first pose held
-until it comes, so the BVH and the WAV imported at frame 0 line up (the default BVH, frame 0 the first pose, is
-unchanged; report.json's ``bvh`` entry says where its frame 0 falls in the WAV)."""
+"""``batteur render --bvh-sync wav`` (the default since 7 Dec): performance.bvh's frame 0 at performance.wav's time
+0, the first pose held until it comes, so the BVH and the WAV imported at frame 0 line up; ``--bvh-sync pose`` keeps
+the file as it was before (frame 0 the first pose; report.json's ``bvh`` entry says where its frame 0 falls in the
+WAV)."""
 
 from __future__ import annotations
 
@@ -75,7 +76,7 @@ def test_render_bvh_sync_wav_puts_frame_0_at_the_wavs_time_0(tmp_path: Path) -> 
     report = json.loads((out / "report.json").read_text())
     assert report["bvh"] == {"file": "performance.bvh", "frames": len(motion_rows(out / "performance.bvh")),
                              "rate_hz": 60.0, "sync": "wav", "start_s": -0.05, "wav_time_s": 0.0,
-                             "wav_offset_frames": 0.0}
+                             "wav_offset_frames": 0.0, "units": "m"}
     rows = motion_rows(out / "performance.bvh")
     pelvis = _gltf_translation(out / "performance.glb", "pelvis")  # z up under the glTF's root
     keys = min(len(rows), len(pelvis))
@@ -85,15 +86,30 @@ def test_render_bvh_sync_wav_puts_frame_0_at_the_wavs_time_0(tmp_path: Path) -> 
     assert np.all(rows[:4] == rows[0]) and not np.all(rows[4] == rows[0])  # held to the first pose (0.051 s)
 
 
-def test_the_default_bvh_says_where_it_falls_in_the_wav(tmp_path: Path) -> None:
-    """Without the option frame 0 is the first pose (rig time 1 ms): report.json says it is heard 0.051 s into the
-    WAV, 3.06 frames at 60 Hz, the shift that lines the BVH up in an animation tool."""
+def test_the_pose_synced_bvh_says_where_it_falls_in_the_wav(tmp_path: Path,
+                                                           capsys: pytest.CaptureFixture[str]) -> None:
+    """With ``--bvh-sync pose`` frame 0 is the first pose (rig time 1 ms): report.json says it is heard 0.051 s into
+    the WAV, 3.06 frames at 60 Hz, the shift that lines the BVH up in an animation tool, and so does its line. This
+    was the default until 7 Dec (the test rendered without the option): an animator importing it with the WAV at
+    frame 0 saw every strike 3 frames early, nothing said."""
     out = tmp_path / "out"
-    assert render.main([str(SCORE), "-o", str(out), "--quiet"]) == 0
+    assert render.main([str(SCORE), "-o", str(out), "--quiet", "--bvh-sync", "pose"]) == 0
     report = json.loads((out / "report.json").read_text())
-    assert report["bvh"] == {"file": "performance.bvh", "frames": len(motion_rows(out / "performance.bvh")),
-                             "rate_hz": 60.0, "sync": "pose", "start_s": 0.001, "wav_time_s": 0.051,
-                             "wav_offset_frames": 3.06}
+    frames = len(motion_rows(out / "performance.bvh"))
+    assert report["bvh"] == {"file": "performance.bvh", "frames": frames, "rate_hz": 60.0, "sync": "pose",
+                             "start_s": 0.001, "wav_time_s": 0.051, "wav_offset_frames": 3.06, "units": "m"}
+    assert (f"wrote {out / 'performance.bvh'} ({frames} frames at 60 Hz; frame 0 is the first pose (--bvh-sync "
+            "pose), 0.051 s into performance.wav: shift it 3.06 frames to line it up, or render with --bvh-sync "
+            "wav)\n") in capsys.readouterr().out
+
+
+def test_the_bvh_is_on_the_wavs_clock_by_default() -> None:
+    """Until 7 Dec the default was ``pose`` (render.py and ``--help``)."""
+    assert render.RenderOptions().bvh_sync == "wav"
+    parser = render.build_parser()
+    assert render.options_from(parser.parse_args([str(SCORE), "-o", "x"])).bvh_sync == "wav"
+    assert render.options_from(parser.parse_args([str(SCORE), "-o", "x", "--bvh-sync", "pose"])).bvh_sync == "pose"
+    assert "wav (the default)" in " ".join(parser.format_help().split())
 
 
 def test_bvh_sync_is_said_to_do_nothing_for_the_strike_scene() -> None:

@@ -221,6 +221,31 @@ def test_gltf_animates_the_hihat_opening_and_the_pedal(rendered: Path) -> None:
     assert names.index("kit_hihat_pedal") in gltf.nodes[names.index("kit.hihat_pedal.footboard")].children
 
 
+def test_gltf_body_ends_where_the_bvh_does(rendered: Path) -> None:
+    """The render gives the export the BVH's End Sites (the body physics built, ``render.body_end_sites``): each
+    stick's tip joint is physics' bead centre, each foot's box reaches the ball of the foot (without them a foot
+    is a cube about its ankle)."""
+    gltf = load(rendered / "performance.glb")
+    sites = render.body_end_sites(render.RenderOptions())
+    names = [n.name for n in gltf.nodes]
+    skin = gltf.skins[0]
+    inverse = accessor(gltf, skin.inverseBindMatrices).reshape(-1, 4, 4).transpose(0, 2, 1).astype(float)
+    mesh = gltf.meshes[next(n.mesh for n in gltf.nodes if n.skin is not None)]
+    for side in ("left", "right"):
+        tip = gltf.nodes[names.index(f"{side}_stick_tip")]
+        assert names.index(f"{side}_stick_tip") in gltf.nodes[names.index(f"{side}_stick")].children
+        np.testing.assert_allclose(tip.translation, sites[f"{side}_stick"], atol=1e-6)
+        joint = [gltf.nodes[j].name for j in skin.joints].index(f"{side}_foot")
+        ball = np.asarray(sites[f"{side}_foot"])
+        reach = []
+        for primitive in mesh.primitives:  # the bind pose's vertices in the foot's frame (its link's, z up)
+            bound = accessor(gltf, primitive.attributes.JOINTS_0)[:, 0] == joint
+            pos = accessor(gltf, primitive.attributes.POSITION).astype(float)[bound]
+            local = (inverse[joint] @ np.c_[pos, np.ones(len(pos))].T).T[:, :3]
+            reach += list(local @ ball / np.linalg.norm(ball))
+        assert max(reach) == pytest.approx(np.linalg.norm(ball), abs=1e-5)  # metres
+
+
 def test_gltf_passes_the_khronos_validator(rendered: Path) -> None:
     if shutil.which("node") is None or not (WEB / "node_modules" / "gltf-validator").is_dir():
         pytest.skip("needs node and `npm ci` in services/graphics/web (Khronos gltf-validator)")

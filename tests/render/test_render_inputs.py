@@ -233,11 +233,16 @@ def test_motion_capture_options_are_read_before_simulating(tmp_path: Path, monke
     legs_only.write_text("HIERARCHY\nROOT Hips\n{\n OFFSET 0 0 0\n CHANNELS 3 Zrotation Xrotation Yrotation\n"
                          " End Site\n {\n  OFFSET 0 10 0\n }\n}\nMOTION\nFrames: 2\nFrame Time: 0.03\n0 0 0\n0 0 0\n",
                          encoding="utf-8")
-    giant = tmp_path / "giant.bvh"  # a skeleton in millimetres, read as centimetres: ten times a performer
-    arms = "".join(f" JOINT {side}Arm\n {{\n  OFFSET {x} 0 0\n  CHANNELS 3 Zrotation Xrotation Yrotation\n"
-                   "  End Site\n  {\n   OFFSET 0 -280 0\n  }\n }\n" for side, x in (("Left", 180), ("Right", -180)))
+    # shoulders 36 times as far apart as the hips: ten times a performer's in centimetres, and no other unit
+    # (millimetres: hips 1 cm apart) makes them a performer's
+    giant = tmp_path / "giant.bvh"
+    arms = "".join(f" JOINT {side}{part}\n {{\n  OFFSET {x} {y} 0\n  CHANNELS 3 Zrotation Xrotation Yrotation\n"
+                   f"  End Site\n  {{\n   OFFSET 0 {y or -280} 0\n  }}\n }}\n" for part, y, sides in (
+                       ("Arm", 0, (("Left", 180), ("Right", -180))), ("UpLeg", -40, (("Left", 5), ("Right", -5))))
+                   for side, x in sides)
     giant.write_text("HIERARCHY\nROOT Hips\n{\n OFFSET 0 0 0\n CHANNELS 3 Zrotation Xrotation Yrotation\n" + arms
-                     + "}\nMOTION\nFrames: 2\nFrame Time: 0.03\n" + "0 0 0 0 0 0 0 0 0\n" * 2, encoding="utf-8")
+                     + "}\nMOTION\nFrames: 2\nFrame Time: 0.03\n" + "0 0 0 0 0 0 0 0 0 0 0 0 0 0 0\n" * 2,
+                     encoding="utf-8")
     out = tmp_path / "out"
     for args, says in ((["--limits-from", str(tmp_path / "none.bvh")], "--limits-from: no BVH file"),
                        (["--limits-from", "moonwalk"], "--limits-from: no clip 'moonwalk'"),

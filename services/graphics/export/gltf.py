@@ -1,9 +1,14 @@
 """glTF 2.0 export (binary .glb or .gltf with embedded data) with ``pygltflib``.
 
 The body is a skeleton and a skin (:mod:`services.graphics.export.gltf_skin`): a joint node per body link in the
-BVH's tree, animated by its local rotation (linear interpolation, one key per pose), and the links' small boxes as
-one mesh skinned to them, weight 1 to their link's joint; other links (the kit's) are nodes animated by their pose's
-translation and rotation. All hang from a root node that turns the Batteur frame (z up) into glTF's (y up). The kit
+BVH's tree, animated by its local rotation (linear interpolation, one key per pose), a stick's tip a joint more
+(``<stick>_tip``, unanimated, at the bead's centre: what the BVH has as the stick's End Site, so an importer gives
+the stick bone its length), and the links' shapes as one mesh skinned to them, weight 1 to their link's joint: a
+body link a box along its segment (from its joint to its child joints), a stick a 12-sided rod along its link's +y
+from the butt to the tip (:func:`_stick_shape`). Other links (the kit's) are nodes animated by their pose's
+translation and rotation. All hang from a root node that turns the Batteur frame (z up, the drummer facing +y) into
+glTF's (y up, the asset's front facing +z, as the glTF 2.0 spec has it: the drummer faces +z, the kit in front of
+him at +z, his left at +x; :data:`ROOT_ROTATION`). The kit
 is added as meshes (cylinders for drums, thin discs for cymbals, boxes for the rest) so
 the file shows the whole scene in Blender, three.js or any viewer: static,
 except the objects whose motion the sequence carries as physics' kit links
@@ -19,7 +24,7 @@ Given the impacts, each struck drum head, cymbal or hi-hat top plate gets a thin
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -39,7 +44,11 @@ from services.graphics.export.gltf_skin import Skeleton, continuous_quats
 from services.graphics.sequence import PoseSequence, normalize_quats
 
 FLOAT, USHORT, UBYTE = pygltflib.FLOAT, pygltflib.UNSIGNED_SHORT, pygltflib.UNSIGNED_BYTE
-ROOT_ROTATION = [-math.sqrt(0.5), 0.0, 0.0, math.sqrt(0.5)]  # -90 degrees about x: z up -> y up
+ROOT_ROTATION = [0.0, math.sqrt(0.5), math.sqrt(0.5), 0.0]
+"""The root node's rotation (x y z w): Batteur's (x, y, z) -> glTF's (-x, z, y), 180 degrees about (0, 1, 1). z up
+becomes y up and the drummer, facing +y, faces +z (glTF 2.0: "the front of a glTF asset faces +Z"; Blender's and
+three.js's importers follow it). Until 7 Dec it was -90 degrees about x, (x, z, -y): the drummer faced -z, so a
+viewer's front view showed his back."""
 
 COLOURS = {
     "body": [0.31, 0.53, 0.78, 1.0], "stick": [0.85, 0.7, 0.48, 1.0], "membrane": [0.55, 0.11, 0.14, 1.0],
@@ -47,6 +56,15 @@ COLOURS = {
 }
 CYMBAL_DRAWN_THICKNESS_M = 0.01
 """A cymbal's or hi-hat plate's drawn thickness, metres (thicker than physics' 2 mm, to be seen)."""
+STICK_TIP_M = 0.2695
+"""Fulcrum (the stick link's origin) to the tip bead's centre along the stick link's +y, metres: physics' 5A stick
+(services/physics/sticks.py ``StickSpec.tip_offset``), used when the caller gives no End Site for the stick."""
+STICK_GRIP_M = 0.13
+"""Fulcrum to the butt, metres (``StickSpec.grip_m``)."""
+STICK_BEAD_RADIUS_M = 0.0065
+"""The tip bead's radius, metres (``StickSpec.tip_radius_m``): the drawn rod ends this far past the tip joint."""
+STICK_DIAMETER_M = 0.0146
+"""The drawn rod's diameter, metres (twice ``StickSpec.radius_m``)."""
 
 
 
@@ -61,7 +79,8 @@ class GltfInfo:
     duration: float
     animated_kit_objects: int = 0
     joints: int = 0
-    """Joint nodes of the skin (the body links in the BVH's tree, and its ``seat`` joint for physics' character)."""
+    """Joint nodes of the skin (the body links in the BVH's tree, its ``seat`` joint for physics' character, and a
+    ``<stick>_tip`` joint per stick whose tip is no link)."""
     flashes: int = 0
     """Struck kit objects drawn with a flash (:mod:`services.graphics.export.gltf_flash`)."""
 
@@ -75,7 +94,11 @@ def _box() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         for sign in (-1.0, 1.0):
             n = np.zeros(3)
             n[axis] = sign
-            u, v = np.roll(np.eye(3), axis + 1, axis=0)[:2] if sign > 0 else np.roll(np.eye(3), axis + 1, axis=0)[1::-1]
+            # the face's two other axes, u x v = n (counter-clockwise seen from outside); until 7 Dec the x and y
+            # faces took their own normal as a tangent: the "cube" spanned 2 x 2 x 1, four faces misplaced
+            u, v = np.eye(3)[(axis + 1) % 3], np.eye(3)[(axis + 2) % 3]
+            if sign < 0:
+                u, v = v, u
             base = len(pos)
             for a, b in ((-1, -1), (1, -1), (1, 1), (-1, 1)):
                 pos.append(0.5 * n + 0.5 * a * u + 0.5 * b * v)
@@ -271,43 +294,139 @@ class _KitParts:
 
 
 def _link_size(name: str, link_size: float) -> float:
-    """The edge (metres) of body link ``name``'s box: a stick's half ``link_size``, a head's 2.5 times."""
+    """The edge (metres) of body link ``name``'s cube (a link off the skeleton, a leaf with no End Site): a stick's
+    half ``link_size``, a head's 2.5 times."""
     return link_size * (0.5 if "stick" in name else (2.5 if name.endswith("head") else 1.0))
 
 
-def _skin(b: _Builder, skeleton: Skeleton, sequence: PoseSequence, joint_nodes: list[int], link_size: float,
+def is_stick(name: str) -> bool:
+    """Whether body link ``name`` is a stick (drawn as a rod, given a tip joint), not a stick's tip link."""
+    return "stick" in name and not name.endswith("_tip")
+
+
+Shape = tuple[np.ndarray, np.ndarray, np.ndarray]
+"""A mesh: positions (N, 3), normals (N, 3), triangle indices (M,) into them."""
+
+
+def _along(shape: Shape, start: np.ndarray, end: np.ndarray, width: float, length_axis: int) -> Shape:
+    """``shape`` (unit size, its ``length_axis`` from -0.5..0.5 for a box or -1..0 for the cylinder) stretched
+    from ``start`` to ``end`` (3,), metres, and scaled by ``width`` across (metres: a box's edge, a cylinder's
+    radius). Normals come out unnormalised (:func:`_normalized`)."""
+    pos, nor, idx = shape
+    d = end - start
+    length = float(np.linalg.norm(d))
+    scale = np.full(3, width)
+    scale[length_axis] = length
+    axis = np.zeros(3)
+    axis[length_axis] = 1.0
+    turn, _ = Rotation.align_vectors([d / length], [axis])
+    m = turn.as_matrix()
+    local = pos.astype(float) * scale
+    local[:, length_axis] -= local[:, length_axis].min()  # from 0 (start) to length (end) along the axis
+    return local @ m.T + start, (nor.astype(float) / scale) @ m.T, idx
+
+
+def _normalized(shape: Shape) -> Shape:
+    """``shape`` with unit normals."""
+    pos, nor, idx = shape
+    return pos, nor / np.linalg.norm(nor, axis=1, keepdims=True), idx
+
+
+def _stick_shape(tip: np.ndarray) -> Shape:
+    """A stick in its link's frame: a 12-sided rod :data:`STICK_DIAMETER_M` across, from the butt
+    (:data:`STICK_GRIP_M` behind the fulcrum, the link's origin) to the tip bead's far side (:data:`STICK_BEAD_RADIUS_M`
+    past ``tip``, the bead's centre, (3,) metres): physics' 5A stick, 0.406 m."""
+    u = tip / np.linalg.norm(tip)
+    return _normalized(_along(_cylinder(12), -STICK_GRIP_M * u, tip + STICK_BEAD_RADIUS_M * u,
+                              STICK_DIAMETER_M / 2, 2))
+
+
+def _segment_shape(end: np.ndarray | None, width: float, cube: float) -> Shape:
+    """A body link in its frame: a box ``width`` across from its origin to ``end`` (3,), metres (the mean of its child
+    joints' offsets, or its End Site); a cube of edge ``cube`` centred on its origin when ``end`` is None or shorter
+    than ``width``."""
+    if end is None or float(np.linalg.norm(end)) < width:
+        pos, nor, idx = _box()
+        return pos.astype(float) * cube, nor.astype(float), idx
+    return _normalized(_along(_box(), np.zeros(3), np.asarray(end, dtype=float), width, 1))
+
+
+def _stick_tips(skeleton: Skeleton, end_sites: Mapping[str, np.ndarray]) -> dict[int, np.ndarray]:
+    """Stick joint -> its tip (3,), metres in its frame, for each stick that is a leaf of ``skeleton`` (physics'
+    sticks: their tips are no link of the pose): the End Site given, else :data:`STICK_TIP_M` along +y."""
+    parents = {joint.parent for joint in skeleton.joints}
+    out = {}
+    for k, joint in enumerate(skeleton.joints):
+        if joint.link >= 0 and is_stick(joint.name) and k not in parents:
+            given = end_sites.get(joint.name)
+            out[k] = np.asarray([0.0, STICK_TIP_M, 0.0] if given is None else given, dtype=float)
+    return out
+
+
+def _joint_shapes(skeleton: Skeleton, sequence: PoseSequence, tips: Mapping[int, np.ndarray],
+                  end_sites: Mapping[str, np.ndarray], link_size: float) -> dict[int, Shape]:
+    """Joint -> its link's shape in the joint's frame (the links' boxes and sticks; the seat joint has none)."""
+    children: dict[int, list[np.ndarray]] = {}
+    for joint in skeleton.joints:
+        if joint.parent >= 0 and float(np.linalg.norm(joint.translation[0])) > 1e-6:  # the seat: no offset
+            children.setdefault(joint.parent, []).append(joint.translation[0])
+    out: dict[int, Shape] = {}
+    for k, joint in enumerate(skeleton.joints):
+        if joint.link < 0:
+            continue
+        name = sequence.names[joint.link]
+        ends = children.get(k)
+        if is_stick(name):
+            tip = tips.get(k, np.mean(ends, axis=0) if ends else None)
+            if tip is not None and float(np.linalg.norm(tip)) > 1e-6:
+                out[k] = _stick_shape(np.asarray(tip, dtype=float))
+                continue
+        end = np.mean(ends, axis=0) if ends else end_sites.get(name)
+        out[k] = _segment_shape(None if end is None else np.asarray(end, dtype=float), link_size,
+                                _link_size(name, link_size))
+    return out
+
+
+def _skin(b: _Builder, skeleton: Skeleton, sequence: PoseSequence, joint_nodes: list[int],
+          tips: Mapping[int, np.ndarray], end_sites: Mapping[str, np.ndarray], link_size: float,
           materials: tuple[int, int]) -> int:
     """The skinned mesh node (a scene root, no transform of its own, as the spec asks) drawing the body links'
-    boxes, each vertex weight 1 to its link's joint: one primitive per material (body, stick)."""
+    shapes, each vertex weight 1 to its link's joint: one primitive per material (body, stick). ``joint_nodes``:
+    the skeleton's joint nodes, then the tips' (``tips``' order), which no vertex is bound to."""
     root = np.eye(4)
     root[:3, :3] = Rotation.from_quat(ROOT_ROTATION).as_matrix()
     bind = skeleton.bind_matrices(root)
-    box_pos, box_nor, box_idx = _box()
-    parts: list[list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = [[], []]
-    for link, k in sorted(skeleton.links.items()):
-        name = sequence.names[link]
+    tip_bind = []
+    for k, tip in tips.items():
+        offset = np.eye(4)
+        offset[:3, 3] = tip
+        tip_bind.append(bind[k] @ offset)
+    bind = np.concatenate([bind, np.array(tip_bind).reshape(-1, 4, 4)])
+    parts: list[list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]] = [[], []]
+    shapes = _joint_shapes(skeleton, sequence, tips, end_sites, link_size)
+    for k, (pos, nor, idx) in sorted(shapes.items(), key=lambda item: skeleton.joints[item[0]].link):
         m = bind[k]
-        pos = (box_pos.astype(float) * _link_size(name, link_size)) @ m[:3, :3].T + m[:3, 3]
-        parts[1 if "stick" in name else 0].append((pos, box_nor.astype(float) @ m[:3, :3].T,
-                                                     np.full(len(pos), k)))
+        parts[1 if "stick" in skeleton.joints[k].name else 0].append(
+            (pos @ m[:3, :3].T + m[:3, 3], nor @ m[:3, :3].T, np.full(len(pos), k), idx))
     joint_type = np.uint8 if len(joint_nodes) < 256 else np.uint16
     primitives = []
-    for material, boxes in zip(materials, parts, strict=True):
-        if not boxes:
+    for material, meshes in zip(materials, parts, strict=True):
+        if not meshes:
             continue
-        pos = np.concatenate([p for p, _, _ in boxes])
+        pos = np.concatenate([p for p, _, _, _ in meshes])
         joints = np.zeros((len(pos), 4), joint_type)
-        joints[:, 0] = np.concatenate([j for _, _, j in boxes])
+        joints[:, 0] = np.concatenate([j for _, _, j, _ in meshes])
         weights = np.zeros((len(pos), 4), np.float32)
         weights[:, 0] = 1.0
-        indices = np.concatenate([box_idx + len(box_pos) * n for n in range(len(boxes))]).astype(np.uint16)
+        starts = np.cumsum([0] + [len(p) for p, _, _, _ in meshes[:-1]])
+        indices = np.concatenate([i + start for (_, _, _, i), start in zip(meshes, starts, strict=True)])
         attributes = pygltflib.Attributes(
             POSITION=b.accessor(pos, pygltflib.VEC3, pygltflib.ARRAY_BUFFER, bounds=True),
-            NORMAL=b.accessor(np.concatenate([n for _, n, _ in boxes]), pygltflib.VEC3, pygltflib.ARRAY_BUFFER),
+            NORMAL=b.accessor(np.concatenate([n for _, n, _, _ in meshes]), pygltflib.VEC3, pygltflib.ARRAY_BUFFER),
             JOINTS_0=b.accessor(joints, pygltflib.VEC4, pygltflib.ARRAY_BUFFER),
             WEIGHTS_0=b.accessor(weights, pygltflib.VEC4, pygltflib.ARRAY_BUFFER))
         primitives.append(pygltflib.Primitive(attributes=attributes, material=material,
-                                              indices=b.accessor(indices, pygltflib.SCALAR,
+                                              indices=b.accessor(indices.astype(np.uint16), pygltflib.SCALAR,
                                                                  pygltflib.ELEMENT_ARRAY_BUFFER)))
     b.gltf.meshes.append(pygltflib.Mesh(name="body", primitives=primitives))
     inverse = np.linalg.inv(bind).transpose(0, 2, 1).reshape(len(bind), 16)  # column-major, as glTF stores them
@@ -347,14 +466,19 @@ def _flashes(b: _Builder, kit: Kit, impacts: Iterable[tuple[float, str]], origin
 
 
 def write_gltf(sequence: PoseSequence, path: Path, kit: Kit | None = None, link_size: float = 0.05,
-               time_origin: float | None = None, impacts: Iterable[tuple[float, str]] | None = None) -> GltfInfo:
+               time_origin: float | None = None, impacts: Iterable[tuple[float, str]] | None = None,
+               end_sites: Mapping[str, Iterable[float]] | None = None) -> GltfInfo:
     """Write ``sequence`` (and ``kit``: static, or moved by its kit links in ``sequence``) as glTF 2.0: ``.glb``
-    binary, or ``.gltf`` with embedded data. ``time_origin``: the rig time (seconds) of the file's time 0 (None:
-    the first pose's); no pose may come before it. ``impacts`` ((rig time in seconds, kit object id), with
-    ``kit``): each struck object's head flashes at its impacts (:mod:`services.graphics.export.gltf_flash`)."""
+    binary, or ``.gltf`` with embedded data. ``link_size``: the body links' boxes' width, metres. ``time_origin``:
+    the rig time (seconds) of the file's time 0 (None: the first pose's); no pose may come before it. ``impacts``
+    ((rig time in seconds, kit object id), with ``kit``): each struck object's head flashes at its impacts
+    (:mod:`services.graphics.export.gltf_flash`). ``end_sites``: leaf link -> its tip, metres in the link's frame
+    (z up), as :func:`services.graphics.export.bvh.write_bvh`'s: a stick's tip joint (default :data:`STICK_TIP_M`
+    along +y) and a leaf's box (a foot's to the ball of the foot; default a cube)."""
     origin = float(sequence.times[0]) if time_origin is None else time_origin
     if sequence.times[0] < origin:
         raise ValueError(f"the first pose ({sequence.times[0]:g} s) comes before the file's time 0 ({origin:g} s)")
+    sites = {} if end_sites is None else {link: np.asarray(list(v), dtype=float) for link, v in end_sites.items()}
     b = _Builder()
     box = _box()
     body_mat = b.material(COLOURS["body"])
@@ -400,6 +524,11 @@ def write_gltf(sequence: PoseSequence, path: Path, kit: Kit | None = None, link_
             if joint.parent >= 0:
                 parent = b.gltf.nodes[joint_nodes[joint.parent]]
                 parent.children = [*(parent.children or []), joint_nodes[-1]]
+    tips = {} if skeleton is None else _stick_tips(skeleton, sites)
+    for k, tip in tips.items():  # a joint at each stick's tip (no key: it stays there), the stick bone's tail
+        stick = b.gltf.nodes[joint_nodes[k]]
+        joint_nodes.append(b.node(name=f"{stick.name}_tip", translation=[float(v) for v in tip]))
+        stick.children = [*(stick.children or []), joint_nodes[-1]]
     kit_nodes = []
     animated_ids = set()
     if kit is not None:
@@ -408,7 +537,7 @@ def write_gltf(sequence: PoseSequence, path: Path, kit: Kit | None = None, link_
     root = b.node(name="batteur", rotation=ROOT_ROTATION, children=joint_nodes[:1] + link_nodes + kit_nodes)
     scene_nodes = [root]
     if skeleton is not None and joint_of:
-        scene_nodes.append(_skin(b, skeleton, sequence, joint_nodes, link_size, (body_mat, stick_mat)))
+        scene_nodes.append(_skin(b, skeleton, sequence, joint_nodes, tips, sites, link_size, (body_mat, stick_mat)))
     flashes = []
     if kit is not None and impacts is not None:
         link_node = {sequence.names[i]: node for i, node in zip(rigid, link_nodes, strict=True)}
@@ -424,7 +553,7 @@ def write_gltf(sequence: PoseSequence, path: Path, kit: Kit | None = None, link_
         tracks += [(node, sequence.values[:, i, :3], "translation"),
                    (node, continuous_quats(sequence.values[:, i, 3:]), "rotation")]
     if skeleton is not None:
-        for joint, node in zip(skeleton.joints, joint_nodes, strict=True):
+        for joint, node in zip(skeleton.joints, joint_nodes[:len(skeleton.joints)], strict=True):
             if joint.moves:
                 tracks.append((node, joint.translation, "translation"))
             tracks.append((node, joint.rotation, "rotation"))
