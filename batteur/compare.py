@@ -20,6 +20,7 @@ alignment (and then the means are against that start).
 from __future__ import annotations
 
 import argparse
+import bisect
 import json
 import math
 import sys
@@ -37,6 +38,8 @@ from common.arg_types import take_negative_values
 from common.kit import EventType, Kit
 from common.score.events import Score
 from common.score.midi_options import add_midi_arguments, drum_map, midi_read_kwargs
+from common.score.position import bar_unit, pickup  # shared with the physics score player's logs
+from common.score.position import counted_bar_beat as bar_and_beat
 
 if TYPE_CHECKING:
     from batteur.evaluate import NoteRef
@@ -92,6 +95,10 @@ WRITTEN_TEMPO_SAME = 0.005
 """Written tempi within this share of each other are one (a MIDI tempo's whole microseconds, a DAW's 0.01 bpm):
 past it the exercise's tempo changes (a tempo map) and a take's tempo is said against the written one (2 % slower
 than written) rather than in bpm."""
+FOLLOW_ONSETS = (3, 8)
+"""Onsets (written times struck, their lags averaged) the take's lag trend is fitted on, fewest and most, the last
+before a note (:func:`follow_lag`): three on a line (within half the tolerance) tell a slope, as the first three
+beats after a tempo change played slow do; eight, two bars of quarter notes, keep it local."""
 BEAT_ONSETS = 2
 """Onsets (written times played) a beat needs before it can be told rushed or dragging (:func:`beat_feels`): one
 note early is a noisy note, not a rushed beat."""
@@ -338,6 +345,108 @@ def align(written: Sequence[NoteRef], played: Sequence[Played], tolerance: float
     return (0.0, []) if best is None else (best[1], best[2])
 
 
+def follow_lag(written: Sequence[NoteRef], played: Sequence[Played], offset: float, tolerance: float,
+               pairs: Mapping[int, int], claimed: Mapping[int, int], missed: Sequence[int],
+               loose: Mapping[str, Sequence[int]]) -> dict[int, int]:
+    """The notes played too early or late (``claimed``: written index -> played index, the nearest within the 150 ms
+    reach) redone along the take's lag where it falls behind (runs ahead) bar after bar: a tempo change played at
+    110 where 120 is written is 45 ms more behind each beat, its notes leave the reach (they were "missed", with
+    as many "extras" an eighth-triplet off), and once more than half a note behind, the nearest written note of a
+    strike is the next one (a note 290 ms late read as 210 ms early for the note after).
+
+    The written notes not matched (``claimed`` and ``missed``) are walked in time order. At each, the lag (played -
+    written, s, ``offset`` taken off) is fitted as a line through the last :data:`FOLLOW_ONSETS` onsets struck
+    before it (``pairs``, within the tolerance, and the notes decided so far), the most of them within half the
+    tolerance of it; where the last onset is beyond the tolerance on the side the line heads to, the note of its
+    drum nearest the line's lag at it, within the tolerance of it, is the one played for it: a note no written
+    note has (``loose``: per drum the played indices not in ``pairs``), or one claimed for a later written note
+    (which is walked again, missed). No line is extrapolated further than the onsets it is fitted on span, nor
+    steeper than :data:`TEMPO_GRID`'s tempi; where there is none, or no note near it, the claim stays. Returns the
+    written index -> played index of every note played too early or late.
+
+    On a take on tempo the last onset is within the tolerance (or a lone note off is no line) and every claim
+    stays."""
+    decided = dict(claimed)
+    owner = {j: i for i, j in decided.items()}
+    onsets: dict[float, list[float]] = defaultdict(list)  # written time (s, rounded): lags s
+
+    def lag_of(i: int, j: int) -> float:
+        return played[j].time - offset - written[i].time
+
+    for i, j in [*pairs.items(), *decided.items()]:
+        onsets[round(written[i].time, 6)].append(lag_of(i, j))
+    keys = sorted(onsets)
+    slopes = (1.0 / TEMPO_GRID[1] - 1.0, 1.0 / TEMPO_GRID[0] - 1.0)  # lag s per written s
+    pool = {drum: sorted((played[j].time - offset, j) for j in js) for drum, js in loose.items()}
+    pool_times = {drum: [at for at, _ in notes] for drum, notes in pool.items()}
+    todo = sorted({*decided, *missed}, key=lambda k: (written[k].time, k))
+    while todo:
+        i = todo.pop(0)
+        t, key = written[i].time, round(written[i].time, 6)
+        old = decided.get(i)
+        if old is not None:  # the trend is the notes' before it, not its own
+            onsets[key].remove(lag_of(i, old))
+        recent: list[float] = []  # the last onsets up to it, struck (a note taken back leaves its time empty)
+        for k in reversed(keys[:bisect.bisect_right(keys, key)]):
+            if onsets[k]:
+                recent.append(k)
+                if len(recent) == FOLLOW_ONSETS[1]:
+                    break
+        lag = _lag_line(recent[::-1], onsets, t, tolerance, slopes)
+        best = None
+        drum = written[i].instrument
+        if lag is not None and drum in pool:
+            at = pool_times[drum]
+            near = [(abs(pool[drum][k][0] - t - lag), pool[drum][k][1])
+                    for k in range(bisect.bisect_left(at, t + lag - tolerance),
+                                   bisect.bisect_right(at, t + lag + tolerance))]
+            near = [(d, j) for d, j in near if j == old or owner.get(j) is None
+                    or (written[owner[j]].time, owner[j]) > (t, i)]  # free, its own, or a later note's
+            best = min(near)[1] if near else None
+        if best is not None and best != old:
+            if old is not None:
+                del owner[old]
+            other = owner.get(best)
+            if other is not None:  # taken from a later note: that one is walked again, missed
+                onsets[round(written[other].time, 6)].remove(lag_of(other, best))
+                del decided[other]
+                todo.append(other)
+                todo.sort(key=lambda k: (written[k].time, k))
+            decided[i], owner[best] = best, i
+        if i in decided:
+            if key not in onsets:
+                bisect.insort(keys, key)
+            onsets[key].append(lag_of(i, decided[i]))
+    return decided
+
+
+def _lag_line(times: Sequence[float], onsets: Mapping[float, Sequence[float]], t: float, tolerance: float,
+              slopes: tuple[float, float]) -> float | None:
+    """The lag (s) at written time ``t`` on the line through the most of the onsets ``times`` (the last first, at
+    least :data:`FOLLOW_ONSETS`'s fewest) that lie within half the tolerance of it, when the last onset is beyond
+    the tolerance on the side the line heads to, ``t`` is no further from it than the onsets span and the slope
+    (lag s per written s) is within ``slopes``; else None (:func:`follow_lag`)."""
+    x = np.asarray(times, dtype=float)
+    if len(x) < FOLLOW_ONSETS[0]:
+        return None
+    y = np.array([float(np.mean(onsets[k])) for k in times])
+    if abs(y[-1]) <= tolerance:  # not yet off: a note there is the matching's or the 150 ms reach's
+        return None
+    for k in range(len(x), FOLLOW_ONSETS[0] - 1, -1):
+        xs, ys = x[-k:], y[-k:]
+        span = float(xs[-1] - xs[0])
+        if span <= 0 or t - xs[-1] > span:
+            continue
+        slope, intercept = (float(v) for v in np.polyfit(xs, ys, 1))
+        if np.max(np.abs(ys - (slope * xs + intercept))) > tolerance / 2:
+            continue
+        if not slopes[0] <= slope <= slopes[1]:
+            return None
+        lag = slope * t + intercept
+        return lag if lag * y[-1] > 0 and abs(lag) >= abs(y[-1]) - tolerance / 2 else None
+    return None
+
+
 def wrong_drum_pairs(written: Sequence[tuple[float, str]], played: Sequence[tuple[float, str]], tolerance: float,
                      family: Callable[[str], str]) -> list[tuple[int, int]]:
     """One-to-one pairs (written position, played position) of notes on different drums within ``tolerance`` of
@@ -522,35 +631,6 @@ def last_bar(score: Score) -> tuple[int, float, float, float] | None:
     return bar, beat + 1e-6 / spacing, spacing, end
 
 
-def bar_and_beat(score: Score, written_time: float) -> tuple[int, float, float] | None:
-    """(bar, beat from 1 (fractional), the beat's length s) of a time on the written clock, numbered as
-    :func:`position` says; None before the first beat. Beats are the meter's 1/D notes (:func:`bar_unit`): eighths
-    in 6/8 and 7/8, as a DAW counts; the written tempo at the time (its map) gives their length."""
-    from common.score.position import bar_beat
-
-    where = bar_beat(score, written_time)
-    if where is None:
-        return None
-    short = pickup(score)
-    # a pick-up's beats are counted as the end of the full bar after it (its unit too: 1/4 before 6/8)
-    unit = bar_unit(score, 1 if short is not None and where.bar == 0 else where.bar)
-    spacing = 60.0 / where.tempo_bpm * unit
-    beat = where.beat / unit + 1
-    if short is None:
-        return where.bar + 1, beat, spacing
-    return where.bar, beat + ((short[1] - short[0]) / unit if where.bar == 0 else 0.0), spacing
-
-
-def bar_unit(score: Score, bar: int) -> float:
-    """The beat bar ``bar`` (from 0, as :func:`common.score.position.bar_beat` numbers them) is counted in,
-    quarter notes: its meter's 1/D note (``Score.bar_units``: 0.5 in x/8, 1 in x/4); bars past the last start as
-    the last; quarter notes for a score that gives none."""
-    units = score.bar_units
-    if not len(units) or len(units) != len(score.bar_beats):
-        return 1.0
-    return float(units[min(max(bar, 0), len(units) - 1)])
-
-
 @dataclass(frozen=True)
 class GridPoint:
     """The counting grid's point nearest a time (:func:`grid_point`): its ``bar`` and counted ``beat`` (from 1,
@@ -619,18 +699,6 @@ def grid_label(score: Score, written_time: float, scale: float = 1.0) -> str:
     return text
 
 
-def pickup(score: Score) -> tuple[float, float] | None:
-    """(beats of the pick-up, beats of the bar after it) when the exercise's first bar is shorter than its second
-    (a text score's ``meter 1/4`` then ``meter 4/4``, a MIDI file's first time signature), else None."""
-    bars = np.asarray(score.bar_beats, dtype=float)
-    if len(bars) < 2 or bars[0] > 1e-9:
-        return None
-    # the second bar's length: to the third start, else (the last bar) to the score's last beat
-    second = float(bars[2] - bars[1]) if len(bars) > 2 else float(len(score.beats) - 1 - bars[1])
-    first = float(bars[1] - bars[0])
-    return (first, second) if 0 < first < second - 1e-9 else None
-
-
 def where_text(entry: dict[str, Any]) -> str:
     """``bar 3, beat 2&`` (:func:`grid_label`; ``before bar 1`` ahead of the first beat)."""
     if "where" in entry:
@@ -681,19 +749,22 @@ def dynamics(pairs: Sequence[tuple[float, float]]) -> dict[str, Any] | None:
 
 def bar_rows(score: Score, written: Sequence[tuple[float, float]], pairs: Sequence[tuple[int, float, float]],
              missed: Sequence[int], off: Sequence[int], wrong: Sequence[int], extra_bars: Sequence[int | None],
-             tolerance: float) -> list[dict[str, Any]]:
+             tolerance: float, late: Sequence[tuple[int, float, float]] = ()) -> list[dict[str, Any]]:
     """One row per bar of the exercise (its first bar to the bar of its last written note, as :func:`position`
     numbers them): written, played, missed, too early/late, played on another drum (``wrong_drum``) and extra
-    notes, the matched notes' mean timing (ms, + late) and ``feel`` (``rushed``/``dragging`` when that mean is
-    beyond half the tolerance, else None), and the bar's local tempo (``bpm``, quarter notes a minute as the
-    exercise's tempo; None under :data:`BAR_TEMPO_NOTES` matched notes): the slope of the take's times against
-    the notes' written positions in quarter notes (least squares, :func:`quarters`), beside ``written_bpm``, the
-    same slope of their written times: the bar's own written tempo (its tempo map's), which the played one is
-    measured against.
+    notes, the mean timing (ms, + late) of the notes played on their drum, within the tolerance or beyond it, and
+    ``feel`` (``rushed``/``dragging`` when that mean is beyond half the tolerance, else None), and the bar's local
+    tempo (``bpm``, quarter notes a minute as the exercise's tempo; None under :data:`BAR_TEMPO_NOTES` such notes):
+    the slope of the take's times against the notes' written positions in quarter notes (least squares,
+    :func:`quarters`), beside ``written_bpm``, the same slope of their written times: the bar's own written tempo
+    (its tempo map's), which the played one is measured against. Until the day after 7 Dec the notes too early or
+    late were left out of the mean, the feel and the tempo: a bar whose second half was 90 to 140 ms late read
+    +11 ms, neither dragging, from its first half's notes alone.
 
     ``written``: each written note's (exercise clock, compared clock) time, s; ``pairs``: (written index, take
-    time s, played - written s); ``missed``/``off``/``wrong``: written indices; ``extra_bars``: each extra's
-    bar (its nearest grid point's, as :func:`position` says it)."""
+    time s, played - written s) within the tolerance (``played``), ``late`` the same beyond it;
+    ``missed``/``off``/``wrong``: written indices; ``extra_bars``: each extra's bar (its nearest grid point's, as
+    :func:`position` says it)."""
     # each note's bar as its position says it (grid_point: a humanised note just before a downbeat is that bar's)
     labels: list[Any] = [None if (at := grid_point(score, t)) is None else at.bar for t, _ in written]
     known = [b for b in labels if b is not None]
@@ -716,12 +787,14 @@ def bar_rows(score: Score, written: Sequence[tuple[float, float]], pairs: Sequen
         if b in rows:
             rows[b]["extra"] += 1
     by_bar: dict[int, list[tuple[float, float, float]]] = defaultdict(list)  # (written s, take s, error s)
-    for i, take_time, error in pairs:
+    for i, take_time, error in [*pairs, *late]:
         if labels[i] is not None:
             by_bar[labels[i]].append((written[i][0], take_time, error))
+    for i, _, _ in pairs:
+        if labels[i] is not None:
+            rows[labels[i]]["played"] += 1
     for b, notes in by_bar.items():
         row = rows[b]
-        row["played"] = len(notes)
         mean = float(np.mean([e for _, _, e in notes])) * 1000
         row["mean_ms"] = _r(mean, 1)
         if abs(mean) > tolerance * 1000 / 2:
@@ -792,6 +865,74 @@ def drift(bars: Sequence[dict[str, Any]]) -> dict[str, Any] | None:
             "from_percent": _r((ratios[0] - 1) * 100, 1), "to_percent": _r((ratios[-1] - 1) * 100, 1),
             "from_bar": rows[0]["bar"], "to_bar": rows[-1]["bar"],
             "written_from_bpm": rows[0]["written_bpm"], "written_to_bpm": rows[-1]["written_bpm"]}
+
+
+def off_tempo(score: Score, bars: Sequence[dict[str, Any]], notes: Sequence[tuple[float, float, float]],
+              tolerance: float, scale: float = 1.0) -> list[dict[str, Any]]:
+    """The runs of bars the take falls behind (runs ahead) in: consecutive bars each played by :data:`DRIFT_MIN`
+    or more slower (faster) than its written tempo, over which the notes' lag grows by more than the tolerance to
+    beyond it: a tempo change played 8 % slow, bar after bar (no drift: the tempo does not keep moving, it stays
+    off). Each: ``direction`` (``behind``/``ahead``), ``from_bar``/``to_bar``, ``bpm`` the take's tempo over the
+    run's notes and ``written_bpm`` theirs (the slopes of the take's and the written times against the notes'
+    quarter notes, as a bar's), ``percent`` (+ faster), ``lag_ms`` the last onset's lag (+ late) and ``where``
+    it is, ``notes`` how many, ``tempo_change`` whether the written tempo changes as the run starts (the bar
+    before's written tempo another: an exercise's 90 then 120 bpm) with ``written_before_bpm``. The run's onsets
+    (notes at one time, lags averaged) lie within the tolerance of a line: a lag jumping about is no tempo kept.
+
+    ``notes``: (written time on the exercise's clock s, take time s, played - written s) of every written note
+    played on its drum, within the tolerance or beyond it; ``scale``: the tempo ratio compared at (a bar is off
+    against the written tempo times it; the tempi said are the exercise's, as the bar table's)."""
+    from common.score.position import bar_beat
+
+    if len(score.beats) < 2 or not notes:
+        return []
+    sign_of: dict[int, int] = {}
+    for b in bars:
+        if b["bpm"] is not None and b.get("written_bpm"):
+            ratio = b["bpm"] / (b["written_bpm"] * scale)  # against the tempo compared at
+            sign_of[b["bar"]] = 1 if ratio <= 1 - DRIFT_MIN else -1 if ratio >= 1 + DRIFT_MIN else 0
+    runs: list[list[int]] = []
+    for b in bars:  # consecutive bars off the same way (1: slower, behind)
+        sign = sign_of.get(b["bar"], 0)
+        if sign and runs and runs[-1][-1] == b["bar"] - 1 and sign_of[runs[-1][0]] == sign:
+            runs[-1].append(b["bar"])
+        elif sign:
+            runs.append([b["bar"]])
+    bar_of = [None if (at := grid_point(score, t)) is None else at.bar for t, _, _ in notes]
+    out = []
+    for run in runs:
+        sign = sign_of[run[0]]
+        its = sorted(n for n, b in zip(notes, bar_of, strict=True) if b in run)
+        onsets: dict[float, list[float]] = defaultdict(list)
+        for t, _, error in its:
+            onsets[round(t, 6)].append(error)
+        lags = [float(np.mean(v)) for _, v in sorted(onsets.items())]
+        if len(its) < BAR_TEMPO_NOTES or len(onsets) < 2:
+            continue
+        if not (sign * (lags[-1] - lags[0]) > tolerance and sign * lags[-1] > tolerance):
+            continue
+        when = np.array(sorted(onsets))
+        if np.max(np.abs(np.polyval(np.polyfit(when, lags, 1), when) - lags)) > tolerance:
+            continue  # not a lag growing steadily (notes paired across a jump): no tempo kept
+        x = np.array([t for t, _, _ in its])
+        q = quarters(score, x)
+        played_s = float(np.polyfit(q, np.array([p for _, p, _ in its]), 1)[0])
+        written_s = float(np.polyfit(q, x, 1)[0])  # the exercise's written tempo, as the bar table's
+        if not (played_s > 0 and written_s > 0):
+            continue
+        bpm, written_bpm = 60.0 / played_s, 60.0 / written_s
+        first = bar_beat(score, x[0])
+        before = [t for t, _, _ in notes if t < x[0] - 1e-9]  # the last note played before the run
+        then = None if not before else bar_beat(score, max(before))
+        change = (first is not None and then is not None
+                  and not same_tempo(*sorted((first.tempo_bpm, then.tempo_bpm))))
+        last = max(onsets)
+        out.append({"direction": "behind" if sign > 0 else "ahead", "from_bar": run[0], "to_bar": run[-1],
+                    "bpm": round(bpm, 1), "written_bpm": round(written_bpm, 1),
+                    "percent": _r((bpm / written_bpm - 1) * 100, 1), "lag_ms": _r(lags[-1] * 1000, 1),
+                    "where": grid_label(score, last, scale), "notes": len(its), "tempo_change": change,
+                    "written_before_bpm": None if not change or then is None else round(then.tempo_bpm, 1)})
+    return out
 
 
 def beat_feels(score: Score, notes: Sequence[tuple[float, float]], tolerance: float) -> list[dict[str, Any]]:
@@ -898,7 +1039,21 @@ def bar_lines(report: dict[str, Any]) -> list[str]:
                      f"{against_written(d['from_percent'])} ({d['from_bpm']:.0f} bpm, written "
                      f"{d['written_from_bpm']:.0f}), bar {d['to_bar']} {against_written(d['to_percent'])} "
                      f"({d['to_bpm']:.0f} bpm, written {d['written_to_bpm']:.0f})")
+    lines.extend(off_tempo_text(run) for run in report.get("off_tempo") or [])
     return lines
+
+
+def off_tempo_text(run: dict[str, Any]) -> str:
+    """``falling behind in bars 3-4 after the tempo change (90 -> 120 bpm): played at about 110 bpm where 120 is
+    written (8 % slower than written); 310 ms late by bar 4, beat 4`` (:func:`off_tempo`)."""
+    scope = f"bar {run['from_bar']}" if run["from_bar"] == run["to_bar"] else \
+        f"bars {run['from_bar']}-{run['to_bar']}"
+    change = (f" after the tempo change ({run['written_before_bpm']:g} -> {run['written_bpm']:g} bpm)"
+              if run.get("tempo_change") and run.get("written_before_bpm") else "")
+    lag = run["lag_ms"]
+    return (f"{'falling behind' if run['direction'] == 'behind' else 'running ahead'} in {scope}{change}: played at "
+            f"about {run['bpm']:.0f} bpm where {run['written_bpm']:g} is written ({against_written(run['percent'])}); "
+            f"{abs(lag):.0f} ms {'late' if lag > 0 else 'early'} by {run['where']}")
 
 
 def _beats_text(beat: dict[str, Any]) -> str:
@@ -1002,7 +1157,15 @@ def _compare_at(score: Score, take: Take, kit: Kit, tolerance: float, scale: flo
         if i not in claimed and j not in taken:
             claimed[i] = j
             taken.add(j)
+    # a take falling behind (running ahead) bar after bar: its notes beyond the reach are followed along its lag
+    # (until the day after 7 Dec a tempo change played 8 % slow read as bars all missed, with as many extras)
+    claimed = follow_lag(written, played, offset, tolerance, dict(pairs), claimed,
+                         [i for i in missed_i if i not in claimed], loose)
+    taken = set(claimed.values())
     extras_j = [j for j in extras_j if j not in taken]
+    # a note told early or late is not also one before or after the exercise (a first note early)
+    inside_set = set(inside)
+    outside -= sum(j not in inside_set for j in taken)
     # a miss with an extra on another drum within the tolerance (no note of its own drum near: claimed above) was
     # played on that drum: a wrong drum, not a miss and an extra
     lost = [i for i in missed_i if i not in claimed]
@@ -1059,7 +1222,8 @@ def _compare_at(score: Score, take: Take, kit: Kit, tolerance: float, scale: flo
     bpm = tempo_bpm(score)
     bars = bar_rows(score, [(written_clock(n.time), n.time) for n in written],
                     [(i, played[j].time, played[j].time - offset - written[i].time) for i, j in pairs],
-                    lost_i, sorted(off_i), sorted(wrong_of), [e["bar"] for e in extras], tolerance)
+                    lost_i, sorted(off_i), sorted(wrong_of), [e["bar"] for e in extras], tolerance,
+                    [(i, played[j].time, played[j].time - offset - written[i].time) for i, j in claimed.items()])
     # every written note the take played, on its drum (within the tolerance or beyond it) or on another one
     struck = [*pairs, *claimed.items(), *swaps]
     report: dict[str, Any] = {
@@ -1076,7 +1240,7 @@ def _compare_at(score: Score, take: Take, kit: Kit, tolerance: float, scale: flo
             [p.time for p in played if p.time - offset < -max(LOOSE_S, 2 * tolerance)], offset, tolerance,
             start_beat_s(score, scale)),
         "pickup_beats": None if short is None else _r(short[0] / bar_unit(score, 1), 3),  # counted as bar 1's
-        "bars": bars, "drift": drift(bars),
+        "bars": bars, "drift": drift(bars), "off_tempo": [],
         "beats_rushed_dragging": beat_feels(
             score, [(written_clock(written[i].time), played[j].time - offset - written[i].time) for i, j in struck],
             tolerance),
@@ -1085,6 +1249,10 @@ def _compare_at(score: Score, take: Take, kit: Kit, tolerance: float, scale: flo
     # the take's last note from the start on (one just after the end too: a last note late is no early stop)
     later = [(p.time - offset, j) for j, p in enumerate(played) if p.time - offset >= start]
     last, last_j = max(later) if later else (None, None)
+    early_for = [i for i, j in claimed.items() if j == last_j]
+    if last is not None and early_for:
+        # the last note played early for a later written note (a take running ahead) stops there, not before it
+        last = max(last, written[early_for[0]].time)
     if last is not None and bpm is not None:
         # within a beat (a quarter note where the exercise ends, through its tempo map) of the end: it played to the
         # end, its misses are listed. The median tempo judged it before: 90 bpm's beat read a take stopping a beat
@@ -1093,7 +1261,8 @@ def _compare_at(score: Score, take: Take, kit: Kit, tolerance: float, scale: flo
         if end_q - last_q <= 1 + 1e-9:
             last = None
     for entry in misses:  # a take stopped before the end: its missed notes after the take are told as one
-        entry["after_take"] = last is not None and entry["time_s"] > written_clock(last + tolerance)
+        entry["after_take"] = (last is not None and "played_off_by_ms" not in entry
+                               and entry["time_s"] > written_clock(last + tolerance))
     after = sum(bool(entry["after_take"]) for entry in misses)
     if last is not None and after:
         # where the written note it was played for is (its bar, as the table counts it), else the strike's own
@@ -1115,6 +1284,11 @@ def _compare_at(score: Score, take: Take, kit: Kit, tolerance: float, scale: flo
                                "percent": _r((said - 1) * 100, 1),
                                "written_bpm_range": None if not mapped or tempi is None else
                                [round(tempi[0], 1), round(tempi[1], 1)]}
+    if report["tempo"] is None:  # else the TEMPO line says the take's tempo (a drift may come with a run: a bar 2 %
+        # fast by chance before a tempo change played slow makes the bars' tempi fall from each to the next)
+        report["off_tempo"] = off_tempo(
+            score, bars, [(written_clock(written[i].time), played[j].time, played[j].time - offset - written[i].time)
+                          for i, j in [*pairs, *claimed.items()]], tolerance, scale)
     return report
 
 
@@ -1206,9 +1380,10 @@ def summary_lines(report: dict[str, Any], exercise: str, take: str) -> list[str]
         bpm = (f"played {against_written(tempo['percent'])} ({changes})" if changes else
                f"played at about {tempo['take_bpm']:g} bpm, the exercise is at {tempo['exercise_bpm']:g}"
                if tempo["exercise_bpm"] else f"played at about {tempo['ratio']} times the exercise's tempo")
-        lines.insert(1, f"{bpm}: compared at the take's tempo (--tempo-scale {tempo['ratio']}); "
-                     f"{report['played']} of {report['written']} played (at the exercise's tempo "
-                     f"{tempo['played_at_exercise_tempo']})")
+        # until the day after 7 Dec "68 of 68 played (at the exercise's tempo 26)", which read as a tempo of 26
+        lines.insert(1, f"{bpm}: compared at the take's tempo (--tempo-scale {tempo['ratio']}); at that tempo "
+                     f"{report['played']} of the {report['written']} written notes are on time, at the exercise's "
+                     f"tempo only {tempo['played_at_exercise_tempo']} would be")
     elif tempo:
         bpm = (f" ({against_written(tempo['percent'])}; {changes})" if changes else
                f" (the exercise at {tempo['exercise_bpm']:g} bpm, the take at about {tempo['take_bpm']:g})"
@@ -1234,9 +1409,34 @@ def summary_lines(report: dict[str, Any], exercise: str, take: str) -> list[str]
     lines.extend(bar_lines(report))
     listed = sorted([*(m for m in report["misses"] if not m.get("after_take")), *report.get("wrong_drums", []),
                      *report["extras"]], key=lambda e: e["time_s"])
-    if listed:
+    # the notes a take falling behind (running ahead) played late (early) are one line, the run's (said above)
+    runs = report.get("off_tempo") or []
+
+    def run_of(entry: dict[str, Any]) -> int | None:
+        off = entry.get("played_off_by_ms")
+        for k, run in enumerate(runs):
+            if (off is not None and run["from_bar"] <= (entry["bar"] if entry["bar"] is not None else -1)
+                    <= run["to_bar"] and (off > 0) == (run["direction"] == "behind")):
+                return k
+        return None
+
+    grouped: dict[int, list[dict[str, Any]]] = defaultdict(list)
+    keyed = [(run_of(entry), entry) for entry in listed]
+    for k, entry in keyed:
+        if k is not None:
+            grouped[k].append(entry)
+    keyed = [(k, e) for k, e in keyed if k is None or grouped[k][0] is e]  # a run's line where its first note is
+    if keyed:
         lines.append("")
-    for entry in listed[:MAX_LISTED]:
+    for k, entry in keyed[:MAX_LISTED]:
+        if k is not None:
+            group = grouped[k]
+            offs = sorted(abs(e["played_off_by_ms"]) for e in group)
+            late = runs[k]["direction"] == "behind"
+            lines.append(f"{where_text(group[0])} to {where_text(group[-1])}: {len(group)} notes played "
+                         f"{offs[0]:.0f} to {offs[-1]:.0f} ms {'late' if late else 'early'} "
+                         f"({'falling behind' if late else 'running ahead'}, above)")
+            continue
         if "played_drum" in entry:
             lines.append(f"{where_text(entry)}: played {entry['played_drum']} instead of {entry['drum']}")
             continue
@@ -1244,8 +1444,8 @@ def summary_lines(report: dict[str, Any], exercise: str, take: str) -> list[str]
         what = ("extra" if "take_time_s" in entry else "missed" if off is None else
                 f"played {abs(off):.0f} ms {'late' if off > 0 else 'early'} (beyond the tolerance)")
         lines.append(f"{where_text(entry)}: {entry['drum']} {what}")
-    if len(listed) > MAX_LISTED:
-        lines.append(f"... {len(listed) - MAX_LISTED} more misses, extras and wrong drums (--json lists them all)")
+    if len(keyed) > MAX_LISTED:
+        lines.append(f"... {len(keyed) - MAX_LISTED} more misses, extras and wrong drums (--json lists them all)")
     return lines
 
 
@@ -1297,10 +1497,11 @@ next), bar 1 is the first full bar and the pick-up bar 0, as printed.
 A written note counts as played when the take has one on the same drum (kit
 object: open and closed hi-hat, and the hi-hat pedal, are the hi-hat) within
 --tolerance; else as played too early or late when one of its drum is within
-150 ms (2 tolerances if more); else as played on another drum ("played ride
-instead of hihat": not a miss and an extra) when a strike on another drum is
-left within --tolerance (a cymbal for a cymbal, a drum for a drum, first);
-else missed. Extras are the strikes left over. A beat is told rushed
+150 ms (2 tolerances if more), or, where the take falls behind (runs ahead)
+bar after bar, one of its drum where that lag is heading; else as played on
+another drum ("played ride instead of hihat": not a miss and an extra) when a
+strike on another drum is left within --tolerance (a cymbal for a cymbal, a
+drum for a drum, first); else missed. Extras are the strikes left over. A beat is told rushed
 (dragging) when its notes are: two onsets at least, more than half of them
 over a quarter of --tolerance early (late) and their median over half of it;
 one note off among steady ones is not. The beat judged so is the felt one:
@@ -1313,9 +1514,13 @@ late)"), in that point's bar (a strike 20 ms before bar 4 is bar 4's, "bar 4,
 beat 1 (20 ms early)", in the bar table too). The beat is the meter's note
 value, as a DAW counts: eighths in x/8, 6/8 and 12/8 too (1 to 6, 1 to 12;
 beat 4& is a sixteenth after the fourth eighth), quarters in x/4. Each bar's
-tempo (quarter notes a minute) is measured against its own written tempo (a
-tempo map's); a drift is a tempo rising or falling against it, and a take at
-another tempo than a tempo map is said in % of the written one. An audio
+tempo (quarter notes a minute) and mean timing, from its notes played on
+their drum (too early or late ones too), is measured against its own written
+tempo (a tempo map's); a drift is a tempo rising or falling against it; bars
+played slower (faster) than written in a row, the lag growing, are said as
+falling behind (running ahead: "falling behind in bars 3-4 after the tempo
+change (90 -> 120 bpm)"); a take at another tempo than a tempo map is said in
+% of the written one. An audio
 take is compared on the drums the transcriber knows (kick, snare, hi-hat,
 three toms, crash, ride); the others are listed apart. When most notes do not match, the tempo the take
 is played at is looked for; when it matches clearly more, the take is
