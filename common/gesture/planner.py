@@ -113,37 +113,6 @@ cubic that never brakes) still left them 11 and 7 ms early, speeding up into the
 (:data:`KICK_BRAKE_TOLERANCE`)."""
 KICK_BRAKE_TOLERANCE = 1e-6
 """A planned foot fall whose speed drops by more than this (m/s) between its apex and the pedal brakes."""
-KICK_RUN_GAP_S = 0.16
-"""A bass-drum stroke less than this long (s) after the foot's previous one is part of a run of fast kicks (16ths at
-94 bpm and faster) and aims deeper (:data:`KICK_RUN_DEPTH`)."""
-KICK_RUN_DEPTH = 0.015
-"""A stroke in a run of fast kicks aims this much deeper (metres) below the flat board, reached over its first
-:data:`KICK_RUN_STROKES` strokes: under strokes 0.1-0.15 s apart the IK's posture drifts
-(the ankle flexes toe up from about 27 to 46 degrees in 4-8 strokes) and the same foot height presses the board
-less (0.64 of its travel at the note against 0.87-1.0 for the first strokes): 16ths at 140 bpm (velocity 0.7)
-sounded 5, 10, 16 then 18-20 ms late, at 100 bpm 3 ms growing to 17. Aimed 15 mm deeper the foot meets the board
-about as the first strokes did: 1-6 ms late (docs/physics.md, "Kicks"). Eighths (0.21 s apart) keep their posture
-(3 ms late) and their aim."""
-KICK_RUN_STROKES = 3
-"""A run's deeper aim builds up as the drift does: none on its second kick, half on its third, all from the fourth
-of the run on (this one). Half of it on the second (a double's second kick) left such kicks on 12 Groove validation
-files 2-5 ms early (from -0.6..+2.5 ms) and louder (kick Spearman 0.899 -> 0.854): two strokes do not drift."""
-KICK_RUN_FULL_S = 0.1
-"""... the whole :data:`KICK_RUN_DEPTH` from this gap (s) to ``KICK_RUN_GAP_S``, less below, none from
-:data:`KICK_RUN_NONE_S` down: faster strokes drift further (the ankle to 48-56 degrees at 83 ms) and aimed deeper
-the board stopped short of the beater's contact: 16ths at 180 bpm 15 mm deeper lost 6 of 16 kicks (8 mm: all
-sounded, 14 ms late against 21), 32nds at 160 bpm on the double pedal (each foot 94 ms apart) 12 mm deeper 16 of
-32. At 0.1 s 15 mm deeper: 16 of 16, 6 ms late."""
-KICK_RUN_NONE_S = 0.095
-"""See :data:`KICK_RUN_FULL_S`, seconds: strokes this close keep their aim (16ths at 180 bpm stay about 20 ms late)."""
-KICK_RUN_RESUME_S = 2 * KICK_RUN_GAP_S
-"""A run whose latest stroke aimed the whole depth goes on over one gap (s) shorter than this (one 16th left out):
-the stroke after it aims at the flat board, the next fast one the whole depth again. Restarted, 16ths at 140 bpm
-with one left out sounded 7-14 ms late after it (the drift stays: 0.21 s is too short to recover)."""
-KICK_RUN_SPEED = foot_speed(0.7)
-"""A run's stroke at this speed (m/s; velocity 0.7, which :data:`KICK_RUN_DEPTH` was tuned at) or faster aims the whole
-depth deeper, a slower one that share of it: at the full depth 16ths at velocity 0.2 met the head at 3.4-3.9 m/s
-(a lone one 1.5) and 5-7 ms early, a ghost at 0.2 between accents at 0.7 at 3.7 m/s, as loud as the accents."""
 HOLD_FALL = 0.12
 """Seconds before a stroke over which the foot's rest height blends into the stroke."""
 HOLD_FALL_SHARE = 0.5
@@ -438,7 +407,6 @@ def _limb_knots(
     vel: list[np.ndarray] = []
     zero = np.zeros(3)
     p, v, n, t = rest0[0], zero, rest0[1], start
-    run_before = 0  # the fast gaps up to the previous stroke (KICK_RUN_GAP_S)
     held = False
     """The next segment starts at the hold (rest) height already: a foot's first stroke, or after a press-through."""
     if cycle is not None and hold != 0.0:  # a foot starts held at its rest (its base path on the pedal line)
@@ -482,18 +450,6 @@ def _limb_knots(
         # ... and part of the way after a shorter gap, the footboard under the held foot still settling
         # (KICK_RAISE_FROM_S)
         gap = np.inf if before is None else st.time - before
-        # the fast gaps up to this stroke (this planned run's; carried over a gap a missing note leaves in a run
-        # already at its whole depth: KICK_RUN_RESUME_S)
-        run = run_before + 1 if gap < KICK_RUN_GAP_S else 0
-        if gap >= KICK_RUN_GAP_S and gap < KICK_RUN_RESUME_S and run_before >= KICK_RUN_STROKES:
-            run = run_before
-        run_before = run if i else 0
-        if cycle is not None and hold > 0.0 and gap < KICK_RUN_GAP_S:
-            # a run of fast kicks: the posture drifts and the board lags the foot, so aim deeper (KICK_RUN_DEPTH)
-            share = float(np.clip((gap - KICK_RUN_NONE_S) / (KICK_RUN_FULL_S - KICK_RUN_NONE_S), 0.0, 1.0))
-            build = min(1.0, (run - 1) / (KICK_RUN_STROKES - 1))  # none for a double's second kick
-            loud = min(1.0, st.speed / KICK_RUN_SPEED)  # a softer stroke less deep (KICK_RUN_SPEED)
-            target = target - KICK_RUN_DEPTH * share * build * loud * st.normal
         if cycle is not None and hold > 0.0 and gap > KICK_RAISE_FROM_S:
             rise = kick_contact_rise() * min((gap - KICK_RAISE_FROM_S) / (KICK_REST_GAP_S - KICK_RAISE_FROM_S), 1.0)
             pressed = st.time + rise / max(st.speed, 1e-3) + st.contact  # the contact's end, raised

@@ -75,6 +75,18 @@ correction took over their limits; what is over after the last is clipped)."""
 TRUNK_IK_WEIGHT = 0.1
 """Inverse DLS weight of the lumbar and thoracic DOF (0: they keep the posture; 1: as free as the arms)."""
 
+LEG_POSTURE_BAND_RAD = math.radians(18.0)
+"""A leg DOF's reference may wander this far (rad) from its null-space posture under the plain ``posture_gain``;
+beyond it :data:`LEG_POSTURE_GAIN` pulls the excess back. Under fast kicks the footboard pushes the foot toe up at
+every stroke (the reference follows the state while the foot presses it) and the DLS brings the foot down mostly by
+the ankle: at 2 1/s the leg drifted stroke by stroke (16ths at 180 bpm: the ankle 14 -> 47 degrees, the hip
+90 -> 64, the knee -126 -> -105 at the kicks) and the same foot height pressed the board less, the kicks 20 ms
+late. Eighths swing the ankle up to 25 degrees from it within a stroke and settle 15 degrees off: a stronger pull
+on the whole deviation (4 1/s more) made every Groove file's kicks 6 ms early, a 14-degree band lowered their kick
+velocity Spearman 0.895 -> 0.880 (docs/physics.md, "Kicks")."""
+LEG_POSTURE_GAIN = 30.0
+"""Null-space pull (1/s) on a leg DOF's deviation beyond :data:`LEG_POSTURE_BAND_RAD`, on top of ``posture_gain``."""
+
 
 @dataclass
 class ControlParams:
@@ -191,6 +203,8 @@ class Controller:
         self._no_softening = np.ones(n)
         self._softening: tuple[float, dict[frozenset[str], np.ndarray]] = (math.nan, {})
         """contact_softening and, for it, touching limbs -> the grip softening per DOF (57,), built once per set."""
+        self.leg_dof = np.flatnonzero([name.split("_")[1] in ("hip", "knee", "ankle") for name in names])
+        """The legs' DOF (hips, knees, ankles): their posture is held within :data:`LEG_POSTURE_BAND_RAD`."""
         self._rows: dict[tuple[str, ...], np.ndarray] = {}
         """Limbs with targets -> their rows in LIMBS (int64), for the IK kernel."""
         self.fit_dof = np.array([name.split("_")[1] in ("clavicle", "shoulder", "elbow", "wrist")
@@ -329,6 +343,7 @@ class Controller:
                              for limb, row in zip(limbs, rows, strict=True)], dtype=np.bool_)
         gain = self.params.task_gain if self.mode in COMPUTED_TORQUE_MODES else self.params.task_gain_pd
         rate = self.posture_rate if self.posture_rate is not None else self._no_rate
+        rate = leg_posture_rate(rate, self.rest, self.theta_ref, self.leg_dof)
         new_ref, qdot = dls_reference(
             theta, self.theta_ref, self.rest, rate, eff, self.body.dof_pos, self.body.dof_axes, self.body.chain_mask,
             rows, target_pos, np.array([targets[limb][1] for limb in limbs]), pressing, self.ik_weight_inv,
@@ -578,3 +593,17 @@ class _HeldTorques:
 
 def _conj(q: np.ndarray) -> np.ndarray:
     return np.array([-q[0], -q[1], -q[2], q[3]])
+
+
+def leg_posture_rate(rate: np.ndarray, rest: np.ndarray, ref: np.ndarray, legs: np.ndarray) -> np.ndarray:
+    """The null-space posture's rates (N,) rad/s with the legs' extra pull added: for each DOF of ``legs`` (indices)
+    whose reference ``ref`` (N,) rad is more than :data:`LEG_POSTURE_BAND_RAD` from the posture ``rest`` (N,) rad,
+    :data:`LEG_POSTURE_GAIN` times the excess toward it. ``rate`` itself when no leg is that far (the other DOF
+    never change)."""
+    d = rest[legs] - ref[legs]
+    excess = d - np.clip(d, -LEG_POSTURE_BAND_RAD, LEG_POSTURE_BAND_RAD)
+    if not np.any(excess):
+        return rate
+    out = rate.copy()
+    out[legs] += LEG_POSTURE_GAIN * excess
+    return out
