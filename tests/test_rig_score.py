@@ -89,7 +89,7 @@ def test_rig_plays_a_score_live(tmp_path: Path) -> None:
         near = [abs(p - t) for p, inst in played if inst == instrument and abs(p - t) <= TOLERANCE_S]
         if near:
             errors.append(min(near))
-    skipped = [int(m.group(1)) for line in logged if (m := re.search(r"\((\d+) skipped in all\)", line))]
+    skipped = [int(m.group(1)) for line in logged if (m := re.search(r"\d+ skipped, (\d+) in all", line))]
     print(json.dumps({"notes": len(notes), "matched": len(errors), "impacts": len(played), "start_rig_s": start,
                       "physics_steps_skipped": max(skipped, default=0),
                       "median_abs_error_ms": round(1000 * sorted(errors)[len(errors) // 2], 2) if errors else None,

@@ -121,6 +121,11 @@ STREAM_DENSE_MIN_KNOTS = 3
 """... at least this many of them (a rate takes two intervals to show: a pair of knots close together is as likely two
 waypoints a sender meant, a quick lift and strike), none a posture's (its start and end are waypoints, however short
 its glide), so the knot cuts over all the lag grown since (a dense stream catches up after a long skip)."""
+BEHIND_ADVICE = ("give physics a less loaded machine, a lower --control-rate-hz (e.g. 500), or fewer programs on its "
+                 "CPU core")
+"""What the live warnings of physics falling behind tell the user to do, after saying what they hear."""
+BEHIND_DOCS = "docs/physics.md, 'When physics falls behind'"
+"""Where those warnings' details are explained (named at their end)."""
 
 
 class StreamedKnot(NamedTuple):
@@ -322,8 +327,11 @@ class PhysicsCore:
                 behind = self.settings.max_catchup_steps
                 if now - self._last_skip_warning >= 5.0:  # at most one warning per 5 s of rig time
                     trailing = self._trailing() if self.target_lag > 0.0 else ""  # not silently slowed
-                    log.warning("physics %d steps behind the rig clock: skipped %d (%d skipped in all)%s",
-                                behind + skip, skip, self.skipped_steps, trailing)
+                    # said plainly first (a teacher on a loaded machine saw it every 5 s), the detail after
+                    log.warning("physics is %.0f ms behind real time: notes play late or are skipped; %s (detail: "
+                                "%d steps behind the rig clock, %d skipped, %d in all%s; %s)",
+                                (behind + skip) * dt * 1e3, BEHIND_ADVICE, behind + skip, skip, self.skipped_steps,
+                                trailing, BEHIND_DOCS)
                     self._last_skip_warning = now
             if self.target_lag > 0.0:
                 self._catch_up_targets(now)
@@ -603,13 +611,13 @@ class PhysicsCore:
         self.target_jumps += 1
         self.target_jumps_late += 1
         if now - self._last_bound_warning >= 5.0:  # at most one warning per 5 s of rig time
-            log.warning("physics targets %.0f ms behind the rig clock, past the %.0f ms bound, held by targets placed "
-                        "while they trailed: jumped %.0f ms toward it (%.0f ms behind now: %s); %d streamed knots "
-                        "re-timed to their rig times, %d more passed (due already); the strokes between dropped "
-                        "with %s; %d such jumps in all (%s)",
-                        lag * 1e3, MAX_TARGET_LAG_HARD_S * 1e3, (lag - to) * 1e3, to * 1e3,
+            log.warning("physics is %.0f ms behind real time, past the %.0f ms it may lag: the drummer's hands jump "
+                        "to catch up and the notes between are skipped; %s (detail: targets held by what was placed "
+                        "while they trailed jumped %.0f ms, %.0f ms behind now: %s; %d streamed knots re-timed to "
+                        "their rig times, %d passed; dropped %s; %d such jumps in all, %s; %s)",
+                        lag * 1e3, MAX_TARGET_LAG_HARD_S * 1e3, BEHIND_ADVICE, (lag - to) * 1e3, to * 1e3,
                         "the lag the score plan playing was placed with" if to > 0.0 else "on it", ahead, passed,
-                        *self._notes_dropped(*dropped, self.target_jumps_late))
+                        *self._notes_dropped(*dropped, self.target_jumps_late), BEHIND_DOCS)
             self._last_bound_warning = now
 
     def _notes_dropped(self, live: int, score: int, jumps: int) -> tuple[str, int, str]:
@@ -620,21 +628,20 @@ class PhysicsCore:
                 f"{total['live']} live and {total['score']} score notes dropped so far")
 
     def _trailing(self) -> str:
-        """What the skip warning says of the targets trailing the rig clock (``target_lag`` > 0): what plays late,
-        by how much, and until when (true of what is queued: what was placed while they trailed plays at its rig
-        time, less the lag grown since)."""
+        """What the skip warning's detail says of the targets trailing the rig clock (``target_lag`` > 0): what
+        plays late, by how much, and until when (true of what is queued: what was placed while they trailed plays
+        at its rig time, less the lag grown since; what arrives now is placed for its rig time: docs/physics.md,
+        'When physics falls behind')."""
         lag = self.target_lag
         if lag > MAX_TARGET_LAG_HARD_S:
             return (f"; the drummer's targets trail it by {lag * 1e3:.0f} ms, past the "
                     f"{MAX_TARGET_LAG_HARD_S * 1e3:.0f} ms bound: they jump toward it now, wherever the hands are")
-        new = ("what arrives now is placed for its rig time, a streamed knot cutting only the knots sent for the "
-               f"{STREAM_SHORT_CUT_S * 1e3:.0f} ms of rig time before it, or a dense stream's")
         floor = min(self._lag_floor(self.time - lag), lag)
         if floor <= 0.0:
-            return f"; the drummer plays {lag * 1e3:.0f} ms late until its hands are still (what is queued; {new})"
+            return f"; the drummer plays {lag * 1e3:.0f} ms late until its hands are still"
         return (f"; the drummer's targets trail it by {lag * 1e3:.0f} ms and keep {floor * 1e3:.0f} ms of it while "
                 f"what was placed with that lag plays, {(lag - floor) * 1e3:.0f} ms late (what was queued before, "
-                f"up to {lag * 1e3:.0f} ms late; {new})")
+                f"up to {lag * 1e3:.0f} ms late)")
 
     def _stream_track(self, key: str) -> Track | None:
         """The drummer's track of streamed knots ``key`` (a limb, or "joints"), or None."""

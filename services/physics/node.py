@@ -286,12 +286,20 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace) -> PhysicsCore:
     if problem is not None:  # a folder, a device, a pipe: said, never opened (a pipe would hold the node for ever)
         raise InputError(f"score {settings.score}: {problem}")
     if settings.skeleton_bvh:  # a skeleton without a joint found by name was de Leva's body, silently
-        from services.physics.bvh_motion import usable_segment_lengths
+        from services.physics.bvh_motion import read_skeleton, usable_segment_lengths
 
         try:
             usable_segment_lengths(settings.skeleton_bvh)
+            reading = read_skeleton(settings.skeleton_bvh)
         except (OSError, ValueError) as exc:  # batteur render's --skeleton-bvh message (the node's name no option)
             raise InputError(str(exc)) from None
+        # the unit the file was read in and the performer it implies, said once (as batteur render's warning): a
+        # skeleton read in the wrong unit builds a giant or a dwarf, and the node said nothing of it
+        stature = reading.stature_m
+        tall = "no performer's height (no limb found)" if stature is None else f"a {stature:g} m performer's"
+        log.info("skeleton %s read in %s; its lengths are %s (the hands, feet and head and the body's place over "
+                 "the throne are the %g m drummer's of --height-m)", settings.skeleton_bvh, reading.unit_words,
+                 tall, settings.height_m)
     try:  # a kit file it cannot use (missing or not a kit): 1, found before the core's slow start; loaded once,
         # so its warnings are logged once and name this drummer's reach (a skeleton's, as the planner's)
         kit = load_kit(settings.kit, height_m=settings.height_m, lengths=_skeleton_limbs(settings))
