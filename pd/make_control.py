@@ -38,7 +38,14 @@ from common.messages.graphics import (  # noqa: E402
 )
 from common.messages.interaction import InteractionError, RouteRemove, RouteSet  # noqa: E402
 from common.messages.physics import PhysicsControlMode, PhysicsGrip, PhysicsRejected, PhysicsReset  # noqa: E402
-from common.messages.score import GestureStyle, ScoreDynamics, ScoreLoad, ScoreTransport, TempoScale  # noqa: E402
+from common.messages.score import (  # noqa: E402
+    GestureStyle,
+    ScoreDynamics,
+    ScoreLoad,
+    ScoreLoop,
+    ScoreTransport,
+    TempoScale,
+)
 from common.messages.sound import (  # noqa: E402
     SoundAirLoading,
     SoundDamping,
@@ -457,6 +464,7 @@ def build() -> Patch:
     graphics_section(p, 20, y2 + 190, load)
     interaction_section(p, 900, 618, load)
     refusals(p, 995, 490, nets)
+    loop_section(p, 1100, y2 + 25, load)  # last: the objects before keep their indices
     return p
 
 
@@ -865,6 +873,32 @@ def graphics_section(p: Patch, x: int, y: int, load: int) -> None:
     send_bars = sender(p, x + 700, y + 760, GraphicsPreviewBars, "graphics", "ii")
     p.connect(bars, 0, send_bars, 0)
     p.connect(all_bars, 0, send_bars, 0)
+
+
+def loop_section(p: Patch, x: int, y: int, load: int) -> None:
+    """The playing score's loop (to physics): the bars typed in two boxes (from 1, as the physics log counts them)
+    are sent by [loop( (each send re-plans the score: not at every digit typed); [0 0( turns looping off."""
+    p.text(x, y, "loop bars (from 1): first, last, then click loop")
+    p.text(x + 360, y + 22, "looping off")
+    fire = p.obj(x + 180, y + 47, "t b b")
+    bars = p.obj(x, y + 105, "pack 1 1")
+    for k, receive in enumerate(("bp-loop-first", "bp-loop-last")):
+        box = p.nbx(x + 90 * k, y + 22, 1, 9999, 5, receive)
+        show_at_load(p, load, x + 470 + 50 * k, y + 22, 1, (box,))  # bar 1, as the store starts, not the box's 0
+        whole = p.obj(x + 90 * k, y + 47, "i")  # the bars are whole numbers
+        store = p.obj(x + 90 * k, y + 75, "f 1")  # kept until [loop( is clicked
+        p.connect(box, 0, whole, 0)
+        p.connect(whole, 0, store, 1)
+        p.connect(fire, k, store, 0)  # right to left: the last bar into the pack (cold) first, then the first (hot)
+        p.connect(store, 0, bars, k)
+    loop = p.msg(x + 180, y + 22, "loop")
+    p.connect(loop, 0, fire, 0)
+    p.connect(p.obj(x + 230, y + 22, "r bp-loop"), 0, fire, 0)
+    off = p.msg(x + 320, y + 22, "0 0")
+    p.connect(p.obj(x + 320, y + 47, "r bp-loop-off"), 0, off, 0)
+    send = sender(p, x, y + 130, ScoreLoop, "score", "ii")
+    p.connect(bars, 0, send, 0)
+    p.connect(off, 0, send, 0)
 
 
 def interaction_section(p: Patch, x: int, y: int, load: int) -> None:

@@ -154,7 +154,9 @@ class PhysicsRejected(OscMessage):
     read or played, a pause with nothing playing, a live note too late to prepare ...; also a message the node
     could not decode (a wrong argument count or type, a value out of range), or another service's control sent to a
     physics node (naming the service that takes it). Accepted messages get no answer.
-    Budgeted per sender host (physics: 20 at once, then 10 a second; past it, counted and not answered)."""
+    Budgeted per sender host, past it counted and not answered: the physics core's refusals 20 at once, then 10 a
+    second; the node's, for a message it could not decode or another service's control, 10 at once, then 5 a
+    second."""
 
     ADDRESS = "/batteur/physics/rejected"
     FAMILY = Family.CONTROL

@@ -98,6 +98,22 @@ class ScoreDynamics(OscMessage):
 
 
 @register
+class ScoreLoop(OscMessage):
+    """Repeat bars ``first``..``last`` of the playing score until told otherwise: when the play reaches the end of
+    bar ``last`` it goes on at the start of bar ``first``, on the beat (the loop lasts those bars at the current
+    tempo); ``0 0`` turns looping off (the play goes on past ``last`` after the pass in progress). Bars are counted
+    from 1 as ``batteur compare`` and the physics logs count them (a pick-up is bar 0 and is not looped). A play
+    already past ``last`` jumps back to ``first`` at the end of its bar. Stopped or paused, it applies to the next
+    ``play``; a stop or a new score ends it."""
+
+    ADDRESS = "/batteur/score/loop"
+    FAMILY = Family.CONTROL
+
+    first: int = Field(ge=0, description="first bar of the loop, from 1 (0 with last 0: looping off)")
+    last: int = Field(ge=0, description="last bar of the loop (at least first; 0 with first 0: looping off)")
+
+
+@register
 class KitSelect(OscMessage):
     """Select the kit by shipped name or file path."""
 

@@ -139,9 +139,11 @@ from common.messages.score import (
     LiveNote,
     ScoreDynamics,
     ScoreLoad,
+    ScoreLoop,
     ScoreTransport,
     TempoScale,
 )
+from common.score.bars import Timeline, counted_bars, looped
 from common.score.events import MAX_SCORE_NOTES, DrumEvent, Score, ScoreError
 from common.score.hands import HandAlgorithm, Sticking
 from common.score.limbs import FEET, HANDS, LimbLengths, bass_feet
@@ -168,9 +170,9 @@ if TYPE_CHECKING:
 
 log = logging.getLogger("batteur.physics.score")
 
-SCORE_MESSAGES = (ScoreLoad, ScoreTransport, LiveNote, GestureStyle, TempoScale, ScoreDynamics, KitSelect)
+SCORE_MESSAGES = (ScoreLoad, ScoreTransport, LiveNote, GestureStyle, TempoScale, ScoreDynamics, ScoreLoop, KitSelect)
 """The messages :meth:`ScorePlayer.handle` takes."""
-SETTINGS_MESSAGES = (GestureStyle, TempoScale, ScoreDynamics)
+SETTINGS_MESSAGES = (GestureStyle, TempoScale, ScoreDynamics, ScoreLoop)
 """The messages that change how the score is planned (a playing score is re-planned from shortly after them)."""
 
 SPLICE_MARGIN_S = 0.02
@@ -223,6 +225,12 @@ START_TEMPO = 1.0
 """The tempo factor (``/batteur/score/tempo``) a score player starts with: the score as written."""
 START_DYNAMICS = 1.0
 """The velocity factor (``/batteur/score/dynamics``) a score player starts with: the score as written."""
+LOOP_AHEAD_S = 60.0
+"""``/batteur/score/loop``: a loop's passes are planned this far ahead (rig seconds at the tempo then), then more
+(:data:`LOOP_EXTEND_S`)."""
+LOOP_EXTEND_S = 20.0
+"""... once the passes planned end less than this long (rig seconds) after the play's position, more passes are
+planned (a re-plan at the end of the pass in progress: :meth:`ScorePlayer.pump`)."""
 START_NUANCE = Nuance.TENUTO
 START_ALGORITHM = HandAlgorithm.VITERBI
 START_STICKING = Sticking.NONE
@@ -409,6 +417,17 @@ class ScorePlayer:
         """Every score note's velocity is this many times its written one when planned (clipped to 1)."""
         self.score: Score | None = None
         self.score_path: Path | None = None
+        self.loop: tuple[int, int] | None = None
+        """``/batteur/score/loop``: the bars (counted from 1, first and last) looped, None: no loop."""
+        self._loop_changed = False
+        """The loop was changed since the playing score was last planned (its next re-plan lays the new one)."""
+        self._timeline: Timeline | None = None
+        """The play's score as played (:class:`common.score.bars.Timeline`: its loop's passes laid end to end);
+        :attr:`mapping`'s score positions are its played seconds. None: the score as written."""
+        self._loop_said = -math.inf
+        """Played time (s) of the latest loop start, wrap or end said in the log (:meth:`_say_loop`)."""
+        self._extending: Timeline | None = None
+        """The timeline whose loop more passes were asked for (asked once: :meth:`_extend_loop`)."""
         self.state: Literal["idle", "playing", "paused"] = "idle"
         self.end_time = -math.inf
         """Rig time the current performance's plan ends, seconds."""
@@ -528,10 +547,12 @@ class ScorePlayer:
         elif isinstance(message, KitSelect):
             self.select_kit(message.kit)
 
-    def _apply_settings(self, message: GestureStyle | TempoScale | ScoreDynamics) -> None:
+    def _apply_settings(self, message: GestureStyle | TempoScale | ScoreDynamics | ScoreLoop) -> None:
         """A style, tempo or dynamics message's settings (the re-plan of a playing score follows)."""
         if isinstance(message, GestureStyle):
             self.set_style(message.grip, message.nuance, message.algorithm, message.sticking)
+        elif isinstance(message, ScoreLoop):
+            self._set_loop(message.first, message.last)
         elif isinstance(message, ScoreDynamics):
             self.dynamics = float(message.factor)
             log.info("dynamics: velocity factor %g (%s)", self.dynamics,
@@ -539,6 +560,55 @@ class ScorePlayer:
         else:
             self.tempo = float(message.factor)
             log.info("tempo factor %g", self.tempo)
+
+    def _set_loop(self, first: int, last: int) -> None:
+        """Loop counted bars ``first``..``last`` (``0 0``: off); refused without a score, for bars the score does
+        not have (or its pick-up) or a first bar after the last."""
+        if self.score is None:
+            raise ScorePlayerError(f"loop {first} {last}: no score loaded (send /batteur/score/load first)")
+        name = self.score_path.name if self.score_path else "the score"
+        if first == last == 0:
+            bars = None
+        else:
+            low, high = counted_bars(self.score)
+            if first > last:
+                raise ScorePlayerError(f"loop {first} {last}: the first bar is after the last (0 0 turns looping "
+                                       "off)")
+            if first < max(low, 1) or last > high:
+                pick = " (bar 0, its pick-up, is not looped)" if low == 0 else ""
+                raise ScorePlayerError(f"loop {first} {last}: bars outside the score: {name} has bars 1..{high}"
+                                       f"{pick}; 0 0 turns looping off")
+            bars = (first, last)
+        if bars == self.loop:
+            return
+        was, self.loop = self.loop, bars
+        self._loop_changed = True
+        playing = self.state == "playing"
+        if bars is not None:
+            log.info("loop bars %d-%d of %s asked%s", first, last, name,
+                     "" if playing else ": it starts with the next play")
+        elif was is not None:
+            log.info("loop bars %d-%d off asked%s", *was, ": the pass in progress ends, then the rest of the score"
+                     if playing else "")
+
+    def _clear_loop(self, why: str) -> None:
+        """A stop, reset or new score ends the loop (said once)."""
+        if self.loop is not None:
+            log.info("loop bars %d-%d ended by the %s", *self.loop, why)
+        self.loop = None
+        self._loop_changed = False
+
+    def _played(self, score: Score, timeline: Timeline | None) -> Score:
+        """The score to plan: ``timeline``'s (its loop's passes laid) or ``score`` as written."""
+        return timeline.played if timeline is not None else score
+
+    def _words(self, score: Score, played: float) -> str:
+        """:func:`score_words` at played time ``played`` (s: a loop's passes laid end to end), said in the written
+        score."""
+        timeline = self._timeline
+        if timeline is not None and timeline.score is score:
+            played = timeline.written(played)
+        return score_words(score, played)
 
     @staticmethod
     def _loudness(velocity: float, factor: float) -> float:
@@ -632,13 +702,14 @@ class ScorePlayer:
         if trusted and not path.is_file():
             raise ScorePlayerError(f"score {str(name)!r}: no such file")
         try:
-            score = read_score(path, **self.midi)
+            score = read_score(path, kit=self.core.kit, **self.midi)  # ids and doubles: the node's kit's objects
         except ScoreError:
             raise
         except (OSError, ValueError, EOFError, IndexError, KeyError) as exc:  # a reader's own failure
             raise ScoreError(f"{path}: cannot read the score ({type(exc).__name__}: {exc})") from None
         if not score.events:
             raise ScoreError(f"{path}: no drum events to play")
+        self._clear_loop("new score")
         self.score, self.score_path = score, path
         self._stopping = None  # a stop ahead: the clock was the other score's
         log.info("score %s loaded: %d notes, %.2f s%s", path.name, len(score.events), score.duration,
@@ -724,7 +795,10 @@ class ScorePlayer:
         lag = self.core.target_lag
         rig_at, at = at, (at - lag if at > 0.0 else at)  # on the targets' clock (0: the panel's "at once")
         tempo, dynamics = self.tempo, self.dynamics
-        remaining = [e for e in score.events if e.time >= position - POSITION_TOLERANCE_S]
+        bars = self.loop
+        timeline = looped(Timeline.plain(score), position, bars, LOOP_AHEAD_S * tempo) if bars else None
+        played = self._played(score, timeline)
+        remaining = [e for e in played.events if e.time >= position - POSITION_TOLERANCE_S]
         if not remaining:
             raise ScorePlayerError(f"play: nothing to play after {position:g} s (the score ends at "
                                    f"{score.duration:.3f} s)")
@@ -760,7 +834,7 @@ class ScorePlayer:
             announce()
             raise ScorePlayerError(f"play at {at + lag:.3f} s: every note is too close to now ({base + lag:.3f} s) to "
                                    "prepare")
-        beats = np.asarray(score.beats, dtype=float)
+        beats = np.asarray(played.beats, dtype=float)
         beats = at + (beats[beats >= position - POSITION_TOLERANCE_S] - position) / tempo
 
         def commit(plan: GesturePlan, t_s: float) -> GesturePlan:
@@ -781,6 +855,7 @@ class ScorePlayer:
             louder = f", dynamics x{dynamics:g}" if dynamics != 1.0 else ""
             log.info("playing %s from %.3f s at rig time %.3f s (tempo x%g%s): %d notes until %.3f s", name, position,
                      at + lag, tempo, louder, len(events), plan.end_time + lag)
+            self._lay(timeline, None, position, (at, position, tempo), lag)
             return plan
 
         return _Prepared(t_s, events, beats, min(1.0, events[0].time - t_s - TRANSITION_S), commit, announce,
@@ -809,6 +884,7 @@ class ScorePlayer:
         self._hold(lag, t_s + BRAKE_S + STOP_MOVE_S, replace=True)  # nothing of the plans plays after it
         said = self._said_at("stop", t_s)
         self._end_run(t_s, "stop", said.replace("stop at", "stopped at", 1))
+        self._clear_loop("stop")
         self._forget(t_s)
         self._stop_clock()
         self.state = "idle"
@@ -855,7 +931,93 @@ class ScorePlayer:
         at, position, tempo = mapping
         if t_s < at:  # before the play's first note: it was to start there
             return f"{text}, before the score started (from {score_words(score, position)})"
-        return f"{text}: {score_words(score, position + (t_s - at) * tempo)}"
+        return f"{text}: {self._words(score, position + (t_s - at) * tempo)}"
+
+    def _lay(self, timeline: Timeline | None, before: Timeline | None, anchor: float,
+             mapping: tuple[float, float, float], lag: float) -> None:
+        """A plan from played time ``anchor`` (s) with ``timeline`` (None: the score as written; ``before``: the
+        one it replaces) is spliced, the score's clock ``mapping``: keep it, and say where a loop now starts or
+        ends (rig time and written bar)."""
+        self._timeline, self._loop_changed = timeline, False
+        if timeline is None:
+            return
+        at, position, tempo = mapping
+        score = timeline.score
+
+        def rig(played: float) -> float:
+            return at + (played - position) / tempo + lag
+
+        passes = [seg for seg in timeline.segments if seg.loop is not None and seg.at >= anchor - 1e-9]
+        if passes:
+            first = passes[0]
+            bars = first.loop
+            assert bars is not None
+            if before is not None and any(seg.loop == bars and abs(seg.at - first.at) < 1e-6
+                                          for seg in before.segments):
+                log.info("loop bars %d-%d: %d more passes planned, until rig %.3f s", *bars, len(passes),
+                         rig(passes[-1].end))
+                return
+            log.info("loop bars %d-%d (%.3f s at tempo x%g): from rig %.3f s, after bar %s, back to %s; %d passes "
+                     "planned, until rig %.3f s", *bars, first.length / tempo, tempo, rig(first.at),
+                     self._bar_before(timeline, first.at), score_words(score, first.start), len(passes),
+                     rig(passes[-1].end))
+        elif before is not None and before.looping and timeline.segments[-1].at >= anchor - 1e-9:
+            rest = timeline.segments[-1]
+            log.info("loop off: the pass in progress ends at rig %.3f s, then the rest of the score from %s",
+                     rig(rest.at), score_words(score, rest.start))
+
+    @staticmethod
+    def _bar_before(timeline: Timeline, played: float) -> str:
+        """The counted bar that ends at played time ``played`` (s)."""
+        where = counted_bar_beat(timeline.score, timeline.written(played - 1e-6))
+        return "-" if where is None else str(where[0])
+
+    def _say_loop(self, now: float) -> None:
+        """Say in the log, once each, a loop's start, each wrap and its end the play has reached by rig time
+        ``now`` (s) (the latest one only: a step never passes two)."""
+        timeline, mapping = self._timeline, self.mapping
+        if timeline is None or mapping is None or self.state != "playing" or not timeline.looping:
+            return
+        at, position, tempo = mapping
+        played = position + (now - self.core.target_lag - at) * tempo
+        segments = timeline.segments
+        crossed = [k for k in range(1, len(segments)) if self._loop_said < segments[k].at <= played + 1e-9
+                   and (segments[k].loop is not None or segments[k - 1].loop is not None)]
+        if not crossed:
+            return
+        k = crossed[-1]
+        seg, prev = segments[k], segments[k - 1]
+        self._loop_said = seg.at
+        rig = at + (seg.at - position) / tempo + self.core.target_lag
+        if seg.loop is None:
+            assert prev.loop is not None
+            log.info("loop bars %d-%d ends at rig %.3f s: the play goes on at %s", *prev.loop, rig,
+                     score_words(timeline.score, seg.start))
+            return
+        again = sum(1 for s in segments[:k + 1] if s.loop == seg.loop)
+        what = "wraps" if prev.loop == seg.loop else "starts"
+        log.info("loop bars %d-%d %s at rig %.3f s (pass %d): back to %s", *seg.loop, what, rig, again,
+                 score_words(timeline.score, seg.start))
+
+    def _extend_loop(self, now: float) -> None:
+        """Plan more of the loop's passes once those planned end within :data:`LOOP_EXTEND_S` of rig time ``now``
+        (s): a re-plan, as for a tempo change (in its turn behind the other plans); asked once per timeline."""
+        timeline, mapping = self._timeline, self.mapping
+        if (self.loop is None or timeline is None or mapping is None or self.state != "playing"
+                or not timeline.looping or timeline is self._extending or self.busy):
+            return
+        at, position, tempo = mapping
+        played = position + (now - self.core.target_lag - at) * tempo
+        if (timeline.loop_end - played) / tempo > LOOP_EXTEND_S:
+            return
+        self._extending = timeline
+        if self.background:
+            self._waiting.append(_Waiting(ScoreLoop(first=self.loop[0], last=self.loop[1]), now, "", tries=1))
+            return
+        try:
+            self.replan(now)
+        except ValueError as exc:
+            log.warning("loop bars %d-%d: more passes could not be planned: %s", *self.loop, exc)
 
     def _check_playing(self, action: str, t_s: float) -> None:
         """Refuse a stop or pause at ``t_s`` (s, the targets' clock: :meth:`_base`) with nothing to act on: no
@@ -888,6 +1050,9 @@ class ScorePlayer:
             mapping = self._stopping[0]
         else:
             return None
+        if self._timeline is not None and self._timeline.looping:  # said in the written score, from now on
+            played = mapping[1] + (t - mapping[0]) * mapping[2]
+            return (now, self._timeline.written(played), mapping[2])
         return (mapping[0] + lag, mapping[1], mapping[2]) if lag > 0.0 else mapping
 
     def replan(self, now: float) -> GesturePlan | None:
@@ -920,13 +1085,19 @@ class ScorePlayer:
         p_a = position + (t_a - at) * old_tempo
         tempo, dynamics = self.tempo, self.dynamics
         kept = [e for e in self.events if t_s - CONTEXT_S <= e.time < t_c]
+        # a loop (asked, changed or on: its passes laid afresh from the anchor's pass on, at the new tempo)
+        before = self._timeline if self._timeline is not None and self._timeline.score is score else None
+        timeline = before
+        if self.loop is not None or (self._loop_changed and before is not None):
+            timeline = looped(before or Timeline.plain(score), p_a, self.loop, LOOP_AHEAD_S * tempo)
+        played = self._played(score, timeline)
         # split the score where the old clock reaches t_c (the same formula that timed ``events``: no note in both)
         ahead = [dataclasses.replace(e, time=t_a + (e.time - p_a) / tempo,
-                                     velocity=self._loudness(e.velocity, dynamics)) for e in self.score.events
+                                     velocity=self._loudness(e.velocity, dynamics)) for e in played.events
                  if at + (e.time - position) / old_tempo >= t_c and e.time >= position - POSITION_TOLERANCE_S]
         if not ahead:
             return None
-        beats = np.asarray(self.score.beats, dtype=float)
+        beats = np.asarray(played.beats, dtype=float)
         beats = t_a + (beats[beats >= p_a] - p_a) / tempo
         live = [e for e in self.events if e.time >= t_c and (e.time, e.event.value) in self._live_keys]
         events = sorted(kept + ahead + live, key=lambda e: e.time)
@@ -936,12 +1107,16 @@ class ScorePlayer:
             splice_plan(scene, plan, t_s, limbs={s.limb for s in plan.strokes if s.time > t_s})
             self._hold(lag, plan.end_time)
             self._keep_bass_feet(plan, t_s)
+            if self._run is not None:  # a loop's passes laid or cut: the play's notes from t_c on change
+                self._run.notes += len(ahead) - sum(1 for e in self.events if e.time >= t_c
+                                                    and (e.time, e.event.value) not in self._live_keys)
             self.events = self._assigned(events, plan)
             self._note_dropped(plan, t_s)
             self.mapping = (t_a, p_a, tempo)
             self.end_time = plan.end_time
             log.info("re-planned from rig %.3f s (%s): tempo x%g, dynamics x%g, %s grip, %s", t_a + lag,
-                     score_words(score, p_a), tempo, dynamics, self.grip.value, self.nuance.value)
+                     self._words(score, p_a), tempo, dynamics, self.grip.value, self.nuance.value)
+            self._lay(timeline, before, p_a, (t_a, p_a, tempo), lag)
             return plan
 
         return _Prepared(t_s, events, beats, 1.0, commit, hold=self._pending(lag, events[-1].time))
@@ -1283,7 +1458,10 @@ class ScorePlayer:
                 dropped += 1
             elif isinstance(message, SETTINGS_MESSAGES):
                 if item.tries == 0:  # a retry's settings were applied when it first started
-                    self._apply_settings(message)
+                    try:
+                        self._apply_settings(message)
+                    except ValueError as exc:  # a loop refused (no score, bars it does not have)
+                        self._fail([item], exc, now)
             else:
                 self._start(item, now)  # never plans: a score load, a kit, a target, a controller change ...
         log.info("reset at %.3f s: the plan in flight (%d message(s)) and %d waiting transport message(s) or live "
@@ -1306,6 +1484,8 @@ class ScorePlayer:
         act on the messages waiting, in order, until one starts a plan. Never raises: failures are counted and
         logged as the handler's are (``errors``, ``PhysicsCore.rejected``); says a play that has ended
         (:meth:`say_ended`)."""
+        self._say_loop(now)
+        self._extend_loop(now)
         self.say_ended(now)
         while True:
             job = self._job
@@ -1757,6 +1937,8 @@ class ScorePlayer:
         self._end_run(t, "reset", self._said_at("reset", t), at_once=True)
         self._generation += 1
         self._held = None
+        self._clear_loop("reset")
+        self._timeline = None
         self.events = []
         self._live_keys.clear()
         self._bass_feet.clear()

@@ -27,7 +27,7 @@ from common.messages.graphics import (
     GraphicsTrails,
 )
 from common.messages.physics import PhysicsControlMode, PhysicsGrip
-from common.messages.score import GestureStyle, ScoreDynamics, ScoreLoad, ScoreTransport, TempoScale
+from common.messages.score import GestureStyle, ScoreDynamics, ScoreLoad, ScoreLoop, ScoreTransport, TempoScale
 from common.messages.sound import SoundDamping, SoundLatency, SoundLevel, SoundModel, SoundModes, SoundTension
 from common.runtime import Node
 from tests.deploy.pdrun import PD_DIR, PdProcess, Recorder, physics_and_sound_nodes, require_pd, three_strikes
@@ -71,14 +71,14 @@ def test_control_panel_drives_physics_and_sound_cores() -> None:
                 f"bp-port-physics {pport}", f"bp-port-score {pport}", f"bp-port-sound {sport}",
                 "bp-grip symbol german", "bp-nuance symbol staccato", "bp-algorithm symbol viterbi",
                 "bp-mode symbol joint_ct", "bp-tempo 1.5", "bp-dynamics 0.5", "bp-score symbol groove-1",
-                "bp-position 2", "bp-transport symbol play",
+                "bp-position 2", "bp-transport symbol play", "bp-loop-first 2", "bp-loop-last 3", "bp-loop bang",
                 "bp-instrument symbol kick", "bp-model symbol synth", "bp-model symbol modal", "bp-tension 800",
                 "bp-level -6", "bp-modes 120", "bp-sigma1 0.0001", "bp-sigma0 20", "bp-latency 0.08",
             ]
             pd = PdProcess(PD_DIR / "control.pd", sends=sends)
             try:
-                await wait_for(lambda: len(sound.of(SoundLatency)) >= 1 and len(physics.of(ScoreTransport)) >= 1,
-                               timeout=15)
+                await wait_for(lambda: len(sound.of(SoundLatency)) >= 1 and len(physics.of(ScoreTransport)) >= 1
+                               and len(physics.of(ScoreLoop)) >= 1, timeout=15)
             finally:
                 pd.stop()
         assert pd.errors() == [], "\n".join(pd.lines)
@@ -95,6 +95,8 @@ def test_control_panel_drives_physics_and_sound_cores() -> None:
         assert physics.of(ScoreLoad)[-1].path == "groove-1"
         transport = physics.of(ScoreTransport)[-1]
         assert transport.action == "play" and transport.position == pytest.approx(2.0) and transport.time == 0.0
+        assert physics.of(ScoreLoop)[-1] == ScoreLoop(first=2, last=3)  # the typed bars, sent by [loop( once
+        assert len(physics.of(ScoreLoop)) == 1
         # sound acted on every parameter of the chosen instrument
         kick = sound.core.instruments.instruments["kick"]
         assert [m.model for m in sound.of(SoundModel)] == ["synth", "modal"] and kick.model == "modal"

@@ -119,6 +119,7 @@ def _kept_values() -> dict[str, float]:
         "bp-view-latency": GraphicsNodeSettings.model_fields["latency_s"].default,
         "bp-preview-rate": GraphicsNodeSettings.model_fields["preview_rate"].default,
         "bp-preview-first": 1, "bp-preview-last": 1,  # the bars the pack starts with: bar 1 (the score's first)
+        "bp-loop-first": 1, "bp-loop-last": 1,  # the loop's bars the stores start with (sent by [loop( only)
         "bp-client-port": _client_port(),
     }
 

@@ -1,0 +1,202 @@
+"""``/batteur/score/loop FIRST LAST``: the live drummer repeats bars of the playing score until told otherwise (a
+teacher's students play along), then goes on with the rest of the score.
+
+Until the day after 7 Dec only the graphics service's silent preview looped (``/batteur/graphics/preview_bars``);
+the physics score player had no loop. The player runs on a bare PhysicsCore (no physics steps: planning only); the
+planned notes (``ScorePlayer.events``, rig seconds) and the plans' strokes are what the drummer plays."""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import pytest
+
+from common.kit import EventType, load_kit
+from common.messages import MessageError
+from common.messages.physics import PhysicsRejected
+from common.messages.score import ScoreLoad, ScoreLoop, ScoreTransport, TempoScale
+from common.score.bars import bar_span, counted_bars
+from common.score.text import parse_text
+from services.physics.core import PhysicsCore
+from services.physics.node import LivePhysicsCore
+from services.physics.score_player import LOOP_AHEAD_S, ScorePlayer
+
+SENDER = "127.0.0.1:9"
+LOGGER = "batteur.physics.score"
+# 120 bpm in 4/4: a bar lasts 2 s; bar 3 alone has a high tom (its downbeat), bar 5 alone a floor tom
+FIVE_BARS = """tempo 120
+meter 4/4
+HH |x.x.x.x.|x.x.x.x.|x.x.x.x.|x.x.x.x.|x.x.x.x.|
+SN |........|..x...x.|........|..x...x.|........|
+HT |........|........|x.......|........|........|
+FT |........|........|........|........|x.......|
+BD |x...x...|x...x...|x...x...|x...x...|x...x...|
+"""
+BAR_S = 2.0
+LOOP_S = 2 * BAR_S  # bars 3-4 at tempo x1
+
+
+def _player(tmp_path: Path, core: PhysicsCore | None = None) -> tuple[PhysicsCore, ScorePlayer]:
+    (tmp_path / "five.txt").write_text(FIVE_BARS, encoding="utf-8")
+    if core is None:
+        core = PhysicsCore(scene="drummer", kit=load_kit("default"), grip="german", pose_rate_hz=0)
+    player = core.score_player
+    player.library = [tmp_path]
+    core.handle(ScoreLoad(path="five.txt"), 0.0, SENDER)
+    return core, player
+
+
+def _times(player: ScorePlayer, event: EventType) -> list[float]:
+    return [e.time for e in player.events if e.event == event]
+
+
+def _struck(player: ScorePlayer, event: EventType) -> list[float]:
+    """The latest plan's strokes of ``event`` (rig seconds)."""
+    assert player.last_plan is not None
+    return [s.time for s in player.last_plan.strokes if s.event == event]
+
+
+def _said(caplog: pytest.LogCaptureFixture, start: str) -> list[str]:
+    return [r.getMessage() for r in caplog.records if r.name == LOGGER and r.getMessage().startswith(start)]
+
+
+def test_bars_are_counted_as_compare_counts_them() -> None:
+    score = parse_text(FIVE_BARS)
+    assert counted_bars(score) == (1, 5)
+    assert bar_span(score, 3) == pytest.approx((4.0, 6.0)) and bar_span(score, 5) == pytest.approx((8.0, 10.0))
+    with pytest.raises(ValueError, match="bars 1..5"):
+        bar_span(score, 6)
+
+
+def test_a_loop_of_bars_3_4_plays_them_again_on_the_beat_until_turned_off(
+        tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    core, player = _player(tmp_path)
+    with caplog.at_level(logging.INFO, logger=LOGGER):
+        core.handle(ScoreTransport(action="play", time=1.0, position=0.0), 0.0, SENDER)
+        core.handle(ScoreLoop(first=3, last=4), 1.5, SENDER)
+        # bar 3 first sounds at rig 5 s (score 4 s); after bar 4 (rig 9 s) bars 3-4 again, each pass 4 s
+        passes = int(LOOP_AHEAD_S // LOOP_S)
+        toms = _times(player, EventType.HIGHTOM)
+        assert toms == pytest.approx([5.0 + k * LOOP_S for k in range(passes + 1)], abs=1e-3)
+        assert _struck(player, EventType.HIGHTOM) == pytest.approx(toms, abs=1e-3)  # planned as strokes too
+        assert _times(player, EventType.FLOORTOM) == []  # bar 5 never comes while looping
+        for now in (8.9, 9.1, 12.0, 13.1, 13.2):
+            player.pump(now)
+        clock = player.clock(14.0)  # the view's score position: the written score's, bar 3 beat 3 again
+        assert clock is not None and clock[1] == pytest.approx(5.0)
+        core.handle(ScoreLoop(first=0, last=0), 15.0, SENDER)  # in the pass of rig 13-17 s: it ends, then bar 5
+        for now in (16.9, 17.1, 18.0):
+            player.pump(now)
+    core.close()
+    assert [t for t in _times(player, EventType.HIGHTOM) if t > 15.0] == []  # no pass after the one in progress
+    assert _times(player, EventType.FLOORTOM) == pytest.approx([17.0], abs=1e-3)
+    assert _struck(player, EventType.FLOORTOM) == pytest.approx([17.0], abs=1e-3)
+    assert player.loop is None and core.rejected == {}
+    assert _said(caplog, "loop bars 3-4 (4.000 s at tempo x1): from rig 9.000 s, after bar 4, back to score 4.000 "
+                 "s, bar 3 beat 1.0")
+    said = [m for m in _said(caplog, "loop ") if "asked" not in m and "(4.000 s" not in m]
+    assert said == ["loop bars 3-4 starts at rig 9.000 s (pass 1): back to score 4.000 s, bar 3 beat 1.0",
+                    "loop bars 3-4 wraps at rig 13.000 s (pass 2): back to score 4.000 s, bar 3 beat 1.0",
+                    "loop off: the pass in progress ends at rig 17.000 s, then the rest of the score from score "
+                    "8.000 s, bar 5 beat 1.0",
+                    "loop bars 3-4 ends at rig 17.000 s: the play goes on at score 8.000 s, bar 5 beat 1.0"]
+
+
+def test_a_loop_plans_more_passes_before_they_run_out_and_follows_the_tempo(tmp_path: Path) -> None:
+    core, player = _player(tmp_path)
+    core.handle(ScoreTransport(action="play", time=1.0, position=0.0), 0.0, SENDER)
+    core.handle(ScoreLoop(first=3, last=4), 1.5, SENDER)
+    first_end = player.end_time
+    player.pump(first_end - 30.0)  # passes left for longer than LOOP_EXTEND_S: nothing more yet
+    assert player.end_time == first_end
+    player.pump(first_end - 15.0)
+    assert player.end_time >= first_end - 15.0 + LOOP_AHEAD_S
+    toms = _times(player, EventType.HIGHTOM)
+    assert (toms[0] - 5.0) % LOOP_S == pytest.approx(0.0, abs=1e-3)  # the passes go on at the same beat
+    assert toms == pytest.approx([toms[0] + k * LOOP_S for k in range(len(toms))], abs=1e-3)
+    # twice as fast while looping: the pass in progress finishes at the new tempo, then 2 s passes
+    now = toms[-3] + 1.0
+    core.handle(TempoScale(factor=2.0), now, SENDER)
+    assert player.mapping is not None
+    t_a, p_a, _ = player.mapping
+    assert t_a > now
+    loop_start = float(player._timeline.segments[1].at) if player._timeline else 0.0  # noqa: SLF001
+    # played seconds: bar 3 of each pass starts a multiple of LOOP_S after the loop's first pass
+    next_pass = loop_start + LOOP_S * (int((p_a - loop_start) // LOOP_S) + 1)
+    later = [t for t in _times(player, EventType.HIGHTOM) if t > t_a]
+    assert later[:4] == pytest.approx([t_a + (next_pass - p_a) / 2.0 + k * LOOP_S / 2.0 for k in range(4)], abs=1e-3)
+    assert core.rejected == {}
+    core.close()
+
+
+def test_a_play_past_the_loop_jumps_back_at_its_bars_end_and_a_stop_ends_the_loop(
+        tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    core, player = _player(tmp_path)
+    with caplog.at_level(logging.INFO, logger=LOGGER):
+        core.handle(ScoreLoop(first=2, last=3), 0.0, SENDER)  # stopped: for the next play
+        assert player.loop == (2, 3)
+        core.handle(ScoreTransport(action="play", time=2.0, position=8.0), 0.0, SENDER)  # bar 5, past bar 3
+        # bar 5 once (rig 2-4 s), then bars 2-3 from rig 4 s: bar 3's high tom 2 s into each pass
+        assert _times(player, EventType.FLOORTOM) == pytest.approx([2.0], abs=1e-3)
+        assert _times(player, EventType.HIGHTOM)[:3] == pytest.approx([6.0, 10.0, 14.0], abs=1e-3)
+        core.handle(ScoreTransport(action="stop", time=11.0, position=0.0), 0.0, SENDER)
+    core.close()
+    assert player.loop is None
+    assert _said(caplog, "stop at") == ["stop at rig 11.000 s: score 5.000 s, bar 3 beat 3.0"]
+    assert _said(caplog, "loop bars 2-3 ended by the stop")
+
+
+@pytest.mark.parametrize(("first", "last", "said"), [
+    (4, 3, "loop 4 3: the first bar is after the last (0 0 turns looping off)"),
+    (3, 6, "loop 3 6: bars outside the score: five.txt has bars 1..5; 0 0 turns looping off"),
+    (0, 2, "loop 0 2: bars outside the score: five.txt has bars 1..5; 0 0 turns looping off"),
+])
+def test_bad_loops_are_refused_and_counted(tmp_path: Path, first: int, last: int, said: str) -> None:
+    core, player = _player(tmp_path)
+    out = core.handle(ScoreLoop(first=first, last=last), 0.0, SENDER)
+    core.close()
+    replies = [o.message for o in out if isinstance(o.message, PhysicsRejected)]
+    assert [(r.address, r.reason) for r in replies] == [("/batteur/score/loop", said)]
+    assert core.rejected["ScoreLoop"] == 1 and player.errors["ScoreLoop"] == 1 and player.loop is None
+
+
+def test_a_loop_without_a_score_is_refused() -> None:
+    core = PhysicsCore(scene="drummer", kit=load_kit("default"), grip="german", pose_rate_hz=0)
+    out = core.handle(ScoreLoop(first=1, last=2), 0.0, SENDER)
+    core.close()
+    assert [o.message.reason for o in out if isinstance(o.message, PhysicsRejected)] == [
+        "loop 1 2: no score loaded (send /batteur/score/load first)"]
+    assert core.rejected["ScoreLoop"] == 1
+
+
+def test_negative_bars_are_refused_by_the_transport() -> None:
+    with pytest.raises(MessageError, match="out_of_range: /batteur/score/loop: first"):
+        ScoreLoop.from_args([-1, 2])
+
+
+def test_the_live_node_loops_through_its_background_plans(tmp_path: Path) -> None:
+    """The loop and its later passes are planned in the node's worker (here a thread), in their turn."""
+    core = LivePhysicsCore(planner="thread", scene="drummer", kit=load_kit("default"), grip="german",
+                           pose_rate_hz=0)
+    try:
+        player = core.score_player
+        assert player.wait_loaded(120.0) and player.background
+        _player(tmp_path, core)
+
+        def settle(now: float) -> None:
+            player.pump(now)
+            while player.busy:
+                assert player.wait(60.0)
+                player.pump(now)
+
+        core.handle(ScoreTransport(action="play", time=1.5, position=0.0), 0.0, SENDER)
+        core.handle(ScoreLoop(first=3, last=4), 0.0, SENDER)  # waits behind the play's plan
+        settle(0.0)
+        first_end = player.end_time
+        toms = _times(player, EventType.HIGHTOM)
+        assert toms[:3] == pytest.approx([5.5, 9.5, 13.5], abs=1e-3)
+        settle(first_end - 15.0)  # more passes, planned in the worker
+        assert player.end_time >= first_end - 15.0 + LOOP_AHEAD_S and core.rejected == {}
+    finally:
+        core.close()
