@@ -20,7 +20,7 @@ import numpy as np
 
 from common.gesture.plan import Nuance
 from common.input_file import file_problem
-from common.kit import EventType, Limb
+from common.kit import EventType, Kit, Limb
 from common.score.gm import DRUM_MAP, EVENT_WORDS, GM_STAND_INS, GM_TO_EVENT, note_name, pitch_label
 
 DUPLICATE_WINDOW = 0.010
@@ -276,6 +276,28 @@ def remove_duplicates(
     return kept, removed
 
 
+def double_key(kit: Kit | None) -> Callable[[DrumEvent], Hashable] | None:
+    """What makes two events doubles (:func:`remove_duplicates`' ``key``), one rule for text scores, MIDI files and
+    live notes: they strike the same object of ``kit`` with the same stroke, the key (event type, object id: the
+    kit's ``note_objects`` object for the event's pitch, else the event's own). MIDI 49 and 57 at once are two
+    crashes on a kit sending 57 to ``crash2``, one on a kit that does not; 42 and 22 stay one closed hi-hat.
+
+    None (the event type alone, as before) without a kit: a MIDI file read before its kit is known merges by event
+    type (a kit it is later played on cannot split them again); the readers take the kit when they have it
+    (``read_score(kit=)``)."""
+    if kit is None:
+        return None
+    objects, events = kit.note_objects, kit.events
+
+    def key(ev: DrumEvent) -> Hashable:
+        target = objects.get(ev.pitch) if ev.pitch is not None else None
+        if target is None and ev.event in events:
+            target = events[ev.event].object
+        return ev.event, target
+
+    return key
+
+
 def score_from_notes(
     notes: Iterable[DrumNote],
     drum_map: Mapping[int, EventType] = DRUM_MAP,
@@ -283,8 +305,10 @@ def score_from_notes(
     source: str = "",
     duplicate_window: float = DUPLICATE_WINDOW,
     bar_beats: np.ndarray | None = None,
+    kit: Kit | None = None,
 ) -> Score:
-    """Turn raw notes into a :class:`Score`: map pitches, clamp velocities to [0, 1], remove doubles."""
+    """Turn raw notes into a :class:`Score`: map pitches, clamp velocities to [0, 1], remove doubles (those of one
+    object of ``kit`` when given, :func:`double_key`; else of one event type)."""
     events: list[DrumEvent] = []
     unknown: list[UnknownNote] = []
     for n in notes:
@@ -294,7 +318,7 @@ def score_from_notes(
             unknown.append(UnknownNote(n.time, n.pitch, vel, n.channel))
         else:
             events.append(DrumEvent(time=n.time, event=ev, velocity=vel, pitch=n.pitch))
-    kept, removed = remove_duplicates(events, duplicate_window)
+    kept, removed = remove_duplicates(events, duplicate_window, key=double_key(kit))
     named = f"{source}: " if source else ""
     warnings = []
     if unknown:

@@ -30,7 +30,7 @@ import numpy as np
 from mido.midifiles.meta import KeySignatureError, MetaSpec_key_signature, add_meta_spec
 
 from common.gcpause import cyclic_gc_paused
-from common.kit import EventType
+from common.kit import EventType, Kit
 from common.score.events import (
     MAX_SCORE_BARS,
     MAX_SCORE_BYTES,
@@ -63,6 +63,10 @@ REPORT_EVERY_MESSAGES = 4096
 
 DEFAULT_TEMPO = 500_000
 """Microseconds per beat (a quarter note) until a file sets its tempo: 120 bpm, as the MIDI specification says."""
+PLAUSIBLE_TEMPO_BPM = (20.0, 400.0)
+"""A tempo a file sets outside this range (bpm) is read as it is but warned of, with how long the file then lasts
+(:func:`_tempo_warning`): a set_tempo of 1 microsecond a beat (60,000,000 bpm) played a file in 3 ms, said only as
+its notes merged as doubles."""
 TEXT_SAMPLE_BYTES = 4096
 """How much of a file named as MIDI is looked at to tell a text score given that name."""
 
@@ -271,6 +275,7 @@ def read_midi(
     progress: ReadProgress | None = None,
     note_map: Mapping[int, int] | None = None,
     hihat_cc4: bool = False,
+    kit: Kit | None = None,
 ) -> Score:
     """Read a Standard MIDI File into a :class:`Score`.
 
@@ -299,6 +304,10 @@ def read_midi(
         Apply the hi-hat pedal the file sends as CC4 to its hi-hat notes (``--hihat-cc4``,
         :class:`common.score.midi_notes.HiHatPedal`). Off: the notes play as written, and a file whose hi-hat notes,
         all closed (or all open), the pedal would change is told of the option once.
+    kit : Kit | None
+        The kit the file is played on, when known: double events are then those striking one object with one stroke
+        (MIDI 49 and 57 at once are two crashes on a kit whose ``note_objects`` send 57 to ``crash2``:
+        :func:`common.score.events.double_key`); None: those of one event type (as before the day after 7 Dec).
 
     Returns
     -------
@@ -307,7 +316,7 @@ def read_midi(
         ticks-per-beat and tempo map, unknown notes and removed doubles listed.
     """
     with cyclic_gc_paused():
-        score, size = _read(source, drum_channels, drum_map, progress, note_map, hihat_cc4)
+        score, size = _read(source, drum_channels, drum_map, progress, note_map, hihat_cc4, kit)
     if progress is not None:
         progress(size, size)
     return score
@@ -315,7 +324,7 @@ def read_midi(
 
 def _read(source: str | Path | bytes, drum_channels: Collection[int] | None, drum_map: Mapping[int, EventType],
           progress: ReadProgress | None, note_map: Mapping[int, int] | None = None,
-          hihat_cc4: bool = False) -> tuple[Score, int]:
+          hihat_cc4: bool = False, kit: Kit | None = None) -> tuple[Score, int]:
     """:func:`read_midi`'s work; also returns the file's size in bytes."""
     mid, name, size, open_warnings = _open(source, progress)
     if mid.ticks_per_beat < 0:  # the division's top bit: frames a second and ticks a frame
@@ -357,6 +366,9 @@ def _read(source: str | Path | bytes, drum_channels: Collection[int] | None, dru
             programs[msg.channel].append(msg.program)
     warnings = open_warnings
     chosen, told = _chosen_notes(raw, drums, drum_channels, programs, mid, name)
+    end_s = seconds + max(end_tick - last_tick, 0) * per_tick
+    tempo_told = _tempo_warning(tempo_points, end_tick, end_s, [n[0] for n in chosen], mid.ticks_per_beat, name)
+    warnings += [tempo_told] if tempo_told else []  # first: it explains what follows (doubles merged)
     warnings += told
     _check_size(chosen, name)
     warnings += _shared_pitches(chosen, mid, drum_map, pitches, name)
@@ -370,7 +382,7 @@ def _read(source: str | Path | bytes, drum_channels: Collection[int] | None, dru
     notes = [DrumNote(time=s, pitch=p, velocity=v / 127.0, channel=c + 1) for s, p, v, c, _, _ in chosen]
     beats = _beats(tempo_points, end_tick, mid.ticks_per_beat)
     score = score_from_notes(notes, drum_map=drum_map, beats=beats, source=name,
-                             bar_beats=_bar_beats(meters, end_tick, mid.ticks_per_beat))
+                             bar_beats=_bar_beats(meters, end_tick, mid.ticks_per_beat), kit=kit)
     score.end_beat = end_tick / mid.ticks_per_beat
     score.bar_units = _bar_units(meters, score.bar_beats, mid.ticks_per_beat)
     score.warnings = warnings + score.warnings
@@ -604,6 +616,51 @@ def _shared_pitches(chosen: list[_RawNote], mid: mido.MidiFile, drum_map: Mappin
                         f"they are {drum} and notes played together one note; give each drum its own pitch in "
                         f"the DAW (General MIDI: kick 36, snare 38, closed hi-hat 42)")
     return warnings
+
+
+def _tempo_warning(tempo_points: list[tuple[int, float, float]], end_tick: int, end_s: float, note_s: list[float],
+                   ticks_per_beat: int, name: str) -> str | None:
+    """A warning for the tempos the file sets outside :data:`PLAUSIBLE_TEMPO_BPM` that hold for some of it, saying
+    how long the file and its notes then last (read as they are, not refused); None when there is none.
+
+    ``tempo_points``: (tick, seconds, seconds per tick), the first the default tempo; ``end_tick``, ``end_s``: the
+    file's end; ``note_s``: the times of the notes read as drums, seconds."""
+    low, high = PLAUSIBLE_TEMPO_BPM
+    odd = []
+    for k, (tick, _, per_tick) in enumerate(tempo_points[1:], start=1):
+        until = tempo_points[k + 1][0] if k + 1 < len(tempo_points) else end_tick
+        bpm = 60.0 / (per_tick * ticks_per_beat)
+        if until > tick and not low <= bpm <= high:  # one replaced at its own tick or set at the end holds nothing
+            odd.append((tick, bpm, round(per_tick * ticks_per_beat * 1e6)))
+    if not odd:
+        return None
+    tick, bpm, micros = odd[0]
+    first = f"tempo {_bpm(bpm)} bpm at tick {tick} (a set_tempo of {micros:,} microsecond{'s' * (micros != 1)} a beat)"
+    if len(odd) == 1:
+        which = f"{first}, outside the {low:g} to {high:g} bpm music is played at"
+    else:
+        bpms = [b for _, b, _ in odd]
+        which = (f"{len(odd)} tempos outside the {low:g} to {high:g} bpm music is played at, from {_bpm(min(bpms))} to "
+                 f"{_bpm(max(bpms))} bpm, the first {first}")
+    notes = ""
+    if note_s:
+        count = f"{len(note_s)} note{'s' * (len(note_s) != 1)}"
+        notes = (f", its {count} at {_seconds(note_s[0])}" if len(note_s) == 1 else
+                 f", its {count} between {_seconds(min(note_s))} and {_seconds(max(note_s))}")
+    return (f"{name}: {which}: read as {'it is' if len(odd) == 1 else 'they are'}, the whole file lasts "
+            f"{_seconds(end_s)}{notes} (a corrupt tempo? set the tempo in the DAW and export again)")
+
+
+def _bpm(bpm: float) -> str:
+    """A tempo for :func:`_tempo_warning`: ``60,000,000``, ``412.5``, ``0.5``."""
+    return f"{bpm:,.0f}" if bpm >= 1000 else f"{bpm:.4g}"
+
+
+def _seconds(seconds: float) -> str:
+    """A time for :func:`_tempo_warning`: ``0 s``, ``0.03 ms``, ``0.003 s``, ``12.5 s``, ``1.5 h``."""
+    if 0 < seconds < 1e-3:
+        return f"{seconds * 1e3:.2g} ms"
+    return hours(seconds) if seconds >= 3600 else f"{seconds:.3g} s"
 
 
 def _check_size(notes: list[_RawNote], name: str) -> None:

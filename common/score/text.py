@@ -39,6 +39,7 @@ from common.score.events import (
     ScoreError,
     check_file,
     check_not_audio,
+    double_key,
     hours,
     remove_duplicates,
     starts_as_midi,
@@ -160,10 +161,31 @@ def object_strokes(kit: Kit, object_id: str) -> dict[EventType, int | None]:
 
 def object_stroke(kit: Kit, object_id: str) -> tuple[EventType, int | None] | None:
     """The event type and pitch a score's row or note naming ``kit``'s object ``object_id`` plays
-    (:func:`object_strokes`), None unless it names one stroke (an unknown id, an object no note plays, or one
-    struck by several strokes, the hi-hat open and closed: the stroke's name says which)."""
+    (:func:`object_strokes`): the one event type whose own object it is, else (an object only ``note_objects``
+    pitches reach) its first pitch's, with that pitch. None for an unknown id, an object no note plays, or one that
+    is the own object of several strokes (:func:`own_strokes`, the hi-hat open and closed: the stroke's name says
+    which). An object reached by pitches of two event types (``note_objects {52: fx, 57: fx}``) is not ambiguous:
+    naming CHINA or CRASH plays the china or the crash, never it (said "name the stroke" until the day after 7 Dec)."""
     strokes = object_strokes(kit, object_id)
-    return next(iter(strokes.items())) if len(strokes) == 1 else None
+    own = own_strokes(strokes)
+    if own:
+        return (own[0], None) if len(own) == 1 else None
+    return next(iter(strokes.items()), None)
+
+
+def own_strokes(strokes: dict[EventType, int | None]) -> list[EventType]:
+    """The event types among ``strokes`` (:func:`object_strokes`) whose own object (or pedal) it is."""
+    return [event for event, pitch in strokes.items() if pitch is None]
+
+
+def shadowed_by(kit: Kit, object_id: str) -> EventType | None:
+    """The event type whose name or alias ``object_id`` is when that event's own object is another of ``kit``'s (a
+    kit object ``ft``: ``ft`` is FLOORTOM, whose object is ``floortom``): a score naming it plays that event, never
+    the object. None otherwise (``snare``, ``ride``: the event's own object; no event type's name)."""
+    event = event_type(object_id)
+    if event is None or event not in kit.events:
+        return event
+    return None if object_id in (kit.events[event].object, kit.events[event].pedal) else event
 
 
 def shipped_kit_with(object_id: str, besides: str) -> str | None:
@@ -192,13 +214,19 @@ def unknown_instrument(name: str, lineno: int, kit: Kit | None = None) -> ScoreE
     ids: list[str] = []  # the ids a note may name (an event type's name among them: snare, ride)
     listed = ""
     if kit is not None:
-        ids = [o.id for o in kit.objects if event_type(o.id) is not None or object_stroke(kit, o.id) is not None]
+        shadowed = [(o.id, ev) for o in kit.objects if (ev := shadowed_by(kit, o.id)) is not None]
+        ids = [o.id for o in kit.objects if o.id not in dict(shadowed)
+               and (event_type(o.id) is not None or object_stroke(kit, o.id) is not None)]
         listed = f", and the objects of kit {kit.name!r}: {', '.join(ids)}"
-        several = [(o.id, object_strokes(kit, o.id)) for o in kit.objects if event_type(o.id) is None]
-        several = [(i, strokes) for i, strokes in several if len(strokes) > 1]
+        several = [(o.id, own_strokes(object_strokes(kit, o.id))) for o in kit.objects if event_type(o.id) is None]
+        several = [(i, own) for i, own in several if len(own) > 1]  # those reached by pitches play the first
         if several:
-            listed += " (" + "; ".join(f"{i} is struck by {_either([e.value for e in strokes])}"
-                                       for i, strokes in several) + ": name the stroke)"
+            listed += " (" + "; ".join(f"{i} is struck by {_either([e.value for e in own])}"
+                                       for i, own in several) + ": name the stroke)"
+        if shadowed:  # 'ft' is FLOORTOM's alias: a row 'ft' plays floortom, never the object ft (was listed)
+            listed += "; " + "; ".join(
+                f"a row {i!r} plays {ev.value}{f' (on {kit.events[ev].object})' if ev in kit.events else ''}: a "
+                f"score cannot name the object {i} (give it another id in the kit)" for i, ev in shadowed)
         named = next((o for o in kit.objects if o.id == name.lower()), None)
         if named is not None and not object_strokes(kit, named.id):
             if named.kind in STRUCK_KINDS:  # a kit designer's new object: a pitch of its own makes it playable
@@ -272,10 +300,11 @@ def _marks(name: str, rows: list[tuple[list[str], int, int]], allowed: str) -> l
 
 
 def _warn_foot_sticking(sticking: list[str], grid: dict[str, list[tuple[list[str], int, int]]], lineno: int,
-                        warnings: list[str], events: dict[str, EventType]) -> None:
+                        warnings: list[str], events: dict[str, EventType], spelled: dict[str, str]) -> None:
     """Warn of ST marks whose column holds foot notes (BD, a hi-hat pedal) and no stick note: a foot plays them and
     the hand is ignored, as an ``at ... R`` line on a foot note says (they were ignored without a word).
-    ``events``: each row name's event type."""
+    ``events``: each row name's event type; ``spelled``: each row name as written, an object id's said so
+    (``kick_pedal``; KICK_PEDAL until the day after 7 Dec), an event type's or alias's upper-case (BD)."""
     stick = set()
     feet: dict[int, list[str]] = {}
     for name, rows in grid.items():
@@ -285,7 +314,7 @@ def _warn_foot_sticking(sticking: list[str], grid: dict[str, list[tuple[list[str
                 if ch in ".-":
                     continue
                 if foot:
-                    feet.setdefault(k, []).append(name)
+                    feet.setdefault(k, []).append(name if event_type(name) is not None else spelled[name])
                 else:
                     stick.add(k)
     ignored = [k for k, ch in enumerate(sticking) if ch in STICKING and k in feet and k not in stick]
@@ -454,11 +483,13 @@ def parse_text(text: str, source: str = "text", kit: Kit | None = None) -> TextS
     kit_named: tuple[str, int] | None = None  # the kit line's name, line
     tempo_given = False
     ids_kit: list[Kit | None] = []  # the kit object ids are looked up in, once loaded (None: it cannot be)
+    kit_failed: list[str] = []  # why it cannot be: "line 2: kit 'x', whose ..., cannot be loaded: no kit file 'x'"
     strokes: dict[str, tuple[EventType, int | None]] = {}  # an object id named -> its event type and pitch
 
     def objects_kit() -> Kit | None:
         """The kit the score's object ids name objects of: ``kit``, else its ``kit`` line's, else the default (one
-        it cannot load: None; the line's error is the kit loader's to say, :func:`load_score_kit`)."""
+        it cannot load: None, and ``kit_failed`` says why: an unknown name's error says it, the kit line being
+        likelier wrong than the name; it was only "unknown instrument" until the day after 7 Dec)."""
         if not ids_kit:
             if kit is not None:
                 ids_kit.append(kit)
@@ -466,10 +497,22 @@ def parse_text(text: str, source: str = "text", kit: Kit | None = None) -> TextS
                 line = _kit_line(text)
                 named = TextScore(events=[], source=source)
                 named.kit, named.kit_line = line if line is not None else (None, None)
+                why: list[Exception] = []
+
+                def load(name: str) -> Kit:
+                    try:
+                        return load_kit(name, warn=False)
+                    except (FileNotFoundError, ValueError) as exc:
+                        why.append(exc)
+                        raise
+
                 try:
-                    ids_kit.append(load_score_kit(named, None, load=lambda name: load_kit(name, warn=False)))
-                except (FileNotFoundError, ValueError):
+                    ids_kit.append(load_score_kit(named, None, load=load))
+                except (FileNotFoundError, ValueError) as exc:
                     ids_kit.append(None)
+                    reason = why[0] if why else exc
+                    which = f"line {line[1]}: kit {line[0]!r}" if line else f"kit {DEFAULT_KIT!r}"
+                    kit_failed.append(f"{which}, whose objects a row may name, cannot be loaded: {reason}")
         return ids_kit[0]
 
     def instrument(name: str, lineno: int) -> tuple[EventType, int | None]:
@@ -483,7 +526,10 @@ def parse_text(text: str, source: str = "text", kit: Kit | None = None) -> TextS
             found = objects_kit()
             stroke = None if found is None else object_stroke(found, key)
             if stroke is None:
-                raise unknown_instrument(name, lineno, found)
+                error = unknown_instrument(name, lineno, found)
+                if kit_failed:  # the kit whose ids it may be: the kit line's own error, its line and why
+                    error = ScoreError(f"{error}; {kit_failed[0]}")
+                raise error
             strokes[key] = stroke
         return strokes[key]
 
@@ -543,7 +589,7 @@ def parse_text(text: str, source: str = "text", kit: Kit | None = None) -> TextS
             notes += sum(_note_cells(cells, lineno) for cells, _, lineno in rows)
         if sticking is not None:
             _warn_foot_sticking(sticking, grid, marks["ST"][0][2], warnings,
-                                {name: ev for name, (ev, _) in played.items()})
+                                {name: ev for name, (ev, _) in played.items()}, spelled)
         check_until(position + n_bars * beats_per_bar, notes, block[0][0])
         cells_a_bar = n_cells // n_bars
         if odd_cells_a_bar(cells_a_bar, meter[0]):  # played as written: tuplets are legitimate, typos likelier
@@ -718,8 +764,9 @@ def parse_text(text: str, source: str = "text", kit: Kit | None = None) -> TextS
         warnings.append("no drum events")
     elif not tempo_given:
         warnings.insert(0, f"no tempo line: played at {DEFAULT_BPM:g} beats (quarter notes) per minute")
-    # an object named by its id is another drum than its event's own (crash2 and CR at once are two crashes)
-    kept, removed = remove_duplicates(events, key=lambda e: (e.event, e.pitch))
+    # doubles strike one object with one stroke (common.score.events.double_key): crash2 and CR at once are two
+    # crashes; without a kit loaded no note names an object by pitch, and the event type decides
+    kept, removed = remove_duplicates(events, key=double_key(kit if kit is not None else next(iter(ids_kit), None)))
     # at least beats 0 and 1: a score shorter than a beat (one bar of 1/8) has a beat's length to count bars by
     beats = np.array([tempo.seconds(b) for b in np.arange(0.0, max(position, 1.0) + 1e-9, 1.0)])
     score = TextScore(events=kept, beats=beats, bar_beats=np.array(bar_starts, dtype=float), duplicates=removed,
@@ -742,12 +789,13 @@ def read_score(path: str | Path, kit: Kit | None = None, **kwargs: object) -> Sc
     Keyword arguments (``drum_channels``, ``progress``, ...) go to :func:`common.score.midi.read_midi`; a text score
     ignores them (it has no channels, and reads quickly: 208,000 notes in about 1 s, without progress reports).
     ``kit``: the kit a text score's object ids name objects of (:func:`parse_text`; None: its ``kit`` line's, else
-    the default); a MIDI file's pitches choose a kit's objects by its ``note_objects`` when played."""
+    the default); a MIDI file's pitches choose a kit's objects by its ``note_objects`` when played, and with
+    ``kit`` its doubles are those of one object (:func:`common.score.events.double_key`; without, of one event)."""
     from common.score.midi import read_midi
 
     p = Path(path)
     if p.suffix.lower() in MIDI_SUFFIXES:
-        return read_midi(p, **kwargs)  # type: ignore[arg-type]
+        return read_midi(p, kit=kit, **kwargs)  # type: ignore[arg-type]
     check_file(p, str(p))
     try:
         with p.open("rb") as f:
@@ -755,7 +803,7 @@ def read_score(path: str | Path, kit: Kit | None = None, **kwargs: object) -> Sc
     except OSError as exc:
         raise ScoreError(f"{p}: cannot read the file ({exc.strerror or exc})") from None
     if starts_as_midi(head):  # a MIDI file by another name (.kar, none): it was "not UTF-8 text"
-        return read_midi(p, **kwargs)  # type: ignore[arg-type]
+        return read_midi(p, kit=kit, **kwargs)  # type: ignore[arg-type]
     if not head:  # as an empty MIDI file's (it read as a score of no notes)
         raise ScoreError(f"{p}: the file is empty (0 bytes)")
     text = _score_text(p, head)

@@ -403,7 +403,7 @@ class ScorePlayer:
     def __init__(self, core: PhysicsCore, library: tuple[str | Path, ...] = ()) -> None:
         self.core = core
         self.library: list[Path] = [Path(d) for d in library]
-        self.live = LiveNotes()
+        self.live = LiveNotes(kit=core.kit)  # doubles: two notes on one object of the node's kit
         self._midi: dict[str, Any] = {}
         self.grip = planned_grip(core.settings.grip)
         """The grip the gestures are planned with (see the module docstring)."""
