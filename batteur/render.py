@@ -52,6 +52,7 @@ from batteur.errors import INTERRUPTED, USAGE, UsageError, report_error
 from batteur.impact_log import ImpactCsvStream, ImpactLog, write_impacts_csv
 from batteur.interrupts import DeferredCtrlC
 from batteur.progress import Progress
+from batteur.render_outputs import GLTF_OUTPUT, SCORE_OUTPUTS, VIDEO_OUTPUT
 from batteur.strike import DEFAULT_STRIKES, parse_strikes, run_strikes
 from common.arg_types import take_negative_values
 from common.core import Outgoing
@@ -100,7 +101,7 @@ MASS_RANGE_KG = (35.0, 150.0)
 """Accepted ``--mass``, kilograms (physics' ``PhysicsSettings.mass_kg``)."""
 BVH_RATE_RANGE = (1.0, 1000.0)
 """Accepted ``--bvh-rate``, Hz."""
-BVH_UNITS = {"m": 1.0, "cm": 100.0}
+BVH_UNITS_PER_METRE = {"m": 1.0, "cm": 100.0}
 """``--bvh-units`` -> performance.bvh's file units per metre."""
 MAX_PHYSICS_POSE_HZ = 240.0
 """Physics publishes poses at most this often (``PhysicsSettings.pose_rate_hz``), Hz; a faster BVH is interpolated
@@ -1002,8 +1003,6 @@ def check_copies(output: Path, score: Path, kit_copy: KitCopy | None) -> None:
                           "--overwrite")
 
 
-SCORE_OUTPUTS = ("performance.wav", "impacts.csv", "performance.bvh", "report.json")
-"""The files every score render writes into its folder (besides the score's and kit file's copies)."""
 STRIKE_OUTPUTS = ("performance.wav", "impacts.csv", "report.json")
 """The files a strike-scene render writes into its folder."""
 
@@ -1011,7 +1010,7 @@ STRIKE_OUTPUTS = ("performance.wav", "impacts.csv", "report.json")
 def score_outputs(opts: RenderOptions) -> list[str]:
     """The files a score render of ``opts`` writes into its folder, the copies of the score and kit file aside
     (:func:`check_copies`)."""
-    return [*SCORE_OUTPUTS, *(["performance.mp4"] if opts.video else []), *(["performance.glb"] if opts.gltf else [])]
+    return [*SCORE_OUTPUTS, *([VIDEO_OUTPUT] if opts.video else []), *([GLTF_OUTPUT] if opts.gltf else [])]
 
 
 def check_outputs(output: Path, names: Sequence[str], overwrite: bool = False) -> None:
@@ -1118,7 +1117,7 @@ def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: boo
                                   planned_s=rendered_seconds(plan, opts), prog=prog,
                                   bvh_start_s=wav_frame_start(opts, offset) if opts.bvh_sync == "wav" else None,
                                   end_sites=body_end_sites(opts), wav_cut_s=wav_cut_s,
-                                  bvh_scale=BVH_UNITS[opts.bvh_units])
+                                  bvh_scale=BVH_UNITS_PER_METRE[opts.bvh_units])
         try:
             if opts.jobs > 1:
                 from batteur.segments import run_segmented
@@ -1501,7 +1500,7 @@ def build_parser() -> argparse.ArgumentParser:
                         help="replace files in DIR that no earlier render wrote there (a performance.bvh, "
                         "report.json, score.txt ... of your own); without it the render refuses before simulating, "
                         "naming them (a folder an earlier render made is re-rendered into without it)")
-    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.add_argument("--quiet", action="store_true", help="no progress")
     playing = parser.add_argument_group("the performance")
     add_performance_options(playing, kit_default=None)
     add_midi_arguments(playing)
@@ -1541,7 +1540,7 @@ def build_parser() -> argparse.ArgumentParser:
     outputs.add_argument("--bvh-rate", type=float, default=RenderOptions.pose_rate_hz, metavar="HZ",
                          help="frame rate of DIR/performance.bvh, 1 to 1000 Hz (e.g. 24, 30, 60, 120; default 60); "
                          "the video keeps its own --video-fps")
-    outputs.add_argument("--bvh-units", choices=list(BVH_UNITS), default="m",
+    outputs.add_argument("--bvh-units", choices=list(BVH_UNITS_PER_METRE), default="m",
                          help="length unit of DIR/performance.bvh: m (default; Blender) or cm (Maya, MotionBuilder)")
     outputs.add_argument("--bvh-sync", choices=["pose", "wav"], default=None,
                          help="frame 0 of DIR/performance.bvh: wav (the default), DIR/performance.wav's time 0 "

@@ -167,11 +167,17 @@ def map_segments(bvh: Bvh, name: str = "<bvh>") -> dict[str, int]:
         ancestors.append(set() if j.parent < 0 else ancestors[j.parent] | {j.parent})
     found: dict[str, int] = {}
     used: set[int] = set()
+    # Blender's hips bone is "spine", the parent of "spine.001": a Rigify export puts a floor bone "root" above it
+    chain_hips = {j.parent for j, n in zip(bvh.joints, normal, strict=True) if n == "spine001" and j.parent >= 0
+                  and normal[j.parent] == "spine"}
     for link in MATCH_ORDER:
         above = _mapped_ancestor(link, found)
         for candidate in SEGMENT_NAMES[link]:
-            hits = [i for i, n in enumerate(normal) if n == candidate and i not in used
-                    and (above is None or found[above] in ancestors[i])]
+            if link == "pelvis" and candidate == "root" and len(chain_hips) == 1:  # the chain's hips, not the floor
+                hits = list(chain_hips)
+            else:
+                hits = [i for i, n in enumerate(normal) if n == candidate and i not in used
+                        and (above is None or found[above] in ancestors[i])]
             if len(hits) > 1:
                 joints = " and ".join(repr(bvh.joints[i].name) for i in hits[:3])
                 raise BvhError(f"{name}: joints {joints} could each be the {link.replace('_', ' ')}: rename or "
@@ -308,7 +314,7 @@ def bvh_clip(bvh: Bvh, name: str = "<bvh>", where: str | None = None) -> MotionC
         raise BvhError(f"{where}: none of its joints could be matched to the body's (hips, spine, neck, head, arms, "
                        f"legs by their usual BVH names): {unmatched_words(bvh)}")
     times = np.arange(len(bvh.motion)) * bvh.frame_time
-    return MotionClip(name, times, rotations)
+    return MotionClip(name, times, rotations, where)
 
 
 def load_bvh_clip(path: str | Path) -> MotionClip:
@@ -330,8 +336,11 @@ LENGTH_SEGMENTS: tuple[str, ...] = ("upper_arm", "forearm", "thigh", "shank")
 """The limb segments whose length a skeleton tells without doubt: from one joint centre to the next (a hand's or
 a foot's end is placed differently from one convention to another, so they keep the table's)."""
 
-SKELETON_UNITS: dict[str, float] = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}
+METRES_PER_SKELETON_UNIT: dict[str, float] = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}
 """A skeleton file's length unit -> metres per unit (a BVH does not say its unit)."""
+STATURE_RANGE_M = (1.2, 2.2)
+"""The performers' heights, metres (anthropometry's bounds, the physics node's and render's ``HEIGHT_RANGE_M``): a
+skeleton's unit is one in which its stature is within them."""
 UNIT_WORDS: dict[str, str] = {"m": "metres", "cm": "centimetres", "mm": "millimetres", "in": "inches"}
 CENTIMETRES_ABOVE = 3.0
 """The first guess of a skeleton's unit: centimetres when an offset is longer than this, else metres (no joint
@@ -345,9 +354,11 @@ class SkeletonReading:
     lengths_m: dict[str, float]
     """Lengths, metres (what the file lacks is left out)."""
     unit: str
-    """Key of :data:`SKELETON_UNITS`."""
+    """Key of :data:`METRES_PER_SKELETON_UNIT`."""
     why: str
     """Why that unit, for messages ("its longest offset, 100, is over 3", "given")."""
+    fits: bool = True
+    """False when no unit gives a performer (:func:`read_skeleton`): the lengths are the first guess's."""
 
     @property
     def unit_words(self) -> str:
@@ -405,18 +416,20 @@ def _problem(lengths_m: dict[str, float]) -> str | None:
 
 
 def _scaled(raw: dict[str, float], unit: str) -> dict[str, float]:
-    return {name: length * SKELETON_UNITS[unit] for name, length in raw.items()}
+    return {name: length * METRES_PER_SKELETON_UNIT[unit] for name, length in raw.items()}
 
 
 def read_skeleton(path: str | Path, units: str = "auto") -> SkeletonReading:
     """A BVH skeleton's lengths in metres (see :func:`bvh_segment_lengths`) and the unit they were read in.
 
-    ``units``: a key of :data:`SKELETON_UNITS`, or ``auto``: centimetres when an offset is longer than
-    :data:`CENTIMETRES_ABOVE`, else metres; when no performer has the lengths in that unit but one has them in
-    another (a skeleton in millimetres or inches), that one, said in :attr:`SkeletonReading.why` (several: the one
-    whose performer's height is nearest de Leva's 1.75 m). Raises what reading the file raises."""
-    if units != "auto" and units not in SKELETON_UNITS:
-        raise ValueError(f"skeleton units {units!r}: auto, {', '.join(SKELETON_UNITS)} expected")
+    ``units``: a key of :data:`METRES_PER_SKELETON_UNIT`, or ``auto``: the unit in which a performer has the lengths
+    and the stature they imply (:func:`skeleton_stature`) is within :data:`STATURE_RANGE_M` (the units are too far
+    apart for two to fit; several would be told apart by the stature nearest de Leva's 1.75 m). The first guess,
+    centimetres when an offset is longer than :data:`CENTIMETRES_ABOVE`, else metres, is kept when it fits or when
+    no unit does (:attr:`SkeletonReading.fits` False, :attr:`SkeletonReading.why` giving each unit's stature);
+    another unit is said in :attr:`SkeletonReading.why`. Raises what reading the file raises."""
+    if units != "auto" and units not in METRES_PER_SKELETON_UNIT:
+        raise ValueError(f"skeleton units {units!r}: auto, {', '.join(METRES_PER_SKELETON_UNIT)} expected")
     bvh = read_bvh(path)
     raw = _raw_lengths(bvh, map_segments(bvh, str(path)), str(path))
     if units != "auto":
@@ -424,16 +437,42 @@ def read_skeleton(path: str | Path, units: str = "auto") -> SkeletonReading:
     longest = max((float(np.linalg.norm(j.offset)) for j in bvh.joints), default=0.0)
     first = "cm" if longest > CENTIMETRES_ABOVE else "m"
     why = f"its longest offset, {longest:.4g}, is {'over' if first == 'cm' else 'at most'} {CENTIMETRES_ABOVE:g}"
-    problem = _problem(_scaled(raw, first)) if raw else None
-    if problem is None:
+    if not raw:  # no limb found: nothing to tell a unit by (the caller says so)
+        return SkeletonReading({}, first, why)
+    problems = {u: _unit_problem(raw, u) for u in METRES_PER_SKELETON_UNIT}
+    fits = [u for u, problem in problems.items() if problem is None]
+    if first in fits:
         return SkeletonReading(_scaled(raw, first), first, why)
-    fits = [u for u in SKELETON_UNITS if u != first and _problem(_scaled(raw, u)) is None]
     if not fits:
-        others = ", ".join(u for u in SKELETON_UNITS if u != first)
-        return SkeletonReading(_scaled(raw, first), first, f"{why}; no other unit ({others}) fits a performer either")
+        low, high = STATURE_RANGE_M
+        statures = ", ".join(f"{_stature_words(raw, u)} in {UNIT_WORDS[u]}" for u in METRES_PER_SKELETON_UNIT)
+        return SkeletonReading(_scaled(raw, first), first, f"{why}; no unit gives a performer {low:g} to {high:g} m "
+                               f"tall with these lengths ({statures})", fits=False)
     unit = min(fits, key=lambda u: abs(math.log((skeleton_stature(_scaled(raw, u)) or 1.75) / 1.75)))
     return SkeletonReading(_scaled(raw, unit), unit, f"no performer has its lengths in {UNIT_WORDS[first]}, the "
-                           f"first guess ({why}): {problem}")
+                           f"first guess ({why}): {problems[first]}")
+
+
+def _stature_words(raw: dict[str, float], unit: str) -> str:
+    stature = skeleton_stature(_scaled(raw, unit))
+    return "no stature" if stature is None else f"{stature:g} m"
+
+
+def _unit_problem(raw: dict[str, float], unit: str) -> str | None:
+    """Why no performer has the lengths ``raw`` read in ``unit`` (:func:`_performer_problem`); None when one has."""
+    return _performer_problem(_scaled(raw, unit))
+
+
+def _performer_problem(lengths_m: dict[str, float]) -> str | None:
+    """Why no performer has these lengths: a length no body has (:func:`_problem`) or a stature
+    (:func:`skeleton_stature`) outside :data:`STATURE_RANGE_M`; None when one has."""
+    problem = _problem(lengths_m)
+    if problem is not None:
+        return problem
+    stature, (low, high) = skeleton_stature(lengths_m), STATURE_RANGE_M
+    if stature is not None and not low <= stature <= high:
+        return f"its lengths are a {stature:g} m performer's, not {low:g} to {high:g} m tall"
+    return None
 
 
 def skeleton_stature(lengths_m: dict[str, float]) -> float | None:
@@ -477,13 +516,14 @@ def usable_segment_lengths(path: str | Path, units: str = "auto") -> dict[str, f
     """:func:`bvh_segment_lengths` of a skeleton a body can be built from (``--skeleton-bvh`` of ``batteur render``
     and of the physics node, checked at their start). :class:`BvhError` naming the file when none of its joints is
     found by name (without it the body would silently be de Leva's; the names it has and those known are said) or
-    for proportions no body has (the unit it was read in is said); what reading the file raises."""
+    for proportions or a stature no performer has (the unit it was read in is said, and when guessed, the stature
+    each unit implies); what reading the file raises."""
     reading = read_skeleton(path, units)
     if not reading.lengths_m:
         raise BvhError(f"{path}: no arm, leg or trunk joints found by their usual BVH names: "
                        f"{unmatched_words(read_bvh(path))}")
-    problem = _problem(reading.lengths_m)
-    if problem is not None:  # a skeleton lying down, in a unit no guess finds
+    problem = _performer_problem(reading.lengths_m)
+    if problem is not None:  # a skeleton lying down, a child's, in a unit no guess finds
         raise BvhError(f"{path}: {problem}, read in {reading.unit_words}")
     return reading.lengths_m
 

@@ -588,9 +588,12 @@ class PhysicsCore:
             # the notes of the strokes jumped over: counted late, each live note refused to its sender
             dropped = self.score_player.drop_skipped(rig - lag, rig - floor, now)
             if now - self._last_jump_warning >= 5.0:  # at most one warning per 5 s of rig time
-                log.warning("physics targets %.0f ms behind the rig clock: jumped %.0f ms toward it, the strokes "
-                            "between dropped with %s (%d such jumps in all; %s)", lag * 1e3, excess * 1e3,
-                            *self._notes_dropped(*dropped, self.target_jumps_late))
+                # said plainly first, as the skip's and the bound's warnings, the detail after
+                log.warning("physics is %.0f ms behind real time: the drummer's hands jump to catch up and the notes "
+                            "between are skipped; %s (detail: the targets jumped %.0f ms toward the rig clock, %.0f ms "
+                            "behind it now; the strokes between dropped with %s; %d such jumps in all, %s; %s)",
+                            lag * 1e3, BEHIND_ADVICE, excess * 1e3, floor * 1e3,
+                            *self._notes_dropped(*dropped, self.target_jumps_late), BEHIND_DOCS)
                 self._last_jump_warning = now
 
     def _jump_past_bound(self, now: float) -> None:

@@ -44,7 +44,8 @@ FRAME_LENGTH = 1 + 3 + 4 + sum(n for _, n in _LAYOUT)
 
 log = logging.getLogger("batteur.physics.limits")
 _GIMBAL_SAID: set[tuple[str, str]] = set()
-"""(clip, joint) pairs whose gimbal lock was logged (:meth:`MotionClip.euler`): said once per process."""
+"""(clip file, joint) pairs whose gimbal lock was logged (:meth:`MotionClip.euler`): said once per process (the
+clip's name where it has no file); two files of one name in two folders are two clips."""
 
 UPPER_BODY = ("lumbar", "thoracic", "neck", "head", "left_shoulder", "left_elbow", "right_shoulder", "right_elbow")
 """Our joints driven by a DeepMimic clip's upper body."""
@@ -61,6 +62,8 @@ class MotionClip:
     name: str
     times: np.ndarray
     rotations: dict[str, Rotation]
+    source: str = ""
+    """The file it was read from ("": made in memory): what tells two clips of one name apart."""
 
     @property
     def rate_hz(self) -> float:
@@ -80,8 +83,9 @@ class MotionClip:
                 locked = True
             else:  # another warning: as it would have been
                 warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
-        if locked and (self.name, joint) not in _GIMBAL_SAID:
-            _GIMBAL_SAID.add((self.name, joint))
+        said = (self.source or self.name, joint)
+        if locked and said not in _GIMBAL_SAID:
+            _GIMBAL_SAID.add(said)
             at_lock = int(np.count_nonzero(np.abs(np.abs(angles[:, 1]) - np.pi / 2) < 1e-6)) if angles.ndim == 2 \
                 else 1
             frames = len(angles) if angles.ndim == 2 else 1
@@ -166,4 +170,4 @@ def load_deepmimic(name_or_path: str | Path) -> MotionClip:
             rotations["neck"] = rotations["head"] = _half(rot)
         else:
             rotations[joint] = rot
-    return MotionClip(path.stem.removeprefix("humanoid3d_"), times, rotations)
+    return MotionClip(path.stem.removeprefix("humanoid3d_"), times, rotations, str(path))

@@ -58,5 +58,14 @@ def test_live_notes_whose_strokes_a_jump_drops_are_refused_to_their_senders_and_
         assert core.late == core.skipped_steps + 4  # Health's late
         said = [r.getMessage() for r in caplog.records if "the strokes between dropped" in r.getMessage()]
         assert said and "with 4 live notes (each refused to its sender) and 0 score notes" in said[0], said
+        # said plainly first (how far behind, what the user hears, what to do) as the skip's and the bound's; it
+        # began "physics targets 1150 ms behind the rig clock: jumped ..."
+        plain, detail = said[0].split(" (detail: ")
+        assert plain.startswith("physics is ") and plain.endswith(
+            " ms behind real time: the drummer's hands jump to catch up and the notes between are skipped; give "
+            "physics a less loaded machine, a lower --control-rate-hz (e.g. 500), or fewer programs on its CPU "
+            "core"), plain
+        assert detail.startswith("the targets jumped ") and "toward the rig clock" in detail, detail
+        assert detail.endswith("; docs/physics.md, 'When physics falls behind')"), detail
     finally:
         core.close()

@@ -154,7 +154,82 @@ def test_a_skeleton_no_unit_fits_names_the_unit_and_rounds(tmp_path: Path) -> No
         usable_segment_lengths(path)
     assert str(caught.value) == (
         f"{path}: segment upper_arm length 1.68 m is implausible (expected 0.01 ... 1.5 m), read in centimetres: its "
-        "longest offset, 168.1, is over 3; no other unit (m, mm, in) fits a performer either")
+        "longest offset, 168.1, is over 3; no unit gives a performer 1.2 to 2.2 m tall with these lengths (265 m in "
+        "metres, 2.65 m in centimetres, 0.265 m in millimetres, 6.72 m in inches)")
+
+
+FULL_M = 1.71
+"""The stature of :func:`skeleton` at scale 1 (centimetres)."""
+
+
+@pytest.mark.parametrize("tall_m", [1.3, 1.95, 2.05, 2.2])
+def test_a_tall_performer_in_inches_is_read_in_inches(tmp_path: Path, tall_m: float) -> None:
+    """A 1.95-2.2 m skeleton in inches was read as a 0.77-0.87 m one in centimetres: only a skeleton no body had
+    in the first guess was tried in other units, and a body's lengths allowed statures far below a performer's."""
+    path = _file(tmp_path, "tall.bvh", skeleton(MIXAMO, tall_m / 2.54 / FULL_M))
+    reading = read_skeleton(path)
+    assert (reading.unit, reading.stature_m) == ("in", pytest.approx(tall_m, abs=0.01))
+    assert reading.fits
+    assert reading.why.startswith("no performer has its lengths in centimetres, the first guess (its longest "
+                                  f"offset, {100 * tall_m / 2.54 / FULL_M:.4g}, is over 3): "), reading.why
+    if tall_m > 1.9:  # each length a body's in centimetres: the stature says why not
+        assert reading.why.endswith(f"its lengths are a {tall_m / 2.54:.3g} m performer's, not 1.2 to 2.2 m tall"), \
+            reading.why
+    assert usable_segment_lengths(path) == pytest.approx(reading.lengths_m)
+
+
+def test_a_skeleton_whose_stature_no_unit_makes_a_performers_is_refused_with_each_units(tmp_path: Path) -> None:
+    """1.11 m in centimetres, 2.82 m in inches: no performer's (1.2 ... 2.2 m) in any unit. It was built as a
+    1.11 m body (each length within a body's bounds); a 0.68 m one was read in inches, a 0.86 m one in centimetres."""
+    path = _file(tmp_path, "small.bvh", skeleton(MIXAMO, 0.65))
+    reading = read_skeleton(path)
+    assert (reading.unit, reading.fits) == ("cm", False)
+    with pytest.raises(BvhError) as caught:
+        usable_segment_lengths(path)
+    assert str(caught.value) == (
+        f"{path}: its lengths are a 1.11 m performer's, not 1.2 to 2.2 m tall, read in centimetres: its longest "
+        "offset, 65, is over 3; no unit gives a performer 1.2 to 2.2 m tall with these lengths (111 m in metres, "
+        "1.11 m in centimetres, 0.111 m in millimetres, 2.82 m in inches)")
+    for scale in (0.4, 0.5):  # the one unit that gives a performer, whatever the first guess's body allowed
+        assert read_skeleton(_file(tmp_path, f"{scale}.bvh", skeleton(MIXAMO, scale))).unit == "in"
+
+
+def test_the_stature_range_is_the_performers() -> None:
+    from batteur.render import HEIGHT_RANGE_M as RENDER_RANGE
+    from services.physics.bvh_motion import STATURE_RANGE_M
+    from services.physics.node import HEIGHT_RANGE_M
+
+    assert STATURE_RANGE_M == HEIGHT_RANGE_M == RENDER_RANGE
+
+
+def _rigify(names: dict[str, str]) -> str:
+    """:func:`skeleton` as a Rigify export: every bone ``DEF-``, under a floor bone ``root`` at the origin."""
+    head, motion = skeleton(names).split("MOTION", 1)
+    lines = head.splitlines()
+    at = next(i for i, line in enumerate(lines) if line.startswith("ROOT"))
+    hips = lines[at].split()[1]
+    lines = [*lines[:at], "ROOT root", "{", "OFFSET 0 0 0",
+             "CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation", f"JOINT DEF-{hips}",
+             *lines[at + 1:], "}"]
+    text = "\n".join(line.replace("JOINT ", "JOINT DEF-") if line.startswith("JOINT ") and "DEF-" not in line
+                     else line for line in lines)
+    frames = [("0 0 0 0 0 0 " + line if line[:1].isdigit() else line) for line in motion.splitlines()]
+    return text + "\nMOTION" + "\n".join(frames) + "\n"
+
+
+def test_a_rigify_export_has_its_hips_not_its_floor_bone_for_the_pelvis(tmp_path: Path) -> None:
+    """``root`` above ``DEF-spine``: the pelvis was the floor bone, the abdomen the hips (DEF-spine)."""
+    path = _file(tmp_path, "rigify.bvh", _rigify(BLENDER))
+    bvh = read_bvh(path)
+    central = {link: bvh.joints[i].name for link, i in map_segments(bvh).items()
+               if link in ("pelvis", "abdomen", "thorax", "neck", "head")}
+    assert central == {"pelvis": "DEF-spine", "abdomen": "DEF-spine.001", "thorax": "DEF-spine.003",
+                       "neck": "DEF-spine.004", "head": "DEF-spine.006"}
+    metarig = _file(tmp_path, "metarig.bvh", skeleton(BLENDER))
+    assert usable_segment_lengths(path) == pytest.approx(usable_segment_lengths(metarig))
+    assert set(load_bvh_clip(path).rotations) == set(load_bvh_clip(metarig).rotations)
+    unreal = read_bvh(_file(tmp_path, "unreal.bvh", _rigify(UNREAL)))  # no Blender chain: its pelvis by name
+    assert unreal.joints[map_segments(unreal)["pelvis"]].name == "DEF-pelvis"
 
 
 def test_the_stature_of_a_skeleton(tmp_path: Path) -> None:
@@ -188,6 +263,22 @@ def test_a_still_t_pose_clip_says_its_gimbal_lock_and_no_motion(tmp_path: Path,
     assert locked == [f"clip tpose: joint {side}_shoulder is at gimbal lock (its y angle at 90 degrees) in 3 of 3 "
                       "frames: its x and z angles cannot be told apart there; the whole turn was given to x (z 0) for "
                       "its limits" for side in ("left", "right")]
+
+
+def test_two_clips_of_one_name_in_two_folders_each_say_their_gimbal_lock(tmp_path: Path,
+                                                                         caplog: pytest.LogCaptureFixture) -> None:
+    """The note was kept per clip name for the whole process: a second tpose.bvh in another folder said nothing."""
+    getattr(mocap, "_GIMBAL_SAID", set()).clear()
+    paths = []
+    for folder in ("a", "b"):
+        (tmp_path / folder).mkdir()
+        paths.append(_file(tmp_path / folder, "tpose.bvh", skeleton(MIXAMO, frames=3)))
+    with warnings.catch_warnings(), caplog.at_level(logging.WARNING, logger="batteur.physics.limits"):
+        warnings.simplefilter("error")
+        for path in paths:
+            limits_from_clips([load_bvh_clip(path), load_bvh_clip(path)])  # each file's said once
+    locked = [r.getMessage() for r in caplog.records if "gimbal lock" in r.getMessage()]
+    assert len(locked) == 4 and all(s.startswith("clip tpose: joint ") for s in locked), locked
 
 
 def test_a_moving_clip_is_not_said_to_be_still(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
