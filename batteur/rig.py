@@ -228,7 +228,7 @@ def node_peer_roles(cli_peers: Sequence[str], own: Sequence[str], role: str,
     (:func:`common.config.load_settings`): the command line's, else ``BATTEUR_PEERS`` (empty: not set), else its
     config file's (``--config``, else ``BATTEUR_CONFIG``; the role's table over the top level). A list replaces,
     never extends, the one below it. A peer or file the node will refuse counts as none: the node says why."""
-    from common.config import ENV_PREFIX, SettingsError, read_config_file
+    from common.config import ENV_PREFIX, SettingsError, file_settings, read_config_file
     from common.peers import parse_static_peer
 
     env = os.environ if environ is None else environ
@@ -241,8 +241,7 @@ def node_peer_roles(cli_peers: Sequence[str], own: Sequence[str], role: str,
             data = read_config_file(config) if config else {}
         except SettingsError:
             data = {}
-        section = data.get(env.get(f"{ENV_PREFIX}ROLE") or data.get("role") or role)  # as load_settings finds it
-        specs = section.get("peers", data.get("peers")) if isinstance(section, dict) else data.get("peers")
+        specs = file_settings(data, None, role, environ=env).get("peers")  # as load_settings reads the file
     if isinstance(specs, str):
         specs = specs.split(",")
     roles = set()
@@ -1177,8 +1176,10 @@ def finish_recording(folder: Path, sound_stopped_cleanly: bool, out: Output, err
                       "written)\n")
         if not recorded:
             return
-    if not recorded:
-        err.write(f"batteur rig: nothing recorded in {folder} (sound did not start recording)\n")
+    if not recorded:  # sound leaves a take of 0 frames unnamed: an earlier one keeps its name
+        left = (f"the earlier take in {folder} stays" if recording_state(folder) is not None
+                else f"{folder / RECORDING} not written")
+        err.write(f"batteur rig: nothing recorded (sound played nothing: stopped before its audio started; {left})\n")
         return
     if not _holds_audio(folder / RECORDING):  # named, but a header only: "recorded" misled (a 112-byte take)
         err.write(f"batteur rig: the take is empty: {folder / RECORDING} holds no audio (0 frames: sound played "

@@ -273,6 +273,23 @@ def read_config_file(path: str | Path) -> dict[str, Any]:
     return {str(k).replace("-", "_"): v for k, v in data.items()}
 
 
+def file_settings(from_file: Mapping[str, Any], cli_role: Any = None, default_role: Any = None,
+                  settings_cls: type[NodeSettings] = NodeSettings,
+                  environ: Mapping[str, str] | None = None) -> dict[str, Any]:
+    """What a config file's ``from_file`` (:func:`read_config_file`) sets for one node: its top level, with the table
+    of the node's role over it (a shared rig file: ``[sound]`` for the sound node; other roles' tables ignored). The
+    role is the command line's ``cli_role``, else ``BATTEUR_ROLE`` (of ``environ``, default the process's), else the
+    file's ``role``, else ``default_role``. :func:`load_settings` and ``batteur rig`` (the peers a node will hold)
+    both read a file this way."""
+    env = os.environ if environ is None else environ
+    role = cli_role or env.get(f"{ENV_PREFIX}ROLE") or from_file.get("role") or default_role
+    sections = {k: v for k, v in from_file.items() if isinstance(v, dict) and k not in settings_cls.model_fields}
+    data = {k: v for k, v in from_file.items() if k not in sections}
+    if isinstance(role, str) and role in sections:
+        data.update({str(k).replace("-", "_"): v for k, v in sections[role].items()})
+    return data
+
+
 def load_settings(
     cli: Mapping[str, Any] | None = None,
     config_file: str | Path | None = None,
@@ -301,13 +318,8 @@ def load_settings(
         config_file = os.environ.get(f"{ENV_PREFIX}CONFIG") or None
     file_data = dict(defaults or {})
     if config_file is not None:
-        from_file = read_config_file(config_file)
-        role = (cli or {}).get("role") or os.environ.get(f"{ENV_PREFIX}ROLE")
-        role = role or from_file.get("role") or file_data.get("role")
-        sections = {k: v for k, v in from_file.items() if isinstance(v, dict) and k not in settings_cls.model_fields}
-        file_data.update({k: v for k, v in from_file.items() if k not in sections})
-        if isinstance(role, str) and role in sections:  # a shared rig file: [sound] settings for the sound node
-            file_data.update({str(k).replace("-", "_"): v for k, v in sections[role].items()})
+        file_data.update(file_settings(read_config_file(config_file), (cli or {}).get("role"), file_data.get("role"),
+                                       settings_cls))
     token = _config_file_data.set(file_data)
     try:
         return settings_cls(**dict(cli or {}))

@@ -62,10 +62,6 @@ from common.messages import (
     SubscribeRefused,
     encode,
 )
-from common.messages.graphics import GraphicsRejected
-from common.messages.interaction import InteractionError
-from common.messages.physics import PhysicsRejected
-from common.messages.sound import SoundRejected
 from common.messages.system import TOOL_ROLE
 from common.peers import Peer, PeerTable
 from common.rated_log import RatedWarnings
@@ -79,6 +75,7 @@ from common.transport import (
     format_address,
     parse_address,
     same_ip,
+    service_refusal,
     taken_elsewhere,
 )
 
@@ -350,16 +347,7 @@ def wrong_node_refusal(role: str, address: str, reason: str) -> OscMessage | Non
     service's (/batteur/physics/rejected, /batteur/sound/rejected, /batteur/interaction/error,
     /batteur/graphics/rejected), naming ``address`` and ``reason`` (clipped to 512 characters); None for a role
     with no refusal message."""
-    reason = _clip(reason, 512)
-    if role == "physics":
-        return PhysicsRejected(address=address, reason=reason)
-    if role == "sound":
-        return SoundRejected(address=address, instrument="", reason=reason)
-    if role == "interaction":
-        return InteractionError(request=address, detail=reason)
-    if role == "graphics":
-        return GraphicsRejected(address=address, reason=reason)
-    return None
+    return service_refusal(role, address, _clip(reason, 512))
 
 
 def _clip(text: str, length: int) -> str:
@@ -1213,7 +1201,7 @@ def stopped_while_starting(role: str, signal_name: str) -> str:
     signal's): it was asked to stop and did, cleanly; "physics stopped while starting (SIGTERM)" read like a crash
     after the user's Ctrl-C on ``batteur rig``, which stops its services with SIGTERM (a node cannot tell who sent
     it: the rig on Ctrl-C, its --duration's end or another service's exit, or a service manager)."""
-    why = "Ctrl-C" if signal_name == "SIGINT" else "how batteur rig stops its services, on Ctrl-C say"
+    why = "Ctrl-C" if signal_name == "SIGINT" else "a stop request, e.g. batteur rig's on Ctrl-C"
     return f"{role} was asked to stop while starting ({signal_name}: {why}): stopped cleanly before it listened"
 
 

@@ -159,14 +159,22 @@ def decode_refusal(address: str, reason: str, registry: MessageRegistry = REGIST
     service = owner_role(address)
     if role is not None and service != role:
         return None
-    reason = reason[:512]
-    if service == "physics":
+    instrument = _first_instrument(model, args) if service == "sound" else ""
+    return service_refusal(service, address, reason[:512], instrument)
+
+
+def service_refusal(role: str | None, address: str, reason: str, instrument: str = "") -> OscMessage | None:
+    """The refusal the service ``role`` answers a control at ``address`` with (its own message, the one table of
+    them: :func:`decode_refusal`, ``common.runtime.wrong_node_refusal``): :class:`PhysicsRejected`,
+    :class:`SoundRejected` (naming ``instrument``, '' for none), :class:`InteractionError`,
+    :class:`GraphicsRejected`; None for a role with no refusal message. ``reason`` as it is (callers clip it)."""
+    if role == "physics":
         return PhysicsRejected(address=address, reason=reason)
-    if service == "sound":
-        return SoundRejected(address=address, instrument=_first_instrument(model, args), reason=reason)
-    if service == "interaction":
+    if role == "sound":
+        return SoundRejected(address=address, instrument=instrument, reason=reason)
+    if role == "interaction":
         return InteractionError(request=address, detail=reason)
-    if service == "graphics":
+    if role == "graphics":
         return GraphicsRejected(address=address, reason=reason)
     return None
 

@@ -157,6 +157,35 @@ def test_the_rig_says_a_take_without_audio_is_empty(tmp_path: Path) -> None:
     assert out_text.getvalue() == f"batteur rig: recorded {take}\n"
 
 
+def test_an_empty_take_leaves_an_earlier_one_alone(tmp_path: Path) -> None:
+    """Sound stopped cleanly before its first block: the earlier take keeps its name and its audio, no part file or
+    .json is left, and the rig says nothing was recorded and the earlier take stays (was: the 0-frame take renamed
+    over it, and the rig said only "the take is empty")."""
+    from services.sound.node import WavSink
+
+    out, err, out_text, err_text = _outputs()
+    take = tmp_path / rig.RECORDING
+    earlier = np.full((4800, 2), 0.1)
+    sf.write(take, earlier, 48000, subtype="PCM_24")
+    (tmp_path / (rig.RECORDING + ".json")).write_text('{"frames": 4800}')
+    before = rig.recording_state(tmp_path)
+    WavSink(take, 48000, 2, lambda: [(0, 0.0)]).close()
+    assert sorted(p.name for p in tmp_path.iterdir()) == [rig.RECORDING, rig.RECORDING + ".json"]
+    assert np.allclose(sf.read(take)[0], earlier, atol=1e-6)
+    assert (tmp_path / (rig.RECORDING + ".json")).read_text() == '{"frames": 4800}'
+    rig.finish_recording(tmp_path, True, out, err, before)
+    assert out_text.getvalue() == ""
+    assert err_text.getvalue() == ("batteur rig: nothing recorded (sound played nothing: stopped before its audio "
+                                   f"started; the earlier take in {tmp_path} stays)\n")
+    take.unlink()  # no earlier take: none is made either
+    WavSink(take, 48000, 2, lambda: [(0, 0.0)]).close()
+    assert not take.exists()
+    out, err, out_text, err_text = _outputs()
+    rig.finish_recording(tmp_path, True, out, err, None)
+    assert err_text.getvalue() == ("batteur rig: nothing recorded (sound played nothing: stopped before its audio "
+                                   f"started; {take} not written)\n")
+
+
 def test_a_sound_node_that_fails_leaves_an_earlier_take_alone(tmp_path: Path) -> None:
     # the rig now gives sound the final name: a node that fails (here: its port is taken) must not name its take
     # (was: the empty take renamed over the earlier one as the node closed)

@@ -17,6 +17,7 @@
 from __future__ import annotations
 
 import dataclasses
+import logging
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field
@@ -28,6 +29,8 @@ from scipy.spatial.transform import Rotation
 
 from services.physics.character import JOINTS, joint_kind
 from services.physics.mocap import MotionClip, deepmimic_clip_names, load_deepmimic
+
+log = logging.getLogger("batteur.physics.limits")
 
 ANATOMICAL_DEG: dict[str, tuple[float, float, float, float, float, float]] = {
     "seat": (-30, 30, -15, 15, -30, 30),
@@ -165,7 +168,9 @@ class JointLimits:
     the quaternion ellipsoid (enforced by the controller).
 
     ``sources``: joint -> ``mocap``, ``mocap+anatomical`` (some DOF anatomical) or ``anatomical``, with
-    ``+posture`` where the box was grown to the playing posture (and the ellipsoid dropped)."""
+    ``+symmetric`` or ``+mirrored`` where :func:`symmetric_limits` changed the box (cut to the common range, or
+    given what either side moved through) and ``+posture`` where the box was grown to the playing posture (and the
+    ellipsoid dropped)."""
 
     euler: dict[str, EulerLimit]
     quaternion: dict[str, QuaternionLimit]
@@ -305,6 +310,13 @@ def mirrored_limit(lim: EulerLimit) -> EulerLimit:
                       lim.mean * MIRROR_SIGNS, lim.std.copy())
 
 
+ONE_SIDED_SHARE = 0.5
+"""A DOF is one-sided (:func:`symmetric_limits`) when the range both sides share is under this share of the wider
+side's, or when one side barely moves it (``still``) and the other does. The 15 DeepMimic clips share at least 0.79
+on every DOF (the default limits stay the common range); ``punch``'s striking right elbow shares 0.61 and is still
+cut to the common range (126 -> 77 degrees): a clip of one arm wants ``--asymmetric-limits``."""
+
+
 def symmetric_limits(limits: JointLimits) -> JointLimits:
     """``limits`` with each left/right pair's Euler boxes the same on both sides, mirrored: per DOF the range both
     sides' estimates agree on (the right box cut to the mirrored left one; where they share no range, their union).
@@ -314,23 +326,67 @@ def symmetric_limits(limits: JointLimits) -> JointLimits:
     (ankle up, knee opened, hip lowered), and at 66.8 the toe no longer presses the footboard: 5 kicks sounded of 32,
     the mirrored left foot played all (docs/physics.md, "Symmetric limits"). The union of both sides (66.8 on
     both) made the left foot fail as well. The quaternion ellipsoids stay each side's own (not implicated). A joint
-    whose box this changes has ``+symmetric`` added to its ``sources``."""
+    whose box this changes has ``+symmetric`` added to its ``sources``.
+
+    A one-sided clip (``punch``: the right arm strikes, the left hangs) is another matter: the idle side's narrow
+    range is the absence of data, not a limit, and the common range crippled the moving side (the right shoulder's
+    216, 80 and 180 degrees cut to 76, 35 and 44). A DOF is one-sided when the common range is under
+    :data:`ONE_SIDED_SHARE` of the wider side's range, or one side barely moves it (``still``, its box anatomical)
+    and the other does: there both sides take what either side did (the moving side's range, mirrored, grown to the
+    other side's where it reached elsewhere, as the kick's standing and kicking hips), and where one side is still,
+    the moving side's range. Such a joint has ``+mirrored`` in its ``sources`` (instead of ``+symmetric``), and the
+    ellipsoid of the side that moved less in those DOFs is dropped: it holds that side's few samples, not its range
+    (the box limits it alone). None of the shipped DeepMimic clips' pairs is one-sided taken together (the default
+    limits are the common range throughout). One warning names the one-sided joints."""
     euler, sources = dict(limits.euler), dict(limits.sources)
+    quaternion = dict(limits.quaternion)
+    one_sided: list[str] = []
+    idle_ellipsoids: list[str] = []  # the quaternion limits of the side that moved less, dropped
     for joint in JOINTS:
-        if not joint.startswith("right_") or f"left_{joint[6:]}" not in euler:
+        kind = joint[len("right_"):]
+        if not joint.startswith("right_") or f"left_{kind}" not in euler:
             continue
-        right, left = euler[joint], mirrored_limit(euler[f"left_{joint[6:]}"])
+        right, left = euler[joint], mirrored_limit(euler[f"left_{kind}"])
         lower, upper = np.maximum(right.lower, left.lower), np.minimum(right.upper, left.upper)
         apart = lower > upper  # no common range: the union (never seen with the shipped clips)
         lower = np.where(apart, np.minimum(right.lower, left.lower), lower)
         upper = np.where(apart, np.maximum(right.upper, left.upper), upper)
+        src_r = limits.dof_sources.get(joint, ("anatomical",) * 3)
+        src_l = limits.dof_sources.get(f"left_{kind}", ("anatomical",) * 3)
+        wide_r, wide_l = right.upper - right.lower, left.upper - left.lower
+        moved_r = moved_l = 0.0  # the one-sided DOFs' widths each side moved, radians
+        mirrored = False
+        for i in range(3):
+            if "anatomical" in (src_r[i], src_l[i]) or src_r[i] == src_l[i] == "still":
+                continue  # no data on a side, or on neither: nothing to tell
+            if "still" in (src_r[i], src_l[i]):  # one side barely moves it: the moving side's range
+                lower[i], upper[i] = (left.lower[i], left.upper[i]) if src_r[i] == "still" else \
+                    (right.lower[i], right.upper[i])
+                moved_r += 0.0 if src_r[i] == "still" else float(wide_r[i])
+                moved_l += 0.0 if src_l[i] == "still" else float(wide_l[i])
+            elif upper[i] - lower[i] < ONE_SIDED_SHARE * max(wide_r[i], wide_l[i]) and not apart[i]:
+                lower[i], upper[i] = min(right.lower[i], left.lower[i]), max(right.upper[i], left.upper[i])
+                moved_r, moved_l = moved_r + float(wide_r[i]), moved_l + float(wide_l[i])
+            else:
+                continue
+            mirrored = True
         euler[joint] = EulerLimit(lower, upper, (right.mean + left.mean) / 2, np.maximum(right.std, left.std))
-        euler[f"left_{joint[6:]}"] = mirrored_limit(euler[joint])
-        for side in (joint, f"left_{joint[6:]}"):
+        euler[f"left_{kind}"] = mirrored_limit(euler[joint])
+        if mirrored:
+            one_sided.append(kind)
+            idle = joint if moved_r < moved_l else f"left_{kind}"
+            if quaternion.pop(idle, None) is not None:
+                idle_ellipsoids.append(idle)
+        for side in (joint, f"left_{kind}"):
             was, now = limits.euler[side], euler[side]
             if not (np.allclose(was.lower, now.lower) and np.allclose(was.upper, now.upper)):
-                sources[side] += "+symmetric"
-    return dataclasses.replace(limits, euler=euler, sources=sources, symmetric=True)
+                sources[side] += "+mirrored" if mirrored else "+symmetric"
+    if one_sided:
+        dropped = f"; the quaternion limits of {', '.join(idle_ellipsoids)} are dropped" if idle_ellipsoids else ""
+        log.warning("the clips move one side much more than the other at %s: there both sides take the range either "
+                    "side moved through, mirrored (the idle side's narrow range is no limit%s; --asymmetric-limits "
+                    "keeps each side's own)", ", ".join(one_sided), dropped)
+    return dataclasses.replace(limits, euler=euler, quaternion=quaternion, sources=sources, symmetric=True)
 
 
 def load_clip(source: str | Path) -> MotionClip:

@@ -126,7 +126,8 @@ class WavSink:
     The blocks go to a hidden ``.NAME.XXXX.part`` file beside ``path``, renamed to ``path`` by :meth:`close`:
     a run killed before closing (SIGKILL, power loss) leaves the part file (a playable WAV up to the last block:
     its header is kept up to date) and neither a cut file nor a damaged earlier take at ``path``. So does a node
-    that failed (``keep`` False when it closes; an empty part file is removed). On close it also
+    that failed (``keep`` False when it closes; an empty part file is removed), and a take of 0 frames (the node
+    stopped before its audio started: its part file is removed, an earlier take keeps its name). On close it also
     writes ``FILE.wav.json`` beside it: the rig time of the first sample (seconds), so what the WAV holds can
     be lined up with the rig's impacts, and its ``segments``: ``{"frame", "rig_time_s"}`` anchors (the first at
     frame 0), a new one where rig time stepped (the clock master restarted) while the take went on, so no frame
@@ -200,6 +201,9 @@ class WavSink:
             if not self.in_place and not self.keep():
                 self._leave_cut_short()
                 return
+            if not self.in_place and frames == 0:  # nothing played: no empty take over an earlier one's name
+                self._leave_empty()
+                return
             if self.file.format == "RF64" and self.part.exists() and self.part.stat().st_size > WAV_LIMIT_BYTES:
                 log.info("%s is over 4 GiB: written as RF64 (a WAV header cannot hold its length); "
                          "players that read only WAV need it split or converted", self.path)
@@ -210,6 +214,14 @@ class WavSink:
                          json.dumps(self.meta, indent=2).encode("utf-8"))
         self.finished = True
 
+
+    def _leave_empty(self) -> None:
+        """:meth:`close` of a take with no frame (the node stopped before its audio started): the part file is removed
+        and ``path`` left as it was, an earlier take and its .json included."""
+        self.finished = True
+        self._discard()
+        earlier = " (the earlier take there stays)" if self.target.exists() else ""
+        log.info("nothing recorded (0 frames): %s not written%s", self.path, earlier)
 
     def _leave_cut_short(self) -> None:
         """:meth:`close` of a node that failed: the part file stays (removed if empty), ``path`` is left as it

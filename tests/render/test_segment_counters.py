@@ -49,10 +49,22 @@ def test_a_segment_counts_only_the_steps_in_its_own_window() -> None:
 
 
 def test_a_scene_without_a_controller_counts_nothing() -> None:
-    physics = SimpleNamespace(rate_hz=1000.0, scene=SimpleNamespace(), step=lambda now: [])
+    """A scene without a drummer (no controller): no counter is made up (report.json leaves them out rather than say
+    0), yet its steps' messages pass through and its contacts in the window are counted, and segments of such
+    scenes merge to no counter."""
+    def step(now: float) -> list[Outgoing]:
+        return [Outgoing(SimpleNamespace(time=now), "interaction")]  # type: ignore[arg-type]  # a contact now
+
+    physics = SimpleNamespace(rate_hz=1000.0, scene=SimpleNamespace(), step=step)
     counted = _CountingPhysics(physics, Segment(0, 0.0, 5.0, 0.0, 5.25))
-    counted.step(1.0)
+    sent = [o for now in (1.0, 2.0, 5.1) for o in counted.step(now)]
+    assert [o.message.time for o in sent] == [1.0, 2.0, 5.1]
+    assert counted.contacts == 2  # 5.1 is the next segment's
     assert counted.counters == {}
+    player = _Player(plan_segments(12.0, 5.0, 3.0), [], runner=None, duration_s=12.0)
+    player.add(_result(0, counted.counters))
+    player.add(_result(1, {}))
+    assert player.counters == {} and player.contacts == 6
 
 
 def _result(index: int, counters: dict[str, int]) -> SegmentResult:
