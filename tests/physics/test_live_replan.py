@@ -31,16 +31,17 @@ SCORE = SCORES / "short_groove.txt"  # two bars of hi-hat, snare and kick: no to
 HIGH_TOM, SNARE = 48, 38
 
 
-def _rig(planner: str = "thread") -> tuple[PhysicsCore, OfflineRunner, RecorderCore, Any]:
+def _rig(planner: str = "thread", start_s: float = 0.0) -> tuple[PhysicsCore, OfflineRunner, RecorderCore, Any]:
     """The node's core (``planner="offline"``: a plain PhysicsCore) with interaction and a recorder; plans in a
-    thread by default, where the tests can hold or watch the planner."""
+    thread by default, where the tests can hold or watch the planner. ``start_s``: rig time the runner starts at,
+    s."""
     kit = load_kit("default")
     settings: dict[str, Any] = {"scene": "drummer", "kit": kit, "grip": "german", "pose_rate_hz": 0, "mode": "live"}
     physics = PhysicsCore(**settings) if planner == "offline" else LivePhysicsCore(planner=planner, **settings)
     assert physics.score_player.wait_loaded(120.0)  # as the node before it listens (play: refused meanwhile)
     physics.score_player.library = [SCORES]
     recorder = RecorderCore()
-    runner = OfflineRunner([physics, InteractionCore(kit=kit), recorder])
+    runner = OfflineRunner([physics, InteractionCore(kit=kit), recorder], start_s=start_s)
     return physics, runner, recorder, runner.bus.endpoint("control")
 
 

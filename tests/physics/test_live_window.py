@@ -41,25 +41,27 @@ TOLERANCE_S = {49: 0.005, 36: 0.010, 46: 0.005}
 re-plan; the score's kicks are checked within 40 ms in test_score_player.py)."""
 
 
-def offline_playing() -> tuple[Any, Any, Any, Any]:
+def offline_playing(from_s: float = 0.0) -> tuple[Any, Any, Any, Any]:
     """A PhysicsCore (plans in the handler) with the 55 s groove asked to play from rig time 1 s:
-    (physics, runner, recorder, control endpoint)."""
-    physics, runner, recorder, control = _rig()
+    (physics, runner, recorder, control endpoint). ``from_s``: the rig starts at this time, s, and the score plays
+    from its position ``from_s`` at rig time ``1 + from_s`` (a later note's rig time as when played from the start,
+    without simulating the drummer through the score before it)."""
+    physics, runner, recorder, control = _rig(start_s=from_s)
     physics.score_player.library = [MIDI.parent]
     control.send(ScoreLoad(path=MIDI.name), "physics")
-    runner.run_until(0.2)
-    control.send(ScoreTransport(action="play", time=1.0, position=0.0), "physics")
+    runner.run_until(from_s + 0.2)
+    control.send(ScoreTransport(action="play", time=1.0 + from_s, position=from_s), "physics")
     return physics, runner, recorder, control
 
 
-def live_playing() -> tuple[LivePhysicsCore, Any, Any, Any]:
+def live_playing(from_s: float = 0.0) -> tuple[LivePhysicsCore, Any, Any, Any]:
     """The live node's core (plans in a thread) with the 55 s groove playing from rig time 1 s, its plan spliced:
-    (physics, runner, recorder, control endpoint)."""
-    physics, runner, recorder, control = _live_rig("thread")
+    (physics, runner, recorder, control endpoint). ``from_s``: as :func:`offline_playing`'s."""
+    physics, runner, recorder, control = _live_rig("thread", start_s=from_s)
     assert isinstance(physics, LivePhysicsCore)
     physics.score_player.library = [MIDI.parent]
     control.send(ScoreLoad(path=MIDI.name), "physics")
-    control.send(ScoreTransport(action="play", time=1.0, position=0.0), "physics")
+    control.send(ScoreTransport(action="play", time=1.0 + from_s, position=from_s), "physics")
     assert physics.score_player.wait(60.0)
     return physics, runner, recorder, control
 

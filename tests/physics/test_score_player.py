@@ -28,11 +28,13 @@ PLAY_AT_S = 1.5
 INSTRUMENT = {"HIHATCLOSED": "hihat", "SNARE": "snare", "BASS": "kick"}
 
 
-def _rig(**settings: Any) -> tuple[PhysicsCore, OfflineRunner, RecorderCore, Any]:
+def _rig(start_s: float = 0.0, **settings: Any) -> tuple[PhysicsCore, OfflineRunner, RecorderCore, Any]:
+    """``start_s``: rig time the runner and the simulation start at, s (the drummer at rest there)."""
     kit = load_kit("default")
     physics = PhysicsCore(scene="drummer", kit=kit, grip="german", pose_rate_hz=0, **settings)
+    physics.time_offset = start_s  # else the first step simulates the drummer at rest from rig time 0 up to it
     recorder = RecorderCore()
-    runner = OfflineRunner([physics, InteractionCore(kit=kit), recorder])
+    runner = OfflineRunner([physics, InteractionCore(kit=kit), recorder], start_s=start_s)
     return physics, runner, recorder, runner.bus.endpoint("control")
 
 
