@@ -919,11 +919,8 @@ class ScorePlayer:
         in rig time and, while a score plays then (or has a stop or pause ahead), where in the score
         (:func:`score_words`: what a ``play`` from there takes, and its bar and beat)."""
         text = f"{action} at rig {t_s + self.core.target_lag:.3f} s"
-        if self.state == "playing" and self.mapping is not None and t_s <= self.end_time:
-            mapping = self.mapping
-        elif self._stopping is not None and t_s <= self._stopping[1]:
-            mapping = self._stopping[0]
-        else:
+        mapping = self._mapping_at(t_s)
+        if mapping is None:
             return text
         score = self._run.score if self._run is not None else self.score
         if score is None:
@@ -1039,16 +1036,22 @@ class ScorePlayer:
             self._stopping = (self._stopping[0], min(self._stopping[1], self.end_time))
         self.mapping = None
 
+    def _mapping_at(self, t_s: float) -> tuple[float, float, float] | None:
+        """The score's mapping (as :attr:`mapping`) at ``t_s`` (s, the targets' clock) if a score plays then: a playing
+        score until its plan ends, or one with a stop or pause ahead until that time; None otherwise."""
+        if self.state == "playing" and self.mapping is not None and t_s <= self.end_time:
+            return self.mapping
+        if self._stopping is not None and t_s <= self._stopping[1]:
+            return self._stopping[0]
+        return None
+
     def clock(self, now: float) -> tuple[float, float, float] | None:
         """The score's clock (as :attr:`mapping`) at rig time ``now`` (s) if a score plays then: a playing score
         until its plan ends, or one with a stop or pause ahead until that time; None otherwise."""
         lag = self.core.target_lag
         t = now - lag  # the targets' clock, which the mapping and the plan's end are on (:meth:`_base`)
-        if self.state == "playing" and self.mapping is not None and t <= self.end_time:
-            mapping = self.mapping
-        elif self._stopping is not None and t <= self._stopping[1]:
-            mapping = self._stopping[0]
-        else:
+        mapping = self._mapping_at(t)
+        if mapping is None:
             return None
         if self._timeline is not None and self._timeline.looping:  # said in the written score, from now on
             played = mapping[1] + (t - mapping[0]) * mapping[2]
