@@ -145,10 +145,12 @@ class Take:
 # ---------------------------------------------------------------------- reading
 
 
-def read_exercise(given: str, midi: Mapping[str, Any] | None = None) -> Score:
+def read_exercise(given: str, midi: Mapping[str, Any] | None = None, kit: Kit | None = None) -> Score:
     """The exercise's :class:`~common.score.events.Score` (any score Batteur reads, or ``demo``);
     :class:`CompareError` when it cannot be used. ``midi``: keyword arguments reading a MIDI file
-    (``--drum-channels``: :func:`common.score.midi_options.midi_read_kwargs`)."""
+    (``--drum-channels``: :func:`common.score.midi_options.midi_read_kwargs`); ``kit``: ``--kit``'s, the kit a text
+    score's object ids (``crash2``) name objects of (None: its ``kit`` line's, else the default; until 7 Dec
+    ``--kit``'s was not passed, and an id only its kit has was refused)."""
     from common.score.events import ScoreError, audio_kind
     from common.score.text import read_score
 
@@ -157,13 +159,13 @@ def read_exercise(given: str, midi: Mapping[str, Any] | None = None) -> Score:
         from batteur.demo import DEMO_GROOVE
         from common.score.text import parse_text
 
-        return parse_text(DEMO_GROOVE, source="demo")
+        return parse_text(DEMO_GROOVE, source="demo", kit=kit)
     head = _head(path)
     if head is not None and audio_kind(head) is not None:
         raise CompareError(f"EXERCISE {path} is a recording ({audio_kind(head)}), not a score: give the score "
                            f"first and the take second ({PROG} EXERCISE TAKE)")
     try:
-        score = read_score(path, **(midi or {}))
+        score = read_score(path, kit=kit, **(midi or {}))
     except ScoreError as exc:
         raise CompareError(f"EXERCISE {exc}") from None
     if not score.events:
@@ -877,7 +879,8 @@ def off_tempo(score: Score, bars: Sequence[dict[str, Any]], notes: Sequence[tupl
     quarter notes, as a bar's), ``percent`` (+ faster), ``lag_ms`` the last onset's lag (+ late) and ``where``
     it is, ``notes`` how many, ``tempo_change`` whether the written tempo changes as the run starts (the bar
     before's written tempo another: an exercise's 90 then 120 bpm) with ``written_before_bpm``. The run's onsets
-    (notes at one time, lags averaged) lie within the tolerance of a line: a lag jumping about is no tempo kept.
+    (notes at one time, lags averaged) lie within the tolerance of a line: a lag jumping about is no tempo kept;
+    and its lag grows over a bar's worth of beats at least (:func:`grows_over_a_bar`): not in a fill's last beat.
 
     ``notes``: (written time on the exercise's clock s, take time s, played - written s) of every written note
     played on its drum, within the tolerance or beyond it; ``scale``: the tempo ratio compared at (a bar is off
@@ -914,6 +917,8 @@ def off_tempo(score: Score, bars: Sequence[dict[str, Any]], notes: Sequence[tupl
         when = np.array(sorted(onsets))
         if np.max(np.abs(np.polyval(np.polyfit(when, lags, 1), when) - lags)) > tolerance:
             continue  # not a lag growing steadily (notes paired across a jump): no tempo kept
+        if not grows_over_a_bar(score, when, np.array(lags) * sign, tolerance):
+            continue  # a fill played early, its last beat's notes alone off: notes off, no tempo kept
         x = np.array([t for t, _, _ in its])
         q = quarters(score, x)
         played_s = float(np.polyfit(q, np.array([p for _, p, _ in its]), 1)[0])
@@ -933,6 +938,28 @@ def off_tempo(score: Score, bars: Sequence[dict[str, Any]], notes: Sequence[tupl
                     "where": grid_label(score, last, scale), "notes": len(its), "tempo_change": change,
                     "written_before_bpm": None if not change or then is None else round(then.tempo_bpm, 1)})
     return out
+
+
+def grows_over_a_bar(score: Score, when: np.ndarray, lags: np.ndarray, tolerance: float) -> bool:
+    """Whether a run's lag (s, its sign the run's: growing) grows over a bar's worth of beats at least: the onsets
+    (written times ``when``, s) whose lag has grown by more than a quarter of the tolerance since the run's first
+    lie on as many of the score's beats as the bar the first of them is in has (4 in 4/4). Until the day after 7
+    Dec a lag growing in a bar's last beat alone was a tempo too: two snare notes of a fill 60 and 120 ms early,
+    the bar's others on time, read "running ahead in bar 2: played at about 127 bpm"."""
+    from common.score.position import DEFAULT_BEATS_PER_BAR, bar_beat
+
+    grown = when[lags - lags[0] > tolerance / 4]
+    if not len(grown):
+        return False
+    beats = np.asarray(score.beats, dtype=float)
+    struck = {int(np.searchsorted(beats, t + 1e-9, side="right")) - 1 for t in grown}  # beat index (-1: before)
+    at = bar_beat(score, float(grown[0]))
+    lengths = np.diff(np.asarray(score.bar_beats, dtype=float))
+    if at is None or not len(lengths):
+        length = float(DEFAULT_BEATS_PER_BAR)
+    else:
+        length = float(lengths[min(max(at.bar, 0), len(lengths) - 1)])
+    return len(struck) >= round(length)
 
 
 def beat_feels(score: Score, notes: Sequence[tuple[float, float]], tolerance: float) -> list[dict[str, Any]]:
@@ -1517,7 +1544,8 @@ beat 4& is a sixteenth after the fourth eighth), quarters in x/4. Each bar's
 tempo (quarter notes a minute) and mean timing, from its notes played on
 their drum (too early or late ones too), is measured against its own written
 tempo (a tempo map's); a drift is a tempo rising or falling against it; bars
-played slower (faster) than written in a row, the lag growing, are said as
+played slower (faster) than written in a row, the lag growing over a bar's
+worth of beats at least (not a fill's last beat played early), are said as
 falling behind (running ahead: "falling behind in bars 3-4 after the tempo
 change (90 -> 120 bpm)"); a take at another tempo than a tempo map is said in
 % of the written one. An audio
@@ -1589,19 +1617,22 @@ def main(argv: Sequence[str] | None = None) -> int:
     def warn(text: str) -> None:
         print(f"{PROG}: warning: {text}", file=sys.stderr)
 
-    from common.score.events import ScoreError
     from common.score.text import load_score_kit
 
     try:
-        score = read_exercise(args.exercise, midi_read_kwargs(args))
+        given = None
+        if args.kit is not None:  # loaded first: the exercise's object ids are its kit's, as render reads them
+            try:
+                given = load_score_kit(None, args.kit)
+            except (FileNotFoundError, ValueError) as exc:
+                raise CompareError(f"--kit {args.kit}: {exc}") from None
+        score = read_exercise(args.exercise, midi_read_kwargs(args), given)
         for text in score.warnings:
             warn(text)
         try:
-            kit = load_score_kit(score, args.kit)
-        except (FileNotFoundError, ValueError) as exc:
-            if isinstance(exc, ScoreError):
-                raise CompareError(str(exc)) from None
-            raise CompareError(f"--kit {args.kit}: {exc}") from None
+            kit = given or load_score_kit(score, None)
+        except (FileNotFoundError, ValueError) as exc:  # a ScoreError naming the score's kit line
+            raise CompareError(str(exc)) from None
         take = read_take(args.take, kit, warn, {**midi_read_kwargs(args), **(
             {} if args.take_drum_map is None else {"note_map": args.take_drum_map})})
         for text in take.warnings:

@@ -571,7 +571,8 @@ def evaluate_render_dir(score_path: Path, render_dir: Path, kit: Kit | None = No
                                                                    "wall_time_s", "cpu_time_s")}
     if kit is None:
         kit = load_render_dir_kit(kit_name, where)
-    score = scale_tempo(read_score(score_path, **report_midi_kwargs(report, where)),
+    # a text score's kit object ids (crash2) in the kit played, as render read it (until 7 Dec its kit line's)
+    score = scale_tempo(read_score(score_path, kit=kit, **report_midi_kwargs(report, where)),
                         1.0 if tempo_scale is None else tempo_scale)
     if not (render_dir / "impacts.csv").is_file():
         raise ValueError(f"{render_dir}: no impacts.csv (not a whole render)")
@@ -844,9 +845,7 @@ def distinct_inputs(paths: Sequence[Path]) -> list[Path]:
     return list(kept.values())
 
 
-RENDER_OUTPUTS = ("impacts.csv", "report.json", "performance.wav", "performance.bvh", "performance.mp4",
-                  "performance.glb")
-"""The files `batteur render` writes next to its report.json, none of them a score."""
+from batteur.render_outputs import RENDER_OUTPUTS  # noqa: E402 (render's own list; render itself is heavy)
 
 
 def check_not_render_output(path: Path) -> None:
