@@ -41,9 +41,11 @@ class Progress:
         self.label = label
         self.total = max(total, 1e-9)
         self.unit = unit
-        self.stream = stream if stream is not None else sys.stderr
+        self.stream: TextIO | None = stream if stream is not None else sys.stderr  # None: stderr closed (2>&-)
         self.interval_s = interval_s
-        terminal = self.stream.isatty() if enabled is None else enabled
+        if self.stream is None:
+            enabled = False
+        terminal = self.stream.isatty() if enabled is None and self.stream is not None else bool(enabled)
         self.enabled = terminal
         """The bar is drawn (a terminal, or forced)."""
         self.logging = enabled is None and not terminal
@@ -99,9 +101,8 @@ class Progress:
         elapsed = now - self._start
         bar = "#" * int(self._fraction(done) * 30)
         text = f"{self.label} [{bar:<30}] {self._amounts(done)} ({elapsed:.1f} s{self._left(done, elapsed)})"
-        self.stream.write(f"\r{text:<{self._width}}")
+        self._write(f"\r{text:<{self._width}}")
         self._width = len(text)
-        self.stream.flush()
 
     def _log(self, done: float, now: float) -> None:
         """Print a plain line (not on a terminal)."""
@@ -109,9 +110,19 @@ class Progress:
         self._logged_frac = self._fraction(done)
         self._logged_any = True
         elapsed = now - self._start
-        self.stream.write(f"{self.label}: {self._amounts(done).lstrip()} ({elapsed:.0f} s{self._left(done, elapsed)})"
-                          "\n")
-        self.stream.flush()
+        self._write(f"{self.label}: {self._amounts(done).lstrip()} ({elapsed:.0f} s{self._left(done, elapsed)})\n")
+
+    def _write(self, text: str) -> None:
+        """Write and flush ``text``; a stream that can no longer be written (a closed pipe: ``... 2>&1 | head``, a
+        log reader that died) silences the progress for good rather than stopping the work it shows."""
+        if self.stream is None:
+            return
+        try:
+            self.stream.write(text)
+            self.stream.flush()
+        except (OSError, ValueError):
+            self.enabled = self.logging = False
+            self.stream = None
 
     def close(self, finished: bool = True) -> None:
         """Draw the bar full and end its line; ``finished=False`` (the work was given up, e.g. Ctrl-C): end the
@@ -120,7 +131,6 @@ class Progress:
         if self.enabled and (finished or self._drawn):
             if finished:
                 self._draw(self.total, time.monotonic())
-            self.stream.write("\n")
-            self.stream.flush()
+            self._write("\n")
         elif self.logging and finished and self._logged_any:
             self._log(self.total, time.monotonic())

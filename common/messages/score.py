@@ -103,8 +103,8 @@ class ScoreLoop(OscMessage):
     bar ``last`` it goes on at the start of bar ``first``, on the beat (the loop lasts those bars at the current
     tempo); ``0 0`` turns looping off (the play goes on past ``last`` after the pass in progress). Bars are counted
     from 1 as ``batteur compare`` and the physics logs count them (a pick-up is bar 0 and is not looped). A play
-    already past ``last`` jumps back to ``first`` at the end of its bar. Stopped or paused, it applies to the next
-    ``play``; a stop or a new score ends it."""
+    already past ``last`` jumps back to ``first`` at the end of its bar. Sent while paused or before a ``play``,
+    it applies to the next ``play``; a stop, a reset or a new score ends it."""
 
     ADDRESS = "/batteur/score/loop"
     FAMILY = Family.CONTROL

@@ -316,7 +316,7 @@ def score_preview(path: str | Path, kit: Kit, planner: Planner = "keyframe", pos
         raise ScoreError(f"unknown preview planner {planner!r} (one of: {', '.join(PLANNERS)})")
     if not math.isfinite(rate_hz) or rate_hz <= 0:
         raise ScoreError(f"preview pose rate must be positive, got {rate_hz}")
-    score = read_score(path, **(midi or {}))
+    score = read_score(path, kit=kit, **(midi or {}))  # ids and doubles: the previewed kit's objects
     if not score.events:
         why = "; ".join(score.warnings[-2:]) if score.warnings else "empty"
         raise ScoreError(f"{path}: no drum events to preview ({why})")

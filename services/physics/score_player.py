@@ -597,6 +597,7 @@ class ScorePlayer:
             log.info("loop bars %d-%d ended by the %s", *self.loop, why)
         self.loop = None
         self._loop_changed = False
+        self._loop_said = -math.inf
 
     def _played(self, score: Score, timeline: Timeline | None) -> Score:
         """The score to plan: ``timeline``'s (its loop's passes laid) or ``score`` as written."""
@@ -936,6 +937,8 @@ class ScorePlayer:
         one it replaces) is spliced, the score's clock ``mapping``: keep it, and say where a loop now starts or
         ends (rig time and written bar)."""
         self._timeline, self._loop_changed = timeline, False
+        if before is None:  # a fresh play: its passes are said again (a second looped play said none)
+            self._loop_said = -math.inf
         if timeline is None:
             return
         at, position, tempo = mapping

@@ -101,7 +101,7 @@ def impacts_from_midi(path: Path, kit: Kit, max_seconds: float = math.inf, start
     """Impacts for every drum note of a score file (MIDI, RIFF MIDI or text: :func:`common.score.text.read_score`)
     up to ``max_seconds``, shifted to begin at ``start`` seconds; :class:`ScoreError` naming the file and the
     problem if it cannot be read."""
-    return impacts_from_score(read_score(path), kit, max_seconds, start)
+    return impacts_from_score(read_score(path, kit=kit), kit, max_seconds, start)  # ids and doubles: the kit's
 
 
 def plain_text(docstring: str) -> str:
@@ -166,7 +166,7 @@ def _main(argv: Sequence[str] | None) -> int:
         print(f"{PROG}: error: {exc}", file=sys.stderr)
         return USAGE
     try:
-        score = read_score(args.midi)
+        score = read_score(args.midi, kit=kit)  # a score's object ids and doubles are the kit's
     except ScoreError as exc:  # it names the file and the problem
         print(f"{PROG}: error: {exc}", file=sys.stderr)
         return FAILED

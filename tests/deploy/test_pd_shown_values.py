@@ -66,19 +66,21 @@ def _instrument_values(name: str) -> dict[str, float]:
 
 def _tempo_at_start() -> float:
     """The tempo factor the physics node's score player starts with (a stand-in core: it reads only settings)."""
+    from common.kit import load_kit
     from services.physics.core import PhysicsSettings
     from services.physics.score_player import ScorePlayer
 
-    core: Any = SimpleNamespace(settings=PhysicsSettings())
+    core: Any = SimpleNamespace(settings=PhysicsSettings(), kit=load_kit("default", warn=False))
     return float(ScorePlayer(core).tempo)
 
 
 def _dynamics_at_start() -> float:
     """The velocity factor the physics node's score player starts with (a stand-in core, as for the tempo)."""
+    from common.kit import load_kit
     from services.physics.core import PhysicsSettings
     from services.physics.score_player import ScorePlayer
 
-    core: Any = SimpleNamespace(settings=PhysicsSettings())
+    core: Any = SimpleNamespace(settings=PhysicsSettings(), kit=load_kit("default", warn=False))
     return float(ScorePlayer(core).dynamics)
 
 

@@ -200,3 +200,24 @@ def test_the_live_node_loops_through_its_background_plans(tmp_path: Path) -> Non
         assert player.end_time >= first_end - 15.0 + LOOP_AHEAD_S and core.rejected == {}
     finally:
         core.close()
+
+
+def test_a_second_looped_play_says_its_passes_again(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    """Loop, play, stop; loop and play again: the second play's start and wraps are said as the first's (the
+    review found the second play said none: what was said was remembered across plays)."""
+    core, player = _player(tmp_path)
+    with caplog.at_level(logging.INFO, logger=LOGGER):
+        core.handle(ScoreLoop(first=3, last=4), 0.0, SENDER)
+        core.handle(ScoreTransport(action="play", time=1.0, position=0.0), 0.0, SENDER)
+        for k in range(0, 400):
+            player.pump(k / 10)
+        core.handle(ScoreTransport(action="stop", time=40.0, position=0.0), 40.0, SENDER)
+        first = len(_said(caplog, "loop bars 3-4 wraps"))
+        caplog.clear()
+        core.handle(ScoreLoop(first=3, last=4), 41.0, SENDER)
+        core.handle(ScoreTransport(action="play", time=42.0, position=0.0), 41.0, SENDER)
+        for k in range(410, 800):
+            player.pump(k / 10)
+        assert first >= 5
+        assert len(_said(caplog, "loop bars 3-4 starts")) == 1
+        assert len(_said(caplog, "loop bars 3-4 wraps")) >= 5

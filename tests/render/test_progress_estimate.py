@@ -127,3 +127,41 @@ def test_quiet_stays_quiet(clock: _Clock, stream: io.StringIO) -> None:
         bar.update(k + 1.0)
     bar.close()
     assert stream.getvalue() == ""
+
+
+class _ClosedPipe(io.StringIO):
+    """A stream whose reader has gone (``batteur render ... 2>&1 | head``): every write raises."""
+
+    def __init__(self, terminal: bool) -> None:
+        super().__init__()
+        self.terminal = terminal
+        self.writes = 0
+
+    def isatty(self) -> bool:
+        return self.terminal
+
+    def write(self, text: str) -> int:
+        self.writes += 1
+        raise BrokenPipeError(32, "Broken pipe")
+
+
+@pytest.mark.parametrize("terminal", [True, False])
+def test_a_stream_that_breaks_silences_the_progress_not_the_work(clock: _Clock, terminal: bool) -> None:
+    """A closed pipe stopped the render whose progress it showed (off a terminal progress now writes lines)."""
+    stream = _ClosedPipe(terminal)
+    bar = Progress("render", 100.0, stream=stream)
+    for done in range(0, 101, 5):
+        clock.now += 10.0
+        bar.update(float(done))
+    bar.close()
+    assert stream.writes == 1  # the first write failed, nothing was tried after it
+
+
+def test_no_stderr_at_all_is_quiet(monkeypatch: pytest.MonkeyPatch, clock: _Clock) -> None:
+    """``2>&-`` leaves sys.stderr None: the progress says nothing instead of failing on it."""
+    monkeypatch.setattr(progress_module.sys, "stderr", None)
+    bar = Progress("render", 10.0)
+    clock.now += 60.0
+    bar.update(5.0)
+    bar.close()
+    assert not bar.enabled and not bar.logging
