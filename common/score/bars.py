@@ -9,22 +9,24 @@ written one.
 
 from __future__ import annotations
 
+import bisect
 import dataclasses
+import functools
 import math
 
 import numpy as np
 
 from common.score.events import Score
-from common.score.position import DEFAULT_BEATS_PER_BAR, pickup
+from common.score.position import DEFAULT_BEATS_PER_BAR, last_bar_length, pickup, seconds_at_beat
 
-
-def _beat_time(score: Score, beat: float) -> float:
-    """Score seconds at ``beat`` (beats from the first, fractional); past the last beat its spacing goes on."""
-    beats = np.asarray(score.beats, dtype=float)
-    last = len(beats) - 1
-    if beat <= last:
-        return float(np.interp(beat, np.arange(len(beats)), beats))
-    return float(beats[-1] + (beat - last) * (beats[-1] - beats[-2]))
+MAX_LOOP_PASSES = 64
+"""A loop lays at most this many passes at once (:func:`loop_passes`) ..."""
+MAX_LOOP_NOTES = 2000
+"""... and at most this many notes (a bar of 16ths at 400 bpm, x4, asked for 60 s laid 400 passes, 6,400 notes, 3 s
+of planning per re-plan) ..."""
+MIN_LOOP_COVER = 0.1
+"""... but never fewer than cover this share of the time asked (a one-16th bar would otherwise lay 64 passes, a few
+tenths of a second: fewer than the time to plan them)."""
 
 
 def _bar_beats(score: Score, index: int) -> tuple[float, float]:
@@ -34,10 +36,7 @@ def _bar_beats(score: Score, index: int) -> tuple[float, float]:
         return float(index * DEFAULT_BEATS_PER_BAR), float((index + 1) * DEFAULT_BEATS_PER_BAR)
     if index + 1 < len(bars):
         return float(bars[index]), float(bars[index + 1])
-    # bars past the last start are as long as the last one (bar_beat's rule)
-    length = len(score.beats) - 1 - float(bars[-1])
-    if length <= 0:
-        length = float(bars[-1] - bars[-2]) if len(bars) > 1 else float(DEFAULT_BEATS_PER_BAR)
+    length = last_bar_length(score)  # bars past the last start are as long as the last one (bar_beat's rule)
     start = float(bars[-1]) + (index - len(bars) + 1) * length
     return start, start + length
 
@@ -49,7 +48,7 @@ def counted_bars(score: Score) -> tuple[int, int]:
     if len(score.beats) < 2 or not score.events:
         return first, first - 1
     count = 0
-    while _beat_time(score, _bar_beats(score, count + 1)[0]) <= score.events[-1].time + 1e-9:
+    while seconds_at_beat(score, _bar_beats(score, count + 1)[0]) <= score.events[-1].time + 1e-9:
         count += 1
     return first, first + count
 
@@ -61,7 +60,7 @@ def bar_span(score: Score, bar: int) -> tuple[float, float]:
     if not first <= bar <= last:
         raise ValueError(f"bar {bar}: the score has bars {first}..{last}")
     start, end = _bar_beats(score, bar - 1 if first == 1 else bar)
-    return _beat_time(score, start), _beat_time(score, end)
+    return seconds_at_beat(score, start), seconds_at_beat(score, end)
 
 
 def bar_end_after(score: Score, seconds: float) -> float:
@@ -69,7 +68,7 @@ def bar_end_after(score: Score, seconds: float) -> float:
     index = 0
     while True:
         _, end = _bar_beats(score, index)
-        end_s = _beat_time(score, end)
+        end_s = seconds_at_beat(score, end)
         if end_s > seconds + 1e-9 or index > 100_000:
             return end_s
         index += 1
@@ -106,24 +105,42 @@ class Timeline:
 
     def index(self, played: float) -> int:
         """The segment holding played time ``played`` (s); before the first: the first, past the last: the last."""
-        for k, seg in enumerate(self.segments):
-            if played < seg.end - 1e-9:
-                return k
-        return len(self.segments) - 1
+        # the first whose end is after ``played`` (the segments lie end to end: their ends ascend); a bisection, as
+        # the live player asks at every step and a long loop keeps thousands of passes
+        k = bisect.bisect_right(self.segments, played, key=lambda seg: seg.end - 1e-9)
+        return min(k, len(self.segments) - 1)
 
     def written(self, played: float) -> float:
         """Written score seconds at played time ``played`` (s)."""
         seg = self.segments[self.index(played)]
         return seg.start + (played - seg.at)
 
+    @functools.cached_property
+    def last_pass(self) -> int | None:
+        """Index of the last pass of a loop in :attr:`segments`, None with none (found once: the live player asks
+        at every step)."""
+        return next((k for k in range(len(self.segments) - 1, -1, -1) if self.segments[k].loop is not None), None)
+
     @property
     def looping(self) -> bool:
-        return any(seg.loop is not None for seg in self.segments)
+        return self.last_pass is not None
 
     @property
     def loop_end(self) -> float:
         """Played time (s) the last pass of the loop ends (-inf with none)."""
-        return max((seg.end for seg in self.segments if seg.loop is not None), default=-math.inf)
+        return -math.inf if self.last_pass is None else self.segments[self.last_pass].end
+
+    @functools.cached_property
+    def pass_numbers(self) -> tuple[int, ...]:
+        """Per segment, how many of the segments up to it (it too) are passes of its loop (its bars; 0 for no
+        loop): the pass number the log says at a wrap."""
+        seen: dict[tuple[int, int], int] = {}
+        numbers = []
+        for seg in self.segments:
+            if seg.loop is not None:
+                seen[seg.loop] = seen.get(seg.loop, 0) + 1
+            numbers.append(0 if seg.loop is None else seen[seg.loop])
+        return tuple(numbers)
 
     def cut(self, played: float) -> tuple[Segment, ...]:
         """The segments up to played time ``played`` (s), the one holding it shortened to end there."""
@@ -165,8 +182,8 @@ def looped(timeline: Timeline, played: float, bars: tuple[int, int] | None, cove
     off (None). The loop takes over where the play, going on from ``played`` (after a pass of a loop in
     progress: with the rest of the score), next reaches the end of bar ``last``; if it never does (the play is past
     it), at the end of the pass in progress, else of the bar in progress; from there bars ``first``..``last``
-    repeat for at least ``cover_s`` score seconds (two passes at least). Off: the pass in progress ends, then the
-    rest of the score."""
+    repeat for ``cover_s`` score seconds (as many passes as :func:`loop_passes` lays). Off: the pass in progress
+    ends, then the rest of the score."""
     path = timeline.continuation(played)
     if bars is None:
         return Timeline(timeline.score, path)
@@ -185,7 +202,19 @@ def looped(timeline: Timeline, played: float, bars: tuple[int, int] | None, cove
         else:
             junction = held.at + bar_end_after(score, held.start + (played - held.at)) - held.start
     length = end - start
-    passes = max(2, math.ceil(cover_s / length))
+    passes = loop_passes(score, bars, cover_s)
     laid = Timeline(score, path).cut(junction)
     loop = tuple(Segment(junction + k * length, start, length, bars) for k in range(passes))
     return Timeline(score, (*laid, *loop))
+
+
+def loop_passes(score: Score, bars: tuple[int, int], cover_s: float) -> int:
+    """How many passes of counted bars ``bars`` (first, last) :func:`looped` lays to cover ``cover_s`` score seconds:
+    enough for them, two at least, but at most :data:`MAX_LOOP_PASSES` and :data:`MAX_LOOP_NOTES` notes, unless
+    that covers less than :data:`MIN_LOOP_COVER` of ``cover_s``."""
+    start, _ = bar_span(score, bars[0])
+    _, end = bar_span(score, bars[1])
+    length = end - start
+    notes = sum(1 for e in score.events if start - 1e-9 <= e.time < end - 1e-9)  # a segment's, as played takes them
+    cap = max(min(MAX_LOOP_PASSES, MAX_LOOP_NOTES // max(notes, 1)), math.ceil(MIN_LOOP_COVER * cover_s / length))
+    return max(2, min(math.ceil(cover_s / length), cap))

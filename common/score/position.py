@@ -48,15 +48,34 @@ def bar_beat(score: Score, seconds: float) -> BarBeat | None:
         return BarBeat(bar, max(position - bar * DEFAULT_BEATS_PER_BAR, 0.0), 60.0 / spacing)
     j = int(np.searchsorted(bars, position + 1e-9, side="right")) - 1
     beat = position - float(bars[j])
-    if j == len(bars) - 1:  # the last bar ends with the score's beats; after them, bars as long go on (a reader
-        # whose score ends inside a bar, or between two beats, puts a last start past the end: the last two starts
-        # give the length)
-        length = len(beats) - 1 - float(bars[j])
-        if length <= 0:
-            length = float(bars[j] - bars[j - 1]) if j > 0 else DEFAULT_BEATS_PER_BAR
+    if j == len(bars) - 1:  # the last bar; after it, bars as long go on
+        length = last_bar_length(score)
         more = int((beat + 1e-9) // length)
         j, beat = j + more, beat - more * length
     return BarBeat(j, max(beat, 0.0), 60.0 / spacing)
+
+
+def last_bar_length(score: Score) -> float:
+    """Beats of the last bar of ``score`` (which has ``bar_beats``), and of each bar after it: to the score's last
+    beat; a reader whose score ends inside a bar, or between two beats, puts a last start at or past the end: then
+    the last two starts give the length (one start: :data:`DEFAULT_BEATS_PER_BAR`). :func:`bar_beat` counts bars
+    past the last start so, and ``common.score.bars`` lays them so."""
+    bars = score.bar_beats
+    j = len(bars) - 1
+    length = len(score.beats) - 1 - float(bars[j])
+    if length <= 0:
+        length = float(bars[j] - bars[j - 1]) if j > 0 else float(DEFAULT_BEATS_PER_BAR)
+    return length
+
+
+def seconds_at_beat(score: Score, beat: float) -> float:
+    """Score seconds at ``beat`` (beats from the first, fractional): :func:`bar_beat`'s position the other way;
+    past the last beat its spacing goes on, as there. The score has at least two beats."""
+    beats = np.asarray(score.beats, dtype=float)
+    last = len(beats) - 1
+    if beat <= last:
+        return float(np.interp(beat, np.arange(len(beats)), beats))
+    return float(beats[-1] + (beat - last) * (beats[-1] - beats[-2]))
 
 
 def bar_unit(score: Score, bar: int) -> float:

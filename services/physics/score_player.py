@@ -143,7 +143,7 @@ from common.messages.score import (
     ScoreTransport,
     TempoScale,
 )
-from common.score.bars import Timeline, counted_bars, looped
+from common.score.bars import Timeline, counted_bars, loop_passes, looped
 from common.score.events import MAX_SCORE_NOTES, DrumEvent, Score, ScoreError
 from common.score.hands import HandAlgorithm, Sticking
 from common.score.limbs import FEET, HANDS, LimbLengths, bass_feet
@@ -230,7 +230,8 @@ LOOP_AHEAD_S = 60.0
 (:data:`LOOP_EXTEND_S`)."""
 LOOP_EXTEND_S = 20.0
 """... once the passes planned end less than this long (rig seconds) after the play's position, more passes are
-planned (a re-plan at the end of the pass in progress: :meth:`ScorePlayer.pump`)."""
+planned (a re-plan at the end of the pass in progress: :meth:`ScorePlayer.pump`); a third of the passes laid at once
+when fewer than LOOP_AHEAD_S are (:func:`common.score.bars.loop_passes`: a tiny loop at a fast tempo)."""
 START_NUANCE = Nuance.TENUTO
 START_ALGORITHM = HandAlgorithm.VITERBI
 START_STICKING = Sticking.NONE
@@ -428,6 +429,8 @@ class ScorePlayer:
         """Played time (s) of the latest loop start, wrap or end said in the log (:meth:`_say_loop`)."""
         self._extending: Timeline | None = None
         """The timeline whose loop more passes were asked for (asked once: :meth:`_extend_loop`)."""
+        self._extend_threshold: tuple[Timeline, float, float] | None = None
+        """(timeline, tempo, rig seconds) of :meth:`_extend_within`, found once per timeline."""
         self.state: Literal["idle", "playing", "paused"] = "idle"
         self.end_time = -math.inf
         """Rig time the current performance's plan ends, seconds."""
@@ -981,11 +984,15 @@ class ScorePlayer:
         at, position, tempo = mapping
         played = position + (now - self.core.target_lag - at) * tempo
         segments = timeline.segments
-        crossed = [k for k in range(1, len(segments)) if self._loop_said < segments[k].at <= played + 1e-9
-                   and (segments[k].loop is not None or segments[k - 1].loop is not None)]
-        if not crossed:
+        # the latest segment started by now and not said yet that starts, wraps or ends a loop: bisected, then back
+        # only over those not said (at every step: a loop of tiny bars lays thousands of passes)
+        k = bisect.bisect_right(segments, played + 1e-9, key=lambda seg: seg.at) - 1
+        while k >= 1 and self._loop_said < segments[k].at:
+            if segments[k].loop is not None or segments[k - 1].loop is not None:
+                break
+            k -= 1
+        else:
             return
-        k = crossed[-1]
         seg, prev = segments[k], segments[k - 1]
         self._loop_said = seg.at
         rig = at + (seg.at - position) / tempo + self.core.target_lag
@@ -994,7 +1001,7 @@ class ScorePlayer:
             log.info("loop bars %d-%d ends at rig %.3f s: the play goes on at %s", *prev.loop, rig,
                      score_words(timeline.score, seg.start))
             return
-        again = sum(1 for s in segments[:k + 1] if s.loop == seg.loop)
+        again = timeline.pass_numbers[k]
         what = "wraps" if prev.loop == seg.loop else "starts"
         log.info("loop bars %d-%d %s at rig %.3f s (pass %d): back to %s", *seg.loop, what, rig, again,
                  score_words(timeline.score, seg.start))
@@ -1008,7 +1015,7 @@ class ScorePlayer:
             return
         at, position, tempo = mapping
         played = position + (now - self.core.target_lag - at) * tempo
-        if (timeline.loop_end - played) / tempo > LOOP_EXTEND_S:
+        if (timeline.loop_end - played) / tempo > self._extend_within(timeline, tempo):
             return
         self._extending = timeline
         if self.background:
@@ -1018,6 +1025,23 @@ class ScorePlayer:
             self.replan(now)
         except ValueError as exc:
             log.warning("loop bars %d-%d: more passes could not be planned: %s", *self.loop, exc)
+
+    def _extend_within(self, timeline: Timeline, tempo: float) -> float:
+        """:meth:`_extend_loop`'s threshold for ``timeline`` at ``tempo``, rig seconds (found once per timeline):
+        :data:`LOOP_EXTEND_S`, or less in the share LOOP_EXTEND_S / LOOP_AHEAD_S of the passes laid at once when
+        :func:`~common.score.bars.loop_passes` laid fewer than :data:`LOOP_AHEAD_S` of them (a tiny loop at a fast
+        tempo: more passes then, not a re-plan at every step)."""
+        cached = self._extend_threshold
+        if cached is not None and cached[0] is timeline and cached[1] == tempo:
+            return cached[2]
+        last = timeline.last_pass
+        assert last is not None
+        seg = timeline.segments[last]
+        assert seg.loop is not None
+        laid_s = loop_passes(timeline.score, seg.loop, LOOP_AHEAD_S * tempo) * seg.length / tempo
+        within = min(LOOP_EXTEND_S, LOOP_EXTEND_S / LOOP_AHEAD_S * laid_s)
+        self._extend_threshold = (timeline, tempo, within)
+        return within
 
     def _check_playing(self, action: str, t_s: float) -> None:
         """Refuse a stop or pause at ``t_s`` (s, the targets' clock: :meth:`_base`) with nothing to act on: no

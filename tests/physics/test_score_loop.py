@@ -8,6 +8,7 @@ planned notes (``ScorePlayer.events``, rig seconds) and the plans' strokes are w
 from __future__ import annotations
 
 import logging
+import math
 from pathlib import Path
 
 import pytest
@@ -16,7 +17,7 @@ from common.kit import EventType, load_kit
 from common.messages import MessageError
 from common.messages.physics import PhysicsRejected
 from common.messages.score import ScoreLoad, ScoreLoop, ScoreTransport, TempoScale
-from common.score.bars import bar_span, counted_bars
+from common.score.bars import MAX_LOOP_PASSES, Timeline, bar_span, counted_bars
 from common.score.text import parse_text
 from services.physics.core import PhysicsCore
 from services.physics.node import LivePhysicsCore
@@ -221,3 +222,83 @@ def test_a_second_looped_play_says_its_passes_again(tmp_path: Path, caplog: pyte
         assert first >= 5
         assert len(_said(caplog, "loop bars 3-4 starts")) == 1
         assert len(_said(caplog, "loop bars 3-4 wraps")) >= 5
+
+
+# one bar of 16ths at 400 bpm (0.6 s) and a second bar: a tiny loop at a fast tempo
+FAST_BAR = """tempo 400
+meter 4/4
+HH |xxxxxxxxxxxxxxxx|xxxxxxxxxxxxxxxx|
+"""
+SIXTEENTH_S = 60.0 / 400 / 4
+
+
+class _Counted(tuple):  # type: ignore[type-arg]
+    """A timeline's segments that count how many of them are read (indexed or iterated)."""
+
+    reads = 0
+
+    def __getitem__(self, k):  # type: ignore[no-untyped-def]
+        got = super().__getitem__(k)
+        _Counted.reads += len(got) if isinstance(k, slice) else 1
+        return got
+
+    def __iter__(self):  # type: ignore[no-untyped-def]
+        for seg in super().__iter__():
+            _Counted.reads += 1
+            yield seg
+
+
+def _fast_loop(tmp_path: Path) -> tuple[PhysicsCore, ScorePlayer]:
+    (tmp_path / "fast.txt").write_text(FAST_BAR, encoding="utf-8")
+    core = PhysicsCore(scene="drummer", kit=load_kit("default"), grip="german", pose_rate_hz=0)
+    player = core.score_player
+    player.library = [tmp_path]
+    core.handle(ScoreLoad(path="fast.txt"), 0.0, SENDER)
+    core.handle(ScoreLoop(first=1, last=1), 0.0, SENDER)
+    core.handle(ScoreTransport(action="play", time=1.0, position=0.0), 0.0, SENDER)
+    return core, player
+
+
+def test_a_tiny_fast_loop_lays_at_most_the_cap_and_still_extends_on_the_beat(tmp_path: Path) -> None:
+    """A bar of 16ths at 400 bpm asked for 60 s laid 100 passes (1,600 notes; x4: 400 passes, 3 s of planning per
+    re-plan): at most MAX_LOOP_PASSES now, and more are planned a third of them before they run out, on the beat."""
+    core, player = _fast_loop(tmp_path)
+    timeline = player._timeline  # noqa: SLF001
+    assert timeline is not None
+    passes = [seg for seg in timeline.segments if seg.loop is not None]
+    assert len(passes) == MAX_LOOP_PASSES  # 16 notes a pass: the passes' cap, not the notes' (2,000 / 16 = 125)
+    first_end = player.end_time
+    laid_s = MAX_LOOP_PASSES * 16 * SIXTEENTH_S  # 38.4 s: a third of it left (12.8 s) asks for more
+    player.pump(timeline.loop_end + 1.0 - laid_s / 3 - 1.0)  # 13.8 s left (LOOP_EXTEND_S would re-plan here)
+    assert player.end_time == first_end
+    player.pump(timeline.loop_end + 1.0 - laid_s / 3 + 1.0)
+    assert player.end_time > first_end + 20.0 and core.rejected == {}
+    hats = _times(player, EventType.HIHATCLOSED)
+    assert len(hats) > 16 * MAX_LOOP_PASSES
+    # on the beat: every 16th from the play's first (rig 1 s) on, the new passes' too (the notes kept start a
+    # re-plan's context before)
+    start = round((hats[0] - 1.0) / SIXTEENTH_S)
+    assert hats == pytest.approx([1.0 + (start + k) * SIXTEENTH_S for k in range(len(hats))], abs=1e-3)
+    core.close()
+
+
+def test_a_loop_costs_a_step_a_few_segments_however_many_passes_are_laid(tmp_path: Path) -> None:
+    """The live node pumps at every physics step (1 kHz): saying wraps, checking whether more passes are needed and
+    the view's position read a few of the timeline's segments a step, not all (they scanned every segment: ~97 us
+    a step with 101 of them, ~230 us with 401)."""
+    core, player = _fast_loop(tmp_path)
+    timeline = player._timeline  # noqa: SLF001
+    assert timeline is not None
+    counted = Timeline(timeline.score, _Counted(timeline.segments))
+    player._timeline = counted  # noqa: SLF001
+    player.pump(0.5)  # once per timeline: its last pass and pass numbers are found
+    player.clock(0.5)
+    _Counted.reads = 0
+    steps = 3000  # 3 s of steps at 1 kHz: five passes
+    for k in range(steps):
+        now = 1.0 + k / 1000
+        player.pump(now)
+        player.clock(now)
+    bound = 2 * math.ceil(math.log2(len(counted.segments) + 1)) + 8  # two bisections and a few more
+    assert _Counted.reads <= bound * steps, _Counted.reads / steps
+    core.close()
