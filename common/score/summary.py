@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from common.score.events import Score
+from common.score.position import seconds_at_beat
 
 LISTED_CHANGES = 6
 """The most tempo or time signature changes the header lists one by one (more: counted, with their range)."""
@@ -64,13 +65,9 @@ def last_bar_end(score: Score) -> float | None:
 def beat_seconds(score: Score, beat: float) -> float | None:
     """Score time (seconds) of ``beat`` (quarter notes from the start): between two beats in proportion, past the
     last one at the last beat's tempo; None for a score with fewer than two beats (no tempo)."""
-    beats = np.asarray(score.beats, dtype=float)
-    if len(beats) < 2:
+    if len(score.beats) < 2:
         return None
-    last = len(beats) - 1
-    if beat <= last:
-        return float(np.interp(beat, np.arange(len(beats)), beats))
-    return float(beats[-1] + (beat - last) * (beats[-1] - beats[-2]))
+    return seconds_at_beat(score, beat)
 
 
 def tempo_changes(score: Score) -> list[tuple[float, float]]:
