@@ -8,7 +8,9 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
+import soundfile as sf
 
 from common.config import load_settings
 from services.sound.node import SoundNodeSettings, WavSink, main, make_core
@@ -72,10 +74,13 @@ def test_a_wav_from_the_environment_is_recorded_to(monkeypatch: pytest.MonkeyPat
     core = make_core(settings)
     try:
         assert core.channels == 1
-        assert [s.path for s in core.sinks if isinstance(s, WavSink)] == [take]
+        sinks = [s for s in core.sinks if isinstance(s, WavSink)]
+        assert [s.path for s in sinks] == [take]
+        sinks[0](np.zeros((64, 1), dtype=np.float32))  # a take of one block (an empty one writes nothing: 9fb37dc)
     finally:
         core.close()
     assert take.is_file() and take.with_name("env.wav.json").is_file()
+    assert sf.info(take).frames == 64 and sf.info(take).channels == 1
 
 
 def test_an_empty_wav_variable_records_nothing(monkeypatch: pytest.MonkeyPatch,
