@@ -607,7 +607,7 @@ def position(score: Score, written_time: float, scale: float = 1.0) -> dict[str,
     last = last_bar(score)
     if last is not None and point.bar > last[0] and point.time >= last[3] - 1e-6:
         # the exercise's end is its nearest point (a strike within the tolerance of it, which compare keeps): no bar
-        # after the last, told in the last bar as its end (until the day after 7 Dec "bar 5, beat 1 (20 ms early)"
+        # after the last, told in the last bar as its end (until 7 Dec "bar 5, beat 1 (20 ms early)"
         # and a row of its own in the bar table, 0 written, after a 4-bar exercise)
         bar, beat_at, spacing, end = last
         late_ms = (written_time - end) * 1000 / scale
@@ -639,7 +639,7 @@ class GridPoint:
     numbered as :func:`position` says), ``grid`` where in that beat (0 on it, 1/2 its &), ``exact`` when the time
     is on it (within :data:`ON_GRID_BEATS`, or on a :data:`FINE_GRIDS` subdivision: then ``grid`` is that), ``time``
     the point on the written clock (s) and ``spacing`` the length (s) of the counted beat the point is in: for a
-    time just before the next beat, that beat's (until the day after 7 Dec this one's: 20 ms before a 6/8 bar
+    time just before the next beat, that beat's (until 7 Dec this one's: 20 ms before a 6/8 bar
     after a 4/4 one at 120 bpm was beat 0.96 there, 0.92 before the next 6/8 bar)."""
 
     bar: int
@@ -759,7 +759,7 @@ def bar_rows(score: Score, written: Sequence[tuple[float, float]], pairs: Sequen
     tempo (``bpm``, quarter notes a minute as the exercise's tempo; None under :data:`BAR_TEMPO_NOTES` such notes):
     the slope of the take's times against the notes' written positions in quarter notes (least squares,
     :func:`quarters`), beside ``written_bpm``, the same slope of their written times: the bar's own written tempo
-    (its tempo map's), which the played one is measured against. Until the day after 7 Dec the notes too early or
+    (its tempo map's), which the played one is measured against. Until 7 Dec the notes too early or
     late were left out of the mean, the feel and the tempo: a bar whose second half was 90 to 140 ms late read
     +11 ms, neither dragging, from its first half's notes alone.
 
@@ -995,7 +995,7 @@ def beat_feels(score: Score, notes: Sequence[tuple[float, float]], tolerance: fl
         if 2 * np.sum(errors * np.sign(median) > tolerance / 4) <= len(errors):
             continue
         last = beat + groups[bar] - 1
-        if bar == 0 and first is not None:  # until the day after 7 Dec "beats 4-6" for a pick-up of 5 and 6
+        if bar == 0 and first is not None:  # until 7 Dec "beats 4-6" for a pick-up of 5 and 6
             beat = min(max(beat, first), last)
         out.append({"bar": bar, "beat": beat, "last_beat": last, "onsets": len(errors),
                     "notes": sum(len(v) for v in onsets.values()),
@@ -1185,7 +1185,7 @@ def _compare_at(score: Score, take: Take, kit: Kit, tolerance: float, scale: flo
             claimed[i] = j
             taken.add(j)
     # a take falling behind (running ahead) bar after bar: its notes beyond the reach are followed along its lag
-    # (until the day after 7 Dec a tempo change played 8 % slow read as bars all missed, with as many extras)
+    # (until 7 Dec a tempo change played 8 % slow read as bars all missed, with as many extras)
     claimed = follow_lag(written, played, offset, tolerance, dict(pairs), claimed,
                          [i for i in missed_i if i not in claimed], loose)
     taken = set(claimed.values())
@@ -1407,7 +1407,7 @@ def summary_lines(report: dict[str, Any], exercise: str, take: str) -> list[str]
         bpm = (f"played {against_written(tempo['percent'])} ({changes})" if changes else
                f"played at about {tempo['take_bpm']:g} bpm, the exercise is at {tempo['exercise_bpm']:g}"
                if tempo["exercise_bpm"] else f"played at about {tempo['ratio']} times the exercise's tempo")
-        # until the day after 7 Dec "68 of 68 played (at the exercise's tempo 26)", which read as a tempo of 26
+        # until 7 Dec "68 of 68 played (at the exercise's tempo 26)", which read as a tempo of 26
         lines.insert(1, f"{bpm}: compared at the take's tempo (--tempo-scale {tempo['ratio']}); at that tempo "
                      f"{report['played']} of the {report['written']} written notes are on time, at the exercise's "
                      f"tempo only {tempo['played_at_exercise_tempo']} would be")

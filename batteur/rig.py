@@ -1016,9 +1016,9 @@ def unread_midi_options(opts: argparse.Namespace, plans: Sequence[ServicePlan],
     no MIDI ``--score``, no physics score library (``--physics-arg '--score-dir DIR'``, read by
     ``/batteur/score/load``), no graphics ``--preview-score``; live notes (``/batteur/score/note``) are read without
     them. Until 7 Dec they were given to physics and graphics in silence. Not ``--drum-map``: live notes follow it
-    (since c6f810b; until the day after 7 Dec this warned that it acted on nothing). A text ``--score``
+    (since c6f810b; until 7 Dec this warned that it acted on nothing). A text ``--score``
     (``demo`` too) is read without them: then they act only on the MIDI files ``/batteur/score/load`` may load
-    from its folder, said so (until the day after 7 Dec nothing was). A library or a preview given a blank value
+    from its folder, said so (until 7 Dec nothing was). A library or a preview given a blank value
     (``--physics-arg=--score-dir=``: none) is none. None when a config file (BATTEUR_CONFIG, ``--config``) or the
     environment may give a library or a preview: those services read it, the rig does not."""
     from common.config import ENV_PREFIX

@@ -20,12 +20,12 @@ class LiveNotes:
     ``note_map``: the sender's pitch -> the General MIDI drum pitch it plays (``--drum-map``'s map,
     :func:`common.score.midi_notes.load_drum_map`), applied first, as the MIDI reader applies it to a file: the
     event carries the General MIDI pitch (a kit's ``note_objects`` choose by it), an unknown note the pitch sent.
-    None or empty: the pitches are General MIDI's (until the day after 7 Dec live notes always were, whatever the
+    None or empty: the pitches are General MIDI's (until 7 Dec live notes always were, whatever the
     node's ``--drum-map``).
 
     ``kit``: the kit the notes are played on: doubles are then two notes striking one object with one stroke, as a
     score's (:func:`common.score.events.double_key`: 49 and 57 at once are two crashes on a kit sending 57 to
-    ``crash2``); None: two notes of one event type (as until the day after 7 Dec)."""
+    ``crash2``); None: two notes of one event type (as until 7 Dec)."""
 
     def __init__(self, drum_map: Mapping[int, EventType] = DRUM_MAP, duplicate_window: float = 0.010,
                  note_map: Mapping[int, int] | None = None, kit: Kit | None = None) -> None:

@@ -307,7 +307,7 @@ def read_midi(
     kit : Kit | None
         The kit the file is played on, when known: double events are then those striking one object with one stroke
         (MIDI 49 and 57 at once are two crashes on a kit whose ``note_objects`` send 57 to ``crash2``:
-        :func:`common.score.events.double_key`); None: those of one event type (as before the day after 7 Dec).
+        :func:`common.score.events.double_key`); None: those of one event type (as before 7 Dec).
 
     Returns
     -------

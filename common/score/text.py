@@ -165,7 +165,7 @@ def object_stroke(kit: Kit, object_id: str) -> tuple[EventType, int | None] | No
     pitches reach) its first pitch's, with that pitch. None for an unknown id, an object no note plays, or one that
     is the own object of several strokes (:func:`own_strokes`, the hi-hat open and closed: the stroke's name says
     which). An object reached by pitches of two event types (``note_objects {52: fx, 57: fx}``) is not ambiguous:
-    naming CHINA or CRASH plays the china or the crash, never it (said "name the stroke" until the day after 7 Dec)."""
+    naming CHINA or CRASH plays the china or the crash, never it (said "name the stroke" until 7 Dec)."""
     strokes = object_strokes(kit, object_id)
     own = own_strokes(strokes)
     if own:
@@ -304,7 +304,7 @@ def _warn_foot_sticking(sticking: list[str], grid: dict[str, list[tuple[list[str
     """Warn of ST marks whose column holds foot notes (BD, a hi-hat pedal) and no stick note: a foot plays them and
     the hand is ignored, as an ``at ... R`` line on a foot note says (they were ignored without a word).
     ``events``: each row name's event type; ``spelled``: each row name as written, an object id's said so
-    (``kick_pedal``; KICK_PEDAL until the day after 7 Dec), an event type's or alias's upper-case (BD)."""
+    (``kick_pedal``; KICK_PEDAL until 7 Dec), an event type's or alias's upper-case (BD)."""
     stick = set()
     feet: dict[int, list[str]] = {}
     for name, rows in grid.items():
@@ -489,7 +489,7 @@ def parse_text(text: str, source: str = "text", kit: Kit | None = None) -> TextS
     def objects_kit() -> Kit | None:
         """The kit the score's object ids name objects of: ``kit``, else its ``kit`` line's, else the default (one
         it cannot load: None, and ``kit_failed`` says why: an unknown name's error says it, the kit line being
-        likelier wrong than the name; it was only "unknown instrument" until the day after 7 Dec)."""
+        likelier wrong than the name; it was only "unknown instrument" until 7 Dec)."""
         if not ids_kit:
             if kit is not None:
                 ids_kit.append(kit)

@@ -689,7 +689,7 @@ class ScorePlayer:
         """How MIDI scores are read: :func:`common.score.midi.read_midi`'s keyword arguments (the node's
         ``--drum-channels``, ``--drum-map``, ``--hihat-cc4``: :func:`common.score.midi_options.midi_setting_kwargs`);
         a text score ignores them. Setting them gives live notes the note map too (``/batteur/score/note``'s pitches
-        are read as a MIDI file's, :class:`common.score.live.LiveNotes`: until the day after 7 Dec as General MIDI's
+        are read as a MIDI file's, :class:`common.score.live.LiveNotes`: until 7 Dec as General MIDI's
         whatever ``--drum-map`` said); the other two are a file's (its channels, its CC4)."""
         return self._midi
 

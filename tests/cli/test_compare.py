@@ -200,7 +200,7 @@ def test_a_take_at_another_tempo_is_reported_as_such(exercise: Path, tmp_path: P
     assert found["tempo_scale"] == pytest.approx(0.8, abs=0.002) and found["tempo_scale_found"] is True
     assert found["tempo"]["played_at_exercise_tempo"] == got["played"]
     _, out, _ = run([str(exercise), str(path)], capsys)
-    # until the day after 7 Dec "52 of 52 played (at the exercise's tempo 10)", which read as a tempo of 10
+    # until 7 Dec "52 of 52 played (at the exercise's tempo 10)", which read as a tempo of 10
     assert out.splitlines()[1] == ("played at about 96 bpm, the exercise is at 120: compared at the take's tempo "
                                    "(--tempo-scale 0.8); at that tempo 52 of the 52 written notes are on time, at "
                                    f"the exercise's tempo only {got['played']} would be")
@@ -550,7 +550,7 @@ def test_an_accelerando_is_told_as_a_drift(start_bpm: float, end_bpm: float, say
 
 def test_bars_in_the_json_count_each_bar(exercise: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """One entry per bar: a snare missed in bar 2, a kick in bar 3, a tom added in bar 3, a hi-hat 70 ms late
-    in bar 4 (too late, not missed: counted in its bar's mean, 70 ms over 13 notes, since the day after 7 Dec)."""
+    in bar 4 (too late, not missed: counted in its bar's mean, 70 ms over 13 notes, since 7 Dec)."""
     removed = {(2.5, 38), (4.0, 36)}
     late = (7.0, 42)
     take = [(START + t + (0.070 if (t, p) == late else 0.0), p, v) for t, p, v in written(exercise)
@@ -931,7 +931,7 @@ def test_a_strike_just_before_a_downbeat_is_that_bar_s_in_its_label_and_the_tabl
     the first was "before bar 1" and in no bar); its beat, 0.96, is just before that bar's 1. A take whose last
     note is bar 4's kick played 20 ms early stops in bar 4, the bar of the written note it is paired with. A tom 20
     ms before the exercise's end and one 20 ms after it (within the tolerance: extras) are the last bar's, at its
-    end, so that the table's extras add up to the summary's (until the day after 7 Dec "bar 5, beat 1", a row of
+    end, so that the table's extras add up to the summary's (until 7 Dec "bar 5, beat 1", a row of
     its own with 0 written)."""
     take = [(START + t, p, v) for t, p, v in written(exercise)] + [(START + 3.98, 48, 90), (START - 0.02, 48, 90),
                                                                    (START + 7.98, 48, 90), (START + 8.02, 43, 90)]
@@ -1025,7 +1025,7 @@ def test_a_strike_just_before_a_bar_in_a_new_meter_is_measured_in_its_beats() ->
 
 def test_a_rushed_pick_up_is_told_from_its_first_beat(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """A 2/8 pick-up before 6/8 is counted as beats 5 and 6; played 40 ms early it is ``beats 5-6`` (the felt
-    beat's first eighth, 4, is not in it: until the day after 7 Dec it was told ``beats 4-6``)."""
+    beat's first eighth, 4, is not in it: until 7 Dec it was told ``beats 4-6``)."""
     exercise = tmp_path / "pickup.txt"
     exercise.write_text("tempo 90\nmeter 2/8\nSN |xx|\nmeter 6/8\nHH |x.x.x.x.x.x.|x.x.x.x.x.x.|\n",
                         encoding="utf-8")

@@ -1,6 +1,6 @@
 """``batteur compare``: a lag growing in a bar's last beat alone is notes off, not a tempo. Four bars of 120 bpm
 played exactly but two snare notes of a fill on bar 2's beat 4 and 4& 60 and 120 ms early read "running ahead in bar
-2: played at about 127 bpm" (until the day after 7 Dec); a bar slowing down then a pause read "falling behind in bar
+2: played at about 127 bpm" (until 7 Dec); a bar slowing down then a pause read "falling behind in bar
 3". A run is told only when its lag grows over a bar's worth of beats (the tempo change played slow of
 test_compare_tempo_lag still is)."""
 

@@ -55,8 +55,8 @@ def test_a_tempo_change_played_off_tempo_is_told_as_falling_behind(
         bpm: float, feel: str, direction: str, said: str, early_late: str, exercise: Path, tmp_path: Path,
         capsys: pytest.CaptureFixture[str]) -> None:
     """The 120 bpm half played at 110 (130): 45 (38) ms more behind (ahead) each beat. Bar 3's late notes weigh in
-    its mean, feel and tempo, bar 4's (182 to 318 ms late) are followed along the lag: no miss, no extra (until the
-    day after 7 Dec bar 3 read +11 ms from its first four notes, not dragging, and bar 4 all missed with 8 extras);
+    its mean, feel and tempo, bar 4's (182 to 318 ms late) are followed along the lag: no miss, no extra (until
+    7 Dec bar 3 read +11 ms from its first four notes, not dragging, and bar 4 all missed with 8 extras);
     a line says the take stayed slower (faster) than written after the change, and its late notes are one line.
     At 105 a whole beat behind by the end: a note more than half a beat late is still the one it was played for,
     not one early for the next (the nearest)."""

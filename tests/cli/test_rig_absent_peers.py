@@ -1,7 +1,7 @@
 """``batteur rig``'s ``--absent ROLE`` and the peers a node holds from its environment or config file.
 
 The rig tells a service a role it did not start is absent (no "no graphics peer known" every minute) only where no
-node of it can be expected, and no static peer of it is given. Until the day after 7 Dec only a ``--peer`` in the
+node of it can be expected, and no static peer of it is given. Until 7 Dec only a ``--peer`` in the
 service's ``--ROLE-arg`` counted: a graphics peer given by ``BATTEUR_PEERS`` or the node's config file, which the node
 sends to, was told absent all the same (its messages counted as unroutable, unsaid). The rig now resolves the peers
 as the node's settings do (flags, else ``BATTEUR_PEERS``, else the config file; a list replaces the one below it),

@@ -128,7 +128,7 @@ def test_options_without_a_score_to_read_are_said_once_at_start(monkeypatch: pyt
                      "--base-port", str(free_ports(4)[0])]) == 0
     err = capsys.readouterr().err
     assert err.count("warning:") == 1, err
-    # not --drum-map: live notes follow it (since c6f810b; until the day after 7 Dec it was named here too)
+    # not --drum-map: live notes follow it (since c6f810b; until 7 Dec it was named here too)
     assert "batteur rig: warning: --drum-channels 1, --hihat-cc4 act on no score: they say how MIDI " \
            "files are read, and this rig reads none" in err
     assert "--physics-arg '--score-dir DIR'" in err and "/batteur/score/note" in err
@@ -138,7 +138,7 @@ def test_options_without_a_score_to_read_are_said_once_at_start(monkeypatch: pyt
 @pytest.mark.parametrize(("argv", "environ"), [
     (["--hihat-cc4", "--services", "sound,interaction"], {}),  # no reader at all
     (["--drum-channels", "1", "--graphics-arg", "--preview out.npz"], {}),  # a pose sequence, not a score
-    # blank values give no library, preview or config (until the day after 7 Dec they silenced the warning)
+    # blank values give no library, preview or config (until 7 Dec they silenced the warning)
     (["--drum-channels", "1", "--physics-arg=--score-dir="], {}),
     (["--drum-channels", "1", "--physics-arg", "--score-dir ' , '"], {}),
     (["--drum-channels", "1", "--graphics-arg=--preview-score="], {}),
@@ -148,14 +148,14 @@ def test_options_without_a_score_to_read_are_said_once_at_start(monkeypatch: pyt
 def test_options_are_said_unused_wherever_no_score_is_read(argv: list[str], environ: dict[str, str]) -> None:
     said = _unread(*argv, environ=environ)
     assert said is not None and said.startswith(f"{argv[0]} {'acts' if argv[0] == '--hihat-cc4' else '1 acts'}")
-    # one option: "it says" (until the day after 7 Dec "they say" for one as for several)
+    # one option: "it says" (until 7 Dec "they say" for one as for several)
     assert "acts on no score: it says how MIDI files are read" in said
     assert "live notes (/batteur/score/note) are read without it" in said
 
 
 def test_drum_map_acts_on_live_notes_and_is_never_said_unused(tmp_path: Path) -> None:
     """Since c6f810b physics reads live notes (/batteur/score/note) with --drum-map: a rig with no MIDI score said it
-    acted on nothing and that live notes were read as General MIDI pitches without it, until the day after 7 Dec."""
+    acted on nothing and that live notes were read as General MIDI pitches without it, until 7 Dec."""
     text = tmp_path / "groove.txt"
     text.write_text("tempo 120\nmeter 4/4\nSN |....x.......x...|\n", encoding="utf-8")
     assert _unread("--drum-map", "roland-td") is None
@@ -169,7 +169,7 @@ def test_drum_map_acts_on_live_notes_and_is_never_said_unused(tmp_path: Path) ->
 
 def test_the_rigs_kit_reaches_a_text_scores_kit_object_ids(tmp_path: Path) -> None:
     """A text score names kit objects by id (c6f810b): ``batteur rig --kit double_pedal --score`` of a score without
-    a ``kit`` line looked ``crash2`` up in the default kit, and refused it, until the day after 7 Dec."""
+    a ``kit`` line looked ``crash2`` up in the default kit, and refused it, until 7 Dec."""
     score = tmp_path / "second_crash.txt"
     score.write_text("tempo 100\nSN |x...|\ncrash2 |..x.|\n", encoding="utf-8")
     opts = rig.build_parser().parse_args(["--score", str(score), "--kit", "double_pedal"])
@@ -183,7 +183,7 @@ def test_the_rigs_kit_reaches_a_text_scores_kit_object_ids(tmp_path: Path) -> No
 
 def test_options_beside_a_text_score_are_said_to_act_only_on_midi_files(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
-    # a text score is read without them: until the day after 7 Dec nothing was said, as for a MIDI --score
+    # a text score is read without them: until 7 Dec nothing was said, as for a MIDI --score
     text = tmp_path / "groove.txt"
     text.write_text("tempo 120\nmeter 4/4\nSN |....x.......x...|\n", encoding="utf-8")
     said = _unread("--score", str(text), "--drum-channels", "1", "--hihat-cc4")

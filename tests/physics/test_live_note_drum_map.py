@@ -1,5 +1,5 @@
 """The physics node reads live notes (``/batteur/score/note``) with its ``--drum-map``, as it reads its MIDI scores:
-the node gives its score player the MIDI reading options (``ScorePlayer.midi``), and until the day after 7 Dec the
+the node gives its score player the MIDI reading options (``ScorePlayer.midi``), and until 7 Dec the
 live path kept General MIDI's map whatever they said (a Roland kit's tom 3 rim, 58, played a china; a pitch only
 the map names was refused as unknown). Driven offline through the core's message handler (rig times as sent)."""
 

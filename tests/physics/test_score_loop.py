@@ -1,7 +1,7 @@
 """``/batteur/score/loop FIRST LAST``: the live drummer repeats bars of the playing score until told otherwise (a
 teacher's students play along), then goes on with the rest of the score.
 
-Until the day after 7 Dec only the graphics service's silent preview looped (``/batteur/graphics/preview_bars``);
+Until 7 Dec only the graphics service's silent preview looped (``/batteur/graphics/preview_bars``);
 the physics score player had no loop. The player runs on a bare PhysicsCore (no physics steps: planning only); the
 planned notes (``ScorePlayer.events``, rig seconds) and the plans' strokes are what the drummer plays."""
 

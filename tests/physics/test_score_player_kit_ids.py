@@ -1,5 +1,5 @@
 """The physics node reads a text score's kit object ids in its own kit (``--kit``): the score player read the score
-without it until the day after 7 Dec, so a score naming ``crash2`` with no ``kit`` line was refused on a node built
+without it until 7 Dec, so a score naming ``crash2`` with no ``kit`` line was refused on a node built
 with ``--kit double_pedal`` ("unknown instrument 'crash2'"), though the node plays it on that kit."""
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ def test_a_text_score_s_object_ids_are_the_node_kit_s(tmp_path: Path) -> None:
 
 def test_live_notes_on_two_objects_of_the_node_kit_are_not_doubles() -> None:
     """Live notes 49 and 57 at once are two crashes on ``double_pedal`` (57 strikes crash2), as a score's are: the
-    score player gives its live notes the node's kit (until the day after 7 Dec it merged them by event type)."""
+    score player gives its live notes the node's kit (until 7 Dec it merged them by event type)."""
     from common.messages.score import LiveNote
 
     core = PhysicsCore(scene="strike", kit="double_pedal", pose_rate_hz=0)

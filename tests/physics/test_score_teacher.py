@@ -2,7 +2,7 @@
 bar and beat of the score's own meter), how much of a play played once it ends, and ``/batteur/score/dynamics`` to
 play louder or softer.
 
-Until the day after 7 Dec the log said only rig seconds (``pause at 74.814 s``), nothing at the end of a play, and
+Until 7 Dec the log said only rig seconds (``pause at 74.814 s``), nothing at the end of a play, and
 no control scaled the notes' velocities (``nuance`` is the stroke's manner, sound levels only the mix). The player
 runs on a bare PhysicsCore (no physics steps: planning only), fast."""
 

@@ -157,7 +157,7 @@ def smf0(title: str, notes: list[tuple[int, int, int]]) -> bytes:
 @pytest.mark.parametrize("first", [(42, 46), (36, 38)])
 def test_a_track_on_several_channels_is_no_click_whatever_its_name(first: tuple[int, int]) -> None:
     # a type 0 file's one track, named Guide: channel 1 (hi-hats, or a kick and a snare: two pitches) was dropped
-    # as a click until the day after 7 Dec, and only channel 2's hi-hats and crash played
+    # as a click until 7 Dec, and only channel 2's hi-hats and crash played
     notes = [(k * 480 + 120, 0, first[k % 2]) for k in range(8)]
     notes += [(k * 240, 1, 42) for k in range(16)] + [(0, 1, 49), (3600, 1, 51)]
     score = read_midi(smf0("Guide", notes))
@@ -167,7 +167,7 @@ def test_a_track_on_several_channels_is_no_click_whatever_its_name(first: tuple[
 
 
 def test_clicks_on_several_channels_say_each_one_s_pitches() -> None:
-    # until the day after 7 Dec counted together: "a click (so named, on 3 pitches)", "on 4 pitches"
+    # until 7 Dec counted together: "a click (so named, on 3 pitches)", "on 4 pitches"
     mixed = smf([("Drums", 0, GROOVE, None), ("Click", 14, [(0, 76), (480, 77)], None),
                  ("Count-in", 15, [(0, 33), (480, 33)], None)])
     [said] = [w for w in read_midi(mixed).warnings if "skipped" in w]

@@ -120,7 +120,7 @@ def test_python_m_common_score_looks_the_ids_up_in_its_kit_option(tmp_path: Path
 def test_a_foot_object_under_a_sticking_mark_warns_as_bd_does() -> None:
     score = parse_text("kit double_pedal\nkick_pedal |xxxx|\nST |RLRL|\n")
     assert [e.limb for e in score.events] == [None] * 4
-    # the id as written (it said KICK_PEDAL until the day after 7 Dec); an alias stays upper-case, as ever
+    # the id as written (it said KICK_PEDAL until 7 Dec); an alias stays upper-case, as ever
     assert score.warnings[-1] == "line 3: ST cells 1-4: kick_pedal is played by a foot; the hands there are ignored"
     score = parse_text("kit double_pedal\nKick_Pedal |x...|\nbd |.x..|\nST |RL..|\n")
     assert score.warnings[-1] == "line 4: ST cells 1-2: BD or Kick_Pedal is played by a foot; the hands there are " \
