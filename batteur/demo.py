@@ -61,12 +61,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--control", default="cartesian", choices=list(render.CONTROL_MODES),
                         help="tracking mode (default: cartesian)")
     parser.add_argument("--strikes", action="store_true", help="render the strike scene instead of the drummer")
-    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.add_argument("--quiet", action="store_true", help="no progress")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace files in DIR that no earlier render wrote (as batteur render --overwrite)")
     opts = parser.parse_args(argv)
-    quiet = ["--quiet"] if opts.quiet else []
+    passed = (["--quiet"] if opts.quiet else []) + (["--overwrite"] if opts.overwrite else [])  # on to render
     if opts.strikes:
         strikes = "0.25:2,0.5:3,0.75:2,1.0:4.5,1.25:1.5,1.375:1.5,1.5:5"
-        code = render.main(["-o", str(opts.output), "--strikes", strikes, *quiet], prog=PROG)
+        code = render.main(["-o", str(opts.output), "--strikes", strikes, *passed], prog=PROG)
         if code == 0:  # no score: nothing to evaluate against
             print(f"listen: {opts.output / 'performance.wav'}")
             print(f"report: {opts.output / 'report.json'}")
@@ -74,7 +76,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     with tempfile.TemporaryDirectory(prefix="batteur-demo-") as tmp:
         score = Path(tmp) / "demo-groove.txt"
         score.write_text(DEMO_GROOVE, encoding="utf-8")
-        code = render.main([str(score), "-o", str(opts.output), "--control", opts.control, *quiet], prog=PROG)
+        code = render.main([str(score), "-o", str(opts.output), "--control", opts.control, *passed], prog=PROG)
     if code == 0:
         point_report_at_copy(opts.output)
         print(f"listen: {opts.output / 'performance.wav'}")
