@@ -121,9 +121,12 @@ STREAM_DENSE_MIN_KNOTS = 3
 """... at least this many of them (a rate takes two intervals to show: a pair of knots close together is as likely two
 waypoints a sender meant, a quick lift and strike), none a posture's (its start and end are waypoints, however short
 its glide), so the knot cuts over all the lag grown since (a dense stream catches up after a long skip)."""
-BEHIND_ADVICE = ("give physics a less loaded machine, a lower --control-rate-hz (e.g. 500), or fewer programs on its "
-                 "CPU core")
-"""What the live warnings of physics falling behind tell the user to do, after saying what they hear."""
+def behind_advice(control_rate_hz: float) -> str:
+    """What the live warnings of physics falling behind tell the user to do, after saying what they hear: a lower
+    control rate only while there is one to suggest (half of ``control_rate_hz``, Hz, down to 250, where the strokes'
+    tracking misses its 5 mm; until 7 Dec "e.g. 500" was suggested at 500 too)."""
+    lower = f"a lower --control-rate-hz (e.g. {max(250.0, control_rate_hz / 2):g}), " if control_rate_hz > 250 else ""
+    return f"give physics a less loaded machine, {lower}or fewer programs on its CPU core"
 BEHIND_DOCS = "docs/physics.md, 'When physics falls behind'"
 """Where those warnings' details are explained (named at their end)."""
 
@@ -330,8 +333,8 @@ class PhysicsCore:
                     # said plainly first (a teacher on a loaded machine saw it every 5 s), the detail after
                     log.warning("physics is %.0f ms behind real time: notes play late or are skipped; %s (detail: "
                                 "%d steps behind the rig clock, %d skipped, %d in all%s; %s)",
-                                (behind + skip) * dt * 1e3, BEHIND_ADVICE, behind + skip, skip, self.skipped_steps,
-                                trailing, BEHIND_DOCS)
+                                (behind + skip) * dt * 1e3, behind_advice(self.settings.control_rate_hz), behind + skip,
+                                skip, self.skipped_steps, trailing, BEHIND_DOCS)
                     self._last_skip_warning = now
             if self.target_lag > 0.0:
                 self._catch_up_targets(now)
@@ -592,7 +595,7 @@ class PhysicsCore:
                 log.warning("physics is %.0f ms behind real time: the drummer's hands jump to catch up and the notes "
                             "between are skipped; %s (detail: the targets jumped %.0f ms toward the rig clock, %.0f ms "
                             "behind it now; the strokes between dropped with %s; %d such jumps in all, %s; %s)",
-                            lag * 1e3, BEHIND_ADVICE, excess * 1e3, floor * 1e3,
+                            lag * 1e3, behind_advice(self.settings.control_rate_hz), excess * 1e3, floor * 1e3,
                             *self._notes_dropped(*dropped, self.target_jumps_late), BEHIND_DOCS)
                 self._last_jump_warning = now
 
@@ -618,7 +621,8 @@ class PhysicsCore:
                         "to catch up and the notes between are skipped; %s (detail: targets held by what was placed "
                         "while they trailed jumped %.0f ms, %.0f ms behind now: %s; %d streamed knots re-timed to "
                         "their rig times, %d passed; dropped %s; %d such jumps in all, %s; %s)",
-                        lag * 1e3, MAX_TARGET_LAG_HARD_S * 1e3, BEHIND_ADVICE, (lag - to) * 1e3, to * 1e3,
+                        lag * 1e3, MAX_TARGET_LAG_HARD_S * 1e3, behind_advice(self.settings.control_rate_hz),
+                        (lag - to) * 1e3, to * 1e3,
                         "the lag the score plan playing was placed with" if to > 0.0 else "on it", ahead, passed,
                         *self._notes_dropped(*dropped, self.target_jumps_late), BEHIND_DOCS)
             self._last_bound_warning = now

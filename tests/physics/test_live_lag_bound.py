@@ -350,3 +350,14 @@ def test_a_limb_track_cut_drops_its_knots_and_strikes_from_there_on() -> None:
     track.add_strike(Strike(1.2, 1.202, np.array([0.0, 0.0, -1.0]), 2.0, "snare"))
     track.cut(1.0)
     assert track.times == [0.0, 0.5] and [s.time for s in track.strikes] == [0.5]
+
+
+def test_the_advice_suggests_a_lower_control_rate_only_while_there_is_one() -> None:
+    """At 1 kHz half of it; at 500 Hz 250, not "e.g. 500" again; at 250 Hz and below no lower rate (tracking misses
+    its 5 mm there), the rest of the advice kept."""
+    from services.physics.core import behind_advice
+
+    assert "a lower --control-rate-hz (e.g. 500)," in behind_advice(1000.0)
+    assert "a lower --control-rate-hz (e.g. 250)," in behind_advice(500.0)
+    assert "control-rate" not in behind_advice(250.0)
+    assert behind_advice(250.0) == "give physics a less loaded machine, or fewer programs on its CPU core"
