@@ -55,6 +55,12 @@ async def health_after(core: Core, role: str,
     answers and every message that came back before it (the node handles one sender's datagrams in order)."""
     node = Node(core, load_settings({"role": role, "discovery": False, "clock_master": "self",  # type: ignore[arg-type]
                                      "oscquery": False}))
+    return await node_health_after(node, flood)
+
+
+async def node_health_after(node: Node, flood: Sequence[RawSend | OscMessage]) -> tuple[Health, list[OscMessage]]:
+    """Start ``node``, send it ``flood`` from one loopback socket, then a Hello: the Health it answers and every
+    message that came back before it; the node is stopped after."""
     await node.start()
     assert node.endpoint is not None
     client = await UdpEndpoint.open("127.0.0.1")

@@ -13,22 +13,22 @@ from __future__ import annotations
 
 import asyncio
 import threading
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator
 
 import pytest
 
 import common.runtime
 from batteur.tools import send
 from common.config import load_settings
-from common.messages import Health, Hello, OscMessage
+from common.messages import OscMessage
 from common.messages.graphics import GraphicsLatency, GraphicsRejected
 from common.messages.interaction import InteractionError, RouteSet
 from common.messages.physics import CartesianTarget, PhysicsRejected
 from common.messages.score import LiveNote
 from common.messages.sound import SoundLevel, SoundMaster, SoundRejected
 from common.runtime import WRONG_NODE_REPLY_BURST, Node
-from common.transport import UdpEndpoint
 from tests.recording_core import RecordingCore
+from tests.test_health_unanswered import node_health_after
 from tests.waiting import wait_for
 
 pytestmark = pytest.mark.timeout(60)
@@ -48,27 +48,6 @@ def make_node(role: str, node_id: str = "") -> Node:
     return Node(RecordingCore(role), load_settings(settings))  # type: ignore[arg-type]
 
 
-async def answers(node: Node, messages: Sequence[OscMessage]) -> tuple[Health, list[OscMessage]]:
-    """Start ``node``, send it ``messages`` from one loopback socket, then a Hello: its Health and every message that
-    came back before it."""
-    await node.start()
-    assert node.endpoint is not None
-    client = await UdpEndpoint.open("127.0.0.1")
-    got: list[OscMessage] = []
-    client.set_handler(lambda message, _: got.append(message))
-    try:
-        for message in messages:
-            client.send(message, node.endpoint.local_address)
-        client.send(Hello(role="test", node_id="test-1", protocol=1, osc_port=client.port),
-                    node.endpoint.local_address)
-        await wait_for(lambda: any(isinstance(m, Health) for m in got), 20.0)
-        health = next(m for m in got if isinstance(m, Health))
-        return health, got[:got.index(health)]
-    finally:
-        client.close()
-        await node.stop()
-
-
 @pytest.mark.parametrize(("role", "message", "owner", "refusal"), [
     ("physics", LEVEL, "sound", PhysicsRejected),  # the walkthrough: a hi-hat level sent to physics' port
     ("sound", NOTE, "physics", SoundRejected),
@@ -78,7 +57,7 @@ async def answers(node: Node, messages: Sequence[OscMessage]) -> tuple[Health, l
 ])
 def test_a_control_of_another_service_is_answered_with_the_nodes_refusal(
         role: str, message: OscMessage, owner: str, refusal: type[OscMessage]) -> None:
-    health, before = asyncio.run(answers(make_node(role), [message]))
+    health, before = asyncio.run(node_health_after(make_node(role), [message]))
     assert len(before) == 1 and isinstance(before[0], refusal), before
     fields = before[0].model_dump()
     assert fields.get("address", fields.get("request")) == message.ADDRESS  # the refused message, by address
@@ -88,7 +67,7 @@ def test_a_control_of_another_service_is_answered_with_the_nodes_refusal(
 
 
 def test_a_nodes_own_control_gets_no_refusal() -> None:
-    health, before = asyncio.run(answers(make_node("sound"), [MASTER]))
+    health, before = asyncio.run(node_health_after(make_node("sound"), [MASTER]))
     assert before == [] and health.dropped == 0
 
 
@@ -97,7 +76,7 @@ def test_the_refusals_are_budgeted_per_sender_host(monkeypatch: pytest.MonkeyPat
     monkeypatch.setattr(common.runtime, "WRONG_NODE_REPLY_RATE_HZ", 0.0)  # no refill: exact whatever the speed
     flood = 3 * int(WRONG_NODE_REPLY_BURST)
     node = make_node("physics")
-    health, before = asyncio.run(answers(node, [MASTER] * flood))
+    health, before = asyncio.run(node_health_after(node, [MASTER] * flood))
     assert len(before) == WRONG_NODE_REPLY_BURST and all(isinstance(m, PhysicsRejected) for m in before)
     assert node.wrong_node_unanswered == flood - WRONG_NODE_REPLY_BURST
     assert health.dropped_wrong_node == flood
