@@ -74,6 +74,7 @@ if TYPE_CHECKING:
     from batteur.calibration import Calibration
     from services.graphics.export.bvh import BvhStream
     from services.interaction.config import InteractionConfig
+    from services.physics.anthropometry import SkeletonUnits
     from services.physics.core import PhysicsCore
 
 CONTROL_MODES: dict[str, str] = {
@@ -177,6 +178,9 @@ class RenderOptions:
     (``PhysicsSettings.asymmetric_limits``)."""
     skeleton_bvh: Path | None = None
     """BVH file whose skeleton gives the drummer's proportions (None: de Leva's table)."""
+    skeleton_units: SkeletonUnits = "auto"
+    """``skeleton_bvh``'s length unit (``--skeleton-units``): ``auto`` guesses it from the performer its lengths
+    make (``services.physics.bvh_motion.read_skeleton``)."""
     height_m: float = STATURE_M
     """The drummer's height, metres (1.2 to 2.2): physics' body (de Leva's segments scaled) and the planner's
     reach."""
@@ -593,7 +597,8 @@ def start_drummer(plan: GesturePlan, kit: Kit, opts: RenderOptions, start_s: flo
                           rate_hz=opts.rate_hz, pose_rate_hz=physics_pose_rate(opts), control_rate_hz=control_rate_hz,
                           height_m=opts.height_m, mass_kg=opts.mass_kg, limits_from=opts.limits_from,
                           asymmetric_limits=opts.asymmetric_limits,
-                          skeleton_bvh=None if opts.skeleton_bvh is None else str(opts.skeleton_bvh))
+                          skeleton_bvh=None if opts.skeleton_bvh is None else str(opts.skeleton_bvh),
+                          skeleton_units=opts.skeleton_units)
     physics.time_offset = start_s
     reach = getattr(physics.scene, "reach", None)
     if reach is not None:
@@ -899,6 +904,7 @@ def score_report(result: ScoreRender, source: str, opts: RenderOptions, warnings
         "control": opts.control,
         "limits_from": list(opts.limits_from),
         "skeleton_bvh": None if opts.skeleton_bvh is None else str(opts.skeleton_bvh),
+        "skeleton_units": opts.skeleton_units,
         "physics": result.physics,
         "calibration": str(opts.calibration) if opts.calibration else None,
         # absolute: the report is read from elsewhere than the shell the render ran in
@@ -936,12 +942,13 @@ def _drum_channels_json(opts: RenderOptions) -> list[int] | None:
 
 def write_outputs(output: Path, audio: np.ndarray, sample_rate: int, impacts: list[Any], report: dict[str, Any],
                   poses: Any = None, score: Path | None = None,
-                  video: Callable[[Path], dict[str, Any]] | None = None, bvh_rate_hz: float | None = None
-                  ) -> list[Path]:
+                  video: Callable[[Path], dict[str, Any]] | None = None, bvh_rate_hz: float | None = None,
+                  units: Literal["m", "cm"] = "m") -> list[Path]:
     """Write every output into a staging directory, then move them into ``output`` (nothing partial).
 
     ``bvh_rate_hz``: the BVH's frame rate (physics' pose rate); None: the poses' median interval, which on the
-    1 ms step grid is 17 ms for 60 Hz poses (58.8 frames a second, an odd rate for animation tools).
+    1 ms step grid is 17 ms for 60 Hz poses (58.8 frames a second, an odd rate for animation tools). ``units``: the
+    BVH's length unit (``--bvh-units``: :data:`BVH_UNITS_PER_METRE`), as the streamed one's.
 
     ``score``: copied in as ``score<suffix>`` so the directory can be evaluated on its own.
     ``video``: called with the staging directory once the WAV is there; writes the video into it and returns
@@ -954,7 +961,7 @@ def write_outputs(output: Path, audio: np.ndarray, sample_rate: int, impacts: li
             say_rf64(wav, len(audio), sample_rate)
         sf.write(wav, audio, sample_rate, subtype="PCM_24", format=fmt)
         write_impacts_csv(impacts, staging.path / "impacts.csv")
-        write_rest(staging, report, poses, score, video, bvh_rate_hz)
+        write_rest(staging, report, poses, score, video, bvh_rate_hz, units=units)
         return staging.commit()
 
 
@@ -962,14 +969,16 @@ def write_rest(staging: Staging, report: dict[str, Any], poses: Any = None, scor
                video: Callable[[Path], dict[str, Any]] | None = None, bvh_rate_hz: float | None = None,
                gltf: Callable[[Path], dict[str, Any]] | None = None,
                end_sites: dict[str, tuple[float, float, float]] | None = None,
-               kit_copy: KitCopy | None = None) -> None:
+               kit_copy: KitCopy | None = None, units: Literal["m", "cm"] = "m") -> None:
     """The outputs after the WAV and impacts.csv (see :func:`write_outputs`): the BVH of ``poses`` (kept in
-    memory; its End Sites ``end_sites``, as :class:`StreamedOutputs`'), the video, the glTF (``gltf``: as
+    memory; its End Sites ``end_sites``, as :class:`StreamedOutputs`'; in ``units``, :data:`BVH_UNITS_PER_METRE`'s,
+    as :class:`StreamedOutputs`' ``bvh_scale``: until 7 Dec always metres), the video, the glTF (``gltf``: as
     ``video``, listed as ``report["gltf"]``), the score's copy, the kit file's (``kit_copy``) and report.json."""
     if poses is not None:
         from services.graphics.export.bvh import write_bvh
 
-        write_bvh(poses, staging.path / "performance.bvh", rate_hz=bvh_rate_hz, end_sites=end_sites)
+        write_bvh(poses, staging.path / "performance.bvh", rate_hz=bvh_rate_hz, end_sites=end_sites,
+                  scale=BVH_UNITS_PER_METRE[units])  # file units per metre
     if video is not None:
         report["video"] = video(staging.path)
     if gltf is not None:
@@ -1166,10 +1175,9 @@ def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: boo
             gltf = gltf_writer(result, kit, opts, quiet)
         if wav_cut:  # before the video, which muxes the WAV written (until 7 Dec the uncut one, 1.5 s longer)
             shift_wav(staging.path / "performance.wav", wav_cut, prog)
-        kept_poses = result.poses if outputs.bvh is None else None  # else the BVH is written already (in metres:
-        # without a rate, physics' default, only the library call gets here; --bvh-units needs --bvh-rate's stream)
+        kept_poses = result.poses if outputs.bvh is None else None  # else the BVH is written already
         write_rest(staging, report, kept_poses, Path(path), video, bvh_rate_hz=opts.pose_rate_hz or None,
-                   gltf=gltf, end_sites=outputs.end_sites, kit_copy=kit_copy)
+                   gltf=gltf, end_sites=outputs.end_sites, kit_copy=kit_copy, units=opts.bvh_units)
         staging.commit()
     return report
 
@@ -1244,7 +1252,7 @@ def _check_motion_capture(opts: RenderOptions) -> None:
         raise ValueError(f"--limits-from: {exc}") from None
     if opts.skeleton_bvh is not None:
         try:  # no joint found by name, proportions no body can have: the physics node refuses them alike
-            usable_segment_lengths(opts.skeleton_bvh)
+            usable_segment_lengths(opts.skeleton_bvh, opts.skeleton_units)
         except (ValueError, OSError) as exc:
             raise ValueError(f"--skeleton-bvh: {exc}") from None
 
@@ -1256,7 +1264,7 @@ def skeleton_limbs(opts: RenderOptions) -> LimbLengths | None:
         return None
     from services.physics.bvh_motion import skeleton_limb_lengths
 
-    return skeleton_limb_lengths(opts.skeleton_bvh, opts.height_m, opts.mass_kg)
+    return skeleton_limb_lengths(opts.skeleton_bvh, opts.height_m, opts.mass_kg, opts.skeleton_units)
 
 
 def body_end_sites(opts: RenderOptions) -> dict[str, tuple[float, float, float]]:
@@ -1270,7 +1278,8 @@ def body_end_sites(opts: RenderOptions) -> dict[str, tuple[float, float, float]]
     from services.physics.character import CharacterSpec, build_character
 
     skeleton = None if opts.skeleton_bvh is None else str(opts.skeleton_bvh)
-    model = build_character(CharacterSpec(performer_anthropometry(opts.height_m, opts.mass_kg, skeleton)))
+    model = build_character(CharacterSpec(performer_anthropometry(opts.height_m, opts.mass_kg, skeleton,
+                                                                  opts.skeleton_units)))
     fixed = {joint.child: joint for part in model.parts for joint in part.robot.joints if joint.kind == "fixed"}
     sites: dict[str, tuple[float, float, float]] = {}
     for tip in model.tips.values():  # the tips hang on fixed joints from their link (stick, foot)
@@ -1482,6 +1491,8 @@ def gltf_writer(result: ScoreRender, kit: Kit, opts: RenderOptions, quiet: bool)
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from services.physics.anthropometry import SKELETON_UNITS  # de Leva's table: no scipy, no PyBullet
+
     parser = argparse.ArgumentParser(
         prog="batteur render",
         description="Render a score offline through the same cores as the rig (planner -> physics drummer -> "
@@ -1535,6 +1546,12 @@ def build_parser() -> argparse.ArgumentParser:
                       help="BVH file whose skeleton gives the drummer's proportions (arms, legs, neck, shoulder "
                       "height above the hips, shoulder and hip widths), so the simulated performer matches the "
                       "captured one (default: de Leva's table for --height and --mass)")
+    body.add_argument("--skeleton-units", choices=SKELETON_UNITS, default="auto",
+                      help="length unit of the --skeleton-bvh file (a BVH does not say it): auto (the default) "
+                      "guesses it, the unit in which its lengths are a 1.2 to 2.2 m performer's; m, cm, mm or in "
+                      "takes the file as that (a child-sized or stylised character, which a guess would read in "
+                      "another unit: a 0.68 m one in centimetres is a 1.74 m one in inches), a stature outside "
+                      "1.2 to 2.2 m then warned of, not refused")
     add_body_options(body, skeleton=True)
     outputs = parser.add_argument_group("motion, glTF and video outputs")
     outputs.add_argument("--bvh-rate", type=float, default=RenderOptions.pose_rate_hz, metavar="HZ",
@@ -1654,7 +1671,7 @@ def options_from(args: argparse.Namespace) -> RenderOptions:
                          video_size=_given(args.video_size, (640, 360)), control_rate_hz=args.control_rate,
                          jobs=resolve_jobs(args.jobs), segment_s=_given(args.segment, 30.0),
                          limits_from=tuple(args.limits_from), asymmetric_limits=args.asymmetric_limits,
-                         skeleton_bvh=args.skeleton_bvh,
+                         skeleton_bvh=args.skeleton_bvh, skeleton_units=args.skeleton_units,
                          height_m=height_of(args), mass_kg=args.mass, pose_rate_hz=args.bvh_rate,
                          bvh_units=args.bvh_units,
                          bvh_sync=_given(args.bvh_sync, RenderOptions.bvh_sync), midi=midi_read_kwargs(args),
@@ -1669,18 +1686,21 @@ def _given(value: T | None, default: T) -> T:
     return default if value is None else value
 
 
-def skeleton_warnings(skeleton: Path, height_m: float | None) -> list[str]:
+def skeleton_warnings(skeleton: Path, height_m: float | None, units: SkeletonUnits = "auto") -> list[str]:
     """What ``--skeleton-bvh`` with (or without: None) ``--height`` leaves to the height, said at the render's
-    start, with the unit the skeleton is read in and the height of a performer of its proportions
-    (``services.physics.bvh_motion.read_skeleton``); for a file no body is built from (its error follows), only what
-    ``--height`` does."""
-    from services.physics.bvh_motion import read_skeleton, usable_segment_lengths
+    start, with the unit the skeleton is read in (``units``: ``--skeleton-units``) and the height of a performer of
+    its proportions (``services.physics.bvh_motion.read_skeleton``), and for a unit given, a height outside the
+    performers' and what it means for the drummer (``stature_warning``); for a file no body is built from (its
+    error follows), only what ``--height`` does."""
+    from services.physics.bvh_motion import read_skeleton, stature_warning, usable_segment_lengths
 
     try:  # a skeleton no body can be built from is refused after the warnings
-        usable_segment_lengths(skeleton)
-        reading = read_skeleton(skeleton)
+        usable_segment_lengths(skeleton, units)
+        reading = read_skeleton(skeleton, units)
     except (ValueError, OSError):
         reading = None
+    outside = None if reading is None else stature_warning(reading)
+    said = [] if outside is None else [f"--skeleton-units {units}: {outside}"]
     limbs = ("the skeleton gives the limbs (arms, legs, neck, the shoulders' height above the hips, their widths) "
              "and the planner's reach")
     stature = None if reading is None else reading.stature_m
@@ -1688,7 +1708,7 @@ def skeleton_warnings(skeleton: Path, height_m: float | None) -> list[str]:
     read = "" if reading is None else f"; the skeleton{tall} is read in {reading.unit_words}"
     if height_m is not None:
         return [f"--height {height_m:g} with --skeleton-bvh: {limbs}; --height places the shoulders and hips over "
-                f"the throne and sizes the hands, feet and head{read}"]
+                f"the throne and sizes the hands, feet and head{read}", *said]
     if reading is None:
         return []
     low, high = HEIGHT_RANGE_M
@@ -1697,7 +1717,7 @@ def skeleton_warnings(skeleton: Path, height_m: float | None) -> list[str]:
     else:
         hint = f"give --height (the performer's, {low:g} to {high:g} m) to size them"
     return [f"--skeleton-bvh without --height: {limbs}; the hands, feet and head and the body's place over the "
-            f"throne are the default {STATURE_M:g} m drummer's: {hint}{read}"]
+            f"throne are the default {STATURE_M:g} m drummer's: {hint}{read}", *said]
 
 
 def options_in_vain(args: argparse.Namespace) -> list[str]:
@@ -1707,7 +1727,9 @@ def options_in_vain(args: argparse.Namespace) -> list[str]:
     if args.event is not None and args.strikes is None:
         warnings.append("--event has no effect without --strikes (a score's notes say what is struck)")
     if args.skeleton_bvh is not None and args.strikes is None:
-        warnings.extend(skeleton_warnings(args.skeleton_bvh, args.height))
+        warnings.extend(skeleton_warnings(args.skeleton_bvh, args.height, args.skeleton_units))
+    if args.skeleton_units != "auto" and args.skeleton_bvh is None:
+        warnings.append("--skeleton-units has no effect without --skeleton-bvh")
     if args.asymmetric_limits and not args.limits_from:
         warnings.append("--asymmetric-limits has no effect without --limits-from (the default limits are always "
                         "mirror-symmetric)")

@@ -23,9 +23,15 @@ mass where de Leva puts it.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, get_args
 
 Sex = Literal["male", "female"]
+SkeletonUnits = Literal["auto", "m", "cm", "mm", "in"]
+"""A skeleton file's length unit as ``--skeleton-units`` takes it (``batteur render``, the physics node): ``auto``,
+guessed from the performer its lengths make (:func:`services.physics.bvh_motion.read_skeleton`), or the unit the
+user knows the file is in (``services.physics.bvh_motion.METRES_PER_SKELETON_UNIT``'s keys). Here, not beside the
+reader: the settings and the render's parser name it without importing scipy."""
+SKELETON_UNITS: tuple[str, ...] = get_args(SkeletonUnits)
 
 
 @dataclass(frozen=True)
@@ -258,14 +264,15 @@ def body_mass_of(a: Anthropometry) -> float:
     return sum(s.mass_kg * (2 if s.name in paired else 1) for s in a.segments.values())
 
 
-def performer_anthropometry(height_m: float, mass_kg: float, skeleton_bvh: str | None = None) -> Anthropometry:
+def performer_anthropometry(height_m: float, mass_kg: float, skeleton_bvh: str | None = None,
+                            skeleton_units: SkeletonUnits = "auto") -> Anthropometry:
     """The simulated drummer's body (the drummer scene's, and the End Sites ``batteur render`` gives performance.bvh):
     :func:`anthropometry` for ``height_m`` (metres) and ``mass_kg``, its limbs from a motion-capture skeleton's
-    segment lengths when ``skeleton_bvh`` (a BVH path) is given. ``ValueError`` naming the file for proportions the
-    table cannot take."""
-    from services.physics.bvh_motion import bvh_segment_lengths  # scipy and the BVH reader: only with a skeleton
+    segment lengths when ``skeleton_bvh`` (a BVH path) is given, read in ``skeleton_units`` (:data:`SkeletonUnits`).
+    ``ValueError`` naming the file for proportions the table cannot take."""
+    from services.physics.bvh_motion import read_skeleton  # scipy and the BVH reader: only with a skeleton
 
-    lengths = bvh_segment_lengths(skeleton_bvh) if skeleton_bvh else None
+    lengths = read_skeleton(skeleton_bvh, skeleton_units).lengths_m if skeleton_bvh else None
     try:
         return anthropometry(height_m, mass_kg, lengths_m=lengths)
     except ValueError as exc:  # the skeleton's proportions: name the file they come from

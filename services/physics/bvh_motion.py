@@ -359,6 +359,8 @@ class SkeletonReading:
     """Why that unit, for messages ("its longest offset, 100, is over 3", "given")."""
     fits: bool = True
     """False when no unit gives a performer (:func:`read_skeleton`): the lengths are the first guess's."""
+    given: bool = False
+    """True when the unit was given (``--skeleton-units``), not guessed."""
 
     @property
     def unit_words(self) -> str:
@@ -433,7 +435,7 @@ def read_skeleton(path: str | Path, units: str = "auto") -> SkeletonReading:
     bvh = read_bvh(path)
     raw = _raw_lengths(bvh, map_segments(bvh, str(path)), str(path))
     if units != "auto":
-        return SkeletonReading(_scaled(raw, units), units, "as given")
+        return SkeletonReading(_scaled(raw, units), units, "as given", given=True)
     longest = max((float(np.linalg.norm(j.offset)) for j in bvh.joints), default=0.0)
     first = "cm" if longest > CENTIMETRES_ABOVE else "m"
     why = f"its longest offset, {longest:.4g}, is {'over' if first == 'cm' else 'at most'} {CENTIMETRES_ABOVE:g}"
@@ -493,7 +495,7 @@ def skeleton_stature(lengths_m: dict[str, float]) -> float | None:
     return float(f"{1.75 * ratio:.3g}")
 
 
-def bvh_segment_lengths(path: str | Path, units_to_m: float | None = None) -> dict[str, float]:
+def bvh_segment_lengths(path: str | Path, units_to_m: float | None = None, units: str = "auto") -> dict[str, float]:
     """Lengths (metres) from a BVH skeleton's rest pose, for :func:`anthropometry`'s ``lengths_m``, each measured
     between joint centres found by :func:`map_segments` (what the file lacks is left out):
 
@@ -503,10 +505,11 @@ def bvh_segment_lengths(path: str | Path, units_to_m: float | None = None) -> di
       the kit), or where the file has no shoulders, ``trunk``: the neck joint's;
     - ``shoulder_width`` and ``hip_width``: between the two shoulder joints, the two hip joints.
 
-    ``units_to_m``: factor from the file's units to metres; by default guessed (:func:`read_skeleton`'s ``auto``).
+    ``units_to_m``: factor from the file's units to metres; by default the unit ``units`` (:func:`read_skeleton`'s:
+    ``auto`` guesses it).
     """
     if units_to_m is None:
-        return read_skeleton(path).lengths_m
+        return read_skeleton(path, units).lengths_m
     bvh = read_bvh(path)
     return {name: length * units_to_m for name, length in _raw_lengths(bvh, map_segments(bvh, str(path)),
                                                                          str(path)).items()}
@@ -514,26 +517,53 @@ def bvh_segment_lengths(path: str | Path, units_to_m: float | None = None) -> di
 
 def usable_segment_lengths(path: str | Path, units: str = "auto") -> dict[str, float]:
     """:func:`bvh_segment_lengths` of a skeleton a body can be built from (``--skeleton-bvh`` of ``batteur render``
-    and of the physics node, checked at their start). :class:`BvhError` naming the file when none of its joints is
-    found by name (without it the body would silently be de Leva's; the names it has and those known are said) or
-    for proportions or a stature no performer has (the unit it was read in is said, and when guessed, the stature
-    each unit implies); what reading the file raises."""
+    and of the physics node, checked at their start), read in ``units`` (:func:`read_skeleton`'s). :class:`BvhError`
+    naming the file when none of its joints is found by name (without it the body would silently be de Leva's; the
+    names it has and those known are said) or for proportions no body has (the unit it was read in is said, and
+    when guessed, the stature each unit implies); with the unit guessed, a stature no performer has is refused too
+    (the guess found none), with a unit given it is the user's to choose (:func:`stature_warning` says it); what
+    reading the file raises."""
     reading = read_skeleton(path, units)
     if not reading.lengths_m:
         raise BvhError(f"{path}: no arm, leg or trunk joints found by their usual BVH names: "
                        f"{unmatched_words(read_bvh(path))}")
-    problem = _performer_problem(reading.lengths_m)
+    if units == "auto":
+        problem = _performer_problem(reading.lengths_m)
+    else:  # a child-sized or stylised character the user says the unit of: built if a body can have its lengths
+        problem = _problem(reading.lengths_m)
+        stature = reading.stature_m
+        if problem is not None and stature is not None:  # which performer the unit given makes: a unit mistaken
+            problem += f"; its lengths are a {stature:g} m performer's"
     if problem is not None:  # a skeleton lying down, a child's, in a unit no guess finds
         raise BvhError(f"{path}: {problem}, read in {reading.unit_words}")
     return reading.lengths_m
 
 
-def skeleton_limb_lengths(path: str | Path, height_m: float, mass_kg: float) -> LimbLengths:
+def stature_warning(reading: SkeletonReading) -> str | None:
+    """What a skeleton read in a unit given (not guessed: a guess keeps to performers) means for the drummer when
+    its lengths are those of a performer outside :data:`STATURE_RANGE_M` (:attr:`SkeletonReading.stature_m`); None
+    within it. For the start of ``batteur render`` and of the physics node, which build it anyway."""
+    stature, (low, high) = reading.stature_m, STATURE_RANGE_M
+    if not reading.given or stature is None or low <= stature <= high:
+        return None
+    if stature < low:
+        means = ("its shorter arms and legs may not reach every instrument of a kit set for a performer (the notes "
+                 "there are missed; the kit's reach warning names the instruments)")
+    else:
+        means = "its longer arms and legs play a kit set for a shorter performer, cramped"
+    return (f"the skeleton, read in {UNIT_WORDS[reading.unit]} as given, has a {stature:g} m performer's lengths, "
+            f"outside the {low:g} to {high:g} m of the performers the kits are set for: the drummer gets its arms, "
+            f"legs, neck and trunk (the hands, feet and head and the place over the throne follow the drummer's "
+            f"height); {means}")
+
+
+def skeleton_limb_lengths(path: str | Path, height_m: float, mass_kg: float, units: str = "auto") -> LimbLengths:
     """The arms (upper arm + forearm + hand) and legs (thigh + shank) of the body physics builds from the skeleton
-    of the BVH file at ``path``, metres: the segments the file lacks are de Leva's for ``height_m`` (as
-    ``anthropometry(lengths_m=...)`` takes them). For the planner's reach (``batteur render --skeleton-bvh``, the
-    physics node's). Raises what reading the file raises (``OSError``, ``ValueError``)."""
+    of the BVH file at ``path``, read in ``units`` (:func:`read_skeleton`'s), metres: the segments the file lacks
+    are de Leva's for ``height_m`` (as ``anthropometry(lengths_m=...)`` takes them). For the planner's reach
+    (``batteur render --skeleton-bvh``, the physics node's). Raises what reading the file raises (``OSError``,
+    ``ValueError``)."""
     from services.physics.anthropometry import anthropometry
 
-    segments = anthropometry(height_m, mass_kg, lengths_m=bvh_segment_lengths(path)).segments
+    segments = anthropometry(height_m, mass_kg, lengths_m=bvh_segment_lengths(path, units=units)).segments
     return LimbLengths.of_segments({name: s.length_m for name, s in segments.items()})

@@ -66,6 +66,7 @@ from common.messages.physics import (
 from common.rated_log import RatedWarnings
 from common.score.events import MAX_SCORE_NOTES
 from common.token_bucket import TokenBuckets
+from services.physics.anthropometry import SkeletonUnits
 from services.physics.contacts import ContactTracker
 from services.physics.posture import apply_posture
 from services.physics.score_player import SCORE_MESSAGES, ScorePlayer
@@ -183,6 +184,10 @@ class PhysicsSettings(BaseModel):
         default=None, description="drummer: BVH file whose skeleton gives the body's proportions (arms, legs, neck, "
         "shoulder height above the hips, shoulder and hip widths; hands, feet and head from de Leva's table for the "
         "height and mass)")
+    skeleton_units: SkeletonUnits = Field(
+        default="auto", description="drummer: the length unit of skeleton_bvh's file: auto (guessed: the one in which "
+        "its lengths are a 1.2 to 2.2 m performer's), m, cm, mm or in (a child-sized or stylised character's unit, "
+        "which a guess would take for another; a stature outside 1.2 to 2.2 m is then warned of, not refused)")
 
 
 class Scene(Protocol):

@@ -310,7 +310,8 @@ class DrummerScene:
         self.kit_bodies = build_kit(world, kit)
         self.seat_position = tuple(kit.seat_position())  # the planner's reach (common/score/limbs.py) starts here too
         self._floor(world)
-        self.anthro = performer_anthropometry(settings.height_m, settings.mass_kg, settings.skeleton_bvh)
+        self.anthro = performer_anthropometry(settings.height_m, settings.mass_kg, settings.skeleton_bvh,
+                                              settings.skeleton_units)
         self.spec = CharacterSpec(self.anthro, limits=self.limits.dof_limits())
         self.model = build_character(self.spec)
         self.body = Body(world, self.model, self.seat_position,  # type: ignore[arg-type]

@@ -63,7 +63,8 @@ class MotionClip:
     times: np.ndarray
     rotations: dict[str, Rotation]
     source: str = ""
-    """The file it was read from ("": made in memory): what tells two clips of one name apart."""
+    """The file it was read from, as given (a shipped DeepMimic clip: its name; "": made in memory): what tells two
+    clips of one name apart, and what the notes about the clip name."""
 
     @property
     def rate_hz(self) -> float:
@@ -73,7 +74,8 @@ class MotionClip:
         """(F, 3) intrinsic x-y-z Euler angles (radians) of a joint, as our three revolute DOF see them.
 
         Frames at gimbal lock (y at +-90 degrees: x and z turn about one axis) get the whole turn in x, z 0, as
-        scipy does; that is logged once per clip and joint in plain words instead of scipy's warning."""
+        scipy does; that is logged once per clip and joint in plain words instead of scipy's warning, naming the
+        clip by its file as given (two walk.bvh of two folders told apart), else its name."""
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             angles = np.asarray(self.rotations[joint].as_euler("XYZ"))
@@ -91,7 +93,7 @@ class MotionClip:
             frames = len(angles) if angles.ndim == 2 else 1
             log.warning("clip %s: joint %s is at gimbal lock (its y angle at 90 degrees) in %d of %d frames: its x "
                         "and z angles cannot be told apart there; the whole turn was given to x (z 0) for its "
-                        "limits", self.name, joint, max(at_lock, 1), frames)
+                        "limits", self.source or self.name, joint, max(at_lock, 1), frames)
         return angles
 
     def quaternions(self, joint: str) -> np.ndarray:
@@ -170,4 +172,6 @@ def load_deepmimic(name_or_path: str | Path) -> MotionClip:
             rotations["neck"] = rotations["head"] = _half(rot)
         else:
             rotations[joint] = rot
-    return MotionClip(path.stem.removeprefix("humanoid3d_"), times, rotations, str(path))
+    name = path.stem.removeprefix("humanoid3d_")
+    shipped = path.parent == MOTIONS_DIR and str(name_or_path) == name  # named, not a path: said by its name
+    return MotionClip(name, times, rotations, name if shipped else str(path))

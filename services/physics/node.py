@@ -54,6 +54,7 @@ from common.score.events import SCORE_FILE
 from common.score.limbs import LimbLengths
 from common.score.midi_notes import DrumMapError
 from common.score.midi_options import DRUM_CHANNELS_HELP, DRUM_MAP_HELP, HIHAT_CC4_HELP, midi_setting_kwargs
+from services.physics.anthropometry import SkeletonUnits
 from services.physics.body_table import body_json, body_summary, body_text
 from services.physics.core import PhysicsCore, PhysicsSettings
 from services.physics.mocap import ClipError
@@ -126,6 +127,8 @@ class PhysicsNodeSettings(NodeSettings):
         "drifts toward a wider bound under fast strokes (docs/physics.md, \"Symmetric limits\"); --show-body says "
         "which was used")
     skeleton_bvh: str | None = Field(default=None, description=PhysicsSettings.model_fields["skeleton_bvh"].description)
+    skeleton_units: SkeletonUnits = Field(
+        default="auto", description=PhysicsSettings.model_fields["skeleton_units"].description)
 
     @field_validator("control", mode="before")
     @classmethod
@@ -286,11 +289,11 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace) -> PhysicsCore:
     if problem is not None:  # a folder, a device, a pipe: said, never opened (a pipe would hold the node for ever)
         raise InputError(f"score {settings.score}: {problem}")
     if settings.skeleton_bvh:  # a skeleton without a joint found by name was de Leva's body, silently
-        from services.physics.bvh_motion import read_skeleton, usable_segment_lengths
+        from services.physics.bvh_motion import read_skeleton, stature_warning, usable_segment_lengths
 
         try:
-            usable_segment_lengths(settings.skeleton_bvh)
-            reading = read_skeleton(settings.skeleton_bvh)
+            usable_segment_lengths(settings.skeleton_bvh, settings.skeleton_units)
+            reading = read_skeleton(settings.skeleton_bvh, settings.skeleton_units)
         except (OSError, ValueError) as exc:  # batteur render's --skeleton-bvh message (the node's name no option)
             raise InputError(str(exc)) from None
         # the unit the file was read in and the performer it implies, said once (as batteur render's warning): a
@@ -300,6 +303,10 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace) -> PhysicsCore:
         log.info("skeleton %s read in %s; its lengths are %s (the hands, feet and head and the body's place over "
                  "the throne are the %g m drummer's of --height-m)", settings.skeleton_bvh, reading.unit_words,
                  tall, settings.height_m)
+        if (outside := stature_warning(reading)) is not None:  # --skeleton-units given: built, and said
+            log.warning("--skeleton-units %s: %s", settings.skeleton_units, outside)
+    elif settings.skeleton_units != "auto":
+        log.warning("--skeleton-units has no effect without --skeleton-bvh")
     try:  # a kit file it cannot use (missing or not a kit): 1, found before the core's slow start; loaded once,
         # so its warnings are logged once and name this drummer's reach (a skeleton's, as the planner's)
         kit = load_kit(settings.kit, height_m=settings.height_m, lengths=_skeleton_limbs(settings))
@@ -325,6 +332,7 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace) -> PhysicsCore:
             limits_from=tuple(settings.limits_from),
             asymmetric_limits=settings.asymmetric_limits,
             skeleton_bvh=settings.skeleton_bvh,
+            skeleton_units=settings.skeleton_units,
         )
         if settings.asymmetric_limits and not settings.limits_from:
             log.warning("--asymmetric-limits has no effect without --limits-from (the default limits are always "
@@ -410,7 +418,8 @@ def _skeleton_limbs(settings: PhysicsNodeSettings) -> LimbLengths | None:
     from services.physics.bvh_motion import skeleton_limb_lengths
 
     try:
-        return skeleton_limb_lengths(settings.skeleton_bvh, settings.height_m, settings.mass_kg)
+        return skeleton_limb_lengths(settings.skeleton_bvh, settings.height_m, settings.mass_kg,
+                                     settings.skeleton_units)
     except (OSError, ValueError):
         return None
 

@@ -248,7 +248,8 @@ def test_the_stature_of_a_skeleton(tmp_path: Path) -> None:
 def test_a_still_t_pose_clip_says_its_gimbal_lock_and_no_motion(tmp_path: Path,
                                                                  caplog: pytest.LogCaptureFixture) -> None:
     """--limits-from a T-pose held still: scipy's "UserWarning: Gimbal lock detected" (mocap.py) was printed raw,
-    naming neither clip nor joint, and the clip's telling nothing was not said."""
+    naming neither clip nor joint, and the clip's telling nothing was not said. Both notes name the clip's file as
+    given (the gimbal lock's named its stem, ``tpose``, until 7 Dec)."""
     path = _file(tmp_path, "tpose.bvh", skeleton(MIXAMO, frames=3))
     getattr(mocap, "_GIMBAL_SAID", set()).clear()  # said once per process: this test's clip not yet
     with warnings.catch_warnings(), caplog.at_level(logging.WARNING, logger="batteur.physics.limits"):
@@ -260,25 +261,42 @@ def test_a_still_t_pose_clip_says_its_gimbal_lock_and_no_motion(tmp_path: Path,
     assert said[0] == (f"clip {path} has no motion (its 3 frames hold one pose): it tells no range, so its joints "
                        "keep their anatomical limits (beside other clips it only adds that pose)")
     locked = [s for s in said if "gimbal lock" in s]
-    assert locked == [f"clip tpose: joint {side}_shoulder is at gimbal lock (its y angle at 90 degrees) in 3 of 3 "
+    assert locked == [f"clip {path}: joint {side}_shoulder is at gimbal lock (its y angle at 90 degrees) in 3 of 3 "
                       "frames: its x and z angles cannot be told apart there; the whole turn was given to x (z 0) for "
                       "its limits" for side in ("left", "right")]
 
 
 def test_two_clips_of_one_name_in_two_folders_each_say_their_gimbal_lock(tmp_path: Path,
-                                                                         caplog: pytest.LogCaptureFixture) -> None:
-    """The note was kept per clip name for the whole process: a second tpose.bvh in another folder said nothing."""
+                                                                         caplog: pytest.LogCaptureFixture,
+                                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    """The note was kept per clip name for the whole process: a second tpose.bvh in another folder said nothing.
+    Each note names its file as given (``a/tpose.bvh``): until 7 Dec both said ``clip tpose``, which could not be
+    told apart."""
     getattr(mocap, "_GIMBAL_SAID", set()).clear()
+    monkeypatch.chdir(tmp_path)
     paths = []
     for folder in ("a", "b"):
         (tmp_path / folder).mkdir()
-        paths.append(_file(tmp_path / folder, "tpose.bvh", skeleton(MIXAMO, frames=3)))
+        _file(tmp_path / folder, "tpose.bvh", skeleton(MIXAMO, frames=3))
+        paths.append(f"{folder}/tpose.bvh")  # relative, as typed after --limits-from
     with warnings.catch_warnings(), caplog.at_level(logging.WARNING, logger="batteur.physics.limits"):
         warnings.simplefilter("error")
         for path in paths:
             limits_from_clips([load_bvh_clip(path), load_bvh_clip(path)])  # each file's said once
     locked = [r.getMessage() for r in caplog.records if "gimbal lock" in r.getMessage()]
-    assert len(locked) == 4 and all(s.startswith("clip tpose: joint ") for s in locked), locked
+    assert [s.split(" is at")[0] for s in locked] == [f"clip {folder}/tpose.bvh: joint {side}_shoulder"
+                                                      for folder in ("a", "b") for side in ("left", "right")], locked
+
+
+def test_a_shipped_deepmimic_clip_is_named_by_its_name_a_file_by_its_path(tmp_path: Path) -> None:
+    """The notes name a clip by its ``source``: a shipped clip's name as given (not pybullet_data's path), a clip
+    file's path as given (not its stem, one for two folders' files)."""
+    assert mocap.load_deepmimic("punch").source == "punch"
+    copy = tmp_path / "mine" / "humanoid3d_punch.txt"
+    copy.parent.mkdir()
+    copy.write_bytes((mocap.MOTIONS_DIR / "humanoid3d_punch.txt").read_bytes())
+    clip = mocap.load_deepmimic(copy)
+    assert (clip.name, clip.source) == ("punch", str(copy))
 
 
 def test_a_moving_clip_is_not_said_to_be_still(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:

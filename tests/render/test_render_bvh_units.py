@@ -41,3 +41,33 @@ def test_bvh_units_default_and_refusals(capsys: pytest.CaptureFixture[str]) -> N
     assert exit_.value.code == 2 and "invalid choice: 'mm'" in capsys.readouterr().err
     args = parser.parse_args(["--strikes", "0.5:2", "-o", "o", "--bvh-units", "cm"])
     assert "--bvh-units has no effect with --strikes (the strike scene has no drummer)" in render.options_in_vain(args)
+
+
+def test_the_library_writer_takes_the_unit_too(tmp_path: Path) -> None:
+    """``render.write_outputs`` (the BVH of poses kept in memory, ``write_rest``'s; a render without a BVH rate)
+    wrote metres whatever the unit: it takes ``units`` as the streamed writer does, metres by default. Offsets,
+    End Sites and positions are 100 times the metre file's in centimetres; the angles are the same."""
+    from services.graphics.figure import synthetic_performance
+
+    poses = synthetic_performance(duration=0.5, rate_hz=60.0)[0]
+    files = {}
+    for units in ("m", "cm"):
+        out = tmp_path / units
+        render.write_outputs(out, np.zeros(480), 48000, [], {"scene": "drummer"}, poses=poses, bvh_rate_hz=60.0,
+                             units=units)
+        files[units] = read_bvh(out / "performance.bvh")
+    render.write_outputs(tmp_path / "default", np.zeros(480), 48000, [], {"scene": "drummer"}, poses=poses,
+                         bvh_rate_hz=60.0)
+    assert (tmp_path / "default" / "performance.bvh").read_bytes() == (tmp_path / "m" / "performance.bvh").read_bytes()
+    metres, centimetres = files["m"], files["cm"]
+    assert [j.name for j in centimetres.joints] == [j.name for j in metres.joints]
+    assert np.abs(metres.joints[1].offset).max() > 0.01  # a real offset, in metres
+    for m, cm in zip(metres.joints, centimetres.joints, strict=True):
+        assert cm.offset == pytest.approx(100 * m.offset, abs=1e-4)
+        assert (cm.end_site is None) == (m.end_site is None)
+        if m.end_site is not None:
+            assert cm.end_site == pytest.approx(100 * m.end_site, abs=1e-4)
+    positions = [k for k, c in enumerate(metres.joints[0].channels) if c.endswith("position")]
+    assert len(positions) == 3 and metres.motion.shape == centimetres.motion.shape
+    assert centimetres.motion[:, positions] == pytest.approx(100 * metres.motion[:, positions], abs=1e-4)
+    assert centimetres.motion[:, 3:] == pytest.approx(metres.motion[:, 3:], abs=1e-4)  # the joints' angles
