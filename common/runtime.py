@@ -495,7 +495,8 @@ class Node:
         self._wrong_node_budgets = TokenBuckets(WRONG_NODE_REPLY_RATE_HZ, WRONG_NODE_REPLY_BURST)
         """Sender host -> its budget of refusals of another service's controls (:meth:`_refuse_wrong_node`)."""
         self.wrong_node_unanswered = 0
-        """Controls of another service dropped without the refusal: their sender host was over its budget."""
+        """Controls of another service dropped without the refusal: their sender host was over its budget (Health's
+        ``wrong_node_unanswered``)."""
         self.oscquery: Any = None
         """The OSCQuery server (``common.oscquery.OscQueryServer``) once started, or None."""
         if self.is_clock_master:
@@ -1108,6 +1109,7 @@ class Node:
             dropped_wrong_node=d[DropReason.WRONG_NODE],
             errors=self.step_errors + core_count(self.core, "core_errors"),
             duplicates=core_count(self.core, "duplicates"),
+            wrong_node_unanswered=self.wrong_node_unanswered,
         )
 
     async def _health_task(self) -> None:

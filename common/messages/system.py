@@ -86,9 +86,13 @@ class Health(OscMessage):
                           "total; the first of each is logged with its traceback")
     duplicates: Count = Field(default=0, description="redundant copies of impacts and presses dropped (sound: same "
                               "sender, seq and time; 0 for the others), total")
+    wrong_node_unanswered: Count = Field(default=0, description="controls of another service not answered with "
+                                         "this node's refusal: their sender host was over its reply budget (counted "
+                                         "in dropped_wrong_node too), total")
 
     APPENDED: ClassVar[tuple[str, ...]] = ("decode_unanswered", "replies_unanswered", "target_lag", "target_jumps",
-                                           "unroutable", "dropped_wrong_node", "errors", "duplicates")
+                                           "unroutable", "dropped_wrong_node", "errors", "duplicates",
+                                           "wrong_node_unanswered")
     """The fields appended after ``peers`` (one argument each), oldest first: a Health without the last of them (an
     older node's) decodes with their defaults."""
     NEWER_ARGS: ClassVar[int] = 16

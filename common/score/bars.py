@@ -93,10 +93,13 @@ class Segment:
 @dataclasses.dataclass(frozen=True)
 class Timeline:
     """The written score ``score`` played as its ``segments`` laid end to end (the last may be endless: the rest of
-    the score); :attr:`played` is the score to plan."""
+    the score); :attr:`played` is the score to plan. A long loop's played passes are dropped (:meth:`since`):
+    ``earlier`` counts them, per loop (its bars), so the pass numbers go on."""
 
     score: Score
     segments: tuple[Segment, ...]
+    earlier: tuple[tuple[tuple[int, int], int], ...] = ()
+    """(bars, passes) of the loops' passes dropped before the first segment (:meth:`since`)."""
 
     @classmethod
     def plain(cls, score: Score) -> Timeline:
@@ -104,7 +107,8 @@ class Timeline:
         return cls(score, (Segment(0.0, 0.0, math.inf),))
 
     def index(self, played: float) -> int:
-        """The segment holding played time ``played`` (s); before the first: the first, past the last: the last."""
+        """The segment holding played time ``played`` (s); before the first: the first (a time before the segments
+        kept, :meth:`since`, is said as if in it), past the last: the last."""
         # the first whose end is after ``played`` (the segments lie end to end: their ends ascend); a bisection, as
         # the live player asks at every step and a long loop keeps thousands of passes
         k = bisect.bisect_right(self.segments, played, key=lambda seg: seg.end - 1e-9)
@@ -134,13 +138,39 @@ class Timeline:
     def pass_numbers(self) -> tuple[int, ...]:
         """Per segment, how many of the segments up to it (it too) are passes of its loop (its bars; 0 for no
         loop): the pass number the log says at a wrap."""
-        seen: dict[tuple[int, int], int] = {}
+        seen: dict[tuple[int, int], int] = dict(self.earlier)
         numbers = []
         for seg in self.segments:
             if seg.loop is not None:
                 seen[seg.loop] = seen.get(seg.loop, 0) + 1
             numbers.append(0 if seg.loop is None else seen[seg.loop])
         return tuple(numbers)
+
+    def passes(self, played: float = math.inf) -> dict[tuple[int, int], int]:
+        """Per loop (its bars), how many of its passes start before played time ``played`` (s) (those dropped too):
+        the passes a play that ended there reached."""
+        counts = dict(self.earlier)
+        for seg in self.segments:
+            if seg.at >= played - 1e-9:
+                break
+            if seg.loop is not None:
+                counts[seg.loop] = counts.get(seg.loop, 0) + 1
+        return counts
+
+    def since(self, played: float) -> Timeline:
+        """This timeline without the segments that ended before the one holding played time ``played`` (s) but the
+        last of them (the segment before the one in progress is where a wrap is said from): a long loop's played
+        passes, which every re-plan would lay out again (its plan and the pass numbers to look through grew with
+        each pass). The passes dropped stay counted (:attr:`earlier`). Played times from the segment before the one
+        holding ``played`` on are said as before."""
+        k = self.index(played) - 1
+        if k <= 0:
+            return self
+        counts = dict(self.earlier)
+        for seg in self.segments[:k]:
+            if seg.loop is not None:
+                counts[seg.loop] = counts.get(seg.loop, 0) + 1
+        return Timeline(self.score, self.segments[k:], tuple(counts.items()))
 
     def cut(self, played: float) -> tuple[Segment, ...]:
         """The segments up to played time ``played`` (s), the one holding it shortened to end there."""
@@ -186,7 +216,7 @@ def looped(timeline: Timeline, played: float, bars: tuple[int, int] | None, cove
     ends, then the rest of the score."""
     path = timeline.continuation(played)
     if bars is None:
-        return Timeline(timeline.score, path)
+        return Timeline(timeline.score, path, timeline.earlier)
     score = timeline.score
     start, _ = bar_span(score, bars[0])
     _, end = bar_span(score, bars[1])
@@ -205,7 +235,7 @@ def looped(timeline: Timeline, played: float, bars: tuple[int, int] | None, cove
     passes = loop_passes(score, bars, cover_s)
     laid = Timeline(score, path).cut(junction)
     loop = tuple(Segment(junction + k * length, start, length, bars) for k in range(passes))
-    return Timeline(score, (*laid, *loop))
+    return Timeline(score, (*laid, *loop), timeline.earlier)
 
 
 def loop_passes(score: Score, bars: tuple[int, int], cover_s: float) -> int:
@@ -215,6 +245,14 @@ def loop_passes(score: Score, bars: tuple[int, int], cover_s: float) -> int:
     start, _ = bar_span(score, bars[0])
     _, end = bar_span(score, bars[1])
     length = end - start
-    notes = sum(1 for e in score.events if start - 1e-9 <= e.time < end - 1e-9)  # a segment's, as played takes them
+    notes = loop_notes(score, bars)
     cap = max(min(MAX_LOOP_PASSES, MAX_LOOP_NOTES // max(notes, 1)), math.ceil(MIN_LOOP_COVER * cover_s / length))
     return max(2, min(math.ceil(cover_s / length), cap))
+
+
+def loop_notes(score: Score, bars: tuple[int, int]) -> int:
+    """How many notes a pass of counted bars ``bars`` (first, last) plays (a segment's, as :attr:`Timeline.played`
+    takes them)."""
+    start, _ = bar_span(score, bars[0])
+    _, end = bar_span(score, bars[1])
+    return sum(1 for e in score.events if start - 1e-9 <= e.time < end - 1e-9)

@@ -8,7 +8,10 @@ control messages (common/messages/score.py):
   directories: a name or a relative path inside one of them; an absolute path
   only if it lies inside one). A missing, unreadable or corrupted score is a
   clear error (logged, counted in ``errors`` and ``PhysicsCore.rejected``); the
-  previously loaded score stays loaded.
+  previously loaded score stays loaded. Loaded while another score plays, it is
+  for the next ``play``: the playing score plays on (said in the log), and a
+  tempo, style or dynamics change meanwhile re-plans the playing one (a loop
+  asked then is the new score's, for its play).
 * :class:`~common.messages.score.ScoreTransport` ``play`` plans the loaded score
   from ``position`` (seconds of the score as written) with the gesture planner
   (common.gesture: limb distribution, gesture units, co-articulated Cartesian
@@ -101,8 +104,9 @@ The log says where the score is (its seconds as written, and bar and beat
 counted in its own meter: :func:`common.score.position.counted_bar_beat`, as
 ``batteur compare`` counts) at a stop, pause or re-plan, and once a play ends
 (its plan's end passed, or a stop, pause, new ``play`` or reset) how much of it
-played: the notes played of those from its position on, those not played by
-reason, and where it ended (:meth:`ScorePlayer.say_ended`).
+played: the notes played of those from its position on (a play that looped: the
+notes played and the passes it reached), those not played by reason, and where it
+ended (:meth:`ScorePlayer.say_ended`).
 
 A ``pause`` when nothing plays and no limb moves then, or a ``stop`` of a
 drummer that never moved, is refused (a :class:`ScorePlayerError`, answered to
@@ -143,7 +147,7 @@ from common.messages.score import (
     ScoreTransport,
     TempoScale,
 )
-from common.score.bars import Timeline, counted_bars, loop_passes, looped
+from common.score.bars import Timeline, counted_bars, loop_notes, loop_passes, looped
 from common.score.events import MAX_SCORE_NOTES, DrumEvent, Score, ScoreError
 from common.score.hands import HandAlgorithm, Sticking
 from common.score.limbs import FEET, HANDS, LimbLengths, bass_feet
@@ -287,6 +291,10 @@ class _Run:
     """... which of them."""
     ended_at: float = math.inf
     """... at this time on the targets' clock, s."""
+    played_end: float = math.inf
+    """... at this played time (s: a loop's passes laid end to end; :attr:`ScorePlayer.mapping`'s)."""
+    timeline: Timeline | None = None
+    """Its score as played, the latest laid (a loop's passes: the summary counts those reached)."""
 
 
 def _floor1(value: float) -> str:
@@ -418,6 +426,9 @@ class ScorePlayer:
         """Every score note's velocity is this many times its written one when planned (clipped to 1)."""
         self.score: Score | None = None
         self.score_path: Path | None = None
+        self._playing: tuple[Score, str] | None = None
+        """(score, file name) of the latest ``play``: what a tempo, style, dynamics or loop re-plan re-plans while
+        it plays (:meth:`load` while it plays keeps the new :attr:`score` for the next ``play``)."""
         self.loop: tuple[int, int] | None = None
         """``/batteur/score/loop``: the bars (counted from 1, first and last) looped, None: no loop."""
         self._loop_changed = False
@@ -546,7 +557,8 @@ class ScorePlayer:
             self.live_note(message, now, source)
         elif isinstance(message, SETTINGS_MESSAGES):
             self._apply_settings(message)
-            self.replan(now)
+            if self._replans(message):
+                self.replan(now)
         elif isinstance(message, KitSelect):
             self.select_kit(message.kit)
 
@@ -586,13 +598,28 @@ class ScorePlayer:
             return
         was, self.loop = self.loop, bars
         self._loop_changed = True
-        playing = self.state == "playing"
+        playing = self._plays_loaded()
         if bars is not None:
             log.info("loop bars %d-%d of %s asked%s", first, last, name,
                      "" if playing else ": it starts with the next play")
         elif was is not None:
             log.info("loop bars %d-%d off asked%s", *was, ": the pass in progress ends, then the rest of the score"
                      if playing else "")
+
+    @property
+    def playing_score(self) -> Score | None:
+        """The score :meth:`clock`'s positions are in: the latest ``play``'s (a score loaded since is for the next
+        one), else the loaded one."""
+        return self._playing[0] if self._playing is not None else self.score
+
+    def _plays_loaded(self) -> bool:
+        """A play of the loaded score is in progress (not one of a score loaded before it: :meth:`load`)."""
+        return self.state == "playing" and self._playing is not None and self._playing[0] is self.score
+
+    def _replans(self, message: OscMessage) -> bool:
+        """Whether a settings message re-plans what plays: a loop only the loaded score's play (a loop asked
+        after another score was loaded is that score's, for its next ``play``)."""
+        return not isinstance(message, ScoreLoop) or self._plays_loaded()
 
     def _clear_loop(self, why: str) -> None:
         """A stop, reset or new score ends the loop (said once)."""
@@ -716,8 +743,11 @@ class ScorePlayer:
         self._clear_loop("new score")
         self.score, self.score_path = score, path
         self._stopping = None  # a stop ahead: the clock was the other score's
-        log.info("score %s loaded: %d notes, %.2f s%s", path.name, len(score.events), score.duration,
-                 f" ({'; '.join(score.warnings)})" if score.warnings else "")
+        playing = self._playing if self.state == "playing" and self.core.time - self.core.target_lag <= self.end_time \
+            else None
+        log.info("score %s loaded: %d notes, %.2f s%s%s", path.name, len(score.events), score.duration,
+                 f" ({'; '.join(score.warnings)})" if score.warnings else "",
+                 f"; {playing[1]} plays on, {path.name} plays from the next play" if playing is not None else "")
         self._take_score_style(score, path.name)
         self._check_score_kit(score, path.name)
         return score
@@ -855,6 +885,7 @@ class ScorePlayer:
             self.state = "playing"
             self.end_time = plan.end_time
             name = self.score_path.name if self.score_path else "score"
+            self._playing = (score, name)
             self._run = _Run(name, score, len(events) + len(late), len(late))
             louder = f", dynamics x{dynamics:g}" if dynamics != 1.0 else ""
             log.info("playing %s from %.3f s at rig time %.3f s (tempo x%g%s): %d notes until %.3f s", name, position,
@@ -926,7 +957,7 @@ class ScorePlayer:
         mapping = self._mapping_at(t_s)
         if mapping is None:
             return text
-        score = self._run.score if self._run is not None else self.score
+        score = self.playing_score
         if score is None:
             return text
         at, position, tempo = mapping
@@ -940,6 +971,8 @@ class ScorePlayer:
         one it replaces) is spliced, the score's clock ``mapping``: keep it, and say where a loop now starts or
         ends (rig time and written bar)."""
         self._timeline, self._loop_changed = timeline, False
+        if self._run is not None:
+            self._run.timeline = timeline
         if before is None:  # a fresh play: its passes are said again (a second looped play said none)
             self._loop_said = -math.inf
         if timeline is None:
@@ -1010,7 +1043,7 @@ class ScorePlayer:
         """Plan more of the loop's passes once those planned end within :data:`LOOP_EXTEND_S` of rig time ``now``
         (s): a re-plan, as for a tempo change (in its turn behind the other plans); asked once per timeline."""
         timeline, mapping = self._timeline, self.mapping
-        if (self.loop is None or timeline is None or mapping is None or self.state != "playing"
+        if (self.loop is None or timeline is None or mapping is None or not self._plays_loaded()
                 or not timeline.looping or timeline is self._extending or self.busy):
             return
         at, position, tempo = mapping
@@ -1101,9 +1134,10 @@ class ScorePlayer:
     def _prepare_replan(self, now: float, delay_s: float) -> _Prepared | None:
         """``replan``'s plan inputs (None: nothing to re-plan); ``delay_s``: seconds the splice moves later."""
         scene = self._maybe_drummer()
-        if scene is None or self.mapping is None or self.score is None or self.state != "playing":
+        if scene is None or self.mapping is None or self._playing is None or self.state != "playing":
             return None
-        score = self.score
+        # the playing score (a score loaded since is for the next play: its notes on this clock were wrong)
+        score = self._playing[0]
         t_s = self._base(now) + SPLICE_MARGIN_S + delay_s
         if t_s >= self.end_time:
             return None
@@ -1118,8 +1152,13 @@ class ScorePlayer:
         # a loop (asked, changed or on: its passes laid afresh from the anchor's pass on, at the new tempo)
         before = self._timeline if self._timeline is not None and self._timeline.score is score else None
         timeline = before
-        if self.loop is not None or (self._loop_changed and before is not None):
-            timeline = looped(before or Timeline.plain(score), p_a, self.loop, LOOP_AHEAD_S * tempo)
+        # the loop asked is the loaded score's: after a load, the passes of the playing one laid so far stay
+        bars, changed = (self.loop, self._loop_changed) if score is self.score else (None, False)
+        if bars is not None or (changed and before is not None):
+            timeline = looped(before or Timeline.plain(score), p_a, bars, LOOP_AHEAD_S * tempo)
+        if timeline is not None:  # without the passes played (each extension would lay them all out again)
+            base = self._base(now)  # nothing is said of a time before it, on either clock
+            timeline = timeline.since(min(position + (base - at) * old_tempo, p_a + (base - t_a) * tempo))
         played = self._played(score, timeline)
         # split the score where the old clock reaches t_c (the same formula that timed ``events``: no note in both)
         ahead = [dataclasses.replace(e, time=t_a + (e.time - p_a) / tempo,
@@ -1565,7 +1604,8 @@ class ScorePlayer:
                         raise self._still_loading("a score plays and its re-plan would start seconds late; not "
                                                   "applied")
                     self._apply_settings(message)  # nothing playing: applied at once, no plan to wait for
-                self._start_replan(waiting, now)
+                if waiting.tries or self._replans(message):
+                    self._start_replan(waiting, now)
             elif isinstance(message, SCORE_MESSAGES):
                 self._dispatch(message, now)
             else:
@@ -1919,6 +1959,10 @@ class ScorePlayer:
             return
         if not run.ending or t_s < run.ended_at:  # the earliest of a stop and a pause sent ahead ends it
             run.ending, run.cause, run.ended_at = ending, cause, t_s
+            mapping = self._mapping_at(t_s)
+            if mapping is not None:
+                at, position, tempo = mapping
+                run.played_end = position + max(t_s - at, 0.0) * tempo
         # the notes the plans still hold from then on (a second one ahead: those the first one left)
         run.cut += sum(1 for e in self.events if e.time >= t_s and (e.time, e.event.value) not in run.live)
         self._dropped = {k: v for k, v in self._dropped.items() if k[0] < t_s}  # said as cut, once
@@ -1934,7 +1978,9 @@ class ScorePlayer:
 
     def _say_run(self, run: _Run) -> None:
         """``rock.txt: 60 of 68 notes played; not played: 5 skipped (...), 3 too_fast (planner); ended after its
-        last note at score 16.000 s, bar 9 beat 1.0``."""
+        last note at score 16.000 s, bar 9 beat 1.0``; a play that looped says its passes, as a teacher counts
+        them, not "of" the notes its passes planned: ``five.txt: 246 notes played with 12 passes of bars 3-4 (20
+        notes a pass); ...``."""
         self._run = None
         score_drops = Counter(reason for key, reason in self._dropped.items() if key not in run.live)
         why = Counter({"too close to prepare when it started": run.late,
@@ -1948,6 +1994,12 @@ class ScorePlayer:
             where = run.ending
         else:
             where = f"ended after its last note at {score_words(run.score, run.score.events[-1].time)}"
+        passes = run.timeline.passes(run.played_end) if run.timeline is not None else {}
+        if passes:
+            looping = " and ".join(f"{n} pass{'es' if n > 1 else ''} of bars {a}-{b} ({loop_notes(run.score, (a, b))} "
+                                   "notes a pass)" for (a, b), n in passes.items())
+            log.info("%s: %d notes played with %s%s; %s", run.name, played, looping, lost, where)
+            return
         log.info("%s: %d of %d notes played%s; %s", run.name, played, run.notes, lost, where)
 
     def _forget(self, t_s: float) -> None:
@@ -1969,6 +2021,7 @@ class ScorePlayer:
         self._held = None
         self._clear_loop("reset")
         self._timeline = None
+        self._playing = None
         self.events = []
         self._live_keys.clear()
         self._bass_feet.clear()

@@ -302,3 +302,77 @@ def test_a_loop_costs_a_step_a_few_segments_however_many_passes_are_laid(tmp_pat
     bound = 2 * math.ceil(math.log2(len(counted.segments) + 1)) + 8  # two bisections and a few more
     assert _Counted.reads <= bound * steps, _Counted.reads / steps
     core.close()
+
+
+def _long_loop(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> tuple[list[str], int, list[float]]:
+    """Bars 3-4 looped for 300 s (about 7 extensions, a tempo change among them), paused, resumed from the pause's
+    position: the log, the most segments a timeline held and the resumed play's notes."""
+    core, player = _player(tmp_path)
+    most = 0
+    caplog.clear()
+    with caplog.at_level(logging.INFO, logger=LOGGER):
+        core.handle(ScoreTransport(action="play", time=1.0, position=0.0), 0.0, SENDER)
+        core.handle(ScoreLoop(first=3, last=4), 1.5, SENDER)
+        for k in range(2480):
+            now = 2.0 + k / 10
+            player.pump(now)
+            player.clock(now)
+            if player._timeline is not None:  # noqa: SLF001
+                most = max(most, len(player._timeline.segments))  # noqa: SLF001
+        core.handle(TempoScale(factor=1.25), 250.0, SENDER)  # a re-plan at another tempo on the way
+        for k in range(510):
+            player.pump(250.0 + k / 10)
+        core.handle(ScoreTransport(action="pause", time=301.3, position=0.0), 301.0, SENDER)
+        player.pump(302.0)
+        said = _said(caplog, "pause at")[0]
+        position = float(said.split("score ")[1].split(" s")[0])
+        core.handle(ScoreTransport(action="play", time=305.0, position=position), 303.0, SENDER)
+    core.close()
+    assert core.rejected == {}
+    lines = [r.getMessage() for r in caplog.records if r.name == LOGGER and not r.getMessage().startswith("planner")]
+    return lines, most, [e.time for e in player.events if e.time >= 305.0]
+
+
+def test_a_long_loop_keeps_a_bounded_timeline_and_says_the_same(tmp_path: Path, caplog: pytest.LogCaptureFixture,
+                                                               monkeypatch: pytest.MonkeyPatch) -> None:
+    """Each extension laid the loop again from the play's start: the timeline kept every pass played (a long loop's
+    re-plans looked through them all, and more each time). Now only the passes from the one before the pass in
+    progress are kept: a bounded count, and the log (wraps and their pass numbers, re-plans, the pause's bar and beat,
+    the summary) and the resumed play are the same as with every pass kept."""
+    lines, most, resumed = _long_loop(tmp_path, caplog)
+    bound = LOOP_AHEAD_S / LOOP_S + 4  # the passes laid ahead, the one in progress, the one before, a bar after
+    assert most <= bound
+    wraps = [m for m in lines if m.startswith("loop bars 3-4 wraps")]
+    assert len(wraps) > 60 and [int(m.split("(pass ")[1].split(")")[0]) for m in wraps] == list(
+        range(2, len(wraps) + 2))
+    monkeypatch.setattr(Timeline, "since", lambda self, played: self)  # every pass kept, as before
+    kept, grown, resumed_kept = _long_loop(tmp_path, caplog)
+    assert grown > 3 * bound  # the bound above is not one any timeline meets
+    assert lines == kept and resumed == pytest.approx(resumed_kept, abs=1e-9)
+
+
+def test_a_looped_plays_summary_counts_its_passes_as_a_teacher_does(tmp_path: Path,
+                                                                    caplog: pytest.LogCaptureFixture) -> None:
+    """The end-of-play line said ``254 of 254 notes played`` of a play looping a two-bar loop (every note its passes
+    planned): now the notes played and the passes reached, with a pass's notes (bars 1-4 once, 29 notes, then
+    passes of bars 3-4, 15 notes each)."""
+    core, player = _player(tmp_path)
+    with caplog.at_level(logging.INFO, logger=LOGGER):
+        core.handle(ScoreTransport(action="play", time=1.0, position=0.0), 0.0, SENDER)
+        core.handle(ScoreLoop(first=3, last=4), 1.5, SENDER)
+        for k in range(180):
+            player.pump(2.0 + k / 10)
+        # in pass 3 (rig 17-21 s), bar 4 beat 3.6: 2 of its 15 notes left
+        core.handle(ScoreTransport(action="stop", time=20.3, position=0.0), 20.0, SENDER)
+        player.pump(22.0)
+        # off in pass 2 (rig 13-17 s): it ends, then bar 5 (7 notes) and the end of the score
+        core.handle(ScoreTransport(action="play", time=30.0, position=0.0), 29.0, SENDER)
+        core.handle(ScoreLoop(first=3, last=4), 29.5, SENDER)
+        core.handle(ScoreLoop(first=0, last=0), 43.0, SENDER)
+        player.pump(player.end_time + 0.1)
+    core.close()
+    assert _said(caplog, "five.txt:") == [
+        "five.txt: 72 notes played with 3 passes of bars 3-4 (15 notes a pass); not played: 182 cut by the stop; "
+        "stopped at rig 20.300 s: score 7.300 s, bar 4 beat 3.6",
+        "five.txt: 66 notes played with 2 passes of bars 3-4 (15 notes a pass); ended after its last note at score "
+        "9.500 s, bar 5 beat 4.0"]
