@@ -12,7 +12,8 @@ stops every child with SIGTERM, waits up to ``--stop-timeout`` seconds, then
 kills what is left; what a service leaves in its process group (planning
 processes, a resource tracker) is stopped once it has exited, and the rig reads
 output for at most ``DRAIN_S`` more seconds, so no grandchild holding the output
-pipe keeps it running. If one service exits, the others are stopped too.
+pipe keeps it running. If physics, interaction or sound exits, the others are stopped too; if graphics (the view,
+:data:`OPTIONAL_ROLES`) does, the rig says so and the others play on, and its exit status at the end says it failed.
 ``--record DIR``: sound records to ``DIR/performance.wav`` (under a hidden part name until it stops; it names the
 take only when it stops cleanly, so a take cut short never replaces an earlier one, and stays in its part file,
 which the rig names).
@@ -35,8 +36,9 @@ for ``batteur render``; physics' log then says the score's line is not played). 
 seconds after launch; the score starts at rig time ``--play-at``, or, when physics is up only after it (a
 loaded machine), as soon as physics can play it from its first note. The rig
 sends each service a Hello until it answers with its Health, says what it is
-waiting for every few seconds and when all are up, and stops (exit 1) naming
-the services not up ``--ready-timeout`` seconds after launch.
+waiting for every few seconds and when all are up (with or without ``--score``: a performer driving the rig over
+OSC is told when to start), and, with ``--score``, stops (exit 1) naming the services not up ``--ready-timeout``
+seconds after launch (without it, warns and runs on).
 """
 
 from __future__ import annotations
@@ -96,6 +98,11 @@ READY_POLL_S = 0.5
 """Seconds between Hellos to a service that has not answered one yet (``--score``)."""
 READY_PROGRESS_S = 5.0
 """Seconds between the rig's "waiting for ..." lines while its services start."""
+OPTIONAL_ROLES = ("graphics",)
+"""Services the show goes on without: when one exits, the rig says so and physics, interaction and sound play on
+(a walkthrough's SIGKILLed view took the audio down mid-set). Its exit status at the end still says it failed. Not
+sound: the take (``--record``) and what is heard are its; nor physics (the drummer, the clock master) or interaction
+(sound's impacts)."""
 
 
 @dataclass
@@ -432,8 +439,8 @@ def stop_with_the_rig() -> Callable[[], None] | None:
 
 @dataclass(frozen=True)
 class ReadyWait:
-    """``--score``: the rig asks every service it started for its Health until all have answered, says what it
-    waits for and when they are up, and stops (exit 1) when ``timeout_s`` from launch runs out first."""
+    """The rig asks every service it started for its Health until all have answered, says what it waits for and
+    when they are up, and, with ``--score``, stops (exit 1) when ``timeout_s`` from launch runs out first."""
 
     timeout_s: float
     """``--ready-timeout``, seconds from launch."""
@@ -442,8 +449,9 @@ class ReadyWait:
     asked at :func:`peer_host` of its own :attr:`ServicePlan.host`."""
     epoch: float
     """The rig epoch, Unix seconds: rig time is wall time less it, as on the services' clocks (one machine)."""
-    play_at_s: float
-    """``--play-at``: the rig time the score starts at if physics is up by then, seconds."""
+    play_at_s: float | None
+    """``--play-at``: the rig time the score starts at if physics is up by then, seconds; None: no ``--score`` (the
+    rig then only says when its services are up, and warns but runs on past the timeout)."""
 
 
 class _Answers(asyncio.DatagramProtocol):
@@ -555,6 +563,8 @@ class Rig:
         self.exit_codes: dict[str, int] = {}
         self.failures: dict[str, int] = {}
         """Services that ended on their own with a non-zero code or could not start, in the order they did."""
+        self.lost: dict[str, int] = {}
+        """:data:`OPTIONAL_ROLES` that exited on their own while the others played on: role -> exit code."""
         self.arm_child = stop_with_the_rig()
 
     async def _pump(self, role: str, stream: asyncio.StreamReader | None, to: Output) -> None:
@@ -579,8 +589,14 @@ class Rig:
         if not self.stopping.is_set():
             if code != 0:
                 self.failures.setdefault(role, code)
-            self.err.write(f"batteur rig: {role} {describe_exit(code)}; stopping the rig\n")
-            self.stopping.set()
+            running = [r for r, p in self.procs.items() if r != role and p.returncode is None]
+            if role in OPTIONAL_ROLES and running:  # the view is not worth the show
+                self.lost[role] = code
+                self.err.write(f"batteur rig: {role} {describe_exit(code)}; {', '.join(running)} play on without "
+                               f"it (Ctrl-C stops the rig{'; it will exit 1: ' + role + ' failed' if code else ''})\n")
+            else:
+                self.err.write(f"batteur rig: {role} {describe_exit(code)}; stopping the rig\n")
+                self.stopping.set()
         await end_group(proc.pid)
 
     async def _start(self, plan: ServicePlan) -> asyncio.subprocess.Process | None:
@@ -630,6 +646,10 @@ class Rig:
                 await asyncio.gather(waiting, return_exceptions=True)
             await self.stop()
             await self.drain(tasks)
+        failed = {role: code for role, code in self.lost.items() if code}
+        if failed:  # said again at the end: the line it exited on may be far up a long set's log
+            self.err.write("batteur rig: " + "; ".join(f"{role} {describe_exit(code)} during the run"
+                                                       for role, code in failed.items()) + "\n")
         return self.exit_code()
 
     async def _wait_ready(self, ready: ReadyWait, launched: float) -> None:
@@ -652,13 +672,20 @@ class Rig:
             hello = encode(Hello(role=TOOL_ROLE, node_id="batteur-rig", protocol=PROTOCOL_VERSION,
                                  osc_port=transport.get_extra_info("sockname")[1]))
             next_line = launched + READY_PROGRESS_S
-            while waiting := [plan for plan in self.plans if plan.role not in answers.up]:
+            # a service that exited is waited for no more (graphics: the others play on without it)
+            while waiting := [plan for plan in self.plans
+                              if plan.role not in answers.up and plan.role not in self.exit_codes]:
                 elapsed = time.monotonic() - launched
                 names = ", ".join(plan.role for plan in waiting)
                 if elapsed >= ready.timeout_s:
                     unsent = "".join(f"; the {counted(count, 'Hello')} to {role} at {address} could not be sent: {why}"
                                      for role, (address, why, count) in answers.unsent.items()
                                      if role not in answers.up)
+                    if ready.play_at_s is None:  # no score waits on them: said, and the rig runs on
+                        self.err.write(f"batteur rig: warning: {names} not up within --ready-timeout "
+                                       f"{ready.timeout_s:g} s of launch (no answer to a Hello{unsent}); the rig runs "
+                                       "on (batteur ls tells when they answer)\n")
+                        return
                     self._give_up(f"{names} not up within --ready-timeout {ready.timeout_s:g} s of launch (no answer "
                                   f"to a Hello{unsent}); stopping the rig")
                     return
@@ -677,12 +704,24 @@ class Rig:
                 await answers.wait(min(READY_POLL_S, ready.timeout_s - elapsed))
         finally:
             transport.close()
-        self.out.write(self._up_line(ready, answers.up, time.monotonic() - launched))
+        if answers.up:  # else every service exited: the rig is stopping
+            self.out.write(self._up_line(ready, answers.up, time.monotonic() - launched))
 
-    @staticmethod
-    def _up_line(ready: ReadyWait, up: dict[str, float], elapsed_s: float) -> str:
-        """What the rig says once every service is up (``up``: role -> rig time it answered, seconds)."""
+    def _up_line(self, ready: ReadyWait, up: dict[str, float], elapsed_s: float) -> str:
+        """What the rig says once every service is up (``up``: role -> rig time it answered, seconds): with
+        ``--score``, whether one was up only after the score's time; without, where to send what to play."""
+        from common.transport import format_address
+
         line = f"batteur rig: services up {elapsed_s:.1f} s after launch (rig time {max(up.values()):.1f} s)"
+        gone = [plan.role for plan in self.plans if plan.role not in up]
+        if gone:
+            line += f", but {', '.join(gone)}, which exited"
+        if ready.play_at_s is None:
+            physics = next((plan for plan in self.plans if plan.role == "physics" and plan.role in up), None)
+            if physics is None:
+                return line + ": ready\n"
+            return (line + f": ready; send /batteur/score/load NAME or /batteur/score/note to physics at "
+                    f"{format_address(peer_host(physics.host), physics.port)} (docs/live-control.md)\n")
         late = [role for role, t in up.items() if t > ready.play_at_s]
         if "physics" in late:
             line += (f"; physics only after --play-at {ready.play_at_s:g} s: it starts the score as soon as it can, "
@@ -815,8 +854,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="batteur rig",
         description="Start the Batteur services as local processes (the embedded default rig). "
-        "Ctrl-C stops them all; so does a service that exits (exit code: 0 after a clean stop, else the failing "
-        "service's code, or 1).",
+        "Ctrl-C stops them all; so does physics, interaction or sound exiting, while the others play on without "
+        "graphics (the view) should it exit (exit code: 0 after a clean stop, else the failing service's code, or "
+        "1). It says when every service it started is up.",
     )
     take_negative_values(parser)  # --play-at -1e-3: the value's own check says what is wrong with it
     parser.add_argument("--services", default=",".join(ROLES), metavar="ROLES",
@@ -872,8 +912,8 @@ def build_parser() -> argparse.ArgumentParser:
                         help="rig time at which --score starts, seconds after rig time 0 (default 1); physics up "
                         "only after it starts the score as soon as it can, from its first note")
     parser.add_argument("--ready-timeout", type=seconds, default=60.0, metavar="SECONDS",
-                        help="--score: seconds from launch the services get to be up (to answer a Hello); past it "
-                        "the rig stops with an error naming those that are not (default 60)")
+                        help="seconds from launch the services get to be up (to answer a Hello); past it the rig "
+                        "names those that are not, and with --score stops with an error (default 60)")
     parser.add_argument("--log-level", type=str.upper, choices=("DEBUG", "INFO", "WARNING", "ERROR"), default=None,
                         help="log level for every service (default: theirs, INFO)")
     for role in ROLES:
@@ -1222,9 +1262,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         unread = unread_midi_options(opts, plans)
         for warning in ignored_options(opts) + ([unread] if unread else []):
             print(f"batteur rig: warning: {warning}", file=sys.stderr, flush=True)
-        ready = None
+        ready = ReadyWait(opts.ready_timeout, asking_host(plans), epoch, opts.play_at if opts.score else None)
         if opts.score:
-            ready = ReadyWait(opts.ready_timeout, asking_host(plans), epoch, opts.play_at)
             print(f"batteur rig: the drummer plays {opts.score} from rig time {opts.play_at:g} s "
                   f"({opts.start_delay + opts.play_at:g} s after launch; later if physics is not up by then)",
                   flush=True)

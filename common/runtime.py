@@ -93,6 +93,10 @@ MASTER_SILENT_WARN_S = 30.0
 """A clock master this node knows (a static peer, or one discovery found) that has not answered its pings this long
 after the node started is warned about, seconds; until then it is taken to be still starting (physics builds its
 scene for about 3 s, 7-15 s on a loaded machine, while a rig's other nodes wait for it)."""
+PEER_SILENT_HEALTHS = 5
+"""A peer whose Health (sent every health interval, 1 s) has not come for this many intervals is said to have stopped
+answering, once, and said to be back when its next Health comes: a service killed and restarted mid-set was silent
+in the others' logs (7 Dec walkthrough: still "peers 3")."""
 REFUSAL_LOG_INTERVAL_S = 5.0
 """A refused Subscribe (table full, bad pattern) is logged at most once per this long, seconds; the rest are counted
 (Health's ``dropped_other``) and said as "+N more" in the next warning."""
@@ -467,6 +471,8 @@ class Node:
         self.discovery: DiscoveryService | None = None
         self.peer_health: dict[str, tuple[Health, str, float]] = {}
         """Last Health heard from each node id: (message, source, local monotonic time)."""
+        self.silent_peers: set[str] = set()
+        """Node ids of the peers said to have stopped answering (:meth:`_note_silent_peers`), until their Health."""
         self.step_errors = 0
         self.failed = False
         """True if one of the node's tasks failed (the node then stops)."""
@@ -878,6 +884,9 @@ class Node:
             if message.role == TOOL_ROLE:  # batteur ls: how its clock follows the master (peers: 1 Hz)
                 endpoint.send(self.clock_answer(), source)
         elif isinstance(message, Health):
+            if message.node_id in self.silent_peers:
+                self.silent_peers.discard(message.node_id)
+                log.info("peer %s %s at %s answers again", message.role, message.node_id, source)
             self.peer_health[message.node_id] = (message, source, time.monotonic())
         owner = taken_elsewhere(type(message), self._service)
         if owner:  # its core would ignore it: counted, said (rated, per reason) and answered, so the sender finds out
@@ -1127,6 +1136,17 @@ class Node:
                     self.endpoint.send(health, peer.address)
                     if status is not None:
                         self.endpoint.send(status, peer.address)
+            self._note_silent_peers(time.monotonic())
+
+    def _note_silent_peers(self, now: float) -> None:
+        """Say, once, of each peer whose Health stopped coming :data:`PEER_SILENT_HEALTHS` intervals ago (``now``:
+        ``time.monotonic()``) that it stopped answering; its next Health says it is back (:meth:`_on_message`)."""
+        limit_s = PEER_SILENT_HEALTHS * self.health_interval_s
+        for node_id, (health, source, seen) in self.peer_health.items():
+            if node_id not in self.silent_peers and now - seen > limit_s:
+                self.silent_peers.add(node_id)
+                log.warning("peer %s %s at %s stopped answering: no Health for %.0f s (stopped, or restarting?); "
+                            "what is sent to it is lost until it is back", health.role, node_id, source, now - seen)
 
     def clock_status(self) -> ClockStatus:
         """How this node's clock follows its master now: the estimator's figures and counters, and the steps of rig

@@ -48,7 +48,9 @@ Column status:
   behind
       it answered, but its loop ran under half its target rate over the last second (column
       rate/target Hz, e.g. 5.5/1000): the node skips steps to keep up with the rig clock, its
-      service falls behind it (physics: the drummer plays late, its late events, column late,
+      service falls behind it (physics: its log's "behind real time" warnings count the
+      simulation steps skipped; the drummer plays late, by --json's target_lag; notes it then
+      cannot play in time are its late events, column late, which skipped steps alone do not
       grow). A loop a little under its target is a busy machine's usual (sound at 186.7/187.5)
       and stays ok; a rate of 0 is not judged: the node has not stepped yet (its first second,
       or its core waiting for its clock master); "-" as the target: an event-driven node

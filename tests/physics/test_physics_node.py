@@ -17,7 +17,8 @@ def test_make_core_builds_a_live_strike_core_that_skips_when_behind() -> None:
     core.step(0.0)
     core.step(10.0)  # 10 s behind: simulates at most max_catchup_steps, skips the rest, counts it
     assert core.skipped_steps == 10_000 - core.settings.max_catchup_steps
-    assert core.late == core.skipped_steps and core.overruns == 1
+    # skipped steps are no late events (batteur ls's late column grew by ~700 a second while nothing played)
+    assert core.late == 0 and core.overruns == 1
     core.close()
 
 
@@ -61,7 +62,7 @@ def test_motion_capture_files_of_the_node_are_clear_errors(tmp_path: Path) -> No
 
 def test_a_live_core_starts_at_the_rig_time_of_its_first_step_without_counting_it_late() -> None:
     """The rig clock runs from the launch; the node builds its scene first (2-3 s), so its loop's first step comes
-    at rig time 2-3 s. That is where the simulation starts, not steps it fell behind (Health's late count)."""
+    at rig time 2-3 s. That is where the simulation starts, not steps it fell behind (its skipped steps)."""
     settings = PhysicsNodeSettings(scene="strike", discovery=False, strike_period=0.5, strike_velocity=2.0)
     core = make_core(settings, argparse.Namespace())
     core.step(2.9604)
@@ -70,7 +71,7 @@ def test_a_live_core_starts_at_the_rig_time_of_its_first_step_without_counting_i
     core.step(3.0)  # 40 steps later: caught up, none skipped
     assert core.time == pytest.approx(3.0, abs=1e-9) and core.skipped_steps == 0
     core.step(13.0)  # then falling 10 s behind is counted as before
-    assert core.skipped_steps == 10_000 - core.settings.max_catchup_steps and core.late == core.skipped_steps
+    assert core.skipped_steps == 10_000 - core.settings.max_catchup_steps and core.late == 0  # no note late
     core.close()
 
 
