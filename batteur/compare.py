@@ -14,7 +14,8 @@ Alignment (:func:`align`): every pair of notes of one drum, one written and one 
 time - exercise time); the offsets most pairs agree on (within the tolerance) are tried with the full matching,
 and the one matching most notes wins, set so that the median matched note is on time. Early and late are thus
 measured against the student's own pulse, not against an absolute start nobody can know; ``--offset`` forces the
-alignment (and then the means are against that start).
+alignment (and then the means are against that start). A take that stops and comes back in is timed from there
+against the restart (:func:`find_restarts`), its pause taken out, not as notes late by it.
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ import json
 import math
 import sys
 from collections import Counter, defaultdict
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from fractions import Fraction
 from pathlib import Path
@@ -61,6 +62,19 @@ CANDIDATES = 12
 """Offsets tried with the full matching (:func:`align`)."""
 MAX_PAIRS = 2_000_000
 """Offset proposals per drum at most (:func:`candidate_offsets`): the written notes are thinned evenly beyond it."""
+RESTART_NOTES = 4
+"""Notes a restart (:func:`find_restarts`) must match beyond the take taken as one, at least: a beat of sixteenths,
+a bar of quarter notes."""
+RESTART_BEATS = 0.5
+"""A restart's pause is this many of the exercise's beats at least (its median beat), and beyond the reach of a
+note played too early or late: a bar played 200 ms late as a whole at 120 bpm (0.4 beat) is a jump, its notes
+missed and extra; from half a beat on a note paired with the next eighth's would read as late or early."""
+RESTART_SHARE = 0.5
+"""Share of the written notes before the take came back in, and of those from there on, a restart must match
+at least, each: a student who stops comes back on their pulse and plays on (a take drifting off tempo, whose tail
+a shift lines up for a few bars, is no restart)."""
+RESTART_CANDIDATES = 8
+"""Silences (the longest pauses first) tried as restarts per round, and the rounds (restarts) at most."""
 TEMPO_GRID = (0.5, 2.0, 0.02)
 """Tempo ratios tried when most notes do not match (lowest, highest, relative step), refined by a tenth of it."""
 TEMPO_NOTES = 200
@@ -71,6 +85,10 @@ COUNT_IN_NOTES = 3
 """Notes a steady pulse apart before the exercise's start that make a count-in (:func:`count_in_entry`)."""
 COUNT_IN_REACH = 8
 """Count-in beats from its next beat beyond which an entry is not told against it (two bars of 4/4)."""
+COUNT_IN_SAME = 0.75
+"""Share of a count-in's onsets that strike one same set of kit objects at least: a count-in repeats one sound
+(sticks, a side-stick, the hi-hat or its pedal); a quarter left for a recording's transcriber hearing a click as
+another class. A groove's onsets (hi-hat and kick, hi-hat, hi-hat and snare) are not one."""
 COUNT_IN_PULSE_MATCH = 0.10
 """A count-in's pulse is the exercise's beat (or twice or half it) within this share: a count-in is counted at
 the tempo to come; a tenth allows a student's count a little off (97 bpm into 105 bpm) but not a pulse of some
@@ -345,6 +363,111 @@ def align(written: Sequence[NoteRef], played: Sequence[Played], tolerance: float
         if best is None or key > best[0]:
             best = (key, offset, pairs)
     return (0.0, []) if best is None else (best[1], best[2])
+
+
+@dataclass(frozen=True)
+class Restart:
+    """The take stopped and came back in (:func:`find_restarts`): from take time ``cut`` (s, the take's own clock:
+    the first note after the silence) its notes are ``late_s`` later than the pulse before the silence puts them
+    (the pause beyond the written gap); ``silence_s``: the take's time without a note there."""
+
+    cut: float
+    late_s: float
+    silence_s: float
+
+
+def restarted(played: Sequence[Played], restarts: Sequence[Restart]) -> list[Played]:
+    """The take with each restart's pause taken out: every note from a restart's ``cut`` on moved earlier by its
+    ``late_s`` (the notes keep their order and positions: index j is the take's note j)."""
+    if not restarts:
+        return list(played)
+    return [replace(p, time=p.time - sum(r.late_s for r in restarts if p.time >= r.cut - 1e-9)) for p in played]
+
+
+def find_restarts(written: Sequence[NoteRef], played: Sequence[Played], offset: float,
+                  pairs: Sequence[tuple[int, int]], tolerance: float, forced: bool, beat_s: float | None = None
+                  ) -> tuple[list[Restart], float, list[tuple[int, int]]]:
+    """The places the student stopped and came back in, and the offset and pairs with their pauses taken out
+    (:func:`restarted`). A student who stops and restarts plays on their pulse again, later by the pause: taken as
+    one, the take's notes after it are all late by it, or, a pause of a beat and a bit, paired with the next beat's
+    notes and read "dragging, +100 ms" (until 7 Dec).
+
+    Each silence of the take (between two onsets: notes within the tolerance one) whose length exceeds the written
+    gap between the notes on either side of it (the written note the onset before it was matched to and the next
+    one; else the onset after it and the one before) by more than the reach of a note played too early or late
+    (:data:`LOOSE_S`, 2 tolerances if more) and :data:`RESTART_BEATS` (``beat_s``: the exercise's beat on the
+    compared clock, s) is a candidate, the :data:`RESTART_CANDIDATES` longest tried: the notes
+    after it moved earlier by that excess, matched at the offset (the notes after the silence then line up) and,
+    but for a forced ``--offset``, at the offset less it (the notes before it do: the offset had lined up the part
+    after it). The one matching most is a restart when it matches :data:`RESTART_NOTES` more than before, and
+    :data:`RESTART_SHARE` of the written notes before the restart and of those from it on; then the take is lined
+    up again and the next is looked for. ``pairs``: the take's at ``offset`` as one."""
+    reach = max(LOOSE_S, 2 * tolerance, RESTART_BEATS * (beat_s or 0.0))
+    times = sorted({round(n.time, 6) for n in written})
+    found: list[Restart] = []
+    pairs = list(pairs)
+    for _ in range(RESTART_CANDIDATES):
+        moved = restarted(played, found)
+        order = sorted(range(len(moved)), key=lambda j: moved[j].time)
+        onsets: list[list[int]] = []  # take indices, in time order, notes within the tolerance one onset
+        for j in order:
+            if onsets and moved[j].time - moved[onsets[-1][-1]].time <= tolerance:
+                onsets[-1].append(j)
+            else:
+                onsets.append([j])
+        written_of = {j: written[i].time for i, j in pairs}
+        head = next((k for k, onset in enumerate(onsets) if any(j in written_of for j in onset)), 0)
+        head_of: dict[int, float] = {}
+        head_at = offset
+        if not forced and sum(map(len, onsets[:head])) >= RESTART_NOTES:
+            # the notes before the first one lined up, lined up alone: a groove repeated bar after bar lines its
+            # bars after a pause up with its first ones (the notes before the pause then lie before its start)
+            notes = [j for onset in onsets[:head] for j in onset]
+            head_at, its = align(written, [moved[j] for j in notes], tolerance)
+            head_of = {notes[k]: written[i].time for i, k in its}
+        tried: list[tuple[float, int, float, float]] = []  # (excess s, first take index after it, silence s, offset)
+        for index, (before, after) in enumerate(zip(onsets, onsets[1:], strict=False)):
+            a, b = moved[before[-1]].time, moved[after[0]].time
+            anchors = head_of if index + 1 == head and head_of else written_of
+            wa = next((anchors[j] for j in before if j in anchors), None)
+            wb = next((written_of[j] for j in after if j in written_of), None)
+            if wa is not None:  # on the pulse before: the next written onset is where it came back in
+                k = bisect.bisect_right(times, wa + tolerance)
+                if k == len(times):
+                    continue  # after the exercise's last note: a stray note, no restart
+                gap = times[k] - wa
+            elif wb is not None:  # on the pulse after (the offset lined that part up): the onset before it
+                k = bisect.bisect_left(times, wb - tolerance) - 1
+                if k < 0:
+                    continue  # the exercise's first note: a late entry after a count-in, no restart
+                gap = wb - times[k]
+            else:
+                continue
+            if b - a - gap > reach:
+                tried.append((b - a - gap, after[0], b - a, head_at if anchors is head_of else offset))
+        best: tuple[Restart, float, list[tuple[int, int]], int] | None = None
+        for excess, j, silence, start in sorted(tried, reverse=True)[:RESTART_CANDIDATES]:
+            restart = Restart(played[j].time, excess, silence)
+            shifted = restarted(played, [*found, restart])
+            for at in (start,) if forced or start != offset else (offset, offset - excess):
+                again = matched(written, shifted, at, tolerance)
+                if best is None or len(again) > len(best[2]):
+                    best = (restart, at, again, j)
+        if best is None or len(best[2]) < len(pairs) + RESTART_NOTES:
+            break
+        restart, at, again, j = best
+        # the written notes before the note it came back in on (less the tolerance) and from it on: each half played
+        split = restarted(played, [*found, restart])[j].time - at - tolerance
+        earlier = [n.time < split for n in written]
+        before_n, before_m = sum(earlier), sum(earlier[i] for i, _ in again)
+        if before_m < RESTART_SHARE * before_n or len(again) - before_m < RESTART_SHARE * (len(written) - before_n):
+            break
+        found.append(restart)
+        if forced:
+            pairs = again
+        else:
+            offset, pairs = align(written, restarted(played, found), tolerance)
+    return sorted(found, key=lambda r: r.cut), offset, pairs
 
 
 def follow_lag(written: Sequence[NoteRef], played: Sequence[Played], offset: float, tolerance: float,
@@ -1042,11 +1165,13 @@ def bar_lines(report: dict[str, Any]) -> list[str]:
     # a tempo map: each bar's written tempo beside the played one (a steady exercise's is the table's one tempo)
     written = [b["written_bpm"] for b in bars if b.get("written_bpm")]
     mapped = bool(written) and not same_tempo(min(written), max(written))
+    means = [_ms(b["mean_ms"]) for b in shown]
+    width = _width("mean ms", means)
     lines = ["", f"{'bar':>4} {'written':>7} {'played':>6} {'missed':>6} {'too early/late':>14} {'extra':>5} "
-             f"{'other drum':>10} {'mean ms':>8} {'tempo bpm':>9}" + (f" {'written bpm':>11}" if mapped else "")]
-    for b in shown:
+             f"{'other drum':>10} {'mean ms':>{width}} {'tempo bpm':>9}" + (f" {'written bpm':>11}" if mapped else "")]
+    for b, mean in zip(shown, means, strict=True):
         lines.append(f"{b['bar']:>4} {b['written']:>7} {b['played']:>6} {b['missed']:>6} {b['off_tolerance']:>14} "
-                     f"{b['extra']:>5} {b.get('wrong_drum', 0):>10} {_ms(b['mean_ms']):>8} "
+                     f"{b['extra']:>5} {b.get('wrong_drum', 0):>10} {mean:>{width}} "
                      f"{'-' if b['bpm'] is None else format(b['bpm'], '.1f'):>9}"
                      + (f" {'-' if not b.get('written_bpm') else format(b['written_bpm'], '.1f'):>11}"
                         if mapped else ""))
@@ -1149,12 +1274,16 @@ def _compare_at(score: Score, take: Take, kit: Kit, tolerance: float, scale: flo
     if not written:
         raise CompareError("the exercise has no note on a drum the transcriber can hear (it knows kick, snare, "
                            "hi-hat, toms, crash and ride)")
-    played = take.notes
     forced = offset is not None
     if offset is None:
-        offset, pairs = align(written, played, tolerance)
+        offset, pairs = align(written, take.notes, tolerance)
     else:
-        pairs = matched(written, played, offset, tolerance)
+        pairs = matched(written, take.notes, offset, tolerance)
+    # a student who stopped and came back in: timed from there on against the restart (its pause taken out)
+    bpm = tempo_bpm(score)
+    restarts, offset, pairs = find_restarts(written, take.notes, offset, pairs, tolerance, forced,
+                                            None if bpm is None else 60.0 / bpm / scale)
+    played = restarted(take.notes, restarts)
     # the take's notes before the exercise starts or after it ends (a count-in, a last crash held on): not extras
     start, end = -tolerance, exercise_end(score) / scale + tolerance
     inside = [j for j, p in enumerate(played) if start <= p.time - offset <= end]
@@ -1214,7 +1343,7 @@ def _compare_at(score: Score, take: Take, kit: Kit, tolerance: float, scale: flo
         if i in claimed:
             j = claimed[i]
             entry["played_off_by_ms"] = round((played[j].time - offset - n.time) * 1000, 1) + 0.0
-            entry["played_take_time_s"] = _r(played[j].time, 4)
+            entry["played_take_time_s"] = _r(take.notes[j].time, 4)  # the take's own clock (a pause in)
         misses.append(entry)
     wrong = []
     for i, j in sorted(swaps, key=lambda s: written[s[0]].time):
@@ -1222,12 +1351,13 @@ def _compare_at(score: Score, take: Take, kit: Kit, tolerance: float, scale: flo
         wrong.append({**position(score, written_clock(n.time), scale), "time_s": _r(written_clock(n.time), 4),
                       "drum": n.instrument, "event": n.event, "velocity": round(n.velocity * 127),
                       "played_drum": p.drum, "played_event": p.event, "played_velocity": round(p.velocity * 127),
-                      "played_take_time_s": _r(p.time, 4), "timing_ms": _r((p.time - offset - n.time) * 1000, 1)})
+                      "played_take_time_s": _r(take.notes[j].time, 4),
+                      "timing_ms": _r((p.time - offset - n.time) * 1000, 1)})
     extras = []
     for j in extras_j:
         p = played[j]
         extras.append({**position(score, written_clock(p.time - offset), scale),
-                       "time_s": _r(written_clock(p.time - offset), 4), "take_time_s": _r(p.time, 4),
+                       "time_s": _r(written_clock(p.time - offset), 4), "take_time_s": _r(take.notes[j].time, 4),
                        "drum": p.drum, "event": p.event, "velocity": round(p.velocity * 127)})
     drums: dict[str, Any] = {}
     names = sorted({n.instrument for n in written} | {played[j].drum for j in inside})
@@ -1246,7 +1376,6 @@ def _compare_at(score: Score, take: Take, kit: Kit, tolerance: float, scale: flo
             "dynamics": dynamics([(written[i].velocity, played[j].velocity) for i, j in its_pairs]),
         }
     short = pickup(score)
-    bpm = tempo_bpm(score)
     bars = bar_rows(score, [(written_clock(n.time), n.time) for n in written],
                     [(i, played[j].time, played[j].time - offset - written[i].time) for i, j in pairs],
                     lost_i, sorted(off_i), sorted(wrong_of), [e["bar"] for e in extras], tolerance,
@@ -1264,8 +1393,9 @@ def _compare_at(score: Score, take: Take, kit: Kit, tolerance: float, scale: flo
         "not_heard": dict(sorted(not_heard.items())), "tempo": None, "take_stops": None,
         # the count-in: notes before the start, but for a first note early (told as such above)
         "entry": None if forced else count_in_entry(
-            [p.time for p in played if p.time - offset < -max(LOOSE_S, 2 * tolerance)], offset, tolerance,
+            [(p.time, p.drum) for p in played if p.time - offset < -max(LOOSE_S, 2 * tolerance)], offset, tolerance,
             start_beat_s(score, scale)),
+        "restarts": [restart_entry(score, r, restarts, offset, scale) for r in restarts],
         "pickup_beats": None if short is None else _r(short[0] / bar_unit(score, 1), 3),  # counted as bar 1's
         "bars": bars, "drift": drift(bars), "off_tempo": [],
         "beats_rushed_dragging": beat_feels(
@@ -1319,25 +1449,48 @@ def _compare_at(score: Score, take: Take, kit: Kit, tolerance: float, scale: flo
     return report
 
 
+def restart_entry(score: Score, restart: Restart, restarts: Sequence[Restart], offset: float, scale: float
+                  ) -> dict[str, Any]:
+    """A restart as the report says it: where the take came back in (the bar and beat of its first note after the
+    silence, :func:`position`), ``take_time_s`` that note's time on the take's clock, ``late_s`` how much later than
+    its pulse before the silence, ``silence_s`` the silence."""
+    moved = restart.cut - sum(r.late_s for r in restarts if r.cut <= restart.cut + 1e-9)
+    return {**position(score, (moved - offset) * scale, scale), "take_time_s": _r(restart.cut, 4),
+            "late_s": _r(restart.late_s, 3), "silence_s": _r(restart.silence_s, 3)}
+
+
+def restart_text(entry: dict[str, Any]) -> str:
+    """``came back in 0.6 s late at bar 3, beat 1 after a pause ...`` (:func:`restart_entry`)."""
+    return (f"came back in {entry['late_s']:.1f} s late at {where_text(entry)} "
+            f"after a pause ({entry['silence_s']:.2f} s without a note, {entry['take_time_s']:.3f} s into the take): "
+            "timed from there on against the restart")
+
+
 def _r(value: float, digits: int) -> float:
     """``value`` rounded, a negative zero made positive (no ``-0.0`` in the JSON, no ``-0.000 s`` said)."""
     return round(value, digits) + 0.0
 
 
-def count_in_entry(before: Sequence[float], offset: float, tolerance: float, beat_s: float | None = None
-                   ) -> dict[str, Any] | None:
-    """Where the take entered against its count-in, given the take's times (s) of its notes before the exercise's
-    start (``offset``; a first note early left out): the last :data:`COUNT_IN_NOTES` or more of them (notes
-    within the tolerance one onset) a steady pulse apart (each gap within the tolerance, or a tenth of the
+def count_in_entry(before: Sequence[tuple[float, str]], offset: float, tolerance: float,
+                   beat_s: float | None = None) -> dict[str, Any] | None:
+    """Where the take entered against its count-in, given the take's notes (time s, kit object) before the
+    exercise's start (``offset``; a first note early left out): the last :data:`COUNT_IN_NOTES` or more of them
+    (notes within the tolerance one onset) a steady pulse apart (each gap within the tolerance, or a tenth of the
     pulse, of their median), the exercise is due one pulse after the last; ``late_beats`` is how far after that
     it started, in the count-in's beats (- early). None when there is no such count-in, or the entry is more
     than :data:`COUNT_IN_REACH` beats from it (those notes were not counting the exercise in), or (``beat_s``: the
     exercise's beat on the take's clock, s) the pulse is not that beat, twice it or half it within
-    :data:`COUNT_IN_PULSE_MATCH` (a transcriber's ghost notes a steady 0.26 s apart are no count-in at 100 bpm)."""
+    :data:`COUNT_IN_PULSE_MATCH` (a transcriber's ghost notes a steady 0.26 s apart are no count-in at 100 bpm),
+    or those onsets do not repeat one sound (:data:`COUNT_IN_SAME`): a groove's hi-hat, kick and snare before the
+    start are the exercise's own notes (a long take at 1.004 of the tempo lined up three bars in read "entered 0.2
+    beat early after the count-in" until 7 Dec, a take without one)."""
     onsets: list[float] = []
-    for t in sorted(before):
+    sounds: list[set[str]] = []  # the kit objects each onset strikes
+    for t, drum in sorted(before):
         if not onsets or t - onsets[-1] > tolerance:
             onsets.append(t)
+            sounds.append(set())
+        sounds[-1].add(drum)
     run = 1  # onsets in the steady run ending at the last
     while run < len(onsets):
         gaps = np.diff(onsets[-run - 1:])
@@ -1348,6 +1501,9 @@ def count_in_entry(before: Sequence[float], offset: float, tolerance: float, bea
     if run < COUNT_IN_NOTES:
         return None
     pulse = float(np.median(np.diff(onsets[-run:])))
+    struck = Counter(frozenset(its) for its in sounds[-run:])
+    if struck.most_common(1)[0][1] < COUNT_IN_SAME * run:
+        return None
     if beat_s is not None and not any(abs(pulse / (beat_s * k) - 1) <= COUNT_IN_PULSE_MATCH for k in (0.5, 1, 2)):
         return None
     due = onsets[-1] + pulse
@@ -1379,6 +1535,7 @@ def summary_lines(report: dict[str, Any], exercise: str, take: str) -> list[str]
                                                        if report["tempo_scale"] != 1 else ""))
     if report.get("entry"):
         lines.append(entry_text(report["entry"]))
+    lines.extend(restart_text(entry) for entry in report.get("restarts") or [])
     if report.get("pickup_beats"):
         lines.append(f"bar 0 is the pick-up ({report['pickup_beats']:g} beat{'s' if report['pickup_beats'] > 1 else ''}"
                      "), bar 1 the first full bar")
@@ -1419,14 +1576,14 @@ def summary_lines(report: dict[str, Any], exercise: str, take: str) -> list[str]
                      f"{tempo['ratio']} times it{bpm}: --tempo-scale {tempo['ratio']} compares at the "
                      f"take's tempo ({tempo['played']} notes then match)")
     lines.append("")
+    means = {drum: _ms(d["timing"]["mean_ms"]) if d["timing"]["n"] else "-" for drum, d in report["drums"].items()}
+    width = _width("mean ms", means.values())
     lines.append(f"{'drum':<10} {'written':>7} {'played':>6} {'too early/late':>14} {'missed':>6} {'extra':>5} "
-                 f"{'other drum':>10} {'mean ms':>8} {'spread ms':>9}  dynamics (MIDI velocity)")
+                 f"{'other drum':>10} {'mean ms':>{width}} {'spread ms':>9}  dynamics (MIDI velocity)")
     for drum, d in report["drums"].items():
-        dt = d["timing"]
         lines.append(f"{drum:<10} {d['written']:>7} {d['played']:>6} {d['off_tolerance']:>14} {d['missed']:>6} "
-                     f"{d['extra']:>5} {d.get('wrong_drum', 0):>10} "
-                     f"{_ms(dt['mean_ms']) if dt['n'] else '-':>8} "
-                     f"{_spread(dt):>9}  {_dynamics_text(d['dynamics'])}")
+                     f"{d['extra']:>5} {d.get('wrong_drum', 0):>10} {means[drum]:>{width}} "
+                     f"{_spread(d['timing']):>9}  {_dynamics_text(d['dynamics'])}")
     for drum, d in report["drums"].items():  # the other drum column said: which drum, how often
         for other, n in d.get("played_instead", {}).items():
             lines.append(f"played {other} instead of {drum}: {n} note{'' if n == 1 else 's'}")
@@ -1484,6 +1641,12 @@ def _ms(value: float | None) -> str:
     return "-" if value is None else f"{value:+.1f} ms"
 
 
+def _width(header: str, cells: Iterable[str], least: int = 8) -> int:
+    """A table column's width: its header's and its widest cell's (``+100.0 ms`` is 9 characters: until 7 Dec the
+    mean column was 8 wide, and a mean of 100 ms or more pushed the row's later columns one to the right)."""
+    return max(least, len(header), *(len(cell) for cell in cells))
+
+
 def _dynamics_text(d: dict[str, Any] | None) -> str:
     if d is None:
         return "-"
@@ -1518,8 +1681,10 @@ exercise by the offset that matches most notes (every pair of notes of one
 drum proposes one), set so that the median note is on time: early and late
 are against the student's own pulse (--offset forces the start instead). Notes
 before the exercise starts or after it ends (a count-in) are not extras; a
-steady count-in says where the take entered against it ("entered 1 beat late
-after the count-in"). After a pick-up bar (a first bar shorter than the
+steady count-in (one sound repeated) says where the take entered against it
+("entered 1 beat late after the count-in"). A take that stops and comes back
+in is timed from there against the restart ("came back in 0.6 s late at bar
+3, beat 1 after a pause"), not as late notes. After a pick-up bar (a first bar shorter than the
 next), bar 1 is the first full bar and the pick-up bar 0, as printed.
 A written note counts as played when the take has one on the same drum (kit
 object: open and closed hi-hat, and the hi-hat pedal, are the hi-hat) within

@@ -94,6 +94,10 @@ def pickup(score: Score) -> tuple[float, float] | None:
     bars = np.asarray(score.bar_beats, dtype=float)
     if len(bars) < 2 or bars[0] > 1e-9:
         return None
+    if score.end_beat is not None and bars[1] >= score.end_beat - 1e-9:
+        # one bar: the start after it is where the score ends (a text score's bar of 1/16, shorter than the beat
+        # its beats are padded to, was a pick-up of its own, "bar 0, beat 3", until 7 Dec)
+        return None
     # the second bar's length: to the third start, else (the last bar) to the score's last beat
     second = float(bars[2] - bars[1]) if len(bars) > 2 else float(len(score.beats) - 1 - bars[1])
     first = float(bars[1] - bars[0])
