@@ -51,7 +51,10 @@ T = TypeVar("T")
 
 PLANNER_NICE = 10
 """Niceness added to a planning process: sharing a core, the physics loop gets about nine tenths of it (the
-scheduler's weights for nice 0 and 10); the planner still takes whatever the loop leaves."""
+scheduler's weights for nice 0 and 10); the planner still takes whatever the loop leaves. On a core busy with other
+nice-0 processes that is little: the 439-note rock groove (0.54 s alone) planned in 23-27 s against 4 busy ones, 6.5-6.8
+s at nice 5, 2.7-3.1 s at nice 0 (7 Dec, one core; docs/physics.md "Background plans"). Kept at 10 until the loop's
+timing at nice 5 is measured too."""
 
 PlanWorker = Literal["thread", "process"]
 """Where background plans run: a thread of the node (shares the interpreter with the physics loop) or a process
@@ -291,6 +294,16 @@ class PlanWorkers:
             self._current, self._loaded = plan_executor(self.kind)
             self._loading_since = time.monotonic()
         stop_executor(old)
+
+    @property
+    def stops_at_once(self) -> bool:
+        """:meth:`abandon` would leave a worker ready to plan at once: a thread (a new one), or a process with its
+        spare loaded (without one, a new process would load for seconds: a plan after it would be refused
+        meanwhile)."""
+        if self.kind == "thread":
+            return True
+        loaded = self._spare_loaded
+        return loaded is not None and loaded.done() and not loaded.cancelled() and loaded.exception() is None
 
     def idle(self) -> None:
         """No plan in flight: start the spare a process worker lacks (at start, or after :meth:`abandon`) once a

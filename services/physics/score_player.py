@@ -98,7 +98,8 @@ messages after it wait in a FIFO (:meth:`ScorePlayer.submit`, :meth:`ScorePlayer
 and live notes waiting together are planned together; a ``/batteur/physics/reset``
 does not wait: it drops the plan in flight (:meth:`ScorePlayer._drop_for_reset`) and
 stops computing it, so the next plan starts at once (a spare planning process:
-services/physics/plan_worker.py ``PlanWorkers``).
+services/physics/plan_worker.py ``PlanWorkers``); nor does a ``stop`` or ``pause`` for at
+once: it drops the plans it makes pointless, said in the log (:meth:`ScorePlayer._stop_at_once`).
 
 The log says where the score is (its seconds as written, and bar and beat
 counted in its own meter: :func:`common.score.position.counted_bar_beat`, as
@@ -121,6 +122,7 @@ import functools
 import logging
 import math
 import os
+import statistics
 import time
 from collections import Counter, deque
 from collections.abc import Callable, Sequence
@@ -247,7 +249,7 @@ overhead: their time is kept whole, see :meth:`ScorePlayer._estimate`)."""
 PLAN_SAFETY = 1.5
 """Background plans: the splice is put this many estimated planning times after the message."""
 PLAN_HISTORY = 8
-"""Background plans: the per-note planning time is the slowest of this many latest timed plans."""
+"""Background plans: the per-note planning time is the median of this many latest timed plans."""
 MAX_PLAN_RETRIES = 3
 """Background plans: a ``play`` or re-plan whose plan is ready after its splice time is planned again from the
 state then, at most this many times (each with the larger estimate it measured)."""
@@ -258,6 +260,10 @@ MAX_WAITING_MESSAGES = 10_000
 
 class ScorePlayerError(ValueError):
     """A score control message the player cannot act on (the message says why)."""
+
+
+class _NothingPlaying(ScorePlayerError):
+    """A stop or pause with nothing to act on (:meth:`ScorePlayer._check_playing`)."""
 
 
 class _LiveOrigin(NamedTuple):
@@ -349,6 +355,11 @@ class _Waiting:
     """A live note whose window did not re-join the queued plan: planned again with the rest of the performance."""
     widen: bool = False
     """... or with its window widened to the hi-hat foot's next note (``_WindowMissed.widen``)."""
+    behind: str = ""
+    """The plan in flight when it arrived (``a tempo re-plan``: :meth:`ScorePlayer._kind`), said if it waited too
+    long behind it; "": none."""
+    took: float = 0.0
+    """A ``play`` or re-plan planned again: seconds its latest plan took (the least its next one is given)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -449,6 +460,10 @@ class ScorePlayer:
         """The current performance's notes in rig seconds (hands once assigned are kept: ``DrumEvent.limb``)."""
         self.mapping: tuple[float, float, float] | None = None
         """The playing score's clock: (rig time s, score position s as written, tempo factor) of one instant."""
+        self._clocks: list[tuple[float, float, float]] = []
+        """The play's clocks in force one after another (as :attr:`mapping`): the play's, then each re-plan's from its
+        anchor on; a stop or pause before the latest anchor (laid ahead by the planning time) is said with the one
+        sounding then (:meth:`_sounding`)."""
         self._stopping: tuple[tuple[float, float, float], float] | None = None
         """A stop or pause sent ahead of its time: the score's clock before it and the rig time (s) it plays
         until (the score plays on until then, and its position is shown: :meth:`clock`)."""
@@ -557,8 +572,8 @@ class ScorePlayer:
             self.live_note(message, now, source)
         elif isinstance(message, SETTINGS_MESSAGES):
             self._apply_settings(message)
-            if self._replans(message):
-                self.replan(now)
+            if self._replans(message) and self.replan(now) is None:
+                self._say_unplanned(message)
         elif isinstance(message, KitSelect):
             self.select_kit(message.kit)
 
@@ -839,7 +854,11 @@ class ScorePlayer:
         asked = None
         t_s = base + SPLICE_MARGIN_S + delay_s
         earliest = t_s + TRANSITION_S + self.preparation_s - SPLICE_MARGIN_S
-        too_close = whole and at + (min(e.time for e in remaining) - position) / tempo < earliest
+        # notes that only the expected planning time (``delay_s``) would leave out: the whole score starts later
+        # instead (until 7 Dec an estimate swollen by a slow plan dropped a minute of music)
+        planning = delay_s > 0.0 and at > base and any(earliest - delay_s <= at + (e.time - position) / tempo
+                                                       < earliest for e in remaining)
+        too_close = (whole or planning) and at + (min(e.time for e in remaining) - position) / tempo < earliest
         if at <= base or too_close:  # "at once"; a time that has passed: with its whole lead-in
             asked = at
             at = (base + delay_s + (LATE_START_S if rig_at > 0.0 else START_LEAD_S)
@@ -852,9 +871,13 @@ class ScorePlayer:
 
         def announce() -> None:  # rig times (the targets' clock plus the lag)
             if asked is not None and asked > base:  # ``whole``: the first note too close to prepare
-                log.log(start_level, "play at rig time %.3f s asked at %.3f s, too close to prepare its first note: "
-                        "the whole score starts at %.3f s instead (%.3f s late)", rig_at, base + lag, at + lag,
+                log.log(start_level, "play at rig time %.3f s asked at %.3f s, too close to prepare its first note%s: "
+                        "the whole score starts at %.3f s instead (%.3f s late)", rig_at, base + lag,
+                        f" once planned (its plan is expected to take {delay_s:.3f} s)" if planning else "", at + lag,
                         at - asked)
+            elif asked is not None and rig_at <= 0.0 and delay_s > START_LEAD_S:  # "at once", seconds later
+                log.log(start_level, "play at once asked at %.3f s: its plan is expected to take %.3f s: the score "
+                        "starts at %.3f s (%.3f s after the message)", base + lag, delay_s, at + lag, at - base)
             elif asked is not None and rig_at > 0.0:  # a time that has passed (0 is the panel's "at once"): how late
                 log.log(start_level, "play at rig time %.3f s asked at %.3f s, already past: the score starts at "
                         "%.3f s instead (%.3f s late)", rig_at, base + lag, at + lag, at + lag - rig_at)
@@ -881,6 +904,7 @@ class ScorePlayer:
             self._dropped = {}
             self._note_dropped(plan, t_s)
             self.mapping = (at, position, tempo)
+            self._clocks = [self.mapping]
             self._stopping = None
             self.state = "playing"
             self.end_time = plan.end_time
@@ -960,10 +984,21 @@ class ScorePlayer:
         score = self.playing_score
         if score is None:
             return text
-        at, position, tempo = mapping
+        at, position, tempo = self._sounding(t_s, mapping)
         if t_s < at:  # before the play's first note: it was to start there
             return f"{text}, before the score started (from {score_words(score, position)})"
         return f"{text}: {self._words(score, position + (t_s - at) * tempo)}"
+
+    def _sounding(self, t_s: float, mapping: tuple[float, float, float]) -> tuple[float, float, float]:
+        """The clock of the score sounding at ``t_s`` (s, the targets' clock): ``mapping`` (the latest, as
+        :meth:`_mapping_at`) from its rig time on; before it (a re-plan's anchor, laid the planning time ahead) the
+        one in force then (:attr:`_clocks`: an earlier re-plan's or the play's, whose start a time before is
+        before). Until 7 Dec a stop before a re-plan's anchor was said "before the score started", from the
+        anchor's position."""
+        if t_s >= mapping[0] or mapping not in self._clocks:
+            return mapping
+        earlier = [m for m in self._clocks if m[0] <= t_s]
+        return earlier[-1] if earlier else self._clocks[0]
 
     def _lay(self, timeline: Timeline | None, before: Timeline | None, anchor: float,
              mapping: tuple[float, float, float], lag: float) -> None:
@@ -1085,7 +1120,7 @@ class ScorePlayer:
         lag = self.core.target_lag
         was = {"paused": " (paused)", "idle": ""}.get(self.state,
                                                       f" (the performance ended at {self.end_time + lag:.3f} s)")
-        raise ScorePlayerError(f"{action} at {t_s + lag:.3f} s: nothing is playing then{was}")
+        raise _NothingPlaying(f"{action} at {t_s + lag:.3f} s: nothing is playing then{was}")
 
     def _stop_clock(self) -> None:
         """A stop or pause (after :meth:`_forget`): keep the playing score's clock until the plan's new end (a
@@ -1182,6 +1217,7 @@ class ScorePlayer:
             self.events = self._assigned(events, plan)
             self._note_dropped(plan, t_s)
             self.mapping = (t_a, p_a, tempo)
+            self._clocks = [m for m in self._clocks if m[0] < t_a] + [self.mapping]
             self.end_time = plan.end_time
             log.info("re-planned from rig %.3f s (%s): tempo x%g, dynamics x%g, %s grip, %s", t_a + lag,
                      self._words(score, p_a), tempo, dynamics, self.grip.value, self.nuance.value)
@@ -1491,8 +1527,9 @@ class ScorePlayer:
         With nothing in flight or waiting, a message that plans (``play``, style, tempo, live note) starts its
         plan in the worker and any other is applied at once (``direct``); otherwise it waits its turn, so a stop
         or a target after a live note acts after that note's plan, except a reset, which drops the plan in flight
-        and acts at once (:meth:`_drop_for_reset`). While the worker loads (:attr:`loading`) a message whose plan
-        would wait for the load is refused at its turn instead, its sender told why. Raises
+        and acts at once (:meth:`_drop_for_reset`), and a stop or pause for at once, which drops the plans it makes
+        pointless and acts at once (:meth:`_stop_at_once`). While the worker loads (:attr:`loading`) a message whose
+        plan would wait for the load is refused at its turn instead, its sender told why. Raises
         :class:`ScorePlayerError` past :data:`MAX_WAITING_MESSAGES` waiting (the core rejects the message).
         """
         if self._direct is None:
@@ -1505,12 +1542,107 @@ class ScorePlayer:
         if isinstance(message, PhysicsReset):  # at once: what waits for the planner is stale
             self._drop_for_reset(now)
             return self._direct(message, now, source)
+        if (isinstance(message, ScoreTransport) and message.action != "play" and self.busy
+                and self._overtakes(message, now)):
+            self._stop_at_once(message, now, source)
+            return []
         if len(self._waiting) >= MAX_WAITING_MESSAGES:
             raise ScorePlayerError(f"{len(self._waiting)} messages already wait behind the plan in flight, the "
                                    f"limit (MAX_WAITING_MESSAGES); refused")
-        self._waiting.append(_Waiting(message, now, source))
+        behind = self._kind(self._job.requests[0], flight=True) if self._job is not None else ""
+        self._waiting.append(_Waiting(message, now, source, behind=behind))
         self.pump(now)
         return []
+
+    def _overtakes(self, message: ScoreTransport, now: float) -> bool:
+        """Whether a stop or pause at rig time ``now`` (s) while busy acts at once, ahead of the plans in flight and
+        waiting (:meth:`_stop_at_once`): sent for at once (or a time past), or for no later than the splice of the
+        plan in flight with no other plan waiting; either way nothing of those plans could play before it. A stop
+        or pause sent further ahead waits its turn (a plan before it may play until then)."""
+        base = self._base(now) + SPLICE_MARGIN_S
+        t_s = max(message.time - self.core.target_lag, base)  # on the targets' clock, as stop() places it
+        if t_s <= base:
+            return True
+        job = self._job
+        planning = any(isinstance(w.message, (LiveNote, *SETTINGS_MESSAGES))
+                       or (isinstance(w.message, ScoreTransport) and w.message.action == "play") for w in self._waiting)
+        return job is not None and t_s <= job.prepared.t_s and not planning
+
+    def _stop_at_once(self, message: ScoreTransport, now: float, source: str) -> None:
+        """A stop or pause that acts at once while plans are in flight or wait (:meth:`_overtakes`): on a loaded
+        machine a plan took 5-26 s, and a stop waited 20 s behind two of them. The plans it makes pointless are
+        dropped and said in the log (:meth:`_drop_for_stop`), then it acts; the messages after it keep their order
+        after it. Refused as always when nothing plays (:meth:`_check_playing`), unless it dropped a plan."""
+        dropped = self._drop_for_stop(message.action, now)
+        try:
+            self._dispatch(message, now, source)
+        except _NothingPlaying as exc:
+            if not dropped:
+                self._fail([_Waiting(message, now, source)], exc, now)
+        except (ValueError, OSError) as exc:
+            self._fail([_Waiting(message, now, source)], exc, now)
+        except Exception as exc:  # a bug must not stop the loop (as in _start)
+            log.exception("score player: %s failed", message.action)
+            self._fail([_Waiting(message, now, source)], ValueError(f"{type(exc).__name__}: {exc}"), now)
+
+    def _drop_for_stop(self, action: str, now: float) -> bool:
+        """A stop or pause acting at once (rig time ``now``, s): drop what it makes pointless, said in the log, and
+        return whether anything was: the plan in flight (its result never read: :meth:`_drop_job`), a waiting
+        ``play``, live notes and a loop's next passes or a plan again after a late one; a waiting style, tempo,
+        dynamics or loop message keeps its settings without its re-plan (for the next ``play``, as when stopped)
+        and any other message acts as it would have, in order, before the stop (a score load, a stop or pause
+        sent ahead, a target, a controller change)."""
+        job = self._job
+        dropped: list[str] = []
+        if job is not None:
+            dropped.append(f"the {self._kind(job.requests[0], flight=True)} in flight")
+            self._drop_job()
+        waiting, self._waiting = list(self._waiting), deque()
+        kinds: Counter[str] = Counter()
+        for item in waiting:
+            message = item.message
+            if (item.tries or isinstance(message, LiveNote)
+                    or (isinstance(message, ScoreTransport) and message.action == "play")):
+                kinds[self._kind(item)] += 1
+            elif isinstance(message, SETTINGS_MESSAGES):
+                try:
+                    self._apply_settings(message)
+                except ValueError as exc:  # a loop refused (no score, bars it does not have)
+                    self._fail([item], exc, now)
+            else:
+                self._start(item, now)  # never plans
+        dropped += [f"{n} waiting {kind}{'s' if n > 1 else ''}" for kind, n in kinds.items()]
+        if dropped:
+            log.info("%s at rig %.3f s acts at once: %s dropped", action, now, ", ".join(dropped))
+        return bool(dropped)
+
+    def _drop_job(self) -> None:
+        """Drop the plan in flight for a stop or pause: its result is never read (nothing takes it, and the
+        generation moves on). A worker still computing it is stopped when one is ready to plan at once
+        (:attr:`PlanWorkers.stops_at_once`: a thread, a loaded spare process); otherwise it finishes the plan
+        unused, so the next plan waits for it, rather than be refused while a new process loads (seconds)."""
+        job, self._job = self._job, None
+        if job is None:
+            return
+        self._generation += 1
+        if job.future.cancel() or job.future.done() or self._worker is None:
+            return
+        if self._worker.stops_at_once:
+            self._worker.abandon()
+
+    @staticmethod
+    def _kind(waiting: _Waiting, flight: bool = False) -> str:
+        """What a message asks to plan, in words: ``play``, ``tempo re-plan``, ``loop extension`` (more passes),
+        ``live note`` (``flight``: ``live-note plan``)."""
+        message = waiting.message
+        if isinstance(message, LiveNote):
+            return "live-note plan" if flight else "live note"
+        if isinstance(message, ScoreTransport):
+            return message.action
+        if isinstance(message, ScoreLoop) and waiting.tries and not waiting.source:  # _extend_loop's
+            return "loop extension"
+        names = {TempoScale: "tempo", GestureStyle: "style", ScoreDynamics: "dynamics", ScoreLoop: "loop"}
+        return f"{names.get(type(message), type(message).__name__)} re-plan"
 
     def _drop_for_reset(self, now: float) -> None:
         """A reset while busy (rig time ``now``, s): drop the plan in flight (the reset clears the tracks it would
@@ -1623,14 +1755,18 @@ class ScorePlayer:
             error = self._counted(waiting.message, exc)
             self.core.reject(waiting.message, waiting.source, error, now)
 
-    def _estimate(self, notes: int) -> float:
+    def _estimate(self, notes: int, took: float = 0.0) -> float:
         """Seconds a background plan of ``notes`` notes is expected to take (from the latest timed plans): the
-        overhead plus the slowest per-note time of the plans of :data:`PLAN_MEASURED_NOTES` notes or more, and at
-        least as long as a plan of no more notes took (a short score under load: its own plan's time, mostly
-        overhead, which a per-note share would make too long for a long plan), times :data:`PLAN_SAFETY`."""
-        per_note = max(self._plan_times, default=PLAN_PER_NOTE_S)
-        shorter = max((took for n, took in self._short_plan_times if n <= notes), default=0.0)
-        return PLAN_SAFETY * max(PLAN_OVERHEAD_S + per_note * notes, shorter)
+        overhead plus the median per-note time of the plans of :data:`PLAN_MEASURED_NOTES` notes or more, and at
+        least the median time of the plans of no more notes (a short score under load: its own plan's time, mostly
+        overhead, which a per-note share would make too long for a long plan), and at least ``took`` (s: the time
+        this message's own plan took, when it is planned again), times :data:`PLAN_SAFETY`. Medians, not the
+        slowest (until 7 Dec): one plan slowed 50-fold on a loaded core made the next 8 wait seconds each, and a
+        ``play`` started a minute late."""
+        per_note = statistics.median(self._plan_times) if self._plan_times else PLAN_PER_NOTE_S
+        shorter = [t for n, t in self._short_plan_times if n <= notes]
+        short = statistics.median(shorter) if shorter else 0.0
+        return PLAN_SAFETY * max(PLAN_OVERHEAD_S + per_note * notes, short, took)
 
     def _submit(self, requests: list[_Waiting], prepared: _Prepared,
                 finish: Callable[[_Job, GesturePlan, float], None], notes: tuple[DrumEvent, ...] = ()) -> None:
@@ -1653,14 +1789,32 @@ class ScorePlayer:
             raise self._still_loading("not played")
         notes = len(self.score.events) if self.score is not None else 0
         # planned again (its plan was ready too late): the whole score later rather than its first notes left out
-        prepared = self._prepare_play(waiting.message.time, waiting.message.position, now, self._estimate(notes),
+        prepared = self._prepare_play(waiting.message.time, waiting.message.position, now,
+                                      self._estimate(notes, waiting.took),
                                       whole=waiting.tries > 0)
         self._submit([waiting], prepared, self._finish_whole)
 
     def _start_replan(self, waiting: _Waiting, now: float) -> None:
-        prepared = self._prepare_replan(now, self._estimate(len(self.events)))
+        prepared = self._prepare_replan(now, self._estimate(len(self.events), waiting.took))
         if prepared is not None:
             self._submit([waiting], prepared, self._finish_whole)
+        else:
+            self._say_unplanned(waiting.message, waiting.tries > 0 and not waiting.source)
+
+    def _say_unplanned(self, message: OscMessage, extension: bool = False) -> None:
+        """A settings message's re-plan found nothing left to re-plan although a play was on (its plan ends before
+        the re-plan's splice, or has no note after it): say so, rather than let a loop asked near the end vanish
+        (``extension``: :meth:`_extend_loop`'s more passes, said at DEBUG). Nothing is said with nothing playing
+        (the settings are for the next ``play``, said when they were applied)."""
+        if self.state != "playing" or self._playing is None:
+            return
+        if extension:
+            log.debug("loop: no more passes planned: the play ends before them")
+            return
+        what = (f"loop bars {message.first}-{message.last}" if isinstance(message, ScoreLoop) and message.first
+                else "loop off" if isinstance(message, ScoreLoop) else self._kind(_Waiting(message, 0.0, "")))
+        log.info("%s: the play of %s ends (its plan at rig %.3f s) before it could be laid; it applies to the next "
+                 "play", what, self._playing[1], self.end_time + self.core.target_lag)
 
     def _refuse_loading(self, waiting: _Waiting, now: float) -> None:
         """A live note while the planning worker still loads: not played, counted late (Health's ``late``) and its
@@ -1701,7 +1855,12 @@ class ScorePlayer:
             if event is None:
                 continue
             if not self._in_time(event, t0):
-                waited = f", its turn came at {now:.3f} s" if now > item.now else ""  # behind another plan
+                waited = ""
+                if now > item.now:  # behind another plan (in order: a note never overtakes the plans before it)
+                    waited = f", its turn came at {now:.3f} s"
+                    if item.behind:
+                        waited = (f", waited {now - item.now:.1f} s behind a {item.behind} (its turn came at "
+                                  f"{now:.3f} s)")
                 self._count_late(event, f"arrived at {item.now:.3f} s{waited}", item.source, now)
                 continue
             accepted.append((item, event))
@@ -1752,7 +1911,7 @@ class ScorePlayer:
                                        "not played")
             log.warning("%s: its plan took %.3f s and was ready after its splice time (%.3f s, now %.3f s): "
                         "planned again", type(waiting.message).__name__, took, prepared.t_s, now)
-            self._waiting.appendleft(dataclasses.replace(waiting, tries=waiting.tries + 1))
+            self._waiting.appendleft(dataclasses.replace(waiting, tries=waiting.tries + 1, took=took))
             return
         prepared.announce()
         prepared.commit(self._account(plan, job.pulled), prepared.t_s)
@@ -1961,7 +2120,7 @@ class ScorePlayer:
             run.ending, run.cause, run.ended_at = ending, cause, t_s
             mapping = self._mapping_at(t_s)
             if mapping is not None:
-                at, position, tempo = mapping
+                at, position, tempo = self._sounding(t_s, mapping)
                 run.played_end = position + max(t_s - at, 0.0) * tempo
         # the notes the plans still hold from then on (a second one ahead: those the first one left)
         run.cut += sum(1 for e in self.events if e.time >= t_s and (e.time, e.event.value) not in run.live)
