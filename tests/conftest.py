@@ -1,5 +1,5 @@
 """Shared pytest setup: the network-namespace lab fixture for tests that need real networking, physics' strike
-scene core (``strike_core``), a per-run user
+scene core (``strike_core``), one glTF render of the tiny score (``tiny_gltf_render``), a per-run user
 configuration folder, and the programs and multiprocessing children tests start ending with the run (a run stopped
 by SIGTERM or SIGKILL left its node processes running: nine graphics nodes loaded a machine after one)."""
 
@@ -14,6 +14,7 @@ import sys
 import tempfile
 import threading
 from collections.abc import Callable, Iterator, Sequence
+from pathlib import Path
 from types import FrameType
 from typing import Any
 
@@ -134,6 +135,22 @@ def strike_core() -> Iterator[Any]:
         yield core
     finally:
         core.close()
+
+
+TINY_SCORE = Path(__file__).parent / "graphics" / "tiny_score.txt"
+"""Four strokes (snare, hi-hat and kick; about 4 s of rig time rendered)."""
+
+
+@pytest.fixture(scope="session")
+def tiny_gltf_render(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The folder of ``batteur render tests/graphics/tiny_score.txt --gltf --bvh-sync wav`` (wav: the default): the
+    one render the glTF, glTF flash, output length and BVH sync tests read (each module rendered it again, about
+    3 s of CPU each). Read only: a test that changes a render's files copies the folder first."""
+    from batteur import render
+
+    out = tmp_path_factory.mktemp("tiny-gltf") / "out"
+    assert render.main([str(TINY_SCORE), "-o", str(out), "--quiet", "--gltf", "--bvh-sync", "wav"]) == 0
+    return out
 
 
 def pytest_runtest_setup(item: pytest.Item) -> None:

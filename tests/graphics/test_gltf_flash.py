@@ -15,7 +15,6 @@ import pygltflib
 import pytest
 from scipy.spatial.transform import Rotation
 
-from batteur import render
 from common.kit import load_kit
 from services.graphics.export import write_gltf
 from services.graphics.export.gltf_flash import FLASH_S, HIDDEN_SCALE, MIN_GAP_S
@@ -29,10 +28,10 @@ SCORE = ROOT / "tests" / "graphics" / "tiny_score.txt"
 
 
 @pytest.fixture(scope="module")
-def rendered(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp("flash") / "out"
-    assert render.main([str(SCORE), "-o", str(out), "--quiet", "--gltf"]) == 0
-    return out
+def rendered(tiny_gltf_render: Path) -> Path:
+    """``SCORE`` rendered with ``--gltf`` (and the BVH on the WAV's clock, the default): tests/conftest.py's one
+    render, read only."""
+    return tiny_gltf_render
 
 
 def strikes(out: Path) -> dict[str, list[float]]:

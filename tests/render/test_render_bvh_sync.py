@@ -68,11 +68,11 @@ def _gltf_translation(path: Path, node_name: str) -> np.ndarray:
     return np.frombuffer(data, dtype=np.float32).reshape(accessor.count, 3)
 
 
-def test_render_bvh_sync_wav_puts_frame_0_at_the_wavs_time_0(tmp_path: Path) -> None:
+def test_render_bvh_sync_wav_puts_frame_0_at_the_wavs_time_0(tiny_gltf_render: Path) -> None:
     """With --bvh-sync wav the BVH's frame k is the glTF's key k (WAV time k / rate: the glTF test shows it lines
-    up with the strikes heard): the root's position is the same in both, frame by frame."""
-    out = tmp_path / "out"
-    assert render.main([str(SCORE), "-o", str(out), "--quiet", "--gltf", "--bvh-sync", "wav"]) == 0
+    up with the strikes heard): the root's position is the same in both, frame by frame. The render: SCORE with
+    ``--gltf --bvh-sync wav`` (tests/conftest.py's, shared with the glTF tests)."""
+    out = tiny_gltf_render
     report = json.loads((out / "report.json").read_text())
     assert report["bvh"] == {"file": "performance.bvh", "frames": len(motion_rows(out / "performance.bvh")),
                              "rate_hz": 60.0, "sync": "wav", "start_s": -0.05, "wav_time_s": 0.0,

@@ -1,7 +1,8 @@
 """``batteur render SCORE --gltf``: the performance (the drummer's links and the kit) as one animated glTF file.
 
 One render of tests/graphics/tiny_score.txt (four strokes, about 4 s of rig
-time) is shared by the checks of its file; the Khronos glTF-Validator runs
+time) is shared by the checks of its file (tests/conftest.py's ``tiny_gltf_render``, which other modules read
+too); the Khronos glTF-Validator runs
 when node and services/graphics/web's ``npm ci`` are there (as in
 tests/graphics/test_export.py).
 """
@@ -35,10 +36,10 @@ WEB = ROOT / "services" / "graphics" / "web"
 
 
 @pytest.fixture(scope="module")
-def rendered(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp("gltf") / "out"
-    assert render.main([str(SCORE), "-o", str(out), "--quiet", "--gltf"]) == 0
-    return out
+def rendered(tiny_gltf_render: Path) -> Path:
+    """``SCORE`` rendered with ``--gltf`` (and the BVH on the WAV's clock, the default): tests/conftest.py's one
+    render, read only."""
+    return tiny_gltf_render
 
 
 def bvh_frames(path: Path) -> tuple[int, float]:

@@ -29,10 +29,10 @@ SCORE = ROOT / "tests" / "graphics" / "tiny_score.txt"
 
 
 @pytest.fixture(scope="module")
-def rendered(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp("lengths") / "out"
-    assert render.main([str(SCORE), "-o", str(out), "--quiet", "--gltf", "--bvh-sync", "wav"]) == 0
-    return out
+def rendered(tiny_gltf_render: Path) -> Path:
+    """``SCORE`` rendered with ``--gltf`` (and the BVH on the WAV's clock, the default): tests/conftest.py's one
+    render, read only."""
+    return tiny_gltf_render
 
 
 def bvh_frame_count(path: Path) -> int:

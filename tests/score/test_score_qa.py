@@ -22,14 +22,20 @@ def _smf(track: bytes, division: int = 96) -> bytes:
     return b"MThd" + struct.pack(">IHHH", 6, 0, 1, division) + b"MTrk" + struct.pack(">I", len(track)) + track
 
 
+def _delta(ticks: int) -> bytes:
+    """A MIDI variable-length quantity (a delta time)."""
+    out = [ticks & 0x7F]
+    while ticks > 0x7F:
+        ticks >>= 7
+        out.insert(0, (ticks & 0x7F) | 0x80)
+    return bytes(out)
+
+
 def _snares(n: int, tempo: int = 500000, tpb: int = 96, step: int = 48) -> bytes:
-    mid = mido.MidiFile(type=0, ticks_per_beat=tpb)
-    track = mido.MidiTrack([mido.MetaMessage("set_tempo", tempo=tempo)])
-    track += [mido.Message("note_on", note=38, velocity=100, channel=9, time=step if i else 0) for i in range(n)]
-    mid.tracks.append(track)
-    buf = io.BytesIO()
-    mid.save(file=buf)
-    return buf.getvalue()
+    """A type 0 file of a tempo then ``n`` snare notes (channel 10) ``step`` ticks apart: the bytes mido saves
+    (running status), put together directly: mido's 500,001 Message objects took 3.3 s of CPU."""
+    notes = b"\x00\x99\x26\x64" + (_delta(step) + b"\x26\x64") * (n - 1) if n else b""
+    return _smf(b"\x00\xff\x51\x03" + tempo.to_bytes(3, "big") + notes + b"\x00\xff\x2f\x00", division=tpb)
 
 
 # --- MIDI ------------------------------------------------------------------------------------------------------
