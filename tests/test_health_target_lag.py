@@ -1,6 +1,7 @@
 """A physics node that falls behind has its drummer's targets trail the rig clock (``PhysicsCore.target_lag``,
 docs/physics.md "Time and determinism"); its Health reports that lag (seconds) and the jumps back
-(``target_jumps``), so ``batteur ls --json`` shows a late drummer, not only the skipped steps counted in ``late``.
+(``target_jumps``), so ``batteur ls --json`` shows a late drummer, not only its ``late`` notes (since 7 Dec not
+the skipped steps).
 The fields are appended (a positional reader finds the earlier ones unmoved); other nodes send 0, and a Health from
 an older node, without them, still decodes.
 

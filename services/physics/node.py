@@ -258,9 +258,10 @@ class LivePhysicsCore(PhysicsCore):
         past a stop or pause)."""
         player = self.score_player
         clock = player.clock(now)
-        if player.score is None or clock is None:
+        score = player.playing_score  # not the loaded one: a score loaded while another plays is for the next play
+        if score is None or clock is None:
             return None
-        return score_position(player.score, clock, now)
+        return score_position(score, clock, now)
 
     def wait_loaded(self, timeout_s: float | None = None) -> bool:
         """Block until the planning worker has loaded the planner (True; or a strike scene: none), False after

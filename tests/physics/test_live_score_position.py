@@ -62,3 +62,19 @@ def test_the_view_shows_bar_beat_and_tempo_while_the_score_plays_and_nothing_aft
         assert _panel(graphics, runner.now) is None  # the score ended: the panel empties
     finally:
         physics.close()
+
+
+def test_a_score_loaded_while_one_plays_leaves_the_view_in_the_playing_scores_bars(tmp_path: Path) -> None:
+    # the load is for the next play (the playing score plays on): its bars must not be read on the playing clock
+    (tmp_path / "waltz.txt").write_text("tempo 60\nmeter 3/4\nSN |x.x.x.|x.x.x.|x.x.x.|\n")
+    physics, graphics, runner, control = playing_with_view(tmp_path)
+    try:
+        runner.run_until(2.0)
+        control.send(ScoreLoad(path="waltz.txt"), "physics")
+        runner.run_until(1.5 + 3.0)  # four_bars' score time 3.0 s: bar 1 beat 1.0 (the waltz's: bar 1 beat 0.0)
+        panel = _panel(graphics, runner.now)
+        assert panel is not None
+        assert panel["bar"] == 1 and panel["beat"] == pytest.approx(1.0, abs=0.2)
+        assert panel["tempo_bpm"] == pytest.approx(100.0)
+    finally:
+        physics.close()
