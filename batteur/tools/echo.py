@@ -3,8 +3,10 @@
 Each node found (zeroconf, or ``--node HOST:PORT``) is sent a ``Subscribe``
 and copies every matching message it sends or receives to this tool, which
 renews the subscription while it runs. A node that refuses it (table full, bad
-pattern) answers ``SubscribeRefused``: echo says so once per node. Stops on
-Ctrl-C, after ``--count`` messages or after ``--duration`` seconds.
+pattern) answers ``SubscribeRefused``: echo says so once per node. Each node
+is asked for its Health every second (:class:`Presence`): echo says when one
+goes away and when it comes back. Stops on Ctrl-C, after ``--count`` messages
+or after ``--duration`` seconds.
 """
 
 from __future__ import annotations
@@ -12,6 +14,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import json
+import os
 import signal
 import sys
 from collections import OrderedDict
@@ -35,8 +38,19 @@ from batteur.tools.nodes import (
     write_line,
 )
 from common.arg_types import count, seconds
-from common.messages import ClockStatus, Impact, OscMessage, RawMessage, Subscribe, SubscribeRefused
+from common.messages import (
+    PROTOCOL_VERSION,
+    ClockStatus,
+    Health,
+    Hello,
+    Impact,
+    OscMessage,
+    RawMessage,
+    Subscribe,
+    SubscribeRefused,
+)
 from common.messages.interaction import Damping, ImpactEnd
+from common.messages.system import TOOL_ROLE
 from common.subscribe import matches, pattern_regex
 from common.transport import UdpEndpoint
 
@@ -46,6 +60,16 @@ REDUNDANT = (Impact, ImpactEnd, Damping)
 clock ping or pong's ``seq`` is its asker's: two nodes' pongs of one number are two messages."""
 PROBE_S = 2.0
 """How long to wait for each node's Health before saying it does not answer."""
+HEARTBEAT_S = 1.0
+"""How often echo asks each node for its Health while it runs (a Hello, as ``batteur ls``): a node that stopped
+was followed in silence, as if it had nothing to say."""
+GONE_AFTER = 3
+"""Heartbeats a node may leave unanswered (sending nothing else either) before echo says it went away."""
+ANSWERS = (Health, ClockStatus)
+"""What a node answers a tool's Hello with: their copies (a pattern such as ``/batteur/*``) are held back
+:data:`HOLD_S`, then printed unless they are copies of an answer to echo's own Hello."""
+HOLD_S = 0.2
+"""Seconds a copy of a Health or ClockStatus waits before it is printed or found to be our answer's."""
 
 DESCRIPTION = """\
 Print the OSC messages whose address matches PATTERN, as the nodes send or receive them.
@@ -59,7 +83,9 @@ sent several times with one sequence number (interaction sends each impact, impa
 damping 5 times to each peer, and the node that sends it and every node that receives it copy
 it here) is printed once; --copies prints every copy each node sends or receives. A node that
 refuses the subscription (its table full, say) is named once on standard error, with its
-reason.
+reason. Each node is asked for its Health every second: one that stops answering for 3 s
+(stopped, or out of reach) is said on standard error, and so is its return (echo keeps asking,
+and subscribes again at once); echo's own Hellos and the answers to them are not printed.
 
 Patterns (OSC 1.0): ? one character, * any run of characters but '/', [abc] [a-z] [!abc]
 one character of (or not of) a set, {foo,bar} one of several strings, // any number of levels.
@@ -158,8 +184,9 @@ class Refusals:
         return f"batteur echo: node {message.node_id} at {where} refused {message.pattern}: {message.reason}"
 
 
-async def _probe(targets: Sequence[Target]) -> list[Target]:
-    """The targets that answer a Hello; say which do not (echo would otherwise wait in silence)."""
+async def _probe(targets: Sequence[Target]) -> tuple[list[Target], dict[str, str]]:
+    """The targets that answer a Hello, and the node ids they answer with by address; say which do not (echo
+    would otherwise wait in silence)."""
     reachable = [t for t in targets if t.ip]
     for target in targets:
         if not target.ip:
@@ -171,7 +198,80 @@ async def _probe(targets: Sequence[Target]) -> list[Target]:
         if target not in answered:
             print(f"batteur echo: {target.address} did not answer within {PROBE_S:g} s; subscribing anyway "
                   "(is a Batteur node running there?)", file=sys.stderr)
-    return answered
+    return answered, {t.socket_address: answers[t.socket_address].node_id for t in answered}
+
+
+class Presence:
+    """Which nodes answer: echo asks each for its Health every :data:`HEARTBEAT_S` (a Hello from an endpoint of its
+    own), hears anything a node sends it, and says when a node that answered stops (nothing for
+    :data:`GONE_AFTER` heartbeats: it stopped, or the network between went down) and when one comes back, or
+    answers for the first time; echo keeps subscribing to it meanwhile (the node forgets a subscription when it
+    stops: one that comes back is subscribed again at once).
+
+    A node copies what it receives and sends, so our Hello and its answers to it (Health, ClockStatus) come back as
+    copies when the pattern matches them (``/batteur/*``): they are not the rig's messages and are not printed
+    (:meth:`ours`)."""
+
+    def __init__(self, targets: Sequence[Target], answered: Sequence[Target], now: float,
+                 hello: Hello) -> None:
+        self.targets = {t.socket_address: t for t in targets if t.ip}
+        self.heard = {t.socket_address: now for t in answered if t.ip}
+        """Node address -> when it was last heard (``loop.time()``); a node never heard is not in it."""
+        self.gone: set[str] = set()
+        self.names: dict[str, str] = {t.socket_address: t.node_id for t in targets if t.ip and t.node_id}
+        self.hello_key = _key(hello)
+        self.answers: dict[tuple[object, ...], float] = {}
+        """The answers to our Hellos (their content) -> until when a copy of one is not printed."""
+
+    def where(self, address: str) -> str:
+        target = self.targets[address]
+        name = self.names.get(address)
+        return f"node {name} at {target.address}" if name else f"the node at {target.address}"
+
+    def answer(self, message: OscMessage, source: str, now: float) -> str | None:
+        """A message on the heartbeat endpoint (the answers to our Hellos); what to say, if anything."""
+        self.answers[_key(message)] = now + GONE_AFTER * HEARTBEAT_S
+        if isinstance(message, Health):
+            if source not in self.targets:  # a node answering from another of its addresses: known by its id
+                source = next((a for a, name in self.names.items() if name == message.node_id), source)
+            else:
+                self.names[source] = message.node_id
+        return self.heard_from(source, now)
+
+    def heard_from(self, source: str, now: float) -> str | None:
+        """Anything from node address ``source``; says when a node gone (or never heard) answers."""
+        if source not in self.targets:
+            return None
+        first = source not in self.heard
+        self.heard[source] = now
+        if first:
+            return f"batteur echo: {self.where(source)} answers now; subscribed"
+        if source in self.gone:
+            self.gone.discard(source)
+            return f"batteur echo: {self.where(source)} is back; subscribed again"
+        return None
+
+    def went_away(self, now: float) -> list[str]:
+        """The nodes newly silent for :data:`GONE_AFTER` heartbeats, one line each."""
+        lines = []
+        for address, last in self.heard.items():
+            if address not in self.gone and now - last > GONE_AFTER * HEARTBEAT_S:
+                self.gone.add(address)
+                lines.append(f"batteur echo: {self.where(address)} went away (no answer for "
+                             f"{now - last:.0f} s: stopped, or out of reach); still asking for it every "
+                             f"{HEARTBEAT_S:g} s: its messages are printed again if it comes back")
+        for key in [k for k, until in self.answers.items() if until < now]:
+            del self.answers[key]
+        return lines
+
+    def ours(self, message: OscMessage) -> bool:
+        """Whether ``message`` (from the subscription) is a node's copy of our Hello or of its answer to it."""
+        key = _key(message)
+        return key == self.hello_key or key in self.answers
+
+
+def _key(message: OscMessage) -> tuple[object, ...]:
+    return (message.ADDRESS, *message.to_args())
 
 
 async def _run(opts: argparse.Namespace, subscribe: Subscribe) -> int:
@@ -180,23 +280,52 @@ async def _run(opts: argparse.Namespace, subscribe: Subscribe) -> int:
     if not targets:
         return report_error("batteur echo", f"no nodes found {where_browsed(interfaces, source)} within "
                             f"{opts.browse:g} s (start one, or give --node HOST:PORT)")
-    answered = await _probe(targets)
+    answered, names = await _probe(targets)
     reachable = [t for t in targets if t.ip]
     if not reachable:
         return 1
     endpoint = await UdpEndpoint.open(bind_address(reachable), allow=target_networks(reachable))
+    heartbeat = await UdpEndpoint.open(bind_address(reachable), allow=target_networks(reachable))
+    loop = asyncio.get_running_loop()
     stop = asyncio.Event()
     printed = 0
     outcome: list[int] = []  # set by what stopped us: Ctrl-C, or the reader of our output going away
     refusals = Refusals(subscribe.pattern, reachable)
     first_copies = FirstCopies()
+    hello = Hello(role=TOOL_ROLE, node_id=f"batteur-echo-{os.getpid()}", protocol=PROTOCOL_VERSION,
+                  osc_port=heartbeat.port)
+    presence = Presence(reachable, answered, loop.time(), hello)
+    presence.names.update(names)
+
+    def say(line: str | None, source: str) -> None:
+        if line is None:
+            return
+        print(line, file=sys.stderr, flush=True)
+        if source in presence.targets and not stop.is_set():  # back: subscribed again at once, not at the renewal
+            endpoint.send(subscribe, source)
+
+    def on_answer(message: OscMessage, source: str) -> None:
+        say(presence.answer(message, source, loop.time()), source)
 
     def on_message(message: OscMessage, source: str) -> None:
+        say(presence.heard_from(source, loop.time()), source)
         refused = refusals.line(message, source)
         if refused is not None:
             print(refused, file=sys.stderr)
-        if stop.is_set() or not matches(opts.pattern, message.ADDRESS):
+        if stop.is_set() or not matches(opts.pattern, message.ADDRESS) or presence.ours(message):
             return
+        if isinstance(message, ANSWERS):
+            # a copy of a node's answer to our Hello may be read before the answer itself (two sockets): decided
+            # once the answer, sent first, has surely been read
+            loop.call_later(HOLD_S, held_back, message)
+            return
+        print_message(message)
+
+    def held_back(message: OscMessage) -> None:
+        if not stop.is_set() and not presence.ours(message):
+            print_message(message)
+
+    def print_message(message: OscMessage) -> None:
         if not opts.copies and not first_copies.first(message):
             return  # a redundant copy: each node copies each of them, and each send to each peer, to us
         show(format_message(message, opts.json))
@@ -224,17 +353,25 @@ async def _run(opts: argparse.Namespace, subscribe: Subscribe) -> int:
 
     endpoint.set_handler(on_message)
     endpoint.add_raw_route("/", on_raw)
-    loop = asyncio.get_running_loop()
+    heartbeat.set_handler(on_answer)
     loop.add_signal_handler(signal.SIGINT, on_signal, INTERRUPTED)
     loop.add_signal_handler(signal.SIGTERM, on_signal, 0)
     print(f"batteur echo: printing {subscribe.pattern} from {', '.join(t.address for t in reachable)} "
           "(Ctrl-C stops)", file=sys.stderr)
     deadline = None if opts.duration is None else loop.time() + opts.duration
+    renew_at = loop.time()
     try:
         while not stop.is_set():
-            for target in reachable:
-                endpoint.send(subscribe, target.socket_address)
-            wait = RENEW_S if deadline is None else min(RENEW_S, deadline - loop.time())
+            now = loop.time()
+            if now >= renew_at:
+                for target in reachable:
+                    endpoint.send(subscribe, target.socket_address)
+                renew_at = now + RENEW_S
+            for line in presence.went_away(now):
+                print(line, file=sys.stderr, flush=True)
+            for target in reachable:  # a node that stopped (or never answered) is asked still
+                heartbeat.send(hello, target.socket_address)
+            wait = HEARTBEAT_S if deadline is None else min(HEARTBEAT_S, deadline - loop.time())
             if wait <= 0:
                 break
             try:
@@ -242,7 +379,9 @@ async def _run(opts: argparse.Namespace, subscribe: Subscribe) -> int:
             except TimeoutError:
                 pass
     finally:
+        stop.set()  # a copy still held back (HOLD_S) is not printed after the end: its answer can no longer come
         endpoint.close()
+        heartbeat.close()
     if outcome:
         return outcome[0]
     return 0 if answered or printed else 1

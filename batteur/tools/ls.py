@@ -12,6 +12,7 @@ import argparse
 import asyncio
 import json
 import math
+import time
 from collections.abc import Sequence
 from contextlib import suppress
 
@@ -117,11 +118,13 @@ CLOCK_GRACE_S = 0.25
 
 
 async def query_health(targets: Sequence[Target], timeout_s: float,
-                       clocks: dict[str, ClockStatus] | None = None) -> dict[str, Health]:
+                       clocks: dict[str, ClockStatus] | None = None,
+                       timing: dict[str, tuple[float, float]] | None = None) -> dict[str, Health]:
     """Send a Hello to each reachable target; collect the Health answers by source address within
     ``timeout_s`` (only the targets may answer). ``clocks``: also collect into it, by node id, the ClockStatus
     each node sends after its Health (waiting at most :data:`CLOCK_GRACE_S` more for them once every Health
-    is in)."""
+    is in). ``timing``: also collect into it, by source address, when the Hello left and its Health arrived
+    (``time.monotonic``, s): how old the Health's rig time is when it is used (``batteur send``'s +SECONDS)."""
     reachable = [t for t in targets if t.ip]
     answers: dict[str, Health] = {}
     if not reachable:
@@ -129,10 +132,13 @@ async def query_health(targets: Sequence[Target], timeout_s: float,
     endpoint = await UdpEndpoint.open(bind_address(reachable), allow=target_networks(reachable))
     healths_in = asyncio.Event()
     all_in = asyncio.Event()
+    sent: dict[str, float] = {}  # source address -> when its Hello left (time.monotonic)
 
     def on_message(message: OscMessage, source: str) -> None:
         if isinstance(message, Health):
             answers[source] = message
+            if timing is not None:  # a node answering from another address: its round trip from the first Hello
+                timing[source] = (sent.get(source, min(sent.values(), default=time.monotonic())), time.monotonic())
         elif isinstance(message, ClockStatus) and clocks is not None:
             clocks[message.node_id] = message
         else:
@@ -148,6 +154,7 @@ async def query_health(targets: Sequence[Target], timeout_s: float,
     try:
         hello = Hello(role=TOOL_ROLE, node_id="batteur-ls", protocol=PROTOCOL_VERSION, osc_port=endpoint.port)
         for target in reachable:
+            sent[target.socket_address] = time.monotonic()
             endpoint.send(hello, target.socket_address)
         with suppress(TimeoutError):
             await asyncio.wait_for(healths_in.wait(), timeout_s)

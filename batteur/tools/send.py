@@ -19,6 +19,7 @@ import struct
 import sys
 import time
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 from pythonosc.osc_message_builder import BuildError
 
@@ -145,7 +146,23 @@ def at_rig_time(texts: Sequence[str], relative: dict[int, float], rig_time_s: fl
     return [repr(rig_time_s + relative[i]) if i in relative else t for i, t in enumerate(texts)]
 
 
-def rig_times(targets: Sequence[tuple[str, int]], timeout_s: float) -> dict[tuple[str, int], float]:
+@dataclass(frozen=True)
+class RigTimeReading:
+    """A node's rig time as its Health said it: ``rig_time_s`` (the Health's), the Hello's round trip
+    (``round_trip_s``) and when the Health arrived (``arrived_s``, ``time.monotonic``)."""
+
+    rig_time_s: float
+    round_trip_s: float
+    arrived_s: float
+
+    def now(self, at_s: float) -> float:
+        """The node's rig time at ``at_s`` (``time.monotonic``): the Health's, plus its way back (half the round
+        trip, as a clock ping counts it) and the time since it arrived. Taken right before sending: a rig time read
+        before a slow round trip (a loaded machine) made ``+0.5`` a note already late when it arrived."""
+        return self.rig_time_s + self.round_trip_s / 2 + max(at_s - self.arrived_s, 0.0)
+
+
+def rig_times(targets: Sequence[tuple[str, int]], timeout_s: float) -> dict[tuple[str, int], RigTimeReading]:
     """Each target's rig time, from the Health it answers to a Hello (``batteur ls``'s request) within
     ``timeout_s``; a target that does not answer (or whose host does not resolve) is left out."""
     asked: list[Target] = []
@@ -154,9 +171,52 @@ def rig_times(targets: Sequence[tuple[str, int]], timeout_s: float) -> dict[tupl
             asked.append(Target(host, port, ip=resolve_host(host)))
         except ValueError:
             asked.append(Target(host, port))  # no ip: not asked, so no answer
-    answers = asyncio.run(query_health(asked, timeout_s))
-    return {(t.host, t.port): h.time for t, h in zip(asked, match_answers(asked, answers), strict=True)
-            if h is not None}
+    timing: dict[str, tuple[float, float]] = {}
+    answers = asyncio.run(query_health(asked, timeout_s, timing=timing))
+    source = {id(h): s for s, h in answers.items()}
+    out: dict[tuple[str, int], RigTimeReading] = {}
+    for t, h in zip(asked, match_answers(asked, answers), strict=True):
+        if h is not None:
+            hello_s, arrived_s = timing[source[id(h)]]
+            out[(t.host, t.port)] = RigTimeReading(h.time, max(arrived_s - hello_s, 0.0), arrived_s)
+    return out
+
+
+LATE = re.compile(r"at (?P<at>\d+(?:\.\d+)?) s arrived at (?P<arrived>\d+(?:\.\d+)?) s")
+"""How physics says when a live note refused as late was for and when it came (its ``/batteur/physics/rejected``
+reason: ``live note snare at 12.400 s arrived at 12.250 s: less than 300 ms to prepare it; not played``)."""
+PREPARE = re.compile(r"less than (?P<ms>\d+(?:\.\d+)?) ms to prepare")
+PAST = re.compile(r"at (?P<at>\d+(?:\.\d+)?) s is in the past \(now (?P<now>\d+(?:\.\d+)?) s\)")
+"""How a node says a time it was sent is already past (``strike at 3.0000 s is in the past (now 3.2000 s)``)."""
+OFFSET_STEP_S = 0.5
+"""A larger +SECONDS suggested for a refused late message: the next multiple of this above what it lacked."""
+
+
+def late_hint(reason: str, offset_s: float, resolved_s: float) -> str | None:
+    """What to say of a refusal (its ``reason``) of a message sent with ``+offset_s`` (resolved to rig time
+    ``resolved_s``) when the node refused it for being late: how late, and a larger offset to try; None for any
+    other refusal (a pitch of no drum: a larger offset would not help)."""
+    late = LATE.search(reason)
+    past = PAST.search(reason)
+    prepare = PREPARE.search(reason)
+    if late is not None and prepare is not None:
+        lead = float(late["at"]) - float(late["arrived"])  # what it had left when it arrived
+        need = float(prepare["ms"]) / 1000
+        short = max(need - lead, 0.0)
+        how = (f"it arrived {lead * 1000:.0f} ms before its time, {short * 1000:.0f} ms short of the "
+               f"{need * 1000:.0f} ms the node needs to prepare it")
+    elif late is not None:  # late for another cause (the planner still loading): a larger offset would not help
+        return None
+    elif past is not None:
+        short = float(past["now"]) - float(past["at"])
+        how = f"it arrived {short * 1000:.0f} ms after its time"
+    elif re.search(r"\blate\b|in the past|already past", reason):
+        short, how = 0.0, "the node says it came too late"
+    else:
+        return None
+    larger = math.floor((offset_s + short) / OFFSET_STEP_S + 1) * OFFSET_STEP_S
+    return (f"{PROG}: +{offset_s:g} s was rig time {resolved_s:.3f} s and came too late: {how}; a larger offset "
+            f"leaves more: try +{larger:g}")
 
 
 def typed_args(address: str, texts: Sequence[str]) -> list[Arg]:
@@ -303,30 +363,34 @@ def _send(opts: argparse.Namespace) -> int:
     if not targets:
         return 1
     failed = 0
-    packets = {target: data for target in targets}
+    readings: dict[tuple[str, int], RigTimeReading] = {}
     if relative:
-        now = rig_times(targets, opts.timeout)
+        readings = rig_times(targets, opts.timeout)
         for host, port in targets:
-            if (host, port) not in now:
+            if (host, port) not in readings:
                 failed += 1
-                del packets[(host, port)]
                 report_error(PROG, f"no rig time from {format_address(host, port)} within {opts.timeout:g} s (its "
                              "Health did not come: is a Batteur node running there?); +SECONDS needs it, not sent")
-                continue
-            try:
-                packets[(host, port)] = _encode(opts.address, typed_args(
-                    opts.address, at_rig_time(opts.args, relative, now[(host, port)])))
-            except MessageError as exc:  # a time beyond what the wire carries, say
-                failed += 1
-                del packets[(host, port)]
-                report_error(PROG, f"{format_address(host, port)}: {exc}")
+        targets = [t for t in targets if t in readings]
     sent: list[tuple[socket.socket, str]] = []  # kept open to hear the answers (--replies)
+    hints: dict[str, tuple[float, float]] = {}  # target -> (+SECONDS, the rig time it was made): said if late
     try:
-        for (host, port), data in packets.items():
+        for host, port in targets:
             family = socket.AF_INET6 if ":" in host else socket.AF_INET
             sock = socket.socket(family, socket.SOCK_DGRAM)
             try:  # connected, so the kernel reports a port nobody listens on (ICMP) to --replies
                 sock.connect((host, port))
+                if relative:  # +SECONDS made a rig time as late as can be: right before it is sent
+                    now = readings[(host, port)].now(time.monotonic())
+                    try:
+                        data = _encode(opts.address, typed_args(opts.address, at_rig_time(opts.args, relative, now)))
+                    except MessageError as exc:  # a time beyond what the wire carries, say
+                        sock.close()
+                        failed += 1
+                        report_error(PROG, f"{format_address(host, port)}: {exc}")
+                        continue
+                    first = min(relative)
+                    hints[format_address(host, port)] = (relative[first], now + relative[first])
                 sock.send(data)
             except (OSError, UnicodeError) as exc:  # an unknown host name, an unreachable network: say so, go on
                 sock.close()
@@ -336,7 +400,7 @@ def _send(opts: argparse.Namespace) -> int:
                 continue
             sent.append((sock, format_address(host, port)))
         if opts.replies > 0 and sent:
-            failed += _print_replies(sent, opts.replies)
+            failed += _print_replies(sent, opts.replies, hints)
     finally:
         for sock, _ in sent:
             sock.close()
@@ -348,10 +412,13 @@ REFUSALS = REFUSAL_ENDINGS
 ``/batteur/sound/rejected``, ``/batteur/subscribe/refused``): the nodes' own list."""
 
 
-def _print_replies(sent: Sequence[tuple[socket.socket, str]], wait_s: float) -> int:
+def _print_replies(sent: Sequence[tuple[socket.socket, str]], wait_s: float,
+                   hints: dict[str, tuple[float, float]] | None = None) -> int:
     """Print every answer the targets send back within ``wait_s`` seconds, one line each (``FROM ADDRESS ARGS``);
     returns how many targets refused the message (an answer at an address ending as :data:`REFUSALS`) or were
-    not listening (the kernel's port-unreachable)."""
+    not listening (the kernel's port-unreachable). ``hints``: target -> (+SECONDS, the rig time it was made) of a
+    message sent with a relative time: a refusal of it for being late is followed by how late, and a larger
+    offset to try (:func:`late_hint`, on standard error)."""
     deadline = time.monotonic() + wait_s
     names = {sock: name for sock, name in sent}
     refused: set[str] = set()
@@ -381,6 +448,10 @@ def _print_replies(sent: Sequence[tuple[socket.socket, str]], wait_s: float) -> 
                 print(" ".join([name, raw.address, *(str(a) for a in raw.args)]), flush=True)
                 if raw.address.endswith(REFUSALS):
                     refused.add(name)
+                    hint = None if hints is None or name not in hints else late_hint(
+                        " ".join(str(a) for a in raw.args), *hints[name])
+                    if hint is not None:
+                        print(hint, file=sys.stderr, flush=True)
     for name in sorted(set(names.values()) - answered):  # silence: not a failure, an accepted control gets none
         print(f"batteur send: no reply from {name} within {wait_s:g} s (a node answers a refusal or a request, "
               "not an accepted control; an address it does not know is dropped)", file=sys.stderr)

@@ -212,6 +212,29 @@ class ScorePosition(OscMessage):
     bar: int = Field(ge=0, description="bar number, from 0")
     beat: float = Field(ge=0, le=64, description="beat within the bar, from 0")
     tempo_bpm: float = Field(ge=0, le=1000, description="tempo, beats per minute")
+    # appended (7 Dec; a sender from before, a Pd patch, sends the four above): the view counted every meter in
+    # quarter notes, a 12/8 bar 1 to 6.99 where a musician counts its 12 eighths
+    beat_unit: float = Field(default=1.0, gt=0, le=4, description="the note the bar is counted in, quarter notes "
+                             "(beat and tempo_bpm stay in quarter notes): its meter's 1/D note, 0.5 in x/8 (the view "
+                             "counts a 12/8 bar in eighths, 1 to 12, as batteur compare does), 1 in x/4; a sender "
+                             "without it (5 arguments): 1")
+
+    APPENDED: ClassVar[tuple[str, ...]] = ("beat_unit",)
+    """The fields appended after ``tempo_bpm``, oldest first: a position without them decodes with their defaults."""
+    NEWER_ARGS: ClassVar[int] = 8
+    """Arguments after the last known field a newer sender's position may carry (fields appended since): ignored."""
+
+    @classmethod
+    def from_args(cls, args: Sequence[Any]) -> Self:
+        """As :meth:`OscMessage.from_args`; a position without the last appended fields (``APPENDED``: an older
+        sender's) decodes with their defaults, and a newer one's, with up to ``NEWER_ARGS`` more, without them."""
+        known = len(cls.wire_fields()) + 1  # ``time`` takes two arguments
+        missing = known - len(args)
+        if 0 < missing <= len(cls.APPENDED):
+            args = [*args, *(cls.model_fields[name].default for name in cls.APPENDED[-missing:])]
+        elif 0 < -missing <= cls.NEWER_ARGS:
+            args = args[:known]
+        return super().from_args(args)
 
 
 def _within(model: type[OscMessage], name: str, value: Any) -> bool:

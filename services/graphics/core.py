@@ -48,7 +48,7 @@ from common.messages.physics import PhysicsPosture, PhysicsReset
 from common.messages.system import TOOL_ROLE
 from common.rated_log import RatedWarnings
 from common.score.events import Score
-from common.score.position import bar_beat
+from common.score.position import bar_beat, bar_unit
 from services.graphics.camera import camera_for, default_camera, presets_json
 from services.graphics.preview import LOOP_PAUSE_S, PREVIEW_RATES, PreviewClock, bar_loop
 from services.graphics.scene import HISTORY, KitAnimator, hardware_json, kit_json
@@ -67,6 +67,7 @@ NO_PREVIEW = ("no preview is loaded, the view stays live: start the graphics nod
 """Why ``/batteur/graphics/mode preview`` is refused on a node without a preview."""
 SCORE_POSITION_KEPT_S = 1.0  # seconds a score position is shown after it arrived (the player sends 10 a second)
 _MAX_BEAT, _MAX_BPM = 64.0, 1000.0  # ScorePosition's bounds (a longer bar or a faster tempo is shown at the bound)
+_MAX_UNIT = 4.0  # and its beat_unit's (a whole note): a unit it cannot carry is counted in quarter notes
 NO_PREVIEW_RATE = "no preview is loaded: there is no preview to slow down or speed up"
 """Why a preview rate is refused on a node without a preview."""
 NO_PREVIEW_BARS = ("no score preview is loaded: there are no bars to loop (start the graphics node with "
@@ -583,18 +584,11 @@ class GraphicsCore:
         where = bar_beat(self.preview_score, self.preview_clock.position(now))
         if where is None:
             return None
+        # the beat the page counts the bar in: its meter's 1/D note, as physics' score player sends it
+        unit = bar_unit(self.preview_score, where.bar)
         return ScorePosition(time=now, bar=where.bar, beat=min(where.beat, _MAX_BEAT),
-                             tempo_bpm=min(where.tempo_bpm * self.preview_clock.rate, _MAX_BPM))
-
-    def _beat_unit(self, bar: int) -> float:
-        """The beat the page counts bar ``bar`` (from 0, as ``bar_beat``) in, quarter notes: the previewed score's
-        meter's 1/D note (``Score.bar_units``: 0.5 in 6/8, counted 1 to 6 as a DAW and ``batteur compare`` count;
-        bars past the last start as the last), quarter notes for a score that gives none and for the score
-        player's position (its message carries no meter)."""
-        score = self.preview_score if self.mode == "preview" and self.preview is not None else None
-        if score is None or not len(score.bar_units) or len(score.bar_units) != len(score.bar_beats):
-            return 1.0
-        return float(score.bar_units[min(max(bar, 0), len(score.bar_units) - 1)])
+                             tempo_bpm=min(where.tempo_bpm * self.preview_clock.rate, _MAX_BPM),
+                             beat_unit=unit if 0 < unit <= _MAX_UNIT else 1.0)
 
     def preview_counts(self, now: float) -> dict[str, Any] | None:
         """The preview's own numbers for the status (None with none loaded): its ``rate``, its ``poses`` and
@@ -707,7 +701,7 @@ class GraphicsCore:
             self.score if self.score is not None and now - self._score_seen <= SCORE_POSITION_KEPT_S else None)
         if position is not None:  # the preview's own position while it is shown, else the score player's
             score = {"bar": position.bar, "beat": round(position.beat, 2), "tempo_bpm": round(position.tempo_bpm, 1),
-                     "beat_unit": self._beat_unit(position.bar)}
+                     "beat_unit": position.beat_unit}
         newest = self._times[-1] if self._times else None
         return {
             "type": "status", "time": round(now, 3), "mode": self.mode, "latency": self.latency,
