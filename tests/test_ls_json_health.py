@@ -40,6 +40,13 @@ def test_ls_json_gives_the_drops_by_reason_and_the_rig_time(node_port: int,
     assert row["rig_time_s"] == pytest.approx(1234.568, abs=1e-3)  # a rig time's fraction is sent as float32
 
 
+def test_ls_json_carries_every_health_field(node_port: int, capsys: pytest.CaptureFixture[str]) -> None:
+    # a counter added to Health must reach the user too (wrong_node_unanswered did not, 7 Dec)
+    assert ls.main(["--node", f"127.0.0.1:{node_port}", "--timeout", "3", "--json"]) == 0
+    row = json.loads(capsys.readouterr().out)[0]
+    assert set(Health.model_fields) - {"time"} <= set(row)  # the rig time is rig_time_s
+
+
 def test_ls_help_says_what_the_json_adds(capsys: pytest.CaptureFixture[str]) -> None:
     with pytest.raises(SystemExit):
         ls.main(["--help"])

@@ -219,7 +219,7 @@ def _row(target: Target, health: Health | None, clock: ClockStatus | None = None
         late=health.late, peers=health.peers, decode_unanswered=health.decode_unanswered,
         replies_unanswered=health.replies_unanswered, target_lag=round(health.target_lag, 4),
         target_jumps=health.target_jumps, unroutable=health.unroutable, dropped_wrong_node=health.dropped_wrong_node,
-        errors=health.errors, duplicates=health.duplicates,
+        errors=health.errors, duplicates=health.duplicates, wrong_node_unanswered=health.wrong_node_unanswered,
         clock=clock_text(clock), clock_status=clock.model_dump(mode="json") if clock is not None else None,
     )
     return row
