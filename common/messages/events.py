@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+from collections.abc import Sequence
+from typing import Annotated, Any, ClassVar, Self
 
 from pydantic import Field
 
@@ -39,6 +40,30 @@ class Contact(OscMessage):
     normal_velocity: float = Field(description="relative normal approach velocity, m/s (positive: closing)")
     impulse: float = Field(ge=0, description="normal impulse during this step, newton-seconds")
     normal_force: float = Field(ge=0, description="normal force during this step, newtons")
+    # appended (7 Dec; an older physics, a Pd patch, sends the 17 arguments above): the impact could not tell an
+    # open hi-hat from a closed one, the sound heard every stroke at the kit's rest opening
+    openness: float = Field(default=-1.0, ge=-1, le=1, description="the hi-hat only: how far apart its plates were "
+                            "at this contact's first step, their gap above first touch over 25 mm "
+                            "(HIHAT_MAX_GAP_M): 0 closed (touching or clamped) ... 1; -1: not given (another "
+                            "instrument, or a sender without it: 17 arguments)")
+
+    APPENDED: ClassVar[tuple[str, ...]] = ("openness",)
+    """The fields appended after ``normal_force``, oldest first: a contact without them decodes with their
+    defaults."""
+    NEWER_ARGS: ClassVar[int] = 8
+    """Arguments after the last known field a newer sender's contact may carry (fields appended since): ignored."""
+
+    @classmethod
+    def from_args(cls, args: Sequence[Any]) -> Self:
+        """As :meth:`OscMessage.from_args`; a contact without the last appended fields (``APPENDED``: an older
+        sender's) decodes with their defaults, and a newer one's, with up to ``NEWER_ARGS`` more, without them."""
+        known = len(cls.wire_fields()) + 1  # ``time`` takes two arguments
+        missing = known - len(args)
+        if 0 < missing <= len(cls.APPENDED):
+            args = [*args, *(cls.model_fields[name].default for name in cls.APPENDED[-missing:])]
+        elif 0 < -missing <= cls.NEWER_ARGS:
+            args = args[:known]
+        return super().from_args(args)
 
 
 @register

@@ -456,7 +456,7 @@ class Segmenter:
             time=c.time,
             instrument=c.instrument,
             part=c.part,
-            zone=zone(track.obj, r, self.config.zones),
+            zone=zone(track.obj, r, self.config.zones, c.openness),
             kind=kind,
             r=r,
             theta=theta,
@@ -521,7 +521,7 @@ class Segmenter:
                 instrument=track.instrument,
                 part=track.part,
                 state=1,
-                zone=zone(track.obj, r, self.config.zones),
+                zone=zone(track.obj, r, self.config.zones, first.openness),
                 r=r,
                 theta=theta,
                 force=c.normal_force,
@@ -540,6 +540,7 @@ class Segmenter:
         if track.pressing:
             first = track.first_contact
             r, theta = polar(track.obj, first.local_x, first.local_y) if first else (0.0, 0.0)
+            openness = first.openness if first else -1.0
             events.append(
                 DampingChange(
                     seq=self._take_damping_seq(),
@@ -547,7 +548,7 @@ class Segmenter:
                     instrument=track.instrument,
                     part=track.part,
                     state=0,
-                    zone=zone(track.obj, r, self.config.zones),
+                    zone=zone(track.obj, r, self.config.zones, openness),
                     r=r,
                     theta=theta,
                     force=0.0,

@@ -7,10 +7,19 @@ normal, common/kit.py). Zones by object kind:
 membrane  ``rim`` within ``rim_margin`` of the edge or beyond it,
           ``edge`` from ``membrane_edge_r``, else ``centre``
 cymbal    ``bell`` inside the bell radius, ``edge`` from
-hihat     ``cymbal_edge_r``, else ``bow``
+          ``cymbal_edge_r``, else ``bow``
+hihat     from how open its plates were at the contact (the contact's
+          ``openness``, physics' simulated gap): ``open`` from
+          ``hihat_open_from``, ``half`` from ``hihat_half_from``, else
+          ``closed``; a contact without it (-1: an older physics): as
+          a cymbal
 bell      ``edge`` (the mouth) from ``bell_edge_r``, else ``centre``
 pedal     ``centre``
 ========  ===========================================================
+
+The sound plays a hi-hat's ``open``/``half``/``closed`` at openness 1, 0.5, 0
+from that stroke on (services/sound/instruments.py ``HiHat``), so the
+openness comes from the simulated hi-hat, never from the score.
 """
 
 from __future__ import annotations
@@ -34,6 +43,12 @@ class ZoneConfig(BaseModel):
     rim_margin: float = Field(default=0.006, ge=0, le=0.05, description="rim: this close to the edge, metres")
     cymbal_edge_r: float = Field(default=0.85, ge=0, le=1, description="cymbal edge zone starts here, r/a")
     bell_edge_r: float = Field(default=0.85, ge=0, le=1, description="cowbell mouth zone starts here, r/a")
+    hihat_half_from: float = Field(default=0.02, ge=0, le=1,
+                                   description="a hi-hat stroke is half open from this openness (the plates' gap "
+                                               "above first touch over 25 mm: 0.02 is 0.5 mm), else closed")
+    hihat_open_from: float = Field(default=0.06, ge=0, le=1,
+                                   description="... and open from this openness (0.06: 1.5 mm; the planner's "
+                                               "pedal lift for an open note leaves 2.2-2.7 mm on the default kit)")
 
 
 def polar(obj: KitObject, local_x: float, local_y: float) -> tuple[float, float]:
@@ -55,8 +70,13 @@ def polar(obj: KitObject, local_x: float, local_y: float) -> tuple[float, float]
     return r, theta
 
 
-def zone(obj: KitObject, r: float, zones: ZoneConfig) -> str:
-    """The zone name of a strike at r/a ``r`` on ``obj`` (module docstring)."""
+def zone(obj: KitObject, r: float, zones: ZoneConfig, openness: float = -1.0) -> str:
+    """The zone name of a strike at r/a ``r`` on ``obj`` (module docstring); ``openness``: a hi-hat's at the
+    contact (0 closed ... 1; negative: not known)."""
+    if obj.kind == "hihat" and openness >= 0.0:
+        if openness >= zones.hihat_open_from:
+            return "open"
+        return "half" if openness >= zones.hihat_half_from else "closed"
     if obj.kind == "membrane":
         if r * obj.radius >= obj.radius - zones.rim_margin:
             return "rim"

@@ -60,6 +60,9 @@ class _Episode:
     approach_velocity: float
     part: str | None = None
     """A striker whose part the episode's start decides (the hi-hat top: chick or rattle)."""
+    openness: float = -1.0
+    """A contact on the hi-hat: how open its plates were at the episode's first step (KitBodies.hihat_opening);
+    -1 for other instruments."""
 
 
 @dataclass(frozen=True)
@@ -212,6 +215,7 @@ class ContactTracker:
                 groups.setdefault((key, instrument), []).append((point, cp[7], sign, force, inst_key))
         out: list[Contact] = []
         dt = self.world.dt
+        hihat = self.kit.hihat
         for pair in sorted(groups):
             key, instrument = pair
             episode = self._episodes.get(pair)
@@ -233,6 +237,9 @@ class ContactTracker:
                 episode = _Episode(first_step=step, approach_velocity=float(-v_rel @ normal))
                 if self.strikers[key].part == HIHAT_TOP and not self.kit.pedal_closing():
                     episode.part = HIHAT_RATTLE
+                if hihat is not None and points[0][3][0] in (hihat.bottom_body, hihat.top_body):
+                    # the gap when the stick met the plates is what sounds: an open or a closed stroke
+                    episode.openness = self.kit.hihat_opening(self.world)
                 self._episodes[pair] = episode
                 self.episodes_started += 1
             origin, rot = instrument_frame(self.world, self.kit, instrument)
@@ -255,6 +262,7 @@ class ContactTracker:
                     normal_velocity=episode.approach_velocity,
                     impulse=total * dt,
                     normal_force=total,
+                    openness=episode.openness,
                 )
             )
         for pair in list(self._episodes):

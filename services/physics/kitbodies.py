@@ -291,11 +291,13 @@ class KitBodies:
                 )
 
     def hihat_opening(self, world: World) -> float:
-        """Current hi-hat gap as a fraction of the maximum (0 closed ... 1 fully open)."""
+        """How open the hi-hat is now: the simulated gap between its plates above first touch
+        (``HIHAT_CONTACT_GAP_M``) over ``HIHAT_MAX_GAP_M``, 0 (touching or clamped) ... 1; the kit's ``opening`` at
+        rest. (Before: the gap from zero over the maximum, which read a closed hi-hat as 0.06 open.)"""
         if self.hihat is None:
             return 0.0
         q = world.client.getJointState(self.hihat.top_body, self.hihat.rod_joint)[0]
-        return float(np.clip(q / HIHAT_MAX_GAP_M, 0.0, 1.0))
+        return float(np.clip((q - HIHAT_CONTACT_GAP_M) / HIHAT_MAX_GAP_M, 0.0, 1.0))
 
 
 def _set_contact(world: World, body: int, link: int, obj: KitObject) -> None:
