@@ -18,11 +18,12 @@ from common.arg_types import positive, seconds, take_negative_values
 from common.exit_status import USAGE
 from common.output_paths import check_output_file
 from common.transport import parse_address
-from services.recogniser.audio import MAX_DURATION_S
+from services.recogniser.audio import MAX_DURATION_S, SILENCE_PEAK
 from services.recogniser.classes import CLASSES
-from services.recogniser.errors import RecogniserError
+from services.recogniser.errors import AudioFileError, RecogniserError
 from services.recogniser.midi import TEMPO_RANGE_BPM
 from services.recogniser.model import MODEL_PATH, load_model
+from services.recogniser.tempo import RANGE_BPM, estimate_tempo
 from services.recogniser.transcribe import DrumEvent, transcribe_file
 
 DESCRIPTION = """\
@@ -54,9 +55,12 @@ mid tom 45, floor tom 43, crash 49, ride 51.
 examples:
   batteur transcribe groove.wav -o groove.mid
   batteur transcribe take.flac -o take.mid --tempo 96
+  batteur transcribe take.wav -o take.mid --overwrite      # replace an earlier take.mid
   batteur transcribe groove.wav --live --to 127.0.0.1:9900 -o heard.mid
 """
 
+DEFAULT_TEMPO_BPM = 120.0
+"""The tempo written when none is given and the strikes give none, BPM (MIDI's own default)."""
 LONG_FILE_S = 60.0
 """Files longer than this show a progress line, seconds."""
 WARNING = "batteur transcribe: warning:"
@@ -70,8 +74,11 @@ def build_parser(prog: str = "batteur transcribe") -> argparse.ArgumentParser:
     p.add_argument("audio", nargs="?", help="audio file to transcribe (WAV, FLAC, OGG, ...)")
     p.add_argument("-o", "--output", type=Path,
                    help="Standard MIDI File to write, named .mid or .midi (required unless --live)")
-    p.add_argument("--tempo", type=float, default=120.0, help="tempo written to the MIDI file, BPM (default 120; "
-                   "note times are exact whatever the tempo)")
+    p.add_argument("--tempo", type=float, default=None, help="tempo written to the MIDI file, BPM (default: "
+                   f"estimated from the strikes, {RANGE_BPM[0]:g}-{RANGE_BPM[1]:g}; {DEFAULT_TEMPO_BPM:g} when too "
+                   "few or too irregular to tell; note times are exact whatever the tempo)")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing -o file (without it transcribe "
+                   "refuses before reading the audio, naming it)")
     p.add_argument("--max-duration", type=float, default=MAX_DURATION_S,
                    help=f"refuse longer files, seconds (default {MAX_DURATION_S:.0f})")
     p.add_argument("--model", type=Path, default=MODEL_PATH, help="model file (default: the shipped one)")
@@ -122,6 +129,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     say = (lambda *a: None) if args.quiet else (lambda *a: print(*a, file=sys.stderr))
+    # where the file went on stdout, as `batteur render`'s "wrote ..." lines; warnings and progress on stderr
+    tell = (lambda *a: None) if args.quiet else (lambda *a: print(*a))
 
     def warn(text: str) -> None:
         say(f"{WARNING} {text}")
@@ -145,7 +154,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error("--speed plays a file faster; a device plays in real time")
     if not args.max_duration > 0:  # written so NaN fails too (inf: no limit)
         parser.error("--max-duration must be positive")
-    if not TEMPO_RANGE_BPM[0] <= args.tempo <= TEMPO_RANGE_BPM[1]:
+    if args.tempo is not None and not TEMPO_RANGE_BPM[0] <= args.tempo <= TEMPO_RANGE_BPM[1]:
         parser.error(f"--tempo must be {TEMPO_RANGE_BPM[0]:g}..{TEMPO_RANGE_BPM[1]:g} BPM, got {args.tempo:g}")
     try:
         if args.output is not None:  # before the long part: nothing is lost to a typo
@@ -162,6 +171,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             if not _midi_name(args.output):
                 return _refuse_output(args.output, "the transcription is a Standard MIDI File; give a name ending "
                                       f"in {' or '.join(MIDI_SUFFIXES)}")
+            if not args.overwrite and _existing_file(args.output):  # a user's exercise: as `batteur render` does
+                raise RecogniserError(f"-o {args.output}: exists, and the transcription would replace it: move it, "
+                                      "give another name, or give --overwrite")
         model = load_model(args.model)
         if args.live:
             return _live(args, model, say)
@@ -176,29 +188,87 @@ def main(argv: Sequence[str] | None = None) -> int:
         import soundfile as sf
 
         try:  # not a FIFO: opening one waits for a writer (load_audio refuses it)
-            long = Path(args.audio).is_file() and sf.info(args.audio).duration > LONG_FILE_S and not args.quiet
+            seconds_long = sf.info(args.audio).duration if Path(args.audio).is_file() else 0.0
         except Exception:
-            long = False  # load_audio reports the problem
+            seconds_long = 0.0  # load_audio reports the problem
+        long_s = seconds_long if seconds_long > LONG_FILE_S else None
+        long = long_s is not None and not args.quiet
+        if long_s is not None and long_s <= args.max_duration:  # longer: load_audio refuses it unread
+            _refuse_silence(args.audio, None if args.quiet else args.audio)
         t0 = time.perf_counter()
         events, duration = transcribe_file(args.audio, model, progress if long else None, args.max_duration, warn)
         elapsed = time.perf_counter() - t0
         if long:
             print(file=sys.stderr)
-        _write(events, args)
-        say(f"{_count(len(events), 'note')} ({_summary(events)}) from {_duration(duration)} of audio "
-            f"in {elapsed:.2f} s{_speed(duration, elapsed)} -> {args.output}")
+        tempo = _write(events, args)
+        tell(f"{_count(len(events), 'note')} ({_summary(events)}) from {_duration(duration)} of audio "
+             f"in {elapsed:.2f} s{_speed(duration, elapsed)}{tempo} -> {args.output}")
         if not events:
             say(f"{WARNING} no drum strike recognised; the MIDI file is empty")
         return 0
     except RecogniserError as exc:
         print(f"batteur transcribe: error: {exc}", file=sys.stderr)
         return 1
+    except BrokenPipeError:  # the summary's reader went (`| head -0`): batteur/cli.py's quiet stop, not an error
+        raise
     except OSError as exc:
         print(f"batteur transcribe: error: {exc}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:  # the live path handles its own: it writes what was heard
         print("\nbatteur transcribe: interrupted; nothing written", file=sys.stderr)
         return 130
+
+
+SCAN_BLOCK = 1 << 20
+"""Frames :func:`_refuse_silence` reads at a time (about 24 s at 44.1 kHz)."""
+
+
+def _refuse_silence(path: str, shown: str | None) -> None:
+    """Raise :class:`AudioFileError` for a long file that is silent, as :func:`~services.recogniser.audio.load_audio`
+    would, having read it a block at a time and shown how far on stderr (``transcribing FILE: checking for sound
+    NN%``, unless ``shown`` is None): a 30-minute silent file took up to a minute of a shared core, nearly all of it
+    in load_audio's one read, with nothing printed before "the audio is silent". A file with sound stops the scan at
+    its first block louder than silence could be (its whole peak-to-peak over 2 x :data:`SILENCE_PEAK`: then no
+    offset makes it silent); a file soundfile cannot read through is left to load_audio. The test is load_audio's:
+    the peak of the mono mix less its mean."""
+    import soundfile as sf
+
+    lo, hi, total, n = np.inf, -np.inf, 0.0, 0
+    ch_lo = ch_hi = ch_sum = None
+    printed, step = False, -1
+    try:
+        with sf.SoundFile(path) as f:
+            frames = max(f.frames, 1)
+            while len(block := f.read(SCAN_BLOCK, dtype="float32", always_2d=True)):
+                mono = block.mean(axis=1)
+                lo, hi = min(lo, float(mono.min())), max(hi, float(mono.max()))
+                if not (np.isfinite(lo) and np.isfinite(hi)) or hi - lo >= 2 * SILENCE_PEAK:
+                    return  # sound (or NaN: load_audio says so)
+                total += float(mono.sum(dtype=np.float64))
+                n += len(mono)
+                b_lo, b_hi, b_sum = block.min(axis=0), block.max(axis=0), block.sum(axis=0, dtype=np.float64)
+                ch_lo = b_lo if ch_lo is None else np.minimum(ch_lo, b_lo)
+                ch_hi = b_hi if ch_hi is None else np.maximum(ch_hi, b_hi)
+                ch_sum = b_sum if ch_sum is None else ch_sum + b_sum
+                if shown is not None and (pct := int(100 * n / frames)) // 5 != step:
+                    printed, step = True, pct // 5  # every 5 %, as the transcription's own progress
+                    print(f"\rtranscribing {shown}: checking for sound {pct:3d}%", end="", file=sys.stderr,
+                          flush=True)
+    except Exception:
+        return  # unreadable through: load_audio reads what decodes, and says why
+    finally:
+        if printed:
+            print(file=sys.stderr)
+    if n == 0 or ch_lo is None or ch_hi is None or ch_sum is None:
+        return
+    mean = total / n
+    if max(hi - mean, mean - lo) >= SILENCE_PEAK:
+        return
+    dc = f" but for a constant offset of {mean:.3g}" if abs(mean) >= SILENCE_PEAK else ""
+    ch_mean = ch_sum / n
+    if len(ch_mean) > 1 and float(np.max(np.maximum(ch_hi - ch_mean, ch_mean - ch_lo))) >= SILENCE_PEAK:
+        dc = " once its channels are mixed: they cancel (one channel's polarity inverted?)"
+    raise AudioFileError(f"{path}: the audio is silent{dc} (peak below -70 dBFS); nothing to transcribe")
 
 
 def _refuse_output(output: Path, why: str) -> int:
@@ -208,14 +278,35 @@ def _refuse_output(output: Path, why: str) -> int:
     return USAGE
 
 
-def _write(events: Sequence[DrumEvent], args: argparse.Namespace) -> None:
-    """Write the MIDI file, a failure (a full disk) reported naming it: no partial file is left."""
+def _write(events: Sequence[DrumEvent], args: argparse.Namespace) -> str:
+    """Write the MIDI file, a failure (a full disk) reported naming it: no partial file is left. Returns what the
+    summary says of its tempo: nothing when ``--tempo`` gave it, else the estimate (:func:`_tempo`)."""
     from services.recogniser.midi import write_midi
 
+    tempo_bpm, said = (args.tempo, "") if args.tempo is not None else _tempo(events)
     try:
-        write_midi(events, args.output, tempo_bpm=args.tempo)
+        write_midi(events, args.output, tempo_bpm=tempo_bpm)
     except OSError as exc:
         raise RecogniserError(f"-o {args.output}: cannot write the MIDI file: {exc.strerror or exc}") from exc
+    return said
+
+
+def _tempo(events: Sequence[DrumEvent]) -> tuple[float, str]:
+    """The tempo written without ``--tempo``, BPM, estimated from the strikes (:func:`estimate_tempo`; else
+    :data:`DEFAULT_TEMPO_BPM`), and the summary's words for it: the bars then line up in a DAW, in ``batteur
+    render``'s count and as a ``batteur compare`` exercise (a 100 BPM take written at 120 read as 7 bars and 24.2
+    beats). Only the tempo meta changes: note times are exact at any tempo."""
+    bpm = estimate_tempo([e.time for e in events], [e.velocity for e in events])
+    if bpm is None:
+        return DEFAULT_TEMPO_BPM, (f", tempo {DEFAULT_TEMPO_BPM:g} bpm (too few or too irregular strikes to "
+                                   "estimate one: --tempo BPM sets it)")
+    return bpm, f", tempo about {bpm:g} bpm (estimated: --tempo BPM sets it)"
+
+
+def _existing_file(path: Path) -> bool:
+    """Whether ``path`` is a file the transcription would replace (a regular file, or a symlink to none yet);
+    /dev/null and other non-files are written in place, never replaced."""
+    return path.is_file() or (path.is_symlink() and not path.exists())
 
 
 MIDI_SUFFIXES = (".mid", ".midi")
@@ -281,8 +372,9 @@ def _live(args: argparse.Namespace, model: object, say: Callable[[str], None]) -
         print(f"{_count(len(report.hits), 'hit')} sent to {', '.join(targets)}; {stats}", file=sys.stderr)
     if args.output is not None:
         events = report.events()
-        _write(events, args)
-        say(f"{_count(len(events), 'note')} ({_summary(events)}) -> {args.output}")
+        tempo = _write(events, args)
+        if not args.quiet:
+            print(f"{_count(len(events), 'note')} ({_summary(events)}){tempo} -> {args.output}")
     return status
 
 

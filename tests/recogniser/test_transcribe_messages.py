@@ -64,8 +64,8 @@ def test_live_says_where_it_wrote_the_midi_file(pattern_wav: Path, listener: soc
     out = tmp_path / "heard.mid"
     port = listener.getsockname()[1]
     assert main([str(pattern_wav), "--live", "--speed", "50", "--to", f"127.0.0.1:{port}", "-o", str(out)]) == 0
-    last = capsys.readouterr().err.splitlines()[-1]
-    assert re.fullmatch(rf"\d+ notes \(kick \d+, snare \d+.*\) -> {re.escape(str(out))}", last), last  # was silent
+    last = capsys.readouterr().out.splitlines()[-1]  # where the file went: stdout (was stderr), as render's
+    assert re.fullmatch(rf"\d+ notes \(kick \d+, snare \d+.*\), tempo .* -> {re.escape(str(out))}", last), last
     assert out.is_file()
 
 
@@ -78,18 +78,19 @@ def _snare(tmp_path: Path, seconds: float) -> Path:
 def test_a_short_file_s_summary_reads_right(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "snare.mid"
     assert main([str(_snare(tmp_path, 0.25)), "-o", str(out)]) == 0
-    line = capsys.readouterr().err.strip()
+    line = capsys.readouterr().out.strip()
     # was "1 notes (snare 1) from 0.2 s of audio in 0.12 s (2x real time)" (and "0x" for shorter files)
-    assert re.fullmatch(rf"1 note \(snare 1\) from 250 ms of audio in \d+\.\d\d s -> {re.escape(str(out))}",
+    assert re.fullmatch(rf"1 note \(snare 1\) from 250 ms of audio in \d+\.\d\d s, tempo 120 bpm \(.*\) -> "
+                        rf"{re.escape(str(out))}",
                         line), line
 
 
 def test_a_long_file_s_summary_keeps_its_real_time_factor(pattern_wav: Path, tmp_path: Path,
                                                           capsys: pytest.CaptureFixture[str]) -> None:
     assert main([str(pattern_wav), "-o", str(tmp_path / "p.mid")]) == 0
-    line = capsys.readouterr().err.strip()
-    assert re.fullmatch(r"\d+ notes \(.*\) from \d+\.\d s of audio in \d+\.\d\d s \((\d+|0\.\d+)x real time\) "
-                        r"-> .*p\.mid", line), line
+    line = capsys.readouterr().out.strip()
+    assert re.fullmatch(r"\d+ notes \(.*\) from \d+\.\d s of audio in \d+\.\d\d s \((\d+|0\.\d+)x real time\), "
+                        r"tempo .* -> .*p\.mid", line), line
 
 
 @pytest.mark.parametrize("live", [False, True])
@@ -106,4 +107,4 @@ def test_a_file_under_one_frame_is_too_short_not_silent(tmp_path: Path, live: bo
 
 def test_a_file_of_one_frame_is_transcribed(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main([str(_snare(tmp_path, 0.01)), "-o", str(tmp_path / "snare.mid")]) == 0  # 441 samples: the minimum
-    assert "from 10 ms of audio" in capsys.readouterr().err
+    assert "from 10 ms of audio" in capsys.readouterr().out
