@@ -1204,7 +1204,12 @@ def finish_recording(folder: Path, sound_stopped_cleanly: bool, out: Output, err
                 kept.append(part)
             else:  # killed before its first block: nothing to keep
                 part.unlink(missing_ok=True)
+                part.with_name(part.name + ".json").unlink(missing_ok=True)  # its timing (sound's WavSink)
         where = ", ".join(map(str, kept)) + (" (a WAV file)" if len(kept) == 1 else " (WAV files)")
+        if kept:  # a hidden file: the command that names it, with the rig time of its first sample
+            one = len(kept) == 1
+            where += (f"; `batteur wav-repair {kept[0] if one else folder}` names {'it' if one else 'them'} "
+                      f"(-recovered.wav) with {'its' if one else 'their'} timing")
         if recorded and kept:  # named, and then a part file as well: not sound's way, said all the same
             err.write(f"batteur rig: sound did not stop cleanly; it also left, maybe cut short, {where}\n")
         elif kept:

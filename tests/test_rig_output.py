@@ -90,7 +90,8 @@ def test_a_take_cut_short_never_replaces_an_earlier_recording(tmp_path: Path) ->
     assert earlier.read_bytes() == b"an earlier take"
     assert err_text.getvalue() == (
         f"batteur rig: sound did not stop cleanly: {earlier} not written (the earlier one stays); what it "
-        f"recorded, maybe cut short, is in {part} (a WAV file)\n")
+        f"recorded, maybe cut short, is in {part} (a WAV file); `batteur wav-repair {part}` names it (-recovered.wav) "
+        "with its timing\n")
     assert out_text.getvalue() == ""
 
 

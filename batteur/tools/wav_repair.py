@@ -13,26 +13,40 @@ holds. A finished take is left as it is.
 RF64 files (``batteur render`` past 4 GiB) are repaired the same way: their sizes are the 64-bit ones of the
 ``ds64`` chunk (RIFF size, data size, sample count; EBU Tech 3306), which libsndfile leaves 0 until it closes
 the file; the 32-bit sizes are set to 0xFFFFFFFF ("see ds64"), as libsndfile writes them.
+
+A sound node's part file (``.NAME.XXXXXXXX.part``, left by a node killed or failed while recording ``NAME``;
+given itself or through its folder) is made a take: its header is given every whole frame on disk (the node
+keeps it up to date after each block, so at most the block being written when it was killed is missing from
+it), it is renamed ``STEM-recovered.EXT`` beside it (``STEM-recovered-2.EXT`` ... if that is taken: nothing is
+overwritten), and the timing the node kept beside it (``.NAME.XXXXXXXX.part.json``: the rig time of its first
+sample) becomes the take's ``.json``, as a take the node named has.
 """
 
 from __future__ import annotations
 
 import argparse
+import fcntl
+import json
 import os
+import re
 import struct
 from collections.abc import Sequence
 from pathlib import Path
 from typing import BinaryIO
 
-from pydantic import BaseModel
+from pydantic import BaseModel, Field, ValidationError
 
 from batteur.errors import FAILED, report_error
 from common.input_file import file_problem
+from common.output_paths import write_atomically
 
 PROG = "batteur wav-repair"
 """The command's name in its usage and error lines."""
 RIFF_LIMIT_BYTES = 0xFFFFFFFF
 """A RIFF header's 32-bit sizes cannot describe more."""
+PART_NAME = re.compile(r"\.(?P<take>.+\.(?:wav|flac|w64|rf64))\.[A-Za-z0-9_]+\.part", re.IGNORECASE)
+"""A sound node's part file, ``.NAME.XXXXXXXX.part`` (as ``services.sound.node.PART_NAME``: not imported, the
+node's modules take seconds to load)."""
 
 
 class WavLayout(BaseModel):
@@ -144,6 +158,178 @@ def repair_wav(path: Path) -> RepairResult:
                         header_frames=header_frames, rf64=rf64)
 
 
+class Recovery(BaseModel):
+    """What :func:`recover_part` did with a part file."""
+
+    take: Path
+    """The file it is now (beside where the part file was)."""
+    frames: int
+    sample_rate_hz: int
+    header_frames: int
+    """Frames its header said before (fewer than ``frames``: the node was killed while writing a block)."""
+    origin_rig_time_s: float | None = None
+    """The rig time of its first sample, from the part's sidecar; None: the part file had none."""
+
+
+def part_sidecar(part: Path) -> Path:
+    """Where a sound node keeps a part file's timing until it names the take (``services.sound.node``)."""
+    return part.with_name(part.name + ".json")
+
+
+def recording(part: Path) -> bool:
+    """Whether a running sound node holds its lock on ``part`` (it records into it); False for one gone meanwhile
+    (the node named its take) or unreadable: :func:`recover_part` says why."""
+    try:
+        f = part.open("rb")
+    except OSError:
+        return False
+    with f:
+        try:
+            fcntl.flock(f.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            return True
+        except OSError:  # a file system without locks
+            return False
+    return False
+
+
+def leftover_parts(folder: Path) -> tuple[list[Path], list[Path]]:
+    """A folder's part files: (left by a node that is gone, being recorded by a running node), by name."""
+    parts = sorted(p for p in folder.iterdir() if PART_NAME.fullmatch(p.name) and p.is_file())
+    live = [p for p in parts if recording(p)]
+    return [p for p in parts if p not in live], live
+
+
+def recovered_name(part: Path, take: str) -> Path:
+    """``STEM-recovered.EXT`` beside ``part``, or the first of ``-2``, ``-3`` ... that names no file and no .json."""
+    stem, suffix = Path(take).stem, Path(take).suffix
+    n = 1
+    while True:
+        name = part.with_name(f"{stem}-recovered{'' if n == 1 else f'-{n}'}{suffix}")
+        if not (name.exists() or name.is_symlink() or name.with_name(name.name + ".json").exists()):
+            return name
+        n += 1
+
+
+def _audio_to_end(path: Path) -> tuple[int, int]:
+    """A RIFF/WAVE or RF64 part file's header given every whole frame on disk (the node writes nothing after its
+    audio); (frames before, frames now). ValueError if it is not one."""
+    with path.open("r+b") as f:
+        layout = read_layout(f)
+        audio_start = layout.data_size_offset + 4
+        size = os.fstat(f.fileno()).st_size
+        before = layout.data_size // layout.block_align
+        frames = (size - audio_start) // layout.block_align
+        data_size = frames * layout.block_align
+        if data_size == layout.data_size and size == audio_start + data_size:
+            return before, frames
+        if layout.ds64_offset is None and audio_start + data_size + (data_size & 1) - 8 > RIFF_LIMIT_BYTES:
+            raise ValueError("holds more than a WAV header can describe (4 GiB)")
+        f.truncate(audio_start + data_size)  # a partial last frame is not audio
+        if data_size & 1:
+            f.seek(0, os.SEEK_END)
+            f.write(b"\0")
+        write_sizes(f, layout, data_size)
+    return before, frames
+
+
+class Segment(BaseModel):
+    """A stretch of the take from ``frame`` on, sample ``frame`` at rig time ``rig_time_s`` (seconds)."""
+
+    frame: int = Field(ge=0)
+    rig_time_s: float
+
+
+class PartTiming(BaseModel):
+    """What a sound node keeps beside its part file (``.NAME.XXXX.part.json``); its other keys are ignored."""
+
+    origin_rig_time_s: float
+    """Rig time of the first sample, seconds."""
+    segments: list[Segment] = []
+
+
+def _read_timing(part: Path) -> PartTiming | None:
+    """The part file's sidecar, None if it has none; ValueError if it cannot be read as one."""
+    sidecar = part_sidecar(part)
+    try:
+        return PartTiming.model_validate_json(sidecar.read_bytes())
+    except FileNotFoundError:
+        return None
+    except OSError as exc:
+        raise ValueError(f"its timing, {sidecar.name}, cannot be read ({exc.strerror or exc}): the part file is left "
+                         "as it is") from None
+    except ValidationError as exc:
+        raise ValueError(f"its timing, {sidecar.name}, is not a sound node's ({exc.error_count()} problem(s), e.g. "
+                         f"{exc.errors()[0]['msg']}): the part file is left as it is") from None
+
+
+def recover_part(part: Path) -> Recovery:
+    """Make a node's part file a take beside it (see the module); ValueError (without the path) if it cannot:
+    a live node's, one holding no audio, one that does not read as audio."""
+    import soundfile as sf  # only here: the header repair needs none of it
+
+    match = PART_NAME.fullmatch(part.name)
+    if match is None:
+        raise ValueError("not a part file a sound node left (.NAME.XXXXXXXX.part, NAME a .wav, .flac, .w64 or .rf64)")
+    problem = file_problem(part, "a part file")
+    if problem is not None:
+        raise ValueError(problem)
+    with part.open("rb") as f:  # held while it is recovered: a node starting meanwhile finds it taken
+        try:
+            fcntl.flock(f.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise ValueError("a running sound node is recording into it (it names its take when it stops)") from None
+        except OSError:
+            pass
+        timing = _read_timing(part)
+        head = f.read(4)
+        before, frames = _audio_to_end(part) if head in (b"RIFF", b"RF64") else (-1, -1)
+        try:
+            info = sf.info(str(part))
+        except (RuntimeError, OSError) as exc:  # soundfile's LibsndfileError is a RuntimeError
+            raise ValueError(f"does not read as audio ({exc})") from None
+        if info.frames == 0:
+            raise ValueError("holds no audio (the node stopped before its first block): nothing to recover")
+        take = recovered_name(part, match["take"])
+        try:
+            os.link(part, take)  # never over another file (a rename would replace one made meanwhile)
+        except FileExistsError:
+            raise ValueError(f"{take.name} was made meanwhile: run it again") from None
+        except OSError:  # a file system without hard links: the name was free a moment ago
+            os.rename(part, take)
+        os.chmod(take, 0o666 & ~_umask())  # the node's part file is owner-only, as mkstemp makes it
+        if timing is not None:  # the .json a take the node named has (services.sound.node.WavSink), and whence
+            segments = [s.model_dump() for s in timing.segments if s.frame < info.frames and s.frame > 0]
+            meta = {"origin_rig_time_s": timing.origin_rig_time_s, "sample_rate_hz": info.samplerate,
+                    "channels": info.channels, "frames": info.frames,
+                    "segments": [{"frame": 0, "rig_time_s": timing.origin_rig_time_s}, *segments],
+                    "recovered_from": part.name}
+            write_atomically(take.with_name(take.name + ".json"), json.dumps(meta, indent=2).encode("utf-8"))
+        part.unlink(missing_ok=True)
+        part_sidecar(part).unlink(missing_ok=True)
+    return Recovery(take=take, frames=info.frames, sample_rate_hz=info.samplerate,
+                    header_frames=before if before >= 0 else info.frames,
+                    origin_rig_time_s=None if timing is None else timing.origin_rig_time_s)
+
+
+def _umask() -> int:
+    umask = os.umask(0)
+    os.umask(umask)
+    return umask
+
+
+def describe_recovery(part: Path, result: Recovery) -> str:
+    """The line printed for a part file made a take."""
+    notes = [f"{result.frames / result.sample_rate_hz:.2f} s"]
+    if result.origin_rig_time_s is not None:
+        notes.append(f"rig time origin {result.origin_rig_time_s:.3f} s, in {result.take.name}.json")
+    else:
+        notes.append("rig time origin unknown: no timing beside it (sound nodes keep one since 7 Dec 2026)")
+    if result.header_frames < result.frames:
+        notes.append(f"its header said {result.header_frames} frames, now {result.frames}: killed within a block")
+    return f"recovered {part} -> {result.take.name} ({'; '.join(notes)})"
+
+
 def unreadable(exc: OSError) -> str:
     """Why a file could not be opened, on one line without the errno."""
     if isinstance(exc, FileNotFoundError):
@@ -172,11 +358,33 @@ def main(argv: Sequence[str] | None = None) -> int:
         "exited, or more frames than the file holds, e.g. a copy cut short) the length of the audio they hold; "
         "finished files are left as they are. RF64 files (a render past 4 GiB killed while writing) are repaired "
         "alike. "
+        "A sound node's hidden part file (.NAME.XXXXXXXX.part, left by a node killed or failed while recording "
+        "NAME; given itself, or its folder for every one there) is made a take beside it, STEM-recovered.EXT "
+        "(-2, -3 ... if taken), its header repaired if it must be, with the .json of its rig-time origin. "
         "Exit status: 0 every file is readable now, 1 a file could not be read or repaired.")
-    parser.add_argument("files", nargs="+", type=Path, metavar="FILE", help="WAV or RF64 files, e.g. out/take-*.wav")
+    parser.add_argument("files", nargs="+", type=Path, metavar="FILE",
+                        help="WAV or RF64 files, e.g. out/take-*.wav; a sound node's part file "
+                        "(.take.wav.XXXXXXXX.part), or a folder holding some")
     args = parser.parse_args(argv)
     status = 0
     for path in args.files:
+        try:
+            parts = _parts_in(path) if path.is_dir() else [path] if path.name.endswith(".part") else []
+        except ValueError as exc:
+            status = report_error(PROG, f"{path}: not repaired: {exc}", FAILED)
+            continue
+        except OSError as exc:
+            status = report_error(PROG, f"{path}: not repaired: cannot list it ({exc.strerror or exc})", FAILED)
+            continue
+        for part in parts:
+            try:
+                print(describe_recovery(part, recover_part(part)))
+            except OSError as exc:
+                status = report_error(PROG, f"{part}: not recovered: {unreadable(exc)}", FAILED)
+            except ValueError as exc:
+                status = report_error(PROG, f"{part}: not recovered: {exc}", FAILED)
+        if parts:
+            continue
         try:
             result = repair_wav(path)
         except OSError as exc:
@@ -187,6 +395,16 @@ def main(argv: Sequence[str] | None = None) -> int:
             continue
         print(describe(path, result))
     return status
+
+
+def _parts_in(folder: Path) -> list[Path]:
+    """The part files a folder holds that no running node records into; [] if it holds none at all (the folder is
+    then refused as a WAV file would be); ValueError if every one is being recorded."""
+    left, live = leftover_parts(folder)
+    if not left and live:
+        raise ValueError(f"a folder whose part files ({', '.join(p.name for p in live)}) running sound nodes are "
+                         "recording into (each names its take when it stops)")
+    return left
 
 
 if __name__ == "__main__":

@@ -15,10 +15,12 @@ from __future__ import annotations
 
 import argparse
 import collections
+import fcntl
 import glob
 import json
 import logging
 import os
+import re
 import string
 import tempfile
 import threading
@@ -116,6 +118,58 @@ def _taken(path: Path) -> bool:
     return path.exists() or path.is_symlink() or path.with_name(path.name + ".json").exists() or bool(parts)
 
 
+PART_NAME = re.compile(r"\.(?P<take>.+\.(?:wav|flac|w64|rf64))\.[A-Za-z0-9_]+\.part", re.IGNORECASE)
+"""A take's part file, ``.NAME.XXXXXXXX.part`` (:class:`WavSink`; ``batteur wav-repair`` reads the same): not the
+``.NAME.json.XXXX.part`` of a .json being written, nor a part file's own sidecar (``.part.json``)."""
+
+
+def part_sidecar(part: Path) -> Path:
+    """Where a part file's timing is kept until the take is named: ``.NAME.XXXX.part.json`` beside it."""
+    return part.with_name(part.name + ".json")
+
+
+def in_use(part: Path) -> bool:
+    """Whether a running node is recording into ``part`` (it holds a lock on it, released however it ends: SIGKILL
+    too); False when that cannot be told (no such file: nobody writes it)."""
+    try:
+        fd = os.open(part, os.O_RDONLY)
+    except OSError:
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return True
+    except OSError:  # a file system without locks: taken as left over (wav-repair checks again)
+        return False
+    finally:
+        os.close(fd)  # releases the lock taken just above
+    return False
+
+
+def leftover_parts(folder: Path, own: Path | None = None) -> list[Path]:
+    """The take part files in ``folder`` that no running node records into (a node killed, or that failed, left
+    them), ``own`` aside, by name."""
+    try:
+        names = sorted(p for p in folder.iterdir() if PART_NAME.fullmatch(p.name))
+    except OSError:
+        return []
+    return [p for p in names if p != own and p.is_file() and not in_use(p)]
+
+
+def say_leftover_parts(folder: Path, own: Path | None) -> None:
+    """At start: a take left unnamed in the take's folder by an earlier node (killed, or failed) is hidden there
+    (a dot file): say it once, with the command that makes it a take with its timing."""
+    left = leftover_parts(folder, own)
+    if not left:
+        return
+    shown = ", ".join(p.name for p in left[:3]) + (f" and {len(left) - 3} more" if len(left) > 3 else "")
+    what = "a take" if len(left) == 1 else f"{len(left)} takes"
+    log.warning("%s left unnamed by an earlier sound node that did not stop cleanly (killed or failed) in %s: %s; "
+                "`batteur wav-repair %s` names %s (NAME-recovered.wav) and keeps %s rig-time origin in its .json",
+                what, folder, shown, left[0] if len(left) == 1 else folder, "it" if len(left) == 1 else "each",
+                "its" if len(left) == 1 else "their")
+
+
 class WavSink:
     """Appends blocks to a WAV file (24-bit) as they are rendered, whole or not at all.
 
@@ -133,6 +187,12 @@ class WavSink:
     frame 0), a new one where rig time stepped (the clock master restarted) while the take went on, so no frame
     is given a wrong rig time and none is lost.
 
+    Until then that timing is kept beside the part file, in ``.NAME.XXXX.part.json`` (:func:`part_sidecar`: the
+    .json's keys but ``frames``), written at the first block (when the origin is known) and again when rig time
+    steps, and removed once the take has its name and .json: a take killed unnamed keeps its place on the rig
+    clock, which ``batteur wav-repair PART`` carries to the take it names. The node holds a lock on the part file
+    while it records (:func:`in_use`), so a part file left by a node that is gone can be told from a live one.
+
     ``timeline``: the core's (output sample, rig time) anchors (:meth:`SoundCore.timeline`: the first is sample 0
     at the origin), read on close.
     """
@@ -146,6 +206,8 @@ class WavSink:
         self.keep = keep
         """Asked on close: whether the take gets its name (False: the node failed, the take may be cut short)."""
         self.meta: dict[str, Any] = {}  # what the .json says, taken when the file is closed
+        self.anchors_kept = 0  # the timeline's anchors the part file's sidecar holds
+        self.lock_fd: int | None = None  # held open (locked) while the part file is being written
         self.finished = False  # closed, named, and its .json written
         # a symlink keeps naming the file it points to; a device or pipe is written in place
         self.in_place = path.exists() and not path.is_file()
@@ -153,8 +215,12 @@ class WavSink:
         self.part = self.target
         if not self.in_place:
             fd, part = tempfile.mkstemp(prefix=f".{self.target.name}.", suffix=".part", dir=self.target.parent)
-            os.close(fd)
             self.part = Path(part)
+            self.lock_fd = fd
+            try:  # a running node's part file: not a leftover (wav-repair and a restarted node check this)
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:  # a file system without locks: recorded all the same
+                pass
         rf64 = fmt == "WAV" and not self.in_place  # libsndfile writes no RF64 to a pipe (nor could it upgrade)
         try:
             self.file = sf.SoundFile(self.part, "w", samplerate=sample_rate, channels=channels, subtype="PCM_24",
@@ -170,15 +236,40 @@ class WavSink:
             raise
 
     def __call__(self, block: npt.NDArray[np.float32]) -> None:
+        anchors = self.timeline()
+        if len(anchors) != self.anchors_kept and not self.in_place:  # the first block, or rig time stepped
+            self._keep_timing(anchors)  # before the block: no frame on disk without its rig time
         try:
             self.file.write(block)
         except (sf.LibsndfileError, RuntimeError) as exc:  # libsndfile says only "System error."
             raise OSError(f"cannot write more than its first {self.file.frames / self.file.samplerate:.1f} s "
                           f"(libsndfile: {exc} Is the disk full?)") from None
 
+    def _keep_timing(self, anchors: list[tuple[int, float]]) -> None:
+        """Write the part file's sidecar (whole or not at all); a failure is said once and the take goes on (its
+        .json is written at close all the same)."""
+        first = not self.anchors_kept
+        self.anchors_kept = len(anchors)
+        meta = {"origin_rig_time_s": anchors[0][1], "sample_rate_hz": self.file.samplerate,
+                "channels": self.file.channels, "segments": [{"frame": n, "rig_time_s": t} for n, t in anchors],
+                "take": self.target.name}
+        try:
+            write_atomically(part_sidecar(self.part), json.dumps(meta, indent=2).encode("utf-8"))
+        except OSError as exc:
+            if first:
+                log.warning("cannot write %s (%s): a node killed before it stops would leave its take without its "
+                            "rig-time origin", part_sidecar(self.part), exc.strerror or exc)
+
+    def _unlock(self) -> None:
+        if self.lock_fd is not None:
+            os.close(self.lock_fd)  # the lock goes with it
+            self.lock_fd = None
+
     def _discard(self) -> None:
         if not self.in_place:
             self.part.unlink(missing_ok=True)
+            part_sidecar(self.part).unlink(missing_ok=True)
+        self._unlock()
 
     def discard(self) -> None:
         """Close and remove what was recorded (a start that failed): ``path`` is left as it was."""
@@ -212,6 +303,9 @@ class WavSink:
             os.replace(self.part, self.target)
         write_atomically(self.path.with_name(self.path.name + ".json"),
                          json.dumps(self.meta, indent=2).encode("utf-8"))
+        if not self.in_place:  # the take's .json has the timing now
+            part_sidecar(self.part).unlink(missing_ok=True)
+        self._unlock()
         self.finished = True
 
 
@@ -230,7 +324,9 @@ class WavSink:
         if not self.meta.get("frames"):
             self._discard()
             return
-        log.warning("the node did not stop cleanly: %s not written; what was recorded is in %s", self.path, self.part)
+        self._unlock()
+        log.warning("the node did not stop cleanly: %s not written (`batteur wav-repair` on the part file names it, "
+                    "with its rig-time origin); what was recorded is in %s", self.path, self.part)
 
 
 def _new_file_mode(path: Path) -> int:
@@ -470,6 +566,8 @@ def _attach_sinks(core: SoundCore, settings: SoundNodeSettings, keep_take: Calla
         core.sinks.append(wav)
         # the name the take ends up with (`batteur rig --record DIR`: DIR/performance.wav), then its part file
         log.info("recording to %s (in %s until the node stops)", path, wav.part.name)
+        if not wav.in_place:
+            say_leftover_parts(wav.target.parent, wav.part)
     if settings.device == "auto":
         devices = audio_device_count()
         if devices > 0:
