@@ -552,7 +552,7 @@ class Rig:
                  out: TextIO | None = None, err: TextIO | None = None, ready: ReadyWait | None = None) -> None:
         self.plans = plans
         self.ready = ready
-        """``--score``: wait for the services to be up (None: the rig does not ask them)."""
+        """Wait for the services to be up, and say so (None: the rig does not ask them)."""
         self.gave_up = False
         """The services were not all up within the ready timeout (or could not be asked): the rig stopped."""
         self.stop_timeout_s = stop_timeout_s
@@ -592,8 +592,10 @@ class Rig:
             running = [r for r, p in self.procs.items() if r != role and p.returncode is None]
             if role in OPTIONAL_ROLES and running:  # the view is not worth the show
                 self.lost[role] = code
+                # the code it will exit with: exit_code's, this role's (the first failure: another stops the rig)
+                will = f"; it will exit {code if code > 0 else 1}: {role} failed" if code else ""
                 self.err.write(f"batteur rig: {role} {describe_exit(code)}; {', '.join(running)} play on without "
-                               f"it (Ctrl-C stops the rig{'; it will exit 1: ' + role + ' failed' if code else ''})\n")
+                               f"it (Ctrl-C stops the rig{will})\n")
             else:
                 self.err.write(f"batteur rig: {role} {describe_exit(code)}; stopping the rig\n")
                 self.stopping.set()
@@ -608,8 +610,9 @@ class Rig:
                 limit=self.LINE_LIMIT,
             )
         except OSError as exc:
-            self.err.write(f"batteur rig: cannot start {plan.role}: {exc.strerror or exc}\n")
+            self.err.write(f"batteur rig: cannot start {plan.role}: {exc.strerror or exc}; stopping the rig\n")
             self.failures[plan.role] = 1
+            self.stopping.set()  # as a service exiting: those started are stopped (they ran on, said nothing more)
             return None
         self.out.write(f"batteur rig: started {plan.role} (pid {proc.pid}) on UDP port {plan.port}\n")
         return proc
@@ -654,8 +657,9 @@ class Rig:
 
     async def _wait_ready(self, ready: ReadyWait, launched: float) -> None:
         """Send each service a Hello every :data:`READY_POLL_S` until it answers with its Health, with a line every
-        :data:`READY_PROGRESS_S` naming those not up, and one when all are; past ``ready.timeout_s`` from launch
-        (``launched``: ``time.monotonic()`` then), stop the rig with an error naming them."""
+        :data:`READY_PROGRESS_S` naming those not up, and one when all are (a service that exited is waited for no
+        more); past ``ready.timeout_s`` from launch (``launched``: ``time.monotonic()`` then), with ``--score`` stop
+        the rig with an error naming them, without it warn and run on."""
         from common.messages import PROTOCOL_VERSION, Hello, encode
         from common.messages.system import TOOL_ROLE
 
@@ -665,6 +669,10 @@ class Rig:
             transport, answers = await loop.create_datagram_endpoint(lambda: _Answers(roles, ready.epoch),
                                                                      local_addr=(ready.host, 0))
         except OSError as exc:
+            if ready.play_at_s is None:  # no score waits on them: said, and the rig runs on (as past the timeout)
+                self.err.write(f"batteur rig: warning: cannot ask the services whether they are up: "
+                               f"{exc.strerror or exc}; the rig runs on (batteur ls tells when they answer)\n")
+                return
             self._give_up(f"cannot ask the services whether they are up: {exc.strerror or exc}")
             return
         try:

@@ -884,9 +884,8 @@ class Node:
             if message.role == TOOL_ROLE:  # batteur ls: how its clock follows the master (peers: 1 Hz)
                 endpoint.send(self.clock_answer(), source)
         elif isinstance(message, Health):
-            if message.node_id in self.silent_peers:
-                self.silent_peers.discard(message.node_id)
-                log.info("peer %s %s at %s answers again", message.role, message.node_id, source)
+            if self.silent_peers:
+                self._note_peer_back(message, source)
             self.peer_health[message.node_id] = (message, source, time.monotonic())
         owner = taken_elsewhere(type(message), self._service)
         if owner:  # its core would ignore it: counted, said (rated, per reason) and answered, so the sender finds out
@@ -1062,12 +1061,20 @@ class Node:
         return any(port == p and same_ip(host, ip) for ip, p in pinged)
 
     def _on_peer_change(self, event: str, peer: Peer) -> None:
-        if event == "removed" or peer.node_id == self.node_id:
+        if peer.node_id == self.node_id:
             return
+        act = self._forget_peer_health if event == "removed" else self._greet
         if threading.get_ident() != self._loop_thread and self._aio_loop is not None:
-            self._aio_loop.call_soon_threadsafe(self._greet, peer)
+            with contextlib.suppress(RuntimeError):  # its loop closed (this node stopped): no one to greet or forget
+                self._aio_loop.call_soon_threadsafe(act, peer)
         else:
-            self._greet(peer)
+            act(peer)
+
+    def _forget_peer_health(self, peer: Peer) -> None:
+        """A peer discovery dropped (its goodbye, or its records run out): its last Health is forgotten, so one
+        that left on purpose, which discovery says, is not also warned of as silent (:meth:`_note_silent_peers`)."""
+        self.peer_health.pop(peer.node_id, None)
+        self.silent_peers.discard(peer.node_id)
 
     def _greet(self, peer: Peer) -> None:
         if self.endpoint is None or self.endpoint.closed:
@@ -1138,9 +1145,27 @@ class Node:
                         self.endpoint.send(status, peer.address)
             self._note_silent_peers(time.monotonic())
 
+    def _note_peer_back(self, health: Health, source: str) -> None:
+        """Say, once, that a peer said to have stopped answering is back, at its next Health (from ``source``): by
+        its node id, or by its address and role when restarted by its own command under another id (a node's
+        default id holds its pid), whose silent one is then forgotten."""
+        for node_id in sorted(self.silent_peers):
+            if (last := self.peer_health.get(node_id)) is None:
+                continue
+            old, old_source, _ = last
+            if node_id == health.node_id:
+                log.info("peer %s %s at %s answers again", health.role, node_id, source)
+            elif old_source == source and old.role == health.role:
+                log.info("peer %s %s at %s answers again, restarted as %s", health.role, node_id, source,
+                         health.node_id)
+                del self.peer_health[node_id]
+            else:
+                continue
+            self.silent_peers.discard(node_id)
+
     def _note_silent_peers(self, now: float) -> None:
         """Say, once, of each peer whose Health stopped coming :data:`PEER_SILENT_HEALTHS` intervals ago (``now``:
-        ``time.monotonic()``) that it stopped answering; its next Health says it is back (:meth:`_on_message`)."""
+        ``time.monotonic()``) that it stopped answering; its next Health says it is back (:meth:`_note_peer_back`)."""
         limit_s = PEER_SILENT_HEALTHS * self.health_interval_s
         for node_id, (health, source, seen) in self.peer_health.items():
             if node_id not in self.silent_peers and now - seen > limit_s:

@@ -1,0 +1,89 @@
+"""``batteur rig``: a service it cannot start stops the rig; a graphics exit says the code the rig will exit with.
+
+Review of 6c221a4 (7 Dec): a service whose process could not be created (``OSError``: a missing interpreter, no
+memory, no free process slot) was said ("cannot start sound: ...") but the services already started ran on, the rig
+waiting for Ctrl-C with nothing more said and no "services up" line. And graphics refusing its options (exit 2) while
+the others played on was said as "it will exit 1", the rig then exiting 2. Stand-in services
+(tests/test_rig_ready.py's) answer the rig's Hellos with their Health.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import io
+import time
+
+from batteur import rig
+from tests.ports import free_ports
+from tests.test_rig_ready import StandIn
+
+WAIT_S = 120.0
+"""Generous: a loaded machine starts the stand-ins slowly."""
+
+
+class Unstartable(rig.ServicePlan):
+    """A service whose program does not exist: creating its process raises ``OSError``."""
+
+    def argv(self) -> list[str]:
+        return ["/nonexistent/batteur-review/python3"]
+
+
+def run(the_rig: rig.Rig, err: io.StringIO, until: str) -> int:
+    """Run ``the_rig`` until its errors (``err``) say ``until`` (then stop it) or it stops by itself; its exit
+    code."""
+
+    async def main() -> int:
+        task = asyncio.create_task(the_rig.run(None))
+        deadline = time.monotonic() + WAIT_S
+        while until not in err.getvalue() and not task.done():
+            assert time.monotonic() < deadline, err.getvalue()
+            await asyncio.sleep(0.05)
+        if not task.done():
+            the_rig.stopping.set()
+        return await asyncio.wait_for(task, WAIT_S)
+
+    return asyncio.run(main())
+
+
+def test_a_service_that_cannot_be_started_stops_the_rig() -> None:
+    physics, sound = free_ports(2)
+    out, err = io.StringIO(), io.StringIO()
+    the_rig = rig.Rig([StandIn("physics", physics, 0.0), Unstartable("sound", sound, [])], stop_timeout_s=20,
+                      out=out, err=err, ready=rig.ReadyWait(WAIT_S, "127.0.0.1", time.time(), None))
+
+    async def main() -> int:
+        # no one stops this rig but itself: until the fix it waited for Ctrl-C with physics running
+        return await asyncio.wait_for(the_rig.run(None), WAIT_S)
+
+    assert asyncio.run(main()) == 1, out.getvalue() + err.getvalue()
+    assert "batteur rig: cannot start sound: No such file or directory; stopping the rig\n" in err.getvalue()
+    assert the_rig.procs["physics"].returncode is not None  # stopped with it
+
+
+def test_graphics_refusing_its_options_says_the_code_the_rig_exits_with() -> None:
+    ports = free_ports(3)
+    refuses = "import sys; sys.exit(2)"  # argparse's exit on an option it does not know (--graphics-arg)
+    plans: list[rig.ServicePlan] = [StandIn("physics", ports[0], 0.0), StandIn("sound", ports[1], 0.0),
+                                    StandIn("graphics", ports[2], 0.0, refuses)]
+    out, err = io.StringIO(), io.StringIO()
+    the_rig = rig.Rig(plans, stop_timeout_s=20, out=out, err=err,
+                      ready=rig.ReadyWait(WAIT_S, "127.0.0.1", time.time(), None))
+    code = run(the_rig, err, "play on without it")
+    assert code == 2, out.getvalue() + err.getvalue()
+    assert ("batteur rig: graphics exited with code 2; physics, sound play on without it (Ctrl-C stops the rig; it "
+            "will exit 2: graphics failed)\n") in err.getvalue(), err.getvalue()
+
+
+def test_without_a_score_a_rig_that_cannot_ask_its_services_runs_on() -> None:
+    """The asking socket cannot be opened (an address not on this machine: 192.0.2.1, TEST-NET-1): with no score
+    waiting on the services the rig warns and runs on, as past --ready-timeout (until the fix it stopped, exit 1,
+    where before 6c221a4 a rig without --score never asked)."""
+    physics = free_ports(1)[0]
+    out, err = io.StringIO(), io.StringIO()
+    the_rig = rig.Rig([StandIn("physics", physics, 0.0)], stop_timeout_s=20, out=out, err=err,
+                      ready=rig.ReadyWait(WAIT_S, "192.0.2.1", time.time(), None))
+    code = run(the_rig, err, "cannot ask the services")
+    assert code == 0, out.getvalue() + err.getvalue()
+    assert err.getvalue().startswith("batteur rig: warning: cannot ask the services whether they are up: "), \
+        err.getvalue()
+    assert "the rig runs on" in err.getvalue() and "error" not in err.getvalue(), err.getvalue()
