@@ -401,6 +401,9 @@ class _Job:
     """Live notes: the note of each request, in the same order."""
     pulled: dict[str, int] = dataclasses.field(default_factory=dict)
     """Once ready: its plan's knots brought within the body's reach, per limb (:meth:`ScorePlayer._reachable`)."""
+    behind: Future[GesturePlan] | None = None
+    """A plan dropped unread that the worker still computed when this one was submitted (:meth:`ScorePlayer._drop_job`):
+    this one was computed after it, so it is timed from that one's end (:meth:`ScorePlayer._took`)."""
 
 
 def _under(base: Path, path: Path) -> bool:
@@ -505,6 +508,10 @@ class ScorePlayer:
         """Seconds per note of the latest timed background plans (of at least PLAN_MEASURED_NOTES notes)."""
         self._short_plan_times: deque[tuple[int, float]] = deque(maxlen=PLAN_HISTORY)
         """(notes, seconds) of the latest timed background plans of fewer notes."""
+        self._orphan: Future[GesturePlan] | None = None
+        """The latest plan dropped unread that the worker goes on computing (:meth:`_drop_job`), None: none."""
+        self._orphan_done = 0.0
+        """``time.perf_counter()`` (s) when the latest such plan finished: the plans queued behind it started then."""
         self.replanned_late = 0
         """Background plans ready after their splice time (spliced later, planned again or counted late)."""
         self.window_misses = 0
@@ -757,9 +764,9 @@ class ScorePlayer:
             raise ScoreError(f"{path}: no drum events to play")
         self._clear_loop("new score")
         self.score, self.score_path = score, path
-        self._stopping = None  # a stop ahead: the clock was the other score's
-        playing = self._playing if self.state == "playing" and self.core.time - self.core.target_lag <= self.end_time \
-            else None
+        # the score playing now plays on (a stop or pause sent ahead: until then, its clock kept for the view and
+        # the log, :attr:`playing_score`; until 7 Dec that clock was dropped here, read in the loaded score's bars)
+        playing = self._playing if self._mapping_at(self.core.time - self.core.target_lag) is not None else None
         log.info("score %s loaded: %d notes, %.2f s%s%s", path.name, len(score.events), score.duration,
                  f" ({'; '.join(score.warnings)})" if score.warnings else "",
                  f"; {playing[1]} plays on, {path.name} plays from the next play" if playing is not None else "")
@@ -1629,6 +1636,20 @@ class ScorePlayer:
             return
         if self._worker.stops_at_once:
             self._worker.abandon()
+        else:  # finished unused: the next plans wait for it, and are timed from its end (not as slow plans)
+            self._orphan = job.future
+            job.future.add_done_callback(self._orphan_finished)
+
+    def _orphan_finished(self, _future: Future[GesturePlan]) -> None:
+        """A plan dropped unread has finished (called by the worker's thread)."""
+        self._orphan_done = time.perf_counter()
+
+    def _took(self, job: _Job) -> float:
+        """Seconds ``job``'s plan took, from its submission or, queued behind a plan dropped unread, from that
+        plan's end: the wait behind it is no planning time (it swelled the estimate and a plan again's least
+        time, :meth:`_estimate`)."""
+        started = job.started if job.behind is None else max(job.started, self._orphan_done)
+        return time.perf_counter() - started
 
     @staticmethod
     def _kind(waiting: _Waiting, flight: bool = False) -> str:
@@ -1773,7 +1794,11 @@ class ScorePlayer:
         assert self._worker is not None
         future = self._worker.submit(self._planner(prepared.events, prepared.beats, prepared.lead_in,
                                                    prepared.last_strokes))
-        self._job = _Job(requests, prepared, future, time.perf_counter(), self._generation, finish, notes)
+        orphan = self._orphan
+        if orphan is not None and orphan.done():
+            orphan = self._orphan = None  # finished: its unread plan let go
+        self._job = _Job(requests, prepared, future, time.perf_counter(), self._generation, finish, notes,
+                         behind=orphan)
 
     def _still_loading(self, what: str) -> ScorePlayerError:
         """The refusal of a message whose plan would wait for the planning worker's load (``what``: what becomes
@@ -1887,7 +1912,7 @@ class ScorePlayer:
             return
         try:
             plan, job.pulled = self._reachable(job.future.result())
-            notes, took = len(job.prepared.events), time.perf_counter() - job.started
+            notes, took = len(job.prepared.events), self._took(job)
             if notes >= PLAN_MEASURED_NOTES:
                 self._plan_times.append(took / notes)
             else:
@@ -1904,7 +1929,7 @@ class ScorePlayer:
         waiting, prepared = job.requests[0], job.prepared
         if self._base(now) + SPLICE_MARGIN_S > prepared.t_s:
             self.replanned_late += 1
-            took = time.perf_counter() - job.started
+            took = self._took(job)
             if waiting.tries >= MAX_PLAN_RETRIES:
                 raise ScorePlayerError(f"its plan took {took:.3f} s and was ready after its splice time "
                                        f"({prepared.t_s:.3f} s, now {now:.3f} s) {waiting.tries + 1} times; "
@@ -1926,7 +1951,7 @@ class ScorePlayer:
         if t_s > prepared.t_s:
             self.replanned_late += 1
         if not all(in_time):
-            took = time.perf_counter() - job.started
+            took = self._took(job)
             for (waiting, event), ok in zip(pairs, in_time, strict=True):
                 if not ok:
                     self._count_late(event, f"was planned by {now:.3f} s (planning took {took:.3f} s)",

@@ -92,3 +92,22 @@ def test_a_loop_asked_after_a_load_is_the_new_scores_for_its_play(tmp_path: Path
     snares = [e.time for e in player.events if e.event == EventType.SNARE]
     # bars 1-3 (4 s each), then bars 2-3 again from rig 20 s
     assert snares[:16] == pytest.approx([8.0 + k for k in range(12)] + [20.0 + k for k in range(4)], abs=1e-3)
+
+
+def test_a_load_before_a_stop_sent_ahead_keeps_the_playing_scores_clock_until_the_stop(
+        tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    # the groove plays on until its stop: its position (the view's, a pause's words) stays until then; the load
+    # dropped it (the clock once read in the loaded score's bars) and did not say the groove plays on
+    core, player = _player(tmp_path)
+    core.handle(ScoreTransport(action="stop", time=3.0, position=0.0), 2.0, SENDER)
+    assert player.clock(2.5) == pytest.approx((1.0, 0.0, 1.0))
+    with caplog.at_level(logging.INFO, logger=LOGGER):
+        core.handle(ScoreLoad(path="snares.txt"), 2.1, SENDER)
+        core.handle(ScoreTransport(action="pause", time=2.6, position=0.0), 2.2, SENDER)
+    core.close()
+    assert core.rejected == {}
+    assert player.clock(2.5) == pytest.approx((1.0, 0.0, 1.0)) and player.clock(3.1) is None
+    assert _said(caplog, "score snares.txt loaded") == [
+        "score snares.txt loaded: 12 notes, 11.00 s; groove.txt plays on, snares.txt plays from the next play"]
+    # 1.6 s into the groove at 100 bpm (a beat 0.6 s): bar 1 beat 3.6
+    assert _said(caplog, "pause at") == ["pause at rig 2.600 s: score 1.600 s, bar 1 beat 3.6"]

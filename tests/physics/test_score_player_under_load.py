@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import logging
 import threading
+import time
 from pathlib import Path
 from typing import Any, Literal
 
@@ -25,6 +26,7 @@ from common.score.text import parse_text
 from services.interaction.core import InteractionCore
 from services.physics.core import PhysicsCore
 from services.physics.node import LivePhysicsCore
+from services.physics.plan_worker import PlanWorkers
 from services.physics.score_player import PLAN_HISTORY, ScorePlayer
 
 LOGGER = "batteur.physics.score"
@@ -230,3 +232,28 @@ def test_a_pause_before_a_re_plans_anchor_says_where_the_score_sounds(caplog: py
         player.pause(3.1, 3.0)  # sent ahead, between the re-plan's splice and its anchor
     core.close()
     assert _said(caplog, "pause at") == ["pause at rig 3.100 s: score 2.100 s, bar 2 beat 1.2"]
+
+
+def test_a_plan_queued_behind_one_a_stop_dropped_is_timed_from_that_ones_end(
+        tmp_path: Path, gate: threading.Event, monkeypatch: pytest.MonkeyPatch) -> None:
+    # a planning process without a loaded spare is not stopped: the dropped plan finishes unused and the play after
+    # the stop waits for it. Its time counted that wait as planning (a 22-note play measured 0.047 s a note, 38
+    # times its own), which swelled the next plans' estimate and a plan again's least time
+    monkeypatch.setattr(PlanWorkers, "stops_at_once", property(lambda self: False))  # a process, no spare loaded
+    physics, runner, _, control = _rig(tmp_path)
+    player = physics.score_player
+    _playing(runner, control, player, gate)
+    control.send(TempoScale(factor=0.5), "physics")  # its re-plan held in the planner
+    runner.run_until(3.5)
+    control.send(ScoreTransport(action="stop", time=0.0, position=0.0), "physics")  # drops it: it computes on
+    control.send(ScoreTransport(action="play", time=6.0, position=4.0), "physics")  # queued behind it
+    time.sleep(0.5)  # the dropped plan still held: a wait that is none of the play's planning
+    released = time.perf_counter()
+    gate.set()
+    _settle(runner, player)
+    done = time.perf_counter()
+    notes = len(player.events)
+    physics.close()
+    assert physics.rejected == {} and player.plans == 2 and player.mapping == pytest.approx((6.0, 4.0, 0.5))
+    # its own planning came after the dropped plan's, which the gate held until ``released``
+    assert player._plan_times[-1] * notes <= done - released  # noqa: SLF001
