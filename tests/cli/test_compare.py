@@ -705,7 +705,7 @@ def test_a_one_beat_fill_rushed_is_told_at_the_beat(sign: int, feel: str, tmp_pa
     assert got["beats_rushed_dragging"] == [{"bar": 4, "beat": 4, "last_beat": 4, "onsets": 4, "notes": 4,
                                              "mean_ms": sign * 42.0, "median_ms": sign * 42.5, "feel": feel}]
     _, out, _ = run([str(exercise), str(path)], capsys)
-    assert f"bar 4, beat 4: {feel}, {sign * 42:+d} ms on average (4 notes)" in out
+    assert f"bar 4, beat 4: {feel}, {sign * 42:+d} ms median (4 notes)" in out
     assert "bar 4: " not in out and "bar 2, beat 2:" not in out
 
 
@@ -981,7 +981,7 @@ def test_a_rushed_beat_in_six_eight_is_its_dotted_quarter(tmp_path: Path, capsys
     assert [(b["bar"], b["beat"], b["last_beat"], b["onsets"], b["feel"]) for b in got["beats_rushed_dragging"]] == [
         (1, 4, 6, 3, "rushed")]
     _, out, _ = run([str(exercise), str(write_take(tmp_path / "take.mid", take))], capsys)
-    assert "bar 1, beats 4-6: rushed, -40 ms on average (4 notes)" in out
+    assert "bar 1, beats 4-6: rushed, -40 ms median (4 notes)" in out
 
 
 def test_a_beat_in_seven_eight_is_its_eighth() -> None:
