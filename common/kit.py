@@ -73,6 +73,10 @@ class Limb(enum.StrEnum):
 
 
 ObjectKind = Literal["membrane", "cymbal", "hihat", "bell", "pedal", "throne", "stand"]
+STRUCK_KINDS: frozenset[str] = frozenset({"membrane", "cymbal", "hihat", "bell"})
+"""Object kinds a stick or a beater strikes: instruments (the others: a footboard is pressed; the throne and stands
+are no instruments). A new kind of instrument goes here and in every layer that dispatches on ``kind``
+(docs/contributing.md, "Adding a kit piece"; tests/test_object_kinds.py checks them)."""
 Vec3 = tuple[float, float, float]
 Unit = Annotated[float, Field(ge=0.0, le=1.0)]
 

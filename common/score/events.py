@@ -331,10 +331,16 @@ def score_from_notes(
     stand_ins = Counter(e.pitch for e in events
                         if e.pitch in GM_STAND_INS and GM_TO_EVENT.get(e.pitch) is e.event)
     if stand_ins:
-        played = [f"{pitch_label(p)} played as {EVENT_WORDS[GM_TO_EVENT[p]]} x{c}"
+        # a pitch the kit's note_objects sends to an object of its own (a woodblock) plays there, as Kit.object_for
+        routed = {p: kit.note_objects[p] for p in stand_ins
+                  if kit is not None and p in kit.note_objects and GM_TO_EVENT[p] in kit.events}
+        played = [f"{pitch_label(p)} played on {routed[p]} (the kit's note_objects) x{c}" if p in routed else
+                  f"{pitch_label(p)} played as {EVENT_WORDS[GM_TO_EVENT[p]]} x{c}"
                   for p, c in sorted(stand_ins.items(), key=lambda pc: (-pc[1], pc[0]))]
-        warnings.append(f"{named}General MIDI percussion a drum kit does not have is played on the kit piece struck "
-                        f"alike: {capped(played)}; if the file means other drums by these notes, {MAP_HINT}")
+        alike, own = "on the kit piece struck alike", "on the kit's own object for it"
+        where = alike if not routed else own if len(routed) == len(stand_ins) else f"{own}, else {alike}"
+        warnings.append(f"{named}General MIDI percussion a drum kit does not have is played {where}: "
+                        f"{capped(played)}; if the file means other drums by these notes, {MAP_HINT}")
     return Score(
         events=kept,
         beats=np.zeros(0) if beats is None else beats,

@@ -31,7 +31,7 @@ import numpy as np
 
 from common.gcpause import cyclic_gc_paused
 from common.gesture.plan import FeasibilityIssue, IssueAction, IssueReason, Nuance
-from common.kit import DEFAULT_SEAT_M, EventType, Kit, Limb, Vec3
+from common.kit import DEFAULT_SEAT_M, STRUCK_KINDS, EventType, Kit, Limb, Vec3
 from common.score.events import DrumEvent, Score
 from common.score.hands import PROGRESS_EVERY, HandAlgorithm, HandNote, Sticking, assign_hands, crossed
 from common.score.rebound import Interval, Stroke, classify, rebound_gap, why_too_fast
@@ -690,10 +690,6 @@ def _busy(kit: Kit, n: Note, hand: Limb, before: Note | None, after: Note | None
             return (f"is busy: its {after.event.value} at {after.time:.3f} s would be "
                     + why_too_fast(kit, _stroke(n), bounce, _stroke(after)))
     return ""
-
-
-STRUCK_KINDS = frozenset({"membrane", "cymbal", "hihat", "bell"})
-"""Kit object kinds a stick strikes (a footboard is pressed; the throne and stands are no instruments)."""
 
 
 def unplayable_instruments(kit: Kit, height_m: float = STATURE_M, lengths: LimbLengths | None = None) -> list[str]:

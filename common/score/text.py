@@ -29,7 +29,7 @@ import numpy as np
 
 from common.datafile import read_text
 from common.gesture.plan import Grip, Nuance
-from common.kit import EventType, Kit, Limb, load_kit
+from common.kit import STRUCK_KINDS, EventType, Kit, Limb, load_kit
 from common.score.events import (
     MAX_SCORE_BARS,
     MAX_SCORE_NOTES,
@@ -254,8 +254,6 @@ def unknown_instrument(name: str, lineno: int, kit: Kit | None = None) -> ScoreE
                       f"aliases: {ROW_NAMES_DOC}{listed})")
 
 
-STRUCK_KINDS = ("membrane", "cymbal", "hihat", "bell")
-"""Kit object kinds a stick or a beater strikes (the others: pedals, stands, the throne)."""
 DRUM_MAP_DOC = "docs/score-format.md, 'Drum map'"
 
 

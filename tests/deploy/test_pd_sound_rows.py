@@ -10,9 +10,18 @@ from collections.abc import Sequence
 
 import pytest
 
-from common.messages import REGISTRY, OscMessage, decode
+from common.messages import REGISTRY, Family, OscMessage, decode
 from common.messages.base import MessageError
-from common.messages.sound import SoundRejected, SoundResonances, SoundSecondHead, SoundStick
+from common.messages.sound import (
+    SoundLatency,
+    SoundMaster,
+    SoundRejected,
+    SoundResonances,
+    SoundSecondHead,
+    SoundStick,
+)
+from common.transport import REFUSAL_ENDINGS, owner_role
+from services.sound.core import PARAM_MESSAGES
 from tests.deploy.pdrun import PD_DIR, PdProcess, require_pd
 from tests.ports import free_port
 
@@ -59,14 +68,28 @@ def _sent(sends: Sequence[str], count: int) -> tuple[list[OscMessage], list[Mess
     return got, refused
 
 
+def sound_controls() -> set[str]:
+    """The controls a sound node takes, as the runtime routes them (``common.transport.owner_role``: the control
+    family under its address family, its refusals excepted): what the panel's SOUND section is meant to send. A
+    model added to common/messages/sound.py with @register is among them, with no list here to update."""
+    return {m.ADDRESS for m in REGISTRY if m.FAMILY is Family.CONTROL and owner_role(m.ADDRESS) == "sound"
+            and not m.ADDRESS.endswith(REFUSAL_ENDINGS)}
+
+
 def test_the_panel_has_a_control_for_every_sound_address() -> None:
     """Every control the sound service takes (each registered /batteur/sound/* address but its refusal) has an
     [oscformat] in the panel. It used to have 14 of the 17: no second head, stick or resonances."""
     text = (PD_DIR / "control.pd").read_text(encoding="utf-8")
     sent = {"/" + "/".join(m.split()) for m in re.findall(r" oscformat ([\w ]+);", text)}
+    controls = sound_controls()
+    missing = sorted(controls - sent)
+    assert not missing, (f"the panel's SOUND section sends nothing to {missing}: add a row for each in "
+                         "pd/make_control.py (sound_section) and run python3 pd/make_control.py")
     addresses = {m.ADDRESS for m in REGISTRY if m.ADDRESS.startswith("/batteur/sound/")}
     assert addresses - sent == {SoundRejected.ADDRESS}
-    assert len(addresses) == 18
+    # what the sound core applies is among them (the set above is the core's, not empty by a wrong filter)
+    applied = {m.ADDRESS for m in (*PARAM_MESSAGES, SoundLatency, SoundMaster)}
+    assert applied <= controls == addresses - {SoundRejected.ADDRESS}
 
 
 def test_second_head_stick_and_resonances_send_what_their_models_take() -> None:
