@@ -28,7 +28,6 @@ import argparse
 import fcntl
 import json
 import os
-import re
 import struct
 from collections.abc import Sequence
 from pathlib import Path
@@ -39,14 +38,12 @@ from pydantic import BaseModel, Field, ValidationError
 from batteur.errors import FAILED, report_error
 from common.input_file import file_problem
 from common.output_paths import write_atomically
+from common.takes import PART_SUFFIX, is_part, part_take, part_timing
 
 PROG = "batteur wav-repair"
 """The command's name in its usage and error lines."""
 RIFF_LIMIT_BYTES = 0xFFFFFFFF
 """A RIFF header's 32-bit sizes cannot describe more."""
-PART_NAME = re.compile(r"\.(?P<take>.+\.(?:wav|flac|w64|rf64))\.[A-Za-z0-9_]+\.part", re.IGNORECASE)
-"""A sound node's part file, ``.NAME.XXXXXXXX.part`` (as ``services.sound.node.PART_NAME``: not imported, the
-node's modules take seconds to load)."""
 
 
 class WavLayout(BaseModel):
@@ -171,11 +168,6 @@ class Recovery(BaseModel):
     """The rig time of its first sample, from the part's sidecar; None: the part file had none."""
 
 
-def part_sidecar(part: Path) -> Path:
-    """Where a sound node keeps a part file's timing until it names the take (``services.sound.node``)."""
-    return part.with_name(part.name + ".json")
-
-
 def recording(part: Path) -> bool:
     """Whether a running sound node holds its lock on ``part`` (it records into it); False for one gone meanwhile
     (the node named its take) or unreadable: :func:`recover_part` says why."""
@@ -195,7 +187,7 @@ def recording(part: Path) -> bool:
 
 def leftover_parts(folder: Path) -> tuple[list[Path], list[Path]]:
     """A folder's part files: (left by a node that is gone, being recorded by a running node), by name."""
-    parts = sorted(p for p in folder.iterdir() if PART_NAME.fullmatch(p.name) and p.is_file())
+    parts = sorted(p for p in folder.iterdir() if is_part(p.name) and p.is_file())
     live = [p for p in parts if recording(p)]
     return [p for p in parts if p not in live], live
 
@@ -250,7 +242,7 @@ class PartTiming(BaseModel):
 
 def _read_timing(part: Path) -> PartTiming | None:
     """The part file's sidecar, None if it has none; ValueError if it cannot be read as one."""
-    sidecar = part_sidecar(part)
+    sidecar = part_timing(part)
     try:
         return PartTiming.model_validate_json(sidecar.read_bytes())
     except FileNotFoundError:
@@ -268,8 +260,8 @@ def recover_part(part: Path) -> Recovery:
     a live node's, one holding no audio, one that does not read as audio."""
     import soundfile as sf  # only here: the header repair needs none of it
 
-    match = PART_NAME.fullmatch(part.name)
-    if match is None:
+    take_name = part_take(part.name)
+    if take_name is None:
         raise ValueError("not a part file a sound node left (.NAME.XXXXXXXX.part, NAME a .wav, .flac, .w64 or .rf64)")
     problem = file_problem(part, "a part file")
     if problem is not None:
@@ -290,7 +282,7 @@ def recover_part(part: Path) -> Recovery:
             raise ValueError(f"does not read as audio ({exc})") from None
         if info.frames == 0:
             raise ValueError("holds no audio (the node stopped before its first block): nothing to recover")
-        take = recovered_name(part, match["take"])
+        take = recovered_name(part, take_name)
         try:
             os.link(part, take)  # never over another file (a rename would replace one made meanwhile)
         except FileExistsError:
@@ -306,7 +298,7 @@ def recover_part(part: Path) -> Recovery:
                     "recovered_from": part.name}
             write_atomically(take.with_name(take.name + ".json"), json.dumps(meta, indent=2).encode("utf-8"))
         part.unlink(missing_ok=True)
-        part_sidecar(part).unlink(missing_ok=True)
+        part_timing(part).unlink(missing_ok=True)
     return Recovery(take=take, frames=info.frames, sample_rate_hz=info.samplerate,
                     header_frames=before if before >= 0 else info.frames,
                     origin_rig_time_s=None if timing is None else timing.origin_rig_time_s)
@@ -369,7 +361,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     status = 0
     for path in args.files:
         try:
-            parts = _parts_in(path) if path.is_dir() else [path] if path.name.endswith(".part") else []
+            parts = _parts_in(path) if path.is_dir() else [path] if path.name.endswith(PART_SUFFIX) else []
         except ValueError as exc:
             status = report_error(PROG, f"{path}: not repaired: {exc}", FAILED)
             continue

@@ -20,7 +20,6 @@ import glob
 import json
 import logging
 import os
-import re
 import string
 import tempfile
 import threading
@@ -40,6 +39,7 @@ from common.kit import Kit, load_kit
 from common.messages import OscMessage
 from common.output_paths import check_output_file, file_in_the_way, write_atomically
 from common.runtime import Node, run_node
+from common.takes import PART_SUFFIX, is_part, part_prefix, part_timing, parts_glob
 from services.sound.core import MAX_LATENCY_S, WAV_LIMIT_BYTES, SoundCore, SoundSettings, wav_format
 from services.sound.params_file import (
     apply_sound_params,
@@ -114,18 +114,8 @@ def expand_wav_path(path: Path, now: datetime) -> Path:
 
 def _taken(path: Path) -> bool:
     """A take is, or is being, written at ``path`` (see :class:`WavSink`'s part and .json files)."""
-    parts = glob.glob(glob.escape(str(path.parent / f".{path.name}.")) + "*.part")
+    parts = glob.glob(os.path.join(glob.escape(str(path.parent)), parts_glob(path.name)))
     return path.exists() or path.is_symlink() or path.with_name(path.name + ".json").exists() or bool(parts)
-
-
-PART_NAME = re.compile(r"\.(?P<take>.+\.(?:wav|flac|w64|rf64))\.[A-Za-z0-9_]+\.part", re.IGNORECASE)
-"""A take's part file, ``.NAME.XXXXXXXX.part`` (:class:`WavSink`; ``batteur wav-repair`` reads the same): not the
-``.NAME.json.XXXX.part`` of a .json being written, nor a part file's own sidecar (``.part.json``)."""
-
-
-def part_sidecar(part: Path) -> Path:
-    """Where a part file's timing is kept until the take is named: ``.NAME.XXXX.part.json`` beside it."""
-    return part.with_name(part.name + ".json")
 
 
 def in_use(part: Path) -> bool:
@@ -150,7 +140,7 @@ def leftover_parts(folder: Path, own: Path | None = None) -> list[Path]:
     """The take part files in ``folder`` that no running node records into (a node killed, or that failed, left
     them), ``own`` aside, by name."""
     try:
-        names = sorted(p for p in folder.iterdir() if PART_NAME.fullmatch(p.name))
+        names = sorted(p for p in folder.iterdir() if is_part(p.name))
     except OSError:
         return []
     return [p for p in names if p != own and p.is_file() and not in_use(p)]
@@ -187,11 +177,12 @@ class WavSink:
     frame 0), a new one where rig time stepped (the clock master restarted) while the take went on, so no frame
     is given a wrong rig time and none is lost.
 
-    Until then that timing is kept beside the part file, in ``.NAME.XXXX.part.json`` (:func:`part_sidecar`: the
-    .json's keys but ``frames``), written at the first block (when the origin is known) and again when rig time
-    steps, and removed once the take has its name and .json: a take killed unnamed keeps its place on the rig
-    clock, which ``batteur wav-repair PART`` carries to the take it names. The node holds a lock on the part file
-    while it records (:func:`in_use`), so a part file left by a node that is gone can be told from a live one.
+    Until then that timing is kept beside the part file, in ``.NAME.XXXX.part.json`` (the names:
+    :mod:`common.takes`; the .json's keys but ``frames``), written at the first block (when the origin is known)
+    and again when rig time steps, and removed once the take has its name and .json: a take killed unnamed keeps
+    its place on the rig clock, which ``batteur wav-repair PART`` carries to the take it names. The node holds a
+    lock on the part file while it records (:func:`in_use`), so a part file left by a node that is gone can be
+    told from a live one.
 
     ``timeline``: the core's (output sample, rig time) anchors (:meth:`SoundCore.timeline`: the first is sample 0
     at the origin), read on close.
@@ -214,7 +205,8 @@ class WavSink:
         self.target = path if self.in_place else path.resolve()
         self.part = self.target
         if not self.in_place:
-            fd, part = tempfile.mkstemp(prefix=f".{self.target.name}.", suffix=".part", dir=self.target.parent)
+            fd, part = tempfile.mkstemp(prefix=part_prefix(self.target.name), suffix=PART_SUFFIX,
+                                        dir=self.target.parent)
             self.part = Path(part)
             self.lock_fd = fd
             try:  # a running node's part file: not a leftover (wav-repair and a restarted node check this)
@@ -254,11 +246,11 @@ class WavSink:
                 "channels": self.file.channels, "segments": [{"frame": n, "rig_time_s": t} for n, t in anchors],
                 "take": self.target.name}
         try:
-            write_atomically(part_sidecar(self.part), json.dumps(meta, indent=2).encode("utf-8"))
+            write_atomically(part_timing(self.part), json.dumps(meta, indent=2).encode("utf-8"))
         except OSError as exc:
             if first:
                 log.warning("cannot write %s (%s): a node killed before it stops would leave its take without its "
-                            "rig-time origin", part_sidecar(self.part), exc.strerror or exc)
+                            "rig-time origin", part_timing(self.part), exc.strerror or exc)
 
     def _unlock(self) -> None:
         if self.lock_fd is not None:
@@ -268,7 +260,7 @@ class WavSink:
     def _discard(self) -> None:
         if not self.in_place:
             self.part.unlink(missing_ok=True)
-            part_sidecar(self.part).unlink(missing_ok=True)
+            part_timing(self.part).unlink(missing_ok=True)
         self._unlock()
 
     def discard(self) -> None:
@@ -304,7 +296,7 @@ class WavSink:
         write_atomically(self.path.with_name(self.path.name + ".json"),
                          json.dumps(self.meta, indent=2).encode("utf-8"))
         if not self.in_place:  # the take's .json has the timing now
-            part_sidecar(self.part).unlink(missing_ok=True)
+            part_timing(self.part).unlink(missing_ok=True)
         self._unlock()
         self.finished = True
 
