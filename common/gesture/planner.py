@@ -61,6 +61,13 @@ MOVE_CLEARANCE = 0.3
 """Extra lift per metre of horizontal move to the next target, metres."""
 HOLD_RISE = 0.08
 """Seconds in which a bass-drum foot lets its footboard back up after a stroke."""
+HIHAT_CLOSE_TAIL_M = 0.03
+"""An open hi-hat's pedal lift above this (metres) closes as a lift of this height did: the foot falls quickly to
+the path of that fall, then follows it (a higher lift falling evenly closed the plates 40-50 ms later, half
+open at the next closed note 0.25 s after the open one, and 9 cm let them meet as a pedal chick)."""
+HIHAT_CLOSE_TAIL_FROM = 0.25
+"""... joining that fall this far (a fraction of ``hihat_close_s``) into it, its foot 2.5 cm above rest: well before
+the plates meet (at half of it)."""
 FOOT_RISE_SPEED = 0.6
 """A foot's lift above its pedal (rest height plus stroke lift) is at most this times the time since its
 previous stroke, m/s. Without it a kick double 90 ms apart was planned as a 9 cm lift and fall (4.5 m/s) and
@@ -179,7 +186,10 @@ class PlannerConfig:
     foot_cycle: float = (
         0.30  # a pedal stroke's lift and fall take at most this long; the foot rests on the pedal between
     )
-    hihat_open_lift: float = 0.03  # the hi-hat foot lifts the pedal this much (metres) around open hi-hat notes
+    # the hi-hat foot lifts the pedal this much (metres) around open hi-hat notes: the plates 10.3 mm apart at the
+    # stroke (default kit, 1.75 m drummer; the rest opening 15 mm), where 3 cm left them 2.7 mm apart, barely off
+    # a closed hat; from 9 cm the footboard nears its stop, from 10 cm the foot leaves it (docs/physics.md)
+    hihat_open_lift: float = 0.07
     # ... and lets it down again over this long (seconds): slowly enough that the plates meet below interaction's
     # slowest hi-hat chick (closing in 0.1 s, they met at 0.11-0.16 m/s: a chick the score does not have)
     hihat_close_s: float = 0.2
@@ -559,7 +569,9 @@ def _open_hihat(
     """Lift the hi-hat foot (pedal up, hi-hat open) around open hi-hat notes when the foot is resting.
 
     Windows [t - 80 ms, t + 120 ms] of open notes are merged; the pedal rises over the 0.1 s before a window
-    and falls over ``hihat_close_s`` after it. A window is used only
+    and falls over ``hihat_close_s`` after it. A lift above ``HIHAT_CLOSE_TAIL_M`` falls quickly to the path a
+    fall from that height would take at ``HIHAT_CLOSE_TAIL_FROM`` of it and follows it from there: the plates meet
+    when and as slowly as they did after a lift of that height. A window is used only
     when the foot plays no pedal stroke within ``foot_cycle`` of it (its lift would start inside).
     """
     windows: list[list[float]] = []
@@ -577,6 +589,15 @@ def _open_hihat(
     out_v: list[np.ndarray] = []
     done = 0  # originals before this index are out (kept or replaced)
     up = np.array([0.0, 0.0, cfg.hihat_open_lift])
+    zero = np.zeros(3)
+    tail_dt: list[float] = []  # the knot joining a fall from HIHAT_CLOSE_TAIL_M (a higher lift): after w1, s
+    tail_h: list[np.ndarray] = []
+    tail_v: list[np.ndarray] = []
+    if cfg.hihat_open_lift > HIHAT_CLOSE_TAIL_M:
+        u = HIHAT_CLOSE_TAIL_FROM  # a zero-velocity cubic fall of height H over D: H (1 - 3u^2 + 2u^3) at u = t / D
+        tail_dt = [u * cfg.hihat_close_s]
+        tail_h = [np.array([0.0, 0.0, HIHAT_CLOSE_TAIL_M * (1.0 - 3.0 * u**2 + 2.0 * u**3)])]
+        tail_v = [np.array([0.0, 0.0, -HIHAT_CLOSE_TAIL_M * 6.0 * u * (1.0 - u) / cfg.hihat_close_s])]
     for w0, w1 in windows:
         a, b = w0 - 0.1, w1 + cfg.hihat_close_s
         k = int(np.searchsorted(strokes, a - cfg.foot_cycle, side="right"))  # the first stroke after a - cycle
@@ -594,9 +615,9 @@ def _open_hihat(
         else:
             ends, _ = hermite(times[near], pos[near], vel[near], np.array([a, b]))
         rest_a, rest_b = ends[0], ends[1]
-        out_t += [times[done:lo], np.array([a, w0, w1, b])]
-        out_p += [pos[done:lo], np.array([rest_a, rest_a + up, rest_b + up, rest_b])]
-        out_v += [vel[done:lo], np.zeros((4, 3))]
+        out_t += [times[done:lo], np.array([a, w0, w1, *(w1 + d for d in tail_dt), b])]
+        out_p += [pos[done:lo], np.array([rest_a, rest_a + up, rest_b + up, *(rest_b + h for h in tail_h), rest_b])]
+        out_v += [vel[done:lo], np.array([zero, zero, zero, *tail_v, zero])]
         done = hi
     if not out_t:
         return times, pos, vel

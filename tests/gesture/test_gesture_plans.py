@@ -12,10 +12,16 @@ from common.gesture.database import GestureDatabase, default_database, load_unit
 from common.gesture.heights import stick_height, stick_speed
 from common.gesture.keyframe import plan_keyframes
 from common.gesture.plan import GesturePlan, Grip, HeadTrajectory, LimbTrajectory, Nuance
-from common.gesture.planner import PlannerConfig, kick_contact_rise, plan_gestures
+from common.gesture.planner import (
+    HIHAT_CLOSE_TAIL_FROM,
+    HIHAT_CLOSE_TAIL_M,
+    PlannerConfig,
+    kick_contact_rise,
+    plan_gestures,
+)
 from common.gesture.synth import UNITS_DIR, make_unit
 from common.kit import EventType as E
-from common.kit import Limb, load_kit
+from common.kit import Limb, foot_target_for_press, load_kit
 from common.score.events import DrumEvent, Score
 from common.score.limbs import distribute
 from common.score.midi import read_midi
@@ -214,18 +220,24 @@ def test_feet_rest_on_pedals_and_hihat_foot_opens_for_open_notes() -> None:
     hat_pedal = np.array(KIT.object("hihat_pedal").position)
     resting = hat.sample(0.5).position[2]
     assert resting < hat_pedal[2] + 0.012  # resting on the pedal: closed
-    assert hat.sample(1.0).position[2] == pytest.approx(resting + 0.03, abs=1e-3)  # pedal up: open
+    assert hat.sample(1.0).position[2] == pytest.approx(resting + PlannerConfig().hihat_open_lift, abs=1e-3)  # open
     jump_p, jump_v = largest_jumps(plan)
     assert jump_p < 1e-7 and jump_v < 1e-4
 
 
 def test_the_softest_chick_closes_faster_than_the_foot_lets_an_open_hihat_down() -> None:
     """Interaction hears a closing of the hi-hat only above a speed (a foot letting the pedal down after an open
-    note is silent): the planned chick of the softest pedal note must be well above the let-down's speed."""
+    note is silent): the planned chick of the softest pedal note must be well above the let-down's speed where the
+    plates can meet. (A lift above HIHAT_CLOSE_TAIL_M first drops quickly, the plates still apart: the foot above
+    the height at which the footboard closes them.)"""
     score = Score([DrumEvent(1.0, E.HIHATOPEN, 0.8), DrumEvent(3.0, E.HIHATPEDAL, 0.0)])
     plan = plan_gestures(distribute(score, KIT), KIT, score)
     hat = plan.trajectories[Limb.LEFT_FOOT]
-    times = np.arange(1.1, 1.6, 1e-3)  # the let-down after the open note
+    cfg = PlannerConfig()
+    join = 1.12 + (HIHAT_CLOSE_TAIL_FROM * cfg.hihat_close_s if cfg.hihat_open_lift > HIHAT_CLOSE_TAIL_M else 0.0)
+    closing = KIT.object("hihat_pedal").position[2] + foot_target_for_press(KIT.hihat_closes_at())
+    assert hat.sample(join).position[2] > closing  # the plates still apart where the slow let-down starts
+    times = np.arange(join, 1.6, 1e-3)  # the let-down after the open note
     let_down = float(np.max(-hat.sample_many(times)[1][:, 2]))
     chick = float(-hat.sample(3.0).velocity[2])
     assert 0.0 < let_down and chick > 3.0 * let_down, (let_down, chick)

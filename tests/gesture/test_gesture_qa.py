@@ -9,7 +9,13 @@ import pytest
 
 import common.gesture.planner as planner
 from common.gesture.plan import hermite
-from common.gesture.planner import PlannerConfig, _open_hihat, plan_gestures
+from common.gesture.planner import (
+    HIHAT_CLOSE_TAIL_FROM,
+    HIHAT_CLOSE_TAIL_M,
+    PlannerConfig,
+    _open_hihat,
+    plan_gestures,
+)
 from common.kit import EventType as E
 from common.kit import load_kit
 from common.score.events import DrumEvent, Score
@@ -37,9 +43,15 @@ def _reference_open_hihat(times: np.ndarray, pos: np.ndarray, vel: np.ndarray, o
         ends, _ = hermite(times, pos, vel, np.array([a, b]))
         up = np.array([0.0, 0.0, cfg.hihat_open_lift])
         keep = (times < a) | (times > b)
-        times = np.concatenate([times[keep], np.array([a, w0, w1, b])])
-        pos = np.concatenate([pos[keep], np.array([ends[0], ends[0] + up, ends[1] + up, ends[1]])])
-        vel = np.concatenate([vel[keep], np.zeros((4, 3))])
+        new_t, new_p, new_v = [a, w0, w1], [ends[0], ends[0] + up, ends[1] + up], [np.zeros(3)] * 3
+        if cfg.hihat_open_lift > HIHAT_CLOSE_TAIL_M:  # a high lift joins the fall from HIHAT_CLOSE_TAIL_M
+            u = HIHAT_CLOSE_TAIL_FROM
+            new_t.append(w1 + u * cfg.hihat_close_s)
+            new_p.append(ends[1] + [0.0, 0.0, HIHAT_CLOSE_TAIL_M * (1.0 - 3.0 * u**2 + 2.0 * u**3)])
+            new_v.append(np.array([0.0, 0.0, -HIHAT_CLOSE_TAIL_M * 6.0 * u * (1.0 - u) / cfg.hihat_close_s]))
+        times = np.concatenate([times[keep], np.array([*new_t, b])])
+        pos = np.concatenate([pos[keep], np.array([*new_p, ends[1]])])
+        vel = np.concatenate([vel[keep], np.array([*new_v, np.zeros(3)])])
         order = np.argsort(times, kind="stable")
         times, pos, vel = times[order], pos[order], vel[order]
     return times, pos, vel
