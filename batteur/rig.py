@@ -13,7 +13,9 @@ kills what is left; what a service leaves in its process group (planning
 processes, a resource tracker) is stopped once it has exited, and the rig reads
 output for at most ``DRAIN_S`` more seconds, so no grandchild holding the output
 pipe keeps it running. If physics, interaction or sound exits, the others are stopped too; if graphics (the view,
-:data:`OPTIONAL_ROLES`) does, the rig says so and the others play on, and its exit status at the end says it failed.
+:data:`OPTIONAL_ROLES`) does once it was up (had answered the rig's Hello), the rig says so and the others play on,
+its exit status at the end graphics' code (0 if it exited with 0, 1 if killed); graphics exiting before it was up,
+or refusing its options (2), stops the rig as any service does (a mistake in how it was started fails fast).
 ``--record DIR``: sound records to ``DIR/performance.wav`` (under a hidden part name until it stops; it names the
 take only when it stops cleanly, so a take cut short never replaces an earlier one, and stays in its part file,
 which the rig names).
@@ -61,14 +63,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
-from batteur.errors import FAILED, UsageError, report_error
+from batteur.errors import FAILED, USAGE, UsageError, report_error
 from common.arg_types import non_negative, positive, seconds, take_negative_values, whole
 from common.input_file import file_problem
 from common.output_paths import check_output_dir, point_at_devnull
 from common.score.midi_options import add_midi_arguments, midi_read_kwargs, midi_service_args
+from common.takes import part_timing, parts_glob
 
 if TYPE_CHECKING:
     from common.kit import Kit
+    from common.peers import Peer
     from common.score.events import Score
 
 ROLES = ("physics", "interaction", "sound", "graphics")
@@ -99,8 +103,9 @@ READY_POLL_S = 0.5
 READY_PROGRESS_S = 5.0
 """Seconds between the rig's "waiting for ..." lines while its services start."""
 OPTIONAL_ROLES = ("graphics",)
-"""Services the show goes on without: when one exits, the rig says so and physics, interaction and sound play on
-(a walkthrough's SIGKILLed view took the audio down mid-set). Its exit status at the end still says it failed. Not
+"""Services the show goes on without: when one exits once it was up (:attr:`Rig.up`), the rig says so and physics,
+interaction and sound play on (a walkthrough's SIGKILLed view took the audio down mid-set). Its exit status at the
+end still says it failed. One that exits before it was up, or with 2 (it refused its options), stops the rig. Not
 sound: the take (``--record``) and what is heard are its; nor physics (the drummer, the clock master) or interaction
 (sound's impacts)."""
 
@@ -235,13 +240,21 @@ def node_peer_roles(cli_peers: Sequence[str], own: Sequence[str], role: str,
     (:func:`common.config.load_settings`): the command line's, else ``BATTEUR_PEERS`` (empty: not set), else its
     config file's (``--config``, else ``BATTEUR_CONFIG``; the role's table over the top level). A list replaces,
     never extends, the one below it. A peer or file the node will refuse counts as none: the node says why."""
+    return {peer.role for peer in node_static_peers(cli_peers, own, role, environ)[0]}
+
+
+def node_static_peers(cli_peers: Sequence[str], own: Sequence[str], role: str,
+                      environ: Mapping[str, str] | None = None) -> tuple[list[Peer], str]:
+    """The static peers a node will hold, resolved as :func:`node_peer_roles` tells, and where they come from:
+    "--peer", "BATTEUR_PEERS" or "its config file FILE" ("" when none)."""
     from common.config import ENV_PREFIX, SettingsError, file_settings, read_config_file
     from common.peers import parse_static_peer
 
     env = os.environ if environ is None else environ
     specs: Any = list(cli_peers)
+    source = "--peer"
     if not specs:
-        specs = env.get(f"{ENV_PREFIX}PEERS") or None
+        specs, source = env.get(f"{ENV_PREFIX}PEERS") or None, f"{ENV_PREFIX}PEERS"
     if specs is None:
         config = (option_values(own, "--config") or [env.get(f"{ENV_PREFIX}CONFIG") or ""])[-1]
         try:
@@ -249,13 +262,14 @@ def node_peer_roles(cli_peers: Sequence[str], own: Sequence[str], role: str,
         except SettingsError:
             data = {}
         specs = file_settings(data, None, role, environ=env).get("peers")  # as load_settings reads the file
+        source = f"its config file {config}" if specs else ""
     if isinstance(specs, str):
         specs = specs.split(",")
-    roles = set()
+    peers = []
     for spec in specs if isinstance(specs, list) else []:
         with contextlib.suppress(ValueError):
-            roles.add(parse_static_peer(str(spec).strip()).role)
-    return roles
+            peers.append(parse_static_peer(str(spec).strip()))
+    return peers, source if peers else ""
 
 
 def plan_rig(opts: argparse.Namespace, epoch: float, environ: Mapping[str, str] | None = None) -> list[ServicePlan]:
@@ -457,13 +471,13 @@ class ReadyWait:
 class _Answers(asyncio.DatagramProtocol):
     """The Health answers of the rig's services (only datagrams from their ports count)."""
 
-    def __init__(self, roles: dict[int, str], epoch: float) -> None:
+    def __init__(self, roles: dict[int, str], epoch: float, up: dict[str, float] | None = None) -> None:
         self.roles = roles
         """UDP port -> role of each service."""
         self.epoch = epoch
         """The rig epoch, Unix seconds."""
-        self.up: dict[str, float] = {}
-        """Role -> rig time it first answered, seconds."""
+        self.up: dict[str, float] = {} if up is None else up
+        """Role -> rig time it first answered, seconds (``up``: the :attr:`Rig.up` it fills)."""
         self.heard = asyncio.Event()
         """Set on each new answer; the rig clears it before it waits."""
         self.error: OSError | None = None
@@ -522,6 +536,44 @@ def counted(count: int, noun: str) -> str:
     return f"{count} {noun}{'' if count == 1 else 's'}"
 
 
+def up_line(plans: Sequence[ServicePlan], up: Mapping[str, float], elapsed_s: float, play_at_s: float | None,
+            environ: Mapping[str, str] | None = None) -> str:
+    """What the rig says once every service is up (``up``: role -> rig time it answered, seconds; ``elapsed_s``:
+    seconds since launch): with ``--score`` (``play_at_s``), whether one was up only after the score's time;
+    without, where to send what to play: physics' address, with a wildcard ``--host`` loopback's and that it
+    listens on every interface; physics not in the rig, the static peer its services send to
+    (:func:`node_static_peers`: ``--peer``, ``BATTEUR_PEERS``, a config file; ``environ``: the services' environment,
+    None: the rig's), else that the rig does not start it (until the day after 7 Dec it said "ready" alone)."""
+    from common.transport import format_address
+
+    line = f"batteur rig: services up {elapsed_s:.1f} s after launch (rig time {max(up.values()):.1f} s)"
+    if play_at_s is None:
+        send = "send /batteur/score/load NAME or /batteur/score/note"
+        physics = next((plan for plan in plans if plan.role == "physics"), None)
+        if physics is not None:
+            local = peer_host(physics.host)
+            # a wildcard (0.0.0.0, ::): loopback's address works here only; said so, once
+            anywhere = (f"from another machine, this machine's address: --host {physics.host} listens on every "
+                        "interface; " if local != physics.host else "")
+            return (line + f": ready; {send} to physics at {format_address(local, physics.port)} ({anywhere}"
+                    "docs/live-control.md)\n")
+        for plan in plans:
+            peers, source = node_static_peers(option_values(plan.args, "--peer"), plan.args, plan.role, environ)
+            known = next((peer for peer in peers if peer.role == "physics"), None)
+            if known is not None:
+                return (line + f": ready; physics is not started by this rig: {send} to it at "
+                        f"{format_address(known.host, known.port)} ({plan.role}'s static peer, {source}; "
+                        "docs/live-control.md)\n")
+        return line + ": ready; physics is not started by this rig (batteur ls lists the nodes it finds)\n"
+    late = [role for role, t in up.items() if t > play_at_s]
+    if "physics" in late:
+        line += (f"; physics only after --play-at {play_at_s:g} s: it starts the score as soon as it can, "
+                 "from its first note")
+    elif late:
+        line += f"; {', '.join(late)} only after --play-at {play_at_s:g} s, when the score started"
+    return line + "\n"
+
+
 class Output:
     """The rig's lines to one stream. Once the stream is gone (``batteur rig | head``, a closed terminal) lines are
     dropped, so the rig still drains the services' output (a service blocked on a full pipe would not stop) and
@@ -565,6 +617,10 @@ class Rig:
         """Services that ended on their own with a non-zero code or could not start, in the order they did."""
         self.lost: dict[str, int] = {}
         """:data:`OPTIONAL_ROLES` that exited on their own while the others played on: role -> exit code."""
+        self.up: dict[str, float] = {}
+        """Role -> rig time it first answered the rig's Hello, seconds (:meth:`_wait_ready`; empty without
+        ``ready``). Only an :data:`OPTIONAL_ROLES` service that was up plays on without it when it exits: one that
+        exits before (a typo in ``--graphics-arg``) is a mistake in how the rig was started, which stops it."""
         self.arm_child = stop_with_the_rig()
 
     async def _pump(self, role: str, stream: asyncio.StreamReader | None, to: Output) -> None:
@@ -590,14 +646,22 @@ class Rig:
             if code != 0:
                 self.failures.setdefault(role, code)
             running = [r for r, p in self.procs.items() if r != role and p.returncode is None]
-            if role in OPTIONAL_ROLES and running:  # the view is not worth the show
+            # the view is not worth the show, once it was on: one that ends before it answered the rig's Hello, or
+            # refuses its options (2), says the rig was started wrong, which should fail fast (until the day after
+            # 7 Dec the others played on, and the rig said its services were up "but graphics, which exited")
+            optional = role in OPTIONAL_ROLES and running
+            if optional and role in self.up and code != USAGE:
                 self.lost[role] = code
                 # the code it will exit with: exit_code's, this role's (the first failure: another stops the rig)
                 will = f"; it will exit {code if code > 0 else 1}: {role} failed" if code else ""
                 self.err.write(f"batteur rig: {role} {describe_exit(code)}; {', '.join(running)} play on without "
                                f"it (Ctrl-C stops the rig{will})\n")
             else:
-                self.err.write(f"batteur rig: {role} {describe_exit(code)}; stopping the rig\n")
+                why = ""
+                if optional:  # why this one stops the show where a graphics that was up would not
+                    why = " before it was up" if role not in self.up else ""
+                    why += " (it refused its options)" if code == USAGE else ""
+                self.err.write(f"batteur rig: {role} {describe_exit(code)}{why}; stopping the rig\n")
                 self.stopping.set()
         await end_group(proc.pid)
 
@@ -666,7 +730,7 @@ class Rig:
         loop = asyncio.get_running_loop()
         roles = {plan.port: plan.role for plan in self.plans}
         try:
-            transport, answers = await loop.create_datagram_endpoint(lambda: _Answers(roles, ready.epoch),
+            transport, answers = await loop.create_datagram_endpoint(lambda: _Answers(roles, ready.epoch, self.up),
                                                                      local_addr=(ready.host, 0))
         except OSError as exc:
             if ready.play_at_s is None:  # no score waits on them: said, and the rig runs on (as past the timeout)
@@ -680,7 +744,7 @@ class Rig:
             hello = encode(Hello(role=TOOL_ROLE, node_id="batteur-rig", protocol=PROTOCOL_VERSION,
                                  osc_port=transport.get_extra_info("sockname")[1]))
             next_line = launched + READY_PROGRESS_S
-            # a service that exited is waited for no more (graphics: the others play on without it)
+            # a service that exited is waited for no more (it stops the rig: the wait is cancelled)
             while waiting := [plan for plan in self.plans
                               if plan.role not in answers.up and plan.role not in self.exit_codes]:
                 elapsed = time.monotonic() - launched
@@ -712,31 +776,9 @@ class Rig:
                 await answers.wait(min(READY_POLL_S, ready.timeout_s - elapsed))
         finally:
             transport.close()
-        if answers.up:  # else every service exited: the rig is stopping
-            self.out.write(self._up_line(ready, answers.up, time.monotonic() - launched))
-
-    def _up_line(self, ready: ReadyWait, up: dict[str, float], elapsed_s: float) -> str:
-        """What the rig says once every service is up (``up``: role -> rig time it answered, seconds): with
-        ``--score``, whether one was up only after the score's time; without, where to send what to play."""
-        from common.transport import format_address
-
-        line = f"batteur rig: services up {elapsed_s:.1f} s after launch (rig time {max(up.values()):.1f} s)"
-        gone = [plan.role for plan in self.plans if plan.role not in up]
-        if gone:
-            line += f", but {', '.join(gone)}, which exited"
-        if ready.play_at_s is None:
-            physics = next((plan for plan in self.plans if plan.role == "physics" and plan.role in up), None)
-            if physics is None:
-                return line + ": ready\n"
-            return (line + f": ready; send /batteur/score/load NAME or /batteur/score/note to physics at "
-                    f"{format_address(peer_host(physics.host), physics.port)} (docs/live-control.md)\n")
-        late = [role for role, t in up.items() if t > ready.play_at_s]
-        if "physics" in late:
-            line += (f"; physics only after --play-at {ready.play_at_s:g} s: it starts the score as soon as it can, "
-                     "from its first note")
-        elif late:
-            line += f"; {', '.join(late)} only after --play-at {ready.play_at_s:g} s, when the score started"
-        return line + "\n"
+        # a service that exited stops the rig (graphics before it was up too: every one left answered)
+        if answers.up and not self.stopping.is_set():
+            self.out.write(up_line(self.plans, answers.up, time.monotonic() - launched, ready.play_at_s))
 
     def _give_up(self, reason: str) -> None:
         """Stop the rig over ``reason`` (one error line; exit 1 unless a service failed first)."""
@@ -862,9 +904,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="batteur rig",
         description="Start the Batteur services as local processes (the embedded default rig). "
-        "Ctrl-C stops them all; so does physics, interaction or sound exiting, while the others play on without "
-        "graphics (the view) should it exit (exit code: 0 after a clean stop, else the failing service's code, or "
-        "1). It says when every service it started is up.",
+        "Ctrl-C stops them all; so does any service exiting, but for graphics (the view) once it was up: the others "
+        "then play on without it (exit code: 0 after a clean stop, else the failing service's code, or 1 if killed). "
+        "It says when every service it started is up.",
     )
     take_negative_values(parser)  # --play-at -1e-3: the value's own check says what is wrong with it
     parser.add_argument("--services", default=",".join(ROLES), metavar="ROLES",
@@ -1182,7 +1224,7 @@ def recording_state(folder: Path) -> RecordingState:
 def recording_parts(folder: Path) -> frozenset[Path]:
     """The part files sound records into (``.performance.wav.XXXX.part``) now in ``folder``: its take until it has
     stopped cleanly and named it; one left by a sound node that did not."""
-    return frozenset(folder.glob(f".{RECORDING}.*.part"))
+    return frozenset(folder.glob(parts_glob(RECORDING)))
 
 
 def _holds_audio(part: Path) -> bool:
@@ -1212,7 +1254,7 @@ def finish_recording(folder: Path, sound_stopped_cleanly: bool, out: Output, err
                 kept.append(part)
             else:  # killed before its first block: nothing to keep
                 part.unlink(missing_ok=True)
-                part.with_name(part.name + ".json").unlink(missing_ok=True)  # its timing (sound's WavSink)
+                part_timing(part).unlink(missing_ok=True)  # its timing (sound's WavSink)
         where = ", ".join(map(str, kept)) + (" (a WAV file)" if len(kept) == 1 else " (WAV files)")
         if kept:  # a hidden file: the command that names it, with the rig time of its first sample
             one = len(kept) == 1

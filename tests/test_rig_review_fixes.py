@@ -2,9 +2,10 @@
 
 Review of 6c221a4 (7 Dec): a service whose process could not be created (``OSError``: a missing interpreter, no
 memory, no free process slot) was said ("cannot start sound: ...") but the services already started ran on, the rig
-waiting for Ctrl-C with nothing more said and no "services up" line. And graphics refusing its options (exit 2) while
-the others played on was said as "it will exit 1", the rig then exiting 2. Stand-in services
-(tests/test_rig_ready.py's) answer the rig's Hellos with their Health.
+waiting for Ctrl-C with nothing more said and no "services up" line. And graphics exiting with 2 while the others
+played on was said as "it will exit 1", the rig then exiting 2. The review of 66552ee: graphics refusing its options
+at start-up (a typo in ``--graphics-arg``) should stop the rig, not play on; only a graphics that was up does. Stand-in
+services (tests/test_rig_ready.py's) answer the rig's Hellos with their Health.
 """
 
 from __future__ import annotations
@@ -12,6 +13,8 @@ from __future__ import annotations
 import asyncio
 import io
 import time
+
+import pytest
 
 from batteur import rig
 from tests.ports import free_ports
@@ -60,18 +63,58 @@ def test_a_service_that_cannot_be_started_stops_the_rig() -> None:
     assert the_rig.procs["physics"].returncode is not None  # stopped with it
 
 
-def test_graphics_refusing_its_options_says_the_code_the_rig_exits_with() -> None:
+ANSWERS_THEN_EXITS = """\
+import socket, sys
+port, code, health = int(sys.argv[1]), int(float(sys.argv[2])), bytes.fromhex(sys.argv[3])
+sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+sock.bind(("127.0.0.1", port))
+_, source = sock.recvfrom(65535)
+sock.sendto(health, source)  # up: it answered the rig's Hello
+sys.exit(code)
+"""
+"""A graphics stand-in that answers the rig's first Hello with its Health, then exits with the code given in place
+of :class:`StandIn`'s delay."""
+
+
+@pytest.mark.parametrize(("code", "why"), [(2, " (it refused its options)"), (1, "")])
+def test_graphics_failing_at_start_up_stops_the_rig_with_its_code(code: int, why: str) -> None:
+    """A typo in ``--graphics-arg`` (2, argparse's exit), or a view that cannot start (1: its HTTP port taken):
+    graphics exits before it was up. Until the day after 7 Dec physics and sound played on and the rig said
+    "services up ... but graphics, which exited: ready"; a rig started wrong fails fast."""
     ports = free_ports(3)
-    refuses = "import sys; sys.exit(2)"  # argparse's exit on an option it does not know (--graphics-arg)
+    fails = f"import sys; sys.exit({code})"
     plans: list[rig.ServicePlan] = [StandIn("physics", ports[0], 0.0), StandIn("sound", ports[1], 0.0),
-                                    StandIn("graphics", ports[2], 0.0, refuses)]
+                                    StandIn("graphics", ports[2], 0.0, fails)]
     out, err = io.StringIO(), io.StringIO()
     the_rig = rig.Rig(plans, stop_timeout_s=20, out=out, err=err,
                       ready=rig.ReadyWait(WAIT_S, "127.0.0.1", time.time(), None))
-    code = run(the_rig, err, "play on without it")
-    assert code == 2, out.getvalue() + err.getvalue()
-    assert ("batteur rig: graphics exited with code 2; physics, sound play on without it (Ctrl-C stops the rig; it "
-            "will exit 2: graphics failed)\n") in err.getvalue(), err.getvalue()
+    exit_code = run(the_rig, err, "play on without it")  # stops by itself: until the fix the test stopped it here
+    said = out.getvalue() + err.getvalue()
+    assert exit_code == code, said
+    assert f"batteur rig: graphics exited with code {code} before it was up{why}; stopping the rig\n" in said, said
+    assert "play on" not in said and "services up" not in said, said
+    assert all(proc.returncode is not None for proc in the_rig.procs.values())
+
+
+@pytest.mark.parametrize(("code", "plays_on"), [(0, True), (3, True), (2, False)])
+def test_graphics_exiting_once_up_says_the_code_the_rig_exits_with(code: int, plays_on: bool) -> None:
+    """Once up, graphics exiting leaves physics and sound playing, and the rig exits with its code at the end (0 for
+    a 0: the README said "exits 1"); but for 2, a usage error, which stops the rig as before."""
+    ports = free_ports(3)
+    plans: list[rig.ServicePlan] = [StandIn("physics", ports[0], 0.0), StandIn("sound", ports[1], 0.0),
+                                    StandIn("graphics", ports[2], float(code), ANSWERS_THEN_EXITS)]
+    out, err = io.StringIO(), io.StringIO()
+    the_rig = rig.Rig(plans, stop_timeout_s=20, out=out, err=err,
+                      ready=rig.ReadyWait(WAIT_S, "127.0.0.1", time.time(), None))
+    exit_code = run(the_rig, err, "play on without it")
+    said = out.getvalue() + err.getvalue()
+    assert exit_code == code, said
+    will = f"; it will exit {code}: graphics failed" if code else ""
+    played_on = (f"batteur rig: graphics exited with code {code}; physics, sound play on without it (Ctrl-C stops "
+                 f"the rig{will})\n")
+    assert (played_on in err.getvalue()) == plays_on, said
+    if not plays_on:
+        assert "batteur rig: graphics exited with code 2 (it refused its options); stopping the rig\n" in said, said
 
 
 def test_without_a_score_a_rig_that_cannot_ask_its_services_runs_on() -> None:

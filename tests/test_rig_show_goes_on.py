@@ -1,4 +1,5 @@
-"""``batteur rig`` on stage: the view's crash does not take the audio down, and the rig says when it is ready.
+"""``batteur rig`` on stage: the view's crash, once it was up, does not take the audio down, and the rig says when it
+is ready (graphics failing at start-up stops the rig: tests/test_rig_review_fixes.py).
 
 A live-set walkthrough (7 Dec) SIGKILLed graphics mid-set: the rig stopped physics, interaction and sound with it
 ("graphics was killed by SIGKILL; stopping the rig"), and the set's audio with them. And a performer driving the rig
@@ -47,16 +48,18 @@ async def until(condition: Callable[[], bool], what: Callable[[], str]) -> None:
         await asyncio.sleep(0.05)
 
 
-def stand_ins(*roles: str) -> tuple[list[rig.ServicePlan], dict[str, int]]:
+def rig_of(*roles: str, ready: bool = True) -> tuple[rig.Rig, dict[str, int], io.StringIO, io.StringIO]:
+    """A rig of stand-ins of ``roles`` that waits for them to be up (``ready``: without a score); it, their ports,
+    its output and its errors."""
     ports = dict(zip(roles, free_ports(len(roles)), strict=True))
-    return [StandIn(role, port, 0.0) for role, port in ports.items()], ports
+    plans: list[rig.ServicePlan] = [StandIn(role, port, 0.0) for role, port in ports.items()]
+    out, err = io.StringIO(), io.StringIO()
+    wait = rig.ReadyWait(WAIT_S, "127.0.0.1", time.time(), None) if ready else None
+    return rig.Rig(plans, stop_timeout_s=20, out=out, err=err, ready=wait), ports, out, err
 
 
 def test_graphics_killed_mid_show_the_others_play_on_and_the_rig_exits_1_at_the_end() -> None:
-    plans, ports = stand_ins("physics", "sound", "graphics")
-    out, err = io.StringIO(), io.StringIO()
-    the_rig = rig.Rig(plans, stop_timeout_s=20, out=out, err=err,
-                      ready=rig.ReadyWait(WAIT_S, "127.0.0.1", time.time(), None))
+    the_rig, ports, out, err = rig_of("physics", "sound", "graphics")
     said = lambda: out.getvalue() + err.getvalue()  # noqa: E731
     alive: list[bool] = []
 
@@ -85,10 +88,7 @@ def test_graphics_killed_mid_show_the_others_play_on_and_the_rig_exits_1_at_the_
 @pytest.mark.parametrize("role", ["physics", "sound"])
 def test_physics_or_sound_exiting_still_stops_the_rig(role: str) -> None:
     """Not the view: the drummer and the clock master, or the take and what is heard."""
-    plans, _ = stand_ins("physics", "sound", "graphics")
-    out, err = io.StringIO(), io.StringIO()
-    the_rig = rig.Rig(plans, stop_timeout_s=20, out=out, err=err,
-                      ready=rig.ReadyWait(WAIT_S, "127.0.0.1", time.time(), None))
+    the_rig, _, out, err = rig_of("physics", "sound", "graphics")
 
     async def main() -> int:
         task = asyncio.create_task(the_rig.run(None))
@@ -101,9 +101,7 @@ def test_physics_or_sound_exiting_still_stops_the_rig(role: str) -> None:
 
 
 def test_a_rig_of_graphics_alone_stops_when_it_exits() -> None:
-    plans, _ = stand_ins("graphics")
-    out, err = io.StringIO(), io.StringIO()
-    the_rig = rig.Rig(plans, stop_timeout_s=20, out=out, err=err)
+    the_rig, _, out, err = rig_of("graphics", ready=False)
 
     async def main() -> int:
         task = asyncio.create_task(the_rig.run(None))
@@ -119,10 +117,7 @@ def test_a_rig_of_graphics_alone_stops_when_it_exits() -> None:
 
 
 def test_without_a_score_the_rig_says_when_it_is_ready_and_where_to_send_notes() -> None:
-    plans, ports = stand_ins("physics", "sound")
-    out, err = io.StringIO(), io.StringIO()
-    the_rig = rig.Rig(plans, stop_timeout_s=20, out=out, err=err,
-                      ready=rig.ReadyWait(WAIT_S, "127.0.0.1", time.time(), None))
+    the_rig, ports, out, err = rig_of("physics", "sound")
 
     async def main() -> int:
         task = asyncio.create_task(the_rig.run(None))

@@ -43,10 +43,12 @@ def body_json(scene: DrummerScene) -> dict[str, Any]:
             "box_deg": [[round(math.degrees(float(scene.body.lower[i])), 1),
                          round(math.degrees(float(scene.body.upper[i])), 1)] for i in dofs],
         }
+    unit, why = skeleton_unit(scene)
     return {"height_m": scene.settings.height_m, "mass_kg": scene.settings.mass_kg,
             "segments_mass_kg": round(body_mass_of(anthro), 2), "dof": len(scene.model.dof_names),
             "control_rate_hz": scene.settings.rate_hz / scene.control_every,
-            "skeleton_bvh": scene.settings.skeleton_bvh, "limits_from": list(scene.settings.limits_from) or "default",
+            "skeleton_bvh": scene.settings.skeleton_bvh, "skeleton_unit": unit, "skeleton_unit_why": why,
+            "limits_from": list(scene.settings.limits_from) or "default",
             "limits_symmetric": limits.symmetric,
             "segments": segments, "joints": joints,
             "gains": f"explicit PD at {controller.params.frequency_hz:g} Hz (per DOF, scaled by its inertia); the "
@@ -54,11 +56,29 @@ def body_json(scene: DrummerScene) -> dict[str, Any]:
                      f"(trunk {controller.params.trunk_ct_frequency_hz:g} Hz) through the mass matrix"}
 
 
+def skeleton_unit(scene: DrummerScene) -> tuple[str | None, str | None]:
+    """The unit the scene's ``skeleton_bvh`` was read in (a key of ``METRES_PER_SKELETON_UNIT``: "cm") and why
+    ("as given", or the guess's reason), as the scene read it (the same file, the same ``skeleton_units``); (None,
+    None) without a skeleton. A length read in the wrong unit builds a giant or a dwarf: the file alone did not say
+    which (until the day after 7 Dec)."""
+    if not scene.settings.skeleton_bvh:
+        return None, None
+    from services.physics.bvh_motion import read_skeleton  # the BVH reader: only with a skeleton
+
+    reading = read_skeleton(scene.settings.skeleton_bvh, scene.settings.skeleton_units)
+    return reading.unit, reading.why
+
+
 def body_text(scene: DrummerScene) -> str:
     """:func:`body_json` as two tables (units in every column header)."""
+    from services.physics.bvh_motion import UNIT_WORDS
+
     data = body_json(scene)
+    skeleton = data["skeleton_bvh"] or "de Leva table"
+    if data["skeleton_unit"] is not None:
+        skeleton += f" (read in {UNIT_WORDS[data['skeleton_unit']]}: {data['skeleton_unit_why']})"
     lines = [f"drummer {data['height_m']:g} m, {data['mass_kg']:g} kg asked; segments {data['segments_mass_kg']:g} kg "
-             f"in all; {data['dof']} DOF (19 joints x 3); skeleton: {data['skeleton_bvh'] or 'de Leva table'}; "
+             f"in all; {data['dof']} DOF (19 joints x 3); skeleton: {skeleton}; "
              f"limits from: {', '.join(data['limits_from']) if isinstance(data['limits_from'], list) else 'default'}"
              f" ({'mirror-symmetric' if data['limits_symmetric'] else 'each side its own: --asymmetric-limits'})",
              control_rate_text(scene), "",

@@ -304,8 +304,9 @@ def make_core(settings: NodeSettings, extra: argparse.Namespace) -> PhysicsCore:
         log.info("skeleton %s read in %s; its lengths are %s (the hands, feet and head and the body's place over "
                  "the throne are the %g m drummer's of --height-m)", settings.skeleton_bvh, reading.unit_words,
                  tall, settings.height_m)
-        if (outside := stature_warning(reading)) is not None:  # --skeleton-units given: built, and said
-            log.warning("--skeleton-units %s: %s", settings.skeleton_units, outside)
+        if (outside := stature_warning(reading)) is not None:  # a unit given: built, and said
+            # the setting, not an option: BATTEUR_SKELETON_UNITS or a config file may have given it
+            log.warning("skeleton units %s: %s", settings.skeleton_units, outside)
     elif settings.skeleton_units != "auto":
         log.warning("--skeleton-units has no effect without --skeleton-bvh")
     try:  # a kit file it cannot use (missing or not a kit): 1, found before the core's slow start; loaded once,

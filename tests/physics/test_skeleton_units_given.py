@@ -104,7 +104,7 @@ def test_the_node_reads_the_skeleton_in_the_unit_given_and_says_the_stature(tmp_
     assert said[0] == (f"skeleton {path} read in centimetres: as given; its lengths are a 0.855 m performer's (the "
                        "hands, feet and head and the body's place over the throne are the 1.6 m drummer's of "
                        "--height-m)"), said
-    assert said[1:] == [f"--skeleton-units cm: {stature_warning(read_skeleton(path, 'cm'))}"], said
+    assert said[1:] == [f"skeleton units cm: {stature_warning(read_skeleton(path, 'cm'))}"], said
     caplog.clear()
     said = _started(path, "auto", tmp_path, caplog)  # unchanged: inches, the stature in range, nothing warned
     assert len(said) == 1 and said[0].startswith(f"skeleton {path} read in inches: ") and "a 2.17 m performer's" \
