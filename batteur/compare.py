@@ -15,7 +15,8 @@ time - exercise time); the offsets most pairs agree on (within the tolerance) ar
 and the one matching most notes wins, set so that the median matched note is on time. Early and late are thus
 measured against the student's own pulse, not against an absolute start nobody can know; ``--offset`` forces the
 alignment (and then the means are against that start). A take that stops and comes back in is timed from there
-against the restart (:func:`find_restarts`), its pause taken out, not as notes late by it.
+against the restart (:func:`find_restarts`), its pause taken out, not as notes late by it; an entry late or early
+after a written rest (:data:`REST_BEATS`) is said, its notes told late or early by it (a miscounted rest).
 """
 
 from __future__ import annotations
@@ -75,6 +76,12 @@ at least, each: a student who stops comes back on their pulse and plays on (a ta
 a shift lines up for a few bars, is no restart)."""
 RESTART_CANDIDATES = 8
 """Silences (the longest pauses first) tried as restarts per round, and the rounds (restarts) at most."""
+REST_BEATS = 2.0
+"""A written gap (between two written onsets, any drum) of this many of the exercise's beats at least is a written
+rest: a beat's rest after the beat a note takes (a quarter-note groove's notes a beat apart are none). A silence
+across it is the student counting the rest, not a restart: the entry after it is said (``came in 0.5 s late after
+the rest``) and its notes kept late or early (:func:`find_restarts`; until 7 Dec coming in a beat late after a
+2-bar rest read as a restart and a perfect take)."""
 TEMPO_GRID = (0.5, 2.0, 0.02)
 """Tempo ratios tried when most notes do not match (lowest, highest, relative step), refined by a tenth of it."""
 TEMPO_NOTES = 200
@@ -464,6 +471,9 @@ class Restart:
     cut: float
     late_s: float
     silence_s: float
+    rest: bool = False
+    """An entry after a written rest (:data:`REST_BEATS`), late or early (``late_s`` < 0): its notes are lined up
+    by it to be paired, then kept as played (late or early by it), not re-timed (:func:`_compare_at`)."""
 
 
 def restarted(played: Sequence[Played], restarts: Sequence[Restart]) -> list[Played]:
@@ -489,10 +499,20 @@ def find_restarts(written: Sequence[NoteRef], played: Sequence[Played], offset: 
     compared clock, s) is a candidate, the :data:`RESTART_CANDIDATES` longest tried: the notes
     after it moved earlier by that excess, matched at the offset (the notes after the silence then line up) and,
     but for a forced ``--offset``, at the offset less it (the notes before it do: the offset had lined up the part
-    after it). The one matching most is a restart when it matches :data:`RESTART_NOTES` more than before, and
-    :data:`RESTART_SHARE` of the written notes before the restart and of those from it on; then the take is lined
-    up again and the next is looked for. ``pairs``: the take's at ``offset`` as one."""
+    after it). The one matching most is a restart when it matches :data:`RESTART_NOTES` more than before (or, a
+    pause after the take's first notes or before its last ones, all the fewer written there: until 7 Dec they were
+    missed and the notes played for them silently before or after the exercise), and :data:`RESTART_SHARE` of the
+    written notes before the restart and of those from it on; then the take is lined up again and the next is
+    looked for. ``pairs``: the take's at ``offset`` as one.
+
+    A silence across a written rest (a written gap of :data:`REST_BEATS` at least) is no restart but an entry
+    after the rest (:attr:`Restart.rest`), found the same way, late or early (a silence shorter than the rest by
+    more than :data:`LOOSE_S`, 2 tolerances if more): the student miscounted the rest, and the notes after it
+    are told late or early by it, not timed from it. It is also tried with the entry after the next written rest
+    back on the pulse before (the part between the two rests off alone: one move could not line both up)."""
     reach = max(LOOSE_S, 2 * tolerance, RESTART_BEATS * (beat_s or 0.0))
+    rest_reach = max(LOOSE_S, 2 * tolerance)  # an entry's notes are kept as played: no eighth to mistake them for
+    rest_gap = None if beat_s is None else REST_BEATS * beat_s - tolerance
     times = sorted({round(n.time, 6) for n in written})
     found: list[Restart] = []
     pairs = list(pairs)
@@ -515,7 +535,10 @@ def find_restarts(written: Sequence[NoteRef], played: Sequence[Played], offset: 
             notes = [j for onset in onsets[:head] for j in onset]
             head_at, its = align(written, [moved[j] for j in notes], tolerance)
             head_of = {notes[k]: written[i].time for i, k in its}
-        tried: list[tuple[float, int, float, float]] = []  # (excess s, first take index after it, silence s, offset)
+        tried: list[tuple[float, int, float, float, bool]] = []  # (excess s, first take index after it, silence s,
+        # offset, across a written rest)
+        rests: list[tuple[int, float]] = []  # (first take index after it, silence s) per silence across a written
+        # rest, in time order
         for index, (before, after) in enumerate(zip(onsets, onsets[1:], strict=False)):
             a, b = moved[before[-1]].time, moved[after[0]].time
             anchors = head_of if index + 1 == head and head_of else written_of
@@ -533,26 +556,42 @@ def find_restarts(written: Sequence[NoteRef], played: Sequence[Played], offset: 
                 gap = wb - times[k]
             else:
                 continue
-            if b - a - gap > reach:
-                tried.append((b - a - gap, after[0], b - a, head_at if anchors is head_of else offset))
-        best: tuple[Restart, float, list[tuple[int, int]], int] | None = None
-        for excess, j, silence, start in sorted(tried, reverse=True)[:RESTART_CANDIDATES]:
-            restart = Restart(played[j].time, excess, silence)
-            shifted = restarted(played, [*found, restart])
-            for at in (start,) if forced or start != offset else (offset, offset - excess):
-                again = matched(written, shifted, at, tolerance)
-                if best is None or len(again) > len(best[2]):
-                    best = (restart, at, again, j)
-        if best is None or len(best[2]) < len(pairs) + RESTART_NOTES:
+            if wb is not None and wa is not None and rest_gap is not None:
+                # the written gap before the note it came back in on, as paired: a part lined up a beat off (a
+                # groove's hi-hat eighths match so) hides a rest from the note before, not from this one
+                k = bisect.bisect_left(times, wb - tolerance) - 1
+                if k >= 0 and wb - times[k] >= rest_gap:
+                    gap = max(gap, wb - times[k])
+            rest = rest_gap is not None and gap >= rest_gap
+            if rest:
+                rests.append((after[0], b - a))
+            if (abs(b - a - gap) > rest_reach) if rest else (b - a - gap > reach):
+                tried.append((b - a - gap, after[0], b - a, head_at if anchors is head_of else offset, rest))
+        best: tuple[list[Restart], float, list[tuple[int, int]], int] | None = None
+        for excess, j, silence, start, rest in sorted(tried, key=lambda c: -abs(c[0]))[:RESTART_CANDIDATES]:
+            moves = [[Restart(played[j].time, excess, silence, rest)]]
+            later = [(k, quiet) for k, quiet in rests if moved[k].time > moved[j].time]
+            if rest and later:  # the part up to the next rest off alone: the entry after it back on the pulse
+                k, quiet = later[0]
+                moves.append([*moves[0], Restart(played[k].time, -excess, quiet, True)])
+            for move in moves:
+                shifted = restarted(played, [*found, *move])
+                for at in (start,) if forced or start != offset else (offset, offset - excess):
+                    again = matched(written, shifted, at, tolerance)
+                    if best is None or len(again) > len(best[2]):
+                        best = (move, at, again, j)
+        if best is None or len(best[2]) <= len(pairs):
             break
-        restart, at, again, j = best
+        move, at, again, j = best
         # the written notes before the note it came back in on (less the tolerance) and from it on: each half played
-        split = restarted(played, [*found, restart])[j].time - at - tolerance
+        split = restarted(played, [*found, *move])[j].time - at - tolerance
         earlier = [n.time < split for n in written]
         before_n, before_m = sum(earlier), sum(earlier[i] for i, _ in again)
+        if len(again) < len(pairs) + min(RESTART_NOTES, before_n, len(written) - before_n):
+            break
         if before_m < RESTART_SHARE * before_n or len(again) - before_m < RESTART_SHARE * (len(written) - before_n):
             break
-        found.append(restart)
+        found.extend(move)
         if forced:
             pairs = again
         else:
@@ -1407,7 +1446,14 @@ def _compare_at(score: Score, take: Take, kit: Kit, tolerance: float, scale: flo
     # a student who stopped and came back in: timed from there on against the restart (its pause taken out)
     restarts, offset, pairs = find_restarts(written, take.notes, offset, pairs, tolerance, forced,
                                             None if bpm is None else 60.0 / bpm / scale)
+    # an entry after a written rest lined its notes up to pair them; they are kept late or early as played
+    entries = [r for r in restarts if r.rest]
+    restarts = [r for r in restarts if not r.rest]
     played = restarted(take.notes, restarts)
+    entered: dict[int, int] = {}  # written index: its note, paired after an entry and beyond the tolerance
+    if entries:
+        entered = {i: j for i, j in pairs if abs(played[j].time - offset - written[i].time) > tolerance}
+        pairs = [(i, j) for i, j in pairs if i not in entered]
     # the take's notes before the exercise starts or after it ends (a count-in, a last crash held on): not extras
     start, end = -tolerance, exercise_end(score) / scale + tolerance
     inside = [j for j, p in enumerate(played) if start <= p.time - offset <= end]
@@ -1425,10 +1471,10 @@ def _compare_at(score: Score, take: Take, kit: Kit, tolerance: float, scale: flo
     # That note is the written one played too early or late, not also an extra: each is claimed by one miss
     loose: dict[str, list[int]] = defaultdict(list)
     for j, p in enumerate(played):
-        if j not in done_played:
+        if j not in done_played and j not in entered.values():
             loose[p.drum].append(j)
-    claimed: dict[int, int] = {}  # written index: the note of its drum played too early or late for it
-    taken: set[int] = set()
+    claimed: dict[int, int] = dict(entered)  # written index: the note of its drum played too early or late for it
+    taken: set[int] = set(entered.values())
     reach = max(LOOSE_S, 2 * tolerance)
     candidates = sorted((abs(played[j].time - offset - written[i].time), i, j) for i in missed_i
                         for j in loose.get(written[i].instrument, [])
@@ -1526,7 +1572,12 @@ def _compare_at(score: Score, take: Take, kit: Kit, tolerance: float, scale: flo
         "entry": None if forced else count_in_entry(
             [(p.time, p.drum) for p in played if p.time - offset < -max(LOOSE_S, 2 * tolerance)], offset, tolerance,
             start_beat_s(score, scale)),
-        "restarts": [restart_entry(score, r, restarts, offset, scale) for r in restarts],
+        # where each came back in, on the written clock: every earlier move taken out (an entry's too)
+        "restarts": [restart_entry(score, r, [*restarts, *entries], offset, scale) for r in restarts],
+        # each entry late or early against the take's start (the pulse before the rest may have been off already)
+        "rest_entries": [rest_entry(score, r, [*restarts, *entries], offset, scale, lag)
+                         for r in entries if abs(lag := sum(e.late_s for e in entries if e.cut <= r.cut + 1e-9))
+                         > tolerance],
         "pickup_beats": None if short is None else _r(short[0] / bar_unit(score, 1), 3),  # counted as bar 1's
         "bars": bars, "drift": drift(bars), "off_tempo": [],
         "beats_rushed_dragging": beat_feels(
@@ -1565,7 +1616,10 @@ def _compare_at(score: Score, take: Take, kit: Kit, tolerance: float, scale: flo
         length = exercise_end(score) / scale  # s, as the take plays it: a small ratio still drifts over a long take
         # and more notes than those here on time or followed along the take's lag (a tempo change in the middle of
         # a take: the whole take compared at the later tempo put its first bars off, until 7 Dec)
-        if (count >= max(1.5 * len(pairs), len(pairs) + 0.2 * len(written), len(pairs) + len(claimed))
+        # (more than those, after an entry off after a rest: the take steady, 0.2 s late after a 2-bar rest, matched
+        # as many at 117 bpm, the tie said the tempo)
+        if (count >= max(1.5 * len(pairs), len(pairs) + 0.2 * len(written),
+                         len(pairs) + len(claimed) + (1 if entered else 0))
                 and abs(math.log(ratio)) * length > tolerance / 2):
             said = ratio_digits(ratio * scale, length / ratio, tolerance)
             tempi = written_tempi(score)
@@ -1593,6 +1647,37 @@ def restart_entry(score: Score, restart: Restart, restarts: Sequence[Restart], o
     moved = restart.cut - sum(r.late_s for r in restarts if r.cut <= restart.cut + 1e-9)
     return {**position(score, (moved - offset) * scale, scale), "take_time_s": _r(restart.cut, 4),
             "late_s": _r(restart.late_s, 3), "silence_s": _r(restart.silence_s, 3)}
+
+
+def rest_entry(score: Score, entry: Restart, moves: Sequence[Restart], offset: float, scale: float, lag: float
+               ) -> dict[str, Any]:
+    """An entry after a written rest as the report says it (:func:`restart_entry`'s fields, ``late_s`` the entry
+    note's lag against the take's start, s, < 0 early; ``moves``: every restart and entry, to place it), with
+    ``rest``, the rest's bars (``bars 3-4``: the bars without a written note; a rest within or across bars, those
+    bars: ``bar 2``) and ``late_beats``, in the exercise's beats there."""
+    said = {**restart_entry(score, entry, moves, offset, scale), "late_s": _r(lag, 3)}
+    at = (entry.cut - sum(r.late_s for r in moves if r.cut <= entry.cut + 1e-9) - offset) * scale
+    onsets = sorted({e.time for e in score.events})
+    before = onsets[max(0, bisect.bisect_left(onsets, at - 1e-6) - 1)]  # the last written onset before the rest
+    first, where = bar_and_beat(score, before), bar_and_beat(score, at)
+    rest = ""
+    if first is not None and where is not None:
+        # the bars wholly without a written note (the entry's has its own), else those the rest lies in
+        a, b = (first[0] + 1, where[0] - 1) if where[0] - first[0] >= 2 else (first[0], where[0])
+        rest = f"bar {a}" if a == b else f"bars {a}-{b}"
+    beat = where[2] / scale if where is not None else None
+    return {**said, "rest": rest, "late_beats": None if beat is None else _r(lag / beat, 2)}
+
+
+def rest_entry_text(entry: dict[str, Any]) -> str:
+    """``bar 5: came in 0.5 s late (1 beat) after the rest (bars 3-4), 10.800 s into the take: ...``
+    (:func:`rest_entry`)."""
+    how = "late" if entry["late_s"] > 0 else "early"
+    beats = entry.get("late_beats")
+    count = "" if beats is None else f" ({abs(beats):g} beat{'' if abs(beats) == 1 else 's'})"
+    bar = f"bar {entry['bar']}" if entry.get("bar") is not None else where_text(entry)
+    return (f"{bar}: came in {abs(entry['late_s']):.1f} s {how}{count} after the rest ({entry['rest']}), "
+            f"{entry['take_time_s']:.3f} s into the take: its notes told {how} by it")
 
 
 def restart_text(entry: dict[str, Any]) -> str:
@@ -1672,6 +1757,7 @@ def summary_lines(report: dict[str, Any], exercise: str, take: str) -> list[str]
     if report.get("entry"):
         lines.append(entry_text(report["entry"]))
     lines.extend(restart_text(entry) for entry in report.get("restarts") or [])
+    lines.extend(rest_entry_text(entry) for entry in report.get("rest_entries") or [])
     if report.get("pickup_beats"):
         lines.append(f"bar 0 is the pick-up ({report['pickup_beats']:g} beat{'s' if report['pickup_beats'] > 1 else ''}"
                      "), bar 1 the first full bar")
@@ -1825,7 +1911,9 @@ before the exercise starts or after it ends (a count-in) are not extras; a
 steady count-in (one sound repeated) says where the take entered against it
 ("entered 1 beat late after the count-in"). A take that stops and comes back
 in is timed from there against the restart ("came back in 0.6 s late at bar
-3, beat 1 after a pause"), not as late notes. After a pick-up bar (a first bar shorter than the
+3, beat 1 after a pause"), not as late notes; an entry late or early after a
+written rest is said ("bar 5: came in 0.5 s late (1 beat) after the rest
+(bars 3-4)") and its notes told late or early. After a pick-up bar (a first bar shorter than the
 next), bar 1 is the first full bar and the pick-up bar 0, as printed.
 A written note counts as played when the take has one on the same drum (kit
 object: open and closed hi-hat, and the hi-hat pedal, are the hi-hat) within
