@@ -170,6 +170,13 @@ class OscMessage(BaseModel):
     SHORT_FORM: ClassVar[str] = ""
     """Another argument list :meth:`from_args` takes besides every field in order, as a usage line says it
     (``batteur send``'s; ``PRESET alone ...``); "" for none."""
+    APPENDED: ClassVar[tuple[str, ...]] = ()
+    """Fields appended to the message since it was first sent, oldest first (each with a default): a sender from
+    before them (an older node, a Pd patch) sends the arguments without the last of them, which :meth:`from_args`
+    decodes with their defaults."""
+    NEWER_ARGS: ClassVar[int] = 0
+    """Arguments after the last known field a newer sender's message may carry (fields appended since this node):
+    :meth:`from_args` ignores up to this many (a message with ``APPENDED`` fields takes 8)."""
 
     @classmethod
     def wire_fields(cls) -> tuple[WireField, ...]:
@@ -280,6 +287,12 @@ class OscMessage(BaseModel):
         fixed = [f for f in fields if not f.variadic]
         fixed_count = sum(2 if f.kind is WireKind.TIME else 1 for f in fixed)
         has_tail = bool(fields) and fields[-1].variadic
+        if not has_tail and (cls.APPENDED or cls.NEWER_ARGS):  # an older or a newer sender's (see APPENDED)
+            missing = fixed_count - len(args)
+            if 0 < missing <= len(cls.APPENDED):
+                args = [*args, *(cls.model_fields[name].default for name in cls.APPENDED[-missing:])]
+            elif 0 < -missing <= cls.NEWER_ARGS:
+                args = args[:fixed_count]
         if len(args) < fixed_count or (not has_tail and len(args) != fixed_count):
             want = f"{fixed_count}{'+' if has_tail else ''}"
             raise MessageError(

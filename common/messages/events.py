@@ -2,8 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from typing import Annotated, Any, ClassVar, Self
+from typing import Annotated, ClassVar
 
 from pydantic import Field
 
@@ -53,17 +52,6 @@ class Contact(OscMessage):
     NEWER_ARGS: ClassVar[int] = 8
     """Arguments after the last known field a newer sender's contact may carry (fields appended since): ignored."""
 
-    @classmethod
-    def from_args(cls, args: Sequence[Any]) -> Self:
-        """As :meth:`OscMessage.from_args`; a contact without the last appended fields (``APPENDED``: an older
-        sender's) decodes with their defaults, and a newer one's, with up to ``NEWER_ARGS`` more, without them."""
-        known = len(cls.wire_fields()) + 1  # ``time`` takes two arguments
-        missing = known - len(args)
-        if 0 < missing <= len(cls.APPENDED):
-            args = [*args, *(cls.model_fields[name].default for name in cls.APPENDED[-missing:])]
-        elif 0 < -missing <= cls.NEWER_ARGS:
-            args = args[:known]
-        return super().from_args(args)
 
 
 @register

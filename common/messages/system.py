@@ -2,8 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from typing import Annotated, Any, ClassVar, Self
+from typing import Annotated, ClassVar
 
 from pydantic import Field
 
@@ -99,17 +98,6 @@ class Health(OscMessage):
     """Arguments after the last known field that a newer node's Health may carry (fields appended since): ignored,
     so ``batteur ls``, the rig and graphics still see such a node (a sound node on a second machine updated first)."""
 
-    @classmethod
-    def from_args(cls, args: Sequence[Any]) -> Self:
-        """As :meth:`OscMessage.from_args`; an older node's Health, without the last appended fields (``APPENDED``),
-        decodes with their defaults (0), and a newer node's, with up to ``NEWER_ARGS`` more, without them."""
-        known = len(cls.wire_fields()) + 1  # ``time`` takes two arguments
-        missing = known - len(args)
-        if 0 < missing <= len(cls.APPENDED):
-            args = [*args, *(cls.model_fields[name].default for name in cls.APPENDED[-missing:])]
-        elif 0 < -missing <= cls.NEWER_ARGS:
-            args = args[:known]
-        return super().from_args(args)
 
 
 @register
@@ -147,17 +135,6 @@ class ClockPong(OscMessage):
     NEWER_ARGS: ClassVar[int] = 8
     """Arguments after the last known field that a newer master's pong may carry (fields appended since): ignored."""
 
-    @classmethod
-    def from_args(cls, args: Sequence[Any]) -> Self:
-        """As :meth:`OscMessage.from_args`; an older master's pong, without the last appended fields (``APPENDED``),
-        decodes with their defaults, and a newer one's, with up to ``NEWER_ARGS`` more, without them."""
-        known = len(cls.wire_fields()) + 3  # the three rig times take two arguments each
-        missing = known - len(args)
-        if 0 < missing <= len(cls.APPENDED):
-            args = [*args, *(cls.model_fields[name].default for name in cls.APPENDED[-missing:])]
-        elif 0 < -missing <= cls.NEWER_ARGS:
-            args = args[:known]
-        return super().from_args(args)
 
 
 @register
