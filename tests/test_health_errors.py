@@ -27,7 +27,8 @@ pytestmark = pytest.mark.timeout(120)
 
 HEALTH = Health(node_id="fake-1", role="sound", protocol=1, time=1.5, rate_hz=187.0, target_rate_hz=187.5,
                 overruns=0, messages_in=1, messages_out=1, dropped=3, dropped_malformed=0, dropped_unknown=0,
-                dropped_type=0, dropped_range=0, dropped_other=3, late=0, peers=3, errors=5, duplicates=24)
+                dropped_type=0, dropped_range=0, dropped_other=3, late=0, peers=3, errors=5, duplicates=24,
+                wrong_node_unanswered=7)
 
 
 class FailingCore:
@@ -75,7 +76,12 @@ def test_the_fields_are_appended_and_an_older_nodes_health_decodes() -> None:
     assert names[-since:][:2] == ["errors", "duplicates"] and Health.APPENDED[-since:] == tuple(names[-since:])
     args = HEALTH.to_args()
     assert Health.from_args(args) == HEALTH
-    assert Health.from_args(args[:-since]) == HEALTH.model_copy(update={"errors": 0, "duplicates": 0})
+    # a node older by k fields sends the args without the last k: each decodes as 0 (every appended field non-zero in
+    # HEALTH, so a field decoded from the wrong argument, or not defaulted, fails here)
+    assert all(getattr(HEALTH, name) for name in names[-since:])
+    for k in range(1, since + 1):
+        older = Health.from_args(args[:-k])
+        assert older == HEALTH.model_copy(update=dict.fromkeys(names[-k:], 0)), names[-k:]
 
 
 def test_ls_shows_the_errors(capsys: pytest.CaptureFixture[str]) -> None:

@@ -9,7 +9,8 @@ control messages (common/messages/score.py):
   only if it lies inside one). A missing, unreadable or corrupted score is a
   clear error (logged, counted in ``errors`` and ``PhysicsCore.rejected``); the
   previously loaded score stays loaded. Loaded while another score plays, it is
-  for the next ``play``: the playing score plays on (said in the log), and a
+  for the next ``play``: the playing score plays on (said in the log; its loop
+  ends as ``loop 0 0`` ends it: the pass in progress, then the rest), and a
   tempo, style or dynamics change meanwhile re-plans the playing one (a loop
   asked then is the new score's, for its play).
 * :class:`~common.messages.score.ScoreTransport` ``play`` plans the loaded score
@@ -97,9 +98,9 @@ message then takes effect in arrival order: while a plan is in flight the
 messages after it wait in a FIFO (:meth:`ScorePlayer.submit`, :meth:`ScorePlayer.pump`),
 and live notes waiting together are planned together; a ``/batteur/physics/reset``
 does not wait: it drops the plan in flight (:meth:`ScorePlayer._drop_for_reset`) and
-stops computing it, so the next plan starts at once (a spare planning process:
-services/physics/plan_worker.py ``PlanWorkers``); nor does a ``stop`` or ``pause`` for at
-once: it drops the plans it makes pointless, said in the log (:meth:`ScorePlayer._stop_at_once`).
+the next plan starts at once (its process terminated, a spare planning process takes over; a thread finishes the
+dropped plan alone while a new one plans: services/physics/plan_worker.py ``PlanWorkers``); nor does a ``stop`` or
+``pause`` for at once: it drops the plans it makes pointless, said in the log (:meth:`ScorePlayer._stop_at_once`).
 
 The log says where the score is (its seconds as written, and bar and beat
 counted in its own meter: :func:`common.score.position.counted_bar_beat`, as
@@ -249,7 +250,15 @@ overhead: their time is kept whole, see :meth:`ScorePlayer._estimate`)."""
 PLAN_SAFETY = 1.5
 """Background plans: the splice is put this many estimated planning times after the message."""
 PLAN_HISTORY = 8
-"""Background plans: the per-note planning time is the median of this many latest timed plans."""
+"""Background plans: the per-note planning time is the median of this many latest timed plans ..."""
+PLAN_MIN_TIMED = 3
+"""... once at least this many have been timed (the median of one or two is one of them: a single plan slowed on a
+loaded core became every next plan's estimate): until then :data:`PLAN_PER_NOTE_S` (and no least time for short
+plans, :meth:`ScorePlayer._estimate`)."""
+CLOCKS_KEPT_S = 2.0
+"""A re-plan keeps the score clocks in force from this long before the targets' clock on (:attr:`ScorePlayer._clocks`):
+a stop or pause is never placed before it (the targets' clock goes back only when they fall behind, by at most
+``MAX_TARGET_LAG_S``, 0.5 s), seconds."""
 MAX_PLAN_RETRIES = 3
 """Background plans: a ``play`` or re-plan whose plan is ready after its splice time is planned again from the
 state then, at most this many times (each with the larger estimate it measured)."""
@@ -447,6 +456,11 @@ class ScorePlayer:
         """``/batteur/score/loop``: the bars (counted from 1, first and last) looped, None: no loop."""
         self._loop_changed = False
         """The loop was changed since the playing score was last planned (its next re-plan lays the new one)."""
+        self._unloop = False
+        """A score was loaded while the playing one looped: the playing one's loop ends as ``loop 0 0`` ends it (the
+        pass in progress, then the rest of that score), by a re-plan the load starts (:meth:`_end_playing_loop`; a
+        re-plan before it lays it too). Until 7 Dec the log said the loop ended, but the passes laid played on
+        (~60 s) and the play stopped at the last of them: the rest of the score never played."""
         self._timeline: Timeline | None = None
         """The play's score as played (:class:`common.score.bars.Timeline`: its loop's passes laid end to end);
         :attr:`mapping`'s score positions are its played seconds. None: the score as written."""
@@ -466,7 +480,8 @@ class ScorePlayer:
         self._clocks: list[tuple[float, float, float]] = []
         """The play's clocks in force one after another (as :attr:`mapping`): the play's, then each re-plan's from its
         anchor on; a stop or pause before the latest anchor (laid ahead by the planning time) is said with the one
-        sounding then (:meth:`_sounding`)."""
+        sounding then (:meth:`_sounding`); those no longer in force :data:`CLOCKS_KEPT_S` before the targets' clock
+        are dropped (:meth:`_clocks_since`)."""
         self._stopping: tuple[tuple[float, float, float], float] | None = None
         """A stop or pause sent ahead of its time: the score's clock before it and the rig time (s) it plays
         until (the score plays on until then, and its position is shown: :meth:`clock`)."""
@@ -481,8 +496,9 @@ class ScorePlayer:
         """Live notes whose pitch has no drum event type (not played), counted; ``live.unknown`` keeps the latest
         :data:`UNKNOWN_PITCHES_KEPT`."""
         self.late_notes = 0
-        """Notes (score or live) not played for being late: they arrived too late to be prepared, or the live core's
-        targets jumped over them (``skipped_notes``); counted (Health's ``late``)."""
+        """Notes (score or live) not played for being late: they arrived too late to be prepared, the live core's
+        targets jumped over them (``skipped_notes``), or a stop or pause acting at once dropped them before their
+        plan was spliced (:meth:`_drop_live`); counted (Health's ``late``)."""
         self.skipped_notes: Counter[str] = Counter()
         """Notes ("live", "score") of the performance the live core's targets jumped over when they trailed the rig
         clock too far (:meth:`drop_skipped`): not played; also in ``late_notes``."""
@@ -568,6 +584,7 @@ class ScorePlayer:
     def _dispatch(self, message: OscMessage, now: float, source: str = "") -> None:
         if isinstance(message, ScoreLoad):
             self.load(message.path)
+            self._end_playing_loop(now)
         elif isinstance(message, ScoreTransport):
             if message.action == "play":
                 self.play(message.time, message.position, now)
@@ -649,7 +666,19 @@ class ScorePlayer:
             log.info("loop bars %d-%d ended by the %s", *self.loop, why)
         self.loop = None
         self._loop_changed = False
+        self._unloop = False
         self._loop_said = -math.inf
+
+    def _end_playing_loop(self, now: float) -> None:
+        """After a load at rig time ``now`` (s) while the playing score looped (:attr:`_unloop`): re-plan that score
+        with its loop off, in the handler (background plans: :meth:`_start`). Its failure is logged, not the
+        load's (the score is loaded): the passes laid play on."""
+        if not self._unloop:
+            return
+        try:
+            self.replan(now)
+        except ValueError as exc:
+            log.warning("the playing score's loop could not be ended: %s; its passes laid play on", exc)
 
     def _played(self, score: Score, timeline: Timeline | None) -> Score:
         """The score to plan: ``timeline``'s (its loop's passes laid) or ``score`` as written."""
@@ -762,7 +791,9 @@ class ScorePlayer:
             raise ScoreError(f"{path}: cannot read the score ({type(exc).__name__}: {exc})") from None
         if not score.events:
             raise ScoreError(f"{path}: no drum events to play")
+        unloop = self.loop is not None and self._plays_loaded()  # the playing score's loop: it ends (said next)
         self._clear_loop("new score")
+        self._unloop = self._unloop or unloop
         self.score, self.score_path = score, path
         # the score playing now plays on (a stop or pause sent ahead: until then, its clock kept for the view and
         # the log, :attr:`playing_score`; until 7 Dec that clock was dropped here, read in the loaded score's bars)
@@ -1007,12 +1038,19 @@ class ScorePlayer:
         earlier = [m for m in self._clocks if m[0] <= t_s]
         return earlier[-1] if earlier else self._clocks[0]
 
+    @staticmethod
+    def _clocks_since(t: float, clocks: list[tuple[float, float, float]]) -> list[tuple[float, float, float]]:
+        """``clocks`` (as :attr:`_clocks`, in time order) without those no longer in force at ``t`` (s, the targets'
+        clock) or after: a long loop re-planned ~90 times an hour, one clock each, kept them all until 7 Dec."""
+        k = bisect.bisect_right(clocks, t, key=lambda m: m[0])  # the first that starts after t
+        return clocks[max(k - 1, 0):]
+
     def _lay(self, timeline: Timeline | None, before: Timeline | None, anchor: float,
              mapping: tuple[float, float, float], lag: float) -> None:
         """A plan from played time ``anchor`` (s) with ``timeline`` (None: the score as written; ``before``: the
         one it replaces) is spliced, the score's clock ``mapping``: keep it, and say where a loop now starts or
         ends (rig time and written bar)."""
-        self._timeline, self._loop_changed = timeline, False
+        self._timeline, self._loop_changed, self._unloop = timeline, False, False
         if self._run is not None:
             self._run.timeline = timeline
         if before is None:  # a fresh play: its passes are said again (a second looped play said none)
@@ -1180,7 +1218,8 @@ class ScorePlayer:
             return None
         # the playing score (a score loaded since is for the next play: its notes on this clock were wrong)
         score = self._playing[0]
-        t_s = self._base(now) + SPLICE_MARGIN_S + delay_s
+        base = self._base(now)  # nothing is said of a time before it, on either clock
+        t_s = base + SPLICE_MARGIN_S + delay_s
         if t_s >= self.end_time:
             return None
         t_c = t_s + self.preparation_s - SPLICE_MARGIN_S
@@ -1195,11 +1234,11 @@ class ScorePlayer:
         before = self._timeline if self._timeline is not None and self._timeline.score is score else None
         timeline = before
         # the loop asked is the loaded score's: after a load, the passes of the playing one laid so far stay
-        bars, changed = (self.loop, self._loop_changed) if score is self.score else (None, False)
+        # (the playing one's loop, if one was on at the load, ends: :attr:`_unloop`)
+        bars, changed = (self.loop, self._loop_changed) if score is self.score else (None, self._unloop)
         if bars is not None or (changed and before is not None):
             timeline = looped(before or Timeline.plain(score), p_a, bars, LOOP_AHEAD_S * tempo)
         if timeline is not None:  # without the passes played (each extension would lay them all out again)
-            base = self._base(now)  # nothing is said of a time before it, on either clock
             timeline = timeline.since(min(position + (base - at) * old_tempo, p_a + (base - t_a) * tempo))
         played = self._played(score, timeline)
         # split the score where the old clock reaches t_c (the same formula that timed ``events``: no note in both)
@@ -1224,7 +1263,8 @@ class ScorePlayer:
             self.events = self._assigned(events, plan)
             self._note_dropped(plan, t_s)
             self.mapping = (t_a, p_a, tempo)
-            self._clocks = [m for m in self._clocks if m[0] < t_a] + [self.mapping]
+            self._clocks = self._clocks_since(base - CLOCKS_KEPT_S,
+                                              [m for m in self._clocks if m[0] < t_a] + [self.mapping])
             self.end_time = plan.end_time
             log.info("re-planned from rig %.3f s (%s): tempo x%g, dynamics x%g, %s grip, %s", t_a + lag,
                      self._words(score, p_a), tempo, dynamics, self.grip.value, self.nuance.value)
@@ -1596,14 +1636,17 @@ class ScorePlayer:
         """A stop or pause acting at once (rig time ``now``, s): drop what it makes pointless, said in the log, and
         return whether anything was: the plan in flight (its result never read: :meth:`_drop_job`), a waiting
         ``play``, live notes and a loop's next passes or a plan again after a late one; a waiting style, tempo,
-        dynamics or loop message keeps its settings without its re-plan (for the next ``play``, as when stopped)
-        and any other message acts as it would have, in order, before the stop (a score load, a stop or pause
-        sent ahead, a target, a controller change)."""
-        job = self._job
+        dynamics or loop message keeps its settings without its re-plan (for the next ``play``, as when stopped;
+        a stop then ends the loop, :meth:`_clear_loop`: a loop is kept after a pause only) and any other message
+        acts as it would have, in order, before the stop (a score load, a stop or pause sent ahead, a target, a
+        controller change). Each live note dropped is counted late and its sender told, as for a note too late to
+        prepare (:meth:`_drop_live`)."""
+        job = self._drop_job()
         dropped: list[str] = []
         if job is not None:
             dropped.append(f"the {self._kind(job.requests[0], flight=True)} in flight")
-            self._drop_job()
+            for request, note in zip(job.requests, job.notes, strict=False):  # a live-note plan's notes
+                self._drop_live(request, note, action, now)
         waiting, self._waiting = list(self._waiting), deque()
         kinds: Counter[str] = Counter()
         for item in waiting:
@@ -1611,34 +1654,53 @@ class ScorePlayer:
             if (item.tries or isinstance(message, LiveNote)
                     or (isinstance(message, ScoreTransport) and message.action == "play")):
                 kinds[self._kind(item)] += 1
+                if isinstance(message, LiveNote):
+                    self._drop_live(item, item.event, action, now)
             elif isinstance(message, SETTINGS_MESSAGES):
                 try:
                     self._apply_settings(message)
                 except ValueError as exc:  # a loop refused (no score, bars it does not have)
                     self._fail([item], exc, now)
             else:
-                self._start(item, now)  # never plans
+                self._start(item, now, plans=False)
         dropped += [f"{n} waiting {kind}{'s' if n > 1 else ''}" for kind, n in kinds.items()]
         if dropped:
             log.info("%s at rig %.3f s acts at once: %s dropped", action, now, ", ".join(dropped))
         return bool(dropped)
 
-    def _drop_job(self) -> None:
-        """Drop the plan in flight for a stop or pause: its result is never read (nothing takes it, and the
-        generation moves on). A worker still computing it is stopped when one is ready to plan at once
-        (:attr:`PlanWorkers.stops_at_once`: a thread, a loaded spare process); otherwise it finishes the plan
-        unused, so the next plan waits for it, rather than be refused while a new process loads (seconds)."""
+    def _drop_live(self, waiting: _Waiting, event: DrumEvent | None, action: str, now: float) -> None:
+        """A live note dropped unplayed by a stop or pause acting at once (rig time ``now``, s): counted late
+        (Health's ``late``) and its sender told, as a note too late to prepare is (:meth:`_count_late`); until 7 Dec
+        only the log said so. ``event``: the note as accepted, None if it was not yet (a note-off, a double or an
+        unknown pitch is handled as always: :meth:`_accept`)."""
+        assert isinstance(waiting.message, LiveNote)
+        if event is None:
+            event = self._accept(waiting.message, waiting.source, now)
+            if event is None:
+                return
+        self._count_late(event, f"arrived at {waiting.now:.3f} s", waiting.source, now,
+                         cause=f"a {action} at rig {now:.3f} s acted at once and dropped it before it was planned")
+
+    def _drop_job(self, reset: bool = False) -> _Job | None:
+        """Drop the plan in flight (returned): its result is never read (nothing takes it, and the generation moves
+        on). A plan not started yet is never computed. One being computed is abandoned
+        (:meth:`PlanWorkers.abandon`: a process is terminated, a thread cannot be and finishes it alone; either
+        way a new worker plans the next at once) for a ``reset``, or for a stop or pause when a worker is ready to
+        plan at once (:attr:`PlanWorkers.stops_at_once`: a thread, a loaded spare process); otherwise the worker
+        finishes it unused and the next plan waits for it, rather than be refused while a new process loads
+        (seconds)."""
         job, self._job = self._job, None
         if job is None:
-            return
+            return None
         self._generation += 1
         if job.future.cancel() or job.future.done() or self._worker is None:
-            return
-        if self._worker.stops_at_once:
+            return job
+        if reset or self._worker.stops_at_once:
             self._worker.abandon()
         else:  # finished unused: the next plans wait for it, and are timed from its end (not as slow plans)
             self._orphan = job.future
             job.future.add_done_callback(self._orphan_finished)
+        return job
 
     def _orphan_finished(self, _future: Future[GesturePlan]) -> None:
         """A plan dropped unread has finished (called by the worker's thread)."""
@@ -1662,16 +1724,17 @@ class ScorePlayer:
             return message.action
         if isinstance(message, ScoreLoop) and waiting.tries and not waiting.source:  # _extend_loop's
             return "loop extension"
-        names = {TempoScale: "tempo", GestureStyle: "style", ScoreDynamics: "dynamics", ScoreLoop: "loop"}
+        names = {TempoScale: "tempo", GestureStyle: "style", ScoreDynamics: "dynamics", ScoreLoop: "loop",
+                 ScoreLoad: "loop-off"}  # a load's: the playing score's loop ends
         return f"{names.get(type(message), type(message).__name__)} re-plan"
 
     def _drop_for_reset(self, now: float) -> None:
         """A reset while busy (rig time ``now``, s): drop the plan in flight (the reset clears the tracks it would
-        be spliced into: :meth:`_abandon_job`), then act on the messages that waited behind it, in order, without
+        be spliced into: :meth:`_drop_job`), then act on the messages that waited behind it, in order, without
         planning: a transport message or live note is dropped with the plan (the reset leaves nothing playing), a
         style or tempo keeps its settings, any other message acts as it would have (a controller change stays;
         targets are cleared by the reset)."""
-        job = self._abandon_job()
+        job = self._drop_job(reset=True)
         waiting, self._waiting = list(self._waiting), deque()
         dropped = 0
         for item in waiting:
@@ -1685,21 +1748,9 @@ class ScorePlayer:
                     except ValueError as exc:  # a loop refused (no score, bars it does not have)
                         self._fail([item], exc, now)
             else:
-                self._start(item, now)  # never plans: a score load, a kit, a target, a controller change ...
+                self._start(item, now, plans=False)  # a score load, a kit, a target, a controller change ...
         log.info("reset at %.3f s: the plan in flight (%d message(s)) and %d waiting transport message(s) or live "
                  "note(s) dropped", now, len(job.requests) if job is not None else 0, dropped)
-
-    def _abandon_job(self) -> _Job | None:
-        """Drop the plan in flight (returned): nothing takes it, and a worker still computing it is stopped so the
-        next plan starts at once instead of after it (:meth:`PlanWorkers.abandon`)."""
-        job, self._job = self._job, None
-        if job is None:
-            return None
-        self._generation += 1
-        # a plan not started yet is never computed; one being computed is stopped (one already done: nothing to do)
-        if not job.future.cancel() and not job.future.done() and self._worker is not None:
-            self._worker.abandon()
-        return job
 
     def pump(self, now: float) -> None:
         """Background plans, at every step and message (rig time ``now``, s): splice the plan that is ready, then
@@ -1742,11 +1793,18 @@ class ScorePlayer:
         if worker is not None:
             worker.close()
 
-    def _start(self, waiting: _Waiting, now: float) -> None:
-        """Act on one waiting message: start its plan in the worker, or apply it at once."""
+    def _start(self, waiting: _Waiting, now: float, plans: bool = True) -> None:
+        """Act on one waiting message: start its plan in the worker, or apply it at once (``plans`` False: a
+        message that does not plan, acting before a stop or reset: a load does not end the playing score's loop by
+        a re-plan, as the stop or reset ends it)."""
         message = waiting.message
         try:
-            if isinstance(message, LiveNote):
+            if isinstance(message, ScoreLoad):
+                if waiting.tries == 0:  # a retry only plans again
+                    self.load(message.path)
+                if plans and self._unloop:  # the playing score's loop ends: a re-plan, in the worker
+                    self._start_replan(waiting, now)
+            elif isinstance(message, LiveNote):
                 self._start_live(waiting, now)
             elif isinstance(message, ScoreTransport) and message.action == "play":
                 self._start_play(waiting, now)
@@ -1783,10 +1841,11 @@ class ScorePlayer:
         overhead, which a per-note share would make too long for a long plan), and at least ``took`` (s: the time
         this message's own plan took, when it is planned again), times :data:`PLAN_SAFETY`. Medians, not the
         slowest (until 7 Dec): one plan slowed 50-fold on a loaded core made the next 8 wait seconds each, and a
-        ``play`` started a minute late."""
-        per_note = statistics.median(self._plan_times) if self._plan_times else PLAN_PER_NOTE_S
+        ``play`` started a minute late. Either median only once :data:`PLAN_MIN_TIMED` plans give it."""
+        timed = len(self._plan_times) >= PLAN_MIN_TIMED
+        per_note = statistics.median(self._plan_times) if timed else PLAN_PER_NOTE_S
         shorter = [t for n, t in self._short_plan_times if n <= notes]
-        short = statistics.median(shorter) if shorter else 0.0
+        short = statistics.median(shorter) if len(shorter) >= PLAN_MIN_TIMED else 0.0
         return PLAN_SAFETY * max(PLAN_OVERHEAD_S + per_note * notes, short, took)
 
     def _submit(self, requests: list[_Waiting], prepared: _Prepared,
@@ -1831,8 +1890,8 @@ class ScorePlayer:
         the re-plan's splice, or has no note after it): say so, rather than let a loop asked near the end vanish
         (``extension``: :meth:`_extend_loop`'s more passes, said at DEBUG). Nothing is said with nothing playing
         (the settings are for the next ``play``, said when they were applied)."""
-        if self.state != "playing" or self._playing is None:
-            return
+        if self.state != "playing" or self._playing is None or isinstance(message, ScoreLoad):
+            return  # a load's loop off: the play ends before the loop would
         if extension:
             log.debug("loop: no more passes planned: the play ends before them")
             return
@@ -2174,10 +2233,7 @@ class ScorePlayer:
         missed = sum(why.values())
         played = run.notes - missed
         lost = "; not played: " + ", ".join(f"{n} {reason}" for reason, n in why.most_common() if n) if missed else ""
-        if run.ending:
-            where = run.ending
-        else:
-            where = f"ended after its last note at {score_words(run.score, run.score.events[-1].time)}"
+        where = run.ending or self._ended_after(run)
         passes = run.timeline.passes(run.played_end) if run.timeline is not None else {}
         if passes:
             looping = " and ".join(f"{n} pass{'es' if n > 1 else ''} of bars {a}-{b} ({loop_notes(run.score, (a, b))} "
@@ -2185,6 +2241,21 @@ class ScorePlayer:
             log.info("%s: %d notes played with %s%s; %s", run.name, played, looping, lost, where)
             return
         log.info("%s: %d of %d notes played%s; %s", run.name, played, run.notes, lost, where)
+
+    @staticmethod
+    def _ended_after(run: _Run) -> str:
+        """Where a play that ran to its plan's end ended: after the last note its timeline laid, said in the
+        written score; a timeline ending on a loop's pass (no more passes laid) says which (until 7 Dec the
+        score's own last note was said, after bar 5 for a play that stopped in pass 15 of bars 3-4)."""
+        timeline, score = run.timeline, run.score
+        if timeline is None or timeline.last_pass != len(timeline.segments) - 1:
+            return f"ended after its last note at {score_words(score, score.events[-1].time)}"
+        seg = timeline.segments[-1]  # the last pass, as Timeline.played takes its notes
+        notes = [e.time for e in score.events if seg.start - 1e-9 <= e.time < seg.start + seg.length - 1e-9]
+        last = max(notes, default=seg.start)
+        assert seg.loop is not None
+        return (f"ended after its last note at {score_words(score, last)}, in pass {timeline.pass_numbers[-1]} of "
+                f"bars {seg.loop[0]}-{seg.loop[1]} (the last laid)")
 
     def _forget(self, t_s: float) -> None:
         """Drop the performance's notes from ``t_s`` on (they are no longer in the tracks)."""
@@ -2194,9 +2265,9 @@ class ScorePlayer:
 
     def reset(self) -> None:
         """The scene was reset (tracks cleared; a reset message, or a divergence): nothing is playing any more; a
-        plan in flight is dropped and no longer computed (:meth:`_abandon_job`), the messages waiting behind it
-        act from the next :meth:`pump` on."""
-        job = self._abandon_job()
+        plan in flight is dropped and the next plan does not wait for it (:meth:`_drop_job`), the messages waiting
+        behind it act from the next :meth:`pump` on."""
+        job = self._drop_job(reset=True)
         if job is not None:
             log.info("reset: the plan in flight (%d message(s)) dropped", len(job.requests))
         t = self.core.time - self.core.target_lag

@@ -110,7 +110,8 @@ def test_a_stop_right_after_a_live_note_cancels_it_and_the_note_after_the_stop_p
     _settle(runner, player)  # the note's plan, then the stop, then the snare's plan
     runner.run_until(2.0)
     physics.close()
-    assert physics.rejected == {} and player.late_notes == 0
+    # the tom dropped by the stop is counted late and its sender told (until 7 Dec only logged)
+    assert physics.rejected == {} and player.late_notes == 1
     assert not [i for i in recorder.impacts.sorted() if i.instrument == "hightom"]  # cancelled by the stop
     assert _near(recorder, "snare", 1.6)
 

@@ -21,7 +21,8 @@ from common.score.bars import MAX_LOOP_PASSES, Timeline, bar_span, counted_bars
 from common.score.text import parse_text
 from services.physics.core import PhysicsCore
 from services.physics.node import LivePhysicsCore
-from services.physics.score_player import LOOP_AHEAD_S, ScorePlayer
+from services.physics.score_player import CLOCKS_KEPT_S, LOOP_AHEAD_S, ScorePlayer
+from tests.physics.test_score_load_while_playing import SNARES
 
 SENDER = "127.0.0.1:9"
 LOGGER = "batteur.physics.score"
@@ -376,3 +377,97 @@ def test_a_looped_plays_summary_counts_its_passes_as_a_teacher_does(tmp_path: Pa
         "stopped at rig 20.300 s: score 7.300 s, bar 4 beat 3.6",
         "five.txt: 66 notes played with 2 passes of bars 3-4 (15 notes a pass); ended after its last note at score "
         "9.500 s, bar 5 beat 4.0"]
+
+
+
+def test_a_score_loaded_while_the_playing_one_loops_ends_its_loop_as_loop_off_does(
+        tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    """The review's repro: a load during pass 2 said "loop bars 3-4 ended by the new score", yet the passes laid
+    (~60 s) played on and the play stopped at the last one (bar 5 never played). Now the pass in progress ends, then
+    the rest of the score (bar 5, its floor tom), as ``loop 0 0`` would; the new score is for the next play."""
+    core, player = _player(tmp_path)
+    (tmp_path / "snares.txt").write_text(SNARES, encoding="utf-8")
+    with caplog.at_level(logging.INFO, logger=LOGGER):
+        core.handle(ScoreTransport(action="play", time=1.0, position=0.0), 0.0, SENDER)
+        core.handle(ScoreLoop(first=3, last=4), 1.5, SENDER)
+        for k in range(120):
+            player.pump(2.0 + k / 10)
+        core.handle(ScoreLoad(path="snares.txt"), 14.0, SENDER)  # in pass 2 (rig 13-17 s)
+        assert _said(caplog, "loop off: the pass in progress ends at rig 17.000 s, then the rest of the score from "
+                     "score 8.000 s, bar 5 beat 1.0")
+        assert _times(player, EventType.FLOORTOM) == pytest.approx([17.0])  # bar 5 right after pass 2
+        assert player.end_time < 20.0 and player.loop is None
+        for k in range(80):
+            player.pump(14.0 + k / 10)
+    core.close()
+    assert core.rejected == {}
+    assert _said(caplog, "five.txt:") == [
+        "five.txt: 66 notes played with 2 passes of bars 3-4 (15 notes a pass); ended after its last note at score "
+        "9.500 s, bar 5 beat 4.0"]
+
+
+def test_the_live_node_ends_the_playing_scores_loop_at_a_load_in_its_worker(tmp_path: Path) -> None:
+    """The same through the node's background plans: the load's re-plan runs in the worker, in its turn."""
+    core = LivePhysicsCore(planner="thread", scene="drummer", kit=load_kit("default"), grip="german",
+                           pose_rate_hz=0)
+    try:
+        player = core.score_player
+        assert player.wait_loaded(120.0) and player.background
+        _player(tmp_path, core)
+        (tmp_path / "snares.txt").write_text(SNARES, encoding="utf-8")
+
+        def settle(now: float) -> None:
+            player.pump(now)
+            while player.busy:
+                assert player.wait(60.0)
+                player.pump(now)
+
+        core.handle(ScoreTransport(action="play", time=1.5, position=0.0), 0.0, SENDER)
+        core.handle(ScoreLoop(first=3, last=4), 0.0, SENDER)
+        settle(0.0)
+        assert player.end_time > 50.0 and not _times(player, EventType.FLOORTOM)
+        plans = player.plans
+        core.handle(ScoreLoad(path="snares.txt"), 11.0, SENDER)  # in pass 1 (rig 9.5-13.5 s)
+        settle(11.0)
+        assert player.plans == plans + 1 and core.rejected == {}
+        assert _times(player, EventType.FLOORTOM) == pytest.approx([13.5])  # bar 5 right after pass 1
+        assert player.end_time < 17.0 and player.score is not None and len(player.score.events) == 12
+    finally:
+        core.close()
+
+
+def test_a_play_that_ends_on_a_loops_pass_says_where_it_ended(tmp_path: Path,
+                                                              caplog: pytest.LogCaptureFixture) -> None:
+    """A looped play that ran to the end of its last laid pass (no more passes planned: here its summary is asked
+    without the steps that extend it) ended in bar 4; the summary said the score's last note, in bar 5."""
+    core, player = _player(tmp_path)
+    with caplog.at_level(logging.INFO, logger=LOGGER):
+        core.handle(ScoreTransport(action="play", time=1.0, position=0.0), 0.0, SENDER)
+        core.handle(ScoreLoop(first=3, last=4), 1.5, SENDER)
+        player.say_ended(player.end_time + 0.1)
+    core.close()
+    passes = int(LOOP_AHEAD_S // LOOP_S)
+    assert _said(caplog, "five.txt:") == [
+        f"five.txt: {29 + 15 * passes} notes played with {passes} passes of bars 3-4 (15 notes a pass); ended after "
+        f"its last note at score 7.500 s, bar 4 beat 4.0, in pass {passes} of bars 3-4 (the last laid)"]
+
+
+def test_a_long_loops_re_plans_keep_a_bounded_list_of_clocks(tmp_path: Path,
+                                                              caplog: pytest.LogCaptureFixture) -> None:
+    """Each re-plan adds its clock (a stop or pause before its anchor is said with the one sounding then); until
+    7 Dec none was ever dropped (~90 an hour in a long loop). Those no longer in force before the targets' clock are
+    dropped; a pause just after a re-plan is still said with the clock sounding then."""
+    core, player = _player(tmp_path)
+    core.handle(ScoreTransport(action="play", time=1.0, position=0.0), 0.0, SENDER)
+    core.handle(ScoreLoop(first=3, last=4), 1.5, SENDER)
+    for k in range(20):
+        core.handle(TempoScale(factor=1.0 + 0.001 * (k % 2)), 2.0 + 0.5 * k, SENDER)  # a re-plan each
+    assert player.plans == 22
+    assert len(player._clocks) <= 2 + int(CLOCKS_KEPT_S / 0.5)  # noqa: SLF001
+    anchor = player.mapping
+    assert anchor is not None
+    with caplog.at_level(logging.INFO, logger=LOGGER):
+        player.pause(anchor[0] - 0.05, 11.6)  # before the latest anchor: the clock before it sounds
+    core.close()
+    (said,) = _said(caplog, "pause at")
+    assert "before the score started" not in said

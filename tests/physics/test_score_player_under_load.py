@@ -21,26 +21,25 @@ import pytest
 from batteur.render import RecorderCore
 from common.bus import OfflineRunner
 from common.kit import load_kit
+from common.messages.physics import PhysicsRejected
 from common.messages.score import LiveNote, ScoreLoad, ScoreLoop, ScoreTransport, TempoScale
 from common.score.text import parse_text
 from services.interaction.core import InteractionCore
 from services.physics.core import PhysicsCore
 from services.physics.node import LivePhysicsCore
 from services.physics.plan_worker import PlanWorkers
-from services.physics.score_player import PLAN_HISTORY, ScorePlayer
+from services.physics.score_player import (
+    PLAN_HISTORY,
+    PLAN_MIN_TIMED,
+    PLAN_OVERHEAD_S,
+    PLAN_SAFETY,
+    ScorePlayer,
+)
+from tests.physics.test_score_loop import FIVE_BARS  # a bar lasts 2 s, 36 notes (20 or more: a per-note time)
 
 LOGGER = "batteur.physics.score"
 SENDER = "127.0.0.1:9"
 SNARE = 38
-# 120 bpm in 4/4: a bar lasts 2 s, 36 notes (a plan of 20 notes or more gives the per-note planning time)
-FIVE_BARS = """tempo 120
-meter 4/4
-HH |x.x.x.x.|x.x.x.x.|x.x.x.x.|x.x.x.x.|x.x.x.x.|
-SN |........|..x...x.|........|..x...x.|........|
-HT |........|........|x.......|........|........|
-FT |........|........|........|........|x.......|
-BD |x...x...|x...x...|x...x...|x...x...|x...x...|
-"""
 FAST_PER_NOTE_S = 0.0004
 """A plan's time per note alone on a core (docs/physics.md: about 0.4 ms)."""
 SLOW_PER_NOTE_S = 0.1
@@ -114,24 +113,59 @@ def test_a_stop_at_once_drops_the_re_plan_in_flight_and_a_play_after_it_comes_af
     assert [i for i in hits if i.instrument == "hightom" and abs(i.time - 6.0) <= 0.02]  # bar 3's downbeat, on time
 
 
-def test_a_stop_at_once_drops_a_play_in_flight_and_waiting_live_notes_without_a_refusal(
+def _refusals(runner: OfflineRunner) -> list[str]:
+    """The refusals delivered to the control endpoint from now on (their reasons), filled as they arrive."""
+    reasons: list[str] = []
+    runner.bus.tap(lambda message, _source, to: reasons.append(message.reason)
+                   if isinstance(message, PhysicsRejected) and to == "control" else None)
+    return reasons
+
+
+def test_a_stop_at_once_drops_a_play_in_flight_and_counts_the_waiting_live_notes_late(
         tmp_path: Path, gate: threading.Event, caplog: pytest.LogCaptureFixture) -> None:
+    # the stop itself is not refused (it dropped a plan); the live note it dropped was only logged until 7 Dec: now
+    # counted late (Health's ``late``) and its sender told, as a note too late to prepare
     physics, runner, recorder, control = _rig(tmp_path)
     player = physics.score_player
+    refusals = _refusals(runner)
     with caplog.at_level(logging.INFO, logger=LOGGER):
         control.send(ScoreTransport(action="play", time=1.5, position=0.0), "physics")  # held in the planner
         control.send(LiveNote(time=1.2, pitch=SNARE, velocity=100, channel=10), "physics")  # waits behind it
+        control.send(LiveNote(time=1.3, pitch=SNARE, velocity=0, channel=10), "physics")  # a note-off: nothing
         control.send(TempoScale(factor=0.8), "physics")  # waits: keeps its setting for the next play
         runner.run_until(0.5)
         control.send(ScoreTransport(action="stop", time=0.0, position=0.0), "physics")
         assert not player.busy
-        assert _said(caplog, "acts at once: the play in flight, 1 waiting live note dropped")
+        assert _said(caplog, "acts at once: the play in flight, 2 waiting live notes dropped")
         gate.set()
         runner.run_until(2.5)
     physics.close()
     # nothing played, and a stop that dropped a plan is not refused for a drummer that never moved
     assert physics.rejected == {} and player.plans == 0 and player.tempo == pytest.approx(0.8)
     assert not recorder.impacts.sorted()
+    assert player.late_notes == 1 and physics.late == 1
+    assert refusals == ["live note SNARE at 1.200 s arrived at 0.010 s: a stop at rig 0.500 s acted at once and "
+                        "dropped it before it was planned; not played"]
+
+
+def test_a_stop_at_once_counts_the_live_notes_of_the_plan_in_flight_late(
+        tmp_path: Path, gate: threading.Event) -> None:
+    physics, runner, recorder, control = _rig(tmp_path)
+    player = physics.score_player
+    _playing(runner, control, player, gate)
+    refusals = _refusals(runner)
+    control.send(LiveNote(time=4.5, pitch=SNARE, velocity=100, channel=10), "physics")  # its plan held
+    runner.run_until(3.2)
+    assert player.busy
+    control.send(ScoreTransport(action="pause", time=0.0, position=0.0), "physics")
+    assert not player.busy and player.state == "paused"
+    gate.set()
+    runner.run_until(5.0)
+    physics.close()
+    assert physics.rejected == {} and player.late_notes == 1
+    assert len(refusals) == 1 and refusals[0].startswith(
+        "live note SNARE at 4.500 s arrived at 3.000 s: a pause at rig 3.2")
+    assert not [i for i in recorder.impacts.sorted() if i.instrument == "snare" and abs(i.time - 4.5) < 0.05]
 
 
 def test_a_stop_sent_ahead_past_the_plan_in_flight_still_waits_its_turn(
@@ -257,3 +291,22 @@ def test_a_plan_queued_behind_one_a_stop_dropped_is_timed_from_that_ones_end(
     assert physics.rejected == {} and player.plans == 2 and player.mapping == pytest.approx((6.0, 4.0, 0.5))
     # its own planning came after the dropped plan's, which the gate held until ``released``
     assert player._plan_times[-1] * notes <= done - released  # noqa: SLF001
+
+
+def test_the_planning_estimate_waits_for_enough_timed_plans() -> None:
+    # the median of one or two timed plans is one of them: a first plan slowed on a loaded core (here 250 times the
+    # usual) made every next plan's estimate, and a play then started seconds late; the default holds until
+    # PLAN_MIN_TIMED plans (long or short) have been timed
+    core = PhysicsCore(scene="drummer", kit=load_kit("default"), grip="german", pose_rate_hz=0)
+    player = core.score_player
+    default = player._estimate(100)  # noqa: SLF001
+    for _ in range(PLAN_MIN_TIMED - 1):
+        player._plan_times.append(SLOW_PER_NOTE_S)  # noqa: SLF001
+        player._short_plan_times.append((5, 2.0))  # noqa: SLF001
+        assert player._estimate(100) == pytest.approx(default)  # noqa: SLF001
+    player._plan_times.append(SLOW_PER_NOTE_S)  # noqa: SLF001
+    assert player._estimate(100) == pytest.approx(PLAN_SAFETY * (PLAN_OVERHEAD_S + 100 * SLOW_PER_NOTE_S))  # noqa: SLF001
+    player._plan_times.clear()  # noqa: SLF001
+    player._short_plan_times.append((5, 2.0))  # noqa: SLF001
+    assert player._estimate(100) == pytest.approx(PLAN_SAFETY * 2.0)  # noqa: SLF001
+    core.close()
