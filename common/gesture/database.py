@@ -24,7 +24,6 @@ from pathlib import Path
 
 import numpy as np
 from scipy.interpolate import CubicSpline
-from scipy.signal import find_peaks
 
 from common.datafile import parse_file
 from common.gesture.bvh import Bvh, BvhError, forward_kinematics, read_bvh
@@ -139,6 +138,10 @@ def load_unit(
     rate = float(meta.get("rate_hz", bvh.rate_hz))  # type: ignore[arg-type]
     frames = contact_frames or [int(f) for f in meta.get("contact_frames", [])]  # type: ignore[attr-defined]
     if not frames:
+        # imported here: scipy.signal brings scipy.stats (0.4 s of CPU to import), which every planning process and
+        # physics node paid at start for shipped units that all name their contact frames
+        from scipy.signal import find_peaks
+
         minima, _ = find_peaks(-height, distance=max(1, int(0.05 * rate)), prominence=0.01)
         frames = [int(f) for f in minima]
     if len(frames) < 2:
