@@ -176,7 +176,7 @@ class OscMessage(BaseModel):
     decodes with their defaults."""
     NEWER_ARGS: ClassVar[int] = 0
     """Arguments after the last known field a newer sender's message may carry (fields appended since this node):
-    :meth:`from_args` ignores up to this many (a message with ``APPENDED`` fields takes 8)."""
+    :meth:`from_args` ignores up to this many (each message with ``APPENDED`` fields sets its own: 8, Health 16)."""
 
     @classmethod
     def wire_fields(cls) -> tuple[WireField, ...]:

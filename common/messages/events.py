@@ -53,7 +53,6 @@ class Contact(OscMessage):
     """Arguments after the last known field a newer sender's contact may carry (fields appended since): ignored."""
 
 
-
 @register
 class Impact(OscMessage):
     """One strike on an instrument, segmented from the contact stream.

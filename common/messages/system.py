@@ -99,7 +99,6 @@ class Health(OscMessage):
     so ``batteur ls``, the rig and graphics still see such a node (a sound node on a second machine updated first)."""
 
 
-
 @register
 class ClockPing(OscMessage):
     """Asks the rig clock master for the rig time (NTP-like exchange)."""
@@ -134,7 +133,6 @@ class ClockPong(OscMessage):
     defaults."""
     NEWER_ARGS: ClassVar[int] = 8
     """Arguments after the last known field that a newer master's pong may carry (fields appended since): ignored."""
-
 
 
 @register

@@ -47,6 +47,10 @@ def estimate_tempo(times_s: Sequence[float], weights: Sequence[float] | None = N
     the same time add up (a chord)."""
     t = np.asarray(times_s, dtype=np.float64)
     w = np.ones_like(t) if weights is None else np.asarray(weights, dtype=np.float64)
+    if w.shape != t.shape:
+        raise ValueError(f"estimate_tempo: {len(w)} weights for {len(t)} strike times")
+    finite = np.isfinite(t) & np.isfinite(w) & (w >= 0)  # a NaN, an infinity or a negative weight says nothing
+    t, w = t[finite], w[finite]
     if len(np.unique(np.round(t / BIN_S))) < MIN_STRIKES:
         return None
     t = t - t.min()

@@ -79,6 +79,20 @@ def test_random_or_few_strikes_give_no_tempo() -> None:
     assert estimate_tempo([0.0, 0.6, 1.2, 1.8]) is None
 
 
+def test_strikes_without_a_finite_time_or_weight_are_left_out() -> None:
+    # a library caller's NaN or infinity raised (ValueError, OverflowError) or gave 70 bpm for a NaN weight
+    events = _groove(100, swing=0.5)
+    times = [e.time for e in events] + [float("nan"), float("inf")]
+    weights = [e.velocity for e in events] + [90.0, 90.0]
+    found = estimate_tempo(times, weights)
+    assert found is not None and abs(found - 100) <= 2, found
+    weights[0] = float("nan")
+    found = estimate_tempo(times, weights)
+    assert found is not None and abs(found - 100) <= 2, found
+    with pytest.raises(ValueError, match="weights"):
+        estimate_tempo([0.0, 1.0], [1.0])
+
+
 def test_the_rendered_pattern_s_tempo_is_written_and_said(pattern_wav: Path, tmp_path: Path,
                                                           capsys: pytest.CaptureFixture[str]) -> None:
     """The held-out kit's test pattern is played at 100 BPM (tests/recogniser/pattern.py)."""
