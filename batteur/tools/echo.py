@@ -65,11 +65,6 @@ HEARTBEAT_S = 1.0
 was followed in silence, as if it had nothing to say."""
 GONE_AFTER = 3
 """Heartbeats a node may leave unanswered (sending nothing else either) before echo says it went away."""
-ANSWERS = (Health, ClockStatus)
-"""What a node answers a tool's Hello with: their copies (a pattern such as ``/batteur/*``) are held back
-:data:`HOLD_S`, then printed unless they are copies of an answer to echo's own Hello."""
-HOLD_S = 0.2
-"""Seconds a copy of a Health or ClockStatus waits before it is printed or found to be our answer's."""
 
 DESCRIPTION = """\
 Print the OSC messages whose address matches PATTERN, as the nodes send or receive them.
@@ -85,7 +80,8 @@ it here) is printed once; --copies prints every copy each node sends or receives
 refuses the subscription (its table full, say) is named once on standard error, with its
 reason. Each node is asked for its Health every second: one that stops answering for 3 s
 (stopped, or out of reach) is said on standard error, and so is its return (echo keeps asking,
-and subscribes again at once); echo's own Hellos and the answers to them are not printed.
+and subscribes again at once); echo's own Hellos and each node's answers to them (Health,
+clock status, physics' skeleton) are not printed; the same answered to another (batteur ls) are.
 
 Patterns (OSC 1.0): ? one character, * any run of characters but '/', [abc] [a-z] [!abc]
 one character of (or not of) a set, {foo,bar} one of several strings, // any number of levels.
@@ -208,9 +204,12 @@ class Presence:
     answers for the first time; echo keeps subscribing to it meanwhile (the node forgets a subscription when it
     stops: one that comes back is subscribed again at once).
 
-    A node copies what it receives and sends, so our Hello and its answers to it (Health, ClockStatus) come back as
-    copies when the pattern matches them (``/batteur/*``): they are not the rig's messages and are not printed
-    (:meth:`ours`)."""
+    A node copies what it receives and sends, so our Hello and its answers to it (Health, ClockStatus, physics'
+    Skeleton) come back as copies when the pattern matches them (``/batteur/*``): they are not the rig's messages and
+    are not printed (:meth:`ours`). A copy says neither where it went nor where it came from (the node's packet as
+    sent), and a ClockStatus or a Skeleton is the same bytes whoever it answers: each answer on the heartbeat
+    endpoint stands for exactly one copy from its node with its content, the next one (the node sends the answer,
+    then its copy). A user's ``batteur ls`` answered the same a second later is its own copy, printed."""
 
     def __init__(self, targets: Sequence[Target], answered: Sequence[Target], now: float,
                  hello: Hello) -> None:
@@ -220,8 +219,9 @@ class Presence:
         self.gone: set[str] = set()
         self.names: dict[str, str] = {t.socket_address: t.node_id for t in targets if t.ip and t.node_id}
         self.hello_key = _key(hello)
-        self.answers: dict[tuple[object, ...], float] = {}
-        """The answers to our Hellos (their content) -> until when a copy of one is not printed."""
+        self.expected: dict[tuple[str, tuple[object, ...]], list[float]] = {}
+        """(node address, content) of each answer to our Hellos whose copy has not come -> until when each is
+        awaited (``loop.time()``): a copy the pattern does not match never comes."""
 
     def where(self, address: str) -> str:
         target = self.targets[address]
@@ -230,7 +230,7 @@ class Presence:
 
     def answer(self, message: OscMessage, source: str, now: float) -> str | None:
         """A message on the heartbeat endpoint (the answers to our Hellos); what to say, if anything."""
-        self.answers[_key(message)] = now + GONE_AFTER * HEARTBEAT_S
+        self.expected.setdefault((source, _key(message)), []).append(now + HEARTBEAT_S)
         if isinstance(message, Health):
             if source not in self.targets:  # a node answering from another of its addresses: known by its id
                 source = next((a for a, name in self.names.items() if name == message.node_id), source)
@@ -260,14 +260,25 @@ class Presence:
                 lines.append(f"batteur echo: {self.where(address)} went away (no answer for "
                              f"{now - last:.0f} s: stopped, or out of reach); still asking for it every "
                              f"{HEARTBEAT_S:g} s: its messages are printed again if it comes back")
-        for key in [k for k, until in self.answers.items() if until < now]:
-            del self.answers[key]
+        for key, untils in list(self.expected.items()):
+            untils[:] = [u for u in untils if u >= now]
+            if not untils:
+                del self.expected[key]
         return lines
 
-    def ours(self, message: OscMessage) -> bool:
-        """Whether ``message`` (from the subscription) is a node's copy of our Hello or of its answer to it."""
+    def ours(self, message: OscMessage, source: str, now: float) -> bool:
+        """Whether ``message``, copied by the node at ``source``, is its copy of our Hello or of one of its answers to
+        our Hellos (each answer matches one copy: taken here)."""
         key = _key(message)
-        return key == self.hello_key or key in self.answers
+        if key == self.hello_key:  # our node id and port: no one else's Hello
+            return True
+        untils = self.expected.get((source, key))
+        while untils and untils[0] < now:  # its copy never came (a pattern that does not match it, a lost datagram)
+            untils.pop(0)
+        if not untils:
+            return False
+        untils.pop(0)
+        return True
 
 
 def _key(message: OscMessage) -> tuple[object, ...]:
@@ -312,17 +323,12 @@ async def _run(opts: argparse.Namespace, subscribe: Subscribe) -> int:
         refused = refusals.line(message, source)
         if refused is not None:
             print(refused, file=sys.stderr)
-        if stop.is_set() or not matches(opts.pattern, message.ADDRESS) or presence.ours(message):
+        if stop.is_set() or not matches(opts.pattern, message.ADDRESS):
             return
-        if isinstance(message, ANSWERS):
-            # a copy of a node's answer to our Hello may be read before the answer itself (two sockets): decided
-            # once the answer, sent first, has surely been read
-            loop.call_later(HOLD_S, held_back, message)
-            return
-        print_message(message)
-
-    def held_back(message: OscMessage) -> None:
-        if not stop.is_set() and not presence.ours(message):
+        # the node sent its answer before its copy: already waiting on the heartbeat socket when the copy is read, but
+        # asyncio may call this socket's reader first. Read it now (no wait, so nothing is delayed or reordered)
+        heartbeat._drain()
+        if not presence.ours(message, source, loop.time()):
             print_message(message)
 
     def print_message(message: OscMessage) -> None:
@@ -379,7 +385,7 @@ async def _run(opts: argparse.Namespace, subscribe: Subscribe) -> int:
             except TimeoutError:
                 pass
     finally:
-        stop.set()  # a copy still held back (HOLD_S) is not printed after the end: its answer can no longer come
+        stop.set()
         endpoint.close()
         heartbeat.close()
     if outcome:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import ipaddress
 import json
 import math
 import time
@@ -33,7 +34,7 @@ from batteur.tools.nodes import (
 from common.arg_types import seconds, take_negative_values
 from common.messages import PROTOCOL_VERSION, ClockStatus, Health, Hello, OscMessage
 from common.messages.system import TOOL_ROLE
-from common.transport import UdpEndpoint
+from common.transport import UdpEndpoint, parse_address
 
 DESCRIPTION = """\
 List the Batteur nodes found by zeroconf (or given with --node), each with the Health it
@@ -119,22 +120,33 @@ CLOCK_GRACE_S = 0.25
 
 async def query_health(targets: Sequence[Target], timeout_s: float,
                        clocks: dict[str, ClockStatus] | None = None,
-                       timing: dict[str, tuple[float, float]] | None = None) -> dict[str, Health]:
+                       timing: dict[str, tuple[float, float]] | None = None,
+                       strays: dict[str, Health] | None = None) -> dict[str, Health]:
     """Send a Hello to each reachable target; collect the Health answers by source address within
     ``timeout_s`` (only the targets may answer). ``clocks``: also collect into it, by node id, the ClockStatus
     each node sends after its Health (waiting at most :data:`CLOCK_GRACE_S` more for them once every Health
     is in). ``timing``: also collect into it, by source address, when the Hello left and its Health arrived
-    (``time.monotonic``, s): how old the Health's rig time is when it is used (``batteur send``'s +SECONDS)."""
+    (``time.monotonic``, s): how old the Health's rig time is when it is used (``batteur send``'s +SECONDS).
+    ``strays``: also collect into it, by source address, the Healths from hosts no target has (a node answering
+    from another of its addresses): not answers (anyone may send one), but what a caller can name when its target
+    seems silent."""
     reachable = [t for t in targets if t.ip]
     answers: dict[str, Health] = {}
     if not reachable:
         return answers
-    endpoint = await UdpEndpoint.open(bind_address(reachable), allow=target_networks(reachable))
+    allow = target_networks(reachable)
+    allowed = [ipaddress.ip_network(n) for n in allow]
+    # strays wanted: every source is read, and the targets' answers told from the others here
+    endpoint = await UdpEndpoint.open(bind_address(reachable), allow=None if strays is not None else allow)
     healths_in = asyncio.Event()
     all_in = asyncio.Event()
     sent: dict[str, float] = {}  # source address -> when its Hello left (time.monotonic)
 
     def on_message(message: OscMessage, source: str) -> None:
+        if strays is not None and not _from(source, allowed):
+            if isinstance(message, Health):
+                strays[source] = message
+            return
         if isinstance(message, Health):
             answers[source] = message
             if timing is not None:  # a node answering from another address: its round trip from the first Hello
@@ -164,6 +176,15 @@ async def query_health(targets: Sequence[Target], timeout_s: float,
     finally:
         endpoint.close()
     return answers
+
+
+def _from(source: str, networks: Sequence[ipaddress.IPv4Network | ipaddress.IPv6Network]) -> bool:
+    """Whether ``source`` (``host:port``) is in one of ``networks`` (the endpoint's allow-list, checked by hand)."""
+    try:
+        ip = ipaddress.ip_address(parse_address(source)[0].split("%", 1)[0])
+    except ValueError:
+        return False
+    return any(ip in net for net in networks)
 
 
 def _ms(seconds: float) -> str:

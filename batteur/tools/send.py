@@ -43,6 +43,7 @@ from common.messages import (
     REGISTRY,
     Arg,
     DropReason,
+    Health,
     MessageError,
     OscMessage,
     WireKind,
@@ -162,9 +163,11 @@ class RigTimeReading:
         return self.rig_time_s + self.round_trip_s / 2 + max(at_s - self.arrived_s, 0.0)
 
 
-def rig_times(targets: Sequence[tuple[str, int]], timeout_s: float) -> dict[tuple[str, int], RigTimeReading]:
+def rig_times(targets: Sequence[tuple[str, int]], timeout_s: float,
+              strays: dict[str, Health] | None = None) -> dict[tuple[str, int], RigTimeReading]:
     """Each target's rig time, from the Health it answers to a Hello (``batteur ls``'s request) within
-    ``timeout_s``; a target that does not answer (or whose host does not resolve) is left out."""
+    ``timeout_s``; a target that does not answer (or whose host does not resolve) is left out. ``strays``: the
+    Healths that came from other hosts, by source (not used: anyone may send one; said when a target is silent)."""
     asked: list[Target] = []
     for host, port in targets:
         try:
@@ -172,7 +175,7 @@ def rig_times(targets: Sequence[tuple[str, int]], timeout_s: float) -> dict[tupl
         except ValueError:
             asked.append(Target(host, port))  # no ip: not asked, so no answer
     timing: dict[str, tuple[float, float]] = {}
-    answers = asyncio.run(query_health(asked, timeout_s, timing=timing))
+    answers = asyncio.run(query_health(asked, timeout_s, timing=timing, strays=strays))
     source = {id(h): s for s, h in answers.items()}
     out: dict[tuple[str, int], RigTimeReading] = {}
     for t, h in zip(asked, match_answers(asked, answers), strict=True):
@@ -180,6 +183,16 @@ def rig_times(targets: Sequence[tuple[str, int]], timeout_s: float) -> dict[tupl
             hello_s, arrived_s = timing[source[id(h)]]
             out[(t.host, t.port)] = RigTimeReading(h.time, max(arrived_s - hello_s, 0.0), arrived_s)
     return out
+
+
+def stray_text(host: str, port: int, strays: dict[str, Health]) -> str:
+    """Why a target's Health did not count: one came from another address (a node answering from another of its
+    addresses: dropped, anyone may send one), or none came."""
+    if not strays:
+        return "its Health did not come: is a Batteur node running there?"
+    came = ", ".join(f"{source} (node {h.node_id})" for source, h in sorted(strays.items()))
+    return (f"a Health came from {came}, not from {format_address(host, port)}: a node answering from another of "
+            "its addresses is not taken (anyone could send one)")
 
 
 LATE = re.compile(r"at (?P<at>\d+(?:\.\d+)?) s arrived at (?P<arrived>\d+(?:\.\d+)?) s")
@@ -194,15 +207,20 @@ OFFSET_STEP_S = 0.5
 
 def late_hint(reason: str, offset_s: float, resolved_s: float) -> str | None:
     """What to say of a refusal (its ``reason``) of a message sent with ``+offset_s`` (resolved to rig time
-    ``resolved_s``) when the node refused it for being late: how late, and a larger offset to try; None for any
-    other refusal (a pitch of no drum: a larger offset would not help)."""
+    ``resolved_s``) when the node refused it for being late: how late, and a larger offset to try; a late note
+    that came with the lead the node needs is said refused for another timing reason (quoted), with no offset;
+    None for any other refusal (a pitch of no drum: a larger offset would not help)."""
     late = LATE.search(reason)
     past = PAST.search(reason)
     prepare = PREPARE.search(reason)
     if late is not None and prepare is not None:
         lead = float(late["at"]) - float(late["arrived"])  # what it had left when it arrived
         need = float(prepare["ms"]) / 1000
-        short = max(need - lead, 0.0)
+        short = need - lead
+        if short <= 0:  # it had the lead the node needs: refused for another timing reason, not a short offset
+            return (f"{PROG}: +{offset_s:g} s was rig time {resolved_s:.3f} s and arrived {lead * 1000:.0f} ms "
+                    f"before its time, at least the {need * 1000:.0f} ms the node needs to prepare it: the node "
+                    f"refused it for another timing reason ({reason!r}); a larger offset may not help")
         how = (f"it arrived {lead * 1000:.0f} ms before its time, {short * 1000:.0f} ms short of the "
                f"{need * 1000:.0f} ms the node needs to prepare it")
     elif late is not None:  # late for another cause (the planner still loading): a larger offset would not help
@@ -365,12 +383,13 @@ def _send(opts: argparse.Namespace) -> int:
     failed = 0
     readings: dict[tuple[str, int], RigTimeReading] = {}
     if relative:
-        readings = rig_times(targets, opts.timeout)
+        strays: dict[str, Health] = {}
+        readings = rig_times(targets, opts.timeout, strays)
         for host, port in targets:
             if (host, port) not in readings:
                 failed += 1
-                report_error(PROG, f"no rig time from {format_address(host, port)} within {opts.timeout:g} s (its "
-                             "Health did not come: is a Batteur node running there?); +SECONDS needs it, not sent")
+                report_error(PROG, f"no rig time from {format_address(host, port)} within {opts.timeout:g} s "
+                             f"({stray_text(host, port, strays)}); +SECONDS needs it, not sent")
         targets = [t for t in targets if t in readings]
     sent: list[tuple[socket.socket, str]] = []  # kept open to hear the answers (--replies)
     hints: dict[str, tuple[float, float]] = {}  # target -> (+SECONDS, the rig time it was made): said if late
