@@ -1,11 +1,13 @@
 """The hidden files beside a take while a sound node records it: their names, in one place.
 
 A sound node recording ``--wav DIR/NAME`` (``services.sound.node.WavSink``) writes the audio to a hidden part file
-beside it, ``DIR/.NAME.XXXXXXXX.part`` (``tempfile.mkstemp``'s random ``XXXXXXXX``; a playable WAV, FLAC ... up to
-its last block), and keeps the rig time of its first sample beside that, in the part's timing file
-``DIR/.NAME.XXXXXXXX.part.json``. A node that stops cleanly renames the part file ``NAME``, writes ``NAME.json``
-and removes the timing file; a node killed or failed leaves both, which ``batteur wav-repair`` makes a take
-(``batteur.tools.wav_repair``) and ``batteur rig --record`` points to (``batteur.rig.finish_recording``).
+beside it, ``DIR/.NAME.XXXXXXXX.part`` (``tempfile.mkstemp``'s random ``XXXXXXXX``; a WAV, W64, AIFF ... part
+plays up to its last block, its header kept up to date; a FLAC part's header gets its length only when the node
+closes it, so a killed one does not play as it is: :data:`TAKE_FORMATS`), and keeps the rig time of its first
+sample beside that, in the part's timing file ``DIR/.NAME.XXXXXXXX.part.json``. A node that stops cleanly renames
+the part file ``NAME``, writes ``NAME.json`` and removes the timing file; a node killed or failed leaves both,
+which ``batteur wav-repair`` makes a take (``batteur.tools.wav_repair``) and ``batteur rig --record`` points to
+(``batteur.rig.finish_recording``).
 
 Light on purpose (no pyo, numpy or soundfile): ``batteur wav-repair`` imports it, and the node's modules take
 seconds to load.
@@ -19,7 +21,14 @@ from pathlib import Path
 
 PART_SUFFIX = ".part"
 """How a part file's name ends (after its random ``XXXXXXXX``)."""
-PART_NAME = re.compile(r"\.(?P<take>.+\.(?:wav|flac|w64|rf64))\.[A-Za-z0-9_]+\.part", re.IGNORECASE)
+TAKE_FORMATS = ("wav", "rf64", "w64", "aiff", "caf", "au", "flac")
+"""The extensions (libsndfile formats) a sound node records a take into, and so the takes a part file can be
+for. A killed take's part file in any but FLAC holds a header libsndfile kept up to date after each block
+(``batteur wav-repair`` makes it a take; a WAV/RF64 one is given every whole frame on disk); a FLAC part's
+length is written only when the node closes it (wav-repair refuses it and says how to convert it). Other
+formats libsndfile writes as 24-bit (RAW, SD2, SDS, NIST, PAF, WAVEX) are refused by the node: rare for a take,
+and a killed RAW or SD2 part does not read back at all."""
+PART_NAME = re.compile(r"\.(?P<take>.+\.(?:" + "|".join(TAKE_FORMATS) + r"))\.[A-Za-z0-9_]+\.part", re.IGNORECASE)
 """A take's part file, ``.NAME.XXXXXXXX.part`` (``fullmatch`` it; ``take`` is ``NAME``): not the
 ``.NAME.json.XXXX.part`` of a .json being written (``common.output_paths.write_atomically``), nor a part file's
 own timing file (``.part.json``)."""

@@ -15,7 +15,7 @@ import pytest
 from common.takes import PART_SUFFIX, is_part, part_name, part_prefix, part_take, part_timing, parts_glob
 
 TAKES = ["performance.wav", "take.FLAC", "batteur-20260131-201500-2.wav", "long.take.w64", "big.rf64",
-         "odd [1] *?.wav"]
+         "odd [1] *?.wav", "take.aiff", "take.caf", "take.AU"]
 
 
 @pytest.mark.parametrize("take", TAKES)
@@ -37,6 +37,8 @@ def test_a_part_file_names_its_take_back(tmp_path: Path, take: str) -> None:
     ".performance.wav.json.abcd1234.part",  # the take's .json being written
     "..performance.wav.abcd1234.part.json.efgh5678.part",  # a part file's timing being written
     ".notes.txt.abcd1234.part",  # not audio a node records
+    ".take.raw.abcd1234.part",  # a format the node refuses
+    ".performance.json.abcd1234.part",  # performance.json being written
     ".performance.wav.part",  # no random part
     "performance.wav.abcd1234.part",  # not hidden
 ])
@@ -62,3 +64,12 @@ def test_wav_repair_still_loads_no_sound_node() -> None:
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=True,
                           cwd=Path(__file__).resolve().parents[1])
     assert done.stdout.strip() == "[]"
+
+
+def test_every_format_a_part_file_can_be_for_is_one_the_node_records_into() -> None:
+    """The node refuses the others (common.takes.TAKE_FORMATS), so a killed take's part is never invisible."""
+    from common.takes import TAKE_FORMATS
+    from services.sound.core import WAV_FORMATS
+
+    assert {f.upper() for f in TAKE_FORMATS} <= WAV_FORMATS
+    assert "json" not in TAKE_FORMATS

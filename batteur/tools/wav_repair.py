@@ -19,7 +19,11 @@ given itself or through its folder) is made a take: its header is given every wh
 keeps it up to date after each block, so at most the block being written when it was killed is missing from
 it), it is renamed ``STEM-recovered.EXT`` beside it (``STEM-recovered-2.EXT`` ... if that is taken: nothing is
 overwritten), and the timing the node kept beside it (``.NAME.XXXXXXXX.part.json``: the rig time of its first
-sample) becomes the take's ``.json``, as a take the node named has.
+sample) becomes the take's ``.json``, as a take the node named has. A part file of a take in another format
+(``common.takes.TAKE_FORMATS``: W64, AIFF, CAF, AU) holds the header libsndfile kept up to date after each block
+and is named as it is (at most the block being written when the node was killed is lost). A FLAC part is refused:
+its length (and its last frames, still in the encoder) are written only when the node closes it, and no header
+can be given to compressed audio; ``ffmpeg -i PART OUT.wav`` decodes the frames on disk, as the refusal says.
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ import argparse
 import fcntl
 import json
 import os
+import shlex
 import struct
 from collections.abc import Sequence
 from pathlib import Path
@@ -38,7 +43,7 @@ from pydantic import BaseModel, Field, ValidationError
 from batteur.errors import FAILED, report_error
 from common.input_file import file_problem
 from common.output_paths import write_atomically
-from common.takes import PART_SUFFIX, is_part, part_take, part_timing
+from common.takes import PART_SUFFIX, TAKE_FORMATS, is_part, part_take, part_timing
 
 PROG = "batteur wav-repair"
 """The command's name in its usage and error lines."""
@@ -229,14 +234,14 @@ class Segment(BaseModel):
     """A stretch of the take from ``frame`` on, sample ``frame`` at rig time ``rig_time_s`` (seconds)."""
 
     frame: int = Field(ge=0)
-    rig_time_s: float
+    rig_time_s: float = Field(allow_inf_nan=False)
 
 
 class PartTiming(BaseModel):
     """What a sound node keeps beside its part file (``.NAME.XXXX.part.json``); its other keys are ignored."""
 
-    origin_rig_time_s: float
-    """Rig time of the first sample, seconds."""
+    origin_rig_time_s: float = Field(allow_inf_nan=False)
+    """Rig time of the first sample, seconds (NaN or infinite: not a node's; a take's .json never says one)."""
     segments: list[Segment] = []
 
 
@@ -249,20 +254,34 @@ def _read_timing(part: Path) -> PartTiming | None:
         return None
     except OSError as exc:
         raise ValueError(f"its timing, {sidecar.name}, cannot be read ({exc.strerror or exc}): the part file is left "
-                         "as it is") from None
+                         f"as it is{WITHOUT_TIMING.format(sidecar.name)}") from None
     except ValidationError as exc:
         raise ValueError(f"its timing, {sidecar.name}, is not a sound node's ({exc.error_count()} problem(s), e.g. "
-                         f"{exc.errors()[0]['msg']}): the part file is left as it is") from None
+                         f"{exc.errors()[0]['msg']}): the part file is left as it is"
+                         f"{WITHOUT_TIMING.format(sidecar.name)}") from None
+
+
+WITHOUT_TIMING = "; delete {} and run it again to recover the audio without its rig-time origin"
+"""How a part file whose timing cannot be used is recovered all the same (its sidecar's name to fill in)."""
+
+
+def _decode_instead(part: Path, take_name: str) -> str:
+    """How to get the frames of a part file that cannot be made a take as it is (ffmpeg reads what is on disk)."""
+    out = shlex.quote(str(part.with_name(f"{Path(take_name).stem}-recovered.wav")))
+    timing = part_timing(part)
+    kept = f" ({timing.name} beside it holds their rig-time origin)" if timing.exists() else ""
+    return f"left as it is; `ffmpeg -i {shlex.quote(str(part))} {out}` decodes the frames on disk{kept}"
 
 
 def recover_part(part: Path) -> Recovery:
     """Make a node's part file a take beside it (see the module); ValueError (without the path) if it cannot:
-    a live node's, one holding no audio, one that does not read as audio."""
+    a live node's, one holding no audio, one that does not read as audio, a FLAC one (its length is unknown)."""
     import soundfile as sf  # only here: the header repair needs none of it
 
     take_name = part_take(part.name)
     if take_name is None:
-        raise ValueError("not a part file a sound node left (.NAME.XXXXXXXX.part, NAME a .wav, .flac, .w64 or .rf64)")
+        raise ValueError("not a part file a sound node left (.NAME.XXXXXXXX.part, NAME a "
+                         f".{', .'.join(TAKE_FORMATS[:-1])} or .{TAKE_FORMATS[-1]})")
     problem = file_problem(part, "a part file")
     if problem is not None:
         raise ValueError(problem)
@@ -273,13 +292,21 @@ def recover_part(part: Path) -> Recovery:
             raise ValueError("a running sound node is recording into it (it names its take when it stops)") from None
         except OSError:
             pass
-        timing = _read_timing(part)
         head = f.read(4)
+        if head == b"fLaC":  # before its timing is read: deleting that would not help
+            raise ValueError("a FLAC part's length (and its last frames, still in the encoder) are written only when "
+                             "the node closes it, and compressed audio cannot be given a header: "
+                             + _decode_instead(part, take_name))
+        timing = _read_timing(part)
         before, frames = _audio_to_end(part) if head in (b"RIFF", b"RF64") else (-1, -1)
         try:
             info = sf.info(str(part))
         except (RuntimeError, OSError) as exc:  # soundfile's LibsndfileError is a RuntimeError
             raise ValueError(f"does not read as audio ({exc})") from None
+        size = os.fstat(f.fileno()).st_size
+        if info.frames * info.channels > size:  # PCM holds a byte a sample at least: a header no take could have
+            raise ValueError(f"its header says {info.frames} frames, more than its {size} bytes hold: "
+                             + _decode_instead(part, take_name))
         if info.frames == 0:
             raise ValueError("holds no audio (the node stopped before its first block): nothing to recover")
         take = recovered_name(part, take_name)

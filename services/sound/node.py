@@ -39,7 +39,7 @@ from common.kit import Kit, load_kit
 from common.messages import OscMessage
 from common.output_paths import check_output_file, file_in_the_way, write_atomically
 from common.runtime import Node, run_node
-from common.takes import PART_SUFFIX, is_part, part_prefix, part_timing, parts_glob
+from common.takes import PART_SUFFIX, TAKE_FORMATS, is_part, part_prefix, part_timing, parts_glob
 from services.sound.core import MAX_LATENCY_S, WAV_LIMIT_BYTES, SoundCore, SoundSettings, wav_format
 from services.sound.params_file import (
     apply_sound_params,
@@ -191,6 +191,9 @@ class WavSink:
     def __init__(self, path: Path, sample_rate: int, channels: int, timeline: Callable[[], list[tuple[int, float]]],
                  keep: Callable[[], bool] = lambda: True) -> None:
         fmt = wav_format(path, "--wav")
+        if fmt.lower() not in TAKE_FORMATS:  # a killed take in it could not be recovered (common.takes)
+            raise ValueError(f"--wav {path}: give a file ending in .{', .'.join(TAKE_FORMATS)}, not {path.suffix} "
+                             "(the formats `batteur wav-repair` knows a killed take's part file in)")
         path.parent.mkdir(parents=True, exist_ok=True)
         self.path = path
         self.timeline = timeline

@@ -54,18 +54,18 @@ WRITER = textwrap.dedent("""
 """).format(origin=ORIGIN_S, block=BLOCK)
 
 
-def _killed_take(folder: Path, blocks: int, step_at: int = -1, forever: bool = False) -> Path:
-    """A WavSink in its own process, killed (SIGKILL) once it has written ``blocks`` blocks (``forever``: while it
-    goes on writing); returns its part file."""
+def _killed_take(folder: Path, blocks: int, step_at: int = -1, forever: bool = False, name: str = "take.wav") -> Path:
+    """A WavSink recording ``name`` in its own process, killed (SIGKILL) once it has written ``blocks`` blocks
+    (``forever``: while it goes on writing); returns its part file."""
     folder.mkdir(exist_ok=True)
-    proc = subprocess.Popen([sys.executable, "-c", WRITER, str(folder / "take.wav"), str(blocks), str(step_at),
+    proc = subprocess.Popen([sys.executable, "-c", WRITER, str(folder / name), str(blocks), str(step_at),
                              "1" if forever else "0"], cwd=ROOT, stdout=subprocess.PIPE, text=True)
     try:
         assert proc.stdout is not None and proc.stdout.readline() == "written\n"
     finally:
         proc.send_signal(signal.SIGKILL)
         proc.wait(60)
-    (part,) = folder.glob(".take.wav.*.part")
+    (part,) = folder.glob(f".{name}.*.part")
     return part
 
 
@@ -171,7 +171,7 @@ def test_a_part_file_that_is_no_take_is_refused_in_words(tmp_path: Path) -> None
     run = _wav_repair(other)
     assert run.returncode == 1 and run.stdout == ""
     assert run.stderr == (f"batteur wav-repair: error: {other}: not recovered: not a part file a sound node left "
-                          "(.NAME.XXXXXXXX.part, NAME a .wav, .flac, .w64 or .rf64)\n")
+                          "(.NAME.XXXXXXXX.part, NAME a .wav, .rf64, .w64, .aiff, .caf, .au or .flac)\n")
     assert other.read_bytes() == b"not ours"
 
 
@@ -207,3 +207,56 @@ def test_an_rf64_part_file_past_4_gib_is_recovered_by_its_ds64_sizes(tmp_path: P
     assert (result.header_frames, result.frames, result.origin_rig_time_s) == (5 * BLOCK, 6 * BLOCK, None)
     info = sf.info(str(result.take))
     assert (info.format, info.frames) == ("RF64", 6 * BLOCK)
+
+
+def test_a_killed_flac_take_is_refused_with_how_to_decode_it(tmp_path: Path) -> None:
+    # a FLAC part's length is written at close: libsndfile read it as 2**63 - 1 frames, and wav-repair named it a
+    # take of 192153584101141 s with that in its .json, a file that did not read back
+    part = _killed_take(tmp_path / "takes", blocks=40, name="take.flac")
+    takes = part.parent
+    before = {p.name: p.read_bytes() for p in takes.iterdir()}
+    assert sorted(before) == sorted([part.name, part.name + ".json"])  # found as a part file, with its timing
+    run = _wav_repair(takes)
+    assert (run.returncode, run.stdout) == (1, "")
+    assert run.stderr == (
+        f"batteur wav-repair: error: {part}: not recovered: a FLAC part's length (and its last frames, still in the "
+        "encoder) are written only when the node closes it, and compressed audio cannot be given a header: left as "
+        f"it is; `ffmpeg -i {part} {takes / 'take-recovered.wav'}` decodes the frames on disk ({part.name}.json "
+        "beside it holds their rig-time origin)\n")
+    assert {p.name: p.read_bytes() for p in takes.iterdir()} == before  # nothing written, nothing renamed
+
+
+@pytest.mark.parametrize("name", ["take.aiff", "take.caf", "take.au", "take.w64"])
+def test_a_killed_take_in_another_format_is_found_and_recovered(tmp_path: Path, name: str) -> None:
+    part = _killed_take(tmp_path / "takes", blocks=30, name=name)  # was: .aiff/.caf/.au parts not taken for parts
+    run = _wav_repair(part.parent)
+    assert (run.returncode, run.stderr) == (0, "")
+    take = part.parent / f"take-recovered{Path(name).suffix}"
+    assert sorted(p.name for p in part.parent.iterdir()) == [take.name, take.name + ".json"]
+    audio, rate = sf.read(take, dtype="float32")
+    assert rate == 48000 and np.allclose(audio, _ramp(30 * BLOCK), atol=2e-7)
+    assert json.loads(take.with_name(take.name + ".json").read_text())["origin_rig_time_s"] == ORIGIN_S
+
+
+@pytest.mark.parametrize("name", ["take.raw", "take.nist", "take.sd2"])
+def test_the_node_refuses_a_format_a_killed_take_could_not_be_recovered_in(tmp_path: Path, name: str) -> None:
+    with pytest.raises(ValueError, match=r"give a file ending in \.wav, \.rf64, \.w64, \.aiff, \.caf, \.au, \.flac"):
+        WavSink(tmp_path / name, 48000, 2, lambda: [(0, 0.0)])  # was: a headerless RAW part wav-repair cannot read
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("origin", ["NaN", "Infinity", "-Infinity"])
+def test_a_non_finite_origin_is_refused_and_deleting_the_timing_recovers_the_audio(tmp_path: Path,
+                                                                                   origin: str) -> None:
+    part = _killed_take(tmp_path / "takes", blocks=10)
+    timing = part.with_name(part.name + ".json")
+    timing.write_text(timing.read_text().replace(f'"origin_rig_time_s": {ORIGIN_S}', f'"origin_rig_time_s": {origin}'))
+    before = part.read_bytes()
+    with pytest.raises(ValueError, match=f"delete {part.name}.json and run it again to recover the audio without "
+                       "its rig-time origin") as refused:
+        wav_repair.recover_part(part)  # was: a take whose .json said "origin_rig_time_s": NaN
+    assert "finite" in str(refused.value)
+    assert part.read_bytes() == before and sorted(p.name for p in part.parent.iterdir()) == [part.name, timing.name]
+    timing.unlink()  # as the refusal says
+    result = wav_repair.recover_part(part)
+    assert (result.frames, result.origin_rig_time_s) == (10 * BLOCK, None)
