@@ -384,8 +384,9 @@ class DeviceSink:
 
 
 WAV_HELP = (
-    "also record the output to this file, 24-bit (.wav, .flac, .w64, .rf64; a .wav take that passes 4 GiB, about 4 h, "
-    "becomes RF64 instead of losing its end); written under a temporary name and given this one when the node stops "
+    "also record the output to this file, 24-bit (.wav, .rf64, .w64, .aiff, .caf, .au, .flac; a .wav take that "
+    "passes 4 GiB, about 4 h, becomes RF64 instead of losing its end); written under a temporary name and given "
+    "this one when the node stops "
     "(a node that fails leaves a file already there as it was, and what it recorded under the temporary name). "
     "{start} in the file name is the take's start time, local YYYYmmdd-HHMMSS (take-{start}.wav: "
     "take-20260131-201500.wav, then -2, -3 ... if that name is taken), so each run keeps its own file; the log says "
