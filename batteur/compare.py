@@ -70,6 +70,12 @@ RESTART_BEATS = 0.5
 """A restart's pause is this many of the exercise's beats at least (its median beat), and beyond the reach of a
 note played too early or late: a bar played 200 ms late as a whole at 120 bpm (0.4 beat) is a jump, its notes
 missed and extra; from half a beat on a note paired with the next eighth's would read as late or early."""
+STOP_BEATS = 1.5
+"""A pause with fewer than :data:`RESTART_NOTES` written notes on one side (after the first beat, before the last
+one) is a restart when it is this many of the exercise's beats beyond the written gap at least (and beyond the
+reach of a note played too early or late): the student really stopped (a 1 s pause at 120 bpm). A shorter one is
+those few notes played early or late (a last crash held 0.35 or 0.6 s, a first downbeat 0.4 s early), told with
+their error: until 7 Dec they read as a restart and the take as perfect."""
 RESTART_SHARE = 0.5
 """Share of the written notes before the take came back in, and of those from there on, a restart must match
 at least, each: a student who stops comes back on their pulse and plays on (a take drifting off tempo, whose tail
@@ -486,7 +492,7 @@ def restarted(played: Sequence[Played], restarts: Sequence[Restart]) -> list[Pla
 
 def find_restarts(written: Sequence[NoteRef], played: Sequence[Played], offset: float,
                   pairs: Sequence[tuple[int, int]], tolerance: float, forced: bool, beat_s: float | None = None
-                  ) -> tuple[list[Restart], float, list[tuple[int, int]]]:
+                  ) -> tuple[list[Restart], float, list[tuple[int, int]], dict[int, int]]:
     """The places the student stopped and came back in, and the offset and pairs with their pauses taken out
     (:func:`restarted`). A student who stops and restarts plays on their pulse again, later by the pause: taken as
     one, the take's notes after it are all late by it, or, a pause of a beat and a bit, paired with the next beat's
@@ -501,7 +507,9 @@ def find_restarts(written: Sequence[NoteRef], played: Sequence[Played], offset: 
     but for a forced ``--offset``, at the offset less it (the notes before it do: the offset had lined up the part
     after it). The one matching most is a restart when it matches :data:`RESTART_NOTES` more than before (or, a
     pause after the take's first notes or before its last ones, all the fewer written there: until 7 Dec they were
-    missed and the notes played for them silently before or after the exercise), and :data:`RESTART_SHARE` of the
+    missed and the notes played for them silently before or after the exercise; such a pause must be
+    :data:`STOP_BEATS` beyond the written gap, else those notes were played early or late: returned last, written
+    index -> take index, told with their error), and :data:`RESTART_SHARE` of the
     written notes before the restart and of those from it on; then the take is lined up again and the next is
     looked for. ``pairs``: the take's at ``offset`` as one.
 
@@ -514,7 +522,11 @@ def find_restarts(written: Sequence[NoteRef], played: Sequence[Played], offset: 
     rest_reach = max(LOOSE_S, 2 * tolerance)  # an entry's notes are kept as played: no eighth to mistake them for
     rest_gap = None if beat_s is None else REST_BEATS * beat_s - tolerance
     times = sorted({round(n.time, 6) for n in written})
+    # a pause with few notes on one side: a real stop (a beat beyond a restart's half beat), else those notes are off
+    stop = max(reach, STOP_BEATS * (beat_s or 0.0))
     found: list[Restart] = []
+    strays: dict[int, int] = {}  # written index: take index, the few notes of a pause too short to be a stop
+    refused: set[int] = set()  # take indices after such a pause: not tried again
     pairs = list(pairs)
     for _ in range(RESTART_CANDIDATES):
         moved = restarted(played, found)
@@ -568,6 +580,7 @@ def find_restarts(written: Sequence[NoteRef], played: Sequence[Played], offset: 
             if (abs(b - a - gap) > rest_reach) if rest else (b - a - gap > reach):
                 tried.append((b - a - gap, after[0], b - a, head_at if anchors is head_of else offset, rest))
         best: tuple[list[Restart], float, list[tuple[int, int]], int] | None = None
+        tried = [c for c in tried if c[1] not in refused]
         for excess, j, silence, start, rest in sorted(tried, key=lambda c: -abs(c[0]))[:RESTART_CANDIDATES]:
             moves = [[Restart(played[j].time, excess, silence, rest)]]
             later = [(k, quiet) for k, quiet in rests if moved[k].time > moved[j].time]
@@ -587,16 +600,25 @@ def find_restarts(written: Sequence[NoteRef], played: Sequence[Played], offset: 
         split = restarted(played, [*found, *move])[j].time - at - tolerance
         earlier = [n.time < split for n in written]
         before_n, before_m = sum(earlier), sum(earlier[i] for i, _ in again)
-        if len(again) < len(pairs) + min(RESTART_NOTES, before_n, len(written) - before_n):
+        few = min(before_n, len(written) - before_n)
+        if len(again) < len(pairs) + min(RESTART_NOTES, few):
             break
         if before_m < RESTART_SHARE * before_n or len(again) - before_m < RESTART_SHARE * (len(written) - before_n):
             break
+        if few < RESTART_NOTES and not move[0].rest and move[0].late_s < stop:
+            # no real stop: the few notes on that side (a last crash held on, a first downbeat early) were played
+            # early or late, paired as the move lined them up; the next candidate is tried
+            side = before_n == few
+            had = {a for a, _ in pairs}
+            strays.update({i: k for i, k in again if earlier[i] == side and i not in had})
+            refused.add(j)
+            continue
         found.extend(move)
         if forced:
             pairs = again
         else:
             offset, pairs = align(written, restarted(played, found), tolerance)
-    return sorted(found, key=lambda r: r.cut), offset, pairs
+    return sorted(found, key=lambda r: r.cut), offset, pairs, strays
 
 
 def follow_lag(written: Sequence[NoteRef], played: Sequence[Played], offset: float, tolerance: float,
@@ -989,7 +1011,18 @@ def timing(errors_s: Sequence[float]) -> dict[str, float | int | None]:
     return {"mean_ms": round(float(e.mean()), 1) + 0.0, "sd_ms": round(float(e.std()), 1) + 0.0, "n": int(e.size)}
 
 
-def dynamics(pairs: Sequence[tuple[float, float]], margin: float = ACCENT_MARGIN) -> dict[str, Any] | None:
+def normal_level(velocities: Iterable[float]) -> int | None:
+    """The most common written level (MIDI velocity, from ``velocities`` in [0, 1]; a tie, the one nearest their
+    median, then the lower): a text score's plain ``x``. None without notes."""
+    counts = Counter(round(v * 127) for v in velocities)
+    if not counts:
+        return None
+    middle = float(np.median(list(counts.elements())))
+    return max(counts, key=lambda k: (counts[k], -abs(k - middle), -k))
+
+
+def dynamics(pairs: Sequence[tuple[float, float]], margin: float = ACCENT_MARGIN, normal: int | None = None
+             ) -> dict[str, Any] | None:
     """Written against played velocities of one drum's matched notes, MIDI 0-127 (``pairs``: (written, played)
     in [0, 1]): the played mean and spread, the rank agreement of written and played (evaluate's Spearman; None
     when either side is flat), for a score of a few written levels (a text score's ghost, plain and accent: at
@@ -997,7 +1030,10 @@ def dynamics(pairs: Sequence[tuple[float, float]], margin: float = ACCENT_MARGIN
     top gap of :data:`WRITTEN_ACCENT_GAP` up) whether they were played louder on average than the rest, by
     ``margin`` (:data:`ACCENT_MARGIN`; an audio take's less, :data:`AUDIO_VELOCITY_SCALE`). A drum without
     written accents gets no accent verdict (a MIDI exercise's toms at 92 and 98 read "ACCENTS NOT LOUDER" until
-    7 Dec). None without pairs."""
+    7 Dec). Levels at or below ``normal`` (the exercise's normal level, :func:`normal_level`; else this drum's) are
+    no accents: a split between them and lower ones is normal notes against ghost notes, whether the ghosts were
+    played softer by ``margin`` (a snare of ``x`` and ``g`` read its backbeats as accents, ghosts played as loud
+    "ACCENTS NOT LOUDER: 89 against 89" with no accent written, until 7 Dec). None without pairs."""
     from batteur.evaluate import spearman
 
     if not pairs:
@@ -1014,7 +1050,18 @@ def dynamics(pairs: Sequence[tuple[float, float]], margin: float = ACCENT_MARGIN
                          for k, v in sorted(levels.items())}
     ranked = sorted(levels, reverse=True)
     split = next((k for k in range(len(ranked) - 1) if ranked[k] - ranked[k + 1] >= WRITTEN_ACCENT_GAP), None)
-    if split is not None:
+    if normal is None:
+        normal = normal_level(w for w, _ in pairs)
+    if split is not None and normal is not None and ranked[split] <= normal:
+        # the louder side holds the normal level: no accents; the softer one is ghost notes
+        loud = float(np.mean([p for k in ranked[:split + 1] for p in levels[k]]))
+        ghosts = float(np.mean([p for k in ranked[split + 1:] for p in levels[k]]))
+        out["ghosts_softer"] = loud - ghosts >= margin
+        out["ghosts_barely_softer"] = 0 < loud - ghosts < margin
+        out["ghost_margin"] = round(loud - ghosts, 1) + 0.0
+        out["ghost_margin_needed"] = round(margin, 1)
+        out["ghost_mean"], out["others_mean"] = round(ghosts, 1), round(loud, 1)
+    elif split is not None:
         top = set(ranked[:split + 1])
         accents = float(np.mean([p for k in top for p in levels[k]]))
         rest = float(np.mean([p for k, v in levels.items() if k not in top for p in v]))
@@ -1444,13 +1491,16 @@ def _compare_at(score: Score, take: Take, kit: Kit, tolerance: float, scale: flo
     else:
         pairs = matched(written, take.notes, offset, tolerance)
     # a student who stopped and came back in: timed from there on against the restart (its pause taken out)
-    restarts, offset, pairs = find_restarts(written, take.notes, offset, pairs, tolerance, forced,
-                                            None if bpm is None else 60.0 / bpm / scale)
+    restarts, offset, pairs, strays = find_restarts(written, take.notes, offset, pairs, tolerance, forced,
+                                                    None if bpm is None else 60.0 / bpm / scale)
     # an entry after a written rest lined its notes up to pair them; they are kept late or early as played
     entries = [r for r in restarts if r.rest]
     restarts = [r for r in restarts if not r.rest]
     played = restarted(take.notes, restarts)
     entered: dict[int, int] = {}  # written index: its note, paired after an entry and beyond the tolerance
+    # each entry's note's written time (s, compared clock), as paired: the entry's bar and its rest's are that
+    # note's (an entry note a few ms early was placed in the rest's last bar, "after the rest (bar 3)", until 7 Dec)
+    entry_at = {r.cut: written[i].time for r in entries for i, j in pairs if abs(take.notes[j].time - r.cut) < 1e-9}
     if entries:
         entered = {i: j for i, j in pairs if abs(played[j].time - offset - written[i].time) > tolerance}
         pairs = [(i, j) for i, j in pairs if i not in entered]
@@ -1475,6 +1525,10 @@ def _compare_at(score: Score, take: Take, kit: Kit, tolerance: float, scale: flo
             loose[p.drum].append(j)
     claimed: dict[int, int] = dict(entered)  # written index: the note of its drum played too early or late for it
     taken: set[int] = set(entered.values())
+    for i, j in strays.items():  # the few notes of a pause too short to be a stop: off by it, beyond the reach
+        if i in missed_i and i not in claimed and j not in done_played and j not in taken:
+            claimed[i] = j
+            taken.add(j)
     reach = max(LOOSE_S, 2 * tolerance)
     candidates = sorted((abs(played[j].time - offset - written[i].time), i, j) for i in missed_i
                         for j in loose.get(written[i].instrument, [])
@@ -1485,6 +1539,7 @@ def _compare_at(score: Score, take: Take, kit: Kit, tolerance: float, scale: flo
             taken.add(j)
     # a take falling behind (running ahead) bar after bar: its notes beyond the reach are followed along its lag
     # (until 7 Dec a tempo change played 8 % slow read as bars all missed, with as many extras)
+    near = dict(claimed)  # the entry's notes and those within the reach: not followed along the lag
     followed, claimed = follow_lag(written, played, offset, tolerance, dict(pairs), claimed,
                                    [i for i in missed_i if i not in claimed], loose)
     if followed != dict(pairs):  # pairs redone along the lag: the notes they let go are extras unless claimed
@@ -1535,6 +1590,7 @@ def _compare_at(score: Score, take: Take, kit: Kit, tolerance: float, scale: flo
                        "time_s": _r(written_clock(p.time - offset), 4), "take_time_s": _r(take.notes[j].time, 4),
                        "drum": p.drum, "event": p.event, "velocity": round(p.velocity * 127)})
     drums: dict[str, Any] = {}
+    normal = normal_level(n.velocity for n in written)  # the exercise's plain level: its accents are above it
     names = sorted({n.instrument for n in written} | {played[j].drum for j in inside})
     for drum in names:
         its_pairs = [(i, j) for i, j in pairs if written[i].instrument == drum]
@@ -1549,7 +1605,7 @@ def _compare_at(score: Score, take: Take, kit: Kit, tolerance: float, scale: flo
             "extra": sum(played[j].drum == drum for j in extras_j),
             "timing": timing([played[j].time - offset - written[i].time for i, j in its_pairs]),
             "dynamics": dynamics([(written[i].velocity, played[j].velocity) for i, j in its_pairs],
-                                 ACCENT_MARGIN * (1.0 if take.heard is None else AUDIO_VELOCITY_SCALE)),
+                                 ACCENT_MARGIN * (1.0 if take.heard is None else AUDIO_VELOCITY_SCALE), normal),
         }
     short = pickup(score)
     bars = bar_rows(score, [(written_clock(n.time), n.time) for n in written],
@@ -1575,7 +1631,7 @@ def _compare_at(score: Score, take: Take, kit: Kit, tolerance: float, scale: flo
         # where each came back in, on the written clock: every earlier move taken out (an entry's too)
         "restarts": [restart_entry(score, r, [*restarts, *entries], offset, scale) for r in restarts],
         # each entry late or early against the take's start (the pulse before the rest may have been off already)
-        "rest_entries": [rest_entry(score, r, [*restarts, *entries], offset, scale, lag)
+        "rest_entries": [rest_entry(score, r, [*restarts, *entries], offset, scale, lag, entry_at.get(r.cut))
                          for r in entries if abs(lag := sum(e.late_s for e in entries if e.cut <= r.cut + 1e-9))
                          > tolerance],
         "pickup_beats": None if short is None else _r(short[0] / bar_unit(score, 1), 3),  # counted as bar 1's
@@ -1615,11 +1671,15 @@ def _compare_at(score: Score, take: Take, kit: Kit, tolerance: float, scale: flo
         ratio, count = find_tempo(written, played, tolerance, offset if forced else None)
         length = exercise_end(score) / scale  # s, as the take plays it: a small ratio still drifts over a long take
         # and more notes than those here on time or followed along the take's lag (a tempo change in the middle of
-        # a take: the whole take compared at the later tempo put its first bars off, until 7 Dec)
-        # (more than those, after an entry off after a rest: the take steady, 0.2 s late after a 2-bar rest, matched
-        # as many at 117 bpm, the tie said the tempo)
+        # a take: the whole take compared at the later tempo put its first bars off, until 7 Dec), not those only
+        # near their written time: a take 7 % slow has many (with an entry 0.5 s late after a rest, 56 too early
+        # or late outnumbered the 66 the tempo matched, no tempo said, until 7 Dec)
+        along = sum(near.get(i) != j for i, j in claimed.items())
+        # (more than those and an entry's notes, after an entry off after a rest: the take steady, 0.2 s late after
+        # a 2-bar rest, matched as many at 117 bpm, the tie said the tempo)
+        by_entry = sum(near.get(i) == j for i, j in claimed.items() if i in entered)
         if (count >= max(1.5 * len(pairs), len(pairs) + 0.2 * len(written),
-                         len(pairs) + len(claimed) + (1 if entered else 0))
+                         len(pairs) + along + (by_entry + 1 if entered else 0))
                 and abs(math.log(ratio)) * length > tolerance / 2):
             said = ratio_digits(ratio * scale, length / ratio, tolerance)
             tempi = written_tempi(score)
@@ -1649,14 +1709,20 @@ def restart_entry(score: Score, restart: Restart, restarts: Sequence[Restart], o
             "late_s": _r(restart.late_s, 3), "silence_s": _r(restart.silence_s, 3)}
 
 
-def rest_entry(score: Score, entry: Restart, moves: Sequence[Restart], offset: float, scale: float, lag: float
-               ) -> dict[str, Any]:
+def rest_entry(score: Score, entry: Restart, moves: Sequence[Restart], offset: float, scale: float, lag: float,
+               paired_at: float | None = None) -> dict[str, Any]:
     """An entry after a written rest as the report says it (:func:`restart_entry`'s fields, ``late_s`` the entry
     note's lag against the take's start, s, < 0 early; ``moves``: every restart and entry, to place it), with
     ``rest``, the rest's bars (``bars 3-4``: the bars without a written note; a rest within or across bars, those
-    bars: ``bar 2``) and ``late_beats``, in the exercise's beats there."""
+    bars: ``bar 2``) and ``late_beats``, in the exercise's beats there. ``paired_at``: the written time (s, on the
+    compared clock) of the note the entry note was paired with, where the entry is (else where its move puts it:
+    a few ms early there is still in the rest)."""
     said = {**restart_entry(score, entry, moves, offset, scale), "late_s": _r(lag, 3)}
-    at = (entry.cut - sum(r.late_s for r in moves if r.cut <= entry.cut + 1e-9) - offset) * scale
+    if paired_at is None:
+        at = (entry.cut - sum(r.late_s for r in moves if r.cut <= entry.cut + 1e-9) - offset) * scale
+    else:
+        at = paired_at * scale
+        said.update(position(score, at, scale))
     onsets = sorted({e.time for e in score.events})
     before = onsets[max(0, bisect.bisect_left(onsets, at - 1e-6) - 1)]  # the last written onset before the rest
     first, where = bar_and_beat(score, before), bar_and_beat(score, at)
@@ -1674,7 +1740,8 @@ def rest_entry_text(entry: dict[str, Any]) -> str:
     (:func:`rest_entry`)."""
     how = "late" if entry["late_s"] > 0 else "early"
     beats = entry.get("late_beats")
-    count = "" if beats is None else f" ({abs(beats):g} beat{'' if abs(beats) == 1 else 's'})"
+    said = None if beats is None else round(abs(beats), 1)  # a beat late with a few ms of jitter: "1 beat"
+    count = "" if said is None else f" ({said:g} beat{'' if said == 1 else 's'})"
     bar = f"bar {entry['bar']}" if entry.get("bar") is not None else where_text(entry)
     return (f"{bar}: came in {abs(entry['late_s']):.1f} s {how}{count} after the rest ({entry['rest']}), "
             f"{entry['take_time_s']:.3f} s into the take: its notes told {how} by it")
@@ -1883,6 +1950,11 @@ def _dynamics_text(d: dict[str, Any] | None) -> str:
                    f"accents barely louder (+{d['accent_margin']:.0f})" if d.get("accents_barely_louder") else
                    "ACCENTS NOT LOUDER")
         text += f"; {verdict}: {d['accent_mean']:.0f} against {d['others_mean']:.0f}"
+    elif "ghosts_softer" in d:
+        verdict = ("ghost notes softer" if d["ghosts_softer"] else
+                   f"ghost notes barely softer (-{d['ghost_margin']:.0f})" if d.get("ghosts_barely_softer") else
+                   "GHOST NOTES NOT SOFTER")
+        text += f"; {verdict}: {d['ghost_mean']:.0f} against {d['others_mean']:.0f}"
     elif d["spearman"] is not None:
         text += f"; written and played ranks agree {d['spearman']:+.2f} (Spearman)"
     return text
