@@ -30,6 +30,9 @@ tip and shaft, share one track: :meth:`Segmenter.striker_of`):
   plates knocked together by a stick while the foot is not closing the pedal, as
   physics reports them) is that stroke's **rattle**: no impact (counted). The
   plates meeting while the foot closes the pedal (``hihat_top``) are a chick.
+  Plates meeting too slowly for either (``plate_parts`` touching: the foot
+  letting the pedal down) come to rest together: a **press** at once (physics
+  reports resting plates for 10 ms only), which closes the hat in the sound.
 * A contact (touch or strike) lasting ``press_after`` or longer is a **press**:
   :class:`DampingChange` on, and off when it ends. A strike that turns into a
   press is a **dead** stroke: its figures are final when the press begins.
@@ -104,6 +107,12 @@ class DetectionConfig(BaseModel):
         default=("hihat_rattle",),
         description="parts whose contacts are another stroke's rattle, never strikes (physics reports the hi-hat's "
                     "plates meeting while the foot is not closing the pedal as hihat_rattle; closing: hihat_top)",
+    )
+    plate_parts: tuple[str, ...] = Field(
+        default=("hihat_top", "hihat_rattle"),
+        description="a hi-hat's plate parts: their touch (too slow for a chick or a rattle: the foot letting the "
+                    "pedal down) is the plates coming to rest together, a press at once (physics reports resting "
+                    "plates for 10 ms only), which the sound takes as the hat closing",
     )
     default_step: float = Field(default=0.001, gt=0, le=0.1, description="physics step until measured, s")
     part_suffixes: tuple[Annotated[str, Field(min_length=1)], ...] = Field(
@@ -437,6 +446,8 @@ class Segmenter:
         striker = self.striker_of(c.part)
         if velocity < self.config.part_velocity_min.get(striker, self.config.strike_velocity_min):
             self.stats.touches += 1
+            if striker in self.config.plate_parts and track.obj.kind == "hihat":
+                self._press(track, c, events)  # the plates closed gently: silent, but an open hat rings no more
             return
         if striker in self.config.rattle_parts:
             self.stats.rattles += 1

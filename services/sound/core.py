@@ -57,6 +57,7 @@ from services.sound.excitation import warm_up as excitation_warm_up
 from services.sound.instruments import (
     INSTRUMENT_CLASSES,
     KIND_PARAMS,
+    HiHat,
     Instrument,
     InstrumentSet,
     ParamError,
@@ -140,8 +141,10 @@ MAX_PRESS_FORCE_N = 5000.0
 malformed, dropped and counted (press_malformed)."""
 
 PASSIVE_PRESS_PARTS = frozenset({"hihat_top", "hihat_rattle"})
-"""Parts whose presses the instrument models already: the hi-hat's top plate held on the bottom one is its
-openness (closed), set by the chick. Counted (press_ignored), not applied."""
+"""The hi-hat's plates: not a damper resting on it but its openness. Their press (state 1: the plates met, however
+gently: the foot letting the pedal down meets them at ~0 m/s, no impact) closes the hat silently, openness 0 as a
+chick sets it (counted plate_closes); their lift (state 0: physics stops reporting resting plates after 10 ms, it
+never reports them parting) and their presses on anything but a hi-hat are counted (press_ignored), not applied."""
 
 KNEE = 0.7
 """Master soft limiter: linear below this level, a tanh knee above, never beyond 1."""
@@ -222,7 +225,8 @@ class SoundStats:
     stray_lifts: int = 0  # state 0 for a part not resting there (its state 1 lost or never sent): ignored
     press_unknown: int = 0  # presses on an instrument the kit does not have: dropped
     press_malformed: int = 0  # presses with a force above MAX_PRESS_FORCE_N or not finite: dropped
-    press_ignored: int = 0  # presses on pedals or of PASSIVE_PRESS_PARTS: counted, not applied
+    press_ignored: int = 0  # presses on pedals, lifts of PASSIVE_PRESS_PARTS: counted, not applied
+    plate_closes: int = 0  # presses of PASSIVE_PRESS_PARTS on a hi-hat applied: its plates closed it (openness 0)
     implicit_lifts: int = 0  # parts lifted by their own next strike (their state 0 lost, or not sent yet)
     rejected: Counter[str] = field(default_factory=Counter)  # by control address
     blocks: int = 0
@@ -527,7 +531,8 @@ class SoundCore:
         if self.press_scheduler.is_duplicate(source, damping.seq, damping.time):
             self.stats.duplicates += 1
             return
-        if damping.instrument in self._pedal_ids or damping.part in PASSIVE_PRESS_PARTS:
+        if damping.instrument in self._pedal_ids or (damping.part in PASSIVE_PRESS_PARTS
+                                                     and not self._closes_plates(damping)):
             self.stats.press_ignored += 1
             return
         if damping.instrument not in self.instruments.instruments:
@@ -544,6 +549,11 @@ class SoundCore:
         if not self._admitted("a press", source, damping.time, len(self.press_scheduler)):
             return
         self.press_scheduler.push(damping.time, damping, self.next_sample)
+
+    def _closes_plates(self, damping: Damping) -> bool:
+        """Whether a press of a hi-hat plate part (PASSIVE_PRESS_PARTS) closes a hi-hat of the kit."""
+        inst = self.instruments.instruments.get(damping.instrument)
+        return damping.state == 1 and isinstance(inst, HiHat)
 
     def _admitted(self, what: str, source: str, time: float, waiting: int) -> bool:
         """Whether an impact or press (``what``) for rig time ``time`` (s) may wait in its scheduler, which holds
@@ -565,6 +575,10 @@ class SoundCore:
         """Hand a press or lift, in time order, to its instrument from sample ``offset`` of this block."""
         inst = self.instruments.instruments[damping.instrument]
         part = damping.part
+        if part in PASSIVE_PRESS_PARTS and isinstance(inst, HiHat):  # only the plates meeting get here (state 1)
+            inst.set_openness(0.0, self.pool)  # closed: the modes and the sample/synth voices choked, no sound
+            self.stats.plate_closes += 1
+            return
         self._touched.add(inst.id)
         if damping.state == 0:
             if inst.id not in self._resting.get(part, ()):

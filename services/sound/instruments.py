@@ -81,6 +81,9 @@ nonlinear, which spreads its losses over every mode."""
 PRESS_POINT_MAX = 6.0
 """Largest point weight of one mode (its squared shape at the press over its mean square): bounds the damping of
 a mode whose antinode is right under the press."""
+HIHAT_CLOSED_DECAY_PER_S = 90.0
+"""Decay rate the hi-hat's plates held together add, 1/s (times (1 - openness)^2): a closed hat's T60 is about
+6.9 / 90 = 77 ms."""
 COWBELL_MASS_KG = 0.3
 """Vibrating mass of a cowbell, kg (for presses; its partials have no mode shapes here)."""
 
@@ -753,20 +756,44 @@ class HiHat(Cymbal):
 
     Zones ``open``, ``half``, ``closed`` set the openness from that strike on (as /batteur/sound/openness does);
     ``pedal`` (or the instrument ``hihat_pedal``) is the foot chick, which also
-    closes the hat and so chokes it.
+    closes the hat and so chokes it; the plates meeting silently (a press of them: the core) close it too. A drop
+    of the openness chokes the sample and synthesis voices as well (:meth:`choke`).
     """
 
     KIND = "hihat"
 
     def damping_law(self, freq: F64) -> F64:
         closed = 1.0 - self.p.openness
-        return np.asarray(self.p.damping0 + self.p.damping1 * freq**2 + 90.0 * closed**2 + 6e-7 * closed * freq**2)
+        return np.asarray(self.p.damping0 + self.p.damping1 * freq**2 + HIHAT_CLOSED_DECAY_PER_S * closed**2
+                          + 6e-7 * closed * freq**2)
+
+    def set_openness(self, openness: float, pool: VoicePool) -> None:
+        """The plates' gap from now on (0 closed, 1 open): the modes retuned (ringing ones keep their state and
+        take the new damping); a drop chokes the sample and synthesis voices still ringing (:meth:`choke`)."""
+        old = self.p.openness
+        if openness == old:
+            return
+        self.p = replace(self.p, openness=openness)
+        self.rebuild()
+        if openness < old:
+            self.choke(old, openness, pool)
+
+    def choke(self, old: float, new: float, pool: VoicePool) -> None:
+        """The openness dropped from ``old`` to ``new``: this hat's sample and synthesis voices fade out (they have
+        no modes to damp) over the T60 the modes' damping gains by it (HIHAT_CLOSED_DECAY_PER_S: 77 ms open to
+        closed). The noise voices (chick, stick tick) are a few ms long already."""
+        added = HIHAT_CLOSED_DECAY_PER_S * ((1.0 - new) ** 2 - (1.0 - old) ** 2)  # 1/s
+        if added <= 0.0:
+            return
+        fade = int(np.log(1000.0) / added * self.sr)
+        for voice in pool.voices:
+            if voice.instrument == self.id and isinstance(voice, SampleVoice | SynthVoice) and not voice.done:
+                voice.release(fade)  # one already fading (stolen, choked) keeps its fade
 
     def strike(self, strike: Strike, pool: VoicePool) -> None:
         openness = {"open": 1.0, "half": 0.5, "closed": 0.0, "pedal": 0.0}.get(strike.zone)
-        if openness is not None and openness != self.p.openness:
-            self.p = replace(self.p, openness=openness)
-            self.rebuild()
+        if openness is not None:
+            self.set_openness(openness, pool)  # before this strike's own voices: they are not choked
         if strike.zone == "pedal" and self.model == "modal":
             # the plates clash: a softer, shorter excitation plus a noise chick
             self.strike_modal(replace(strike, velocity=strike.velocity * 0.5, r=0.9), pool, gain=0.4)
