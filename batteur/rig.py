@@ -13,9 +13,10 @@ kills what is left; what a service leaves in its process group (planning
 processes, a resource tracker) is stopped once it has exited, and the rig reads
 output for at most ``DRAIN_S`` more seconds, so no grandchild holding the output
 pipe keeps it running. If physics, interaction or sound exits, the others are stopped too; if graphics (the view,
-:data:`OPTIONAL_ROLES`) does once it was up (had answered the rig's Hello), the rig says so and the others play on,
-its exit status at the end graphics' code (0 if it exited with 0, 1 if killed); graphics exiting before it was up,
-or refusing its options (2), stops the rig as any service does (a mistake in how it was started fails fast).
+:data:`OPTIONAL_ROLES`) does once it was up (had answered the rig's Hello, or, without ``--score``, still ran when
+the rig stopped waiting for it), the rig says so and the others play on, its exit status at the end graphics' code
+(0 if it exited with 0, 1 if killed); graphics exiting before it was up, or refusing its options (2), stops the rig as
+any service does (a mistake in how it was started fails fast; exit 1 for a 0 then: no script reads it as success).
 ``--record DIR``: sound records to ``DIR/performance.wav`` (under a hidden part name until it stops; it names the
 take only when it stops cleanly, so a take cut short never replaces an earlier one, and stays in its part file,
 which the rig names).
@@ -103,9 +104,10 @@ READY_POLL_S = 0.5
 READY_PROGRESS_S = 5.0
 """Seconds between the rig's "waiting for ..." lines while its services start."""
 OPTIONAL_ROLES = ("graphics",)
-"""Services the show goes on without: when one exits once it was up (:attr:`Rig.up`), the rig says so and physics,
-interaction and sound play on (a walkthrough's SIGKILLed view took the audio down mid-set). Its exit status at the
-end still says it failed. One that exits before it was up, or with 2 (it refused its options), stops the rig. Not
+"""Services the show goes on without: when one exits once it was up (:meth:`Rig.was_up`: it answered, or ran past
+the ready wait), the rig says so and physics, interaction and sound play on (a walkthrough's SIGKILLed view took the
+audio down mid-set). Its exit status at the end still says it failed. One that exits before it was up (exit 1 for a
+0), or with 2 (it refused its options), stops the rig. Not
 sound: the take (``--record``) and what is heard are its; nor physics (the drummer, the clock master) or interaction
 (sound's impacts)."""
 
@@ -619,8 +621,14 @@ class Rig:
         """:data:`OPTIONAL_ROLES` that exited on their own while the others played on: role -> exit code."""
         self.up: dict[str, float] = {}
         """Role -> rig time it first answered the rig's Hello, seconds (:meth:`_wait_ready`; empty without
-        ``ready``). Only an :data:`OPTIONAL_ROLES` service that was up plays on without it when it exits: one that
-        exits before (a typo in ``--graphics-arg``) is a mistake in how the rig was started, which stops it."""
+        ``ready``). Only an :data:`OPTIONAL_ROLES` service that was up (or :attr:`past_start`) plays on without it
+        when it exits: one that exits before (a typo in ``--graphics-arg``) is a mistake in how the rig was started,
+        which stops it."""
+        self.past_start: set[str] = set()
+        """:data:`OPTIONAL_ROLES` still running when the ready wait ended with the rig running on (no ``--score``:
+        past ``--ready-timeout``, or the services could not be asked) without their answer: counted as up, past their
+        start (the rig listens no more; until the day after 7 Dec a graphics answering only then, killed mid-show,
+        stopped physics, interaction and sound "before it was up")."""
         self.arm_child = stop_with_the_rig()
 
     async def _pump(self, role: str, stream: asyncio.StreamReader | None, to: Output) -> None:
@@ -639,6 +647,16 @@ class Rig:
             # a last line cut short is ended here, else the next line written would be glued to it
             to.write(f"[{role:<{width}}] {text}" + ("" if text.endswith("\n") else "\n"))
 
+    def was_up(self, role: str) -> bool:
+        """Whether ``role`` answered the rig's Hello (:attr:`up`) or ran past the ready wait (:attr:`past_start`)."""
+        return role in self.up or role in self.past_start
+
+    def _past_start(self) -> None:
+        """The ready wait ends with the rig running on: every :data:`OPTIONAL_ROLES` service still running is past
+        its start (:attr:`past_start`)."""
+        self.past_start.update(role for role, proc in self.procs.items() if role in OPTIONAL_ROLES
+                               and proc.returncode is None and role not in self.exit_codes)
+
     async def _watch(self, role: str, proc: asyncio.subprocess.Process) -> None:
         code = await exited(proc)
         self.exit_codes[role] = code
@@ -650,18 +668,21 @@ class Rig:
             # refuses its options (2), says the rig was started wrong, which should fail fast (until the day after
             # 7 Dec the others played on, and the rig said its services were up "but graphics, which exited")
             optional = role in OPTIONAL_ROLES and running
-            if optional and role in self.up and code != USAGE:
+            if optional and self.was_up(role) and code != USAGE:
                 self.lost[role] = code
                 # the code it will exit with: exit_code's, this role's (the first failure: another stops the rig)
                 will = f"; it will exit {code if code > 0 else 1}: {role} failed" if code else ""
                 self.err.write(f"batteur rig: {role} {describe_exit(code)}; {', '.join(running)} play on without "
                                f"it (Ctrl-C stops the rig{will})\n")
             else:
-                why = ""
+                why = will = ""
                 if optional:  # why this one stops the show where a graphics that was up would not
-                    why = " before it was up" if role not in self.up else ""
+                    why = " before it was up" if not self.was_up(role) else ""
                     why += " (it refused its options)" if code == USAGE else ""
-                self.err.write(f"batteur rig: {role} {describe_exit(code)}{why}; stopping the rig\n")
+                    if code == 0:  # not up, yet "success": a script's `batteur rig ... && next` would go on
+                        self.failures.setdefault(role, FAILED)
+                        will = f" (it will exit {FAILED}: {role} ended before it was up)"
+                self.err.write(f"batteur rig: {role} {describe_exit(code)}{why}; stopping the rig{will}\n")
                 self.stopping.set()
         await end_group(proc.pid)
 
@@ -736,6 +757,10 @@ class Rig:
             if ready.play_at_s is None:  # no score waits on them: said, and the rig runs on (as past the timeout)
                 self.err.write(f"batteur rig: warning: cannot ask the services whether they are up: "
                                f"{exc.strerror or exc}; the rig runs on (batteur ls tells when they answer)\n")
+                # graphics failing at start-up (its HTTP port taken) still stops the rig until the timeout, as when
+                # asked; one running then is past its start
+                await asyncio.sleep(max(0.0, ready.timeout_s - (time.monotonic() - launched)))
+                self._past_start()
                 return
             self._give_up(f"cannot ask the services whether they are up: {exc.strerror or exc}")
             return
@@ -757,6 +782,7 @@ class Rig:
                         self.err.write(f"batteur rig: warning: {names} not up within --ready-timeout "
                                        f"{ready.timeout_s:g} s of launch (no answer to a Hello{unsent}); the rig runs "
                                        "on (batteur ls tells when they answer)\n")
+                        self._past_start()
                         return
                     self._give_up(f"{names} not up within --ready-timeout {ready.timeout_s:g} s of launch (no answer "
                                   f"to a Hello{unsent}); stopping the rig")
