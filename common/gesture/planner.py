@@ -18,7 +18,8 @@ the beats.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Mapping
+import bisect
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -68,6 +69,19 @@ open at the next closed note 0.25 s after the open one, and 9 cm let them meet a
 HIHAT_CLOSE_TAIL_FROM = 0.25
 """... joining that fall this far (a fraction of ``hihat_close_s``) into it, its foot 2.5 cm above rest: well before
 the plates meet (at half of it)."""
+HIHAT_OPEN_AFTER_S = 0.01
+"""An open hi-hat's pedal rise starts at the earliest this long after the previous closed hi-hat stroke (the foot
+rests 1 cm past the plates' meeting: they part well after)."""
+HIHAT_OPEN_LEAD_S = 0.02
+"""... and reaches its lift at the latest this long before the open note."""
+HIHAT_OPEN_HOLD_S = 0.02
+"""The pedal held up at least this long after the open note (the stick's contact) before the foot lets it down."""
+HIHAT_MEET_FRACTION = 0.5
+"""The plates meet about this far into the let-down (215 ms after the note, 0.095 s into 0.2 s)."""
+HIHAT_CLOSED_BY_S = 0.02
+"""... at the latest this long before the next closed hi-hat stroke."""
+HIHAT_OPEN_MIN_S = 0.02
+"""An open window whose rise or fall the neighbours leave shorter than this is not lifted."""
 FOOT_RISE_SPEED = 0.6
 """A foot's lift above its pedal (rest height plus stroke lift) is at most this times the time since its
 previous stroke, m/s. Without it a kick double 90 ms apart was planned as a 9 cm lift and fall (4.5 m/s) and
@@ -565,22 +579,95 @@ def _open_hihat(
     opens: list[float],
     foot_strokes: list[float],
     cfg: PlannerConfig,
+    closed: Sequence[float] = (),
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Lift the hi-hat foot (pedal up, hi-hat open) around open hi-hat notes when the foot is resting.
 
-    Windows [t - 80 ms, t + 120 ms] of open notes are merged; the pedal rises over the 0.1 s before a window
-    and falls over ``hihat_close_s`` after it. A lift above ``HIHAT_CLOSE_TAIL_M`` falls quickly to the path a
-    fall from that height would take at ``HIHAT_CLOSE_TAIL_FROM`` of it and follows it from there: the plates meet
-    when and as slowly as they did after a lift of that height. A window is used only
-    when the foot plays no pedal stroke within ``foot_cycle`` of it (its lift would start inside).
+    Windows [t - 80 ms, t + 120 ms] of open notes are merged (when no closed hi-hat note, ``closed``, lies between
+    them); the pedal rises over the 0.1 s before a window and falls over ``hihat_close_s`` after it. A lift above
+    ``HIHAT_CLOSE_TAIL_M`` falls quickly to the path a fall from that height would take at
+    ``HIHAT_CLOSE_TAIL_FROM`` of it and follows it from there: the plates meet when and as slowly as they did after
+    a lift of that height. A window is used only when the foot plays no pedal stroke within ``foot_cycle`` of it
+    (its lift would start inside), but for a pedal stroke after its open notes and before the next closed one:
+    that chick is the close, the foot coming down into it from the lift (at its planned contact and speed).
+
+    The closed hi-hat notes around a window shape it, as a drummer opens after the previous closed stroke and
+    closes for the next one: the rise starts ``HIHAT_OPEN_AFTER_S`` after the previous one (and ends at the
+    latest ``HIHAT_OPEN_LEAD_S`` before the open note), the plates meet (``HIHAT_MEET_FRACTION`` into the fall)
+    ``HIHAT_CLOSED_BY_S`` before the next one: the hold after the note shrinks first (to ``HIHAT_OPEN_HOLD_S``),
+    then the fall. A shorter rise or fall lifts less, in proportion (at 16ths at 120 bpm, 7 cm lifted over 0.1 s
+    and let down over 0.2 s took in the closed notes on either side: open).
     """
+    hat = sorted(closed)
     windows: list[list[float]] = []
     for t in sorted(opens):
-        if windows and t - 0.08 - 0.1 <= windows[-1][1] + cfg.hihat_close_s:  # no close and reopen between
-            windows[-1][1] = t + 0.12
+        between = windows and bisect.bisect_right(hat, windows[-1][3]) < bisect.bisect_left(hat, t)
+        if windows and not between and t - 0.08 - 0.1 <= windows[-1][1] + cfg.hihat_close_s:
+            windows[-1][1], windows[-1][3] = t + 0.12, t  # no close and reopen between
         else:
-            windows.append([t - 0.08, t + 0.12])
+            windows.append([t - 0.08, t + 0.12, t, t])  # [lift reached, let down from, first and last note]
     strokes = np.sort(np.array(foot_strokes, dtype=float))
+    # the knots of each window: (times, lifts above rest (m), vertical velocities (m/s), the rest under a chick it
+    # joins or None), from its rise's start to its fall's end (or the chick's contact, a knot of the track kept)
+    shapes: list[tuple[list[float], list[float], list[float], np.ndarray | None]] = []
+    for w0, w1, t0, t1 in windows:
+        a, b = w0 - 0.1, w1 + cfg.hihat_close_s
+        i = bisect.bisect_left(hat, t0)
+        before = hat[i - 1] if i else -np.inf
+        after = hat[bisect.bisect_right(hat, t1)] if bisect.bisect_right(hat, t1) < len(hat) else np.inf
+        k = int(np.searchsorted(strokes, a - cfg.foot_cycle, side="right"))  # the first stroke after a - cycle
+        chick = None  # a pedal stroke after the open notes, before any closed one: it closes the hi-hat
+        if k < len(strokes) and strokes[k] < b + cfg.foot_cycle + 0.01:
+            if not t1 + HIHAT_OPEN_HOLD_S + HIHAT_OPEN_MIN_S < strokes[k] < after:
+                continue
+            chick = float(strokes[k])
+        lift, fall = cfg.hihat_open_lift, cfg.hihat_close_s
+        if before + HIHAT_OPEN_AFTER_S > a:  # the rise after the previous closed stroke, shorter: a lower lift
+            a = before + HIHAT_OPEN_AFTER_S
+            w0 = min(max(w0, a + 0.1), t0 - HIHAT_OPEN_LEAD_S)
+            if w0 - a < HIHAT_OPEN_MIN_S:
+                continue
+            lift = min(lift, cfg.hihat_open_lift * (w0 - a) / 0.1)
+        if chick is not None:
+            # the foot holds the pedal up and comes down into the chick: the chick's own knot (its contact, at its
+            # strike velocity) is kept, and the foot leaves the lift as far before it as a fall at 2/3 of that
+            # speed takes (a cubic into the strike velocity, never braking before it); with less time, a lower lift
+            j = int(np.searchsorted(times, chick, side="left"))
+            if j == 0 or j >= len(times) or abs(times[j] - chick) > 1e-9 or a <= times[0]:
+                continue
+            speed = max(float(np.linalg.norm(vel[j])), 1e-3)
+            # the lift from the foot's rest under the chick (the track at a may be on the chick's own way up)
+            rest = pos[j] - cfg.foot_rest_height * vel[j] / speed
+            above = float(pos[j][2] - rest[2])  # the chick's contact over the rest, metres
+            down = min(1.5 * (lift - above) / speed, chick - t1 - HIHAT_OPEN_HOLD_S)
+            lift = min(lift, above + down * speed / 1.5)
+            if down < HIHAT_OPEN_MIN_S or lift < above + 0.01:
+                continue
+            shapes.append(([a, w0, chick - down, chick], [0.0, lift, lift, 0.0], [0.0, 0.0, 0.0, 0.0], rest))
+            continue
+        room = after - HIHAT_CLOSED_BY_S - t1  # from the last open note to the plates' meeting
+        if room < 0.12 + HIHAT_MEET_FRACTION * fall:  # the hold after the note shorter, then the fall
+            w1 = t1 + max(room - HIHAT_MEET_FRACTION * fall, HIHAT_OPEN_HOLD_S)
+            fall = min(fall, (after - HIHAT_CLOSED_BY_S - w1) / HIHAT_MEET_FRACTION)
+            if fall < HIHAT_OPEN_MIN_S:
+                continue
+            lift = min(lift, cfg.hihat_open_lift * fall / cfg.hihat_close_s)
+            b = w1 + fall
+        knots_t, knots_h, knots_v = [a, w0, w1], [0.0, lift, lift], [0.0, 0.0, 0.0]
+        if lift > HIHAT_CLOSE_TAIL_M:
+            u = HIHAT_CLOSE_TAIL_FROM  # a zero-velocity cubic fall of height H over D: H (1 - 3u^2 + 2u^3) at u = t/D
+            knots_t.append(w1 + u * fall)
+            knots_h.append(HIHAT_CLOSE_TAIL_M * (1.0 - 3.0 * u**2 + 2.0 * u**3))
+            knots_v.append(-HIHAT_CLOSE_TAIL_M * 6.0 * u * (1.0 - u) / fall)
+        shapes.append((knots_t + [b], knots_h + [0.0], knots_v + [0.0], None))
+    # a window's let-down may reach past the next one's rise (a closed note between them): it ends sooner
+    for j in range(len(shapes) - 1):
+        ts, nxt = shapes[j][0], shapes[j + 1][0][0]
+        if ts[-1] >= nxt and shapes[j][3] is None:
+            ts[-1] = nxt - 1e-3
+            while len(ts) > 2 and ts[-2] >= ts[-1] - 1e-3:  # a tail knot it overtook
+                for part in shapes[j][:3]:
+                    del part[-2]
     # one pass, splicing each window in where it falls: windows are disjoint and increasing, so the knots around
     # a window are the last one spliced in and the originals after it (re-sorting the whole track per window
     # made a long score with many open hi-hats quadratic: 200,000 notes took minutes)
@@ -588,36 +675,35 @@ def _open_hihat(
     out_p: list[np.ndarray] = []
     out_v: list[np.ndarray] = []
     done = 0  # originals before this index are out (kept or replaced)
-    up = np.array([0.0, 0.0, cfg.hihat_open_lift])
     zero = np.zeros(3)
-    tail_dt: list[float] = []  # the knot joining a fall from HIHAT_CLOSE_TAIL_M (a higher lift): after w1, s
-    tail_h: list[np.ndarray] = []
-    tail_v: list[np.ndarray] = []
-    if cfg.hihat_open_lift > HIHAT_CLOSE_TAIL_M:
-        u = HIHAT_CLOSE_TAIL_FROM  # a zero-velocity cubic fall of height H over D: H (1 - 3u^2 + 2u^3) at u = t / D
-        tail_dt = [u * cfg.hihat_close_s]
-        tail_h = [np.array([0.0, 0.0, HIHAT_CLOSE_TAIL_M * (1.0 - 3.0 * u**2 + 2.0 * u**3)])]
-        tail_v = [np.array([0.0, 0.0, -HIHAT_CLOSE_TAIL_M * 6.0 * u * (1.0 - u) / cfg.hihat_close_s])]
-    for w0, w1 in windows:
-        a, b = w0 - 0.1, w1 + cfg.hihat_close_s
-        k = int(np.searchsorted(strokes, a - cfg.foot_cycle, side="right"))  # the first stroke after a - cycle
-        if k < len(strokes) and strokes[k] < b + cfg.foot_cycle + 0.01:
+    for knots_t, knots_h, knots_v, chick_rest in shapes:
+        joins = chick_rest is not None
+        a, b = knots_t[0], knots_t[-1]
+        if a <= times[0] or b >= times[-1] or knots_t[1] <= a or (out_t and a <= out_t[-1][-1]):
             continue
-        if a <= times[0] or b >= times[-1]:
-            continue
-        lo = int(np.searchsorted(times, a, side="left"))  # originals in [lo, hi) lie in [a, b]: replaced
-        hi = int(np.searchsorted(times, b, side="right"))
+        # originals in [lo, hi) lie in [a, b] (or a hair outside: a window shaped by its neighbours can end on a
+        # knot of the track, a time the physics then saw twice): replaced
+        lo = int(np.searchsorted(times, a - 1e-6, side="left"))
+        hi = int(np.searchsorted(times, b, side="left")) if joins else int(np.searchsorted(times, b + 1e-6, "right"))
+        if joins:  # the chick's knot (at b) and the track after it kept
+            knots_t, knots_h, knots_v = knots_t[:-1], knots_h[:-1], knots_v[:-1]
         near = slice(done, hi + 1)  # up to the first original after b (b < times[-1])
         if out_t:  # the window before ends with its knot at its b, before these originals
-            ends, _ = hermite(np.concatenate([out_t[-1][-1:], times[near]]),
-                              np.concatenate([out_p[-1][-1:], pos[near]]),
-                              np.concatenate([out_v[-1][-1:], vel[near]]), np.array([a, b]))
+            ends, ends_v = hermite(np.concatenate([out_t[-1][-1:], times[near]]),
+                                   np.concatenate([out_p[-1][-1:], pos[near]]),
+                                   np.concatenate([out_v[-1][-1:], vel[near]]), np.array([a, b]))
         else:
-            ends, _ = hermite(times[near], pos[near], vel[near], np.array([a, b]))
+            ends, ends_v = hermite(times[near], pos[near], vel[near], np.array([a, b]))
         rest_a, rest_b = ends[0], ends[1]
-        out_t += [times[done:lo], np.array([a, w0, w1, *(w1 + d for d in tail_dt), b])]
-        out_p += [pos[done:lo], np.array([rest_a, rest_a + up, rest_b + up, *(rest_b + h for h in tail_h), rest_b])]
-        out_v += [vel[done:lo], np.array([zero, zero, zero, *tail_v, zero])]
+        rests = [rest_a, rest_a] + [rest_b] * (len(knots_t) - 2)
+        knots_p = [r + np.array([0.0, 0.0, h]) for r, h in zip(rests, knots_h, strict=True)]
+        knots_vv = [zero if v == 0.0 else np.array([0.0, 0.0, v]) for v in knots_v]
+        if chick_rest is not None:  # from the track as it is at a (on the way up to the chick, maybe) to the lift
+            knots_p = [rest_a] + [chick_rest + np.array([0.0, 0.0, h]) for h in knots_h[1:]]
+            knots_vv[0] = ends_v[0]
+        out_t += [times[done:lo], np.array(knots_t)]
+        out_p += [pos[done:lo], np.array(knots_p)]
+        out_v += [vel[done:lo], np.array(knots_vv)]
         done = hi
     if not out_t:
         return times, pos, vel
@@ -794,7 +880,8 @@ def plan_gestures(
             progress(laid, len(notes))
         if EventType.HIHATPEDAL in kit.events and limb == kit.spec(EventType.HIHATPEDAL).preferred:
             opens = [n.time for n in notes if n.event == EventType.HIHATOPEN]
-            times, pos, vel = _open_hihat(times, pos, vel, opens, [s.time for s in strokes], cfg)
+            hat_closed = [n.time for n in notes if n.event == EventType.HIHATCLOSED]
+            times, pos, vel = _open_hihat(times, pos, vel, opens, [s.time for s in strokes], cfg, hat_closed)
         trajectories[limb] = LimbTrajectory(limb, times, pos, vel)
     planned.sort(key=lambda s: (s.time, s.limb.value))
     plan_end = max((tr.end_time for tr in trajectories.values()), default=end)

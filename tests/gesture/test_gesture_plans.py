@@ -321,3 +321,59 @@ def test_the_unit_builder_explains_on_help_and_writes_where_told(tmp_path: Path,
     assert synth.main(["--out", str(tmp_path)]) == 0
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(before)
     assert all((tmp_path / name).read_bytes() == (UNITS_DIR / name).read_bytes() for name in before)
+
+
+def _hihat_notes(gap_s: float, pattern: str) -> Score:
+    """Hi-hat notes ``gap_s`` apart from 0.5 s: C closed, O open, P pedal chick."""
+    kinds = {"C": (E.HIHATCLOSED, 42), "O": (E.HIHATOPEN, 46), "P": (E.HIHATPEDAL, 44)}
+    return Score([DrumEvent(0.5 + gap_s * k, kinds[ch][0], 0.7, pitch=kinds[ch][1]) for k, ch in enumerate(pattern)])
+
+
+@pytest.mark.parametrize("gap_s", [0.15, 0.125])
+def test_the_hihat_foot_opens_after_the_closed_16th_before_an_open_one_and_is_down_for_the_next(gap_s: float) -> None:
+    """16ths at 100 and 120 bpm: the pedal lifted at the open note, at rest at the closed note before it, and down
+    near it at the closed note after (the plates, which meet about half-way through the let-down, closed: 1.5 cm
+    over the rest, the lift of 0.18 s before to 0.32 s after the note took both in, held 7 cm at the one after)."""
+    score = _hihat_notes(gap_s, "CCCOCCC")
+    plan = plan_gestures(distribute(score, KIT), KIT, score)
+    hat = plan.trajectories[Limb.LEFT_FOOT]
+    rest = hat.sample(0.3).position[2]
+    t_open = 0.5 + 3 * gap_s
+    assert hat.sample(t_open).position[2] > rest + 0.04
+    assert hat.sample(t_open - gap_s).position[2] < rest + 0.002
+    assert hat.sample(t_open + gap_s).position[2] < rest + 0.015
+    assert np.all(np.diff(hat.times) > 1e-6)
+    jump_p, jump_v = largest_jumps(plan)
+    assert jump_p < 1e-7 and jump_v < 1e-4
+
+
+@pytest.mark.parametrize(("gap_s", "pattern"), [(0.25, "COPC"), (0.5, "COPC"), (0.15, "CCOPCC")])
+def test_the_hihat_foot_lifts_for_an_open_note_and_comes_down_into_the_pedal_chick_after_it(
+        gap_s: float, pattern: str) -> None:
+    """An open note closed by a pedal chick: the pedal lifted at the open note (the lift was skipped with a pedal
+    stroke 0.48 s before to 0.63 s after it: played closed), the chick's contact at its time and speed."""
+    score = _hihat_notes(gap_s, pattern)
+    alone = _hihat_notes(gap_s, pattern.replace("O", "C"))  # the same chick after a closed note
+    plan = plan_gestures(distribute(score, KIT), KIT, score)
+    hat = plan.trajectories[Limb.LEFT_FOOT]
+    t_open = 0.5 + pattern.index("O") * gap_s
+    t_chick = t_open + gap_s
+    rest = hat.sample(0.3).position[2]
+    assert rest + 0.04 < hat.sample(t_open).position[2] < rest + PlannerConfig().hihat_open_lift + 1e-3
+    ref = plan_gestures(distribute(alone, KIT), KIT, alone).trajectories[Limb.LEFT_FOOT]
+    np.testing.assert_allclose(hat.sample(t_chick).position, ref.sample(t_chick).position, atol=1e-9)
+    np.testing.assert_allclose(hat.sample(t_chick).velocity, ref.sample(t_chick).velocity, atol=1e-9)
+    assert np.all(np.diff(hat.times) > 1e-6)  # the physics refused a plan with a knot time twice
+    jump_p, jump_v = largest_jumps(plan)
+    assert jump_p < 1e-7 and jump_v < 1e-4
+
+
+@pytest.mark.parametrize(("gap_s", "pattern"), [(0.15, "CCOPCC"), (0.2, "OCOCCOCPOOC")])
+def test_open_hihat_windows_shaped_by_their_neighbours_keep_the_foot_s_knot_times_apart(
+        gap_s: float, pattern: str) -> None:
+    """A window's rise starting 10 ms after a closed note, or its let-down ending where the hold after the note and
+    the let-down were shortened, fell on a knot of the foot's track (1e-16 s apart): the physics refused the plan
+    ("not finite and strictly increasing")."""
+    score = _hihat_notes(gap_s, pattern)
+    plan = plan_gestures(distribute(score, KIT), KIT, score)
+    assert np.all(np.diff(plan.trajectories[Limb.LEFT_FOOT].times) > 1e-6)
