@@ -104,7 +104,7 @@ def split_times(model: type[OscMessage], texts: Sequence[str]) -> list[str] | No
     fields = model.wire_fields()
     if not fields or fields[-1].variadic or len(texts) != len(fields):
         return None
-    if not any(f.kind is WireKind.TIME for f in fields):
+    if not any(f.kind is WireKind.TIME for f in fields) or older_wire_form(model, texts):
         return None
     out: list[str] = []
     for f, text in zip(fields, texts, strict=True):
@@ -120,6 +120,36 @@ def split_times(model: type[OscMessage], texts: Sequence[str]) -> list[str] | No
     return out
 
 
+def older_wire_form(model: type[OscMessage], texts: Sequence[str]) -> bool:
+    """Whether ``texts``, one per field, are rather the wire form of a sender from before the message's last
+    appended fields (``APPENDED``: each rig time as its whole seconds and fraction, the appended fields left out:
+    a Contact's 17 arguments from before ``openness``), which has as many values: fewer of them of the wrong kind
+    read that way than as :func:`split_times`' one-number form (until 7 Dec the old form was read as the new one,
+    ``step: expected an integer, got 0.5``)."""
+    fields = model.wire_fields()
+    wire: list[WireKind] = []
+    for f in fields:
+        wire += [WireKind.INT, WireKind.FLOAT] if f.kind is WireKind.TIME else [f.kind]
+    if not model.APPENDED or not 0 < len(wire) - len(texts) <= len(model.APPENDED):
+        return False
+    one = [WireKind.FLOAT if f.kind is WireKind.TIME else f.kind for f in fields]
+    return _wrong_kinds(wire, texts) < _wrong_kinds(one, texts)
+
+
+def _wrong_kinds(kinds: Sequence[WireKind], texts: Sequence[str]) -> int:
+    """How many of ``texts`` would not be a value of their field's kind (``kinds``, in order)."""
+    wrong = 0
+    for kind, text in zip(kinds, texts, strict=False):
+        value = guess_arg(text)
+        if kind is WireKind.INT:
+            wrong += not isinstance(value, int)
+        elif kind is WireKind.FLOAT:
+            wrong += isinstance(value, str)
+        elif kind is WireKind.STR:
+            wrong += not isinstance(value, str)
+    return wrong
+
+
 def relative_times(model: type[OscMessage] | None, texts: Sequence[str]) -> dict[int, float]:
     """The rig times written ``+SECONDS`` (``play +2 0``: two seconds after the node's rig time when send runs),
     by their index in ``texts``, as those seconds. Only where a time is one number (:func:`split_times`'s form).
@@ -127,7 +157,7 @@ def relative_times(model: type[OscMessage] | None, texts: Sequence[str]) -> dict
     if model is None:
         return {}
     fields = model.wire_fields()
-    if not fields or fields[-1].variadic or len(texts) != len(fields):
+    if not fields or fields[-1].variadic or len(texts) != len(fields) or older_wire_form(model, texts):
         return {}
     out: dict[int, float] = {}
     for i, (f, text) in enumerate(zip(fields, texts, strict=True)):
