@@ -17,12 +17,9 @@ import time
 
 import pytest
 
-from common.config import load_settings
 from common.peers import Peer
-from common.runtime import Node
 from tests.ports import free_ports
-from tests.test_peer_silent import INTERVAL_S, node, said
-from tests.test_runtime import EchoCore
+from tests.test_peer_silent import node, said, started_pair
 from tests.waiting import wait_for
 
 pytestmark = pytest.mark.timeout(120)
@@ -32,10 +29,7 @@ def test_a_peer_that_said_goodbye_is_not_said_to_have_stopped_answering(caplog: 
     sound_port, graphics_port = free_ports(2)
 
     async def main() -> None:
-        sound = node("sound", sound_port, f"graphics=127.0.0.1:{graphics_port}")
-        graphics = node("graphics", graphics_port, f"sound=127.0.0.1:{sound_port}")
-        await sound.start()
-        await graphics.start()
+        sound, graphics = await started_pair(sound_port, graphics_port)
         try:
             sound.peers.add(Peer("graphics", "127.0.0.1", graphics_port, node_id="graphics-1"))  # as discovered
             await wait_for(lambda: "graphics-1" in sound.peer_health, timeout=60)
@@ -55,19 +49,13 @@ def test_a_peer_restarted_under_another_node_id_is_said_to_be_back(caplog: pytes
     sound_port, graphics_port = free_ports(2)
 
     async def main() -> None:
-        sound = node("sound", sound_port, f"graphics=127.0.0.1:{graphics_port}")
-        graphics = node("graphics", graphics_port, f"sound=127.0.0.1:{sound_port}")
-        await sound.start()
-        await graphics.start()
+        sound, graphics = await started_pair(sound_port, graphics_port)
         try:
             await wait_for(lambda: "graphics-1" in sound.peer_health, timeout=60)
             await graphics.stop()  # killed mid-set
             await wait_for(lambda: bool(said(caplog, "stopped answering")), timeout=60)
             # restarted by its own command: its port, its default id (role-host-pid), here graphics-2
-            again = Node(EchoCore(rate_hz=0.0), load_settings({
-                "role": "graphics", "node_id": "graphics-2", "port": graphics_port, "discovery": False,
-                "peers": [f"sound=127.0.0.1:{sound_port}"], "oscquery": False}),
-                health_interval_s=INTERVAL_S, clock_wait_s=0.2)
+            again = node("graphics", graphics_port, f"sound=127.0.0.1:{sound_port}", node_id="graphics-2")
             await again.start()
             try:
                 await wait_for(lambda: bool(said(caplog, "answers again")), timeout=60)

@@ -24,10 +24,21 @@ INTERVAL_S = 0.2
 """The nodes' health interval, seconds: a peer is silent after :data:`PEER_SILENT_HEALTHS` of them."""
 
 
-def node(role: str, port: int, peer: str) -> Node:
-    return Node(EchoCore(rate_hz=0.0), load_settings({"role": role, "node_id": f"{role}-1", "port": port,
+def node(role: str, port: int, peer: str, node_id: str = "") -> Node:
+    """A node of ``role`` on loopback ``port`` with the static ``peer`` (ROLE=HOST:PORT), id ``node_id`` (default
+    ROLE-1), Health every :data:`INTERVAL_S`."""
+    return Node(EchoCore(rate_hz=0.0), load_settings({"role": role, "node_id": node_id or f"{role}-1", "port": port,
                                                       "discovery": False, "peers": [peer], "oscquery": False}),
                 health_interval_s=INTERVAL_S, clock_wait_s=0.2)
+
+
+async def started_pair(sound_port: int, graphics_port: int) -> tuple[Node, Node]:
+    """A sound and a graphics node (sound-1, graphics-1), each the other's static peer, started."""
+    sound = node("sound", sound_port, f"graphics=127.0.0.1:{graphics_port}")
+    graphics = node("graphics", graphics_port, f"sound=127.0.0.1:{sound_port}")
+    await sound.start()
+    await graphics.start()
+    return sound, graphics
 
 
 def said(caplog: pytest.LogCaptureFixture, text: str) -> list[str]:
@@ -38,10 +49,7 @@ def test_a_peer_that_stops_is_said_to_once_and_again_when_it_is_back(caplog: pyt
     sound_port, graphics_port = free_ports(2)
 
     async def main() -> None:
-        sound = node("sound", sound_port, f"graphics=127.0.0.1:{graphics_port}")
-        graphics = node("graphics", graphics_port, f"sound=127.0.0.1:{sound_port}")
-        await sound.start()
-        await graphics.start()
+        sound, graphics = await started_pair(sound_port, graphics_port)
         try:
             await wait_for(lambda: "graphics-1" in sound.peer_health, timeout=60)
             assert not said(caplog, "stopped answering")  # answering all along
