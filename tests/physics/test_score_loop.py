@@ -7,6 +7,7 @@ planned notes (``ScorePlayer.events``, rig seconds) and the plans' strokes are w
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
 from pathlib import Path
@@ -177,20 +178,29 @@ def test_negative_bars_are_refused_by_the_transport() -> None:
         ScoreLoop.from_args([-1, 2])
 
 
-def test_the_live_node_loops_through_its_background_plans(tmp_path: Path) -> None:
-    """The loop and its later passes are planned in the node's worker (here a thread), in their turn."""
+def _live_player(tmp_path: Path) -> tuple[LivePhysicsCore, ScorePlayer]:
+    """The live core planning in its worker (a thread), loaded, five.txt loaded (:func:`_player`); close it after."""
     core = LivePhysicsCore(planner="thread", scene="drummer", kit=load_kit("default"), grip="german",
                            pose_rate_hz=0)
-    try:
-        player = core.score_player
-        assert player.wait_loaded(120.0) and player.background
-        _player(tmp_path, core)
+    player = core.score_player
+    assert player.wait_loaded(120.0) and player.background
+    _player(tmp_path, core)
+    return core, player
 
-        def settle(now: float) -> None:
-            player.pump(now)
-            while player.busy:
-                assert player.wait(60.0)
-                player.pump(now)
+
+def _settle(player: ScorePlayer, now: float) -> None:
+    """Pump ``player`` at rig time ``now`` (s) until no plan is in flight or waiting."""
+    player.pump(now)
+    while player.busy:
+        assert player.wait(60.0)
+        player.pump(now)
+
+
+def test_the_live_node_loops_through_its_background_plans(tmp_path: Path) -> None:
+    """The loop and its later passes are planned in the node's worker (here a thread), in their turn."""
+    core, player = _live_player(tmp_path)
+    try:
+        settle = functools.partial(_settle, player)
 
         core.handle(ScoreTransport(action="play", time=1.5, position=0.0), 0.0, SENDER)
         core.handle(ScoreLoop(first=3, last=4), 0.0, SENDER)  # waits behind the play's plan
@@ -408,19 +418,10 @@ def test_a_score_loaded_while_the_playing_one_loops_ends_its_loop_as_loop_off_do
 
 def test_the_live_node_ends_the_playing_scores_loop_at_a_load_in_its_worker(tmp_path: Path) -> None:
     """The same through the node's background plans: the load's re-plan runs in the worker, in its turn."""
-    core = LivePhysicsCore(planner="thread", scene="drummer", kit=load_kit("default"), grip="german",
-                           pose_rate_hz=0)
+    core, player = _live_player(tmp_path)
     try:
-        player = core.score_player
-        assert player.wait_loaded(120.0) and player.background
-        _player(tmp_path, core)
         (tmp_path / "snares.txt").write_text(SNARES, encoding="utf-8")
-
-        def settle(now: float) -> None:
-            player.pump(now)
-            while player.busy:
-                assert player.wait(60.0)
-                player.pump(now)
+        settle = functools.partial(_settle, player)
 
         core.handle(ScoreTransport(action="play", time=1.5, position=0.0), 0.0, SENDER)
         core.handle(ScoreLoop(first=3, last=4), 0.0, SENDER)
