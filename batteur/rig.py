@@ -4,7 +4,8 @@ Each service runs as ``python -m batteur ROLE`` with its own UDP port (base
 port + 0 physics, + 1 interaction, + 2 sound, + 3 graphics), the same rig
 epoch (so all local nodes share one rig clock), static peers for the others
 (so the rig works where loopback has no multicast; ``--no-static-peers``
-leaves finding each other to zeroconf alone) and, unless ``--no-discovery``,
+leaves finding each other to zeroconf alone; ``BATTEUR_PEERS`` in the rig's
+environment adds to them: :func:`environment_peers`) and, unless ``--no-discovery``,
 zeroconf discovery on the given interfaces.
 Each service's output lines are prefixed with its role, its stdout on the rig's stdout and its stderr (its log)
 on the rig's stderr. Ctrl-C (SIGINT), SIGTERM or SIGHUP
@@ -274,6 +275,37 @@ def node_static_peers(cli_peers: Sequence[str], own: Sequence[str], role: str,
     return peers, source if peers else ""
 
 
+def environment_peers(given: Sequence[str], environ: Mapping[str, str] | None = None) -> list[str]:
+    """The ``--peer`` values a rig's service also gets from ``BATTEUR_PEERS`` of ``environ`` (None: the rig's
+    environment), given ``--peer`` values ``given`` (the rig's static peers and its ``--ROLE-arg``'s): those of its
+    peers not among them, in order; none when ``given`` is empty (the node reads the variable itself). A node given
+    ``--peer`` ignores the variable (a flag replaces the environment's list), so until 8 Dec the rig's own static
+    peers, which the user never typed, silently dropped it: ``BATTEUR_PEERS=physics=10.0.0.5:9101 batteur rig
+    --services sound,graphics`` left sound without its physics. :class:`UsageError` for a peer no node would take."""
+    from common.config import ENV_PREFIX
+    from common.peers import parse_static_peer
+
+    env = os.environ if environ is None else environ
+    value = env.get(f"{ENV_PREFIX}PEERS") or ""
+    if not given or not value.strip():
+        return []
+    have = set()
+    for spec in given:
+        with contextlib.suppress(ValueError):  # a bad --ROLE-arg peer: the node refuses it, saying why
+            have.add(parse_static_peer(spec.strip()).node_id)
+    added = []
+    for spec in filter(None, (v.strip() for v in value.split(","))):
+        try:
+            peer = parse_static_peer(spec)
+        except ValueError as exc:
+            raise UsageError(f"{ENV_PREFIX}PEERS={value}: {exc} (the rig's services take its peers beside the "
+                             "ones the rig gives them)") from None
+        if peer.node_id not in have:
+            have.add(peer.node_id)
+            added.append(spec)
+    return added
+
+
 def plan_rig(opts: argparse.Namespace, epoch: float, environ: Mapping[str, str] | None = None) -> list[ServicePlan]:
     """The services to start, each with its port, peers, epoch and own arguments; ``environ``: the environment the
     services inherit (None: the rig's), where a node's ``BATTEUR_PEERS`` or config file may give it peers."""
@@ -302,6 +334,10 @@ def plan_rig(opts: argparse.Namespace, epoch: float, environ: Mapping[str, str] 
             for other in roles:
                 if other != role:
                     args += ["--peer", f"{other}={peer_host(hosts[other])}:{ports[other]}"]
+        # BATTEUR_PEERS adds to the --peer the node is given (the rig's, its --ROLE-arg's), which would replace it
+        given = [*option_values(args, "--peer"), *option_values(own[role], "--peer")]
+        for spec in environment_peers(given, environ):
+            args += ["--peer", spec]
         # A role not started is absent (no "no graphics peer known" every minute) only where no node of it can be
         # expected: with no discovery, or with this service on loopback (a node of it would be one started apart on
         # this machine, still found and sent to), and no static peer of it among those the node will hold: its
@@ -562,6 +598,11 @@ def up_line(plans: Sequence[ServicePlan], up: Mapping[str, float], elapsed_s: fl
         for plan in plans:
             peers, source = node_static_peers(option_values(plan.args, "--peer"), plan.args, plan.role, environ)
             known = next((peer for peer in peers if peer.role == "physics"), None)
+            env = os.environ if environ is None else environ
+            if known is not None and source == "--peer" and any(  # added to the rig's --peer (environment_peers)
+                    spec.strip() == f"{known.role}={format_address(known.host, known.port)}"
+                    for spec in (env.get("BATTEUR_PEERS") or "").split(",")):
+                source = "BATTEUR_PEERS"
             if known is not None:
                 return (line + f": ready; physics is not started by this rig: {send} to it at "
                         f"{format_address(known.host, known.port)} ({plan.role}'s static peer, {source}; "
@@ -949,7 +990,7 @@ def build_parser() -> argparse.ArgumentParser:
                         help="static peers only, no zeroconf (default: zeroconf on --interfaces too)")
     parser.add_argument("--no-static-peers", action="store_true",
                         help="find each other by zeroconf only (needs multicast on the interfaces; default: each "
-                        "service also gets the others' ports)")
+                        "service also gets the others' ports, and BATTEUR_PEERS's peers beside them)")
     parser.add_argument("--interfaces", default="", metavar="ADDRESSES",
                         help="comma-separated addresses or interface names for zeroconf (default: loopback)")
     parser.add_argument("--start-delay", type=non_negative, default=3.0, metavar="SECONDS",

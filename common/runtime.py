@@ -1126,6 +1126,7 @@ class Node:
             errors=self.step_errors + core_count(self.core, "core_errors"),
             duplicates=core_count(self.core, "duplicates"),
             wrong_node_unanswered=self.wrong_node_unanswered,
+            skipped_steps=core_count(self.core, "skipped_steps"),  # physics only: steps it could not simulate in time
         )
 
     async def _health_task(self) -> None:

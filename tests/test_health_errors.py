@@ -28,7 +28,7 @@ pytestmark = pytest.mark.timeout(120)
 HEALTH = Health(node_id="fake-1", role="sound", protocol=1, time=1.5, rate_hz=187.0, target_rate_hz=187.5,
                 overruns=0, messages_in=1, messages_out=1, dropped=3, dropped_malformed=0, dropped_unknown=0,
                 dropped_type=0, dropped_range=0, dropped_other=3, late=0, peers=3, errors=5, duplicates=24,
-                wrong_node_unanswered=7)
+                wrong_node_unanswered=7, skipped_steps=9)
 
 
 class FailingCore:
@@ -72,7 +72,7 @@ def test_a_failing_core_shows_in_health_and_its_first_failure_has_a_traceback(
 
 def test_the_fields_are_appended_and_an_older_nodes_health_decodes() -> None:
     names = [f.name for f in Health.wire_fields()]
-    since = len(names) - names.index("errors")  # they and the fields appended after them (wrong_node_unanswered)
+    since = len(names) - names.index("errors")  # they and the fields appended after them (wrong_node_unanswered, ...)
     assert names[-since:][:2] == ["errors", "duplicates"] and Health.APPENDED[-since:] == tuple(names[-since:])
     args = HEALTH.to_args()
     assert Health.from_args(args) == HEALTH
@@ -92,7 +92,8 @@ def test_ls_shows_the_errors(capsys: pytest.CaptureFixture[str]) -> None:
         assert (row["errors"], row["duplicates"]) == (5, 24)
         assert ls.main(["--node", f"127.0.0.1:{node.port}", "--timeout", "3"]) == 0
         header, line = capsys.readouterr().out.splitlines()[:2]
-        # after the status: rate/target Hz, late, dropped (the header's "node id" and "rate/target Hz" two words)
-        assert header.split()[9] == "errors" and line.split()[7] == "5"
+        # after the status: rate/target Hz, late, skipped, dropped (the header's "node id" and "rate/target Hz" two
+        # words)
+        assert header.split()[10] == "errors" and line.split()[8] == "5"
     finally:
         node.close()

@@ -45,7 +45,19 @@ def test_the_physics_node_reports_how_far_its_targets_trail_the_rig_clock() -> N
 
 def test_other_nodes_report_no_target_lag() -> None:
     health, _ = asyncio.run(health_after(NullCore(), "sound", []))
-    assert (health.target_lag, health.target_jumps) == (0.0, 0)
+    assert (health.target_lag, health.target_jumps, health.skipped_steps) == (0.0, 0, 0)
+
+
+def test_the_physics_node_reports_the_steps_it_skipped() -> None:
+    """Health's ``skipped_steps`` (appended 8 Dec; ``batteur ls``'s column skipped): until then only the "behind
+    real time" warnings in physics' log counted them."""
+    core = PhysicsCore(scene="strike")
+    try:
+        core.skipped_steps = 4321  # as a live core whose loop fell behind leaves it
+        health, _ = asyncio.run(health_after(core, "physics", []))
+    finally:
+        core.close()
+    assert health.skipped_steps == 4321
 
 
 def test_the_fields_are_appended_and_an_older_nodes_health_still_decodes() -> None:

@@ -69,3 +69,16 @@ def test_the_help_says_the_rule(capsys: pytest.CaptureFixture[str]) -> None:
         ls.main(["--help"])
     text = " ".join(capsys.readouterr().out.split())
     assert "behind" in text and "under half its target rate" in text
+
+
+def test_the_skipped_steps_are_a_column_and_in_the_json(capsys: pytest.CaptureFixture[str]) -> None:
+    """Physics' simulation steps skipped to follow the rig clock (Health's ``skipped_steps``, appended 8 Dec): until
+    then only its log's "behind real time" warnings counted them, and ``batteur ls`` (table and ``--json``) had no
+    field for them: a node behind for minutes and one behind for a second looked alike."""
+    behind = PHYSICS.model_copy(update={"skipped_steps": 123456})
+    code, out = listed(behind, capsys)
+    header, row = out.splitlines()
+    assert code == 0
+    assert header.split()[7:9] == ["late", "skipped"] and row.split()[5:7] == ["16513", "123456"], (header, row)
+    code, out = listed(behind, capsys, "--json")
+    assert json.loads(out)[0]["skipped_steps"] == 123456

@@ -42,8 +42,22 @@ def test_physics_elsewhere_is_named_where_the_services_send_to_it() -> None:
     assert said.endswith(f": ready; physics is not started by this rig: {SEND} to it at 192.0.2.7:9101 (sound's "
                          "static peer, BATTEUR_PEERS; docs/live-control.md)\n"), said
     given = rig.ServicePlan("sound", 9103, ["--peer", "graphics=127.0.0.1:9104", "--peer", "physics=192.0.2.8:9101"])
-    said = line([given], {"BATTEUR_PEERS": "physics=192.0.2.7:9101"})  # --peer replaces BATTEUR_PEERS
+    said = line([given], {"BATTEUR_PEERS": "physics=192.0.2.7:9101"})  # the first physics of its --peer
     assert "to it at 192.0.2.8:9101 (sound's static peer, --peer;" in said, said
+
+
+def test_physics_in_batteur_peers_beside_the_rigs_peers_is_named() -> None:
+    """``BATTEUR_PEERS=physics=... batteur rig --services sound,graphics``: the rig gives sound ``--peer graphics=...``,
+    which replaced the variable in sound's settings until 8 Dec: sound never sent to that physics, and the line said
+    "physics is not started by this rig" with no address. The rig now adds the variable's peers to its own."""
+    environ = {"BATTEUR_PEERS": "physics=192.0.2.7:9101"}
+    opts = rig.build_parser().parse_args(["--services", "sound,graphics"])
+    plans = rig.plan_rig(opts, epoch=0.0, environ=environ)
+    sound = next(plan for plan in plans if plan.role == "sound")
+    assert rig.option_values(sound.args, "--peer") == ["graphics=127.0.0.1:9104", "physics=192.0.2.7:9101"]
+    said = line(plans, environ)
+    assert said.endswith(f": ready; physics is not started by this rig: {SEND} to it at 192.0.2.7:9101 (sound's "
+                         "static peer, BATTEUR_PEERS; docs/live-control.md)\n"), said
 
 
 def test_physics_nowhere_known_is_said_not_started_by_the_rig() -> None:

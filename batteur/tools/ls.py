@@ -39,10 +39,10 @@ from common.transport import UdpEndpoint, parse_address
 DESCRIPTION = """\
 List the Batteur nodes found by zeroconf (or given with --node), each with the Health it
 answers to a Hello: role, node id, address, status, loop rate against its target, late events,
-dropped messages, errors (failures inside the service, such as a drum whose strikes fail: its log
-has the first with its traceback), peers, and how its clock follows the rig clock (the clock
-master's, physics' unless --clock-master says otherwise), from the ClockStatus it sends after its
-Health (column clock).
+skipped steps (physics), dropped messages, errors (failures inside the service, such as a drum
+whose strikes fail: its log has the first with its traceback), peers, and how its clock follows
+the rig clock (the clock master's, physics' unless --clock-master says otherwise), from the
+ClockStatus it sends after its Health (column clock).
 
 Column status:
   ok
@@ -50,14 +50,18 @@ Column status:
   behind
       it answered, but its loop ran under half its target rate over the last second (column
       rate/target Hz, e.g. 5.5/1000): the node skips steps to keep up with the rig clock, its
-      service falls behind it (physics: its log's "behind real time" warnings count the
-      simulation steps skipped; the drummer plays late, by --json's target_lag; notes it then
-      cannot play in time are its late events, column late, which skipped steps alone do not
-      grow). A loop a little under its target is a busy machine's usual (sound at 186.7/187.5)
-      and stays ok; a rate of 0 is not judged: the node has not stepped yet (its first second,
-      or its core waiting for its clock master); "-" as the target: an event-driven node
+      service falls behind it (physics: column skipped counts the simulation steps it skipped,
+      its log's "behind real time" warnings say the bar it was playing; the drummer plays late,
+      by --json's target_lag; notes it then cannot play in time are its late events, column
+      late, which skipped steps alone do not grow). A loop a little under its target is a busy
+      machine's usual (sound at 186.7/187.5) and stays ok; a rate of 0 is not judged: the node
+      has not stepped yet (its first second, or its core waiting for its clock master); "-" as
+      the target: an event-driven node
   no answer, no address
       no Health came back; the node announced no usable address
+Column skipped:
+  physics' simulation steps skipped to follow the rig clock since it started (1 ms each at
+  1 kHz; --json's skipped_steps): growing, it fell behind; 0 for the other services
 Column clock:
   master
       this node's clock is the rig clock
@@ -241,7 +245,8 @@ def _row(target: Target, health: Health | None, clock: ClockStatus | None = None
         replies_unanswered=health.replies_unanswered, target_lag=round(health.target_lag, 4),
         target_jumps=health.target_jumps, unroutable=health.unroutable, dropped_wrong_node=health.dropped_wrong_node,
         errors=health.errors, duplicates=health.duplicates, wrong_node_unanswered=health.wrong_node_unanswered,
-        clock=clock_text(clock), clock_status=clock.model_dump(mode="json") if clock is not None else None,
+        skipped_steps=health.skipped_steps, clock=clock_text(clock),
+        clock_status=clock.model_dump(mode="json") if clock is not None else None,
     )
     return row
 
@@ -249,10 +254,11 @@ def _row(target: Target, health: Health | None, clock: ClockStatus | None = None
 def table(rows: Sequence[dict[str, object]]) -> list[str]:
     """The rows as aligned text lines, a header first."""
     lines = [f"{'role':<12} {'node id':<28} {'address':<22} {'status':<10} {'rate/target Hz':>14} {'late':>6} "
-             f"{'dropped':>8} {'errors':>6} {'peers':>5} clock"]
+             f"{'skipped':>8} {'dropped':>8} {'errors':>6} {'peers':>5} clock"]
     for r in rows:
         lines.append(f"{r['role']!s:<12} {r['node_id']!s:<28} {r['address']!s:<22} {r['status']!s:<10} "
-                     f"{rate_text(r):>14} {r.get('late', '')!s:>6} {r.get('dropped', '')!s:>8} "
+                     f"{rate_text(r):>14} {r.get('late', '')!s:>6} {r.get('skipped_steps', '')!s:>8} "
+                     f"{r.get('dropped', '')!s:>8} "
                      f"{r.get('errors', '')!s:>6} {r.get('peers', '')!s:>5} {r.get('clock', '')!s}".rstrip())
     return lines
 

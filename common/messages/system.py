@@ -88,10 +88,13 @@ class Health(OscMessage):
     wrong_node_unanswered: Count = Field(default=0, description="controls of another service not answered with "
                                          "this node's refusal: their sender host was over its reply budget (counted "
                                          "in dropped_wrong_node too), total")
+    skipped_steps: Count = Field(default=0, description="physics: simulation steps skipped to follow the rig clock "
+                                 "when the node fell behind it (1 ms each at 1 kHz; the drummer then plays late, "
+                                 "target_lag), total (0 for the others)")
 
     APPENDED: ClassVar[tuple[str, ...]] = ("decode_unanswered", "replies_unanswered", "target_lag", "target_jumps",
                                            "unroutable", "dropped_wrong_node", "errors", "duplicates",
-                                           "wrong_node_unanswered")
+                                           "wrong_node_unanswered", "skipped_steps")
     """The fields appended after ``peers`` (one argument each), oldest first: a Health without the last of them (an
     older node's) decodes with their defaults."""
     NEWER_ARGS: ClassVar[int] = 16

@@ -336,9 +336,10 @@ class PhysicsCore:
                 if now - self._last_skip_warning >= 5.0:  # at most one warning per 5 s of rig time
                     trailing = self._trailing() if self.target_lag > 0.0 else ""  # not silently slowed
                     # said plainly first (a teacher on a loaded machine saw it every 5 s), the detail after
-                    log.warning("physics is %.0f ms behind real time: notes play late or are skipped; %s (detail: "
+                    log.warning("physics is %.0f ms behind real time%s: notes play late or are skipped; %s (detail: "
                                 "%d steps behind the rig clock, %d skipped, %d in all%s; %s)",
-                                (behind + skip) * dt * 1e3, behind_advice(self.settings.control_rate_hz), behind + skip,
+                                (behind + skip) * dt * 1e3, self._playing_words(),
+                                behind_advice(self.settings.control_rate_hz), behind + skip,
                                 skip, self.skipped_steps, trailing, BEHIND_DOCS)
                     self._last_skip_warning = now
             if self.target_lag > 0.0:
@@ -600,9 +601,10 @@ class PhysicsCore:
             if now - self._last_jump_warning >= 5.0:  # at most one warning per 5 s of rig time
                 # said plainly first, as the skip's and the bound's warnings, the detail after
                 log.warning("physics is %.0f ms behind real time: the drummer's hands jump to catch up and the notes "
-                            "between are skipped; %s (detail: the targets jumped %.0f ms toward the rig clock, %.0f ms "
-                            "behind it now; the strokes between dropped with %s; %d such jumps in all, %s; %s)",
-                            lag * 1e3, behind_advice(self.settings.control_rate_hz), excess * 1e3, floor * 1e3,
+                            "between are skipped%s; %s (detail: the targets jumped %.0f ms toward the rig clock, "
+                            "%.0f ms behind it now; the strokes between dropped with %s; %d such jumps in all, %s; %s)",
+                            lag * 1e3, self._skipped_words(rig - lag, rig - floor),
+                            behind_advice(self.settings.control_rate_hz), excess * 1e3, floor * 1e3,
                             *self._notes_dropped(*dropped, self.target_jumps_late), BEHIND_DOCS)
                 self._last_jump_warning = now
 
@@ -625,14 +627,28 @@ class PhysicsCore:
         self.target_jumps_late += 1
         if now - self._last_bound_warning >= 5.0:  # at most one warning per 5 s of rig time
             log.warning("physics is %.0f ms behind real time, past the %.0f ms it may lag: the drummer's hands jump "
-                        "to catch up and the notes between are skipped; %s (detail: targets held by what was placed "
+                        "to catch up and the notes between are skipped%s; %s (detail: targets held by what was placed "
                         "while they trailed jumped %.0f ms, %.0f ms behind now: %s; %d streamed knots re-timed to "
                         "their rig times, %d passed; dropped %s; %d such jumps in all, %s; %s)",
-                        lag * 1e3, MAX_TARGET_LAG_HARD_S * 1e3, behind_advice(self.settings.control_rate_hz),
+                        lag * 1e3, MAX_TARGET_LAG_HARD_S * 1e3, self._skipped_words(rig - lag, rig - to),
+                        behind_advice(self.settings.control_rate_hz),
                         (lag - to) * 1e3, to * 1e3,
                         "the lag the score plan playing was placed with" if to > 0.0 else "on it", ahead, passed,
                         *self._notes_dropped(*dropped, self.target_jumps_late), BEHIND_DOCS)
             self._last_bound_warning = now
+
+    def _playing_words(self) -> str:
+        """What the skip warning says of where the drummer is in the score it plays (``while playing groove.mid bar 12
+        beat 3.4``: the targets' clock, what sounds now), "" while no score plays: a teacher hears which bars are
+        late (until 8 Dec the warning gave step counts alone)."""
+        where = self.score_player.where(self.time - self.target_lag)
+        return f" while playing {where}" if where else ""
+
+    def _skipped_words(self, t_from: float, t_to: float) -> str:
+        """What a jump's warning says of the bars it skips, the targets' clock jumping from ``t_from`` to ``t_to``
+        (s): `` (groove.mid bar 12 beat 3.4 to bar 13 beat 1.2)``; "" while no score plays then."""
+        where = self.score_player.where(t_from, t_to)
+        return f" ({where})" if where else ""
 
     def _notes_dropped(self, live: int, score: int, jumps: int) -> tuple[str, int, str]:
         """What a jump's warning says of the notes whose strokes it dropped (``live`` and ``score`` notes), of the

@@ -12,7 +12,9 @@ control messages (common/messages/score.py):
   for the next ``play``: the playing score plays on (said in the log; its loop
   ends as ``loop 0 0`` ends it: the pass in progress, then the rest), and a
   tempo, style or dynamics change meanwhile re-plans the playing one (a loop
-  asked then is the new score's, for its play).
+  asked then is the new score's, for its play). Each score loaded plays at its
+  own tempo and dynamics: the factors go back to 1 for its play, said in the
+  log when they were not (the playing one keeps its own: :meth:`ScorePlayer._reset_factors`).
 * :class:`~common.messages.score.ScoreTransport` ``play`` plans the loaded score
   from ``position`` (seconds of the score as written) with the gesture planner
   (common.gesture: limb distribution, gesture units, co-articulated Cartesian
@@ -229,9 +231,10 @@ PLAN_PER_NOTE_S = 0.001
 """Background plans: planning time per note assumed until plans of at least :data:`PLAN_MEASURED_NOTES` notes
 have been timed (about 0.4 ms alone, more while the physics loop shares the core), seconds."""
 START_TEMPO = 1.0
-"""The tempo factor (``/batteur/score/tempo``) a score player starts with: the score as written."""
+"""The tempo factor (``/batteur/score/tempo``) a score player starts with, and each score loaded: as written."""
 START_DYNAMICS = 1.0
-"""The velocity factor (``/batteur/score/dynamics``) a score player starts with: the score as written."""
+"""The velocity factor (``/batteur/score/dynamics``) a score player starts with, and each score loaded: as
+written."""
 LOOP_AHEAD_S = 60.0
 """``/batteur/score/loop``: a loop's passes are planned this far ahead (rig seconds at the tempo then), then more
 (:data:`LOOP_EXTEND_S`)."""
@@ -445,8 +448,14 @@ class ScorePlayer:
         self.algorithm = START_ALGORITHM
         self.sticking = START_STICKING
         self.tempo = START_TEMPO
+        """The tempo factor the next ``play`` plans with: :data:`START_TEMPO` again at each load (:meth:`load`)."""
         self.dynamics = START_DYNAMICS
-        """Every score note's velocity is this many times its written one when planned (clipped to 1)."""
+        """Every score note's velocity is this many times its written one when planned (clipped to 1), from the
+        next ``play`` on: :data:`START_DYNAMICS` again at each load."""
+        self._play_factors = (START_TEMPO, START_DYNAMICS)
+        """(tempo, dynamics) the score playing was planned with, what its re-plans (a style change, a loop's more
+        passes) keep: a score loaded since resets :attr:`tempo` and :attr:`dynamics` for its own play, not the
+        playing one's (a tempo or dynamics message sets both)."""
         self.score: Score | None = None
         self.score_path: Path | None = None
         self._playing: tuple[Score, str] | None = None
@@ -609,10 +618,12 @@ class ScorePlayer:
             self._set_loop(message.first, message.last)
         elif isinstance(message, ScoreDynamics):
             self.dynamics = float(message.factor)
+            self._play_factors = (self._play_factors[0], self.dynamics)
             log.info("dynamics: velocity factor %g (%s)", self.dynamics,
                      "as written" if self.dynamics == 1.0 else "louder" if self.dynamics > 1.0 else "softer")
         else:
             self.tempo = float(message.factor)
+            self._play_factors = (self.tempo, self._play_factors[1])
             log.info("tempo factor %g", self.tempo)
 
     def _set_loop(self, first: int, last: int) -> None:
@@ -801,9 +812,25 @@ class ScorePlayer:
         log.info("score %s loaded: %d notes, %.2f s%s%s", path.name, len(score.events), score.duration,
                  f" ({'; '.join(score.warnings)})" if score.warnings else "",
                  f"; {playing[1]} plays on, {path.name} plays from the next play" if playing is not None else "")
+        self._reset_factors(path.name, playing[1] if playing is not None else None)
         self._take_score_style(score, path.name)
         self._check_score_kit(score, path.name)
         return score
+
+    def _reset_factors(self, name: str, plays_on: str | None) -> None:
+        """A score loaded (file ``name``) plays at its own tempo and dynamics: the factors set before (for another
+        score, or this one's previous load) go back to as written, said when they were not (``plays_on``: the score
+        still playing, which keeps them). Until 8 Dec they carried over: a groove slowed to x0.5 for practice made
+        the next piece loaded play at half its tempo, and the node said nothing."""
+        was = [f"{what} x{value:g}" for what, value, start in (("tempo", self.tempo, START_TEMPO),
+                                                                 ("dynamics", self.dynamics, START_DYNAMICS))
+               if value != start]
+        self.tempo, self.dynamics = START_TEMPO, START_DYNAMICS
+        if was:
+            kept = f"; {plays_on} plays on with them" if plays_on is not None else ""
+            log.info("%s plays at its own tempo and dynamics: %s reset to x1 (as written) for its play%s; send "
+                     "/batteur/score/tempo or /batteur/score/dynamics after the load to change them", name,
+                     " and ".join(was), kept)
 
     def _take_score_style(self, score: Score, name: str) -> None:
         """A text score's ``grip`` and ``nuance`` directives become the planner's style, the grip the hands' too
@@ -942,6 +969,7 @@ class ScorePlayer:
             self._dropped = {}
             self._note_dropped(plan, t_s)
             self.mapping = (at, position, tempo)
+            self._play_factors = (tempo, dynamics)
             self._clocks = [self.mapping]
             self._stopping = None
             self.state = "playing"
@@ -1026,6 +1054,41 @@ class ScorePlayer:
         if t_s < at:  # before the play's first note: it was to start there
             return f"{text}, before the score started (from {score_words(score, position)})"
         return f"{text}: {self._words(score, position + (t_s - at) * tempo)}"
+
+    def where(self, t_from: float, t_to: float | None = None) -> str:
+        """Where in the playing score the drummer is at ``t_from`` (s, the targets' clock), counted as a musician
+        counts (:func:`common.score.position.counted_bar_beat`): ``groove.mid bar 12 beat 3.4``; with ``t_to``, the
+        stretch from one to the other: ``groove.mid bar 12 beat 3.4 to bar 13 beat 1.2`` (``... to its end``: the
+        play's plan ends before ``t_to``). "" while no score plays at ``t_from`` (live notes alone, idle). For the live
+        warnings of physics falling behind: until 8 Dec they gave step counts alone, and a teacher could not tell
+        which bars the students heard played late or skipped."""
+        start = self._bar_words(t_from)
+        if not start:
+            return ""
+        assert self._playing is not None  # a score plays: _bar_words said where
+        text = f"{self._playing[1]} {start}"
+        if t_to is None:
+            return text
+        end = self._bar_words(t_to)
+        return f"{text} to {end or 'its end'}" if end != start else text
+
+    def _bar_words(self, t_s: float) -> str:
+        """``bar 12 beat 3.4`` (beat to a tenth, rounded down) of the playing score at ``t_s`` (s, the targets'
+        clock), said in the written score (a loop's passes: the bars looped); ``before bar 1 beat 1.0`` before its
+        play's first note; ``at score 0.120 s`` before its first beat; "" while none plays then."""
+        mapping = self._mapping_at(t_s)
+        score = self.playing_score
+        if mapping is None or score is None or self._playing is None:
+            return ""
+        at, position, tempo = self._sounding(t_s, mapping)
+        played = position + max(t_s - at, 0.0) * tempo
+        timeline = self._timeline
+        written = timeline.written(played) if timeline is not None and timeline.score is score else played
+        counted = counted_bar_beat(score, written)
+        if counted is None:
+            return f"at score {written:.3f} s"
+        words = f"bar {counted[0]} beat {_floor1(counted[1])}"
+        return f"before {words}" if t_s < at else words
 
     def _sounding(self, t_s: float, mapping: tuple[float, float, float]) -> tuple[float, float, float]:
         """The clock of the score sounding at ``t_s`` (s, the targets' clock): ``mapping`` (the latest, as
@@ -1228,7 +1291,7 @@ class ScorePlayer:
         # then (extrapolated back, the start would move: the asked position must still sound at the asked time)
         t_a = max(t_c, at)
         p_a = position + (t_a - at) * old_tempo
-        tempo, dynamics = self.tempo, self.dynamics
+        tempo, dynamics = self._play_factors  # the playing score's: a score loaded since reset the next play's
         kept = [e for e in self.events if t_s - CONTEXT_S <= e.time < t_c]
         # a loop (asked, changed or on: its passes laid afresh from the anchor's pass on, at the new tempo)
         before = self._timeline if self._timeline is not None and self._timeline.score is score else None

@@ -4,8 +4,9 @@ The rig tells a service a role it did not start is absent (no "no graphics peer 
 node of it can be expected, and no static peer of it is given. Until 7 Dec only a ``--peer`` in the
 service's ``--ROLE-arg`` counted: a graphics peer given by ``BATTEUR_PEERS`` or the node's config file, which the node
 sends to, was told absent all the same (its messages counted as unroutable, unsaid). The rig now resolves the peers
-as the node's settings do (flags, else ``BATTEUR_PEERS``, else the config file; a list replaces the one below it),
-and each case is checked against the settings the interaction node itself would run with (``--show-settings``)."""
+as the node's settings do (flags, else ``BATTEUR_PEERS``, else the config file; a list replaces the one below it;
+since 8 Dec the rig adds ``BATTEUR_PEERS`` to the ``--peer`` it gives, which would replace it), and each case is
+checked against the settings the interaction node itself would run with (``--show-settings``)."""
 
 from __future__ import annotations
 
@@ -15,8 +16,8 @@ from pathlib import Path
 
 import pytest
 
+from batteur.errors import UsageError
 from batteur.rig import build_parser, node_peer_roles, plan_rig
-from common.peers import parse_static_peer
 
 GRAPHICS = "graphics=127.0.0.1:9104"
 
@@ -78,18 +79,37 @@ def test_a_peer_in_the_node_config_file_is_not_told_absent(tmp_path: Path, monke
         "interaction": ["physics", "graphics"]}
 
 
-def test_the_rig_peers_replace_the_environment_s_as_in_the_node(monkeypatch: pytest.MonkeyPatch,
-                                                               capsys: pytest.CaptureFixture[str]) -> None:
-    """A node given ``--peer`` (the rig's static peers) ignores ``BATTEUR_PEERS``: graphics stays absent, as the node
-    holds no graphics peer; with ``--no-static-peers`` (discovery on loopback) it holds the environment's."""
+def test_the_environment_s_peers_add_to_the_rig_s(monkeypatch: pytest.MonkeyPatch,
+                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    """``BATTEUR_PEERS`` adds to the ``--peer`` the rig gives its services: the node holds both, and graphics is not
+    told absent. Until 8 Dec the rig's own static peers (a flag, which replaces the environment's list in a node's
+    settings) dropped it: each node held no graphics peer, a remote sound or physics named there was never sent to,
+    and the rig said graphics was absent."""
     monkeypatch.delenv("BATTEUR_CONFIG", raising=False)
     env = {"BATTEUR_PEERS": GRAPHICS}
     static = ["--services", "physics,interaction,sound", "--no-discovery"]
-    assert _absent(static, env) == {"physics": ["graphics"], "interaction": ["graphics"], "sound": ["graphics"]}
+    assert _absent(static, env) == {"physics": [], "interaction": [], "sound": []}  # was graphics for each
     settings = _node_settings(static, env, monkeypatch, capsys)
-    assert "graphics" not in {parse_static_peer(str(p)).role for p in settings["peers"]}  # type: ignore[attr-defined]
+    assert settings["peers"] == ["physics=127.0.0.1:9101", "sound=127.0.0.1:9103", GRAPHICS]  # was without graphics
     found = ["--services", "physics,interaction,sound", "--no-static-peers"]
     assert _absent(found, env) == {"physics": [], "interaction": [], "sound": []}
+    # with --no-static-peers and no --ROLE-arg peer the node reads BATTEUR_PEERS itself: nothing added
+    plans = plan_rig(build_parser().parse_args(found), epoch=0.0, environ=env)
+    assert all("--peer" not in plan.args for plan in plans)
+
+
+def test_a_peer_the_rig_gives_already_is_not_given_twice_and_a_bad_one_is_refused() -> None:
+    env = {"BATTEUR_PEERS": f"sound=127.0.0.1:9103, {GRAPHICS}"}
+    plans = plan_rig(build_parser().parse_args(["--services", "physics,sound", "--no-discovery"]), epoch=0.0,
+                     environ=env)
+    physics = next(plan for plan in plans if plan.role == "physics")
+    assert [physics.args[i + 1] for i, a in enumerate(physics.args) if a == "--peer"] == [
+        "sound=127.0.0.1:9103", GRAPHICS]
+    # a peer no node would take: said at once, naming the variable (the nodes ignored it while the rig's --peer
+    # replaced it, and would now each refuse it)
+    with pytest.raises(UsageError, match=r"BATTEUR_PEERS=graphics: peer 'graphics': expected ROLE=HOST:PORT"):
+        plan_rig(build_parser().parse_args(["--services", "physics,sound"]), epoch=0.0,
+                 environ={"BATTEUR_PEERS": "graphics"})
 
 
 def test_peers_the_node_would_refuse_count_as_none(tmp_path: Path) -> None:
