@@ -420,6 +420,12 @@ class SoundCore:
                                 f"(known: {', '.join(sorted(self.instruments.instruments))})")
         if name not in inst.accepted:  # named by address: a panel's user never sees our parameter names
             return self._reject(message, instrument_id, not_taken(inst.KIND, instrument_id, message.ADDRESS))
+        if isinstance(message, SoundOpenness) and isinstance(inst, HiHat):
+            # the pedal moved: applied here, as a stroke's zone and the plates meeting apply it, so a drop chokes
+            # the ringing hat's sample and synth voices too (set_param retuned the modes alone); never queued
+            # behind a background rebuild, which would land it late (one in flight is redone on top of it)
+            inst.set_openness(float(message.value), self.pool)
+            return []
         values = {f: getattr(message, f) for f in fields}
         if self._worker is not None and (instrument_id in self._rebuilds or name not in CHEAP_PARAMS):
             change = _Change(message, source, name, values)

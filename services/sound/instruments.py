@@ -84,6 +84,10 @@ a mode whose antinode is right under the press."""
 HIHAT_CLOSED_DECAY_PER_S = 90.0
 """Decay rate the hi-hat's plates held together add, 1/s (times (1 - openness)^2): a closed hat's T60 is about
 6.9 / 90 = 77 ms."""
+HIHAT_TICK_UNTIL = 0.3
+"""Openness up to which a stick on the hi-hat also ticks (the plates held together click under it), at full level
+closed and fading linearly to nothing here, so a hat opened a little ticks a little (it was all or nothing at
+0.3)."""
 COWBELL_MASS_KG = 0.3
 """Vibrating mass of a cowbell, kg (for presses; its partials have no mode shapes here)."""
 
@@ -470,16 +474,26 @@ class Instrument:
         """(sample name, playback rate) for a strike."""
         return self.id, 1.0
 
-    def strike_sample(self, strike: Strike, pool: VoicePool) -> None:
+    def sample_layers(self, strike: Strike) -> list[tuple[str, float, float]]:
+        """(sample name, playback rate, amplitude weight) of each sample a strike plays: :meth:`sample_name`'s
+        alone, at weight 1 (the hi-hat crossfades two)."""
         name, rate = self.sample_name(strike)
-        data = self.samples.get(name)
-        if data is None:
-            self.strike_synth(strike, pool)
-            return
+        return [(name, rate, 1.0)]
+
+    def strike_sample(self, strike: Strike, pool: VoicePool) -> None:
+        layers = []
+        for name, rate, weight in self.sample_layers(strike):
+            data = self.samples.get(name) if weight > 0.0 else None
+            if weight > 0.0 and data is None:  # a sample missing: the strike synthesised whole
+                self.strike_synth(strike, pool)
+                return
+            if data is not None:
+                layers.append((name, rate, weight, data))
         v = strike.velocity / REFERENCE_VELOCITY
-        gain = 0.5 * REFERENCE_PEAK / 0.25 * sample_trim(name, strike.zone) * min(v, 4.0) ** 1.1
         cutoff = 1500.0 + 5000.0 * v**1.5
-        pool.add(SampleVoice(self.id, data, gain, rate, cutoff, self.sr, strike.offset))
+        for name, rate, weight, data in layers:
+            gain = 0.5 * REFERENCE_PEAK / 0.25 * sample_trim(name, strike.zone) * min(v, 4.0) ** 1.1 * weight
+            pool.add(SampleVoice(self.id, data, gain, rate, cutoff, self.sr, strike.offset))
 
     def strike_synth(self, strike: Strike, pool: VoicePool) -> None:
         recipe = recipe_for(self.KIND, self.role, strike.zone, self.p.radius, self.p.openness)
@@ -757,7 +771,9 @@ class HiHat(Cymbal):
     Zones ``open``, ``half``, ``closed`` set the openness from that strike on (as /batteur/sound/openness does);
     ``pedal`` (or the instrument ``hihat_pedal``) is the foot chick, which also
     closes the hat and so chokes it; the plates meeting silently (a press of them: the core) close it too. A drop
-    of the openness chokes the sample and synthesis voices as well (:meth:`choke`).
+    of the openness chokes the sample and synthesis voices as well (:meth:`choke`). Every model follows the
+    openness continuously: the modes' damping, the stick tick (HIHAT_TICK_UNTIL), the synthesised decay and the
+    sample crossfade (:meth:`sample_layers`).
     """
 
     KIND = "hihat"
@@ -803,16 +819,21 @@ class HiHat(Cymbal):
         super().strike(strike, pool)
 
     def extras(self, strike: Strike, pulse: ContactPulse, pool: VoicePool, weights: F64) -> None:
-        if self.p.openness < 0.3:
-            # stick tick on a closed hat
-            amp = 0.05 * min(strike.velocity / REFERENCE_VELOCITY, 3.0)
+        if self.p.openness < HIHAT_TICK_UNTIL:
+            # stick tick on a closed hat, fading as it opens (exactly the closed hat's at openness 0)
+            amp = 0.05 * min(strike.velocity / REFERENCE_VELOCITY, 3.0) * (1.0 - self.p.openness / HIHAT_TICK_UNTIL)
             pool.add(NoiseVoice(self.id, (4000.0, 15000.0), amp, 0.0005, 0.008, strike.seq * 13 + 3, self.sr,
                                 strike.offset))
 
-    def sample_name(self, strike: Strike) -> tuple[str, float]:
+    def sample_layers(self, strike: Strike) -> list[tuple[str, float, float]]:
+        """The foot chick's sample; a stick stroke crossfades the closed and open samples by the openness o at
+        equal power: the closed one at amplitude sqrt(1 - o), the open one at sqrt(o) (two recordings do not
+        correlate, so their powers add: the stroke's power goes from the closed one's to the open one's in
+        proportion to o). Only the closed sample at 0, only the open one at 1; a sample at weight 0 is not played."""
         if strike.zone == "pedal":
-            return "hihat_pedal", 1.0
-        return ("hihat_open" if self.p.openness >= 0.5 else "hihat_closed"), 1.0
+            return [("hihat_pedal", 1.0, 1.0)]
+        o = min(max(self.p.openness, 0.0), 1.0)
+        return [("hihat_closed", 1.0, float(np.sqrt(1.0 - o))), ("hihat_open", 1.0, float(np.sqrt(o)))]
 
 
 class Bell(Instrument):
