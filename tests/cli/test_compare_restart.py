@@ -92,16 +92,18 @@ def test_the_mean_column_lines_up_up_to_999_ms(sign: int, tmp_path: Path,
 
 
 def test_a_take_lined_up_bars_in_has_no_count_in(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    """16 bars at 1.004 of the tempo, no count-in: lined up three bars in (the drift), its first bars lay before
-    the start, a steady hi-hat, kick and snare read "entered 0.2 beat early after the count-in" (until 7 Dec). A
-    count-in repeats one sound (tests/cli/test_compare.py's side-sticks are still one)."""
+    """16 bars at 1.004 of the tempo, no count-in, compared at the exercise's tempo (``--tempo-scale 1``; without
+    it the take is compared at its own, tests/cli/test_compare_edges_and_drift.py): lined up three bars in (the
+    drift), its first bars lay before the start, a steady hi-hat, kick and snare read "entered 0.2 beat early
+    after the count-in" (until 7 Dec). A count-in repeats one sound (tests/cli/test_compare.py's side-sticks are
+    still one)."""
     exercise = tmp_path / "long.txt"
     exercise.write_text(groove(16), encoding="utf-8")
     path = write_take(tmp_path / "take.mid", [(1.0 + t / 1.004, p, v) for t, p, v in written(exercise)])
-    got = report([str(exercise), str(path)], capsys)
+    got = report([str(exercise), str(path), "--tempo-scale", "1"], capsys)
     assert got["offset_s"] > 2.0  # the first bars lie before the start: what the count-in was read from
     assert got["entry"] is None
-    assert main([str(exercise), str(path)]) == 0
+    assert main([str(exercise), str(path), "--tempo-scale", "1"]) == 0
     assert "entered" not in capsys.readouterr().out
     count_in = [(3.0 - 0.5 * k, 37, 100) for k in range(4, 0, -1)]  # side-sticks a beat apart before it
     path = write_take(tmp_path / "counted.mid", count_in + [(3.0 + t, p, v) for t, p, v in written(exercise)])
