@@ -206,6 +206,16 @@ class Patch:
     lines: list[str] = field(default_factory=list)
     count: int = 0
     connects: list[str] = field(default_factory=list)
+    aside_x: int = 2000
+    """x of the wiring kept right of the window (:meth:`aside`)"""
+    asides: int = 0
+
+    def aside(self) -> tuple[int, int]:
+        """The next place right of the window (x from ``aside_x``) for wiring a user never needs to see, two a
+        row, 700 x 230 pixels apart."""
+        n = self.asides
+        self.asides += 1
+        return self.aside_x + 700 * (n % 2), 20 + 230 * (n // 2)
 
     def _add(self, line: str) -> int:
         self.lines.append(line)
@@ -297,11 +307,57 @@ def sender(p: Patch, x: int, y: int, model: type[OscMessage], role: str, sends: 
     return fmt
 
 
+PANEL_BAD = "batteur-panel-bad"
+"""What the panel prints (Pd's console) for a value it does not send: a number where a symbol goes, a choice that
+is not one of its boxes'."""
+INSTRUMENT_CHOSEN = "bp-instrument-chosen"
+"""The instrument chosen, always as ``symbol NAME`` (bp-instrument takes ``crash`` or ``symbol crash``): what the
+SOUND rows read."""
+HOST_CHOSEN = "bp-host-chosen"
+"""The services' host, always as ``symbol HOST`` (bp-host takes it bare or with ``symbol``)."""
+
+
+def symbol_in(p: Patch, x: int, y: int, receive: str, values: tuple[str, ...] = ()) -> int:
+    """[r RECEIVE] taking a symbol in either form Pd sends it: ``symbol crash`` (``pd -send``, a [symbol( box) and
+    bare ``crash`` (a ``[; bp-instrument crash(`` box); returns the object whose outlet gives ``symbol VALUE``.
+    A number or a bang is printed as ``batteur-panel-bad`` naming it and goes no further; with ``values``, so is
+    a symbol not among them, so the panel keeps (and resends with the other choices) the last one it took."""
+    r = p.obj(x, y, f"r {receive}")
+    kind = p.obj(x, y + 25, "route float bang")
+    p.connect(r, 0, kind, 0)
+    takes = f"one of {' '.join(values)}" if values else "a symbol"
+    number = p.msg(x + 330, y + 25, f"{receive} takes {takes} and got the number $1 - not sent", 60)
+    bang = p.msg(x + 330, y + 75, f"{receive} takes {takes} and got a bang - not sent", 60)
+    bad = p.obj(x + 330, y + 195, f"print {PANEL_BAD}")
+    p.connect(kind, 0, number, 0)
+    p.connect(kind, 1, bang, 0)
+    p.connect(number, 0, bad, 0)
+    p.connect(bang, 0, bad, 0)
+    symbol = p.obj(x, y + 50, "symbol")  # "symbol crash", "crash", "list crash": symbol crash
+    p.connect(kind, 2, symbol, 0)
+    if not values:
+        return symbol
+    both = p.obj(x, y + 75, "t s s")  # hold it, then check it: a known value lets it out
+    pending = p.obj(x, y + 125, "symbol")
+    check = p.obj(x, y + 100, "select " + " ".join(values))
+    p.connect(symbol, 0, both, 0)
+    p.connect(both, 1, pending, 1)
+    p.connect(both, 0, check, 0)
+    for k in range(len(values)):
+        p.connect(check, k, pending, 0)
+    unknown = p.msg(x + 330, y + 125, f"{receive} takes {takes} and got $1 - not sent: the panel keeps the last "
+                                      "one it took", 60)
+    p.connect(check, len(values), unknown, 0)
+    p.connect(unknown, 0, bad, 0)
+    return pending
+
+
 def choices(p: Patch, x: int, y: int, label: str, values: tuple[str, ...], receive: str) -> int:
-    """Clickable [symbol VALUE( boxes and [r RECEIVE]; returns a [symbol] that outputs the choice."""
+    """Clickable [symbol VALUE( boxes and [r RECEIVE] (either symbol form, one of ``values`` only:
+    :func:`symbol_in`); returns a [symbol] that outputs the choice."""
     p.text(x, y, label)
     store = p.obj(x, y + 60, "symbol")
-    r = p.obj(x + 80, y + 60, f"r {receive}")
+    r = symbol_in(p, *p.aside(), receive, values)  # the wiring right of the window
     p.connect(r, 0, store, 0)
     cx = x
     for value in values:
@@ -352,6 +408,8 @@ def build() -> Patch:
     # ------------------------------------------------------------ destinations
     p.text(20, 70, "destinations: host")
     p.symbolatom(160, 70, 14, "-", "bp-host")  # type a host, press Enter
+    ax, ay = p.aside()
+    p.connect(symbol_in(p, ax, ay, "bp-host"), 0, p.obj(ax, ay + 160, f"s {HOST_CHOSEN}"), 0)
     load = p.obj(760, 70, "loadbang")
     again = p.bng(460, 70, "bp-connect")
     p.text(485, 70, "(re)connect")
@@ -372,7 +430,7 @@ def build() -> Patch:
         if role != "score":
             p.connect(nb, 0, tb, 0)
         host = p.obj(x + 60, 180, "symbol 127.0.0.1")
-        rh = p.obj(x + 60, 150, "r bp-host")
+        rh = p.obj(x + 60, 150, f"r {HOST_CHOSEN}")
         p.connect(rh, 0, host, 0)
         pk = p.obj(x, 210, f"pack s {port}")
         p.connect(tb, 1, pk, 1)
@@ -440,14 +498,20 @@ def build() -> Patch:
     # its sender beside it: the GRAPHICS section starts just below
     p.connect(dynamics, 0, sender(p, 280, y2 + 140, ScoreDynamics, "score", "f"), 0)
     p.text(330, y2 + 25, "score file (name in the score library \\, or path) - type and press Enter")
-    path = p.symbolatom(330, y2 + 47, 30, "bp-score", "-")
+    # the box shows what bp-score takes (typing in it sends there; "set": no output, so no loop)
+    p.symbolatom(330, y2 + 47, 30, "bp-score-show", "bp-score")
+    ax, ay = p.aside()
+    path = symbol_in(p, ax, ay, "bp-score")
     p.connect(path, 0, sender(p, 330, y2 + 75, ScoreLoad, "score", "s"), 0)
+    show_path = p.msg(ax, ay + 160, "set $1")
+    p.connect(path, 0, show_path, 0)
+    p.connect(show_path, 0, p.obj(ax, ay + 185, "s bp-score-show"), 0)
     p.text(700, y2 + 25, "position s")
     pos = p.nbx(700, y2 + 47, 0, 100000, 6, "bp-position")
     play = p.msg(790, y2 + 47, "play")
     stop = p.msg(840, y2 + 47, "stop")
     pause = p.msg(890, y2 + 47, "pause")
-    rt = p.obj(950, y2 + 47, "r bp-transport")
+    rt = symbol_in(p, *p.aside(), "bp-transport", ("play", "stop", "pause"))
     act = p.obj(790, y2 + 75, "symbol")
     for m in (play, stop, pause, rt):
         p.connect(m, 0, act, 0)
@@ -518,7 +582,7 @@ def sound_section() -> Patch:
     """The SOUND section, in a sub-patch of its own ([pd sound]): the instrument choice, then every per-instrument
     control (each showing the chosen instrument's values), then the whole rig's latency, master gain and reverb.
     Three columns, each row's wiring to its right, the per-instrument memories beyond the window (x 2000)."""
-    p = Patch()
+    p = Patch(aside_x=3400)  # right of the per-instrument memories
     load = p.obj(560, 10, "loadbang")
     xa, xb, xc = COLUMNS
     p.text(xa, 10, "SOUND - instrument:")
@@ -526,10 +590,14 @@ def sound_section() -> Patch:
     # displays what bp-instrument says ("set": no output), so choosing never loops back through it.
     p.symbolatom(xa + 160, 10, 10, "bp-instrument-show", "bp-instrument")
     sink = p.obj(xa + 300, 10, "s bp-instrument")
-    shown = p.obj(2000, 10, "r bp-instrument")  # out of the way, right of the window
-    show = p.msg(2000, 35, "set $1")
+    # either symbol form, or a number refused; the rows read the chosen one, as "symbol NAME" (out of the way,
+    # right of the window)
+    ax, ay = p.aside()
+    shown = symbol_in(p, ax, ay, "bp-instrument")
+    p.connect(shown, 0, p.obj(ax, ay + 160, f"s {INSTRUMENT_CHOSEN}"), 0)
+    show = p.msg(ax + 250, ay + 160, "set $1")
     p.connect(shown, 0, show, 0)
-    p.connect(show, 0, p.obj(2000, 60, "s bp-instrument-show"), 0)
+    p.connect(show, 0, p.obj(ax + 250, ay + 185, "s bp-instrument-show"), 0)
     for k, name in enumerate(INSTRUMENTS):
         m = p.msg(xa + 100 * (k % 6), 40 + 25 * (k // 6), f"symbol {name}")
         p.connect(m, 0, sink, 0)
@@ -546,7 +614,7 @@ def sound_section() -> Patch:
     def per_instrument(x: int, y: int, model: type[OscMessage], source: int, values: str) -> int:
         """[list prepend] with the chosen instrument (from bp-instrument), to the model's sender; returns it."""
         pre = p.obj(x + 360, y, "list prepend")
-        r = p.obj(x + 460, y - 25, "r bp-instrument")
+        r = p.obj(x + 460, y - 25, f"r {INSTRUMENT_CHOSEN}")
         p.connect(r, 0, pre, 1)
         p.connect(source, 0, pre, 0)
         p.connect(pre, 0, sender(p, x + 360, y + 25, model, "sound", "s" + values), 0)
@@ -676,14 +744,14 @@ def instrument_memory(p: Patch, x: int, y: int, label: str, sent: int, starts: d
     p.text(x, y, label)
     store = p.obj(x, y + 25, "list prepend")
     p.connect(sent, 0, store, 0)
-    p.connect(p.obj(x + 420, y, "r bp-instrument"), 0, store, 1)
+    p.connect(p.obj(x + 420, y, f"r {INSTRUMENT_CHOSEN}"), 0, store, 1)
     trim = p.obj(x, y + 50, "list trim")  # "kick S0 S1": routed by its selector
     p.connect(store, 0, trim, 0)
     takes = [name for name, values in starts.items() if values is not None]
     by_name = p.obj(x, y + 75, "route " + " ".join(takes))
     p.connect(trim, 0, by_name, 0)
     chosen = p.obj(x, y + 150, "select " + " ".join(starts))
-    p.connect(p.obj(x, y + 125, "r bp-instrument"), 0, chosen, 0)
+    p.connect(p.obj(x, y + 125, f"r {INSTRUMENT_CHOSEN}"), 0, chosen, 0)
     count = len(shown)
     split = p.obj(x, y + 285, "unpack " + " ".join("f" * count))
     texts = ["list append " + " ".join(f"{v:g}" for v in ((0.0,) * count if values is None else values))
@@ -918,7 +986,7 @@ def interaction_section(p: Patch, x: int, y: int, load: int) -> None:
     remove = p.bng(x + 135, y + 77, "bp-client-remove")
     p.text(x + 157, y + 77, "remove route")
     wx, wy = x - 190, y + 102  # the wiring
-    r_host = p.obj(wx, wy, "r bp-client-host")
+    r_host = symbol_in(p, *p.aside(), "bp-client-host")
     show_host = p.msg(wx + 130, wy, "set $1")
     host_shown = p.obj(wx + 190, wy, "s bp-client-host-show")
     p.connect(r_host, 0, show_host, 0)

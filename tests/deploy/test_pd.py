@@ -49,7 +49,8 @@ def test_control_panel_file_is_the_generated_one() -> None:
 
 
 @pytest.mark.parametrize("patch", ["control.pd", "sound-client.pd", "batteur-clock.pd", "batteur-strike.pd",
-                                   "batteur-clock-help.pd", "batteur-strike-help.pd"])
+                                   "batteur-note.pd", "batteur-clock-help.pd", "batteur-strike-help.pd",
+                                   "batteur-note-help.pd"])
 def test_patches_load_without_errors(patch: str) -> None:
     """Opened as a Pd user opens them (the help patches hold the abstractions, unconnected: nothing is sent)."""
     pd = PdProcess(PD_DIR / patch, extra=["-send", "pd quit"])
