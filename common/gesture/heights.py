@@ -56,10 +56,10 @@ def foot_speed(velocity: float) -> float:
 def chick_speed(velocity: float) -> float:
     """Foot speed (m/s) where a hi-hat pedal stroke closes the cymbals, for a score velocity in [0, 1].
 
-    The plates meet at about a sixth to a quarter of the foot's speed; the softest chick must still close them
-    faster than a foot letting the pedal down after an open note (0.10-0.13 m/s, which interaction takes for
-    silent), so the range starts higher than a kick's: with ``foot_speed`` a chick at velocity 0.16 closed at
-    0.098 m/s and was not heard (soft pedal notes were most of the 380 hi-hat pedal notes without a contact on
-    76 Groove validation files).
+    The plates meet at about the footboard toe's speed (a direct pull: physics' ``hihat_gap``; until 8 Dec a sixth
+    to a quarter of the foot's speed); the softest chick must still close them faster than a foot letting the pedal
+    down after an open note (which interaction takes for silent), so the range starts higher than a kick's: with
+    ``foot_speed`` and the linear pull before a chick at velocity 0.16 closed at 0.098 m/s and was not heard (soft
+    pedal notes were most of the 380 hi-hat pedal notes without a contact on 76 Groove validation files).
     """
     return 0.8 + 1.5 * velocity

@@ -94,6 +94,13 @@ HIHAT_CONTACT_GAP_M = 0.002
 HIHAT_CHICK_RATE_M_S = 0.02
 """The hi-hat's clutch target closing faster than this (m/s) is the foot closing the pedal: the plates meeting
 then are a pedal chick; otherwise (a stick knocking the top plate onto the bottom) they rattle."""
+HIHAT_PULL_M = 0.004
+"""The hi-hat's plates close their last this many metres above first touch at the pace of the footboard's toe (a
+direct pull): about as fast as the toe, 1.5 times the ball of the foot (``hihat_gap``)."""
+HIHAT_ROD_FORCE_N = 4000.0
+"""Force limit of the hi-hat rod's position motor (the rod is rigid on a real stand), newtons: the 0.77 kg top plate
+follows the pull's speed step at ``HIHAT_PULL_M`` (at 400 N, 520 m/s^2, loud chicks met no faster than medium ones:
+velocities 0.5, 0.7, 0.85, 1.0 at 1.78, 1.82, 1.86, 1.50 m/s; at 4000 N 1.24, 1.80, 2.06, 2.28)."""
 HIHAT_CLAMP_M = HIHAT_CONTACT_GAP_M - HIHAT_CLOSED_GAP_M
 """A pedal pressed to the end clamps the plates this much past first touch, metres (a closed hi-hat: the kit
 model's ``HIHAT_CLOSED_GAP_M`` apart, where the planner aims the sticks)."""
@@ -102,15 +109,31 @@ model's ``HIHAT_CLOSED_GAP_M`` apart, where the planner aims the sticks)."""
 def hihat_gap(press: float, opening: float, closes_at: float) -> float:
     """The hi-hat clutch's gap target (metres) for its pedal pressed ``press`` (0 rest ... 1 flat).
 
-    The gap closes linearly with the pedal from ``opening`` x ``HIHAT_MAX_GAP_M`` (above first touch) at rest to
-    first touch at ``closes_at`` of the travel (the kit's clutch setting), where the plates meet while the foot
-    still moves: the pedal chick, at about a quarter of the foot's speed. Pressed further, the plates are clamped
-    together, up to ``HIHAT_CLAMP_M``. (Before: the plates met only in the last 3 % of the travel, where the
-    foot stops on the end stop, at 0.05-0.13 m/s: one pedal note in three had no contact at all.)
+    The plates meet at ``closes_at`` of the travel (the kit's clutch setting), where the foot still moves: the
+    pedal chick. Their last ``HIHAT_PULL_M`` close as a direct pull does on a real stand, the rod (and the top
+    plate clutched on it) moving as far as the footboard's toe: the top meets the bottom plate about as fast as the
+    toe moves, 1.5 times the ball of the foot (0.8-2.7 m/s for chicks at velocity 0.1-1). Above that the gap opens
+    linearly with the pedal to ``opening`` x ``HIHAT_MAX_GAP_M`` at rest, so a pedal lifted for an open note leaves
+    the gap it did (10.3 -> 10.9 mm at the planner's 7 cm lift). Pressed further, the plates are clamped together,
+    up to ``HIHAT_CLAMP_M``. (Until 8 Dec the gap closed linearly over the whole travel: the plates met at a
+    quarter of the ball's speed, 0.14-0.40 m/s, every chick below every stick stroke. Closing at the toe's pace
+    over the whole rest opening, the top stood 15 mm up at an open note, and the stick touched it 50 ms early.
+    Before 2 Dec they met only in the last 3 % of the travel, where the foot stops on the end stop, at 0.05-0.13
+    m/s: one pedal note in three had no contact at all.)
     """
-    if press < closes_at:
-        return HIHAT_CONTACT_GAP_M + HIHAT_MAX_GAP_M * opening * (closes_at - press) / closes_at
-    return HIHAT_CONTACT_GAP_M - HIHAT_CLAMP_M * min(1.0, (press - closes_at) / (1.0 - closes_at))
+    if press >= closes_at:
+        return HIHAT_CONTACT_GAP_M - HIHAT_CLAMP_M * min(1.0, (press - closes_at) / (1.0 - closes_at))
+    rest = HIHAT_MAX_GAP_M * opening
+    meet = math.sin(PEDAL_REST_ANGLE * (1.0 - closes_at))
+    pulled = FOOTBOARD_LENGTH_M * (math.sin(PEDAL_REST_ANGLE * (1.0 - press)) - meet)  # the toe over its meeting
+    direct = min(HIHAT_PULL_M, rest)
+    if pulled <= direct:
+        return HIHAT_CONTACT_GAP_M + pulled
+    # the knee: where the toe has risen ``direct`` over its meeting height, and the gap from there to the rest's
+    knee = 1.0 - math.asin(min(meet + direct / FOOTBOARD_LENGTH_M, 1.0)) / PEDAL_REST_ANGLE
+    if knee <= 0.0:
+        return HIHAT_CONTACT_GAP_M + min(pulled, rest)
+    return HIHAT_CONTACT_GAP_M + direct + (rest - direct) * max(knee - press, 0.0) / knee
 
 
 SLOW_SPRING_PERIOD_S = 0.004
@@ -287,7 +310,8 @@ class KitBodies:
             if abs(gap - self._hihat_gap) > HIHAT_GAP_RESOLUTION_M:  # a motor keeps its target: send changes
                 self._hihat_gap = gap
                 c.setJointMotorControl2(
-                    hh.top_body, hh.rod_joint, p.POSITION_CONTROL, targetPosition=gap, force=400.0, positionGain=1.0
+                    hh.top_body, hh.rod_joint, p.POSITION_CONTROL, targetPosition=gap, force=HIHAT_ROD_FORCE_N,
+                    positionGain=1.0
                 )
 
     def hihat_opening(self, world: World) -> float:
