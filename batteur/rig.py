@@ -54,6 +54,7 @@ import ctypes
 import errno
 import ipaddress
 import os
+import re
 import shlex
 import signal
 import socket
@@ -87,6 +88,11 @@ not get its SIGHUP and would run on as orphans)."""
 CLEAN_STOP = (0, -signal.SIGTERM)
 """Exit codes of a service the rig stopped that mean it stopped cleanly: a node stops on SIGTERM with 0; one still
 loading (no handler yet) just ends, with nothing to clean up (sound's recording is kept only after a 0)."""
+SAID = {"compiling": ("compiling the physics kernels", "physics kernels ready"),
+        "stopping": ("was asked to stop while starting", "")}
+"""What a service's output says that the rig's messages name: key -> (the text that says it, the text that ends it
+or ""). Copies of ``services.physics.precompile.COMPILING`` and :func:`common.runtime.stopped_while_starting`'s (the
+rig does not import physics to start it; a test checks the copy)."""
 PR_SET_PDEATHSIG = 1
 """Linux prctl option: the signal a process gets when the thread that started it ends."""
 EXIT_POLL_S = 0.05
@@ -137,7 +143,7 @@ ABBREVIATIONS = {"--host": "--ho", "--kit": "--k", "--allow": "--a", "--config":
                  "--http-port": "--ht", "--kit-dir": "--kit-", "--scene": "--sce", "--strike-period": "--strike-p",
                  "--strike-velocity": "--strike-v", "--drum-channels": "--drum-c", "--drum-map": "--drum-m",
                  "--no-hihat-cc4": "--no-h", "--score-dir": "--score-", "--preview-score": "--preview-s",
-                 "--left-handed": "--le"}
+                 "--left-handed": "--le", "--rig": "--ri"}
 """The shortest abbreviation of each service option the rig reads in a ``--ROLE-arg`` (:func:`option_uses`). A
 service's parser (argparse, allow_abbrev) takes any prefix of a long option that no other of its options shares
 (``--ho`` for ``--host``), an exact name first, and refuses an ambiguous one (exit 2). So ``--h`` is no ``--host``
@@ -176,6 +182,8 @@ RIG_GIVES = {
                    "read it)", "use batteur rig --drum-map {value}"),
     "--no-hihat-cc4": ("turn off the hi-hat pedal batteur rig --hihat-cc4 gives {role} (a score read otherwise than "
                        "the rig read it)", "drop batteur rig --hihat-cc4 to read hi-hat notes as written"),
+    "--rig": ("put {role} in another rig than the other services (nodes of another rig ignore each other)",
+              "use batteur rig --rig {value} (every service)"),
 }
 """The service options a ``--ROLE-arg`` may not give (:func:`refuse_rig_options`), each with what it would do
 (``{role}``: the service) and the rig's own option to use instead (``{value}``: the one given). ``--port``,
@@ -186,7 +194,7 @@ the option itself (``--wav`` with ``--record``, a strike option with ``--strike-
 service's own is the user's to give. Not here, so allowed: ``--host`` (where that service listens: the rig's checks,
 peers and Hellos take it), ``--peer``, ``--allow`` and ``--interface`` (they add to the rig's, repeatable),
 ``--log-level``, ``--node-id``, ``--discovery``, and every option the rig does not give."""
-ALWAYS_REFUSED = ("--port", "--epoch", "--role", "--score")
+ALWAYS_REFUSED = ("--port", "--epoch", "--role", "--score", "--rig")
 """The options of :data:`RIG_GIVES` refused whether or not the rig gave that service one."""
 GIVEN_AS = {"--no-hihat-cc4": "--hihat-cc4"}
 """An option of :data:`RIG_GIVES` refused where the rig gives that service this other one: a flag's negation."""
@@ -329,7 +337,9 @@ def plan_rig(opts: argparse.Namespace, epoch: float, environ: Mapping[str, str] 
     check_families(hosts, opts.host)
     plans: list[ServicePlan] = []
     for role in roles:
-        args = ["--host", opts.host, "--epoch", repr(epoch), "--node-id", f"{role}-rig{opts.base_port}"]
+        args = ["--host", opts.host, "--epoch", repr(epoch), "--node-id", rig_node_id(role, opts.base_port)]
+        if getattr(opts, "rig", None):  # else the services' own BATTEUR_RIG, or the one shared default
+            args += ["--rig", opts.rig]
         if not opts.no_static_peers:
             for other in roles:
                 if other != role:
@@ -365,6 +375,23 @@ def plan_rig(opts: argparse.Namespace, epoch: float, environ: Mapping[str, str] 
         args += own[role]
         plans.append(ServicePlan(role, ports[role], args))
     return plans
+
+
+def rig_name(text: str) -> str:
+    """A ``--rig`` name: 1-32 letters, digits, ``_ . -`` (it travels in the nodes' zeroconf TXT record)."""
+    if not re.fullmatch(r"[A-Za-z0-9_.-]{1,32}", text):
+        raise argparse.ArgumentTypeError(f"{text!r}: a rig name is 1-32 letters, digits, '_', '.' or '-' (e.g. class2)")
+    return text
+
+
+def rig_node_id(role: str, base_port: int) -> str:
+    """The node id of the rig's ``role`` service: ``ROLE-HOSTNAME-rigPORT`` (at most 64 characters). Unique per
+    machine (its host name) and per rig on it (its base port): until 8 Dec it was ``ROLE-rigPORT``, so two classes'
+    rigs on one network announced the same names; the second's discovery failed to start, and their sound nodes
+    took the two physics nodes for one, switching clocks between them."""
+    host = re.sub(r"[^A-Za-z0-9_.-]+", "-", socket.gethostname().split(".")[0]).strip("-.") or "host"
+    suffix = f"-rig{base_port}"
+    return f"{role}-{host}"[: 64 - len(suffix)] + suffix
 
 
 def check_families(hosts: Mapping[str, str], rig_host: str) -> None:
@@ -522,6 +549,9 @@ class _Answers(asyncio.DatagramProtocol):
         """The socket's last error (:meth:`error_received`); the rig clears it before each Hello it sends."""
         self.unsent: dict[str, tuple[str, str, int]] = {}
         """Role -> (address, why, how many) of the Hellos to it that could not be sent (:meth:`send`)."""
+        self.discovery: dict[str, int] = {}
+        """Role -> its latest Health's ``discovery`` (off, on, starting, failed): the rig asks one still starting
+        again, and its ready line names those whose discovery failed."""
 
     def error_received(self, exc: Exception) -> None:
         # a send that failed at once (asyncio's sendto calls this within it), or a receive's
@@ -544,13 +574,17 @@ class _Answers(asyncio.DatagramProtocol):
 
     def datagram_received(self, data: bytes, addr: tuple[str | Any, int]) -> None:
         from common.messages import Health, decode
+        from common.runtime import DISCOVERY_STARTING
 
         role = self.roles.get(addr[1])
-        if role is None or role in self.up:
+        if role is None or (role in self.up and self.discovery.get(role) != DISCOVERY_STARTING):
             return
-        if any(isinstance(m, Health) and m.role == role for m in decode(data).messages):
-            self.up[role] = time.time() - self.epoch
-            self.heard.set()
+        health = next((m for m in decode(data).messages if isinstance(m, Health) and m.role == role), None)
+        if health is not None:
+            self.discovery[role] = health.discovery
+            self.up.setdefault(role, time.time() - self.epoch)
+            if health.discovery != DISCOVERY_STARTING:  # else asked again in READY_POLL_S, not at once
+                self.heard.set()
 
     async def wait(self, timeout_s: float) -> None:
         """Until a service answers or ``timeout_s`` seconds have passed."""
@@ -575,7 +609,23 @@ def counted(count: int, noun: str) -> str:
 
 
 def up_line(plans: Sequence[ServicePlan], up: Mapping[str, float], elapsed_s: float, play_at_s: float | None,
-            environ: Mapping[str, str] | None = None) -> str:
+            environ: Mapping[str, str] | None = None, discovery_failed: Sequence[str] = ()) -> str:
+    """:func:`ready_line`, where ``discovery_failed`` names the services whose discovery failed to start: then not
+    "ready" but what they cannot do, and what to check (until 8 Dec the rig said "ready" while the second class's
+    rig on a network, its node ids those of the first's, found no sound node: its speakers stayed silent)."""
+    line = ready_line(plans, up, elapsed_s, play_at_s, environ)
+    if not discovery_failed:
+        return line
+    names = ", ".join(discovery_failed)
+    whose = "its" if len(discovery_failed) == 1 else "their"
+    warning = (f"; but discovery (zeroconf) failed to start on {names} (see {whose} ERROR line): they find no node "
+               "on another machine, only this rig's own services (a node of the same id already on the network? "
+               "docs/deployment.md, \"Two classes, two rigs on one network\")")
+    return line.replace(": ready;", ": running, not ready;", 1).rstrip("\n") + warning + "\n"
+
+
+def ready_line(plans: Sequence[ServicePlan], up: Mapping[str, float], elapsed_s: float, play_at_s: float | None,
+               environ: Mapping[str, str] | None = None) -> str:
     """What the rig says once every service is up (``up``: role -> rig time it answered, seconds; ``elapsed_s``:
     seconds since launch): with ``--score`` (``play_at_s``), whether one was up only after the score's time;
     without, where to send what to play: physics' address, with a wildcard ``--host`` loopback's and that it
@@ -671,6 +721,9 @@ class Rig:
         start (the rig listens no more; until the day after 7 Dec a graphics answering only then, killed mid-show,
         stopped physics, interaction and sound "before it was up")."""
         self.arm_child = stop_with_the_rig()
+        self.said: dict[str, set[str]] = {}
+        """Role -> what its output said of its start and stop (:data:`SAID`): the rig's timeout and stop messages
+        name it (a physics compiling its kernels; a service that said it was stopping yet had not exited)."""
 
     async def _pump(self, role: str, stream: asyncio.StreamReader | None, to: Output) -> None:
         """Copy a service's output to ``to``, line by line with its role in front (one write each: whole lines)."""
@@ -685,6 +738,11 @@ class Rig:
             if not line:
                 return
             text = line.decode(errors="replace")
+            for key, (mark, until) in SAID.items():
+                if mark in text:
+                    self.said.setdefault(role, set()).add(key)
+                elif until and until in text:
+                    self.said.get(role, set()).discard(key)
             # a last line cut short is ended here, else the next line written would be glued to it
             to.write(f"[{role:<{width}}] {text}" + ("" if text.endswith("\n") else "\n"))
 
@@ -788,6 +846,7 @@ class Rig:
         the rig with an error naming them, without it warn and run on."""
         from common.messages import PROTOCOL_VERSION, Hello, encode
         from common.messages.system import TOOL_ROLE
+        from common.runtime import DISCOVERY_STARTING
 
         loop = asyncio.get_running_loop()
         roles = {plan.port: plan.role for plan in self.plans}
@@ -811,22 +870,24 @@ class Rig:
                                  osc_port=transport.get_extra_info("sockname")[1]))
             next_line = launched + READY_PROGRESS_S
             # a service that exited is waited for no more (it stops the rig: the wait is cancelled)
-            while waiting := [plan for plan in self.plans
-                              if plan.role not in answers.up and plan.role not in self.exit_codes]:
+            # up, and its discovery done starting (registration takes about a second): the ready line says if it failed
+            while waiting := [plan for plan in self.plans if plan.role not in self.exit_codes and (
+                    plan.role not in answers.up or answers.discovery.get(plan.role) == DISCOVERY_STARTING)]:
                 elapsed = time.monotonic() - launched
                 names = ", ".join(plan.role for plan in waiting)
                 if elapsed >= ready.timeout_s:
                     unsent = "".join(f"; the {counted(count, 'Hello')} to {role} at {address} could not be sent: {why}"
                                      for role, (address, why, count) in answers.unsent.items()
                                      if role not in answers.up)
+                    hint = self.ready_hint([plan.role for plan in waiting], ready.timeout_s)
                     if ready.play_at_s is None:  # no score waits on them: said, and the rig runs on
                         self.err.write(f"batteur rig: warning: {names} not up within --ready-timeout "
                                        f"{ready.timeout_s:g} s of launch (no answer to a Hello{unsent}); the rig runs "
-                                       "on (batteur ls tells when they answer)\n")
+                                       f"on (batteur ls tells when they answer){hint}\n")
                         self._past_start()
                         return
                     self._give_up(f"{names} not up within --ready-timeout {ready.timeout_s:g} s of launch (no answer "
-                                  f"to a Hello{unsent}); stopping the rig")
+                                  f"to a Hello{unsent}); stopping the rig{hint}")
                     return
                 if time.monotonic() >= next_line:
                     self.out.write(f"batteur rig: waiting for {names} to start ({elapsed:.0f} s since launch; "
@@ -845,7 +906,23 @@ class Rig:
             transport.close()
         # a service that exited stops the rig (graphics before it was up too: every one left answered)
         if answers.up and not self.stopping.is_set():
-            self.out.write(up_line(self.plans, answers.up, time.monotonic() - launched, ready.play_at_s))
+            from common.runtime import DISCOVERY_FAILED
+
+            failed = [plan.role for plan in self.plans if answers.discovery.get(plan.role) == DISCOVERY_FAILED]
+            self.out.write(up_line(self.plans, answers.up, time.monotonic() - launched, ready.play_at_s,
+                                   discovery_failed=failed))
+
+    def ready_hint(self, waiting: Sequence[str], timeout_s: float) -> str:
+        """What to do about services not up within ``timeout_s`` (``waiting``: their roles): give them longer, with
+        the reason physics' output gave (compiling its kernels: a walkthrough's first run, load 13, took 140 s of
+        the 60 s default and said nothing of it)."""
+        more = f"--ready-timeout {max(240.0, 4 * timeout_s):g}"
+        if "compiling" in self.said.get("physics", set()) and "physics" in waiting:
+            return (f". physics was still compiling its kernels (no numba cache yet: the first run after an install "
+                    f"or an update; cached after, or done ahead by `python3 -m services.physics.precompile`): give "
+                    f"it longer, e.g. {more}")
+        first = ", the first run after an install compiling the physics kernels," if "physics" in waiting else ""
+        return f". A loaded machine{first} may need longer: e.g. {more}"
 
     def _give_up(self, reason: str) -> None:
         """Stop the rig over ``reason`` (one error line; exit 1 unless a service failed first)."""
@@ -897,7 +974,14 @@ class Rig:
             try:
                 await asyncio.wait_for(exited(proc), timeout=remaining)
             except TimeoutError:
-                self.err.write(f"batteur rig: {role} did not stop in {self.stop_timeout_s:g} s; killing it\n")
+                # what it said agrees with what the rig says (a physics stopped while compiling logged "stopped
+                # cleanly" and then the rig "did not stop in 4 s; killing it")
+                said = self.said.get(role, set())
+                why = (" (it said it was stopping, but had not exited)" if "stopping" in said
+                       else " (it was compiling its kernels, which it stops only between two)" if "compiling" in said
+                       else "")
+                self.err.write(f"batteur rig: {role} did not exit within --stop-timeout {self.stop_timeout_s:g} s of "
+                               f"SIGTERM{why}; killing it\n")
                 with contextlib.suppress(ProcessLookupError):
                     proc.kill()
                 await exited(proc)
@@ -993,6 +1077,10 @@ def build_parser() -> argparse.ArgumentParser:
                         "service also gets the others' ports, and BATTEUR_PEERS's peers beside them)")
     parser.add_argument("--interfaces", default="", metavar="ADDRESSES",
                         help="comma-separated addresses or interface names for zeroconf (default: loopback)")
+    parser.add_argument("--rig", type=rig_name, default=None, metavar="NAME",
+                        help="name of this rig, given to every service (default: BATTEUR_RIG, else one shared "
+                        "name): nodes of another rig on the network are ignored; two classes on one network give "
+                        "each rig its own name, the same on every laptop of it (docs/deployment.md)")
     parser.add_argument("--start-delay", type=non_negative, default=3.0, metavar="SECONDS",
                         help="seconds between launch and rig time 0 (default 3)")
     parser.add_argument("--duration", type=seconds, default=None, metavar="SECONDS",
@@ -1030,7 +1118,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "only after it starts the score as soon as it can, from its first note")
     parser.add_argument("--ready-timeout", type=seconds, default=60.0, metavar="SECONDS",
                         help="seconds from launch the services get to be up (to answer a Hello); past it the rig "
-                        "names those that are not, and with --score stops with an error (default 60)")
+                        "names those that are not, and with --score stops with an error (default 60; the first "
+                        "run after an install compiles the physics kernels, minutes on a loaded machine: give it 240)")
     parser.add_argument("--log-level", type=str.upper, choices=("DEBUG", "INFO", "WARNING", "ERROR"), default=None,
                         help="log level for every service (default: theirs, INFO)")
     for role in ROLES:
@@ -1390,3 +1479,4 @@ def main(argv: Sequence[str] | None = None) -> int:
                   f"({opts.start_delay + opts.play_at:g} s after launch; later if physics is not up by then)",
                   flush=True)
         return asyncio.run(run_rig(plans, opts, ready))
+

@@ -41,6 +41,9 @@ from common.peers import Peer, parse_static_peer
 from common.transport import MAX_UDP_PAYLOAD, SERVICE_ROLES
 
 ENV_PREFIX = "BATTEUR_"
+DEFAULT_RIG = "batteur"
+"""The rig name of a node given none (``--rig`` / BATTEUR_RIG): one shared name, so the nodes of a rig spread over
+two machines find each other with no flag; two rigs on one network give each its own."""
 LOOPBACK_NETWORKS = ("127.0.0.0/8", "::1/128")
 ABSENT_ROLES = (*SERVICE_ROLES, "recogniser")
 """The roles ``--absent`` takes: the nodes' (services/recogniser's too)."""
@@ -136,6 +139,13 @@ class NodeSettings(BaseSettings):
         default_factory=lambda: ["127.0.0.1"],
         description="interfaces zeroconf uses: addresses, names (eth0) or 'all' (default: loopback)",
     )
+    rig: str = Field(default=DEFAULT_RIG, pattern=r"^[A-Za-z0-9_.-]{1,32}$",
+                     description="name of the rig this node belongs to, carried in its zeroconf record: nodes of "
+                     "another rig on the network are ignored (two classes on one network: a name each, "
+                     "docs/deployment.md)")
+    discovery_ttl_s: int = Field(default=30, ge=1, le=3600,
+                                 description="TTL of this node's zeroconf records, seconds: how long a node that dies "
+                                 "without a goodbye lingers at its peers")
     rate_hz: float | None = Field(default=None, gt=0, le=100_000,
                                   description="step rate of the core, Hz (default: the core's own)")
     epoch: float = Field(default_factory=time.time, ge=0,

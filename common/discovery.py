@@ -47,6 +47,7 @@ from zeroconf.asyncio import AsyncServiceBrowser, AsyncServiceInfo, AsyncZerocon
 from zeroconf.const import _CLASS_IN, _TYPE_SRV
 
 from common.arg_types import count, non_negative, seconds, whole
+from common.config import DEFAULT_RIG
 from common.datafile import one_line
 from common.messages.system import PROTOCOL_VERSION, NodeId, Role
 from common.peers import Peer, PeerTable, parse_static_peer
@@ -91,10 +92,13 @@ class ServiceTxt(BaseModel):
     proto: Annotated[int, Field(ge=0)] = Field(description="Batteur OSC protocol version")
     node_id: NodeId = Field(description="unique id of the node process")
     port: Annotated[int, Field(ge=1, le=65535)] = Field(description="UDP port the node receives OSC on")
+    rig: str = Field(default=DEFAULT_RIG, max_length=32, description="name of the node's rig (a node from before "
+                     "8 Dec carries none: the default rig's)")
 
     def to_properties(self) -> dict[str, str]:
         """TXT key/value strings."""
-        return {"role": self.role, "proto": str(self.proto), "node_id": self.node_id, "port": str(self.port)}
+        return {"role": self.role, "proto": str(self.proto), "node_id": self.node_id, "port": str(self.port),
+                "rig": self.rig}
 
     @classmethod
     def from_properties(cls, properties: Mapping[str, str | None]) -> ServiceTxt:
@@ -114,6 +118,7 @@ class NodeInfo(BaseModel):
     protocol: int = Field(description="Batteur protocol version the node speaks")
     addresses: tuple[str, ...] = Field(default=(), description="every address the node announced")
     name: str = Field(default="", description="DNS-SD service instance name")
+    rig: str = Field(default=DEFAULT_RIG, description="name of the node's rig (from the TXT record)")
 
 
 @dataclass(frozen=True)
@@ -121,7 +126,7 @@ class Rejection:
     """A discovered service that was not added to the peer table, and why."""
 
     name: str
-    reason: str  # "protocol", "txt", "address", "not_allowed"
+    reason: str  # "protocol", "txt", "address", "not_allowed", "rig"
     detail: str
     role: str = ""
     node_id: str = ""
@@ -138,6 +143,9 @@ class DiscoveryStats:
     rejected_txt: int = 0
     rejected_address: int = 0
     rejected_not_allowed: int = 0
+    rejected_rig: int = 0
+    kept_quiet: int = 0
+    """Peers kept after their mDNS records expired unanswered, because they still answered over unicast."""
 
 
 # --------------------------------------------------------------------------- addresses and names
@@ -311,6 +319,7 @@ def peer_from_service(
     protocol: int = PROTOCOL_VERSION,
     networks: Sequence[Network] = (),
     allowed: Sequence[Network] | None = None,
+    rig: str | None = None,
 ) -> Peer | Rejection:
     """Decide what a resolved service means for the peer table (pure: no network).
 
@@ -333,6 +342,8 @@ def peer_from_service(
     allowed : sequence of ip networks or None
         Allow-list: a peer whose chosen address is outside every one of them is rejected
         (``not_allowed``). None allows every address.
+    rig : str or None
+        Our rig's name: a node of another rig is rejected (``rig``). None takes every rig.
 
     Returns
     -------
@@ -343,6 +354,8 @@ def peer_from_service(
     except ValidationError as exc:
         problems = "; ".join(f"{'.'.join(map(str, e['loc']))}: {e['msg']}" for e in exc.errors())
         return Rejection(name, "txt", f"bad TXT record ({problems})")
+    if rig is not None and txt.rig != rig:
+        return Rejection(name, "rig", f"of rig {txt.rig!r}, this node is of rig {rig!r}", txt.role, txt.node_id)
     if txt.proto != protocol:
         return Rejection(
             name, "protocol", f"speaks protocol {txt.proto}, we speak {protocol}", txt.role, txt.node_id
@@ -433,6 +446,13 @@ class Discovery:
     allowed : sequence of str or None
         Allow-list of peer addresses or networks (CIDR) for LAN use; peers elsewhere are rejected.
         None: every address, except for a node on loopback only, which accepts loopback peers only.
+    rig : str
+        Name of this node's rig, announced in TXT; nodes of another rig are ignored (two classes' rigs
+        on one network). Default: one shared name.
+    still_answers : callable or None
+        Whether a peer answered over unicast lately (the node's Health and clock pongs). A peer whose
+        records expired and who does not answer the re-query is kept while this says True (multicast
+        filtered on the way, the peer still running), with one warning; None: such peers are dropped.
     """
 
     def __init__(
@@ -453,8 +473,10 @@ class Discovery:
         retry_interval_s: float = 10.0,
         extra_services: Sequence[AsyncServiceInfo] = (),
         allowed: Sequence[str] | None = None,
+        rig: str = DEFAULT_RIG,
+        still_answers: Callable[[Peer], bool] | None = None,
     ) -> None:
-        self.txt = ServiceTxt(role=role, proto=protocol, node_id=node_id, port=port)
+        self.txt = ServiceTxt(role=role, proto=protocol, node_id=node_id, port=port, rig=rig)
         if ttl_s < 1:
             raise ValueError(f"ttl_s must be at least 1 second, got {ttl_s}")
         self.role = role
@@ -479,6 +501,10 @@ class Discovery:
         self.rejection_listeners: list[Callable[[Rejection], None]] = []
         self.info: AsyncServiceInfo | None = None
         self.allowed = parse_networks(allowed) if allowed is not None else None
+        self.rig = rig
+        self.still_answers = still_answers
+        self._quiet: dict[str, float] = {}  # name of a peer kept though mDNS is silent -> next re-query (loop time)
+        self._quiet_warned = False
         self._extra: list[AsyncServiceInfo] = list(extra_services)
         self._pending_extra: list[tuple[str, str, int, dict[str, str]]] = []
         self._aiozc: AsyncZeroconf | None = None
@@ -577,6 +603,7 @@ class Discovery:
                 self._forget(name, "discovery stopped", count=False)
             self._known.clear()
             self._silent.clear()
+            self._quiet.clear()
 
     async def __aenter__(self) -> Discovery:
         await self.start()
@@ -656,6 +683,8 @@ class Discovery:
         self, zeroconf: Zeroconf, service_type: str, name: str, state_change: ServiceStateChange
     ) -> None:
         if state_change is ServiceStateChange.Removed:
+            if name in self._quiet and self._answers(name):
+                return  # its PTR ran out unrefreshed (mDNS filtered); it still answers: kept, re-queried as before
             self._known.discard(name)
             self._silent.pop(name, None)
             self._cancel(name)
@@ -688,8 +717,21 @@ class Discovery:
         info = AsyncServiceInfo(SERVICE_TYPE, name)
         zc = self.zeroconf
         if info.load_from_cache(zc):
+            if self._quiet.pop(name, None) is not None:
+                log.info("discovery: %s answers mDNS again", name)
             self._apply(name, info, self._srv_received_ms(name))
             return
+        if from_cache_only and name in self._quiet:
+            # kept though mDNS is silent: dropped once it stops answering over unicast too; re-queried now and then
+            now = asyncio.get_running_loop().time()
+            if not self._answers(name):
+                self._quiet.pop(name, None)
+                self._forget(name, "no answer to mDNS since its records expired, and none over unicast now either")
+                self._silent[name] = now + self.retry_interval_s
+                return
+            if now < self._quiet[name]:
+                return
+            self._quiet[name] = now + self.retry_interval_s
         if from_cache_only and name not in self._by_name:
             # Not a peer right now. A peer that stopped answering (stalled, unplugged) may come back
             # without announcing itself again: ask for it now and then until the browser drops it.
@@ -699,12 +741,44 @@ class Discovery:
             self._silent[name] = now + self.retry_interval_s
         if await info.async_request(zc, self.resolve_timeout_s * 1000, question_type=QUESTION_TYPE):
             self._silent.pop(name, None)
+            if self._quiet.pop(name, None) is not None:
+                log.info("discovery: %s answers mDNS again", name)
             self._apply(name, info, self._srv_received_ms(name))
+        elif name in self._quiet:
+            return  # still kept (checked at each sweep against its unicast answers)
+        elif name in self._by_name and self._answers(name):
+            self._keep_quiet(name)
         elif name in self._by_name:
             self._forget(name, f"no answer within {self.resolve_timeout_s:g} s after its records expired")
             self._silent[name] = asyncio.get_running_loop().time() + self.retry_interval_s
         else:
             log.debug("discovery: %s did not resolve", name)
+
+    def _answers(self, name: str) -> bool:
+        """Whether the peer discovery added under ``name`` still answers over unicast (:attr:`still_answers`)."""
+        node_id = self._by_name.get(name)
+        peer = next((p for p in self.peers.all() if p.node_id == node_id), None)
+        return peer is not None and self.still_answers is not None and self.still_answers(peer)
+
+    def _keep_quiet(self, name: str) -> None:
+        """Keep the peer of ``name``: its records expired and it did not answer the re-query, yet it answers over
+        unicast. Multicast is lost on the way (a firewall, Wi-Fi client isolation): warned about once, the first
+        time (until 8 Dec such peers were dropped ~30 s after the start, both sides' traffic lost)."""
+        self._quiet[name] = asyncio.get_running_loop().time() + self.retry_interval_s
+        self.stats.kept_quiet += 1
+        node_id = self._by_name.get(name, "")
+        peer = next((p for p in self.peers.all() if p.node_id == node_id), None)
+        where = f"{peer.role} {node_id} at {peer.host}:{peer.port}" if peer is not None else name
+        if self._quiet_warned:
+            log.info("discovery: %s does not answer mDNS since its records expired but answers over unicast: kept",
+                     where)
+            return
+        self._quiet_warned = True
+        log.warning("discovery has gone quiet on %s: %s no longer answers mDNS since its records expired, yet it "
+                    "answers over unicast, so it is kept (and so are the others like it). Multicast filtered (a "
+                    "firewall, Wi-Fi client isolation)? Nodes started from now on are not found; static peers "
+                    "(--peer ROLE=HOST:PORT) do not depend on multicast (docs/deployment.md)",
+                    ", ".join(self._addresses), where)
 
     def _srv_received_ms(self, name: str) -> float:
         """When the SRV record of ``name`` in the cache was last received (zeroconf's clock, ms); infinity if
@@ -727,6 +801,7 @@ class Discovery:
             protocol=self.protocol,
             networks=self._networks,
             allowed=self.effective_allowed,
+            rig=self.rig,
         )
         if isinstance(result, Rejection):
             if result.node_id == self.node_id:
@@ -775,9 +850,13 @@ class Discovery:
             self.stats.rejected_txt += 1
         elif rejection.reason == "not_allowed":
             self.stats.rejected_not_allowed += 1
+        elif rejection.reason == "rig":
+            self.stats.rejected_rig += 1
         else:
             self.stats.rejected_address += 1
-        log.warning("discovery: ignoring %s: %s", rejection.name, rejection.detail)
+        # another rig's node is expected on a shared network (two classes): said once, quietly
+        level = logging.INFO if rejection.reason == "rig" else logging.WARNING
+        log.log(level, "discovery: ignoring %s: %s", rejection.name, rejection.detail)
         for listener in self.rejection_listeners:
             listener(rejection)
 
@@ -789,6 +868,7 @@ class Discovery:
         self.peers.remove(node_id)
 
     def _forget(self, name: str, why: str, count: bool = True) -> None:
+        self._quiet.pop(name, None)
         node_id = self._by_name.pop(name, None)
         if node_id is None:
             return
@@ -880,6 +960,7 @@ async def browse_nodes(
                     protocol=txt.proto,
                     addresses=tuple(addrs),
                     name=name,
+                    rig=txt.rig,
                 )
 
             found = await asyncio.gather(*(resolve(n) for n in sorted(names)))
@@ -954,7 +1035,7 @@ async def _run_node(args: argparse.Namespace) -> int:
             args.role, args.node_id, args.port, args.interface or None, peers, roles,
             protocol=args.proto, host_addresses=args.host_address or None, allow_loopback=args.allow_loopback,
             ttl_s=args.ttl, check_interval_s=args.check_interval, resolve_timeout_s=args.resolve_timeout,
-            retry_interval_s=args.retry_interval, allowed=args.allow or None,
+            retry_interval_s=args.retry_interval, allowed=args.allow or None, rig=args.rig,
         )
         discovery.rejection_listeners.append(on_rejection)
         for type_, port in extras:
@@ -1011,6 +1092,8 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--browse", action="append", default=[], help="role to look for (repeatable)")
     run.add_argument("--peer", action="append", default=[], help="static peer ROLE=HOST:PORT (repeatable)")
     run.add_argument("--proto", type=whole, default=PROTOCOL_VERSION, help="protocol version to announce")
+    run.add_argument("--rig", default=DEFAULT_RIG, help=f"rig name to announce; nodes of another rig are ignored "
+                     f"(default {DEFAULT_RIG})")
     run.add_argument("--ttl", type=count, default=DEFAULT_TTL_S, help="TTL of our records, whole seconds")
     run.add_argument("--check-interval", type=seconds, default=1.0, help="peer re-check period, seconds")
     run.add_argument("--retry-interval", type=seconds, default=10.0,

@@ -108,6 +108,8 @@ unbudgeted, a forged source made a node a reflector (one 60 kB bundle of Hellos 
 controls' figures, in a budget of its own, so a flood of bad controls does not silence the Hello of a ``batteur ls``
 that would show them counted. The rig asks every 0.5 s until answered, ``batteur ls`` once, peers once when found."""
 HELLO_ANSWER_BURST = DECODE_REPLY_BURST
+DISCOVERY_OFF, DISCOVERY_ON, DISCOVERY_STARTING, DISCOVERY_FAILED = 0, 1, 2, 3
+"""Health's ``discovery``: off (``--no-discovery``), on, starting (registering), failed to start."""
 """Hellos answered to one sender host at once before :data:`HELLO_ANSWER_RATE_HZ`."""
 WRONG_NODE_REPLY_RATE_HZ = DECODE_REPLY_RATE_HZ
 """Controls of another service (``wrong_node``) answered with this node's refusal per second to one sender host, past
@@ -340,6 +342,37 @@ def check_interfaces(interfaces: Sequence[str]) -> str:
     return ""
 
 
+def loopback_announce_problem(host: str, interfaces: Sequence[str]) -> str:
+    """Why other machines cannot find a node that listens for them ("" if they can, or it listens on loopback): it
+    listens on every address (``--host 0.0.0.0``) or a LAN one, but announces itself (zeroconf) on loopback only, the
+    default without ``--interface``. A teacher's sound laptop started so was found by no one, said only by an INFO
+    line (``on ['127.0.0.1']``), a warning 30 s later, and the other laptop's ``no sound peer known`` once a minute;
+    said at start, with the fix and this machine's other interfaces."""
+    from common.config import is_loopback
+
+    if is_loopback(host):
+        return ""
+    try:
+        import ifaddr
+
+        from common.discovery import is_loopback as is_loopback_address
+        from common.discovery import resolve_interfaces
+
+        addresses = resolve_interfaces(list(interfaces))
+        adapters = list(ifaddr.get_adapters())
+    except Exception:  # noqa: BLE001 - no discovery installed, or interfaces it refuses (refused at start already)
+        return ""
+    if not addresses or not all(is_loopback_address(a) for a in addresses):
+        return ""
+    lan = [f"{a.nice_name} ({ip.ip})" for a in adapters for ip in a.ips
+           if isinstance(ip.ip, str) and not is_loopback_address(ip.ip)]
+    listens = "on every address" if host in ("0.0.0.0", "::") else f"on {host}"
+    return (f"this node listens {listens} but announces itself (zeroconf) on loopback only ({', '.join(addresses)}): "
+            "nodes on other machines will not find it, nor it them. Give the interface of the network they are on: "
+            f"--interface NAME or ADDRESS (BATTEUR_INTERFACES; this machine's: {', '.join(lan) or 'none but loopback'})"
+            ", or static peers (--peer ROLE=HOST:PORT)")
+
+
 # --------------------------------------------------------------------------- node
 
 Setup = Callable[["Node"], Awaitable[None] | None]
@@ -469,6 +502,12 @@ class Node:
         self.loop: RateLoop | None = None
         self._loop_task: asyncio.Task[Any] | None = None
         self.discovery: DiscoveryService | None = None
+        self.discovery_state = DISCOVERY_OFF
+        """Health's ``discovery``: off, starting, on, or failed to start (the rig's ready line says so)."""
+        self._masters_warned: set[frozenset[str]] = set()
+        """The sets of clock masters (node ids) already warned about (:meth:`_warn_two_masters`)."""
+        self._last_pong_at = -math.inf
+        """When the clock master last answered a ping (``time.monotonic()``): it still answers (discovery)."""
         self.peer_health: dict[str, tuple[Health, str, float]] = {}
         """Last Health heard from each node id: (message, source, local monotonic time)."""
         self.silent_peers: set[str] = set()
@@ -522,6 +561,8 @@ class Node:
         """Open the endpoint, add static peers, start discovery and the node's tasks."""
         self._bind_loop()
         s = self.settings
+        if s.discovery:  # from the first Health on (a Hello is answered while OSCQuery and discovery start)
+            self.discovery_state = DISCOVERY_STARTING
         self.endpoint = await UdpEndpoint.open(
             s.host,
             s.port,
@@ -547,6 +588,10 @@ class Node:
             self.spawn(self._clock_task(), "clock")
             self.spawn(self._core_start_timer(), "core start")
         if s.discovery:  # registration probes for about a second; the node already runs meanwhile
+            problem = loopback_announce_problem(s.host, s.interfaces)
+            if problem:
+                log.warning("%s", problem)
+            self.discovery_state = DISCOVERY_STARTING
             factory = self.discovery_factory or default_discovery_factory
             self.discovery = factory(
                 role=self.role,
@@ -558,6 +603,10 @@ class Node:
                 protocol=PROTOCOL_VERSION,
                 # the transport's allow-list: a peer it would drop (not_allowed) is not added, and said why once
                 allowed=None if s.allow_networks is None else [str(n) for n in s.allow_networks],
+                rig=s.rig,
+                ttl_s=s.discovery_ttl_s,
+                # a peer whose mDNS records expire unanswered (multicast filtered) is kept while it answers here
+                still_answers=self.still_answers,
             )
             if self.discovery is not None:
                 register_extra = getattr(self.discovery, "register_extra", None)
@@ -567,11 +616,18 @@ class Node:
                     await register_extra(OSCJSON, self.oscquery.port, self.oscquery.txt())
                 try:
                     await self.discovery.start()
+                    self.discovery_state = DISCOVERY_ON
                 except Exception as exc:  # the node still works with static peers
-                    log.error("discovery failed to start (%s); using static peers only", exc)
+                    # said in Health too: batteur rig's ready line names the node (a walkthrough's rig said "ready"
+                    # while two of its nodes could find no sound node on the other laptop)
+                    self.discovery_state = DISCOVERY_FAILED
+                    log.error("discovery failed to start (%s); using static peers only: no node on another machine "
+                              "is found", exc)
                     with contextlib.suppress(Exception):
                         await asyncio.wait_for(self.discovery.stop(), timeout=2.0)
                     self.discovery = None
+            else:
+                self.discovery_state = DISCOVERY_FAILED
         log.info(
             "%s node %s listening on %s (rate %g Hz, clock %s, discovery %s)",
             self.role,
@@ -1010,6 +1066,7 @@ class Node:
             self.endpoint.stats.record_drop(DropReason.NOT_ALLOWED, f"clock pong not from the clock master ({pinged})",
                                             source)
             return
+        self._last_pong_at = time.monotonic()
         sample = self.estimator.add_pong(pong, self.clock.local_now())
         if sample is not None:
             first = not self.clock.synced
@@ -1127,6 +1184,7 @@ class Node:
             duplicates=core_count(self.core, "duplicates"),
             wrong_node_unanswered=self.wrong_node_unanswered,
             skipped_steps=core_count(self.core, "skipped_steps"),  # physics only: steps it could not simulate in time
+            discovery=self.discovery_state,
         )
 
     async def _health_task(self) -> None:
@@ -1203,10 +1261,38 @@ class Node:
     def clock_master_peer(self) -> Peer | None:
         """The clock master to ping: the one in use while it is known, else the lowest node id of the master role
         (every node picks the same one when there are two, e.g. a restarted master's lingering record, and a
-        record flapping does not switch masters)."""
+        record flapping does not switch masters). Two known at once are warned about (:meth:`_warn_two_masters`)."""
         masters = self.peers.for_role(self.settings.clock_master)
         current = next((p for p in masters if p.node_id == self._master_id), None)
-        return current or min(masters, key=lambda p: p.node_id, default=None)
+        chosen = current or min(masters, key=lambda p: p.node_id, default=None)
+        if chosen is not None and len(masters) > 1:
+            self._warn_two_masters(chosen, masters)
+        return chosen
+
+    def _warn_two_masters(self, chosen: Peer, masters: Sequence[Peer]) -> None:
+        """Say once per set of them that this node knows several clock masters (two rigs on one network, each with
+        its physics: until 8 Dec their sound nodes switched between the two, the rig clock jumping by minutes), which
+        one it follows (``chosen``: the one it synced to, kept while it is a peer) and what to do."""
+        key = frozenset(p.node_id for p in masters)
+        if key in self._masters_warned:
+            return
+        self._masters_warned.add(key)
+        others = ", ".join(f"{p.node_id} at {format_address(*p.address)}" for p in masters if p is not chosen)
+        role = self.settings.clock_master
+        log.warning("%d clock masters (%s nodes) on the network: %s at %s and %s. This node follows %s and keeps it "
+                    "while it answers. Two rigs on one network? Give each its own --rig NAME (or BATTEUR_RIG) on every "
+                    "node, or static peers (--peer %s=HOST:PORT); see docs/deployment.md", len(masters), role,
+                    chosen.node_id, format_address(*chosen.address), others, chosen.node_id, role)
+
+    def still_answers(self, peer: Peer) -> bool:
+        """Whether ``peer`` answered over unicast lately (its Health, or its clock pongs if it is this node's clock
+        master, within :data:`PEER_SILENT_HEALTHS` health intervals): discovery keeps such a peer when its mDNS
+        records expire unanswered (a firewall dropping multicast), instead of dropping a node that still runs."""
+        last = self.peer_health.get(peer.node_id)
+        heard = last[2] if last is not None else -math.inf
+        if peer.node_id == self._master_id:
+            heard = max(heard, self._last_pong_at)
+        return time.monotonic() - heard <= PEER_SILENT_HEALTHS * self.health_interval_s
 
     async def _clock_task(self) -> None:
         """Ping the clock master: quickly until a few samples are in, then every ``ping_interval_s``."""
@@ -1250,7 +1336,9 @@ def stopped_while_starting(role: str, signal_name: str) -> str:
     after the user's Ctrl-C on ``batteur rig``, which stops its services with SIGTERM (a node cannot tell who sent
     it: the rig on Ctrl-C, its --duration's end or another service's exit, or a service manager)."""
     why = "Ctrl-C" if signal_name == "SIGINT" else "a stop request, e.g. batteur rig's on Ctrl-C"
-    return f"{role} was asked to stop while starting ({signal_name}: {why}): stopped cleanly before it listened"
+    # "stopping", not "stopped": the process has yet to exit (a loaded machine's physics, killed at the rig's stop
+    # timeout after this line, read as a contradiction)
+    return f"{role} was asked to stop while starting ({signal_name}: {why}): stopping cleanly before it listened"
 
 
 class StoppedWhileStarting(BaseException):

@@ -118,7 +118,8 @@ def test_a_service_that_never_starts_stops_the_rig_with_an_error(monkeypatch: py
     code, out, err = run_rig(plans, ready)
     assert code == 1
     assert err.splitlines() == ["batteur rig: error: physics not up within --ready-timeout 2 s of launch (no answer "
-                                "to a Hello); stopping the rig"]
+                                "to a Hello); stopping the rig. A loaded machine, the first run after an install "
+                                "compiling the physics kernels, may need longer: e.g. --ready-timeout 240"]
     assert "batteur rig: waiting for physics to start (" in out  # progress, naming it
     assert "services up" not in out
 

@@ -146,7 +146,7 @@ def test_any_node_stopped_while_its_core_is_made_stops_at_once_and_cleans_up(sig
     helper = int(node.stdout.split()[0])
     try:
         assert node.returncode == 0, node.stderr[-3000:]
-        assert f"sound was asked to stop while starting {said}: stopped cleanly before it listened" in node.stderr, \
+        assert f"sound was asked to stop while starting {said}: stopping cleanly before it listened" in node.stderr, \
             node.stderr[-3000:]
         assert "sound stopped while starting" not in node.stderr
         assert "listening on" not in node.stderr

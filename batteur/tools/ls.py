@@ -13,6 +13,7 @@ import asyncio
 import ipaddress
 import json
 import math
+import sys
 import time
 from collections.abc import Sequence
 from contextlib import suppress
@@ -246,6 +247,7 @@ def _row(target: Target, health: Health | None, clock: ClockStatus | None = None
         target_jumps=health.target_jumps, unroutable=health.unroutable, dropped_wrong_node=health.dropped_wrong_node,
         errors=health.errors, duplicates=health.duplicates, wrong_node_unanswered=health.wrong_node_unanswered,
         skipped_steps=health.skipped_steps, clock=clock_text(clock),
+        discovery=("off", "on", "starting", "failed to start")[health.discovery],  # an older node's: "off"
         clock_status=clock.model_dump(mode="json") if clock is not None else None,
     )
     return row
@@ -263,6 +265,26 @@ def table(rows: Sequence[dict[str, object]]) -> list[str]:
     return lines
 
 
+def looked_where(interfaces: Sequence[str], source: str, browse_s: float) -> str:
+    """Where ``batteur ls`` browsed (the interfaces and their addresses) and how to look elsewhere: said with every
+    list, not only an empty one (a teacher's ls on loopback listed the local nodes and silently left out the sound
+    laptop). ``source``: where the interfaces came from (``--interface``, BATTEUR_INTERFACES; "": loopback)."""
+    from common.discovery import resolve_interfaces
+
+    try:
+        addresses = resolve_interfaces(list(interfaces) or None)
+    except Exception:  # noqa: BLE001 - an unknown name: the browse itself said so; the names are still worth saying
+        addresses = []
+    if not interfaces:
+        return (f"batteur ls: browsed on loopback only ({', '.join(addresses) or '127.0.0.1'}) for {browse_s:g} s: "
+                "nodes of other machines are not listed; to list them, browse on their network's interface: "
+                "--interface eth0 (a name or an address, repeatable; 'all': every interface) or BATTEUR_INTERFACES")
+    named = ", ".join(interfaces)
+    shown = f" ({', '.join(addresses)})" if addresses and addresses != list(interfaces) else ""
+    return (f"batteur ls: browsed on {named}{shown} ({source}) for {browse_s:g} s; to look elsewhere: "
+            "--interface NAME (a name or an address, repeatable; 'all': every interface)")
+
+
 async def _run(opts: argparse.Namespace) -> int:
     interfaces, source = browse_interfaces(opts.interface)
     targets = await find_targets(opts.node, opts.browse, interfaces)
@@ -275,6 +297,8 @@ async def _run(opts: argparse.Namespace) -> int:
             for t, h in zip(targets, match_answers(targets, answers), strict=True)]
     for line in [json.dumps(rows, indent=2)] if opts.json else table(rows):
         write_line(line)
+    if not opts.node:  # on stderr, under the list: the table (or --json) stays what a script reads
+        print(looked_where(interfaces, source, opts.browse), file=sys.stderr, flush=True)
     return 0 if all(r["status"] in ANSWERED for r in rows) else 1
 
 

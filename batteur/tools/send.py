@@ -97,17 +97,15 @@ def arguments(model: type[OscMessage]) -> str:
 
 def split_times(model: type[OscMessage], texts: Sequence[str]) -> list[str] | None:
     """``texts`` with each rig time given as one number of seconds (``play 12.25 0``) split into the whole seconds
-    and fraction the wire carries (``play 12 0.25 0``); None unless ``texts`` has exactly one value per field (then
-    they are taken as given, the wire's form). A time there that is not a finite number raises
+    and fraction the wire carries (``play 12 0.25 0``); None unless ``texts`` has one value per field, the last
+    appended ones perhaps left out (:func:`one_number_form`; else they are taken as given, the wire's form). A time there that is not a finite number raises
     :class:`MessageError` naming the field (``TIME: must be a finite number of seconds``): the count is the
     one-number form's, so "expected 4 arguments" would be wrong."""
     fields = model.wire_fields()
-    if not fields or fields[-1].variadic or len(texts) != len(fields):
-        return None
-    if not any(f.kind is WireKind.TIME for f in fields) or older_wire_form(model, texts):
+    if not one_number_form(model, texts) or not any(f.kind is WireKind.TIME for f in fields):
         return None
     out: list[str] = []
-    for f, text in zip(fields, texts, strict=True):
+    for f, text in zip(fields, texts, strict=False):  # appended fields left out stay out (their defaults)
         if f.kind is not WireKind.TIME:
             out.append(text)
             continue
@@ -118,6 +116,16 @@ def split_times(model: type[OscMessage], texts: Sequence[str]) -> list[str] | No
         whole = math.floor(value)
         out += [str(int(whole)), repr(float(value - whole))]
     return out
+
+
+def one_number_form(model: type[OscMessage], texts: Sequence[str]) -> bool:
+    """Whether ``texts`` may be the one-number-time form: one value per field, or without the last of the
+    message's appended fields (``APPENDED``: an Impact's 11 values from before ``openness``, which until 8 Dec was
+    the whole message), and not rather an older sender's wire form (:func:`older_wire_form`)."""
+    fields = model.wire_fields()
+    if not fields or fields[-1].variadic or not 0 <= len(fields) - len(texts) <= len(model.APPENDED):
+        return False
+    return not older_wire_form(model, texts)
 
 
 def older_wire_form(model: type[OscMessage], texts: Sequence[str]) -> bool:
@@ -157,10 +165,10 @@ def relative_times(model: type[OscMessage] | None, texts: Sequence[str]) -> dict
     if model is None:
         return {}
     fields = model.wire_fields()
-    if not fields or fields[-1].variadic or len(texts) != len(fields) or older_wire_form(model, texts):
+    if not one_number_form(model, texts):
         return {}
     out: dict[int, float] = {}
-    for i, (f, text) in enumerate(zip(fields, texts, strict=True)):
+    for i, (f, text) in enumerate(zip(fields, texts, strict=False)):
         if f.kind is not WireKind.TIME or not text.startswith("+"):
             continue
         value = guess_arg(text[1:])
@@ -418,8 +426,10 @@ def _send(opts: argparse.Namespace) -> int:
         for host, port in targets:
             if (host, port) not in readings:
                 failed += 1
-                report_error(PROG, f"no rig time from {format_address(host, port)} within {opts.timeout:g} s "
-                             f"({stray_text(host, port, strays)}); +SECONDS needs it, not sent")
+                # a loaded machine answers late (a walkthrough's took over 2 s; --timeout 15 worked): name the flag
+                report_error(PROG, f"no rig time from {format_address(host, port)} within --timeout "
+                             f"{opts.timeout:g} s ({stray_text(host, port, strays)}); +SECONDS needs it, not sent "
+                             "(a loaded machine may answer later: raise --timeout, e.g. --timeout 10)")
         targets = [t for t in targets if t in readings]
     sent: list[tuple[socket.socket, str]] = []  # kept open to hear the answers (--replies)
     hints: dict[str, tuple[float, float]] = {}  # target -> (+SECONDS, the rig time it was made): said if late

@@ -91,10 +91,13 @@ class Health(OscMessage):
     skipped_steps: Count = Field(default=0, description="physics: simulation steps skipped to follow the rig clock "
                                  "when the node fell behind it (1 ms each at 1 kHz; the drummer then plays late, "
                                  "target_lag), total (0 for the others)")
+    discovery: int = Field(default=0, ge=0, le=3, description="zeroconf discovery: 0 off (or an older node, which "
+                           "does not say), 1 on, 2 starting (registering, about a second), 3 failed to start (the node "
+                           "uses static peers only: it finds no node on another machine; its log says why)")
 
     APPENDED: ClassVar[tuple[str, ...]] = ("decode_unanswered", "replies_unanswered", "target_lag", "target_jumps",
                                            "unroutable", "dropped_wrong_node", "errors", "duplicates",
-                                           "wrong_node_unanswered", "skipped_steps")
+                                           "wrong_node_unanswered", "skipped_steps", "discovery")
     """The fields appended after ``peers`` (one argument each), oldest first: a Health without the last of them (an
     older node's) decodes with their defaults."""
     NEWER_ARGS: ClassVar[int] = 16

@@ -37,7 +37,7 @@ from typing import Any, Literal
 
 from pydantic import Field, ValidationError
 
-from common.config import NodeSettings
+from common.config import NodeSettings, is_loopback
 from common.exit_status import InputError, report_error
 from common.kit import Kit, load_kit
 from common.kit_help import kit_help
@@ -70,6 +70,10 @@ class GraphicsNodeSettings(NodeSettings):
     http_port: int = Field(default=8080, ge=0, le=65535, description="HTTP/WebSocket port of the view (0: any)")
     kit: str = Field(default="default", description=kit_help(what="kit name or file to draw"))
     kit_dir: str = Field(default="", description="directory the editor may save kits and poses into ('': no saving)")
+    editor: Literal["local", "all", "off"] = Field(
+        default="local", description="which pages may use the kit and pose editor (it drives the drummer's posture "
+        "and saves files): local: pages opened on this machine, other machines get the view only; all: every page "
+        "that reaches --http-port; off: none")
     preview: str = Field(default="", description="pose sequence (.npz) to show instead of the live stream")
     preview_score: str = Field(
         default="", description="score (MIDI or text) to plan with the kit and show as a looping kinematic preview")
@@ -337,7 +341,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     async def setup(node: Node) -> None:
         s: GraphicsNodeSettings = holder["settings"]
         core: GraphicsCore = holder["core"]
-        server = ViewServer(core, kit_dir=Path(s.kit_dir) if s.kit_dir else None, clock=node.clock.now)
+        server = ViewServer(core, kit_dir=Path(s.kit_dir) if s.kit_dir else None, clock=node.clock.now,
+                            editor=s.editor)
         try:
             await server.start(s.host, s.http_port)
         except OSError as exc:  # asyncio's text names neither the option nor what to do
@@ -345,6 +350,14 @@ def main(argv: Sequence[str] | None = None) -> int:
                           "(another program listens there? pick another port, or 0 for any)") from None
         host = f"[{s.host}]" if ":" in s.host else s.host  # an IPv6 address needs brackets in a URL
         print(f"graphics view: http://{host}:{server.port}/", file=sys.stderr, flush=True)
+        if not is_loopback(s.host):  # served to the network: who gets the editor
+            if s.editor == "all":
+                log.warning("the view's editor is open to every machine that reaches port %d (--editor all): it "
+                            "drives the drummer's posture%s; --editor local keeps it to this machine",
+                            server.port, " and saves into --kit-dir" if s.kit_dir else "")
+            else:
+                log.info("other machines get the view only; the editor is %s (--editor %s)",
+                         "for pages opened on this machine" if s.editor == "local" else "off", s.editor)
         node.spawn(server.serve_forever(), "view server")
         if s.synthetic:
             node.spawn(_feed_synthetic(node, core, *holder["synthetic"]), "synthetic drummer")

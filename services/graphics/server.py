@@ -26,6 +26,7 @@ never stop the server.
 
 from __future__ import annotations
 
+import ipaddress
 import json
 import logging
 import mimetypes
@@ -59,6 +60,14 @@ CLOSE_TIMEOUT_S = 1.0
 """How long closing waits for a page to answer (a frozen tab would hold Ctrl-C up 10 s by default)."""
 MAX_BACKLOG = 64 * 1024
 """Bytes waiting to be sent to a page above which it skips frames (about half a second of frames)."""
+EDITOR_MODES = ("local", "all", "off")
+"""``--editor``: which pages may use the kit and pose editor: pages opened on this machine, every page, none."""
+EDITOR_MESSAGES = frozenset({"poser_on", "poser", "poser_off", "save_kit", "save_pose"})
+"""Page messages of the editor: they drive physics' drummer (``poser`` with ``drive``) or write files."""
+EDITOR_OFF = {"off": "the editor is off on this node (graphics --editor off)",
+              "local": "the editor is for pages opened on the machine the graphics node runs on; this page shows the "
+                       "view only (graphics --editor all opens it to every machine that reaches the page)"}
+"""Why a page may not use the editor, by ``--editor`` (also the page's tooltip where its editor button was)."""
 SAVING_OFF = ("saving is disabled: start the graphics node with --kit-dir DIR "
               "(under batteur rig: its --kit-dir DIR)")
 """Why a save is refused without a kit directory, and what to do: also the page's tooltip on its save buttons."""
@@ -73,8 +82,15 @@ class ViewServer:
     """Serves the page and streams the core's page messages to every connected page."""
 
     def __init__(self, core: GraphicsCore, static_dir: Path = STATIC_DIR, kit_dir: Path | None = None,
-                 clock: Callable[[], float] | None = None) -> None:
+                 clock: Callable[[], float] | None = None, editor: str = "local") -> None:
+        if editor not in EDITOR_MODES:
+            raise ValueError(f"editor {editor!r}: one of {', '.join(EDITOR_MODES)}")
         self.core = core
+        self.editor = editor
+        """``--editor``: local (pages opened on this machine), all, or off. A view served to the class's network
+        (``--host 0.0.0.0``) gave every student's browser the pose editor, which drives the drummer."""
+        self.own_addresses: frozenset[str] = frozenset()
+        """This machine's addresses (read at :meth:`start`): a page from one of them is local."""
         self.static_dir = static_dir
         self.kit_dir = kit_dir.resolve() if kit_dir is not None else None
         self.clock = clock or (lambda: 0.0)
@@ -89,13 +105,14 @@ class ViewServer:
         self.poser_body = "rest"
         """Which body the editor poses: "live" (physics' newest pose) or "rest" (the shipped snapshot)."""
         self.counters = {"http": 0, "not_found": 0, "ws_connects": 0, "page_errors": 0, "sent": 0, "foreign_origin": 0,
-                         "skipped_frames": 0, "saves_refused": 0}
+                         "skipped_frames": 0, "saves_refused": 0, "edits_refused": 0}
         core.page_sink = self.broadcast
 
     # --- lifecycle ----------------------------------------------------------------------------
     async def start(self, host: str, port: int) -> int:
         """Listen on ``host:port`` (0: any free port); returns the port."""
         logging.getLogger("websockets.server").setLevel(logging.WARNING)
+        self.own_addresses = own_addresses()
         self.server = await serve(self._ws_handler, host, port, process_request=self._http,
                                   max_size=MAX_PAGE_MESSAGE, compression=None, ping_interval=5, ping_timeout=10,
                                   close_timeout=CLOSE_TIMEOUT_S)
@@ -156,10 +173,11 @@ class ViewServer:
         self.counters["ws_connects"] += 1
         self.clients.add(connection)
         try:
-            for message in [*self.core.welcome(), self.saving_json()]:
+            may_edit = self.may_edit(connection.remote_address[0] if connection.remote_address else "")
+            for message in [*self.core.welcome(), self.saving_json(), self.editor_json(may_edit)]:
                 await connection.send(json.dumps(message))
             async for raw in connection:
-                reply = self.handle_page_message(raw, connection)
+                reply = self.handle_page_message(raw, connection, may_edit)
                 if reply is not None:
                     await connection.send(json.dumps(reply))
         except ConnectionClosed:
@@ -192,13 +210,32 @@ class ViewServer:
         return {"type": "saving", "enabled": self.kit_dir is not None,
                 "reason": None if self.kit_dir is not None else SAVING_OFF}
 
-    def handle_page_message(self, raw: str | bytes, page: object = None) -> dict[str, Any] | None:
-        """One message from ``page`` (its connection); returns the reply (or None). Never raises."""
+    def may_edit(self, host: str) -> bool:
+        """Whether a page from ``host`` (the connection's remote address) may use the editor (:attr:`editor`)."""
+        if self.editor != "local":
+            return self.editor == "all"
+        return is_local(host, self.own_addresses)
+
+    def editor_json(self, may_edit: bool) -> dict[str, Any]:
+        """Whether this page may use the editor (sent at connect; the page hides its editor button if not)."""
+        return {"type": "editor", "enabled": may_edit, "reason": None if may_edit else EDITOR_OFF[self.editor]}
+
+    def handle_page_message(self, raw: str | bytes, page: object = None,
+                            may_edit: bool = True) -> dict[str, Any] | None:
+        """One message from ``page`` (its connection; ``may_edit``: whether it may use the editor, :meth:`may_edit`);
+        returns the reply (or None). Never raises."""
         try:
             msg = json.loads(raw)
             if not isinstance(msg, dict) or not isinstance(msg.get("type"), str):
                 raise ValueError("a message is a JSON object with a 'type'")
             kind = msg["type"]
+            if kind in EDITOR_MESSAGES and not may_edit:  # a view-only page: refused and counted; logged once
+                self.counters["edits_refused"] += 1
+                if self.counters["edits_refused"] == 1:
+                    log.info("editor message from a view-only page refused: %s", EDITOR_OFF[self.editor])
+                if kind in ("poser", "poser_off"):  # a slider's stream, and closing: nothing to answer
+                    return None
+                return {"type": "saved", "ok": False, "error": EDITOR_OFF[self.editor]}
             if kind in ("save_kit", "save_pose") and self.kit_dir is None:
                 # the node's setup, not a malformed message (the page disables its buttons when told at connect)
                 self.counters["saves_refused"] += 1
@@ -330,6 +367,29 @@ class ViewServer:
         self.kit_dir.mkdir(parents=True, exist_ok=True)  # type: ignore[union-attr]
         library.save(path)
         return {"type": "saved", "ok": True, "path": str(path)}
+
+
+def own_addresses() -> frozenset[str]:
+    """Every address of this machine's interfaces (a page from one is opened on this machine)."""
+    try:
+        import ifaddr
+
+        return frozenset(str(ip.ip if isinstance(ip.ip, str) else ip.ip[0]).split("%")[0]
+                         for adapter in ifaddr.get_adapters() for ip in adapter.ips)
+    except Exception:  # noqa: BLE001 - cannot list them: only loopback is local
+        return frozenset()
+
+
+def is_local(host: str, own: frozenset[str] = frozenset()) -> bool:
+    """Whether ``host`` (a page's remote address) is this machine: loopback, or one of ``own`` (its addresses; a
+    browser on the machine that opened its LAN address)."""
+    try:
+        ip = ipaddress.ip_address(host.split("%")[0])
+    except ValueError:
+        return False
+    if isinstance(ip, ipaddress.IPv6Address) and ip.ipv4_mapped is not None:
+        ip = ip.ipv4_mapped
+    return ip.is_loopback or str(ip) in own
 
 
 def _check_is_kit(path: Path) -> None:

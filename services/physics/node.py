@@ -59,7 +59,7 @@ from services.physics.body_table import body_json, body_summary, body_text
 from services.physics.core import PhysicsCore, PhysicsSettings
 from services.physics.mocap import ClipError
 from services.physics.plan_worker import PlanWorker, PlanWorkers
-from services.physics.precompile import warm_up
+from services.physics.precompile import COMPILING, kernels_cached, warm_up
 from services.physics.score_position import SCORE_POSITION_PERIOD_S, score_position
 from services.physics.targets import TargetError
 
@@ -433,6 +433,9 @@ def _prepare(core: PhysicsCore, settings: PhysicsNodeSettings) -> None:
     if settings.scene == "drummer":
         _ = player.preparation_s  # loads the gesture database now (about 1 s), not in the first score message
         # compiles the numba kernels now (or loads them from the cache), not in the first live steps
+        if not kernels_cached():  # said first: `batteur rig`'s ready timeout names it (a cold cache took 140 s)
+            log.info("%s (no cache yet: the first run after an install or an update; about 10 s, minutes on a "
+                     "loaded machine; `python3 -m services.physics.precompile` does it ahead)", COMPILING)
         log.info("physics kernels ready (%.1f s)", warm_up())
     if settings.score:
         player.load(settings.score, trusted=True)  # a command-line path: trusted, unlike a message's

@@ -16,12 +16,32 @@ from __future__ import annotations
 import argparse
 import time
 from collections.abc import Sequence
+from pathlib import Path
 
 import numpy as np
 
 from services.physics.body import LIMBS
 from services.physics.core import PhysicsCore
 from services.physics.drummer import DrummerScene
+
+COMPILING = "compiling the physics kernels"
+"""What the physics node logs before it compiles them (``batteur rig`` looks for it in its output)."""
+
+
+def kernels_cached() -> bool:
+    """Whether numba has an on-disk cache for every physics kernel (False: :func:`warm_up` compiles them, about 10 s,
+    minutes on a loaded machine: the first run after an install). True when it cannot tell (numba's cache internals
+    moved): the node then says nothing of compiling."""
+    from numba.core.registry import CPUDispatcher
+
+    from services.physics import kernels
+
+    caches = [getattr(f, "_cache", None) for f in vars(kernels).values() if isinstance(f, CPUDispatcher)]
+    try:  # numba's internals: each cached kernel's index file, written once it is compiled
+        index_files = [Path(c._cache_file._index_path) for c in caches if c is not None and hasattr(c, "_cache_file")]
+    except AttributeError:
+        return True
+    return all(path.is_file() for path in index_files)
 
 
 def warm_up() -> float:

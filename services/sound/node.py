@@ -573,10 +573,16 @@ def _attach_sinks(core: SoundCore, settings: SoundNodeSettings, keep_take: Calla
                 raise ValueError(f"--device auto: cannot play on the sound card ({exc}); "
                                  "--device none records without it") from None
             log.info("playing on the sound card (%d portaudio devices)", devices)
-        else:
+        elif settings.wav is not None:
             # `batteur rig --record` gives --wav: telling it to use --wav read as if it were not recording
-            log.info("no audio device found: not playing%s",
-                     "; recording only" if settings.wav is not None else " (use --wav to record)")
+            log.info("no audio device found: not playing; recording only")
+        else:
+            # the node whose job is the speakers plays nothing and records nothing: a warning, with what to do (an
+            # INFO line was all a teacher's sound laptop said; --device none says it is meant, and silences it)
+            log.warning("no audio device found (portaudio lists none): the strikes are not played nor recorded. "
+                        "Connect or enable the sound card (not in use by another program? this user in the audio "
+                        "group?) and restart with --device auto (the default); or record them with --wav FILE; or "
+                        "give --device none if this machine is not to play (silences this warning)")
 
 
 PD_SOUND_PORT = 9103

@@ -11,6 +11,7 @@ const state = {
   poser: null, editing: false, nodeKit: null, pendingKit: null,
   drawn: 0, // frames drawn (a received frame shown by the render loop): "view N fps" counts these
   saving: { enabled: true, reason: null },
+  editorAllowed: true, // false: this page shows the view only (the node's --editor; its "editor" message)
   shells: {}, // kit object id -> its drum shell's colour (0xRRGGBB) as last drawn
 };
 window.batteur = state; // for tests and the console
@@ -726,6 +727,7 @@ function onMessage(m) {
     case "poser": state.poser = m; buildEditorPose(); break; // the 57-DOF editor (buildEditorPose)
     case "saved": editorMsg(m.ok ? `saved ${m.path}` : `not saved: ${m.error}`, m.ok); break;
     case "saving": applySaving(m); break;
+    case "editor": applyEditor(m); break;
     case "refused": onRefused(m); break;
     default: break;
   }
@@ -734,6 +736,7 @@ function onMessage(m) {
 // ---------------------------------------------------------------- editor (2001 paper's poser GUI)
 const editor = document.getElementById("editor");
 function toggleEditor() {
+  if (!state.editing && !state.editorAllowed) return; // a view-only page (the kit flag still shows a kit change)
   state.editing = !state.editing;
   editor.classList.toggle("hidden", !state.editing);
   if (!state.editing) state.poser = null;
@@ -742,6 +745,15 @@ function toggleEditor() {
 }
 document.getElementById("edit-toggle").addEventListener("click", toggleEditor);
 document.getElementById("kit-flag").addEventListener("click", () => { if (!state.editing) toggleEditor(); });
+// The node says whether this page may edit (graphics --editor: by default only pages opened on its own machine):
+// a page from another machine shows the view without the editor button.
+function applyEditor(m) {
+  state.editorAllowed = m.enabled !== false;
+  const button = document.getElementById("edit-toggle");
+  button.classList.toggle("hidden", !state.editorAllowed);
+  button.title = state.editorAllowed ? "" : (m.reason ?? "the editor is off for this page");
+  if (!state.editorAllowed && state.editing) toggleEditor();
+}
 function editorMsg(text, ok) {
   const el = document.getElementById("editor-msg");
   el.textContent = text;
