@@ -3,6 +3,15 @@ where the services and their programs share it; batteur's modules import it from
 
 from __future__ import annotations
 
-from common.exit_status import FAILED, INTERRUPTED, USAGE, InputError, UsageError, report_error, status_for
+from common.exit_status import (
+    FAILED,
+    INTERRUPTED,
+    TERMINATED,
+    USAGE,
+    InputError,
+    UsageError,
+    report_error,
+    status_for,
+)
 
-__all__ = ["FAILED", "INTERRUPTED", "USAGE", "InputError", "UsageError", "report_error", "status_for"]
+__all__ = ["FAILED", "INTERRUPTED", "TERMINATED", "USAGE", "InputError", "UsageError", "report_error", "status_for"]

@@ -36,6 +36,7 @@ import math
 import os
 import sys
 import tempfile
+import textwrap
 import time
 from collections import Counter, defaultdict
 from collections.abc import Iterable, Iterator, Sequence
@@ -47,7 +48,8 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 from scipy.stats import spearmanr
 
-from batteur.errors import INTERRUPTED, USAGE, UsageError, report_error
+from batteur.errors import INTERRUPTED, TERMINATED, USAGE, UsageError, report_error
+from batteur.interrupts import Terminated, sigterm_raises
 from common.arg_types import take_negative_values
 from common.kit import EventType, Kit, load_kit
 from common.score.events import Score
@@ -549,6 +551,22 @@ def report_midi_kwargs(report: dict[str, Any], where: Path) -> dict[str, Any]:
     return {**kwargs, "drum_channels": tuple(channels)}
 
 
+def report_part(score: Score, report: dict[str, Any], where: Path) -> Score:
+    """``score`` cut to the bars a render of part of it played (report.json's ``bars``: ``batteur render --bars``),
+    on the part's clock as the render's impacts are; the whole score for a whole render. ValueError naming ``where``
+    for an entry that is not a render's."""
+    from batteur.score_part import bar_part
+
+    part = report.get("bars")
+    if part is None:
+        return score
+    first = part.get("first") if isinstance(part, dict) else None
+    last = part.get("last") if isinstance(part, dict) else None
+    if not isinstance(first, int) or not isinstance(last, int):
+        raise ValueError(f"{where}: bars must be null or hold the first and last bar rendered, got {part!r}")
+    return bar_part(score, (first, last), Path(str(report.get("score") or where)).name)[0]
+
+
 def evaluate_render_dir(score_path: Path, render_dir: Path, kit: Kit | None = None) -> FileResult:
     """Evaluate an existing render directory (impacts.csv + report.json) against its score."""
     from batteur.impact_log import read_impacts_csv
@@ -574,6 +592,7 @@ def evaluate_render_dir(score_path: Path, render_dir: Path, kit: Kit | None = No
     # a text score's kit object ids (crash2) in the kit played, as render read it (until 7 Dec its kit line's)
     score = scale_tempo(read_score(score_path, kit=kit, **report_midi_kwargs(report, where)),
                         1.0 if tempo_scale is None else tempo_scale)
+    score = report_part(score, report, where)  # --bars: the part rendered, on its clock
     if not (render_dir / "impacts.csv").is_file():
         raise ValueError(f"{render_dir}: no impacts.csv (not a whole render)")
     impacts = read_impacts_csv(render_dir / "impacts.csv")
@@ -606,20 +625,26 @@ def plot_stem(result: FileResult) -> str:
     return folder_name(Path(result.render)) if result.render else Path(result.name).stem
 
 
-def plot_result(result: FileResult, directory: Path) -> list[Path]:
-    """Piano roll (score vs impacts) and timing-error histogram as PNG files in ``directory``."""
+ROW_PAD = 0.6
+"""Rows of space above the top row and below the bottom one in the piano roll: an impact is drawn 0.15 of a row above
+its note, and the default margin clipped the top row's crosses at the border (until 8 Dec)."""
+
+
+def pianoroll_figure(result: FileResult) -> Any:
+    """The piano roll of ``result`` (a matplotlib Figure): score notes as circles (green played, red missed) and
+    impacts as crosses (blue matched, orange spurious), one row per kit object, each row padded (:data:`ROW_PAD`) so
+    no marker is clipped, the legend outside the axes on the right (inside, it covered the notes at the right end:
+    until 8 Dec)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    directory.mkdir(parents=True, exist_ok=True)
-    stem = plot_stem(result)
     instruments = sorted({n.instrument for n in result.note_refs} | {h.instrument for h in result.hits})
     row = {name: k for k, name in enumerate(instruments)}
     matched_n = {i for i, _ in result.pairs_25}
     matched_h = {j for _, j in result.pairs_25}
-    fig, ax = plt.subplots(figsize=(14, 1.0 + 0.5 * len(instruments)))
+    fig, ax = plt.subplots(figsize=(14, max(2.0, 1.0 + 0.5 * len(instruments))))  # 2 in: the legend's height
     for ok, colour, label in ((True, "tab:green", "note played"), (False, "tab:red", "note missed")):
         xs = [n.time for i, n in enumerate(result.note_refs) if (i in matched_n) == ok]
         ys = [float(row[n.instrument]) for i, n in enumerate(result.note_refs) if (i in matched_n) == ok]
@@ -631,10 +656,26 @@ def plot_result(result: FileResult, directory: Path) -> list[Path]:
         if xs:
             ax.scatter(xs, ys, s=12, c=colour, marker="x", label=label)
     ax.set_yticks(range(len(instruments)), instruments)
+    ax.set_ylim(-ROW_PAD, max(len(instruments) - 1, 0) + ROW_PAD)
     ax.set_xlabel("score time (s)")
     ax.set_title(f"{result.name}: score vs impacts (25 ms matching)")
-    ax.legend(loc="upper right", fontsize=8)
+    if ax.get_legend_handles_labels()[0]:  # nothing drawn: no empty legend box
+        ax.legend(loc="upper left", bbox_to_anchor=(1.005, 1.0), borderaxespad=0.0, fontsize=8)
     fig.tight_layout()
+    return fig
+
+
+def plot_result(result: FileResult, directory: Path) -> list[Path]:
+    """Piano roll (score vs impacts, :func:`pianoroll_figure`) and timing-error histogram as PNG files in
+    ``directory``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    directory.mkdir(parents=True, exist_ok=True)
+    stem = plot_stem(result)
+    fig = pianoroll_figure(result)
     roll = directory / f"{stem}_pianoroll.png"
     fig.savefig(roll, dpi=100)
     plt.close(fig)
@@ -694,6 +735,33 @@ def format_table(rows: Sequence[tuple[str, dict[str, Any]]]) -> str:
             f"{missed:>5} {a.get('no_drum_notes', 0):>6} {a['planner_flags']:>5} "
             f"{num(a['real_time_factor'], '5.2f')}")
     return "\n".join(lines)
+
+
+TABLE_LEGEND: tuple[tuple[str, str], ...] = (
+    ("notes", "notes given to the drummer"),
+    ("F@10, F@25", "F-measure, impacts within 10, 25 ms"),
+    ("P@25, R@25", "precision, recall"),
+    ("med|e|, p95|e|", "median, 95th percentile timing error"),
+    ("bias", "median signed error (+: late)"),
+    ("rho", "velocity rank correlation (Spearman)"),
+    ("rho_s", "the same within each sound"),
+    ("spur", "impacts matching no note"),
+    ("miss", "notes missed"),
+    ("nodrum", "notes with no drum for their pitch"),
+    ("flag", "notes the planner flagged"),
+    ("RTF", "real-time factor, seconds of audio rendered per wall-clock second (below 1: slower than real time)"),
+)
+"""What each column of :func:`format_table` holds, said under the table (until 8 Dec ``rho_s``, ``nodrum``, ``flag``
+and ``RTF`` were explained nowhere on screen)."""
+LEGEND_WIDTH = 118
+"""The legend's lines are wrapped to this many characters (about the table's width)."""
+
+
+def table_legend() -> str:
+    """:data:`TABLE_LEGEND` as indented lines of at most :data:`LEGEND_WIDTH` characters, starting ``  columns:``."""
+    words = "; ".join(f"{column}: {meaning}" for column, meaning in TABLE_LEGEND)
+    return textwrap.fill(f"columns: {words}", LEGEND_WIDTH, initial_indent="  ", subsequent_indent="  ",
+                         break_on_hyphens=False)
 
 
 def evaluate_scores(paths: Sequence[Path], opts: Any, renders: Path | None, quiet: bool = True,
@@ -1077,7 +1145,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     args.scores = distinct_inputs(args.scores)
     warn_unused_options(args, parser)
     try:
-        return _main(args)
+        with sigterm_raises():  # SIGTERM (timeout, systemd) cleans up as Ctrl-C does
+            return _main(args)
+    except Terminated:  # before KeyboardInterrupt, which it is
+        print(f"{PROG}: terminated (SIGTERM)", file=sys.stderr)
+        return TERMINATED
     except KeyboardInterrupt:  # Ctrl-C: a render in progress is staged, so nothing of it was written
         print(f"{PROG}: interrupted", file=sys.stderr)
         return INTERRUPTED
@@ -1184,6 +1256,7 @@ def _main(args: argparse.Namespace) -> int:
     else:
         rows = [(r.name, r.summary()) for r in results] + ([("ALL", agg)] if len(results) > 1 else [])
         print(format_table(rows))
+        print(table_legend())
         for r in results:
             if r.no_drum_notes:  # the figures are over the notes given to the drummer: these must not go unseen
                 print(f"  {r.name}: {r.no_drum_notes} note{'s' * (r.no_drum_notes > 1)} of the file not played: no "

@@ -10,8 +10,8 @@ Two scenes:
 * the strike scene (``batteur render --strikes 0.25:3,0.75:1.5 -o DIR``): a
   stick thrown onto one instrument on a schedule (integration smoke test).
 
-Outputs in DIR: ``performance.wav`` (sample 0 = rig time 0; ``--wav-from score``: score time 0, bar 1, as heard,
-:func:`shift_wav`), ``impacts.csv``
+Outputs in DIR: ``performance.wav`` (an impact at rig time t heard from t + ``latency_s``; ``--wav-from score``: from
+its score time, the file starting at score time 0, bar 1, as heard, :func:`shift_wav`), ``impacts.csv``
 (one row per impact, every feature of ``/batteur/impact``, rig times),
 ``performance.bvh`` (the simulated motion, score mode; frame 0 the WAV's time 0, or with ``--bvh-sync pose``
 the first pose), with ``--video``
@@ -48,11 +48,12 @@ from typing import TYPE_CHECKING, Any, ClassVar, Literal, TypeVar, get_args
 import numpy as np
 import soundfile as sf
 
-from batteur.errors import INTERRUPTED, USAGE, UsageError, report_error
+from batteur.errors import INTERRUPTED, TERMINATED, USAGE, UsageError, report_error
 from batteur.impact_log import ImpactCsvStream, ImpactLog, write_impacts_csv
-from batteur.interrupts import DeferredCtrlC
+from batteur.interrupts import DeferredCtrlC, Terminated, sigterm_raises
 from batteur.progress import Progress
 from batteur.render_outputs import GLTF_OUTPUT, SCORE_OUTPUTS, VIDEO_OUTPUT
+from batteur.score_part import bar_part, parse_bars, part_json
 from batteur.strike import DEFAULT_STRIKES, parse_strikes, run_strikes
 from common.arg_types import take_negative_values
 from common.core import Outgoing
@@ -104,6 +105,9 @@ BVH_RATE_RANGE = (1.0, 1000.0)
 """Accepted ``--bvh-rate``, Hz."""
 BVH_UNITS_PER_METRE = {"m": 1.0, "cm": 100.0}
 """``--bvh-units`` -> performance.bvh's file units per metre."""
+BVH_FACINGS: tuple[Literal["+z", "-z"], ...] = ("+z", "-z")
+"""``--bvh-facing``: which way the drummer faces in performance.bvh (services/graphics/export/bvh.py ``Y_UP``): +z,
+as the glTF and CMU's and Mixamo's clips (the default since 8 Dec), or -z (the files until 8 Dec)."""
 MAX_PHYSICS_POSE_HZ = 240.0
 """Physics publishes poses at most this often (``PhysicsSettings.pose_rate_hz``), Hz; a faster BVH is interpolated
 between them."""
@@ -152,6 +156,9 @@ class RenderOptions:
     bvh_units: Literal["m", "cm"] = "m"
     """performance.bvh's length unit (``--bvh-units``): metres, or centimetres (Maya and MotionBuilder work in
     cm: a metre file comes in 100 times too small there)."""
+    bvh_facing: Literal["+z", "-z"] = "+z"
+    """Which way the drummer faces in performance.bvh (``--bvh-facing``, :data:`BVH_FACINGS`): +z, as in the glTF
+    (the default since 8 Dec), or -z (the files until 8 Dec)."""
     calibration: Path | None = None
     sound_params: Path | None = None
     """A sound parameters file (``--sound-params``: services/sound/params_file.py) the instruments start from."""
@@ -189,6 +196,9 @@ class RenderOptions:
     midi: dict[str, Any] = field(default_factory=dict)
     """Keyword arguments reading a MIDI score (``--drum-channels``...:
     :func:`common.score.midi_options.midi_read_kwargs`); a text score ignores them."""
+    bars: tuple[int, int] | None = None
+    """``--bars``: render only these bars (first, last; counted as ``python -m common.score`` counts them) of the
+    score, on its clock shifted to start at the first (:func:`batteur.score_part.bar_part`); None: the whole score."""
 
     def styled(self, score: Score | None = None) -> RenderOptions:
         """These options with the kit, grip and nuance a render of ``score`` plays: those given here, else those
@@ -396,18 +406,28 @@ class _KeptWarnings(logging.Handler):
             print(message, file=sys.stderr)
 
 
+KEPT_LOGGERS = ("common", "batteur")
+"""The loggers whose warnings a render keeps (:func:`kept_warnings`): common/'s and the services' cores' (their
+loggers are ``batteur.physics``, ``batteur.sound``, ...)."""
+
+
 @contextlib.contextmanager
 def kept_warnings(kept: list[str]) -> Iterator[None]:
-    """Append to ``kept`` every warning common/'s loggers log meanwhile: the kit's load warnings (an instrument out
-    of reach, struck by no event, ...) a render prints at its start, for report.json's ``warnings`` (until 7 Dec on
-    the console only). They are shown as before: by the handlers logging has, else on stderr."""
-    logger = logging.getLogger("common")
-    handler = _KeptWarnings(kept, show=not logger.hasHandlers())
-    logger.addHandler(handler)
+    """Append to ``kept`` every warning :data:`KEPT_LOGGERS` log meanwhile: the kit's load warnings (an instrument
+    out of reach, struck by no event, ...) a render prints at its start, the cores' while it runs (physics' joint
+    limits from ``--limits-from``, sound's latency), for report.json's ``warnings`` (until 7 Dec on the console
+    only; until 8 Dec the cores' too). They are shown as before: by the handlers logging has, else on stderr."""
+    handlers = []
+    for name in KEPT_LOGGERS:
+        logger = logging.getLogger(name)
+        handler = _KeptWarnings(kept, show=not logger.hasHandlers())
+        logger.addHandler(handler)
+        handlers.append((logger, handler))
     try:
         yield
     finally:
-        logger.removeHandler(handler)
+        for logger, handler in handlers:
+            logger.removeHandler(handler)
 
 
 def grip_warning(grip: str | None) -> str | None:
@@ -667,11 +687,13 @@ def wav_container(frames: int, channels: int) -> str:
     return "RF64" if frames * channels * 3 > WAV_DATA_LIMIT_BYTES else "WAV"
 
 
-def say_rf64(path: Path, frames: int, sample_rate: int, prog: str = "batteur render") -> None:
+def say_rf64(path: Path, frames: int, sample_rate: int, prog: str = "batteur render") -> str:
     """One warning line on stderr, naming the command ``prog``: ``path`` is written as RF64 (see
-    :func:`wav_container`)."""
-    print(f"{prog}: warning: {path.name} will hold {frames / sample_rate / 3600:.1f} h of audio, more than a WAV "
-          "file can describe (4 GiB): written as RF64", file=sys.stderr)
+    :func:`wav_container`); returns the warning (for report.json's ``warnings``)."""
+    warning = (f"{path.name} will hold {frames / sample_rate / 3600:.1f} h of audio, more than a WAV file can "
+               "describe (4 GiB): written as RF64")
+    print(f"{prog}: warning: {warning}", file=sys.stderr)
+    return warning
 
 
 class WavStream:
@@ -757,10 +779,14 @@ class StreamedOutputs:
     def __init__(self, folder: Path, bvh_rate_hz: float | None, keep: bool = False, planned_s: float = 0.0,
                  prog: str = "batteur render", bvh_start_s: float | None = None,
                  end_sites: dict[str, tuple[float, float, float]] | None = None, wav_cut_s: float = 0.0,
-                 bvh_scale: float = 1.0) -> None:
+                 bvh_scale: float = 1.0, warnings: list[str] | None = None,
+                 bvh_facing: Literal["+z", "-z"] = "+z") -> None:
+        """``warnings``: where the RF64 warning is kept once said (report.json's ``warnings``); ``bvh_facing``: which
+        way the drummer faces in the BVH (:data:`BVH_FACINGS`)."""
         from services.graphics.export.bvh import BvhStream
 
         self.folder = folder
+        self.warnings = warnings
         self.bvh_start_s = bvh_start_s
         self.wav_cut_s = wav_cut_s
         self.planned_s = planned_s
@@ -772,7 +798,8 @@ class StreamedOutputs:
         self.end_sites = end_sites
         self.bvh = None if bvh_rate_hz is None else BvhStream(folder / "performance.bvh", bvh_rate_hz,
                                                               start=bvh_start_s, end_sites=end_sites,
-                                                              scale=bvh_scale)  # file units per metre
+                                                              scale=bvh_scale,  # file units per metre
+                                                              facing=bvh_facing)
         self.bvh_frames: int | None = None
         """Frames of the streamed BVH once finished (None: no file)."""
         self._recorder: RecorderCore | None = None
@@ -782,7 +809,9 @@ class StreamedOutputs:
         frames = math.ceil(self.planned_s * sound.sample_rate) + sound.block  # sound renders whole blocks
         self.wav = WavStream(self.folder / "performance.wav", sound.sample_rate, sound.channels, frames)
         if self.wav.format == "RF64":
-            say_rf64(self.wav.path, frames, sound.sample_rate, self.prog)
+            said = say_rf64(self.wav.path, frames, sound.sample_rate, self.prog)
+            if self.warnings is not None:
+                self.warnings.append(said)
         sound.on_block = self.wav.write
 
     def recorder(self) -> RecorderCore:
@@ -943,12 +972,13 @@ def _drum_channels_json(opts: RenderOptions) -> list[int] | None:
 def write_outputs(output: Path, audio: np.ndarray, sample_rate: int, impacts: list[Any], report: dict[str, Any],
                   poses: Any = None, score: Path | None = None,
                   video: Callable[[Path], dict[str, Any]] | None = None, bvh_rate_hz: float | None = None,
-                  units: Literal["m", "cm"] = "m") -> list[Path]:
+                  units: Literal["m", "cm"] = "m", facing: Literal["+z", "-z"] = "+z") -> list[Path]:
     """Write every output into a staging directory, then move them into ``output`` (nothing partial).
 
     ``bvh_rate_hz``: the BVH's frame rate (physics' pose rate); None: the poses' median interval, which on the
     1 ms step grid is 17 ms for 60 Hz poses (58.8 frames a second, an odd rate for animation tools). ``units``: the
-    BVH's length unit (``--bvh-units``: :data:`BVH_UNITS_PER_METRE`), as the streamed one's.
+    BVH's length unit (``--bvh-units``: :data:`BVH_UNITS_PER_METRE`), as the streamed one's; ``facing``: which way
+    the drummer faces in it (``--bvh-facing``: :data:`BVH_FACINGS`).
 
     ``score``: copied in as ``score<suffix>`` so the directory can be evaluated on its own.
     ``video``: called with the staging directory once the WAV is there; writes the video into it and returns
@@ -961,7 +991,7 @@ def write_outputs(output: Path, audio: np.ndarray, sample_rate: int, impacts: li
             say_rf64(wav, len(audio), sample_rate)
         sf.write(wav, audio, sample_rate, subtype="PCM_24", format=fmt)
         write_impacts_csv(impacts, staging.path / "impacts.csv")
-        write_rest(staging, report, poses, score, video, bvh_rate_hz, units=units)
+        write_rest(staging, report, poses, score, video, bvh_rate_hz, units=units, facing=facing)
         return staging.commit()
 
 
@@ -969,16 +999,18 @@ def write_rest(staging: Staging, report: dict[str, Any], poses: Any = None, scor
                video: Callable[[Path], dict[str, Any]] | None = None, bvh_rate_hz: float | None = None,
                gltf: Callable[[Path], dict[str, Any]] | None = None,
                end_sites: dict[str, tuple[float, float, float]] | None = None,
-               kit_copy: KitCopy | None = None, units: Literal["m", "cm"] = "m") -> None:
+               kit_copy: KitCopy | None = None, units: Literal["m", "cm"] = "m",
+               facing: Literal["+z", "-z"] = "+z") -> None:
     """The outputs after the WAV and impacts.csv (see :func:`write_outputs`): the BVH of ``poses`` (kept in
     memory; its End Sites ``end_sites``, as :class:`StreamedOutputs`'; in ``units``, :data:`BVH_UNITS_PER_METRE`'s,
-    as :class:`StreamedOutputs`' ``bvh_scale``: until 7 Dec always metres), the video, the glTF (``gltf``: as
-    ``video``, listed as ``report["gltf"]``), the score's copy, the kit file's (``kit_copy``) and report.json."""
+    as :class:`StreamedOutputs`' ``bvh_scale``: until 7 Dec always metres; facing ``facing``, as its
+    ``bvh_facing``), the video, the glTF (``gltf``: as ``video``, listed as ``report["gltf"]``), the score's copy,
+    the kit file's (``kit_copy``) and report.json."""
     if poses is not None:
         from services.graphics.export.bvh import write_bvh
 
         write_bvh(poses, staging.path / "performance.bvh", rate_hz=bvh_rate_hz, end_sites=end_sites,
-                  scale=BVH_UNITS_PER_METRE[units])  # file units per metre
+                  scale=BVH_UNITS_PER_METRE[units], facing=facing)  # file units per metre
     if video is not None:
         report["video"] = video(staging.path)
     if gltf is not None:
@@ -1072,11 +1104,13 @@ def earlier_outputs(output: Path) -> set[str]:
 
 
 def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: bool = False,
-                 prog: str = "batteur render", overwrite: bool = False) -> dict[str, Any]:
+                 prog: str = "batteur render", overwrite: bool = False,
+                 said: Sequence[str] = ()) -> dict[str, Any]:
     """Render a score into ``output`` (see the module docstring); returns the report. ``prog`` names the command
     in its warning lines (``batteur demo`` renders through this). A file in ``output`` the render would replace and
     no earlier render of it wrote is refused before the simulation (:func:`check_outputs`, :func:`check_copies`),
-    unless ``overwrite`` (``--overwrite``).
+    unless ``overwrite`` (``--overwrite``). ``said``: the warnings the command printed before (its options',
+    :func:`options_in_vain`), first in report.json's ``warnings``.
 
     Raises :class:`ScoreError` (bad score), :class:`RenderError` (physics refused) or ``ValueError``.
     """
@@ -1088,7 +1122,7 @@ def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: boo
     if opts.video:
         check_video(opts)  # before the long part: no ffmpeg, no render
     limbs = skeleton_limbs(opts)  # read once: the kit's warnings and the planner measure the same reach
-    warned: list[str] = []  # every warning said at the start, kept for report.json's warnings
+    warned: list[str] = list(said)  # every warning said, kept for report.json's warnings, in order
     # its warnings name the drummer asked for, with the skeleton's reach when it has one (as the planner's)
     with kept_warnings(warned):
         kit = None if opts.kit is None else load_render_kit(path, opts, None, limbs)  # --kit: before the score
@@ -1103,6 +1137,12 @@ def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: boo
             with kept_warnings(warned):
                 kit = load_render_kit(path, opts, read, limbs)
             kit_copy = KitCopy.of(opts.with_kit(score_kit(read)).kit)
+        part: tuple[float, float] | None = None  # where the part (--bars) lies in the whole score, score seconds
+        if opts.bars is not None:  # the part alone is planned and simulated
+            if read is None:
+                read = read_scaled(path, opts, planning, kit)
+            read, part_start, part_end = bar_part(read, opts.bars, Path(path).name)
+            part = (part_start, part_end)
         with kept_warnings(warned):
             score, assignment, plan = prepare(path, kit, opts, calibration, planning, limbs, read)
     except BaseException:  # a bad score or Ctrl-C: the line ends where it stood, not at 100 %
@@ -1126,26 +1166,31 @@ def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: boo
                                   planned_s=rendered_seconds(plan, opts), prog=prog,
                                   bvh_start_s=wav_frame_start(opts, offset) if opts.bvh_sync == "wav" else None,
                                   end_sites=body_end_sites(opts), wav_cut_s=wav_cut_s,
-                                  bvh_scale=BVH_UNITS_PER_METRE[opts.bvh_units])
+                                  bvh_scale=BVH_UNITS_PER_METRE[opts.bvh_units], warnings=warned,
+                                  bvh_facing=opts.bvh_facing)
         try:
-            if opts.jobs > 1:
-                from batteur.segments import run_segmented
+            with kept_warnings(warned):  # the cores' warnings (physics' joint limits, sound's latency)
+                if opts.jobs > 1:
+                    from batteur.segments import run_segmented
 
-                result = run_segmented(score, assignment, plan, kit, opts, opts.jobs, segment_s=opts.segment_s,
-                                       on_progress=lambda t, total: progress.update(t), outputs=outputs)
-            else:
-                with DeferredCtrlC() as ctrl_c:  # acted on between steps: inside a numba kernel it became an error
+                    result = run_segmented(score, assignment, plan, kit, opts, opts.jobs, segment_s=opts.segment_s,
+                                           on_progress=lambda t, total: progress.update(t), outputs=outputs)
+                else:
+                    with DeferredCtrlC() as ctrl_c:  # acted on between steps: in a numba kernel it became an error
 
-                    def on_progress(t: float, total: float) -> None:
-                        ctrl_c.check()
-                        progress.update(t)
+                        def on_progress(t: float, total: float) -> None:
+                            ctrl_c.check()
+                            progress.update(t)
 
-                    result = run_score(score, assignment, plan, kit, opts, on_progress=on_progress, outputs=outputs)
+                        result = run_score(score, assignment, plan, kit, opts, on_progress=on_progress,
+                                           outputs=outputs)
             finished = True
         finally:
             progress.close(finished)
             outputs.close()
         report = score_report(result, str(path), opts, warned, kit_copy)
+        report["warnings"] = warned  # the same list: a warning said later (the WAV's cut, the video's) is in it too
+        report["bars"] = None if opts.bars is None or part is None else part_json(opts.bars, *part)
         wav_cut = 0
         if opts.wav_from == "score":  # checked before the video and glTF are made: a refusal wastes no more
             wav_cut = round(wav_cut_s * result.sample_rate)
@@ -1155,7 +1200,7 @@ def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: boo
                                                first_sound(wav, wav_cut))
             if cut_warning is not None:
                 print(f"{prog}: warning: {cut_warning}", file=sys.stderr)
-                report["warnings"].append(cut_warning)
+                warned.append(cut_warning)
             written = round(result.duration_s - wav_cut / result.sample_rate, 6)  # the WAV as shifted below
             # duration_s is performance.wav's length (docs/render.md), not the render's timeline: until 7 Dec it
             # was the uncut WAV's here; wav_duration_s, the same number, kept for readers of earlier reports
@@ -1176,8 +1221,10 @@ def render_score(path: Path | str, output: Path, opts: RenderOptions, quiet: boo
         if wav_cut:  # before the video, which muxes the WAV written (until 7 Dec the uncut one, 1.5 s longer)
             shift_wav(staging.path / "performance.wav", wav_cut, prog)
         kept_poses = result.poses if outputs.bvh is None else None  # else the BVH is written already
-        write_rest(staging, report, kept_poses, Path(path), video, bvh_rate_hz=opts.pose_rate_hz or None,
-                   gltf=gltf, end_sites=outputs.end_sites, kit_copy=kit_copy, units=opts.bvh_units)
+        with kept_warnings(warned):  # the video's and glTF's, before report.json is written
+            write_rest(staging, report, kept_poses, Path(path), video, bvh_rate_hz=opts.pose_rate_hz or None,
+                       gltf=gltf, end_sites=outputs.end_sites, kit_copy=kit_copy, units=opts.bvh_units,
+                       facing=opts.bvh_facing)
         staging.commit()
     return report
 
@@ -1343,7 +1390,7 @@ def bvh_entry(bvh: BvhStream, frames: int, opts: RenderOptions, wav_cut_s: float
     start = bvh.start_time if bvh.start_time is not None else 0.0
     wav_time = start + opts.latency_s - wav_cut_s
     return {"file": "performance.bvh", "frames": frames, "rate_hz": opts.pose_rate_hz, "sync": opts.bvh_sync,
-            "units": opts.bvh_units,
+            "units": opts.bvh_units, "facing": opts.bvh_facing,
             "start_s": round(start, 6), "wav_time_s": round(wav_time, 6),
             "wav_offset_frames": round(wav_time * opts.pose_rate_hz, 3)}
 
@@ -1368,11 +1415,12 @@ def score_time_0_wav_s(score_offset_s: float, latency_s: float) -> float:
     return round(score_offset_s + latency_s, 6)
 
 
-def bar_one_line(wav_s: float, wav: str = "performance.wav") -> str:
-    """Where score time 0 falls in ``wav`` (``wav_s``, seconds; negative: before its start), for a DAW user."""
+def bar_one_line(wav_s: float, wav: str = "performance.wav", bar: int = 1) -> str:
+    """Where score time 0 (the start of ``bar``: bar 1, or the first of ``--bars``) falls in ``wav`` (``wav_s``,
+    seconds; negative: before its start), for a DAW user."""
     if wav_s < 0:
-        return f"score time 0 (bar 1, beat 1) is {-wav_s:.3f} s before the start of {wav}"
-    return f"score time 0 (bar 1, beat 1) is at {wav_s:.3f} s in {wav}"
+        return f"score time 0 (bar {bar}, beat 1) is {-wav_s:.3f} s before the start of {wav}"
+    return f"score time 0 (bar {bar}, beat 1) is at {wav_s:.3f} s in {wav}"
 
 
 def early_impacts(impacts: Sequence[Any], score_offset_s: float) -> list[Any]:
@@ -1515,6 +1563,11 @@ def build_parser() -> argparse.ArgumentParser:
     playing = parser.add_argument_group("the performance")
     add_performance_options(playing, kit_default=None)
     add_midi_arguments(playing)
+    playing.add_argument("--bars", default=None, metavar="A-B",
+                         help="render only bars A to B of the score (or bar A alone: --bars A), counted as `python -m "
+                         "common.score SCORE` counts them (from 1; a pick-up is bar 0): their notes, on the score's "
+                         "clock shifted so that bar A starts at score time 0, after the usual settle and 1 s lead-in; "
+                         "report.json's bars says the part (default: the whole score)")
     playing.add_argument("--algorithm", default=HandAlgorithm.VITERBI.value,
                          choices=[a.value for a in HandAlgorithm], help="hand assignment algorithm (default: viterbi)")
     playing.add_argument("--calibration", type=Path, default=None, metavar="FILE",
@@ -1559,6 +1612,10 @@ def build_parser() -> argparse.ArgumentParser:
                          "the video keeps its own --video-fps")
     outputs.add_argument("--bvh-units", choices=list(BVH_UNITS_PER_METRE), default="m",
                          help="length unit of DIR/performance.bvh: m (default; Blender) or cm (Maya, MotionBuilder)")
+    outputs.add_argument("--bvh-facing", choices=list(BVH_FACINGS), default="+z",
+                         help="which way the drummer faces in DIR/performance.bvh (y up): +z (default), as in "
+                         "DIR/performance.glb and CMU's and Mixamo's clips, his left at +x; or -z, the files "
+                         "before 8 Dec (a half turn about y from +z); write --bvh-facing=-z or --bvh-facing -z")
     outputs.add_argument("--bvh-sync", choices=["pose", "wav"], default=None,
                          help="frame 0 of DIR/performance.bvh: wav (the default), DIR/performance.wav's time 0 "
                          "(with --wav-from score, score time 0), the first pose held until it comes, so the BVH, the "
@@ -1673,9 +1730,10 @@ def options_from(args: argparse.Namespace) -> RenderOptions:
                          limits_from=tuple(args.limits_from), asymmetric_limits=args.asymmetric_limits,
                          skeleton_bvh=args.skeleton_bvh, skeleton_units=args.skeleton_units,
                          height_m=height_of(args), mass_kg=args.mass, pose_rate_hz=args.bvh_rate,
-                         bvh_units=args.bvh_units,
+                         bvh_units=args.bvh_units, bvh_facing=args.bvh_facing,
                          bvh_sync=_given(args.bvh_sync, RenderOptions.bvh_sync), midi=midi_read_kwargs(args),
-                         wav_from=_given(args.wav_from, "render"))
+                         wav_from=_given(args.wav_from, "render"),
+                         bars=None if args.bars is None else parse_bars(args.bars))  # UsageError: one line, exit 2
 
 
 T = TypeVar("T")
@@ -1742,10 +1800,13 @@ def options_in_vain(args: argparse.Namespace) -> list[str]:
         drummer = (("--height", args.height, None), ("--mass", args.mass, DEFAULT_MASS_KG),
                    ("--bvh-rate", args.bvh_rate, RenderOptions.pose_rate_hz), ("--grip", args.grip, None),
                    ("--bvh-sync", args.bvh_sync, None), ("--wav-from", args.wav_from, None),
-                   ("--nuance", args.nuance, None), ("--bvh-units", args.bvh_units, "m"))
+                   ("--nuance", args.nuance, None), ("--bvh-units", args.bvh_units, "m"),
+                   ("--bvh-facing", args.bvh_facing, "+z"))
         for name, value, default in drummer:
             if value != default:
                 warnings.append(f"{name} has no effect with --strikes (the strike scene has no drummer)")
+        if args.bars is not None:
+            warnings.append("--bars has no effect with --strikes (the strike scene has no score)")
     return warnings
 
 
@@ -1774,18 +1835,35 @@ def excluded_options(args: argparse.Namespace) -> str | None:
     return None
 
 
+def facing_joined(argv: Sequence[str]) -> list[str]:
+    """``argv`` with ``--bvh-facing -z`` written ``--bvh-facing=-z``: argparse takes a value starting with a dash
+    for an option of its own ("expected one argument")."""
+    out: list[str] = []
+    for arg in argv:
+        if out and out[-1] == "--bvh-facing" and arg in BVH_FACINGS:
+            out[-1] = f"--bvh-facing={arg}"
+        else:
+            out.append(arg)
+    return out
+
+
 def main(argv: Sequence[str] | None = None, prog: str = "batteur render") -> int:
     """Run ``batteur render``; the exit status (batteur/errors.py). ``prog`` names the command in its error lines
     (``batteur demo`` renders through this)."""
     parser = build_parser()
-    opts = parser.parse_args(argv)
+    opts = parser.parse_args(facing_joined(sys.argv[1:] if argv is None else argv))
     refused = excluded_options(opts)
     if refused is not None:  # one line, as an option's value refused (not argparse's usage before it)
         return report_error(prog, refused, USAGE)
-    for warning in options_in_vain(opts):
+    said = options_in_vain(opts)
+    for warning in said:
         print(f"{prog}: warning: {warning}", file=sys.stderr)
     try:
-        return _main_strikes(opts, prog) if opts.strikes is not None else _main_score(opts, prog)
+        with sigterm_raises():  # SIGTERM (timeout, systemd, a render farm) cleans up as Ctrl-C does
+            return _main_strikes(opts, prog, said) if opts.strikes is not None else _main_score(opts, prog, said)
+    except Terminated:  # before KeyboardInterrupt, which it is
+        print(f"{prog}: terminated (SIGTERM); nothing written to {opts.output}", file=sys.stderr)
+        return TERMINATED
     except KeyboardInterrupt:  # Ctrl-C: the outputs are staged, so nothing was written
         print(f"{prog}: interrupted; nothing written to {opts.output}", file=sys.stderr)
         return INTERRUPTED
@@ -1796,18 +1874,20 @@ def _count(n: int, noun: str) -> str:
     return f"{n} {noun}{'' if n == 1 else 's'}"
 
 
-def _main_score(opts: argparse.Namespace, prog: str) -> int:
+def _main_score(opts: argparse.Namespace, prog: str, said: Sequence[str] = ()) -> int:
+    """``said``: the warnings printed before (:func:`options_in_vain`), for report.json's ``warnings``."""
     try:
         report = render_score(opts.score, opts.output, options_from(opts), quiet=opts.quiet, prog=prog,
-                              overwrite=opts.overwrite)
+                              overwrite=opts.overwrite, said=said)
     except (ScoreError, RenderError, ValueError, OSError) as exc:  # UsageError: 2, a file or the render: 1
         return report_error(prog, exc)
     out = opts.output
     print(f"wrote {out / 'performance.wav'} ({report['duration_s']:.1f} s"
           f"{bars_words(report)})")
-    print(bar_one_line(report["score_time_0_wav_s"])
+    first_bar = 1 if report.get("bars") is None else report["bars"]["first"]
+    print(bar_one_line(report["score_time_0_wav_s"], bar=first_bar)
           + (" (--wav-from score)" if report["wav_from"] == "score" else
-             "; --wav-from score starts the WAV there, for a DAW's bar 1"))
+             f"; --wav-from score starts the WAV there, for a DAW's bar {first_bar}"))
     print(f"wrote {out / 'impacts.csv'} ({_count(report['impacts'], 'impact')} for "
           f"{_count(report['notes'], 'note')}, "
           f"{report['planner_issues']} flagged by the planner{unplayed_words(report)})")
@@ -1834,6 +1914,10 @@ def bars_words(report: dict[str, Any]) -> str:
     beats, bars = report.get("score_beats"), report.get("score_bars")
     if beats is None or bars is None:
         return ""
+    part = report.get("bars")
+    if part is not None:  # --bars: the part's length, what was rendered
+        return (f"; bars {part['first']} to {part['last']} of the score ({bars} bar{'' if bars == 1 else 's'}, "
+                f"{beats:g} beat{'' if beats == 1 else 's'})")
     return f"; the score: {bars} bar{'' if bars == 1 else 's'} ({beats:g} beat{'' if beats == 1 else 's'})"
 
 
@@ -1886,7 +1970,8 @@ def bvh_words(report: dict[str, Any]) -> str:
             "with --bvh-sync wav")
 
 
-def _main_strikes(opts: argparse.Namespace, prog: str) -> int:
+def _main_strikes(opts: argparse.Namespace, prog: str, said: Sequence[str] = ()) -> int:
+    """``said``: as :func:`_main_score`'s."""
     try:
         strikes = parse_strikes(opts.strikes)
         check_latency(opts.latency)
@@ -1904,10 +1989,12 @@ def _main_strikes(opts: argparse.Namespace, prog: str) -> int:
     progress = Progress("rendering", max(t for t, _ in strikes) + opts.latency + 1.0,
                         enabled=False if opts.quiet else None)
     finished = False
+    warned = list(said)
     try:
-        result = run_strikes(strikes, EventType(event), kit, opts.latency,
-                             on_progress=lambda t, total: progress.update(t),
-                             prepare=functools.partial(apply_render_sound_params, path=opts.sound_params))
+        with kept_warnings(warned):  # the sound core's (its latency)
+            result = run_strikes(strikes, EventType(event), kit, opts.latency,
+                                 on_progress=lambda t, total: progress.update(t),
+                                 prepare=functools.partial(apply_render_sound_params, path=opts.sound_params))
         finished = True
     except ValueError as exc:
         return report_error(prog, exc)
@@ -1917,6 +2004,7 @@ def _main_strikes(opts: argparse.Namespace, prog: str) -> int:
     report = {
         "scene": "strike",
         "event": event,
+        "warnings": warned,  # every warning the render printed, in order (as a score render's)
         "strikes": [{"time_s": t, "speed_m_s": v} for t, v in strikes],
         "impacts": len(result.impacts),
         "contacts": result.contacts,

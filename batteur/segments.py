@@ -16,7 +16,9 @@ part of the plan its segment plays (:func:`segment_plan`).
 Ctrl-C: a terminal sends SIGINT to the whole process group. The workers ignore
 it from their start (the parent stops their segments through an event), and the
 parent acts on it between its own steps (:class:`~batteur.interrupts.DeferredCtrlC`), so the render ends
-with its one line and nothing written.
+with its one line and nothing written. SIGTERM likewise (to the parent, or to every process as systemd sends it):
+a worker that gets it ends its segment at its next check, and the parent takes a segment so ended for the whole
+render's termination (exit 143).
 
 A segmented render is deterministic (the same score and options give the same
 files for any number of processes above one) but not identical to a
@@ -46,7 +48,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from batteur.interrupts import DeferredCtrlC
+from batteur.interrupts import DeferredCtrlC, Terminated
 from common.core import Outgoing
 from common.gesture.plan import HeadTrajectory, LimbTrajectory
 from common.messages import OscMessage
@@ -203,7 +205,7 @@ def run_segment(plan: GesturePlan, kit: Kit, opts: RenderOptions, segment: Segme
     from services.interaction.core import InteractionCore
 
     cpu = time.process_time()
-    if stop is not None and stop.is_set():
+    if _terminated or (stop is not None and stop.is_set()):
         raise SegmentStopped(f"segment {segment.index} not started: the render was given up")
     offset = opts.settle_s - plan.start_time
     pulled: dict[str, int] = {}
@@ -220,7 +222,7 @@ def run_segment(plan: GesturePlan, kit: Kit, opts: RenderOptions, segment: Segme
             last[0] = t
             if progress is not None:
                 progress.put((segment.index, t - segment.run_from_s))
-            if stop is not None and stop.is_set():
+            if _terminated or (stop is not None and stop.is_set()):
                 raise SegmentStopped(f"segment {segment.index} given up at rig time {t:.1f} s")
 
     try:
@@ -354,6 +356,15 @@ class _InteractionReplay(_Replay):
     ROLE = "interaction"
 
 
+def _segment_result(future: Future[SegmentResult]) -> SegmentResult:
+    """A finished segment's result; one stopped before the parent gave the render up was stopped by its worker's
+    SIGTERM (:func:`_note_sigterm`): the render is terminated, :class:`Terminated`."""
+    try:
+        return future.result()
+    except SegmentStopped:
+        raise Terminated from None
+
+
 def _log_given_up(futures: dict[Future[SegmentResult], Segment]) -> None:
     """After a render was given up: wait for the segments still running (they end at their next check, as the
     pool's shutdown would wait for them) and log how each ended (given up at which rig time, or played out)."""
@@ -371,6 +382,15 @@ def _log_given_up(futures: dict[Future[SegmentResult], Segment]) -> None:
 
 _channels: tuple[Any, Any] = (None, None)
 """In a segment worker: the parent's progress queue and stop event (:func:`_start_worker`)."""
+_terminated = False
+"""In a segment worker: it got SIGTERM (:func:`_note_sigterm`); its segment ends at the next check."""
+
+
+def _note_sigterm(signum: int, frame: Any) -> None:
+    """A worker's SIGTERM: noted, not raised wherever the worker is (a numba kernel, a queue write); not the stop
+    event set here either (its lock may be held by the code the handler interrupted)."""
+    global _terminated
+    _terminated = True
 
 
 def _start_worker(progress: Any, stop: Any) -> None:
@@ -381,8 +401,9 @@ def _start_worker(progress: Any, stop: Any) -> None:
     worker started up is dropped here."""
     global _channels
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, _note_sigterm)  # its segment ends at the next check, the parent says why
     if hasattr(signal, "pthread_sigmask"):
-        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})
     _channels = (progress, stop)
 
 
@@ -393,13 +414,13 @@ def _run_in_worker(plan: GesturePlan, kit: Kit, opts: RenderOptions, segment: Se
 
 @contextlib.contextmanager
 def _sigint_blocked() -> Iterator[None]:
-    """SIGINT blocked in this thread meanwhile (a Ctrl-C meanwhile is delivered when it ends): the processes and
-    threads started meanwhile inherit the block, so a worker cannot be interrupted while Python starts in it,
-    before its initializer runs."""
+    """SIGINT and SIGTERM blocked in this thread meanwhile (one sent meanwhile is delivered when it ends): the
+    processes and threads started meanwhile inherit the block, so a worker cannot be interrupted (or killed: a dead
+    worker breaks the pool) while Python starts in it, before its initializer runs."""
     if not hasattr(signal, "pthread_sigmask"):  # not POSIX
         yield
         return
-    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
     try:
         yield
     finally:
@@ -473,7 +494,8 @@ def run_segmented(score: Score, assignment: Assignment, plan: GesturePlan, kit: 
                         if on_progress is not None:  # simulated seconds of all segments, scaled to the piece
                             on_progress(duration * sum(done_s.values()) / total, duration)
                         for future in finished:
-                            play.add(future.result())  # a worker's error ends the render here
+                            ctrl_c.check()  # SIGTERM to every process: the parent's own, not the segment's, said
+                            play.add(_segment_result(future))  # a worker's error ends the render here
                             del futures[future]  # its messages are the player's now, not kept twice
                         if finished:
                             play.advance()

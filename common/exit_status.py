@@ -5,7 +5,9 @@
   range, options that exclude each other;
 - 1 (:data:`FAILED`): an input or output the command could not use (a missing, unreadable or corrupt file, an
   output path that cannot be written, a port in use) or a failure while working;
-- 130 (:data:`INTERRUPTED`): Ctrl-C (128 + SIGINT, as a shell reports it).
+- 130 (:data:`INTERRUPTED`): Ctrl-C (128 + SIGINT, as a shell reports it);
+- 143 (:data:`TERMINATED`): SIGTERM (128 + SIGTERM) where a command stops cleanly on it (``batteur render``,
+  ``evaluate``, ``demo``: nothing partial left, one line said), as a shell reports a process SIGTERM ended.
 
 The error line is argparse's: ``PROG: error: MESSAGE`` on standard error, one line. Shared by the ``batteur``
 commands (through ``batteur/errors.py``), the service nodes (``common/runtime.py``) and the services' own programs,
@@ -22,6 +24,8 @@ USAGE = 2
 """Exit status for a command line that cannot be run as given (argparse's own status for usage errors)."""
 INTERRUPTED = 130
 """Exit status after Ctrl-C (128 + SIGINT), as a shell reports it."""
+TERMINATED = 143
+"""Exit status after SIGTERM (128 + SIGTERM) in a command that cleans up on it, as a shell reports it."""
 
 
 class UsageError(ValueError):

@@ -218,8 +218,10 @@ class Score:
         the one starting where it ends).
     end_beat : float or None
         Where the score ends, in beats (quarter notes) from the first: a text score's last bar (or rest), a MIDI
-        file's end of track; its length, which ``python -m common.score`` reports. ``beats`` holds the beat at the
-        end too (the head nod's last), so it counts one beat more. None: not known (a live or performed score).
+        file's end of track when it lies on a bar line, else the end of the bar holding its last note
+        (:func:`common.score.midi._end_beat`); its length, which ``python -m common.score`` reports. ``beats``
+        holds the beat at the end too (the head nod's last), so it counts one beat more. None: not known (a live
+        or performed score).
     bar_units : np.ndarray, shape (M,)
         Each bar's counted beat, the 1/D note of its meter N/D, in quarter notes (0.5 in 6/8 or 7/8, 1 in x/4),
         parallel to ``bar_beats`` (bars past the last start count as it); empty: quarter notes. How ``batteur

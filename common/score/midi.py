@@ -287,7 +287,8 @@ def read_midi(
         1-based MIDI channels holding drums (``--drum-channels``): those and no
         other. None: channel 10 and channels switched to a drum bank, notes
         elsewhere skipped with a warning; when none is on them, every channel
-        but melodic ones beside others (with a warning: :func:`_chosen_notes`).
+        but melodic ones beside others (with a warning: :func:`_chosen_notes`);
+        when every channel with notes is melodic, :class:`ScoreError` (no drums).
     drum_map : Mapping[int, EventType]
         MIDI pitch -> drum event type (default: GM plus the TD-11's 22 and 26).
     progress : Callable[[int, int], None] | None
@@ -383,7 +384,8 @@ def _read(source: str | Path | bytes, drum_channels: Collection[int] | None, dru
     beats = _beats(tempo_points, end_tick, mid.ticks_per_beat)
     score = score_from_notes(notes, drum_map=drum_map, beats=beats, source=name,
                              bar_beats=_bar_beats(meters, end_tick, mid.ticks_per_beat), kit=kit)
-    score.end_beat = end_tick / mid.ticks_per_beat
+    score.end_beat = _end_beat(end_tick, max((n[4] for n in chosen), default=None), meters, score.bar_beats,
+                               mid.ticks_per_beat)
     score.bar_units = _bar_units(meters, score.bar_beats, mid.ticks_per_beat)
     score.warnings = warnings + score.warnings
     if not score.events:
@@ -438,7 +440,9 @@ def _chosen_notes(raw: list[_RawNote], drums: set[int], named: Collection[int] |
     (a Drum Rack sends on channel 1, a tambourine sits on 10: the groove was dropped without a word). With no note
     on them, every channel is read, but for the channels whose programs are all melodic (a bass, a piano) and the
     click tracks (:func:`_click_channels`) when another channel (without a program, or with a percussive one) has
-    notes; said either way."""
+    notes; said either way. A file whose every channel with notes set a melodic program holds no drums: a
+    :class:`ScoreError` saying so and naming the option that reads them anyway (a drum file on channel 1 without a
+    program change, as a DAW writes one, is read with the warning)."""
     counts = Counter(r[3] for r in raw)
     if named:
         wanted = {c - 1 for c in named}
@@ -481,9 +485,24 @@ def _chosen_notes(raw: list[_RawNote], drums: set[int], named: Collection[int] |
         return [r for r in raw if r[3] in kept], [
             f"{name}: no notes on a drum channel; reading {_reading(kept, counts, programs, mid)}; skipped "
             f"{_channels(melodic, counts, programs, mid)}: a melodic program; {CHOOSE_CHANNELS}"]
-    why = "; every channel with notes set a melodic program" if melodic else ""
-    return raw, [f"{name}: no notes on a drum channel; reading {_reading(channels, counts, programs, mid)}{why}; "
+    if melodic and not all(set(programs[c]) == {0} for c in melodic):
+        # every channel with notes set a melodic program: a song without drums (a bass line, a piano); program 0
+        # alone is no choice: many DAWs write it on every track, a drum track on channel 1 too
+        raise ScoreError(_no_drums_said(melodic, counts, programs, mid, name))
+    default = "; program 1 (Acoustic Grand Piano) set, a DAW's default, so read as drums" if melodic else ""
+    return raw, [f"{name}: no notes on a drum channel; reading {_reading(channels, counts, programs, mid)}{default}; "
                  f"{CHOOSE_CHANNELS}"]
+
+
+def _no_drums_said(melodic: list[int], counts: Counter[int], programs: dict[int, list[int]], mid: mido.MidiFile,
+                   name: str) -> str:
+    """The error for a file whose notes are all on channels (0-based) that set a melodic program: no drums in it
+    (until 8 Dec its bass line was read as drums with a warning, and played on the snare), and the option that
+    reads them as drums anyway."""
+    them = "it" if len(melodic) == 1 else "them"
+    return (f"{name}: no drums: no notes on a drum channel (10, or one set to a drum bank), and the notes are on "
+            f"{_channels(melodic, counts, programs, mid)}, set to a melodic program; to read {them} as drums anyway: "
+            f"--drum-channels {_channel_list(melodic, ',')}")
 
 
 def _click_channels(channels: list[int], raw: list[_RawNote], mid: mido.MidiFile) -> list[int]:
@@ -692,6 +711,29 @@ def _bar_beats(meters: list[tuple[int, int, int]], end_tick: int, ticks_per_beat
         starts.append(tick + bar_ticks * np.arange(max(n, 0)))
         count += max(n, 0)
     return np.concatenate(starts) / ticks_per_beat if starts else np.zeros(0)
+
+
+def _end_beat(end_tick: int, last_note_tick: int | None, meters: list[tuple[int, int, int]], bar_beats: np.ndarray,
+              ticks_per_beat: int) -> float:
+    """Where the score ends, beats (:attr:`Score.end_beat`): the file's end of track when it lies on a bar line (a
+    DAW's song end set on a bar, empty bars before it counted), else the end of the bar holding the last note: a DAW
+    writes its end of track a little after the last note or bar line (8 bars of 4/4 ending at beat 32.62 were "9
+    bars (32.62 beats)" until 8 Dec). A file without notes, or whose last note lies past the bars counted
+    (:data:`MAX_SCORE_BARS`), ends at its end of track. ``meters``: (tick, numerator, denominator) in tick order;
+    ``bar_beats``: :func:`_bar_beats`'s."""
+    end = end_tick / ticks_per_beat
+    tick, numerator, denominator = meters[-1]  # in force at the end: the end of track is the file's last tick
+    bar_ticks = numerator * ticks_per_beat * 4 / denominator
+    into_bar = math.fmod(end_tick - tick, bar_ticks)
+    on_bar_line = min(into_bar, bar_ticks - into_bar) < 0.5  # within half a tick
+    if last_note_tick is None:
+        return end
+    starts = np.asarray(bar_beats, dtype=float)
+    after = int(np.searchsorted(starts, last_note_tick / ticks_per_beat + 1e-9, side="right"))
+    if after >= len(starts):  # past the bars counted
+        return end
+    note_bar_end = float(starts[after])
+    return max(end, note_bar_end) if on_bar_line else note_bar_end
 
 
 def _bar_units(meters: list[tuple[int, int, int]], bar_beats: np.ndarray, ticks_per_beat: int) -> np.ndarray:

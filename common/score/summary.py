@@ -15,8 +15,16 @@ from common.score.position import seconds_at_beat
 
 LISTED_CHANGES = 6
 """The most tempo or time signature changes the header lists one by one (more: counted, with their range)."""
-TEMPO_TOLERANCE = 1e-6
-"""Relative difference of two beats' tempi below which they are one tempo (the readers' rounding)."""
+BPM_DECIMALS = 2
+"""Tempos are read and said to a hundredth of a bpm: a MIDI file holds a tempo as whole microseconds a beat, so 96.25
+bpm is 623,377 us, 96.2499 bpm (said so until 8 Dec); a microsecond is 0.0003 bpm at 140 bpm, far below a hundredth,
+and two beats' tempos that round alike are one tempo (the readers' rounding)."""
+MIN_RAMP_STEPS = 3
+"""Tempo changes on this many beats in a row, each the same way and of a like size (:data:`RAMP_STEP_RATIO`), are one
+ramp, an accelerando or a ritardando, said as one change (until 8 Dec an accelerando's per-beat changes filled the
+list, and a sudden change after it was cut off as "... (12 more)")."""
+RAMP_STEP_RATIO = 3.0
+"""A step more than this many times the one before it (or less than its inverse) is not the ramp's: a jump."""
 
 
 def score_length(score: Score) -> tuple[float, int] | None:
@@ -32,8 +40,8 @@ def score_length(score: Score) -> tuple[float, int] | None:
 def _bars(score: Score) -> list[tuple[float, float, float]]:
     """(start, length, counted note) of each bar up to the score's end, beats: a bar's length runs to the next start
     (the last one to the score's end when no start follows). A last bar ending where the score does, shorter than
-    the one before it in the same counted note, is one the end cuts short (a text score closing on a half-bar rest):
-    it keeps that bar's length, as a DAW's bar ruler does (a MIDI file's last bar runs past its end of track)."""
+    the one before it in the same counted note, and followed by a start a bar as long as that one, is one the end
+    cuts short (a text score closing on a half-bar rest): it keeps that bar's length, as a DAW's bar ruler does."""
     starts = np.asarray(score.bar_beats, dtype=float)
     units = np.asarray(score.bar_units, dtype=float)
     counted = len(starts) if score.end_beat is None else int(np.count_nonzero(starts < score.end_beat - 1e-9))
@@ -47,8 +55,14 @@ def _bars(score: Score) -> list[tuple[float, float, float]]:
             break
         unit = float(units[k]) if k < len(units) and units[k] > 0 else 1.0
         bars.append((float(starts[k]), length, unit))
+    # the bar after the end as long as the one before the last: the last is cut short (a text score's closing rest
+    # puts a start at its end and a whole bar after it); none after, or one as short: a bar of its own meter (a
+    # MIDI file's 6/8 after 7/8, now that its end is on a bar line; a text score's last `meter 2/4` bar, which read
+    # as 4/4 until 8 Dec)
+    after = float(starts[counted + 1] - starts[counted]) if counted + 1 < len(starts) else None
     if (len(bars) >= 2 and score.end_beat is not None and abs(sum(bars[-1][:2]) - score.end_beat) < 1e-9
-            and bars[-1][2] == bars[-2][2] and bars[-1][1] < bars[-2][1] - 1e-9):
+            and bars[-1][2] == bars[-2][2] and bars[-1][1] < bars[-2][1] - 1e-9
+            and after is not None and abs(after - bars[-2][1]) < 1e-9):
         bars[-1] = (bars[-1][0], bars[-2][1], bars[-1][2])
     return bars
 
@@ -76,9 +90,29 @@ def tempo_changes(score: Score) -> list[tuple[float, float]]:
     beats = np.asarray(score.beats, dtype=float)
     if len(beats) < 2:
         return []
-    bpm = 60.0 / np.diff(beats)
-    changed = np.flatnonzero(np.abs(np.diff(bpm)) > TEMPO_TOLERANCE * bpm[1:]) + 1
+    bpm = np.round(60.0 / np.diff(beats), BPM_DECIMALS)
+    changed = np.flatnonzero(np.diff(bpm) != 0) + 1
     return [(0.0, float(bpm[0]))] + [(float(k), float(bpm[k])) for k in changed]
+
+
+def bpm_words(bpm: float) -> str:
+    """A tempo to a hundredth of a bpm, without trailing zeros: ``96.25``, ``120``, ``93.13``."""
+    return f"{bpm:.{BPM_DECIMALS}f}".rstrip("0").rstrip(".")
+
+
+def _ramp_end(changes: list[tuple[float, float]], first: int) -> int:
+    """The last of the changes from ``changes[first]`` on that continue it as a ramp: each on the beat after the one
+    before, the same way, its step within :data:`RAMP_STEP_RATIO` of the one before."""
+    last = first
+    step = changes[first][1] - changes[first - 1][1]
+    while last + 1 < len(changes):
+        beat, bpm = changes[last + 1]
+        next_step = bpm - changes[last][1]
+        if (abs(beat - changes[last][0] - 1) > 1e-9 or next_step * step <= 0
+                or not 1 / RAMP_STEP_RATIO <= abs(next_step / step) <= RAMP_STEP_RATIO):
+            break
+        last, step = last + 1, next_step
+    return last
 
 
 def _number(value: float) -> str:
@@ -121,20 +155,40 @@ def _listed(changes: list[str], total: int) -> str:
     return ", ".join(changes[:LISTED_CHANGES]) + f", ... ({total - LISTED_CHANGES} more)"
 
 
+def tempo_items(score: Score, changes: list[tuple[float, float]]) -> list[str]:
+    """The changes after the first of ``changes`` (:func:`tempo_changes`) as a musician says them: a jump as ``90
+    bpm at bar 11``, a ramp (:data:`MIN_RAMP_STEPS`) as ``accelerando 90 -> 140 bpm (16 steps, bar 5 to bar 8, beat
+    4)``."""
+    items = []
+    k = 1
+    while k < len(changes):
+        last = _ramp_end(changes, k)
+        if last - k + 1 >= MIN_RAMP_STEPS:
+            before, after = changes[k - 1][1], changes[last][1]
+            kind = "accelerando" if after > before else "ritardando"
+            items.append(f"{kind} {bpm_words(before)} -> {bpm_words(after)} bpm ({last - k + 1} steps, "
+                         f"{bar_at(score, changes[k][0])} to {bar_at(score, changes[last][0])})")
+            k = last + 1
+        else:
+            items.append(f"{bpm_words(changes[k][1])} bpm at {bar_at(score, changes[k][0])}")
+            k += 1
+    return items
+
+
 def tempo_line(score: Score) -> str | None:
-    """``tempo: 120 bpm`` and its changes (``; 2 tempo changes: 100 bpm at bar 3, ...``, the first
-    :data:`LISTED_CHANGES` listed, then the range of the rest); None for a score with no tempo."""
+    """``tempo: 120 bpm`` and its changes (``; tempo changes: 2 (90 to 140 bpm, read beat by beat): 90 bpm at bar
+    3, accelerando 90 -> 140 bpm (8 steps, bar 5 to bar 6, beat 4)``: :func:`tempo_items`, the first
+    :data:`LISTED_CHANGES` listed, then how many more); None for a score with no tempo."""
     changes = tempo_changes(score)
     if not changes:
         return None
-    line = f"tempo: {changes[0][1]:.6g} bpm"
+    line = f"tempo: {bpm_words(changes[0][1])} bpm"
     if len(changes) == 1:
         return line + " (no tempo changes)"
-    rest = changes[1:]
+    items = tempo_items(score, changes)
     low, high = min(b for _, b in changes), max(b for _, b in changes)
-    listed = [f"{b:.6g} bpm at {bar_at(score, beat)}" for beat, b in rest[:LISTED_CHANGES]]
-    return (f"{line}; tempo changes: {len(rest)} ({low:.6g} to {high:.6g} bpm, read beat by beat): "
-            f"{_listed(listed, len(rest))}")
+    return (f"{line}; tempo changes: {len(items)} ({bpm_words(low)} to {bpm_words(high)} bpm, read beat by beat): "
+            f"{_listed(items[:LISTED_CHANGES], len(items))}")
 
 
 def meter_line(score: Score) -> str | None:

@@ -213,8 +213,8 @@ def anthropometry(height_m: float = 1.75, mass_kg: float = 73.0, sex: Sex = "mal
     widths.update({k: v for k, v in given.items() if k in widths})
     clav_len = widths["shoulder_width"] / 2 - CLAVICLE_MIDLINE_OFFSET * scale  # as the character places it
     if clav_len < 0.01:
-        raise ValueError(f"shoulder_width {_rounded(widths['shoulder_width'])} m is implausible for a performer of "
-                         f"{_rounded(height_m)} m (no room for the clavicles)")
+        raise LengthError(f"shoulder_width {_rounded(widths['shoulder_width'])} m is implausible for a performer of "
+                         f"{_rounded(height_m)} m (no room for the clavicles)", "shoulder_width")
     seg["clavicle"] = Segment("clavicle", clav_len, girdle_mass, clav_len / 2,
                               (0.2 * clav_len, 0.3 * clav_len, 0.3 * clav_len))
     if "shoulder_height" in given:
@@ -230,6 +230,15 @@ def anthropometry(height_m: float = 1.75, mass_kg: float = 73.0, sex: Sex = "mal
     return Anthropometry(height_m, mass_kg, sex, seg, widths["shoulder_width"], widths["hip_width"])
 
 
+class LengthError(ValueError):
+    """A length given (``lengths_m``) that no body has; ``segment`` is its name (a key of ``lengths_m``), so that a
+    caller can say where it was measured (a skeleton's joints)."""
+
+    def __init__(self, message: str, segment: str) -> None:
+        super().__init__(message)
+        self.segment = segment
+
+
 def _checked_lengths(lengths_m: dict[str, float]) -> dict[str, float]:
     """``lengths_m`` if every name is a segment or one of :data:`WHOLE_LENGTHS` and every length plausible;
     else ``ValueError`` naming the first that is not."""
@@ -239,8 +248,8 @@ def _checked_lengths(lengths_m: dict[str, float]) -> dict[str, float]:
             raise ValueError(f"unknown segment {name!r} (known: {', '.join(known)})")
         low, high = WHOLE_LENGTHS.get(name, (0.01, 1.5))
         if not low <= length <= high:
-            raise ValueError(f"segment {name} length {_rounded(length)} m is implausible (expected {low:g} ... "
-                             f"{high:g} m)")
+            raise LengthError(f"segment {name} length {_rounded(length)} m is implausible (expected {low:g} ... "
+                              f"{high:g} m)", name)
     if "trunk" in lengths_m and "shoulder_height" in lengths_m:
         raise ValueError("give the trunk or the shoulder_height, not both (one sets the other)")
     return dict(lengths_m)
@@ -272,8 +281,13 @@ def performer_anthropometry(height_m: float, mass_kg: float, skeleton_bvh: str |
     ``ValueError`` naming the file for proportions the table cannot take."""
     from services.physics.bvh_motion import read_skeleton  # scipy and the BVH reader: only with a skeleton
 
-    lengths = read_skeleton(skeleton_bvh, skeleton_units).lengths_m if skeleton_bvh else None
+    reading = read_skeleton(skeleton_bvh, skeleton_units) if skeleton_bvh else None
+    lengths = None if reading is None else reading.lengths_m
     try:
         return anthropometry(height_m, mass_kg, lengths_m=lengths)
-    except ValueError as exc:  # the skeleton's proportions: name the file they come from
-        raise ValueError(f"skeleton_bvh {skeleton_bvh}: {exc}" if lengths else str(exc)) from None
+    except ValueError as exc:  # the skeleton's proportions: name the file they come from, and the joints
+        if not lengths or reading is None:
+            raise ValueError(str(exc)) from None
+        where = reading.joints.get(exc.segment) if isinstance(exc, LengthError) else None
+        measured = "" if where is None else f", measured from {where}"
+        raise ValueError(f"skeleton_bvh {skeleton_bvh}: {exc}{measured}. {reading.joints_words}") from None

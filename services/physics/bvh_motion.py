@@ -27,7 +27,7 @@ from __future__ import annotations
 import logging
 import math
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -361,6 +361,8 @@ class SkeletonReading:
     """False when no unit gives a performer (:func:`read_skeleton`): the lengths are the first guess's."""
     given: bool = False
     """True when the unit was given (``--skeleton-units``), not guessed."""
+    joints: dict[str, str] = field(default_factory=dict)
+    """Length name -> the file's joints it was measured between ("LeftShoulder to RightShoulder"), for messages."""
 
     @property
     def unit_words(self) -> str:
@@ -371,10 +373,59 @@ class SkeletonReading:
         """The height of a performer of de Leva's proportions with these lengths (:func:`skeleton_stature`)."""
         return skeleton_stature(self.lengths_m)
 
+    @property
+    def joints_words(self) -> str:
+        """Which joints each length was measured between and which lengths no joint was found for (by name:
+        :data:`SEGMENT_NAMES`), a sentence ending an error about the lengths: a joint named otherwise than expected
+        is taken for another segment (a Mixamo skeleton without LeftArm: its LeftShoulder, the clavicle, read as the
+        upper arm, as Biovision's LeftShoulder is) or not found."""
+        said = "; ".join(f"{_length_words(name)} {joints}" for name, joints in self.joints.items())
+        missing = [_length_words(name) for name in MEASURED if name not in self.joints
+                   and not (name == "shoulder_height" and "trunk" in self.joints)]
+        lacking = f"; no joints found for the {', '.join(missing)}" if missing else ""
+        return (f"The lengths were measured between these joints, found by name (a joint named otherwise is taken "
+                f"for another segment or not found): {said}{lacking}")
+
+
+MEASURED: tuple[str, ...] = (*LENGTH_SEGMENTS, "neck", "shoulder_height", "shoulder_width", "hip_width")
+"""The lengths a skeleton may give (:func:`bvh_segment_lengths`; ``trunk`` in place of ``shoulder_height`` without
+shoulders)."""
+
+
+def _length_words(name: str) -> str:
+    """A length's name for messages: ``shoulder_width`` -> ``shoulder width``."""
+    return name.replace("_", " ")
+
 
 def _raw_lengths(bvh: Bvh, segments: dict[str, int], where: str) -> dict[str, float]:
     """:func:`bvh_segment_lengths`' lengths in the file's own units."""
+    return _measured(bvh, segments, where)[0]
+
+
+def _measured(bvh: Bvh, segments: dict[str, int], where: str) -> tuple[dict[str, float], dict[str, str]]:
+    """:func:`bvh_segment_lengths`' lengths in the file's own units, and the joints each was measured between
+    (:attr:`SkeletonReading.joints`)."""
     rest = rest_positions(bvh)
+
+    def joint_name(link: str) -> str:
+        return bvh.joints[segments[link]].name
+
+    def between(*pairs: tuple[str, str]) -> str | None:  # "LeftArm to LeftForeArm and RightArm to RightForeArm"
+        known = [f"{joint_name(a)} to {joint_name(b)}" for a, b in pairs if a in segments and b in segments]
+        return " and ".join(known) or None
+
+    joints: dict[str, str | None] = {
+        kind: between(*((f"{s}_{kind}", NEXT_SEGMENT[f"{s}_{kind}"]) for s in SIDES)) for kind in LENGTH_SEGMENTS}
+    joints["neck"] = between(("neck", "head"))
+    if all(f"{s}_thigh" in segments for s in SIDES):
+        hip_joints = " and ".join(joint_name(f"{s}_thigh") for s in SIDES)
+        joints["hip_width"] = between(("left_thigh", "right_thigh"))
+        if all(f"{s}_upper_arm" in segments for s in SIDES):
+            joints["shoulder_height"] = (f"the hips ({hip_joints}) up to the shoulders ("
+                                         f"{' and '.join(joint_name(f'{s}_upper_arm') for s in SIDES)})")
+        elif "neck" in segments:
+            joints["trunk"] = f"the hips ({hip_joints}) up to {joint_name('neck')}"
+    joints["shoulder_width"] = between(("left_upper_arm", "right_upper_arm"))
 
     def at(link: str) -> np.ndarray | None:  # the centre of the joint that starts ``link``
         return rest[segments[link]] if link in segments else None
@@ -403,15 +454,20 @@ def _raw_lengths(bvh: Bvh, segments: dict[str, int], where: str) -> dict[str, fl
         if top is not None:
             lengths[name] = distance(hip_centre, top) if up is None else float(np.dot(top - hip_centre, up))
     lengths["shoulder_width"] = distance(*(at(f"{s}_upper_arm") for s in SIDES))
-    return {name: length for name, length in lengths.items() if length is not None}
+    measured = {name: length for name, length in lengths.items() if length is not None}
+    return measured, {name: words for name, words in joints.items() if words is not None and name in measured}
 
 
-def _problem(lengths_m: dict[str, float]) -> str | None:
-    """Why no body can have these lengths (:func:`anthropometry`'s ``ValueError``), None when one can."""
-    from services.physics.anthropometry import anthropometry
+def _problem(lengths_m: dict[str, float], joints: dict[str, str] | None = None) -> str | None:
+    """Why no body can have these lengths (:func:`anthropometry`'s ``ValueError``), None when one can; a length
+    measured between ``joints`` (:attr:`SkeletonReading.joints`) is said to be."""
+    from services.physics.anthropometry import LengthError, anthropometry
 
     try:
         anthropometry(lengths_m=lengths_m)
+    except LengthError as exc:
+        where = (joints or {}).get(exc.segment)
+        return str(exc) if where is None else f"{exc}, measured from {where}"
     except ValueError as exc:
         return str(exc)
     return None
@@ -433,42 +489,53 @@ def read_skeleton(path: str | Path, units: str = "auto") -> SkeletonReading:
     if units != "auto" and units not in METRES_PER_SKELETON_UNIT:
         raise ValueError(f"skeleton units {units!r}: auto, {', '.join(METRES_PER_SKELETON_UNIT)} expected")
     bvh = read_bvh(path)
-    raw = _raw_lengths(bvh, map_segments(bvh, str(path)), str(path))
+    raw, joints = _measured(bvh, map_segments(bvh, str(path)), str(path))
     if units != "auto":
-        return SkeletonReading(_scaled(raw, units), units, "as given", given=True)
+        return SkeletonReading(_scaled(raw, units), units, "as given", given=True, joints=joints)
     longest = max((float(np.linalg.norm(j.offset)) for j in bvh.joints), default=0.0)
     first = "cm" if longest > CENTIMETRES_ABOVE else "m"
     why = f"its longest offset, {longest:.4g}, is {'over' if first == 'cm' else 'at most'} {CENTIMETRES_ABOVE:g}"
     if not raw:  # no limb found: nothing to tell a unit by (the caller says so)
-        return SkeletonReading({}, first, why)
-    problems = {u: _unit_problem(raw, u) for u in METRES_PER_SKELETON_UNIT}
+        return SkeletonReading({}, first, why, joints=joints)
+    problems = {u: _unit_problem(raw, u, joints) for u in METRES_PER_SKELETON_UNIT}
     fits = [u for u, problem in problems.items() if problem is None]
     if first in fits:
-        return SkeletonReading(_scaled(raw, first), first, why)
-    if not fits:
+        return SkeletonReading(_scaled(raw, first), first, why, joints=joints)
+    if not fits:  # the first guess's problem is the caller's to say (usable_segment_lengths): here the others'
         low, high = STATURE_RANGE_M
-        statures = ", ".join(f"{_stature_words(raw, u)} in {UNIT_WORDS[u]}" for u in METRES_PER_SKELETON_UNIT)
-        return SkeletonReading(_scaled(raw, first), first, f"{why}; no unit gives a performer {low:g} to {high:g} m "
-                               f"tall with these lengths ({statures})", fits=False)
+        others = ", ".join(f"in {UNIT_WORDS[u]} {_unit_words(raw, u, joints)}" for u in METRES_PER_SKELETON_UNIT
+                           if u != first)
+        return SkeletonReading(_scaled(raw, first), first, f"{why}; no other unit gives a performer's lengths "
+                               f"either: {others} (a performer is {low:g} to {high:g} m tall)", fits=False,
+                               joints=joints)
     unit = min(fits, key=lambda u: abs(math.log((skeleton_stature(_scaled(raw, u)) or 1.75) / 1.75)))
     return SkeletonReading(_scaled(raw, unit), unit, f"no performer has its lengths in {UNIT_WORDS[first]}, the "
-                           f"first guess ({why}): {problems[first]}")
+                           f"first guess ({why}): {problems[first]}", joints=joints)
 
 
-def _stature_words(raw: dict[str, float], unit: str) -> str:
-    stature = skeleton_stature(_scaled(raw, unit))
-    return "no stature" if stature is None else f"{stature:g} m"
+def _unit_words(raw: dict[str, float], unit: str, joints: dict[str, str]) -> str:
+    """Why no performer has the lengths ``raw`` read in ``unit``, for a list of units: the stature they make when it
+    is outside :data:`STATURE_RANGE_M` (a unit mistaken), else the length no body has, with the stature (the
+    joints mistaken: a stature within the range beside "no unit fits" read as a contradiction)."""
+    lengths = _scaled(raw, unit)
+    stature, (low, high) = skeleton_stature(lengths), STATURE_RANGE_M
+    if stature is None:
+        return _problem(lengths, joints) or "no performer's lengths"
+    if not low <= stature <= high:
+        return f"a {stature:g} m performer's"
+    problem = _problem(lengths, joints)
+    return f"a {stature:g} m performer's, but {problem}" if problem else f"a {stature:g} m performer's"
 
 
-def _unit_problem(raw: dict[str, float], unit: str) -> str | None:
+def _unit_problem(raw: dict[str, float], unit: str, joints: dict[str, str] | None = None) -> str | None:
     """Why no performer has the lengths ``raw`` read in ``unit`` (:func:`_performer_problem`); None when one has."""
-    return _performer_problem(_scaled(raw, unit))
+    return _performer_problem(_scaled(raw, unit), joints)
 
 
-def _performer_problem(lengths_m: dict[str, float]) -> str | None:
-    """Why no performer has these lengths: a length no body has (:func:`_problem`) or a stature
-    (:func:`skeleton_stature`) outside :data:`STATURE_RANGE_M`; None when one has."""
-    problem = _problem(lengths_m)
+def _performer_problem(lengths_m: dict[str, float], joints: dict[str, str] | None = None) -> str | None:
+    """Why no performer has these lengths: a length no body has (:func:`_problem`, said with the ``joints`` it was
+    measured between) or a stature (:func:`skeleton_stature`) outside :data:`STATURE_RANGE_M`; None when one has."""
+    problem = _problem(lengths_m, joints)
     if problem is not None:
         return problem
     stature, (low, high) = skeleton_stature(lengths_m), STATURE_RANGE_M
@@ -528,14 +595,14 @@ def usable_segment_lengths(path: str | Path, units: str = "auto") -> dict[str, f
         raise BvhError(f"{path}: no arm, leg or trunk joints found by their usual BVH names: "
                        f"{unmatched_words(read_bvh(path))}")
     if units == "auto":
-        problem = _performer_problem(reading.lengths_m)
+        problem = _performer_problem(reading.lengths_m, reading.joints)
     else:  # a child-sized or stylised character the user says the unit of: built if a body can have its lengths
-        problem = _problem(reading.lengths_m)
+        problem = _problem(reading.lengths_m, reading.joints)
         stature = reading.stature_m
         if problem is not None and stature is not None:  # which performer the unit given makes: a unit mistaken
             problem += f"; its lengths are a {stature:g} m performer's"
-    if problem is not None:  # a skeleton lying down, a child's, in a unit no guess finds
-        raise BvhError(f"{path}: {problem}, read in {reading.unit_words}")
+    if problem is not None:  # a skeleton lying down, a child's, in a unit no guess finds, joints mistaken
+        raise BvhError(f"{path}: {problem}, read in {reading.unit_words}. {reading.joints_words}")
     return reading.lengths_m
 
 

@@ -18,7 +18,7 @@ from scipy.spatial.transform import Rotation
 
 from batteur import render
 from services.graphics.export import write_bvh
-from services.graphics.export.bvh import Z_UP_TO_Y_UP
+from services.graphics.export.bvh import DEFAULT_FACING, Y_UP
 from services.graphics.poser import load_character, rest_poser
 from services.graphics.sequence import PoseSequence
 
@@ -95,7 +95,8 @@ def test_the_end_sites_are_the_tips_of_the_body_physics_built(tmp_path: Path, bo
     written = _end_sites(tmp_path / "out" / "performance.bvh")
     for link, tip in _physics_tips(opts).items():
         # the file's 6 decimals: half a micrometre
-        assert np.abs(written[link] - Z_UP_TO_Y_UP @ tip).max() < 1e-6, (link, written[link], Z_UP_TO_Y_UP @ tip)
+        want = Y_UP[DEFAULT_FACING] @ tip  # the file's axes (render's default facing, +z)
+        assert np.abs(written[link] - want).max() < 1e-6, (link, written[link], want)
     if body == "long shanks":  # the body physics built (and the file) has the skeleton's shanks
         lines = [line.strip() for line in (tmp_path / "out" / "performance.bvh").read_text().splitlines()]
         foot = lines[lines.index("JOINT left_foot") + 2].split()[1:]  # its OFFSET: the shank's length
@@ -112,8 +113,8 @@ def test_given_end_sites_are_written_as_given_and_the_others_guessed(tmp_path: P
     write_bvh(sequence, tmp_path / "given.bvh", rate_hz=60.0, scale=100.0,
               end_sites={"left_foot": (0.01, 0.2, -0.07)})
     guessed, given = _end_sites(tmp_path / "guessed.bvh"), _end_sites(tmp_path / "given.bvh")
-    assert given["left_foot"] == pytest.approx([1.0, -7.0, -20.0], abs=1e-6)  # (x, z, -y) in centimetres
-    snapshot = Z_UP_TO_Y_UP @ load_character().effectors["left_foot"][1] * 100.0
+    assert given["left_foot"] == pytest.approx([-1.0, -7.0, 20.0], abs=1e-6)  # (-x, z, y) in centimetres (+z)
+    snapshot = Y_UP[DEFAULT_FACING] @ load_character().effectors["left_foot"][1] * 100.0
     assert guessed["left_foot"] == pytest.approx(snapshot, abs=2e-4)  # the rest pose's own shank: scale ~1
     assert {link: list(v) for link, v in given.items() if link != "left_foot"} == \
         {link: list(v) for link, v in guessed.items() if link != "left_foot"}

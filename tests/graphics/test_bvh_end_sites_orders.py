@@ -20,7 +20,7 @@ from scipy.spatial.transform import Rotation
 from common.character import JOINTS
 from common.gesture.bvh import forward_kinematics, read_bvh
 from services.graphics.export import write_bvh
-from services.graphics.export.bvh import THRONE_JOINT, Z_UP_TO_Y_UP, BvhStream
+from services.graphics.export.bvh import DEFAULT_FACING, THRONE_JOINT, Y_UP, BvhStream
 from services.graphics.poser import load_character, rest_poser
 from services.graphics.sequence import PoseSequence
 
@@ -92,10 +92,11 @@ def test_the_stick_bone_runs_to_the_tip_and_the_foot_bone_to_the_ball_of_the_foo
         stack.extend(joint.Children)
     for side in ("left", "right"):
         stick, foot = joints[f"{side}_stick"], joints[f"{side}_foot"]
-        # in the bone's own frame: the stick's tip along its axis (the stick's +y, -z in the file); the sticks are
-        # the same for every body, the foot grows with it
-        assert np.allclose(list(stick.EndSite), [0.0, 0.0, -stick_tip], atol=1e-6)  # type: ignore[attr-defined]
-        assert np.allclose(list(foot.EndSite), Z_UP_TO_Y_UP @ ball * scale, atol=1e-5)  # type: ignore[attr-defined]
+        # in the bone's own frame: the stick's tip along its axis (the stick's +y, +z in a file facing +z); the sticks
+        # are the same for every body, the foot grows with it
+        tip = Y_UP[DEFAULT_FACING] @ [0.0, stick_tip, 0.0]
+        assert np.allclose(list(stick.EndSite), tip, atol=1e-6)  # type: ignore[attr-defined]
+        assert np.allclose(list(foot.EndSite), Y_UP[DEFAULT_FACING] @ ball * scale, atol=1e-5)  # type: ignore[attr-defined]
     # every frame: the End Sites are where the character's stick tips and balls of the feet are (their links'
     # offsets in the stick and the foot; the foot's scaled with the body, the stick's not)
     placed = forward_kinematics(read_bvh(path))
@@ -105,7 +106,7 @@ def test_the_stick_bone_runs_to_the_tip_and_the_foot_bone_to_the_ball_of_the_foo
                                  ("left_foot", "left_foot", scale), ("right_foot", "right_foot", scale)):
             row = seq.values[frame, names.index(link)]
             tip = row[:3] + Rotation.from_quat(row[3:]).apply(info.effectors[limb][1] * size)
-            assert np.allclose(placed[f"{link}_end"][frame], Z_UP_TO_Y_UP @ tip, atol=2e-5), (frame, limb)
+            assert np.allclose(placed[f"{link}_end"][frame], Y_UP[DEFAULT_FACING] @ tip, atol=2e-5), (frame, limb)
 
 
 def test_forearms_flexed_past_90_degrees_make_no_gimbal_steps(tmp_path: Path) -> None:
@@ -129,7 +130,7 @@ def test_forearms_flexed_past_90_degrees_make_no_gimbal_steps(tmp_path: Path) ->
         root.loadPose(frame)
         for joint, _, _ in layout:
             link = "pelvis" if joint.Name == THRONE_JOINT else joint.Name  # the throne joint: at the seat point
-            want = Z_UP_TO_Y_UP @ seq.values[frame, names.index(link), :3]
+            want = Y_UP[DEFAULT_FACING] @ seq.values[frame, names.index(link), :3]
             assert np.allclose(list(joint.PositionWorld), want, atol=1e-4), (frame, joint.Name)
 
 

@@ -15,7 +15,7 @@ import pytest
 
 from common.gesture.bvh import forward_kinematics, read_bvh
 from services.graphics.export import write_bvh
-from services.graphics.export.bvh import Z_UP_TO_Y_UP, BvhStream
+from services.graphics.export.bvh import DEFAULT_FACING, Y_UP, BvhStream
 from services.graphics.sequence import PoseSequence
 from services.physics.bvh_motion import bvh_segment_lengths, map_segments
 from tests.graphics.physics_poses import posed_frames
@@ -45,7 +45,7 @@ def test_a_rocked_pelvis_leaves_the_legs_where_physics_has_them(physics_poses: P
     assert {"left_thigh", "right_foot", "right_stick", "head"} <= set(body)
     for frame in range(len(ROCKS)):
         for name in body:
-            physics = Z_UP_TO_Y_UP @ seq.values[frame, seq.names.index(name), :3]
+            physics = Y_UP[DEFAULT_FACING] @ seq.values[frame, seq.names.index(name), :3]
             assert np.linalg.norm(placed[name][frame] - physics) < 1e-5, (frame, name)  # metres
 
 

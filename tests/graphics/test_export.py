@@ -13,7 +13,7 @@ import pytest
 
 from common.kit import kit_hardware, load_kit
 from services.graphics.export import write_bvh, write_gltf
-from services.graphics.export.bvh import Z_UP_TO_Y_UP
+from services.graphics.export.bvh import DEFAULT_FACING, Y_UP
 from services.graphics.figure import LINK_NAMES, synthetic_performance
 from services.graphics.sequence import PoseSequence
 
@@ -40,7 +40,7 @@ def test_bvh_reimports_with_joint_and_frame_counts_and_positions(performance: Po
     for frame in (0, 45, 90):
         root.loadPose(frame)
         for joint, _, _ in layout:
-            want = Z_UP_TO_Y_UP @ performance.values[frame, LINK_NAMES.index(joint.Name), :3]
+            want = Y_UP[DEFAULT_FACING] @ performance.values[frame, LINK_NAMES.index(joint.Name), :3]
             assert np.allclose(list(joint.PositionWorld), want, atol=1e-4), (frame, joint.Name)
 
 

@@ -153,13 +153,22 @@ def test_a_skeleton_no_unit_fits_names_the_unit_and_rounds(tmp_path: Path) -> No
     with pytest.raises(BvhError) as caught:
         usable_segment_lengths(path)
     assert str(caught.value) == (
-        f"{path}: segment upper_arm length 1.68 m is implausible (expected 0.01 ... 1.5 m), read in centimetres: its "
-        "longest offset, 168.1, is over 3; no unit gives a performer 1.2 to 2.2 m tall with these lengths (265 m in "
-        "metres, 2.65 m in centimetres, 0.265 m in millimetres, 6.72 m in inches)")
+        f"{path}: segment upper_arm length 1.68 m is implausible (expected 0.01 ... 1.5 m), measured from LeftArm to "
+        "LeftForeArm and RightArm to RightForeArm, read in centimetres: its longest offset, 168.1, is over 3; no other "
+        "unit gives a performer's lengths either: in metres a 265 m performer's, in millimetres a 0.265 m "
+        f"performer's, in inches a 6.72 m performer's (a performer is 1.2 to 2.2 m tall). {MIXAMO_JOINTS}")
 
 
 FULL_M = 1.71
 """The stature of :func:`skeleton` at scale 1 (centimetres)."""
+MIXAMO_JOINTS = (
+    "The lengths were measured between these joints, found by name (a joint named otherwise is taken for another "
+    "segment or not found): upper arm LeftArm to LeftForeArm and RightArm to RightForeArm; forearm LeftForeArm to "
+    "LeftHand and RightForeArm to RightHand; thigh LeftUpLeg to LeftLeg and RightUpLeg to RightLeg; shank LeftLeg to "
+    "LeftFoot and RightLeg to RightFoot; neck Neck to Head; hip width LeftUpLeg to RightUpLeg; shoulder height the "
+    "hips (LeftUpLeg and RightUpLeg) up to the shoulders (LeftArm and RightArm); shoulder width LeftArm to RightArm")
+"""What a refusal of a :func:`skeleton` of :data:`MIXAMO`'s names ends with: the joints each length was measured
+between."""
 
 
 @pytest.mark.parametrize("tall_m", [1.3, 1.95, 2.05, 2.2])
@@ -188,8 +197,9 @@ def test_a_skeleton_whose_stature_no_unit_makes_a_performers_is_refused_with_eac
         usable_segment_lengths(path)
     assert str(caught.value) == (
         f"{path}: its lengths are a 1.11 m performer's, not 1.2 to 2.2 m tall, read in centimetres: its longest "
-        "offset, 65, is over 3; no unit gives a performer 1.2 to 2.2 m tall with these lengths (111 m in metres, "
-        "1.11 m in centimetres, 0.111 m in millimetres, 2.82 m in inches)")
+        "offset, 65, is over 3; no other unit gives a performer's lengths either: in metres a 111 m performer's, in "
+        f"millimetres a 0.111 m performer's, in inches a 2.82 m performer's (a performer is 1.2 to 2.2 m tall). "
+        f"{MIXAMO_JOINTS}")
     for scale in (0.4, 0.5):  # the one unit that gives a performer, whatever the first guess's body allowed
         assert read_skeleton(_file(tmp_path, f"{scale}.bvh", skeleton(MIXAMO, scale))).unit == "in"
 

@@ -25,7 +25,7 @@ from services.physics.bvh_motion import (
     stature_warning,
     usable_segment_lengths,
 )
-from tests.physics.test_skeleton_names_units import MIXAMO, skeleton
+from tests.physics.test_skeleton_names_units import MIXAMO, MIXAMO_JOINTS, skeleton
 
 CHILD_SCALE = 0.5
 """:func:`skeleton` at this scale, in centimetres: a 0.855 m performer (upper arms 14 cm), read as a 2.17 m one in
@@ -67,7 +67,7 @@ def test_a_child_sized_skeleton_in_centimetres_is_read_and_built_as_one(tmp_path
 
 def test_a_tall_skeleton_in_a_unit_given_is_warned_of_not_refused(tmp_path: Path) -> None:
     path = _bvh(tmp_path, TALL_SCALE)
-    with pytest.raises(ValueError, match="no unit gives a performer"):  # auto: refused, as before
+    with pytest.raises(ValueError, match="no other unit gives a performer's lengths either"):  # auto: refused
         usable_segment_lengths(path)
     usable_segment_lengths(path, "cm")
     said = stature_warning(read_skeleton(path, "cm"))
@@ -83,8 +83,9 @@ def test_a_skeleton_no_body_has_in_the_unit_given_says_the_performer_it_makes(tm
     assert read_skeleton(path, "cm").stature_m == 0.684
     with pytest.raises(ValueError) as caught:
         usable_segment_lengths(path, "cm")
-    assert str(caught.value) == (f"{path}: segment hip_width length 0.072 m is implausible (expected 0.08 ... 0.5 m); "
-                                 "its lengths are a 0.684 m performer's, read in centimetres: as given")
+    assert str(caught.value) == (f"{path}: segment hip_width length 0.072 m is implausible (expected 0.08 ... 0.5 m), "
+                                 "measured from LeftUpLeg to RightUpLeg; its lengths are a 0.684 m performer's, read "
+                                 f"in centimetres: as given. {MIXAMO_JOINTS}")
 
 
 def _started(bvh: Path | None, units: SkeletonUnits, tmp_path: Path, caplog: pytest.LogCaptureFixture) -> list[str]:

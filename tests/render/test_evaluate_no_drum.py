@@ -55,6 +55,7 @@ def test_the_table_and_a_line_under_it_say_them(tmp_path: Path, capsys: pytest.C
     head, row, *rest = capsys.readouterr().out.splitlines()
     end = head.index("nodrum") + len("nodrum")  # right-aligned under its name
     assert row[:end].endswith(" 3"), (head, row)
+    rest = rest[len(evaluate.table_legend().splitlines()):]  # the columns' legend, then the lines of each file
     assert rest[0].endswith("3 notes of the file not played: no drum for their pitch (nodrum; F, P and R count the 2 "
                             "the drummer was given)"), rest
     assert any(line.endswith("a note of pitch 127 at 0.500 s missed: no_drum_for_pitch (channel 10: no drum event "

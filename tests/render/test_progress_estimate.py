@@ -75,33 +75,37 @@ def test_duration_words() -> None:
 
 
 def test_off_a_terminal_a_plain_line_now_and_then(clock: _Clock) -> None:
-    """Every 30 s or 10 %, whichever is rarer; a last line at the end once any was printed."""
+    """Every 30 s or 10 %, whichever comes first, none in the first 30 s; a last line at the end once any was
+    printed (not a second one at 100 %)."""
     log = io.StringIO()
     bar = Progress("rendering groove.mid", 200.0, stream=log)
     done = 0.0
-    for _ in range(400):  # 0.5 s of rig time per 0.25 s: 100 s for the whole
+    for _ in range(400):  # 0.5 s of rig time per 0.25 s: 100 s for the whole, 10 % every 10 s
         clock.now += 0.25
         done += 0.5
         bar.update(done)
     bar.close()
     lines = log.getvalue().splitlines()
     assert "\r" not in log.getvalue()
-    assert lines == ["rendering groove.mid: 30% 60.0 s / 200.0 s (30 s, about 70 s left)",
-                     "rendering groove.mid: 60% 120.0 s / 200.0 s (60 s, about 40 s left)",
-                     "rendering groove.mid: 90% 180.0 s / 200.0 s (90 s, about 10 s left)",
+    assert lines == [f"rendering groove.mid: {p}% {2.0 * p:.1f} s / 200.0 s ({p} s, about {100 - p} s left)"
+                     for p in (30, 40, 50, 60, 70, 80, 90)] + [
                      "rendering groove.mid: 100% 200.0 s / 200.0 s (100 s)"], lines
 
 
-def test_off_a_terminal_ten_percent_apart_when_slow(clock: _Clock) -> None:
+def test_off_a_terminal_a_slow_run_says_it_is_alive_every_30_s(clock: _Clock) -> None:
+    """A render slower than 10 % in 30 s (a 10-minute piece rendering for 17 minutes) prints a line with the time
+    left every 30 s of wall time: until 8 Dec only every 10 %, here 100 s apart, and minutes apart on longer ones."""
     log = io.StringIO()
     bar = Progress("video", 1000, unit="frames", decimals=0, stream=log)
-    for frame in range(1, 1001):  # one frame a second: 10 % every 100 s, rarer than every 30 s (0.3 - 0.2 < 0.1)
+    for frame in range(1, 1001):  # one frame a second: 10 % every 100 s
         clock.now += 1.0
         bar.update(frame)
     bar.close(finished=True)
     lines = log.getvalue().splitlines()
-    assert [line.split(" (")[0] for line in lines] == [f"video: {p}% {p * 10} frames / 1000 frames"
-                                                       for p in (10, 20, 30, 40, 50, 60, 70, 80, 90, 100, 100)]
+    seconds = range(30, 1000, 30)
+    assert lines[:-1] == [f"video: {s // 10}% {s} frames / 1000 frames ({s} s, about {duration_words(1000 - s)} left)"
+                          for s in seconds], lines
+    assert lines[-1] == "video: 100% 1000 frames / 1000 frames (1000 s)"
 
 
 def test_off_a_terminal_a_short_run_or_a_given_up_one_prints_nothing(clock: _Clock) -> None:

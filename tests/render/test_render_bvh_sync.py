@@ -15,7 +15,7 @@ import pytest
 
 from batteur import render
 from services.graphics.export import write_bvh
-from services.graphics.export.bvh import BvhStream
+from services.graphics.export.bvh import Y_UP, BvhStream
 from services.graphics.figure import synthetic_performance
 from services.graphics.sequence import PoseSequence
 
@@ -76,13 +76,13 @@ def test_render_bvh_sync_wav_puts_frame_0_at_the_wavs_time_0(tiny_gltf_render: P
     report = json.loads((out / "report.json").read_text())
     assert report["bvh"] == {"file": "performance.bvh", "frames": len(motion_rows(out / "performance.bvh")),
                              "rate_hz": 60.0, "sync": "wav", "start_s": -0.05, "wav_time_s": 0.0,
-                             "wav_offset_frames": 0.0, "units": "m"}
+                             "wav_offset_frames": 0.0, "units": "m", "facing": "+z"}
     rows = motion_rows(out / "performance.bvh")
     pelvis = _gltf_translation(out / "performance.glb", "pelvis")  # z up under the glTF's root
     keys = min(len(rows), len(pelvis))
     assert keys > 200
-    bvh_root = rows[:keys, :3]  # the root's position channels: y up, (x, y, z) -> (x, z, -y)
-    assert np.allclose(bvh_root, pelvis[:keys] @ np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0]]), atol=1e-5)
+    bvh_root = rows[:keys, :3]  # the root's position channels: y up, facing +z: (x, y, z) -> (-x, z, y)
+    assert np.allclose(bvh_root, pelvis[:keys] @ Y_UP[report["bvh"]["facing"]].T, atol=1e-5)
     assert np.all(rows[:4] == rows[0]) and not np.all(rows[4] == rows[0])  # held to the first pose (0.051 s)
 
 
@@ -97,7 +97,8 @@ def test_the_pose_synced_bvh_says_where_it_falls_in_the_wav(tmp_path: Path,
     report = json.loads((out / "report.json").read_text())
     frames = len(motion_rows(out / "performance.bvh"))
     assert report["bvh"] == {"file": "performance.bvh", "frames": frames, "rate_hz": 60.0, "sync": "pose",
-                             "start_s": 0.001, "wav_time_s": 0.051, "wav_offset_frames": 3.06, "units": "m"}
+                             "start_s": 0.001, "wav_time_s": 0.051, "wav_offset_frames": 3.06, "units": "m",
+                             "facing": "+z"}
     assert (f"wrote {out / 'performance.bvh'} ({frames} frames at 60 Hz; frame 0 is the first pose (--bvh-sync "
             "pose), 0.051 s into performance.wav: shift it 3.06 frames to line it up, or render with --bvh-sync "
             "wav)\n") in capsys.readouterr().out

@@ -24,6 +24,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from batteur import render
+from common.gesture.bvh import forward_kinematics, read_bvh
 from common.kit import load_kit
 from services.graphics.export import gltf as gltf_export
 from services.graphics.export.bvh import THRONE_JOINT
@@ -245,6 +246,25 @@ def test_gltf_body_ends_where_the_bvh_does(rendered: Path) -> None:
             local = (inverse[joint] @ np.c_[pos, np.ones(len(pos))].T).T[:, :3]
             reach += list(local @ ball / np.linalg.norm(ball))
         assert max(reach) == pytest.approx(np.linalg.norm(ball), abs=1e-5)  # metres
+
+
+def test_the_bvh_faces_as_the_gltf(rendered: Path) -> None:
+    """The BVH and the glTF of one render put each joint at the same place at each frame (y up, metres, the drummer
+    facing +z, report.json's ``bvh.facing``): the BVH faced -z (the sticks struck at z ~ -0.42 m, the glTF's at
+    +0.42 m), so a clip retargeted from it, or the two imported together, were half a turn apart."""
+    report = json.loads((rendered / "report.json").read_text())
+    assert report["bvh"]["facing"] == "+z"
+    gltf = load(rendered / "performance.glb")
+    names = [n.name for n in gltf.nodes]
+    root = trs(gltf.nodes[names.index("batteur")])  # the file's root: z up to y up
+    placed = forward_kinematics(read_bvh(rendered / "performance.bvh"))
+    frames = min(len(key_times(gltf)), len(placed["pelvis"]))
+    assert frames > 100
+    for k in (0, frames // 3, frames // 2, frames - 1):
+        for link, joint in (("pelvis", "pelvis"), ("head", "head"), ("left_foot", "left_foot"),
+                            ("right_stick", "right_stick"), ("right_stick_tip", "right_stick_end")):
+            at = (root @ link_key(gltf, names.index(link), k))[:3, 3]
+            assert np.linalg.norm(at - placed[joint][k]) < 1e-4, (k, link, at, placed[joint][k])  # metres
 
 
 def test_gltf_passes_the_khronos_validator(rendered: Path) -> None:

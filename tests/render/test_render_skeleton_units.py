@@ -13,6 +13,7 @@ from typing import Any
 import pytest
 
 from batteur import render
+from tests.physics.test_skeleton_names_units import MIXAMO_JOINTS
 from tests.physics.test_skeleton_units_given import CHILD_SCALE, TALL_SCALE, TINY_SCALE, _bvh
 
 
@@ -57,14 +58,14 @@ def test_the_render_checks_and_reaches_with_the_unit_given(tmp_path: Path) -> No
     cm_limbs, auto_limbs = render.skeleton_limbs(in_cm), render.skeleton_limbs(render.RenderOptions(skeleton_bvh=child))
     assert cm_limbs is not None and auto_limbs is not None
     assert auto_limbs.arm_m - cm_limbs.arm_m == pytest.approx((0.14 + 0.13) * (2.54 - 1))  # the planner's reach
-    with pytest.raises(ValueError, match="no unit gives a performer"):  # auto: refused, as before
+    with pytest.raises(ValueError, match="no other unit gives a performer's lengths either"):  # auto: refused
         render.check_options(render.RenderOptions(skeleton_bvh=tall))
     render.check_options(render.RenderOptions(skeleton_bvh=tall, skeleton_units="cm"))  # given: warned, rendered
     with pytest.raises(ValueError) as caught:  # read as 0.684 m, not 1.74 m: hips narrower than a body's
         render.check_options(render.RenderOptions(skeleton_bvh=tiny, skeleton_units="cm"))
     assert str(caught.value) == (f"--skeleton-bvh: {tiny}: segment hip_width length 0.072 m is implausible "
-                                 "(expected 0.08 ... 0.5 m); its lengths are a 0.684 m performer's, read in "
-                                 "centimetres: as given")
+                                 "(expected 0.08 ... 0.5 m), measured from LeftUpLeg to RightUpLeg; its lengths are "
+                                 f"a 0.684 m performer's, read in centimetres: as given. {MIXAMO_JOINTS}")
 
 
 class _Built(Exception):

@@ -86,13 +86,19 @@ def test_without_channel_10_a_melodic_channel_beside_the_drums_is_skipped_and_sa
     assert "--drum-channels" in said
 
 
-def test_a_file_of_melodic_channels_only_is_read_and_said_never_skipped_in_silence() -> None:
-    piano = smf([("Drums", 0, [], None), ("Piano", 0, [(0, 60), (480, 62)], 0)])
-    score = read_midi(piano)
-    assert len(score.events) == 2
-    [said] = [w for w in score.warnings if "no notes on a drum channel" in w]
-    assert "(Acoustic Grand Piano)" in said and "every channel with notes set a melodic program" in said
-    assert "--drum-channels" in said
+def test_a_file_of_melodic_channels_only_is_refused_never_emptied_in_silence_nor_played_as_drums(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A bass line alone (channel 1, a bass program) was read as drums with only a warning, exit 0: the render
+    played it on the snare. A drum file on channel 1 without a program change is still read (the test above)."""
+    bass = tmp_path / "bass.mid"
+    bass.write_bytes(smf([("Bass", 0, [(0, 40), (480, 42), (960, 44)], 33)]))
+    assert inspect_main([str(bass)]) == 1
+    err = capsys.readouterr().err
+    assert err == (f"python -m common.score: error: {bass}: no drums: no notes on a drum channel (10, or one set to a "
+                   "drum bank), and the notes are on channel 1 (3 notes, Electric Bass (finger), track Bass), set to a "
+                   "melodic program; to read it as drums anyway: --drum-channels 1\n")
+    assert inspect_main([str(bass), "--drum-channels", "1"]) == 0  # the way the error names
+    assert "  SNARE        1" in capsys.readouterr().out
 
 
 @pytest.mark.parametrize("title", ["Click", "Metronome", "Count-in", "Guide", "click track 2", "ClickTrack",

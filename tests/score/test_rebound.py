@@ -123,7 +123,24 @@ def test_three_notes_inside_the_rebound_minimum_are_flagged() -> None:
     assert len(b.notes) == 2 and [i.action for i in b.issues] == [IssueAction.MERGED]
     left_out = b.issues[0]
     assert left_out.time == pytest.approx(0.512)  # the quietest goes
-    assert any(f"merged into the SNARE at {t} s" in left_out.detail for t in ("0.500", "0.524"))
+    assert any(f"so it sounds as one stroke with the {h} hand's SNARE at {t} s" in left_out.detail
+               for t in ("0.500", "0.524") for h in ("left", "right"))
+
+
+def test_a_note_no_hand_can_play_says_each_hands_strokes_as_a_drummer_reads_them() -> None:
+    """A flam's grace 20 ms before the main stroke, the left hand's previous stroke 1.18 s earlier: the detail read
+    ``left_hand 1180 ms after and 20 ms before its strokes`` (backwards: the note comes after the earlier stroke) and
+    evaluate said "merged" twice (``too_fast (merged: ... merged into the SNARE``)."""
+    score = _score((0.6, E.SNARE, 0.9), (1.78, E.SNARE, 0.4), (1.8, E.SNARE, 0.9), (1.8, E.HIHATCLOSED, 0.6),
+                   (1.5, E.HIHATCLOSED, 0.6), (2.1, E.HIHATCLOSED, 0.6))
+    a = distribute(score, KIT, "viterbi")
+    (issue,) = a.issues
+    assert issue.action == IssueAction.MERGED and issue.time == pytest.approx(1.78)
+    assert issue.detail == ("no hand can play it in time (left hand: its previous stroke 1180 ms before, its next 20 "
+                            "ms after; right hand: its previous stroke 280 ms before, its next 20 ms after; minTimeGap "
+                            "70 ms, rebound minimum 30 ms), so it sounds as one stroke with the left hand's SNARE at "
+                            "1.800 s")
+    assert issue.detail.count("merged") == 0  # the action says it once, wherever it is printed
 
 
 def test_simple_and_pairwise_flag_too_fast_but_accept_bounces() -> None:

@@ -44,8 +44,13 @@ def test_a_text_score_reports_its_beats_and_bars(text: str, length: str, tmp_pat
 
 
 @pytest.mark.parametrize(("end_beats", "length"), [(4.0, "4 beats, 1 bar; 2.000 s"),
-                                                   (3.5, "3.5 beats, 1 bar; 2.000 s"),  # bar 1 ends at beat 4
-                                                   (8.0, "8 beats, 2 bars; 4.000 s")])
+                                                   (3.5, "4 beats, 1 bar; 2.000 s"),  # bar 1 ends at beat 4
+                                                   # an end of track on a bar line: its empty bar counts
+                                                   (8.0, "8 beats, 2 bars; 4.000 s"),
+                                                   # a DAW's end of track a little after the last bar: not a bar
+                                                   # more (was "4.62 beats, 2 bars"), nor inside a later one
+                                                   (4.625, "4 beats, 1 bar; 2.000 s"),
+                                                   (9.5, "4 beats, 1 bar; 2.000 s")])
 def test_a_midi_file_reports_its_beats_and_bars_to_its_end(end_beats: float, length: str, tmp_path: Path,
                                                            capsys: pytest.CaptureFixture[str]) -> None:
     mid = mido.MidiFile(type=0, ticks_per_beat=480)
@@ -67,11 +72,11 @@ def test_a_midi_file_longer_than_the_bars_counted_says_at_least(tmp_path: Path,
     track = mido.MidiTrack()
     mid.tracks.append(track)
     track.append(mido.Message("note_on", channel=9, note=38, velocity=100, time=0))
-    track.append(mido.MetaMessage("end_of_track", time=2**28))
+    track.append(mido.MetaMessage("end_of_track", time=2**28 - 2**28 % (4 * 96)))  # on a bar line: the end
     path = tmp_path / "score.mid"
     mid.save(str(path))
     line = _first_line(path, capsys)
-    assert f"2796202.67 beats, at least {MAX_SCORE_BARS} bars; " in line, line  # was "2.7962e+06 beats"
+    assert f"2796200 beats, at least {MAX_SCORE_BARS} bars; " in line, line  # was "2.7962e+06 beats"
 
 
 def test_the_beats_still_hold_the_one_at_the_end(tmp_path: Path) -> None:

@@ -72,9 +72,52 @@ def test_a_text_scores_changes_come_at_their_bars(tmp_path: Path, capsys: pytest
                                          "time signature: 4/4; time signature changes: 1: 6/8 at bar 2"]
 
 
-def test_a_tempo_ramp_is_counted_and_its_list_cut(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_a_tempo_ramp_is_said_as_one_and_a_long_list_cut(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     conductor = [(0, _tempo(100))] + [(k * TPB, _tempo(100 + 2 * k)) for k in range(1, 11)]  # one a beat
     tempo = _header(_midi(tmp_path / "ramp.mid", conductor, 12), capsys)[1]
-    assert tempo.startswith("tempo: 100 bpm; tempo changes: 10 (100 to 120 bpm, read beat by beat): 102 bpm at "
-                            "bar 1, beat 2, "), tempo
-    assert tempo.endswith("112 bpm at bar 2, beat 3, ... (4 more)"), tempo
+    # until 8 Dec: "10 (...): 102 bpm at bar 1, beat 2, 104 bpm at bar 1, beat 3, ... (4 more)"
+    assert tempo == ("tempo: 100 bpm; tempo changes: 1 (100 to 120 bpm, read beat by beat): accelerando 100 -> 120 bpm "
+                     "(10 steps, bar 1, beat 2 to bar 3, beat 3)"), tempo
+    # jumps up and down every other beat: no ramp, 8 changes, the first 6 listed
+    jumps = [(0, _tempo(100))] + [(2 * k * TPB, _tempo(100 + 20 * (k % 2))) for k in range(1, 9)]
+    tempo = _header(_midi(tmp_path / "jumps.mid", jumps, 20), capsys)[1]
+    assert tempo == ("tempo: 100 bpm; tempo changes: 8 (100 to 120 bpm, read beat by beat): 120 bpm at bar 1, beat 3, "
+                     "100 bpm at bar 2, 120 bpm at bar 2, beat 3, 100 bpm at bar 3, 120 bpm at bar 3, beat 3, 100 bpm "
+                     "at bar 4, ... (2 more)"), tempo
+
+
+def test_an_accelerando_and_the_jumps_after_it_are_all_said(tmp_path: Path,
+                                                          capsys: pytest.CaptureFixture[str]) -> None:
+    """A researcher's file: 4 bars at 90, an accelerando to 140 over 4 bars (a tempo a beat), 2 bars at 140, a
+    sudden 90 for 2 bars, a sudden 140. Until 8 Dec: ``tempo changes: 18 (...): 93.125 bpm at bar 5, 96.2499 bpm at
+    bar 5, beat 2, ... (12 more)``: the per-beat steps hid both jumps, and the tempos showed float noise."""
+    conductor = [(0, _tempo(90))] + [(16 * TPB + k * TPB, _tempo(90 + 50 * (k + 1) / 16)) for k in range(16)]
+    conductor += [(40 * TPB, _tempo(90)), (48 * TPB, _tempo(140))]
+    tempo = _header(_midi(tmp_path / "f2.mid", conductor, 56), capsys)[1]
+    assert tempo == ("tempo: 90 bpm; tempo changes: 3 (90 to 140 bpm, read beat by beat): accelerando 90 -> 140 bpm "
+                     "(16 steps, bar 5 to bar 8, beat 4), 90 bpm at bar 11, 140 bpm at bar 13"), tempo
+    # a ritardando straight into a jump the same way: the jump is not the ramp's
+    down = [(0, _tempo(120))] + [(k * TPB, _tempo(120 - 2 * k)) for k in range(1, 5)] + [(5 * TPB, _tempo(60))]
+    tempo = _header(_midi(tmp_path / "rit.mid", down, 8), capsys)[1]
+    assert tempo.endswith("ritardando 120 -> 112 bpm (4 steps, bar 1, beat 2 to bar 2), 60 bpm at bar 2, beat 2"), tempo
+
+
+@pytest.mark.parametrize(("bpm", "said"), [(96.25, "96.25"), (93.125, "93.13"), (120, "120"), (133.3333, "133.33")])
+def test_a_tempo_is_said_to_a_hundredth_of_a_bpm(bpm: float, said: str, tmp_path: Path,
+                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    """A MIDI tempo is whole microseconds a beat: 96.25 bpm is stored as 96.2499 bpm, said so until 8 Dec."""
+    tempo = _header(_midi(tmp_path / "t.mid", [(0, _tempo(bpm))], 4), capsys)[1]
+    assert tempo == f"tempo: {said} bpm (no tempo changes)", tempo
+
+
+def test_a_last_bar_in_a_shorter_meter_is_said_in_it(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Bars of 7/8 then a last one of 6/8: now that a MIDI file ends on the bar line after its last note, that bar
+    must not read as one the end cut short (7/8); a text score's last bar of 2/4 after 4/4 read as 4/4 until 8 Dec."""
+    conductor = [(0, _meter(7, 8)), (7 * TPB, _meter(6, 8))]
+    meter = _header(_midi(tmp_path / "m.mid", conductor, 10), capsys)[2]
+    assert meter == "time signature: 7/8; time signature changes: 1: 6/8 at bar 3", meter
+    path = tmp_path / "m.txt"
+    path.write_text("tempo 120\nmeter 4/4\nSN |xxxx|\nmeter 2/4\nSN |xx|\n")
+    assert _header(path, capsys)[2] == "time signature: 4/4; time signature changes: 1: 2/4 at bar 2"
+    path.write_text("tempo 120\nmeter 4/4\nSN |xxxx|\nrest 2\n")  # a closing half-bar rest: still 4/4
+    assert _header(path, capsys)[2] == "time signature: 4/4"

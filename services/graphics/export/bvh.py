@@ -2,8 +2,11 @@
 
 The tree comes from the link names (:func:`services.graphics.skeleton.guess_parents`);
 links that are no body part (kit links) are left out. BVH is y-up, so the
-Batteur frame (z up, drummer facing +y) is turned: ``(x, y, z) -> (x, z, -y)``;
-the drummer then faces -z in the file. Units are metres by default
+Batteur frame (z up, drummer facing +y) is turned, as ``facing`` (``batteur render --bvh-facing``) says
+(:data:`Y_UP`): ``+z`` (the default since 8 Dec), ``(x, y, z) -> (-x, z, y)``, the drummer facing +z with his left
+at +x, as the glTF of the same render (services/graphics/export/gltf.py ``ROOT_ROTATION``) and CMU's and Mixamo's
+clips; or ``-z`` (every file until 8 Dec), ``(x, y, z) -> (x, z, -y)``, facing -z: a CMU or Mixamo clip needs a
+half turn about y to match it, and Blender's BVH import shows his back to the front camera. Units are metres by default
 (``scale=100`` writes centimetres). Joint offsets are the first frame's
 parent-to-child offsets; the root has position and rotation channels, the
 other joints rotations only (degrees), or positions too with ``all_positions=True`` (exact even for non-rigid
@@ -13,8 +16,9 @@ Each joint has its own channel order (:func:`rotation_orders`), chosen from the 
 middle angle stays far from +-90 degrees, where two channels turn about the same axis (gimbal lock: the forearm,
 flexed past 90 degrees in ZXY, made steps of 80-100 degrees between frames in two channels that cancelled). For
 physics' character that is mostly ``Xrotation Zrotation Yrotation``: its joints turn their child by
-``Rx Ry Rz`` in z up, which is ``Rx Rz Ry`` in the file's y up, so each channel is one of the joint's angles (the
-Z channel its y angle negated). Other skeletons keep ``Zrotation Xrotation Yrotation``.
+``Rx Ry Rz`` in z up, which is ``Rx Rz Ry`` in the file's y up, so each channel is one of the joint's angles
+(facing +z, the X channel its x angle negated; facing -z, the Z channel its y angle negated). Other skeletons keep
+``Zrotation Xrotation Yrotation``.
 
 The legs of physics' character hang from the throne, not from the pelvis: each thigh turns on its hip mount, a base
 fixed on the throne where the hip joint centre is at rest, and the pelvis rocks on the seat point without swinging
@@ -52,7 +56,7 @@ import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO
+from typing import IO, Literal
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -62,8 +66,20 @@ from services.graphics.poser import CharacterInfo, is_character, load_character
 from services.graphics.sequence import PoseSequence, interpolate_pose
 from services.graphics.skeleton import body_links, guess_parents
 
-Z_UP_TO_Y_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
-"""Maps Batteur world vectors (z up) to BVH/glTF world vectors (y up): (x, y, z) -> (x, z, -y)."""
+BvhFacing = Literal["+z", "-z"]
+"""Which way the drummer faces in a BVH file (y up): ``+z`` (the glTF's way) or ``-z`` (the files until 8 Dec)."""
+BVH_FACINGS: tuple[BvhFacing, ...] = ("+z", "-z")
+DEFAULT_FACING: BvhFacing = "+z"
+Y_UP: dict[str, np.ndarray] = {
+    "+z": np.array([[-1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0]]),
+    "-z": np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]]),
+}
+"""Facing -> the matrix mapping Batteur world vectors (z up, the drummer facing +y) to the file's (y up): ``+z``:
+(x, y, z) -> (-x, z, y), glTF's (the drummer facing +z, his left at +x); ``-z``: (x, y, z) -> (x, z, -y). The two
+differ by a half turn about y, which negates the x and z angle channels and leaves each joint's middle angle's size
+as it is: the channel orders (:func:`rotation_orders`, chosen with ``-z``'s) are the same for both facings."""
+Z_UP_TO_Y_UP = Y_UP["-z"]
+"""``-z``'s matrix, with which the channel orders are chosen (the same for either facing, see :data:`Y_UP`)."""
 
 DEFAULT_ORDER = "ZXY"
 """Rotation channel order of a joint that is not one of physics' character (and of every joint until 7 Dec)."""
@@ -235,7 +251,11 @@ class _Layout:
     one after the other)."""
 
     def __init__(self, names: list[str], first_frame: np.ndarray, scale: float, all_positions: bool,
-                 end_sites: EndSites | None = None) -> None:
+                 end_sites: EndSites | None = None, facing: BvhFacing = DEFAULT_FACING) -> None:
+        if facing not in Y_UP:
+            raise ValueError(f"BVH facing {facing!r}: {' or '.join(BVH_FACINGS)} expected")
+        self.axes = Y_UP[facing]
+        """Batteur (z up) to the file's axes (y up), as ``facing`` says (:data:`Y_UP`)."""
         self.end_sites = {} if end_sites is None else {link: np.asarray(offset, dtype=float)
                                                        for link, offset in end_sites.items()}
         """Leaf link -> its End Site given by the caller (metres, the link's frame, z up)."""
@@ -275,8 +295,8 @@ class _Layout:
 
     @classmethod
     def of(cls, names: list[str], first_frame: np.ndarray, scale: float = 1.0, all_positions: bool = False,
-           end_sites: EndSites | None = None) -> _Layout:
-        return cls(list(names), np.asarray(first_frame, dtype=float), scale, all_positions, end_sites)
+           end_sites: EndSites | None = None, facing: BvhFacing = DEFAULT_FACING) -> _Layout:
+        return cls(list(names), np.asarray(first_frame, dtype=float), scale, all_positions, end_sites, facing)
 
     def _world(self, values: np.ndarray) -> tuple[np.ndarray, dict[int, Rotation]]:
         """Positions (N, J, 3) in file units and orientations of the body's joints, y up, of frames ``values``
@@ -286,7 +306,7 @@ class _Layout:
             throne[:, 0, :3] = values[:, self.pelvis, :3]
             throne[:, 0, 6] = 1.0
             values = np.concatenate([values, throne], axis=1)
-        c = Z_UP_TO_Y_UP
+        c = self.axes
         pos = values[:, :, :3] @ c.T * self.scale  # (N, L, 3)
         rots = {i: Rotation.from_matrix(c @ Rotation.from_quat(values[:, i, 3:]).as_matrix() @ c.T)
                 for i in self.order}
@@ -323,7 +343,7 @@ class _Layout:
         (a guess: the body's real geometry is not known here), else the bone continued by a quarter."""
         name, scale = self.names[i], self.scale
         if name in self.end_sites:
-            return np.asarray(Z_UP_TO_Y_UP @ self.end_sites[name] * scale, dtype=float)
+            return np.asarray(self.axes @ self.end_sites[name] * scale, dtype=float)
         info = self.character
         effector = None if info is None else next((offset for link, offset in info.effectors.values()
                                                    if link == name), None)
@@ -336,7 +356,7 @@ class _Layout:
                     shipped = float(np.linalg.norm(rest[info.names.index(name), :3]
                                                    - rest[info.names.index(parent), :3]))
                     size = float(np.linalg.norm(self.offsets[i])) / scale / shipped if shipped > 1e-6 else 1.0
-            return np.asarray(Z_UP_TO_Y_UP @ effector * size * scale, dtype=float)
+            return np.asarray(self.axes @ effector * size * scale, dtype=float)
         offset = self.offsets[i]
         tip = offset * 0.25 if np.linalg.norm(offset) > 1e-6 else np.array([0.0, 0.05 * scale, 0.0])
         return self.first[i].inv().apply(self.first[self.parents[i]].apply(tip)) if i != self.root else tip
@@ -411,7 +431,7 @@ def _rows(motion: np.ndarray) -> list[str]:
 
 def write_bvh(sequence: PoseSequence, path: Path, rate_hz: float | None = None, scale: float = 1.0,
               all_positions: bool = False, start: float | None = None, end: float | None = None,
-              end_sites: EndSites | None = None) -> BvhInfo:
+              end_sites: EndSites | None = None, facing: BvhFacing = DEFAULT_FACING) -> BvhInfo:
     """Write ``sequence`` as a BVH file at ``path``.
 
     Parameters
@@ -433,12 +453,15 @@ def write_bvh(sequence: PoseSequence, path: Path, rate_hz: float | None = None, 
     end_sites : mapping, optional
         Leaf link -> its End Site, metres in the link's frame (z up), e.g. a stick's tip and a foot's ball as
         physics built the body; leaves not given: from the character snapshot, scaled (see the module docstring).
+    facing : str
+        Which way the drummer faces in the file, y up: ``+z`` (the default, the glTF's) or ``-z`` (the files until
+        8 Dec); :data:`Y_UP`.
     """
     if rate_hz is None:
         dt = float(np.median(np.diff(sequence.times))) if len(sequence.times) > 1 else 1 / 60
         rate_hz = 1.0 / dt
     seq = sequence.resample(rate_hz, start=start, end=end)
-    layout = _Layout.of(seq.names, seq.values[0], scale, all_positions, end_sites)
+    layout = _Layout.of(seq.names, seq.values[0], scale, all_positions, end_sites, facing)
     motion, pos, _ = layout.motion(seq.values)
     frame_time = 1.0 / rate_hz
     lines = layout.header(len(seq.times), frame_time)
@@ -462,13 +485,17 @@ class BvhStream:
     the last pose's time (or :meth:`finish`'s ``end``, as :func:`write_bvh`'s). Motion rows go to ``path`` +
     ``.motion`` (next to ``path``) in chunks of ``chunk_frames``; :meth:`finish` writes the header, whose frame count
     is known only then, and appends them. Poses must come in strictly increasing time (seconds) with the link
-    layout given to :meth:`restart`. ``end_sites``: as :func:`write_bvh`'s.
+    layout given to :meth:`restart`. ``end_sites`` and ``facing``: as :func:`write_bvh`'s.
     """
 
     def __init__(self, path: Path, rate_hz: float, scale: float = 1.0, all_positions: bool = False,
-                 chunk_frames: int = 240, start: float | None = None, end_sites: EndSites | None = None) -> None:
+                 chunk_frames: int = 240, start: float | None = None, end_sites: EndSites | None = None,
+                 facing: BvhFacing = DEFAULT_FACING) -> None:
         if not rate_hz > 0:
             raise ValueError(f"BVH frame rate must be > 0 Hz, got {rate_hz}")
+        if facing not in Y_UP:
+            raise ValueError(f"BVH facing {facing!r}: {' or '.join(BVH_FACINGS)} expected")
+        self.facing = facing
         self.path = Path(path)
         self.motion_path = self.path.with_name(self.path.name + ".motion")
         self.rate_hz = rate_hz
@@ -539,7 +566,8 @@ class BvhStream:
             return
         values = np.stack(self._frames)
         if self._layout is None:
-            self._layout = _Layout.of(self.names, values[0], self.scale, self.all_positions, self.end_sites)
+            self._layout = _Layout.of(self.names, values[0], self.scale, self.all_positions, self.end_sites,
+                                      self.facing)
         if self._file is None:
             self._file = self.motion_path.open("w+", encoding="utf-8", newline="\n")
         motion, _, _ = self._layout.motion(values)
