@@ -27,6 +27,9 @@ from common.messages import Impact, OscMessage
 from common.messages.interaction import ImpactEnd
 
 COLUMNS = list(Impact.model_fields)
+OLDER_COLUMNS = [COLUMNS[: len(COLUMNS) - k] for k in range(1, len(Impact.APPENDED) + 1)]
+"""The columns of an older render's impacts.csv, from before the Impact's appended fields (``openness``, 8 Dec):
+read with their defaults."""
 
 
 @dataclass
@@ -283,7 +286,7 @@ def read_impacts_csv(path: Path) -> list[Impact]:
     except ValueError as exc:  # not UTF-8 text
         raise ValueError(f"{path}: {exc}") from None
     try:
-        if reader.fieldnames != COLUMNS:
+        if reader.fieldnames != COLUMNS and reader.fieldnames not in OLDER_COLUMNS:
             raise ValueError(f"{path}: expected columns {COLUMNS}, got {reader.fieldnames}")
         impacts = []
         for row in reader:

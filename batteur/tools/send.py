@@ -98,9 +98,9 @@ def arguments(model: type[OscMessage]) -> str:
 def split_times(model: type[OscMessage], texts: Sequence[str]) -> list[str] | None:
     """``texts`` with each rig time given as one number of seconds (``play 12.25 0``) split into the whole seconds
     and fraction the wire carries (``play 12 0.25 0``); None unless ``texts`` has one value per field, the last
-    appended ones perhaps left out (:func:`one_number_form`; else they are taken as given, the wire's form). A time there that is not a finite number raises
-    :class:`MessageError` naming the field (``TIME: must be a finite number of seconds``): the count is the
-    one-number form's, so "expected 4 arguments" would be wrong."""
+    appended ones perhaps left out (:func:`one_number_form`; else they are taken as given, the wire's form). A
+    time there that is not a finite number raises :class:`MessageError` naming the field (``TIME: must be a finite
+    number of seconds``): the count is the one-number form's, so "expected 4 arguments" would be wrong."""
     fields = model.wire_fields()
     if not one_number_form(model, texts) or not any(f.kind is WireKind.TIME for f in fields):
         return None

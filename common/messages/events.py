@@ -82,3 +82,15 @@ class Impact(OscMessage):
     peak_force: float = Field(ge=0, description="peak normal force, newtons (0: not known yet)")
     duration: float = Field(ge=0, le=1, description="contact duration, seconds (0: not known yet)")
     part: Name = Field(description="striker part (e.g. right_stick_tip)")
+    # appended (8 Dec; an older interaction, a Pd patch's [batteur-strike], sends the 12 arguments above): the
+    # sound heard a hi-hat stroke in three steps (the zone's open / half / closed), not how open the plates were
+    openness: float = Field(default=-1.0, ge=-1, le=1, description="the hi-hat only: how open it sounds at this "
+                            "stroke, 0 closed ... 1 open, mapped by interaction from the plates' simulated gap "
+                            "(docs/interaction.md, 'Hi-hat openness'); -1: not given (another instrument, a "
+                            "contact without the gap, or a sender without the field: 12 arguments), the zone "
+                            "(open, half, closed) says it")
+
+    APPENDED: ClassVar[tuple[str, ...]] = ("openness",)
+    """The fields appended after ``part``, oldest first: an impact without them decodes with their defaults."""
+    NEWER_ARGS: ClassVar[int] = 8
+    """Arguments after the last known field a newer sender's impact may carry (fields appended since): ignored."""

@@ -230,6 +230,7 @@ class InteractionCore:
                 peak_force=self._mapped(route, impact, "peak_force"),
                 duration=self._mapped(route, impact, "duration"),
                 part=impact.part,
+                openness=impact.openness,
             )
             out.extend(self._send(message, route.to, now))
         return out

@@ -60,7 +60,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from common.kit import Kit, KitObject
 from common.messages import Contact
-from services.interaction.features import PLAYABLE_KINDS, ZoneConfig, polar, zone
+from services.interaction.features import PLAYABLE_KINDS, ZoneConfig, hihat_openness, polar, zone
 
 SEQ_LIMIT = 2**31
 """Sequence numbers wrap here (they travel as OSC int32)."""
@@ -145,6 +145,9 @@ class ImpactFeatures:
     peak_force: float
     duration: float
     final: bool = False
+    openness: float = -1.0
+    """A hi-hat stroke's openness as heard, 0 closed ... 1 open (features.hihat_openness of the contact's gap); -1
+    for another instrument or a contact without the gap."""
 
     def feature(self, name: str) -> float | str:
         """One feature by name (``FEATURES``); raises KeyError for an unknown name."""
@@ -174,6 +177,7 @@ FEATURES: frozenset[str] = frozenset(
         "impulse",
         "peak_force",
         "duration",
+        "openness",
     }
 )
 """Impact features a mapping or a registered message can use."""
@@ -481,6 +485,7 @@ class Segmenter:
             impulse=c.impulse,
             peak_force=c.normal_force,
             duration=0.0,
+            openness=hihat_openness(track.obj, c.openness, self.config.zones),
         )
         track.open = impact
         # at onset the contact's totals are unknown: 0, as the Impact message documents

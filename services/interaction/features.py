@@ -17,16 +17,21 @@ bell      ``edge`` (the mouth) from ``bell_edge_r``, else ``centre``
 pedal     ``centre``
 ========  ===========================================================
 
-The sound plays a hi-hat's ``open``/``half``/``closed`` at openness 1, 0.5, 0
-from that stroke on (services/sound/instruments.py ``HiHat``), so the
-openness comes from the simulated hi-hat, never from the score.
+A hi-hat impact also carries how open the hat sounds (:func:`hihat_openness`:
+the gap mapped linearly from 0 at ``hihat_openness_from`` to 1 at
+``hihat_openness_full``), which the sound plays as it is from that stroke on
+(services/sound/instruments.py ``HiHat``); a sender without it (-1: a Pd
+patch, an older interaction) has its ``open``/``half``/``closed`` played at
+openness 1, 0.5, 0. Either way the openness comes from the simulated hi-hat,
+never from the score.
 """
 
 from __future__ import annotations
 
 import math
+from typing import Self
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from common.kit import KitObject
 
@@ -48,7 +53,21 @@ class ZoneConfig(BaseModel):
                                                "above first touch over 25 mm: 0.02 is 0.5 mm), else closed")
     hihat_open_from: float = Field(default=0.06, ge=0, le=1,
                                    description="... and open from this openness (0.06: 1.5 mm; the planner's "
-                                               "pedal lift for an open note leaves 2.2-2.7 mm on the default kit)")
+                                               "open note parts the plates about 10 mm on the default kit, 0.41)")
+    hihat_openness_from: float = Field(default=0.02, ge=0, lt=1,
+                                       description="the openness a hi-hat impact carries for the sound "
+                                                   "(hihat_openness): 0 up to this gap (0.02: 0.5 mm, where the "
+                                                   "zone stops being closed, so a closed stroke sounds closed) ...")
+    hihat_openness_full: float = Field(default=0.06, gt=0, le=1,
+                                       description="... rising linearly to 1 (fully open) at this gap (0.06: 1.5 "
+                                                   "mm, where the zone becomes open) and beyond")
+
+    @model_validator(mode="after")
+    def _openness_map_rises(self) -> Self:
+        if self.hihat_openness_full <= self.hihat_openness_from:
+            raise ValueError(f"hihat_openness_full ({self.hihat_openness_full:g}) must be above "
+                             f"hihat_openness_from ({self.hihat_openness_from:g}): the openness rises with the gap")
+        return self
 
 
 def polar(obj: KitObject, local_x: float, local_y: float) -> tuple[float, float]:
@@ -88,6 +107,22 @@ def zone(obj: KitObject, r: float, zones: ZoneConfig, openness: float = -1.0) ->
     if obj.kind == "bell":
         return "edge" if r >= zones.bell_edge_r else "centre"
     return "centre"
+
+
+def hihat_openness(obj: KitObject, gap: float, zones: ZoneConfig) -> float:
+    """How open a stroke on ``obj`` sounds, 0 closed ... 1 open, from the plates' gap at its contact (the
+    contact's ``openness``: the gap above first touch over 25 mm): 0 up to ``zones.hihat_openness_from``, 1 from
+    ``zones.hihat_openness_full``, linear between; -1 (not given: the sound goes by the zone) for another kind or
+    a gap not known (negative: an older physics' contact).
+
+    The gap is not the openness as heard: the stick pushes the top plate down, so at a gap of a millimetre or so
+    the plates still meet under it and damp each other, and past that they ring free: the planner's open note
+    (0.41 of 25 mm) is a fully open hat, not a 41 % one (a modelling choice, set in ZoneConfig).
+    """
+    if obj.kind != "hihat" or gap < 0.0:
+        return -1.0
+    low, high = zones.hihat_openness_from, zones.hihat_openness_full
+    return min(max((gap - low) / (high - low), 0.0), 1.0)
 
 
 PLAYABLE_KINDS = frozenset({"membrane", "cymbal", "hihat", "bell", "pedal"})

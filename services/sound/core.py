@@ -856,7 +856,7 @@ class SoundCore:
         if impact.part == "hihat_top":
             zone = "pedal"  # the top plate closing on the bottom one: the foot chick
         strike = Strike(offset, float(impact.velocity), float(impact.impulse), float(r), float(impact.theta),
-                        zone, int(impact.seq))
+                        zone, int(impact.seq), float(impact.openness))
         inst.strike(strike, self.pool)
         self.stats.strikes += 1
         played = self.scheduler.origin + (self.next_sample + offset) / self.sample_rate

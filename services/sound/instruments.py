@@ -147,6 +147,8 @@ class Strike:
         Zone name from the impact.
     seq : int
         Impact sequence number (seeds noise, so renders repeat exactly).
+    openness : float
+        A hi-hat stroke's openness from the impact, 0 closed ... 1 open; -1: not given (the zone says it).
     """
 
     offset: int
@@ -156,6 +158,7 @@ class Strike:
     theta: float
     zone: str
     seq: int
+    openness: float = -1.0
 
 
 @dataclass
@@ -775,7 +778,9 @@ class Cymbal(Instrument):
 class HiHat(Cymbal):
     """Two plates whose contact damps them: the openness (0 closed, 1 open) sets the damping live.
 
-    Zones ``open``, ``half``, ``closed`` set the openness from that strike on (as /batteur/sound/openness does);
+    A stroke's openness (the impact's, interaction's map of the plates' gap) sets the openness from that strike
+    on, as /batteur/sound/openness does; one without it (-1: a Pd patch, an older interaction) goes by its zone:
+    ``open``, ``half``, ``closed`` set 1, 0.5, 0 (other zones leave it);
     ``pedal`` (or the instrument ``hihat_pedal``) is the foot chick, which also
     closes the hat and so chokes it; the plates meeting silently (a press of them: the core) close it too. A drop
     of the openness chokes the sample and synthesis voices as well (:meth:`choke`). Every model follows the
@@ -815,6 +820,8 @@ class HiHat(Cymbal):
 
     def strike(self, strike: Strike, pool: VoicePool) -> None:
         openness = {"open": 1.0, "half": 0.5, "closed": 0.0, "pedal": 0.0}.get(strike.zone)
+        if strike.openness >= 0.0 and strike.zone != "pedal":  # the foot chick closes the hat whatever it says
+            openness = min(strike.openness, 1.0)
         if openness is not None:
             self.set_openness(openness, pool)  # before this strike's own voices: they are not choked
         if strike.zone == "pedal":

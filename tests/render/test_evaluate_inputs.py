@@ -30,7 +30,7 @@ def _write_render(folder: Path, score: Path) -> Path:
     for seq, time_s in enumerate((0.001, 1.001)):
         values = {"seq": seq, "time": OFFSET_S + time_s, "instrument": "snare", "zone": "centre", "r": 0.2,
                   "theta": 0.0, "velocity": 2.5 + seq, "impulse": 0.1, "peak_force": 20.0, "duration": 0.008,
-                  "part": "left_stick_tip"}
+                  "part": "left_stick_tip", "openness": -1.0}
         rows.append(",".join(str(values[c]) for c in COLUMNS))
     (folder / "impacts.csv").write_text("\n".join(rows) + "\n")
     report = {"scene": "drummer", "score": str(score), "kit": "default", "grip": "german", "nuance": "tenuto",
