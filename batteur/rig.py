@@ -5,7 +5,7 @@ port + 0 physics, + 1 interaction, + 2 sound, + 3 graphics), the same rig
 epoch (so all local nodes share one rig clock), static peers for the others
 (so the rig works where loopback has no multicast; ``--no-static-peers``
 leaves finding each other to zeroconf alone; ``BATTEUR_PEERS`` in the rig's
-environment adds to them: :func:`environment_peers`) and, unless ``--no-discovery``,
+environment adds to them, but for the roles the rig starts: :func:`environment_peers`) and, unless ``--no-discovery``,
 zeroconf discovery on the given interfaces.
 Each service's output lines are prefixed with its role, its stdout on the rig's stdout and its stderr (its log)
 on the rig's stderr. Ctrl-C (SIGINT), SIGTERM or SIGHUP
@@ -61,7 +61,7 @@ import socket
 import sys
 import tempfile
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
@@ -283,13 +283,19 @@ def node_static_peers(cli_peers: Sequence[str], own: Sequence[str], role: str,
     return peers, source if peers else ""
 
 
-def environment_peers(given: Sequence[str], environ: Mapping[str, str] | None = None) -> list[str]:
+def environment_peers(given: Sequence[str], environ: Mapping[str, str] | None = None,
+                      started: Collection[str] = ()) -> list[str]:
     """The ``--peer`` values a rig's service also gets from ``BATTEUR_PEERS`` of ``environ`` (None: the rig's
     environment), given ``--peer`` values ``given`` (the rig's static peers and its ``--ROLE-arg``'s): those of its
-    peers not among them, in order; none when ``given`` is empty (the node reads the variable itself). A node given
+    peers not among them, in order, but for a peer of a role in ``started`` (the roles the rig starts itself, the
+    node's own among them); none when ``given`` is empty (the node reads the variable itself). A node given
     ``--peer`` ignores the variable (a flag replaces the environment's list), so until 8 Dec the rig's own static
     peers, which the user never typed, silently dropped it: ``BATTEUR_PEERS=physics=10.0.0.5:9101 batteur rig
-    --services sound,graphics`` left sound without its physics. :class:`UsageError` for a peer no node would take."""
+    --services sound,graphics`` left sound without its physics. A started role's peer is left out
+    (:func:`left_out_environment_peers` says so): a node sends to every peer of a role and follows the clock of the
+    lowest physics node id, so until the day after 8 Dec ``BATTEUR_PEERS=physics=10.0.0.5:9101 batteur rig`` had the
+    local services follow that physics, not the rig's, and physics hold a peer of its own role.
+    :class:`UsageError` for a peer no node would take."""
     from common.config import ENV_PREFIX
     from common.peers import parse_static_peer
 
@@ -308,10 +314,44 @@ def environment_peers(given: Sequence[str], environ: Mapping[str, str] | None = 
         except ValueError as exc:
             raise UsageError(f"{ENV_PREFIX}PEERS={value}: {exc} (the rig's services take its peers beside the "
                              "ones the rig gives them)") from None
-        if peer.node_id not in have:
+        if peer.node_id not in have and peer.role not in started:
             have.add(peer.node_id)
             added.append(spec)
     return added
+
+
+def left_out_environment_peers(plans: Sequence[ServicePlan], environ: Mapping[str, str] | None = None) -> str | None:
+    """A warning naming the ``BATTEUR_PEERS`` peers of ``environ`` (None: the rig's) that :func:`environment_peers`
+    left out of the ``--peer`` the rig gives its services (one given ``--peer``, which ignores the variable): those of
+    a role the rig starts itself, at another address than the rig's own service of it; None when there is none."""
+    from common.config import ENV_PREFIX
+    from common.peers import parse_static_peer
+    from common.transport import format_address
+
+    env = os.environ if environ is None else environ
+    given = [spec for plan in plans for spec in option_values(plan.args, "--peer")]
+    if not given:  # each node reads the variable itself
+        return None
+    started = {plan.role: plan for plan in plans}
+    have = set()
+    for spec in given:
+        with contextlib.suppress(ValueError):
+            have.add(parse_static_peer(spec.strip()).node_id)
+    left_out = []
+    for spec in filter(None, (v.strip() for v in (env.get(f"{ENV_PREFIX}PEERS") or "").split(","))):
+        with contextlib.suppress(ValueError):  # refused by plan_rig already
+            peer = parse_static_peer(spec)
+            if peer.role in started and peer.node_id not in have:
+                left_out.append((spec, peer.role))
+    if not left_out:
+        return None
+    names = ", ".join(spec for spec, _ in left_out)
+    roles = list(dict.fromkeys(role for _, role in left_out))
+    ours = ", ".join(f"{role} at {format_address(peer_host(started[role].host), started[role].port)}"
+                     for role in roles)
+    return (f"{ENV_PREFIX}PEERS: {names} left out of the peers the rig gives its services: this rig starts {ours} "
+            "itself, and its services would send to both and could follow the other's clock; to play with "
+            f"{'that node' if len(left_out) == 1 else 'those nodes'}, leave {' and '.join(roles)} out of --services")
 
 
 def plan_rig(opts: argparse.Namespace, epoch: float, environ: Mapping[str, str] | None = None) -> list[ServicePlan]:
@@ -344,9 +384,10 @@ def plan_rig(opts: argparse.Namespace, epoch: float, environ: Mapping[str, str] 
             for other in roles:
                 if other != role:
                     args += ["--peer", f"{other}={peer_host(hosts[other])}:{ports[other]}"]
-        # BATTEUR_PEERS adds to the --peer the node is given (the rig's, its --ROLE-arg's), which would replace it
+        # BATTEUR_PEERS adds to the --peer the node is given (the rig's, its --ROLE-arg's), which would replace it;
+        # not a peer of a role the rig starts (its own service of it is the one to follow): main says which
         given = [*option_values(args, "--peer"), *option_values(own[role], "--peer")]
-        for spec in environment_peers(given, environ):
+        for spec in environment_peers(given, environ, started=roles):
             args += ["--peer", spec]
         # A role not started is absent (no "no graphics peer known" every minute) only where no node of it can be
         # expected: with no discovery, or with this service on loopback (a node of it would be one started apart on
@@ -1074,7 +1115,7 @@ def build_parser() -> argparse.ArgumentParser:
                         help="static peers only, no zeroconf (default: zeroconf on --interfaces too)")
     parser.add_argument("--no-static-peers", action="store_true",
                         help="find each other by zeroconf only (needs multicast on the interfaces; default: each "
-                        "service also gets the others' ports, and BATTEUR_PEERS's peers beside them)")
+                        "service also gets the others' ports, and BATTEUR_PEERS's peers of roles it does not start)")
     parser.add_argument("--interfaces", default="", metavar="ADDRESSES",
                         help="comma-separated addresses or interface names for zeroconf (default: loopback)")
     parser.add_argument("--rig", type=rig_name, default=None, metavar="NAME",
@@ -1471,7 +1512,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         except ValueError as exc:  # UsageError: 2; a score, a folder or a port it cannot use: 1
             return report_error("batteur rig", exc)
         unread = unread_midi_options(opts, plans)
-        for warning in ignored_options(opts) + ([unread] if unread else []):
+        left_out = left_out_environment_peers(plans)
+        for warning in ignored_options(opts) + [w for w in (unread, left_out) if w]:
             print(f"batteur rig: warning: {warning}", file=sys.stderr, flush=True)
         ready = ReadyWait(opts.ready_timeout, asking_host(plans), epoch, opts.play_at if opts.score else None)
         if opts.score:

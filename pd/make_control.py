@@ -489,12 +489,12 @@ def build() -> Patch:
     # ------------------------------------------------------------ score: tempo, load, transport
     y2 = y + 500
     p.text(20, y2, "SCORE")
-    tempo = slider(p, 20, y2 + 25, "tempo factor (0.25..4)", 0.25, 4.0, True, "bp-tempo",
-                   shows=(load, TEMPO_DEFAULT))
+    tempo, tempo_boxes = slider_boxes(p, 20, y2 + 25, "tempo factor (0.25..4)", 0.25, 4.0, True, "bp-tempo",
+                                      shows=(load, TEMPO_DEFAULT))
     p.connect(tempo, 0, sender(p, 20, y2 + 70, TempoScale, "score", "f"), 0)
     lo, hi = field_range(ScoreDynamics, "factor")
-    dynamics = slider(p, 20, y2 + 118, f"dynamics factor ({lo:g}..{hi:g})", lo, hi,
-                      True, "bp-dynamics", shows=(load, DYNAMICS_DEFAULT))
+    dynamics, dynamics_boxes = slider_boxes(p, 20, y2 + 118, f"dynamics factor ({lo:g}..{hi:g})", lo, hi,
+                                            True, "bp-dynamics", shows=(load, DYNAMICS_DEFAULT))
     # its sender beside it: the GRAPHICS section starts just below
     p.connect(dynamics, 0, sender(p, 280, y2 + 140, ScoreDynamics, "score", "f"), 0)
     p.text(330, y2 + 25, "score file (name in the score library \\, or path) - type and press Enter")
@@ -529,7 +529,21 @@ def build() -> Patch:
     interaction_section(p, 900, 618, load)
     refusals(p, 995, 490, nets)
     loop_section(p, 1100, y2 + 25, load)  # last: the objects before keep their indices
+    score_load_resets(p, path, tempo_boxes, dynamics_boxes)  # after it: added on 8 Dec, the others kept theirs
     return p
+
+
+def score_load_resets(p: Patch, path: int, tempo: tuple[int, int], dynamics: tuple[int, int]) -> None:
+    """Show the tempo and dynamics factors each score loaded (``path``: the name ``bp-score`` sends) plays at:
+    physics puts them back to as written (``START_TEMPO``, ``START_DYNAMICS``) at every load, so the sliders and
+    their number boxes show it too (``set``: nothing sent, a factor moved next is the new score's). Until 8 Dec they
+    kept showing the factors of the score before. A load physics refuses keeps its factors: the panel cannot tell."""
+    x, y = p.aside()
+    for value, controls, dy in ((TEMPO_DEFAULT, tempo, 0), (DYNAMICS_DEFAULT, dynamics, 25)):
+        shown = p.msg(x, y + dy, f"set {value:g}")
+        p.connect(path, 0, shown, 0)
+        for control in controls:
+            p.connect(shown, 0, control, 0)
 
 
 SOUND_WINDOW = (1900, 1000)

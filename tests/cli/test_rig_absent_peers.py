@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 from batteur.errors import UsageError
-from batteur.rig import build_parser, node_peer_roles, plan_rig
+from batteur.rig import build_parser, left_out_environment_peers, node_peer_roles, option_values, plan_rig
 
 GRAPHICS = "graphics=127.0.0.1:9104"
 
@@ -110,6 +110,40 @@ def test_a_peer_the_rig_gives_already_is_not_given_twice_and_a_bad_one_is_refuse
     with pytest.raises(UsageError, match=r"BATTEUR_PEERS=graphics: peer 'graphics': expected ROLE=HOST:PORT"):
         plan_rig(build_parser().parse_args(["--services", "physics,sound"]), epoch=0.0,
                  environ={"BATTEUR_PEERS": "graphics"})
+
+
+def test_a_peer_of_a_role_the_rig_starts_is_left_out_and_said(monkeypatch: pytest.MonkeyPatch,
+                                                              capsys: pytest.CaptureFixture[str]) -> None:
+    """``BATTEUR_PEERS`` naming a role the rig starts itself is left out of the peers the rig gives, and said once.
+    Until the day after 8 Dec it was added beside the rig's own: interaction, sound and graphics held two physics
+    peers, physics one of its own role, and the lowest node id (the remote or dead physics) was their clock master.
+    A role the rig does not start (sound on a second laptop) is still added."""
+    monkeypatch.delenv("BATTEUR_CONFIG", raising=False)
+    env = {"BATTEUR_PEERS": "physics=10.0.0.5:9101,sound=127.0.0.1:9200"}
+    argv = ["--services", "physics,interaction,sound,graphics"]
+    plans = plan_rig(build_parser().parse_args(argv), epoch=0.0, environ=env)
+    peers = {plan.role: option_values(plan.args, "--peer") for plan in plans}
+    assert [spec for spec in peers["sound"] if spec.startswith("physics=")] == ["physics=127.0.0.1:9101"]
+    for role, specs in peers.items():  # each holds the rig's one peer of every other role, none of its own
+        assert sorted(spec.split("=")[0] for spec in specs) == sorted(set(peers) - {role}), (role, specs)
+    assert not {"physics=10.0.0.5:9101", "sound=127.0.0.1:9200"} & {s for specs in peers.values() for s in specs}
+    settings = _node_settings(argv, env, monkeypatch, capsys)  # what the interaction node runs with
+    assert settings["peers"] == ["physics=127.0.0.1:9101", "sound=127.0.0.1:9103", GRAPHICS]
+    said = left_out_environment_peers(plans, env)
+    assert said is not None and said.startswith("BATTEUR_PEERS: physics=10.0.0.5:9101, sound=127.0.0.1:9200 left "
+                                                 "out of the peers the rig gives its services: this rig starts "
+                                                 "physics at 127.0.0.1:9101, sound at 127.0.0.1:9103 itself"), said
+    # sound on another machine: the rig does not start it, so its peer is added; physics' still left out
+    argv = ["--services", "physics,interaction,graphics", "--no-discovery"]
+    plans = plan_rig(build_parser().parse_args(argv), epoch=0.0, environ=env)
+    assert {plan.role: option_values(plan.args, "--peer") for plan in plans}["interaction"] == [
+        "physics=127.0.0.1:9101", GRAPHICS, "sound=127.0.0.1:9200"]
+    said = left_out_environment_peers(plans, env)
+    assert said is not None and said.startswith("BATTEUR_PEERS: physics=10.0.0.5:9101 left out"), said
+    # nothing left out (the rig's own address, a role it does not start): nothing said
+    env = {"BATTEUR_PEERS": f"physics=127.0.0.1:9101,{GRAPHICS}"}
+    plans = plan_rig(build_parser().parse_args(["--services", "physics,sound"]), epoch=0.0, environ=env)
+    assert left_out_environment_peers(plans, env) is None
 
 
 def test_peers_the_node_would_refuse_count_as_none(tmp_path: Path) -> None:

@@ -21,7 +21,8 @@ from typing import Any
 
 import pytest
 
-from common.messages import parse_packet
+from common.messages import decode, parse_packet
+from common.messages.score import ScoreDynamics, ScoreLoad, ScoreTransport, TempoScale
 from services.graphics.camera import default_camera
 from tests.deploy.pdrun import PD_DIR, PdProcess, require_pd
 from tests.ports import free_port
@@ -372,3 +373,50 @@ def test_the_sound_rows_added_for_every_parameter_reach_a_sound_core() -> None:
             assert insts["snare"].p.snares == pytest.approx(1.5) and insts["snare"].p.air_loading == pytest.approx(0.5)
 
     asyncio.run(main())
+
+
+def test_a_score_loaded_shows_its_tempo_and_dynamics_as_written_and_sends_neither(tmp_path: Path) -> None:
+    """Physics plays each score loaded at its own tempo and dynamics (the factors back to 1, as written, since 8 Dec):
+    ``bp-score`` (the score file box) puts the tempo and dynamics sliders and their number boxes back to what the
+    score player starts with, without sending them (the load already did it). Until the day after 8 Dec they kept
+    showing x2 and x0.5 while the new score played at x1: the next move of one started from a value not in use."""
+    require_pd()
+    panel, boxes, bangs = _probed(tmp_path)
+    factors = [box for box in boxes if box.control in ("bp-tempo", "bp-dynamics")]
+    assert sorted(box.name for box in factors) == ["bp-dynamics", "bp-dynamics (number box)", "bp-tempo",
+                                                   "bp-tempo (number box)"]
+    moved = {box.index: 2.0 if box.control == "bp-tempo" else 0.5 for box in factors}
+    moves = [f"{box.receive if box.receive != 'empty' else f'poke-{box.index}'} {moved[box.index]:g}"
+             for box in factors]
+    pd = PdProcess(panel, sends=[*moves, *bangs, "bp-score symbol groove", *bangs],
+                   extra=["-open", str(tmp_path / "probe.pd")])
+    try:  # each moved box prints its move, then what it shows after each round of bangs
+        pd.wait_for(lambda _: all(len(pd.printed(f"shown-{box.index}")) >= 2 + (box.index in moved) for box in boxes))
+    finally:
+        pd.stop()
+    assert pd.errors() == [], "\n".join(pd.lines)
+    before, after = ({box.index: float(pd.printed(f"shown-{box.index}")[k][0]) for box in boxes} for k in (-2, -1))
+    assert _wrong(factors, before, {"bp-tempo": 2.0, "bp-dynamics": 0.5}) == {}  # moved, as a user moves them
+    assert _wrong(factors, after, {"bp-tempo": _tempo_at_start(), "bp-dynamics": _dynamics_at_start()}) == {}
+    others = [box for box in boxes if box.index not in moved]
+    assert _wrong(others, after, {box.control: before[box.index] for box in others}) == {}  # the load moves no other
+    # the load sends what it sends and no factor: the score service gets the moves, the load, then the play
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        sock.bind(("127.0.0.1", free_port()))
+        sock.settimeout(15)
+        pd = PdProcess(PD_DIR / "control.pd", sends=[
+            f"bp-port-score {sock.getsockname()[1]}", "bp-tempo 2", "bp-dynamics 0.5", "bp-score symbol groove",
+            "bp-transport symbol play"])
+        got: list[Any] = []
+        try:
+            while not any(isinstance(m, ScoreTransport) for m in got):
+                try:
+                    data = sock.recv(65536)
+                except TimeoutError:
+                    raise AssertionError(f"got only {got}:\n" + "\n".join(pd.lines)) from None
+                got += decode(data).messages
+        finally:
+            pd.stop()
+    assert [(type(m), getattr(m, "factor", getattr(m, "path", None))) for m in got] == [
+        (TempoScale, pytest.approx(2.0)), (ScoreDynamics, pytest.approx(0.5)), (ScoreLoad, "groove"),
+        (ScoreTransport, None)], got
