@@ -18,7 +18,7 @@ import math
 from collections import Counter
 from collections.abc import Callable
 from concurrent.futures import Future
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import ClassVar, Literal, Protocol
 
@@ -61,6 +61,7 @@ from services.sound.instruments import (
     Instrument,
     InstrumentSet,
     ParamError,
+    Params,
     Press,
     Strike,
     default_params,
@@ -339,6 +340,7 @@ class SoundCore:
         self._worker = RebuildWorker() if s.background_rebuilds else None
         self._rebuilds: dict[str, _Rebuild] = {}  # instrument id -> changes in the worker
         self._queued: dict[str, list[_Change]] = {}  # instrument id -> changes that arrived meanwhile, in order
+        self._openness: dict[str, float] = {}  # hi-hat id -> the latest /batteur/sound/openness not applied yet
 
     # ------------------------------------------------------------- building
     def _build_instruments(self, kit: Kit) -> InstrumentSet:
@@ -421,10 +423,12 @@ class SoundCore:
         if name not in inst.accepted:  # named by address: a panel's user never sees our parameter names
             return self._reject(message, instrument_id, not_taken(inst.KIND, instrument_id, message.ADDRESS))
         if isinstance(message, SoundOpenness) and isinstance(inst, HiHat):
-            # the pedal moved: applied here, as a stroke's zone and the plates meeting apply it, so a drop chokes
-            # the ringing hat's sample and synth voices too (set_param retuned the modes alone); never queued
-            # behind a background rebuild, which would land it late (one in flight is redone on top of it)
-            inst.set_openness(float(message.value), self.pool)
+            # the pedal moved: applied at the next block's start (_apply_openness), as a stroke's zone and the plates
+            # meeting apply it, so a drop chokes the ringing hat's sample and synth voices too (set_param retuned the
+            # modes alone); only the latest of a block's messages is applied (a pedal controller or a slider sends
+            # many: each a retune on the render thread otherwise); never queued behind a background rebuild, which
+            # would land it late (one in flight is adopted and retuned to it: _finish_rebuilds)
+            self._openness[inst.id] = float(message.value)
             return []
         values = {f: getattr(message, f) for f in fields}
         if self._worker is not None and (instrument_id in self._rebuilds or name not in CHEAP_PARAMS):
@@ -468,9 +472,15 @@ class SoundCore:
                 continue
             del self._rebuilds[inst_id]
             inst = self.instruments.instruments[inst_id]
-            if inst.p is not job.base:  # a strike changed it meanwhile (the hi-hat's openness): redo on top
-                self._start_rebuild(inst, job.changes)
-                continue
+            openness_now: float | None = None
+            if inst.p is not job.base:  # changed meanwhile
+                if not (isinstance(inst, HiHat) and isinstance(job.base, Params)
+                        and replace(inst.p, openness=job.base.openness) == job.base):
+                    self._start_rebuild(inst, job.changes)  # redo on top
+                    continue
+                # only the hi-hat's openness (a pedal, a stroke, the plates): the twin is right but for its damping,
+                # retuned below (redoing the job would never land while a pedal streams openness)
+                openness_now = inst.p.openness
             try:
                 twin, refused = job.future.result()
             except Exception as exc:  # noqa: BLE001 - a bug in a rebuild must not stop the sound
@@ -481,6 +491,8 @@ class SoundCore:
                 log.error("%s: rebuilding its modes left none: parameters unchanged", inst_id)
             if twin is not inst:
                 inst.adopt(twin)
+            if openness_now is not None and isinstance(inst, HiHat) and inst.p.openness != openness_now:
+                inst.retune_openness(openness_now, derived=True)  # no choke: done when it dropped
             for change, reason in refused:
                 out += self._reject(change.message, inst_id, reason, change.source or "reply")
             if any(c.name == "damping" for c in job.changes):
@@ -702,10 +714,21 @@ class SoundCore:
             self._bus[instrument] = buf
         return buf
 
+    def _apply_openness(self) -> None:
+        """The latest /batteur/sound/openness of each hi-hat since the last block, once (a retune, and a choke when
+        it dropped)."""
+        pending, self._openness = self._openness, {}
+        for inst_id, value in pending.items():
+            inst = self.instruments.instruments[inst_id]
+            if isinstance(inst, HiHat):
+                inst.set_openness(value, self.pool, derived=True)  # a pedal's stream: cheap
+
     def render_block(self) -> F32:
         """Render the next block; returns float32 (block,) or (block, 2)."""
         n = self.block
         start = self.next_sample
+        if self._openness:  # before this block's strikes, which set their own openness after it
+            self._apply_openness()
         for sample, payload in self._within_budget(self.scheduler.pop_until(start + n)):
             try:
                 self._strike(sample - start, payload)
@@ -930,6 +953,8 @@ class SoundCore:
         if self._stage is not None:
             self._stage.close()
             self._stage = None
+        if getattr(self, "_openness", None):  # a pedal's last move is kept (--sound-params-out)
+            self._apply_openness()
         hook, self.before_close = getattr(self, "before_close", None), None
         if hook is not None:
             try:  # the WAV file is closed already: a wait here (or a second Ctrl-C) cannot lose the take

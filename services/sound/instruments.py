@@ -722,12 +722,16 @@ class Cymbal(Instrument):
         bell_f = np.repeat(bell_f, 2) * np.tile([1.0, 1.003], bell_f.shape[0])
         self.bell_gains = np.repeat(BELL_GAINS[: bell_f.shape[0] // 2], 2) if bell_f.size else np.zeros(0)
         freq = np.concatenate([plate_f, bell_f])
-        decay = np.concatenate([self.damping_law(plate_f), 0.5 * self.damping_law(bell_f) + 0.3])
+        decay = self._decays(plate_f, bell_f)
         # below the coincidence frequency a plate mode radiates more the higher it is (efficiency ~ f / f_c):
         # amplitude ~ sqrt(f), which is what makes a cymbal bright rather than gong-like
         tilt = np.concatenate([np.minimum(np.sqrt(plate_f / 3000.0), 2.5), np.ones(bell_f.shape[0])])
         self.gains = self._apply_resonances(tilt)
         self.set_modes(freq, decay)
+
+    def _decays(self, plate_f: F64, bell_f: F64) -> F64:
+        """Decay rate of the plate's modes ``plate_f`` and the bell partials ``bell_f`` (Hz), 1/s."""
+        return np.concatenate([self.damping_law(plate_f), 0.5 * self.damping_law(bell_f) + 0.3])
 
     def vibrating_mass(self) -> float:
         return float(BRONZE_RHO * self.p.thickness * np.pi * self.p.radius**2)
@@ -795,16 +799,36 @@ class HiHat(Cymbal):
         return np.asarray(self.p.damping0 + self.p.damping1 * freq**2 + HIHAT_CLOSED_DECAY_PER_S * closed**2
                           + 6e-7 * closed * freq**2)
 
-    def set_openness(self, openness: float, pool: VoicePool) -> None:
+    def set_openness(self, openness: float, pool: VoicePool, derived: bool = False) -> None:
         """The plates' gap from now on (0 closed, 1 open): the modes retuned (ringing ones keep their state and
-        take the new damping); a drop chokes the sample and synthesis voices still ringing (:meth:`choke`)."""
+        take the new damping, :meth:`retune_openness`, ``derived`` as there); a drop chokes the sample and synthesis
+        voices still ringing (:meth:`choke`)."""
         old = self.p.openness
         if openness == old:
             return
-        self.p = replace(self.p, openness=openness)
-        self.rebuild()
+        self.retune_openness(openness, derived)
         if openness < old:
             self.choke(old, openness, pool)
+
+    def retune_openness(self, openness: float, derived: bool = False) -> None:
+        """Take ``openness`` for the modes' damping alone (no choke). The openness only enters the damping law: the
+        modes' frequencies, shapes and gains stay (no :meth:`rebuild`). ``derived``: the bank's tables are derived
+        from those of the last full build by real factors (:meth:`ModeSet.set_decay`, as a press is), about 4x
+        cheaper than computing them (0.8 against 3.2 ms for the shipped hat's 506 modes, a rebuild 4.3:
+        bench/sound_openness.py) and equal to them to rounding: what a pedal controller's stream of openness
+        takes. Otherwise computed exactly as a rebuild would (a stroke's or the plates' openness: an offline render
+        stays bit for bit what it was)."""
+        self.p = replace(self.p, openness=openness)
+        if not self.bank.size:  # nothing built yet to derive from (a detached twin before its rebuild)
+            self.rebuild()
+            return
+        freq = self.bank.freq
+        decay = self._decays(freq[: self.n_plate], freq[self.n_plate:])
+        if not derived:
+            self.set_modes(freq, decay)
+            return
+        self._law_decay = decay
+        self.bank.set_decay(decay if self.press_decay is None else decay + self.press_decay)
 
     def choke(self, old: float, new: float, pool: VoicePool) -> None:
         """The openness dropped from ``old`` to ``new``: this hat's sample and synthesis voices fade out (they have

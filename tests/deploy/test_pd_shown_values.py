@@ -367,6 +367,7 @@ def test_the_sound_rows_added_for_every_parameter_reach_a_sound_core() -> None:
                            ("SoundAirLoading", "snare", 0.5)]
             assert not sound.core.stats.rejected  # each sent to an instrument that has the parameter
             insts = sound.core.instruments.instruments
+            sound.core.render(sound.core.now + 0.01)  # openness: applied at the next block (this harness never steps)
             assert insts["crash"].p.thickness == pytest.approx(0.002)
             assert insts["crash"].p.position == pytest.approx(0.4)
             assert insts["hihat"].p.openness == pytest.approx(0.8)

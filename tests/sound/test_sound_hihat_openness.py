@@ -53,7 +53,9 @@ def _open_then_message(model: str, close: bool, background_rebuilds: bool = Fals
         at = core.next_sample
         if close:
             assert core.handle(SoundOpenness(instrument="hihat", value=0.0), core.now, "panel") == []
-            assert core.instruments.instruments["hihat"].p.openness == 0.0  # at once, even on a live node
+            # from the next block on, even on a live node (the latest of a block's messages: one retune)
+            core.render(core.now + core.block / core.sample_rate)
+            assert core.instruments.instruments["hihat"].p.openness == 0.0
         core.render(CLOSE_S + 0.3)
         return core.recording(), core.sample_rate, at
     finally:
