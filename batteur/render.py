@@ -1905,8 +1905,16 @@ def _main_score(opts: argparse.Namespace, prog: str, said: Sequence[str] = ()) -
         g = report["gltf"]
         print(f"wrote {out / g['file']} ({g['frames']} frames at {g['rate_hz']:g} Hz, {g['links']} links, "
               f"{g['kit_objects']} kit objects)")
-    print(f"wrote {out / 'report.json'} (real-time factor {report['real_time_factor']})")
+    print(f"wrote {out / 'report.json'} ({rtf_words(report['real_time_factor'])})")
     return 0
+
+
+def rtf_words(factor: float | None) -> str:
+    """The console's real-time factor, said with what it means (a researcher read ``real-time factor 0.157`` and
+    could not tell which way it ran): ``real-time factor 0.49: 0.49 s of audio rendered per wall-clock second``."""
+    if factor is None:
+        return "real-time factor not measured"
+    return f"real-time factor {factor:g}: {factor:g} s of audio rendered per wall-clock second"
 
 
 def bars_words(report: dict[str, Any]) -> str:
