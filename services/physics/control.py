@@ -8,7 +8,7 @@ feeding ``joint_ct``) and ``cartesian_pd`` (Algorithm 2 feeding ``joint_pd``).
 Joint space (the paper's tracking): ``tau = ks (theta_t - theta) + kd (theta_dot_t - theta_dot)
 + tau_g``, with target velocities, gravity compensation ``tau_g`` (the torque
 that holds every subtree against gravity), within per-joint torque limits (in the computed-torque
-modes an arm's DOF over its limit is fitted to it, the others keeping their accelerations:
+modes an arm's or the trunk's DOF over its limit is fitted to it, the others keeping their accelerations:
 :meth:`Controller.fit_torque_limits`; the rest clipped joint by joint).
 Gains per DOF: ``ks = M_jj w^2``, ``kd = 2 zeta w M_jj`` with ``M_jj`` the
 joint-space inertia at the rest posture, so every joint has the same natural
@@ -207,11 +207,17 @@ class Controller:
         """The legs' DOF (hips, knees, ankles): their posture is held within :data:`LEG_POSTURE_BAND_RAD`."""
         self._rows: dict[tuple[str, ...], np.ndarray] = {}
         """Limbs with targets -> their rows in LIMBS (int64), for the IK kernel."""
-        self.fit_dof = np.array([name.split("_")[1] in ("clavicle", "shoulder", "elbow", "wrist")
+        self.fit_dof = np.array([name.split("_")[0] in ("seat", "lumbar", "thoracic")
+                                 or name.split("_")[1] in ("clavicle", "shoulder", "elbow", "wrist")
                                  for name in body.model.dof_names])
-        """DOF (57,) whose torques over their limits :meth:`fit_torque_limits` fits, clavicles to wrists; the others
-        are clipped joint by joint (the trunk and legs fitted too: loud snare contacts as short, but the velocity
-        Spearman within each sound 0.885 -> 0.860 and the p95 timing error 5.2 -> 6.2 ms on five Groove files)."""
+        """DOF (57,) whose torques over their limits :meth:`fit_torque_limits` fits: the trunk (seat, lumbar,
+        thoracic) and the arms, clavicles to wrists; the head and legs are clipped joint by joint. The trunk clipped
+        joint by joint spun the light pelvis between the seat's and the lumbar's torques, which no longer balanced
+        on it: at a stroke's rebound the IK's trunk share reverses in a few milliseconds, the PD asks the trunk for
+        thousands of N m, and the pelvis turned at 1,300 deg/s at every loud backbeat, 2,500 deg/s on a hard
+        floor-tom stroke, into the seat's 30-degree yaw limit (docs/physics.md, "The trunk's torque limits").
+        (The legs fitted too: loud snare contacts as short, but the velocity Spearman within each sound 0.885 ->
+        0.860 and the p95 timing error 5.2 -> 6.2 ms on five Groove files.)"""
         self._ct_state: np.ndarray | None = None
         """The last :meth:`computed_torque`'s inverse-dynamics input (3, n + P): angles, rates, accelerations."""
         self._ensure_id_model()  # here, not at the first step of a computed-torque mode: a live step must not wait
