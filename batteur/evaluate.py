@@ -942,7 +942,7 @@ def check_not_render_output(path: Path) -> None:
 
 def reusable(render_dir: Path, score: Path, opts: Any) -> bool:
     """Whether ``render_dir`` is a render of this very score with these options (``--reuse``): a render of
-    another score of the same name, or with another kit, tempo, grip, nuance or drummer, would be evaluated
+    another score of the same name, or with another kit, tempo, grip, nuance, sticking or drummer, would be evaluated
     against the wrong notes or be another performance. The grip and nuance compared are those a render would
     play (the options', else the score's directives: ``RenderOptions.styled``); a render in segments is another
     performance than one in one process (:func:`same_segments`)."""
@@ -966,7 +966,8 @@ def reusable(render_dir: Path, score: Path, opts: Any) -> bool:
               "drum_map": note_map_json(opts.midi.get("note_map")),
               "calibration": str(opts.calibration) if opts.calibration else None}
     body = {"height_m": (opts.height_m, STATURE_M), "mass_kg": (opts.mass_kg, DEFAULT_MASS_KG),
-            "hihat_cc4": (bool(opts.midi.get("hihat_cc4", False)), False)}  # before 7 Dec: CC4 read as written
+            "hihat_cc4": (bool(opts.midi.get("hihat_cc4", False)), False),  # before 7 Dec: CC4 read as written
+            "sticking": (opts.sticking.value, "none")}  # before 8 Dec: no --sticking
     return (all(report.get(key) == value for key, value in wanted.items())
             and all(report.get(key, before) == value for key, (value, before) in body.items())
             and same_segments(report, opts) and same_kit(report, style.kit)
@@ -1156,7 +1157,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 RENDER_OPTIONS = ("kit", "grip", "nuance", "height", "mass", "tempo_scale", "control", "calibration", "jobs",
-                  "segment", "drum_channels", "drum_map", "hihat_cc4")
+                  "segment", "drum_channels", "drum_map", "hihat_cc4", "sticking")
 """The options that change a render: a render directory given to evaluate was made with its own."""
 
 
@@ -1222,6 +1223,7 @@ def _main(args: argparse.Namespace) -> int:
     from batteur.render import RenderError, RenderOptions, height_of, resolve_jobs, style_from
     from common.output_paths import check_output_dir, check_output_file
     from common.score.events import ScoreError
+    from common.score.hands import Sticking
 
     started = time.perf_counter()
     base_calibration, fit_kit = None, None
@@ -1241,7 +1243,8 @@ def _main(args: argparse.Namespace) -> int:
                 base_calibration = Calibration.load(args.calibration)
         grip, nuance = style_from(args)
         opts = RenderOptions(kit=args.kit, grip=grip, nuance=nuance, tempo_scale=args.tempo_scale,
-                             control=args.control, calibration=args.calibration, jobs=resolve_jobs(args.jobs),
+                             control=args.control, sticking=Sticking(args.sticking),
+                             calibration=args.calibration, jobs=resolve_jobs(args.jobs),
                              segment_s=args.segment, height_m=height_of(args), mass_kg=args.mass,
                              midi=midi_read_kwargs(args))
         results = evaluate_scores(args.scores, opts, args.renders, quiet=args.quiet, reuse=args.reuse)

@@ -64,7 +64,7 @@ from common.messages import OscMessage
 from common.messages.physics import ControlModeName
 from common.output_paths import check_output_dir
 from common.score.events import Score, ScoreError
-from common.score.hands import HandAlgorithm
+from common.score.hands import HandAlgorithm, Sticking
 from common.score.limbs import STATURE_M, Assignment, LimbLengths
 from common.score.midi_notes import note_map_json
 from common.score.midi_options import add_midi_arguments, midi_read_kwargs
@@ -139,6 +139,8 @@ class RenderOptions:
     """> 1 plays faster: every score time is divided by it."""
     control: str = "cartesian"
     algorithm: HandAlgorithm = HandAlgorithm.VITERBI
+    sticking: Sticking = Sticking.NONE
+    """Sticking pattern forced on rolls (``--sticking``; :func:`common.score.hands.apply_sticking`)."""
     latency_s: float = 0.05
     settle_s: float = 0.5
     """Rig time at which the plan starts (the body settles at rest before), seconds."""
@@ -329,7 +331,7 @@ def prepare(path: Path | str, kit: Kit, opts: RenderOptions, calibration: Calibr
         why = "; ".join(w.removeprefix(f"{path}: ").removeprefix(f"{Path(path).name}: ") for w in score.warnings
                         if not w.endswith("no drum events"))
         raise ScoreError(f"{path}: no drum events to play" + (f" ({why})" if why else ""))
-    assignment = distribute(score, kit, opts.algorithm,
+    assignment = distribute(score, kit, opts.algorithm, opts.sticking,
                             progress=None if progress is None else functools.partial(progress, "limbs"),
                             height_m=opts.height_m, lengths=limbs if limbs is not None else skeleton_limbs(opts))
     planned = assignment if calibration is None else calibration.apply(assignment, kit)
@@ -931,6 +933,7 @@ def score_report(result: ScoreRender, source: str, opts: RenderOptions, warnings
         "drum_map": note_map_json(opts.midi.get("note_map")),  # --drum-map's pitches, None: General MIDI
         "hihat_cc4": bool(opts.midi.get("hihat_cc4", False)),  # --hihat-cc4: the pedal applied to the hats
         "control": opts.control,
+        "sticking": opts.sticking.value,  # --sticking
         "limits_from": list(opts.limits_from),
         "skeleton_bvh": None if opts.skeleton_bvh is None else str(opts.skeleton_bvh),
         "skeleton_units": opts.skeleton_units,
@@ -1658,13 +1661,18 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def add_performance_options(parser: argparse._ActionsContainer, kit_default: str | None = DEFAULT_KIT) -> None:
-    """``--kit``, ``--grip``, ``--nuance``, ``--tempo-scale`` and ``--control`` (render and evaluate; a parser or
-    one of its groups). ``kit_default`` None: a score's ``kit`` line, else :data:`DEFAULT_KIT`."""
+    """``--kit``, ``--grip``, ``--nuance``, ``--sticking``, ``--tempo-scale`` and ``--control`` (render and evaluate;
+    a parser or one of its groups). ``kit_default`` None: a score's ``kit`` line, else :data:`DEFAULT_KIT`."""
     from common.kit_help import kit_help
 
     default = (f"the score's `kit` line, else {DEFAULT_KIT}" if kit_default is None else kit_default)
     parser.add_argument("--kit", default=kit_default, metavar="NAME", help=kit_help(default))
     add_style_options(parser)
+    parser.add_argument("--sticking", default=Sticking.NONE.value, choices=[s.value for s in Sticking],
+                        help="sticking of rolls (four or more single notes on one drum less than twice its "
+                        "minTimeGap apart), led by the drum's preferred hand: single (RLRL), double (RRLL), "
+                        "paradiddle (RLRR LRLL), or none: the hand assignment's choice (default; it alternates "
+                        "hands on a drum's notes 100 ms apart or closer when the other hand is free)")
     parser.add_argument("--tempo-scale", type=float, default=1.0, metavar="X",
                         help="play this many times faster, 0.1 to 10 (0.5: half tempo; default 1)")
     parser.add_argument("--control", default="cartesian", choices=list(CONTROL_MODES),
@@ -1721,7 +1729,8 @@ def _size(text: str) -> tuple[int, int]:
 def options_from(args: argparse.Namespace) -> RenderOptions:
     grip, nuance = style_from(args)
     return RenderOptions(kit=args.kit, grip=grip, nuance=nuance, tempo_scale=args.tempo_scale,
-                         control=args.control, algorithm=HandAlgorithm(args.algorithm), latency_s=args.latency,
+                         control=args.control, algorithm=HandAlgorithm(args.algorithm),
+                         sticking=Sticking(args.sticking), latency_s=args.latency,
                          calibration=args.calibration, sound_params=args.sound_params, video=args.video,
                          video_fps=_given(args.video_fps, 30.0),
                          gltf=args.gltf,

@@ -16,7 +16,9 @@ assignment; the third one proposed there and built here):
   rebound double (:mod:`common.score.rebound`): that is a hard constraint, and a
   note no hand can play is left out (``None``) at a high cost, so as few notes
   as possible. The cost of playing an event with a hand adds a rebound double,
-  the speed of full strokes, crossing the arms (pair preference violated, or the
+  the speed of full strokes, a full stroke at most ``RUN_INTERVAL_S`` after the
+  hand's last (so a free other hand takes every other note of a roll, a tuplet
+  or a drag: ``Costs.run``), crossing the arms (pair preference violated, or the
   left stick right of the right stick when the kit says nothing), travel speed
   between hit points, leaving the preferred hand, and a hand beyond whose reach
   the note is when the other hand reaches it (``HandNote.out_of_reach``). A beam
@@ -50,6 +52,14 @@ from common.score.rebound import Interval, Stroke, classify
 PROGRESS_EVERY = 256
 """Notes between two calls of a progress callback (here, in the limb assignment and in the gesture planner):
 under a tenth of a second of work on a long score, and a call per note would cost more than it tells."""
+
+RUN_INTERVAL_S = 0.1
+"""One hand's full strokes this close (seconds) or closer are faster than a drummer keeps up single-handed: 10 Hz is
+the fastest one-hand stick tapping measured, the world's fastest drummer's, against 5-7 Hz for others (Fujii, Kudo,
+Ohtsuki and Oda 2009; docs/gestures.md). The kit's minTimeGaps (70-90 ms on drums, hi-hat, ride) stand for an
+isolated pair of strokes, not a run: rolls, 16th-note triplets at 100 bpm (100 ms) and drags of 32nd notes were
+played one-handed between them. A free other hand takes such notes on a drum (``Costs.run``: not one keeping time on
+the hi-hat or ride); time kept on a cymbal stays with one hand at any speed."""
 
 L, R = Limb.LEFT_HAND, Limb.RIGHT_HAND
 HANDS = (L, R)
@@ -97,6 +107,15 @@ class Costs:
     drop_velocity: float = 1.0  # louder notes cost more to leave out
     rebound: float = 2.0  # per rebound double (a second note bounced below minTimeGap)
     fast: float = 0.3  # soft, full strokes: (minTimeGap / interval)^2
+    # a full stroke on a drum at most run_interval (s) after the same hand's last while the other hand is free: above
+    # not_preferred and a hand's move from a nearby drum, so the other hand takes every other note of a fast run
+    # (RLRL) rather than one hand playing it all (the speed cost alone, at most 0.3, never outweighed not_preferred).
+    # Free: it did not play in the run's last interval (none once both hands play: a faster roll's alternation or
+    # doubles are judged as before), and its last note was on this note's object or run_idle (s) ago or more (a
+    # hand keeping time on the hi-hat or ride, or playing its own part elsewhere, keeps it)
+    run: float = 1.5
+    run_interval: float = RUN_INTERVAL_S
+    run_idle: float = 0.4
     crossing: float = 4.0  # per crossing, times |pair| (>= 0.5), decaying with the other hand's idle time
     crossing_decay: float = 0.4  # seconds
     travel: float = 0.12  # per m/s of hit-point travel speed
@@ -418,6 +437,10 @@ def _viterbi(notes: list[HandNote], groups: list[list[int]], t: _Table, kit: Kit
     # the pair preference is between event types on their own objects; a note struck on another (note_objects)
     # is judged by the geometry, as crossed() judges it
     own = [objects[i] == kit.events[e].object for i, e in enumerate(t.events)]
+    # a fast run on a drum (a roll, a tuplet, a drag, a fill) goes hand to hand; one on a cymbal is time kept by one
+    # hand (the Groove drummers' hi-hat and ride: given to the other hand, its strokes came late or not at all)
+    kinds = {o: kit.object(o).kind for o in set(objects)}
+    drum = [kinds[o] == "membrane" for o in objects]
     times = t.time.tolist()
     gaps = t.gap.tolist()
     pos = t.pos.tolist()
@@ -451,6 +474,8 @@ def _viterbi(notes: list[HandNote], groups: list[list[int]], t: _Table, kit: Kit
                 cost += c.rebound
             else:
                 cost += c.fast * (gap / dt) ** 2
+                if dt <= c.run_interval + 1e-9 and drum[i] and (other < 0 or free(other, i)):
+                    cost += c.run
             a, b = pos[i], pos[prev]
             dist = math.sqrt((a[0] - b[0]) ** 2 + (a[1] - b[1]) ** 2 + (a[2] - b[2]) ** 2)
             cost += c.travel * dist / max(dt, 0.02)
@@ -466,6 +491,11 @@ def _viterbi(notes: list[HandNote], groups: list[list[int]], t: _Table, kit: Kit
                 if crossing:
                     cost += c.crossing * max(abs(p), 0.5) * math.exp(-idle / c.crossing_decay)
         return cost, bounce
+
+    def free(other: int, i: int) -> bool:
+        """Whether the hand whose last note is ``other`` is free to take note i of a fast run (``Costs.run``)."""
+        idle = times[i] - times[other]
+        return idle > c.run_interval + 1e-9 and (objects[other] == objects[i] or idle >= c.run_idle - 1e-9)
 
     def allowed(i: int, h: Limb) -> bool:
         f = notes[i].forced

@@ -51,6 +51,7 @@ from common.messages.graphics import ScorePosition
 from common.messages.physics import ControlModeName, GripName
 from common.runtime import Node, run_node
 from common.score.events import SCORE_FILE
+from common.score.hands import Sticking
 from common.score.limbs import LimbLengths
 from common.score.midi_notes import DrumMapError
 from common.score.midi_options import DRUM_CHANNELS_HELP, DRUM_MAP_HELP, HIHAT_CC4_HELP, midi_setting_kwargs
@@ -112,6 +113,10 @@ class PhysicsNodeSettings(NodeSettings):
                        "directory joins the score library")
     play_at: float | None = Field(default=None, ge=0, le=1e6, description="rig time at which --score starts "
                                   "playing (its beginning), seconds (unset: load only)")
+    sticking: Literal["none", "single", "double", "paradiddle"] = Field(
+        default="none", description="drummer: sticking of the rolls in the scores it plans: none (the hand "
+        "assignment's), single, double or paradiddle, as batteur render --sticking (a /batteur/score/style changes "
+        "it)")
     drum_channels: str = Field(default="", description=f"--score and the library's MIDI files: {DRUM_CHANNELS_HELP}")
     drum_map: str = Field(default="", description=f"--score and the library's MIDI files, and live notes "
                           f"(/batteur/score/note): {DRUM_MAP_HELP}")
@@ -430,6 +435,7 @@ def _prepare(core: PhysicsCore, settings: PhysicsNodeSettings) -> None:
     """Load now what the first messages and steps would otherwise wait for (seconds), and ``--score``."""
     player = core.score_player
     player.library = [Path(d).expanduser() for d in settings.score_dir]
+    player.sticking = Sticking(settings.sticking)  # before --score's plan
     if settings.scene == "drummer":
         _ = player.preparation_s  # loads the gesture database now (about 1 s), not in the first score message
         # compiles the numba kernels now (or loads them from the cache), not in the first live steps
