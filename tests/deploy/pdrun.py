@@ -5,11 +5,12 @@ from __future__ import annotations
 import os
 import queue
 import shutil
+import socket
 import subprocess
 import threading
 import time
-from collections.abc import AsyncIterator, Callable, Sequence
-from contextlib import asynccontextmanager
+from collections.abc import AsyncIterator, Callable, Iterator, Sequence
+from contextlib import asynccontextmanager, contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar
@@ -19,10 +20,11 @@ import pytest
 from common.config import load_settings
 from common.core import Outgoing
 from common.kit import load_kit
-from common.messages import OscMessage
+from common.messages import OscMessage, decode
 from common.messages.events import Contact
 from common.runtime import Node
 from services.interaction.synthetic import StreamBuilder, strike
+from tests.ports import free_ports
 
 PD_DIR = Path(__file__).resolve().parents[2] / "pd"
 
@@ -190,3 +192,44 @@ def own_network() -> list[str]:
     if os.geteuid() != 0 or unshare is None:
         return []
     return [unshare, "--net", "sh", "-c", 'ip link set lo up 2>/dev/null; exec "$@"', "sh"]
+
+
+# ---------------------------------------------------------------- stand-in services for a Pd patch
+
+
+class Service:
+    """A stand-in service: a UDP socket on a loopback port from tests/ports.py, decoding what it receives."""
+
+    def __init__(self, sock: socket.socket) -> None:
+        self.sock = sock
+        self.port: int = sock.getsockname()[1]
+        self.received: list[OscMessage] = []
+
+    def until(self, done: Callable[[list[OscMessage]], bool], pd: PdProcess) -> list[OscMessage]:
+        """Receive until ``done(messages)`` holds; AssertionError (with Pd's output) when nothing more comes."""
+        while not done(self.received):
+            try:
+                data = self.sock.recv(65536)
+            except TimeoutError:
+                raise AssertionError(f"port {self.port} got only {self.received}:\n" + "\n".join(pd.lines)) from None
+            self.received += decode(data).messages
+        return self.received
+
+
+@contextmanager
+def services(count: int) -> Iterator[list[Service]]:
+    socks = []
+    try:
+        for port in free_ports(count):
+            sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+            socks.append(sock)
+            sock.bind(("127.0.0.1", port))
+            sock.settimeout(15)
+        yield [Service(sock) for sock in socks]
+    finally:
+        for sock in socks:
+            sock.close()
+
+
+def of(kind: type[OscMessage]) -> Callable[[list[OscMessage]], bool]:
+    return lambda messages: any(isinstance(m, kind) for m in messages)

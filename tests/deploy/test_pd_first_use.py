@@ -3,17 +3,15 @@
 from __future__ import annotations
 
 import socket
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
 
-from common.messages import OscMessage, decode, encode_raw
+from common.messages import encode_raw
 from common.messages.physics import PhysicsControlMode
 from common.messages.score import ScoreLoad
 from common.messages.sound import SoundDamping, SoundMaster
-from tests.deploy.pdrun import PD_DIR, PdProcess, own_network, require_pd
+from tests.deploy.pdrun import PD_DIR, PdProcess, of, own_network, require_pd, services
 from tests.ports import free_port, free_ports
 
 pytestmark = pytest.mark.timeout(120)
@@ -21,44 +19,6 @@ pytestmark = pytest.mark.timeout(120)
 ROLES = ("physics", "interaction", "sound", "graphics", "score")
 NO_SCORE = "pd-first-use-no-such-score"
 """A score name no library holds: were it to reach a real rig on a default port, it would only be refused."""
-
-
-class Service:
-    """A stand-in service: a UDP socket on a loopback port from tests/ports.py, decoding what it receives."""
-
-    def __init__(self, sock: socket.socket) -> None:
-        self.sock = sock
-        self.port: int = sock.getsockname()[1]
-        self.received: list[OscMessage] = []
-
-    def until(self, done: Callable[[list[OscMessage]], bool], pd: PdProcess) -> list[OscMessage]:
-        """Receive until ``done(messages)`` holds; AssertionError (with Pd's output) when nothing more comes."""
-        while not done(self.received):
-            try:
-                data = self.sock.recv(65536)
-            except TimeoutError:
-                raise AssertionError(f"port {self.port} got only {self.received}:\n" + "\n".join(pd.lines)) from None
-            self.received += decode(data).messages
-        return self.received
-
-
-@contextmanager
-def services(count: int) -> Iterator[list[Service]]:
-    socks = []
-    try:
-        for port in free_ports(count):
-            sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-            socks.append(sock)
-            sock.bind(("127.0.0.1", port))
-            sock.settimeout(15)
-        yield [Service(sock) for sock in socks]
-    finally:
-        for sock in socks:
-            sock.close()
-
-
-def of(kind: type[OscMessage]) -> Callable[[list[OscMessage]], bool]:
-    return lambda messages: any(isinstance(m, kind) for m in messages)
 
 
 # ---------------------------------------------------------------- score messages follow the physics port

@@ -7,10 +7,7 @@ from __future__ import annotations
 import asyncio
 import importlib
 import re
-import socket
 import sys
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -19,58 +16,21 @@ import pytest
 from common.config import load_settings
 from common.core import Outgoing
 from common.kit import KITS_DIR, ZONES, load_kit
-from common.messages import Impact, OscMessage, decode
+from common.messages import Impact, OscMessage
 from common.messages.graphics import GraphicsCamera, GraphicsMode
 from common.messages.interaction import RouteSet
 from common.messages.physics import PhysicsGrip
 from common.messages.score import GestureStyle, LiveNote, ScoreLoad, ScoreTransport
 from common.messages.sound import SoundDamping, SoundModel
 from common.runtime import Node
-from tests.deploy.pdrun import PD_DIR, PdProcess, Recorder, require_pd
-from tests.ports import free_port, free_ports
+from tests.deploy.pdrun import PD_DIR, PdProcess, Recorder, of, require_pd, services
+from tests.ports import free_port
 from tests.waiting import until, wait_for
 
 pytestmark = pytest.mark.timeout(120)
 
 
-# ---------------------------------------------------------------- stand-in services for the panel
-
-
-class Service:
-    """A UDP socket on a loopback port, decoding what the panel sends it."""
-
-    def __init__(self, sock: socket.socket) -> None:
-        self.sock = sock
-        self.port: int = sock.getsockname()[1]
-        self.received: list[OscMessage] = []
-
-    def until(self, done: Callable[[list[OscMessage]], bool], pd: PdProcess) -> list[OscMessage]:
-        while not done(self.received):
-            try:
-                data = self.sock.recv(65536)
-            except TimeoutError:
-                raise AssertionError(f"port {self.port} got only {self.received}:\n" + "\n".join(pd.lines)) from None
-            self.received += decode(data).messages
-        return self.received
-
-
-@contextmanager
-def services(count: int) -> Iterator[list[Service]]:
-    socks = []
-    try:
-        for port in free_ports(count):
-            sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-            socks.append(sock)
-            sock.bind(("127.0.0.1", port))
-            sock.settimeout(15)
-        yield [Service(sock) for sock in socks]
-    finally:
-        for sock in socks:
-            sock.close()
-
-
-def of(kind: type[OscMessage]) -> Callable[[list[OscMessage]], bool]:
-    return lambda messages: any(isinstance(m, kind) for m in messages)
+# ---------------------------------------------------------------- the panel's generator
 
 
 def make_control() -> Any:
