@@ -83,10 +83,12 @@ class Progress:
 
     def _amounts(self, done: float) -> str:
         """``42% 3.1 s / 7.4 s``, ``done`` clamped to 0 .. total: past the total it shows 100 % and the total, so the
-        amount never goes past the total and then back at :meth:`close`."""
+        amount never goes past the total and then back at :meth:`close`. The percentage is rounded down: 100 % only
+        when it is done (99.6 % read "100%" and off a terminal the last line said it again until 8 Dec)."""
         shown = min(self.total, max(0.0, done))
         d = self.decimals
-        return f"{shown / self.total:4.0%} {shown:.{d}f} {self.unit} / {self.total:.{d}f} {self.unit}"
+        percent = int(shown / self.total * 100 + 1e-9)
+        return f"{percent:3d}% {shown:.{d}f} {self.unit} / {self.total:.{d}f} {self.unit}"
 
     def _left(self, done: float, elapsed_s: float) -> str:
         """``, about 17 s left`` once an estimate means something (:data:`ESTIMATE_AFTER_FRACTION`,

@@ -1933,7 +1933,9 @@ def bars_words(report: dict[str, Any]) -> str:
         return ""
     part = report.get("bars")
     if part is not None:  # --bars: the part's length, what was rendered
-        return (f"; bars {part['first']} to {part['last']} of the score ({bars} bar{'' if bars == 1 else 's'}, "
+        which = (f"bar {part['first']}" if part["first"] == part["last"]  # one bar: not "bars 14 to 14"
+                 else f"bars {part['first']} to {part['last']}")
+        return (f"; {which} of the score ({bars} bar{'' if bars == 1 else 's'}, "
                 f"{beats:g} beat{'' if beats == 1 else 's'})")
     return f"; the score: {bars} bar{'' if bars == 1 else 's'} ({beats:g} beat{'' if beats == 1 else 's'})"
 

@@ -21,7 +21,11 @@ from common.score.summary import score_length
 EARLY_S = 0.05
 """A note up to this long (seconds) before a bar line is the bar's, not the one before: a flam's grace note, a drummer
 playing ahead of the beat (Groove's performances are up to tens of milliseconds early); a part's first note may then
-lie that much before its score time 0."""
+lie that much before its score time 0. At a bar line the window is at most :data:`EARLY_NOTE_BEATS` at the local
+tempo: until 8 Dec a 32nd note at 180 bpm (42 ms) before a bar line moved to the next bar's part."""
+EARLY_NOTE_BEATS = 1 / 16
+"""A 64th note (quarter notes): the longest a note may lie before a bar line and be that bar's, shorter than any
+written note before it (a 32nd's 1/8 beat) at any tempo."""
 SCORE_ATTRIBUTES = ("grip", "nuance", "kit", "kit_line")
 """A text score's directives: attributes, not fields (kept by the part, as :func:`batteur.render.scale_tempo` keeps
 them)."""
@@ -77,21 +81,32 @@ def _part_bar_lines(score: Score, start_pos: float, end_pos: float) -> tuple[np.
     return lines, counted
 
 
+def _early_s(score: Score, position: float) -> float:
+    """How long (seconds) before the bar line at beat ``position`` a note is still that bar's: :data:`EARLY_S`, at
+    most :data:`EARLY_NOTE_BEATS` at the tempo just before the line (at the score's start: just after it)."""
+    line = seconds_at_beat(score, position)
+    if position < EARLY_NOTE_BEATS:
+        return min(EARLY_S, seconds_at_beat(score, position + EARLY_NOTE_BEATS) - line)
+    return min(EARLY_S, line - seconds_at_beat(score, position - EARLY_NOTE_BEATS))
+
+
 def bar_part(score: Score, bars: tuple[int, int], name: str) -> tuple[Score, float, float]:
     """The part of ``score`` (its file's ``name`` in an error) from the start of bar ``bars[0]`` to the end of bar
     ``bars[1]`` (counted as :func:`common.score.bars.counted_bars` counts them), and where it lies in the whole score
     (start, end score seconds). The part's score time 0 is the first bar's start; it holds the notes from
-    :data:`EARLY_S` before it to :data:`EARLY_S` before the last bar's end, its beats and its bar lines.
+    :func:`_early_s` before it to :func:`_early_s` before the last bar's end (to the end itself for the score's last
+    bar), its beats and its bar lines.
     :class:`UsageError` (exit 2) for bars the score does not have."""
     low, high = counted_bars(score)  # to the bar of the last note ...
     length = score_length(score)
     if length is not None:  # ... or to the score's end, as `python -m common.score` counts them (empty bars there)
         high = max(high, low + length[1] - 1)
     first, last = bars
+    given = f"{first}" if first == last else f"{first}-{last}"  # as one bar is given: not "--bars 5-5"
     if len(score.beats) < 2 or high < low:
-        raise UsageError(f"--bars {first}-{last}: {name} has no bars to count (no beats or no notes)")
+        raise UsageError(f"--bars {given}: {name} has no bars to count (no beats or no notes)")
     if not low <= first <= last <= high:
-        raise UsageError(f"--bars {first}-{last}: {name} has bars {low} to {high} (`python -m common.score {name}` "
+        raise UsageError(f"--bars {given}: {name} has bars {low} to {high} (`python -m common.score {name}` "
                          "lists them)")
     start, end = _bar_seconds(score, first, low)[0], _bar_seconds(score, last, low)[1]
     beats = np.asarray(score.beats, dtype=float)
@@ -101,8 +116,14 @@ def bar_part(score: Score, bars: tuple[int, int], name: str) -> tuple[Score, flo
     kept_beats = beats[origin:][beats[origin:] <= end + 1e-9]
     bar_beats, units = _part_bar_lines(score, start_pos, end_pos)
 
+    early_start, early_end = _early_s(score, start_pos), _early_s(score, end_pos)
+    to_the_end = last == high  # the score's last bar: its notes are nobody else's, keep them all (until 8 Dec its
+    # last note, inside EARLY_S of the end, was left out)
+
     def inside(time: float) -> bool:
-        return start - EARLY_S <= time < end - EARLY_S
+        if time < start - early_start:
+            return False
+        return time <= end + 1e-9 if to_the_end else time < end - early_end
 
     part = dataclasses.replace(
         score,

@@ -182,6 +182,10 @@ class SegmentResult:
     """The drummer controller's counters (``batteur.render.controller_counts``: limit violations, torque-saturated
     DOF-steps) grown by the steps in its own window, [start_s, end_s): not its lead-in or overhang, which the
     segments before and after own (empty: no drummer)."""
+    warnings: list[str] = field(default_factory=list)
+    """The warnings its cores logged (``batteur.render.KEPT_LOGGERS``: physics' joint limits from ``--limits-from``,
+    ...), for the parent to say once and keep in report.json (until 8 Dec each worker printed them and report.json
+    had none)."""
 
 
 log = logging.getLogger("batteur.render")
@@ -383,6 +387,8 @@ def _log_given_up(futures: dict[Future[SegmentResult], Segment]) -> None:
 _channels: tuple[Any, Any] = (None, None)
 """In a segment worker: the parent's progress queue and stop event (:func:`_start_worker`)."""
 _terminated = False
+_worker_warnings: list[str] = []
+"""In a segment worker: the warnings logged while its current segment runs (:func:`_run_in_worker`)."""
 """In a segment worker: it got SIGTERM (:func:`_note_sigterm`); its segment ends at the next check."""
 
 
@@ -405,11 +411,17 @@ def _start_worker(progress: Any, stop: Any) -> None:
     if hasattr(signal, "pthread_sigmask"):
         signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})
     _channels = (progress, stop)
+    from batteur.render import KEPT_LOGGERS, _KeptWarnings
+
+    for name in KEPT_LOGGERS:  # kept for the parent, not printed here (once per worker, and not in report.json)
+        logging.getLogger(name).addHandler(_KeptWarnings(_worker_warnings, show=False))
 
 
 def _run_in_worker(plan: GesturePlan, kit: Kit, opts: RenderOptions, segment: Segment) -> SegmentResult:
-    """:func:`run_segment` with the worker's progress queue and stop event."""
-    return run_segment(plan, kit, opts, segment, *_channels)
+    """:func:`run_segment` with the worker's progress queue and stop event, and the warnings logged meanwhile."""
+    _worker_warnings.clear()
+    result = run_segment(plan, kit, opts, segment, *_channels)
+    return dataclasses.replace(result, warnings=list(_worker_warnings))
 
 
 @contextlib.contextmanager
@@ -542,6 +554,8 @@ class _Player:
         self.settings: dict[str, Any] = {}
         self.check: Callable[[float], None] | None = None
         """Called at each step of the play (rig seconds): raises to stop it (a Ctrl-C)."""
+        self.warned: set[str] = set()
+        """The workers' warnings said so far: each segment's cores say the same ones, said once."""
 
     def add(self, result: SegmentResult) -> None:
         """A segment is done: merge it and those after it that were waiting for it."""
@@ -560,6 +574,10 @@ class _Player:
                 self.counters[name] = self.counters.get(name, 0) + n
             if r.index == 0:
                 self.settings = r.settings
+            for message in r.warnings:  # logged here: the render's kept_warnings prints and keeps it
+                if message not in self.warned:
+                    self.warned.add(message)
+                    log.warning("%s", message)
             self._next += 1
 
     def advance(self) -> None:

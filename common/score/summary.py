@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from common.score.events import Score
-from common.score.position import seconds_at_beat
+from common.score.position import pickup, seconds_at_beat
 
 LISTED_CHANGES = 6
 """The most tempo or time signature changes the header lists one by one (more: counted, with their range)."""
@@ -29,12 +29,14 @@ RAMP_STEP_RATIO = 3.0
 
 def score_length(score: Score) -> tuple[float, int] | None:
     """(beats, bars) of ``score`` up to its end (:attr:`Score.end_beat`: a text score's last bar, a MIDI file's end
-    of track): beats in quarter notes to a hundredth, the bars starting before the end; None when its reader does
-    not know its end (a live or performed score)."""
+    of track): beats in quarter notes to a hundredth from its first bar line (a part of a score starting inside a
+    beat, ``batteur render --bars 2`` of a 7/8 file, counts from there: 4.0 beats for 3.5 until 8 Dec), the bars
+    starting before the end; None when its reader does not know its end (a live or performed score)."""
     if score.end_beat is None:
         return None
-    end = round(score.end_beat, 2)
-    return end, int(np.count_nonzero(np.asarray(score.bar_beats) < end - 1e-9))
+    starts = np.asarray(score.bar_beats, dtype=float)
+    first = float(starts[0]) if len(starts) and starts[0] > 0 else 0.0
+    return round(score.end_beat - first, 2), int(np.count_nonzero(starts < score.end_beat - 1e-9))
 
 
 def _bars(score: Score) -> list[tuple[float, float, float]]:
@@ -135,18 +137,25 @@ def meter_changes(score: Score) -> list[tuple[float, str]]:
 
 def bar_at(score: Score, beat: float) -> str:
     """``bar 3`` (from 1) for a bar's first beat, ``bar 3, beat 2.5`` (beats from 1, in the bar's counted note)
-    inside it; bars of 4 quarter notes for a score without bars."""
+    inside it, counted as :func:`common.score.position.counted_bar_beat` counts (after a pick-up the first full bar
+    is bar 1, the pick-up bar 0: until 8 Dec a change was said a bar too late there); bars of 4 quarter notes for a
+    score without bars."""
     starts = np.asarray(score.bar_beats, dtype=float)
     if not len(starts) or beat < starts[0]:
         bar, inside, unit = int(beat // 4), beat % 4, 1.0
-    else:
-        bar = int(np.searchsorted(starts, beat + 1e-9, side="right")) - 1
-        inside = beat - float(starts[bar])
-        units = np.asarray(score.bar_units, dtype=float)
-        unit = float(units[bar]) if bar < len(units) and units[bar] > 0 else 1.0
+        return f"bar {bar + 1}" if abs(inside) < 1e-6 else f"bar {bar + 1}, beat {_number(inside / unit + 1)}"
+    bar = int(np.searchsorted(starts, beat + 1e-9, side="right")) - 1
+    inside = beat - float(starts[bar])
+    units = np.asarray(score.bar_units, dtype=float)
+    unit = float(units[bar]) if bar < len(units) and units[bar] > 0 else 1.0
+    short = pickup(score)
+    number = bar if short is not None else bar + 1
+    if short is not None and bar == 0:  # a pick-up's beats are the end of a full bar
+        inside += short[1] - short[0]
+        unit = float(units[1]) if len(units) > 1 and units[1] > 0 else 1.0
     if abs(inside) < 1e-6:
-        return f"bar {bar + 1}"
-    return f"bar {bar + 1}, beat {_number(inside / unit + 1)}"
+        return f"bar {number}"
+    return f"bar {number}, beat {_number(inside / unit + 1)}"
 
 
 def _listed(changes: list[str], total: int) -> str:

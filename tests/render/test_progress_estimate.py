@@ -169,3 +169,14 @@ def test_no_stderr_at_all_is_quiet(monkeypatch: pytest.MonkeyPatch, clock: _Cloc
     bar.update(5.0)
     bar.close()
     assert not bar.enabled and not bar.logging
+
+
+def test_off_a_terminal_100_percent_is_said_once_when_done(clock: _Clock) -> None:
+    """A line printed at 99.6 % says 99 %, and the last line at the end says 100 % (until 8 Dec both said 100 %)."""
+    log = io.StringIO()
+    bar = Progress("rendering x", 10.0, stream=log)
+    clock.now += 40.0
+    bar.update(9.96)
+    bar.close()
+    lines = log.getvalue().splitlines()
+    assert [line.split(": ")[1].split()[0] for line in lines] == ["99%", "100%"], lines

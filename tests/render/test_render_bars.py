@@ -9,6 +9,7 @@ import dataclasses
 import json
 from pathlib import Path
 
+import mido
 import pytest
 
 from batteur import render
@@ -93,7 +94,8 @@ def test_a_note_played_just_before_the_bar_line_is_the_bars(tmp_path: Path) -> N
 
 @pytest.mark.parametrize(("bars", "says"), [
     ("5-6", "--bars 5-6: song.txt has bars 1 to 4 (`python -m common.score song.txt` lists them)"),
-    ("0", "--bars 0-0: song.txt has bars 1 to 4"),
+    ("0", "--bars 0: song.txt has bars 1 to 4"),  # one bar as given: "--bars 0-0" until 8 Dec
+    ("5", "--bars 5: song.txt has bars 1 to 4"),
     ("3-2", "--bars 3-2: the range ends (bar 2) before it starts (bar 3): give 2-3"),
     ("two", "--bars 'two': a bar or a range of bars as `python -m common.score SCORE` counts them"),
 ])
@@ -105,3 +107,45 @@ def test_bars_the_score_does_not_have_are_one_line_exit_2(tmp_path: Path, capsys
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith(f"batteur render: error: {says}"), err
     assert not out.exists()  # refused before anything was written
+
+
+def _midi(path: Path, numerator: int, denominator: int, bpm: float, ticks: list[int], end: int) -> Path:
+    """One drum track: a snare at each of ``ticks`` (480 a quarter note), the file ending at tick ``end``."""
+    track = mido.MidiTrack([mido.MetaMessage("time_signature", numerator=numerator, denominator=denominator),
+                            mido.MetaMessage("set_tempo", tempo=mido.bpm2tempo(bpm))])
+    last = 0
+    for tick in ticks:
+        track.append(mido.Message("note_on", channel=9, note=38, velocity=100, time=tick - last))
+        track.append(mido.Message("note_off", channel=9, note=38, velocity=0, time=60))
+        last = tick + 60
+    track.append(mido.MetaMessage("end_of_track", time=max(end - last, 0)))
+    mid = mido.MidiFile(type=1, ticks_per_beat=480)
+    mid.tracks.append(track)
+    mid.save(str(path))
+    return path
+
+
+def test_fast_notes_at_a_bar_line_stay_in_their_bar(tmp_path: Path) -> None:
+    """Two bars of 32nd notes at 180 bpm (42 ms apart): each bar's part holds its 32 notes, from its bar line, and
+    the two bars together all 64 (until 8 Dec a note within 50 ms before a bar line was the next bar's: bar 1 had
+    31, bar 2 a pick-up at -0.042 s, and bars 1-2 lost the score's last note)."""
+    score = read_score(_midi(tmp_path / "E_32nds_180.mid", 4, 4, 180, [k * 60 for k in range(64)], 8 * 480))
+    for bars, count in (((1, 1), 32), ((2, 2), 32), ((1, 2), 64)):
+        part, _, _ = bar_part(score, bars, "E_32nds_180.mid")
+        assert len(part.events) == count, bars
+        assert part.events[0].time == pytest.approx(0.0, abs=1e-9), bars
+
+
+def test_a_part_starting_inside_a_beat_counts_its_beats_from_its_bar_line(tmp_path: Path) -> None:
+    """Bar 2 of a 7/8 file starts half a beat into beat 4: report.json's score_beats is its 3.5 quarter notes (4.0
+    until 8 Dec, counted from the beat before its bar line)."""
+    score = read_score(_midi(tmp_path / "B_7_8.mid", 7, 8, 120, [k * 240 for k in range(28)], 14 * 480))
+    for bars, length in (((2, 2), (3.5, 1)), ((2, 3), (7.0, 2)), ((1, 4), (14.0, 4))):
+        assert score_length(bar_part(score, bars, "B_7_8.mid")[0]) == length, bars
+
+
+def test_one_bar_is_said_bar_n_not_bars_n_to_n() -> None:
+    report = {"score_beats": 3.0, "score_bars": 1, "bars": {"first": 14, "last": 14}}
+    assert render.bars_words(report) == "; bar 14 of the score (1 bar, 3 beats)"
+    report["bars"] = {"first": 2, "last": 3}
+    assert render.bars_words(report) == "; bars 2 to 3 of the score (1 bar, 3 beats)"

@@ -39,13 +39,23 @@ def test_report_json_says_each_joints_limit_formulation(tmp_path: Path, caplog: 
     assert len(said) == 1 and "right_shoulder" in said[0]
 
 
-def test_a_segmented_render_reports_them_too(tmp_path: Path) -> None:
-    """``--jobs 2``: each segment's drummer is built in a worker process; its limits reach report.json alike."""
+def test_a_segmented_render_reports_them_too(tmp_path: Path, capfd: pytest.CaptureFixture[str],
+                                             caplog: pytest.LogCaptureFixture) -> None:
+    """``--jobs 2``: each segment's drummer is built in a worker process; its limits reach report.json alike, and
+    the workers' warning about them is said once and kept in report.json's warnings (until 8 Dec each worker
+    printed it and report.json's warnings were empty)."""
     score = tmp_path / "snare.txt"
     score.write_text(SCORE, encoding="utf-8")
     out = tmp_path / "out"
-    assert render.main([str(score), "-o", str(out), "--quiet", "--limits-from", "punch", "--jobs", "2"]) == 0
+    assert render.main([str(score), "-o", str(out), "--quiet", "--limits-from", "punch", "--jobs", "2",
+                        "--segment", "1"]) == 0
     report = json.loads((out / "report.json").read_text(encoding="utf-8"))
+    assert report["physics"]["segments"]["jobs"] == 2
+    kept = [w for w in report["warnings"] if w.startswith("joint limits from punch: ")]
+    assert len(kept) == 1 and "right_shoulder" in kept[0]
+    said = [r.getMessage() for r in caplog.records if r.getMessage().startswith("joint limits from punch: ")]
+    assert len(said) == 1  # by the parent, which prints it (to stderr) when logging has no handler
+    assert "joint limits from punch: " not in capfd.readouterr().err  # not by each worker
     assert "segments" in report["physics"]
     limits = report["physics"]["joint_limits"]
     assert limits["right_shoulder"]["formulation"] == "euler" and limits["right_ankle"]["source"] == "mocap+symmetric"

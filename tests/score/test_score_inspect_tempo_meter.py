@@ -10,6 +10,8 @@ import mido
 import pytest
 
 from common.score.__main__ import main
+from common.score.position import counted_bar_beat
+from common.score.text import read_score
 
 TPB = 480
 
@@ -121,3 +123,17 @@ def test_a_last_bar_in_a_shorter_meter_is_said_in_it(tmp_path: Path, capsys: pyt
     assert _header(path, capsys)[2] == "time signature: 4/4; time signature changes: 1: 2/4 at bar 2"
     path.write_text("tempo 120\nmeter 4/4\nSN |xxxx|\nrest 2\n")  # a closing half-bar rest: still 4/4
     assert _header(path, capsys)[2] == "time signature: 4/4"
+
+
+def test_after_a_pick_up_changes_are_said_at_the_bars_render_bars_counts(tmp_path: Path,
+                                                                          capsys: pytest.CaptureFixture[str]) -> None:
+    """A beat of pick-up (bar 0), then 4/4 from bar 1, 90 bpm from bar 3 (beat 9), as `batteur render --bars` and the
+    issue lines count; until 8 Dec the header said "90 bpm at bar 4" and "4/4 at bar 2"."""
+    path = _midi(tmp_path / "pickup.mid", [
+        (0, mido.MetaMessage("time_signature", numerator=1, denominator=4)), (0, _tempo(120)),
+        (TPB, mido.MetaMessage("time_signature", numerator=4, denominator=4)), (9 * TPB, _tempo(90))], beats=17)
+    header = _header(path, capsys)
+    assert header[1].endswith(": 90 bpm at bar 3"), header
+    assert header[2] == "time signature: 1/4; time signature changes: 1: 4/4 at bar 1", header
+    score = read_score(path)
+    assert counted_bar_beat(score, score.beats[9])[:2] == (3, 1.0)  # the same bar as the render and issues say
