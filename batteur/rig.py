@@ -52,6 +52,7 @@ import asyncio
 import contextlib
 import ctypes
 import errno
+import hashlib
 import ipaddress
 import os
 import re
@@ -68,6 +69,7 @@ from typing import TYPE_CHECKING, Any, TextIO
 
 from batteur.errors import FAILED, USAGE, UsageError, report_error
 from common.arg_types import non_negative, positive, seconds, take_negative_values, whole
+from common.config import DEFAULT_RIG
 from common.input_file import file_problem
 from common.output_paths import check_output_dir, point_at_devnull
 from common.score.midi_options import add_midi_arguments, midi_read_kwargs, midi_service_args
@@ -375,9 +377,12 @@ def plan_rig(opts: argparse.Namespace, epoch: float, environ: Mapping[str, str] 
     # where each listens: the rig's --host, or the last one its --ROLE-arg gives (as argparse keeps it)
     hosts = {role: ServicePlan(role, ports[role], ["--host", opts.host, *own[role]]).host for role in roles}
     check_families(hosts, opts.host)
+    # the rig name the services announce: --rig, else their BATTEUR_RIG (one a service would refuse: not in the id)
+    env_rig = (os.environ if environ is None else environ).get("BATTEUR_RIG", "")
+    id_rig = getattr(opts, "rig", None) or (env_rig if re.fullmatch(r"[A-Za-z0-9_.-]{1,32}", env_rig) else DEFAULT_RIG)
     plans: list[ServicePlan] = []
     for role in roles:
-        args = ["--host", opts.host, "--epoch", repr(epoch), "--node-id", rig_node_id(role, opts.base_port)]
+        args = ["--host", opts.host, "--epoch", repr(epoch), "--node-id", rig_node_id(role, opts.base_port, id_rig)]
         if getattr(opts, "rig", None):  # else the services' own BATTEUR_RIG, or the one shared default
             args += ["--rig", opts.rig]
         if not opts.no_static_peers:
@@ -425,13 +430,18 @@ def rig_name(text: str) -> str:
     return text
 
 
-def rig_node_id(role: str, base_port: int) -> str:
-    """The node id of the rig's ``role`` service: ``ROLE-HOSTNAME-rigPORT`` (at most 64 characters). Unique per
-    machine (its host name) and per rig on it (its base port): until 8 Dec it was ``ROLE-rigPORT``, so two classes'
-    rigs on one network announced the same names; the second's discovery failed to start, and their sound nodes
-    took the two physics nodes for one, switching clocks between them."""
-    host = re.sub(r"[^A-Za-z0-9_.-]+", "-", socket.gethostname().split(".")[0]).strip("-.") or "host"
-    suffix = f"-rig{base_port}"
+def rig_node_id(role: str, base_port: int, rig: str = DEFAULT_RIG) -> str:
+    """The node id of the rig's ``role`` service: ``ROLE-HOSTNAME-rigPORT``, ``ROLE-HOSTNAME-RIG-rigPORT`` for a rig
+    not of the default name (at most 64 characters: the host part is shortened). Unique per machine (its host name),
+    per rig on it (its base port) and per ``--rig``: until 8 Dec it was ``ROLE-rigPORT``, so two classes' rigs on one
+    network announced the same names; the second's discovery failed to start. Laptops imaged alike share a host name
+    (``ubuntu``): the rig name tells their nodes apart. A host name whose characters were replaced (not letters,
+    digits, ``_ . -``) gets a short hash of the raw name: every all-non-ASCII name would otherwise be ``host``."""
+    raw = socket.gethostname().split(".")[0]
+    host = re.sub(r"[^A-Za-z0-9_.-]+", "-", raw).strip("-.") or "host"
+    if host != raw:
+        host += "-" + hashlib.blake2s(raw.encode("utf-8", "surrogateescape"), digest_size=3).hexdigest()
+    suffix = (f"-{rig}" if rig != DEFAULT_RIG else "") + f"-rig{base_port}"
     return f"{role}-{host}"[: 64 - len(suffix)] + suffix
 
 

@@ -38,7 +38,7 @@ def test_a_node_far_under_its_target_rate_is_behind_in_the_table(capsys: pytest.
     assert code == 0  # it answered
     header, row = out.splitlines()
     assert "rate/target Hz" in header and "late" in header
-    assert row.split()[3:6] == ["behind", "5.5/1000", "16513"], row
+    assert row.split()[4:7] == ["behind", "5.5/1000", "16513"], row
 
 
 def test_the_json_status_says_behind(capsys: pytest.CaptureFixture[str]) -> None:
@@ -61,7 +61,7 @@ def test_the_json_status_says_behind(capsys: pytest.CaptureFixture[str]) -> None
 def test_the_rule(rate: float, target: float, status: str, shown: str, capsys: pytest.CaptureFixture[str]) -> None:
     code, out = listed(PHYSICS.model_copy(update={"rate_hz": rate, "target_rate_hz": target, "late": 0}), capsys)
     assert code == 0
-    assert out.splitlines()[1].split()[3:5] == [status, shown]
+    assert out.splitlines()[1].split()[4:6] == [status, shown]
 
 
 def test_the_help_says_the_rule(capsys: pytest.CaptureFixture[str]) -> None:
@@ -79,6 +79,6 @@ def test_the_skipped_steps_are_a_column_and_in_the_json(capsys: pytest.CaptureFi
     code, out = listed(behind, capsys)
     header, row = out.splitlines()
     assert code == 0
-    assert header.split()[7:9] == ["late", "skipped"] and row.split()[5:7] == ["16513", "123456"], (header, row)
+    assert header.split()[8:10] == ["late", "skipped"] and row.split()[6:8] == ["16513", "123456"], (header, row)
     code, out = listed(behind, capsys, "--json")
     assert json.loads(out)[0]["skipped_steps"] == 123456

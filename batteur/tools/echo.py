@@ -27,11 +27,15 @@ from batteur.tools.nodes import (
     BROWSE_S,
     INTERFACE_HELP,
     INTERRUPTED,
+    RIG_HELP,
     OutputClosed,
     Target,
     bind_address,
     browse_interfaces,
+    chosen_rig,
     find_targets,
+    left_out_text,
+    of_rig,
     run_tool,
     target_networks,
     where_browsed,
@@ -287,7 +291,10 @@ def _key(message: OscMessage) -> tuple[object, ...]:
 
 async def _run(opts: argparse.Namespace, subscribe: Subscribe) -> int:
     interfaces, source = browse_interfaces(opts.interface)
-    targets = await find_targets(opts.node, opts.browse, interfaces)
+    rig = chosen_rig(opts.rig)
+    targets, others = of_rig(await find_targets(opts.node, opts.browse, interfaces), rig)
+    if others:  # on stderr: another class's nodes on the network, said so a missing node is not a mystery
+        print(f"batteur echo: {left_out_text(others, rig)}", file=sys.stderr, flush=True)
     if not targets:
         return report_error("batteur echo", f"no nodes found {where_browsed(interfaces, source)} within "
                             f"{opts.browse:g} s (start one, or give --node HOST:PORT)")
@@ -400,6 +407,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--node", action="append", default=[], metavar="HOST:PORT",
                         help="subscribe at this node instead of browsing (repeatable)")
     parser.add_argument("--interface", action="append", default=[], help=f"interface to browse on: {INTERFACE_HELP}")
+    parser.add_argument("--rig", default=None, metavar="NAME", help=RIG_HELP)
     parser.add_argument("--browse", type=seconds, default=BROWSE_S, help=BROWSE_HELP)
     parser.add_argument("--count", type=count, default=0, help="stop after this many messages (default: no limit)")
     parser.add_argument("--duration", type=seconds, default=None,

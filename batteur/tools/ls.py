@@ -23,10 +23,14 @@ from batteur.tools.nodes import (
     BROWSE_HELP,
     BROWSE_S,
     INTERFACE_HELP,
+    RIG_HELP,
     Target,
     bind_address,
     browse_interfaces,
+    chosen_rig,
     find_targets,
+    left_out_text,
+    of_rig,
     run_tool,
     target_networks,
     where_browsed,
@@ -227,7 +231,8 @@ def match_answers(targets: Sequence[Target], answers: dict[str, Health]) -> list
 
 
 def _row(target: Target, health: Health | None, clock: ClockStatus | None = None) -> dict[str, object]:
-    row: dict[str, object] = {"role": target.role, "node_id": target.node_id, "address": target.address}
+    row: dict[str, object] = {"role": target.role, "rig": target.rig or None, "node_id": target.node_id,
+                              "address": target.address}  # rig None: a node given as HOST:PORT (not announced)
     if not target.ip:
         row["status"] = "no address"
         row["announced"] = list(target.announced)
@@ -255,12 +260,12 @@ def _row(target: Target, health: Health | None, clock: ClockStatus | None = None
 
 def table(rows: Sequence[dict[str, object]]) -> list[str]:
     """The rows as aligned text lines, a header first."""
-    lines = [f"{'role':<12} {'node id':<28} {'address':<22} {'status':<10} {'rate/target Hz':>14} {'late':>6} "
-             f"{'skipped':>8} {'dropped':>8} {'errors':>6} {'peers':>5} clock"]
+    lines = [f"{'role':<12} {'rig':<10} {'node id':<28} {'address':<22} {'status':<10} {'rate/target Hz':>14} "
+             f"{'late':>6} {'skipped':>8} {'dropped':>8} {'errors':>6} {'peers':>5} clock"]
     for r in rows:
-        lines.append(f"{r['role']!s:<12} {r['node_id']!s:<28} {r['address']!s:<22} {r['status']!s:<10} "
-                     f"{rate_text(r):>14} {r.get('late', '')!s:>6} {r.get('skipped_steps', '')!s:>8} "
-                     f"{r.get('dropped', '')!s:>8} "
+        lines.append(f"{r['role']!s:<12} {r.get('rig') or '?'!s:<10} {r['node_id']!s:<28} {r['address']!s:<22} "
+                     f"{r['status']!s:<10} {rate_text(r):>14} {r.get('late', '')!s:>6} "
+                     f"{r.get('skipped_steps', '')!s:>8} {r.get('dropped', '')!s:>8} "
                      f"{r.get('errors', '')!s:>6} {r.get('peers', '')!s:>5} {r.get('clock', '')!s}".rstrip())
     return lines
 
@@ -287,7 +292,10 @@ def looked_where(interfaces: Sequence[str], source: str, browse_s: float) -> str
 
 async def _run(opts: argparse.Namespace) -> int:
     interfaces, source = browse_interfaces(opts.interface)
-    targets = await find_targets(opts.node, opts.browse, interfaces)
+    rig = chosen_rig(opts.rig)
+    targets, others = of_rig(await find_targets(opts.node, opts.browse, interfaces), rig)
+    if others:  # on stderr: another class's nodes on the network, said so a missing node is not a mystery
+        print(f"batteur ls: {left_out_text(others, rig)}", file=sys.stderr, flush=True)
     if not targets:
         return report_error("batteur ls", f"no nodes found {where_browsed(interfaces, source)} within "
                             f"{opts.browse:g} s (start one, or give --node HOST:PORT)")
@@ -308,6 +316,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--node", action="append", default=[], metavar="HOST:PORT",
                         help="ask this node instead of browsing (repeatable)")
     parser.add_argument("--interface", action="append", default=[], help=f"interface to browse on: {INTERFACE_HELP}")
+    parser.add_argument("--rig", default=None, metavar="NAME", help=RIG_HELP)
     parser.add_argument("--browse", type=seconds, default=BROWSE_S, help=BROWSE_HELP)
     parser.add_argument("--timeout", type=seconds, default=2.0, help="seconds to wait for health answers (default 2)")
     parser.add_argument("--json", action="store_true", help="print JSON instead of a table")

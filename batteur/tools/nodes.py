@@ -7,11 +7,12 @@ import ipaddress
 import os
 import socket
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import TextIO
 
 from batteur.errors import FAILED, INTERRUPTED, USAGE, report_error
+from common.config import DEFAULT_RIG
 from common.output_paths import point_at_devnull
 from common.transport import format_address, parse_address
 
@@ -25,6 +26,11 @@ BROWSE_S = 3.0
 seconds (``--browse``): less than 2 can miss nodes, more so on a loaded machine."""
 BROWSE_HELP = f"seconds to browse for nodes (default {BROWSE_S:g}; less than 2 can miss nodes)"
 """What ``--browse`` says in the help of every tool that browses."""
+RIG_ENV = "BATTEUR_RIG"
+"""The nodes' own setting (docs/runtime.md): the rig they belong to; the tools find the nodes of one rig."""
+RIG_HELP = (f"the rig whose nodes to find (default: BATTEUR_RIG if set, else {DEFAULT_RIG}, a node's own default); "
+            "nodes of another rig (another class on the network) are left out, as the nodes themselves ignore them")
+"""What ``--rig`` says in the help of every tool that browses."""
 
 
 def browse_interfaces(given: Sequence[str]) -> tuple[list[str], str]:
@@ -58,6 +64,8 @@ class Target:
     """Numeric address the tool sends to ('' when unreachable)."""
     announced: tuple[str, ...] = ()
     """Every address the node announced (discovered nodes)."""
+    rig: str = ""
+    """The rig the node announced ('' for a node given as ``HOST:PORT``: not known)."""
 
     @property
     def address(self) -> str:
@@ -175,7 +183,7 @@ async def browse_targets(timeout_s: float, interfaces: Sequence[str] | None) -> 
     from common.discovery import browse_nodes  # zeroconf only when asked to browse
 
     found = await browse_nodes(timeout_s, list(interfaces) if interfaces else None)
-    targets = [Target(n.host, n.port, n.role, n.node_id, announced=n.addresses) for n in found]
+    targets = [Target(n.host, n.port, n.role, n.node_id, announced=n.addresses, rig=n.rig) for n in found]
     return [replace(t, ip=t.host) if t.host else t for t in targets]
 
 
@@ -185,3 +193,26 @@ async def find_targets(nodes: Sequence[str], timeout_s: float, interfaces: Seque
     if nodes:
         return unique([parse_node(n) for n in nodes])
     return unique(await browse_targets(timeout_s, interfaces))
+
+
+def chosen_rig(given: str | None, environ: Mapping[str, str] | None = None) -> str:
+    """The rig a tool looks for: ``--rig`` (``given``), else ``BATTEUR_RIG`` of ``environ`` (None: the tool's), else
+    the default rig name, as a node started in the same shell would pick."""
+    env = os.environ if environ is None else environ
+    return given or env.get(RIG_ENV) or DEFAULT_RIG
+
+
+def of_rig(targets: Sequence[Target], rig: str) -> tuple[list[Target], list[Target]]:
+    """``targets`` split into those of ``rig`` (and those given as ``HOST:PORT``, of no known rig) and the others:
+    until 8 Dec ``ls`` listed, and ``send --to ROLE`` started, another class's nodes on the same network."""
+    kept = [t for t in targets if t.rig in ("", rig)]
+    return kept, [t for t in targets if t.rig not in ("", rig)]
+
+
+def left_out_text(others: Sequence[Target], rig: str) -> str:
+    """What the tools say of the nodes of other rigs they left out ('' when none)."""
+    if not others:
+        return ""
+    rigs = ", ".join(sorted({t.rig for t in others}))
+    return (f"{len(others)} node(s) of other rigs ({rigs}) left out: this is rig {rig} "
+            f"(--rig NAME or {RIG_ENV} to look at another)")

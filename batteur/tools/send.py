@@ -29,9 +29,13 @@ from batteur.tools.nodes import (
     BROWSE_HELP,
     BROWSE_S,
     INTERFACE_HELP,
+    RIG_HELP,
     Target,
     browse_interfaces,
     browse_targets,
+    chosen_rig,
+    left_out_text,
+    of_rig,
     resolve_host,
     run_tool,
     unique,
@@ -335,21 +339,23 @@ def check_raw_address(address: str) -> None:
         raise ValueError(f"{address!r} is not an OSC address: '/'-separated parts of printable ASCII{why}")
 
 
-def _resolve(target: str, browse_s: float, interfaces: Sequence[str]) -> list[tuple[str, int]]:
+def _resolve(target: str, browse_s: float, interfaces: Sequence[str], rig: str) -> list[tuple[str, int]]:
     """``host:port`` as given, or the nodes of a role discovery finds within ``browse_s`` seconds (as ``batteur ls``
     and ``echo`` browse: :func:`~batteur.tools.nodes.browse_targets`) on ``interfaces`` (``--interface``; none:
-    :func:`~batteur.tools.nodes.browse_interfaces`'s default); ValueError when ``target`` is neither."""
+    :func:`~batteur.tools.nodes.browse_interfaces`'s default), of rig ``rig`` (another class's drummer is not
+    started); ValueError when ``target`` is neither."""
     if ":" in target or target.startswith("["):
         return [parse_address(target)]  # ValueError: a bad host form or a port outside 1-65535
     if not ROLE.fullmatch(target):
         raise ValueError(f"{target!r} is neither HOST:PORT nor a role (physics, sound, ...)")
     browse_on, source = browse_interfaces(interfaces)
-    every = asyncio.run(browse_targets(browse_s, browse_on))
+    every, others = of_rig(asyncio.run(browse_targets(browse_s, browse_on)), rig)
     found = [(t.host, t.port) for t in unique([t for t in every if t.role == target]) if t.host]
     if not found:
         roles = ", ".join(sorted({t.role for t in every})) or "none"
         report_error(PROG, f"no {target} node found {where_browsed(browse_on, source)} within {browse_s:g} s "
-                     f"(roles found: {roles}; --browse to look longer; HOST:PORT needs the port)")
+                     f"(roles found: {roles}; --browse to look longer; HOST:PORT needs the port)"
+                     + (f"; {left_out_text(others, rig)}" if others else ""))
     return found
 
 
@@ -391,6 +397,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="seconds to wait for a node's rig time (+SECONDS) (default 2)")
     parser.add_argument("--interface", action="append", default=[],
                         help=f"interface to look for a role on: {INTERFACE_HELP}")
+    parser.add_argument("--rig", default=None, metavar="NAME", help=f"with --to ROLE: {RIG_HELP}")
     opts = parser.parse_args(argv)
     return run_tool(PROG, lambda: _send(opts))
 
@@ -413,7 +420,7 @@ def _send(opts: argparse.Namespace) -> int:
     if lost is not None:
         return report_error(PROG, lost, USAGE)
     try:
-        targets = _resolve(opts.to, opts.browse, opts.interface)
+        targets = _resolve(opts.to, opts.browse, opts.interface, chosen_rig(opts.rig))
     except ValueError as exc:
         return report_error(PROG, f"--to {one_line(exc)}", USAGE)
     if not targets:

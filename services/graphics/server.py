@@ -64,6 +64,8 @@ EDITOR_MODES = ("local", "all", "off")
 """``--editor``: which pages may use the kit and pose editor: pages opened on this machine, every page, none."""
 EDITOR_MESSAGES = frozenset({"poser_on", "poser", "poser_off", "save_kit", "save_pose"})
 """Page messages of the editor: they drive physics' drummer (``poser`` with ``drive``) or write files."""
+FORWARDING_HEADERS = ("X-Forwarded-For", "Forwarded", "X-Real-IP")
+"""Headers a reverse proxy adds naming the browser it forwards for: a request with one is not local (``--editor``)."""
 EDITOR_OFF = {"off": "the editor is off on this node (graphics --editor off)",
               "local": "the editor is for pages opened on the machine the graphics node runs on; this page shows the "
                        "view only (graphics --editor all opens it to every machine that reaches the page)"}
@@ -173,7 +175,11 @@ class ViewServer:
         self.counters["ws_connects"] += 1
         self.clients.add(connection)
         try:
-            may_edit = self.may_edit(connection.remote_address[0] if connection.remote_address else "")
+            # a page through a reverse proxy on this machine comes from loopback but is not local (a student's
+            # browser): the proxy says so in one of these headers (an SSH tunnel adds none: it counts as local)
+            headers = connection.request.headers if connection.request is not None else {}
+            proxied = any(name in headers for name in FORWARDING_HEADERS)
+            may_edit = self.may_edit(connection.remote_address[0] if connection.remote_address else "", proxied)
             for message in [*self.core.welcome(), self.saving_json(), self.editor_json(may_edit)]:
                 await connection.send(json.dumps(message))
             async for raw in connection:
@@ -210,11 +216,12 @@ class ViewServer:
         return {"type": "saving", "enabled": self.kit_dir is not None,
                 "reason": None if self.kit_dir is not None else SAVING_OFF}
 
-    def may_edit(self, host: str) -> bool:
-        """Whether a page from ``host`` (the connection's remote address) may use the editor (:attr:`editor`)."""
+    def may_edit(self, host: str, proxied: bool = False) -> bool:
+        """Whether a page from ``host`` (the connection's remote address) may use the editor (:attr:`editor`);
+        ``proxied``: the request came through a proxy (:data:`FORWARDING_HEADERS`), so ``host`` is not the page's."""
         if self.editor != "local":
             return self.editor == "all"
-        return is_local(host, self.own_addresses)
+        return not proxied and is_local(host, self.own_addresses)
 
     def editor_json(self, may_edit: bool) -> dict[str, Any]:
         """Whether this page may use the editor (sent at connect; the page hides its editor button if not)."""

@@ -88,13 +88,16 @@ HIHAT_TICK_UNTIL = 0.3
 """Openness up to which a stick on the hi-hat also ticks (the plates held together click under it), at full level
 closed and fading linearly to nothing here, so a hat opened a little ticks a little (it was all or nothing at
 0.3)."""
-CHICK_SPEED_SCALE = 0.3
-"""A hi-hat pedal chick (zone ``pedal``) sounds as a plate clash at this share of the top plate's speed: the plates
-close at about the pedal toe's speed (0.8-2.3 m/s for score velocities 0.1-1 on the default kit since 8 Dec,
-0.14-0.40 m/s before), and a chick stays below a stick stroke of its velocity (modal peaks: a loud chick at 2.3 m/s
--24 dB, between 1 and 2 m/s stick strokes on the closed hat; a velocity-0.6 chick at 1.65 m/s 8 dB below its 2.6
-m/s stick stroke; unscaled, chicks were louder than their stick strokes), louder with its speed, as bright as
-before (its spectrum's centroid stays below the stick's)."""
+CHICK_SPEED_SCALE = {"modal": 0.3, "sample": 2.5, "synth": 3.5}
+"""A hi-hat pedal chick (zone ``pedal``) sounds as a plate clash at this share of the top plate's speed, by sound
+model: the plates close at about the pedal toe's speed (0.8-2.3 m/s for score velocities 0.1-1 on the default kit
+since 8 Dec, 0.14-0.40 m/s before), and a chick stays below a stick stroke of its velocity, louder with its speed,
+no brighter (its spectrum's centroid stays below the stick's). Modal (tuned first): a loud chick (2.3 m/s) 10.5 dB
+below its 6.1 m/s stick stroke, a velocity-0.6 one 6 dB, a velocity-0.2 one 4 dB (unscaled, chicks were louder
+than their stick strokes). Sample and synth at modal's 0.3: a loud chick 40 dB below its stroke, unheard; their
+strokes span more level over the velocities than their chicks do, so one scale cannot match modal's at both ends:
+theirs give the velocity-0.6 chick modal's 6 dB (sample 6.1, synth 5.3), the loud one 13.5-13.7 dB below, the
+velocity-0.2 one 2-3.4 dB below (RMS over 50 ms, tests/sound/test_sound_chick_level.py)."""
 COWBELL_MASS_KG = 0.3
 """Vibrating mass of a cowbell, kg (for presses; its partials have no mode shapes here)."""
 
@@ -849,9 +852,9 @@ class HiHat(Cymbal):
         if openness is not None:
             self.set_openness(openness, pool)  # before this strike's own voices: they are not choked
         if strike.zone == "pedal":
-            # the plates' speed scaled for every model (the impulse with it: the pulse's striker mass is kept)
-            strike = replace(strike, velocity=strike.velocity * CHICK_SPEED_SCALE,
-                             impulse=strike.impulse * CHICK_SPEED_SCALE)
+            # the plates' speed scaled by model (the impulse with it: the pulse's striker mass is kept)
+            scale = CHICK_SPEED_SCALE[self.model]
+            strike = replace(strike, velocity=strike.velocity * scale, impulse=strike.impulse * scale)
         if strike.zone == "pedal" and self.model == "modal":
             # the plates clash: a softer, shorter excitation plus a noise chick
             self.strike_modal(replace(strike, velocity=strike.velocity * 0.5, r=0.9), pool, gain=0.4)

@@ -16,6 +16,7 @@ physics and sound where the test is about discovery and the clock, not about pla
 
 from __future__ import annotations
 
+import json
 import re
 import signal
 import sys
@@ -26,6 +27,7 @@ from pathlib import Path
 import pytest
 
 from batteur import rig as rig_module
+from common.messages import PROTOCOL_VERSION
 from tests.deploy.twohosts import wait_line
 from tests.netns import Namespace, NetnsLab, NsProcess, netns_lab  # noqa: F401  (fixture)
 from tests.test_runtime import NODE_SCRIPT
@@ -51,6 +53,25 @@ def test_rig_node_ids_name_the_machine_and_the_port(monkeypatch: pytest.MonkeyPa
     assert not set(laptop_a.values()) & set(second_rig_on_a.values())
     long_name = _plan_ids(monkeypatch, "x" * 80)
     assert all(len(node_id) <= 64 and node_id.endswith("-rig9101") for node_id in long_name.values())
+
+
+def test_rig_node_ids_tell_two_classes_on_laptops_of_one_host_name_apart(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Laptops imaged alike (``ubuntu``), one rig per class: until 8 Dec both registered the same zeroconf names."""
+    class1 = _plan_ids(monkeypatch, "ubuntu", "--rig", "class1")
+    class2 = _plan_ids(monkeypatch, "ubuntu", "--rig", "class2")
+    assert class1["physics"] == "physics-ubuntu-class1-rig9101"
+    assert not set(class1.values()) & set(class2.values())
+    monkeypatch.setattr(rig_module.socket, "gethostname", lambda: "ubuntu")
+    opts = rig_module.build_parser().parse_args(["--services", "sound"])
+    from_env = rig_module.plan_rig(opts, 1000.0, environ={"BATTEUR_RIG": "class2"})
+    assert rig_module.option_values(from_env[0].args, "--node-id") == [class2["sound"]]
+    assert _plan_ids(monkeypatch, "ubuntu")["sound"] == "sound-ubuntu-rig9101"  # the default rig: ids unchanged
+    long_name = _plan_ids(monkeypatch, "x" * 80, "--rig", "r" * 32)
+    assert all(len(node_id) <= 64 and node_id.endswith("-" + "r" * 32 + "-rig9101") for node_id in long_name.values())
+    # host names of only non-ASCII characters, which used to all become "host"
+    cyrillic, greek = _plan_ids(monkeypatch, "ноутбук"), _plan_ids(monkeypatch, "λάπτοπ")
+    assert not set(cyrillic.values()) & set(greek.values())
+    assert all(node_id.isascii() and len(node_id) <= 64 for node_id in cyrillic.values())
 
 
 def test_rig_gives_its_name_to_every_service_and_refuses_one_for_a_service(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -153,6 +174,42 @@ def test_two_clock_masters_are_warned_of_once_and_another_rigs_are_ignored(
     assert _count(sound, lambda s: "stepped" in s) == 0, "\n".join(sound.errors)
     assert _count(sound, lambda s: "peer physics physics-class2" in s) == 0, "\n".join(sound.errors)
     for proc in (first, second, other_class):
+        assert proc.popen.poll() is None
+
+
+def test_the_tools_find_the_nodes_of_their_rig(netns_lab: NetnsLab, tmp_path: Path) -> None:  # noqa: F811
+    """Two classes on one network, each a physics node of its rig: ``ls`` lists, and ``send --to physics`` starts,
+    the tool's rig's alone (``--rig`` / BATTEUR_RIG); until 8 Dec they saw both classes' nodes."""
+    script = _node_script(tmp_path)
+    one, two = netns_lab.namespace("rigone"), netns_lab.namespace("rigtwo")
+    addr_one, addr_two = netns_lab.bridge([one, two])
+    nodes = [_node(ns, script, "physics", f"physics-{rig}", address, env={"BATTEUR_RIG": rig})
+             for ns, rig, address in ((one, "class1", addr_one), (two, "class2", addr_two))]
+    for proc in nodes:
+        wait_line(proc, lambda s: "discovery" in s.lower() or "running" in s.lower(), 30)
+
+    def tool(*argv: str, rig: str | None) -> NsProcess:
+        proc = one.python("-m", "batteur", *argv, "--interface", addr_one, env={"BATTEUR_RIG": rig or ""})
+        proc.popen.wait(timeout=60)
+        while proc._drain(0.2):
+            pass
+        return proc
+
+    listing = tool("ls", "--json", rig="class1")
+    rows = json.loads("\n".join(listing.lines))
+    assert [(row["node_id"], row["rig"]) for row in rows] == [("physics-class1", "class1")], listing.lines
+    assert "1 node(s) of other rigs (class2) left out" in "\n".join(listing.errors), listing.errors
+    table = tool("ls", "--rig", "class2", rig="class1")  # the flag wins over the environment
+    assert table.lines[0].split()[:3] == ["role", "rig", "node"], table.lines
+    assert [line.split()[:3] for line in table.lines[1:]] == [["physics", "class2", "physics-class2"]], table.lines
+    # a Hello from a tool: the node answers with its Health, which names it
+    hello = ("/batteur/hello", "cli", "tool-send", str(PROTOCOL_VERSION), "0", "--to", "physics", "--replies", "2")
+    sent = tool("send", *hello, rig="class1")
+    answers = "\n".join(sent.lines)
+    assert "physics-class1" in answers and "physics-class2" not in answers, sent.lines + sent.errors
+    nobody = tool("send", *hello, "--rig", "class3", rig=None)
+    assert nobody.popen.returncode == 1 and "other rigs (class1, class2) left out" in "\n".join(nobody.errors)
+    for proc in nodes:
         assert proc.popen.poll() is None
 
 

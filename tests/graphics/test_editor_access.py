@@ -64,6 +64,23 @@ def test_a_page_on_the_nodes_machine_gets_the_editor_by_default(tmp_path: Path) 
     _run("local", tmp_path, body)
 
 
+@pytest.mark.parametrize("header", [{"X-Forwarded-For": "192.168.1.57"}, {"Forwarded": "for=192.168.1.57"},
+                                    {"X-Real-IP": "192.168.1.57"}])
+def test_a_page_through_a_local_reverse_proxy_gets_the_view_only(tmp_path: Path, header: dict[str, str]) -> None:
+    """A proxy on the node's machine (nginx in front of the view) connects from loopback for a student's browser."""
+    async def body(server: ViewServer, host: str) -> None:
+        async with connect(f"ws://{host}/ws", additional_headers=header) as ws:
+            told = await _until(ws, "editor")
+            assert told["enabled"] is False and "view only" in told["reason"]
+            await ws.send(json.dumps({"type": "save_kit", "file": "mine.yaml",
+                                      "kit": load_kit().model_dump(mode="json")}))
+            assert (await _until(ws, "saved"))["ok"] is False
+        assert server.counters["edits_refused"] == 1
+        assert not (tmp_path / "mine.yaml").exists()
+
+    _run("local", tmp_path, body)
+
+
 def test_editor_off_refuses_every_page_and_writes_nothing(tmp_path: Path) -> None:
     async def body(server: ViewServer, host: str) -> None:
         async with connect(f"ws://{host}/ws") as ws:
