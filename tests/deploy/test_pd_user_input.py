@@ -9,7 +9,7 @@ import importlib
 import re
 import sys
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import Any
 
 import pytest
 
@@ -25,6 +25,7 @@ from common.messages.sound import SoundDamping, SoundModel
 from common.runtime import Node
 from tests.deploy.pdrun import PD_DIR, PdProcess, Recorder, of, require_pd, services
 from tests.ports import free_port
+from tests.recording_core import RecordingCore
 from tests.waiting import until, wait_for
 
 pytestmark = pytest.mark.timeout(120)
@@ -137,23 +138,6 @@ class Arrivals(Recorder):
         return super().handle(message, now, source)
 
 
-class Silent:
-    """A sound-role core that answers nothing (the node still answers clock pings)."""
-
-    ROLE: ClassVar[str] = "sound"
-    rate_hz = 0.0
-
-    def __init__(self) -> None:
-        self.handled: list[OscMessage] = []
-
-    def handle(self, message: OscMessage, now: float, source: str) -> list[Outgoing]:
-        self.handled.append(message)
-        return []
-
-    def step(self, now: float) -> list[Outgoing]:
-        return []
-
-
 def node_for(core: Any, role: str) -> Node:
     return Node(core, load_settings({"role": role, "discovery": False,  # type: ignore[arg-type]
                                      "clock_master": "self", "oscquery": False}))
@@ -189,7 +173,7 @@ def test_a_strike_the_service_would_refuse_is_refused_by_the_abstraction_with_it
     sending, prints each refusal as ``batteur-strike-bad`` with the reason, and sends nothing of it: only the
     good strike reaches the service. ``[batteur-strike 0 any]`` lets a name of a kit of your own through."""
     require_pd()
-    core = Silent()
+    core = RecordingCore("sound")
 
     async def main() -> PdProcess:
         node = node_for(core, "sound")
@@ -260,7 +244,7 @@ def test_a_clock_given_another_node_moves_there_and_one_unanswered_warns(tmp_pat
     dead = free_port()  # nothing listens: its pings go unanswered
 
     async def main() -> PdProcess:
-        node = node_for(Silent(), "sound")
+        node = node_for(RecordingCore("sound"), "sound")
         await node.start()
         try:
             assert node.endpoint is not None
