@@ -73,7 +73,10 @@ def _stream(core: SoundCore, per_block: int, before: bool) -> float:
     return (time.perf_counter() - t0) / (core.now - a0)
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
+    import argparse
+
+    argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter).parse_args(argv)
     core = _core()
     try:
         core.step(0.1)

@@ -28,7 +28,7 @@ pytestmark = pytest.mark.timeout(120)
 HEALTH = Health(node_id="fake-1", role="sound", protocol=1, time=1.5, rate_hz=187.0, target_rate_hz=187.5,
                 overruns=0, messages_in=1, messages_out=1, dropped=3, dropped_malformed=0, dropped_unknown=0,
                 dropped_type=0, dropped_range=0, dropped_other=3, late=0, peers=3, errors=5, duplicates=24,
-                wrong_node_unanswered=7, skipped_steps=9)
+                wrong_node_unanswered=7, skipped_steps=9, discovery=1)
 
 
 class FailingCore:
@@ -92,8 +92,8 @@ def test_ls_shows_the_errors(capsys: pytest.CaptureFixture[str]) -> None:
         assert (row["errors"], row["duplicates"]) == (5, 24)
         assert ls.main(["--node", f"127.0.0.1:{node.port}", "--timeout", "3"]) == 0
         header, line = capsys.readouterr().out.splitlines()[:2]
-        # after the status: rate/target Hz, late, skipped, dropped (the header's "node id" and "rate/target Hz" two
+        # after the rig and the status: rate/target Hz, late, skipped, dropped (the header's "node id" and "rate/target Hz" two
         # words)
-        assert header.split()[10] == "errors" and line.split()[8] == "5"
+        assert header.split()[11] == "errors" and line.split()[9] == "5"
     finally:
         node.close()
