@@ -15,6 +15,7 @@ import pytest
 
 from batteur import cli
 from batteur.calibration import Calibration
+from batteur.evaluate import table_legend
 
 Main = Callable[[Sequence[str] | None], int]
 MIDI = Path(__file__).resolve().parents[1] / "data" / "groove_drummer6_s3_1_rock_90_beat_4-4.mid"
@@ -234,7 +235,7 @@ def test_evaluate_s_calibration_that_cannot_be_written_after_the_renders_is_1(
     monkeypatch.setattr("batteur.calibration.fit_calibration", lambda *args, **kwargs: Calibration())
     assert evaluated([files["missing_mid"], "--fit-calibration", "/dev/full"]) == 1  # was a traceback
     out, err = capsys.readouterr()
-    assert out == "THE TABLE\n"  # the figures measured are shown all the same
+    assert out == f"THE TABLE\n{table_legend()}\n"  # the figures measured are shown all the same
     assert err == "batteur evaluate: error: --fit-calibration /dev/full: cannot write it (No space left on device)\n"
 
 
@@ -250,7 +251,7 @@ def test_evaluate_s_plots_that_cannot_be_written_after_the_renders_are_1(
     monkeypatch.setattr("batteur.evaluate.plot_result", read_only)
     assert evaluated([files["missing_mid"], "--plots", str(plots)]) == 1  # was a traceback
     out, err = capsys.readouterr()
-    assert out == "THE TABLE\n"
+    assert out == f"THE TABLE\n{table_legend()}\n"
     assert err == f"batteur evaluate: error: --plots {plots}: cannot write {png} (Permission denied)\n"
 
 
