@@ -207,15 +207,17 @@ def test_pd_sound_stops_on_its_compose_stop_signal_as_pid_1(tmp_path: Path) -> N
     # a private network namespace (loopback only) and PID namespace: exec makes Pd its PID 1
     script = "ip link set lo up && exec " + shlex.join(argv)
     proc = subprocess.Popen([unshare, "--net", "--pid", "--fork", "--kill-child", "sh", "-c", script],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     try:
-        lines: list[str] = []
+        said = b""
         assert proc.stderr is not None
-        while not any("batteur-listen" in line for line in lines):  # the patch prints it once it listens
+        # the pipe read as it comes (select, then os.read): a buffered readline kept a second line that came with
+        # the first (the take folder's, then the listening one) where select no longer saw it
+        while b"batteur-listen" not in said:  # the patch prints it once it listens
             ready, _, _ = select.select([proc.stderr], [], [], 30)
-            line = proc.stderr.readline() if ready else ""
-            assert line, f"Pd did not start listening: {''.join(lines)}"
-            lines.append(line)
+            chunk = os.read(proc.stderr.fileno(), 65536) if ready else b""
+            assert chunk, f"Pd did not start listening: {said.decode(errors='replace')}"
+            said += chunk
         pid1 = _child_of(proc.pid)
         assert pid1 is not None and _alive(pid1)
         os.kill(pid1, stop_signal)  # what `docker compose stop` sends to the container's PID 1
