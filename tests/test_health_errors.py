@@ -92,8 +92,8 @@ def test_ls_shows_the_errors(capsys: pytest.CaptureFixture[str]) -> None:
         assert (row["errors"], row["duplicates"]) == (5, 24)
         assert ls.main(["--node", f"127.0.0.1:{node.port}", "--timeout", "3"]) == 0
         header, line = capsys.readouterr().out.splitlines()[:2]
-        # after the rig and the status: rate/target Hz, late, skipped, dropped (the header's "node id" and "rate/target Hz" two
-        # words)
+        # after the rig and the status: rate/target Hz, late, skipped, dropped (the header's "node id" and
+        # "rate/target Hz" two words)
         assert header.split()[11] == "errors" and line.split()[9] == "5"
     finally:
         node.close()
