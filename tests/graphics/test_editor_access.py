@@ -22,8 +22,8 @@ import pytest
 from websockets.asyncio.client import connect
 
 from common.kit import load_kit
-from services.graphics.core import GraphicsCore, GraphicsSettings
 from services.graphics.server import ViewServer
+from tests.graphics.test_server import _run as run_view
 from tests.netns import Namespace, NetnsLab, NsProcess
 
 from .conftest import GraphicsNodeProcess, needs_browser, open_page
@@ -32,15 +32,7 @@ pytestmark = pytest.mark.timeout(120)
 
 
 def _run(editor: str, kit_dir: Path | None, body: Callable[[ViewServer, str], Awaitable[None]]) -> None:
-    async def main() -> None:
-        server = ViewServer(GraphicsCore(GraphicsSettings(latency=0.0, clock="rig")), kit_dir=kit_dir, editor=editor)
-        port = await server.start("127.0.0.1", 0)
-        try:
-            await body(server, f"127.0.0.1:{port}")
-        finally:
-            await server.close()
-
-    asyncio.run(main())
+    run_view(kit_dir, body, editor=editor)
 
 
 async def _until(ws: Any, kind: str) -> dict[str, Any]:

@@ -18,10 +18,12 @@ from services.graphics.core import GraphicsCore, GraphicsSettings
 from services.graphics.server import ViewServer
 
 
-def _run(kit_dir: Path | None, body: Callable[[ViewServer, str], Awaitable[None]]) -> None:
+def _run(kit_dir: Path | None, body: Callable[[ViewServer, str], Awaitable[None]], editor: str = "local") -> None:
+    """Run ``body(server, "127.0.0.1:PORT")`` against a view server on a free loopback port (``editor``: its
+    ``--editor``), then close it."""
     async def main() -> None:
         core = GraphicsCore(GraphicsSettings(latency=0.0, clock="rig"))
-        server = ViewServer(core, kit_dir=kit_dir)
+        server = ViewServer(core, kit_dir=kit_dir, editor=editor)
         port = await server.start("127.0.0.1", 0)
         try:
             await body(server, f"127.0.0.1:{port}")
